@@ -1,0 +1,1 @@
+"""Closed-form references (library code, tested on their own)."""

@@ -1,0 +1,121 @@
+"""Rigid indenters (asperities) and the rigid surface they form on a grid.
+
+The rigid surface is the union of the indenters: at each point the indenter nearest
+the body (lowest height) counts, and the cell belongs to it.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Sequence
+
+import numpy as np
+
+from .grid import Grid
+
+SHAPES = ("sphere", "paraboloid")
+
+
+@dataclass(frozen=True)
+class Asperity:
+    """One rigid indenter.
+
+    Parameters
+    ----------
+    x, y : float
+        Tip position, mm.
+    z : float
+        Tip recess, mm: the local approach is ``d - z`` (a larger z touches later).
+    R : float
+        Radius of curvature at the tip, mm (> 0).
+    shape : {"sphere", "paraboloid"}
+        ``"sphere"``: exact spherical cap ``z + R - sqrt(R^2 - r^2)`` (no material
+        beyond r = R); ``"paraboloid"``: ``z + r^2 / (2R)`` (Hertz's exact setting).
+    """
+
+    x: float
+    y: float
+    z: float
+    R: float
+    shape: str = "sphere"
+
+    def __post_init__(self) -> None:
+        for name in ("x", "y", "z", "R"):
+            v = getattr(self, name)
+            if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
+                raise ValueError(f"asperity.{name} must be a finite number (mm), got {v!r}")
+        if self.R <= 0:
+            raise ValueError(f"asperity.R must be > 0 (mm), got {self.R!r}")
+        if self.shape not in SHAPES:
+            raise ValueError(f"asperity.shape must be one of {SHAPES}, got {self.shape!r}")
+
+    def height(self, X: np.ndarray, Y: np.ndarray) -> np.ndarray:
+        """Indenter height above the lowest tip level at points (X, Y), mm.
+        ``inf`` where the indenter has no material (sphere, r >= R)."""
+        r2 = (np.asarray(X) - self.x) ** 2 + (np.asarray(Y) - self.y) ** 2
+        if self.shape == "paraboloid":
+            return self.z + r2 / (2.0 * self.R)
+        R2 = self.R * self.R
+        inside = r2 < R2
+        # R - sqrt(R^2 - r^2) written as r^2 / (R + sqrt(R^2 - r^2)) to avoid cancellation
+        with np.errstate(invalid="ignore"):
+            cap = r2 / (self.R + np.sqrt(np.where(inside, R2 - r2, 0.0)))
+        return np.where(inside, self.z + cap, np.inf)
+
+    def reach(self, depth: float) -> float:
+        """Radius (mm) within which the indenter is less than ``depth`` above its tip:
+        the farthest a contact can extend when the local approach is ``depth``."""
+        if depth <= 0:
+            return 0.0
+        if self.shape == "paraboloid":
+            return math.sqrt(2.0 * self.R * depth)
+        if depth >= self.R:
+            return self.R
+        return math.sqrt(depth * (2.0 * self.R - depth))
+
+
+@dataclass(frozen=True)
+class Tilt:
+    """Small rotation of the indenting surface about a pivot (ball-and-socket joint).
+
+    The surface height becomes ``z(x, y) + beta (x - px) + alpha (y - py)`` (METHOD.md
+    section 2): ``alpha`` about x, ``beta`` about y, radians; pivot ``(px, py)`` in mm.
+    """
+
+    alpha: float = 0.0
+    beta: float = 0.0
+    pivot: tuple[float, float] = (0.0, 0.0)
+
+    def height(self, X, Y):
+        return self.beta * (np.asarray(X) - self.pivot[0]) + self.alpha * (np.asarray(Y) - self.pivot[1])
+
+
+@dataclass(frozen=True)
+class Surface:
+    """Rigid surface sampled at the cell centres of a grid.
+
+    Attributes
+    ----------
+    grid : Grid
+    height : (ny, nx) array, mm; ``inf`` where no indenter has material.
+    owner : (ny, nx) int array; index of the indenter nearest the body, -1 if none.
+    """
+
+    grid: Grid
+    height: np.ndarray
+    owner: np.ndarray
+
+
+def surface_on(grid: Grid, asperities: Sequence[Asperity], tilt: Tilt | None = None) -> Surface:
+    """Sample the union of ``asperities`` (optionally tilted) at the cell centres."""
+    X, Y = grid.centres()
+    height = np.full(grid.shape, np.inf)
+    owner = np.full(grid.shape, -1, dtype=np.int64)
+    for k, a in enumerate(asperities):
+        hk = a.height(X, Y)
+        better = hk < height
+        height[better] = hk[better]
+        owner[better] = k
+    if tilt is not None:
+        height = height + tilt.height(X, Y)
+    return Surface(grid, height, owner)

@@ -1,0 +1,8 @@
+"""Influence providers: "displacement here from pressure there".
+
+Every solver takes an :class:`InfluenceProvider` and never knows which body it has.
+"""
+from .base import InfluenceProvider, GridOperator
+from .halfspace import HalfSpace
+
+__all__ = ["InfluenceProvider", "GridOperator", "HalfSpace"]

@@ -1,0 +1,102 @@
+"""The influence-provider contract.
+
+An influence provider answers three questions, all about the vertical surface
+displacement ``u`` (mm, positive into the body) of the elastic body:
+
+* point-to-point compliance (macro step): ``u`` at tip ``k`` per unit point force (N)
+  at tip ``l``, :meth:`InfluenceProvider.point_compliance`;
+* cell-to-cell blocks (micro step): ``u`` at the centre of cell ``i`` per unit uniform
+  pressure (MPa) on the square cell ``j`` of side ``h``,
+  :meth:`InfluenceProvider.cell_block` (arbitrary cells) and
+  :meth:`InfluenceProvider.grid_matrix` (aligned grids, fast path);
+* fast products on aligned grids, :meth:`InfluenceProvider.grid_operator`, which
+  returns a :class:`GridOperator` applying the same matrix without forming it.
+
+All three describe the same linear map; providers must keep them consistent
+(tests check ``grid_operator`` against ``grid_matrix`` against ``cell_block``).
+"""
+from __future__ import annotations
+
+from abc import ABC, abstractmethod
+
+import numpy as np
+
+from ..grid import Grid
+
+
+class GridOperator(ABC):
+    """Linear map from pressure on the ``source`` grid to displacement on ``target``.
+
+    ``apply(p)`` takes an array of shape ``source.shape`` (MPa) and returns one of
+    shape ``target.shape`` (mm). Operators are immutable: they hold precomputed
+    transforms, never solutions.
+    """
+
+    target: Grid
+    source: Grid
+
+    @abstractmethod
+    def apply(self, p: np.ndarray) -> np.ndarray:
+        """Displacement on the target grid, mm, from pressure ``p`` on the source grid, MPa."""
+
+    def __call__(self, p: np.ndarray) -> np.ndarray:
+        return self.apply(p)
+
+    @property
+    def flops_estimate(self) -> float:
+        """Rough cost of one :meth:`apply` in floating-point operations."""
+        return float(self.target.size * self.source.size)
+
+
+class InfluenceProvider(ABC):
+    """Compliance of an elastic body's surface; see the module docstring."""
+
+    #: Short name used in results and files ("halfspace", "block", ...).
+    kind: str = "abstract"
+
+    @abstractmethod
+    def point_compliance(self, targets: np.ndarray, sources: np.ndarray) -> np.ndarray:
+        """Displacement at ``targets`` per unit normal point force at ``sources``.
+
+        Parameters
+        ----------
+        targets : (M, 2) array, mm
+        sources : (N, 2) array, mm
+
+        Returns
+        -------
+        (M, N) array, mm/N. Coincident points give ``inf`` (the point-force
+        displacement is singular); callers use the off-diagonal part only.
+        """
+
+    @abstractmethod
+    def cell_block(self, targets: np.ndarray, sources: np.ndarray, h: float) -> np.ndarray:
+        """Displacement at cell centres ``targets`` per unit uniform pressure on the
+        square cells of side ``h`` centred at ``sources``.
+
+        Parameters
+        ----------
+        targets : (M, 2) array, mm
+        sources : (N, 2) array, mm
+        h : float, mm
+
+        Returns
+        -------
+        (M, N) array, mm/MPa.
+        """
+
+    def grid_matrix(self, target: Grid, source: Grid | None = None) -> np.ndarray:
+        """Dense block between two aligned grids, shape ``(target.size, source.size)``,
+        rows and columns in row-major cell order (x fastest). mm/MPa."""
+        source = target if source is None else source
+        return self.cell_block(target.points(), source.points(), target.h)
+
+    @abstractmethod
+    def grid_operator(self, target: Grid, source: Grid | None = None) -> GridOperator:
+        """Fast product from pressure on ``source`` (default: ``target``) to
+        displacement on ``target``; both grids must share ``h`` and lattice."""
+
+    def self_compliance(self, h: float, at: tuple[float, float] = (0.0, 0.0)) -> float:
+        """Displacement at a cell centre per unit pressure on that cell, mm/MPa."""
+        pt = np.asarray([at], dtype=float)
+        return float(self.cell_block(pt, pt, h)[0, 0])

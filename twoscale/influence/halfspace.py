@@ -1,0 +1,102 @@
+"""The elastic half-space: Boussinesq point compliance, Love cell blocks, FFT products."""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+import scipy.fft as sfft
+
+from ..analytic.halfspace import boussinesq_point, love_rectangle
+from ..grid import Grid
+from ..material import Material
+from .base import GridOperator, InfluenceProvider
+
+
+def _pairwise(targets: np.ndarray, sources: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    t = np.asarray(targets, dtype=float).reshape(-1, 2)
+    s = np.asarray(sources, dtype=float).reshape(-1, 2)
+    return t[:, None, 0] - s[None, :, 0], t[:, None, 1] - s[None, :, 1]
+
+
+@dataclass(frozen=True)
+class HalfSpace(InfluenceProvider):
+    """Homogeneous isotropic elastic half-space (Boussinesq, Love).
+
+    Parameters
+    ----------
+    material : Material
+        E (MPa) and nu of the body; only ``E* = E / (1 - nu^2)`` matters.
+    """
+
+    material: Material
+    kind: str = field(default="halfspace", init=False)
+
+    @property
+    def E_star(self) -> float:
+        return self.material.E_star
+
+    def point_compliance(self, targets, sources):
+        dx, dy = _pairwise(targets, sources)
+        return boussinesq_point(np.hypot(dx, dy), self.E_star)
+
+    def cell_block(self, targets, sources, h):
+        dx, dy = _pairwise(targets, sources)
+        return love_rectangle(dx, dy, 0.5 * h, 0.5 * h, self.E_star)
+
+    # The half-space kernel depends only on the lattice offset between cells, so
+    # dense blocks and fast products on aligned grids are built from one table of
+    # Love values over the offsets that occur.
+    def _offset_table(self, target: Grid, source: Grid):
+        ti, tj = target.offset_in(source)
+        ox0, oy0 = ti - (source.nx - 1), tj - (source.ny - 1)
+        mx, my = target.nx + source.nx - 1, target.ny + source.ny - 1
+        ox = (ox0 + np.arange(mx)) * source.h
+        oy = (oy0 + np.arange(my)) * source.h
+        table = love_rectangle(ox[None, :], oy[:, None], 0.5 * source.h, 0.5 * source.h, self.E_star)
+        return table, ox0, oy0
+
+    def grid_matrix(self, target: Grid, source: Grid | None = None) -> np.ndarray:
+        source = target if source is None else source
+        table, ox0, oy0 = self._offset_table(target, source)
+        ti, tj = target.offset_in(source)
+        # offset index of (target cell (jt,it), source cell (js,is)) = (ti+it-is-ox0, tj+jt-js-oy0)
+        it = np.tile(np.arange(target.nx), target.ny)
+        jt = np.repeat(np.arange(target.ny), target.nx)
+        is_ = np.tile(np.arange(source.nx), source.ny)
+        js = np.repeat(np.arange(source.ny), source.nx)
+        ix = (ti + it - ox0)[:, None] - is_[None, :]
+        iy = (tj + jt - oy0)[:, None] - js[None, :]
+        return table[iy, ix]
+
+    def grid_operator(self, target: Grid, source: Grid | None = None) -> "ConvolutionOperator":
+        source = target if source is None else source
+        table, _, _ = self._offset_table(target, source)
+        return ConvolutionOperator(target, source, table)
+
+
+class ConvolutionOperator(GridOperator):
+    """Zero-padded (non-periodic) FFT convolution with a translation-invariant kernel.
+
+    ``table[m, n]`` is the kernel at lattice offset ``(oy0 + m, ox0 + n)`` between a
+    target and a source cell, covering every offset that occurs; the product is then
+    exactly the linear convolution, computed in ``O(n log n)``.
+    """
+
+    def __init__(self, target: Grid, source: Grid, table: np.ndarray):
+        self.target, self.source = target, source
+        my, mx = table.shape
+        self._shape = (sfft.next_fast_len(my, real=True), sfft.next_fast_len(mx, real=True))
+        self._khat = sfft.rfft2(table, s=self._shape)
+
+    def apply(self, p: np.ndarray) -> np.ndarray:
+        p = np.asarray(p, dtype=float)
+        if p.shape != self.source.shape:
+            raise ValueError(f"pressure has shape {p.shape}, expected {self.source.shape}")
+        c = sfft.irfft2(sfft.rfft2(p, s=self._shape) * self._khat, s=self._shape)
+        sy, sx = self.source.ny - 1, self.source.nx - 1
+        return c[sy:sy + self.target.ny, sx:sx + self.target.nx]
+
+    @property
+    def flops_estimate(self) -> float:
+        n = self._shape[0] * self._shape[1]
+        return 5.0 * n * np.log2(max(n, 2))
