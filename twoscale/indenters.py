@@ -99,11 +99,14 @@ class Surface:
     grid : Grid
     height : (ny, nx) array, mm; ``inf`` where no indenter has material.
     owner : (ny, nx) int array; index of the indenter nearest the body, -1 if none.
+    n_asperities : int
+        Number of indenters in the scene (some may own no cell).
     """
 
     grid: Grid
     height: np.ndarray
     owner: np.ndarray
+    n_asperities: int
 
 
 def surface_on(grid: Grid, asperities: Sequence[Asperity], tilt: Tilt | None = None) -> Surface:
@@ -118,4 +121,4 @@ def surface_on(grid: Grid, asperities: Sequence[Asperity], tilt: Tilt | None = N
         owner[better] = k
     if tilt is not None:
         height = height + tilt.height(X, Y)
-    return Surface(grid, height, owner)
+    return Surface(grid, height, owner, len(asperities))

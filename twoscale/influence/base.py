@@ -22,6 +22,7 @@ from abc import ABC, abstractmethod
 import numpy as np
 
 from ..grid import Grid
+from ..material import Material
 
 
 class GridOperator(ABC):
@@ -53,6 +54,8 @@ class InfluenceProvider(ABC):
 
     #: Short name used in results and files ("halfspace", "block", ...).
     kind: str = "abstract"
+    #: The body's material (E in MPa, nu); the half-space part of any body.
+    material: Material
 
     @abstractmethod
     def point_compliance(self, targets: np.ndarray, sources: np.ndarray) -> np.ndarray:
@@ -95,6 +98,16 @@ class InfluenceProvider(ABC):
     def grid_operator(self, target: Grid, source: Grid | None = None) -> GridOperator:
         """Fast product from pressure on ``source`` (default: ``target``) to
         displacement on ``target``; both grids must share ``h`` and lattice."""
+
+    def smooth_self_compliance(self, points: np.ndarray) -> np.ndarray:
+        """Regular part of the point compliance at coincident points, mm/N, shape (N,).
+
+        The point compliance is ``1/(pi E* r) + C(x, x')`` with ``C`` smooth; this
+        returns ``C(x_k, x_k)``. The macro step adds it to each asperity's own law
+        (an asperity on a finite block is stiffer or softer than on the half-space).
+        Zero for the half-space.
+        """
+        return np.zeros(len(np.asarray(points).reshape(-1, 2)))
 
     def self_compliance(self, h: float, at: tuple[float, float] = (0.0, 0.0)) -> float:
         """Displacement at a cell centre per unit pressure on that cell, mm/MPa."""
