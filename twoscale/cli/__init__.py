@@ -1,0 +1,1 @@
+"""Command line: ``twoscale <subcommand> ...`` (see :mod:`twoscale.cli.main`)."""

@@ -1,0 +1,62 @@
+"""Entry point of the ``twoscale`` command.
+
+Each subcommand is a module of this package exposing ``add_arguments(parser)`` and
+``run(args) -> int``. ``solve`` is always present; optional subcommands (``paper``,
+``compare``) are registered when their module exists.
+
+Exit codes: 0 success; 1 the solve ran but did not converge (result written with
+``converged = false``); 2 bad input (one ``error: ...`` line on stderr, nothing written).
+"""
+from __future__ import annotations
+
+import argparse
+import importlib
+import importlib.util
+import sys
+from typing import Sequence
+
+from .._version import __version__
+
+#: Subcommands: (name, module, required). Optional ones appear when their module exists.
+SUBCOMMANDS = (
+    ("solve", "twoscale.cli.solve", True),
+    ("paper", "twoscale.cli.paper", False),
+    ("compare", "twoscale.cli.compare", False),
+)
+
+
+def _available_subcommands():
+    for name, module, required in SUBCOMMANDS:
+        if required or importlib.util.find_spec(module) is not None:
+            # a module that exists but fails to import is a bug: let it raise
+            yield name, importlib.import_module(module)
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The argument parser with every available subcommand."""
+    parser = argparse.ArgumentParser(
+        prog="twoscale",
+        description="Two-scale multi-asperity contact on elastic bodies (units mm, N, MPa).")
+    parser.add_argument("--version", action="version", version=f"twoscale {__version__}")
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND")
+    sub.required = True
+    for name, module in _available_subcommands():
+        doc = (module.__doc__ or name).strip().splitlines()[0]
+        p = sub.add_parser(name, help=doc, description=doc)
+        module.add_arguments(p)
+        p.set_defaults(_run=module.run)
+    return parser
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Run the command line with ``argv`` (default ``sys.argv[1:]``); return the exit code."""
+    parser = build_parser()
+    try:
+        args = parser.parse_args(argv)
+    except SystemExit as exc:  # argparse reports usage errors (code 2) and --help (code 0) this way
+        return exc.code if isinstance(exc.code, int) else 2
+    return int(args._run(args))
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(main())

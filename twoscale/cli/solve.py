@@ -1,0 +1,96 @@
+"""Solve a scene file; print a summary and write DIR/result.json.
+
+``twoscale solve SCENE.toml [--method twoscale|reference] [--out DIR] [--h H] [--quiet]``
+
+Exit codes: 0 converged; 1 not converged (result.json still written, with
+``converged = false`` and the solver's message); 2 bad input (one ``error: ...`` line
+on stderr naming the field and the value; nothing written, DIR not created).
+Without ``--out`` nothing is written.
+"""
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import math
+import sys
+import time
+
+from ..io.result_json import result_to_dict, write_result
+from ..io.scene_file import read_scene
+from ..scene import METHODS, SceneError, solve_scene
+
+#: Asperity rows printed in the summary before it is cut short.
+MAX_ROWS = 30
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """Arguments of ``twoscale solve``."""
+    parser.add_argument("scene", metavar="SCENE.toml", help="scene file (TOML; units mm, N, MPa)")
+    parser.add_argument("--method", choices=METHODS, default="twoscale",
+                        help="two-scale solver (default) or classical reference solver on the full grid")
+    parser.add_argument("--out", metavar="DIR", default=None,
+                        help="write DIR/result.json (DIR created after a successful solve)")
+    parser.add_argument("--h", metavar="H", default=None,
+                        help="cell size in mm, overriding [grid] h of the scene")
+    parser.add_argument("--quiet", action="store_true", help="print nothing but errors")
+
+
+def _cell_size(text: str | None) -> float | None:
+    if text is None:
+        return None
+    try:
+        h = float(text)
+    except ValueError:
+        h = math.nan
+    if not (math.isfinite(h) and h > 0):
+        raise SceneError(f"--h must be a finite number > 0 (mm), got {text!r}")
+    return h
+
+
+def run(args: argparse.Namespace) -> int:
+    """Run ``twoscale solve``; returns the exit code (0, 1 or 2, see module doc)."""
+    try:
+        scene = read_scene(args.scene)
+        h = _cell_size(args.h)
+        if h is not None:
+            scene = dataclasses.replace(scene, h=h)
+        t0 = time.perf_counter()
+        result = solve_scene(scene, method=args.method)
+        wall = time.perf_counter() - t0
+    except ValueError as exc:  # SceneError and solver input checks
+        print(f"error: {exc}", file=sys.stderr)
+        return 2
+    path = write_result(result, scene, args.out, method=args.method) if args.out is not None else None
+    if not args.quiet:
+        print(summary(result_to_dict(result, scene, method=args.method), args.scene, wall, path))
+    if not result.converged:
+        print(f"warning: the solve did not converge: {result.message}", file=sys.stderr)
+        return 1
+    return 0
+
+
+def summary(res: dict, scene_path: str, wall: float, path) -> str:
+    """A short human-readable summary of a result.json dict."""
+    iters = ", ".join(f"{k} {v}" for k, v in res["iterations"].items()) or "-"
+    lines = [
+        f"twoscale solve {scene_path}: method {res['method']} ({res['solver']})",
+        f"  converged    {'yes' if res['converged'] else 'NO: ' + res['message']} (iterations: {iters})",
+        f"  penetration  {res['penetration']:.6g} mm",
+        f"  total load   {res['total_load']:.6g} N",
+    ]
+    if res["tilt"] is not None:
+        lines.append(f"  tilt         alpha {res['tilt'][0]:.4g} rad, beta {res['tilt'][1]:.4g} rad")
+    lines.append(f"  cell size    h = {res['h']:.6g} mm ({res['h_source']}), {res['n_cells']} cells")
+    macro = any("macro_force" in a for a in res["asperities"])
+    lines.append("  asperity      force N   area mm^2  p_max MPa" + ("   macro N" if macro else ""))
+    for k, a in enumerate(res["asperities"][:MAX_ROWS]):
+        row = f"  {k:8d} {a['force']:11.5g} {a['contact_area']:11.5g} {a['max_pressure']:10.5g}"
+        if macro:
+            row += f" {a['macro_force']:9.5g}"
+        lines.append(row)
+    if len(res["asperities"]) > MAX_ROWS:
+        lines.append(f"  ... {len(res['asperities']) - MAX_ROWS} more in result.json")
+    lines.append(f"  time         {wall:.3g} s")
+    if path is not None:
+        lines.append(f"  wrote        {path}")
+    return "\n".join(lines)

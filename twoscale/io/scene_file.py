@@ -1,0 +1,163 @@
+"""Scene files (TOML; units mm, N, MPa): read, validate, and turn back into a dict.
+
+The format (see README.md)::
+
+    [material]            E (MPa, > 0), nu (-1 < nu <= 0.5)           required
+    [load]                exactly one of penetration (mm) / total (N)  required
+                          tilt = true (with total only), pivot = [x, y] (mm, with tilt)
+    [grid]                h (mm, > 0)                                  optional
+    [influence]           kind = "halfspace" | "block" (+ size, base, origin for "block")
+    [[asperity]]          x, y (mm), R (mm, > 0) required; z (mm) default 0;
+                          shape = "sphere" (default) | "paraboloid"
+
+Every problem raises :class:`SceneError` (a ``ValueError``) with a one-line message
+naming the field path (``asperity[3].R``; asperities counted from 0 in file order) and
+the bad value. Unknown keys are errors, never ignored.
+"""
+from __future__ import annotations
+
+import os
+from typing import Any, Mapping
+
+from ..indenters import SHAPES, Asperity
+from ..material import Material
+from ..scene import Scene, SceneError, check_number
+
+try:  # Python >= 3.11
+    import tomllib
+except ModuleNotFoundError:  # pragma: no cover - Python 3.10
+    import tomli as tomllib
+
+__all__ = ["SceneError", "read_scene", "scene_from_dict", "scene_to_dict"]
+
+TOP_KEYS = ("material", "load", "grid", "influence", "asperity")
+MATERIAL_KEYS = ("E", "nu")
+LOAD_KEYS = ("penetration", "total", "tilt", "pivot")
+GRID_KEYS = ("h",)
+ASPERITY_KEYS = ("x", "y", "z", "R", "shape")
+
+
+def read_scene(path: str | os.PathLike) -> Scene:
+    """Read and validate a scene file.
+
+    Parameters
+    ----------
+    path : str or path-like
+        TOML scene file.
+
+    Returns
+    -------
+    Scene
+
+    Raises
+    ------
+    SceneError
+        File missing or unreadable, invalid TOML, or invalid content; the message
+        starts with the file name and names the field and the value.
+    """
+    try:
+        with open(path, "rb") as fh:
+            data = tomllib.load(fh)
+    except FileNotFoundError:
+        raise SceneError(f"scene file not found: {os.fspath(path)!r}") from None
+    except IsADirectoryError:
+        raise SceneError(f"scene file is a directory: {os.fspath(path)!r}") from None
+    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
+        raise SceneError(f"{os.fspath(path)}: invalid TOML: {exc}") from None
+    try:
+        return scene_from_dict(data)
+    except SceneError as exc:
+        raise SceneError(f"{os.fspath(path)}: {exc}") from None
+
+
+def scene_from_dict(data: Mapping[str, Any]) -> Scene:
+    """Validate a scene given as nested dicts (the parsed TOML) and build a :class:`Scene`."""
+    _check_keys("", data, TOP_KEYS, required=("material", "load", "asperity"))
+    material = _material(_table("material", data["material"]))
+    asperities = tuple(_asperity(f"asperity[{k}]", t) for k, t in enumerate(_tables("asperity", data["asperity"])))
+    load = _table("load", data["load"])
+    _check_keys("load", load, LOAD_KEYS)
+    grid = _table("grid", data.get("grid", {}))
+    _check_keys("grid", grid, GRID_KEYS)
+    influence = _table("influence", data.get("influence", {}))
+    return Scene(material=material, asperities=asperities,
+                 penetration=load.get("penetration"), total_load=load.get("total"),
+                 tilt=load.get("tilt", False), pivot=load.get("pivot", (0.0, 0.0)),
+                 h=grid.get("h"), influence=dict(influence) or None)
+
+
+def scene_to_dict(scene: Scene) -> dict:
+    """The scene as nested dicts in the file's layout (JSON/TOML-ready; floats, lists).
+
+    ``scene_from_dict(scene_to_dict(s)) == s``.
+    """
+    load: dict[str, Any] = {}
+    if scene.penetration is not None:
+        load["penetration"] = float(scene.penetration)
+    else:
+        load["total"] = float(scene.total_load)
+    if scene.tilt:
+        load["tilt"] = True
+        load["pivot"] = [float(v) for v in scene.pivot]
+    out: dict[str, Any] = {
+        "material": {"E": float(scene.material.E), "nu": float(scene.material.nu)},
+        "load": load,
+    }
+    if scene.h is not None:
+        out["grid"] = {"h": float(scene.h)}
+    out["influence"] = {k: (list(v) if isinstance(v, tuple) else v) for k, v in scene.influence.items()}
+    out["asperity"] = [{"x": float(a.x), "y": float(a.y), "z": float(a.z), "R": float(a.R), "shape": a.shape}
+                       for a in scene.asperities]
+    return out
+
+
+# ---------------------------------------------------------------- helpers
+def _where(path: str, key: str) -> str:
+    return f"{path}.{key}" if path else key
+
+
+def _check_keys(path: str, table: Mapping, allowed, *, required=()) -> None:
+    for key in table:
+        if key not in allowed:
+            raise SceneError(f"unknown key {_where(path, key)} = {table[key]!r} "
+                             f"(allowed: {', '.join(allowed)})")
+    for key in required:
+        if key not in table:
+            raise SceneError(f"{_where(path, key)} is missing (required)")
+
+
+def _table(path: str, v: Any) -> Mapping:
+    if not isinstance(v, Mapping):
+        raise SceneError(f"{path} must be a table, got {v!r}")
+    return v
+
+
+def _tables(path: str, v: Any) -> list:
+    if not isinstance(v, list):
+        raise SceneError(f"{path} must be an array of tables ([[{path}]]), got {v!r}")
+    if not v:
+        raise SceneError(f"{path} list is empty, got [] (a scene needs at least one [[{path}]])")
+    for k, t in enumerate(v):
+        _table(f"{path}[{k}]", t)
+    return v
+
+
+def _material(t: Mapping) -> Material:
+    _check_keys("material", t, MATERIAL_KEYS, required=MATERIAL_KEYS)
+    E = check_number("material.E", t["E"], positive=True, unit="MPa")
+    nu = check_number("material.nu", t["nu"])
+    if not -1.0 < nu <= 0.5:
+        raise SceneError(f"material.nu must satisfy -1 < nu <= 0.5, got {t['nu']!r}")
+    return Material(E, nu)
+
+
+def _asperity(path: str, t: Mapping) -> Asperity:
+    _check_keys(path, t, ASPERITY_KEYS, required=("x", "y", "R"))
+    x = check_number(f"{path}.x", t["x"], unit="mm")
+    y = check_number(f"{path}.y", t["y"], unit="mm")
+    z = check_number(f"{path}.z", t.get("z", 0.0), unit="mm")
+    R = check_number(f"{path}.R", t["R"], positive=True, unit="mm")
+    shape = t.get("shape", "sphere")
+    if shape not in SHAPES:
+        raise SceneError(f"{path}.shape must be one of {', '.join(SHAPES)}, got {shape!r}")
+    return Asperity(x, y, z, R, shape)

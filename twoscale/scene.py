@@ -1,0 +1,419 @@
+"""A scene: the body, the indenters and the load, as plain validated data.
+
+:class:`Scene` holds the same fields as the scene file (``twoscale.io.scene_file``);
+the library reads no files itself. :func:`solve_scene` turns a scene into a solver
+call: the two-scale solver (``method="twoscale"``) or the classical reference solver
+on a full grid (``method="reference"``). Units: mm, N, MPa.
+
+Invalid data raise :class:`SceneError` (a ``ValueError``) whose one-line message names
+the field by its path in the scene file (``load.total``, ``asperity[3].R``; asperities
+are counted from 0 in file order) and the bad value.
+"""
+from __future__ import annotations
+
+import dataclasses
+import math
+from dataclasses import dataclass, field
+from typing import Any, Mapping, Sequence
+
+import numpy as np
+
+from .analytic import hertz
+from .grid import Grid
+from .indenters import Asperity, surface_on
+from .material import Material
+
+#: Influence kinds a scene may ask for.
+INFLUENCE_KINDS = ("halfspace", "block")
+#: Bases of the finite block (``fem_influence``): bonded (u = 0) or sliding (u_z = 0).
+BLOCK_BASES = ("bonded", "sliding")
+#: Default finite block (paper's rubber block): width x depth x thickness, mm.
+BLOCK_DEFAULT_SIZE = (140.0, 140.0, 20.0)
+#: Cells across the smallest expected contact diameter chosen by :func:`default_h`.
+CELLS_ACROSS = 32
+#: Asperities expected to carry less than this fraction of the total load are not
+#: resolved by :func:`default_h` (their contact would force a needlessly fine grid).
+MIN_FORCE_FRACTION = 0.01
+
+
+class SceneError(ValueError):
+    """Invalid scene data; the message names the field path and the bad value."""
+
+
+# ---------------------------------------------------------------- small validators
+def is_number(v: Any) -> bool:
+    """True for int/float (and numpy scalars) but not bool."""
+    return isinstance(v, (int, float, np.integer, np.floating)) and not isinstance(v, (bool, np.bool_))
+
+
+def check_number(path: str, v: Any, *, positive: bool = False, unit: str = "") -> float:
+    """Return ``float(v)`` or raise :class:`SceneError` naming ``path`` and ``v``."""
+    unit_txt = f" ({unit})" if unit else ""
+    if not is_number(v):
+        raise SceneError(f"{path} must be a number{unit_txt}, got {v!r}")
+    if not math.isfinite(v):
+        raise SceneError(f"{path} must be a finite number{unit_txt}, got {v!r}")
+    if positive and not v > 0:
+        raise SceneError(f"{path} must be > 0{unit_txt}, got {v!r}")
+    return float(v)
+
+
+def check_pair(path: str, v: Any, n: int = 2, *, positive: bool = False, unit: str = "") -> tuple:
+    """Return a tuple of ``n`` finite floats or raise naming ``path`` and ``v``."""
+    if isinstance(v, (str, bytes)) or not isinstance(v, (Sequence, np.ndarray)) or len(v) != n:
+        raise SceneError(f"{path} must be a list of {n} numbers, got {v!r}")
+    return tuple(check_number(f"{path}[{i}]", x, positive=positive, unit=unit) for i, x in enumerate(v))
+
+
+def normalise_influence(influence: Mapping | None) -> dict:
+    """Validated influence options with defaults filled in.
+
+    ``{"kind": "halfspace"}`` (default) or ``{"kind": "block", "size": (Lx, Ly, t) mm,
+    "base": "bonded" | "sliding", "origin": (x0, y0) mm}`` where ``origin`` is where the
+    scene's (0, 0) sits, measured from the centre of the block's top face.
+    """
+    if influence is None:
+        return {"kind": "halfspace"}
+    if not isinstance(influence, Mapping):
+        raise SceneError(f"influence must be a table, got {influence!r}")
+    kind = influence.get("kind", "halfspace")
+    if kind not in INFLUENCE_KINDS:
+        raise SceneError(f"influence.kind must be one of {INFLUENCE_KINDS}, got {kind!r}")
+    allowed = {"kind"} if kind == "halfspace" else {"kind", "size", "base", "origin"}
+    for key in influence:
+        if key not in allowed:
+            raise SceneError(f"influence.{key} is not a known key for kind = {kind!r} "
+                             f"(allowed: {sorted(allowed)}), got {influence[key]!r}")
+    if kind == "halfspace":
+        return {"kind": "halfspace"}
+    base = influence.get("base", "bonded")
+    if base not in BLOCK_BASES:
+        raise SceneError(f"influence.base must be one of {BLOCK_BASES}, got {base!r}")
+    return {
+        "kind": "block",
+        "size": check_pair("influence.size", influence.get("size", BLOCK_DEFAULT_SIZE), 3,
+                           positive=True, unit="mm"),
+        "base": base,
+        "origin": check_pair("influence.origin", influence.get("origin", (0.0, 0.0)), unit="mm"),
+    }
+
+
+# ---------------------------------------------------------------- the scene
+@dataclass(frozen=True)
+class Scene:
+    """Body, indenters and load: the content of a scene file.
+
+    Parameters
+    ----------
+    material : Material
+        E (MPa) and nu of the elastic body.
+    asperities : sequence of Asperity
+        The rigid indenters, in scene order (stored as a tuple; at least one; no two
+        tips at the same (x, y)).
+    penetration : float, optional
+        Rigid approach d, mm (displacement control). Exactly one of ``penetration``
+        and ``total_load``; it must exceed the lowest tip recess z so that something
+        touches.
+    total_load : float, optional
+        Total normal load, N (> 0; load control).
+    tilt : bool, default False
+        With ``total_load`` only: the load goes through a ball-and-socket joint and the
+        tilt angles (alpha about x, beta about y) are unknowns (paper eq. 11-12).
+    pivot : (float, float), default (0, 0)
+        Joint position, mm; only with ``tilt=True``.
+    h : float, optional
+        Micro-scale cell size, mm (> 0). ``None``: chosen by :func:`default_h`.
+    influence : mapping, optional
+        ``{"kind": "halfspace"}`` (default) or the finite block,
+        ``{"kind": "block", "size": (140, 140, 20), "base": "bonded", "origin": (0, 0)}``;
+        see :func:`normalise_influence`.
+
+    Raises
+    ------
+    SceneError
+        Naming the field path (as in the scene file) and the bad value.
+    """
+
+    material: Material
+    asperities: tuple
+    penetration: float | None = None
+    total_load: float | None = None
+    tilt: bool = False
+    pivot: tuple = (0.0, 0.0)
+    h: float | None = None
+    influence: dict = field(default_factory=lambda: {"kind": "halfspace"})
+
+    def __post_init__(self) -> None:
+        if not isinstance(self.material, Material):
+            raise SceneError(f"material must be a Material, got {self.material!r}")
+        self._check_asperities()
+        self._check_load()
+        if self.h is not None:
+            object.__setattr__(self, "h", check_number("grid.h", self.h, positive=True, unit="mm"))
+        object.__setattr__(self, "influence", normalise_influence(self.influence))
+
+    def _check_asperities(self) -> None:
+        if isinstance(self.asperities, (str, bytes)) or not isinstance(self.asperities, (Sequence, np.ndarray)):
+            raise SceneError(f"asperity must be a list of asperities, got {self.asperities!r}")
+        asps = tuple(self.asperities)
+        if not asps:
+            raise SceneError("asperity list is empty, got [] (a scene needs at least one [[asperity]])")
+        for k, a in enumerate(asps):
+            if not isinstance(a, Asperity):
+                raise SceneError(f"asperity[{k}] must be an Asperity, got {a!r}")
+        seen: dict[tuple[float, float], int] = {}
+        for k, a in enumerate(asps):
+            key = (a.x + 0.0, a.y + 0.0)  # + 0.0 folds -0.0 into 0.0
+            if key in seen:
+                raise SceneError(f"asperity[{k}] is at the same place (x, y) = ({a.x!r}, {a.y!r}) "
+                                 f"as asperity[{seen[key]}]; two tips cannot share a position")
+            seen[key] = k
+        object.__setattr__(self, "asperities", asps)
+
+    def _check_load(self) -> None:
+        d, W = self.penetration, self.total_load
+        if (d is None) == (W is None):
+            raise SceneError("load needs exactly one of load.penetration and load.total, got "
+                             f"penetration={d!r}, total={W!r}")
+        if not isinstance(self.tilt, (bool, np.bool_)):
+            raise SceneError(f"load.tilt must be true or false, got {self.tilt!r}")
+        object.__setattr__(self, "tilt", bool(self.tilt))
+        pivot = check_pair("load.pivot", self.pivot, unit="mm")
+        object.__setattr__(self, "pivot", pivot)
+        if d is not None:
+            d = check_number("load.penetration", d, unit="mm")
+            zmin = min(a.z for a in self.asperities)
+            if not d > zmin:
+                raise SceneError(f"load.penetration must exceed the lowest tip recess z = {zmin!r} mm "
+                                 f"(otherwise nothing touches), got {d!r}")
+            object.__setattr__(self, "penetration", d)
+            if self.tilt:
+                raise SceneError("load.tilt = true needs load.total (the tilt is solved from the "
+                                 f"moment balance under a given load), got penetration = {d!r}")
+        else:
+            object.__setattr__(self, "total_load", check_number("load.total", W, positive=True, unit="N"))
+        if not self.tilt and pivot != (0.0, 0.0):
+            raise SceneError(f"load.pivot is only used with load.tilt = true, got pivot = {list(pivot)!r}")
+
+    # ------------------------------------------------------------ derived data
+    @property
+    def tips(self) -> np.ndarray:
+        """Tip positions, shape (N, 2), mm."""
+        return np.array([[a.x, a.y] for a in self.asperities], dtype=float)
+
+    def provider(self):
+        """The influence provider the scene asks for (see ``twoscale.influence``).
+
+        Raises
+        ------
+        SceneError
+            For ``kind = "block"`` when the ``fem_influence`` package is not available.
+        """
+        from .influence import HalfSpace
+
+        opts = self.influence
+        if opts["kind"] == "halfspace":
+            return HalfSpace(self.material)
+        return _block_provider(self.material, opts)
+
+
+def _block_provider(material: Material, opts: Mapping):
+    try:
+        import fem_influence
+    except ImportError as exc:
+        raise SceneError(f"influence.kind = \"block\" needs the fem_influence package, which "
+                         f"cannot be imported ({exc}); use kind = \"halfspace\"") from exc
+    factory = getattr(fem_influence, "FiniteBlock", None) or getattr(fem_influence, "BlockProvider", None)
+    if factory is None:
+        raise SceneError("influence.kind = \"block\": fem_influence provides no FiniteBlock provider")
+    return factory(material, size=tuple(opts["size"]), base=opts["base"], origin=tuple(opts["origin"]))
+
+
+# ---------------------------------------------------------------- the default cell size
+def _hertz_level(scene: Scene) -> float:
+    """Rigid approach d (mm) at which independent Hertz asperities (no interaction)
+    carry the scene's total load: the root of ``sum_k P_H(R_k, d - z_k) = W``."""
+    from scipy.optimize import brentq
+
+    E_star = scene.material.E_star
+    R = np.array([a.R for a in scene.asperities])
+    z = np.array([a.z for a in scene.asperities])
+    W = scene.total_load
+
+    def excess(d):
+        return float(np.sum(hertz.load(R, d - z, E_star))) - W
+
+    lo = float(z.min())
+    # the lowest asperity alone, with the smallest radius, carries W at this level
+    hi = lo + float(hertz.penetration(R.min(), W, E_star)) * (1 + 1e-9) + 1e-300
+    return brentq(excess, lo, hi, xtol=1e-14 * max(1.0, abs(hi)), rtol=1e-12)
+
+
+def expected_approaches(scene: Scene) -> np.ndarray:
+    """Estimated local approach of each asperity, mm, shape (N,): ``max(d - z_k, 0)``
+    with d the given penetration or, under load control, the level at which
+    independent Hertz asperities carry the load (tilt and interaction ignored;
+    interaction only lowers the approach, so these are upper estimates)."""
+    d = scene.penetration if scene.penetration is not None else _hertz_level(scene)
+    z = np.array([a.z for a in scene.asperities])
+    return np.maximum(d - z, 0.0)
+
+
+def expected_contact_radii(scene: Scene) -> np.ndarray:
+    """Contact radius of each asperity alone at its expected approach, mm: Hertz
+    ``sqrt(R delta)`` for paraboloids, the exact-sphere (Segedin) radius for spheres."""
+    delta = expected_approaches(scene)
+    return np.array([
+        float(hertz.sphere_contact_radius(a.R, dk)) if a.shape == "sphere" else float(hertz.contact_radius(a.R, dk))
+        for a, dk in zip(scene.asperities, delta)
+    ])
+
+
+def default_h(scene: Scene, *, cells_across: int = CELLS_ACROSS,
+              min_force_fraction: float = MIN_FORCE_FRACTION) -> float:
+    """Cell size (mm) chosen from the scene.
+
+    Rule: estimate each asperity's approach (:func:`expected_approaches`) and its
+    contact radius alone (:func:`expected_contact_radii`); among the asperities whose
+    Hertz force at that approach is at least ``min_force_fraction`` of the sum, take
+    the smallest contact diameter 2a and divide it by ``cells_across``; round down to
+    two significant digits. The approach estimate ignores interaction, which lowers
+    it, so the smallest resolved contact gets about 24-32 cells across.
+
+    Parameters
+    ----------
+    scene : Scene
+    cells_across : int, default 32
+        Cells across the smallest resolved contact diameter.
+    min_force_fraction : float, default 0.01
+        Asperities expected to carry less than this fraction of the load are not used
+        to choose h (they still get cells; only coarser).
+
+    Returns
+    -------
+    float
+        h, mm (> 0).
+    """
+    if scene.h is not None:
+        return scene.h
+    E_star = scene.material.E_star
+    delta = expected_approaches(scene)
+    force = np.array([float(hertz.load(a.R, dk, E_star)) for a, dk in zip(scene.asperities, delta)])
+    keep = (force > 0) & (force >= min_force_fraction * force.sum())
+    diameter = 2.0 * expected_contact_radii(scene)[keep].min()
+    return _round_down(diameter / cells_across, digits=2)
+
+
+def _round_down(x: float, *, digits: int) -> float:
+    """``x`` rounded down to ``digits`` significant digits (so a readable h never
+    gives fewer cells than asked)."""
+    e = math.floor(math.log10(x)) - (digits - 1)
+    scale = 10.0 ** e
+    q = math.floor(x / scale * (1 + 1e-12))
+    return float(f"{q * scale:.{digits}g}") if q > 0 else x
+
+
+# ---------------------------------------------------------------- solving
+METHODS = ("twoscale", "reference")
+
+
+def solve_scene(scene: Scene, *, method: str = "twoscale", **options):
+    """Solve a scene.
+
+    Parameters
+    ----------
+    scene : Scene
+    method : {"twoscale", "reference"}, default "twoscale"
+        ``"twoscale"``: :func:`twoscale.twoscale.solve_twoscale` (macro tip forces, then
+        micro pressure on one patch per asperity). ``"reference"``: the classical solver
+        :func:`twoscale.reference.solve_reference` on one grid covering every place
+        contact can reach (:func:`reference_grid`).
+    **options
+        Passed to the solver (e.g. ``tol``).
+
+    Returns
+    -------
+    ContactResult
+        The cell size used is ``result.fields[0].grid.h`` (``scene.h`` or
+        :func:`default_h`).
+    """
+    if method not in METHODS:
+        raise ValueError(f"method must be one of {METHODS}, got {method!r}")
+    h = default_h(scene)
+    provider = scene.provider()
+    if method == "twoscale":
+        from .twoscale import solve_twoscale
+
+        return solve_twoscale(provider, scene.asperities, h=h, penetration=scene.penetration,
+                              total_load=scene.total_load, tilt=scene.tilt, pivot=scene.pivot, **options)
+    return _solve_reference_scene(scene, provider, h, **options)
+
+
+def approach_bound(scene: Scene) -> float:
+    """Upper bound on the rigid approach d, mm.
+
+    Penetration control: d itself. Load control: ``z_min + delta_H(W) + W / (pi E* r_min)``,
+    where delta_H(W) is the Hertz penetration of the whole load on the lowest asperity
+    (on the smallest radius among the lowest tips) and the last term bounds the
+    displacement the other asperities add at its tip (r_min = smallest tip distance;
+    Boussinesq). On the half-space without tilt, no contact extends beyond
+    ``Asperity.reach(bound - z_k)``; otherwise the reference solve checks its edges.
+    """
+    if scene.penetration is not None:
+        return scene.penetration
+    W, E_star = scene.total_load, scene.material.E_star
+    z = np.array([a.z for a in scene.asperities])
+    lowest = [a for a in scene.asperities if a.z <= z.min()]
+    r_low = min(a.R for a in lowest)
+    bound = z.min() + float(hertz.penetration(r_low, W, E_star))
+    if len(scene.asperities) > 1:
+        tips = scene.tips
+        dist = np.hypot(tips[:, None, 0] - tips[None, :, 0], tips[:, None, 1] - tips[None, :, 1])
+        r_min = dist[~np.eye(len(tips), dtype=bool)].min()
+        bound += W / (math.pi * E_star * r_min)
+    return float(bound)
+
+
+def reference_grid(scene: Scene, h: float, *, grow: float = 1.0) -> Grid:
+    """Grid of cell size ``h`` covering every place contact can reach, plus a margin
+    of ``3 h + 5 %`` of each reach; ``grow`` scales the reach and margin (used when a
+    solve finds pressure on the grid edge). Cell centres lie on the lattice h Z^2
+    (a tip at the origin sits on a cell centre)."""
+    bound = approach_bound(scene)
+    boxes = []
+    for a in scene.asperities:
+        reach = a.reach(bound - a.z)
+        if reach <= 0:
+            continue
+        r = grow * (1.05 * reach + 3.0 * h)
+        boxes.append((a.x - r, a.x + r, a.y - r, a.y + r))
+    b = np.array(boxes)
+    return Grid.covering(b[:, 0].min(), b[:, 1].max(), b[:, 2].min(), b[:, 3].max(), h)
+
+
+def pressure_on_edge(result) -> bool:
+    """True if any field of ``result`` has positive pressure on its outermost cells."""
+    for f in result.fields:
+        p = f.pressure
+        if np.any(p[0, :] > 0) or np.any(p[-1, :] > 0) or np.any(p[:, 0] > 0) or np.any(p[:, -1] > 0):
+            return True
+    return False
+
+
+def _solve_reference_scene(scene: Scene, provider, h: float, *, max_enlargements: int = 3, **options):
+    from .reference import solve_reference
+
+    grow = 1.0
+    for attempt in range(max_enlargements + 1):
+        grid = reference_grid(scene, h, grow=grow)
+        surface = surface_on(grid, scene.asperities)
+        result = solve_reference(provider, surface, penetration=scene.penetration,
+                                 total_load=scene.total_load, tilt=scene.tilt, pivot=scene.pivot, **options)
+        if not pressure_on_edge(result):
+            return dataclasses.replace(result, extra={**result.extra, "grid_enlargements": attempt})
+        grow *= 1.5
+    msg = (f"pressure still reaches the edge of the reference grid after {max_enlargements} "
+           f"enlargements (grid {grid.nx} x {grid.ny} cells); the answer may be clipped")
+    message = f"{result.message}; {msg}" if result.message else msg
+    return dataclasses.replace(result, converged=False, message=message,
+                               extra={**result.extra, "grid_enlargements": max_enlargements})
