@@ -1,0 +1,80 @@
+"""Newton's method globalised by a backtracking line search on the residual norm."""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Callable
+
+import numpy as np
+
+_ARMIJO = 1e-4     # sufficient decrease: ||r(x + t s)|| <= (1 - ARMIJO t) ||r(x)||
+_MIN_STEP = 2.0 ** -40
+
+
+@dataclass(frozen=True)
+class NewtonOutcome:
+    """Where the iteration stopped: unknowns, residual, and how it got there."""
+
+    x: np.ndarray
+    r: np.ndarray
+    converged: bool
+    message: str
+    iterations: int
+    residuals: tuple
+
+
+def newton(residual: Callable[[np.ndarray], np.ndarray],
+           step: Callable[[np.ndarray, np.ndarray], np.ndarray],
+           x0: np.ndarray, *, scale: Callable[[np.ndarray], float],
+           tol: float, max_iter: int) -> NewtonOutcome:
+    """Solve ``residual(x) = 0`` by Newton with backtracking.
+
+    Parameters
+    ----------
+    residual : callable, x -> r
+    step : callable, (x, r) -> Newton direction s solving ``J(x) s = -r``
+    x0 : array, initial unknowns
+    scale : callable, x -> positive float
+        Converged when ``||r||_2 <= tol * scale(x)`` (or ``r == 0``).
+    tol : float
+        Relative residual tolerance.
+    max_iter : int
+        Maximum number of Newton steps.
+
+    Notes
+    -----
+    Each step is halved until the residual norm decreases by the Armijo factor. If no
+    step down to ``2^-40`` decreases it, the iteration stops with ``converged=False``.
+    """
+    x = np.array(x0, dtype=float)
+    r = residual(x)
+    norm = float(np.linalg.norm(r))
+    history = [_relative(norm, scale(x))]
+    for it in range(max_iter + 1):
+        if norm <= tol * scale(x) or norm == 0.0:
+            return NewtonOutcome(x, r, True, f"converged in {it} Newton steps", it, tuple(history))
+        if not np.isfinite(norm):
+            return NewtonOutcome(x, r, False, f"residual not finite at step {it}", it, tuple(history))
+        if it == max_iter:
+            break
+        s = step(x, r)
+        t = 1.0
+        while True:
+            x_new = x + t * s
+            r_new = residual(x_new)
+            norm_new = float(np.linalg.norm(r_new))
+            if norm_new <= (1.0 - _ARMIJO * t) * norm:
+                break
+            t *= 0.5
+            if t < _MIN_STEP:
+                msg = (f"line search failed at Newton step {it + 1}: no decrease of the "
+                       f"residual {norm:.3e} along the Newton direction")
+                return NewtonOutcome(x, r, False, msg, it, tuple(history))
+        x, r, norm = x_new, r_new, norm_new
+        history.append(_relative(norm, scale(x)))
+    msg = (f"not converged after max_iter={max_iter} Newton steps: relative residual "
+           f"{history[-1]:.3e} > tol={tol:.1e}")
+    return NewtonOutcome(x, r, False, msg, max_iter, tuple(history))
+
+
+def _relative(norm: float, scale: float) -> float:
+    return norm / scale if scale > 0 else (0.0 if norm == 0 else np.inf)

@@ -1,0 +1,62 @@
+"""The frozen result of the macro step."""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+
+@dataclass(frozen=True)
+class MacroResult:
+    """Tip forces of the macro step (METHOD.md section 2) and how they were found.
+
+    Attributes
+    ----------
+    forces : (N,) array, N
+        Tip force ``P_k`` of each asperity, in scene order (>= 0 when converged).
+    penetration : float, mm
+        Rigid approach ``d`` (given, or solved under load control).
+    tilt : (alpha, beta) or None
+        Tilt angles, radians (about x, about y), when solved with ``tilt=True``.
+    pivot : (px, py), mm
+        Pivot of the tilt (as given; meaningful only with a tilt).
+    local_penetrations : (N,) array, mm
+        Argument of each asperity's law at the solution: ``delta_k = d - z_k -
+        [beta (x_k - px) + alpha (y_k - py)] - sum_{l != k} T_kl P_l - c_k P_k``
+        (``c_k`` the smooth self-compliance, 0 on the half-space), so that
+        ``P_k = f_k(delta_k)`` for ``delta_k > 0`` and ``P_k = 0`` otherwise.
+    in_contact : (N,) bool array
+        ``delta_k > 0``.
+    converged : bool
+        Whether the relative residual reached ``tol``.
+    message : str
+    iterations : int
+        Newton steps taken.
+    residuals : tuple of float
+        Relative residual before each step and after the last one (length iterations + 1).
+    timings_s : dict
+        Wall-clock seconds: "compliance" (interaction matrix), "newton", "total".
+    """
+
+    forces: np.ndarray
+    penetration: float
+    tilt: tuple | None
+    pivot: tuple
+    local_penetrations: np.ndarray
+    in_contact: np.ndarray
+    converged: bool
+    message: str
+    iterations: int
+    residuals: tuple
+    timings_s: dict = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        for name, dtype in (("forces", float), ("local_penetrations", float), ("in_contact", bool)):
+            a = np.array(getattr(self, name), dtype=dtype, copy=True)
+            a.setflags(write=False)
+            object.__setattr__(self, name, a)
+
+    @property
+    def total_load(self) -> float:
+        """Sum of the tip forces, N."""
+        return float(np.sum(self.forces))

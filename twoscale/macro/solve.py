@@ -1,0 +1,183 @@
+"""``solve_macro``: tip forces with interaction, penetration or load control, tilt."""
+from __future__ import annotations
+
+import time
+from typing import Sequence
+
+import numpy as np
+
+from ..influence.base import InfluenceProvider
+from ..laws import AsperityLaw, LawStack
+from .newton import newton
+from .result import MacroResult
+from .system import MacroSystem
+
+
+def solve_macro(provider: InfluenceProvider, tips, z, laws, *,
+                penetration: float | None = None, total_load: float | None = None,
+                tilt: bool = False, pivot: tuple[float, float] = (0.0, 0.0),
+                self_compliance: bool = True, tol: float = 1e-10,
+                max_iter: int = 100) -> MacroResult:
+    """Tip forces of N interacting asperities (METHOD.md section 2; paper eqs. 4-5, 11-12).
+
+    Solves ``P_k = f_k(delta_k) H(delta_k)`` with ``delta_k = d - z_k - [beta (x_k - px)
+    + alpha (y_k - py)] - sum_{l != k} T_kl P_l - c_k P_k`` by Newton-Raphson on the
+    forces, globalised by a backtracking line search on the residual norm.
+
+    Parameters
+    ----------
+    provider : InfluenceProvider
+        The body. ``T_kl = provider.point_compliance(tips, tips)`` off the diagonal
+        (mm/N); ``c_k = provider.smooth_self_compliance(tips)`` on it.
+    tips : (N, 2) array, mm
+        Tip positions (distinct).
+    z : (N,) array, mm
+        Tip recesses: asperity k touches when ``d > z_k``.
+    laws : AsperityLaw or sequence of N AsperityLaw
+        Each asperity's own law on the half-space (one law is used for all).
+    penetration : float, optional
+        Rigid approach d, mm (penetration control).
+    total_load : float, optional
+        Total load W > 0, N (load control); exactly one of the two is given.
+    tilt : bool, default False
+        Ball-and-socket joint (only with ``total_load``): adds the angles alpha (about
+        x) and beta (about y), radians, with zero moment about the pivot.
+    pivot : (px, py), default (0, 0)
+        Pivot of the tilt, mm.
+    self_compliance : bool, default True
+        Add ``c_k`` (zero on the half-space). Set False when the laws already contain
+        the body's own compliance (e.g. tabulated from single-asperity solves on it).
+    tol : float, default 1e-10
+        Relative residual: ``||r||_2 <= tol * max(||P||_2, W)``, with ``r`` the force
+        residuals and the equilibrium rows (moments divided by the RMS tip distance
+        from the pivot), all in N.
+    max_iter : int, default 100
+        Maximum Newton steps; reaching it gives ``converged=False``.
+
+    Returns
+    -------
+    MacroResult
+    """
+    t0 = time.perf_counter()
+    tips, z, stack = _check_scene(tips, z, laws)
+    mode = _check_load(penetration, total_load, tilt, pivot, tol, max_iter)
+    T = _interaction(provider, tips, self_compliance)
+    t1 = time.perf_counter()
+    system = _build_system(T, tips, z, stack, penetration, total_load, tilt, pivot)
+    x0 = _initial_guess(system, z, stack, penetration, total_load, tilt)
+    W = 0.0 if total_load is None else float(total_load)
+    n = len(z)
+    out = newton(system.residual, system.newton_step, x0,
+                 scale=lambda x: max(float(np.linalg.norm(x[:n])), W), tol=tol, max_iter=max_iter)
+    t2 = time.perf_counter()
+    P, g = system.split(out.x)
+    delta = system.delta(out.x)
+    d = float(penetration) if mode == "penetration" else float(g[0])
+    angles = (float(g[1]), float(g[2])) if tilt else None
+    return MacroResult(
+        forces=P, penetration=d, tilt=angles, pivot=(float(pivot[0]), float(pivot[1])),
+        local_penetrations=delta, in_contact=delta > 0, converged=out.converged,
+        message=out.message, iterations=out.iterations, residuals=out.residuals,
+        timings_s={"compliance": t1 - t0, "newton": t2 - t1, "total": t2 - t0})
+
+
+def _check_scene(tips, z, laws) -> tuple[np.ndarray, np.ndarray, LawStack]:
+    tips = np.asarray(tips, dtype=float)
+    z = np.asarray(z, dtype=float)
+    if tips.ndim != 2 or tips.shape[1] != 2 or tips.shape[0] == 0:
+        raise ValueError(f"tips must have shape (N, 2) with N >= 1, got {tips.shape}")
+    if z.shape != (tips.shape[0],):
+        raise ValueError(f"z must have shape ({tips.shape[0]},), got {z.shape}")
+    if not np.all(np.isfinite(tips)):
+        raise ValueError(f"tips must be finite (mm), got {tips!r}")
+    if not np.all(np.isfinite(z)):
+        raise ValueError(f"z must be finite (mm), got {z!r}")
+    if isinstance(laws, AsperityLaw):
+        laws = [laws] * len(z)
+    laws = list(laws)
+    if len(laws) != len(z):
+        raise ValueError(f"need one law per asperity: {len(z)} asperities, {len(laws)} laws")
+    return tips, z, LawStack(laws)
+
+
+def _check_load(penetration, total_load, tilt, pivot, tol, max_iter) -> str:
+    if (penetration is None) == (total_load is None):
+        raise ValueError(f"give exactly one of penetration (mm) or total_load (N), got "
+                         f"penetration={penetration!r}, total_load={total_load!r}")
+    if penetration is not None and not np.isfinite(penetration):
+        raise ValueError(f"penetration must be finite (mm), got {penetration!r}")
+    if total_load is not None and not (np.isfinite(total_load) and total_load > 0):
+        raise ValueError(f"total_load must be finite and > 0 (N), got {total_load!r}")
+    if tilt and total_load is None:
+        raise ValueError("tilt=True needs total_load (the joint balances a given load)")
+    if len(pivot) != 2 or not np.all(np.isfinite(np.asarray(pivot, dtype=float))):
+        raise ValueError(f"pivot must be two finite numbers (mm), got {pivot!r}")
+    if not (np.isfinite(tol) and tol > 0):
+        raise ValueError(f"tol must be > 0, got {tol!r}")
+    if isinstance(max_iter, bool) or not isinstance(max_iter, (int, np.integer)) or max_iter < 1:
+        raise ValueError(f"max_iter must be an integer >= 1, got {max_iter!r}")
+    return "penetration" if total_load is None else ("tilt" if tilt else "load")
+
+
+def _interaction(provider: InfluenceProvider, tips: np.ndarray, self_compliance: bool) -> np.ndarray:
+    """``T`` (mm/N): point compliance off the diagonal, smooth self-compliance on it."""
+    T = np.array(provider.point_compliance(tips, tips), dtype=float)
+    n = len(tips)
+    if T.shape != (n, n):
+        raise ValueError(f"provider.point_compliance returned shape {T.shape}, expected {(n, n)}")
+    diag = np.arange(n)
+    T[diag, diag] = 0.0
+    if not np.all(np.isfinite(T)):
+        k, l = np.argwhere(~np.isfinite(T))[0]
+        raise ValueError(f"tips {k} and {l} coincide or the compliance is not finite: "
+                         f"{tips[k]!r}, {tips[l]!r}")
+    if self_compliance:
+        T[diag, diag] = np.asarray(provider.smooth_self_compliance(tips), dtype=float)
+    return T
+
+
+def _build_system(T, tips, z, stack, penetration, total_load, tilt, pivot) -> MacroSystem:
+    n = len(z)
+    if total_load is None:
+        return MacroSystem(T, float(penetration) - z, np.zeros((n, 0)), np.zeros((0, n)),
+                           np.zeros(0), stack)
+    if not tilt:
+        return MacroSystem(T, -z, np.ones((n, 1)), np.ones((1, n)), np.array([float(total_load)]), stack)
+    X = tips[:, 0] - pivot[0]
+    Y = tips[:, 1] - pivot[1]
+    L = float(np.sqrt(np.mean(X * X + Y * Y))) or 1.0
+    G = np.column_stack([np.ones(n), -Y, -X])   # unknowns (d, alpha, beta)
+    E = np.vstack([np.ones(n), X / L, Y / L])
+    return MacroSystem(T, -z, G, E, np.array([float(total_load), 0.0, 0.0]), stack)
+
+
+def _initial_guess(system: MacroSystem, z, stack: LawStack, penetration, total_load, tilt) -> np.ndarray:
+    """Cold start: no force under penetration control; under load control the approach
+    ``d0`` at which the asperities, ignoring interaction, carry ``W``, and their forces."""
+    n = len(z)
+    if total_load is None:
+        return np.zeros(n)
+    d0 = _independent_approach(z, stack, float(total_load))
+    P0 = stack.force(d0 - z)
+    extra = [d0, 0.0, 0.0] if tilt else [d0]
+    return np.concatenate([P0, extra])
+
+
+def _independent_approach(z: np.ndarray, stack: LawStack, W: float) -> float:
+    """``d`` with ``sum_k f_k(d - z_k) = W`` (no interaction), by bracketing and bisection."""
+    lo = float(np.min(z))
+    step = max(float(np.ptp(z)), 1e-3 * max(abs(lo), 1.0), 1e-6)
+    hi = lo + step
+    while np.sum(stack.force(hi - z)) < W:
+        lo, hi = hi, hi + 2.0 * (hi - lo)
+        if not np.isfinite(hi):
+            raise ValueError(f"the laws cannot carry total_load={W!r} N")
+    for _ in range(200):
+        mid = 0.5 * (lo + hi)
+        if mid <= lo or mid >= hi:
+            break
+        if np.sum(stack.force(mid - z)) < W:
+            lo = mid
+        else:
+            hi = mid
+    return hi

@@ -1,0 +1,109 @@
+"""The macro equations as a residual and its Newton step (paper eqs. 4-5, 11-12).
+
+Unknowns ``x = [P_1..P_N, g]`` with ``g`` empty (penetration control), ``[d]`` (load
+control) or ``[d, alpha, beta]`` (load control with tilt). With ``X_k = x_k - px``,
+``Y_k = y_k - py``:
+
+    delta_k = d - z_k - beta X_k - alpha Y_k - sum_l T_kl P_l
+    r_k     = P_k - f_k(delta_k)              (f_k = 0 for delta_k <= 0)
+    r_W     = sum_k P_k - W
+    r_x     = sum_k X_k P_k / L,  r_y = sum_k Y_k P_k / L
+
+``T`` is the point compliance with its singular diagonal replaced by the smooth
+self-compliance ``c_k`` (0 on the half-space), and ``L`` a length that puts the moment
+rows in newtons. ``r`` is C1 in ``x`` where the laws start with zero slope (Hertz), and
+semismooth otherwise; the Jacobian used is ``dr/dx`` with ``f_k' = 0`` for
+``delta_k <= 0``.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.linalg as sla
+
+from ..laws import LawStack
+
+
+@dataclass(frozen=True)
+class MacroSystem:
+    """Residual and Newton step of the macro equations; see the module docstring.
+
+    Attributes
+    ----------
+    T : (N, N) array, mm/N
+        Interaction compliance, diagonal = smooth self-compliance.
+    offset : (N,) array, mm
+        ``d - z_k`` under penetration control, ``-z_k`` otherwise.
+    G : (N, m) array
+        ``d delta / d g`` (columns for d, alpha, beta; m = 0, 1 or 3).
+    E : (m, N) array
+        Equilibrium rows (1, X/L, Y/L).
+    e : (m,) array, N
+        Their right-hand sides (W, 0, 0).
+    laws : LawStack
+    """
+
+    T: np.ndarray
+    offset: np.ndarray
+    G: np.ndarray
+    E: np.ndarray
+    e: np.ndarray
+    laws: LawStack
+
+    @property
+    def n(self) -> int:
+        return self.T.shape[0]
+
+    def split(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        return x[: self.n], x[self.n:]
+
+    def delta(self, x: np.ndarray) -> np.ndarray:
+        """Local penetrations (mm) at unknowns ``x``."""
+        P, g = self.split(x)
+        return self.offset + self.G @ g - self.T @ P
+
+    def residual(self, x: np.ndarray) -> np.ndarray:
+        """``[r_P, r_g]`` in N; see the module docstring."""
+        P, _ = self.split(x)
+        dl = self.delta(x)
+        return np.concatenate([P - self.laws.force(dl), self.E @ P - self.e])
+
+    def newton_step(self, x: np.ndarray, r: np.ndarray) -> np.ndarray:
+        """Solve ``J s = -r``. Rows of asperities out of contact (``delta_k <= 0``) are
+        ``s_k = -r_k``; only the active rows and the equilibrium rows form a dense system."""
+        dl = self.delta(x)
+        D = self.laws.stiffness(dl)
+        act = (dl > 0) & (D > 0)
+        A, I = np.flatnonzero(act), np.flatnonzero(~act)
+        n, m = self.n, self.G.shape[1]
+        rP, rg = r[:n], r[n:]
+        s = np.empty(n + m)
+        s[I] = -rP[I]
+        DA = D[A][:, None]
+        na = A.size
+        K = np.empty((na + m, na + m))
+        K[:na, :na] = DA * self.T[np.ix_(A, A)]
+        K[np.arange(na), np.arange(na)] += 1.0
+        K[:na, na:] = -DA * self.G[A]
+        K[na:, :na] = self.E[:, A]
+        K[na:, na:] = 0.0
+        rhs = np.concatenate([-rP[A] - (DA * self.T[np.ix_(A, I)]) @ s[I], -rg - self.E[:, I] @ s[I]])
+        sol = _solve(K, rhs)
+        s[A] = sol[:na]
+        s[n:] = sol[na:]
+        return s
+
+
+def _solve(K: np.ndarray, rhs: np.ndarray) -> np.ndarray:
+    # A singular Jacobian happens (e.g. load control with no asperity in contact, or a
+    # tilt no contact set can balance): fall back to the least-squares step.
+    if K.size == 0:
+        return rhs.copy()
+    try:
+        sol = sla.solve(K, rhs, check_finite=False)
+        if np.all(np.isfinite(sol)):
+            return sol
+    except (sla.LinAlgError, ValueError):
+        pass
+    return np.linalg.lstsq(K, rhs, rcond=None)[0]
