@@ -1,0 +1,184 @@
+"""Influence blocks between patches: ``A_kk`` (with solves on active cells) and ``A_kl``.
+
+Block ``k`` is the set of cells of patch ``k`` that asperity ``k`` owns; vectors on a block
+are 1-D arrays over those cells (row-major order of the patch). Every number comes from the
+influence provider (``grid_matrix`` for small blocks, ``grid_operator`` for large ones), so
+the solver never knows which elastic body it works on.
+"""
+from __future__ import annotations
+
+from collections import OrderedDict
+
+import numpy as np
+import scipy.linalg as sla
+
+from ..influence.base import InfluenceProvider
+from .patches import Patch
+
+
+def scatter(patch: Patch, v: np.ndarray) -> np.ndarray:
+    """Block vector(s) ``v`` (n,) or (n, m) onto the patch array(s) (ny, nx[, m]), zero elsewhere."""
+    out = np.zeros(patch.grid.shape + v.shape[1:])
+    out[patch.owned] = v
+    return out
+
+
+class LocalBlock:
+    """``A_kk`` on the owned cells of one patch, with linear solves on active subsets.
+
+    Parameters
+    ----------
+    provider : InfluenceProvider
+    patch : Patch
+    dense_max_cells : int, default 2000
+        Blocks with at most this many owned cells store ``A_kk`` and solve by Cholesky
+        (factorisations cached per active set); larger ones use the provider's FFT
+        operator and conjugate gradients.
+    cg_rtol : float, default 1e-10
+        Relative residual at which the CG solves stop.
+    cg_max_iter : int, default 2000
+    cache_size : int, default 4
+        Number of Cholesky factorisations (active sets) kept.
+    """
+
+    def __init__(self, provider: InfluenceProvider, patch: Patch, *, dense_max_cells: int = 2000,
+                 cg_rtol: float = 1e-10, cg_max_iter: int = 2000, cache_size: int = 4):
+        self.patch = patch
+        self.n = int(patch.owned.sum())
+        self.dense = self.n <= dense_max_cells
+        self.cg_rtol, self.cg_max_iter = cg_rtol, cg_max_iter
+        self._cache: OrderedDict = OrderedDict()
+        self._cache_size = cache_size
+        self.cg_iterations = 0
+        self.factorisations = 0
+        if self.dense:
+            idx = np.flatnonzero(patch.owned.ravel())
+            self.matrix = provider.grid_matrix(patch.grid)[np.ix_(idx, idx)]
+            self._op = None
+        else:
+            self.matrix = None
+            self._op = provider.grid_operator(patch.grid)
+
+    # ------------------------------------------------------------------ products
+    def matvec(self, v: np.ndarray) -> np.ndarray:
+        """``A_kk v`` for a block vector (n,) or (n, m): displacement (mm) from pressure (MPa)."""
+        if self.dense:
+            return self.matrix @ v
+        if v.ndim == 1:
+            return self._op.apply(scatter(self.patch, v))[self.patch.owned]
+        return np.column_stack([self.matvec(v[:, j]) for j in range(v.shape[1])])
+
+    # ------------------------------------------------------------------ solves
+    def solve(self, active: np.ndarray, rhs: np.ndarray, x0: np.ndarray | None = None) -> np.ndarray:
+        """Solve ``A_SS x = rhs`` on the active cells ``S`` (boolean mask over the block).
+
+        ``rhs`` has shape (|S|,) or (|S|, m); returns the same shape. ``x0`` is a CG start.
+        """
+        if not np.any(active):
+            return np.zeros_like(rhs)
+        if self.dense:
+            return sla.cho_solve(self._factor(active), rhs, check_finite=False)
+        if rhs.ndim == 2:
+            cols = [self._cg(active, rhs[:, j], None if x0 is None else x0[:, j]) for j in range(rhs.shape[1])]
+            return np.column_stack(cols)
+        return self._cg(active, rhs, x0)
+
+    def _factor(self, active: np.ndarray):
+        key = active.tobytes()
+        f = self._cache.get(key)
+        if f is None:
+            sub = self.matrix[np.ix_(active, active)]
+            f = sla.cho_factor(sub, lower=True, check_finite=False)
+            self.factorisations += 1
+            self._cache[key] = f
+            if len(self._cache) > self._cache_size:
+                self._cache.popitem(last=False)
+        else:
+            self._cache.move_to_end(key)
+        return f
+
+    def _cg(self, active: np.ndarray, rhs: np.ndarray, x0: np.ndarray | None) -> np.ndarray:
+        # Plain CG on the SPD sub-matrix; the product is the FFT operator with the
+        # inactive cells masked out on input and output.
+        def A(x):
+            v = np.zeros(self.n)
+            v[active] = x
+            return self.matvec(v)[active]
+
+        x = np.zeros_like(rhs) if x0 is None else np.array(x0, dtype=float)
+        r = rhs - A(x) if x0 is not None else rhs.copy()
+        bnorm = np.linalg.norm(rhs)
+        if bnorm == 0.0:
+            return np.zeros_like(rhs)
+        d = r.copy()
+        rr = r @ r
+        for _ in range(self.cg_max_iter):
+            if np.sqrt(rr) <= self.cg_rtol * bnorm:
+                break
+            Ad = A(d)
+            step = rr / (d @ Ad)
+            x += step * d
+            r -= step * Ad
+            rr_new = r @ r
+            d = r + (rr_new / rr) * d
+            rr = rr_new
+            self.cg_iterations += 1
+        return x
+
+
+class Coupling:
+    """The off-diagonal blocks ``A_kl``: displacement on block ``k`` from pressure on block ``l``.
+
+    Parameters
+    ----------
+    provider : InfluenceProvider
+    patches : sequence of Patch
+    dense_max_entries : int, default 250_000
+        Pairs whose dense block has at most this many entries are formed and cached
+        (``provider.grid_matrix``); larger pairs use ``provider.grid_operator`` (FFT).
+    cache_bytes : float, default 4e8
+        Memory budget for cached dense pairs; beyond it pairs fall back to FFT.
+    """
+
+    def __init__(self, provider: InfluenceProvider, patches, *, dense_max_entries: int = 250_000,
+                 cache_bytes: float = 4e8):
+        self.provider = provider
+        self.patches = list(patches)
+        self.dense_max_entries = dense_max_entries
+        self.cache_bytes = cache_bytes
+        self._ops: dict = {}
+        self._bytes = 0.0
+
+    def replace(self, k: int, patch: Patch) -> None:
+        """Swap patch ``k`` (after growth) and drop every operator that involves it."""
+        self.patches[k] = patch
+        for key in [key for key in self._ops if k in key]:
+            op = self._ops.pop(key)
+            if isinstance(op, np.ndarray):
+                self._bytes -= op.nbytes
+
+    def _operator(self, k: int, l: int):
+        op = self._ops.get((k, l))
+        if op is not None:
+            return op
+        pk, pl = self.patches[k], self.patches[l]
+        nk, nl = int(pk.owned.sum()), int(pl.owned.sum())
+        if nk * nl <= self.dense_max_entries and self._bytes + 8.0 * nk * nl <= self.cache_bytes:
+            ik = np.flatnonzero(pk.owned.ravel())
+            il = np.flatnonzero(pl.owned.ravel())
+            op = self.provider.grid_matrix(pk.grid, pl.grid)[np.ix_(ik, il)]
+            self._bytes += op.nbytes
+        else:
+            op = self.provider.grid_operator(pk.grid, pl.grid)
+        self._ops[(k, l)] = op
+        return op
+
+    def apply(self, k: int, l: int, v: np.ndarray) -> np.ndarray:
+        """``A_kl v`` for a block-``l`` vector (n_l,) or (n_l, m); returns block-``k`` values (mm)."""
+        op = self._operator(k, l)
+        if isinstance(op, np.ndarray):
+            return op @ v
+        pk, pl = self.patches[k], self.patches[l]
+        if v.ndim == 1:
+            return op.apply(scatter(pl, v))[pk.owned]
+        return np.column_stack([op.apply(scatter(pl, v[:, j]))[pk.owned] for j in range(v.shape[1])])

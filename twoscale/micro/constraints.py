@@ -1,0 +1,47 @@
+"""Load and moment equations in the micro step (load control, ball-and-socket tilt).
+
+With the contact sets fixed the pressure is affine in the unknowns ``theta = (d, alpha,
+beta)``: ``b = d - z - beta (x - px) - alpha (y - py)``. The sensitivities
+``s_j = A_SS^{-1} db/dtheta_j`` (one linear block Gauss-Seidel solve with ``m`` right-hand
+sides) give the exact Jacobian ``K_ij = h^2 sum G_i s_j`` of the resultants
+``G = (1, y - py, x - px)`` (total load, moment about x, moment about y), so one Newton step
+``p + s dtheta`` meets the equations to round-off whenever the contact sets hold.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from .patches import Patch
+
+
+def block_coordinates(patch: Patch, pivot: tuple[float, float]) -> tuple[np.ndarray, np.ndarray]:
+    """``(x - px, y - py)`` on the block's cells, mm."""
+    X, Y = patch.grid.centres()
+    return X[patch.owned] - pivot[0], Y[patch.owned] - pivot[1]
+
+
+def rhs_derivatives(patch: Patch, pivot: tuple[float, float], n_unknowns: int) -> np.ndarray:
+    """``d b / d theta`` on the block's cells, shape (n, n_unknowns): columns d, alpha, beta."""
+    xr, yr = block_coordinates(patch, pivot)
+    cols = [np.ones_like(xr), -yr, -xr]
+    return np.column_stack(cols[:n_unknowns])
+
+
+def resultants(patches, pressures, pivot: tuple[float, float], n_unknowns: int) -> np.ndarray:
+    """``h^2 sum G p`` over all blocks: total load (N), then moments about x and y (N mm).
+
+    ``pressures[k]`` is (n_k,) or (n_k, m); returns (n_unknowns,) or (n_unknowns, m).
+    """
+    out = 0.0
+    for patch, p in zip(patches, pressures):
+        xr, yr = block_coordinates(patch, pivot)
+        G = np.column_stack([np.ones_like(xr), yr, xr])[:, :n_unknowns]
+        out = out + patch.grid.h ** 2 * (G.T @ p)
+    return np.asarray(out)
+
+
+def newton_step(K: np.ndarray, residual: np.ndarray) -> np.ndarray:
+    """``dtheta = K^{-1} residual``; raises ValueError if ``K`` is singular (no contact)."""
+    if not np.all(np.isfinite(K)) or abs(np.linalg.det(np.atleast_2d(K))) == 0.0:
+        raise ValueError("load/moment Jacobian is singular: too few cells in contact to carry the load")
+    return np.linalg.solve(np.atleast_2d(K), np.atleast_1d(residual))

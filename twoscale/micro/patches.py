@@ -1,0 +1,126 @@
+"""Patches: one aligned sub-grid of cells per asperity (METHOD.md section 3).
+
+Every patch lies on the lattice ``anchor + h Z^2`` so patches (and the reference solver's
+full grid, built with the same anchor) exchange cells exactly. Where patches overlap, a cell
+belongs to the asperity nearest the body (lowest height,
+:func:`twoscale.indenters.surface_on`); a patch's *block* is the set of its cells its own
+asperity owns, so no cell is ever counted twice.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Sequence
+
+import numpy as np
+
+from ..grid import Grid
+from ..indenters import Asperity, surface_on
+
+
+@dataclass(frozen=True)
+class Patch:
+    """Cells where asperity ``asperity`` may touch.
+
+    Attributes
+    ----------
+    asperity : int
+        Index of the asperity in the scene.
+    grid : Grid
+        The patch, aligned on the common lattice.
+    height : (ny, nx) array, mm
+        Untilted height of the union of all indenters (``inf`` where none has material).
+    owner : (ny, nx) int array
+        Owning asperity of each cell (-1 where none has material).
+    """
+
+    asperity: int
+    grid: Grid
+    height: np.ndarray
+    owner: np.ndarray
+
+    @property
+    def owned(self) -> np.ndarray:
+        """Boolean (ny, nx) mask of the block: cells this asperity owns."""
+        return self.owner == self.asperity
+
+
+def make_patch(k: int, grid: Grid, asperities: Sequence[Asperity]) -> Patch:
+    """Patch ``k`` on ``grid``, with heights and owners from every asperity."""
+    surf = surface_on(grid, asperities)
+    return Patch(k, grid, surf.height, surf.owner)
+
+
+def patch_radius(asperity: Asperity, *, force: float, approach: float, E_star: float,
+                 h: float, margin: float) -> float:
+    """Half-width (mm) of the patch of one asperity.
+
+    The Hertz-like contact radius ``a = (3 P R / (4 E*))^(1/3)`` from the macro force ``P``
+    (N), times ``margin`` plus two cells, but never beyond the reach of the indenter at the
+    geometric approach ``approach`` (mm; no cell farther out can touch when displacements
+    are into the body) plus one cell. ``E*`` (MPa) is only used for this estimate.
+    """
+    reach = asperity.reach(approach) + h
+    a = (3.0 * max(force, 0.0) * asperity.R / (4.0 * E_star)) ** (1.0 / 3.0)
+    return min(reach, margin * a + 2.0 * h)
+
+
+def build_patches(asperities: Sequence[Asperity], *, h: float, forces: np.ndarray,
+                  approaches: np.ndarray, E_star: float, margin: float = 1.3,
+                  anchor: tuple[float, float] = (0.0, 0.0)) -> list[Patch]:
+    """One patch per asperity that can touch (``approaches[k] > 0``).
+
+    Parameters
+    ----------
+    asperities : sequence of Asperity
+    h : float
+        Cell side, mm.
+    forces : (N,) array
+        Macro forces, N.
+    approaches : (N,) array
+        Geometric approach of each tip ``d - z_k - tilt(x_k, y_k)``, mm.
+    E_star : float
+        Plane-strain modulus, MPa (patch sizing only).
+    margin : float, default 1.3
+        Patch half-width over the Hertz-like contact radius.
+    anchor : (float, float), default (0, 0)
+        A cell centre of the common lattice, mm.
+    """
+    if not (math.isfinite(margin) and margin >= 1.0):
+        raise ValueError(f"patch margin must be >= 1, got {margin!r}")
+    patches = []
+    for k, a in enumerate(asperities):
+        if approaches[k] <= 0.0:
+            continue
+        r = patch_radius(a, force=float(forces[k]), approach=float(approaches[k]), E_star=E_star,
+                         h=h, margin=margin)
+        grid = Grid.covering(a.x - r, a.x + r, a.y - r, a.y + r, h, anchor=anchor)
+        patches.append(make_patch(k, grid, asperities))
+    return patches
+
+
+def edges_loaded(patch: Patch, pressure: np.ndarray) -> tuple[bool, bool, bool, bool]:
+    """Whether pressure (ny, nx) reaches the (left, right, bottom, top) edge of the patch."""
+    p = np.where(patch.owned, pressure, 0.0) > 0.0
+    return (bool(p[:, 0].any()), bool(p[:, -1].any()), bool(p[0, :].any()), bool(p[-1, :].any()))
+
+
+def grow_patch(patch: Patch, sides: tuple[bool, bool, bool, bool], asperities: Sequence[Asperity],
+               *, fraction: float = 0.25) -> Patch:
+    """The patch extended on the flagged (left, right, bottom, top) sides by ``fraction``
+    of its size (at least two cells)."""
+    g = patch.grid
+    gx, gy = max(2, math.ceil(fraction * g.nx)), max(2, math.ceil(fraction * g.ny))
+    left, right, bottom, top = sides
+    i0, j0 = -gx if left else 0, -gy if bottom else 0
+    nx = g.nx + (gx if left else 0) + (gx if right else 0)
+    ny = g.ny + (gy if bottom else 0) + (gy if top else 0)
+    return make_patch(patch.asperity, g.subgrid(i0, j0, nx, ny), asperities)
+
+
+def transfer(old: Patch, new: Patch, pressure: np.ndarray) -> np.ndarray:
+    """Copy a patch array (ny, nx) onto an aligned larger patch (zero on new cells)."""
+    di, dj = old.grid.offset_in(new.grid)
+    out = np.zeros(new.grid.shape)
+    out[dj:dj + old.grid.ny, di:di + old.grid.nx] = pressure
+    return out

@@ -1,0 +1,253 @@
+"""The micro step as a whole: patches, eq. 7, block Gauss-Seidel, growth, load and tilt."""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Sequence
+
+import numpy as np
+
+from ..indenters import Asperity, Tilt
+from ..influence.base import InfluenceProvider
+from .blocks import Coupling, LocalBlock, scatter
+from .constraints import newton_step, resultants, rhs_derivatives
+from .gauss_seidel import coupled_rhs, gauss_seidel, linear_gauss_seidel
+from .local import initial_pressure
+from .patches import Patch, build_patches, edges_loaded, grow_patch, transfer
+
+
+@dataclass(frozen=True)
+class MicroResult:
+    """Pressure on the patches after the micro step.
+
+    Attributes
+    ----------
+    patches : tuple of Patch
+    pressures : tuple of (ny, nx) arrays, MPa: final pressure on each patch's block.
+    initial : tuple of (ny, nx) arrays, MPa: eq. 7 pressures ``p0`` on the final patches.
+    gaps : tuple of (ny, nx) arrays, mm: ``z + tilt + u - d`` (``inf`` where no indenter).
+    penetration : float
+        Approach d, mm (given, or corrected under load control).
+    tilt : (alpha, beta) or None, radians.
+    converged : bool
+    message : str
+    sweeps : int
+        Block Gauss-Seidel sweeps, all rounds together.
+    corrections : int
+        Newton corrections of (d, alpha, beta) (load control only).
+    growths : int
+        Patch enlargements.
+    history : tuple of float
+        Relative change after every sweep (eq. 9).
+    """
+
+    patches: tuple
+    pressures: tuple
+    initial: tuple
+    gaps: tuple
+    penetration: float
+    tilt: tuple | None
+    converged: bool
+    message: str
+    sweeps: int
+    corrections: int
+    growths: int
+    history: tuple
+
+
+class _State:
+    """Mutable working set of the micro step (patches, blocks, pressures); internal."""
+
+    def __init__(self, provider, asperities, patches, dense_max_cells, dense_max_entries):
+        self.provider, self.asperities = provider, asperities
+        self.dense_max_cells = dense_max_cells
+        self.patches = list(patches)
+        self.blocks = [LocalBlock(provider, pt, dense_max_cells=dense_max_cells) for pt in self.patches]
+        self.coupling = Coupling(provider, self.patches, dense_max_entries=dense_max_entries)
+
+    def heights(self, theta, pivot):
+        """Indenter height with tilt on every block (list of (n_k,) arrays), mm."""
+        tilt = Tilt(theta[1], theta[2], pivot)
+        out = []
+        for pt in self.patches:
+            X, Y = pt.grid.centres()
+            out.append(pt.height[pt.owned] + tilt.height(X[pt.owned], Y[pt.owned]))
+        return out
+
+    def grow(self, k: int, sides, vectors: list) -> None:
+        """Enlarge patch ``k``; block vectors in ``vectors`` (lists) are carried over."""
+        old = self.patches[k]
+        new = grow_patch(old, sides, self.asperities)
+        for vec in vectors:
+            vec[k] = transfer(old, new, scatter(old, vec[k]))[new.owned]
+        self.patches[k] = new
+        self.blocks[k] = LocalBlock(self.provider, new, dense_max_cells=self.dense_max_cells)
+        self.coupling.replace(k, new)
+
+    def displacement(self, pressures: list) -> list:
+        """``A p`` on every block (list of (n_k,) arrays), mm."""
+        return [blk.matvec(pressures[k]) - coupled_rhs(self.coupling, k, pressures, np.zeros(blk.n))
+                for k, blk in enumerate(self.blocks)]
+
+
+def _tip_approaches(asperities, theta, pivot) -> np.ndarray:
+    tilt = Tilt(theta[1], theta[2], pivot)
+    return np.array([theta[0] - a.z - float(tilt.height(a.x, a.y)) for a in asperities])
+
+
+def _initial(state: _State, forces, z_blocks, h) -> list:
+    """Paper eq. 7 on every block."""
+    E_star = state.provider.material.E_star
+    out = []
+    for pt, blk, z in zip(state.patches, state.blocks, z_blocks):
+        a = state.asperities[pt.asperity]
+        P = float(forces[pt.asperity])
+        radius = (3.0 * max(P, 0.0) * a.R / (4.0 * E_star)) ** (1.0 / 3.0)
+        out.append(initial_pressure(blk, z, P, h, approach=radius ** 2 / a.R).pressure)
+    return out
+
+
+def _grow_loaded(state: _State, p: list, p0: list) -> int:
+    grown = 0
+    for k, pt in enumerate(state.patches):
+        sides = edges_loaded(pt, scatter(pt, p[k]))
+        if any(sides):
+            state.grow(k, sides, [p, p0])
+            grown += 1
+    return grown
+
+
+def solve_micro(provider: InfluenceProvider, asperities: Sequence[Asperity], *, h: float,
+                forces: np.ndarray, penetration: float, tilt: tuple[float, float] | None = None,
+                pivot: tuple[float, float] = (0.0, 0.0), total_load: float | None = None,
+                free_tilt: bool = False, tol: float = 1e-6, max_sweeps: int = 100,
+                margin: float = 1.3, anchor: tuple[float, float] = (0.0, 0.0),
+                dense_max_cells: int = 2000, dense_max_entries: int = 250_000,
+                max_corrections: int = 20, max_growths: int = 50) -> MicroResult:
+    """Pressure on patches from the macro forces (METHOD.md section 3).
+
+    Parameters
+    ----------
+    provider : InfluenceProvider
+    asperities : sequence of Asperity
+    h : float
+        Cell side, mm.
+    forces : (N,) array
+        Macro tip forces, N (eq. 7 and patch sizes).
+    penetration : float
+        Approach d, mm (the macro one under load control).
+    tilt : (alpha, beta) or None
+        Tilt angles, radians (the macro ones when ``free_tilt``).
+    pivot : (float, float), default (0, 0)
+        Tilt pivot, mm.
+    total_load : float or None
+        Load control: the approach (and the tilt when ``free_tilt``) are corrected until
+        the pressure carries ``total_load`` N (and zero moments about the pivot).
+    free_tilt : bool, default False
+        Ball-and-socket joint (needs ``total_load``).
+    tol : float, default 1e-6
+        Eq. 9 relative change at which the sweeps stop.
+    max_sweeps : int, default 100
+        Sweeps allowed in all rounds together.
+    margin : float, default 1.3
+        Patch half-width over the Hertz-like contact radius.
+    anchor : (float, float), default (0, 0)
+        A cell centre of the common lattice, mm.
+    dense_max_cells : int, default 2000
+        Blocks up to this size are solved densely (Cholesky), larger ones by FFT + CG.
+    dense_max_entries : int, default 250000
+        Cross blocks ``A_kl`` up to this many entries are formed densely, larger by FFT.
+    max_corrections : int, default 20
+        Newton corrections of (d, alpha, beta) allowed.
+    max_growths : int, default 50
+        Patch enlargements allowed.
+    """
+    theta = np.array([penetration, *(tilt if tilt is not None else (0.0, 0.0))], dtype=float)
+    n_unknowns = 0 if total_load is None else (3 if free_tilt else 1)
+    patches = build_patches(asperities, h=h, forces=forces, approaches=_tip_approaches(asperities, theta, pivot),
+                            E_star=provider.material.E_star, margin=margin, anchor=anchor)
+    state = _State(provider, asperities, patches, dense_max_cells, dense_max_entries)
+    if not patches:
+        return _finish(state, [], [], theta, tilt, pivot, True, "no asperity reaches the body", 0, 0, 0, ())
+    p0 = _initial(state, forces, state.heights(theta, pivot), h)
+    p = [v.copy() for v in p0]
+    sweeps = corrections = growths = 0
+    history: list = []
+    target = None if total_load is None else np.array([total_load, 0.0, 0.0])[:n_unknowns]
+    while True:
+        z = state.heights(theta, pivot)
+        gs = gauss_seidel(state.blocks, state.coupling, [theta[0] - zk for zk in z], p,
+                          tol=tol, max_sweeps=max(max_sweeps - sweeps, 1))
+        sweeps += gs.sweeps
+        history += gs.history
+        p = gs.pressures
+        if not gs.converged:
+            return _finish(state, p, p0, theta, tilt, pivot, False, gs.message, sweeps, corrections, growths, history)
+        if growths < max_growths:
+            g = _grow_loaded(state, p, p0)
+            if g:
+                growths += g
+                continue
+        if target is None:
+            break
+        residual = target - resultants(state.patches, p, pivot, n_unknowns)
+        if np.all(np.abs(residual) <= 1e-12 * max(total_load, 1e-300) * np.array([1.0, *[_arm(state)] * 2])[:n_unknowns]):
+            break
+        if corrections >= max_corrections:
+            return _finish(state, p, p0, theta, tilt, pivot, False,
+                           f"load/moment corrections reached {max_corrections} (residual {residual})",
+                           sweeps, corrections, growths, history)
+        corrections += 1
+        p, theta, done, lin_sweeps = _correct(state, p, gs.active, theta, residual, pivot, n_unknowns, tol)
+        if done:
+            break
+    out_tilt = (float(theta[1]), float(theta[2])) if (tilt is not None or free_tilt) else None
+    return _finish(state, p, p0, theta, out_tilt, pivot, True, "", sweeps, corrections, growths, history)
+
+
+def _arm(state: _State) -> float:
+    # length scale of the moments (N mm) for their tolerance: the spread of the patches
+    xs = [c for pt in state.patches for c in pt.grid.bounds]
+    return max(max(xs) - min(xs), state.patches[0].grid.h)
+
+
+def _correct(state: _State, p, active, theta, residual, pivot, n_unknowns, tol):
+    """One Newton correction of (d, alpha, beta) on the current contact sets."""
+    rhs = [rhs_derivatives(pt, pivot, n_unknowns) for pt in state.patches]
+    lin = linear_gauss_seidel(state.blocks, state.coupling, rhs, active,
+                              tol=min(1e-10, tol), max_sweeps=500)
+    K = np.atleast_2d(resultants(state.patches, lin.pressures, pivot, n_unknowns))
+    step = newton_step(K, residual)
+    theta = theta.copy()
+    theta[:n_unknowns] += step
+    trial = [pk + s @ step for pk, s in zip(p, lin.pressures)]
+    pmax = max(float(np.max(t, initial=0.0)) for t in trial)
+    ok = all(np.min(t, initial=0.0) >= -1e-9 * pmax for t in trial)
+    if ok:
+        z = state.heights(theta, pivot)
+        u = state.displacement(trial)
+        scale = max(abs(theta[0] - float(np.min(zk, initial=np.inf))) for zk in z if zk.size)
+        for a, uk, zk in zip(active, u, z):
+            gap = uk + zk - theta[0]
+            if np.any(gap[~a] < -10.0 * tol * scale):
+                ok = False
+                break
+    trial = [np.maximum(t, 0.0) for t in trial]
+    return trial, theta, ok, lin.sweeps
+
+
+def _finish(state, p, p0, theta, tilt, pivot, converged, message, sweeps, corrections, growths, history):
+    pressures, initial, gaps = [], [], []
+    t = Tilt(theta[1], theta[2], pivot)
+    for k, pt in enumerate(state.patches):
+        pressures.append(scatter(pt, p[k]))
+        initial.append(scatter(pt, p0[k]))
+    for k, pt in enumerate(state.patches):
+        u = np.zeros(pt.grid.shape)
+        for l, pl in enumerate(state.patches):
+            if np.any(pressures[l]):
+                u += state.provider.grid_operator(pt.grid, pl.grid).apply(pressures[l])
+        X, Y = pt.grid.centres()
+        with np.errstate(invalid="ignore"):
+            gaps.append(pt.height + t.height(X, Y) + u - theta[0])
+    return MicroResult(tuple(state.patches), tuple(pressures), tuple(initial), tuple(gaps),
+                       float(theta[0]), tilt, converged, message, sweeps, corrections, growths, tuple(history))
