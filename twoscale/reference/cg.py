@@ -70,7 +70,8 @@ def _initial_pressure(problem: ContactProblem, op, z: np.ndarray, B: np.ndarray,
                       E_star: float) -> np.ndarray:
     shape = problem.grid.shape
     if problem.mode == "penetration":
-        v = np.maximum(problem.penetration - z, 0.0)
+        # cells without indenter material (z set to 0 by the caller) start unloaded
+        v = np.where(problem.candidates.ravel(), np.maximum(problem.penetration - z, 0.0), 0.0)
         Av = op.apply(v.reshape(shape)).ravel()
         return v * (v @ (problem.penetration - z)) / (v @ Av)
     p = initial_active_set(problem, E_star).ravel().astype(float)
