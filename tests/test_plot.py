@@ -1,0 +1,111 @@
+"""Figures: PNG files of the requested pixel size, non-blank, with version metadata."""
+import json
+import struct
+import zlib
+
+import numpy as np
+import pytest
+
+pytest.importorskip("matplotlib")
+
+from twoscale import __version__
+from twoscale.grid import Grid
+from twoscale.indenters import Asperity
+from twoscale.plot import compare_forces, compare_maps, force_bars, pressure_map
+from twoscale.results import ContactResult, PressureField, summarise
+from twoscale.sensor import Sensor
+
+
+def _hertz_patch(cx, cy, a, p0, h, owner):
+    g = Grid.covering(cx - 1.5 * a, cx + 1.5 * a, cy - 1.5 * a, cy + 1.5 * a, h)
+    X, Y = g.centres()
+    r2 = ((X - cx) ** 2 + (Y - cy) ** 2) / a ** 2
+    p = p0 * np.sqrt(np.clip(1 - r2, 0, None))
+    return PressureField(g, p, np.full(g.shape, owner), np.where(p > 0, 0.0, 0.1))
+
+
+def _result(scale=1.0):
+    fields = (_hertz_patch(-3, 0, 1.0, 1.0 * scale, 0.1, 0), _hertz_patch(3, 1, 1.5, 0.8 * scale, 0.1, 1))
+    s = summarise(fields, 2)
+    return ContactResult("twoscale", fields, 0.2, None, float(s.forces.sum()), s, True)
+
+
+def _png_info(path):
+    """Width, height and tEXt chunks of a PNG, read straight from its bytes."""
+    data = path.read_bytes()
+    assert data[:8] == b"\x89PNG\r\n\x1a\n"
+    pos, text, size = 8, {}, None
+    while pos < len(data):
+        n, kind = struct.unpack(">I4s", data[pos:pos + 8])
+        body = data[pos + 8:pos + 8 + n]
+        if kind == b"IHDR":
+            size = struct.unpack(">II", body[:8])
+        elif kind == b"tEXt":
+            k, v = body.split(b"\0", 1)
+            text[k.decode()] = v.decode("latin-1")
+        elif kind == b"zTXt":
+            k, rest = body.split(b"\0", 1)
+            text[k.decode()] = zlib.decompress(rest[1:]).decode("latin-1")
+        pos += 12 + n
+    return size, text
+
+
+def _not_blank(path):
+    from matplotlib.image import imread
+    img = imread(path)
+    # a figure with content has many distinct colours, a blank one has one
+    assert len(np.unique(img.reshape(-1, img.shape[-1]), axis=0)) > 50
+
+
+def test_pressure_map_size_metadata_and_content(tmp_path):
+    asp = [Asperity(-3, 0, 0, 5.0), Asperity(3, 1, 0, 5.0)]
+    path = pressure_map(_result(), tmp_path / "p.png", tips=asp, scene={"name": "demo"},
+                        size=(5.0, 4.0), dpi=80)
+    size, text = _png_info(path)
+    assert size == (400, 320)
+    assert text["Software"] == f"twoscale {__version__}"
+    assert json.loads(text["Description"])["scene"] == {"name": "demo"}
+    assert "total load" in text["Title"]
+    _not_blank(path)
+    assert [p.name for p in tmp_path.iterdir()] == ["p.png"]     # no temporary file left
+
+
+def test_pressure_map_on_sensor_cells_and_plain_tips(tmp_path):
+    path = pressure_map(_result(), tmp_path / "s.png", tips=np.array([[-3, 0], [3, 1]]),
+                        sensor=Sensor(nx=10, ny=10, cell=1.9))
+    size, _ = _png_info(path)
+    assert size == (640, 520)
+    _not_blank(path)
+
+
+def test_force_bars_with_macro_forces(tmp_path):
+    r = _result()
+    path = force_bars(r, tmp_path / "f.png", macro_forces=[1.0, 2.0], dpi=50)
+    size, text = _png_info(path)
+    assert size == (320, 200)
+    assert text["Software"].endswith(__version__)
+    _not_blank(path)
+    with pytest.raises(ValueError, match="expected 2"):
+        force_bars(r, tmp_path / "g.png", macro_forces=[1.0, 2.0, 3.0])
+
+
+def test_compare_forces_and_maps(tmp_path):
+    results = {"half-space": _result(), "block": _result(0.8)}
+    p1 = compare_forces(results, tmp_path / "cf.png", measured=[1.0, 2.0])
+    assert _png_info(p1)[0] == (720, 400)
+    _not_blank(p1)
+    p2 = compare_maps(results, tmp_path / "cm.png", tips=np.array([[-3, 0], [3, 1]]), panel_size=3.0, dpi=50)
+    assert _png_info(p2)[0] == (int((2 * 3.0 + 1.5) * 50), int((3.0 + 0.8) * 50))
+    _not_blank(p2)
+
+
+def test_bad_arguments(tmp_path):
+    with pytest.raises(ValueError, match=".png"):
+        pressure_map(_result(), tmp_path / "p.jpg")
+    with pytest.raises(ValueError, match="at least one"):
+        compare_maps({}, tmp_path / "m.png")
+    with pytest.raises(ValueError, match="at least one"):
+        compare_forces({}, tmp_path / "c.png")
+    with pytest.raises(ValueError, match="size"):
+        pressure_map(_result(), tmp_path / "p.png", size=(0, 3))
+    assert list(tmp_path.iterdir()) == []

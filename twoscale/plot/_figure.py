@@ -1,0 +1,46 @@
+"""Figure creation and atomic PNG saving shared by the plotting modules."""
+from __future__ import annotations
+
+import json
+import os
+import tempfile
+from pathlib import Path
+from typing import Any, Mapping
+
+from .._version import __version__
+
+FOOTER = f"twoscale {__version__} - units mm, N, MPa"
+
+
+def new_figure(size: tuple[float, float], dpi: int):
+    """A matplotlib Figure on an Agg canvas (no pyplot, no global state)."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    w, h = size
+    if not (w > 0 and h > 0 and dpi > 0):
+        raise ValueError(f"figure size and dpi must be > 0, got size={size!r}, dpi={dpi!r}")
+    fig = Figure(figsize=(w, h), dpi=dpi)
+    FigureCanvasAgg(fig)
+    fig.text(0.995, 0.005, FOOTER, ha="right", va="bottom", fontsize=6, color="0.4")
+    return fig
+
+
+def save_png(fig, path: str | Path, *, title: str, scene: Mapping[str, Any] | None = None) -> Path:
+    """Write ``fig`` to ``path`` (PNG) atomically with version, title and scene metadata."""
+    path = Path(path)
+    if path.suffix.lower() != ".png":
+        raise ValueError(f"figure path must end in .png, got {str(path)!r}")
+    meta = {"Title": title, "Software": f"twoscale {__version__}",
+            "Description": json.dumps({"units": {"length": "mm", "force": "N", "pressure": "MPa"},
+                                       "scene": None if scene is None else dict(scene)})}
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".png", dir=path.parent)
+    os.close(fd)
+    try:
+        fig.savefig(tmp, format="png", metadata=meta)
+        os.replace(tmp, path)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
+    return path
