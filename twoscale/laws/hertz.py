@@ -55,6 +55,10 @@ class SphereLaw(AsperityLaw):
     ``delta = (a/2) ln((R+a)/(R-a))``, ``P = E*/2 [(a^2+R^2) ln((R+a)/(R-a)) - 2aR]``,
     ``dP/ddelta = 2 E* a``. Tends to :class:`HertzLaw` for ``delta << R``.
 
+    Same formulas as :mod:`twoscale.analytic.hertz` (``sphere_*``), evaluated here in a
+    cancellation-free form so that the law and its inverse agree to ~1e-15 relative
+    even for ``delta/R ~ 1e-7``.
+
     Parameters
     ----------
     R : float or array
@@ -71,35 +75,70 @@ class SphereLaw(AsperityLaw):
         check_positive("E_star (MPa)", self.E_star)
 
     def force(self, delta):
-        return hertz.sphere_load(self.R, as_penetration(delta), self.E_star)
+        return _sphere_load(self.R, self._radius_from_penetration(as_penetration(delta)), self.E_star)
 
     def stiffness(self, delta):
-        return hertz.sphere_load_derivative(self.R, as_penetration(delta), self.E_star)
+        return 2.0 * self.E_star * self._radius_from_penetration(as_penetration(delta))
 
     def penetration(self, P):
-        P = as_force(P)
-        return hertz.sphere_penetration_from_radius(self.R, self._radius_from_load(P))
+        return _sphere_penetration(self.R, self._radius_from_load(as_force(P)))
+
+    def _radius_from_penetration(self, delta: np.ndarray) -> np.ndarray:
+        # delta(a) is convex and above Hertz's a^2/R: Newton from sqrt(R delta) descends monotonically
+        R = self.R
+        d = np.maximum(delta, 0.0)
+        a_max = (1.0 - 1e-15) * np.asarray(R)
+        a = np.minimum(np.sqrt(R * d), a_max)
+        for _ in range(100):
+            eps = a / R
+            slope = np.arctanh(eps) + eps / (1.0 - eps * eps)
+            step = np.where(a > 0, (_sphere_penetration(R, a) - d) / np.where(a > 0, slope, 1.0), 0.0)
+            a = np.clip(a - step, 0.0, a_max)
+            if np.all(np.abs(step) <= 4e-16 * a):
+                break
+        return a
 
     def _radius_from_load(self, P: np.ndarray) -> np.ndarray:
-        # Newton on P(a) - P = 0; P(a) is convex in a (P'' = 2 E* d'(a) > 0), so from the
-        # Hertz start, clipped below R, the iterates approach from above after one step.
-        R = np.broadcast_to(np.asarray(self.R, float), P.shape) if np.ndim(self.R) else self.R
-        E = self.E_star
-        a = np.minimum(np.sqrt(R * hertz.penetration(R, P, E)), 0.999 * np.asarray(R))
+        # P(a) is convex and above Hertz's 4 E* a^3 / (3R): Newton from Hertz's radius
+        # descends monotonically
+        R, E = self.R, self.E_star
+        a_max = (1.0 - 1e-15) * np.asarray(R)
+        a = np.minimum((3.0 * P * R / (4.0 * E)) ** (1.0 / 3.0), a_max)
         for _ in range(100):
-            f = hertz.sphere_load_from_radius(R, a, E) - P
-            # dP/da = dP/ddelta * ddelta/da = 2 E* a d'(a)
-            dprime = 0.5 * np.log((R + a) / (R - a)) + a * R / (R * R - a * a)
-            fp = 2.0 * E * a * dprime
-            step = np.where(fp > 0, f / np.where(fp > 0, fp, 1.0), 0.0)
-            a_new = np.clip(a - step, 0.0, np.asarray(R) * (1 - 1e-12))
-            done = np.all(np.abs(a_new - a) <= 1e-15 * np.asarray(R))
-            a = a_new
-            if done:
+            eps = a / R
+            slope = 2.0 * E * a * (np.arctanh(eps) + eps / (1.0 - eps * eps))
+            step = np.where(a > 0, (_sphere_load(R, a, E) - P) / np.where(a > 0, slope, 1.0), 0.0)
+            a = np.clip(a - step, 0.0, a_max)
+            if np.all(np.abs(step) <= 4e-16 * a):
                 break
-        return np.where(P > 0, a, 0.0)
+        return a
 
     @classmethod
     def stacked(cls, laws: Sequence["SphereLaw"]) -> "SphereLaw":
         """One law with array parameters evaluating ``laws`` elementwise."""
         return cls(np.array([l.R for l in laws], float), np.array([l.E_star for l in laws], float))
+
+
+# Segedin's closed forms written without cancellation (the textbook form
+# (a^2+R^2) ln((R+a)/(R-a)) - 2aR loses (R/a)^3 digits for small a):
+# ln((R+a)/(R-a)) = 2 atanh(a/R), and atanh(e) - e summed as a series for small e.
+def _atanh_minus_identity(e: np.ndarray) -> np.ndarray:
+    e = np.asarray(e, dtype=float)
+    e2 = e * e
+    series = np.zeros_like(e)
+    term = e * e2
+    for n in range(1, 14):   # e < 0.1: the first omitted term is below 1e-16 of the sum
+        series = series + term / (2 * n + 1)
+        term = term * e2
+    return np.where(e < 0.1, series, np.arctanh(np.minimum(e, 1.0 - 1e-16)) - e)
+
+
+def _sphere_penetration(R, a):
+    """delta = a atanh(a/R) (mm)."""
+    return a * np.arctanh(np.minimum(a / R, 1.0 - 1e-16))
+
+
+def _sphere_load(R, a, E_star):
+    """P = E* [a^2 atanh(a/R) + R^2 (atanh(a/R) - a/R)] (N)."""
+    e = a / R
+    return E_star * (a * a * np.arctanh(np.minimum(e, 1.0 - 1e-16)) + R * R * _atanh_minus_identity(e))

@@ -25,7 +25,8 @@ class NewtonOutcome:
 def newton(residual: Callable[[np.ndarray], np.ndarray],
            step: Callable[[np.ndarray, np.ndarray], np.ndarray],
            x0: np.ndarray, *, scale: Callable[[np.ndarray], float],
-           tol: float, max_iter: int) -> NewtonOutcome:
+           tol: float, max_iter: int,
+           project: Callable[[np.ndarray], np.ndarray] = lambda x: x) -> NewtonOutcome:
     """Solve ``residual(x) = 0`` by Newton with backtracking.
 
     Parameters
@@ -39,6 +40,9 @@ def newton(residual: Callable[[np.ndarray], np.ndarray],
         Relative residual tolerance.
     max_iter : int
         Maximum number of Newton steps.
+    project : callable, x -> x, default identity
+        Projection onto the admissible set, applied along the search path
+        ``project(x + t s)`` (here: forces >= 0).
 
     Notes
     -----
@@ -59,7 +63,7 @@ def newton(residual: Callable[[np.ndarray], np.ndarray],
         s = step(x, r)
         t = 1.0
         while True:
-            x_new = x + t * s
+            x_new = project(x + t * s)
             r_new = residual(x_new)
             norm_new = float(np.linalg.norm(r_new))
             if norm_new <= (1.0 - _ARMIJO * t) * norm:
@@ -77,4 +81,5 @@ def newton(residual: Callable[[np.ndarray], np.ndarray],
 
 
 def _relative(norm: float, scale: float) -> float:
-    return norm / scale if scale > 0 else (0.0 if norm == 0 else np.inf)
+    # ||r|| / max(scale, ||r||): 1 at a start with no force (P = 0, r = -f), ~||r||/||P|| near the end
+    return norm / max(scale, norm) if norm > 0 else 0.0

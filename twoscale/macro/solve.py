@@ -68,7 +68,8 @@ def solve_macro(provider: InfluenceProvider, tips, z, laws, *,
     W = 0.0 if total_load is None else float(total_load)
     n = len(z)
     out = newton(system.residual, system.newton_step, x0,
-                 scale=lambda x: max(float(np.linalg.norm(x[:n])), W), tol=tol, max_iter=max_iter)
+                 scale=lambda x: max(float(np.linalg.norm(x[:n])), W), tol=tol, max_iter=max_iter,
+                 project=lambda x: np.concatenate([np.maximum(x[:n], 0.0), x[n:]]))
     t2 = time.perf_counter()
     P, g = system.split(out.x)
     delta = system.delta(out.x)
@@ -158,7 +159,7 @@ def _initial_guess(system: MacroSystem, z, stack: LawStack, penetration, total_l
     if total_load is None:
         return np.zeros(n)
     d0 = _independent_approach(z, stack, float(total_load))
-    P0 = stack.force(d0 - z)
+    P0 = np.zeros(n)
     extra = [d0, 0.0, 0.0] if tilt else [d0]
     return np.concatenate([P0, extra])
 
