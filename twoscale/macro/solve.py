@@ -48,9 +48,9 @@ def solve_macro(provider: InfluenceProvider, tips, z, laws, *,
         Add ``c_k`` (zero on the half-space). Set False when the laws already contain
         the body's own compliance (e.g. tabulated from single-asperity solves on it).
     tol : float, default 1e-10
-        Relative residual: ``||r||_2 <= tol * max(||P||_2, W)``, with ``r`` the force
-        residuals and the equilibrium rows (moments divided by the RMS tip distance
-        from the pivot), all in N.
+        Relative residual: ``||r||_2 <= tol * ||P||_2``, with ``r`` the force residuals
+        ``P_k - f_k(delta_k)`` and the equilibrium rows (moments divided by the RMS tip
+        distance from the pivot), all in N.
     max_iter : int, default 100
         Maximum Newton steps; reaching it gives ``converged=False``.
 
@@ -68,7 +68,7 @@ def solve_macro(provider: InfluenceProvider, tips, z, laws, *,
     W = 0.0 if total_load is None else float(total_load)
     n = len(z)
     out = newton(system.residual, system.newton_step, x0,
-                 scale=lambda x: max(float(np.linalg.norm(x[:n])), W), tol=tol, max_iter=max_iter,
+                 scale=lambda x: float(np.linalg.norm(x[:n])) or W, tol=tol, max_iter=max_iter,
                  project=lambda x: np.concatenate([np.maximum(x[:n], 0.0), x[n:]]))
     t2 = time.perf_counter()
     P, g = system.split(out.x)
