@@ -201,8 +201,14 @@ class Scene:
         """Tip positions, shape (N, 2), mm."""
         return np.array([[a.x, a.y] for a in self.asperities], dtype=float)
 
-    def provider(self):
+    def provider(self, **options):
         """The influence provider the scene asks for (see ``twoscale.influence``).
+
+        Parameters
+        ----------
+        **options
+            Extra keyword arguments for the finite-block provider (e.g.
+            ``progress=False``, ``cache_dir``); none are accepted by the half-space.
 
         Raises
         ------
@@ -213,11 +219,13 @@ class Scene:
 
         opts = self.influence
         if opts["kind"] == "halfspace":
+            if options:
+                raise ValueError(f"the half-space provider takes no options, got {sorted(options)!r}")
             return HalfSpace(self.material)
-        return _block_provider(self.material, opts)
+        return _block_provider(self.material, opts, options)
 
 
-def _block_provider(material: Material, opts: Mapping):
+def _block_provider(material: Material, opts: Mapping, options: Mapping):
     try:
         import fem_influence
     except ImportError as exc:
@@ -226,7 +234,7 @@ def _block_provider(material: Material, opts: Mapping):
     factory = getattr(fem_influence, "FiniteBlock", None) or getattr(fem_influence, "BlockProvider", None)
     if factory is None:
         raise SceneError("influence.kind = \"block\": fem_influence provides no FiniteBlock provider")
-    return factory(material, size=tuple(opts["size"]), base=opts["base"], origin=tuple(opts["origin"]))
+    return factory(material, size=tuple(opts["size"]), base=opts["base"], origin=tuple(opts["origin"]), **options)
 
 
 # ---------------------------------------------------------------- the default cell size
@@ -317,7 +325,8 @@ def _round_down(x: float, *, digits: int) -> float:
 METHODS = ("twoscale", "reference")
 
 
-def solve_scene(scene: Scene, *, method: str = "twoscale", **options):
+def solve_scene(scene: Scene, *, method: str = "twoscale", provider_options: Mapping | None = None,
+                **options):
     """Solve a scene.
 
     Parameters
@@ -328,6 +337,8 @@ def solve_scene(scene: Scene, *, method: str = "twoscale", **options):
         micro pressure on one patch per asperity). ``"reference"``: the classical solver
         :func:`twoscale.reference.solve_reference` on one grid covering every place
         contact can reach (:func:`reference_grid`).
+    provider_options : mapping, optional
+        Passed to :meth:`Scene.provider` (finite block only, e.g. ``{"progress": False}``).
     **options
         Passed to the solver (e.g. ``tol``).
 
@@ -340,7 +351,7 @@ def solve_scene(scene: Scene, *, method: str = "twoscale", **options):
     if method not in METHODS:
         raise ValueError(f"method must be one of {METHODS}, got {method!r}")
     h = default_h(scene)
-    provider = scene.provider()
+    provider = scene.provider(**(provider_options or {}))
     if method == "twoscale":
         from .twoscale import solve_twoscale
 

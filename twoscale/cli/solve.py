@@ -55,7 +55,8 @@ def run(args: argparse.Namespace) -> int:
         if h is not None:
             scene = dataclasses.replace(scene, h=h)
         t0 = time.perf_counter()
-        result = solve_scene(scene, method=args.method)
+        quiet_block = {"progress": False} if args.quiet and scene.influence["kind"] == "block" else None
+        result = solve_scene(scene, method=args.method, provider_options=quiet_block)
         wall = time.perf_counter() - t0
     except ValueError as exc:  # SceneError and solver input checks
         print(f"error: {exc}", file=sys.stderr)
