@@ -80,7 +80,7 @@ def assemble_mixed(mesh, material: Material) -> MixedSystem:
     mu = E / (2.0 * (1.0 + nu))
     inv_lam = 0.0 if nu == 0.5 else (1.0 + nu) * (1.0 - 2.0 * nu) / (E * nu) if nu != 0 else None
     G = np.stack([ub.basis[i][0].grad for i in range(ub.Nbfun)])   # (27, 3, ne, nq)
-    psi = np.stack([pb.basis[k][0].value for k in range(pb.Nbfun)])  # (8, ne, nq)
+    psi = np.stack([np.asarray(pb.basis[k][0]) for k in range(pb.Nbfun)])  # (8, ne, nq)
     dx = ub.dx                                                     # (ne, nq)
     Gw = G * dx[None, None]
     M = np.einsum("iaeq,jbeq->eabij", Gw, G, optimize=True)         # (ne, 3, 3, 27, 27)

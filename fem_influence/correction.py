@@ -151,13 +151,13 @@ class CorrectionSolver:
         mat = Material(1.0, self.nu)
         f = np.zeros(self._n)
         for part, fb in self._loads:
-            X = fb.global_coordinates().value                  # (3, nf, nq)
-            nrm = fb.normals.value                             # (3, nf, nq)
+            X = np.asarray(fb.global_coordinates())                 # (3, nf, nq)
+            nrm = np.asarray(fb.normals)                            # (3, nf, nq)
             sig = point_stress(np.moveaxis(X, 0, -1), mat, source=source)   # (nf, nq, 3, 3)
             trac = -np.einsum("fqab,bfq->afq", sig, nrm)
             if part == "base":
                 trac[2] = 0.0                                  # only the shear is a load there
-            phi = np.stack([fb.basis[i][0].value for i in range(fb.Nbfun)])  # (27, nf, nq)
+            phi = np.stack([np.asarray(fb.basis[i][0]) for i in range(fb.Nbfun)])  # (27, nf, nq)
             fe = np.einsum("ifq,afq,fq->aif", phi, trac, fb.dx)
             dofs = fb.element_dofs                             # (27, nf)
             for a in range(3):

@@ -1,0 +1,138 @@
+"""BlockProvider on a small block: contract consistency, reciprocity, interpolation, cache.
+
+A 60 x 60 x 10 mm block meshed at 5-10 mm keeps these tests to seconds; the
+validation against METHOD.md section 6 on the 140 x 140 x 20 mm block is in
+test_fem_block_validation.py (slow).
+"""
+import numpy as np
+import pytest
+
+from fem_influence import BlockProvider
+from fem_influence.correction import CorrectionSolver
+from twoscale.grid import Grid
+from twoscale.influence.halfspace import HalfSpace
+from twoscale.material import Material
+
+MAT = Material(E=2.0, nu=0.5)
+SMALL = dict(size=(60.0, 60.0, 10.0), h_fine=5.0, h_coarse=10.0, fine_half_width=10.0)
+
+
+@pytest.fixture(scope="module")
+def block():
+    return BlockProvider(material=MAT, use_cache=False, progress=False, **SMALL)
+
+
+def test_kind_and_contract(block):
+    assert block.kind == "block"
+    t = np.array([[3.0, 1.0], [-2.0, 4.0]])
+    s = np.array([[0.0, 0.0], [1.0, -1.0], [2.5, 2.5]])
+    K = block.point_compliance(t, s)
+    assert K.shape == (2, 3)
+    np.testing.assert_allclose(K - HalfSpace(MAT).point_compliance(t, s), block.correction(t, s), rtol=1e-12)
+    assert np.isinf(block.point_compliance(s[:1], s[:1])[0, 0])
+
+
+def test_bonded_block_is_stiffer(block):
+    # a bonded incompressible block removes compliance: C < 0, fading with distance
+    r = np.array([[2.0, 0.0], [5.0, 0.0], [10.0, 0.0]])
+    C = block.correction(r, np.zeros((1, 2)))[:, 0]
+    assert np.all(C < 0) and np.all(np.diff(C) > 0)
+
+
+def test_small_block_against_layer_theory(block):
+    # sides 3 thicknesses away: the centre of a 60 x 60 x 10 block is close to an
+    # infinite 10 mm layer (independent Hankel-transform solution) for r <= t
+    from fem_influence.layer import point_ratio
+    r = np.array([1.0, 2.5, 5.0, 10.0])
+    C = block.correction(np.column_stack([r, 0 * r]), np.zeros((1, 2)))[:, 0]
+    C_layer = (point_ratio(r, 10.0, 0.5) - 1.0) / (np.pi * MAT.E_star * r)
+    np.testing.assert_allclose(C, C_layer, atol=0.03 * np.abs(C_layer).max())
+
+
+def test_reciprocity(block):
+    # Betti: C(x, x') = C(x', x); the two sides come from different solves and interpolations,
+    # so they agree only to the discretisation error (a few % of |C| at 5 mm elements)
+    pts = np.array([[0.0, 0.0], [7.0, 3.0], [-4.0, 6.0], [12.0, -9.0]])
+    C = block.correction(pts, pts)
+    np.testing.assert_allclose(C, C.T, atol=0.03 * np.abs(C).max())
+
+
+def test_source_interpolation_error(block):
+    # off-lattice sources: lattice (cubic) interpolation vs a direct solve at the exact
+    # source; halving the spacing must cut the error by ~2^4, and at spacing/thickness
+    # = 0.25 (the default 5 mm on 20 mm) it must be below 0.2 % of |C|
+    from scipy.interpolate import CloughTocher2DInterpolator
+    solver = CorrectionSolver.build(block.mesh, MAT.nu, "bonded")
+    srcs = np.array([[2.3, -1.7], [1.25, 1.25], [6.2, 3.9]])
+    tgt = np.array([[0.0, 0.0], [5.0, 5.0], [-8.0, 2.0], [2.3, -1.7]])
+    direct = solver.top_displacement(srcs) / MAT.E
+    errs = []
+    for d in (5.0, 2.5):
+        prov = BlockProvider(material=MAT, mesh=block.mesh, source_spacing=d, use_cache=False, progress=False)
+        e = 0.0
+        for k, s in enumerate(srcs):
+            ref = CloughTocher2DInterpolator(solver.top_xy, direct[k])(tgt)
+            e = max(e, np.abs(prov.correction(tgt, s[None])[:, 0] - ref).max() / np.abs(ref).max())
+        errs.append(e)
+    assert errs[1] < 2e-3
+    assert np.log2(errs[0] / errs[1]) > 3.0
+
+
+def test_cell_block_grid_matrix_operator_agree(block):
+    g = Grid(-3.0, -2.0, 0.5, 9, 7)
+    sub = g.subgrid(2, 1, 4, 3)
+    dense = block.grid_matrix(g)
+    np.testing.assert_allclose(dense, block.cell_block(g.points(), g.points(), g.h), rtol=1e-12)
+    p = np.random.default_rng(1).random(g.shape)
+    np.testing.assert_allclose(block.grid_operator(g).apply(p).ravel(), dense @ p.ravel(), rtol=1e-10)
+    ps = p[1:4, 2:6]
+    np.testing.assert_allclose(block.grid_operator(g, sub).apply(ps).ravel(),
+                               block.grid_matrix(g, sub) @ ps.ravel(), rtol=1e-10)
+
+
+def test_self_compliance_is_diagonal(block):
+    pts = np.array([[0.0, 0.0], [4.0, -3.0], [1.0, 1.0], [-6.0, 2.0], [3.0, 8.0]])
+    np.testing.assert_allclose(block.smooth_self_compliance(pts), np.diag(block.correction(pts, pts)), rtol=1e-12)
+    assert np.all(block.smooth_self_compliance(pts) < 0)
+
+
+def test_origin_shifts_the_scene(block):
+    shifted = BlockProvider(material=MAT, origin=(4.0, -2.0), mesh=block.mesh, use_cache=False, progress=False)
+    t, s = np.array([[1.0, 2.0], [-3.0, 0.5]]), np.array([[0.0, 0.0], [2.0, 1.0]])
+    np.testing.assert_allclose(shifted.correction(t, s), block.correction(t + [4.0, -2.0], s + [4.0, -2.0]),
+                               rtol=1e-12)
+
+
+def test_modulus_scaling(block):
+    soft = BlockProvider(material=Material(E=1.0, nu=0.5), mesh=block.mesh, use_cache=False, progress=False)
+    t, s = np.array([[5.0, 0.0]]), np.array([[0.0, 0.0]])
+    np.testing.assert_allclose(soft.correction(t, s), 2.0 * block.correction(t, s), rtol=1e-12)
+
+
+def test_disk_cache_roundtrip(tmp_path, monkeypatch):
+    monkeypatch.setenv("TWOSCALE_CACHE_DIR", str(tmp_path))
+    t, s = np.array([[5.0, 0.0], [0.0, 9.0]]), np.array([[0.0, 0.0], [1.0, 2.0]])
+    cold = BlockProvider(material=MAT, progress=False, **SMALL)
+    C1 = cold.correction(t, s)
+    assert cold._state.solver is not None
+    files = list(tmp_path.glob("block-*.npz"))
+    assert len(files) == 1
+    warm = BlockProvider(material=MAT, progress=False, **SMALL)
+    C2 = warm.correction(t, s)
+    assert warm._state.solver is None            # nothing solved, nothing factorised
+    np.testing.assert_array_equal(C1, C2)
+    other = BlockProvider(material=Material(2.0, 0.45), progress=False, **SMALL)
+    assert other._state.fields.key != warm._state.fields.key
+    sliding = BlockProvider(material=MAT, base="sliding", progress=False, **SMALL)
+    assert sliding._state.fields.key != warm._state.fields.key
+
+
+def test_invalid_inputs():
+    with pytest.raises(ValueError, match="base"):
+        BlockProvider(material=MAT, base="glued", use_cache=False, **SMALL)
+    with pytest.raises(ValueError, match="origin"):
+        BlockProvider(material=MAT, origin=(40.0, 0.0), use_cache=False, **SMALL)
+    with pytest.raises(ValueError, match="size"):
+        BlockProvider(material=MAT, size=(60.0, 0.0, 10.0), use_cache=False)
+    with pytest.raises(ValueError, match="nu"):
+        BlockProvider(material=Material(1.0, 0.0), use_cache=False, **SMALL)
