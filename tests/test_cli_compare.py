@@ -1,0 +1,139 @@
+"""`twoscale compare`: outputs, indicators, bodies, and bad input (exit 2, nothing written)."""
+import csv
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+pytest.importorskip("matplotlib")
+
+from twoscale.cli import compare
+from twoscale.cli.main import main
+from twoscale.influence import HalfSpace
+
+EXAMPLES = Path(__file__).resolve().parent.parent / "examples"
+TWO = str(EXAMPLES / "paper_two_spheres.toml")
+
+
+def _fake_block(material, *, size, base, origin):
+    # stands in for the finite block: the half-space itself, so every body must agree exactly
+    return HalfSpace(material)
+
+
+def test_half_space_only_says_so(tmp_path, monkeypatch, capsys):
+    monkeypatch.setattr(compare, "_block_factory", lambda: (None, "no block in this test"))
+    out = tmp_path / "cmp"
+    assert main(["compare", TWO, "--out", str(out), "--quiet"]) == 0
+    err = capsys.readouterr().err
+    assert "half-space only" in err and "no block in this test" in err
+    assert "half-space only" in (out / "forces.md").read_text()
+    rows = list(csv.DictReader((out / "forces.csv").open()))
+    assert [(r["body"], r["asperity"]) for r in rows] == [("halfspace", "1"), ("halfspace", "2")]
+    res = json.loads((out / "runs" / "halfspace_d0.5mm" / "result.json").read_text())
+    assert [float(r["force_N"]) for r in rows] == pytest.approx([a["force"] for a in res["asperities"]], rel=1e-9)
+    # symmetric scene: equal forces
+    assert float(rows[0]["force_N"]) == pytest.approx(float(rows[1]["force_N"]), rel=1e-5)
+    for name in ("forces_d0.5mm.png", "maps_d0.5mm.png", "summary.json"):
+        assert (out / name).stat().st_size > 0
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["notes"] and summary["units"]["force"] == "N"
+
+
+SMALL = """
+[material]
+E = 6.0
+nu = 0.5
+[load]
+total = 10.0
+tilt = true
+[grid]
+h = 0.3
+[[asperity]]
+x = 0.0
+y = 0.0
+R = 5.0
+[[asperity]]
+x = 8.0
+y = 0.0
+R = 5.0
+[[asperity]]
+x = 0.0
+y = 8.0
+R = 4.0
+"""
+
+
+def test_three_bodies_and_loads(tmp_path, monkeypatch):
+    monkeypatch.setattr(compare, "_block_factory", lambda: (_fake_block, ""))
+    scene = tmp_path / "small.toml"
+    scene.write_text(SMALL)
+    out = tmp_path / "cmp"
+    code = main(["compare", str(scene), "--loads", "50", "100", "--out", str(out), "--quiet", "--vtk"])
+    assert code == 0
+    rows = list(csv.DictReader((out / "forces.csv").open()))
+    assert len(rows) == 2 * 3 * 3
+    by = {}
+    for r in rows:
+        by.setdefault((r["load"], r["body"]), []).append(float(r["force_N"]))
+    for load, total in (("50N", 50.0), ("100N", 100.0)):
+        assert sum(by[load, "halfspace"]) == pytest.approx(total, rel=1e-6)
+        # the stand-in block is the half-space: identical forces, zero indicators
+        assert by[load, "block-bonded"] == by[load, "halfspace"] == by[load, "block-sliding"]
+    ind = json.loads((out / "summary.json").read_text())["indicators_percent"]
+    assert ind["50N"]["halfspace"]["block-bonded"] == {"e_M": 0.0, "e_m": 0.0}
+    md = (out / "forces.md").read_text()
+    assert "| halfspace | - | 0 / 0 | 0 / 0 |" in md
+    assert (out / "runs" / "block-sliding_100N" / "fields.vtu").exists()
+
+
+class _Res:
+    def __init__(self, forces, fields):
+        from twoscale.results import AsperitySummary
+        f = np.asarray(forces, float)
+        self.asperities = AsperitySummary(f, f, f)
+        self.fields = fields
+
+
+def test_indicators_closed_form():
+    from twoscale.grid import Grid
+    from twoscale.results import PressureField
+    from twoscale.sensor import Sensor
+
+    g = Grid(0.05, 0.05, 0.1, 10, 10)
+    f = PressureField(g, np.ones(g.shape), np.zeros(g.shape), np.zeros(g.shape))
+    f2 = PressureField(g, 1.1 * np.ones(g.shape), np.zeros(g.shape), np.zeros(g.shape))
+    runs = [compare.Run("50N", "halfspace", None, _Res([1.0, 2.0], (f,)), 0.0),
+            compare.Run("50N", "block-bonded", None, _Res([1.1, 2.2], (f2,)), 0.0)]
+    ind = compare.indicators(runs, Sensor())
+    # 10 % everywhere: e_M = e_m = 100 * 0.1^2 = 1 %, relative to the row's body
+    assert ind["50N"]["halfspace"]["block-bonded"]["e_M"] == pytest.approx(1.0, rel=1e-12)
+    assert ind["50N"]["halfspace"]["block-bonded"]["e_m"] == pytest.approx(1.0, rel=1e-12)
+    # the other way round the denominator is the larger map: 100 * (0.1/1.1)^2
+    assert ind["50N"]["block-bonded"]["halfspace"]["e_M"] == pytest.approx(100 / 121, rel=1e-12)
+
+
+@pytest.mark.parametrize("extra, match", [
+    (["--loads", "50"], "--loads needs a scene under load control"),
+    (["--h", "-1"], "--h must be"),
+])
+def test_bad_input_exit_2_nothing_written(tmp_path, capsys, extra, match):
+    out = tmp_path / "cmp"
+    assert main(["compare", TWO, "--out", str(out), "--quiet"] + extra) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err[-1].startswith("error:") and match in err[-1]
+    assert not out.exists()
+
+
+@pytest.mark.parametrize("loads, match", [(["0"], "> 0"), (["nan"], "> 0"), (["50", "50"], "repeated")])
+def test_bad_loads(tmp_path, capsys, loads, match):
+    out = tmp_path / "cmp"
+    assert main(["compare", str(EXAMPLES / "S1.toml"), "--loads", *loads, "--out", str(out), "--quiet"]) == 2
+    assert match in capsys.readouterr().err
+    assert not out.exists()
+
+
+def test_missing_scene(tmp_path, capsys):
+    assert main(["compare", str(tmp_path / "none.toml"), "--out", str(tmp_path / "o")]) == 2
+    assert "not found" in capsys.readouterr().err
+    assert not (tmp_path / "o").exists()

@@ -1,0 +1,328 @@
+"""Compare bodies: solve a scene on the half-space and the finite block, tabulate and plot.
+
+``twoscale compare SCENE.toml [--loads W ...] [--out DIR] [--method twoscale|reference]
+[--h H] [--vtk] [--quiet]``
+
+Solves the scene on the elastic half-space and, when the finite-block provider
+(``fem_influence``) is available, on the block with a bonded and with a sliding base
+(size and origin from the scene's ``[influence]`` when it is a block, else the paper's
+140 x 140 x 20 mm block centred under the scene). Without the block it runs the
+half-space only and says so on stderr and in every table. ``--loads`` replaces the
+scene's ``load.total`` by each value in turn (the paper's load cases).
+
+Writes into DIR (default ``<scene name>_compare``, created only after every solve has
+returned):
+
+* ``forces.csv``: one row per load, body and asperity (force N, contact area mm^2,
+  max pressure MPa, macro-step force N when the method has one);
+* ``forces.md``: the same as Markdown tables, plus e_M (tip forces) and e_m (44 x 44
+  sensor cells of 1.9 mm) in percent between each pair of bodies;
+* ``summary.json``: the indicators, convergence, timings, version, units and scene;
+* ``forces_<W>N.png`` (forces side by side, as the paper's Figs. 10-11) and
+  ``maps_<W>N.png`` (pressure maps side by side) for each load;
+* ``runs/<body>_<W>N/result.json`` (and ``fields.vtu`` with ``--vtk``) for each solve.
+
+Exit codes: 0 every solve converged; 1 some solve did not converge or a body could not
+be built (everything else still written, with the reason); 2 bad input (one
+``error: ...`` line, nothing written).
+"""
+from __future__ import annotations
+
+import argparse
+import csv
+import dataclasses
+import io
+import json
+import math
+import os
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+from .._version import __version__
+from ..io.result_json import UNITS, write_result
+from ..io.scene_file import read_scene, scene_to_dict
+from ..progress import Progress
+from ..scene import BLOCK_DEFAULT_SIZE, METHODS, Scene, SceneError, default_h
+from ..sensor import Sensor, e_M, e_m
+
+#: Bodies compared, in table order: name -> (influence kind, block base).
+BODIES = {"halfspace": ("halfspace", None), "block-bonded": ("block", "bonded"),
+          "block-sliding": ("block", "sliding")}
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """Arguments of ``twoscale compare``."""
+    parser.add_argument("scene", metavar="SCENE.toml", help="scene file (TOML; units mm, N, MPa)")
+    parser.add_argument("--loads", metavar="W", nargs="+", default=None,
+                        help="total loads in N, each replacing load.total of the scene")
+    parser.add_argument("--out", metavar="DIR", default=None,
+                        help="output directory (default: <scene name>_compare)")
+    parser.add_argument("--method", choices=METHODS, default="twoscale",
+                        help="solver for every body (default twoscale)")
+    parser.add_argument("--h", metavar="H", default=None,
+                        help="cell size in mm, overriding [grid] h of the scene")
+    parser.add_argument("--vtk", action="store_true", help="also write runs/*/fields.vtu")
+    parser.add_argument("--quiet", action="store_true", help="print nothing but errors and warnings")
+
+
+# ---------------------------------------------------------------- input
+def _positive(text: str, name: str, unit: str) -> float:
+    try:
+        v = float(text)
+    except ValueError:
+        v = math.nan
+    if not (math.isfinite(v) and v > 0):
+        raise SceneError(f"{name} must be a finite number > 0 ({unit}), got {text!r}")
+    return v
+
+
+def _scenes(args) -> list[Scene]:
+    """The scene once per load case (validated; raises SceneError)."""
+    scene = read_scene(args.scene)
+    if args.h is not None:
+        scene = dataclasses.replace(scene, h=_positive(args.h, "--h", "mm"))
+    if args.loads is None:
+        return [scene]
+    if scene.total_load is None:
+        raise SceneError(f"--loads needs a scene under load control (load.total); "
+                         f"{args.scene} gives load.penetration = {scene.penetration!r}")
+    loads = [_positive(w, "--loads", "N") for w in args.loads]
+    if len(set(loads)) != len(loads):
+        raise SceneError(f"--loads has repeated values, got {args.loads!r}")
+    return [dataclasses.replace(scene, total_load=w) for w in loads]
+
+
+def _block_factory():
+    """The finite-block provider class, or (None, reason) when it is not available."""
+    try:
+        import fem_influence
+    except ImportError as exc:
+        return None, f"the fem_influence package cannot be imported ({exc})"
+    factory = getattr(fem_influence, "FiniteBlock", None) or getattr(fem_influence, "BlockProvider", None)
+    if factory is None:
+        return None, "fem_influence provides no finite-block provider yet"
+    return factory, ""
+
+
+def _influence(scene: Scene, body: str) -> dict:
+    kind, base = BODIES[body]
+    if kind == "halfspace":
+        return {"kind": "halfspace"}
+    inf = scene.influence
+    size = inf["size"] if inf["kind"] == "block" else BLOCK_DEFAULT_SIZE
+    origin = inf["origin"] if inf["kind"] == "block" else (0.0, 0.0)
+    return {"kind": "block", "size": tuple(size), "base": base, "origin": tuple(origin)}
+
+
+# ---------------------------------------------------------------- solving
+def _solve(scene: Scene, provider, method: str):
+    """``solve_scene`` with a provider built once per body (the block is costly)."""
+    h = default_h(scene)
+    if method == "twoscale":
+        from ..twoscale import solve_twoscale
+
+        return solve_twoscale(provider, scene.asperities, h=h, penetration=scene.penetration,
+                              total_load=scene.total_load, tilt=scene.tilt, pivot=scene.pivot)
+    from ..scene import _solve_reference_scene
+
+    return _solve_reference_scene(scene, provider, h)
+
+
+@dataclasses.dataclass(frozen=True)
+class Run:
+    """One solve: the load case, the body, the scene solved and its result."""
+
+    load: str
+    body: str
+    scene: Scene
+    result: object
+    seconds: float
+
+
+def _load_label(scene: Scene) -> str:
+    if scene.total_load is not None:
+        return f"{scene.total_load:g}N"
+    return f"d{scene.penetration:g}mm"
+
+
+def _solve_all(scenes, bodies, method, quiet) -> list[Run]:
+    runs = []
+    with Progress(len(scenes) * len(bodies), label="compare", quiet=quiet) as bar:
+        for body, provider in bodies.items():
+            for sc in scenes:
+                sc = dataclasses.replace(sc, influence=_influence(sc, body))
+                t0 = time.perf_counter()
+                res = _solve(sc, provider, method)
+                runs.append(Run(_load_label(sc), body, sc, res, time.perf_counter() - t0))
+                bar.update(note=f"{body} {runs[-1].load}")
+    return runs
+
+
+def _providers(scene: Scene, quiet: bool) -> tuple[dict, list[str]]:
+    """Providers by body name, and notes on bodies left out (never silently)."""
+    providers = {"halfspace": dataclasses.replace(scene, influence={"kind": "halfspace"}).provider()}
+    notes = []
+    factory, why = _block_factory()
+    if factory is None:
+        notes.append(f"finite block not compared: {why}; half-space only")
+        return providers, notes
+    for body in ("block-bonded", "block-sliding"):
+        opts = _influence(scene, body)
+        with Progress(1, label=f"building {body}", quiet=quiet) as bar:
+            try:
+                providers[body] = factory(scene.material, size=opts["size"], base=opts["base"],
+                                          origin=opts["origin"])
+            except (ValueError, RuntimeError) as exc:
+                notes.append(f"{body} could not be built: {exc}")
+            bar.update()
+    return providers, notes
+
+
+# ---------------------------------------------------------------- tables
+FIELDS = ("load", "body", "asperity", "force_N", "contact_area_mm2", "max_pressure_MPa", "macro_force_N")
+
+
+def per_asperity_rows(runs) -> list[dict]:
+    """One dict per load, body and asperity (the CSV rows)."""
+    rows = []
+    for run in runs:
+        s = run.result.asperities
+        macro = run.result.extra.get("macro_forces")
+        for k in range(len(s.forces)):
+            rows.append({"load": run.load, "body": run.body, "asperity": k + 1,
+                         "force_N": float(s.forces[k]), "contact_area_mm2": float(s.contact_areas[k]),
+                         "max_pressure_MPa": float(s.max_pressures[k]),
+                         "macro_force_N": "" if macro is None else float(np.asarray(macro)[k])})
+    return rows
+
+
+def indicators(runs, sensor: Sensor) -> dict:
+    """e_M and e_m (percent) of every body against every other, per load.
+
+    ``out[load][reference][other] = {"e_M": ..., "e_m": ...}``, with the reference body's
+    forces (sensor map) in the denominator.
+    """
+    out: dict = {}
+    maps = {(r.load, r.body): sensor.average(r.result) for r in runs}
+    for ref in runs:
+        for other in runs:
+            if other.load != ref.load or other.body == ref.body:
+                continue
+            out.setdefault(ref.load, {}).setdefault(ref.body, {})[other.body] = {
+                "e_M": e_M(other.result.asperities.forces, ref.result.asperities.forces),
+                "e_m": e_m(maps[other.load, other.body], maps[ref.load, ref.body]),
+            }
+    return out
+
+
+def markdown(scene_path: str, runs, ind: dict, notes: list[str], method: str) -> str:
+    """The Markdown report: per-load tables of forces, areas and peak pressures, indicators."""
+    lines = [f"# twoscale compare {scene_path}", "",
+             f"twoscale {__version__}; method {method}; units mm, N, MPa.", ""]
+    lines += [f"> **Note:** {n}" for n in notes] + ([""] if notes else [])
+    for load in dict.fromkeys(r.load for r in runs):
+        group = [r for r in runs if r.load == load]
+        lines += [f"## Load case {load}", ""]
+        for r in group:
+            tilt = "" if r.result.tilt is None else (f", tilt alpha {r.result.tilt[0]:.4g} rad, "
+                                                     f"beta {r.result.tilt[1]:.4g} rad")
+            conv = "converged" if r.result.converged else f"NOT converged: {r.result.message}"
+            lines.append(f"- {r.body}: total {r.result.total_load:.5g} N, approach "
+                         f"{r.result.penetration:.5g} mm{tilt}; {conv}; {r.seconds:.3g} s")
+        lines.append("")
+        head = ["asperity"] + [f"{r.body} {q}" for q in ("F (N)", "A (mm^2)", "p_max (MPa)") for r in group]
+        lines += ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
+        n = len(group[0].result.asperities.forces)
+        for k in range(n):
+            vals = [f"{getattr(r.result.asperities, q)[k]:.4g}"
+                    for q in ("forces", "contact_areas", "max_pressures") for r in group]
+            lines.append(f"| {k + 1} | " + " | ".join(vals) + " |")
+        lines.append("")
+        if load in ind:
+            lines += ["e_M / e_m in percent (row: reference body in the denominator; e_m on the "
+                      "44 x 44 sensor cells of 1.9 mm):", ""]
+            names = [r.body for r in group]
+            lines += ["| reference | " + " | ".join(names) + " |", "|" + "---|" * (len(names) + 1)]
+            for a in names:
+                cells = ["-" if a == b else f"{ind[load][a][b]['e_M']:.3g} / {ind[load][a][b]['e_m']:.3g}"
+                         for b in names]
+                lines.append(f"| {a} | " + " | ".join(cells) + " |")
+            lines.append("")
+    return "\n".join(lines)
+
+
+# ---------------------------------------------------------------- writing
+def _write_text(path: Path, text: str) -> None:
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", dir=path.parent)
+    try:
+        with os.fdopen(fd, "w", encoding="utf-8", newline="") as fh:
+            fh.write(text)
+        os.replace(tmp, path)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
+
+
+def _csv_text(rows) -> str:
+    buf = io.StringIO()
+    w = csv.DictWriter(buf, fieldnames=FIELDS, lineterminator="\n")
+    w.writeheader()
+    for row in rows:
+        w.writerow({k: (f"{v:.10g}" if isinstance(v, float) else v) for k, v in row.items()})
+    return buf.getvalue()
+
+
+def _write_outputs(out: Path, args, runs, ind, notes) -> None:
+    from ..io.vtk import write_vtk
+    from ..plot import compare_forces, compare_maps
+
+    out.mkdir(parents=True, exist_ok=True)
+    scene_dict = scene_to_dict(runs[0].scene)
+    _write_text(out / "forces.csv", _csv_text(per_asperity_rows(runs)))
+    _write_text(out / "forces.md", markdown(args.scene, runs, ind, notes, args.method) + "\n")
+    summary = {"version": __version__, "units": dict(UNITS), "method": args.method, "notes": notes,
+               "scene": scene_dict, "indicators_percent": ind,
+               "runs": [{"load": r.load, "body": r.body, "converged": bool(r.result.converged),
+                         "message": r.result.message, "total_load": float(r.result.total_load),
+                         "seconds": r.seconds} for r in runs]}
+    _write_text(out / "summary.json", json.dumps(summary, indent=2, allow_nan=False) + "\n")
+    for load in dict.fromkeys(r.load for r in runs):
+        group = {r.body: r.result for r in runs if r.load == load}
+        tips = runs[0].scene.asperities
+        compare_forces(group, out / f"forces_{load}.png", title=f"force per asperity, {load}",
+                       scene=scene_dict)
+        compare_maps(group, out / f"maps_{load}.png", tips=tips, title=f"pressure, {load}", scene=scene_dict)
+    for r in runs:
+        d = out / "runs" / f"{r.body}_{r.load}"
+        write_result(r.result, r.scene, d, method=args.method)
+        if args.vtk:
+            write_vtk(r.result, d / "fields.vtu", asperities=r.scene.asperities, pivot=r.scene.pivot,
+                      scene=scene_to_dict(r.scene))
+
+
+def run(args: argparse.Namespace) -> int:
+    """Run ``twoscale compare``; returns the exit code (0, 1 or 2, see module doc)."""
+    try:
+        scenes = _scenes(args)
+        providers, notes = _providers(scenes[0], args.quiet)
+        for n in notes:
+            print(f"note: {n}", file=sys.stderr)
+        runs = _solve_all(scenes, providers, args.method, args.quiet)
+    except ValueError as exc:  # SceneError and solver input checks
+        print(f"error: {exc}", file=sys.stderr)
+        return 2
+    ind = indicators(runs, Sensor())
+    out = Path(args.out) if args.out is not None else Path(f"{Path(args.scene).stem}_compare")
+    _write_outputs(out, args, runs, ind, notes)
+    if not args.quiet:
+        print(markdown(args.scene, runs, ind, notes, args.method))
+        print(f"\nwrote {out}/")
+    failed = [r for r in runs if not r.result.converged]
+    for r in failed:
+        print(f"warning: {r.body} at {r.load} did not converge: {r.result.message}", file=sys.stderr)
+    built_all = not any("could not be built" in n for n in notes)
+    return 0 if (not failed and built_all) else 1
