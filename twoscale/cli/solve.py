@@ -35,23 +35,30 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--quiet", action="store_true", help="print nothing but errors")
 
 
-def _cell_size(text: str | None) -> float | None:
+def positive_option(text: str | None, name: str, *, unit: str) -> float | None:
+    """A command-line value that must be a finite number > 0 (``None`` passes through).
+
+    Raises
+    ------
+    SceneError
+        Naming the option ``name`` and the text given.
+    """
     if text is None:
         return None
     try:
-        h = float(text)
+        v = float(text)
     except ValueError:
-        h = math.nan
-    if not (math.isfinite(h) and h > 0):
-        raise SceneError(f"--h must be a finite number > 0 (mm), got {text!r}")
-    return h
+        v = math.nan
+    if not (math.isfinite(v) and v > 0):
+        raise SceneError(f"{name} must be a finite number > 0 ({unit}), got {text!r}")
+    return v
 
 
 def run(args: argparse.Namespace) -> int:
     """Run ``twoscale solve``; returns the exit code (0, 1 or 2, see module doc)."""
     try:
         scene = read_scene(args.scene)
-        h = _cell_size(args.h)
+        h = positive_option(args.h, "--h", unit="mm")
         if h is not None:
             scene = dataclasses.replace(scene, h=h)
         t0 = time.perf_counter()
