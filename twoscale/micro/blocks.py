@@ -30,7 +30,7 @@ class LocalBlock:
     ----------
     provider : InfluenceProvider
     patch : Patch
-    dense_max_cells : int, default 2000
+    dense_max_cells : int, default 400
         Blocks with at most this many owned cells store ``A_kk`` and solve by Cholesky
         (factorisations cached per active set); larger ones use the provider's FFT
         operator and conjugate gradients.
@@ -41,9 +41,10 @@ class LocalBlock:
         Number of Cholesky factorisations (active sets) kept.
     """
 
-    def __init__(self, provider: InfluenceProvider, patch: Patch, *, dense_max_cells: int = 2000,
+    def __init__(self, provider: InfluenceProvider, patch: Patch, *, dense_max_cells: int = 400,
                  cg_rtol: float = 1e-10, cg_max_iter: int = 2000, cache_size: int = 4):
         self.patch = patch
+        self._provider = provider
         self.n = int(patch.owned.sum())
         self.dense = self.n <= dense_max_cells
         self.cg_rtol, self.cg_max_iter = cg_rtol, cg_max_iter
@@ -60,6 +61,12 @@ class LocalBlock:
             self._op = provider.grid_operator(patch.grid)
 
     # ------------------------------------------------------------------ products
+    def full_operator(self):
+        """FFT operator of the whole patch on itself (built on first use)."""
+        if self._op is None:
+            self._op = self._provider.grid_operator(self.patch.grid)
+        return self._op
+
     def matvec(self, v: np.ndarray) -> np.ndarray:
         """``A_kk v`` for a block vector (n,) or (n, m): displacement (mm) from pressure (MPa)."""
         if self.dense:
@@ -69,19 +76,22 @@ class LocalBlock:
         return np.column_stack([self.matvec(v[:, j]) for j in range(v.shape[1])])
 
     # ------------------------------------------------------------------ solves
-    def solve(self, active: np.ndarray, rhs: np.ndarray, x0: np.ndarray | None = None) -> np.ndarray:
+    def solve(self, active: np.ndarray, rhs: np.ndarray, x0: np.ndarray | None = None,
+              rtol: float | None = None) -> np.ndarray:
         """Solve ``A_SS x = rhs`` on the active cells ``S`` (boolean mask over the block).
 
-        ``rhs`` has shape (|S|,) or (|S|, m); returns the same shape. ``x0`` is a CG start.
+        ``rhs`` has shape (|S|,) or (|S|, m); returns the same shape. ``x0`` is a CG start
+        and ``rtol`` its relative residual (default ``cg_rtol``).
         """
         if not np.any(active):
             return np.zeros_like(rhs)
         if self.dense:
             return sla.cho_solve(self._factor(active), rhs, check_finite=False)
         if rhs.ndim == 2:
-            cols = [self._cg(active, rhs[:, j], None if x0 is None else x0[:, j]) for j in range(rhs.shape[1])]
+            cols = [self._cg(active, rhs[:, j], None if x0 is None else x0[:, j], rtol)
+                    for j in range(rhs.shape[1])]
             return np.column_stack(cols)
-        return self._cg(active, rhs, x0)
+        return self._cg(active, rhs, x0, rtol)
 
     def _factor(self, active: np.ndarray):
         key = active.tobytes()
@@ -97,7 +107,7 @@ class LocalBlock:
             self._cache.move_to_end(key)
         return f
 
-    def _cg(self, active: np.ndarray, rhs: np.ndarray, x0: np.ndarray | None) -> np.ndarray:
+    def _cg(self, active: np.ndarray, rhs: np.ndarray, x0: np.ndarray | None, rtol: float | None) -> np.ndarray:
         # Plain CG on the SPD sub-matrix; the product is the FFT operator with the
         # inactive cells masked out on input and output.
         def A(x):
@@ -113,7 +123,7 @@ class LocalBlock:
         d = r.copy()
         rr = r @ r
         for _ in range(self.cg_max_iter):
-            if np.sqrt(rr) <= self.cg_rtol * bnorm:
+            if np.sqrt(rr) <= (self.cg_rtol if rtol is None else rtol) * bnorm:
                 break
             Ad = A(d)
             step = rr / (d @ Ad)
@@ -133,20 +143,21 @@ class Coupling:
     ----------
     provider : InfluenceProvider
     patches : sequence of Patch
-    dense_max_entries : int, default 250_000
+    dense_max_entries : int, default 40_000
         Pairs whose dense block has at most this many entries are formed and cached
         (``provider.grid_matrix``); larger pairs use ``provider.grid_operator`` (FFT).
     cache_bytes : float, default 4e8
         Memory budget for cached dense pairs; beyond it pairs fall back to FFT.
     """
 
-    def __init__(self, provider: InfluenceProvider, patches, *, dense_max_entries: int = 250_000,
+    def __init__(self, provider: InfluenceProvider, patches, *, dense_max_entries: int = 40_000,
                  cache_bytes: float = 4e8):
         self.provider = provider
         self.patches = list(patches)
         self.dense_max_entries = dense_max_entries
         self.cache_bytes = cache_bytes
         self._ops: dict = {}
+        self._fft: dict = {}
         self._bytes = 0.0
 
     def replace(self, k: int, patch: Patch) -> None:
@@ -156,6 +167,15 @@ class Coupling:
             op = self._ops.pop(key)
             if isinstance(op, np.ndarray):
                 self._bytes -= op.nbytes
+        for key in [key for key in self._fft if k in key]:
+            del self._fft[key]
+
+    def full_operator(self, k: int, l: int):
+        """FFT operator from the whole patch ``l`` to the whole patch ``k`` (cached)."""
+        op = self._fft.get((k, l))
+        if op is None:
+            op = self._fft[(k, l)] = self.provider.grid_operator(self.patches[k].grid, self.patches[l].grid)
+        return op
 
     def _operator(self, k: int, l: int):
         op = self._ops.get((k, l))
@@ -169,7 +189,7 @@ class Coupling:
             op = self.provider.grid_matrix(pk.grid, pl.grid)[np.ix_(ik, il)]
             self._bytes += op.nbytes
         else:
-            op = self.provider.grid_operator(pk.grid, pl.grid)
+            op = self.full_operator(k, l)
         self._ops[(k, l)] = op
         return op
 

@@ -52,8 +52,39 @@ def coupled_rhs(coupling: Coupling, k: int, values: list, rhs: np.ndarray) -> np
     return out
 
 
+@dataclass(frozen=True)
+class Sweep:
+    """One sweep of eq. 8: new pressures and contact sets, and what changed."""
+
+    pressures: list
+    active: list
+    changed: bool
+    change: float
+    failed: tuple
+
+
+def sweep(blocks: list[LocalBlock], coupling: Coupling, b: list, p: list, active: list, *,
+          local_rtol: float | None = None) -> Sweep:
+    """One block Gauss-Seidel sweep (eq. 8) over ``k = 1..N`` from pressures ``p``;
+    ``local_rtol`` is the conjugate-gradient tolerance of large blocks (default theirs)."""
+    p, active = list(p), list(active)
+    changed = False
+    diff2 = 0.0
+    failed = []
+    for k, blk in enumerate(blocks):
+        sol = contact_solve(blk, coupled_rhs(coupling, k, p, b[k]), p[k], rtol=local_rtol)
+        changed |= bool(np.any(sol.active != active[k]))
+        if not sol.converged:
+            failed.append(k)
+        diff2 += float(np.sum((sol.pressure - p[k]) ** 2))
+        p[k], active[k] = sol.pressure, sol.active
+    norm2 = sum(float(np.sum(v * v)) for v in p)
+    rel = float(np.sqrt(diff2 / norm2)) if norm2 > 0 else 0.0
+    return Sweep(p, active, changed, rel, tuple(failed))
+
+
 def gauss_seidel(blocks: list[LocalBlock], coupling: Coupling, b: list, start: list, *,
-                 tol: float, max_sweeps: int) -> SweepResult:
+                 tol: float, max_sweeps: int, stop=None) -> SweepResult:
     """Contact by block Gauss-Seidel (eq. 8), stopped by eq. 9.
 
     Parameters
@@ -67,29 +98,26 @@ def gauss_seidel(blocks: list[LocalBlock], coupling: Coupling, b: list, start: l
     tol : float
         Relative change at which to stop.
     max_sweeps : int
+    stop : callable, optional
+        ``stop(pressures) -> bool`` checked after each sweep; True ends the sweeps early
+        (``converged=False``, message "stopped"), e.g. to enlarge a patch.
     """
     p = [np.array(s, dtype=float) for s in start]
     active = [s > 0.0 for s in p]
     history = []
     for m in range(1, max_sweeps + 1):
-        changed = False
-        diff2 = 0.0
-        failed = []
-        for k, blk in enumerate(blocks):
-            sol = contact_solve(blk, coupled_rhs(coupling, k, p, b[k]), active[k])
-            changed |= bool(np.any(sol.active != active[k]))
-            if not sol.converged:
-                failed.append(k)
-            diff2 += float(np.sum((sol.pressure - p[k]) ** 2))
-            p[k], active[k] = sol.pressure, sol.active
-        norm2 = sum(float(np.sum(v * v)) for v in p)
-        rel = np.sqrt(diff2 / norm2) if norm2 > 0 else 0.0
-        history.append(rel)
-        if failed:
+        # inexact local solves while far from convergence: 1 % of the last change
+        local_rtol = 1e-2 * max(history[-1] if history else 0.1, tol)
+        sw = sweep(blocks, coupling, b, p, active, local_rtol=local_rtol)
+        p, active = sw.pressures, sw.active
+        history.append(sw.change)
+        if sw.failed:
             return SweepResult(p, active, False, m, tuple(history),
-                               f"local active-set solve did not converge on blocks {failed}")
-        if rel <= tol and not changed:
+                               f"local active-set solve did not converge on blocks {list(sw.failed)}")
+        if sw.change <= tol and not sw.changed:
             return SweepResult(p, active, True, m, tuple(history), "")
+        if stop is not None and stop(p):
+            return SweepResult(p, active, False, m, tuple(history), "stopped")
     return SweepResult(p, active, False, max_sweeps, tuple(history),
                        f"block Gauss-Seidel reached {max_sweeps} sweeps (last change {history[-1]:.3g})")
 
@@ -108,7 +136,8 @@ def linear_gauss_seidel(blocks: list[LocalBlock], coupling: Coupling, rhs: list,
         for k, blk in enumerate(blocks):
             r = coupled_rhs(coupling, k, x, rhs[k])
             new = np.zeros_like(r)
-            new[active[k]] = blk.solve(active[k], r[active[k]], x[k][active[k]])
+            new[active[k]] = blk.solve(active[k], r[active[k]], x[k][active[k]],
+                                       rtol=1e-2 * max(history[-1] if history else 0.1, tol))
             diff2 += float(np.sum((new - x[k]) ** 2))
             x[k] = new
         norm2 = sum(float(np.sum(v * v)) for v in x)

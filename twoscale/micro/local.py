@@ -6,8 +6,10 @@
   with ``A_kk p >= b`` and equality where ``p > 0``, ``b`` holding the approach, the
   indenter height and the displacement due to the other blocks.
 
-Both use the same active-set loop: solve on the active cells, drop the cells with negative
-pressure, add the cells that penetrate, until neither happens.
+Small (dense) blocks use Johnson's active-set loop: solve on the active cells by Cholesky,
+drop the cells with negative pressure, add the cells that penetrate, until neither happens.
+Large blocks use Polonsky and Keer's constrained conjugate gradients with the provider's
+FFT products (:mod:`.pk`), warm-started from the previous pressure.
 """
 from __future__ import annotations
 
@@ -16,6 +18,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .blocks import LocalBlock
+from .pk import pk_fixed_approach, pk_fixed_force
 
 
 @dataclass(frozen=True)
@@ -54,8 +57,8 @@ def _next_active(active: np.ndarray, p: np.ndarray, seen: set) -> np.ndarray:
     return out
 
 
-def contact_solve(block: LocalBlock, b: np.ndarray, start: np.ndarray, *, max_iter: int = 200,
-                  gap_rtol: float = 1e-12) -> LocalSolution:
+def contact_solve(block: LocalBlock, b: np.ndarray, previous: np.ndarray, *, max_iter: int = 200,
+                  gap_rtol: float = 1e-12, rtol: float | None = None) -> LocalSolution:
     """Contact on one block with a fixed right-hand side (eq. 8 with clipping done right).
 
     Parameters
@@ -63,12 +66,22 @@ def contact_solve(block: LocalBlock, b: np.ndarray, start: np.ndarray, *, max_it
     block : LocalBlock
     b : (n,) array, mm
         ``d - z - tilt - sum_{l != k} A_kl p_l`` on the block's cells.
-    start : (n,) bool array
-        Initial active set (the previous sweep's contact); ``b > 0`` is used if empty.
+    previous : (n,) array, MPa
+        The previous sweep's pressure: its contact is the first active set (``b > 0`` if
+        empty), and the conjugate-gradient start.
     max_iter : int, default 200
+        Active-set passes (dense) or 5 x max_iter conjugate-gradient steps (FFT).
     gap_rtol : float, default 1e-12
         Penetration below ``gap_rtol * max|b|`` (mm) is accepted.
+    rtol : float, optional
+        Relative change at which the conjugate gradients stop (default ``block.cg_rtol``);
+        the sweeps loosen it while they are far from converged.
     """
+    if not block.dense:
+        p, ok, it = pk_fixed_approach(block.matvec, b, previous, rtol=block.cg_rtol if rtol is None else rtol,
+                                      max_iter=5 * max_iter)
+        return LocalSolution(p, p > 0.0, float("nan"), False, ok, it)
+    start = previous > 0.0
     active = start.copy() if np.any(start) else b > 0.0
     seen: set = set()
     removed = False
@@ -119,6 +132,10 @@ def initial_pressure(block: LocalBlock, z: np.ndarray, force: float, h: float, *
     active = (z - zmin) < max(approach, 0.0)
     if not np.any(active):
         active = z == zmin
+    if not block.dense:
+        start = np.sqrt(np.maximum(max(approach, 0.0) - (z - zmin), 0.0)) + (z == zmin)
+        p, s, ok, it = pk_fixed_force(block.matvec, z, force, h, start, rtol=block.cg_rtol, max_iter=5 * max_iter)
+        return LocalSolution(p, p > 0.0, s, False, ok, it)
     ones = np.ones(n)
     seen: set = set()
     removed = False

@@ -9,7 +9,7 @@ asperity owns, so no cell is ever counted twice.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Sequence
 
 import numpy as np
@@ -32,17 +32,21 @@ class Patch:
         Untilted height of the union of all indenters (``inf`` where none has material).
     owner : (ny, nx) int array
         Owning asperity of each cell (-1 where none has material).
+    owned : (ny, nx) bool array
+        The block: cells this asperity owns (derived).
     """
 
     asperity: int
     grid: Grid
     height: np.ndarray
     owner: np.ndarray
+    owned: np.ndarray = field(init=False, repr=False)
 
-    @property
-    def owned(self) -> np.ndarray:
-        """Boolean (ny, nx) mask of the block: cells this asperity owns."""
-        return self.owner == self.asperity
+    def __post_init__(self) -> None:
+        # the block: boolean (ny, nx) mask of the cells this asperity owns
+        owned = self.owner == self.asperity
+        owned.setflags(write=False)
+        object.__setattr__(self, "owned", owned)
 
 
 def make_patch(k: int, grid: Grid, asperities: Sequence[Asperity]) -> Patch:
@@ -58,9 +62,12 @@ def patch_radius(asperity: Asperity, *, force: float, approach: float, E_star: f
     The Hertz-like contact radius ``a = (3 P R / (4 E*))^(1/3)`` from the macro force ``P``
     (N), times ``margin`` plus two cells, but never beyond the reach of the indenter at the
     geometric approach ``approach`` (mm; no cell farther out can touch when displacements
-    are into the body) plus one cell. ``E*`` (MPa) is only used for this estimate.
+    are into the body) plus one cell; a non-finite ``force`` (no usable macro force) gives
+    that reach. ``E*`` (MPa) is only used for this estimate.
     """
     reach = asperity.reach(approach) + h
+    if not math.isfinite(force):
+        return reach
     a = (3.0 * max(force, 0.0) * asperity.R / (4.0 * E_star)) ** (1.0 / 3.0)
     return min(reach, margin * a + 2.0 * h)
 

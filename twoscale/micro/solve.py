@@ -121,8 +121,9 @@ def solve_micro(provider: InfluenceProvider, asperities: Sequence[Asperity], *, 
                 pivot: tuple[float, float] = (0.0, 0.0), total_load: float | None = None,
                 free_tilt: bool = False, tol: float = 1e-6, max_sweeps: int = 100,
                 margin: float = 1.3, anchor: tuple[float, float] = (0.0, 0.0),
-                dense_max_cells: int = 2000, dense_max_entries: int = 250_000,
-                max_corrections: int = 20, max_growths: int = 50) -> MicroResult:
+                dense_max_cells: int = 400, dense_max_entries: int = 40_000,
+                max_corrections: int = 20, max_growths: int = 50,
+                size_from_forces: bool = True) -> MicroResult:
     """Pressure on patches from the macro forces (METHOD.md section 3).
 
     Parameters
@@ -152,18 +153,22 @@ def solve_micro(provider: InfluenceProvider, asperities: Sequence[Asperity], *, 
         Patch half-width over the Hertz-like contact radius.
     anchor : (float, float), default (0, 0)
         A cell centre of the common lattice, mm.
-    dense_max_cells : int, default 2000
+    dense_max_cells : int, default 400
         Blocks up to this size are solved densely (Cholesky), larger ones by FFT + CG.
-    dense_max_entries : int, default 250000
+    dense_max_entries : int, default 40000
         Cross blocks ``A_kl`` up to this many entries are formed densely, larger by FFT.
     max_corrections : int, default 20
         Newton corrections of (d, alpha, beta) allowed.
     max_growths : int, default 50
         Patch enlargements allowed.
+    size_from_forces : bool, default True
+        Size the patches from the macro forces; False sizes them by the geometric reach
+        of each indenter (use when the macro step did not converge).
     """
     theta = np.array([penetration, *(tilt if tilt is not None else (0.0, 0.0))], dtype=float)
     n_unknowns = 0 if total_load is None else (3 if free_tilt else 1)
-    patches = build_patches(asperities, h=h, forces=forces, approaches=_tip_approaches(asperities, theta, pivot),
+    sizing = np.asarray(forces, dtype=float) if size_from_forces else np.full(len(asperities), np.inf)
+    patches = build_patches(asperities, h=h, forces=sizing, approaches=_tip_approaches(asperities, theta, pivot),
                             E_star=provider.material.E_star, margin=margin, anchor=anchor)
     state = _State(provider, asperities, patches, dense_max_cells, dense_max_entries)
     if not patches:
@@ -175,18 +180,18 @@ def solve_micro(provider: InfluenceProvider, asperities: Sequence[Asperity], *, 
     target = None if total_load is None else np.array([total_load, 0.0, 0.0])[:n_unknowns]
     while True:
         z = state.heights(theta, pivot)
+        loaded = (lambda q: any(any(edges_loaded(pt, scatter(pt, q[k]))) for k, pt in enumerate(state.patches))
+                  if growths < max_growths else None)
         gs = gauss_seidel(state.blocks, state.coupling, [theta[0] - zk for zk in z], p,
-                          tol=tol, max_sweeps=max(max_sweeps - sweeps, 1))
+                          tol=tol, max_sweeps=max(max_sweeps - sweeps, 1), stop=loaded)
         sweeps += gs.sweeps
         history += gs.history
         p = gs.pressures
+        if gs.message == "stopped" or (gs.converged and growths < max_growths and loaded(p)):
+            growths += _grow_loaded(state, p, p0)
+            continue
         if not gs.converged:
             return _finish(state, p, p0, theta, tilt, pivot, False, gs.message, sweeps, corrections, growths, history)
-        if growths < max_growths:
-            g = _grow_loaded(state, p, p0)
-            if g:
-                growths += g
-                continue
         if target is None:
             break
         residual = target - resultants(state.patches, p, pivot, n_unknowns)
@@ -214,7 +219,7 @@ def _correct(state: _State, p, active, theta, residual, pivot, n_unknowns, tol):
     """One Newton correction of (d, alpha, beta) on the current contact sets."""
     rhs = [rhs_derivatives(pt, pivot, n_unknowns) for pt in state.patches]
     lin = linear_gauss_seidel(state.blocks, state.coupling, rhs, active,
-                              tol=min(1e-10, tol), max_sweeps=500)
+                              tol=tol, max_sweeps=500)
     K = np.atleast_2d(resultants(state.patches, lin.pressures, pivot, n_unknowns))
     step = newton_step(K, residual)
     theta = theta.copy()
@@ -243,9 +248,9 @@ def _finish(state, p, p0, theta, tilt, pivot, converged, message, sweeps, correc
         initial.append(scatter(pt, p0[k]))
     for k, pt in enumerate(state.patches):
         u = np.zeros(pt.grid.shape)
-        for l, pl in enumerate(state.patches):
+        for l in range(len(state.patches)):
             if np.any(pressures[l]):
-                u += state.provider.grid_operator(pt.grid, pl.grid).apply(pressures[l])
+                u += (state.blocks[k].full_operator() if l == k else state.coupling.full_operator(k, l)).apply(pressures[l])
         X, Y = pt.grid.centres()
         with np.errstate(invalid="ignore"):
             gaps.append(pt.height + t.height(X, Y) + u - theta[0])

@@ -1,0 +1,126 @@
+"""The two-scale solver (Cesbron et al. 2009; METHOD.md sections 2-3).
+
+1. Macro step: tip forces ``P_k`` of the interacting asperities (:func:`twoscale.macro.solve_macro`).
+2. Micro step: pressure on one patch per asperity, from eq. 7 and block Gauss-Seidel
+   (:func:`twoscale.micro.solve_micro`), with the approach and tilt corrected so that
+   the pressure carries the load and the moments.
+
+Only the cells where contact can be are modelled, which is where the speed comes from.
+"""
+from __future__ import annotations
+
+import math
+import time
+from typing import Sequence
+
+import numpy as np
+
+from .indenters import Asperity
+from .influence.base import InfluenceProvider
+from .laws import law_for
+from .macro import solve_macro
+from .micro import solve_micro
+from .results import ContactResult, PressureField, summarise
+
+
+def _check(asperities, h, penetration, total_load, tilt, tol, max_sweeps) -> None:
+    if len(asperities) == 0:
+        raise ValueError("asperities must not be empty")
+    if not all(isinstance(a, Asperity) for a in asperities):
+        raise ValueError("asperities must be Asperity objects")
+    if isinstance(h, bool) or not isinstance(h, (int, float)) or not math.isfinite(h) or h <= 0:
+        raise ValueError(f"cell size h must be a finite number > 0 (mm), got {h!r}")
+    if (penetration is None) == (total_load is None):
+        raise ValueError(f"give exactly one of penetration or total_load, got penetration={penetration!r}, "
+                         f"total_load={total_load!r}")
+    if tilt and total_load is None:
+        raise ValueError("tilt=True needs total_load (ball-and-socket joint under load control)")
+    if not (isinstance(tol, (int, float)) and math.isfinite(tol) and tol > 0):
+        raise ValueError(f"tol must be a finite number > 0, got {tol!r}")
+    if isinstance(max_sweeps, bool) or not isinstance(max_sweeps, int) or max_sweeps < 1:
+        raise ValueError(f"max_sweeps must be an integer >= 1, got {max_sweeps!r}")
+
+
+def solve_twoscale(provider: InfluenceProvider, asperities: Sequence[Asperity], *, h: float,
+                   penetration: float | None = None, total_load: float | None = None,
+                   tilt: bool = False, pivot: tuple[float, float] = (0.0, 0.0), tol: float = 1e-6,
+                   max_sweeps: int = 100, laws=None, margin: float = 1.3,
+                   anchor: tuple[float, float] = (0.0, 0.0), dense_max_cells: int = 400,
+                   macro_tol: float = 1e-10, macro_max_iter: int = 100) -> ContactResult:
+    """Multi-asperity contact by the two-scale iterative method.
+
+    Parameters
+    ----------
+    provider : InfluenceProvider
+        The elastic body.
+    asperities : sequence of Asperity
+        The rigid indenters.
+    h : float
+        Cell side of the micro step, mm.
+    penetration : float, optional
+        Rigid approach d, mm (penetration control).
+    total_load : float, optional
+        Total load W, N (load control); exactly one of the two.
+    tilt : bool, default False
+        Ball-and-socket joint (with ``total_load``): solve the tilt angles alpha (about x)
+        and beta (about y) so that the moments about ``pivot`` vanish.
+    pivot : (float, float), default (0, 0)
+        Pivot of the joint, mm.
+    tol : float, default 1e-6
+        Eq. 9 tolerance on the relative change of the pressure between sweeps.
+    max_sweeps : int, default 100
+        Block Gauss-Seidel sweeps allowed (all rounds together).
+    laws : sequence of AsperityLaw, optional
+        Load-penetration law per asperity; default ``law_for(asperity, provider.material)``.
+    margin : float, default 1.3
+        Patch half-width over the Hertz-like contact radius of the macro force.
+    anchor : (float, float), default (0, 0)
+        A cell centre of the lattice, mm (use the reference grid's to compare cell by cell).
+    dense_max_cells : int, default 400
+        Blocks up to this many cells are solved densely, larger ones by FFT + CG.
+    macro_tol : float, default 1e-10
+        Relative residual of the macro Newton iteration.
+    macro_max_iter : int, default 100
+
+    Returns
+    -------
+    ContactResult
+        ``method="twoscale"``; one field per patch. ``extra`` holds "macro_forces" (N),
+        "local_penetrations" (mm), "p0" (eq. 7 pressure per patch, MPa),
+        "p0_change_percent" = ``100 ||p0 - p|| / ||p||``, and "patch_growths".
+    """
+    _check(asperities, h, penetration, total_load, tilt, tol, max_sweeps)
+    t0 = time.perf_counter()
+    laws = [law_for(a, provider.material) for a in asperities] if laws is None else laws
+    tips = np.array([[a.x, a.y] for a in asperities], dtype=float)
+    z = np.array([a.z for a in asperities], dtype=float)
+    macro = solve_macro(provider, tips, z, laws, penetration=penetration, total_load=total_load,
+                        tilt=tilt, pivot=pivot, tol=macro_tol, max_iter=macro_max_iter)
+    t1 = time.perf_counter()
+    micro = solve_micro(provider, asperities, h=h, forces=np.asarray(macro.forces), penetration=macro.penetration,
+                        tilt=macro.tilt, pivot=pivot, total_load=total_load, free_tilt=tilt, tol=tol,
+                        max_sweeps=max_sweeps, margin=margin, anchor=anchor, dense_max_cells=dense_max_cells,
+                        size_from_forces=bool(macro.converged))
+    t2 = time.perf_counter()
+    return _result(asperities, macro, micro, h, {"macro": t1 - t0, "micro": t2 - t1, "total": t2 - t0})
+
+
+def _result(asperities, macro, micro, h, timings) -> ContactResult:
+    fields = tuple(PressureField(pt.grid, p, pt.owner, g)
+                   for pt, p, g in zip(micro.patches, micro.pressures, micro.gaps))
+    p = np.concatenate([v.ravel() for v in micro.pressures]) if fields else np.zeros(0)
+    p0 = np.concatenate([v.ravel() for v in micro.initial]) if fields else np.zeros(0)
+    norm = float(np.linalg.norm(p))
+    change = 100.0 * float(np.linalg.norm(p0 - p)) / norm if norm > 0 else 0.0
+    messages = [m for m in (("macro step: " + macro.message) if not macro.converged else "", micro.message) if m]
+    return ContactResult(
+        method="twoscale", fields=fields, penetration=micro.penetration, tilt=micro.tilt,
+        total_load=float(h * h * p.sum()), asperities=summarise(fields, len(asperities)),
+        converged=bool(micro.converged), message="; ".join(messages),
+        iterations={"macro": int(macro.iterations), "micro": int(micro.sweeps),
+                    "corrections": int(micro.corrections)},
+        residuals={"macro": tuple(macro.residuals), "micro": tuple(micro.history)},
+        timings_s=timings,
+        extra={"macro_forces": np.array(macro.forces), "local_penetrations": np.array(macro.local_penetrations),
+               "p0_change_percent": change, "p0": micro.initial, "patch_growths": int(micro.growths),
+               "macro_converged": bool(macro.converged)})
