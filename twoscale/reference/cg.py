@@ -185,65 +185,84 @@ def _cropped(problem: ContactProblem) -> ContactProblem:
 REFRESH_EVERY = 25
 
 
+def _gap(problem: ContactProblem, z, u, B, on, out):
+    """Gap ``z + u - d`` (penetration control) or its projection orthogonal to the
+    constraint basis on the loaded cells (load control, tilt), into ``out``; returns
+    the rigid-motion multipliers ``m``."""
+    np.add(z, u, out=out)
+    if problem.mode == "penetration":
+        out -= problem.penetration
+        return np.zeros(0)
+    return _project(out, B, on)
+
+
+def _kkt_residual(g, on, free, scale) -> float:
+    """Largest |gap| on loaded cells and largest interpenetration elsewhere, / scale."""
+    g_on = np.where(on, g, 0.0)
+    worst_on = max(float(g_on.max()), -float(g_on.min()))
+    worst_off = -float(np.where(on | free, 0.0, g).min())
+    return max(worst_on, worst_off, 0.0) / scale
+
+
 def _iterate(problem: ContactProblem, op, E_star: float, tol: float, max_iter: int):
     shape = problem.grid.shape
     cand = problem.candidates.ravel()
+    free = ~cand  # cells without material: never loaded, never checked
     z = np.where(cand, problem.surface.height.ravel(), 0.0)
     B = problem.basis()
     target = problem.target()
     p = _initial_pressure(problem, op, z, B, target, E_star)
     t = np.zeros_like(p)
+    g = np.empty_like(p)
     G_old, conjugate = 1.0, False
     hist: list[float] = []
-    m = np.zeros(B.shape[1])
     u = op.apply(p.reshape(shape)).ravel()
+    scale = max(float(np.abs(u).max()), np.finfo(float).tiny)
     stale = 0  # iterations since u was last computed from p
     n_products = 1
     for it in range(max_iter + 1):
-        g = z + u
         on = p > 0
-        if problem.mode == "penetration":
-            g -= problem.penetration
-        else:
-            m = _project(g, B, on)
-        scale = max(float(np.max(np.abs(u))), np.finfo(float).tiny)
-        off = cand & ~on
-        res = max(float(np.max(np.abs(g[on]), initial=0.0)), float(-np.min(g[off], initial=0.0))) / scale
+        m = _gap(problem, z, u, B, on, g)
+        res = _kkt_residual(g, on, free, scale)
         if res <= tol and stale:
-            # confirm with an exact product before stopping
+            # the cheap update drifted by rounding: confirm with an exact product
             u = op.apply(p.reshape(shape)).ravel()
             stale, n_products = 0, n_products + 1
-            g = z + u - problem.penetration if problem.mode == "penetration" else z + u
-            if problem.mode != "penetration":
-                m = _project(g, B, on)
-            res = max(float(np.max(np.abs(g[on]), initial=0.0)), float(-np.min(g[off], initial=0.0))) / scale
+            m = _gap(problem, z, u, B, on, g)
+            res = _kkt_residual(g, on, free, scale)
         hist.append(res)
         if res <= tol:
             return p, u, m, it, n_products, hist, True, f"KKT residual {res:.2e} <= tol after {it} iterations"
         if it == max_iter:
             break
-        G = float(g[on] @ g[on])
-        beta = G / G_old if conjugate else 0.0
-        t = np.where(on, g + beta * t, 0.0)
+        # Polonsky & Keer: conjugate direction on the loaded cells, reset when the set changed
+        g_on = np.where(on, g, 0.0)
+        G = float(g_on @ g_on)
+        t *= G / G_old if conjugate else 0.0
+        t += g_on
+        t[~on] = 0.0
         G_old = G
         r = op.apply(t.reshape(shape)).ravel()
         n_products += 1
-        rp = r.copy() if B.shape[1] else r
+        rp = r
         if B.shape[1]:
+            rp = r.copy()
             _project(rp, B, on)
-        denom = float(rp[on] @ t[on])
+        denom = float(rp @ t)
         if not denom > 0:
             return p, u, m, it, n_products, hist, False, f"CG breakdown (t.A t = {denom:.3e}) after {it} iterations"
-        tau = float(g[on] @ t[on]) / denom
+        tau = float(g_on @ t) / denom
         p -= tau * t
-        clipped = bool(np.any(p < 0.0))
+        clipped = float(p.min()) < 0.0
         np.maximum(p, 0.0, out=p)
-        reenter = cand & (p == 0.0) & (g < 0.0)
-        conjugate = not np.any(reenter)
-        p[reenter] -= tau * g[reenter]
+        reenter = (g < 0.0) & (p == 0.0) & cand
+        conjugate = not reenter.any()
+        if not conjugate:
+            p[reenter] -= tau * g[reenter]
         factor = _restore_constraints(p, B, target)
         if clipped or not conjugate or factor is None or stale >= REFRESH_EVERY:
             u = op.apply(p.reshape(shape)).ravel()
+            scale = max(float(np.abs(u).max()), np.finfo(float).tiny)
             stale, n_products = 0, n_products + 1
         else:
             # p changed by -tau t and a scaling only: A p follows without a product

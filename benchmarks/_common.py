@@ -1,0 +1,37 @@
+"""Small helpers shared by the benchmark scripts: timing and table printing."""
+from __future__ import annotations
+
+import os
+import time
+from typing import Callable
+
+# Single-threaded comparisons unless the caller asks otherwise: the machines these run on
+# are shared, and every code then gets the same single core.
+os.environ.setdefault("OMP_NUM_THREADS", "1")
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+os.environ.setdefault("MKL_NUM_THREADS", "1")
+
+
+def best_time(fn: Callable[[], object], repeat: int = 3) -> tuple[object, float]:
+    """Run ``fn`` ``repeat`` times; return its last result and the best wall time, s.
+
+    The minimum is the least disturbed run on a shared machine (other processes only
+    ever add time)."""
+    best, result = float("inf"), None
+    for _ in range(max(1, repeat)):
+        t0 = time.perf_counter()
+        result = fn()
+        best = min(best, time.perf_counter() - t0)
+    return result, best
+
+
+def print_table(rows: list[dict], columns: list[tuple[str, str, str]]) -> None:
+    """Print ``rows`` as a fixed-width table; columns are (key, header, format)."""
+    widths = [max(len(h), 10) for _, h, _ in columns]
+    print("  ".join(h.rjust(w) for (_, h, _), w in zip(columns, widths)))
+    for row in rows:
+        cells = []
+        for (key, _, fmt), w in zip(columns, widths):
+            v = row.get(key)
+            cells.append(("-" if v is None else format(v, fmt)).rjust(w))
+        print("  ".join(cells))
