@@ -16,7 +16,7 @@ EXAMPLES = Path(__file__).resolve().parent.parent / "examples"
 TWO = str(EXAMPLES / "paper_two_spheres.toml")
 
 
-def _fake_block(material, *, size, base, origin):
+def _fake_block(material, *, size, base, origin, progress):
     # stands in for the finite block: the half-space itself, so every body must agree exactly
     return HalfSpace(material)
 
@@ -137,3 +137,76 @@ def test_missing_scene(tmp_path, capsys):
     assert main(["compare", str(tmp_path / "none.toml"), "--out", str(tmp_path / "o")]) == 2
     assert "not found" in capsys.readouterr().err
     assert not (tmp_path / "o").exists()
+
+
+def test_measured_data_and_pivot_centring(tmp_path, monkeypatch):
+    from twoscale.io.vtk import read_vtk
+    from twoscale.sensor import Sensor
+
+    monkeypatch.setattr(compare, "_block_factory", lambda: (None, "no block in this test"))
+    scene = tmp_path / "small.toml"
+    scene.write_text(SMALL)
+    forces = tmp_path / "forces.csv"
+    forces.write_text("index,force\n0,2\n1,3\n2,5\n")
+    smap = np.zeros((44, 44))
+    smap[21:23, 21:23] = 1.0
+    mpath = tmp_path / "map.csv"
+    mpath.write_text("\n".join(",".join(f"{v:g}" for v in row) for row in smap) + "\n")
+    out = tmp_path / "cmp"
+    code = main(["compare", str(scene), "--loads", "10", "--measured-forces", str(forces),
+                 "--measured-map", str(mpath), "--centre-pivot", "--vtk", "--out", str(out), "--quiet"])
+    assert code == 0
+    # eq. 13 with the applied load 10 N: x0 = 8 * 3 / 10 = 2.4, y0 = 8 * 5 / 10 = 4.0
+    res = json.loads((out / "runs" / "halfspace_10N" / "result.json").read_text())
+    tips = [(a["x"], a["y"]) for a in res["scene"]["asperity"]]
+    assert tips == pytest.approx([(-2.4, -4.0), (5.6, -4.0), (-2.4, 4.0)])
+    assert "eq. 13" in (out / "forces.md").read_text()
+    # indicators against the measurement, recomputed here from the written forces and fields
+    rows = [r for r in csv.DictReader((out / "forces.csv").open())]
+    m = np.array([float(r["force_N"]) for r in rows if r["body"] == "measured"])
+    F = np.array([float(r["force_N"]) for r in rows if r["body"] == "halfspace"])
+    assert m.tolist() == [2.0, 3.0, 5.0]
+    fields = read_vtk(out / "runs" / "halfspace_10N" / "fields.vtu").fields
+    P = sum(Sensor().average_field(f.grid, f.pressure) for f in fields)
+    loaded = (P != 0) | (smap != 0)
+    e_m_expected = 100 * np.sum((P - smap)[loaded] ** 2) / np.sum(smap ** 2)
+    ind = json.loads((out / "summary.json").read_text())["indicators_percent"]["10N"]["measured"]["halfspace"]
+    assert ind["e_M"] == pytest.approx(100 * np.sum((F - m) ** 2) / np.sum(m ** 2), rel=1e-8)
+    assert ind["e_m"] == pytest.approx(e_m_expected, rel=1e-8)
+
+
+@pytest.mark.parametrize("extra, match", [
+    (["--centre-pivot"], "needs --measured-forces"),
+    (["--loads", "10", "20", "--measured-forces", "F"], "one load case"),
+])
+def test_measured_option_errors(tmp_path, capsys, extra, match):
+    scene = tmp_path / "small.toml"
+    scene.write_text(SMALL)
+    out = tmp_path / "cmp"
+    assert main(["compare", str(scene), "--out", str(out), "--quiet"] + extra) == 2
+    assert match in capsys.readouterr().err
+    assert not out.exists()
+
+
+def test_measured_forces_wrong_count(tmp_path, capsys):
+    scene = tmp_path / "small.toml"
+    scene.write_text(SMALL)
+    f = tmp_path / "f.csv"
+    f.write_text("index,force\n0,1\n1,1\n")
+    assert main(["compare", str(scene), "--measured-forces", str(f), "--out", str(tmp_path / "o"), "--quiet"]) == 2
+    assert "2 forces for a scene of 3 asperities" in capsys.readouterr().err
+    assert not (tmp_path / "o").exists()
+
+
+@pytest.mark.slow
+def test_real_finite_block_is_stiffer(tmp_path):
+    # the finite block (20 mm thick on a rigid base) is stiffer than the half-space, and a
+    # bonded base stiffer than a sliding one (METHOD.md section 6), so at one rigid
+    # approach the loads are ordered: half-space < sliding < bonded
+    pytest.importorskip("skfem")
+    if compare._block_factory()[0] is None:
+        pytest.skip("finite-block provider not available")
+    out = tmp_path / "cmp"
+    assert main(["compare", TWO, "--out", str(out), "--quiet"]) == 0
+    runs = {r["body"]: r["total_load"] for r in json.loads((out / "summary.json").read_text())["runs"]}
+    assert runs["halfspace"] < runs["block-sliding"] < runs["block-bonded"]

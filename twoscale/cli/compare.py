@@ -1,7 +1,7 @@
 """Compare bodies: solve a scene on the half-space and the finite block, tabulate and plot.
 
 ``twoscale compare SCENE.toml [--loads W ...] [--out DIR] [--method twoscale|reference]
-[--h H] [--vtk] [--quiet]``
+[--h H] [--vtk] [--measured-forces CSV] [--measured-map CSV] [--centre-pivot] [--quiet]``
 
 Solves the scene on the elastic half-space and, when the finite-block provider
 (``fem_influence``) is available, on the block with a bonded and with a sliding base
@@ -9,6 +9,11 @@ Solves the scene on the elastic half-space and, when the finite-block provider
 140 x 140 x 20 mm block centred under the scene). Without the block it runs the
 half-space only and says so on stderr and in every table. ``--loads`` replaces the
 scene's ``load.total`` by each value in turn (the paper's load cases).
+
+Measured data of one load case (``twoscale.sensor`` formats) add a ``measured`` column
+and e_M / e_m of every body against the measurement; ``--centre-pivot`` first shifts
+the tips so the joint sits at the measured force centre (paper eq. 13). The sensor is
+the paper's, 44 x 44 cells of 1.9 mm centred on the scene origin.
 
 Writes into DIR (default ``<scene name>_compare``, created only after every solve has
 returned):
@@ -47,7 +52,8 @@ from ..io.result_json import UNITS, write_result
 from ..io.scene_file import read_scene, scene_to_dict
 from ..progress import Progress
 from ..scene import BLOCK_DEFAULT_SIZE, METHODS, Scene, SceneError, default_h
-from ..sensor import Sensor, e_M, e_m
+from ..sensor import Sensor, centred_tips, e_M, e_m, pivot_from_forces, read_sensor_map, read_tip_forces
+from .solve import positive_option
 
 #: Bodies compared, in table order: name -> (influence kind, block base).
 BODIES = {"halfspace": ("halfspace", None), "block-bonded": ("block", "bonded"),
@@ -66,34 +72,66 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--h", metavar="H", default=None,
                         help="cell size in mm, overriding [grid] h of the scene")
     parser.add_argument("--vtk", action="store_true", help="also write runs/*/fields.vtu")
+    parser.add_argument("--measured-forces", metavar="CSV", default=None,
+                        help="measured tip forces (header x,y,force or index,force; N), one load case")
+    parser.add_argument("--measured-map", metavar="CSV", default=None,
+                        help="measured sensor map: 44 rows of 44 pressures (MPa), first row at smallest y")
+    parser.add_argument("--centre-pivot", action="store_true",
+                        help="shift the tips so the joint sits at the measured force centre (paper eq. 13)")
     parser.add_argument("--quiet", action="store_true", help="print nothing but errors and warnings")
 
 
 # ---------------------------------------------------------------- input
-def _positive(text: str, name: str, unit: str) -> float:
-    try:
-        v = float(text)
-    except ValueError:
-        v = math.nan
-    if not (math.isfinite(v) and v > 0):
-        raise SceneError(f"{name} must be a finite number > 0 ({unit}), got {text!r}")
-    return v
-
-
 def _scenes(args) -> list[Scene]:
     """The scene once per load case (validated; raises SceneError)."""
     scene = read_scene(args.scene)
     if args.h is not None:
-        scene = dataclasses.replace(scene, h=_positive(args.h, "--h", "mm"))
+        scene = dataclasses.replace(scene, h=positive_option(args.h, "--h", unit="mm"))
     if args.loads is None:
         return [scene]
     if scene.total_load is None:
         raise SceneError(f"--loads needs a scene under load control (load.total); "
                          f"{args.scene} gives load.penetration = {scene.penetration!r}")
-    loads = [_positive(w, "--loads", "N") for w in args.loads]
+    loads = [positive_option(w, "--loads", unit="N") for w in args.loads]
     if len(set(loads)) != len(loads):
         raise SceneError(f"--loads has repeated values, got {args.loads!r}")
     return [dataclasses.replace(scene, total_load=w) for w in loads]
+
+
+@dataclasses.dataclass(frozen=True)
+class Measured:
+    """Measured data for one load case: tip forces (N, scene order) and/or a sensor map (MPa)."""
+
+    forces: np.ndarray | None
+    sensor_map: np.ndarray | None
+
+
+def _measured(args, scenes: list[Scene]) -> Measured | None:
+    """Read the measured data named on the command line (raises ValueError)."""
+    if args.measured_forces is None and args.measured_map is None:
+        if args.centre_pivot:
+            raise SceneError("--centre-pivot needs --measured-forces (eq. 13 uses the measured forces)")
+        return None
+    if len(scenes) != 1:
+        raise SceneError(f"measured data belong to one load case; give at most one --loads value, "
+                         f"got {args.loads!r}")
+    if args.centre_pivot and args.measured_forces is None:
+        raise SceneError("--centre-pivot needs --measured-forces (eq. 13 uses the measured forces)")
+    forces = None
+    if args.measured_forces is not None:
+        forces = read_tip_forces(args.measured_forces, n_asperities=len(scenes[0].asperities)).force
+    smap = read_sensor_map(args.measured_map) if args.measured_map is not None else None
+    return Measured(forces, smap)
+
+
+def _centre_pivot(scene: Scene, forces: np.ndarray) -> tuple[Scene, str]:
+    """Tips shifted by (-x0, -y0) of eq. 13, and a note saying by how much."""
+    x0, y0 = pivot_from_forces(scene.tips, forces, total=scene.total_load)
+    tips = centred_tips(scene.tips, forces, total=scene.total_load)
+    asps = tuple(dataclasses.replace(a, x=float(t[0]), y=float(t[1])) for a, t in zip(scene.asperities, tips))
+    note = (f"tips shifted by ({-x0:.4g}, {-y0:.4g}) mm so the joint sits at the measured force "
+            f"centre (paper eq. 13)")
+    return dataclasses.replace(scene, asperities=asps), note
 
 
 def _block_factory():
@@ -172,13 +210,11 @@ def _providers(scene: Scene, quiet: bool) -> tuple[dict, list[str]]:
         return providers, notes
     for body in ("block-bonded", "block-sliding"):
         opts = _influence(scene, body)
-        with Progress(1, label=f"building {body}", quiet=quiet) as bar:
-            try:
-                providers[body] = factory(scene.material, size=opts["size"], base=opts["base"],
-                                          origin=opts["origin"])
-            except (ValueError, RuntimeError) as exc:
-                notes.append(f"{body} could not be built: {exc}")
-            bar.update()
+        try:  # the block draws its own progress line while it is built
+            providers[body] = factory(scene.material, size=opts["size"], base=opts["base"],
+                                      origin=opts["origin"], progress=not quiet)
+        except (ValueError, RuntimeError) as exc:
+            notes.append(f"{body} could not be built: {exc}")
     return providers, notes
 
 
@@ -186,9 +222,13 @@ def _providers(scene: Scene, quiet: bool) -> tuple[dict, list[str]]:
 FIELDS = ("load", "body", "asperity", "force_N", "contact_area_mm2", "max_pressure_MPa", "macro_force_N")
 
 
-def per_asperity_rows(runs) -> list[dict]:
-    """One dict per load, body and asperity (the CSV rows)."""
+def per_asperity_rows(runs, measured: Measured | None = None) -> list[dict]:
+    """One dict per load, body and asperity (the CSV rows); measured forces as body "measured"."""
     rows = []
+    if measured is not None and measured.forces is not None:
+        rows += [{"load": runs[0].load, "body": "measured", "asperity": k + 1, "force_N": float(f),
+                  "contact_area_mm2": "", "max_pressure_MPa": "", "macro_force_N": ""}
+                 for k, f in enumerate(measured.forces)]
     for run in runs:
         s = run.result.asperities
         macro = run.result.extra.get("macro_forces")
@@ -200,14 +240,21 @@ def per_asperity_rows(runs) -> list[dict]:
     return rows
 
 
-def indicators(runs, sensor: Sensor) -> dict:
+def indicators(runs, sensor: Sensor, measured: Measured | None = None) -> dict:
     """e_M and e_m (percent) of every body against every other, per load.
 
     ``out[load][reference][other] = {"e_M": ..., "e_m": ...}``, with the reference body's
-    forces (sensor map) in the denominator.
+    forces (sensor map) in the denominator. With measured data, the reference
+    ``"measured"`` is added (``None`` for an indicator whose data were not given).
     """
     out: dict = {}
     maps = {(r.load, r.body): sensor.average(r.result) for r in runs}
+    if measured is not None:
+        for r in runs:
+            out.setdefault(r.load, {}).setdefault("measured", {})[r.body] = {
+                "e_M": None if measured.forces is None else e_M(r.result.asperities.forces, measured.forces),
+                "e_m": None if measured.sensor_map is None else e_m(maps[r.load, r.body], measured.sensor_map),
+            }
     for ref in runs:
         for other in runs:
             if other.load != ref.load or other.body == ref.body:
@@ -219,7 +266,12 @@ def indicators(runs, sensor: Sensor) -> dict:
     return out
 
 
-def markdown(scene_path: str, runs, ind: dict, notes: list[str], method: str) -> str:
+def _fmt(v) -> str:
+    return "n/a" if v is None else f"{v:.3g}"
+
+
+def markdown(scene_path: str, runs, ind: dict, notes: list[str], method: str,
+             measured: Measured | None = None) -> str:
     """The Markdown report: per-load tables of forces, areas and peak pressures, indicators."""
     lines = [f"# twoscale compare {scene_path}", "",
              f"twoscale {__version__}; method {method}; units mm, N, MPa.", ""]
@@ -234,12 +286,15 @@ def markdown(scene_path: str, runs, ind: dict, notes: list[str], method: str) ->
             lines.append(f"- {r.body}: total {r.result.total_load:.5g} N, approach "
                          f"{r.result.penetration:.5g} mm{tilt}; {conv}; {r.seconds:.3g} s")
         lines.append("")
-        head = ["asperity"] + [f"{r.body} {q}" for q in ("F (N)", "A (mm^2)", "p_max (MPa)") for r in group]
+        mf = None if measured is None else measured.forces
+        head = (["asperity"] + ([] if mf is None else ["measured F (N)"])
+                + [f"{r.body} {q}" for q in ("F (N)", "A (mm^2)", "p_max (MPa)") for r in group])
         lines += ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
         n = len(group[0].result.asperities.forces)
         for k in range(n):
-            vals = [f"{getattr(r.result.asperities, q)[k]:.4g}"
-                    for q in ("forces", "contact_areas", "max_pressures") for r in group]
+            vals = ([] if mf is None else [f"{mf[k]:.4g}"]) + [
+                f"{getattr(r.result.asperities, q)[k]:.4g}"
+                for q in ("forces", "contact_areas", "max_pressures") for r in group]
             lines.append(f"| {k + 1} | " + " | ".join(vals) + " |")
         lines.append("")
         if load in ind:
@@ -247,8 +302,8 @@ def markdown(scene_path: str, runs, ind: dict, notes: list[str], method: str) ->
                       "44 x 44 sensor cells of 1.9 mm):", ""]
             names = [r.body for r in group]
             lines += ["| reference | " + " | ".join(names) + " |", "|" + "---|" * (len(names) + 1)]
-            for a in names:
-                cells = ["-" if a == b else f"{ind[load][a][b]['e_M']:.3g} / {ind[load][a][b]['e_m']:.3g}"
+            for a in [x for x in ["measured"] + names if x in ind[load]]:
+                cells = ["-" if a == b else f"{_fmt(ind[load][a][b]['e_M'])} / {_fmt(ind[load][a][b]['e_m'])}"
                          for b in names]
                 lines.append(f"| {a} | " + " | ".join(cells) + " |")
             lines.append("")
@@ -276,14 +331,14 @@ def _csv_text(rows) -> str:
     return buf.getvalue()
 
 
-def _write_outputs(out: Path, args, runs, ind, notes) -> None:
+def _write_outputs(out: Path, args, runs, ind, notes, measured: Measured | None) -> None:
     from ..io.vtk import write_vtk
     from ..plot import compare_forces, compare_maps
 
     out.mkdir(parents=True, exist_ok=True)
     scene_dict = scene_to_dict(runs[0].scene)
-    _write_text(out / "forces.csv", _csv_text(per_asperity_rows(runs)))
-    _write_text(out / "forces.md", markdown(args.scene, runs, ind, notes, args.method) + "\n")
+    _write_text(out / "forces.csv", _csv_text(per_asperity_rows(runs, measured)))
+    _write_text(out / "forces.md", markdown(args.scene, runs, ind, notes, args.method, measured) + "\n")
     summary = {"version": __version__, "units": dict(UNITS), "method": args.method, "notes": notes,
                "scene": scene_dict, "indicators_percent": ind,
                "runs": [{"load": r.load, "body": r.body, "converged": bool(r.result.converged),
@@ -294,7 +349,7 @@ def _write_outputs(out: Path, args, runs, ind, notes) -> None:
         group = {r.body: r.result for r in runs if r.load == load}
         tips = runs[0].scene.asperities
         compare_forces(group, out / f"forces_{load}.png", title=f"force per asperity, {load}",
-                       scene=scene_dict)
+                       measured=None if measured is None else measured.forces, scene=scene_dict)
         compare_maps(group, out / f"maps_{load}.png", tips=tips, title=f"pressure, {load}", scene=scene_dict)
     for r in runs:
         d = out / "runs" / f"{r.body}_{r.load}"
@@ -308,18 +363,24 @@ def run(args: argparse.Namespace) -> int:
     """Run ``twoscale compare``; returns the exit code (0, 1 or 2, see module doc)."""
     try:
         scenes = _scenes(args)
-        providers, notes = _providers(scenes[0], args.quiet)
+        measured = _measured(args, scenes)
+        notes = []
+        if args.centre_pivot:
+            scenes[0], note = _centre_pivot(scenes[0], measured.forces)
+            notes.append(note)
+        providers, block_notes = _providers(scenes[0], args.quiet)
+        notes += block_notes
         for n in notes:
             print(f"note: {n}", file=sys.stderr)
         runs = _solve_all(scenes, providers, args.method, args.quiet)
     except ValueError as exc:  # SceneError and solver input checks
         print(f"error: {exc}", file=sys.stderr)
         return 2
-    ind = indicators(runs, Sensor())
+    ind = indicators(runs, Sensor(), measured)
     out = Path(args.out) if args.out is not None else Path(f"{Path(args.scene).stem}_compare")
-    _write_outputs(out, args, runs, ind, notes)
+    _write_outputs(out, args, runs, ind, notes, measured)
     if not args.quiet:
-        print(markdown(args.scene, runs, ind, notes, args.method))
+        print(markdown(args.scene, runs, ind, notes, args.method, measured))
         print(f"\nwrote {out}/")
     failed = [r for r in runs if not r.result.converged]
     for r in failed:
