@@ -1,0 +1,181 @@
+"""The micro step on its own: local solves (eq. 7, contact on one block), block
+Gauss-Seidel (eq. 8-9), patches and ownership, growth, load and tilt corrections.
+
+Independent checks: the contact problem ``min 1/2 p.A p - b.p, p >= 0`` on the union of
+the blocks is also a non-negative least-squares problem (``A = L L^T``:
+``min |L^T p - L^-1 b|``), solved here by ``scipy.optimize.nnls`` on the dense Love matrix,
+which shares no code with the micro step's active sets, conjugate gradients or sweeps.
+"""
+import math
+
+import numpy as np
+import pytest
+import scipy.linalg as sla
+from scipy.optimize import nnls
+
+from twoscale import Grid, Material
+from twoscale.analytic import hertz
+from twoscale.indenters import Asperity, Tilt
+from twoscale.influence import HalfSpace
+from twoscale.micro import build_patches, solve_micro
+from twoscale.micro.blocks import LocalBlock
+from twoscale.micro.gauss_seidel import linear_gauss_seidel
+from twoscale.micro.blocks import Coupling
+from twoscale.micro.local import contact_solve, initial_pressure
+from twoscale.micro.patches import make_patch
+
+MAT = Material(10.0, 0.5)
+HS = HalfSpace(MAT)
+ES = MAT.E_star
+
+
+def _nnls_contact(provider, patches, b_blocks):
+    """Contact on the union of the blocks by NNLS on the dense matrix (independent)."""
+    pts = np.concatenate([pt.grid.points()[pt.owned.ravel()] for pt in patches])
+    A = provider.cell_block(pts, pts, patches[0].grid.h)
+    A = 0.5 * (A + A.T)
+    b = np.concatenate(b_blocks)
+    L = np.linalg.cholesky(A)
+    p, _ = nnls(L.T, sla.solve_triangular(L, b, lower=True), maxiter=50 * len(b))
+    return p
+
+
+def _blocks_of(res):
+    return np.concatenate([p[pt.owned] for pt, p in zip(res.patches, res.pressures)])
+
+
+# ---------------------------------------------------------------- one block
+def _single_patch(n_half=14, h=0.1, R=5.0):
+    a = Asperity(0.0, 0.0, 0.0, R, "paraboloid")
+    g = Grid.covering(-n_half * h, n_half * h, -n_half * h, n_half * h, h)
+    return make_patch(0, g, [a]), a
+
+
+def test_eq7_carries_the_force_and_dense_and_cg_agree():
+    pt, a = _single_patch()
+    z = pt.height[pt.owned]
+    P = 2.0
+    dense = initial_pressure(LocalBlock(HS, pt, dense_max_cells=10_000), z, P, pt.grid.h, approach=0.2)
+    cg = initial_pressure(LocalBlock(HS, pt, dense_max_cells=0), z, P, pt.grid.h, approach=0.2)
+    for sol in (dense, cg):
+        assert sol.converged
+        assert pt.grid.h ** 2 * sol.pressure.sum() == pytest.approx(P, rel=1e-9)
+        assert sol.pressure.min() >= 0.0
+    assert np.linalg.norm(dense.pressure - cg.pressure) <= 1e-6 * np.linalg.norm(dense.pressure)
+    # the rigid shift is the local approach; Hertz gives it to the discretisation error
+    d_hertz = float(hertz.penetration(a.R, P, ES))
+    assert dense.shift == pytest.approx(d_hertz, rel=0.02)
+    assert cg.shift == pytest.approx(dense.shift, rel=1e-6)
+
+
+def test_contact_solve_dense_cg_and_nnls_agree():
+    pt, a = _single_patch(n_half=10)
+    b = 0.15 - pt.height[pt.owned]
+    ref = _nnls_contact(HS, [pt], [b])
+    for dmc in (10_000, 0):
+        blk = LocalBlock(HS, pt, dense_max_cells=dmc)
+        sol = contact_solve(blk, b, np.zeros(blk.n), rtol=1e-12)
+        assert sol.converged
+        assert np.linalg.norm(sol.pressure - ref) <= 1e-6 * np.linalg.norm(ref)
+
+
+# ---------------------------------------------------------------- patches
+def test_patches_share_the_lattice_and_no_cell_is_counted_twice():
+    asps = [Asperity(0.0, 0.0, 0.0, 2.0), Asperity(0.5, 0.1, 0.01, 1.5), Asperity(-0.3, 0.6, 0.0, 2.5)]
+    h = 0.05
+    patches = build_patches(asps, h=h, forces=np.array([1.0, 0.8, 1.2]), approaches=np.array([0.1, 0.09, 0.1]),
+                            E_star=ES, anchor=(0.01, -0.02))
+    assert len(patches) == 3
+    big = Grid.covering(-2.0, 2.0, -2.0, 2.0, h, anchor=(0.01, -0.02))
+    count = np.zeros(big.shape, int)
+    for pt in patches:
+        di, dj = pt.grid.offset_in(big)  # raises if not on the common lattice
+        count[dj:dj + pt.grid.ny, di:di + pt.grid.nx] += pt.owned
+    assert count.max() == 1
+    # the patches overlap, yet the owned cells are disjoint
+    assert sum(int(pt.owned.sum()) for pt in patches) < sum(pt.grid.size for pt in patches)
+
+
+def test_asperity_out_of_reach_gets_no_patch():
+    asps = [Asperity(0.0, 0.0, 0.0, 2.0), Asperity(3.0, 0.0, 0.5, 2.0)]
+    patches = build_patches(asps, h=0.1, forces=np.array([1.0, 0.0]), approaches=np.array([0.2, -0.3]),
+                            E_star=ES)
+    assert [pt.asperity for pt in patches] == [0]
+
+
+# ---------------------------------------------------------------- Gauss-Seidel
+CLOSE = [Asperity(0.0, 0.0, 0.0, 2.0, "paraboloid"), Asperity(0.9, 0.3, 0.005, 1.5, "paraboloid"),
+         Asperity(-0.6, 0.8, 0.01, 2.5, "paraboloid")]
+
+
+@pytest.mark.parametrize("dense_max_cells", [10_000, 0])
+def test_gauss_seidel_matches_nnls_on_the_same_cells(dense_max_cells):
+    d, h = 0.08, 0.07
+    forces = np.array([float(hertz.load(a.R, d - a.z, ES)) for a in CLOSE])
+    res = solve_micro(HS, CLOSE, h=h, forces=forces, penetration=d, tol=1e-9, dense_max_cells=dense_max_cells)
+    assert res.converged, res.message
+    assert res.history[-1] <= 1e-9
+    ref = _nnls_contact(HS, res.patches, [d - pt.height[pt.owned] for pt in res.patches])
+    p = _blocks_of(res)
+    assert np.linalg.norm(p - ref) <= 1e-6 * np.linalg.norm(ref)
+    # eq. 7 is only a start: the interaction moves the pressure
+    p0 = np.concatenate([q[pt.owned] for pt, q in zip(res.patches, res.initial)])
+    assert np.linalg.norm(p0 - ref) > 1e-3 * np.linalg.norm(ref)
+
+
+def test_patch_grows_when_pressure_reaches_its_edge():
+    a = [Asperity(0.0, 0.0, 0.0, 2.0, "paraboloid")]
+    d, h = 0.08, 0.07
+    P = float(hertz.load(2.0, d, ES))
+    res = solve_micro(HS, a, h=h, forces=np.array([P / 20.0]), penetration=d, tol=1e-9)
+    assert res.converged, res.message
+    assert res.growths >= 1
+    good = solve_micro(HS, a, h=h, forces=np.array([P]), penetration=d, tol=1e-9)
+    assert good.growths == 0
+    f = [h * h * float(r.pressures[0].sum()) for r in (res, good)]
+    assert f[0] == pytest.approx(f[1], rel=1e-6)
+
+
+def test_sweep_limit_is_reported_not_hidden():
+    d, h = 0.08, 0.07
+    forces = np.zeros(3)  # eq. 7 gives nothing: the sweeps start from zero
+    res = solve_micro(HS, CLOSE, h=h, forces=forces, penetration=d, tol=1e-12, max_sweeps=2, max_growths=0)
+    assert not res.converged
+    assert "2 sweeps" in res.message
+    assert res.sweeps == 2
+
+
+def test_linear_gauss_seidel_solves_the_coupled_system():
+    d, h = 0.08, 0.07
+    patches = build_patches(CLOSE, h=h, forces=np.ones(3), approaches=np.full(3, d), E_star=ES)
+    blocks = [LocalBlock(HS, pt) for pt in patches]
+    active = [np.ones(b.n, bool) for b in blocks]
+    rng = np.random.default_rng(0)
+    rhs = [rng.uniform(0.5, 1.0, (b.n, 2)) for b in blocks]
+    out = linear_gauss_seidel(blocks, Coupling(HS, patches), rhs, active, tol=1e-11, max_sweeps=500)
+    assert out.converged
+    pts = np.concatenate([pt.grid.points()[pt.owned.ravel()] for pt in patches])
+    A = HS.cell_block(pts, pts, h)
+    x = np.linalg.solve(A, np.concatenate(rhs))
+    assert np.linalg.norm(np.concatenate(out.pressures) - x) <= 1e-7 * np.linalg.norm(x)
+
+
+# ---------------------------------------------------------------- load and tilt
+def test_load_control_and_tilt_meet_the_equations_exactly():
+    d, h, W, pivot = 0.08, 0.07, 1.5, (0.1, 0.2)
+    forces = np.array([float(hertz.load(a.R, d - a.z, ES)) for a in CLOSE])
+    res = solve_micro(HS, CLOSE, h=h, forces=forces, penetration=d, tilt=(0.0, 0.0), pivot=pivot,
+                      total_load=W, free_tilt=True, tol=1e-8)
+    assert res.converged, res.message
+    P = np.concatenate([h * h * p[pt.owned] for pt, p in zip(res.patches, res.pressures)])
+    X = np.concatenate([pt.grid.centres()[0][pt.owned] for pt in res.patches]) - pivot[0]
+    Y = np.concatenate([pt.grid.centres()[1][pt.owned] for pt in res.patches]) - pivot[1]
+    arm = 1.0  # mm: the scene's size
+    assert P.sum() == pytest.approx(W, rel=1e-9)
+    assert abs(P @ X) <= 1e-9 * W * arm and abs(P @ Y) <= 1e-9 * W * arm
+    # same cells, tilted surface at the solved d, alpha, beta: NNLS gives the same pressure
+    t = Tilt(res.tilt[0], res.tilt[1], pivot)
+    b = [res.penetration - pt.height[pt.owned] - t.height(*(c[pt.owned] for c in pt.grid.centres()))
+         for pt in res.patches]
+    ref = _nnls_contact(HS, res.patches, b)
+    assert np.linalg.norm(_blocks_of(res) - ref) <= 1e-5 * np.linalg.norm(ref)
