@@ -1,4 +1,4 @@
-"""Solve a scene file; print a summary and write DIR/result.json.
+"""Solve a scene file; print a summary and write DIR/result.json (+ fields.vtu, pressure.png, forces.png).
 
 ``twoscale solve SCENE.toml [--method twoscale|reference] [--out DIR] [--h H] [--quiet]``
 
@@ -17,6 +17,7 @@ import time
 
 from ..io.result_json import result_to_dict, write_result
 from ..io.scene_file import read_scene
+from ..io.solve_outputs import write_fields_and_figures
 from ..scene import METHODS, SceneError, solve_scene
 
 #: Asperity rows printed in the summary before it is cut short.
@@ -29,7 +30,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--method", choices=METHODS, default="twoscale",
                         help="two-scale solver (default) or classical reference solver on the full grid")
     parser.add_argument("--out", metavar="DIR", default=None,
-                        help="write DIR/result.json (DIR created after a successful solve)")
+                        help="write DIR/result.json, fields.vtu, pressure.png, forces.png "
+                             "(DIR created after a successful solve)")
     parser.add_argument("--h", metavar="H", default=None,
                         help="cell size in mm, overriding [grid] h of the scene")
     parser.add_argument("--quiet", action="store_true", help="print nothing but errors")
@@ -69,6 +71,8 @@ def run(args: argparse.Namespace) -> int:
         print(f"error: {exc}", file=sys.stderr)
         return 2
     path = write_result(result, scene, args.out, method=args.method) if args.out is not None else None
+    if args.out is not None:  # fields.vtu, pressure.png, forces.png beside result.json
+        write_fields_and_figures(result, scene, args.out)
     if not args.quiet:
         print(summary(result_to_dict(result, scene, method=args.method), args.scene, wall, path))
     if not result.converged:
