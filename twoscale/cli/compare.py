@@ -187,6 +187,11 @@ def _load_label(scene: Scene) -> str:
     return f"d{scene.penetration:g}mm"
 
 
+def _load_title(label: str) -> str:
+    """Readable form of a load label: "50N" -> "total load 50 N", "d0.5mm" -> "approach 0.5 mm"."""
+    return f"approach {label[1:-2]} mm" if label.startswith("d") else f"total load {label[:-1]} N"
+
+
 def _solve_all(scenes, bodies, method, quiet) -> list[Run]:
     runs = []
     with Progress(len(scenes) * len(bodies), label="compare", quiet=quiet) as bar:
@@ -278,7 +283,7 @@ def markdown(scene_path: str, runs, ind: dict, notes: list[str], method: str,
     lines += [f"> **Note:** {n}" for n in notes] + ([""] if notes else [])
     for load in dict.fromkeys(r.load for r in runs):
         group = [r for r in runs if r.load == load]
-        lines += [f"## Load case {load}", ""]
+        lines += [f"## Load case: {_load_title(load)}", ""]
         for r in group:
             tilt = "" if r.result.tilt is None else (f", tilt alpha {r.result.tilt[0]:.4g} rad, "
                                                      f"beta {r.result.tilt[1]:.4g} rad")
@@ -348,9 +353,10 @@ def _write_outputs(out: Path, args, runs, ind, notes, measured: Measured | None)
     for load in dict.fromkeys(r.load for r in runs):
         group = {r.body: r.result for r in runs if r.load == load}
         tips = runs[0].scene.asperities
-        compare_forces(group, out / f"forces_{load}.png", title=f"force per asperity, {load}",
+        compare_forces(group, out / f"forces_{load}.png", title=f"force per asperity, {_load_title(load)}",
                        measured=None if measured is None else measured.forces, scene=scene_dict)
-        compare_maps(group, out / f"maps_{load}.png", tips=tips, title=f"pressure, {load}", scene=scene_dict)
+        compare_maps(group, out / f"maps_{load}.png", tips=tips, title=f"pressure, {_load_title(load)}",
+                     scene=scene_dict)
     for r in runs:
         d = out / "runs" / f"{r.body}_{r.load}"
         write_result(r.result, r.scene, d, method=args.method)
