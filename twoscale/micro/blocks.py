@@ -160,6 +160,10 @@ class Coupling:
         self._fft: dict = {}
         self._bytes = 0.0
 
+    def append(self, patch: Patch) -> None:
+        """Add a patch (a new block at the end)."""
+        self.patches.append(patch)
+
     def replace(self, k: int, patch: Patch) -> None:
         """Swap patch ``k`` (after growth) and drop every operator that involves it."""
         self.patches[k] = patch

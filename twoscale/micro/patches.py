@@ -62,11 +62,12 @@ def patch_radius(asperity: Asperity, *, force: float, approach: float, E_star: f
     The Hertz-like contact radius ``a = (3 P R / (4 E*))^(1/3)`` from the macro force ``P``
     (N), times ``margin`` plus two cells, but never beyond the reach of the indenter at the
     geometric approach ``approach`` (mm; no cell farther out can touch when displacements
-    are into the body) plus one cell; a non-finite ``force`` (no usable macro force) gives
-    that reach. ``E*`` (MPa) is only used for this estimate.
+    are into the body) plus one cell. An asperity the macro step leaves out of contact
+    (``force <= 0``) or a non-finite ``force`` (no usable macro force) gets that reach:
+    a neighbour's displacement can move its contact away from its tip. ``E*`` (MPa) is only used for this estimate.
     """
     reach = asperity.reach(approach) + h
-    if not math.isfinite(force):
+    if not math.isfinite(force) or force <= 0.0:
         return reach
     a = (3.0 * max(force, 0.0) * asperity.R / (4.0 * E_star)) ** (1.0 / 3.0)
     return min(reach, margin * a + 2.0 * h)
@@ -123,6 +124,21 @@ def grow_patch(patch: Patch, sides: tuple[bool, bool, bool, bool], asperities: S
     nx = g.nx + (gx if left else 0) + (gx if right else 0)
     ny = g.ny + (gy if bottom else 0) + (gy if top else 0)
     return make_patch(patch.asperity, g.subgrid(i0, j0, nx, ny), asperities)
+
+
+def extend_patch(patch: Patch, points: np.ndarray, asperities: Sequence[Asperity], *,
+                 pad: int = 2) -> Patch:
+    """The patch enlarged to cover ``points`` (M, 2) mm plus ``pad`` cells."""
+    g = patch.grid
+    xmin, xmax, ymin, ymax = g.bounds
+    m = pad * g.h
+    xmin, xmax = min(xmin, points[:, 0].min() - m), max(xmax, points[:, 0].max() + m)
+    ymin, ymax = min(ymin, points[:, 1].min() - m), max(ymax, points[:, 1].max() + m)
+    i0 = math.floor((xmin - g.x0) / g.h + 0.5)
+    j0 = math.floor((ymin - g.y0) / g.h + 0.5)
+    i1 = math.ceil((xmax - g.x0) / g.h - 0.5)
+    j1 = math.ceil((ymax - g.y0) / g.h - 0.5)
+    return make_patch(patch.asperity, g.subgrid(i0, j0, i1 - i0 + 1, j1 - j0 + 1), asperities)
 
 
 def transfer(old: Patch, new: Patch, pressure: np.ndarray) -> np.ndarray:

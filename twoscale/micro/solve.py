@@ -12,7 +12,8 @@ from .blocks import Coupling, LocalBlock, scatter
 from .constraints import newton_step, resultants, rhs_derivatives
 from .gauss_seidel import coupled_rhs, gauss_seidel, linear_gauss_seidel
 from .local import initial_pressure
-from .patches import Patch, build_patches, edges_loaded, grow_patch, transfer
+from ..grid import Grid
+from .patches import Patch, build_patches, edges_loaded, extend_patch, grow_patch, make_patch, transfer
 
 
 @dataclass(frozen=True)
@@ -83,6 +84,52 @@ class _State:
         self.blocks[k] = LocalBlock(self.provider, new, dense_max_cells=self.dense_max_cells)
         self.coupling.replace(k, new)
 
+    def extend(self, asperity: int, points: np.ndarray, vectors: list) -> None:
+        """Make the patch of ``asperity`` cover ``points`` (M, 2) mm, creating it if needed."""
+        index = {pt.asperity: k for k, pt in enumerate(self.patches)}
+        if asperity not in index:
+            h = self.patches[0].grid.h
+            a = self.asperities[asperity]
+            anchor = (self.patches[0].grid.x0, self.patches[0].grid.y0)
+            grid = Grid.covering(a.x - h, a.x + h, a.y - h, a.y + h, h, anchor=anchor)
+            self.patches.append(make_patch(asperity, grid, self.asperities))
+            self.blocks.append(LocalBlock(self.provider, self.patches[-1], dense_max_cells=self.dense_max_cells))
+            self.coupling.append(self.patches[-1])
+            for vec in vectors:
+                vec.append(np.zeros(self.blocks[-1].n))
+            index[asperity] = len(self.patches) - 1
+        k = index[asperity]
+        old = self.patches[k]
+        new = extend_patch(old, points, self.asperities)
+        for vec in vectors:
+            vec[k] = transfer(old, new, scatter(old, vec[k]))[new.owned]
+        self.patches[k] = new
+        self.blocks[k] = LocalBlock(self.provider, new, dense_max_cells=self.dense_max_cells)
+        self.coupling.replace(k, new)
+
+    def full_displacement(self, pressures: list) -> list:
+        """Displacement on every whole patch (list of (ny, nx) arrays), mm."""
+        fields = [scatter(pt, p) for pt, p in zip(self.patches, pressures)]
+        out = []
+        for k in range(len(self.patches)):
+            u = np.zeros(self.patches[k].grid.shape)
+            for l, f in enumerate(fields):
+                if np.any(f):
+                    op = self.blocks[k].full_operator() if l == k else self.coupling.full_operator(k, l)
+                    u += op.apply(f)
+            out.append(u)
+        return out
+
+    def gaps(self, pressures: list, theta, pivot) -> list:
+        """``z + tilt + u - d`` on every whole patch, mm (``inf`` where no indenter)."""
+        t = Tilt(theta[1], theta[2], pivot)
+        out = []
+        for pt, u in zip(self.patches, self.full_displacement(pressures)):
+            X, Y = pt.grid.centres()
+            with np.errstate(invalid="ignore"):
+                out.append(pt.height + t.height(X, Y) + u - theta[0])
+        return out
+
     def displacement(self, pressures: list) -> list:
         """``A p`` on every block (list of (n_k,) arrays), mm."""
         return [blk.matvec(pressures[k]) - coupled_rhs(self.coupling, k, pressures, np.zeros(blk.n))
@@ -114,6 +161,32 @@ def _grow_loaded(state: _State, p: list, p0: list) -> int:
             state.grow(k, sides, [p, p0])
             grown += 1
     return grown
+
+
+def _cover_penetration(state: _State, p: list, p0: list, theta, pivot, gap_tol: float) -> int:
+    """Extend the patch of every asperity that penetrates on cells outside its own block
+    (a neighbour can push its contact away from its tip); returns how many were extended."""
+    wanted: dict = {}
+    for pt, gap in zip(state.patches, state.gaps(p, theta, pivot)):
+        bad = (gap < -gap_tol) & (pt.owner >= 0) & ~pt.owned
+        if not np.any(bad):
+            continue
+        X, Y = pt.grid.centres()
+        for k in np.unique(pt.owner[bad]):
+            sel = bad & (pt.owner == k)
+            wanted.setdefault(int(k), []).append(np.column_stack([X[sel], Y[sel]]))
+    index = {pt.asperity: k for k, pt in enumerate(state.patches)}
+    extended = 0
+    for k, pts in wanted.items():
+        pts = np.concatenate(pts)
+        if k in index:
+            xmin, xmax, ymin, ymax = state.patches[index[k]].grid.bounds
+            inside = (pts[:, 0] > xmin) & (pts[:, 0] < xmax) & (pts[:, 1] > ymin) & (pts[:, 1] < ymax)
+            pts = pts[~inside]
+        if len(pts):
+            state.extend(k, pts, [p, p0])
+            extended += 1
+    return extended
 
 
 def solve_micro(provider: InfluenceProvider, asperities: Sequence[Asperity], *, h: float,
@@ -192,6 +265,11 @@ def solve_micro(provider: InfluenceProvider, asperities: Sequence[Asperity], *, 
             continue
         if not gs.converged:
             return _finish(state, p, p0, theta, tilt, pivot, False, gs.message, sweeps, corrections, growths, history)
+        if growths < max_growths:
+            g = _cover_penetration(state, p, p0, theta, pivot, _gap_tol(state, theta, pivot, tol))
+            if g:
+                growths += g
+                continue
         if target is None:
             break
         residual = target - resultants(state.patches, p, pivot, n_unknowns)
@@ -207,6 +285,13 @@ def solve_micro(provider: InfluenceProvider, asperities: Sequence[Asperity], *, 
             break
     out_tilt = (float(theta[1]), float(theta[2])) if (tilt is not None or free_tilt) else None
     return _finish(state, p, p0, theta, out_tilt, pivot, True, "", sweeps, corrections, growths, history)
+
+
+def _gap_tol(state: _State, theta, pivot, tol: float) -> float:
+    # penetration (mm) accepted outside the blocks: the sweeps' tolerance times the largest approach
+    z = state.heights(theta, pivot)
+    depth = max((theta[0] - float(np.min(zk)) for zk in z if zk.size), default=0.0)
+    return 10.0 * tol * max(depth, 0.0)
 
 
 def _arm(state: _State) -> float:
@@ -241,18 +326,8 @@ def _correct(state: _State, p, active, theta, residual, pivot, n_unknowns, tol):
 
 
 def _finish(state, p, p0, theta, tilt, pivot, converged, message, sweeps, corrections, growths, history):
-    pressures, initial, gaps = [], [], []
-    t = Tilt(theta[1], theta[2], pivot)
-    for k, pt in enumerate(state.patches):
-        pressures.append(scatter(pt, p[k]))
-        initial.append(scatter(pt, p0[k]))
-    for k, pt in enumerate(state.patches):
-        u = np.zeros(pt.grid.shape)
-        for l in range(len(state.patches)):
-            if np.any(pressures[l]):
-                u += (state.blocks[k].full_operator() if l == k else state.coupling.full_operator(k, l)).apply(pressures[l])
-        X, Y = pt.grid.centres()
-        with np.errstate(invalid="ignore"):
-            gaps.append(pt.height + t.height(X, Y) + u - theta[0])
+    pressures = [scatter(pt, v) for pt, v in zip(state.patches, p)]
+    initial = [scatter(pt, v) for pt, v in zip(state.patches, p0)]
+    gaps = state.gaps(p, theta, pivot) if state.patches else []
     return MicroResult(tuple(state.patches), tuple(pressures), tuple(initial), tuple(gaps),
                        float(theta[0]), tilt, converged, message, sweeps, corrections, growths, tuple(history))
