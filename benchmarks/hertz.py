@@ -7,10 +7,11 @@ Our grid covers 1.1 a around the tip, which sits at the corner of four cells.
 Codes, all single-threaded and at the same cell size h:
 
 * ``dense``: Johnson's active-set matrix inversion (only up to ``--max-dense`` cells);
-* ``cg``: our FFT constrained conjugate gradient (Polonsky & Keer), default tolerance;
+* ``cg``: our FFT constrained conjugate gradient (Polonsky & Keer) at its default
+  tolerance 1e-8, and ``cg-1e-6`` at tol 1e-6;
 * ``CM``: ContactMechanics ``FreeFFTElasticHalfSpace`` + its constrained CG
-  (``NonSmoothContactSystem.minimize_proxy``), same grid, default tolerances, and
-  ``CM-tight`` with ``pentol = 1e-9 d``;
+  (``NonSmoothContactSystem.minimize_proxy``), same grid, default tolerances, then
+  ``CM-1e-6`` and ``CM-1e-9`` with ``pentol = 1e-6 d`` and ``1e-9 d``;
 * ``Tamaas``: ``PolonskyKeerRey`` on its periodic ``basic_2d`` model in a cell 8a wide,
   load control with the Hertz load (periodic images: not the same problem, error floor).
 
@@ -18,8 +19,11 @@ Per code: best wall time of ``--repeat`` runs (from geometry to pressure, includ
 building operators), the relative errors against Hertz (total load, L2 of the pressure at
 the cell centres, contact area), and for the codes sharing our discretisation (uniform
 pressure on square cells, Love's kernel) the *solver error*: L2 distance to our CG
-solution at tol 1e-12. "Equal error" means equal Hertz errors to within 1 % of their
-value; the PASS/MISS line compares our cg with CM at each size.
+solution at tol 1e-12. All three share the same converged answer, so their Hertz errors
+differ only by how far each stopped from it. "Equal error": a run counts when its L2
+error against Hertz is within 1 % of that of the converged discrete solution (the
+discretisation error). The PASS/MISS line takes, per size, the fastest counting run of
+our cg and of CM and compares their times (target: cg at least 3x faster).
 
 Run: ``python benchmarks/hertz.py [--sizes 32 64 128] [--repeat 3]``.
 """
@@ -135,11 +139,13 @@ def bench_size(n: int, repeat: int, max_dense: int) -> list[dict]:
         rows.append({"code": name, "n": n, "cells": grid.size, "time": t, "iters": it, "converged": r.converged,
                      "solver_err": float(np.linalg.norm(p - exact) / np.linalg.norm(exact)), **errors(p, X, Y, h)})
 
+    floor = errors(exact, X, Y, h)["l2_err"]
     if grid.size <= max_dense:
         ours("dense", solve_dense)
     ours("cg", solve_cg)
+    ours("cg-1e-6", solve_cg, tol=1e-6)
     if _available("ContactMechanics") and _available("SurfaceTopography"):
-        for name, pentol in (("CM", None), ("CM-tight", 1e-9 * D)):
+        for name, pentol in (("CM", None), ("CM-1e-6", 1e-6 * D), ("CM-1e-9", 1e-9 * D)):
             sol, t = best_time(run_contact_mechanics(grid, pentol), repeat)
             p = np.asarray(sol.jac) / (h * h)
             rows.append({"code": name, "n": n, "cells": grid.size, "time": t, "iters": sol.nit,
@@ -152,27 +158,40 @@ def bench_size(n: int, repeat: int, max_dense: int) -> list[dict]:
         p, t = best_time(go, repeat)
         rows.append({"code": "Tamaas", "n": n, "cells": n_cells * n_cells, "time": t, "iters": None,
                      "converged": True, "solver_err": None, **errors(p, TX, TY, h)})
+    for row in rows:
+        row["equal"] = row["converged"] and abs(row["l2_err"] - floor) <= 0.01 * floor
     return rows
 
 
+def _fastest(rows: list[dict], family: str) -> dict | None:
+    runs = [r for r in rows if r["code"].split("-")[0] == family and r["equal"]]
+    return min(runs, key=lambda r: r["time"]) if runs else None
+
+
 def verdict(rows: list[dict]) -> tuple[bool, list[str]]:
-    """PASS when our cg is >= 3x faster than CM at equal error at every size."""
+    """PASS when, at every size, our fastest equal-error cg run is >= 3x faster than
+    the fastest equal-error ContactMechanics run."""
     lines, ok, seen = [], True, False
     for n in sorted({r["n"] for r in rows}):
-        by = {r["code"]: r for r in rows if r["n"] == n}
-        if "cg" not in by or "CM" not in by:
+        here = [r for r in rows if r["n"] == n]
+        cg, cm = _fastest(here, "cg"), _fastest(here, "CM")
+        if not any(r["code"].startswith("CM") for r in here):
             continue
         seen = True
-        cg, cm = by["cg"], by["CM"]
+        if cg is None or cm is None:
+            ok = False
+            lines.append(f"2a/h = {n:4d}: no equal-error run of {'cg' if cg is None else 'CM'} -> MISS")
+            continue
         ratio = cm["time"] / cg["time"]
-        equal = abs(cg["l2_err"] - cm["l2_err"]) <= 0.01 * cm["l2_err"]
-        good = ratio >= 3.0 and equal and cg["converged"]
-        ok &= good
-        lines.append(f"2a/h = {n:4d}: CM / cg time ratio = {ratio:5.2f} (target >= 3), L2 error cg "
-                     f"{100 * cg['l2_err']:.4f} % vs CM {100 * cm['l2_err']:.4f} % "
-                     f"({'equal' if equal else 'NOT equal'}) -> {'PASS' if good else 'MISS'}")
-        if "Tamaas" in by:
-            lines.append(f"              Tamaas / cg time ratio = {by['Tamaas']['time'] / cg['time']:5.2f}")
+        ok &= ratio >= 3.0
+        lines.append(f"2a/h = {n:4d}: {cm['code']} {cm['time']:.3f} s / {cg['code']} {cg['time']:.3f} s = "
+                     f"{ratio:5.2f} (target >= 3), L2 error {100 * cg['l2_err']:.4f} % vs "
+                     f"{100 * cm['l2_err']:.4f} % -> {'PASS' if ratio >= 3.0 else 'MISS'}")
+        tam = [r for r in here if r["code"] == "Tamaas"]
+        if tam:
+            lines.append(f"              Tamaas {tam[0]['time']:.3f} s / {cg['code']} = "
+                         f"{tam[0]['time'] / cg['time']:5.2f} (periodic cell 8a; its L2 error "
+                         f"{100 * tam[0]['l2_err']:.3f} % is not equal)")
     return ok and seen, lines
 
 
@@ -192,7 +211,8 @@ def main(argv=None) -> int:
     print_table(rows, [("code", "code", "s"), ("n", "2a/h", "d"), ("cells", "cells", "d"),
                        ("time", "time s", ".3f"), ("iters", "iters", "d"), ("load_err", "load err", ".2e"),
                        ("l2_err", "L2 err", ".3e"), ("area_err", "area err", ".2e"),
-                       ("solver_err", "solver err", ".1e"), ("converged", "converged", "")])
+                       ("solver_err", "solver err", ".1e"), ("converged", "converged", ""),
+                       ("equal", "equal err", "")])
     ok, lines = verdict(rows)
     for line in lines:
         print(line)
