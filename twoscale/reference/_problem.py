@@ -190,15 +190,23 @@ def build_result(problem: ContactProblem, method: str, pressure: np.ndarray, dis
 def initial_active_set(problem: ContactProblem, E_star: float) -> np.ndarray:
     """A first guess of the contact, (ny, nx) bool.
 
-    Penetration control: the geometric overlap ``z < d`` (it contains the contact,
-    since ``A p >= 0``). Load control: the cells below ``min z + delta`` with the smallest
+    Penetration control: each indenter's Hertz contact ``z < (d + z_tip) / 2``, with
+    ``z_tip`` the lowest height of the cells it owns (interaction only shrinks
+    contacts, so this is close to and mostly larger than the contact). Load control: the cells below ``min z + delta`` with the smallest
     ``delta`` at which a flat punch of the same area pressed by ``delta`` would carry W
     (``2 E* a delta >= W``); for a Hertz sphere this is about 1.1 times the contact radius.
     """
     z = problem.surface.height
-    if problem.mode == "penetration":
-        return z < problem.penetration
     cand = np.isfinite(z)
+    if problem.mode == "penetration":
+        # Hertz: the contact is where an indenter is within half its local approach of
+        # the level, z < (d + z_tip) / 2 (a^2 = R d against the overlap 2 R d)
+        tips = np.full(problem.surface.n_asperities + 1, np.inf)
+        own = problem.surface.owner
+        np.minimum.at(tips, own[cand], z[cand])
+        z_tip = np.where(cand, tips[own], np.inf)
+        first = cand & (z < 0.5 * (problem.penetration + z_tip))
+        return first if np.any(first) else cand & (z < problem.penetration)
     zs = np.sort(z[cand])
     delta = zs - zs[0]
     area = problem.grid.h ** 2 * np.arange(1, zs.size + 1)

@@ -98,7 +98,9 @@ def solve_dense(provider: InfluenceProvider, surface: Surface, *, penetration: f
     if idx.size > max_cells:
         raise ValueError(f"dense solver: {idx.size} cells with material exceed max_cells={max_cells}; "
                          "use solve_cg")
-    A = provider.grid_matrix(problem.grid)[np.ix_(idx, idx)]
+    A = provider.grid_matrix(problem.grid)
+    if idx.size < A.shape[0]:
+        A = A[np.ix_(idx, idx)]
     t_matrix = time.perf_counter()
     return _active_set(problem, provider, A, idx, tol, max_iter, t0, t_matrix)
 
@@ -135,7 +137,7 @@ def _active_set(problem: ContactProblem, provider, A, idx, tol, max_iter, t0, t_
             continue
         p[:] = 0.0
         p[S] = pS
-        u = A[:, S] @ pS
+        u = A @ p  # p is zero off S: no copy of A's columns
         motion = B @ m if B.shape[1] else np.full(idx.size, d_given)
         gap = z + u - motion
         scale = max(float(np.max(np.abs(u))), np.finfo(float).tiny)
