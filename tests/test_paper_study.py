@@ -1,0 +1,97 @@
+"""The paper's numerical study (METHOD.md section 4) and the ``twoscale paper`` command.
+
+Acceptance (issue): ``100 ||p - p_r|| / ||p_r|| <= 0.1`` for every d/2R against the
+reference solver on the same lattice; the eq. 7 error ``100 ||p0 - p_r|| / ||p_r||`` grows
+as the spheres approach; sweeps are reported. The quick setting (cells twice the paper's)
+runs by default; the paper's cell sizes are marked slow.
+"""
+import csv
+import math
+
+import numpy as np
+import pytest
+
+from twoscale.cli.main import main
+from twoscale.study import PAPER_SPACINGS, paper_case, reference_surface, run_study
+
+
+@pytest.fixture(scope="module")
+def quick_study():
+    return run_study(quick=True)
+
+
+def _check_acceptance(study):
+    for layout, results in study.cases.items():
+        assert [r.case.spacing for r in results] == list(PAPER_SPACINGS[layout])
+        for r in results:
+            assert r.twoscale.converged, r.twoscale.message
+            assert r.ref.converged, r.ref.message
+            assert r.err_p_percent <= 0.1, (layout, r.case.spacing, r.err_p_percent)
+            assert r.sweeps >= 1
+        e0 = [r.err_p0_percent for r in results]
+        # the eq. 7 start drifts from p_r as the spheres approach (spacings are increasing)
+        assert all(a > b for a, b in zip(e0, e0[1:])), (layout, e0)
+        assert e0[0] > 10.0 and e0[-1] < 1.0
+
+
+def test_quick_study_meets_the_acceptance(quick_study):
+    _check_acceptance(quick_study)
+
+
+@pytest.mark.slow
+def test_full_study_meets_the_acceptance():
+    _check_acceptance(run_study(quick=False))
+
+
+def test_far_spheres_are_hertzian(quick_study):
+    # d/2R = 5: each sphere is nearly alone; its force is the exact-sphere (Segedin) law
+    # with the small Boussinesq interaction of the others, within the discretisation
+    from twoscale.analytic import hertz
+
+    r = quick_study.cases["two"][-1]
+    c = r.case
+    P1 = float(hertz.sphere_load(c.R, c.penetration, c.material.E_star))
+    assert r.twoscale.asperities.forces == pytest.approx([P1, P1], rel=0.02)
+
+
+def test_cases_follow_the_paper():
+    two = paper_case("two", 0.25)
+    assert math.hypot(two.asperities[0].x - two.asperities[1].x, two.asperities[0].y - two.asperities[1].y) \
+        == pytest.approx(0.25 * 2 * 10.0)
+    assert two.h == pytest.approx(0.0125 * 10.0) and two.penetration == pytest.approx(0.05 * 10.0)
+    seven = paper_case("seven", 0.5)
+    r = [math.hypot(a.x, a.y) for a in seven.asperities]
+    assert r[0] == 0.0 and np.allclose(r[1:], 0.5 * 2 * 10.0)
+    assert seven.h == pytest.approx(0.025 * 10.0) and seven.penetration == pytest.approx(1.0)
+    assert seven.asperities[seven.upper].y == pytest.approx(10.0)
+    # the reference grid is on the two-scale's lattice and covers each sphere's reach
+    s = reference_surface(seven)
+    for v in (s.grid.x0, s.grid.y0):  # lattice anchored at the origin, like the patches
+        assert abs(v / s.grid.h - round(v / s.grid.h)) < 1e-9
+    reach = math.sqrt(seven.penetration * (2 * seven.R - seven.penetration))
+    xmin, xmax, ymin, ymax = s.grid.bounds
+    assert xmin < -20.0 * math.cos(math.pi / 6) - reach and ymax > 20.0 + reach
+    with pytest.raises(ValueError, match="layout"):
+        paper_case("three", 0.5)
+
+
+def test_paper_command_writes_csv_and_figures(tmp_path, capsys):
+    pytest.importorskip("matplotlib")
+    code = main(["paper", "--out", str(tmp_path), "--quick"])
+    out = capsys.readouterr().out
+    assert code == 0, out
+    assert "PASS" in out
+    for name in ("errors_two.csv", "errors_seven.csv", "profile_two.csv", "profile_seven.csv",
+                 "map_two_0.1.csv", "map_seven_0.2.csv", "fig3_two_maps.png", "fig4_seven_maps.png",
+                 "fig5_profiles.png", "fig6_errors.png"):
+        assert (tmp_path / name).stat().st_size > 0, name
+    with open(tmp_path / "errors_seven.csv", encoding="utf-8") as fh:
+        lines = [ln for ln in fh if not ln.startswith("#")]
+    rows = list(csv.DictReader(lines))
+    assert [float(r["d_over_2R"]) for r in rows] == list(PAPER_SPACINGS["seven"])
+    assert all(float(r["err_p_percent"]) <= 0.1 and int(r["sweeps"]) >= 1 for r in rows)
+
+
+def test_paper_command_rejects_bad_tolerance(tmp_path, capsys):
+    assert main(["paper", "--out", str(tmp_path), "--tol", "-1"]) == 2
+    assert "tol" in capsys.readouterr().err
