@@ -124,3 +124,14 @@ def test_vtk_itself_reads_the_file(tmp_path):
     # cell centres of the quads are the grid's cell centres
     c = np.asarray(m.cell_centers().points)[:, :2]
     np.testing.assert_allclose(c, np.vstack([f.grid.points() for f in res.fields]), atol=1e-12)
+
+
+def test_written_file_has_ordinary_permissions(tmp_path):
+    # the temporary file is created owner-only; the result must follow the umask
+    import os
+    mask = os.umask(0o022)
+    try:
+        path = write_vtk(_two_patch_result(), tmp_path / "f.vtu")
+    finally:
+        os.umask(mask)
+    assert path.stat().st_mode & 0o777 == 0o644

@@ -38,16 +38,14 @@ import csv
 import dataclasses
 import io
 import json
-import math
-import os
 import sys
-import tempfile
 import time
 from pathlib import Path
 
 import numpy as np
 
 from .._version import __version__
+from ..io.atomic import atomic_output
 from ..io.result_json import UNITS, write_result
 from ..io.scene_file import read_scene, scene_to_dict
 from ..progress import Progress
@@ -317,14 +315,8 @@ def markdown(scene_path: str, runs, ind: dict, notes: list[str], method: str,
 
 # ---------------------------------------------------------------- writing
 def _write_text(path: Path, text: str) -> None:
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", dir=path.parent)
-    try:
-        with os.fdopen(fd, "w", encoding="utf-8", newline="") as fh:
-            fh.write(text)
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
+    with atomic_output(path) as tmp:
+        tmp.write_text(text, encoding="utf-8", newline="")
 
 
 def _csv_text(rows) -> str:

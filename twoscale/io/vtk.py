@@ -21,8 +21,6 @@ meshio is imported here only (``import twoscale`` stays light).
 from __future__ import annotations
 
 import json
-import os
-import tempfile
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Mapping, Sequence
@@ -33,6 +31,7 @@ from .._version import __version__
 from ..grid import Grid
 from ..indenters import Asperity, Tilt, surface_on
 from ..results import ContactResult, PressureField
+from .atomic import atomic_output
 
 UNITS = {"length": "mm", "force": "N", "pressure": "MPa", "angle": "rad"}
 LAYOUTS = ("patches", "union")
@@ -192,21 +191,14 @@ def _atomic_write(mesh, path: Path, meta: dict, binary: bool) -> None:
     codes = " ".join(str(b) for b in text.encode("utf-8"))
     field = (f'<FieldData>\n<DataArray type="UInt8" Name="{_META}" NumberOfTuples="{len(text.encode("utf-8"))}" '
              f'format="ascii">\n{codes}\n</DataArray>\n</FieldData>\n')
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".vtu", dir=path.parent)
-    os.close(fd)
-    try:
-        meshio.vtu.write(tmp, mesh, binary=binary)
-        xml = Path(tmp).read_text(encoding="utf-8")
+    with atomic_output(path) as tmp:
+        meshio.vtu.write(str(tmp), mesh, binary=binary)
+        xml = tmp.read_text(encoding="utf-8")
         head, sep, rest = xml.partition("<UnstructuredGrid>\n")
         if not sep:
             raise RuntimeError("unexpected VTU layout from meshio: no <UnstructuredGrid> line")
         head = head.replace("?>\n", f"?>\n<!-- twoscale {__version__} (units mm, N, MPa) {text} -->\n", 1)
-        Path(tmp).write_text(head + sep + field + rest, encoding="utf-8")
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
+        tmp.write_text(head + sep + field + rest, encoding="utf-8")
 
 
 def read_vtk(path: str | Path) -> VtkContent:

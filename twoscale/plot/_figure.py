@@ -2,12 +2,11 @@
 from __future__ import annotations
 
 import json
-import os
-import tempfile
 from pathlib import Path
 from typing import Any, Mapping
 
 from .._version import __version__
+from ..io.atomic import atomic_output
 
 FOOTER = f"twoscale {__version__} - units mm, N, MPa"
 
@@ -34,13 +33,6 @@ def save_png(fig, path: str | Path, *, title: str, scene: Mapping[str, Any] | No
     meta = {"Title": title, "Software": f"twoscale {__version__}",
             "Description": json.dumps({"units": {"length": "mm", "force": "N", "pressure": "MPa"},
                                        "scene": None if scene is None else dict(scene)})}
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".png", dir=path.parent)
-    os.close(fd)
-    try:
+    with atomic_output(path) as tmp:
         fig.savefig(tmp, format="png", metadata=meta)
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
     return path
