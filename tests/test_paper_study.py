@@ -70,7 +70,7 @@ def test_cases_follow_the_paper():
         assert abs(v / s.grid.h - round(v / s.grid.h)) < 1e-9
     reach = math.sqrt(seven.penetration * (2 * seven.R - seven.penetration))
     xmin, xmax, ymin, ymax = s.grid.bounds
-    assert xmin < -20.0 * math.cos(math.pi / 6) - reach and ymax > 20.0 + reach
+    assert xmin < -10.0 * math.cos(math.pi / 6) - reach and ymax > 10.0 + reach
     with pytest.raises(ValueError, match="layout"):
         paper_case("three", 0.5)
 
