@@ -176,7 +176,7 @@ def test_measured_data_and_pivot_centring(tmp_path, monkeypatch):
 
 
 @pytest.mark.parametrize("extra, match", [
-    (["--centre-pivot"], "needs --measured-forces"),
+    (["--centre-pivot"], "needs measured data"),
     (["--loads", "10", "20", "--measured-forces", "F"], "one load case"),
 ])
 def test_measured_option_errors(tmp_path, capsys, extra, match):
@@ -210,3 +210,19 @@ def test_real_finite_block_is_stiffer(tmp_path):
     assert main(["compare", TWO, "--out", str(out), "--quiet"]) == 0
     runs = {r["body"]: r["total_load"] for r in json.loads((out / "summary.json").read_text())["runs"]}
     assert runs["halfspace"] < runs["block-sliding"] < runs["block-bonded"]
+
+
+def test_measured_map_only_gives_forces_from_the_map(tmp_path, monkeypatch):
+    monkeypatch.setattr(compare, "_block_factory", lambda: (None, "no block in this test"))
+    scene = tmp_path / "small.toml"
+    scene.write_text(SMALL)
+    smap = np.zeros((44, 44))
+    smap[22, 22] = 1.0            # cell centred at (0.95, 0.95) mm: nearest tip is (0, 0)
+    smap[22, 26] = 2.0            # (8.55, 0.95): nearest tip (8, 0)
+    mpath = tmp_path / "map.csv"
+    mpath.write_text("\n".join(",".join(f"{v:g}" for v in row) for row in smap) + "\n")
+    out = tmp_path / "cmp"
+    assert main(["compare", str(scene), "--measured-map", str(mpath), "--out", str(out), "--quiet"]) == 0
+    rows = [r for r in csv.DictReader((out / "forces.csv").open()) if r["body"] == "measured"]
+    assert [float(r["force_N"]) for r in rows] == pytest.approx([1.9 ** 2, 2 * 1.9 ** 2, 0.0])
+    assert "integrated from the sensor map" in (out / "forces.md").read_text()

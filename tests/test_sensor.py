@@ -218,3 +218,25 @@ def test_read_sensor_map_orientation_and_errors(tmp_path):
     f.write_text("1,2,3\n4,-5,6\n")
     with pytest.raises(ValueError, match="negative"):
         read_sensor_map(f, sensor=s)
+
+
+def test_forces_from_map_recovers_separated_tip_forces():
+    # two Hertz-like patches far apart; the sensor map of their pressure, split by nearest
+    # tip, gives back each patch's force (every loaded sensor cell is nearer its own tip)
+    from twoscale.sensor import forces_from_map
+
+    fields = []
+    for k, (cx, cy, a) in enumerate([(-10.0, 3.0, 2.0), (12.0, -5.0, 3.0)]):
+        g = Grid.covering(cx - a, cx + a, cy - a, cy + a, 0.07)
+        X, Y = g.centres()
+        p = np.sqrt(np.clip(1 - ((X - cx) ** 2 + (Y - cy) ** 2) / a ** 2, 0, None))
+        fields.append(_field(g, p, owner=k))
+    res = _result(fields, n=2)
+    s = Sensor()
+    F = forces_from_map(s.average(res), np.array([[-10.0, 3.0], [12.0, -5.0]]), sensor=s)
+    np.testing.assert_allclose(F, res.asperities.forces, rtol=1e-12)
+    # a radius smaller than the contact drops the outer cells: less force, never more
+    F2 = forces_from_map(s.average(res), np.array([[-10.0, 3.0], [12.0, -5.0]]), sensor=s, radius=1.0)
+    assert np.all(F2 < F) and np.all(F2 > 0)
+    with pytest.raises(ValueError, match="shape"):
+        forces_from_map(np.zeros((3, 3)), np.zeros((1, 2)), sensor=s)

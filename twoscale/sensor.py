@@ -226,6 +226,45 @@ def centred_tips(tips: np.ndarray, forces: Sequence[float], *,
     return np.asarray(tips, dtype=float) - np.array([x0, y0])
 
 
+def forces_from_map(sensor_map: np.ndarray, tips: np.ndarray, *, sensor: Sensor = Sensor(),
+                    radius: float | None = None) -> np.ndarray:
+    """Tip forces integrated from a sensor pressure map (as the paper did for its measurements).
+
+    Each loaded sensor cell goes to the nearest tip (its centre's distance), and a tip's
+    force is the sum of its cells' pressure times the cell area.
+
+    Parameters
+    ----------
+    sensor_map : (ny, nx) array
+        Sensor-cell pressures, MPa.
+    tips : (N, 2) array
+        Tip positions, mm.
+    sensor : Sensor, default ``Sensor()``
+    radius : float, optional
+        Only cells whose centre is within ``radius`` (mm) of their tip count (e.g. the
+        indenters' base radius); default no limit.
+
+    Returns
+    -------
+    (N,) array of forces, N.
+    """
+    P = np.asarray(sensor_map, dtype=float)
+    if P.shape != sensor.shape:
+        raise ValueError(f"sensor map has shape {P.shape}, the sensor is {sensor.shape}")
+    t = np.asarray(tips, dtype=float)
+    if t.ndim != 2 or t.shape[1] != 2 or len(t) == 0:
+        raise ValueError(f"tips must have shape (N, 2) with N >= 1, got {t.shape}")
+    if radius is not None and not (math.isfinite(radius) and radius > 0):
+        raise ValueError(f"radius must be finite and > 0 (mm), got {radius!r}")
+    X, Y = sensor.grid.centres()
+    loaded = P != 0
+    d2 = (X[loaded][:, None] - t[None, :, 0]) ** 2 + (Y[loaded][:, None] - t[None, :, 1]) ** 2
+    nearest = np.argmin(d2, axis=1)
+    keep = np.ones(len(nearest), bool) if radius is None else d2[np.arange(len(nearest)), nearest] <= radius ** 2
+    area = sensor.cell * sensor.cell
+    return area * np.bincount(nearest[keep], weights=P[loaded][keep], minlength=len(t))
+
+
 # ---------------------------------------------------------------------- measured data
 @dataclass(frozen=True)
 class MeasuredForces:

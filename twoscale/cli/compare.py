@@ -11,7 +11,8 @@ half-space only and says so on stderr and in every table. ``--loads`` replaces t
 scene's ``load.total`` by each value in turn (the paper's load cases).
 
 Measured data of one load case (``twoscale.sensor`` formats) add a ``measured`` column
-and e_M / e_m of every body against the measurement; ``--centre-pivot`` first shifts
+and e_M / e_m of every body against the measurement (given only a sensor map, the tip
+forces are integrated from it, each loaded cell to its nearest tip, as in the paper); ``--centre-pivot`` first shifts
 the tips so the joint sits at the measured force centre (paper eq. 13). The sensor is
 the paper's, 44 x 44 cells of 1.9 mm centred on the scene origin.
 
@@ -50,7 +51,8 @@ from ..io.result_json import UNITS, write_result
 from ..io.scene_file import read_scene, scene_to_dict
 from ..progress import Progress
 from ..scene import BLOCK_DEFAULT_SIZE, METHODS, Scene, SceneError, default_h
-from ..sensor import Sensor, centred_tips, e_M, e_m, pivot_from_forces, read_sensor_map, read_tip_forces
+from ..sensor import (Sensor, centred_tips, e_M, e_m, forces_from_map, pivot_from_forces, read_sensor_map,
+                      read_tip_forces)
 from .solve import positive_option
 
 #: Bodies compared, in table order: name -> (influence kind, block base).
@@ -73,7 +75,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--measured-forces", metavar="CSV", default=None,
                         help="measured tip forces (header x,y,force or index,force; N), one load case")
     parser.add_argument("--measured-map", metavar="CSV", default=None,
-                        help="measured sensor map: 44 rows of 44 pressures (MPa), first row at smallest y")
+                        help="measured sensor map: 44 rows of 44 pressures (MPa), first row at smallest y; "
+                             "without --measured-forces the tip forces are integrated from it")
     parser.add_argument("--centre-pivot", action="store_true",
                         help="shift the tips so the joint sits at the measured force centre (paper eq. 13)")
     parser.add_argument("--quiet", action="store_true", help="print nothing but errors and warnings")
@@ -102,23 +105,25 @@ class Measured:
 
     forces: np.ndarray | None
     sensor_map: np.ndarray | None
+    forces_from_map: bool = False
 
 
 def _measured(args, scenes: list[Scene]) -> Measured | None:
     """Read the measured data named on the command line (raises ValueError)."""
     if args.measured_forces is None and args.measured_map is None:
         if args.centre_pivot:
-            raise SceneError("--centre-pivot needs --measured-forces (eq. 13 uses the measured forces)")
+            raise SceneError("--centre-pivot needs measured data (--measured-forces or --measured-map): "
+                             "eq. 13 uses the measured forces")
         return None
     if len(scenes) != 1:
         raise SceneError(f"measured data belong to one load case; give at most one --loads value, "
                          f"got {args.loads!r}")
-    if args.centre_pivot and args.measured_forces is None:
-        raise SceneError("--centre-pivot needs --measured-forces (eq. 13 uses the measured forces)")
     forces = None
     if args.measured_forces is not None:
         forces = read_tip_forces(args.measured_forces, n_asperities=len(scenes[0].asperities)).force
     smap = read_sensor_map(args.measured_map) if args.measured_map is not None else None
+    if forces is None:  # as the paper did: integrate the measured map around each tip
+        return Measured(forces_from_map(smap, scenes[0].tips), smap, forces_from_map=True)
     return Measured(forces, smap)
 
 
@@ -363,6 +368,9 @@ def run(args: argparse.Namespace) -> int:
         scenes = _scenes(args)
         measured = _measured(args, scenes)
         notes = []
+        if measured is not None and measured.forces_from_map:
+            notes.append("measured tip forces integrated from the sensor map (each loaded cell to "
+                         "its nearest tip)")
         if args.centre_pivot:
             scenes[0], note = _centre_pivot(scenes[0], measured.forces)
             notes.append(note)
