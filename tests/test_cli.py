@@ -97,7 +97,11 @@ def test_subprocess_python_m_twoscale(examples_dir, tmp_path):
     _check_fixed_fields(res, method="reference", n_asperities=1)
     assert res["total_load"] == pytest.approx(float(hertz.sphere_load(10.0, 0.5, E_STAR)), rel=0.01)
     assert "total load" in proc.stdout
-    assert not [p for p in os.listdir(out) if p != "result.json" and p.startswith(".result-")]  # no temp left
+    assert not [p for p in os.listdir(out) if p.startswith(".")]  # no temporary file left
+    # the usual permissions (umask), not a temporary file's owner-only mode
+    mask = os.umask(0)
+    os.umask(mask)
+    assert os.stat(out / "result.json").st_mode & 0o777 == 0o666 & ~mask
 
 
 def test_solve_twoscale_default_method_records_macro_force(examples_dir, tmp_path):

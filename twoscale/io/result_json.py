@@ -14,13 +14,13 @@ from __future__ import annotations
 import json
 import math
 import os
-import tempfile
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from .._version import __version__
+from .atomic import atomic_output
 from ..scene import Scene
 from .scene_file import scene_to_dict
 
@@ -120,16 +120,7 @@ def write_result(result, scene: Scene, out_dir: str | os.PathLike, *, method: st
     failed run leaves nothing behind. Returns the path written.
     """
     text = json.dumps(result_to_dict(result, scene, method=method), indent=2, allow_nan=False) + "\n"
-    out = Path(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
-    target = out / RESULT_NAME
-    fd, tmp = tempfile.mkstemp(prefix=".result-", suffix=".json.tmp", dir=out)
-    try:
-        with os.fdopen(fd, "w", encoding="utf-8") as fh:
-            fh.write(text)
-        os.replace(tmp, target)
-    except BaseException:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-        raise
+    target = Path(out_dir) / RESULT_NAME
+    with atomic_output(target) as tmp:
+        tmp.write_text(text, encoding="utf-8")
     return target
