@@ -19,6 +19,9 @@ import numpy as np
 from .blocks import Coupling, LocalBlock
 from .local import contact_solve
 
+#: Local solves stop at this fraction of the last sweep's relative change (never below it of tol).
+LOCAL_FACTOR = 1e-2
+
 
 @dataclass(frozen=True)
 class SweepResult:
@@ -107,7 +110,7 @@ def gauss_seidel(blocks: list[LocalBlock], coupling: Coupling, b: list, start: l
     history = []
     for m in range(1, max_sweeps + 1):
         # inexact local solves while far from convergence: 1 % of the last change
-        local_rtol = 1e-2 * max(history[-1] if history else 0.1, tol)
+        local_rtol = LOCAL_FACTOR * max(history[-1] if history else 0.1, tol)
         sw = sweep(blocks, coupling, b, p, active, local_rtol=local_rtol)
         p, active = sw.pressures, sw.active
         history.append(sw.change)

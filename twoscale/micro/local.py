@@ -104,7 +104,8 @@ def contact_solve(block: LocalBlock, b: np.ndarray, previous: np.ndarray, *, max
 
 
 def initial_pressure(block: LocalBlock, z: np.ndarray, force: float, h: float, *,
-                     approach: float, max_iter: int = 200, gap_rtol: float = 1e-12) -> LocalSolution:
+                     approach: float, max_iter: int = 200, gap_rtol: float = 1e-12,
+                     rtol: float = 1e-8) -> LocalSolution:
     """Initial pressure ``p0_k`` of paper eq. 7.
 
     Solves ``[A_kk 1; 1^T 0] [p; -s] = [-z; P_k / h^2]`` on the active cells, i.e.
@@ -124,6 +125,8 @@ def initial_pressure(block: LocalBlock, z: np.ndarray, force: float, h: float, *
     approach : float
         Local approach from the macro step, mm: the first active set is
         ``z - min z < approach`` (the geometric overlap, a superset of the contact).
+    rtol : float, default 1e-8
+        Relative change at which the conjugate gradients stop (large blocks).
     """
     n = block.n
     if force <= 0.0 or n == 0:
@@ -133,8 +136,9 @@ def initial_pressure(block: LocalBlock, z: np.ndarray, force: float, h: float, *
     if not np.any(active):
         active = z == zmin
     if not block.dense:
-        start = np.sqrt(np.maximum(max(approach, 0.0) - (z - zmin), 0.0)) + (z == zmin)
-        p, s, ok, it = pk_fixed_force(block.matvec, z, force, h, start, rtol=block.cg_rtol, max_iter=5 * max_iter)
+        # Hertz's shape sqrt(a^2 - r^2) over the Hertz radius (z - zmin < approach / 2)
+        start = np.sqrt(np.maximum(0.5 * max(approach, 0.0) - (z - zmin), 0.0)) + (z == zmin)
+        p, s, ok, it = pk_fixed_force(block.matvec, z, force, h, start, rtol=rtol, max_iter=5 * max_iter)
         return LocalSolution(p, p > 0.0, s, False, ok, it)
     ones = np.ones(n)
     seen: set = set()
