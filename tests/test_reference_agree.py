@@ -177,3 +177,30 @@ def test_iteration_limit_is_reported_not_raised():
     assert not r.converged and "max_iter" in r.message
     r = solve_dense(HS, s, penetration=0.03, max_iter=1)
     assert not r.converged and "max_iter" in r.message
+
+
+def test_tilt_with_pivot_off_the_line_of_two_asperities():
+    """Two asperities and a pivot off the line joining them: equilibrium needs a large
+    tilt that brings the caps' flanks into contact. Johnson's plain iteration cycled here
+    (the trial set shrank to two cells, leaving the moments undetermined)."""
+    asps = [Asperity(0.923, -0.413, 0.0434, 2.264, "sphere"), Asperity(-0.949, 0.262, 0.0098, 2.992, "paraboloid")]
+    grid = Grid.covering(-4.0, 4.0, -4.0, 4.0, 0.16)
+    s = surface_on(grid, asps)
+    kw = dict(total_load=1.594, tilt=True, pivot=(-0.486, -0.854))
+    rd, rc = solve_dense(HS, s, **kw), solve_cg(HS, s, **kw)
+    _agree(rd, rc, grid)
+    assert np.all(rd.asperities.forces > 0)
+    assert rc.tilt == pytest.approx(rd.tilt, rel=1e-6)
+
+
+@pytest.mark.parametrize("seed", [3, 8])
+def test_random_scenes_all_modes(seed):
+    rng = np.random.default_rng(seed)
+    asps = [Asperity(float(rng.uniform(-3, 3)), float(rng.uniform(-3, 3)), float(rng.uniform(0, 0.05)),
+                     float(rng.uniform(1, 3)), str(rng.choice(["sphere", "paraboloid"])))
+            for _ in range(int(rng.integers(3, 7)))]
+    grid = Grid.covering(-4.0, 4.0, -4.0, 4.0, 0.16)
+    s = surface_on(grid, asps)
+    for kw in (dict(penetration=0.06), dict(total_load=3.0),
+               dict(total_load=3.0, tilt=True, pivot=(float(rng.uniform(-1, 1)), float(rng.uniform(-1, 1))))):
+        _agree(solve_dense(HS, s, **kw), solve_cg(HS, s, **kw), grid)

@@ -105,7 +105,23 @@ def solve_dense(provider: InfluenceProvider, surface: Surface, *, penetration: f
     return _active_set(problem, provider, A, idx, tol, max_iter, t0, t_matrix)
 
 
+def _gap(A, z, B, m, d_given, q):
+    """Displacement ``A q`` and gap ``z + A q - B m`` (or ``- d``) on the cells."""
+    u = A @ q
+    motion = B @ m if B.shape[1] else d_given
+    return u, z + u - motion
+
+
 def _active_set(problem: ContactProblem, provider, A, idx, tol, max_iter, t0, t_matrix) -> ContactResult:
+    """Johnson's iteration, made monotone once a feasible pressure is known.
+
+    Phase 1 (no trial solution with p >= 0 yet): drop every cell with negative pressure
+    and add every cell that interpenetrates under the trial solution (Johnson).
+    Phase 2: from the last feasible pressure step towards the new trial solution only
+    until the first pressure reaches zero and drop those cells (as in Lawson & Hanson's
+    NNLS), so the energy decreases and trial sets cannot cycle; add every interpenetrating
+    cell at once. A repeated set switches to one-cell moves.
+    """
     z = problem.surface.height.ravel()[idx]
     B = problem.basis()[idx]
     target = problem.target()
@@ -114,32 +130,48 @@ def _active_set(problem: ContactProblem, provider, A, idx, tol, max_iter, t0, t_
     seen: set[bytes] = set()
     changes, sizes = [], []
     converged, message = False, f"active set not stable after max_iter={max_iter} passes"
-    p = np.zeros(idx.size)
+    p = np.zeros(idx.size)  # last feasible pressure (support inside the trial set)
+    feasible = False
     m = np.zeros(B.shape[1])
-    u = np.zeros(idx.size)
     for it in range(1, max_iter + 1):
         key = np.packbits(active).tobytes()
         cycling = key in seen
         seen.add(key)
         S = np.flatnonzero(active)
-        if S.size == 0:  # load control never empties S; penetration control: nothing touches
-            p[:], u[:] = 0.0, 0.0
+        if S.size == 0:  # penetration control only: nothing touches
+            p[:] = 0.0
             converged, message = True, "all trial pressures negative: zero pressure"
             break
-        pS, m = _solve_on_set(A, z, B, target, S, d_given)
+        qS, m_trial = _solve_on_set(A, z, B, target, S, d_given)
         sizes.append(S.size)
-        if np.any(pS < 0):
-            neg = S[pS < 0]
-            # Johnson: drop every negative cell; if a set repeats, drop only the worst one
-            drop = S[[np.argmin(pS)]] if cycling else neg
+        if np.any(qS < 0):
+            if feasible:
+                pS = p[S]
+                neg = qS < 0
+                step = float(np.min(pS[neg] / (pS[neg] - qS[neg])))
+                p[S] = pS + step * (qS - pS)
+                m = m + step * (m_trial - m)
+                hit = S[(p[S] <= 0.0) | (np.arange(S.size) == np.argmin(np.where(neg, p[S], np.inf)))]
+                p[hit] = 0.0
+                active[hit] = False
+                changes.append(hit.size)
+                continue
+            q = np.zeros(idx.size)
+            q[S] = qS
+            drop = S[[np.argmin(qS)]] if cycling else S[qS < 0]
             active[drop] = False
-            changes.append(drop.size)
+            add = np.zeros(0, dtype=int)
+            if not cycling:
+                _, gap = _gap(A, z, B, m_trial, d_given, q)
+                scale = max(float(np.max(np.abs(gap))), np.finfo(float).tiny)
+                add = np.flatnonzero(~active & (gap < -tol * scale) & (q == 0))
+                active[add] = True
+            changes.append(drop.size + add.size)
             continue
         p[:] = 0.0
-        p[S] = pS
-        u = A @ p  # p is zero off S: no copy of A's columns
-        motion = B @ m if B.shape[1] else np.full(idx.size, d_given)
-        gap = z + u - motion
+        p[S] = qS
+        m, feasible = m_trial, True
+        u, gap = _gap(A, z, B, m, d_given, p)
         scale = max(float(np.max(np.abs(u))), np.finfo(float).tiny)
         viol = (~active) & (gap < -tol * scale)
         if not np.any(viol):
