@@ -82,8 +82,10 @@ def assemble_mixed(mesh, material: Material) -> MixedSystem:
     G = np.stack([ub.basis[i][0].grad for i in range(ub.Nbfun)])   # (27, 3, ne, nq)
     psi = np.stack([np.asarray(pb.basis[k][0]) for k in range(pb.Nbfun)])  # (8, ne, nq)
     dx = ub.dx                                                     # (ne, nq)
-    Gw = G * dx[None, None]
-    M = np.einsum("iaeq,jbeq->eabij", Gw, G, optimize=True)         # (ne, 3, 3, 27, 27)
+    # batched matmul over elements: rows (a, i), columns (b, j), contraction over q
+    Gr = np.ascontiguousarray(np.transpose(G, (2, 1, 0, 3))).reshape(G.shape[2], 3 * G.shape[0], -1)
+    M = np.matmul(Gr * dx[:, None, :], np.transpose(Gr, (0, 2, 1)))
+    M = M.reshape(G.shape[2], 3, G.shape[0], 3, G.shape[0]).transpose(0, 1, 3, 2, 4)  # (ne, 3, 3, 27, 27)
     S = np.einsum("eaaij->eij", M)
     ne, nb, npb = mesh.nelements, ub.Nbfun, pb.Nbfun
     # K[(a,i),(c,j)] = mu (delta_ac S_ij + d_a phi_j d_c phi_i) = mu (delta_ac S + M[c,a])_ij

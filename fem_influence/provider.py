@@ -4,8 +4,9 @@ Point compliance of the block ``K(x, x') = 1/(pi E* |x - x'|) + C(x, x')``. The
 correction ``C`` (mm/N) is the top-face vertical displacement of the correction
 field of :mod:`fem_influence.correction`. It is smooth in both arguments:
 
-* in the target ``x`` it is interpolated from the top-face Q2 nodes
-  (Clough-Tocher, C1);
+* in the target ``x`` it is evaluated from the top-face Q2 nodes
+  (:class:`fem_influence.interpolate.TopInterpolator`: the exact Q2 interpolant on
+  rectilinear top faces, Clough-Tocher on others);
 * in the source ``x'`` it is interpolated with tensor cubic Lagrange weights from
   a lattice of source points of spacing ``source_spacing`` (block frame, anchored at
   the top face's centre). Only the lattice nodes around the points the scene asks
@@ -33,6 +34,7 @@ from twoscale.material import Material
 from .assembly import INTORDER
 from .cache import FieldCache, cache_key, default_cache_dir
 from .layer import BASES
+from .interpolate import TopInterpolator
 from .progress import Progress
 
 
@@ -53,11 +55,29 @@ def _lagrange_1d(x: np.ndarray, d: float, lo: int, hi: int) -> tuple[np.ndarray,
 
 @dataclass
 class _State:
-    """Mutable, explicit cache of one provider: factorisation (lazy) and lattice fields."""
+    """Mutable, explicit cache of one provider: factorisation (lazy) and lattice fields.
+
+    ``table`` holds the known fields as columns (n_top, K) and ``index`` maps a
+    lattice node ``(i, j)`` to its column; both are rebuilt by :meth:`refresh`.
+    """
 
     fields: FieldCache
     solver: object = None
     timings_s: dict = field(default_factory=dict)
+    table: np.ndarray = None
+    index: dict = field(default_factory=dict)
+    interpolator: TopInterpolator = None
+
+    def refresh(self) -> None:
+        keys = list(self.fields.fields)
+        self.index = {k: c for c, k in enumerate(keys)}
+        self.table = np.array([self.fields.fields[k] for k in keys]).T if keys else None
+        if self.interpolator is None and self.fields.top_xy is not None:
+            self.interpolator = TopInterpolator(self.fields.top_xy)
+
+    def column_of(self, nodes: np.ndarray) -> np.ndarray:
+        get = self.index.get
+        return np.array([get((i, j), -1) for i, j in nodes.tolist()], dtype=np.int64)
 
 
 @dataclass(frozen=True, eq=False)
@@ -146,7 +166,9 @@ class BlockProvider(InfluenceProvider):
                         intorder=INTORDER)
         fc = FieldCache(key, directory)
         fc.load()
-        object.__setattr__(self, "_state", _State(fields=fc))
+        state = _State(fields=fc)
+        state.refresh()
+        object.__setattr__(self, "_state", state)
         object.__setattr__(self, "_halfspace", HalfSpace(self.material))
 
     # ------------------------------------------------------------------ the correction
@@ -164,25 +186,28 @@ class BlockProvider(InfluenceProvider):
         return -ix, ix, -iy, iy
 
     def _weights(self, sources: np.ndarray):
-        """Sparse source-interpolation weights: (lattice nodes used) x (sources)."""
+        """Sparse source-interpolation weights (lattice nodes used) x (sources), and the nodes."""
         d = self.source_spacing
         S = np.asarray(sources, dtype=float).reshape(-1, 2) + np.asarray(self.origin)
         x0, x1, y0, y1 = self._lattice_bounds()
         ix, wx = _lagrange_1d(S[:, 0], d, x0, x1)
         iy, wy = _lagrange_1d(S[:, 1], d, y0, y1)
-        I = np.repeat(ix, iy.shape[1], axis=1)                 # (N, 16)
-        J = np.tile(iy, (1, ix.shape[1]))
+        nx = x1 - x0 + 1
+        lin = ((iy[:, None, :] - y0) * nx + (ix[:, :, None] - x0)).reshape(len(S), -1)   # (N, 16)
         Wt = (wx[:, :, None] * wy[:, None, :]).reshape(len(S), -1)
-        nodes, inv = np.unique(np.column_stack([I.ravel(), J.ravel()]), axis=0, return_inverse=True)
-        cols = np.repeat(np.arange(len(S)), I.shape[1])
-        W = sp.csr_matrix((Wt.ravel(), (inv.ravel(), cols)), shape=(len(nodes), len(S)))
+        used, inv = np.unique(lin, return_inverse=True)
+        cols = np.repeat(np.arange(len(S)), lin.shape[1])
+        W = sp.csr_matrix((Wt.ravel(), (inv.ravel(), cols)), shape=(len(used), len(S)))
+        nodes = np.column_stack([used % nx + x0, used // nx + y0])
         return nodes, W
 
-    def _ensure(self, nodes: np.ndarray) -> None:
+    def _ensure(self, nodes: np.ndarray) -> np.ndarray:
+        """Solve the lattice nodes not yet known; return their columns in the field table."""
         st = self._state
-        missing = [tuple(ij) for ij in nodes.tolist() if tuple(ij) not in st.fields.fields]
-        if not missing:
-            return
+        cols = st.column_of(nodes)
+        if (cols >= 0).all():
+            return cols
+        missing = nodes[cols < 0]
         from .correction import CorrectionSolver
         import time
 
@@ -194,36 +219,23 @@ class BlockProvider(InfluenceProvider):
                 st.timings_s[k] = st.timings_s.get(k, 0.0) + v
         pr.update(1, stage="factorised")
         t0 = time.perf_counter()
-        batch = 16
+        batch = 32
         for b in range(0, len(missing), batch):
-            chunk = np.array(missing[b:b + batch], dtype=int)
+            chunk = missing[b:b + batch]
             fields = st.solver.top_displacement(chunk * self.source_spacing)
             st.fields.add(chunk, fields, st.solver.top_xy)
             pr.update(len(chunk), stage="sources")
         st.timings_s["solves"] = st.timings_s.get("solves", 0.0) + time.perf_counter() - t0
         pr.close()
+        st.refresh()
+        return st.column_of(nodes)
 
     def _top_values(self, targets: np.ndarray, nodes: np.ndarray) -> np.ndarray:
         """Correction at ``targets`` (scene frame) from each lattice node, (M, K), mm/N."""
-        from scipy.interpolate import CloughTocher2DInterpolator
-
-        self._ensure(nodes)
-        fc = self._state.fields
-        F = np.array([fc.fields[tuple(ij)] for ij in nodes.tolist()]).T       # (n_top, K)
-        T = np.asarray(targets, dtype=float).reshape(-1, 2) + np.asarray(self.origin)
-        tri = self._triangulation(fc.top_xy)
-        vals = CloughTocher2DInterpolator(tri, F)(T)
-        if np.isnan(vals).any():
-            raise ValueError("a target point lies outside the block's top face")
-        return vals / self.material.E
-
-    def _triangulation(self, top_xy):
-        from scipy.spatial import Delaunay
-
+        cols = self._ensure(nodes)
         st = self._state
-        if getattr(st, "_tri", None) is None:
-            st._tri = Delaunay(top_xy)
-        return st._tri
+        T = np.asarray(targets, dtype=float).reshape(-1, 2) + np.asarray(self.origin)
+        return st.interpolator(T, st.table[:, cols]) / self.material.E
 
     def correction(self, targets: np.ndarray, sources: np.ndarray) -> np.ndarray:
         """Smooth part ``C(x, x')`` of the point compliance, (M, N), mm/N (scene frame)."""
