@@ -162,6 +162,7 @@ def test_nothing_touches_gives_zero_pressure(solver):
     ({"total_load": -1.0}, "total_load"),
     ({"total_load": float("inf")}, "total_load"),
     ({"total_load": 1.0, "tilt": True, "pivot": (0.0, float("nan"))}, "pivot"),
+    ({"total_load": 1.0, "tilt": True, "pivot": (5.0, 0.0)}, "pivot"),  # outside the grid: no equilibrium
 ])
 def test_invalid_input_raises_naming_the_value(solver, kw, word):
     asps, grid = SCENES["mixed"]

@@ -132,7 +132,29 @@ def make_problem(surface: Surface, *, penetration=None, total_load=None, tilt: b
     W = _finite_number("total_load", total_load)
     if W < 0:
         raise ValueError(f"total_load must be >= 0 (N), got {total_load!r}")
+    if tilt and W > 0:
+        _check_pivot_inside(surface, pivot)
     return ContactProblem(surface, "tilt" if tilt else "load", None, W, pivot)
+
+
+def _check_pivot_inside(surface: Surface, pivot: tuple[float, float]) -> None:
+    """With tilt, both moments can vanish only if the pivot lies in the convex hull of
+    the cells with material (a positive pressure's centre lies inside its support)."""
+    from scipy.spatial import ConvexHull, QhullError
+
+    X, Y = surface.grid.centres()
+    cand = np.isfinite(surface.height)
+    pts = np.column_stack([X[cand], Y[cand]])
+    try:
+        hull = ConvexHull(pts)
+    except (QhullError, ValueError):  # fewer than 3 cells or all on one line
+        inside = False
+    else:
+        tol = 1e-9 * surface.grid.h
+        inside = bool(np.all(hull.equations[:, :2] @ np.asarray(pivot) + hull.equations[:, 2] <= tol))
+    if not inside:
+        raise ValueError(f"pivot {pivot!r} (mm) lies outside the cells with indenter material: "
+                         "no tilt balances the moments")
 
 
 def heights_with_tilt(problem: ContactProblem, tilt) -> np.ndarray:

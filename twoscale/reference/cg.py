@@ -183,6 +183,8 @@ def _cropped(problem: ContactProblem) -> ContactProblem:
 #: Recompute ``u = A p`` from scratch at least this often (the cheap update
 #: ``u <- s (u - tau A t)`` accumulates rounding).
 REFRESH_EVERY = 25
+#: Give up (converged=False) when the KKT residual has not halved for this many iterations.
+STALL_ITERATIONS = 1000
 
 
 def _gap(problem: ContactProblem, z, u, B, on, out):
@@ -220,6 +222,7 @@ def _iterate(problem: ContactProblem, op, E_star: float, tol: float, max_iter: i
     scale = max(float(np.abs(u).max()), np.finfo(float).tiny)
     stale = 0  # iterations since u was last computed from p
     n_products = 1
+    best, it_best = np.inf, 0
     for it in range(max_iter + 1):
         on = p > 0
         m = _gap(problem, z, u, B, on, g)
@@ -233,8 +236,14 @@ def _iterate(problem: ContactProblem, op, E_star: float, tol: float, max_iter: i
         hist.append(res)
         if res <= tol:
             return p, u, m, it, n_products, hist, True, f"KKT residual {res:.2e} <= tol after {it} iterations"
+        if res < 0.5 * best:
+            best, it_best = res, it
         if it == max_iter:
             break
+        if it - it_best > STALL_ITERATIONS:
+            return p, u, m, it, n_products, hist, False, (
+                f"no progress: KKT residual {res:.2e} has not halved in {STALL_ITERATIONS} iterations "
+                f"(best {best:.2e}, tol {tol:g})")
         # Polonsky & Keer: conjugate direction on the loaded cells, reset when the set changed
         g_on = np.where(on, g, 0.0)
         G = float(g_on @ g_on)
