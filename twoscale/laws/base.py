@@ -34,8 +34,26 @@ class AsperityLaw(ABC):
             If any ``P`` is negative or not finite.
         """
 
+    def complementary_energy(self, P) -> np.ndarray:
+        """``Phi(P) = int_0^P delta(s) ds`` (N mm), the complementary energy of the
+        asperity at force ``P >= 0``; convex, ``Phi'(P) = penetration(P)``.
+
+        Generic rule: Gauss-Legendre in ``t`` after ``s = P t^3`` (the substitution
+        removes the ``s^(2/3)`` root of Hertz-like laws; exact for Hertz). Laws with a
+        closed form override it.
+        """
+        P = as_force(P)
+        total = np.zeros_like(P)
+        for node, weight in zip(_GL_NODES, _GL_WEIGHTS):   # one call per node keeps P's shape
+            t = 0.5 * (node + 1.0)
+            total = total + 0.5 * weight * 3.0 * t * t * self.penetration(P * t**3)
+        return P * total
+
     def __call__(self, delta) -> np.ndarray:
         return self.force(delta)
+
+
+_GL_NODES, _GL_WEIGHTS = np.polynomial.legendre.leggauss(16)
 
 
 def as_penetration(delta) -> np.ndarray:

@@ -56,6 +56,11 @@ class CompliantLaw(AsperityLaw):
         P = as_force(P)
         return self.law.penetration(P) + self.c * P
 
+    def complementary_energy(self, P):
+        """``Phi_law(P) + c P^2 / 2`` (N mm)."""
+        P = as_force(P)
+        return self.law.complementary_energy(P) + 0.5 * self.c * P * P
+
     def _own_penetration(self, delta: np.ndarray) -> np.ndarray:
         """Solve ``u + c f(u) = delta`` for the law's own penetration u (mm), elementwise,
         by Newton safeguarded with bisection on a bracket."""

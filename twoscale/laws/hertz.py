@@ -43,6 +43,11 @@ class HertzLaw(AsperityLaw):
     def penetration(self, P):
         return hertz.penetration(self.R, as_force(P), self.E_star)
 
+    def complementary_energy(self, P):
+        """``int_0^P delta = 3/5 P delta(P)`` (N mm)."""
+        P = as_force(P)
+        return 0.6 * P * hertz.penetration(self.R, P, self.E_star)
+
     @classmethod
     def stacked(cls, laws: Sequence["HertzLaw"]) -> "HertzLaw":
         """One law with array parameters evaluating ``laws`` elementwise."""
@@ -94,7 +99,7 @@ class SphereLaw(AsperityLaw):
             slope = np.arctanh(eps) + eps / (1.0 - eps * eps)
             step = np.where(a > 0, (_sphere_penetration(R, a) - d) / np.where(a > 0, slope, 1.0), 0.0)
             a = np.clip(a - step, 0.0, a_max)
-            if np.all(np.abs(step) <= 4e-16 * a):
+            if np.all(np.abs(step) <= 1e-12 * a):   # quadratic convergence: the next step is ~1e-24 a
                 break
         return a
 
@@ -109,7 +114,7 @@ class SphereLaw(AsperityLaw):
             slope = 2.0 * E * a * (np.arctanh(eps) + eps / (1.0 - eps * eps))
             step = np.where(a > 0, (_sphere_load(R, a, E) - P) / np.where(a > 0, slope, 1.0), 0.0)
             a = np.clip(a - step, 0.0, a_max)
-            if np.all(np.abs(step) <= 4e-16 * a):
+            if np.all(np.abs(step) <= 1e-12 * a):   # quadratic convergence: the next step is ~1e-24 a
                 break
         return a
 

@@ -49,6 +49,10 @@ class LawStack:
         """Penetrations (mm) carrying forces ``P`` (N), shape (N,)."""
         return self._map("penetration", as_force(P))
 
+    def complementary_energy(self, P) -> np.ndarray:
+        """Complementary energies (N mm) at forces ``P`` (N), shape (N,)."""
+        return self._map("complementary_energy", as_force(P))
+
 
 def _groups(laws: list) -> list[tuple[AsperityLaw, np.ndarray]]:
     by_key: dict = {}

@@ -44,6 +44,7 @@ class TabulatedLaw(AsperityLaw):
         self.delta_table, self.P_table = d, p
         self._interp = PchipInterpolator(d, p, extrapolate=False)
         self._dinterp = self._interp.derivative()
+        self._integral = self._interp.antiderivative()
         slope = float(self._dinterp(d[-1]))
         self.exponent = d[-1] * slope / p[-1]
         if not self.exponent > 0:
@@ -70,6 +71,20 @@ class TabulatedLaw(AsperityLaw):
         dn, pn, m = self.delta_table[-1], self.P_table[-1], self.exponent
         beyond = dn * (np.maximum(p, pn) / pn) ** (1.0 / m)
         return np.where(p > pn, beyond, self._invert_inside(np.minimum(p, pn)))
+
+    def work(self, delta) -> np.ndarray:
+        """``int_0^delta P`` (N mm), exact for the interpolant and its continuation."""
+        d = np.maximum(as_penetration(delta), 0.0)
+        dn, pn, m = self.delta_table[-1], self.P_table[-1], self.exponent
+        inside = self._integral(np.minimum(d, dn))
+        tail = pn * dn / (m + 1.0) * ((np.maximum(d, dn) / dn) ** (m + 1.0) - 1.0)
+        return inside + tail
+
+    def complementary_energy(self, P):
+        """``P delta(P) - int_0^delta(P) P`` (N mm) (Legendre transform of :meth:`work`)."""
+        P = as_force(P)
+        d = self.penetration(P)
+        return P * d - self.work(d)
 
     def _invert_inside(self, p: np.ndarray) -> np.ndarray:
         # The interpolant is monotone on each table interval: locate the interval,

@@ -8,9 +8,12 @@ import numpy as np
 
 from ..influence.base import InfluenceProvider
 from ..laws import AsperityLaw, LawStack
-from .newton import newton
 from .result import MacroResult
+from .robust import run_newton, solve_dual, solve_penetration
 from .system import MacroSystem
+
+#: Newton steps allowed before the safe path takes over (Newton needs 2-8 on sound scenes).
+FAST_STEPS = 30
 
 
 def solve_macro(provider: InfluenceProvider, tips, z, laws, *,
@@ -65,21 +68,36 @@ def solve_macro(provider: InfluenceProvider, tips, z, laws, *,
     t1 = time.perf_counter()
     system = _build_system(T, tips, z, stack, penetration, total_load, tilt, pivot)
     x0 = _initial_guess(system, z, stack, penetration, total_load, tilt)
-    W = 0.0 if total_load is None else float(total_load)
-    n = len(z)
-    out = newton(system.residual, system.newton_step, x0,
-                 scale=lambda x: float(np.linalg.norm(x[:n])) or W, tol=tol, max_iter=max_iter,
-                 project=lambda x: np.concatenate([np.maximum(x[:n], 0.0), x[n:]]))
+    x, converged, message, steps, residuals = _newton_then_safe(system, x0, tol=tol, max_iter=max_iter)
     t2 = time.perf_counter()
-    P, g = system.split(out.x)
-    delta = system.delta(out.x)
+    P, g = system.split(x)
+    delta = system.delta(x)
     d = float(penetration) if mode == "penetration" else float(g[0])
     angles = (float(g[1]), float(g[2])) if tilt else None
     return MacroResult(
         forces=P, penetration=d, tilt=angles, pivot=(float(pivot[0]), float(pivot[1])),
-        local_penetrations=delta, in_contact=delta > 0, converged=out.converged,
-        message=out.message, iterations=out.iterations, residuals=out.residuals,
+        local_penetrations=delta, in_contact=delta > 0, converged=converged,
+        message=message, iterations=steps, residuals=residuals,
         timings_s={"compliance": t1 - t0, "newton": t2 - t1, "total": t2 - t0})
+
+
+def _newton_then_safe(system: MacroSystem, x0: np.ndarray, *, tol: float, max_iter: int):
+    """Projected Newton with backtracking from the cold start; if it stalls, the safe
+    path (:mod:`.robust`). Returns (x, converged, message, Newton steps, residual history)."""
+    W = float(system.e[0]) if system.e.size else 0.0
+    fast = run_newton(system, x0, tol=tol, max_iter=min(max_iter, FAST_STEPS), scale_floor=W)
+    if fast.converged or fast.iterations >= max_iter:
+        return fast.x, fast.converged, fast.message, fast.iterations, fast.residuals
+    if system.G.shape[1] == 0:
+        safe = solve_penetration(system, x0, tol=tol, max_iter=max_iter)
+    else:
+        safe = solve_dual(system, x0, tol=tol, max_iter=max_iter)
+    r = system.residual(safe.x)
+    P = safe.x[: system.n]
+    final = float(np.linalg.norm(r)) / max(float(np.linalg.norm(P)), W, float(np.linalg.norm(r)), 1e-300)
+    history = fast.residuals + (final,)
+    message = f"Newton stalled ({fast.message}); {safe.message}"
+    return safe.x, safe.converged, message, fast.iterations + safe.newton_steps, history
 
 
 def _check_scene(tips, z, laws) -> tuple[np.ndarray, np.ndarray, LawStack]:

@@ -69,6 +69,37 @@ class MacroSystem:
         dl = self.delta(x)
         return np.concatenate([P - self.laws.force(dl), self.E @ P - self.e])
 
+    def at(self, g: np.ndarray) -> "MacroSystem":
+        """The penetration-control system with the extra unknowns frozen at ``g``."""
+        n = self.n
+        return MacroSystem(self.T, self.offset + self.G @ np.asarray(g, float), np.zeros((n, 0)),
+                           np.zeros((0, n)), np.zeros(0), self.laws)
+
+    def energy(self, P: np.ndarray) -> float:
+        """Potential of the penetration-control problem (N mm), forces ``P >= 0``:
+        ``sum_k Phi_k(P_k) + P.S.P / 2 - offset.P`` with ``S`` the symmetric part of T
+        and ``Phi_k`` the complementary energy of law k. Its minimisers over ``P >= 0``
+        solve the macro equations when ``T`` is symmetric (reciprocity)."""
+        return float(np.sum(self.laws.complementary_energy(P)) + 0.5 * P @ (self.T @ P) - self.offset @ P)
+
+    def energy_gradient(self, P: np.ndarray) -> np.ndarray:
+        """Gradient of :meth:`energy` (mm): ``delta_law_k(P_k) + (S P)_k - offset_k``."""
+        return self.laws.penetration(P) + 0.5 * (self.T @ P + self.T.T @ P) - self.offset
+
+    def force_sensitivity(self, P: np.ndarray, directions: np.ndarray) -> np.ndarray:
+        """``dP/dg`` (N per unit g) of the penetration-control solution ``P`` when the
+        offset moves by ``directions @ g``: ``(I + D T) dP = D directions`` on the
+        asperities in contact, zero elsewhere."""
+        dl = self.delta(P)
+        D = self.laws.stiffness(dl)
+        A = np.flatnonzero((dl > 0) & (D > 0))
+        out = np.zeros((self.n, directions.shape[1]))
+        if A.size:
+            K = D[A][:, None] * self.T[np.ix_(A, A)]
+            K[np.arange(A.size), np.arange(A.size)] += 1.0
+            out[A] = _solve(K, D[A][:, None] * directions[A])
+        return out
+
     def newton_step(self, x: np.ndarray, r: np.ndarray) -> np.ndarray:
         """Solve ``J s = -r``. Rows of asperities out of contact (``delta_k <= 0``) are
         ``s_k = -r_k``; only the active rows and the equilibrium rows form a dense system."""

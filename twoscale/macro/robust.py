@@ -1,0 +1,141 @@
+"""The safe path of the macro step, for scenes where plain Newton stalls.
+
+Newton on the residual stalls where neighbouring contacts are so close that the
+compliance ``diag(1/f_k') + T`` loses definiteness (merged contacts): the residual norm
+then has stationary points that are not solutions. The macro equations are, for a
+symmetric ``T``, the optimality conditions of a potential that is bounded below on
+``P >= 0`` (``T >= 0`` entrywise), so:
+
+* penetration control: minimise the potential over ``P >= 0`` (L-BFGS-B), then polish
+  with Newton;
+* load control and tilt: the rigid-body unknowns ``g = (d[, alpha, beta])`` are the
+  multipliers of the equilibrium rows; maximise the concave dual
+  ``Q(g) = min_{P >= 0} potential(P; g) + g.e`` by Newton with backtracking, each
+  evaluation being a penetration-controlled solve.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.optimize import minimize
+
+from .newton import NewtonOutcome, newton
+from .system import MacroSystem
+
+_ARMIJO = 1e-4
+
+
+@dataclass(frozen=True)
+class SafeOutcome:
+    """Unknowns ``x = [P, g]`` found by the safe path, and its effort."""
+
+    x: np.ndarray
+    converged: bool
+    message: str
+    newton_steps: int
+    minimiser_steps: int
+
+
+def project(x: np.ndarray, n: int) -> np.ndarray:
+    """Forces clipped at zero; the rigid-body unknowns untouched."""
+    return np.concatenate([np.maximum(x[:n], 0.0), x[n:]])
+
+
+def run_newton(system: MacroSystem, x0: np.ndarray, *, tol: float, max_iter: int,
+               scale_floor: float = 0.0) -> NewtonOutcome:
+    """Projected, backtracking Newton on ``system`` from ``x0``."""
+    n = system.n
+    return newton(system.residual, system.newton_step, x0,
+                  scale=lambda x: float(np.linalg.norm(x[:n])) or scale_floor,
+                  tol=tol, max_iter=max_iter, project=lambda x: project(x, n))
+
+
+def solve_penetration(system: MacroSystem, P0: np.ndarray, *, tol: float,
+                      max_iter: int) -> SafeOutcome:
+    """Penetration control: Newton from ``P0``; if it stalls, minimise the potential
+    from the better of ``P0`` and the stalled point, then polish with Newton."""
+    first = run_newton(system, P0, tol=tol, max_iter=max_iter)
+    if first.converged:
+        return SafeOutcome(first.x, True, first.message, first.iterations, 0)
+    start = min((P0, first.x), key=system.energy)
+    res = minimize(system.energy, np.maximum(start, 0.0), jac=system.energy_gradient,
+                   method="L-BFGS-B", bounds=[(0.0, None)] * system.n,
+                   options={"maxiter": 20 * max_iter + 200, "maxcor": 20,
+                            "ftol": 1e-15, "gtol": 1e-12 * max(1.0, float(np.max(np.abs(system.offset))))})
+    polish = run_newton(system, res.x, tol=tol, max_iter=max_iter)
+    steps = first.iterations + polish.iterations
+    msg = (f"{polish.message} (safe path: Newton stalled, potential minimised in {res.nit} "
+           f"L-BFGS-B steps, then polished)")
+    return SafeOutcome(polish.x, polish.converged, msg, steps, int(res.nit))
+
+
+def solve_dual(system: MacroSystem, x0: np.ndarray, *, tol: float, max_iter: int) -> SafeOutcome:
+    """Load control (with or without tilt): Newton ascent on the concave dual in ``g``,
+    then a Newton polish of the coupled system."""
+    n = system.n
+    G, e = system.G, system.e
+    P, g = np.maximum(x0[:n], 0.0), np.array(x0[n:], dtype=float)
+    total_newton = total_min = 0
+    state = _dual_point(system, g, P, tol, max_iter)
+    total_newton += state.newton_steps
+    total_min += state.minimiser_steps
+    converged = False
+    for it in range(max_iter):
+        grad = e - G.T @ state.P
+        if _balanced(system, state.P, tol):
+            converged = True
+            break
+        H = G.T @ system.at(g).force_sensitivity(state.P, G)   # -Hessian of Q, PSD
+        step = _ascent_step(H, grad)
+        slope = float(grad @ step)
+        t = 1.0
+        while True:
+            trial = _dual_point(system, g + t * step, state.P, tol, max_iter)
+            total_newton += trial.newton_steps
+            total_min += trial.minimiser_steps
+            if trial.Q >= state.Q + _ARMIJO * t * slope or t < 2.0 ** -30:
+                break
+            t *= 0.5
+        g, state = g + t * step, trial
+    x = np.concatenate([state.P, g])
+    polish = run_newton(system, x, tol=tol, max_iter=max_iter, scale_floor=float(e[0]))
+    total_newton += polish.iterations
+    ok = polish.converged
+    x_out = polish.x if ok else x
+    if ok:
+        msg = f"{polish.message} (safe path: dual ascent in {it} steps, then polished)"
+    elif converged:
+        ok, msg = True, f"converged on the safe path (dual ascent in {it} steps; polish: {polish.message})"
+    else:
+        msg = f"safe path not converged after max_iter={max_iter} dual steps"
+    return SafeOutcome(x_out, ok, msg, total_newton, total_min)
+
+
+@dataclass(frozen=True)
+class _DualPoint:
+    P: np.ndarray
+    Q: float
+    newton_steps: int
+    minimiser_steps: int
+
+
+def _dual_point(system: MacroSystem, g: np.ndarray, P_start: np.ndarray, tol: float,
+                max_iter: int) -> _DualPoint:
+    inner = system.at(g)
+    out = solve_penetration(inner, P_start, tol=tol, max_iter=max_iter)
+    P = np.maximum(out.x, 0.0)
+    Q = inner.energy(P) + float(g @ system.e)
+    return _DualPoint(P, Q, out.newton_steps, out.minimiser_steps)
+
+
+def _balanced(system: MacroSystem, P: np.ndarray, tol: float) -> bool:
+    r = system.E @ P - system.e
+    return float(np.linalg.norm(r)) <= tol * max(float(np.linalg.norm(P)), 1e-300)
+
+
+def _ascent_step(H: np.ndarray, grad: np.ndarray) -> np.ndarray:
+    # H is PSD but singular when too few asperities touch to fix every rigid-body
+    # unknown: regularise slightly (Levenberg) so the step stays an ascent direction.
+    mu = 1e-10 * max(float(np.trace(H)), 1e-300)
+    return np.linalg.solve(H + mu * np.eye(len(grad)), grad)
