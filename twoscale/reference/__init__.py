@@ -42,8 +42,10 @@ from ..results import ContactResult
 from .cg import solve_cg
 from .dense import solve_dense
 
-#: ``method="auto"`` uses the dense solver up to this many cells with material: below it
-#: a factorisation (n^3/3 flops, 8 n^2 bytes) costs about as much as CG and is exact.
+#: ``method="auto"`` uses the dense solver up to this many cells with material: there it
+#: takes well under a second (a few factorisations of n^3/3 flops, 8 n^2 bytes) and meets
+#: the KKT conditions to rounding; CG is faster at every size (Hertz, 1296 cells: 0.2 s
+#: dense, 0.02 s CG) and is the only option beyond about 10^4 cells.
 AUTO_DENSE_CELLS = 2000
 
 METHODS = {"dense": solve_dense, "cg": solve_cg}

@@ -206,6 +206,14 @@ def _kkt_residual(g, on, free, scale) -> float:
     return max(worst_on, worst_off, 0.0) / scale
 
 
+def _constraint_residual(p, B, target, B_scale) -> float:
+    """Relative violation of the load and moment constraints (0 when there are none;
+    load control and penetration control meet them exactly)."""
+    if B.shape[1] < 2 or target[0] <= 0:
+        return 0.0
+    return float(np.max(np.abs(B.T @ p - target) / (target[0] * np.maximum(B_scale, 1e-300))))
+
+
 def _iterate(problem: ContactProblem, op, E_star: float, tol: float, max_iter: int):
     shape = problem.grid.shape
     cand = problem.candidates.ravel()
@@ -216,6 +224,7 @@ def _iterate(problem: ContactProblem, op, E_star: float, tol: float, max_iter: i
     p = _initial_pressure(problem, op, z, B, target, E_star)
     t = np.zeros_like(p)
     g = np.empty_like(p)
+    B_scale = np.max(np.abs(B[cand]), axis=0) if B.shape[1] else np.zeros(0)
     G_old, conjugate = 1.0, False
     hist: list[float] = []
     u = op.apply(p.reshape(shape)).ravel()
@@ -226,13 +235,13 @@ def _iterate(problem: ContactProblem, op, E_star: float, tol: float, max_iter: i
     for it in range(max_iter + 1):
         on = p > 0
         m = _gap(problem, z, u, B, on, g)
-        res = _kkt_residual(g, on, free, scale)
+        res = max(_kkt_residual(g, on, free, scale), _constraint_residual(p, B, target, B_scale))
         if res <= tol and stale:
             # the cheap update drifted by rounding: confirm with an exact product
             u = op.apply(p.reshape(shape)).ravel()
             stale, n_products = 0, n_products + 1
             m = _gap(problem, z, u, B, on, g)
-            res = _kkt_residual(g, on, free, scale)
+            res = max(_kkt_residual(g, on, free, scale), _constraint_residual(p, B, target, B_scale))
         hist.append(res)
         if res <= tol:
             return p, u, m, it, n_products, hist, True, f"KKT residual {res:.2e} <= tol after {it} iterations"
