@@ -67,6 +67,7 @@ class _State:
     table: np.ndarray = None
     index: dict = field(default_factory=dict)
     interpolator: TopInterpolator = None
+    grid_memo: dict = field(default_factory=dict)
 
     def refresh(self) -> None:
         keys = list(self.fields.fields)
@@ -261,15 +262,38 @@ class BlockProvider(InfluenceProvider):
 
     def grid_operator(self, target: Grid, source: Grid | None = None) -> "BlockGridOperator":
         source = target if source is None else source
-        nodes, W = self._weights(source.points())
-        U = self._top_values(target.points(), nodes)
-        return BlockGridOperator(self._halfspace.grid_operator(target, source), U, W.tocsr(), target.h ** 2)
+        st = self._state
+        # the micro step asks for every pair of patches: the target factor U and the
+        # source weights W depend on one grid each, so they are kept per grid
+        if len(st.grid_memo) > 4096:
+            st.grid_memo.clear()
+        key_w = ("W", source)
+        if key_w not in st.grid_memo:
+            nodes, W = self._weights(source.points())
+            cols = self._ensure(nodes)
+            W = W.toarray() if W.shape[0] * W.shape[1] <= 4_000_000 else W.tocsr()
+            st.grid_memo[key_w] = (cols, W)
+        cols, W = st.grid_memo[key_w]
+        key_u = ("U", target)
+        if not st.interpolator.rectilinear:
+            U = self._top_values(target.points(), self._nodes_of(cols))
+        else:
+            full = st.grid_memo.get(key_u)
+            if full is None or full.shape[1] != st.table.shape[1]:
+                full = st.interpolator(target.points() + np.asarray(self.origin), st.table) / self.material.E
+                st.grid_memo[key_u] = full
+            U = full[:, cols]
+        return BlockGridOperator(self._halfspace.grid_operator(target, source), U, W, target.h ** 2)
+
+    def _nodes_of(self, cols: np.ndarray) -> np.ndarray:
+        keys = list(self._state.index)
+        return np.array([keys[c] for c in cols], dtype=np.int64).reshape(-1, 2)
 
 
 class BlockGridOperator(GridOperator):
     """Half-space FFT convolution plus the low-rank correction ``h^2 U (W p)``."""
 
-    def __init__(self, halfspace_op: GridOperator, U: np.ndarray, W: sp.csr_matrix, area: float):
+    def __init__(self, halfspace_op: GridOperator, U: np.ndarray, W, area: float):
         self.target, self.source = halfspace_op.target, halfspace_op.source
         self._hs, self._U, self._W, self._area = halfspace_op, U, W, area
 
@@ -280,4 +304,5 @@ class BlockGridOperator(GridOperator):
 
     @property
     def flops_estimate(self) -> float:
-        return self._hs.flops_estimate + 2.0 * self._U.size + 2.0 * self._W.nnz
+        nnz = self._W.nnz if sp.issparse(self._W) else self._W.size
+        return self._hs.flops_estimate + 2.0 * self._U.size + 2.0 * nnz
