@@ -62,7 +62,8 @@ def solve_dense(provider: InfluenceProvider, surface: Surface, *, penetration: f
     Parameters
     ----------
     provider : InfluenceProvider
-        The elastic body (any provider; only ``grid_matrix`` is used).
+        The elastic body (any provider; ``grid_matrix``, or ``cell_block`` on the
+        cells with material when the grid itself exceeds ``max_cells``).
     surface : Surface
         Indenter heights on the grid (mm); ``inf`` cells never touch.
     penetration : float, optional
@@ -98,9 +99,13 @@ def solve_dense(provider: InfluenceProvider, surface: Surface, *, penetration: f
     if idx.size > max_cells:
         raise ValueError(f"dense solver: {idx.size} cells with material exceed max_cells={max_cells}; "
                          "use solve_cg")
-    A = provider.grid_matrix(problem.grid)
-    if idx.size < A.shape[0]:
-        A = A[np.ix_(idx, idx)]
+    if problem.grid.size <= max_cells:
+        A = provider.grid_matrix(problem.grid)  # fast path on aligned grids
+        if idx.size < A.shape[0]:
+            A = A[np.ix_(idx, idx)]
+    else:  # mostly empty grid: never form the full matrix
+        pts = problem.grid.points()[idx]
+        A = provider.cell_block(pts, pts, problem.grid.h)
     t_matrix = time.perf_counter()
     return _active_set(problem, provider, A, idx, tol, max_iter, t0, t_matrix)
 
