@@ -205,3 +205,17 @@ def test_random_scenes_all_modes(seed):
     for kw in (dict(penetration=0.06), dict(total_load=3.0),
                dict(total_load=3.0, tilt=True, pivot=(float(rng.uniform(-1, 1)), float(rng.uniform(-1, 1))))):
         _agree(solve_dense(HS, s, **kw), solve_cg(HS, s, **kw), grid)
+
+
+def test_dense_on_a_mostly_empty_grid_uses_only_cells_with_material():
+    """Two small caps on a wide grid: with max_cells below the grid size the dense solver
+    builds the matrix of the cells with material only, and still agrees with CG."""
+    asps = [Asperity(-2.0, 0.0, 0.0, 0.5), Asperity(2.0, 0.3, 0.002, 0.5)]
+    grid = Grid.covering(-3.0, 3.0, -2.0, 2.0, 0.05)
+    s = surface_on(grid, asps)
+    n_mat = int(np.isfinite(s.height).sum())
+    assert n_mat < grid.size // 4
+    rd = solve_dense(HS, s, total_load=0.2, max_cells=2 * n_mat)
+    _agree(rd, solve_cg(HS, s, total_load=0.2), grid)
+    with pytest.raises(ValueError, match="max_cells"):
+        solve_dense(HS, s, total_load=0.2, max_cells=n_mat - 1)
