@@ -126,13 +126,15 @@ def gauss_seidel(blocks: list[LocalBlock], coupling: Coupling, b: list, start: l
 
 
 def linear_gauss_seidel(blocks: list[LocalBlock], coupling: Coupling, rhs: list, active: list, *,
-                        tol: float, max_sweeps: int) -> SweepResult:
+                        tol: float, max_sweeps: int, start: list | None = None) -> SweepResult:
     """Solve ``A_SS x = rhs`` on the fixed contact sets ``active`` by block Gauss-Seidel.
 
     ``rhs[k]`` has shape (n_k, m): ``m`` right-hand sides solved together; ``x`` is zero
-    off the contact sets. Converges for any SPD influence matrix.
+    off the contact sets. Converges for any SPD influence matrix. ``start`` (same shapes
+    as ``rhs``) is a warm start.
     """
-    x = [np.zeros_like(r) for r in rhs]
+    x = [np.zeros_like(r) for r in rhs] if start is None else [np.where(a[:, None], s, 0.0)
+                                                              for a, s in zip(active, start)]
     history = []
     for m in range(1, max_sweeps + 1):
         diff2 = 0.0

@@ -55,6 +55,10 @@ class MicroResult:
     history: tuple
 
 
+#: Relative change at which the sensitivity sweeps (load and tilt corrections) stop.
+SENSITIVITY_TOL = 1e-3
+
+
 class _State:
     """Mutable working set of the micro step (patches, blocks, pressures); internal."""
 
@@ -64,6 +68,7 @@ class _State:
         self.patches = list(patches)
         self.blocks = [LocalBlock(provider, pt, dense_max_cells=dense_max_cells) for pt in self.patches]
         self.coupling = Coupling(provider, self.patches, dense_max_entries=dense_max_entries)
+        self.sensitivities = None
 
     def heights(self, theta, pivot):
         """Indenter height with tilt on every block (list of (n_k,) arrays), mm."""
@@ -303,8 +308,14 @@ def _arm(state: _State) -> float:
 def _correct(state: _State, p, active, theta, residual, pivot, n_unknowns, tol):
     """One Newton correction of (d, alpha, beta) on the current contact sets."""
     rhs = [rhs_derivatives(pt, pivot, n_unknowns) for pt in state.patches]
+    # The sensitivities need little accuracy: the load and moments hold exactly for any
+    # of them (K is built from the same ones), and their error enters the pressure only
+    # times the (small) correction. Reuse the previous ones when the blocks are the same.
+    prev = state.sensitivities
+    start = prev if prev is not None and [len(v) for v in prev] == [len(r) for r in rhs] else None
     lin = linear_gauss_seidel(state.blocks, state.coupling, rhs, active,
-                              tol=tol, max_sweeps=500)
+                              tol=max(tol, SENSITIVITY_TOL), max_sweeps=500, start=start)
+    state.sensitivities = lin.pressures
     K = np.atleast_2d(resultants(state.patches, lin.pressures, pivot, n_unknowns))
     step = newton_step(K, residual)
     theta = theta.copy()
