@@ -172,3 +172,14 @@ def test_out_of_reach_scene_gives_zero_pressure():
 def test_invalid_input_raises_naming_the_value(kwargs, word):
     with pytest.raises(ValueError, match=word):
         solve_twoscale(HS, [Asperity(0.0, 0.0, 0.0, 5.0)], **kwargs)
+
+
+def test_unconverged_macro_step_is_reported_and_the_micro_step_still_solves():
+    asps = [Asperity(0.0, 1.0, 0.0, 10.0), Asperity(0.0, -1.0, 0.0, 10.0), Asperity(1.5, 0.0, 0.02, 8.0)]
+    h, d = 0.15, 0.4
+    good = solve_twoscale(HS, asps, h=h, penetration=d)
+    bad = solve_twoscale(HS, asps, h=h, penetration=d, macro_max_iter=1)
+    assert bad.extra["macro_converged"] is False
+    assert "macro step" in bad.message
+    assert bad.converged, bad.message
+    assert np.allclose(bad.asperities.forces, good.asperities.forces, rtol=1e-5)
