@@ -265,3 +265,34 @@ def test_paper_seven_spheres_both_methods_agree(examples_dir, tmp_path):
     # interaction unloads the centre sphere below the outer ones, all below a lone sphere
     lone = float(hertz.sphere_load(10.0, 1.0, E_STAR))
     assert f_ref[0] < f_ref[1:].min() and f_ref.max() < lone
+
+
+# ---------------------------------------------------------------- reference grid enlargement
+def _paraboloid_scene():
+    return Scene(material=Material(10.0, 0.5), asperities=[Asperity(0.0, 0.0, 0.0, 10.0, "paraboloid")],
+                 penetration=0.5, h=0.1)
+
+
+def test_reference_grid_too_small_is_enlarged(monkeypatch):
+    # Hertz contact radius sqrt(R d) is 0.71 of the reach sqrt(2 R d): a grid built at
+    # half the reach clips the contact, so the solve must enlarge and re-solve
+    _needs("twoscale.reference")
+    import twoscale.scene as scene_mod
+
+    full = solve_scene(_paraboloid_scene(), method="reference")
+    assert full.extra["grid_enlargements"] == 0
+    real = scene_mod.reference_grid
+    monkeypatch.setattr(scene_mod, "reference_grid", lambda s, h, grow=1.0: real(s, h, grow=0.5 * grow))
+    again = solve_scene(_paraboloid_scene(), method="reference")
+    assert again.extra["grid_enlargements"] >= 1 and again.converged
+    assert again.total_load == pytest.approx(full.total_load, rel=1e-6)
+
+
+def test_reference_grid_never_large_enough_is_not_converged(monkeypatch):
+    _needs("twoscale.reference")
+    import twoscale.scene as scene_mod
+
+    real = scene_mod.reference_grid
+    monkeypatch.setattr(scene_mod, "reference_grid", lambda s, h, grow=1.0: real(s, h, grow=0.3))
+    result = solve_scene(_paraboloid_scene(), method="reference")
+    assert not result.converged and "edge of the reference grid" in result.message
