@@ -118,7 +118,7 @@ def _result(asperities, macro, micro, h, timings) -> ContactResult:
         total_load=float(h * h * p.sum()), asperities=summarise(fields, len(asperities)),
         converged=bool(micro.converged), message="; ".join(messages),
         iterations={"macro": int(macro.iterations), "micro": int(micro.sweeps),
-                    "corrections": int(micro.corrections)},
+                    "corrections": int(micro.corrections), "sensitivity_sweeps": int(micro.linear_sweeps)},
         residuals={"macro": tuple(macro.residuals), "micro": tuple(micro.history)},
         timings_s=timings,
         extra={"macro_forces": np.array(macro.forces), "local_penetrations": np.array(macro.local_penetrations),

@@ -37,6 +37,9 @@ class MicroResult:
         Newton corrections of (d, alpha, beta) (load control only).
     growths : int
         Patch enlargements.
+    linear_sweeps : int
+        Sweeps of the sensitivity solves behind the corrections (each with 1 or 3
+        right-hand sides).
     history : tuple of float
         Relative change after every sweep (eq. 9).
     """
@@ -52,6 +55,7 @@ class MicroResult:
     sweeps: int
     corrections: int
     growths: int
+    linear_sweeps: int
     history: tuple
 
 
@@ -250,46 +254,63 @@ def solve_micro(provider: InfluenceProvider, asperities: Sequence[Asperity], *, 
                             E_star=provider.material.E_star, margin=margin, anchor=anchor)
     state = _State(provider, asperities, patches, dense_max_cells, dense_max_entries)
     if not patches:
-        return _finish(state, [], [], theta, tilt, pivot, True, "no asperity reaches the body", 0, 0, 0, ())
+        return _finish(state, [], [], theta, tilt, pivot, True, "no asperity reaches the body",
+                       {"sweeps": 0, "corrections": 0, "growths": 0, "linear_sweeps": 0}, ())
     p0 = _initial(state, forces, state.heights(theta, pivot), h)
     p = [v.copy() for v in p0]
-    sweeps = corrections = growths = 0
+    sweeps = corrections = growths = linear_sweeps = 0
     history: list = []
+
+    def counts():
+        return {"sweeps": sweeps, "corrections": corrections, "growths": growths, "linear_sweeps": linear_sweeps}
+
     target = None if total_load is None else np.array([total_load, 0.0, 0.0])[:n_unknowns]
     while True:
         z = state.heights(theta, pivot)
-        loaded = (lambda q: any(any(edges_loaded(pt, scatter(pt, q[k]))) for k, pt in enumerate(state.patches))
-                  if growths < max_growths else None)
-        gs = gauss_seidel(state.blocks, state.coupling, [theta[0] - zk for zk in z], p,
-                          tol=tol, max_sweeps=max(max_sweeps - sweeps, 1), stop=loaded)
+        can_grow = growths < max_growths
+        gs = gauss_seidel(state.blocks, state.coupling, [theta[0] - zk for zk in z], p, tol=tol,
+                          max_sweeps=max(max_sweeps - sweeps, 1),
+                          stop=(lambda q: _edges_loaded(state, q)) if can_grow else None)
         sweeps += gs.sweeps
         history += gs.history
         p = gs.pressures
-        if gs.message == "stopped" or (gs.converged and growths < max_growths and loaded(p)):
-            growths += _grow_loaded(state, p, p0)
-            continue
-        if not gs.converged:
-            return _finish(state, p, p0, theta, tilt, pivot, False, gs.message, sweeps, corrections, growths, history)
-        if growths < max_growths:
-            g = _cover_penetration(state, p, p0, theta, pivot, _gap_tol(state, theta, pivot, tol))
-            if g:
-                growths += g
+        if gs.converged or gs.message == "stopped":
+            grown = _grow(state, p, p0, theta, pivot, tol) if can_grow else 0
+            if grown:
+                growths += grown
                 continue
+        if not gs.converged:
+            return _finish(state, p, p0, theta, tilt, pivot, False, gs.message, counts(), history)
+        if _edges_loaded(state, p):
+            return _finish(state, p, p0, theta, tilt, pivot, False,
+                           f"pressure still reaches a patch edge after {max_growths} enlargements", counts(), history)
         if target is None:
             break
         residual = target - resultants(state.patches, p, pivot, n_unknowns)
-        if np.all(np.abs(residual) <= 1e-12 * max(total_load, 1e-300) * np.array([1.0, *[_arm(state)] * 2])[:n_unknowns]):
-            break
         if corrections >= max_corrections:
             return _finish(state, p, p0, theta, tilt, pivot, False,
                            f"load/moment corrections reached {max_corrections} (residual {residual})",
-                           sweeps, corrections, growths, history)
+                           counts(), history)
         corrections += 1
-        p, theta, done, lin_sweeps = _correct(state, p, gs.active, theta, residual, pivot, n_unknowns, tol)
+        p, theta, done, lin = _correct(state, p, gs.active, theta, residual, pivot, n_unknowns, tol)
+        linear_sweeps += lin
         if done:
             break
     out_tilt = (float(theta[1]), float(theta[2])) if (tilt is not None or free_tilt) else None
-    return _finish(state, p, p0, theta, out_tilt, pivot, True, "", sweeps, corrections, growths, history)
+    return _finish(state, p, p0, theta, out_tilt, pivot, True, "", counts(), history)
+
+
+def _edges_loaded(state: _State, p: list) -> bool:
+    return any(any(edges_loaded(pt, scatter(pt, p[k]))) for k, pt in enumerate(state.patches))
+
+
+def _grow(state: _State, p: list, p0: list, theta, pivot, tol: float) -> int:
+    """Enlarge the patches whose pressure reaches an edge, else those of asperities that
+    penetrate outside their blocks; returns the number of patches changed."""
+    grown = _grow_loaded(state, p, p0)
+    if grown:
+        return grown
+    return _cover_penetration(state, p, p0, theta, pivot, _gap_tol(state, theta, pivot, tol))
 
 
 def _gap_tol(state: _State, theta, pivot, tol: float) -> float:
@@ -297,12 +318,6 @@ def _gap_tol(state: _State, theta, pivot, tol: float) -> float:
     z = state.heights(theta, pivot)
     depth = max((theta[0] - float(np.min(zk)) for zk in z if zk.size), default=0.0)
     return 10.0 * tol * max(depth, 0.0)
-
-
-def _arm(state: _State) -> float:
-    # length scale of the moments (N mm) for their tolerance: the spread of the patches
-    xs = [c for pt in state.patches for c in pt.grid.bounds]
-    return max(max(xs) - min(xs), state.patches[0].grid.h)
 
 
 def _correct(state: _State, p, active, theta, residual, pivot, n_unknowns, tol):
@@ -336,9 +351,10 @@ def _correct(state: _State, p, active, theta, residual, pivot, n_unknowns, tol):
     return trial, theta, ok, lin.sweeps
 
 
-def _finish(state, p, p0, theta, tilt, pivot, converged, message, sweeps, corrections, growths, history):
+def _finish(state, p, p0, theta, tilt, pivot, converged, message, counts, history):
     pressures = [scatter(pt, v) for pt, v in zip(state.patches, p)]
     initial = [scatter(pt, v) for pt, v in zip(state.patches, p0)]
     gaps = state.gaps(p, theta, pivot) if state.patches else []
     return MicroResult(tuple(state.patches), tuple(pressures), tuple(initial), tuple(gaps),
-                       float(theta[0]), tilt, converged, message, sweeps, corrections, growths, tuple(history))
+                       float(theta[0]), tilt, converged, message, counts["sweeps"], counts["corrections"],
+                       counts["growths"], counts["linear_sweeps"], tuple(history))
