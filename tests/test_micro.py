@@ -179,3 +179,12 @@ def test_load_control_and_tilt_meet_the_equations_exactly():
          for pt in res.patches]
     ref = _nnls_contact(HS, res.patches, b)
     assert np.linalg.norm(_blocks_of(res) - ref) <= 1e-5 * np.linalg.norm(ref)
+
+
+def test_growth_limit_is_reported_not_hidden():
+    a = [Asperity(0.0, 0.0, 0.0, 2.0, "paraboloid")]
+    d, h = 0.08, 0.07
+    P = float(hertz.load(2.0, d, ES))
+    res = solve_micro(HS, a, h=h, forces=np.array([P / 50.0]), penetration=d, tol=1e-8, max_growths=0)
+    assert not res.converged
+    assert "patch edge" in res.message
