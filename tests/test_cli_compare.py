@@ -16,6 +16,14 @@ EXAMPLES = Path(__file__).resolve().parent.parent / "examples"
 TWO = str(EXAMPLES / "paper_two_spheres.toml")
 
 
+def _csv_rows(path):
+    """Rows of forces.csv; its two leading '#' lines record version, units and scene."""
+    lines = path.read_text().splitlines()
+    assert lines[0].startswith("# twoscale ") and "units: force N" in lines[0]
+    assert json.loads(lines[1][len("# scene: "):])["material"]["nu"] == 0.5
+    return list(csv.DictReader(line for line in lines if not line.startswith("#")))
+
+
 def _fake_block(material, *, size, base, origin, progress):
     # stands in for the finite block: the half-space itself, so every body must agree exactly
     return HalfSpace(material)
@@ -28,7 +36,7 @@ def test_half_space_only_says_so(tmp_path, monkeypatch, capsys):
     err = capsys.readouterr().err
     assert "half-space only" in err and "no block in this test" in err
     assert "half-space only" in (out / "forces.md").read_text()
-    rows = list(csv.DictReader((out / "forces.csv").open()))
+    rows = list(_csv_rows(out / "forces.csv"))
     assert [(r["body"], r["asperity"]) for r in rows] == [("halfspace", "1"), ("halfspace", "2")]
     res = json.loads((out / "runs" / "halfspace_d0.5mm" / "result.json").read_text())
     assert [float(r["force_N"]) for r in rows] == pytest.approx([a["force"] for a in res["asperities"]], rel=1e-9)
@@ -71,7 +79,7 @@ def test_three_bodies_and_loads(tmp_path, monkeypatch):
     out = tmp_path / "cmp"
     code = main(["compare", str(scene), "--loads", "50", "100", "--out", str(out), "--quiet", "--vtk"])
     assert code == 0
-    rows = list(csv.DictReader((out / "forces.csv").open()))
+    rows = list(_csv_rows(out / "forces.csv"))
     assert len(rows) == 2 * 3 * 3
     by = {}
     for r in rows:
@@ -163,7 +171,7 @@ def test_measured_data_and_pivot_centring(tmp_path, monkeypatch):
     assert [c for t in tips for c in t] == pytest.approx([-2.4, -4.0, 5.6, -4.0, -2.4, 4.0])
     assert "eq. 13" in (out / "forces.md").read_text()
     # indicators against the measurement, recomputed here from the written forces and fields
-    rows = [r for r in csv.DictReader((out / "forces.csv").open())]
+    rows = [r for r in _csv_rows(out / "forces.csv")]
     m = np.array([float(r["force_N"]) for r in rows if r["body"] == "measured"])
     F = np.array([float(r["force_N"]) for r in rows if r["body"] == "halfspace"])
     assert m.tolist() == [2.0, 3.0, 5.0]
@@ -224,6 +232,6 @@ def test_measured_map_only_gives_forces_from_the_map(tmp_path, monkeypatch):
     mpath.write_text("\n".join(",".join(f"{v:g}" for v in row) for row in smap) + "\n")
     out = tmp_path / "cmp"
     assert main(["compare", str(scene), "--measured-map", str(mpath), "--out", str(out), "--quiet"]) == 0
-    rows = [r for r in csv.DictReader((out / "forces.csv").open()) if r["body"] == "measured"]
+    rows = [r for r in _csv_rows(out / "forces.csv") if r["body"] == "measured"]
     assert [float(r["force_N"]) for r in rows] == pytest.approx([1.9 ** 2, 2 * 1.9 ** 2, 0.0])
     assert "integrated from the sensor map" in (out / "forces.md").read_text()

@@ -20,7 +20,8 @@ Writes into DIR (default ``<scene name>_compare``, created only after every solv
 returned):
 
 * ``forces.csv``: one row per load, body and asperity (force N, contact area mm^2,
-  max pressure MPa, macro-step force N when the method has one);
+  max pressure MPa, macro-step force N when the method has one), after two ``#``
+  lines with the version, units and scene;
 * ``forces.md``: the same as Markdown tables, plus e_M (tip forces) and e_m (44 x 44
   sensor cells of 1.9 mm) in percent between each pair of bodies;
 * ``summary.json``: the indicators, convergence, timings, version, units and scene;
@@ -324,8 +325,11 @@ def _write_text(path: Path, text: str) -> None:
         tmp.write_text(text, encoding="utf-8", newline="")
 
 
-def _csv_text(rows) -> str:
+def _csv_text(rows, scene_path: str, scene_dict: dict) -> str:
+    """CSV with two ``#`` comment lines recording the version, units and scene."""
     buf = io.StringIO()
+    buf.write(f"# twoscale {__version__} compare {scene_path}; units: force N, area mm^2, pressure MPa\n")
+    buf.write(f"# scene: {json.dumps(scene_dict, separators=(',', ':'))}\n")
     w = csv.DictWriter(buf, fieldnames=FIELDS, lineterminator="\n")
     w.writeheader()
     for row in rows:
@@ -339,8 +343,11 @@ def _write_outputs(out: Path, args, runs, ind, notes, measured: Measured | None)
 
     out.mkdir(parents=True, exist_ok=True)
     scene_dict = scene_to_dict(runs[0].scene)
-    _write_text(out / "forces.csv", _csv_text(per_asperity_rows(runs, measured)))
-    _write_text(out / "forces.md", markdown(args.scene, runs, ind, notes, args.method, measured) + "\n")
+    _write_text(out / "forces.csv", _csv_text(per_asperity_rows(runs, measured), args.scene, scene_dict))
+    md = markdown(args.scene, runs, ind, notes, args.method, measured)
+    md += ("\n<details><summary>scene (JSON)</summary>\n\n```json\n"
+           + json.dumps(scene_dict, indent=1) + "\n```\n</details>\n")
+    _write_text(out / "forces.md", md)
     summary = {"version": __version__, "units": dict(UNITS), "method": args.method, "notes": notes,
                "scene": scene_dict, "indicators_percent": ind,
                "runs": [{"load": r.load, "body": r.body, "converged": bool(r.result.converged),
