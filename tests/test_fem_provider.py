@@ -159,3 +159,15 @@ def test_user_mesh_file(block, tmp_path):
     # nodes (a rectilinear grid, so co-circular quadruples) may pick other diagonals,
     # which moves the Clough-Tocher target interpolation by ~1e-4 relative
     np.testing.assert_allclose(user.correction(t, s), block.correction(t, s), rtol=1e-3)
+
+
+def test_mirror_symmetry_matches_direct_solves(block):
+    # the default mesh is mirror-symmetric: fields of sources with negative lattice
+    # indices are read at mirrored nodes instead of solved; compare with solving them
+    plain = BlockProvider(material=MAT, mesh=block.mesh, use_symmetry=False, use_cache=False, progress=False)
+    sym = BlockProvider(material=MAT, mesh=block.mesh, use_cache=False, progress=False)
+    t = np.array([[3.0, -4.0], [-6.0, 2.0], [0.5, 0.5]])
+    s = np.array([[-7.0, -3.0], [4.0, -8.0], [-1.0, 6.0]])
+    np.testing.assert_allclose(sym.correction(t, s), plain.correction(t, s), rtol=1e-6, atol=1e-9)
+    n_solved = sum(1 for i, j in sym._state.fields.fields if i >= 0 and j >= 0)
+    assert n_solved < len(sym._state.fields.fields)
