@@ -260,3 +260,56 @@ def test_invalid_scene_raises():
         solve_macro(HS, np.array([[0.0, 0.0], [5.0, 0.0]]), np.zeros(2), [law], penetration=0.1)
     with pytest.raises(ValueError, match="z must be finite"):
         solve_macro(HS, np.array([[0.0, 0.0], [5.0, 0.0]]), np.array([0.0, np.inf]), law, penetration=0.1)
+
+
+def merged_scene(seed):
+    """Like :func:`random_scene` but with a quarter of the asperities 0.3-2 mm from a
+    neighbour: contacts merge, the compliance loses definiteness, plain Newton stalls."""
+    rng = np.random.default_rng(seed)
+    n = int(rng.integers(10, 31))
+    n_close = max(2, n // 4)
+    base = n - n_close
+    side = int(math.ceil(math.sqrt(base)))
+    lattice = 8.0 * np.stack(np.meshgrid(np.arange(side), np.arange(side)), -1).reshape(-1, 2)[:base]
+    tips = lattice + rng.uniform(-1.5, 1.5, lattice.shape)
+    partner = rng.choice(base, n_close, replace=False)
+    ang = rng.uniform(0, 2 * np.pi, n_close)
+    s = rng.uniform(0.3, 2.0, n_close)
+    tips = np.vstack([tips, tips[partner] + np.column_stack([s * np.cos(ang), s * np.sin(ang)])])
+    z = rng.uniform(0, 0.15, n)
+    z[rng.choice(n, max(2, n // 8), replace=False)] = 1.5
+    laws = [SphereLaw(r, E_STAR) for r in rng.uniform(4, 6, n)]
+    return tips, z, laws
+
+
+@pytest.mark.parametrize("mode", ["penetration", "load", "tilt"])
+def test_merged_contacts_converge_on_the_safe_path(mode):
+    used_safe_path = False
+    for seed in (0, 2, 5, 13):
+        tips, z, laws = merged_scene(seed)
+        W = 10.0 * len(z)
+        pivot = tuple(tips.mean(axis=0))
+        kwargs = {"penetration": dict(penetration=0.4), "load": dict(total_load=W),
+                  "tilt": dict(total_load=W, tilt=True, pivot=pivot)}[mode]
+        res = solve_macro(HS, tips, z, laws, **kwargs)
+        assert res.converged, (seed, res.message)
+        used_safe_path |= "safe path" in res.message
+        check_equations(res, tips, z, laws, boussinesq_interaction(tips), pivot=pivot)
+        if mode != "penetration":
+            assert abs(res.forces.sum() - W) <= 1e-10 * W
+        if mode == "tilt":
+            _tilt_equations(res, tips, pivot, W)
+    assert used_safe_path   # the scenes do exercise it
+
+
+@pytest.mark.parametrize("ratio", [0.1, 0.2, 0.5, 5.0])
+def test_paper_seven_spheres(ratio):
+    # METHOD.md section 4: centre + hexagon of radius d_c = 2R ratio, d = 0.1 R
+    R = 10.0
+    tips = hexagon(2 * R * ratio)
+    law = SphereLaw(R, E_STAR)
+    res = solve_macro(HS, tips, np.zeros(7), law, penetration=0.1 * R)
+    assert res.converged, res.message
+    check_equations(res, tips, np.zeros(7), [law] * 7, boussinesq_interaction(tips))
+    assert np.allclose(res.forces[1:], res.forces[1], rtol=1e-9)   # six-fold symmetry
+    assert res.forces[0] < res.forces[1]                          # the centre is shielded

@@ -24,6 +24,11 @@ from .newton import NewtonOutcome, newton
 from .system import MacroSystem
 
 _ARMIJO = 1e-4
+#: Newton steps allowed before the safe path takes over (Newton needs 2-8 on sound scenes).
+FAST_STEPS = 20
+#: The dual ascent stops at this relative imbalance; the coupled Newton polish, which
+#: converges quadratically from there, brings it to the user's tolerance.
+_DUAL_TOL = 1e-7
 
 
 @dataclass(frozen=True)
@@ -53,21 +58,29 @@ def run_newton(system: MacroSystem, x0: np.ndarray, *, tol: float, max_iter: int
 
 def solve_penetration(system: MacroSystem, P0: np.ndarray, *, tol: float,
                       max_iter: int) -> SafeOutcome:
-    """Penetration control: Newton from ``P0``; if it stalls, minimise the potential
-    from the better of ``P0`` and the stalled point, then polish with Newton."""
-    first = run_newton(system, P0, tol=tol, max_iter=max_iter)
+    """Penetration control: Newton from ``P0``; if it stalls (more than ``FAST_STEPS``
+    steps), minimise the potential from the better of ``P0`` and the stalled point,
+    then polish with Newton."""
+    first = run_newton(system, P0, tol=tol, max_iter=min(max_iter, FAST_STEPS))
     if first.converged:
         return SafeOutcome(first.x, True, first.message, first.iterations, 0)
-    start = min((P0, first.x), key=system.energy)
-    res = minimize(system.energy, np.maximum(start, 0.0), jac=system.energy_gradient,
+    out = minimise_then_polish(system, (P0, first.x), tol=tol, max_iter=max_iter)
+    return SafeOutcome(out.x, out.converged, out.message, first.iterations + out.newton_steps,
+                       out.minimiser_steps)
+
+
+def minimise_then_polish(system: MacroSystem, starts, *, tol: float, max_iter: int) -> SafeOutcome:
+    """Minimise the potential over ``P >= 0`` (L-BFGS-B) from the best of ``starts``,
+    then polish with Newton."""
+    start = min((np.maximum(P, 0.0) for P in starts), key=system.energy)
+    res = minimize(system.energy, start, jac=system.energy_gradient,
                    method="L-BFGS-B", bounds=[(0.0, None)] * system.n,
                    options={"maxiter": 20 * max_iter + 200, "maxcor": 20,
                             "ftol": 1e-15, "gtol": 1e-12 * max(1.0, float(np.max(np.abs(system.offset))))})
     polish = run_newton(system, res.x, tol=tol, max_iter=max_iter)
-    steps = first.iterations + polish.iterations
-    msg = (f"{polish.message} (safe path: Newton stalled, potential minimised in {res.nit} "
-           f"L-BFGS-B steps, then polished)")
-    return SafeOutcome(polish.x, polish.converged, msg, steps, int(res.nit))
+    msg = (f"{polish.message} (safe path: potential minimised in {res.nit} L-BFGS-B steps, "
+           f"then polished)")
+    return SafeOutcome(polish.x, polish.converged, msg, polish.iterations, int(res.nit))
 
 
 def solve_dual(system: MacroSystem, x0: np.ndarray, *, tol: float, max_iter: int) -> SafeOutcome:
@@ -83,7 +96,7 @@ def solve_dual(system: MacroSystem, x0: np.ndarray, *, tol: float, max_iter: int
     converged = False
     for it in range(max_iter):
         grad = e - G.T @ state.P
-        if _balanced(system, state.P, tol):
+        if _balanced(system, state.P, max(tol, _DUAL_TOL)):
             converged = True
             break
         H = G.T @ system.at(g).force_sensitivity(state.P, G)   # -Hessian of Q, PSD
@@ -94,7 +107,8 @@ def solve_dual(system: MacroSystem, x0: np.ndarray, *, tol: float, max_iter: int
             trial = _dual_point(system, g + t * step, state.P, tol, max_iter)
             total_newton += trial.newton_steps
             total_min += trial.minimiser_steps
-            if trial.Q >= state.Q + _ARMIJO * t * slope or t < 2.0 ** -30:
+            # Armijo, with room for rounding in Q (~1e-16 |Q|) once the ascent is done
+            if trial.Q >= state.Q + _ARMIJO * t * slope - 1e-13 * abs(state.Q) or t < 2.0 ** -30:
                 break
             t *= 0.5
         g, state = g + t * step, trial

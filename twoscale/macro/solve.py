@@ -9,11 +9,8 @@ import numpy as np
 from ..influence.base import InfluenceProvider
 from ..laws import AsperityLaw, LawStack
 from .result import MacroResult
-from .robust import run_newton, solve_dual, solve_penetration
+from .robust import FAST_STEPS, minimise_then_polish, run_newton, solve_dual
 from .system import MacroSystem
-
-#: Newton steps allowed before the safe path takes over (Newton needs 2-8 on sound scenes).
-FAST_STEPS = 30
 
 
 def solve_macro(provider: InfluenceProvider, tips, z, laws, *,
@@ -89,7 +86,7 @@ def _newton_then_safe(system: MacroSystem, x0: np.ndarray, *, tol: float, max_it
     if fast.converged or fast.iterations >= max_iter:
         return fast.x, fast.converged, fast.message, fast.iterations, fast.residuals
     if system.G.shape[1] == 0:
-        safe = solve_penetration(system, x0, tol=tol, max_iter=max_iter)
+        safe = minimise_then_polish(system, (x0, fast.x), tol=tol, max_iter=max_iter)
     else:
         safe = solve_dual(system, x0, tol=tol, max_iter=max_iter)
     r = system.residual(safe.x)
