@@ -42,7 +42,7 @@ def test_half_space_only_says_so(tmp_path, monkeypatch, capsys):
     assert [float(r["force_N"]) for r in rows] == pytest.approx([a["force"] for a in res["asperities"]], rel=1e-9)
     # symmetric scene: equal forces
     assert float(rows[0]["force_N"]) == pytest.approx(float(rows[1]["force_N"]), rel=1e-5)
-    for name in ("forces_d0.5mm.png", "maps_d0.5mm.png", "summary.json"):
+    for name in ("forces_d0.5mm.png", "maps_d0.5mm.png", "sensor_d0.5mm.png", "summary.json"):
         assert (out / name).stat().st_size > 0
     summary = json.loads((out / "summary.json").read_text())
     assert summary["notes"] and summary["units"]["force"] == "N"

@@ -26,7 +26,8 @@ returned):
   sensor cells of 1.9 mm) in percent between each pair of bodies;
 * ``summary.json``: the indicators, convergence, timings, version, units and scene;
 * ``forces_<W>N.png`` (forces side by side, as the paper's Figs. 10-11) and
-  ``maps_<W>N.png`` (pressure maps side by side) for each load;
+  ``maps_<W>N.png`` (pressure maps side by side) and ``sensor_<W>N.png`` (the same
+  averaged on the sensor cells, what e_m compares) for each load;
 * ``runs/<body>_<W>N/result.json`` (and ``fields.vtu`` with ``--vtk``) for each solve.
 
 Exit codes: 0 every solve converged; 1 some solve did not converge or a body could not
@@ -361,6 +362,8 @@ def _write_outputs(out: Path, args, runs, ind, notes, measured: Measured | None)
                        measured=None if measured is None else measured.forces, scene=scene_dict)
         compare_maps(group, out / f"maps_{load}.png", tips=tips, title=f"pressure, {_load_title(load)}",
                      scene=scene_dict)
+        compare_maps(group, out / f"sensor_{load}.png", tips=tips, sensor=Sensor(), scene=scene_dict,
+                     title=f"sensor-cell means (44 x 44 cells of 1.9 mm), {_load_title(load)}")
     for r in runs:
         d = out / "runs" / f"{r.body}_{r.load}"
         write_result(r.result, r.scene, d, method=args.method)
