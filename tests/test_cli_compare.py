@@ -235,3 +235,21 @@ def test_measured_map_only_gives_forces_from_the_map(tmp_path, monkeypatch):
     rows = [r for r in _csv_rows(out / "forces.csv") if r["body"] == "measured"]
     assert [float(r["force_N"]) for r in rows] == pytest.approx([1.9 ** 2, 2 * 1.9 ** 2, 0.0])
     assert "integrated from the sensor map" in (out / "forces.md").read_text()
+
+
+@pytest.mark.slow
+def test_subprocess_compare_on_shipped_scene(tmp_path):
+    # the installed entry point as a user runs it (builds the finite block when available)
+    import subprocess
+    import sys
+
+    out = tmp_path / "cmp"
+    proc = subprocess.run([sys.executable, "-m", "twoscale", "compare", TWO, "--out", str(out), "--quiet"],
+                          capture_output=True, text=True, timeout=1200)
+    assert proc.returncode == 0, proc.stderr
+    assert proc.stdout == ""
+    rows = _csv_rows(out / "forces.csv")
+    bodies = {r["body"] for r in rows}
+    assert bodies in ({"halfspace"}, {"halfspace", "block-bonded", "block-sliding"})
+    if bodies == {"halfspace"}:
+        assert "half-space only" in proc.stderr
