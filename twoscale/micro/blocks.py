@@ -147,7 +147,8 @@ class Coupling:
         Pairs whose dense block has at most this many entries are formed and cached
         (``provider.grid_matrix``); larger pairs use ``provider.grid_operator`` (FFT).
     cache_bytes : float, default 4e8
-        Memory budget for cached dense pairs; beyond it pairs fall back to FFT.
+        Memory budget for cached dense pairs (beyond it pairs fall back to FFT) and,
+        separately, for cached FFT operators (beyond it they are rebuilt on use).
     """
 
     def __init__(self, provider: InfluenceProvider, patches, *, dense_max_entries: int = 40_000,
@@ -159,6 +160,7 @@ class Coupling:
         self._ops: dict = {}
         self._fft: dict = {}
         self._bytes = 0.0
+        self._fft_bytes = 0.0
 
     def append(self, patch: Patch) -> None:
         """Add a patch (a new block at the end)."""
@@ -173,15 +175,24 @@ class Coupling:
                 self._bytes -= op.nbytes
         for key in [key for key in self._fft if k in key]:
             del self._fft[key]
+        self._fft_bytes = sum(8.0 * (self.patches[a].grid.nx + self.patches[b].grid.nx)
+                              * (self.patches[a].grid.ny + self.patches[b].grid.ny) for a, b in self._fft)
 
     def full_operator(self, k: int, l: int):
-        """FFT operator from the whole patch ``l`` to the whole patch ``k`` (cached)."""
+        """FFT operator from the whole patch ``l`` to the whole patch ``k``; cached while
+        the estimated size of the cached transforms stays within ``cache_bytes``."""
         op = self._fft.get((k, l))
         if op is None:
-            op = self._fft[(k, l)] = self.provider.grid_operator(self.patches[k].grid, self.patches[l].grid)
+            gk, gl = self.patches[k].grid, self.patches[l].grid
+            op = self.provider.grid_operator(gk, gl)
+            size = 8.0 * (gk.nx + gl.nx) * (gk.ny + gl.ny)  # ~ a half-spectrum of complex numbers
+            if self._fft_bytes + size <= self.cache_bytes:
+                self._fft[(k, l)] = op
+                self._fft_bytes += size
         return op
 
     def _operator(self, k: int, l: int):
+        # dense pairs are cached in _ops; FFT pairs in full_operator's cache
         op = self._ops.get((k, l))
         if op is not None:
             return op
@@ -192,10 +203,9 @@ class Coupling:
             il = np.flatnonzero(pl.owned.ravel())
             op = self.provider.grid_matrix(pk.grid, pl.grid)[np.ix_(ik, il)]
             self._bytes += op.nbytes
-        else:
-            op = self.full_operator(k, l)
-        self._ops[(k, l)] = op
-        return op
+            self._ops[(k, l)] = op
+            return op
+        return self.full_operator(k, l)
 
     def apply(self, k: int, l: int, v: np.ndarray) -> np.ndarray:
         """``A_kl v`` for a block-``l`` vector (n_l,) or (n_l, m); returns block-``k`` values (mm)."""
