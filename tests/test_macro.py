@@ -313,3 +313,11 @@ def test_paper_seven_spheres(ratio):
     check_equations(res, tips, np.zeros(7), [law] * 7, boussinesq_interaction(tips))
     assert np.allclose(res.forces[1:], res.forces[1], rtol=1e-9)   # six-fold symmetry
     assert res.forces[0] < res.forces[1]                          # the centre is shielded
+
+
+def test_unbalanceable_tilt_is_reported():
+    # the pivot lies outside the tips' convex hull: no tilt can cancel the moment
+    tips = np.array([[0.0, 0.0], [10.0, 0.0], [0.0, 10.0], [10.0, 10.0]])
+    res = solve_macro(HS, tips, np.zeros(4), SphereLaw(5.0, E_STAR), total_load=40.0, tilt=True,
+                      pivot=(50.0, 5.0), max_iter=30)
+    assert not res.converged and res.message

@@ -115,15 +115,15 @@ def solve_dual(system: MacroSystem, x0: np.ndarray, *, tol: float, max_iter: int
     x = np.concatenate([state.P, g])
     polish = run_newton(system, x, tol=tol, max_iter=max_iter, scale_floor=float(e[0]))
     total_newton += polish.iterations
-    ok = polish.converged
-    x_out = polish.x if ok else x
-    if ok:
+    if polish.converged:
         msg = f"{polish.message} (safe path: dual ascent in {it} steps, then polished)"
-    elif converged:
-        ok, msg = True, f"converged on the safe path (dual ascent in {it} steps; polish: {polish.message})"
+        return SafeOutcome(polish.x, True, msg, total_newton, total_min)
+    if converged:
+        msg = (f"safe path: dual ascent balanced the load to {_DUAL_TOL:.0e} in {it} steps but the "
+               f"polish failed ({polish.message})")
     else:
         msg = f"safe path not converged after max_iter={max_iter} dual steps"
-    return SafeOutcome(x_out, ok, msg, total_newton, total_min)
+    return SafeOutcome(x, False, msg, total_newton, total_min)
 
 
 @dataclass(frozen=True)

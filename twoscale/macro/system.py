@@ -17,6 +17,7 @@ semismooth otherwise; the Jacobian used is ``dr/dx`` with ``f_k' = 0`` for
 """
 from __future__ import annotations
 
+import warnings
 from dataclasses import dataclass
 
 import numpy as np
@@ -128,13 +129,16 @@ class MacroSystem:
 
 def _solve(K: np.ndarray, rhs: np.ndarray) -> np.ndarray:
     # A singular Jacobian happens (e.g. load control with no asperity in contact, or a
-    # tilt no contact set can balance): fall back to the least-squares step.
+    # tilt no contact set can balance): fall back to the least-squares step, also when
+    # LAPACK only warns that the matrix is singular to working precision.
     if K.size == 0:
         return rhs.copy()
     try:
-        sol = sla.solve(K, rhs, check_finite=False)
+        with warnings.catch_warnings():
+            warnings.simplefilter("error", sla.LinAlgWarning)
+            sol = sla.solve(K, rhs, check_finite=False)
         if np.all(np.isfinite(sol)):
             return sol
-    except (sla.LinAlgError, ValueError):
+    except (sla.LinAlgError, sla.LinAlgWarning, ValueError):
         pass
     return np.linalg.lstsq(K, rhs, rcond=None)[0]
