@@ -31,9 +31,11 @@ class MacroResult:
         Whether the relative residual reached ``tol``.
     message : str
     iterations : int
-        Newton steps taken.
+        Newton steps taken (on the safe path: all of them, inner solves included).
     residuals : tuple of float
-        Relative residual before each step and after the last one (length iterations + 1).
+        Relative residual ``||r|| / ||P||`` of the Newton iteration on the coupled
+        system, before each step and after the last (length iterations + 1); when the
+        safe path ran, only its final residual is appended.
     timings_s : dict
         Wall-clock seconds: "compliance" (interaction matrix), "newton", "total".
     """

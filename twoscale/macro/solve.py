@@ -2,8 +2,6 @@
 from __future__ import annotations
 
 import time
-from typing import Sequence
-
 import numpy as np
 
 from ..influence.base import InfluenceProvider
@@ -22,7 +20,13 @@ def solve_macro(provider: InfluenceProvider, tips, z, laws, *,
 
     Solves ``P_k = f_k(delta_k) H(delta_k)`` with ``delta_k = d - z_k - [beta (x_k - px)
     + alpha (y_k - py)] - sum_{l != k} T_kl P_l - c_k P_k`` by Newton-Raphson on the
-    forces, globalised by a backtracking line search on the residual norm.
+    forces, globalised by a backtracking line search on the residual norm with the
+    forces kept >= 0 along the search path. Where that stalls (contacts so close that
+    they merge: the compliance ``diag(1/f_k') + T`` is then indefinite), a safe path
+    takes over (:mod:`twoscale.macro.robust`): the equations are the optimality
+    conditions of a potential bounded below on ``P >= 0``; it is minimised by L-BFGS-B,
+    with the rigid-body unknowns found by Newton ascent on the concave dual, and the
+    result is polished by Newton. The safe path assumes a symmetric ``T``.
 
     Parameters
     ----------
@@ -91,7 +95,8 @@ def _newton_then_safe(system: MacroSystem, x0: np.ndarray, *, tol: float, max_it
         safe = solve_dual(system, x0, tol=tol, max_iter=max_iter)
     r = system.residual(safe.x)
     P = safe.x[: system.n]
-    final = float(np.linalg.norm(r)) / max(float(np.linalg.norm(P)), W, float(np.linalg.norm(r)), 1e-300)
+    norm = float(np.linalg.norm(r))
+    final = norm / max(float(np.linalg.norm(P)) or W, norm) if norm > 0 else 0.0
     history = fast.residuals + (final,)
     message = f"Newton stalled ({fast.message}); {safe.message}"
     return safe.x, safe.converged, message, fast.iterations + safe.newton_steps, history
