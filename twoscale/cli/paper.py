@@ -13,7 +13,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--quick", action="store_true",
                         help="cells twice the paper's size (four times fewer), same d/2R values")
     parser.add_argument("--tol", type=float, default=1e-6,
-                        help="eq. 9 tolerance of the block Gauss-Seidel sweeps (default 1e-6)")
+                        help="eq. 9 tolerance on ||p^{m+1} - p^m|| / ||p^{m+1}|| (default 1e-6; the paper "
+                             "writes eq. 9 with squared norms, so its epsilon is tol^2)")
     parser.add_argument("--reference", choices=("cg", "dense", "auto"), default="cg",
                         help="reference solver on the same lattice (default cg)")
     parser.add_argument("--no-figures", action="store_true", help="write the CSV files only")
