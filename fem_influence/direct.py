@@ -52,9 +52,10 @@ class DirectResult:
     timings_s: dict
 
 
-def _axis(end: float, h_cell: float, h_coarse: float, growth: float) -> np.ndarray:
-    # 0 .. h_cell/2 at h_cell/4, then geometric growth to h_coarse up to ``end``
-    x = [0.0, h_cell / 4, h_cell / 2]
+def _axis(end: float, h_cell: float, h_coarse: float, growth: float, fine: float = 1.5) -> np.ndarray:
+    # 0 .. fine * h_cell at h_cell/4 (the pressure edge at h_cell/2 is a node), then
+    # geometric growth to h_coarse up to ``end``
+    x = list(np.arange(0.0, fine * h_cell + 1e-9, h_cell / 4))
     h = h_cell / 4
     while x[-1] < end - 1e-9:
         h = min(h * growth, h_coarse)
@@ -62,8 +63,9 @@ def _axis(end: float, h_cell: float, h_coarse: float, growth: float) -> np.ndarr
     return np.array(x)
 
 
-def _depth_axis(t: float, h_cell: float, h_coarse: float, growth: float) -> np.ndarray:
-    z, h = [0.0], h_cell / 4
+def _depth_axis(t: float, h_cell: float, h_coarse: float, growth: float, fine: float = 1.0) -> np.ndarray:
+    z = list(np.arange(0.0, min(fine * h_cell, t) + 1e-9, h_cell / 4))
+    h = h_cell / 4
     while z[-1] < t - 1e-9:
         z.append(t if t - z[-1] < 1.5 * h else z[-1] + h)
         h = min(h * growth, h_coarse)
