@@ -5,7 +5,7 @@ spheres) faster than the classical full matrix inversion. Here, at the paper's c
 (two spheres h = 0.0125 R, d = 0.05 R; seven spheres h = 0.025 R, d = 0.1 R; R = 10 mm,
 E = 10 MPa, nu = 0.5, exact spheres), for each d/2R:
 
-* ``twoscale``: :func:`twoscale.twoscale.solve_twoscale` (macro + micro, tol 1e-6);
+* ``twoscale``: :func:`twoscale.twoscale.solve_twoscale` (macro + micro, ``--tol``, default 1e-6);
 * ``dense``: Johnson's active-set inversion (:func:`twoscale.reference.solve_dense`) on the
   reference grid of :func:`twoscale.study.reference_surface` (same lattice; only cells an
   indenter reaches carry unknowns);
@@ -44,12 +44,13 @@ def _err(p, pr) -> float:
     return 100.0 * float(np.linalg.norm(p - pr) / np.linalg.norm(pr))
 
 
-def run_case(layout: str, spacing: float, *, repeat: int, max_dense_gb: float) -> dict:
+def run_case(layout: str, spacing: float, *, repeat: int, max_dense_gb: float, tol: float = 1e-6) -> dict:
     case = paper_case(layout, spacing)
     hs = HalfSpace(case.material)
     surf = reference_surface(case)
     d = case.penetration
-    ts, t_ts = _common.best_time(lambda: solve_twoscale(hs, case.asperities, h=case.h, penetration=d), repeat)
+    ts, t_ts = _common.best_time(lambda: solve_twoscale(hs, case.asperities, h=case.h, penetration=d, tol=tol),
+                                  repeat)
     cg, t_cg = _common.best_time(lambda: solve_cg(hs, surf, penetration=d), repeat)
     p = ts.pressure_on(surf.grid)
     row = {"layout": layout, "s": spacing, "cells_2s": ts.n_cells,
@@ -75,11 +76,13 @@ def main(argv=None) -> int:
     ap.add_argument("--spacings", nargs="+", type=float, default=None, help="d/2R values (default: the paper's)")
     ap.add_argument("--repeat", type=int, default=3)
     ap.add_argument("--max-dense-gb", type=float, default=2.0)
+    ap.add_argument("--tol", type=float, default=1e-6,
+                    help="two-scale eq. 9 tolerance (the paper's squared-norm epsilon is tol^2)")
     args = ap.parse_args(argv)
     rows = []
     for layout in args.layouts:
         for s in (args.spacings or PAPER_SPACINGS[layout]):
-            rows.append(run_case(layout, s, repeat=args.repeat, max_dense_gb=args.max_dense_gb))
+            rows.append(run_case(layout, s, repeat=args.repeat, max_dense_gb=args.max_dense_gb, tol=args.tol))
             print(f"  done {layout} d/2R={s:g}", file=sys.stderr)
     cols = [("layout", "layout", "s"), ("s", "d/2R", "g"), ("cells_2s", "cells 2s", "d"),
             ("cells_ref", "cells ref", "d"), ("sweeps", "sweeps", "d"), ("t_2s", "t 2s (s)", ".3f"),
