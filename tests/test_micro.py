@@ -188,3 +188,17 @@ def test_growth_limit_is_reported_not_hidden():
     res = solve_micro(HS, a, h=h, forces=np.array([P / 50.0]), penetration=d, tol=1e-8, max_growths=0)
     assert not res.converged
     assert "patch edge" in res.message
+
+
+def test_unsymmetric_dense_block_falls_back_to_lu():
+    pt, a = _single_patch(n_half=8)
+    blk = LocalBlock(HS, pt, dense_max_cells=10_000)
+    assert blk.symmetric
+    # perturb the stored matrix unsymmetrically (as a finite-element body may be)
+    rng = np.random.default_rng(1)
+    blk.matrix = blk.matrix * (1.0 + 1e-3 * rng.standard_normal(blk.matrix.shape))
+    blk.symmetric = False
+    active = np.ones(blk.n, bool)
+    rhs = rng.uniform(0.5, 1.0, blk.n)
+    x = blk.solve(active, rhs)
+    assert np.allclose(blk.matrix @ x, rhs, rtol=1e-9, atol=0.0)

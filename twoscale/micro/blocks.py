@@ -23,6 +23,16 @@ def scatter(patch: Patch, v: np.ndarray) -> np.ndarray:
     return out
 
 
+def _factorise(M: np.ndarray, symmetric: bool):
+    """``("cholesky", factor)`` for a symmetric positive definite ``M``, else ``("lu", factor)``."""
+    if symmetric:
+        try:
+            return "cholesky", sla.cho_factor(M, lower=True, check_finite=False)
+        except np.linalg.LinAlgError:
+            pass
+    return "lu", sla.lu_factor(M, check_finite=False)
+
+
 class LocalBlock:
     """``A_kk`` on the owned cells of one patch, with linear solves on active subsets.
 
@@ -32,8 +42,9 @@ class LocalBlock:
     patch : Patch
     dense_max_cells : int, default 400
         Blocks with at most this many owned cells store ``A_kk`` and solve by Cholesky
-        (factorisations cached per active set); larger ones use the provider's FFT
-        operator and conjugate gradients.
+        (LU when the provider's matrix is not symmetric positive definite; factorisations
+        cached per active set); larger ones use the provider's FFT operator and conjugate
+        gradients (which assume a symmetric positive definite operator).
     cg_rtol : float, default 1e-10
         Relative residual at which the CG solves stop.
     cg_max_iter : int, default 2000
@@ -55,9 +66,12 @@ class LocalBlock:
         if self.dense:
             idx = np.flatnonzero(patch.owned.ravel())
             self.matrix = provider.grid_matrix(patch.grid)[np.ix_(idx, idx)]
+            # a provider's matrix may be slightly unsymmetric (e.g. a finite-element body)
+            self.symmetric = bool(np.allclose(self.matrix, self.matrix.T, rtol=1e-10, atol=0.0))
             self._op = None
         else:
             self.matrix = None
+            self.symmetric = True
             self._op = provider.grid_operator(patch.grid)
 
     # ------------------------------------------------------------------ products
@@ -86,7 +100,10 @@ class LocalBlock:
         if not np.any(active):
             return np.zeros_like(rhs)
         if self.dense:
-            return sla.cho_solve(self._factor(active), rhs, check_finite=False)
+            kind, f = self._factor(active)
+            if kind == "cholesky":
+                return sla.cho_solve(f, rhs, check_finite=False)
+            return sla.lu_solve(f, rhs, check_finite=False)
         if rhs.ndim == 2:
             cols = [self._cg(active, rhs[:, j], None if x0 is None else x0[:, j], rtol)
                     for j in range(rhs.shape[1])]
@@ -98,7 +115,7 @@ class LocalBlock:
         f = self._cache.get(key)
         if f is None:
             sub = self.matrix[np.ix_(active, active)]
-            f = sla.cho_factor(sub, lower=True, check_finite=False)
+            f = _factorise(sub, self.symmetric)
             self.factorisations += 1
             self._cache[key] = f
             if len(self._cache) > self._cache_size:
