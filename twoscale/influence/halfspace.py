@@ -57,16 +57,13 @@ class HalfSpace(InfluenceProvider):
 
     def grid_matrix(self, target: Grid, source: Grid | None = None) -> np.ndarray:
         source = target if source is None else source
-        table, ox0, oy0 = self._offset_table(target, source)
-        ti, tj = target.offset_in(source)
-        # offset index of (target cell (jt,it), source cell (js,is)) = (ti+it-is-ox0, tj+jt-js-oy0)
-        it = np.tile(np.arange(target.nx), target.ny)
-        jt = np.repeat(np.arange(target.ny), target.nx)
-        is_ = np.tile(np.arange(source.nx), source.ny)
-        js = np.repeat(np.arange(source.ny), source.nx)
-        ix = (ti + it - ox0)[:, None] - is_[None, :]
-        iy = (tj + jt - oy0)[:, None] - js[None, :]
-        return table[iy, ix]
+        table, _, _ = self._offset_table(target, source)
+        # Entry (target (jt, it), source (js, is)) is table[jt - js + nys - 1, it - is + nxs - 1].
+        # In the flipped table F that is F[(nyt-1-jt) + js, (nxt-1-it) + is]: a sliding
+        # window of F read backwards, so the block-Toeplitz matrix is one strided copy.
+        flipped = table[::-1, ::-1]
+        windows = np.lib.stride_tricks.sliding_window_view(flipped, (source.ny, source.nx))
+        return np.ascontiguousarray(windows[::-1, ::-1]).reshape(target.size, source.size)
 
     def grid_operator(self, target: Grid, source: Grid | None = None) -> "ConvolutionOperator":
         source = target if source is None else source
