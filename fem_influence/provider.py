@@ -291,8 +291,7 @@ class BlockProvider(InfluenceProvider):
 
     def smooth_self_compliance(self, points):
         p = np.asarray(points, dtype=float).reshape(-1, 2)
-        return np.array([self.correction(q[None], q[None])[0, 0] for q in p]) if len(p) < 4 \
-            else np.diag(self.correction(p, p)).copy()
+        return np.diag(self.correction(p, p)).copy()
 
     def cell_block(self, targets, sources, h):
         return self._halfspace.cell_block(targets, sources, h) + h * h * self.correction(targets, sources)
