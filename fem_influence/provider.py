@@ -197,6 +197,15 @@ class BlockProvider(InfluenceProvider):
         d = self.source_spacing
         S = np.asarray(sources, dtype=float).reshape(-1, 2) + np.asarray(self.origin)
         x0, x1, y0, y1 = self._lattice_bounds()
+        tol = 1e-9 * d
+        out = (S[:, 0] < x0 * d - tol) | (S[:, 0] > x1 * d + tol) | (S[:, 1] < y0 * d - tol) | (S[:, 1] > y1 * d + tol)
+        if out.any():
+            # beyond the outermost lattice node the cubic stencil would extrapolate (errors
+            # of ~20 % of C measured 3 mm from a side): refuse rather than answer badly
+            bad = S[out][0] - np.asarray(self.origin)
+            raise ValueError(f"source point {bad.tolist()} (scene frame) lies outside the correction "
+                             f"lattice |x| <= {x1 * d}, |y| <= {y1 * d} mm of the block frame (within "
+                             f"source_spacing = {d} mm of the sides); use a smaller source_spacing")
         ix, wx = _lagrange_1d(S[:, 0], d, x0, x1)
         iy, wy = _lagrange_1d(S[:, 1], d, y0, y1)
         nx = x1 - x0 + 1

@@ -171,3 +171,27 @@ def test_mirror_symmetry_matches_direct_solves(block):
     np.testing.assert_allclose(sym.correction(t, s), plain.correction(t, s), rtol=1e-6, atol=1e-9)
     n_solved = sum(1 for i, j in sym._state.fields.fields if i >= 0 and j >= 0)
     assert n_solved < len(sym._state.fields.fields)
+
+
+def test_sources_near_the_sides_are_refused(block):
+    # the lattice stops one spacing (5 mm) inside the 30 mm half-width: a source at
+    # x = 27 would be extrapolated (measured error ~20 % of |C|), so it is refused
+    assert np.isfinite(block.correction(np.zeros((1, 2)), np.array([[25.0, -25.0]]))).all()
+    with pytest.raises(ValueError, match="source point"):
+        block.correction(np.zeros((1, 2)), np.array([[27.0, 0.0]]))
+
+
+def test_progress_line(capsys):
+    import io
+    from fem_influence.progress import Progress
+    quiet = io.StringIO()
+    p = Progress("build", 3, stream=quiet)
+    p.update(3)
+    p.close()
+    assert quiet.getvalue() == ""                 # under the 2 s delay: silent
+    shown = io.StringIO()
+    p = Progress("build", 2, stream=shown, delay_s=0.0)
+    p.update(1, stage="factorised")
+    p.update(1)
+    assert p.close() >= 0.0
+    assert "build" in shown.getvalue() and "2/2" in shown.getvalue() and "done" in shown.getvalue()
