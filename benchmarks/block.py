@@ -8,7 +8,7 @@ total load 50 N. Prints, for the bonded and the sliding base:
 * the same two-scale solve on the half-space, for the "within 2x" target;
 * load-sharing between asperities (centre vs corner force) on each body.
 
-Run: ``python benchmarks/block.py`` (about 2-3 minutes on 2 cores).
+Run: ``python benchmarks/block.py`` (about 1 minute on a quiet 2-core machine).
 """
 from __future__ import annotations
 
