@@ -195,3 +195,9 @@ def test_progress_line(capsys):
     p.update(1)
     assert p.close() >= 0.0
     assert "build" in shown.getvalue() and "2/2" in shown.getvalue() and "done" in shown.getvalue()
+
+
+def test_solver_residuals_are_small(block):
+    solver = CorrectionSolver.build(block.mesh, MAT.nu, "sliding")
+    solver.top_displacement(np.array([[0.0, 0.0], [5.0, -5.0]]))
+    assert len(solver.residuals) == 2 and max(solver.residuals) < 1e-8
