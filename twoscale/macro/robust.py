@@ -29,6 +29,7 @@ FAST_STEPS = 20
 #: The dual ascent stops at this relative imbalance; the coupled Newton polish, which
 #: converges quadratically from there, brings it to the user's tolerance.
 _DUAL_TOL = 1e-7
+_MIN_DUAL_STEP = 2.0 ** -12
 
 
 @dataclass(frozen=True)
@@ -93,7 +94,7 @@ def solve_dual(system: MacroSystem, x0: np.ndarray, *, tol: float, max_iter: int
     state = _dual_point(system, g, P, tol, max_iter)
     total_newton += state.newton_steps
     total_min += state.minimiser_steps
-    converged = False
+    converged = stalled = False
     for it in range(max_iter):
         grad = e - G.T @ state.P
         if _balanced(system, state.P, max(tol, _DUAL_TOL)):
@@ -108,9 +109,14 @@ def solve_dual(system: MacroSystem, x0: np.ndarray, *, tol: float, max_iter: int
             total_newton += trial.newton_steps
             total_min += trial.minimiser_steps
             # Armijo, with room for rounding in Q (~1e-16 |Q|) once the ascent is done
-            if trial.Q >= state.Q + _ARMIJO * t * slope - 1e-13 * abs(state.Q) or t < 2.0 ** -30:
+            if trial.Q >= state.Q + _ARMIJO * t * slope - 1e-13 * abs(state.Q):
                 break
             t *= 0.5
+            if t < _MIN_DUAL_STEP:
+                stalled = True
+                break
+        if stalled:
+            break
         g, state = g + t * step, trial
     x = np.concatenate([state.P, g])
     polish = run_newton(system, x, tol=tol, max_iter=max_iter, scale_floor=float(e[0]))
@@ -121,6 +127,11 @@ def solve_dual(system: MacroSystem, x0: np.ndarray, *, tol: float, max_iter: int
     if converged:
         msg = (f"safe path: dual ascent balanced the load to {_DUAL_TOL:.0e} in {it} steps but the "
                f"polish failed ({polish.message})")
+    elif stalled:
+        msg = (f"safe path: dual ascent stalled at step {it + 1} with the load and moments "
+               f"unbalanced by {float(np.linalg.norm(system.E @ state.P - e)):.3e} N (the inner "
+               f"minimum switches between branches: contacts merged beyond what the point-force "
+               f"interaction can represent, or no tilt can balance the load)")
     else:
         msg = f"safe path not converged after max_iter={max_iter} dual steps"
     return SafeOutcome(x, False, msg, total_newton, total_min)
