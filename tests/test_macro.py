@@ -41,24 +41,25 @@ def check_equations(res, tips, z, laws, T, pivot=(0.0, 0.0), rtol=1e-10):
     assert np.allclose(res.local_penetrations, delta, rtol=0, atol=1e-12 * max(1.0, np.max(np.abs(delta))))
 
 
-def random_scene(seed, n=None):
-    """10-30 asperities, radii 4-6 mm: a jittered 8 mm lattice, a few close pairs (2.5-3.5
-    mm apart), a few recessed far out of contact."""
+def random_scene(seed, *, close=(2.5, 3.5), close_fraction=1 / 6, spheres_only=False):
+    """10-30 asperities, radii 4-6 mm: a jittered 8 mm lattice, a fraction of them placed
+    ``close`` (mm) from a neighbour, a few recessed far out of contact."""
     rng = np.random.default_rng(seed)
-    n = n or int(rng.integers(10, 31))
-    n_close = max(2, n // 6)
+    n = int(rng.integers(10, 31))
+    n_close = max(2, int(n * close_fraction))
     base = n - n_close
     side = int(math.ceil(math.sqrt(base)))
     lattice = 8.0 * np.stack(np.meshgrid(np.arange(side), np.arange(side)), -1).reshape(-1, 2)[:base]
     tips = lattice + rng.uniform(-1.5, 1.5, lattice.shape)
     partner = rng.choice(base, n_close, replace=False)
     ang = rng.uniform(0, 2 * np.pi, n_close)
-    s = rng.uniform(2.5, 3.5, n_close)
+    s = rng.uniform(*close, n_close)
     tips = np.vstack([tips, tips[partner] + np.column_stack([s * np.cos(ang), s * np.sin(ang)])])
     z = rng.uniform(0.0, 0.15, n)
     z[rng.choice(n, max(2, n // 8), replace=False)] = rng.uniform(1.0, 2.0)   # out of contact
-    laws = [SphereLaw(r, E_STAR) if rng.random() < 0.5 else HertzLaw(r, E_STAR)
-            for r in rng.uniform(4.0, 6.0, n)]
+    radii = rng.uniform(4.0, 6.0, n)
+    kinds = np.ones(n, bool) if spheres_only else rng.random(n) < 0.5
+    laws = [SphereLaw(r, E_STAR) if k else HertzLaw(r, E_STAR) for r, k in zip(radii, kinds)]
     return tips, z, laws
 
 
@@ -263,23 +264,9 @@ def test_invalid_scene_raises():
 
 
 def merged_scene(seed):
-    """Like :func:`random_scene` but with a quarter of the asperities 0.3-2 mm from a
-    neighbour: contacts merge, the compliance loses definiteness, plain Newton stalls."""
-    rng = np.random.default_rng(seed)
-    n = int(rng.integers(10, 31))
-    n_close = max(2, n // 4)
-    base = n - n_close
-    side = int(math.ceil(math.sqrt(base)))
-    lattice = 8.0 * np.stack(np.meshgrid(np.arange(side), np.arange(side)), -1).reshape(-1, 2)[:base]
-    tips = lattice + rng.uniform(-1.5, 1.5, lattice.shape)
-    partner = rng.choice(base, n_close, replace=False)
-    ang = rng.uniform(0, 2 * np.pi, n_close)
-    s = rng.uniform(0.3, 2.0, n_close)
-    tips = np.vstack([tips, tips[partner] + np.column_stack([s * np.cos(ang), s * np.sin(ang)])])
-    z = rng.uniform(0, 0.15, n)
-    z[rng.choice(n, max(2, n // 8), replace=False)] = 1.5
-    laws = [SphereLaw(r, E_STAR) for r in rng.uniform(4, 6, n)]
-    return tips, z, laws
+    """A quarter of the asperities 0.3-2 mm from a neighbour: contacts merge, the
+    compliance loses definiteness, plain Newton stalls."""
+    return random_scene(seed, close=(0.3, 2.0), close_fraction=1 / 4, spheres_only=True)
 
 
 @pytest.mark.parametrize("mode", ["penetration", "load", "tilt"])

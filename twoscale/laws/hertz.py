@@ -16,7 +16,25 @@ from .base import AsperityLaw, as_force, as_penetration, check_positive
 
 
 @dataclass(frozen=True, eq=False)
-class HertzLaw(AsperityLaw):
+class _ClosedFormLaw(AsperityLaw):
+    """A law fixed by a tip radius ``R`` (mm) and the body's ``E_star`` (MPa), scalars
+    or arrays (elementwise)."""
+
+    R: float
+    E_star: float
+
+    def __post_init__(self) -> None:
+        check_positive("R (mm)", self.R)
+        check_positive("E_star (MPa)", self.E_star)
+
+    @classmethod
+    def stacked(cls, laws: Sequence["_ClosedFormLaw"]) -> "_ClosedFormLaw":
+        """One law with array parameters evaluating ``laws`` elementwise."""
+        return cls(np.array([l.R for l in laws], float), np.array([l.E_star for l in laws], float))
+
+
+@dataclass(frozen=True, eq=False)
+class HertzLaw(_ClosedFormLaw):
     """Hertz law of a rigid paraboloid ``z = r^2 / (2R)``: ``P = 4/3 E* sqrt(R) delta^(3/2)``.
 
     Parameters
@@ -26,13 +44,6 @@ class HertzLaw(AsperityLaw):
     E_star : float or array
         Plane-strain modulus of the body, MPa (> 0).
     """
-
-    R: float
-    E_star: float
-
-    def __post_init__(self) -> None:
-        check_positive("R (mm)", self.R)
-        check_positive("E_star (MPa)", self.E_star)
 
     def force(self, delta):
         return hertz.load(self.R, as_penetration(delta), self.E_star)
@@ -48,14 +59,10 @@ class HertzLaw(AsperityLaw):
         P = as_force(P)
         return 0.6 * P * hertz.penetration(self.R, P, self.E_star)
 
-    @classmethod
-    def stacked(cls, laws: Sequence["HertzLaw"]) -> "HertzLaw":
-        """One law with array parameters evaluating ``laws`` elementwise."""
-        return cls(np.array([l.R for l in laws], float), np.array([l.E_star for l in laws], float))
 
 
 @dataclass(frozen=True, eq=False)
-class SphereLaw(AsperityLaw):
+class SphereLaw(_ClosedFormLaw):
     """Exact rigid sphere of radius ``R`` (Segedin 1957), in contact radius ``a < R``:
     ``delta = (a/2) ln((R+a)/(R-a))``, ``P = E*/2 [(a^2+R^2) ln((R+a)/(R-a)) - 2aR]``,
     ``dP/ddelta = 2 E* a``. Tends to :class:`HertzLaw` for ``delta << R``.
@@ -71,13 +78,6 @@ class SphereLaw(AsperityLaw):
     E_star : float or array
         Plane-strain modulus of the body, MPa (> 0).
     """
-
-    R: float
-    E_star: float
-
-    def __post_init__(self) -> None:
-        check_positive("R (mm)", self.R)
-        check_positive("E_star (MPa)", self.E_star)
 
     def force(self, delta):
         return _sphere_load(self.R, self._radius_from_penetration(as_penetration(delta)), self.E_star)
@@ -118,10 +118,6 @@ class SphereLaw(AsperityLaw):
                 break
         return a
 
-    @classmethod
-    def stacked(cls, laws: Sequence["SphereLaw"]) -> "SphereLaw":
-        """One law with array parameters evaluating ``laws`` elementwise."""
-        return cls(np.array([l.R for l in laws], float), np.array([l.E_star for l in laws], float))
 
 
 # Segedin's closed forms written without cancellation (the textbook form
