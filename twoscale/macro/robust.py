@@ -13,11 +13,10 @@ symmetric ``T``, the optimality conditions of a potential that is bounded below 
   ``Q(g) = min_{P >= 0} potential(P; g) + g.e`` by Newton with backtracking, each
   evaluation being a penetration-controlled solve.
 
-Limit: with merged contacts the potential is not convex; its minimiser can switch
-branch as ``g`` moves, the dual then has a kink and the load may fall in the gap
-between branches. The ascent then stalls and the result says so (``converged=False``);
-seen on 2 of 40 tilt scenes with tips 0.1-1 mm apart and 1 of 40 load-controlled
-scenes with 1-3 mm gaps under 60 N per asperity.
+Each dual evaluation minimises first and polishes after: Newton alone can land on a
+saddle of the (then non-convex) potential, whose value overstates the dual and made
+the ascent stall. Limit: the minimiser can still switch branch as ``g`` moves; the dual
+then has a kink, the ascent may stall, and the result says so (``converged=False``).
 """
 from __future__ import annotations
 
@@ -154,7 +153,9 @@ class _DualPoint:
 def _dual_point(system: MacroSystem, g: np.ndarray, P_start: np.ndarray, tol: float,
                 max_iter: int) -> _DualPoint:
     inner = system.at(g)
-    out = solve_penetration(inner, P_start, tol=tol, max_iter=max_iter)
+    # minimise first: Newton alone may land on a saddle of the potential (merged
+    # contacts), whose value would overstate the dual
+    out = minimise_then_polish(inner, (P_start,), tol=tol, max_iter=max_iter)
     P = np.maximum(out.x, 0.0)
     Q = inner.energy(P) + float(g @ system.e)
     return _DualPoint(P, Q, out.newton_steps, out.minimiser_steps)
