@@ -62,19 +62,6 @@ def run_newton(system: MacroSystem, x0: np.ndarray, *, tol: float, max_iter: int
                   tol=tol, max_iter=max_iter, project=lambda x: project(x, n))
 
 
-def solve_penetration(system: MacroSystem, P0: np.ndarray, *, tol: float,
-                      max_iter: int) -> SafeOutcome:
-    """Penetration control: Newton from ``P0``; if it stalls (more than ``FAST_STEPS``
-    steps), minimise the potential from the better of ``P0`` and the stalled point,
-    then polish with Newton."""
-    first = run_newton(system, P0, tol=tol, max_iter=min(max_iter, FAST_STEPS))
-    if first.converged:
-        return SafeOutcome(first.x, True, first.message, first.iterations, 0)
-    out = minimise_then_polish(system, (P0, first.x), tol=tol, max_iter=max_iter)
-    return SafeOutcome(out.x, out.converged, out.message, first.iterations + out.newton_steps,
-                       out.minimiser_steps)
-
-
 def minimise_then_polish(system: MacroSystem, starts, *, tol: float, max_iter: int) -> SafeOutcome:
     """Minimise the potential over ``P >= 0`` (L-BFGS-B) from the best of ``starts``,
     then polish with Newton."""
