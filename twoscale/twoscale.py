@@ -46,7 +46,8 @@ def solve_twoscale(provider: InfluenceProvider, asperities: Sequence[Asperity], 
                    tilt: bool = False, pivot: tuple[float, float] = (0.0, 0.0), tol: float = 1e-6,
                    max_sweeps: int = 100, laws=None, margin: float = 1.3,
                    anchor: tuple[float, float] = (0.0, 0.0), dense_max_cells: int = 400,
-                   macro_tol: float = 1e-10, macro_max_iter: int = 100) -> ContactResult:
+                   macro_tol: float = 1e-10, macro_max_iter: int = 100,
+                   far_tol: float | None = None) -> ContactResult:
     """Multi-asperity contact by the two-scale iterative method.
 
     Parameters
@@ -81,6 +82,10 @@ def solve_twoscale(provider: InfluenceProvider, asperities: Sequence[Asperity], 
     macro_tol : float, default 1e-10
         Relative residual of the macro Newton iteration.
     macro_max_iter : int, default 100
+    far_tol : float or None, default None
+        Micro step cross-patch coupling: None = exact; a number in (0, 1) approximates
+        patches farther apart than ``(r_k + r_l) / sqrt(far_tol)`` by their resultant
+        force (many asperities; see :mod:`twoscale.micro.farfield`).
 
     Returns
     -------
@@ -100,7 +105,7 @@ def solve_twoscale(provider: InfluenceProvider, asperities: Sequence[Asperity], 
     micro = solve_micro(provider, asperities, h=h, forces=np.asarray(macro.forces), penetration=macro.penetration,
                         tilt=macro.tilt, pivot=pivot, total_load=total_load, free_tilt=tilt, tol=tol,
                         max_sweeps=max_sweeps, margin=margin, anchor=anchor, dense_max_cells=dense_max_cells,
-                        size_from_forces=bool(macro.converged))
+                        size_from_forces=bool(macro.converged), far_tol=far_tol)
     t2 = time.perf_counter()
     return _result(asperities, macro, micro, h, {"macro": t1 - t0, "micro": t2 - t1, "total": t2 - t0})
 

@@ -233,3 +233,19 @@ class Coupling:
         if v.ndim == 1:
             return op.apply(scatter(pl, v))[pk.owned]
         return np.column_stack([op.apply(scatter(pl, v[:, j]))[pk.owned] for j in range(v.shape[1])])
+
+    def rhs(self, k: int, values: list, rhs: np.ndarray) -> np.ndarray:
+        """``rhs - sum_{l != k} A_kl v_l`` with the block vectors ``values`` (mm)."""
+        out = rhs.copy()
+        for l, v in enumerate(values):
+            if l != k and np.any(v):
+                out -= self.apply(k, l, v)
+        return out
+
+    def patch_displacement(self, k: int, values: list) -> np.ndarray:
+        """Displacement (mm) on the whole patch ``k`` (ny, nx) due to the blocks ``l != k``."""
+        u = np.zeros(self.patches[k].grid.shape)
+        for l, v in enumerate(values):
+            if l != k and np.any(v):
+                u += self.full_operator(k, l).apply(scatter(self.patches[l], v))
+        return u

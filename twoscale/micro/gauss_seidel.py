@@ -47,12 +47,9 @@ class SweepResult:
 
 
 def coupled_rhs(coupling: Coupling, k: int, values: list, rhs: np.ndarray) -> np.ndarray:
-    """``rhs - sum_{l != k} A_kl v_l`` using the latest values of the other blocks."""
-    out = rhs.copy()
-    for l, v in enumerate(values):
-        if l != k and np.any(v):
-            out -= coupling.apply(k, l, v)
-    return out
+    """``rhs - sum_{l != k} A_kl v_l`` using the latest values of the other blocks
+    (exact, or with the far field approximated: :mod:`.farfield`)."""
+    return coupling.rhs(k, values, rhs)
 
 
 @dataclass(frozen=True)

@@ -9,6 +9,7 @@ import numpy as np
 from ..indenters import Asperity, Tilt
 from ..influence.base import InfluenceProvider
 from .blocks import Coupling, LocalBlock, scatter
+from .farfield import FarFieldCoupling
 from .constraints import newton_step, resultants, rhs_derivatives
 from .gauss_seidel import coupled_rhs, gauss_seidel, linear_gauss_seidel
 from .local import initial_pressure
@@ -66,12 +67,16 @@ SENSITIVITY_TOL = 1e-3
 class _State:
     """Mutable working set of the micro step (patches, blocks, pressures); internal."""
 
-    def __init__(self, provider, asperities, patches, dense_max_cells, dense_max_entries):
+    def __init__(self, provider, asperities, patches, dense_max_cells, dense_max_entries, far_tol=None):
         self.provider, self.asperities = provider, asperities
         self.dense_max_cells = dense_max_cells
         self.patches = list(patches)
         self.blocks = [LocalBlock(provider, pt, dense_max_cells=dense_max_cells) for pt in self.patches]
-        self.coupling = Coupling(provider, self.patches, dense_max_entries=dense_max_entries)
+        if far_tol is None:
+            self.coupling = Coupling(provider, self.patches, dense_max_entries=dense_max_entries)
+        else:
+            self.coupling = FarFieldCoupling(provider, self.patches, far_tol=far_tol,
+                                             dense_max_entries=dense_max_entries)
         self.sensitivities = None
 
     def heights(self, theta, pivot):
@@ -118,14 +123,11 @@ class _State:
 
     def full_displacement(self, pressures: list) -> list:
         """Displacement on every whole patch (list of (ny, nx) arrays), mm."""
-        fields = [scatter(pt, p) for pt, p in zip(self.patches, pressures)]
         out = []
-        for k in range(len(self.patches)):
-            u = np.zeros(self.patches[k].grid.shape)
-            for l, f in enumerate(fields):
-                if np.any(f):
-                    op = self.blocks[k].full_operator() if l == k else self.coupling.full_operator(k, l)
-                    u += op.apply(f)
+        for k, pt in enumerate(self.patches):
+            u = self.coupling.patch_displacement(k, pressures)
+            if np.any(pressures[k]):
+                u += self.blocks[k].full_operator().apply(scatter(pt, pressures[k]))
             out.append(u)
         return out
 
@@ -205,7 +207,7 @@ def solve_micro(provider: InfluenceProvider, asperities: Sequence[Asperity], *, 
                 margin: float = 1.3, anchor: tuple[float, float] = (0.0, 0.0),
                 dense_max_cells: int = 400, dense_max_entries: int = 40_000,
                 max_corrections: int = 20, max_growths: int = 50,
-                size_from_forces: bool = True) -> MicroResult:
+                size_from_forces: bool = True, far_tol: float | None = None) -> MicroResult:
     """Pressure on patches from the macro forces (METHOD.md section 3).
 
     Parameters
@@ -246,13 +248,18 @@ def solve_micro(provider: InfluenceProvider, asperities: Sequence[Asperity], *, 
     size_from_forces : bool, default True
         Size the patches from the macro forces; False sizes them by the geometric reach
         of each indenter (use when the macro step did not converge).
+    far_tol : float or None, default None
+        None: every cross block ``A_kl`` exact. A number in (0, 1): patches farther apart
+        than ``(r_k + r_l) / sqrt(far_tol)`` act through their resultant force
+        (:class:`~.farfield.FarFieldCoupling`; relative error per far pair about
+        ``far_tol``), for scenes with many asperities.
     """
     theta = np.array([penetration, *(tilt if tilt is not None else (0.0, 0.0))], dtype=float)
     n_unknowns = 0 if total_load is None else (3 if free_tilt else 1)
     sizing = np.asarray(forces, dtype=float) if size_from_forces else np.full(len(asperities), np.inf)
     patches = build_patches(asperities, h=h, forces=sizing, approaches=_tip_approaches(asperities, theta, pivot),
                             E_star=provider.material.E_star, margin=margin, anchor=anchor)
-    state = _State(provider, asperities, patches, dense_max_cells, dense_max_entries)
+    state = _State(provider, asperities, patches, dense_max_cells, dense_max_entries, far_tol)
     if not patches:
         return _finish(state, [], [], theta, tilt, pivot, True, "no asperity reaches the body",
                        {"sweeps": 0, "corrections": 0, "growths": 0, "linear_sweeps": 0}, ())
