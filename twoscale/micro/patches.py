@@ -50,9 +50,18 @@ class Patch:
 
 
 def make_patch(k: int, grid: Grid, asperities: Sequence[Asperity]) -> Patch:
-    """Patch ``k`` on ``grid``, with heights and owners from every asperity."""
-    surf = surface_on(grid, asperities)
-    return Patch(k, grid, surf.height, surf.owner)
+    """Patch ``k`` on ``grid``, with heights and owners from every asperity.
+
+    Spheres whose material (``r < R``) cannot reach the grid are skipped (their height is
+    ``inf`` there), so building a patch costs its cells times the nearby asperities only.
+    """
+    xmin, xmax, ymin, ymax = grid.bounds
+    keep = [l for l, a in enumerate(asperities)
+            if a.shape != "sphere"
+            or math.hypot(max(xmin - a.x, 0.0, a.x - xmax), max(ymin - a.y, 0.0, a.y - ymax)) < a.R]
+    surf = surface_on(grid, [asperities[l] for l in keep])
+    index = np.append(np.asarray(keep, dtype=np.int64), -1)
+    return Patch(k, grid, surf.height, index[surf.owner])
 
 
 def patch_radius(asperity: Asperity, *, force: float, approach: float, E_star: float,
