@@ -184,3 +184,20 @@ def test_invalid_parameters_raise():
         SphereLaw(R, float("inf"))
     with pytest.raises(ValueError, match="NaN"):
         HertzLaw(R, E_STAR).force(float("nan"))
+
+
+@pytest.mark.parametrize("name", sorted(LAWS))
+def test_complementary_energy_integrates_the_inverse_law(name):
+    from scipy.integrate import quad
+    law = LAWS[name]
+    P = np.array([0.0, 0.05, 2.0, 30.0, 90.0])   # 90 N is beyond the table
+    phi = law.complementary_energy(P)
+    assert phi[0] == 0.0
+    kinks = getattr(law, "P_table", np.zeros(0))
+    for p, value in zip(P[1:], phi[1:]):
+        ref = quad(lambda s: float(law.penetration(s)), 0.0, p, points=kinks[(kinks > 0) & (kinks < p)],
+                   epsabs=0.0, epsrel=1e-12, limit=400)[0]
+        assert value == pytest.approx(ref, rel=1e-9)
+    eps = 1e-5
+    fd = (law.complementary_energy(P[2:] + eps) - law.complementary_energy(P[2:] - eps)) / (2 * eps)
+    assert np.allclose(fd, law.penetration(P[2:]), rtol=1e-7)
