@@ -67,9 +67,9 @@ class SphereLaw(_ClosedFormLaw):
     ``delta = (a/2) ln((R+a)/(R-a))``, ``P = E*/2 [(a^2+R^2) ln((R+a)/(R-a)) - 2aR]``,
     ``dP/ddelta = 2 E* a``. Tends to :class:`HertzLaw` for ``delta << R``.
 
-    Same formulas as :mod:`twoscale.analytic.hertz` (``sphere_*``), evaluated here in a
-    cancellation-free form so that the law and its inverse agree to ~1e-15 relative
-    even for ``delta/R ~ 1e-7``.
+    Uses the cancellation-free closed forms of :mod:`twoscale.analytic.hertz`
+    (``sphere_*_from_radius``), so that the law and its inverse agree to ~1e-15
+    relative even for ``delta/R ~ 1e-7``.
 
     Parameters
     ----------
@@ -119,27 +119,6 @@ class SphereLaw(_ClosedFormLaw):
         return a
 
 
-
-# Segedin's closed forms written without cancellation (the textbook form
-# (a^2+R^2) ln((R+a)/(R-a)) - 2aR loses (R/a)^3 digits for small a):
-# ln((R+a)/(R-a)) = 2 atanh(a/R), and atanh(e) - e summed as a series for small e.
-def _atanh_minus_identity(e: np.ndarray) -> np.ndarray:
-    e = np.asarray(e, dtype=float)
-    e2 = e * e
-    series = np.zeros_like(e)
-    term = e * e2
-    for n in range(1, 14):   # e < 0.1: the first omitted term is below 1e-16 of the sum
-        series = series + term / (2 * n + 1)
-        term = term * e2
-    return np.where(e < 0.1, series, np.arctanh(np.minimum(e, 1.0 - 1e-16)) - e)
-
-
-def _sphere_penetration(R, a):
-    """delta = a atanh(a/R) (mm)."""
-    return a * np.arctanh(np.minimum(a / R, 1.0 - 1e-16))
-
-
-def _sphere_load(R, a, E_star):
-    """P = E* [a^2 atanh(a/R) + R^2 (atanh(a/R) - a/R)] (N)."""
-    e = a / R
-    return E_star * (a * a * np.arctanh(np.minimum(e, 1.0 - 1e-16)) + R * R * _atanh_minus_identity(e))
+# Segedin's closed forms, cancellation-free (twoscale.analytic.hertz)
+_sphere_penetration = hertz.sphere_penetration_from_radius
+_sphere_load = hertz.sphere_load_from_radius
