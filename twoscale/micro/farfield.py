@@ -131,7 +131,12 @@ class FarFieldCoupling(Coupling):
             self._F = np.zeros((n, m))
             self._C = np.repeat(self._centres[:, None, :], m, axis=1)
             self._seen = [None] * n
-        stale = [l for l, (v, s) in enumerate(zip(values, self._seen)) if v is not s]
+            self._ids = np.zeros(n, dtype=np.int64)
+        # identity test by id(): the vectors seen are kept alive in _seen, so an id
+        # cannot be reused by a new vector while it is cached
+        ids = np.fromiter(map(id, values), dtype=np.int64, count=n)
+        stale = np.flatnonzero(ids != self._ids)
+        self._ids = ids
         for l in stale:
             v = values[l].reshape(len(values[l]), -1)
             h2 = self.patches[l].grid.h ** 2
