@@ -50,15 +50,16 @@ def scene(n: int, *, seed: int = 0, min_spacing: float = 1.5):
     """Random scene of ``n`` spheres; returns (asperities, side of the square, mm)."""
     rng = np.random.default_rng(seed)
     side = 3.0 * np.sqrt(n)
-    pts = []
-    while len(pts) < n:
+    pts = np.empty((n, 2))
+    count = 0
+    while count < n:
         cand = rng.uniform(0.0, side, size=(4 * n, 2))
         for c in cand:
-            if len(pts) == n:
+            if count == n:
                 break
-            if not pts or np.min(np.hypot(*(np.array(pts) - c).T)) >= min_spacing:
-                pts.append(c)
-    pts = np.array(pts)
+            if count == 0 or np.min(np.hypot(*(pts[:count] - c).T)) >= min_spacing:
+                pts[count] = c
+                count += 1
     R = rng.uniform(2.0, 6.0, n)
     z = rng.uniform(0.0, SPREAD, n)
     asp = [Asperity(float(x), float(y), float(zz), float(r)) for (x, y), zz, r in zip(pts, z, R)]
