@@ -24,6 +24,10 @@ from ..influence.base import InfluenceProvider
 from .blocks import Coupling, scatter
 
 
+#: Patches at which the far field starts to use bins (below: every far patch on its own).
+BIN_MIN = 400
+
+
 def _lagrange3(xi: np.ndarray) -> np.ndarray:
     """Quadratic Lagrange weights at nodes -1, 0, 1 for points ``xi`` (n,) -> (n, 3)."""
     return np.column_stack([0.5 * xi * (xi - 1.0), 1.0 - xi * xi, 0.5 * xi * (xi + 1.0)])
@@ -71,6 +75,39 @@ class FarFieldCoupling(Coupling):
         self._cells: dict = {}
         self._seen: list = [None] * n
         self._F = None
+        self._bins(n)
+
+    def _bins(self, n: int) -> None:
+        """Square bins grouping the patches for the distant far field (``n >= BIN_MIN``).
+
+        Side ``b = (2 far_tol A / (pi rho))^(1/4)`` (A the scene's area, rho = n / A)
+        balances the number of bins against the sources within the bin cut; never below
+        four patch radii."""
+        self._bin = None
+        self._bin_far: dict = {}
+        if n < BIN_MIN:
+            return
+        lo = self._centres.min(axis=0)
+        span = np.maximum(self._centres.max(axis=0) - lo, 1e-12)
+        area = float(span[0] * span[1]) or float(max(span) ** 2)
+        b = max((2.0 * self.far_tol * area * area / (math.pi * n)) ** 0.25, 4.0 * float(self._radii.max()))
+        ij = np.floor((self._centres - lo) / b).astype(np.int64)
+        keys, self._bin = np.unique(ij[:, 0] * (1 << 32) + ij[:, 1], return_inverse=True)
+        self._bin = self._bin.ravel()
+        self._bin_size = b
+        self._bin_centres = lo + b * (np.column_stack([keys >> 32, keys & ((1 << 32) - 1)]) + 0.5)
+
+    def _far_bins(self, k: int) -> np.ndarray:
+        """Bins far enough from patch ``k`` to act through their total force (bool per bin)."""
+        out = self._bin_far.get(k)
+        if out is None:
+            half = self._bin_size / math.sqrt(2.0)
+            dist = np.hypot(*(self._bin_centres - self._centres[k]).T)
+            out = dist * math.sqrt(self.far_tol) >= self._radii[k] + half
+            out[self._bin[self.near(k)]] = False
+            out[self._bin[k]] = False
+            self._bin_far[k] = out
+        return out
 
     def append(self, patch) -> None:
         super().append(patch)
@@ -159,15 +196,36 @@ class FarFieldCoupling(Coupling):
         far = np.ones(len(values), bool)
         far[self.near(k)] = False
         far[k] = False
+        bins = None if self._bin is None else self._far_bins(k)
+        if bins is not None:
+            far &= ~bins[self._bin]          # sources in far bins act through the bin totals
         far &= np.any(F != 0.0, axis=1)
         W = self._interpolation(k, whole)
-        if not far.any():
-            return np.zeros((W.shape[0], F.shape[1]))
         self.far_products += 1
         stencil = self._stencil(k)
-        u9 = np.column_stack([self.provider.point_compliance(stencil, C[far, j]) @ F[far, j]
-                              for j in range(F.shape[1])])
-        return W @ u9
+        cols = []
+        for j in range(F.shape[1]):
+            pts, forces = C[far, j], F[far, j]
+            if bins is not None:
+                bp, bf = self._bin_sources(F[:, j], C[:, j], bins)
+                pts, forces = np.concatenate([pts, bp]), np.concatenate([forces, bf])
+            cols.append(self.provider.point_compliance(stencil, pts) @ forces if len(forces) else np.zeros(9))
+        return W @ np.column_stack(cols)
+
+    def _bin_sources(self, F: np.ndarray, C: np.ndarray, bins: np.ndarray):
+        """Total force of each far bin at its centre of force (bin centre when that is
+        outside the bin, e.g. forces of both signs); returns (points (M, 2), forces (M,))."""
+        nb = len(self._bin_centres)
+        Fb = np.bincount(self._bin, F, minlength=nb)
+        Mb = np.column_stack([np.bincount(self._bin, F * C[:, 0], minlength=nb),
+                              np.bincount(self._bin, F * C[:, 1], minlength=nb)])
+        use = bins & (Fb != 0.0)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            cp = Mb[use] / Fb[use, None]
+        centre = self._bin_centres[use]
+        bad = ~np.isfinite(cp).all(axis=1) | (np.abs(cp - centre).max(axis=1) > 0.5 * self._bin_size)
+        cp[bad] = centre[bad]
+        return cp, Fb[use]
 
     # ------------------------------------------------------------------ products
     def rhs(self, k: int, values: list, rhs: np.ndarray) -> np.ndarray:
