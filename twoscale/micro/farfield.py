@@ -7,6 +7,11 @@ exactly; every other patch ``l`` acts on patch ``k`` through its resultant force
 its centre of pressure (``provider.point_compliance``), evaluated at the 3 x 3 corners,
 edge midpoints and centre of patch ``k`` and interpolated biquadratically on its cells.
 
+With many patches (``BIN_MIN`` or more), far patches are grouped in square bins; a bin
+farther than ``(r_k + b / sqrt 2) / sqrt(far_tol)`` from patch ``k`` acts through its total
+force at its centre of force (side ``b`` chosen so that bins and single sources cost about
+the same), which brings the far field from ``9 N^2`` to about ``N^1.5`` kernel values per sweep.
+
 Error of one far pair, relative to that pair's displacement: the resultant at the centre of
 pressure drops the quadrupole, of order ``(r_l / dist)^2 <= far_tol``; the interpolation
 error is of order ``(r_k / dist)^3``. Memory: the near operators plus O(N) numbers for the
