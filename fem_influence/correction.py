@@ -187,13 +187,45 @@ class CorrectionSolver:
         -------
         (K, n_top) array, ordered like :attr:`top_xy`.
         """
+        full = self._solve_full(np.asarray(sources, dtype=float).reshape(-1, 2))
+        return full[2 * self._ns + self._top_dofs].T
+
+    def vertex_displacement(self, sources: np.ndarray, coefficients: np.ndarray) -> np.ndarray:
+        """Correction displacement at the mesh vertices for a combination of sources, mm (E = 1 MPa).
+
+        The problem is linear in the load, so the field of the forces ``coefficients[k]``
+        (N) at ``sources[k]`` is one solve with the summed right-hand side.
+
+        Parameters
+        ----------
+        sources : (K, 2) array
+            Force positions on the top face, block frame, mm.
+        coefficients : (K,) array
+            Forces, N.
+
+        Returns
+        -------
+        (n_vertices, 3) array ``(u_x, u_y, u_depth)`` at ``mesh.p`` (depth positive into the block).
+        """
         sources = np.asarray(sources, dtype=float).reshape(-1, 2)
+        c = np.asarray(coefficients, dtype=float).reshape(-1)
+        if len(c) != len(sources):
+            raise ValueError(f"coefficients has {len(c)} entries, sources {len(sources)}")
+        full = self._solve_full(sources, c)[:, 0]
+        nv = self.mesh.p.shape[1]
+        # ElementHex2 numbers the vertex dofs first, in mesh.p order
+        return np.column_stack([full[a * self._ns: a * self._ns + nv] for a in range(3)])
+
+    def _solve_full(self, sources: np.ndarray, combine: np.ndarray | None = None) -> np.ndarray:
+        """All displacement/pressure dofs, one column per source (or one column for ``combine``)."""
         F = np.empty((len(self._free), len(sources)))
         U = np.empty((len(self._fixed), len(sources)))
         for k, s in enumerate(sources):
             f, ud = self._rhs(s)
             F[:, k] = f[self._free]
             U[:, k] = ud
+        if combine is not None:
+            F, U = F @ combine[:, None], U @ combine[:, None]
         b = F - self._A_fd @ U
         x = self._lu.solve(b)
         bn = np.maximum(np.linalg.norm(b, axis=0), 1e-300)
@@ -209,10 +241,10 @@ class CorrectionSolver:
         if res.max() > RESIDUAL_TOL:
             raise RuntimeError(f"correction solve inaccurate: relative residual {res.max():.2e} > "
                                f"{RESIDUAL_TOL:.0e} after 3 refinement steps (mesh, nu={self.nu}, base={self.base})")
-        full = np.zeros((self._n, len(sources)))
+        full = np.zeros((self._n, U.shape[1]))
         full[self._free] = x
         full[self._fixed] = U
-        return full[2 * self._ns + self._top_dofs].T
+        return full
 
 
 def _rigid_pins(doflocs: np.ndarray, base_dofs: np.ndarray, ns: int) -> np.ndarray:

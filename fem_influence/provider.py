@@ -294,6 +294,49 @@ class BlockProvider(InfluenceProvider):
         nodes, W = self._weights(sources)
         return np.asarray((W.T @ self._top_values(targets, nodes).T).T)
 
+    def displacement_field(self, points, forces, *, aggregate: float = 1.0):
+        """Displacement inside the block for surface point forces (mm, N).
+
+        Parameters
+        ----------
+        points : (N, 2) array
+            Force positions on the top face, scene frame, mm (e.g. loaded micro-cell centres).
+        forces : (N,) array
+            Forces into the block, N (e.g. ``h^2 p``).
+        aggregate : float, default 1
+            Side of the square bins (mm) the forces are merged into for the Boussinesq
+            part (0: every force on its own); see :mod:`fem_influence.field` for where
+            this approximation is poor (nodes within a few bins of the loaded surface).
+
+        Returns
+        -------
+        fem_influence.field.BlockField
+            Vertices (scene frame x, y and depth) and ``(n, 3)`` displacements.
+        """
+        from .correction import CorrectionSolver
+        from .field import BlockField, aggregate_forces, halfspace_field
+
+        P = np.asarray(points, dtype=float).reshape(-1, 2)
+        f = np.asarray(forces, dtype=float).reshape(-1)
+        if len(f) != len(P) or not (np.isfinite(P).all() and np.isfinite(f).all()):
+            raise ValueError(f"points ({P.shape}) and forces ({f.shape}) must be finite, one force per point")
+        st = self._state
+        nodes_xyz = self.mesh.p.T.copy()
+        nodes_xyz[:, :2] -= np.asarray(self.origin)
+        S, F = aggregate_forces(P, f, aggregate)
+        lift = aggregate if aggregate > 0 else 1e-3 * self.source_spacing
+        u_b = halfspace_field(nodes_xyz, S, F, self.material, lift=lift)
+        u_c = np.zeros_like(u_b)
+        if len(f):
+            lattice, W = self._weights(P)
+            coeff = W @ f                                  # force carried by each lattice node, N
+            if st.solver is None:
+                st.solver = CorrectionSolver.build(self.mesh, self.material.nu, self.base)
+            u_c = st.solver.vertex_displacement(lattice * self.source_spacing, coeff) / self.material.E
+        return BlockField(points=nodes_xyz, displacement=u_b + u_c, halfspace=u_b,
+                          cells=np.asarray(self.mesh.t.T, dtype=np.int64), n_forces=len(F),
+                          total_force=float(f.sum()), aggregate=float(aggregate))
+
     # ------------------------------------------------------------------ the contract
     def point_compliance(self, targets, sources):
         return self._halfspace.point_compliance(targets, sources) + self.correction(targets, sources)

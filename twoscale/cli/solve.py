@@ -1,6 +1,6 @@
 """Solve a scene file; print a summary and write DIR/result.json (+ fields.vtu, pressure.png, forces.png).
 
-``twoscale solve SCENE.toml [--method twoscale|reference] [--out DIR] [--h H] [--quiet]``
+``twoscale solve SCENE.toml [--method twoscale|reference] [--out DIR] [--h H] [--block-field] [--quiet]``
 
 Exit codes: 0 converged; 1 not converged (result.json still written, with
 ``converged = false`` and the solver's message); 2 bad input (one ``error: ...`` line
@@ -34,6 +34,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                              "(DIR created after a successful solve)")
     parser.add_argument("--h", metavar="H", default=None,
                         help="cell size in mm, overriding [grid] h of the scene")
+    parser.add_argument("--block-field", action="store_true",
+                        help="with [influence] kind = \"block\" and --out: also write "
+                             "DIR/block_displacement.vtu (displacement inside the block)")
     parser.add_argument("--quiet", action="store_true", help="print nothing but errors")
 
 
@@ -63,6 +66,12 @@ def run(args: argparse.Namespace) -> int:
         h = positive_option(args.h, "--h", unit="mm")
         if h is not None:
             scene = dataclasses.replace(scene, h=h)
+        if getattr(args, "block_field", False):
+            if scene.influence["kind"] != "block":
+                raise SceneError(f"--block-field needs [influence] kind = \"block\", "
+                                 f"got kind = {scene.influence['kind']!r}")
+            if args.out is None:
+                raise SceneError("--block-field needs --out DIR")
         t0 = time.perf_counter()
         quiet_block = {"progress": False} if args.quiet and scene.influence["kind"] == "block" else None
         result = solve_scene(scene, method=args.method, provider_options=quiet_block)
@@ -73,12 +82,24 @@ def run(args: argparse.Namespace) -> int:
     path = write_result(result, scene, args.out, method=args.method) if args.out is not None else None
     if args.out is not None:  # fields.vtu, pressure.png, forces.png beside result.json
         write_fields_and_figures(result, scene, args.out)
+        if getattr(args, "block_field", False):
+            write_block_field_file(result, scene, args.out, quiet=args.quiet)
     if not args.quiet:
         print(summary(result_to_dict(result, scene, method=args.method), args.scene, wall, path))
     if not result.converged:
         print(f"warning: the solve did not converge: {result.message}", file=sys.stderr)
         return 1
     return 0
+
+
+def write_block_field_file(result, scene, out_dir, *, quiet: bool = False):
+    """Write ``DIR/block_displacement.vtu`` for a block scene (see :mod:`twoscale.io.block_field`)."""
+    from ..io.block_field import BLOCK_FIELD_NAME, write_block_field
+    from ..io.scene_file import scene_to_dict
+    from pathlib import Path
+
+    provider = scene.provider(**({"progress": False} if quiet else {}))
+    return write_block_field(result, provider, Path(out_dir) / BLOCK_FIELD_NAME, scene=scene_to_dict(scene))
 
 
 def summary(res: dict, scene_path: str, wall: float, path) -> str:
