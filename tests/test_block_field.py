@@ -146,6 +146,13 @@ def test_cli_block_field_round_trip(tmp_path, monkeypatch):
     assert meta["scene"] == res["scene"]
     assert meta["total_force"] == pytest.approx(res["total_load"], rel=1e-9)
     assert content.cells.shape[1] == 8 and content.points.shape == content.displacement.shape
+    # VTK hexahedra: vertical edges 0-4, 1-5, 2-6, 3-7 and a positive volume (the mirrored
+    # z axis must not turn the cells inside out); their volumes add up to the block's
+    X = content.points[content.cells]
+    a, b, e = X[:, 1] - X[:, 0], X[:, 3] - X[:, 0], X[:, 4] - X[:, 0]
+    vol = np.einsum("ij,ij->i", np.cross(a, b), e)
+    assert np.all(vol > 0)
+    assert vol.sum() == pytest.approx(60.0 * 60.0 * 10.0, rel=1e-12)
     # z up in the file: the top face sits at z = 0, the pressed surface moves down
     assert content.points[:, 2].max() == 0.0 and content.points[:, 2].min() == pytest.approx(-10.0)
     # far from the load: point compliance (depth-positive) times the total force at the

@@ -92,7 +92,9 @@ def write_block_field(result: ContactResult, provider, path, *, scene: dict | No
     fld = provider.displacement_field(P, F, aggregate=aggregate)
     up = np.array([1.0, 1.0, -1.0])
     points = fld.points * up
-    cells = fld.cells[:, HEX_MAPPING[:8]]
+    # z = -depth mirrors the mesh: swap the two quad faces so VTK hexahedra keep a
+    # positive volume
+    cells = fld.cells[:, HEX_MAPPING[:8]][:, [4, 5, 6, 7, 0, 1, 2, 3]]
     mesh = meshio.Mesh(points, [("hexahedron", cells)], point_data={
         "displacement_mm": fld.displacement * up,
         "displacement_halfspace_mm": fld.halfspace * up,
