@@ -85,7 +85,10 @@ def solve_twoscale(provider: InfluenceProvider, asperities: Sequence[Asperity], 
     far_tol : float or None, default None
         Micro step cross-patch coupling: None = exact; a number in (0, 1) approximates
         patches farther apart than ``(r_k + r_l) / sqrt(far_tol)`` by their resultant
-        force (many asperities; see :mod:`twoscale.micro.farfield`).
+        force (many asperities; see :mod:`twoscale.micro.farfield`). With it, patches are
+        also sized from the macro local penetrations (bulk deflection included) plus a
+        slack of 20 % of the largest one, instead of the geometric approach ``d - z_k``:
+        with thousands of asperities the bulk deflection makes ``d - z_k > 0`` for all.
 
     Returns
     -------
@@ -105,9 +108,18 @@ def solve_twoscale(provider: InfluenceProvider, asperities: Sequence[Asperity], 
     micro = solve_micro(provider, asperities, h=h, forces=np.asarray(macro.forces), penetration=macro.penetration,
                         tilt=macro.tilt, pivot=pivot, total_load=total_load, free_tilt=tilt, tol=tol,
                         max_sweeps=max_sweeps, margin=margin, anchor=anchor, dense_max_cells=dense_max_cells,
-                        size_from_forces=bool(macro.converged), far_tol=far_tol)
+                        size_from_forces=bool(macro.converged), far_tol=far_tol,
+                        sizing_approaches=_sizing(macro, far_tol))
     t2 = time.perf_counter()
     return _result(asperities, macro, micro, h, {"macro": t1 - t0, "micro": t2 - t1, "total": t2 - t0})
+
+
+def _sizing(macro, far_tol):
+    # patch sizing from the macro local penetrations (many-asperity mode only)
+    if far_tol is None or not macro.converged:
+        return None
+    delta = np.asarray(macro.local_penetrations, dtype=float)
+    return delta + 0.2 * max(float(delta.max()), 0.0)
 
 
 def _result(asperities, macro, micro, h, timings) -> ContactResult:

@@ -207,7 +207,8 @@ def solve_micro(provider: InfluenceProvider, asperities: Sequence[Asperity], *, 
                 margin: float = 1.3, anchor: tuple[float, float] = (0.0, 0.0),
                 dense_max_cells: int = 400, dense_max_entries: int = 40_000,
                 max_corrections: int = 20, max_growths: int = 50,
-                size_from_forces: bool = True, far_tol: float | None = None) -> MicroResult:
+                size_from_forces: bool = True, far_tol: float | None = None,
+                sizing_approaches: np.ndarray | None = None) -> MicroResult:
     """Pressure on patches from the macro forces (METHOD.md section 3).
 
     Parameters
@@ -253,11 +254,18 @@ def solve_micro(provider: InfluenceProvider, asperities: Sequence[Asperity], *, 
         than ``(r_k + r_l) / sqrt(far_tol)`` act through their resultant force
         (:class:`~.farfield.FarFieldCoupling`; relative error per far pair about
         ``far_tol``), for scenes with many asperities.
+    sizing_approaches : (N,) array or None, default None
+        Approach of each tip used to size the patches, mm (<= 0: no patch); default the
+        geometric ``d - z_k - tilt``. Asperities penetrating outside every block are still
+        given a patch by the growth step.
     """
     theta = np.array([penetration, *(tilt if tilt is not None else (0.0, 0.0))], dtype=float)
     n_unknowns = 0 if total_load is None else (3 if free_tilt else 1)
     sizing = np.asarray(forces, dtype=float) if size_from_forces else np.full(len(asperities), np.inf)
-    patches = build_patches(asperities, h=h, forces=sizing, approaches=_tip_approaches(asperities, theta, pivot),
+    approaches = _tip_approaches(asperities, theta, pivot)
+    if sizing_approaches is not None:
+        approaches = np.minimum(approaches, np.asarray(sizing_approaches, dtype=float))
+    patches = build_patches(asperities, h=h, forces=sizing, approaches=approaches,
                             E_star=provider.material.E_star, margin=margin, anchor=anchor)
     state = _State(provider, asperities, patches, dense_max_cells, dense_max_entries, far_tol)
     if not patches:
