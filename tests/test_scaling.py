@@ -134,3 +134,22 @@ def test_binned_far_field_close_to_exact(monkeypatch, far_tol):
         assert np.max(np.abs(ua - ue)) <= far_tol * np.max(np.abs(ue))
         used += int(approx._far_bins(k).sum())
     assert used > 0
+
+
+def test_sizing_approaches_validated_and_used():
+    from twoscale.micro import solve_micro
+    # second tip: geometric approach 1e-4 mm, but the first one's load (~0.2 N) lowers the
+    # body there by P / (pi E* r) ~ 1e-3 mm, so it does not touch
+    asp = [Asperity(0.0, 0.0, 0.0, 4.0), Asperity(5.0, 0.0, 0.0199, 4.0)]
+    kw = dict(h=0.05, forces=np.array([0.2, 0.0]), penetration=0.02)
+    with pytest.raises(ValueError, match="sizing_approaches"):
+        solve_micro(HS, asp, sizing_approaches=np.zeros(3), **kw)
+    full = solve_micro(HS, asp, **kw)
+    small = solve_micro(HS, asp, sizing_approaches=np.array([0.02, -1.0]), **kw)
+    # the second tip gets a patch only by default, and carries nothing either way
+    assert len(full.patches) == 2 and len(small.patches) == 1
+    assert full.converged and small.converged
+    p_full = sum(0.05 ** 2 * p.sum() for p in full.pressures)
+    p_small = sum(0.05 ** 2 * p.sum() for p in small.pressures)
+    assert p_small == pytest.approx(p_full, rel=1e-9)
+    assert np.all(full.pressures[1] == 0.0)

@@ -264,7 +264,11 @@ def solve_micro(provider: InfluenceProvider, asperities: Sequence[Asperity], *, 
     sizing = np.asarray(forces, dtype=float) if size_from_forces else np.full(len(asperities), np.inf)
     approaches = _tip_approaches(asperities, theta, pivot)
     if sizing_approaches is not None:
-        approaches = np.minimum(approaches, np.asarray(sizing_approaches, dtype=float))
+        sizing_approaches = np.asarray(sizing_approaches, dtype=float)
+        if sizing_approaches.shape != approaches.shape or not np.all(np.isfinite(sizing_approaches)):
+            raise ValueError(f"sizing_approaches must be {len(approaches)} finite numbers (mm), "
+                             f"got shape {sizing_approaches.shape}")
+        approaches = np.minimum(approaches, sizing_approaches)
     patches = build_patches(asperities, h=h, forces=sizing, approaches=approaches,
                             E_star=provider.material.E_star, margin=margin, anchor=anchor)
     state = _State(provider, asperities, patches, dense_max_cells, dense_max_entries, far_tol)
