@@ -4,5 +4,6 @@ Every solver takes an :class:`InfluenceProvider` and never knows which body it h
 """
 from .base import InfluenceProvider, GridOperator
 from .halfspace import HalfSpace
+from .points import DensePointOperator, PointOperator
 
-__all__ = ["InfluenceProvider", "GridOperator", "HalfSpace"]
+__all__ = ["InfluenceProvider", "GridOperator", "HalfSpace", "PointOperator", "DensePointOperator"]

@@ -23,6 +23,7 @@ import numpy as np
 
 from ..grid import Grid
 from ..material import Material
+from .points import DensePointOperator, PointOperator
 
 
 class GridOperator(ABC):
@@ -98,6 +99,30 @@ class InfluenceProvider(ABC):
     def grid_operator(self, target: Grid, source: Grid | None = None) -> GridOperator:
         """Fast product from pressure on ``source`` (default: ``target``) to
         displacement on ``target``; both grids must share ``h`` and lattice."""
+
+    def point_operator(self, targets: np.ndarray, sources: np.ndarray, *, exclude=None,
+                       rtol: float = 1e-6) -> PointOperator:
+        """Sum of point-force displacements ``u_i = sum_j G(t_i, s_j) F_j`` without
+        keeping the ``(M, N)`` matrix (:mod:`twoscale.influence.points`).
+
+        Parameters
+        ----------
+        targets : (M, 2) array, mm
+        sources : (N, 2) array, mm
+        exclude : sparse (M, N), optional
+            Pairs left out of the sum (its stored entries). Coincident points always
+            contribute nothing.
+        rtol : float, default 1e-6
+            Accuracy a fast operator must keep, relative to ``max |u|`` for forces of one
+            sign; the default operator is exact and ignores it.
+
+        Returns
+        -------
+        PointOperator
+        """
+        if not (np.isfinite(rtol) and 0.0 < rtol < 1.0):
+            raise ValueError(f"rtol must be in (0, 1), got {rtol!r}")
+        return DensePointOperator(self.point_compliance, targets, sources, exclude)
 
     def smooth_self_compliance(self, points: np.ndarray) -> np.ndarray:
         """Regular part of the point compliance at coincident points, mm/N, shape (N,).
