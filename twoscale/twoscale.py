@@ -47,7 +47,7 @@ def solve_twoscale(provider: InfluenceProvider, asperities: Sequence[Asperity], 
                    max_sweeps: int = 100, laws=None, margin: float = 1.3,
                    anchor: tuple[float, float] = (0.0, 0.0), dense_max_cells: int = 400,
                    macro_tol: float = 1e-10, macro_max_iter: int = 100,
-                   far_tol: float | None = None) -> ContactResult:
+                   far_tol: float | None = None, coarse: bool = False) -> ContactResult:
     """Multi-asperity contact by the two-scale iterative method.
 
     Parameters
@@ -89,6 +89,10 @@ def solve_twoscale(provider: InfluenceProvider, asperities: Sequence[Asperity], 
         also sized from the macro local penetrations (bulk deflection included) plus a
         slack of 20 % of the largest one, instead of the geometric approach ``d - z_k``:
         with thousands of asperities the bulk deflection makes ``d - z_k > 0`` for all.
+    coarse : bool, default False
+        With ``far_tol``: two-level micro iteration (far field once per sweep through the
+        provider's point operator, coarse correction by the linearised macro equations;
+        :mod:`twoscale.micro.twolevel`), for thousands of asperities.
 
     Returns
     -------
@@ -109,7 +113,7 @@ def solve_twoscale(provider: InfluenceProvider, asperities: Sequence[Asperity], 
                         tilt=macro.tilt, pivot=pivot, total_load=total_load, free_tilt=tilt, tol=tol,
                         max_sweeps=max_sweeps, margin=margin, anchor=anchor, dense_max_cells=dense_max_cells,
                         size_from_forces=bool(macro.converged), far_tol=far_tol,
-                        sizing_approaches=_sizing(macro, far_tol))
+                        sizing_approaches=_sizing(macro, far_tol), coarse=coarse)
     t2 = time.perf_counter()
     return _result(asperities, macro, micro, h, {"macro": t1 - t0, "micro": t2 - t1, "total": t2 - t0})
 

@@ -259,3 +259,78 @@ class FarFieldCoupling(Coupling):
             if np.any(v):
                 u += self.full_operator(k, int(l)).apply(scatter(self.patches[l], v))
         return u + self._far(k, values, whole=True)[:, 0].reshape(u.shape)
+
+
+class LaggedFarField(FarFieldCoupling):
+    """:class:`FarFieldCoupling` whose far field is computed for every block at once and
+    held until :meth:`refresh` (a Jacobi far field inside a Gauss-Seidel sweep).
+
+    The far patches act through their resultant force placed at their asperity's tip; the
+    displacement at the 3 x 3 stencils of all blocks is one ``provider.point_operator``
+    product (an FFT for the half-space, exact chunks otherwise) with the near pairs and the
+    block itself excluded. Per sweep this costs ``O(N)`` (fast operator) instead of the
+    ``9 N^2`` kernel values of :class:`FarFieldCoupling`. Held values are stale for the
+    blocks updated since the last refresh: the two-level iteration (:mod:`.twolevel`)
+    refreshes once per sweep and corrects the smooth error that this leaves by its
+    coarse step.
+
+    Parameters
+    ----------
+    provider, patches, far_tol : as :class:`FarFieldCoupling`
+    tips : (N_asperities, 2) array, mm
+        Tip of every asperity of the scene (the source point of its patch).
+    rtol : float, default 1e-6
+        Accuracy asked of the provider's point operator.
+    """
+
+    def __init__(self, provider: InfluenceProvider, patches, *, tips: np.ndarray, far_tol: float = 0.2,
+                 rtol: float = 1e-6, **kwargs):
+        self._tips = np.asarray(tips, dtype=float)
+        self._rtol = float(rtol)
+        self._op = None
+        self._table = None
+        super().__init__(provider, patches, far_tol=far_tol, **kwargs)
+
+    def _reset(self) -> None:
+        super()._reset()
+        self._op = None
+        self._table = None
+
+    def near_pattern(self):
+        """Sparse (N, N) pattern of the near pairs (patch indices, ``k`` excluded)."""
+        import scipy.sparse as sp
+        n = len(self.patches)
+        rows = [np.full(len(self.near(k)), k) for k in range(n)]
+        cols = [self.near(k) for k in range(n)]
+        rows, cols = (np.concatenate(rows), np.concatenate(cols)) if n else (np.zeros(0, int), np.zeros(0, int))
+        return sp.csr_matrix((np.ones(len(rows)), (rows, cols)), shape=(n, n))
+
+    def _point_operator(self):
+        if self._op is None:
+            import scipy.sparse as sp
+            n = len(self.patches)
+            sources = self._tips[[pt.asperity for pt in self.patches]]
+            targets = np.concatenate([self._stencil(k) for k in range(n)])
+            near = self.near_pattern() + sp.identity(n, format="csr")
+            # stencil row 9k + i excludes the sources near patch k and k itself
+            exclude = sp.kron(near, np.ones((9, 1)), format="csr")
+            self._op = self.provider.point_operator(targets, sources, exclude=exclude, rtol=self._rtol)
+        return self._op
+
+    def refresh(self, values: list) -> None:
+        """Recompute the far field on every stencil from the block vectors ``values``."""
+        n = len(self.patches)
+        first = next((v for v in values if v is not None and v.size), None)
+        m = 1 if first is None or first.ndim == 1 else first.shape[1]
+        F = np.zeros((n, m))
+        for l, v in enumerate(values):
+            F[l] = self.patches[l].grid.h ** 2 * v.reshape(len(v), -1).sum(axis=0)
+        self._table = self._point_operator().apply(F).reshape(n, 9, m)
+        self.far_products += 1
+
+    def _far(self, k: int, values: list, whole: bool) -> np.ndarray:
+        first = next((v for v in values if v is not None and v.size), None)
+        m = 1 if first is None or first.ndim == 1 else first.shape[1]
+        if self._table is None or self._table.shape[2] != m:
+            self.refresh(values)
+        return self._interpolation(k, whole) @ self._table[k]

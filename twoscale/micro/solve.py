@@ -9,7 +9,8 @@ import numpy as np
 from ..indenters import Asperity, Tilt
 from ..influence.base import InfluenceProvider
 from .blocks import Coupling, LocalBlock, scatter
-from .farfield import FarFieldCoupling
+from .farfield import FarFieldCoupling, LaggedFarField
+from .twolevel import two_level
 from .constraints import newton_step, resultants, rhs_derivatives
 from .gauss_seidel import coupled_rhs, gauss_seidel, linear_gauss_seidel
 from .local import initial_pressure
@@ -67,17 +68,25 @@ SENSITIVITY_TOL = 1e-3
 class _State:
     """Mutable working set of the micro step (patches, blocks, pressures); internal."""
 
-    def __init__(self, provider, asperities, patches, dense_max_cells, dense_max_entries, far_tol=None):
+    def __init__(self, provider, asperities, patches, dense_max_cells, dense_max_entries, far_tol=None,
+                 lagged=False):
         self.provider, self.asperities = provider, asperities
         self.dense_max_cells = dense_max_cells
         self.patches = list(patches)
         self.blocks = [LocalBlock(provider, pt, dense_max_cells=dense_max_cells) for pt in self.patches]
         if far_tol is None:
             self.coupling = Coupling(provider, self.patches, dense_max_entries=dense_max_entries)
+        elif lagged:
+            self.coupling = LaggedFarField(provider, self.patches, tips=self.tips(), far_tol=far_tol,
+                                           dense_max_entries=dense_max_entries)
         else:
             self.coupling = FarFieldCoupling(provider, self.patches, far_tol=far_tol,
                                              dense_max_entries=dense_max_entries)
         self.sensitivities = None
+
+    def tips(self) -> np.ndarray:
+        """Tip of every asperity of the scene, (N, 2) mm."""
+        return np.array([[a.x, a.y] for a in self.asperities], dtype=float).reshape(-1, 2)
 
     def heights(self, theta, pivot):
         """Indenter height with tilt on every block (list of (n_k,) arrays), mm."""
@@ -208,7 +217,7 @@ def solve_micro(provider: InfluenceProvider, asperities: Sequence[Asperity], *, 
                 dense_max_cells: int = 400, dense_max_entries: int = 40_000,
                 max_corrections: int = 20, max_growths: int = 50,
                 size_from_forces: bool = True, far_tol: float | None = None,
-                sizing_approaches: np.ndarray | None = None) -> MicroResult:
+                sizing_approaches: np.ndarray | None = None, coarse: bool = False) -> MicroResult:
     """Pressure on patches from the macro forces (METHOD.md section 3).
 
     Parameters
@@ -258,7 +267,15 @@ def solve_micro(provider: InfluenceProvider, asperities: Sequence[Asperity], *, 
         Approach of each tip used to size the patches, mm (<= 0: no patch); default the
         geometric ``d - z_k - tilt``. Asperities penetrating outside every block are still
         given a patch by the growth step.
+    coarse : bool, default False
+        Two-level iteration (:mod:`.twolevel`, needs ``far_tol``): the far field is
+        evaluated for all blocks once per sweep by the provider's point operator, and a
+        coarse correction (the linearised macro equations on the sweep's resultant changes,
+        :mod:`.coarse`) removes the bulk error and corrects the approach and tilt, in place
+        of the sensitivity sweeps. For thousands of asperities.
     """
+    if coarse and far_tol is None:
+        raise ValueError("coarse=True needs far_tol (the two-level iteration holds the far field by resultants)")
     theta = np.array([penetration, *(tilt if tilt is not None else (0.0, 0.0))], dtype=float)
     n_unknowns = 0 if total_load is None else (3 if free_tilt else 1)
     sizing = np.asarray(forces, dtype=float) if size_from_forces else np.full(len(asperities), np.inf)
@@ -271,7 +288,7 @@ def solve_micro(provider: InfluenceProvider, asperities: Sequence[Asperity], *, 
         approaches = np.minimum(approaches, sizing_approaches)
     patches = build_patches(asperities, h=h, forces=sizing, approaches=approaches,
                             E_star=provider.material.E_star, margin=margin, anchor=anchor)
-    state = _State(provider, asperities, patches, dense_max_cells, dense_max_entries, far_tol)
+    state = _State(provider, asperities, patches, dense_max_cells, dense_max_entries, far_tol, lagged=coarse)
     if not patches:
         return _finish(state, [], [], theta, tilt, pivot, True, "no asperity reaches the body",
                        {"sweeps": 0, "corrections": 0, "growths": 0, "linear_sweeps": 0}, ())
@@ -284,6 +301,10 @@ def solve_micro(provider: InfluenceProvider, asperities: Sequence[Asperity], *, 
         return {"sweeps": sweeps, "corrections": corrections, "growths": growths, "linear_sweeps": linear_sweeps}
 
     target = None if total_load is None else np.array([total_load, 0.0, 0.0])[:n_unknowns]
+    if coarse:
+        out_tilt = (tilt if tilt is not None else (0.0, 0.0)) if (tilt is not None or free_tilt) else None
+        return _solve_two_level(state, p, p0, theta, out_tilt, pivot, n_unknowns, target, tol=tol,
+                                max_sweeps=max_sweeps, max_growths=max_growths)
     while True:
         z = state.heights(theta, pivot)
         can_grow = growths < max_growths
@@ -316,6 +337,47 @@ def solve_micro(provider: InfluenceProvider, asperities: Sequence[Asperity], *, 
         if done:
             break
     out_tilt = (float(theta[1]), float(theta[2])) if (tilt is not None or free_tilt) else None
+    return _finish(state, p, p0, theta, out_tilt, pivot, True, "", counts(), history)
+
+
+def _solve_two_level(state: _State, p: list, p0: list, theta, tilt, pivot, n_unknowns, target, *,
+                     tol: float, max_sweeps: int, max_growths: int) -> MicroResult:
+    """The micro step by two-level block Gauss-Seidel (:mod:`.twolevel`), with patch growth."""
+    sweeps = growths = 0
+    history: list = []
+    tips = state.tips()
+
+    def counts():
+        return {"sweeps": sweeps, "corrections": sweeps if n_unknowns else 0, "growths": growths,
+                "linear_sweeps": 0}
+
+    while True:
+        can_grow = growths < max_growths
+        res = two_level(state.blocks, state.coupling, tips[[pt.asperity for pt in state.patches]],
+                        lambda th: state.heights(th, pivot), p, theta, pivot=pivot, n_unknowns=n_unknowns,
+                        target=target, tol=tol, max_sweeps=max(max_sweeps - sweeps, 1),
+                        stop=(lambda q: _edges_loaded(state, q)) if can_grow else None)
+        sweeps += res.sweeps
+        history += res.history
+        p, theta = res.pressures, res.theta
+        state.coupling.refresh(p)
+        if res.converged or res.message == "stopped":
+            grown = _grow(state, p, p0, theta, pivot, tol) if can_grow else 0
+            if grown:
+                growths += grown
+                continue
+        if not res.converged:
+            return _finish(state, p, p0, theta, tilt, pivot, False, res.message, counts(), history)
+        if _edges_loaded(state, p):
+            return _finish(state, p, p0, theta, tilt, pivot, False,
+                           f"pressure still reaches a patch edge after {max_growths} enlargements", counts(), history)
+        break
+    if n_unknowns:
+        residual = np.asarray(target) - np.atleast_1d(resultants(state.patches, p, pivot, n_unknowns))
+        if abs(residual[0]) > 10.0 * tol * abs(target[0]):
+            return _finish(state, p, p0, theta, tilt, pivot, False,
+                           f"two-level iteration stopped with load residual {residual[0]:.3g} N", counts(), history)
+    out_tilt = (float(theta[1]), float(theta[2])) if tilt is not None else None
     return _finish(state, p, p0, theta, out_tilt, pivot, True, "", counts(), history)
 
 

@@ -1,0 +1,131 @@
+"""Two-level micro iteration (issue 6): lagged far field + coarse correction.
+
+Independent checks: whole solves with ``coarse=True`` against the same solves with every
+cross-patch pair exact (plain block Gauss-Seidel, eq. 8), in the three load modes; the
+load and moment equations against their closed-form statement; the coarse step against
+its defining property (zero at a fixed point, exact load after the step).
+"""
+import numpy as np
+import pytest
+
+from twoscale import Material
+from twoscale.indenters import Asperity
+from twoscale.influence import HalfSpace
+from twoscale.micro import solve_micro
+from twoscale.micro.coarse import CoarseSpace, _block_cg
+from twoscale.twoscale import solve_twoscale
+
+MAT = Material(10.0, 0.5)
+HS = HalfSpace(MAT)
+
+
+def _scene(n, seed, side, spread=0.06):
+    rng = np.random.default_rng(seed)
+    pts = []
+    while len(pts) < n:
+        c = rng.uniform(0.0, side, 2)
+        if not pts or np.min(np.hypot(*(np.array(pts) - c).T)) >= 1.5:
+            pts.append(c)
+    R = rng.uniform(2.0, 6.0, n)
+    z = rng.uniform(0.0, spread, n)
+    return [Asperity(float(x), float(y), float(zz), float(r)) for (x, y), zz, r in zip(pts, z, R)]
+
+
+def _compare(exact, approx, bound):
+    fe, fa = np.asarray(exact.asperities.forces), np.asarray(approx.asperities.forces)
+    touching = fe > 0.05 * fe[fe > 0].mean()
+    assert 0.3 <= np.mean(fe > 0) <= 0.95
+    assert np.max(np.abs(fa - fe)[touching] / fe[touching]) <= bound
+
+
+@pytest.mark.parametrize("seed", [0, 1])
+def test_two_level_load_control_matches_exact_coupling(seed):
+    # 60 spheres on 24 mm, far_tol = 0.01: within 0.5 % of the exact coupling per
+    # asperity (the far field by resultants at the tips is the only approximation)
+    asp = _scene(60, seed, 24.0)
+    kw = dict(h=0.1, total_load=3.0, tol=1e-7, max_sweeps=200)
+    exact = solve_twoscale(HS, asp, **kw)
+    approx = solve_twoscale(HS, asp, far_tol=0.01, coarse=True, **kw)
+    assert exact.converged and approx.converged, approx.message
+    _compare(exact, approx, 5e-3)
+    assert np.asarray(approx.asperities.forces).sum() == pytest.approx(3.0, rel=1e-6)
+    assert approx.iterations["sensitivity_sweeps"] == 0
+
+
+def test_two_level_penetration_control_matches_exact_coupling():
+    asp = _scene(50, 2, 22.0)
+    kw = dict(h=0.1, penetration=0.05, tol=1e-7, max_sweeps=200)
+    exact = solve_twoscale(HS, asp, **kw)
+    approx = solve_twoscale(HS, asp, far_tol=0.01, coarse=True, **kw)
+    assert exact.converged and approx.converged, approx.message
+    assert approx.penetration == 0.05
+    _compare(exact, approx, 5e-3)
+
+
+def test_two_level_tilt_meets_load_and_moments():
+    # ball-and-socket joint: total load and both moments about the pivot vanish to 1e-6
+    # of (W, W * RMS arm), and the forces and angles match the exact coupling
+    asp = _scene(40, 3, 20.0)
+    pivot = (9.0, 11.0)
+    kw = dict(h=0.1, total_load=2.5, tilt=True, pivot=pivot, tol=1e-7, max_sweeps=300)
+    exact = solve_twoscale(HS, asp, **kw)
+    approx = solve_twoscale(HS, asp, far_tol=0.01, coarse=True, **kw)
+    assert exact.converged and approx.converged, approx.message
+    W = 0.0
+    Mx = My = 0.0
+    for f in approx.fields:
+        X, Y = f.grid.centres()
+        w = f.grid.h ** 2 * f.pressure
+        W += w.sum()
+        Mx += ((Y - pivot[1]) * w).sum()
+        My += ((X - pivot[0]) * w).sum()
+    arm = np.sqrt(np.mean([(a.x - pivot[0]) ** 2 + (a.y - pivot[1]) ** 2 for a in asp]))
+    assert W == pytest.approx(2.5, rel=1e-6)
+    assert abs(Mx) <= 1e-6 * 2.5 * arm and abs(My) <= 1e-6 * 2.5 * arm
+    assert np.allclose(approx.tilt, exact.tilt, rtol=1e-2, atol=1e-6)
+    _compare(exact, approx, 5e-3)
+
+
+def test_coarse_needs_far_tol():
+    asp = _scene(3, 0, 6.0)
+    with pytest.raises(ValueError, match="coarse"):
+        solve_micro(HS, asp, h=0.1, forces=np.ones(3), penetration=0.05, coarse=True)
+
+
+def test_coarse_step_vanishes_at_a_fixed_point_and_meets_the_load():
+    from twoscale.micro.blocks import LocalBlock
+    from twoscale.micro.patches import build_patches
+    asp = _scene(8, 4, 12.0)
+    patches = build_patches(asp, h=0.1, forces=np.full(8, np.inf), approaches=np.full(8, 0.06),
+                            E_star=MAT.E_star, margin=1.3, anchor=(0.0, 0.0))
+    blocks = [LocalBlock(HS, pt) for pt in patches]
+    rng = np.random.default_rng(0)
+    p = [np.where(rng.random(b.n) < 0.5, rng.random(b.n), 0.0) for b in blocks]
+    active = [v > 0 for v in p]
+    tips = np.array([[asp[pt.asperity].x, asp[pt.asperity].y] for pt in patches])
+    import scipy.sparse as sp
+    coarse = CoarseSpace(HS, tips, sp.csr_matrix((len(patches), len(patches))))
+    theta = np.array([0.05, 0.0, 0.0])
+    # no change in the sweep, penetration control: nothing to correct
+    step = coarse.correct(blocks, patches, p, active, np.zeros(len(patches)), theta, pivot=(0.0, 0.0),
+                          n_unknowns=0, target=None)
+    assert all(np.array_equal(a, b) for a, b in zip(step.pressures, p))
+    assert np.array_equal(step.theta, theta)
+    # load control: after the step the pressures carry the load exactly (no clipping here)
+    W = sum(0.01 * v.sum() for v in p) * 1.01
+    step = coarse.correct(blocks, patches, p, active, np.zeros(len(patches)), theta, pivot=(0.0, 0.0),
+                          n_unknowns=1, target=np.array([W]))
+    assert sum(0.01 * v.sum() for v in step.pressures) == pytest.approx(W, rel=1e-12)
+    assert step.theta[0] > theta[0]
+
+
+def test_block_cg_solves_spd_systems_column_by_column():
+    rng = np.random.default_rng(1)
+    B = rng.random((40, 40))
+    M = B @ B.T + 40 * np.eye(40)
+    rhs = rng.random((40, 3))
+    x, it, ok = _block_cg(lambda v: M @ v, 1.0 / np.diag(M), rhs, rtol=1e-10, max_iter=200)
+    assert ok and it < 200
+    assert np.allclose(M @ x, rhs, rtol=0, atol=1e-8 * np.abs(rhs).max())
+    x, it, ok = _block_cg(lambda v: M @ v, 1.0 / np.diag(M), rhs, rtol=1e-14, max_iter=2)
+    assert not ok

@@ -1,0 +1,210 @@
+"""Coarse correction of block Gauss-Seidel: the macro equations solved on the sweep's error.
+
+Block Gauss-Seidel removes the error inside each patch in a sweep or two, but the error
+shared by many patches (the bulk deflection of thousands of asperities, which can exceed
+their local approaches) decays by a factor that tends to one as the scene grows, and with
+a lagged far field (:class:`~.farfield.LaggedFarField`) it need not decay at all. The
+coarse step removes it at the tip level, like a two-grid method whose coarse space is one
+function per patch:
+
+* ``s_k = A_SS^{-1} 1``: pressure on patch ``k``'s contact cells per mm of rigid
+  approach of that patch alone; ``kappa_k = h^2 sum s_k`` (N/mm) its contact stiffness;
+* the sweep leaves patch ``k`` with an approach error ``rho_k``: the displacement that the
+  resultant changes ``dF_l`` of the sweep caused at tip ``k`` and that block ``k`` did not
+  see when it was solved (later near blocks and every far block),
+  ``rho_k = -sum_{l not seen} T_kl dF_l`` (``T`` the point compliance);
+* forces ``dP_k = kappa_k c_k`` (patch ``k`` shifted by ``c_k`` mm) and corrections
+  ``dtheta`` of (d, alpha, beta) under load control solve the linearised macro equations
+  (METHOD.md section 2, paper eqs. 4-5, 11-12)::
+
+      dP_k / kappa_k + sum_l T_kl dP_l - G_k dtheta = rho_k      (patches in contact)
+      sum_k E_k dP_k = e - sum_k E_k F_k                         (load, moments)
+
+  with ``G_k = (1, -Y_k, -X_k)``, ``E_k = (1, Y_k, X_k)``, ``(X_k, Y_k)`` the centroid of
+  ``s_k`` about the pivot. The load and moment rows hold exactly after the step (up to
+  pressures clipped at zero): ``h^2 sum`` of the added pressure is exactly ``dP``.
+
+At the solution of the micro problem ``dF = 0``, so ``rho = 0`` and the step is zero: it
+changes the speed of the iteration, not its answer. The system is solved densely up to
+``dense_max`` patches in contact, and by conjugate gradients with the provider's
+:meth:`~twoscale.influence.base.InfluenceProvider.point_operator` (no ``N x N`` matrix)
+beyond.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.linalg as sla
+import scipy.sparse as sp
+
+from ..influence.base import InfluenceProvider
+from .constraints import block_coordinates, resultants
+
+
+@dataclass(frozen=True)
+class CoarseStep:
+    """Outcome of one coarse correction.
+
+    Attributes
+    ----------
+    pressures : list of (n_k,) arrays, MPa (clipped at zero).
+    theta : (3,) array: approach d (mm), alpha, beta (radians).
+    forces : (N,) array, N: the force change ``dP`` given to each patch.
+    iterations : int
+        Conjugate-gradient iterations (0 for a dense solve).
+    converged : bool
+        False when the iterative solve did not reach its tolerance (the step is still
+        applied: it only accelerates).
+    """
+
+    pressures: list
+    theta: np.ndarray
+    forces: np.ndarray
+    iterations: int
+    converged: bool
+
+
+class CoarseSpace:
+    """Tip-level interaction of the patches and the coarse step; see the module docstring.
+
+    Parameters
+    ----------
+    provider : InfluenceProvider
+    tips : (N, 2) array, mm
+        The tip of each patch's asperity, in patch order.
+    lower : sparse (N, N)
+        Pattern of the pairs ``(k, l)`` whose coupling block ``k`` saw exactly and up to
+        date during the sweep (near pairs with ``l`` before ``k``).
+    dense_max : int, default 2000
+        Largest number of patches in contact solved with a dense matrix.
+    rtol : float, default 1e-3
+        Relative residual of the conjugate gradients (the step only accelerates).
+    max_iter : int, default 200
+        Conjugate-gradient iterations allowed.
+    """
+
+    def __init__(self, provider: InfluenceProvider, tips: np.ndarray, lower, *, dense_max: int = 2000,
+                 rtol: float = 1e-3, max_iter: int = 200):
+        self.provider = provider
+        self.tips = np.asarray(tips, dtype=float)
+        self.dense_max, self.rtol, self.max_iter = int(dense_max), float(rtol), int(max_iter)
+        lower = sp.coo_matrix(lower)
+        vals = np.array([float(provider.point_compliance(self.tips[i:i + 1], self.tips[j:j + 1])[0, 0])
+                         for i, j in zip(lower.row, lower.col)])
+        self.lower = sp.csr_matrix((vals, (lower.row, lower.col)), shape=lower.shape)
+        self._op = None
+
+    def _operator(self):
+        if self._op is None:
+            self._op = self.provider.point_operator(self.tips, self.tips)
+        return self._op
+
+    def approach_errors(self, dF: np.ndarray) -> np.ndarray:
+        """``rho`` (mm): approach error of each patch after a sweep that changed the
+        resultants by ``dF`` (N)."""
+        return -(self._operator().apply(dF) - self.lower @ dF)
+
+    def correct(self, blocks, patches, pressures: list, active: list, dF: np.ndarray, theta: np.ndarray, *,
+                pivot: tuple[float, float], n_unknowns: int, target: np.ndarray | None) -> CoarseStep:
+        """One coarse step after a sweep; see the module docstring.
+
+        Parameters
+        ----------
+        blocks, patches : the local blocks and their patches.
+        pressures, active : per block, after the sweep.
+        dF : (N,) array, N
+            Change of each block's resultant during the sweep.
+        theta : (3,) array
+            (d, alpha, beta) used by the sweep.
+        pivot : (px, py), mm
+        n_unknowns : 0, 1 or 3
+            Rigid-body unknowns corrected (penetration control, load, load + tilt).
+        target : (n_unknowns,) array or None
+            Total load (N) and moments (0) to meet.
+        """
+        n = len(patches)
+        h2 = patches[0].grid.h ** 2 if n else 1.0
+        shapes = [None] * n
+        kappa = np.zeros(n)
+        cent = np.zeros((n, 2))
+        for k, (blk, pt) in enumerate(zip(blocks, patches)):
+            if not np.any(active[k]):
+                continue
+            s = np.zeros(blk.n)
+            s[active[k]] = blk.solve(active[k], np.ones(int(active[k].sum())))
+            kap = h2 * float(s.sum())
+            if not kap > 0.0:
+                continue
+            xr, yr = block_coordinates(pt, pivot)
+            shapes[k], kappa[k] = s, kap
+            cent[k] = h2 * float(xr @ s) / kap, h2 * float(yr @ s) / kap
+        A = np.flatnonzero(kappa > 0.0)
+        theta = np.array(theta, dtype=float)
+        if A.size == 0:
+            return CoarseStep(list(pressures), theta, np.zeros(n), 0, True)
+        rho = self.approach_errors(dF)[A]
+        m = n_unknowns
+        X, Y = cent[A, 0], cent[A, 1]
+        G = np.column_stack([np.ones(A.size), -Y, -X])[:, :m]
+        E = np.vstack([np.ones(A.size), Y, X])[:m]
+        rhs = np.column_stack([rho, G])
+        sol, iters, ok = self._solve(A, 1.0 / kappa[A], rhs)
+        dtheta = np.zeros(3)
+        dP_A = sol[:, 0]
+        if m:
+            now = np.atleast_1d(resultants(patches, pressures, pivot, m))
+            S = E @ sol[:, 1:]
+            dtheta[:m] = np.linalg.solve(S, np.asarray(target, float) - now - E @ sol[:, 0])
+            dP_A = sol[:, 0] + sol[:, 1:] @ dtheta[:m]
+        dP = np.zeros(n)
+        dP[A] = dP_A
+        out = list(pressures)
+        for k, dp in zip(A, dP_A):
+            out[k] = np.maximum(pressures[k] + (dp / kappa[k]) * shapes[k], 0.0)
+        return CoarseStep(out, theta + dtheta, dP, iters, ok)
+
+    def _solve(self, A: np.ndarray, kinv: np.ndarray, rhs: np.ndarray):
+        """Solve ``(diag(kinv) + T_AA) x = rhs`` for the columns of ``rhs``."""
+        if A.size <= self.dense_max:
+            tA = self.tips[A]
+            M = np.array(self.provider.point_compliance(tA, tA), dtype=float)
+            M[np.arange(A.size), np.arange(A.size)] = kinv
+            try:
+                return sla.solve(M, rhs, assume_a="sym", check_finite=False), 0, True
+            except (sla.LinAlgError, ValueError):
+                return np.linalg.lstsq(M, rhs, rcond=None)[0], 0, True
+        op = self._operator()
+        n = len(self.tips)
+
+        def matvec(x):
+            full = np.zeros((n, x.shape[1]))
+            full[A] = x
+            return op.apply(full)[A] + kinv[:, None] * x
+
+        return _block_cg(matvec, 1.0 / kinv, rhs, rtol=self.rtol, max_iter=self.max_iter)
+
+
+def _block_cg(matvec, precond: np.ndarray, rhs: np.ndarray, *, rtol: float, max_iter: int):
+    """Jacobi-preconditioned conjugate gradients on the columns of ``rhs`` at once (one
+    product per iteration for all columns). Returns (x, iterations, converged)."""
+    x = np.zeros_like(rhs)
+    r = rhs.copy()
+    bnorm = np.linalg.norm(rhs, axis=0)
+    bnorm[bnorm == 0.0] = 1.0
+    z = precond[:, None] * r
+    d = z.copy()
+    rz = np.sum(r * z, axis=0)
+    for it in range(1, max_iter + 1):
+        Ad = matvec(d)
+        dAd = np.sum(d * Ad, axis=0)
+        step = np.divide(rz, dAd, out=np.zeros_like(rz), where=dAd > 0.0)
+        x += step * d
+        r -= step * Ad
+        if np.all(np.linalg.norm(r, axis=0) <= rtol * bnorm):
+            return x, it, True
+        z = precond[:, None] * r
+        rz_new = np.sum(r * z, axis=0)
+        d = z + np.divide(rz_new, rz, out=np.zeros_like(rz), where=rz != 0.0) * d
+        rz = rz_new
+    return x, max_iter, False
