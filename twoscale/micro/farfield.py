@@ -272,7 +272,8 @@ class LaggedFarField(FarFieldCoupling):
     ``9 N^2`` kernel values of :class:`FarFieldCoupling`. Held values are stale for the
     blocks updated since the last refresh: the two-level iteration (:mod:`.twolevel`)
     refreshes once per sweep and corrects the smooth error that this leaves by its
-    coarse step.
+    coarse step. Near lists come from a k-d tree (``O(N log N)``), and a patch that grows
+    updates only its own geometry.
 
     Parameters
     ----------
@@ -287,8 +288,6 @@ class LaggedFarField(FarFieldCoupling):
                  rtol: float = 1e-6, **kwargs):
         self._tips = np.asarray(tips, dtype=float)
         self._rtol = float(rtol)
-        self._op = None
-        self._table = None
         super().__init__(provider, patches, far_tol=far_tol, **kwargs)
 
     def _reset(self) -> None:
@@ -296,13 +295,56 @@ class LaggedFarField(FarFieldCoupling):
         self._op = None
         self._table = None
 
+    def _moved(self, k: int) -> None:
+        """Patch ``k`` changed: its geometry, and every cache that depends on it."""
+        xmin, xmax, ymin, ymax = self.patches[k].grid.bounds
+        self._centres[k] = 0.5 * (xmin + xmax), 0.5 * (ymin + ymax)
+        self._radii[k] = 0.5 * math.hypot(xmax - xmin, ymax - ymin)
+        self._near = {}
+        for key in [(k, False), (k, True)]:
+            self._weights.pop(key, None)
+        self._cells.pop(k, None)
+        self._op = None
+        self._table = None
+        self._F = None
+
+    def append(self, patch) -> None:
+        Coupling.append(self, patch)
+        self._centres = np.vstack([self._centres, np.zeros((1, 2))])
+        self._radii = np.append(self._radii, 0.0)
+        self._seen.append(None)
+        self._moved(len(self.patches) - 1)
+
+    def replace(self, k: int, patch) -> None:
+        Coupling.replace(self, k, patch)
+        self._moved(k)
+
+    def near(self, k: int) -> np.ndarray:
+        if not self._near:
+            self._near_all()
+        return self._near[k]
+
+    def _near_all(self) -> None:
+        # pairs with dist < (r_k + r_l) / sqrt(far_tol): candidates within (r_k + r_max) / sqrt(far_tol)
+        from scipy.spatial import cKDTree
+        n = len(self.patches)
+        scale = 1.0 / math.sqrt(self.far_tol)
+        tree = cKDTree(self._centres)
+        rmax = float(self._radii.max()) if n else 0.0
+        cands = tree.query_ball_point(self._centres, (self._radii + rmax) * scale)
+        for k, cand in enumerate(cands):
+            cand = np.asarray(cand, dtype=np.int64)
+            dist = np.hypot(*(self._centres[cand] - self._centres[k]).T)
+            keep = (dist * math.sqrt(self.far_tol) < self._radii[cand] + self._radii[k]) & (cand != k)
+            self._near[k] = np.sort(cand[keep])
+
     def near_pattern(self):
         """Sparse (N, N) pattern of the near pairs (patch indices, ``k`` excluded)."""
         import scipy.sparse as sp
         n = len(self.patches)
-        rows = [np.full(len(self.near(k)), k) for k in range(n)]
         cols = [self.near(k) for k in range(n)]
-        rows, cols = (np.concatenate(rows), np.concatenate(cols)) if n else (np.zeros(0, int), np.zeros(0, int))
+        rows = np.repeat(np.arange(n), [len(c) for c in cols])
+        cols = np.concatenate(cols) if n else np.zeros(0, np.int64)
         return sp.csr_matrix((np.ones(len(rows)), (rows, cols)), shape=(n, n))
 
     def _point_operator(self):
