@@ -49,6 +49,23 @@ class Patch:
         object.__setattr__(self, "owned", owned)
 
 
+_TIPS: dict = {}
+
+
+def _tip_arrays(asperities: Sequence[Asperity]):
+    """``(x, y, R, not a sphere)`` arrays of a scene, kept for the last scene seen (the
+    scene object itself is held, so its ``id`` cannot be reused while cached)."""
+    hit = _TIPS.get(id(asperities))
+    if hit is not None and hit[0] is asperities and hit[1] == len(asperities):
+        return hit[2]
+    arrays = (np.array([a.x for a in asperities], dtype=float), np.array([a.y for a in asperities], dtype=float),
+              np.array([a.R for a in asperities], dtype=float),
+              np.array([a.shape != "sphere" for a in asperities], dtype=bool))
+    _TIPS.clear()
+    _TIPS[id(asperities)] = (asperities, len(asperities), arrays)
+    return arrays
+
+
 def make_patch(k: int, grid: Grid, asperities: Sequence[Asperity]) -> Patch:
     """Patch ``k`` on ``grid``, with heights and owners from every asperity.
 
@@ -56,9 +73,10 @@ def make_patch(k: int, grid: Grid, asperities: Sequence[Asperity]) -> Patch:
     ``inf`` there), so building a patch costs its cells times the nearby asperities only.
     """
     xmin, xmax, ymin, ymax = grid.bounds
-    keep = [l for l, a in enumerate(asperities)
-            if a.shape != "sphere"
-            or math.hypot(max(xmin - a.x, 0.0, a.x - xmax), max(ymin - a.y, 0.0, a.y - ymax)) < a.R]
+    x, y, R, unbounded = _tip_arrays(asperities)
+    dx = np.maximum(np.maximum(xmin - x, x - xmax), 0.0)
+    dy = np.maximum(np.maximum(ymin - y, y - ymax), 0.0)
+    keep = np.flatnonzero(unbounded | (np.hypot(dx, dy) < R)).tolist()
     surf = surface_on(grid, [asperities[l] for l in keep])
     index = np.append(np.asarray(keep, dtype=np.int64), -1)
     return Patch(k, grid, surf.height, index[surf.owner])

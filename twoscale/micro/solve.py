@@ -161,15 +161,15 @@ def _tip_approaches(asperities, theta, pivot) -> np.ndarray:
     return np.array([theta[0] - a.z - float(tilt.height(a.x, a.y)) for a in asperities])
 
 
-def _initial(state: _State, forces, z_blocks, h) -> list:
-    """Paper eq. 7 on every block."""
+def _initial(state: _State, forces, z_blocks, h, rtol: float = 1e-8) -> list:
+    """Paper eq. 7 on every block (``rtol``: conjugate gradients of large blocks)."""
     E_star = state.provider.material.E_star
     out = []
     for pt, blk, z in zip(state.patches, state.blocks, z_blocks):
         a = state.asperities[pt.asperity]
         P = float(forces[pt.asperity])
         radius = (3.0 * max(P, 0.0) * a.R / (4.0 * E_star)) ** (1.0 / 3.0)
-        out.append(initial_pressure(blk, z, P, h, approach=radius ** 2 / a.R).pressure)
+        out.append(initial_pressure(blk, z, P, h, approach=radius ** 2 / a.R, rtol=rtol).pressure)
     return out
 
 
@@ -292,7 +292,8 @@ def solve_micro(provider: InfluenceProvider, asperities: Sequence[Asperity], *, 
     if not patches:
         return _finish(state, [], [], theta, tilt, pivot, True, "no asperity reaches the body",
                        {"sweeps": 0, "corrections": 0, "growths": 0, "linear_sweeps": 0}, ())
-    p0 = _initial(state, forces, state.heights(theta, pivot), h)
+    # the two-level iteration only starts from p0: 1e-5 is plenty (1e-8 otherwise, as the paper's p0)
+    p0 = _initial(state, forces, state.heights(theta, pivot), h, rtol=1e-5 if coarse else 1e-8)
     p = [v.copy() for v in p0]
     sweeps = corrections = growths = linear_sweeps = 0
     history: list = []
