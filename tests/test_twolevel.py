@@ -50,6 +50,9 @@ def test_two_level_load_control_matches_exact_coupling(seed):
     _compare(exact, approx, 5e-3)
     assert np.asarray(approx.asperities.forces).sum() == pytest.approx(3.0, rel=1e-6)
     assert approx.iterations["sensitivity_sweeps"] == 0
+    # far_tol alone selects the two-level iteration
+    auto = solve_twoscale(HS, asp, far_tol=0.01, **kw)
+    assert np.array_equal(auto.asperities.forces, approx.asperities.forces)
 
 
 def test_two_level_penetration_control_matches_exact_coupling():

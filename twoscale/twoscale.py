@@ -47,7 +47,7 @@ def solve_twoscale(provider: InfluenceProvider, asperities: Sequence[Asperity], 
                    max_sweeps: int = 100, laws=None, margin: float = 1.3,
                    anchor: tuple[float, float] = (0.0, 0.0), dense_max_cells: int = 400,
                    macro_tol: float = 1e-10, macro_max_iter: int = 100,
-                   far_tol: float | None = None, coarse: bool = False) -> ContactResult:
+                   far_tol: float | None = None, coarse: bool | None = None) -> ContactResult:
     """Multi-asperity contact by the two-scale iterative method.
 
     Parameters
@@ -89,10 +89,12 @@ def solve_twoscale(provider: InfluenceProvider, asperities: Sequence[Asperity], 
         also sized from the macro local penetrations (bulk deflection included) plus a
         slack of 20 % of the largest one, instead of the geometric approach ``d - z_k``:
         with thousands of asperities the bulk deflection makes ``d - z_k > 0`` for all.
-    coarse : bool, default False
-        With ``far_tol``: two-level micro iteration (far field once per sweep through the
-        provider's point operator, coarse correction by the linearised macro equations;
-        :mod:`twoscale.micro.twolevel`), for thousands of asperities.
+    coarse : bool or None, default None
+        Two-level micro iteration (far field once per sweep through the provider's point
+        operator, coarse correction by the linearised macro equations;
+        :mod:`twoscale.micro.twolevel`), for thousands of asperities. None: on when
+        ``far_tol`` is given. True needs ``far_tol``; False keeps plain block Gauss-Seidel
+        with the far field updated block by block and sensitivity sweeps for the load.
 
     Returns
     -------
@@ -113,7 +115,8 @@ def solve_twoscale(provider: InfluenceProvider, asperities: Sequence[Asperity], 
                         tilt=macro.tilt, pivot=pivot, total_load=total_load, free_tilt=tilt, tol=tol,
                         max_sweeps=max_sweeps, margin=margin, anchor=anchor, dense_max_cells=dense_max_cells,
                         size_from_forces=bool(macro.converged), far_tol=far_tol,
-                        sizing_approaches=_sizing(macro, far_tol), coarse=coarse)
+                        sizing_approaches=_sizing(macro, far_tol),
+                        coarse=(far_tol is not None) if coarse is None else bool(coarse))
     t2 = time.perf_counter()
     return _result(asperities, macro, micro, h, {"macro": t1 - t0, "micro": t2 - t1, "total": t2 - t0})
 
