@@ -296,3 +296,32 @@ def test_reference_grid_never_large_enough_is_not_converged(monkeypatch):
     monkeypatch.setattr(scene_mod, "reference_grid", lambda s, h, grow=1.0: real(s, h, grow=0.3))
     result = solve_scene(_paraboloid_scene(), method="reference")
     assert not result.converged and "edge of the reference grid" in result.message
+
+
+@pytest.mark.parametrize("value", ["0", "1", "1.5", "-0.2", "nan", "wide"])
+def test_bad_far_tol_exit_2(value, examples_dir, tmp_path, capsys):
+    out = tmp_path / "never"
+    assert main(["solve", str(examples_dir / "hertz_sphere.toml"), "--far-tol", value, "--out", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("error: --far-tol") and repr(value) in err
+    assert not out.exists()
+
+
+def test_far_tol_needs_the_twoscale_method(examples_dir, tmp_path, capsys):
+    out = tmp_path / "never"
+    assert main(["solve", str(examples_dir / "hertz_sphere.toml"), "--method", "reference",
+                 "--far-tol", "0.2", "--out", str(out)]) == 2
+    assert "--far-tol" in capsys.readouterr().err
+    assert not out.exists()
+
+
+def test_far_tol_many_asperity_mode_matches_default(examples_dir, tmp_path):
+    # S2 (25 spheres, pitch 10 mm) at a coarse cell: the many-asperity mode (far field by
+    # resultants, two-level iteration) gives the forces of the exact coupling within 0.5 %
+    exact, approx = tmp_path / "exact", tmp_path / "approx"
+    scene = str(examples_dir / "S2.toml")
+    assert main(["solve", scene, "--h", "0.1", "--out", str(exact), "--quiet"]) == 0
+    assert main(["solve", scene, "--h", "0.1", "--far-tol", "0.2", "--out", str(approx), "--quiet"]) == 0
+    fe = np.array([a["force"] for a in json.loads((exact / "result.json").read_text())["asperities"]])
+    fa = np.array([a["force"] for a in json.loads((approx / "result.json").read_text())["asperities"]])
+    assert np.max(np.abs(fa - fe) / fe.max()) <= 5e-3

@@ -379,8 +379,8 @@ def approach_bound(scene: Scene) -> float:
     bound = z.min() + float(hertz.penetration(r_low, W, E_star))
     if len(scene.asperities) > 1:
         tips = scene.tips
-        dist = np.hypot(tips[:, None, 0] - tips[None, :, 0], tips[:, None, 1] - tips[None, :, 1])
-        r_min = dist[~np.eye(len(tips), dtype=bool)].min()
+        from scipy.spatial import cKDTree
+        r_min = float(cKDTree(tips).query(tips, k=2)[0][:, 1].min())  # nearest other tip
         bound += W / (math.pi * E_star * r_min)
     return float(bound)
 

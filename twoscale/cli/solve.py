@@ -1,6 +1,6 @@
 """Solve a scene file; print a summary and write DIR/result.json (+ fields.vtu, pressure.png, forces.png).
 
-``twoscale solve SCENE.toml [--method twoscale|reference] [--out DIR] [--h H] [--block-field] [--quiet]``
+``twoscale solve SCENE.toml [--method twoscale|reference] [--out DIR] [--h H] [--far-tol F] [--block-field] [--quiet]``
 
 Exit codes: 0 converged; 1 not converged (result.json still written, with
 ``converged = false`` and the solver's message); 2 bad input (one ``error: ...`` line
@@ -34,6 +34,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                              "(DIR created after a successful solve)")
     parser.add_argument("--h", metavar="H", default=None,
                         help="cell size in mm, overriding [grid] h of the scene")
+    parser.add_argument("--far-tol", metavar="F", default=None,
+                        help="many-asperity mode of the two-scale solver (0 < F < 1, e.g. 0.2): patches "
+                             "farther apart than (r_k + r_l)/sqrt(F) interact through their resultant "
+                             "forces, with the two-level iteration; for thousands of asperities")
     parser.add_argument("--block-field", action="store_true",
                         help="with [influence] kind = \"block\" and --out: also write "
                              "DIR/block_displacement.vtu (displacement inside the block)")
@@ -72,9 +76,17 @@ def run(args: argparse.Namespace) -> int:
                                  f"got kind = {scene.influence['kind']!r}")
             if args.out is None:
                 raise SceneError("--block-field needs --out DIR")
+        options = {}
+        far_tol = positive_option(getattr(args, "far_tol", None), "--far-tol", unit="dimensionless")
+        if far_tol is not None:
+            if not far_tol < 1.0:
+                raise SceneError(f"--far-tol must be < 1, got {args.far_tol!r}")
+            if args.method != "twoscale":
+                raise SceneError(f"--far-tol is an option of --method twoscale, got --method {args.method}")
+            options["far_tol"] = far_tol
         t0 = time.perf_counter()
         quiet_block = {"progress": False} if args.quiet and scene.influence["kind"] == "block" else None
-        result = solve_scene(scene, method=args.method, provider_options=quiet_block)
+        result = solve_scene(scene, method=args.method, provider_options=quiet_block, **options)
         wall = time.perf_counter() - t0
     except ValueError as exc:  # SceneError and solver input checks
         print(f"error: {exc}", file=sys.stderr)
