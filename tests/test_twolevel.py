@@ -132,3 +132,23 @@ def test_block_cg_solves_spd_systems_column_by_column():
     assert np.allclose(M @ x, rhs, rtol=0, atol=1e-8 * np.abs(rhs).max())
     x, it, ok = _block_cg(lambda v: M @ v, 1.0 / np.diag(M), rhs, rtol=1e-14, max_iter=2)
     assert not ok
+
+
+def test_two_level_runs_unchanged_on_the_finite_block():
+    # issue 6 point 5: the same call on a small bonded block (60 x 60 x 10 mm, coarse mesh):
+    # forces within 0.5 % of the exact coupling on the same block, and much nearer to it
+    # than to the half-space answer (the block's own interaction is what it used)
+    fem = pytest.importorskip("fem_influence")
+    block = fem.BlockProvider(material=MAT, size=(60.0, 60.0, 10.0), h_fine=5.0, h_coarse=10.0,
+                              fine_half_width=10.0, use_cache=False, progress=False)
+    asp = [a for a in _scene(30, 5, 18.0)]
+    asp = [Asperity(a.x - 9.0, a.y - 9.0, a.z, a.R) for a in asp]
+    kw = dict(h=0.1, total_load=2.0, tol=1e-7, max_sweeps=200)
+    exact = solve_twoscale(block, asp, **kw)
+    approx = solve_twoscale(block, asp, far_tol=0.01, **kw)
+    half = solve_twoscale(HS, asp, far_tol=0.01, **kw)
+    assert exact.converged and approx.converged, approx.message
+    _compare(exact, approx, 5e-3)
+    fe, fh = np.asarray(exact.asperities.forces), np.asarray(half.asperities.forces)
+    fa = np.asarray(approx.asperities.forces)
+    assert np.max(np.abs(fa - fe)) < 0.2 * np.max(np.abs(fh - fe))
