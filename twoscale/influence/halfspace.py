@@ -70,6 +70,18 @@ class HalfSpace(InfluenceProvider):
         table, _, _ = self._offset_table(target, source)
         return ConvolutionOperator(target, source, table)
 
+    def point_operator(self, targets, sources, *, exclude=None, rtol: float = 1e-6):
+        """As :meth:`InfluenceProvider.point_operator`; above ``FAST_ENTRIES`` pairs an
+        :class:`~twoscale.influence.halfspace_points.EwaldPointOperator` (Ewald split:
+        FFT on a mesh plus near pairs, error <= ``rtol`` of ``max |u|``)."""
+        from .halfspace_points import FAST_ENTRIES, EwaldPointOperator
+        from .points import check_points
+
+        t, s = check_points(targets, "targets"), check_points(sources, "sources")
+        if len(t) * len(s) <= FAST_ENTRIES:
+            return super().point_operator(t, s, exclude=exclude, rtol=rtol)
+        return EwaldPointOperator(self.E_star, t, s, exclude=exclude, rtol=rtol)
+
 
 class ConvolutionOperator(GridOperator):
     """Zero-padded (non-periodic) FFT convolution with a translation-invariant kernel.
