@@ -308,3 +308,114 @@ def test_unbalanceable_tilt_is_reported():
     res = solve_macro(HS, tips, np.zeros(4), SphereLaw(5.0, E_STAR), total_load=40.0, tilt=True,
                       pivot=(50.0, 5.0), max_iter=30)
     assert not res.converged and res.message
+
+
+# --- matrix-free interaction (issue 6 point 1): point operator + conjugate gradients ----------
+
+@pytest.mark.parametrize("mode", ["penetration", "load", "tilt"])
+@pytest.mark.parametrize("seed", [0, 3])
+def test_matrix_free_equals_dense(mode, seed):
+    # below 4e6 pairs the half-space operator is exact, so the two paths solve the same
+    # equations: they agree to the Newton tolerance, and both satisfy them from scratch
+    tips, z, laws = random_scene(seed)
+    W = 10.0 * len(z)
+    pivot = tuple(tips.mean(axis=0) + np.array([1.0, -0.5]))
+    kwargs = {"penetration": dict(penetration=0.4), "load": dict(total_load=W),
+              "tilt": dict(total_load=W, tilt=True, pivot=pivot)}[mode]
+    dense = solve_macro(HS, tips, z, laws, **kwargs)
+    free = solve_macro(HS, tips, z, laws, dense_max=1, **kwargs)
+    assert dense.interaction == "dense" and free.interaction == "matrix-free"
+    assert free.converged, free.message
+    assert free.krylov_iterations > 0 and free.operator_error <= 1e-12
+    assert np.allclose(free.forces, dense.forces, rtol=0, atol=1e-8 * dense.forces.max())
+    check_equations(free, tips, z, laws, boussinesq_interaction(tips), pivot=pivot)
+    if mode == "tilt":
+        _tilt_equations(free, tips, pivot, W)
+
+
+def _smallest_active_eigenvalue(res, laws, T):
+    # independent of the solver: eigenvalues of I + D^1/2 T_AA D^1/2 at the result
+    dl = np.asarray(res.local_penetrations)
+    D = np.array([law.stiffness(max(v, 0.0)) for law, v in zip(laws, dl)])
+    A = np.flatnonzero((dl > 0) & (D > 0))
+    s = np.sqrt(D[A])
+    return float(np.linalg.eigvalsh(np.eye(A.size) + s[:, None] * T[np.ix_(A, A)] * s[None, :])[0])
+
+
+@pytest.mark.parametrize("mode", ["penetration", "load", "tilt"])
+def test_merged_contacts_give_the_stable_solution_on_both_paths(mode):
+    # Where contacts merge the macro equations have several solutions; Newton can
+    # converge to a saddle of the potential. Both paths must return the stable one (the
+    # active compliance positive definite), hence the same forces.
+    saddle_rejected = False
+    for seed in (0, 2, 5, 13):
+        tips, z, laws = merged_scene(seed)
+        W = 10.0 * len(z)
+        pivot = tuple(tips.mean(axis=0))
+        kwargs = {"penetration": dict(penetration=0.4), "load": dict(total_load=W),
+                  "tilt": dict(total_load=W, tilt=True, pivot=pivot)}[mode]
+        T = boussinesq_interaction(tips)
+        dense = solve_macro(HS, tips, z, laws, **kwargs)
+        free = solve_macro(HS, tips, z, laws, dense_max=1, **kwargs)
+        for res in (dense, free):
+            assert res.converged, (seed, res.message)
+            check_equations(res, tips, z, laws, T, pivot=pivot)
+            assert _smallest_active_eigenvalue(res, laws, T) > 0, (seed, res.message)
+            if mode == "tilt":
+                _tilt_equations(res, tips, pivot, W)
+            saddle_rejected |= "unstable equilibrium" in res.message
+        assert np.allclose(free.forces, dense.forces, rtol=0, atol=1e-8 * dense.forces.max()), seed
+    assert saddle_rejected
+
+
+def lattice_scene(n, seed, pitch=3.0):
+    """``n`` spheres of R 2-6 mm jittered on a square lattice of ``pitch`` mm, recesses
+    0-0.06 mm: the many-asperity benchmark's kind of scene."""
+    rng = np.random.default_rng(seed)
+    side = int(math.ceil(math.sqrt(n)))
+    grid = pitch * np.stack(np.meshgrid(np.arange(side), np.arange(side)), -1).reshape(-1, 2)[:n]
+    tips = grid + rng.uniform(-0.7, 0.7, grid.shape)
+    z = rng.uniform(0.0, 0.06, n)
+    laws = [SphereLaw(r, E_STAR) for r in rng.uniform(2.0, 6.0, n)]
+    return tips, z, laws
+
+
+def test_matrix_free_with_the_fast_operator_is_within_its_tolerance():
+    # 2,100 tips: 4.4e6 pairs, so the half-space returns its Ewald operator (error <=
+    # rtol of max|u|). A displacement error eps moves a force by at most its stiffness
+    # times eps (the coupled system only spreads it), which bounds the force difference
+    # against the dense solve independently of the solver.
+    tips, z, laws = lattice_scene(2100, seed=4)
+    W = 0.05 * len(z)
+    rtol = 1e-6
+    dense = solve_macro(HS, tips, z, laws, total_load=W, tilt=True, pivot=(60.0, 70.0))
+    free = solve_macro(HS, tips, z, laws, total_load=W, tilt=True, pivot=(60.0, 70.0), dense_max=2000,
+                       operator_rtol=rtol)
+    assert free.interaction == "matrix-free" and free.converged, free.message
+    assert 0.3 < free.in_contact.mean() < 0.9
+    T = boussinesq_interaction(tips)
+    u_max = np.abs(T @ dense.forces).max()
+    assert 0 < free.operator_error <= rtol            # measured on a sample, as promised
+    stiff = np.array([law.stiffness(max(d, 0.0)) for law, d in zip(laws, dense.local_penetrations)])
+    bound = 3.0 * rtol * u_max * stiff.max()          # 3x: the load and moment rows shift d, alpha, beta too
+    assert np.max(np.abs(free.forces - dense.forces)) <= bound
+    assert abs(free.forces.sum() - W) <= 1e-10 * W
+    # the equations with the exact T hold to the operator's error: delta_k within
+    # rtol max|u| (the solver's delta came from the fast product), P_k = f_k(delta_k) within
+    # the force bound above
+    a, b = free.tilt
+    delta = free.penetration - z - b * (tips[:, 0] - 60.0) - a * (tips[:, 1] - 70.0) - T @ free.forces
+    assert np.max(np.abs(free.local_penetrations - delta)) <= 3.0 * rtol * u_max
+    f = np.array([law.force(max(dk, 0.0)) for law, dk in zip(laws, delta)])
+    assert np.max(np.abs(free.forces - f)) <= bound
+
+
+def test_matrix_free_input_errors():
+    law = SphereLaw(5.0, E_STAR)
+    tips = np.array([[0.0, 0.0], [5.0, 0.0], [0.0, 0.0]])
+    with pytest.raises(ValueError, match="tips 0 and 2 coincide"):
+        solve_macro(HS, tips, np.zeros(3), law, penetration=0.1, dense_max=1)
+    with pytest.raises(ValueError, match="dense_max must be an integer >= 1, got 0"):
+        solve_macro(HS, tips[:2], np.zeros(2), law, penetration=0.1, dense_max=0)
+    with pytest.raises(ValueError, match="operator_rtol must be in \\(0, 1\\), got 2"):
+        solve_macro(HS, tips[:2], np.zeros(2), law, penetration=0.1, operator_rtol=2)

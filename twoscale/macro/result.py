@@ -37,7 +37,19 @@ class MacroResult:
         system, before each step and after the last (length iterations + 1); when the
         safe path ran, only its final residual is appended.
     timings_s : dict
-        Wall-clock seconds: "compliance" (interaction matrix), "newton", "total".
+        Wall-clock seconds: "compliance" (interaction matrix or operator), "newton",
+        "error_check" (matrix-free only), "total".
+    interaction : str
+        "dense" (``N x N`` matrix, LU per Newton step) or "matrix-free" (the provider's
+        point operator, Newton steps by conjugate gradients).
+    operator_rtol : float or None
+        Matrix-free: the accuracy asked of the point operator (relative to ``max |u|``).
+    operator_error : float or None
+        Matrix-free: measured error of the operator's product at the solution on a sample
+        of tips against exact rows of the point compliance, relative to ``max |T P|``.
+        A force error follows as about ``f_k' * operator_error * max |T P|``.
+    krylov_iterations : int
+        Matrix-free: conjugate-gradient iterations over all Newton steps.
     """
 
     forces: np.ndarray
@@ -51,6 +63,10 @@ class MacroResult:
     iterations: int
     residuals: tuple
     timings_s: dict = field(default_factory=dict)
+    interaction: str = "dense"
+    operator_rtol: float | None = None
+    operator_error: float | None = None
+    krylov_iterations: int = 0
 
     def __post_init__(self) -> None:
         for name, dtype in (("forces", float), ("local_penetrations", float), ("in_contact", bool)):

@@ -2,20 +2,27 @@
 from __future__ import annotations
 
 import time
+
 import numpy as np
+from scipy.spatial import cKDTree
 
 from ..influence.base import InfluenceProvider
 from ..laws import AsperityLaw, LawStack
+from .interaction import MatrixFreeInteraction, sampled_operator_error
 from .result import MacroResult
 from .robust import FAST_STEPS, minimise_then_polish, run_newton, solve_dual
 from .system import MacroSystem
+
+#: Default largest N solved with a dense interaction matrix (72 MB at 3,000).
+DENSE_MAX = 3000
 
 
 def solve_macro(provider: InfluenceProvider, tips, z, laws, *,
                 penetration: float | None = None, total_load: float | None = None,
                 tilt: bool = False, pivot: tuple[float, float] = (0.0, 0.0),
                 self_compliance: bool = True, tol: float = 1e-10,
-                max_iter: int = 100) -> MacroResult:
+                max_iter: int = 100, dense_max: int = DENSE_MAX,
+                operator_rtol: float = 1e-6) -> MacroResult:
     """Tip forces of N interacting asperities (METHOD.md section 2; paper eqs. 4-5, 11-12).
 
     Solves ``P_k = f_k(delta_k) H(delta_k)`` with ``delta_k = d - z_k - [beta (x_k - px)
@@ -57,6 +64,16 @@ def solve_macro(provider: InfluenceProvider, tips, z, laws, *,
         distance from the pivot), all in N.
     max_iter : int, default 100
         Maximum Newton steps; reaching it gives ``converged=False``.
+    dense_max : int, default 3000
+        Largest N solved with the dense ``N x N`` interaction matrix (LU per Newton step).
+        Above it the interaction is matrix-free (:mod:`twoscale.macro.interaction`):
+        products by ``provider.point_operator(tips, tips, rtol=operator_rtol)``, Newton
+        steps by conjugate gradients, memory ``O(N)``; the operator's error at the
+        solution is measured on a sample of tips and reported (``operator_error``).
+    operator_rtol : float, default 1e-6
+        Accuracy asked of the point operator in the matrix-free mode (relative to
+        ``max |u|``); the forces then solve the macro equations with ``T`` perturbed by
+        about that much.
 
     Returns
     -------
@@ -65,7 +82,14 @@ def solve_macro(provider: InfluenceProvider, tips, z, laws, *,
     t0 = time.perf_counter()
     tips, z, stack = _check_scene(tips, z, laws)
     mode = _check_load(penetration, total_load, tilt, pivot, tol, max_iter)
-    T = _interaction(provider, tips, self_compliance)
+    if isinstance(dense_max, bool) or not isinstance(dense_max, (int, np.integer)) or dense_max < 1:
+        raise ValueError(f"dense_max must be an integer >= 1, got {dense_max!r}")
+    if not (np.isfinite(operator_rtol) and 0.0 < operator_rtol < 1.0):
+        raise ValueError(f"operator_rtol must be in (0, 1), got {operator_rtol!r}")
+    if len(tips) <= dense_max:
+        T = _interaction(provider, tips, self_compliance)
+    else:
+        T = _matrix_free_interaction(provider, tips, self_compliance, operator_rtol)
     t1 = time.perf_counter()
     system = _build_system(T, tips, z, stack, penetration, total_load, tilt, pivot)
     x0 = _initial_guess(system, z, stack, penetration, total_load, tilt)
@@ -75,11 +99,20 @@ def solve_macro(provider: InfluenceProvider, tips, z, laws, *,
     delta = system.delta(x)
     d = float(penetration) if mode == "penetration" else float(g[0])
     angles = (float(g[1]), float(g[2])) if tilt else None
+    timings = {"compliance": t1 - t0, "newton": t2 - t1}
+    extra = {}
+    if isinstance(T, MatrixFreeInteraction):
+        error = sampled_operator_error(provider, tips, T, P)
+        timings["error_check"] = time.perf_counter() - t2
+        if T.cg_failures:
+            message += f" ({T.cg_failures} Newton steps with an inexact CG solve)"
+        extra = {"interaction": "matrix-free", "operator_rtol": float(operator_rtol),
+                 "operator_error": error, "krylov_iterations": int(T.cg_iterations)}
+    timings["total"] = time.perf_counter() - t0
     return MacroResult(
         forces=P, penetration=d, tilt=angles, pivot=(float(pivot[0]), float(pivot[1])),
         local_penetrations=delta, in_contact=delta > 0, converged=converged,
-        message=message, iterations=steps, residuals=residuals,
-        timings_s={"compliance": t1 - t0, "newton": t2 - t1, "total": t2 - t0})
+        message=message, iterations=steps, residuals=residuals, timings_s=timings, **extra)
 
 
 def _newton_then_safe(system: MacroSystem, x0: np.ndarray, *, tol: float, max_iter: int):
@@ -87,10 +120,14 @@ def _newton_then_safe(system: MacroSystem, x0: np.ndarray, *, tol: float, max_it
     path (:mod:`.robust`). Returns (x, converged, message, Newton steps, residual history)."""
     W = float(system.e[0]) if system.e.size else 0.0
     fast = run_newton(system, x0, tol=tol, max_iter=min(max_iter, FAST_STEPS), scale_floor=W)
-    if fast.converged or fast.iterations >= max_iter:
-        return fast.x, fast.converged, fast.message, fast.iterations, fast.residuals
+    if fast.converged and system.stable(fast.x):
+        return fast.x, True, fast.message, fast.iterations, fast.residuals
+    if not fast.converged and fast.iterations >= max_iter:
+        return fast.x, False, fast.message, fast.iterations, fast.residuals
     if system.G.shape[1] == 0:
-        safe = minimise_then_polish(system, (x0, fast.x), tol=tol, max_iter=max_iter)
+        # a saddle is a stationary point of the potential: the minimiser must not start there
+        starts = (x0,) if fast.converged else (x0, fast.x)
+        safe = minimise_then_polish(system, starts, tol=tol, max_iter=max_iter)
     else:
         safe = solve_dual(system, x0, tol=tol, max_iter=max_iter)
     r = system.residual(safe.x)
@@ -98,7 +135,9 @@ def _newton_then_safe(system: MacroSystem, x0: np.ndarray, *, tol: float, max_it
     norm = float(np.linalg.norm(r))
     final = norm / max(float(np.linalg.norm(P)) or W, norm) if norm > 0 else 0.0
     history = fast.residuals + (final,)
-    message = f"Newton stalled ({fast.message}); {safe.message}"
+    why = ("Newton converged to an unstable equilibrium (active compliance indefinite: merged "
+           "contacts)" if fast.converged else f"Newton stalled ({fast.message})")
+    message = f"{why}; {safe.message}"
     return safe.x, safe.converged, message, fast.iterations + safe.newton_steps, history
 
 
@@ -155,6 +194,20 @@ def _interaction(provider: InfluenceProvider, tips: np.ndarray, self_compliance:
     if self_compliance:
         T[diag, diag] = np.asarray(provider.smooth_self_compliance(tips), dtype=float)
     return T
+
+
+def _matrix_free_interaction(provider: InfluenceProvider, tips: np.ndarray, self_compliance: bool,
+                             rtol: float) -> MatrixFreeInteraction:
+    """``T`` as the provider's point operator plus the smooth self-compliance."""
+    close = cKDTree(tips).query_pairs(1e-12 * (1.0 + float(np.max(np.abs(tips)))), output_type="ndarray")
+    if len(close):
+        k, l = close[0]
+        raise ValueError(f"tips {k} and {l} coincide: {tips[k]!r}, {tips[l]!r}")
+    n = len(tips)
+    diag = np.asarray(provider.smooth_self_compliance(tips), dtype=float) if self_compliance else np.zeros(n)
+    if diag.shape != (n,) or not np.all(np.isfinite(diag)):
+        raise ValueError(f"provider.smooth_self_compliance returned {diag.shape}, expected finite {(n,)}")
+    return MatrixFreeInteraction(provider.point_operator(tips, tips, rtol=rtol), diag, rtol=rtol)
 
 
 def _build_system(T, tips, z, stack, penetration, total_load, tilt, pivot) -> MacroSystem:

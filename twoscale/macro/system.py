@@ -24,6 +24,7 @@ import numpy as np
 import scipy.linalg as sla
 
 from ..laws import LawStack
+from .interaction import MatrixFreeInteraction, krylov_newton_step
 
 
 @dataclass(frozen=True)
@@ -32,8 +33,9 @@ class MacroSystem:
 
     Attributes
     ----------
-    T : (N, N) array, mm/N
-        Interaction compliance, diagonal = smooth self-compliance.
+    T : (N, N) array or MatrixFreeInteraction, mm/N
+        Interaction compliance, diagonal = smooth self-compliance; matrix-free for many
+        asperities (:mod:`twoscale.macro.interaction`: Newton steps by CG).
     offset : (N,) array, mm
         ``d - z_k`` under penetration control, ``-z_k`` otherwise.
     G : (N, m) array
@@ -95,15 +97,43 @@ class MacroSystem:
         D = self.laws.stiffness(dl)
         A = np.flatnonzero((dl > 0) & (D > 0))
         out = np.zeros((self.n, directions.shape[1]))
-        if A.size:
+        if A.size and isinstance(self.T, MatrixFreeInteraction):
+            out[A] = self.T.solve_active(A, 1.0 / D[A], directions[A], rtol=self.T.cg_rtol).x
+        elif A.size:
             K = D[A][:, None] * self.T[np.ix_(A, A)]
             K[np.arange(A.size), np.arange(A.size)] += 1.0
             out[A] = _solve(K, D[A][:, None] * directions[A])
         return out
 
+    def stable(self, x: np.ndarray) -> bool:
+        """Whether ``x`` is a stable equilibrium: the active compliance
+        ``diag(1/f_k') + T_AA`` is positive definite, so the potential has a strict local
+        minimum in the active forces. Where contacts merge, Newton can converge to a
+        saddle instead (a solution of the equations that no loading path reaches); the
+        solver then takes the safe path, whose minimiser is the stable solution."""
+        dl = self.delta(x)
+        D = self.laws.stiffness(dl)
+        A = np.flatnonzero((dl > 0) & (D > 0))
+        if A.size == 0:
+            return True
+        if isinstance(self.T, MatrixFreeInteraction):
+            return self.T.definite_on(A, 1.0 / D[A])
+        s = np.sqrt(D[A])
+        TA = self.T[np.ix_(A, A)]
+        K = s[:, None] * (0.5 * (TA + TA.T)) * s[None, :]
+        K[np.arange(A.size), np.arange(A.size)] += 1.0
+        try:
+            np.linalg.cholesky(K)
+        except np.linalg.LinAlgError:
+            return False
+        return True
+
     def newton_step(self, x: np.ndarray, r: np.ndarray) -> np.ndarray:
         """Solve ``J s = -r``. Rows of asperities out of contact (``delta_k <= 0``) are
-        ``s_k = -r_k``; only the active rows and the equilibrium rows form a dense system."""
+        ``s_k = -r_k``; only the active rows and the equilibrium rows form a dense system
+        (with a matrix-free ``T``, solved by CG: :func:`.interaction.krylov_newton_step`)."""
+        if isinstance(self.T, MatrixFreeInteraction):
+            return krylov_newton_step(self, x, r)
         dl = self.delta(x)
         D = self.laws.stiffness(dl)
         act = (dl > 0) & (D > 0)

@@ -39,6 +39,7 @@ import scipy.linalg as sla
 import scipy.sparse as sp
 
 from ..influence.base import InfluenceProvider
+from ..krylov import block_cg
 from .constraints import block_coordinates, resultants
 
 
@@ -204,29 +205,6 @@ class CoarseSpace:
             full[A] = x
             return op.apply(full)[A] + kinv[:, None] * x
 
-        return _block_cg(matvec, 1.0 / kinv, rhs, rtol=self.rtol, max_iter=self.max_iter)
+        out = block_cg(matvec, 1.0 / kinv, rhs, rtol=self.rtol, max_iter=self.max_iter)
+        return out.x, out.iterations, out.converged
 
-
-def _block_cg(matvec, precond: np.ndarray, rhs: np.ndarray, *, rtol: float, max_iter: int):
-    """Jacobi-preconditioned conjugate gradients on the columns of ``rhs`` at once (one
-    product per iteration for all columns). Returns (x, iterations, converged)."""
-    x = np.zeros_like(rhs)
-    r = rhs.copy()
-    bnorm = np.linalg.norm(rhs, axis=0)
-    bnorm[bnorm == 0.0] = 1.0
-    z = precond[:, None] * r
-    d = z.copy()
-    rz = np.sum(r * z, axis=0)
-    for it in range(1, max_iter + 1):
-        Ad = matvec(d)
-        dAd = np.sum(d * Ad, axis=0)
-        step = np.divide(rz, dAd, out=np.zeros_like(rz), where=dAd > 0.0)
-        x += step * d
-        r -= step * Ad
-        if np.all(np.linalg.norm(r, axis=0) <= rtol * bnorm):
-            return x, it, True
-        z = precond[:, None] * r
-        rz_new = np.sum(r * z, axis=0)
-        d = z + np.divide(rz_new, rz, out=np.zeros_like(rz), where=rz != 0.0) * d
-        rz = rz_new
-    return x, max_iter, False
