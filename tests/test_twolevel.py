@@ -12,7 +12,8 @@ from twoscale import Material
 from twoscale.indenters import Asperity
 from twoscale.influence import HalfSpace
 from twoscale.micro import solve_micro
-from twoscale.micro.coarse import CoarseSpace, _block_cg
+from twoscale.krylov import block_cg
+from twoscale.micro.coarse import CoarseSpace
 from twoscale.twoscale import solve_twoscale
 
 MAT = Material(10.0, 0.5)
@@ -127,11 +128,15 @@ def test_block_cg_solves_spd_systems_column_by_column():
     B = rng.random((40, 40))
     M = B @ B.T + 40 * np.eye(40)
     rhs = rng.random((40, 3))
-    x, it, ok = _block_cg(lambda v: M @ v, 1.0 / np.diag(M), rhs, rtol=1e-10, max_iter=200)
-    assert ok and it < 200
-    assert np.allclose(M @ x, rhs, rtol=0, atol=1e-8 * np.abs(rhs).max())
-    x, it, ok = _block_cg(lambda v: M @ v, 1.0 / np.diag(M), rhs, rtol=1e-14, max_iter=2)
-    assert not ok
+    out = block_cg(lambda v: M @ v, 1.0 / np.diag(M), rhs, rtol=1e-10, max_iter=200)
+    assert out.converged and out.iterations < 200 and not out.breakdown
+    assert np.allclose(M @ out.x, rhs, rtol=0, atol=1e-8 * np.abs(rhs).max())
+    assert not block_cg(lambda v: M @ v, 1.0 / np.diag(M), rhs, rtol=1e-14, max_iter=2).converged
+    # a warm start at the solution takes no product
+    assert block_cg(lambda v: M @ v, 1.0 / np.diag(M), rhs, rtol=1e-8, max_iter=5, x0=out.x).iterations == 0
+    # an indefinite matrix is reported, not silently solved
+    Mi = M - 200 * np.eye(40)
+    assert block_cg(lambda v: Mi @ v, np.ones(40), rhs, rtol=1e-10, max_iter=200).breakdown
 
 
 def test_two_level_runs_unchanged_on_the_finite_block():
@@ -152,3 +157,17 @@ def test_two_level_runs_unchanged_on_the_finite_block():
     fe, fh = np.asarray(exact.asperities.forces), np.asarray(half.asperities.forces)
     fa = np.asarray(approx.asperities.forces)
     assert np.max(np.abs(fa - fe)) < 0.2 * np.max(np.abs(fh - fe))
+
+
+def test_matrix_free_macro_step_gives_the_same_two_scale_answer():
+    # below 4e6 pairs the point operator is exact, so a matrix-free macro step changes
+    # nothing but the way the Newton steps are solved: the final answer is the same
+    asp = _scene(40, 3, 20.0)
+    kw = dict(h=0.1, total_load=2.0, tilt=True, pivot=(10.0, 10.0), tol=1e-7, far_tol=0.01)
+    dense = solve_twoscale(HS, asp, **kw)
+    free = solve_twoscale(HS, asp, macro_dense_max=1, **kw)
+    assert dense.extra["macro_interaction"] == "dense" and free.extra["macro_interaction"] == "matrix-free"
+    assert dense.converged and free.converged, free.message
+    assert free.iterations["macro_krylov"] > 0 and free.extra["macro_operator_error"] <= 1e-12
+    fd, ff = np.asarray(dense.asperities.forces), np.asarray(free.asperities.forces)
+    assert np.max(np.abs(ff - fd)) <= 1e-6 * fd.max()

@@ -19,6 +19,7 @@ from .indenters import Asperity
 from .influence.base import InfluenceProvider
 from .laws import law_for
 from .macro import solve_macro
+from .macro.solve import DENSE_MAX
 from .micro import solve_micro
 from .results import ContactResult, PressureField, summarise
 
@@ -47,6 +48,7 @@ def solve_twoscale(provider: InfluenceProvider, asperities: Sequence[Asperity], 
                    max_sweeps: int = 100, laws=None, margin: float = 1.3,
                    anchor: tuple[float, float] = (0.0, 0.0), dense_max_cells: int = 400,
                    macro_tol: float = 1e-10, macro_max_iter: int = 100,
+                   macro_dense_max: int = DENSE_MAX, macro_operator_rtol: float = 1e-6,
                    far_tol: float | None = None, coarse: bool | None = None) -> ContactResult:
     """Multi-asperity contact by the two-scale iterative method.
 
@@ -82,6 +84,12 @@ def solve_twoscale(provider: InfluenceProvider, asperities: Sequence[Asperity], 
     macro_tol : float, default 1e-10
         Relative residual of the macro Newton iteration.
     macro_max_iter : int, default 100
+    macro_dense_max : int, default 3000
+        Up to this many asperities the macro step factorises the dense interaction;
+        above, it is matrix-free (fast point operator + conjugate gradients), its
+        operator error reported in ``extra["macro_operator_error"]``.
+    macro_operator_rtol : float, default 1e-6
+        Accuracy of that point operator (relative to ``max |u|``).
     far_tol : float or None, default None
         Micro step cross-patch coupling: None = exact; a number in (0, 1) approximates
         patches farther apart than ``(r_k + r_l) / sqrt(far_tol)`` by their resultant
@@ -109,7 +117,8 @@ def solve_twoscale(provider: InfluenceProvider, asperities: Sequence[Asperity], 
     tips = np.array([[a.x, a.y] for a in asperities], dtype=float)
     z = np.array([a.z for a in asperities], dtype=float)
     macro = solve_macro(provider, tips, z, laws, penetration=penetration, total_load=total_load,
-                        tilt=tilt, pivot=pivot, tol=macro_tol, max_iter=macro_max_iter)
+                        tilt=tilt, pivot=pivot, tol=macro_tol, max_iter=macro_max_iter,
+                        dense_max=macro_dense_max, operator_rtol=macro_operator_rtol)
     t1 = time.perf_counter()
     micro = solve_micro(provider, asperities, h=h, forces=np.asarray(macro.forces), penetration=macro.penetration,
                         tilt=macro.tilt, pivot=pivot, total_load=total_load, free_tilt=tilt, tol=tol,
@@ -141,10 +150,12 @@ def _result(asperities, macro, micro, h, timings) -> ContactResult:
         method="twoscale", fields=fields, penetration=micro.penetration, tilt=micro.tilt,
         total_load=float(h * h * p.sum()), asperities=summarise(fields, len(asperities)),
         converged=bool(micro.converged), message="; ".join(messages),
-        iterations={"macro": int(macro.iterations), "micro": int(micro.sweeps),
+        iterations={"macro": int(macro.iterations), "macro_krylov": int(macro.krylov_iterations),
+                    "micro": int(micro.sweeps),
                     "corrections": int(micro.corrections), "sensitivity_sweeps": int(micro.linear_sweeps)},
         residuals={"macro": tuple(macro.residuals), "micro": tuple(micro.history)},
         timings_s=timings,
         extra={"macro_forces": np.array(macro.forces), "local_penetrations": np.array(macro.local_penetrations),
                "p0_change_percent": change, "p0": micro.initial, "patch_growths": int(micro.growths),
-               "macro_converged": bool(macro.converged)})
+               "macro_converged": bool(macro.converged), "macro_interaction": macro.interaction,
+               "macro_operator_error": macro.operator_error})
