@@ -201,3 +201,24 @@ def test_solver_residuals_are_small(block):
     solver = CorrectionSolver.build(block.mesh, MAT.nu, "sliding")
     solver.top_displacement(np.array([[0.0, 0.0], [5.0, -5.0]]))
     assert len(solver.residuals) == 2 and max(solver.residuals) < 1e-8
+
+
+def test_tilt_on_the_block_matches_the_reference(block):
+    # Pivot on tip 0 of a bonded 10 mm block: the macro step puts the whole load on tip 0
+    # (point forces balance any tilt that lifts the others); the two-scale answer must
+    # still be the full-grid reference's, which solves its own tilt (before the micro step
+    # covered asperities the macro step left out, it returned [W, 0, 0] as converged).
+    from twoscale.indenters import Asperity, surface_on
+    from twoscale.reference import solve_cg
+    from twoscale.twoscale import solve_twoscale
+    asp = [Asperity(0.0, 0.0, 0.0, 5.0), Asperity(8.0, 0.0, 0.0, 5.0), Asperity(0.0, 8.0, 0.0, 4.0)]
+    h, W = 0.1, 4.0
+    res = solve_twoscale(block, asp, h=h, total_load=W, tilt=True, tol=1e-9)
+    assert res.converged, res.message
+    ref = solve_cg(block, surface_on(Grid.covering(-6.0, 14.0, -6.0, 14.0, h), asp), total_load=W,
+                   tilt=True, tol=1e-10)
+    assert ref.converged
+    Fr = np.asarray(ref.asperities.forces)
+    assert Fr[1] > 0.01 * W and Fr[2] > 0.01 * W
+    assert np.max(np.abs(np.asarray(res.asperities.forces) - Fr)) <= 1e-5 * W
+    assert np.allclose(res.tilt, ref.tilt, rtol=1e-4)

@@ -202,3 +202,27 @@ def test_unsymmetric_dense_block_falls_back_to_lu():
     rhs = rng.uniform(0.5, 1.0, blk.n)
     x = blk.solve(active, rhs)
     assert np.allclose(blk.matrix @ x, rhs, rtol=1e-9, atol=0.0)
+
+
+def test_asperities_the_macro_step_left_out_get_patches():
+    # Pivot on tip 0: point forces balance any tilt that lifts tips 1 and 2 (the macro
+    # step may return all the load on tip 0), distributed pressure does not. Started from
+    # such a macro answer (tilt large enough that tips 1 and 2 get no patch), the micro
+    # step must bring them in and agree with the full-grid reference solving its own tilt.
+    from twoscale.indenters import surface_on
+    from twoscale.reference import solve_cg
+    asp = [Asperity(0.0, 0.0, 0.0, 5.0), Asperity(8.0, 0.0, 0.0, 5.0), Asperity(0.0, 8.0, 0.0, 4.0)]
+    h, W = 0.1, 10.0
+    d0 = float(hertz.penetration(5.0, W, ES))
+    res = solve_micro(HS, asp, h=h, forces=np.array([W, 0.0, 0.0]), penetration=d0, tilt=(0.08, 0.08),
+                      pivot=(0.0, 0.0), total_load=W, free_tilt=True, tol=1e-9)
+    assert res.converged, res.message
+    assert sorted(pt.asperity for pt in res.patches) == [0, 1, 2]
+    g = Grid.covering(-6.0, 14.0, -6.0, 14.0, h)
+    ref = solve_cg(HS, surface_on(g, asp), total_load=W, tilt=True, pivot=(0.0, 0.0), tol=1e-10)
+    assert ref.converged
+    F = np.array([h * h * p.sum() for p in res.pressures])[np.argsort([pt.asperity for pt in res.patches])]
+    Fr = np.asarray(ref.asperities.forces)
+    assert Fr[1] > 0.02 * W and Fr[2] > 0.02 * W       # the case bites: tips 1 and 2 carry load
+    assert np.max(np.abs(F - Fr)) <= 1e-5 * W
+    assert np.allclose(res.tilt, ref.tilt, rtol=1e-4)

@@ -178,7 +178,10 @@ class CoarseSpace:
         if m:
             now = np.atleast_1d(resultants(patches, pressures, pivot, m))
             S = E @ sol[:, 1:]
-            dtheta[:m] = np.linalg.solve(S, np.asarray(target, float) - now - E @ sol[:, 0])
+            q = np.asarray(target, float) - now - E @ sol[:, 0]
+            # singular when the active patches cannot carry a moment (one patch at the
+            # pivot): the least-squares step leaves the tilt where it is
+            dtheta[:m] = np.linalg.lstsq(S, q, rcond=1e-12)[0]
             dP_A = sol[:, 0] + sol[:, 1:] @ dtheta[:m]
         dP = np.zeros(n)
         dP[A] = dP_A

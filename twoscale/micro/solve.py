@@ -336,7 +336,11 @@ def solve_micro(provider: InfluenceProvider, asperities: Sequence[Asperity], *, 
         p, theta, done, lin = _correct(state, p, gs.active, theta, residual, pivot, n_unknowns, tol)
         linear_sweeps += lin
         if done:
-            break
+            # the corrected approach and tilt may bring in asperities without a patch
+            grown = _grow(state, p, p0, theta, pivot, tol) if growths < max_growths else 0
+            if not grown:
+                break
+            growths += grown
     out_tilt = (float(theta[1]), float(theta[2])) if (tilt is not None or free_tilt) else None
     return _finish(state, p, p0, theta, out_tilt, pivot, True, "", counts(), history)
 
@@ -392,7 +396,35 @@ def _grow(state: _State, p: list, p0: list, theta, pivot, tol: float) -> int:
     grown = _grow_loaded(state, p, p0)
     if grown:
         return grown
-    return _cover_penetration(state, p, p0, theta, pivot, _gap_tol(state, theta, pivot, tol))
+    gap_tol = _gap_tol(state, theta, pivot, tol)
+    return (_cover_penetration(state, p, p0, theta, pivot, gap_tol)
+            or _cover_unpatched(state, p, p0, theta, pivot, gap_tol))
+
+
+def _cover_unpatched(state: _State, p: list, p0: list, theta, pivot, gap_tol: float) -> int:
+    """Give a patch to every asperity without one that the indenter now reaches at its tip;
+    returns how many were added. The macro step can leave an asperity out that the final
+    approach or tilt brings in (e.g. a pivot on one tip: point forces balance any tilt that
+    lifts the others, distributed pressure does not), and a finite block's surface can rise
+    under a neighbour's load. The surface displacement at the tip is estimated from the
+    patches' resultant forces (point forces)."""
+    have = {pt.asperity for pt in state.patches}
+    missing = np.array([k for k in range(len(state.asperities)) if k not in have], dtype=int)
+    if missing.size == 0 or not state.patches:
+        return 0
+    approach = _tip_approaches([state.asperities[k] for k in missing], theta, pivot)
+    tips = state.tips()
+    h = state.patches[0].grid.h
+    forces = np.array([h * h * float(np.sum(pk)) for pk in p])
+    u = state.provider.point_operator(tips[missing], tips[[pt.asperity for pt in state.patches]]).apply(forces)
+    local = approach - u
+    reached = np.flatnonzero(local > -gap_tol)
+    for i in reached:
+        k = int(missing[i])
+        # cover the sphere's reach at twice the estimated local approach (then grown as usual)
+        r = state.asperities[k].reach(2.0 * max(float(local[i]), gap_tol)) + 2.0 * h
+        state.extend(k, tips[k] + r * np.array([[-1.0, -1.0], [1.0, 1.0]]), [p, p0])
+    return int(reached.size)
 
 
 def _gap_tol(state: _State, theta, pivot, tol: float) -> float:
