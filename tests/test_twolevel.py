@@ -171,3 +171,10 @@ def test_matrix_free_macro_step_gives_the_same_two_scale_answer():
     assert free.iterations["macro_krylov"] > 0 and free.extra["macro_operator_error"] <= 1e-12
     fd, ff = np.asarray(dense.asperities.forces), np.asarray(free.asperities.forces)
     assert np.max(np.abs(ff - fd)) <= 1e-6 * fd.max()
+    # result.json says how the macro step held the interaction
+    from twoscale.io.result_json import result_to_dict
+    from twoscale.scene import Scene
+    scene = Scene(material=MAT, asperities=asp, total_load=2.0, tilt=True, pivot=(10.0, 10.0), h=0.1)
+    assert result_to_dict(dense, scene)["macro"] == {"interaction": "dense", "operator_error": None}
+    rec = result_to_dict(free, scene)["macro"]
+    assert rec["interaction"] == "matrix-free" and 0.0 <= rec["operator_error"] <= 1e-12

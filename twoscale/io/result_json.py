@@ -92,7 +92,7 @@ def result_to_dict(result, scene: Scene, *, method: str | None = None) -> dict:
             row["macro_force"] = _num(np.asarray(macro)[k])
         asperities.append(row)
     h = result.fields[0].grid.h if result.fields else scene.h
-    return {
+    out = {
         "converged": bool(result.converged),
         "method": method,
         "penetration": _num(result.penetration),
@@ -111,6 +111,12 @@ def result_to_dict(result, scene: Scene, *, method: str | None = None) -> dict:
         "units": dict(UNITS),
         "scene": scene_to_dict(scene),
     }
+    if "macro_interaction" in result.extra:
+        # how the macro step held the interaction, and the measured error of a fast operator
+        err = result.extra.get("macro_operator_error")
+        out["macro"] = {"interaction": result.extra["macro_interaction"],
+                        "operator_error": None if err is None else _num(err)}
+    return out
 
 
 def write_result(result, scene: Scene, out_dir: str | os.PathLike, *, method: str | None = None) -> Path:
