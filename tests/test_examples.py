@@ -22,6 +22,11 @@ def _distances(scene):
     return np.hypot(t[:, None, 0] - t[None, :, 0], t[:, None, 1] - t[None, :, 1])
 
 
+def test_no_example_says_the_format_lacks_a_load_list():
+    for path in EXAMPLES.glob("*.toml"):
+        assert "no key for a load list" not in path.read_text(), path.name
+
+
 @pytest.mark.parametrize("path", sorted(EXAMPLES.glob("*.toml")), ids=lambda p: p.name)
 def test_every_example_parses_with_distinct_tips(path):
     s = read_scene(path)
@@ -50,6 +55,7 @@ def test_paper_two_spheres():
 def _common_experiment(s, total):
     assert (s.material.E, s.material.nu) == (6.0, 0.5)
     assert s.total_load == total and s.tilt and s.pivot == (0.0, 0.0)
+    assert s.load_cases[0] == total                  # `solve` runs the first load case
     assert all(a.z == 0 and a.shape == "sphere" for a in s.asperities)
     # every sphere lies on the default 44 x 1.9 mm sensor, centred on the joint
     half = 0.5 * Sensor().nx * Sensor().cell
@@ -61,6 +67,7 @@ def test_S1_hexagon():
     s = _scene("S1.toml")
     _common_experiment(s, 50.0)
     assert _load_cases("S1.toml") == [50, 100, 150]
+    assert s.load_cases == tuple(_load_cases("S1.toml"))      # the key lists what the comment says
     assert len(s.asperities) == 7 and all(a.R == 6.0 for a in s.asperities)
     r = np.hypot(*s.tips.T)
     assert r[0] == 0 and np.allclose(r[1:], 15.0, rtol=1e-12)          # hexagon radius 15 mm
@@ -72,6 +79,7 @@ def test_S2_square_lattice():
     s = _scene("S2.toml")
     _common_experiment(s, 200.0)
     assert _load_cases("S2.toml") == [200, 250, 300]
+    assert s.load_cases == tuple(_load_cases("S2.toml"))      # the key lists what the comment says
     assert len(s.asperities) == 25 and all(a.R == 5.0 for a in s.asperities)
     xs, ys = np.unique(s.tips[:, 0]), np.unique(s.tips[:, 1])
     np.testing.assert_allclose(xs, [-20, -10, 0, 10, 20])              # pitch 10 mm, centred
@@ -97,6 +105,7 @@ def test_S3_random_layout_matches_its_recipe():
     s = _scene("S3.toml")
     _common_experiment(s, 200.0)
     assert _load_cases("S3.toml") == [200, 250, 300]
+    assert s.load_cases == tuple(_load_cases("S3.toml"))      # the key lists what the comment says
     R = np.array([a.R for a in s.asperities])
     assert len(R) == 24 and set(R) == {4.0, 5.0, 6.0}
     text = (EXAMPLES / "S3.toml").read_text()

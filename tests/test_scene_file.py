@@ -60,6 +60,11 @@ def _both(*changes):
     return change
 
 
+def _cases(value):
+    """Load control (total 200 N) with ``load.cases = value``."""
+    return _both(_del(("load", "penetration")), _set(("load", "total"), 200.0), _set(("load", "cases"), value))
+
+
 # (mutation, field path the message must name, value text the message must show)
 MALFORMED = {
     "unknown top-level key": (_set(("mesh",), 1), "mesh", "1"),
@@ -123,6 +128,17 @@ MALFORMED = {
                                   "influence.size", "[140.0, 20.0]"),
     "unknown block key": (_set(("influence",), {"kind": "block", "thickness": 20.0}),
                           "influence.thickness", "20.0"),
+    "load cases with penetration": (_set(("load", "cases"), [1.0, 2.0]), "load.cases", "[1.0, 2.0]"),
+    "load cases empty": (_cases([]), "load.cases", "[]"),
+    "load cases not a list": (_cases(200.0), "load.cases", "200.0"),
+    "load cases a string": (_cases("200, 250"), "load.cases", "'200, 250'"),
+    "load case zero": (_cases([200.0, 0.0]), "load.cases[1]", "0.0"),
+    "load case negative": (_cases([-5.0]), "load.cases[0]", "-5.0"),
+    "load case infinite": (_cases([200.0, math.inf]), "load.cases[1]", "inf"),
+    "load case nan": (_cases([math.nan]), "load.cases[0]", "nan"),
+    "load case a string": (_cases([200.0, "250"]), "load.cases[1]", "'250'"),
+    "load case a bool": (_cases([True]), "load.cases[0]", "True"),
+    "load cases repeated": (_cases([200.0, 250.0, 200.0]), "load.cases", "[200.0, 250.0, 200.0]"),
 }
 
 
@@ -209,6 +225,7 @@ ROUND_TRIP = {
                                               _set(("influence",), {"kind": "block", "size": [100.0, 120.0, 20.0],
                                                                     "base": "sliding", "origin": [3.0, -4.0]}))),
     "block defaults": mutated(_set(("influence",), {"kind": "block"})),
+    "load cases": mutated(_cases([200.0, 250, 300.0])),
 }
 
 
@@ -219,6 +236,23 @@ def test_round_trip_scene_dict_scene(case):
     assert again == scene
     # the dict is what result.json records: it must survive JSON too
     assert scene_from_dict(json.loads(json.dumps(scene_to_dict(scene)))) == scene
+
+
+def test_load_cases_are_kept_in_order_as_floats():
+    scene = scene_from_dict(ROUND_TRIP["load cases"])
+    assert scene.load_cases == (200.0, 250.0, 300.0) and all(type(w) is float for w in scene.load_cases)
+    assert scene_to_dict(scene)["load"]["cases"] == [200.0, 250.0, 300.0]
+    # no key, no list; and none is written back
+    assert scene_from_dict(BASE).load_cases == ()
+    assert "cases" not in scene_to_dict(scene_from_dict(BASE))["load"]
+
+
+def test_load_cases_from_a_toml_file(write_scene):
+    text = _toml(mutated(_both(_del(("load", "penetration")), _set(("load", "total"), 50.0))))
+    path = write_scene(text.replace("total = 50.0", "total = 50.0\ncases = [50.0, 100, 150.0]"))
+    assert read_scene(path).load_cases == (50.0, 100.0, 150.0)
+    with pytest.raises(SceneError, match=r"load\.cases\[1\] must be > 0 \(N\), got 0"):
+        read_scene(write_scene(text.replace("total = 50.0", "total = 50.0\ncases = [50.0, 0]"), "zero.toml"))
 
 
 def test_block_defaults_are_the_paper_block():

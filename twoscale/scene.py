@@ -127,6 +127,11 @@ class Scene:
         ``{"kind": "halfspace"}`` (default) or the finite block,
         ``{"kind": "block", "size": (140, 140, 20), "base": "bonded", "origin": (0, 0)}``;
         see :func:`normalise_influence`.
+    load_cases : sequence of float, default ()
+        With ``total_load`` only: the scene's load cases, total loads in N (each finite
+        and > 0, no repeats; stored as a tuple). ``twoscale compare`` runs each of them
+        in turn in place of ``total_load``; ``twoscale solve`` and :func:`solve_scene`
+        use ``total_load`` (conventionally the first case). ``()``: no list, one load.
 
     Raises
     ------
@@ -142,6 +147,7 @@ class Scene:
     pivot: tuple = (0.0, 0.0)
     h: float | None = None
     influence: dict = field(default_factory=lambda: {"kind": "halfspace"})
+    load_cases: tuple = ()
 
     def __post_init__(self) -> None:
         if not isinstance(self.material, Material):
@@ -194,6 +200,21 @@ class Scene:
             object.__setattr__(self, "total_load", check_number("load.total", W, positive=True, unit="N"))
         if not self.tilt and pivot != (0.0, 0.0):
             raise SceneError(f"load.pivot is only used with load.tilt = true, got pivot = {list(pivot)!r}")
+        object.__setattr__(self, "load_cases", self._checked_load_cases())
+
+    def _checked_load_cases(self) -> tuple:
+        cases = self.load_cases
+        if isinstance(cases, (str, bytes, Mapping)) or not isinstance(cases, (Sequence, np.ndarray)):
+            raise SceneError(f"load.cases must be a list of total loads (N), got {cases!r}")
+        if len(cases) == 0:
+            return ()
+        if self.total_load is None:
+            raise SceneError(f"load.cases = {list(cases)!r} needs load.total (the cases are total loads), "
+                             f"got penetration = {self.penetration!r}")
+        out = tuple(check_number(f"load.cases[{i}]", w, positive=True, unit="N") for i, w in enumerate(cases))
+        if len(set(out)) != len(out):
+            raise SceneError(f"load.cases has repeated values, got {list(cases)!r}")
+        return out
 
     # ------------------------------------------------------------ derived data
     @property

@@ -5,6 +5,8 @@ The format (see README.md)::
     [material]            E (MPa, > 0), nu (-1 < nu <= 0.5)           required
     [load]                exactly one of penetration (mm) / total (N)  required
                           tilt = true (with total only), pivot = [x, y] (mm, with tilt)
+                          cases = [W1, W2, ...] (N, with total only): load cases of
+                          `twoscale compare`; `solve` uses total (the first case)
     [grid]                h (mm, > 0)                                  optional
     [influence]           kind = "halfspace" | "block" (+ size, base, origin for "block")
     [[asperity]]          x, y (mm), R (mm, > 0) required; z (mm) default 0;
@@ -32,7 +34,7 @@ __all__ = ["SceneError", "read_scene", "scene_from_dict", "scene_to_dict"]
 
 TOP_KEYS = ("material", "load", "grid", "influence", "asperity")
 MATERIAL_KEYS = ("E", "nu")
-LOAD_KEYS = ("penetration", "total", "tilt", "pivot")
+LOAD_KEYS = ("penetration", "total", "tilt", "pivot", "cases")
 GRID_KEYS = ("h",)
 ASPERITY_KEYS = ("x", "y", "z", "R", "shape")
 
@@ -80,10 +82,13 @@ def scene_from_dict(data: Mapping[str, Any]) -> Scene:
     grid = _table("grid", data.get("grid", {}))
     _check_keys("grid", grid, GRID_KEYS)
     influence = _table("influence", data.get("influence", {}))
+    if "cases" in load and isinstance(load["cases"], list) and not load["cases"]:
+        # Scene() reads () as "no list"; in a file an empty list is a mistake
+        raise SceneError("load.cases is empty, got [] (list at least one total load, N, or leave the key out)")
     return Scene(material=material, asperities=asperities,
                  penetration=load.get("penetration"), total_load=load.get("total"),
                  tilt=load.get("tilt", False), pivot=load.get("pivot", (0.0, 0.0)),
-                 h=grid.get("h"), influence=dict(influence) or None)
+                 h=grid.get("h"), influence=dict(influence) or None, load_cases=load.get("cases", ()))
 
 
 def scene_to_dict(scene: Scene) -> dict:
@@ -99,6 +104,8 @@ def scene_to_dict(scene: Scene) -> dict:
     if scene.tilt:
         load["tilt"] = True
         load["pivot"] = [float(v) for v in scene.pivot]
+    if scene.load_cases:
+        load["cases"] = [float(w) for w in scene.load_cases]
     out: dict[str, Any] = {
         "material": {"E": float(scene.material.E), "nu": float(scene.material.nu)},
         "load": load,
