@@ -253,3 +253,191 @@ def test_subprocess_compare_on_shipped_scene(tmp_path):
     assert bodies in ({"halfspace"}, {"halfspace", "block-bonded", "block-sliding"})
     if bodies == {"halfspace"}:
         assert "half-space only" in proc.stderr
+
+
+# ---------------------------------------------------------------- load cases of the scene
+def test_scene_load_cases_run_without_loads_and_loads_override(tmp_path, monkeypatch):
+    monkeypatch.setattr(compare, "_block_factory", lambda: (None, "no block in this test"))
+    scene = tmp_path / "small.toml"
+    scene.write_text(SMALL.replace("total = 10.0", "total = 10.0\ncases = [10.0, 20.0]"))
+    out = tmp_path / "cases"
+    assert main(["compare", str(scene), "--out", str(out), "--quiet"]) == 0
+    runs = json.loads((out / "summary.json").read_text())["runs"]
+    assert [(r["load"], r["total_load"]) for r in runs] == [("10N", pytest.approx(10.0)), ("20N", pytest.approx(20.0))]
+    assert {r["load"] for r in _csv_rows(out / "forces.csv")} == {"10N", "20N"}
+    # --loads replaces the scene's cases, and the files record the cases actually run
+    out2 = tmp_path / "override"
+    assert main(["compare", str(scene), "--loads", "15", "--out", str(out2), "--quiet"]) == 0
+    summary = json.loads((out2 / "summary.json").read_text())
+    assert [r["load"] for r in summary["runs"]] == ["15N"]
+    assert summary["scene"]["load"]["cases"] == [15.0] and summary["scene"]["load"]["total"] == 15.0
+
+
+@pytest.mark.parametrize("name, cases", [("S1.toml", [50.0, 100.0, 150.0]), ("S2.toml", [200.0, 250.0, 300.0]),
+                                         ("S3.toml", [200.0, 250.0, 300.0])])
+def test_shipped_scenes_compare_every_load_case(name, cases):
+    # what `twoscale compare examples/S2.toml` (no --loads) would solve, without solving
+    args = compare_args([str(EXAMPLES / name)])
+    assert [s.total_load for s in compare._scenes(args)] == cases
+    assert [s.total_load for s in compare._scenes(compare_args([str(EXAMPLES / name), "--loads", "70"]))] == [70.0]
+
+
+def compare_args(argv):
+    from twoscale.cli.main import build_parser
+    return build_parser().parse_args(["compare", *argv])
+
+
+@pytest.mark.parametrize("cases, field, value", [
+    ("[10.0, 0.0]", "load.cases[1]", "0.0"),
+    ("[10.0, inf]", "load.cases[1]", "inf"),
+    ("[10.0, 10.0]", "load.cases", "[10.0, 10.0]"),
+    ("[]", "load.cases", "[]"),
+    ('"10, 20"', "load.cases", "'10, 20'"),
+])
+def test_bad_scene_load_cases_exit_2(tmp_path, capsys, cases, field, value):
+    scene = tmp_path / "small.toml"
+    scene.write_text(SMALL.replace("total = 10.0", f"total = 10.0\ncases = {cases}"))
+    out = tmp_path / "cmp"
+    assert main(["compare", str(scene), "--out", str(out), "--quiet"]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("error: ") and err.count("\n") == 1, err
+    assert field in err and value in err, err
+    assert not out.exists()
+
+
+def test_measured_data_with_several_scene_cases_asks_for_one(tmp_path, capsys):
+    f = tmp_path / "f.csv"
+    f.write_text("index,force\n" + "".join(f"{k},1\n" for k in range(7)))
+    out = tmp_path / "o"
+    assert main(["compare", str(EXAMPLES / "S1.toml"), "--measured-forces", str(f), "--out", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert "load.cases = [50.0, 100.0, 150.0]" in err and "--loads" in err
+    assert not out.exists()
+
+
+# ---------------------------------------------------------------- sensor position and size
+def test_sensor_options_feed_map_reading_forces_and_e_m(tmp_path, monkeypatch):
+    from twoscale.io.vtk import read_vtk
+    from twoscale.sensor import Sensor
+
+    monkeypatch.setattr(compare, "_block_factory", lambda: (None, "no block in this test"))
+    scene = tmp_path / "small.toml"
+    scene.write_text(SMALL)
+    # 8 x 6 cells of 2 mm centred at (4, 0): cell centres x = -3, -1, ..., 11 and y = -5, ..., 5
+    sensor = Sensor(8, 6, 2.0, (4.0, 0.0))
+    smap = np.zeros((6, 8))
+    smap[2, 1] = 1.0              # centre (-1, -1): nearest tip (0, 0)
+    smap[2, 5] = 2.0              # centre (7, -1): nearest tip (8, 0)
+    mpath = tmp_path / "map.csv"
+    mpath.write_text("\n".join(",".join(f"{v:g}" for v in row) for row in smap) + "\n")
+    out = tmp_path / "cmp"
+    assert main(["compare", str(scene), "--sensor", "8", "6", "2.0", "--sensor-centre", "4", "0",
+                 "--measured-map", str(mpath), "--vtk", "--out", str(out), "--quiet"]) == 0
+    rows = [r for r in _csv_rows(out / "forces.csv") if r["body"] == "measured"]
+    assert [float(r["force_N"]) for r in rows] == pytest.approx([4.0, 8.0, 0.0])
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["sensor"] == {"nx": 8, "ny": 6, "cell_mm": 2.0, "centre_mm": [4.0, 0.0]}
+    fields = read_vtk(out / "runs" / "halfspace_10N" / "fields.vtu").fields
+    P = sum(sensor.average_field(f.grid, f.pressure) for f in fields)
+    loaded = (P != 0) | (smap != 0)
+    expected = 100 * np.sum((P - smap)[loaded] ** 2) / np.sum(smap ** 2)
+    assert summary["indicators_percent"]["10N"]["measured"]["halfspace"]["e_m"] == pytest.approx(expected, rel=1e-8)
+    assert "8 x 6 sensor cells of 2 mm centred at (4, 0) mm" in (out / "forces.md").read_text()
+
+
+def test_measured_map_must_have_the_sensor_shape(tmp_path, capsys):
+    scene = tmp_path / "small.toml"
+    scene.write_text(SMALL)
+    mpath = tmp_path / "map.csv"
+    mpath.write_text("\n".join(",".join(["0"] * 44) for _ in range(44)) + "\n")   # the default 44 x 44
+    out = tmp_path / "cmp"
+    assert main(["compare", str(scene), "--sensor", "20", "10", "1.9", "--measured-map", str(mpath),
+                 "--out", str(out), "--quiet"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "44 rows" in err and "ny = 10" in err, err
+    assert not out.exists()
+
+
+@pytest.mark.parametrize("extra, name, value", [
+    (["--sensor", "0", "44", "1.9"], "--sensor NX", "'0'"),
+    (["--sensor", "44", "4.5", "1.9"], "--sensor NY", "'4.5'"),
+    (["--sensor", "x", "44", "1.9"], "--sensor NX", "'x'"),
+    (["--sensor", "44", "44", "-1"], "--sensor CELL", "'-1'"),
+    (["--sensor", "44", "44", "nan"], "--sensor CELL", "'nan'"),
+    (["--sensor-centre", "inf", "0"], "--sensor-centre X", "'inf'"),
+    (["--sensor-centre", "0", "up"], "--sensor-centre Y", "'up'"),
+])
+def test_bad_sensor_options_exit_2(tmp_path, capsys, extra, name, value):
+    scene = tmp_path / "small.toml"
+    scene.write_text(SMALL)
+    out = tmp_path / "cmp"
+    assert main(["compare", str(scene), "--out", str(out), "--quiet", *extra]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("error: ") and err.count("\n") == 1, err
+    assert name in err and value in err, err
+    assert not out.exists()
+
+
+def test_sensor_away_from_the_contact_is_noted_not_fatal(tmp_path, monkeypatch, capsys):
+    monkeypatch.setattr(compare, "_block_factory", lambda: (_fake_block, ""))
+    scene = tmp_path / "small.toml"
+    scene.write_text(SMALL)
+    out = tmp_path / "cmp"
+    assert main(["compare", str(scene), "--sensor", "4", "4", "1", "--sensor-centre", "100", "100",
+                 "--out", str(out), "--quiet"]) == 0
+    assert "carries 0 N of the 10 N of halfspace" in capsys.readouterr().err
+    ind = json.loads((out / "summary.json").read_text())["indicators_percent"]["10N"]
+    assert ind["halfspace"]["block-bonded"] == {"e_M": 0.0, "e_m": None}
+
+
+# ---------------------------------------------------------------- every top-level file records each body
+BLOCK_SCENE = SMALL.replace("total = 10.0", "total = 10.0\ncases = [10.0, 20.0]") + """
+[influence]
+kind = "block"
+size = [100.0, 120.0, 20.0]
+base = "sliding"
+origin = [3.0, -4.0]
+"""
+
+
+def _png_description(path):
+    from PIL import Image
+    with Image.open(path) as im:
+        return json.loads(im.text["Description"])
+
+
+def test_every_top_level_file_records_each_body_and_all_loads(tmp_path, monkeypatch):
+    from twoscale.io.scene_file import scene_from_dict
+
+    monkeypatch.setattr(compare, "_block_factory", lambda: (_fake_block, ""))
+    scene = tmp_path / "block.toml"
+    scene.write_text(BLOCK_SCENE)
+    out = tmp_path / "cmp"
+    assert main(["compare", str(scene), "--out", str(out), "--quiet"]) == 0
+    loads = [{"label": "10N", "total": 10.0}, {"label": "20N", "total": 20.0}]
+    block = {"kind": "block", "size": [100.0, 120.0, 20.0], "origin": [3.0, -4.0]}
+    expected = {"halfspace": {"influence": {"kind": "halfspace"}, "loads": loads},
+                "block-bonded": {"influence": {**block, "base": "bonded"}, "loads": loads},
+                "block-sliding": {"influence": {**block, "base": "sliding"}, "loads": loads}}
+
+    lines = (out / "forces.csv").read_text().splitlines()
+    csv_meta = {line[2:].split(": ", 1)[0]: json.loads(line[2:].split(": ", 1)[1]) for line in lines[1:4]}
+    summary = json.loads((out / "summary.json").read_text())
+    md = (out / "forces.md").read_text()
+    md_meta = json.loads(md.split("```json\n", 1)[1].split("\n```", 1)[0])
+    records = {"forces.csv": csv_meta, "summary.json": summary, "forces.md": md_meta}
+    for name in ("forces_10N.png", "maps_20N.png", "sensor_10N.png"):
+        records[name] = _png_description(out / name)
+    for name, rec in records.items():
+        assert rec["bodies"] == expected, name
+        assert rec["scene"]["load"]["cases"] == [10.0, 20.0] and rec["scene"]["load"]["total"] == 10.0, name
+        assert rec["scene"]["influence"]["base"] == "sliding", name       # the file's own [influence]
+        assert rec["sensor"] == {"nx": 44, "ny": 44, "cell_mm": 1.9, "centre_mm": [0.0, 0.0]}, name
+    assert "| block-bonded | block | 100 x 120 x 20 | bonded | (3, -4) | total load 10 N, total load 20 N |" in md
+    # the record rebuilds every solve: scene + the body's influence + the load
+    for body, b in expected.items():
+        for load in b["loads"]:
+            rebuilt = dict(summary["scene"], influence=b["influence"],
+                           load=dict(summary["scene"]["load"], total=load["total"]))
+            run = json.loads((out / "runs" / f"{body}_{load['label']}" / "result.json").read_text())
+            assert scene_from_dict(rebuilt) == scene_from_dict(run["scene"]), (body, load)

@@ -25,14 +25,23 @@ def new_figure(size: tuple[float, float], dpi: int):
     return fig
 
 
-def save_png(fig, path: str | Path, *, title: str, scene: Mapping[str, Any] | None = None) -> Path:
-    """Write ``fig`` to ``path`` (PNG) atomically with version, title and scene metadata."""
+def save_png(fig, path: str | Path, *, title: str, scene: Mapping[str, Any] | None = None,
+             meta: Mapping[str, Any] | None = None) -> Path:
+    """Write ``fig`` to ``path`` (PNG) atomically with version, title and scene metadata.
+
+    ``meta``: further JSON-ready entries for the ``Description`` chunk, beside ``units``
+    and ``scene`` (e.g. the bodies and loads of a comparison); it may not replace them.
+    """
     path = Path(path)
     if path.suffix.lower() != ".png":
         raise ValueError(f"figure path must end in .png, got {str(path)!r}")
-    meta = {"Title": title, "Software": f"twoscale {__version__}",
-            "Description": json.dumps({"units": {"length": "mm", "force": "N", "pressure": "MPa"},
-                                       "scene": None if scene is None else dict(scene)})}
+    description = {"units": {"length": "mm", "force": "N", "pressure": "MPa"},
+                   "scene": None if scene is None else dict(scene)}
+    clash = sorted(set(meta or {}) & set(description))
+    if clash:
+        raise ValueError(f"meta may not replace {clash} of the PNG description")
+    description.update(meta or {})
+    meta_png = {"Title": title, "Software": f"twoscale {__version__}", "Description": json.dumps(description)}
     with atomic_output(path) as tmp:
-        fig.savefig(tmp, format="png", metadata=meta)
+        fig.savefig(tmp, format="png", metadata=meta_png)
     return path

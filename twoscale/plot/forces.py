@@ -75,7 +75,7 @@ def force_bars(result: ContactResult, path: str | Path, *, macro_forces: Sequenc
 
 def compare_forces(results: Mapping[str, ContactResult], path: str | Path, *,
                    measured: Sequence[float] | None = None, title: str | None = None,
-                   scene: Mapping[str, Any] | None = None,
+                   scene: Mapping[str, Any] | None = None, meta: Mapping[str, Any] | None = None,
                    size: tuple[float, float] = (7.2, 4.0), dpi: int = 100) -> Path:
     """Forces per asperity of several results side by side (paper Figs. 10-11), as PNG.
 
@@ -91,6 +91,8 @@ def compare_forces(results: Mapping[str, ContactResult], path: str | Path, *,
         Default "force per asperity".
     scene : mapping, optional
         Recorded in the PNG metadata.
+    meta : mapping, optional
+        Further JSON-ready entries of the PNG ``Description`` (e.g. the bodies compared).
     size : (float, float), default (7.2, 4.0)
         Figure size, inches.
     dpi : int, default 100
@@ -110,4 +112,4 @@ def compare_forces(results: Mapping[str, ContactResult], path: str | Path, *,
     _grouped_bars(ax, series)
     title = title or "force per asperity"
     ax.set_title(title, fontsize=10)
-    return save_png(fig, path, title=title, scene=scene)
+    return save_png(fig, path, title=title, scene=scene, meta=meta)

@@ -135,6 +135,7 @@ def _colourbar(fig, cax, image, norm, cmap, sensor):
 
 def compare_maps(results: Mapping[str, ContactResult], path: str | Path, *, tips=None, sensor=None,
                  title: str | None = None, scene: Mapping[str, Any] | None = None,
+                 meta: Mapping[str, Any] | None = None,
                  panel_size: float = 3.6, dpi: int = 100, cmap: str = "viridis") -> Path:
     """Pressure maps of several results side by side on one colour scale, as PNG.
 
@@ -146,6 +147,8 @@ def compare_maps(results: Mapping[str, ContactResult], path: str | Path, *, tips
         Output ``.png``.
     tips, sensor, scene, cmap
         As in :func:`pressure_map`.
+    meta : mapping, optional
+        Further JSON-ready entries of the PNG ``Description`` (e.g. the bodies compared).
     title : str, optional
         Figure title; default "pressure maps".
     panel_size : float, default 3.6
@@ -182,4 +185,4 @@ def compare_maps(results: Mapping[str, ContactResult], path: str | Path, *, tips
     _colourbar(fig, cax, image, norm, cmap, sensor)
     title = title or "pressure maps"
     fig.suptitle(title, fontsize=10)
-    return save_png(fig, path, title=title, scene=scene)
+    return save_png(fig, path, title=title, scene=scene, meta=meta)
