@@ -95,3 +95,36 @@ def test_paper_command_writes_csv_and_figures(tmp_path, capsys):
 def test_paper_command_rejects_bad_tolerance(tmp_path, capsys):
     assert main(["paper", "--out", str(tmp_path), "--tol", "-1"]) == 2
     assert "tol" in capsys.readouterr().err
+
+
+def _paper_with(study, monkeypatch, tmp_path, capsys, *extra):
+    """Run ``twoscale paper`` on an already computed study; (exit code, stdout, stderr, run_study kwargs)."""
+    import twoscale.study
+
+    calls = []
+    monkeypatch.setattr(twoscale.study, "run_study", lambda **kw: calls.append(kw) or study)
+    code = main(["paper", "--out", str(tmp_path), "--quick", "--no-figures", *extra])
+    cap = capsys.readouterr()
+    return code, cap.out, cap.err, calls[0]
+
+
+def test_paper_quiet_prints_nothing_and_still_writes(quick_study, monkeypatch, tmp_path, capsys):
+    code, out, err, kw = _paper_with(quick_study, monkeypatch, tmp_path / "q", capsys, "--quiet")
+    assert code == 0 and out == "" and err == ""
+    assert kw["progress"] is None                     # no per-case lines either
+    assert (tmp_path / "q" / "errors_two.csv").stat().st_size > 0
+    # without --quiet: the table and the acceptance, and a progress callback
+    code, out, err, kw = _paper_with(quick_study, monkeypatch, tmp_path / "loud", capsys)
+    assert code == 0 and "PASS" in out and callable(kw["progress"])
+
+
+def test_paper_quiet_still_warns_about_a_missed_case(quick_study, monkeypatch, tmp_path, capsys):
+    import dataclasses
+
+    two = list(quick_study.cases["two"])
+    two[0] = dataclasses.replace(two[0], err_p_percent=0.5)
+    study = dataclasses.replace(quick_study, cases={**quick_study.cases, "two": two})
+    code, out, err, _ = _paper_with(study, monkeypatch, tmp_path, capsys, "--quiet")
+    assert code == 1 and out == ""
+    lines = err.splitlines()
+    assert len(lines) == 1 and lines[0].startswith("warning: two d/2R=") and "0.5 > 0.1" in lines[0], err
