@@ -178,6 +178,26 @@ BAD = {
     "nan": (HERTZ_TEXT.format(shape="sphere").replace("y = 0.0", "y = nan"), "asperity[0].y", "nan"),
     "no asperity": (HERTZ_TEXT.format(shape="sphere").split("[[asperity]]")[0], "asperity", "missing"),
     "bad toml": ("[material\nE = 1", "invalid TOML", "line 1"),
+    "two tips at one place": (HERTZ_TEXT.format(shape="sphere") + "[[asperity]]\nx = 0.0\ny = -0.0\nR = 5.0\n",
+                              "asperity[1]", "(0.0, -0.0)"),
+    # a top-level key must come before the first table in TOML
+    "empty asperity list": ("asperity = []\n" + HERTZ_TEXT.format(shape="sphere").split("[[asperity]]")[0],
+                            "asperity", "[]"),
+    "missing R": (HERTZ_TEXT.format(shape="sphere").replace("R = 10.0\n", ""), "asperity[0].R", "missing"),
+    "missing nu": (HERTZ_TEXT.format(shape="sphere").replace("nu = 0.5\n", ""), "material.nu", "missing"),
+    "missing [material]": (HERTZ_TEXT.format(shape="sphere").replace("[material]\nE = 10.0\nnu = 0.5\n", ""),
+                           "material", "missing"),
+    "missing [load]": (HERTZ_TEXT.format(shape="sphere").replace("[load]\npenetration = 0.5\n", ""),
+                       "load", "missing"),
+    "E is a string": (HERTZ_TEXT.format(shape="sphere").replace("E = 10.0", 'E = "10"'), "material.E", "'10'"),
+    "R infinite": (HERTZ_TEXT.format(shape="sphere").replace("R = 10.0", "R = inf"), "asperity[0].R", "inf"),
+    "x minus infinity": (HERTZ_TEXT.format(shape="sphere").replace("x = 0.0", "x = -inf"), "asperity[0].x", "-inf"),
+    "penetration infinite": (HERTZ_TEXT.format(shape="sphere").replace("penetration = 0.5", "penetration = inf"),
+                             "load.penetration", "inf"),
+    "load cases with penetration": (HERTZ_TEXT.format(shape="sphere").replace("[load]", "[load]\ncases = [5.0]"),
+                                    "load.cases", "[5.0]"),
+    "load case zero": (HERTZ_TEXT.format(shape="sphere").replace("penetration = 0.5", "total = 5.0\ncases = [5.0, 0.0]"),
+                       "load.cases[1]", "0.0"),
 }
 
 
