@@ -168,36 +168,39 @@ def test_not_converged_writes_result_and_exits_1(examples_dir, tmp_path, monkeyp
 
 
 # ---------------------------------------------------------------- bad input
+SPHERE_TEXT = HERTZ_TEXT.format(shape="sphere")
+
+
+def _edited(old: str, new: str) -> str:
+    """The one-sphere scene with ``old`` replaced by ``new`` (which must occur)."""
+    assert old in SPHERE_TEXT, old
+    return SPHERE_TEXT.replace(old, new)
+
+
 BAD = {
-    "negative radius": (HERTZ_TEXT.format(shape="sphere").replace("R = 10.0", "R = -3.5"), "asperity[0].R", "-3.5"),
-    "nu above 0.5": (HERTZ_TEXT.format(shape="sphere").replace("nu = 0.5", "nu = 0.75"), "material.nu", "0.75"),
-    "unknown key": (HERTZ_TEXT.format(shape="sphere") + "colour = \"red\"\n", "asperity[0].colour", "'red'"),
-    "bool as number": (HERTZ_TEXT.format(shape="sphere").replace("E = 10.0", "E = true"), "material.E", "True"),
+    "negative radius": (_edited("R = 10.0", "R = -3.5"), "asperity[0].R", "-3.5"),
+    "nu above 0.5": (_edited("nu = 0.5", "nu = 0.75"), "material.nu", "0.75"),
+    "unknown key": (SPHERE_TEXT + "colour = \"red\"\n", "asperity[0].colour", "'red'"),
+    "bool as number": (_edited("E = 10.0", "E = true"), "material.E", "True"),
     "unknown shape": (HERTZ_TEXT.format(shape="cone"), "asperity[0].shape", "'cone'"),
-    "both loads": (HERTZ_TEXT.format(shape="sphere").replace("[load]", "[load]\ntotal = 3.0"), "load.total", "3.0"),
-    "nan": (HERTZ_TEXT.format(shape="sphere").replace("y = 0.0", "y = nan"), "asperity[0].y", "nan"),
-    "no asperity": (HERTZ_TEXT.format(shape="sphere").split("[[asperity]]")[0], "asperity", "missing"),
+    "both loads": (_edited("[load]", "[load]\ntotal = 3.0"), "load.total", "3.0"),
+    "nan": (_edited("y = 0.0", "y = nan"), "asperity[0].y", "nan"),
+    "no asperity": (SPHERE_TEXT.split("[[asperity]]")[0], "asperity", "missing"),
     "bad toml": ("[material\nE = 1", "invalid TOML", "line 1"),
-    "two tips at one place": (HERTZ_TEXT.format(shape="sphere") + "[[asperity]]\nx = 0.0\ny = -0.0\nR = 5.0\n",
-                              "asperity[1]", "(0.0, -0.0)"),
+    "two tips at one place": (SPHERE_TEXT + "[[asperity]]\nx = 0.0\ny = -0.0\nR = 5.0\n", "asperity[1]", "(0.0, -0.0)"),
     # a top-level key must come before the first table in TOML
-    "empty asperity list": ("asperity = []\n" + HERTZ_TEXT.format(shape="sphere").split("[[asperity]]")[0],
-                            "asperity", "[]"),
-    "missing R": (HERTZ_TEXT.format(shape="sphere").replace("R = 10.0\n", ""), "asperity[0].R", "missing"),
-    "missing nu": (HERTZ_TEXT.format(shape="sphere").replace("nu = 0.5\n", ""), "material.nu", "missing"),
-    "missing [material]": (HERTZ_TEXT.format(shape="sphere").replace("[material]\nE = 10.0\nnu = 0.5\n", ""),
-                           "material", "missing"),
-    "missing [load]": (HERTZ_TEXT.format(shape="sphere").replace("[load]\npenetration = 0.5\n", ""),
-                       "load", "missing"),
-    "E is a string": (HERTZ_TEXT.format(shape="sphere").replace("E = 10.0", 'E = "10"'), "material.E", "'10'"),
-    "R infinite": (HERTZ_TEXT.format(shape="sphere").replace("R = 10.0", "R = inf"), "asperity[0].R", "inf"),
-    "x minus infinity": (HERTZ_TEXT.format(shape="sphere").replace("x = 0.0", "x = -inf"), "asperity[0].x", "-inf"),
-    "penetration infinite": (HERTZ_TEXT.format(shape="sphere").replace("penetration = 0.5", "penetration = inf"),
+    "empty asperity list": ("asperity = []\n" + SPHERE_TEXT.split("[[asperity]]")[0], "asperity", "[]"),
+    "missing R": (_edited("R = 10.0\n", ""), "asperity[0].R", "missing"),
+    "missing nu": (_edited("nu = 0.5\n", ""), "material.nu", "missing"),
+    "missing [material]": (_edited("[material]\nE = 10.0\nnu = 0.5\n", ""), "material", "missing"),
+    "missing [load]": (_edited("[load]\npenetration = 0.5\n", ""), "load", "missing"),
+    "E is a string": (_edited("E = 10.0", 'E = "10"'), "material.E", "'10'"),
+    "R infinite": (_edited("R = 10.0", "R = inf"), "asperity[0].R", "inf"),
+    "x minus infinity": (_edited("x = 0.0", "x = -inf"), "asperity[0].x", "-inf"),
+    "penetration infinite": (_edited("penetration = 0.5", "penetration = inf"),
                              "load.penetration", "inf"),
-    "load cases with penetration": (HERTZ_TEXT.format(shape="sphere").replace("[load]", "[load]\ncases = [5.0]"),
-                                    "load.cases", "[5.0]"),
-    "load case zero": (HERTZ_TEXT.format(shape="sphere").replace("penetration = 0.5", "total = 5.0\ncases = [5.0, 0.0]"),
-                       "load.cases[1]", "0.0"),
+    "load cases with penetration": (_edited("[load]", "[load]\ncases = [5.0]"), "load.cases", "[5.0]"),
+    "load case zero": (_edited("penetration = 0.5", "total = 5.0\ncases = [5.0, 0.0]"), "load.cases[1]", "0.0"),
 }
 
 
@@ -240,7 +243,7 @@ def test_block_without_fem_influence_exit_2(write_scene, tmp_path, capsys, monke
 
 def test_subprocess_bad_input(write_scene, tmp_path):
     out = tmp_path / "never"
-    path = write_scene(HERTZ_TEXT.format(shape="sphere").replace("R = 10.0", "R = -3.5"))
+    path = write_scene(_edited("R = 10.0", "R = -3.5"))
     proc = subprocess.run([sys.executable, "-m", "twoscale", "solve", str(path), "--out", str(out)],
                           capture_output=True, text=True, timeout=60)
     assert proc.returncode == 2
