@@ -29,6 +29,18 @@ def best_time(fn: Callable[[], object], repeat: int = 3, budget_s: float = 5.0) 
     return result, best
 
 
+def progress(total: int, label: str, quiet: bool = False):
+    """A progress bar on stderr for a benchmark's loop (drawn on a terminal after 2 s;
+    nothing with ``quiet``): :class:`twoscale.progress.Progress`."""
+    from twoscale.progress import Progress
+    return Progress(total, label=label, quiet=quiet)
+
+
+def add_quiet(parser) -> None:
+    """The ``--quiet`` option every benchmark takes (no progress bar)."""
+    parser.add_argument("--quiet", action="store_true", help="no progress bar on stderr")
+
+
 def print_table(rows: list[dict], columns: list[tuple[str, str, str]]) -> None:
     """Print ``rows`` as a fixed-width table; columns are (key, header, format)."""
     widths = [max(len(h), 10) for _, h, _ in columns]

@@ -8,7 +8,8 @@ total load 50 N. Prints, for the bonded and the sliding base:
 * the same two-scale solve on the half-space, for the "within 2x" target;
 * load-sharing between asperities (centre vs corner force) on each body.
 
-Run: ``python benchmarks/block.py`` (about 1 minute on a quiet 2-core machine).
+Run: ``python benchmarks/block.py [--quiet]`` (about 1 minute on a quiet 2-core machine;
+``--quiet``: no progress bar).
 """
 from __future__ import annotations
 
@@ -63,13 +64,16 @@ def _subprocess(kind: str, base: str, cache: str) -> dict:
     return json.loads(out.strip().splitlines()[-1])
 
 
-def main() -> None:
+def main(quiet: bool = False) -> None:
+    sys.path.insert(0, ROOT)
+    from twoscale.progress import Progress
     rows = []
-    with tempfile.TemporaryDirectory() as cache:
-        rows.append(("half-space", _subprocess("halfspace", "-", cache)))
-        for base in ("bonded", "sliding"):
-            rows.append((f"{base} cold", _subprocess("block", base, cache)))
-            rows.append((f"{base} warm", _subprocess("block", base, cache)))
+    runs = [("half-space", "halfspace", "-")] + [(f"{base} {state}", "block", base)
+                                                 for base in ("bonded", "sliding") for state in ("cold", "warm")]
+    with tempfile.TemporaryDirectory() as cache, Progress(len(runs), label="block cases", quiet=quiet) as bar:
+        for name, kind, base in runs:
+            rows.append((name, _subprocess(kind, base, cache)))
+            bar.update(note=name)
     hs = rows[0][1]["solve_s"]
     print(f"{'case':>14} {'build+solve s':>14} {'solve s':>8} {'x half-space':>12} {'peak MB':>8} "
           f"{'d mm':>7} {'F centre':>9} {'F corner':>9}")
@@ -82,5 +86,7 @@ def main() -> None:
 if __name__ == "__main__":
     if len(sys.argv) == 4 and sys.argv[1] == "--once":
         print(json.dumps(run_once(sys.argv[2], sys.argv[3])))
+    elif sys.argv[1:] in ([], ["--quiet"]):
+        main(quiet=bool(sys.argv[1:]))
     else:
-        main()
+        sys.exit(f"usage: python benchmarks/block.py [--quiet]; got {sys.argv[1:]!r}")

@@ -202,12 +202,15 @@ def main(argv=None) -> int:
     parser.add_argument("--repeat", type=int, default=3, help="runs per code, best time kept (default 3)")
     parser.add_argument("--max-dense", type=int, default=10_000,
                         help="largest grid (cells) given to the dense solver (default 10000)")
+    _common.add_quiet(parser)
     args = parser.parse_args(argv)
     print(f"Hertz: R = {R} mm, E = {MAT.E} MPa, nu = {MAT.nu}, d = {D} mm, a = {A:.4f} mm, "
           f"P = {P_HERTZ:.4f} N; OMP_NUM_THREADS={os.environ.get('OMP_NUM_THREADS')}")
     rows = []
-    for n in args.sizes:
-        rows += bench_size(n, args.repeat, args.max_dense)
+    with _common.progress(len(args.sizes), "hertz sizes", args.quiet) as bar:
+        for n in args.sizes:
+            rows += bench_size(n, args.repeat, args.max_dense)
+            bar.update(note=f"2a/h = {n}")
     print_table(rows, [("code", "code", "s"), ("n", "2a/h", "d"), ("cells", "cells", "d"),
                        ("time", "time s", ".3f"), ("iters", "iters", "d"), ("load_err", "load err", ".2e"),
                        ("l2_err", "L2 err", ".3e"), ("area_err", "area err", ".2e"),

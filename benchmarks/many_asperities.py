@@ -11,13 +11,33 @@ measured and printed.
 Each solve runs in a fresh subprocess so that its peak resident memory
 (``resource.getrusage(RUSAGE_SELF).ru_maxrss``, the interpreter's ~100 MB included) is its
 own. The full-grid FFT reference (Polonsky-Keer CG, :func:`twoscale.reference.solve_cg`)
-runs where its grid has at most ``--reference-max-cells`` cells. ContactMechanics and
-Tamaas are used when importable (neither is installed here: reported as "not installed").
+runs where its grid has at most ``--reference-max-cells`` cells.
+
+Comparators (``--comparators``, default on when importable; ``--no-comparators`` skips
+them), at the same cell size, each in its own subprocess, under the same cell limit
+(counted on the scene grid; both they and our reference zero-pad or double it inside):
+
+* ``CM``: ContactMechanics ``FreeFFTElasticHalfSpace`` (non-periodic: the same discrete
+  problem as our reference, uniform pressure on square cells) on the same full grid,
+  ``NonSmoothContactSystem.minimize_proxy(external_force=W, pentol=..., forcetol=...)``
+  (its Polonsky-Keer constrained CG under load control), E* of our material; its forces
+  per pixel are summed over the cells each asperity owns. Agrees with our reference to
+  the solvers' tolerances.
+* ``Tamaas``: ``PolonskyKeerRey`` on its periodic ``basic_2d`` model (spectral kernel),
+  the scene grid placed in a periodic cell twice as wide in x and in y (4x the cells,
+  padding never touches) to limit the periodic images: *not the same problem* (periodic
+  images and a different kernel), its force error is labelled periodic.
+
+Both take rigid heights peak up, ``-min(height, CLIP)``: the cells without material
+(``inf``) and those more than ``CLIP`` = 1 mm above the lowest tip (none of them can touch:
+the approach is ~0.1 mm; checked after the solve) sit 1 mm down, which keeps Tamaas's
+error scale (normalised by the surface's rms height) meaningful.
 
 Usage::
 
     OMP_NUM_THREADS=1 python benchmarks/many_asperities.py --sizes 100 1000
     python benchmarks/many_asperities.py --sizes 100 --no-reference --options '{"far_tol": 0.05}'
+    python benchmarks/many_asperities.py --sizes 100 --no-comparators
 
 Measured figures: docs/scaling_status.md.
 """
@@ -103,7 +123,88 @@ def run_reference(n: int, seed: int, options: dict) -> dict:
             "touching": float(np.mean(forces > 0)), "side_mm": side}
 
 
-RUNNERS = {"twoscale": run_twoscale, "fft-cg": run_reference}
+CLIP = 1.0   # mm: heights above this (and inf) sit this far down for the comparators
+CM_PENTOL = 1e-10   # mm: CM's bound on rms/max interpenetration and on the last update of u
+CM_FORCETOL = 1e-10  # N: CM's bound on tensile pixel forces
+TAMAAS_TOL = 1e-12   # Tamaas's relative complementarity error
+
+
+def _scene_surface(n: int, seed: int):
+    """Scene, its full grid (as run_reference's) and the sampled surface."""
+    asp, side = scene(n, seed=seed)
+    grid = Grid.covering(-6.0, side + 6.0, -6.0, side + 6.0, H)
+    return asp, side, grid, surface_on(grid, asp)
+
+
+def _owned_forces(surf, pixel_forces: np.ndarray) -> np.ndarray:
+    """Sum of pixel forces (N) over the cells each asperity owns, as summarise() does."""
+    own, f = surf.owner.ravel(), np.asarray(pixel_forces).ravel()
+    ok = own >= 0
+    return np.bincount(own[ok], weights=f[ok], minlength=surf.n_asperities)
+
+
+def _clip_check(surf, pixel_forces: np.ndarray) -> int:
+    """Loaded cells among those clipped at CLIP (0 when the clipping changed nothing)."""
+    return int(np.count_nonzero((np.asarray(pixel_forces) > 0) & ~(surf.height < CLIP)))
+
+
+def run_contact_mechanics(n: int, seed: int, options: dict) -> dict:
+    import warnings
+    from ContactMechanics import FreeFFTElasticHalfSpace
+    from ContactMechanics.Systems import NonSmoothContactSystem
+    from SurfaceTopography import Topography
+    W = LOAD_PER_ASPERITY * n
+    t0 = time.perf_counter()
+    asp, side, grid, surf = _scene_surface(n, seed)
+    size = (grid.ny * grid.h, grid.nx * grid.h)
+    heights = -np.minimum(surf.height, CLIP)  # topography, peak up
+    substrate = FreeFFTElasticHalfSpace(grid.shape, MATERIAL.E_star, size)
+    system = NonSmoothContactSystem(substrate, Topography(heights, physical_sizes=size))
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        sol = system.minimize_proxy(external_force=W, pentol=CM_PENTOL, forcetol=CM_FORCETOL,
+                                    maxiter=20_000)
+    t = time.perf_counter() - t0
+    pix = np.asarray(sol.jac)  # forces per pixel, N (pressure * h^2), >= 0
+    forces = _owned_forces(surf, pix)
+    return {"method": "CM", "n": n, "time_s": t, "peak_mb": _peak_mb(), "cells": int(grid.size),
+            "forces": forces.tolist(), "converged": bool(sol.success), "message": str(sol.message),
+            "iterations": int(sol.nit), "total_load": float(pix.sum()), "clipped_loaded": _clip_check(surf, pix),
+            "touching": float(np.mean(forces > 0)), "side_mm": side}
+
+
+def run_tamaas(n: int, seed: int, options: dict) -> dict:
+    import tamaas as tm
+    tm.set_log_level(tm.LogLevel.error)
+    W = LOAD_PER_ASPERITY * n
+    t0 = time.perf_counter()
+    asp, side, grid, surf = _scene_surface(n, seed)
+    ny, nx = 2 * grid.ny, 2 * grid.nx  # periodic cell twice the scene grid in x and y
+    Ly, Lx = ny * grid.h, nx * grid.h
+    heights = np.full((ny, nx), -CLIP)
+    heights[:grid.ny, :grid.nx] = -np.minimum(surf.height, CLIP)
+    model = tm.ModelFactory.createModel(tm.model_type.basic_2d, [Ly, Lx], [ny, nx])
+    model.E, model.nu = MATERIAL.E, MATERIAL.nu
+    solver = tm.PolonskyKeerRey(model, heights, TAMAAS_TOL)
+    solver.setMaxIterations(20_000)
+    err = float(solver.solve(W / (Lx * Ly)))
+    t = time.perf_counter() - t0
+    p = np.array(model.traction).reshape(ny, nx)
+    pix = p * grid.h ** 2
+    scene_pix = pix[:grid.ny, :grid.nx]
+    forces = _owned_forces(surf, scene_pix)
+    return {"method": "Tamaas", "n": n, "time_s": t, "peak_mb": _peak_mb(), "cells": int(nx * ny),
+            "forces": forces.tolist(), "converged": bool(err <= TAMAAS_TOL), "message": f"error {err:.2e}",
+            "total_load": float(pix.sum()), "padding_load": float(pix.sum() - scene_pix.sum()),
+            "clipped_loaded": _clip_check(surf, scene_pix), "touching": float(np.mean(forces > 0)),
+            "side_mm": side}
+
+
+RUNNERS = {"twoscale": run_twoscale, "fft-cg": run_reference, "CM": run_contact_mechanics,
+           "Tamaas": run_tamaas}
+COMPARATORS = {"CM": ("ContactMechanics", "SurfaceTopography"), "Tamaas": ("tamaas",)}
+#: cells each comparator solves on, per cell of the scene grid (Tamaas: periodic cell 2x in x and y)
+COMPARATOR_CELLS = {"CM": 1, "Tamaas": 4}
 
 
 def _subprocess(method: str, n: int, seed: int, options: dict, timeout: float) -> dict:
@@ -141,6 +242,12 @@ def main(argv=None) -> int:
     ap.add_argument("--options", default='{"far_tol": 0.2}',
                     help='JSON keyword arguments for solve_twoscale, default {"far_tol": 0.2} '
                          '(use {} for the exact cross-patch coupling: N^2 products)')
+    ap.add_argument("--comparators", action=argparse.BooleanOptionalAction, default=True,
+                    help="run ContactMechanics and Tamaas where installed (default on)")
+    ap.add_argument("--comparator-max-cells", type=float, default=None,
+                    help="largest grid a comparator is run on, counting its own cells (Tamaas: 4x "
+                         "the scene grid), default --reference-max-cells")
+    _common.add_quiet(ap)
     ap.add_argument("--single", choices=sorted(RUNNERS), help=argparse.SUPPRESS)
     ap.add_argument("--json", help="write all records to this file")
     args = ap.parse_args(argv)
@@ -148,19 +255,41 @@ def main(argv=None) -> int:
     if args.single:
         print(json.dumps(RUNNERS[args.single](args.sizes[0], args.seed, options)))
         return 0
-    for name in ("tamaas", "ContactMechanics"):
-        if importlib.util.find_spec(name) is None:
-            print(f"{name}: not installed (skipped)")
+    comparators = []
+    for label, modules in COMPARATORS.items():
+        missing = [m for m in modules if importlib.util.find_spec(m) is None]
+        if not args.comparators:
+            print(f"{label}: skipped (--no-comparators)")
+        elif missing:
+            print(f"{label}: not installed ({', '.join(missing)}; pip install -e '.[bench]'), skipped")
+        else:
+            comparators.append(label)
     records = []
+    bar = _common.progress(len(args.sizes) * (2 + len(comparators)), "solves", args.quiet)
+
+    def _run(method, n, opts):
+        out = _subprocess(method, n, args.seed, opts, args.timeout)
+        bar.update(note=f"{method} N = {n}")
+        return out
+
     for n in args.sizes:
-        ts = _subprocess("twoscale", n, args.seed, options, args.timeout)
+        ts = _run("twoscale", n, options)
         records.append(ts)
         side = 3.0 * np.sqrt(n) + 12.0
         cells = (side / H) ** 2
         ref = None
         if not args.no_reference and cells <= args.reference_max_cells:
-            ref = _subprocess("fft-cg", n, args.seed, {}, args.timeout)
+            ref = _run("fft-cg", n, {})
             records.append(ref)
+        others, skipped = {}, []
+        limit = args.reference_max_cells if args.comparator_max_cells is None else args.comparator_max_cells
+        for label in comparators:
+            own = cells * COMPARATOR_CELLS[label]
+            if own <= limit:
+                others[label] = _run(label, n, {})
+                records.append(others[label])
+            else:
+                skipped.append(f"{label} ({own:.3g} cells)")
         line = {k: ts.get(k) for k in ("n", "time_s", "peak_mb", "cells", "touching", "converged", "timings",
                                         "iterations", "error")}
         if ref is not None and "forces" in ref and "forces" in ts:
@@ -171,8 +300,21 @@ def main(argv=None) -> int:
             line["reference"] = ref.get("error")
         else:
             line["reference"] = f"skipped ({cells:.3g} cells)"
+        for label, rec in others.items():
+            entry = {k: rec.get(k) for k in ("time_s", "peak_mb", "cells", "converged", "iterations",
+                                             "total_load", "clipped_loaded", "padding_load", "error")
+                     if k in rec}
+            if "forces" in rec and "forces" in ts:
+                entry["twoscale_vs_it"] = force_errors(ts["forces"], rec["forces"])
+                entry["speedup"] = rec["time_s"] / ts["time_s"]
+            if "forces" in rec and ref is not None and "forces" in ref:
+                entry["it_vs_fft_cg"] = force_errors(rec["forces"], ref["forces"])
+            line[label + (" (periodic)" if label == "Tamaas" else "")] = entry
+        if skipped:
+            line["comparators skipped"] = ", ".join(skipped)
         print(json.dumps(line))
         sys.stdout.flush()
+    bar.close()
     if args.json:
         with open(args.json, "w") as fh:
             json.dump(records, fh)

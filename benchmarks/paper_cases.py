@@ -78,12 +78,14 @@ def main(argv=None) -> int:
     ap.add_argument("--max-dense-gb", type=float, default=2.0)
     ap.add_argument("--tol", type=float, default=1e-6,
                     help="two-scale eq. 9 tolerance (the paper's squared-norm epsilon is tol^2)")
+    _common.add_quiet(ap)
     args = ap.parse_args(argv)
     rows = []
-    for layout in args.layouts:
-        for s in (args.spacings or PAPER_SPACINGS[layout]):
+    cases = [(layout, s) for layout in args.layouts for s in (args.spacings or PAPER_SPACINGS[layout])]
+    with _common.progress(len(cases), "paper cases", args.quiet) as bar:
+        for layout, s in cases:
             rows.append(run_case(layout, s, repeat=args.repeat, max_dense_gb=args.max_dense_gb, tol=args.tol))
-            print(f"  done {layout} d/2R={s:g}", file=sys.stderr)
+            bar.update(note=f"{layout} d/2R = {s:g}")
     cols = [("layout", "layout", "s"), ("s", "d/2R", "g"), ("cells_2s", "cells 2s", "d"),
             ("cells_ref", "cells ref", "d"), ("sweeps", "sweeps", "d"), ("t_2s", "t 2s (s)", ".3f"),
             ("t_dense", "t dense", ".3f"), ("t_cg", "t cg", ".3f"), ("x_dense", "x dense", ".2f"),
