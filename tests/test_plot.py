@@ -109,3 +109,16 @@ def test_bad_arguments(tmp_path):
     with pytest.raises(ValueError, match="size"):
         pressure_map(_result(), tmp_path / "p.png", size=(0, 3))
     assert list(tmp_path.iterdir()) == []
+
+
+def test_pressure_map_draws_the_tips(tmp_path):
+    # the same map with and without tips differs, and only where the markers go: around
+    # the tips' pixel positions (axes from the result's patches)
+    import matplotlib.image as mpimg
+    with_tips = pressure_map(_result(), tmp_path / "a.png", tips=np.array([[-3.0, 0.0], [3.0, 1.0]]), dpi=60)
+    without = pressure_map(_result(), tmp_path / "b.png", dpi=60)
+    a, b = mpimg.imread(with_tips), mpimg.imread(without)
+    assert a.shape == b.shape
+    diff = np.any(np.abs(a - b) > 1e-3, axis=-1)
+    assert diff.sum() > 20                               # markers were drawn
+    assert diff.sum() < 0.05 * diff.size                 # and nothing else changed much
