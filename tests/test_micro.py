@@ -226,3 +226,18 @@ def test_asperities_the_macro_step_left_out_get_patches():
     assert Fr[1] > 0.02 * W and Fr[2] > 0.02 * W       # the case bites: tips 1 and 2 carry load
     assert np.max(np.abs(F - Fr)) <= 1e-5 * W
     assert np.allclose(res.tilt, ref.tilt, rtol=1e-4)
+
+
+def test_two_level_says_when_one_patch_must_carry_the_moment():
+    # Known limit of the two-level iteration: its coarse step moves the tilt through the
+    # patches' resultants, and a lone patch on the pivot carries none, so from the same
+    # bad start as above the tilt cannot move and tips 1 and 2 are never reached. It must
+    # say so rather than return the lone-patch answer (solve_twoscale does not start there:
+    # its patches are sized from the macro local penetrations, see the block test).
+    asp = [Asperity(0.0, 0.0, 0.0, 5.0), Asperity(8.0, 0.0, 0.0, 5.0), Asperity(0.0, 8.0, 0.0, 4.0)]
+    W = 10.0
+    res = solve_micro(HS, asp, h=0.1, forces=np.array([W, 0.0, 0.0]),
+                      penetration=float(hertz.penetration(5.0, W, ES)), tilt=(0.08, 0.08), pivot=(0.0, 0.0),
+                      total_load=W, free_tilt=True, tol=1e-9, far_tol=1e-4, coarse=True, max_sweeps=60)
+    assert not res.converged
+    assert "60 sweeps" in res.message
