@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 
@@ -72,8 +73,16 @@ class Grid:
         return self.y0 + self.h * np.arange(self.ny)
 
     def centres(self) -> tuple[np.ndarray, np.ndarray]:
-        """Cell-centre coordinates ``(X, Y)``, each of shape (ny, nx), mm."""
-        return np.meshgrid(self.x, self.y)
+        """Cell-centre coordinates ``(X, Y)``, each of shape (ny, nx), mm (read-only: computed
+        once per grid, the solvers ask for them on every sweep)."""
+        return self._centres
+
+    @cached_property
+    def _centres(self) -> tuple[np.ndarray, np.ndarray]:
+        X, Y = np.meshgrid(self.x, self.y)
+        X.setflags(write=False)
+        Y.setflags(write=False)
+        return X, Y
 
     def points(self) -> np.ndarray:
         """Cell centres as an array of shape (ny*nx, 2), row-major (x fastest)."""

@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from functools import lru_cache
 
 import numpy as np
 import scipy.fft as sfft
@@ -16,6 +17,20 @@ def _pairwise(targets: np.ndarray, sources: np.ndarray) -> tuple[np.ndarray, np.
     t = np.asarray(targets, dtype=float).reshape(-1, 2)
     s = np.asarray(sources, dtype=float).reshape(-1, 2)
     return t[:, None, 0] - s[None, :, 0], t[:, None, 1] - s[None, :, 1]
+
+
+#: Offset tables up to this many entries (a 100 x 100 patch's self table: 4e4) are cached.
+_TABLE_CACHE_ENTRIES = 40_000
+
+
+@lru_cache(maxsize=256)
+def _love_table(E_star: float, h: float, ox0: int, oy0: int, mx: int, my: int) -> np.ndarray:
+    """Love's kernel on the lattice offsets ``(oy0 + m, ox0 + n) h``, shape (my, mx), mm/MPa."""
+    ox = (ox0 + np.arange(mx)) * h
+    oy = (oy0 + np.arange(my)) * h
+    table = love_rectangle(ox[None, :], oy[:, None], 0.5 * h, 0.5 * h, E_star)
+    table.setflags(write=False)
+    return table
 
 
 @dataclass(frozen=True)
@@ -50,10 +65,11 @@ class HalfSpace(InfluenceProvider):
         ti, tj = target.offset_in(source)
         ox0, oy0 = ti - (source.nx - 1), tj - (source.ny - 1)
         mx, my = target.nx + source.nx - 1, target.ny + source.ny - 1
-        ox = (ox0 + np.arange(mx)) * source.h
-        oy = (oy0 + np.arange(my)) * source.h
-        table = love_rectangle(ox[None, :], oy[:, None], 0.5 * source.h, 0.5 * source.h, self.E_star)
-        return table, ox0, oy0
+        if mx * my <= _TABLE_CACHE_ENTRIES:
+            # patch-sized tables recur (every patch of the same shape has the same self
+            # table): kept, read-only, in a small cache
+            return _love_table(self.E_star, float(source.h), ox0, oy0, mx, my), ox0, oy0
+        return _love_table.__wrapped__(self.E_star, float(source.h), ox0, oy0, mx, my), ox0, oy0
 
     def grid_matrix(self, target: Grid, source: Grid | None = None) -> np.ndarray:
         source = target if source is None else source
