@@ -2,7 +2,7 @@
 
 Each subcommand is a module of this package exposing ``add_arguments(parser)`` and
 ``run(args) -> int``. ``solve`` is always present; optional subcommands (``paper``,
-``compare``) are registered when their module exists.
+``compare``, ``indicators``) are registered when their module exists.
 
 Exit codes: 0 success; 1 the solve ran but did not converge (result written with
 ``converged = false``); 2 bad input (one ``error: ...`` line on stderr, nothing written).
@@ -22,6 +22,7 @@ SUBCOMMANDS = (
     ("solve", "twoscale.cli.solve", True),
     ("paper", "twoscale.cli.paper", False),
     ("compare", "twoscale.cli.compare", False),
+    ("indicators", "twoscale.cli.indicators", False),
 )
 
 

@@ -1,0 +1,101 @@
+"""e_M and e_m between two stored solves (``twoscale indicators RUN_DIR REF_DIR``).
+
+``RUN_DIR`` and ``REF_DIR`` are output folders of ``twoscale solve --out`` (``result.json``
+and ``fields.vtu``), e.g. the same scene on two bodies, with two methods or two cell sizes.
+The indicators of METHOD.md section 5, in percent, with the reference in the denominator:
+
+* ``e_M = 100 sum_k (P_k - Pref_k)^2 / sum_k Pref_k^2`` on the per-asperity forces of
+  ``result.json`` (the two runs must have as many asperities, in the same order);
+* ``e_m``: the same on the pressures of ``fields.vtu`` averaged onto the sensor cells
+  (default the paper's 44 x 44 cells of 1.9 mm centred on the origin; ``--sensor NX NY
+  CELL``, ``--sensor-centre X Y``), over the cells loaded in either map; ``null`` when the
+  reference map is zero on every cell.
+
+Prints both; ``--json FILE`` also writes them with the two folders, the sensor, the program
+version and the units. Bad input (missing or foreign files, different asperity counts, bad
+sensor values): one ``error:`` line, exit code 2, nothing written.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+
+import numpy as np
+
+from .._version import __version__
+from ..io.atomic import atomic_output
+from ..io.result_json import RESULT_NAME, UNITS
+from ..io.solve_outputs import FIELDS_NAME
+from ..sensor import Sensor, e_M, e_m
+from .compare import DEFAULT_SENSOR, _sensor
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """Options of ``twoscale indicators``."""
+    parser.add_argument("run", metavar="RUN_DIR", help="output folder of twoscale solve (judged)")
+    parser.add_argument("reference", metavar="REF_DIR", help="output folder of twoscale solve (reference)")
+    parser.add_argument("--sensor", metavar=("NX", "NY", "CELL"), nargs=3, default=None,
+                        help=f"sensor cells along x and y (integers >= 1) and cell side in mm "
+                             f"(default {DEFAULT_SENSOR.nx} {DEFAULT_SENSOR.ny} {DEFAULT_SENSOR.cell:g})")
+    parser.add_argument("--sensor-centre", metavar=("X", "Y"), nargs=2, default=None,
+                        help="sensor centre in scene coordinates, mm (default 0 0)")
+    parser.add_argument("--json", metavar="FILE", default=None, help="also write the indicators as JSON")
+
+
+def _forces(folder: Path) -> np.ndarray:
+    path = folder / RESULT_NAME
+    try:
+        data = json.loads(path.read_text(encoding="utf-8"))
+        forces = np.array([float(a["force"]) for a in data["asperities"]])
+    except FileNotFoundError:
+        raise ValueError(f"{path} does not exist (a folder written by twoscale solve --out)") from None
+    except (json.JSONDecodeError, KeyError, TypeError, ValueError) as exc:
+        raise ValueError(f"{path} is not a twoscale result.json ({exc})") from None
+    return forces
+
+
+def _sensor_map(folder: Path, sensor: Sensor) -> np.ndarray:
+    from ..io.vtk import read_vtk
+
+    path = folder / FIELDS_NAME
+    if not path.is_file():
+        raise ValueError(f"{path} does not exist (twoscale solve --out writes it)")
+    out = np.zeros(sensor.shape)
+    for f in read_vtk(path).fields:
+        out += sensor.average_field(f.grid, f.pressure)
+    return out
+
+
+def indicators(run: Path, reference: Path, sensor: Sensor) -> dict:
+    """``{"e_M": percent, "e_m": percent or None}`` of ``run`` against ``reference``."""
+    P, P_ref = _forces(run), _forces(reference)
+    if P.shape != P_ref.shape:
+        raise ValueError(f"{run} has {P.size} asperities and {reference} has {P_ref.size}: "
+                         "e_M compares the same asperities")
+    p, p_ref = _sensor_map(run, sensor), _sensor_map(reference, sensor)
+    return {"e_M": e_M(P, P_ref), "e_m": e_m(p, p_ref) if np.any(p_ref != 0) else None}
+
+
+def run(args: argparse.Namespace) -> int:
+    try:
+        sensor = _sensor(args)
+        out = indicators(Path(args.run), Path(args.reference), sensor)
+        if args.json is not None and Path(args.json).is_dir():
+            raise ValueError(f"--json must name a file, got the folder {args.json!r}")
+    except ValueError as exc:  # SceneError included
+        print(f"error: {exc}", file=sys.stderr)
+        return 2
+    e_m_text = "n/a (reference map zero on every sensor cell)" if out["e_m"] is None else f"{out['e_m']:.4g} %"
+    print(f"e_M = {out['e_M']:.4g} %  (forces of {args.run} against {args.reference})")
+    print(f"e_m = {e_m_text}  (sensor {sensor.nx} x {sensor.ny} cells of {sensor.cell:g} mm "
+          f"at ({sensor.centre[0]:g}, {sensor.centre[1]:g}) mm)")
+    if args.json is not None:
+        record = {"e_M_percent": out["e_M"], "e_m_percent": out["e_m"], "run": str(args.run),
+                  "reference": str(args.reference),
+                  "sensor": {"nx": sensor.nx, "ny": sensor.ny, "cell": sensor.cell, "centre": list(sensor.centre)},
+                  "version": __version__, "units": dict(UNITS)}
+        with atomic_output(Path(args.json)) as tmp:
+            tmp.write_text(json.dumps(record, indent=2) + "\n", encoding="utf-8")
+    return 0
