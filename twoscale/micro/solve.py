@@ -1,6 +1,7 @@
 """The micro step as a whole: patches, eq. 7, block Gauss-Seidel, growth, load and tilt."""
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from typing import Sequence
 
@@ -11,7 +12,7 @@ from ..influence.base import InfluenceProvider
 from .blocks import Coupling, LocalBlock, scatter
 from .farfield import FarFieldCoupling, LaggedFarField
 from .twolevel import two_level
-from .constraints import newton_step, resultants, rhs_derivatives
+from .constraints import block_coordinates, newton_step, resultants, rhs_derivatives
 from .gauss_seidel import coupled_rhs, gauss_seidel, linear_gauss_seidel
 from .local import initial_pressure
 from ..grid import Grid
@@ -382,8 +383,26 @@ def _solve_two_level(state: _State, p: list, p0: list, theta, tilt, pivot, n_unk
         if abs(residual[0]) > 10.0 * tol * abs(target[0]):
             return _finish(state, p, p0, theta, tilt, pivot, False,
                            f"two-level iteration stopped with load residual {residual[0]:.3g} N", counts(), history)
+        if n_unknowns == 3:
+            # moments against the load times the load-weighted distance from the pivot
+            arm = _load_arm(state.patches, p, pivot)
+            if np.max(np.abs(residual[1:])) > 10.0 * tol * abs(target[0]) * arm:
+                return _finish(state, p, p0, theta, tilt, pivot, False,
+                               f"two-level iteration stopped with moment residuals {residual[1]:.3g}, "
+                               f"{residual[2]:.3g} N mm", counts(), history)
     out_tilt = (float(theta[1]), float(theta[2])) if tilt is not None else None
     return _finish(state, p, p0, theta, out_tilt, pivot, True, "", counts(), history)
+
+
+def _load_arm(patches, pressures: list, pivot) -> float:
+    """Load-weighted rms distance of the pressure from the pivot, mm (at least one cell)."""
+    num = den = 0.0
+    for pt, pk in zip(patches, pressures):
+        xr, yr = block_coordinates(pt, pivot)
+        num += float(np.sum(pk * (xr * xr + yr * yr)))
+        den += float(np.sum(pk))
+    h = patches[0].grid.h if patches else 1.0
+    return max(math.sqrt(num / den), h) if den > 0 else h
 
 
 def _edges_loaded(state: _State, p: list) -> bool:
