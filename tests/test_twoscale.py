@@ -243,11 +243,12 @@ def test_any_provider_through_the_contract():
     assert abs(hs.total_load / res.total_load - 1) > 0.02
 
 
-@pytest.mark.parametrize("seed,n", SCENES[:2])
+@pytest.mark.parametrize("seed,n", SCENES[:2] + [(3, 24)])
 def test_load_control_default_iteration_and_its_fallback(seed, n):
     # Under load control the default micro iteration is the two-level one (exact coupling,
     # coarse correction instead of sensitivity sweeps); where it stalls on merged contacts
-    # (seed 2) plain block Gauss-Seidel takes over. Either way the answer is the one of
+    # (seeds 2 and 3; seed 3 has a patch that owns no cell, which crashed the far-field
+    # refresh) plain block Gauss-Seidel takes over. Either way the answer is the one of
     # plain block Gauss-Seidel, to the solver tolerance.
     asps = random_scene(seed, n)
     kw = dict(h=0.15, total_load=6.0 * n, tol=1e-8)
@@ -255,7 +256,7 @@ def test_load_control_default_iteration_and_its_fallback(seed, n):
     plain = solve_twoscale(HS, asps, coarse=False, **kw)
     assert auto.converged and plain.converged, auto.message
     assert plain.extra["micro_iteration"] == "block Gauss-Seidel"
-    expected = "two-level" if seed == 1 else "block Gauss-Seidel (two-level did not converge in 30 sweeps)"
+    expected = "two-level" if seed == 1 else "block Gauss-Seidel (two-level did not converge in 20 sweeps)"
     assert auto.extra["micro_iteration"] == expected
     if seed == 1:
         assert auto.iterations["sensitivity_sweeps"] == 0

@@ -104,7 +104,7 @@ def solve_twoscale(provider: InfluenceProvider, asperities: Sequence[Asperity], 
         None: on when ``far_tol`` is given or under load control (there it replaces the
         sensitivity sweeps: S1-S3 2.7-3x faster, same answer to the tolerance); without
         ``far_tol`` every pair of patches is then coupled exactly, and if it has not
-        converged after ``AUTO_SWEEPS`` (30) sweeps (merged contacts can make a cell's
+        converged after ``AUTO_SWEEPS`` (20) sweeps (merged contacts can make a cell's
         contact state flip), plain block Gauss-Seidel solves the scene again. False keeps
         plain block Gauss-Seidel (eq. 8) with sensitivity sweeps for the load and tilt.
 
@@ -140,7 +140,7 @@ def solve_twoscale(provider: InfluenceProvider, asperities: Sequence[Asperity], 
         # flips between sweeps): plain block Gauss-Seidel, the paper's iteration, decides
         micro = solve_micro(provider, asperities, max_sweeps=max_sweeps, far_tol=None, coarse=False,
                             sizing_approaches=None, **common)
-        iteration = "block Gauss-Seidel (two-level did not converge in 30 sweeps)"
+        iteration = f"block Gauss-Seidel (two-level did not converge in {AUTO_SWEEPS} sweeps)"
     t2 = time.perf_counter()
     return _result(asperities, macro, micro, h, {"macro": t1 - t0, "micro": t2 - t1, "total": t2 - t0},
                    iteration)
@@ -150,7 +150,7 @@ def solve_twoscale(provider: InfluenceProvider, asperities: Sequence[Asperity], 
 EXACT_FAR_TOL = 1e-12
 #: Sweeps the two-level iteration gets when chosen by default (it needs 5-10 where it
 #: works) before plain block Gauss-Seidel takes over.
-AUTO_SWEEPS = 30
+AUTO_SWEEPS = 20
 
 
 def _sizing(macro, far_tol):

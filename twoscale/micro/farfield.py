@@ -366,7 +366,8 @@ class LaggedFarField(FarFieldCoupling):
         m = 1 if first is None or first.ndim == 1 else first.shape[1]
         F = np.zeros((n, m))
         for l, v in enumerate(values):
-            F[l] = self.patches[l].grid.h ** 2 * v.reshape(len(v), -1).sum(axis=0)
+            if v is not None and v.size:   # a block can own no cell (a neighbour owns its patch)
+                F[l] = self.patches[l].grid.h ** 2 * v.reshape(len(v), -1).sum(axis=0)
         self._table = self._point_operator().apply(F).reshape(n, 9, m)
         self.far_products += 1
 
