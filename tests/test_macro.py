@@ -281,6 +281,7 @@ def test_merged_contacts_converge_on_the_safe_path(mode):
         res = solve_macro(HS, tips, z, laws, **kwargs)
         assert res.converged, (seed, res.message)
         used_safe_path |= "safe path" in res.message
+        assert res.safe_path == ("safe path" in res.message)
         check_equations(res, tips, z, laws, boussinesq_interaction(tips), pivot=pivot)
         if mode != "penetration":
             assert abs(res.forces.sum() - W) <= 1e-10 * W

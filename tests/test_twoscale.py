@@ -243,22 +243,26 @@ def test_any_provider_through_the_contract():
     assert abs(hs.total_load / res.total_load - 1) > 0.02
 
 
-@pytest.mark.parametrize("seed,n", SCENES[:2] + [(3, 24)])
-def test_load_control_default_iteration_and_its_fallback(seed, n):
+FALLBACK = "block Gauss-Seidel (two-level did not converge in 20 sweeps)"
+
+
+@pytest.mark.parametrize("seed,n,expected", [(1, 10, "two-level"), (2, 18, "block Gauss-Seidel"),
+                                             (3, 24, FALLBACK)])
+def test_load_control_default_iteration_and_its_fallback(seed, n, expected):
     # Under load control the default micro iteration is the two-level one (exact coupling,
-    # coarse correction instead of sensitivity sweeps); where it stalls on merged contacts
-    # (seeds 2 and 3; seed 3 has a patch that owns no cell, which crashed the far-field
-    # refresh) plain block Gauss-Seidel takes over. Either way the answer is the one of
-    # plain block Gauss-Seidel, to the solver tolerance.
+    # coarse correction instead of sensitivity sweeps), except where the macro step met
+    # merged contacts (seed 2: its safe path), and where it does not converge in 20
+    # sweeps plain block Gauss-Seidel takes over (seed 3, which also has a patch owning no
+    # cell: that crashed the far-field refresh). Either way the answer is the one of plain
+    # block Gauss-Seidel, to the solver tolerance.
     asps = random_scene(seed, n)
     kw = dict(h=0.15, total_load=6.0 * n, tol=1e-8)
     auto = solve_twoscale(HS, asps, **kw)
     plain = solve_twoscale(HS, asps, coarse=False, **kw)
     assert auto.converged and plain.converged, auto.message
     assert plain.extra["micro_iteration"] == "block Gauss-Seidel"
-    expected = "two-level" if seed == 1 else "block Gauss-Seidel (two-level did not converge in 20 sweeps)"
     assert auto.extra["micro_iteration"] == expected
-    if seed == 1:
+    if expected == "two-level":
         assert auto.iterations["sensitivity_sweeps"] == 0
     F, Fp = np.asarray(auto.asperities.forces), np.asarray(plain.asperities.forces)
     assert np.max(np.abs(F - Fp)) <= 1e-5 * Fp.max()

@@ -101,8 +101,9 @@ def solve_twoscale(provider: InfluenceProvider, asperities: Sequence[Asperity], 
         Two-level micro iteration (far field once per sweep through the provider's point
         operator, coarse correction by the linearised macro equations, which also
         corrects the approach and tilt under load control; :mod:`twoscale.micro.twolevel`).
-        None: on when ``far_tol`` is given or under load control (there it replaces the
-        sensitivity sweeps: S1-S3 2.7-3x faster, same answer to the tolerance); without
+        None: on when ``far_tol`` is given or under load control unless the macro step
+        needed its safe path (merged contacts) (there it replaces the sensitivity sweeps:
+        S1-S3 2.7-3x faster, same answer to the tolerance); without
         ``far_tol`` every pair of patches is then coupled exactly, and if it has not
         converged after ``AUTO_SWEEPS`` (20) sweeps (merged contacts can make a cell's
         contact state flip), plain block Gauss-Seidel solves the scene again. False keeps
@@ -124,7 +125,10 @@ def solve_twoscale(provider: InfluenceProvider, asperities: Sequence[Asperity], 
                         tilt=tilt, pivot=pivot, tol=macro_tol, max_iter=macro_max_iter,
                         dense_max=macro_dense_max, operator_rtol=macro_operator_rtol)
     t1 = time.perf_counter()
-    two_level = (far_tol is not None or total_load is not None) if coarse is None else bool(coarse)
+    # by default under load control, unless the macro step met merged contacts (its safe
+    # path), where the two-level iteration tends to stall and would only cost time
+    two_level = ((far_tol is not None or (total_load is not None and not macro.safe_path))
+                 if coarse is None else bool(coarse))
     # the two-level iteration without far_tol: every pair of patches near, i.e. exact coupling
     micro_far_tol = far_tol if far_tol is not None or not two_level else EXACT_FAR_TOL
     common = dict(h=h, forces=np.asarray(macro.forces), penetration=macro.penetration, tilt=macro.tilt,

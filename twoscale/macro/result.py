@@ -50,6 +50,9 @@ class MacroResult:
         A force error follows as about ``f_k' * operator_error * max |T P|``.
     krylov_iterations : int
         Matrix-free: conjugate-gradient iterations over all Newton steps.
+    safe_path : bool
+        Plain Newton stalled or reached an unstable equilibrium and the safe path
+        (:mod:`twoscale.macro.robust`) gave the answer: a sign of merged contacts.
     """
 
     forces: np.ndarray
@@ -67,6 +70,7 @@ class MacroResult:
     operator_rtol: float | None = None
     operator_error: float | None = None
     krylov_iterations: int = 0
+    safe_path: bool = False
 
     def __post_init__(self) -> None:
         for name, dtype in (("forces", float), ("local_penetrations", float), ("in_contact", bool)):

@@ -93,7 +93,7 @@ def solve_macro(provider: InfluenceProvider, tips, z, laws, *,
     t1 = time.perf_counter()
     system = _build_system(T, tips, z, stack, penetration, total_load, tilt, pivot)
     x0 = _initial_guess(system, z, stack, penetration, total_load, tilt)
-    x, converged, message, steps, residuals = _newton_then_safe(system, x0, tol=tol, max_iter=max_iter)
+    x, converged, message, steps, residuals, safe_path = _newton_then_safe(system, x0, tol=tol, max_iter=max_iter)
     t2 = time.perf_counter()
     P, g = system.split(x)
     delta = system.delta(x)
@@ -112,18 +112,20 @@ def solve_macro(provider: InfluenceProvider, tips, z, laws, *,
     return MacroResult(
         forces=P, penetration=d, tilt=angles, pivot=(float(pivot[0]), float(pivot[1])),
         local_penetrations=delta, in_contact=delta > 0, converged=converged,
-        message=message, iterations=steps, residuals=residuals, timings_s=timings, **extra)
+        message=message, iterations=steps, residuals=residuals, timings_s=timings, safe_path=safe_path,
+        **extra)
 
 
 def _newton_then_safe(system: MacroSystem, x0: np.ndarray, *, tol: float, max_iter: int):
     """Projected Newton with backtracking from the cold start; if it stalls, the safe
-    path (:mod:`.robust`). Returns (x, converged, message, Newton steps, residual history)."""
+    path (:mod:`.robust`). Returns (x, converged, message, Newton steps, residual history,
+    whether the safe path was taken)."""
     W = float(system.e[0]) if system.e.size else 0.0
     fast = run_newton(system, x0, tol=tol, max_iter=min(max_iter, FAST_STEPS), scale_floor=W)
     if fast.converged and system.stable(fast.x):
-        return fast.x, True, fast.message, fast.iterations, fast.residuals
+        return fast.x, True, fast.message, fast.iterations, fast.residuals, False
     if not fast.converged and fast.iterations >= max_iter:
-        return fast.x, False, fast.message, fast.iterations, fast.residuals
+        return fast.x, False, fast.message, fast.iterations, fast.residuals, False
     if system.G.shape[1] == 0:
         # a saddle is a stationary point of the potential: the minimiser must not start there
         starts = (x0,) if fast.converged else (x0, fast.x)
@@ -138,7 +140,7 @@ def _newton_then_safe(system: MacroSystem, x0: np.ndarray, *, tol: float, max_it
     why = ("Newton converged to an unstable equilibrium (active compliance indefinite: merged "
            "contacts)" if fast.converged else f"Newton stalled ({fast.message})")
     message = f"{why}; {safe.message}"
-    return safe.x, safe.converged, message, fast.iterations + safe.newton_steps, history
+    return safe.x, safe.converged, message, fast.iterations + safe.newton_steps, history, True
 
 
 def _check_scene(tips, z, laws) -> tuple[np.ndarray, np.ndarray, LawStack]:
