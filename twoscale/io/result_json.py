@@ -116,6 +116,8 @@ def result_to_dict(result, scene: Scene, *, method: str | None = None) -> dict:
         err = result.extra.get("macro_operator_error")
         out["macro"] = {"interaction": result.extra["macro_interaction"],
                         "operator_error": None if err is None else _num(err)}
+    if "micro_iteration" in result.extra:
+        out["micro_iteration"] = result.extra["micro_iteration"]
     return out
 
 
