@@ -269,15 +269,26 @@ def merged_scene(seed):
     return random_scene(seed, close=(0.3, 2.0), close_fraction=1 / 4, spheres_only=True)
 
 
+def load_kwargs(mode, W, pivot):
+    """solve_macro's load arguments for a mode: penetration 0.4 mm, total W, or W with tilt."""
+    return {"penetration": dict(penetration=0.4), "load": dict(total_load=W),
+            "tilt": dict(total_load=W, tilt=True, pivot=pivot)}[mode]
+
+
+def merged_case(seed, mode):
+    """A merged scene, its load W = 10 N per asperity, the pivot at the tips' mean and the
+    solve_macro load arguments of ``mode``."""
+    tips, z, laws = merged_scene(seed)
+    W = 10.0 * len(z)
+    pivot = tuple(tips.mean(axis=0))
+    return tips, z, laws, W, pivot, load_kwargs(mode, W, pivot)
+
+
 @pytest.mark.parametrize("mode", ["penetration", "load", "tilt"])
 def test_merged_contacts_converge_on_the_safe_path(mode):
     used_safe_path = False
     for seed in (0, 2, 5, 13):
-        tips, z, laws = merged_scene(seed)
-        W = 10.0 * len(z)
-        pivot = tuple(tips.mean(axis=0))
-        kwargs = {"penetration": dict(penetration=0.4), "load": dict(total_load=W),
-                  "tilt": dict(total_load=W, tilt=True, pivot=pivot)}[mode]
+        tips, z, laws, W, pivot, kwargs = merged_case(seed, mode)
         res = solve_macro(HS, tips, z, laws, **kwargs)
         assert res.converged, (seed, res.message)
         used_safe_path |= "safe path" in res.message
@@ -321,8 +332,7 @@ def test_matrix_free_equals_dense(mode, seed):
     tips, z, laws = random_scene(seed)
     W = 10.0 * len(z)
     pivot = tuple(tips.mean(axis=0) + np.array([1.0, -0.5]))
-    kwargs = {"penetration": dict(penetration=0.4), "load": dict(total_load=W),
-              "tilt": dict(total_load=W, tilt=True, pivot=pivot)}[mode]
+    kwargs = load_kwargs(mode, W, pivot)
     dense = solve_macro(HS, tips, z, laws, **kwargs)
     free = solve_macro(HS, tips, z, laws, dense_max=1, **kwargs)
     assert dense.interaction == "dense" and free.interaction == "matrix-free"
@@ -350,11 +360,7 @@ def test_merged_contacts_give_the_stable_solution_on_both_paths(mode):
     # active compliance positive definite), hence the same forces.
     saddle_rejected = False
     for seed in (0, 2, 5, 13):
-        tips, z, laws = merged_scene(seed)
-        W = 10.0 * len(z)
-        pivot = tuple(tips.mean(axis=0))
-        kwargs = {"penetration": dict(penetration=0.4), "load": dict(total_load=W),
-                  "tilt": dict(total_load=W, tilt=True, pivot=pivot)}[mode]
+        tips, z, laws, W, pivot, kwargs = merged_case(seed, mode)
         T = boussinesq_interaction(tips)
         dense = solve_macro(HS, tips, z, laws, **kwargs)
         free = solve_macro(HS, tips, z, laws, dense_max=1, **kwargs)

@@ -204,6 +204,18 @@ def test_unsymmetric_dense_block_falls_back_to_lu():
     assert np.allclose(blk.matrix @ x, rhs, rtol=1e-9, atol=0.0)
 
 
+#: Three spheres with the pivot on the first tip.
+PIVOT_ON_TIP = [Asperity(0.0, 0.0, 0.0, 5.0), Asperity(8.0, 0.0, 0.0, 5.0), Asperity(0.0, 8.0, 0.0, 4.0)]
+
+
+def _from_the_lone_tip_answer(W, **kwargs):
+    """The micro step started from all the load on tip 0 and a tilt of 0.08 rad about
+    both axes, which leaves tips 1 and 2 without a patch."""
+    return solve_micro(HS, PIVOT_ON_TIP, forces=np.array([W, 0.0, 0.0]),
+                       penetration=float(hertz.penetration(5.0, W, ES)), tilt=(0.08, 0.08),
+                       pivot=(0.0, 0.0), total_load=W, free_tilt=True, tol=1e-9, **kwargs)
+
+
 def test_asperities_the_macro_step_left_out_get_patches():
     # Pivot on tip 0: point forces balance any tilt that lifts tips 1 and 2 (the macro
     # step may return all the load on tip 0), distributed pressure does not. Started from
@@ -211,11 +223,8 @@ def test_asperities_the_macro_step_left_out_get_patches():
     # step must bring them in and agree with the full-grid reference solving its own tilt.
     from twoscale.indenters import surface_on
     from twoscale.reference import solve_cg
-    asp = [Asperity(0.0, 0.0, 0.0, 5.0), Asperity(8.0, 0.0, 0.0, 5.0), Asperity(0.0, 8.0, 0.0, 4.0)]
-    h, W = 0.1, 10.0
-    d0 = float(hertz.penetration(5.0, W, ES))
-    res = solve_micro(HS, asp, h=h, forces=np.array([W, 0.0, 0.0]), penetration=d0, tilt=(0.08, 0.08),
-                      pivot=(0.0, 0.0), total_load=W, free_tilt=True, tol=1e-9)
+    asp, h, W = PIVOT_ON_TIP, 0.1, 10.0
+    res = _from_the_lone_tip_answer(W, h=h)
     assert res.converged, res.message
     assert sorted(pt.asperity for pt in res.patches) == [0, 1, 2]
     g = Grid.covering(-6.0, 14.0, -6.0, 14.0, h)
@@ -234,10 +243,6 @@ def test_two_level_says_when_one_patch_must_carry_the_moment():
     # bad start as above the tilt cannot move and tips 1 and 2 are never reached. It must
     # say so rather than return the lone-patch answer (solve_twoscale does not start there:
     # its patches are sized from the macro local penetrations, see the block test).
-    asp = [Asperity(0.0, 0.0, 0.0, 5.0), Asperity(8.0, 0.0, 0.0, 5.0), Asperity(0.0, 8.0, 0.0, 4.0)]
-    W = 10.0
-    res = solve_micro(HS, asp, h=0.1, forces=np.array([W, 0.0, 0.0]),
-                      penetration=float(hertz.penetration(5.0, W, ES)), tilt=(0.08, 0.08), pivot=(0.0, 0.0),
-                      total_load=W, free_tilt=True, tol=1e-9, far_tol=1e-4, coarse=True, max_sweeps=60)
+    res = _from_the_lone_tip_answer(10.0, h=0.1, far_tol=1e-4, coarse=True, max_sweeps=60)
     assert not res.converged
     assert "60 sweeps" in res.message

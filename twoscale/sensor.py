@@ -105,6 +105,9 @@ class Sensor:
     def average(self, result: ContactResult) -> np.ndarray:
         """Mean computed pressure on each sensor cell, (ny, nx) array in MPa.
 
+        ``result`` is a ContactResult or anything with its ``fields`` (e.g. what
+        :func:`twoscale.io.vtk.read_vtk` returns).
+
         Every pressure patch of ``result`` is integrated exactly over the sensor cells
         (overlaps of micro and sensor cells), so ``average(result).sum() * cell**2``
         equals ``result.total_load`` whenever the sensor covers the contact.

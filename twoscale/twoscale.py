@@ -23,6 +23,12 @@ from .macro.solve import DENSE_MAX
 from .micro import solve_micro
 from .results import ContactResult, PressureField, summarise
 
+#: far_tol that makes every pair of patches "near" (exact coupling in the two-level iteration).
+EXACT_FAR_TOL = 1e-12
+#: Sweeps the two-level iteration gets when chosen by default (it needs 5-10 where it
+#: works) before plain block Gauss-Seidel takes over.
+AUTO_SWEEPS = 20
+
 
 def _check(asperities, h, penetration, total_load, tilt, tol, max_sweeps) -> None:
     if len(asperities) == 0:
@@ -125,16 +131,15 @@ def solve_twoscale(provider: InfluenceProvider, asperities: Sequence[Asperity], 
                         tilt=tilt, pivot=pivot, tol=macro_tol, max_iter=macro_max_iter,
                         dense_max=macro_dense_max, operator_rtol=macro_operator_rtol)
     t1 = time.perf_counter()
-    # by default under load control, unless the macro step met merged contacts (its safe
-    # path), where the two-level iteration tends to stall and would only cost time
-    two_level = ((far_tol is not None or (total_load is not None and not macro.safe_path))
-                 if coarse is None else bool(coarse))
+    # by default with far_tol, and under load control unless the macro step met merged
+    # contacts (its safe path), where the two-level iteration tends to stall
+    auto = coarse is None and far_tol is None and total_load is not None and not macro.safe_path
+    two_level = bool(coarse) if coarse is not None else (far_tol is not None or auto)
     # the two-level iteration without far_tol: every pair of patches near, i.e. exact coupling
     micro_far_tol = far_tol if far_tol is not None or not two_level else EXACT_FAR_TOL
     common = dict(h=h, forces=np.asarray(macro.forces), penetration=macro.penetration, tilt=macro.tilt,
                   pivot=pivot, total_load=total_load, free_tilt=tilt, tol=tol, margin=margin, anchor=anchor,
                   dense_max_cells=dense_max_cells, size_from_forces=bool(macro.converged))
-    auto = coarse is None and far_tol is None and two_level
     micro = solve_micro(provider, asperities, max_sweeps=min(max_sweeps, AUTO_SWEEPS) if auto else max_sweeps,
                         far_tol=micro_far_tol, sizing_approaches=_sizing(macro, micro_far_tol),
                         coarse=two_level, **common)
@@ -148,13 +153,6 @@ def solve_twoscale(provider: InfluenceProvider, asperities: Sequence[Asperity], 
     t2 = time.perf_counter()
     return _result(asperities, macro, micro, h, {"macro": t1 - t0, "micro": t2 - t1, "total": t2 - t0},
                    iteration)
-
-
-#: far_tol that makes every pair of patches "near" (exact coupling in the two-level iteration).
-EXACT_FAR_TOL = 1e-12
-#: Sweeps the two-level iteration gets when chosen by default (it needs 5-10 where it
-#: works) before plain block Gauss-Seidel takes over.
-AUTO_SWEEPS = 20
 
 
 def _sizing(macro, far_tol):

@@ -62,10 +62,7 @@ def _sensor_map(folder: Path, sensor: Sensor) -> np.ndarray:
     path = folder / FIELDS_NAME
     if not path.is_file():
         raise ValueError(f"{path} does not exist (twoscale solve --out writes it)")
-    out = np.zeros(sensor.shape)
-    for f in read_vtk(path).fields:
-        out += sensor.average_field(f.grid, f.pressure)
-    return out
+    return sensor.average(read_vtk(path))
 
 
 def indicators(run: Path, reference: Path, sensor: Sensor) -> dict:

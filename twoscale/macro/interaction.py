@@ -39,8 +39,6 @@ class MatrixFreeInteraction:
         Point compliance from the tips to themselves (coincident pairs contribute 0).
     diag : (N,) array, mm/N
         Smooth self-compliance ``c_k`` (0 on the half-space).
-    rtol : float
-        Accuracy the operator was built for (relative to ``max |u|``), reported.
     cg_rtol : float, default 1e-12
         Tightest CG tolerance of a Newton step.
     cg_max_iter : int, default 2000
@@ -48,25 +46,21 @@ class MatrixFreeInteraction:
 
     Attributes
     ----------
-    products : int
-        Operator products taken so far (each serves up to 4 columns).
     cg_iterations : int
-        CG iterations taken by Newton steps so far.
+        CG iterations taken so far (Newton steps, sensitivities, stability probes).
     cg_failures : int
         Newton steps whose CG did not reach its tolerance (the line search then judges
         the step; the final residual decides convergence).
     """
 
-    def __init__(self, operator: PointOperator, diag: np.ndarray, *, rtol: float,
+    def __init__(self, operator: PointOperator, diag: np.ndarray, *,
                  cg_rtol: float = 1e-12, cg_max_iter: int = 2000):
         self.operator = operator
         self.diag = np.asarray(diag, dtype=float)
-        self.rtol = float(rtol)
         self.cg_rtol, self.cg_max_iter = float(cg_rtol), int(cg_max_iter)
         n = len(self.diag)
         if operator.shape != (n, n):
             raise ValueError(f"point operator has shape {operator.shape}, expected {(n, n)}")
-        self.products = 0
         self.cg_iterations = 0
         self.cg_failures = 0
 
@@ -81,12 +75,17 @@ class MatrixFreeInteraction:
 
     def __matmul__(self, P: np.ndarray) -> np.ndarray:
         P = np.asarray(P, dtype=float)
-        self.products += 1
         d = self.diag if P.ndim == 1 else self.diag[:, None]
         return self.operator.apply(P) + d * P
 
     def solve_active(self, A: np.ndarray, w: np.ndarray, rhs: np.ndarray, *, rtol: float):
-        """Solve ``(diag(w) + T_AA) X = rhs`` by block CG; returns the CGOutcome."""
+        """Solve ``(diag(w) + T_AA) X = rhs`` by block CG; returns the CGOutcome (an
+        inexact solve counts in ``cg_failures``)."""
+        out = self._cg(A, w, rhs, rtol)
+        self.cg_failures += int(not out.converged)
+        return out
+
+    def _cg(self, A: np.ndarray, w: np.ndarray, rhs: np.ndarray, rtol: float):
         n = self.shape[0]
         rhs = np.asarray(rhs, dtype=float).reshape(len(A), -1)
 
@@ -98,7 +97,6 @@ class MatrixFreeInteraction:
         out = block_cg(matvec, 1.0 / (w + self.diag[A]), rhs,
                        rtol=max(rtol, self.cg_rtol), max_iter=self.cg_max_iter)
         self.cg_iterations += out.iterations
-        self.cg_failures += int(not out.converged)
         return out
 
     def definite_on(self, A: np.ndarray, w: np.ndarray, *, probes: int = 1, rtol: float = 1e-6,
@@ -108,8 +106,7 @@ class MatrixFreeInteraction:
         curvature once its Krylov space reaches a negative eigenvalue; an eigenvalue at the
         end of the spectrum is reached in a few products (N = 10^4: 12-18 products)."""
         rhs = np.random.default_rng(seed).standard_normal((len(A), probes))
-        out = self.solve_active(A, w, rhs, rtol=rtol)
-        return not out.breakdown
+        return not self._cg(A, w, rhs, rtol).breakdown
 
 
 def krylov_newton_step(system, x: np.ndarray, r: np.ndarray) -> np.ndarray:
@@ -117,9 +114,7 @@ def krylov_newton_step(system, x: np.ndarray, r: np.ndarray) -> np.ndarray:
     :class:`MatrixFreeInteraction`) by CG on the active set; see the module docstring."""
     T: MatrixFreeInteraction = system.T
     n, m = system.n, system.G.shape[1]
-    dl = system.delta(x)
-    D = system.laws.stiffness(dl)
-    act = (dl > 0) & (D > 0)
+    D, act = system.contact_stiffness(x)
     A, I = np.flatnonzero(act), np.flatnonzero(~act)
     rP, rg = r[:n], r[n:]
     s = np.zeros(n + m)

@@ -209,7 +209,7 @@ def _matrix_free_interaction(provider: InfluenceProvider, tips: np.ndarray, self
     diag = np.asarray(provider.smooth_self_compliance(tips), dtype=float) if self_compliance else np.zeros(n)
     if diag.shape != (n,) or not np.all(np.isfinite(diag)):
         raise ValueError(f"provider.smooth_self_compliance returned {diag.shape}, expected finite {(n,)}")
-    return MatrixFreeInteraction(provider.point_operator(tips, tips, rtol=rtol), diag, rtol=rtol)
+    return MatrixFreeInteraction(provider.point_operator(tips, tips, rtol=rtol), diag)
 
 
 def _build_system(T, tips, z, stack, penetration, total_load, tilt, pivot) -> MacroSystem:

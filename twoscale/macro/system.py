@@ -89,13 +89,19 @@ class MacroSystem:
         """Gradient of :meth:`energy` (mm): ``delta_law_k(P_k) + (S P)_k - offset_k``."""
         return self.laws.penetration(P) + 0.5 * (self.T @ P + self.T.T @ P) - self.offset
 
+    def contact_stiffness(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Law stiffnesses ``f_k'`` (N/mm) at ``x`` and the mask of the asperities in
+        contact with a positive stiffness (the active rows of the Jacobian)."""
+        dl = self.delta(x)
+        D = self.laws.stiffness(dl)
+        return D, (dl > 0) & (D > 0)
+
     def force_sensitivity(self, P: np.ndarray, directions: np.ndarray) -> np.ndarray:
         """``dP/dg`` (N per unit g) of the penetration-control solution ``P`` when the
         offset moves by ``directions @ g``: ``(I + D T) dP = D directions`` on the
         asperities in contact, zero elsewhere."""
-        dl = self.delta(P)
-        D = self.laws.stiffness(dl)
-        A = np.flatnonzero((dl > 0) & (D > 0))
+        D, act = self.contact_stiffness(P)
+        A = np.flatnonzero(act)
         out = np.zeros((self.n, directions.shape[1]))
         if A.size and isinstance(self.T, MatrixFreeInteraction):
             out[A] = self.T.solve_active(A, 1.0 / D[A], directions[A], rtol=self.T.cg_rtol).x
@@ -111,9 +117,8 @@ class MacroSystem:
         minimum in the active forces. Where contacts merge, Newton can converge to a
         saddle instead (a solution of the equations that no loading path reaches); the
         solver then takes the safe path, whose minimiser is the stable solution."""
-        dl = self.delta(x)
-        D = self.laws.stiffness(dl)
-        A = np.flatnonzero((dl > 0) & (D > 0))
+        D, act = self.contact_stiffness(x)
+        A = np.flatnonzero(act)
         if A.size == 0:
             return True
         if isinstance(self.T, MatrixFreeInteraction):
@@ -134,9 +139,7 @@ class MacroSystem:
         (with a matrix-free ``T``, solved by CG: :func:`.interaction.krylov_newton_step`)."""
         if isinstance(self.T, MatrixFreeInteraction):
             return krylov_newton_step(self, x, r)
-        dl = self.delta(x)
-        D = self.laws.stiffness(dl)
-        act = (dl > 0) & (D > 0)
+        D, act = self.contact_stiffness(x)
         A, I = np.flatnonzero(act), np.flatnonzero(~act)
         n, m = self.n, self.G.shape[1]
         rP, rg = r[:n], r[n:]

@@ -27,6 +27,11 @@ def rhs_derivatives(patch: Patch, pivot: tuple[float, float], n_unknowns: int) -
     return np.column_stack(cols[:n_unknowns])
 
 
+def patch_forces(patches, pressures) -> np.ndarray:
+    """Resultant force of each block's pressure (N), shape (len(patches),)."""
+    return np.array([pt.grid.h ** 2 * float(np.sum(p)) for pt, p in zip(patches, pressures)])
+
+
 def resultants(patches, pressures, pivot: tuple[float, float], n_unknowns: int) -> np.ndarray:
     """``h^2 sum G p`` over all blocks: total load (N), then moments about x and y (N mm).
 

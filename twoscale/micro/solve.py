@@ -12,7 +12,7 @@ from ..influence.base import InfluenceProvider
 from .blocks import Coupling, LocalBlock, scatter
 from .farfield import FarFieldCoupling, LaggedFarField
 from .twolevel import two_level
-from .constraints import block_coordinates, newton_step, resultants, rhs_derivatives
+from .constraints import block_coordinates, newton_step, patch_forces, resultants, rhs_derivatives
 from .gauss_seidel import coupled_rhs, gauss_seidel, linear_gauss_seidel
 from .local import initial_pressure
 from ..grid import Grid
@@ -434,8 +434,8 @@ def _cover_unpatched(state: _State, p: list, p0: list, theta, pivot, gap_tol: fl
     approach = _tip_approaches([state.asperities[k] for k in missing], theta, pivot)
     tips = state.tips()
     h = state.patches[0].grid.h
-    forces = np.array([h * h * float(np.sum(pk)) for pk in p])
-    u = state.provider.point_operator(tips[missing], tips[[pt.asperity for pt in state.patches]]).apply(forces)
+    sources = tips[[pt.asperity for pt in state.patches]]
+    u = state.provider.point_operator(tips[missing], sources).apply(patch_forces(state.patches, p))
     local = approach - u
     reached = np.flatnonzero(local > -gap_tol)
     for i in reached:

@@ -24,6 +24,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from .coarse import CoarseSpace
+from .constraints import patch_forces
 from .gauss_seidel import LOCAL_FACTOR, sweep
 
 
@@ -69,10 +70,6 @@ def lower_near_pattern(coupling) -> sp.csr_matrix:
     return sp.csr_matrix((np.ones(len(rows)), (rows, cols)), shape=(n, n))
 
 
-def _forces(patches, values) -> np.ndarray:
-    return np.array([pt.grid.h ** 2 * float(np.sum(v)) for pt, v in zip(patches, values)])
-
-
 def two_level(blocks, coupling, tips: np.ndarray, heights, p: list, theta: np.ndarray, *,
               pivot: tuple[float, float], n_unknowns: int, target, tol: float, max_sweeps: int,
               stop=None, coarse_dense_max: int = 2000) -> TwoLevelResult:
@@ -112,13 +109,13 @@ def two_level(blocks, coupling, tips: np.ndarray, heights, p: list, theta: np.nd
     for m in range(1, max_sweeps + 1):
         coupling.refresh(p)
         b = [theta[0] - z for z in heights(theta)]
-        before = _forces(patches, p)
+        before = patch_forces(patches, p)
         local_rtol = LOCAL_FACTOR * max(history[-1] if history else 0.1, tol)
         sw = sweep(blocks, coupling, b, p, active, local_rtol=local_rtol)
         if sw.failed:
             return TwoLevelResult(sw.pressures, sw.active, theta, False, m, tuple(history + [sw.change]), cg_iters,
                                   f"local active-set solve did not converge on blocks {list(sw.failed)}")
-        dF = _forces(patches, sw.pressures) - before
+        dF = patch_forces(patches, sw.pressures) - before
         step = coarse.correct(blocks, patches, sw.pressures, sw.active, dF, theta, pivot=pivot,
                               n_unknowns=n_unknowns, target=target)
         cg_iters += step.iterations
