@@ -52,20 +52,22 @@ class DirectResult:
     timings_s: dict
 
 
-def _axis(end: float, h_cell: float, h_coarse: float, growth: float, fine: float = 1.5) -> np.ndarray:
-    # 0 .. fine * h_cell at h_cell/4 (the pressure edge at h_cell/2 is a node), then
+def _axis(end: float, h_cell: float, h_coarse: float, growth: float, fine: float = 1.5,
+          per_cell: int = 4) -> np.ndarray:
+    # 0 .. fine * h_cell at h_cell/per_cell (the pressure edge at h_cell/2 is a node), then
     # geometric growth to h_coarse up to ``end``
-    x = list(np.arange(0.0, fine * h_cell + 1e-9, h_cell / 4))
-    h = h_cell / 4
+    x = list(np.arange(0.0, fine * h_cell + 1e-9, h_cell / per_cell))
+    h = h_cell / per_cell
     while x[-1] < end - 1e-9:
         h = min(h * growth, h_coarse)
         x.append(end if end - x[-1] < 1.5 * h else x[-1] + h)
     return np.array(x)
 
 
-def _depth_axis(t: float, h_cell: float, h_coarse: float, growth: float, fine: float = 1.0) -> np.ndarray:
-    z = list(np.arange(0.0, min(fine * h_cell, t) + 1e-9, h_cell / 4))
-    h = h_cell / 4
+def _depth_axis(t: float, h_cell: float, h_coarse: float, growth: float, fine: float = 1.0,
+                per_cell: int = 4) -> np.ndarray:
+    z = list(np.arange(0.0, min(fine * h_cell, t) + 1e-9, h_cell / per_cell))
+    h = h_cell / per_cell
     while z[-1] < t - 1e-9:
         z.append(t if t - z[-1] < 1.5 * h else z[-1] + h)
         h = min(h * growth, h_coarse)
@@ -86,7 +88,7 @@ def _cell_halfspace_displacement(points: np.ndarray, material: Material, h_cell:
 
 def solve_cell_load(material: Material, *, size=(140.0, 140.0, 20.0), h_cell: float = 2.0,
                     boundary: str = "bonded", r=None, h_coarse: float = 10.0,
-                    growth: float = 1.5) -> DirectResult:
+                    growth: float = 1.5, per_cell: int = 4) -> DirectResult:
     """Solve the block under unit pressure on the central cell of side ``h_cell``.
 
     Parameters
@@ -106,6 +108,8 @@ def solve_cell_load(material: Material, *, size=(140.0, 140.0, 20.0), h_cell: fl
         Largest element size, mm.
     growth : float, default 1.5
         Ratio of neighbouring element sizes.
+    per_cell : int, default 4
+        Elements along the loaded cell's side (even, so the cell centre is a node).
 
     Returns
     -------
@@ -117,8 +121,11 @@ def solve_cell_load(material: Material, *, size=(140.0, 140.0, 20.0), h_cell: fl
         raise ValueError(f"boundary must be one of {BOUNDARIES}, got {boundary!r}")
     Lx, Ly, t = (float(v) for v in size)
     t0 = time.perf_counter()
-    mesh = MeshHex.init_tensor(_axis(Lx / 2, h_cell, h_coarse, growth), _axis(Ly / 2, h_cell, h_coarse, growth),
-                               _depth_axis(t, h_cell, h_coarse, growth))
+    if per_cell < 2 or per_cell % 2:
+        raise ValueError(f"per_cell must be an even integer >= 2, got {per_cell!r}")
+    mesh = MeshHex.init_tensor(_axis(Lx / 2, h_cell, h_coarse, growth, per_cell=per_cell),
+                               _axis(Ly / 2, h_cell, h_coarse, growth, per_cell=per_cell),
+                               _depth_axis(t, h_cell, h_coarse, growth, per_cell=per_cell))
     system = assemble_mixed(mesh, material)
     ns, n = system.n_scalar, system.size
     ub = CellBasis(mesh, ElementHex2(), intorder=INTORDER)

@@ -355,6 +355,16 @@ class BlockProvider(InfluenceProvider):
 
     def grid_operator(self, target: Grid, source: Grid | None = None) -> "BlockGridOperator":
         source = target if source is None else source
+        return self._with_correction(self._halfspace.grid_operator(target, source), target, source)
+
+    def separated_operator(self, target: Grid, source: Grid, *, rtol: float = 1e-8):
+        """The half-space's Chebyshev block for a well-separated pair plus the same low-rank
+        correction as :meth:`grid_operator` (which is exact); ``None`` when the half-space
+        has none for this pair."""
+        hs = self._halfspace.separated_operator(target, source, rtol=rtol)
+        return None if hs is None else self._with_correction(hs, target, source)
+
+    def _with_correction(self, halfspace_op: GridOperator, target: Grid, source: Grid) -> "BlockGridOperator":
         st = self._state
         # the micro step asks for every pair of patches: the target factor U and the
         # source weights W depend on one grid each, so they are kept per grid
@@ -376,7 +386,7 @@ class BlockProvider(InfluenceProvider):
                 full = st.interpolator(target.points() + np.asarray(self.origin), st.table) / self.material.E
                 st.grid_memo[key_u] = full
             U = full[:, cols]
-        return BlockGridOperator(self._halfspace.grid_operator(target, source), U, W, target.h ** 2)
+        return BlockGridOperator(halfspace_op, U, W, target.h ** 2)
 
     def _nodes_of(self, cols: np.ndarray) -> np.ndarray:
         keys = list(self._state.index)
@@ -394,6 +404,11 @@ class BlockGridOperator(GridOperator):
         u = self._hs.apply(p)
         corr = self._U @ (self._W @ np.asarray(p, dtype=float).ravel())
         return u + self._area * corr.reshape(self.target.shape)
+
+    @property
+    def nbytes(self) -> int:
+        w = self._W.data.nbytes if sp.issparse(self._W) else self._W.nbytes
+        return int(getattr(self._hs, "nbytes", 0)) + self._U.nbytes + w
 
     @property
     def flops_estimate(self) -> float:

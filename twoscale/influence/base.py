@@ -100,6 +100,16 @@ class InfluenceProvider(ABC):
         """Fast product from pressure on ``source`` (default: ``target``) to
         displacement on ``target``; both grids must share ``h`` and lattice."""
 
+    def separated_operator(self, target: Grid, source: Grid, *, rtol: float = 1e-8) -> GridOperator | None:
+        """A cheaper product between two grids far apart compared with their sizes, within
+        ``rtol`` of the largest displacement that one-signed pressure gives, or ``None``
+        when the provider has none for this pair (callers then use :meth:`grid_operator`).
+
+        The half-space answers with a Chebyshev low-rank block
+        (:mod:`twoscale.influence.separated`); the default is ``None``.
+        """
+        return None
+
     def point_operator(self, targets: np.ndarray, sources: np.ndarray, *, exclude=None,
                        rtol: float = 1e-6) -> PointOperator:
         """Sum of point-force displacements ``u_i = sum_j G(t_i, s_j) F_j`` without

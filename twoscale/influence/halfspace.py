@@ -1,13 +1,14 @@
 """The elastic half-space: Boussinesq point compliance, Love cell blocks, FFT products."""
 from __future__ import annotations
 
+from collections import OrderedDict
 from dataclasses import dataclass, field
 from functools import lru_cache
 
 import numpy as np
 import scipy.fft as sfft
 
-from ..analytic.halfspace import boussinesq_point, love_rectangle
+from ..analytic.halfspace import boussinesq_point, love_far_field, love_rectangle
 from ..grid import Grid
 from ..material import Material
 from .base import GridOperator, InfluenceProvider
@@ -21,6 +22,11 @@ def _pairwise(targets: np.ndarray, sources: np.ndarray) -> tuple[np.ndarray, np.
 
 #: Offset tables up to this many entries (a 100 x 100 patch's self table: 4e4) are cached.
 _TABLE_CACHE_ENTRIES = 40_000
+
+
+#: Separated operators waiting for their transposed request (first in, first out).
+_SEPARATED: OrderedDict = OrderedDict()
+_SEPARATED_MAX = 512
 
 
 @lru_cache(maxsize=256)
@@ -85,6 +91,27 @@ class HalfSpace(InfluenceProvider):
         source = target if source is None else source
         table, _, _ = self._offset_table(target, source)
         return ConvolutionOperator(target, source, table)
+
+    def separated_operator(self, target: Grid, source: Grid, *, rtol: float = 1e-8):
+        """Chebyshev low-rank block (:class:`~.separated.SeparatedOperator`) for a
+        well-separated pair, with Love's cell kernel by its multipole expansion
+        (:func:`~twoscale.analytic.halfspace.love_far_field`); ``None`` when the pair is
+        too close for ``rtol``."""
+        from .separated import SeparatedOperator, plan
+
+        # the micro step asks for (k, l) and then (l, k): the second is the first transposed
+        back = _SEPARATED.pop((self.E_star, source, target, rtol), None)
+        if back is not None:
+            return back.transposed()
+        sep = plan(target, source, rtol)
+        if sep is None:
+            return None
+        E_star, h = self.E_star, float(source.h)
+        op = SeparatedOperator(target, source, lambda dx, dy: love_far_field(dx, dy, h, E_star, sep.order), sep)
+        _SEPARATED[(self.E_star, target, source, rtol)] = op
+        while len(_SEPARATED) > _SEPARATED_MAX:
+            _SEPARATED.popitem(last=False)
+        return op
 
     def point_operator(self, targets, sources, *, exclude=None, rtol: float = 1e-6):
         """As :meth:`InfluenceProvider.point_operator`; above ``FAST_ENTRIES`` pairs an

@@ -13,6 +13,7 @@ import numpy as np
 import scipy.linalg as sla
 
 from ..influence.base import InfluenceProvider
+from ..influence.separated import SeparatedOperator
 from .patches import Patch
 
 
@@ -166,14 +167,24 @@ class Coupling:
     cache_bytes : float, default 4e8
         Memory budget for cached dense pairs (beyond it pairs fall back to FFT) and,
         separately, for cached FFT operators (beyond it they are rebuilt on use).
+    separated_rtol : float or None, default 1e-8
+        Pairs far apart compared with their sizes use the provider's
+        :meth:`~twoscale.influence.base.InfluenceProvider.separated_operator` (for the
+        half-space a Chebyshev low-rank block, ~5x cheaper per product than the FFT)
+        accurate to this fraction of the pair's displacement; ``None``: always the FFT.
     """
 
     def __init__(self, provider: InfluenceProvider, patches, *, dense_max_entries: int = 40_000,
-                 cache_bytes: float = 4e8):
+                 cache_bytes: float = 4e8, separated_rtol: float | None = 1e-8):
+        if separated_rtol is not None and not (0.0 < separated_rtol < 1.0):
+            raise ValueError(f"separated_rtol must be in (0, 1) or None, got {separated_rtol!r}")
         self.provider = provider
         self.patches = list(patches)
         self.dense_max_entries = dense_max_entries
         self.cache_bytes = cache_bytes
+        self.separated_rtol = separated_rtol
+        self.separated_pairs = 0
+        self._moment_cache: dict = {}
         self._ops: dict = {}
         self._fft: dict = {}
         self._bytes = 0.0
@@ -186,26 +197,33 @@ class Coupling:
     def replace(self, k: int, patch: Patch) -> None:
         """Swap patch ``k`` (after growth) and drop every operator that involves it."""
         self.patches[k] = patch
+        self._moment_cache = {key: val for key, val in self._moment_cache.items() if key[0] != k}
         for key in [key for key in self._ops if k in key]:
             op = self._ops.pop(key)
             if isinstance(op, np.ndarray):
                 self._bytes -= op.nbytes
         for key in [key for key in self._fft if k in key]:
-            del self._fft[key]
-        self._fft_bytes = sum(8.0 * (self.patches[a].grid.nx + self.patches[b].grid.nx)
-                              * (self.patches[a].grid.ny + self.patches[b].grid.ny) for a, b in self._fft)
+            self._fft_bytes -= self._fft.pop(key)[1]
 
     def full_operator(self, k: int, l: int):
-        """FFT operator from the whole patch ``l`` to the whole patch ``k``; cached while
-        the estimated size of the cached transforms stays within ``cache_bytes``."""
-        op = self._fft.get((k, l))
+        """Operator from the whole patch ``l`` to the whole patch ``k``: the provider's
+        separated operator when the pair is far enough apart (``separated_rtol``), else its
+        FFT operator; cached while the cached operators' size stays within ``cache_bytes``."""
+        hit = self._fft.get((k, l))
+        if hit is not None:
+            return hit[0]
+        gk, gl = self.patches[k].grid, self.patches[l].grid
+        op = None
+        if self.separated_rtol is not None and k != l:
+            op = self.provider.separated_operator(gk, gl, rtol=self.separated_rtol)
+            self.separated_pairs += op is not None
         if op is None:
-            gk, gl = self.patches[k].grid, self.patches[l].grid
             op = self.provider.grid_operator(gk, gl)
-            size = 8.0 * (gk.nx + gl.nx) * (gk.ny + gl.ny)  # ~ a half-spectrum of complex numbers
-            if self._fft_bytes + size <= self.cache_bytes:
-                self._fft[(k, l)] = op
-                self._fft_bytes += size
+        # an FFT operator holds about a half-spectrum of complex numbers
+        size = float(getattr(op, "nbytes", 8.0 * (gk.nx + gl.nx) * (gk.ny + gl.ny)))
+        if self._fft_bytes + size <= self.cache_bytes:
+            self._fft[(k, l)] = (op, size)
+            self._fft_bytes += size
         return op
 
     def _operator(self, k: int, l: int):
@@ -237,10 +255,41 @@ class Coupling:
     def rhs(self, k: int, values: list, rhs: np.ndarray) -> np.ndarray:
         """``rhs - sum_{l != k} A_kl v_l`` with the block vectors ``values`` (mm)."""
         out = rhs.copy()
-        for l, v in enumerate(values):
-            if l != k and np.any(v):
-                out -= self.apply(k, l, v)
+        self._subtract(k, [l for l in range(len(values)) if l != k], values, out)
         return out
+
+    def _subtract(self, k: int, sources, values: list, out: np.ndarray) -> None:
+        """``out -= sum_{l in sources} A_kl v_l``. Separated pairs go through their nodes:
+        the moments of a block vector are computed once and reused for every target
+        until the vector changes (identity test, as in :mod:`.farfield`), and the node
+        displacements of one target are summed before a single interpolation."""
+        groups: dict = {}
+        for l in sources:
+            v = values[l]
+            if v is None or not np.any(v):
+                continue
+            op = self._operator(k, l)
+            if not isinstance(op, SeparatedOperator):
+                out -= self.apply(k, l, v)
+                continue
+            phi = op.node_product(self._moments(l, op, v))
+            key = op.target_key
+            if key in groups:
+                groups[key][1] += phi
+            else:
+                groups[key] = [op, phi]
+        owned = self.patches[k].owned
+        for op, phi in groups.values():
+            out -= op.expand(phi)[owned]
+
+    def _moments(self, l: int, op, v: np.ndarray) -> np.ndarray:
+        key = (l,) + op.source_key
+        hit = self._moment_cache.get(key)
+        if hit is not None and hit[0] is v:
+            return hit[1]
+        m = op.moments(scatter(self.patches[l], v))
+        self._moment_cache[key] = (v, m)      # keeps v alive, so its id is not reused
+        return m
 
     def patch_displacement(self, k: int, values: list) -> np.ndarray:
         """Displacement (mm) on the whole patch ``k`` (ny, nx) due to the blocks ``l != k``."""

@@ -242,11 +242,9 @@ class FarFieldCoupling(Coupling):
     def rhs(self, k: int, values: list, rhs: np.ndarray) -> np.ndarray:
         """``rhs - sum_{l != k} A_kl v_l``: near pairs exact, far ones by resultants (mm)."""
         out = rhs.copy()
-        for l in self.near(k):
-            v = values[l]
-            if np.any(v):
-                out -= self.apply(k, int(l), v)
-                self.near_products += 1
+        near = [int(l) for l in self.near(k)]
+        self.near_products += sum(1 for l in near if values[l] is not None and np.any(values[l]))
+        self._subtract(k, near, values, out)
         far = self._far(k, values, whole=False)
         out -= far[:, 0] if rhs.ndim == 1 else far
         return out
