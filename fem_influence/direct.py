@@ -5,8 +5,9 @@ Used to validate the correction (``Love + h^2 C``) and the method itself: with
 the same cell load (Boussinesq integrated over the cell), so the top-face answer
 must reproduce Love's closed form; with ``"bonded"`` / ``"sliding"`` it is the
 block itself. The cell sits at the centre of the top face, so a quarter of the
-block is meshed (symmetry planes x = 0 and y = 0), graded from ``h_cell / 4``
-elements under the cell to ``h_coarse``, with Taylor-Hood Q2-Q1 elements.
+block is meshed (symmetry planes x = 0 and y = 0), graded from ``h_cell / per_cell``
+elements under the cell (``per_cell`` per side) to ``h_coarse``, with Taylor-Hood Q2-Q1
+elements.
 """
 from __future__ import annotations
 
@@ -88,7 +89,7 @@ def _cell_halfspace_displacement(points: np.ndarray, material: Material, h_cell:
 
 def solve_cell_load(material: Material, *, size=(140.0, 140.0, 20.0), h_cell: float = 2.0,
                     boundary: str = "bonded", r=None, h_coarse: float = 10.0,
-                    growth: float = 1.5, per_cell: int = 4) -> DirectResult:
+                    growth: float = 1.5, per_cell: int = 6) -> DirectResult:
     """Solve the block under unit pressure on the central cell of side ``h_cell``.
 
     Parameters
@@ -108,8 +109,10 @@ def solve_cell_load(material: Material, *, size=(140.0, 140.0, 20.0), h_cell: fl
         Largest element size, mm.
     growth : float, default 1.5
         Ratio of neighbouring element sizes.
-    per_cell : int, default 4
-        Elements along the loaded cell's side (even, so the cell centre is a node).
+    per_cell : int, default 6
+        Elements along the loaded cell's side (even, so the cell edge is a node). With
+        half-space data, Love is reproduced within 0.32 % at r = 0-40 mm at 6 (the 140 mm
+        block: 116k unknowns, ~9 min, 5.5 GB), within 1.4 % at 4 (65k unknowns).
 
     Returns
     -------

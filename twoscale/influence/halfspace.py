@@ -144,15 +144,40 @@ class ConvolutionOperator(GridOperator):
         p = np.asarray(p, dtype=float)
         if p.shape != self.source.shape:
             raise ValueError(f"pressure has shape {p.shape}, expected {self.source.shape}")
+        a = self.spectrum(p)
+        a *= self._khat
+        return self.finish(a)
+
+    # The three stages of apply, for callers that sum the products of many sources onto
+    # one target: operators with the same ``fft_shape`` and source shape accept each
+    # other's spectra, and sums of ``multiply`` results go through one ``finish``.
+    @property
+    def fft_shape(self) -> tuple[int, int]:
+        """Shape of the zero-padded transform."""
+        return self._shape
+
+    def spectrum(self, p: np.ndarray) -> np.ndarray:
+        """Half-spectrum of the zero-padded source pressure (``source.shape``)."""
+        my, mx = self._shape
+        # Same as rfft2(p, s), axis by axis so that the rows of zero padding are never
+        # transformed (and, in finish, only the target rows come back).
+        a = sfft.rfft(p, n=mx, axis=1)
+        return sfft.fft(a, n=my, axis=0, overwrite_x=True)
+
+    def multiply(self, spectrum: np.ndarray) -> np.ndarray:
+        """Kernel times a source spectrum (a new array)."""
+        return self._khat * spectrum
+
+    def finish(self, a: np.ndarray) -> np.ndarray:
+        """Target displacement from a (sum of) :meth:`multiply` result(s); ``a`` is overwritten."""
         my, mx = self._shape
         sy, sx = self.source.ny - 1, self.source.nx - 1
-        # Same as irfft2(rfft2(p, s) * khat, s)[window], axis by axis so that the rows
-        # of zero padding are never transformed and only the target rows come back.
-        a = sfft.rfft(p, n=mx, axis=1)
-        a = sfft.fft(a, n=my, axis=0, overwrite_x=True)
-        a *= self._khat
         a = sfft.ifft(a, axis=0, overwrite_x=True)[sy:sy + self.target.ny]
         return sfft.irfft(a, n=mx, axis=1)[:, sx:sx + self.target.nx]
+
+    @property
+    def nbytes(self) -> int:
+        return self._khat.nbytes
 
     @property
     def flops_estimate(self) -> float:

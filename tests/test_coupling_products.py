@@ -1,0 +1,92 @@
+"""Cross-patch products of the micro step (twoscale.micro.blocks.Coupling): the fast routes
+(near pairs summed in Fourier space on a common padded shape, separated pairs through
+Chebyshev nodes) against the dense blocks of the provider (Love's closed form, exact)."""
+import numpy as np
+import pytest
+
+from twoscale.grid import Grid
+from twoscale.indenters import Asperity
+from twoscale.influence.halfspace import HalfSpace
+from twoscale.material import Material
+from twoscale.micro.blocks import Coupling
+from twoscale.micro.patches import grow_patch, make_patch
+
+HS = HalfSpace(Material(E=10.0, nu=0.3))
+H = 0.1
+
+
+def _scene():
+    # three close spheres (patches touching, merged ownership), one a little apart, one far
+    tips = [(0.0, 0.0), (2.1, 0.3), (1.0, 1.9), (5.0, -1.0), (14.0, 6.0)]
+    asps = [Asperity(x=x, y=y, z=0.0, R=5.0) for x, y in tips]
+    patches = []
+    for k, (x, y) in enumerate(tips):
+        w = 1.2 + 0.2 * k                                   # patches of different shapes
+        patches.append(make_patch(k, Grid.covering(x - w, x + w, y - 1.1, y + 1.1, H), asps))
+    return asps, patches
+
+
+def _exact(patches, k, values, rhs):
+    out = rhs.copy()
+    for l, v in enumerate(values):
+        if l != k:
+            ik = np.flatnonzero(patches[k].owned.ravel())
+            il = np.flatnonzero(patches[l].owned.ravel())
+            out -= HS.grid_matrix(patches[k].grid, patches[l].grid)[np.ix_(ik, il)] @ v
+    return out
+
+
+def test_fast_routes_equal_the_dense_blocks():
+    asps, patches = _scene()
+    rng = np.random.default_rng(0)
+    fast = Coupling(HS, patches, dense_max_entries=0)
+    values = [rng.random(int(p.owned.sum())) for p in patches]
+    for sweep in range(2):
+        for k in range(len(patches)):
+            b = rng.random(int(patches[k].owned.sum()))
+            ref = _exact(patches, k, values, b)
+            got = fast.rhs(k, values, b)
+            np.testing.assert_allclose(got, ref, atol=1e-9 * np.abs(b - ref).max())
+            values[k] = rng.random(len(values[k]))        # a Gauss-Seidel update: a new vector
+    assert fast._spectral and any(op is not None for op in fast._spectral.values())   # near pairs took it
+    assert fast.separated_pairs >= 1                                                  # far pairs the other
+
+
+def test_growth_beyond_the_common_shape_rebuilds_the_spectral_pairs():
+    asps, patches = _scene()
+    rng = np.random.default_rng(1)
+    fast = Coupling(HS, patches, dense_max_entries=0)
+    values = [rng.random(int(p.owned.sum())) for p in patches]
+    fast.rhs(0, values, np.zeros(len(values[0])))
+    common = fast._common
+    for _ in range(3):                                     # well past the room left for growth
+        patches[1] = grow_patch(patches[1], (True, True, True, True), asps)
+    assert patches[1].grid.nx > common[1]
+    fast.replace(1, patches[1])
+    values[1] = rng.random(int(patches[1].owned.sum()))
+    for k in (0, 1, 2):
+        b = np.zeros(int(patches[k].owned.sum()))
+        np.testing.assert_allclose(fast.rhs(k, values, b), _exact(patches, k, values, b),
+                                   atol=1e-9 * np.abs(_exact(patches, k, values, b)).max())
+
+
+def test_several_right_hand_sides_at_once():
+    asps, patches = _scene()
+    rng = np.random.default_rng(2)
+    fast = Coupling(HS, patches, dense_max_entries=0)
+    values = [rng.random((int(p.owned.sum()), 3)) for p in patches]
+    b = np.zeros((int(patches[2].owned.sum()), 3))
+    ref = np.column_stack([_exact(patches, 2, [v[:, j] for v in values], b[:, j]) for j in range(3)])
+    np.testing.assert_allclose(fast.rhs(2, values, b), ref, atol=1e-9 * np.abs(ref).max())
+
+
+@pytest.mark.parametrize("kwargs", [dict(), dict(separated_rtol=None)])
+def test_a_changed_vector_in_place_of_the_old_one_is_seen(kwargs):
+    # the caches are keyed by the vector object: a new object must never reuse old spectra
+    asps, patches = _scene()
+    fast = Coupling(HS, patches, dense_max_entries=0, **kwargs)
+    values = [np.ones(int(p.owned.sum())) for p in patches]
+    b = np.zeros(int(patches[0].owned.sum()))
+    first = fast.rhs(0, values, b)
+    values = [2.0 * v for v in values]
+    np.testing.assert_allclose(fast.rhs(0, values, b), 2.0 * first, rtol=1e-12)
