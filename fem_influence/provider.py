@@ -27,7 +27,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from twoscale.grid import Grid
-from twoscale.influence.base import GridOperator, InfluenceProvider
+from twoscale.influence.base import GridOperator, InfluenceProvider, LowRankCorrection
 from twoscale.influence.halfspace import HalfSpace
 from twoscale.material import Material
 
@@ -357,6 +357,11 @@ class BlockProvider(InfluenceProvider):
         source = target if source is None else source
         return self._with_correction(self._halfspace.grid_operator(target, source), target, source)
 
+    def split(self):
+        """(half-space, :class:`BlockCorrection`): the block's cell blocks are Love's plus the
+        low-rank correction ``h^2 U (W p)``."""
+        return self._halfspace, BlockCorrection(self)
+
     def separated_operator(self, target: Grid, source: Grid, *, rtol: float = 1e-8):
         """The half-space's Chebyshev block for a well-separated pair plus the same low-rank
         correction as :meth:`grid_operator` (which is exact); ``None`` when the half-space
@@ -364,10 +369,9 @@ class BlockProvider(InfluenceProvider):
         hs = self._halfspace.separated_operator(target, source, rtol=rtol)
         return None if hs is None else self._with_correction(hs, target, source)
 
-    def _with_correction(self, halfspace_op: GridOperator, target: Grid, source: Grid) -> "BlockGridOperator":
+    def _source_weights(self, source: Grid):
+        """(columns in the field table, weights (columns x cells)) of a source grid, kept per grid."""
         st = self._state
-        # the micro step asks for every pair of patches: the target factor U and the
-        # source weights W depend on one grid each, so they are kept per grid
         if len(st.grid_memo) > 4096:
             st.grid_memo.clear()
         key_w = ("W", source)
@@ -376,21 +380,57 @@ class BlockProvider(InfluenceProvider):
             cols = self._ensure(nodes)
             W = W.toarray() if W.shape[0] * W.shape[1] <= 4_000_000 else W.tocsr()
             st.grid_memo[key_w] = (cols, W)
-        cols, W = st.grid_memo[key_w]
-        key_u = ("U", target)
+        return st.grid_memo[key_w]
+
+    def _target_values(self, target: Grid, cols: np.ndarray | None = None) -> np.ndarray:
+        """Correction at the target cells from the lattice nodes of the table columns ``cols``
+        (default all), (cells x columns), mm/N; kept per grid for rectilinear meshes."""
+        st = self._state
         if not st.interpolator.rectilinear:
-            U = self._top_values(target.points(), self._nodes_of(cols))
-        else:
-            full = st.grid_memo.get(key_u)
-            if full is None or full.shape[1] != st.table.shape[1]:
-                full = st.interpolator(target.points() + np.asarray(self.origin), st.table) / self.material.E
-                st.grid_memo[key_u] = full
-            U = full[:, cols]
+            cols = np.arange(st.table.shape[1]) if cols is None else cols
+            return self._top_values(target.points(), self._nodes_of(cols))
+        key_u = ("U", target)
+        full = st.grid_memo.get(key_u)
+        if full is None or full.shape[1] != st.table.shape[1]:
+            full = st.interpolator(target.points() + np.asarray(self.origin), st.table) / self.material.E
+            st.grid_memo[key_u] = full
+        return full if cols is None else full[:, cols]
+
+    def _with_correction(self, halfspace_op: GridOperator, target: Grid, source: Grid) -> "BlockGridOperator":
+        # the micro step asks for every pair of patches: the target factor U and the
+        # source weights W depend on one grid each, so they are kept per grid
+        cols, W = self._source_weights(source)
+        U = self._target_values(target, cols)
         return BlockGridOperator(halfspace_op, U, W, target.h ** 2)
 
     def _nodes_of(self, cols: np.ndarray) -> np.ndarray:
         keys = list(self._state.index)
         return np.array([keys[c] for c in cols], dtype=np.int64).reshape(-1, 2)
+
+
+class BlockCorrection(LowRankCorrection):
+    """The block's correction in factored form (:meth:`BlockProvider.split`): coefficients are
+    forces (N, for E = 1 fields scaled by 1/E at evaluation) on the correction lattice
+    nodes, indexed like the provider's field table."""
+
+    def __init__(self, provider: "BlockProvider"):
+        self._p = provider
+
+    def coefficients(self, source: Grid, p: np.ndarray) -> np.ndarray:
+        cols, W = self._p._source_weights(source)
+        c = np.zeros(self._p._state.table.shape[1])
+        np.add.at(c, cols, source.h ** 2 * (W @ np.asarray(p, dtype=float).ravel()))
+        return c
+
+    def evaluate(self, target: Grid, c: np.ndarray) -> np.ndarray:
+        n = self._p._state.table.shape[1]
+        c = np.asarray(c, dtype=float)
+        if len(c) < n:
+            c = np.concatenate([c, np.zeros(n - len(c))])
+        if self._p._state.interpolator.rectilinear:
+            return (self._p._target_values(target) @ c).reshape(target.shape)
+        nz = np.flatnonzero(c)
+        return (self._p._target_values(target, nz) @ c[nz]).reshape(target.shape)
 
 
 class BlockGridOperator(GridOperator):

@@ -48,8 +48,8 @@ def test_fast_routes_equal_the_dense_blocks():
             got = fast.rhs(k, values, b)
             np.testing.assert_allclose(got, ref, atol=1e-9 * np.abs(b - ref).max())
             values[k] = rng.random(len(values[k]))        # a Gauss-Seidel update: a new vector
-    assert fast._spectral and any(op is not None for op in fast._spectral.values())   # near pairs took it
-    assert fast.separated_pairs >= 1                                                  # far pairs the other
+    kinds = {route[0] for route in fast._routes.values()}
+    assert kinds == {"spectral", "separated"}           # near pairs took one route, far pairs the other
 
 
 def test_growth_beyond_the_common_shape_rebuilds_the_spectral_pairs():
@@ -90,3 +90,53 @@ def test_a_changed_vector_in_place_of_the_old_one_is_seen(kwargs):
     first = fast.rhs(0, values, b)
     values = [2.0 * v for v in values]
     np.testing.assert_allclose(fast.rhs(0, values, b), 2.0 * first, rtol=1e-12)
+
+
+@pytest.fixture(scope="module")
+def small_block():
+    from fem_influence import BlockProvider
+    return BlockProvider(material=Material(E=2.0, nu=0.5), use_cache=False, progress=False,
+                         size=(60.0, 60.0, 10.0), h_fine=5.0, h_coarse=10.0, fine_half_width=10.0)
+
+
+def _exact_with(provider, patches, k, values, rhs):
+    out = rhs.copy()
+    ik = np.flatnonzero(patches[k].owned.ravel())
+    for l, v in enumerate(values):
+        if l != k:
+            il = np.flatnonzero(patches[l].owned.ravel())
+            out -= provider.grid_matrix(patches[k].grid, patches[l].grid)[np.ix_(ik, il)] @ v
+    return out
+
+
+def test_block_provider_routes_add_its_correction(small_block):
+    # the finite block splits into the half-space (fast routes) and its low-rank correction,
+    # added per target from the sources' summed coefficients; against its dense blocks
+    base, corr = small_block.split()
+    assert isinstance(base, HalfSpace) and corr is not None
+    asps, patches = _scene()
+    rng = np.random.default_rng(3)
+    fast = Coupling(small_block, patches, dense_max_entries=0)
+    values = [rng.random(int(p.owned.sum())) for p in patches]
+    for k in range(len(patches)):
+        b = np.zeros(int(patches[k].owned.sum()))
+        ref = _exact_with(small_block, patches, k, values, b)
+        # the correction is a sizeable part of the interaction on a 10 mm block
+        hs = _exact_with(base, patches, k, values, b)
+        assert np.abs(ref - hs).max() > 0.05 * np.abs(ref).max()
+        np.testing.assert_allclose(fast.rhs(k, values, b), ref, atol=1e-8 * np.abs(ref).max())
+    assert {route[0] for route in fast._routes.values()} == {"spectral", "separated"}
+
+
+def test_whole_patch_displacement_by_the_routes():
+    asps, patches = _scene()
+    rng = np.random.default_rng(4)
+    fast = Coupling(HS, patches, dense_max_entries=0)
+    values = [rng.random(int(p.owned.sum())) for p in patches]
+    for k in (0, 4):
+        ref = np.zeros(patches[k].grid.shape)
+        for l, v in enumerate(values):
+            if l != k:
+                il = np.flatnonzero(patches[l].owned.ravel())
+                ref += (HS.grid_matrix(patches[k].grid, patches[l].grid)[:, il] @ v).reshape(ref.shape)
+        np.testing.assert_allclose(fast.patch_displacement(k, values), ref, atol=1e-9 * np.abs(ref).max())

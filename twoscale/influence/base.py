@@ -50,6 +50,22 @@ class GridOperator(ABC):
         return float(self.target.size * self.source.size)
 
 
+class LowRankCorrection(ABC):
+    """A smooth part of a provider's kernel in factored form (see :meth:`InfluenceProvider.split`):
+    the displacement on a target grid from pressure on any source grids is
+    ``evaluate(target, sum_s coefficients(source_s, p_s))``, the coefficients living on one
+    node space shared by every grid (vectors may be shorter than later ones when the space
+    grows: missing entries are zero)."""
+
+    @abstractmethod
+    def coefficients(self, source: Grid, p: np.ndarray) -> np.ndarray:
+        """Node coefficients of pressure ``p`` (``source.shape``, MPa), 1-D."""
+
+    @abstractmethod
+    def evaluate(self, target: Grid, c: np.ndarray) -> np.ndarray:
+        """Displacement (mm) on ``target`` (``target.shape``) from node coefficients ``c``."""
+
+
 class InfluenceProvider(ABC):
     """Compliance of an elastic body's surface; see the module docstring."""
 
@@ -99,6 +115,15 @@ class InfluenceProvider(ABC):
     def grid_operator(self, target: Grid, source: Grid | None = None) -> GridOperator:
         """Fast product from pressure on ``source`` (default: ``target``) to
         displacement on ``target``; both grids must share ``h`` and lattice."""
+
+    def split(self) -> tuple["InfluenceProvider", LowRankCorrection | None]:
+        """``(base, correction)`` with ``self``'s cell blocks equal to ``base``'s plus the
+        low-rank ``correction`` (``None``: no correction, ``base`` is ``self``).
+
+        Solvers may apply the two parts separately, e.g. fast products of a
+        translation-invariant ``base`` and one sum of coefficients for the correction. The
+        finite block returns (half-space, its FEM correction)."""
+        return self, None
 
     def separated_operator(self, target: Grid, source: Grid, *, rtol: float = 1e-8) -> GridOperator | None:
         """A cheaper product between two grids far apart compared with their sizes, within

@@ -157,21 +157,38 @@ class LocalBlock:
 class Coupling:
     """The off-diagonal blocks ``A_kl``: displacement on block ``k`` from pressure on block ``l``.
 
+    Sums ``sum_l A_kl v_l`` (:meth:`rhs`) take one of three routes per pair, decided once:
+
+    * *dense*: small pairs (``dense_max_entries``), the provider's block, cached;
+    * *separated*: pairs far apart compared with their sizes, the provider's
+      :meth:`~twoscale.influence.base.InfluenceProvider.separated_operator` (for the half-space a
+      Chebyshev low-rank block within ``separated_rtol``); source moments once per block
+      vector, node values summed per target before one interpolation;
+    * *spectral*: the other pairs, the provider's FFT operator between the two patches
+      enlarged to one common padded shape; a block vector's spectrum is computed once, and
+      the sum over the sources of one target needs one inverse transform (per sweep ``2N``
+      transforms instead of ``4N(N-1)``).
+
+    The last two use the translation-invariant part of the provider's kernel
+    (:meth:`~twoscale.influence.base.InfluenceProvider.split`); a smooth low-rank remainder
+    (the finite block's correction) is added per target from the sum of the sources'
+    coefficients. Caches of per-vector quantities are keyed by the vector object, which
+    the Gauss-Seidel sweeps replace (never modify) when a block changes.
+
     Parameters
     ----------
     provider : InfluenceProvider
     patches : sequence of Patch
     dense_max_entries : int, default 40_000
         Pairs whose dense block has at most this many entries are formed and cached
-        (``provider.grid_matrix``); larger pairs use ``provider.grid_operator`` (FFT).
+        (``provider.grid_matrix``); larger pairs use the routes above.
     cache_bytes : float, default 4e8
         Memory budget for cached dense pairs (beyond it pairs fall back to FFT) and,
-        separately, for cached FFT operators (beyond it they are rebuilt on use).
+        separately, for cached operators of the other routes (beyond it a pair is applied
+        by a plain FFT product, rebuilt on use).
     separated_rtol : float or None, default 1e-8
-        Pairs far apart compared with their sizes use the provider's
-        :meth:`~twoscale.influence.base.InfluenceProvider.separated_operator` (for the
-        half-space a Chebyshev low-rank block, ~5x cheaper per product than the FFT)
-        accurate to this fraction of the pair's displacement; ``None``: always the FFT.
+        Accuracy of the separated route, relative to the pair's displacement; ``None``: no
+        separated route.
     """
 
     def __init__(self, provider: InfluenceProvider, patches, *, dense_max_entries: int = 40_000,
@@ -183,17 +200,18 @@ class Coupling:
         self.dense_max_entries = dense_max_entries
         self.cache_bytes = cache_bytes
         self.separated_rtol = separated_rtol
+        self._base, self._correction = provider.split()
         self.separated_pairs = 0
-        self._moment_cache: dict = {}
-        # near pairs summed in Fourier space on grids enlarged to a common shape (see _subtract)
-        self._common: tuple[int, int] | None = None
-        self._spectral: dict = {}
-        self._spectra: dict = {}
-        self._spectral_bytes = 0.0
         self._ops: dict = {}
         self._fft: dict = {}
         self._bytes = 0.0
         self._fft_bytes = 0.0
+        self._routes: dict = {}
+        self._route_bytes = 0.0
+        self._common: tuple[int, int] | None = None
+        self._moment_cache: dict = {}
+        self._spectra: dict = {}
+        self._coefficients: dict = {}
 
     def append(self, patch: Patch) -> None:
         """Add a patch (a new block at the end)."""
@@ -201,26 +219,25 @@ class Coupling:
         self._check_common(patch)
 
     def _check_common(self, patch: Patch) -> None:
-        # a patch larger than the common shape of the spectral pairs invalidates them all
+        # a patch larger than the common padded shape invalidates every spectral route
         if self._common is not None and (patch.grid.ny > self._common[0] or patch.grid.nx > self._common[1]):
             self._common = None
-            self._spectral, self._spectra, self._spectral_bytes = {}, {}, 0.0
+            self._routes, self._route_bytes, self._spectra = {}, 0.0, {}
 
     def replace(self, k: int, patch: Patch) -> None:
         """Swap patch ``k`` (after growth) and drop every operator that involves it."""
         self.patches[k] = patch
-        self._moment_cache = {key: val for key, val in self._moment_cache.items() if key[0] != k}
-        self._spectra = {key: val for key, val in self._spectra.items() if key[0] != k}
-        for key in [key for key in self._spectral if k in key]:
-            op = self._spectral.pop(key)
-            self._spectral_bytes -= float(getattr(op, "nbytes", 0)) if op is not None else 0.0
-        self._check_common(patch)
+        for cache in ("_moment_cache", "_spectra", "_coefficients"):
+            setattr(self, cache, {key: val for key, val in getattr(self, cache).items() if key[0] != k})
+        for key in [key for key in self._routes if k in key]:
+            self._route_bytes -= self._routes.pop(key)[2]
         for key in [key for key in self._ops if k in key]:
             op = self._ops.pop(key)
             if isinstance(op, np.ndarray):
                 self._bytes -= op.nbytes
         for key in [key for key in self._fft if k in key]:
             self._fft_bytes -= self._fft.pop(key)[1]
+        self._check_common(patch)
 
     def full_operator(self, k: int, l: int):
         """Operator from the whole patch ``l`` to the whole patch ``k``: the provider's
@@ -275,28 +292,76 @@ class Coupling:
         self._subtract(k, [l for l in range(len(values)) if l != k], values, out)
         return out
 
+    # ------------------------------------------------------------------ routes
+    def _route(self, k: int, l: int) -> tuple:
+        """``(kind, operator, bytes)`` of the pair: kind "plain" (dense block or a plain
+        product by :meth:`apply`), "separated" or "spectral" (operators of the kernel's
+        translation-invariant part)."""
+        key = (k, l)
+        hit = self._routes.get(key)
+        if hit is not None:
+            return hit
+        route = ("plain", None, 0.0)
+        pk, pl = self.patches[k], self.patches[l]
+        if int(pk.owned.sum()) * int(pl.owned.sum()) > self.dense_max_entries:
+            op, kind = None, "separated"
+            if self.separated_rtol is not None:
+                op = self._base.separated_operator(pk.grid, pl.grid, rtol=self.separated_rtol)
+            if op is None:
+                kind = "spectral"
+                if self._common is None:
+                    ny = max(pt.grid.ny for pt in self.patches)
+                    nx = max(pt.grid.nx for pt in self.patches)
+                    # room to grow, so that a patch enlarged by a few cells keeps the routes
+                    self._common = (ny + ny // 4 + 2, nx + nx // 4 + 2)
+                NY, NX = self._common
+                big = lambda g: type(g)(g.x0, g.y0, g.h, NX, NY)
+                op = self._base.grid_operator(big(pk.grid), big(pl.grid))
+                if not all(hasattr(op, a) for a in ("spectrum", "multiply", "finish")):
+                    op = None
+            size = float(getattr(op, "nbytes", 0.0))
+            if op is not None and self._route_bytes + size <= self.cache_bytes:
+                route = (kind, op, size)
+                self._route_bytes += size
+                self.separated_pairs += kind == "separated"
+        self._routes[key] = route
+        return route
+
     def _subtract(self, k: int, sources, values: list, out: np.ndarray) -> None:
-        """``out -= sum_{l in sources} A_kl v_l``. Separated pairs go through their nodes:
-        the moments of a block vector are computed once and reused for every target
-        until the vector changes (identity test, as in :mod:`.farfield`), and the node
-        displacements of one target are summed before a single interpolation."""
+        """``out -= sum_{l in sources} A_kl v_l`` on block ``k``'s cells."""
+        u = self._sum(k, sources, values, whole=False)
+        if u is not None:
+            out -= u
+
+    def _sum(self, k: int, sources, values: list, *, whole: bool):
+        """``sum_{l in sources} A_kl v_l`` by the pairs' routes (class docstring), on block
+        ``k``'s cells or (``whole``, 1-D vectors only) on the whole patch; ``None`` if no
+        source carries pressure."""
+        pk = self.patches[k]
+        pick = (lambda a: a) if whole else (lambda a: a[pk.owned])
+        total = None
         groups: dict = {}
-        acc = None
+        acc = acc_op = None
+        smooth = []
         for l in sources:
             v = values[l]
             if v is None or not np.any(v):
                 continue
-            spec = self._spectral_pair(k, l) if v.ndim == 1 else None
-            if spec is not None:
-                term = spec.multiply(self._spectrum(l, spec, v))
+            kind, op, _ = self._route(k, l) if v.ndim == 1 else ("plain", None, 0.0)
+            if kind == "plain":
+                if whole:
+                    term = self.full_operator(k, l).apply(scatter(self.patches[l], v))
+                else:
+                    term = self.apply(k, l, v)
+                total = term if total is None else total + term
+                continue
+            smooth.append(l)
+            if kind == "spectral":
+                term = op.multiply(self._spectrum(l, op, v))
                 if acc is None:
-                    acc, acc_op = term, spec
+                    acc, acc_op = term, op
                 else:
                     acc += term
-                continue
-            op = self._operator(k, l)
-            if not isinstance(op, SeparatedOperator):
-                out -= self.apply(k, l, v)
                 continue
             phi = op.node_product(self._moments(l, op, v))
             key = op.target_key
@@ -304,60 +369,18 @@ class Coupling:
                 groups[key][1] += phi
             else:
                 groups[key] = [op, phi]
-        pk = self.patches[k]
-        owned = pk.owned
-        for op, phi in groups.values():
-            out -= op.expand(phi)[owned]
+        parts = [pick(op.expand(phi)) for op, phi in groups.values()]
         if acc is not None:
-            out -= acc_op.finish(acc)[:pk.grid.ny, :pk.grid.nx][owned]
-
-    def _spectral_pair(self, k: int, l: int):
-        """The pair's FFT operator between the two patches enlarged to the common shape, when
-        the pair is applied by FFT at all (not dense, not separated) and the provider's
-        operator exposes its Fourier stages (``spectrum``/``multiply``/``finish``, e.g. the
-        half-space's); else ``None``. With one padded shape for every pair, the spectrum of
-        a block vector is computed once per new vector and the sum over the sources of one
-        target needs a single inverse transform: per sweep ``2 N`` transforms instead of
-        ``4 N (N - 1)``."""
-        key = (k, l)
-        if key in self._spectral:
-            return self._spectral[key]
-        op = None
-        pk, pl = self.patches[k], self.patches[l]
-        if int(pk.owned.sum()) * int(pl.owned.sum()) > self.dense_max_entries and not self._separated(k, l):
-            if self._common is None:
-                ny = max(pt.grid.ny for pt in self.patches)
-                nx = max(pt.grid.nx for pt in self.patches)
-                # room to grow, so that a patch enlarged by a few cells keeps the pairs
-                self._common = (ny + ny // 4 + 2, nx + nx // 4 + 2)
-            NY, NX = self._common
-            big = lambda g: type(g)(g.x0, g.y0, g.h, NX, NY)
-            cand = self.provider.grid_operator(big(pk.grid), big(pl.grid))
-            size = float(getattr(cand, "nbytes", 0))
-            if (all(hasattr(cand, a) for a in ("spectrum", "multiply", "finish"))
-                    and self._spectral_bytes + size <= self.cache_bytes):
-                op = cand
-                self._spectral_bytes += size
-        self._spectral[key] = op
-        return op
-
-    def _separated(self, k: int, l: int) -> bool:
-        """Whether the pair has a separated operator (built and cached here if so)."""
-        hit = self._fft.get((k, l))
-        if hit is not None:
-            return isinstance(hit[0], SeparatedOperator)
-        if self.separated_rtol is None or k == l:
-            return False
-        gk, gl = self.patches[k].grid, self.patches[l].grid
-        op = self.provider.separated_operator(gk, gl, rtol=self.separated_rtol)
-        if op is None:
-            return False
-        self.separated_pairs += 1
-        size = float(getattr(op, "nbytes", 0))
-        if self._fft_bytes + size <= self.cache_bytes:
-            self._fft[(k, l)] = (op, size)
-            self._fft_bytes += size
-        return True
+            parts.append(pick(acc_op.finish(acc)[:pk.grid.ny, :pk.grid.nx]))
+        if self._correction is not None and smooth:
+            coeffs = [self._coefficient(l, values[l]) for l in smooth]
+            c = np.zeros(max(len(p) for p in coeffs))
+            for p in coeffs:
+                c[:len(p)] += p
+            parts.append(pick(self._correction.evaluate(pk.grid, c)))
+        for term in parts:
+            total = term if total is None else total + term
+        return total
 
     def _spectrum(self, l: int, op, v: np.ndarray) -> np.ndarray:
         key = (l, op.fft_shape)
@@ -378,13 +401,18 @@ class Coupling:
         if hit is not None and hit[0] is v:
             return hit[1]
         m = op.moments(scatter(self.patches[l], v))
-        self._moment_cache[key] = (v, m)      # keeps v alive, so its id is not reused
+        self._moment_cache[key] = (v, m)
         return m
+
+    def _coefficient(self, l: int, v: np.ndarray) -> np.ndarray:
+        hit = self._coefficients.get((l,))
+        if hit is not None and hit[0] is v:
+            return hit[1]
+        c = self._correction.coefficients(self.patches[l].grid, scatter(self.patches[l], v))
+        self._coefficients[(l,)] = (v, c)
+        return c
 
     def patch_displacement(self, k: int, values: list) -> np.ndarray:
         """Displacement (mm) on the whole patch ``k`` (ny, nx) due to the blocks ``l != k``."""
-        u = np.zeros(self.patches[k].grid.shape)
-        for l, v in enumerate(values):
-            if l != k and np.any(v):
-                u += self.full_operator(k, l).apply(scatter(self.patches[l], v))
-        return u
+        u = self._sum(k, [l for l in range(len(values)) if l != k], values, whole=True)
+        return np.zeros(self.patches[k].grid.shape) if u is None else u

@@ -251,12 +251,10 @@ class FarFieldCoupling(Coupling):
 
     def patch_displacement(self, k: int, values: list) -> np.ndarray:
         """Displacement (mm) on the whole patch ``k`` from the other blocks (near exact)."""
-        u = np.zeros(self.patches[k].grid.shape)
-        for l in self.near(k):
-            v = values[l]
-            if np.any(v):
-                u += self.full_operator(k, int(l)).apply(scatter(self.patches[l], v))
-        return u + self._far(k, values, whole=True)[:, 0].reshape(u.shape)
+        shape = self.patches[k].grid.shape
+        u = self._sum(k, [int(l) for l in self.near(k)], values, whole=True)
+        u = np.zeros(shape) if u is None else u
+        return u + self._far(k, values, whole=True)[:, 0].reshape(shape)
 
 
 class LaggedFarField(FarFieldCoupling):
