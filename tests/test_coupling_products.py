@@ -8,7 +8,7 @@ from twoscale.grid import Grid
 from twoscale.indenters import Asperity
 from twoscale.influence.halfspace import HalfSpace
 from twoscale.material import Material
-from twoscale.micro.blocks import Coupling
+from twoscale.micro.blocks import Coupling, size_class
 from twoscale.micro.patches import grow_patch, make_patch
 
 HS = HalfSpace(Material(E=10.0, nu=0.3))
@@ -52,16 +52,16 @@ def test_fast_routes_equal_the_dense_blocks():
     assert kinds == {"spectral", "separated"}           # near pairs took one route, far pairs the other
 
 
-def test_growth_beyond_the_common_shape_rebuilds_the_spectral_pairs():
+def test_growth_into_another_size_class_rebuilds_the_spectral_pairs():
     asps, patches = _scene()
     rng = np.random.default_rng(1)
     fast = Coupling(HS, patches, dense_max_entries=0)
     values = [rng.random(int(p.owned.sum())) for p in patches]
     fast.rhs(0, values, np.zeros(len(values[0])))
-    common = fast._common
-    for _ in range(3):                                     # well past the room left for growth
+    before = size_class(patches[1].grid.nx)
+    for _ in range(3):                                     # into a larger size class
         patches[1] = grow_patch(patches[1], (True, True, True, True), asps)
-    assert patches[1].grid.nx > common[1]
+    assert size_class(patches[1].grid.nx) > before
     fast.replace(1, patches[1])
     values[1] = rng.random(int(patches[1].owned.sum()))
     for k in (0, 1, 2):
@@ -140,3 +140,11 @@ def test_whole_patch_displacement_by_the_routes():
                 il = np.flatnonzero(patches[l].owned.ravel())
                 ref += (HS.grid_matrix(patches[k].grid, patches[l].grid)[:, il] @ v).reshape(ref.shape)
         np.testing.assert_allclose(fast.patch_displacement(k, values), ref, atol=1e-9 * np.abs(ref).max())
+
+
+def test_size_class_ladder():
+    ladder = [size_class(n) for n in range(1, 200)]
+    assert ladder[:8] == [8] * 8
+    assert all(size_class(n) >= n for n in range(1, 500))
+    assert all(size_class(n) <= max(8, 1.2 * n + 1) for n in range(1, 500))      # at most ~20 % padding
+    assert len(set(ladder)) < 20

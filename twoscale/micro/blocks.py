@@ -7,6 +7,7 @@ the solver never knows which elastic body it works on.
 """
 from __future__ import annotations
 
+import math
 from collections import OrderedDict
 
 import numpy as np
@@ -15,6 +16,16 @@ import scipy.linalg as sla
 from ..influence.base import InfluenceProvider
 from ..influence.separated import SeparatedOperator
 from .patches import Patch
+
+
+def size_class(n: int) -> int:
+    """Smallest size of the ladder 8, 10, 12, 14, 17, 21, ... (steps of ~20 %) that is
+    >= ``n``: patches are enlarged to their class so that pairs of one class share a padded
+    transform shape."""
+    c = 8
+    while c < n:
+        c = max(c + 1, math.ceil(1.2 * c))
+    return c
 
 
 def scatter(patch: Patch, v: np.ndarray) -> np.ndarray:
@@ -165,9 +176,10 @@ class Coupling:
       Chebyshev low-rank block within ``separated_rtol``); source moments once per block
       vector, node values summed per target before one interpolation;
     * *spectral*: the other pairs, the provider's FFT operator between the two patches
-      enlarged to one common padded shape; a block vector's spectrum is computed once, and
-      the sum over the sources of one target needs one inverse transform (per sweep ``2N``
-      transforms instead of ``4N(N-1)``).
+      enlarged to their size classes (:func:`size_class`, steps of 20 %); a block vector's
+      spectrum is computed once per target class, and the sum over the sources of one class
+      onto one target needs one inverse transform (per sweep about ``2N`` transforms per
+      class instead of ``4N(N-1)``).
 
     The last two use the translation-invariant part of the provider's kernel
     (:meth:`~twoscale.influence.base.InfluenceProvider.split`); a smooth low-rank remainder
@@ -208,7 +220,6 @@ class Coupling:
         self._fft_bytes = 0.0
         self._routes: dict = {}
         self._route_bytes = 0.0
-        self._common: tuple[int, int] | None = None
         self._moment_cache: dict = {}
         self._spectra: dict = {}
         self._coefficients: dict = {}
@@ -216,13 +227,6 @@ class Coupling:
     def append(self, patch: Patch) -> None:
         """Add a patch (a new block at the end)."""
         self.patches.append(patch)
-        self._check_common(patch)
-
-    def _check_common(self, patch: Patch) -> None:
-        # a patch larger than the common padded shape invalidates every spectral route
-        if self._common is not None and (patch.grid.ny > self._common[0] or patch.grid.nx > self._common[1]):
-            self._common = None
-            self._routes, self._route_bytes, self._spectra = {}, 0.0, {}
 
     def replace(self, k: int, patch: Patch) -> None:
         """Swap patch ``k`` (after growth) and drop every operator that involves it."""
@@ -237,7 +241,6 @@ class Coupling:
                 self._bytes -= op.nbytes
         for key in [key for key in self._fft if k in key]:
             self._fft_bytes -= self._fft.pop(key)[1]
-        self._check_common(patch)
 
     def full_operator(self, k: int, l: int):
         """Operator from the whole patch ``l`` to the whole patch ``k``: the provider's
@@ -309,13 +312,7 @@ class Coupling:
                 op = self._base.separated_operator(pk.grid, pl.grid, rtol=self.separated_rtol)
             if op is None:
                 kind = "spectral"
-                if self._common is None:
-                    ny = max(pt.grid.ny for pt in self.patches)
-                    nx = max(pt.grid.nx for pt in self.patches)
-                    # room to grow, so that a patch enlarged by a few cells keeps the routes
-                    self._common = (ny + ny // 4 + 2, nx + nx // 4 + 2)
-                NY, NX = self._common
-                big = lambda g: type(g)(g.x0, g.y0, g.h, NX, NY)
+                big = lambda g: type(g)(g.x0, g.y0, g.h, size_class(g.nx), size_class(g.ny))
                 op = self._base.grid_operator(big(pk.grid), big(pl.grid))
                 if not all(hasattr(op, a) for a in ("spectrum", "multiply", "finish")):
                     op = None
@@ -341,7 +338,7 @@ class Coupling:
         pick = (lambda a: a) if whole else (lambda a: a[pk.owned])
         total = None
         groups: dict = {}
-        acc = acc_op = None
+        spectral: dict = {}
         smooth = []
         for l in sources:
             v = values[l]
@@ -358,10 +355,11 @@ class Coupling:
             smooth.append(l)
             if kind == "spectral":
                 term = op.multiply(self._spectrum(l, op, v))
-                if acc is None:
-                    acc, acc_op = term, op
+                key = op.source.shape            # sources of one class share the output window
+                if key in spectral:
+                    spectral[key][1] += term
                 else:
-                    acc += term
+                    spectral[key] = [op, term]
                 continue
             phi = op.node_product(self._moments(l, op, v))
             key = op.target_key
@@ -370,8 +368,7 @@ class Coupling:
             else:
                 groups[key] = [op, phi]
         parts = [pick(op.expand(phi)) for op, phi in groups.values()]
-        if acc is not None:
-            parts.append(pick(acc_op.finish(acc)[:pk.grid.ny, :pk.grid.nx]))
+        parts += [pick(op.finish(acc)[:pk.grid.ny, :pk.grid.nx]) for op, acc in spectral.values()]
         if self._correction is not None and smooth:
             coeffs = [self._coefficient(l, values[l]) for l in smooth]
             c = np.zeros(max(len(p) for p in coeffs))
@@ -387,8 +384,7 @@ class Coupling:
         hit = self._spectra.get(key)
         if hit is not None and hit[0] is v:
             return hit[1]
-        NY, NX = self._common
-        p = np.zeros((NY, NX))
+        p = np.zeros(op.source.shape)
         pl = self.patches[l]
         p[:pl.grid.ny, :pl.grid.nx][pl.owned] = v
         spec = op.spectrum(p)
