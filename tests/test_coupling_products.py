@@ -148,3 +148,15 @@ def test_size_class_ladder():
     assert all(size_class(n) >= n for n in range(1, 500))
     assert all(size_class(n) <= max(8, 1.2 * n + 1) for n in range(1, 500))      # at most ~20 % padding
     assert len(set(ladder)) < 20
+
+
+def test_without_memory_for_operators_every_pair_falls_back_to_plain_products():
+    asps, patches = _scene()
+    rng = np.random.default_rng(5)
+    tight = Coupling(HS, patches, dense_max_entries=0, cache_bytes=1.0)
+    values = [rng.random(int(p.owned.sum())) for p in patches]
+    b = np.zeros(int(patches[0].owned.sum()))
+    ref = _exact(patches, 0, values, b)
+    np.testing.assert_allclose(tight.rhs(0, values, b), ref, atol=1e-9 * np.abs(ref).max())
+    assert {route[0] for route in tight._routes.values()} == {"plain"}
+    assert not tight._fft

@@ -196,8 +196,8 @@ class Coupling:
         (``provider.grid_matrix``); larger pairs use the routes above.
     cache_bytes : float, default 4e8
         Memory budget for cached dense pairs (beyond it pairs fall back to FFT) and,
-        separately, for cached operators of the other routes (beyond it a pair is applied
-        by a plain FFT product, rebuilt on use).
+        separately, for all other cached pair operators together (beyond it a pair takes
+        the plain FFT product, rebuilt on use).
     separated_rtol : float or None, default 1e-8
         Accuracy of the separated route, relative to the pair's displacement; ``None``: no
         separated route.
@@ -258,7 +258,7 @@ class Coupling:
             op = self.provider.grid_operator(gk, gl)
         # an FFT operator holds about a half-spectrum of complex numbers
         size = float(getattr(op, "nbytes", 8.0 * (gk.nx + gl.nx) * (gk.ny + gl.ny)))
-        if self._fft_bytes + size <= self.cache_bytes:
+        if self._fft_bytes + self._route_bytes + size <= self.cache_bytes:
             self._fft[(k, l)] = (op, size)
             self._fft_bytes += size
         return op
@@ -317,7 +317,7 @@ class Coupling:
                 if not all(hasattr(op, a) for a in ("spectrum", "multiply", "finish")):
                     op = None
             size = float(getattr(op, "nbytes", 0.0))
-            if op is not None and self._route_bytes + size <= self.cache_bytes:
+            if op is not None and self._route_bytes + self._fft_bytes + size <= self.cache_bytes:
                 route = (kind, op, size)
                 self._route_bytes += size
                 self.separated_pairs += kind == "separated"
