@@ -160,3 +160,22 @@ def test_without_memory_for_operators_every_pair_falls_back_to_plain_products():
     np.testing.assert_allclose(tight.rhs(0, values, b), ref, atol=1e-9 * np.abs(ref).max())
     assert {route[0] for route in tight._routes.values()} == {"plain"}
     assert not tight._fft
+
+
+def test_solver_answer_does_not_depend_on_the_routes():
+    # a 3 x 3 grid of spheres 6 mm apart (separated pairs) and two close ones (spectral pairs)
+    from twoscale.twoscale import solve_twoscale
+    asps = [Asperity(x=6.0 * i, y=6.0 * j, z=0.0, R=5.0) for j in range(3) for i in range(3)]
+    asps.append(Asperity(x=1.8, y=0.4, z=0.0, R=5.0))
+    kw = dict(h=0.05, penetration=0.08)
+    fast = solve_twoscale(HS, asps, **kw)
+    plain = solve_twoscale(HS, asps, separated_rtol=None, **kw)
+    assert fast.converged and plain.converged
+    f1, f2 = np.asarray(fast.extra["macro_forces"]), np.asarray(plain.extra["macro_forces"])
+    np.testing.assert_allclose(f1, f2, rtol=1e-12)
+    # the routes change the cross products by <= 1e-8 of a pair's displacement; the final
+    # forces move by far less than the 1e-6 sweep tolerance
+    np.testing.assert_allclose(fast.asperities.forces, plain.asperities.forces, rtol=1e-6)
+    assert fast.asperities.forces.min() > 0
+    with pytest.raises(ValueError, match="separated_rtol"):
+        solve_twoscale(HS, asps, separated_rtol=0.0, **kw)

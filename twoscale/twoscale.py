@@ -55,7 +55,8 @@ def solve_twoscale(provider: InfluenceProvider, asperities: Sequence[Asperity], 
                    anchor: tuple[float, float] = (0.0, 0.0), dense_max_cells: int = 400,
                    macro_tol: float = 1e-10, macro_max_iter: int = 100,
                    macro_dense_max: int = DENSE_MAX, macro_operator_rtol: float = 1e-6,
-                   far_tol: float | None = None, coarse: bool | None = None) -> ContactResult:
+                   far_tol: float | None = None, coarse: bool | None = None,
+                   separated_rtol: float | None = 1e-8) -> ContactResult:
     """Multi-asperity contact by the two-scale iterative method.
 
     Parameters
@@ -114,6 +115,10 @@ def solve_twoscale(provider: InfluenceProvider, asperities: Sequence[Asperity], 
         converged after ``AUTO_SWEEPS`` (20) sweeps (merged contacts can make a cell's
         contact state flip), plain block Gauss-Seidel solves the scene again. False keeps
         plain block Gauss-Seidel (eq. 8) with sensitivity sweeps for the load and tilt.
+    separated_rtol : float or None, default 1e-8
+        Micro step: patches far apart for their size are coupled through the provider's
+        low-rank separated operator (half-space: Chebyshev interpolation of Love's kernel),
+        accurate to this fraction of the pair's displacement; None: FFT products only.
 
     Returns
     -------
@@ -123,6 +128,9 @@ def solve_twoscale(provider: InfluenceProvider, asperities: Sequence[Asperity], 
         "p0_change_percent" = ``100 ||p0 - p|| / ||p||``, and "patch_growths".
     """
     _check(asperities, h, penetration, total_load, tilt, tol, max_sweeps)
+    if separated_rtol is not None and (isinstance(separated_rtol, bool) or not isinstance(separated_rtol, (int, float))
+                                       or not 0.0 < separated_rtol < 1.0):
+        raise ValueError(f"separated_rtol must be a number in (0, 1) or None, got {separated_rtol!r}")
     t0 = time.perf_counter()
     laws = [law_for(a, provider.material) for a in asperities] if laws is None else laws
     tips = np.array([[a.x, a.y] for a in asperities], dtype=float)
@@ -139,7 +147,8 @@ def solve_twoscale(provider: InfluenceProvider, asperities: Sequence[Asperity], 
     micro_far_tol = far_tol if far_tol is not None or not two_level else EXACT_FAR_TOL
     common = dict(h=h, forces=np.asarray(macro.forces), penetration=macro.penetration, tilt=macro.tilt,
                   pivot=pivot, total_load=total_load, free_tilt=tilt, tol=tol, margin=margin, anchor=anchor,
-                  dense_max_cells=dense_max_cells, size_from_forces=bool(macro.converged))
+                  dense_max_cells=dense_max_cells, size_from_forces=bool(macro.converged),
+                  separated_rtol=separated_rtol)
     micro = solve_micro(provider, asperities, max_sweeps=min(max_sweeps, AUTO_SWEEPS) if auto else max_sweeps,
                         far_tol=micro_far_tol, sizing_approaches=_sizing(macro, micro_far_tol),
                         coarse=two_level, **common)

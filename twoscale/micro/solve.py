@@ -70,19 +70,20 @@ class _State:
     """Mutable working set of the micro step (patches, blocks, pressures); internal."""
 
     def __init__(self, provider, asperities, patches, dense_max_cells, dense_max_entries, far_tol=None,
-                 lagged=False):
+                 lagged=False, separated_rtol=1e-8):
         self.provider, self.asperities = provider, asperities
         self.dense_max_cells = dense_max_cells
         self.patches = list(patches)
         self.blocks = [LocalBlock(provider, pt, dense_max_cells=dense_max_cells) for pt in self.patches]
         if far_tol is None:
-            self.coupling = Coupling(provider, self.patches, dense_max_entries=dense_max_entries)
+            self.coupling = Coupling(provider, self.patches, dense_max_entries=dense_max_entries,
+                                     separated_rtol=separated_rtol)
         elif lagged:
             self.coupling = LaggedFarField(provider, self.patches, tips=self.tips(), far_tol=far_tol,
-                                           dense_max_entries=dense_max_entries)
+                                           dense_max_entries=dense_max_entries, separated_rtol=separated_rtol)
         else:
             self.coupling = FarFieldCoupling(provider, self.patches, far_tol=far_tol,
-                                             dense_max_entries=dense_max_entries)
+                                             dense_max_entries=dense_max_entries, separated_rtol=separated_rtol)
         self.sensitivities = None
 
     def tips(self) -> np.ndarray:
@@ -218,7 +219,8 @@ def solve_micro(provider: InfluenceProvider, asperities: Sequence[Asperity], *, 
                 dense_max_cells: int = 400, dense_max_entries: int = 40_000,
                 max_corrections: int = 20, max_growths: int = 50,
                 size_from_forces: bool = True, far_tol: float | None = None,
-                sizing_approaches: np.ndarray | None = None, coarse: bool = False) -> MicroResult:
+                sizing_approaches: np.ndarray | None = None, coarse: bool = False,
+                separated_rtol: float | None = 1e-8) -> MicroResult:
     """Pressure on patches from the macro forces (METHOD.md section 3).
 
     Parameters
@@ -274,6 +276,10 @@ def solve_micro(provider: InfluenceProvider, asperities: Sequence[Asperity], *, 
         coarse correction (the linearised macro equations on the sweep's resultant changes,
         :mod:`.coarse`) removes the bulk error and corrects the approach and tilt, in place
         of the sensitivity sweeps. For thousands of asperities.
+    separated_rtol : float or None, default 1e-8
+        Cross blocks between patches far apart for their size go through the provider's
+        low-rank separated operator, accurate to this fraction of the pair's displacement
+        (:class:`~.blocks.Coupling`); None: FFT products only.
     """
     if coarse and far_tol is None:
         raise ValueError("coarse=True needs far_tol (the two-level iteration holds the far field by resultants)")
@@ -289,7 +295,8 @@ def solve_micro(provider: InfluenceProvider, asperities: Sequence[Asperity], *, 
         approaches = np.minimum(approaches, sizing_approaches)
     patches = build_patches(asperities, h=h, forces=sizing, approaches=approaches,
                             E_star=provider.material.E_star, margin=margin, anchor=anchor)
-    state = _State(provider, asperities, patches, dense_max_cells, dense_max_entries, far_tol, lagged=coarse)
+    state = _State(provider, asperities, patches, dense_max_cells, dense_max_entries, far_tol, lagged=coarse,
+                   separated_rtol=separated_rtol)
     if not patches:
         return _finish(state, [], [], theta, tilt, pivot, True, "no asperity reaches the body",
                        {"sweeps": 0, "corrections": 0, "growths": 0, "linear_sweeps": 0}, ())
