@@ -24,9 +24,10 @@ def _pairwise(targets: np.ndarray, sources: np.ndarray) -> tuple[np.ndarray, np.
 _TABLE_CACHE_ENTRIES = 40_000
 
 
-#: Separated operators waiting for their transposed request (first in, first out).
+#: Separated operators waiting for their transposed request (first in, first out, within
+#: a memory budget: they are also held by the caller that asked for them).
 _SEPARATED: OrderedDict = OrderedDict()
-_SEPARATED_MAX = 512
+_SEPARATED_BYTES = 64e6
 
 
 @lru_cache(maxsize=256)
@@ -109,7 +110,7 @@ class HalfSpace(InfluenceProvider):
         E_star, h = self.E_star, float(source.h)
         op = SeparatedOperator(target, source, lambda dx, dy: love_far_field(dx, dy, h, E_star, sep.order), sep)
         _SEPARATED[(self.E_star, target, source, rtol)] = op
-        while len(_SEPARATED) > _SEPARATED_MAX:
+        while len(_SEPARATED) > 1 and sum(o.nbytes for o in _SEPARATED.values()) > _SEPARATED_BYTES:
             _SEPARATED.popitem(last=False)
         return op
 

@@ -43,7 +43,7 @@ Q_MAX = 20
 #: Safety factor on the interpolation bound (calibrated in tests/test_separated.py).
 _SAFETY = 10.0
 #: Relative remainder of the cell's far-field expansion of order 0, 2, 4 (terms in (h/r)^order):
-#: ``bound (h / r)^(order + 2)``; measured against Love's closed form in tests/test_love.py.
+#: ``bound (h / r)^(order + 2)``; checked against quadrature of the point kernel in tests/test_separated.py.
 FAR_FIELD_BOUND = {0: 0.1, 2: 0.03, 4: 0.01}
 
 
