@@ -177,5 +177,13 @@ def test_solver_answer_does_not_depend_on_the_routes():
     # forces move by far less than the 1e-6 sweep tolerance
     np.testing.assert_allclose(fast.asperities.forces, plain.asperities.forces, rtol=1e-6)
     assert fast.asperities.forces.min() > 0
+    # the result says which routes ran (and result.json carries it)
+    used, off = fast.extra["coupling"], plain.extra["coupling"]
+    assert used["separated"] > 0 and used["spectral"] > 0 and used["separated_rtol"] == 1e-8
+    assert off["separated"] == 0 and off["separated_rtol"] is None
+    from twoscale.io.result_json import result_to_dict
+    from twoscale.scene import Scene
+    scene = Scene(material=HS.material, asperities=asps, penetration=0.08, h=0.05)
+    assert result_to_dict(fast, scene)["coupling"] == used
     with pytest.raises(ValueError, match="separated_rtol"):
         solve_twoscale(HS, asps, separated_rtol=0.0, **kw)

@@ -192,4 +192,5 @@ def _result(asperities, macro, micro, h, timings, iteration: str) -> ContactResu
         extra={"macro_forces": np.array(macro.forces), "local_penetrations": np.array(macro.local_penetrations),
                "p0_change_percent": change, "p0": micro.initial, "patch_growths": int(micro.growths),
                "macro_converged": bool(macro.converged), "macro_interaction": macro.interaction,
-               "macro_operator_error": macro.operator_error, "micro_iteration": iteration})
+               "macro_operator_error": macro.operator_error, "micro_iteration": iteration,
+               "coupling": dict(micro.coupling)})

@@ -118,6 +118,8 @@ def result_to_dict(result, scene: Scene, *, method: str | None = None) -> dict:
                         "operator_error": None if err is None else _num(err)}
     if "micro_iteration" in result.extra:
         out["micro_iteration"] = result.extra["micro_iteration"]
+    if "coupling" in result.extra:
+        out["coupling"] = {k: _num(v) if v is not None else None for k, v in result.extra["coupling"].items()}
     return out
 
 

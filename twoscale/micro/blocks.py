@@ -295,6 +295,17 @@ class Coupling:
         self._subtract(k, [l for l in range(len(values)) if l != k], values, out)
         return out
 
+    def route_counts(self) -> dict:
+        """Ordered pairs per route so far: ``dense``, ``fft`` (plain FFT products), ``separated``,
+        ``spectral``; and the ``separated_rtol`` in use (for the result's record)."""
+        out = {"dense": 0, "fft": 0, "separated": 0, "spectral": 0}
+        for key, (kind, _, _) in self._routes.items():
+            if kind == "plain":
+                kind = "dense" if isinstance(self._ops.get(key), np.ndarray) else "fft"
+            out[kind] += 1
+        out["separated_rtol"] = self.separated_rtol
+        return out
+
     # ------------------------------------------------------------------ routes
     def _route(self, k: int, l: int) -> tuple:
         """``(kind, operator, bytes)`` of the pair: kind "plain" (dense block or a plain

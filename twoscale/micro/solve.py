@@ -2,7 +2,7 @@
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Sequence
 
 import numpy as np
@@ -45,6 +45,9 @@ class MicroResult:
         right-hand sides).
     history : tuple of float
         Relative change after every sweep (eq. 9).
+    coupling : dict
+        How the cross-patch products were made: pairs per route (``dense``, ``fft``,
+        ``separated``, ``spectral``; :class:`~.blocks.Coupling`) and ``separated_rtol``.
     """
 
     patches: tuple
@@ -60,6 +63,7 @@ class MicroResult:
     growths: int
     linear_sweeps: int
     history: tuple
+    coupling: dict = field(default_factory=dict)
 
 
 #: Relative change at which the sensitivity sweeps (load and tilt corrections) stop.
@@ -497,4 +501,5 @@ def _finish(state, p, p0, theta, tilt, pivot, converged, message, counts, histor
     gaps = state.gaps(p, theta, pivot) if state.patches else []
     return MicroResult(tuple(state.patches), tuple(pressures), tuple(initial), tuple(gaps),
                        float(theta[0]), tilt, converged, message, counts["sweeps"], counts["corrections"],
-                       counts["growths"], counts["linear_sweeps"], tuple(history))
+                       counts["growths"], counts["linear_sweeps"], tuple(history),
+                       state.coupling.route_counts())
