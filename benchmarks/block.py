@@ -8,8 +8,9 @@ total load 50 N. Prints, for the bonded and the sliding base:
 * the same two-scale solve on the half-space, for the "within 2x" target;
 * load-sharing between asperities (centre vs corner force) on each body.
 
-Run: ``python benchmarks/block.py [--quiet]`` (about 1 minute on a quiet 2-core machine;
-``--quiet``: no progress bar).
+Run: ``python benchmarks/block.py [--repeat 3] [--quiet]`` (about 1.5 minutes on a quiet 2-core
+machine; warm and half-space cases keep the fastest of ``--repeat`` fresh processes, cold
+cases run once; ``--quiet``: no progress bar).
 """
 from __future__ import annotations
 
@@ -64,16 +65,23 @@ def _subprocess(kind: str, base: str, cache: str) -> dict:
     return json.loads(out.strip().splitlines()[-1])
 
 
-def main(quiet: bool = False) -> None:
+def main(quiet: bool = False, repeat: int = 3) -> None:
     sys.path.insert(0, ROOT)
     from twoscale.progress import Progress
     rows = []
     runs = [("half-space", "halfspace", "-")] + [(f"{base} {state}", "block", base)
                                                  for base in ("bonded", "sliding") for state in ("cold", "warm")]
-    with tempfile.TemporaryDirectory() as cache, Progress(len(runs), label="block cases", quiet=quiet) as bar:
+    # cold runs fill the cache, so they run once; the others keep the fastest of ``repeat``
+    # fresh processes (the machine is shared: single runs of one solve varied by up to 1.8x)
+    total = sum(1 if "cold" in name else repeat for name, _, _ in runs)
+    with tempfile.TemporaryDirectory() as cache, Progress(total, label="block cases", quiet=quiet) as bar:
         for name, kind, base in runs:
-            rows.append((name, _subprocess(kind, base, cache)))
-            bar.update(note=name)
+            best = None
+            for _ in range(1 if "cold" in name else repeat):
+                r = _subprocess(kind, base, cache)
+                best = r if best is None or r["total_s"] < best["total_s"] else best
+                bar.update(note=name)
+            rows.append((name, best))
     hs = rows[0][1]["solve_s"]
     print(f"{'case':>14} {'build+solve s':>14} {'solve s':>8} {'x half-space':>12} {'peak MB':>8} "
           f"{'d mm':>7} {'F centre':>9} {'F corner':>9}")
@@ -86,7 +94,13 @@ def main(quiet: bool = False) -> None:
 if __name__ == "__main__":
     if len(sys.argv) == 4 and sys.argv[1] == "--once":
         print(json.dumps(run_once(sys.argv[2], sys.argv[3])))
-    elif sys.argv[1:] in ([], ["--quiet"]):
-        main(quiet=bool(sys.argv[1:]))
     else:
-        sys.exit(f"usage: python benchmarks/block.py [--quiet]; got {sys.argv[1:]!r}")
+        import argparse
+        ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+        ap.add_argument("--repeat", type=int, default=3,
+                        help="fresh processes per warm or half-space case, fastest kept (default 3)")
+        ap.add_argument("--quiet", action="store_true", help="no progress bar")
+        args = ap.parse_args()
+        if args.repeat < 1:
+            ap.error(f"--repeat must be >= 1, got {args.repeat}")
+        main(quiet=args.quiet, repeat=args.repeat)
