@@ -156,8 +156,6 @@ class SeparatedOperator(GridOperator):
     def __init__(self, target: Grid, source: Grid, kernel, sep: SeparationPlan):
         self.target, self.source = target, source
         self.plan = sep
-        if kernel is None:          # filled in by transposed()
-            return
         qtx, qty, qsx, qsy = sep.q
         tx0, tx1, ty0, ty1 = _box(target)
         sx0, sx1, sy0, sy1 = _box(source)
@@ -176,8 +174,9 @@ class SeparatedOperator(GridOperator):
         (``K(d) = K(-d)``, as for any cell kernel of a homogeneous body): the same arrays,
         ``K`` transposed, no new kernel values."""
         qtx, qty, qsx, qsy = self.plan.q
-        out = SeparatedOperator(self.source, self.target, None, SeparationPlan(q=(qsx, qsy, qtx, qty),
-                                                                               order=self.plan.order))
+        out = SeparatedOperator.__new__(SeparatedOperator)
+        out.target, out.source = self.source, self.target
+        out.plan = SeparationPlan(q=(qsx, qsy, qtx, qty), order=self.plan.order)
         out._Stx, out._Sty, out._Ssx, out._Ssy = self._Ssx, self._Ssy, self._Stx, self._Sty
         out._K = self._K.T
         return out
