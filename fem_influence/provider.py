@@ -419,7 +419,7 @@ class BlockCorrection(LowRankCorrection):
     def coefficients(self, source: Grid, p: np.ndarray) -> np.ndarray:
         cols, W = self._p._source_weights(source)
         c = np.zeros(self._p._state.table.shape[1])
-        np.add.at(c, cols, source.h ** 2 * (W @ np.asarray(p, dtype=float).ravel()))
+        c[cols] = source.h ** 2 * (W @ np.asarray(p, dtype=float).ravel())    # columns are distinct nodes
         return c
 
     def evaluate(self, target: Grid, c: np.ndarray) -> np.ndarray:

@@ -20,6 +20,7 @@ from .influence.base import InfluenceProvider
 from .laws import law_for
 from .macro import solve_macro
 from .macro.solve import DENSE_MAX
+from .influence.separated import check_rtol
 from .micro import solve_micro
 from .results import ContactResult, PressureField, summarise
 
@@ -128,9 +129,7 @@ def solve_twoscale(provider: InfluenceProvider, asperities: Sequence[Asperity], 
         "p0_change_percent" = ``100 ||p0 - p|| / ||p||``, and "patch_growths".
     """
     _check(asperities, h, penetration, total_load, tilt, tol, max_sweeps)
-    if separated_rtol is not None and (isinstance(separated_rtol, bool) or not isinstance(separated_rtol, (int, float))
-                                       or not 0.0 < separated_rtol < 1.0):
-        raise ValueError(f"separated_rtol must be a number in (0, 1) or None, got {separated_rtol!r}")
+    check_rtol(separated_rtol, "separated_rtol", allow_none=True)
     t0 = time.perf_counter()
     laws = [law_for(a, provider.material) for a in asperities] if laws is None else laws
     tips = np.array([[a.x, a.y] for a in asperities], dtype=float)

@@ -92,11 +92,18 @@ class SeparationPlan:
     order: int
 
 
+def check_rtol(rtol, name: str = "rtol", *, allow_none: bool = False) -> None:
+    """Raise ValueError naming ``name`` unless ``rtol`` is a number in (0, 1) (or None when allowed)."""
+    if rtol is None and allow_none:
+        return
+    if isinstance(rtol, bool) or not isinstance(rtol, (int, float)) or not 0.0 < rtol < 1.0:
+        raise ValueError(f"{name} must be a number in (0, 1){' or None' if allow_none else ''}, got {rtol!r}")
+
+
 def plan(target: Grid, source: Grid, rtol: float, *, q_max: int = Q_MAX) -> SeparationPlan | None:
     """How to represent the pair within ``rtol``, or ``None`` when it is not separated enough
     (or the low-rank form would cost more than the dense block or the FFT product)."""
-    if not (0.0 < rtol < 1.0):
-        raise ValueError(f"rtol must be in (0, 1), got {rtol!r}")
+    check_rtol(rtol)
     h = float(source.h)
     gap = box_gap(target, source) - h / math.sqrt(2.0)     # the source cell's extent
     if gap <= 2.0 * h:

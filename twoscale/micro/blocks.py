@@ -14,7 +14,7 @@ import numpy as np
 import scipy.linalg as sla
 
 from ..influence.base import InfluenceProvider
-from ..influence.separated import SeparatedOperator
+from ..influence.separated import SeparatedOperator, check_rtol
 from .patches import Patch
 
 
@@ -205,8 +205,7 @@ class Coupling:
 
     def __init__(self, provider: InfluenceProvider, patches, *, dense_max_entries: int = 40_000,
                  cache_bytes: float = 4e8, separated_rtol: float | None = 1e-8):
-        if separated_rtol is not None and not (0.0 < separated_rtol < 1.0):
-            raise ValueError(f"separated_rtol must be in (0, 1) or None, got {separated_rtol!r}")
+        check_rtol(separated_rtol, "separated_rtol", allow_none=True)
         self.provider = provider
         self.patches = list(patches)
         self.dense_max_entries = dense_max_entries
@@ -220,6 +219,7 @@ class Coupling:
         self._fft_bytes = 0.0
         self._routes: dict = {}
         self._route_bytes = 0.0
+        # per block vector: Chebyshev moments, spectra, correction coefficients (see _per_vector)
         self._moment_cache: dict = {}
         self._spectra: dict = {}
         self._coefficients: dict = {}
@@ -323,7 +323,7 @@ class Coupling:
                 op = self._base.separated_operator(pk.grid, pl.grid, rtol=self.separated_rtol)
             if op is None:
                 kind = "spectral"
-                big = lambda g: type(g)(g.x0, g.y0, g.h, size_class(g.nx), size_class(g.ny))
+                big = lambda g: g.subgrid(0, 0, size_class(g.nx), size_class(g.ny))
                 op = self._base.grid_operator(big(pk.grid), big(pl.grid))
                 if not all(hasattr(op, a) for a in ("spectrum", "multiply", "finish")):
                     op = None
@@ -390,34 +390,33 @@ class Coupling:
             total = term if total is None else total + term
         return total
 
-    def _spectrum(self, l: int, op, v: np.ndarray) -> np.ndarray:
-        key = (l, op.fft_shape)
-        hit = self._spectra.get(key)
+    @staticmethod
+    def _per_vector(store: dict, key: tuple, v: np.ndarray, compute):
+        """``compute()`` for block vector ``v``, reused while ``store[key]`` was made from this
+        very vector object (the sweeps replace a block's vector when it changes; the store
+        keeps ``v`` alive, so its identity cannot be reused by another array)."""
+        hit = store.get(key)
         if hit is not None and hit[0] is v:
             return hit[1]
-        p = np.zeros(op.source.shape)
-        pl = self.patches[l]
-        p[:pl.grid.ny, :pl.grid.nx][pl.owned] = v
-        spec = op.spectrum(p)
-        self._spectra[key] = (v, spec)         # keeps v alive, so its id is not reused
-        return spec
+        out = compute()
+        store[key] = (v, out)
+        return out
+
+    def _spectrum(self, l: int, op, v: np.ndarray) -> np.ndarray:
+        def compute():
+            p = np.zeros(op.source.shape)
+            pl = self.patches[l]
+            p[:pl.grid.ny, :pl.grid.nx][pl.owned] = v
+            return op.spectrum(p)
+        return self._per_vector(self._spectra, (l, op.fft_shape), v, compute)
 
     def _moments(self, l: int, op, v: np.ndarray) -> np.ndarray:
-        key = (l,) + op.source_key
-        hit = self._moment_cache.get(key)
-        if hit is not None and hit[0] is v:
-            return hit[1]
-        m = op.moments(scatter(self.patches[l], v))
-        self._moment_cache[key] = (v, m)
-        return m
+        return self._per_vector(self._moment_cache, (l,) + op.source_key, v,
+                                lambda: op.moments(scatter(self.patches[l], v)))
 
     def _coefficient(self, l: int, v: np.ndarray) -> np.ndarray:
-        hit = self._coefficients.get((l,))
-        if hit is not None and hit[0] is v:
-            return hit[1]
-        c = self._correction.coefficients(self.patches[l].grid, scatter(self.patches[l], v))
-        self._coefficients[(l,)] = (v, c)
-        return c
+        return self._per_vector(self._coefficients, (l,), v, lambda: self._correction.coefficients(
+            self.patches[l].grid, scatter(self.patches[l], v)))
 
     def patch_displacement(self, k: int, values: list) -> np.ndarray:
         """Displacement (mm) on the whole patch ``k`` (ny, nx) due to the blocks ``l != k``."""
