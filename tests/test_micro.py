@@ -108,12 +108,24 @@ CLOSE = [Asperity(0.0, 0.0, 0.0, 2.0, "paraboloid"), Asperity(0.9, 0.3, 0.005, 1
          Asperity(-0.6, 0.8, 0.01, 2.5, "paraboloid")]
 
 
-@pytest.mark.parametrize("dense_max_cells", [10_000, 0])
-def test_gauss_seidel_matches_nnls_on_the_same_cells(dense_max_cells):
+# two tips closer than their contact radii (0.4 mm): merged contacts, one block when merging
+PAIR = [Asperity(-0.3, 0.0, 0.0, 2.0, "paraboloid"), Asperity(0.3, 0.05, 0.002, 2.0, "paraboloid")]
+
+
+@pytest.mark.parametrize("dense_max_cells,merge,scene", [
+    (10_000, False, "close"), (0, False, "close"),
+    (10_000, False, "pair"), (0, False, "pair"), (10_000, True, "pair"), (0, True, "pair")])
+def test_gauss_seidel_matches_nnls_on_the_same_cells(dense_max_cells, merge, scene):
+    asps = CLOSE if scene == "close" else PAIR
     d, h = 0.08, 0.07
-    forces = np.array([float(hertz.load(a.R, d - a.z, ES)) for a in CLOSE])
-    res = solve_micro(HS, CLOSE, h=h, forces=forces, penetration=d, tol=1e-9, dense_max_cells=dense_max_cells)
+    forces = np.array([float(hertz.load(a.R, d - a.z, ES)) for a in asps])
+    res = solve_micro(HS, asps, h=h, forces=forces, penetration=d, tol=1e-9, dense_max_cells=dense_max_cells,
+                      merge=merge)
     assert res.converged, res.message
+    if scene == "pair":
+        # the overlapping pair is one block only when merging
+        assert res.merged == (((0, 1),) if merge else ())
+        assert len(res.patches) == (1 if merge else 2)
     assert res.history[-1] <= 1e-9
     ref = _nnls_contact(HS, res.patches, [d - pt.height[pt.owned] for pt in res.patches])
     p = _blocks_of(res)
@@ -161,12 +173,16 @@ def test_linear_gauss_seidel_solves_the_coupled_system():
 
 
 # ---------------------------------------------------------------- load and tilt
-def test_load_control_and_tilt_meet_the_equations_exactly():
+@pytest.mark.parametrize("scene", ["close", "pair and one"])
+def test_load_control_and_tilt_meet_the_equations_exactly(scene):
+    asps = CLOSE if scene == "close" else PAIR + [Asperity(0.1, 1.6, 0.004, 2.0, "paraboloid")]
     d, h, W, pivot = 0.08, 0.07, 1.5, (0.1, 0.2)
-    forces = np.array([float(hertz.load(a.R, d - a.z, ES)) for a in CLOSE])
-    res = solve_micro(HS, CLOSE, h=h, forces=forces, penetration=d, tilt=(0.0, 0.0), pivot=pivot,
+    forces = np.array([float(hertz.load(a.R, d - a.z, ES)) for a in asps])
+    res = solve_micro(HS, asps, h=h, forces=forces, penetration=d, tilt=(0.0, 0.0), pivot=pivot,
                       total_load=W, free_tilt=True, tol=1e-8)
     assert res.converged, res.message
+    # the pair is one block, the third asperity its own
+    assert res.merged == ((() if scene == "close" else ((0, 1),)))
     P = np.concatenate([h * h * p[pt.owned] for pt, p in zip(res.patches, res.pressures)])
     X = np.concatenate([pt.grid.centres()[0][pt.owned] for pt in res.patches]) - pivot[0]
     Y = np.concatenate([pt.grid.centres()[1][pt.owned] for pt in res.patches]) - pivot[1]

@@ -142,7 +142,9 @@ def test_result_reports_macro_micro_and_p0():
     asps = [Asperity(0.0, 1.0, 0.0, 10.0), Asperity(0.0, -1.0, 0.0, 10.0)]
     res = solve_twoscale(HS, asps, h=0.125, penetration=0.5)
     assert res.method == "twoscale" and res.converged
-    assert len(res.fields) == 2
+    # merged contacts: one block over both patches, unless asked for one per asperity
+    assert len(res.fields) == 1 and res.extra["merged_patches"] == [[0, 1]]
+    assert len(solve_twoscale(HS, asps, h=0.125, penetration=0.5, merge=False).fields) == 2
     assert set(res.iterations) >= {"macro", "micro"} and res.iterations["micro"] >= 2
     assert set(res.timings_s) >= {"macro", "micro", "total"}
     assert res.extra["macro_forces"].shape == (2,)

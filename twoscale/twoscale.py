@@ -57,7 +57,7 @@ def solve_twoscale(provider: InfluenceProvider, asperities: Sequence[Asperity], 
                    macro_tol: float = 1e-10, macro_max_iter: int = 100,
                    macro_dense_max: int = DENSE_MAX, macro_operator_rtol: float = 1e-6,
                    far_tol: float | None = None, coarse: bool | None = None,
-                   separated_rtol: float | None = 1e-8) -> ContactResult:
+                   separated_rtol: float | None = 1e-8, merge: bool = True) -> ContactResult:
     """Multi-asperity contact by the two-scale iterative method.
 
     Parameters
@@ -120,13 +120,20 @@ def solve_twoscale(provider: InfluenceProvider, asperities: Sequence[Asperity], 
         Micro step: patches far apart for their size are coupled through the provider's
         low-rank separated operator (half-space: Chebyshev interpolation of Love's kernel),
         accurate to this fraction of the pair's displacement; None: FFT products only.
+    merge : bool, default True
+        Micro step without ``far_tol``: patches that overlap (close or merged contacts) are
+        solved as one block when their common grid has no more cells than they have apart
+        (:func:`twoscale.micro.patches.merge_overlapping`); eq. 7 still gives each asperity
+        its own ``p0``. False: one block per asperity, the paper's iteration (more sweeps
+        for close asperities: 13-19 against 4 in the paper's closest cases).
 
     Returns
     -------
     ContactResult
         ``method="twoscale"``; one field per patch. ``extra`` holds "macro_forces" (N),
         "local_penetrations" (mm), "p0" (eq. 7 pressure per patch, MPa),
-        "p0_change_percent" = ``100 ||p0 - p|| / ||p||``, and "patch_growths".
+        "p0_change_percent" = ``100 ||p0 - p|| / ||p||``, "patch_growths", and
+        "merged_patches" (the asperities of each merged block, 0-based).
     """
     _check(asperities, h, penetration, total_load, tilt, tol, max_sweeps)
     check_rtol(separated_rtol, "separated_rtol", allow_none=True)
@@ -147,7 +154,7 @@ def solve_twoscale(provider: InfluenceProvider, asperities: Sequence[Asperity], 
     common = dict(h=h, forces=np.asarray(macro.forces), penetration=macro.penetration, tilt=macro.tilt,
                   pivot=pivot, total_load=total_load, free_tilt=tilt, tol=tol, margin=margin, anchor=anchor,
                   dense_max_cells=dense_max_cells, size_from_forces=bool(macro.converged),
-                  separated_rtol=separated_rtol)
+                  separated_rtol=separated_rtol, merge=bool(merge))
     micro = solve_micro(provider, asperities, max_sweeps=min(max_sweeps, AUTO_SWEEPS) if auto else max_sweeps,
                         far_tol=micro_far_tol, sizing_approaches=_sizing(macro, micro_far_tol),
                         coarse=two_level, **common)
@@ -192,4 +199,4 @@ def _result(asperities, macro, micro, h, timings, iteration: str) -> ContactResu
                "p0_change_percent": change, "p0": micro.initial, "patch_growths": int(micro.growths),
                "macro_converged": bool(macro.converged), "macro_interaction": macro.interaction,
                "macro_operator_error": macro.operator_error, "micro_iteration": iteration,
-               "coupling": dict(micro.coupling)})
+               "coupling": dict(micro.coupling), "merged_patches": [list(m) for m in micro.merged]})

@@ -120,6 +120,9 @@ def result_to_dict(result, scene: Scene, *, method: str | None = None) -> dict:
         out["micro_iteration"] = result.extra["micro_iteration"]
     if "coupling" in result.extra:
         out["coupling"] = {k: _num(v) if v is not None else None for k, v in result.extra["coupling"].items()}
+    if "merged_patches" in result.extra:
+        # asperities numbered from 1, as in the scene file
+        out["merged_patches"] = [[int(k) + 1 for k in m] for m in result.extra["merged_patches"]]
     return out
 
 

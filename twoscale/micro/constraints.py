@@ -32,6 +32,22 @@ def patch_forces(patches, pressures) -> np.ndarray:
     return np.array([pt.grid.h ** 2 * float(np.sum(p)) for pt, p in zip(patches, pressures)])
 
 
+def member_forces(patches, pressures) -> tuple[np.ndarray, np.ndarray]:
+    """Resultant force (N) of each asperity that owns cells of a block: ``(asperities, forces)``
+    (a merged patch contributes one force per member)."""
+    index, forces = [], []
+    for pt, p in zip(patches, pressures):
+        if len(pt.members) == 1:
+            index.append(pt.asperity)
+            forces.append(pt.grid.h ** 2 * float(np.sum(p)))
+            continue
+        owner = pt.owner[pt.owned]
+        for m in pt.members:
+            index.append(m)
+            forces.append(pt.grid.h ** 2 * float(np.sum(p[owner == m])))
+    return np.array(index, dtype=int), np.array(forces, dtype=float)
+
+
 def resultants(patches, pressures, pivot: tuple[float, float], n_unknowns: int) -> np.ndarray:
     """``h^2 sum G p`` over all blocks: total load (N), then moments about x and y (N mm).
 

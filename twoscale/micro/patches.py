@@ -25,26 +25,34 @@ class Patch:
     Attributes
     ----------
     asperity : int
-        Index of the asperity in the scene.
+        Index of the asperity in the scene (the first of ``members`` for a merged patch).
     grid : Grid
         The patch, aligned on the common lattice.
     height : (ny, nx) array, mm
         Untilted height of the union of all indenters (``inf`` where none has material).
     owner : (ny, nx) int array
         Owning asperity of each cell (-1 where none has material).
+    members : tuple of int, default ``(asperity,)``
+        The asperities whose owned cells form the block: more than one for a patch merged
+        from overlapping ones (:func:`merge_overlapping`).
     owned : (ny, nx) bool array
-        The block: cells this asperity owns (derived).
+        The block: cells the members own (derived).
     """
 
     asperity: int
     grid: Grid
     height: np.ndarray
     owner: np.ndarray
+    members: tuple = ()
     owned: np.ndarray = field(init=False, repr=False)
 
     def __post_init__(self) -> None:
-        # the block: boolean (ny, nx) mask of the cells this asperity owns
-        owned = self.owner == self.asperity
+        members = tuple(int(m) for m in self.members) or (int(self.asperity),)
+        if members[0] != self.asperity:
+            raise ValueError(f"a patch's asperity {self.asperity} must be the first of its members {members}")
+        object.__setattr__(self, "members", members)
+        # the block: boolean (ny, nx) mask of the cells the members own
+        owned = self.owner == self.asperity if len(members) == 1 else np.isin(self.owner, members)
         owned.setflags(write=False)
         object.__setattr__(self, "owned", owned)
 
@@ -66,8 +74,9 @@ def _tip_arrays(asperities: Sequence[Asperity]):
     return arrays
 
 
-def make_patch(k: int, grid: Grid, asperities: Sequence[Asperity]) -> Patch:
-    """Patch ``k`` on ``grid``, with heights and owners from every asperity.
+def make_patch(k: int, grid: Grid, asperities: Sequence[Asperity], members: tuple = ()) -> Patch:
+    """Patch ``k`` (of ``members``, default ``(k,)``) on ``grid``, with heights and owners
+    from every asperity.
 
     Spheres whose material (``r < R``) cannot reach the grid are skipped (their height is
     ``inf`` there), so building a patch costs its cells times the nearby asperities only.
@@ -79,7 +88,7 @@ def make_patch(k: int, grid: Grid, asperities: Sequence[Asperity]) -> Patch:
     keep = np.flatnonzero(unbounded | (np.hypot(dx, dy) < R)).tolist()
     surf = surface_on(grid, [asperities[l] for l in keep])
     index = np.append(np.asarray(keep, dtype=np.int64), -1)
-    return Patch(k, grid, surf.height, index[surf.owner])
+    return Patch(k, grid, surf.height, index[surf.owner], members)
 
 
 def patch_radius(asperity: Asperity, *, force: float, approach: float, E_star: float,
@@ -150,7 +159,7 @@ def grow_patch(patch: Patch, sides: tuple[bool, bool, bool, bool], asperities: S
     i0, j0 = -gx if left else 0, -gy if bottom else 0
     nx = g.nx + (gx if left else 0) + (gx if right else 0)
     ny = g.ny + (gy if bottom else 0) + (gy if top else 0)
-    return make_patch(patch.asperity, g.subgrid(i0, j0, nx, ny), asperities)
+    return make_patch(patch.asperity, g.subgrid(i0, j0, nx, ny), asperities, patch.members)
 
 
 def extend_patch(patch: Patch, points: np.ndarray, asperities: Sequence[Asperity], *,
@@ -165,7 +174,8 @@ def extend_patch(patch: Patch, points: np.ndarray, asperities: Sequence[Asperity
     j0 = math.floor((ymin - g.y0) / g.h + 0.5)
     i1 = math.ceil((xmax - g.x0) / g.h - 0.5)
     j1 = math.ceil((ymax - g.y0) / g.h - 0.5)
-    return make_patch(patch.asperity, g.subgrid(i0, j0, i1 - i0 + 1, j1 - j0 + 1), asperities)
+    return make_patch(patch.asperity, g.subgrid(i0, j0, i1 - i0 + 1, j1 - j0 + 1), asperities,
+                      patch.members)
 
 
 def transfer(old: Patch, new: Patch, pressure: np.ndarray) -> np.ndarray:
@@ -174,3 +184,81 @@ def transfer(old: Patch, new: Patch, pressure: np.ndarray) -> np.ndarray:
     out = np.zeros(new.grid.shape)
     out[dj:dj + old.grid.ny, di:di + old.grid.nx] = pressure
     return out
+
+
+def merge_overlapping(patches: Sequence[Patch], asperities: Sequence[Asperity]) -> tuple[list[Patch], list[tuple]]:
+    """Patches merged where one block over both costs no more cells than two.
+
+    Patches (or merged groups) become one when the smallest aligned grid covering them has
+    at most as many cells as their grids together, i.e. when they overlap or abut along
+    most of a side (close or merged contacts). A pair is tested together with every patch
+    its covering grid meets (a ring of patches around a centre merges as a whole, though
+    no two of them would alone). The merged patch's block is the union
+    of the members' owned cells (each cell still owned by the asperity nearest the body),
+    so block Gauss-Seidel solves strongly coupled asperities together instead of passing
+    their interaction back and forth over many sweeps; far patches stay one per asperity.
+
+    Returns the patches (merged ones with several ``members``, ordered by their first
+    member) and, for each, the indices of the input patches it covers.
+    """
+    if len(patches) < 2:
+        return list(patches), [(k,) for k in range(len(patches))]
+    h = patches[0].grid.h
+    x0, y0 = patches[0].grid.x0, patches[0].grid.y0
+    # integer lattice boxes [i0, i1) x [j0, j1) of each group
+    offsets = [pt.grid.offset_in(patches[0].grid) for pt in patches]
+    box = np.array([(di, di + pt.grid.nx, dj, dj + pt.grid.ny) for (di, dj), pt in zip(offsets, patches)],
+                   dtype=np.int64)
+    cells = (box[:, 1] - box[:, 0]) * (box[:, 3] - box[:, 2])
+    groups = [[k] for k in range(len(patches))]
+    alive = np.ones(len(patches), dtype=bool)
+    def union_of(sel):
+        return np.array([box[sel, 0].min(), box[sel, 1].max(), box[sel, 2].min(), box[sel, 3].max()])
+
+    def closure(sel):
+        # every group whose box meets the union box joins, until none is added
+        while True:
+            u = union_of(sel)
+            meet = alive & (box[:, 0] < u[1]) & (box[:, 1] > u[0]) & (box[:, 2] < u[3]) & (box[:, 3] > u[2])
+            meet[sel] = True
+            if meet.sum() == sel.sum():
+                return sel, u
+            sel = meet
+
+    changed = True
+    while changed:   # until no group qualifies (a grown group may now pair with an earlier one)
+        changed = False
+        for k in np.flatnonzero(alive):
+            if not alive[k]:
+                continue
+            b = box[k]
+            union = ((np.maximum(box[:, 1], b[1]) - np.minimum(box[:, 0], b[0]))
+                     * (np.maximum(box[:, 3], b[3]) - np.minimum(box[:, 2], b[2])))
+            meets = (box[:, 0] < b[1]) & (box[:, 1] > b[0]) & (box[:, 2] < b[3]) & (box[:, 3] > b[2])
+            near = alive & (meets | (union <= cells + cells[k]))
+            near[k] = False
+            # partners in order of the least empty grid they add
+            for l in np.flatnonzero(near)[np.argsort((union / (cells + cells[k]))[near], kind="stable")]:
+                sel = np.zeros(len(patches), dtype=bool)
+                sel[[k, l]] = True
+                sel, u = closure(sel)
+                if (u[1] - u[0]) * (u[3] - u[2]) <= cells[sel].sum():
+                    for i in np.flatnonzero(sel):
+                        if i != k:
+                            groups[k] += groups[i]
+                            alive[i] = False
+                    box[k], cells[k] = u, (u[1] - u[0]) * (u[3] - u[2])
+                    changed = True
+                    break
+    out, covers = [], []
+    for k in np.flatnonzero(alive):
+        members = tuple(sorted(patches[i].asperity for i in groups[k]))
+        if len(members) == 1:
+            out.append(patches[k])
+        else:
+            i0, i1, j0, j1 = (int(v) for v in box[k])
+            grid = Grid(x0 + i0 * h, y0 + j0 * h, h, i1 - i0, j1 - j0)
+            out.append(make_patch(members[0], grid, asperities, members))
+        covers.append(tuple(sorted(groups[k], key=lambda i: patches[i].asperity)))
+    order = np.argsort([pt.asperity for pt in out], kind="stable")
+    return [out[i] for i in order], [covers[i] for i in order]

@@ -12,11 +12,12 @@ from ..influence.base import InfluenceProvider
 from .blocks import Coupling, LocalBlock, scatter
 from .farfield import FarFieldCoupling, LaggedFarField
 from .twolevel import two_level
-from .constraints import block_coordinates, newton_step, patch_forces, resultants, rhs_derivatives
+from .constraints import block_coordinates, member_forces, newton_step, resultants, rhs_derivatives
 from .gauss_seidel import coupled_rhs, gauss_seidel, linear_gauss_seidel
 from .local import initial_pressure
 from ..grid import Grid
-from .patches import Patch, build_patches, edges_loaded, extend_patch, grow_patch, make_patch, transfer
+from .patches import (Patch, build_patches, edges_loaded, extend_patch, grow_patch, make_patch,
+                      merge_overlapping, transfer)
 
 
 @dataclass(frozen=True)
@@ -48,6 +49,8 @@ class MicroResult:
     coupling : dict
         How the cross-patch products were made: pairs per route (``dense``, ``fft``,
         ``separated``, ``spectral``; :class:`~.blocks.Coupling`) and ``separated_rtol``.
+    merged : tuple of tuple of int
+        Asperities solved together as one block (``merge``), one tuple per merged patch.
     """
 
     patches: tuple
@@ -64,6 +67,7 @@ class MicroResult:
     linear_sweeps: int
     history: tuple
     coupling: dict = field(default_factory=dict)
+    merged: tuple = ()
 
 
 #: Relative change at which the local conjugate gradients of eq. 7 (the start p0) stop.
@@ -77,11 +81,13 @@ class _State:
     """Mutable working set of the micro step (patches, blocks, pressures); internal."""
 
     def __init__(self, provider, asperities, patches, dense_max_cells, dense_max_entries, far_tol=None,
-                 lagged=False, separated_rtol=1e-8):
+                 lagged=False, separated_rtol=1e-8, blocks=None):
         self.provider, self.asperities = provider, asperities
         self.dense_max_cells = dense_max_cells
         self.patches = list(patches)
-        self.blocks = [LocalBlock(provider, pt, dense_max_cells=dense_max_cells) for pt in self.patches]
+        blocks = [None] * len(self.patches) if blocks is None else list(blocks)
+        self.blocks = [blk if blk is not None else LocalBlock(provider, pt, dense_max_cells=dense_max_cells)
+                       for pt, blk in zip(self.patches, blocks)]
         if far_tol is None:
             self.coupling = Coupling(provider, self.patches, dense_max_entries=dense_max_entries,
                                      separated_rtol=separated_rtol)
@@ -99,12 +105,11 @@ class _State:
 
     def heights(self, theta, pivot):
         """Indenter height with tilt on every block (list of (n_k,) arrays), mm."""
-        tilt = Tilt(theta[1], theta[2], pivot)
-        out = []
-        for pt in self.patches:
-            X, Y = pt.grid.centres()
-            out.append(pt.height[pt.owned] + tilt.height(X[pt.owned], Y[pt.owned]))
-        return out
+        return _heights(self.patches, theta, pivot)
+
+    def patch_of(self) -> dict:
+        """Index of the patch holding each asperity that has one."""
+        return {m: k for k, pt in enumerate(self.patches) for m in pt.members}
 
     def grow(self, k: int, sides, vectors: list) -> None:
         """Enlarge patch ``k``; block vectors in ``vectors`` (lists) are carried over."""
@@ -118,7 +123,7 @@ class _State:
 
     def extend(self, asperity: int, points: np.ndarray, vectors: list) -> None:
         """Make the patch of ``asperity`` cover ``points`` (M, 2) mm, creating it if needed."""
-        index = {pt.asperity: k for k, pt in enumerate(self.patches)}
+        index = self.patch_of()
         if asperity not in index:
             h = self.patches[0].grid.h
             a = self.asperities[asperity]
@@ -165,17 +170,27 @@ class _State:
                 for k, blk in enumerate(self.blocks)]
 
 
+def _heights(patches, theta, pivot) -> list:
+    """Indenter height with tilt on the blocks of ``patches`` (list of (n_k,) arrays), mm."""
+    tilt = Tilt(theta[1], theta[2], pivot)
+    out = []
+    for pt in patches:
+        X, Y = pt.grid.centres()
+        out.append(pt.height[pt.owned] + tilt.height(X[pt.owned], Y[pt.owned]))
+    return out
+
+
 def _tip_approaches(asperities, theta, pivot) -> np.ndarray:
     tilt = Tilt(theta[1], theta[2], pivot)
     return np.array([theta[0] - a.z - float(tilt.height(a.x, a.y)) for a in asperities])
 
 
-def _initial(state: _State, forces, z_blocks, h, rtol: float = P0_RTOL) -> list:
-    """Paper eq. 7 on every block (``rtol``: conjugate gradients of large blocks)."""
-    E_star = state.provider.material.E_star
+def _initial(provider, asperities, patches, blocks, forces, z_blocks, h, rtol: float = P0_RTOL) -> list:
+    """Paper eq. 7 on every (one-asperity) block (``rtol``: conjugate gradients of large blocks)."""
+    E_star = provider.material.E_star
     out = []
-    for pt, blk, z in zip(state.patches, state.blocks, z_blocks):
-        a = state.asperities[pt.asperity]
+    for pt, blk, z in zip(patches, blocks, z_blocks):
+        a = asperities[pt.asperity]
         P = float(forces[pt.asperity])
         radius = (3.0 * max(P, 0.0) * a.R / (4.0 * E_star)) ** (1.0 / 3.0)
         out.append(initial_pressure(blk, z, P, h, approach=radius ** 2 / a.R, rtol=rtol).pressure)
@@ -204,7 +219,7 @@ def _cover_penetration(state: _State, p: list, p0: list, theta, pivot, gap_tol: 
         for k in np.unique(pt.owner[bad]):
             sel = bad & (pt.owner == k)
             wanted.setdefault(int(k), []).append(np.column_stack([X[sel], Y[sel]]))
-    index = {pt.asperity: k for k, pt in enumerate(state.patches)}
+    index = state.patch_of()
     extended = 0
     for k, pts in wanted.items():
         pts = np.concatenate(pts)
@@ -227,7 +242,7 @@ def solve_micro(provider: InfluenceProvider, asperities: Sequence[Asperity], *, 
                 max_corrections: int = 20, max_growths: int = 50,
                 size_from_forces: bool = True, far_tol: float | None = None,
                 sizing_approaches: np.ndarray | None = None, coarse: bool = False,
-                separated_rtol: float | None = 1e-8) -> MicroResult:
+                separated_rtol: float | None = 1e-8, merge: bool = True) -> MicroResult:
     """Pressure on patches from the macro forces (METHOD.md section 3).
 
     Parameters
@@ -287,6 +302,13 @@ def solve_micro(provider: InfluenceProvider, asperities: Sequence[Asperity], *, 
         Cross blocks between patches far apart for their size go through the provider's
         low-rank separated operator, accurate to this fraction of the pair's displacement
         (:class:`~.blocks.Coupling`); None: FFT products only.
+    merge : bool, default True
+        Solve overlapping patches together: after eq. 7 (always one asperity per patch),
+        patches whose common grid has no more cells than they have apart become one block
+        (:func:`~.patches.merge_overlapping`; close or merged contacts), so the sweeps do
+        not pass their strong interaction back and forth. False: one block per asperity,
+        the paper's iteration. Only without ``far_tol`` (the far field acts through each
+        asperity's resultant).
     """
     if coarse and far_tol is None:
         raise ValueError("coarse=True needs far_tol (the two-level iteration holds the far field by resultants)")
@@ -302,15 +324,24 @@ def solve_micro(provider: InfluenceProvider, asperities: Sequence[Asperity], *, 
         approaches = np.minimum(approaches, sizing_approaches)
     patches = build_patches(asperities, h=h, forces=sizing, approaches=approaches,
                             E_star=provider.material.E_star, margin=margin, anchor=anchor)
-    state = _State(provider, asperities, patches, dense_max_cells, dense_max_entries, far_tol, lagged=coarse,
-                   separated_rtol=separated_rtol)
-    if not patches:
-        return _finish(state, [], [], theta, tilt, pivot, True, "no asperity reaches the body",
-                       {"sweeps": 0, "corrections": 0, "growths": 0, "linear_sweeps": 0}, ())
+    blocks = [LocalBlock(provider, pt, dense_max_cells=dense_max_cells) for pt in patches]
     # p0 is a start: the sweeps correct it, and at 1e-5 its reported distance from the final
     # pressure (the paper's Fig. 6, percent-level) moves by ~1e-4 %; 1e-8 cost 10-20 % of the
     # paper cases' time (two spheres at d/2R = 1: 81 -> 65 ms)
-    p0 = _initial(state, forces, state.heights(theta, pivot), h, rtol=P0_RTOL)
+    p0 = _initial(provider, asperities, patches, blocks, forces, _heights(patches, theta, pivot), h,
+                  rtol=P0_RTOL)
+    if merge and far_tol is None:
+        merged, covers = merge_overlapping(patches, asperities)
+        p0 = [p0[c[0]] if len(c) == 1 else
+              sum(transfer(patches[i], pt, scatter(patches[i], p0[i])) for i in c)[pt.owned]
+              for pt, c in zip(merged, covers)]
+        blocks = [blocks[c[0]] if len(c) == 1 else None for c in covers]
+        patches = merged
+    state = _State(provider, asperities, patches, dense_max_cells, dense_max_entries, far_tol, lagged=coarse,
+                   separated_rtol=separated_rtol, blocks=blocks)
+    if not patches:
+        return _finish(state, [], [], theta, tilt, pivot, True, "no asperity reaches the body",
+                       {"sweeps": 0, "corrections": 0, "growths": 0, "linear_sweeps": 0}, ())
     p = [v.copy() for v in p0]
     sweeps = corrections = growths = linear_sweeps = 0
     history: list = []
@@ -443,15 +474,15 @@ def _cover_unpatched(state: _State, p: list, p0: list, theta, pivot, gap_tol: fl
     lifts the others, distributed pressure does not), and a finite block's surface can rise
     under a neighbour's load. The surface displacement at the tip is estimated from the
     patches' resultant forces (point forces)."""
-    have = {pt.asperity for pt in state.patches}
+    have = state.patch_of()
     missing = np.array([k for k in range(len(state.asperities)) if k not in have], dtype=int)
     if missing.size == 0 or not state.patches:
         return 0
     approach = _tip_approaches([state.asperities[k] for k in missing], theta, pivot)
     tips = state.tips()
     h = state.patches[0].grid.h
-    sources = tips[[pt.asperity for pt in state.patches]]
-    u = state.provider.point_operator(tips[missing], sources).apply(patch_forces(state.patches, p))
+    members, forces = member_forces(state.patches, p)
+    u = state.provider.point_operator(tips[missing], tips[members]).apply(forces)
     local = approach - u
     reached = np.flatnonzero(local > -gap_tol)
     for i in reached:
@@ -507,4 +538,5 @@ def _finish(state, p, p0, theta, tilt, pivot, converged, message, counts, histor
     return MicroResult(tuple(state.patches), tuple(pressures), tuple(initial), tuple(gaps),
                        float(theta[0]), tilt, converged, message, counts["sweeps"], counts["corrections"],
                        counts["growths"], counts["linear_sweeps"], tuple(history),
-                       state.coupling.route_counts())
+                       state.coupling.route_counts(),
+                       tuple(pt.members for pt in state.patches if len(pt.members) > 1))
