@@ -79,6 +79,29 @@ def test_contact_solve_dense_cg_and_nnls_agree():
         assert np.linalg.norm(sol.pressure - ref) <= 1e-6 * np.linalg.norm(ref)
 
 
+def test_block_products_on_the_owned_box_equal_the_whole_patch_matrix():
+    # a neighbour closer to the body owns the right part of the patch: the block works on
+    # the box of its own cells, which must not change A_kk
+    asps = [Asperity(0.0, 0.0, 0.0, 2.0), Asperity(0.5, 0.1, -0.01, 2.0)]
+    pt = make_patch(0, Grid.covering(-0.7, 0.7, -0.7, 0.7, 0.05), asps)
+    idx = np.flatnonzero(pt.owned.ravel())
+    A = HS.cell_block(pt.grid.points()[idx], pt.grid.points()[idx], 0.05)   # independent of the grid code
+    v = np.random.default_rng(3).uniform(0.0, 1.0, idx.size)
+    for dmc in (10_000, 0):
+        blk = LocalBlock(HS, pt, dense_max_cells=dmc)
+        assert blk.box.size < pt.grid.size and blk.n == idx.size
+        np.testing.assert_allclose(blk.matvec(v), A @ v, rtol=1e-10, atol=1e-14 * np.abs(A @ v).max())
+        full = blk.full_operator().apply(_scatter(pt, v))
+        np.testing.assert_allclose(full[pt.owned], A @ v, rtol=1e-10, atol=1e-14 * np.abs(A @ v).max())
+        assert full.shape == pt.grid.shape
+
+
+def _scatter(pt, v):
+    out = np.zeros(pt.grid.shape)
+    out[pt.owned] = v
+    return out
+
+
 # ---------------------------------------------------------------- patches
 def test_patches_share_the_lattice_and_no_cell_is_counted_twice():
     asps = [Asperity(0.0, 0.0, 0.0, 2.0), Asperity(0.5, 0.1, 0.01, 1.5), Asperity(-0.3, 0.6, 0.0, 2.5)]

@@ -89,9 +89,19 @@ class SphereLaw(_ClosedFormLaw):
         return _sphere_penetration(self.R, self._radius_from_load(as_force(P)))
 
     def _radius_from_penetration(self, delta: np.ndarray) -> np.ndarray:
+        # Newton's method asks for the force and then the stiffness at the same penetrations:
+        # the last inversion is kept (one entry; the law is otherwise immutable)
+        d = np.maximum(delta, 0.0)
+        last = self.__dict__.get("_last_radius")
+        if last is not None and last[0].shape == d.shape and np.array_equal(last[0], d):
+            return last[1].copy()
+        a = self._invert_penetration(d)
+        object.__setattr__(self, "_last_radius", (np.array(d, copy=True), np.array(a, copy=True)))
+        return a
+
+    def _invert_penetration(self, d: np.ndarray) -> np.ndarray:
         # delta(a) is convex and above Hertz's a^2/R: Newton from sqrt(R delta) descends monotonically
         R = self.R
-        d = np.maximum(delta, 0.0)
         a_max = (1.0 - 1e-15) * np.asarray(R)
         a = np.minimum(np.sqrt(R * d), a_max)
         for _ in range(100):

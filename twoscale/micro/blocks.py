@@ -75,30 +75,45 @@ class LocalBlock:
         self._cache_size = cache_size
         self.cg_iterations = 0
         self.factorisations = 0
+        # the block's products only involve its owned cells: work on their bounding box (where
+        # neighbours own part of the patch, a smaller grid than the patch's)
+        rows = np.flatnonzero(patch.owned.any(axis=1))
+        cols = np.flatnonzero(patch.owned.any(axis=0))
+        if rows.size:
+            j0, i0 = int(rows[0]), int(cols[0])
+            self.box = patch.grid.subgrid(i0, j0, int(cols[-1]) + 1 - i0, int(rows[-1]) + 1 - j0)
+            self._mask = patch.owned[j0:j0 + self.box.ny, i0:i0 + self.box.nx]
+        else:
+            self.box, self._mask = patch.grid, patch.owned
+        self._full = None
         if self.dense:
-            idx = np.flatnonzero(patch.owned.ravel())
-            self.matrix = provider.grid_matrix(patch.grid)[np.ix_(idx, idx)]
+            idx = np.flatnonzero(self._mask.ravel())
+            self.matrix = provider.grid_matrix(self.box)[np.ix_(idx, idx)]
             # a provider's matrix may be slightly unsymmetric (e.g. a finite-element body)
             self.symmetric = bool(np.allclose(self.matrix, self.matrix.T, rtol=1e-10, atol=0.0))
             self._op = None
         else:
             self.matrix = None
             self.symmetric = True
-            self._op = provider.grid_operator(patch.grid)
+            self._op = provider.grid_operator(self.box)
+            if self.box == patch.grid:
+                self._full = self._op
 
     # ------------------------------------------------------------------ products
     def full_operator(self):
         """FFT operator of the whole patch on itself (built on first use)."""
-        if self._op is None:
-            self._op = self._provider.grid_operator(self.patch.grid)
-        return self._op
+        if self._full is None:
+            self._full = self._provider.grid_operator(self.patch.grid)
+        return self._full
 
     def matvec(self, v: np.ndarray) -> np.ndarray:
         """``A_kk v`` for a block vector (n,) or (n, m): displacement (mm) from pressure (MPa)."""
         if self.dense:
             return self.matrix @ v
         if v.ndim == 1:
-            return self._op.apply(scatter(self.patch, v))[self.patch.owned]
+            a = np.zeros(self.box.shape)
+            a[self._mask] = v
+            return self._op.apply(a)[self._mask]
         return np.column_stack([self.matvec(v[:, j]) for j in range(v.shape[1])])
 
     # ------------------------------------------------------------------ solves
