@@ -1,7 +1,7 @@
 """Merging overlapping patches into one block (close and merged contacts).
 
-Independent checks: the merge criterion (a merged grid has no more cells than its members'
-grids) is recounted here from the grids; the merged solve is compared with the paper's one
+Independent checks: the merge criterion (a merged grid has at most ``growth`` times the
+cells of its members' grids) is recounted here from the grids; the merged solve is compared with the paper's one
 block per asperity and with the reference solver on the same lattice.
 """
 import math
@@ -64,6 +64,19 @@ def test_far_patches_stay_one_per_asperity():
     assert all(m is p for m, p in zip(merged, patches))
 
 
+@pytest.mark.parametrize("growth", [1.0, 1.5, 2.0, 3.0])
+def test_growth_bounds_the_merged_grid(growth):
+    asps, patches = _ring(10.0, 3.6, 3.6)
+    total = _union_cells([pt.grid for pt in patches]) / sum(pt.grid.size for pt in patches)
+    assert 1.5 < total < 2.0     # the ring of spacing 10 mm: all seven fit a grid 1.5-2x theirs
+    merged, covers = merge_overlapping(patches, asps, growth=growth)
+    for m, c in zip(merged, covers):
+        assert m.grid.size <= growth * sum(patches[i].grid.size for i in c)
+    assert (len(merged) == 1) == (growth >= total)
+    with pytest.raises(ValueError, match="growth"):
+        merge_overlapping(patches, asps, growth=0.5)
+
+
 def test_merged_block_is_the_union_of_the_members_owned_cells():
     asps, patches = _ring(6.0, 3.75, 3.0)
     (m,), _ = merge_overlapping(patches, asps)
@@ -88,7 +101,7 @@ def test_patch_members_must_start_with_its_asperity():
         make_patch(1, pt.grid, asps, (0, 1))
 
 
-@pytest.mark.parametrize("layout,spacing", [("two", 0.1), ("seven", 0.3)])
+@pytest.mark.parametrize("layout,spacing", [("two", 0.1), ("seven", 0.3), ("seven", 0.5)])
 def test_merged_solve_matches_one_block_per_asperity_and_the_reference(layout, spacing):
     case = paper_case(layout, spacing)
     kw = dict(h=case.h, penetration=case.penetration, tol=1e-8)
@@ -116,7 +129,7 @@ def test_result_json_names_the_merged_asperities_from_one():
     from twoscale.scene import Scene
     # a merged pair (tips 0.6 mm apart, contact radius ~1 mm) and a far sphere
     # (mirror-symmetric about x = 0.05, between two cell columns, so ownership has no ties)
-    asps = [Asperity(-0.25, 0.0, 0.0, 5.0), Asperity(0.35, 0.0, 0.0, 5.0), Asperity(0.05, 8.0, 0.0, 5.0)]
+    asps = [Asperity(-0.25, 0.0, 0.0, 5.0), Asperity(0.35, 0.0, 0.0, 5.0), Asperity(0.05, 12.0, 0.0, 5.0)]
     res = solve_twoscale(HS, asps, h=0.1, penetration=0.2)
     assert res.converged and res.extra["merged_patches"] == [[0, 1]]
     scene = Scene(material=MAT, asperities=asps, penetration=0.2, h=0.1)

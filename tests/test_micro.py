@@ -136,7 +136,7 @@ PAIR = [Asperity(-0.3, 0.0, 0.0, 2.0, "paraboloid"), Asperity(0.3, 0.05, 0.002, 
 
 
 @pytest.mark.parametrize("dense_max_cells,merge,scene", [
-    (10_000, False, "close"), (0, False, "close"),
+    (10_000, False, "close"), (0, False, "close"), (10_000, True, "close"),
     (10_000, False, "pair"), (0, False, "pair"), (10_000, True, "pair"), (0, True, "pair")])
 def test_gauss_seidel_matches_nnls_on_the_same_cells(dense_max_cells, merge, scene):
     asps = CLOSE if scene == "close" else PAIR
@@ -145,10 +145,9 @@ def test_gauss_seidel_matches_nnls_on_the_same_cells(dense_max_cells, merge, sce
     res = solve_micro(HS, asps, h=h, forces=forces, penetration=d, tol=1e-9, dense_max_cells=dense_max_cells,
                       merge=merge)
     assert res.converged, res.message
-    if scene == "pair":
-        # the overlapping pair is one block only when merging
-        assert res.merged == (((0, 1),) if merge else ())
-        assert len(res.patches) == (1 if merge else 2)
+    # the overlapping pair, and the close three, are one block only when merging
+    assert res.merged == ((tuple(range(len(asps))),) if merge else ())
+    assert len(res.patches) == (1 if merge else len(asps))
     assert res.history[-1] <= 1e-9
     ref = _nnls_contact(HS, res.patches, [d - pt.height[pt.owned] for pt in res.patches])
     p = _blocks_of(res)
@@ -196,16 +195,16 @@ def test_linear_gauss_seidel_solves_the_coupled_system():
 
 
 # ---------------------------------------------------------------- load and tilt
-@pytest.mark.parametrize("scene", ["close", "pair and one"])
-def test_load_control_and_tilt_meet_the_equations_exactly(scene):
-    asps = CLOSE if scene == "close" else PAIR + [Asperity(0.1, 1.6, 0.004, 2.0, "paraboloid")]
+@pytest.mark.parametrize("merge", [False, True])
+def test_load_control_and_tilt_meet_the_equations_exactly(merge):
+    asps = CLOSE
     d, h, W, pivot = 0.08, 0.07, 1.5, (0.1, 0.2)
     forces = np.array([float(hertz.load(a.R, d - a.z, ES)) for a in asps])
     res = solve_micro(HS, asps, h=h, forces=forces, penetration=d, tilt=(0.0, 0.0), pivot=pivot,
-                      total_load=W, free_tilt=True, tol=1e-8)
+                      total_load=W, free_tilt=True, tol=1e-8, merge=merge)
     assert res.converged, res.message
-    # the pair is one block, the third asperity its own
-    assert res.merged == ((() if scene == "close" else ((0, 1),)))
+    # one block for the three close asperities, or one each
+    assert res.merged == (((0, 1, 2),) if merge else ())
     P = np.concatenate([h * h * p[pt.owned] for pt, p in zip(res.patches, res.pressures)])
     X = np.concatenate([pt.grid.centres()[0][pt.owned] for pt in res.patches]) - pivot[0]
     Y = np.concatenate([pt.grid.centres()[1][pt.owned] for pt in res.patches]) - pivot[1]

@@ -121,11 +121,12 @@ def solve_twoscale(provider: InfluenceProvider, asperities: Sequence[Asperity], 
         low-rank separated operator (half-space: Chebyshev interpolation of Love's kernel),
         accurate to this fraction of the pair's displacement; None: FFT products only.
     merge : bool, default True
-        Micro step without ``far_tol``: patches that overlap (close or merged contacts) are
-        solved as one block when their common grid has no more cells than they have apart
-        (:func:`twoscale.micro.patches.merge_overlapping`); eq. 7 still gives each asperity
-        its own ``p0``. False: one block per asperity, the paper's iteration (more sweeps
-        for close asperities: 13-19 against 4 in the paper's closest cases).
+        Micro step without ``far_tol``: close patches (close or merged contacts) are solved
+        as one block when their common grid has at most twice the cells they have apart
+        (:func:`twoscale.micro.patches.merge_overlapping`,
+        :data:`twoscale.micro.solve.MERGE_GROWTH`); eq. 7 still gives each asperity its own
+        ``p0``. False: one block per asperity, the paper's iteration (more sweeps for close
+        asperities: 13-19 against 4 in the paper's closest cases).
 
     Returns
     -------

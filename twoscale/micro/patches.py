@@ -186,39 +186,41 @@ def transfer(old: Patch, new: Patch, pressure: np.ndarray) -> np.ndarray:
     return out
 
 
-def merge_overlapping(patches: Sequence[Patch], asperities: Sequence[Asperity]) -> tuple[list[Patch], list[tuple]]:
-    """Patches merged where one block over both costs no more cells than two.
+def merge_overlapping(patches: Sequence[Patch], asperities: Sequence[Asperity], *,
+                      growth: float = 1.0) -> tuple[list[Patch], list[tuple]]:
+    """Patches merged where one block over them costs few more cells than they do apart.
 
-    Patches (or merged groups) become one when the smallest aligned grid covering them has
-    at most as many cells as their grids together, i.e. when they overlap or abut along
-    most of a side (close or merged contacts). A pair is tested together with every patch
-    its covering grid meets (a ring of patches around a centre merges as a whole, though
-    no two of them would alone). The merged patch's block is the union
-    of the members' owned cells (each cell still owned by the asperity nearest the body),
-    so block Gauss-Seidel solves strongly coupled asperities together instead of passing
-    their interaction back and forth over many sweeps; far patches stay one per asperity.
+    Patches become one when the smallest aligned grid covering them has at most ``growth``
+    times as many cells as their own grids together (``growth`` = 1: they overlap or abut
+    along most of a side, i.e. close or merged contacts). A pair is tested together with
+    every patch its covering grid meets (a ring of patches around a centre merges as a
+    whole, though the centre and no single neighbour would). The merged patch's block is
+    the union of the members' owned cells (each cell still owned by the asperity nearest
+    the body), so block Gauss-Seidel solves strongly coupled asperities together instead of
+    passing their interaction back and forth over many sweeps; far patches stay one per
+    asperity.
 
     Returns the patches (merged ones with several ``members``, ordered by their first
     member) and, for each, the indices of the input patches it covers.
     """
+    if not (math.isfinite(growth) and growth >= 1.0):
+        raise ValueError(f"merge growth must be >= 1, got {growth!r}")
     if len(patches) < 2:
         return list(patches), [(k,) for k in range(len(patches))]
     h = patches[0].grid.h
     x0, y0 = patches[0].grid.x0, patches[0].grid.y0
-    # integer lattice boxes [i0, i1) x [j0, j1) of each group
+    # integer lattice boxes [i0, i1) x [j0, j1) of each group, and the cells of its members' grids
     offsets = [pt.grid.offset_in(patches[0].grid) for pt in patches]
     box = np.array([(di, di + pt.grid.nx, dj, dj + pt.grid.ny) for (di, dj), pt in zip(offsets, patches)],
                    dtype=np.int64)
-    cells = (box[:, 1] - box[:, 0]) * (box[:, 3] - box[:, 2])
+    own = (box[:, 1] - box[:, 0]) * (box[:, 3] - box[:, 2])
     groups = [[k] for k in range(len(patches))]
     alive = np.ones(len(patches), dtype=bool)
-    def union_of(sel):
-        return np.array([box[sel, 0].min(), box[sel, 1].max(), box[sel, 2].min(), box[sel, 3].max()])
 
     def closure(sel):
         # every group whose box meets the union box joins, until none is added
         while True:
-            u = union_of(sel)
+            u = np.array([box[sel, 0].min(), box[sel, 1].max(), box[sel, 2].min(), box[sel, 3].max()])
             meet = alive & (box[:, 0] < u[1]) & (box[:, 1] > u[0]) & (box[:, 2] < u[3]) & (box[:, 3] > u[2])
             meet[sel] = True
             if meet.sum() == sel.sum():
@@ -234,20 +236,21 @@ def merge_overlapping(patches: Sequence[Patch], asperities: Sequence[Asperity]) 
             b = box[k]
             union = ((np.maximum(box[:, 1], b[1]) - np.minimum(box[:, 0], b[0]))
                      * (np.maximum(box[:, 3], b[3]) - np.minimum(box[:, 2], b[2])))
+            ratio = union / (own + own[k])
             meets = (box[:, 0] < b[1]) & (box[:, 1] > b[0]) & (box[:, 2] < b[3]) & (box[:, 3] > b[2])
-            near = alive & (meets | (union <= cells + cells[k]))
+            near = alive & (meets | (ratio <= growth))
             near[k] = False
             # partners in order of the least empty grid they add
-            for l in np.flatnonzero(near)[np.argsort((union / (cells + cells[k]))[near], kind="stable")]:
+            for l in np.flatnonzero(near)[np.argsort(ratio[near], kind="stable")]:
                 sel = np.zeros(len(patches), dtype=bool)
                 sel[[k, l]] = True
                 sel, u = closure(sel)
-                if (u[1] - u[0]) * (u[3] - u[2]) <= cells[sel].sum():
+                if (u[1] - u[0]) * (u[3] - u[2]) <= growth * own[sel].sum():
                     for i in np.flatnonzero(sel):
                         if i != k:
                             groups[k] += groups[i]
                             alive[i] = False
-                    box[k], cells[k] = u, (u[1] - u[0]) * (u[3] - u[2])
+                    box[k], own[k] = u, own[sel].sum()
                     changed = True
                     break
     out, covers = [], []
