@@ -90,6 +90,9 @@ def test_paper_command_writes_csv_and_figures(tmp_path, capsys):
     rows = list(csv.DictReader(lines))
     assert [float(r["d_over_2R"]) for r in rows] == list(PAPER_SPACINGS["seven"])
     assert all(float(r["err_p_percent"]) <= 0.1 and int(r["sweeps"]) >= 1 for r in rows)
+    # the paper: fewer than 10 sweeps; the closest spheres are one block, the farthest seven
+    assert all(int(r["sweeps"]) < 10 for r in rows), [r["sweeps"] for r in rows]
+    assert int(rows[0]["blocks"]) == 1 and int(rows[-1]["blocks"]) == 7
 
 
 def test_paper_command_rejects_bad_tolerance(tmp_path, capsys):

@@ -11,7 +11,7 @@ from .._version import __version__
 from .cases import MAP_SPACINGS
 from .run import StudyResult
 
-ERROR_COLUMNS = ("d_over_2R", "err_p0_percent", "err_p_percent", "sweeps", "macro_iterations",
+ERROR_COLUMNS = ("d_over_2R", "err_p0_percent", "err_p_percent", "sweeps", "blocks", "macro_iterations",
                  "patch_growths", "t_twoscale_s", "t_macro_s", "t_micro_s", "t_reference_s",
                  "cells_twoscale", "cells_reference", "total_load_N", "mean_pressure_MPa", "converged")
 
@@ -35,11 +35,13 @@ def _write(path: pathlib.Path, header: list[str], columns, rows) -> pathlib.Path
 
 
 def error_rows(study: StudyResult, layout: str) -> list[tuple]:
-    """One row per d/2R: the fig. 6 indicators, sweeps, timings and sizes."""
+    """One row per d/2R: the fig. 6 indicators, sweeps and blocks, timings and sizes."""
     rows = []
     for r in study.cases[layout]:
         ts, t = r.twoscale, r.twoscale.timings_s
-        rows.append((r.case.spacing, r.err_p0_percent, r.err_p_percent, r.sweeps, ts.iterations["macro"],
+        # blocks of the sweeps: patches apart, or merged where contacts are close
+        rows.append((r.case.spacing, r.err_p0_percent, r.err_p_percent, r.sweeps, len(ts.fields),
+                     ts.iterations["macro"],
                      ts.extra["patch_growths"], t["total"], t["macro"], t["micro"], r.ref.timings_s["wall"],
                      ts.n_cells, int(np.count_nonzero(r.reference_cells)), ts.total_load, r.mean_pressure,
                      ts.converged))
