@@ -131,8 +131,9 @@ def solve_twoscale(provider: InfluenceProvider, asperities: Sequence[Asperity], 
     Returns
     -------
     ContactResult
-        ``method="twoscale"``; one field per patch. ``extra`` holds "macro_forces" (N),
-        "local_penetrations" (mm), "p0" (eq. 7 pressure per patch, MPa),
+        ``method="twoscale"``; one field per block (a merged block's patches give one).
+        ``extra`` holds "macro_forces" (N), "local_penetrations" (mm), "p0" (eq. 7
+        pressure on each field's grid, MPa),
         "p0_change_percent" = ``100 ||p0 - p|| / ||p||``, "patch_growths", and
         "merged_patches" (the asperities of each merged block, 0-based).
     """

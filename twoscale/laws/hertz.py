@@ -93,7 +93,7 @@ class SphereLaw(_ClosedFormLaw):
         # the last inversion is kept (one entry; the law is otherwise immutable)
         d = np.maximum(delta, 0.0)
         last = self.__dict__.get("_last_radius")
-        if last is not None and last[0].shape == d.shape and np.array_equal(last[0], d):
+        if last is not None and np.array_equal(last[0], d):
             return last[1].copy()
         a = self._invert_penetration(d)
         object.__setattr__(self, "_last_radius", (np.array(d, copy=True), np.array(a, copy=True)))

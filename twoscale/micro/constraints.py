@@ -37,10 +37,6 @@ def member_forces(patches, pressures) -> tuple[np.ndarray, np.ndarray]:
     (a merged patch contributes one force per member)."""
     index, forces = [], []
     for pt, p in zip(patches, pressures):
-        if len(pt.members) == 1:
-            index.append(pt.asperity)
-            forces.append(pt.grid.h ** 2 * float(np.sum(p)))
-            continue
         owner = pt.owner[pt.owned]
         for m in pt.members:
             index.append(m)
