@@ -31,8 +31,10 @@ BLOCK_BASES = ("bonded", "sliding")
 BLOCK_DEFAULT_SIZE = (140.0, 140.0, 20.0)
 #: Cells across the smallest expected contact diameter chosen by :func:`default_h`.
 CELLS_ACROSS = 32
-#: Asperities expected to carry less than this fraction of the total load are not
-#: resolved by :func:`default_h` (their contact would force a needlessly fine grid).
+#: Asperities expected to carry less than this fraction of the largest expected tip force
+#: are not resolved by :func:`default_h` (their contact would force a needlessly fine
+#: grid). Relative to the largest force, not the total, so the rule keeps the most loaded
+#: tips whatever their number (with 200 similar tips none carries 1 % of the total).
 MIN_FORCE_FRACTION = 0.01
 
 
@@ -304,10 +306,13 @@ def default_h(scene: Scene, *, cells_across: int = CELLS_ACROSS,
 
     Rule: estimate each asperity's approach (:func:`expected_approaches`) and its
     contact radius alone (:func:`expected_contact_radii`); among the asperities whose
-    Hertz force at that approach is at least ``min_force_fraction`` of the sum, take
-    the smallest contact diameter 2a and divide it by ``cells_across``; round down to
-    two significant digits. The approach estimate ignores interaction, which lowers
-    it, so the smallest resolved contact gets about 24-32 cells across.
+    Hertz force at that approach is at least ``min_force_fraction`` of the largest such
+    force, take the smallest contact diameter 2a and divide it by ``cells_across``;
+    round down to two significant digits: that estimated contact gets 32-35 cells
+    across. The approach estimate ignores interaction, which lowers it, so the real
+    contact is smaller (24-32 cells on the examples; fewer where tips crowd). The threshold is relative to the largest tip force, not to the total load, so it
+    works for any number of asperities (a force ratio of 1 % is an approach ratio of
+    about 5 % and a contact radius ratio of about 20 %).
 
     Parameters
     ----------
@@ -315,21 +320,32 @@ def default_h(scene: Scene, *, cells_across: int = CELLS_ACROSS,
     cells_across : int, default 32
         Cells across the smallest resolved contact diameter.
     min_force_fraction : float, default 0.01
-        Asperities expected to carry less than this fraction of the load are not used
-        to choose h (they still get cells; only coarser).
+        Asperities expected to carry less than this fraction of the largest expected
+        tip force are not used to choose h (they still get cells; only coarser).
 
     Returns
     -------
     float
         h, mm (> 0).
+
+    Raises
+    ------
+    SceneError
+        When no asperity is expected to carry load (nothing to size the cells on).
     """
     if scene.h is not None:
         return scene.h
     E_star = scene.material.E_star
     delta = expected_approaches(scene)
     force = np.array([float(hertz.load(a.R, dk, E_star)) for a, dk in zip(scene.asperities, delta)])
-    keep = (force > 0) & (force >= min_force_fraction * force.sum())
+    keep = (force > 0) & (force >= min_force_fraction * force.max())
+    if not np.any(keep):
+        raise SceneError(f"grid.h: no asperity is expected to carry load (largest Hertz estimate "
+                         f"{force.max()!r} N), so no default cell size can be chosen; give [grid] h")
     diameter = 2.0 * expected_contact_radii(scene)[keep].min()
+    if not (math.isfinite(diameter) and diameter > 0):
+        raise SceneError(f"grid.h: the smallest expected contact diameter is {diameter!r} mm, so no "
+                         f"default cell size can be chosen; give [grid] h")
     return _round_down(diameter / cells_across, digits=2)
 
 
