@@ -20,8 +20,9 @@ the paper's, 44 x 44 cells of 1.9 mm centred on the scene origin, unless ``--sen
 and ``--sensor-centre`` say otherwise; a measured map has the sensor's NY rows of NX
 values.
 
-Writes into DIR (default ``<scene name>_compare``, created only after every solve has
-returned):
+Writes into DIR (default ``<scene name>_compare``), created only after every solve has
+returned, through a temporary folder renamed to DIR at the end (Ctrl-C leaves no partial DIR;
+exit code 130):
 
 * ``forces.csv``: one row per load, body and asperity (force N, contact area mm^2,
   max pressure MPa, macro-step force N when the method has one), after four ``#``
@@ -63,7 +64,8 @@ from ..progress import Progress
 from ..scene import BLOCK_DEFAULT_SIZE, METHODS, Scene, SceneError, default_h
 from ..sensor import (Sensor, centred_tips, e_M, e_m, forces_from_map, pivot_from_forces, read_sensor_map,
                       read_tip_forces)
-from .solve import positive_option
+from .solve import check_out_dir, positive_option
+from .staging import staged_directory
 
 #: The paper's pressure sensor, used unless --sensor / --sensor-centre say otherwise.
 DEFAULT_SENSOR = Sensor()
@@ -500,7 +502,9 @@ def _write_outputs(out: Path, args, scene: Scene, runs, ind, notes, measured: Me
 
 def run(args: argparse.Namespace) -> int:
     """Run ``twoscale compare``; returns the exit code (0, 1 or 2, see module doc)."""
+    out = Path(args.out) if args.out is not None else Path(f"{Path(args.scene).stem}_compare")
     try:
+        check_out_dir(out)
         scenes = _scenes(args)
         sensor = _sensor(args)
         measured = _measured(args, scenes, sensor)
@@ -523,8 +527,8 @@ def run(args: argparse.Namespace) -> int:
     for n in sensor_notes(runs, sensor):
         print(f"note: {n}", file=sys.stderr)
         notes.append(n)
-    out = Path(args.out) if args.out is not None else Path(f"{Path(args.scene).stem}_compare")
-    _write_outputs(out, args, scenes[0], runs, ind, notes, measured, sensor)
+    with staged_directory(out) as tmp:  # renamed to out once every file is written
+        _write_outputs(tmp, args, scenes[0], runs, ind, notes, measured, sensor)
     if not args.quiet:
         print(markdown(args.scene, runs, ind, notes, args.method, measured, sensor))
         print(f"\nwrote {out}/")

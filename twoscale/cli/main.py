@@ -5,7 +5,9 @@ Each subcommand is a module of this package exposing ``add_arguments(parser)`` a
 ``compare``, ``indicators``) are registered when their module exists.
 
 Exit codes: 0 success; 1 the solve ran but did not converge (result written with
-``converged = false``); 2 bad input (one ``error: ...`` line on stderr, nothing written).
+``converged = false``); 2 bad input (one ``error: ...`` line on stderr, nothing written);
+130 interrupted by Ctrl-C (one line ``interrupted`` on stderr; the subcommands write
+through a temporary folder renamed at the end, so no partial output is left).
 """
 from __future__ import annotations
 
@@ -16,6 +18,9 @@ import sys
 from typing import Sequence
 
 from .._version import __version__
+
+#: Exit code after Ctrl-C (KeyboardInterrupt): 128 + SIGINT, as shells report it.
+EXIT_INTERRUPTED = 130
 
 #: Subcommands: (name, module, required). Optional ones appear when their module exists.
 SUBCOMMANDS = (
@@ -56,7 +61,11 @@ def main(argv: Sequence[str] | None = None) -> int:
         args = parser.parse_args(argv)
     except SystemExit as exc:  # argparse reports usage errors (code 2) and --help (code 0) this way
         return exc.code if isinstance(exc.code, int) else 2
-    return int(args._run(args))
+    try:
+        return int(args._run(args))
+    except KeyboardInterrupt:  # Ctrl-C: outputs are staged, so nothing half-written remains
+        print("interrupted", file=sys.stderr)
+        return EXIT_INTERRUPTED
 
 
 if __name__ == "__main__":  # pragma: no cover

@@ -7,7 +7,9 @@ Prints one progress line per case (stderr), then a table and the acceptance (std
 missed the acceptance is a warning on stderr).
 
 Exit codes: 0 every case converged and met the 0.1 % acceptance; 1 some did not (files
-still written); 2 bad input (one ``error: ...`` line, nothing written).
+still written); 2 bad input (one ``error: ...`` line, nothing written); 130 interrupted
+(Ctrl-C; the files go through a temporary folder renamed to DIR at the end, so nothing
+partial is left).
 """
 from __future__ import annotations
 
@@ -15,6 +17,8 @@ import argparse
 import math
 import pathlib
 import sys
+
+from .staging import staged_directory
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -39,13 +43,18 @@ def run(args: argparse.Namespace) -> int:
     if not (math.isfinite(args.tol) and args.tol > 0):
         print(f"error: --tol must be > 0, got {args.tol}", file=sys.stderr)
         return 2
+    if args.out.exists() and not args.out.is_dir():
+        print(f"error: --out must be a folder, got {str(args.out)!r}, which is an existing file",
+              file=sys.stderr)
+        return 2
     study = run_study(quick=args.quick, tol=args.tol, reference_method=args.reference,
                       progress=None if args.quiet else (lambda text: print(text, file=sys.stderr)))
-    files = write_csv(study, args.out)
-    if not args.no_figures:
-        from ..study.figures import write_figures
+    with staged_directory(args.out) as tmp:  # renamed to --out once every file is written
+        files = write_csv(study, tmp)
+        if not args.no_figures:
+            from ..study.figures import write_figures
 
-        files += write_figures(study, args.out)
+            files += write_figures(study, tmp)
     ok = True
     table = [f"{'layout':7s} {'d/2R':>6s} {'p0 err %':>9s} {'p err %':>9s} {'sweeps':>6s} {'t_2s s':>7s} {'t_ref s':>7s}"]
     for layout, results in study.cases.items():

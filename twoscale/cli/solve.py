@@ -4,8 +4,9 @@
 
 Exit codes: 0 converged; 1 not converged (result.json still written, with
 ``converged = false`` and the solver's message); 2 bad input (one ``error: ...`` line
-on stderr naming the field and the value; nothing written, DIR not created).
-Without ``--out`` nothing is written.
+on stderr naming the field and the value; nothing written, DIR not created); 130
+interrupted (Ctrl-C). The files are written into a temporary folder renamed to DIR at
+the end, so an interrupted run leaves no partial DIR. Without ``--out`` nothing is written.
 """
 from __future__ import annotations
 
@@ -14,11 +15,13 @@ import dataclasses
 import math
 import sys
 import time
+from pathlib import Path
 
-from ..io.result_json import result_to_dict, write_result
+from ..io.result_json import RESULT_NAME, result_to_dict, write_result
 from ..io.scene_file import read_scene
 from ..io.solve_outputs import write_fields_and_figures
 from ..scene import METHODS, SceneError, solve_scene
+from .staging import staged_directory
 
 #: Asperity rows printed in the summary before it is cut short.
 MAX_ROWS = 30
@@ -63,6 +66,19 @@ def positive_option(text: str | None, name: str, *, unit: str) -> float | None:
     return v
 
 
+def check_out_dir(out) -> None:
+    """Refuse, before any solve, an output folder that cannot be written: ``out`` names an
+    existing file (``None`` passes).
+
+    Raises
+    ------
+    SceneError
+        Naming ``--out`` and the path.
+    """
+    if out is not None and Path(out).exists() and not Path(out).is_dir():
+        raise SceneError(f"--out must be a folder, got {str(out)!r}, which is an existing file")
+
+
 def run(args: argparse.Namespace) -> int:
     """Run ``twoscale solve``; returns the exit code (0, 1 or 2, see module doc)."""
     try:
@@ -76,6 +92,7 @@ def run(args: argparse.Namespace) -> int:
                                  f"got kind = {scene.influence['kind']!r}")
             if args.out is None:
                 raise SceneError("--block-field needs --out DIR")
+        check_out_dir(args.out)
         options = {}
         far_tol = positive_option(getattr(args, "far_tol", None), "--far-tol", unit="dimensionless")
         if far_tol is not None:
@@ -91,11 +108,14 @@ def run(args: argparse.Namespace) -> int:
     except ValueError as exc:  # SceneError and solver input checks
         print(f"error: {exc}", file=sys.stderr)
         return 2
-    path = write_result(result, scene, args.out, method=args.method) if args.out is not None else None
-    if args.out is not None:  # fields.vtu, pressure.png, forces.png beside result.json
-        write_fields_and_figures(result, scene, args.out)
-        if getattr(args, "block_field", False):
-            write_block_field_file(result, scene, args.out, quiet=args.quiet)
+    path = None
+    if args.out is not None:  # into a temporary folder renamed to DIR at the end: whole or nothing
+        with staged_directory(args.out) as tmp:
+            write_result(result, scene, tmp, method=args.method)
+            write_fields_and_figures(result, scene, tmp)  # fields.vtu, pressure.png, forces.png
+            if getattr(args, "block_field", False):
+                write_block_field_file(result, scene, tmp, quiet=args.quiet)
+        path = Path(args.out) / RESULT_NAME
     if not args.quiet:
         print(summary(result_to_dict(result, scene, method=args.method), args.scene, wall, path))
     if not result.converged:
@@ -108,7 +128,6 @@ def write_block_field_file(result, scene, out_dir, *, quiet: bool = False):
     """Write ``DIR/block_displacement.vtu`` for a block scene (see :mod:`twoscale.io.block_field`)."""
     from ..io.block_field import BLOCK_FIELD_NAME, write_block_field
     from ..io.scene_file import scene_to_dict
-    from pathlib import Path
 
     provider = scene.provider(**({"progress": False} if quiet else {}))
     return write_block_field(result, provider, Path(out_dir) / BLOCK_FIELD_NAME, scene=scene_to_dict(scene))

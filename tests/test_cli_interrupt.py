@@ -1,0 +1,175 @@
+"""Ctrl-C (KeyboardInterrupt) in ``twoscale solve / compare / paper``: one line
+``interrupted`` on stderr, exit code 130, and no output folder, whether the interrupt
+comes during the solve or while the files are written."""
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+import textwrap
+
+import pytest
+
+from twoscale.cli import compare as compare_cli
+from twoscale.cli import solve as solve_cli
+from twoscale.cli.main import EXIT_INTERRUPTED, main
+from twoscale.cli.staging import held_interrupts, staged_directory
+
+SCENE = """
+[material]
+E = 10.0
+nu = 0.5
+[load]
+total = 5.0
+[grid]
+h = 0.25
+[[asperity]]
+x = 0.0
+y = 0.0
+R = 10.0
+"""
+
+
+def _interrupt(*args, **kwargs):
+    raise KeyboardInterrupt
+
+
+@pytest.fixture
+def scene(tmp_path):
+    path = tmp_path / "scene.toml"
+    path.write_text(SCENE, encoding="utf-8")
+    return path
+
+
+def _only_interrupted(capsys) -> None:
+    err = capsys.readouterr().err
+    assert err.strip().splitlines() == ["interrupted"], err
+
+
+def _nothing_but(tmp_path, *names) -> None:
+    """Only ``names`` in tmp_path: no output folder, no hidden temporary folder."""
+    assert sorted(p.name for p in tmp_path.iterdir()) == sorted(names)
+
+
+def test_solve_interrupted_during_the_solve(scene, tmp_path, monkeypatch, capsys):
+    monkeypatch.setattr(solve_cli, "solve_scene", _interrupt)
+    code = main(["solve", str(scene), "--out", str(tmp_path / "out"), "--quiet"])
+    assert code == EXIT_INTERRUPTED == 130
+    _only_interrupted(capsys)
+    _nothing_but(tmp_path, "scene.toml")
+
+
+def test_solve_interrupted_while_writing(scene, tmp_path, monkeypatch, capsys):
+    # result.json is already written (in the temporary folder) when the interrupt comes
+    monkeypatch.setattr(solve_cli, "write_fields_and_figures", _interrupt)
+    code = main(["solve", str(scene), "--out", str(tmp_path / "deep" / "out"), "--quiet"])
+    assert code == 130
+    _only_interrupted(capsys)
+    _nothing_but(tmp_path, "scene.toml")  # nor the parent folder made for it
+
+
+def test_solve_writes_whole_folder_when_not_interrupted(scene, tmp_path):
+    out = tmp_path / "out"
+    assert main(["solve", str(scene), "--out", str(out), "--quiet"]) == 0
+    assert {"result.json", "fields.vtu", "pressure.png", "forces.png"} <= {p.name for p in out.iterdir()}
+    _nothing_but(tmp_path, "scene.toml", "out")
+    # a second run into the existing folder replaces its files and keeps the others
+    (out / "notes.txt").write_text("mine", encoding="utf-8")
+    assert main(["solve", str(scene), "--out", str(out), "--quiet"]) == 0
+    assert (out / "notes.txt").read_text(encoding="utf-8") == "mine"
+    _nothing_but(tmp_path, "scene.toml", "out")
+
+
+def test_solve_out_naming_a_file_is_refused_before_solving(scene, tmp_path, monkeypatch, capsys):
+    monkeypatch.setattr(solve_cli, "solve_scene", _interrupt)  # must not be reached
+    (tmp_path / "taken").write_text("", encoding="utf-8")
+    assert main(["solve", str(scene), "--out", str(tmp_path / "taken")]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("error: --out")
+
+
+def test_compare_interrupted_during_the_solves(scene, tmp_path, monkeypatch, capsys):
+    monkeypatch.setattr(compare_cli, "_solve_all", _interrupt)
+    code = main(["compare", str(scene), "--out", str(tmp_path / "cmp"), "--quiet"])
+    assert code == 130
+    _only_interrupted(capsys)
+    _nothing_but(tmp_path, "scene.toml")
+
+
+def test_compare_interrupted_while_writing(scene, tmp_path, monkeypatch, capsys):
+    monkeypatch.setattr(compare_cli, "_providers", lambda scene, quiet: ({"halfspace": scene.provider()}, []))
+    monkeypatch.setattr(compare_cli, "write_result", _interrupt)  # after forces.csv, forces.md, figures
+    code = main(["compare", str(scene), "--out", str(tmp_path / "cmp"), "--quiet"])
+    assert code == 130
+    _only_interrupted(capsys)
+    _nothing_but(tmp_path, "scene.toml")
+
+
+def test_paper_interrupted(tmp_path, monkeypatch, capsys):
+    import twoscale.study
+
+    monkeypatch.setattr(twoscale.study, "run_study", _interrupt)
+    assert main(["paper", "--out", str(tmp_path / "paper"), "--quick", "--quiet"]) == 130
+    _only_interrupted(capsys)
+    _nothing_but(tmp_path)
+
+
+def test_staged_directory_leaves_nothing_on_error(tmp_path):
+    with pytest.raises(KeyboardInterrupt):
+        with staged_directory(tmp_path / "a" / "b") as tmp:
+            (tmp / "x.txt").write_text("x", encoding="utf-8")
+            (tmp / "sub").mkdir()
+            raise KeyboardInterrupt
+    _nothing_but(tmp_path)
+
+
+def test_staged_directory_merges_into_an_existing_folder(tmp_path):
+    out = tmp_path / "out"
+    (out / "runs" / "old").mkdir(parents=True)
+    (out / "keep.txt").write_text("keep", encoding="utf-8")
+    (out / "new.txt").write_text("old", encoding="utf-8")
+    with staged_directory(out) as tmp:
+        (tmp / "new.txt").write_text("new", encoding="utf-8")
+        (tmp / "runs" / "a").mkdir(parents=True)
+        (tmp / "runs" / "a" / "r.json").write_text("{}", encoding="utf-8")
+    assert (out / "new.txt").read_text(encoding="utf-8") == "new"
+    assert (out / "keep.txt").read_text(encoding="utf-8") == "keep"
+    assert sorted(p.name for p in (out / "runs").iterdir()) == ["a", "old"]
+    _nothing_but(tmp_path, "out")
+
+
+def test_held_interrupts_raises_after_the_block():
+    done = []
+    with pytest.raises(KeyboardInterrupt):
+        with held_interrupts():
+            os.kill(os.getpid(), signal.SIGINT)
+            done.append(True)  # reached: the interrupt waited for the block to end
+    assert done == [True]
+
+
+@pytest.mark.skipif(sys.platform == "win32", reason="POSIX signals")
+def test_real_sigint_to_the_command(scene, tmp_path):
+    # a real SIGINT to a running `twoscale solve` (its solve replaced by a long sleep)
+    code = textwrap.dedent(f"""
+        import sys, time
+        import twoscale.cli.solve as s
+        def slow(*args, **kwargs):
+            print("solving", flush=True)
+            time.sleep(60)
+        s.solve_scene = slow
+        from twoscale.cli.main import main
+        sys.exit(main(["solve", {str(scene)!r}, "--out", {str(tmp_path / "out")!r}, "--quiet"]))
+    """)
+    proc = subprocess.Popen([sys.executable, "-c", code], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                            text=True)
+    try:
+        assert proc.stdout.readline().strip() == "solving"
+        proc.send_signal(signal.SIGINT)
+        out, err = proc.communicate(timeout=30)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+    assert proc.returncode == 130
+    assert err.strip().splitlines() == ["interrupted"], err
+    _nothing_but(tmp_path, "scene.toml")
