@@ -2,13 +2,16 @@
 
 1. Macro step: tip forces ``P_k`` of the interacting asperities (:func:`twoscale.macro.solve_macro`).
 2. Micro step: pressure on one patch per asperity, from eq. 7 and block Gauss-Seidel
-   (:func:`twoscale.micro.solve_micro`), with the approach and tilt corrected so that
-   the pressure carries the load and the moments.
+   with the approach and tilt corrected so that the pressure carries the load and the
+   moments. The micro step's iteration is chosen by a policy from the patches
+   (:mod:`twoscale.micro.driver`, :mod:`twoscale.micro.policy`): block Gauss-Seidel over
+   the patches, its two-level variant, or one constrained CG over their bounding box.
 
 Only the cells where contact can be are modelled, which is where the speed comes from.
 """
 from __future__ import annotations
 
+import dataclasses
 import math
 import time
 from typing import Sequence
@@ -21,14 +24,8 @@ from .laws import law_for
 from .macro import solve_macro
 from .macro.solve import DENSE_MAX
 from .influence.separated import check_rtol
-from .micro import solve_micro
+from .micro.driver import fixed_choice, run_micro
 from .results import ContactResult, PressureField, summarise
-
-#: far_tol that makes every pair of patches "near" (exact coupling in the two-level iteration).
-EXACT_FAR_TOL = 1e-12
-#: Sweeps the two-level iteration gets when chosen by default (it needs 5-10 where it
-#: works) before plain block Gauss-Seidel takes over.
-AUTO_SWEEPS = 20
 
 
 def _check(asperities, h, penetration, total_load, tilt, tol, max_sweeps) -> None:
@@ -56,8 +53,9 @@ def solve_twoscale(provider: InfluenceProvider, asperities: Sequence[Asperity], 
                    anchor: tuple[float, float] = (0.0, 0.0), dense_max_cells: int = 400,
                    macro_tol: float = 1e-10, macro_max_iter: int = 100,
                    macro_dense_max: int = DENSE_MAX, macro_operator_rtol: float = 1e-6,
-                   far_tol: float | None = None, coarse: bool | None = None,
-                   separated_rtol: float | None = 1e-8, merge: bool = True) -> ContactResult:
+                   iteration: str = "auto", far_tol: float | None = None, coarse: bool | None = None,
+                   separated_rtol: float | None = 1e-8, merge: bool = True, p0: bool = False,
+                   progress=None) -> ContactResult:
     """Multi-asperity contact by the two-scale iterative method.
 
     Parameters
@@ -98,24 +96,24 @@ def solve_twoscale(provider: InfluenceProvider, asperities: Sequence[Asperity], 
         operator error reported in ``extra["macro_operator_error"]``.
     macro_operator_rtol : float, default 1e-6
         Accuracy of that point operator (relative to ``max |u|``).
+    iteration : {"auto", "union-cg", "block-gs", "two-level"}, default "auto"
+        The micro step's iteration (:mod:`twoscale.micro.driver`). ``"auto"``: the policy
+        (:mod:`twoscale.micro.policy`) picks from the patches the macro forces give (how
+        many, how much of their bounding box they cover) by a cost estimate, and records
+        why. ``"union-cg"``: one constrained CG over the box of the patches, warm-started
+        from the macro forces (or eq. 7 with ``p0``). ``"block-gs"``: the paper's block
+        Gauss-Seidel (eq. 8) over the (merged) patches, with sensitivity sweeps for the
+        load and tilt. ``"two-level"``: block Gauss-Seidel with a coarse correction by the
+        linearised macro equations (:mod:`twoscale.micro.twolevel`). If the chosen one
+        does not converge, the next is tried; every attempt is in ``extra["micro_attempts"]``.
     far_tol : float or None, default None
-        Micro step cross-patch coupling: None = exact; a number in (0, 1) approximates
-        patches farther apart than ``(r_k + r_l) / sqrt(far_tol)`` by their resultant
-        force (many asperities; see :mod:`twoscale.micro.farfield`). With it, patches are
-        also sized from the macro local penetrations (bulk deflection included) plus a
-        slack of 20 % of the largest one, instead of the geometric approach ``d - z_k``:
-        with thousands of asperities the bulk deflection makes ``d - z_k > 0`` for all.
+        Cross-patch coupling of the block iterations: None = exact; a number in (0, 1)
+        approximates patches farther apart than ``(r_k + r_l) / sqrt(far_tol)`` by their
+        resultant force (:mod:`twoscale.micro.farfield`). Given with ``iteration="auto"``
+        it selects the two-level iteration. Patches are then sized from the macro local
+        penetrations (bulk deflection included).
     coarse : bool or None, default None
-        Two-level micro iteration (far field once per sweep through the provider's point
-        operator, coarse correction by the linearised macro equations, which also
-        corrects the approach and tilt under load control; :mod:`twoscale.micro.twolevel`).
-        None: on when ``far_tol`` is given or under load control unless the macro step
-        needed its safe path (merged contacts) (there it replaces the sensitivity sweeps:
-        S1-S3 2.7-3x faster, same answer to the tolerance); without
-        ``far_tol`` every pair of patches is then coupled exactly, and if it has not
-        converged after ``AUTO_SWEEPS`` (20) sweeps (merged contacts can make a cell's
-        contact state flip), plain block Gauss-Seidel solves the scene again. False keeps
-        plain block Gauss-Seidel (eq. 8) with sensitivity sweeps for the load and tilt.
+        Older spelling of ``iteration``: True = ``"two-level"``, False = ``"block-gs"``.
     separated_rtol : float or None, default 1e-8
         Micro step: patches far apart for their size are coupled through the provider's
         low-rank separated operator (half-space: Chebyshev interpolation of Love's kernel),
@@ -127,6 +125,11 @@ def solve_twoscale(provider: InfluenceProvider, asperities: Sequence[Asperity], 
         :data:`twoscale.micro.solve.MERGE_GROWTH`); eq. 7 still gives each asperity its own
         ``p0``. False: one block per asperity, the paper's iteration (more sweeps for close
         asperities: 13-19 against 4 in the paper's closest cases).
+    p0 : bool, default False
+        Compute the paper's eq. 7 pressures even where the chosen iteration does not start
+        from them (``union-cg``), for the report (``extra["p0"]``, Fig. 6).
+    progress : callable or None, default None
+        Called with a short stage description (``progress(text)``) as the solve goes on.
 
     Returns
     -------
@@ -147,40 +150,35 @@ def solve_twoscale(provider: InfluenceProvider, asperities: Sequence[Asperity], 
                         tilt=tilt, pivot=pivot, tol=macro_tol, max_iter=macro_max_iter,
                         dense_max=macro_dense_max, operator_rtol=macro_operator_rtol)
     t1 = time.perf_counter()
-    # by default with far_tol, and under load control unless the macro step met merged
-    # contacts (its safe path), where the two-level iteration tends to stall
-    auto = coarse is None and far_tol is None and total_load is not None and not macro.safe_path
-    two_level = bool(coarse) if coarse is not None else (far_tol is not None or auto)
-    # the two-level iteration without far_tol: every pair of patches near, i.e. exact coupling
-    micro_far_tol = far_tol if far_tol is not None or not two_level else EXACT_FAR_TOL
-    common = dict(h=h, forces=np.asarray(macro.forces), penetration=macro.penetration, tilt=macro.tilt,
-                  pivot=pivot, total_load=total_load, free_tilt=tilt, tol=tol, margin=margin, anchor=anchor,
-                  dense_max_cells=dense_max_cells, size_from_forces=bool(macro.converged),
-                  separated_rtol=separated_rtol, merge=bool(merge))
-    micro = solve_micro(provider, asperities, max_sweeps=min(max_sweeps, AUTO_SWEEPS) if auto else max_sweeps,
-                        far_tol=micro_far_tol, sizing_approaches=_sizing(macro, micro_far_tol),
-                        coarse=two_level, **common)
-    iteration = "two-level" if two_level else "block Gauss-Seidel"
-    if auto and not micro.converged:
-        # the two-level iteration can stall where contacts merge (a cell's contact state
-        # flips between sweeps): plain block Gauss-Seidel, the paper's iteration, decides
-        micro = solve_micro(provider, asperities, max_sweeps=max_sweeps, far_tol=None, coarse=False,
-                            sizing_approaches=None, **common)
-        iteration = f"block Gauss-Seidel (two-level did not converge in {AUTO_SWEEPS} sweeps)"
+    choice = _caller_choice(iteration, far_tol, coarse)
+    micro, plan = run_micro(provider, asperities, macro=macro, h=h, total_load=total_load, free_tilt=tilt,
+                            pivot=pivot, tol=tol, max_sweeps=max_sweeps, choice=choice, p0=p0, progress=progress,
+                            margin=margin, anchor=anchor, dense_max_cells=dense_max_cells,
+                            separated_rtol=separated_rtol, merge=bool(merge))
     t2 = time.perf_counter()
-    return _result(asperities, macro, micro, h, {"macro": t1 - t0, "micro": t2 - t1, "total": t2 - t0},
-                   iteration)
+    return _result(asperities, macro, micro, plan, h, {"macro": t1 - t0, "micro": t2 - t1, "total": t2 - t0})
 
 
-def _sizing(macro, far_tol):
-    # patch sizing from the macro local penetrations (many-asperity mode only)
-    if far_tol is None or not macro.converged:
-        return None
-    delta = np.asarray(macro.local_penetrations, dtype=float)
-    return delta + 0.2 * max(float(delta.max()), 0.0)
+def _caller_choice(iteration, far_tol, coarse):
+    """The caller's fixed choice, or None for the policy."""
+    if far_tol is not None and not (isinstance(far_tol, (int, float)) and 0.0 < far_tol < 1.0):
+        raise ValueError(f"far_tol must be a number in (0, 1), got {far_tol!r}")
+    if coarse is not None:
+        if iteration != "auto":
+            raise ValueError(f"give iteration or coarse, not both (iteration={iteration!r}, coarse={coarse!r})")
+        iteration = "two-level" if coarse else "block-gs"
+    if iteration == "auto":
+        if far_tol is None:
+            return None
+        return fixed_choice("two-level", far_tol, f"far_tol = {far_tol} given: two-level with far-field coupling")
+    if iteration == "two-level" and far_tol is None:
+        from .micro.solve import EXACT_FAR_TOL
+
+        return fixed_choice("two-level", EXACT_FAR_TOL, "iteration fixed by the caller: two-level, exact coupling")
+    return fixed_choice(iteration, far_tol, f"iteration fixed by the caller: {iteration}")
 
 
-def _result(asperities, macro, micro, h, timings, iteration: str) -> ContactResult:
+def _result(asperities, macro, micro, plan, h, timings) -> ContactResult:
     fields = tuple(PressureField(pt.grid, p, pt.owner, g)
                    for pt, p, g in zip(micro.patches, micro.pressures, micro.gaps))
     p = np.concatenate([v.ravel() for v in micro.pressures]) if fields else np.zeros(0)
@@ -200,5 +198,23 @@ def _result(asperities, macro, micro, h, timings, iteration: str) -> ContactResu
         extra={"macro_forces": np.array(macro.forces), "local_penetrations": np.array(macro.local_penetrations),
                "p0_change_percent": change, "p0": micro.initial, "patch_growths": int(micro.growths),
                "macro_converged": bool(macro.converged), "macro_interaction": macro.interaction,
-               "macro_operator_error": macro.operator_error, "micro_iteration": iteration,
+               "macro_operator_error": macro.operator_error, "micro_iteration": _iteration_text(plan),
+               "micro_strategy": plan.attempts[-1].iteration if plan.attempts else plan.choice.iteration,
+               "micro_choice": {"iteration": plan.choice.iteration, "far_tol": plan.choice.far_tol,
+                                "reason": plan.choice.reason, "by_caller": plan.choice.by_caller,
+                                "estimates": plan.choice.estimates},
+               "micro_attempts": [dataclasses.asdict(a) for a in plan.attempts],
                "coupling": dict(micro.coupling), "merged_patches": [list(m) for m in micro.merged]})
+
+
+def _iteration_text(plan) -> str:
+    """What produced the answer, with the attempts before it (result.json ``micro_iteration``)."""
+    names = {"union-cg": "union CG", "block-gs": "block Gauss-Seidel", "two-level": "two-level"}
+    if not plan.attempts:
+        return names[plan.choice.iteration]
+    last = plan.attempts[-1]
+    text = names[last.iteration]
+    failed = [a for a in plan.attempts[:-1]]
+    if failed:
+        text += " (" + "; ".join(f"{names[a.iteration]} did not converge in {a.sweeps} sweeps" for a in failed) + ")"
+    return text

@@ -80,6 +80,9 @@ P0_RTOL = 1e-5
 #: 66 -> 122 ms).
 MERGE_GROWTH = 2.0
 
+#: far_tol that makes every pair of patches "near": the two-level iteration with exact coupling.
+EXACT_FAR_TOL = 1e-12
+
 #: Relative change at which the sensitivity sweeps (load and tilt corrections) stop.
 SENSITIVITY_TOL = 1e-3
 
@@ -202,6 +205,23 @@ def _initial(provider, asperities, patches, blocks, forces, z_blocks, h, rtol: f
         radius = (3.0 * max(P, 0.0) * a.R / (4.0 * E_star)) ** (1.0 / 3.0)
         out.append(initial_pressure(blk, z, P, h, approach=radius ** 2 / a.R, rtol=rtol).pressure)
     return out
+
+
+def initial_on_patches(provider, asperities, patches, common) -> tuple:
+    """Paper eq. 7 on one-asperity ``patches``, summed onto the grid covering them:
+    ``(grid, p0 (ny, nx) MPa)``. ``common`` holds h, forces, penetration, tilt, pivot."""
+    h, pivot = common["h"], common["pivot"]
+    theta = np.array([common["penetration"], *(common["tilt"] or (0.0, 0.0))], dtype=float)
+    blocks = [LocalBlock(provider, pt, dense_max_cells=common.get("dense_max_cells", 400)) for pt in patches]
+    p0 = _initial(provider, asperities, patches, blocks, common["forces"], _heights(patches, theta, pivot), h)
+    b = np.array([pt.grid.bounds for pt in patches])
+    grid = Grid.covering(b[:, 0].min(), b[:, 1].max(), b[:, 2].min(), b[:, 3].max(), h,
+                         anchor=common.get("anchor", (0.0, 0.0)))
+    out = np.zeros(grid.shape)
+    for pt, pk in zip(patches, p0):
+        di, dj = pt.grid.offset_in(grid)
+        out[dj:dj + pt.grid.ny, di:di + pt.grid.nx] += scatter(pt, pk)
+    return grid, out
 
 
 def _grow_loaded(state: _State, p: list, p0: list) -> int:

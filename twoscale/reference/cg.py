@@ -76,17 +76,19 @@ def _project(v: np.ndarray, B: np.ndarray, on: np.ndarray) -> np.ndarray:
 
 
 def _initial_pressure(problem: ContactProblem, op, z: np.ndarray, B: np.ndarray, target: np.ndarray,
-                      E_star: float) -> np.ndarray:
-    """Start from the geometric interference ``max(level - z, 0)`` (level = d, or the
+                      E_star: float, start: np.ndarray | None = None) -> np.ndarray:
+    """Start from ``start`` (a warm start, e.g. the two-scale macro forces spread as Hertz
+    pressures), else from the geometric interference ``max(level - z, 0)`` (level = d, or the
     first-guess level of load control), scaled by a line search on the energy
     (penetration control) or to the load. Cells without material start unloaded.
     (A Hertz-like square-root start was tried: no fewer iterations.)"""
     cand = problem.candidates.ravel()
-    if problem.mode == "penetration":
-        level = problem.penetration
+    if start is not None and np.any(start.ravel()[cand] > 0):
+        v = np.where(cand, np.maximum(start.ravel(), 0.0), 0.0)
     else:
-        level = float(np.max(z[initial_active_set(problem, E_star).ravel()]))
-    v = np.where(cand, np.maximum(level - z, 0.0), 0.0)
+        level = problem.penetration if problem.mode == "penetration" else \
+            float(np.max(z[initial_active_set(problem, E_star).ravel()]))
+        v = np.where(cand, np.maximum(level - z, 0.0), 0.0)
     if not np.any(v > 0):
         v = np.where(cand & (z <= np.min(z[cand])), 1.0, 0.0)
     if problem.mode == "penetration":
@@ -98,7 +100,8 @@ def _initial_pressure(problem: ContactProblem, op, z: np.ndarray, B: np.ndarray,
 
 def solve_cg(provider: InfluenceProvider, surface: Surface, *, penetration: float | None = None,
              total_load: float | None = None, tilt: bool = False, pivot=(0.0, 0.0),
-             tol: float = 1e-8, max_iter: int = 20_000) -> ContactResult:
+             tol: float = 1e-8, max_iter: int = 20_000, start: np.ndarray | None = None,
+             precision: str = "double") -> ContactResult:
     """Full-grid contact by Polonsky & Keer's constrained conjugate gradient.
 
     Parameters
@@ -123,6 +126,17 @@ def solve_cg(provider: InfluenceProvider, surface: Surface, *, penetration: floa
         costs about 10 more iterations).
     max_iter : int, default 20000
         Most CG iterations (two grid products each).
+    start : (ny, nx) array or None, default None
+        Warm start, MPa, on ``surface.grid`` (negative entries and cells without material
+        are ignored; it is rescaled to the load, or by a line search on the energy under
+        penetration control). None: the geometric interference.
+    precision : {"double", "mixed"}, default "double"
+        ``"mixed"``: iterate first with the operator's single-precision products
+        (:meth:`~twoscale.influence.base.GridOperator.single_precision`; on the half-space
+        float32 FFTs, about 2.5x cheaper) to ``SINGLE_TOL`` (or ``tol`` if looser), then
+        finish in double precision from that pressure (about 20 more iterations to 1e-8
+        instead of 70-100 from scratch). The answer meets ``tol`` in double precision
+        either way. The reference keeps ``"double"``: it is the classical yardstick.
 
     Returns
     -------
@@ -135,10 +149,28 @@ def solve_cg(provider: InfluenceProvider, surface: Surface, *, penetration: floa
     trivial = trivial_result(problem, "cg", {"total": time.perf_counter() - t0})
     if trivial is not None:
         return trivial
+    if start is not None:
+        start = np.asarray(start, dtype=float)
+        if start.shape != problem.grid.shape or not np.all(np.isfinite(start)):
+            raise ValueError(f"start must be a finite array of shape {problem.grid.shape} (MPa), "
+                             f"got shape {start.shape}")
     work = _cropped(problem)
+    if start is not None and work is not problem:
+        start = start[_window(work.grid, problem.grid)]
+    if precision not in PRECISIONS:
+        raise ValueError(f"precision must be one of {PRECISIONS}, got {precision!r}")
     op = provider.grid_operator(work.grid)
     t_op = time.perf_counter()
-    p, u, m, it, n_products, hist, converged, message = _iterate(work, op, provider.material.E_star, tol, max_iter)
+    it0 = products0 = 0
+    hist0: list = []
+    if precision == "mixed" and tol < SINGLE_TOL:
+        single = op.single_precision()
+        p1, _, _, it0, products0, hist0, _, _ = _iterate(work, single, provider.material.E_star, SINGLE_TOL,
+                                                         max_iter, start, stall=SINGLE_STALL)
+        start = p1.reshape(work.grid.shape)
+    p, u, m, it, n_products, hist, converged, message = _iterate(work, op, provider.material.E_star, tol, max_iter,
+                                                                 start)
+    it, n_products, hist = it + it0, n_products + products0, hist0 + hist
     p, u = p.reshape(work.grid.shape), u.reshape(work.grid.shape)
     if work is not problem:
         p = _embed(p, work.grid, problem.grid)
@@ -147,7 +179,7 @@ def solve_cg(provider: InfluenceProvider, surface: Surface, *, penetration: floa
     d, tilt_angles = problem.rigid_motion(m)
     t_end = time.perf_counter()
     timings = {"operator": t_op - t0, "solve": t_end - t_op, "total": t_end - t0}
-    extra = {"working_grid": (work.grid.nx, work.grid.ny)}
+    extra = {"working_grid": (work.grid.nx, work.grid.ny), "single_precision_iterations": it0}
     return build_result(problem, "cg", p, u, d, tilt_angles, converged, message,
                         {"cg": it, "products": n_products}, {"gap": hist}, timings, extra)
 
@@ -179,6 +211,13 @@ def _cropped(problem: ContactProblem) -> ContactProblem:
     surface = Surface(sub, s.height[j0:j1, i0:i1], s.owner[j0:j1, i0:i1], s.n_asperities)
     return ContactProblem(surface, problem.mode, problem.penetration, problem.total_load, problem.pivot)
 
+
+PRECISIONS = ("double", "mixed")
+#: KKT residual at which the single-precision stage of ``precision="mixed"`` hands over
+#: (float32 products carry ~1e-7 relative rounding, so it cannot go much lower).
+SINGLE_TOL = 1e-6
+#: The single-precision stage stops when its residual has not halved in this many iterations.
+SINGLE_STALL = 30
 
 #: Recompute ``u = A p`` from scratch at least this often (the cheap update
 #: ``u <- s (u - tau A t)`` accumulates rounding).
@@ -214,14 +253,15 @@ def _constraint_residual(p, B, target, B_scale) -> float:
     return float(np.max(np.abs(B.T @ p - target) / (target[0] * np.maximum(B_scale, 1e-300))))
 
 
-def _iterate(problem: ContactProblem, op, E_star: float, tol: float, max_iter: int):
+def _iterate(problem: ContactProblem, op, E_star: float, tol: float, max_iter: int, start=None,
+             stall: int = STALL_ITERATIONS):
     shape = problem.grid.shape
     cand = problem.candidates.ravel()
     free = ~cand  # cells without material: never loaded, never checked
     z = np.where(cand, problem.surface.height.ravel(), 0.0)
     B = problem.basis()
     target = problem.target()
-    p = _initial_pressure(problem, op, z, B, target, E_star)
+    p = _initial_pressure(problem, op, z, B, target, E_star, start)
     t = np.zeros_like(p)
     g = np.empty_like(p)
     B_scale = np.max(np.abs(B[cand]), axis=0) if B.shape[1] else np.zeros(0)
@@ -249,9 +289,9 @@ def _iterate(problem: ContactProblem, op, E_star: float, tol: float, max_iter: i
             best, it_best = res, it
         if it == max_iter:
             break
-        if it - it_best > STALL_ITERATIONS:
+        if it - it_best > stall:
             return p, u, m, it, n_products, hist, False, (
-                f"no progress: KKT residual {res:.2e} has not halved in {STALL_ITERATIONS} iterations "
+                f"no progress: KKT residual {res:.2e} has not halved in {stall} iterations "
                 f"(best {best:.2e}, tol {tol:g})")
         # Polonsky & Keer: conjugate direction on the loaded cells, reset when the set changed
         g_on = np.where(on, g, 0.0)

@@ -1,0 +1,204 @@
+"""The micro step's driver: one entry that composes an iteration with a coupling.
+
+``run_micro`` builds the patches from the macro forces, asks the policy
+(:mod:`.policy`) which iteration and coupling to use unless the caller fixed them, runs
+the chosen strategy, and, when it does not converge, the next one in a fixed order. Every
+attempt is recorded (:class:`Attempt`: what ran, its sweeps or CG iterations, its time, its
+outcome), so nothing is restarted behind the user's back.
+
+The strategies:
+
+* ``union-cg`` (:func:`.union.solve_union`): one constrained CG over the box of the patches;
+* ``block-gs``: block Gauss-Seidel over the (merged) patches, exact coupling (paper eq. 8);
+* ``two-level``: block Gauss-Seidel with a coarse correction (:mod:`.twolevel`), with exact
+  or far-field coupling (``far_tol``).
+"""
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, replace
+from typing import Callable, Sequence
+
+import numpy as np
+
+from ..indenters import Asperity
+from ..influence.base import InfluenceProvider
+from .patches import build_patches
+from .policy import ITERATIONS, Choice, choose
+from .solve import EXACT_FAR_TOL, MicroResult, solve_micro
+from .union import box_of, solve_union
+
+#: Sweeps a two-level attempt chosen by the policy gets (it needs 5-10 where it works)
+#: before the next strategy is tried.
+TWO_LEVEL_SWEEPS = 20
+
+
+@dataclass(frozen=True)
+class Attempt:
+    """One strategy run by the driver.
+
+    Attributes
+    ----------
+    iteration : str
+        ``"union-cg"``, ``"block-gs"`` or ``"two-level"``.
+    far_tol : float or None
+        Far-field coupling tolerance (None: exact).
+    converged : bool
+    sweeps : int
+        Block sweeps (block iterations) or CG iterations (union).
+    seconds : float
+        Wall-clock time of the attempt.
+    message : str
+        Its stopping reason ("" when it converged).
+    """
+
+    iteration: str
+    far_tol: float | None
+    converged: bool
+    sweeps: int
+    seconds: float
+    message: str
+
+
+@dataclass(frozen=True)
+class MicroPlan:
+    """What the micro step ran: the policy's choice and every attempt, in order."""
+
+    choice: Choice
+    attempts: tuple
+
+
+def _plan(patches, box, choice_fixed: Choice | None, merged_contacts: bool) -> Choice:
+    if choice_fixed is not None:
+        return choice_fixed
+    return choose(patches, box, merged_contacts=merged_contacts)
+
+
+def fixed_choice(iteration: str, far_tol: float | None, why: str) -> Choice:
+    """A choice made by the caller, not the policy."""
+    if iteration not in ITERATIONS:
+        raise ValueError(f"iteration must be one of {('auto',) + ITERATIONS}, got {iteration!r}")
+    if iteration == "union-cg" and far_tol is not None:
+        raise ValueError("far_tol applies to the block iterations, not to iteration='union-cg'")
+    return Choice(iteration, far_tol, why, {}, by_caller=True)
+
+
+def run_micro(provider: InfluenceProvider, asperities: Sequence[Asperity], *, macro, h: float,
+              total_load: float | None, free_tilt: bool, pivot, tol: float, max_sweeps: int,
+              choice: Choice | None = None, p0: bool = False, progress: Callable | None = None,
+              **block_options) -> tuple[MicroResult, MicroPlan]:
+    """Run the micro step after ``macro`` (a :class:`~twoscale.macro.result.MacroResult`).
+
+    Parameters
+    ----------
+    choice : Choice or None
+        Fixed by the caller (:func:`fixed_choice`), or None to let the policy choose.
+    p0 : bool, default False
+        Also compute the paper's eq. 7 pressures for the report (the block iterations always
+        do: they start from them; the union CG then starts from them too).
+    progress : callable or None
+        Called as ``progress(stage: str)`` when an attempt starts.
+    block_options
+        Passed to :func:`.solve.solve_micro` (margin, anchor, dense_max_cells, merge, ...).
+    """
+    forces = np.asarray(macro.forces, dtype=float)
+    anchor = block_options.get("anchor", (0.0, 0.0))
+    common = dict(h=h, forces=forces, penetration=macro.penetration, tilt=macro.tilt, pivot=pivot,
+                  total_load=total_load, free_tilt=free_tilt, tol=tol, size_from_forces=bool(macro.converged),
+                  **block_options)
+    approaches = macro.penetration - np.array([a.z for a in asperities]) - _tilt_at(asperities, macro.tilt, pivot)
+    patches = build_patches(asperities, h=h, forces=forces if macro.converged else np.full(len(forces), np.inf),
+                            approaches=approaches, E_star=provider.material.E_star,
+                            margin=block_options.get("margin", 1.3), anchor=anchor)
+    if not patches:
+        return solve_micro(provider, asperities, max_sweeps=max_sweeps, **common), \
+            MicroPlan(Choice("block-gs", None, "no asperity reaches the body", {}), ())
+    box = box_of(patches, h, anchor).size
+    picked = _plan(patches, box, choice, merged_contacts=bool(macro.safe_path))
+    attempts: list = []
+    order = _order(picked, total_load is not None and not macro.safe_path)
+    result = None
+    for iteration, far_tol, sweeps_cap in order:
+        if progress is not None:
+            progress(f"micro: {iteration}" + (f" (far_tol {far_tol})" if far_tol else ""))
+        t = time.perf_counter()
+        if iteration == "union-cg":
+            result = _union(provider, asperities, patches, common, tol, p0)
+        else:
+            cap = min(max_sweeps, sweeps_cap) if sweeps_cap else max_sweeps
+            result = solve_micro(provider, asperities, max_sweeps=cap,
+                                 far_tol=far_tol if iteration == "two-level" or far_tol else None,
+                                 coarse=iteration == "two-level", sizing_approaches=_sizing(macro, far_tol),
+                                 **common)
+        attempts.append(Attempt(iteration, far_tol, bool(result.converged), int(result.sweeps),
+                                time.perf_counter() - t, result.message))
+        if result.converged:
+            break
+    return result, MicroPlan(picked, tuple(attempts))
+
+
+def _order(choice: Choice, load_two_level: bool) -> list:
+    """Attempts to make, in order: ``(iteration, far_tol, sweep cap or None)``."""
+    if choice.iteration == "union-cg":
+        return [("union-cg", None, None)]
+    if choice.iteration == "two-level":
+        ft = choice.far_tol
+        if ft is None:
+            return [("two-level", EXACT_FAR_TOL, None)]
+        if choice.by_caller:
+            return [("two-level", ft, None)]
+        # far-field coupling can fail to converge where contacts merge: the union CG decides
+        return [("two-level", ft, TWO_LEVEL_SWEEPS), ("union-cg", None, None)]
+    if load_two_level and not choice.by_caller and choice.far_tol is None:
+        # under load control the two-level iteration (exact coupling) replaces the
+        # sensitivity sweeps where it converges (S1-S3: 2.7-3x faster); it can stall where
+        # contacts merge, and block Gauss-Seidel then runs
+        return [("two-level", EXACT_FAR_TOL, TWO_LEVEL_SWEEPS), ("block-gs", None, None)]
+    return [("block-gs", choice.far_tol, None)]
+
+
+def _tilt_at(asperities, tilt, pivot) -> np.ndarray:
+    if tilt is None:
+        return np.zeros(len(asperities))
+    alpha, beta = tilt
+    return np.array([beta * (a.x - pivot[0]) + alpha * (a.y - pivot[1]) for a in asperities])
+
+
+def _sizing(macro, far_tol):
+    # patch sizing from the macro local penetrations (far-field coupling only): with
+    # thousands of asperities the bulk deflection makes d - z_k > 0 for all
+    if far_tol is None or far_tol == EXACT_FAR_TOL or not macro.converged:
+        return None
+    delta = np.asarray(macro.local_penetrations, dtype=float)
+    return delta + 0.2 * max(float(delta.max()), 0.0)
+
+
+def _union(provider, asperities, patches, common, tol, p0) -> MicroResult:
+    """The union CG as a :class:`MicroResult` (one patch: the box)."""
+    start = start_grid = None
+    initial = None
+    if p0:
+        from .solve import initial_on_patches
+
+        start_grid, start = initial_on_patches(provider, asperities, patches, common)
+        initial = start
+    out = solve_union(provider, asperities, patches, h=common["h"], anchor=common.get("anchor", (0.0, 0.0)),
+                      forces=common["forces"], penetration=None if common["total_load"] is not None
+                      else common["penetration"], total_load=common["total_load"], free_tilt=common["free_tilt"],
+                      pivot=common["pivot"], tol=tol, start=start, start_grid=start_grid)
+    r, field = out.result, out.result.fields[0]
+    converged = bool(r.converged) and not out.on_edge
+    message = r.message if not r.converged else (
+        f"pressure still reaches the box's edge after {out.enlargements} enlargements" if out.on_edge else "")
+    if initial is None:
+        initial = out.start
+    else:
+        from .union import _embed
+
+        initial = _embed(initial, start_grid, out.patch.grid)
+    tilt = r.tilt if common["free_tilt"] else None
+    return MicroResult((out.patch,), (field.pressure,), (initial,), (field.gap,), float(r.penetration), tilt,
+                       converged, message, int(out.iterations), 0, int(out.enlargements), 0,
+                       tuple(r.residuals.get("gap", ())), {"box": int(out.patch.grid.size),
+                                                          "products": int(out.products)},
+                       (tuple(out.patch.members),) if len(out.patch.members) > 1 else ())
