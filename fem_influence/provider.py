@@ -448,7 +448,7 @@ class BlockGridOperator(GridOperator):
     @property
     def nbytes(self) -> int:
         w = self._W.data.nbytes if sp.issparse(self._W) else self._W.nbytes
-        return int(getattr(self._hs, "nbytes", 0)) + self._U.nbytes + w
+        return int(self._hs.nbytes) + self._U.nbytes + w
 
     @property
     def flops_estimate(self) -> float:

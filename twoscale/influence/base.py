@@ -32,6 +32,19 @@ class GridOperator(ABC):
     ``apply(p)`` takes an array of shape ``source.shape`` (MPa) and returns one of
     shape ``target.shape`` (mm). Operators are immutable: they hold precomputed
     transforms, never solutions.
+
+    Only :meth:`apply` is required. Solvers that sum the products of many sources onto one
+    target also use its three stages, ``apply(p) == finish(multiply(spectrum(p)))``:
+
+    * :meth:`spectrum` — a source-side transform of ``p``, reused by every operator with the
+      same :attr:`source_key` (e.g. an FFT, or Chebyshev moments);
+    * :meth:`multiply` — the operator on that transform (a new array);
+    * :meth:`finish` — back to the target grid; ``multiply`` results of operators with the
+      same :attr:`target_key` may be added before one ``finish``.
+
+    The defaults work from ``apply`` alone (``spectrum`` is ``p``, ``multiply`` applies,
+    ``finish`` is the identity), so a new body plugs in without them, only without the
+    speed-up. An operator that overrides one stage overrides all three and both keys.
     """
 
     target: Grid
@@ -43,6 +56,38 @@ class GridOperator(ABC):
 
     def __call__(self, p: np.ndarray) -> np.ndarray:
         return self.apply(p)
+
+    def spectrum(self, p: np.ndarray) -> np.ndarray:
+        """Source-side transform of the pressure ``p`` (``source.shape``, MPa); default ``p``."""
+        return p
+
+    def multiply(self, s: np.ndarray) -> np.ndarray:
+        """The operator on a :meth:`spectrum` (a new array, which callers may add to in place);
+        default: the displacement ``apply(s)`` (mm)."""
+        return np.array(self.apply(s), dtype=float)
+
+    def finish(self, a: np.ndarray) -> np.ndarray:
+        """Displacement on the target grid (mm) from a (sum of) :meth:`multiply` result(s);
+        ``a`` may be overwritten. Default: ``a`` (already a displacement)."""
+        return a
+
+    @property
+    def source_key(self) -> tuple:
+        """Operators with equal keys give equal :meth:`spectrum` for equal pressure arrays.
+        Values only (never ``id``); default: the class and the source grid."""
+        return ("apply", type(self), self.source)
+
+    @property
+    def target_key(self) -> tuple:
+        """Operators with equal keys accept the sum of their :meth:`multiply` results in one
+        :meth:`finish`. Default: the class and the target grid."""
+        return ("apply", type(self), self.target)
+
+    @property
+    def nbytes(self) -> int:
+        """Bytes the operator holds, for callers' cache budgets. The default estimates a
+        zero-padded half-spectrum of the pair; operators that know better say so."""
+        return 8 * (self.target.nx + self.source.nx) * (self.target.ny + self.source.ny)
 
     @property
     def flops_estimate(self) -> float:

@@ -1,9 +1,7 @@
 """The elastic half-space: Boussinesq point compliance, Love cell blocks, FFT products."""
 from __future__ import annotations
 
-from collections import OrderedDict
 from dataclasses import dataclass, field
-from functools import lru_cache
 
 import numpy as np
 import scipy.fft as sfft
@@ -12,6 +10,7 @@ from ..analytic.halfspace import boussinesq_point, love_far_field, love_rectangl
 from ..grid import Grid
 from ..material import Material
 from .base import GridOperator, InfluenceProvider
+from .cache import BoundedCache
 
 
 def _pairwise(targets: np.ndarray, sources: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -21,16 +20,14 @@ def _pairwise(targets: np.ndarray, sources: np.ndarray) -> tuple[np.ndarray, np.
 
 
 #: Offset tables up to this many entries (a 100 x 100 patch's self table: 4e4) are cached.
-_TABLE_CACHE_ENTRIES = 40_000
+TABLE_CACHE_ENTRIES = 40_000
+#: Bound of each half-space's cache of offset tables and interpolation matrices, bytes
+#: (about 200 of the largest cached tables).
+TABLE_CACHE_BYTES = 64e6
+#: Bound of each half-space's separated operators waiting for their transposed request, bytes.
+SEPARATED_CACHE_BYTES = 64e6
 
 
-#: Separated operators waiting for their transposed request (first in, first out, within
-#: a memory budget: they are also held by the caller that asked for them).
-_SEPARATED: OrderedDict = OrderedDict()
-_SEPARATED_BYTES = 64e6
-
-
-@lru_cache(maxsize=256)
 def _love_table(E_star: float, h: float, ox0: int, oy0: int, mx: int, my: int) -> np.ndarray:
     """Love's kernel on the lattice offsets ``(oy0 + m, ox0 + n) h``, shape (my, mx), mm/MPa."""
     ox = (ox0 + np.arange(mx)) * h
@@ -48,10 +45,26 @@ class HalfSpace(InfluenceProvider):
     ----------
     material : Material
         E (MPa) and nu of the body; only ``E* = E / (1 - nu^2)`` matters.
+
+    Attributes
+    ----------
+    tables : BoundedCache
+        This half-space's read-only arrays that recur across patches: Love offset tables
+        (key: ``h`` and the offset window) and Chebyshev interpolation matrices (key: the
+        grid's box, node count, cells and ``h``); at most ``TABLE_CACHE_BYTES``.
+    pending : BoundedCache
+        Separated operators waiting for their transposed request (key: ``target``,
+        ``source``, ``rtol``), taken out when it comes; at most ``SEPARATED_CACHE_BYTES``.
+        Neither is part of the provider's value (equality, hash, repr).
     """
 
     material: Material
     kind: str = field(default="halfspace", init=False)
+    tables: BoundedCache = field(default_factory=lambda: BoundedCache(TABLE_CACHE_BYTES, name="halfspace tables"),
+                                 init=False, repr=False, compare=False)
+    pending: BoundedCache = field(default_factory=lambda: BoundedCache(SEPARATED_CACHE_BYTES,
+                                                                       name="halfspace separated"),
+                                  init=False, repr=False, compare=False)
 
     @property
     def E_star(self) -> float:
@@ -72,11 +85,17 @@ class HalfSpace(InfluenceProvider):
         ti, tj = target.offset_in(source)
         ox0, oy0 = ti - (source.nx - 1), tj - (source.ny - 1)
         mx, my = target.nx + source.nx - 1, target.ny + source.ny - 1
-        if mx * my <= _TABLE_CACHE_ENTRIES:
-            # patch-sized tables recur (every patch of the same shape has the same self
-            # table): kept, read-only, in a small cache
-            return _love_table(self.E_star, float(source.h), ox0, oy0, mx, my), ox0, oy0
-        return _love_table.__wrapped__(self.E_star, float(source.h), ox0, oy0, mx, my), ox0, oy0
+        h = float(source.h)
+        if mx * my > TABLE_CACHE_ENTRIES:
+            return _love_table(self.E_star, h, ox0, oy0, mx, my), ox0, oy0
+        # patch-sized tables recur (every patch of the same shape has the same self table):
+        # kept, read-only, in this half-space's bounded cache (``h`` exact: a table is only
+        # reused for the very cell size it was made for)
+        key = ("love", h, ox0, oy0, mx, my)
+        table = self.tables.get(key)
+        if table is None:
+            table = self.tables.put(key, _love_table(self.E_star, h, ox0, oy0, mx, my), 8 * mx * my)
+        return table, ox0, oy0
 
     def grid_matrix(self, target: Grid, source: Grid | None = None) -> np.ndarray:
         source = target if source is None else source
@@ -101,18 +120,16 @@ class HalfSpace(InfluenceProvider):
         from .separated import SeparatedOperator, plan
 
         # the micro step asks for (k, l) and then (l, k): the second is the first transposed
-        back = _SEPARATED.pop((self.E_star, source, target, rtol), None)
+        back = self.pending.pop((source, target, rtol))
         if back is not None:
             return back.transposed()
         sep = plan(target, source, rtol)
         if sep is None:
             return None
         E_star, h = self.E_star, float(source.h)
-        op = SeparatedOperator(target, source, lambda dx, dy: love_far_field(dx, dy, h, E_star, sep.order), sep)
-        _SEPARATED[(self.E_star, target, source, rtol)] = op
-        while len(_SEPARATED) > 1 and sum(o.nbytes for o in _SEPARATED.values()) > _SEPARATED_BYTES:
-            _SEPARATED.popitem(last=False)
-        return op
+        op = SeparatedOperator(target, source, lambda dx, dy: love_far_field(dx, dy, h, E_star, sep.order), sep,
+                               cache=self.tables)
+        return self.pending.put((target, source, rtol), op, op.nbytes)
 
     def point_operator(self, targets, sources, *, exclude=None, rtol: float = 1e-6):
         """As :meth:`InfluenceProvider.point_operator`; above ``FAST_ENTRIES`` pairs an
@@ -149,13 +166,22 @@ class ConvolutionOperator(GridOperator):
         a *= self._khat
         return self.finish(a)
 
-    # The three stages of apply, for callers that sum the products of many sources onto
-    # one target: operators with the same ``fft_shape`` and source shape accept each
-    # other's spectra, and sums of ``multiply`` results go through one ``finish``.
+    # The three stages of apply (GridOperator), for callers that sum the products of many
+    # sources onto one target: operators with the same ``fft_shape`` and source shape accept
+    # each other's spectra, and sums of ``multiply`` results go through one ``finish``.
     @property
     def fft_shape(self) -> tuple[int, int]:
         """Shape of the zero-padded transform."""
         return self._shape
+
+    @property
+    def source_key(self) -> tuple:
+        return ("fft", self._shape, self.source.shape)
+
+    @property
+    def target_key(self) -> tuple:
+        # finish keeps the window of the target behind source-shaped padding
+        return ("fft", self._shape, self.source.shape, self.target)
 
     def spectrum(self, p: np.ndarray) -> np.ndarray:
         """Half-spectrum of the zero-padded source pressure (``source.shape``)."""
@@ -184,3 +210,4 @@ class ConvolutionOperator(GridOperator):
     def flops_estimate(self) -> float:
         n = self._shape[0] * self._shape[1]
         return 5.0 * n * np.log2(max(n, 2))
+

@@ -31,12 +31,12 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from functools import lru_cache
 
 import numpy as np
 
 from ..grid import Grid
 from .base import GridOperator
+from .cache import BoundedCache
 
 #: Largest number of Chebyshev nodes per coordinate; pairs needing more are not separated.
 Q_MAX = 20
@@ -133,10 +133,15 @@ def plan(target: Grid, source: Grid, rtol: float, *, q_max: int = Q_MAX) -> Sepa
     return SeparationPlan(q=(qtx, qty, qsx, qsy), order=order)
 
 
-@lru_cache(maxsize=1024)
-def _nodes(lo: float, hi: float, q: int, n: int, h: float) -> tuple[np.ndarray, np.ndarray]:
+def _nodes(lo: float, hi: float, q: int, n: int, h: float,
+           cache: BoundedCache | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Nodes of one coordinate and the interpolation matrix from them to the ``n`` cells
-    (read-only; every patch recurs in many pairs, so they are cached)."""
+    (read-only; every patch recurs in many pairs, so they are kept in ``cache`` when given)."""
+    key = ("chebyshev", lo, hi, q, n, h)
+    if cache is not None:
+        hit = cache.get(key)
+        if hit is not None:
+            return hit
     cells = lo + h * np.arange(n)
     if q >= n:
         nodes, S = cells, np.eye(n)
@@ -145,6 +150,8 @@ def _nodes(lo: float, hi: float, q: int, n: int, h: float) -> tuple[np.ndarray, 
         S = lagrange_matrix(nodes, cells)
     nodes.setflags(write=False)
     S.setflags(write=False)
+    if cache is not None:
+        cache.put(key, (nodes, S), nodes.nbytes + S.nbytes)
     return nodes, S
 
 
@@ -158,18 +165,26 @@ class SeparatedOperator(GridOperator):
         Displacement per unit pressure on a source cell (mm/MPa) at offsets
         ``target - source`` (arrays of equal shape), accurate to ``sep``'s tolerance.
     sep : SeparationPlan
+    cache : BoundedCache, optional
+        Where the interpolation matrices of each grid are kept (the provider's: every patch
+        recurs in many pairs); none by default.
+
+    The three stages of :meth:`apply` are the contract's :meth:`spectrum` (source node values
+    ``S_s^T p``), :meth:`multiply` (``K m``) and :meth:`finish` (``S_t phi``); keys identify the
+    node sets by value (grid and node counts).
     """
 
-    def __init__(self, target: Grid, source: Grid, kernel, sep: SeparationPlan):
+    def __init__(self, target: Grid, source: Grid, kernel, sep: SeparationPlan, *,
+                 cache: BoundedCache | None = None):
         self.target, self.source = target, source
         self.plan = sep
         qtx, qty, qsx, qsy = sep.q
         tx0, tx1, ty0, ty1 = _box(target)
         sx0, sx1, sy0, sy1 = _box(source)
-        ntx, self._Stx = _nodes(tx0, tx1, qtx, target.nx, target.h)
-        nty, self._Sty = _nodes(ty0, ty1, qty, target.ny, target.h)
-        nsx, self._Ssx = _nodes(sx0, sx1, qsx, source.nx, source.h)
-        nsy, self._Ssy = _nodes(sy0, sy1, qsy, source.ny, source.h)
+        ntx, self._Stx = _nodes(tx0, tx1, qtx, target.nx, target.h, cache)
+        nty, self._Sty = _nodes(ty0, ty1, qty, target.ny, target.h, cache)
+        nsx, self._Ssx = _nodes(sx0, sx1, qsx, source.nx, source.h, cache)
+        nsy, self._Ssy = _nodes(sy0, sy1, qsy, source.ny, source.h, cache)
         # K[(ty, tx), (sy, sx)] = kernel(tx - sx, ty - sy)
         dx = ntx[:, None] - nsx[None, :]                      # (qtx, qsx)
         dy = nty[:, None] - nsy[None, :]                      # (qty, qsy)
@@ -194,14 +209,15 @@ class SeparatedOperator(GridOperator):
 
     @property
     def source_key(self) -> tuple:
-        """Identifies the source-side nodes: operators with equal keys share :meth:`moments`."""
-        return (self.source, id(self._Ssx), id(self._Ssy))
+        """Identifies the source-side nodes (the grid and its node counts, which fix them):
+        operators with equal keys share :meth:`moments`."""
+        return ("chebyshev", self.source, self.plan.q[2], self.plan.q[3])
 
     @property
     def target_key(self) -> tuple:
         """Identifies the target-side nodes: node displacements of operators with equal keys
         add up before one :meth:`expand`."""
-        return (self.target, id(self._Stx), id(self._Sty))
+        return ("chebyshev", self.target, self.plan.q[0], self.plan.q[1])
 
     def moments(self, p: np.ndarray) -> np.ndarray:
         """Pressure on the source grid (ny, nx[, m]) -> node values ``S_s^T p``, (q_s[, m])."""
@@ -219,6 +235,16 @@ class SeparatedOperator(GridOperator):
         if phi.ndim == 1:
             return self._Sty @ phi.reshape(qy, qx) @ self._Stx.T
         return np.einsum("ya,abm,xb->yxm", self._Sty, phi.reshape(qy, qx, -1), self._Stx)
+
+    # the contract's stages (GridOperator): moments, node product, expansion
+    def spectrum(self, p: np.ndarray) -> np.ndarray:
+        return self.moments(p)
+
+    def multiply(self, s: np.ndarray) -> np.ndarray:
+        return self.node_product(s)
+
+    def finish(self, a: np.ndarray) -> np.ndarray:
+        return self.expand(a)
 
     def apply(self, p: np.ndarray) -> np.ndarray:
         p = np.asarray(p, dtype=float)

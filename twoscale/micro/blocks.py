@@ -196,6 +196,11 @@ class Coupling:
       onto one target needs one inverse transform (per sweep about ``2N`` transforms per
       class instead of ``4N(N-1)``).
 
+    Both use the operators' three stages of the contract
+    (:class:`~twoscale.influence.base.GridOperator`: ``spectrum`` once per block vector and
+    ``source_key``, ``multiply`` per pair, one ``finish`` per ``target_key``); an operator
+    with only ``apply`` takes them too, through the contract's defaults.
+
     The last two use the translation-invariant part of the provider's kernel
     (:meth:`~twoscale.influence.base.InfluenceProvider.split`); a smooth low-rank remainder
     (the finite block's correction) is added per target from the sum of the sources'
@@ -228,14 +233,14 @@ class Coupling:
         self.separated_rtol = separated_rtol
         self._base, self._correction = provider.split()
         self.separated_pairs = 0
-        self._ops: dict = {}
+        self._ops: dict = {}          # dense blocks (arrays)
         self._fft: dict = {}
         self._bytes = 0.0
         self._fft_bytes = 0.0
         self._routes: dict = {}
         self._route_bytes = 0.0
-        # per block vector: Chebyshev moments, spectra, correction coefficients (see _per_vector)
-        self._moment_cache: dict = {}
+        # per block vector: source-side stages (spectra, Chebyshev moments) and correction
+        # coefficients (see _per_vector)
         self._spectra: dict = {}
         self._coefficients: dict = {}
 
@@ -246,14 +251,12 @@ class Coupling:
     def replace(self, k: int, patch: Patch) -> None:
         """Swap patch ``k`` (after growth) and drop every operator that involves it."""
         self.patches[k] = patch
-        for cache in ("_moment_cache", "_spectra", "_coefficients"):
-            setattr(self, cache, {key: val for key, val in getattr(self, cache).items() if key[0] != k})
+        self._spectra = {key: val for key, val in self._spectra.items() if key[0] != k}
+        self._coefficients = {key: val for key, val in self._coefficients.items() if key[0] != k}
         for key in [key for key in self._routes if k in key]:
             self._route_bytes -= self._routes.pop(key)[2]
         for key in [key for key in self._ops if k in key]:
-            op = self._ops.pop(key)
-            if isinstance(op, np.ndarray):
-                self._bytes -= op.nbytes
+            self._bytes -= self._ops.pop(key).nbytes
         for key in [key for key in self._fft if k in key]:
             self._fft_bytes -= self._fft.pop(key)[1]
 
@@ -271,34 +274,35 @@ class Coupling:
             self.separated_pairs += op is not None
         if op is None:
             op = self.provider.grid_operator(gk, gl)
-        # an FFT operator holds about a half-spectrum of complex numbers
-        size = float(getattr(op, "nbytes", 8.0 * (gk.nx + gl.nx) * (gk.ny + gl.ny)))
+        size = float(op.nbytes)
         if self._fft_bytes + self._route_bytes + size <= self.cache_bytes:
             self._fft[(k, l)] = (op, size)
             self._fft_bytes += size
         return op
 
-    def _operator(self, k: int, l: int):
-        # dense pairs are cached in _ops; FFT pairs in full_operator's cache
-        op = self._ops.get((k, l))
-        if op is not None:
-            return op
+    def _dense(self, k: int, l: int) -> np.ndarray | None:
+        """The dense block ``A_kl`` on the owned cells when the pair is small enough and the
+        budget allows (cached in ``_ops``), else ``None`` (FFT pairs: :meth:`full_operator`)."""
+        M = self._ops.get((k, l))
+        if M is not None:
+            return M
         pk, pl = self.patches[k], self.patches[l]
         nk, nl = int(pk.owned.sum()), int(pl.owned.sum())
         if nk * nl <= self.dense_max_entries and self._bytes + 8.0 * nk * nl <= self.cache_bytes:
             ik = np.flatnonzero(pk.owned.ravel())
             il = np.flatnonzero(pl.owned.ravel())
-            op = self.provider.grid_matrix(pk.grid, pl.grid)[np.ix_(ik, il)]
-            self._bytes += op.nbytes
-            self._ops[(k, l)] = op
-            return op
-        return self.full_operator(k, l)
+            M = self.provider.grid_matrix(pk.grid, pl.grid)[np.ix_(ik, il)]
+            self._bytes += M.nbytes
+            self._ops[(k, l)] = M
+            return M
+        return None
 
     def apply(self, k: int, l: int, v: np.ndarray) -> np.ndarray:
         """``A_kl v`` for a block-``l`` vector (n_l,) or (n_l, m); returns block-``k`` values (mm)."""
-        op = self._operator(k, l)
-        if isinstance(op, np.ndarray):
-            return op @ v
+        M = self._dense(k, l)
+        if M is not None:
+            return M @ v
+        op = self.full_operator(k, l)
         pk, pl = self.patches[k], self.patches[l]
         if v.ndim == 1:
             return op.apply(scatter(pl, v))[pk.owned]
@@ -316,7 +320,7 @@ class Coupling:
         out = {"dense": 0, "fft": 0, "separated": 0, "spectral": 0}
         for key, (kind, _, _) in self._routes.items():
             if kind == "plain":
-                kind = "dense" if isinstance(self._ops.get(key), np.ndarray) else "fft"
+                kind = "dense" if key in self._ops else "fft"
             out[kind] += 1
         out["separated_rtol"] = self.separated_rtol
         return out
@@ -340,10 +344,8 @@ class Coupling:
                 kind = "spectral"
                 big = lambda g: g.subgrid(0, 0, size_class(g.nx), size_class(g.ny))
                 op = self._base.grid_operator(big(pk.grid), big(pl.grid))
-                if not all(hasattr(op, a) for a in ("spectrum", "multiply", "finish")):
-                    op = None
-            size = float(getattr(op, "nbytes", 0.0))
-            if op is not None and self._route_bytes + self._fft_bytes + size <= self.cache_bytes:
+            size = float(op.nbytes)
+            if self._route_bytes + self._fft_bytes + size <= self.cache_bytes:
                 route = (kind, op, size)
                 self._route_bytes += size
                 self.separated_pairs += kind == "separated"
@@ -363,8 +365,9 @@ class Coupling:
         pk = self.patches[k]
         pick = (lambda a: a) if whole else (lambda a: a[pk.owned])
         total = None
-        groups: dict = {}
-        spectral: dict = {}
+        # per route, the sum of multiply results per target_key (routes kept apart, and in this
+        # order, so that the sums are added in the same order whatever the operators)
+        staged: dict = {"separated": {}, "spectral": {}}
         smooth = []
         for l in sources:
             v = values[l]
@@ -379,22 +382,15 @@ class Coupling:
                 total = term if total is None else total + term
                 continue
             smooth.append(l)
-            if kind == "spectral":
-                term = op.multiply(self._spectrum(l, op, v))
-                key = op.source.shape            # sources of one class share the output window
-                if key in spectral:
-                    spectral[key][1] += term
-                else:
-                    spectral[key] = [op, term]
-                continue
-            phi = op.node_product(self._moments(l, op, v))
-            key = op.target_key
+            term = op.multiply(self._spectrum(l, op, v))
+            groups, key = staged[kind], op.target_key
             if key in groups:
-                groups[key][1] += phi
+                groups[key][1] += term
             else:
-                groups[key] = [op, phi]
-        parts = [pick(op.expand(phi)) for op, phi in groups.values()]
-        parts += [pick(op.finish(acc)[:pk.grid.ny, :pk.grid.nx]) for op, acc in spectral.values()]
+                groups[key] = [op, term]
+        # spectral targets are enlarged to their size class: the patch is their corner
+        parts = [pick(op.finish(acc)[:pk.grid.ny, :pk.grid.nx])
+                 for groups in staged.values() for op, acc in groups.values()]
         if self._correction is not None and smooth:
             coeffs = [self._coefficient(l, values[l]) for l in smooth]
             c = np.zeros(max(len(p) for p in coeffs))
@@ -418,16 +414,15 @@ class Coupling:
         return out
 
     def _spectrum(self, l: int, op, v: np.ndarray) -> np.ndarray:
+        """``op.spectrum`` of block ``l``'s vector ``v`` on the operator's source grid (the
+        patch, or the patch enlarged to its size class: the patch is its corner), shared by
+        the operators with the same ``source_key``."""
         def compute():
             p = np.zeros(op.source.shape)
             pl = self.patches[l]
             p[:pl.grid.ny, :pl.grid.nx][pl.owned] = v
             return op.spectrum(p)
-        return self._per_vector(self._spectra, (l, op.fft_shape), v, compute)
-
-    def _moments(self, l: int, op, v: np.ndarray) -> np.ndarray:
-        return self._per_vector(self._moment_cache, (l,) + op.source_key, v,
-                                lambda: op.moments(scatter(self.patches[l], v)))
+        return self._per_vector(self._spectra, (l, op.source_key), v, compute)
 
     def _coefficient(self, l: int, v: np.ndarray) -> np.ndarray:
         return self._per_vector(self._coefficients, (l,), v, lambda: self._correction.coefficients(

@@ -179,12 +179,9 @@ class FarFieldCoupling(Coupling):
             self._F = np.zeros((n, m))
             self._C = np.repeat(self._centres[:, None, :], m, axis=1)
             self._seen = [None] * n
-            self._ids = np.zeros(n, dtype=np.int64)
-        # identity test by id(): the vectors seen are kept alive in _seen, so an id
-        # cannot be reused by a new vector while it is cached
-        ids = np.fromiter(map(id, values), dtype=np.int64, count=n)
-        stale = np.flatnonzero(ids != self._ids)
-        self._ids = ids
+        # the sweeps replace a block's vector when it changes (never modify it): a block is
+        # stale when its vector is not the very object seen last time
+        stale = [l for l, (v, seen) in enumerate(zip(values, self._seen)) if v is not seen and v is not None]
         for l in stale:
             v = values[l].reshape(len(values[l]), -1)
             h2 = self.patches[l].grid.h ** 2
