@@ -104,7 +104,7 @@ def test_patch_members_must_start_with_its_asperity():
 @pytest.mark.parametrize("layout,spacing", [("two", 0.1), ("seven", 0.3), ("seven", 0.5)])
 def test_merged_solve_matches_one_block_per_asperity_and_the_reference(layout, spacing):
     case = paper_case(layout, spacing)
-    kw = dict(h=case.h, penetration=case.penetration, tol=1e-8)
+    kw = dict(h=case.h, penetration=case.penetration, tol=1e-8, iteration="block-gs")
     merged = solve_twoscale(HS, case.asperities, **kw)
     paper = solve_twoscale(HS, case.asperities, merge=False, **kw)
     assert merged.converged and paper.converged
@@ -130,7 +130,7 @@ def test_result_json_names_the_merged_asperities_from_one():
     # a merged pair (tips 0.6 mm apart, contact radius ~1 mm) and a far sphere
     # (mirror-symmetric about x = 0.05, between two cell columns, so ownership has no ties)
     asps = [Asperity(-0.25, 0.0, 0.0, 5.0), Asperity(0.35, 0.0, 0.0, 5.0), Asperity(0.05, 12.0, 0.0, 5.0)]
-    res = solve_twoscale(HS, asps, h=0.1, penetration=0.2)
+    res = solve_twoscale(HS, asps, h=0.1, penetration=0.2, iteration="block-gs")
     assert res.converged and res.extra["merged_patches"] == [[0, 1]]
     scene = Scene(material=MAT, asperities=asps, penetration=0.2, h=0.1)
     assert result_to_dict(res, scene)["merged_patches"] == [[1, 2]]

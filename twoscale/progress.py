@@ -102,3 +102,59 @@ def track(items: Iterable[T], *, total: int | None = None, label: str = "", quie
         for item in items:
             yield item
             bar.update()
+
+
+class StatusLine:
+    """One line on stderr that says what a long solve is doing, redrawn in place:
+    ``solving: micro step, two-level: sweep 5, residual 1.2e-04  12.3 s``.
+
+    Call it with a text (``status(text)``) whenever the work moves on; it draws only once
+    the work is older than ``delay`` seconds, at most every ``interval`` seconds, and never
+    when ``quiet`` or when the stream is not a terminal. :meth:`close` clears the line.
+
+    Parameters
+    ----------
+    label : str, default "solving"
+    quiet : bool, default False
+    stream : text stream, default ``sys.stderr``
+    delay : float, default 3.0
+        Seconds before the first drawing.
+    interval : float, default 0.5
+        Seconds between two drawings.
+    clock : callable, default ``time.monotonic``
+    """
+
+    def __init__(self, *, label: str = "solving", quiet: bool = False, stream: TextIO | None = None,
+                 delay: float = 3.0, interval: float = 0.5, clock=time.monotonic) -> None:
+        self.label = label
+        self.stream = sys.stderr if stream is None else stream
+        isatty = getattr(self.stream, "isatty", None)
+        self.enabled = not quiet and bool(isatty and isatty())
+        self.delay, self.interval, self.clock = delay, interval, clock
+        self.start = clock()
+        self._last = -float("inf")
+        self._width = 0
+
+    def __call__(self, text: str) -> None:
+        if not self.enabled:
+            return
+        now = self.clock()
+        if now - self.start < self.delay or now - self._last < self.interval:
+            return
+        self._last = now
+        line = f"{self.label}: {text}  {now - self.start:.1f} s"
+        self.stream.write("\r" + line.ljust(self._width))
+        self.stream.flush()
+        self._width = len(line)
+
+    def close(self) -> None:
+        if self.enabled and self._width:
+            self.stream.write("\r" + " " * self._width + "\r")
+            self.stream.flush()
+            self._width = 0
+
+    def __enter__(self) -> "StatusLine":
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()

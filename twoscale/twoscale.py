@@ -136,8 +136,10 @@ def solve_twoscale(provider: InfluenceProvider, asperities: Sequence[Asperity], 
     ContactResult
         ``method="twoscale"``; one field per block (a merged block's patches give one).
         ``extra`` holds "macro_forces" (N), "local_penetrations" (mm), "p0" (eq. 7
-        pressure on each field's grid, MPa),
-        "p0_change_percent" = ``100 ||p0 - p|| / ||p||``, "patch_growths", and
+        pressure on each field's grid, MPa; None when not computed, see ``p0``),
+        "p0_change_percent" = ``100 ||p0 - p|| / ||p||`` (or None),
+        "micro_choice" (the policy's choice, reason and estimates), "micro_attempts" (every
+        strategy run, in order), "micro_strategy" (the one that gave the answer), "patch_growths", and
         "merged_patches" (the asperities of each merged block, 0-based).
     """
     _check(asperities, h, penetration, total_load, tilt, tol, max_sweeps)
@@ -146,6 +148,8 @@ def solve_twoscale(provider: InfluenceProvider, asperities: Sequence[Asperity], 
     laws = [law_for(a, provider.material) for a in asperities] if laws is None else laws
     tips = np.array([[a.x, a.y] for a in asperities], dtype=float)
     z = np.array([a.z for a in asperities], dtype=float)
+    if progress is not None:
+        progress(f"macro step, {len(asperities)} asperities")
     macro = solve_macro(provider, tips, z, laws, penetration=penetration, total_load=total_load,
                         tilt=tilt, pivot=pivot, tol=macro_tol, max_iter=macro_max_iter,
                         dense_max=macro_dense_max, operator_rtol=macro_operator_rtol)
@@ -182,9 +186,11 @@ def _result(asperities, macro, micro, plan, h, timings) -> ContactResult:
     fields = tuple(PressureField(pt.grid, p, pt.owner, g)
                    for pt, p, g in zip(micro.patches, micro.pressures, micro.gaps))
     p = np.concatenate([v.ravel() for v in micro.pressures]) if fields else np.zeros(0)
-    p0 = np.concatenate([v.ravel() for v in micro.initial]) if fields else np.zeros(0)
-    norm = float(np.linalg.norm(p))
-    change = 100.0 * float(np.linalg.norm(p0 - p)) / norm if norm > 0 else 0.0
+    change = None
+    if micro.initial:
+        p0 = np.concatenate([v.ravel() for v in micro.initial])
+        norm = float(np.linalg.norm(p))
+        change = 100.0 * float(np.linalg.norm(p0 - p)) / norm if norm > 0 else 0.0
     messages = [m for m in (("macro step: " + macro.message) if not macro.converged else "", micro.message) if m]
     return ContactResult(
         method="twoscale", fields=fields, penetration=micro.penetration, tilt=micro.tilt,
@@ -196,7 +202,7 @@ def _result(asperities, macro, micro, plan, h, timings) -> ContactResult:
         residuals={"macro": tuple(macro.residuals), "micro": tuple(micro.history)},
         timings_s=timings,
         extra={"macro_forces": np.array(macro.forces), "local_penetrations": np.array(macro.local_penetrations),
-               "p0_change_percent": change, "p0": micro.initial, "patch_growths": int(micro.growths),
+               "p0_change_percent": change, "p0": micro.initial if micro.initial else None, "patch_growths": int(micro.growths),
                "macro_converged": bool(macro.converged), "macro_interaction": macro.interaction,
                "macro_operator_error": macro.operator_error, "micro_iteration": _iteration_text(plan),
                "micro_strategy": plan.attempts[-1].iteration if plan.attempts else plan.choice.iteration,

@@ -71,6 +71,13 @@ class GridOperator(ABC):
         ``a`` may be overwritten. Default: ``a`` (already a displacement)."""
         return a
 
+    def single_precision(self) -> "GridOperator":
+        """The same operator computing in single precision where that is cheaper (e.g.
+        float32 FFTs), for the first iterations of a solve that finishes in double
+        precision (:func:`twoscale.reference.cg.solve_cg` ``precision="mixed"``); it
+        takes and returns float64 arrays. Default: ``self`` (no cheaper variant)."""
+        return self
+
     @property
     def source_key(self) -> tuple:
         """Operators with equal keys give equal :meth:`spectrum` for equal pressure arrays.

@@ -191,6 +191,11 @@ class ConvolutionOperator(GridOperator):
         a = sfft.rfft(p, n=mx, axis=1)
         return sfft.fft(a, n=my, axis=0, overwrite_x=True)
 
+    def single_precision(self) -> "_SingleConvolution":
+        """float32 FFTs with the same kernel (about 2.5x cheaper on large grids; ~1e-7
+        relative rounding)."""
+        return _SingleConvolution(self)
+
     def multiply(self, spectrum: np.ndarray) -> np.ndarray:
         """Kernel times a source spectrum (a new array)."""
         return self._khat * spectrum
@@ -211,3 +216,20 @@ class ConvolutionOperator(GridOperator):
         n = self._shape[0] * self._shape[1]
         return 5.0 * n * np.log2(max(n, 2))
 
+
+class _SingleConvolution(GridOperator):
+    """A :class:`ConvolutionOperator` computed with float32 FFTs (float64 in and out)."""
+
+    def __init__(self, parent: "ConvolutionOperator"):
+        self.target, self.source = parent.target, parent.source
+        self._shape = parent.fft_shape
+        self._khat = parent._khat.astype(np.complex64)
+
+    def apply(self, p: np.ndarray) -> np.ndarray:
+        my, mx = self._shape
+        a = sfft.rfft(np.asarray(p, dtype=np.float32), n=mx, axis=1)
+        a = sfft.fft(a, n=my, axis=0, overwrite_x=True)
+        a *= self._khat
+        sy, sx = self.source.ny - 1, self.source.nx - 1
+        a = sfft.ifft(a, axis=0, overwrite_x=True)[sy:sy + self.target.ny]
+        return sfft.irfft(a, n=mx, axis=1)[:, sx:sx + self.target.nx].astype(np.float64)

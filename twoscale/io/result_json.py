@@ -118,6 +118,10 @@ def result_to_dict(result, scene: Scene, *, method: str | None = None) -> dict:
                         "operator_error": None if err is None else _num(err)}
     if "micro_iteration" in result.extra:
         out["micro_iteration"] = result.extra["micro_iteration"]
+    if "micro_choice" in result.extra:
+        # what the policy chose and why, and every attempt the driver made, in order
+        out["micro_choice"] = _plain(dict(result.extra["micro_choice"]))
+        out["micro_attempts"] = [_plain(dict(a)) for a in result.extra["micro_attempts"]]
     if "coupling" in result.extra:
         out["coupling"] = {k: _num(v) if v is not None else None for k, v in result.extra["coupling"].items()}
     if "merged_patches" in result.extra:

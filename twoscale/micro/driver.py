@@ -31,6 +31,9 @@ from .union import box_of, solve_union
 #: Sweeps a two-level attempt chosen by the policy gets (it needs 5-10 where it works)
 #: before the next strategy is tried.
 TWO_LEVEL_SWEEPS = 20
+#: The union CG's KKT residual over the block iterations' tolerance (a relative change of the
+#: pressure between sweeps): at the default 1e-6 the CG stops at the reference solver's 1e-8.
+UNION_TOL_FACTOR = 1e-2
 
 
 @dataclass(frozen=True)
@@ -119,17 +122,21 @@ def run_micro(provider: InfluenceProvider, asperities: Sequence[Asperity], *, ma
     order = _order(picked, total_load is not None and not macro.safe_path)
     result = None
     for iteration, far_tol, sweeps_cap in order:
+        stage = f"micro step, {iteration}" + (f" (far_tol {far_tol:g})" if far_tol and far_tol > EXACT_FAR_TOL else "")
+        monitor = None
         if progress is not None:
-            progress(f"micro: {iteration}" + (f" (far_tol {far_tol})" if far_tol else ""))
+            progress(stage)
+            unit = "CG iteration" if iteration == "union-cg" else "sweep"
+            monitor = (lambda k, r, _s=stage, _u=unit: progress(f"{_s}: {_u} {k}, residual {r:.1e}"))
         t = time.perf_counter()
         if iteration == "union-cg":
-            result = _union(provider, asperities, patches, common, tol, p0)
+            result = _union(provider, asperities, patches, common, tol, p0, monitor)
         else:
             cap = min(max_sweeps, sweeps_cap) if sweeps_cap else max_sweeps
             result = solve_micro(provider, asperities, max_sweeps=cap,
                                  far_tol=far_tol if iteration == "two-level" or far_tol else None,
                                  coarse=iteration == "two-level", sizing_approaches=_sizing(macro, far_tol),
-                                 **common)
+                                 monitor=monitor, **common)
         attempts.append(Attempt(iteration, far_tol, bool(result.converged), int(result.sweeps),
                                 time.perf_counter() - t, result.message))
         if result.converged:
@@ -173,7 +180,7 @@ def _sizing(macro, far_tol):
     return delta + 0.2 * max(float(delta.max()), 0.0)
 
 
-def _union(provider, asperities, patches, common, tol, p0) -> MicroResult:
+def _union(provider, asperities, patches, common, tol, p0, monitor=None) -> MicroResult:
     """The union CG as a :class:`MicroResult` (one patch: the box)."""
     start = start_grid = None
     initial = None
@@ -183,21 +190,22 @@ def _union(provider, asperities, patches, common, tol, p0) -> MicroResult:
         start_grid, start = initial_on_patches(provider, asperities, patches, common)
         initial = start
     out = solve_union(provider, asperities, patches, h=common["h"], anchor=common.get("anchor", (0.0, 0.0)),
-                      forces=common["forces"], penetration=None if common["total_load"] is not None
+                      penetration=None if common["total_load"] is not None
                       else common["penetration"], total_load=common["total_load"], free_tilt=common["free_tilt"],
-                      pivot=common["pivot"], tol=tol, start=start, start_grid=start_grid)
+                      pivot=common["pivot"], tol=UNION_TOL_FACTOR * tol, start=start, start_grid=start_grid,
+                      monitor=monitor)
     r, field = out.result, out.result.fields[0]
     converged = bool(r.converged) and not out.on_edge
     message = r.message if not r.converged else (
         f"pressure still reaches the box's edge after {out.enlargements} enlargements" if out.on_edge else "")
-    if initial is None:
-        initial = out.start
-    else:
+    if initial is not None:
         from .union import _embed
 
-        initial = _embed(initial, start_grid, out.patch.grid)
+        initial = (_embed(initial, start_grid, out.patch.grid),)
+    else:
+        initial = ()  # eq. 7 not computed (p0=False): no p0 to report
     tilt = r.tilt if common["free_tilt"] else None
-    return MicroResult((out.patch,), (field.pressure,), (initial,), (field.gap,), float(r.penetration), tilt,
+    return MicroResult((out.patch,), (field.pressure,), initial, (field.gap,), float(r.penetration), tilt,
                        converged, message, int(out.iterations), 0, int(out.enlargements), 0,
                        tuple(r.residuals.get("gap", ())), {"box": int(out.patch.grid.size),
                                                           "products": int(out.products)},

@@ -84,7 +84,7 @@ def sweep(blocks: list[LocalBlock], coupling: Coupling, b: list, p: list, active
 
 
 def gauss_seidel(blocks: list[LocalBlock], coupling: Coupling, b: list, start: list, *,
-                 tol: float, max_sweeps: int, stop=None) -> SweepResult:
+                 tol: float, max_sweeps: int, stop=None, monitor=None) -> SweepResult:
     """Contact by block Gauss-Seidel (eq. 8), stopped by eq. 9.
 
     Parameters
@@ -101,6 +101,8 @@ def gauss_seidel(blocks: list[LocalBlock], coupling: Coupling, b: list, start: l
     stop : callable, optional
         ``stop(pressures) -> bool`` checked after each sweep; True ends the sweeps early
         (``converged=False``, message "stopped"), e.g. to enlarge a patch.
+    monitor : callable, optional
+        ``monitor(sweep, change)`` after each sweep (progress display).
     """
     p = [np.array(s, dtype=float) for s in start]
     active = [s > 0.0 for s in p]
@@ -111,6 +113,8 @@ def gauss_seidel(blocks: list[LocalBlock], coupling: Coupling, b: list, start: l
         sw = sweep(blocks, coupling, b, p, active, local_rtol=local_rtol)
         p, active = sw.pressures, sw.active
         history.append(sw.change)
+        if monitor is not None:
+            monitor(m, sw.change)
         if sw.failed:
             return SweepResult(p, active, False, m, tuple(history),
                                f"local active-set solve did not converge on blocks {list(sw.failed)}")

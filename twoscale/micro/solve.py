@@ -28,7 +28,8 @@ class MicroResult:
     ----------
     patches : tuple of Patch
     pressures : tuple of (ny, nx) arrays, MPa: final pressure on each patch's block.
-    initial : tuple of (ny, nx) arrays, MPa: eq. 7 pressures ``p0`` on the final patches.
+    initial : tuple of (ny, nx) arrays, MPa: eq. 7 pressures ``p0`` on the final patches
+        (empty when they were not computed: the union CG without ``p0``).
     gaps : tuple of (ny, nx) arrays, mm: ``z + tilt + u - d`` (``inf`` where no indenter).
     penetration : float
         Approach d, mm (given, or corrected under load control).
@@ -270,7 +271,7 @@ def solve_micro(provider: InfluenceProvider, asperities: Sequence[Asperity], *, 
                 size_from_forces: bool = True, far_tol: float | None = None,
                 sizing_approaches: np.ndarray | None = None, coarse: bool = False,
                 separated_rtol: float | None = 1e-8, merge: bool = True,
-                merge_growth: float = MERGE_GROWTH) -> MicroResult:
+                merge_growth: float = MERGE_GROWTH, monitor=None) -> MicroResult:
     """Pressure on patches from the macro forces (METHOD.md section 3).
 
     Parameters
@@ -339,6 +340,8 @@ def solve_micro(provider: InfluenceProvider, asperities: Sequence[Asperity], *, 
         acts through each asperity's resultant).
     merge_growth : float, default ``MERGE_GROWTH`` (2)
         Cells a merged grid may have over its members' grids together (>= 1).
+    monitor : callable, optional
+        ``monitor(sweep, change)`` after each sweep (progress display).
     """
     if coarse and far_tol is None:
         raise ValueError("coarse=True needs far_tol (the two-level iteration holds the far field by resultants)")
@@ -383,13 +386,14 @@ def solve_micro(provider: InfluenceProvider, asperities: Sequence[Asperity], *, 
     if coarse:
         out_tilt = (tilt if tilt is not None else (0.0, 0.0)) if (tilt is not None or free_tilt) else None
         return _solve_two_level(state, p, p0, theta, out_tilt, pivot, n_unknowns, target, tol=tol,
-                                max_sweeps=max_sweeps, max_growths=max_growths)
+                                max_sweeps=max_sweeps, max_growths=max_growths, monitor=monitor)
     while True:
         z = state.heights(theta, pivot)
         can_grow = growths < max_growths
         gs = gauss_seidel(state.blocks, state.coupling, [theta[0] - zk for zk in z], p, tol=tol,
                           max_sweeps=max(max_sweeps - sweeps, 1),
-                          stop=(lambda q: _edges_loaded(state, q)) if can_grow else None)
+                          stop=(lambda q: _edges_loaded(state, q)) if can_grow else None,
+                          monitor=None if monitor is None else (lambda m, c: monitor(sweeps + m, c)))
         sweeps += gs.sweeps
         history += gs.history
         p = gs.pressures
@@ -424,7 +428,7 @@ def solve_micro(provider: InfluenceProvider, asperities: Sequence[Asperity], *, 
 
 
 def _solve_two_level(state: _State, p: list, p0: list, theta, tilt, pivot, n_unknowns, target, *,
-                     tol: float, max_sweeps: int, max_growths: int) -> MicroResult:
+                     tol: float, max_sweeps: int, max_growths: int, monitor=None) -> MicroResult:
     """The micro step by two-level block Gauss-Seidel (:mod:`.twolevel`), with patch growth."""
     sweeps = growths = 0
     history: list = []
@@ -439,7 +443,8 @@ def _solve_two_level(state: _State, p: list, p0: list, theta, tilt, pivot, n_unk
         res = two_level(state.blocks, state.coupling, tips[[pt.asperity for pt in state.patches]],
                         lambda th: state.heights(th, pivot), p, theta, pivot=pivot, n_unknowns=n_unknowns,
                         target=target, tol=tol, max_sweeps=max(max_sweeps - sweeps, 1),
-                        stop=(lambda q: _edges_loaded(state, q)) if can_grow else None)
+                        stop=(lambda q: _edges_loaded(state, q)) if can_grow else None,
+                        monitor=None if monitor is None else (lambda m, c: monitor(sweeps + m, c)))
         sweeps += res.sweeps
         history += res.history
         p, theta = res.pressures, res.theta

@@ -72,7 +72,7 @@ def lower_near_pattern(coupling) -> sp.csr_matrix:
 
 def two_level(blocks, coupling, tips: np.ndarray, heights, p: list, theta: np.ndarray, *,
               pivot: tuple[float, float], n_unknowns: int, target, tol: float, max_sweeps: int,
-              stop=None, coarse_dense_max: int = 2000) -> TwoLevelResult:
+              stop=None, coarse_dense_max: int = 2000, monitor=None) -> TwoLevelResult:
     """Two-level block Gauss-Seidel; see the module docstring.
 
     Parameters
@@ -98,6 +98,8 @@ def two_level(blocks, coupling, tips: np.ndarray, heights, p: list, theta: np.nd
         ``stop(pressures) -> bool`` after each iteration (e.g. a loaded patch edge).
     coarse_dense_max : int, default 2000
         Coarse systems up to this many patches in contact are solved densely.
+    monitor : callable, optional
+        ``monitor(sweep, change)`` after each iteration (progress display).
     """
     patches = coupling.patches
     coarse = CoarseSpace(coupling.provider, tips, lower_near_pattern(coupling), dense_max=coarse_dense_max)
@@ -126,6 +128,8 @@ def two_level(blocks, coupling, tips: np.ndarray, heights, p: list, theta: np.nd
         changed = sw.changed or any(np.any(a != c) for a, c in zip(new_active, sw.active))
         p, active, theta = step.pressures, new_active, step.theta
         history.append(change)
+        if monitor is not None:
+            monitor(m, change)
         if change <= tol and not changed:
             return TwoLevelResult(p, active, theta, True, m, tuple(history), cg_iters, "")
         if stop is not None and stop(p):

@@ -101,7 +101,7 @@ def _initial_pressure(problem: ContactProblem, op, z: np.ndarray, B: np.ndarray,
 def solve_cg(provider: InfluenceProvider, surface: Surface, *, penetration: float | None = None,
              total_load: float | None = None, tilt: bool = False, pivot=(0.0, 0.0),
              tol: float = 1e-8, max_iter: int = 20_000, start: np.ndarray | None = None,
-             precision: str = "double") -> ContactResult:
+             precision: str = "double", monitor=None) -> ContactResult:
     """Full-grid contact by Polonsky & Keer's constrained conjugate gradient.
 
     Parameters
@@ -137,6 +137,8 @@ def solve_cg(provider: InfluenceProvider, surface: Surface, *, penetration: floa
         finish in double precision from that pressure (about 20 more iterations to 1e-8
         instead of 70-100 from scratch). The answer meets ``tol`` in double precision
         either way. The reference keeps ``"double"``: it is the classical yardstick.
+    monitor : callable, optional
+        ``monitor(iteration, residual)`` every ``MONITOR_EVERY`` iterations (progress display).
 
     Returns
     -------
@@ -166,10 +168,10 @@ def solve_cg(provider: InfluenceProvider, surface: Surface, *, penetration: floa
     if precision == "mixed" and tol < SINGLE_TOL:
         single = op.single_precision()
         p1, _, _, it0, products0, hist0, _, _ = _iterate(work, single, provider.material.E_star, SINGLE_TOL,
-                                                         max_iter, start, stall=SINGLE_STALL)
+                                                         max_iter, start, stall=SINGLE_STALL, monitor=monitor)
         start = p1.reshape(work.grid.shape)
     p, u, m, it, n_products, hist, converged, message = _iterate(work, op, provider.material.E_star, tol, max_iter,
-                                                                 start)
+                                                                 start, monitor=monitor)
     it, n_products, hist = it + it0, n_products + products0, hist0 + hist
     p, u = p.reshape(work.grid.shape), u.reshape(work.grid.shape)
     if work is not problem:
@@ -219,6 +221,9 @@ SINGLE_TOL = 1e-6
 #: The single-precision stage stops when its residual has not halved in this many iterations.
 SINGLE_STALL = 30
 
+#: Iterations between two calls of ``monitor``.
+MONITOR_EVERY = 10
+
 #: Recompute ``u = A p`` from scratch at least this often (the cheap update
 #: ``u <- s (u - tau A t)`` accumulates rounding).
 REFRESH_EVERY = 25
@@ -254,7 +259,7 @@ def _constraint_residual(p, B, target, B_scale) -> float:
 
 
 def _iterate(problem: ContactProblem, op, E_star: float, tol: float, max_iter: int, start=None,
-             stall: int = STALL_ITERATIONS):
+             stall: int = STALL_ITERATIONS, monitor=None):
     shape = problem.grid.shape
     cand = problem.candidates.ravel()
     free = ~cand  # cells without material: never loaded, never checked
@@ -283,6 +288,8 @@ def _iterate(problem: ContactProblem, op, E_star: float, tol: float, max_iter: i
             m = _gap(problem, z, u, B, on, g)
             res = max(_kkt_residual(g, on, free, scale), _constraint_residual(p, B, target, B_scale))
         hist.append(res)
+        if monitor is not None and it % MONITOR_EVERY == 0:
+            monitor(it, res)
         if res <= tol:
             return p, u, m, it, n_products, hist, True, f"KKT residual {res:.2e} <= tol after {it} iterations"
         if res < 0.5 * best:

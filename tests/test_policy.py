@@ -1,0 +1,89 @@
+"""The micro step's policy (twoscale.micro.policy) on clear cases, and the driver's record."""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from twoscale import Material
+from twoscale.indenters import Asperity
+from twoscale.influence import HalfSpace
+from twoscale.micro.patches import build_patches
+from twoscale.micro.policy import AUTO_FAR_TOL, choose, estimate_costs, fft_work
+from twoscale.micro.union import box_of
+from twoscale.twoscale import solve_twoscale
+
+MAT = Material(E=6.0, nu=0.5)
+
+
+def _patches(asps, force, d, h):
+    z = np.array([a.z for a in asps])
+    pts = build_patches(asps, h=h, forces=np.full(len(asps), force), approaches=d - z, E_star=MAT.E_star)
+    return pts, box_of(pts, h, (0.0, 0.0)).size
+
+
+def test_one_patch_is_one_local_solve():
+    pts, box = _patches([Asperity(0.0, 0.0, 0.0, 5.0)], 2.0, 0.2, 0.05)
+    c = choose(pts, box)
+    assert c.iteration == "block-gs" and c.far_tol is None and not c.by_caller
+
+
+def test_few_separated_asperities_keep_the_papers_iteration():
+    # the paper's seven spheres at d/2R = 5: patches are specks in a large box
+    R, dc = 10.0, 100.0
+    asps = [Asperity(0.0, 0.0, 0.0, R)] + [Asperity(dc * math.cos(k * math.pi / 3), dc * math.sin(k * math.pi / 3),
+                                                    0.0, R) for k in range(6)]
+    pts, box = _patches(asps, 20.0, 1.0, 0.25)
+    c = choose(pts, box)
+    assert c.iteration == "block-gs" and c.far_tol is None
+    assert c.estimates["coverage"] < 0.05
+
+
+def test_thousands_of_scattered_asperities_take_the_far_field():
+    rng = np.random.default_rng(0)
+    asps = [Asperity(*map(float, rng.uniform(-50, 50, 2)), 0.0, 5.0) for _ in range(1000)]
+    pts, box = _patches(asps, 0.05, 0.05, 0.05)
+    c = choose(pts, box)
+    assert c.iteration == "two-level" and c.far_tol == AUTO_FAR_TOL
+    assert "scattered" in c.reason
+    # where the macro step met merged contacts the two-level iteration (which tends to stall
+    # there) is not chosen even where it is estimated cheapest
+    merged = choose(pts, box, merged_contacts=True)
+    assert merged.iteration != "two-level"
+    assert merged.estimates["work"]["two-level"] < merged.estimates["work"][merged.iteration]
+
+
+def test_crowded_merged_contacts_take_the_union_cg():
+    # 12 x 12 spheres 2.5 mm apart with 1.5 mm contact radii: the macro step meets merged contacts
+    asps = [Asperity(2.5 * i, 2.5 * j, 0.0, 5.0) for i in range(12) for j in range(12)]
+    pts, box = _patches(asps, 3.0, 0.3, 0.05)
+    c = choose(pts, box, merged_contacts=True)
+    assert c.iteration == "union-cg" and c.far_tol is None
+    assert c.estimates["coverage"] > 0.5 and c.estimates["merged_contacts"]
+    assert c.estimates["work"]["union-cg"] < c.estimates["work"]["block-gs"]
+
+
+def test_exact_pairs_grow_as_n_squared_and_union_as_its_box():
+    asps = [Asperity(10.0 * i, 0.0, 0.0, 5.0) for i in range(40)]
+    pts, box = _patches(asps, 1.0, 0.2, 0.1)
+    small = estimate_costs(pts[:20], box_of(pts[:20], 0.1, (0.0, 0.0)).size)
+    large = estimate_costs(pts, box)
+    pair = large["block-gs"] / small["block-gs"]
+    assert 3.0 < pair < 4.5  # n(n-1) from 20 to 40, plus the linear local solves
+    assert large["union-cg"] / small["union-cg"] == pytest.approx(
+        fft_work(box) / fft_work(box_of(pts[:20], 0.1, (0.0, 0.0)).size))
+
+
+def test_caller_choice_is_recorded_as_such_and_checked():
+    asps = [Asperity(0.0, 0.0, 0.0, 5.0), Asperity(4.0, 0.0, 0.0, 5.0)]
+    hs = HalfSpace(MAT)
+    res = solve_twoscale(hs, asps, h=0.1, penetration=0.2, iteration="union-cg")
+    assert res.extra["micro_choice"]["by_caller"] and res.extra["micro_strategy"] == "union-cg"
+    assert [a["iteration"] for a in res.extra["micro_attempts"]] == ["union-cg"]
+    with pytest.raises(ValueError, match="iteration"):
+        solve_twoscale(hs, asps, h=0.1, penetration=0.2, iteration="newton")
+    with pytest.raises(ValueError, match="far_tol"):
+        solve_twoscale(hs, asps, h=0.1, penetration=0.2, far_tol=1.5)
+    with pytest.raises(ValueError, match="not both"):
+        solve_twoscale(hs, asps, h=0.1, penetration=0.2, iteration="block-gs", coarse=True)

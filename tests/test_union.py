@@ -1,0 +1,81 @@
+"""The union iteration (one constrained CG over the patches' box) against the full-grid
+reference on seeded random scenes: penetration control, load control, load with tilt;
+and the mixed-precision CG against the double-precision one."""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from twoscale import Material
+from twoscale.indenters import Asperity, surface_on
+from twoscale.influence import HalfSpace
+from twoscale.reference import solve_cg
+from twoscale.scene import Scene, reference_grid, solve_scene
+from twoscale.twoscale import solve_twoscale
+
+MAT = Material(E=6.0, nu=0.5)
+HS = HalfSpace(MAT)
+
+
+def crowded(seed: int, n: int) -> list:
+    """n spheres (R 3-6 mm, tips 0-0.1 mm deep) at random, about 3 mm apart: contacts merge."""
+    rng = np.random.default_rng(seed)
+    side = 3.0 * math.sqrt(n)
+    out: list = []
+    while len(out) < n:
+        x, y = rng.uniform(-side / 2, side / 2, 2)
+        if all(math.hypot(x - a.x, y - a.y) > 1.2 for a in out):
+            out.append(Asperity(float(x), float(y), float(rng.uniform(0.0, 0.1)), float(rng.uniform(3.0, 6.0))))
+    return out
+
+
+@pytest.mark.parametrize("seed,load", [(0, {"penetration": 0.15}), (1, {"total_load": 24.0}),
+                                       (2, {"total_load": 24.0, "tilt": True})])
+def test_union_cg_matches_the_reference(seed, load):
+    asps = crowded(seed, 12)
+    h = 0.1
+    res = solve_twoscale(HS, asps, h=h, iteration="union-cg", tol=1e-8, **load)
+    assert res.converged, res.message
+    scene = Scene(material=MAT, asperities=asps, h=h, **load)
+    ref = solve_scene(scene, method="reference", tol=1e-10)
+    assert ref.converged
+    F, Fr = res.asperities.forces, ref.asperities.forces
+    assert np.max(np.abs(F - Fr)) <= 1e-6 * Fr.max()
+    assert res.total_load == pytest.approx(ref.total_load, rel=1e-8)
+    assert res.penetration == pytest.approx(ref.penetration, abs=1e-8)
+    if load.get("tilt"):
+        assert np.allclose(res.tilt, ref.tilt, atol=1e-8)
+    grid = reference_grid(scene, h)
+    p, pr = res.pressure_on(grid), ref.pressure_on(grid)
+    assert np.linalg.norm(p - pr) <= 1e-5 * np.linalg.norm(pr)
+
+
+def test_mixed_precision_meets_the_same_tolerance_in_fewer_double_iterations():
+    asps = crowded(3, 10)
+    grid = reference_grid(Scene(material=MAT, asperities=asps, h=0.08, total_load=20.0), 0.08)
+    surf = surface_on(grid, asps)
+    double = solve_cg(HS, surf, total_load=20.0, tol=1e-9)
+    mixed = solve_cg(HS, surf, total_load=20.0, tol=1e-9, precision="mixed")
+    assert double.converged and mixed.converged
+    single = mixed.extra["single_precision_iterations"]
+    assert single > 0
+    # the double-precision stage starts from the single one's answer: fewer double iterations
+    assert mixed.iterations["cg"] - single < double.iterations["cg"]
+    p, pd = mixed.pressure_on(grid), double.pressure_on(grid)
+    assert np.linalg.norm(p - pd) <= 1e-6 * np.linalg.norm(pd)
+    with pytest.raises(ValueError, match="precision"):
+        solve_cg(HS, surf, total_load=20.0, precision="half")
+
+
+def test_single_precision_operator_agrees_with_the_double_one():
+    from twoscale.grid import Grid
+
+    g = Grid.covering(-3.0, 3.0, -2.0, 2.0, 0.1)
+    op = HS.grid_operator(g)
+    p = np.random.default_rng(0).uniform(0.0, 1.0, g.shape)
+    u, u32 = op.apply(p), op.single_precision().apply(p)
+    assert u32.dtype == np.float64
+    assert np.max(np.abs(u32 - u)) <= 1e-6 * np.max(np.abs(u))
+    assert np.max(np.abs(u32 - u)) > 0  # it is really another computation
