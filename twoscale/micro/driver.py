@@ -16,14 +16,14 @@ The strategies:
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 from typing import Callable, Sequence
 
 import numpy as np
 
 from ..indenters import Asperity
 from ..influence.base import InfluenceProvider
-from .patches import build_patches
+from .patches import TipTable, build_patches
 from .policy import ITERATIONS, Choice, choose
 from .solve import EXACT_FAR_TOL, MicroResult, solve_micro
 from .union import box_of, solve_union
@@ -104,6 +104,7 @@ def run_micro(provider: InfluenceProvider, asperities: Sequence[Asperity], *, ma
     block_options
         Passed to :func:`.solve.solve_micro` (margin, anchor, dense_max_cells, merge, ...).
     """
+    asperities = TipTable.of(asperities)  # tip arrays once for every patch built
     forces = np.asarray(macro.forces, dtype=float)
     anchor = block_options.get("anchor", (0.0, 0.0))
     common = dict(h=h, forces=forces, penetration=macro.penetration, tilt=macro.tilt, pivot=pivot,

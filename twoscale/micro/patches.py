@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from typing import Sequence
+from collections.abc import Sequence
 
 import numpy as np
 
@@ -57,21 +57,27 @@ class Patch:
         object.__setattr__(self, "owned", owned)
 
 
-_TIPS: dict = {}
+class TipTable(Sequence):
+    """The asperities of a scene with their tip arrays computed once (a solve wraps its
+    scene in one, so that building thousands of patches does not rebuild the arrays from
+    the asperity objects each time). Behaves as the sequence of asperities."""
 
+    def __init__(self, asperities: Sequence[Asperity]):
+        self.asperities = tuple(asperities)
+        self.x = np.array([a.x for a in self.asperities], dtype=float)
+        self.y = np.array([a.y for a in self.asperities], dtype=float)
+        self.R = np.array([a.R for a in self.asperities], dtype=float)
+        self.unbounded = np.array([a.shape != "sphere" for a in self.asperities], dtype=bool)
 
-def _tip_arrays(asperities: Sequence[Asperity]):
-    """``(x, y, R, not a sphere)`` arrays of a scene, kept for the last scene seen (the
-    scene object itself is held, so its ``id`` cannot be reused while cached)."""
-    hit = _TIPS.get(id(asperities))
-    if hit is not None and hit[0] is asperities and hit[1] == len(asperities):
-        return hit[2]
-    arrays = (np.array([a.x for a in asperities], dtype=float), np.array([a.y for a in asperities], dtype=float),
-              np.array([a.R for a in asperities], dtype=float),
-              np.array([a.shape != "sphere" for a in asperities], dtype=bool))
-    _TIPS.clear()
-    _TIPS[id(asperities)] = (asperities, len(asperities), arrays)
-    return arrays
+    @classmethod
+    def of(cls, asperities: Sequence[Asperity]) -> "TipTable":
+        return asperities if isinstance(asperities, cls) else cls(asperities)
+
+    def __len__(self) -> int:
+        return len(self.asperities)
+
+    def __getitem__(self, k):
+        return self.asperities[k]
 
 
 def make_patch(k: int, grid: Grid, asperities: Sequence[Asperity], members: tuple = ()) -> Patch:
@@ -82,7 +88,8 @@ def make_patch(k: int, grid: Grid, asperities: Sequence[Asperity], members: tupl
     ``inf`` there), so building a patch costs its cells times the nearby asperities only.
     """
     xmin, xmax, ymin, ymax = grid.bounds
-    x, y, R, unbounded = _tip_arrays(asperities)
+    table = TipTable.of(asperities)
+    x, y, R, unbounded = table.x, table.y, table.R, table.unbounded
     dx = np.maximum(np.maximum(xmin - x, x - xmax), 0.0)
     dy = np.maximum(np.maximum(ymin - y, y - ymax), 0.0)
     keep = np.flatnonzero(unbounded | (np.hypot(dx, dy) < R)).tolist()

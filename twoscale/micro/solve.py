@@ -1,4 +1,6 @@
-"""The micro step as a whole: patches, eq. 7, block Gauss-Seidel, growth, load and tilt."""
+"""The block iterations of the micro step: eq. 7, then block Gauss-Seidel (eq. 8-9) with
+sensitivity corrections of the load and tilt, or its two-level variant; patch growth in
+:mod:`.workset`. :mod:`.driver` chooses between these and the union CG (:mod:`.union`)."""
 from __future__ import annotations
 
 import math
@@ -7,17 +9,16 @@ from typing import Sequence
 
 import numpy as np
 
-from ..indenters import Asperity, Tilt
-from ..influence.base import InfluenceProvider
-from .blocks import Coupling, LocalBlock, scatter
-from .farfield import FarFieldCoupling, LaggedFarField
-from .twolevel import two_level
-from .constraints import block_coordinates, member_forces, newton_step, resultants, rhs_derivatives
-from .gauss_seidel import coupled_rhs, gauss_seidel, linear_gauss_seidel
-from .local import initial_pressure
 from ..grid import Grid
-from .patches import (Patch, build_patches, edges_loaded, extend_patch, grow_patch, make_patch,
-                      merge_overlapping, transfer)
+from ..indenters import Asperity
+from ..influence.base import InfluenceProvider
+from .blocks import LocalBlock, scatter
+from .constraints import block_coordinates, newton_step, resultants, rhs_derivatives
+from .gauss_seidel import gauss_seidel, linear_gauss_seidel
+from .local import initial_pressure
+from .patches import TipTable, build_patches, merge_overlapping, transfer
+from .twolevel import two_level
+from .workset import WorkingSet, edges_loaded_any, grow, heights, tip_approaches
 
 
 @dataclass(frozen=True)
@@ -88,114 +89,6 @@ EXACT_FAR_TOL = 1e-12
 SENSITIVITY_TOL = 1e-3
 
 
-class _State:
-    """Mutable working set of the micro step (patches, blocks, pressures); internal."""
-
-    def __init__(self, provider, asperities, patches, dense_max_cells, dense_max_entries, far_tol=None,
-                 lagged=False, separated_rtol=1e-8, blocks=None):
-        self.provider, self.asperities = provider, asperities
-        self.dense_max_cells = dense_max_cells
-        self.patches = list(patches)
-        blocks = [None] * len(self.patches) if blocks is None else list(blocks)
-        self.blocks = [blk if blk is not None else LocalBlock(provider, pt, dense_max_cells=dense_max_cells)
-                       for pt, blk in zip(self.patches, blocks)]
-        if far_tol is None:
-            self.coupling = Coupling(provider, self.patches, dense_max_entries=dense_max_entries,
-                                     separated_rtol=separated_rtol)
-        elif lagged:
-            self.coupling = LaggedFarField(provider, self.patches, tips=self.tips(), far_tol=far_tol,
-                                           dense_max_entries=dense_max_entries, separated_rtol=separated_rtol)
-        else:
-            self.coupling = FarFieldCoupling(provider, self.patches, far_tol=far_tol,
-                                             dense_max_entries=dense_max_entries, separated_rtol=separated_rtol)
-        self.sensitivities = None
-
-    def tips(self) -> np.ndarray:
-        """Tip of every asperity of the scene, (N, 2) mm."""
-        return np.array([[a.x, a.y] for a in self.asperities], dtype=float).reshape(-1, 2)
-
-    def heights(self, theta, pivot):
-        """Indenter height with tilt on every block (list of (n_k,) arrays), mm."""
-        return _heights(self.patches, theta, pivot)
-
-    def patch_of(self) -> dict:
-        """Index of the patch holding each asperity that has one."""
-        return {m: k for k, pt in enumerate(self.patches) for m in pt.members}
-
-    def grow(self, k: int, sides, vectors: list) -> None:
-        """Enlarge patch ``k``; block vectors in ``vectors`` (lists) are carried over."""
-        old = self.patches[k]
-        new = grow_patch(old, sides, self.asperities)
-        for vec in vectors:
-            vec[k] = transfer(old, new, scatter(old, vec[k]))[new.owned]
-        self.patches[k] = new
-        self.blocks[k] = LocalBlock(self.provider, new, dense_max_cells=self.dense_max_cells)
-        self.coupling.replace(k, new)
-
-    def extend(self, asperity: int, points: np.ndarray, vectors: list) -> None:
-        """Make the patch of ``asperity`` cover ``points`` (M, 2) mm, creating it if needed."""
-        index = self.patch_of()
-        if asperity not in index:
-            h = self.patches[0].grid.h
-            a = self.asperities[asperity]
-            anchor = (self.patches[0].grid.x0, self.patches[0].grid.y0)
-            grid = Grid.covering(a.x - h, a.x + h, a.y - h, a.y + h, h, anchor=anchor)
-            self.patches.append(make_patch(asperity, grid, self.asperities))
-            self.blocks.append(LocalBlock(self.provider, self.patches[-1], dense_max_cells=self.dense_max_cells))
-            self.coupling.append(self.patches[-1])
-            for vec in vectors:
-                vec.append(np.zeros(self.blocks[-1].n))
-            index[asperity] = len(self.patches) - 1
-        k = index[asperity]
-        old = self.patches[k]
-        new = extend_patch(old, points, self.asperities)
-        for vec in vectors:
-            vec[k] = transfer(old, new, scatter(old, vec[k]))[new.owned]
-        self.patches[k] = new
-        self.blocks[k] = LocalBlock(self.provider, new, dense_max_cells=self.dense_max_cells)
-        self.coupling.replace(k, new)
-
-    def full_displacement(self, pressures: list) -> list:
-        """Displacement on every whole patch (list of (ny, nx) arrays), mm."""
-        out = []
-        for k, pt in enumerate(self.patches):
-            u = self.coupling.patch_displacement(k, pressures)
-            if np.any(pressures[k]):
-                u += self.blocks[k].full_operator().apply(scatter(pt, pressures[k]))
-            out.append(u)
-        return out
-
-    def gaps(self, pressures: list, theta, pivot) -> list:
-        """``z + tilt + u - d`` on every whole patch, mm (``inf`` where no indenter)."""
-        t = Tilt(theta[1], theta[2], pivot)
-        out = []
-        for pt, u in zip(self.patches, self.full_displacement(pressures)):
-            X, Y = pt.grid.centres()
-            with np.errstate(invalid="ignore"):
-                out.append(pt.height + t.height(X, Y) + u - theta[0])
-        return out
-
-    def displacement(self, pressures: list) -> list:
-        """``A p`` on every block (list of (n_k,) arrays), mm."""
-        return [blk.matvec(pressures[k]) - coupled_rhs(self.coupling, k, pressures, np.zeros(blk.n))
-                for k, blk in enumerate(self.blocks)]
-
-
-def _heights(patches, theta, pivot) -> list:
-    """Indenter height with tilt on the blocks of ``patches`` (list of (n_k,) arrays), mm."""
-    tilt = Tilt(theta[1], theta[2], pivot)
-    out = []
-    for pt in patches:
-        X, Y = pt.grid.centres()
-        out.append(pt.height[pt.owned] + tilt.height(X[pt.owned], Y[pt.owned]))
-    return out
-
-
-def _tip_approaches(asperities, theta, pivot) -> np.ndarray:
-    tilt = Tilt(theta[1], theta[2], pivot)
-    return np.array([theta[0] - a.z - float(tilt.height(a.x, a.y)) for a in asperities])
-
-
 def _initial(provider, asperities, patches, blocks, forces, z_blocks, h, rtol: float = P0_RTOL) -> list:
     """Paper eq. 7 on every (one-asperity) block (``rtol``: conjugate gradients of large blocks)."""
     E_star = provider.material.E_star
@@ -214,7 +107,7 @@ def initial_on_patches(provider, asperities, patches, common) -> tuple:
     h, pivot = common["h"], common["pivot"]
     theta = np.array([common["penetration"], *(common["tilt"] or (0.0, 0.0))], dtype=float)
     blocks = [LocalBlock(provider, pt, dense_max_cells=common.get("dense_max_cells", 400)) for pt in patches]
-    p0 = _initial(provider, asperities, patches, blocks, common["forces"], _heights(patches, theta, pivot), h)
+    p0 = _initial(provider, asperities, patches, blocks, common["forces"], heights(patches, theta, pivot), h)
     b = np.array([pt.grid.bounds for pt in patches])
     grid = Grid.covering(b[:, 0].min(), b[:, 1].max(), b[:, 2].min(), b[:, 3].max(), h,
                          anchor=common.get("anchor", (0.0, 0.0)))
@@ -223,42 +116,6 @@ def initial_on_patches(provider, asperities, patches, common) -> tuple:
         di, dj = pt.grid.offset_in(grid)
         out[dj:dj + pt.grid.ny, di:di + pt.grid.nx] += scatter(pt, pk)
     return grid, out
-
-
-def _grow_loaded(state: _State, p: list, p0: list) -> int:
-    grown = 0
-    for k, pt in enumerate(state.patches):
-        sides = edges_loaded(pt, scatter(pt, p[k]))
-        if any(sides):
-            state.grow(k, sides, [p, p0])
-            grown += 1
-    return grown
-
-
-def _cover_penetration(state: _State, p: list, p0: list, theta, pivot, gap_tol: float) -> int:
-    """Extend the patch of every asperity that penetrates on cells outside its own block
-    (a neighbour can push its contact away from its tip); returns how many were extended."""
-    wanted: dict = {}
-    for pt, gap in zip(state.patches, state.gaps(p, theta, pivot)):
-        bad = (gap < -gap_tol) & (pt.owner >= 0) & ~pt.owned
-        if not np.any(bad):
-            continue
-        X, Y = pt.grid.centres()
-        for k in np.unique(pt.owner[bad]):
-            sel = bad & (pt.owner == k)
-            wanted.setdefault(int(k), []).append(np.column_stack([X[sel], Y[sel]]))
-    index = state.patch_of()
-    extended = 0
-    for k, pts in wanted.items():
-        pts = np.concatenate(pts)
-        if k in index:
-            xmin, xmax, ymin, ymax = state.patches[index[k]].grid.bounds
-            inside = (pts[:, 0] > xmin) & (pts[:, 0] < xmax) & (pts[:, 1] > ymin) & (pts[:, 1] < ymax)
-            pts = pts[~inside]
-        if len(pts):
-            state.extend(k, pts, [p, p0])
-            extended += 1
-    return extended
 
 
 def solve_micro(provider: InfluenceProvider, asperities: Sequence[Asperity], *, h: float,
@@ -345,10 +202,11 @@ def solve_micro(provider: InfluenceProvider, asperities: Sequence[Asperity], *, 
     """
     if coarse and far_tol is None:
         raise ValueError("coarse=True needs far_tol (the two-level iteration holds the far field by resultants)")
+    asperities = TipTable.of(asperities)  # tip arrays once for every patch built
     theta = np.array([penetration, *(tilt if tilt is not None else (0.0, 0.0))], dtype=float)
     n_unknowns = 0 if total_load is None else (3 if free_tilt else 1)
     sizing = np.asarray(forces, dtype=float) if size_from_forces else np.full(len(asperities), np.inf)
-    approaches = _tip_approaches(asperities, theta, pivot)
+    approaches = tip_approaches(asperities, theta, pivot)
     if sizing_approaches is not None:
         sizing_approaches = np.asarray(sizing_approaches, dtype=float)
         if sizing_approaches.shape != approaches.shape or not np.all(np.isfinite(sizing_approaches)):
@@ -361,7 +219,7 @@ def solve_micro(provider: InfluenceProvider, asperities: Sequence[Asperity], *, 
     # p0 is a start: the sweeps correct it, and at 1e-5 its reported distance from the final
     # pressure (the paper's Fig. 6, percent-level) moves by ~1e-4 %; 1e-8 cost 10-20 % of the
     # paper cases' time (two spheres at d/2R = 1: 81 -> 65 ms)
-    p0 = _initial(provider, asperities, patches, blocks, forces, _heights(patches, theta, pivot), h,
+    p0 = _initial(provider, asperities, patches, blocks, forces, heights(patches, theta, pivot), h,
                   rtol=P0_RTOL)
     if merge and far_tol is None:
         merged, covers = merge_overlapping(patches, asperities, growth=merge_growth)
@@ -370,7 +228,7 @@ def solve_micro(provider: InfluenceProvider, asperities: Sequence[Asperity], *, 
               for pt, c in zip(merged, covers)]
         blocks = [blocks[c[0]] if len(c) == 1 else None for c in covers]
         patches = merged
-    state = _State(provider, asperities, patches, dense_max_cells, dense_max_entries, far_tol, lagged=coarse,
+    state = WorkingSet(provider, asperities, patches, dense_max_cells, dense_max_entries, far_tol, lagged=coarse,
                    separated_rtol=separated_rtol, blocks=blocks)
     if not patches:
         return _finish(state, [], [], theta, tilt, pivot, True, "no asperity reaches the body",
@@ -392,19 +250,19 @@ def solve_micro(provider: InfluenceProvider, asperities: Sequence[Asperity], *, 
         can_grow = growths < max_growths
         gs = gauss_seidel(state.blocks, state.coupling, [theta[0] - zk for zk in z], p, tol=tol,
                           max_sweeps=max(max_sweeps - sweeps, 1),
-                          stop=(lambda q: _edges_loaded(state, q)) if can_grow else None,
+                          stop=(lambda q: edges_loaded_any(state, q)) if can_grow else None,
                           monitor=None if monitor is None else (lambda m, c: monitor(sweeps + m, c)))
         sweeps += gs.sweeps
         history += gs.history
         p = gs.pressures
         if gs.converged or gs.message == "stopped":
-            grown = _grow(state, p, p0, theta, pivot, tol) if can_grow else 0
+            grown = grow(state, p, p0, theta, pivot, tol) if can_grow else 0
             if grown:
                 growths += grown
                 continue
         if not gs.converged:
             return _finish(state, p, p0, theta, tilt, pivot, False, gs.message, counts(), history)
-        if _edges_loaded(state, p):
+        if edges_loaded_any(state, p):
             return _finish(state, p, p0, theta, tilt, pivot, False,
                            f"pressure still reaches a patch edge after {max_growths} enlargements", counts(), history)
         if target is None:
@@ -419,7 +277,7 @@ def solve_micro(provider: InfluenceProvider, asperities: Sequence[Asperity], *, 
         linear_sweeps += lin
         if done:
             # the corrected approach and tilt may bring in asperities without a patch
-            grown = _grow(state, p, p0, theta, pivot, tol) if growths < max_growths else 0
+            grown = grow(state, p, p0, theta, pivot, tol) if growths < max_growths else 0
             if not grown:
                 break
             growths += grown
@@ -427,7 +285,7 @@ def solve_micro(provider: InfluenceProvider, asperities: Sequence[Asperity], *, 
     return _finish(state, p, p0, theta, out_tilt, pivot, True, "", counts(), history)
 
 
-def _solve_two_level(state: _State, p: list, p0: list, theta, tilt, pivot, n_unknowns, target, *,
+def _solve_two_level(state: WorkingSet, p: list, p0: list, theta, tilt, pivot, n_unknowns, target, *,
                      tol: float, max_sweeps: int, max_growths: int, monitor=None) -> MicroResult:
     """The micro step by two-level block Gauss-Seidel (:mod:`.twolevel`), with patch growth."""
     sweeps = growths = 0
@@ -443,20 +301,20 @@ def _solve_two_level(state: _State, p: list, p0: list, theta, tilt, pivot, n_unk
         res = two_level(state.blocks, state.coupling, tips[[pt.asperity for pt in state.patches]],
                         lambda th: state.heights(th, pivot), p, theta, pivot=pivot, n_unknowns=n_unknowns,
                         target=target, tol=tol, max_sweeps=max(max_sweeps - sweeps, 1),
-                        stop=(lambda q: _edges_loaded(state, q)) if can_grow else None,
+                        stop=(lambda q: edges_loaded_any(state, q)) if can_grow else None,
                         monitor=None if monitor is None else (lambda m, c: monitor(sweeps + m, c)))
         sweeps += res.sweeps
         history += res.history
         p, theta = res.pressures, res.theta
         state.coupling.refresh(p)
         if res.converged or res.message == "stopped":
-            grown = _grow(state, p, p0, theta, pivot, tol) if can_grow else 0
+            grown = grow(state, p, p0, theta, pivot, tol) if can_grow else 0
             if grown:
                 growths += grown
                 continue
         if not res.converged:
             return _finish(state, p, p0, theta, tilt, pivot, False, res.message, counts(), history)
-        if _edges_loaded(state, p):
+        if edges_loaded_any(state, p):
             return _finish(state, p, p0, theta, tilt, pivot, False,
                            f"pressure still reaches a patch edge after {max_growths} enlargements", counts(), history)
         break
@@ -487,55 +345,7 @@ def _load_arm(patches, pressures: list, pivot) -> float:
     return max(math.sqrt(num / den), h) if den > 0 else h
 
 
-def _edges_loaded(state: _State, p: list) -> bool:
-    return any(any(edges_loaded(pt, scatter(pt, p[k]))) for k, pt in enumerate(state.patches))
-
-
-def _grow(state: _State, p: list, p0: list, theta, pivot, tol: float) -> int:
-    """Enlarge the patches whose pressure reaches an edge, else those of asperities that
-    penetrate outside their blocks; returns the number of patches changed."""
-    grown = _grow_loaded(state, p, p0)
-    if grown:
-        return grown
-    gap_tol = _gap_tol(state, theta, pivot, tol)
-    return (_cover_penetration(state, p, p0, theta, pivot, gap_tol)
-            or _cover_unpatched(state, p, p0, theta, pivot, gap_tol))
-
-
-def _cover_unpatched(state: _State, p: list, p0: list, theta, pivot, gap_tol: float) -> int:
-    """Give a patch to every asperity without one that the indenter now reaches at its tip;
-    returns how many were added. The macro step can leave an asperity out that the final
-    approach or tilt brings in (e.g. a pivot on one tip: point forces balance any tilt that
-    lifts the others, distributed pressure does not), and a finite block's surface can rise
-    under a neighbour's load. The surface displacement at the tip is estimated from the
-    patches' resultant forces (point forces)."""
-    have = state.patch_of()
-    missing = np.array([k for k in range(len(state.asperities)) if k not in have], dtype=int)
-    if missing.size == 0 or not state.patches:
-        return 0
-    approach = _tip_approaches([state.asperities[k] for k in missing], theta, pivot)
-    tips = state.tips()
-    h = state.patches[0].grid.h
-    members, forces = member_forces(state.patches, p)
-    u = state.provider.point_operator(tips[missing], tips[members]).apply(forces)
-    local = approach - u
-    reached = np.flatnonzero(local > -gap_tol)
-    for i in reached:
-        k = int(missing[i])
-        # cover the sphere's reach at twice the estimated local approach (then grown as usual)
-        r = state.asperities[k].reach(2.0 * max(float(local[i]), gap_tol)) + 2.0 * h
-        state.extend(k, tips[k] + r * np.array([[-1.0, -1.0], [1.0, 1.0]]), [p, p0])
-    return int(reached.size)
-
-
-def _gap_tol(state: _State, theta, pivot, tol: float) -> float:
-    # penetration (mm) accepted outside the blocks: the sweeps' tolerance times the largest approach
-    z = state.heights(theta, pivot)
-    depth = max((theta[0] - float(np.min(zk)) for zk in z if zk.size), default=0.0)
-    return 10.0 * tol * max(depth, 0.0)
-
-
-def _correct(state: _State, p, active, theta, residual, pivot, n_unknowns, tol):
+def _correct(state: WorkingSet, p, active, theta, residual, pivot, n_unknowns, tol):
     """One Newton correction of (d, alpha, beta) on the current contact sets."""
     rhs = [rhs_derivatives(pt, pivot, n_unknowns) for pt in state.patches]
     # The sensitivities need little accuracy: the load and moments hold exactly for any

@@ -1,0 +1,212 @@
+"""The micro step's working set: patches, their blocks, the coupling, and patch growth.
+
+:class:`WorkingSet` holds what the block iterations change as they go (patches grow when
+pressure reaches an edge or an asperity penetrates outside its block; asperities the macro
+step left out get a patch when the final approach reaches them). The functions here decide
+and make those changes; :mod:`.solve` runs the iterations.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from ..grid import Grid
+from ..indenters import Tilt
+from .blocks import Coupling, LocalBlock, scatter
+from .constraints import member_forces
+from .farfield import FarFieldCoupling, LaggedFarField
+from .gauss_seidel import coupled_rhs
+from .patches import edges_loaded, extend_patch, grow_patch, make_patch, transfer
+
+
+class WorkingSet:
+    """Mutable working set of the micro step (patches, blocks, pressures); internal."""
+
+    def __init__(self, provider, asperities, patches, dense_max_cells, dense_max_entries, far_tol=None,
+                 lagged=False, separated_rtol=1e-8, blocks=None):
+        self.provider, self.asperities = provider, asperities
+        self.dense_max_cells = dense_max_cells
+        self.patches = list(patches)
+        blocks = [None] * len(self.patches) if blocks is None else list(blocks)
+        self.blocks = [blk if blk is not None else LocalBlock(provider, pt, dense_max_cells=dense_max_cells)
+                       for pt, blk in zip(self.patches, blocks)]
+        if far_tol is None:
+            self.coupling = Coupling(provider, self.patches, dense_max_entries=dense_max_entries,
+                                     separated_rtol=separated_rtol)
+        elif lagged:
+            self.coupling = LaggedFarField(provider, self.patches, tips=self.tips(), far_tol=far_tol,
+                                           dense_max_entries=dense_max_entries, separated_rtol=separated_rtol)
+        else:
+            self.coupling = FarFieldCoupling(provider, self.patches, far_tol=far_tol,
+                                             dense_max_entries=dense_max_entries, separated_rtol=separated_rtol)
+        self.sensitivities = None
+
+    def tips(self) -> np.ndarray:
+        """Tip of every asperity of the scene, (N, 2) mm."""
+        return np.array([[a.x, a.y] for a in self.asperities], dtype=float).reshape(-1, 2)
+
+    def heights(self, theta, pivot):
+        """Indenter height with tilt on every block (list of (n_k,) arrays), mm."""
+        return heights(self.patches, theta, pivot)
+
+    def patch_of(self) -> dict:
+        """Index of the patch holding each asperity that has one."""
+        return {m: k for k, pt in enumerate(self.patches) for m in pt.members}
+
+    def grow(self, k: int, sides, vectors: list) -> None:
+        """Enlarge patch ``k``; block vectors in ``vectors`` (lists) are carried over."""
+        old = self.patches[k]
+        new = grow_patch(old, sides, self.asperities)
+        for vec in vectors:
+            vec[k] = transfer(old, new, scatter(old, vec[k]))[new.owned]
+        self.patches[k] = new
+        self.blocks[k] = LocalBlock(self.provider, new, dense_max_cells=self.dense_max_cells)
+        self.coupling.replace(k, new)
+
+    def extend(self, asperity: int, points: np.ndarray, vectors: list) -> None:
+        """Make the patch of ``asperity`` cover ``points`` (M, 2) mm, creating it if needed."""
+        index = self.patch_of()
+        if asperity not in index:
+            h = self.patches[0].grid.h
+            a = self.asperities[asperity]
+            anchor = (self.patches[0].grid.x0, self.patches[0].grid.y0)
+            grid = Grid.covering(a.x - h, a.x + h, a.y - h, a.y + h, h, anchor=anchor)
+            self.patches.append(make_patch(asperity, grid, self.asperities))
+            self.blocks.append(LocalBlock(self.provider, self.patches[-1], dense_max_cells=self.dense_max_cells))
+            self.coupling.append(self.patches[-1])
+            for vec in vectors:
+                vec.append(np.zeros(self.blocks[-1].n))
+            index[asperity] = len(self.patches) - 1
+        k = index[asperity]
+        old = self.patches[k]
+        new = extend_patch(old, points, self.asperities)
+        for vec in vectors:
+            vec[k] = transfer(old, new, scatter(old, vec[k]))[new.owned]
+        self.patches[k] = new
+        self.blocks[k] = LocalBlock(self.provider, new, dense_max_cells=self.dense_max_cells)
+        self.coupling.replace(k, new)
+
+    def full_displacement(self, pressures: list) -> list:
+        """Displacement on every whole patch (list of (ny, nx) arrays), mm."""
+        out = []
+        for k, pt in enumerate(self.patches):
+            u = self.coupling.patch_displacement(k, pressures)
+            if np.any(pressures[k]):
+                u += self.blocks[k].full_operator().apply(scatter(pt, pressures[k]))
+            out.append(u)
+        return out
+
+    def gaps(self, pressures: list, theta, pivot) -> list:
+        """``z + tilt + u - d`` on every whole patch, mm (``inf`` where no indenter)."""
+        t = Tilt(theta[1], theta[2], pivot)
+        out = []
+        for pt, u in zip(self.patches, self.full_displacement(pressures)):
+            X, Y = pt.grid.centres()
+            with np.errstate(invalid="ignore"):
+                out.append(pt.height + t.height(X, Y) + u - theta[0])
+        return out
+
+    def displacement(self, pressures: list) -> list:
+        """``A p`` on every block (list of (n_k,) arrays), mm."""
+        return [blk.matvec(pressures[k]) - coupled_rhs(self.coupling, k, pressures, np.zeros(blk.n))
+                for k, blk in enumerate(self.blocks)]
+
+
+def heights(patches, theta, pivot) -> list:
+    """Indenter height with tilt on the blocks of ``patches`` (list of (n_k,) arrays), mm."""
+    tilt = Tilt(theta[1], theta[2], pivot)
+    out = []
+    for pt in patches:
+        X, Y = pt.grid.centres()
+        out.append(pt.height[pt.owned] + tilt.height(X[pt.owned], Y[pt.owned]))
+    return out
+
+
+def tip_approaches(asperities, theta, pivot) -> np.ndarray:
+    """Geometric approach ``d - z_k - tilt(x_k, y_k)`` of every tip, mm."""
+    tilt = Tilt(theta[1], theta[2], pivot)
+    return np.array([theta[0] - a.z - float(tilt.height(a.x, a.y)) for a in asperities])
+
+
+def _grow_loaded(state: WorkingSet, p: list, p0: list) -> int:
+    grown = 0
+    for k, pt in enumerate(state.patches):
+        sides = edges_loaded(pt, scatter(pt, p[k]))
+        if any(sides):
+            state.grow(k, sides, [p, p0])
+            grown += 1
+    return grown
+
+
+def _cover_penetration(state: WorkingSet, p: list, p0: list, theta, pivot, gap_tol: float) -> int:
+    """Extend the patch of every asperity that penetrates on cells outside its own block
+    (a neighbour can push its contact away from its tip); returns how many were extended."""
+    wanted: dict = {}
+    for pt, gap in zip(state.patches, state.gaps(p, theta, pivot)):
+        bad = (gap < -gap_tol) & (pt.owner >= 0) & ~pt.owned
+        if not np.any(bad):
+            continue
+        X, Y = pt.grid.centres()
+        for k in np.unique(pt.owner[bad]):
+            sel = bad & (pt.owner == k)
+            wanted.setdefault(int(k), []).append(np.column_stack([X[sel], Y[sel]]))
+    index = state.patch_of()
+    extended = 0
+    for k, pts in wanted.items():
+        pts = np.concatenate(pts)
+        if k in index:
+            xmin, xmax, ymin, ymax = state.patches[index[k]].grid.bounds
+            inside = (pts[:, 0] > xmin) & (pts[:, 0] < xmax) & (pts[:, 1] > ymin) & (pts[:, 1] < ymax)
+            pts = pts[~inside]
+        if len(pts):
+            state.extend(k, pts, [p, p0])
+            extended += 1
+    return extended
+
+
+def edges_loaded_any(state: WorkingSet, p: list) -> bool:
+    """Pressure reaches an edge of some patch."""
+    return any(any(edges_loaded(pt, scatter(pt, p[k]))) for k, pt in enumerate(state.patches))
+
+
+def grow(state: WorkingSet, p: list, p0: list, theta, pivot, tol: float) -> int:
+    """Enlarge the patches whose pressure reaches an edge, else those of asperities that
+    penetrate outside their blocks; returns the number of patches changed."""
+    grown = _grow_loaded(state, p, p0)
+    if grown:
+        return grown
+    gap_tol = _gap_tol(state, theta, pivot, tol)
+    return (_cover_penetration(state, p, p0, theta, pivot, gap_tol)
+            or _cover_unpatched(state, p, p0, theta, pivot, gap_tol))
+
+
+def _cover_unpatched(state: WorkingSet, p: list, p0: list, theta, pivot, gap_tol: float) -> int:
+    """Give a patch to every asperity without one that the indenter now reaches at its tip;
+    returns how many were added. The macro step can leave an asperity out that the final
+    approach or tilt brings in (e.g. a pivot on one tip: point forces balance any tilt that
+    lifts the others, distributed pressure does not), and a finite block's surface can rise
+    under a neighbour's load. The surface displacement at the tip is estimated from the
+    patches' resultant forces (point forces)."""
+    have = state.patch_of()
+    missing = np.array([k for k in range(len(state.asperities)) if k not in have], dtype=int)
+    if missing.size == 0 or not state.patches:
+        return 0
+    approach = tip_approaches([state.asperities[k] for k in missing], theta, pivot)
+    tips = state.tips()
+    h = state.patches[0].grid.h
+    members, forces = member_forces(state.patches, p)
+    u = state.provider.point_operator(tips[missing], tips[members]).apply(forces)
+    local = approach - u
+    reached = np.flatnonzero(local > -gap_tol)
+    for i in reached:
+        k = int(missing[i])
+        # cover the sphere's reach at twice the estimated local approach (then grown as usual)
+        r = state.asperities[k].reach(2.0 * max(float(local[i]), gap_tol)) + 2.0 * h
+        state.extend(k, tips[k] + r * np.array([[-1.0, -1.0], [1.0, 1.0]]), [p, p0])
+    return int(reached.size)
+
+
+def _gap_tol(state: WorkingSet, theta, pivot, tol: float) -> float:
+    # penetration (mm) accepted outside the blocks: the sweeps' tolerance times the largest approach
+    z = state.heights(theta, pivot)
+    depth = max((theta[0] - float(np.min(zk)) for zk in z if zk.size), default=0.0)
+    return 10.0 * tol * max(depth, 0.0)
