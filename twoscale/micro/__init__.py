@@ -1,16 +1,26 @@
-"""Micro step of the two-scale method (METHOD.md section 3).
+"""Micro step of the two-scale method: the pressure on patches around the tips.
 
-* :mod:`.patches` — one aligned patch of cells per asperity, sized from the macro step;
-* :mod:`.blocks` — the influence of a patch on itself (dense or FFT) and on the others;
-* :mod:`.pk` — constrained conjugate gradients (Polonsky-Keer) with FFT products for large blocks;
-* :mod:`.local` — local contact problems on one block: eq. 7 (initial pressure carrying the
-  macro force) and the active-set solve used inside a sweep;
-* :mod:`.gauss_seidel` — block Gauss-Seidel sweeps (eq. 8) and the stopping test (eq. 9);
-* :mod:`.constraints` — outer corrections of the approach and tilt so the pressure carries
-  the total load and the two moments;
-* :mod:`.solve` — the micro step as a whole, :func:`solve_micro`.
+Read it in this order:
+
+* driver and policy — :mod:`.driver` (:func:`~.driver.run_micro`: builds the patches from
+  the macro forces, runs the chosen iteration and, if it fails, the next, recording every
+  attempt) and :mod:`.policy` (:func:`~.policy.choose`: which iteration and coupling, by a
+  cost estimate from the patches, with its reason);
+* strategies — :mod:`.union` (one constrained CG over the box of the patches),
+  :mod:`.solve` (the block iterations: eq. 7, block Gauss-Seidel (eq. 8-9) with load and
+  tilt corrections, or the two-level variant of :mod:`.twolevel`), :mod:`.gauss_seidel`
+  (the sweeps), :mod:`.coarse` and :mod:`.constraints` (load, moments, coarse correction);
+  couplings between patches: :class:`.blocks.Coupling` (exact) and :mod:`.farfield` (far
+  patches through their resultants);
+* local solvers — :mod:`.local` (eq. 7 and the active-set solve on one block), :mod:`.pk`
+  (Polonsky-Keer CG on one block), :mod:`.blocks` (a block's own influence);
+* patches — :mod:`.patches` (one aligned patch per asperity, merging of close ones) and
+  :mod:`.workset` (the patches as the iterations grow them).
 """
+from .driver import Attempt, MicroPlan, run_micro
 from .patches import Patch, build_patches, grow_patch
+from .policy import Choice, choose
 from .solve import MicroResult, solve_micro
 
-__all__ = ["Patch", "build_patches", "grow_patch", "MicroResult", "solve_micro"]
+__all__ = ["Attempt", "Choice", "MicroPlan", "MicroResult", "Patch", "build_patches", "choose", "grow_patch",
+           "run_micro", "solve_micro"]

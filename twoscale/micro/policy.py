@@ -43,8 +43,10 @@ LOCAL_PRODUCTS = 6.0
 NEAR_PAIRS = 8.0
 #: Above this many patches, exact pair coupling is not considered (N^2 pairs).
 EXACT_MAX_PATCHES = 400
-#: Far-field tolerance chosen by the policy (relative error per far pair).
-AUTO_FAR_TOL = 0.05
+#: Far-field tolerance chosen by the policy (relative error per far pair). Measured: 0.1
+#: gives per-tip force errors of 0.07 % of the largest force on 200 dense tips (0.042 % at
+#: 0.05, in twice the time) and about 0.15 % on 1,000 sparse tips (0.33 % at 0.2).
+AUTO_FAR_TOL = 0.1
 
 
 @dataclass(frozen=True)
