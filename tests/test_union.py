@@ -79,3 +79,17 @@ def test_single_precision_operator_agrees_with_the_double_one():
     assert u32.dtype == np.float64
     assert np.max(np.abs(u32 - u)) <= 1e-6 * np.max(np.abs(u))
     assert np.max(np.abs(u32 - u)) > 0  # it is really another computation
+
+
+def test_block_gauss_seidel_merges_close_patches_under_load_control():
+    # load control with merged contacts through the paper's iteration: close patches are
+    # one block, and the answer is the reference's
+    asps = crowded(4, 10)
+    res = solve_twoscale(HS, asps, h=0.1, total_load=20.0, iteration="block-gs", tol=1e-8)
+    assert res.converged, res.message
+    assert any(len(m) > 1 for m in res.extra["merged_patches"])
+    scene = Scene(material=MAT, asperities=asps, h=0.1, total_load=20.0)
+    ref = solve_scene(scene, method="reference", tol=1e-10)
+    F, Fr = res.asperities.forces, ref.asperities.forces
+    assert np.max(np.abs(F - Fr)) <= 1e-5 * Fr.max()
+    assert res.penetration == pytest.approx(ref.penetration, abs=1e-7)
