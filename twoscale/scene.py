@@ -363,7 +363,7 @@ METHODS = ("twoscale", "reference")
 
 
 def solve_scene(scene: Scene, *, method: str = "twoscale", provider_options: Mapping | None = None,
-                **options):
+                memory_limit: float | None = None, **options):
     """Solve a scene.
 
     Parameters
@@ -376,6 +376,11 @@ def solve_scene(scene: Scene, *, method: str = "twoscale", provider_options: Map
         contact can reach (:func:`reference_grid`).
     provider_options : mapping, optional
         Passed to :meth:`Scene.provider` (finite block only, e.g. ``{"progress": False}``).
+    memory_limit : float, optional
+        Bytes the solve may use: before anything large is allocated, the memory the
+        solve needs is estimated from the scene (:func:`twoscale.resources.estimate_memory`)
+        and a :class:`SceneError` raised when it is over. Default: 80 % of the memory
+        available now; ``math.inf``: no check.
     **options
         Passed to the solver (e.g. ``tol``).
 
@@ -384,10 +389,20 @@ def solve_scene(scene: Scene, *, method: str = "twoscale", provider_options: Map
     ContactResult
         The cell size used is ``result.fields[0].grid.h`` (``scene.h`` or
         :func:`default_h`).
+
+    Raises
+    ------
+    SceneError
+        Invalid input, or a solve that would need more memory than ``memory_limit``
+        (the message gives the estimate and says to raise ``grid.h``).
     """
     if method not in METHODS:
         raise ValueError(f"method must be one of {METHODS}, got {method!r}")
     h = default_h(scene)
+    if memory_limit is None or memory_limit < math.inf:
+        from .resources import check_memory, estimate_memory
+
+        check_memory(estimate_memory(scene, h, method), memory_limit, option="grid.h")
     provider = scene.provider(**(provider_options or {}))
     if method == "twoscale":
         from .twoscale import solve_twoscale

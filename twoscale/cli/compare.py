@@ -61,6 +61,7 @@ from ..io.atomic import atomic_output
 from ..io.result_json import UNITS, write_result
 from ..io.scene_file import read_scene, scene_to_dict
 from ..progress import Progress
+from ..resources import check_memory, estimate_memory
 from ..scene import BLOCK_DEFAULT_SIZE, METHODS, Scene, SceneError, default_h
 from ..sensor import (Sensor, centred_tips, e_M, e_m, forces_from_map, pivot_from_forces, read_sensor_map,
                       read_tip_forces)
@@ -281,6 +282,15 @@ def _solve_all(scenes, bodies, method, quiet) -> list[Run]:
                 runs.append(Run(_load_label(sc), body, sc, res, time.perf_counter() - t0))
                 bar.update(note=f"{body} {runs[-1].load}")
     return runs
+
+
+def _check_memory(scenes, method: str) -> None:
+    """Refuse (SceneError naming --h) a comparison whose solves would not fit in memory;
+    with the finite block available, each solve counts the block provider too."""
+    body = "block-bonded" if _block_factory()[0] is not None else "halfspace"
+    for sc in scenes:
+        sc = dataclasses.replace(sc, influence=_influence(sc, body))
+        check_memory(estimate_memory(sc, default_h(sc), method), option="--h")
 
 
 def _providers(scene: Scene, quiet: bool) -> tuple[dict, list[str]]:
@@ -515,6 +525,7 @@ def run(args: argparse.Namespace) -> int:
         if args.centre_pivot:
             scenes[0], note = _centre_pivot(scenes[0], measured.forces)
             notes.append(note)
+        _check_memory(scenes, args.method)  # before the block provider and the solves
         providers, block_notes = _providers(scenes[0], args.quiet)
         notes += block_notes
         for n in notes:

@@ -4,7 +4,9 @@
 
 Exit codes: 0 converged; 1 not converged (result.json still written, with
 ``converged = false`` and the solver's message); 2 bad input (one ``error: ...`` line
-on stderr naming the field and the value; nothing written, DIR not created); 130
+on stderr naming the field and the value; nothing written, DIR not created; also when
+the solve would need more than 80 % of the available memory, estimated before anything
+large is allocated: the line gives the estimate in GB and says to raise ``--h``); 130
 interrupted (Ctrl-C). The files are written into a temporary folder renamed to DIR at
 the end, so an interrupted run leaves no partial DIR. Without ``--out`` nothing is written.
 """
@@ -20,7 +22,8 @@ from pathlib import Path
 from ..io.result_json import RESULT_NAME, result_to_dict, write_result
 from ..io.scene_file import read_scene
 from ..io.solve_outputs import write_fields_and_figures
-from ..scene import METHODS, SceneError, solve_scene
+from ..resources import check_memory, estimate_memory
+from ..scene import METHODS, SceneError, default_h, solve_scene
 from .staging import staged_directory
 
 #: Asperity rows printed in the summary before it is cut short.
@@ -101,9 +104,12 @@ def run(args: argparse.Namespace) -> int:
             if args.method != "twoscale":
                 raise SceneError(f"--far-tol is an option of --method twoscale, got --method {args.method}")
             options["far_tol"] = far_tol
+        # before anything large is allocated: refuse a solve the machine cannot hold
+        check_memory(estimate_memory(scene, default_h(scene), args.method), option="--h")
         t0 = time.perf_counter()
         quiet_block = {"progress": False} if args.quiet and scene.influence["kind"] == "block" else None
-        result = solve_scene(scene, method=args.method, provider_options=quiet_block, **options)
+        result = solve_scene(scene, method=args.method, provider_options=quiet_block, memory_limit=math.inf,
+                             **options)
         wall = time.perf_counter() - t0
     except ValueError as exc:  # SceneError and solver input checks
         print(f"error: {exc}", file=sys.stderr)

@@ -1,0 +1,156 @@
+"""Memory estimate before a solve (twoscale.resources): the counts against the grids the
+solvers build, the check's one-line message, the CLI refusing a scene the machine cannot
+hold (exit 2, nothing written), and the estimate against a measured peak."""
+from __future__ import annotations
+
+import json
+import math
+import subprocess
+import sys
+import textwrap
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from twoscale import Material
+from twoscale.cli.main import main
+from twoscale.indenters import Asperity
+from twoscale.io.scene_file import read_scene
+from twoscale.resources import (MemoryEstimate, available_memory, check_memory, default_limit,
+                                estimate_memory)
+from twoscale.scene import Scene, SceneError, default_h, reference_grid, solve_scene
+
+EXAMPLES = Path(__file__).resolve().parent.parent / "examples"
+
+HERTZ = Scene(material=Material(E=10.0, nu=0.5), penetration=0.5,
+              asperities=[Asperity(x=0.0, y=0.0, z=0.0, R=10.0, shape="paraboloid")])
+
+
+def fifty_tips_toml(h: float | None = None) -> str:
+    """50 spheres (R 3-6 mm, z 0-0.1 mm) on a 25 x 25 mm square under 75 N, as TOML."""
+    rng = np.random.default_rng(0)
+    xy = rng.uniform(0.0, 25.0, size=(50, 2))
+    R = rng.uniform(3.0, 6.0, 50)
+    z = rng.uniform(0.0, 0.1, 50)
+    lines = ["[material]", "E = 10.0", "nu = 0.5", "[load]", "total = 75.0"]
+    if h is not None:
+        lines += ["[grid]", f"h = {h!r}"]
+    for (x, y), zz, r in zip(xy, z, R):
+        lines += ["[[asperity]]", f"x = {float(x)!r}", f"y = {float(y)!r}", f"z = {float(zz)!r}", f"R = {float(r)!r}"]
+    return "\n".join(lines) + "\n"
+
+
+def test_reference_counts_the_reference_grid():
+    h = 0.05
+    est = estimate_memory(HERTZ, h, "reference")
+    assert est.cells == reference_grid(HERTZ, h).size
+    assert est.method == "reference" and est.h == h
+    assert est.bytes == pytest.approx(sum(b for _, b in est.parts))
+
+
+def test_twoscale_counts_one_patch_per_touching_tip():
+    # one paraboloid: a patch of half-width 1.3 a + 2 h around the Hertz contact a = sqrt(R d)
+    h = 0.05
+    est = estimate_memory(HERTZ, h, "twoscale")
+    a = math.sqrt(10.0 * 0.5)
+    across = math.floor(2 * (1.3 * a + 2 * h) / h) + 1
+    assert est.cells == across ** 2
+
+
+def test_cells_grow_as_one_over_h_squared():
+    coarse = estimate_memory(HERTZ, 0.04, "reference")
+    fine = estimate_memory(HERTZ, 0.01, "reference")
+    assert fine.cells / coarse.cells == pytest.approx(16.0, rel=0.1)  # the grid adds 3 cells around
+
+
+def test_unknown_method_and_bad_h():
+    with pytest.raises(ValueError, match="method"):
+        estimate_memory(HERTZ, 0.05, "fft")
+    with pytest.raises(ValueError, match="h must be"):
+        estimate_memory(HERTZ, 0.0, "reference")
+
+
+def test_check_memory_message_is_one_line_with_gb_limit_and_option():
+    est = MemoryEstimate(bytes=6.5e9, cells=10**9, dominant="patch arrays", method="twoscale", h=1e-4)
+    check_memory(est, 1e10)  # under the limit: nothing
+    with pytest.raises(SceneError) as info:
+        check_memory(est, 2e9, option="--h")
+    msg = str(info.value)
+    assert "\n" not in msg
+    assert "6.5 GB" in msg and "2 GB" in msg and "--h" in msg
+
+
+def test_check_memory_rejects_a_meaningless_limit():
+    est = estimate_memory(HERTZ, 0.05, "reference")
+    for bad in (0.0, -1.0, math.nan):
+        with pytest.raises(ValueError, match="limit"):
+            check_memory(est, bad)
+
+
+def test_available_memory_is_read():
+    assert 0 < available_memory() < math.inf
+    assert default_limit() == pytest.approx(0.8 * available_memory(), rel=0.2)
+
+
+def test_solve_scene_refuses_before_allocating_and_can_be_told_not_to_check():
+    with pytest.raises(SceneError, match="grid.h"):
+        solve_scene(HERTZ, method="reference", memory_limit=1e6)
+    res = solve_scene(Scene(material=HERTZ.material, asperities=HERTZ.asperities, penetration=0.5, h=0.25),
+                      method="reference", memory_limit=math.inf)
+    assert res.converged
+
+
+def test_cli_refuses_fifty_tips_at_h_1e_4(tmp_path, capsys):
+    scene = tmp_path / "fifty.toml"
+    scene.write_text(fifty_tips_toml(), encoding="utf-8")
+    out = tmp_path / "out"
+    code = main(["solve", str(scene), "--h", "1e-4", "--out", str(out)])
+    assert code == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1, err
+    assert err[0].startswith("error: ") and "GB" in err[0] and "--h" in err[0]
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["fifty.toml"]  # no output folder
+
+
+def test_cli_refuses_the_reference_too(tmp_path, capsys):
+    scene = tmp_path / "fifty.toml"
+    scene.write_text(fifty_tips_toml(h=1e-4), encoding="utf-8")  # h from the file this time
+    assert main(["solve", str(scene), "--method", "reference", "--out", str(tmp_path / "out")]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "GB" in err[0] and "--h" in err[0]
+    assert not (tmp_path / "out").exists()
+
+
+def test_cli_passes_a_normal_scene(tmp_path):
+    path = EXAMPLES / "hertz_sphere.toml"
+    scene = read_scene(path)
+    assert estimate_memory(scene, default_h(scene), "twoscale").bytes < default_limit()
+    assert main(["solve", str(path), "--out", str(tmp_path / "out"), "--quiet"]) == 0
+    assert (tmp_path / "out" / "result.json").exists()
+
+
+# VmHWM (peak resident set of this process image), not ru_maxrss: Linux keeps ru_maxrss
+# across fork + exec, so a child of a large pytest process would report the parent's size
+PEAK = textwrap.dedent("""
+    import json, sys
+    from twoscale.cli.main import main
+    code = main(sys.argv[1:])
+    with open("/proc/self/status") as fh:
+        peak = next(int(line.split()[1]) * 1024 for line in fh if line.startswith("VmHWM:"))
+    print(json.dumps({"code": code, "peak": peak}))
+""")
+
+
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="reads /proc/self/status")
+@pytest.mark.parametrize("method", ["reference", "twoscale"])
+def test_estimate_is_above_the_measured_peak_and_within_a_factor_2_5(tmp_path, method):
+    # a whole `twoscale solve --out` run (outputs included) in a fresh interpreter
+    h = 0.02
+    path = EXAMPLES / "hertz_sphere.toml"
+    run = subprocess.run([sys.executable, "-c", PEAK, "solve", str(path), "--method", method, "--h", str(h),
+                          "--quiet", "--out", str(tmp_path / "out")], capture_output=True, text=True, timeout=600)
+    got = json.loads(run.stdout.strip().splitlines()[-1])
+    assert got["code"] == 0, run.stderr
+    est = estimate_memory(read_scene(path), h, method)
+    assert got["peak"] <= est.bytes <= 2.5 * got["peak"], (got["peak"] / 1e6, est.text)

@@ -1,0 +1,337 @@
+"""Memory a solve will need, estimated from the scene before anything large is allocated.
+
+:func:`estimate_memory` counts the cells a solver will carry from the scene alone (no
+grid array is built) and turns them into bytes with per-cell costs measured on this code
+(peak resident memory of whole ``twoscale solve`` runs, output files included; see
+:data:`CALIBRATION`). :func:`check_memory` compares an estimate with a limit, by default
+80 % of the memory the machine has available, and raises a one-line
+:class:`~twoscale.scene.SceneError` naming the option to change when it is over.
+
+What the two methods carry:
+
+* ``"reference"``: one grid (:func:`twoscale.scene.reference_grid`), its zero-padded FFT
+  (about four times its cells) and the constrained CG's vectors; the dense solver's
+  matrix where the scene is small enough for it.
+* ``"twoscale"``: one patch per asperity that can touch, of half-width ``margin a_k + 2 h``
+  (``a_k`` the contact radius alone at the expected approach,
+  :func:`twoscale.scene.expected_contact_radii`, which ignores interaction and so
+  overestimates it), each with its FFT operator; the cached cross-patch operators
+  (bounded by the coupling's cache budget); the dense macro matrix; and, where patches
+  crowd their bounding box, the micro step may solve on that box as one grid
+  (``union-cg``, :mod:`twoscale.micro.policy`), which costs like the reference grid.
+* the finite block (``[influence] kind = "block"``) adds its provider's build.
+
+Measured peaks against the estimate: :data:`CALIBRATION`. Not counted: the reference
+grid's enlargements when pressure reaches its edge (x 2.25 each), and a union box the
+micro step falls back to after a far-field iteration failed on a sparse scene.
+
+Units: bytes, mm.
+"""
+from __future__ import annotations
+
+import math
+import os
+from dataclasses import dataclass
+
+import numpy as np
+
+from .grid import Grid
+from .scene import METHODS, Scene, SceneError, expected_approaches, expected_contact_radii, reference_grid
+
+#: Resident memory of ``twoscale solve --out`` on a small scene: the interpreter with
+#: numpy, scipy, meshio and matplotlib, bytes (measured: 110-150 MB).
+BASE_BYTES = 1.6e8
+#: Bytes per cell of a full grid solved by constrained CG (reference, or the micro
+#: step's union box): heights, owners, pressure, gap and the CG's vectors, the kernel
+#: spectrum on the zero-padded grid, the output files (VTK quads). Measured with the
+#: FFT work below: 310-370 bytes per cell in all (CALIBRATION).
+GRID_BYTES_PER_CELL = 250.0
+#: Bytes per cell carried on patches (heights, owners, pressures, the patch's own FFT
+#: operator, the output files); with the FFT work, measured 310 bytes per cell.
+PATCH_BYTES_PER_CELL = 250.0
+#: Transient FFT work of the largest patch or grid, bytes per cell: four complex arrays
+#: on a grid padded to four times the cells (4 x 4 x 16).
+FFT_WORK_BYTES_PER_CELL = 256.0
+#: Budget of the cached cross-patch operators (dense pairs, and FFT / separated pairs:
+#: ``twoscale.micro.blocks.Coupling``'s two caches of 4e8 bytes).
+COUPLING_CACHE_BYTES = 8e8
+#: Patch half-width over the contact radius (``solve_twoscale``'s ``margin``).
+MARGIN = 1.3
+#: Cells a merged block may have over its members (``twoscale.micro.solve.MERGE_GROWTH``):
+#: the largest block's FFT work is counted this much larger.
+MERGE_GROWTH = 2.0
+#: The union box is counted when the patches cover at least this share of it (below it
+#: the policy prefers the block iterations: the box is mostly empty).
+UNION_MIN_COVERAGE = 0.1
+#: Largest number of asperities whose macro step holds the dense N x N matrix
+#: (``twoscale.macro.solve.DENSE_MAX``).
+MACRO_DENSE_MAX = 3000
+#: The reference solver's dense branch: at most this many cells with material
+#: (``twoscale.reference.AUTO_DENSE_CELLS``), the whole grid's matrix up to
+#: ``MAX_DENSE_CELLS`` cells (``twoscale.reference.dense``).
+DENSE_CELLS = 2000
+DENSE_GRID_CELLS = 12_000
+#: The finite-block provider (``[influence] kind = "block"``): building its FEM correction
+#: for the default 140 x 140 x 20 mm block peaked at 1.03 GB (S1, cold cache; 0.13 GB
+#: with the cache warm). Counted whether or not the cache is warm.
+BLOCK_PROVIDER_BYTES = 1.0e9
+#: Default share of the available memory a solve may use.
+DEFAULT_FRACTION = 0.8
+
+#: Measured peak resident memory of ``twoscale solve --quiet --out DIR`` (``/usr/bin/time``
+#: ``%M``; 2 CPUs, numpy 2 / scipy FFT) against the estimate: (scene, method, h mm, cells
+#: the solver carried, peak MB, estimate MB). "random50" / "random300": 50 / 300 spheres,
+#: R 3-6 mm, z 0-0.1 mm, seed 0, on 25 / 60 mm squares under 75 / 450 N (E = 10 MPa).
+CALIBRATION = (
+    ("hertz_sphere", "reference", 0.13, 3_249, 112, 162),
+    ("hertz_sphere", "twoscale", 0.13, 2_401, 131, 161),
+    ("hertz_sphere", "reference", 0.02, 112_225, 136, 217),
+    ("hertz_sphere", "twoscale", 0.02, 87_025, 151, 203),
+    ("hertz_sphere", "reference", 0.008, 683_929, 339, 506),
+    ("hertz_sphere", "twoscale", 0.008, 534_361, 297, 426),
+    ("S1", "twoscale", 0.1, 15_279, 131, 221),
+    ("S1", "reference", 0.1, 140_225, 147, 231),
+    ("S1 on the block, cold FEM cache", "twoscale", 0.1, 15_279, 1032, 1221),
+    ("paper_seven_spheres", "twoscale", 0.25, 11_211, 132, 171),
+    ("paper_seven_spheres", "reference", 0.25, 13_899, 113, 167),
+    ("random50", "twoscale", 0.028, 907_124, 629, 1075),
+    ("random50", "reference", 0.028, 1_601_028, 694, 970),
+    ("random50", "twoscale", 0.014, 3_615_196, 1925, 3025),
+    ("random300", "twoscale", 0.028, 5_064_198, 2037, 3811),
+)
+
+
+@dataclass(frozen=True)
+class MemoryEstimate:
+    """Peak memory a solve is expected to need.
+
+    Attributes
+    ----------
+    bytes : float
+        Estimated peak resident memory, bytes (an upper estimate: within a factor of
+        about 2 of the measured peak, not below it).
+    cells : int
+        Cells the solver will carry: the reference grid, or the patches (the union box
+        when the micro step is expected to solve on it and it is larger).
+    dominant : str
+        The part that dominates the estimate.
+    method : str
+        ``"twoscale"`` or ``"reference"``.
+    h : float
+        Cell size, mm.
+    parts : tuple of (str, float)
+        The estimate's parts, bytes.
+    """
+
+    bytes: float
+    cells: int
+    dominant: str
+    method: str
+    h: float
+    parts: tuple = ()
+
+    @property
+    def text(self) -> str:
+        """One line: the total in GB, the cells and what dominates."""
+        return (f"about {self.bytes / 1e9:.3g} GB for {self.cells:,} cells at h = {self.h:g} mm "
+                f"({self.method}; mostly {self.dominant})")
+
+    def __str__(self) -> str:
+        return self.text
+
+
+# ---------------------------------------------------------------- geometry
+def patch_half_widths(scene: Scene, h: float, *, margin: float = MARGIN) -> np.ndarray:
+    """Estimated half-width (mm) of each asperity's patch, 0 for one that cannot touch:
+    ``min(margin a_k + 2 h, reach_k + h)`` as :func:`twoscale.micro.patches.patch_radius`,
+    with ``a_k`` the contact radius alone at the expected approach."""
+    delta = expected_approaches(scene)
+    a = expected_contact_radii(scene)
+    out = np.zeros(len(scene.asperities))
+    for k, asp in enumerate(scene.asperities):
+        if delta[k] > 0:
+            out[k] = min(asp.reach(float(delta[k])) + h, margin * float(a[k]) + 2.0 * h)
+    return out
+
+
+def _cells_across(r: np.ndarray, h: float) -> np.ndarray:
+    return np.floor(2.0 * r / h) + 1.0
+
+
+def _padded(cells: float) -> float:
+    """Points of the zero-padded FFT of a grid of ``cells`` cells (about 2 x 2 times)."""
+    return 4.0 * cells
+
+
+# ---------------------------------------------------------------- the estimate
+def estimate_memory(scene: Scene, h: float, method: str = "twoscale") -> MemoryEstimate:
+    """Peak memory of solving ``scene`` at cell size ``h`` with ``method``.
+
+    Parameters
+    ----------
+    scene : Scene
+    h : float
+        Cell size, mm (> 0).
+    method : {"twoscale", "reference"}, default "twoscale"
+
+    Returns
+    -------
+    MemoryEstimate
+        Bytes, cells and what dominates, from the scene alone (no grid array built).
+    """
+    if method not in METHODS:
+        raise ValueError(f"method must be one of {METHODS}, got {method!r}")
+    if not (isinstance(h, (int, float)) and math.isfinite(h) and h > 0):
+        raise ValueError(f"h must be a finite number > 0 (mm), got {h!r}")
+    parts = {"interpreter and libraries": BASE_BYTES}
+    if method == "reference":
+        grid = reference_grid(scene, h)
+        cells = int(grid.size)
+        parts.update(_grid_parts(scene, grid, "reference grid"))
+    else:
+        cells, extra = _twoscale_parts(scene, h)
+        parts.update(extra)
+    if scene.influence["kind"] == "block":
+        parts["finite-block provider (FEM build)"] = BLOCK_PROVIDER_BYTES
+    total = float(sum(parts.values()))
+    dominant = max((k for k in parts if k != "interpreter and libraries"), key=parts.get,
+                   default="interpreter and libraries")
+    return MemoryEstimate(total, cells, dominant, method, float(h),
+                          tuple((k, float(v)) for k, v in parts.items()))
+
+
+def _grid_parts(scene: Scene, grid: Grid, name: str) -> dict:
+    n = float(grid.size)
+    parts = {f"the {name} ({grid.ny} x {grid.nx} cells) and its FFT work":
+             (GRID_BYTES_PER_CELL + FFT_WORK_BYTES_PER_CELL) * n}
+    if name == "reference grid":
+        material = _material_cells(scene, grid)
+        if material <= DENSE_CELLS:  # the dense solver: its matrix, a sub-matrix, a factor
+            whole = n if n <= DENSE_GRID_CELLS else 0.0
+            parts["dense influence matrix"] = 8.0 * (whole ** 2 + 2.0 * material ** 2)
+    return parts
+
+
+def _material_cells(scene: Scene, grid: Grid) -> float:
+    """Cells of ``grid`` under indenter material (an upper estimate): the whole grid for
+    paraboloids, the discs ``r < R`` of the spheres otherwise."""
+    if any(a.shape != "sphere" for a in scene.asperities):
+        return float(grid.size)
+    discs = sum(math.pi * (a.R + grid.h) ** 2 for a in scene.asperities) / grid.h ** 2
+    return float(min(grid.size, discs))
+
+
+def _twoscale_parts(scene: Scene, h: float) -> tuple[int, dict]:
+    r = patch_half_widths(scene, h)
+    on = r > 0
+    across = _cells_across(r[on], h)
+    patch_cells = across ** 2
+    cells = int(patch_cells.sum())
+    n = len(scene.asperities)
+    # a merged block (overlapping patches solved together) may have up to MERGE_GROWTH
+    # times its members' cells: its FFT work, not the patches' arrays, grows with it
+    growth = MERGE_GROWTH if int(on.sum()) > 1 else 1.0
+    parts = {f"{int(on.sum())} patches": PATCH_BYTES_PER_CELL * cells,
+             "FFT work on the largest patch": FFT_WORK_BYTES_PER_CELL * growth * float(patch_cells.max(initial=0))}
+    if int(on.sum()) > 1:
+        parts["cached cross-patch operators"] = min(COUPLING_CACHE_BYTES, _pair_bytes(across))
+    if n <= MACRO_DENSE_MAX:
+        parts["macro interaction matrix"] = 3.0 * 8.0 * n * n  # matrix, its LU, a work copy
+    else:
+        parts["macro interaction matrix"] = 2000.0 * n  # matrix-free point operator
+    box = _patch_box(scene, r, h) if int(on.sum()) > 1 else None  # one patch: one local solve
+    if box is not None and cells >= UNION_MIN_COVERAGE * box.size:
+        # the union CG runs after the patches are built (and after a block iteration that
+        # did not converge): both are held at its peak
+        parts.update(_grid_parts(scene, box, "union box"))
+        cells = max(cells, int(box.size))
+    return cells, parts
+
+
+def _pair_bytes(across: np.ndarray) -> float:
+    """Bytes of every cross-patch FFT operator, ``sum_{k != l} 8 (n_k + n_l)^2`` with
+    ``n`` cells across (``Coupling.full_operator``'s size of a half-spectrum)."""
+    s = float(across.sum())
+    sq = float((across ** 2).sum())
+    return 8.0 * (2.0 * (len(across) - 1) * sq + 2.0 * (s * s - sq))
+
+
+def _patch_box(scene: Scene, r: np.ndarray, h: float) -> Grid | None:
+    on = r > 0
+    if not np.any(on):
+        return None
+    tips = scene.tips[on]
+    rr = r[on]
+    return Grid.covering(float((tips[:, 0] - rr).min()), float((tips[:, 0] + rr).max()),
+                         float((tips[:, 1] - rr).min()), float((tips[:, 1] + rr).max()), h)
+
+
+# ---------------------------------------------------------------- the check
+def available_memory() -> float:
+    """Memory available to a new allocation, bytes: ``MemAvailable`` of /proc/meminfo, else
+    the free physical pages (``os.sysconf``); ``inf`` when neither can be read."""
+    try:
+        with open("/proc/meminfo", encoding="ascii") as fh:
+            for line in fh:
+                if line.startswith("MemAvailable:"):
+                    return float(line.split()[1]) * 1024.0  # kB
+    except OSError:
+        pass
+    try:
+        return float(os.sysconf("SC_AVPHYS_PAGES")) * float(os.sysconf("SC_PAGE_SIZE"))
+    except (ValueError, OSError, AttributeError):
+        return math.inf
+
+
+def default_limit() -> float:
+    """The default limit: :data:`DEFAULT_FRACTION` (80 %) of :func:`available_memory`, bytes."""
+    return DEFAULT_FRACTION * available_memory()
+
+
+def check_memory(estimate: MemoryEstimate, limit_bytes: float | None = None, *, option: str = "--h") -> None:
+    """Raise :class:`SceneError` when ``estimate`` exceeds the limit.
+
+    Parameters
+    ----------
+    estimate : MemoryEstimate
+    limit_bytes : float or None
+        Limit, bytes; None: 80 % of the memory available now (:func:`default_limit`);
+        ``math.inf``: no limit.
+    option : str, default "--h"
+        The option the message tells the user to change (``"grid.h"`` in a scene file).
+
+    Raises
+    ------
+    SceneError
+        One line: the estimate in GB, the limit in GB, and the option to change with
+        the value at which the estimate would fit.
+    ValueError
+        When ``limit_bytes`` is not > 0.
+    """
+    limit = default_limit() if limit_bytes is None else float(limit_bytes)
+    if not limit > 0:  # also NaN
+        raise ValueError(f"memory limit must be > 0 bytes (or inf), got {limit_bytes!r}")
+    if estimate.bytes <= limit:
+        return
+    gb = f"{estimate.bytes / 1e9:.2g}" if estimate.bytes < 1e11 else f"{estimate.bytes / 1e9:,.0f}"
+    which = "80 % of the memory available now" if limit_bytes is None else "given"
+    raise SceneError(
+        f"the solve at {option} = {estimate.h:g} mm needs about {gb} GB of memory ({estimate.cells:,} "
+        f"cells, mostly {estimate.dominant}), over the limit of {limit / 1e9:.3g} GB ({which}); "
+        f"{_advice(estimate, limit, option)}")
+
+
+def _advice(estimate: MemoryEstimate, limit: float, option: str) -> str:
+    """What to change: the cell size at which the estimate fits (cells go as 1/h^2)."""
+    room = limit - BASE_BYTES
+    if room <= 0:
+        return f"the machine has too little memory available for any {option}"
+    h = estimate.h * math.sqrt(max(estimate.bytes - BASE_BYTES, 0.0) / room)
+    h = _round_up(h * 1.05, digits=2)  # 5 % slack: the estimate is not exactly 1/h^2
+    sep = " " if option.startswith("-") else " = "
+    return f"try {option}{sep}{h:g} mm or larger"
+
+
+def _round_up(x: float, *, digits: int) -> float:
+    e = math.floor(math.log10(x)) - (digits - 1)
+    return float(f"{math.ceil(x / 10.0 ** e * (1 - 1e-12)) * 10.0 ** e:.{digits + 1}g}")
