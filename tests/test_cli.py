@@ -348,3 +348,56 @@ def test_far_tol_many_asperity_mode_matches_default(examples_dir, tmp_path):
     fe = np.array([a["force"] for a in json.loads((exact / "result.json").read_text())["asperities"]])
     fa = np.array([a["force"] for a in json.loads((approx / "result.json").read_text())["asperities"]])
     assert np.max(np.abs(fa - fe) / fe.max()) <= 5e-3
+
+
+def test_solve_records_the_policy_choice_and_takes_an_expert_iteration(examples_dir, tmp_path, capsys):
+    scene = str(examples_dir / "paper_seven_spheres.toml")
+    auto, fixed = tmp_path / "auto", tmp_path / "fixed"
+    assert main(["solve", scene, "--out", str(auto)]) == 0
+    printed = capsys.readouterr().out
+    res = _read(auto)
+    assert not res["micro_choice"]["by_caller"] and res["micro_choice"]["reason"]
+    assert res["micro_attempts"] and res["micro_attempts"][-1]["converged"]
+    assert "micro step" in printed and res["micro_choice"]["reason"] in printed
+    assert main(["solve", scene, "--iteration", "union-cg", "--out", str(fixed), "--quiet"]) == 0
+    res = _read(fixed)
+    assert res["micro_choice"]["by_caller"]
+    assert [a["iteration"] for a in res["micro_attempts"]] == ["union-cg"]
+    assert res["micro_iteration"] == "union CG"
+
+
+@pytest.mark.parametrize("extra,needle", [(["--iteration", "union-cg", "--far-tol", "0.1"], "--far-tol"),
+                                          (["--method", "reference", "--iteration", "block-gs"], "--iteration")])
+def test_solve_refuses_iteration_options_that_do_not_apply(examples_dir, tmp_path, capsys, extra, needle):
+    out = tmp_path / "out"
+    assert main(["solve", str(examples_dir / "hertz_sphere.toml"), "--out", str(out)] + extra) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and needle in err[0] and not out.exists()
+
+
+def test_status_line_draws_late_and_only_on_a_terminal():
+    import io
+
+    from twoscale.progress import StatusLine
+
+    class Tty(io.StringIO):
+        def isatty(self):
+            return True
+
+    clock = [0.0]
+    stream = Tty()
+    with StatusLine(stream=stream, clock=lambda: clock[0], delay=3.0, interval=0.5) as status:
+        status("macro step")            # too early: nothing
+        clock[0] = 3.5
+        status("micro step, sweep 2")   # drawn
+        clock[0] = 3.6
+        status("micro step, sweep 3")   # too soon after the last: skipped
+    text = stream.getvalue()
+    assert "macro" not in text and "sweep 2" in text and "sweep 3" not in text
+    assert text.endswith("\r")          # cleared at the end
+    plain = io.StringIO()
+    clock[0] = 0.0
+    quiet = StatusLine(stream=plain, clock=lambda: clock[0])
+    clock[0] = 10.0
+    quiet("anything")
+    assert plain.getvalue() == ""       # not a terminal: silent

@@ -220,6 +220,8 @@ def _iteration_text(plan) -> str:
         return names[plan.choice.iteration]
     last = plan.attempts[-1]
     text = names[last.iteration]
+    if last.iteration == "two-level":
+        text += " (far-field coupling)" if last.far_tol and last.far_tol > 1e-9 else " (exact coupling)"
     failed = [a for a in plan.attempts[:-1]]
     if failed:
         text += " (" + "; ".join(f"{names[a.iteration]} did not converge in {a.sweeps} sweeps" for a in failed) + ")"

@@ -22,6 +22,8 @@ from pathlib import Path
 from ..io.result_json import RESULT_NAME, result_to_dict, write_result
 from ..io.scene_file import read_scene
 from ..io.solve_outputs import write_fields_and_figures
+from ..micro.policy import ITERATIONS
+from ..progress import StatusLine
 from ..resources import check_memory, estimate_memory
 from ..scene import METHODS, SceneError, default_h, solve_scene
 from .staging import staged_directory
@@ -40,10 +42,13 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                              "(DIR created after a successful solve)")
     parser.add_argument("--h", metavar="H", default=None,
                         help="cell size in mm, overriding [grid] h of the scene")
+    parser.add_argument("--iteration", choices=("auto",) + ITERATIONS, default="auto",
+                        help="micro step's iteration (experts; default auto: chosen by the solver's "
+                             "policy from the scene, with its reason in result.json)")
     parser.add_argument("--far-tol", metavar="F", default=None,
-                        help="many-asperity mode of the two-scale solver (0 < F < 1, e.g. 0.2): patches "
-                             "farther apart than (r_k + r_l)/sqrt(F) interact through their resultant "
-                             "forces, with the two-level iteration; for thousands of asperities")
+                        help="far-field coupling tolerance of the block iterations (experts; 0 < F < 1): "
+                             "patches farther apart than (r_k + r_l)/sqrt(F) interact through their "
+                             "resultant forces; alone it selects the two-level iteration")
     parser.add_argument("--block-field", action="store_true",
                         help="with [influence] kind = \"block\" and --out: also write "
                              "DIR/block_displacement.vtu (displacement inside the block)")
@@ -104,12 +109,22 @@ def run(args: argparse.Namespace) -> int:
             if args.method != "twoscale":
                 raise SceneError(f"--far-tol is an option of --method twoscale, got --method {args.method}")
             options["far_tol"] = far_tol
+        iteration = getattr(args, "iteration", "auto")
+        if iteration != "auto":
+            if args.method != "twoscale":
+                raise SceneError(f"--iteration is an option of --method twoscale, got --method {args.method}")
+            if far_tol is not None and iteration == "union-cg":
+                raise SceneError("--far-tol applies to the block iterations, not to --iteration union-cg")
+            options["iteration"] = iteration
         # before anything large is allocated: refuse a solve the machine cannot hold
         check_memory(estimate_memory(scene, default_h(scene), args.method), option="--h")
         t0 = time.perf_counter()
         quiet_block = {"progress": False} if args.quiet and scene.influence["kind"] == "block" else None
-        result = solve_scene(scene, method=args.method, provider_options=quiet_block, memory_limit=math.inf,
-                             **options)
+        with StatusLine(quiet=args.quiet) as status:
+            if args.method == "twoscale":
+                options["progress"] = status
+            result = solve_scene(scene, method=args.method, provider_options=quiet_block, memory_limit=math.inf,
+                                 **options)
         wall = time.perf_counter() - t0
     except ValueError as exc:  # SceneError and solver input checks
         print(f"error: {exc}", file=sys.stderr)
@@ -151,6 +166,8 @@ def summary(res: dict, scene_path: str, wall: float, path) -> str:
     if res["tilt"] is not None:
         lines.append(f"  tilt         alpha {res['tilt'][0]:.4g} rad, beta {res['tilt'][1]:.4g} rad")
     lines.append(f"  cell size    h = {res['h']:.6g} mm ({res['h_source']}), {res['n_cells']} cells")
+    if "micro_choice" in res:
+        lines.extend(_micro_lines(res))
     macro = any("macro_force" in a for a in res["asperities"])
     lines.append("  asperity      force N   area mm^2  p_max MPa" + ("   macro N" if macro else ""))
     for k, a in enumerate(res["asperities"][:MAX_ROWS]):
@@ -164,3 +181,15 @@ def summary(res: dict, scene_path: str, wall: float, path) -> str:
     if path is not None:
         lines.append(f"  wrote        {path}")
     return "\n".join(lines)
+
+
+def _micro_lines(res: dict) -> list:
+    """What the micro step ran: the choice and why, and each attempt (one line each)."""
+    choice = res["micro_choice"]
+    who = "fixed" if choice["by_caller"] else "chosen"
+    out = [f"  micro step   {res['micro_iteration']} ({who}: {choice['reason']})"]
+    if len(res["micro_attempts"]) > 1:
+        for a in res["micro_attempts"]:
+            state = "converged" if a["converged"] else "did not converge"
+            out.append(f"    attempt    {a['iteration']}: {a['sweeps']} sweeps, {a['seconds']:.3g} s, {state}")
+    return out

@@ -41,6 +41,10 @@ GS_SWEEPS = 10.0
 LOCAL_PRODUCTS = 6.0
 #: Near (exactly coupled) pairs per patch under far-field coupling.
 NEAR_PAIRS = 8.0
+#: Below this many patches the far field is not used: exact pairs cost little in absolute
+#: terms there, and the far field's error (0.1-0.7 % on lightly loaded tips of an 18-tip
+#: scene) buys nothing.
+FAR_FIELD_MIN_PATCHES = 100
 #: Above this many patches, exact pair coupling is not considered (N^2 pairs).
 EXACT_MAX_PATCHES = 400
 #: Far-field tolerance chosen by the policy (relative error per far pair). Measured: 0.1
@@ -110,8 +114,9 @@ def choose(patches: Sequence[Patch], box_cells: int, *, merged_contacts: bool = 
     """The iteration and coupling for these patches (see the module docstring).
 
     ``merged_contacts``: the macro step met contacts so close that they merge (its safe
-    path); the two-level iteration tends to stall there (a cell's contact state flips
-    between sweeps), so it is not chosen."""
+    path); the two-level iteration with far-field coupling tends to stall there (a cell's
+    contact state flips between sweeps), so it is not chosen; nor below
+    ``FAR_FIELD_MIN_PATCHES`` patches."""
     figures = scene_figures(patches, box_cells)
     costs = estimate_costs(patches, box_cells)
     est = {**figures, "merged_contacts": bool(merged_contacts),
@@ -122,7 +127,7 @@ def choose(patches: Sequence[Patch], box_cells: int, *, merged_contacts: bool = 
     candidates = dict(costs)
     if n > EXACT_MAX_PATCHES:
         candidates.pop("block-gs")
-    if merged_contacts:
+    if merged_contacts or n < FAR_FIELD_MIN_PATCHES:
         candidates.pop("two-level")
     best = min(candidates, key=candidates.get)
     cov = figures["coverage"]
@@ -131,8 +136,9 @@ def choose(patches: Sequence[Patch], box_cells: int, *, merged_contacts: bool = 
                   f"{figures['box_cells']} cells: one constrained CG over the box is cheapest")
         return Choice("union-cg", None, reason, est)
     if best == "block-gs":
-        reason = (f"{n} patches, {100 * cov:.0f} % of their box: block Gauss-Seidel with exact "
-                  "coupling is cheapest")
+        reason = (f"{n} patches, {100 * cov:.0f} % of their box: block iterations with exact "
+                  "coupling are cheapest (under load control the two-level variant first, "
+                  "then block Gauss-Seidel if it stalls)")
         return Choice("block-gs", None, reason, est)
     reason = (f"{n} scattered patches ({100 * cov:.0f} % of their box): two-level iteration with "
               f"far-field coupling (far_tol {AUTO_FAR_TOL}) is cheapest")
