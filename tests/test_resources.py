@@ -58,6 +58,15 @@ def test_twoscale_counts_one_patch_per_touching_tip():
     assert est.cells == across ** 2
 
 
+def test_union_cg_asked_for_counts_the_box_of_the_patches():
+    # two tips 40 mm apart on a diagonal: their box is mostly empty, counted only when asked for
+    scene = Scene(material=Material(E=10.0, nu=0.5), penetration=0.5,
+                  asperities=[Asperity(0.0, 0.0, 0.0, 10.0), Asperity(40.0, 40.0, 0.0, 10.0)])
+    auto = estimate_memory(scene, 0.05, "twoscale")
+    union = estimate_memory(scene, 0.05, "twoscale", iteration="union-cg")
+    assert union.bytes > 2 * auto.bytes and "union box" in union.dominant
+
+
 def test_cells_grow_as_one_over_h_squared():
     coarse = estimate_memory(HERTZ, 0.04, "reference")
     fine = estimate_memory(HERTZ, 0.01, "reference")

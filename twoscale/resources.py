@@ -164,7 +164,8 @@ def _padded(cells: float) -> float:
 
 
 # ---------------------------------------------------------------- the estimate
-def estimate_memory(scene: Scene, h: float, method: str = "twoscale") -> MemoryEstimate:
+def estimate_memory(scene: Scene, h: float, method: str = "twoscale", *,
+                    iteration: str = "auto") -> MemoryEstimate:
     """Peak memory of solving ``scene`` at cell size ``h`` with ``method``.
 
     Parameters
@@ -173,6 +174,10 @@ def estimate_memory(scene: Scene, h: float, method: str = "twoscale") -> MemoryE
     h : float
         Cell size, mm (> 0).
     method : {"twoscale", "reference"}, default "twoscale"
+    iteration : str, default "auto"
+        The two-scale micro iteration asked for (``solve_twoscale``'s ``iteration``):
+        ``"union-cg"`` always counts the box of the patches; any other value counts it
+        where the patches cover at least :data:`UNION_MIN_COVERAGE` of it.
 
     Returns
     -------
@@ -189,7 +194,7 @@ def estimate_memory(scene: Scene, h: float, method: str = "twoscale") -> MemoryE
         cells = int(grid.size)
         parts.update(_grid_parts(scene, grid, "reference grid"))
     else:
-        cells, extra = _twoscale_parts(scene, h)
+        cells, extra = _twoscale_parts(scene, h, union=iteration == "union-cg")
         parts.update(extra)
     if scene.influence["kind"] == "block":
         parts["finite-block provider (FEM build)"] = BLOCK_PROVIDER_BYTES
@@ -221,7 +226,7 @@ def _material_cells(scene: Scene, grid: Grid) -> float:
     return float(min(grid.size, discs))
 
 
-def _twoscale_parts(scene: Scene, h: float) -> tuple[int, dict]:
+def _twoscale_parts(scene: Scene, h: float, *, union: bool = False) -> tuple[int, dict]:
     r = patch_half_widths(scene, h)
     on = r > 0
     across = _cells_across(r[on], h)
@@ -240,7 +245,7 @@ def _twoscale_parts(scene: Scene, h: float) -> tuple[int, dict]:
     else:
         parts["macro interaction matrix"] = 2000.0 * n  # matrix-free point operator
     box = _patch_box(scene, r, h) if int(on.sum()) > 1 else None  # one patch: one local solve
-    if box is not None and cells >= UNION_MIN_COVERAGE * box.size:
+    if box is not None and (union or cells >= UNION_MIN_COVERAGE * box.size):
         # the union CG runs after the patches are built (and after a block iteration that
         # did not converge): both are held at its peak
         parts.update(_grid_parts(scene, box, "union box"))

@@ -402,7 +402,8 @@ def solve_scene(scene: Scene, *, method: str = "twoscale", provider_options: Map
     if memory_limit is None or memory_limit < math.inf:
         from .resources import check_memory, estimate_memory
 
-        check_memory(estimate_memory(scene, h, method), memory_limit, option="grid.h")
+        iteration = options.get("iteration", "auto") if method == "twoscale" else "auto"
+        check_memory(estimate_memory(scene, h, method, iteration=iteration), memory_limit, option="grid.h")
     provider = scene.provider(**(provider_options or {}))
     if method == "twoscale":
         from .twoscale import solve_twoscale

@@ -117,7 +117,7 @@ def run(args: argparse.Namespace) -> int:
                 raise SceneError("--far-tol applies to the block iterations, not to --iteration union-cg")
             options["iteration"] = iteration
         # before anything large is allocated: refuse a solve the machine cannot hold
-        check_memory(estimate_memory(scene, default_h(scene), args.method), option="--h")
+        check_memory(estimate_memory(scene, default_h(scene), args.method, iteration=iteration), option="--h")
         t0 = time.perf_counter()
         quiet_block = {"progress": False} if args.quiet and scene.influence["kind"] == "block" else None
         with StatusLine(quiet=args.quiet) as status:
