@@ -176,7 +176,7 @@ def test_matrix_free_macro_step_gives_the_same_two_scale_answer():
     from twoscale.scene import Scene
     scene = Scene(material=MAT, asperities=asp, total_load=2.0, tilt=True, pivot=(10.0, 10.0), h=0.1)
     assert result_to_dict(dense, scene)["macro"] == {"interaction": "dense", "operator_error": None}
-    assert result_to_dict(dense, scene)["micro_iteration"] == "two-level"
+    assert result_to_dict(dense, scene)["micro_iteration"] == "two-level (far-field coupling)"
     rec = result_to_dict(free, scene)["macro"]
     assert rec["interaction"] == "matrix-free" and 0.0 <= rec["operator_error"] <= 1e-12
 

@@ -234,17 +234,27 @@ def solve_micro(provider: InfluenceProvider, asperities: Sequence[Asperity], *, 
         return _finish(state, [], [], theta, tilt, pivot, True, "no asperity reaches the body",
                        {"sweeps": 0, "corrections": 0, "growths": 0, "linear_sweeps": 0}, ())
     p = [v.copy() for v in p0]
+    target = None if total_load is None else np.array([total_load, 0.0, 0.0])[:n_unknowns]
+    if coarse:
+        out_tilt = (tilt if tilt is not None else (0.0, 0.0)) if (tilt is not None or free_tilt) else None
+        return _solve_two_level(state, p, p0, theta, out_tilt, pivot, n_unknowns, target, tol=tol,
+                                max_sweeps=max_sweeps, max_growths=max_growths, monitor=monitor)
+    return _solve_block_gs(state, p, p0, theta, tilt, pivot, n_unknowns, target, free_tilt=free_tilt, tol=tol,
+                           max_sweeps=max_sweeps, max_growths=max_growths, max_corrections=max_corrections,
+                           monitor=monitor)
+
+
+def _solve_block_gs(state: WorkingSet, p: list, p0: list, theta, tilt, pivot, n_unknowns, target, *,
+                    free_tilt: bool, tol: float, max_sweeps: int, max_growths: int, max_corrections: int,
+                    monitor=None) -> MicroResult:
+    """The micro step by block Gauss-Seidel (eq. 8-9) with patch growth and, under load
+    control, Newton corrections of the approach and tilt from sensitivity sweeps."""
     sweeps = corrections = growths = linear_sweeps = 0
     history: list = []
 
     def counts():
         return {"sweeps": sweeps, "corrections": corrections, "growths": growths, "linear_sweeps": linear_sweeps}
 
-    target = None if total_load is None else np.array([total_load, 0.0, 0.0])[:n_unknowns]
-    if coarse:
-        out_tilt = (tilt if tilt is not None else (0.0, 0.0)) if (tilt is not None or free_tilt) else None
-        return _solve_two_level(state, p, p0, theta, out_tilt, pivot, n_unknowns, target, tol=tol,
-                                max_sweeps=max_sweeps, max_growths=max_growths, monitor=monitor)
     while True:
         z = state.heights(theta, pivot)
         can_grow = growths < max_growths
