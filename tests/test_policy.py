@@ -87,3 +87,27 @@ def test_caller_choice_is_recorded_as_such_and_checked():
         solve_twoscale(hs, asps, h=0.1, penetration=0.2, far_tol=1.5)
     with pytest.raises(ValueError, match="not both"):
         solve_twoscale(hs, asps, h=0.1, penetration=0.2, iteration="block-gs", coarse=True)
+
+
+def test_the_driver_composes_iteration_and_coupling_objects():
+    from twoscale.micro.driver import TWO_LEVEL_SWEEPS, _order
+    from twoscale.micro.policy import Choice
+    from twoscale.micro.strategies import BlockGaussSeidel, Exact, FarField, TwoLevel, UnionCG
+
+    with pytest.raises(ValueError, match="far-field tol"):
+        FarField(1.5)
+    # the policy's far field: capped, then the union CG where it stalls
+    far = _order(Choice("two-level", 0.1, "r", {}), load_two_level=True)
+    assert [(type(i), c, cap) for i, c, cap in far] == [(TwoLevel, FarField(0.1), TWO_LEVEL_SWEEPS),
+                                                        (UnionCG, Exact(), None)]
+    # the caller's far field: exactly what was asked, no fallback
+    fixed = _order(Choice("two-level", 0.1, "r", {}, by_caller=True), load_two_level=True)
+    assert [(type(i), c, cap) for i, c, cap in fixed] == [(TwoLevel, FarField(0.1), None)]
+    # exact block iterations under load control: two-level first, then the paper's
+    exact = _order(Choice("block-gs", None, "r", {}), load_two_level=True)
+    assert [(type(i), c) for i, c, _ in exact] == [(TwoLevel, Exact()), (BlockGaussSeidel, Exact())]
+    assert [(type(i), c) for i, c, _ in _order(Choice("block-gs", None, "r", {}), load_two_level=False)] == \
+        [(BlockGaussSeidel, Exact())]
+    # block Gauss-Seidel takes a far-field coupling too (orthogonal choices)
+    assert [(type(i), c) for i, c, _ in _order(Choice("block-gs", 0.2, "r", {}, by_caller=True), False)] == \
+        [(BlockGaussSeidel, FarField(0.2))]

@@ -175,10 +175,6 @@ def _caller_choice(iteration, far_tol, coarse):
         if far_tol is None:
             return None
         return fixed_choice("two-level", far_tol, f"far_tol = {far_tol} given: two-level with far-field coupling")
-    if iteration == "two-level" and far_tol is None:
-        from .micro.solve import EXACT_FAR_TOL
-
-        return fixed_choice("two-level", EXACT_FAR_TOL, "iteration fixed by the caller: two-level, exact coupling")
     return fixed_choice(iteration, far_tol, f"iteration fixed by the caller: {iteration}")
 
 
@@ -221,7 +217,7 @@ def _iteration_text(plan) -> str:
     last = plan.attempts[-1]
     text = names[last.iteration]
     if last.iteration == "two-level":
-        text += " (far-field coupling)" if last.far_tol and last.far_tol > 1e-9 else " (exact coupling)"
+        text += " (far-field coupling)" if last.far_tol is not None else " (exact coupling)"
     failed = [a for a in plan.attempts[:-1]]
     if failed:
         text += " (" + "; ".join(f"{names[a.iteration]} did not converge in {a.sweeps} sweeps" for a in failed) + ")"

@@ -6,12 +6,9 @@ the chosen strategy, and, when it does not converge, the next one in a fixed ord
 attempt is recorded (:class:`Attempt`: what ran, its sweeps or CG iterations, its time, its
 outcome), so nothing is restarted behind the user's back.
 
-The strategies:
-
-* ``union-cg`` (:func:`.union.solve_union`): one constrained CG over the box of the patches;
-* ``block-gs``: block Gauss-Seidel over the (merged) patches, exact coupling (paper eq. 8);
-* ``two-level``: block Gauss-Seidel with a coarse correction (:mod:`.twolevel`), with exact
-  or far-field coupling (``far_tol``).
+The strategies are objects of :mod:`.strategies`: an iteration (:class:`~.strategies.UnionCG`,
+:class:`~.strategies.BlockGaussSeidel`, :class:`~.strategies.TwoLevel`) run with a coupling
+(:class:`~.strategies.Exact` or :class:`~.strategies.FarField`).
 """
 from __future__ import annotations
 
@@ -26,14 +23,12 @@ from ..influence.base import InfluenceProvider
 from .patches import TipTable, build_patches
 from .policy import ITERATIONS, Choice, choose
 from .solve import EXACT_FAR_TOL, MicroResult, solve_micro
-from .union import box_of, solve_union
+from .strategies import BlockGaussSeidel, Exact, FarField, MicroContext, TwoLevel, UnionCG
+from .union import box_of
 
 #: Sweeps a two-level attempt chosen by the policy gets (it needs 5-10 where it works)
 #: before the next strategy is tried.
 TWO_LEVEL_SWEEPS = 20
-#: The union CG's KKT residual over the block iterations' tolerance (a relative change of the
-#: pressure between sweeps): at the default 1e-6 the CG stops at the reference solver's 1e-8.
-UNION_TOL_FACTOR = 1e-2
 
 
 @dataclass(frozen=True)
@@ -119,26 +114,21 @@ def run_micro(provider: InfluenceProvider, asperities: Sequence[Asperity], *, ma
             MicroPlan(Choice("block-gs", None, "no asperity reaches the body", {}), ())
     box = box_of(patches, h, anchor).size
     picked = _plan(patches, box, choice, merged_contacts=bool(macro.safe_path))
+    context = MicroContext(provider, asperities, macro, tuple(patches), common, p0)
     attempts: list = []
-    order = _order(picked, total_load is not None and not macro.safe_path)
     result = None
-    for iteration, far_tol, sweeps_cap in order:
-        stage = f"micro step, {iteration}" + (f" (far_tol {far_tol:g})" if far_tol and far_tol > EXACT_FAR_TOL else "")
+    for iteration, coupling, sweeps_cap in _order(picked, total_load is not None and not macro.safe_path):
+        stage = f"micro step, {iteration.name}" + (f" ({coupling.name} {coupling.far_tol:g})"
+                                                   if coupling.far_tol is not None else "")
         monitor = None
         if progress is not None:
             progress(stage)
-            unit = "CG iteration" if iteration == "union-cg" else "sweep"
+            unit = "CG iteration" if isinstance(iteration, UnionCG) else "sweep"
             monitor = (lambda k, r, _s=stage, _u=unit: progress(f"{_s}: {_u} {k}, residual {r:.1e}"))
         t = time.perf_counter()
-        if iteration == "union-cg":
-            result = _union(provider, asperities, patches, common, tol, p0, monitor)
-        else:
-            cap = min(max_sweeps, sweeps_cap) if sweeps_cap else max_sweeps
-            result = solve_micro(provider, asperities, max_sweeps=cap,
-                                 far_tol=far_tol if iteration == "two-level" or far_tol else None,
-                                 coarse=iteration == "two-level", sizing_approaches=_sizing(macro, far_tol),
-                                 monitor=monitor, **common)
-        attempts.append(Attempt(iteration, far_tol, bool(result.converged), int(result.sweeps),
+        cap = min(max_sweeps, sweeps_cap) if sweeps_cap else max_sweeps
+        result = iteration.run(context, coupling, max_sweeps=cap, monitor=monitor)
+        attempts.append(Attempt(iteration.name, coupling.far_tol, bool(result.converged), int(result.sweeps),
                                 time.perf_counter() - t, result.message))
         if result.converged:
             break
@@ -146,23 +136,21 @@ def run_micro(provider: InfluenceProvider, asperities: Sequence[Asperity], *, ma
 
 
 def _order(choice: Choice, load_two_level: bool) -> list:
-    """Attempts to make, in order: ``(iteration, far_tol, sweep cap or None)``."""
+    """Attempts to make, in order: ``(iteration, coupling, sweep cap or None)``."""
+    coupling = Exact() if choice.far_tol is None or choice.far_tol <= EXACT_FAR_TOL else FarField(choice.far_tol)
     if choice.iteration == "union-cg":
-        return [("union-cg", None, None)]
+        return [(UnionCG(), Exact(), None)]
     if choice.iteration == "two-level":
-        ft = choice.far_tol
-        if ft is None:
-            return [("two-level", EXACT_FAR_TOL, None)]
-        if choice.by_caller:
-            return [("two-level", ft, None)]
+        if isinstance(coupling, Exact) or choice.by_caller:
+            return [(TwoLevel(), coupling, None)]
         # far-field coupling can fail to converge where contacts merge: the union CG decides
-        return [("two-level", ft, TWO_LEVEL_SWEEPS), ("union-cg", None, None)]
-    if load_two_level and not choice.by_caller and choice.far_tol is None:
+        return [(TwoLevel(), coupling, TWO_LEVEL_SWEEPS), (UnionCG(), Exact(), None)]
+    if load_two_level and not choice.by_caller and isinstance(coupling, Exact):
         # under load control the two-level iteration (exact coupling) replaces the
         # sensitivity sweeps where it converges (S1-S3: 2.7-3x faster); it can stall where
         # contacts merge, and block Gauss-Seidel then runs
-        return [("two-level", EXACT_FAR_TOL, TWO_LEVEL_SWEEPS), ("block-gs", None, None)]
-    return [("block-gs", choice.far_tol, None)]
+        return [(TwoLevel(), Exact(), TWO_LEVEL_SWEEPS), (BlockGaussSeidel(), Exact(), None)]
+    return [(BlockGaussSeidel(), coupling, None)]
 
 
 def _tilt_at(asperities, tilt, pivot) -> np.ndarray:
@@ -170,44 +158,3 @@ def _tilt_at(asperities, tilt, pivot) -> np.ndarray:
         return np.zeros(len(asperities))
     alpha, beta = tilt
     return np.array([beta * (a.x - pivot[0]) + alpha * (a.y - pivot[1]) for a in asperities])
-
-
-def _sizing(macro, far_tol):
-    # patch sizing from the macro local penetrations (far-field coupling only): with
-    # thousands of asperities the bulk deflection makes d - z_k > 0 for all
-    if far_tol is None or far_tol == EXACT_FAR_TOL or not macro.converged:
-        return None
-    delta = np.asarray(macro.local_penetrations, dtype=float)
-    return delta + 0.2 * max(float(delta.max()), 0.0)
-
-
-def _union(provider, asperities, patches, common, tol, p0, monitor=None) -> MicroResult:
-    """The union CG as a :class:`MicroResult` (one patch: the box)."""
-    start = start_grid = None
-    initial = None
-    if p0:
-        from .solve import initial_on_patches
-
-        start_grid, start = initial_on_patches(provider, asperities, patches, common)
-        initial = start
-    out = solve_union(provider, asperities, patches, h=common["h"], anchor=common.get("anchor", (0.0, 0.0)),
-                      penetration=None if common["total_load"] is not None
-                      else common["penetration"], total_load=common["total_load"], free_tilt=common["free_tilt"],
-                      pivot=common["pivot"], tol=UNION_TOL_FACTOR * tol, start=start, start_grid=start_grid,
-                      monitor=monitor)
-    r, field = out.result, out.result.fields[0]
-    converged = bool(r.converged) and not out.on_edge
-    message = r.message if not r.converged else (
-        f"pressure still reaches the box's edge after {out.enlargements} enlargements" if out.on_edge else "")
-    if initial is not None:
-        from .union import _embed
-
-        initial = (_embed(initial, start_grid, out.patch.grid),)
-    else:
-        initial = ()  # eq. 7 not computed (p0=False): no p0 to report
-    tilt = r.tilt if common["free_tilt"] else None
-    return MicroResult((out.patch,), (field.pressure,), initial, (field.gap,), float(r.penetration), tilt,
-                       converged, message, int(out.iterations), 0, int(out.enlargements), 0,
-                       tuple(r.residuals.get("gap", ())), {"box": int(out.patch.grid.size),
-                                                          "products": int(out.products)},
-                       (tuple(out.patch.members),) if len(out.patch.members) > 1 else ())
