@@ -239,9 +239,9 @@ def main(argv=None) -> int:
     ap.add_argument("--reference-max-cells", type=float, default=6e6,
                     help="largest full grid attempted (cells), default 6e6")
     ap.add_argument("--timeout", type=float, default=1800.0, help="per solve, s")
-    ap.add_argument("--options", default='{"far_tol": 0.2}',
-                    help='JSON keyword arguments for solve_twoscale, default {"far_tol": 0.2} '
-                         '(use {} for the exact cross-patch coupling: N^2 products)')
+    ap.add_argument("--options", default='{}',
+                    help='JSON keyword arguments for solve_twoscale, default {} (what a user gets: '
+                         'the policy chooses the iteration and coupling; e.g. {"far_tol": 0.2} to fix them)')
     ap.add_argument("--comparators", action=argparse.BooleanOptionalAction, default=True,
                     help="run ContactMechanics and Tamaas where installed (default on)")
     ap.add_argument("--comparator-max-cells", type=float, default=None,

@@ -42,6 +42,9 @@ LOCAL_PRODUCTS = 6.0
 #: Patch-sized products per exactly coupled pair of patches and sweep (spectral and
 #: low-rank routes together; see :func:`estimate_costs`).
 PAIR_PRODUCTS = 0.5
+#: Fixed cost of one product, work units (about 0.085 ms at 1.7 ns per unit: a union CG
+#: iteration on the paper's 41 x 39 box costs ~0.08 ms whatever its FFT size).
+PRODUCT_OVERHEAD = 5e4
 #: Near (exactly coupled) pairs per patch under far-field coupling.
 NEAR_PAIRS = 8.0
 #: Below this many patches the far field is not used: exact pairs cost little in absolute
@@ -106,9 +109,11 @@ def estimate_costs(patches: Sequence[Patch], box_cells: int) -> dict:
     n = len(cells)
     if n == 0:
         return {"union-cg": 0.0, "block-gs": 0.0, "two-level": 0.0}
-    local = float(sum(fft_work(c) for c in cells))
+    # a local solve's and a CG iteration's product also has a fixed cost (Python and
+    # transform set-up), which decides on small patches; pairs share their transforms
+    local = float(sum(fft_work(c) for c in cells)) + n * PRODUCT_OVERHEAD
     pair = fft_work(float(np.mean(cells)))
-    union = UNION_PRODUCTS * fft_work(box_cells)
+    union = UNION_PRODUCTS * (fft_work(box_cells) + PRODUCT_OVERHEAD)
     exact = GS_SWEEPS * (LOCAL_PRODUCTS * local + PAIR_PRODUCTS * n * (n - 1) * pair)
     # far field: the near pairs exact, the rest through one point-operator product of n tips
     near = GS_SWEEPS * (LOCAL_PRODUCTS * local + PAIR_PRODUCTS * NEAR_PAIRS * n * pair + 10.0 * fft_work(n))
