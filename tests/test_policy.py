@@ -102,17 +102,16 @@ def test_the_driver_composes_iteration_and_coupling_objects():
     with pytest.raises(ValueError, match="far-field tol"):
         FarField(1.5)
     # the policy's far field: capped, then the union CG where it stalls
-    far = _order(Choice("two-level", 0.1, "r", {}), load_two_level=True)
+    far = _order(Choice("two-level", 0.1, "r", {}))
     assert [(type(i), c, cap) for i, c, cap in far] == [(TwoLevel, FarField(0.1), TWO_LEVEL_SWEEPS),
                                                         (UnionCG, Exact(), None)]
     # the caller's far field: exactly what was asked, no fallback
-    fixed = _order(Choice("two-level", 0.1, "r", {}, by_caller=True), load_two_level=True)
+    fixed = _order(Choice("two-level", 0.1, "r", {}, by_caller=True))
     assert [(type(i), c, cap) for i, c, cap in fixed] == [(TwoLevel, FarField(0.1), None)]
-    # exact block iterations under load control: two-level first, then the paper's
-    exact = _order(Choice("block-gs", None, "r", {}), load_two_level=True)
+    # the policy's exact two-level (load control): capped, then the paper's iteration
+    exact = _order(Choice("two-level", None, "r", {}))
     assert [(type(i), c) for i, c, _ in exact] == [(TwoLevel, Exact()), (BlockGaussSeidel, Exact())]
-    assert [(type(i), c) for i, c, _ in _order(Choice("block-gs", None, "r", {}), load_two_level=False)] == \
-        [(BlockGaussSeidel, Exact())]
+    assert [(type(i), c) for i, c, _ in _order(Choice("block-gs", None, "r", {}))] == [(BlockGaussSeidel, Exact())]
     # block Gauss-Seidel takes a far-field coupling too (orthogonal choices)
-    assert [(type(i), c) for i, c, _ in _order(Choice("block-gs", 0.2, "r", {}, by_caller=True), False)] == \
+    assert [(type(i), c) for i, c, _ in _order(Choice("block-gs", 0.2, "r", {}, by_caller=True))] == \
         [(BlockGaussSeidel, FarField(0.2))]

@@ -38,13 +38,22 @@ def _available_subcommands():
             yield name, importlib.import_module(module)
 
 
+class _OneLineParser(argparse.ArgumentParser):
+    """An argument parser whose usage errors are one ``error: ...`` line (exit 2), like
+    every other bad input, instead of argparse's usage block."""
+
+    def error(self, message: str):
+        print(f"error: {self.prog}: {message}", file=sys.stderr)
+        raise SystemExit(2)
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser with every available subcommand."""
-    parser = argparse.ArgumentParser(
+    parser = _OneLineParser(
         prog="twoscale",
         description="Two-scale multi-asperity contact on elastic bodies (units mm, N, MPa).")
     parser.add_argument("--version", action="version", version=f"twoscale {__version__}")
-    sub = parser.add_subparsers(dest="command", metavar="COMMAND")
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=_OneLineParser)
     sub.required = True
     for name, module in _available_subcommands():
         doc = (module.__doc__ or name).strip().splitlines()[0]

@@ -187,7 +187,7 @@ def _micro_lines(res: dict) -> list:
     """What the micro step ran: the choice and why, and each attempt (one line each)."""
     choice = res["micro_choice"]
     who = "fixed" if choice["by_caller"] else "chosen"
-    out = [f"  micro step   {res['micro_iteration']} ({who}: {choice['reason']})"]
+    out = [f"  micro step   {res['micro_iteration']}", f"               {who}: {choice['reason']}"]
     if len(res["micro_attempts"]) > 1:
         for a in res["micro_attempts"]:
             state = "converged" if a["converged"] else "did not converge"

@@ -66,10 +66,10 @@ class MicroPlan:
     attempts: tuple
 
 
-def _plan(patches, box, choice_fixed: Choice | None, merged_contacts: bool) -> Choice:
+def _plan(patches, box, choice_fixed: Choice | None, merged_contacts: bool, load_control: bool) -> Choice:
     if choice_fixed is not None:
         return choice_fixed
-    return choose(patches, box, merged_contacts=merged_contacts)
+    return choose(patches, box, merged_contacts=merged_contacts, load_control=load_control)
 
 
 def fixed_choice(iteration: str, far_tol: float | None, why: str) -> Choice:
@@ -113,11 +113,11 @@ def run_micro(provider: InfluenceProvider, asperities: Sequence[Asperity], *, ma
         return solve_micro(provider, asperities, max_sweeps=max_sweeps, **common), \
             MicroPlan(Choice("block-gs", None, "no asperity reaches the body", {}), ())
     box = box_of(patches, h, anchor).size
-    picked = _plan(patches, box, choice, merged_contacts=bool(macro.safe_path))
+    picked = _plan(patches, box, choice, merged_contacts=bool(macro.safe_path), load_control=total_load is not None)
     context = MicroContext(provider, asperities, macro, tuple(patches), common, p0)
     attempts: list = []
     result = None
-    for iteration, coupling, sweeps_cap in _order(picked, total_load is not None and not macro.safe_path):
+    for iteration, coupling, sweeps_cap in _order(picked):
         stage = f"micro step, {iteration.name}" + (f" ({coupling.name} {coupling.far_tol:g})"
                                                    if coupling.far_tol is not None else "")
         monitor = None
@@ -135,22 +135,21 @@ def run_micro(provider: InfluenceProvider, asperities: Sequence[Asperity], *, ma
     return result, MicroPlan(picked, tuple(attempts))
 
 
-def _order(choice: Choice, load_two_level: bool) -> list:
-    """Attempts to make, in order: ``(iteration, coupling, sweep cap or None)``."""
+def _order(choice: Choice) -> list:
+    """Attempts to make, in order: ``(iteration, coupling, sweep cap or None)``. The caller's
+    choice runs alone; the policy's is followed by a fallback where it can stall."""
     coupling = Exact() if choice.far_tol is None or choice.far_tol <= EXACT_FAR_TOL else FarField(choice.far_tol)
     if choice.iteration == "union-cg":
         return [(UnionCG(), Exact(), None)]
-    if choice.iteration == "two-level":
-        if isinstance(coupling, Exact) or choice.by_caller:
-            return [(TwoLevel(), coupling, None)]
-        # far-field coupling can fail to converge where contacts merge: the union CG decides
-        return [(TwoLevel(), coupling, TWO_LEVEL_SWEEPS), (UnionCG(), Exact(), None)]
-    if load_two_level and not choice.by_caller and isinstance(coupling, Exact):
-        # under load control the two-level iteration (exact coupling) replaces the
-        # sensitivity sweeps where it converges (S1-S3: 2.7-3x faster); it can stall where
-        # contacts merge, and block Gauss-Seidel then runs
+    if choice.iteration == "block-gs":
+        return [(BlockGaussSeidel(), coupling, None)]
+    if choice.by_caller:
+        return [(TwoLevel(), coupling, None)]
+    if isinstance(coupling, Exact):
+        # the two-level iteration can stall where contacts merge: the paper's iteration decides
         return [(TwoLevel(), Exact(), TWO_LEVEL_SWEEPS), (BlockGaussSeidel(), Exact(), None)]
-    return [(BlockGaussSeidel(), coupling, None)]
+    # far-field coupling can fail to converge where contacts merge: the union CG decides
+    return [(TwoLevel(), coupling, TWO_LEVEL_SWEEPS), (UnionCG(), Exact(), None)]
 
 
 def _tilt_at(asperities, tilt, pivot) -> np.ndarray:

@@ -170,8 +170,10 @@ def solve_cg(provider: InfluenceProvider, surface: Surface, *, penetration: floa
         p1, _, _, it0, products0, hist0, _, _ = _iterate(work, single, provider.material.E_star, SINGLE_TOL,
                                                          max_iter, start, stall=SINGLE_STALL, monitor=monitor)
         start = p1.reshape(work.grid.shape)
-    p, u, m, it, n_products, hist, converged, message = _iterate(work, op, provider.material.E_star, tol, max_iter,
-                                                                 start, monitor=monitor)
+    offset = it0 + 1 if it0 or hist0 else 0
+    p, u, m, it, n_products, hist, converged, message = _iterate(
+        work, op, provider.material.E_star, tol, max_iter, start,
+        monitor=None if monitor is None else (lambda k, r: monitor(offset + k, r)))
     it, n_products, hist = it + it0, n_products + products0, hist0 + hist
     p, u = p.reshape(work.grid.shape), u.reshape(work.grid.shape)
     if work is not problem:
