@@ -20,7 +20,7 @@ MAT = Material(E=6.0, nu=0.5)
 def _patches(asps, force, d, h):
     z = np.array([a.z for a in asps])
     pts = build_patches(asps, h=h, forces=np.full(len(asps), force), approaches=d - z, E_star=MAT.E_star)
-    return pts, box_of(pts, h, (0.0, 0.0)).size
+    return pts, box_of([p.grid for p in pts], h, (0.0, 0.0)).size
 
 
 def test_one_patch_is_one_local_solve():
@@ -69,7 +69,7 @@ def test_exact_pairs_grow_as_n_squared_and_union_as_its_box():
     pts, _ = _patches(asps, 1.0, 0.2, 0.1)
 
     def cost(n):
-        return estimate_costs(pts[:n], box_of(pts[:n], 0.1, (0.0, 0.0)).size)
+        return estimate_costs(pts[:n], box_of([p.grid for p in pts[:n]], 0.1, (0.0, 0.0)).size)
 
     c20, c40, c320 = cost(20), cost(40), cost(320)
     # local solves grow as n, pairs as n(n-1): the ratio tends to 4 per doubling from above 2

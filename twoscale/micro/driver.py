@@ -106,15 +106,20 @@ def run_micro(provider: InfluenceProvider, asperities: Sequence[Asperity], *, ma
                   total_load=total_load, free_tilt=free_tilt, tol=tol, size_from_forces=bool(macro.converged),
                   **block_options)
     approaches = macro.penetration - np.array([a.z for a in asperities]) - _tilt_at(asperities, macro.tilt, pivot)
-    patches = build_patches(asperities, h=h, forces=forces if macro.converged else np.full(len(forces), np.inf),
-                            approaches=approaches, E_star=provider.material.E_star,
-                            margin=block_options.get("margin", 1.3), anchor=anchor)
+    def patch_builder():
+        return build_patches(asperities, h=h, forces=forces if macro.converged else np.full(len(forces), np.inf),
+                             approaches=approaches, E_star=provider.material.E_star,
+                             margin=block_options.get("margin", 1.3), anchor=anchor)
+
+    patches = patch_builder()
     if not patches:
         return solve_micro(provider, asperities, max_sweeps=max_sweeps, **common), \
             MicroPlan(Choice("block-gs", None, "no asperity reaches the body", {}), ())
-    box = box_of(patches, h, anchor).size
-    picked = _plan(patches, box, choice, merged_contacts=bool(macro.safe_path), load_control=total_load is not None)
-    context = MicroContext(provider, asperities, macro, tuple(patches), common, p0)
+    grids = tuple(pt.grid for pt in patches)
+    picked = _plan(patches, box_of(grids, h, anchor).size, choice, merged_contacts=bool(macro.safe_path),
+                   load_control=total_load is not None)
+    del patches  # the iterations build their own; only the extents are kept
+    context = MicroContext(provider, asperities, macro, grids, patch_builder, common, p0)
     attempts: list = []
     result = None
     for iteration, coupling, sweeps_cap in _order(picked):

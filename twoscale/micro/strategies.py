@@ -61,14 +61,17 @@ class FarField:
 
 @dataclass(frozen=True)
 class MicroContext:
-    """What every iteration needs: the body, the indenters, the macro result, the patches
-    the policy saw, and the options of the micro step (``common``: h, forces, penetration,
-    tilt, pivot, total_load, free_tilt, tol and the block options)."""
+    """What every iteration needs: the body, the indenters, the macro result, the grids of
+    the patches the policy saw (their extent; the patches themselves are rebuilt by
+    ``patch_builder`` where needed, so their arrays are not held through the solve), and
+    the options of the micro step (``common``: h, forces, penetration, tilt, pivot,
+    total_load, free_tilt, tol and the block options)."""
 
     provider: object
     asperities: object
     macro: object
-    patches: tuple
+    grids: tuple
+    patch_builder: Callable
     common: dict
     p0: bool = False
 
@@ -111,9 +114,9 @@ class UnionCG:
         if ctx.p0:
             from .solve import initial_on_patches
 
-            start_grid, start = initial_on_patches(ctx.provider, ctx.asperities, ctx.patches, common)
+            start_grid, start = initial_on_patches(ctx.provider, ctx.asperities, ctx.patch_builder(), common)
         load = common["total_load"]
-        out = solve_union(ctx.provider, ctx.asperities, ctx.patches, h=common["h"],
+        out = solve_union(ctx.provider, ctx.asperities, ctx.grids, h=common["h"],
                           anchor=common.get("anchor", (0.0, 0.0)), penetration=None if load is not None
                           else common["penetration"], total_load=load, free_tilt=common["free_tilt"],
                           pivot=common["pivot"], tol=UNION_TOL_FACTOR * common["tol"], start=start,

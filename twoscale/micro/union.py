@@ -65,9 +65,10 @@ class UnionOutcome:
     products: int
 
 
-def box_of(patches: Sequence[Patch], h: float, anchor: tuple[float, float], *, grow: float = 1.0) -> Grid:
-    """The grid covering every patch, its half-sizes scaled by ``grow`` about its centre."""
-    b = np.array([pt.grid.bounds for pt in patches])
+def box_of(grids: Sequence[Grid], h: float, anchor: tuple[float, float], *, grow: float = 1.0) -> Grid:
+    """The grid covering every grid of ``grids`` (the patches' grids), its half-sizes
+    scaled by ``grow`` about its centre."""
+    b = np.array([g.bounds for g in grids])
     xmin, xmax, ymin, ymax = b[:, 0].min(), b[:, 1].max(), b[:, 2].min(), b[:, 3].max()
     cx, cy, rx, ry = (xmin + xmax) / 2, (ymin + ymax) / 2, (xmax - xmin) / 2, (ymax - ymin) / 2
     return Grid.covering(cx - grow * rx, cx + grow * rx, cy - grow * ry, cy + grow * ry, h, anchor=anchor)
@@ -85,20 +86,20 @@ def _on_edge(p: np.ndarray) -> bool:
     return bool(np.any(p[0, :] > 0) or np.any(p[-1, :] > 0) or np.any(p[:, 0] > 0) or np.any(p[:, -1] > 0))
 
 
-def solve_union(provider: InfluenceProvider, asperities: Sequence[Asperity], patches: Sequence[Patch], *,
+def solve_union(provider: InfluenceProvider, asperities: Sequence[Asperity], grids: Sequence[Grid], *,
                 h: float, anchor: tuple[float, float], penetration: float | None,
                 total_load: float | None, free_tilt: bool, pivot: tuple[float, float], tol: float,
                 start: np.ndarray | None = None, start_grid: Grid | None = None,
                 max_iter: int = 20_000, max_enlargements: int = MAX_ENLARGEMENTS,
                 precision: str = "auto", monitor=None) -> UnionOutcome:
-    """Solve the micro step as one problem on the box of ``patches``.
+    """Solve the micro step as one problem on the box of the patches' ``grids``.
 
     Parameters
     ----------
     provider, asperities
         The body and the indenters.
-    patches : sequence of Patch
-        The macro step's patches (only their extent is used).
+    grids : sequence of Grid
+        The grids of the macro step's patches (only their extent is used).
     h : float
         Cell side, mm.
     anchor : (float, float)
@@ -127,7 +128,7 @@ def solve_union(provider: InfluenceProvider, asperities: Sequence[Asperity], pat
     grow, iterations, products = 1.0, 0, 0
     previous = None
     for enlargement in range(max_enlargements + 1):
-        grid = box_of(patches, h, anchor, grow=grow)
+        grid = box_of(grids, h, anchor, grow=grow)
         surface = surface_on(grid, asperities)
         if previous is not None:
             warm = _embed(previous.fields[0].pressure, previous.fields[0].grid, grid)
