@@ -63,7 +63,7 @@ CM_MAXITER = 1000   # converged CM runs here take ~60-100 iterations; a stalled 
 def _scene(spec: dict):
     from twoscale.synthetic import random_scene
     return random_scene(spec["n"], kind=spec["kind"], control=spec["control"], shape=spec["shape"],
-                        body=spec["body"], seed=spec["seed"], h=spec["h"])
+                        body=spec["body"], seed=spec["seed"], h=spec["h"], side=spec.get("side"))
 
 
 def _rss_mb() -> float:

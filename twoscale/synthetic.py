@@ -58,7 +58,7 @@ def square_side(n_tips: int, kind: str) -> float:
 
 def random_scene(n_tips: int, *, kind: str = "dense", control: str = "load", shape: str = "sphere",
                  body: str = "halfspace", seed: int = 0, h: float | None = None,
-                 load_per_tip: float | None = None, touching: float = 0.3) -> Scene:
+                 load_per_tip: float | None = None, touching: float = 0.3, side: float | None = None) -> Scene:
     """A seeded random scene of ``n_tips`` rigid asperities.
 
     Parameters
@@ -83,6 +83,9 @@ def random_scene(n_tips: int, *, kind: str = "dense", control: str = "load", sha
         :func:`twoscale.scene.default_h`; sparse: ``SPARSE_H``).
     load_per_tip : float, optional
         Load per tip, N (> 0); None: 1.5 (dense) or 0.05 (sparse).
+    side : float, optional
+        Side of the square of tips, mm (> 0); default :func:`square_side` (the kind's
+        density).
     touching : float, default 0.3
         Sparse kind: fraction of the tips reached (0 < touching <= 1); the lowest
         ``round(touching * n_tips)`` tips (at least one) touch by independent Hertz.
@@ -111,7 +114,7 @@ def random_scene(n_tips: int, *, kind: str = "dense", control: str = "load", sha
             or not 0 < touching <= 1:
         raise ValueError(f"touching must be a number in (0, 1], got {touching!r}")
     n = int(n_tips)
-    side = square_side(n, kind)
+    side = square_side(n, kind) if side is None else _check_positive("side", side)
     if body == "block" and side > BLOCK_MAX_SIDE:
         most = _most_tips(kind)
         raise ValueError(f"n_tips = {n} needs a square of side {side:.1f} mm, larger than the "
