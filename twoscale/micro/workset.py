@@ -54,13 +54,7 @@ class WorkingSet:
 
     def grow(self, k: int, sides, vectors: list) -> None:
         """Enlarge patch ``k``; block vectors in ``vectors`` (lists) are carried over."""
-        old = self.patches[k]
-        new = grow_patch(old, sides, self.asperities)
-        for vec in vectors:
-            vec[k] = transfer(old, new, scatter(old, vec[k]))[new.owned]
-        self.patches[k] = new
-        self.blocks[k] = LocalBlock(self.provider, new, dense_max_cells=self.dense_max_cells)
-        self.coupling.replace(k, new)
+        self._replace(k, grow_patch(self.patches[k], sides, self.asperities), vectors)
 
     def extend(self, asperity: int, points: np.ndarray, vectors: list) -> None:
         """Make the patch of ``asperity`` cover ``points`` (M, 2) mm, creating it if needed."""
@@ -77,8 +71,11 @@ class WorkingSet:
                 vec.append(np.zeros(self.blocks[-1].n))
             index[asperity] = len(self.patches) - 1
         k = index[asperity]
+        self._replace(k, extend_patch(self.patches[k], points, self.asperities), vectors)
+
+    def _replace(self, k: int, new, vectors: list) -> None:
+        """Patch ``k`` becomes ``new``; its block, coupling and the block vectors follow."""
         old = self.patches[k]
-        new = extend_patch(old, points, self.asperities)
         for vec in vectors:
             vec[k] = transfer(old, new, scatter(old, vec[k]))[new.owned]
         self.patches[k] = new
