@@ -218,7 +218,7 @@ def _iteration_text(plan) -> str:
     text = names[last.iteration]
     if last.iteration == "two-level":
         text += " (far-field coupling)" if last.far_tol is not None else " (exact coupling)"
-    failed = [a for a in plan.attempts[:-1]]
-    if failed:
-        text += " (" + "; ".join(f"{names[a.iteration]} did not converge in {a.sweeps} sweeps" for a in failed) + ")"
+    if len(plan.attempts) > 1:
+        text += " (" + "; ".join(f"{names[a.iteration]} did not converge in {a.sweeps} sweeps"
+                                 for a in plan.attempts[:-1]) + ")"
     return text

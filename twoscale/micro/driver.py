@@ -25,6 +25,7 @@ from .policy import ITERATIONS, Choice, choose
 from .solve import EXACT_FAR_TOL, MicroResult, solve_micro
 from .strategies import BlockGaussSeidel, Exact, FarField, MicroContext, TwoLevel, UnionCG
 from .union import box_of
+from .workset import tip_approaches
 
 #: Sweeps a two-level attempt chosen by the policy gets (it needs 5-10 where it works)
 #: before the next strategy is tried.
@@ -105,21 +106,17 @@ def run_micro(provider: InfluenceProvider, asperities: Sequence[Asperity], *, ma
     common = dict(h=h, forces=forces, penetration=macro.penetration, tilt=macro.tilt, pivot=pivot,
                   total_load=total_load, free_tilt=free_tilt, tol=tol, size_from_forces=bool(macro.converged),
                   **block_options)
-    approaches = macro.penetration - np.array([a.z for a in asperities]) - _tilt_at(asperities, macro.tilt, pivot)
-    def patch_builder():
-        return build_patches(asperities, h=h, forces=forces if macro.converged else np.full(len(forces), np.inf),
-                             approaches=approaches, E_star=provider.material.E_star,
-                             margin=block_options.get("margin", 1.3), anchor=anchor)
-
-    patches = patch_builder()
+    # the patches solve_micro would build from the same arguments, built once here
+    theta = (macro.penetration, *(macro.tilt if macro.tilt is not None else (0.0, 0.0)))
+    patches = build_patches(asperities, h=h, forces=forces if macro.converged else np.full(len(forces), np.inf),
+                            approaches=tip_approaches(asperities, theta, pivot), E_star=provider.material.E_star,
+                            margin=block_options.get("margin", 1.3), anchor=anchor)
     if not patches:
         return solve_micro(provider, asperities, max_sweeps=max_sweeps, **common), \
             MicroPlan(Choice("block-gs", None, "no asperity reaches the body", {}), ())
-    grids = tuple(pt.grid for pt in patches)
-    picked = _plan(patches, box_of(grids, h, anchor).size, choice, merged_contacts=bool(macro.safe_path),
-                   load_control=total_load is not None)
-    del patches  # the iterations build their own; only the extents are kept
-    context = MicroContext(provider, asperities, macro, grids, patch_builder, common, p0)
+    picked = _plan(patches, box_of([pt.grid for pt in patches], h, anchor).size, choice,
+                   merged_contacts=bool(macro.safe_path), load_control=total_load is not None)
+    context = MicroContext(provider, asperities, macro, tuple(patches), common, p0)
     attempts: list = []
     result = None
     for iteration, coupling, sweeps_cap in _order(picked):
@@ -155,10 +152,3 @@ def _order(choice: Choice) -> list:
         return [(TwoLevel(), Exact(), TWO_LEVEL_SWEEPS), (BlockGaussSeidel(), Exact(), None)]
     # far-field coupling can fail to converge where contacts merge: the union CG decides
     return [(TwoLevel(), coupling, TWO_LEVEL_SWEEPS), (UnionCG(), Exact(), None)]
-
-
-def _tilt_at(asperities, tilt, pivot) -> np.ndarray:
-    if tilt is None:
-        return np.zeros(len(asperities))
-    alpha, beta = tilt
-    return np.array([beta * (a.x - pivot[0]) + alpha * (a.y - pivot[1]) for a in asperities])

@@ -128,7 +128,7 @@ def solve_micro(provider: InfluenceProvider, asperities: Sequence[Asperity], *, 
                 size_from_forces: bool = True, far_tol: float | None = None,
                 sizing_approaches: np.ndarray | None = None, coarse: bool = False,
                 separated_rtol: float | None = 1e-8, merge: bool = True,
-                merge_growth: float = MERGE_GROWTH, monitor=None) -> MicroResult:
+                merge_growth: float = MERGE_GROWTH, monitor=None, patches: list | None = None) -> MicroResult:
     """Pressure on patches from the macro forces (METHOD.md section 3).
 
     Parameters
@@ -199,6 +199,9 @@ def solve_micro(provider: InfluenceProvider, asperities: Sequence[Asperity], *, 
         Cells a merged grid may have over its members' grids together (>= 1).
     monitor : callable, optional
         ``monitor(sweep, change)`` after each sweep (progress display).
+    patches : list of Patch or None
+        The one-asperity patches these arguments give, already built (the driver builds
+        them for its policy); ignored with ``sizing_approaches``, which sizes them anew.
     """
     if coarse and far_tol is None:
         raise ValueError("coarse=True needs far_tol (the two-level iteration holds the far field by resultants)")
@@ -213,8 +216,9 @@ def solve_micro(provider: InfluenceProvider, asperities: Sequence[Asperity], *, 
             raise ValueError(f"sizing_approaches must be {len(approaches)} finite numbers (mm), "
                              f"got shape {sizing_approaches.shape}")
         approaches = np.minimum(approaches, sizing_approaches)
-    patches = build_patches(asperities, h=h, forces=sizing, approaches=approaches,
-                            E_star=provider.material.E_star, margin=margin, anchor=anchor)
+    if patches is None or sizing_approaches is not None:
+        patches = build_patches(asperities, h=h, forces=sizing, approaches=approaches,
+                                E_star=provider.material.E_star, margin=margin, anchor=anchor)
     blocks = [LocalBlock(provider, pt, dense_max_cells=dense_max_cells) for pt in patches]
     # p0 is a start: the sweeps correct it, and at 1e-5 its reported distance from the final
     # pressure (the paper's Fig. 6, percent-level) moves by ~1e-4 %; 1e-8 cost 10-20 % of the

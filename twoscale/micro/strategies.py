@@ -61,19 +61,21 @@ class FarField:
 
 @dataclass(frozen=True)
 class MicroContext:
-    """What every iteration needs: the body, the indenters, the macro result, the grids of
-    the patches the policy saw (their extent; the patches themselves are rebuilt by
-    ``patch_builder`` where needed, so their arrays are not held through the solve), and
-    the options of the micro step (``common``: h, forces, penetration, tilt, pivot,
-    total_load, free_tilt, tol and the block options)."""
+    """What every iteration needs: the body, the indenters, the macro result, the patches
+    the policy saw (built once: the block iterations start from them, the union CG uses
+    their extent), and the options of the micro step (``common``: h, forces, penetration,
+    tilt, pivot, total_load, free_tilt, tol and the block options)."""
 
     provider: object
     asperities: object
     macro: object
-    grids: tuple
-    patch_builder: Callable
+    patches: tuple
     common: dict
     p0: bool = False
+
+    @property
+    def grids(self) -> tuple:
+        return tuple(pt.grid for pt in self.patches)
 
 
 @dataclass(frozen=True)
@@ -85,7 +87,7 @@ class BlockGaussSeidel:
     def run(self, ctx: MicroContext, coupling, *, max_sweeps: int, monitor: Callable | None = None) -> MicroResult:
         return solve_micro(ctx.provider, ctx.asperities, max_sweeps=max_sweeps, far_tol=coupling.far_tol,
                            coarse=False, sizing_approaches=_sizing(ctx.macro, coupling.far_tol), monitor=monitor,
-                           **ctx.common)
+                           patches=list(ctx.patches), **ctx.common)
 
 
 @dataclass(frozen=True)
@@ -98,7 +100,8 @@ class TwoLevel:
     def run(self, ctx: MicroContext, coupling, *, max_sweeps: int, monitor: Callable | None = None) -> MicroResult:
         far_tol = coupling.far_tol if coupling.far_tol is not None else EXACT_FAR_TOL
         return solve_micro(ctx.provider, ctx.asperities, max_sweeps=max_sweeps, far_tol=far_tol, coarse=True,
-                           sizing_approaches=_sizing(ctx.macro, coupling.far_tol), monitor=monitor, **ctx.common)
+                           sizing_approaches=_sizing(ctx.macro, coupling.far_tol), monitor=monitor,
+                           patches=list(ctx.patches), **ctx.common)
 
 
 @dataclass(frozen=True)
@@ -114,7 +117,7 @@ class UnionCG:
         if ctx.p0:
             from .solve import initial_on_patches
 
-            start_grid, start = initial_on_patches(ctx.provider, ctx.asperities, ctx.patch_builder(), common)
+            start_grid, start = initial_on_patches(ctx.provider, ctx.asperities, ctx.patches, common)
         load = common["total_load"]
         out = solve_union(ctx.provider, ctx.asperities, ctx.grids, h=common["h"],
                           anchor=common.get("anchor", (0.0, 0.0)), penetration=None if load is not None
