@@ -2,7 +2,7 @@
 
 A layer of thickness ``t`` (mm) lies on a rigid base, either bonded (u = 0) or
 frictionless ("sliding": u_z = 0, no shear). Its surface compliance in Fourier
-space (METHOD.md section 6; Carbone & Mangialardi 2008) is written as the
+space (docs/method.md section 6; Carbone & Mangialardi 2008) is written as the
 half-space compliance ``2/(E* q)`` times a dimensionless factor ``g(qt)`` that
 tends to 1 for ``qt -> infinity``:
 

@@ -192,6 +192,14 @@ class BlockProvider(InfluenceProvider):
         iy = int(np.floor((self.size[1] / 2 - d) / d))
         return -ix, ix, -iy, iy
 
+    def domain(self) -> tuple[float, float, float, float]:
+        """Scene-frame rectangle ``(x0, x1, y0, y1)`` (mm) where loaded points are answered:
+        the correction lattice, one ``source_spacing`` inside the block's sides."""
+        d = self.source_spacing
+        x0, x1, y0, y1 = self._lattice_bounds()
+        ox, oy = self.origin
+        return (x0 * d - ox, x1 * d - ox, y0 * d - oy, y1 * d - oy)
+
     def _weights(self, sources: np.ndarray):
         """Sparse source-interpolation weights (lattice nodes used) x (sources), and the nodes."""
         d = self.source_spacing
@@ -203,9 +211,11 @@ class BlockProvider(InfluenceProvider):
             # beyond the outermost lattice node the cubic stencil would extrapolate (errors
             # of ~20 % of C measured 3 mm from a side): refuse rather than answer badly
             bad = S[out][0] - np.asarray(self.origin)
-            raise ValueError(f"source point {bad.tolist()} (scene frame) lies outside the correction "
-                             f"lattice |x| <= {x1 * d}, |y| <= {y1 * d} mm of the block frame (within "
-                             f"source_spacing = {d} mm of the sides); use a smaller source_spacing")
+            x_lo, x_hi, y_lo, y_hi = self.domain()
+            raise ValueError(f"loaded point ({bad[0]:.3g}, {bad[1]:.3g}) mm (scene frame) is outside "
+                             f"the block's answered region x in [{x_lo:.4g}, {x_hi:.4g}], y in "
+                             f"[{y_lo:.4g}, {y_hi:.4g}] mm (one source_spacing = {d} mm inside the "
+                             f"sides); move the indenters inward or lower source_spacing")
         ix, wx = _lagrange_1d(S[:, 0], d, x0, x1)
         iy, wy = _lagrange_1d(S[:, 1], d, y0, y1)
         nx = x1 - x0 + 1

@@ -210,7 +210,7 @@ def test_measured_forces_wrong_count(tmp_path, capsys):
 @pytest.mark.slow
 def test_real_finite_block_is_stiffer(tmp_path):
     # the finite block (20 mm thick on a rigid base) is stiffer than the half-space, and a
-    # bonded base stiffer than a sliding one (METHOD.md section 6), so at one rigid
+    # bonded base stiffer than a sliding one (docs/method.md section 6), so at one rigid
     # approach the loads are ordered: half-space < sliding < bonded
     pytest.importorskip("skfem")
     if compare._block_factory()[0] is None:

@@ -1,7 +1,7 @@
 """``twoscale indicators``: e_M and e_m between two stored solves (issue 5 point 4).
 
 Independent checks: e_M recomputed from the two result.json files and e_m from sensor
-maps rebuilt here from the two fields.vtu files, both by the formulas of METHOD.md
+maps rebuilt here from the two fields.vtu files, both by the formulas of docs/method.md
 section 5 written out; a run against itself gives 0; bad input exits with 2.
 """
 import json

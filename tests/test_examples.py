@@ -123,7 +123,7 @@ def test_S3_random_layout_matches_its_recipe():
 def test_two_spheres_solve_symmetric_and_interacting():
     # a short reference solve: the two forces are equal by symmetry, and each matches the
     # paper's macro-scale estimate P = f(d - T P) with the neighbour as a point force,
-    # T = 1 / (pi E* d_c) (METHOD.md section 2), solved here independently. The point-force
+    # T = 1 / (pi E* d_c) (docs/method.md section 2), solved here independently. The point-force
     # picture ignores the spread of the neighbour's pressure (contact radius ~2 mm at 5 mm
     # distance, an O((a/d_c)^2) ~ 10 % effect on a ~20 % interaction), hence 2 %.
     from scipy.optimize import brentq

@@ -1,6 +1,6 @@
 """Validation of the finite-block provider on the paper's 140 x 140 x 20 mm block.
 
-Figures from METHOD.md section 6 / issue 4 (point force at the centre, nu = 0.5,
+Figures from docs/method.md section 6 / issue 4 (point force at the centre, nu = 0.5,
 surface displacement over Boussinesq's): bonded 0.57, 0.22, -0.13 and sliding 0.71,
 0.46, 0.13 at r = 5, 10, 20 mm, +-0.02; and the independent layer theory
 (:mod:`fem_influence.layer`, Hankel transform) for an infinite layer. All slow

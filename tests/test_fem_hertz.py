@@ -2,7 +2,7 @@
 
 * very thick block (400 mm cube): matches the half-space and Hertz;
 * the paper's 20 mm bonded block: the total load matches an independent solve
-  whose influence is the layer theory of METHOD.md section 6 (Hankel-transform
+  whose influence is the layer theory of docs/method.md section 6 (Hankel-transform
   point correction, :mod:`fem_influence.layer`) within 2 %, and both differ
   clearly from the half-space (so the comparison can fail).
 Slow: each block needs one factorisation.

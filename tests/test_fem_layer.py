@@ -1,4 +1,4 @@
-"""Layer theory (METHOD.md section 6): limits and the figures quoted there."""
+"""Layer theory (docs/method.md section 6): limits and the figures quoted there."""
 import numpy as np
 import pytest
 from scipy.integrate import quad
@@ -24,13 +24,13 @@ def test_factor_limits():
 
 @pytest.mark.parametrize("base,expected", [("bonded", [0.57, 0.22, -0.13]), ("sliding", [0.71, 0.46, 0.13])])
 def test_method_section6_figures(base, expected):
-    # METHOD.md section 6 / issue 4: t = 20 mm, nu = 0.5, r = 5, 10, 20 mm, +-0.02
+    # docs/method.md section 6 / issue 4: t = 20 mm, nu = 0.5, r = 5, 10, 20 mm, +-0.02
     ratio = point_ratio(np.array([5.0, 10.0, 20.0]), 20.0, 0.5, base)
     np.testing.assert_allclose(ratio, expected, atol=0.02)
 
 
 def test_small_r_slope_bonded():
-    # METHOD.md: u ~ (1/(pi E*)) (1/r - 1.77/t) for r << t (bonded, nu = 0.5)
+    # docs/method.md section 6: u ~ (1/(pi E*)) (1/r - 1.77/t) for r << t (bonded, nu = 0.5)
     t = 20.0
     r = np.array([0.05, 0.1])
     slope = (point_ratio(r, t, 0.5) - 1.0) / (r / t)

@@ -1,7 +1,7 @@
 """BlockProvider on a small block: contract consistency, reciprocity, interpolation, cache.
 
 A 60 x 60 x 10 mm block meshed at 5-10 mm keeps these tests to seconds; the
-validation against METHOD.md section 6 on the 140 x 140 x 20 mm block is in
+validation against docs/method.md section 6 on the 140 x 140 x 20 mm block is in
 test_fem_block_validation.py (slow).
 """
 import numpy as np

@@ -1,4 +1,4 @@
-"""Macro step: tip forces with interaction, load control, tilt (METHOD.md section 2).
+"""Macro step: tip forces with interaction, load control, tilt (docs/method.md section 2).
 
 Checks are independent of the solver: equations are recomputed from scratch with the
 Boussinesq kernel written out here, scalar cases are solved with brentq.
@@ -303,7 +303,7 @@ def test_merged_contacts_converge_on_the_safe_path(mode):
 
 @pytest.mark.parametrize("ratio", [0.1, 0.2, 0.5, 5.0])
 def test_paper_seven_spheres(ratio):
-    # METHOD.md section 4: centre + hexagon of radius d_c = 2R ratio, d = 0.1 R
+    # docs/method.md section 4: centre + hexagon of radius d_c = 2R ratio, d = 0.1 R
     R = 10.0
     tips = hexagon(2 * R * ratio)
     law = SphereLaw(R, E_STAR)

@@ -1,4 +1,4 @@
-"""The paper's numerical study (METHOD.md section 4) and the ``twoscale paper`` command.
+"""The paper's numerical study (docs/method.md section 4) and the ``twoscale paper`` command.
 
 Acceptance (issue): ``100 ||p - p_r|| / ||p_r|| <= 0.1`` for every d/2R against the
 reference solver on the same lattice; the eq. 7 error ``100 ||p0 - p_r|| / ||p_r||`` grows

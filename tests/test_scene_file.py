@@ -257,7 +257,8 @@ def test_load_cases_from_a_toml_file(write_scene):
 
 def test_block_defaults_are_the_paper_block():
     scene = scene_from_dict(ROUND_TRIP["block defaults"])
-    assert scene.influence == {"kind": "block", "size": (140.0, 140.0, 20.0), "base": "bonded", "origin": (0.0, 0.0)}
+    assert scene.influence == {"kind": "block", "size": (140.0, 140.0, 20.0), "base": "bonded", "origin": (0.0, 0.0),
+                               "source_spacing": 5.0}
 
 
 def test_block_without_fem_influence_names_kind(monkeypatch):

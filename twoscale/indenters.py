@@ -78,7 +78,7 @@ class Asperity:
 class Tilt:
     """Small rotation of the indenting surface about a pivot (ball-and-socket joint).
 
-    The surface height becomes ``z(x, y) + beta (x - px) + alpha (y - py)`` (METHOD.md
+    The surface height becomes ``z(x, y) + beta (x - px) + alpha (y - py)`` (docs/method.md
     section 2): ``alpha`` about x, ``beta`` about y, radians; pivot ``(px, py)`` in mm.
     """
 

@@ -81,7 +81,7 @@ def normalise_influence(influence: Mapping | None) -> dict:
     kind = influence.get("kind", "halfspace")
     if kind not in INFLUENCE_KINDS:
         raise SceneError(f"influence.kind must be one of {INFLUENCE_KINDS}, got {kind!r}")
-    allowed = {"kind"} if kind == "halfspace" else {"kind", "size", "base", "origin"}
+    allowed = {"kind"} if kind == "halfspace" else {"kind", "size", "base", "origin", "source_spacing"}
     for key in influence:
         if key not in allowed:
             raise SceneError(f"influence.{key} is not a known key for kind = {kind!r} "
@@ -97,7 +97,14 @@ def normalise_influence(influence: Mapping | None) -> dict:
                            positive=True, unit="mm"),
         "base": base,
         "origin": check_pair("influence.origin", influence.get("origin", (0.0, 0.0)), unit="mm"),
+        "source_spacing": _positive("influence.source_spacing", influence.get("source_spacing", 5.0)),
     }
+
+
+def _positive(name: str, v) -> float:
+    if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or v <= 0:
+        raise SceneError(f"{name} must be a positive number (mm), got {v!r}")
+    return float(v)
 
 
 # ---------------------------------------------------------------- the scene
@@ -257,7 +264,8 @@ def _block_provider(material: Material, opts: Mapping, options: Mapping):
     factory = getattr(fem_influence, "FiniteBlock", None) or getattr(fem_influence, "BlockProvider", None)
     if factory is None:
         raise SceneError("influence.kind = \"block\": fem_influence provides no FiniteBlock provider")
-    return factory(material, size=tuple(opts["size"]), base=opts["base"], origin=tuple(opts["origin"]), **options)
+    return factory(material, size=tuple(opts["size"]), base=opts["base"], origin=tuple(opts["origin"]),
+                   source_spacing=opts.get("source_spacing", 5.0), **options)
 
 
 # ---------------------------------------------------------------- the default cell size
@@ -405,12 +413,31 @@ def solve_scene(scene: Scene, *, method: str = "twoscale", provider_options: Map
         iteration = options.get("iteration", "auto") if method == "twoscale" else "auto"
         check_memory(estimate_memory(scene, h, method, iteration=iteration), memory_limit, option="grid.h")
     provider = scene.provider(**(provider_options or {}))
+    check_domain(scene, provider)
     if method == "twoscale":
         from .twoscale import solve_twoscale
 
         return solve_twoscale(provider, scene.asperities, h=h, penetration=scene.penetration,
                               total_load=scene.total_load, tilt=scene.tilt, pivot=scene.pivot, **options)
     return _solve_reference_scene(scene, provider, h, **options)
+
+
+def check_domain(scene: Scene, provider) -> None:
+    """Raise :class:`SceneError` naming the first asperity (numbered from 1) whose expected
+    contact reaches outside the region the body answers for (``provider.domain()``)."""
+    box = provider.domain()
+    if box is None:
+        return
+    x0, x1, y0, y1 = box
+    a = expected_contact_radii(scene)
+    for k, (tip, ak) in enumerate(zip(scene.tips, a)):
+        x, y = tip
+        if x - ak < x0 or x + ak > x1 or y - ak < y0 or y + ak > y1:
+            raise SceneError(
+                f"asperity {k + 1} at ({x:.4g}, {y:.4g}) mm, contact radius about {ak:.2g} mm, "
+                f"reaches outside the region the block answers for, x in [{x0:.4g}, {x1:.4g}], "
+                f"y in [{y0:.4g}, {y1:.4g}] mm (one influence.source_spacing inside its sides): "
+                f"move it inward, or lower influence.source_spacing (default 5 mm)")
 
 
 def approach_bound(scene: Scene) -> float:

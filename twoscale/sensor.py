@@ -1,4 +1,4 @@
-"""Pressure-sensor model, comparison indicators and measured data (METHOD.md section 5).
+"""Pressure-sensor model, comparison indicators and measured data (docs/method.md section 5).
 
 The paper's pressure sensor is a grid of 44 x 44 square cells of 1.9 mm; each cell
 reports the mean pressure over its area. A computed pressure lives on micro cells

@@ -1,4 +1,4 @@
-"""The two-scale solver (Cesbron et al. 2009; METHOD.md sections 2-3).
+"""The two-scale solver (Cesbron et al. 2009; docs/method.md sections 2-3).
 
 1. Macro step: tip forces ``P_k`` of the interacting asperities (:func:`twoscale.macro.solve_macro`).
 2. Micro step: pressure on one patch per asperity, from eq. 7 and block Gauss-Seidel

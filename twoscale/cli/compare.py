@@ -435,7 +435,9 @@ def markdown(scene_path: str, runs, ind: dict, notes: list[str], method: str,
         lines.append("")
         if load in ind:
             lines += ["e_M / e_m in percent (row: reference body in the denominator; e_m on the "
-                      f"{_sensor_text(sensor)}):", ""]
+                      f"{_sensor_text(sensor)}). Both are ratios of squared norms, "
+                      "e_M = 100 sum|P - P~|^2 / sum|P~|^2: one tip of seven 7 % off gives about 0.07 %, "
+                      "so compare the per-tip forces above as well (docs/method.md section 5).", ""]
             names = [r.body for r in group]
             lines += ["| reference | " + " | ".join(names) + " |", "|" + "---|" * (len(names) + 1)]
             for a in [x for x in ["measured"] + names if x in ind[load]]:

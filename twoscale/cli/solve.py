@@ -132,13 +132,14 @@ def run(args: argparse.Namespace) -> int:
     path = None
     if args.out is not None:  # into a temporary folder renamed to DIR at the end: whole or nothing
         with staged_directory(args.out) as tmp:
-            write_result(result, scene, tmp, method=args.method)
+            write_result(result, scene, tmp, method=args.method, h_source="--h" if args.h is not None else None)
             write_fields_and_figures(result, scene, tmp)  # fields.vtu, pressure.png, forces.png
             if getattr(args, "block_field", False):
                 write_block_field_file(result, scene, tmp, quiet=args.quiet)
         path = Path(args.out) / RESULT_NAME
     if not args.quiet:
-        print(summary(result_to_dict(result, scene, method=args.method), args.scene, wall, path))
+        h_source = "--h" if args.h is not None else None
+        print(summary(result_to_dict(result, scene, method=args.method, h_source=h_source), args.scene, wall, path))
     if not result.converged:
         print(f"warning: the solve did not converge: {result.message}", file=sys.stderr)
         return 1

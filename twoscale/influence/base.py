@@ -211,6 +211,15 @@ class InfluenceProvider(ABC):
             raise ValueError(f"rtol must be in (0, 1), got {rtol!r}")
         return DensePointOperator(self.point_compliance, targets, sources, exclude)
 
+    def domain(self) -> tuple[float, float, float, float] | None:
+        """Rectangle ``(x0, x1, y0, y1)`` (mm, scene frame) where this body answers for
+        loaded points; ``None`` (default): everywhere (the half-space).
+
+        A finite body answers only inside its top face (the block: within one source
+        spacing of its sides). Solvers check the scene against it before solving.
+        """
+        return None
+
     def smooth_self_compliance(self, points: np.ndarray) -> np.ndarray:
         """Regular part of the point compliance at coincident points, mm/N, shape (N,).
 

@@ -62,7 +62,7 @@ def _residual_summary(history: Any) -> dict:
     return {"count": len(h), "first": _num(h[0]), "last": _num(h[-1]), "min": _num(min(h))}
 
 
-def result_to_dict(result, scene: Scene, *, method: str | None = None) -> dict:
+def result_to_dict(result, scene: Scene, *, method: str | None = None, h_source: str | None = None) -> dict:
     """The result.json content of a solve.
 
     Parameters
@@ -105,7 +105,7 @@ def result_to_dict(result, scene: Scene, *, method: str | None = None) -> dict:
         "version": __version__,
         "message": result.message,
         "solver": result.method,
-        "h_source": "scene" if scene.h is not None else "default",
+        "h_source": h_source or ("scene" if scene.h is not None else "default"),
         "n_cells": int(result.n_cells),
         "residuals": {str(k): _residual_summary(v) for k, v in result.residuals.items()},
         "units": dict(UNITS),
@@ -130,13 +130,14 @@ def result_to_dict(result, scene: Scene, *, method: str | None = None) -> dict:
     return out
 
 
-def write_result(result, scene: Scene, out_dir: str | os.PathLike, *, method: str | None = None) -> Path:
+def write_result(result, scene: Scene, out_dir: str | os.PathLike, *, method: str | None = None,
+                 h_source: str | None = None) -> Path:
     """Write ``out_dir/result.json`` atomically (temporary file, then ``os.replace``).
 
     The directory is created if needed; call this only once a solve has returned, so a
     failed run leaves nothing behind. Returns the path written.
     """
-    text = json.dumps(result_to_dict(result, scene, method=method), indent=2, allow_nan=False) + "\n"
+    text = json.dumps(result_to_dict(result, scene, method=method, h_source=h_source), indent=2, allow_nan=False) + "\n"
     target = Path(out_dir) / RESULT_NAME
     with atomic_output(target) as tmp:
         tmp.write_text(text, encoding="utf-8")

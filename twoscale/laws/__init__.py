@@ -1,4 +1,4 @@
-"""Asperity load-penetration laws (METHOD.md section 2): ``P = f(delta)`` for one
+"""Asperity load-penetration laws (docs/method.md section 2): ``P = f(delta)`` for one
 asperity alone. Units: delta in mm, P in N, stiffness in N/mm."""
 from .base import AsperityLaw
 from .compliant import CompliantLaw, compliant

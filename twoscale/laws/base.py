@@ -1,7 +1,7 @@
 """The asperity-law contract: load against penetration of one asperity alone.
 
 A law maps the local penetration ``delta`` (mm) of one asperity, pressed alone into
-the body, to the force ``P`` (N) it carries (METHOD.md section 2, the ``f_k`` of
+the body, to the force ``P`` (N) it carries (docs/method.md section 2, the ``f_k`` of
 ``P_k = f_k(delta_k) H(delta_k)``). Laws are monotone: ``force`` is non-decreasing,
 zero with zero stiffness for ``delta <= 0``, and ``penetration`` is its inverse on
 ``P >= 0``. All methods are vectorised over numpy arrays.

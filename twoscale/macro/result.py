@@ -8,7 +8,7 @@ import numpy as np
 
 @dataclass(frozen=True)
 class MacroResult:
-    """Tip forces of the macro step (METHOD.md section 2) and how they were found.
+    """Tip forces of the macro step (docs/method.md section 2) and how they were found.
 
     Attributes
     ----------

@@ -23,7 +23,7 @@ def solve_macro(provider: InfluenceProvider, tips, z, laws, *,
                 self_compliance: bool = True, tol: float = 1e-10,
                 max_iter: int = 100, dense_max: int = DENSE_MAX,
                 operator_rtol: float = 1e-6) -> MacroResult:
-    """Tip forces of N interacting asperities (METHOD.md section 2; paper eqs. 4-5, 11-12).
+    """Tip forces of N interacting asperities (docs/method.md section 2; paper eqs. 4-5, 11-12).
 
     Solves ``P_k = f_k(delta_k) H(delta_k)`` with ``delta_k = d - z_k - [beta (x_k - px)
     + alpha (y_k - py)] - sum_{l != k} T_kl P_l - c_k P_k`` by Newton-Raphson on the

@@ -15,7 +15,7 @@ function per patch:
   ``rho_k = -sum_{l not seen} T_kl dF_l`` (``T`` the point compliance);
 * forces ``dP_k = kappa_k c_k`` (patch ``k`` shifted by ``c_k`` mm) and corrections
   ``dtheta`` of (d, alpha, beta) under load control solve the linearised macro equations
-  (METHOD.md section 2, paper eqs. 4-5, 11-12)::
+  (docs/method.md section 2, paper eqs. 4-5, 11-12)::
 
       dP_k / kappa_k + sum_l T_kl dP_l - G_k dtheta = rho_k      (patches in contact)
       sum_k E_k dP_k = e - sum_k E_k F_k                         (load, moments)

@@ -1,4 +1,4 @@
-"""Patches: one aligned sub-grid of cells per asperity (METHOD.md section 3).
+"""Patches: one aligned sub-grid of cells per asperity (docs/method.md section 3).
 
 Every patch lies on the lattice ``anchor + h Z^2`` so patches (and the reference solver's
 full grid, built with the same anchor) exchange cells exactly. Where patches overlap, a cell

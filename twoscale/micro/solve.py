@@ -129,7 +129,7 @@ def solve_micro(provider: InfluenceProvider, asperities: Sequence[Asperity], *, 
                 sizing_approaches: np.ndarray | None = None, coarse: bool = False,
                 separated_rtol: float | None = 1e-8, merge: bool = True,
                 merge_growth: float = MERGE_GROWTH, monitor=None, patches: list | None = None) -> MicroResult:
-    """Pressure on patches from the macro forces (METHOD.md section 3).
+    """Pressure on patches from the macro forces (docs/method.md section 3).
 
     Parameters
     ----------

@@ -7,7 +7,7 @@ motion so that the gap
     g = z + beta (x - px) + alpha (y - py) + A p - d
 
 is ``>= 0`` everywhere and ``0`` wherever ``p > 0`` (Johnson 1985, ch. 5;
-METHOD.md section 3). ``A`` is the provider's cell matrix (mm/MPa).
+docs/method.md section 3). ``A`` is the provider's cell matrix (mm/MPa).
 
 Three load modes, one algebra: the unknown rigid motion ``m`` multiplies the columns of
 a *constraint basis* ``B`` and the pressure must satisfy ``h^2 B^T p = target``:

@@ -1,4 +1,4 @@
-"""The paper's numerical study (METHOD.md section 4; Cesbron et al. 2009, figs. 3-6).
+"""The paper's numerical study (docs/method.md section 4; Cesbron et al. 2009, figs. 3-6).
 
 * :mod:`.cases` — the two- and seven-sphere layouts and the reference grid on the same lattice;
 * :mod:`.run` — two-scale and reference solves per case, the error indicators of fig. 6;

@@ -1,4 +1,4 @@
-"""The paper's cases: identical spheres at one height on a half-space (METHOD.md section 4).
+"""The paper's cases: identical spheres at one height on a half-space (docs/method.md section 4).
 
 E = 10 MPa, nu = 0.5, R = 10 mm. Two spheres: tips ``d_c = 2R s`` apart on the y axis,
 approach 0.05 R, cells 0.0125 R. Seven spheres: one at the origin and six on a hexagon of

@@ -21,7 +21,11 @@ def _plt():
 def _maps(study: StudyResult, layout: str, path: pathlib.Path, title: str) -> pathlib.Path:
     plt = _plt()
     chosen = [r for r in study.cases[layout] if r.case.spacing in MAP_SPACINGS[layout]]
-    fig, axes = plt.subplots(1, len(chosen), figsize=(4.2 * len(chosen), 4.0), squeeze=False)
+    from matplotlib.ticker import MaxNLocator
+
+    # constrained layout keeps the suptitle, the panel titles and the colour bar apart
+    fig, axes = plt.subplots(1, len(chosen), figsize=(4.2 * len(chosen), 4.4), squeeze=False,
+                             layout="constrained")
     im = None
     for ax, r in zip(axes[0], chosen):
         R, g = r.case.R, r.grid
@@ -34,6 +38,8 @@ def _maps(study: StudyResult, layout: str, path: pathlib.Path, title: str) -> pa
         ax.set_ylim(ext[2], ext[3])
         ax.set_aspect("equal")
         ax.set_title(f"d/2R = {r.case.spacing:g}")
+        ax.xaxis.set_major_locator(MaxNLocator(nbins=2, symmetric=True))   # narrow panels: few ticks
+        ax.yaxis.set_major_locator(MaxNLocator(nbins=4))
         ax.set_xlabel("x/R")
         ax.set_ylabel("y/R")
     fig.colorbar(im, ax=list(axes[0]), label="p / p_m")

@@ -1,0 +1,101 @@
+"""What the user reads: messages that name the bad thing and say what to change, and docs
+that stay inside the repository."""
+from __future__ import annotations
+
+import pathlib
+
+import pytest
+
+from twoscale import Material
+from twoscale.cli.main import main
+
+ROOT = pathlib.Path(__file__).resolve().parents[1]
+
+EDGE_SCENE = """
+[material]
+E = 6.0
+nu = 0.5
+[load]
+total = 10.0
+[influence]
+kind = "block"
+{extra}
+[[asperity]]
+x = 30.0
+y = 0.0
+R = 5.0
+[[asperity]]
+x = {x}
+y = 0.0
+R = 5.0
+"""
+
+
+def test_tip_near_the_block_side_is_named_with_the_option_to_change(write_scene, tmp_path, capsys):
+    out = tmp_path / "out"
+    path = write_scene(EDGE_SCENE.format(x=66.0, extra=""))
+    assert main(["solve", str(path), "--out", str(out)]) == 2
+    err = capsys.readouterr().err.strip()
+    assert "\n" not in err and err.startswith("error: ")
+    assert "asperity 2 at (66, 0) mm" in err          # numbered from 1, the second tip
+    assert "influence.source_spacing" in err           # an option the scene file accepts
+    assert not out.exists()
+
+
+def test_the_suggested_option_is_accepted_by_the_scene_and_widens_the_region(write_scene):
+    pytest.importorskip("skfem")
+    from fem_influence import BlockProvider
+    from twoscale.io.scene_file import read_scene
+    from twoscale.scene import check_domain
+
+    scene = read_scene(write_scene(EDGE_SCENE.format(x=66.0, extra="source_spacing = 2.0")))
+    provider = scene.provider(progress=False)
+    assert provider.source_spacing == 2.0
+    # lattice nodes at multiples of 2 mm, one spacing inside the 70 mm half-width: 68 mm
+    assert provider.domain() == pytest.approx((-68.0, 68.0, -68.0, 68.0))
+    check_domain(scene, provider)  # the tip at 66 mm with a ~1 mm contact now fits
+    default = BlockProvider(Material(6.0, 0.5), progress=False)
+    assert default.domain() == pytest.approx((-65.0, 65.0, -65.0, 65.0))
+
+
+def test_bad_source_spacing_is_one_line(write_scene, tmp_path, capsys):
+    path = write_scene(EDGE_SCENE.format(x=20.0, extra="source_spacing = -1"))
+    assert main(["solve", str(path), "--out", str(tmp_path / "o")]) == 2
+    err = capsys.readouterr().err.strip()
+    assert "influence.source_spacing" in err and "-1" in err and "\n" not in err
+
+
+def test_the_half_space_answers_everywhere():
+    from twoscale.influence import HalfSpace
+
+    assert HalfSpace(Material(6.0, 0.5)).domain() is None
+
+
+def test_cell_size_from_the_command_line_is_said_to_be(examples_dir, capsys):
+    assert main(["solve", str(examples_dir / "hertz_sphere.toml"), "--h", "0.1"]) == 0
+    line = [ln for ln in capsys.readouterr().out.splitlines() if "cell size" in ln][0]
+    assert "h = 0.1 mm (--h)" in line
+
+
+def test_docs_and_code_cite_only_files_of_the_repository():
+    # the method is described in docs/method.md; nothing may send a reader outside the project
+    offenders = []
+    for path in list(ROOT.glob("**/*.py")) + list(ROOT.glob("**/*.md")):
+        if any(part in {".venv", "node_modules", ".git"} or part.endswith(".egg-info") for part in path.parts):
+            continue
+        text = path.read_text(encoding="utf-8", errors="replace")
+        if "METHOD" + ".md" in text or "../" + "shared" in text:
+            offenders.append(str(path.relative_to(ROOT)))
+    assert offenders == []
+
+
+def test_method_page_has_the_sections_the_code_cites():
+    import re
+
+    text = (ROOT / "docs" / "method.md").read_text(encoding="utf-8")
+    sections = {int(m) for m in re.findall(r"^## (\d+)\.", text, flags=re.M)}
+    cited = set()
+    for path in list(ROOT.glob("twoscale/**/*.py")) + list(ROOT.glob("fem_influence/*.py")) + list(ROOT.glob("tests/*.py")):
+        for m in re.findall(r"docs/method\.md sections? (\d+)(?:-(\d+))?", path.read_text(encoding="utf-8")):
+            cited |= {int(v) for v in m if v}
+    assert cited and cited <= sections
