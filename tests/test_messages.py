@@ -80,7 +80,7 @@ def test_cell_size_from_the_command_line_is_said_to_be(examples_dir, capsys):
 def test_docs_and_code_cite_only_files_of_the_repository():
     # the method is described in docs/method.md; nothing may send a reader outside the project
     offenders = []
-    for path in list(ROOT.glob("**/*.py")) + list(ROOT.glob("**/*.md")):
+    for path in [p for ext in ("py", "md", "toml", "txt", "cfg") for p in ROOT.glob(f"**/*.{ext}")]:
         if any(part in {".venv", "node_modules", ".git"} or part.endswith(".egg-info") for part in path.parts):
             continue
         text = path.read_text(encoding="utf-8", errors="replace")
