@@ -24,6 +24,7 @@ from collections.abc import Mapping, Sequence
 
 import numpy as np
 
+from .control import check_control
 from .indenters import SHAPES, Asperity, surface_on
 from .material import Material
 from .results import ContactResult
@@ -115,6 +116,7 @@ def _scene_of(problem, provider, h, shape, given: dict) -> Scene:
             raise ValueError(f"a Scene carries its own {', '.join(extra)}; change the scene "
                              f"(dataclasses.replace) instead of passing {extra[0]}=")
         return problem if h is None else dataclasses.replace(problem, h=h)
+    check_control(given["penetration"], given["total_load"])
     material = given["material"]
     if material is None:
         if provider is None:

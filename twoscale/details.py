@@ -12,17 +12,13 @@ Indices are 0-based, as everywhere in Python (``merged_patches`` lists positions
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from types import MappingProxyType
 from typing import Mapping
 
 import numpy as np
 
-
-def _frozen_array(a) -> np.ndarray:
-    a = np.array(a, dtype=float, copy=True)
-    a.setflags(write=False)
-    return a
+from .results import frozen_array
 
 
 @dataclass(frozen=True)
@@ -52,8 +48,8 @@ class MacroDetails:
     seconds: float
 
     def __post_init__(self) -> None:
-        object.__setattr__(self, "forces", _frozen_array(self.forces))
-        object.__setattr__(self, "local_penetrations", _frozen_array(self.local_penetrations))
+        object.__setattr__(self, "forces", frozen_array(self.forces))
+        object.__setattr__(self, "local_penetrations", frozen_array(self.local_penetrations))
 
 
 @dataclass(frozen=True)
@@ -79,33 +75,6 @@ class Coupling:
 
 
 @dataclass(frozen=True)
-class MicroChoice:
-    """What the micro step's policy chose (or the caller fixed) and why.
-
-    Attributes
-    ----------
-    iteration : {"union-cg", "block-gs", "two-level"}
-    far_tol : float or None
-        Far-field coupling tolerance; None = every pair exact.
-    reason : str
-        One sentence a user can read.
-    by_caller : bool
-        The caller fixed the iteration.
-    estimates : mapping
-        Scene figures and cost estimates behind the choice (read-only).
-    """
-
-    iteration: str
-    far_tol: float | None
-    reason: str
-    by_caller: bool
-    estimates: Mapping
-
-    def __post_init__(self) -> None:
-        object.__setattr__(self, "estimates", MappingProxyType(dict(self.estimates)))
-
-
-@dataclass(frozen=True)
 class MicroDetails:
     """The micro step: pressure on the patches (paper eqs. 6-9).
 
@@ -116,7 +85,10 @@ class MicroDetails:
         (e.g. ``"block Gauss-Seidel (union CG did not converge in 40 sweeps)"``).
     strategy : {"union-cg", "block-gs", "two-level"}
         The strategy of the last attempt (the one that gave the answer).
-    choice : MicroChoice
+    choice : twoscale.micro.policy.Choice
+        What the policy chose (or the caller fixed) and why: ``iteration``, ``far_tol``,
+        ``reason`` (one sentence), ``by_caller``, ``estimates`` (read-only mapping of the
+        scene figures and cost estimates behind the choice).
     attempts : tuple of twoscale.micro.driver.Attempt
         Every strategy run, in order (iteration, far_tol, converged, sweeps, seconds, message).
     coupling : Coupling
@@ -134,7 +106,7 @@ class MicroDetails:
 
     iteration: str
     strategy: str
-    choice: MicroChoice
+    choice: object
     attempts: tuple
     coupling: Coupling
     merged_patches: tuple
@@ -144,6 +116,9 @@ class MicroDetails:
     seconds: float
 
     def __post_init__(self) -> None:
+        estimates = self.choice.estimates
+        if not isinstance(estimates, MappingProxyType):  # frozen all the way down
+            object.__setattr__(self, "choice", replace(self.choice, estimates=MappingProxyType(dict(estimates))))
         object.__setattr__(self, "attempts", tuple(self.attempts))
         object.__setattr__(self, "merged_patches", tuple(tuple(int(k) for k in m) for m in self.merged_patches))
 

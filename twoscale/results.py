@@ -28,7 +28,8 @@ if TYPE_CHECKING:
     from .details import ReferenceDetails, TwoScaleDetails
 
 
-def _frozen(a, dtype=float) -> np.ndarray:
+def frozen_array(a, dtype=float) -> np.ndarray:
+    """A read-only copy of ``a`` (results never share writable arrays with the caller)."""
     a = np.array(a, dtype=dtype, copy=True)
     a.setflags(write=False)
     return a
@@ -54,8 +55,8 @@ class PressureField:
 
     def __post_init__(self) -> None:
         for name in ("pressure", "gap"):
-            object.__setattr__(self, name, _frozen(getattr(self, name)))
-        object.__setattr__(self, "owner", _frozen(self.owner, np.int64))
+            object.__setattr__(self, name, frozen_array(getattr(self, name)))
+        object.__setattr__(self, "owner", frozen_array(self.owner, np.int64))
         for name in ("pressure", "owner", "gap"):
             if getattr(self, name).shape != self.grid.shape:
                 raise ValueError(f"{name} has shape {getattr(self, name).shape}, grid is {self.grid.shape}")
@@ -87,7 +88,7 @@ def summarise(fields: Sequence[PressureField], n_asperities: int) -> AsperitySum
         areas += h2 * np.bincount(own[ok], weights=(p[ok] > 0).astype(float), minlength=n_asperities)
         if np.any(ok):
             np.maximum.at(pmax, own[ok], p[ok])
-    return AsperitySummary(_frozen(forces), _frozen(areas), _frozen(pmax))
+    return AsperitySummary(frozen_array(forces), frozen_array(areas), frozen_array(pmax))
 
 
 def _read_only(d) -> Mapping:

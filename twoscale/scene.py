@@ -96,6 +96,9 @@ class Influence(Mapping):
     def __len__(self) -> int:
         return len(self._as_dict())
 
+    def __hash__(self) -> int:
+        return hash(tuple(self._as_dict().items()))
+
     def __repr__(self) -> str:
         return f"Influence({self._as_dict()!r})"
 

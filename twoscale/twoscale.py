@@ -18,7 +18,7 @@ from typing import Sequence
 import numpy as np
 
 from .control import check_control
-from .details import Coupling, MacroDetails, MicroChoice, MicroDetails, TwoScaleDetails
+from .details import Coupling, MacroDetails, MicroDetails, TwoScaleDetails
 from .indenters import Asperity
 from .influence.base import InfluenceProvider
 from .laws import law_for
@@ -186,14 +186,13 @@ def _result(asperities, macro, micro, plan, h, timings) -> ContactResult:
         norm = float(np.linalg.norm(p))
         change = 100.0 * float(np.linalg.norm(p0 - p)) / norm if norm > 0 else 0.0
     messages = [m for m in (("macro step: " + macro.message) if not macro.converged else "", micro.message) if m]
-    c = plan.choice
     details = TwoScaleDetails(
         macro=MacroDetails(forces=macro.forces, local_penetrations=macro.local_penetrations,
                            converged=bool(macro.converged), interaction=macro.interaction,
                            operator_error=macro.operator_error, seconds=timings["macro"]),
         micro=MicroDetails(iteration=_iteration_text(plan),
-                           strategy=plan.attempts[-1].iteration if plan.attempts else c.iteration,
-                           choice=MicroChoice(c.iteration, c.far_tol, c.reason, bool(c.by_caller), c.estimates),
+                           strategy=plan.attempts[-1].iteration if plan.attempts else plan.choice.iteration,
+                           choice=plan.choice,
                            attempts=plan.attempts, coupling=Coupling.of(micro.coupling),
                            merged_patches=micro.merged, growths=int(micro.growths),
                            p0=tuple(micro.initial) if micro.initial else None, p0_change_percent=change,
