@@ -11,7 +11,7 @@ interpreter and imports included; ``base_mb`` is the RSS before the solve), kill
   (``iterations["micro"]``), the micro strategy the solver reports (``details.micro``:
   ``micro_strategy`` / ``micro_iteration``), peak RSS;
 * ``ref``: the full-grid FFT reference ``solve_scene(scene, method="reference")`` where its
-  grid (:func:`twoscale.scene.reference_grid`) has at most ``--reference-max-cells``;
+  grid (:func:`twoscale.reference.on_scene.reference_grid`) has at most ``--reference-max-cells``;
 * ``CM``: ContactMechanics ``FreeFFTElasticHalfSpace`` + ``minimize_proxy`` on the same
   grid and h (``offset=d`` or ``external_force=W``; half-space only), when installed, at
   most ``--cm-maxiter`` (1000) iterations: where it converges it takes 60-100 and agrees
@@ -117,7 +117,7 @@ def run_contact_mechanics(spec: dict, options: dict) -> dict:
     from SurfaceTopography import Topography
 
     from twoscale.indenters import surface_on
-    from twoscale.scene import reference_grid
+    from twoscale.reference.on_scene import reference_grid
     scene = _scene(spec)
     base_mb = _rss_mb()
     t0 = time.perf_counter()
@@ -243,7 +243,7 @@ class _Str(str):
 
 def measure(name: str, spec: dict, scene, args, options: dict, cm_ok: bool, run) -> dict:
     """Every solve of one scene; ``run(method, spec, options)`` runs one in a subprocess."""
-    from twoscale.scene import reference_grid
+    from twoscale.reference.on_scene import reference_grid
     h, source = cell_size(scene)
     spec = {**spec, "h": h}
     cells = int(reference_grid(_scene(spec), h).size)

@@ -300,7 +300,7 @@ def test_reference_grid_too_small_is_enlarged(monkeypatch):
     # Hertz contact radius sqrt(R d) is 0.71 of the reach sqrt(2 R d): a grid built at
     # half the reach clips the contact, so the solve must enlarge and re-solve
     _needs("twoscale.reference")
-    import twoscale.api as scene_mod  # where the reference solve on a scene takes its grid
+    import twoscale.reference.on_scene as scene_mod  # where the reference solve on a scene takes its grid
 
     full = solve_scene(_paraboloid_scene(), method="reference")
     assert full.details.grid_enlargements == 0
@@ -313,7 +313,7 @@ def test_reference_grid_too_small_is_enlarged(monkeypatch):
 
 def test_reference_grid_never_large_enough_is_not_converged(monkeypatch):
     _needs("twoscale.reference")
-    import twoscale.api as scene_mod
+    import twoscale.reference.on_scene as scene_mod
 
     real = scene_mod.reference_grid
     monkeypatch.setattr(scene_mod, "reference_grid", lambda s, h, grow=1.0: real(s, h, grow=0.3))

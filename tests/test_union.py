@@ -12,7 +12,8 @@ from twoscale import Material
 from twoscale.indenters import Asperity, surface_on
 from twoscale.influence import HalfSpace
 from twoscale.reference import solve_cg
-from twoscale.scene import Scene, reference_grid, solve_scene
+from twoscale.reference.on_scene import reference_grid
+from twoscale.scene import Scene, solve_scene
 from twoscale.twoscale import solve_twoscale
 
 MAT = Material(E=6.0, nu=0.5)

@@ -6,7 +6,7 @@ objects, an array, or a mapping of arrays) with the material and the load, and r
 
 * ``"twoscale"`` (default): the two-scale method (:func:`twoscale.twoscale.solve_twoscale`);
 * ``"reference"``: the full-grid reference on a grid covering every place contact can
-  reach (:func:`solve_reference_scene`), dense or CG by size; the result says which
+  reach (:func:`twoscale.reference.on_scene.solve_reference_scene`), dense or CG by size; the result says which
   (``result.method == "reference"``, ``result.solver`` ``"dense"`` or ``"cg"``);
 * ``"dense"`` / ``"cg"``: that reference solver;
 * a callable ``method(provider, scene, h=h, **options) -> ContactResult``: a solver of
@@ -25,10 +25,10 @@ from collections.abc import Mapping, Sequence
 import numpy as np
 
 from .control import check_control
-from .indenters import SHAPES, Asperity, surface_on
+from .indenters import SHAPES, Asperity
 from .material import Material
 from .results import ContactResult
-from .scene import Scene, default_h, reference_grid
+from .scene import Scene, default_h
 
 #: Names ``method`` accepts (or a callable).
 METHODS = ("twoscale", "reference", "dense", "cg")
@@ -213,55 +213,10 @@ def solve(problem, *, method="twoscale", provider=None, material: Material | Non
 
         return solve_twoscale(provider, scene.asperities, h=h, penetration=scene.penetration,
                               total_load=scene.total_load, tilt=scene.tilt, pivot=scene.pivot, **options)
+    from .reference.on_scene import solve_reference_scene
+
     return solve_reference_scene(scene, provider, h, solver="auto" if method == "reference" else method,
                                  **options)
 
 
-# ---------------------------------------------------------------- the reference on a scene
-def pressure_on_edge(result: ContactResult) -> bool:
-    """True if any field of ``result`` has positive pressure on its outermost cells."""
-    for f in result.fields:
-        p = f.pressure
-        if np.any(p[0, :] > 0) or np.any(p[-1, :] > 0) or np.any(p[:, 0] > 0) or np.any(p[:, -1] > 0):
-            return True
-    return False
-
-
-def solve_reference_scene(scene: Scene, provider, h: float, *, solver: str = "auto",
-                          max_enlargements: int = 3, **options) -> ContactResult:
-    """The full-grid reference solver on ``scene``: one grid of cell ``h`` (mm) covering every
-    place contact can reach (:func:`twoscale.scene.reference_grid`), enlarged by half while
-    pressure reaches its edge.
-
-    Parameters
-    ----------
-    solver : {"auto", "dense", "cg"}, default "auto"
-        :func:`twoscale.reference.solve_reference`'s choice.
-    max_enlargements : int, default 3
-        After that many, the result is returned with ``converged=False`` and a message
-        saying the answer may be clipped.
-
-    Returns
-    -------
-    ContactResult
-        ``method="reference"``; ``details.grid_enlargements`` says how often the grid grew.
-    """
-    from .reference import solve_reference
-
-    grow = 1.0
-    for attempt in range(max_enlargements + 1):
-        grid = reference_grid(scene, h, grow=grow)
-        result = solve_reference(provider, surface_on(grid, scene.asperities), method=solver,
-                                 penetration=scene.penetration, total_load=scene.total_load,
-                                 tilt=scene.tilt, pivot=scene.pivot, **options)
-        if not pressure_on_edge(result):
-            return dataclasses.replace(result, details=dataclasses.replace(result.details, grid_enlargements=attempt))
-        grow *= 1.5
-    msg = (f"pressure still reaches the edge of the reference grid after {max_enlargements} "
-           f"enlargements (grid {grid.nx} x {grid.ny} cells); the answer may be clipped")
-    return dataclasses.replace(result, converged=False,
-                               message=f"{result.message}; {msg}" if result.message else msg,
-                               details=dataclasses.replace(result.details, grid_enlargements=max_enlargements))
-
-
-__all__ = ["METHODS", "solve", "asperities", "as_asperities", "solve_reference_scene", "pressure_on_edge"]
+__all__ = ["METHODS", "solve", "asperities", "as_asperities"]

@@ -19,7 +19,6 @@ import numpy as np
 
 from .analytic import hertz
 from .control import check_control
-from .grid import Grid
 from .indenters import Asperity
 from .material import Material
 
@@ -397,45 +396,3 @@ def solve_scene(scene: Scene, *, method: str = "twoscale", provider_options: Map
     from .api import solve
 
     return solve(scene, method=method, provider_options=provider_options, memory_limit=memory_limit, **options)
-
-
-def approach_bound(scene: Scene) -> float:
-    """Upper bound on the rigid approach d, mm.
-
-    Penetration control: d itself. Load control: ``z_min + delta_H(W) + W / (pi E* r_min)``,
-    where delta_H(W) is the Hertz penetration of the whole load on the lowest asperity
-    (on the smallest radius among the lowest tips) and the last term bounds the
-    displacement the other asperities add at its tip (r_min = smallest tip distance;
-    Boussinesq). On the half-space without tilt, no contact extends beyond
-    ``Asperity.reach(bound - z_k)``; otherwise the reference solve checks its edges.
-    """
-    if scene.penetration is not None:
-        return scene.penetration
-    W, E_star = scene.total_load, scene.material.E_star
-    z = np.array([a.z for a in scene.asperities])
-    lowest = [a for a in scene.asperities if a.z <= z.min()]
-    r_low = min(a.R for a in lowest)
-    bound = z.min() + float(hertz.penetration(r_low, W, E_star))
-    if len(scene.asperities) > 1:
-        tips = scene.tips
-        from scipy.spatial import cKDTree
-        r_min = float(cKDTree(tips).query(tips, k=2)[0][:, 1].min())  # nearest other tip
-        bound += W / (math.pi * E_star * r_min)
-    return float(bound)
-
-
-def reference_grid(scene: Scene, h: float, *, grow: float = 1.0) -> Grid:
-    """Grid of cell size ``h`` covering every place contact can reach, plus a margin
-    of ``3 h + 5 %`` of each reach; ``grow`` scales the reach and margin (used when a
-    solve finds pressure on the grid edge). Cell centres lie on the lattice h Z^2
-    (a tip at the origin sits on a cell centre)."""
-    bound = approach_bound(scene)
-    boxes = []
-    for a in scene.asperities:
-        reach = a.reach(bound - a.z)
-        if reach <= 0:
-            continue
-        r = grow * (1.05 * reach + 3.0 * h)
-        boxes.append((a.x - r, a.x + r, a.y - r, a.y + r))
-    b = np.array(boxes)
-    return Grid.covering(b[:, 0].min(), b[:, 1].max(), b[:, 2].min(), b[:, 3].max(), h)
