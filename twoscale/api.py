@@ -85,8 +85,10 @@ def as_asperities(tips, *, shape: str = "sphere") -> tuple[Asperity, ...]:
 
     ``tips`` is a sequence of :class:`Asperity`; an ``(n, 3)`` array of columns
     ``x, y, R`` or an ``(n, 4)`` array of ``x, y, R, z`` (mm; ``R`` is always the third
-    column); or a mapping with arrays ``"x"``, ``"y"``, ``"R"`` and optionally ``"z"``
-    and ``"shape"``. ``shape`` applies to the array forms.
+    column), or the same as a list of rows of numbers; or a mapping with arrays ``"x"``,
+    ``"y"``, ``"R"`` and optionally ``"z"`` and ``"shape"``. ``shape`` applies to the
+    array forms. A sequence of numpy arrays is refused: ``(x, y, R)`` columns and three
+    rows look alike.
     """
     if isinstance(tips, Mapping):
         missing = [k for k in ("x", "y", "R") if k not in tips]
@@ -95,6 +97,10 @@ def as_asperities(tips, *, shape: str = "sphere") -> tuple[Asperity, ...]:
             raise ValueError(f"tips as a mapping need keys x, y, R (optional z, shape); "
                              f"missing {missing}, unknown {unknown}")
         return asperities(tips["x"], tips["y"], tips["R"], tips.get("z", 0.0), shape=tips.get("shape", shape))
+    if isinstance(tips, Sequence) and any(isinstance(t, np.ndarray) for t in tips):
+        # (x, y, R) columns and [row, row, row] rows look alike for 3 or 4 tips: refuse to guess
+        raise ValueError("tips as a sequence of numpy arrays are ambiguous (rows or columns?): give "
+                         "np.column_stack([x, y, R]), {'x': x, 'y': y, 'R': R} or twoscale.asperities(x, y, R, z)")
     if isinstance(tips, np.ndarray) or (isinstance(tips, Sequence) and tips and
                                         not isinstance(tips[0], Asperity)):
         a = np.asarray(tips, dtype=float)

@@ -144,8 +144,9 @@ def solve_cg(provider: InfluenceProvider, surface: Surface, *, penetration: floa
     Returns
     -------
     ContactResult
-        ``method="reference"``, ``solver="cg"``; ``iterations={"cg": n, "products": grid products}``; ``residuals={"gap": history}``
-        (relative KKT residual per iteration).
+        ``method="reference"``, ``solver="cg"``; ``iterations={"cg": n, "products": grid products}``;
+        ``residuals={"gap": history}`` (relative KKT residual per iteration); ``details`` a
+        :class:`~twoscale.details.ReferenceDetails` (working grid, single-precision iterations).
     """
     t0 = time.perf_counter()
     problem = make_problem(surface, penetration=penetration, total_load=total_load, tilt=tilt, pivot=pivot)
