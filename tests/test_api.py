@@ -203,3 +203,21 @@ def test_scene_influence_is_read_only():
     with pytest.raises(TypeError):
         scene.influence["kind"] = "halfspace"
     assert hash(Scene(MAT, scene.asperities, penetration=0.1).influence) is not None
+
+
+def test_results_and_scenes_pickle_and_stay_read_only():
+    # a result must cross processes (multiprocessing returns it pickled) and stay frozen
+    import pickle
+
+    scene = random_scene(3, seed=4, h=0.1)
+    res = twoscale.solve(scene)
+    back = pickle.loads(pickle.dumps(res))
+    np.testing.assert_array_equal(back.forces, res.forces)
+    assert back.details.micro.choice.reason == res.details.micro.choice.reason
+    assert dict(back.timings_s) == dict(res.timings_s) and pickle.loads(pickle.dumps(scene)) == scene
+    with pytest.raises(TypeError):
+        res.timings_s["total"] = 0.0
+    with pytest.raises(TypeError):
+        res.details.micro.choice.estimates["patches"] = 0
+    with pytest.raises(ValueError):
+        res.forces[0] = 0.0

@@ -13,12 +13,11 @@ Indices are 0-based, as everywhere in Python (``merged_patches`` lists positions
 from __future__ import annotations
 
 from dataclasses import dataclass, replace
-from types import MappingProxyType
 from typing import Mapping
 
 import numpy as np
 
-from .results import frozen_array
+from .results import FrozenMapping, frozen_array
 
 
 @dataclass(frozen=True)
@@ -117,8 +116,8 @@ class MicroDetails:
 
     def __post_init__(self) -> None:
         estimates = self.choice.estimates
-        if not isinstance(estimates, MappingProxyType):  # frozen all the way down
-            object.__setattr__(self, "choice", replace(self.choice, estimates=MappingProxyType(dict(estimates))))
+        if not isinstance(estimates, FrozenMapping):  # frozen all the way down
+            object.__setattr__(self, "choice", replace(self.choice, estimates=FrozenMapping(estimates)))
         object.__setattr__(self, "attempts", tuple(self.attempts))
         object.__setattr__(self, "merged_patches", tuple(tuple(int(k) for k in m) for m in self.merged_patches))
 

@@ -17,7 +17,6 @@ What only one method has is in :attr:`ContactResult.details`: :class:`TwoScaleDe
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from types import MappingProxyType
 from typing import TYPE_CHECKING, Mapping, Sequence
 
 import numpy as np
@@ -91,9 +90,30 @@ def summarise(fields: Sequence[PressureField], n_asperities: int) -> AsperitySum
     return AsperitySummary(frozen_array(forces), frozen_array(areas), frozen_array(pmax))
 
 
+class FrozenMapping(Mapping):
+    """A read-only copy of a dict (stage names of iterations, residuals, timings; a policy's
+    estimates). Unlike ``types.MappingProxyType`` it pickles, so results cross processes."""
+
+    __slots__ = ("_data",)
+
+    def __init__(self, data=()) -> None:
+        self._data = dict(data)
+
+    def __getitem__(self, key):
+        return self._data[key]
+
+    def __iter__(self):
+        return iter(self._data)
+
+    def __len__(self) -> int:
+        return len(self._data)
+
+    def __repr__(self) -> str:
+        return repr(self._data)
+
+
 def _read_only(d) -> Mapping:
-    """A read-only copy of a dict of stage names (iterations, residuals, timings)."""
-    return MappingProxyType(dict(d or {}))
+    return d if isinstance(d, FrozenMapping) else FrozenMapping(d or {})
 
 
 @dataclass(frozen=True)
