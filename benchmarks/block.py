@@ -50,7 +50,7 @@ def run_once(kind: str, base: str) -> dict:
     t1 = time.perf_counter()
     res = solve_twoscale(prov, _scene(), h=0.1, total_load=50.0)
     t2 = time.perf_counter()
-    forces = np.asarray(res.extra["macro_forces"])
+    forces = np.asarray(res.macro_forces)
     rss = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
     return {"kind": kind, "base": base, "construct_s": t1 - t0, "solve_s": t2 - t1, "total_s": t2 - t0,
             "peak_rss_mb": rss, "converged": bool(res.converged), "penetration": float(res.penetration),

@@ -8,10 +8,10 @@ interpreter and imports included; ``base_mb`` is the RSS before the solve), kill
 ``--timeout`` s:
 
 * ``ts``: the default two-scale solve ``solve_scene(scene)``: wall time, converged, sweeps
-  (``iterations["micro"]``), the micro strategy the solver reports (``extra`` keys
-  ``micro_strategy`` / ``micro_iteration``, whichever exist), peak RSS;
+  (``iterations["micro"]``), the micro strategy the solver reports (``details.micro``:
+  ``micro_strategy`` / ``micro_iteration``), peak RSS;
 * ``ref``: the full-grid FFT reference ``solve_scene(scene, method="reference")`` where its
-  grid (:func:`twoscale.scene.reference_grid`) has at most ``--reference-max-cells``;
+  grid (:func:`twoscale.reference.on_scene.reference_grid`) has at most ``--reference-max-cells``;
 * ``CM``: ContactMechanics ``FreeFFTElasticHalfSpace`` + ``minimize_proxy`` on the same
   grid and h (``offset=d`` or ``external_force=W``; half-space only), when installed, at
   most ``--cm-maxiter`` (1000) iterations: where it converges it takes 60-100 and agrees
@@ -55,8 +55,8 @@ FALLBACK_H = 0.05   # mm: when default_h raises (dense kind)
 CLIP = 1.0          # mm: heights above this (and inf) sit this far down for ContactMechanics
 CM_PENTOL = 1e-10   # mm
 CM_FORCETOL = 1e-10  # N
-#: ``result.extra`` keys saying which micro iteration ran (printed: the first present)
-STRATEGY_KEYS = ("micro_strategy", "micro_iteration", "micro_choice", "micro_attempts")
+#: result.json keys saying which micro iteration ran (recorded with ``micro_strategy``)
+STRATEGY_KEYS = ("micro_iteration", "micro_choice", "micro_attempts")
 CM_MAXITER = 1000   # converged CM runs here take ~60-100 iterations; a stalled one stops here
 
 
@@ -80,6 +80,16 @@ def _summary(res, t: float, base_mb: float) -> dict:
             "touching": float(np.mean(forces > 0))}
 
 
+def _strategy(res, scene) -> dict:
+    """Which micro iteration ran (two-scale only), from the typed result as result.json writes it."""
+    from twoscale.io.result_json import result_to_dict
+    micro = getattr(res.details, "micro", None)
+    if micro is None:
+        return {}
+    rec = result_to_dict(res, scene)
+    return {"micro_strategy": micro.strategy, **{k: rec[k] for k in STRATEGY_KEYS}}
+
+
 def run_solve(method: str, spec: dict, options: dict) -> dict:
     """One ``solve_scene`` in this process (method "twoscale" or "reference")."""
     import twoscale.reference  # noqa: F401  (imports outside the timed call)
@@ -94,8 +104,7 @@ def run_solve(method: str, spec: dict, options: dict) -> dict:
     res = solve_scene(scene, method=method, provider_options=popts, **(options if method == "twoscale" else {}))
     out = _summary(res, time.perf_counter() - t0, base_mb)
     out["sweeps"] = out["iterations"].get("micro" if method == "twoscale" else "cg")
-    out["strategy"] = json.loads(json.dumps({k: res.extra[k] for k in STRATEGY_KEYS if k in res.extra},
-                                            default=str))
+    out["strategy"] = _strategy(res, scene)
     return out
 
 
@@ -108,7 +117,7 @@ def run_contact_mechanics(spec: dict, options: dict) -> dict:
     from SurfaceTopography import Topography
 
     from twoscale.indenters import surface_on
-    from twoscale.scene import reference_grid
+    from twoscale.reference.on_scene import reference_grid
     scene = _scene(spec)
     base_mb = _rss_mb()
     t0 = time.perf_counter()
@@ -234,7 +243,7 @@ class _Str(str):
 
 def measure(name: str, spec: dict, scene, args, options: dict, cm_ok: bool, run) -> dict:
     """Every solve of one scene; ``run(method, spec, options)`` runs one in a subprocess."""
-    from twoscale.scene import reference_grid
+    from twoscale.reference.on_scene import reference_grid
     h, source = cell_size(scene)
     spec = {**spec, "h": h}
     cells = int(reference_grid(_scene(spec), h).size)

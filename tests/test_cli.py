@@ -122,7 +122,7 @@ def test_h_option_overrides_scene(examples_dir, tmp_path):
     assert main(["solve", str(examples_dir / "hertz_sphere.toml"), "--method", "reference",
                  "--h", "0.2", "--out", str(out), "--quiet"]) == 0
     res = _read(out)
-    assert res["h"] == 0.2 and res["h_source"] == "scene" and res["scene"]["grid"] == {"h": 0.2}
+    assert res["h"] == 0.2 and res["h_source"] == "--h" and res["scene"]["grid"] == {"h": 0.2}
 
 
 # ---------------------------------------------------------------- result.json meanings
@@ -300,20 +300,20 @@ def test_reference_grid_too_small_is_enlarged(monkeypatch):
     # Hertz contact radius sqrt(R d) is 0.71 of the reach sqrt(2 R d): a grid built at
     # half the reach clips the contact, so the solve must enlarge and re-solve
     _needs("twoscale.reference")
-    import twoscale.scene as scene_mod
+    import twoscale.reference.on_scene as scene_mod  # where the reference solve on a scene takes its grid
 
     full = solve_scene(_paraboloid_scene(), method="reference")
-    assert full.extra["grid_enlargements"] == 0
+    assert full.details.grid_enlargements == 0
     real = scene_mod.reference_grid
     monkeypatch.setattr(scene_mod, "reference_grid", lambda s, h, grow=1.0: real(s, h, grow=0.5 * grow))
     again = solve_scene(_paraboloid_scene(), method="reference")
-    assert again.extra["grid_enlargements"] >= 1 and again.converged
+    assert again.details.grid_enlargements >= 1 and again.converged
     assert again.total_load == pytest.approx(full.total_load, rel=1e-6)
 
 
 def test_reference_grid_never_large_enough_is_not_converged(monkeypatch):
     _needs("twoscale.reference")
-    import twoscale.scene as scene_mod
+    import twoscale.reference.on_scene as scene_mod
 
     real = scene_mod.reference_grid
     monkeypatch.setattr(scene_mod, "reference_grid", lambda s, h, grow=1.0: real(s, h, grow=0.3))

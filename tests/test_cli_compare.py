@@ -104,6 +104,7 @@ class _Res:
 
 
 def test_indicators_closed_form():
+    from twoscale import comparison
     from twoscale.grid import Grid
     from twoscale.results import PressureField
     from twoscale.sensor import Sensor
@@ -111,9 +112,9 @@ def test_indicators_closed_form():
     g = Grid(0.05, 0.05, 0.1, 10, 10)
     f = PressureField(g, np.ones(g.shape), np.zeros(g.shape), np.zeros(g.shape))
     f2 = PressureField(g, 1.1 * np.ones(g.shape), np.zeros(g.shape), np.zeros(g.shape))
-    runs = [compare.Run("50N", "halfspace", None, _Res([1.0, 2.0], (f,)), 0.0),
-            compare.Run("50N", "block-bonded", None, _Res([1.1, 2.2], (f2,)), 0.0)]
-    ind = compare.indicators(runs, Sensor())
+    runs = [comparison.Run("50N", "halfspace", None, _Res([1.0, 2.0], (f,)), 0.0),
+            comparison.Run("50N", "block-bonded", None, _Res([1.1, 2.2], (f2,)), 0.0)]
+    ind = comparison.indicators(runs, Sensor())
     # 10 % everywhere: e_M = e_m = 100 * 0.1^2 = 1 %, relative to the row's body
     assert ind["50N"]["halfspace"]["block-bonded"]["e_M"] == pytest.approx(1.0, rel=1e-12)
     assert ind["50N"]["halfspace"]["block-bonded"]["e_m"] == pytest.approx(1.0, rel=1e-12)
@@ -415,7 +416,7 @@ def test_every_top_level_file_records_each_body_and_all_loads(tmp_path, monkeypa
     out = tmp_path / "cmp"
     assert main(["compare", str(scene), "--out", str(out), "--quiet"]) == 0
     loads = [{"label": "10N", "total": 10.0}, {"label": "20N", "total": 20.0}]
-    block = {"kind": "block", "size": [100.0, 120.0, 20.0], "origin": [3.0, -4.0]}
+    block = {"kind": "block", "size": [100.0, 120.0, 20.0], "origin": [3.0, -4.0], "source_spacing": 5.0}
     expected = {"halfspace": {"influence": {"kind": "halfspace"}, "loads": loads},
                 "block-bonded": {"influence": {**block, "base": "bonded"}, "loads": loads},
                 "block-sliding": {"influence": {**block, "base": "sliding"}, "loads": loads}}

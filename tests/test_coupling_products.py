@@ -1,6 +1,8 @@
 """Cross-patch products of the micro step (twoscale.micro.blocks.Coupling): the fast routes
 (near pairs summed in Fourier space on a common padded shape, separated pairs through
 Chebyshev nodes) against the dense blocks of the provider (Love's closed form, exact)."""
+import dataclasses
+
 import numpy as np
 import pytest
 
@@ -171,19 +173,19 @@ def test_solver_answer_does_not_depend_on_the_routes():
     fast = solve_twoscale(HS, asps, **kw)
     plain = solve_twoscale(HS, asps, separated_rtol=None, **kw)
     assert fast.converged and plain.converged
-    f1, f2 = np.asarray(fast.extra["macro_forces"]), np.asarray(plain.extra["macro_forces"])
+    f1, f2 = fast.macro_forces, plain.macro_forces
     np.testing.assert_allclose(f1, f2, rtol=1e-12)
     # the routes change the cross products by <= 1e-8 of a pair's displacement; the final
     # forces move by far less than the 1e-6 sweep tolerance
     np.testing.assert_allclose(fast.asperities.forces, plain.asperities.forces, rtol=1e-6)
     assert fast.asperities.forces.min() > 0
     # the result says which routes ran (and result.json carries it)
-    used, off = fast.extra["coupling"], plain.extra["coupling"]
-    assert used["separated"] > 0 and used["spectral"] > 0 and used["separated_rtol"] == 1e-8
-    assert off["separated"] == 0 and off["separated_rtol"] is None
+    used, off = fast.details.micro.coupling, plain.details.micro.coupling
+    assert used.separated > 0 and used.spectral > 0 and used.separated_rtol == 1e-8
+    assert off.separated == 0 and off.separated_rtol is None
     from twoscale.io.result_json import result_to_dict
     from twoscale.scene import Scene
     scene = Scene(material=HS.material, asperities=asps, penetration=0.08, h=0.05)
-    assert result_to_dict(fast, scene)["coupling"] == used
+    assert result_to_dict(fast, scene)["coupling"] == dataclasses.asdict(used)
     with pytest.raises(ValueError, match="separated_rtol"):
         solve_twoscale(HS, asps, separated_rtol=0.0, **kw)

@@ -38,7 +38,7 @@ def run_cli(scene_path: Path, out: Path, *extra: str) -> subprocess.CompletedPro
                           timeout=600)
 
 
-def check_outputs(proc, scene, out: Path, h: float) -> None:
+def check_outputs(proc, scene, out: Path, h: float, h_source: str = "scene") -> None:
     assert proc.returncode == 0, proc.stderr
     assert proc.stdout == ""                            # --quiet
     for name in OUTPUTS:
@@ -48,7 +48,7 @@ def check_outputs(proc, scene, out: Path, h: float) -> None:
     assert len(res["asperities"]) == len(scene.asperities)
     if h is not None:                                   # None: the default rule chose it
         assert res["h"] == pytest.approx(h)
-    assert res["h_source"] == ("scene" if h is not None else "default")
+    assert res["h_source"] == (h_source if h is not None else "default")
     if scene.total_load is not None:
         assert res["total_load"] == pytest.approx(scene.total_load, rel=1e-3)
     assert sum(a["force"] for a in res["asperities"]) == pytest.approx(res["total_load"], rel=1e-6)
@@ -64,7 +64,7 @@ def test_example_cli_coarse(path, tmp_path):
     scene = read_scene(path)
     h = coarse_h(scene)
     out = tmp_path / "out"
-    check_outputs(run_cli(path, out, "--h", repr(h)), scene, out, h)
+    check_outputs(run_cli(path, out, "--h", repr(h)), scene, out, h, h_source="--h")
 
 
 @pytest.mark.slow

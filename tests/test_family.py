@@ -33,13 +33,13 @@ def _check(n, kind, control, shape, seed, h):
     ref = solve_scene(scene, method="reference")
     assert ref.converged, ref.message
     F, Fr = np.asarray(res.asperities.forces), np.asarray(ref.asperities.forces)
-    assert np.max(np.abs(F - Fr)) <= 5e-3 * Fr.max(), (res.extra["micro_choice"]["reason"],
+    assert np.max(np.abs(F - Fr)) <= 5e-3 * Fr.max(), (res.details.micro.choice.reason,
                                                       np.max(np.abs(F - Fr)) / Fr.max())
     assert res.total_load == pytest.approx(ref.total_load, rel=5e-3)
     # the policy's record: what it chose, why, and every attempt
-    choice = res.extra["micro_choice"]
-    assert choice["reason"] and not choice["by_caller"]
-    assert res.extra["micro_attempts"][-1]["converged"]
+    choice = res.details.micro.choice
+    assert choice.reason and not choice.by_caller
+    assert res.details.micro.attempts[-1].converged
     return res
 
 

@@ -177,7 +177,7 @@ def test_sources_near_the_sides_are_refused(block):
     # the lattice stops one spacing (5 mm) inside the 30 mm half-width: a source at
     # x = 27 would be extrapolated (measured error ~20 % of |C|), so it is refused
     assert np.isfinite(block.correction(np.zeros((1, 2)), np.array([[25.0, -25.0]]))).all()
-    with pytest.raises(ValueError, match="source point"):
+    with pytest.raises(ValueError, match="outside the block.s answered region"):
         block.correction(np.zeros((1, 2)), np.array([[27.0, 0.0]]))
 
 

@@ -109,8 +109,8 @@ def test_merged_solve_matches_one_block_per_asperity_and_the_reference(layout, s
     paper = solve_twoscale(HS, case.asperities, merge=False, **kw)
     assert merged.converged and paper.converged
     n = len(case.asperities)
-    assert merged.extra["merged_patches"] == [list(range(n))]
-    assert paper.extra["merged_patches"] == []
+    assert merged.details.micro.merged_patches == (tuple(range(n)),)
+    assert paper.details.micro.merged_patches == ()
     # fewer sweeps: the strong interaction is inside the block
     assert merged.iterations["micro"] < paper.iterations["micro"]
     surf = reference_surface(case)
@@ -121,7 +121,7 @@ def test_merged_solve_matches_one_block_per_asperity_and_the_reference(layout, s
         assert np.linalg.norm(p - pr) <= 1e-5 * np.linalg.norm(pr)
         np.testing.assert_allclose(res.asperities.forces, ref.asperities.forces, rtol=1e-5)
     # eq. 7 is per asperity either way: the same p0 distance (Fig. 6)
-    assert merged.extra["p0_change_percent"] == pytest.approx(paper.extra["p0_change_percent"], rel=1e-3)
+    assert merged.details.micro.p0_change_percent == pytest.approx(paper.details.micro.p0_change_percent, rel=1e-3)
 
 
 def test_result_json_names_the_merged_asperities_from_one():
@@ -131,7 +131,7 @@ def test_result_json_names_the_merged_asperities_from_one():
     # (mirror-symmetric about x = 0.05, between two cell columns, so ownership has no ties)
     asps = [Asperity(-0.25, 0.0, 0.0, 5.0), Asperity(0.35, 0.0, 0.0, 5.0), Asperity(0.05, 12.0, 0.0, 5.0)]
     res = solve_twoscale(HS, asps, h=0.1, penetration=0.2, iteration="block-gs")
-    assert res.converged and res.extra["merged_patches"] == [[0, 1]]
+    assert res.converged and res.details.micro.merged_patches == ((0, 1),)
     scene = Scene(material=MAT, asperities=asps, penetration=0.2, h=0.1)
     assert result_to_dict(res, scene)["merged_patches"] == [[1, 2]]
     # the merged block still reports one force per asperity, the pair's equal by symmetry

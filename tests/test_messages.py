@@ -46,7 +46,7 @@ def test_the_suggested_option_is_accepted_by_the_scene_and_widens_the_region(wri
     pytest.importorskip("skfem")
     from fem_influence import BlockProvider
     from twoscale.io.scene_file import read_scene
-    from twoscale.scene import check_domain
+    from twoscale.api import check_domain
 
     scene = read_scene(write_scene(EDGE_SCENE.format(x=66.0, extra="source_spacing = 2.0")))
     provider = scene.provider(progress=False)

@@ -85,4 +85,4 @@ def test_minimal_provider_solves_like_the_half_space(load):
     assert np.all(F_ref > 0)
     assert np.allclose(F, F_ref, rtol=1e-6, atol=0.0)
     assert got.penetration == pytest.approx(ref.penetration, rel=1e-6)
-    assert got.extra["coupling"]["spectral"] > 0          # the cross products went through the defaults
+    assert got.details.micro.coupling.spectral > 0          # the cross products went through the defaults

@@ -84,8 +84,8 @@ def test_caller_choice_is_recorded_as_such_and_checked():
     asps = [Asperity(0.0, 0.0, 0.0, 5.0), Asperity(4.0, 0.0, 0.0, 5.0)]
     hs = HalfSpace(MAT)
     res = solve_twoscale(hs, asps, h=0.1, penetration=0.2, iteration="union-cg")
-    assert res.extra["micro_choice"]["by_caller"] and res.extra["micro_strategy"] == "union-cg"
-    assert [a["iteration"] for a in res.extra["micro_attempts"]] == ["union-cg"]
+    assert res.details.micro.choice.by_caller and res.details.micro.strategy == "union-cg"
+    assert [a.iteration for a in res.details.micro.attempts] == ["union-cg"]
     with pytest.raises(ValueError, match="iteration"):
         solve_twoscale(hs, asps, h=0.1, penetration=0.2, iteration="newton")
     with pytest.raises(ValueError, match="far_tol"):

@@ -19,7 +19,8 @@ from twoscale.indenters import Asperity
 from twoscale.io.scene_file import read_scene
 from twoscale.resources import (MemoryEstimate, available_memory, check_memory, default_limit,
                                 estimate_memory)
-from twoscale.scene import Scene, SceneError, default_h, reference_grid, solve_scene
+from twoscale.reference.on_scene import reference_grid
+from twoscale.scene import Scene, SceneError, default_h, solve_scene
 
 EXAMPLES = Path(__file__).resolve().parent.parent / "examples"
 

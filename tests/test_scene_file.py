@@ -14,7 +14,8 @@ from twoscale import Material
 from twoscale.analytic import hertz
 from twoscale.indenters import Asperity
 from twoscale.io.scene_file import SceneError, read_scene, scene_from_dict, scene_to_dict
-from twoscale.scene import Scene, approach_bound, default_h, reference_grid
+from twoscale.reference.on_scene import approach_bound, reference_grid
+from twoscale.scene import Scene, default_h
 
 BASE = {
     "material": {"E": 10.0, "nu": 0.5},

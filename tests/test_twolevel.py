@@ -166,9 +166,9 @@ def test_matrix_free_macro_step_gives_the_same_two_scale_answer():
     kw = dict(h=0.1, total_load=2.0, tilt=True, pivot=(10.0, 10.0), tol=1e-7, far_tol=0.01)
     dense = solve_twoscale(HS, asp, **kw)
     free = solve_twoscale(HS, asp, macro_dense_max=1, **kw)
-    assert dense.extra["macro_interaction"] == "dense" and free.extra["macro_interaction"] == "matrix-free"
+    assert dense.details.macro.interaction == "dense" and free.details.macro.interaction == "matrix-free"
     assert dense.converged and free.converged, free.message
-    assert free.iterations["macro_krylov"] > 0 and free.extra["macro_operator_error"] <= 1e-12
+    assert free.iterations["macro_krylov"] > 0 and free.details.macro.operator_error <= 1e-12
     fd, ff = np.asarray(dense.asperities.forces), np.asarray(free.asperities.forces)
     assert np.max(np.abs(ff - fd)) <= 1e-6 * fd.max()
     # result.json says how the macro step held the interaction

@@ -143,16 +143,16 @@ def test_result_reports_macro_micro_and_p0():
     res = solve_twoscale(HS, asps, h=0.125, penetration=0.5, iteration="block-gs")
     assert res.method == "twoscale" and res.converged
     # merged contacts: one block over both patches, unless asked for one per asperity
-    assert len(res.fields) == 1 and res.extra["merged_patches"] == [[0, 1]]
+    assert len(res.fields) == 1 and res.details.micro.merged_patches == ((0, 1),)
     assert len(solve_twoscale(HS, asps, h=0.125, penetration=0.5, merge=False, iteration="block-gs").fields) == 2
     assert set(res.iterations) >= {"macro", "micro"} and res.iterations["micro"] >= 2
     assert set(res.timings_s) >= {"macro", "micro", "total"}
-    assert res.extra["macro_forces"].shape == (2,)
+    assert res.macro_forces.shape == (2,)
     p = np.concatenate([f.pressure.ravel() for f in res.fields])
-    p0 = np.concatenate([q.ravel() for q in res.extra["p0"]])
-    assert res.extra["p0_change_percent"] == pytest.approx(100 * np.linalg.norm(p0 - p) / np.linalg.norm(p))
+    p0 = np.concatenate([q.ravel() for q in res.details.micro.p0])
+    assert res.details.micro.p0_change_percent == pytest.approx(100 * np.linalg.norm(p0 - p) / np.linalg.norm(p))
     # close spheres: eq. 7 alone is far off, the sweeps fix it
-    assert res.extra["p0_change_percent"] > 5.0
+    assert res.details.micro.p0_change_percent > 5.0
     # symmetric scene, symmetric answer; the sum of forces is the total load
     assert res.asperities.forces[0] == pytest.approx(res.asperities.forces[1], rel=1e-6)
     assert res.asperities.forces.sum() == pytest.approx(res.total_load, rel=1e-12)
@@ -181,7 +181,7 @@ def test_unconverged_macro_step_is_reported_and_the_micro_step_still_solves():
     h, d = 0.15, 0.4
     good = solve_twoscale(HS, asps, h=h, penetration=d)
     bad = solve_twoscale(HS, asps, h=h, penetration=d, macro_max_iter=1)
-    assert bad.extra["macro_converged"] is False
+    assert bad.details.macro.converged is False
     assert "macro step" in bad.message
     assert bad.converged, bad.message
     assert np.allclose(bad.asperities.forces, good.asperities.forces, rtol=1e-5)
@@ -257,17 +257,17 @@ def test_load_control_default_iteration_and_its_fallback(seed, n, merged):
     auto = solve_twoscale(HS, asps, **kw)
     plain = solve_twoscale(HS, asps, coarse=False, **kw)
     assert auto.converged and plain.converged, auto.message
-    assert plain.extra["micro_iteration"] == "block Gauss-Seidel"
-    assert plain.extra["micro_choice"]["by_caller"]
-    choice, attempts = auto.extra["micro_choice"], auto.extra["micro_attempts"]
-    assert not choice["by_caller"] and choice["reason"]
-    assert choice["estimates"]["merged_contacts"] == merged
+    assert plain.details.micro.iteration == "block Gauss-Seidel"
+    assert plain.details.micro.choice.by_caller
+    choice, attempts = auto.details.micro.choice, auto.details.micro.attempts
+    assert not choice.by_caller and choice.reason
+    assert choice.estimates["merged_contacts"] == merged
     if merged:
-        assert choice["iteration"] != "two-level"
-    assert attempts[-1]["converged"] and not any(a["converged"] for a in attempts[:-1])
-    assert auto.extra["micro_strategy"] == attempts[-1]["iteration"]
-    assert sum(a["sweeps"] for a in attempts) >= auto.iterations["micro"]
-    if attempts[-1]["iteration"] == "two-level":
+        assert choice.iteration != "two-level"
+    assert attempts[-1].converged and not any(a.converged for a in attempts[:-1])
+    assert auto.details.micro.strategy == attempts[-1].iteration
+    assert sum(a.sweeps for a in attempts) >= auto.iterations["micro"]
+    if attempts[-1].iteration == "two-level":
         assert auto.iterations["sensitivity_sweeps"] == 0
     F, Fp = np.asarray(auto.asperities.forces), np.asarray(plain.asperities.forces)
     assert np.max(np.abs(F - Fp)) <= 1e-5 * Fp.max()

@@ -12,7 +12,8 @@ from twoscale import Material
 from twoscale.indenters import Asperity, surface_on
 from twoscale.influence import HalfSpace
 from twoscale.reference import solve_cg
-from twoscale.scene import Scene, reference_grid, solve_scene
+from twoscale.reference.on_scene import reference_grid
+from twoscale.scene import Scene, solve_scene
 from twoscale.twoscale import solve_twoscale
 
 MAT = Material(E=6.0, nu=0.5)
@@ -59,7 +60,7 @@ def test_mixed_precision_meets_the_same_tolerance_in_fewer_double_iterations():
     double = solve_cg(HS, surf, total_load=20.0, tol=1e-9)
     mixed = solve_cg(HS, surf, total_load=20.0, tol=1e-9, precision="mixed")
     assert double.converged and mixed.converged
-    single = mixed.extra["single_precision_iterations"]
+    single = mixed.details.single_precision_iterations
     assert single > 0
     # the double-precision stage starts from the single one's answer: fewer double iterations
     assert mixed.iterations["cg"] - single < double.iterations["cg"]
@@ -87,7 +88,7 @@ def test_block_gauss_seidel_merges_close_patches_under_load_control():
     asps = crowded(4, 10)
     res = solve_twoscale(HS, asps, h=0.1, total_load=20.0, iteration="block-gs", tol=1e-8)
     assert res.converged, res.message
-    assert any(len(m) > 1 for m in res.extra["merged_patches"])
+    assert any(len(m) > 1 for m in res.details.micro.merged_patches)
     scene = Scene(material=MAT, asperities=asps, h=0.1, total_load=20.0)
     ref = solve_scene(scene, method="reference", tol=1e-10)
     F, Fr = res.asperities.forces, ref.asperities.forces

@@ -1,10 +1,49 @@
 """Two-scale multi-asperity contact on elastic bodies (units: mm, N, MPa).
 
-Light on import: heavy optional modules (scikit-fem, meshio, pyvista, matplotlib)
-are imported only where they are used.
+>>> import twoscale
+>>> mat = twoscale.Material(E=10.0, nu=0.5)
+>>> res = twoscale.solve([[0.0, 0.0, 10.0], [3.0, 0.0, 10.0]], material=mat, total_load=5.0)
+>>> res.converged, round(float(res.forces.sum()), 6)
+(True, 5.0)
+
+* the scene: :class:`Material`, :class:`Grid`, :class:`Asperity` (one rigid tip; or
+  :func:`asperities` from arrays), :class:`Scene` (body, tips and load);
+* the bodies: :class:`HalfSpace`, and :class:`FiniteBlock` (the rubber block on a rigid
+  base, from the separate ``fem_influence`` package, imported on first use);
+* :func:`solve`: one entry, ``method`` = "twoscale" (default), "reference", "dense",
+  "cg" or a callable, a prebuilt ``provider=`` accepted; returns a :class:`ContactResult`.
+
+Indices are 0-based in Python (numpy); files and tables written for people number tips
+from 1. Light on import: the solvers, scipy and the finite block (scikit-fem) are imported
+when first used.
 """
 from ._version import __version__
-from .material import Material
+from .api import METHODS, as_asperities, asperities, solve
 from .grid import Grid
+from .indenters import Asperity
+from .material import Material
+from .results import ContactResult
+from .scene import Scene, SceneError
 
-__all__ = ["__version__", "Material", "Grid"]
+#: Names imported on first use (module, attribute): the bodies pull in scipy / scikit-fem.
+_LAZY = {"HalfSpace": ("twoscale.influence.halfspace", "HalfSpace")}
+
+__all__ = ["__version__", "solve", "METHODS", "asperities", "as_asperities", "Material", "Grid", "Asperity",
+           "Scene", "SceneError", "ContactResult", "HalfSpace", "FiniteBlock"]
+
+
+def __getattr__(name: str):
+    if name == "FiniteBlock":  # through the body registry: twoscale never imports fem_influence itself
+        from .influence.registry import body_class
+
+        return body_class("block")
+    if name in _LAZY:
+        import importlib
+
+        module, attr = _LAZY[name]
+        return getattr(importlib.import_module(module), attr)
+    raise AttributeError(f"module 'twoscale' has no attribute {name!r}")
+
+
+def __dir__():
+    return sorted(set(globals()) | set(__all__))

@@ -9,7 +9,7 @@ grid array is built) and turns them into bytes with per-cell costs measured on t
 
 What the two methods carry:
 
-* ``"reference"``: one grid (:func:`twoscale.scene.reference_grid`), its zero-padded FFT
+* ``"reference"``: one grid (:func:`twoscale.reference.on_scene.reference_grid`), its zero-padded FFT
   (about four times its cells) and the constrained CG's vectors; the dense solver's
   matrix where the scene is small enough for it.
 * ``"twoscale"``: one patch per asperity that can touch, of half-width ``margin a_k + 2 h``
@@ -36,7 +36,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .grid import Grid
-from .scene import METHODS, Scene, SceneError, expected_approaches, expected_contact_radii, reference_grid
+from .scene import METHODS, Scene, SceneError, expected_approaches, expected_contact_radii
 
 #: Resident memory of ``twoscale solve --out`` on a small scene: the interpreter with
 #: numpy, scipy, meshio and matplotlib, bytes (measured: 110-150 MB).
@@ -190,6 +190,8 @@ def estimate_memory(scene: Scene, h: float, method: str = "twoscale", *,
         raise ValueError(f"h must be a finite number > 0 (mm), got {h!r}")
     parts = {"interpreter and libraries": BASE_BYTES}
     if method == "reference":
+        from .reference.on_scene import reference_grid
+
         grid = reference_grid(scene, h)
         cells = int(grid.size)
         parts.update(_grid_parts(scene, grid, "reference grid"))

@@ -4,18 +4,31 @@ A solver's pressure lives on one or more aligned rectangular grids ("patches"):
 the reference solver has one grid covering the scene, the two-scale solver one
 patch per asperity. Per-asperity figures are integrals over the cells each
 asperity owns (the indenter nearest the body).
+
+Numbering: in Python every index is 0-based, as in numpy (``asperities.forces[k]`` is
+the asperity ``scene.asperities[k]``, ``PressureField.owner`` holds 0-based indices,
+``MicroDetails.merged_patches`` too). Everything a person reads (terminal tables,
+result.json's ``merged_patches``, CSV files, figures) numbers tips from 1, as the scene
+file lists them.
+
+What only one method has is in :attr:`ContactResult.details`: :class:`TwoScaleDetails`
+(macro step, micro step) or :class:`ReferenceDetails`; see :mod:`twoscale.details`.
 """
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Sequence
+from typing import TYPE_CHECKING, Mapping, Sequence
 
 import numpy as np
 
 from .grid import Grid
 
+if TYPE_CHECKING:
+    from .details import ReferenceDetails, TwoScaleDetails
 
-def _frozen(a, dtype=float) -> np.ndarray:
+
+def frozen_array(a, dtype=float) -> np.ndarray:
+    """A read-only copy of ``a`` (results never share writable arrays with the caller)."""
     a = np.array(a, dtype=dtype, copy=True)
     a.setflags(write=False)
     return a
@@ -41,8 +54,8 @@ class PressureField:
 
     def __post_init__(self) -> None:
         for name in ("pressure", "gap"):
-            object.__setattr__(self, name, _frozen(getattr(self, name)))
-        object.__setattr__(self, "owner", _frozen(self.owner, np.int64))
+            object.__setattr__(self, name, frozen_array(getattr(self, name)))
+        object.__setattr__(self, "owner", frozen_array(self.owner, np.int64))
         for name in ("pressure", "owner", "gap"):
             if getattr(self, name).shape != self.grid.shape:
                 raise ValueError(f"{name} has shape {getattr(self, name).shape}, grid is {self.grid.shape}")
@@ -74,7 +87,33 @@ def summarise(fields: Sequence[PressureField], n_asperities: int) -> AsperitySum
         areas += h2 * np.bincount(own[ok], weights=(p[ok] > 0).astype(float), minlength=n_asperities)
         if np.any(ok):
             np.maximum.at(pmax, own[ok], p[ok])
-    return AsperitySummary(_frozen(forces), _frozen(areas), _frozen(pmax))
+    return AsperitySummary(frozen_array(forces), frozen_array(areas), frozen_array(pmax))
+
+
+class FrozenMapping(Mapping):
+    """A read-only copy of a dict (stage names of iterations, residuals, timings; a policy's
+    estimates). Unlike ``types.MappingProxyType`` it pickles, so results cross processes."""
+
+    __slots__ = ("_data",)
+
+    def __init__(self, data=()) -> None:
+        self._data = dict(data)
+
+    def __getitem__(self, key):
+        return self._data[key]
+
+    def __iter__(self):
+        return iter(self._data)
+
+    def __len__(self) -> int:
+        return len(self._data)
+
+    def __repr__(self) -> str:
+        return repr(self._data)
+
+
+def _read_only(d) -> Mapping:
+    return d if isinstance(d, FrozenMapping) else FrozenMapping(d or {})
 
 
 @dataclass(frozen=True)
@@ -84,7 +123,7 @@ class ContactResult:
     Attributes
     ----------
     method : str
-        "dense", "cg" (reference solvers) or "twoscale".
+        The method that ran: ``"twoscale"`` or ``"reference"`` (the full-grid solvers).
     fields : tuple of PressureField
         Pressure on the grid(s) the solver used.
     penetration : float
@@ -94,19 +133,22 @@ class ContactResult:
     total_load : float
         Integral of the pressure, N.
     asperities : AsperitySummary
-        Per-asperity forces, areas, peak pressures, in scene order.
+        Per-asperity forces, areas, peak pressures, in scene order (0-based indices).
     converged : bool
         Whether every stopping criterion was met. A solver that hits its iteration
         limit returns ``converged=False`` with ``message`` saying why.
     message : str
-    iterations : dict
-        Iteration counts by stage, e.g. {"outer": 12} or {"macro": 5, "micro": 7}.
-    residuals : dict
-        Residual histories by stage (tuples of floats).
-    timings_s : dict
-        Wall-clock seconds by stage.
-    extra : dict
-        Method-specific figures (e.g. "macro_forces", "p0_change_percent").
+    iterations : mapping
+        Iteration counts by stage, e.g. {"outer": 12} or {"macro": 5, "micro": 7} (read-only).
+    residuals : mapping
+        Residual histories by stage (tuples of floats; read-only).
+    timings_s : mapping
+        Wall-clock seconds by stage; ``"total"`` always (read-only).
+    details : TwoScaleDetails, ReferenceDetails or None
+        What only this method has (typed; :mod:`twoscale.details`).
+    solver : str
+        The algorithm that ran: ``"twoscale"``, or for the reference method ``"dense"``
+        (Johnson's matrix inversion) or ``"cg"`` (Polonsky-Keer); defaults to ``method``.
     """
 
     method: str
@@ -117,15 +159,39 @@ class ContactResult:
     asperities: AsperitySummary
     converged: bool
     message: str = ""
-    iterations: dict = field(default_factory=dict)
-    residuals: dict = field(default_factory=dict)
-    timings_s: dict = field(default_factory=dict)
-    extra: dict = field(default_factory=dict)
+    iterations: Mapping = field(default_factory=dict)
+    residuals: Mapping = field(default_factory=dict)
+    timings_s: Mapping = field(default_factory=dict)
+    details: TwoScaleDetails | ReferenceDetails | None = None
+    solver: str = ""
+
+    def __post_init__(self) -> None:
+        for name in ("iterations", "residuals", "timings_s"):
+            object.__setattr__(self, name, _read_only(getattr(self, name)))
+        object.__setattr__(self, "fields", tuple(self.fields))
+        if not self.solver:
+            object.__setattr__(self, "solver", self.method)
+
+    @property
+    def n_asperities(self) -> int:
+        """Number of tips (asperities) of the scene solved."""
+        return len(self.asperities.forces)
 
     @property
     def n_cells(self) -> int:
         """Number of cells the solver carried (its problem size)."""
         return sum(f.grid.size for f in self.fields)
+
+    @property
+    def forces(self) -> np.ndarray:
+        """Force of each asperity, N, in scene order (``asperities.forces``)."""
+        return self.asperities.forces
+
+    @property
+    def macro_forces(self) -> np.ndarray | None:
+        """Tip forces of the macro step, N (scene order), when the method has one (two-scale); else None."""
+        macro = getattr(self.details, "macro", None)
+        return None if macro is None else macro.forces
 
     def pressure_on(self, grid: Grid) -> np.ndarray:
         """The pressure assembled onto an aligned ``grid`` (zero where no field covers it)."""
@@ -138,3 +204,16 @@ class ContactResult:
                 continue
             out[j0:j1, i0:i1] += f.pressure[j0 - dj:j1 - dj, i0 - di:i1 - di]
         return out
+
+    def __repr__(self) -> str:
+        solver = "" if self.solver == self.method else f" ({self.solver})"
+        state = "converged" if self.converged else "NOT converged"
+        tilt = "" if self.tilt is None else f", tilt ({self.tilt[0]:.3g}, {self.tilt[1]:.3g}) rad"
+        total_s = self.timings_s.get("total")
+        time_txt = "" if total_s is None else f", {total_s:.3g} s"
+        tips = f"{self.n_asperities} tip" + ("" if self.n_asperities == 1 else "s")
+        return (f"<ContactResult {self.method}{solver}: {tips}, total load "
+                f"{self.total_load:.6g} N, approach {self.penetration:.6g} mm{tilt}, {state}, "
+                f"{self.n_cells} cells{time_txt}>")
+
+    __str__ = __repr__

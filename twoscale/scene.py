@@ -1,9 +1,8 @@
 """A scene: the body, the indenters and the load, as plain validated data.
 
 :class:`Scene` holds the same fields as the scene file (``twoscale.io.scene_file``);
-the library reads no files itself. :func:`solve_scene` turns a scene into a solver
-call: the two-scale solver (``method="twoscale"``) or the classical reference solver
-on a full grid (``method="reference"``). Units: mm, N, MPa.
+the library reads no files itself. :func:`twoscale.solve` solves it (the two-scale
+method, or the classical reference solver on a full grid). Units: mm, N, MPa.
 
 Invalid data raise :class:`SceneError` (a ``ValueError``) whose one-line message names
 the field by its path in the scene file (``load.total``, ``asperity[3].R``; asperities
@@ -11,16 +10,16 @@ are counted from 0 in file order) and the bad value.
 """
 from __future__ import annotations
 
-import dataclasses
 import math
 from dataclasses import dataclass, field
-from typing import Any, Mapping, Sequence
+from collections.abc import Mapping, Sequence
+from typing import Any
 
 import numpy as np
 
 from .analytic import hertz
-from .grid import Grid
-from .indenters import Asperity, surface_on
+from .control import check_control
+from .indenters import Asperity
 from .material import Material
 
 #: Influence kinds a scene may ask for.
@@ -67,15 +66,55 @@ def check_pair(path: str, v: Any, n: int = 2, *, positive: bool = False, unit: s
     return tuple(check_number(f"{path}[{i}]", x, positive=positive, unit=unit) for i, x in enumerate(v))
 
 
-def normalise_influence(influence: Mapping | None) -> dict:
+@dataclass(frozen=True, eq=False)
+class Influence(Mapping):
+    """The elastic body of a scene: read-only, and read as the mapping it was given as.
+
+    ``Influence()`` is the half-space, ``{"kind": "halfspace"}``; a finite block reads as
+    ``{"kind": "block", "size": (Lx, Ly, t) mm, "base": "bonded" | "sliding", "origin":
+    (x0, y0) mm, "source_spacing": mm}`` (the spacing of the block's correction lattice,
+    default 5 mm: the block answers up to one spacing inside its sides). Compares equal to
+    that dict. Build it with :func:`normalise_influence`,
+    which checks the values.
+    """
+
+    kind: str = "halfspace"
+    size: tuple | None = None
+    base: str | None = None
+    origin: tuple | None = None
+    source_spacing: float | None = None
+
+    def _as_dict(self) -> dict:
+        if self.kind == "halfspace":
+            return {"kind": "halfspace"}
+        return {"kind": self.kind, "size": self.size, "base": self.base, "origin": self.origin,
+                "source_spacing": self.source_spacing}
+
+    def __getitem__(self, key: str):
+        return self._as_dict()[key]
+
+    def __iter__(self):
+        return iter(self._as_dict())
+
+    def __len__(self) -> int:
+        return len(self._as_dict())
+
+    def __hash__(self) -> int:
+        return hash(tuple(self._as_dict().items()))
+
+    def __repr__(self) -> str:
+        return f"Influence({self._as_dict()!r})"
+
+
+def normalise_influence(influence: Mapping | None) -> Influence:
     """Validated influence options with defaults filled in.
 
     ``{"kind": "halfspace"}`` (default) or ``{"kind": "block", "size": (Lx, Ly, t) mm,
     "base": "bonded" | "sliding", "origin": (x0, y0) mm}`` where ``origin`` is where the
     scene's (0, 0) sits, measured from the centre of the block's top face.
     """
-    if influence is None:
-        return {"kind": "halfspace"}
+    if influence is None or isinstance(influence, Influence):
+        return influence or Influence()
     if not isinstance(influence, Mapping):
         raise SceneError(f"influence must be a table, got {influence!r}")
     kind = influence.get("kind", "halfspace")
@@ -87,24 +126,18 @@ def normalise_influence(influence: Mapping | None) -> dict:
             raise SceneError(f"influence.{key} is not a known key for kind = {kind!r} "
                              f"(allowed: {sorted(allowed)}), got {influence[key]!r}")
     if kind == "halfspace":
-        return {"kind": "halfspace"}
+        return Influence()
     base = influence.get("base", "bonded")
     if base not in BLOCK_BASES:
         raise SceneError(f"influence.base must be one of {BLOCK_BASES}, got {base!r}")
-    return {
-        "kind": "block",
-        "size": check_pair("influence.size", influence.get("size", BLOCK_DEFAULT_SIZE), 3,
-                           positive=True, unit="mm"),
-        "base": base,
-        "origin": check_pair("influence.origin", influence.get("origin", (0.0, 0.0)), unit="mm"),
-        "source_spacing": _positive("influence.source_spacing", influence.get("source_spacing", 5.0)),
-    }
-
-
-def _positive(name: str, v) -> float:
-    if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or v <= 0:
-        raise SceneError(f"{name} must be a positive number (mm), got {v!r}")
-    return float(v)
+    return Influence(
+        kind="block",
+        size=check_pair("influence.size", influence.get("size", BLOCK_DEFAULT_SIZE), 3, positive=True, unit="mm"),
+        base=base,
+        origin=check_pair("influence.origin", influence.get("origin", (0.0, 0.0)), unit="mm"),
+        source_spacing=check_number("influence.source_spacing", influence.get("source_spacing", 5.0),
+                                    positive=True, unit="mm"),
+    )
 
 
 # ---------------------------------------------------------------- the scene
@@ -135,7 +168,7 @@ class Scene:
     influence : mapping, optional
         ``{"kind": "halfspace"}`` (default) or the finite block,
         ``{"kind": "block", "size": (140, 140, 20), "base": "bonded", "origin": (0, 0)}``;
-        see :func:`normalise_influence`.
+        stored as a read-only :class:`Influence` (see :func:`normalise_influence`).
     load_cases : sequence of float, default ()
         With ``total_load`` only: the scene's load cases, total loads in N (each finite
         and > 0, no repeats; stored as a tuple). ``twoscale compare`` runs each of them
@@ -155,7 +188,7 @@ class Scene:
     tilt: bool = False
     pivot: tuple = (0.0, 0.0)
     h: float | None = None
-    influence: dict = field(default_factory=lambda: {"kind": "halfspace"})
+    influence: Influence = field(default_factory=Influence)
     load_cases: tuple = ()
 
     def __post_init__(self) -> None:
@@ -187,9 +220,7 @@ class Scene:
 
     def _check_load(self) -> None:
         d, W = self.penetration, self.total_load
-        if (d is None) == (W is None):
-            raise SceneError("load needs exactly one of load.penetration and load.total, got "
-                             f"penetration={d!r}, total={W!r}")
+        check_control(d, W, names=("load.penetration", "load.total"), error=SceneError)
         if not isinstance(self.tilt, (bool, np.bool_)):
             raise SceneError(f"load.tilt must be true or false, got {self.tilt!r}")
         object.__setattr__(self, "tilt", bool(self.tilt))
@@ -232,7 +263,7 @@ class Scene:
         return np.array([[a.x, a.y] for a in self.asperities], dtype=float)
 
     def provider(self, **options):
-        """The influence provider the scene asks for (see ``twoscale.influence``).
+        """The influence provider the scene asks for (:mod:`twoscale.influence.registry`).
 
         Parameters
         ----------
@@ -245,27 +276,14 @@ class Scene:
         SceneError
             For ``kind = "block"`` when the ``fem_influence`` package is not available.
         """
-        from .influence import HalfSpace
+        from .influence.registry import make_body
 
-        opts = self.influence
-        if opts["kind"] == "halfspace":
-            if options:
-                raise ValueError(f"the half-space provider takes no options, got {sorted(options)!r}")
-            return HalfSpace(self.material)
-        return _block_provider(self.material, opts, options)
-
-
-def _block_provider(material: Material, opts: Mapping, options: Mapping):
-    try:
-        import fem_influence
-    except ImportError as exc:
-        raise SceneError(f"influence.kind = \"block\" needs the fem_influence package, which "
-                         f"cannot be imported ({exc}); use kind = \"halfspace\"") from exc
-    factory = getattr(fem_influence, "FiniteBlock", None) or getattr(fem_influence, "BlockProvider", None)
-    if factory is None:
-        raise SceneError("influence.kind = \"block\": fem_influence provides no FiniteBlock provider")
-    return factory(material, size=tuple(opts["size"]), base=opts["base"], origin=tuple(opts["origin"]),
-                   source_spacing=opts.get("source_spacing", 5.0), **options)
+        opts = dict(self.influence)
+        kind = opts.pop("kind")
+        try:
+            return make_body(kind, self.material, **opts, **options)
+        except ImportError as exc:
+            raise SceneError(f"influence.kind = \"{kind}\": {exc}; use kind = \"halfspace\"") from exc
 
 
 # ---------------------------------------------------------------- the default cell size
@@ -367,144 +385,20 @@ def _round_down(x: float, *, digits: int) -> float:
 
 
 # ---------------------------------------------------------------- solving
+#: Methods of the scene-file workflow (``twoscale solve --method``); :func:`twoscale.solve`
+#: also takes the reference solvers by name ("dense", "cg").
 METHODS = ("twoscale", "reference")
 
 
 def solve_scene(scene: Scene, *, method: str = "twoscale", provider_options: Mapping | None = None,
                 memory_limit: float | None = None, **options):
-    """Solve a scene.
+    """Solve a scene: :func:`twoscale.solve` (:mod:`twoscale.api`) with a :class:`Scene`.
 
-    Parameters
-    ----------
-    scene : Scene
-    method : {"twoscale", "reference"}, default "twoscale"
-        ``"twoscale"``: :func:`twoscale.twoscale.solve_twoscale` (macro tip forces, then
-        micro pressure on one patch per asperity). ``"reference"``: the classical solver
-        :func:`twoscale.reference.solve_reference` on one grid covering every place
-        contact can reach (:func:`reference_grid`).
-    provider_options : mapping, optional
-        Passed to :meth:`Scene.provider` (finite block only, e.g. ``{"progress": False}``).
-    memory_limit : float, optional
-        Bytes the solve may use: before anything large is allocated, the memory the
-        solve needs is estimated from the scene (:func:`twoscale.resources.estimate_memory`)
-        and a :class:`SceneError` raised when it is over. Default: 80 % of the memory
-        available now; ``math.inf``: no check.
-    **options
-        Passed to the solver (e.g. ``tol``).
-
-    Returns
-    -------
-    ContactResult
-        The cell size used is ``result.fields[0].grid.h`` (``scene.h`` or
-        :func:`default_h`).
-
-    Raises
-    ------
-    SceneError
-        Invalid input, or a solve that would need more memory than ``memory_limit``
-        (the message gives the estimate and says to raise ``grid.h``).
+    Kept for the scene-file workflow; ``method`` is "twoscale" or "reference" (the
+    methods a scene file's user picks), the other arguments are :func:`twoscale.solve`'s.
     """
     if method not in METHODS:
         raise ValueError(f"method must be one of {METHODS}, got {method!r}")
-    h = default_h(scene)
-    if memory_limit is None or memory_limit < math.inf:
-        from .resources import check_memory, estimate_memory
+    from .api import solve
 
-        iteration = options.get("iteration", "auto") if method == "twoscale" else "auto"
-        check_memory(estimate_memory(scene, h, method, iteration=iteration), memory_limit, option="grid.h")
-    provider = scene.provider(**(provider_options or {}))
-    check_domain(scene, provider)
-    if method == "twoscale":
-        from .twoscale import solve_twoscale
-
-        return solve_twoscale(provider, scene.asperities, h=h, penetration=scene.penetration,
-                              total_load=scene.total_load, tilt=scene.tilt, pivot=scene.pivot, **options)
-    return _solve_reference_scene(scene, provider, h, **options)
-
-
-def check_domain(scene: Scene, provider) -> None:
-    """Raise :class:`SceneError` naming the first asperity (numbered from 1) whose expected
-    contact reaches outside the region the body answers for (``provider.domain()``)."""
-    box = provider.domain()
-    if box is None:
-        return
-    x0, x1, y0, y1 = box
-    a = expected_contact_radii(scene)
-    for k, (tip, ak) in enumerate(zip(scene.tips, a)):
-        x, y = tip
-        if x - ak < x0 or x + ak > x1 or y - ak < y0 or y + ak > y1:
-            raise SceneError(
-                f"asperity {k + 1} at ({x:.4g}, {y:.4g}) mm, contact radius about {ak:.2g} mm, "
-                f"reaches outside the region the block answers for, x in [{x0:.4g}, {x1:.4g}], "
-                f"y in [{y0:.4g}, {y1:.4g}] mm (one influence.source_spacing inside its sides): "
-                f"move it inward, or lower influence.source_spacing (default 5 mm)")
-
-
-def approach_bound(scene: Scene) -> float:
-    """Upper bound on the rigid approach d, mm.
-
-    Penetration control: d itself. Load control: ``z_min + delta_H(W) + W / (pi E* r_min)``,
-    where delta_H(W) is the Hertz penetration of the whole load on the lowest asperity
-    (on the smallest radius among the lowest tips) and the last term bounds the
-    displacement the other asperities add at its tip (r_min = smallest tip distance;
-    Boussinesq). On the half-space without tilt, no contact extends beyond
-    ``Asperity.reach(bound - z_k)``; otherwise the reference solve checks its edges.
-    """
-    if scene.penetration is not None:
-        return scene.penetration
-    W, E_star = scene.total_load, scene.material.E_star
-    z = np.array([a.z for a in scene.asperities])
-    lowest = [a for a in scene.asperities if a.z <= z.min()]
-    r_low = min(a.R for a in lowest)
-    bound = z.min() + float(hertz.penetration(r_low, W, E_star))
-    if len(scene.asperities) > 1:
-        tips = scene.tips
-        from scipy.spatial import cKDTree
-        r_min = float(cKDTree(tips).query(tips, k=2)[0][:, 1].min())  # nearest other tip
-        bound += W / (math.pi * E_star * r_min)
-    return float(bound)
-
-
-def reference_grid(scene: Scene, h: float, *, grow: float = 1.0) -> Grid:
-    """Grid of cell size ``h`` covering every place contact can reach, plus a margin
-    of ``3 h + 5 %`` of each reach; ``grow`` scales the reach and margin (used when a
-    solve finds pressure on the grid edge). Cell centres lie on the lattice h Z^2
-    (a tip at the origin sits on a cell centre)."""
-    bound = approach_bound(scene)
-    boxes = []
-    for a in scene.asperities:
-        reach = a.reach(bound - a.z)
-        if reach <= 0:
-            continue
-        r = grow * (1.05 * reach + 3.0 * h)
-        boxes.append((a.x - r, a.x + r, a.y - r, a.y + r))
-    b = np.array(boxes)
-    return Grid.covering(b[:, 0].min(), b[:, 1].max(), b[:, 2].min(), b[:, 3].max(), h)
-
-
-def pressure_on_edge(result) -> bool:
-    """True if any field of ``result`` has positive pressure on its outermost cells."""
-    for f in result.fields:
-        p = f.pressure
-        if np.any(p[0, :] > 0) or np.any(p[-1, :] > 0) or np.any(p[:, 0] > 0) or np.any(p[:, -1] > 0):
-            return True
-    return False
-
-
-def _solve_reference_scene(scene: Scene, provider, h: float, *, max_enlargements: int = 3, **options):
-    from .reference import solve_reference
-
-    grow = 1.0
-    for attempt in range(max_enlargements + 1):
-        grid = reference_grid(scene, h, grow=grow)
-        surface = surface_on(grid, scene.asperities)
-        result = solve_reference(provider, surface, penetration=scene.penetration,
-                                 total_load=scene.total_load, tilt=scene.tilt, pivot=scene.pivot, **options)
-        if not pressure_on_edge(result):
-            return dataclasses.replace(result, extra={**result.extra, "grid_enlargements": attempt})
-        grow *= 1.5
-    msg = (f"pressure still reaches the edge of the reference grid after {max_enlargements} "
-           f"enlargements (grid {grid.nx} x {grid.ny} cells); the answer may be clipped")
-    message = f"{result.message}; {msg}" if result.message else msg
-    return dataclasses.replace(result, converged=False, message=message,
-                               extra={**result.extra, "grid_enlargements": max_enlargements})
+    return solve(scene, method=method, provider_options=provider_options, memory_limit=memory_limit, **options)

@@ -11,13 +11,14 @@ Only the cells where contact can be are modelled, which is where the speed comes
 """
 from __future__ import annotations
 
-import dataclasses
 import math
 import time
 from typing import Sequence
 
 import numpy as np
 
+from .control import check_control
+from .details import Coupling, MacroDetails, MicroDetails, TwoScaleDetails
 from .indenters import Asperity
 from .influence.base import InfluenceProvider
 from .laws import law_for
@@ -35,9 +36,7 @@ def _check(asperities, h, penetration, total_load, tilt, tol, max_sweeps) -> Non
         raise ValueError("asperities must be Asperity objects")
     if isinstance(h, bool) or not isinstance(h, (int, float)) or not math.isfinite(h) or h <= 0:
         raise ValueError(f"cell size h must be a finite number > 0 (mm), got {h!r}")
-    if (penetration is None) == (total_load is None):
-        raise ValueError(f"give exactly one of penetration or total_load, got penetration={penetration!r}, "
-                         f"total_load={total_load!r}")
+    check_control(penetration, total_load)
     if tilt and total_load is None:
         raise ValueError("tilt=True needs total_load (ball-and-socket joint under load control)")
     if not (isinstance(tol, (int, float)) and math.isfinite(tol) and tol > 0):
@@ -93,7 +92,7 @@ def solve_twoscale(provider: InfluenceProvider, asperities: Sequence[Asperity], 
     macro_dense_max : int, default 3000
         Up to this many asperities the macro step factorises the dense interaction;
         above, it is matrix-free (fast point operator + conjugate gradients), its
-        operator error reported in ``extra["macro_operator_error"]``.
+        operator error reported in ``details.macro.operator_error``.
     macro_operator_rtol : float, default 1e-6
         Accuracy of that point operator (relative to ``max |u|``).
     iteration : {"auto", "union-cg", "block-gs", "two-level"}, default "auto"
@@ -105,7 +104,7 @@ def solve_twoscale(provider: InfluenceProvider, asperities: Sequence[Asperity], 
         Gauss-Seidel (eq. 8) over the (merged) patches, with sensitivity sweeps for the
         load and tilt. ``"two-level"``: block Gauss-Seidel with a coarse correction by the
         linearised macro equations (:mod:`twoscale.micro.twolevel`). If the chosen one
-        does not converge, the next is tried; every attempt is in ``extra["micro_attempts"]``.
+        does not converge, the next is tried; every attempt is in ``details.micro.attempts``.
     far_tol : float or None, default None
         Cross-patch coupling of the block iterations: None = exact; a number in (0, 1)
         approximates patches farther apart than ``(r_k + r_l) / sqrt(far_tol)`` by their
@@ -127,7 +126,7 @@ def solve_twoscale(provider: InfluenceProvider, asperities: Sequence[Asperity], 
         asperities: 13-19 against 4 in the paper's closest cases).
     p0 : bool, default False
         Compute the paper's eq. 7 pressures even where the chosen iteration does not start
-        from them (``union-cg``), for the report (``extra["p0"]``, Fig. 6).
+        from them (``union-cg``), for the report (``details.micro.p0``, Fig. 6).
     progress : callable or None, default None
         Called with a short stage description (``progress(text)``) as the solve goes on.
 
@@ -135,12 +134,11 @@ def solve_twoscale(provider: InfluenceProvider, asperities: Sequence[Asperity], 
     -------
     ContactResult
         ``method="twoscale"``; one field per block (a merged block's patches give one).
-        ``extra`` holds "macro_forces" (N), "local_penetrations" (mm), "p0" (eq. 7
-        pressure on each field's grid, MPa; None when not computed, see ``p0``),
-        "p0_change_percent" = ``100 ||p0 - p|| / ||p||`` (or None),
-        "micro_choice" (the policy's choice, reason and estimates), "micro_attempts" (every
-        strategy run, in order), "micro_strategy" (the one that gave the answer), "patch_growths", and
-        "merged_patches" (the asperities of each merged block, 0-based).
+        ``details`` is a :class:`~twoscale.details.TwoScaleDetails`: ``details.macro``
+        (tip forces N, local approaches mm, how the interaction was held) and
+        ``details.micro`` (the policy's choice and reason, every attempt, the coupling
+        routes, ``merged_patches`` as 0-based asperity indices, eq. 7's ``p0`` and
+        ``p0_change_percent = 100 ||p0 - p|| / ||p||`` or None, see ``p0``).
     """
     _check(asperities, h, penetration, total_load, tilt, tol, max_sweeps)
     check_rtol(separated_rtol, "separated_rtol", allow_none=True)
@@ -188,6 +186,17 @@ def _result(asperities, macro, micro, plan, h, timings) -> ContactResult:
         norm = float(np.linalg.norm(p))
         change = 100.0 * float(np.linalg.norm(p0 - p)) / norm if norm > 0 else 0.0
     messages = [m for m in (("macro step: " + macro.message) if not macro.converged else "", micro.message) if m]
+    details = TwoScaleDetails(
+        macro=MacroDetails(forces=macro.forces, local_penetrations=macro.local_penetrations,
+                           converged=bool(macro.converged), interaction=macro.interaction,
+                           operator_error=macro.operator_error, seconds=timings["macro"]),
+        micro=MicroDetails(iteration=_iteration_text(plan),
+                           strategy=plan.attempts[-1].iteration if plan.attempts else plan.choice.iteration,
+                           choice=plan.choice,
+                           attempts=plan.attempts, coupling=Coupling.of(micro.coupling),
+                           merged_patches=micro.merged, growths=int(micro.growths),
+                           p0=tuple(micro.initial) if micro.initial else None, p0_change_percent=change,
+                           seconds=timings["micro"]))
     return ContactResult(
         method="twoscale", fields=fields, penetration=micro.penetration, tilt=micro.tilt,
         total_load=float(h * h * p.sum()), asperities=summarise(fields, len(asperities)),
@@ -196,17 +205,7 @@ def _result(asperities, macro, micro, plan, h, timings) -> ContactResult:
                     "micro": int(micro.sweeps),
                     "corrections": int(micro.corrections), "sensitivity_sweeps": int(micro.linear_sweeps)},
         residuals={"macro": tuple(macro.residuals), "micro": tuple(micro.history)},
-        timings_s=timings,
-        extra={"macro_forces": np.array(macro.forces), "local_penetrations": np.array(macro.local_penetrations),
-               "p0_change_percent": change, "p0": micro.initial if micro.initial else None, "patch_growths": int(micro.growths),
-               "macro_converged": bool(macro.converged), "macro_interaction": macro.interaction,
-               "macro_operator_error": macro.operator_error, "micro_iteration": _iteration_text(plan),
-               "micro_strategy": plan.attempts[-1].iteration if plan.attempts else plan.choice.iteration,
-               "micro_choice": {"iteration": plan.choice.iteration, "far_tol": plan.choice.far_tol,
-                                "reason": plan.choice.reason, "by_caller": plan.choice.by_caller,
-                                "estimates": plan.choice.estimates},
-               "micro_attempts": [dataclasses.asdict(a) for a in plan.attempts],
-               "coupling": dict(micro.coupling), "merged_patches": [list(m) for m in micro.merged]})
+        timings_s=timings, details=details)
 
 
 def _iteration_text(plan) -> str:

@@ -54,22 +54,22 @@ import sys
 import time
 from pathlib import Path
 
-import numpy as np
 
 from .._version import __version__
+from ..api import solve
+from ..comparison import (ROW_FIELDS, Measured, Run, centre_pivot, indicators, load_label, load_title,
+                          per_asperity_rows, sensor_notes, sensor_text)
+from ..influence.registry import make_body, unavailable
 from ..io.atomic import atomic_output
 from ..io.result_json import UNITS, write_result
 from ..io.scene_file import read_scene, scene_to_dict
 from ..progress import Progress
 from ..resources import check_memory, estimate_memory
 from ..scene import BLOCK_DEFAULT_SIZE, METHODS, Scene, SceneError, default_h
-from ..sensor import (Sensor, centred_tips, e_M, e_m, forces_from_map, pivot_from_forces, read_sensor_map,
-                      read_tip_forces)
+from ..sensor import Sensor, forces_from_map, read_sensor_map, read_tip_forces
+from .options import DEFAULT_SENSOR, add_sensor_arguments, sensor_from_args
 from .solve import check_out_dir, positive_option
 from .staging import staged_directory
-
-#: The paper's pressure sensor, used unless --sensor / --sensor-centre say otherwise.
-DEFAULT_SENSOR = Sensor()
 
 #: Bodies compared, in table order: name -> (influence kind, block base).
 BODIES = {"halfspace": ("halfspace", None), "block-bonded": ("block", "bonded"),
@@ -97,11 +97,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                              "are integrated from it")
     parser.add_argument("--centre-pivot", action="store_true",
                         help="shift the tips so the joint sits at the measured force centre (paper eq. 13)")
-    parser.add_argument("--sensor", metavar=("NX", "NY", "CELL"), nargs=3, default=None,
-                        help=f"sensor cells along x and y (integers >= 1) and cell side in mm "
-                             f"(default {DEFAULT_SENSOR.nx} {DEFAULT_SENSOR.ny} {DEFAULT_SENSOR.cell:g})")
-    parser.add_argument("--sensor-centre", metavar=("X", "Y"), nargs=2, default=None,
-                        help="sensor centre in scene coordinates, mm (default 0 0)")
+    add_sensor_arguments(parser)
     parser.add_argument("--quiet", action="store_true", help="print nothing but errors and warnings")
 
 
@@ -126,59 +122,10 @@ def _scenes(args) -> list[Scene]:
     return [dataclasses.replace(scene, total_load=w, load_cases=tuple(loads)) for w in loads]
 
 
-def _int_option(text: str, name: str) -> int:
-    try:
-        v = int(text)
-    except ValueError:
-        v = 0
-    if v < 1:
-        raise SceneError(f"{name} must be an integer >= 1, got {text!r}")
-    return v
-
-
-def _finite_option(text: str, name: str, *, unit: str) -> float:
-    try:
-        v = float(text)
-    except ValueError:
-        v = math.nan
-    if not math.isfinite(v):
-        raise SceneError(f"{name} must be a finite number ({unit}), got {text!r}")
-    return v
-
-
-def _sensor(args) -> Sensor:
-    """The sensor of ``--sensor NX NY CELL`` and ``--sensor-centre X Y`` (raises SceneError)."""
-    s = DEFAULT_SENSOR
-    nx, ny, cell, centre = s.nx, s.ny, s.cell, s.centre
-    if args.sensor is not None:
-        nx = _int_option(args.sensor[0], "--sensor NX")
-        ny = _int_option(args.sensor[1], "--sensor NY")
-        cell = positive_option(args.sensor[2], "--sensor CELL", unit="mm")
-    if args.sensor_centre is not None:
-        centre = (_finite_option(args.sensor_centre[0], "--sensor-centre X", unit="mm"),
-                  _finite_option(args.sensor_centre[1], "--sensor-centre Y", unit="mm"))
-    return Sensor(nx, ny, cell, centre)
-
-
-def _sensor_text(sensor: Sensor) -> str:
-    text = f"{sensor.nx} x {sensor.ny} sensor cells of {sensor.cell:g} mm"
-    cx, cy = sensor.centre
-    return text if (cx, cy) == (0.0, 0.0) else f"{text} centred at ({cx:g}, {cy:g}) mm"
-
-
 def sensor_record(sensor: Sensor) -> dict:
     """The sensor as JSON-ready data (what the files record)."""
     return {"nx": int(sensor.nx), "ny": int(sensor.ny), "cell_mm": float(sensor.cell),
             "centre_mm": [float(v) for v in sensor.centre]}
-
-
-@dataclasses.dataclass(frozen=True)
-class Measured:
-    """Measured data for one load case: tip forces (N, scene order) and/or a sensor map (MPa)."""
-
-    forces: np.ndarray | None
-    sensor_map: np.ndarray | None
-    forces_from_map: bool = False
 
 
 def _measured(args, scenes: list[Scene], sensor: Sensor = DEFAULT_SENSOR) -> Measured | None:
@@ -203,26 +150,13 @@ def _measured(args, scenes: list[Scene], sensor: Sensor = DEFAULT_SENSOR) -> Mea
     return Measured(forces, smap)
 
 
-def _centre_pivot(scene: Scene, forces: np.ndarray) -> tuple[Scene, str]:
-    """Tips shifted by (-x0, -y0) of eq. 13, and a note saying by how much."""
-    x0, y0 = pivot_from_forces(scene.tips, forces, total=scene.total_load)
-    tips = centred_tips(scene.tips, forces, total=scene.total_load)
-    asps = tuple(dataclasses.replace(a, x=float(t[0]), y=float(t[1])) for a, t in zip(scene.asperities, tips))
-    note = (f"tips shifted by ({-x0:.4g}, {-y0:.4g}) mm so the joint sits at the measured force "
-            f"centre (paper eq. 13)")
-    return dataclasses.replace(scene, asperities=asps), note
-
-
 def _block_factory():
-    """The finite-block provider class, or (None, reason) when it is not available."""
-    try:
-        import fem_influence
-    except ImportError as exc:
-        return None, f"the fem_influence package cannot be imported ({exc})"
-    factory = getattr(fem_influence, "FiniteBlock", None) or getattr(fem_influence, "BlockProvider", None)
-    if factory is None:
-        return None, "fem_influence provides no finite-block provider yet"
-    return factory, ""
+    """The finite-block provider factory (``make_body("block", material, **options)``), or
+    (None, reason) when it cannot be built here."""
+    why = unavailable("block")
+    if why:
+        return None, why
+    return (lambda material, **options: make_body("block", material, **options)), ""
 
 
 def _influence(scene: Scene, body: str) -> dict:
@@ -232,45 +166,11 @@ def _influence(scene: Scene, body: str) -> dict:
     inf = scene.influence
     size = inf["size"] if inf["kind"] == "block" else BLOCK_DEFAULT_SIZE
     origin = inf["origin"] if inf["kind"] == "block" else (0.0, 0.0)
-    return {"kind": "block", "size": tuple(size), "base": base, "origin": tuple(origin)}
+    spacing = inf["source_spacing"] if inf["kind"] == "block" else 5.0
+    return {"kind": "block", "size": tuple(size), "base": base, "origin": tuple(origin), "source_spacing": spacing}
 
 
 # ---------------------------------------------------------------- solving
-def _solve(scene: Scene, provider, method: str):
-    """``solve_scene`` with a provider built once per body (the block is costly)."""
-    h = default_h(scene)
-    if method == "twoscale":
-        from ..twoscale import solve_twoscale
-
-        return solve_twoscale(provider, scene.asperities, h=h, penetration=scene.penetration,
-                              total_load=scene.total_load, tilt=scene.tilt, pivot=scene.pivot)
-    from ..scene import _solve_reference_scene
-
-    return _solve_reference_scene(scene, provider, h)
-
-
-@dataclasses.dataclass(frozen=True)
-class Run:
-    """One solve: the load case, the body, the scene solved and its result."""
-
-    load: str
-    body: str
-    scene: Scene
-    result: object
-    seconds: float
-
-
-def _load_label(scene: Scene) -> str:
-    if scene.total_load is not None:
-        return f"{scene.total_load:g}N"
-    return f"d{scene.penetration:g}mm"
-
-
-def _load_title(label: str) -> str:
-    """Readable form of a load label: "50N" -> "total load 50 N", "d0.5mm" -> "approach 0.5 mm"."""
-    return f"approach {label[1:-2]} mm" if label.startswith("d") else f"total load {label[:-1]} N"
-
-
 def _solve_all(scenes, bodies, method, quiet) -> list[Run]:
     runs = []
     with Progress(len(scenes) * len(bodies), label="compare", quiet=quiet) as bar:
@@ -278,8 +178,9 @@ def _solve_all(scenes, bodies, method, quiet) -> list[Run]:
             for sc in scenes:
                 sc = dataclasses.replace(sc, influence=_influence(sc, body))
                 t0 = time.perf_counter()
-                res = _solve(sc, provider, method)
-                runs.append(Run(_load_label(sc), body, sc, res, time.perf_counter() - t0))
+                # the provider built once per body (the block is costly); memory checked before
+                res = solve(sc, method=method, provider=provider, memory_limit=math.inf)
+                runs.append(Run(load_label(sc), body, sc, res, time.perf_counter() - t0))
                 bar.update(note=f"{body} {runs[-1].load}")
     return runs
 
@@ -336,71 +237,6 @@ def compare_record(scene: Scene, runs, sensor: Sensor) -> dict:
 
 
 # ---------------------------------------------------------------- tables
-FIELDS = ("load", "body", "asperity", "force_N", "contact_area_mm2", "max_pressure_MPa", "macro_force_N")
-
-
-def per_asperity_rows(runs, measured: Measured | None = None) -> list[dict]:
-    """One dict per load, body and asperity (the CSV rows); measured forces as body "measured"."""
-    rows = []
-    if measured is not None and measured.forces is not None:
-        rows += [{"load": runs[0].load, "body": "measured", "asperity": k + 1, "force_N": float(f),
-                  "contact_area_mm2": "", "max_pressure_MPa": "", "macro_force_N": ""}
-                 for k, f in enumerate(measured.forces)]
-    for run in runs:
-        s = run.result.asperities
-        macro = run.result.extra.get("macro_forces")
-        for k in range(len(s.forces)):
-            rows.append({"load": run.load, "body": run.body, "asperity": k + 1,
-                         "force_N": float(s.forces[k]), "contact_area_mm2": float(s.contact_areas[k]),
-                         "max_pressure_MPa": float(s.max_pressures[k]),
-                         "macro_force_N": "" if macro is None else float(np.asarray(macro)[k])})
-    return rows
-
-
-def indicators(runs, sensor: Sensor = DEFAULT_SENSOR, measured: Measured | None = None) -> dict:
-    """e_M and e_m (percent) of every body against every other, per load.
-
-    ``out[load][reference][other] = {"e_M": ..., "e_m": ...}``, with the reference body's
-    forces (sensor map) in the denominator. With measured data, the reference
-    ``"measured"`` is added (``None`` for an indicator whose data were not given). e_m is
-    ``None`` when the reference map is zero on every sensor cell (a sensor placed away
-    from the contact; :func:`sensor_notes` says so).
-    """
-    def e_m_or_none(p, p_ref):
-        return e_m(p, p_ref) if np.any(p_ref != 0) else None
-
-    out: dict = {}
-    maps = {(r.load, r.body): sensor.average(r.result) for r in runs}
-    if measured is not None:
-        for r in runs:
-            out.setdefault(r.load, {}).setdefault("measured", {})[r.body] = {
-                "e_M": None if measured.forces is None else e_M(r.result.asperities.forces, measured.forces),
-                "e_m": None if measured.sensor_map is None else e_m_or_none(maps[r.load, r.body],
-                                                                            measured.sensor_map),
-            }
-    for ref in runs:
-        for other in runs:
-            if other.load != ref.load or other.body == ref.body:
-                continue
-            out.setdefault(ref.load, {}).setdefault(ref.body, {})[other.body] = {
-                "e_M": e_M(other.result.asperities.forces, ref.result.asperities.forces),
-                "e_m": e_m_or_none(maps[other.load, other.body], maps[ref.load, ref.body]),
-            }
-    return out
-
-
-def sensor_notes(runs, sensor: Sensor, *, rtol: float = 1e-3) -> list[str]:
-    """One note per solve whose load the sensor does not fully carry (part of the contact
-    lies outside it, so e_m compares only what the sensor sees)."""
-    notes = []
-    for r in runs:
-        seen = sensor.force(sensor.average(r.result))
-        if seen < (1.0 - rtol) * r.result.total_load:
-            notes.append(f"the sensor ({_sensor_text(sensor)}) carries {seen:.4g} N of the "
-                         f"{r.result.total_load:.4g} N of {r.body} at {_load_title(r.load)}")
-    return notes
-
-
 def _fmt(v) -> str:
     return "n/a" if v is None else f"{v:.3g}"
 
@@ -414,7 +250,7 @@ def markdown(scene_path: str, runs, ind: dict, notes: list[str], method: str,
     lines += [f"> **Note:** {n}" for n in notes] + ([""] if notes else [])
     for load in dict.fromkeys(r.load for r in runs):
         group = [r for r in runs if r.load == load]
-        lines += [f"## Load case: {_load_title(load)}", ""]
+        lines += [f"## Load case: {load_title(load)}", ""]
         for r in group:
             tilt = "" if r.result.tilt is None else (f", tilt alpha {r.result.tilt[0]:.4g} rad, "
                                                      f"beta {r.result.tilt[1]:.4g} rad")
@@ -435,7 +271,7 @@ def markdown(scene_path: str, runs, ind: dict, notes: list[str], method: str,
         lines.append("")
         if load in ind:
             lines += ["e_M / e_m in percent (row: reference body in the denominator; e_m on the "
-                      f"{_sensor_text(sensor)}). Both are ratios of squared norms, "
+                      f"{sensor_text(sensor)}). Both are ratios of squared norms, "
                       "e_M = 100 sum|P - P~|^2 / sum|P~|^2: one tip of seven 7 % off gives about 0.07 %, "
                       "so compare the per-tip forces above as well (docs/method.md section 5).", ""]
             names = [r.body for r in group]
@@ -450,9 +286,9 @@ def markdown(scene_path: str, runs, ind: dict, notes: list[str], method: str,
         inf = b["influence"]
         size = " x ".join(f"{v:g}" for v in inf["size"]) if "size" in inf else "-"
         origin = "({:g}, {:g})".format(*inf["origin"]) if "origin" in inf else "-"
-        loads = ", ".join(_load_title(x["label"]) for x in b["loads"])
+        loads = ", ".join(load_title(x["label"]) for x in b["loads"])
         lines.append(f"| {name} | {inf['kind']} | {size} | {inf.get('base', '-')} | {origin} | {loads} |")
-    lines += ["", f"Sensor: {_sensor_text(sensor)}.", ""]
+    lines += ["", f"Sensor: {sensor_text(sensor)}.", ""]
     return "\n".join(lines)
 
 
@@ -469,7 +305,7 @@ def _csv_text(rows, scene_path: str, record: dict) -> str:
     buf.write(f"# twoscale {__version__} compare {scene_path}; units: force N, area mm^2, pressure MPa\n")
     for key in ("scene", "bodies", "sensor"):
         buf.write(f"# {key}: {json.dumps(record[key], separators=(',', ':'))}\n")
-    w = csv.DictWriter(buf, fieldnames=FIELDS, lineterminator="\n")
+    w = csv.DictWriter(buf, fieldnames=ROW_FIELDS, lineterminator="\n")
     w.writeheader()
     for row in rows:
         w.writerow({k: (f"{v:.10g}" if isinstance(v, float) else v) for k, v in row.items()})
@@ -498,12 +334,12 @@ def _write_outputs(out: Path, args, scene: Scene, runs, ind, notes, measured: Me
     for load in dict.fromkeys(r.load for r in runs):
         group = {r.body: r.result for r in runs if r.load == load}
         tips = runs[0].scene.asperities
-        compare_forces(group, out / f"forces_{load}.png", title=f"force per asperity, {_load_title(load)}",
+        compare_forces(group, out / f"forces_{load}.png", title=f"force per asperity, {load_title(load)}",
                        measured=None if measured is None else measured.forces, scene=scene_dict, meta=meta)
-        compare_maps(group, out / f"maps_{load}.png", tips=tips, title=f"pressure, {_load_title(load)}",
+        compare_maps(group, out / f"maps_{load}.png", tips=tips, title=f"pressure, {load_title(load)}",
                      scene=scene_dict, meta=meta)
         compare_maps(group, out / f"sensor_{load}.png", tips=tips, sensor=sensor, scene=scene_dict, meta=meta,
-                     title=f"sensor-cell means ({_sensor_text(sensor)}), {_load_title(load)}")
+                     title=f"sensor-cell means ({sensor_text(sensor)}), {load_title(load)}")
     for r in runs:
         d = out / "runs" / f"{r.body}_{r.load}"
         write_result(r.result, r.scene, d, method=args.method)
@@ -518,14 +354,14 @@ def run(args: argparse.Namespace) -> int:
     try:
         check_out_dir(out)
         scenes = _scenes(args)
-        sensor = _sensor(args)
+        sensor = sensor_from_args(args)
         measured = _measured(args, scenes, sensor)
         notes = []
         if measured is not None and measured.forces_from_map:
             notes.append("measured tip forces integrated from the sensor map (each loaded cell to "
                          "its nearest tip)")
         if args.centre_pivot:
-            scenes[0], note = _centre_pivot(scenes[0], measured.forces)
+            scenes[0], note = centre_pivot(scenes[0], measured.forces)
             notes.append(note)
         _check_memory(scenes, args.method)  # before the block provider and the solves
         providers, block_notes = _providers(scenes[0], args.quiet)

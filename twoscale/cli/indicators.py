@@ -22,63 +22,26 @@ import json
 import sys
 from pathlib import Path
 
-import numpy as np
-
 from .._version import __version__
+from ..comparison import folder_indicators
 from ..io.atomic import atomic_output
-from ..io.result_json import RESULT_NAME, UNITS
-from ..io.solve_outputs import FIELDS_NAME
-from ..sensor import Sensor, e_M, e_m
-from .compare import DEFAULT_SENSOR, _sensor
+from ..io.result_json import UNITS
+from .options import add_sensor_arguments, sensor_from_args
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Options of ``twoscale indicators``."""
     parser.add_argument("run", metavar="RUN_DIR", help="output folder of twoscale solve (judged)")
     parser.add_argument("reference", metavar="REF_DIR", help="output folder of twoscale solve (reference)")
-    parser.add_argument("--sensor", metavar=("NX", "NY", "CELL"), nargs=3, default=None,
-                        help=f"sensor cells along x and y (integers >= 1) and cell side in mm "
-                             f"(default {DEFAULT_SENSOR.nx} {DEFAULT_SENSOR.ny} {DEFAULT_SENSOR.cell:g})")
-    parser.add_argument("--sensor-centre", metavar=("X", "Y"), nargs=2, default=None,
-                        help="sensor centre in scene coordinates, mm (default 0 0)")
+    add_sensor_arguments(parser)
     parser.add_argument("--json", metavar="FILE", default=None, help="also write the indicators as JSON")
 
 
-def _forces(folder: Path) -> np.ndarray:
-    path = folder / RESULT_NAME
-    try:
-        data = json.loads(path.read_text(encoding="utf-8"))
-        forces = np.array([float(a["force"]) for a in data["asperities"]])
-    except FileNotFoundError:
-        raise ValueError(f"{path} does not exist (a folder written by twoscale solve --out)") from None
-    except (json.JSONDecodeError, KeyError, TypeError, ValueError) as exc:
-        raise ValueError(f"{path} is not a twoscale result.json ({exc})") from None
-    return forces
-
-
-def _sensor_map(folder: Path, sensor: Sensor) -> np.ndarray:
-    from ..io.vtk import read_vtk
-
-    path = folder / FIELDS_NAME
-    if not path.is_file():
-        raise ValueError(f"{path} does not exist (twoscale solve --out writes it)")
-    return sensor.average(read_vtk(path))
-
-
-def indicators(run: Path, reference: Path, sensor: Sensor) -> dict:
-    """``{"e_M": percent, "e_m": percent or None}`` of ``run`` against ``reference``."""
-    P, P_ref = _forces(run), _forces(reference)
-    if P.shape != P_ref.shape:
-        raise ValueError(f"{run} has {P.size} asperities and {reference} has {P_ref.size}: "
-                         "e_M compares the same asperities")
-    p, p_ref = _sensor_map(run, sensor), _sensor_map(reference, sensor)
-    return {"e_M": e_M(P, P_ref), "e_m": e_m(p, p_ref) if np.any(p_ref != 0) else None}
-
-
 def run(args: argparse.Namespace) -> int:
+    """Run ``twoscale indicators`` (:func:`twoscale.comparison.folder_indicators`); returns the exit code."""
     try:
-        sensor = _sensor(args)
-        out = indicators(Path(args.run), Path(args.reference), sensor)
+        sensor = sensor_from_args(args)
+        out = folder_indicators(Path(args.run), Path(args.reference), sensor)
         if args.json is not None and Path(args.json).is_dir():
             raise ValueError(f"--json must name a file, got the folder {args.json!r}")
     except ValueError as exc:  # SceneError included

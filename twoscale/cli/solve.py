@@ -171,7 +171,7 @@ def summary(res: dict, scene_path: str, wall: float, path) -> str:
         lines.extend(_micro_lines(res))
     macro = any("macro_force" in a for a in res["asperities"])
     lines.append("  asperity      force N   area mm^2  p_max MPa" + ("   macro N" if macro else ""))
-    for k, a in enumerate(res["asperities"][:MAX_ROWS]):
+    for k, a in enumerate(res["asperities"][:MAX_ROWS], start=1):  # numbered from 1, as in the scene file
         row = f"  {k:8d} {a['force']:11.5g} {a['contact_area']:11.5g} {a['max_pressure']:10.5g}"
         if macro:
             row += f" {a['macro_force']:9.5g}"

@@ -5,12 +5,19 @@ Fixed fields (names and meanings; see README.md): ``converged``, ``method``
 radians, or null without tilt), ``total_load`` (N), ``h`` (mm), ``asperities`` (scene
 order: ``force`` N = integral of the final pressure over the cells the asperity owns,
 ``contact_area`` mm^2, ``max_pressure`` MPa, and ``macro_force`` N when the method has a
-macro step), ``iterations``, ``timings_s``, ``version``. Added: ``message``, ``solver``,
-``h_source``, ``n_cells``, ``residuals`` (per stage: count, first, last, min), ``units``,
-``scene``.
+macro step), ``iterations``, ``timings_s``, ``version``. Added: ``message``, ``solver``
+(the algorithm that ran: ``"twoscale"``, ``"dense"`` or ``"cg"``), ``h_source``, ``n_cells``,
+``residuals`` (per stage: count, first, last, min), ``units``, ``scene``; the two-scale
+method adds ``macro``, ``micro_iteration``, ``micro_choice``, ``micro_attempts``,
+``coupling`` and ``merged_patches`` (asperities numbered from 1), the reference method
+``reference`` (solver, working grid, grid enlargements). Everything is written from the
+typed :attr:`ContactResult.details`, never from string-keyed extras.
+
+:func:`read_forces` reads the per-asperity forces back.
 """
 from __future__ import annotations
 
+import dataclasses
 import json
 import math
 import os
@@ -21,15 +28,14 @@ import numpy as np
 
 from .._version import __version__
 from .atomic import atomic_output
+from ..details import ReferenceDetails, TwoScaleDetails
 from ..scene import Scene
 from .scene_file import scene_to_dict
 
-__all__ = ["RESULT_NAME", "UNITS", "result_to_dict", "write_result"]
+__all__ = ["RESULT_NAME", "UNITS", "result_to_dict", "write_result", "read_forces"]
 
 RESULT_NAME = "result.json"
 UNITS = {"length": "mm", "force": "N", "pressure": "MPa", "angle": "rad", "time": "s"}
-#: Solver names in ContactResult.method that belong to the reference method.
-_REFERENCE_SOLVERS = ("dense", "cg", "reference")
 
 
 def _num(v: Any) -> float | int | None:
@@ -72,29 +78,29 @@ def result_to_dict(result, scene: Scene, *, method: str | None = None, h_source:
         The scene that was solved (recorded in ``"scene"``; its ``h`` tells whether the
         cell size was given or chosen, ``"h_source"``).
     method : str, optional
-        Method name to record; default from ``result.method`` (``"dense"``/``"cg"`` ->
-        ``"reference"``).
+        Method name to record; default ``result.method`` ("twoscale" or "reference";
+        the solver that ran is ``"solver"``).
 
     Returns
     -------
     dict
-        JSON-safe (floats, ints, lists, None).
+        JSON-safe (floats, ints, lists, None). Asperities are listed in scene order;
+        ``merged_patches`` numbers them from 1, as the scene file does.
     """
-    if method is None:
-        method = "reference" if result.method in _REFERENCE_SOLVERS else result.method
-    macro = result.extra.get("macro_forces")
+    details = result.details
+    macro = result.macro_forces
     summ = result.asperities
     asperities = []
     for k in range(len(summ.forces)):
         row = {"force": _num(summ.forces[k]), "contact_area": _num(summ.contact_areas[k]),
                "max_pressure": _num(summ.max_pressures[k])}
         if macro is not None:
-            row["macro_force"] = _num(np.asarray(macro)[k])
+            row["macro_force"] = _num(macro[k])
         asperities.append(row)
     h = result.fields[0].grid.h if result.fields else scene.h
     out = {
         "converged": bool(result.converged),
-        "method": method,
+        "method": result.method if method is None else method,
         "penetration": _num(result.penetration),
         "tilt": None if result.tilt is None else [_num(t) for t in result.tilt],
         "total_load": _num(result.total_load),
@@ -104,30 +110,37 @@ def result_to_dict(result, scene: Scene, *, method: str | None = None, h_source:
         "timings_s": _plain(dict(result.timings_s)),
         "version": __version__,
         "message": result.message,
-        "solver": result.method,
+        "solver": result.solver,
         "h_source": h_source or ("scene" if scene.h is not None else "default"),
         "n_cells": int(result.n_cells),
         "residuals": {str(k): _residual_summary(v) for k, v in result.residuals.items()},
         "units": dict(UNITS),
         "scene": scene_to_dict(scene),
     }
-    if "macro_interaction" in result.extra:
-        # how the macro step held the interaction, and the measured error of a fast operator
-        err = result.extra.get("macro_operator_error")
-        out["macro"] = {"interaction": result.extra["macro_interaction"],
-                        "operator_error": None if err is None else _num(err)}
-    if "micro_iteration" in result.extra:
-        out["micro_iteration"] = result.extra["micro_iteration"]
-    if "micro_choice" in result.extra:
-        # what the policy chose and why, and every attempt the driver made, in order
-        out["micro_choice"] = _plain(dict(result.extra["micro_choice"]))
-        out["micro_attempts"] = [_plain(dict(a)) for a in result.extra["micro_attempts"]]
-    if "coupling" in result.extra:
-        out["coupling"] = {k: _num(v) if v is not None else None for k, v in result.extra["coupling"].items()}
-    if "merged_patches" in result.extra:
-        # asperities numbered from 1, as in the scene file
-        out["merged_patches"] = [[int(k) + 1 for k in m] for m in result.extra["merged_patches"]]
+    if isinstance(details, TwoScaleDetails):
+        out.update(_twoscale_record(details))
+    elif isinstance(details, ReferenceDetails):
+        out["reference"] = _plain(dataclasses.asdict(details))
     return out
+
+
+def _twoscale_record(details: TwoScaleDetails) -> dict:
+    """The two-scale method's own fields of result.json (from the typed details)."""
+    macro, micro = details.macro, details.micro
+    choice = micro.choice
+    return {
+        # how the macro step held the interaction, and the measured error of a fast operator
+        "macro": {"interaction": macro.interaction,
+                  "operator_error": None if macro.operator_error is None else _num(macro.operator_error)},
+        "micro_iteration": micro.iteration,
+        # what the policy chose and why, and every attempt the driver made, in order
+        "micro_choice": {"iteration": choice.iteration, "far_tol": _plain(choice.far_tol), "reason": choice.reason,
+                         "by_caller": bool(choice.by_caller), "estimates": _plain(dict(choice.estimates))},
+        "micro_attempts": [_plain(dataclasses.asdict(a)) for a in micro.attempts],
+        "coupling": _plain(dataclasses.asdict(micro.coupling)),
+        # asperities numbered from 1, as in the scene file (0-based in Python)
+        "merged_patches": [[k + 1 for k in m] for m in micro.merged_patches],
+    }
 
 
 def write_result(result, scene: Scene, out_dir: str | os.PathLike, *, method: str | None = None,
@@ -142,3 +155,21 @@ def write_result(result, scene: Scene, out_dir: str | os.PathLike, *, method: st
     with atomic_output(target) as tmp:
         tmp.write_text(text, encoding="utf-8")
     return target
+
+
+def read_forces(folder: str | os.PathLike) -> np.ndarray:
+    """Per-asperity forces (N, scene order) of ``folder/result.json`` written by :func:`write_result`.
+
+    Raises
+    ------
+    ValueError
+        One line naming the file: missing, or not a twoscale result.json.
+    """
+    path = Path(folder) / RESULT_NAME
+    try:
+        data = json.loads(path.read_text(encoding="utf-8"))
+        return np.array([float(a["force"]) for a in data["asperities"]])
+    except FileNotFoundError:
+        raise ValueError(f"{path} does not exist (a folder written by twoscale solve --out)") from None
+    except (json.JSONDecodeError, KeyError, TypeError, ValueError) as exc:
+        raise ValueError(f"{path} is not a twoscale result.json ({exc})") from None

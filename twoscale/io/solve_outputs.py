@@ -53,6 +53,6 @@ def write_fields_and_figures(result: ContactResult, scene: Scene, out_dir, *, vt
         from ..plot import force_bars, pressure_map
 
         written.append(pressure_map(result, out / PRESSURE_NAME, tips=scene.asperities, scene=record))
-        written.append(force_bars(result, out / FORCES_NAME, macro_forces=result.extra.get("macro_forces"),
+        written.append(force_bars(result, out / FORCES_NAME, macro_forces=result.macro_forces,
                                   scene=record))
     return written

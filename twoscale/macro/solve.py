@@ -6,6 +6,7 @@ import time
 import numpy as np
 from scipy.spatial import cKDTree
 
+from ..control import check_control
 from ..influence.base import InfluenceProvider
 from ..laws import AsperityLaw, LawStack
 from .interaction import MatrixFreeInteraction, sampled_operator_error
@@ -163,9 +164,7 @@ def _check_scene(tips, z, laws) -> tuple[np.ndarray, np.ndarray, LawStack]:
 
 
 def _check_load(penetration, total_load, tilt, pivot, tol, max_iter) -> str:
-    if (penetration is None) == (total_load is None):
-        raise ValueError(f"give exactly one of penetration (mm) or total_load (N), got "
-                         f"penetration={penetration!r}, total_load={total_load!r}")
+    check_control(penetration, total_load)
     if penetration is not None and not np.isfinite(penetration):
         raise ValueError(f"penetration must be finite (mm), got {penetration!r}")
     if total_load is not None and not (np.isfinite(total_load) and total_load > 0):

@@ -28,7 +28,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..control import check_control
 from ..indenters import Surface
+from ..details import ReferenceDetails
 from ..results import ContactResult, PressureField, summarise
 
 
@@ -114,9 +116,7 @@ def make_problem(surface: Surface, *, penetration=None, total_load=None, tilt: b
         raise ValueError(f"surface must be a twoscale.indenters.Surface, got {type(surface).__name__}")
     if np.any(np.isnan(surface.height)):
         raise ValueError("surface.height contains NaN")
-    if (penetration is None) == (total_load is None):
-        raise ValueError("give exactly one of penetration (mm) or total_load (N), got "
-                         f"penetration={penetration!r}, total_load={total_load!r}")
+    check_control(penetration, total_load)
     if not isinstance(tilt, (bool, np.bool_)):
         raise ValueError(f"tilt must be True or False, got {tilt!r}")
     if tilt and total_load is None:
@@ -194,19 +194,21 @@ def trivial_result(problem: ContactProblem, method: str, timings: dict) -> Conta
 
 def build_result(problem: ContactProblem, method: str, pressure: np.ndarray, displacement: np.ndarray,
                  d: float, tilt, converged: bool, message: str, iterations: dict, residuals: dict,
-                 timings: dict, extra: dict | None = None) -> ContactResult:
-    """Assemble the :class:`ContactResult` from the pressure and displacement (ny, nx)."""
+                 timings: dict, details: ReferenceDetails | None = None) -> ContactResult:
+    """Assemble the :class:`ContactResult` from the pressure and displacement (ny, nx);
+    ``method`` is the solver that ran ("dense" or "cg"), recorded as ``result.solver``
+    (``result.method`` is "reference")."""
     surface = problem.surface
     with np.errstate(invalid="ignore"):
         gap = heights_with_tilt(problem, tilt) + displacement - d
     gap = np.where(np.isfinite(surface.height), gap, np.inf)
     field = PressureField(problem.grid, pressure, surface.owner, gap)
     total = float(problem.grid.h ** 2 * pressure.sum())
-    return ContactResult(method=method, fields=(field,), penetration=float(d), tilt=tilt,
+    return ContactResult(method="reference", solver=method, fields=(field,), penetration=float(d), tilt=tilt,
                          total_load=total, asperities=summarise((field,), surface.n_asperities),
                          converged=bool(converged), message=message, iterations=dict(iterations),
                          residuals={k: tuple(float(x) for x in v) for k, v in residuals.items()},
-                         timings_s=dict(timings), extra=dict(extra or {}))
+                         timings_s=dict(timings), details=details or ReferenceDetails(method))
 
 
 def initial_active_set(problem: ContactProblem, E_star: float) -> np.ndarray:

@@ -28,6 +28,7 @@ import numpy as np
 from ..grid import Grid
 from ..indenters import Surface
 from ..influence.base import InfluenceProvider
+from ..details import ReferenceDetails
 from ..results import ContactResult
 from ._problem import ContactProblem, build_result, initial_active_set, make_problem, trivial_result
 
@@ -143,8 +144,9 @@ def solve_cg(provider: InfluenceProvider, surface: Surface, *, penetration: floa
     Returns
     -------
     ContactResult
-        ``method="cg"``; ``iterations={"cg": n, "products": grid products}``; ``residuals={"gap": history}``
-        (relative KKT residual per iteration).
+        ``method="reference"``, ``solver="cg"``; ``iterations={"cg": n, "products": grid products}``;
+        ``residuals={"gap": history}`` (relative KKT residual per iteration); ``details`` a
+        :class:`~twoscale.details.ReferenceDetails` (working grid, single-precision iterations).
     """
     t0 = time.perf_counter()
     problem = make_problem(surface, penetration=penetration, total_load=total_load, tilt=tilt, pivot=pivot)
@@ -183,9 +185,9 @@ def solve_cg(provider: InfluenceProvider, surface: Surface, *, penetration: floa
     d, tilt_angles = problem.rigid_motion(m)
     t_end = time.perf_counter()
     timings = {"operator": t_op - t0, "solve": t_end - t_op, "total": t_end - t0}
-    extra = {"working_grid": (work.grid.nx, work.grid.ny), "single_precision_iterations": it0}
+    details = ReferenceDetails("cg", working_grid=(work.grid.nx, work.grid.ny), single_precision_iterations=it0)
     return build_result(problem, "cg", p, u, d, tilt_angles, converged, message,
-                        {"cg": it, "products": n_products}, {"gap": hist}, timings, extra)
+                        {"cg": it, "products": n_products}, {"gap": hist}, timings, details)
 
 
 def _window(sub: Grid, grid: Grid) -> tuple[slice, slice]:

@@ -86,7 +86,7 @@ def solve_dense(provider: InfluenceProvider, surface: Surface, *, penetration: f
     Returns
     -------
     ContactResult
-        ``method="dense"``; ``iterations={"outer": passes}``; residuals hold the number of
+        ``method="reference"``, ``solver="dense"``; ``iterations={"outer": passes}``; residuals hold the number of
         cells changed per pass (``"changes"``) and the size of the trial set (``"active"``).
     """
     t0 = time.perf_counter()

@@ -38,11 +38,11 @@ def error_rows(study: StudyResult, layout: str) -> list[tuple]:
     """One row per d/2R: the fig. 6 indicators, sweeps and blocks, timings and sizes."""
     rows = []
     for r in study.cases[layout]:
-        ts, t = r.twoscale, r.twoscale.timings_s
+        ts, macro, micro = r.twoscale, r.twoscale.details.macro, r.twoscale.details.micro
         # blocks of the sweeps: patches apart, or merged where contacts are close
         rows.append((r.case.spacing, r.err_p0_percent, r.err_p_percent, r.sweeps, len(ts.fields),
-                     ts.iterations["macro"],
-                     ts.extra["patch_growths"], t["total"], t["macro"], t["micro"], r.ref.timings_s["wall"],
+                     ts.iterations["macro"], micro.growths, ts.timings_s["total"], macro.seconds, micro.seconds,
+                     r.reference_seconds,
                      ts.n_cells, int(np.count_nonzero(r.reference_cells)), ts.total_load, r.mean_pressure,
                      ts.converged))
     return rows

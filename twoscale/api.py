@@ -1,0 +1,248 @@
+"""The one entry point: :func:`solve` (``twoscale.solve``), in the style of ``scipy.optimize.minimize``.
+
+``solve(problem, method=...)`` takes a :class:`~twoscale.scene.Scene`, or tips (Asperity
+objects, an array, or a mapping of arrays) with the material and the load, and returns a
+:class:`~twoscale.results.ContactResult`. ``method`` picks the solver:
+
+* ``"twoscale"`` (default): the two-scale method (:func:`twoscale.twoscale.solve_twoscale`);
+* ``"reference"``: the full-grid reference on a grid covering every place contact can
+  reach (:func:`twoscale.reference.on_scene.solve_reference_scene`), dense or CG by size; the result says which
+  (``result.method == "reference"``, ``result.solver`` ``"dense"`` or ``"cg"``);
+* ``"dense"`` / ``"cg"``: that reference solver;
+* a callable ``method(provider, scene, h=h, **options) -> ContactResult``: a solver of
+  your own, given the same inputs.
+
+The elastic body is the scene's (half-space by default) unless a prebuilt ``provider`` is
+passed (e.g. a finite block built once for several solves). Units: mm, N, MPa. Python
+indices are 0-based (numpy); files and tables written for people number tips from 1.
+"""
+from __future__ import annotations
+
+import dataclasses
+import math
+from collections.abc import Mapping, Sequence
+
+import numpy as np
+
+from .control import check_control
+from .indenters import SHAPES, Asperity
+from .material import Material
+from .results import ContactResult
+from .scene import Scene, SceneError, default_h, expected_contact_radii
+
+#: Names ``method`` accepts (or a callable).
+METHODS = ("twoscale", "reference", "dense", "cg")
+#: Scene fields that come from ``solve``'s keywords when tips are given instead of a Scene.
+_SCENE_KEYWORDS = ("material", "penetration", "total_load", "tilt", "pivot")
+
+
+# ---------------------------------------------------------------- tips as arrays
+def asperities(x, y, R, z=0.0, *, shape: str = "sphere") -> tuple[Asperity, ...]:
+    """Asperities from arrays (broadcast against each other), in array order.
+
+    Parameters
+    ----------
+    x, y : array_like
+        Tip positions, mm.
+    R : array_like
+        Tip radii, mm (> 0).
+    z : array_like, default 0
+        Tip recesses, mm (a larger z touches later).
+    shape : {"sphere", "paraboloid"} or array_like of them, default "sphere"
+
+    Returns
+    -------
+    tuple of Asperity
+        ``result.asperities.forces[k]`` of a solve belongs to the k-th (0-based) entry.
+
+    Raises
+    ------
+    ValueError
+        Arrays that do not broadcast to one dimension, or a bad value (named with its
+        0-based index, e.g. ``R[3] must be > 0 (mm), got -1.0``).
+    """
+    try:
+        cols = np.broadcast_arrays(*(np.asarray(v, dtype=float) for v in (x, y, z, R)), np.asarray(shape))
+    except ValueError as exc:
+        raise ValueError(f"x, y, R, z and shape must broadcast to one length ({exc})") from None
+    if cols[0].ndim != 1 or cols[0].size == 0:
+        raise ValueError(f"x, y, R, z must be 1-D with at least one tip, got shape {cols[0].shape}")
+    out = []
+    for k, (xk, yk, zk, rk, sk) in enumerate(zip(*cols)):
+        for name, v in (("x", xk), ("y", yk), ("z", zk), ("R", rk)):
+            if not math.isfinite(v):
+                raise ValueError(f"{name}[{k}] must be a finite number (mm), got {float(v)!r}")
+        if not rk > 0:
+            raise ValueError(f"R[{k}] must be > 0 (mm), got {float(rk)!r}")
+        if str(sk) not in SHAPES:
+            raise ValueError(f"shape[{k}] must be one of {SHAPES}, got {str(sk)!r}")
+        out.append(Asperity(float(xk), float(yk), float(zk), float(rk), str(sk)))
+    return tuple(out)
+
+
+def as_asperities(tips, *, shape: str = "sphere") -> tuple[Asperity, ...]:
+    """Tips in any accepted form as a tuple of Asperity.
+
+    ``tips`` is a sequence of :class:`Asperity`; an ``(n, 3)`` array of columns
+    ``x, y, R`` or an ``(n, 4)`` array of ``x, y, R, z`` (mm; ``R`` is always the third
+    column), or the same as a list of rows of numbers; or a mapping with arrays ``"x"``,
+    ``"y"``, ``"R"`` and optionally ``"z"`` and ``"shape"``. ``shape`` applies to the
+    array forms. A sequence of numpy arrays is refused: ``(x, y, R)`` columns and three
+    rows look alike.
+    """
+    if isinstance(tips, Mapping):
+        missing = [k for k in ("x", "y", "R") if k not in tips]
+        unknown = [k for k in tips if k not in ("x", "y", "R", "z", "shape")]
+        if missing or unknown:
+            raise ValueError(f"tips as a mapping need keys x, y, R (optional z, shape); "
+                             f"missing {missing}, unknown {unknown}")
+        return asperities(tips["x"], tips["y"], tips["R"], tips.get("z", 0.0), shape=tips.get("shape", shape))
+    if isinstance(tips, Sequence) and any(isinstance(t, np.ndarray) for t in tips):
+        # (x, y, R) columns and [row, row, row] rows look alike for 3 or 4 tips: refuse to guess
+        raise ValueError("tips as a sequence of numpy arrays are ambiguous (rows or columns?): give "
+                         "np.column_stack([x, y, R]), {'x': x, 'y': y, 'R': R} or twoscale.asperities(x, y, R, z)")
+    if isinstance(tips, np.ndarray) or (isinstance(tips, Sequence) and tips and
+                                        not isinstance(tips[0], Asperity)):
+        a = np.asarray(tips, dtype=float)
+        if a.ndim != 2 or a.shape[1] not in (3, 4):
+            raise ValueError(f"tips as an array must have shape (n, 3) [x, y, R] or (n, 4) [x, y, R, z], "
+                             f"got {a.shape}")
+        return asperities(a[:, 0], a[:, 1], a[:, 2], a[:, 3] if a.shape[1] == 4 else 0.0, shape=shape)
+    if isinstance(tips, Sequence) and all(isinstance(t, Asperity) for t in tips):
+        return tuple(tips)
+    raise ValueError(f"tips must be Asperity objects, an (n, 3) or (n, 4) array, or a mapping of "
+                     f"arrays, got {type(tips).__name__}")
+
+
+def _scene_of(problem, provider, h, shape, given: dict) -> Scene:
+    """The scene to solve: ``problem`` itself, or one built from tips and keywords."""
+    if isinstance(problem, Scene):
+        extra = [k for k in _SCENE_KEYWORDS if given[k] is not None and not (k == "tilt" and given[k] is False)]
+        if extra:
+            raise ValueError(f"a Scene carries its own {', '.join(extra)}; change the scene "
+                             f"(dataclasses.replace) instead of passing {extra[0]}=")
+        return problem if h is None else dataclasses.replace(problem, h=h)
+    check_control(given["penetration"], given["total_load"])
+    material = given["material"]
+    if material is None:
+        if provider is None:
+            raise ValueError("give material= (or a provider=) when the tips are not a Scene")
+        material = provider.material
+    return Scene(material=material, asperities=as_asperities(problem, shape=shape),
+                 penetration=given["penetration"], total_load=given["total_load"],
+                 tilt=bool(given["tilt"]), pivot=given["pivot"] if given["pivot"] is not None else (0.0, 0.0), h=h)
+
+
+# ---------------------------------------------------------------- the entry point
+def solve(problem, *, method="twoscale", provider=None, material: Material | None = None,
+          penetration: float | None = None, total_load: float | None = None, tilt: bool = False,
+          pivot: tuple[float, float] | None = None, h: float | None = None, shape: str = "sphere",
+          provider_options: Mapping | None = None, memory_limit: float | None = None,
+          **options) -> ContactResult:
+    """Solve a multi-asperity contact.
+
+    Parameters
+    ----------
+    problem : Scene, sequence of Asperity, array or mapping of arrays
+        A :class:`~twoscale.scene.Scene`, or the tips alone (see :func:`as_asperities`:
+        an ``(n, 3)`` array ``x, y, R`` or ``(n, 4)`` ``x, y, R, z``, mm; or
+        ``{"x": ..., "y": ..., "R": ..., "z": ...}``); then give ``material`` (or a
+        ``provider``) and exactly one of ``penetration`` and ``total_load``.
+    method : {"twoscale", "reference", "dense", "cg"} or callable, default "twoscale"
+        The solver (module docstring). ``"reference"`` picks dense up to 2,000 cells with
+        material, CG above; ``result.solver`` says which ran.
+    provider : InfluenceProvider, optional
+        A prebuilt elastic body (``twoscale.HalfSpace(material)``,
+        ``twoscale.FiniteBlock(material, size=..., base=...)``, or your own), used instead
+        of the scene's ``influence``. Its material must be the scene's.
+    material : Material, optional
+        Tips only: E (MPa) and nu of the body (default: the provider's).
+    penetration : float, optional
+        Tips only: rigid approach d, mm.
+    total_load : float, optional
+        Tips only: total load W, N.
+    tilt : bool, default False
+        Tips only, with ``total_load``: ball-and-socket joint (tilt solved).
+    pivot : (float, float), optional
+        Tips only, with ``tilt``: joint position, mm (default (0, 0)).
+    h : float, optional
+        Cell size, mm (> 0); overrides the scene's. Default: ``scene.h`` or
+        :func:`twoscale.scene.default_h` (about 32 cells across the smallest loaded contact).
+    shape : {"sphere", "paraboloid"}, default "sphere"
+        Tips given as arrays: their shape.
+    provider_options : mapping, optional
+        Passed to the scene's provider when it is built here (finite block: e.g.
+        ``{"progress": False}``); not with ``provider``.
+    memory_limit : float, optional
+        Bytes the solve may use, checked before anything large is allocated
+        (:func:`twoscale.resources.check_memory`); default 80 % of the memory available
+        now; ``math.inf``: no check.
+    **options
+        Passed to the solver: :func:`~twoscale.twoscale.solve_twoscale` (``tol``,
+        ``iteration``, ``far_tol``, ``progress``, ...), the reference solvers (``tol``,
+        ``max_iter``), or your callable.
+
+    Returns
+    -------
+    ContactResult
+        ``result.forces[k]`` (N) is the force of the k-th tip (0-based, input order);
+        ``result.details`` holds what only the method has (typed, :mod:`twoscale.details`);
+        ``print(result)`` gives a one-line summary.
+
+    Raises
+    ------
+    ValueError
+        Invalid input (:class:`~twoscale.scene.SceneError` for scene data), naming the bad value.
+    """
+    given = dict(material=material, penetration=penetration, total_load=total_load, tilt=tilt, pivot=pivot)
+    scene = _scene_of(problem, provider, h, shape, given)
+    if not (callable(method) or method in METHODS):
+        raise ValueError(f"method must be one of {METHODS} or a callable, got {method!r}")
+    if provider is not None and provider_options:
+        raise ValueError(f"provider_options apply to a provider built here, not to the one passed "
+                         f"(got {sorted(provider_options)!r})")
+    h = default_h(scene)
+    if not callable(method) and (memory_limit is None or memory_limit < math.inf):
+        from .resources import check_memory, estimate_memory
+
+        family = "twoscale" if method == "twoscale" else "reference"
+        iteration = options.get("iteration", "auto") if method == "twoscale" else "auto"
+        check_memory(estimate_memory(scene, h, family, iteration=iteration), memory_limit, option="grid.h")
+    if provider is None:
+        provider = scene.provider(**(provider_options or {}))
+    elif provider.material != scene.material:
+        raise ValueError(f"the provider's material {provider.material!r} is not the scene's {scene.material!r}")
+    check_domain(scene, provider)
+    if callable(method):
+        return method(provider, scene, h=h, **options)
+    if method == "twoscale":
+        from .twoscale import solve_twoscale
+
+        return solve_twoscale(provider, scene.asperities, h=h, penetration=scene.penetration,
+                              total_load=scene.total_load, tilt=scene.tilt, pivot=scene.pivot, **options)
+    from .reference.on_scene import solve_reference_scene
+
+    return solve_reference_scene(scene, provider, h, solver="auto" if method == "reference" else method,
+                                 **options)
+
+
+__all__ = ["METHODS", "solve", "asperities", "as_asperities"]
+
+
+def check_domain(scene: Scene, provider) -> None:
+    """Raise :class:`SceneError` naming the first asperity (numbered from 1) whose expected
+    contact reaches outside the region the body answers for (``provider.domain()``)."""
+    domain = getattr(provider, "domain", None)
+    box = domain() if domain is not None else None
+    if box is None:
+        return
+    x0, x1, y0, y1 = box
+    a = expected_contact_radii(scene)
+    for k, (tip, ak) in enumerate(zip(scene.tips, a)):
+        x, y = tip
+        if x - ak < x0 or x + ak > x1 or y - ak < y0 or y + ak > y1:
+            raise SceneError(
+                f"asperity {k + 1} at ({x:.4g}, {y:.4g}) mm, contact radius about {ak:.2g} mm, "
+                f"reaches outside the region the block answers for, x in [{x0:.4g}, {x1:.4g}], "
+                f"y in [{y0:.4g}, {y1:.4g}] mm (one influence.source_spacing inside its sides): "
+                f"move it inward, or lower influence.source_spacing (default 5 mm)")

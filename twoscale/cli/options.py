@@ -1,0 +1,61 @@
+"""Command-line options shared by several commands: the sensor (``--sensor``, ``--sensor-centre``).
+
+Each parser turns the text given into a value or raises :class:`~twoscale.scene.SceneError`
+naming the option and the text (the command prints it as one ``error:`` line, exit 2).
+"""
+from __future__ import annotations
+
+import argparse
+import math
+
+from ..scene import SceneError
+from ..sensor import Sensor
+from .solve import positive_option
+
+#: The paper's pressure sensor, used unless --sensor / --sensor-centre say otherwise.
+DEFAULT_SENSOR = Sensor()
+
+
+def add_sensor_arguments(parser: argparse.ArgumentParser) -> None:
+    """``--sensor NX NY CELL`` and ``--sensor-centre X Y``."""
+    parser.add_argument("--sensor", metavar=("NX", "NY", "CELL"), nargs=3, default=None,
+                        help=f"sensor cells along x and y (integers >= 1) and cell side in mm "
+                             f"(default {DEFAULT_SENSOR.nx} {DEFAULT_SENSOR.ny} {DEFAULT_SENSOR.cell:g})")
+    parser.add_argument("--sensor-centre", metavar=("X", "Y"), nargs=2, default=None,
+                        help="sensor centre in scene coordinates, mm (default 0 0)")
+
+
+def int_option(text: str, name: str) -> int:
+    """An integer >= 1 given as ``text`` for the option ``name``."""
+    try:
+        v = int(text)
+    except ValueError:
+        v = 0
+    if v < 1:
+        raise SceneError(f"{name} must be an integer >= 1, got {text!r}")
+    return v
+
+
+def finite_option(text: str, name: str, *, unit: str) -> float:
+    """A finite number given as ``text`` for the option ``name`` (in ``unit``)."""
+    try:
+        v = float(text)
+    except ValueError:
+        v = math.nan
+    if not math.isfinite(v):
+        raise SceneError(f"{name} must be a finite number ({unit}), got {text!r}")
+    return v
+
+
+def sensor_from_args(args: argparse.Namespace) -> Sensor:
+    """The sensor of ``--sensor NX NY CELL`` and ``--sensor-centre X Y`` (default the paper's)."""
+    s = DEFAULT_SENSOR
+    nx, ny, cell, centre = s.nx, s.ny, s.cell, s.centre
+    if args.sensor is not None:
+        nx = int_option(args.sensor[0], "--sensor NX")
+        ny = int_option(args.sensor[1], "--sensor NY")
+        cell = positive_option(args.sensor[2], "--sensor CELL", unit="mm")
+    if args.sensor_centre is not None:
+        centre = (finite_option(args.sensor_centre[0], "--sensor-centre X", unit="mm"),
+                  finite_option(args.sensor_centre[1], "--sensor-centre Y", unit="mm"))
+    return Sensor(nx, ny, cell, centre)
