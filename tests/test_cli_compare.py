@@ -92,7 +92,7 @@ def test_three_bodies_and_loads(tmp_path, monkeypatch):
     assert ind["50N"]["halfspace"]["block-bonded"] == {"e_M": 0.0, "e_m": 0.0}
     md = (out / "forces.md").read_text()
     assert "| halfspace | - | 0 / 0 | 0 / 0 |" in md
-    assert (out / "runs" / "block-sliding_100N" / "fields.vtu").exists()
+    assert (out / "runs" / "block-sliding_100N" / "fields.vtm").exists()
 
 
 class _Res:
@@ -175,7 +175,7 @@ def test_measured_data_and_pivot_centring(tmp_path, monkeypatch):
     m = np.array([float(r["force_N"]) for r in rows if r["body"] == "measured"])
     F = np.array([float(r["force_N"]) for r in rows if r["body"] == "halfspace"])
     assert m.tolist() == [2.0, 3.0, 5.0]
-    fields = read_vtk(out / "runs" / "halfspace_10N" / "fields.vtu").fields
+    fields = read_vtk(out / "runs" / "halfspace_10N" / "fields.vtm").fields
     P = sum(Sensor().average_field(f.grid, f.pressure) for f in fields)
     loaded = (P != 0) | (smap != 0)
     e_m_expected = 100 * np.sum((P - smap)[loaded] ** 2) / np.sum(smap ** 2)
@@ -337,7 +337,7 @@ def test_sensor_options_feed_map_reading_forces_and_e_m(tmp_path, monkeypatch):
     assert [float(r["force_N"]) for r in rows] == pytest.approx([4.0, 8.0, 0.0])
     summary = json.loads((out / "summary.json").read_text())
     assert summary["sensor"] == {"nx": 8, "ny": 6, "cell_mm": 2.0, "centre_mm": [4.0, 0.0]}
-    fields = read_vtk(out / "runs" / "halfspace_10N" / "fields.vtu").fields
+    fields = read_vtk(out / "runs" / "halfspace_10N" / "fields.vtm").fields
     P = sum(sensor.average_field(f.grid, f.pressure) for f in fields)
     loaded = (P != 0) | (smap != 0)
     expected = 100 * np.sum((P - smap)[loaded] ** 2) / np.sum(smap ** 2)

@@ -72,7 +72,7 @@ def test_solve_interrupted_while_writing(scene, tmp_path, monkeypatch, capsys):
 def test_solve_writes_whole_folder_when_not_interrupted(scene, tmp_path):
     out = tmp_path / "out"
     assert main(["solve", str(scene), "--out", str(out), "--quiet"]) == 0
-    assert {"result.json", "fields.vtu", "pressure.png", "forces.png"} <= {p.name for p in out.iterdir()}
+    assert {"result.json", "fields.vtm", "pressure.png", "forces.png"} <= {p.name for p in out.iterdir()}
     _nothing_but(tmp_path, "scene.toml", "out")
     # a second run into the existing folder replaces its files and keeps the others
     (out / "notes.txt").write_text("mine", encoding="utf-8")

@@ -1,4 +1,4 @@
-"""`twoscale solve --out DIR` also writes fields.vtu, pressure.png and forces.png."""
+"""`twoscale solve --out DIR` also writes fields.vtm, pressure.png and forces.png."""
 import json
 from pathlib import Path
 
@@ -21,9 +21,9 @@ def test_solve_writes_fields_and_figures(tmp_path, method):
     out = tmp_path / "run"
     assert main(["solve", str(EXAMPLES / "paper_two_spheres.toml"), "--method", method,
                  "--out", str(out), "--quiet"]) == 0
-    assert sorted(p.name for p in out.iterdir()) == ["fields.vtu", "forces.png", "pressure.png", "result.json"]
+    assert sorted(p.name for p in out.iterdir()) == ["fields", "fields.vtm", "forces.png", "pressure.png", "result.json"]
     res = json.loads((out / "result.json").read_text())
-    back = read_vtk(out / "fields.vtu")
+    back = read_vtk(out / "fields.vtm")
     # the per-asperity forces integrated from the written fields are result.json's forces
     s = summarise(back.fields, 2)
     np.testing.assert_allclose(s.forces, [a["force"] for a in res["asperities"]], rtol=1e-12)

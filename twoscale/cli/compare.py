@@ -476,6 +476,7 @@ def _csv_text(rows, scene_path: str, record: dict) -> str:
 
 def _write_outputs(out: Path, args, scene: Scene, runs, ind, notes, measured: Measured | None,
                    sensor: Sensor) -> None:
+    from ..io.solve_outputs import FIELDS_NAME
     from ..io.vtk import write_vtk
     from ..plot import compare_forces, compare_maps
 
@@ -506,7 +507,7 @@ def _write_outputs(out: Path, args, scene: Scene, runs, ind, notes, measured: Me
         d = out / "runs" / f"{r.body}_{r.load}"
         write_result(r.result, r.scene, d, method=args.method)
         if args.vtk:
-            write_vtk(r.result, d / "fields.vtu", asperities=r.scene.asperities, pivot=r.scene.pivot,
+            write_vtk(r.result, d / FIELDS_NAME, asperities=r.scene.asperities, pivot=r.scene.pivot,
                       scene=scene_to_dict(r.scene))
 
 

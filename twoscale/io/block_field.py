@@ -11,7 +11,7 @@ half-space part is poor at vertices within a few aggregates of the loaded surfac
 
 File layout (VTK unstructured grid of hexahedra, through meshio): points ``(x, y, z)``
 in mm with x, y in the scene frame and ``z = -depth`` (top face at z = 0, the block
-below, as in ``fields.vtu``); point arrays ``displacement_mm`` (3 components, z up: a
+below, as in ``fields.vtm``); point arrays ``displacement_mm`` (3 components, z up: a
 pressed surface moves to negative z), ``displacement_halfspace_mm`` (its Boussinesq
 part) and ``depth_mm``. Metadata (version, units, scene, block, aggregation, total
 force) as in :mod:`twoscale.io.vtk`: an XML comment and the field array

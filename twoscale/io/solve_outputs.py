@@ -16,7 +16,7 @@ from ..results import ContactResult
 from ..scene import Scene
 from .scene_file import scene_to_dict
 
-FIELDS_NAME = "fields.vtu"
+FIELDS_NAME = "fields.vtm"
 PRESSURE_NAME = "pressure.png"
 FORCES_NAME = "forces.png"
 
