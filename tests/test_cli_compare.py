@@ -44,6 +44,7 @@ def test_half_space_only_says_so(tmp_path, monkeypatch, capsys):
     assert float(rows[0]["force_N"]) == pytest.approx(float(rows[1]["force_N"]), rel=1e-5)
     for name in ("forces_d0.5mm.png", "maps_d0.5mm.png", "sensor_d0.5mm.png", "summary.json"):
         assert (out / name).stat().st_size > 0
+    assert not (out / "difference_d0.5mm.png").exists()   # one body: nothing to subtract
     summary = json.loads((out / "summary.json").read_text())
     assert summary["notes"] and summary["units"]["force"] == "N"
 
@@ -426,7 +427,7 @@ def test_every_top_level_file_records_each_body_and_all_loads(tmp_path, monkeypa
     md = (out / "forces.md").read_text()
     md_meta = json.loads(md.split("```json\n", 1)[1].split("\n```", 1)[0])
     records = {"forces.csv": csv_meta, "summary.json": summary, "forces.md": md_meta}
-    for name in ("forces_10N.png", "maps_20N.png", "sensor_10N.png"):
+    for name in ("forces_10N.png", "maps_20N.png", "sensor_10N.png", "difference_20N.png"):
         records[name] = _png_description(out / name)
     for name, rec in records.items():
         assert rec["bodies"] == expected, name

@@ -478,7 +478,7 @@ def _write_outputs(out: Path, args, scene: Scene, runs, ind, notes, measured: Me
                    sensor: Sensor) -> None:
     from ..io.solve_outputs import FIELDS_NAME
     from ..io.vtk import write_vtk
-    from ..plot import compare_forces, compare_maps
+    from ..plot import compare_forces, compare_maps, difference_map
 
     out.mkdir(parents=True, exist_ok=True)
     record = compare_record(scene, runs, sensor)
@@ -503,6 +503,9 @@ def _write_outputs(out: Path, args, scene: Scene, runs, ind, notes, measured: Me
                      scene=scene_dict, meta=meta)
         compare_maps(group, out / f"sensor_{load}.png", tips=tips, sensor=sensor, scene=scene_dict, meta=meta,
                      title=f"sensor-cell means ({_sensor_text(sensor)}), {_load_title(load)}")
+        if len(group) > 1:  # each body's tip forces minus the first body's (the half-space)
+            difference_map(group, out / f"difference_{load}.png", tips=tips, scene=scene_dict, meta=meta,
+                           title=f"force difference per tip, {_load_title(load)}")
     for r in runs:
         d = out / "runs" / f"{r.body}_{r.load}"
         write_result(r.result, r.scene, d, method=args.method)

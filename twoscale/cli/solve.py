@@ -133,7 +133,7 @@ def run(args: argparse.Namespace) -> int:
     if args.out is not None:  # into a temporary folder renamed to DIR at the end: whole or nothing
         with staged_directory(args.out) as tmp:
             write_result(result, scene, tmp, method=args.method)
-            write_fields_and_figures(result, scene, tmp)  # fields.vtu, pressure.png, forces.png
+            write_fields_and_figures(result, scene, tmp, source=str(args.scene))
             if getattr(args, "block_field", False):
                 write_block_field_file(result, scene, tmp, quiet=args.quiet)
         path = Path(args.out) / RESULT_NAME

@@ -8,17 +8,7 @@ import numpy as np
 
 from ..results import ContactResult
 from ._figure import new_figure, save_png
-
-
-def _tips(tips) -> tuple[np.ndarray | None, np.ndarray | None]:
-    """Tip positions (N, 2) mm and radii (N,) mm (None) from an array or Asperity list."""
-    if tips is None:
-        return None, None
-    seq = list(tips)
-    if seq and hasattr(seq[0], "R"):
-        return np.array([[a.x, a.y] for a in seq], float), np.array([a.R for a in seq], float)
-    xy = np.asarray(seq, dtype=float).reshape(-1, 2)
-    return xy, None
+from .tips import FEW_TIPS, draw_bases, marker_size, number_tips, tip_positions
 
 
 def _content_box(results: Sequence[ContactResult], tips_xy, margin: float = 0.1):
@@ -56,12 +46,14 @@ def _draw(ax, result: ContactResult, norm, *, tips_xy, radii, sensor, cmap: str)
                 continue
             image = ax.imshow(np.ma.masked_less_equal(f.pressure, 0), extent=f.grid.bounds,
                               origin="lower", norm=norm, cmap=cmap, interpolation="nearest")
-    if tips_xy is not None:
-        ax.plot(tips_xy[:, 0], tips_xy[:, 1], "+", color="red", ms=6, mew=1.0, label="tips")
-        if radii is not None:
-            t = np.linspace(0, 2 * np.pi, 97)
-            for (x, y), R in zip(tips_xy, radii):
-                ax.plot(x + R * np.cos(t), y + R * np.sin(t), ":", color="0.5", lw=0.6)
+    if tips_xy is not None:  # numbered crosses and bases when few; small crosses only when many
+        few = len(tips_xy) <= FEW_TIPS
+        ax.scatter(tips_xy[:, 0], tips_xy[:, 1], marker="+", color="red",
+                   s=36 if few else marker_size(len(tips_xy)) / 4, linewidths=1.0 if few else 0.4, label="tips")
+        if few and radii is not None:
+            draw_bases(ax, tips_xy, radii)
+        if few:
+            number_tips(ax, tips_xy)
     ax.set_aspect("equal")
     ax.set_xlabel("x (mm)")
     ax.set_ylabel("y (mm)")
@@ -91,8 +83,10 @@ def pressure_map(result: ContactResult, path: str | Path, *, tips=None, sensor=N
     path : path-like
         Output ``.png``.
     tips : (N, 2) array of mm or sequence of Asperity, optional
-        Tips drawn as crosses; with asperities, dotted circles of radius R as well
-        (the base of spherical indenters, as in the paper's maps).
+        Tips drawn as crosses, numbered from 1 (scene order, as in the CSV files) when
+        there are at most ``FEW_TIPS`` (30); then, with asperities, dotted circles of
+        radius R as well (the base of spherical indenters, as in the paper's maps).
+        With more tips, small crosses only.
     sensor : twoscale.sensor.Sensor, optional
         Draw the sensor-cell means instead of the micro cells.
     title : str, optional
@@ -108,7 +102,7 @@ def pressure_map(result: ContactResult, path: str | Path, *, tips=None, sensor=N
     -------
     Path of the PNG written.
     """
-    tips_xy, radii = _tips(tips)
+    tips_xy, radii = tip_positions(tips)
     fig = new_figure(size, dpi)
     ax = fig.add_axes([0.1, 0.1, 0.68, 0.8])
     cax = fig.add_axes([0.82, 0.1, 0.03, 0.8])
@@ -164,7 +158,7 @@ def compare_maps(results: Mapping[str, ContactResult], path: str | Path, *, tips
         raise ValueError("compare_maps needs at least one result, got none")
     names = list(results)
     n = len(names)
-    tips_xy, radii = _tips(tips)
+    tips_xy, radii = tip_positions(tips)
     W, H = n * panel_size + 1.5, panel_size + 0.8
     fig = new_figure((W, H), dpi)
     norm = _norm(results.values(), sensor)
