@@ -518,7 +518,7 @@ def run(args: argparse.Namespace) -> int:
     """Run ``twoscale compare``; returns the exit code (0, 1 or 2, see module doc)."""
     out = Path(args.out) if args.out is not None else Path(f"{Path(args.scene).stem}_compare")
     try:
-        check_out_dir(out)
+        check_out_dir(out, overwrite=args.overwrite)
         scenes = _scenes(args)
         sensor = _sensor(args)
         measured = _measured(args, scenes, sensor)
@@ -542,7 +542,7 @@ def run(args: argparse.Namespace) -> int:
     for n in sensor_notes(runs, sensor):
         print(f"note: {n}", file=sys.stderr)
         notes.append(n)
-    with staged_directory(out) as tmp:  # renamed to out once every file is written
+    with staged_directory(out, overwrite=args.overwrite, command=f"compare {args.scene}") as tmp:
         _write_outputs(tmp, args, scenes[0], runs, ind, notes, measured, sensor)
     if not args.quiet:
         print(markdown(args.scene, runs, ind, notes, args.method, measured, sensor))
