@@ -373,31 +373,3 @@ def test_solve_refuses_iteration_options_that_do_not_apply(examples_dir, tmp_pat
     assert main(["solve", str(examples_dir / "hertz_sphere.toml"), "--out", str(out)] + extra) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and needle in err[0] and not out.exists()
-
-
-def test_status_line_draws_late_and_only_on_a_terminal():
-    import io
-
-    from twoscale.progress import StatusLine
-
-    class Tty(io.StringIO):
-        def isatty(self):
-            return True
-
-    clock = [0.0]
-    stream = Tty()
-    with StatusLine(stream=stream, clock=lambda: clock[0], delay=3.0, interval=0.5) as status:
-        status("macro step")            # too early: nothing
-        clock[0] = 3.5
-        status("micro step, sweep 2")   # drawn
-        clock[0] = 3.6
-        status("micro step, sweep 3")   # too soon after the last: skipped
-    text = stream.getvalue()
-    assert "macro" not in text and "sweep 2" in text and "sweep 3" not in text
-    assert text.endswith("\r")          # cleared at the end
-    plain = io.StringIO()
-    clock[0] = 0.0
-    quiet = StatusLine(stream=plain, clock=lambda: clock[0])
-    clock[0] = 10.0
-    quiet("anything")
-    assert plain.getvalue() == ""       # not a terminal: silent

@@ -2,9 +2,9 @@
 
 ``twoscale paper --out DIR [--overwrite] [--quick] [--tol T] [--reference cg|dense|auto] [--no-figures] [--quiet]``
 
-Prints one progress line per case (stderr), then a table and the acceptance (stdout);
-``--quiet`` prints nothing but errors and warnings (a case that did not converge or
-missed the acceptance is a warning on stderr).
+Shows the last case done on a status line (stderr, on a terminal only), then prints a
+table and the acceptance (stdout); ``--quiet`` prints nothing but errors and warnings (a
+case that did not converge or missed the acceptance is a warning on stderr).
 
 Exit codes: 0 every case converged and met the 0.1 % acceptance; 1 some did not (files
 still written); 2 bad input (one ``error: ...`` line, nothing written; ``--out`` naming a
@@ -20,6 +20,7 @@ import math
 import pathlib
 import sys
 
+from ..progress import StatusLine
 from .staging import OutputFolderError, check_output_folder, staged_directory
 
 
@@ -64,8 +65,8 @@ def run(args: argparse.Namespace) -> int:
     except OutputFolderError as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2
-    study = run_study(quick=args.quick, tol=args.tol, reference_method=args.reference,
-                      progress=None if args.quiet else (lambda text: print(text, file=sys.stderr)))
+    with StatusLine(label="paper", quiet=args.quiet) as status:  # the last case done, on a terminal
+        study = run_study(quick=args.quick, tol=args.tol, reference_method=args.reference, progress=status)
     try:
         files = _write(study, args, overwrite)
     except (OSError, OutputFolderError) as exc:  # the folder changed during the study, a full disk, ...
