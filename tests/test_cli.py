@@ -373,3 +373,11 @@ def test_solve_refuses_iteration_options_that_do_not_apply(examples_dir, tmp_pat
     assert main(["solve", str(examples_dir / "hertz_sphere.toml"), "--out", str(out)] + extra) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and needle in err[0] and not out.exists()
+
+
+def test_summary_numbers_asperities_from_one(examples_dir, capsys):
+    assert main(["solve", str(examples_dir / "paper_two_spheres.toml")]) == 0
+    lines = capsys.readouterr().out.splitlines()
+    head = next(i for i, ln in enumerate(lines) if ln.strip().startswith("asperity"))
+    assert "numbered from 1" in lines[head]
+    assert [ln.split()[0] for ln in lines[head + 1:head + 3]] == ["1", "2"]

@@ -23,6 +23,7 @@ import sys
 import time
 from pathlib import Path
 
+from ..io.asperity_csv import ASPERITY_CSV_NAME
 from ..io.result_json import RESULT_NAME, result_to_dict, write_result
 from ..io.scene_file import read_scene
 from ..io.solve_outputs import write_fields_and_figures
@@ -185,14 +186,17 @@ def summary(res: dict, scene_path: str, wall: float, path) -> str:
     if "micro_choice" in res:
         lines.extend(_micro_lines(res))
     macro = any("macro_force" in a for a in res["asperities"])
-    lines.append("  asperity      force N   area mm^2  p_max MPa" + ("   macro N" if macro else ""))
+    lines.append("  asperity      force N   area mm^2  p_max MPa" + ("   macro N" if macro else "")
+                 + "   (numbered from 1, scene order)")
     for k, a in enumerate(res["asperities"][:MAX_ROWS]):
-        row = f"  {k:8d} {a['force']:11.5g} {a['contact_area']:11.5g} {a['max_pressure']:10.5g}"
+        row = f"  {k + 1:8d} {a['force']:11.5g} {a['contact_area']:11.5g} {a['max_pressure']:10.5g}"
         if macro:
             row += f" {a['macro_force']:9.5g}"
         lines.append(row)
     if len(res["asperities"]) > MAX_ROWS:
-        lines.append(f"  ... {len(res['asperities']) - MAX_ROWS} more in result.json")
+        where = (f"in {Path(path).parent / ASPERITY_CSV_NAME}" if path is not None
+                 else "(--out DIR writes them all to DIR/asperities.csv)")
+        lines.append(f"  ... {len(res['asperities']) - MAX_ROWS} more {where}")
     lines.append(f"  time         {wall:.3g} s")
     if path is not None:
         lines.append(f"  wrote        {path}")
