@@ -4,7 +4,6 @@ files the earlier run listed in its manifest; a folder holding other files is ne
 from __future__ import annotations
 
 import json
-import textwrap
 
 import pytest
 
@@ -14,26 +13,7 @@ from twoscale.cli.main import main
 from twoscale.cli.staging import MANIFEST_NAME, OutputFolderError, check_output_folder, staged_directory
 from twoscale.influence.halfspace import HalfSpace
 
-SCENE = """
-[material]
-E = 10.0
-nu = 0.5
-[load]
-total = 5.0
-[grid]
-h = 0.25
-[[asperity]]
-x = 0.0
-y = 0.0
-R = 10.0
-"""
-
-
-@pytest.fixture
-def scene(tmp_path):
-    path = tmp_path / "scene.toml"
-    path.write_text(textwrap.dedent(SCENE), encoding="utf-8")
-    return path
+from test_cli_interrupt import scene  # noqa: F401  (fixture: a one-sphere scene under load control)
 
 
 def _never(*args, **kwargs):

@@ -2,7 +2,6 @@
 The command line's --quiet and a stderr that is not a terminal silence it too."""
 import io
 import sys
-import textwrap
 
 import pytest
 
@@ -70,27 +69,11 @@ def test_status_line_draws_late_and_only_on_a_terminal(clock):
         assert stream.getvalue() == ""  # not a terminal, or quiet: silent
 
 
-SCENE = """
-[material]
-E = 10.0
-nu = 0.5
-[load]
-total = 5.0
-[grid]
-h = 0.25
-[[asperity]]
-x = -1.5
-y = 0.0
-R = 10.0
-[[asperity]]
-x = 1.5
-y = 0.0
-R = 10.0
-"""
+from test_cli_interrupt import scene  # noqa: F401,E402  (fixture: a one-sphere scene)
 
 
 @pytest.mark.parametrize("quiet", [False, True])
-def test_solve_status_on_a_terminal_unless_quiet(tmp_path, monkeypatch, quiet):
+def test_solve_status_on_a_terminal_unless_quiet(scene, monkeypatch, quiet):
     # a clock that runs 1 s per reading makes every solve "long"; stderr a terminal
     import tqdm.std
     t = [0.0]
@@ -99,8 +82,6 @@ def test_solve_status_on_a_terminal_unless_quiet(tmp_path, monkeypatch, quiet):
         t[0] += 1.0
         return t[0]
     monkeypatch.setattr(tqdm.std, "time", tick)
-    scene = tmp_path / "s.toml"
-    scene.write_text(textwrap.dedent(SCENE), encoding="utf-8")
     err = _Tty()
     monkeypatch.setattr(sys, "stderr", err)
     assert main(["solve", str(scene)] + (["--quiet"] if quiet else [])) == 0
