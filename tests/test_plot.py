@@ -201,3 +201,19 @@ def test_two_thousand_tips_histogram_and_map_instead_of_bars(tmp_path, figures):
     np.testing.assert_allclose(ddots.get_array(), other.asperities.forces - res.asperities.forces, rtol=0, atol=0)
     for name in ("p.png", "f.png", "c.png", "d.png"):
         _not_blank(tmp_path / name)
+
+
+def test_many_patches_drawn_as_one_raster_of_their_cells():
+    # below RASTER_PX cells a side the raster is the cells themselves: each pixel the
+    # largest pressure of the (overlapping, aligned) patches at that cell
+    from twoscale.plot.maps import _raster
+    res, _ = _many(60)
+    image, (x0, x1, y0, y1) = _raster(res.fields)
+    h = res.fields[0].grid.h
+    g = Grid(x0 + h / 2, y0 + h / 2, h, image.shape[1], image.shape[0])
+    assert (x1 - x0, y1 - y0) == pytest.approx((g.nx * h, g.ny * h))
+    expected = np.zeros(g.shape)
+    for f in res.fields:
+        one = ContactResult("x", (f,), 0.0, None, 0.0, summarise((f,), 60), True)
+        expected = np.maximum(expected, one.pressure_on(g))
+    np.testing.assert_array_equal(image, expected)

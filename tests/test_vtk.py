@@ -176,3 +176,20 @@ def test_written_file_has_ordinary_permissions(tmp_path):
     assert path.stat().st_mode & 0o777 == 0o644
     assert (tmp_path / "f").stat().st_mode & 0o777 == 0o755
     assert (tmp_path / "f" / "patch_001.vti").stat().st_mode & 0o777 == 0o644
+
+
+def test_indenter_height_of_many_mixed_tips_is_the_rigid_surface(tmp_path):
+    # thousands of tips are evaluated only where they can be lowest: the result must be
+    # the full lower envelope that surface_on computes from every indenter on every cell
+    from twoscale.indenters import surface_on
+    rng = np.random.default_rng(3)
+    asp = [Asperity(float(x), float(y), float(z), float(R), shape=str(s)) for x, y, z, R, s in zip(
+        rng.uniform(-10, 10, 300), rng.uniform(-10, 10, 300), rng.uniform(0, 0.3, 300),
+        rng.uniform(0.5, 3.0, 300), rng.choice(["sphere", "paraboloid"], 300, p=[0.8, 0.2]))]
+    grids = [Grid(float(x), float(y), 0.1, 30, 20) for x, y in rng.uniform(-12, 10, (6, 2))]
+    fields = tuple(PressureField(g, np.zeros(g.shape), np.zeros(g.shape), np.zeros(g.shape)) for g in grids)
+    s = summarise(fields, 300)
+    res = ContactResult("twoscale", fields, 0.1, None, 0.0, s, True)
+    back = read_vtk(write_vtk(res, tmp_path / "m.vtm", asperities=asp))
+    for g, z in zip(grids, back.indenter_height):
+        np.testing.assert_array_equal(z, surface_on(g, asp).height)

@@ -56,7 +56,8 @@ class VtkContent:
     Attributes
     ----------
     fields : tuple of PressureField
-        The patches as written (``gap`` back to ``inf`` where it was NaN).
+        The patches as written (``gap`` back to ``inf`` where it was NaN; ``owner``
+        0-based with -1 for none, as in memory: the file's number minus 1).
     indenter_height : tuple of (ny, nx) arrays (mm) or None
         Per patch, when the file carries it.
     metadata : dict
@@ -116,18 +117,41 @@ def _metadata_text(meta: dict) -> str:
     return json.dumps(meta, ensure_ascii=True, allow_nan=False).replace("--", "-\\u002d")
 
 
-def _indenter_height(grid: Grid, asperities: Sequence[Asperity], tilt: Tilt | None) -> np.ndarray:
-    """Lowest indenter height at the cell centres (inf where none has material), mm;
-    a sphere is evaluated only on the cells under its base (many tips stay cheap)."""
+def _lowest_on(grid: Grid, tips: np.ndarray, sphere: np.ndarray) -> np.ndarray:
+    """For each tip (rows x, y, z, R), a lower bound of its indenter height over the grid's
+    cell centres: its height at the nearest point of that box (heights grow with the
+    distance to the tip); inf for a sphere whose base does not reach the box."""
+    x, y, z, R = tips.T
+    r2 = (np.clip(x, grid.x[0], grid.x[-1]) - x) ** 2 + (np.clip(y, grid.y[0], grid.y[-1]) - y) ** 2
+    with np.errstate(invalid="ignore"):
+        cap = np.where(r2 < R * R, z + r2 / (R + np.sqrt(np.maximum(R * R - r2, 0.0))), np.inf)
+    return np.where(sphere, cap, z + r2 / (2.0 * R))
+
+
+def _tip_table(asperities: Sequence[Asperity]) -> tuple[np.ndarray, np.ndarray]:
+    """Rows (x, y, z, R) of the asperities, mm, and which are spheres (built once per file)."""
+    tips = np.array([[a.x, a.y, a.z, a.R] for a in asperities], float).reshape(-1, 4)
+    return tips, np.array([a.shape == "sphere" for a in asperities], bool)
+
+
+def _indenter_height(grid: Grid, asperities: Sequence[Asperity], table, tilt: Tilt | None) -> np.ndarray:
+    """Lowest indenter height at the cell centres (inf where none has material), mm, as
+    :func:`twoscale.indenters.surface_on` gives it; indenters are taken lowest bound first
+    and stop once none can be lower anywhere, and a sphere is evaluated only under its
+    base, so thousands of tips on thousands of patches stay cheap. ``table``:
+    :func:`_tip_table` of ``asperities``."""
+    tips, sphere = table
+    low = _lowest_on(grid, tips, sphere)
     X, Y = grid.centres()
     z = np.full(grid.shape, np.inf)
-    for a in asperities:
+    for k in np.argsort(low, kind="stable"):
+        if not low[k] < z.max():  # neither this indenter nor the ones after it can be lowest anywhere
+            break
+        a = asperities[k]
         i0, j0, i1, j1 = 0, 0, grid.nx, grid.ny
-        if a.shape == "sphere":
+        if sphere[k]:
             i0, i1 = np.searchsorted(grid.x, [a.x - a.R, a.x + a.R])
             j0, j1 = np.searchsorted(grid.y, [a.y - a.R, a.y + a.R])
-            if i1 <= i0 or j1 <= j0:
-                continue
         win = (slice(j0, j1), slice(i0, i1))
         np.minimum(z[win], a.height(X[win], Y[win]), out=z[win])
     return z if tilt is None else z + tilt.height(X, Y)
@@ -165,12 +189,13 @@ def _write_images(folder: Path, fields: Sequence[PressureField], asperities, til
     """One ``patch_NNN.vti`` per field into ``folder``, numbered from 1; returns the names."""
     width = max(3, len(str(len(fields))))
     names = []
+    table = None if asperities is None else _tip_table(asperities)
     for k, f in enumerate(fields, start=1):
         names.append(f"patch_{k:0{width}d}.vti")
         own = {"program": "twoscale", "version": __version__, "units": UNITS, "patch": k,
                "patches": len(fields), "grid": _grid_dict(f.grid)}
         text = _metadata_text(own)
-        height = None if asperities is None else _indenter_height(f.grid, asperities, tilt)
+        height = None if asperities is None else _indenter_height(f.grid, asperities, table, tilt)
         write_image(folder / names[-1], f.grid, _cell_arrays(f, k, height), binary=binary,
                     field_data={_META: np.frombuffer(text.encode("utf-8"), dtype=np.uint8)},
                     comment=f"twoscale {__version__} (units mm, N, MPa) {text}")

@@ -32,6 +32,32 @@ def _content_box(results: Sequence[ContactResult], tips_xy, margin: float = 0.1)
     return x0 - pad, x1 + pad, y0 - pad, y1 + pad
 
 
+#: With more loaded patches than this, a map draws them as one raster (see :func:`_raster`).
+MANY_PATCHES = 50
+#: Largest side of that raster, pixels.
+RASTER_PX = 1500
+
+
+def _raster(fields) -> tuple[np.ndarray, tuple]:
+    """The loaded cells of many patches on one raster (one image instead of thousands):
+    pixels of the smallest cell size, or coarser so that no side exceeds ``RASTER_PX``;
+    each pixel shows the largest pressure of the cells whose centres it holds, MPa.
+    Returns the image and its extent (x0, x1, y0, y1), mm."""
+    b = np.array([f.grid.bounds for f in fields])
+    x0, y0 = b[:, 0].min(), b[:, 2].min()
+    wx, wy = b[:, 1].max() - x0, b[:, 3].max() - y0
+    cell = max(min(f.grid.h for f in fields), max(wx, wy) / RASTER_PX)
+    nx, ny = max(1, int(np.ceil(wx / cell - 1e-9))), max(1, int(np.ceil(wy / cell - 1e-9)))
+    image = np.zeros((ny, nx))
+    for f in fields:
+        X, Y = f.grid.centres()
+        m = f.pressure > 0
+        i = np.clip(((X[m] - x0) / cell).astype(int), 0, nx - 1)
+        j = np.clip(((Y[m] - y0) / cell).astype(int), 0, ny - 1)
+        np.maximum.at(image, (j, i), f.pressure[m])
+    return image, (x0, x0 + nx * cell, y0, y0 + ny * cell)
+
+
 def _draw(ax, result: ContactResult, norm, *, tips_xy, radii, sensor, cmap: str):
     """Draw one result's pressure (micro patches, or sensor-cell means) on ``ax``."""
     image = None
@@ -41,9 +67,12 @@ def _draw(ax, result: ContactResult, norm, *, tips_xy, radii, sensor, cmap: str)
         image = ax.imshow(np.ma.masked_less_equal(P, 0), extent=b, origin="lower", norm=norm,
                           cmap=cmap, interpolation="nearest")
     else:
-        for f in result.fields:
-            if not np.any(f.pressure > 0):
-                continue
+        loaded = [f for f in result.fields if np.any(f.pressure > 0)]
+        if len(loaded) > MANY_PATCHES:
+            P, extent = _raster(loaded)
+            image = ax.imshow(np.ma.masked_less_equal(P, 0), extent=extent, origin="lower", norm=norm,
+                              cmap=cmap, interpolation="nearest")
+        for f in loaded if len(loaded) <= MANY_PATCHES else ():
             image = ax.imshow(np.ma.masked_less_equal(f.pressure, 0), extent=f.grid.bounds,
                               origin="lower", norm=norm, cmap=cmap, interpolation="nearest")
     if tips_xy is not None:  # numbered crosses and bases when few; small crosses only when many
