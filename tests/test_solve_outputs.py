@@ -21,7 +21,8 @@ def test_solve_writes_fields_and_figures(tmp_path, method):
     out = tmp_path / "run"
     assert main(["solve", str(EXAMPLES / "paper_two_spheres.toml"), "--method", method,
                  "--out", str(out), "--quiet"]) == 0
-    assert sorted(p.name for p in out.iterdir()) == ["asperities.csv", "fields", "fields.vtm", "forces.png", "pressure.png", "result.json"]
+    assert sorted(p.name for p in out.iterdir()) == [".twoscale-manifest.json", "asperities.csv", "fields", "fields.vtm", "forces.png",
+                                                        "pressure.png", "result.json"]
     res = json.loads((out / "result.json").read_text())
     back = read_vtk(out / "fields.vtm")
     # the per-asperity forces integrated from the written fields are result.json's forces

@@ -57,7 +57,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--block-field", action="store_true",
                         help="with [influence] kind = \"block\" and --out: also write "
                              "DIR/block_displacement.vtu (displacement inside the block)")
-    parser.add_argument("--quiet", action="store_true", help="print nothing but errors")
+    parser.add_argument("--quiet", action="store_true",
+                        help="print nothing but errors (no status line or progress bar either; they are "
+                             "drawn only when stderr is a terminal)")
 
 
 def positive_option(text: str | None, name: str, *, unit: str) -> float | None:
