@@ -30,12 +30,12 @@ from twoscale.grid import Grid
 from twoscale.influence.base import GridOperator, InfluenceProvider, LowRankCorrection
 from twoscale.influence.halfspace import HalfSpace
 from twoscale.material import Material
+from twoscale.progress import Progress
 
 from .assembly import INTORDER
 from .cache import FieldCache, cache_key, default_cache_dir
 from .layer import BASES
 from .interpolate import TopInterpolator
-from .progress import Progress
 
 
 def _lagrange_1d(x: np.ndarray, d: float, lo: int, hi: int) -> tuple[np.ndarray, np.ndarray]:
@@ -242,20 +242,20 @@ class BlockProvider(InfluenceProvider):
         # others are the same fields read at mirrored nodes
         solve = np.unique(np.abs(missing), axis=0) if perms is not None else missing
         solve = solve[st.column_of(solve) < 0] if len(solve) else solve
-        pr = Progress(f"block correction ({self.base}, nu={self.material.nu})", len(solve) + 1,
-                      enabled=self.progress)
+        pr = Progress(len(solve) + 1, label=f"block correction ({self.base}, nu={self.material.nu})",
+                      quiet=not self.progress)
         if len(solve) and st.solver is None:
             st.solver = CorrectionSolver.build(self.mesh, self.material.nu, self.base)
             for k, v in st.solver.timings_s.items():
                 st.timings_s[k] = st.timings_s.get(k, 0.0) + v
-        pr.update(1, stage="factorised")
+        pr.update(1, note="factorised")
         t0 = time.perf_counter()
         batch = 32
         for b in range(0, len(solve), batch):
             chunk = solve[b:b + batch]
             fields = st.solver.top_displacement(chunk * self.source_spacing)
             st.fields.add(chunk, fields, st.solver.top_xy)
-            pr.update(len(chunk), stage="sources")
+            pr.update(len(chunk), note="sources")
         if perms is not None:
             mirrored = [ij for ij in missing.tolist() if tuple(ij) not in st.fields.fields]
             if mirrored:

@@ -97,7 +97,7 @@ def test_subprocess_python_m_twoscale(examples_dir, tmp_path):
     _check_fixed_fields(res, method="reference", n_asperities=1)
     assert res["total_load"] == pytest.approx(float(hertz.sphere_load(10.0, 0.5, E_STAR)), rel=0.01)
     assert "total load" in proc.stdout
-    assert not [p for p in os.listdir(out) if p.startswith(".")]  # no temporary file left
+    assert [p for p in os.listdir(out) if p.startswith(".")] == [".twoscale-manifest.json"]  # no temporary file left
     # the usual permissions (umask), not a temporary file's owner-only mode
     mask = os.umask(0)
     os.umask(mask)
@@ -375,29 +375,9 @@ def test_solve_refuses_iteration_options_that_do_not_apply(examples_dir, tmp_pat
     assert len(err) == 1 and needle in err[0] and not out.exists()
 
 
-def test_status_line_draws_late_and_only_on_a_terminal():
-    import io
-
-    from twoscale.progress import StatusLine
-
-    class Tty(io.StringIO):
-        def isatty(self):
-            return True
-
-    clock = [0.0]
-    stream = Tty()
-    with StatusLine(stream=stream, clock=lambda: clock[0], delay=3.0, interval=0.5) as status:
-        status("macro step")            # too early: nothing
-        clock[0] = 3.5
-        status("micro step, sweep 2")   # drawn
-        clock[0] = 3.6
-        status("micro step, sweep 3")   # too soon after the last: skipped
-    text = stream.getvalue()
-    assert "macro" not in text and "sweep 2" in text and "sweep 3" not in text
-    assert text.endswith("\r")          # cleared at the end
-    plain = io.StringIO()
-    clock[0] = 0.0
-    quiet = StatusLine(stream=plain, clock=lambda: clock[0])
-    clock[0] = 10.0
-    quiet("anything")
-    assert plain.getvalue() == ""       # not a terminal: silent
+def test_summary_numbers_asperities_from_one(examples_dir, capsys):
+    assert main(["solve", str(examples_dir / "paper_two_spheres.toml")]) == 0
+    lines = capsys.readouterr().out.splitlines()
+    head = next(i for i, ln in enumerate(lines) if ln.strip().startswith("asperity"))
+    assert "numbered from 1" in lines[head]
+    assert [ln.split()[0] for ln in lines[head + 1:head + 3]] == ["1", "2"]

@@ -44,6 +44,7 @@ def test_half_space_only_says_so(tmp_path, monkeypatch, capsys):
     assert float(rows[0]["force_N"]) == pytest.approx(float(rows[1]["force_N"]), rel=1e-5)
     for name in ("forces_d0.5mm.png", "maps_d0.5mm.png", "sensor_d0.5mm.png", "summary.json"):
         assert (out / name).stat().st_size > 0
+    assert not (out / "difference_d0.5mm.png").exists()   # one body: nothing to subtract
     summary = json.loads((out / "summary.json").read_text())
     assert summary["notes"] and summary["units"]["force"] == "N"
 
@@ -92,7 +93,7 @@ def test_three_bodies_and_loads(tmp_path, monkeypatch):
     assert ind["50N"]["halfspace"]["block-bonded"] == {"e_M": 0.0, "e_m": 0.0}
     md = (out / "forces.md").read_text()
     assert "| halfspace | - | 0 / 0 | 0 / 0 |" in md
-    assert (out / "runs" / "block-sliding_100N" / "fields.vtu").exists()
+    assert (out / "runs" / "block-sliding_100N" / "fields.vtm").exists()
 
 
 class _Res:
@@ -176,7 +177,7 @@ def test_measured_data_and_pivot_centring(tmp_path, monkeypatch):
     m = np.array([float(r["force_N"]) for r in rows if r["body"] == "measured"])
     F = np.array([float(r["force_N"]) for r in rows if r["body"] == "halfspace"])
     assert m.tolist() == [2.0, 3.0, 5.0]
-    fields = read_vtk(out / "runs" / "halfspace_10N" / "fields.vtu").fields
+    fields = read_vtk(out / "runs" / "halfspace_10N" / "fields.vtm").fields
     P = sum(Sensor().average_field(f.grid, f.pressure) for f in fields)
     loaded = (P != 0) | (smap != 0)
     e_m_expected = 100 * np.sum((P - smap)[loaded] ** 2) / np.sum(smap ** 2)
@@ -338,7 +339,7 @@ def test_sensor_options_feed_map_reading_forces_and_e_m(tmp_path, monkeypatch):
     assert [float(r["force_N"]) for r in rows] == pytest.approx([4.0, 8.0, 0.0])
     summary = json.loads((out / "summary.json").read_text())
     assert summary["sensor"] == {"nx": 8, "ny": 6, "cell_mm": 2.0, "centre_mm": [4.0, 0.0]}
-    fields = read_vtk(out / "runs" / "halfspace_10N" / "fields.vtu").fields
+    fields = read_vtk(out / "runs" / "halfspace_10N" / "fields.vtm").fields
     P = sum(sensor.average_field(f.grid, f.pressure) for f in fields)
     loaded = (P != 0) | (smap != 0)
     expected = 100 * np.sum((P - smap)[loaded] ** 2) / np.sum(smap ** 2)
@@ -427,7 +428,7 @@ def test_every_top_level_file_records_each_body_and_all_loads(tmp_path, monkeypa
     md = (out / "forces.md").read_text()
     md_meta = json.loads(md.split("```json\n", 1)[1].split("\n```", 1)[0])
     records = {"forces.csv": csv_meta, "summary.json": summary, "forces.md": md_meta}
-    for name in ("forces_10N.png", "maps_20N.png", "sensor_10N.png"):
+    for name in ("forces_10N.png", "maps_20N.png", "sensor_10N.png", "difference_20N.png"):
         records[name] = _png_description(out / name)
     for name, rec in records.items():
         assert rec["bodies"] == expected, name

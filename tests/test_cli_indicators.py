@@ -1,7 +1,7 @@
 """``twoscale indicators``: e_M and e_m between two stored solves (issue 5 point 4).
 
 Independent checks: e_M recomputed from the two result.json files and e_m from sensor
-maps rebuilt here from the two fields.vtu files, both by the formulas of docs/method.md
+maps rebuilt here from the two fields.vtm files, both by the formulas of docs/method.md
 section 5 written out; a run against itself gives 0; bad input exits with 2.
 """
 import json
@@ -59,7 +59,7 @@ def test_indicators_match_the_formulas(runs, tmp_path, capsys):
     maps = []
     for folder in (a, b):
         m = np.zeros(s.shape)
-        for f in read_vtk(folder / "fields.vtu").fields:
+        for f in read_vtk(folder / "fields.vtm").fields:
             m += s.average_field(f.grid, f.pressure)
         maps.append(m)
     p, r = maps

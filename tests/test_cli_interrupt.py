@@ -72,12 +72,10 @@ def test_solve_interrupted_while_writing(scene, tmp_path, monkeypatch, capsys):
 def test_solve_writes_whole_folder_when_not_interrupted(scene, tmp_path):
     out = tmp_path / "out"
     assert main(["solve", str(scene), "--out", str(out), "--quiet"]) == 0
-    assert {"result.json", "fields.vtu", "pressure.png", "forces.png"} <= {p.name for p in out.iterdir()}
+    assert {"result.json", "fields.vtm", "pressure.png", "forces.png"} <= {p.name for p in out.iterdir()}
     _nothing_but(tmp_path, "scene.toml", "out")
-    # a second run into the existing folder replaces its files and keeps the others
-    (out / "notes.txt").write_text("mine", encoding="utf-8")
-    assert main(["solve", str(scene), "--out", str(out), "--quiet"]) == 0
-    assert (out / "notes.txt").read_text(encoding="utf-8") == "mine"
+    # a second run replaces the first one's files with --overwrite (tests/test_cli_output_folder.py)
+    assert main(["solve", str(scene), "--out", str(out), "--quiet", "--overwrite"]) == 0
     _nothing_but(tmp_path, "scene.toml", "out")
 
 
@@ -122,21 +120,6 @@ def test_staged_directory_leaves_nothing_on_error(tmp_path):
             (tmp / "sub").mkdir()
             raise KeyboardInterrupt
     _nothing_but(tmp_path)
-
-
-def test_staged_directory_merges_into_an_existing_folder(tmp_path):
-    out = tmp_path / "out"
-    (out / "runs" / "old").mkdir(parents=True)
-    (out / "keep.txt").write_text("keep", encoding="utf-8")
-    (out / "new.txt").write_text("old", encoding="utf-8")
-    with staged_directory(out) as tmp:
-        (tmp / "new.txt").write_text("new", encoding="utf-8")
-        (tmp / "runs" / "a").mkdir(parents=True)
-        (tmp / "runs" / "a" / "r.json").write_text("{}", encoding="utf-8")
-    assert (out / "new.txt").read_text(encoding="utf-8") == "new"
-    assert (out / "keep.txt").read_text(encoding="utf-8") == "keep"
-    assert sorted(p.name for p in (out / "runs").iterdir()) == ["a", "old"]
-    _nothing_but(tmp_path, "out")
 
 
 def test_held_interrupts_raises_after_the_block():

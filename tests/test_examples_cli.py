@@ -21,7 +21,7 @@ from twoscale.io.scene_file import read_scene
 
 ROOT = Path(__file__).resolve().parent.parent
 EXAMPLES = sorted((ROOT / "examples").glob("*.toml"))
-OUTPUTS = ("result.json", "fields.vtu", "pressure.png", "forces.png")
+OUTPUTS = ("result.json", "fields.vtm", "pressure.png", "forces.png")
 
 
 def coarse_h(scene) -> float:

@@ -181,22 +181,6 @@ def test_sources_near_the_sides_are_refused(block):
         block.correction(np.zeros((1, 2)), np.array([[27.0, 0.0]]))
 
 
-def test_progress_line(capsys):
-    import io
-    from fem_influence.progress import Progress
-    quiet = io.StringIO()
-    p = Progress("build", 3, stream=quiet)
-    p.update(3)
-    p.close()
-    assert quiet.getvalue() == ""                 # under the 2 s delay: silent
-    shown = io.StringIO()
-    p = Progress("build", 2, stream=shown, delay_s=0.0)
-    p.update(1, stage="factorised")
-    p.update(1)
-    assert p.close() >= 0.0
-    assert "build" in shown.getvalue() and "2/2" in shown.getvalue() and "done" in shown.getvalue()
-
-
 def test_solver_residuals_are_small(block):
     solver = CorrectionSolver.build(block.mesh, MAT.nu, "sliding")
     solver.top_displacement(np.array([[0.0, 0.0], [5.0, -5.0]]))

@@ -114,7 +114,7 @@ def _paper_with(study, monkeypatch, tmp_path, capsys, *extra):
 def test_paper_quiet_prints_nothing_and_still_writes(quick_study, monkeypatch, tmp_path, capsys):
     code, out, err, kw = _paper_with(quick_study, monkeypatch, tmp_path / "q", capsys, "--quiet")
     assert code == 0 and out == "" and err == ""
-    assert kw["progress"] is None                     # no per-case lines either
+    assert not kw["progress"].enabled                 # no status line either
     assert (tmp_path / "q" / "errors_two.csv").stat().st_size > 0
     # without --quiet: the table and the acceptance, and a progress callback
     code, out, err, kw = _paper_with(quick_study, monkeypatch, tmp_path / "loud", capsys)

@@ -122,3 +122,98 @@ def test_pressure_map_draws_the_tips(tmp_path):
     diff = np.any(np.abs(a - b) > 1e-3, axis=-1)
     assert diff.sum() > 20                               # markers were drawn
     assert diff.sum() < 0.05 * diff.size                 # and nothing else changed much
+
+
+def _many(n, scale=1.0, seed=0):
+    """n Hertz patches on a jittered square lattice (3 mm pitch), tips as Asperity."""
+    rng = np.random.default_rng(seed)
+    side = int(np.ceil(np.sqrt(n)))
+    xy = np.array([(3.0 * i, 3.0 * j) for j in range(side) for i in range(side)][:n]) + rng.normal(0, 0.3, (n, 2))
+    a = rng.uniform(0.3, 1.0, n)
+    fields = tuple(_hertz_patch(x, y, ak, ak * scale, 0.2, k) for k, ((x, y), ak) in enumerate(zip(xy, a)))
+    s = summarise(fields, n)
+    tips = [Asperity(float(x), float(y), 0.0, 1.2) for x, y in xy]
+    return ContactResult("twoscale", fields, 0.1, None, float(s.forces.sum()), s, True), tips
+
+
+@pytest.fixture
+def figures(monkeypatch):
+    """The matplotlib figures saved by the plotting functions, in order."""
+    import twoscale.plot._figure as fig_mod
+    import twoscale.plot.difference
+    import twoscale.plot.forces
+    import twoscale.plot.maps
+    saved = []
+
+    def keep(fig, path, **kw):
+        saved.append(fig)
+        return fig_mod.save_png(fig, path, **kw)
+    for mod in (twoscale.plot.forces, twoscale.plot.maps, twoscale.plot.difference):
+        monkeypatch.setattr(mod, "save_png", keep)
+    return saved
+
+
+def _bars(fig):
+    from matplotlib.patches import Rectangle
+    return sum(isinstance(p, Rectangle) for ax in fig.axes for p in ax.patches)
+
+
+def _numbers(fig):
+    """Tip numbers written on a figure: {number: (x, y) of the point they label}."""
+    return {int(t.get_text()): tuple(t.xy) for ax in fig.axes for t in ax.texts if t.get_text().isdigit()}
+
+
+def test_five_tips_numbered_with_one_bar_each(tmp_path, figures):
+    from twoscale.plot import difference_map
+    res, tips = _many(5)
+    pressure_map(res, tmp_path / "p.png", tips=tips)
+    force_bars(res, tmp_path / "f.png", tips=tips, macro_forces=res.asperities.forces * 1.1)
+    difference_map({"a": res, "b": _many(5, scale=1.2)[0]}, tmp_path / "d.png", tips=tips)
+    pmap, bars, diff = figures
+    # the numbers on the map are the CSV's: tip k (from 1) at the position of asperity k
+    assert _numbers(pmap) == {k + 1: (a.x, a.y) for k, a in enumerate(tips)}
+    assert _bars(bars) == 10                      # 5 final + 5 macro-step bars
+    assert _numbers(diff) == _numbers(pmap)
+    for name in ("p.png", "f.png", "d.png"):
+        _not_blank(tmp_path / name)
+
+
+def test_two_thousand_tips_histogram_and_map_instead_of_bars(tmp_path, figures):
+    from twoscale.plot import difference_map
+    res, tips = _many(2000)
+    other = _many(2000, scale=1.1)[0]
+    pressure_map(res, tmp_path / "p.png", tips=tips)
+    force_bars(res, tmp_path / "f.png", tips=tips)
+    compare_forces({"a": res, "b": other}, tmp_path / "c.png")
+    difference_map({"a": res, "b": other}, tmp_path / "d.png", tips=tips)
+    pmap, forces, comp, diff = figures
+    for fig in figures:
+        assert _bars(fig) == 0 and _numbers(fig) == {}   # no bar chart, no unreadable numbers
+    # forces.png: a histogram whose counts add up to the tips, and the tips coloured by force
+    (steps,) = [p for ax in forces.axes for p in ax.patches]
+    assert steps.get_data().values.sum() == 2000
+    from matplotlib.collections import PathCollection
+    (dots,) = [c for ax in forces.axes for c in ax.collections if isinstance(c, PathCollection)]
+    np.testing.assert_array_equal(dots.get_array(), res.asperities.forces)
+    np.testing.assert_array_equal(dots.get_offsets(), [[a.x, a.y] for a in tips])
+    # the difference map colours each tip by F_b - F_a
+    (ddots,) = [c for ax in diff.axes for c in ax.collections if isinstance(c, PathCollection)]
+    np.testing.assert_allclose(ddots.get_array(), other.asperities.forces - res.asperities.forces, rtol=0, atol=0)
+    for name in ("p.png", "f.png", "c.png", "d.png"):
+        _not_blank(tmp_path / name)
+
+
+def test_many_patches_drawn_as_one_raster_of_their_cells():
+    # below RASTER_PX cells a side the raster is the cells themselves: each pixel the
+    # largest pressure of the (overlapping, aligned) patches at that cell
+    from twoscale.plot.maps import _raster
+    res, _ = _many(60)
+    image, (x0, x1, y0, y1) = _raster(res.fields)
+    h = res.fields[0].grid.h
+    g = Grid(x0 + h / 2, y0 + h / 2, h, image.shape[1], image.shape[0])
+    assert (x1 - x0, y1 - y0) == pytest.approx((g.nx * h, g.ny * h))
+    expected = np.zeros(g.shape)
+    for f in res.fields:
+        one = ContactResult("x", (f,), 0.0, None, 0.0, summarise((f,), 60), True)
+        expected = np.maximum(expected, one.pressure_on(g))
+    np.testing.assert_array_equal(image, expected)

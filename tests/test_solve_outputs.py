@@ -1,4 +1,4 @@
-"""`twoscale solve --out DIR` also writes fields.vtu, pressure.png and forces.png."""
+"""`twoscale solve --out DIR` also writes fields.vtm (+ fields/), asperities.csv, pressure.png and forces.png."""
 import json
 from pathlib import Path
 
@@ -21,9 +21,10 @@ def test_solve_writes_fields_and_figures(tmp_path, method):
     out = tmp_path / "run"
     assert main(["solve", str(EXAMPLES / "paper_two_spheres.toml"), "--method", method,
                  "--out", str(out), "--quiet"]) == 0
-    assert sorted(p.name for p in out.iterdir()) == ["fields.vtu", "forces.png", "pressure.png", "result.json"]
+    assert sorted(p.name for p in out.iterdir()) == [".twoscale-manifest.json", "asperities.csv", "fields", "fields.vtm", "forces.png",
+                                                        "pressure.png", "result.json"]
     res = json.loads((out / "result.json").read_text())
-    back = read_vtk(out / "fields.vtu")
+    back = read_vtk(out / "fields.vtm")
     # the per-asperity forces integrated from the written fields are result.json's forces
     s = summarise(back.fields, 2)
     np.testing.assert_allclose(s.forces, [a["force"] for a in res["asperities"]], rtol=1e-12)
@@ -32,6 +33,7 @@ def test_solve_writes_fields_and_figures(tmp_path, method):
     # indenter height at each tip is the tip recess (0): the exact cap starts there
     for f, z in zip(back.fields, back.indenter_height):
         assert np.nanmin(np.where(np.isfinite(z), z, np.nan)) == pytest.approx(0.0, abs=f.grid.h ** 2 / 10)
+    _check_asperity_csv(out / "asperities.csv", res, macro=(method == "twoscale"))
     for name in ("pressure.png", "forces.png"):
         assert (out / name).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
 
@@ -40,3 +42,22 @@ def test_bad_input_writes_none_of_them(tmp_path):
     out = tmp_path / "run"
     assert main(["solve", str(EXAMPLES / "paper_two_spheres.toml"), "--h", "0", "--out", str(out), "--quiet"]) == 2
     assert not out.exists()
+
+
+def _check_asperity_csv(path, res, *, macro):
+    import csv
+    lines = path.read_text().splitlines()
+    assert lines[0].startswith(f"# twoscale {__version__} solve ") and "units" in lines[0]
+    assert json.loads(lines[1][len("# scene: "):]) == res["scene"]
+    rows = list(csv.DictReader(lines[2:]))
+    assert [int(r["asperity"]) for r in rows] == list(range(1, len(res["asperities"]) + 1))
+    assert ("macro_force_N" in rows[0]) == macro
+    tips = res["scene"]["asperity"]
+    for r, a, t in zip(rows, res["asperities"], tips):
+        assert float(r["force_N"]) == a["force"]          # written by repr: the same double
+        assert float(r["contact_area_mm2"]) == a["contact_area"]
+        assert float(r["max_pressure_MPa"]) == a["max_pressure"]
+        assert float(r["mean_pressure_MPa"]) == pytest.approx(a["force"] / a["contact_area"], rel=1e-15)
+        assert (float(r["x_mm"]), float(r["y_mm"]), float(r["R_mm"])) == (t["x"], t["y"], t["R"])
+    # the tip forces add up to the total load
+    assert sum(float(r["force_N"]) for r in rows) == pytest.approx(res["total_load"], rel=1e-12)

@@ -1,11 +1,10 @@
-"""VTK output: write -> read round trip, metadata, indenter height, atomic writing."""
+"""VTK image data output: write -> read round trip, metadata, owner numbering, indenter height,
+atomic writing, and VTK itself (through pyvista) reading the files."""
 import json
 import math
 
 import numpy as np
 import pytest
-
-pytest.importorskip("meshio")
 
 from twoscale import __version__
 from twoscale.grid import Grid
@@ -30,12 +29,11 @@ def _two_patch_result(tilt=(0.01, -0.02)):
 @pytest.mark.parametrize("binary", [True, False])
 def test_round_trip_patches(tmp_path, binary):
     res = _two_patch_result()
-    path = write_vtk(res, tmp_path / "out" / "fields.vtu", scene={"name": "two patches"}, binary=binary)
+    path = write_vtk(res, tmp_path / "out" / "fields.vtm", scene={"name": "two patches"}, binary=binary)
     back = read_vtk(path)
-    # binary arrays are the float64 bytes themselves (base64 + zlib, lossless): exact.
-    # ASCII is written by meshio with "{:.11e}", 12 significant digits, so the relative
-    # error is at most half a unit in the 12th digit, 5e-12.
-    rtol = 0.0 if binary else 5e-12
+    # binary arrays are the float64 bytes themselves; ASCII writes each float by repr,
+    # which reads back as the same double: both exact.
+    rtol = 0.0
     assert len(back.fields) == 2
     for a, b in zip(back.fields, res.fields):
         assert a.grid == b.grid
@@ -54,7 +52,7 @@ def test_round_trip_patches(tmp_path, binary):
 
 def test_metadata_readable_in_text_and_no_temp_left(tmp_path):
     res = _two_patch_result()
-    path = write_vtk(res, tmp_path / "f.vtu", scene={"note": "a--b"})
+    path = write_vtk(res, tmp_path / "f.vtm", scene={"note": "a--b"})
     text = path.read_text()
     head = text.splitlines()[1]
     assert head.startswith("<!-- twoscale ") and head.endswith("-->")
@@ -62,14 +60,15 @@ def test_metadata_readable_in_text_and_no_temp_left(tmp_path):
     meta = json.loads(head[head.index("{"):-3])
     assert meta["scene"] == {"note": "a--b"} and meta["version"] == __version__
     assert "--" not in head[4:-3]
-    assert [p.name for p in tmp_path.iterdir()] == ["f.vtu"]
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["f", "f.vtm"]
+    assert sorted(p.name for p in (tmp_path / "f").iterdir()) == ["patch_001.vti", "patch_002.vti"]
 
 
 def test_indenter_height_with_tilt(tmp_path):
     alpha, beta, pivot = 0.01, -0.02, (0.3, -0.1)
     res = _two_patch_result(tilt=(alpha, beta))
     asp = [Asperity(0.2, 0.1, 0.0, 5.0), Asperity(1.2, 0.1, 0.01, 3.0, shape="paraboloid")]
-    back = read_vtk(write_vtk(res, tmp_path / "h.vtu", asperities=asp, pivot=pivot))
+    back = read_vtk(write_vtk(res, tmp_path / "h.vtm", asperities=asp, pivot=pivot))
     for f, z in zip(back.fields, back.indenter_height):
         X, Y = f.grid.centres()
         # independent evaluation: lower envelope of the exact cap and the paraboloid, + tilt
@@ -82,7 +81,7 @@ def test_indenter_height_with_tilt(tmp_path):
 
 def test_union_layout(tmp_path):
     res = _two_patch_result()
-    back = read_vtk(write_vtk(res, tmp_path / "u.vtu", layout="union"))
+    back = read_vtk(write_vtk(res, tmp_path / "u.vtm", layout="union"))
     (f,) = back.fields
     xmin, xmax, ymin, ymax = f.grid.bounds
     assert (xmin, ymin) == pytest.approx((0.0, -0.2)) and (xmax, ymax) == pytest.approx((1.3, 0.3))
@@ -95,35 +94,75 @@ def test_union_layout(tmp_path):
 
 def test_bad_arguments_write_nothing(tmp_path):
     res = _two_patch_result()
-    with pytest.raises(ValueError, match=".vtu"):
-        write_vtk(res, tmp_path / "f.vts")
+    with pytest.raises(ValueError, match=".vtm"):
+        write_vtk(res, tmp_path / "f.vtu")
     with pytest.raises(ValueError, match="layout"):
-        write_vtk(res, tmp_path / "f.vtu", layout="mosaic")
+        write_vtk(res, tmp_path / "f.vtm", layout="mosaic")
     assert list(tmp_path.iterdir()) == []
 
 
-def test_reader_rejects_foreign_vtu(tmp_path):
-    import meshio
-    m = meshio.Mesh(np.zeros((3, 3)), [("triangle", np.array([[0, 1, 2]]))])
-    m.write(tmp_path / "other.vtu")
+def test_reader_rejects_foreign_file(tmp_path):
+    from twoscale.io.vti import write_multiblock
+    write_multiblock(tmp_path / "other.vtm", [])
     with pytest.raises(ValueError, match="not written by twoscale"):
-        read_vtk(tmp_path / "other.vtu")
+        read_vtk(tmp_path / "other.vtm")
+
+
+def test_owner_numbered_from_one_in_the_file(tmp_path):
+    # in memory owner is 0-based with -1 for "none"; a person reading the file sees the
+    # asperity numbers of the tables (from 1) and 0 for "none"
+    from twoscale.io.vti import read_image
+    res = _two_patch_result()
+    owner0 = np.array(res.fields[0].owner)
+    owner0[0, 1] = -1
+    f1 = PressureField(res.fields[0].grid, res.fields[0].pressure, owner0, res.fields[0].gap)
+    res = ContactResult("twoscale", (f1, res.fields[1]), 0.1, None, res.total_load, res.asperities, True)
+    path = write_vtk(res, tmp_path / "f.vtm")
+    img1, img2 = read_image(tmp_path / "f" / "patch_001.vti"), read_image(tmp_path / "f" / "patch_002.vti")
+    assert img1.cell_data["owner"][0, 1] == 0 and img1.cell_data["owner"][0, 0] == 1
+    assert np.all(img2.cell_data["owner"] == 2)
+    assert np.all(img1.cell_data["patch"] == 1) and np.all(img2.cell_data["patch"] == 2)
+    back = read_vtk(path)
+    np.testing.assert_array_equal(back.fields[0].owner, owner0)
 
 
 def test_vtk_itself_reads_the_file(tmp_path):
     # an independent reader (VTK through pyvista, what ParaView uses) sees the same arrays
     pv = pytest.importorskip("pyvista")
     res = _two_patch_result()
-    path = write_vtk(res, tmp_path / "f.vtu", scene={"k": 1})
-    m = pv.read(str(path))
-    assert m.n_cells == sum(f.grid.size for f in res.fields)
-    p = np.concatenate([f.pressure.ravel() for f in res.fields])
-    np.testing.assert_array_equal(np.asarray(m.cell_data["pressure_MPa"]), p)
-    meta = json.loads(bytes(np.asarray(m.field_data["twoscale_metadata"], dtype=np.uint8)))
-    assert meta["version"] == __version__ and meta["scene"] == {"k": 1}
-    # cell centres of the quads are the grid's cell centres
-    c = np.asarray(m.cell_centers().points)[:, :2]
-    np.testing.assert_allclose(c, np.vstack([f.grid.points() for f in res.fields]), atol=1e-12)
+    asp = [Asperity(0.2, 0.1, 0.0, 5.0), Asperity(1.2, 0.1, 0.01, 3.0)]
+    path = write_vtk(res, tmp_path / "f.vtm", scene={"k": 1}, asperities=asp)
+    mb = pv.read(str(path))
+    assert mb.n_blocks == 2
+    back = read_vtk(path)
+    for k, (block, f) in enumerate(zip(mb, res.fields)):
+        assert block.n_cells == f.grid.size
+        np.testing.assert_array_equal(np.asarray(block.cell_data["pressure_MPa"]), f.pressure.ravel())
+        np.testing.assert_array_equal(np.asarray(block.cell_data["owner"]), f.owner.ravel() + 1)
+        np.testing.assert_array_equal(np.asarray(block.cell_data["gap_mm"]),
+                                      np.where(np.isinf(f.gap), np.nan, f.gap).ravel())
+        np.testing.assert_array_equal(np.asarray(block.cell_data["indenter_height_mm"]),
+                                      np.where(np.isinf(back.indenter_height[k]), np.nan,
+                                               back.indenter_height[k]).ravel())
+        meta = json.loads(bytes(np.asarray(block.field_data["twoscale_metadata"], dtype=np.uint8)))
+        assert meta["version"] == __version__ and meta["patch"] == k + 1
+        # cell centres of the image are the grid's cell centres, in the plane z = 0
+        c = np.asarray(block.cell_centers().points)
+        np.testing.assert_allclose(c[:, :2], f.grid.points(), atol=1e-12)
+        np.testing.assert_array_equal(c[:, 2], 0.0)
+
+
+def test_rewrite_replaces_the_images(tmp_path):
+    res = _two_patch_result()
+    write_vtk(res, tmp_path / "f.vtm", layout="patches")
+    back = read_vtk(write_vtk(res, tmp_path / "f.vtm", layout="union"))
+    assert len(back.fields) == 1
+    assert sorted(p.name for p in (tmp_path / "f").iterdir()) == ["patch_001.vti"]
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["f", "f.vtm"]
+    (tmp_path / "f" / "mine.txt").write_text("x")  # not ours: refused, not deleted
+    with pytest.raises(ValueError, match="other files"):
+        write_vtk(res, tmp_path / "f.vtm")
+    assert (tmp_path / "f" / "mine.txt").exists()
 
 
 def test_written_file_has_ordinary_permissions(tmp_path):
@@ -131,7 +170,26 @@ def test_written_file_has_ordinary_permissions(tmp_path):
     import os
     mask = os.umask(0o022)
     try:
-        path = write_vtk(_two_patch_result(), tmp_path / "f.vtu")
+        path = write_vtk(_two_patch_result(), tmp_path / "f.vtm")
     finally:
         os.umask(mask)
     assert path.stat().st_mode & 0o777 == 0o644
+    assert (tmp_path / "f").stat().st_mode & 0o777 == 0o755
+    assert (tmp_path / "f" / "patch_001.vti").stat().st_mode & 0o777 == 0o644
+
+
+def test_indenter_height_of_many_mixed_tips_is_the_rigid_surface(tmp_path):
+    # thousands of tips are evaluated only where they can be lowest: the result must be
+    # the full lower envelope that surface_on computes from every indenter on every cell
+    from twoscale.indenters import surface_on
+    rng = np.random.default_rng(3)
+    asp = [Asperity(float(x), float(y), float(z), float(R), shape=str(s)) for x, y, z, R, s in zip(
+        rng.uniform(-10, 10, 300), rng.uniform(-10, 10, 300), rng.uniform(0, 0.3, 300),
+        rng.uniform(0.5, 3.0, 300), rng.choice(["sphere", "paraboloid"], 300, p=[0.8, 0.2]))]
+    grids = [Grid(float(x), float(y), 0.1, 30, 20) for x, y in rng.uniform(-12, 10, (6, 2))]
+    fields = tuple(PressureField(g, np.zeros(g.shape), np.zeros(g.shape), np.zeros(g.shape)) for g in grids)
+    s = summarise(fields, 300)
+    res = ContactResult("twoscale", fields, 0.1, None, 0.0, s, True)
+    back = read_vtk(write_vtk(res, tmp_path / "m.vtm", asperities=asp))
+    for g, z in zip(grids, back.indenter_height):
+        np.testing.assert_array_equal(z, surface_on(g, asp).height)

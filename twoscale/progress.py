@@ -1,7 +1,13 @@
-"""A tiny progress bar on stderr for work that lasts more than a couple of seconds.
+"""Progress on stderr, through tqdm: a bar for counted work and a status line for a solve.
 
-Silent when ``quiet`` is set, when the stream is not a terminal, or while the work is
-younger than ``delay`` seconds (so quick runs print nothing). No dependency.
+* :class:`Progress` (and :func:`track`): ``label: 40%|####      | 2/5 [00:03<00:04]  note``
+  for work of a known number of steps (loads, bodies, block sources);
+* :class:`StatusLine`: one line redrawn in place for a long solve whose length is not
+  known, ``solving: micro step, two-level: sweep 5, residual 1.2e-04  00:12``.
+
+Both are silent with ``quiet``, when the stream is not a terminal (a log file, a pipe,
+CI), and while the work is younger than ``delay`` seconds (quick runs print nothing).
+tqdm is imported when a bar is made, so ``import twoscale`` stays light.
 
 Example
 -------
@@ -12,14 +18,23 @@ Example
 from __future__ import annotations
 
 import sys
-import time
 from typing import Iterable, Iterator, TextIO, TypeVar
 
 T = TypeVar("T")
 
 
+def _bar(stream: TextIO | None, quiet: bool, **options):
+    """A tqdm bar on ``stream`` (default stderr), disabled when quiet or off a terminal."""
+    from tqdm import tqdm
+
+    stream = sys.stderr if stream is None else stream
+    isatty = getattr(stream, "isatty", None)
+    enabled = not quiet and bool(isatty and isatty())
+    return tqdm(file=stream, disable=not enabled, dynamic_ncols=True, **options)
+
+
 class Progress:
-    """Progress of ``total`` steps, drawn as ``label [#####     ] 3/7  4.2 s``.
+    """Progress of ``total`` steps, drawn as a tqdm bar.
 
     Parameters
     ----------
@@ -33,57 +48,31 @@ class Progress:
         Where to draw; nothing is drawn unless ``stream.isatty()``.
     delay : float, default 2.0
         Seconds before the first drawing, s.
-    width : int, default 30
-        Bar width, characters.
-    clock : callable, default ``time.monotonic``
-        Time source in seconds (tests inject one).
     """
 
     def __init__(self, total: int, *, label: str = "", quiet: bool = False,
-                 stream: TextIO | None = None, delay: float = 2.0, width: int = 30,
-                 clock=time.monotonic) -> None:
+                 stream: TextIO | None = None, delay: float = 2.0) -> None:
         if total < 0:
             raise ValueError(f"progress total must be >= 0, got {total!r}")
         self.total = int(total)
-        self.label = label
-        self.stream = sys.stderr if stream is None else stream
-        isatty = getattr(self.stream, "isatty", None)
-        self.enabled = (not quiet) and bool(isatty and isatty())
-        self.delay = float(delay)
-        self.width = int(width)
-        self._clock = clock
-        self._start = clock()
         self.done = 0
-        self._drawn = False
+        self._bar = _bar(stream, quiet, total=self.total, desc=label or None, delay=delay,
+                         mininterval=0.5, leave=True)
+
+    @property
+    def enabled(self) -> bool:
+        return not self._bar.disable
 
     def update(self, n: int = 1, *, note: str = "") -> None:
-        """Advance by ``n`` steps and redraw if drawing is due."""
-        self.done = min(self.total, self.done + n) if self.total else self.done + n
-        self._draw(note)
-
-    def _draw(self, note: str = "") -> None:
-        if not self.enabled:
-            return
-        elapsed = self._clock() - self._start
-        if elapsed < self.delay:
-            return
-        frac = self.done / self.total if self.total else 0.0
-        fill = int(round(frac * self.width))
-        bar = "#" * fill + " " * (self.width - fill)
-        text = f"\r{self.label} [{bar}] {self.done}/{self.total}  {elapsed:.1f} s"
+        """Advance by ``n`` steps; ``note`` names what was just done (shown after the bar)."""
+        self.done += n
         if note:
-            text += f"  {note}"
-        self.stream.write(text + "\x1b[K")
-        self.stream.flush()
-        self._drawn = True
+            self._bar.set_postfix_str(note, refresh=False)
+        self._bar.update(n)
 
     def close(self) -> None:
-        """End the line if anything was drawn."""
-        if self._drawn:
-            self._draw()
-            self.stream.write("\n")
-            self.stream.flush()
-            self._drawn = False
+        """End the line (a bar drawn stays on screen)."""
+        self._bar.close()
 
     def __enter__(self) -> "Progress":
         return self
@@ -106,7 +95,7 @@ def track(items: Iterable[T], *, total: int | None = None, label: str = "", quie
 
 class StatusLine:
     """One line on stderr that says what a long solve is doing, redrawn in place:
-    ``solving: micro step, two-level: sweep 5, residual 1.2e-04  12.3 s``.
+    ``solving: micro step, two-level: sweep 5, residual 1.2e-04  00:12`` (elapsed time).
 
     Call it with a text (``status(text)``) whenever the work moves on; it draws only once
     the work is older than ``delay`` seconds, at most every ``interval`` seconds, and never
@@ -121,37 +110,24 @@ class StatusLine:
         Seconds before the first drawing.
     interval : float, default 0.5
         Seconds between two drawings.
-    clock : callable, default ``time.monotonic``
     """
 
     def __init__(self, *, label: str = "solving", quiet: bool = False, stream: TextIO | None = None,
-                 delay: float = 3.0, interval: float = 0.5, clock=time.monotonic) -> None:
+                 delay: float = 3.0, interval: float = 0.5) -> None:
         self.label = label
-        self.stream = sys.stderr if stream is None else stream
-        isatty = getattr(self.stream, "isatty", None)
-        self.enabled = not quiet and bool(isatty and isatty())
-        self.delay, self.interval, self.clock = delay, interval, clock
-        self.start = clock()
-        self._last = -float("inf")
-        self._width = 0
+        self._bar = _bar(stream, quiet, total=None, desc=label, delay=delay, mininterval=interval,
+                         leave=False, bar_format="{desc}  {elapsed}")
+
+    @property
+    def enabled(self) -> bool:
+        return not self._bar.disable
 
     def __call__(self, text: str) -> None:
-        if not self.enabled:
-            return
-        now = self.clock()
-        if now - self.start < self.delay or now - self._last < self.interval:
-            return
-        self._last = now
-        line = f"{self.label}: {text}  {now - self.start:.1f} s"
-        self.stream.write("\r" + line.ljust(self._width))
-        self.stream.flush()
-        self._width = len(line)
+        self._bar.set_description_str(f"{self.label}: {text}", refresh=False)
+        self._bar.update(0)  # redraws when delay and interval allow
 
     def close(self) -> None:
-        if self.enabled and self._width:
-            self.stream.write("\r" + " " * self._width + "\r")
-            self.stream.flush()
-            self._width = 0
+        self._bar.close()
 
     def __enter__(self) -> "StatusLine":
         return self

@@ -314,8 +314,9 @@ def _csv_text(rows, scene_path: str, record: dict) -> str:
 
 def _write_outputs(out: Path, args, scene: Scene, runs, ind, notes, measured: Measured | None,
                    sensor: Sensor) -> None:
+    from ..io.solve_outputs import FIELDS_NAME
     from ..io.vtk import write_vtk
-    from ..plot import compare_forces, compare_maps
+    from ..plot import compare_forces, compare_maps, difference_map
 
     out.mkdir(parents=True, exist_ok=True)
     record = compare_record(scene, runs, sensor)
@@ -340,11 +341,14 @@ def _write_outputs(out: Path, args, scene: Scene, runs, ind, notes, measured: Me
                      scene=scene_dict, meta=meta)
         compare_maps(group, out / f"sensor_{load}.png", tips=tips, sensor=sensor, scene=scene_dict, meta=meta,
                      title=f"sensor-cell means ({sensor_text(sensor)}), {load_title(load)}")
+        if len(group) > 1:  # each body's tip forces minus the first body's (the half-space)
+            difference_map(group, out / f"difference_{load}.png", tips=tips, scene=scene_dict, meta=meta,
+                           title=f"force difference per tip, {load_title(load)}")
     for r in runs:
         d = out / "runs" / f"{r.body}_{r.load}"
         write_result(r.result, r.scene, d, method=args.method)
         if args.vtk:
-            write_vtk(r.result, d / "fields.vtu", asperities=r.scene.asperities, pivot=r.scene.pivot,
+            write_vtk(r.result, d / FIELDS_NAME, asperities=r.scene.asperities, pivot=r.scene.pivot,
                       scene=scene_to_dict(r.scene))
 
 
@@ -352,7 +356,7 @@ def run(args: argparse.Namespace) -> int:
     """Run ``twoscale compare``; returns the exit code (0, 1 or 2, see module doc)."""
     out = Path(args.out) if args.out is not None else Path(f"{Path(args.scene).stem}_compare")
     try:
-        check_out_dir(out)
+        check_out_dir(out, overwrite=args.overwrite)
         scenes = _scenes(args)
         sensor = sensor_from_args(args)
         measured = _measured(args, scenes, sensor)
@@ -376,7 +380,7 @@ def run(args: argparse.Namespace) -> int:
     for n in sensor_notes(runs, sensor):
         print(f"note: {n}", file=sys.stderr)
         notes.append(n)
-    with staged_directory(out) as tmp:  # renamed to out once every file is written
+    with staged_directory(out, overwrite=args.overwrite, command=f"compare {args.scene}") as tmp:
         _write_outputs(tmp, args, scenes[0], runs, ind, notes, measured, sensor)
     if not args.quiet:
         print(markdown(args.scene, runs, ind, notes, args.method, measured, sensor))

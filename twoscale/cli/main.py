@@ -2,10 +2,12 @@
 
 Each subcommand is a module of this package exposing ``add_arguments(parser)`` and
 ``run(args) -> int``. ``solve`` is always present; optional subcommands (``paper``,
-``compare``, ``indicators``) are registered when their module exists.
+``compare``, ``indicators``) are registered when their module exists. The commands that
+write an output folder get ``--overwrite`` here (see :mod:`twoscale.cli.staging`).
 
 Exit codes: 0 success; 1 the solve ran but did not converge (result written with
-``converged = false``); 2 bad input (one ``error: ...`` line on stderr, nothing written);
+``converged = false``); 2 bad input, or an output that cannot be written (one ``error: ...``
+line on stderr, nothing written);
 130 interrupted by Ctrl-C (one line ``interrupted`` on stderr; the subcommands write
 through a temporary folder renamed at the end, so no partial output is left).
 """
@@ -18,6 +20,7 @@ import sys
 from typing import Sequence
 
 from .._version import __version__
+from .staging import OutputFolderError
 
 #: Exit code after Ctrl-C (KeyboardInterrupt): 128 + SIGINT, as shells report it.
 EXIT_INTERRUPTED = 130
@@ -29,6 +32,10 @@ SUBCOMMANDS = (
     ("compare", "twoscale.cli.compare", False),
     ("indicators", "twoscale.cli.indicators", False),
 )
+
+
+#: Subcommands that write an output folder: they take ``--overwrite`` (see ``cli.staging``).
+OUTPUT_COMMANDS = ("solve", "compare", "paper")
 
 
 def _available_subcommands():
@@ -59,6 +66,10 @@ def build_parser() -> argparse.ArgumentParser:
         doc = (module.__doc__ or name).strip().splitlines()[0]
         p = sub.add_parser(name, help=doc, description=doc)
         module.add_arguments(p)
+        if name in OUTPUT_COMMANDS:
+            p.add_argument("--overwrite", action="store_true",
+                           help="replace an earlier twoscale output in the folder: removes only the files "
+                                "listed in its .twoscale-manifest.json (a folder holding other files is refused)")
         p.set_defaults(_run=module.run)
     return parser
 
@@ -75,6 +86,10 @@ def main(argv: Sequence[str] | None = None) -> int:
     except KeyboardInterrupt:  # Ctrl-C: outputs are staged, so nothing half-written remains
         print("interrupted", file=sys.stderr)
         return EXIT_INTERRUPTED
+    except (OSError, OutputFolderError) as exc:  # a full disk, no write permission, an output folder
+        # changed during the solve: one line, not a traceback
+        print(f"error: {exc}", file=sys.stderr)
+        return 2
 
 
 if __name__ == "__main__":  # pragma: no cover

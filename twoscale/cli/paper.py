@@ -1,13 +1,15 @@
 """Reproduce the paper's numerical study (figs. 3-6): CSV files and PNG figures.
 
-``twoscale paper --out DIR [--quick] [--tol T] [--reference cg|dense|auto] [--no-figures] [--quiet]``
+``twoscale paper --out DIR [--overwrite] [--quick] [--tol T] [--reference cg|dense|auto] [--no-figures] [--quiet]``
 
-Prints one progress line per case (stderr), then a table and the acceptance (stdout);
-``--quiet`` prints nothing but errors and warnings (a case that did not converge or
-missed the acceptance is a warning on stderr).
+Shows the last case done on a status line (stderr, on a terminal only), then prints a
+table and the acceptance (stdout); ``--quiet`` prints nothing but errors and warnings (a
+case that did not converge or missed the acceptance is a warning on stderr).
 
 Exit codes: 0 every case converged and met the 0.1 % acceptance; 1 some did not (files
-still written); 2 bad input (one ``error: ...`` line, nothing written); 130 interrupted
+still written); 2 bad input (one ``error: ...`` line, nothing written; ``--out`` naming a
+file or a non-empty folder without ``--overwrite`` is found before the study, see
+:mod:`twoscale.cli.staging`); 130 interrupted
 (Ctrl-C; the files go through a temporary folder renamed to DIR at the end, so nothing
 partial is left).
 """
@@ -18,12 +20,14 @@ import math
 import pathlib
 import sys
 
-from .staging import staged_directory
+from ..progress import StatusLine
+from .staging import OutputFolderError, check_output_folder, staged_directory
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Options of ``twoscale paper``."""
-    parser.add_argument("--out", required=True, type=pathlib.Path, help="output folder (created)")
+    parser.add_argument("--out", required=True, type=pathlib.Path,
+                        help="output folder (created; a non-empty one needs --overwrite)")
     parser.add_argument("--quick", action="store_true",
                         help="cells twice the paper's size (four times fewer), same d/2R values")
     parser.add_argument("--tol", type=float, default=1e-6,
@@ -35,26 +39,39 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--quiet", action="store_true", help="print nothing but errors and warnings")
 
 
-def run(args: argparse.Namespace) -> int:
-    """Run the study; 0 if every case converged and met the 0.1 % acceptance, else 1."""
-    from ..study import run_study
+def _write(study, args, overwrite: bool) -> list:
+    """The CSV files and figures, into a temporary folder renamed to ``--out`` at the end."""
     from ..study.output import write_csv
 
-    if not (math.isfinite(args.tol) and args.tol > 0):
-        print(f"error: --tol must be > 0, got {args.tol}", file=sys.stderr)
-        return 2
-    if args.out.exists() and not args.out.is_dir():
-        print(f"error: --out must be a folder, got {str(args.out)!r}, which is an existing file",
-              file=sys.stderr)
-        return 2
-    study = run_study(quick=args.quick, tol=args.tol, reference_method=args.reference,
-                      progress=None if args.quiet else (lambda text: print(text, file=sys.stderr)))
-    with staged_directory(args.out) as tmp:  # renamed to --out once every file is written
+    with staged_directory(args.out, overwrite=overwrite, command="paper") as tmp:
         files = write_csv(study, tmp)
         if not args.no_figures:
             from ..study.figures import write_figures
 
             files += write_figures(study, tmp)
+    return files
+
+
+def run(args: argparse.Namespace) -> int:
+    """Run the study; 0 if every case converged and met the 0.1 % acceptance, else 1."""
+    from ..study import run_study
+
+    if not (math.isfinite(args.tol) and args.tol > 0):
+        print(f"error: --tol must be > 0, got {args.tol}", file=sys.stderr)
+        return 2
+    overwrite = getattr(args, "overwrite", False)
+    try:
+        check_output_folder(args.out, overwrite=overwrite)  # before the study, not after it
+    except OutputFolderError as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return 2
+    with StatusLine(label="paper", quiet=args.quiet) as status:  # the last case done, on a terminal
+        study = run_study(quick=args.quick, tol=args.tol, reference_method=args.reference, progress=status)
+    try:
+        files = _write(study, args, overwrite)
+    except (OSError, OutputFolderError) as exc:  # the folder changed during the study, a full disk, ...
+        print(f"error: writing {args.out}: {exc}", file=sys.stderr)
+        return 2
     ok = True
     table = [f"{'layout':7s} {'d/2R':>6s} {'p0 err %':>9s} {'p err %':>9s} {'sweeps':>6s} {'t_2s s':>7s} {'t_ref s':>7s}"]
     for layout, results in study.cases.items():

@@ -1,14 +1,18 @@
-"""Solve a scene file; print a summary and write DIR/result.json (+ fields.vtu, pressure.png, forces.png).
+"""Solve a scene file; print a summary and write DIR/result.json (+ asperities.csv, fields.vtm, figures).
 
-``twoscale solve SCENE.toml [--method twoscale|reference] [--out DIR] [--h H] [--far-tol F] [--block-field] [--quiet]``
+``twoscale solve SCENE.toml [--method twoscale|reference] [--out DIR [--overwrite]] [--h H] [--far-tol F]
+[--block-field] [--quiet]``
 
 Exit codes: 0 converged; 1 not converged (result.json still written, with
 ``converged = false`` and the solver's message); 2 bad input (one ``error: ...`` line
 on stderr naming the field and the value; nothing written, DIR not created; also when
 the solve would need more than 80 % of the available memory, estimated before anything
 large is allocated: the line gives the estimate in GB and says to raise ``--h``); 130
-interrupted (Ctrl-C). The files are written into a temporary folder renamed to DIR at
-the end, so an interrupted run leaves no partial DIR. Without ``--out`` nothing is written.
+interrupted (Ctrl-C). ``--out`` naming an existing file, or a non-empty folder without
+``--overwrite``, is bad input found before solving (see :mod:`twoscale.cli.staging`:
+``--overwrite`` removes only the files an earlier twoscale run listed in the folder's
+manifest). The files are written into a temporary folder renamed to DIR at the end, so an
+interrupted run leaves no partial DIR. Without ``--out`` nothing is written.
 """
 from __future__ import annotations
 
@@ -19,6 +23,7 @@ import sys
 import time
 from pathlib import Path
 
+from ..io.asperity_csv import ASPERITY_CSV_NAME
 from ..io.result_json import RESULT_NAME, result_to_dict, write_result
 from ..io.scene_file import read_scene
 from ..io.solve_outputs import write_fields_and_figures
@@ -26,7 +31,7 @@ from ..micro.policy import ITERATIONS
 from ..progress import StatusLine
 from ..resources import check_memory, estimate_memory
 from ..scene import METHODS, SceneError, default_h, solve_scene
-from .staging import staged_directory
+from .staging import check_output_folder, staged_directory
 
 #: Asperity rows printed in the summary before it is cut short.
 MAX_ROWS = 30
@@ -38,8 +43,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--method", choices=METHODS, default="twoscale",
                         help="two-scale solver (default) or classical reference solver on the full grid")
     parser.add_argument("--out", metavar="DIR", default=None,
-                        help="write DIR/result.json, fields.vtu, pressure.png, forces.png "
-                             "(DIR created after a successful solve)")
+                        help="write DIR/result.json, asperities.csv, fields.vtm (+ fields/), pressure.png, "
+                             "forces.png (DIR created after a successful solve; a non-empty DIR needs --overwrite)")
     parser.add_argument("--h", metavar="H", default=None,
                         help="cell size in mm, overriding [grid] h of the scene")
     parser.add_argument("--iteration", choices=("auto",) + ITERATIONS, default="auto",
@@ -52,7 +57,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--block-field", action="store_true",
                         help="with [influence] kind = \"block\" and --out: also write "
                              "DIR/block_displacement.vtu (displacement inside the block)")
-    parser.add_argument("--quiet", action="store_true", help="print nothing but errors")
+    parser.add_argument("--quiet", action="store_true",
+                        help="print nothing but errors (no status line or progress bar either; they are "
+                             "drawn only when stderr is a terminal)")
 
 
 def positive_option(text: str | None, name: str, *, unit: str) -> float | None:
@@ -74,17 +81,18 @@ def positive_option(text: str | None, name: str, *, unit: str) -> float | None:
     return v
 
 
-def check_out_dir(out) -> None:
+def check_out_dir(out, *, overwrite: bool = False) -> None:
     """Refuse, before any solve, an output folder that cannot be written: ``out`` names an
-    existing file (``None`` passes).
+    existing file, or a non-empty folder (unless ``overwrite`` and it holds only an earlier
+    twoscale output; see :mod:`twoscale.cli.staging`). ``None`` passes.
 
     Raises
     ------
-    SceneError
-        Naming ``--out`` and the path.
+    OutputFolderError
+        A ValueError naming ``--out``, the path and the reason.
     """
-    if out is not None and Path(out).exists() and not Path(out).is_dir():
-        raise SceneError(f"--out must be a folder, got {str(out)!r}, which is an existing file")
+    if out is not None:
+        check_output_folder(out, overwrite=overwrite)
 
 
 def run(args: argparse.Namespace) -> int:
@@ -100,7 +108,7 @@ def run(args: argparse.Namespace) -> int:
                                  f"got kind = {scene.influence['kind']!r}")
             if args.out is None:
                 raise SceneError("--block-field needs --out DIR")
-        check_out_dir(args.out)
+        check_out_dir(args.out, overwrite=getattr(args, "overwrite", False))
         options = {}
         far_tol = positive_option(getattr(args, "far_tol", None), "--far-tol", unit="dimensionless")
         if far_tol is not None:
@@ -130,12 +138,12 @@ def run(args: argparse.Namespace) -> int:
         print(f"error: {exc}", file=sys.stderr)
         return 2
     path = None
-    if args.out is not None:  # into a temporary folder renamed to DIR at the end: whole or nothing
-        with staged_directory(args.out) as tmp:
-            write_result(result, scene, tmp, method=args.method, h_source="--h" if args.h is not None else None)
-            write_fields_and_figures(result, scene, tmp)  # fields.vtu, pressure.png, forces.png
-            if getattr(args, "block_field", False):
-                write_block_field_file(result, scene, tmp, quiet=args.quiet)
+    if args.out is not None:
+        try:
+            write_outputs(result, scene, args)
+        except (OSError, ValueError) as exc:  # a folder changed during the solve, a full disk, ...
+            print(f"error: writing {args.out}: {exc}", file=sys.stderr)
+            return 2
         path = Path(args.out) / RESULT_NAME
     if not args.quiet:
         h_source = "--h" if args.h is not None else None
@@ -144,6 +152,17 @@ def run(args: argparse.Namespace) -> int:
         print(f"warning: the solve did not converge: {result.message}", file=sys.stderr)
         return 1
     return 0
+
+
+def write_outputs(result, scene, args) -> None:
+    """Write every file of ``--out`` into a temporary folder renamed to DIR at the end
+    (whole or nothing; an earlier output replaced only with ``--overwrite``)."""
+    with staged_directory(args.out, overwrite=getattr(args, "overwrite", False),
+                          command=f"solve {args.scene}") as tmp:
+        write_result(result, scene, tmp, method=args.method, h_source="--h" if args.h is not None else None)
+        write_fields_and_figures(result, scene, tmp, source=str(args.scene))
+        if getattr(args, "block_field", False):
+            write_block_field_file(result, scene, tmp, quiet=args.quiet)
 
 
 def write_block_field_file(result, scene, out_dir, *, quiet: bool = False):
@@ -170,14 +189,17 @@ def summary(res: dict, scene_path: str, wall: float, path) -> str:
     if "micro_choice" in res:
         lines.extend(_micro_lines(res))
     macro = any("macro_force" in a for a in res["asperities"])
-    lines.append("  asperity      force N   area mm^2  p_max MPa" + ("   macro N" if macro else ""))
-    for k, a in enumerate(res["asperities"][:MAX_ROWS], start=1):  # numbered from 1, as in the scene file
-        row = f"  {k:8d} {a['force']:11.5g} {a['contact_area']:11.5g} {a['max_pressure']:10.5g}"
+    lines.append("  asperity      force N   area mm^2  p_max MPa" + ("   macro N" if macro else "")
+                 + "   (numbered from 1, scene order)")
+    for k, a in enumerate(res["asperities"][:MAX_ROWS]):
+        row = f"  {k + 1:8d} {a['force']:11.5g} {a['contact_area']:11.5g} {a['max_pressure']:10.5g}"
         if macro:
             row += f" {a['macro_force']:9.5g}"
         lines.append(row)
     if len(res["asperities"]) > MAX_ROWS:
-        lines.append(f"  ... {len(res['asperities']) - MAX_ROWS} more in result.json")
+        where = (f"in {Path(path).parent / ASPERITY_CSV_NAME}" if path is not None
+                 else "(--out DIR writes them all to DIR/asperities.csv)")
+        lines.append(f"  ... {len(res['asperities']) - MAX_ROWS} more {where}")
     lines.append(f"  time         {wall:.3g} s")
     if path is not None:
         lines.append(f"  wrote        {path}")

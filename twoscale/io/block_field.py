@@ -11,7 +11,7 @@ half-space part is poor at vertices within a few aggregates of the loaded surfac
 
 File layout (VTK unstructured grid of hexahedra, through meshio): points ``(x, y, z)``
 in mm with x, y in the scene frame and ``z = -depth`` (top face at z = 0, the block
-below, as in ``fields.vtu``); point arrays ``displacement_mm`` (3 components, z up: a
+below, as in ``fields.vtm``); point arrays ``displacement_mm`` (3 components, z up: a
 pressed surface moves to negative z), ``displacement_halfspace_mm`` (its Boussinesq
 part) and ``depth_mm``. Metadata (version, units, scene, block, aggregation, total
 force) as in :mod:`twoscale.io.vtk`: an XML comment and the field array
@@ -27,7 +27,8 @@ import numpy as np
 
 from .._version import __version__
 from ..results import ContactResult
-from .vtk import UNITS, _META, _atomic_write
+from .atomic import atomic_output
+from .vtk import UNITS, _META, _metadata_text
 
 BLOCK_FIELD_NAME = "block_displacement.vtu"
 
@@ -128,3 +129,23 @@ def read_block_field(path) -> BlockFieldContent:
     return BlockFieldContent(points=np.asarray(mesh.points), displacement=np.asarray(pd["displacement_mm"]),
                              halfspace=np.asarray(pd["displacement_halfspace_mm"]),
                              cells=np.asarray(mesh.cells_dict["hexahedron"]), metadata=meta)
+
+
+def _atomic_write(mesh, path: Path, meta: dict, binary: bool) -> None:
+    """Write ``mesh`` as ``.vtu`` through meshio with the metadata as an XML comment on the
+    second line and as the field array ``twoscale_metadata`` (meshio writes no field data
+    of bytes, so the array is added to its XML)."""
+    import meshio
+
+    text = _metadata_text(meta)
+    codes = " ".join(str(b) for b in text.encode("utf-8"))
+    field = (f'<FieldData>\n<DataArray type="UInt8" Name="{_META}" NumberOfTuples="{len(text.encode("utf-8"))}" '
+             f'format="ascii">\n{codes}\n</DataArray>\n</FieldData>\n')
+    with atomic_output(path) as tmp:
+        meshio.vtu.write(str(tmp), mesh, binary=binary)
+        xml = tmp.read_text(encoding="utf-8")
+        head, sep, rest = xml.partition("<UnstructuredGrid>\n")
+        if not sep:
+            raise RuntimeError("unexpected VTU layout from meshio: no <UnstructuredGrid> line")
+        head = head.replace("?>\n", f"?>\n<!-- twoscale {__version__} (units mm, N, MPa) {text} -->\n", 1)
+        tmp.write_text(head + sep + field + rest, encoding="utf-8")

@@ -1,10 +1,15 @@
-"""The files a solve writes beside result.json: micro-grid fields and two figures.
+"""The files a solve writes beside result.json: fields, the per-asperity table, two figures.
 
-* ``fields.vtu``: pressure, gap, owning asperity and indenter height on the solver's
-  grid(s) (:func:`twoscale.io.vtk.write_vtk`; open in ParaView);
-* ``pressure.png``: pressure map with the tips (:func:`twoscale.plot.pressure_map`);
-* ``forces.png``: force per asperity, beside the macro-step forces when the method has
-  them (:func:`twoscale.plot.force_bars`).
+* ``fields.vtm`` (+ ``fields/patch_NNN.vti``): pressure, gap, owning asperity and
+  indenter height on the solver's grid(s) as VTK image data
+  (:func:`twoscale.io.vtk.write_vtk`; open the ``.vtm`` in ParaView);
+* ``asperities.csv``: position, shape, force, contact area, peak and mean pressure per
+  asperity, numbered from 1 (:func:`twoscale.io.asperity_csv.write_asperity_csv`);
+* ``pressure.png``: pressure map with the tips, numbered when few
+  (:func:`twoscale.plot.pressure_map`);
+* ``forces.png``: force per asperity (bars when few, histogram and a map of tips
+  coloured by force when many), beside the macro-step forces when the method has them
+  (:func:`twoscale.plot.force_bars`).
 
 Each records the program version, the units and the scene.
 """
@@ -14,16 +19,18 @@ from pathlib import Path
 
 from ..results import ContactResult
 from ..scene import Scene
+from .asperity_csv import ASPERITY_CSV_NAME, write_asperity_csv
+from .result_view import result_view
 from .scene_file import scene_to_dict
 
-FIELDS_NAME = "fields.vtu"
+FIELDS_NAME = "fields.vtm"
 PRESSURE_NAME = "pressure.png"
 FORCES_NAME = "forces.png"
 
 
 def write_fields_and_figures(result: ContactResult, scene: Scene, out_dir, *, vtk: bool = True,
-                             figures: bool = True) -> list[Path]:
-    """Write ``fields.vtu``, ``pressure.png`` and ``forces.png`` into ``out_dir``.
+                             figures: bool = True, source: str = "") -> list[Path]:
+    """Write ``fields.vtm``, ``asperities.csv``, ``pressure.png`` and ``forces.png`` into ``out_dir``.
 
     Parameters
     ----------
@@ -33,13 +40,15 @@ def write_fields_and_figures(result: ContactResult, scene: Scene, out_dir, *, vt
     out_dir : path-like
         Directory, created if needed.
     vtk : bool, default True
-        Write ``fields.vtu`` (needs meshio).
+        Write ``fields.vtm`` and its images.
     figures : bool, default True
         Write the two PNG figures (needs matplotlib).
+    source : str, default ""
+        What was solved (e.g. the scene file's name), in the CSV's first line.
 
     Returns
     -------
-    list of Path written, in the order above.
+    list of Path written, in the order above (the ``.vtm`` for the fields).
     """
     out = Path(out_dir)
     record = scene_to_dict(scene)
@@ -49,10 +58,12 @@ def write_fields_and_figures(result: ContactResult, scene: Scene, out_dir, *, vt
 
         written.append(write_vtk(result, out / FIELDS_NAME, asperities=scene.asperities,
                                  pivot=scene.pivot, scene=record))
+    written.append(write_asperity_csv(result, scene.asperities, out / ASPERITY_CSV_NAME, scene=record,
+                                      source=f"solve {source}" if source else "solve"))
     if figures:
         from ..plot import force_bars, pressure_map
 
         written.append(pressure_map(result, out / PRESSURE_NAME, tips=scene.asperities, scene=record))
-        written.append(force_bars(result, out / FORCES_NAME, macro_forces=result.macro_forces,
-                                  scene=record))
+        written.append(force_bars(result, out / FORCES_NAME, tips=scene.asperities,
+                                  macro_forces=result_view(result).macro_forces, scene=record))
     return written

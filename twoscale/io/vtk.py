@@ -1,26 +1,35 @@
-"""Micro-grid fields of a :class:`~twoscale.results.ContactResult` as VTK (``.vtu``).
+"""Micro-grid fields of a contact result as VTK image data (``.vtm`` + ``.vti``).
 
-Each cell of each pressure patch becomes a quadrilateral in the plane z = 0 (the
-undeformed surface; coordinates in mm), with cell data
+Every pressure patch is a regular grid, so each is written as one VTK image (``.vti``:
+origin, spacing and cell arrays, no point list), and a multiblock file (``.vtm``) lists
+them: ``fields.vtm`` beside a folder ``fields/`` holding ``patch_001.vti``, ... in patch
+order. ParaView and pyvista open the ``.vtm`` as one dataset. Cell arrays (the image lies
+in the plane z = 0, the undeformed surface; x, y in mm):
 
 * ``pressure_MPa``: contact pressure, MPa;
 * ``gap_mm``: ``z + u - d``, mm (NaN where no indenter has material, ``inf`` in memory);
-* ``owner``: owning asperity (0-based, scene order; -1 where none);
-* ``patch``: index of the patch the cell came from;
+* ``owner``: owning asperity, numbered from 1 in scene order as in every table and
+  figure; 0 where no asperity owns the cell (``-1`` and 0-based in memory);
+* ``patch``: number of the patch the cell came from (from 1; the block ``patch k``);
 * ``indenter_height_mm``: rigid-surface height incl. tilt, mm (when the asperities are
   given; NaN where no indenter has material).
 
-The file records the program version, the units, the patch grids and the scene (a
-JSON-able mapping) twice: as a readable XML comment at the top, and as the VTK field
-array ``twoscale_metadata`` (the UTF-8 bytes of the same JSON, so ParaView and meshio
-can carry it). Writing goes to a temporary file in the target directory, then
-``os.replace``: a reader never sees half a file.
+The ``.vtm`` records the program version, the units, the patch grids, the result's
+figures and the scene (a JSON-able mapping) as JSON in an XML comment on its second line;
+each ``.vti`` records the version, the units and its patch number the same way and as the
+VTK field array ``twoscale_metadata`` (the UTF-8 bytes of that JSON). The images are
+written into a temporary folder renamed into place, then the ``.vtm``: a reader never sees
+half a file.
 
-meshio is imported here only (``import twoscale`` stays light).
+Neither meshio nor pyvista is needed: the format is written with numpy
+(:mod:`twoscale.io.vti`).
 """
 from __future__ import annotations
 
 import json
+import os
+import shutil
+import tempfile
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Mapping, Sequence
@@ -29,9 +38,11 @@ import numpy as np
 
 from .._version import __version__
 from ..grid import Grid
-from ..indenters import Asperity, Tilt, surface_on
-from ..results import ContactResult, PressureField
-from .atomic import atomic_output
+from ..indenters import Asperity, Tilt
+from ..results import PressureField
+from .atomic import current_umask, atomic_output
+from .result_view import ResultView, result_view
+from .vti import read_image, read_multiblock, write_image, write_multiblock
 
 UNITS = {"length": "mm", "force": "N", "pressure": "MPa", "angle": "rad"}
 LAYOUTS = ("patches", "union")
@@ -45,7 +56,8 @@ class VtkContent:
     Attributes
     ----------
     fields : tuple of PressureField
-        The patches as written (``gap`` back to ``inf`` where it was NaN).
+        The patches as written (``gap`` back to ``inf`` where it was NaN; ``owner``
+        0-based with -1 for none, as in memory: the file's number minus 1).
     indenter_height : tuple of (ny, nx) arrays (mm) or None
         Per patch, when the file carries it.
     metadata : dict
@@ -79,25 +91,11 @@ def _union_field(fields: Sequence[PressureField]) -> PressureField:
     return PressureField(g, p, owner, gap)
 
 
-def _quads(grid: Grid, offset: int) -> tuple[np.ndarray, np.ndarray]:
-    """Corner points (z = 0) and quad connectivity of a grid's cells, row-major x fastest."""
-    xmin, _, ymin, _ = grid.bounds
-    xs = xmin + grid.h * np.arange(grid.nx + 1)
-    ys = ymin + grid.h * np.arange(grid.ny + 1)
-    X, Y = np.meshgrid(xs, ys)
-    pts = np.column_stack([X.ravel(), Y.ravel(), np.zeros(X.size)])
-    n1 = grid.nx + 1
-    j, i = np.meshgrid(np.arange(grid.ny), np.arange(grid.nx), indexing="ij")
-    a = (j * n1 + i).ravel()
-    quads = np.column_stack([a, a + 1, a + 1 + n1, a + n1]) + offset
-    return pts, quads
-
-
 def _grid_dict(g: Grid) -> dict:
     return {"x0": g.x0, "y0": g.y0, "h": g.h, "nx": g.nx, "ny": g.ny}
 
 
-def _metadata(result: ContactResult, layout: str, grids: Sequence[Grid],
+def _metadata(result: ResultView, layout: str, grids: Sequence[Grid],
               scene: Mapping[str, Any] | None, has_height: bool) -> dict:
     return {
         "program": "twoscale", "version": __version__, "units": UNITS,
@@ -107,75 +105,10 @@ def _metadata(result: ContactResult, layout: str, grids: Sequence[Grid],
                    "penetration": float(result.penetration),
                    "tilt": None if result.tilt is None else [float(t) for t in result.tilt],
                    "total_load": float(result.total_load),
-                   "forces": [float(f) for f in result.asperities.forces]},
+                   "forces": [float(f) for f in result.forces]},
+        "numbering": {"owner": "asperity number from 1 in scene order; 0: none", "patch": "from 1"},
         "scene": None if scene is None else dict(scene),
     }
-
-
-def write_vtk(result: ContactResult, path: str | Path, *, layout: str = "patches",
-              asperities: Sequence[Asperity] | None = None, pivot: tuple[float, float] = (0.0, 0.0),
-              scene: Mapping[str, Any] | None = None, binary: bool = True) -> Path:
-    """Write the micro-grid fields of ``result`` to a ``.vtu`` file.
-
-    Parameters
-    ----------
-    result : ContactResult
-    path : path-like
-        Output file; must end in ``.vtu``.
-    layout : {"patches", "union"}, default "patches"
-        ``"patches"``: every patch as it is (overlapping patches stay separate, see the
-        ``patch`` array); ``"union"``: one aligned grid covering all patches (pressures
-        summed as in :meth:`ContactResult.pressure_on`; can be large for sparse scenes).
-    asperities : sequence of Asperity, optional
-        The scene's indenters; when given, ``indenter_height_mm`` is written (with the
-        result's tilt about ``pivot`` when it has one).
-    pivot : (float, float), default (0, 0)
-        Ball-and-socket joint position, mm (used with ``result.tilt``).
-    scene : mapping, optional
-        The scene as plain JSON-able data, recorded in the file.
-    binary : bool, default True
-        Compressed binary arrays (exact float64) or ASCII.
-
-    Returns
-    -------
-    Path of the file written.
-    """
-    import meshio
-
-    path = Path(path)
-    if path.suffix.lower() != ".vtu":
-        raise ValueError(f"VTK output path must end in .vtu, got {str(path)!r}")
-    if layout not in LAYOUTS:
-        raise ValueError(f"layout must be one of {LAYOUTS}, got {layout!r}")
-    if not result.fields:
-        raise ValueError("result has no pressure fields to write")
-    fields = list(result.fields) if layout == "patches" else [_union_field(result.fields)]
-    tilt = None
-    if result.tilt is not None:
-        tilt = Tilt(alpha=float(result.tilt[0]), beta=float(result.tilt[1]), pivot=tuple(pivot))
-
-    points, quads, data = [], [], {k: [] for k in ("pressure_MPa", "gap_mm", "owner", "patch",
-                                                    "indenter_height_mm")}
-    offset = 0
-    for k, f in enumerate(fields):
-        pts, q = _quads(f.grid, offset)
-        offset += len(pts)
-        points.append(pts)
-        quads.append(q)
-        data["pressure_MPa"].append(f.pressure.ravel())
-        data["gap_mm"].append(np.where(np.isfinite(f.gap), f.gap, np.nan).ravel())
-        data["owner"].append(f.owner.ravel())
-        data["patch"].append(np.full(f.grid.size, k, dtype=np.int64))
-        if asperities is not None:
-            z = surface_on(f.grid, asperities, tilt).height
-            data["indenter_height_mm"].append(np.where(np.isfinite(z), z, np.nan).ravel())
-    if asperities is None:
-        del data["indenter_height_mm"]
-    mesh = meshio.Mesh(np.vstack(points), [("quad", np.vstack(quads))],
-                       cell_data={k: [np.concatenate(v)] for k, v in data.items()})
-    meta = _metadata(result, layout, [f.grid for f in fields], scene, asperities is not None)
-    _atomic_write(mesh, path, meta, binary)
-    return path
 
 
 def _metadata_text(meta: dict) -> str:
@@ -184,44 +117,175 @@ def _metadata_text(meta: dict) -> str:
     return json.dumps(meta, ensure_ascii=True, allow_nan=False).replace("--", "-\\u002d")
 
 
-def _atomic_write(mesh, path: Path, meta: dict, binary: bool) -> None:
-    import meshio
+def _lowest_on(grid: Grid, tips: np.ndarray, sphere: np.ndarray) -> np.ndarray:
+    """For each tip (rows x, y, z, R), a lower bound of its indenter height over the grid's
+    cell centres: its height at the nearest point of that box (heights grow with the
+    distance to the tip); inf for a sphere whose base does not reach the box."""
+    x, y, z, R = tips.T
+    r2 = (np.clip(x, grid.x[0], grid.x[-1]) - x) ** 2 + (np.clip(y, grid.y[0], grid.y[-1]) - y) ** 2
+    with np.errstate(invalid="ignore"):
+        cap = np.where(r2 < R * R, z + r2 / (R + np.sqrt(np.maximum(R * R - r2, 0.0))), np.inf)
+    return np.where(sphere, cap, z + r2 / (2.0 * R))
 
-    text = _metadata_text(meta)
-    codes = " ".join(str(b) for b in text.encode("utf-8"))
-    field = (f'<FieldData>\n<DataArray type="UInt8" Name="{_META}" NumberOfTuples="{len(text.encode("utf-8"))}" '
-             f'format="ascii">\n{codes}\n</DataArray>\n</FieldData>\n')
-    with atomic_output(path) as tmp:
-        meshio.vtu.write(str(tmp), mesh, binary=binary)
-        xml = tmp.read_text(encoding="utf-8")
-        head, sep, rest = xml.partition("<UnstructuredGrid>\n")
-        if not sep:
-            raise RuntimeError("unexpected VTU layout from meshio: no <UnstructuredGrid> line")
-        head = head.replace("?>\n", f"?>\n<!-- twoscale {__version__} (units mm, N, MPa) {text} -->\n", 1)
-        tmp.write_text(head + sep + field + rest, encoding="utf-8")
+
+def _tip_table(asperities: Sequence[Asperity]) -> tuple[np.ndarray, np.ndarray]:
+    """Rows (x, y, z, R) of the asperities, mm, and which are spheres (built once per file)."""
+    tips = np.array([[a.x, a.y, a.z, a.R] for a in asperities], float).reshape(-1, 4)
+    return tips, np.array([a.shape == "sphere" for a in asperities], bool)
+
+
+def _indenter_height(grid: Grid, asperities: Sequence[Asperity], table, tilt: Tilt | None) -> np.ndarray:
+    """Lowest indenter height at the cell centres (inf where none has material), mm, as
+    :func:`twoscale.indenters.surface_on` gives it; indenters are taken lowest bound first
+    and stop once none can be lower anywhere, and a sphere is evaluated only under its
+    base, so thousands of tips on thousands of patches stay cheap. ``table``:
+    :func:`_tip_table` of ``asperities``."""
+    tips, sphere = table
+    low = _lowest_on(grid, tips, sphere)
+    X, Y = grid.centres()
+    z = np.full(grid.shape, np.inf)
+    for k in np.argsort(low, kind="stable"):
+        if not low[k] < z.max():  # neither this indenter nor the ones after it can be lowest anywhere
+            break
+        a = asperities[k]
+        i0, j0, i1, j1 = 0, 0, grid.nx, grid.ny
+        if sphere[k]:
+            i0, i1 = np.searchsorted(grid.x, [a.x - a.R, a.x + a.R])
+            j0, j1 = np.searchsorted(grid.y, [a.y - a.R, a.y + a.R])
+        win = (slice(j0, j1), slice(i0, i1))
+        np.minimum(z[win], a.height(X[win], Y[win]), out=z[win])
+    return z if tilt is None else z + tilt.height(X, Y)
+
+
+def _cell_arrays(f: PressureField, k: int, height: np.ndarray | None) -> dict:
+    """A patch's cell arrays as written: NaN for inf, owner and patch numbered from 1."""
+    out = {"pressure_MPa": f.pressure,
+           "gap_mm": np.where(np.isfinite(f.gap), f.gap, np.nan),
+           "owner": (f.owner + 1).astype(np.int32),
+           "patch": np.full(f.grid.shape, k, dtype=np.int32)}
+    if height is not None:
+        out["indenter_height_mm"] = np.where(np.isfinite(height), height, np.nan)
+    return out
+
+
+def _replace_folder(tmp: Path, folder: Path) -> None:
+    """Put the finished folder ``tmp`` in place of ``folder`` (a previous one is removed)."""
+    old = None
+    if folder.exists():
+        old = folder.with_name(f"{tmp.name}.old")
+        folder.rename(old)
+    tmp.rename(folder)
+    if old is not None:
+        shutil.rmtree(old)
+
+
+def _check_data_folder(folder: Path) -> None:
+    if folder.exists() and (not folder.is_dir() or any(
+            not (p.is_file() and p.name.startswith("patch_") and p.suffix == ".vti") for p in folder.iterdir())):
+        raise ValueError(f"{folder} exists and holds other files than patch_*.vti: not replaced")
+
+
+def _write_images(folder: Path, fields: Sequence[PressureField], asperities, tilt, binary: bool) -> list[str]:
+    """One ``patch_NNN.vti`` per field into ``folder``, numbered from 1; returns the names."""
+    width = max(3, len(str(len(fields))))
+    names = []
+    table = None if asperities is None else _tip_table(asperities)
+    for k, f in enumerate(fields, start=1):
+        names.append(f"patch_{k:0{width}d}.vti")
+        own = {"program": "twoscale", "version": __version__, "units": UNITS, "patch": k,
+               "patches": len(fields), "grid": _grid_dict(f.grid)}
+        text = _metadata_text(own)
+        height = None if asperities is None else _indenter_height(f.grid, asperities, table, tilt)
+        write_image(folder / names[-1], f.grid, _cell_arrays(f, k, height), binary=binary,
+                    field_data={_META: np.frombuffer(text.encode("utf-8"), dtype=np.uint8)},
+                    comment=f"twoscale {__version__} (units mm, N, MPa) {text}")
+    return names
+
+
+def write_vtk(result, path: str | Path, *, layout: str = "patches",
+              asperities: Sequence[Asperity] | None = None, pivot: tuple[float, float] = (0.0, 0.0),
+              scene: Mapping[str, Any] | None = None, binary: bool = True) -> Path:
+    """Write the micro-grid fields of ``result`` as ``path`` (``.vtm``) and its images.
+
+    Parameters
+    ----------
+    result : ContactResult
+    path : path-like
+        Output multiblock file; must end in ``.vtm``. The images go into the folder of
+        the same name without the suffix (``fields.vtm`` -> ``fields/patch_001.vti``),
+        which is replaced when it holds nothing but such images.
+    layout : {"patches", "union"}, default "patches"
+        ``"patches"``: every patch as it is (overlapping patches stay separate images);
+        ``"union"``: one aligned grid covering all patches (pressures summed as in
+        :meth:`ContactResult.pressure_on`; can be large for sparse scenes).
+    asperities : sequence of Asperity, optional
+        The scene's indenters; when given, ``indenter_height_mm`` is written (with the
+        result's tilt about ``pivot`` when it has one).
+    pivot : (float, float), default (0, 0)
+        Ball-and-socket joint position, mm (used with the result's tilt).
+    scene : mapping, optional
+        The scene as plain JSON-able data, recorded in the ``.vtm``.
+    binary : bool, default True
+        Raw binary arrays (exact float64, fast) or ASCII text (exact, slower).
+
+    Returns
+    -------
+    Path of the ``.vtm`` written.
+    """
+    path = Path(path)
+    if path.suffix.lower() != ".vtm":
+        raise ValueError(f"VTK output path must end in .vtm, got {str(path)!r}")
+    if layout not in LAYOUTS:
+        raise ValueError(f"layout must be one of {LAYOUTS}, got {layout!r}")
+    view = result_view(result)
+    if not view.fields:
+        raise ValueError("result has no pressure fields to write")
+    folder = path.with_suffix("")
+    _check_data_folder(folder)
+    fields = list(view.fields) if layout == "patches" else [_union_field(view.fields)]
+    tilt = None if view.tilt is None else Tilt(alpha=view.tilt[0], beta=view.tilt[1], pivot=tuple(pivot))
+    meta = _metadata(view, layout, [f.grid for f in fields], scene, asperities is not None)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = Path(tempfile.mkdtemp(prefix=f".{folder.name}.tmp-", dir=path.parent))
+    try:
+        os.chmod(tmp, 0o777 & ~current_umask())  # mkdtemp makes it owner-only
+        names = _write_images(tmp, fields, asperities, tilt, binary)
+        _replace_folder(tmp, folder)
+    except BaseException:
+        shutil.rmtree(tmp, ignore_errors=True)
+        raise
+    blocks = [(f"patch {k}", f"{folder.name}/{name}") for k, name in enumerate(names, start=1)]
+    with atomic_output(path) as out:
+        write_multiblock(out, blocks, comment=f"twoscale {__version__} (units mm, N, MPa) {_metadata_text(meta)}")
+    return path
+
+
+def _meta_from_comment(path, comment: str) -> dict:
+    if not comment.startswith("twoscale ") or "{" not in comment:
+        raise ValueError(f"{path} was not written by twoscale (no metadata comment)")
+    return json.loads(comment[comment.index("{"):])
 
 
 def read_vtk(path: str | Path) -> VtkContent:
-    """Read a file written by :func:`write_vtk` back into patches and metadata."""
-    import meshio
-
-    mesh = meshio.read(str(path), file_format="vtu")
-    if _META not in mesh.field_data:
-        raise ValueError(f"{path} was not written by twoscale (no {_META} field)")
-    meta = json.loads(bytes(np.asarray(mesh.field_data[_META], dtype=np.uint8)).decode("utf-8"))
-    cd = {k: np.concatenate(v) for k, v in mesh.cell_data.items()}
-    fields, heights, start = [], [], 0
-    for gd in meta["grids"]:
-        g = Grid(gd["x0"], gd["y0"], gd["h"], gd["nx"], gd["ny"])
-        sl = slice(start, start + g.size)
-        start += g.size
-        gap = cd["gap_mm"][sl].reshape(g.shape)
-        fields.append(PressureField(g, cd["pressure_MPa"][sl].reshape(g.shape),
-                                    cd["owner"][sl].reshape(g.shape),
+    """Read a ``.vtm`` written by :func:`write_vtk` back into patches (owner 0-based, -1
+    for none, as in memory), indenter heights and metadata."""
+    path = Path(path)
+    if path.suffix.lower() != ".vtm":
+        raise ValueError(f"twoscale fields are read from a .vtm file, got {str(path)!r}")
+    blocks, comment = read_multiblock(path)
+    meta = _meta_from_comment(path, comment)
+    if len(blocks) != len(meta["grids"]):
+        raise ValueError(f"{path}: {len(blocks)} blocks, metadata lists {len(meta['grids'])} grids")
+    fields, heights = [], []
+    for (_, file), gd in zip(blocks, meta["grids"]):
+        image = read_image(file)
+        g, cd = image.grid, image.cell_data
+        if (g.nx, g.ny) != (gd["nx"], gd["ny"]):
+            raise ValueError(f"{file}: {g.ny} x {g.nx} cells, metadata says {gd['ny']} x {gd['nx']}")
+        g = Grid(gd["x0"], gd["y0"], gd["h"], gd["nx"], gd["ny"])  # exact values from the JSON
+        gap = cd["gap_mm"]
+        fields.append(PressureField(g, cd["pressure_MPa"], cd["owner"].astype(np.int64) - 1,
                                     np.where(np.isnan(gap), np.inf, gap)))
         if "indenter_height_mm" in cd:
-            z = cd["indenter_height_mm"][sl].reshape(g.shape)
-            heights.append(np.where(np.isnan(z), np.inf, z))
-    if start != len(cd["pressure_MPa"]):
-        raise ValueError(f"{path}: {len(cd['pressure_MPa'])} cells, metadata grids hold {start}")
+            heights.append(np.where(np.isnan(cd["indenter_height_mm"]), np.inf, cd["indenter_height_mm"]))
     return VtkContent(tuple(fields), tuple(heights) if heights else None, meta)

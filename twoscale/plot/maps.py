@@ -8,17 +8,7 @@ import numpy as np
 
 from ..results import ContactResult
 from ._figure import new_figure, save_png
-
-
-def _tips(tips) -> tuple[np.ndarray | None, np.ndarray | None]:
-    """Tip positions (N, 2) mm and radii (N,) mm (None) from an array or Asperity list."""
-    if tips is None:
-        return None, None
-    seq = list(tips)
-    if seq and hasattr(seq[0], "R"):
-        return np.array([[a.x, a.y] for a in seq], float), np.array([a.R for a in seq], float)
-    xy = np.asarray(seq, dtype=float).reshape(-1, 2)
-    return xy, None
+from .tips import FEW_TIPS, draw_bases, marker_size, number_tips, tip_positions
 
 
 def _content_box(results: Sequence[ContactResult], tips_xy, margin: float = 0.1):
@@ -42,6 +32,32 @@ def _content_box(results: Sequence[ContactResult], tips_xy, margin: float = 0.1)
     return x0 - pad, x1 + pad, y0 - pad, y1 + pad
 
 
+#: With more loaded patches than this, a map draws them as one raster (see :func:`_raster`).
+MANY_PATCHES = 50
+#: Largest side of that raster, pixels.
+RASTER_PX = 1500
+
+
+def _raster(fields) -> tuple[np.ndarray, tuple]:
+    """The loaded cells of many patches on one raster (one image instead of thousands):
+    pixels of the smallest cell size, or coarser so that no side exceeds ``RASTER_PX``;
+    each pixel shows the largest pressure of the cells whose centres it holds, MPa.
+    Returns the image and its extent (x0, x1, y0, y1), mm."""
+    b = np.array([f.grid.bounds for f in fields])
+    x0, y0 = b[:, 0].min(), b[:, 2].min()
+    wx, wy = b[:, 1].max() - x0, b[:, 3].max() - y0
+    cell = max(min(f.grid.h for f in fields), max(wx, wy) / RASTER_PX)
+    nx, ny = max(1, int(np.ceil(wx / cell - 1e-9))), max(1, int(np.ceil(wy / cell - 1e-9)))
+    image = np.zeros((ny, nx))
+    for f in fields:
+        X, Y = f.grid.centres()
+        m = f.pressure > 0
+        i = np.clip(((X[m] - x0) / cell).astype(int), 0, nx - 1)
+        j = np.clip(((Y[m] - y0) / cell).astype(int), 0, ny - 1)
+        np.maximum.at(image, (j, i), f.pressure[m])
+    return image, (x0, x0 + nx * cell, y0, y0 + ny * cell)
+
+
 def _draw(ax, result: ContactResult, norm, *, tips_xy, radii, sensor, cmap: str):
     """Draw one result's pressure (micro patches, or sensor-cell means) on ``ax``."""
     image = None
@@ -51,17 +67,22 @@ def _draw(ax, result: ContactResult, norm, *, tips_xy, radii, sensor, cmap: str)
         image = ax.imshow(np.ma.masked_less_equal(P, 0), extent=b, origin="lower", norm=norm,
                           cmap=cmap, interpolation="nearest")
     else:
-        for f in result.fields:
-            if not np.any(f.pressure > 0):
-                continue
+        loaded = [f for f in result.fields if np.any(f.pressure > 0)]
+        if len(loaded) > MANY_PATCHES:
+            P, extent = _raster(loaded)
+            image = ax.imshow(np.ma.masked_less_equal(P, 0), extent=extent, origin="lower", norm=norm,
+                              cmap=cmap, interpolation="nearest")
+        for f in loaded if len(loaded) <= MANY_PATCHES else ():
             image = ax.imshow(np.ma.masked_less_equal(f.pressure, 0), extent=f.grid.bounds,
                               origin="lower", norm=norm, cmap=cmap, interpolation="nearest")
-    if tips_xy is not None:
-        ax.plot(tips_xy[:, 0], tips_xy[:, 1], "+", color="red", ms=6, mew=1.0, label="tips")
-        if radii is not None:
-            t = np.linspace(0, 2 * np.pi, 97)
-            for (x, y), R in zip(tips_xy, radii):
-                ax.plot(x + R * np.cos(t), y + R * np.sin(t), ":", color="0.5", lw=0.6)
+    if tips_xy is not None:  # numbered crosses and bases when few; small crosses only when many
+        few = len(tips_xy) <= FEW_TIPS
+        ax.scatter(tips_xy[:, 0], tips_xy[:, 1], marker="+", color="red",
+                   s=36 if few else marker_size(len(tips_xy)) / 4, linewidths=1.0 if few else 0.4, label="tips")
+        if few and radii is not None:
+            draw_bases(ax, tips_xy, radii)
+        if few:
+            number_tips(ax, tips_xy)
     ax.set_aspect("equal")
     ax.set_xlabel("x (mm)")
     ax.set_ylabel("y (mm)")
@@ -91,8 +112,10 @@ def pressure_map(result: ContactResult, path: str | Path, *, tips=None, sensor=N
     path : path-like
         Output ``.png``.
     tips : (N, 2) array of mm or sequence of Asperity, optional
-        Tips drawn as crosses; with asperities, dotted circles of radius R as well
-        (the base of spherical indenters, as in the paper's maps).
+        Tips drawn as crosses, numbered from 1 (scene order, as in the CSV files) when
+        there are at most ``FEW_TIPS`` (30); then, with asperities, dotted circles of
+        radius R as well (the base of spherical indenters, as in the paper's maps).
+        With more tips, small crosses only.
     sensor : twoscale.sensor.Sensor, optional
         Draw the sensor-cell means instead of the micro cells.
     title : str, optional
@@ -108,7 +131,7 @@ def pressure_map(result: ContactResult, path: str | Path, *, tips=None, sensor=N
     -------
     Path of the PNG written.
     """
-    tips_xy, radii = _tips(tips)
+    tips_xy, radii = tip_positions(tips)
     fig = new_figure(size, dpi)
     ax = fig.add_axes([0.1, 0.1, 0.68, 0.8])
     cax = fig.add_axes([0.82, 0.1, 0.03, 0.8])
@@ -164,7 +187,7 @@ def compare_maps(results: Mapping[str, ContactResult], path: str | Path, *, tips
         raise ValueError("compare_maps needs at least one result, got none")
     names = list(results)
     n = len(names)
-    tips_xy, radii = _tips(tips)
+    tips_xy, radii = tip_positions(tips)
     W, H = n * panel_size + 1.5, panel_size + 0.8
     fig = new_figure((W, H), dpi)
     norm = _norm(results.values(), sensor)
