@@ -1,0 +1,91 @@
+"""Cases as tasks on ``dask.distributed``: a local cluster of worker processes, or an
+existing cluster by its scheduler's address.
+
+Each worker keeps its own :class:`~twoscale.studies.providers.ProviderCache` (a worker
+plugin), so the cases a worker runs share the bodies' influence providers. The study is
+sent to every worker once; a task receives only the case's indices and key, and returns
+its :class:`~twoscale.studies.solve.CaseRecord` to this process, which writes the case
+folder: the output folder need not be shared with the workers. Workers run one thread
+each (the solver is Python-heavy, and a block provider is not shared between threads).
+
+Imported only when a study runs on Dask: the library imports without ``distributed``.
+"""
+from __future__ import annotations
+
+import contextlib
+import logging
+from typing import Callable, Iterator
+
+import numpy as np
+from distributed import Client, LocalCluster, WorkerPlugin, as_completed, get_worker
+
+from .providers import MAX_PROVIDERS, ProviderCache
+from .solve import CaseRecord
+
+#: Name of the worker plugin that holds each worker's providers.
+PLUGIN = "twoscale-study-providers"
+
+
+class ProvidersPlugin(WorkerPlugin):
+    """Gives each worker a :class:`ProviderCache` (owned by the worker, dropped with it)."""
+
+    name = PLUGIN
+
+    def __init__(self, max_providers: int = MAX_PROVIDERS):
+        self.max_providers = max_providers
+        self.cache = None
+
+    def setup(self, worker) -> None:
+        self.cache = ProviderCache(self.max_providers)
+
+
+def case_task(study, ref: tuple, key: str) -> CaseRecord:
+    """Solve one case on a worker (its providers from the worker's plugin)."""
+    from .execute import solve_ref
+
+    return solve_ref(study, ref, key, get_worker().plugins[PLUGIN].cache)
+
+
+@contextlib.contextmanager
+def dask_client(*, workers: int = 2, scheduler: str | None = None, timeout: float = 30.0) -> Iterator[Client]:
+    """A client of the cluster at ``scheduler``, or of a new local cluster of ``workers``
+    single-threaded worker processes (closed on exit)."""
+    if scheduler is not None:
+        client = Client(scheduler, timeout=timeout)
+        try:
+            yield client
+        finally:
+            client.close()
+        return
+    cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
+                           dashboard_address=None, silence_logs=logging.ERROR)
+    try:
+        client = Client(cluster)
+        try:
+            yield client
+        finally:
+            client.close()
+    finally:
+        cluster.close()
+
+
+def run_on_dask(client: Client, study, todo: list, labels: dict, on_record: Callable[[CaseRecord], None]) -> None:
+    """Submit every ``(ref, key)`` of ``todo`` and hand each record to ``on_record`` as it
+    arrives. A task that dies with its worker is recorded as failed with the reason. On
+    any exception (Ctrl-C included) the remaining tasks are cancelled."""
+    client.register_plugin(ProvidersPlugin(), name=PLUGIN)
+    [shared] = client.scatter([study], broadcast=True, hash=False)
+    futures = {client.submit(case_task, shared, ref, key, key=f"twoscale-case-{key}", pure=False): key
+               for ref, key in todo}
+    try:
+        for fut in as_completed(futures):
+            key = futures[fut]
+            try:
+                record = fut.result()
+            except Exception as exc:  # noqa: BLE001 - the worker died or the task could not run
+                record = CaseRecord(key, labels[key], "failed", f"{type(exc).__name__} on the cluster: {exc}",
+                                    np.zeros(0, dtype=int), None, float("nan"))
+            on_record(record)
+    except BaseException:
+        client.cancel(list(futures))
+        raise
