@@ -24,25 +24,9 @@ from twoscale.studies.outputs import write_outputs
 from twoscale.studies.spec import read_study
 from twoscale.studies.store import CaseStore
 
-SCENE = """
-[material]
-E = 10.0
-nu = 0.5
-[load]
-penetration = 0.1
-[grid]
-h = 0.1
-[[asperity]]
-x = -3.0
-y = 0.0
-R = 10.0
-shape = "paraboloid"
-[[asperity]]
-x = 3.0
-y = 0.0
-R = 10.0
-shape = "paraboloid"
-"""
+from test_studies_spec import paraboloid_scene
+
+SCENE = paraboloid_scene([-3.0, 3.0])
 
 STUDY = """
 [study]

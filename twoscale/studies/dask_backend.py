@@ -24,11 +24,14 @@ from .solve import CaseRecord
 
 #: Name of the worker plugin that holds each worker's providers.
 PLUGIN = "twoscale-study-providers"
-#: glibc's trim threshold in the local workers, bytes. Dask's default (64 KiB) returns
-#: freed memory to the system at once; the solver frees and reallocates arrays of a few
-#: MB at every sweep, and the S2 case ran 1.2-1.6x slower with it (3.7 s against
-#: 2.3-3.2 s for three solves, contended).
-TRIM_THRESHOLD = 64 * 2**20
+#: glibc's trim threshold in the local workers: None leaves it unset. Dask sets it to
+#: 64 KiB, which returns freed memory to the system at once, and any explicit value also
+#: stops glibc adapting its mmap threshold, so the arrays of a few MB the solver frees and
+#: reallocates at every sweep are mapped afresh each time. On the 12-case S2 study (two
+#: workers against one process, contended) the cases' own CPU time was 1.3-1.6x the serial
+#: one with 64 MiB and 1.05-1.2x unset; three solves in one process took 3.7 s of wall time
+#: with 64 KiB against 2.3-3.2 s unset.
+TRIM_THRESHOLD = None
 
 
 class ProvidersPlugin(WorkerPlugin):

@@ -38,9 +38,12 @@ class StudyRun:
     where : str
         "serial", "local cluster of N workers" or the scheduler's address.
     seconds : float
-        Wall time of the solving (after the warm-up), s.
+        Wall time of the solving (after the warm-up; with Dask, starting the cluster
+        included), s.
     warm_seconds : dict
         Seconds spent computing each block body's correction before the cases.
+    startup_seconds : float
+        Of ``seconds``, the time to start (or reach) the Dask cluster, s (0 serially).
     """
 
     keys: tuple
@@ -49,6 +52,7 @@ class StudyRun:
     where: str
     seconds: float
     warm_seconds: dict = field(default_factory=dict)
+    startup_seconds: float = 0.0
 
 
 def solve_ref(study: Study, ref: tuple, key: str, providers: ProviderCache) -> CaseRecord:
@@ -105,6 +109,7 @@ def run_study(study: Study, out: str | Path, *, workers: int = 0, scheduler: str
     warm = _warm(study, todo, quiet)
     unique = len(set(keys))
     t0 = time.perf_counter()
+    startup = 0.0
     with CaseBar(unique, done=unique - len(todo), quiet=quiet) as bar:
         def on_record(record: CaseRecord) -> None:
             case = by_key[record.key]
@@ -123,7 +128,8 @@ def run_study(study: Study, out: str | Path, *, workers: int = 0, scheduler: str
             from .dask_backend import dask_client, run_on_dask
 
             with dask_client(workers=workers, scheduler=scheduler) as client:
+                startup = time.perf_counter() - t0
                 run_on_dask(client, study, [(c.ref, key_of[id(c)]) for c in todo],
                             {k: c.label for k, c in by_key.items()}, on_record)
             where = scheduler if scheduler is not None else f"local cluster of {workers} workers"
-    return StudyRun(tuple(keys), len(todo), unique - len(todo), where, time.perf_counter() - t0, warm)
+    return StudyRun(tuple(keys), len(todo), unique - len(todo), where, time.perf_counter() - t0, warm, startup)

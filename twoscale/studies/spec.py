@@ -37,7 +37,7 @@ from typing import Any, Mapping
 
 import numpy as np
 
-from ..io.scene_file import read_scene
+from ..io.scene_file import _check_keys, _table, read_scene
 from ..micro.policy import ITERATIONS
 from ..scene import BLOCK_BASES, BLOCK_DEFAULT_SIZE, METHODS, SceneError, check_number, check_pair
 from ..sensor import Sensor
@@ -344,20 +344,7 @@ def _sensor(t: Mapping) -> Sensor:
 
 
 # ---------------------------------------------------------------- helpers
-def _keys(path: str, table: Mapping, allowed, *, required=()) -> None:
-    where = (lambda k: f"{path}.{k}" if path else k)
-    for key in table:
-        if key not in allowed:
-            raise StudyError(f"unknown key {where(key)} = {table[key]!r} (allowed: {', '.join(allowed)})")
-    for key in required:
-        if key not in table:
-            raise StudyError(f"{where(key)} is missing (required)")
-
-
-def _table(path: str, v: Any) -> Mapping:
-    if not isinstance(v, Mapping):
-        raise StudyError(f"{path} must be a table, got {v!r}")
-    return v
+_keys = _check_keys  # the scene file's key checks: unknown keys are errors, never ignored
 
 
 def _tables(path: str, v: Any) -> list:

@@ -33,7 +33,7 @@ FINISHED = ("converged", "not-converged")
 def record_to_dict(record: CaseRecord, inputs: dict) -> dict:
     """The JSON content of ``case.json``."""
     out = {"key": record.key, "label": record.label, "status": record.status, "reason": record.reason,
-           "seconds": float(record.seconds) if np.isfinite(record.seconds) else None, "version": __version__, "units": dict(UNITS), "inputs": inputs,
+           "seconds": _seconds(record.seconds), "cpu_seconds": _seconds(record.cpu_seconds), "version": __version__, "units": dict(UNITS), "inputs": inputs,
            "tips": [int(k) for k in record.tips]}
     o = record.outcome
     if o is not None:
@@ -44,6 +44,10 @@ def record_to_dict(record: CaseRecord, inputs: dict) -> dict:
             "forces": o.forces.tolist(), "contact_areas": o.contact_areas.tolist(),
             "max_pressures": o.max_pressures.tolist()}
     return out
+
+
+def _seconds(v: float) -> float | None:
+    return float(v) if np.isfinite(v) else None
 
 
 class CaseStore:
