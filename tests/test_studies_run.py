@@ -153,3 +153,15 @@ def test_outputs_tables_and_figures(study, tmp_path):
     names = sorted(p.name for p in (out / "figures").iterdir())
     assert names == ["asperity_forces_pair_both.png", "asperity_forces_pair_left.png", "indicators_pair.png",
                      "load_approach_pair.png", "track_pair_both.png", "track_pair_left.png"]
+
+
+def test_progress_bar_without_tqdm(monkeypatch, capsys):
+    import sys
+
+    from twoscale.studies.progress import CaseBar
+
+    monkeypatch.setitem(sys.modules, "tqdm", None)      # as if tqdm were not installed
+    with CaseBar(3, done=1) as bar:
+        assert bar._bar is None and bar._plain.done == 1
+        bar.update("a case")
+        assert bar._plain.done == 2

@@ -93,6 +93,7 @@ def track(case_rows: list, tip_rows: list, scene: str, body: str, path: Path, me
         total = dict((r["distance_mm"], r["total_load_N"]) for r in rows)
         right = ax.twinx()  # the total is tens of tips' forces: its own scale
         right.plot(s, [total[x] for x in s], "k--", lw=1.5, label="total (right axis)")
+        right.set_ylim(0.0, 1.15 * max(total.values()))
         right.set_ylabel("total load (N)")
         right.legend(fontsize=7, loc="upper right")
         ax.set(ylabel="tip force (N)", title=f"{scene} on {body}, {kind} = {value:g} {'N' if kind == 'total' else 'mm'}")
