@@ -165,3 +165,30 @@ def test_progress_bar_without_tqdm(monkeypatch, capsys):
         assert bar._bar is None and bar._plain.done == 1
         bar.update("a case")
         assert bar._plain.done == 2
+
+
+def test_existing_scheduler_and_the_reference_method(tmp_path):
+    """``scheduler=ADDRESS`` runs on a cluster the caller started; ``method = "reference"``
+    solves each case on the full grid, agreeing with the two-scale cases to the
+    discretisation."""
+    import logging
+
+    from distributed import LocalCluster
+
+    (tmp_path / "scene.toml").write_text(SCENE, encoding="utf-8")
+    text = STUDY.replace('name = "two tips"', 'name = "ref"\nmethod = "reference"')
+    text = text.replace("penetration = [0.05, 0.1]", "penetration = [0.1]").replace(
+        "[[0.0, 0.0], [0.5, 0.0]]", "[[0.0, 0.0]]")
+    (tmp_path / "ref.toml").write_text(text, encoding="utf-8")
+    ref = read_study(tmp_path / "ref.toml")
+    (tmp_path / "ts.toml").write_text(text.replace('method = "reference"', ""), encoding="utf-8")
+    ts = read_study(tmp_path / "ts.toml")
+    with LocalCluster(n_workers=1, threads_per_worker=1, processes=False, dashboard_address=None,
+                      silence_logs=logging.ERROR) as cluster:
+        run = run_study(ref, tmp_path / "out", scheduler=cluster.scheduler_address, quiet=True)
+    assert run.where == cluster.scheduler_address and run.ran == 2
+    run_ts = run_study(ts, tmp_path / "out", quiet=True)
+    assert set(run_ts.keys).isdisjoint(run.keys)          # the method is an input
+    store = CaseStore(tmp_path / "out")
+    for k_ref, k_ts in zip(run.keys, run_ts.keys):
+        np.testing.assert_allclose(_forces(store, k_ref), _forces(store, k_ts), rtol=5e-3)

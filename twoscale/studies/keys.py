@@ -12,10 +12,11 @@ from __future__ import annotations
 
 import hashlib
 import json
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
-from .cases import Case
-from .spec import Study
+if TYPE_CHECKING:  # the study file's module reads scene digests from here
+    from .cases import Case
+    from .spec import Study
 
 #: Bumped when a change of the solver or of the stored record makes old results invalid.
 KEY_VERSION = 1
@@ -31,12 +32,19 @@ def scene_record(scene: Any) -> dict:
     return scene_to_dict(scene)
 
 
-def case_inputs(case: Case, study: Study) -> dict:
-    """Everything the case's result depends on, as JSON-ready data."""
+def digest(data: Any) -> str:
+    """Hex SHA-256 of JSON-ready ``data`` in canonical JSON (sorted keys, ``repr`` floats)."""
+    text = json.dumps(data, sort_keys=True, separators=(",", ":"), allow_nan=False)
+    return hashlib.sha256(text.encode("utf-8")).hexdigest()
+
+
+def case_inputs(case: "Case", study: "Study") -> dict:
+    """Everything the case's result depends on, as JSON-ready data. The scene enters by the
+    digest of its content (``StudyScene.digest``), computed once per scene."""
     fp = case.body.footprint
     return {
         "key_version": KEY_VERSION,
-        "scene": scene_record(case.scene.scene),
+        "scene": case.scene.digest,
         "influence": {k: (list(v) if isinstance(v, tuple) else v) for k, v in case.body.influence.items()},
         "footprint": {"size": None if fp.size is None else list(fp.size), "centre": list(fp.centre)},
         "load": {case.load[0]: float(case.load[1]),
@@ -49,7 +57,6 @@ def case_inputs(case: Case, study: Study) -> dict:
     }
 
 
-def case_key(case: Case, study: Study) -> str:
-    """Hex SHA-256 of the case's inputs in canonical JSON (sorted keys, ``repr`` floats)."""
-    text = json.dumps(case_inputs(case, study), sort_keys=True, separators=(",", ":"), allow_nan=False)
-    return hashlib.sha256(text.encode("utf-8")).hexdigest()
+def case_key(case: "Case", study: "Study") -> str:
+    """The case's key: the :func:`digest` of its inputs."""
+    return digest(case_inputs(case, study))

@@ -41,6 +41,7 @@ from ..io.scene_file import _check_keys, _table, read_scene
 from ..micro.policy import ITERATIONS
 from ..scene import BLOCK_BASES, BLOCK_DEFAULT_SIZE, METHODS, SceneError, check_number, check_pair
 from ..sensor import Sensor
+from .keys import digest, scene_record
 
 try:  # Python >= 3.11
     import tomllib
@@ -65,11 +66,13 @@ class StudyError(SceneError):
 
 @dataclass(frozen=True)
 class StudyScene:
-    """A scene of the study: its name, the file it came from and what the loader returned."""
+    """A scene of the study: its name, the file it came from, what the loader returned and
+    the digest of its content (:func:`twoscale.studies.keys.digest` of its record)."""
 
     name: str
     path: str
     scene: Any
+    digest: str = ""
 
 
 @dataclass(frozen=True)
@@ -209,7 +212,8 @@ def _scenes(v: Any, base: Path) -> tuple:
         path = base / t["file"]
         nm = t.get("name", Path(t["file"]).stem)
         _name(f"scene[{k}].name", nm, seen)
-        out.append(StudyScene(nm, os.fspath(path), read_scene(path)))
+        scene = read_scene(path)
+        out.append(StudyScene(nm, os.fspath(path), scene, digest(scene_record(scene))))
     return tuple(out)
 
 

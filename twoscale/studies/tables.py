@@ -108,7 +108,8 @@ def _scene_forces(rec: dict, n: int) -> np.ndarray:
 def study_record(study: Study) -> dict:
     """The study as JSON-ready data (recorded in summary.json)."""
     return {"name": study.name, "source": study.source, "method": study.method,
-            "scenes": [{"name": s.name, "file": s.path, "scene": scene_record(s.scene)} for s in study.scenes],
+            "scenes": [{"name": s.name, "file": s.path, "digest": s.digest, "scene": scene_record(s.scene)}
+                       for s in study.scenes],
             "bodies": [{"name": b.name, "influence": {k: (list(v) if isinstance(v, tuple) else v)
                                                       for k, v in b.influence.items()},
                         "footprint": {"window": None if b.footprint.size is None else list(b.footprint.size),
