@@ -192,3 +192,20 @@ def test_existing_scheduler_and_the_reference_method(tmp_path):
     store = CaseStore(tmp_path / "out")
     for k_ref, k_ts in zip(run.keys, run_ts.keys):
         np.testing.assert_allclose(_forces(store, k_ref), _forces(store, k_ts), rtol=5e-3)
+
+
+def test_non_converged_case_is_recorded_with_the_solver_message(tmp_path, capsys):
+    (tmp_path / "scene.toml").write_text(SCENE, encoding="utf-8")
+    text = STUDY + '[solver]\niteration = "block-gs"\nmax_sweeps = 1\ntol = 1e-14\n'
+    text = text.replace("[[0.0, 0.0], [0.5, 0.0]]", "[[0.0, 0.0]]").replace("penetration = [0.05, 0.1]",
+                                                                              "penetration = [0.1]")
+    (tmp_path / "study.toml").write_text(text, encoding="utf-8")
+    out = tmp_path / "out"
+    assert main(["study", str(tmp_path / "study.toml"), "--out", str(out), "--workers", "0", "--quiet"]) == 1
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["counts"]["not-converged"] == 2
+    assert all("reached 1 sweeps" in c["reason"] for c in summary["not_converged"])
+    assert "did not converge: block Gauss-Seidel reached 1 sweeps" in capsys.readouterr().err
+    # a result that did not converge is a result: a rerun does not solve it again
+    assert main(["study", str(tmp_path / "study.toml"), "--out", str(out), "--workers", "0", "--quiet"]) == 1
+    assert json.loads((out / "summary.json").read_text())["run"]["ran"] == 0
