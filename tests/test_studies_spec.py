@@ -171,3 +171,16 @@ def test_track_positions_are_evenly_spaced_on_the_line(study_file):
     np.testing.assert_allclose(np.hypot(*np.diff(P, axis=0).T), 2.0)
     np.testing.assert_allclose(P[-1], [2.4, 3.2])      # 4 mm along the 5 mm line
     assert dataclasses.is_dataclass(study)
+
+
+def test_without_load_each_scene_runs_its_own_cases(tmp_path, examples_dir):
+    # S2.toml lists load cases 200, 250 and 300 N under a tilting joint
+    text = (f'[[scene]]\nfile = "{(examples_dir / "S2.toml").as_posix()}"\n'
+            '[[body]]\nname = "hs"\nkind = "halfspace"\n[load]\ntilt = false\n')
+    (tmp_path / "s.toml").write_text(text, encoding="utf-8")
+    study = read_study(tmp_path / "s.toml")
+    cases = expand(study)
+    assert [c.load for c in cases] == [("total", 200.0), ("total", 250.0), ("total", 300.0)]
+    scene = case_scene(cases[1], study)
+    assert (scene.total_load, scene.tilt, scene.load_cases, len(scene.asperities)) == (250.0, False, (), 25)
+    assert scene.h == 0.1                                 # the scene's own cell size
