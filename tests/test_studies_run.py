@@ -62,7 +62,7 @@ def _forces(store, key):
 
 
 def test_dask_cluster_gives_the_one_by_one_numbers(study, tmp_path):
-    run = run_study(study, tmp_path / "out", workers=2, quiet=True)
+    run = run_study(study, tmp_path / "out", workers=2, batch=3, quiet=True)   # tasks of 3, 3 and 2 cases
     assert run.ran == 8 and run.skipped == 0 and "2 workers" in run.where
     store = CaseStore(tmp_path / "out")
     for case, key in zip(expand(study), run.keys):

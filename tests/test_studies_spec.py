@@ -142,7 +142,9 @@ def test_reference_method_refuses_twoscale_options(study_file):
 def test_bad_workers_and_missing_dependencies_exit_2(study_file, capsys, monkeypatch, tmp_path):
     out = tmp_path / "out"
     assert main(["study", study_file(), "--out", str(out), "--workers", "-1"]) == 2
-    assert "--workers" in capsys.readouterr().err
+    assert "--workers must be an integer >= 0, got '-1'" in capsys.readouterr().err
+    assert main(["study", study_file(), "--out", str(out), "--batch", "0"]) == 2
+    assert "--batch must be an integer >= 1, got '0'" in capsys.readouterr().err
     from twoscale.cli import study as cli_study
 
     monkeypatch.setattr(cli_study, "missing_dependencies", lambda: ["dask[distributed]"])

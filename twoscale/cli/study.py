@@ -1,12 +1,13 @@
 """Run a parameter study: scenes x bodies x loads x positions, on Dask, resumable.
 
-``twoscale study STUDY.toml --out DIR [--workers N] [--scheduler ADDRESS] [--quiet]``
+``twoscale study STUDY.toml --out DIR [--workers N] [--scheduler ADDRESS] [--batch B] [--quiet]``
 
 The study file (TOML) lists scene files, bodies, loads (or penetrations), positions (a list
 of shifts or a straight track) and solver options; see :mod:`twoscale.studies.spec`. Each
 case is solved as a task on ``dask.distributed``: a local cluster of N worker processes
 (``--workers``, default the number of CPUs; 0 solves in this process, one case after the
-other), or an existing cluster (``--scheduler tcp://host:8786``). Each finished case is
+other), or an existing cluster (``--scheduler tcp://host:8786``); ``--batch B`` puts B
+consecutive cases in one task (default 1). Each finished case is
 written at once to ``DIR/cases/<key>/`` (atomically, under a hash of its inputs), so
 rerunning the same command skips the finished cases and solves the rest (and the failed
 ones again); Ctrl-C leaves the finished cases in place (exit code 130).
@@ -45,6 +46,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--scheduler", metavar="ADDRESS", default=None,
                         help="address of an existing Dask scheduler (e.g. tcp://host:8786) instead "
                              "of a local cluster")
+    parser.add_argument("--batch", metavar="B", default="1",
+                        help="cases per Dask task (default 1; more for large clusters: fewer, longer "
+                             "tasks; a batch's cases are written when the whole batch is done)")
     parser.add_argument("--quiet", action="store_true", help="no progress bar or summary")
 
 
@@ -53,15 +57,16 @@ def missing_dependencies() -> list[str]:
     return [pip for module, pip in NEEDS if importlib.util.find_spec(module) is None]
 
 
-def _workers(text: str | None) -> int:
+def _count(text: str | None, option: str, *, least: int, default: int) -> int:
+    """An integer option >= ``least`` (``default`` when not given); ValueError naming it."""
     if text is None:
-        return os.cpu_count() or 1
+        return default
     try:
         n = int(text)
     except ValueError:
-        n = -1
-    if n < 0:
-        raise ValueError(f"--workers must be an integer >= 0, got {text!r}")
+        n = least - 1
+    if n < least:
+        raise ValueError(f"{option} must be an integer >= {least}, got {text!r}")
     return n
 
 
@@ -76,7 +81,8 @@ def run(args: argparse.Namespace) -> int:
 
     out = Path(args.out)
     try:
-        workers = _workers(args.workers)
+        workers = _count(args.workers, "--workers", least=0, default=os.cpu_count() or 1)
+        batch = _count(args.batch, "--batch", least=1, default=1)
         if out.exists() and not out.is_dir():
             raise ValueError(f"--out {args.out!r} exists and is not a folder")
         study = read_study(args.study)
@@ -86,7 +92,7 @@ def run(args: argparse.Namespace) -> int:
     from ..studies.execute import run_study
     from ..studies.outputs import write_outputs
 
-    run_info = run_study(study, out, workers=workers, scheduler=args.scheduler, quiet=args.quiet)
+    run_info = run_study(study, out, workers=workers, scheduler=args.scheduler, batch=batch, quiet=args.quiet)
     summary = write_outputs(out, study, run_info)
     return _report(summary, run_info, out, quiet=args.quiet)
 

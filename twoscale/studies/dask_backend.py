@@ -47,11 +47,13 @@ class ProvidersPlugin(WorkerPlugin):
         self.cache = ProviderCache(self.max_providers)
 
 
-def case_task(study, ref: tuple, key: str) -> CaseRecord:
-    """Solve one case on a worker (its providers from the worker's plugin)."""
+def cases_task(study, batch: list) -> list:
+    """Solve a batch of cases, ``[(ref, key), ...]``, on a worker (its providers from the
+    worker's plugin); returns their records in order."""
     from .execute import solve_ref
 
-    return solve_ref(study, ref, key, get_worker().plugins[PLUGIN].cache)
+    providers = get_worker().plugins[PLUGIN].cache
+    return [solve_ref(study, ref, key, providers) for ref, key in batch]
 
 
 @contextlib.contextmanager
@@ -80,23 +82,27 @@ def dask_client(*, workers: int = 2, scheduler: str | None = None, timeout: floa
         cluster.close()
 
 
-def run_on_dask(client: Client, study, todo: list, labels: dict, on_record: Callable[[CaseRecord], None]) -> None:
-    """Submit every ``(ref, key)`` of ``todo`` and hand each record to ``on_record`` as it
-    arrives. A task that dies with its worker is recorded as failed with the reason. On
-    any exception (Ctrl-C included) the remaining tasks are cancelled."""
+def run_on_dask(client: Client, study, todo: list, labels: dict, on_record: Callable[[CaseRecord], None], *,
+                batch: int = 1) -> None:
+    """Submit the ``(ref, key)`` of ``todo`` in tasks of ``batch`` consecutive cases and hand
+    each record to ``on_record`` as its task returns. A task that dies with its worker
+    gives its cases failed records with the reason. On any exception (Ctrl-C included) the
+    remaining tasks are cancelled (a batch's cases are written when the whole batch is done)."""
     client.register_plugin(ProvidersPlugin(), name=PLUGIN)
     [shared] = client.scatter([study], broadcast=True, hash=False)
-    futures = {client.submit(case_task, shared, ref, key, key=f"twoscale-case-{key}", pure=False): key
-               for ref, key in todo}
+    batches = [todo[i:i + batch] for i in range(0, len(todo), batch)]
+    futures = {client.submit(cases_task, shared, b, key=f"twoscale-cases-{b[0][1]}-{len(b)}", pure=False): b
+               for b in batches}
     try:
         for fut in as_completed(futures):
-            key = futures[fut]
             try:
-                record = fut.result()
+                records = fut.result()
             except Exception as exc:  # noqa: BLE001 - the worker died or the task could not run
-                record = CaseRecord(key, labels[key], "failed", f"{type(exc).__name__} on the cluster: {exc}",
-                                    np.zeros(0, dtype=int), None, float("nan"))
-            on_record(record)
+                reason = f"{type(exc).__name__} on the cluster: {exc}"
+                records = [CaseRecord(key, labels[key], "failed", reason, np.zeros(0, dtype=int), None, float("nan"))
+                           for _, key in futures[fut]]
+            for record in records:
+                on_record(record)
     except BaseException:
         client.cancel(list(futures))
         raise

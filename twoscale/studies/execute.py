@@ -86,7 +86,7 @@ def _warm(study: Study, todo: list[Case], quiet: bool) -> dict:
 
 
 def run_study(study: Study, out: str | Path, *, workers: int = 0, scheduler: str | None = None,
-              quiet: bool = False) -> StudyRun:
+              batch: int = 1, quiet: bool = False) -> StudyRun:
     """Solve the unfinished cases of ``study`` into ``out/cases``.
 
     Parameters
@@ -99,9 +99,16 @@ def run_study(study: Study, out: str | Path, *, workers: int = 0, scheduler: str
         cluster of N worker processes. Ignored when ``scheduler`` is given.
     scheduler : str, optional
         Address of an existing Dask scheduler (e.g. ``tcp://host:8786``).
+    batch : int, default 1
+        Cases per Dask task (consecutive in case order, so a track's positions go
+        together): fewer, longer tasks for large clusters whose scheduler would otherwise
+        dispatch thousands of short tasks a second. A batch's cases are written when the
+        whole batch returns.
     quiet : bool, default False
         No progress bar.
     """
+    if isinstance(batch, bool) or not isinstance(batch, int) or batch < 1:
+        raise ValueError(f"batch must be an integer >= 1 (cases per task), got {batch!r}")
     store = CaseStore(out)
     store.clean()
     cases, keys, todo = pending(study, store)
@@ -130,6 +137,6 @@ def run_study(study: Study, out: str | Path, *, workers: int = 0, scheduler: str
             with dask_client(workers=workers, scheduler=scheduler) as client:
                 startup = time.perf_counter() - t0
                 run_on_dask(client, study, [(c.ref, key_of[id(c)]) for c in todo],
-                            {k: c.label for k, c in by_key.items()}, on_record)
+                            {k: c.label for k, c in by_key.items()}, on_record, batch=batch)
             where = scheduler if scheduler is not None else f"local cluster of {workers} workers"
     return StudyRun(tuple(keys), len(todo), unique - len(todo), where, time.perf_counter() - t0, warm, startup)
