@@ -209,3 +209,17 @@ def test_non_converged_case_is_recorded_with_the_solver_message(tmp_path, capsys
     # a result that did not converge is a result: a rerun does not solve it again
     assert main(["study", str(tmp_path / "study.toml"), "--out", str(out), "--workers", "0", "--quiet"]) == 1
     assert json.loads((out / "summary.json").read_text())["run"]["ran"] == 0
+
+
+@pytest.mark.slow
+def test_the_example_study_runs(tmp_path, examples_dir):
+    """The README's tour step: the shipped example on a 2-worker cluster (builds the
+    block's correction the first time: up to a minute)."""
+    out = tmp_path / "s2_study"
+    assert main(["study", str(examples_dir / "studies" / "study.toml"), "--out", str(out), "--workers", "2",
+                 "--quiet"]) == 0
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["counts"]["converged"] == 12
+    for c in json.loads((out / "summary.json").read_text())["indicators_percent"]:
+        assert 0 < c["e_M_percent"] < 5        # block against half-space: close, not equal
+    assert len(list((out / "figures").glob("*.png"))) == 6
