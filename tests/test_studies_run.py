@@ -223,3 +223,15 @@ def test_the_example_study_runs(tmp_path, examples_dir):
     for c in json.loads((out / "summary.json").read_text())["indicators_percent"]:
         assert 0 < c["e_M_percent"] < 5        # block against half-space: close, not equal
     assert len(list((out / "figures").glob("*.png"))) == 6
+
+
+def test_unreachable_scheduler_exits_2(study, tmp_path, capsys, monkeypatch):
+    from twoscale.studies import execute as ex
+
+    real = ex.run_study
+    monkeypatch.setattr("twoscale.studies.execute.run_study", lambda *a, **k: real(*a, **{**k, "timeout": 1.0}))
+    out = tmp_path / "out"
+    assert main(["study", study.source, "--out", str(out), "--scheduler", "tcp://127.0.0.1:1", "--quiet"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "--scheduler 'tcp://127.0.0.1:1' cannot be reached" in err
+    assert not out.exists()

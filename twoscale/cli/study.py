@@ -19,7 +19,8 @@ Needs the ``study`` extra (``pip install "twoscale[study]"``: dask.distributed, 
 
 Exit codes: 0 every case converged; 1 some case did not converge or failed (each is
 recorded with its reason, the others still run); 2 bad input (one ``error: ...`` line,
-nothing run or written); 130 interrupted.
+nothing run or written), a missing dependency, or a ``--scheduler`` that cannot be reached
+within 20 s; 130 interrupted.
 """
 from __future__ import annotations
 
@@ -92,7 +93,13 @@ def run(args: argparse.Namespace) -> int:
     from ..studies.execute import run_study
     from ..studies.outputs import write_outputs
 
-    run_info = run_study(study, out, workers=workers, scheduler=args.scheduler, batch=batch, quiet=args.quiet)
+    try:
+        run_info = run_study(study, out, workers=workers, scheduler=args.scheduler, batch=batch, quiet=args.quiet)
+    except OSError as exc:  # the scheduler's address: nothing has run
+        if args.scheduler is None:
+            raise
+        print(f"error: {exc}", file=sys.stderr)
+        return 2
     summary = write_outputs(out, study, run_info)
     return _report(summary, run_info, out, quiet=args.quiet)
 

@@ -56,12 +56,20 @@ def cases_task(study, batch: list) -> list:
     return [solve_ref(study, ref, key, providers) for ref, key in batch]
 
 
+class SchedulerError(OSError):
+    """The scheduler given by its address cannot be reached (the message names it)."""
+
+
 @contextlib.contextmanager
-def dask_client(*, workers: int = 2, scheduler: str | None = None, timeout: float = 30.0) -> Iterator[Client]:
-    """A client of the cluster at ``scheduler``, or of a new local cluster of ``workers``
-    single-threaded worker processes (closed on exit)."""
+def dask_client(*, workers: int = 2, scheduler: str | None = None, timeout: float = 20.0) -> Iterator[Client]:
+    """A client of the cluster at ``scheduler`` (reached within ``timeout`` s, else
+    :class:`SchedulerError`), or of a new local cluster of ``workers`` single-threaded
+    worker processes (closed on exit)."""
     if scheduler is not None:
-        client = Client(scheduler, timeout=timeout)
+        try:
+            client = Client(scheduler, timeout=timeout)
+        except (OSError, ValueError, TypeError) as exc:
+            raise SchedulerError(f"--scheduler {scheduler!r} cannot be reached: {exc}") from None
         try:
             yield client
         finally:

@@ -86,7 +86,7 @@ def _warm(study: Study, todo: list[Case], quiet: bool) -> dict:
 
 
 def run_study(study: Study, out: str | Path, *, workers: int = 0, scheduler: str | None = None,
-              batch: int = 1, quiet: bool = False) -> StudyRun:
+              batch: int = 1, quiet: bool = False, timeout: float = 20.0) -> StudyRun:
     """Solve the unfinished cases of ``study`` into ``out/cases``.
 
     Parameters
@@ -106,6 +106,13 @@ def run_study(study: Study, out: str | Path, *, workers: int = 0, scheduler: str
         whole batch returns.
     quiet : bool, default False
         No progress bar.
+    timeout : float, default 20
+        Seconds to reach ``scheduler``.
+
+    Raises
+    ------
+    OSError
+        ``scheduler`` cannot be reached (``dask_backend.SchedulerError``); no case has run.
     """
     if isinstance(batch, bool) or not isinstance(batch, int) or batch < 1:
         raise ValueError(f"batch must be an integer >= 1 (cases per task), got {batch!r}")
@@ -134,7 +141,7 @@ def run_study(study: Study, out: str | Path, *, workers: int = 0, scheduler: str
         else:
             from .dask_backend import dask_client, run_on_dask
 
-            with dask_client(workers=workers, scheduler=scheduler) as client:
+            with dask_client(workers=workers, scheduler=scheduler, timeout=timeout) as client:
                 startup = time.perf_counter() - t0
                 run_on_dask(client, study, [(c.ref, key_of[id(c)]) for c in todo],
                             {k: c.label for k, c in by_key.items()}, on_record, batch=batch)
