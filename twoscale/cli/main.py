@@ -31,6 +31,7 @@ SUBCOMMANDS = (
     ("paper", "twoscale.cli.paper", False),
     ("compare", "twoscale.cli.compare", False),
     ("indicators", "twoscale.cli.indicators", False),
+    ("study", "twoscale.cli.study", False),
 )
 
 

@@ -1,0 +1,120 @@
+"""Run a parameter study: scenes x bodies x loads x positions, on Dask, resumable.
+
+``twoscale study STUDY.toml --out DIR [--workers N] [--scheduler ADDRESS] [--batch B] [--quiet]``
+
+The study file (TOML) lists scene files, bodies, loads (or penetrations), positions (a list
+of shifts or a straight track) and solver options; see :mod:`twoscale.studies.spec`. Each
+case is solved as a task on ``dask.distributed``: a local cluster of N worker processes
+(``--workers``, default the number of CPUs; 0 solves in this process, one case after the
+other), or an existing cluster (``--scheduler tcp://host:8786``); ``--batch B`` puts B
+consecutive cases in one task (default 1). Each finished case is
+written at once to ``DIR/cases/<key>/`` (atomically, under a hash of its inputs), so
+rerunning the same command skips the finished cases and solves the rest (and the failed
+ones again); Ctrl-C leaves the finished cases in place (exit code 130).
+
+When the cases are done: ``DIR/cases.csv``, ``asperities.csv``, ``indicators.csv`` (and
+``.parquet``), ``summary.json`` and ``DIR/figures/*.png``, covering every finished case.
+
+Needs the ``study`` extra (``pip install "twoscale[study]"``: dask.distributed, pyarrow).
+
+Exit codes: 0 every case converged; 1 some case did not converge or failed (each is
+recorded with its reason, the others still run); 2 bad input (one ``error: ...`` line,
+nothing run or written), a missing dependency, or a ``--scheduler`` that cannot be reached
+within 20 s; 130 interrupted.
+"""
+from __future__ import annotations
+
+import argparse
+import importlib.util
+import os
+import sys
+from pathlib import Path
+
+#: What ``twoscale study`` needs beyond the core, as (module, pip name).
+NEEDS = (("distributed", "dask[distributed]"), ("pyarrow", "pyarrow"))
+#: Failed or non-converged cases listed on stderr before the list is cut short.
+MAX_LISTED = 10
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """Arguments of ``twoscale study``."""
+    parser.add_argument("study", metavar="STUDY.toml", help="study file (TOML; units mm, N, MPa)")
+    parser.add_argument("--out", metavar="DIR", required=True,
+                        help="output folder (created; a rerun resumes in it)")
+    parser.add_argument("--workers", metavar="N", default=None,
+                        help="worker processes of the local Dask cluster (default: the number of CPUs, "
+                             f"here {os.cpu_count()}); 0 solves in this process without Dask")
+    parser.add_argument("--scheduler", metavar="ADDRESS", default=None,
+                        help="address of an existing Dask scheduler (e.g. tcp://host:8786) instead "
+                             "of a local cluster")
+    parser.add_argument("--batch", metavar="B", default="1",
+                        help="cases per Dask task (default 1; more for large clusters: fewer, longer "
+                             "tasks; a batch's cases are written when the whole batch is done)")
+    parser.add_argument("--quiet", action="store_true", help="no progress bar or summary")
+
+
+def missing_dependencies() -> list[str]:
+    """pip names of the study's dependencies that are not installed."""
+    return [pip for module, pip in NEEDS if importlib.util.find_spec(module) is None]
+
+
+def _count(text: str | None, option: str, *, least: int, default: int) -> int:
+    """An integer option >= ``least`` (``default`` when not given); ValueError naming it."""
+    if text is None:
+        return default
+    try:
+        n = int(text)
+    except ValueError:
+        n = least - 1
+    if n < least:
+        raise ValueError(f"{option} must be an integer >= {least}, got {text!r}")
+    return n
+
+
+def run(args: argparse.Namespace) -> int:
+    """Run ``twoscale study``; returns the exit code (see the module doc)."""
+    missing = missing_dependencies()
+    if missing:
+        print(f"error: twoscale study needs {' and '.join(missing)}: pip install \"twoscale[study]\" "
+              f"(or pip install {' '.join(repr(m) if '[' in m else m for m in missing)})", file=sys.stderr)
+        return 2
+    from ..studies.spec import read_study
+
+    out = Path(args.out)
+    try:
+        workers = _count(args.workers, "--workers", least=0, default=os.cpu_count() or 1)
+        batch = _count(args.batch, "--batch", least=1, default=1)
+        if out.exists() and not out.is_dir():
+            raise ValueError(f"--out {args.out!r} exists and is not a folder")
+        study = read_study(args.study)
+    except ValueError as exc:  # StudyError and SceneError included
+        print(f"error: {exc}", file=sys.stderr)
+        return 2
+    from ..studies.execute import run_study
+    from ..studies.outputs import write_outputs
+
+    try:
+        run_info = run_study(study, out, workers=workers, scheduler=args.scheduler, batch=batch, quiet=args.quiet)
+    except OSError as exc:  # the scheduler's address: nothing has run
+        if args.scheduler is None:
+            raise
+        print(f"error: {exc}", file=sys.stderr)
+        return 2
+    summary = write_outputs(out, study, run_info)
+    return _report(summary, run_info, out, quiet=args.quiet)
+
+
+def _report(summary: dict, run_info, out: Path, *, quiet: bool) -> int:
+    c = summary["counts"]
+    for what, key in (("failed", "failed"), ("did not converge", "not_converged")):
+        for item in summary[key][:MAX_LISTED]:
+            print(f"warning: {item['case']} {what}: {item['reason']}", file=sys.stderr)
+        if len(summary[key]) > MAX_LISTED:
+            print(f"warning: ... and {len(summary[key]) - MAX_LISTED} more (see {out / 'summary.json'})",
+                  file=sys.stderr)
+    if not quiet:
+        print(f"{summary['cases']} cases: {c['converged']} converged, {c['not-converged']} not converged, "
+              f"{c['failed']} failed; this run solved {run_info.ran} ({run_info.where}, "
+              f"{run_info.seconds:.1f} s) and skipped {run_info.skipped} finished")
+        print(f"wrote {out}/")
+    return 0 if c["converged"] == summary["cases"] else 1

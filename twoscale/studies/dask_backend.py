@@ -1,0 +1,116 @@
+"""Cases as tasks on ``dask.distributed``: a local cluster of worker processes, or an
+existing cluster by its scheduler's address.
+
+Each worker keeps its own :class:`~twoscale.studies.providers.ProviderCache` (a worker
+plugin), so the cases a worker runs share the bodies' influence providers. The study is
+sent to every worker once; a task receives only the case's indices and key, and returns
+its :class:`~twoscale.studies.solve.CaseRecord` to this process, which writes the case
+folder: the output folder need not be shared with the workers. Workers run one thread
+each (the solver is Python-heavy, and a block provider is not shared between threads).
+
+Imported only when a study runs on Dask: the library imports without ``distributed``.
+"""
+from __future__ import annotations
+
+import contextlib
+import logging
+from typing import Callable, Iterator
+
+import numpy as np
+from distributed import Client, LocalCluster, WorkerPlugin, as_completed, get_worker
+
+from .providers import MAX_PROVIDERS, ProviderCache
+from .solve import CaseRecord
+
+#: Name of the worker plugin that holds each worker's providers.
+PLUGIN = "twoscale-study-providers"
+#: glibc's trim threshold in the local workers: None leaves it unset. Dask sets it to
+#: 64 KiB, which returns freed memory to the system at once, and any explicit value also
+#: stops glibc adapting its mmap threshold, so the arrays of a few MB the solver frees and
+#: reallocates at every sweep are mapped afresh each time. On the 12-case S2 study (two
+#: workers against one process, contended) the cases' own CPU time was 1.3-1.6x the serial
+#: one with 64 MiB and 1.05-1.2x unset; three solves in one process took 3.7 s of wall time
+#: with 64 KiB against 2.3-3.2 s unset.
+TRIM_THRESHOLD = None
+
+
+class ProvidersPlugin(WorkerPlugin):
+    """Gives each worker a :class:`ProviderCache` (owned by the worker, dropped with it)."""
+
+    name = PLUGIN
+
+    def __init__(self, max_providers: int = MAX_PROVIDERS):
+        self.max_providers = max_providers
+        self.cache = None
+
+    def setup(self, worker) -> None:
+        self.cache = ProviderCache(self.max_providers)
+
+
+def cases_task(study, batch: list) -> list:
+    """Solve a batch of cases, ``[(ref, key), ...]``, on a worker (its providers from the
+    worker's plugin); returns their records in order."""
+    from .execute import solve_ref
+
+    providers = get_worker().plugins[PLUGIN].cache
+    return [solve_ref(study, ref, key, providers) for ref, key in batch]
+
+
+class SchedulerError(OSError):
+    """The scheduler given by its address cannot be reached (the message names it)."""
+
+
+@contextlib.contextmanager
+def dask_client(*, workers: int = 2, scheduler: str | None = None, timeout: float = 20.0) -> Iterator[Client]:
+    """A client of the cluster at ``scheduler`` (reached within ``timeout`` s, else
+    :class:`SchedulerError`), or of a new local cluster of ``workers`` single-threaded
+    worker processes (closed on exit)."""
+    if scheduler is not None:
+        try:
+            client = Client(scheduler, timeout=timeout)
+        except (OSError, ValueError, TypeError) as exc:
+            raise SchedulerError(f"--scheduler {scheduler!r} cannot be reached: {exc}") from None
+        try:
+            yield client
+        finally:
+            client.close()
+        return
+    import dask
+
+    with dask.config.set({"distributed.nanny.pre-spawn-environ.MALLOC_TRIM_THRESHOLD_": TRIM_THRESHOLD}):
+        cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
+                               dashboard_address=None, silence_logs=logging.ERROR)
+    try:
+        client = Client(cluster)
+        try:
+            yield client
+        finally:
+            client.close()
+    finally:
+        cluster.close()
+
+
+def run_on_dask(client: Client, study, todo: list, labels: dict, on_record: Callable[[CaseRecord], None], *,
+                batch: int = 1) -> None:
+    """Submit the ``(ref, key)`` of ``todo`` in tasks of ``batch`` consecutive cases and hand
+    each record to ``on_record`` as its task returns. A task that dies with its worker
+    gives its cases failed records with the reason. On any exception (Ctrl-C included) the
+    remaining tasks are cancelled (a batch's cases are written when the whole batch is done)."""
+    client.register_plugin(ProvidersPlugin(), name=PLUGIN)
+    [shared] = client.scatter([study], broadcast=True, hash=False)
+    batches = [todo[i:i + batch] for i in range(0, len(todo), batch)]
+    futures = {client.submit(cases_task, shared, b, key=f"twoscale-cases-{b[0][1]}-{len(b)}", pure=False): b
+               for b in batches}
+    try:
+        for fut in as_completed(futures):
+            try:
+                records = fut.result()
+            except Exception as exc:  # noqa: BLE001 - the worker died or the task could not run
+                reason = f"{type(exc).__name__} on the cluster: {exc}"
+                records = [CaseRecord(key, labels[key], "failed", reason, np.zeros(0, dtype=int), None, float("nan"))
+                           for _, key in futures[fut]]
+            for record in records:
+                on_record(record)
+    except BaseException:
+        client.cancel(list(futures))
+        raise

@@ -1,0 +1,149 @@
+"""Running a study: the cases not yet finished, in this process or on Dask, each
+written to its folder as soon as it is done.
+
+Order of work: expand the study into cases and their keys; skip the cases whose folder
+says they are finished (a rerun resumes); compute once what the block bodies need
+(:func:`~twoscale.studies.providers.warm_blocks`); then solve the rest, serially
+(``workers=0``) or as Dask tasks, writing each case's folder as its record arrives.
+Ctrl-C stops the run: the cases already written stay, the others are solved by the next
+run.
+"""
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from .cases import Case, case_at, case_scene, expand, kept_tips
+from .keys import case_inputs, case_key
+from .progress import CaseBar
+from .providers import ProviderCache, warm_blocks
+from .solve import CaseRecord, run_case
+from .spec import Study
+from .store import CaseStore
+
+
+@dataclass(frozen=True)
+class StudyRun:
+    """What one run of a study did.
+
+    Attributes
+    ----------
+    keys : tuple of str
+        The study's case keys, in case order (repeated cases share a key).
+    ran : int
+        Cases solved by this run.
+    skipped : int
+        Cases found finished and not solved again.
+    where : str
+        "serial", "local cluster of N workers" or the scheduler's address.
+    seconds : float
+        Wall time of the solving (after the warm-up; with Dask, starting the cluster
+        included), s.
+    warm_seconds : dict
+        Seconds spent computing each block body's correction before the cases.
+    startup_seconds : float
+        Of ``seconds``, the time to start (or reach) the Dask cluster, s (0 serially).
+    """
+
+    keys: tuple
+    ran: int
+    skipped: int
+    where: str
+    seconds: float
+    warm_seconds: dict = field(default_factory=dict)
+    startup_seconds: float = 0.0
+
+
+def solve_ref(study: Study, ref: tuple, key: str, providers: ProviderCache) -> CaseRecord:
+    """Solve the case of ``study`` at ``ref`` (see ``Case.ref``) and record it."""
+    case = case_at(study, *ref)
+    return run_case(key, case.label, lambda: case_scene(case, study), kept_tips(case),
+                    method=study.method, options=study.solver, providers=providers, sensor=study.sensor)
+
+
+def pending(study: Study, store: CaseStore) -> tuple[list[Case], list[str], list[Case]]:
+    """(every case, their keys, the cases to solve: unfinished, one per key)."""
+    cases = expand(study)
+    keys = [case_key(c, study) for c in cases]
+    todo, seen = [], set()
+    for c, k in zip(cases, keys):
+        if k not in seen and not store.finished(k):
+            todo.append(c)
+        seen.add(k)
+    return cases, keys, todo
+
+
+def _warm(study: Study, todo: list[Case], quiet: bool) -> dict:
+    scenes = []
+    for c in todo:
+        if c.body.influence["kind"] == "block":
+            try:
+                scenes.append(case_scene(c, study))
+            except ValueError:  # the case will fail and say why
+                continue
+    return warm_blocks(scenes, progress=not quiet) if scenes else {}
+
+
+def run_study(study: Study, out: str | Path, *, workers: int = 0, scheduler: str | None = None,
+              batch: int = 1, quiet: bool = False, timeout: float = 20.0) -> StudyRun:
+    """Solve the unfinished cases of ``study`` into ``out/cases``.
+
+    Parameters
+    ----------
+    study : Study
+    out : path
+        The study's output folder (created; reused by a rerun, which resumes).
+    workers : int, default 0
+        0: solve in this process, one case after the other. N >= 1: a local Dask
+        cluster of N worker processes. Ignored when ``scheduler`` is given.
+    scheduler : str, optional
+        Address of an existing Dask scheduler (e.g. ``tcp://host:8786``).
+    batch : int, default 1
+        Cases per Dask task (consecutive in case order, so a track's positions go
+        together): fewer, longer tasks for large clusters whose scheduler would otherwise
+        dispatch thousands of short tasks a second. A batch's cases are written when the
+        whole batch returns.
+    quiet : bool, default False
+        No progress bar.
+    timeout : float, default 20
+        Seconds to reach ``scheduler``.
+
+    Raises
+    ------
+    OSError
+        ``scheduler`` cannot be reached (``dask_backend.SchedulerError``); no case has run.
+    """
+    if isinstance(batch, bool) or not isinstance(batch, int) or batch < 1:
+        raise ValueError(f"batch must be an integer >= 1 (cases per task), got {batch!r}")
+    store = CaseStore(out)
+    store.clean()
+    cases, keys, todo = pending(study, store)
+    key_of = {id(c): k for c, k in zip(cases, keys)}
+    warm = _warm(study, todo, quiet)
+    unique = len(set(keys))
+    t0 = time.perf_counter()
+    startup = 0.0
+    with CaseBar(unique, done=unique - len(todo), quiet=quiet) as bar:
+        def on_record(record: CaseRecord) -> None:
+            case = by_key[record.key]
+            store.write(record, case_inputs(case, study))
+            bar.update(f"{record.label}: {record.status}")
+
+        by_key = {key_of[id(c)]: c for c in todo}
+        if not todo:
+            where = "nothing to solve"
+        elif scheduler is None and workers == 0:
+            providers = ProviderCache()
+            for c in todo:
+                on_record(solve_ref(study, c.ref, key_of[id(c)], providers))
+            where = "serial"
+        else:
+            from .dask_backend import dask_client, run_on_dask
+
+            with dask_client(workers=workers, scheduler=scheduler, timeout=timeout) as client:
+                startup = time.perf_counter() - t0
+                run_on_dask(client, study, [(c.ref, key_of[id(c)]) for c in todo],
+                            {k: c.label for k, c in by_key.items()}, on_record, batch=batch)
+            where = scheduler if scheduler is not None else f"local cluster of {workers} workers"
+    return StudyRun(tuple(keys), len(todo), unique - len(todo), where, time.perf_counter() - t0, warm, startup)
