@@ -10,6 +10,7 @@ control).
 from __future__ import annotations
 
 import json
+from twoscale.io.scene_file import tomllib
 import os
 import subprocess
 import sys
@@ -20,7 +21,8 @@ import pytest
 from twoscale.io.scene_file import read_scene
 
 ROOT = Path(__file__).resolve().parent.parent
-EXAMPLES = sorted((ROOT / "examples").glob("*.toml"))
+# example scenes; study files (with a [study] table) are run by the studies' tests
+EXAMPLES = sorted(p for p in (ROOT / "examples").glob("*.toml") if "study" not in tomllib.loads(p.read_text()))
 OUTPUTS = ("result.json", "fields.vtm", "pressure.png", "forces.png")
 
 

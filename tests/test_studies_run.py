@@ -155,18 +155,6 @@ def test_outputs_tables_and_figures(study, tmp_path):
                      "load_approach_pair.png", "track_pair_both.png", "track_pair_left.png"]
 
 
-def test_progress_bar_without_tqdm(monkeypatch, capsys):
-    import sys
-
-    from twoscale.studies.progress import CaseBar
-
-    monkeypatch.setitem(sys.modules, "tqdm", None)      # as if tqdm were not installed
-    with CaseBar(3, done=1) as bar:
-        assert bar._bar is None and bar._plain.done == 1
-        bar.update("a case")
-        assert bar._plain.done == 2
-
-
 def test_existing_scheduler_and_the_reference_method(tmp_path):
     """``scheduler=ADDRESS`` runs on a cluster the caller started; ``method = "reference"``
     solves each case on the full grid, agreeing with the two-scale cases to the
@@ -216,7 +204,7 @@ def test_the_example_study_runs(tmp_path, examples_dir):
     """The README's tour step: the shipped example on a 2-worker cluster (builds the
     block's correction the first time: up to a minute)."""
     out = tmp_path / "s2_study"
-    assert main(["study", str(examples_dir / "studies" / "study.toml"), "--out", str(out), "--workers", "2",
+    assert main(["study", str(examples_dir / "study.toml"), "--out", str(out), "--workers", "2",
                  "--quiet"]) == 0
     summary = json.loads((out / "summary.json").read_text())
     assert summary["counts"]["converged"] == 12

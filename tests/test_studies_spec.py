@@ -189,7 +189,7 @@ def test_without_load_each_scene_runs_its_own_cases(tmp_path, examples_dir):
 
 
 def test_the_example_study_is_valid(examples_dir):
-    study = read_study(examples_dir / "studies" / "study.toml")
+    study = read_study(examples_dir / "study.toml")
     assert study.n_cases == 12 >= 8
     assert [b.influence["kind"] for b in study.bodies] == ["halfspace", "block"]
     assert all(kept_tips(c).size == 25 for c in expand(study))   # every tip stays under both footprints

@@ -57,31 +57,37 @@ def read_scene(path: str | os.PathLike) -> Scene:
         File missing or unreadable, invalid TOML, or invalid content; the message
         starts with the file name and names the field and the value.
     """
-    try:
-        with open(path, "rb") as fh:
-            data = tomllib.load(fh)
-    except FileNotFoundError:
-        raise SceneError(f"scene file not found: {os.fspath(path)!r}") from None
-    except IsADirectoryError:
-        raise SceneError(f"scene file is a directory: {os.fspath(path)!r}") from None
-    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
-        raise SceneError(f"{os.fspath(path)}: invalid TOML: {exc}") from None
+    data = read_toml(path, "scene", SceneError)
     try:
         return scene_from_dict(data)
     except SceneError as exc:
         raise SceneError(f"{os.fspath(path)}: {exc}") from None
 
 
+def read_toml(path: str | os.PathLike, what: str, error: type[Exception]) -> dict:
+    """The TOML table of ``path``, or ``error`` with one line naming the file (missing, a
+    folder, not TOML); ``what`` names the kind of file ("scene", "study")."""
+    try:
+        with open(path, "rb") as fh:
+            return tomllib.load(fh)
+    except FileNotFoundError:
+        raise error(f"{what} file not found: {os.fspath(path)!r}") from None
+    except IsADirectoryError:
+        raise error(f"{what} file is a directory: {os.fspath(path)!r}") from None
+    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
+        raise error(f"{os.fspath(path)}: invalid TOML: {exc}") from None
+
+
 def scene_from_dict(data: Mapping[str, Any]) -> Scene:
     """Validate a scene given as nested dicts (the parsed TOML) and build a :class:`Scene`."""
-    _check_keys("", data, TOP_KEYS, required=("material", "load", "asperity"))
-    material = _material(_table("material", data["material"]))
+    check_keys("", data, TOP_KEYS, required=("material", "load", "asperity"))
+    material = _material(table_of("material", data["material"]))
     asperities = tuple(_asperity(f"asperity[{k}]", t) for k, t in enumerate(_tables("asperity", data["asperity"])))
-    load = _table("load", data["load"])
-    _check_keys("load", load, LOAD_KEYS)
-    grid = _table("grid", data.get("grid", {}))
-    _check_keys("grid", grid, GRID_KEYS)
-    influence = _table("influence", data.get("influence", {}))
+    load = table_of("load", data["load"])
+    check_keys("load", load, LOAD_KEYS)
+    grid = table_of("grid", data.get("grid", {}))
+    check_keys("grid", grid, GRID_KEYS)
+    influence = table_of("influence", data.get("influence", {}))
     if "cases" in load and isinstance(load["cases"], list) and not load["cases"]:
         # Scene() reads () as "no list"; in a file an empty list is a mistake
         raise SceneError("load.cases is empty, got [] (list at least one total load, N, or leave the key out)")
@@ -123,7 +129,7 @@ def _where(path: str, key: str) -> str:
     return f"{path}.{key}" if path else key
 
 
-def _check_keys(path: str, table: Mapping, allowed, *, required=()) -> None:
+def check_keys(path: str, table: Mapping, allowed, *, required=()) -> None:
     for key in table:
         if key not in allowed:
             raise SceneError(f"unknown key {_where(path, key)} = {table[key]!r} "
@@ -133,7 +139,7 @@ def _check_keys(path: str, table: Mapping, allowed, *, required=()) -> None:
             raise SceneError(f"{_where(path, key)} is missing (required)")
 
 
-def _table(path: str, v: Any) -> Mapping:
+def table_of(path: str, v: Any) -> Mapping:
     if not isinstance(v, Mapping):
         raise SceneError(f"{path} must be a table, got {v!r}")
     return v
@@ -145,12 +151,12 @@ def _tables(path: str, v: Any) -> list:
     if not v:
         raise SceneError(f"{path} list is empty, got [] (a scene needs at least one [[{path}]])")
     for k, t in enumerate(v):
-        _table(f"{path}[{k}]", t)
+        table_of(f"{path}[{k}]", t)
     return v
 
 
 def _material(t: Mapping) -> Material:
-    _check_keys("material", t, MATERIAL_KEYS, required=MATERIAL_KEYS)
+    check_keys("material", t, MATERIAL_KEYS, required=MATERIAL_KEYS)
     E = check_number("material.E", t["E"], positive=True, unit="MPa")
     nu = check_number("material.nu", t["nu"])
     if not -1.0 < nu <= 0.5:
@@ -159,7 +165,7 @@ def _material(t: Mapping) -> Material:
 
 
 def _asperity(path: str, t: Mapping) -> Asperity:
-    _check_keys(path, t, ASPERITY_KEYS, required=("x", "y", "R"))
+    check_keys(path, t, ASPERITY_KEYS, required=("x", "y", "R"))
     x = check_number(f"{path}.x", t["x"], unit="mm")
     y = check_number(f"{path}.y", t["y"], unit="mm")
     z = check_number(f"{path}.z", t.get("z", 0.0), unit="mm")

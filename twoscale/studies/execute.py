@@ -16,7 +16,7 @@ from pathlib import Path
 
 from .cases import Case, case_at, case_scene, expand, kept_tips
 from .keys import case_inputs, case_key
-from .progress import CaseBar
+from ..progress import Progress
 from .providers import ProviderCache, warm_blocks
 from .solve import CaseRecord, run_case
 from .spec import Study
@@ -124,11 +124,13 @@ def run_study(study: Study, out: str | Path, *, workers: int = 0, scheduler: str
     unique = len(set(keys))
     t0 = time.perf_counter()
     startup = 0.0
-    with CaseBar(unique, done=unique - len(todo), quiet=quiet) as bar:
+    with Progress(unique, label="study", quiet=quiet, delay=0.0) as bar:
+        bar.update(unique - len(todo))  # a resumed study starts with its finished cases
+
         def on_record(record: CaseRecord) -> None:
             case = by_key[record.key]
             store.write(record, case_inputs(case, study))
-            bar.update(f"{record.label}: {record.status}")
+            bar.update(note=f"{record.label}: {record.status}")
 
         by_key = {key_of[id(c)]: c for c in todo}
         if not todo:

@@ -47,9 +47,9 @@ class Outcome:
 
 def read_result(result: Any, sensor: Sensor) -> Outcome:
     """The solver's result as an :class:`Outcome`: the only place that reads a result
-    object (its fields and ``extra``)."""
+    object (its fields and typed ``details``)."""
     s = result.asperities
-    extra = getattr(result, "extra", {}) or {}
+    micro = getattr(result.details, "micro", None)
     return Outcome(
         converged=bool(result.converged), message=str(result.message),
         total_load=float(result.total_load), penetration=float(result.penetration),
@@ -57,30 +57,19 @@ def read_result(result: Any, sensor: Sensor) -> Outcome:
         forces=np.array(s.forces, dtype=float), contact_areas=np.array(s.contact_areas, dtype=float),
         max_pressures=np.array(s.max_pressures, dtype=float), sensor_map=sensor.average(result),
         h=float(result.fields[0].grid.h) if result.fields else float("nan"),
-        strategy=str(extra.get("micro_strategy", result.method)),
+        strategy=str(micro.strategy if micro is not None else result.solver),
         iterations={k: int(v) for k, v in result.iterations.items()},
         timings_s={k: float(v) for k, v in result.timings_s.items()})
 
 
 def solve_case(scene: Any, *, method: str, options: dict, providers: ProviderCache, sensor: Sensor) -> Outcome:
-    """Solve one case's scene with the provider of its body taken from ``providers``.
-
-    The memory the solve needs is checked first, as :func:`twoscale.scene.solve_scene` does.
-    """
-    from ..resources import check_memory, estimate_memory
-    from ..scene import default_h, solve_scene
+    """Solve one case's scene through :func:`twoscale.solve` with the provider of its body
+    taken from ``providers`` (the memory check and the body's region check are the
+    entry's own)."""
+    from ..api import solve
 
     opts = {k: v for k, v in options.items() if k != "h"}
-    if method != "twoscale":  # the reference builds its own grid and provider
-        provider_options = {"progress": False} if scene.influence["kind"] == "block" else None
-        return read_result(solve_scene(scene, method=method, provider_options=provider_options, **opts), sensor)
-    from ..twoscale import solve_twoscale
-
-    h = default_h(scene)
-    check_memory(estimate_memory(scene, h, method, iteration=opts.get("iteration", "auto")), option="solver.h")
-    result = solve_twoscale(providers.get(scene), scene.asperities, h=h, penetration=scene.penetration,
-                            total_load=scene.total_load, tilt=scene.tilt, pivot=scene.pivot, **opts)
-    return read_result(result, sensor)
+    return read_result(solve(scene, method=method, provider=providers.get(scene), **opts), sensor)
 
 
 @dataclass(frozen=True)

@@ -37,16 +37,11 @@ from typing import Any, Mapping
 
 import numpy as np
 
-from ..io.scene_file import _check_keys, _table, read_scene
+from ..io.scene_file import check_keys, read_scene, read_toml, table_of
 from ..micro.policy import ITERATIONS
 from ..scene import BLOCK_BASES, BLOCK_DEFAULT_SIZE, METHODS, SceneError, check_number, check_pair
 from ..sensor import Sensor
 from .keys import digest, scene_record
-
-try:  # Python >= 3.11
-    import tomllib
-except ModuleNotFoundError:  # pragma: no cover - Python 3.10
-    import tomli as tomllib
 
 #: Largest number of cases a study may expand to (checked before expanding).
 MAX_CASES = 1_000_000
@@ -160,15 +155,7 @@ def read_study(path: str | os.PathLike) -> Study:
     StudyError
         One line starting with the file name, naming the key and the bad value.
     """
-    try:
-        with open(path, "rb") as fh:
-            data = tomllib.load(fh)
-    except FileNotFoundError:
-        raise StudyError(f"study file not found: {os.fspath(path)!r}") from None
-    except IsADirectoryError:
-        raise StudyError(f"study file is a directory: {os.fspath(path)!r}") from None
-    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
-        raise StudyError(f"{os.fspath(path)}: invalid TOML: {exc}") from None
+    data = read_toml(path, "study", StudyError)
     try:
         return study_from_dict(data, base=Path(path).parent, name=Path(path).stem, source=os.fspath(path))
     except SceneError as exc:
@@ -180,19 +167,19 @@ def study_from_dict(data: Mapping, *, base: str | os.PathLike = ".", name: str =
     """Validate a study given as nested dicts (the parsed TOML); scene files are read
     relative to ``base``."""
     _keys("", data, TOP_KEYS, required=("scene", "body"))
-    head = _table("study", data.get("study", {}))
+    head = table_of("study", data.get("study", {}))
     _keys("study", head, ("name", "method"))
     method = head.get("method", "twoscale")
     if method not in METHODS:
         raise StudyError(f"study.method must be one of {METHODS}, got {method!r}")
-    load = _table("load", data.get("load", {}))
+    load = table_of("load", data.get("load", {}))
     loads, tilt = _loads(load)
-    positions, track = _positions(_table("positions", data.get("positions", {})))
+    positions, track = _positions(table_of("positions", data.get("positions", {})))
     study = Study(name=str(head.get("name", name)), method=method,
                   scenes=_scenes(data["scene"], Path(base)), bodies=_bodies(data["body"]),
                   loads=loads, tilt=tilt, positions=positions, track=track,
-                  solver=_solver(_table("solver", data.get("solver", {}))),
-                  sensor=_sensor(_table("sensor", data.get("sensor", {}))), source=source)
+                  solver=_solver(table_of("solver", data.get("solver", {}))),
+                  sensor=_sensor(table_of("sensor", data.get("sensor", {}))), source=source)
     twoscale_only = sorted(set(study.solver) - {"h", "tol"})
     if method == "reference" and twoscale_only:
         raise StudyError(f"solver.{twoscale_only[0]} is an option of the two-scale solver, not of "
@@ -348,14 +335,14 @@ def _sensor(t: Mapping) -> Sensor:
 
 
 # ---------------------------------------------------------------- helpers
-_keys = _check_keys  # the scene file's key checks: unknown keys are errors, never ignored
+_keys = check_keys  # the scene file's key checks: unknown keys are errors, never ignored
 
 
 def _tables(path: str, v: Any) -> list:
     if not isinstance(v, list) or not v:
         raise StudyError(f"{path} must be a non-empty array of tables ([[{path}]]), got {v!r}")
     for k, t in enumerate(v):
-        _table(f"{path}[{k}]", t)
+        table_of(f"{path}[{k}]", t)
     return v
 
 

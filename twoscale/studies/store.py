@@ -20,7 +20,7 @@ from pathlib import Path
 import numpy as np
 
 from .._version import __version__
-from ..io.atomic import _umask
+from ..io.atomic import current_umask
 from ..io.result_json import UNITS
 from .solve import CaseRecord
 
@@ -88,7 +88,7 @@ class CaseStore:
             (tmp / CASE_NAME).write_text(text + "\n", encoding="utf-8")
             if record.outcome is not None:
                 np.save(tmp / SENSOR_NAME, record.outcome.sensor_map, allow_pickle=False)
-            os.chmod(tmp, 0o777 & ~_umask())
+            os.chmod(tmp, 0o777 & ~current_umask())
             final = self.path(record.key)
             if final.exists():  # a failed case solved again: the old folder goes
                 old = Path(tempfile.mkdtemp(prefix=f".{record.key}.old-", dir=self.folder))
