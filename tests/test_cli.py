@@ -178,25 +178,25 @@ def _edited(old: str, new: str) -> str:
 
 
 BAD = {
-    "negative radius": (_edited("R = 10.0", "R = -3.5"), "asperity[0].R", "-3.5"),
+    "negative radius": (_edited("R = 10.0", "R = -3.5"), "asperity 1: R", "-3.5"),
     "nu above 0.5": (_edited("nu = 0.5", "nu = 0.75"), "material.nu", "0.75"),
-    "unknown key": (SPHERE_TEXT + "colour = \"red\"\n", "asperity[0].colour", "'red'"),
+    "unknown key": (SPHERE_TEXT + "colour = \"red\"\n", "asperity 1: colour", "'red'"),
     "bool as number": (_edited("E = 10.0", "E = true"), "material.E", "True"),
-    "unknown shape": (HERTZ_TEXT.format(shape="cone"), "asperity[0].shape", "'cone'"),
+    "unknown shape": (HERTZ_TEXT.format(shape="cone"), "asperity 1: shape", "'cone'"),
     "both loads": (_edited("[load]", "[load]\ntotal = 3.0"), "load.total", "3.0"),
-    "nan": (_edited("y = 0.0", "y = nan"), "asperity[0].y", "nan"),
+    "nan": (_edited("y = 0.0", "y = nan"), "asperity 1: y", "nan"),
     "no asperity": (SPHERE_TEXT.split("[[asperity]]")[0], "asperity", "missing"),
     "bad toml": ("[material\nE = 1", "invalid TOML", "line 1"),
-    "two tips at one place": (SPHERE_TEXT + "[[asperity]]\nx = 0.0\ny = -0.0\nR = 5.0\n", "asperity[1]", "(0.0, -0.0)"),
+    "two tips at one place": (SPHERE_TEXT + "[[asperity]]\nx = 0.0\ny = -0.0\nR = 5.0\n", "asperity 2", "(0.0, -0.0)"),
     # a top-level key must come before the first table in TOML
     "empty asperity list": ("asperity = []\n" + SPHERE_TEXT.split("[[asperity]]")[0], "asperity", "[]"),
-    "missing R": (_edited("R = 10.0\n", ""), "asperity[0].R", "missing"),
+    "missing R": (_edited("R = 10.0\n", ""), "asperity 1: R", "missing"),
     "missing nu": (_edited("nu = 0.5\n", ""), "material.nu", "missing"),
     "missing [material]": (_edited("[material]\nE = 10.0\nnu = 0.5\n", ""), "material", "missing"),
     "missing [load]": (_edited("[load]\npenetration = 0.5\n", ""), "load", "missing"),
     "E is a string": (_edited("E = 10.0", 'E = "10"'), "material.E", "'10'"),
-    "R infinite": (_edited("R = 10.0", "R = inf"), "asperity[0].R", "inf"),
-    "x minus infinity": (_edited("x = 0.0", "x = -inf"), "asperity[0].x", "-inf"),
+    "R infinite": (_edited("R = 10.0", "R = inf"), "asperity 1: R", "inf"),
+    "x minus infinity": (_edited("x = 0.0", "x = -inf"), "asperity 1: x", "-inf"),
     "penetration infinite": (_edited("penetration = 0.5", "penetration = inf"),
                              "load.penetration", "inf"),
     "load cases with penetration": (_edited("[load]", "[load]\ncases = [5.0]"), "load.cases", "[5.0]"),
@@ -247,7 +247,7 @@ def test_subprocess_bad_input(write_scene, tmp_path):
     proc = subprocess.run([sys.executable, "-m", "twoscale", "solve", str(path), "--out", str(out)],
                           capture_output=True, text=True, timeout=60)
     assert proc.returncode == 2
-    assert proc.stderr.count("\n") == 1 and "asperity[0].R" in proc.stderr and "-3.5" in proc.stderr
+    assert proc.stderr.count("\n") == 1 and "asperity 1: R" in proc.stderr and "-3.5" in proc.stderr
     assert proc.stdout == "" and not out.exists()
 
 

@@ -71,21 +71,21 @@ MALFORMED = {
     "unknown top-level key": (_set(("mesh",), 1), "mesh", "1"),
     "unknown material key": (_set(("material", "G"), 3.0), "material.G", "3.0"),
     "unknown load key": (_set(("load", "force"), 7.0), "load.force", "7.0"),
-    "unknown asperity key": (_set(("asperity", 1, "radius"), 5.0), "asperity[1].radius", "5.0"),
+    "unknown asperity key": (_set(("asperity", 1, "radius"), 5.0), "asperity 2: radius", "5.0"),
     "unknown grid key": (_set(("grid",), {"size": 0.1}), "grid.size", "0.1"),
     "missing material": (_del(("material",)), "material", "missing"),
     "missing load": (_del(("load",)), "load", "missing"),
     "missing asperity list": (_del(("asperity",)), "asperity", "missing"),
     "missing E": (_del(("material", "E")), "material.E", "missing"),
     "missing nu": (_del(("material", "nu")), "material.nu", "missing"),
-    "missing R": (_del(("asperity", 2, "R")), "asperity[2].R", "missing"),
-    "missing x": (_del(("asperity", 0, "x")), "asperity[0].x", "missing"),
+    "missing R": (_del(("asperity", 2, "R")), "asperity 3: R", "missing"),
+    "missing x": (_del(("asperity", 0, "x")), "asperity 1: x", "missing"),
     "E is a string": (_set(("material", "E"), "10"), "material.E", "'10'"),
     "E is a bool": (_set(("material", "E"), True), "material.E", "True"),
-    "x is a bool": (_set(("asperity", 3, "x"), True), "asperity[3].x", "True"),
-    "R is a list": (_set(("asperity", 1, "R"), [5.0]), "asperity[1].R", "[5.0]"),
-    "negative radius": (_set(("asperity", 3, "R"), -1.0), "asperity[3].R", "-1.0"),
-    "zero radius": (_set(("asperity", 2, "R"), 0.0), "asperity[2].R", "0.0"),
+    "x is a bool": (_set(("asperity", 3, "x"), True), "asperity 4: x", "True"),
+    "R is a list": (_set(("asperity", 1, "R"), [5.0]), "asperity 2: R", "[5.0]"),
+    "negative radius": (_set(("asperity", 3, "R"), -1.0), "asperity 4: R", "-1.0"),
+    "zero radius": (_set(("asperity", 2, "R"), 0.0), "asperity 3: R", "0.0"),
     "E zero": (_set(("material", "E"), 0.0), "material.E", "0.0"),
     "E negative": (_set(("material", "E"), -6.0), "material.E", "-6.0"),
     "nu above 0.5": (_set(("material", "nu"), 0.6), "material.nu", "0.6"),
@@ -105,20 +105,20 @@ MALFORMED = {
     "penetration reaches nothing": (_set(("load", "penetration"), -0.25), "load.penetration", "-0.25"),
     "empty asperity list": (_set(("asperity",), []), "asperity", "[]"),
     "asperity not a list": (_set(("asperity",), 5), "asperity", "5"),
-    "asperity entry not a table": (_set(("asperity", 1), 5), "asperity[1]", "5"),
+    "asperity entry not a table": (_set(("asperity", 1), 5), "asperity 2", "5"),
     "material not a table": (_set(("material",), 5), "material", "5"),
     "two tips at one place": (_both(_set(("asperity", 3, "x"), 30.0), _set(("asperity", 3, "y"), 0.0)),
-                              "asperity[3]", "(30.0, 0.0)"),
-    "R infinite": (_set(("asperity", 0, "R"), math.inf), "asperity[0].R", "inf"),
-    "x nan": (_set(("asperity", 1, "x"), math.nan), "asperity[1].x", "nan"),
-    "z -inf": (_set(("asperity", 2, "z"), -math.inf), "asperity[2].z", "-inf"),
+                              "asperity 4", "(30.0, 0.0)"),
+    "R infinite": (_set(("asperity", 0, "R"), math.inf), "asperity 1: R", "inf"),
+    "x nan": (_set(("asperity", 1, "x"), math.nan), "asperity 2: x", "nan"),
+    "z -inf": (_set(("asperity", 2, "z"), -math.inf), "asperity 3: z", "-inf"),
     "E nan": (_set(("material", "E"), math.nan), "material.E", "nan"),
     "penetration inf": (_set(("load", "penetration"), math.inf), "load.penetration", "inf"),
     "total nan": (_both(_del(("load", "penetration")), _set(("load", "total"), math.nan)), "load.total", "nan"),
     "h negative": (_set(("grid",), {"h": -0.1}), "grid.h", "-0.1"),
     "h infinite": (_set(("grid",), {"h": math.inf}), "grid.h", "inf"),
     "h a string": (_set(("grid",), {"h": "fine"}), "grid.h", "'fine'"),
-    "unknown shape": (_set(("asperity", 2, "shape"), "cube"), "asperity[2].shape", "'cube'"),
+    "unknown shape": (_set(("asperity", 2, "shape"), "cube"), "asperity 3: shape", "'cube'"),
     "unknown influence kind": (_set(("influence",), {"kind": "layer"}), "influence.kind", "'layer'"),
     "block option on halfspace": (_set(("influence",), {"kind": "halfspace", "base": "bonded"}),
                                   "influence.base", "'bonded'"),
@@ -189,7 +189,7 @@ def test_read_scene_from_file_and_toml_nonfinite(write_scene):
     assert read_scene(write_scene(_toml(BASE))) == scene_from_dict(BASE)
     text = _toml(BASE).replace("R = 5.0", "R = inf")  # TOML's own spelling of infinity
     path = write_scene(text, "inf.toml")
-    with pytest.raises(SceneError, match=r"inf\.toml: asperity\[1\]\.R must be a finite number .*got inf"):
+    with pytest.raises(SceneError, match=r"inf\.toml: asperity 2: R must be a finite number .*got inf"):
         read_scene(path)
 
 
@@ -277,7 +277,7 @@ def test_python_api_same_checks():
     assert scene.asperities == (a,)
     assert scene == scene_from_dict({"material": {"E": 10.0, "nu": 0.5}, "load": {"penetration": 0.5},
                                      "asperity": [{"x": 0.0, "y": 0.0, "z": 0.0, "R": 10.0}]})
-    with pytest.raises(SceneError, match="asperity\\[1\\].*-0.0"):
+    with pytest.raises(SceneError, match="asperity 2 .*-0.0"):
         Scene(material=mat, asperities=[a, Asperity(-0.0, 0.0, 1.0, 5.0)], penetration=0.5)
     with pytest.raises(SceneError, match="exactly one"):
         Scene(material=mat, asperities=[a], penetration=0.5, total_load=3.0)

@@ -5,8 +5,8 @@ the library reads no files itself. :func:`twoscale.solve` solves it (the two-sca
 method, or the classical reference solver on a full grid). Units: mm, N, MPa.
 
 Invalid data raise :class:`SceneError` (a ``ValueError``) whose one-line message names
-the field by its path in the scene file (``load.total``, ``asperity[3].R``; asperities
-are counted from 0 in file order) and the bad value.
+the field by its path in the scene file (``load.total``, ``asperity 4: R``; asperities
+numbered from 1 in file order) and the bad value.
 """
 from __future__ import annotations
 
@@ -208,13 +208,13 @@ class Scene:
             raise SceneError("asperity list is empty, got [] (a scene needs at least one [[asperity]])")
         for k, a in enumerate(asps):
             if not isinstance(a, Asperity):
-                raise SceneError(f"asperity[{k}] must be an Asperity, got {a!r}")
+                raise SceneError(f"asperity {k + 1} must be an Asperity, got {a!r}")
         seen: dict[tuple[float, float], int] = {}
         for k, a in enumerate(asps):
             key = (a.x + 0.0, a.y + 0.0)  # + 0.0 folds -0.0 into 0.0
             if key in seen:
-                raise SceneError(f"asperity[{k}] is at the same place (x, y) = ({a.x!r}, {a.y!r}) "
-                                 f"as asperity[{seen[key]}]; two tips cannot share a position")
+                raise SceneError(f"asperity {k + 1} is at the same place (x, y) = ({a.x!r}, {a.y!r}) "
+                                 f"as asperity {seen[key] + 1}; two tips cannot share a position")
             seen[key] = k
         object.__setattr__(self, "asperities", asps)
 

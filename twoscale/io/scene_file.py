@@ -13,7 +13,7 @@ The format (see README.md)::
                           shape = "sphere" (default) | "paraboloid"
 
 Every problem raises :class:`SceneError` (a ``ValueError``) with a one-line message
-naming the field path (``asperity[3].R``; asperities counted from 0 in file order) and
+naming the field path (``asperity 4: R``; asperities numbered from 1 in file order) and
 the bad value. Unknown keys are errors, never ignored.
 """
 from __future__ import annotations
@@ -82,7 +82,7 @@ def scene_from_dict(data: Mapping[str, Any]) -> Scene:
     """Validate a scene given as nested dicts (the parsed TOML) and build a :class:`Scene`."""
     check_keys("", data, TOP_KEYS, required=("material", "load", "asperity"))
     material = _material(table_of("material", data["material"]))
-    asperities = tuple(_asperity(f"asperity[{k}]", t) for k, t in enumerate(_tables("asperity", data["asperity"])))
+    asperities = tuple(_asperity(f"asperity {k}", t) for k, t in enumerate(_tables("asperity", data["asperity"]), start=1))
     load = table_of("load", data["load"])
     check_keys("load", load, LOAD_KEYS)
     grid = table_of("grid", data.get("grid", {}))
@@ -126,7 +126,10 @@ def scene_to_dict(scene: Scene) -> dict:
 
 # ---------------------------------------------------------------- helpers
 def _where(path: str, key: str) -> str:
-    return f"{path}.{key}" if path else key
+    """``load.total``; ``asperity 4: R`` for a numbered table (numbered from 1)."""
+    if not path:
+        return key
+    return f"{path}: {key}" if path[-1:].isdigit() else f"{path}.{key}"
 
 
 def check_keys(path: str, table: Mapping, allowed, *, required=()) -> None:
@@ -150,8 +153,8 @@ def _tables(path: str, v: Any) -> list:
         raise SceneError(f"{path} must be an array of tables ([[{path}]]), got {v!r}")
     if not v:
         raise SceneError(f"{path} list is empty, got [] (a scene needs at least one [[{path}]])")
-    for k, t in enumerate(v):
-        table_of(f"{path}[{k}]", t)
+    for k, t in enumerate(v, start=1):
+        table_of(f"{path} {k}", t)
     return v
 
 
@@ -166,11 +169,11 @@ def _material(t: Mapping) -> Material:
 
 def _asperity(path: str, t: Mapping) -> Asperity:
     check_keys(path, t, ASPERITY_KEYS, required=("x", "y", "R"))
-    x = check_number(f"{path}.x", t["x"], unit="mm")
-    y = check_number(f"{path}.y", t["y"], unit="mm")
-    z = check_number(f"{path}.z", t.get("z", 0.0), unit="mm")
-    R = check_number(f"{path}.R", t["R"], positive=True, unit="mm")
+    x = check_number(_where(path, "x"), t["x"], unit="mm")
+    y = check_number(_where(path, "y"), t["y"], unit="mm")
+    z = check_number(_where(path, "z"), t.get("z", 0.0), unit="mm")
+    R = check_number(_where(path, "R"), t["R"], positive=True, unit="mm")
     shape = t.get("shape", "sphere")
     if shape not in SHAPES:
-        raise SceneError(f"{path}.shape must be one of {', '.join(SHAPES)}, got {shape!r}")
+        raise SceneError(f"{_where(path, 'shape')} must be one of {', '.join(SHAPES)}, got {shape!r}")
     return Asperity(x, y, z, R, shape)
