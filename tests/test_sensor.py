@@ -179,6 +179,12 @@ def test_read_tip_forces_both_layouts(tmp_path):
     m = read_tip_forces(b)
     np.testing.assert_array_equal(m.force, [4.0, 3.0, 5.0])
     assert m.tips is None
+    c = tmp_path / "numbered.csv"   # numbered from 1, as the program's own tables
+    c.write_text("asperity,force\n2,3.0\n1,4.0\n3,5.0\n")
+    np.testing.assert_array_equal(read_tip_forces(c).force, [4.0, 3.0, 5.0])
+    c.write_text("asperity,force\n0,3.0\n1,4.0\n")
+    with pytest.raises(ValueError, match="asperity must be the integers 1..2"):
+        read_tip_forces(c)
 
 
 @pytest.mark.parametrize("text, match", [

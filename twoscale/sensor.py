@@ -311,10 +311,11 @@ def _number(s: str, path, lineno: int, column: str) -> float:
 def read_tip_forces(path: str | Path, *, n_asperities: int | None = None) -> MeasuredForces:
     """Read measured tip forces from a CSV file.
 
-    The first data row is a header naming the columns, either ``x,y,force`` (tip
-    positions in mm and forces in N, rows in asperity order) or ``index,force``
-    (0-based asperity index and force; every index from 0 to N-1 exactly once). Blank
-    lines and lines starting with ``#`` are skipped.
+    The first data row is a header naming the columns: ``x,y,force`` (tip positions in
+    mm and forces in N, rows in asperity order), ``asperity,force`` (the asperity's
+    number from 1, as in every table and file the program writes; each of 1..N exactly
+    once), or ``index,force`` (the same from 0, as Python counts). Blank lines and lines
+    starting with ``#`` are skipped.
 
     Parameters
     ----------
@@ -329,11 +330,12 @@ def read_tip_forces(path: str | Path, *, n_asperities: int | None = None) -> Mea
     """
     rows = _data_rows(Path(path))
     if not rows:
-        raise ValueError(f"{path}: no data (expected a header 'x,y,force' or 'index,force')")
+        raise ValueError(f"{path}: no data (expected a header 'x,y,force', 'asperity,force' or 'index,force')")
     (hline, header), body = rows[0], rows[1:]
     cols = [c.lower() for c in header]
-    if cols not in (["x", "y", "force"], ["index", "force"]):
-        raise ValueError(f"{path}:{hline}: header must be 'x,y,force' or 'index,force', got {','.join(header)!r}")
+    if cols not in (["x", "y", "force"], ["asperity", "force"], ["index", "force"]):
+        raise ValueError(f"{path}:{hline}: header must be 'x,y,force', 'asperity,force' or 'index,force', "
+                         f"got {','.join(header)!r}")
     if not body:
         raise ValueError(f"{path}: header but no rows")
     vals = []
@@ -344,11 +346,13 @@ def read_tip_forces(path: str | Path, *, n_asperities: int | None = None) -> Mea
         if vals[-1][-1] < 0:
             raise ValueError(f"{path}:{lineno}: force must be >= 0 (N), got {cells[-1]!r}")
     a = np.array(vals)
-    if cols[0] == "index":
-        idx = a[:, 0]
+    if cols[0] in ("asperity", "index"):
+        first = 1 if cols[0] == "asperity" else 0
+        idx = a[:, 0] - first
         n = len(idx)
         if np.any(idx != np.round(idx)) or sorted(idx.astype(int).tolist()) != list(range(n)):
-            raise ValueError(f"{path}: indices must be the integers 0..{n - 1}, each once; got {idx.tolist()}")
+            raise ValueError(f"{path}: {cols[0]} must be the integers {first}..{n - 1 + first}, each once; "
+                             f"got {a[:, 0].tolist()}")
         force = np.zeros(n)
         force[idx.astype(int)] = a[:, 1]
         tips = None

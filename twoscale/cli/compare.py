@@ -90,7 +90,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="cell size in mm, overriding [grid] h of the scene")
     parser.add_argument("--vtk", action="store_true", help="also write runs/*/fields.vtu")
     parser.add_argument("--measured-forces", metavar="CSV", default=None,
-                        help="measured tip forces (header x,y,force or index,force; N), one load case")
+                        help="measured tip forces (header x,y,force, asperity,force (from 1) or index,force (from 0); N), one load case")
     parser.add_argument("--measured-map", metavar="CSV", default=None,
                         help="measured sensor map: NY rows of NX pressures (MPa; the sensor's, default "
                              "44 x 44), first row at smallest y; without --measured-forces the tip forces "
