@@ -172,9 +172,13 @@ def _influence(scene: Scene, body: str) -> dict:
 
 # ---------------------------------------------------------------- solving
 def _solve_all(scenes, bodies, method, quiet) -> list[Run]:
+    """Every scene on every body. ``bodies`` (name -> provider) is emptied as it goes: a
+    body's provider is dropped once its solves are done, so two finite blocks (each
+    holding a factorised FEM model, ~1 GB) are never held at once."""
     runs = []
     with Progress(len(scenes) * len(bodies), label="compare", quiet=quiet) as bar:
-        for body, provider in bodies.items():
+        for body in list(bodies):
+            provider = bodies.pop(body)
             for sc in scenes:
                 sc = dataclasses.replace(sc, influence=_influence(sc, body))
                 t0 = time.perf_counter()
@@ -182,6 +186,7 @@ def _solve_all(scenes, bodies, method, quiet) -> list[Run]:
                 res = solve(sc, method=method, provider=provider, memory_limit=math.inf)
                 runs.append(Run(load_label(sc), body, sc, res, time.perf_counter() - t0))
                 bar.update(note=f"{body} {runs[-1].load}")
+            del provider
     return runs
 
 
@@ -206,7 +211,8 @@ def _providers(scene: Scene, quiet: bool) -> tuple[dict, list[str]]:
         opts = _influence(scene, body)
         try:  # the block draws its own progress line while it is built
             providers[body] = factory(scene.material, size=opts["size"], base=opts["base"],
-                                      origin=opts["origin"], progress=not quiet)
+                                      origin=opts["origin"], source_spacing=opts["source_spacing"],
+                                      progress=not quiet)
         except (ValueError, RuntimeError) as exc:
             notes.append(f"{body} could not be built: {exc}")
     return providers, notes
