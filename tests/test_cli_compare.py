@@ -24,7 +24,7 @@ def _csv_rows(path):
     return list(csv.DictReader(line for line in lines if not line.startswith("#")))
 
 
-def _fake_block(material, *, size, base, origin, progress):
+def _fake_block(material, *, size, base, origin, source_spacing, progress):
     # stands in for the finite block: the half-space itself, so every body must agree exactly
     return HalfSpace(material)
 
