@@ -36,7 +36,7 @@ exit code 130):
   ``maps_<W>N.png`` (pressure maps side by side) and ``sensor_<W>N.png`` (the same
   averaged on the sensor cells, what e_m compares) for each load, each recording the
   scene, bodies and sensor in its PNG ``Description``;
-* ``runs/<body>_<W>N/result.json`` (and ``fields.vtu`` with ``--vtk``) for each solve.
+* ``runs/<body>_<W>N/result.json`` (and ``fields.vtm`` with ``--vtk``) for each solve.
 
 Exit codes: 0 every solve converged; 1 some solve did not converge or a body could not
 be built (everything else still written, with the reason); 2 bad input (one
@@ -88,7 +88,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="solver for every body (default twoscale)")
     parser.add_argument("--h", metavar="H", default=None,
                         help="cell size in mm, overriding [grid] h of the scene")
-    parser.add_argument("--vtk", action="store_true", help="also write runs/*/fields.vtu")
+    parser.add_argument("--vtk", action="store_true", help="also write runs/*/fields.vtm")
     parser.add_argument("--measured-forces", metavar="CSV", default=None,
                         help="measured tip forces (header x,y,force, asperity,force (from 1) or index,force (from 0); N), one load case")
     parser.add_argument("--measured-map", metavar="CSV", default=None,

@@ -1,12 +1,12 @@
 """e_M and e_m between two stored solves (``twoscale indicators RUN_DIR REF_DIR``).
 
 ``RUN_DIR`` and ``REF_DIR`` are output folders of ``twoscale solve --out`` (``result.json``
-and ``fields.vtu``), e.g. the same scene on two bodies, with two methods or two cell sizes.
+and ``fields.vtm``), e.g. the same scene on two bodies, with two methods or two cell sizes.
 The indicators of docs/method.md section 5, in percent, with the reference in the denominator:
 
 * ``e_M = 100 sum_k (P_k - Pref_k)^2 / sum_k Pref_k^2`` on the per-asperity forces of
   ``result.json`` (the two runs must have as many asperities, in the same order);
-* ``e_m``: the same on the pressures of ``fields.vtu`` averaged onto the sensor cells
+* ``e_m``: the same on the pressures of ``fields.vtm`` averaged onto the sensor cells
   (default the paper's 44 x 44 cells of 1.9 mm centred on the origin; ``--sensor NX NY
   CELL``, ``--sensor-centre X Y``), over the cells loaded in either map; ``null`` when the
   reference map is zero on every cell.
