@@ -1,0 +1,167 @@
+"""A measured surface ready for the solvers: the conditioned map, its segmentation, its
+asperities, and the book of their laws.
+
+:func:`load_surface` runs the pipeline read -> condition -> segment -> asperities; the
+laws are tabulated when a solver first asks for one (:meth:`MapAsperity.law`, through
+:func:`twoscale.laws.law_for`) and kept by the surface's :class:`LawBook` (per ``E*``) and,
+when given, a :class:`~twoscale.surface.lawcache.LawCache` on disk. They do not depend on
+the load: each asperity is tabulated down to ``law_depth`` below its summit and the
+power-law continuation of :class:`~twoscale.laws.TabulatedLaw` goes beyond.
+"""
+from __future__ import annotations
+
+import hashlib
+import math
+import os
+from dataclasses import dataclass, field
+
+from ..laws import HertzLaw
+from .conditioning import condition
+from .heightmap import HeightMap, SurfaceError
+from .indenter import map_asperities
+from .lawcache import LawCache, law_key
+from .laws import LEVELS, SOLVE_TOL, LawTable, sphere_law_error, tabulate_laws
+from .reading import RawMap, read_heightmap
+from .segmentation import MIN_DISTANCE, PROMINENCE, Segmentation, segment
+from .sphere_fit import CAP_DEPTH, SphereFit
+
+#: Default depth below each summit down to which its law is tabulated, mm.
+LAW_DEPTH = 0.5
+#: Law kinds: tabulated from single-asperity solves, or the equivalent sphere's Hertz law.
+LAW_KINDS = ("tabulated", "sphere")
+#: Law tables a book keeps (one per E*).
+BOOK_ENTRIES = 4
+
+
+@dataclass(frozen=True)
+class SurfaceOptions:
+    """How a height map becomes indenters (the ``[surface]`` table of a scene, less
+    ``file``); units mm. See :func:`twoscale.surface.conditioning.condition`,
+    :func:`twoscale.surface.segmentation.segment`, :mod:`.sphere_fit` and :mod:`.laws`."""
+
+    spacing: float | None = None
+    units: str | None = None
+    fill: str = "nearest"
+    detrend: bool = False
+    crop: tuple | None = None
+    invert: bool = False
+    min_distance: float = MIN_DISTANCE
+    prominence: float = PROMINENCE
+    cap_depth: float = CAP_DEPTH
+    law: str = "tabulated"
+    law_depth: float = LAW_DEPTH
+    law_levels: int = LEVELS
+
+    def __post_init__(self) -> None:
+        if self.law not in LAW_KINDS:
+            raise SurfaceError(f"surface.law must be one of {', '.join(LAW_KINDS)}, got {self.law!r}")
+        for name in ("cap_depth", "law_depth"):
+            v = getattr(self, name)
+            if isinstance(v, bool) or not isinstance(v, (int, float)) or not (math.isfinite(v) and v > 0):
+                raise SurfaceError(f"surface.{name} must be a number > 0 (mm), got {v!r}")
+        if isinstance(self.law_levels, bool) or not isinstance(self.law_levels, int) or self.law_levels < 2:
+            raise SurfaceError(f"surface.law_levels must be an integer >= 2, got {self.law_levels!r}")
+
+
+class LawBook:
+    """The laws of one surface's asperities, tabulated once per ``E*`` (at most
+    ``BOOK_ENTRIES`` kept) and, with ``cache``, stored on disk under the key of the
+    surface (``digest``), ``E*``, ``h`` and the law options. Owned by its surface;
+    ``asperities`` is set once they exist (they refer to the book)."""
+
+    def __init__(self, digest: str, h: float, options: SurfaceOptions, cache: LawCache | None = None):
+        self.digest, self.h, self.options, self.cache = digest, float(h), options, cache
+        self.asperities: tuple = ()
+        self._tables: dict = {}
+        self.tabulated = 0   # tables computed (not read from the cache)
+
+    def table(self, material, *, progress=None) -> LawTable:
+        """The law table for ``material`` (computed, or read from the cache)."""
+        E_star = float(material.E_star)
+        if E_star in self._tables:
+            return self._tables[E_star]
+        opts = self.options
+        key = law_key(self.digest, E_star=E_star, h=self.h, delta_max=opts.law_depth, levels=opts.law_levels,
+                      tol=SOLVE_TOL)
+        table = self.cache.get(key) if self.cache is not None else None
+        if table is None:
+            table = tabulate_laws(self.asperities, material, h=self.h, delta_max=opts.law_depth,
+                                  levels=opts.law_levels, progress=progress)
+            self.tabulated += 1
+            if self.cache is not None:
+                self.cache.put(key, table)
+        if len(self._tables) >= BOOK_ENTRIES:
+            self._tables.pop(next(iter(self._tables)))
+        self._tables[E_star] = table
+        return table
+
+    def law(self, label: int, material):
+        """Law of asperity ``label`` (the ``law`` option decides which kind)."""
+        if self.options.law == "sphere":
+            return HertzLaw(self.asperities[label].R, material.E_star)
+        return self.table(material).law(label)
+
+
+@dataclass(frozen=True, eq=False)
+class MeasuredSurface:
+    """A height map as indenters; see the module docstring.
+
+    Attributes
+    ----------
+    raw : RawMap
+        The file as read (kept to condition again at another cell size: :meth:`at`).
+    options : SurfaceOptions
+    hmap : HeightMap
+        The conditioned map (mm, centred, spacing = the solver's cell size).
+    segmentation : Segmentation
+    asperities : tuple of MapAsperity
+    spheres : SphereFit
+        The equivalent spheres of the summit caps.
+    book : LawBook
+    """
+
+    raw: RawMap
+    options: SurfaceOptions
+    hmap: HeightMap
+    segmentation: Segmentation
+    asperities: tuple
+    spheres: SphereFit
+    book: LawBook = field(repr=False)
+
+    @property
+    def h(self) -> float:
+        """Spacing of the conditioned map = cell size of the solves, mm."""
+        return self.hmap.h
+
+    def at(self, h: float | None) -> "MeasuredSurface":
+        """This surface conditioned at cell size ``h`` (mm); itself when ``h`` is None or
+        its own spacing."""
+        if h is None or math.isclose(h, self.h, rel_tol=1e-12):
+            return self
+        return build_surface(self.raw, self.options, h=h, cache=self.book.cache)
+
+    def sphere_error(self, material):
+        """Error of the equivalent-sphere laws against the tabulated ones
+        (:func:`twoscale.surface.laws.sphere_law_error`)."""
+        return sphere_law_error(self.book.table(material), self.asperities)
+
+
+def build_surface(raw: RawMap, options: SurfaceOptions, *, h: float | None = None,
+                  cache: LawCache | None = None) -> MeasuredSurface:
+    """Condition, segment and make the asperities of a raw map (resampled to ``h`` mm
+    when given)."""
+    hmap: HeightMap = condition(raw, spacing=options.spacing, units=options.units, fill=options.fill,
+                                detrend=options.detrend, crop=options.crop, h=h, invert=options.invert)
+    seg: Segmentation = segment(hmap, min_distance=options.min_distance, prominence=options.prominence)
+    digest = hashlib.sha256((hmap.digest() + repr(options)).encode())
+    digest.update(seg.labels.tobytes())
+    book = LawBook(digest.hexdigest(), hmap.h, options, cache)
+    asperities, fit = map_asperities(hmap, seg, cap_depth=options.cap_depth, book=book)
+    book.asperities = asperities
+    return MeasuredSurface(raw, options, hmap, seg, asperities, fit, book)
+
+
+def load_surface(path: str | os.PathLike, options: SurfaceOptions | None = None, *, h: float | None = None,
+                 cache: LawCache | None = None) -> MeasuredSurface:
+    """Read ``path`` (:func:`twoscale.surface.reading.read_heightmap`) and build the surface."""
+    return build_surface(read_heightmap(path), options or SurfaceOptions(), h=h, cache=cache)
