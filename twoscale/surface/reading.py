@@ -14,6 +14,7 @@ A plain array's rows are y and its columns x. Heights are returned in the file's
 from __future__ import annotations
 
 import os
+import warnings
 from dataclasses import dataclass
 
 import numpy as np
@@ -154,12 +155,14 @@ def _read_instrument(name: str) -> RawMap:
         raise SurfaceError(f"{name}: not a plain format (.npy, .npz, text grid, .xyz); instrument formats "
                            f"need the optional extra: pip install \"twoscale[surfaces]\"") from None
     try:
-        topo = read_topography(name)
+        with warnings.catch_warnings():   # its netCDF reader warns about its own memory map
+            warnings.simplefilter("ignore", RuntimeWarning)
+            topo = read_topography(name)
+            z = topo.heights()
     except CannotDetectFileFormat:
         raise SurfaceError(f"{name}: unknown height map format") from None
     except Exception as exc:  # the library's readers raise many kinds: report the first line
         raise SurfaceError(f"{name}: cannot read the height map ({_first_line(exc)})") from None
-    z = topo.heights()
     z = np.ma.filled(np.ma.asarray(z, dtype=float), np.nan) if np.ma.isMaskedArray(z) else np.asarray(z, float)
     if z.ndim != 2:
         raise SurfaceError(f"{name}: a line scan (1-D), not a height map")

@@ -6,8 +6,10 @@ pass (saddle) that leads to a higher summit. Prominences are computed on the wat
 basins of every candidate maximum: passes between adjacent basins are taken from the
 basin boundaries and merged from the highest down (Kruskal's order with a union-find);
 when two groups of basins meet, the group with the lower top gets its prominence. The
-summits kept seed the final watershed (:func:`scipy.ndimage.watershed_ift`), so every
-sample belongs to exactly one asperity.
+summits kept seed the final watershed (scikit-image's priority flood,
+:func:`skimage.segmentation.watershed`), so every sample belongs to exactly one asperity.
+scipy's ``watershed_ift`` is not used: its max-arc costs tie below the lowest pass, and it
+then gave every sample below that pass to one basin (and wrapped around the array's edges).
 
 Defaults suit road textures (chippings of 4-14 mm, micro-roughness of tens of um): a
 summit per stone, the micro-roughness kept inside its basin (the micro step sees it).
@@ -19,6 +21,7 @@ from dataclasses import dataclass
 
 import numpy as np
 from scipy import ndimage
+from skimage.segmentation import watershed
 
 from .heightmap import HeightMap, SurfaceError
 
@@ -26,11 +29,6 @@ from .heightmap import HeightMap, SurfaceError
 MIN_DISTANCE = 2.0
 #: Default minimum prominence of a summit, mm (above road micro-roughness).
 PROMINENCE = 0.1
-#: Levels of the quantised heights the watershed floods (scipy's watershed takes uint16;
-#: its path costs overflow near 2^16, so both stay well below).
-_LEVELS = 16384
-#: Cost of the ring around the map (dearer than every sample).
-_BARRIER = 2 * _LEVELS
 _EIGHT = np.ones((3, 3), dtype=bool)
 _ALL = slice(None)
 _NEIGHBOURS = (((_ALL, slice(None, -1)), (_ALL, slice(1, None))),
@@ -92,25 +90,17 @@ def segment(hmap: HeightMap, *, min_distance: float = MIN_DISTANCE, prominence: 
             raise SurfaceError(f"{hmap.source or 'height map'}: segmentation {name} must be a number >= 0 (mm), "
                                f"got {v!r}")
     z = np.where(np.isnan(hmap.heights), np.nanmin(hmap.heights), hmap.heights)
-    cost = _cost(z)
     seeds = _candidates(z, min_distance / hmap.h)
-    basins = _watershed(cost, seeds)
+    basins = _watershed(z, seeds)
     prom = _prominences(z, basins, seeds)
     keep = np.flatnonzero(prom >= prominence)
     if keep.size == 0:  # the highest summit always qualifies (its prominence is the map's relief)
         keep = np.array([int(np.argmax(z[seeds[:, 0], seeds[:, 1]]))])
     order = keep[np.argsort(-z[seeds[keep, 0], seeds[keep, 1]], kind="stable")]
-    labels = _watershed(cost, seeds[order])
+    labels = _watershed(z, seeds[order])
     areas = np.bincount(labels.ravel(), minlength=order.size) * hmap.h ** 2
     return Segmentation(labels, seeds[order], z[seeds[order, 0], seeds[order, 1]], prom[order], areas,
                         int(len(seeds)), float(min_distance), float(prominence))
-
-
-def _cost(z: np.ndarray) -> np.ndarray:
-    """Depth below the top, quantised to uint16 (summits are the watershed's minima)."""
-    span = float(z.max() - z.min())
-    scaled = (z.max() - z) / span * (_LEVELS - 1) if span > 0 else np.zeros_like(z)
-    return np.round(scaled).astype(np.uint16)
 
 
 def _candidates(z: np.ndarray, radius: float) -> np.ndarray:
@@ -126,17 +116,12 @@ def _candidates(z: np.ndarray, radius: float) -> np.ndarray:
     return np.column_stack(np.unravel_index(first, z.shape)).astype(np.int64)
 
 
-def _watershed(cost: np.ndarray, seeds: np.ndarray) -> np.ndarray:
-    """Basin index 0 .. len(seeds)-1 of every sample.
-
-    scipy's watershed wraps around the array's edges (a row's last sample neighbours the
-    next row's first), so the cost is padded with a ring dearer than any sample: a path
-    through it never wins, and the ring is cut off again."""
-    padded = np.pad(cost, 1, constant_values=_BARRIER)
-    markers = np.zeros(padded.shape, dtype=np.int32)
-    markers[seeds[:, 0] + 1, seeds[:, 1] + 1] = np.arange(1, len(seeds) + 1)
-    labels = ndimage.watershed_ift(padded, markers, structure=_EIGHT)[1:-1, 1:-1]
-    return labels.astype(np.int64) - 1
+def _watershed(z: np.ndarray, seeds: np.ndarray) -> np.ndarray:
+    """Basin index 0 .. len(seeds)-1 of every sample (flooding ``-z`` from the seeds,
+    8-connected, by scikit-image's priority-flood watershed)."""
+    markers = np.zeros(z.shape, dtype=np.int64)
+    markers[seeds[:, 0], seeds[:, 1]] = np.arange(1, len(seeds) + 1)
+    return watershed(-z, markers, connectivity=2) - 1
 
 
 def _passes(z: np.ndarray, basins: np.ndarray):
