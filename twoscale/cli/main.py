@@ -28,6 +28,7 @@ SUBCOMMANDS = (
     ("paper", "twoscale.cli.paper", False),
     ("compare", "twoscale.cli.compare", False),
     ("indicators", "twoscale.cli.indicators", False),
+    ("surface", "twoscale.cli.surface", False),
 )
 
 
