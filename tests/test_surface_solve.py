@@ -114,3 +114,19 @@ def test_tilt_on_a_map():
                           pivot=(1.0, -0.5))
     _compare(two, ref, s.hmap.grid)
     assert np.allclose(two.tilt, ref.tilt, rtol=0.01, atol=1e-6)
+
+
+def test_laws_are_tabulated_only_where_pressed_and_cached(tmp_path):
+    from twoscale.surface import LawCache
+
+    h = 0.1
+    z = road(16.0, h, seed=2)
+    s = build_surface(RawMap(z, h, "mm", None, "road"), SurfaceOptions(), cache=LawCache(tmp_path))
+    res = solve_twoscale(HS, s.asperities, h=h, total_load=5.0)   # a light load: the top stones only
+    touched = int(np.count_nonzero(res.extra["local_penetrations"] > 0))
+    assert res.converged and 0 < s.book.tabulated < len(s.asperities)
+    assert s.book.tabulated >= touched
+    again = build_surface(RawMap(z, h, "mm", None, "road"), SurfaceOptions(), cache=LawCache(tmp_path))
+    res2 = solve_twoscale(HS, again.asperities, h=h, total_load=5.0)
+    assert again.book.tabulated == 0 and again.book.cache.hits == s.book.tabulated
+    assert np.array_equal(res2.asperities.forces, res.asperities.forces)

@@ -1,8 +1,9 @@
 """On-disk cache of tabulated asperity laws, keyed by the surface, the body and the cell size.
 
 Tabulating the laws of a road's asperities costs thousands of small contact solves; the
-same surface on the same body at the same cell size gives the same table, so it is kept
-in a directory as one ``.npz`` file per key. The cache is an object its caller owns
+same surface on the same body at the same cell size gives the same laws, so each
+asperity's table is kept in a directory as one small ``.npz`` file, named by its key
+(:func:`law_key` and the asperity's index). The cache is an object its caller owns
 (the command line makes one per run; the library makes none by itself), with a bound on
 the directory's size kept by a running total: the oldest tables go first.
 """

@@ -86,31 +86,43 @@ def tabulate_laws(asperities, material: Material, *, h: float, delta_max, levels
         Cell size, mm (the map's spacing after conditioning).
     delta_max : float or (N,) array
         Deepest tabulated penetration of each asperity, mm (> 0).
-    levels : int, default 6
+    levels : int, default 5
         Penetrations per asperity (halving down from ``delta_max``).
-    tol : float, default 1e-8
+    tol : float, default 1e-6
         CG tolerance of each solve.
     progress : callable, optional
         ``progress(text)`` every 50 asperities.
     """
-    if not (isinstance(levels, int) and levels >= 1):
-        raise ValueError(f"levels must be an integer >= 1, got {levels!r}")
     dmax = np.broadcast_to(np.asarray(delta_max, dtype=float), (len(asperities),))
-    if not np.all(np.isfinite(dmax) & (dmax > 0)):
-        raise ValueError(f"delta_max must be finite and > 0 (mm), got {delta_max!r}")
     provider = HalfSpace(material)
-    ratios = 2.0 ** -np.arange(levels - 1, -1, -1, dtype=float)
-    delta = np.zeros((len(asperities), levels + 1))
-    P = np.zeros_like(delta)
-    converged = True
+    rows = []
     for k, a in enumerate(asperities):
         if progress is not None and k % 50 == 0:
             progress(f"asperity laws: {k} of {len(asperities)}")
-        delta[k, 1:] = dmax[k] * ratios
-        P[k, 1:], ok = _single_asperity(provider, a, delta[k, 1:], h, tol)
-        converged &= ok
+        rows.append(tabulate_law(a, provider, h=h, delta_max=float(dmax[k]), levels=levels, tol=tol))
+    return stack_tables(rows)
+
+
+def tabulate_law(asperity, provider, *, h: float, delta_max: float, levels: int = LEVELS,
+                 tol: float = SOLVE_TOL) -> LawTable:
+    """The law of one map asperity (a one-row :class:`LawTable`) on the half-space
+    ``provider``; arguments as :func:`tabulate_laws`."""
+    if not (isinstance(levels, int) and levels >= 1):
+        raise ValueError(f"levels must be an integer >= 1, got {levels!r}")
+    if not (np.isfinite(delta_max) and delta_max > 0):
+        raise ValueError(f"delta_max must be finite and > 0 (mm), got {delta_max!r}")
+    delta = np.zeros((1, levels + 1))
+    delta[0, 1:] = delta_max * 2.0 ** -np.arange(levels - 1, -1, -1, dtype=float)
+    P = np.zeros_like(delta)
+    P[0, 1:], ok = _single_asperity(provider, asperity, delta[0, 1:], h, tol)
     _check_increasing(delta, P)
-    return LawTable(delta, P, float(material.E_star), float(h), bool(converged))
+    return LawTable(delta, P, float(provider.material.E_star), float(h), bool(ok))
+
+
+def stack_tables(rows) -> LawTable:
+    """One :class:`LawTable` of the rows of several (same ``E*`` and ``h``)."""
+    return LawTable(np.concatenate([r.delta for r in rows]), np.concatenate([r.P for r in rows]),
+                    rows[0].E_star, rows[0].h, all(r.converged for r in rows))
 
 
 def _single_asperity(provider, a, depths: np.ndarray, h: float, tol: float):

@@ -15,12 +15,16 @@ import math
 import os
 from dataclasses import dataclass, field
 
-from ..laws import HertzLaw
+import numpy as np
+
+from ..influence import HalfSpace
+from ..laws import HertzLaw, TabulatedLaw
+from ..laws.base import AsperityLaw, as_force, as_penetration
 from .conditioning import condition
 from .heightmap import HeightMap, SurfaceError
 from .indenter import map_asperities
 from .lawcache import LawCache, law_key
-from .laws import LEVELS, SOLVE_TOL, LawTable, sphere_law_error, tabulate_laws
+from .laws import LEVELS, SOLVE_TOL, LawTable, sphere_law_error, stack_tables, tabulate_law
 from .reading import RawMap, read_heightmap
 from .segmentation import MIN_DISTANCE, PROMINENCE, Segmentation, segment
 from .sphere_fit import CAP_DEPTH, SphereFit
@@ -29,8 +33,8 @@ from .sphere_fit import CAP_DEPTH, SphereFit
 LAW_DEPTH = 0.5
 #: Law kinds: tabulated from single-asperity solves, or the equivalent sphere's Hertz law.
 LAW_KINDS = ("tabulated", "sphere")
-#: Law tables a book keeps (one per E*).
-BOOK_ENTRIES = 4
+#: Asperity laws a book keeps in memory (one per asperity and E*).
+BOOK_ROWS = 100_000
 
 
 @dataclass(frozen=True)
@@ -64,42 +68,88 @@ class SurfaceOptions:
 
 
 class LawBook:
-    """The laws of one surface's asperities, tabulated once per ``E*`` (at most
-    ``BOOK_ENTRIES`` kept) and, with ``cache``, stored on disk under the key of the
-    surface (``digest``), ``E*``, ``h`` and the law options. Owned by its surface;
-    ``asperities`` is set once they exist (they refer to the book)."""
+    """The laws of one surface's asperities, each tabulated when first needed (a solve
+    asks for every law, but only the asperities its macro step presses get tabulated: see
+    :class:`LazyLaw`), kept per ``(E*, asperity)`` and, with ``cache``, on disk under the
+    key of the surface (``digest``), ``E*``, ``h`` and the law options. Owned by its
+    surface; ``asperities`` is set once they exist (they refer to the book).
+
+    Attributes
+    ----------
+    tabulated : int
+        Asperity laws computed (not read from the cache).
+    """
 
     def __init__(self, digest: str, h: float, options: SurfaceOptions, cache: LawCache | None = None):
         self.digest, self.h, self.options, self.cache = digest, float(h), options, cache
         self.asperities: tuple = ()
-        self._tables: dict = {}
-        self.tabulated = 0   # tables computed (not read from the cache)
+        self._rows: dict = {}    # (E*, label) -> one-row LawTable
+        self.tabulated = 0
 
-    def table(self, material, *, progress=None) -> LawTable:
-        """The law table for ``material`` (computed, or read from the cache)."""
-        E_star = float(material.E_star)
-        if E_star in self._tables:
-            return self._tables[E_star]
+    def _key(self, E_star: float, label: int) -> str:
         opts = self.options
-        key = law_key(self.digest, E_star=E_star, h=self.h, delta_max=opts.law_depth, levels=opts.law_levels,
-                      tol=SOLVE_TOL)
+        return law_key(self.digest, E_star=E_star, h=self.h, delta_max=opts.law_depth, levels=opts.law_levels,
+                       tol=SOLVE_TOL) + f"-{label}"
+
+    def row(self, label: int, material) -> LawTable:
+        """The tabulated law of asperity ``label`` (computed, or read from the cache)."""
+        E_star = float(material.E_star)
+        if (E_star, label) in self._rows:
+            return self._rows[(E_star, label)]
+        if len(self._rows) >= BOOK_ROWS:
+            self._rows.pop(next(iter(self._rows)))
+        key = self._key(E_star, label)
         table = self.cache.get(key) if self.cache is not None else None
         if table is None:
-            table = tabulate_laws(self.asperities, material, h=self.h, delta_max=opts.law_depth,
-                                  levels=opts.law_levels, progress=progress)
+            table = tabulate_law(self.asperities[label], HalfSpace(material), h=self.h,
+                                 delta_max=self.options.law_depth, levels=self.options.law_levels)
             self.tabulated += 1
             if self.cache is not None:
                 self.cache.put(key, table)
-        if len(self._tables) >= BOOK_ENTRIES:
-            self._tables.pop(next(iter(self._tables)))
-        self._tables[E_star] = table
+        self._rows[(E_star, label)] = table
         return table
+
+    def table(self, material, *, progress=None) -> LawTable:
+        """The laws of every asperity for ``material``."""
+        rows = []
+        for k in range(len(self.asperities)):
+            if progress is not None and k % 50 == 0:
+                progress(f"asperity laws: {k} of {len(self.asperities)}")
+            rows.append(self.row(k, material))
+        return stack_tables(rows)
 
     def law(self, label: int, material):
         """Law of asperity ``label`` (the ``law`` option decides which kind)."""
         if self.options.law == "sphere":
             return HertzLaw(self.asperities[label].R, material.E_star)
-        return self.table(material).law(label)
+        return LazyLaw(self, label, material)
+
+
+class LazyLaw(AsperityLaw):
+    """The tabulated law of one asperity, tabulated on the first evaluation that needs it
+    (a penetration or force > 0): asperities the macro step never presses cost nothing."""
+
+    def __init__(self, book: LawBook, label: int, material):
+        self.book, self.label, self.material = book, label, material
+
+    def _law(self) -> TabulatedLaw:
+        return self.book.row(self.label, self.material).law(0)
+
+    def force(self, delta):
+        d = as_penetration(delta)
+        return self._law().force(d) if np.any(d > 0) else np.zeros_like(d)
+
+    def stiffness(self, delta):
+        d = as_penetration(delta)
+        return self._law().stiffness(d) if np.any(d > 0) else np.zeros_like(d)
+
+    def penetration(self, P):
+        p = as_force(P)
+        return self._law().penetration(p) if np.any(p > 0) else np.zeros_like(p)
+
+    def complementary_energy(self, P):
+        p = as_force(P)
+        return self._law().complementary_energy(p) if np.any(p > 0) else np.zeros_like(p)
 
 
 @dataclass(frozen=True, eq=False)
