@@ -16,6 +16,7 @@ it does for spheres. The laws depend on the surface, ``E*`` and the cell size ``
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -27,6 +28,8 @@ from ..laws import HertzLaw, TabulatedLaw
 from ..material import Material
 from ..reference import solve_cg
 
+#: Half-widths of the single-asperity grids are multiples of this many cells.
+SNAP_CELLS = 4
 #: Penetrations tabulated per asperity (halving from delta_max).
 LEVELS = 5
 #: Tolerance of each single-asperity CG solve (relative gap; 1e-6 leaves the force within
@@ -132,7 +135,10 @@ def _single_asperity(provider, a, depths: np.ndarray, h: float, tol: float):
     forces = np.empty(depths.size)
     ok, previous = True, None
     for i, d in enumerate(depths):
-        r = a.reach(d) + 2.0 * h
+        # half-widths rounded up to SNAP_CELLS cells: grids of few shapes, whose kernel
+        # tables the provider reuses from one asperity to the next
+        cells = SNAP_CELLS * math.ceil((a.reach(d) / h + 2.0) / SNAP_CELLS)
+        r = cells * h
         grid = Grid.covering(a.x - r, a.x + r, a.y - r, a.y + r, h, anchor=anchor)
         start = None
         if previous is not None:

@@ -84,12 +84,21 @@ class LawBook:
         self.digest, self.h, self.options, self.cache = digest, float(h), options, cache
         self.asperities: tuple = ()
         self._rows: dict = {}    # (E*, label) -> one-row LawTable
+        self._providers: dict = {}   # E* -> HalfSpace
         self.tabulated = 0
 
     def _key(self, E_star: float, label: int) -> str:
         opts = self.options
         return law_key(self.digest, E_star=E_star, h=self.h, delta_max=opts.law_depth, levels=opts.law_levels,
                        tol=SOLVE_TOL) + f"-{label}"
+
+    def _provider(self, material) -> HalfSpace:
+        """The half-space of the single-asperity solves, one per ``E*`` (its kernel tables
+        serve every asperity)."""
+        E_star = float(material.E_star)
+        if E_star not in self._providers:
+            self._providers[E_star] = HalfSpace(material)
+        return self._providers[E_star]
 
     def row(self, label: int, material) -> LawTable:
         """The tabulated law of asperity ``label`` (computed, or read from the cache)."""
@@ -101,7 +110,7 @@ class LawBook:
         key = self._key(E_star, label)
         table = self.cache.get(key) if self.cache is not None else None
         if table is None:
-            table = tabulate_law(self.asperities[label], HalfSpace(material), h=self.h,
+            table = tabulate_law(self.asperities[label], self._provider(material), h=self.h,
                                  delta_max=self.options.law_depth, levels=self.options.law_levels)
             self.tabulated += 1
             if self.cache is not None:

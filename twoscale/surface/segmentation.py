@@ -30,6 +30,8 @@ MIN_DISTANCE = 2.0
 #: Default minimum prominence of a summit, mm (above road micro-roughness).
 PROMINENCE = 0.1
 _EIGHT = np.ones((3, 3), dtype=bool)
+#: Candidates checked at once against their disc (bounds the work array).
+_CHUNK = 2048
 _ALL = slice(None)
 _NEIGHBOURS = (((_ALL, slice(None, -1)), (_ALL, slice(1, None))),
                ((slice(None, -1), _ALL), (slice(1, None), _ALL)),
@@ -104,16 +106,31 @@ def segment(hmap: HeightMap, *, min_distance: float = MIN_DISTANCE, prominence: 
 
 
 def _candidates(z: np.ndarray, radius: float) -> np.ndarray:
-    """``(j, i)`` of the local maxima over a disc of ``radius`` cells, one per plateau."""
+    """``(j, i)`` of the samples highest over the disc of ``radius`` cells around them,
+    one per plateau. A maximum over the disc is one over the square inscribed in it, so
+    a fast (separable) square filter gives the candidates and the disc is checked on
+    those only."""
     r = max(int(math.floor(radius)), 1)
-    J, I = np.mgrid[-r:r + 1, -r:r + 1]
-    footprint = I * I + J * J <= max(radius, 1.0) ** 2
-    peak = z >= ndimage.maximum_filter(z, footprint=footprint, mode="nearest")
+    half = max(int(math.floor(radius / math.sqrt(2.0))), 1)
+    peak = z >= ndimage.maximum_filter(z, size=2 * half + 1, mode="nearest")
     plateaus, n = ndimage.label(peak, structure=_EIGHT)
     flat = plateaus.ravel()
     _, first = np.unique(flat, return_index=True)
     first = first[flat[first] > 0]
-    return np.column_stack(np.unravel_index(first, z.shape)).astype(np.int64)
+    cand = np.column_stack(np.unravel_index(first, z.shape)).astype(np.int64)
+    dj, di = np.nonzero(_disc(max(radius, 1.0), r))
+    padded = np.pad(z, r, mode="edge")
+    keep = np.zeros(len(cand), dtype=bool)
+    for lo in range(0, len(cand), _CHUNK):
+        c = cand[lo:lo + _CHUNK]
+        around = padded[c[:, 0, None] + dj[None, :], c[:, 1, None] + di[None, :]]
+        keep[lo:lo + _CHUNK] = z[c[:, 0], c[:, 1]] >= around.max(axis=1)
+    return cand[keep]
+
+
+def _disc(radius: float, r: int) -> np.ndarray:
+    J, I = np.mgrid[-r:r + 1, -r:r + 1]
+    return I * I + J * J <= radius ** 2
 
 
 def _watershed(z: np.ndarray, seeds: np.ndarray) -> np.ndarray:
