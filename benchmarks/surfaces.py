@@ -17,7 +17,10 @@ one process, one after the other, single-threaded (``OMP_NUM_THREADS=1``):
 
 Accuracy against ``ref`` (issue 16, point 7): total load and contact area (percent),
 largest per-asperity force error among the asperities carrying more than 1 % of the
-largest force (percent of their own force), L2 of the pressure field (percent).
+largest force (percent of their own force: ``force %``) and over all asperities (percent
+of the largest force, the project's per-tip measure: ``of max %``), L2 of the pressure
+field (percent). A second two-scale row runs with ``far_tol = 0.02`` instead of the
+policy's 0.1 (a fresh surface, so its laws are computed again).
 
 Usage::
 
@@ -48,14 +51,16 @@ from twoscale.twoscale import solve_twoscale  # noqa: E402
 
 MAT = Material(10.0, 0.5)
 CM_TOL = 1e-10   # pentol (mm) and forcetol (N) of ContactMechanics
+#: A tighter far-field tolerance than the policy's (0.1), run as a second two-scale row.
+TIGHT_FAR_TOL = 0.02
 
 
-def run_twoscale(z: np.ndarray, h: float, load: float) -> dict:
+def run_twoscale(z: np.ndarray, h: float, load: float, **options) -> dict:
     t0 = time.perf_counter()
     surface = build_surface(RawMap(z, h, "mm", None, "synthetic road"), SurfaceOptions())
     t1 = time.perf_counter()
     laws = _timed_laws(surface.book)
-    res = solve_twoscale(HalfSpace(MAT), surface.asperities, h=h, total_load=load)
+    res = solve_twoscale(HalfSpace(MAT), surface.asperities, h=h, total_load=load, **options)
     t2 = time.perf_counter()
     return {"surface": surface, "result": res, "segment_s": t1 - t0, "laws_s": laws["seconds"],
             "laws": surface.book.tabulated, "solve_s": t2 - t1 - laws["seconds"], "time_s": t2 - t0}
@@ -114,6 +119,7 @@ def accuracy(pressure: np.ndarray, owner: np.ndarray, ref_pressure: np.ndarray, 
             "area_pct": 100 * abs(np.count_nonzero(pressure > 0) - np.count_nonzero(ref_pressure > 0))
             / np.count_nonzero(ref_pressure > 0),
             "force_pct": 100 * float(np.max(np.abs(f - g)[big] / g[big])),
+            "force_of_max_pct": 100 * float(np.max(np.abs(f - g)) / g.max()),
             "l2_pct": 100 * float(np.linalg.norm(pressure - ref_pressure) / np.linalg.norm(ref_pressure)),
             "loaded_asperities": int(np.count_nonzero(g > 0))}
 
@@ -141,6 +147,10 @@ def main(argv=None) -> int:
     rows = {"ts": {"time_s": ts["time_s"], "converged": res.converged,
                    **accuracy(res.pressure_on(grid), owner, ref_p, args.h, len(surface.asperities))},
             "ref": {"time_s": ref["time_s"], "converged": ref["result"].converged}}
+    tight = run_twoscale(z, args.h, load, far_tol=TIGHT_FAR_TOL)   # fresh surface: its laws again
+    rows[f"ts-{TIGHT_FAR_TOL:g}"] = {
+        "time_s": tight["time_s"], "converged": tight["result"].converged,
+        **accuracy(tight["result"].pressure_on(grid), owner, ref_p, args.h, len(surface.asperities))}
     cm = None if args.no_cm else run_contact_mechanics(surface, load)
     if cm is not None:
         rows["CM"] = {"time_s": cm["time_s"], "converged": cm["converged"], "iterations": cm["iterations"],
@@ -156,7 +166,8 @@ def main(argv=None) -> int:
     _common.print_table([{"code": k, **v} for k, v in rows.items()],
                         [("code", "code", "s"), ("time_s", "time s", ".3g"), ("converged", "converged", ""),
                          ("load_pct", "load %", ".2g"), ("area_pct", "area %", ".2g"),
-                         ("force_pct", "force %", ".2g"), ("l2_pct", "L2 %", ".2g")])
+                         ("force_pct", "force %", ".2g"), ("force_of_max_pct", "of max %", ".2g"),
+                         ("l2_pct", "L2 %", ".2g")])
     ok = [record["ref_over_ts"] >= 3.0] + ([record["cm_over_ts"] >= 5.0] if cm is not None else [])
     acc = rows["ts"]
     ok.append(acc["load_pct"] <= 0.5 and acc["area_pct"] <= 0.5 and acc["force_pct"] <= 1.0 and acc["l2_pct"] <= 2.0)
