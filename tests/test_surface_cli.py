@@ -126,6 +126,13 @@ def test_solve_and_reference_on_a_map_scene(map_scene, tmp_path):
     assert np.allclose(f, g, rtol=0.01, atol=0.01 * g.max())
 
 
+def test_h_option_resamples_the_map(map_scene, tmp_path):
+    out = tmp_path / "coarse"
+    assert main(["solve", str(map_scene()), "--h", "0.2", "--out", str(out), "--quiet"]) == 0
+    res = json.loads((out / "result.json").read_text())
+    assert res["h"] == 0.2 and res["total_load"] == pytest.approx(40.0)
+
+
 def test_sphere_law_option_gives_the_same_answer(map_scene):
     # the law only guides the macro step; the micro step solves on the true heights
     tab = solve_scene(read_scene(map_scene()))

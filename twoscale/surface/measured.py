@@ -140,9 +140,12 @@ class LazyLaw(AsperityLaw):
 
     def __init__(self, book: LawBook, label: int, material):
         self.book, self.label, self.material = book, label, material
+        self._tabulated: TabulatedLaw | None = None
 
     def _law(self) -> TabulatedLaw:
-        return self.book.row(self.label, self.material).law(0)
+        if self._tabulated is None:   # built once: its interpolant costs more than an evaluation
+            self._tabulated = self.book.row(self.label, self.material).law(0)
+        return self._tabulated
 
     def force(self, delta):
         d = as_penetration(delta)
