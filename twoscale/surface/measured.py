@@ -147,21 +147,21 @@ class LazyLaw(AsperityLaw):
             self._tabulated = self.book.row(self.label, self.material).law(0)
         return self._tabulated
 
+    def _call(self, method: str, values: np.ndarray) -> np.ndarray:
+        # zero penetration or force needs no table: the law is 0 there
+        return getattr(self._law(), method)(values) if np.any(values > 0) else np.zeros_like(values)
+
     def force(self, delta):
-        d = as_penetration(delta)
-        return self._law().force(d) if np.any(d > 0) else np.zeros_like(d)
+        return self._call("force", as_penetration(delta))
 
     def stiffness(self, delta):
-        d = as_penetration(delta)
-        return self._law().stiffness(d) if np.any(d > 0) else np.zeros_like(d)
+        return self._call("stiffness", as_penetration(delta))
 
     def penetration(self, P):
-        p = as_force(P)
-        return self._law().penetration(p) if np.any(p > 0) else np.zeros_like(p)
+        return self._call("penetration", as_force(P))
 
     def complementary_energy(self, P):
-        p = as_force(P)
-        return self._law().complementary_energy(p) if np.any(p > 0) else np.zeros_like(p)
+        return self._call("complementary_energy", as_force(P))
 
 
 @dataclass(frozen=True, eq=False)
