@@ -122,6 +122,15 @@ def tabulate_law(asperity, provider, *, h: float, delta_max: float, levels: int 
     return LawTable(delta, P, float(provider.material.E_star), float(h), bool(ok))
 
 
+def _law_grid(a, d: float, h: float) -> Grid:
+    """The grid of asperity ``a``'s solve at depth ``d``: its reach plus two cells, the
+    half-width rounded up to ``SNAP_CELLS`` cells (grids of few shapes, whose kernels the
+    stacked solves and the provider share)."""
+    cells = SNAP_CELLS * math.ceil((a.reach(d) / h + 2.0) / SNAP_CELLS)
+    r = cells * h
+    return Grid.covering(a.x - r, a.x + r, a.y - r, a.y + r, h, anchor=(a.basins.grid.x0, a.basins.grid.y0))
+
+
 def stack_tables(rows) -> LawTable:
     """One :class:`LawTable` of the rows of several (same ``E*`` and ``h``)."""
     return LawTable(np.concatenate([r.delta for r in rows]), np.concatenate([r.P for r in rows]),
@@ -131,15 +140,10 @@ def stack_tables(rows) -> LawTable:
 def _single_asperity(provider, a, depths: np.ndarray, h: float, tol: float):
     """Force (N) of asperity ``a`` alone at each penetration ``depths`` (increasing, mm);
     each solve starts from the previous one's pressure."""
-    anchor = (a.basins.grid.x0, a.basins.grid.y0)
     forces = np.empty(depths.size)
     ok, previous = True, None
     for i, d in enumerate(depths):
-        # half-widths rounded up to SNAP_CELLS cells: grids of few shapes, whose kernel
-        # tables the provider reuses from one asperity to the next
-        cells = SNAP_CELLS * math.ceil((a.reach(d) / h + 2.0) / SNAP_CELLS)
-        r = cells * h
-        grid = Grid.covering(a.x - r, a.x + r, a.y - r, a.y + r, h, anchor=anchor)
+        grid = _law_grid(a, d, h)
         start = None
         if previous is not None:
             start = np.zeros(grid.shape)
