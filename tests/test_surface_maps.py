@@ -144,3 +144,12 @@ def test_every_sample_in_one_connected_basin():
         assert ndimage.label(seg.labels == k, structure=np.ones((3, 3)))[1] == 1
         j, i = seg.summits[k]
         assert seg.labels[j, i] == k and z[j, i] == z[seg.labels == k].max()   # the basin's top
+
+
+def test_a_map_too_large_is_refused_before_segmentation(monkeypatch):
+    import twoscale.surface.conditioning as conditioning
+
+    monkeypatch.setattr(conditioning, "MAX_SAMPLES", 100)
+    with pytest.raises(SurfaceError, match="crop the map or give a larger"):
+        condition(_raw(np.zeros((20, 20))))
+    assert condition(_raw(np.zeros((20, 20))), h=0.2).shape == (10, 10)   # resampled: fits

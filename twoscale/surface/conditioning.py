@@ -19,6 +19,10 @@ from .reading import MIN_SIDE, RawMap
 
 #: Height units and their size in mm.
 UNITS = {"mm": 1.0, "um": 1e-3, "nm": 1e-6, "m": 1e3}
+#: Most samples a conditioned map may have (a 200 mm square at 0.04 mm), and the memory
+#: one sample costs through segmentation and the solvers' look-ups (an estimate, bytes).
+MAX_SAMPLES = 25_000_000
+BYTES_PER_SAMPLE = 200
 #: How missing samples are treated: "nearest" fills each with the nearest measured
 #: height; "mask" leaves them without material (they never touch).
 FILL_MODES = ("nearest", "mask")
@@ -73,6 +77,10 @@ def condition(raw: RawMap, *, spacing: float | None = None, units: str | None = 
     if h is not None and not math.isclose(h, step, rel_tol=1e-9):
         z, missing = _resample(src, z, missing, step, h)
         step = h
+    if z.size > MAX_SAMPLES:   # before segmentation allocates its arrays
+        raise SurfaceError(f"{src}: {z.shape[0]} x {z.shape[1]} samples at {step:g} mm is more than "
+                           f"{MAX_SAMPLES:.0e} (about {BYTES_PER_SAMPLE * z.size / 1e9:.1f} GB to segment "
+                           f"and solve); crop the map or give a larger [grid] h")
     if invert:
         z = -z
     if fill == "mask":
