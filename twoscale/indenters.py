@@ -62,6 +62,12 @@ class Asperity:
             cap = r2 / (self.R + np.sqrt(np.where(inside, R2 - r2, 0.0)))
         return np.where(inside, self.z + cap, np.inf)
 
+    @property
+    def material_radius(self) -> float:
+        """Distance from the tip (mm) beyond which the indenter has no material: ``R`` for
+        a sphere, ``inf`` for a paraboloid (indenters of other kinds override it)."""
+        return self.R if self.shape == "sphere" else math.inf
+
     def reach(self, depth: float) -> float:
         """Radius (mm) within which the indenter is less than ``depth`` above its tip:
         the farthest a contact can extend when the local approach is ``depth``."""
@@ -110,15 +116,29 @@ class Surface:
 
 
 def surface_on(grid: Grid, asperities: Sequence[Asperity], tilt: Tilt | None = None) -> Surface:
-    """Sample the union of ``asperities`` (optionally tilted) at the cell centres."""
+    """Sample the union of ``asperities`` (optionally tilted) at the cell centres.
+
+    Asperities with a ``group`` attribute (e.g. the basins of one height map) are sampled
+    together by ``group.union_on(X, Y, {label: index})``, which returns the height and the
+    owning index of each point; ``label`` is the asperity's ``label`` attribute."""
     X, Y = grid.centres()
     height = np.full(grid.shape, np.inf)
     owner = np.full(grid.shape, -1, dtype=np.int64)
+    groups: dict = {}
     for k, a in enumerate(asperities):
+        group = getattr(a, "group", None)
+        if group is not None:  # sampled together (the basins of one height map: one look-up)
+            groups.setdefault(id(group), (group, {}))[1][a.label] = k
+            continue
         hk = a.height(X, Y)
         better = hk < height
         height[better] = hk[better]
         owner[better] = k
+    for group, index in groups.values():
+        hk, ok = group.union_on(X, Y, index)
+        better = hk < height
+        height[better] = hk[better]
+        owner[better] = ok[better]
     if tilt is not None:
         height = height + tilt.height(X, Y)
     return Surface(grid, height, owner, len(asperities))

@@ -174,6 +174,10 @@ class Scene:
         and > 0, no repeats; stored as a tuple). ``twoscale compare`` runs each of them
         in turn in place of ``total_load``; ``twoscale solve`` and :func:`solve_scene`
         use ``total_load`` (conventionally the first case). ``()``: no list, one load.
+    surface : MeasuredSurface, optional
+        A height map as indenters (:mod:`twoscale.surface`), instead of ``asperities``:
+        the asperities are then its basins, conditioned at the cell size ``h`` (its own
+        spacing when ``h`` is None), and ``h`` is that cell size.
 
     Raises
     ------
@@ -190,10 +194,15 @@ class Scene:
     h: float | None = None
     influence: Influence = field(default_factory=Influence)
     load_cases: tuple = ()
+    surface: Any = None
 
     def __post_init__(self) -> None:
         if not isinstance(self.material, Material):
             raise SceneError(f"material must be a Material, got {self.material!r}")
+        if self.surface is not None:  # the basins of a height map, at the scene's cell size
+            object.__setattr__(self, "surface", self.surface.at(self.h))
+            object.__setattr__(self, "asperities", tuple(self.surface.asperities))
+            object.__setattr__(self, "h", self.surface.h)
         self._check_asperities()
         self._check_load()
         if self.h is not None:

@@ -32,6 +32,7 @@ SUBCOMMANDS = (
     ("compare", "twoscale.cli.compare", False),
     ("indicators", "twoscale.cli.indicators", False),
     ("study", "twoscale.cli.study", False),
+    ("surface", "twoscale.cli.surface", False),
 )
 
 

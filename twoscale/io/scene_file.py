@@ -11,6 +11,9 @@ The format (see README.md)::
     [influence]           kind = "halfspace" | "block" (+ size, base, origin for "block")
     [[asperity]]          x, y (mm), R (mm, > 0) required; z (mm) default 0;
                           shape = "sphere" (default) | "paraboloid"
+    [surface]             instead of [[asperity]]: a height map (twoscale.surface);
+                          file (relative to the scene file) required, see
+                          twoscale.surface.scene_table for the other keys
 
 Every problem raises :class:`SceneError` (a ``ValueError``) with a one-line message
 naming the field path (``asperity 4: R``; asperities numbered from 1 in file order) and
@@ -32,7 +35,7 @@ except ModuleNotFoundError:  # pragma: no cover - Python 3.10
 
 __all__ = ["SceneError", "read_scene", "scene_from_dict", "scene_to_dict"]
 
-TOP_KEYS = ("material", "load", "grid", "influence", "asperity")
+TOP_KEYS = ("material", "load", "grid", "influence", "asperity", "surface")
 MATERIAL_KEYS = ("E", "nu")
 LOAD_KEYS = ("penetration", "total", "tilt", "pivot", "cases")
 GRID_KEYS = ("h",)
@@ -59,7 +62,7 @@ def read_scene(path: str | os.PathLike) -> Scene:
     """
     data = read_toml(path, "scene", SceneError)
     try:
-        return scene_from_dict(data)
+        return scene_from_dict(data, base_dir=os.path.dirname(os.path.abspath(path)))
     except SceneError as exc:
         raise SceneError(f"{os.fspath(path)}: {exc}") from None
 
@@ -78,11 +81,25 @@ def read_toml(path: str | os.PathLike, what: str, error: type[Exception]) -> dic
         raise error(f"{os.fspath(path)}: invalid TOML: {exc}") from None
 
 
-def scene_from_dict(data: Mapping[str, Any]) -> Scene:
-    """Validate a scene given as nested dicts (the parsed TOML) and build a :class:`Scene`."""
-    check_keys("", data, TOP_KEYS, required=("material", "load", "asperity"))
+def scene_from_dict(data: Mapping[str, Any], *, base_dir: str | None = None) -> Scene:
+    """Validate a scene given as nested dicts (the parsed TOML) and build a :class:`Scene`.
+    ``base_dir``: where a ``[surface]`` file name is relative to (default: the current folder)."""
+    check_keys("", data, TOP_KEYS, required=("material", "load"))
     material = _material(table_of("material", data["material"]))
-    asperities = tuple(_asperity(f"asperity {k}", t) for k, t in enumerate(_tables("asperity", data["asperity"]), start=1))
+    surface = None
+    if "asperity" not in data and "surface" not in data:
+        raise SceneError("asperity is missing (required: [[asperity]] tables, or a [surface] table)")
+    if "asperity" in data and "surface" in data:
+        raise SceneError("a scene needs exactly one of [[asperity]] tables and a [surface] table, got both")
+    if "surface" in data:
+        from ..surface.scene_table import surface_from_table
+
+        h = table_of("grid", data.get("grid", {})).get("h")
+        surface = surface_fromtable_of(table_of("surface", data["surface"]), base_dir=base_dir, h=h)
+        asperities = surface.asperities
+    else:
+        asperities = tuple(_asperity(f"asperity {k}", t)
+                           for k, t in enumerate(_tables("asperity", data["asperity"]), start=1))
     load = table_of("load", data["load"])
     check_keys("load", load, LOAD_KEYS)
     grid = table_of("grid", data.get("grid", {}))
@@ -94,7 +111,8 @@ def scene_from_dict(data: Mapping[str, Any]) -> Scene:
     return Scene(material=material, asperities=asperities,
                  penetration=load.get("penetration"), total_load=load.get("total"),
                  tilt=load.get("tilt", False), pivot=load.get("pivot", (0.0, 0.0)),
-                 h=grid.get("h"), influence=dict(influence) or None, load_cases=load.get("cases", ()))
+                 h=grid.get("h"), influence=dict(influence) or None, load_cases=load.get("cases", ()),
+                 surface=surface)
 
 
 def scene_to_dict(scene: Scene) -> dict:
@@ -119,6 +137,11 @@ def scene_to_dict(scene: Scene) -> dict:
     if scene.h is not None:
         out["grid"] = {"h": float(scene.h)}
     out["influence"] = {k: (list(v) if isinstance(v, tuple) else v) for k, v in scene.influence.items()}
+    if scene.surface is not None:  # the [surface] table (file made absolute), not its basins
+        from ..surface.scene_table import surface_to_table
+
+        out["surface"] = surface_to_table(scene.surface)
+        return out
     out["asperity"] = [{"x": float(a.x), "y": float(a.y), "z": float(a.z), "R": float(a.R), "shape": a.shape}
                        for a in scene.asperities]
     return out

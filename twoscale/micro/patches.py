@@ -66,8 +66,9 @@ class TipTable(Sequence):
         self.asperities = tuple(asperities)
         self.x = np.array([a.x for a in self.asperities], dtype=float)
         self.y = np.array([a.y for a in self.asperities], dtype=float)
-        self.R = np.array([a.R for a in self.asperities], dtype=float)
-        self.unbounded = np.array([a.shape != "sphere" for a in self.asperities], dtype=bool)
+        # material radius: spheres R, paraboloids inf, height-map basins their extent
+        self.R = np.array([a.material_radius for a in self.asperities], dtype=float)
+        self.unbounded = ~np.isfinite(self.R)
 
     @classmethod
     def of(cls, asperities: Sequence[Asperity]) -> "TipTable":

@@ -53,6 +53,11 @@ def pk_fixed_approach(matvec, b: np.ndarray, p_start: np.ndarray, *, rtol: float
             S = g < 0.0
             if not np.any(S):
                 return p, True, it
+        if not np.any(g[S]):   # exact on the contact cells (a contact of a cell or two can be)
+            entering = ~S & (g < -gtol)
+            if not np.any(entering):
+                return p, True, it
+            S, delta = S | entering, 0.0
         t, G_old = _direction(g, S, t, delta, G_old)
         r = matvec(t)
         denom = float(t[S] @ r[S])

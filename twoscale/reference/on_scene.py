@@ -91,6 +91,10 @@ def solve_reference_scene(scene: Scene, provider, h: float, *, solver: str = "au
     """
     from . import solve_reference
 
+    if scene.surface is not None:  # a height map: the full grid is the whole map (beyond it, no surface)
+        return solve_reference(provider, surface_on(scene.surface.hmap.grid, scene.asperities), method=solver,
+                               penetration=scene.penetration, total_load=scene.total_load,
+                               tilt=scene.tilt, pivot=scene.pivot, **options)
     grow = 1.0
     for attempt in range(max_enlargements + 1):
         grid = reference_grid(scene, h, grow=grow)

@@ -1,0 +1,140 @@
+"""The measured surface as indenters: one asperity per watershed basin, whose rigid
+surface is the height map itself on the basin's samples.
+
+:class:`MapAsperity` keeps the contract of :class:`twoscale.indenters.Asperity` that the
+solvers use: a tip ``(x, y)`` at the summit, its recess ``z`` below the highest summit,
+a curvature radius ``R`` (the equivalent sphere: patch-size and eq. 7 estimates only),
+``height(X, Y)`` (the map's recess on the basin's samples, ``inf`` elsewhere: no
+material), ``reach(depth)`` (farthest basin sample less than ``depth`` below the summit)
+and ``material_radius`` (farthest basin sample). The union of all asperities
+(:func:`twoscale.indenters.surface_on`) is then the height map with each sample owned
+by its basin, so patches, the policy, the block iterations and the reference solver run
+on the true heights unchanged.
+
+Heights are looked up at the nearest sample: on a grid whose cell centres are the map's
+samples (the scene's lattice, :mod:`.conditioning`) that is exact.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..grid import Grid
+from ..indenters import Asperity
+from .heightmap import HeightMap
+from .segmentation import Segmentation
+from .sphere_fit import CAP_DEPTH, basin_cells, fit_spheres
+
+
+@dataclass(frozen=True, eq=False)
+class BasinMap:
+    """The lattice, the recess below the highest summit (mm; ``inf`` where masked) and
+    the basin of every sample, shared by the asperities of one surface."""
+
+    grid: Grid
+    recess: np.ndarray
+    labels: np.ndarray
+    book: object = None
+
+    def _nearest(self, X, Y):
+        """Index of the nearest sample of each point, and whether it is on the map."""
+        g = self.grid
+        i = np.rint((np.asarray(X, dtype=float) - g.x0) / g.h).astype(np.int64)
+        j = np.rint((np.asarray(Y, dtype=float) - g.y0) / g.h).astype(np.int64)
+        inside = (i >= 0) & (i < g.nx) & (j >= 0) & (j < g.ny)
+        return np.clip(j, 0, g.ny - 1), np.clip(i, 0, g.nx - 1), inside
+
+    def lookup(self, X, Y, label: int) -> np.ndarray:
+        """Recess at the nearest samples of points (X, Y) that lie in basin ``label``,
+        ``inf`` elsewhere (outside the basin or the map), mm."""
+        jc, ic, inside = self._nearest(X, Y)
+        mine = inside & (self.labels[jc, ic] == label)
+        return np.where(mine, self.recess[jc, ic], np.inf)
+
+    def union_on(self, X, Y, index: dict):
+        """Recess (mm; ``inf`` off the map or in basins not in ``index``) and owner (the
+        value ``index[label]`` of the sample's basin, -1 there) at points (X, Y)."""
+        jc, ic, inside = self._nearest(X, Y)
+        table = np.full(int(self.labels.max()) + 1, -1, dtype=np.int64)
+        table[np.fromiter(index.keys(), dtype=np.int64)] = np.fromiter(index.values(), dtype=np.int64)
+        owner = np.where(inside, table[self.labels[jc, ic]], -1)
+        return np.where(owner >= 0, self.recess[jc, ic], np.inf), owner
+
+
+@dataclass(frozen=True, eq=False)
+class MapAsperity(Asperity):
+    """One basin of a height map as an indenter; see the module docstring.
+
+    Extra attributes: ``basins`` (the shared :class:`BasinMap`), ``label`` (its basin),
+    ``extent`` (farthest basin sample from the tip, mm) and the reach table ``falls``
+    (sorted depths below the summit, mm) with ``radii`` (farthest sample within each, mm).
+    """
+
+    shape: str = "map"
+    basins: BasinMap | None = field(default=None, repr=False)
+    label: int = -1
+    extent: float = 0.0
+    falls: np.ndarray = field(default=None, repr=False)
+    radii: np.ndarray = field(default=None, repr=False)
+
+    def __post_init__(self) -> None:
+        for name in ("x", "y", "z", "R", "extent"):
+            v = getattr(self, name)
+            if not math.isfinite(v):
+                raise ValueError(f"map asperity {self.label}: {name} must be finite, got {v!r}")
+        if self.R <= 0:
+            raise ValueError(f"map asperity {self.label}: R must be > 0 (mm), got {self.R!r}")
+
+    @property
+    def group(self) -> BasinMap:
+        """Sampled together with the other basins of its map (:func:`twoscale.indenters.surface_on`)."""
+        return self.basins
+
+    def height(self, X, Y) -> np.ndarray:
+        return self.basins.lookup(X, Y, self.label)
+
+    def reach(self, depth: float) -> float:
+        if depth <= 0:
+            return 0.0
+        n = int(np.searchsorted(self.falls, depth, side="left"))
+        return float(self.radii[n - 1]) if n > 0 else 0.0
+
+    def law(self, material):
+        """This asperity's load-penetration law on a body of ``material`` (from the
+        surface's law book: tabulated from single-asperity solves, or its sphere's)."""
+        if self.basins.book is None:
+            raise ValueError(f"map asperity {self.label} has no law book (build it with load_surface)")
+        return self.basins.book.law(self.label, material)
+
+    @property
+    def material_radius(self) -> float:
+        return self.extent + self.basins.grid.h
+
+
+def map_asperities(hmap: HeightMap, seg: Segmentation, *, cap_depth: float = CAP_DEPTH, book=None) -> tuple:
+    """One :class:`MapAsperity` per basin of ``seg`` (asperity order), with the equivalent
+    sphere of its cap (:func:`twoscale.surface.sphere_fit.fit_spheres`); ``book`` gives
+    their laws (:class:`twoscale.surface.measured.LawBook`). Returns
+    ``(asperities, sphere_fit)``."""
+    top = float(seg.heights.max())
+    recess = top - hmap.heights
+    recess = np.where(np.isnan(recess), np.inf, recess)
+    recess.setflags(write=False)
+    basins = BasinMap(hmap.grid, recess, seg.labels, book)
+    cells = basin_cells(seg)
+    fit = fit_spheres(hmap, seg, cells, depth=cap_depth)
+    X, Y = hmap.grid.centres()
+    out = []
+    for k, flat in enumerate(cells):
+        j, i = seg.summits[k]
+        x, y, zk = float(X[j, i]), float(Y[j, i]), float(top - seg.heights[k])
+        fall = recess.ravel()[flat] - zk
+        r = np.hypot(X.ravel()[flat] - x, Y.ravel()[flat] - y)
+        ok = np.isfinite(fall)
+        order = np.argsort(fall[ok], kind="stable")
+        falls, radii = fall[ok][order], np.maximum.accumulate(r[ok][order])
+        out.append(MapAsperity(x, y, zk, float(fit.R[k]), basins=basins, label=k,
+                               extent=float(r.max()), falls=falls, radii=radii))
+    return tuple(out), fit

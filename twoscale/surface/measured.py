@@ -1,0 +1,229 @@
+"""A measured surface ready for the solvers: the conditioned map, its segmentation, its
+asperities, and the book of their laws.
+
+:func:`load_surface` runs the pipeline read -> condition -> segment -> asperities; the
+laws are tabulated when a solver first asks for one (:meth:`MapAsperity.law`, through
+:func:`twoscale.laws.law_for`) and kept by the surface's :class:`LawBook` (per ``E*``) and,
+when given, a :class:`~twoscale.surface.lawcache.LawCache` on disk. They do not depend on
+the load: each asperity is tabulated down to ``law_depth`` below its summit and the
+power-law continuation of :class:`~twoscale.laws.TabulatedLaw` goes beyond.
+"""
+from __future__ import annotations
+
+import hashlib
+import math
+import os
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..influence import HalfSpace
+from ..laws import HertzLaw, TabulatedLaw
+from ..laws.base import AsperityLaw, as_force, as_penetration
+from .conditioning import condition
+from .heightmap import HeightMap, SurfaceError
+from .indenter import map_asperities
+from .lawcache import LawCache, law_key
+from .laws import LEVELS, SOLVE_TOL, LawTable, sphere_law_error, stack_tables, tabulate_law
+from .reading import RawMap, read_heightmap
+from .segmentation import MIN_DISTANCE, PROMINENCE, Segmentation, segment
+from .sphere_fit import CAP_DEPTH, SphereFit
+
+#: Default depth below each summit down to which its law is tabulated, mm.
+LAW_DEPTH = 0.5
+#: Law kinds: tabulated from single-asperity solves, or the equivalent sphere's Hertz law.
+LAW_KINDS = ("tabulated", "sphere")
+#: Asperity laws a book keeps in memory (one per asperity and E*).
+BOOK_ROWS = 100_000
+
+
+@dataclass(frozen=True)
+class SurfaceOptions:
+    """How a height map becomes indenters (the ``[surface]`` table of a scene, less
+    ``file``); units mm. See :func:`twoscale.surface.conditioning.condition`,
+    :func:`twoscale.surface.segmentation.segment`, :mod:`.sphere_fit` and :mod:`.laws`."""
+
+    spacing: float | None = None
+    units: str | None = None
+    fill: str = "nearest"
+    detrend: bool = False
+    crop: tuple | None = None
+    invert: bool = False
+    min_distance: float = MIN_DISTANCE
+    prominence: float = PROMINENCE
+    cap_depth: float = CAP_DEPTH
+    law: str = "tabulated"
+    law_depth: float = LAW_DEPTH
+    law_levels: int = LEVELS
+
+    def __post_init__(self) -> None:
+        if self.law not in LAW_KINDS:
+            raise SurfaceError(f"surface.law must be one of {', '.join(LAW_KINDS)}, got {self.law!r}")
+        for name in ("cap_depth", "law_depth"):
+            v = getattr(self, name)
+            if isinstance(v, bool) or not isinstance(v, (int, float)) or not (math.isfinite(v) and v > 0):
+                raise SurfaceError(f"surface.{name} must be a number > 0 (mm), got {v!r}")
+        if isinstance(self.law_levels, bool) or not isinstance(self.law_levels, int) or self.law_levels < 2:
+            raise SurfaceError(f"surface.law_levels must be an integer >= 2, got {self.law_levels!r}")
+
+
+class LawBook:
+    """The laws of one surface's asperities, each tabulated when first needed (a solve
+    asks for every law, but only the asperities its macro step presses get tabulated: see
+    :class:`LazyLaw`), kept per ``(E*, asperity)`` and, with ``cache``, on disk under the
+    key of the surface (``digest``), ``E*``, ``h`` and the law options. Owned by its
+    surface; ``asperities`` is set once they exist (they refer to the book).
+
+    Attributes
+    ----------
+    tabulated : int
+        Asperity laws computed (not read from the cache).
+    """
+
+    def __init__(self, digest: str, h: float, options: SurfaceOptions, cache: LawCache | None = None):
+        self.digest, self.h, self.options, self.cache = digest, float(h), options, cache
+        self.asperities: tuple = ()
+        self._rows: dict = {}    # (E*, label) -> one-row LawTable
+        self._providers: dict = {}   # E* -> HalfSpace
+        self.tabulated = 0
+
+    def _key(self, E_star: float, label: int) -> str:
+        opts = self.options
+        return law_key(self.digest, E_star=E_star, h=self.h, delta_max=opts.law_depth, levels=opts.law_levels,
+                       tol=SOLVE_TOL) + f"-{label}"
+
+    def _provider(self, material) -> HalfSpace:
+        """The half-space of the single-asperity solves, one per ``E*`` (its kernel tables
+        serve every asperity)."""
+        E_star = float(material.E_star)
+        if E_star not in self._providers:
+            self._providers[E_star] = HalfSpace(material)
+        return self._providers[E_star]
+
+    def row(self, label: int, material) -> LawTable:
+        """The tabulated law of asperity ``label`` (computed, or read from the cache)."""
+        E_star = float(material.E_star)
+        if (E_star, label) in self._rows:
+            return self._rows[(E_star, label)]
+        if len(self._rows) >= BOOK_ROWS:
+            self._rows.pop(next(iter(self._rows)))
+        key = self._key(E_star, label)
+        table = self.cache.get(key) if self.cache is not None else None
+        if table is None:
+            table = tabulate_law(self.asperities[label], self._provider(material), h=self.h,
+                                 delta_max=self.options.law_depth, levels=self.options.law_levels)
+            self.tabulated += 1
+            if self.cache is not None:
+                self.cache.put(key, table)
+        self._rows[(E_star, label)] = table
+        return table
+
+    def table(self, material, *, progress=None) -> LawTable:
+        """The laws of every asperity for ``material``."""
+        rows = []
+        for k in range(len(self.asperities)):
+            if progress is not None and k % 50 == 0:
+                progress(f"asperity laws: {k} of {len(self.asperities)}")
+            rows.append(self.row(k, material))
+        return stack_tables(rows)
+
+    def law(self, label: int, material):
+        """Law of asperity ``label`` (the ``law`` option decides which kind)."""
+        if self.options.law == "sphere":
+            return HertzLaw(self.asperities[label].R, material.E_star)
+        return LazyLaw(self, label, material)
+
+
+class LazyLaw(AsperityLaw):
+    """The tabulated law of one asperity, tabulated on the first evaluation that needs it
+    (a penetration or force > 0): asperities the macro step never presses cost nothing."""
+
+    def __init__(self, book: LawBook, label: int, material):
+        self.book, self.label, self.material = book, label, material
+        self._tabulated: TabulatedLaw | None = None
+
+    def _law(self) -> TabulatedLaw:
+        if self._tabulated is None:   # built once: its interpolant costs more than an evaluation
+            self._tabulated = self.book.row(self.label, self.material).law(0)
+        return self._tabulated
+
+    def _call(self, method: str, values: np.ndarray) -> np.ndarray:
+        # zero penetration or force needs no table: the law is 0 there
+        return getattr(self._law(), method)(values) if np.any(values > 0) else np.zeros_like(values)
+
+    def force(self, delta):
+        return self._call("force", as_penetration(delta))
+
+    def stiffness(self, delta):
+        return self._call("stiffness", as_penetration(delta))
+
+    def penetration(self, P):
+        return self._call("penetration", as_force(P))
+
+    def complementary_energy(self, P):
+        return self._call("complementary_energy", as_force(P))
+
+
+@dataclass(frozen=True, eq=False)
+class MeasuredSurface:
+    """A height map as indenters; see the module docstring.
+
+    Attributes
+    ----------
+    raw : RawMap
+        The file as read (kept to condition again at another cell size: :meth:`at`).
+    options : SurfaceOptions
+    hmap : HeightMap
+        The conditioned map (mm, centred, spacing = the solver's cell size).
+    segmentation : Segmentation
+    asperities : tuple of MapAsperity
+    spheres : SphereFit
+        The equivalent spheres of the summit caps.
+    book : LawBook
+    """
+
+    raw: RawMap
+    options: SurfaceOptions
+    hmap: HeightMap
+    segmentation: Segmentation
+    asperities: tuple
+    spheres: SphereFit
+    book: LawBook = field(repr=False)
+
+    @property
+    def h(self) -> float:
+        """Spacing of the conditioned map = cell size of the solves, mm."""
+        return self.hmap.h
+
+    def at(self, h: float | None) -> "MeasuredSurface":
+        """This surface conditioned at cell size ``h`` (mm); itself when ``h`` is None or
+        its own spacing."""
+        if h is None or math.isclose(h, self.h, rel_tol=1e-12):
+            return self
+        return build_surface(self.raw, self.options, h=h, cache=self.book.cache)
+
+    def sphere_error(self, material):
+        """Error of the equivalent-sphere laws against the tabulated ones
+        (:func:`twoscale.surface.laws.sphere_law_error`)."""
+        return sphere_law_error(self.book.table(material), self.asperities)
+
+
+def build_surface(raw: RawMap, options: SurfaceOptions, *, h: float | None = None,
+                  cache: LawCache | None = None) -> MeasuredSurface:
+    """Condition, segment and make the asperities of a raw map (resampled to ``h`` mm
+    when given)."""
+    hmap: HeightMap = condition(raw, spacing=options.spacing, units=options.units, fill=options.fill,
+                                detrend=options.detrend, crop=options.crop, h=h, invert=options.invert)
+    seg: Segmentation = segment(hmap, min_distance=options.min_distance, prominence=options.prominence)
+    digest = hashlib.sha256((hmap.digest() + repr(options)).encode())
+    digest.update(seg.labels.tobytes())
+    book = LawBook(digest.hexdigest(), hmap.h, options, cache)
+    asperities, fit = map_asperities(hmap, seg, cap_depth=options.cap_depth, book=book)
+    book.asperities = asperities
+    return MeasuredSurface(raw, options, hmap, seg, asperities, fit, book)
+
+
+def load_surface(path: str | os.PathLike, options: SurfaceOptions | None = None, *, h: float | None = None,
+                 cache: LawCache | None = None) -> MeasuredSurface:
+    """Read ``path`` (:func:`twoscale.surface.reading.read_heightmap`) and build the surface."""
+    return build_surface(read_heightmap(path), options or SurfaceOptions(), h=h, cache=cache)

@@ -1,0 +1,178 @@
+"""Reading height maps from files.
+
+Plain formats are read here: ``.npy`` (a 2-D array), ``.npz`` (the array ``heights``, or
+the only array; optional scalars ``spacing`` in mm and ``units``), text grids (``.txt``,
+``.csv``, ``.asc``, ``.dat``: whitespace or comma separated rows, ``#`` comments) and
+x-y-z point lists (``.xyz``: one point a line on a regular lattice, any order).
+Everything else goes to SurfaceTopography's readers (ISO 25178 X3P, Digital Surf SUR,
+Wyko OPD, Sensofar PLU, Zygo DATX, Keyence VK, Gwyddion GWY, ...), the optional extra
+``pip install "twoscale[surfaces]"``; no instrument format is parsed by hand here.
+
+A plain array's rows are y and its columns x. Heights are returned in the file's units
+(converted by :mod:`.conditioning`); the point list's x and y share the heights' units.
+"""
+from __future__ import annotations
+
+import os
+import warnings
+from dataclasses import dataclass
+
+import numpy as np
+
+from .heightmap import SurfaceError
+
+TEXT_SUFFIXES = (".txt", ".csv", ".asc", ".dat")
+POINT_SUFFIXES = (".xyz",)
+#: Smallest map accepted, samples per side (a summit and its basin need a few cells).
+MIN_SIDE = 3
+
+
+@dataclass(frozen=True, eq=False)
+class RawMap:
+    """Heights as read, before conditioning.
+
+    Attributes
+    ----------
+    heights : (ny, nx) array, in ``units`` (NaN where missing).
+    spacing : float or None
+        Sample spacing in ``units`` when the file carries it (point lists, instrument
+        formats with physical sizes, ``.npz`` with ``spacing``: then in mm), else None.
+    units : str or None
+        Height units the file declares ("mm", "um", "m", "nm"), None if it says nothing.
+    spacing_units : str or None
+        Units of ``spacing`` (None: mm, as given by the user).
+    source : str
+        The file name.
+    """
+
+    heights: np.ndarray
+    spacing: float | None
+    units: str | None
+    spacing_units: str | None
+    source: str
+
+
+def read_heightmap(path: str | os.PathLike) -> RawMap:
+    """Read a height map file; see the module docstring for the formats.
+
+    Raises
+    ------
+    SurfaceError
+        Missing or unreadable file, unknown format, not a 2-D grid, all NaN, or smaller
+        than ``MIN_SIDE`` samples per side; the message starts with the file name.
+    """
+    name = os.fspath(path)
+    if not os.path.isfile(name):
+        raise SurfaceError(f"{name}: height map file not found")
+    suffix = os.path.splitext(name)[1].lower()
+    try:
+        if suffix == ".npy":
+            raw = RawMap(np.load(name, allow_pickle=False), None, None, None, name)
+        elif suffix == ".npz":
+            raw = _read_npz(name)
+        elif suffix in TEXT_SUFFIXES:
+            raw = RawMap(_read_text_grid(name), None, None, None, name)
+        elif suffix in POINT_SUFFIXES:
+            raw = _read_points(name)
+        else:
+            raw = _read_instrument(name)
+    except SurfaceError:
+        raise
+    except (OSError, ValueError) as exc:
+        raise SurfaceError(f"{name}: cannot read the height map ({_first_line(exc)})") from None
+    return _checked(raw)
+
+
+def _first_line(exc: Exception) -> str:
+    text = str(exc).strip().splitlines()
+    return text[0] if text else type(exc).__name__
+
+
+def _checked(raw: RawMap) -> RawMap:
+    z = np.asarray(raw.heights)
+    if z.ndim != 2 or not np.issubdtype(z.dtype, np.number):
+        raise SurfaceError(f"{raw.source}: heights must be a 2-D numeric grid, got shape {z.shape} of {z.dtype}")
+    z = np.array(z, dtype=float)
+    if min(z.shape) < MIN_SIDE:
+        raise SurfaceError(f"{raw.source}: height map too small ({z.shape[0]} x {z.shape[1]} samples; "
+                           f"at least {MIN_SIDE} x {MIN_SIDE})")
+    z[~np.isfinite(z)] = np.nan
+    if np.all(np.isnan(z)):
+        raise SurfaceError(f"{raw.source}: every height is missing (all NaN)")
+    return RawMap(z, raw.spacing, raw.units, raw.spacing_units, raw.source)
+
+
+def _read_npz(name: str) -> RawMap:
+    with np.load(name, allow_pickle=False) as data:
+        keys = list(data.keys())
+        if "heights" in keys:
+            z = data["heights"]
+        elif len([k for k in keys if data[k].ndim == 2]) == 1:
+            z = next(data[k] for k in keys if data[k].ndim == 2)
+        else:
+            raise SurfaceError(f"{name}: no array 'heights' among {keys}")
+        spacing = float(data["spacing"]) if "spacing" in keys else None
+        units = str(data["units"]) if "units" in keys else None
+    return RawMap(z, spacing, units, None, name)
+
+
+def _read_text_grid(name: str) -> np.ndarray:
+    with open(name, encoding="utf-8") as fh:
+        text = fh.read()
+    delimiter = "," if "," in text else None
+    return np.loadtxt(name, delimiter=delimiter, comments="#", ndmin=2)
+
+
+def _read_points(name: str) -> RawMap:
+    """x y z points on a regular lattice (any order, missing points allowed)."""
+    pts = np.loadtxt(name, comments="#", ndmin=2, delimiter="," if "," in open(name, encoding="utf-8").read() else None)
+    if pts.shape[1] != 3:
+        raise SurfaceError(f"{name}: a point list needs 3 columns x y z, got {pts.shape[1]}")
+    xs, ys = np.unique(pts[:, 0]), np.unique(pts[:, 1])
+    if xs.size < MIN_SIDE or ys.size < MIN_SIDE:
+        raise SurfaceError(f"{name}: height map too small ({ys.size} x {xs.size} distinct y, x values)")
+    step = float(np.min(np.diff(xs)))
+    for axis, vals in (("x", xs), ("y", ys)):
+        k = (vals - vals[0]) / step
+        if not np.allclose(k, np.round(k), atol=1e-6):
+            raise SurfaceError(f"{name}: the {axis} values are not on a regular lattice of step {step!r}")
+    i = np.round((pts[:, 0] - xs[0]) / step).astype(int)
+    j = np.round((pts[:, 1] - ys[0]) / step).astype(int)
+    z = np.full((j.max() + 1, i.max() + 1), np.nan)
+    z[j, i] = pts[:, 2]
+    return RawMap(z, step, None, "heights", name)
+
+
+#: SurfaceTopography's unit names, as :mod:`.conditioning` spells them.
+_ST_UNITS = {"m": "m", "mm": "mm", "µm": "um", "um": "um", "μm": "um", "nm": "nm"}
+
+
+def _read_instrument(name: str) -> RawMap:
+    try:
+        from SurfaceTopography import read_topography
+        from SurfaceTopography.Exceptions import CannotDetectFileFormat
+    except ImportError:
+        raise SurfaceError(f"{name}: not a plain format (.npy, .npz, text grid, .xyz); instrument formats "
+                           f"need the optional extra: pip install \"twoscale[surfaces]\"") from None
+    try:
+        with warnings.catch_warnings():   # its netCDF reader warns about its own memory map
+            warnings.simplefilter("ignore", RuntimeWarning)
+            topo = read_topography(name)
+            z = topo.heights()
+    except CannotDetectFileFormat:
+        raise SurfaceError(f"{name}: unknown height map format") from None
+    except Exception as exc:  # the library's readers raise many kinds: report the first line
+        raise SurfaceError(f"{name}: cannot read the height map ({_first_line(exc)})") from None
+    z = np.ma.filled(np.ma.asarray(z, dtype=float), np.nan) if np.ma.isMaskedArray(z) else np.asarray(z, float)
+    if z.ndim != 2:
+        raise SurfaceError(f"{name}: a line scan (1-D), not a height map")
+    units = _ST_UNITS.get(str(topo.unit)) if topo.unit is not None else None
+    spacing = None
+    try:
+        sizes = topo.physical_sizes
+    except Exception:  # formats without physical sizes raise when asked
+        sizes = None
+    if sizes is not None and units is not None:
+        spacing = float(sizes[0]) / z.shape[0]
+    # SurfaceTopography indexes [x, y]; here rows are y
+    return RawMap(z.T, spacing, units, "heights" if spacing is not None else None, name)

@@ -1,0 +1,73 @@
+"""Records of a measured surface: the per-asperity CSV and the JSON summary that
+``twoscale surface`` writes (I/O module; every file records the version and units)."""
+from __future__ import annotations
+
+import csv
+import io
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+
+from .._version import __version__
+from ..io.atomic import atomic_output
+
+CSV_COLUMNS = ("asperity", "x_mm", "y_mm", "summit_height_mm", "recess_z_mm", "prominence_mm", "basin_area_mm2",
+               "sphere_R_mm", "law_exponent", "sphere_law_error")
+
+
+def asperity_rows(surface, table=None, sphere_error=None) -> list[dict]:
+    """One row per asperity: summit position and height, its recess below the highest
+    summit, prominence, basin area, equivalent-sphere radius and, with the law ``table``,
+    the law's exponent over its last tabulated step and the sphere law's largest error."""
+    seg = surface.segmentation
+    exponents = table.exponents() if table is not None else None
+    rows = []
+    for k, a in enumerate(surface.asperities):
+        rows.append({"asperity": k, "x_mm": a.x, "y_mm": a.y, "summit_height_mm": float(seg.heights[k]),
+                     "recess_z_mm": a.z, "prominence_mm": float(seg.prominence[k]),
+                     "basin_area_mm2": float(seg.areas[k]), "sphere_R_mm": a.R,
+                     "law_exponent": float(exponents[k]) if exponents is not None else math.nan,
+                     "sphere_law_error": float(sphere_error.per_asperity[k]) if sphere_error is not None else math.nan})
+    return rows
+
+
+def write_asperity_csv(rows: list[dict], path: str | Path) -> Path:
+    """The rows as CSV (a first comment line gives the version and units)."""
+    buf = io.StringIO()
+    buf.write(f"# twoscale {__version__}: asperities of a height map; units mm, mm2; "
+              "law_exponent m of P ~ delta^m, sphere_law_error = max |P_sphere - P_tab| / P_tab\n")
+    writer = csv.DictWriter(buf, fieldnames=CSV_COLUMNS, lineterminator="\n")
+    writer.writeheader()
+    for row in rows:
+        writer.writerow({k: (f"{v:.6g}" if isinstance(v, float) else v) for k, v in row.items()})
+    with atomic_output(Path(path)) as tmp:
+        tmp.write_text(buf.getvalue(), encoding="utf-8")
+    return Path(path)
+
+
+def surface_summary(surface, scene_record: dict, *, table=None, sphere_error=None, seconds: dict) -> dict:
+    """JSON-ready summary: the map as conditioned, the segmentation, the laws, timings."""
+    hm, seg = surface.hmap, surface.segmentation
+    out = {
+        "version": __version__, "units": {"length": "mm", "area": "mm2", "force": "N"},
+        "scene": scene_record,
+        "map": {"file": hm.source, "samples": list(hm.shape), "spacing_mm": hm.h,
+                "missing_samples": hm.filled, "missing_treated_as": surface.options.fill,
+                "height_range_mm": [float(np.nanmin(hm.heights)), float(np.nanmax(hm.heights))]},
+        "segmentation": {"asperities": len(seg), "candidates": seg.candidates,
+                         "min_distance_mm": seg.min_distance, "prominence_mm": seg.min_prominence},
+        "laws": None, "seconds": seconds,
+    }
+    if table is not None:
+        out["laws"] = {"kind": surface.options.law, "depth_mm": surface.options.law_depth,
+                       "levels": surface.options.law_levels, "all_solves_converged": table.converged,
+                       "sphere_law_error": {"median": sphere_error.median, "largest": sphere_error.largest}}
+    return out
+
+
+def write_json(record: dict, path: str | Path) -> Path:
+    with atomic_output(Path(path)) as tmp:
+        tmp.write_text(json.dumps(record, indent=2, allow_nan=False) + "\n", encoding="utf-8")
+    return Path(path)

@@ -1,0 +1,185 @@
+"""Asperities from a height map: summits and one watershed basin per summit.
+
+Summits are local maxima with a minimum distance between them (the maximum over a disc
+of that radius) and a minimum *prominence*: the height a summit rises above the highest
+pass (saddle) that leads to a higher summit. Prominences are computed on the watershed
+basins of every candidate maximum: passes between adjacent basins are taken from the
+basin boundaries and merged from the highest down (Kruskal's order with a union-find);
+when two groups of basins meet, the group with the lower top gets its prominence. The
+summits kept seed the final watershed (scikit-image's priority flood,
+:func:`skimage.segmentation.watershed`), so every sample belongs to exactly one asperity.
+scipy's ``watershed_ift`` is not used: its max-arc costs tie below the lowest pass, and it
+then gave every sample below that pass to one basin (and wrapped around the array's edges).
+
+Defaults suit road textures (chippings of 4-14 mm, micro-roughness of tens of um): a
+summit per stone, the micro-roughness kept inside its basin (the micro step sees it).
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from scipy import ndimage
+from skimage.segmentation import watershed
+
+from .heightmap import HeightMap, SurfaceError
+
+#: Default minimum distance between summits, mm (half the smallest common chipping).
+MIN_DISTANCE = 2.0
+#: Default minimum prominence of a summit, mm (above road micro-roughness).
+PROMINENCE = 0.1
+_EIGHT = np.ones((3, 3), dtype=bool)
+#: Candidates checked at once against their disc (bounds the work array).
+_CHUNK = 2048
+_ALL = slice(None)
+_NEIGHBOURS = (((_ALL, slice(None, -1)), (_ALL, slice(1, None))),
+               ((slice(None, -1), _ALL), (slice(1, None), _ALL)),
+               ((slice(None, -1), slice(None, -1)), (slice(1, None), slice(1, None))),
+               ((slice(None, -1), slice(1, None)), (slice(1, None), slice(None, -1))))
+
+
+@dataclass(frozen=True, eq=False)
+class Segmentation:
+    """Summits and basins of a height map.
+
+    Attributes
+    ----------
+    labels : (ny, nx) int array
+        Asperity of each sample, 0 .. N-1 (asperity 0 has the highest summit).
+    summits : (N, 2) int array
+        ``(j, i)`` index of each summit.
+    heights : (N,) array, mm
+        Summit heights (larger is closer to the body).
+    prominence : (N,) array, mm
+        Rise of each summit above its highest pass to a higher one (the highest summit:
+        above the lowest sample).
+    areas : (N,) array, mm^2
+        Basin areas.
+    candidates : int
+        Local maxima found before the prominence filter.
+    min_distance, min_prominence : float
+        The options used, mm.
+    """
+
+    labels: np.ndarray
+    summits: np.ndarray
+    heights: np.ndarray
+    prominence: np.ndarray
+    areas: np.ndarray
+    candidates: int
+    min_distance: float
+    min_prominence: float
+
+    def __len__(self) -> int:
+        return len(self.heights)
+
+
+def segment(hmap: HeightMap, *, min_distance: float = MIN_DISTANCE, prominence: float = PROMINENCE) -> Segmentation:
+    """Summits and watershed basins of ``hmap``; see the module docstring.
+
+    Parameters
+    ----------
+    hmap : HeightMap
+    min_distance : float, default 2.0
+        Smallest distance between two summits, mm (a summit is the highest sample within
+        this radius).
+    prominence : float, default 0.1
+        Smallest prominence of a summit, mm.
+    """
+    for name, v in (("min_distance", min_distance), ("prominence", prominence)):
+        if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or v < 0:
+            raise SurfaceError(f"{hmap.source or 'height map'}: segmentation {name} must be a number >= 0 (mm), "
+                               f"got {v!r}")
+    z = np.where(np.isnan(hmap.heights), np.nanmin(hmap.heights), hmap.heights)
+    seeds = _candidates(z, min_distance / hmap.h)
+    basins = _watershed(z, seeds)
+    prom = _prominences(z, basins, seeds)
+    keep = np.flatnonzero(prom >= prominence)
+    if keep.size == 0:  # the highest summit always qualifies (its prominence is the map's relief)
+        keep = np.array([int(np.argmax(z[seeds[:, 0], seeds[:, 1]]))])
+    order = keep[np.argsort(-z[seeds[keep, 0], seeds[keep, 1]], kind="stable")]
+    labels = _watershed(z, seeds[order])
+    areas = np.bincount(labels.ravel(), minlength=order.size) * hmap.h ** 2
+    return Segmentation(labels, seeds[order], z[seeds[order, 0], seeds[order, 1]], prom[order], areas,
+                        int(len(seeds)), float(min_distance), float(prominence))
+
+
+def _candidates(z: np.ndarray, radius: float) -> np.ndarray:
+    """``(j, i)`` of the samples highest over the disc of ``radius`` cells around them,
+    one per plateau. A maximum over the disc is one over the square inscribed in it, so
+    a fast (separable) square filter gives the candidates and the disc is checked on
+    those only."""
+    r = max(int(math.floor(radius)), 1)
+    half = max(int(math.floor(radius / math.sqrt(2.0))), 1)
+    peak = z >= ndimage.maximum_filter(z, size=2 * half + 1, mode="nearest")
+    plateaus, n = ndimage.label(peak, structure=_EIGHT)
+    flat = plateaus.ravel()
+    _, first = np.unique(flat, return_index=True)
+    first = first[flat[first] > 0]
+    cand = np.column_stack(np.unravel_index(first, z.shape)).astype(np.int64)
+    dj, di = np.nonzero(_disc(max(radius, 1.0), r))
+    padded = np.pad(z, r, mode="edge")
+    keep = np.zeros(len(cand), dtype=bool)
+    for lo in range(0, len(cand), _CHUNK):
+        c = cand[lo:lo + _CHUNK]
+        around = padded[c[:, 0, None] + dj[None, :], c[:, 1, None] + di[None, :]]
+        keep[lo:lo + _CHUNK] = z[c[:, 0], c[:, 1]] >= around.max(axis=1)
+    return cand[keep]
+
+
+def _disc(radius: float, r: int) -> np.ndarray:
+    J, I = np.mgrid[-r:r + 1, -r:r + 1]
+    return I * I + J * J <= radius ** 2
+
+
+def _watershed(z: np.ndarray, seeds: np.ndarray) -> np.ndarray:
+    """Basin index 0 .. len(seeds)-1 of every sample (flooding ``-z`` from the seeds,
+    8-connected, by scikit-image's priority-flood watershed)."""
+    markers = np.zeros(z.shape, dtype=np.int64)
+    markers[seeds[:, 0], seeds[:, 1]] = np.arange(1, len(seeds) + 1)
+    return watershed(-z, markers, connectivity=2) - 1
+
+
+def _passes(z: np.ndarray, basins: np.ndarray):
+    """Highest pass between every pair of adjacent basins: ``(a, b, height)`` arrays."""
+    pairs, levels = [], []
+    # each sample against its right, upper, upper-right and upper-left neighbour (8-connectivity)
+    for sa, sb in _NEIGHBOURS:
+        a, b, za, zb = basins[sa], basins[sb], z[sa], z[sb]
+        cross = a != b
+        pairs.append(np.column_stack([np.minimum(a[cross], b[cross]), np.maximum(a[cross], b[cross])]))
+        levels.append(np.minimum(za[cross], zb[cross]))
+    pairs, levels = np.concatenate(pairs), np.concatenate(levels)
+    if len(pairs) == 0:
+        return np.zeros(0, int), np.zeros(0, int), np.zeros(0)
+    key = pairs[:, 0] * (basins.max() + 1) + pairs[:, 1]
+    order = np.argsort(key, kind="stable")
+    key, levels, pairs = key[order], levels[order], pairs[order]
+    start = np.flatnonzero(np.r_[True, key[1:] != key[:-1]])
+    return pairs[start, 0], pairs[start, 1], np.maximum.reduceat(levels, start)
+
+
+def _prominences(z: np.ndarray, basins: np.ndarray, seeds: np.ndarray) -> np.ndarray:
+    """Prominence of each seed's summit (Kruskal over the passes, highest first)."""
+    top = z[seeds[:, 0], seeds[:, 1]].astype(float)
+    prom = top - z.min()
+    parent = np.arange(len(seeds))
+    peak = top.copy()   # highest summit of each group (at its root)
+
+    def root(k: int) -> int:
+        while parent[k] != k:
+            parent[k] = parent[parent[k]]
+            k = parent[k]
+        return k
+
+    a, b, level = _passes(z, basins)
+    for k in np.argsort(-level, kind="stable"):
+        ra, rb = root(int(a[k])), root(int(b[k]))
+        if ra == rb:
+            continue
+        low, high = (ra, rb) if peak[ra] < peak[rb] else (rb, ra)
+        prom[low] = peak[low] - level[k]
+        parent[low] = high
+    # a group's root is the seed of its highest summit, so prom[low] is that seed's prominence
+    return prom
