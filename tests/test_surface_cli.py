@@ -104,6 +104,7 @@ def test_surface_command_writes_the_segmentation(map_scene, tmp_path):
                                if not line.startswith("#")))
     scene = read_scene(path)
     assert len(rows) == len(scene.asperities)
+    assert [int(r["asperity"]) for r in rows] == list(range(1, len(rows) + 1))   # numbered from 1
     assert float(rows[0]["recess_z_mm"]) == 0.0 and 1.0 < float(rows[0]["law_exponent"]) < 2.0
     summary = json.loads((out / "surface.json").read_text())
     assert summary["segmentation"]["asperities"] == len(rows)

@@ -95,7 +95,7 @@ def scene_from_dict(data: Mapping[str, Any], *, base_dir: str | None = None) -> 
         from ..surface.scene_table import surface_from_table
 
         h = table_of("grid", data.get("grid", {})).get("h")
-        surface = surface_fromtable_of(table_of("surface", data["surface"]), base_dir=base_dir, h=h)
+        surface = surface_from_table(table_of("surface", data["surface"]), base_dir=base_dir, h=h)
         asperities = surface.asperities
     else:
         asperities = tuple(_asperity(f"asperity {k}", t)

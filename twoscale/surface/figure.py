@@ -33,7 +33,7 @@ def segmentation_figure(surface, path: str | Path, *, scene: dict | None = None,
     ax.plot(x, y, "o", color="tab:red", markersize=2.5)
     if len(x) <= MAX_NUMBERED:
         for k, (xk, yk) in enumerate(zip(x, y)):
-            ax.annotate(str(k), (xk, yk), fontsize=5, color="tab:red", xytext=(2, 2), textcoords="offset points")
+            ax.annotate(str(k + 1), (xk, yk), fontsize=5, color="tab:red", xytext=(2, 2), textcoords="offset points")
     ax.set_xlabel("x, mm")
     ax.set_ylabel("y, mm")
     title = (f"{Path(hm.source).name}: {len(seg)} asperities (min distance {seg.min_distance:g} mm, "

@@ -25,7 +25,7 @@ def asperity_rows(surface, table=None, sphere_error=None) -> list[dict]:
     exponents = table.exponents() if table is not None else None
     rows = []
     for k, a in enumerate(surface.asperities):
-        rows.append({"asperity": k, "x_mm": a.x, "y_mm": a.y, "summit_height_mm": float(seg.heights[k]),
+        rows.append({"asperity": k + 1, "x_mm": a.x, "y_mm": a.y, "summit_height_mm": float(seg.heights[k]),
                      "recess_z_mm": a.z, "prominence_mm": float(seg.prominence[k]),
                      "basin_area_mm2": float(seg.areas[k]), "sphere_R_mm": a.R,
                      "law_exponent": float(exponents[k]) if exponents is not None else math.nan,
@@ -37,7 +37,7 @@ def write_asperity_csv(rows: list[dict], path: str | Path) -> Path:
     """The rows as CSV (a first comment line gives the version and units)."""
     buf = io.StringIO()
     buf.write(f"# twoscale {__version__}: asperities of a height map; units mm, mm2; "
-              "law_exponent m of P ~ delta^m, sphere_law_error = max |P_sphere - P_tab| / P_tab\n")
+              "asperities numbered from 1 as in every table; law_exponent m of P ~ delta^m, sphere_law_error = max |P_sphere - P_tab| / P_tab\n")
     writer = csv.DictWriter(buf, fieldnames=CSV_COLUMNS, lineterminator="\n")
     writer.writeheader()
     for row in rows:
