@@ -239,12 +239,16 @@ def _initial_guess(system: MacroSystem, z, stack: LawStack, penetration, total_l
 
 
 def _independent_approach(z: np.ndarray, stack: LawStack, W: float) -> float:
-    """``d`` with ``sum_k f_k(d - z_k) = W`` (no interaction), by bracketing and bisection."""
+    """``d`` with ``sum_k f_k(d - z_k) = W`` (no interaction), by bracketing and bisection.
+
+    The bracket grows from a small step by half each time, so the laws are asked only for
+    tips within about 1.5 times the final approach: a tabulated law built on first use
+    (a height map's stones) is never built for a stone far below the load's reach."""
     lo = float(np.min(z))
-    step = max(float(np.ptp(z)), 1e-3 * max(abs(lo), 1.0), 1e-6)
+    step = max(float(np.ptp(z)) / 64.0, 1e-3 * max(abs(lo), 1.0) / 64.0, 1e-6)
     hi = lo + step
     while np.sum(stack.force(hi - z)) < W:
-        lo, hi = hi, hi + 2.0 * (hi - lo)
+        lo, hi = hi, hi + 0.5 * (hi - float(np.min(z)))
         if not np.isfinite(hi):
             raise ValueError(f"the laws cannot carry total_load={W!r} N")
     for _ in range(200):
