@@ -7,10 +7,11 @@ MPa nominal (default 0.2: total load = pressure x map area), under load control.
 one process, one after the other, single-threaded (``OMP_NUM_THREADS=1``):
 
 * ``ts``: the default two-scale solve from the height array: conditioning, segmentation
-  and the equivalent spheres (``segment_s``), then ``solve_twoscale``, in which the
-  tabulated laws of the asperities the macro step presses are computed from
-  single-asperity solves with no cache (``laws_s``, ``laws`` of them; ``solve_s`` is the
-  rest); the time compared is the sum;
+  and the equivalent spheres (``segment_s``), then ``solve_twoscale`` with the default
+  ``law = "auto"`` and no cache (so the equivalent spheres' laws start the micro step;
+  ``laws_s``/``laws``: any tabulation the solve did, 0 here; ``solve_s`` is the rest);
+  the time compared is the sum; a ``ts-tabulated`` row forces the tabulated laws
+  (computed from single-asperity solves, no cache) for comparison;
 * ``ref``: the project's full-grid reference (constrained CG, FFT) on the whole map;
 * ``CM``: ContactMechanics ``FreeFFTElasticHalfSpace`` + ``minimize_proxy`` on the same
   heights and grid, load control (when installed: ``pip install ".[bench]"``).
@@ -55,9 +56,9 @@ CM_TOL = 1e-10   # pentol (mm) and forcetol (N) of ContactMechanics
 TIGHT_FAR_TOL = 0.02
 
 
-def run_twoscale(z: np.ndarray, h: float, load: float, **options) -> dict:
+def run_twoscale(z: np.ndarray, h: float, load: float, *, law: str = "auto", **options) -> dict:
     t0 = time.perf_counter()
-    surface = build_surface(RawMap(z, h, "mm", None, "synthetic road"), SurfaceOptions())
+    surface = build_surface(RawMap(z, h, "mm", None, "synthetic road"), SurfaceOptions(law=law))
     t1 = time.perf_counter()
     laws = _timed_laws(surface.book)
     res = solve_twoscale(HalfSpace(MAT), surface.asperities, h=h, total_load=load, **options)
@@ -147,7 +148,11 @@ def main(argv=None) -> int:
     rows = {"ts": {"time_s": ts["time_s"], "converged": res.converged,
                    **accuracy(res.pressure_on(grid), owner, ref_p, args.h, len(surface.asperities))},
             "ref": {"time_s": ref["time_s"], "converged": ref["result"].converged}}
-    tight = run_twoscale(z, args.h, load, far_tol=TIGHT_FAR_TOL)   # fresh surface: its laws again
+    tab = run_twoscale(z, args.h, load, law="tabulated")
+    rows["ts-tabulated"] = {
+        "time_s": tab["time_s"], "converged": tab["result"].converged, "laws": tab["laws"],
+        **accuracy(tab["result"].pressure_on(grid), owner, ref_p, args.h, len(surface.asperities))}
+    tight = run_twoscale(z, args.h, load, far_tol=TIGHT_FAR_TOL)   # fresh surface
     rows[f"ts-{TIGHT_FAR_TOL:g}"] = {
         "time_s": tight["time_s"], "converged": tight["result"].converged,
         **accuracy(tight["result"].pressure_on(grid), owner, ref_p, args.h, len(surface.asperities))}

@@ -121,12 +121,35 @@ def test_laws_are_tabulated_only_where_pressed_and_cached(tmp_path):
 
     h = 0.1
     z = road(16.0, h, seed=2)
-    s = build_surface(RawMap(z, h, "mm", None, "road"), SurfaceOptions(), cache=LawCache(tmp_path))
+    tab = SurfaceOptions(law="tabulated")
+    s = build_surface(RawMap(z, h, "mm", None, "road"), tab, cache=LawCache(tmp_path))
     res = solve_twoscale(HS, s.asperities, h=h, total_load=5.0)   # a light load: the top stones only
     touched = int(np.count_nonzero(res.details.macro.local_penetrations > 0))
     assert res.converged and 0 < s.book.tabulated < len(s.asperities)
     assert s.book.tabulated >= touched
-    again = build_surface(RawMap(z, h, "mm", None, "road"), SurfaceOptions(), cache=LawCache(tmp_path))
+    again = build_surface(RawMap(z, h, "mm", None, "road"), tab, cache=LawCache(tmp_path))
     res2 = solve_twoscale(HS, again.asperities, h=h, total_load=5.0)
     assert again.book.tabulated == 0 and again.book.cache.hits == s.book.tabulated
     assert np.array_equal(res2.asperities.forces, res.asperities.forces)
+
+
+def test_auto_law_tabulates_nothing_and_takes_the_cached_tables(tmp_path):
+    # "auto" (the default): the equivalent sphere where no table is known, so a cold solve
+    # tabulates nothing, and the answer is the micro step's on the true heights either way
+    from twoscale.surface import LawCache
+
+    h = 0.1
+    z = road(16.0, h, seed=2)
+    cold = build_surface(RawMap(z, h, "mm", None, "road"), SurfaceOptions(), cache=LawCache(tmp_path))
+    res = solve_twoscale(HS, cold.asperities, h=h, total_load=5.0)
+    assert res.converged and cold.book.tabulated == 0
+    tab = build_surface(RawMap(z, h, "mm", None, "road"), SurfaceOptions(law="tabulated"), cache=LawCache(tmp_path))
+    ref = solve_twoscale(HS, tab.asperities, h=h, total_load=5.0)
+    assert tab.book.tabulated > 0
+    np.testing.assert_allclose(res.asperities.forces, ref.asperities.forces, atol=2e-3 * ref.asperities.forces.max())
+    # now cached: "auto" takes the tables (same macro forces as the tabulated run), computes none
+    warm = build_surface(RawMap(z, h, "mm", None, "road"), SurfaceOptions(), cache=LawCache(tmp_path))
+    res2 = solve_twoscale(HS, warm.asperities, h=h, total_load=5.0)
+    assert warm.book.tabulated == 0 and warm.book.cache.hits > 0
+    np.testing.assert_allclose(res2.details.macro.forces, ref.details.macro.forces, rtol=1e-9, atol=1e-12)
+

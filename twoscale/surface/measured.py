@@ -10,6 +10,7 @@ power-law continuation of :class:`~twoscale.laws.TabulatedLaw` goes beyond.
 """
 from __future__ import annotations
 
+import dataclasses
 import hashlib
 import math
 import os
@@ -32,7 +33,7 @@ from .sphere_fit import CAP_DEPTH, SphereFit
 #: Default depth below each summit down to which its law is tabulated, mm.
 LAW_DEPTH = 0.5
 #: Law kinds: tabulated from single-asperity solves, or the equivalent sphere's Hertz law.
-LAW_KINDS = ("tabulated", "sphere")
+LAW_KINDS = ("auto", "tabulated", "sphere")
 #: Asperity laws a book keeps in memory (one per asperity and E*).
 BOOK_ROWS = 100_000
 
@@ -52,7 +53,7 @@ class SurfaceOptions:
     min_distance: float = MIN_DISTANCE
     prominence: float = PROMINENCE
     cap_depth: float = CAP_DEPTH
-    law: str = "tabulated"
+    law: str = "auto"
     law_depth: float = LAW_DEPTH
     law_levels: int = LEVELS
 
@@ -127,9 +128,28 @@ class LawBook:
             rows.append(self.row(k, material))
         return stack_tables(rows)
 
+    def known(self, label: int, material) -> bool:
+        """Whether the tabulated law of ``label`` costs nothing now (held, or on disk)."""
+        E_star = float(material.E_star)
+        if (E_star, label) in self._rows:
+            return True
+        table = self.cache.get(self._key(E_star, label)) if self.cache is not None else None
+        if table is not None:
+            self._rows[(E_star, label)] = table
+        return table is not None
+
     def law(self, label: int, material):
-        """Law of asperity ``label`` (the ``law`` option decides which kind)."""
-        if self.options.law == "sphere":
+        """Law of asperity ``label``, by the ``law`` option: ``"tabulated"`` (computed when
+        first pressed), ``"sphere"`` (the equivalent sphere's Hertz law) or ``"auto"``: the
+        tabulated law when it is already known (e.g. cached by ``twoscale surface`` or an
+        earlier solve), else the sphere's. The macro forces only start the micro step, which
+        solves on the true heights: on a 100 mm road (314 stones) both laws gave the same
+        forces against the full-grid reference (largest error 0.064 % of the largest force)
+        and the sphere law's start saved the 3-13 s of tabulation for one more sweep."""
+        kind = self.options.law
+        if kind == "auto":
+            kind = "tabulated" if self.known(label, material) else "sphere"
+        if kind == "sphere":
             return HertzLaw(self.asperities[label].R, material.E_star)
         return LazyLaw(self, label, material)
 
@@ -215,7 +235,8 @@ def build_surface(raw: RawMap, options: SurfaceOptions, *, h: float | None = Non
     hmap: HeightMap = condition(raw, spacing=options.spacing, units=options.units, fill=options.fill,
                                 detrend=options.detrend, crop=options.crop, h=h, invert=options.invert)
     seg: Segmentation = segment(hmap, min_distance=options.min_distance, prominence=options.prominence)
-    digest = hashlib.sha256((hmap.digest() + repr(options)).encode())
+    # the laws' key: the map and every option but which law the macro step uses
+    digest = hashlib.sha256((hmap.digest() + repr(dataclasses.replace(options, law="tabulated"))).encode())
     digest.update(seg.labels.tobytes())
     book = LawBook(digest.hexdigest(), hmap.h, options, cache)
     asperities, fit = map_asperities(hmap, seg, cap_depth=options.cap_depth, book=book)

@@ -13,8 +13,9 @@ Keys (units mm; every one but ``file`` optional):
 ``min_distance``    between summits, mm (default 2)
 ``prominence``      of a summit, mm (default 0.1)
 ``cap_depth``       of the equivalent-sphere fit, mm (default 0.1)
-``law``             "tabulated" (default: single-asperity solves) or "sphere" (Hertz
-                    law of the equivalent sphere: the cheap option)
+``law``             "auto" (default: the tabulated law where it is already cached,
+                    else the equivalent sphere's), "tabulated" (single-asperity
+                    solves, cached) or "sphere" (Hertz law of the equivalent sphere)
 ``law_depth``       deepest tabulated penetration, mm (default 0.5)
 ``law_levels``      penetrations per asperity (default 5)
 ``law_cache``       folder of the on-disk law cache, relative to the scene file, or
