@@ -48,12 +48,12 @@ def test_the_suggested_option_is_accepted_by_the_scene_and_widens_the_region(wri
     from twoscale.io.scene_file import read_scene
     from twoscale.api import check_domain
 
-    scene = read_scene(write_scene(EDGE_SCENE.format(x=66.0, extra="source_spacing = 2.0")))
+    scene = read_scene(write_scene(EDGE_SCENE.format(x=64.0, extra="source_spacing = 2.0")))
     provider = scene.provider(progress=False)
     assert provider.source_spacing == 2.0
     # lattice nodes at multiples of 2 mm, one spacing inside the 70 mm half-width: 68 mm
     assert provider.domain() == pytest.approx((-68.0, 68.0, -68.0, 68.0))
-    check_domain(scene, provider)  # the tip at 66 mm with a ~1 mm contact now fits
+    check_domain(scene, provider, 0.1)  # the tip at 64 mm and its patch now fit
     default = BlockProvider(Material(6.0, 0.5), progress=False)
     assert default.domain() == pytest.approx((-65.0, 65.0, -65.0, 65.0))
 
@@ -99,3 +99,44 @@ def test_method_page_has_the_sections_the_code_cites():
         for m in re.findall(r"docs/method\.md sections? (\d+)(?:-(\d+))?", path.read_text(encoding="utf-8")):
             cited |= {int(v) for v in m if v}
     assert cited and cited <= sections
+
+
+def test_tip_outside_the_block_is_said_to_lie_outside(write_scene, tmp_path, capsys):
+    path = write_scene(EDGE_SCENE.format(x=75.0, extra=""))
+    assert main(["solve", str(path), "--out", str(tmp_path / "o")]) == 2
+    err = capsys.readouterr().err
+    assert "asperity 2 at (75, 0) mm lies outside" in err and err.count("\n") == 1
+
+
+def test_a_cell_coarser_than_every_contact_is_refused(examples_dir, capsys):
+    # S1: seven 6 mm spheres at 50 N, contacts about 3 mm across; h = 20 mm resolves none
+    assert main(["solve", str(examples_dir / "S1.toml"), "--h", "20"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "h = 20 mm is coarser than every expected contact" in err
+    assert "default rule gives" in err
+
+
+def test_a_coarse_cell_is_warned_about_in_one_line(examples_dir, capsys):
+    # h = 1 mm: about 3 cells across each ~3 mm contact (a Hertz force off by ~10 %)
+    assert main(["solve", str(examples_dir / "S1.toml"), "--h", "1", "--quiet"]) == 0
+    err = capsys.readouterr().err
+    assert err.startswith("warning: cell size h = 1 mm gives asperity ") and err.count("\n") == 1
+
+
+def test_python_solve_warns_and_refuses_the_same_way():
+    import warnings
+
+    import twoscale
+    from twoscale.api import ResolutionWarning
+    from twoscale.scene import SceneError
+
+    mat = Material(6.0, 0.5)
+    with pytest.raises(SceneError, match="coarser than every expected contact"):
+        twoscale.solve([[0.0, 0.0, 5.0]], material=mat, penetration=0.1, h=2.0)   # contact ~1.4 mm
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        twoscale.solve([[0.0, 0.0, 5.0]], material=mat, penetration=0.1, h=0.5)
+    assert [type(w.message) for w in caught] == [ResolutionWarning]
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        twoscale.solve([[0.0, 0.0, 5.0]], material=mat, penetration=0.1)      # the default h: silent

@@ -17,6 +17,7 @@ import argparse
 import importlib
 import importlib.util
 import sys
+import warnings
 from typing import Sequence
 
 from .._version import __version__
@@ -76,6 +77,11 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+def _warning_line(message, category, filename, lineno, file=None, line=None) -> None:
+    """A library warning (e.g. a coarse cell size) as one ``warning:`` line on stderr."""
+    print(f"warning: {message}", file=sys.stderr)
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     """Run the command line with ``argv`` (default ``sys.argv[1:]``); return the exit code."""
     parser = build_parser()
@@ -84,7 +90,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     except SystemExit as exc:  # argparse reports usage errors (code 2) and --help (code 0) this way
         return exc.code if isinstance(exc.code, int) else 2
     try:
-        return int(args._run(args))
+        with warnings.catch_warnings():
+            warnings.showwarning = _warning_line
+            return int(args._run(args))
     except KeyboardInterrupt:  # Ctrl-C: outputs are staged, so nothing half-written remains
         print("interrupted", file=sys.stderr)
         return EXIT_INTERRUPTED
