@@ -140,3 +140,22 @@ def test_python_solve_warns_and_refuses_the_same_way():
     with warnings.catch_warnings():
         warnings.simplefilter("error")
         twoscale.solve([[0.0, 0.0, 5.0]], material=mat, penetration=0.1)      # the default h: silent
+
+
+def test_heights_in_um_taken_as_mm_are_warned_about(tmp_path, capsys):
+    import numpy as np
+
+    y, x = np.mgrid[0:120, 0:120] * 0.1
+    z = 800.0 * np.exp(-((x - 6.0) ** 2 + (y - 6.0) ** 2) / 4.0)       # an 0.8 mm bump, in um
+    np.save(tmp_path / "bump.npy", z)
+    scene = tmp_path / "bump.toml"
+    scene.write_text('[material]\nE = 6.0\nnu = 0.5\n[load]\ntotal = 5.0\n[surface]\nfile = "bump.npy"\n'
+                     'spacing = 0.1\n', encoding="utf-8")
+    assert main(["surface", str(scene), "--out", str(tmp_path / "seg"), "--no-laws"]) == 0
+    out, err = capsys.readouterr()
+    assert " to 800 mm" in out and "heights " in out
+    assert err.startswith("warning: ") and 'set units = "um"' in err and err.count("\n") == 1
+    scene.write_text(scene.read_text().replace('spacing = 0.1', 'spacing = 0.1\nunits = "um"'), encoding="utf-8")
+    assert main(["surface", str(scene), "--out", str(tmp_path / "seg2"), "--no-laws"]) == 0
+    out, err = capsys.readouterr()
+    assert err == "" and " to 0.8 mm" in out

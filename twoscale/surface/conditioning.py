@@ -81,6 +81,7 @@ def condition(raw: RawMap, *, spacing: float | None = None, units: str | None = 
         raise SurfaceError(f"{src}: {z.shape[0]} x {z.shape[1]} samples at {step:g} mm is more than "
                            f"{MAX_SAMPLES:.0e} (about {BYTES_PER_SAMPLE * z.size / 1e9:.1f} GB to segment "
                            f"and solve); crop the map or give a larger [grid] h")
+    _check_relief(src, z, step, assumed_mm=units is None and raw.units is None)
     if invert:
         z = -z
     if fill == "mask":
@@ -88,6 +89,24 @@ def condition(raw: RawMap, *, spacing: float | None = None, units: str | None = 
     ny, nx = z.shape
     return HeightMap(z, step, x0=-(nx // 2) * step, y0=-(ny // 2) * step, source=src,
                      filled=int(missing.sum()))
+
+
+class SurfaceWarning(UserWarning):
+    """A height map that reads as implausible (e.g. heights in um taken as mm)."""
+
+
+def _check_relief(src: str, z: np.ndarray, step: float, *, assumed_mm: bool) -> None:
+    """Warn when heights taken as mm (no units given) span more than a fifth of the map's
+    smaller side: a road texture's relief is a few mm on a map of 50-200 mm, and heights
+    in um read as mm are 1000 times too tall."""
+    import warnings
+
+    relief = float(np.nanmax(z) - np.nanmin(z)) if np.isfinite(z).any() else 0.0
+    side = step * min(z.shape)
+    if assumed_mm and relief > 0.2 * side:
+        warnings.warn(SurfaceWarning(
+            f"{src}: heights taken as mm (no units given) span {relief:.4g} mm on a map {side:.4g} mm "
+            f"wide; if they are in micrometres, set units = \"um\""), stacklevel=3)
 
 
 def _unit_factor(src: str, declared: str | None, given: str | None) -> float:
