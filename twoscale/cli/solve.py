@@ -202,7 +202,9 @@ def summary(res: dict, scene_path: str, wall: float, path) -> str:
         lines.append(f"  ... {len(res['asperities']) - MAX_ROWS} more {where}")
     lines.append(f"  time         {wall:.3g} s")
     if path is not None:
-        lines.append(f"  wrote        {path}")
+        folder = Path(path).parent
+        names = sorted(p.name for p in folder.iterdir() if not p.name.startswith("."))
+        lines.append(f"  wrote        {folder}/: {', '.join(names)}")
     return "\n".join(lines)
 
 
