@@ -159,3 +159,17 @@ def test_heights_in_um_taken_as_mm_are_warned_about(tmp_path, capsys):
     assert main(["surface", str(scene), "--out", str(tmp_path / "seg2"), "--no-laws"]) == 0
     out, err = capsys.readouterr()
     assert err == "" and " to 0.8 mm" in out
+
+
+def test_indicators_between_different_scenes_warn(write_scene, tmp_path, capsys):
+    text = ("[material]\nE = 6.0\nnu = 0.5\n[load]\npenetration = 0.05\n[grid]\nh = 0.05\n"
+            "[[asperity]]\nx = 0.0\ny = 0.0\nR = 5.0\n[[asperity]]\nx = {x}\ny = 0.0\nR = 5.0\n")
+    for name, x in (("a", 4.0), ("b", 4.0), ("c", 5.0)):
+        assert main(["solve", str(write_scene(text.format(x=x), f"{name}.toml")), "--out", str(tmp_path / name),
+                     "--quiet"]) == 0
+    capsys.readouterr()
+    assert main(["indicators", str(tmp_path / "a"), str(tmp_path / "b")]) == 0
+    assert "warning" not in capsys.readouterr().err                # the same scene twice: silent
+    assert main(["indicators", str(tmp_path / "a"), str(tmp_path / "c")]) == 0
+    err = capsys.readouterr().err
+    assert err.startswith("warning: ") and "asperity 2: (4, 0) against (5, 0) mm" in err

@@ -157,8 +157,28 @@ def folder_indicators(run: str | os.PathLike, reference: str | os.PathLike, sens
     if P.shape != P_ref.shape:
         raise ValueError(f"{run} has {P.size} asperities and {reference} has {P_ref.size}: "
                          "e_M compares the same asperities")
+    _warn_if_tips_differ(run, reference)
     p, p_ref = _folder_sensor_map(run, sensor), _folder_sensor_map(reference, sensor)
     return {"e_M": e_M(P, P_ref), "e_m": _e_m_or_none(p, p_ref)}
+
+
+def _warn_if_tips_differ(run: Path, reference: Path, tol: float = 1e-6) -> None:
+    """A warning when the two runs' tips are not at the same places (two different scenes
+    give an e_M that compares nothing)."""
+    import json
+    import warnings
+
+    def tips(folder):
+        scene = json.loads((folder / "result.json").read_text(encoding="utf-8")).get("scene", {})
+        return np.array([[a.get("x", np.nan), a.get("y", np.nan)] for a in scene.get("asperity", [])], float)
+
+    a, b = tips(run), tips(reference)
+    if a.shape == b.shape and a.size and np.all(np.isfinite(a)) and np.all(np.isfinite(b)):
+        k = np.flatnonzero(np.hypot(*(a - b).T) > tol)
+        if k.size:
+            warnings.warn(f"{run} and {reference} have asperities at different places (asperity {k[0] + 1}: "
+                          f"({a[k[0], 0]:g}, {a[k[0], 1]:g}) against ({b[k[0], 0]:g}, {b[k[0], 1]:g}) mm): "
+                          "the indicators compare different scenes", stacklevel=3)
 
 
 def _folder_sensor_map(folder: Path, sensor: Sensor) -> np.ndarray:
