@@ -173,3 +173,23 @@ def test_indicators_between_different_scenes_warn(write_scene, tmp_path, capsys)
     assert main(["indicators", str(tmp_path / "a"), str(tmp_path / "c")]) == 0
     err = capsys.readouterr().err
     assert err.startswith("warning: ") and "asperity 2: (4, 0) against (5, 0) mm" in err
+
+
+def test_height_map_mistakes_are_one_line(tmp_path):
+    import numpy as np
+
+    from twoscale.surface.conditioning import condition
+    from twoscale.surface import RawMap, SurfaceError
+    from twoscale.surface.reading import read_heightmap
+
+    ragged = tmp_path / "ragged.txt"
+    ragged.write_text("0 1 2\n3 4 5\n6 7\n", encoding="utf-8")
+    with pytest.raises(SurfaceError, match="data row 3 has 2, the first has 3"):
+        read_heightmap(ragged)
+    inf = tmp_path / "inf.npy"
+    np.save(inf, np.full((20, 20), np.inf))
+    with pytest.raises(SurfaceError, match="all NaN or infinite"):
+        read_heightmap(inf)
+    raw = RawMap(np.zeros((31, 31)), 1.0, "mm", None, "flat")
+    with pytest.raises(SurfaceError, match=r"crop \[0, 40, 0, 40\] mm must lie within the map"):
+        condition(raw, crop=(0, 40, 0, 40))

@@ -91,19 +91,23 @@ def condition(raw: RawMap, *, spacing: float | None = None, units: str | None = 
                      filled=int(missing.sum()))
 
 
+#: Relief (mm) above which heights taken as mm are suspected to be micrometres.
+RELIEF_MM = 20.0
+
+
 class SurfaceWarning(UserWarning):
     """A height map that reads as implausible (e.g. heights in um taken as mm)."""
 
 
 def _check_relief(src: str, z: np.ndarray, step: float, *, assumed_mm: bool) -> None:
-    """Warn when heights taken as mm (no units given) span more than a fifth of the map's
-    smaller side: a road texture's relief is a few mm on a map of 50-200 mm, and heights
-    in um read as mm are 1000 times too tall."""
+    """Warn when heights taken as mm (no units given) span more than :data:`RELIEF_MM` and
+    a fifth of the map's smaller side: a road texture's relief is a few mm on a map of
+    50-200 mm, and heights in um read as mm are 1000 times too tall."""
     import warnings
 
     relief = float(np.nanmax(z) - np.nanmin(z)) if np.isfinite(z).any() else 0.0
     side = step * min(z.shape)
-    if assumed_mm and relief > 0.2 * side:
+    if assumed_mm and relief > max(0.2 * side, RELIEF_MM):
         warnings.warn(SurfaceWarning(
             f"{src}: heights taken as mm (no units given) span {relief:.4g} mm on a map {side:.4g} mm "
             f"wide; if they are in micrometres, set units = \"um\""), stacklevel=3)
@@ -136,6 +140,11 @@ def _crop(src, z, missing, step, crop):
         x0, x1, y0, y1 = (float(v) for v in crop)
     except (TypeError, ValueError):
         raise SurfaceError(f"{src}: crop must be [xmin, xmax, ymin, ymax] (mm), got {crop!r}") from None
+    width, height = (z.shape[1] - 1) * step, (z.shape[0] - 1) * step
+    if x0 < -1e-9 * step or y0 < -1e-9 * step or x1 > width * (1 + 1e-9) or y1 > height * (1 + 1e-9) \
+            or x1 <= x0 or y1 <= y0:
+        raise SurfaceError(f"{src}: crop {list(crop)!r} mm must lie within the map, x in [0, {width:g}], "
+                           f"y in [0, {height:g}] mm from the first sample, with xmin < xmax and ymin < ymax")
     i0, i1 = max(0, math.ceil(x0 / step - 1e-9)), min(z.shape[1], math.floor(x1 / step + 1e-9) + 1)
     j0, j1 = max(0, math.ceil(y0 / step - 1e-9)), min(z.shape[0], math.floor(y1 / step + 1e-9) + 1)
     if i1 - i0 < MIN_SIDE or j1 - j0 < MIN_SIDE:

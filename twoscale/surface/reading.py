@@ -96,9 +96,10 @@ def _checked(raw: RawMap) -> RawMap:
     if min(z.shape) < MIN_SIDE:
         raise SurfaceError(f"{raw.source}: height map too small ({z.shape[0]} x {z.shape[1]} samples; "
                            f"at least {MIN_SIDE} x {MIN_SIDE})")
+    if not np.isfinite(z).any():
+        kind = "NaN" if np.all(np.isnan(z)) else "NaN or infinite"
+        raise SurfaceError(f"{raw.source}: every height is missing (all {kind})")
     z[~np.isfinite(z)] = np.nan
-    if np.all(np.isnan(z)):
-        raise SurfaceError(f"{raw.source}: every height is missing (all NaN)")
     return RawMap(z, raw.spacing, raw.units, raw.spacing_units, raw.source)
 
 
@@ -120,6 +121,13 @@ def _read_text_grid(name: str) -> np.ndarray:
     with open(name, encoding="utf-8") as fh:
         text = fh.read()
     delimiter = "," if "," in text else None
+    rows = [ln for ln in text.splitlines() if ln.strip() and not ln.lstrip().startswith("#")]
+    widths = {len(ln.split(delimiter)) for ln in rows}
+    if len(widths) > 1:
+        first = len(rows[0].split(delimiter))
+        k = next(i for i, ln in enumerate(rows) if len(ln.split(delimiter)) != first)
+        raise SurfaceError(f"{name}: a text grid needs the same number of values on every row; data row {k + 1} "
+                           f"has {len(rows[k].split(delimiter))}, the first has {first}")
     return np.loadtxt(name, delimiter=delimiter, comments="#", ndmin=2)
 
 
