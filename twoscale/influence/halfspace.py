@@ -241,6 +241,11 @@ class ConvolutionOperator(GridOperator):
         """Kernel times a source spectrum (a new array)."""
         return self._khat * spectrum
 
+    def transposed(self) -> "_TransposedConvolution":
+        """The reverse pair's operator (``target`` and ``source`` swapped), sharing this
+        one's kernel spectrum."""
+        return _TransposedConvolution(self)
+
     def finish(self, a: np.ndarray) -> np.ndarray:
         """Target displacement from a (sum of) :meth:`multiply` result(s); ``a`` is overwritten."""
         my, mx = self._shape
@@ -274,3 +279,34 @@ class _SingleConvolution(GridOperator):
         sy, sx = self.source.ny - 1, self.source.nx - 1
         a = sfft.ifft(a, axis=0, overwrite_x=True)[sy:sy + self.target.ny]
         return sfft.irfft(a, n=mx, axis=1)[:, sx:sx + self.target.nx].astype(np.float64)
+
+
+class _TransposedConvolution(ConvolutionOperator):
+    """The transpose of a :class:`ConvolutionOperator`, holding only a reference to its
+    kernel spectrum. The reverse pair's offset table is the parent's reversed along both
+    axes (Love's kernel is even), and the zero-padded transform of a reversed real table
+    of length ``m`` is the conjugate transform times ``exp(-2 pi i (m - 1) k / N)`` per
+    axis: a phase vector per axis instead of a second spectrum."""
+
+    def __init__(self, parent: ConvolutionOperator):
+        self.target, self.source = parent.source, parent.target
+        self._shape = parent.fft_shape
+        self._parent = parent._khat
+        ny, nx = self._shape
+        my, mx = parent.target.ny + parent.source.ny - 1, parent.target.nx + parent.source.nx - 1
+        self._py = np.exp(-2j * np.pi * ((my - 1) * np.arange(ny) % ny) / ny)[:, None]
+        self._px = np.exp(-2j * np.pi * ((mx - 1) * np.arange(nx // 2 + 1) % nx) / nx)[None, :]
+
+    @property
+    def _khat(self) -> np.ndarray:
+        out = np.conj(self._parent)
+        out *= self._py
+        out *= self._px
+        return out
+
+    def transposed(self) -> None:
+        return None
+
+    @property
+    def nbytes(self) -> int:
+        return self._py.nbytes + self._px.nbytes
