@@ -189,3 +189,22 @@ def test_solver_answer_does_not_depend_on_the_routes():
     assert result_to_dict(fast, scene)["coupling"] == dataclasses.asdict(used)
     with pytest.raises(ValueError, match="separated_rtol"):
         solve_twoscale(HS, asps, separated_rtol=0.0, **kw)
+
+
+@pytest.mark.parametrize("far", [False, True])
+def test_transposed_operators_equal_the_reverse_pair(far):
+    """``op.transposed()`` (the coupling takes (l, k) from (k, l) by reciprocity) equals the
+    operator built for the reverse pair: the FFT operator (conjugate spectrum times a phase
+    per axis) and the separated one (its node kernel transposed), on pairs of unequal grids."""
+    base = Grid(0.0, 0.0, H, 400, 400)
+    a = base.subgrid(10, 12, 13, 9)
+    b = base.subgrid(200 if far else 18, 5, 7, 11)
+    op = HS.separated_operator(a, b, rtol=1e-8) if far else HS.grid_operator(a, b)
+    assert op is not None
+    back = op.transposed()
+    reverse = HS.grid_operator(b, a)
+    p = np.random.default_rng(2).uniform(size=a.shape)
+    want = reverse.apply(p)
+    assert back.source == a and back.target == b
+    assert np.allclose(back.apply(p), want, rtol=1e-7 if far else 1e-12, atol=0.0)
+    assert np.allclose(back.finish(back.multiply(back.spectrum(p))), want, rtol=1e-7 if far else 1e-12)

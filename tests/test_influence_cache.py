@@ -71,7 +71,7 @@ def test_two_half_spaces_do_not_share_entries():
     assert a == b and hash(a) == hash(b)            # the caches are not part of the value
     g = Grid(0.0, 0.0, 0.1, 12, 9)
     a.grid_matrix(g)
-    assert len(a.tables) == 1 and len(b.tables) == 0
+    assert len(a.tables) == 2 and len(b.tables) == 0   # the table and the quadrant it was cut from
     a.grid_operator(g)                              # the same offset table: a hit
     assert a.tables.hits == 1 and b.tables.hits == 0
 
@@ -110,3 +110,22 @@ def test_separated_keys_are_values():
     c1, c2 = hs1.grid_operator(far, g), hs2.grid_operator(far, g)
     assert c1.source_key == c2.source_key and c1.target_key == c2.target_key
     assert c1.source_key != o1.source_key
+
+
+def test_offset_tables_cut_from_the_quadrant_equal_love_values():
+    """Windows of offsets of either sign, straddling zero or not, and a quadrant that must
+    grow: the same values as Love's formula evaluated on the offsets."""
+    from twoscale.analytic.halfspace import love_rectangle
+
+    hs = HalfSpace(MAT)
+    h = 0.05
+    rng = np.random.default_rng(3)
+    for ox0, oy0, mx, my in [(-5, -7, 11, 15), (3, -20, 4, 9), (-30, 2, 8, 5), (0, 0, 1, 1),
+                             *[tuple(int(v) for v in rng.integers(-150, 150, 2)) + tuple(int(v) for v in
+                                                                                       rng.integers(1, 120, 2))
+                               for _ in range(20)]]:
+        got = hs._window(h, ox0, oy0, mx, my)
+        ox, oy = (ox0 + np.arange(mx)) * h, (oy0 + np.arange(my)) * h
+        want = love_rectangle(ox[None, :], oy[:, None], h / 2, h / 2, hs.E_star)
+        assert got.shape == want.shape
+        assert np.allclose(got, want, rtol=1e-9, atol=1e-12 * want.max())

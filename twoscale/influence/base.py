@@ -78,6 +78,13 @@ class GridOperator(ABC):
         takes and returns float64 arrays. Default: ``self`` (no cheaper variant)."""
         return self
 
+    def transposed(self) -> "GridOperator | None":
+        """The operator from ``target`` to ``source`` sharing this one's arrays, or None
+        (default) when it has no such cheap form. Cell influence is reciprocal on every
+        elastic body (Maxwell-Betti: ``A_ts = A_st^T`` for cells of one size), so callers that
+        need both directions of a pair may take one from the other."""
+        return None
+
     @property
     def source_key(self) -> tuple:
         """Operators with equal keys give equal :meth:`spectrum` for equal pressure arrays.

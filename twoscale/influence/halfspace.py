@@ -26,6 +26,25 @@ TABLE_CACHE_ENTRIES = 40_000
 TABLE_CACHE_BYTES = 64e6
 #: Bound of each half-space's separated operators waiting for their transposed request, bytes.
 SEPARATED_CACHE_BYTES = 64e6
+#: Largest quadrant of Love values kept per cell size (entries; 16 MB): every offset table
+#: within it is a gather from it instead of new Love evaluations.
+QUADRANT_MAX_ENTRIES = 2_000_000
+#: A quadrant that must grow grows to at least this factor of its old extent per axis.
+QUADRANT_GROWTH = 1.5
+
+
+def _folded(a: np.ndarray, start: int, n: int, *, axis: int) -> np.ndarray:
+    """Rows (``axis=0``) or columns of ``a`` at the indices ``|start|, ..., |start + n - 1|``
+    (two strided copies instead of a fancy-indexed gather)."""
+    view = np.moveaxis(a, axis, 0)
+    stop = start + n - 1
+    if start >= 0:
+        out = view[start:stop + 1]
+    elif stop <= 0:
+        out = view[-stop:-start + 1][::-1]
+    else:
+        out = np.concatenate([view[1:-start + 1][::-1], view[:stop + 1]])
+    return np.ascontiguousarray(np.moveaxis(out, 0, axis))
 
 
 def _love_table(E_star: float, h: float, ox0: int, oy0: int, mx: int, my: int) -> np.ndarray:
@@ -87,15 +106,37 @@ class HalfSpace(InfluenceProvider):
         mx, my = target.nx + source.nx - 1, target.ny + source.ny - 1
         h = float(source.h)
         if mx * my > TABLE_CACHE_ENTRIES:
-            return _love_table(self.E_star, h, ox0, oy0, mx, my), ox0, oy0
+            return self._window(h, ox0, oy0, mx, my), ox0, oy0
         # patch-sized tables recur (every patch of the same shape has the same self table):
         # kept, read-only, in this half-space's bounded cache (``h`` exact: a table is only
         # reused for the very cell size it was made for)
         key = ("love", h, ox0, oy0, mx, my)
         table = self.tables.get(key)
         if table is None:
-            table = self.tables.put(key, _love_table(self.E_star, h, ox0, oy0, mx, my), 8 * mx * my)
+            table = self.tables.put(key, self._window(h, ox0, oy0, mx, my), 8 * mx * my)
         return table, ox0, oy0
+
+    def _window(self, h: float, ox0: int, oy0: int, mx: int, my: int) -> np.ndarray:
+        """Love's kernel on the offsets ``(oy0 + m, ox0 + n) h`` (read-only): a gather from
+        the quadrant of offsets ``(|oy|, |ox|)`` (the kernel is even in both), which this
+        half-space keeps per ``h`` in ``tables`` and grows when a window reaches beyond it;
+        computed directly when the quadrant would exceed ``QUADRANT_MAX_ENTRIES``. Near
+        pairs of patches each have their own window: the gather costs a copy where new
+        Love values cost ~50x more."""
+        ax = max(abs(ox0), abs(ox0 + mx - 1)) + 1
+        ay = max(abs(oy0), abs(oy0 + my - 1)) + 1
+        key = ("love-quadrant", h)
+        quadrant = self.tables.get(key)
+        if quadrant is None or quadrant.shape[0] < ay or quadrant.shape[1] < ax:
+            if quadrant is not None:
+                ax = max(ax, min(int(QUADRANT_GROWTH * quadrant.shape[1]), QUADRANT_MAX_ENTRIES // ay))
+                ay = max(ay, min(int(QUADRANT_GROWTH * quadrant.shape[0]), QUADRANT_MAX_ENTRIES // ax))
+            if ax * ay > QUADRANT_MAX_ENTRIES:
+                return _love_table(self.E_star, h, ox0, oy0, mx, my)
+            quadrant = self.tables.put(key, _love_table(self.E_star, h, 0, 0, ax, ay), 8 * ax * ay)
+        table = _folded(_folded(quadrant, oy0, my, axis=0), ox0, mx, axis=1)
+        table.setflags(write=False)
+        return table
 
     def grid_matrix(self, target: Grid, source: Grid | None = None) -> np.ndarray:
         source = target if source is None else source
@@ -200,6 +241,11 @@ class ConvolutionOperator(GridOperator):
         """Kernel times a source spectrum (a new array)."""
         return self._khat * spectrum
 
+    def transposed(self) -> "_TransposedConvolution":
+        """The reverse pair's operator (``target`` and ``source`` swapped), sharing this
+        one's kernel spectrum."""
+        return _TransposedConvolution(self)
+
     def finish(self, a: np.ndarray) -> np.ndarray:
         """Target displacement from a (sum of) :meth:`multiply` result(s); ``a`` is overwritten."""
         my, mx = self._shape
@@ -233,3 +279,34 @@ class _SingleConvolution(GridOperator):
         sy, sx = self.source.ny - 1, self.source.nx - 1
         a = sfft.ifft(a, axis=0, overwrite_x=True)[sy:sy + self.target.ny]
         return sfft.irfft(a, n=mx, axis=1)[:, sx:sx + self.target.nx].astype(np.float64)
+
+
+class _TransposedConvolution(ConvolutionOperator):
+    """The transpose of a :class:`ConvolutionOperator`, holding only a reference to its
+    kernel spectrum. The reverse pair's offset table is the parent's reversed along both
+    axes (Love's kernel is even), and the zero-padded transform of a reversed real table
+    of length ``m`` is the conjugate transform times ``exp(-2 pi i (m - 1) k / N)`` per
+    axis: a phase vector per axis instead of a second spectrum."""
+
+    def __init__(self, parent: ConvolutionOperator):
+        self.target, self.source = parent.source, parent.target
+        self._shape = parent.fft_shape
+        self._parent = parent._khat
+        ny, nx = self._shape
+        my, mx = parent.target.ny + parent.source.ny - 1, parent.target.nx + parent.source.nx - 1
+        self._py = np.exp(-2j * np.pi * ((my - 1) * np.arange(ny) % ny) / ny)[:, None]
+        self._px = np.exp(-2j * np.pi * ((mx - 1) * np.arange(nx // 2 + 1) % nx) / nx)[None, :]
+
+    @property
+    def _khat(self) -> np.ndarray:
+        out = np.conj(self._parent)
+        out *= self._py
+        out *= self._px
+        return out
+
+    def transposed(self) -> None:
+        return None
+
+    @property
+    def nbytes(self) -> int:
+        return self._py.nbytes + self._px.nbytes

@@ -267,8 +267,12 @@ class Coupling:
         hit = self._fft.get((k, l))
         if hit is not None:
             return hit[0]
+        back = self._fft.get((l, k))
+        op = None if back is None else back[0].transposed()
+        if op is not None:
+            self._fft[(k, l)] = (op, 0.0)           # shares the reverse pair's arrays
+            return op
         gk, gl = self.patches[k].grid, self.patches[l].grid
-        op = None
         if self.separated_rtol is not None and k != l:
             op = self.provider.separated_operator(gk, gl, rtol=self.separated_rtol)
             self.separated_pairs += op is not None
@@ -336,7 +340,13 @@ class Coupling:
             return hit
         route = ("plain", None, 0.0)
         pk, pl = self.patches[k], self.patches[l]
-        if int(pk.owned.sum()) * int(pl.owned.sum()) > self.dense_max_entries:
+        back = self._routes.get((l, k), route)
+        mirror = None if back[1] is None else back[1].transposed()
+        if mirror is not None:
+            # the reverse pair's operator transposed (reciprocity): no new memory
+            self.separated_pairs += back[0] == "separated"
+            route = (back[0], mirror, 0.0)
+        elif int(pk.owned.sum()) * int(pl.owned.sum()) > self.dense_max_entries:
             op, kind = None, "separated"
             if self.separated_rtol is not None:
                 op = self._base.separated_operator(pk.grid, pl.grid, rtol=self.separated_rtol)
