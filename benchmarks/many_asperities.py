@@ -104,7 +104,7 @@ def run_twoscale(n: int, seed: int, options: dict) -> dict:
     cells = int(sum(f.grid.size for f in res.fields))
     return {"method": "twoscale", "n": n, "time_s": t, "peak_mb": _peak_mb(), "cells": cells,
             "forces": forces.tolist(), "converged": bool(res.converged), "message": res.message,
-            "touching": float(np.mean(forces > 0)), "timings": res.timings_s,
+            "touching": float(np.mean(forces > 0)), "timings": dict(res.timings_s),
             "iterations": {k: int(v) for k, v in res.iterations.items()}, "side_mm": side}
 
 
