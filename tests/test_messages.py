@@ -193,3 +193,32 @@ def test_height_map_mistakes_are_one_line(tmp_path):
     raw = RawMap(np.zeros((31, 31)), 1.0, "mm", None, "flat")
     with pytest.raises(SurfaceError, match=r"crop \[0, 40, 0, 40\] mm must lie within the map"):
         condition(raw, crop=(0, 40, 0, 40))
+
+
+def test_contacts_reaching_the_map_edge_are_named(tmp_path):
+    import warnings
+
+    import numpy as np
+
+    import twoscale
+    from twoscale.io.scene_file import read_scene
+    from twoscale.surface.conditioning import SurfaceWarning
+
+    y, x = np.mgrid[0:121, 0:121] * 0.1            # 12 x 12 mm at 0.1 mm
+    bump = lambda cx, cy: 0.5 * np.exp(-((x - cx) ** 2 + (y - cy) ** 2) / 2.0)   # noqa: E731
+    scene = tmp_path / "s.toml"
+    scene.write_text('[material]\nE = 6.0\nnu = 0.5\n[load]\ntotal = 2.0\n[surface]\nfile = "m.npy"\n'
+                     'spacing = 0.1\nunits = "mm"\nlaw = "sphere"\n', encoding="utf-8")
+    for centres, expected in (([(6.0, 6.0)], []), ([(6.0, 6.0), (6.0, 0.0)], [2])):
+        np.save(tmp_path / "m.npy", sum(bump(cx, cy) for cx, cy in centres))
+        s = read_scene(scene)
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            res = twoscale.solve(s)
+        edge = [w for w in caught if issubclass(w.category, SurfaceWarning)]
+        assert res.converged
+        if not expected:
+            assert edge == []
+        else:   # the stone centred on the map's lower edge, numbered from 1 in scene order
+            k = int(np.argmin([abs(a.y - (-6.0)) for a in s.asperities]))
+            assert len(edge) == 1 and f"asperity {k + 1} reaches the edge" in str(edge[0].message)

@@ -219,12 +219,18 @@ def solve(problem, *, method="twoscale", provider=None, material: Material | Non
     if method == "twoscale":
         from .twoscale import solve_twoscale
 
-        return solve_twoscale(provider, scene.asperities, h=h, penetration=scene.penetration,
-                              total_load=scene.total_load, tilt=scene.tilt, pivot=scene.pivot, **options)
-    from .reference.on_scene import solve_reference_scene
+        result = solve_twoscale(provider, scene.asperities, h=h, penetration=scene.penetration,
+                                total_load=scene.total_load, tilt=scene.tilt, pivot=scene.pivot, **options)
+    else:
+        from .reference.on_scene import solve_reference_scene
 
-    return solve_reference_scene(scene, provider, h, solver="auto" if method == "reference" else method,
-                                 **options)
+        result = solve_reference_scene(scene, provider, h, solver="auto" if method == "reference" else method,
+                                       **options)
+    if scene.surface is not None:
+        from .surface.edges import warn_edge_contacts
+
+        warn_edge_contacts(result, scene.surface.hmap.grid)
+    return result
 
 
 __all__ = ["METHODS", "solve", "asperities", "as_asperities"]
