@@ -148,7 +148,8 @@ def test_outputs_tables_and_figures(study, tmp_path):
     for r in ind:  # e_M of "left" against "both": the right tip is missing from "left"
         both = {t["asperity"]: t["force_N"] for t in tips if (t["body"], t["load"], t["position"]) == ("both", r["load"], r["position"])}
         left = {t["asperity"]: t["force_N"] for t in tips if (t["body"], t["load"], t["position"]) == ("left", r["load"], r["position"])}
-        expected = 100 * ((left[0] - both[0]) ** 2 + both[1] ** 2) / (both[0] ** 2 + both[1] ** 2)
+        # tips numbered from 1, as in the scene file
+        expected = 100 * ((left[1] - both[1]) ** 2 + both[2] ** 2) / (both[1] ** 2 + both[2] ** 2)
         assert r["e_M_percent"] == pytest.approx(expected, rel=1e-9)
     names = sorted(p.name for p in (out / "figures").iterdir())
     assert names == ["asperity_forces_pair_both.png", "asperity_forces_pair_left.png", "indicators_pair.png",
@@ -223,3 +224,28 @@ def test_unreachable_scheduler_exits_2(study, tmp_path, capsys, monkeypatch):
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "--scheduler 'tcp://127.0.0.1:1' cannot be reached" in err
     assert not out.exists()
+
+
+def test_study_folder_is_refused_unless_it_is_this_studys(study, tmp_path, capsys):
+    out = tmp_path / "out"
+    out.mkdir()
+    (out / "asperities.csv").write_text("my own table\n", encoding="utf-8")        # a user's file
+    assert main(["study", study.source, "--out", str(out), "--workers", "0", "--quiet"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "is no twoscale study folder" in err
+    assert (out / "asperities.csv").read_text() == "my own table\n"               # untouched
+    fresh = tmp_path / "fresh"
+    assert main(["study", study.source, "--out", str(fresh), "--workers", "0", "--quiet"]) == 0
+    cases = {p.name for p in (fresh / "cases").iterdir()}
+    assert main(["study", study.source, "--out", str(fresh), "--workers", "0", "--quiet"]) == 0   # resume
+    # another study (one load only) into that folder: refused, then replaced with --overwrite
+    other = tmp_path / "other.toml"
+    other.write_text(STUDY.replace("penetration = [0.05, 0.1]", "penetration = [0.05]").replace(
+        'name = "two tips"', 'name = "half"'), encoding="utf-8")
+    capsys.readouterr()
+    assert main(["study", str(other), "--out", str(fresh), "--workers", "0", "--quiet"]) == 2
+    assert "holds another study ('two tips')" in capsys.readouterr().err
+    assert main(["study", str(other), "--out", str(fresh), "--workers", "0", "--quiet", "--overwrite"]) == 0
+    summary = json.loads((fresh / "summary.json").read_text())
+    assert summary["run"]["ran"] == 0 and summary["cases"] == 4      # its 4 cases were among the 8 kept
+    assert {p.name for p in (fresh / "cases").iterdir()} == cases

@@ -15,7 +15,7 @@ ones again); Ctrl-C leaves the finished cases in place (exit code 130).
 When the cases are done: ``DIR/cases.csv``, ``asperities.csv``, ``indicators.csv`` (and
 ``.parquet``), ``summary.json`` and ``DIR/figures/*.png``, covering every finished case.
 
-Needs the ``study`` extra (``pip install "twoscale[study]"``: dask.distributed, pyarrow).
+Needs the ``study`` extra (``pip install ".[study]"`` in the repository: dask.distributed, pyarrow).
 
 Exit codes: 0 every case converged; 1 some case did not converge or failed (each is
 recorded with its reason, the others still run); 2 bad input (one ``error: ...`` line,
@@ -27,6 +27,7 @@ from __future__ import annotations
 import argparse
 import importlib.util
 import os
+import shutil
 import sys
 from pathlib import Path
 
@@ -50,6 +51,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--batch", metavar="B", default="1",
                         help="cases per Dask task (default 1; more for large clusters: fewer, longer "
                              "tasks; a batch's cases are written when the whole batch is done)")
+    parser.add_argument("--overwrite", action="store_true",
+                        help="replace another study's tables and figures in DIR (its finished cases are kept "
+                             "and reused where the inputs match); a folder of this study resumes without it")
     parser.add_argument("--quiet", action="store_true", help="no progress bar or summary")
 
 
@@ -75,29 +79,33 @@ def run(args: argparse.Namespace) -> int:
     """Run ``twoscale study``; returns the exit code (see the module doc)."""
     missing = missing_dependencies()
     if missing:
-        print(f"error: twoscale study needs {' and '.join(missing)}: pip install \"twoscale[study]\" "
+        print(f"error: twoscale study needs {' and '.join(missing)}: pip install \".[study]\" in the repository "
               f"(or pip install {' '.join(repr(m) if '[' in m else m for m in missing)})", file=sys.stderr)
         return 2
+    from ..studies.folder import check_study_folder, mark_study_folder
     from ..studies.spec import read_study
 
     out = Path(args.out)
     try:
         workers = _count(args.workers, "--workers", least=0, default=os.cpu_count() or 1)
         batch = _count(args.batch, "--batch", least=1, default=1)
-        if out.exists() and not out.is_dir():
-            raise ValueError(f"--out {args.out!r} exists and is not a folder")
         study = read_study(args.study)
+        check_study_folder(out, study, overwrite=args.overwrite)
     except ValueError as exc:  # StudyError and SceneError included
         print(f"error: {exc}", file=sys.stderr)
         return 2
     from ..studies.execute import run_study
     from ..studies.outputs import write_outputs
 
+    created = not out.exists()
+    mark_study_folder(out, study)
     try:
         run_info = run_study(study, out, workers=workers, scheduler=args.scheduler, batch=batch, quiet=args.quiet)
     except OSError as exc:  # the scheduler's address: nothing has run
         if args.scheduler is None:
             raise
+        if created:  # nothing has run: leave no folder behind
+            shutil.rmtree(out, ignore_errors=True)
         print(f"error: {exc}", file=sys.stderr)
         return 2
     summary = write_outputs(out, study, run_info)

@@ -21,7 +21,7 @@ import numpy as np
 from ..plot._figure import new_figure, save_png
 
 #: Tips drawn individually at most; the most loaded are kept.
-MAX_TIPS = 30
+MAX_TIPS = 12   # lines per figure: each gets a legend entry
 
 
 def _solved(case_rows: list) -> list:
@@ -89,13 +89,15 @@ def track(case_rows: list, tip_rows: list, scene: str, body: str, path: Path, me
         where = {r["key"]: r["distance_mm"] for r in rows}
         for k in sorted(_top_tips(tips)):  # a tip off the footprint carries nothing: 0
             F = dict((where[t["key"]], t["force_N"]) for t in tips if t["asperity"] == k)
-            ax.plot(s, [F.get(x, 0.0) for x in s], lw=0.8)
+            ax.plot(s, [F.get(x, 0.0) for x in s], lw=0.8, label=f"tip {k}")
         total = dict((r["distance_mm"], r["total_load_N"]) for r in rows)
         right = ax.twinx()  # the total is tens of tips' forces: its own scale
         right.plot(s, [total[x] for x in s], "k--", lw=1.5, label="total (right axis)")
         right.set_ylim(0.0, 1.15 * max(total.values()))
         right.set_ylabel("total load (N)")
         right.legend(fontsize=7, loc="upper right")
+        if len(_top_tips(tips)) <= 12:
+            ax.legend(fontsize=6, ncol=2, loc="upper left")
         ax.set(ylabel="tip force (N)", title=f"{scene} on {body}, {kind} = {value:g} {'N' if kind == 'total' else 'mm'}")
     axes[-1].set_xlabel("distance along the positions (mm)")
     fig.tight_layout()

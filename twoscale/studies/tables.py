@@ -65,7 +65,7 @@ def rows(study: Study, cases: list, keys: list, records: dict) -> tuple[list, li
                        h_mm=res["h"], strategy=res["strategy"])
             asps = case.scene.scene.asperities
             for j, k in enumerate(rec["tips"]):
-                tip_rows.append({**where, "asperity": k, "x_mm": asps[k].x + case.shift[0],
+                tip_rows.append({**where, "asperity": k + 1, "x_mm": asps[k].x + case.shift[0],
                                  "y_mm": asps[k].y + case.shift[1], "force_N": res["forces"][j],
                                  "contact_area_mm2": res["contact_areas"][j],
                                  "max_pressure_MPa": res["max_pressures"][j], "key": key})
