@@ -223,3 +223,14 @@ def test_unreachable_scheduler_exits_2(study, tmp_path, capsys, monkeypatch):
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "--scheduler 'tcp://127.0.0.1:1' cannot be reached" in err
     assert not out.exists()
+
+
+def test_contact_box_covers_the_tips_reach(study):
+    # the box the block warm-up asks the correction for: every tip and its contact inside
+    from twoscale.scene import expected_contact_radii
+    from twoscale.studies.providers import contact_box
+
+    scene = case_scene(expand(study)[0], study)
+    x0, x1, y0, y1 = contact_box(scene)
+    for (x, y), a in zip(scene.tips, expected_contact_radii(scene)):
+        assert x0 <= x - a and x + a <= x1 and y0 <= y - a and y + a <= y1
