@@ -85,15 +85,17 @@ class SchedulerError(OSError):
 def dask_client(*, workers: int = 2, scheduler: str | None = None, timeout: float = 20.0) -> Iterator[Client]:
     """A client of the cluster at ``scheduler`` (reached within ``timeout`` s, else
     :class:`SchedulerError`), or of a new local cluster of ``workers`` single-threaded
-    worker processes (closed on exit). The local cluster's scheduler is up on return, its
-    workers start in the background (about 1-3 s: a Python process each, Dask and the
-    solver imported): tasks submitted before they are up wait for them."""
+    worker processes (closed on exit); its workers get the providers plugin. The local
+    cluster's scheduler is up on return, its workers start in the background (about 1-3 s:
+    a Python process each, Dask and the solver imported): tasks submitted before they are
+    up wait for them."""
     if scheduler is not None:
         try:
             client = Client(scheduler, timeout=timeout)
         except (OSError, ValueError, TypeError) as exc:
             raise SchedulerError(f"--scheduler {scheduler!r} cannot be reached: {exc}") from None
         try:
+            client.register_plugin(ProvidersPlugin(), name=PLUGIN)
             yield client
         finally:
             client.close()
@@ -108,6 +110,8 @@ def dask_client(*, workers: int = 2, scheduler: str | None = None, timeout: floa
             cluster.scale(workers)
             client = Client(cluster)
             try:
+                # workers joining later get the plugin as they start
+                client.register_plugin(ProvidersPlugin(), name=PLUGIN)
                 yield client
             finally:
                 client.close()
@@ -117,11 +121,11 @@ def dask_client(*, workers: int = 2, scheduler: str | None = None, timeout: floa
 
 def run_on_dask(client: Client, study, todo: list, labels: dict, on_record: Callable[[CaseRecord], None], *,
                 batch: int = 1) -> None:
-    """Submit the ``(ref, key)`` of ``todo`` in tasks of ``batch`` consecutive cases and hand
+    """Submit the ``(ref, key)`` of ``todo`` in tasks of ``batch`` consecutive cases (the
+    client's workers have the providers plugin: :func:`dask_client`) and hand
     each record to ``on_record`` as its task returns. A task that dies with its worker
     gives its cases failed records with the reason. On any exception (Ctrl-C included) the
     remaining tasks are cancelled (a batch's cases are written when the whole batch is done)."""
-    client.register_plugin(ProvidersPlugin(), name=PLUGIN)   # workers joining later get it too
     client.wait_for_workers(1, timeout=WORKER_WAIT)
     [shared] = client.scatter([study], broadcast=True, hash=False)  # later workers fetch it
     batches = [todo[i:i + batch] for i in range(0, len(todo), batch)]
