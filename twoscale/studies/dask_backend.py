@@ -107,11 +107,12 @@ def dask_client(*, workers: int = 2, scheduler: str | None = None, timeout: floa
         cluster = LocalCluster(n_workers=0, threads_per_worker=1, processes=True,
                                dashboard_address=None, silence_logs=logging.ERROR)
         try:
-            cluster.scale(workers)
-            client = Client(cluster)
+            # by address: a client of the cluster object would wait for its workers, and a
+            # plugin registered with workers up waits for their setup (1.2-1.5 s each, measured)
+            client = Client(cluster.scheduler_address)
             try:
-                # workers joining later get the plugin as they start
-                client.register_plugin(ProvidersPlugin(), name=PLUGIN)
+                client.register_plugin(ProvidersPlugin(), name=PLUGIN)   # workers get it as they start
+                cluster.scale(workers)
                 yield client
             finally:
                 client.close()
