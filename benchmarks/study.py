@@ -13,15 +13,19 @@ block's correction is built first into a fresh disk cache and timed):
 2. ``serial``: ``run_study(..., workers=0)``: the study machinery in this process (keys,
    case folders, records);
 3. ``dask``: ``run_study(..., workers=2)`` into a fresh folder: a new local cluster of two
-   worker processes (its start-up reported apart).
+   worker processes, which start while the study warms the block up;
+4. ``side by side``: two plain loops over half the cases each, in two processes at once
+   (no Dask): what two solvers running together cost on this machine.
 
-On a shared machine wall times count the waits for a core, so CPU times are reported
-beside them: the process CPU of each run and each case's own CPU (its record's
-``cpu_seconds``). Reported: the wall speed-up ``serial / dask`` (target >= 1.7) with and
-without the cluster's start-up, and an estimate for an idle machine (serial CPU against
-half the workers' case CPU plus the start-up); the machinery's CPU per case (serial run's
-CPU less its cases' own, target <= 0.2 s) and the Dask overhead per case
-``(2 x dask wall - the cases' own wall) / 40`` (scheduling, transfers, idle workers);
+Each run is timed around the whole ``run_study`` call. On a shared machine wall times count
+the waits for a core, so CPU times are reported beside them: the process CPU of each run, the
+2-worker run's worker processes' CPU (start-up and imports included), each case's own CPU
+(its record's ``cpu_seconds``), and the load average before and after each run. Reported:
+the wall speed-up ``serial / dask`` (target >= 1.7), and an estimate for the two cores to
+itself (the serial run's CPU against half the CPU the 2-worker run used, here and in its
+workers); the machinery's CPU per case (serial run's CPU less its cases' own, target
+<= 0.2 s) and the Dask overhead per case ``(2 x dask wall - the cases' own wall) / 40``
+(worker start, scheduling, transfers, idle workers);
 then what a 100,000-case study (10 textures x 3 bodies x 10 loads x 333 positions) would
 cost on N machines of 2 or 32 cores at the measured per-case CPU time and efficiency.
 
@@ -68,15 +72,16 @@ step = 2.0
 BIG = {"textures": 10, "bodies": 3, "loads": 10, "positions": 333}
 
 
-def plain_loop(study) -> dict:
-    """The 40 solves in a plain loop, providers built once: wall and CPU seconds."""
+def plain_loop(study, part: slice = slice(None)) -> dict:
+    """The 40 solves (or ``part`` of them) in a plain loop, providers built once: wall and
+    CPU seconds."""
     from twoscale.scene import default_h
     from twoscale.studies.cases import case_scene, expand
     from twoscale.twoscale import solve_twoscale
 
     providers = {}
     t0, c0 = time.perf_counter(), time.process_time()
-    for case in expand(study):
+    for case in expand(study)[part]:
         sc = case_scene(case, study)
         if case.body.name not in providers:
             providers[case.body.name] = sc.provider(**({"progress": False} if case.body.name == "block" else {}))
@@ -86,19 +91,50 @@ def plain_loop(study) -> dict:
     return {"wall_s": time.perf_counter() - t0, "cpu_s": time.process_time() - c0}
 
 
+def _half_loop(path: str, part: int) -> dict:
+    """:func:`plain_loop` over every other case (``part`` 0 or 1), in a process of its own."""
+    from twoscale.scene import default_h  # noqa: F401  (imports before the clock starts)
+    from twoscale.studies.spec import read_study
+    from twoscale.twoscale import solve_twoscale  # noqa: F401
+
+    return plain_loop(read_study(path), slice(part, None, 2))
+
+
+def side_by_side(path: Path) -> dict:
+    """Two plain loops over half the cases each, in two processes at once: what running two
+    solvers side by side costs on this machine, without Dask. Wall (the slower) and CPU
+    (the sum) seconds of the loops."""
+    import multiprocessing
+
+    with multiprocessing.get_context("spawn").Pool(2) as pool:
+        halves = pool.starmap(_half_loop, [(str(path), 0), (str(path), 1)])
+    return {"wall_s": max(h["wall_s"] for h in halves), "cpu_s": sum(h["cpu_s"] for h in halves)}
+
+
 def timed_study(study, out: Path, workers: int, quiet: bool) -> dict:
     """``run_study`` into ``out``: wall and process CPU seconds, the cluster's start-up, and
     the sums of the cases' own wall and CPU seconds (as their records give them)."""
     from twoscale.studies.execute import run_study
     from twoscale.studies.store import CaseStore
 
-    c0 = time.process_time()
+    load = os.getloadavg()[0]
+    c0, k0, t0 = time.process_time(), _children_cpu(), time.perf_counter()
     run = run_study(study, out, workers=workers, quiet=quiet)
-    cpu = time.process_time() - c0
+    wall, cpu, children = time.perf_counter() - t0, time.process_time() - c0, _children_cpu() - k0
     recs = [CaseStore(out).read(k) for k in dict.fromkeys(run.keys)]
     assert all(r["status"] == "converged" for r in recs), [r["reason"] for r in recs if r["status"] != "converged"]
-    return {"wall_s": run.seconds, "cpu_s": cpu, "startup_s": run.startup_seconds,
+    return {"wall_s": wall, "solving_wall_s": run.seconds, "cpu_s": cpu, "workers_cpu_s": children,
+            "startup_s": run.startup_seconds, "load_before": load, "load_after": os.getloadavg()[0],
             "cases_wall_s": sum(r["seconds"] for r in recs), "cases_cpu_s": sum(r["cpu_seconds"] for r in recs)}
+
+
+def _children_cpu() -> float:
+    """CPU seconds of this process's finished child processes (the local cluster's workers,
+    counted once the cluster is closed)."""
+    import resource
+
+    r = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return r.ru_utime + r.ru_stime
 
 
 def on_paper(per_case_s: float, efficiency: float, block_build_s: float) -> list[dict]:
@@ -116,19 +152,21 @@ def on_paper(per_case_s: float, efficiency: float, block_build_s: float) -> list
 
 def figures(plain: dict, serial: dict, dask: dict, warm: float, n: int = 40) -> dict:
     """The benchmark's figures from the three timed runs (see the module doc)."""
-    solving = dask["wall_s"] - dask["startup_s"]
     rec = {"cases": n, "block_build_s": warm, "plain": plain, "serial": serial, "dask": dask,
-           "speedup": serial["wall_s"] / dask["wall_s"], "speedup_without_startup": serial["wall_s"] / solving,
+           "speedup": serial["wall_s"] / dask["wall_s"],
            # the machinery's own CPU: the serial run's process CPU less the cases' own
            "machinery_cpu_per_case_s": (serial["cpu_s"] - serial["cases_cpu_s"]) / n,
            "serial_minus_plain_cpu_per_case_s": (serial["cpu_s"] - plain["cpu_s"]) / n,
-           # scheduling, transfers and idle workers: two workers' time not spent in cases
-           "dask_overhead_per_case_s": (2 * solving - dask["cases_wall_s"]) / n,
+           # scheduling, transfers, worker start and idle workers: two workers' time not in cases
+           "dask_overhead_per_case_s": (2 * dask["wall_s"] - dask["cases_wall_s"]) / n,
            "worker_cpu_ratio": dask["cases_cpu_s"] / serial["cases_cpu_s"],
            "per_case_cpu_s": serial["cases_cpu_s"] / n}
-    # with a core per worker (no one else on the machine) the two workers would take about
-    # their cases' CPU time each, halved, plus the start-up
-    rec["speedup_idle_estimate"] = serial["cpu_s"] / (dask["cases_cpu_s"] / 2 + dask["startup_s"])
+    # with the two cores to itself, the 2-worker run would take at least the CPU it used
+    # (workers: start-up, imports, cases; this process: scheduler, case folders) spread
+    # over them: an estimate that ignores the last case's tail
+    dask_cpu = dask["workers_cpu_s"] + dask["cpu_s"]
+    rec["dask_cpu_s"] = dask_cpu
+    rec["speedup_idle_estimate"] = serial["cpu_s"] / (dask_cpu / 2)
     efficiency = min(1.0, rec["speedup_idle_estimate"] / 2)
     rec["efficiency"] = efficiency
     rec["on_paper"] = on_paper(rec["per_case_cpu_s"] + max(rec["machinery_cpu_per_case_s"], 0.0), efficiency,
@@ -142,14 +180,21 @@ def report(rec: dict) -> None:
           f"{rec['block_build_s']:.1f} s before the runs")
     print(f"plain loop        wall {p['wall_s']:6.1f} s  CPU {p['cpu_s']:6.1f} s")
     print(f"study, serial     wall {s['wall_s']:6.1f} s  CPU {s['cpu_s']:6.1f} s  (cases' own CPU {s['cases_cpu_s']:.1f} s: "
-          f"{rec['per_case_cpu_s']:.2f} s per case)")
+          f"{rec['per_case_cpu_s']:.2f} s per case; load average {s['load_before']:.1f} -> {s['load_after']:.1f})")
     print(f"  machinery CPU per case {rec['machinery_cpu_per_case_s']:+.3f} s (serial study CPU - plain CPU: "
           f"{rec['serial_minus_plain_cpu_per_case_s']:+.3f} s per case); target <= 0.2 s")
-    print(f"study, 2 workers  wall {d['wall_s']:6.1f} s  (cluster start {d['startup_s']:.1f} s; cases' own wall "
-          f"{d['cases_wall_s']:.1f} s, CPU {d['cases_cpu_s']:.1f} s = {rec['worker_cpu_ratio']:.2f} x serial)")
+    print(f"study, 2 workers  wall {d['wall_s']:6.1f} s  CPU {d['cpu_s']:.1f} s here + {d['workers_cpu_s']:.1f} s in the "
+          f"workers (scheduler start {d['startup_s']:.2f} s; cases' own wall {d['cases_wall_s']:.1f} s, CPU "
+          f"{d['cases_cpu_s']:.1f} s = {rec['worker_cpu_ratio']:.2f} x serial; load average {d['load_before']:.1f} -> "
+          f"{d['load_after']:.1f})")
     print(f"  Dask overhead per case {rec['dask_overhead_per_case_s']:+.3f} s (2 x wall - cases' own wall, / {n})")
-    print(f"speed-up serial / dask (wall) {rec['speedup']:.2f}x ({rec['speedup_without_startup']:.2f}x without the "
-          f"start-up); estimated with a core per worker {rec['speedup_idle_estimate']:.2f}x; target >= 1.7x")
+    if "side_by_side" in rec:
+        print(f"two plain loops side by side (half the cases each, no Dask): wall {rec['side_by_side']['wall_s']:.1f} s, "
+              f"CPU {rec['side_by_side']['cpu_s']:.1f} s = {rec['side_by_side_cpu_ratio']:.2f} x the plain loop's "
+              f"(ceiling for two processes here: {rec['side_by_side_idle_estimate']:.2f}x); the 2-worker study took "
+              f"{rec['dask_over_side_by_side_wall']:.2f}x its wall, {rec['dask_over_side_by_side_cpu']:.2f}x its CPU")
+    print(f"speed-up serial / dask (wall) {rec['speedup']:.2f}x; estimated with the two cores to itself (serial CPU "
+          f"against half the 2-worker run's CPU) {rec['speedup_idle_estimate']:.2f}x; target >= 1.7x")
     print(f"on paper, 100,000 cases at {rec['per_case_cpu_s']:.2f} s CPU per case, parallel efficiency "
           f"{rec['efficiency']:.2f}, 2 block builds of {rec['block_build_s']:.0f} s per machine:")
     for r in rec["on_paper"]:
@@ -179,7 +224,15 @@ def main(argv=None) -> int:
         plain = plain_loop(study)
         serial = timed_study(study, Path(tmp) / "serial", 0, args.quiet)
         dask = timed_study(study, Path(tmp) / "dask", 2, args.quiet)
+        pair = side_by_side(path)
     rec = figures(plain, serial, dask, warm)
+    rec["side_by_side"] = pair
+    rec["side_by_side_cpu_ratio"] = pair["cpu_s"] / plain["cpu_s"]
+    # the machine's own ceiling for two processes (plain CPU against half the pair's), and
+    # the 2-worker run against the pair (Dask's cost on top of running two solvers at once)
+    rec["side_by_side_idle_estimate"] = plain["cpu_s"] / (pair["cpu_s"] / 2)
+    rec["dask_over_side_by_side_wall"] = dask["wall_s"] / pair["wall_s"]
+    rec["dask_over_side_by_side_cpu"] = rec["dask_cpu_s"] / pair["cpu_s"]
     report(rec)
     if args.out:
         Path(args.out).write_text(json.dumps(rec, indent=1) + "\n", encoding="utf-8")

@@ -249,3 +249,14 @@ def test_study_folder_is_refused_unless_it_is_this_studys(study, tmp_path, capsy
     summary = json.loads((fresh / "summary.json").read_text())
     assert summary["run"]["ran"] == 0 and summary["cases"] == 4      # its 4 cases were among the 8 kept
     assert {p.name for p in (fresh / "cases").iterdir()} == cases
+
+
+def test_contact_box_covers_the_tips_reach(study):
+    # the box the block warm-up asks the correction for: every tip and its contact inside
+    from twoscale.scene import expected_contact_radii
+    from twoscale.studies.providers import contact_box
+
+    scene = case_scene(expand(study)[0], study)
+    x0, x1, y0, y1 = contact_box(scene)
+    for (x, y), a in zip(scene.tips, expected_contact_radii(scene)):
+        assert x0 <= x - a and x + a <= x1 and y0 <= y - a and y + a <= y1

@@ -179,8 +179,9 @@ def solve(problem, *, method="twoscale", provider=None, material: Material | Non
         now; ``math.inf``: no check.
     **options
         Passed to the solver: :func:`~twoscale.twoscale.solve_twoscale` (``tol``,
-        ``iteration``, ``far_tol``, ``progress``, ...), the reference solvers (``tol``,
-        ``max_iter``), or your callable.
+        ``iteration``, ``far_tol``, ``progress``, ``start`` a warm start from a
+        neighbouring solve, ...), the reference solvers (``tol``, ``max_iter``), or your
+        callable.
 
     Returns
     -------

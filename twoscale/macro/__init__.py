@@ -2,6 +2,7 @@
 asperities, penetration or load control, ball-and-socket tilt."""
 from .result import MacroResult
 from .solve import solve_macro
+from .start import MacroStart
 from .system import MacroSystem
 
-__all__ = ["solve_macro", "MacroResult", "MacroSystem"]
+__all__ = ["solve_macro", "MacroResult", "MacroSystem", "MacroStart"]

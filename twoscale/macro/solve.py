@@ -11,6 +11,7 @@ from ..influence.base import InfluenceProvider
 from ..laws import AsperityLaw, LawStack
 from .interaction import MatrixFreeInteraction, sampled_operator_error
 from .result import MacroResult
+from .start import MacroStart
 from .robust import FAST_STEPS, minimise_then_polish, run_newton, solve_dual
 from .system import MacroSystem
 
@@ -23,7 +24,7 @@ def solve_macro(provider: InfluenceProvider, tips, z, laws, *,
                 tilt: bool = False, pivot: tuple[float, float] = (0.0, 0.0),
                 self_compliance: bool = True, tol: float = 1e-10,
                 max_iter: int = 100, dense_max: int = DENSE_MAX,
-                operator_rtol: float = 1e-6) -> MacroResult:
+                operator_rtol: float = 1e-6, start: MacroStart | None = None) -> MacroResult:
     """Tip forces of N interacting asperities (docs/method.md section 2; paper eqs. 4-5, 11-12).
 
     Solves ``P_k = f_k(delta_k) H(delta_k)`` with ``delta_k = d - z_k - [beta (x_k - px)
@@ -75,6 +76,12 @@ def solve_macro(provider: InfluenceProvider, tips, z, laws, *,
         Accuracy asked of the point operator in the matrix-free mode (relative to
         ``max |u|``); the forces then solve the macro equations with ``T`` perturbed by
         about that much.
+    start : MacroStart, optional
+        Warm start (:mod:`twoscale.macro.start`): initial forces (N, this solve's tip
+        order), approach (mm) and tilt (rad), e.g. a neighbouring position's solution.
+        Default: the cold start (no force; under load control the approach at which the
+        asperities, ignoring interaction, carry the load). The answer is the same to
+        ``tol``; only the number of Newton steps changes.
 
     Returns
     -------
@@ -94,6 +101,8 @@ def solve_macro(provider: InfluenceProvider, tips, z, laws, *,
     t1 = time.perf_counter()
     system = _build_system(T, tips, z, stack, penetration, total_load, tilt, pivot)
     x0 = _initial_guess(system, z, stack, penetration, total_load, tilt)
+    if start is not None:
+        x0 = start.unknowns(len(z), x0[len(z):])
     x, converged, message, steps, residuals, safe_path = _newton_then_safe(system, x0, tol=tol, max_iter=max_iter)
     t2 = time.perf_counter()
     P, g = system.split(x)

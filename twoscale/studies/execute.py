@@ -2,7 +2,8 @@
 written to its folder as soon as it is done.
 
 Order of work: expand the study into cases and their keys; skip the cases whose folder
-says they are finished (a rerun resumes); compute once what the block bodies need
+says they are finished (a rerun resumes); start the Dask cluster, if any (a local
+cluster's workers start in the background); compute once what the block bodies need
 (:func:`~twoscale.studies.providers.warm_blocks`); then solve the rest, serially
 (``workers=0``) or as Dask tasks, writing each case's folder as its record arrives.
 Ctrl-C stops the run: the cases already written stay, the others are solved by the next
@@ -10,6 +11,7 @@ run.
 """
 from __future__ import annotations
 
+import contextlib
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -38,12 +40,14 @@ class StudyRun:
     where : str
         "serial", "local cluster of N workers" or the scheduler's address.
     seconds : float
-        Wall time of the solving (after the warm-up; with Dask, starting the cluster
-        included), s.
+        Wall time of the solving (after the warm-up) and of starting (or reaching) the
+        Dask cluster, s. A local cluster's workers start in the background during the
+        warm-up; the solving then includes any wait for them.
     warm_seconds : dict
         Seconds spent computing each block body's correction before the cases.
     startup_seconds : float
-        Of ``seconds``, the time to start (or reach) the Dask cluster, s (0 serially).
+        Of ``seconds``, the time to start a local cluster's scheduler (its workers start
+        in the background) or to reach a cluster, s (0 serially).
     """
 
     keys: tuple
@@ -120,32 +124,39 @@ def run_study(study: Study, out: str | Path, *, workers: int = 0, scheduler: str
     store.clean()
     cases, keys, todo = pending(study, store)
     key_of = {id(c): k for c, k in zip(cases, keys)}
-    warm = _warm(study, todo, quiet)
+    by_key = {key_of[id(c)]: c for c in todo}
     unique = len(set(keys))
-    t0 = time.perf_counter()
-    startup = 0.0
-    with Progress(unique, label="study", quiet=quiet, delay=0.0) as bar:
+    on_dask = bool(todo) and (scheduler is not None or workers > 0)
+    with contextlib.ExitStack() as stack:
+        t0 = time.perf_counter()
+        client = None
+        if on_dask:
+            from .dask_backend import dask_client
+
+            # a local cluster's workers start while the blocks warm up
+            client = stack.enter_context(dask_client(workers=workers, scheduler=scheduler, timeout=timeout))
+        startup = time.perf_counter() - t0
+        warm = _warm(study, todo, quiet)
+        t1 = time.perf_counter()
+        bar = stack.enter_context(Progress(unique, label="study", quiet=quiet, delay=0.0))
         bar.update(unique - len(todo))  # a resumed study starts with its finished cases
 
         def on_record(record: CaseRecord) -> None:
-            case = by_key[record.key]
-            store.write(record, case_inputs(case, study))
+            store.write(record, case_inputs(by_key[record.key], study))
             bar.update(note=f"{record.label}: {record.status}")
 
-        by_key = {key_of[id(c)]: c for c in todo}
         if not todo:
             where = "nothing to solve"
-        elif scheduler is None and workers == 0:
+        elif client is None:
             providers = ProviderCache()
             for c in todo:
                 on_record(solve_ref(study, c.ref, key_of[id(c)], providers))
             where = "serial"
         else:
-            from .dask_backend import dask_client, run_on_dask
+            from .dask_backend import run_on_dask
 
-            with dask_client(workers=workers, scheduler=scheduler, timeout=timeout) as client:
-                startup = time.perf_counter() - t0
-                run_on_dask(client, study, [(c.ref, key_of[id(c)]) for c in todo],
-                            {k: c.label for k, c in by_key.items()}, on_record, batch=batch)
+            run_on_dask(client, study, [(c.ref, key_of[id(c)]) for c in todo],
+                        {k: c.label for k, c in by_key.items()}, on_record, batch=batch)
             where = scheduler if scheduler is not None else f"local cluster of {workers} workers"
-    return StudyRun(tuple(keys), len(todo), unique - len(todo), where, time.perf_counter() - t0, warm, startup)
+    return StudyRun(tuple(keys), len(todo), unique - len(todo), where, time.perf_counter() - t1 + startup, warm,
+                    startup)

@@ -65,8 +65,9 @@ class ProviderCache:
 
 def contact_box(scene: Any) -> tuple:
     """(xmin, xmax, ymin, ymax) mm covering every place contact can reach in ``scene``
-    (the reference solver's grid for it, see :func:`twoscale.scene.reference_grid`)."""
-    from ..scene import default_h, reference_grid
+    (the reference solver's grid for it, see :func:`twoscale.reference.on_scene.reference_grid`)."""
+    from ..reference.on_scene import reference_grid
+    from ..scene import default_h
 
     g = reference_grid(scene, default_h(scene))
     return (g.x0 - g.h, g.x0 + g.nx * g.h, g.y0 - g.h, g.y0 + g.ny * g.h)

@@ -1,0 +1,89 @@
+"""A warm start of the macro step: tip forces and rigid-body unknowns from a neighbouring solve.
+
+Consecutive positions of a texture sliding over a body (a study's track) solve nearly the
+same macro equations: the tips keep their forces roughly, the approach and the tilt move a
+little. :class:`MacroStart` carries such a start in this solve's tip order; tips that were
+not in the previous solve (entering the footprint) start unloaded. The Newton iteration
+then starts from it instead of the cold start (independent asperities carrying the load);
+the answer is the same to the solver's tolerance (the equations do not change).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+
+@dataclass(frozen=True)
+class MacroStart:
+    """Initial unknowns of the macro Newton iteration.
+
+    Attributes
+    ----------
+    forces : (N,) array, N
+        Initial tip force of each asperity of the solve, in its order (negative values
+        are clipped to 0).
+    penetration : float or None, mm
+        Initial rigid approach d (load control; ignored under penetration control, where d
+        is given). None: the cold start's.
+    tilt : (alpha, beta) or None, rad
+        Initial tilt angles (load control with tilt). None: 0.
+    """
+
+    forces: np.ndarray
+    penetration: float | None = None
+    tilt: tuple | None = None
+
+    def __post_init__(self) -> None:
+        f = np.array(self.forces, dtype=float, copy=True)
+        if f.ndim != 1 or not np.all(np.isfinite(f)):
+            raise ValueError(f"start forces must be a finite 1-D array (N), got shape {f.shape}")
+        f.setflags(write=False)
+        object.__setattr__(self, "forces", f)
+        if self.penetration is not None and not np.isfinite(self.penetration):
+            raise ValueError(f"start penetration must be finite (mm), got {self.penetration!r}")
+        if self.tilt is not None and (len(self.tilt) != 2 or not np.all(np.isfinite(self.tilt))):
+            raise ValueError(f"start tilt must be two finite angles (rad), got {self.tilt!r}")
+
+    @classmethod
+    def from_result(cls, result, index=None) -> "MacroStart":
+        """The start a previous :class:`~twoscale.results.ContactResult` gives.
+
+        Parameters
+        ----------
+        result : ContactResult
+            A previous solve: its macro forces (``details.macro.forces`` of a two-scale
+            result, else its per-tip forces), its approach and tilt.
+        index : (N,) int array, optional
+            For each tip of the new solve, its position in ``result``'s tips, or -1 for
+            a tip the previous solve did not have (it starts unloaded). Default: the
+            same tips in the same order.
+        """
+        macro = getattr(getattr(result, "details", None), "macro", None)
+        previous = np.asarray(macro.forces if macro is not None else result.asperities.forces, dtype=float)
+        tilt = None if result.tilt is None else (float(result.tilt[0]), float(result.tilt[1]))
+        return cls(mapped(previous, index), float(result.penetration), tilt)
+
+    def unknowns(self, n: int, rigid: np.ndarray) -> np.ndarray:
+        """``x0 = [P, g]`` for a system of ``n`` tips whose cold-start rigid-body unknowns
+        are ``rigid`` (``[]``, ``[d]`` or ``[d, alpha, beta]``): the start's values where
+        it has them, the cold ones elsewhere."""
+        if self.forces.shape != (n,):
+            raise ValueError(f"start forces must have one entry per asperity ({n}), got {self.forces.shape[0]}")
+        g = np.array(rigid, dtype=float)
+        if g.size >= 1 and self.penetration is not None:
+            g[0] = self.penetration
+        if g.size == 3 and self.tilt is not None:
+            g[1:] = self.tilt
+        return np.concatenate([np.maximum(self.forces, 0.0), g])
+
+
+def mapped(values: np.ndarray, index) -> np.ndarray:
+    """``values`` taken at ``index`` (-1: 0), or ``values`` itself without an index."""
+    values = np.asarray(values, dtype=float)
+    if index is None:
+        return values
+    index = np.asarray(index, dtype=int)
+    if index.ndim != 1 or np.any(index >= len(values)) or np.any(index < -1):
+        raise ValueError(f"index must be 1-D with entries in [-1, {len(values) - 1}], got {index!r}")
+    return np.where(index >= 0, values[np.maximum(index, 0)], 0.0)
