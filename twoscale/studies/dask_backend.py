@@ -15,6 +15,7 @@ from __future__ import annotations
 import contextlib
 import importlib
 import logging
+import signal
 from typing import Callable, Iterator
 
 import numpy as np
@@ -62,6 +63,10 @@ class ProvidersPlugin(WorkerPlugin):
 
     def setup(self, worker) -> None:
         self.cache = ProviderCache(self.max_providers)
+        try:  # Ctrl-C is the study's (it cancels and closes the cluster), not each worker's
+            signal.signal(signal.SIGINT, signal.SIG_IGN)
+        except ValueError:  # not the worker process's main thread: leave it
+            pass
         # what a case imports on first use, imported while the worker starts (the local
         # cluster's workers start while this process warms the blocks up)
         for module in WORKER_IMPORTS:
@@ -105,7 +110,7 @@ def dask_client(*, workers: int = 2, scheduler: str | None = None, timeout: floa
     # the settings stay while the cluster lives: its nannies are made as its workers start
     with dask.config.set(LOCAL_CONFIG):
         cluster = LocalCluster(n_workers=0, threads_per_worker=1, processes=True,
-                               dashboard_address=None, silence_logs=logging.ERROR)
+                               dashboard_address=None, silence_logs=logging.CRITICAL)
         try:
             # by address: a client of the cluster object would wait for its workers, and a
             # plugin registered with workers up waits for their setup (1.2-1.5 s each, measured)
