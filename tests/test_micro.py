@@ -18,7 +18,7 @@ from twoscale.analytic import hertz
 from twoscale.indenters import Asperity, Tilt
 from twoscale.influence import HalfSpace
 from twoscale.micro import build_patches, solve_micro
-from twoscale.micro.blocks import LocalBlock
+from twoscale.micro.localblock import LocalBlock
 from twoscale.micro.gauss_seidel import linear_gauss_seidel
 from twoscale.micro.blocks import Coupling
 from twoscale.micro.local import contact_solve, initial_pressure

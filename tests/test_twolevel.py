@@ -97,7 +97,7 @@ def test_coarse_needs_far_tol():
 
 
 def test_coarse_step_vanishes_at_a_fixed_point_and_meets_the_load():
-    from twoscale.micro.blocks import LocalBlock
+    from twoscale.micro.localblock import LocalBlock
     from twoscale.micro.patches import build_patches
     asp = _scene(8, 4, 12.0)
     patches = build_patches(asp, h=0.1, forces=np.full(8, np.inf), approaches=np.full(8, 0.06),

@@ -26,7 +26,7 @@ import math
 import numpy as np
 
 from ..influence.base import InfluenceProvider
-from .blocks import Coupling, scatter
+from .blocks import Coupling
 
 
 #: Patches at which the far field starts to use bins (below: every far patch on its own).

@@ -16,7 +16,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .blocks import Coupling, LocalBlock
+from .blocks import Coupling
+from .localblock import LocalBlock
 from .local import contact_solve
 
 #: Local solves stop at this fraction of the last sweep's relative change (never below it of tol).

@@ -17,7 +17,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .blocks import LocalBlock
+from .localblock import LocalBlock
 from .pk import pk_fixed_approach, pk_fixed_force
 
 

@@ -12,7 +12,8 @@ import numpy as np
 from ..grid import Grid
 from ..indenters import Asperity
 from ..influence.base import InfluenceProvider
-from .blocks import LocalBlock, scatter
+from .blocks import scatter
+from .localblock import LocalBlock
 from .constraints import block_coordinates, newton_step, resultants, rhs_derivatives
 from .gauss_seidel import gauss_seidel, linear_gauss_seidel
 from .local import initial_pressure

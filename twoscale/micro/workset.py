@@ -11,7 +11,8 @@ import numpy as np
 
 from ..grid import Grid
 from ..indenters import Tilt
-from .blocks import Coupling, LocalBlock, scatter
+from .blocks import Coupling, scatter
+from .localblock import LocalBlock
 from .constraints import member_forces
 from .farfield import FarFieldCoupling, LaggedFarField
 from .gauss_seidel import coupled_rhs

@@ -1,0 +1,158 @@
+"""``A_kk``: the influence block of one patch on its own owned cells, with linear solves
+on active subsets (dense factorisations for small blocks, CG on the provider's operator for
+large ones). Every number comes from the influence provider.
+"""
+from __future__ import annotations
+
+from collections import OrderedDict
+
+import numpy as np
+import scipy.linalg as sla
+
+from ..influence.base import InfluenceProvider
+from .patches import Patch
+
+
+def _factorise(M: np.ndarray, symmetric: bool):
+    """``("cholesky", factor)`` for a symmetric positive definite ``M``, else ``("lu", factor)``."""
+    if symmetric:
+        try:
+            return "cholesky", sla.cho_factor(M, lower=True, check_finite=False)
+        except np.linalg.LinAlgError:
+            pass
+    return "lu", sla.lu_factor(M, check_finite=False)
+
+
+class LocalBlock:
+    """``A_kk`` on the owned cells of one patch, with linear solves on active subsets.
+
+    Parameters
+    ----------
+    provider : InfluenceProvider
+    patch : Patch
+    dense_max_cells : int, default 400
+        Blocks with at most this many owned cells store ``A_kk`` and solve by Cholesky
+        (LU when the provider's matrix is not symmetric positive definite; factorisations
+        cached per active set); larger ones use the provider's FFT operator and conjugate
+        gradients (which assume a symmetric positive definite operator).
+    cg_rtol : float, default 1e-10
+        Relative residual at which the CG solves stop.
+    cg_max_iter : int, default 2000
+    cache_size : int, default 4
+        Number of Cholesky factorisations (active sets) kept.
+    """
+
+    def __init__(self, provider: InfluenceProvider, patch: Patch, *, dense_max_cells: int = 400,
+                 cg_rtol: float = 1e-10, cg_max_iter: int = 2000, cache_size: int = 4):
+        self.patch = patch
+        self._provider = provider
+        self.n = int(patch.owned.sum())
+        self.dense = self.n <= dense_max_cells
+        self.cg_rtol, self.cg_max_iter = cg_rtol, cg_max_iter
+        self._cache: OrderedDict = OrderedDict()
+        self._cache_size = cache_size
+        self.cg_iterations = 0
+        self.factorisations = 0
+        # the block's products only involve its owned cells: work on their bounding box (where
+        # neighbours own part of the patch, a smaller grid than the patch's)
+        rows = np.flatnonzero(patch.owned.any(axis=1))
+        cols = np.flatnonzero(patch.owned.any(axis=0))
+        if rows.size:
+            j0, i0 = int(rows[0]), int(cols[0])
+            self.box = patch.grid.subgrid(i0, j0, int(cols[-1]) + 1 - i0, int(rows[-1]) + 1 - j0)
+            self._mask = patch.owned[j0:j0 + self.box.ny, i0:i0 + self.box.nx]
+        else:
+            self.box, self._mask = patch.grid, patch.owned
+        self._full = None
+        if self.dense:
+            idx = np.flatnonzero(self._mask.ravel())
+            self.matrix = provider.grid_matrix(self.box)[np.ix_(idx, idx)]
+            # a provider's matrix may be slightly unsymmetric (e.g. a finite-element body)
+            self.symmetric = bool(np.allclose(self.matrix, self.matrix.T, rtol=1e-10, atol=0.0))
+            self._op = None
+        else:
+            self.matrix = None
+            self.symmetric = True
+            self._op = provider.grid_operator(self.box)
+            if self.box == patch.grid:
+                self._full = self._op
+
+    # ------------------------------------------------------------------ products
+    def full_operator(self):
+        """FFT operator of the whole patch on itself (built on first use)."""
+        if self._full is None:
+            self._full = self._provider.grid_operator(self.patch.grid)
+        return self._full
+
+    def matvec(self, v: np.ndarray) -> np.ndarray:
+        """``A_kk v`` for a block vector (n,) or (n, m): displacement (mm) from pressure (MPa)."""
+        if self.dense:
+            return self.matrix @ v
+        if v.ndim == 1:
+            a = np.zeros(self.box.shape)
+            a[self._mask] = v
+            return self._op.apply(a)[self._mask]
+        return np.column_stack([self.matvec(v[:, j]) for j in range(v.shape[1])])
+
+    # ------------------------------------------------------------------ solves
+    def solve(self, active: np.ndarray, rhs: np.ndarray, x0: np.ndarray | None = None,
+              rtol: float | None = None) -> np.ndarray:
+        """Solve ``A_SS x = rhs`` on the active cells ``S`` (boolean mask over the block).
+
+        ``rhs`` has shape (|S|,) or (|S|, m); returns the same shape. ``x0`` is a CG start
+        and ``rtol`` its relative residual (default ``cg_rtol``).
+        """
+        if not np.any(active):
+            return np.zeros_like(rhs)
+        if self.dense:
+            kind, f = self._factor(active)
+            if kind == "cholesky":
+                return sla.cho_solve(f, rhs, check_finite=False)
+            return sla.lu_solve(f, rhs, check_finite=False)
+        if rhs.ndim == 2:
+            cols = [self._cg(active, rhs[:, j], None if x0 is None else x0[:, j], rtol)
+                    for j in range(rhs.shape[1])]
+            return np.column_stack(cols)
+        return self._cg(active, rhs, x0, rtol)
+
+    def _factor(self, active: np.ndarray):
+        key = active.tobytes()
+        f = self._cache.get(key)
+        if f is None:
+            sub = self.matrix[np.ix_(active, active)]
+            f = _factorise(sub, self.symmetric)
+            self.factorisations += 1
+            self._cache[key] = f
+            if len(self._cache) > self._cache_size:
+                self._cache.popitem(last=False)
+        else:
+            self._cache.move_to_end(key)
+        return f
+
+    def _cg(self, active: np.ndarray, rhs: np.ndarray, x0: np.ndarray | None, rtol: float | None) -> np.ndarray:
+        # Plain CG on the SPD sub-matrix; the product is the FFT operator with the
+        # inactive cells masked out on input and output.
+        def A(x):
+            v = np.zeros(self.n)
+            v[active] = x
+            return self.matvec(v)[active]
+
+        x = np.zeros_like(rhs) if x0 is None else np.array(x0, dtype=float)
+        r = rhs - A(x) if x0 is not None else rhs.copy()
+        bnorm = np.linalg.norm(rhs)
+        if bnorm == 0.0:
+            return np.zeros_like(rhs)
+        d = r.copy()
+        rr = r @ r
+        for _ in range(self.cg_max_iter):
+            if np.sqrt(rr) <= (self.cg_rtol if rtol is None else rtol) * bnorm:
+                break
+            Ad = A(d)
+            step = rr / (d @ Ad)
+            x += step * d
+            r -= step * Ad
+            rr_new = r @ r
+            d = r + (rr_new / rr) * d
+            rr = rr_new
+            self.cg_iterations += 1
+        return x
