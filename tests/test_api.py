@@ -175,7 +175,7 @@ def test_the_terminal_table_numbers_tips_from_1(tmp_path, capsys):
     (lambda: twoscale.solve([[0, 0, 5.0]], penetration=0.1), "material"),
     (lambda: twoscale.solve([[0, 0, 5.0]], material=MAT), "exactly one of penetration"),
     (lambda: twoscale.solve(np.zeros((2, 5)), material=MAT, penetration=0.1), r"\(n, 3\)"),
-    (lambda: twoscale.solve([[0, 0, -5.0]], material=MAT, penetration=0.1), r"R\[0\] must be > 0"),
+    (lambda: twoscale.solve([[0, 0, -5.0]], material=MAT, penetration=0.1), r"R\[0\] \(tip 1\) must be > 0"),
     (lambda: twoscale.solve({"x": [0], "R": [5.0]}, material=MAT, penetration=0.1), "missing"),
     # three column arrays of three tips would read as three rows: refused, not guessed
     (lambda: twoscale.solve((np.zeros(3), np.arange(3.0), np.full(3, 5.0)), material=MAT, penetration=0.1),

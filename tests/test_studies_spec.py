@@ -97,9 +97,9 @@ def test_a_case_without_tips_under_the_footprint_is_an_error_of_that_case(study_
 
 BAD = [
     ("[study]\nmethod = 'fast'\n", "study.method", "'fast'"),
-    ("[[body]]\nname = 'b'\nkind = 'block'\nbase = 'glued'\n", "body[1].base", "'glued'"),
-    ("[[body]]\nname = 'hs'\nkind = 'halfspace'\n", "body[1].name", "'hs'"),
-    ("[[body]]\nname = 'b'\nkind = 'halfspace'\nsize = [1, 2, 3]\n", "body[1].size", "[1, 2, 3]"),
+    ("[[body]]\nname = 'b'\nkind = 'block'\nbase = 'glued'\n", "body 2: base", "'glued'"),
+    ("[[body]]\nname = 'hs'\nkind = 'halfspace'\n", "body 2: name", "'hs'"),
+    ("[[body]]\nname = 'b'\nkind = 'halfspace'\nsize = [1, 2, 3]\n", "body 2: size", "[1, 2, 3]"),
     ("[solver]\ntol = -1\n", "solver.tol", "-1"),
     ("[solver]\niteration = 'newton'\n", "solver.iteration", "'newton'"),
     ("[sensor]\nnx = 0\n", "sensor.nx", "0"),
@@ -122,8 +122,8 @@ def test_bad_study_exits_2_naming_the_value(study_file, tmp_path, capsys, extra,
     ("step = 2.5", "step = 50.0", "positions.step"),
     ("end = [5.0, 0.0]", "", "positions.end"),
     ('file = "scene.toml"', 'file = "missing.toml"', "missing.toml"),
-    ('kind = "halfspace"', 'kind = "rubber"', "body[0].kind"),
-    ("window = [22.0, 10.0]", "window = [22.0, -1.0]", "body[0].window[1]"),
+    ('kind = "halfspace"', 'kind = "rubber"', "body 1: kind"),
+    ("window = [22.0, 10.0]", "window = [22.0, -1.0]", "body 1: window[1]"),
 ])
 def test_bad_values_are_named(study_file, capsys, tmp_path, old, new, where):
     assert old in STUDY

@@ -59,7 +59,7 @@ def asperities(x, y, R, z=0.0, *, shape: str = "sphere") -> tuple[Asperity, ...]
     ------
     ValueError
         Arrays that do not broadcast to one dimension, or a bad value (named with its
-        0-based index, e.g. ``R[3] must be > 0 (mm), got -1.0``).
+        0-based index and the tip's number from 1, e.g. ``R[3] (tip 4) must be > 0 (mm), got -1.0``).
     """
     try:
         cols = np.broadcast_arrays(*(np.asarray(v, dtype=float) for v in (x, y, z, R)), np.asarray(shape))
@@ -71,11 +71,11 @@ def asperities(x, y, R, z=0.0, *, shape: str = "sphere") -> tuple[Asperity, ...]
     for k, (xk, yk, zk, rk, sk) in enumerate(zip(*cols)):
         for name, v in (("x", xk), ("y", yk), ("z", zk), ("R", rk)):
             if not math.isfinite(v):
-                raise ValueError(f"{name}[{k}] must be a finite number (mm), got {float(v)!r}")
+                raise ValueError(f"{name}[{k}] (tip {k + 1}) must be a finite number (mm), got {float(v)!r}")
         if not rk > 0:
-            raise ValueError(f"R[{k}] must be > 0 (mm), got {float(rk)!r}")
+            raise ValueError(f"R[{k}] (tip {k + 1}) must be > 0 (mm), got {float(rk)!r}")
         if str(sk) not in SHAPES:
-            raise ValueError(f"shape[{k}] must be one of {SHAPES}, got {str(sk)!r}")
+            raise ValueError(f"shape[{k}] (tip {k + 1}) must be one of {SHAPES}, got {str(sk)!r}")
         out.append(Asperity(float(xk), float(yk), float(zk), float(rk), str(sk)))
     return tuple(out)
 

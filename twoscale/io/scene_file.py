@@ -148,7 +148,7 @@ def scene_to_dict(scene: Scene) -> dict:
 
 
 # ---------------------------------------------------------------- helpers
-def _where(path: str, key: str) -> str:
+def field_path(path: str, key: str) -> str:
     """``load.total``; ``asperity 4: R`` for a numbered table (numbered from 1)."""
     if not path:
         return key
@@ -158,11 +158,11 @@ def _where(path: str, key: str) -> str:
 def check_keys(path: str, table: Mapping, allowed, *, required=()) -> None:
     for key in table:
         if key not in allowed:
-            raise SceneError(f"unknown key {_where(path, key)} = {table[key]!r} "
+            raise SceneError(f"unknown key {field_path(path, key)} = {table[key]!r} "
                              f"(allowed: {', '.join(allowed)})")
     for key in required:
         if key not in table:
-            raise SceneError(f"{_where(path, key)} is missing (required)")
+            raise SceneError(f"{field_path(path, key)} is missing (required)")
 
 
 def table_of(path: str, v: Any) -> Mapping:
@@ -192,11 +192,11 @@ def _material(t: Mapping) -> Material:
 
 def _asperity(path: str, t: Mapping) -> Asperity:
     check_keys(path, t, ASPERITY_KEYS, required=("x", "y", "R"))
-    x = check_number(_where(path, "x"), t["x"], unit="mm")
-    y = check_number(_where(path, "y"), t["y"], unit="mm")
-    z = check_number(_where(path, "z"), t.get("z", 0.0), unit="mm")
-    R = check_number(_where(path, "R"), t["R"], positive=True, unit="mm")
+    x = check_number(field_path(path, "x"), t["x"], unit="mm")
+    y = check_number(field_path(path, "y"), t["y"], unit="mm")
+    z = check_number(field_path(path, "z"), t.get("z", 0.0), unit="mm")
+    R = check_number(field_path(path, "R"), t["R"], positive=True, unit="mm")
     shape = t.get("shape", "sphere")
     if shape not in SHAPES:
-        raise SceneError(f"{_where(path, 'shape')} must be one of {', '.join(SHAPES)}, got {shape!r}")
+        raise SceneError(f"{field_path(path, 'shape')} must be one of {', '.join(SHAPES)}, got {shape!r}")
     return Asperity(x, y, z, R, shape)

@@ -37,7 +37,7 @@ from typing import Any, Mapping
 
 import numpy as np
 
-from ..io.scene_file import check_keys, read_scene, read_toml, table_of
+from ..io.scene_file import check_keys, field_path, read_scene, read_toml, table_of
 from ..micro.policy import ITERATIONS
 from ..scene import BLOCK_BASES, BLOCK_DEFAULT_SIZE, METHODS, SceneError, check_number, check_pair
 from ..sensor import Sensor
@@ -193,12 +193,12 @@ def study_from_dict(data: Mapping, *, base: str | os.PathLike = ".", name: str =
 def _scenes(v: Any, base: Path) -> tuple:
     out, seen = [], set()
     for k, t in enumerate(_tables("scene", v)):
-        _keys(f"scene[{k}]", t, ("file", "name"), required=("file",))
+        _keys(f"scene {k + 1}", t, ("file", "name"), required=("file",))
         if not isinstance(t["file"], str):
-            raise StudyError(f"scene[{k}].file must be a path (string), got {t['file']!r}")
+            raise StudyError(f"scene {k + 1}: file must be a path (string), got {t['file']!r}")
         path = base / t["file"]
         nm = t.get("name", Path(t["file"]).stem)
-        _name(f"scene[{k}].name", nm, seen)
+        _name(f"scene {k + 1}: name", nm, seen)
         scene = read_scene(path)
         out.append(StudyScene(nm, os.fspath(path), scene, digest(scene_record(scene))))
     return tuple(out)
@@ -207,17 +207,17 @@ def _scenes(v: Any, base: Path) -> tuple:
 def _bodies(v: Any) -> tuple:
     out, seen = [], set()
     for k, t in enumerate(_tables("body", v)):
-        path = f"body[{k}]"
+        path = f"body {k + 1}"   # numbered from 1, as the [[body]] tables are read
         kind = t.get("kind")
         if kind not in ("halfspace", "block"):
-            raise StudyError(f"{path}.kind must be one of ('halfspace', 'block'), got {kind!r}")
+            raise StudyError(f"{field_path(path, 'kind')} must be one of ('halfspace', 'block'), got {kind!r}")
         block = ("size", "base", "origin") if kind == "block" else ()
         _keys(path, t, ("name", "kind", "window", "centre") + block, required=("name", "kind"))
-        _name(f"{path}.name", t["name"], seen)
+        _name(f"{field_path(path, 'name')}", t["name"], seen)
         if kind == "halfspace":
             influence = {"kind": "halfspace"}
-            centre = check_pair(f"{path}.centre", t.get("centre", (0.0, 0.0)), unit="mm")
-            window = check_pair(f"{path}.window", t["window"], positive=True, unit="mm") if "window" in t else None
+            centre = check_pair(f"{field_path(path, 'centre')}", t.get("centre", (0.0, 0.0)), unit="mm")
+            window = check_pair(f"{field_path(path, 'window')}", t["window"], positive=True, unit="mm") if "window" in t else None
         else:
             influence, window, centre = _block(path, t)
         out.append(Body(t["name"], influence, Footprint(window, centre)))
@@ -225,23 +225,23 @@ def _bodies(v: Any) -> tuple:
 
 
 def _block(path: str, t: Mapping) -> tuple:
-    size = check_pair(f"{path}.size", t.get("size", BLOCK_DEFAULT_SIZE), 3, positive=True, unit="mm")
+    size = check_pair(f"{field_path(path, 'size')}", t.get("size", BLOCK_DEFAULT_SIZE), 3, positive=True, unit="mm")
     base = t.get("base", "bonded")
     if base not in BLOCK_BASES:
-        raise StudyError(f"{path}.base must be one of {BLOCK_BASES}, got {base!r}")
-    origin = check_pair(f"{path}.origin", t.get("origin", (0.0, 0.0)), unit="mm")
+        raise StudyError(f"{field_path(path, 'base')} must be one of {BLOCK_BASES}, got {base!r}")
+    origin = check_pair(f"{field_path(path, 'origin')}", t.get("origin", (0.0, 0.0)), unit="mm")
     face = (-origin[0], -origin[1])  # the top face's centre in the scene frame
     if "window" in t:
-        window = check_pair(f"{path}.window", t["window"], positive=True, unit="mm")
+        window = check_pair(f"{field_path(path, 'window')}", t["window"], positive=True, unit="mm")
         if window[0] > size[0] or window[1] > size[1]:
-            raise StudyError(f"{path}.window {list(window)!r} is larger than the block's top face "
+            raise StudyError(f"{field_path(path, 'window')} {list(window)!r} is larger than the block's top face "
                              f"{list(size[:2])!r} mm")
     else:
         window = (size[0] - 2 * BLOCK_EDGE, size[1] - 2 * BLOCK_EDGE)
         if min(window) <= 0:
-            raise StudyError(f"{path}.size {list(size)!r}: the top face leaves no footprint inside "
-                             f"{BLOCK_EDGE} mm of its sides; give {path}.window")
-    centre = check_pair(f"{path}.centre", t.get("centre", face), unit="mm")
+            raise StudyError(f"{field_path(path, 'size')} {list(size)!r}: the top face leaves no footprint inside "
+                             f"{BLOCK_EDGE} mm of its sides; give {field_path(path, 'window')}")
+    centre = check_pair(f"{field_path(path, 'centre')}", t.get("centre", face), unit="mm")
     return {"kind": "block", "size": size, "base": base, "origin": origin}, window, centre
 
 
@@ -342,7 +342,7 @@ def _tables(path: str, v: Any) -> list:
     if not isinstance(v, list) or not v:
         raise StudyError(f"{path} must be a non-empty array of tables ([[{path}]]), got {v!r}")
     for k, t in enumerate(v):
-        table_of(f"{path}[{k}]", t)
+        table_of(f"{path} {k + 1}", t)
     return v
 
 
