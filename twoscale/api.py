@@ -28,7 +28,7 @@ from .control import check_control
 from .indenters import SHAPES, Asperity
 from .material import Material
 from .results import ContactResult
-from .scene import Scene, SceneError, default_h, expected_contact_radii
+from .scene import Scene, SceneError, default_h, expected_contact_radii, expected_contacts
 
 #: Names ``method`` accepts (or a callable).
 METHODS = ("twoscale", "reference", "dense", "cg")
@@ -213,8 +213,9 @@ def solve(problem, *, method="twoscale", provider=None, material: Material | Non
         provider = scene.provider(**(provider_options or {}))
     elif provider.material != scene.material:
         raise ValueError(f"the provider's material {provider.material!r} is not the scene's {scene.material!r}")
-    check_domain(scene, provider, h)
-    check_resolution(scene, h)
+    force, radius = expected_contacts(scene)
+    check_domain(scene, provider, h, radii=radius)
+    check_resolution(scene, h, forces=force, radii=radius)
     if callable(method):
         return method(provider, scene, h=h, **options)
     if method == "twoscale":
@@ -246,45 +247,42 @@ class ResolutionWarning(UserWarning):
 MIN_CELLS_ACROSS = 4
 
 
-def check_resolution(scene: Scene, h: float) -> None:
+def check_resolution(scene: Scene, h: float, *, forces=None, radii=None) -> None:
     """Refuse a cell size coarser than every expected contact, and warn when a contact
     that matters (expected force >= 1 % of the largest) gets fewer than
-    :data:`MIN_CELLS_ACROSS` cells across; both name the default rule's ``h``."""
+    :data:`MIN_CELLS_ACROSS` cells across; both name the default rule's ``h``.
+    ``forces``, ``radii``: :func:`~twoscale.scene.expected_contacts`, when already known."""
     import warnings
 
-    from .analytic import hertz
-    from .scene import MIN_FORCE_FRACTION, expected_approaches
+    from .scene import MIN_FORCE_FRACTION
 
-    a = expected_contact_radii(scene)
-    force = np.array([float(hertz.load(x.R, d, scene.material.E_star))
-                      for x, d in zip(scene.asperities, expected_approaches(scene))])
+    force, a = expected_contacts(scene) if forces is None or radii is None else (forces, radii)
     if not np.any(force > 0):
         return
     across = 2.0 * a / h
-    rule = default_h(dataclasses.replace(scene, h=None))
     if across.max() < 1.0:
         raise SceneError(f"cell size h = {h:g} mm is coarser than every expected contact (the largest "
                          f"about {2 * a.max():.2g} mm across): use a smaller h (the default rule gives "
-                         f"{rule:g} mm)")
+                         f"{default_h(dataclasses.replace(scene, h=None)):g} mm)")
     matters = force >= MIN_FORCE_FRACTION * force.max()
     k = int(np.argmin(np.where(matters, across, np.inf)))
     if across[k] < MIN_CELLS_ACROSS:
         warnings.warn(ResolutionWarning(
             f"cell size h = {h:g} mm gives asperity {k + 1}'s expected contact (about {2 * a[k]:.2g} mm "
             f"across) only {across[k]:.1f} cells across: its force may be off by 10 % or more "
-            f"(the default rule gives h = {rule:g} mm)"), stacklevel=3)
+            f"(the default rule gives h = {default_h(dataclasses.replace(scene, h=None)):g} mm)"), stacklevel=3)
 
 
-def check_domain(scene: Scene, provider, h: float = 0.0) -> None:
+def check_domain(scene: Scene, provider, h: float = 0.0, *, radii=None) -> None:
     """Raise :class:`SceneError` naming the first asperity (numbered from 1) whose expected
     patch (1.5 contact radii and two cells of size ``h``) reaches outside the region the
-    body answers for (``provider.domain()``)."""
-    domain = getattr(provider, "domain", None)
-    box = domain() if domain is not None else None
+    body answers for (``provider.domain()``, in the provider contract). ``radii``: the
+    expected contact radii, when already known."""
+    box = provider.domain()
     if box is None:
         return
     x0, x1, y0, y1 = box
-    reach = 1.5 * expected_contact_radii(scene) + 2.0 * h
+    reach = 1.5 * (expected_contact_radii(scene) if radii is None else radii) + 2.0 * h
     for k, (tip, rk) in enumerate(zip(scene.tips, reach)):
         x, y = tip
         if not (x0 <= x <= x1 and y0 <= y <= y1):

@@ -150,29 +150,23 @@ def folder_indicators(run: str | os.PathLike, reference: str | os.PathLike, sens
     ValueError
         A missing or foreign file, or runs with different numbers of asperities.
     """
-    from .io.result_json import read_forces
+    from .io.result_json import read_forces_and_tips
 
     run, reference = Path(run), Path(reference)
-    P, P_ref = read_forces(run), read_forces(reference)
+    (P, tips), (P_ref, tips_ref) = read_forces_and_tips(run), read_forces_and_tips(reference)
     if P.shape != P_ref.shape:
         raise ValueError(f"{run} has {P.size} asperities and {reference} has {P_ref.size}: "
                          "e_M compares the same asperities")
-    _warn_if_tips_differ(run, reference)
+    _warn_if_tips_differ(run, reference, tips, tips_ref)
     p, p_ref = _folder_sensor_map(run, sensor), _folder_sensor_map(reference, sensor)
     return {"e_M": e_M(P, P_ref), "e_m": _e_m_or_none(p, p_ref)}
 
 
-def _warn_if_tips_differ(run: Path, reference: Path, tol: float = 1e-6) -> None:
-    """A warning when the two runs' tips are not at the same places (two different scenes
-    give an e_M that compares nothing)."""
-    import json
+def _warn_if_tips_differ(run: Path, reference: Path, a: np.ndarray, b: np.ndarray, tol: float = 1e-6) -> None:
+    """A warning when the two runs' tips ``a``, ``b`` (N, 2) mm are not at the same places
+    (two different scenes give an e_M that compares nothing)."""
     import warnings
 
-    def tips(folder):
-        scene = json.loads((folder / "result.json").read_text(encoding="utf-8")).get("scene", {})
-        return np.array([[a.get("x", np.nan), a.get("y", np.nan)] for a in scene.get("asperity", [])], float)
-
-    a, b = tips(run), tips(reference)
     if a.shape == b.shape and a.size and np.all(np.isfinite(a)) and np.all(np.isfinite(b)):
         k = np.flatnonzero(np.hypot(*(a - b).T) > tol)
         if k.size:

@@ -328,10 +328,22 @@ def expected_approaches(scene: Scene) -> np.ndarray:
 def expected_contact_radii(scene: Scene) -> np.ndarray:
     """Contact radius of each asperity alone at its expected approach, mm: Hertz
     ``sqrt(R delta)`` for paraboloids, the exact-sphere (Segedin) radius for spheres."""
+    return _contact_radii(scene.asperities, expected_approaches(scene))
+
+
+def expected_contacts(scene: Scene) -> tuple[np.ndarray, np.ndarray]:
+    """Hertz force (N) and contact radius (mm) of each asperity alone at its expected
+    approach (:func:`expected_approaches`, estimated once)."""
     delta = expected_approaches(scene)
+    E_star = scene.material.E_star
+    force = np.array([float(hertz.load(a.R, dk, E_star)) for a, dk in zip(scene.asperities, delta)])
+    return force, _contact_radii(scene.asperities, delta)
+
+
+def _contact_radii(asperities, delta) -> np.ndarray:
     return np.array([
         float(hertz.sphere_contact_radius(a.R, dk)) if a.shape == "sphere" else float(hertz.contact_radius(a.R, dk))
-        for a, dk in zip(scene.asperities, delta)
+        for a, dk in zip(asperities, delta)
     ])
 
 
@@ -370,14 +382,12 @@ def default_h(scene: Scene, *, cells_across: int = CELLS_ACROSS,
     """
     if scene.h is not None:
         return scene.h
-    E_star = scene.material.E_star
-    delta = expected_approaches(scene)
-    force = np.array([float(hertz.load(a.R, dk, E_star)) for a, dk in zip(scene.asperities, delta)])
+    force, radius = expected_contacts(scene)
     keep = (force > 0) & (force >= min_force_fraction * force.max())
     if not np.any(keep):
         raise SceneError(f"grid.h: no asperity is expected to carry load (largest Hertz estimate "
                          f"{force.max()!r} N), so no default cell size can be chosen; give [grid] h")
-    diameter = 2.0 * expected_contact_radii(scene)[keep].min()
+    diameter = 2.0 * radius[keep].min()
     if not (math.isfinite(diameter) and diameter > 0):
         raise SceneError(f"grid.h: the smallest expected contact diameter is {diameter!r} mm, so no "
                          f"default cell size can be chosen; give [grid] h")

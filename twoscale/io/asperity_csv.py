@@ -23,7 +23,6 @@ from typing import Any, Mapping, Sequence
 
 from .._version import __version__
 from .atomic import atomic_output
-from .result_view import result_view
 
 ASPERITY_CSV_NAME = "asperities.csv"
 COLUMNS = ("asperity", "x_mm", "y_mm", "z_mm", "R_mm", "shape", "force_N", "contact_area_mm2",
@@ -32,18 +31,18 @@ COLUMNS = ("asperity", "x_mm", "y_mm", "z_mm", "R_mm", "shape", "force_N", "cont
 
 def asperity_rows(result, asperities: Sequence) -> list[dict]:
     """One dict per asperity (the CSV rows, numbers as floats), in scene order."""
-    view = result_view(result)
-    if len(asperities) != view.forces.size:
-        raise ValueError(f"{len(asperities)} asperities given, the result has {view.forces.size}")
+    s, macro = result.asperities, result.macro_forces
+    if len(asperities) != s.forces.size:
+        raise ValueError(f"{len(asperities)} asperities given, the result has {s.forces.size}")
     rows = []
     for k, a in enumerate(asperities):
-        f, area = float(view.forces[k]), float(view.contact_areas[k])
+        f, area = float(s.forces[k]), float(s.contact_areas[k])
         row = {"asperity": k + 1, "x_mm": float(a.x), "y_mm": float(a.y), "z_mm": float(a.z),
                "R_mm": float(a.R), "shape": a.shape, "force_N": f, "contact_area_mm2": area,
-               "max_pressure_MPa": float(view.max_pressures[k]),
+               "max_pressure_MPa": float(s.max_pressures[k]),
                "mean_pressure_MPa": f / area if area > 0 else 0.0}
-        if view.macro_forces is not None:
-            row["macro_force_N"] = float(view.macro_forces[k])
+        if macro is not None:
+            row["macro_force_N"] = float(macro[k])
         rows.append(row)
     return rows
 

@@ -32,7 +32,7 @@ from ..details import ReferenceDetails, TwoScaleDetails
 from ..scene import Scene
 from .scene_file import scene_to_dict
 
-__all__ = ["RESULT_NAME", "UNITS", "result_to_dict", "write_result", "read_forces"]
+__all__ = ["RESULT_NAME", "UNITS", "result_to_dict", "write_result", "read_forces", "read_forces_and_tips"]
 
 RESULT_NAME = "result.json"
 UNITS = {"length": "mm", "force": "N", "pressure": "MPa", "angle": "rad", "time": "s"}
@@ -165,11 +165,19 @@ def read_forces(folder: str | os.PathLike) -> np.ndarray:
     ValueError
         One line naming the file: missing, or not a twoscale result.json.
     """
+    return read_forces_and_tips(folder)[0]
+
+
+def read_forces_and_tips(folder: str | os.PathLike) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`read_forces` and the tip positions (N, 2) mm of the recorded scene, from one
+    read of ``folder/result.json`` (NaN where the scene gives no tip position)."""
     path = Path(folder) / RESULT_NAME
     try:
         data = json.loads(path.read_text(encoding="utf-8"))
-        return np.array([float(a["force"]) for a in data["asperities"]])
+        forces = np.array([float(a["force"]) for a in data["asperities"]])
     except FileNotFoundError:
         raise ValueError(f"{path} does not exist (a folder written by twoscale solve --out)") from None
     except (json.JSONDecodeError, KeyError, TypeError, ValueError) as exc:
         raise ValueError(f"{path} is not a twoscale result.json ({exc})") from None
+    tips = [[a.get("x", np.nan), a.get("y", np.nan)] for a in data.get("scene", {}).get("asperity", [])]
+    return forces, np.array(tips, dtype=float).reshape(-1, 2)

@@ -20,7 +20,6 @@ from pathlib import Path
 from ..results import ContactResult
 from ..scene import Scene
 from .asperity_csv import ASPERITY_CSV_NAME, write_asperity_csv
-from .result_view import result_view
 from .scene_file import scene_to_dict
 
 FIELDS_NAME = "fields.vtm"
@@ -65,5 +64,5 @@ def write_fields_and_figures(result: ContactResult, scene: Scene, out_dir, *, vt
 
         written.append(pressure_map(result, out / PRESSURE_NAME, tips=scene.asperities, scene=record))
         written.append(force_bars(result, out / FORCES_NAME, tips=scene.asperities,
-                                  macro_forces=result_view(result).macro_forces, scene=record))
+                                  macro_forces=result.macro_forces, scene=record))
     return written

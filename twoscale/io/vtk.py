@@ -41,7 +41,6 @@ from ..grid import Grid
 from ..indenters import Asperity, Tilt
 from ..results import PressureField
 from .atomic import current_umask, atomic_output
-from .result_view import ResultView, result_view
 from .vti import read_image, read_multiblock, write_image, write_multiblock
 
 UNITS = {"length": "mm", "force": "N", "pressure": "MPa", "angle": "rad"}
@@ -95,7 +94,7 @@ def _grid_dict(g: Grid) -> dict:
     return {"x0": g.x0, "y0": g.y0, "h": g.h, "nx": g.nx, "ny": g.ny}
 
 
-def _metadata(result: ResultView, layout: str, grids: Sequence[Grid],
+def _metadata(result, layout: str, grids: Sequence[Grid],
               scene: Mapping[str, Any] | None, has_height: bool) -> dict:
     return {
         "program": "twoscale", "version": __version__, "units": UNITS,
@@ -237,14 +236,14 @@ def write_vtk(result, path: str | Path, *, layout: str = "patches",
         raise ValueError(f"VTK output path must end in .vtm, got {str(path)!r}")
     if layout not in LAYOUTS:
         raise ValueError(f"layout must be one of {LAYOUTS}, got {layout!r}")
-    view = result_view(result)
-    if not view.fields:
+    if not result.fields:
         raise ValueError("result has no pressure fields to write")
     folder = path.with_suffix("")
     _check_data_folder(folder)
-    fields = list(view.fields) if layout == "patches" else [_union_field(view.fields)]
-    tilt = None if view.tilt is None else Tilt(alpha=view.tilt[0], beta=view.tilt[1], pivot=tuple(pivot))
-    meta = _metadata(view, layout, [f.grid for f in fields], scene, asperities is not None)
+    fields = list(result.fields) if layout == "patches" else [_union_field(result.fields)]
+    tilt = None if result.tilt is None else Tilt(alpha=float(result.tilt[0]), beta=float(result.tilt[1]),
+                                                 pivot=tuple(pivot))
+    meta = _metadata(result, layout, [f.grid for f in fields], scene, asperities is not None)
     path.parent.mkdir(parents=True, exist_ok=True)
     tmp = Path(tempfile.mkdtemp(prefix=f".{folder.name}.tmp-", dir=path.parent))
     try:

@@ -7,7 +7,6 @@ from typing import Any, Mapping
 
 import numpy as np
 
-from ..io.result_view import result_view
 from ..results import ContactResult
 from ._figure import new_figure, save_png
 from .tips import tip_positions, tips_coloured
@@ -56,11 +55,11 @@ def difference_map(results: Mapping[str, ContactResult], path: str | Path, *, ti
     xy, _ = tip_positions(tips)
     if xy is None:
         raise ValueError("difference_map needs the tip positions (tips=...)")
-    ref = result_view(results[reference]).forces
+    ref = np.asarray(results[reference].forces, dtype=float)
     diffs = {}
     for name in names:
         if name != reference:
-            f = result_view(results[name]).forces
+            f = np.asarray(results[name].forces, dtype=float)
             if f.shape != ref.shape or len(xy) != ref.size:
                 raise ValueError(f"{name!r} has {f.size} forces, {reference!r} {ref.size}, tips {len(xy)}")
             diffs[name] = f - ref

@@ -13,7 +13,6 @@ from typing import Any, Mapping, Sequence
 
 import numpy as np
 
-from ..io.result_view import result_view
 from ..results import ContactResult
 from ._figure import new_figure, save_png
 from .tips import FEW_TIPS, tip_positions, tips_coloured
@@ -69,17 +68,17 @@ def force_bars(result: ContactResult, path: str | Path, *, tips=None, macro_forc
     -------
     Path of the PNG written.
     """
-    view = result_view(result)
-    series = {"final pressure": view.forces}
+    forces = np.asarray(result.forces, dtype=float)
+    series = {"final pressure": forces}
     if macro_forces is not None:
         macro = np.asarray(macro_forces, float).ravel()
-        if macro.shape != view.forces.shape:
+        if macro.shape != forces.shape:
             raise ValueError(f"macro_forces has {macro.size} values, expected "
-                             f"{view.forces.size} (one per asperity)")
+                             f"{forces.size} (one per asperity)")
         series = {"macro step": macro, **series}
     if title is None:
-        title = f"{view.method}: force per asperity, total {view.total_load:.4g} N"
-    n = view.forces.size
+        title = f"{result.method}: force per asperity, total {float(result.total_load):.4g} N"
+    n = forces.size
     if n <= FEW_TIPS:
         fig = new_figure(size, dpi)
         ax = fig.add_axes([0.11, 0.14, 0.86, 0.76])
@@ -94,8 +93,8 @@ def force_bars(result: ContactResult, path: str | Path, *, tips=None, macro_forc
         from matplotlib.colors import Normalize
 
         mx = fig.add_axes([0.52, 0.13, 0.36, 0.72])
-        top = float(view.forces.max())
-        sc = tips_coloured(mx, xy, view.forces, norm=Normalize(0.0, top if top > 0 else 1.0),
+        top = float(forces.max())
+        sc = tips_coloured(mx, xy, forces, norm=Normalize(0.0, top if top > 0 else 1.0),
                            cmap="viridis", label="force (N)")
         fig.colorbar(sc, cax=fig.add_axes([0.90, 0.13, 0.015, 0.72])).set_label("force (N)")
         mx.set_title("tips coloured by force", fontsize=9)
@@ -151,7 +150,7 @@ def compare_forces(results: Mapping[str, ContactResult], path: str | Path, *,
     series = {}
     if measured is not None:
         series["measured"] = np.asarray(measured, float)
-    series.update({name: result_view(r).forces for name, r in results.items()})
+    series.update({name: np.asarray(r.forces, dtype=float) for name, r in results.items()})
     title = title or "force per asperity"
     n = len(next(iter(series.values())))
     if n <= FEW_TIPS:
