@@ -94,7 +94,8 @@ def per_asperity_rows(runs, measured: Measured | None = None) -> list[dict]:
     return rows
 
 
-def _e_m_or_none(p, p_ref):
+def e_m_or_none(p, p_ref):
+    """e_m (percent), or None when the reference map is zero on every sensor cell."""
     return e_m(p, p_ref) if np.any(p_ref != 0) else None
 
 
@@ -114,7 +115,7 @@ def indicators(runs, sensor: Sensor | None = None, measured: Measured | None = N
         for r in runs:
             out.setdefault(r.load, {}).setdefault("measured", {})[r.body] = {
                 "e_M": None if measured.forces is None else e_M(r.result.asperities.forces, measured.forces),
-                "e_m": None if measured.sensor_map is None else _e_m_or_none(maps[r.load, r.body],
+                "e_m": None if measured.sensor_map is None else e_m_or_none(maps[r.load, r.body],
                                                                              measured.sensor_map),
             }
     for ref in runs:
@@ -123,7 +124,7 @@ def indicators(runs, sensor: Sensor | None = None, measured: Measured | None = N
                 continue
             out.setdefault(ref.load, {}).setdefault(ref.body, {})[other.body] = {
                 "e_M": e_M(other.result.asperities.forces, ref.result.asperities.forces),
-                "e_m": _e_m_or_none(maps[other.load, other.body], maps[ref.load, ref.body]),
+                "e_m": e_m_or_none(maps[other.load, other.body], maps[ref.load, ref.body]),
             }
     return out
 
@@ -159,7 +160,7 @@ def folder_indicators(run: str | os.PathLike, reference: str | os.PathLike, sens
                          "e_M compares the same asperities")
     _warn_if_tips_differ(run, reference, tips, tips_ref)
     p, p_ref = _folder_sensor_map(run, sensor), _folder_sensor_map(reference, sensor)
-    return {"e_M": e_M(P, P_ref), "e_m": _e_m_or_none(p, p_ref)}
+    return {"e_M": e_M(P, P_ref), "e_m": e_m_or_none(p, p_ref)}
 
 
 def _warn_if_tips_differ(run: Path, reference: Path, a: np.ndarray, b: np.ndarray, tol: float = 1e-6) -> None:

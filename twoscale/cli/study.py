@@ -90,20 +90,19 @@ def run(args: argparse.Namespace) -> int:
         workers = _count(args.workers, "--workers", least=0, default=os.cpu_count() or 1)
         batch = _count(args.batch, "--batch", least=1, default=1)
         study = read_study(args.study)
-        check_study_folder(out, study, overwrite=args.overwrite)
+        digest = check_study_folder(out, study, overwrite=args.overwrite)
     except ValueError as exc:  # StudyError and SceneError included
         print(f"error: {exc}", file=sys.stderr)
         return 2
+    from ..studies.dask_backend import SchedulerError
     from ..studies.execute import run_study
     from ..studies.outputs import write_outputs
 
     created = not out.exists()
-    mark_study_folder(out, study)
+    mark_study_folder(out, study, digest)
     try:
         run_info = run_study(study, out, workers=workers, scheduler=args.scheduler, batch=batch, quiet=args.quiet)
-    except OSError as exc:  # the scheduler's address: nothing has run
-        if args.scheduler is None:
-            raise
+    except SchedulerError as exc:  # the scheduler's address: nothing has run
         if created:  # nothing has run: leave no folder behind
             shutil.rmtree(out, ignore_errors=True)
         print(f"error: {exc}", file=sys.stderr)

@@ -13,7 +13,7 @@ numerical study (figs. 3-6). This package runs what a user's parameter study ask
 * :mod:`.store`: per-case result folders written atomically (resume, Ctrl-C);
 * :mod:`.execute`: running the unfinished cases, serially or on Dask (:mod:`.dask_backend`);
 * :mod:`.tables`, :mod:`.figures`, :mod:`.outputs`: tidy tables (CSV, Parquet),
-  summary.json and figures; :mod:`.progress`: the progress bar.
+  summary.json and figures (the bar over cases is :class:`twoscale.progress.Progress`).
 
 Dask (``distributed``) and ``pyarrow`` are the ``study`` extra; nothing here imports them
 at import time.

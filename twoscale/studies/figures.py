@@ -79,15 +79,16 @@ def asperity_forces(case_rows: list, tip_rows: list, scene: str, body: str, path
 
 
 def track(case_rows: list, tip_rows: list, scene: str, body: str, path: Path, meta: dict) -> Path:
-    loads = sorted({(r["load_kind"], r["load"]) for r in _solved(case_rows) if r["scene"] == scene and r["body"] == body})
+    mine = [r for r in _solved(case_rows) if r["scene"] == scene and r["body"] == body]
+    loads = sorted({(r["load_kind"], r["load"]) for r in mine})
     fig = new_figure((6.4, 2.6 * max(1, len(loads)) + 0.6), 110)
     axes = np.atleast_1d(fig.subplots(max(1, len(loads)), 1, sharex=True))
     for ax, (kind, value) in zip(axes, loads):
-        rows = [r for r in _solved(case_rows) if (r["scene"], r["body"], r["load_kind"], r["load"]) == (scene, body, kind, value)]
+        rows = [r for r in mine if (r["load_kind"], r["load"]) == (kind, value)]
         s = np.array(sorted({r["distance_mm"] for r in rows}))
-        tips = [t for t in tip_rows if t["key"] in {r["key"] for r in rows}]
         where = {r["key"]: r["distance_mm"] for r in rows}
-        for k in sorted(_top_tips(tips)):  # a tip off the footprint carries nothing: 0
+        tips = [t for t in tip_rows if t["key"] in where]
+        for k in sorted(_top_tips(tips)):  # at most MAX_TIPS lines, each in the legend  # a tip off the footprint carries nothing: 0
             F = dict((where[t["key"]], t["force_N"]) for t in tips if t["asperity"] == k)
             ax.plot(s, [F.get(x, 0.0) for x in s], lw=0.8, label=f"tip {k}")
         total = dict((r["distance_mm"], r["total_load_N"]) for r in rows)
@@ -96,8 +97,7 @@ def track(case_rows: list, tip_rows: list, scene: str, body: str, path: Path, me
         right.set_ylim(0.0, 1.15 * max(total.values()))
         right.set_ylabel("total load (N)")
         right.legend(fontsize=7, loc="upper right")
-        if len(_top_tips(tips)) <= 12:
-            ax.legend(fontsize=6, ncol=2, loc="upper left")
+        ax.legend(fontsize=6, ncol=2, loc="upper left")
         ax.set(ylabel="tip force (N)", title=f"{scene} on {body}, {kind} = {value:g} {'N' if kind == 'total' else 'mm'}")
     axes[-1].set_xlabel("distance along the positions (mm)")
     fig.tight_layout()

@@ -30,17 +30,19 @@ def study_digest(study) -> str:
     return digest(sorted(set(case_key(c, study) for c in expand(study))))
 
 
-def check_study_folder(out: Path, study, *, overwrite: bool = False) -> None:
+def check_study_folder(out: Path, study, *, overwrite: bool = False) -> str:
     """Raise ``ValueError`` (one line) unless ``out`` may take ``study``'s outputs; with
-    ``overwrite``, another study's outputs are removed first (its ``cases/`` kept)."""
+    ``overwrite``, another study's outputs are removed first (its ``cases/`` kept).
+    Returns the study's digest (:func:`study_digest`), for :func:`mark_study_folder`."""
     out = Path(out)
+    digest_now = study_digest(study)
     if not out.exists():
-        return
+        return digest_now
     if not out.is_dir():
         raise ValueError(f"--out {str(out)!r} exists and is not a folder")
     entries = sorted(p.name for p in out.iterdir())
     if not entries:
-        return
+        return digest_now
     marker = out / MARKER
     if not marker.is_file():
         raise ValueError(f"--out {str(out)!r} is not empty and is no twoscale study folder (it holds "
@@ -49,8 +51,8 @@ def check_study_folder(out: Path, study, *, overwrite: bool = False) -> None:
         record = json.loads(marker.read_text(encoding="utf-8"))
     except (OSError, ValueError):
         record = {}
-    if record.get("digest") == study_digest(study):
-        return   # this study: resume
+    if record.get("digest") == digest_now:
+        return digest_now   # this study: resume
     if not overwrite:
         raise ValueError(f"--out {str(out)!r} holds another study ({record.get('name', '?')!r}): rerun that "
                          f"study there, choose another folder, or add --overwrite to replace its tables and "
@@ -61,11 +63,13 @@ def check_study_folder(out: Path, study, *, overwrite: bool = False) -> None:
             shutil.rmtree(path)
         elif path.exists():
             path.unlink()
+    return digest_now
 
 
-def mark_study_folder(out: Path, study) -> None:
-    """Write the marker of ``study`` into ``out`` (created if needed)."""
+def mark_study_folder(out: Path, study, digest_now: str | None = None) -> None:
+    """Write the marker of ``study`` (its digest, when already computed) into ``out``
+    (created if needed)."""
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     with atomic_output(out / MARKER) as tmp:
-        tmp.write_text(json.dumps({"name": study.name, "digest": study_digest(study)}) + "\n", encoding="utf-8")
+        tmp.write_text(json.dumps({"name": study.name, "digest": digest_now or study_digest(study)}) + "\n", encoding="utf-8")

@@ -59,9 +59,6 @@ class ProviderCache:
             provider = self._cache.put(key, scene.provider(**options), 1)
         return provider
 
-    def stats(self) -> dict:
-        return self._cache.stats()
-
 
 def contact_box(scene: Any) -> tuple:
     """(xmin, xmax, ymin, ymax) mm covering every place contact can reach in ``scene``
@@ -107,12 +104,12 @@ def warm_blocks(scenes: Iterable[Any], *, progress: bool = False) -> dict:
 
 
 def _in_lattice(provider, points: np.ndarray) -> np.ndarray:
-    """Which source points the block interpolates its correction from: its lattice of
-    spacing ``source_spacing`` stays one spacing inside the sides of the top face
-    (``BlockProvider``'s rule; points beyond it are refused)."""
-    d = provider.source_spacing
-    half = np.floor((np.asarray(provider.size[:2]) / 2 - d) / d) * d
-    return np.all(np.abs(points + np.asarray(provider.origin)) <= half + 1e-9 * d, axis=1)
+    """Which source points (scene frame) lie in the region the block answers for (its
+    ``domain()``: the correction lattice; points beyond it are refused)."""
+    x0, x1, y0, y1 = provider.domain()
+    tol = 1e-9 * provider.source_spacing
+    x, y = points[:, 0], points[:, 1]
+    return (x >= x0 - tol) & (x <= x1 + tol) & (y >= y0 - tol) & (y <= y1 + tol)
 
 
 def _sample(box: tuple, d: float) -> np.ndarray:

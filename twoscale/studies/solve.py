@@ -17,10 +17,6 @@ import numpy as np
 from ..sensor import Sensor
 from .providers import ProviderCache
 
-#: Statuses of a case record.
-STATUSES = ("converged", "not-converged", "failed")
-
-
 @dataclass(frozen=True)
 class Outcome:
     """What a study keeps of one solve (scene order of the kept tips).

@@ -24,7 +24,8 @@ import numpy as np
 from .._version import __version__
 from ..io.atomic import atomic_output
 from ..io.result_json import UNITS
-from ..sensor import e_M, e_m
+from ..comparison import e_m_or_none
+from ..sensor import e_M
 from .cases import Case
 from .keys import scene_record
 from .spec import Study
@@ -94,7 +95,7 @@ def indicator_rows(study: Study, cases: list, keys: list, records: dict, store: 
                         "distance_mm": _where(study, case)["distance_mm"], "reference": ref_case.body.name,
                         "body": case.body.name,
                         "e_M_percent": e_M(_scene_forces(rec, n), P_ref) if np.any(P_ref) else None,
-                        "e_m_percent": e_m(p, ref_map) if np.any(ref_map != 0) else None})
+                        "e_m_percent": e_m_or_none(p, ref_map)})
     return out
 
 
