@@ -107,6 +107,18 @@ class Grid:
             raise ValueError("grids are not aligned on the same lattice")
         return int(ri), int(rj)
 
+    def window_in(self, parent: "Grid") -> tuple[slice, slice]:
+        """The (rows, columns) slices of this grid's cells in an aligned ``parent``."""
+        di, dj = self.offset_in(parent)
+        return slice(dj, dj + self.ny), slice(di, di + self.nx)
+
+    def embed_in(self, values: np.ndarray, parent: "Grid") -> np.ndarray:
+        """``values`` on this grid placed on an aligned ``parent`` that contains it, zero
+        elsewhere (e.g. a pressure carried to a larger grid as a warm start)."""
+        out = np.zeros(parent.shape)
+        out[self.window_in(parent)] = values
+        return out
+
     def subgrid(self, i0: int, j0: int, nx: int, ny: int) -> "Grid":
         """The aligned sub-grid starting at cell ``(j0, i0)`` of this grid."""
         return Grid(self.x0 + i0 * self.h, self.y0 + j0 * self.h, self.h, nx, ny)

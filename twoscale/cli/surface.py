@@ -36,6 +36,7 @@ def run(args: argparse.Namespace) -> int:
     """Run ``twoscale surface``; returns the exit code."""
     from ..scene import SceneError
     from ..surface.figure import segmentation_figure
+    from ..surface.laws import sphere_law_error
     from ..surface.report import asperity_rows, surface_summary, write_asperity_csv, write_json
 
     t0 = time.perf_counter()
@@ -50,7 +51,7 @@ def run(args: argparse.Namespace) -> int:
         if not args.no_laws:
             with StatusLine(quiet=args.quiet) as status:
                 table = surface.book.table(scene.material, progress=status)
-            error = surface.sphere_error(scene.material)
+            error = sphere_law_error(table, surface.asperities)   # the table just built
         t2 = time.perf_counter()
     except ValueError as exc:   # SceneError, SurfaceError
         print(f"error: {exc}", file=sys.stderr)

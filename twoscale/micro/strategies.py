@@ -24,7 +24,7 @@ from typing import Callable
 import numpy as np
 
 from .solve import EXACT_FAR_TOL, MicroResult, solve_micro
-from .union import _embed, solve_union
+from .union import solve_union
 
 #: The union CG's KKT residual over the block iterations' tolerance (a relative change of the
 #: pressure between sweeps): at the default 1e-6 the CG stops at the reference solver's 1e-8.
@@ -129,7 +129,7 @@ class UnionCG:
         message = r.message if not r.converged else (
             f"pressure still reaches the box's edge after {out.enlargements} enlargements" if out.on_edge else "")
         # eq. 7 pressures only where computed (p0=True): none to report otherwise
-        initial = (_embed(start, start_grid, out.patch.grid),) if start is not None else ()
+        initial = (start_grid.embed_in(start, out.patch.grid),) if start is not None else ()
         tilt = r.tilt if common["free_tilt"] else None
         return MicroResult((out.patch,), (field.pressure,), initial, (field.gap,), float(r.penetration), tilt,
                            converged, message, int(out.iterations), 0, int(out.enlargements), 0,

@@ -74,14 +74,6 @@ def box_of(grids: Sequence[Grid], h: float, anchor: tuple[float, float], *, grow
     return Grid.covering(cx - grow * rx, cx + grow * rx, cy - grow * ry, cy + grow * ry, h, anchor=anchor)
 
 
-def _embed(p: np.ndarray, sub: Grid, grid: Grid) -> np.ndarray:
-    """``p`` on ``sub`` placed on ``grid`` (both on one lattice; ``sub`` inside ``grid``)."""
-    out = np.zeros(grid.shape)
-    di, dj = sub.offset_in(grid)
-    out[dj:dj + sub.ny, di:di + sub.nx] = p
-    return out
-
-
 def _on_edge(p: np.ndarray) -> bool:
     return bool(np.any(p[0, :] > 0) or np.any(p[-1, :] > 0) or np.any(p[:, 0] > 0) or np.any(p[:, -1] > 0))
 
@@ -131,9 +123,9 @@ def solve_union(provider: InfluenceProvider, asperities: Sequence[Asperity], gri
         grid = box_of(grids, h, anchor, grow=grow)
         surface = surface_on(grid, asperities)
         if previous is not None:
-            warm = _embed(previous.fields[0].pressure, previous.fields[0].grid, grid)
+            warm = previous.fields[0].grid.embed_in(previous.fields[0].pressure, grid)
         elif start is not None:
-            warm = _embed(start, start_grid, grid)
+            warm = start_grid.embed_in(start, grid)
         else:
             # the geometric start of the CG: a Hertz start from the macro forces was
             # measured to double the iterations (198 against 96, 200 dense tips)

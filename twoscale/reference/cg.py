@@ -25,7 +25,6 @@ import time
 
 import numpy as np
 
-from ..grid import Grid
 from ..indenters import Surface
 from ..influence.base import InfluenceProvider
 from ..details import ReferenceDetails
@@ -160,7 +159,7 @@ def solve_cg(provider: InfluenceProvider, surface: Surface, *, penetration: floa
                              f"got shape {start.shape}")
     work = _cropped(problem)
     if start is not None and work is not problem:
-        start = start[_window(work.grid, problem.grid)]
+        start = start[work.grid.window_in(problem.grid)]
     if precision not in PRECISIONS:
         raise ValueError(f"precision must be one of {PRECISIONS}, got {precision!r}")
     op = provider.grid_operator(work.grid)
@@ -179,8 +178,8 @@ def solve_cg(provider: InfluenceProvider, surface: Surface, *, penetration: floa
     it, n_products, hist = it + it0, n_products + products0, hist0 + hist
     p, u = p.reshape(work.grid.shape), u.reshape(work.grid.shape)
     if work is not problem:
-        p = _embed(p, work.grid, problem.grid)
-        u = provider.grid_operator(problem.grid, work.grid).apply(p[_window(work.grid, problem.grid)])
+        p = work.grid.embed_in(p, problem.grid)
+        u = provider.grid_operator(problem.grid, work.grid).apply(p[work.grid.window_in(problem.grid)])
         n_products += 1
     d, tilt_angles = problem.rigid_motion(m)
     t_end = time.perf_counter()
@@ -188,17 +187,6 @@ def solve_cg(provider: InfluenceProvider, surface: Surface, *, penetration: floa
     details = ReferenceDetails("cg", working_grid=(work.grid.nx, work.grid.ny), single_precision_iterations=it0)
     return build_result(problem, "cg", p, u, d, tilt_angles, converged, message,
                         {"cg": it, "products": n_products}, {"gap": hist}, timings, details)
-
-
-def _window(sub: Grid, grid: Grid) -> tuple[slice, slice]:
-    di, dj = sub.offset_in(grid)
-    return slice(dj, dj + sub.ny), slice(di, di + sub.nx)
-
-
-def _embed(p_sub: np.ndarray, sub: Grid, grid: Grid) -> np.ndarray:
-    out = np.zeros(grid.shape)
-    out[_window(sub, grid)] = p_sub
-    return out
 
 
 def _cropped(problem: ContactProblem) -> ContactProblem:

@@ -16,6 +16,8 @@ samples (the scene's lattice, :mod:`.conditioning`) that is exact.
 """
 from __future__ import annotations
 
+import functools
+
 import math
 from dataclasses import dataclass, field
 
@@ -53,11 +55,16 @@ class BasinMap:
         mine = inside & (self.labels[jc, ic] == label)
         return np.where(mine, self.recess[jc, ic], np.inf)
 
+    @functools.cached_property
+    def n_labels(self) -> int:
+        """Basins on the map (labels run from 0), found once, not on every look-up."""
+        return int(self.labels.max()) + 1
+
     def union_on(self, X, Y, index: dict):
         """Recess (mm; ``inf`` off the map or in basins not in ``index``) and owner (the
         value ``index[label]`` of the sample's basin, -1 there) at points (X, Y)."""
         jc, ic, inside = self._nearest(X, Y)
-        table = np.full(int(self.labels.max()) + 1, -1, dtype=np.int64)
+        table = np.full(self.n_labels, -1, dtype=np.int64)
         table[np.fromiter(index.keys(), dtype=np.int64)] = np.fromiter(index.values(), dtype=np.int64)
         owner = np.where(inside, table[self.labels[jc, ic]], -1)
         return np.where(owner >= 0, self.recess[jc, ic], np.inf), owner

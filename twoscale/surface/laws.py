@@ -144,11 +144,7 @@ def _single_asperity(provider, a, depths: np.ndarray, h: float, tol: float):
     ok, previous = True, None
     for i, d in enumerate(depths):
         grid = _law_grid(a, d, h)
-        start = None
-        if previous is not None:
-            start = np.zeros(grid.shape)
-            di, dj = previous.grid.offset_in(grid)
-            start[dj:dj + previous.grid.ny, di:di + previous.grid.nx] = previous.pressure
+        start = None if previous is None else previous.grid.embed_in(previous.pressure, grid)
         res = solve_cg(provider, surface_on(grid, [a]), penetration=a.z + d, tol=tol, start=start)
         previous = res.fields[0]
         forces[i] = res.total_load
@@ -180,11 +176,6 @@ class SphereLawError:
     per_asperity: np.ndarray
     median: float
     largest: float
-
-
-def sphere_laws(asperities, material: Material) -> list:
-    """Hertz law of each asperity's equivalent sphere (radius ``R`` of its cap fit)."""
-    return [HertzLaw(a.R, material.E_star) for a in asperities]
 
 
 def sphere_law_error(table: LawTable, asperities) -> SphereLawError:

@@ -117,23 +117,30 @@ def _read_npz(name: str) -> RawMap:
     return RawMap(z, spacing, units, None, name)
 
 
-def _read_text_grid(name: str) -> np.ndarray:
+def _data_rows(name: str) -> tuple[list[str], str | None]:
+    """The file's non-comment, non-blank lines (read once) and its delimiter (comma or
+    whitespace)."""
     with open(name, encoding="utf-8") as fh:
         text = fh.read()
-    delimiter = "," if "," in text else None
     rows = [ln for ln in text.splitlines() if ln.strip() and not ln.lstrip().startswith("#")]
+    return rows, ("," if "," in text else None)
+
+
+def _read_text_grid(name: str) -> np.ndarray:
+    rows, delimiter = _data_rows(name)
     widths = {len(ln.split(delimiter)) for ln in rows}
     if len(widths) > 1:
         first = len(rows[0].split(delimiter))
         k = next(i for i, ln in enumerate(rows) if len(ln.split(delimiter)) != first)
         raise SurfaceError(f"{name}: a text grid needs the same number of values on every row; data row {k + 1} "
                            f"has {len(rows[k].split(delimiter))}, the first has {first}")
-    return np.loadtxt(name, delimiter=delimiter, comments="#", ndmin=2)
+    return np.loadtxt(rows, delimiter=delimiter, ndmin=2)
 
 
 def _read_points(name: str) -> RawMap:
     """x y z points on a regular lattice (any order, missing points allowed)."""
-    pts = np.loadtxt(name, comments="#", ndmin=2, delimiter="," if "," in open(name, encoding="utf-8").read() else None)
+    rows, delimiter = _data_rows(name)
+    pts = np.loadtxt(rows, delimiter=delimiter, ndmin=2)
     if pts.shape[1] != 3:
         raise SurfaceError(f"{name}: a point list needs 3 columns x y z, got {pts.shape[1]}")
     xs, ys = np.unique(pts[:, 0]), np.unique(pts[:, 1])
