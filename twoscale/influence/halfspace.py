@@ -203,9 +203,12 @@ class ConvolutionOperator(GridOperator):
         p = np.asarray(p, dtype=float)
         if p.shape != self.source.shape:
             raise ValueError(f"pressure has shape {p.shape}, expected {self.source.shape}")
-        a = self.spectrum(p)
+        return self.finish(self._times_kernel(self.spectrum(p)))
+
+    def _times_kernel(self, a: np.ndarray) -> np.ndarray:
+        """``a`` (a source spectrum) times the kernel spectrum, in place."""
         a *= self._khat
-        return self.finish(a)
+        return a
 
     # The three stages of apply (GridOperator), for callers that sum the products of many
     # sources onto one target: operators with the same ``fft_shape`` and source shape accept
@@ -239,7 +242,7 @@ class ConvolutionOperator(GridOperator):
 
     def multiply(self, spectrum: np.ndarray) -> np.ndarray:
         """Kernel times a source spectrum (a new array)."""
-        return self._khat * spectrum
+        return self._times_kernel(np.array(spectrum, dtype=np.complex128))
 
     def transposed(self) -> "_TransposedConvolution":
         """The reverse pair's operator (``target`` and ``source`` swapped), sharing this
@@ -299,10 +302,21 @@ class _TransposedConvolution(ConvolutionOperator):
 
     @property
     def _khat(self) -> np.ndarray:
+        """The kernel spectrum itself (built when asked for, e.g. for a float32 copy; the
+        products use :meth:`_times_kernel`, which never builds it)."""
         out = np.conj(self._parent)
         out *= self._py
         out *= self._px
         return out
+
+    def _times_kernel(self, a: np.ndarray) -> np.ndarray:
+        # a conj(K) py px = conj(conj(a) K) py px: in place, no spectrum-sized temporary
+        np.conj(a, out=a)
+        a *= self._parent
+        np.conj(a, out=a)
+        a *= self._py
+        a *= self._px
+        return a
 
     def transposed(self) -> None:
         return None
