@@ -258,28 +258,33 @@ class LaggedFarField(FarFieldCoupling):
     """:class:`FarFieldCoupling` whose far field is computed for every block at once and
     held until :meth:`refresh` (a Jacobi far field inside a Gauss-Seidel sweep).
 
-    The far patches act through their resultant force placed at their asperity's tip; the
-    displacement at the 3 x 3 stencils of all blocks is one ``provider.point_operator``
-    product (an FFT for the half-space, exact chunks otherwise) with the near pairs and the
-    block itself excluded. Per sweep this costs ``O(N)`` (fast operator) instead of the
-    ``9 N^2`` kernel values of :class:`FarFieldCoupling`. Held values are stale for the
-    blocks updated since the last refresh: the two-level iteration (:mod:`.twolevel`)
-    refreshes once per sweep and corrects the smooth error that this leaves by its
-    coarse step. Near lists come from a k-d tree (``O(N log N)``), and a patch that grows
-    updates only its own geometry.
+    Each far patch acts through **nine point forces** on a 3 x 3 lattice over its patch
+    (nodes at the centre and ``+-(sqrt 3 / 2) a`` along each axis, ``a`` the half-width
+    from the centre to the outer cell centres), whose strengths are the patch's pressure
+    integrated against the biquadratic Lagrange functions of those nodes
+    (:func:`source_strengths`). They reproduce every moment ``x^i y^j`` (``i, j <= 2``)
+    of the patch's load: its resultant, centre of pressure and second moments, so the
+    error a far patch makes falls as ``(r / dist)^3`` instead of the ``(r / dist)^2`` of a
+    resultant at the centre of pressure (or ``r / dist`` of a resultant at the tip when
+    the load is off-centre, as on a measured stone's basin). The displacement at the
+    3 x 3 stencils of all blocks is one ``provider.point_operator`` product (an FFT for
+    the half-space, exact chunks otherwise) with the near pairs and the block itself
+    excluded. Per sweep this costs ``O(N)`` (fast operator) instead of the ``9 N^2``
+    kernel values of :class:`FarFieldCoupling`. Held values are stale for the blocks
+    updated since the last refresh: the two-level iteration (:mod:`.twolevel`) refreshes
+    once per sweep and corrects the smooth error that this leaves by its coarse step.
+    Near lists come from a k-d tree (``O(N log N)``), and a patch that grows updates only
+    its own geometry.
 
     Parameters
     ----------
     provider, patches, far_tol : as :class:`FarFieldCoupling`
-    tips : (N_asperities, 2) array, mm
-        Tip of every asperity of the scene (the source point of its patch).
     rtol : float, default 1e-6
         Accuracy asked of the provider's point operator.
     """
 
-    def __init__(self, provider: InfluenceProvider, patches, *, tips: np.ndarray, far_tol: float = 0.2,
+    def __init__(self, provider: InfluenceProvider, patches, *, far_tol: float = 0.2,
                  rtol: float = 1e-6, **kwargs):
-        self._tips = np.asarray(tips, dtype=float)
         self._rtol = float(rtol)
         super().__init__(provider, patches, far_tol=far_tol, **kwargs)
 
@@ -344,11 +349,11 @@ class LaggedFarField(FarFieldCoupling):
         if self._op is None:
             import scipy.sparse as sp
             n = len(self.patches)
-            sources = self._tips[[pt.asperity for pt in self.patches]]
+            sources = np.concatenate([source_nodes(pt.grid)[0] for pt in self.patches])
             targets = np.concatenate([self._stencil(k) for k in range(n)])
             near = self.near_pattern() + sp.identity(n, format="csr")
-            # stencil row 9k + i excludes the sources near patch k and k itself
-            exclude = sp.kron(near, np.ones((9, 1)), format="csr")
+            # stencil row 9k + i excludes the nine sources of the patches near k and of k
+            exclude = sp.kron(near, np.ones((9, 9)), format="csr")
             self._op = self.provider.point_operator(targets, sources, exclude=exclude, rtol=self._rtol)
         return self._op
 
@@ -357,11 +362,13 @@ class LaggedFarField(FarFieldCoupling):
         n = len(self.patches)
         first = next((v for v in values if v is not None and v.size), None)
         m = 1 if first is None or first.ndim == 1 else first.shape[1]
-        F = np.zeros((n, m))
+        S = np.zeros((n, 9, m))
         for l, v in enumerate(values):
             if v is not None and v.size:   # a block can own no cell (a neighbour owns its patch)
-                F[l] = self.patches[l].grid.h ** 2 * v.reshape(len(v), -1).sum(axis=0)
-        self._table = self._point_operator().apply(F).reshape(n, 9, m)
+                g = self.patches[l].grid
+                _, centre, delta = source_nodes(g)
+                S[l] = source_strengths(self._owned_points(l), v.reshape(len(v), -1), centre, delta, g.h)
+        self._table = self._point_operator().apply(S.reshape(9 * n, m)).reshape(n, 9, m)
         self.far_products += 1
 
     def _far(self, k: int, values: list, whole: bool) -> np.ndarray:
@@ -370,3 +377,30 @@ class LaggedFarField(FarFieldCoupling):
         if self._table is None or self._table.shape[2] != m:
             self.refresh(values)
         return self._interpolation(k, whole) @ self._table[k]
+
+
+#: Position of the outer source nodes, in half-widths of the patch: the zeros of the
+#: third Chebyshev polynomial, which minimise the largest interpolation error over it.
+SOURCE_NODE = math.sqrt(3.0) / 2.0
+
+
+def source_nodes(grid) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The nine far-field source points of a patch on ``grid``: ``(points (9, 2) mm,
+    centre (2,) mm, delta (2,) mm)``, row-major over (y, x) like the stencils; ``delta``
+    is the node offset along x and y (at least ``h / 2``)."""
+    xmin, xmax, ymin, ymax = grid.bounds
+    centre = np.array([0.5 * (xmin + xmax), 0.5 * (ymin + ymax)])
+    half = 0.5 * grid.h * np.array([grid.nx - 1, grid.ny - 1], dtype=float)
+    delta = np.maximum(SOURCE_NODE * half, 0.5 * grid.h)
+    X, Y = np.meshgrid(centre[0] + delta[0] * np.array([-1.0, 0.0, 1.0]),
+                       centre[1] + delta[1] * np.array([-1.0, 0.0, 1.0]))
+    return np.column_stack([X.ravel(), Y.ravel()]), centre, delta
+
+
+def source_strengths(points: np.ndarray, values: np.ndarray, centre: np.ndarray, delta: np.ndarray,
+                     h: float) -> np.ndarray:
+    """Forces (9, m) N at :func:`source_nodes` with the moments ``x^i y^j`` (``i, j <= 2``)
+    of the pressure ``values`` (n, m) MPa on the cells centred at ``points`` (n, 2) mm."""
+    lx = _lagrange3((points[:, 0] - centre[0]) / delta[0])
+    ly = _lagrange3((points[:, 1] - centre[1]) / delta[1])
+    return (h * h) * np.einsum("nb,na,nm->bam", ly, lx, values).reshape(9, -1)

@@ -34,7 +34,7 @@ class WorkingSet:
             self.coupling = Coupling(provider, self.patches, dense_max_entries=dense_max_entries,
                                      separated_rtol=separated_rtol)
         elif lagged:
-            self.coupling = LaggedFarField(provider, self.patches, tips=self.tips(), far_tol=far_tol,
+            self.coupling = LaggedFarField(provider, self.patches, far_tol=far_tol,
                                            dense_max_entries=dense_max_entries, separated_rtol=separated_rtol)
         else:
             self.coupling = FarFieldCoupling(provider, self.patches, far_tol=far_tol,
