@@ -122,20 +122,22 @@ def test_near_neighbours_follow_the_far_field_rule():
     # distance (r_k + r_l) / sqrt(far_tol) = 2 r / sqrt(far_tol), counted independently here
     from twoscale.micro.policy import near_neighbours
 
+    FAR_TOL = 0.1                   # reaches several lattice rows (the policy's own is larger)
+
     asps = [Asperity(10.0 * i, 10.0 * j, 0.0, 5.0) for i in range(15) for j in range(15)]
     pts, _ = _patches(asps, 1.0, 0.2, 0.1)
     b = pts[0].grid.bounds
     r = 0.5 * math.hypot(b[1] - b[0], b[3] - b[2])
-    reach = 2.0 * r / math.sqrt(AUTO_FAR_TOL)
+    reach = 2.0 * r / math.sqrt(FAR_TOL)
     centre = 7                      # the middle patch sees the whole disc of lattice points
     expected = sum(1 for i in range(15) for j in range(15)
                    if (i, j) != (centre, centre) and 10.0 * math.hypot(i - centre, j - centre) < reach)
-    got_all = near_neighbours(pts, AUTO_FAR_TOL)
+    got_all = near_neighbours(pts, FAR_TOL)
     assert 0 < got_all <= expected                 # edges and corners see fewer
     # crowding the same patches twice as close raises the count, which the two-level cost follows
     close = [Asperity(5.0 * i, 5.0 * j, 0.0, 5.0) for i in range(15) for j in range(15)]
     pts_close, box_close = _patches(close, 1.0, 0.2, 0.1)
-    assert near_neighbours(pts_close, AUTO_FAR_TOL) > 2.0 * got_all
+    assert near_neighbours(pts_close, FAR_TOL) > 2.0 * got_all
     far = estimate_costs(pts, box_of([p.grid for p in pts], 0.1, (0.0, 0.0)).size)["two-level"]
     crowded = estimate_costs(pts_close, box_close)["two-level"]
     assert crowded > far
