@@ -153,3 +153,18 @@ def test_auto_law_tabulates_nothing_and_takes_the_cached_tables(tmp_path):
     assert warm.book.tabulated == 0 and warm.book.cache.hits > 0
     np.testing.assert_allclose(res2.details.macro.forces, ref.details.macro.forces, rtol=1e-9, atol=1e-12)
 
+
+
+def test_far_field_on_a_road_keeps_every_stone_within_one_percent():
+    """The policy's far-field coupling on map basins (the loads sit off the summits):
+    forced here on a road small enough for the default run (the policy itself takes the
+    far field from FAR_FIELD_MIN_PATCHES patches, as on benchmarks/surfaces.py's road)."""
+    from twoscale.micro.policy import AUTO_FAR_TOL
+
+    h = 0.1
+    s = _surface(road(36.0, h, seed=1), h)   # the old resultant at each summit: 4.5 % on one stone
+    W = 0.2 * 36.0 * 36.0
+    two = solve_twoscale(HS, s.asperities, h=h, total_load=W, iteration="two-level", far_tol=AUTO_FAR_TOL)
+    assert two.details.micro.attempts[-1].far_tol == AUTO_FAR_TOL
+    ref = solve_reference(HS, surface_on(s.hmap.grid, s.asperities), total_load=W)
+    _compare(two, ref, s.hmap.grid)
