@@ -14,7 +14,8 @@ from twoscale import Material
 from twoscale.grid import Grid
 from twoscale.influence import HalfSpace
 from twoscale.micro.blocks import Coupling
-from twoscale.micro.farfield import LaggedFarField, source_nodes, source_strengths
+from twoscale.micro.farfield import LaggedFarField
+from twoscale.micro.sources import source_nodes, source_strengths
 from twoscale.micro.patches import Patch
 
 HS = HalfSpace(Material(10.0, 0.5))

@@ -115,27 +115,6 @@ def test_far_field_solve_matches_exact(seed):
     assert abs(fa.sum() - 3.0) <= 1e-6 * 3.0
 
 
-@pytest.mark.parametrize("far_tol", [0.2, 0.05])
-def test_binned_far_field_close_to_exact(monkeypatch, far_tol):
-    # 150 small patches on 60 mm with bins forced on: the displacement from all the other
-    # patches stays within far_tol (relative, max norm) of the exact products
-    import twoscale.micro.farfield as ff
-    monkeypatch.setattr(ff, "BIN_MIN", 20)
-    asp = _scene(150, 3, 60.0)
-    pts = [make_patch(k, Grid.covering(a.x - 0.45, a.x + 0.45, a.y - 0.45, a.y + 0.45, 0.1), asp)
-           for k, a in enumerate(asp)]
-    values = [_hertz_block(pt) for pt in pts]
-    exact = Coupling(HS, pts)
-    approx = ff.FarFieldCoupling(HS, pts, far_tol=far_tol, bins=True)
-    used = 0
-    for k in range(0, 150, 15):
-        b = np.zeros(len(values[k]))
-        ue, ua = -exact.rhs(k, values, b), -approx.rhs(k, values, b)
-        assert np.max(np.abs(ua - ue)) <= far_tol * np.max(np.abs(ue))
-        used += int(approx._far_bins(k).sum())
-    assert used > 0
-
-
 def test_sizing_approaches_validated_and_used():
     from twoscale.micro import solve_micro
     # second tip: geometric approach 1e-4 mm, but the first one's load (~0.2 N) lowers the

@@ -7,11 +7,6 @@ exactly; every other patch ``l`` acts on patch ``k`` through its resultant force
 its centre of pressure (``provider.point_compliance``), evaluated at the 3 x 3 corners,
 edge midpoints and centre of patch ``k`` and interpolated biquadratically on its cells.
 
-Optionally (``bins=True``, experimental) with ``BIN_MIN`` or more patches, far patches are grouped in square bins; a bin
-farther than ``(r_k + b / sqrt 2) / sqrt(far_tol)`` from patch ``k`` acts through its total
-force at its centre of force (side ``b`` chosen so that bins and single sources cost about
-the same), which brings the far field from ``9 N^2`` to about ``N^1.5`` kernel values per sweep.
-
 Error of one far pair, relative to that pair's displacement: the resultant at the centre of
 pressure drops the quadrupole, of order ``(r_l / dist)^2 <= far_tol``; the interpolation
 error is of order ``(r_k / dist)^3``. Memory: the near operators plus O(N) numbers for the
@@ -27,15 +22,7 @@ import numpy as np
 
 from ..influence.base import InfluenceProvider
 from .blocks import Coupling
-
-
-#: Patches at which the far field starts to use bins (below: every far patch on its own).
-BIN_MIN = 400
-
-
-def _lagrange3(xi: np.ndarray) -> np.ndarray:
-    """Quadratic Lagrange weights at nodes -1, 0, 1 for points ``xi`` (n,) -> (n, 3)."""
-    return np.column_stack([0.5 * xi * (xi - 1.0), 1.0 - xi * xi, 0.5 * xi * (xi + 1.0)])
+from .sources import lagrange3, source_nodes, source_strengths
 
 
 class FarFieldCoupling(Coupling):
@@ -48,10 +35,6 @@ class FarFieldCoupling(Coupling):
     far_tol : float, default 0.01
         Relative error accepted on the displacement due to one far patch, 0 < far_tol < 1;
         pairs with ``dist < (r_k + r_l) / sqrt(far_tol)`` are exact.
-    bins : bool, default False
-        Group distant patches in bins (experimental: at N = 1,000 it cost accuracy, 3 %
-        force error at far_tol 0.2 against 0.4 % without, and sweeps; see
-        docs/scaling_status.md).
     **kwargs
         Passed to :class:`~.blocks.Coupling` (``dense_max_entries``, ``cache_bytes``).
 
@@ -61,13 +44,11 @@ class FarFieldCoupling(Coupling):
         Counters of far-field evaluations (one per target block) and exact pair products.
     """
 
-    def __init__(self, provider: InfluenceProvider, patches, *, far_tol: float = 0.01, bins: bool = False,
-                 **kwargs):
+    def __init__(self, provider: InfluenceProvider, patches, *, far_tol: float = 0.01, **kwargs):
         if isinstance(far_tol, bool) or not isinstance(far_tol, (int, float)) or not (0.0 < far_tol < 1.0):
             raise ValueError(f"far_tol must be a number in (0, 1), got {far_tol!r}")
         super().__init__(provider, patches, **kwargs)
         self.far_tol = float(far_tol)
-        self.use_bins = bool(bins)
         self.far_products = 0
         self.near_products = 0
         self._reset()
@@ -86,39 +67,6 @@ class FarFieldCoupling(Coupling):
         self._cells: dict = {}
         self._seen: list = [None] * n
         self._F = None
-        self._bins(n)
-
-    def _bins(self, n: int) -> None:
-        """Square bins grouping the patches for the distant far field (``n >= BIN_MIN``).
-
-        Side ``b = (2 far_tol A / (pi rho))^(1/4)`` (A the scene's area, rho = n / A)
-        balances the number of bins against the sources within the bin cut; never below
-        four patch radii."""
-        self._bin = None
-        self._bin_far: dict = {}
-        if not self.use_bins or n < BIN_MIN:
-            return
-        lo = self._centres.min(axis=0)
-        span = np.maximum(self._centres.max(axis=0) - lo, 1e-12)
-        area = float(span[0] * span[1]) or float(max(span) ** 2)
-        b = max((2.0 * self.far_tol * area * area / (math.pi * n)) ** 0.25, 4.0 * float(self._radii.max()))
-        ij = np.floor((self._centres - lo) / b).astype(np.int64)
-        keys, self._bin = np.unique(ij[:, 0] * (1 << 32) + ij[:, 1], return_inverse=True)
-        self._bin = self._bin.ravel()
-        self._bin_size = b
-        self._bin_centres = lo + b * (np.column_stack([keys >> 32, keys & ((1 << 32) - 1)]) + 0.5)
-
-    def _far_bins(self, k: int) -> np.ndarray:
-        """Bins far enough from patch ``k`` to act through their total force (bool per bin)."""
-        out = self._bin_far.get(k)
-        if out is None:
-            half = self._bin_size / math.sqrt(2.0)
-            dist = np.hypot(*(self._bin_centres - self._centres[k]).T)
-            out = dist * math.sqrt(self.far_tol) >= self._radii[k] + half
-            out[self._bin[self.near(k)]] = False
-            out[self._bin[k]] = False
-            self._bin_far[k] = out
-        return out
 
     def append(self, patch) -> None:
         super().append(patch)
@@ -154,7 +102,7 @@ class FarFieldCoupling(Coupling):
             g = self.patches[k].grid
             xi = (np.arange(g.nx) - 0.5 * (g.nx - 1)) / max(0.5 * (g.nx - 1), 1e-300)
             eta = (np.arange(g.ny) - 0.5 * (g.ny - 1)) / max(0.5 * (g.ny - 1), 1e-300)
-            W = np.einsum("ja,ib->jiab", _lagrange3(eta), _lagrange3(xi)).reshape(g.ny * g.nx, 9)
+            W = np.einsum("ja,ib->jiab", lagrange3(eta), lagrange3(xi)).reshape(g.ny * g.nx, 9)
             w = W if whole else W[self.patches[k].owned.ravel()]
             self._weights[key] = w
         return w
@@ -204,9 +152,6 @@ class FarFieldCoupling(Coupling):
         far = np.ones(len(values), bool)
         far[self.near(k)] = False
         far[k] = False
-        bins = None if self._bin is None else self._far_bins(k)
-        if bins is not None:
-            far &= ~bins[self._bin]          # sources in far bins act through the bin totals
         far &= np.any(F != 0.0, axis=1)
         W = self._interpolation(k, whole)
         self.far_products += 1
@@ -214,26 +159,8 @@ class FarFieldCoupling(Coupling):
         cols = []
         for j in range(F.shape[1]):
             pts, forces = C[far, j], F[far, j]
-            if bins is not None:
-                bp, bf = self._bin_sources(F[:, j], C[:, j], bins)
-                pts, forces = np.concatenate([pts, bp]), np.concatenate([forces, bf])
             cols.append(self.provider.point_compliance(stencil, pts) @ forces if len(forces) else np.zeros(9))
         return W @ np.column_stack(cols)
-
-    def _bin_sources(self, F: np.ndarray, C: np.ndarray, bins: np.ndarray):
-        """Total force of each far bin at its centre of force (bin centre when that is
-        outside the bin, e.g. forces of both signs); returns (points (M, 2), forces (M,))."""
-        nb = len(self._bin_centres)
-        Fb = np.bincount(self._bin, F, minlength=nb)
-        Mb = np.column_stack([np.bincount(self._bin, F * C[:, 0], minlength=nb),
-                              np.bincount(self._bin, F * C[:, 1], minlength=nb)])
-        use = bins & (Fb != 0.0)
-        with np.errstate(divide="ignore", invalid="ignore"):
-            cp = Mb[use] / Fb[use, None]
-        centre = self._bin_centres[use]
-        bad = ~np.isfinite(cp).all(axis=1) | (np.abs(cp - centre).max(axis=1) > 0.5 * self._bin_size)
-        cp[bad] = centre[bad]
-        return cp, Fb[use]
 
     # ------------------------------------------------------------------ products
     def rhs(self, k: int, values: list, rhs: np.ndarray) -> np.ndarray:
@@ -377,30 +304,3 @@ class LaggedFarField(FarFieldCoupling):
         if self._table is None or self._table.shape[2] != m:
             self.refresh(values)
         return self._interpolation(k, whole) @ self._table[k]
-
-
-#: Position of the outer source nodes, in half-widths of the patch: the zeros of the
-#: third Chebyshev polynomial, which minimise the largest interpolation error over it.
-SOURCE_NODE = math.sqrt(3.0) / 2.0
-
-
-def source_nodes(grid) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """The nine far-field source points of a patch on ``grid``: ``(points (9, 2) mm,
-    centre (2,) mm, delta (2,) mm)``, row-major over (y, x) like the stencils; ``delta``
-    is the node offset along x and y (at least ``h / 2``)."""
-    xmin, xmax, ymin, ymax = grid.bounds
-    centre = np.array([0.5 * (xmin + xmax), 0.5 * (ymin + ymax)])
-    half = 0.5 * grid.h * np.array([grid.nx - 1, grid.ny - 1], dtype=float)
-    delta = np.maximum(SOURCE_NODE * half, 0.5 * grid.h)
-    X, Y = np.meshgrid(centre[0] + delta[0] * np.array([-1.0, 0.0, 1.0]),
-                       centre[1] + delta[1] * np.array([-1.0, 0.0, 1.0]))
-    return np.column_stack([X.ravel(), Y.ravel()]), centre, delta
-
-
-def source_strengths(points: np.ndarray, values: np.ndarray, centre: np.ndarray, delta: np.ndarray,
-                     h: float) -> np.ndarray:
-    """Forces (9, m) N at :func:`source_nodes` with the moments ``x^i y^j`` (``i, j <= 2``)
-    of the pressure ``values`` (n, m) MPa on the cells centred at ``points`` (n, 2) mm."""
-    lx = _lagrange3((points[:, 0] - centre[0]) / delta[0])
-    ly = _lagrange3((points[:, 1] - centre[1]) / delta[1])
-    return (h * h) * np.einsum("nb,na,nm->bam", ly, lx, values).reshape(9, -1)
