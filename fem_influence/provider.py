@@ -27,7 +27,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from twoscale.grid import Grid
-from twoscale.influence.base import GridOperator, InfluenceProvider, LowRankCorrection
+from twoscale.influence.base import GridOperator, InfluenceProvider
 from twoscale.influence.halfspace import HalfSpace
 from twoscale.material import Material
 from twoscale.progress import Progress
@@ -36,21 +36,7 @@ from .assembly import INTORDER
 from .cache import FieldCache, cache_key, default_cache_dir
 from .layer import BASES
 from .interpolate import TopInterpolator
-
-
-def _lagrange_1d(x: np.ndarray, d: float, lo: int, hi: int) -> tuple[np.ndarray, np.ndarray]:
-    """Cubic Lagrange stencil on the lattice ``d * [lo..hi]``: indices and weights, (N, 4) each."""
-    n = min(4, hi - lo + 1)
-    i0 = np.floor(x / d).astype(int) - (n // 2 - 1)
-    i0 = np.clip(i0, lo, hi - n + 1)
-    idx = i0[:, None] + np.arange(n)[None, :]
-    nodes = idx * d
-    w = np.ones_like(nodes, dtype=float)
-    for m in range(n):
-        for k in range(n):
-            if k != m:
-                w[:, m] *= (x - nodes[:, k]) / (nodes[:, m] - nodes[:, k])
-    return idx, w
+from .operators import BlockCorrection, BlockGridOperator, lagrange_1d
 
 
 @dataclass
@@ -216,8 +202,8 @@ class BlockProvider(InfluenceProvider):
                              f"the block's answered region x in [{x_lo:.4g}, {x_hi:.4g}], y in "
                              f"[{y_lo:.4g}, {y_hi:.4g}] mm (one source_spacing = {d} mm inside the "
                              f"sides); move the indenters inward or lower source_spacing")
-        ix, wx = _lagrange_1d(S[:, 0], d, x0, x1)
-        iy, wy = _lagrange_1d(S[:, 1], d, y0, y1)
+        ix, wx = lagrange_1d(S[:, 0], d, x0, x1)
+        iy, wy = lagrange_1d(S[:, 1], d, y0, y1)
         nx = x1 - x0 + 1
         lin = ((iy[:, None, :] - y0) * nx + (ix[:, :, None] - x0)).reshape(len(S), -1)   # (N, 16)
         Wt = (wx[:, :, None] * wy[:, None, :]).reshape(len(S), -1)
@@ -416,51 +402,3 @@ class BlockProvider(InfluenceProvider):
     def _nodes_of(self, cols: np.ndarray) -> np.ndarray:
         keys = list(self._state.index)
         return np.array([keys[c] for c in cols], dtype=np.int64).reshape(-1, 2)
-
-
-class BlockCorrection(LowRankCorrection):
-    """The block's correction in factored form (:meth:`BlockProvider.split`): coefficients are
-    forces (N, for E = 1 fields scaled by 1/E at evaluation) on the correction lattice
-    nodes, indexed like the provider's field table."""
-
-    def __init__(self, provider: "BlockProvider"):
-        self._p = provider
-
-    def coefficients(self, source: Grid, p: np.ndarray) -> np.ndarray:
-        cols, W = self._p._source_weights(source)
-        c = np.zeros(self._p._state.table.shape[1])
-        c[cols] = source.h ** 2 * (W @ np.asarray(p, dtype=float).ravel())    # columns are distinct nodes
-        return c
-
-    def evaluate(self, target: Grid, c: np.ndarray) -> np.ndarray:
-        n = self._p._state.table.shape[1]
-        c = np.asarray(c, dtype=float)
-        if len(c) < n:
-            c = np.concatenate([c, np.zeros(n - len(c))])
-        if self._p._state.interpolator.rectilinear:
-            return (self._p._target_values(target) @ c).reshape(target.shape)
-        nz = np.flatnonzero(c)
-        return (self._p._target_values(target, nz) @ c[nz]).reshape(target.shape)
-
-
-class BlockGridOperator(GridOperator):
-    """Half-space FFT convolution plus the low-rank correction ``h^2 U (W p)``."""
-
-    def __init__(self, halfspace_op: GridOperator, U: np.ndarray, W, area: float):
-        self.target, self.source = halfspace_op.target, halfspace_op.source
-        self._hs, self._U, self._W, self._area = halfspace_op, U, W, area
-
-    def apply(self, p: np.ndarray) -> np.ndarray:
-        u = self._hs.apply(p)
-        corr = self._U @ (self._W @ np.asarray(p, dtype=float).ravel())
-        return u + self._area * corr.reshape(self.target.shape)
-
-    @property
-    def nbytes(self) -> int:
-        w = self._W.data.nbytes if sp.issparse(self._W) else self._W.nbytes
-        return int(self._hs.nbytes) + self._U.nbytes + w
-
-    @property
-    def flops_estimate(self) -> float:
-        nnz = self._W.nnz if sp.issparse(self._W) else self._W.size
-        return self._hs.flops_estimate + 2.0 * self._U.size + 2.0 * nnz
