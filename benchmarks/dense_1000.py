@@ -28,10 +28,12 @@ def main(argv=None) -> int:
     ap.add_argument("--side", type=float, default=120.0, help="side of the square of tips, mm")
     ap.add_argument("--h", type=float, default=0.06, help="cell size, mm")
     ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--load-per-tip", type=float, default=1.5,
+                    help="N per tip (default 1.5: the issue's scene, 1,500 N on 1,000 tips)")
     ap.add_argument("--comparators", action="store_true", help="also run ContactMechanics (slow)")
     args = ap.parse_args(argv)
     spec = {"n": args.tips, "kind": "dense", "control": "load", "shape": "sphere", "body": "halfspace",
-            "seed": args.seed, "h": args.h, "side": args.side}
+            "seed": args.seed, "h": args.h, "side": args.side, "load_per_tip": args.load_per_tip}
     out = {}
     for method in ["twoscale", "reference"] + (["CM"] if args.comparators else []):
         cmd = [sys.executable, os.path.join(HERE, "scenes.py"), "--single", method, "--spec", json.dumps(spec)]

@@ -63,7 +63,8 @@ CM_MAXITER = 1000   # converged CM runs here take ~60-100 iterations; a stalled 
 def _scene(spec: dict):
     from twoscale.synthetic import random_scene
     return random_scene(spec["n"], kind=spec["kind"], control=spec["control"], shape=spec["shape"],
-                        body=spec["body"], seed=spec["seed"], h=spec["h"], side=spec.get("side"))
+                        body=spec["body"], seed=spec["seed"], h=spec["h"], side=spec.get("side"),
+                        load_per_tip=spec.get("load_per_tip"))
 
 
 def _rss_mb() -> float:
