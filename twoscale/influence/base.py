@@ -132,6 +132,10 @@ class InfluenceProvider(ABC):
     kind: str = "abstract"
     #: The body's material (E in MPa, nu); the half-space part of any body.
     material: Material
+    #: Whether :meth:`grid_matrix` is cheap next to factorising the block it returns (the
+    #: half-space's is a strided copy from cached kernel values): solvers may then rebuild a
+    #: block when they need it instead of storing it.
+    cheap_grid_matrix: bool = False
 
     @abstractmethod
     def point_compliance(self, targets: np.ndarray, sources: np.ndarray) -> np.ndarray:

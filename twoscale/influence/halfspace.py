@@ -79,6 +79,7 @@ class HalfSpace(InfluenceProvider):
 
     material: Material
     kind: str = field(default="halfspace", init=False)
+    cheap_grid_matrix = True    # a strided copy of a cached Love table (not a field)
     tables: BoundedCache = field(default_factory=lambda: BoundedCache(TABLE_CACHE_BYTES, name="halfspace tables"),
                                  init=False, repr=False, compare=False)
     pending: BoundedCache = field(default_factory=lambda: BoundedCache(SEPARATED_CACHE_BYTES,
