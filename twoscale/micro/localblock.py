@@ -130,6 +130,13 @@ class LocalBlock:
             return self._op.apply(a)[self._mask]
         return np.column_stack([self.matvec(v[:, j]) for j in range(v.shape[1])])
 
+    def canvas_mask(self, shape: tuple[int, int]) -> np.ndarray:
+        """The block's cells on a canvas of ``shape`` (>= the box's) whose corner is the
+        box's: a block vector ``v`` is ``canvas[mask] = v`` (the same cell order)."""
+        out = np.zeros(shape, bool)
+        out[:self.box.ny, :self.box.nx] = self._mask
+        return out
+
     # ------------------------------------------------------------------ solves
     def solve(self, active: np.ndarray, rhs: np.ndarray, x0: np.ndarray | None = None,
               rtol: float | None = None) -> np.ndarray:
