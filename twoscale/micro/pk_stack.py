@@ -27,6 +27,30 @@ def _any(mask: np.ndarray) -> np.ndarray:
     return mask.reshape(len(mask), -1).any(axis=1)
 
 
+class _Out:
+    """Results of the rows of a stack; rows that finished leave the working arrays once
+    they are half of them (the lock-step iteration then costs the live rows only)."""
+
+    def __init__(self, p: np.ndarray, max_iter: int):
+        self.p, self.s = np.zeros_like(p), np.full(len(p), np.nan)
+        self.ok, self.iters = np.zeros(len(p), bool), np.full(len(p), max_iter)
+        self.index = np.arange(len(p))
+
+    def store(self, rows, p, ok, iters, s=None) -> None:
+        at = self.index[rows]
+        self.p[at], self.ok[at], self.iters[at] = p[rows], ok[rows], iters[rows]
+        if s is not None:
+            self.s[at] = s[rows]
+
+    def compact(self, done: np.ndarray, arrays: list, p, ok, iters, s=None) -> list | None:
+        """The working arrays without the finished rows (stored), or None while few finished."""
+        if 2 * int(done.sum()) < len(done) or done.all():
+            return None
+        self.store(done, p, ok, iters, s)
+        self.index = self.index[~done]
+        return [a[~done] for a in arrays]
+
+
 def pk_stack_fixed_approach(operator, b: np.ndarray, p_start: np.ndarray, mask: np.ndarray, *,
                             rtol: float, max_iter: int = 1000) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """:func:`~.pk.pk_fixed_approach` on a stack of blocks.
@@ -62,7 +86,11 @@ def pk_stack_fixed_approach(operator, b: np.ndarray, p_start: np.ndarray, mask: 
     def finish(which, it, good):
         done[which], ok[which], iters[which] = True, good, it
 
+    out = _Out(p, max_iter)
     for it in range(1, max_iter + 1):
+        kept = out.compact(done, [p, t, u, b, mask, gtol, delta, G_old, done, ok, iters], p, ok, iters)
+        if kept is not None:
+            p, t, u, b, mask, gtol, delta, G_old, done, ok, iters = kept
         live = ~done
         g = u - b
         S = p > 0.0
@@ -113,7 +141,8 @@ def pk_stack_fixed_approach(operator, b: np.ndarray, p_start: np.ndarray, mask: 
             finish(np.flatnonzero(small)[~pen], it, True)
         if np.all(done):
             break
-    return p, ok, iters
+    out.store(np.ones(len(p), bool), p, ok, iters)
+    return out.p, out.ok, out.iters
 
 
 def pk_stack_fixed_force(operator, z: np.ndarray, target: np.ndarray, p_start: np.ndarray, mask: np.ndarray, *,
@@ -131,7 +160,12 @@ def pk_stack_fixed_force(operator, z: np.ndarray, target: np.ndarray, p_start: n
     s = np.full(nb, np.nan)
     u = operator.apply_stack(p)
     done, ok, iters = np.zeros(nb, bool), np.zeros(nb, bool), np.full(nb, max_iter)
+    out = _Out(p, max_iter)
     for it in range(1, max_iter + 1):
+        kept = out.compact(done, [p, t, u, z, target, delta, G_old, s, mask, done, ok, iters], p, ok, iters, s)
+        if kept is not None:
+            p, t, u, z, target, delta, G_old, s, mask, done, ok, iters = kept
+        nb = len(p)
         live = ~done
         live3 = live[:, None, None]
         S = p > 0.0
@@ -172,7 +206,8 @@ def pk_stack_fixed_force(operator, z: np.ndarray, target: np.ndarray, p_start: n
         done[good], ok[good], iters[good] = True, True, it
         if np.all(done):
             break
-    return p, s, ok, iters
+    out.store(np.ones(len(p), bool), p, ok, iters, s)
+    return out.p, out.s, out.ok, out.iters
 
 
 class BlockStacks:
