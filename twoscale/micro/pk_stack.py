@@ -27,6 +27,51 @@ def _any(mask: np.ndarray) -> np.ndarray:
     return mask.reshape(len(mask), -1).any(axis=1)
 
 
+def _direction(g, S, t, delta, G_old, live):
+    """Conjugate directions (zero off ``S`` and on finished blocks) and the new ``|g_S|^2``."""
+    G = _dot(g, g, S)
+    beta = np.where(G_old > 0.0, delta * G / np.where(G_old > 0.0, G_old, 1.0), 0.0)
+    t = np.where(S & live[:, None, None], g + beta[:, None, None] * t, 0.0)
+    return t, np.where(live, G, G_old)
+
+
+def _contact_sets(p, g, mask, gtol, live):
+    """:func:`~.pk.pk_fixed_approach`'s first tests per block: the contact cells ``S``,
+    the blocks already solved, and those where cells entered (their ``delta`` restarts)."""
+    S = p > 0.0
+    solved = np.zeros(len(p), bool)
+    empty = ~_any(S) & live
+    if np.any(empty):
+        S[empty] = (g[empty] < 0.0) & mask[empty]
+        solved |= empty & ~_any(S)
+    flat = ~_any(np.where(S, g, 0.0) != 0.0) & live & ~solved
+    if np.any(flat):   # exact on the contact cells
+        entering = ~S[flat] & mask[flat] & (g[flat] < -gtol[flat])
+        solved[np.flatnonzero(flat)[~_any(entering)]] = True
+        S[flat] |= entering
+    return S, solved, flat
+
+
+def _project(p, S, t, g, tau, mask, live, *, outside: bool):
+    """Polonsky-Keer's step on the live blocks: ``p - tau t`` on ``S``, clipped at zero, and
+    the cells with ``g < 0`` (only off ``S`` when ``outside``) given ``-tau g``. Returns the
+    new pressures and, per block, whether cells were added and whether the step went negative."""
+    live3 = live[:, None, None]
+    trial = np.where(S & live3, p - tau * t, p)
+    p = np.where(live3, np.maximum(trial, 0.0), p)     # finished blocks keep theirs
+    overlap = (p == 0.0) & (g < 0.0) & mask & live3
+    if outside:
+        overlap &= ~S
+    p = np.where(overlap, p - tau * g, p)
+    return p, _any(overlap), _any((trial < 0.0) & live3)
+
+
+def _changes(p, p_old):
+    """Per block ``||p - p_old||`` and ``||p||``."""
+    d = p - p_old
+    return np.sqrt(np.einsum("bij,bij->b", d, d)), np.sqrt(np.einsum("bij,bij->b", p, p))
+
+
 class _Out:
     """Results of the rows of a stack; rows that finished leave the working arrays once
     they are half of them (the lock-step iteration then costs the live rows only)."""
@@ -79,9 +124,7 @@ def pk_stack_fixed_approach(operator, b: np.ndarray, p_start: np.ndarray, mask: 
     delta, G_old = np.zeros(nb), np.zeros(nb)
     gtol = (1e-12 * np.abs(b).reshape(nb, -1).max(axis=1, initial=0.0))[:, None, None]
     u = operator.apply_stack(p)
-    done = np.zeros(nb, bool)
-    ok = np.zeros(nb, bool)
-    iters = np.full(nb, max_iter)
+    done, ok, iters = np.zeros(nb, bool), np.zeros(nb, bool), np.full(nb, max_iter)
 
     def finish(which, it, good):
         done[which], ok[which], iters[which] = True, good, it
@@ -91,49 +134,30 @@ def pk_stack_fixed_approach(operator, b: np.ndarray, p_start: np.ndarray, mask: 
         kept = out.compact(done, [p, t, u, b, mask, gtol, delta, G_old, done, ok, iters], p, ok, iters)
         if kept is not None:
             p, t, u, b, mask, gtol, delta, G_old, done, ok, iters = kept
-        live = ~done
         g = u - b
-        S = p > 0.0
-        empty = ~_any(S) & live
-        if np.any(empty):
-            S[empty] = (g[empty] < 0.0) & mask[empty]
-            finish(empty & ~_any(S), it, True)
-        flat = ~_any(np.where(S, g, 0.0) != 0.0) & ~done
-        if np.any(flat):   # exact on the contact cells
-            entering = ~S[flat] & mask[flat] & (g[flat] < -gtol[flat])
-            finish(np.flatnonzero(flat)[~_any(entering)], it, True)
-            S[flat] |= entering
-            delta[flat] = 0.0
+        S, solved, entered = _contact_sets(p, g, mask, gtol, ~done)
+        finish(solved, it, True)
+        delta[entered] = 0.0
         live = ~done
         if not np.any(live):
             break
-        G = _dot(g, g, S)
-        beta = np.where(G_old > 0.0, delta * G / np.where(G_old > 0.0, G_old, 1.0), 0.0)
-        t = np.where(S & live[:, None, None], g + beta[:, None, None] * t, 0.0)
-        G_old = np.where(live, G, G_old)
+        t, G_old = _direction(g, S, t, delta, G_old, live)
         r = np.zeros_like(t)
         r[live] = operator.apply_stack(t[live])
         denom = _dot(t, r, S)
         finish(live & ~(denom > 0.0), it, False)
         live = ~done
         tau = np.where(live, _dot(g, t, S) / np.where(live, denom, 1.0), 0.0)[:, None, None]
-        live3 = live[:, None, None]
         p_old = p
-        trial = np.where(S & live3, p - tau * t, p)
-        p = np.where(live3, np.maximum(trial, 0.0), p)     # finished blocks keep theirs
-        overlap = (p == 0.0) & (g < 0.0) & ~S & mask & live3
-        clipped = _any(overlap)
+        p, clipped, negative = _project(p, S, t, g, tau, mask, live, outside=True)
         delta = np.where(live, np.where(clipped, 0.0, 1.0), delta)
-        p = np.where(overlap, p - tau * g, p)
         # the product is linear: without clipping or new cells, A p follows from A t
         # (re-evaluated every 25 steps against drift)
-        exact = ~clipped & ~_any((trial < 0.0) & live3) & bool(it % 25)
-        redo = live & ~exact
-        u = np.where(live3, u - tau * r, u)
+        u = np.where(live[:, None, None], u - tau * r, u)
+        redo = live & ~(~clipped & ~negative & bool(it % 25))
         if np.any(redo):
             u[redo] = operator.apply_stack(p[redo])
-        change = np.sqrt(np.einsum("bij,bij->b", p - p_old, p - p_old))
-        norm = np.sqrt(np.einsum("bij,bij->b", p, p))
+        change, norm = _changes(p, p_old)
         small = live & ((norm == 0.0) | (change <= rtol * norm))
         if np.any(small):
             u[small] = operator.apply_stack(p[small])
@@ -167,41 +191,32 @@ def pk_stack_fixed_force(operator, z: np.ndarray, target: np.ndarray, p_start: n
             p, t, u, z, target, delta, G_old, s, mask, done, ok, iters = kept
         nb = len(p)
         live = ~done
-        live3 = live[:, None, None]
         S = p > 0.0
-        count = S.reshape(nb, -1).sum(axis=1)
+        count = np.maximum(S.reshape(nb, -1).sum(axis=1), 1)
         g = u + z
-        s = np.where(live, np.where(S, g, 0.0).reshape(nb, -1).sum(axis=1) / np.maximum(count, 1), s)
+        s = np.where(live, np.where(S, g, 0.0).reshape(nb, -1).sum(axis=1) / count, s)
         g = g - s[:, None, None]
-        G = _dot(g, g, S)
-        beta = np.where(G_old > 0.0, delta * G / np.where(G_old > 0.0, G_old, 1.0), 0.0)
-        t = np.where(S & live3, g + beta[:, None, None] * t, 0.0)
-        G_old = np.where(live, G, G_old)
+        t, G_old = _direction(g, S, t, delta, G_old, live)
         At = np.zeros_like(t)
         At[live] = operator.apply_stack(t[live])
-        r = At - (np.where(S, At, 0.0).reshape(nb, -1).sum(axis=1) / np.maximum(count, 1))[:, None, None]
+        r = At - (np.where(S, At, 0.0).reshape(nb, -1).sum(axis=1) / count)[:, None, None]
         denom = _dot(t, r, S)
         bad = live & ~(denom > 0.0)
         done[bad], iters[bad] = True, it
         live = ~done
-        live3 = live[:, None, None]
         tau = np.where(live, _dot(g, t, S) / np.where(live, denom, 1.0), 0.0)[:, None, None]
         p_old = p
-        trial = np.where(S & live3, p - tau * t, p)
-        p = np.where(live3, np.maximum(trial, 0.0), p)
-        overlap = (p == 0.0) & (g < 0.0) & mask & live3
-        clipped = _any(overlap)
+        p, clipped, negative = _project(p, S, t, g, tau, mask, live, outside=False)
         delta = np.where(live, np.where(clipped, 0.0, 1.0), delta)
-        p = np.where(overlap, p - tau * g, p)
-        scale = np.where(live, target / np.where(live, p.reshape(nb, -1).sum(axis=1), 1.0), 1.0)[:, None, None]
-        p = np.where(live3, p * scale, p)
-        exact = ~clipped & ~_any((trial < 0.0) & live3) & bool(it % 25)
-        u = np.where(live3, scale * (u - tau * At), u)
-        redo = live & ~exact
+        total = np.where(live, p.reshape(nb, -1).sum(axis=1), 1.0)
+        scale = np.where(live, target / total, 1.0)[:, None, None]
+        p = p * scale
+        # A p follows from A t when nothing was clipped or added (every 25 steps: recomputed)
+        u = np.where(live[:, None, None], scale * (u - tau * At), u)
+        redo = live & ~(~clipped & ~negative & bool(it % 25))
         if np.any(redo):
             u[redo] = operator.apply_stack(p[redo])
-        change = np.sqrt(np.einsum("bij,bij->b", p - p_old, p - p_old))
-        norm = np.sqrt(np.einsum("bij,bij->b", p, p))
+        change, norm = _changes(p, p_old)
         good = live & (change <= rtol * norm)
         done[good], ok[good], iters[good] = True, True, it
         if np.all(done):
