@@ -141,7 +141,7 @@ def patch_radius(asperity: Asperity, *, force: float, approach: float, E_star: f
 
 def build_patches(asperities: Sequence[Asperity], *, h: float, forces: np.ndarray,
                   approaches: np.ndarray, E_star: float, margin: float = 1.3,
-                  anchor: tuple[float, float] = (0.0, 0.0)) -> list[Patch]:
+                  anchor: tuple[float, float] = (0.0, 0.0), reuse: Sequence[Patch] = ()) -> list[Patch]:
     """One patch per asperity that can touch (``approaches[k] > 0``).
 
     Parameters
@@ -159,9 +159,13 @@ def build_patches(asperities: Sequence[Asperity], *, h: float, forces: np.ndarra
         Patch half-width over the Hertz-like contact radius.
     anchor : (float, float), default (0, 0)
         A cell centre of the common lattice, mm.
+    reuse : sequence of Patch, default ()
+        Patches built before for the same scene (e.g. for the policy): one with the same
+        asperity and grid is taken as it is (a patch depends on nothing else).
     """
     if not (math.isfinite(margin) and margin >= 1.0):
         raise ValueError(f"patch margin must be >= 1, got {margin!r}")
+    built = {(pt.asperity, pt.grid): pt for pt in reuse if len(pt.members) == 1}
     patches = []
     for k, a in enumerate(asperities):
         if approaches[k] <= 0.0:
@@ -169,7 +173,7 @@ def build_patches(asperities: Sequence[Asperity], *, h: float, forces: np.ndarra
         r = patch_radius(a, force=float(forces[k]), approach=float(approaches[k]), E_star=E_star,
                          h=h, margin=margin)
         grid = Grid.covering(a.x - r, a.x + r, a.y - r, a.y + r, h, anchor=anchor)
-        patches.append(make_patch(k, grid, asperities))
+        patches.append(built.get((k, grid)) or make_patch(k, grid, asperities))
     return patches
 
 
