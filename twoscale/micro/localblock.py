@@ -45,12 +45,14 @@ class LocalBlock:
     cg_rtol : float, default 1e-10
         Relative residual at which the CG solves stop.
     cg_max_iter : int, default 2000
-    cache_size : int, default 4
-        Number of Cholesky factorisations (active sets) kept.
+    cache_size : int, default 2
+        Number of Cholesky factorisations (active sets) kept: the last one and the one
+        before, for a contact set that flips between two (4 kept 454 MB of factors at
+        10,000 sparse tips for no measured gain).
     """
 
     def __init__(self, provider: InfluenceProvider, patch: Patch, *, dense_max_cells: int = 400,
-                 cg_rtol: float = 1e-10, cg_max_iter: int = 2000, cache_size: int = 4):
+                 cg_rtol: float = 1e-10, cg_max_iter: int = 2000, cache_size: int = 2):
         self.patch = patch
         self._provider = provider
         self.n = int(patch.owned.sum())
