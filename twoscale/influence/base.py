@@ -57,6 +57,12 @@ class GridOperator(ABC):
     def __call__(self, p: np.ndarray) -> np.ndarray:
         return self.apply(p)
 
+    def apply_stack(self, P: np.ndarray) -> np.ndarray:
+        """:meth:`apply` on a stack of pressures (B, ny, nx) -> (B, target ny, nx), mm.
+        Default: one :meth:`apply` per pressure; FFT operators transform the stack at once
+        (many small blocks of one size solved together: one call instead of B)."""
+        return np.stack([self.apply(p) for p in P]) if len(P) else np.zeros((0, *self.target.shape))
+
     def spectrum(self, p: np.ndarray) -> np.ndarray:
         """Source-side transform of the pressure ``p`` (``source.shape``, MPa); default ``p``."""
         return p
@@ -132,6 +138,10 @@ class InfluenceProvider(ABC):
     kind: str = "abstract"
     #: The body's material (E in MPa, nu); the half-space part of any body.
     material: Material
+    #: Whether :meth:`grid_matrix` is cheap next to factorising the block it returns (the
+    #: half-space's is a strided copy from cached kernel values): solvers may then rebuild a
+    #: block when they need it instead of storing it.
+    cheap_grid_matrix: bool = False
 
     @abstractmethod
     def point_compliance(self, targets: np.ndarray, sources: np.ndarray) -> np.ndarray:

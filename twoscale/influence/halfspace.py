@@ -79,6 +79,7 @@ class HalfSpace(InfluenceProvider):
 
     material: Material
     kind: str = field(default="halfspace", init=False)
+    cheap_grid_matrix = True    # a strided copy of a cached Love table (not a field)
     tables: BoundedCache = field(default_factory=lambda: BoundedCache(TABLE_CACHE_BYTES, name="halfspace tables"),
                                  init=False, repr=False, compare=False)
     pending: BoundedCache = field(default_factory=lambda: BoundedCache(SEPARATED_CACHE_BYTES,
@@ -204,6 +205,16 @@ class ConvolutionOperator(GridOperator):
         if p.shape != self.source.shape:
             raise ValueError(f"pressure has shape {p.shape}, expected {self.source.shape}")
         return self.finish(self._times_kernel(self.spectrum(p)))
+
+    def apply_stack(self, P: np.ndarray) -> np.ndarray:
+        """:meth:`apply` on a stack (B, ny, nx): the same transforms along the last two axes,
+        one call each for the whole stack."""
+        my, mx = self._shape
+        a = sfft.rfft(np.asarray(P, dtype=float), n=mx, axis=2)
+        a = self._times_kernel(sfft.fft(a, n=my, axis=1, overwrite_x=True))
+        sy, sx = self.source.ny - 1, self.source.nx - 1
+        a = sfft.ifft(a, axis=1, overwrite_x=True)[:, sy:sy + self.target.ny]
+        return sfft.irfft(a, n=mx, axis=2)[:, :, sx:sx + self.target.nx]
 
     def _times_kernel(self, a: np.ndarray) -> np.ndarray:
         """``a`` (a source spectrum) times the kernel spectrum, in place."""

@@ -65,23 +65,40 @@ class Sweep:
 
 
 def sweep(blocks: list[LocalBlock], coupling: Coupling, b: list, p: list, active: list, *,
-          local_rtol: float | None = None) -> Sweep:
+          local_rtol: float | None = None, levels: list | None = None, stacks=None) -> Sweep:
     """One block Gauss-Seidel sweep (eq. 8) over ``k = 1..N`` from pressures ``p``;
-    ``local_rtol`` is the conjugate-gradient tolerance of large blocks (default theirs)."""
+    ``local_rtol`` is the conjugate-gradient tolerance of large blocks (default theirs).
+
+    ``levels`` (ascending lists of block indices) may group blocks that see none of each
+    other's new pressures (with a held far field: no near pair within a level, and every
+    near pair ``l < k`` in an earlier level than ``k``'s): each block then sees exactly
+    what it sees in the plain order, and ``stacks`` (:class:`~.pk_stack.BlockStacks`)
+    solves a level's large blocks of one size class together."""
     p, active = list(p), list(active)
-    changed = False
-    diff2 = 0.0
-    failed = []
-    for k, blk in enumerate(blocks):
-        sol = contact_solve(blk, coupled_rhs(coupling, k, p, b[k]), p[k], rtol=local_rtol)
-        changed |= bool(np.any(sol.active != active[k]))
-        if not sol.converged:
-            failed.append(k)
-        diff2 += float(np.sum((sol.pressure - p[k]) ** 2))
-        p[k], active[k] = sol.pressure, sol.active
+    n = len(blocks)
+    diff2 = np.zeros(n)
+    changed = np.zeros(n, bool)
+    failed = np.zeros(n, bool)
+
+    def take(k, pressure, now, ok):
+        changed[k] = bool(np.any(now != active[k]))
+        failed[k] = not ok
+        diff2[k] = float(np.sum((pressure - p[k]) ** 2))
+        p[k], active[k] = pressure, now
+
+    for level in ([[k] for k in range(n)] if levels is None else levels):
+        rhs = {k: coupled_rhs(coupling, k, p, b[k]) for k in level}
+        stacked = [] if stacks is None else [k for k in level if not blocks[k].dense and blocks[k].n]
+        if len(stacked) > 1:
+            for k, (pressure, ok, _) in stacks.solve(blocks, stacked, rhs, p, local_rtol).items():
+                take(k, pressure, pressure > 0.0, ok)
+            level = [k for k in level if k not in set(stacked)]
+        for k in level:
+            sol = contact_solve(blocks[k], rhs[k], p[k], rtol=local_rtol)
+            take(k, sol.pressure, sol.active, sol.converged)
     norm2 = sum(float(np.sum(v * v)) for v in p)
-    rel = float(np.sqrt(diff2 / norm2)) if norm2 > 0 else 0.0
-    return Sweep(p, active, changed, rel, tuple(failed))
+    rel = float(np.sqrt(sum(float(d) for d in diff2) / norm2)) if norm2 > 0 else 0.0
+    return Sweep(p, active, bool(changed.any()), rel, tuple(np.flatnonzero(failed).tolist()))
 
 
 def gauss_seidel(blocks: list[LocalBlock], coupling: Coupling, b: list, start: list, *,

@@ -103,6 +103,28 @@ def contact_solve(block: LocalBlock, b: np.ndarray, previous: np.ndarray, *, max
     return LocalSolution(np.maximum(p, 0.0), p > 0.0, float("nan"), removed, False, max_iter)
 
 
+def pk_start(z: np.ndarray, approach: float) -> np.ndarray:
+    """Start of eq. 7's conjugate gradients: Hertz's shape ``sqrt(a^2 - r^2)`` over the
+    Hertz radius (``z - min z < approach / 2``), positive at the lowest cell."""
+    zmin = float(z.min())
+    return np.sqrt(np.maximum(0.5 * max(approach, 0.0) - (z - zmin), 0.0)) + (z == zmin)
+
+
+def initial_pressures(blocks: list, z: list, forces: list, approaches: list, h: float, *, rtol: float,
+                      stacks=None) -> list:
+    """:func:`initial_pressure` (eq. 7) on every block, MPa; with ``stacks``
+    (:class:`~.pk_stack.BlockStacks`) the large blocks of one size class are solved together."""
+    out = [None] * len(blocks)
+    if stacks is not None:
+        ks = [k for k, blk in enumerate(blocks) if not blk.dense and blk.n and forces[k] > 0.0]
+        if len(ks) > 1:
+            starts = {k: pk_start(z[k], approaches[k]) for k in ks}
+            for k, p in stacks.initial(blocks, ks, z, forces, starts, h, rtol=rtol).items():
+                out[k] = p
+    return [p if p is not None else initial_pressure(blk, zk, P, h, approach=a, rtol=rtol).pressure
+            for p, blk, zk, P, a in zip(out, blocks, z, forces, approaches)]
+
+
 def initial_pressure(block: LocalBlock, z: np.ndarray, force: float, h: float, *,
                      approach: float, max_iter: int = 200, gap_rtol: float = 1e-12,
                      rtol: float = 1e-8) -> LocalSolution:
@@ -136,9 +158,8 @@ def initial_pressure(block: LocalBlock, z: np.ndarray, force: float, h: float, *
     if not np.any(active):
         active = z == zmin
     if not block.dense:
-        # Hertz's shape sqrt(a^2 - r^2) over the Hertz radius (z - zmin < approach / 2)
-        start = np.sqrt(np.maximum(0.5 * max(approach, 0.0) - (z - zmin), 0.0)) + (z == zmin)
-        p, s, ok, it = pk_fixed_force(block.matvec, z, force, h, start, rtol=rtol, max_iter=5 * max_iter)
+        p, s, ok, it = pk_fixed_force(block.matvec, z, force, h, pk_start(z, approach), rtol=rtol,
+                                      max_iter=5 * max_iter)
         return LocalSolution(p, p > 0.0, s, False, ok, it)
     ones = np.ones(n)
     seen: set = set()

@@ -57,6 +57,10 @@ class Patch:
         object.__setattr__(self, "owned", owned)
 
 
+#: Bounded asperities above which :meth:`TipTable.reaching` looks them up in a k-d tree.
+TREE_MIN = 64
+
+
 class TipTable(Sequence):
     """The asperities of a scene with their tip arrays computed once (a solve wraps its
     scene in one, so that building thousands of patches does not rebuild the arrays from
@@ -69,10 +73,32 @@ class TipTable(Sequence):
         # material radius: spheres R, paraboloids inf, height-map basins their extent
         self.R = np.array([a.material_radius for a in self.asperities], dtype=float)
         self.unbounded = ~np.isfinite(self.R)
+        self._tree = None
 
     @classmethod
     def of(cls, asperities: Sequence[Asperity]) -> "TipTable":
         return asperities if isinstance(asperities, cls) else cls(asperities)
+
+    def reaching(self, bounds: tuple[float, float, float, float], *, index: bool = True) -> np.ndarray:
+        """Sorted indices of the asperities whose material (``r < R``) can reach the box
+        ``(xmin, xmax, ymin, ymax)`` (mm); unbounded ones always. With ``index`` the
+        bounded candidates come from a k-d tree of the tips (built on first use, so a solve
+        that builds thousands of patches pays ``O(log N)`` per patch instead of ``O(N)``)."""
+        xmin, xmax, ymin, ymax = bounds
+        cand = np.arange(len(self.x))
+        bounded = np.flatnonzero(~self.unbounded)
+        if index and bounded.size > TREE_MIN:
+            if self._tree is None:
+                from scipy.spatial import cKDTree
+                self._tree = cKDTree(np.column_stack([self.x[bounded], self.y[bounded]]))
+            # every tip within R of the box is within R_max + half-diagonal of its centre
+            radius = float(self.R[bounded].max()) + 0.5 * math.hypot(xmax - xmin, ymax - ymin)
+            near = bounded[self._tree.query_ball_point([0.5 * (xmin + xmax), 0.5 * (ymin + ymax)], radius)]
+            cand = np.union1d(near, np.flatnonzero(self.unbounded))
+        x, y, R = self.x[cand], self.y[cand], self.R[cand]
+        dx = np.maximum(np.maximum(xmin - x, x - xmax), 0.0)
+        dy = np.maximum(np.maximum(ymin - y, y - ymax), 0.0)
+        return cand[self.unbounded[cand] | (np.hypot(dx, dy) < R)]
 
     def __len__(self) -> int:
         return len(self.asperities)
@@ -88,12 +114,8 @@ def make_patch(k: int, grid: Grid, asperities: Sequence[Asperity], members: tupl
     Spheres whose material (``r < R``) cannot reach the grid are skipped (their height is
     ``inf`` there), so building a patch costs its cells times the nearby asperities only.
     """
-    xmin, xmax, ymin, ymax = grid.bounds
-    table = TipTable.of(asperities)
-    x, y, R, unbounded = table.x, table.y, table.R, table.unbounded
-    dx = np.maximum(np.maximum(xmin - x, x - xmax), 0.0)
-    dy = np.maximum(np.maximum(ymin - y, y - ymax), 0.0)
-    keep = np.flatnonzero(unbounded | (np.hypot(dx, dy) < R)).tolist()
+    # a table made here is used once: its tree would cost more than the direct test
+    keep = TipTable.of(asperities).reaching(grid.bounds, index=isinstance(asperities, TipTable)).tolist()
     surf = surface_on(grid, [asperities[l] for l in keep])
     index = np.append(np.asarray(keep, dtype=np.int64), -1)
     return Patch(k, grid, surf.height, index[surf.owner], members)
@@ -119,7 +141,7 @@ def patch_radius(asperity: Asperity, *, force: float, approach: float, E_star: f
 
 def build_patches(asperities: Sequence[Asperity], *, h: float, forces: np.ndarray,
                   approaches: np.ndarray, E_star: float, margin: float = 1.3,
-                  anchor: tuple[float, float] = (0.0, 0.0)) -> list[Patch]:
+                  anchor: tuple[float, float] = (0.0, 0.0), reuse: Sequence[Patch] = ()) -> list[Patch]:
     """One patch per asperity that can touch (``approaches[k] > 0``).
 
     Parameters
@@ -137,9 +159,13 @@ def build_patches(asperities: Sequence[Asperity], *, h: float, forces: np.ndarra
         Patch half-width over the Hertz-like contact radius.
     anchor : (float, float), default (0, 0)
         A cell centre of the common lattice, mm.
+    reuse : sequence of Patch, default ()
+        Patches built before for the same scene (e.g. for the policy): one with the same
+        asperity and grid is taken as it is (a patch depends on nothing else).
     """
     if not (math.isfinite(margin) and margin >= 1.0):
         raise ValueError(f"patch margin must be >= 1, got {margin!r}")
+    built = {(pt.asperity, pt.grid): pt for pt in reuse if len(pt.members) == 1}
     patches = []
     for k, a in enumerate(asperities):
         if approaches[k] <= 0.0:
@@ -147,7 +173,7 @@ def build_patches(asperities: Sequence[Asperity], *, h: float, forces: np.ndarra
         r = patch_radius(a, force=float(forces[k]), approach=float(approaches[k]), E_star=E_star,
                          h=h, margin=margin)
         grid = Grid.covering(a.x - r, a.x + r, a.y - r, a.y + r, h, anchor=anchor)
-        patches.append(make_patch(k, grid, asperities))
+        patches.append(built.get((k, grid)) or make_patch(k, grid, asperities))
     return patches
 
 

@@ -26,6 +26,7 @@ import scipy.sparse as sp
 from .coarse import CoarseSpace
 from .constraints import patch_forces
 from .gauss_seidel import LOCAL_FACTOR, sweep
+from .pk_stack import BlockStacks
 
 #: The iteration stops (not converged) when no sweep in this many has made the relative
 #: change smaller than before: where contacts merge it can cycle at a change of ~0.5 for
@@ -75,6 +76,23 @@ def lower_near_pattern(coupling) -> sp.csr_matrix:
     return sp.csr_matrix((np.ones(len(rows)), (rows, cols)), shape=(n, n))
 
 
+def sweep_levels(coupling) -> list:
+    """Blocks grouped for a sweep with the far field held: block ``k``'s level is one more
+    than the highest level of its near blocks ``l < k`` (0 without), so no two blocks of a
+    level are near each other and every near ``l < k`` is solved in an earlier level; the
+    sweep then gives what the plain order ``k = 1..N`` gives."""
+    n = len(coupling.patches)
+    level = np.zeros(n, dtype=np.int64)
+    for k in range(n):
+        near = coupling.near(k)
+        near = near[near < k]
+        if near.size:
+            level[k] = level[near].max() + 1
+    order = np.argsort(level, kind="stable")
+    bounds = np.flatnonzero(np.diff(level[order])) + 1
+    return [part.tolist() for part in np.split(order, bounds)] if n else []
+
+
 def two_level(blocks, coupling, tips: np.ndarray, heights, p: list, theta: np.ndarray, *,
               pivot: tuple[float, float], n_unknowns: int, target, tol: float, max_sweeps: int,
               stop=None, coarse_dense_max: int = 2000, monitor=None) -> TwoLevelResult:
@@ -108,6 +126,8 @@ def two_level(blocks, coupling, tips: np.ndarray, heights, p: list, theta: np.nd
     """
     patches = coupling.patches
     coarse = CoarseSpace(coupling.provider, tips, lower_near_pattern(coupling), dense_max=coarse_dense_max)
+    levels = sweep_levels(coupling)
+    stacks = BlockStacks(coupling.provider) if BlockStacks.usable(coupling.provider) else None
     theta = np.array(theta, dtype=float)
     p = [np.array(v, dtype=float) for v in p]
     active = [v > 0.0 for v in p]
@@ -118,7 +138,7 @@ def two_level(blocks, coupling, tips: np.ndarray, heights, p: list, theta: np.nd
         b = [theta[0] - z for z in heights(theta)]
         before = patch_forces(patches, p)
         local_rtol = LOCAL_FACTOR * max(history[-1] if history else 0.1, tol)
-        sw = sweep(blocks, coupling, b, p, active, local_rtol=local_rtol)
+        sw = sweep(blocks, coupling, b, p, active, local_rtol=local_rtol, levels=levels, stacks=stacks)
         if sw.failed:
             return TwoLevelResult(sw.pressures, sw.active, theta, False, m, tuple(history + [sw.change]), cg_iters,
                                   f"local active-set solve did not converge on blocks {list(sw.failed)}")
