@@ -83,7 +83,7 @@ def solve_union(provider: InfluenceProvider, asperities: Sequence[Asperity], gri
                 total_load: float | None, free_tilt: bool, pivot: tuple[float, float], tol: float,
                 start: np.ndarray | None = None, start_grid: Grid | None = None,
                 max_iter: int = 20_000, max_enlargements: int = MAX_ENLARGEMENTS,
-                precision: str = "auto", monitor=None) -> UnionOutcome:
+                precision: str = "auto", precondition: bool = True, monitor=None) -> UnionOutcome:
     """Solve the micro step as one problem on the box of the patches' ``grids``.
 
     Parameters
@@ -112,6 +112,9 @@ def solve_union(provider: InfluenceProvider, asperities: Sequence[Asperity], gri
         Of the CG's products (:func:`twoscale.reference.cg.solve_cg`): ``"mixed"``
         single-precision iterations to 1e-6 first, then double precision to ``tol``;
         ``"auto"``: mixed from ``MIXED_MIN_CELLS`` cells, double below.
+    precondition : bool, default True
+        Precondition the CG by the operator's approximate inverse (``solve_cg``'s
+        ``precondition``): half the iterations on merged contacts.
     monitor : callable, optional
         ``monitor(iteration, residual)``, passed to the CG (progress display).
     """
@@ -132,7 +135,7 @@ def solve_union(provider: InfluenceProvider, asperities: Sequence[Asperity], gri
             warm = None
         result = solve_cg(provider, surface, penetration=penetration, total_load=total_load, tilt=free_tilt,
                           pivot=pivot, tol=tol, max_iter=max_iter, start=warm,
-                          precision=_precision(precision, grid.size),
+                          precision=_precision(precision, grid.size), precondition=precondition,
                           monitor=monitor)
         iterations += int(result.iterations.get("cg", 0))
         products += int(result.iterations.get("products", 0))
