@@ -1,6 +1,6 @@
 """The preconditioned constrained CG (``solve_cg(precondition=True)``, used by the union
 iteration) against the classical Polonsky-Keer CG on the same grid, and its
-preconditioner (the inverse of the operator's circulant embedding) on its own."""
+preconditioner (the inverse of the kernel wrapped on the grid's torus) on its own."""
 from __future__ import annotations
 
 import numpy as np
@@ -55,13 +55,13 @@ def test_circulant_inverse_is_symmetric_positive_and_inverts_the_operator_inside
     rtol = 1e-5 if single else 1e-12
     assert float(np.sum(u * pc.apply(v))) == pytest.approx(float(np.sum(v * pc.apply(u))), rel=rtol)
     assert float(np.sum(v * pc.apply(v))) > 0
-    # a smooth pressure far from the grid's edge: the truncation of A p at the edge is
-    # all that separates pc(A p) from p (measured 1.6 % in L2 at 0.1 mm cells)
+    # a smooth pressure far from the grid's edge: the kernel's wrap-around on the grid's
+    # torus is all that separates pc(A p) from p (measured 0.17 % in L2 at 0.1 mm cells)
     X, Y = g.centres()
     p = np.maximum(1.0 - (X ** 2 + Y ** 2) / 1.5 ** 2, 0.0)
     back = pc.apply(op.apply(p))
     inside = X ** 2 + Y ** 2 < 1.2 ** 2
-    assert np.linalg.norm((back - p)[inside]) <= 0.05 * np.linalg.norm(p[inside])
+    assert np.linalg.norm((back - p)[inside]) <= 0.01 * np.linalg.norm(p[inside])
 
 
 def test_no_preconditioner_between_different_grids():

@@ -241,9 +241,9 @@ class ConvolutionOperator(GridOperator):
         return _SingleConvolution(self)
 
     def preconditioner(self) -> "CirculantInverse | None":
-        """The inverse of the circulant embedding of this (square) operator
-        (:class:`CirculantInverse`); None for a pair of different grids."""
-        return CirculantInverse.of(self, self._khat, np.complex128)
+        """An approximate inverse of this (square) operator (:class:`CirculantInverse`);
+        None for a pair of different grids."""
+        return CirculantInverse.of(self, self._khat, np.float64)
 
     def multiply(self, spectrum: np.ndarray) -> np.ndarray:
         """Kernel times a source spectrum (a new array)."""
@@ -278,6 +278,7 @@ class _SingleConvolution(GridOperator):
         self.target, self.source = parent.target, parent.source
         self._shape = parent.fft_shape
         self._khat = parent._khat.astype(np.complex64)
+        self._parent = parent
 
     @property
     def fft_shape(self) -> tuple[int, int]:
@@ -287,8 +288,8 @@ class _SingleConvolution(GridOperator):
         return _padded_product(p, self._khat, self._shape, self.source, self.target)
 
     def preconditioner(self) -> "CirculantInverse | None":
-        """The parent's :meth:`ConvolutionOperator.preconditioner` in float32."""
-        return CirculantInverse.of(self, self._khat, np.complex64)
+        """The parent's :meth:`ConvolutionOperator.preconditioner`, applied in float32."""
+        return CirculantInverse.of(self._parent, self._parent._khat, np.float32)
 
 
 def _padded_product(p: np.ndarray, spectrum: np.ndarray, shape: tuple[int, int], source: Grid,
@@ -307,36 +308,40 @@ def _padded_product(p: np.ndarray, spectrum: np.ndarray, shape: tuple[int, int],
 
 
 class CirculantInverse(GridOperator):
-    """Approximate inverse of a square zero-padded convolution: the exact inverse of its
-    circulant embedding, a division of the spectrum by the centred kernel's (real, since
-    the kernel is even). On the full grid it is the inverse up to wrap-around; restricted
-    to the loaded cells of a contact it is the classical FFT preconditioner of the
-    constrained conjugate gradient (Vollebregt 2014), which keeps the iteration count from
-    growing with the cells across a contact. One application costs one product."""
+    """Approximate inverse of a square zero-padded convolution: the kernel wrapped onto the
+    grid's own torus (offsets ``-(n // 2) .. (n - 1) // 2`` per axis, no padding), inverted
+    in Fourier space (the kernel is even, so its spectrum is real). Restricted to the
+    loaded cells of a contact it is the classical FFT preconditioner of the constrained
+    conjugate gradient (Vollebregt 2014), which keeps the iteration count from growing with
+    the cells across a contact. One application costs an unpadded FFT pair, about a quarter
+    of a product (the padded circulant's inverse was measured: no fewer iterations, 70
+    against 68 on 300 merged tips)."""
 
-    def __init__(self, grid: Grid, shape: tuple[int, int], multiplier: np.ndarray):
+    def __init__(self, grid: Grid, multiplier: np.ndarray):
         self.target = self.source = grid
-        self._shape, self._m = shape, multiplier
+        self._m = multiplier
 
     @classmethod
     def of(cls, op: GridOperator, khat: np.ndarray, dtype) -> "CirculantInverse | None":
-        """For ``op`` (source == target, half-spectrum ``khat`` of its padded table), or
-        None when the embedding is not positive definite."""
+        """For ``op`` (source == target, half-spectrum ``khat`` of its padded table, whose
+        entry 0 is the offset ``-(n - 1)``), or None when the wrapped kernel's spectrum is
+        not positive."""
         if op.source != op.target:
             return None
-        (my, mx), g = op.fft_shape, op.source
-        # the table starts at offset -(n - 1): centring it is a phase per axis
-        py = np.exp(2j * np.pi * ((g.ny - 1) * np.arange(my) % my) / my)[:, None]
-        px = np.exp(2j * np.pi * ((g.nx - 1) * np.arange(mx // 2 + 1) % mx) / mx)[None, :]
-        centred = (khat * py * px).real
-        if not float(centred.min()) > 0.0:
+        g = op.source
+        table = sfft.irfft2(khat, s=op.fft_shape)
+        jy, jx = np.arange(g.ny), np.arange(g.nx)
+        jy = np.where(jy <= (g.ny - 1) // 2, jy, jy - g.ny) + g.ny - 1
+        jx = np.where(jx <= (g.nx - 1) // 2, jx, jx - g.nx) + g.nx - 1
+        spectrum = sfft.rfft2(table[np.ix_(jy, jx)]).real
+        if not float(spectrum.min()) > 0.0:
             return None
-        # _padded_product reads the window behind (n - 1) cells of padding: shift back
-        multiplier = np.conj(py) * np.conj(px) / centred
-        return cls(g, (my, mx), multiplier.astype(dtype))
+        return cls(g, (1.0 / spectrum).astype(dtype))
 
     def apply(self, v: np.ndarray) -> np.ndarray:
-        return _padded_product(v, self._m, self._shape, self.source, self.target)
+        a = sfft.rfft2(np.asarray(v, dtype=self._m.dtype))
+        a *= self._m
+        return sfft.irfft2(a, s=self.source.shape).astype(np.float64, copy=False)
 
     @property
     def nbytes(self) -> int:
