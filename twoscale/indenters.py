@@ -115,6 +115,20 @@ class Surface:
     n_asperities: int
 
 
+def _window(grid: Grid, x: float, y: float, radius: float):
+    """The slices of ``grid`` holding every cell centre within ``radius`` of (x, y) (the
+    whole grid when the radius is infinite), or None when no cell is that close."""
+    if not math.isfinite(radius):
+        return (slice(None), slice(None))
+    i0 = max(int(math.floor((x - radius - grid.x0) / grid.h)), 0)
+    i1 = min(int(math.ceil((x + radius - grid.x0) / grid.h)) + 1, grid.nx)
+    j0 = max(int(math.floor((y - radius - grid.y0) / grid.h)), 0)
+    j1 = min(int(math.ceil((y + radius - grid.y0) / grid.h)) + 1, grid.ny)
+    if i0 >= i1 or j0 >= j1:
+        return None
+    return (slice(j0, j1), slice(i0, i1))
+
+
 def surface_on(grid: Grid, asperities: Sequence[Asperity], tilt: Tilt | None = None) -> Surface:
     """Sample the union of ``asperities`` (optionally tilted) at the cell centres.
 
@@ -130,10 +144,14 @@ def surface_on(grid: Grid, asperities: Sequence[Asperity], tilt: Tilt | None = N
         if group is not None:  # sampled together (the basins of one height map: one look-up)
             groups.setdefault(id(group), (group, {}))[1][a.label] = k
             continue
-        hk = a.height(X, Y)
-        better = hk < height
-        height[better] = hk[better]
-        owner[better] = k
+        # an indenter with a material radius (a sphere: R) changes only the cells within it
+        win = _window(grid, a.x, a.y, getattr(a, "material_radius", math.inf))
+        if win is None:
+            continue
+        hk = a.height(X[win], Y[win])
+        better = hk < height[win]
+        height[win][better] = hk[better]
+        owner[win][better] = k
     for group, index in groups.values():
         hk, ok = group.union_on(X, Y, index)
         better = hk < height

@@ -84,6 +84,13 @@ class GridOperator(ABC):
         takes and returns float64 arrays. Default: ``self`` (no cheaper variant)."""
         return self
 
+    def preconditioner(self) -> "GridOperator | None":
+        """An operator close to this one's inverse (square operators: ``source == target``),
+        cheap to apply, for preconditioned solves (:func:`twoscale.reference.cg.solve_cg`
+        ``precondition=True``); it takes a gap (mm) and returns a pressure-like array (MPa).
+        Default: None (the solver then runs unpreconditioned)."""
+        return None
+
     def transposed(self) -> "GridOperator | None":
         """The operator from ``target`` to ``source`` sharing this one's arrays, or None
         (default) when it has no such cheap form. Cell influence is reciprocal on every

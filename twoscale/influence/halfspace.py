@@ -251,6 +251,11 @@ class ConvolutionOperator(GridOperator):
         relative rounding)."""
         return _SingleConvolution(self)
 
+    def preconditioner(self) -> "CirculantInverse | None":
+        """An approximate inverse of this (square) operator (:class:`CirculantInverse`);
+        None for a pair of different grids."""
+        return CirculantInverse.of(self, self._khat, np.float64)
+
     def multiply(self, spectrum: np.ndarray) -> np.ndarray:
         """Kernel times a source spectrum (a new array)."""
         return self._times_kernel(np.array(spectrum, dtype=np.complex128))
@@ -284,15 +289,74 @@ class _SingleConvolution(GridOperator):
         self.target, self.source = parent.target, parent.source
         self._shape = parent.fft_shape
         self._khat = parent._khat.astype(np.complex64)
+        self._parent = parent
+
+    @property
+    def fft_shape(self) -> tuple[int, int]:
+        return self._shape
 
     def apply(self, p: np.ndarray) -> np.ndarray:
-        my, mx = self._shape
-        a = sfft.rfft(np.asarray(p, dtype=np.float32), n=mx, axis=1)
-        a = sfft.fft(a, n=my, axis=0, overwrite_x=True)
-        a *= self._khat
-        sy, sx = self.source.ny - 1, self.source.nx - 1
-        a = sfft.ifft(a, axis=0, overwrite_x=True)[sy:sy + self.target.ny]
-        return sfft.irfft(a, n=mx, axis=1)[:, sx:sx + self.target.nx].astype(np.float64)
+        return _padded_product(p, self._khat, self._shape, self.source, self.target)
+
+    def preconditioner(self) -> "CirculantInverse | None":
+        """The parent's :meth:`ConvolutionOperator.preconditioner`, applied in float32."""
+        return CirculantInverse.of(self._parent, self._parent._khat, np.float32)
+
+
+def _padded_product(p: np.ndarray, spectrum: np.ndarray, shape: tuple[int, int], source: Grid,
+                    target: Grid) -> np.ndarray:
+    """The zero-padded FFT product of ``p`` (``source.shape``) with a multiplier
+    ``spectrum`` (half-spectrum of ``shape``), in the spectrum's precision (float64 out),
+    on the window of ``target`` behind source-shaped padding."""
+    my, mx = shape
+    real = np.float32 if spectrum.dtype == np.complex64 else np.float64
+    a = sfft.rfft(np.asarray(p, dtype=real), n=mx, axis=1)
+    a = sfft.fft(a, n=my, axis=0, overwrite_x=True)
+    a *= spectrum
+    sy, sx = source.ny - 1, source.nx - 1
+    a = sfft.ifft(a, axis=0, overwrite_x=True)[sy:sy + target.ny]
+    return sfft.irfft(a, n=mx, axis=1)[:, sx:sx + target.nx].astype(np.float64, copy=False)
+
+
+class CirculantInverse(GridOperator):
+    """Approximate inverse of a square zero-padded convolution: the kernel wrapped onto the
+    grid's own torus (offsets ``-(n // 2) .. (n - 1) // 2`` per axis, no padding), inverted
+    in Fourier space (the kernel is even, so its spectrum is real). Restricted to the
+    loaded cells of a contact it is the classical FFT preconditioner of the constrained
+    conjugate gradient (Vollebregt 2014), which keeps the iteration count from growing with
+    the cells across a contact. One application costs an unpadded FFT pair, about a quarter
+    of a product (the padded circulant's inverse was measured: no fewer iterations, 70
+    against 68 on 300 merged tips)."""
+
+    def __init__(self, grid: Grid, multiplier: np.ndarray):
+        self.target = self.source = grid
+        self._m = multiplier
+
+    @classmethod
+    def of(cls, op: GridOperator, khat: np.ndarray, dtype) -> "CirculantInverse | None":
+        """For ``op`` (source == target, half-spectrum ``khat`` of its padded table, whose
+        entry 0 is the offset ``-(n - 1)``), or None when the wrapped kernel's spectrum is
+        not positive."""
+        if op.source != op.target:
+            return None
+        g = op.source
+        table = sfft.irfft2(khat, s=op.fft_shape)
+        jy, jx = np.arange(g.ny), np.arange(g.nx)
+        jy = np.where(jy <= (g.ny - 1) // 2, jy, jy - g.ny) + g.ny - 1
+        jx = np.where(jx <= (g.nx - 1) // 2, jx, jx - g.nx) + g.nx - 1
+        spectrum = sfft.rfft2(table[np.ix_(jy, jx)]).real
+        if not float(spectrum.min()) > 0.0:
+            return None
+        return cls(g, (1.0 / spectrum).astype(dtype))
+
+    def apply(self, v: np.ndarray) -> np.ndarray:
+        a = sfft.rfft2(np.asarray(v, dtype=self._m.dtype))
+        a *= self._m
+        return sfft.irfft2(a, s=self.source.shape).astype(np.float64, copy=False)
+
+    @property
+    def nbytes(self) -> int:
+        return self._m.nbytes
 
 
 class _TransposedConvolution(ConvolutionOperator):

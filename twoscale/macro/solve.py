@@ -236,15 +236,45 @@ def _build_system(T, tips, z, stack, penetration, total_load, tilt, pivot) -> Ma
 
 
 def _initial_guess(system: MacroSystem, z, stack: LawStack, penetration, total_load, tilt) -> np.ndarray:
-    """Cold start: no force under penetration control; under load control the approach
-    ``d0`` at which the asperities, ignoring interaction, carry ``W``, and their forces."""
+    """Cold start: under penetration control the secant start (:func:`_secant_forces`);
+    under load control the approach ``d0`` at which the asperities, ignoring interaction,
+    carry ``W``, and no force."""
     n = len(z)
     if total_load is None:
-        return np.zeros(n)
+        return _secant_forces(system, stack)
     d0 = _independent_approach(z, stack, float(total_load))
     P0 = np.zeros(n)
     extra = [d0, 0.0, 0.0] if tilt else [d0]
     return np.concatenate([P0, extra])
+
+
+def _secant_forces(system: MacroSystem, stack: LawStack) -> np.ndarray:
+    """Penetration control: the forces of the linear problem in which each law is replaced
+    by its secant at the approach it would have alone, ``P_k = S_k delta_k`` with
+    ``S_k = f_k(o_k) / o_k`` (``o_k = d - z_k``), coupled by the interaction:
+    ``(diag(1/S) + T) P = o`` on the tips that reach the body. Interaction lowers the
+    approaches, where the secant of a stiffening law overestimates the force less than
+    its value alone does: Newton then needs fewer steps (the paper's seven spheres at
+    d/2R = 0.1: 5 against 8 from no force; 3 against 4 at 0.5; same forces to 5e-13).
+    No force (the plain cold start) with a matrix-free interaction, or where that linear
+    problem is not positive definite (contacts about to merge)."""
+    o = system.offset
+    P = np.zeros(system.n)
+    A = np.flatnonzero(o > 0)
+    if A.size == 0 or not isinstance(system.T, np.ndarray):
+        return P
+    f = np.asarray(stack.force(o), dtype=float)[A]
+    if not np.all(np.isfinite(f) & (f > 0)):
+        return P
+    K = system.T[np.ix_(A, A)]
+    K = 0.5 * (K + K.T)
+    K[np.arange(A.size), np.arange(A.size)] += o[A] / f
+    try:
+        L = np.linalg.cholesky(K)
+    except np.linalg.LinAlgError:
+        return P
+    P[A] = np.maximum(np.linalg.solve(L.T, np.linalg.solve(L, o[A])), 0.0)
+    return P
 
 
 def _independent_approach(z: np.ndarray, stack: LawStack, W: float) -> float:

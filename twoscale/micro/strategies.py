@@ -123,7 +123,8 @@ class UnionCG:
                           anchor=common.get("anchor", (0.0, 0.0)), penetration=None if load is not None
                           else common["penetration"], total_load=load, free_tilt=common["free_tilt"],
                           pivot=common["pivot"], tol=UNION_TOL_FACTOR * common["tol"], start=start,
-                          start_grid=start_grid, precision=self.precision, monitor=monitor)
+                          start_grid=start_grid, approaches=_approaches(ctx.macro), precision=self.precision,
+                          monitor=monitor)
         r, field = out.result, out.result.fields[0]
         converged = bool(r.converged) and not out.on_edge
         message = r.message if not r.converged else (
@@ -139,6 +140,11 @@ class UnionCG:
 
 
 ITERATIONS = {"union-cg": UnionCG, "block-gs": BlockGaussSeidel, "two-level": TwoLevel}
+
+
+def _approaches(macro):
+    # the macro local approaches place the union CG's start, where the macro step converged
+    return np.asarray(macro.local_penetrations, dtype=float) if macro.converged else None
 
 
 def _sizing(macro, far_tol):

@@ -101,7 +101,7 @@ def _initial_pressure(problem: ContactProblem, op, z: np.ndarray, B: np.ndarray,
 def solve_cg(provider: InfluenceProvider, surface: Surface, *, penetration: float | None = None,
              total_load: float | None = None, tilt: bool = False, pivot=(0.0, 0.0),
              tol: float = 1e-8, max_iter: int = 20_000, start: np.ndarray | None = None,
-             precision: str = "double", monitor=None) -> ContactResult:
+             precision: str = "double", precondition: bool = False, monitor=None) -> ContactResult:
     """Full-grid contact by Polonsky & Keer's constrained conjugate gradient.
 
     Parameters
@@ -137,6 +137,15 @@ def solve_cg(provider: InfluenceProvider, surface: Surface, *, penetration: floa
         finish in double precision from that pressure (about 20 more iterations to 1e-8
         instead of 70-100 from scratch). The answer meets ``tol`` in double precision
         either way. The reference keeps ``"double"``: it is the classical yardstick.
+    precondition : bool, default False
+        Precondition the search directions with the operator's approximate inverse
+        (:meth:`~twoscale.influence.base.GridOperator.preconditioner`, on the half-space the
+        inverse of the kernel wrapped on the grid's torus, restricted to the loaded cells
+        and projected on the constraints): about half the iterations for one unpadded FFT
+        pair more each (300 merged tips on 0.92 M cells: 61 against 117 iterations to 1e-8
+        in double precision). Operators without
+        a preconditioner run unpreconditioned. The reference keeps it off (the classical
+        Polonsky-Keer iteration).
     monitor : callable, optional
         ``monitor(iteration, residual)`` every ``MONITOR_EVERY`` iterations (progress display).
 
@@ -169,12 +178,14 @@ def solve_cg(provider: InfluenceProvider, surface: Surface, *, penetration: floa
     if precision == "mixed" and tol < SINGLE_TOL:
         single = op.single_precision()
         p1, _, _, it0, products0, hist0, _, _ = _iterate(work, single, provider.material.E_star, SINGLE_TOL,
-                                                         max_iter, start, stall=SINGLE_STALL, monitor=monitor)
+                                                         max_iter, start, stall=SINGLE_STALL, monitor=monitor,
+                                                         pc=single.preconditioner() if precondition else None)
         start = p1.reshape(work.grid.shape)
     offset = it0 + 1 if it0 or hist0 else 0
     p, u, m, it, n_products, hist, converged, message = _iterate(
         work, op, provider.material.E_star, tol, max_iter, start,
-        monitor=None if monitor is None else (lambda k, r: monitor(offset + k, r)))
+        monitor=None if monitor is None else (lambda k, r: monitor(offset + k, r)),
+        pc=op.preconditioner() if precondition else None)
     it, n_products, hist = it + it0, n_products + products0, hist0 + hist
     p, u = p.reshape(work.grid.shape), u.reshape(work.grid.shape)
     if work is not problem:
@@ -250,8 +261,24 @@ def _constraint_residual(p, B, target, B_scale) -> float:
     return float(np.max(np.abs(B.T @ p - target) / (target[0] * np.maximum(B_scale, 1e-300))))
 
 
+def _direction(g_on: np.ndarray, pc, B: np.ndarray, on: np.ndarray, shape) -> tuple[np.ndarray, float]:
+    """The (preconditioned) steepest-descent direction on the loaded cells and its inner
+    product with the gradient: ``pc`` applied to the projected gap, projected in turn so
+    that the step keeps the constraints to first order (``g_on`` itself without ``pc``, or
+    when rounding makes the preconditioned product non-positive)."""
+    if pc is not None:
+        d = pc.apply(g_on.reshape(shape)).ravel()
+        d[~on] = 0.0
+        _project(d, B, on)
+        d[~on] = 0.0
+        G = float(g_on @ d)
+        if G > 0.0:
+            return d, G
+    return g_on, float(g_on @ g_on)
+
+
 def _iterate(problem: ContactProblem, op, E_star: float, tol: float, max_iter: int, start=None,
-             stall: int = STALL_ITERATIONS, monitor=None):
+             stall: int = STALL_ITERATIONS, monitor=None, pc=None):
     shape = problem.grid.shape
     cand = problem.candidates.ravel()
     free = ~cand  # cells without material: never loaded, never checked
@@ -294,13 +321,13 @@ def _iterate(problem: ContactProblem, op, E_star: float, tol: float, max_iter: i
                 f"(best {best:.2e}, tol {tol:g})")
         # Polonsky & Keer: conjugate direction on the loaded cells, reset when the set changed
         g_on = np.where(on, g, 0.0)
-        G = float(g_on @ g_on)
+        direction, G = _direction(g_on, pc, B, on, shape)
         t *= G / G_old if conjugate else 0.0
-        t += g_on
+        t += direction
         t[~on] = 0.0
         G_old = G
         r = op.apply(t.reshape(shape)).ravel()
-        n_products += 1
+        n_products += 1 if pc is None else 2
         rp = r
         if B.shape[1]:
             rp = r.copy()
