@@ -5,33 +5,39 @@ E = 6 MPa, nu = 0.5, ball-and-socket joint, h = 0.1 mm) on 2 bodies (the half-sp
 60 x 60 mm window, the 140 x 140 x 20 mm bonded block) at 4 total loads (150, 200, 250,
 300 N) and 5 positions (0 to 8 mm along x, step 2 mm): 2 x 4 x 5 = 40 cases.
 
-Measured, in one process, in this order (every process single-threaded, ``_common``; the
-block's correction is built first into a fresh disk cache and timed):
+The block's correction is built first, in this process, into a fresh disk cache (timed);
+every run below then reads it from disk, as a rerun of a user's study does. Each run is a
+**fresh Python process** (this script with ``--child``), as a user's ``twoscale study``
+is: it pays the interpreter's start, the imports, its providers' first use and, with
+Dask, the cluster's start and close (every process single-threaded, ``_common``):
 
-1. ``plain``: the same 40 solves in a plain loop, ``solve_twoscale`` with each body's
-   provider built once (what a hand-written script would do), no files;
-2. ``serial``: ``run_study(..., workers=0)``: the study machinery in this process (keys,
+1. ``plain``: the 40 solves in a plain loop, ``solve_twoscale`` with each body's provider
+   built once (what a hand-written script would do), no files;
+2. ``serial``: ``run_study(..., workers=0)``: the study machinery in one process (keys,
    case folders, records);
-3. ``dask``: ``run_study(..., workers=2)`` into a fresh folder: a new local cluster of two
-   worker processes, which start while the study warms the block up;
-4. ``side by side``: two plain loops over half the cases each, in two processes at once
-   (no Dask): what two solvers running together cost on this machine.
+3. ``dask``: ``run_study(..., workers=2)``: a new local cluster of two worker processes,
+   which start while the study warms the block up;
+4. ``pair``: two plain loops over half the cases each, two processes at once (no Dask):
+   what two solvers running together cost on this machine.
 
-Each run is timed around the whole ``run_study`` call. On a shared machine wall times count
-the waits for a core, so CPU times are reported beside them: the process CPU of each run, the
-2-worker run's worker processes' CPU (start-up and imports included), each case's own CPU
-(its record's ``cpu_seconds``), and the load average before and after each run. Reported:
-the wall speed-up ``serial / dask`` (target >= 1.7), and an estimate for the two cores to
-itself (the serial run's CPU against half the CPU the 2-worker run used, here and in its
-workers); the machinery's CPU per case (serial run's CPU less its cases' own, target
-<= 0.2 s) and the Dask overhead per case ``(2 x dask wall - the cases' own wall) / 40``
-(worker start, scheduling, transfers, idle workers);
-then what a 100,000-case study (10 textures x 3 bodies x 10 loads x 333 positions) would
-cost on N machines of 2 or 32 cores at the measured per-case CPU time and efficiency.
+Each run is timed twice: from outside (the process's wall time from launch to exit, and the
+CPU of the process and of everything it started: Dask's workers) and from inside (around
+the loop or the ``run_study`` call, after the imports: the figures earlier versions of this
+benchmark gave, with the process's imports already paid). Each case also records the CPU
+time of its own thread. On a shared machine wall times count the waits for a core, so CPU
+times are reported beside them, with the load average before and after each run.
+Reported: the speed-up ``serial / dask`` (target >= 1.7) in wall time from outside and from
+inside, and an estimate for the two cores to itself (the serial process's CPU against half
+the 2-worker process tree's); the machinery's CPU per case (serial run's CPU less its cases'
+own, target <= 0.2 s) and the Dask overhead per case ``(2 x dask wall - the cases' own
+wall) / 40``; the ceiling two processes reach here (the plain process's CPU against half
+the pair's); then what a 100,000-case study (10 textures x 3 bodies x 10 loads x 333
+positions) would cost on N machines of 2 or 32 cores at the measured per-case CPU time and
+efficiency.
 
 Usage::
 
-    cd benchmarks && python study.py [--out study_bench.json] [--quiet]
+    cd benchmarks && python study.py [--out study_bench.json] [--quiet] [--repeat N]
 """
 from __future__ import annotations
 
@@ -91,24 +97,55 @@ def plain_loop(study, part: slice = slice(None)) -> dict:
     return {"wall_s": time.perf_counter() - t0, "cpu_s": time.process_time() - c0}
 
 
-def _half_loop(path: str, part: int) -> dict:
-    """:func:`plain_loop` over every other case (``part`` 0 or 1), in a process of its own."""
-    from twoscale.scene import default_h  # noqa: F401  (imports before the clock starts)
+def child(kind: str, path: str, out: str) -> dict:
+    """One run in this (fresh) process: ``plain``, ``half0``/``half1`` (every other case),
+    ``serial`` or ``dask``. Its inside figures, plus ``startup_cpu_s``: the CPU this process
+    spent before the run (interpreter start and the imports of the study machinery; what
+    the run imports later, lazily, is in the run's own figures)."""
     from twoscale.studies.spec import read_study
-    from twoscale.twoscale import solve_twoscale  # noqa: F401
 
-    return plain_loop(read_study(path), slice(part, None, 2))
+    study = read_study(path)
+    startup = time.process_time()
+    if kind == "plain":
+        rec = plain_loop(study)
+    elif kind in ("half0", "half1"):
+        rec = plain_loop(study, slice(int(kind[-1]), None, 2))
+    else:
+        rec = timed_study(study, Path(out), {"serial": 0, "dask": 2}[kind], quiet=True)
+    return {**rec, "startup_cpu_s": startup}
 
 
-def side_by_side(path: Path) -> dict:
-    """Two plain loops over half the cases each, in two processes at once: what running two
-    solvers side by side costs on this machine, without Dask. Wall (the slower) and CPU
-    (the sum) seconds of the loops."""
-    import multiprocessing
+def launch(kinds: list[str], path: Path, tmp: Path) -> dict:
+    """Start a fresh process per run of ``kinds`` at once (``--child``) and wait for them:
+    wall time from launch to the last exit, CPU of the processes and of everything they
+    started (Dask's workers: reaped before their process exits), load average before and
+    after, and each child's own figures (:func:`child`)."""
+    import subprocess
 
-    with multiprocessing.get_context("spawn").Pool(2) as pool:
-        halves = pool.starmap(_half_loop, [(str(path), 0), (str(path), 1)])
-    return {"wall_s": max(h["wall_s"] for h in halves), "cpu_s": sum(h["cpu_s"] for h in halves)}
+    load, k0, t0 = os.getloadavg()[0], _children_cpu(), time.perf_counter()
+    procs = [subprocess.Popen([sys.executable, __file__, "--child", kind, "--study", str(path),
+                               "--dir", str(tmp / kind)], stdout=subprocess.PIPE, text=True)
+             for kind in kinds]
+    outs = [p.communicate()[0] for p in procs]
+    wall, cpu = time.perf_counter() - t0, _children_cpu() - k0
+    if any(p.returncode for p in procs):
+        raise RuntimeError(f"a run of {kinds} failed: exit codes {[p.returncode for p in procs]}")
+    inside = [json.loads(o.strip().splitlines()[-1]) for o in outs]
+    return {"process_wall_s": wall, "process_cpu_s": cpu, "load_before": load,
+            "load_after": os.getloadavg()[0], "inside": inside}
+
+
+def run(kind: str, path: Path, tmp: Path) -> dict:
+    """A run of ``kind`` in a fresh process (``pair``: two halves at once), its figures
+    flattened: outside (``process_*``) and inside (the child's own; a pair's wall is the
+    slower half's, its CPU the sum)."""
+    if kind != "pair":
+        r = launch([kind], path, tmp)
+        return {**{k: v for k, v in r.items() if k != "inside"}, **r["inside"][0]}
+    r = launch(["half0", "half1"], path, tmp)
+    halves = r.pop("inside")
+    return {**r, "wall_s": max(h["wall_s"] for h in halves), "cpu_s": sum(h["cpu_s"] for h in halves),
+            "startup_cpu_s": sum(h["startup_cpu_s"] for h in halves)}
 
 
 def timed_study(study, out: Path, workers: int, quiet: bool) -> dict:
@@ -150,23 +187,26 @@ def on_paper(per_case_s: float, efficiency: float, block_build_s: float) -> list
     return rows
 
 
-def figures(plain: dict, serial: dict, dask: dict, warm: float, n: int = 40) -> dict:
-    """The benchmark's figures from the three timed runs (see the module doc)."""
-    rec = {"cases": n, "block_build_s": warm, "plain": plain, "serial": serial, "dask": dask,
-           "speedup": serial["wall_s"] / dask["wall_s"],
-           # the machinery's own CPU: the serial run's process CPU less the cases' own
+def figures(runs: dict, warm: float, n: int = 40) -> dict:
+    """The benchmark's figures from the four runs of :func:`run` (see the module doc)."""
+    plain, serial, dask, pair = (runs[k] for k in ("plain", "serial", "dask", "pair"))
+    rec = {"cases": n, "block_build_s": warm, **runs,
+           "speedup": serial["process_wall_s"] / dask["process_wall_s"],
+           "speedup_inside": serial["wall_s"] / dask["wall_s"],
+           # the machinery's own CPU: the serial run's CPU less the cases' own
            "machinery_cpu_per_case_s": (serial["cpu_s"] - serial["cases_cpu_s"]) / n,
-           "serial_minus_plain_cpu_per_case_s": (serial["cpu_s"] - plain["cpu_s"]) / n,
+           "serial_minus_plain_cpu_per_case_s": (serial["process_cpu_s"] - plain["process_cpu_s"]) / n,
            # scheduling, transfers, worker start and idle workers: two workers' time not in cases
            "dask_overhead_per_case_s": (2 * dask["wall_s"] - dask["cases_wall_s"]) / n,
            "worker_cpu_ratio": dask["cases_cpu_s"] / serial["cases_cpu_s"],
-           "per_case_cpu_s": serial["cases_cpu_s"] / n}
-    # with the two cores to itself, the 2-worker run would take at least the CPU it used
-    # (workers: start-up, imports, cases; this process: scheduler, case folders) spread
-    # over them: an estimate that ignores the last case's tail
-    dask_cpu = dask["workers_cpu_s"] + dask["cpu_s"]
-    rec["dask_cpu_s"] = dask_cpu
-    rec["speedup_idle_estimate"] = serial["cpu_s"] / (dask_cpu / 2)
+           "per_case_cpu_s": serial["cases_cpu_s"] / n,
+           # with the two cores to itself, a run would take at least the CPU its process tree
+           # used spread over them (an estimate that ignores the last case's tail)
+           "speedup_idle_estimate": serial["process_cpu_s"] / (dask["process_cpu_s"] / 2),
+           "pair_ceiling": plain["process_cpu_s"] / (pair["process_cpu_s"] / 2),
+           "pair_cpu_ratio": pair["process_cpu_s"] / plain["process_cpu_s"],
+           "dask_over_pair_wall": dask["process_wall_s"] / pair["process_wall_s"],
+           "dask_over_pair_cpu": dask["process_cpu_s"] / pair["process_cpu_s"]}
     efficiency = min(1.0, rec["speedup_idle_estimate"] / 2)
     rec["efficiency"] = efficiency
     rec["on_paper"] = on_paper(rec["per_case_cpu_s"] + max(rec["machinery_cpu_per_case_s"], 0.0), efficiency,
@@ -175,26 +215,25 @@ def figures(plain: dict, serial: dict, dask: dict, warm: float, n: int = 40) -> 
 
 
 def report(rec: dict) -> None:
-    p, s, d, n = rec["plain"], rec["serial"], rec["dask"], rec["cases"]
-    print(f"40 cases (S2, half-space + block, 4 loads x 5 positions); block correction built in "
-          f"{rec['block_build_s']:.1f} s before the runs")
-    print(f"plain loop        wall {p['wall_s']:6.1f} s  CPU {p['cpu_s']:6.1f} s")
-    print(f"study, serial     wall {s['wall_s']:6.1f} s  CPU {s['cpu_s']:6.1f} s  (cases' own CPU {s['cases_cpu_s']:.1f} s: "
-          f"{rec['per_case_cpu_s']:.2f} s per case; load average {s['load_before']:.1f} -> {s['load_after']:.1f})")
-    print(f"  machinery CPU per case {rec['machinery_cpu_per_case_s']:+.3f} s (serial study CPU - plain CPU: "
+    n = rec["cases"]
+    print(f"{n} cases (S2, half-space + block, 4 loads x 5 positions); block correction built in "
+          f"{rec['block_build_s']:.1f} s before the runs; each run a fresh process")
+    print("run         process wall / CPU (s)   inside wall / CPU (s)   start-up CPU (s)   load")
+    for k in ("plain", "serial", "dask", "pair"):
+        r = rec[k]
+        print(f"{k:10s}  {r['process_wall_s']:8.1f} / {r['process_cpu_s']:6.1f}      {r['wall_s']:8.1f} / "
+              f"{r['cpu_s']:6.1f}     {r['startup_cpu_s']:6.2f}           {r['load_before']:.1f} -> {r['load_after']:.1f}")
+    s, d = rec["serial"], rec["dask"]
+    print(f"serial cases' own CPU {s['cases_cpu_s']:.1f} s ({rec['per_case_cpu_s']:.2f} s per case); the workers' "
+          f"{d['cases_cpu_s']:.1f} s = {rec['worker_cpu_ratio']:.2f} x; workers' processes {d['workers_cpu_s']:.1f} s CPU")
+    print(f"machinery CPU per case {rec['machinery_cpu_per_case_s']:+.3f} s (serial process CPU - plain's: "
           f"{rec['serial_minus_plain_cpu_per_case_s']:+.3f} s per case); target <= 0.2 s")
-    print(f"study, 2 workers  wall {d['wall_s']:6.1f} s  CPU {d['cpu_s']:.1f} s here + {d['workers_cpu_s']:.1f} s in the "
-          f"workers (scheduler start {d['startup_s']:.2f} s; cases' own wall {d['cases_wall_s']:.1f} s, CPU "
-          f"{d['cases_cpu_s']:.1f} s = {rec['worker_cpu_ratio']:.2f} x serial; load average {d['load_before']:.1f} -> "
-          f"{d['load_after']:.1f})")
-    print(f"  Dask overhead per case {rec['dask_overhead_per_case_s']:+.3f} s (2 x wall - cases' own wall, / {n})")
-    if "side_by_side" in rec:
-        print(f"two plain loops side by side (half the cases each, no Dask): wall {rec['side_by_side']['wall_s']:.1f} s, "
-              f"CPU {rec['side_by_side']['cpu_s']:.1f} s = {rec['side_by_side_cpu_ratio']:.2f} x the plain loop's "
-              f"(ceiling for two processes here: {rec['side_by_side_idle_estimate']:.2f}x); the 2-worker study took "
-              f"{rec['dask_over_side_by_side_wall']:.2f}x its wall, {rec['dask_over_side_by_side_cpu']:.2f}x its CPU")
-    print(f"speed-up serial / dask (wall) {rec['speedup']:.2f}x; estimated with the two cores to itself (serial CPU "
-          f"against half the 2-worker run's CPU) {rec['speedup_idle_estimate']:.2f}x; target >= 1.7x")
+    print(f"Dask overhead per case {rec['dask_overhead_per_case_s']:+.3f} s (2 x wall - cases' own wall, / {n})")
+    print(f"pair: CPU {rec['pair_cpu_ratio']:.2f} x the plain process's (ceiling for two processes here "
+          f"{rec['pair_ceiling']:.2f}x); the 2-worker study took {rec['dask_over_pair_wall']:.2f}x its wall, "
+          f"{rec['dask_over_pair_cpu']:.2f}x its CPU")
+    print(f"speed-up serial / dask: processes' wall {rec['speedup']:.2f}x, inside {rec['speedup_inside']:.2f}x; "
+          f"estimated with the two cores to itself (CPU) {rec['speedup_idle_estimate']:.2f}x; target >= 1.7x")
     print(f"on paper, 100,000 cases at {rec['per_case_cpu_s']:.2f} s CPU per case, parallel efficiency "
           f"{rec['efficiency']:.2f}, 2 block builds of {rec['block_build_s']:.0f} s per machine:")
     for r in rec["on_paper"]:
@@ -204,15 +243,23 @@ def report(rec: dict) -> None:
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--out", default=None, help="also write the figures as JSON")
+    parser.add_argument("--repeat", type=int, default=1, help="rounds of the four runs (figures of each)")
+    parser.add_argument("--child", choices=("plain", "half0", "half1", "serial", "dask"), help=argparse.SUPPRESS)
+    parser.add_argument("--study", help=argparse.SUPPRESS)
+    parser.add_argument("--dir", help=argparse.SUPPRESS)
     _common.add_quiet(parser)
     args = parser.parse_args(argv)
+    if args.child:
+        print(json.dumps(child(args.child, args.study, args.dir)))
+        return 0
     from twoscale.studies.providers import warm_blocks
     from twoscale.studies.cases import case_scene, expand
     from twoscale.studies.spec import read_study
 
+    recs = []
     with tempfile.TemporaryDirectory() as tmp:
         # a fresh disk cache: the block's correction is built (and timed) once, and the
-        # workers inherit the variable and read it
+        # runs inherit the variable and read it
         os.environ["TWOSCALE_CACHE_DIR"] = str(Path(tmp) / "fem")
         path = Path(tmp) / "bench.toml"
         path.write_text(STUDY.format(scene=(ROOT / "examples" / "S2.toml").as_posix()), encoding="utf-8")
@@ -221,21 +268,12 @@ def main(argv=None) -> int:
         t = time.perf_counter()   # the block's correction, once
         warm_blocks([case_scene(c, study) for c in expand(study) if c.body.name == "block"], progress=not args.quiet)
         warm = time.perf_counter() - t
-        plain = plain_loop(study)
-        serial = timed_study(study, Path(tmp) / "serial", 0, args.quiet)
-        dask = timed_study(study, Path(tmp) / "dask", 2, args.quiet)
-        pair = side_by_side(path)
-    rec = figures(plain, serial, dask, warm)
-    rec["side_by_side"] = pair
-    rec["side_by_side_cpu_ratio"] = pair["cpu_s"] / plain["cpu_s"]
-    # the machine's own ceiling for two processes (plain CPU against half the pair's), and
-    # the 2-worker run against the pair (Dask's cost on top of running two solvers at once)
-    rec["side_by_side_idle_estimate"] = plain["cpu_s"] / (pair["cpu_s"] / 2)
-    rec["dask_over_side_by_side_wall"] = dask["wall_s"] / pair["wall_s"]
-    rec["dask_over_side_by_side_cpu"] = rec["dask_cpu_s"] / pair["cpu_s"]
-    report(rec)
+        for i in range(args.repeat):
+            runs = {k: run(k, path, Path(tmp) / f"round{i}") for k in ("plain", "serial", "dask", "pair")}
+            recs.append(figures(runs, warm))
+            report(recs[-1])
     if args.out:
-        Path(args.out).write_text(json.dumps(rec, indent=1) + "\n", encoding="utf-8")
+        Path(args.out).write_text(json.dumps(recs, indent=1) + "\n", encoding="utf-8")
     return 0
 
 

@@ -43,12 +43,22 @@ WORKER_IMPORTS = ("twoscale.api", "twoscale.twoscale", "twoscale.scene", "twosca
 #: the solver's thread: the cases' wall time on a one-worker cluster was 1.14x that of the
 #: same cases in one process with it (twice), 1.03x without. The memory and system monitors
 #: are only slowed: a cluster of two idle workers used 0.79 s of CPU per 10 s with Dask's
-#: defaults, 0.48 s with these.
+#: defaults, 0.48 s with these. Every process of the cluster also wakes its event loop
+#: every 20 ms only to warn when the loop was blocked (the "tick"; the local cluster's logs
+#: are silenced), taking the interpreter lock from a worker's solver each time: at 1 s, an
+#: idle 2-worker cluster used 0.11-0.13 s of CPU per 10 s (this process and the workers)
+#: against 0.40-0.62 s. With one thread a worker, each is sent one task at a time (worker
+#: saturation 1.0: the next one as it reports the last, a local round trip against cases of
+#: about 0.5 s), so there is nothing to rebalance and work stealing, which the scheduler
+#: would otherwise run every second, is off.
 LOCAL_CONFIG = {
     "distributed.nanny.pre-spawn-environ.MALLOC_TRIM_THRESHOLD_": TRIM_THRESHOLD,
     "distributed.worker.profile.enabled": False,
     "distributed.worker.memory.monitor-interval": "1s",
     "distributed.admin.system-monitor.interval": "2s",
+    "distributed.admin.tick.interval": "1s",
+    "distributed.scheduler.worker-saturation": 1.0,
+    "distributed.scheduler.work-stealing": False,
 }
 
 
