@@ -5,8 +5,9 @@
 
 ``"dense"``
     Every tip touches: R uniform in 3-6 mm, tip recesses z uniform in [0, 0.1] mm, about
-    200 tips on 60 x 60 mm (side ``L = 60 sqrt(n / 200)`` mm), E = 6 MPa, nu = 0.5, about
-    1.5 N per tip (2-3 N is also realistic: ``load_per_tip``).
+    200 tips on 60 x 60 mm (side ``L = 60 sqrt(n / 200)`` mm), E = 6 MPa, nu = 0.5,
+    2.5 N per tip (the middle of the 2-3 N of a tyre tread on a road; the first user scene
+    of issue 14 had 1.5 N: ``load_per_tip``).
 ``"sparse"``
     The issue-6 many-asperity layout (``benchmarks/many_asperities.py``): R uniform in
     2-6 mm, side ``3 sqrt(n)`` mm, E = 10 MPa, nu = 0.5, h = 0.04 mm (mean R / 100),
@@ -40,7 +41,7 @@ MIN_SPACING = 1.5
 #: Largest side of the square of tips on the default block, mm (its top face is 140 mm).
 BLOCK_MAX_SIDE = 120.0
 #: Default load per tip by kind, N.
-LOAD_PER_TIP = {"dense": 1.5, "sparse": 0.05}
+LOAD_PER_TIP = {"dense": 2.5, "sparse": 0.05}
 #: Material by kind: (E MPa, nu).
 MATERIALS = {"dense": (6.0, 0.5), "sparse": (10.0, 0.5)}
 #: Tip radii by kind: uniform in (low, high), mm.
@@ -82,7 +83,7 @@ def random_scene(n_tips: int, *, kind: str = "dense", control: str = "load", sha
         Cell size, mm (> 0). None: the kind's default (dense: chosen by
         :func:`twoscale.scene.default_h`; sparse: ``SPARSE_H``).
     load_per_tip : float, optional
-        Load per tip, N (> 0); None: 1.5 (dense) or 0.05 (sparse).
+        Load per tip, N (> 0); None: 2.5 (dense) or 0.05 (sparse).
     side : float, optional
         Side of the square of tips, mm (> 0); default :func:`square_side` (the kind's
         density).
