@@ -37,6 +37,12 @@ ITERATIONS = ("union-cg", "block-gs", "two-level")
 #: 60 x 1.25 x 63 / 121 ~ 40. With 60, the default ran 300 tips at 2.5 N on 45 x 45 mm
 #: (72 % of the box carried) by the two-level iteration in 1.17 of the reference's time.
 UNION_PRODUCTS = 40.0
+#: The union CG is chosen only when its estimate is below this fraction of the block
+#: iterations' (their cost per work unit spreads more: under the tilt joint the union CG
+#: took 1.2 ns a unit, 0.8 s against 0.5 s for the two-level iteration on S2 at 300 N, whose
+#: estimates were 0.92 of each other; 300 dense tips on 45 x 45 mm, where the union CG wins,
+#: 0.71).
+UNION_MARGIN = 0.8
 #: Block Gauss-Seidel sweeps expected (4-6 on merged blocks, up to ~20 under load control
 #: with sensitivity sweeps).
 GS_SWEEPS = 10.0
@@ -180,6 +186,9 @@ def choose(patches: Sequence[Patch], box_cells: int, *, merged_contacts: bool = 
     if merged_contacts or n < FAR_FIELD_MIN_PATCHES:
         candidates.pop("two-level")
     best = min(candidates, key=candidates.get)
+    others = [v for k, v in candidates.items() if k != "union-cg"]
+    if best == "union-cg" and others and candidates["union-cg"] > UNION_MARGIN * min(others):
+        best = min((k for k in candidates if k != "union-cg"), key=candidates.get)
     cov = figures["coverage"]
     if best == "union-cg":
         reason = (f"{n} patches carry {100 * cov:.0f} % of their bounding box's "
