@@ -73,6 +73,12 @@ class BlockGridOperator(GridOperator):
         corr = self._U @ (self._W @ np.asarray(p, dtype=float).ravel())
         return u + self._area * corr.reshape(self.target.shape)
 
+    def preconditioner(self):
+        """The half-space part's preconditioner: the correction is smooth and of low rank,
+        so the half-space kernel's inverse is as close to this operator's inverse as the
+        CG needs (the preconditioned CG stays exact: only its iteration count changes)."""
+        return self._hs.preconditioner()
+
     @property
     def nbytes(self) -> int:
         w = self._W.data.nbytes if sp.issparse(self._W) else self._W.nbytes
