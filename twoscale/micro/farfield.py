@@ -22,7 +22,13 @@ import numpy as np
 
 from ..influence.base import InfluenceProvider
 from .blocks import Coupling
-from .sources import lagrange3, source_nodes, source_strengths
+from .sources import lagrange3, source_frame, source_nodes, source_strengths
+
+
+def _columns(values: list) -> int:
+    """Right-hand sides per block vector: 1 for (n,) vectors, m for (n, m)."""
+    first = next((v for v in values if v is not None and v.size), None)
+    return 1 if first is None or first.ndim == 1 else first.shape[1]
 
 
 class FarFieldCoupling(Coupling):
@@ -120,8 +126,7 @@ class FarFieldCoupling(Coupling):
     def _resultants(self, values: list) -> tuple[np.ndarray, np.ndarray]:
         """Force (N, m) in N and its point of application (N, m, 2) in mm of every block;
         only blocks whose vector object changed since the last call are recomputed."""
-        first = next((v for v in values if v is not None), None)
-        m = 1 if first is None or first.ndim == 1 else first.shape[1]
+        m = _columns(values)
         n = len(values)
         if self._F is None or self._F.shape != (n, m):
             self._F = np.zeros((n, m))
@@ -286,21 +291,18 @@ class LaggedFarField(FarFieldCoupling):
 
     def refresh(self, values: list) -> None:
         """Recompute the far field on every stencil from the block vectors ``values``."""
-        n = len(self.patches)
-        first = next((v for v in values if v is not None and v.size), None)
-        m = 1 if first is None or first.ndim == 1 else first.shape[1]
+        n, m = len(self.patches), _columns(values)
         S = np.zeros((n, 9, m))
         for l, v in enumerate(values):
             if v is not None and v.size:   # a block can own no cell (a neighbour owns its patch)
                 g = self.patches[l].grid
-                _, centre, delta = source_nodes(g)
+                centre, delta = source_frame(g)
                 S[l] = source_strengths(self._owned_points(l), v.reshape(len(v), -1), centre, delta, g.h)
         self._table = self._point_operator().apply(S.reshape(9 * n, m)).reshape(n, 9, m)
         self.far_products += 1
 
     def _far(self, k: int, values: list, whole: bool) -> np.ndarray:
-        first = next((v for v in values if v is not None and v.size), None)
-        m = 1 if first is None or first.ndim == 1 else first.shape[1]
+        m = _columns(values)
         if self._table is None or self._table.shape[2] != m:
             self.refresh(values)
         return self._interpolation(k, whole) @ self._table[k]

@@ -186,9 +186,9 @@ def choose(patches: Sequence[Patch], box_cells: int, *, merged_contacts: bool = 
     if merged_contacts or n < FAR_FIELD_MIN_PATCHES:
         candidates.pop("two-level")
     best = min(candidates, key=candidates.get)
-    others = [v for k, v in candidates.items() if k != "union-cg"]
-    if best == "union-cg" and others and candidates["union-cg"] > UNION_MARGIN * min(others):
-        best = min((k for k in candidates if k != "union-cg"), key=candidates.get)
+    rest = {k: v for k, v in candidates.items() if k != "union-cg"}
+    if best == "union-cg" and rest and candidates[best] > UNION_MARGIN * min(rest.values()):
+        best = min(rest, key=rest.get)
     cov = figures["coverage"]
     if best == "union-cg":
         reason = (f"{n} patches carry {100 * cov:.0f} % of their bounding box's "

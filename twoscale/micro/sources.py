@@ -28,14 +28,19 @@ def lagrange3(xi: np.ndarray) -> np.ndarray:
 SOURCE_NODE = math.sqrt(3.0) / 2.0
 
 
-def source_nodes(grid) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """The nine far-field source points of a patch on ``grid``: ``(points (9, 2) mm,
-    centre (2,) mm, delta (2,) mm)``, row-major over (y, x) like the stencils; ``delta``
-    is the node offset along x and y (at least ``h / 2``)."""
+def source_frame(grid) -> tuple[np.ndarray, np.ndarray]:
+    """Centre (2,) mm of a patch on ``grid`` and the offset (2,) mm of its outer source
+    nodes along x and y (at least ``h / 2``)."""
     xmin, xmax, ymin, ymax = grid.bounds
     centre = np.array([0.5 * (xmin + xmax), 0.5 * (ymin + ymax)])
     half = 0.5 * grid.h * np.array([grid.nx - 1, grid.ny - 1], dtype=float)
-    delta = np.maximum(SOURCE_NODE * half, 0.5 * grid.h)
+    return centre, np.maximum(SOURCE_NODE * half, 0.5 * grid.h)
+
+
+def source_nodes(grid) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The nine far-field source points of a patch on ``grid``: ``(points (9, 2) mm,
+    centre, delta)`` (:func:`source_frame`), row-major over (y, x) like the stencils."""
+    centre, delta = source_frame(grid)
     X, Y = np.meshgrid(centre[0] + delta[0] * np.array([-1.0, 0.0, 1.0]),
                        centre[1] + delta[1] * np.array([-1.0, 0.0, 1.0]))
     return np.column_stack([X.ravel(), Y.ravel()]), centre, delta
