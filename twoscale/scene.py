@@ -335,16 +335,14 @@ def expected_contacts(scene: Scene) -> tuple[np.ndarray, np.ndarray]:
     """Hertz force (N) and contact radius (mm) of each asperity alone at its expected
     approach (:func:`expected_approaches`, estimated once)."""
     delta = expected_approaches(scene)
-    E_star = scene.material.E_star
-    force = np.array([float(hertz.load(a.R, dk, E_star)) for a, dk in zip(scene.asperities, delta)])
-    return force, _contact_radii(scene.asperities, delta)
+    R = np.array([a.R for a in scene.asperities], dtype=float)
+    return hertz.load(R, delta, scene.material.E_star), _contact_radii(scene.asperities, delta)
 
 
 def _contact_radii(asperities, delta) -> np.ndarray:
-    return np.array([
-        float(hertz.sphere_contact_radius(a.R, dk)) if a.shape == "sphere" else float(hertz.contact_radius(a.R, dk))
-        for a, dk in zip(asperities, delta)
-    ])
+    R = np.array([a.R for a in asperities], dtype=float)
+    sphere = np.array([a.shape == "sphere" for a in asperities], dtype=bool)
+    return np.where(sphere, hertz.sphere_contact_radius(R, delta), hertz.contact_radius(R, delta))
 
 
 def default_h(scene: Scene, *, cells_across: int = CELLS_ACROSS,

@@ -38,7 +38,7 @@ import numpy as np
 
 from .._version import __version__
 from ..grid import Grid
-from ..indenters import Asperity, Tilt
+from ..indenters import Asperity, Tilt, surface_on
 from ..results import PressureField
 from .atomic import current_umask, atomic_output
 from .vti import read_image, read_multiblock, write_image, write_multiblock
@@ -139,6 +139,9 @@ def _indenter_height(grid: Grid, asperities: Sequence[Asperity], table, tilt: Ti
     and stop once none can be lower anywhere, and a sphere is evaluated only under its
     base, so thousands of tips on thousands of patches stay cheap. ``table``:
     :func:`_tip_table` of ``asperities``."""
+    if any(getattr(a, "group", None) is not None for a in asperities):
+        # a height map's basins: one look-up of the map (no lower bound per basin to prune by)
+        return surface_on(grid, asperities, tilt).height
     tips, sphere = table
     low = _lowest_on(grid, tips, sphere)
     X, Y = grid.centres()
