@@ -92,7 +92,8 @@ def sweep(blocks: list[LocalBlock], coupling: Coupling, b: list, p: list, active
         if len(stacked) > 1:
             for k, (pressure, ok, _) in stacks.solve(blocks, stacked, rhs, p, local_rtol).items():
                 take(k, pressure, pressure > 0.0, ok)
-            level = [k for k in level if k not in set(stacked)]
+            done = set(stacked)
+            level = [k for k in level if k not in done]
         for k in level:
             sol = contact_solve(blocks[k], rhs[k], p[k], rtol=local_rtol)
             take(k, sol.pressure, sol.active, sol.converged)

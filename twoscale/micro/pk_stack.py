@@ -160,7 +160,9 @@ def pk_stack_fixed_approach(operator, b: np.ndarray, p_start: np.ndarray, mask: 
         change, norm = _changes(p, p_old)
         small = live & ((norm == 0.0) | (change <= rtol * norm))
         if np.any(small):
-            u[small] = operator.apply_stack(p[small])
+            fresh = small & ~redo   # rows just recomputed above need no second product
+            if np.any(fresh):
+                u[fresh] = operator.apply_stack(p[fresh])
             pen = _any((p[small] == 0.0) & mask[small] & (u[small] - b[small] < -gtol[small]))
             finish(np.flatnonzero(small)[~pen], it, True)
         if np.all(done):

@@ -9,6 +9,7 @@ from typing import Sequence
 
 import numpy as np
 
+from ..analytic import hertz
 from ..grid import Grid
 from ..indenters import Asperity
 from ..influence.base import InfluenceProvider
@@ -95,8 +96,8 @@ def _initial(provider, asperities, patches, blocks, forces, z_blocks, h, rtol: f
     """Paper eq. 7 on every (one-asperity) block (``rtol``: conjugate gradients of large blocks)."""
     E_star = provider.material.E_star
     P = [float(forces[pt.asperity]) for pt in patches]
-    R = [asperities[pt.asperity].R for pt in patches]
-    approaches = [((3.0 * max(f, 0.0) * r / (4.0 * E_star)) ** (1.0 / 3.0)) ** 2 / r for f, r in zip(P, R)]
+    R = np.array([asperities[pt.asperity].R for pt in patches], dtype=float)
+    approaches = [float(d) for d in hertz.penetration(R, P, E_star)]   # each tip alone (Hertz)
     stacks = BlockStacks(provider) if BlockStacks.usable(provider) else None
     return initial_pressures(blocks, z_blocks, P, approaches, h, rtol=rtol, stacks=stacks)
 
