@@ -25,6 +25,32 @@ from .blocks import Coupling
 from .sources import lagrange3, source_frame, source_nodes, source_strengths
 
 
+def patch_frames(patches) -> tuple[np.ndarray, np.ndarray]:
+    """Centre (N, 2) mm and half-diagonal (N,) mm of each patch's grid."""
+    b = np.array([pt.grid.bounds for pt in patches], dtype=float).reshape(-1, 4)
+    centres = np.column_stack([0.5 * (b[:, 0] + b[:, 1]), 0.5 * (b[:, 2] + b[:, 3])])
+    return centres, 0.5 * np.hypot(b[:, 1] - b[:, 0], b[:, 3] - b[:, 2])
+
+
+def near_lists(centres: np.ndarray, radii: np.ndarray, far_tol: float) -> list:
+    """For each patch, the sorted indices of the others coupled exactly: centres closer
+    than ``(r_k + r_l) / sqrt(far_tol)`` (candidates from a k-d tree within
+    ``(r_k + r_max) / sqrt(far_tol)``)."""
+    from scipy.spatial import cKDTree
+
+    if len(centres) == 0:
+        return []
+    tree = cKDTree(centres)
+    cands = tree.query_ball_point(centres, (radii + float(radii.max())) / math.sqrt(far_tol))
+    out = []
+    for k, cand in enumerate(cands):
+        cand = np.asarray(cand, dtype=np.int64)
+        dist = np.hypot(*(centres[cand] - centres[k]).T)
+        keep = (dist * math.sqrt(far_tol) < radii[cand] + radii[k]) & (cand != k)
+        out.append(np.sort(cand[keep]))
+    return out
+
+
 def _columns(values: list) -> int:
     """Right-hand sides per block vector: 1 for (n,) vectors, m for (n, m)."""
     first = next((v for v in values if v is not None and v.size), None)
@@ -62,12 +88,7 @@ class FarFieldCoupling(Coupling):
     # ------------------------------------------------------------------ geometry
     def _reset(self) -> None:
         n = len(self.patches)
-        self._centres = np.zeros((n, 2))
-        self._radii = np.zeros(n)
-        for k, pt in enumerate(self.patches):
-            xmin, xmax, ymin, ymax = pt.grid.bounds
-            self._centres[k] = 0.5 * (xmin + xmax), 0.5 * (ymin + ymax)
-            self._radii[k] = 0.5 * math.hypot(xmax - xmin, ymax - ymin)
+        self._centres, self._radii = patch_frames(self.patches)
         self._near: dict = {}
         self._weights: dict = {}
         self._cells: dict = {}
@@ -83,15 +104,11 @@ class FarFieldCoupling(Coupling):
         self._reset()
 
     def near(self, k: int) -> np.ndarray:
-        """Indices ``l != k`` of the patches coupled exactly to patch ``k``."""
-        out = self._near.get(k)
-        if out is None:
-            dist = np.hypot(*(self._centres - self._centres[k]).T)
-            mask = dist * math.sqrt(self.far_tol) < self._radii + self._radii[k]
-            mask[k] = False
-            out = np.flatnonzero(mask)
-            self._near[k] = out
-        return out
+        """Indices ``l != k`` of the patches coupled exactly to patch ``k`` (all patches'
+        lists at once, by :func:`near_lists`, on first use after a change)."""
+        if not self._near:
+            self._near = dict(enumerate(near_lists(self._centres, self._radii, self.far_tol)))
+        return self._near[k]
 
     def _stencil(self, k: int) -> np.ndarray:
         g = self.patches[k].grid
@@ -227,9 +244,8 @@ class LaggedFarField(FarFieldCoupling):
 
     def _moved(self, k: int) -> None:
         """Patch ``k`` changed: its geometry, and every cache that depends on it."""
-        xmin, xmax, ymin, ymax = self.patches[k].grid.bounds
-        self._centres[k] = 0.5 * (xmin + xmax), 0.5 * (ymin + ymax)
-        self._radii[k] = 0.5 * math.hypot(xmax - xmin, ymax - ymin)
+        centre, radius = patch_frames([self.patches[k]])
+        self._centres[k], self._radii[k] = centre[0], radius[0]
         self._near = {}
         for key in [(k, False), (k, True)]:
             self._weights.pop(key, None)
@@ -248,25 +264,6 @@ class LaggedFarField(FarFieldCoupling):
     def replace(self, k: int, patch) -> None:
         Coupling.replace(self, k, patch)
         self._moved(k)
-
-    def near(self, k: int) -> np.ndarray:
-        if not self._near:
-            self._near_all()
-        return self._near[k]
-
-    def _near_all(self) -> None:
-        # pairs with dist < (r_k + r_l) / sqrt(far_tol): candidates within (r_k + r_max) / sqrt(far_tol)
-        from scipy.spatial import cKDTree
-        n = len(self.patches)
-        scale = 1.0 / math.sqrt(self.far_tol)
-        tree = cKDTree(self._centres)
-        rmax = float(self._radii.max()) if n else 0.0
-        cands = tree.query_ball_point(self._centres, (self._radii + rmax) * scale)
-        for k, cand in enumerate(cands):
-            cand = np.asarray(cand, dtype=np.int64)
-            dist = np.hypot(*(self._centres[cand] - self._centres[k]).T)
-            keep = (dist * math.sqrt(self.far_tol) < self._radii[cand] + self._radii[k]) & (cand != k)
-            self._near[k] = np.sort(cand[keep])
 
     def near_pattern(self):
         """Sparse (N, N) pattern of the near pairs (patch indices, ``k`` excluded)."""

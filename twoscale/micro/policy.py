@@ -121,21 +121,13 @@ def scene_figures(patches: Sequence[Patch], box_cells: int) -> dict:
 
 def near_neighbours(patches: Sequence[Patch], far_tol: float) -> float:
     """Mean number of patches a patch is coupled to exactly under far-field coupling with
-    ``far_tol``: centres closer than ``(r_k + r_l) / sqrt(far_tol)``, ``r`` the patch's
-    half-diagonal (the rule of :class:`~.farfield.FarFieldCoupling`)."""
-    from scipy.spatial import cKDTree
+    ``far_tol`` (the rule of :class:`~.farfield.FarFieldCoupling`:
+    :func:`~.farfield.near_lists`)."""
+    from .farfield import near_lists, patch_frames
 
     if len(patches) < 2:
         return 0.0
-    b = np.array([pt.grid.bounds for pt in patches])
-    centres = np.column_stack([0.5 * (b[:, 0] + b[:, 1]), 0.5 * (b[:, 2] + b[:, 3])])
-    r = 0.5 * np.hypot(b[:, 1] - b[:, 0], b[:, 3] - b[:, 2])
-    pairs = cKDTree(centres).query_pairs(2.0 * r.max() / math.sqrt(far_tol), output_type="ndarray")
-    if len(pairs) == 0:
-        return 0.0
-    dist = np.hypot(*(centres[pairs[:, 0]] - centres[pairs[:, 1]]).T)
-    near = dist < (r[pairs[:, 0]] + r[pairs[:, 1]]) / math.sqrt(far_tol)
-    return 2.0 * float(np.count_nonzero(near)) / len(patches)
+    return float(sum(len(c) for c in near_lists(*patch_frames(patches), far_tol))) / len(patches)
 
 
 def estimate_costs(patches: Sequence[Patch], box_cells: int) -> dict:
