@@ -1,7 +1,7 @@
 """A dense scene: the default solve over the full-grid FFT reference, interleaved.
 
 ``twoscale.synthetic.random_scene(n, kind="dense", control="load", seed, h, side)``
-(spheres R 3-6 mm, tips 0-0.1 mm deep, 1.5 N each, half-space E 6 MPa, nu 0.5; ``--E``
+(spheres R 3-6 mm, tips 0-0.1 mm deep, 2.5 N each (the family's default), half-space E 6 MPa, nu 0.5; ``--E``
 to change the modulus), solved ``--repeat`` times by the default two-scale solve and by
 ``method="reference"`` alternately (order swapped every repeat) in this process, after one
 warm-up solve of a small scene by each (imports and first-call costs are paid by neither).

@@ -20,12 +20,12 @@ The pipeline, one module per step:
 from .heightmap import HeightMap, SurfaceError
 from .indenter import MapAsperity, map_asperities
 from .lawcache import LawCache
-from .laws import LawTable, sphere_law_error, tabulate_laws
+from .laws import LawTable, sphere_law_error
 from .measured import MeasuredSurface, SurfaceOptions, build_surface, load_surface
 from .reading import RawMap, read_heightmap
 from .conditioning import condition
 from .segmentation import Segmentation, segment
 
 __all__ = ["HeightMap", "SurfaceError", "MapAsperity", "map_asperities", "LawCache", "LawTable",
-           "sphere_law_error", "tabulate_laws", "MeasuredSurface", "SurfaceOptions", "build_surface",
+           "sphere_law_error", "MeasuredSurface", "SurfaceOptions", "build_surface",
            "load_surface", "RawMap", "read_heightmap", "condition", "Segmentation", "segment"]

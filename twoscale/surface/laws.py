@@ -23,9 +23,7 @@ import numpy as np
 
 from ..grid import Grid
 from ..indenters import surface_on
-from ..influence import HalfSpace
 from ..laws import HertzLaw, TabulatedLaw
-from ..material import Material
 from ..reference import solve_cg
 
 #: Half-widths of the single-asperity grids are multiples of this many cells.
@@ -65,10 +63,6 @@ class LawTable:
         """The law of asperity ``k``."""
         return TabulatedLaw(self.delta[k], self.P[k])
 
-    def laws(self) -> list:
-        """One :class:`TabulatedLaw` per asperity."""
-        return [self.law(k) for k in range(len(self.delta))]
-
     def exponents(self) -> np.ndarray:
         """Exponent ``m`` of ``P ~ delta^m`` over the last two tabulated penetrations
         (Hertz: 1.5; a flat punch: 1)."""
@@ -76,40 +70,25 @@ class LawTable:
         return np.log(P[:, 1] / P[:, 0]) / np.log(d[:, 1] / d[:, 0])
 
 
-def tabulate_laws(asperities, material: Material, *, h: float, delta_max, levels: int = LEVELS,
-                  tol: float = SOLVE_TOL, progress=None) -> LawTable:
-    """Laws of map asperities from single-asperity solves; see the module docstring.
+def tabulate_law(asperity, provider, *, h: float, delta_max: float, levels: int = LEVELS,
+                 tol: float = SOLVE_TOL) -> LawTable:
+    """The law of one map asperity from single-asperity solves on the half-space
+    ``provider`` (see the module docstring): a one-row :class:`LawTable`.
 
     Parameters
     ----------
-    asperities : sequence of MapAsperity
-    material : Material
-        The body's E (MPa) and nu (only ``E*`` matters).
+    asperity : MapAsperity
+    provider : HalfSpace
+        The body (only ``E*`` matters).
     h : float
         Cell size, mm (the map's spacing after conditioning).
-    delta_max : float or (N,) array
-        Deepest tabulated penetration of each asperity, mm (> 0).
+    delta_max : float
+        Deepest tabulated penetration, mm (> 0).
     levels : int, default 5
-        Penetrations per asperity (halving down from ``delta_max``).
+        Penetrations tabulated (halving down from ``delta_max``).
     tol : float, default 1e-6
         CG tolerance of each solve.
-    progress : callable, optional
-        ``progress(text)`` every 50 asperities.
     """
-    dmax = np.broadcast_to(np.asarray(delta_max, dtype=float), (len(asperities),))
-    provider = HalfSpace(material)
-    rows = []
-    for k, a in enumerate(asperities):
-        if progress is not None and k % 50 == 0:
-            progress(f"asperity laws: {k} of {len(asperities)}")
-        rows.append(tabulate_law(a, provider, h=h, delta_max=float(dmax[k]), levels=levels, tol=tol))
-    return stack_tables(rows)
-
-
-def tabulate_law(asperity, provider, *, h: float, delta_max: float, levels: int = LEVELS,
-                 tol: float = SOLVE_TOL) -> LawTable:
-    """The law of one map asperity (a one-row :class:`LawTable`) on the half-space
-    ``provider``; arguments as :func:`tabulate_laws`."""
     if not (isinstance(levels, int) and levels >= 1):
         raise ValueError(f"levels must be an integer >= 1, got {levels!r}")
     if not (np.isfinite(delta_max) and delta_max > 0):

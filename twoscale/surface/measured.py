@@ -104,20 +104,30 @@ class LawBook:
     def row(self, label: int, material) -> LawTable:
         """The tabulated law of asperity ``label`` (computed, or read from the cache)."""
         E_star = float(material.E_star)
-        if (E_star, label) in self._rows:
-            return self._rows[(E_star, label)]
-        if len(self._rows) >= BOOK_ROWS:
-            self._rows.pop(next(iter(self._rows)))
-        key = self._key(E_star, label)
-        table = self.cache.get(key) if self.cache is not None else None
+        table = self._held(E_star, label)
         if table is None:
             table = tabulate_law(self.asperities[label], self._provider(material), h=self.h,
                                  delta_max=self.options.law_depth, levels=self.options.law_levels)
             self.tabulated += 1
             if self.cache is not None:
-                self.cache.put(key, table)
-        self._rows[(E_star, label)] = table
+                self.cache.put(self._key(E_star, label), table)
+            self._keep(E_star, label, table)
         return table
+
+    def _held(self, E_star: float, label: int) -> LawTable | None:
+        """The law if held or on disk (then held), else None."""
+        table = self._rows.get((E_star, label))
+        if table is None and self.cache is not None:
+            table = self.cache.get(self._key(E_star, label))
+            if table is not None:
+                self._keep(E_star, label, table)
+        return table
+
+    def _keep(self, E_star: float, label: int, table: LawTable) -> None:
+        """Hold ``table``, dropping the oldest held law past ``BOOK_ROWS``."""
+        if len(self._rows) >= BOOK_ROWS:
+            self._rows.pop(next(iter(self._rows)))
+        self._rows[(E_star, label)] = table
 
     def table(self, material, *, progress=None) -> LawTable:
         """The laws of every asperity for ``material``."""
@@ -130,13 +140,7 @@ class LawBook:
 
     def known(self, label: int, material) -> bool:
         """Whether the tabulated law of ``label`` costs nothing now (held, or on disk)."""
-        E_star = float(material.E_star)
-        if (E_star, label) in self._rows:
-            return True
-        table = self.cache.get(self._key(E_star, label)) if self.cache is not None else None
-        if table is not None:
-            self._rows[(E_star, label)] = table
-        return table is not None
+        return self._held(float(material.E_star), label) is not None
 
     def law(self, label: int, material):
         """Law of asperity ``label``, by the ``law`` option: ``"tabulated"`` (computed when

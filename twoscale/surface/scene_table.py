@@ -32,6 +32,7 @@ import os
 from typing import Any, Mapping
 
 from ..scene import SceneError, check_number
+from ..io.scene_file import check_keys
 from .lawcache import LawCache
 from .measured import MeasuredSurface, SurfaceOptions, load_surface
 
@@ -51,9 +52,7 @@ def surface_from_table(table: Mapping[str, Any], *, base_dir: str | None = None,
         Unknown or invalid keys (named ``surface.KEY``), or a file that cannot be used
         (:class:`twoscale.surface.SurfaceError`, naming the file).
     """
-    for key in table:
-        if key not in SURFACE_KEYS:
-            raise SceneError(f"unknown key surface.{key} = {table[key]!r} (allowed: {', '.join(SURFACE_KEYS)})")
+    check_keys("surface", table, SURFACE_KEYS)
     if "file" not in table:
         raise SceneError("surface.file is missing (required: the height map, relative to the scene file)")
     if not isinstance(table["file"], str) or not table["file"]:
