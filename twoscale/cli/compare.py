@@ -65,10 +65,11 @@ from ..io.result_json import UNITS, write_result
 from ..io.scene_file import read_scene, scene_to_dict
 from ..progress import Progress
 from ..resources import check_memory, estimate_memory
-from ..scene import BLOCK_DEFAULT_SIZE, METHODS, Scene, SceneError, default_h
+from ..scene import METHODS, Scene, SceneError, default_h, normalise_influence
 from ..sensor import Sensor, forces_from_map, read_sensor_map, read_tip_forces
 from .options import DEFAULT_SENSOR, add_sensor_arguments, sensor_from_args
-from .solve import check_out_dir, positive_option
+from .options import positive_option
+from .solve import check_out_dir
 from .staging import staged_directory
 
 #: Bodies compared, in table order: name -> (influence kind, block base).
@@ -163,11 +164,11 @@ def _influence(scene: Scene, body: str) -> dict:
     kind, base = BODIES[body]
     if kind == "halfspace":
         return {"kind": "halfspace"}
-    inf = scene.influence
-    size = inf["size"] if inf["kind"] == "block" else BLOCK_DEFAULT_SIZE
-    origin = inf["origin"] if inf["kind"] == "block" else (0.0, 0.0)
-    spacing = inf["source_spacing"] if inf["kind"] == "block" else 5.0
-    return {"kind": "block", "size": tuple(size), "base": base, "origin": tuple(origin), "source_spacing": spacing}
+    # the scene's own block options where it has a block, else the defaults, with this base
+    own = {k: v for k, v in scene.influence.items() if k != "base"} if scene.influence["kind"] == "block" else {}
+    inf = normalise_influence({**own, "kind": "block", "base": base})
+    return {"kind": "block", "size": tuple(inf["size"]), "base": base, "origin": tuple(inf["origin"]),
+            "source_spacing": inf["source_spacing"]}
 
 
 # ---------------------------------------------------------------- solving

@@ -1,4 +1,5 @@
-"""Command-line options shared by several commands: the sensor (``--sensor``, ``--sensor-centre``).
+"""Command-line options shared by several commands: positive numbers, the sensor
+(``--sensor``, ``--sensor-centre``).
 
 Each parser turns the text given into a value or raises :class:`~twoscale.scene.SceneError`
 naming the option and the text (the command prints it as one ``error:`` line, exit 2).
@@ -10,7 +11,6 @@ import math
 
 from ..scene import SceneError
 from ..sensor import Sensor
-from .solve import positive_option
 
 #: The paper's pressure sensor, used unless --sensor / --sensor-centre say otherwise.
 DEFAULT_SENSOR = Sensor()
@@ -23,6 +23,25 @@ def add_sensor_arguments(parser: argparse.ArgumentParser) -> None:
                              f"(default {DEFAULT_SENSOR.nx} {DEFAULT_SENSOR.ny} {DEFAULT_SENSOR.cell:g})")
     parser.add_argument("--sensor-centre", metavar=("X", "Y"), nargs=2, default=None,
                         help="sensor centre in scene coordinates, mm (default 0 0)")
+
+
+def positive_option(text: str | None, name: str, *, unit: str) -> float | None:
+    """A command-line value that must be a finite number > 0 (``None`` passes through).
+
+    Raises
+    ------
+    SceneError
+        Naming the option ``name`` and the text given.
+    """
+    if text is None:
+        return None
+    try:
+        v = float(text)
+    except ValueError:
+        v = math.nan
+    if not (math.isfinite(v) and v > 0):
+        raise SceneError(f"{name} must be a finite number > 0 ({unit}), got {text!r}")
+    return v
 
 
 def int_option(text: str, name: str) -> int:

@@ -31,6 +31,7 @@ from ..micro.policy import ITERATIONS
 from ..progress import StatusLine
 from ..resources import check_memory, estimate_memory
 from ..scene import METHODS, SceneError, default_h, solve_scene
+from .options import positive_option
 from .staging import check_output_folder, staged_directory
 
 #: Asperity rows printed in the summary before it is cut short.
@@ -60,25 +61,6 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--quiet", action="store_true",
                         help="print nothing but errors (no status line or progress bar either; they are "
                              "drawn only when stderr is a terminal)")
-
-
-def positive_option(text: str | None, name: str, *, unit: str) -> float | None:
-    """A command-line value that must be a finite number > 0 (``None`` passes through).
-
-    Raises
-    ------
-    SceneError
-        Naming the option ``name`` and the text given.
-    """
-    if text is None:
-        return None
-    try:
-        v = float(text)
-    except ValueError:
-        v = math.nan
-    if not (math.isfinite(v) and v > 0):
-        raise SceneError(f"{name} must be a finite number > 0 ({unit}), got {text!r}")
-    return v
 
 
 def check_out_dir(out, *, overwrite: bool = False) -> None:
