@@ -14,7 +14,7 @@ from scipy.optimize import brentq
 from twoscale import Material
 from twoscale.indenters import Asperity
 from twoscale.io.scene_file import read_scene
-from twoscale.scene import MIN_FORCE_FRACTION, Scene, SceneError, default_h
+from twoscale.scene import CELL_BUDGET, MIN_FORCE_FRACTION, Scene, SceneError, default_h
 
 EXAMPLES = Path(__file__).resolve().parent.parent / "examples"
 
@@ -54,7 +54,7 @@ def hertz_forces(R: np.ndarray, z: np.ndarray, W: float, E_star: float) -> np.nd
 
 def test_300_similar_tips_get_24_to_32_cells_across_the_smallest_resolved_contact():
     scene = random_scene(300, side=60.0, total=450.0, seed=14)
-    h = default_h(scene)
+    h = default_h(scene, cell_budget=None)  # the rule alone (its patches carry ~2 M cells)
     R = np.array([a.R for a in scene.asperities])
     z = np.array([a.z for a in scene.asperities])
     E_star = scene.material.E_star
@@ -97,3 +97,31 @@ def test_no_loaded_tip_is_a_scene_error():
     scene = random_scene(3, side=20.0, total=1.0)
     with pytest.raises(SceneError, match="grid.h"):
         default_h(scene, min_force_fraction=2.0)
+
+
+def _patch_cells(scene: Scene, h: float) -> float:
+    """Cells of squares of half-width 1.3 a + 2 h around every independent Hertz contact
+    (computed here from :func:`hertz_forces`, not by the library)."""
+    R = np.array([a.R for a in scene.asperities])
+    z = np.array([a.z for a in scene.asperities])
+    P = hertz_forces(R, z, scene.total_load, scene.material.E_star)
+    a = (3.0 * P * R / (4.0 * scene.material.E_star)) ** (1.0 / 3.0)
+    a = a[P > 0]
+    return float(np.sum((np.floor(2.0 * (1.3 * a + 2.0 * h) / h) + 1.0) ** 2))
+
+
+def test_a_light_load_on_many_tips_keeps_the_patches_within_the_cell_budget():
+    # 300 spheres whose heights spread over 0.1 mm under 0.1 N each: 32 cells across the
+    # smallest contact that matters would carry several million cells
+    scene = random_scene(300, side=60.0, total=30.0, seed=3)
+    rule = default_h(scene, cell_budget=None)
+    h = default_h(scene)
+    assert _patch_cells(scene, rule) > 1.5 * CELL_BUDGET  # the rule alone is over budget
+    # paraboloid Hertz radii are within 1 % of the spheres' exact caps at these loads
+    assert _patch_cells(scene, h) <= 1.01 * CELL_BUDGET
+    # and h is not coarser than it must be: 3 % finer (less than the two-digit rounding
+    # step of 1/0.93 ... 1/0.99) would be over budget
+    assert _patch_cells(scene, 0.96 * h) > 0.99 * CELL_BUDGET
+    # a scene within the budget keeps the rule's h
+    small = random_scene(20, side=40.0, total=30.0, seed=3)
+    assert default_h(small) == default_h(small, cell_budget=None)

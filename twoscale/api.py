@@ -202,13 +202,14 @@ def solve(problem, *, method="twoscale", provider=None, material: Material | Non
     if provider is not None and provider_options:
         raise ValueError(f"provider_options apply to a provider built here, not to the one passed "
                          f"(got {sorted(provider_options)!r})")
+    h_given = h is not None
     h = default_h(scene)
     if not callable(method) and (memory_limit is None or memory_limit < math.inf):
-        from .resources import check_memory, estimate_memory
+        from .resources import check_solve_memory
 
-        family = "twoscale" if method == "twoscale" else "reference"
         iteration = options.get("iteration", "auto") if method == "twoscale" else "auto"
-        check_memory(estimate_memory(scene, h, family, iteration=iteration), memory_limit, option="grid.h")
+        check_solve_memory(scene, h, "twoscale" if method == "twoscale" else "reference", iteration=iteration,
+                           limit_bytes=memory_limit, option="h" if h_given else "grid.h", h_given=h_given)
     if provider is None:
         provider = scene.provider(**(provider_options or {}))
     elif provider.material != scene.material:

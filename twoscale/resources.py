@@ -36,6 +36,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .grid import Grid
+from .micro.policy import UNION_MIN_COVERAGE
 from .scene import METHODS, Scene, SceneError, expected_approaches, expected_contact_radii
 
 #: Resident memory of ``twoscale solve --out`` on a small scene: the interpreter with
@@ -60,9 +61,6 @@ MARGIN = 1.3
 #: Cells a merged block may have over its members (``twoscale.micro.solve.MERGE_GROWTH``):
 #: the largest block's FFT work is counted this much larger.
 MERGE_GROWTH = 2.0
-#: The union box is counted when the patches cover at least this share of it (below it
-#: the policy prefers the block iterations: the box is mostly empty).
-UNION_MIN_COVERAGE = 0.1
 #: Largest number of asperities whose macro step holds the dense N x N matrix
 #: (``twoscale.macro.solve.DENSE_MAX``).
 MACRO_DENSE_MAX = 3000
@@ -274,6 +272,25 @@ def _patch_box(scene: Scene, r: np.ndarray, h: float) -> Grid | None:
 
 
 # ---------------------------------------------------------------- the check
+def check_solve_memory(scene: Scene, h: float, method: str = "twoscale", *, iteration: str = "auto",
+                       limit_bytes: float | None = None, option: str = "--h", h_given: bool = False) -> None:
+    """:func:`check_memory` for solving ``scene`` at ``h``: the refusal names where h came
+    from (``option``, the scene's ``grid.h``, or the default rule) and suggests an h whose
+    estimate was checked to fit."""
+    if h_given:
+        source = f"given as {option}"
+    elif scene.h is not None:
+        source = "the scene's grid.h"
+    else:
+        source = "the default, chosen from the scene"
+    family = "twoscale" if method == "twoscale" else "reference"
+
+    def refit(hh: float) -> MemoryEstimate:
+        return estimate_memory(scene, hh, family, iteration=iteration)
+
+    check_memory(refit(h), limit_bytes, option=option, source=source, refit=refit)
+
+
 def available_memory() -> float:
     """Memory available to a new allocation, bytes: ``MemAvailable`` of /proc/meminfo, else
     the free physical pages (``os.sysconf``); ``inf`` when neither can be read."""
@@ -295,7 +312,8 @@ def default_limit() -> float:
     return DEFAULT_FRACTION * available_memory()
 
 
-def check_memory(estimate: MemoryEstimate, limit_bytes: float | None = None, *, option: str = "--h") -> None:
+def check_memory(estimate: MemoryEstimate, limit_bytes: float | None = None, *, option: str = "--h",
+                 source: str | None = None, refit=None) -> None:
     """Raise :class:`SceneError` when ``estimate`` exceeds the limit.
 
     Parameters
@@ -306,12 +324,19 @@ def check_memory(estimate: MemoryEstimate, limit_bytes: float | None = None, *, 
         ``math.inf``: no limit.
     option : str, default "--h"
         The option the message tells the user to change (``"grid.h"`` in a scene file).
+    source : str, optional
+        Where the cell size came from, in words (e.g. ``"the default, chosen from the
+        scene"``), named in the message.
+    refit : callable, optional
+        ``refit(h) -> MemoryEstimate`` for the same solve at another cell size: the
+        suggested h is then one whose estimate was checked to fit (else it is scaled as
+        ``1 / h^2``, which the patches' margins and fixed costs make optimistic).
 
     Raises
     ------
     SceneError
-        One line: the estimate in GB, the limit in GB, and the option to change with
-        the value at which the estimate would fit.
+        One line: the estimate in GB, the limit in GB, where h came from, and the option
+        to change with a value at which the estimate fits.
     ValueError
         When ``limit_bytes`` is not > 0.
     """
@@ -322,19 +347,27 @@ def check_memory(estimate: MemoryEstimate, limit_bytes: float | None = None, *, 
         return
     gb = f"{estimate.bytes / 1e9:.2g}" if estimate.bytes < 1e11 else f"{estimate.bytes / 1e9:,.0f}"
     which = "80 % of the memory available now" if limit_bytes is None else "given"
+    where = f"h = {estimate.h:g} mm ({source})" if source else f"{option} = {estimate.h:g} mm"
     raise SceneError(
-        f"the solve at {option} = {estimate.h:g} mm needs about {gb} GB of memory ({estimate.cells:,} "
+        f"the solve at {where} needs about {gb} GB of memory ({estimate.cells:,} "
         f"cells, mostly {estimate.dominant}), over the limit of {limit / 1e9:.3g} GB ({which}); "
-        f"{_advice(estimate, limit, option)}")
+        f"{_advice(estimate, limit, option, refit)}")
 
 
-def _advice(estimate: MemoryEstimate, limit: float, option: str) -> str:
-    """What to change: the cell size at which the estimate fits (cells go as 1/h^2)."""
+def _advice(estimate: MemoryEstimate, limit: float, option: str, refit=None) -> str:
+    """What to change: a cell size at which the estimate fits (checked with ``refit``)."""
     room = limit - BASE_BYTES
     if room <= 0:
         return f"the machine has too little memory available for any {option}"
     h = estimate.h * math.sqrt(max(estimate.bytes - BASE_BYTES, 0.0) / room)
     h = _round_up(h * 1.05, digits=2)  # 5 % slack: the estimate is not exactly 1/h^2
+    if refit is not None:
+        for _ in range(40):  # cells fall at least as 1 / h: 40 steps of 10 % cover 45x
+            if refit(h).bytes <= limit:
+                break
+            h = _round_up(h * 1.1, digits=2)
+        else:
+            return f"no {option} up to {h:g} mm fits"
     sep = " " if option.startswith("-") else " = "
     return f"try {option}{sep}{h:g} mm or larger"
 

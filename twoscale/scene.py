@@ -35,6 +35,14 @@ CELLS_ACROSS = 32
 #: grid). Relative to the largest force, not the total, so the rule keeps the most loaded
 #: tips whatever their number (with 200 similar tips none carries 1 % of the total).
 MIN_FORCE_FRACTION = 0.01
+#: Cells the patches of a default cell size may carry at most (estimated from the scene
+#: before solving, :func:`patch_cells`). Where 32 cells across the smallest contact that
+#: matters would carry more (light loads on many tips whose heights spread: 300 spheres at
+#: 0.1 N each on 60 x 60 mm asked for h = 0.0072 mm and 8 M cells), the default h is
+#: coarsened until the patches fit: the two-level iteration carries about 1 M cells in
+#: 15 s on one core, so the default solve stays well within a minute, and the smallest
+#: contact that matters keeps fewer cells (a :class:`~twoscale.api.ResolutionWarning` below 4).
+CELL_BUDGET = 1_500_000
 
 
 class SceneError(ValueError):
@@ -346,7 +354,7 @@ def _contact_radii(asperities, delta) -> np.ndarray:
 
 
 def default_h(scene: Scene, *, cells_across: int = CELLS_ACROSS,
-              min_force_fraction: float = MIN_FORCE_FRACTION) -> float:
+              min_force_fraction: float = MIN_FORCE_FRACTION, cell_budget: float | None = CELL_BUDGET) -> float:
     """Cell size (mm) chosen from the scene.
 
     Rule: estimate each asperity's approach (:func:`expected_approaches`) and its
@@ -355,9 +363,11 @@ def default_h(scene: Scene, *, cells_across: int = CELLS_ACROSS,
     force, take the smallest contact diameter 2a and divide it by ``cells_across``;
     round down to two significant digits: that estimated contact gets 32-35 cells
     across. The approach estimate ignores interaction, which lowers it, so the real
-    contact is smaller (24-32 cells on the examples; fewer where tips crowd). The threshold is relative to the largest tip force, not to the total load, so it
-    works for any number of asperities (a force ratio of 1 % is an approach ratio of
-    about 5 % and a contact radius ratio of about 20 %).
+    contact is smaller (24-32 cells on the examples; fewer where tips crowd). The
+    threshold is relative to the largest tip force, not to the total load, so it works for
+    any number of asperities (a force ratio of 1 % is an approach ratio of about 5 % and a
+    contact radius ratio of about 20 %). Where the patches would then carry more than
+    ``cell_budget`` cells, h is coarsened until they fit (:data:`CELL_BUDGET`).
 
     Parameters
     ----------
@@ -367,6 +377,10 @@ def default_h(scene: Scene, *, cells_across: int = CELLS_ACROSS,
     min_force_fraction : float, default 0.01
         Asperities expected to carry less than this fraction of the largest expected
         tip force are not used to choose h (they still get cells; only coarser).
+    cell_budget : float or None, default CELL_BUDGET
+        Largest number of cells the patches may carry (:func:`patch_cells`); where the
+        rule's h would carry more, h is coarsened (rounded up to two digits) until they
+        fit. None: no budget.
 
     Returns
     -------
@@ -389,7 +403,36 @@ def default_h(scene: Scene, *, cells_across: int = CELLS_ACROSS,
     if not (math.isfinite(diameter) and diameter > 0):
         raise SceneError(f"grid.h: the smallest expected contact diameter is {diameter!r} mm, so no "
                          f"default cell size can be chosen; give [grid] h")
-    return _round_down(diameter / cells_across, digits=2)
+    h = _round_down(diameter / cells_across, digits=2)
+    if cell_budget is None or patch_cells(radius, h) <= cell_budget:
+        return h
+    while patch_cells(radius, h) > cell_budget:  # cells fall about as 1 / h^2
+        h *= max(1.02, 0.99 * math.sqrt(patch_cells(radius, h) / cell_budget))
+    return _round_up(h, digits=2)
+
+
+#: Patch half-width over the contact radius (the two-scale solver's default ``margin``).
+PATCH_MARGIN = 1.3
+
+
+def patch_cells(radii: np.ndarray, h: float, *, margin: float = PATCH_MARGIN) -> float:
+    """Cells the patches of contacts of radii ``radii`` (mm; 0: no contact) carry at cell
+    size ``h``: squares of half-width ``margin a + 2 h`` (an upper estimate: interaction
+    only shrinks contacts)."""
+    a = np.asarray(radii, dtype=float)
+    a = a[a > 0]
+    return float(np.sum((np.floor(2.0 * (margin * a + 2.0 * h) / h) + 1.0) ** 2))
+
+
+def default_h_coarsened(scene: Scene) -> bool:
+    """Whether :func:`default_h` coarsened the rule's cell size to :data:`CELL_BUDGET`."""
+    return scene.h is None and default_h(scene) != default_h(scene, cell_budget=None)
+
+
+def _round_up(x: float, *, digits: int) -> float:
+    """``x`` rounded up to ``digits`` significant digits."""
+    e = math.floor(math.log10(x)) - (digits - 1)
+    return float(f"{math.ceil(x / 10.0 ** e * (1 - 1e-12)) * 10.0 ** e:.{digits + 1}g}")
 
 
 def _round_down(x: float, *, digits: int) -> float:

@@ -64,7 +64,7 @@ from ..io.atomic import atomic_output
 from ..io.result_json import UNITS, write_result
 from ..io.scene_file import read_scene, scene_to_dict
 from ..progress import Progress
-from ..resources import check_memory, estimate_memory
+from ..resources import check_solve_memory
 from ..scene import METHODS, Scene, SceneError, default_h, normalise_influence
 from ..sensor import Sensor, forces_from_map, read_sensor_map, read_tip_forces
 from .options import DEFAULT_SENSOR, add_sensor_arguments, sensor_from_args
@@ -197,7 +197,7 @@ def _check_memory(scenes, method: str) -> None:
     body = "block-bonded" if _block_factory()[0] is not None else "halfspace"
     for sc in scenes:
         sc = dataclasses.replace(sc, influence=_influence(sc, body))
-        check_memory(estimate_memory(sc, default_h(sc), method), option="--h")
+        check_solve_memory(sc, default_h(sc), method, option="--h")
 
 
 def _providers(scene: Scene, quiet: bool) -> tuple[dict, list[str]]:

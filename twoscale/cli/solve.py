@@ -29,7 +29,7 @@ from ..io.scene_file import read_scene
 from ..io.solve_outputs import write_fields_and_figures
 from ..micro.policy import ITERATIONS
 from ..progress import StatusLine
-from ..resources import check_memory, estimate_memory
+from ..resources import check_solve_memory
 from ..scene import METHODS, SceneError, default_h, solve_scene
 from .options import positive_option
 from .staging import check_output_folder, staged_directory
@@ -107,7 +107,8 @@ def run(args: argparse.Namespace) -> int:
                 raise SceneError("--far-tol applies to the block iterations, not to --iteration union-cg")
             options["iteration"] = iteration
         # before anything large is allocated: refuse a solve the machine cannot hold
-        check_memory(estimate_memory(scene, default_h(scene), args.method, iteration=iteration), option="--h")
+        check_solve_memory(scene, default_h(scene), args.method, iteration=iteration, option="--h",
+                           h_given=h is not None)
         t0 = time.perf_counter()
         quiet_block = {"progress": False} if args.quiet and scene.influence["kind"] == "block" else None
         with StatusLine(quiet=args.quiet) as status:

@@ -21,7 +21,7 @@ import numpy as np
 from ..indenters import Asperity
 from ..influence.base import InfluenceProvider
 from .patches import TipTable, build_patches
-from .policy import ITERATIONS, Choice, choose
+from .policy import ITERATIONS, UNION_MIN_COVERAGE, Choice, choose
 from .solve import EXACT_FAR_TOL, MicroResult, solve_micro
 from .strategies import BlockGaussSeidel, Exact, FarField, MicroContext, TwoLevel, UnionCG
 from .union import box_of
@@ -151,4 +151,8 @@ def _order(choice: Choice) -> list:
         # the two-level iteration can stall where contacts merge: the paper's iteration decides
         return [(TwoLevel(), Exact(), TWO_LEVEL_SWEEPS), (BlockGaussSeidel(), Exact(), None)]
     # far-field coupling can fail to converge where contacts merge: the union CG decides
-    return [(TwoLevel(), coupling, TWO_LEVEL_SWEEPS), (UnionCG(), Exact(), None)]
+    # where the patches crowd their box; elsewhere its box is mostly empty (and may not fit
+    # in memory), and block Gauss-Seidel with the same coupling decides
+    if choice.estimates.get("coverage", 1.0) >= UNION_MIN_COVERAGE:
+        return [(TwoLevel(), coupling, TWO_LEVEL_SWEEPS), (UnionCG(), Exact(), None)]
+    return [(TwoLevel(), coupling, TWO_LEVEL_SWEEPS), (BlockGaussSeidel(), coupling, None)]

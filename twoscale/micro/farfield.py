@@ -153,7 +153,7 @@ class FarFieldCoupling(Coupling):
         # stale when its vector is not the very object seen last time
         stale = [l for l, (v, seen) in enumerate(zip(values, self._seen)) if v is not seen and v is not None]
         for l in stale:
-            v = values[l].reshape(len(values[l]), -1)
+            v = values[l].reshape(len(values[l]), m)  # m columns also for a block owning no cell
             h2 = self.patches[l].grid.h ** 2
             pts = self._owned_points(l)
             F = h2 * v.sum(axis=0)

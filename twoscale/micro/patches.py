@@ -73,20 +73,33 @@ class TipTable(Sequence):
         # material radius: spheres R, paraboloids inf, height-map basins their extent
         self.R = np.array([a.material_radius for a in self.asperities], dtype=float)
         self.unbounded = ~np.isfinite(self.R)
+        # paraboloids: tip recess and curvature radius, for the lower bound of their height
+        self.parabolic = np.array([type(a) is Asperity and a.shape == "paraboloid" for a in self.asperities])
+        self.z = np.array([a.z for a in self.asperities], dtype=float)
+        self.curvature = np.array([a.R for a in self.asperities], dtype=float)
         self._tree = None
 
     @classmethod
     def of(cls, asperities: Sequence[Asperity]) -> "TipTable":
         return asperities if isinstance(asperities, cls) else cls(asperities)
 
-    def reaching(self, bounds: tuple[float, float, float, float], *, index: bool = True) -> np.ndarray:
+    def reaching(self, bounds: tuple[float, float, float, float], *, index: bool = True,
+                 below: float = math.inf) -> np.ndarray:
         """Sorted indices of the asperities whose material (``r < R``) can reach the box
-        ``(xmin, xmax, ymin, ymax)`` (mm); unbounded ones always. With ``index`` the
-        bounded candidates come from a k-d tree of the tips (built on first use, so a solve
-        that builds thousands of patches pays ``O(log N)`` per patch instead of ``O(N)``)."""
+        ``(xmin, xmax, ymin, ymax)`` (mm); unbounded ones always, except paraboloids whose
+        lowest point over the box is not below ``below`` (mm: a height the surface is known
+        not to exceed there, so they own no cell of it). With ``index`` the bounded
+        candidates come from a k-d tree of the tips (built on first use, so a solve that
+        builds thousands of patches pays ``O(log N)`` per patch instead of ``O(N)``)."""
         xmin, xmax, ymin, ymax = bounds
         cand = np.arange(len(self.x))
         bounded = np.flatnonzero(~self.unbounded)
+        unbounded = self.unbounded
+        if math.isfinite(below):
+            dx = np.maximum(np.maximum(xmin - self.x, self.x - xmax), 0.0)
+            dy = np.maximum(np.maximum(ymin - self.y, self.y - ymax), 0.0)
+            low = self.z + (dx * dx + dy * dy) / (2.0 * self.curvature)
+            unbounded = unbounded & ~(self.parabolic & (low >= below))
         if index and bounded.size > TREE_MIN:
             if self._tree is None:
                 from scipy.spatial import cKDTree
@@ -94,17 +107,23 @@ class TipTable(Sequence):
             # every tip within R of the box is within R_max + half-diagonal of its centre
             radius = float(self.R[bounded].max()) + 0.5 * math.hypot(xmax - xmin, ymax - ymin)
             near = bounded[self._tree.query_ball_point([0.5 * (xmin + xmax), 0.5 * (ymin + ymax)], radius)]
-            cand = np.union1d(near, np.flatnonzero(self.unbounded))
+            cand = np.union1d(near, np.flatnonzero(unbounded))
         x, y, R = self.x[cand], self.y[cand], self.R[cand]
         dx = np.maximum(np.maximum(xmin - x, x - xmax), 0.0)
         dy = np.maximum(np.maximum(ymin - y, y - ymax), 0.0)
-        return cand[self.unbounded[cand] | (np.hypot(dx, dy) < R)]
+        return cand[unbounded[cand] | (~self.unbounded[cand] & (np.hypot(dx, dy) < R))]
 
     def __len__(self) -> int:
         return len(self.asperities)
 
     def __getitem__(self, k):
         return self.asperities[k]
+
+
+def _highest(grid: Grid, owners: Sequence[Asperity]) -> float:
+    """The highest the rigid surface can be on ``grid`` (mm): the largest, over its cells,
+    of the lowest of ``owners`` (an asperity owning no cell of its own patch gives inf)."""
+    return float(np.max(surface_on(grid, owners).height))
 
 
 def make_patch(k: int, grid: Grid, asperities: Sequence[Asperity], members: tuple = ()) -> Patch:
@@ -115,7 +134,9 @@ def make_patch(k: int, grid: Grid, asperities: Sequence[Asperity], members: tupl
     ``inf`` there), so building a patch costs its cells times the nearby asperities only.
     """
     # a table made here is used once: its tree would cost more than the direct test
-    keep = TipTable.of(asperities).reaching(grid.bounds, index=isinstance(asperities, TipTable)).tolist()
+    table = TipTable.of(asperities)
+    keep = table.reaching(grid.bounds, index=isinstance(asperities, TipTable),
+                          below=_highest(grid, [asperities[m] for m in (members or (k,))])).tolist()
     surf = surface_on(grid, [asperities[l] for l in keep])
     index = np.append(np.asarray(keep, dtype=np.int64), -1)
     return Patch(k, grid, surf.height, index[surf.owner], members)

@@ -69,6 +69,13 @@ NEAR_PAIRS_CALIBRATION = 16.4
 FAR_FIELD_MIN_PATCHES = 100
 #: Above this many patches, exact pair coupling is not considered (N^2 pairs).
 EXACT_MAX_PATCHES = 400
+#: The union CG (chosen, or as the fallback of a block iteration that stalled) only where
+#: the patches carry at least this share of their bounding box: below it the box is mostly
+#: empty, its CG costs more than the block iterations wherever they converge, and its
+#: memory grows with the box, not with the contacts (300 light spheres scattered on
+#: 60 x 60 mm, 12 % of the box: a union CG of 9.6 s against 3.0 s for the two-level
+#: iteration, and at a fine h a box of 70 M cells).
+UNION_MIN_COVERAGE = 0.25
 #: Far-field tolerance chosen by the policy (relative size of a far pair, see
 #: :class:`~.farfield.LaggedFarField`: nine moment-matching sources per patch, error of
 #: order ``(r / d)^3``). Measured against the full-grid reference (largest per-tip error,
@@ -159,9 +166,12 @@ def choose(patches: Sequence[Patch], box_cells: int, *, merged_contacts: bool = 
     """The iteration and coupling for these patches (see the module docstring).
 
     ``merged_contacts``: the macro step met contacts so close that they merge (its safe
-    path); the two-level iteration with far-field coupling tends to stall there (a cell's
-    contact state flips between sweeps), so it is not chosen; nor below
-    ``FAR_FIELD_MIN_PATCHES`` patches. ``load_control``: where exact block iterations are
+    path). The block iterations solve merged patches as one block, so this rules nothing
+    out (the union CG over the whole box was the answer once, and ran 300 light spheres on
+    a box of 70 M cells, 88 % empty); under load control it keeps the paper's block
+    Gauss-Seidel where exact coupling is cheapest. The far field is not used below
+    ``FAR_FIELD_MIN_PATCHES`` patches, nor the union CG where the patches cover less than
+    ``UNION_MIN_COVERAGE`` of their box. ``load_control``: where exact block iterations are
     cheapest, their two-level variant runs first (its coarse step corrects the approach
     and tilt instead of sensitivity sweeps: S1-S3 2.7-3x faster), block Gauss-Seidel if it
     stalls; the choice names the two-level iteration with exact coupling."""
@@ -175,8 +185,10 @@ def choose(patches: Sequence[Patch], box_cells: int, *, merged_contacts: bool = 
     candidates = dict(costs)
     if n > EXACT_MAX_PATCHES:
         candidates.pop("block-gs")
-    if merged_contacts or n < FAR_FIELD_MIN_PATCHES:
+    if n < FAR_FIELD_MIN_PATCHES:
         candidates.pop("two-level")
+    if figures["coverage"] < UNION_MIN_COVERAGE and len(candidates) > 1:
+        candidates.pop("union-cg")
     best = min(candidates, key=candidates.get)
     rest = {k: v for k, v in candidates.items() if k != "union-cg"}
     if best == "union-cg" and rest and candidates[best] > UNION_MARGIN * min(rest.values()):

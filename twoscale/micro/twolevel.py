@@ -18,6 +18,7 @@ not grow with their count.
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -32,6 +33,10 @@ from .pk_stack import BlockStacks
 #: change smaller than before: where contacts merge it can cycle at a change of ~0.5 for
 #: its whole budget (100 sweeps, 90-125 s on an 80-tip scene).
 STALL_SWEEPS = 10
+#: Sweeps over which the contraction rate is measured (:func:`too_slow`), and the rate
+#: above which an iteration that cannot reach its tolerance in its budget stops early.
+RATE_SWEEPS = 4
+SLOW_RATE = 0.8
 
 
 @dataclass(frozen=True)
@@ -60,6 +65,28 @@ class TwoLevelResult:
     history: tuple
     coarse_iterations: int
     message: str
+
+
+def too_slow(history: list, tol: float, remaining: int) -> str:
+    """Why to stop an iteration that will not reach ``tol`` in the ``remaining`` sweeps
+    at the rate of its last :data:`RATE_SWEEPS` sweeps, or "" (keep going). Where contacts
+    are light and many, the coarse step can leave a contraction of ~0.9 a sweep (321 light
+    spheres under penetration control: 20 sweeps to a change of 3.5e-3, where plain block
+    Gauss-Seidel with the same far field converged in 15); the driver's next strategy then
+    starts sooner."""
+    if len(history) <= RATE_SWEEPS or remaining <= 0:
+        return ""
+    first, last = history[-1 - RATE_SWEEPS], history[-1]
+    if not (first > 0.0 and last > tol):
+        return ""
+    rate = (last / first) ** (1.0 / RATE_SWEEPS)
+    if rate < SLOW_RATE:
+        return ""
+    needed = math.log(tol / last) / math.log(rate) if rate < 1.0 else math.inf
+    if needed <= remaining:
+        return ""
+    return (f"two-level iteration converging too slowly: change {last:.3g} falling by {rate:.2f} a sweep, "
+            f"about {needed:.0f} more sweeps needed, {remaining} left")
 
 
 def lower_near_pattern(coupling) -> sp.csr_matrix:
@@ -162,6 +189,9 @@ def two_level(blocks, coupling, tips: np.ndarray, heights, p: list, theta: np.nd
                                   f"(last {change:.3g}, best {min(history):.3g})")
         if change <= tol and not changed:
             return TwoLevelResult(p, active, theta, True, m, tuple(history), cg_iters, "")
+        slow = too_slow(history, tol, max_sweeps - m)
+        if slow:
+            return TwoLevelResult(p, active, theta, False, m, tuple(history), cg_iters, slow)
         if stop is not None and stop(p):
             return TwoLevelResult(p, active, theta, False, m, tuple(history), cg_iters, "stopped")
     return TwoLevelResult(p, active, theta, False, max_sweeps, tuple(history), cg_iters,

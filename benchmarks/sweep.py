@@ -1,0 +1,318 @@
+"""The scene-space sweep: every plausible scene, default options, against the references.
+
+Scenes come from :mod:`twoscale.scenespace` (seeded: ``--seed``, ``--count``). For each,
+in fresh subprocesses (peak RSS = the child's ``ru_maxrss``, the interpreter included),
+interleaved scene by scene so that the machine's load hits both alike:
+
+* ``ts``: ``twoscale.solve(scene)`` with the default options, as a user's
+  ``twoscale solve`` runs it: converged, refused (a :class:`~twoscale.scene.SceneError`
+  before solving, and how long the refusal took), time, peak memory against
+  :func:`twoscale.resources.estimate_memory` for the h the solve used, the policy's choice
+  and every attempt of the micro step;
+* ``ref``: the full-grid reference ``solve(scene, method="reference")`` at the same h,
+  where its memory estimate fits ``--ref-max-gb`` (and ``--ref-timeout``);
+* ``CM``: ContactMechanics on the reference grid (half-space scenes of tips, grids up to
+  ``--cm-max-cells``), when installed (``pip install ".[bench]"``).
+
+Reported per scene: the per-tip force error ``max_k |F_k - F_ref,k| / max F_ref`` and the
+total-load error (percent), the time ratio ts / ref (CPU time of the solve, and wall), the
+share of the reference box in contact; the worst cases first. ``--table FILE.md`` writes the
+Markdown table recorded in docs/records/.
+
+Usage::
+
+    python benchmarks/sweep.py --count 200 --seed 0 --out sweep.jsonl [--table sweep.md]
+    python benchmarks/sweep.py --only 17 42        # rerun two scenes, printed in full
+
+Results are appended to ``--out`` as one JSON line a scene; a rerun skips the scenes
+already there (delete the file to start again).
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import resource
+import subprocess
+import sys
+import tempfile
+import time
+import warnings
+
+import numpy as np
+
+sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+from benchmarks import _common  # noqa: E402,F401  (single-threaded BLAS/FFT by default)
+
+GB = 1e9
+
+
+def _rss_mb() -> float:
+    return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
+
+
+def _scene(spec_dict: dict, folder: str):
+    from twoscale.scenespace import SceneSpec, build
+    return build(SceneSpec(**spec_dict), folder)
+
+
+def _figures(res) -> dict:
+    forces = np.asarray(res.asperities.forces, dtype=float)
+    micro = getattr(res.details, "micro", None)
+    out = {"converged": bool(res.converged), "message": res.message, "forces": forces.tolist(),
+           "total_load": float(res.total_load), "penetration": float(res.penetration),
+           "cells": int(res.n_cells), "area": float(np.sum(res.asperities.contact_areas))}
+    if micro is not None:
+        out["choice"] = micro.choice.iteration
+        out["reason"] = micro.choice.reason
+        out["work"] = micro.choice.estimates.get("work")
+        out["coverage"] = micro.choice.estimates.get("coverage")
+        out["attempts"] = [[a.iteration, a.far_tol, a.converged, a.sweeps, round(a.seconds, 3)]
+                           for a in micro.attempts]
+    return out
+
+
+def run_one(method: str, spec_dict: dict, h: float | None) -> dict:
+    """One solve in this process: ``method`` "twoscale" (default options) or "reference"."""
+    import twoscale
+    from twoscale.resources import estimate_memory
+    from twoscale.scene import SceneError, default_h
+    with tempfile.TemporaryDirectory() as folder:
+        t0, c0 = time.perf_counter(), time.process_time()
+        try:
+            with warnings.catch_warnings(record=True) as caught:
+                warnings.simplefilter("always")
+                scene = _scene(spec_dict, folder)
+                used_h = default_h(scene) if h is None else h
+                est = estimate_memory(scene, used_h, "twoscale" if method == "twoscale" else "reference")
+                popts = {"progress": False} if scene.influence["kind"] == "block" else None
+                res = twoscale.solve(scene, method=method, h=h, provider_options=popts)
+        except SceneError as exc:
+            return {"refused": str(exc), "time_s": time.perf_counter() - t0, "peak_mb": _rss_mb()}
+        out = {"time_s": time.perf_counter() - t0, "cpu_s": time.process_time() - c0, "peak_mb": _rss_mb(),
+               "h": float(used_h), "estimate_mb": est.bytes / 1e6, "estimate_cells": est.cells,
+               "warnings": sorted({str(w.message).split(":")[0][:80] for w in caught})}
+        out.update(_figures(res))
+        return out
+
+
+def run_cm(spec_dict: dict, h: float, maxiter: int = 1000) -> dict:
+    """ContactMechanics on the scene's reference grid (half-space, non-periodic)."""
+    from ContactMechanics import FreeFFTElasticHalfSpace
+    from ContactMechanics.Systems import NonSmoothContactSystem
+    from SurfaceTopography import Topography
+
+    from twoscale.indenters import surface_on
+    from twoscale.reference.on_scene import reference_grid
+    with tempfile.TemporaryDirectory() as folder:
+        scene = _scene(spec_dict, folder)
+        t0, c0 = time.perf_counter(), time.process_time()
+        grid = reference_grid(scene, h)
+        surf = surface_on(grid, scene.asperities)
+        size = (grid.ny * grid.h, grid.nx * grid.h)
+        substrate = FreeFFTElasticHalfSpace(grid.shape, scene.material.E_star, size)
+        system = NonSmoothContactSystem(substrate, Topography(-np.minimum(surf.height, 1.0), physical_sizes=size))
+        load = ({"offset": scene.penetration} if scene.penetration is not None
+                else {"external_force": scene.total_load})
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            sol = system.minimize_proxy(pentol=1e-10, forcetol=1e-10, maxiter=maxiter, **load)
+        pix = np.asarray(sol.jac).ravel()
+        own = surf.owner.ravel()
+        ok = own >= 0
+        forces = np.bincount(own[ok], weights=pix[ok], minlength=len(scene.asperities))
+        return {"time_s": time.perf_counter() - t0, "cpu_s": time.process_time() - c0, "peak_mb": _rss_mb(),
+                "converged": bool(sol.success), "forces": forces.tolist(), "cells": int(grid.size)}
+
+
+def _child(kind: str, spec: dict, h, timeout: float) -> dict:
+    cmd = [sys.executable, os.path.abspath(__file__), "--child", kind, "--spec", json.dumps(spec),
+           "--h", json.dumps(h)]
+    t0 = time.perf_counter()
+    try:
+        out = subprocess.run(cmd, capture_output=True, text=True, timeout=timeout)
+    except subprocess.TimeoutExpired:
+        return {"error": f"timeout after {timeout:g} s", "time_s": time.perf_counter() - t0}
+    if out.returncode != 0:
+        tail = out.stderr.strip().splitlines()[-1:] or [f"exit code {out.returncode}"]
+        return {"error": tail[0][:300], "time_s": time.perf_counter() - t0, "exit": out.returncode}
+    return json.loads(out.stdout.strip().splitlines()[-1])
+
+
+def _errors(f, r) -> dict:
+    f, r = np.asarray(f, dtype=float), np.asarray(r, dtype=float)
+    if r.size == 0 or not r.max() > 0:
+        return {}
+    return {"tip_pct": 100.0 * float(np.max(np.abs(f - r))) / float(r.max()),
+            "total_pct": 100.0 * abs(float(f.sum()) - float(r.sum())) / float(r.sum())}
+
+
+def _ref_fits(spec: dict, h: float, max_gb: float) -> tuple[bool, float]:
+    from twoscale.resources import estimate_memory
+    with tempfile.TemporaryDirectory() as folder:
+        scene = _scene(spec, folder)
+        est = estimate_memory(scene, h, "reference")
+        return est.bytes <= max_gb * GB, est.cells
+
+
+def measure(spec: dict, args) -> dict:
+    """Default two-scale solve, reference and ContactMechanics on one scene."""
+    rec = {"spec": spec}
+    if spec["body"] == "block":  # the FEM correction is built once and cached: not timed
+        rec["warmup"] = _child("twoscale", spec, None, args.timeout * 3)
+    rec["ts"] = _child("twoscale", spec, None, args.timeout)
+    h = rec["ts"].get("h")
+    if h is None:
+        return rec
+    fits, cells = _ref_fits(spec, h, args.ref_max_gb)
+    rec["ref_cells"] = cells
+    if fits:
+        rec["ref"] = _child("reference", spec, h, args.ref_timeout)
+        if "forces" in rec["ref"]:
+            rec["err"] = _errors(rec["ts"]["forces"], rec["ref"]["forces"])
+            rec["ratio_cpu"] = rec["ts"]["cpu_s"] / max(rec["ref"]["cpu_s"], 1e-9)
+            rec["ratio_wall"] = rec["ts"]["time_s"] / max(rec["ref"]["time_s"], 1e-9)
+            rec["contact_share"] = float(np.count_nonzero(np.asarray(rec["ref"]["forces"]) > 0))
+    if (args.cm and spec["kind"] == "tips" and spec["body"] == "halfspace" and fits
+            and cells <= args.cm_max_cells):
+        rec["cm"] = _child("cm", spec, h, args.ref_timeout)
+        if "forces" in rec["cm"] and "ref" in rec and "forces" in rec["ref"]:
+            rec["cm_err"] = _errors(rec["cm"]["forces"], rec["ref"]["forces"])
+    return rec
+
+
+def verdict(rec: dict) -> str:
+    """``ok``, ``refused`` or what went wrong, one word."""
+    ts = rec["ts"]
+    if "error" in ts:
+        return "timeout" if ts["error"].startswith("timeout") else "crash"
+    if "refused" in ts:
+        return "refused" if ts["time_s"] < 10.0 else "slow-refusal"
+    if not ts["converged"]:
+        return "not-converged"
+    if ts["peak_mb"] > 1.5 * ts["estimate_mb"]:
+        return "over-estimate"
+    if rec.get("err", {}).get("tip_pct", 0.0) > 0.5:
+        return "inaccurate"
+    if "ref" in rec and "forces" in rec["ref"]:
+        if rec["ratio_cpu"] > 1.0 and ts["time_s"] > 1.0:
+            return "slower-than-ref"
+    elif ts["time_s"] > 60.0:
+        return "over-60s"
+    return "ok"
+
+
+def row(rec: dict) -> dict:
+    ts, ref = rec["ts"], rec.get("ref", {})
+    from twoscale.scenespace import SceneSpec
+    return {"scene": SceneSpec(**rec["spec"]).label, "verdict": verdict(rec), "h": ts.get("h"),
+            "choice": ts.get("choice") or ("refused" if "refused" in ts else ts.get("error", "")[:20]),
+            "ts_s": ts.get("time_s"), "ref_s": ref.get("time_s"), "ratio": rec.get("ratio_cpu"),
+            "tip_pct": rec.get("err", {}).get("tip_pct"), "peak_mb": ts.get("peak_mb"),
+            "est_mb": ts.get("estimate_mb"), "cm_s": rec.get("cm", {}).get("time_s")}
+
+
+def _fmt(v, spec: str) -> str:
+    return "-" if v is None else format(v, spec)
+
+
+def table(records: list[dict]) -> str:
+    """A Markdown table of the records, worst first (failures, then by time ratio)."""
+    order = {"ok": 1, "refused": 1}
+    rows = sorted((row(r) for r in records), key=lambda x: (order.get(x["verdict"], 0), -(x["ratio"] or 0)))
+    lines = ["| scene | verdict | h mm | micro step | default s | ref s | CPU ratio | tip err % | peak MB | est. MB | CM s |",
+             "|---|---|---|---|---|---|---|---|---|---|---|"]
+    for x in rows:
+        lines.append(f"| {x['scene']} | {x['verdict']} | {_fmt(x['h'], '.3g')} | {x['choice']} | "
+                     f"{_fmt(x['ts_s'], '.2f')} | {_fmt(x['ref_s'], '.2f')} | {_fmt(x['ratio'], '.3f')} | "
+                     f"{_fmt(x['tip_pct'], '.2g')} | {_fmt(x['peak_mb'], '.0f')} | {_fmt(x['est_mb'], '.0f')} | "
+                     f"{_fmt(x['cm_s'], '.2f')} |")
+    return "\n".join(lines) + "\n"
+
+
+def summary(records: list[dict]) -> str:
+    from collections import Counter
+    v = Counter(verdict(r) for r in records)
+    rat = [r["ratio_cpu"] for r in records if "ratio_cpu" in r]
+    err = [r["err"]["tip_pct"] for r in records if "tip_pct" in r.get("err", {})]
+    over = [r["ts"]["peak_mb"] / r["ts"]["estimate_mb"] for r in records if "estimate_mb" in r["ts"]]
+    refused = [r["ts"]["time_s"] for r in records if "refused" in r["ts"]]
+    free = [r["ts"]["time_s"] for r in records if "ref" not in r and "time_s" in r["ts"] and "refused" not in r["ts"]]
+    parts = [f"{len(records)} scenes: " + ", ".join(f"{k} {n}" for k, n in v.most_common())]
+    if rat:
+        parts.append(f"CPU ratio default/reference: median {np.median(rat):.3f}, worst {max(rat):.3f} "
+                     f"({len(rat)} scenes with a reference)")
+    if err:
+        parts.append(f"per-tip force error: median {np.median(err):.2g} %, worst {max(err):.2g} %")
+    if over:
+        parts.append(f"peak / estimate: median {np.median(over):.2f}, worst {max(over):.2f}")
+    if refused:
+        parts.append(f"refusals: {len(refused)}, slowest {max(refused):.2f} s")
+    if free:
+        parts.append(f"without a reference: {len(free)} scenes, slowest default {max(free):.1f} s")
+    return "\n".join(parts)
+
+
+def _load(path: str) -> list[dict]:
+    if not path or not os.path.exists(path):
+        return []
+    with open(path, encoding="utf-8") as fh:
+        return [json.loads(line) for line in fh if line.strip()]
+
+
+def main(argv=None) -> int:
+    p = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    p.add_argument("--count", type=int, default=200)
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--only", type=int, nargs="*")
+    p.add_argument("--out", default="sweep.jsonl")
+    p.add_argument("--table")
+    p.add_argument("--timeout", type=float, default=180.0, help="s, a default solve")
+    p.add_argument("--ref-timeout", type=float, default=600.0)
+    p.add_argument("--ref-max-gb", type=float, default=8.0)
+    p.add_argument("--cm-max-cells", type=int, default=1_000_000)
+    p.add_argument("--no-cm", dest="cm", action="store_false")
+    p.add_argument("--max-tips", type=int, default=10_000)
+    p.add_argument("--child", choices=["twoscale", "reference", "cm"])
+    p.add_argument("--spec")
+    p.add_argument("--h")
+    args = p.parse_args(argv)
+    if args.child:
+        spec, h = json.loads(args.spec), json.loads(args.h)
+        out = run_cm(spec, h) if args.child == "cm" else run_one(args.child, spec, h)
+        print(json.dumps(out))
+        return 0
+    if args.cm:
+        try:
+            import ContactMechanics  # noqa: F401
+        except ImportError:
+            args.cm = False
+    from twoscale.scenespace import sweep
+    specs = sweep(args.count, args.seed, max_tips=args.max_tips)
+    if args.only:
+        specs = [s for s in specs if s.index in args.only]
+    done = {r["spec"]["index"] for r in _load(args.out)} if not args.only else set()
+    for spec in specs:
+        if spec.index in done:
+            continue
+        rec = measure(spec.to_dict(), args)
+        x = row(rec)
+        print(f"{x['scene']}: {x['verdict']} {x['choice']} ts {_fmt(x['ts_s'], '.2f')} s ref "
+              f"{_fmt(x['ref_s'], '.2f')} s ratio {_fmt(x['ratio'], '.3f')} err {_fmt(x['tip_pct'], '.2g')} % "
+              f"peak {_fmt(x['peak_mb'], '.0f')}/{_fmt(x['est_mb'], '.0f')} MB", flush=True)
+        if args.only:
+            print(json.dumps({k: v for k, v in rec.items() if k != "spec"}, default=str)[:3000])
+        else:
+            with open(args.out, "a", encoding="utf-8") as fh:
+                fh.write(json.dumps(rec) + "\n")
+    records = _load(args.out) if not args.only else []
+    if records:
+        print(summary(records))
+        if args.table:
+            with open(args.table, "w", encoding="utf-8") as fh:
+                fh.write(summary(records).replace("\n", "  \n") + "\n\n" + table(records))
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
