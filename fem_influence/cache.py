@@ -16,13 +16,13 @@ from pathlib import Path
 
 import numpy as np
 
-from twoscale.caches import ENV_VAR, block_cache_dir
+from twoscale.caches import BLOCK, ENV_VAR, block_cache_dir
 from twoscale.io.cache_entry import CacheUsage, EntryFolder
 
 #: Bump when the stored quantity or its meaning changes (2: entries with a checksum).
 FORMAT_VERSION = 2
 #: Name of this cache (warnings, result.json, ``twoscale cache``).
-NAME = "block-corrections"
+NAME = BLOCK
 
 __all__ = ["ENV_VAR", "FORMAT_VERSION", "FieldCache", "cache_key", "default_cache_dir"]
 

@@ -3,15 +3,11 @@
 Two caches keep work between runs, each in its own folder of ``.npz`` entries
 (:mod:`twoscale.io.cache_entry`):
 
-==================== ===================================== ==================================
-name                 folder (default)                      holds
-==================== ===================================== ==================================
-``block``            ``$TWOSCALE_CACHE_DIR``, else         the finite block's FEM correction
-                     ``$XDG_CACHE_HOME/twoscale/fem``,     fields, one file per mesh, nu and
-                     else ``~/.cache/twoscale/fem``        base (``block-*.npz``)
-``surface-laws``     ``$TWOSCALE_CACHE_DIR/surface-laws``, tabulated asperity laws of height
-                     else ``.../twoscale/surface-laws``    maps, one file per asperity
-==================== ===================================== ==================================
+* ``block-corrections``: the finite block's FEM correction fields, one file per mesh,
+  nu and base (``block-*.npz``), in ``$TWOSCALE_CACHE_DIR``, else
+  ``$XDG_CACHE_HOME/twoscale/fem``, else ``~/.cache/twoscale/fem``;
+* ``surface-laws``: the tabulated law of each asperity of a height map, one file per
+  asperity, in ``$TWOSCALE_CACHE_DIR/surface-laws``, else ``.../twoscale/surface-laws``.
 
 Removing either folder is always safe: the entries are computed again when needed (a
 block's first solve then takes the FEM solves' time again).
@@ -24,6 +20,9 @@ from pathlib import Path
 
 #: Environment variable overriding the cache root.
 ENV_VAR = "TWOSCALE_CACHE_DIR"
+#: The caches' names (in warnings, result.json and ``twoscale cache``).
+BLOCK = "block-corrections"
+LAWS = "surface-laws"
 
 
 def _user_root() -> Path:
@@ -96,7 +95,7 @@ class CacheFolder:
 
 def caches() -> tuple[CacheFolder, ...]:
     """Every cache of the program, at its folder for the current environment."""
-    return (CacheFolder("block", "finite block: FEM correction fields per mesh, nu and base",
+    return (CacheFolder(BLOCK, "finite block: FEM correction fields per mesh, nu and base",
                         block_cache_dir(), "block-*.npz"),
-            CacheFolder("surface-laws", "height maps: tabulated law of each asperity",
+            CacheFolder(LAWS, "height maps: tabulated law of each asperity",
                         law_cache_dir(), "*.npz"))

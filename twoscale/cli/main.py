@@ -34,6 +34,7 @@ SUBCOMMANDS = (
     ("indicators", "twoscale.cli.indicators", False),
     ("study", "twoscale.cli.study", False),
     ("surface", "twoscale.cli.surface", False),
+    ("cache", "twoscale.cli.cache", False),
 )
 
 

@@ -15,7 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..caches import law_cache_dir
+from ..caches import LAWS, law_cache_dir
 from ..io.cache_entry import CacheUsage, EntryFolder
 from .laws import LawTable
 
@@ -25,7 +25,7 @@ FORMAT_VERSION = 2
 #: Default bound on the cache directory, bytes.
 MAX_BYTES = 256e6
 #: Name of this cache (warnings, result.json, ``twoscale cache``).
-NAME = "surface-laws"
+NAME = LAWS
 
 
 def default_law_cache_dir() -> Path:
