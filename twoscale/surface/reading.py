@@ -90,7 +90,7 @@ def _first_line(exc: Exception) -> str:
 
 def _checked(raw: RawMap) -> RawMap:
     z = np.asarray(raw.heights)
-    if z.ndim != 2 or not np.issubdtype(z.dtype, np.number):
+    if z.ndim != 2 or not (np.issubdtype(z.dtype, np.integer) or np.issubdtype(z.dtype, np.floating)):
         raise SurfaceError(f"{raw.source}: heights must be a 2-D numeric grid, got shape {z.shape} of {z.dtype}")
     z = np.array(z, dtype=float)
     if min(z.shape) < MIN_SIDE:
