@@ -83,7 +83,7 @@ def read_entry(path: str | os.PathLike) -> dict:
     try:
         if path.stat().st_size == 0:
             raise BadEntry("empty file")
-        with np.load(path, allow_pickle=False) as data:
+        with open(path, "rb") as fh, np.load(fh, allow_pickle=False) as data:   # closed on any error
             arrays = {name: data[name] for name in data.files}
     except (FileNotFoundError, BadEntry):
         raise
