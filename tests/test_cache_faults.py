@@ -104,11 +104,16 @@ def test_many_bad_entries_give_a_bounded_number_of_lines(tmp_path):
     assert len(folder.usage().dropped) == 12
 
 
-@pytest.mark.parametrize("fault", ["file in place of the folder", "disk full"])
+@pytest.mark.parametrize("fault", ["file in place of the folder", "disk full", pytest.param(
+    "read-only folder", marks=pytest.mark.skipif(os.geteuid() == 0, reason="root writes into read-only folders"))])
 def test_an_unwritable_folder_warns_once_and_keeps_nothing(tmp_path, monkeypatch, fault):
     if fault == "file in place of the folder":
         where = tmp_path / "blocked"
         where.write_text("not a folder")
+    elif fault == "read-only folder":
+        where = tmp_path / "ro"
+        where.mkdir()
+        where.chmod(0o500)
     else:
         where = tmp_path / "full"
 

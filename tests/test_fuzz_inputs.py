@@ -12,7 +12,6 @@ from __future__ import annotations
 
 import copy
 import datetime
-import json
 import math
 import os
 import tempfile
@@ -52,6 +51,20 @@ values = st.recursive(scalars, lambda inner: st.one_of(st.lists(inner, max_size=
                       max_leaves=6)
 
 
+def toml_string(text: str) -> str:
+    """A TOML basic string: quotes, backslashes and control characters escaped, the rest
+    as is (JSON's surrogate-pair escapes are not valid TOML)."""
+    out = []
+    for c in text:
+        if c in '"\\':
+            out.append("\\" + c)
+        elif ord(c) < 0x20 or ord(c) == 0x7F:
+            out.append(f"\\u{ord(c):04x}")
+        else:
+            out.append(c)
+    return '"' + "".join(out) + '"'
+
+
 def toml_value(v) -> str:
     """``v`` as an inline TOML value (tables inline, arrays of tables as arrays)."""
     if isinstance(v, bool):
@@ -65,18 +78,18 @@ def toml_value(v) -> str:
             return "inf" if v > 0 else "-inf"
         return repr(v)
     if isinstance(v, str):
-        return json.dumps(v)
+        return toml_string(v)
     if isinstance(v, (datetime.datetime, datetime.date)):
         return v.isoformat()
     if isinstance(v, list):
         return "[" + ", ".join(toml_value(x) for x in v) + "]"
     if isinstance(v, dict):
-        return "{" + ", ".join(f"{json.dumps(str(k))} = {toml_value(x)}" for k, x in v.items()) + "}"
+        return "{" + ", ".join(f"{toml_string(str(k))} = {toml_value(x)}" for k, x in v.items()) + "}"
     raise TypeError(type(v))
 
 
 def toml_text(data: dict) -> str:
-    return "".join(f"{json.dumps(str(k))} = {toml_value(v)}\n" for k, v in data.items())
+    return "".join(f"{toml_string(str(k))} = {toml_value(v)}\n" for k, v in data.items())
 
 
 def _paths(data, prefix=()):
@@ -148,7 +161,15 @@ def solve_stub(monkeypatch):
     monkeypatch.setattr(solve_cli, "solve_scene", stub)
 
 
-def _run_scene(data: dict, capsys) -> None:
+def _names(touched) -> set:
+    """What an error about the mutated paths may name: their keys, and numbered tables as
+    the messages number them (``asperity 2``, from 1)."""
+    out = {str(c) for path in touched for c in path if isinstance(c, str)}
+    out |= {f"{path[0]} {path[1] + 1}" for path in touched if len(path) > 1 and isinstance(path[1], int)}
+    return out
+
+
+def _run_scene(data: dict, capsys, touched=None) -> None:
     with tempfile.TemporaryDirectory() as tmp:
         path = Path(tmp) / "scene.toml"
         path.write_text(toml_text(data), encoding="utf-8")
@@ -159,13 +180,15 @@ def _run_scene(data: dict, capsys) -> None:
             return
         err = capsys.readouterr().err
         assert code == 2, err
-        _one_line(err)
+        line = _one_line(err)
+        if touched:   # the line names what was changed
+            assert any(name in line for name in _names(touched)), (touched, line)
 
 
 @FAST
 @given(case=mutated(BASE_SCENE) | mutated(BLOCK_SCENE))
 def test_scene_files_from_random_values_validate_or_fail_in_one_line(case, capsys, solve_stub):
-    _run_scene(case[0], capsys)
+    _run_scene(case[0], capsys, case[1])
 
 
 @FAST
@@ -190,7 +213,7 @@ def test_scene_files_of_random_text_fail_in_one_line(text, capsys, solve_stub):
 @MANY
 @given(case=mutated(BASE_SCENE, 5) | mutated(BLOCK_SCENE, 5))
 def test_scene_files_many(case, capsys, solve_stub):
-    _run_scene(case[0], capsys)
+    _run_scene(case[0], capsys, case[1])
 
 
 # ------------------------------------------------------------------ study files
@@ -207,7 +230,7 @@ BASE_STUDY = {
 }
 
 
-def _check_study(data: dict) -> None:
+def _check_study(data: dict, touched=None) -> None:
     from twoscale.studies.folder import study_digest
     from twoscale.studies.spec import read_study
 
@@ -221,19 +244,21 @@ def _check_study(data: dict) -> None:
         except ValueError as exc:
             msg = str(exc)
             assert msg and "\n" not in msg, msg
+            if touched:
+                assert any(name in msg for name in _names(touched)), (touched, msg)
 
 
 @FAST
 @given(case=mutated(BASE_STUDY))
 def test_study_files_from_random_values_validate_or_fail_in_one_line(case):
-    _check_study(case[0])
+    _check_study(*case)
 
 
 @pytest.mark.slow
 @MANY
 @given(case=mutated(BASE_STUDY, 5))
 def test_study_files_many(case):
-    _check_study(case[0])
+    _check_study(*case)
 
 
 # ------------------------------------------------------------------ height maps

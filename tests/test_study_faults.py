@@ -123,7 +123,7 @@ def test_driver_stopped_mid_study_resumes_to_the_same_tables(reference, tmp_path
     exit 143, the finished cases kept whole. SIGKILL cannot be handled: whatever it leaves
     (at most a hidden temporary folder) is cleaned by the next run. Either way the same
     command then resumes and the tables equal the uninterrupted run's."""
-    study_ref, out_ref = reference
+    out_ref = reference[1]
     study = _write_study(tmp_path)
     out = tmp_path / "out"
     proc = _start(study, out, "--workers", "0")
