@@ -328,8 +328,42 @@ def study_rows(tmp: Path) -> list[tuple]:
                  f"{'yes' if named else 'NO'}; after the kill: exit {r2.returncode} (no wait, nothing removed by hand)",
                  f"the first run's {before} cases kept; {n_cases(f / 'out')} after the rerun; tables "
                  f"{'equal' if tables(f / 'out').equals(ref_table) else 'DIFFERENT'} to an uninterrupted run's"))
+    rows.append(local_cluster_row(tmp, ref_table))
     rows.append(dask_row(tmp, ref_table))
     return rows
+
+
+def group_alive(pgid: int) -> bool:
+    try:
+        os.killpg(pgid, 0)
+    except ProcessLookupError:
+        return False
+    return True
+
+
+def local_cluster_row(tmp: Path, ref_table) -> tuple:
+    f = study_dir(tmp, "local")
+    p = start_study(f, "--workers", "2")
+    try:
+        wait_cases(p, f / "out", 3)
+        os.kill(p.pid, signal.SIGKILL)
+        p.communicate(timeout=60)
+        t0 = time.monotonic()
+        while group_alive(p.pid) and time.monotonic() - t0 < 60:
+            time.sleep(0.1)
+        gone = time.monotonic() - t0
+        orphans = group_alive(p.pid)
+    finally:
+        if group_alive(p.pid):
+            os.killpg(p.pid, signal.SIGKILL)
+    kept = n_cases(f / "out")
+    r = twoscale("study", str(f / "study.toml"), "--out", str(f / "out"), "--workers", "2", "--quiet")
+    same = r.returncode == 0 and tables(f / "out").equals(ref_table)
+    return ("SIGKILL to the driver of a local Dask cluster (--workers 2) after 3 of 24 cases, then the "
+            "same command",
+            f"its worker processes {'still alive after 60 s' if orphans else f'ended by themselves within {gone:.1f} s'} "
+            f"(their nannies watch the driver); the rerun: exit {r.returncode}",
+            f"{kept} finished cases kept; tables {'equal' if same else 'DIFFERENT'} to an uninterrupted run's")
 
 
 def dask_row(tmp: Path, ref_table) -> tuple:

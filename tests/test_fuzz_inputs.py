@@ -297,7 +297,9 @@ def _array(draw) -> np.ndarray:
 def height_maps(draw):
     arrays = {"heights": _array(draw)}
     if draw(st.booleans()):
-        arrays["spacing"] = np.array(draw(st.sampled_from([0.1, 0.5, 0.0, -1.0, np.nan, np.inf, 1e-9, 1e9])))
+        arrays["spacing"] = draw(st.sampled_from([0.1, 0.5, 0.0, -1.0, np.nan, np.inf, 1e-9, 1e9, -1e-300])
+                                 .map(np.array) | st.sampled_from([np.array([0.1, 0.2]), np.array("0.1"),
+                                                                   np.array(1, dtype=np.int8)]))
     if draw(st.booleans()):
         arrays["units"] = np.array(draw(st.sampled_from(["mm", "um", "nm", "m", "furlong", ""])))
     options = draw(st.dictionaries(st.sampled_from(["spacing", "units", "fill", "detrend", "crop", "invert",
@@ -317,6 +319,7 @@ def _check_map(arrays: dict, options: dict) -> None:
             msg = str(exc)
             assert msg and "\n" not in msg, msg
             return
+        assert surface.h > 0 and np.isfinite(surface.h)
         assert np.isfinite(surface.hmap.heights[np.isfinite(surface.hmap.heights)]).all()
         assert all(a.R > 0 and math.isfinite(a.R) for a in surface.asperities)
 

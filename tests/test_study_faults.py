@@ -221,3 +221,41 @@ def test_scheduler_and_two_workers_as_processes_one_worker_killed(reference, tmp
             p.communicate(timeout=30)
     assert _check_case_folders(out) == N_CASES
     _tables_equal(out, reference[1])
+
+
+def _group_alive(pgid: int) -> bool:
+    try:
+        os.killpg(pgid, 0)
+    except ProcessLookupError:
+        return False
+    return True
+
+
+@pytest.mark.slow
+def test_driver_of_a_local_cluster_killed_leaves_no_worker_and_resumes(reference, tmp_path):
+    """``--workers 2``: the driver killed with SIGKILL mid-study; its local cluster's worker
+    processes (nannies watch their parent) end by themselves, and the same command resumes
+    to the uninterrupted run's tables."""
+    study = _write_study(tmp_path)
+    out = tmp_path / "out"
+    proc = _start(study, out, "--workers", "2")
+    try:
+        _wait_for_cases(proc, out, 3, timeout=120)
+        os.kill(proc.pid, signal.SIGKILL)
+        proc.communicate(timeout=60)
+        deadline = time.monotonic() + 60
+        while _group_alive(proc.pid) and time.monotonic() < deadline:
+            time.sleep(0.2)
+        orphans = _group_alive(proc.pid)
+    finally:
+        if _group_alive(proc.pid):
+            os.killpg(proc.pid, signal.SIGKILL)
+    assert not orphans, "the killed driver's workers outlived it by 60 s"
+    again = _start(study, out, "--workers", "2")
+    try:
+        _, err = again.communicate(timeout=300)
+    finally:
+        _stop(again)
+    assert again.returncode == 0, err
+    assert _check_case_folders(out) == N_CASES
+    _tables_equal(out, reference[1])
