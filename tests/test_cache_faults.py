@@ -181,11 +181,16 @@ def test_damaged_law_cache_of_the_example_road_warns_and_solves_the_same(tmp_pat
 
 
 def test_law_cache_that_cannot_be_written_solves_without_it(tmp_path, capsys):
+    from twoscale.surface.texture import road
+
+    # a 12 mm road of the same texture (a few stones: the fault, not the solve, is tested)
+    np.savez(tmp_path / "small.npz", heights=road(12.0, 0.1, seed=4), spacing=np.array(0.1),
+             units=np.array("mm"))
     blocked = tmp_path / "cache-is-a-file"
     blocked.write_text("")
-    scene = _road_scene(tmp_path)
-    text = scene.read_text().replace("[surface]\n", f'[surface]\nlaw_cache = "{blocked.name}"\n')
-    scene.write_text(text)
+    scene = tmp_path / "small.toml"
+    scene.write_text('[material]\nE = 10.0\nnu = 0.5\n[load]\ntotal = 20.0\n[surface]\nfile = "small.npz"\n'
+                     f'law = "tabulated"\nlaw_cache = "{blocked.name}"\n')
     capsys.readouterr()
     assert main(["solve", str(scene), "--out", str(tmp_path / "out"), "--quiet"]) == 0
     err = capsys.readouterr().err
