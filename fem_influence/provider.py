@@ -164,6 +164,10 @@ class BlockProvider(InfluenceProvider):
         object.__setattr__(self, "_state", state)
         object.__setattr__(self, "_halfspace", HalfSpace(self.material))
 
+    def cache_usage(self) -> tuple:
+        """What the correction cache on disk read, wrote and dropped so far."""
+        return self._state.fields.usage()
+
     # ------------------------------------------------------------------ the correction
     @property
     def timings_s(self) -> dict:

@@ -210,6 +210,9 @@ def solve(problem, *, method="twoscale", provider=None, material: Material | Non
         iteration = options.get("iteration", "auto") if method == "twoscale" else "auto"
         check_solve_memory(scene, h, "twoscale" if method == "twoscale" else "reference", iteration=iteration,
                            limit_bytes=memory_limit, option="h" if h_given else "grid.h", h_given=h_given)
+    from .io.cache_entry import solve_caches, usage_since
+
+    caches_before = () if provider is None else solve_caches(provider, scene)
     if provider is None:
         provider = scene.provider(**(provider_options or {}))
     elif provider.material != scene.material:
@@ -233,7 +236,8 @@ def solve(problem, *, method="twoscale", provider=None, material: Material | Non
         from .surface.edges import warn_edge_contacts
 
         warn_edge_contacts(result, scene.surface.hmap.grid)
-    return result
+    # what came from the on-disk caches (block corrections, surface laws), for result.json
+    return dataclasses.replace(result, caches=usage_since(caches_before, solve_caches(provider, scene)))
 
 
 __all__ = ["METHODS", "solve", "asperities", "as_asperities"]

@@ -187,15 +187,19 @@ def estimate_memory(scene: Scene, h: float, method: str = "twoscale", *,
     if not (isinstance(h, (int, float)) and math.isfinite(h) and h > 0):
         raise ValueError(f"h must be a finite number > 0 (mm), got {h!r}")
     parts = {"interpreter and libraries": BASE_BYTES}
-    if method == "reference":
-        from .reference.on_scene import reference_grid
+    try:
+        if method == "reference":
+            from .reference.on_scene import reference_grid
 
-        grid = reference_grid(scene, h)
-        cells = int(grid.size)
-        parts.update(_grid_parts(scene, grid, "reference grid"))
-    else:
-        cells, extra = _twoscale_parts(scene, h, union=iteration == "union-cg")
-        parts.update(extra)
+            grid = reference_grid(scene, h)
+            cells = int(grid.size)
+            parts.update(_grid_parts(scene, grid, "reference grid"))
+        else:
+            cells, extra = _twoscale_parts(scene, h, union=iteration == "union-cg")
+            parts.update(extra)
+    except OverflowError:   # cells past any float (h = 1e-320 mm): no count to report
+        raise SceneError(f"cell size h = {h!r} mm is too small: the scene's cells cannot even be "
+                         f"counted (over 1e308 of them)") from None
     if scene.influence["kind"] == "block":
         parts["finite-block provider (FEM build)"] = BLOCK_PROVIDER_BYTES
     total = float(sum(parts.values()))

@@ -149,6 +149,9 @@ class ContactResult:
     solver : str
         The algorithm that ran: ``"twoscale"``, or for the reference method ``"dense"``
         (Johnson's matrix inversion) or ``"cg"`` (Polonsky-Keer); defaults to ``method``.
+    caches : tuple of CacheUsage
+        What the on-disk caches (block corrections, surface laws) gave and took during this
+        solve (:class:`twoscale.io.cache_entry.CacheUsage`); empty when none was used.
     """
 
     method: str
@@ -164,6 +167,7 @@ class ContactResult:
     timings_s: Mapping = field(default_factory=dict)
     details: TwoScaleDetails | ReferenceDetails | None = None
     solver: str = ""
+    caches: tuple = ()
 
     def __post_init__(self) -> None:
         for name in ("iterations", "residuals", "timings_s"):

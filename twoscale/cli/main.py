@@ -9,22 +9,35 @@ Exit codes: 0 success; 1 the solve ran but did not converge (result written with
 ``converged = false``); 2 bad input, or an output that cannot be written (one ``error: ...``
 line on stderr, nothing written);
 130 interrupted by Ctrl-C (one line ``interrupted`` on stderr; the subcommands write
-through a temporary folder renamed at the end, so no partial output is left).
+through a temporary folder renamed at the end, so no partial output is left); 143
+terminated by SIGTERM (what batch schedulers and ``kill`` send): handled like Ctrl-C, with
+the line ``terminated`` (a second SIGTERM during the clean-up is ignored).
 """
 from __future__ import annotations
 
 import argparse
 import importlib
 import importlib.util
+import signal
 import sys
+import threading
 import warnings
 from typing import Sequence
 
 from .._version import __version__
-from .staging import OutputFolderError
+from .staging import OutputFolderError, Terminated
 
 #: Exit code after Ctrl-C (KeyboardInterrupt): 128 + SIGINT, as shells report it.
 EXIT_INTERRUPTED = 130
+#: Exit code after SIGTERM: 128 + SIGTERM, as shells report it.
+EXIT_TERMINATED = 143
+
+
+def _on_sigterm(signum, frame) -> None:
+    signal.signal(signal.SIGTERM, signal.SIG_IGN)   # let the clean-up finish
+    raise Terminated()
+
+
 
 #: Subcommands: (name, module, required). Optional ones appear when their module exists.
 SUBCOMMANDS = (
@@ -34,6 +47,7 @@ SUBCOMMANDS = (
     ("indicators", "twoscale.cli.indicators", False),
     ("study", "twoscale.cli.study", False),
     ("surface", "twoscale.cli.surface", False),
+    ("cache", "twoscale.cli.cache", False),
 )
 
 
@@ -89,10 +103,15 @@ def main(argv: Sequence[str] | None = None) -> int:
         args = parser.parse_args(argv)
     except SystemExit as exc:  # argparse reports usage errors (code 2) and --help (code 0) this way
         return exc.code if isinstance(exc.code, int) else 2
+    main_thread = threading.current_thread() is threading.main_thread()
+    previous = signal.signal(signal.SIGTERM, _on_sigterm) if main_thread else None
     try:
         with warnings.catch_warnings():
             warnings.showwarning = _warning_line
             return int(args._run(args))
+    except Terminated:  # like Ctrl-C: outputs are staged, finished study cases kept
+        print("terminated", file=sys.stderr)
+        return EXIT_TERMINATED
     except KeyboardInterrupt:  # Ctrl-C: outputs are staged, so nothing half-written remains
         print("interrupted", file=sys.stderr)
         return EXIT_INTERRUPTED
@@ -100,6 +119,9 @@ def main(argv: Sequence[str] | None = None) -> int:
         # changed during the solve: one line, not a traceback
         print(f"error: {exc}", file=sys.stderr)
         return 2
+    finally:
+        if previous is not None:
+            signal.signal(signal.SIGTERM, previous)
 
 
 if __name__ == "__main__":  # pragma: no cover

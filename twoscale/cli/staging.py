@@ -48,19 +48,31 @@ class OutputFolderError(ValueError):
     """An output folder that cannot be used (one line naming the folder and why)."""
 
 
+class Terminated(KeyboardInterrupt):
+    """SIGTERM received (the command line turns it into this): unwinds like Ctrl-C, so every
+    clean-up that handles Ctrl-C runs."""
+
+
 @contextlib.contextmanager
 def held_interrupts() -> Iterator[None]:
-    """Hold SIGINT (Ctrl-C) until the block ends, then raise ``KeyboardInterrupt`` if one
-    came. Outside the main thread (where Python cannot install handlers) it holds nothing."""
+    """Hold SIGINT (Ctrl-C) and, where the command line handles it, SIGTERM until the block
+    ends, then raise ``KeyboardInterrupt`` (:class:`Terminated` for SIGTERM) if one came.
+    Outside the main thread (where Python cannot install handlers) it holds nothing."""
     if threading.current_thread() is not threading.main_thread():
         yield
         return
     caught = []
-    previous = signal.signal(signal.SIGINT, lambda signum, frame: caught.append(signum))
+    held = [signal.SIGINT]
+    if callable(signal.getsignal(signal.SIGTERM)):   # a Python handler: the command line's
+        held.append(signal.SIGTERM)
+    previous = {sig: signal.signal(sig, lambda signum, frame: caught.append(signum)) for sig in held}
     try:
         yield
     finally:
-        signal.signal(signal.SIGINT, previous)
+        for sig, handler in previous.items():
+            signal.signal(sig, handler)
+    if signal.SIGTERM in caught:
+        raise Terminated
     if caught:
         raise KeyboardInterrupt
 

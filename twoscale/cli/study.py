@@ -17,10 +17,19 @@ When the cases are done: ``DIR/cases.csv``, ``asperities.csv``, ``indicators.csv
 
 Needs the ``study`` extra (``pip install ".[study]"`` in the repository: dask.distributed, pyarrow).
 
+One run at a time works in DIR: a second one started while the first is alive is refused
+with one line naming the first (its pid and host) and exit code 3. The lock
+(``DIR/.twoscale-study.lock``, :mod:`twoscale.studies.lock`) is the kernel's, freed when
+its process ends in any way, so a run killed with SIGKILL never blocks the next; rerunning
+the same command then resumes (finished cases are kept, a half-written case folder is
+removed, the tables cover every case).
+
 Exit codes: 0 every case converged; 1 some case did not converge or failed (each is
 recorded with its reason, the others still run); 2 bad input (one ``error: ...`` line,
 nothing run or written), a missing dependency, or a ``--scheduler`` that cannot be reached
-within 20 s; 130 interrupted.
+within 20 s; 3 DIR is in use by another live run; 130 interrupted (Ctrl-C); 143 terminated
+(SIGTERM, as batch schedulers send before killing a job): one line, the finished cases
+kept, nothing half-written, the same command resumes.
 """
 from __future__ import annotations
 
@@ -33,6 +42,8 @@ from pathlib import Path
 
 #: What ``twoscale study`` needs beyond the core, as (module, pip name).
 NEEDS = (("distributed", "dask[distributed]"), ("pyarrow", "pyarrow"))
+#: Exit code when another live run holds the output folder (``DIR/.twoscale-study.lock``).
+EXIT_BUSY = 3
 #: Failed or non-converged cases listed on stderr before the list is cut short.
 MAX_LISTED = 10
 
@@ -82,7 +93,8 @@ def run(args: argparse.Namespace) -> int:
         print(f"error: twoscale study needs {' and '.join(missing)}: pip install \".[study]\" in the repository "
               f"(or pip install {' '.join(repr(m) if '[' in m else m for m in missing)})", file=sys.stderr)
         return 2
-    from ..studies.folder import check_study_folder, mark_study_folder
+    from ..studies.folder import check_study_folder
+    from ..studies.lock import StudyBusy, study_lock
     from ..studies.spec import read_study
 
     out = Path(args.out)
@@ -90,15 +102,36 @@ def run(args: argparse.Namespace) -> int:
         workers = _count(args.workers, "--workers", least=0, default=os.cpu_count() or 1)
         batch = _count(args.batch, "--batch", least=1, default=1)
         study = read_study(args.study)
-        digest = check_study_folder(out, study, overwrite=args.overwrite)
+        if out.exists() and not out.is_dir():
+            raise ValueError(f"--out {str(out)!r} exists and is not a folder")
     except ValueError as exc:  # StudyError and SceneError included
         print(f"error: {exc}", file=sys.stderr)
         return 2
+    created = not out.exists()
+    try:
+        with study_lock(out):   # one run per folder; the kernel frees it when the run dies
+            try:
+                digest = check_study_folder(out, study, overwrite=args.overwrite)
+            except ValueError:
+                if created:   # nothing has run: leave no folder behind
+                    shutil.rmtree(out, ignore_errors=True)
+                raise
+            return _run_locked(args, study, out, digest, created, workers, batch)
+    except StudyBusy as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return EXIT_BUSY
+    except ValueError as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return 2
+
+
+def _run_locked(args, study, out: Path, digest: str, created: bool, workers: int, batch: int) -> int:
+    """The study's run in its locked folder: solve the unfinished cases, write the tables."""
     from ..studies.dask_backend import SchedulerError
     from ..studies.execute import run_study
+    from ..studies.folder import mark_study_folder
     from ..studies.outputs import write_outputs
 
-    created = not out.exists()
     mark_study_folder(out, study, digest)
     try:
         run_info = run_study(study, out, workers=workers, scheduler=args.scheduler, batch=batch, quiet=args.quiet)

@@ -244,6 +244,11 @@ class InfluenceProvider(ABC):
         """
         return None
 
+    def cache_usage(self) -> tuple:
+        """What this body's on-disk caches read, wrote and dropped so far, as
+        :class:`twoscale.io.cache_entry.CacheUsage` objects; ``()`` (default): none."""
+        return ()
+
     def smooth_self_compliance(self, points: np.ndarray) -> np.ndarray:
         """Regular part of the point compliance at coincident points, mm/N, shape (N,).
 

@@ -7,7 +7,10 @@ order: ``force`` N = integral of the final pressure over the cells the asperity 
 ``contact_area`` mm^2, ``max_pressure`` MPa, and ``macro_force`` N when the method has a
 macro step), ``iterations``, ``timings_s``, ``version``. Added: ``message``, ``solver``
 (the algorithm that ran: ``"twoscale"``, ``"dense"`` or ``"cg"``), ``h_source``, ``n_cells``,
-``residuals`` (per stage: count, first, last, min), ``units``, ``scene``; the two-scale
+``residuals`` (per stage: count, first, last, min), ``units``, ``scene``, ``caches`` (one
+entry per on-disk cache the solve used: ``name``, ``folder``, entries ``read`` from it,
+``written``, damaged entries ``dropped`` and computed again, and why new entries were not
+stored, ``disabled``, "" when they were); the two-scale
 method adds ``macro``, ``micro_iteration``, ``micro_choice``, ``micro_attempts``,
 ``coupling`` and ``merged_patches`` (asperities numbered from 1), the reference method
 ``reference`` (solver, working grid, grid enlargements). Everything is written from the
@@ -116,6 +119,8 @@ def result_to_dict(result, scene: Scene, *, method: str | None = None, h_source:
         "residuals": {str(k): _residual_summary(v) for k, v in result.residuals.items()},
         "units": dict(UNITS),
         "scene": scene_to_dict(scene),
+        # what came from the on-disk caches and what was written or dropped there
+        "caches": [u.as_dict() for u in result.caches],
     }
     if isinstance(details, TwoScaleDetails):
         out.update(_twoscale_record(details))

@@ -155,10 +155,17 @@ def field_path(path: str, key: str) -> str:
     return f"{path}: {key}" if path[-1:].isdigit() else f"{path}.{key}"
 
 
+def _shown(key: str) -> str:
+    """A key as written in the message: plain when it is a bare TOML key, else quoted (a key
+    holding a line break or spaces stays on the one line and visible)."""
+    bare = key and all(c.isascii() and (c.isalnum() or c in "_-") for c in key)
+    return key if bare else repr(key)
+
+
 def check_keys(path: str, table: Mapping, allowed, *, required=()) -> None:
     for key in table:
         if key not in allowed:
-            raise SceneError(f"unknown key {field_path(path, key)} = {table[key]!r} "
+            raise SceneError(f"unknown key {field_path(path, _shown(key))} = {table[key]!r} "
                              f"(allowed: {', '.join(allowed)})")
     for key in required:
         if key not in table:

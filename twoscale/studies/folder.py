@@ -17,6 +17,7 @@ from pathlib import Path
 from ..io.atomic import atomic_output
 from .cases import expand
 from .keys import case_key, digest
+from .lock import LOCK_NAME
 
 #: The marker file of a study folder.
 MARKER = ".twoscale-study.json"
@@ -40,7 +41,7 @@ def check_study_folder(out: Path, study, *, overwrite: bool = False) -> str:
         return digest_now
     if not out.is_dir():
         raise ValueError(f"--out {str(out)!r} exists and is not a folder")
-    entries = sorted(p.name for p in out.iterdir())
+    entries = sorted(p.name for p in out.iterdir() if p.name != LOCK_NAME)
     if not entries:
         return digest_now
     marker = out / MARKER

@@ -101,8 +101,16 @@ class CaseStore:
         return final
 
     def clean(self) -> int:
-        """Remove temporary folders left by interrupted writes; returns how many."""
+        """Remove temporary folders left by interrupted writes (and the temporary files of
+        the tables, :func:`twoscale.io.atomic.atomic_output`'s ``.NAME.*.tmp``, left by a run
+        killed while writing them); returns how many."""
         n = 0
+        if self.root.is_dir():
+            for p in self.root.glob(".*.tmp"):
+                if p.is_file():
+                    with contextlib.suppress(OSError):
+                        p.unlink()
+                        n += 1
         if self.folder.is_dir():
             for p in self.folder.iterdir():
                 if p.name.startswith(".") and (".tmp-" in p.name or ".old-" in p.name):

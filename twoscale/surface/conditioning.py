@@ -116,6 +116,8 @@ def _check_relief(src: str, z: np.ndarray, step: float, *, assumed_mm: bool) -> 
 def _unit_factor(src: str, declared: str | None, given: str | None) -> float:
     if given is not None and given not in UNITS:
         raise SurfaceError(f"{src}: units must be one of {', '.join(UNITS)}, got {given!r}")
+    if declared is not None and declared not in UNITS:   # a file's own units field, unchecked before
+        raise SurfaceError(f"{src}: the file's heights are in {declared!r}, not one of {', '.join(UNITS)}")
     if declared is not None and given is not None and declared != given:
         raise SurfaceError(f"{src}: units = {given!r} but the file says its heights are in {declared!r}")
     return UNITS[given or declared or "mm"]

@@ -15,22 +15,23 @@ from pathlib import Path
 
 import numpy as np
 
+from ..caches import LAWS, law_cache_dir
+from ..io.cache_entry import CacheUsage, EntryFolder
 from .laws import LawTable
 
-#: Bumped when the tabulation changes what a key's table holds.
-FORMAT_VERSION = 1
+#: Bumped when the tabulation changes what a key's table holds (2: entries with a checksum
+#: and their key, :mod:`twoscale.io.cache_entry`).
+FORMAT_VERSION = 2
 #: Default bound on the cache directory, bytes.
 MAX_BYTES = 256e6
-ENV_VAR = "TWOSCALE_CACHE_DIR"
+#: Name of this cache (warnings, result.json, ``twoscale cache``).
+NAME = LAWS
 
 
 def default_law_cache_dir() -> Path:
     """``$TWOSCALE_CACHE_DIR/surface-laws``, else ``$XDG_CACHE_HOME/twoscale/surface-laws``,
-    else ``~/.cache/twoscale/surface-laws``."""
-    if os.environ.get(ENV_VAR):
-        return Path(os.environ[ENV_VAR]) / "surface-laws"
-    root = os.environ.get("XDG_CACHE_HOME") or os.path.join(os.path.expanduser("~"), ".cache")
-    return Path(root) / "twoscale" / "surface-laws"
+    else ``~/.cache/twoscale/surface-laws`` (:func:`twoscale.caches.law_cache_dir`)."""
+    return law_cache_dir()
 
 
 def law_key(surface_digest: str, *, E_star: float, h: float, delta_max, levels: int, tol: float) -> str:
@@ -43,6 +44,10 @@ def law_key(surface_digest: str, *, E_star: float, h: float, delta_max, levels: 
 
 class LawCache:
     """Law tables on disk, at most ``max_bytes`` in ``directory``.
+
+    Entries are written and checked by :class:`twoscale.io.cache_entry.EntryFolder`: a
+    damaged one is dropped with one warning line and tabulated again; a folder that cannot
+    be written leaves the laws in memory only, with one warning.
 
     Attributes
     ----------
@@ -57,25 +62,43 @@ class LawCache:
         self.hits = self.misses = 0
         self._files = None   # name -> size, read on first use
         self.nbytes = 0
+        self._folder = EntryFolder(NAME, self.directory)
 
     def _index(self) -> dict:
         if self._files is None:
-            files = sorted(self.directory.glob("*.npz"), key=lambda p: p.stat().st_mtime) \
-                if self.directory.is_dir() else []
-            self._files = {p.name: p.stat().st_size for p in files}
+            files = []
+            if self.directory.is_dir():
+                for p in self.directory.glob("*.npz"):
+                    try:
+                        st = p.stat()
+                    except OSError:   # removed meanwhile by another run
+                        continue
+                    files.append((st.st_mtime, p.name, st.st_size))
+            self._files = {name: size for _, name, size in sorted(files)}
             self.nbytes = sum(self._files.values())
         return self._files
 
+    def usage(self) -> CacheUsage:
+        """What this cache read, wrote and dropped so far."""
+        return self._folder.usage()
+
     def get(self, key: str) -> LawTable | None:
-        path = self.directory / f"{key}.npz"
-        if f"{key}.npz" not in self._index() or not path.is_file():
-            self.misses += 1
-            return None
-        try:
-            with np.load(path, allow_pickle=False) as data:
-                table = LawTable(data["delta"], data["P"], float(data["E_star"]), float(data["h"]),
-                                 bool(data["converged"]))
-        except (OSError, ValueError, KeyError):   # a damaged entry is a miss
+        name = f"{key}.npz"
+        files = self._index()
+        table = None
+        if name in files:
+            data = self._folder.load(name)
+            if data is not None:
+                try:
+                    if str(data["key"]) != key:
+                        raise ValueError(f"it holds the key {str(data['key'])[:16]}...")
+                    table = LawTable(data["delta"], data["P"], float(data["E_star"]), float(data["h"]),
+                                     bool(data["converged"]))
+                except (KeyError, ValueError, TypeError) as exc:   # whole, but not this key's law
+                    self._folder.reject(name, f"not this law table: {exc}")
+            if table is None:   # gone, or dropped as damaged
+                self.nbytes -= files.pop(name)
+        if table is None:
             self.misses += 1
             return None
         self.hits += 1
@@ -83,16 +106,15 @@ class LawCache:
 
     def put(self, key: str, table: LawTable) -> None:
         files = self._index()
-        self.directory.mkdir(parents=True, exist_ok=True)
-        path = self.directory / f"{key}.npz"
-        tmp = self.directory / f".{key}.tmp.npz"
-        np.savez(tmp, delta=table.delta, P=table.P, E_star=table.E_star, h=table.h, converged=table.converged)
-        os.replace(tmp, path)
-        size = path.stat().st_size
-        self.nbytes += size - files.pop(path.name, 0)
-        files[path.name] = size
-        for name in list(files):   # oldest first
-            if self.nbytes <= self.max_bytes or name == path.name:
+        name = f"{key}.npz"
+        size = self._folder.save(name, {"key": np.array(key), "delta": table.delta, "P": table.P,
+                                        "E_star": table.E_star, "h": table.h, "converged": table.converged})
+        if size is None:   # the folder cannot be written: the law stays in memory only
+            return
+        self.nbytes += size - files.pop(name, 0)
+        files[name] = size
+        for old in list(files):   # oldest first
+            if self.nbytes <= self.max_bytes or old == name:
                 break
-            (self.directory / name).unlink(missing_ok=True)
-            self.nbytes -= files.pop(name)
+            (self.directory / old).unlink(missing_ok=True)
+            self.nbytes -= files.pop(old)

@@ -90,7 +90,7 @@ def _first_line(exc: Exception) -> str:
 
 def _checked(raw: RawMap) -> RawMap:
     z = np.asarray(raw.heights)
-    if z.ndim != 2 or not np.issubdtype(z.dtype, np.number):
+    if z.ndim != 2 or not (np.issubdtype(z.dtype, np.integer) or np.issubdtype(z.dtype, np.floating)):
         raise SurfaceError(f"{raw.source}: heights must be a 2-D numeric grid, got shape {z.shape} of {z.dtype}")
     z = np.array(z, dtype=float)
     if min(z.shape) < MIN_SIDE:
@@ -100,6 +100,8 @@ def _checked(raw: RawMap) -> RawMap:
         kind = "NaN" if np.all(np.isnan(z)) else "NaN or infinite"
         raise SurfaceError(f"{raw.source}: every height is missing (all {kind})")
     z[~np.isfinite(z)] = np.nan
+    if raw.spacing is not None and not (np.isfinite(raw.spacing) and raw.spacing > 0):
+        raise SurfaceError(f"{raw.source}: the file's spacing must be a number > 0, got {raw.spacing!r}")
     return RawMap(z, raw.spacing, raw.units, raw.spacing_units, raw.source)
 
 
@@ -112,7 +114,10 @@ def _read_npz(name: str) -> RawMap:
             z = next(data[k] for k in keys if data[k].ndim == 2)
         else:
             raise SurfaceError(f"{name}: no array 'heights' among {keys}")
-        spacing = float(data["spacing"]) if "spacing" in keys else None
+        try:
+            spacing = float(data["spacing"]) if "spacing" in keys else None
+        except (TypeError, ValueError):   # not one number (an array, a string)
+            raise SurfaceError(f"{name}: 'spacing' must be one number, got {data['spacing']!r}") from None
         units = str(data["units"]) if "units" in keys else None
     return RawMap(z, spacing, units, None, name)
 

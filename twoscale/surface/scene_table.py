@@ -40,6 +40,7 @@ SURFACE_KEYS = ("file", "spacing", "units", "invert", "fill", "detrend", "crop",
                 "cap_depth", "law", "law_depth", "law_levels", "law_cache")
 _NUMBERS = ("spacing", "min_distance", "prominence", "cap_depth", "law_depth")
 _FLAGS = ("invert", "detrend")
+_WORDS = ("units", "fill", "law")
 
 
 def surface_from_table(table: Mapping[str, Any], *, base_dir: str | None = None,
@@ -61,6 +62,9 @@ def surface_from_table(table: Mapping[str, Any], *, base_dir: str | None = None,
     for key in _NUMBERS:
         if key in options:
             options[key] = check_number(f"surface.{key}", options[key], positive=key != "prominence", unit="mm")
+    for key in _WORDS:
+        if key in options and not isinstance(options[key], str):
+            raise SceneError(f"surface.{key} must be a string, got {options[key]!r}")
     for key in _FLAGS:
         if key in options and not isinstance(options[key], bool):
             raise SceneError(f"surface.{key} must be true or false, got {options[key]!r}")
