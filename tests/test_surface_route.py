@@ -176,3 +176,12 @@ def test_heights_in_um_read_as_mm_are_refused_unless_units_are_given(tmp_path, c
     assert condition(RawMap(cap, spacing=0.1)).units_from == "default"
     with pytest.raises(SurfaceError, match=r"run from 0 to 5000 \(5000 mm of relief on a map 10 mm wide\)"):
         condition(RawMap(cap * 1e3, spacing=0.1))
+
+
+def test_a_scene_takes_a_surface_or_asperities_not_both():
+    surface = build_surface(RawMap(road(12.0, 0.1, seed=7), spacing=0.1, units="mm"))
+    with pytest.raises(SceneError, match="exactly one of asperities and a surface"):
+        twoscale.Scene(material=MAT, asperities=twoscale.asperities([0.0], [0.0], 5.0), surface=surface,
+                       total_load=1.0)
+    scene = twoscale.Scene(material=MAT, surface=surface, total_load=1.0)
+    assert scene.h == 0.1 and scene.asperities == surface.asperities

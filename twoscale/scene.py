@@ -206,6 +206,9 @@ class Scene:
             if not callable(getattr(self.surface, "at", None)):
                 raise SceneError(f"surface must be a MeasuredSurface (twoscale.surface.build_surface(RawMap(heights, "
                                  f"spacing=..., units=...))), got {type(self.surface).__name__}")
+            if len(self.asperities) and tuple(self.asperities) != tuple(self.surface.asperities):
+                raise SceneError("a scene needs exactly one of asperities and a surface (a height map), got both "
+                                 "(with surface=, leave asperities out)")
             object.__setattr__(self, "surface", self.surface.at(self.h))
             object.__setattr__(self, "asperities", tuple(self.surface.asperities))
             object.__setattr__(self, "h", self.surface.h)

@@ -51,8 +51,9 @@ def with_h_option(scene, text: str | None):
     h = positive_option(text, "--h", unit="mm")
     if h is None:
         return scene
-    surface = None if scene.surface is None else scene.surface.at(h, h_name="--h")
-    return dataclasses.replace(scene, h=h, surface=surface)
+    if scene.surface is None:
+        return dataclasses.replace(scene, h=h)
+    return dataclasses.replace(scene, h=h, surface=scene.surface.at(h, h_name="--h"), asperities=())
 
 
 def int_option(text: str, name: str) -> int:
