@@ -13,7 +13,13 @@ import twoscale
 from twoscale.cli.main import main
 from twoscale.io.scene_file import read_scene
 from twoscale.scene import SceneError
-from twoscale.surface import RawMap, SurfaceError, SurfaceOptions, build_surface, condition
+from twoscale.surface import (
+    RawMap,
+    SurfaceError,
+    SurfaceOptions,
+    build_surface,
+    condition,
+)
 from twoscale.surface.texture import road
 
 ROAD = Path(__file__).resolve().parents[1] / "examples" / "road"
@@ -122,6 +128,8 @@ def test_the_map_size_is_checked_against_the_memory_available(monkeypatch):
     with pytest.raises(SurfaceError, match=r"over 80 % of the memory available now .* give h >= 0.11 mm") as err:
         build_surface(raw, h=0.05)
     assert "\n" not in str(err.value)
+    with pytest.raises(SurfaceError, match=r"the map's own spacing \(0.1 mm; no h given\) gives 120 x 120"):
+        build_surface(raw)                                           # 14,400 samples as measured
     assert build_surface(raw, h=0.11).hmap.shape == (109, 109)        # the suggested h fits
 
 

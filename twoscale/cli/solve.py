@@ -197,8 +197,8 @@ def _map_lines(m: dict) -> list:
     """The height map as conditioned: samples, units, missing samples, edge contacts."""
     ny, nx = m["samples"]
     resampled = "" if m.get("measured_spacing_mm") is None else f" (resampled from {m['measured_spacing_mm']:.6g} mm)"
-    out = [f"  height map   {m['file']}: {ny} x {nx} samples at {m['spacing_mm']:.6g} mm{resampled}, heights in "
-           f"{m['units']} ({_UNITS_FROM.get(m['units_from'], m['units_from'])})"]
+    units = f"{m['units']} ({_UNITS_FROM.get(m['units_from'], m['units_from'])})"
+    out = [f"  height map   {m['file']}: {ny} x {nx} samples at {m['spacing_mm']:.6g} mm{resampled}, heights in {units}"]
     missing = m["missing_samples"]
     how = ("filled from the nearest measured height" if m["missing_treated_as"] == "nearest"
            else "left without material (never in contact)")
