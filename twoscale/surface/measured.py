@@ -190,7 +190,9 @@ class LazyLaw(AsperityLaw):
 
 @dataclass(frozen=True, eq=False)
 class MeasuredSurface:
-    """A height map as indenters; see the module docstring.
+    """A height map as indenters; see the module docstring. Solve it whole,
+    ``twoscale.solve(surface, material=..., total_load=...)`` (or as
+    ``twoscale.Scene(material=..., surface=surface, ...)``), not its ``asperities``.
 
     Attributes
     ----------
