@@ -142,7 +142,7 @@ def test_python_solve_warns_and_refuses_the_same_way():
         twoscale.solve([[0.0, 0.0, 5.0]], material=mat, penetration=0.1)      # the default h: silent
 
 
-def test_heights_in_um_taken_as_mm_are_warned_about(tmp_path, capsys):
+def test_heights_in_um_taken_as_mm_are_refused(tmp_path, capsys):
     import numpy as np
 
     y, x = np.mgrid[0:120, 0:120] * 0.1
@@ -151,10 +151,10 @@ def test_heights_in_um_taken_as_mm_are_warned_about(tmp_path, capsys):
     scene = tmp_path / "bump.toml"
     scene.write_text('[material]\nE = 6.0\nnu = 0.5\n[load]\ntotal = 5.0\n[surface]\nfile = "bump.npy"\n'
                      'spacing = 0.1\n', encoding="utf-8")
-    assert main(["surface", str(scene), "--out", str(tmp_path / "seg"), "--no-laws"]) == 0
+    assert main(["surface", str(scene), "--out", str(tmp_path / "seg"), "--no-laws"]) == 2
     out, err = capsys.readouterr()
-    assert " to 800 mm" in out and "heights " in out
-    assert err.startswith("warning: ") and 'set units = "um"' in err and err.count("\n") == 1
+    assert err.startswith("error: ") and err.count("\n") == 1 and not (tmp_path / "seg").exists()
+    assert "surface.units is not given" in err and " to 800 (800 mm of relief on a map 11.9 mm wide)" in err
     scene.write_text(scene.read_text().replace('spacing = 0.1', 'spacing = 0.1\nunits = "um"'), encoding="utf-8")
     assert main(["surface", str(scene), "--out", str(tmp_path / "seg2"), "--no-laws"]) == 0
     out, err = capsys.readouterr()

@@ -39,7 +39,7 @@ def test_point_list_with_a_missing_point(tmp_path):
     raw = read_heightmap(tmp_path / "p.xyz")
     assert raw.spacing == 0.5 and raw.heights.shape == (5, 6)
     assert np.isnan(raw.heights.ravel()[7])
-    hm = condition(raw)
+    hm = condition(raw, units="mm")   # random heights: implausible as mm unless said so
     assert hm.filled == 1 and np.all(np.isfinite(hm.heights))
 
 
@@ -86,7 +86,7 @@ def test_all_nan_too_small_and_no_spacing(tmp_path):
         condition(read_heightmap(tmp_path / "ok.npy"), spacing=0.1, units="inch")
 
 
-def _raw(z, spacing=0.1, units=None):
+def _raw(z, spacing=0.1, units="mm"):
     return RawMap(np.asarray(z, float), spacing, units, None, "map")
 
 
@@ -150,6 +150,6 @@ def test_a_map_too_large_is_refused_before_segmentation(monkeypatch):
     import twoscale.surface.conditioning as conditioning
 
     monkeypatch.setattr(conditioning, "MAX_SAMPLES", 100)
-    with pytest.raises(SurfaceError, match="crop the map or give a larger"):
+    with pytest.raises(SurfaceError, match="crop the map or give h >= 0.2 mm"):
         condition(_raw(np.zeros((20, 20))))
     assert condition(_raw(np.zeros((20, 20))), h=0.2).shape == (10, 10)   # resampled: fits

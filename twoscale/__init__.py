@@ -11,7 +11,11 @@
 * the bodies: :class:`HalfSpace`, and :class:`FiniteBlock` (the rubber block on a rigid
   base, from the separate ``fem_influence`` package, imported on first use);
 * :func:`solve`: one entry, ``method`` = "twoscale" (default), "reference", "dense",
-  "cg" or a callable, a prebuilt ``provider=`` accepted; returns a :class:`ContactResult`.
+  "cg" or a callable, a prebuilt ``provider=`` accepted; returns a :class:`ContactResult`;
+* a height map (a road scan) as the indenter: :class:`RawMap` (heights, spacing in mm,
+  units), :func:`build_surface` with :class:`SurfaceOptions` (:mod:`twoscale.surface`),
+  then ``solve(surface, material=..., total_load=...)``: the same scene, and the same
+  answer, as a scene file's ``[surface]`` table.
 
 Indices are 0-based in Python (numpy); files and tables written for people number tips
 from 1. Light on import: the solvers, scipy and the finite block (scikit-fem) are imported
@@ -25,11 +29,16 @@ from .material import Material
 from .results import ContactResult
 from .scene import Scene, SceneError
 
-#: Names imported on first use (module, attribute): the bodies pull in scipy / scikit-fem.
-_LAZY = {"HalfSpace": ("twoscale.influence.halfspace", "HalfSpace")}
+#: Names imported on first use (module, attribute): the bodies and the height maps pull in
+#: scipy / scikit-fem / scikit-image.
+_LAZY = {"HalfSpace": ("twoscale.influence.halfspace", "HalfSpace"),
+         "RawMap": ("twoscale.surface.reading", "RawMap"),
+         "SurfaceOptions": ("twoscale.surface.measured", "SurfaceOptions"),
+         "build_surface": ("twoscale.surface.measured", "build_surface")}
 
 __all__ = ["__version__", "solve", "METHODS", "asperities", "as_asperities", "Material", "Grid", "Asperity",
-           "Scene", "SceneError", "ContactResult", "HalfSpace", "FiniteBlock"]
+           "Scene", "SceneError", "ContactResult", "HalfSpace", "FiniteBlock", "RawMap", "SurfaceOptions",
+           "build_surface"]
 
 
 def __getattr__(name: str):

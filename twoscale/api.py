@@ -1,8 +1,10 @@
 """The one entry point: :func:`solve` (``twoscale.solve``), in the style of ``scipy.optimize.minimize``.
 
-``solve(problem, method=...)`` takes a :class:`~twoscale.scene.Scene`, or tips (Asperity
-objects, an array, or a mapping of arrays) with the material and the load, and returns a
-:class:`~twoscale.results.ContactResult`. ``method`` picks the solver:
+``solve(problem, method=...)`` takes a :class:`~twoscale.scene.Scene`, tips (Asperity
+objects, an array, or a mapping of arrays) or a height map (a
+:class:`~twoscale.surface.MeasuredSurface` from :func:`twoscale.surface.build_surface`, or
+a :class:`~twoscale.surface.RawMap` of heights and spacing) with the material and the load,
+and returns a :class:`~twoscale.results.ContactResult`. ``method`` picks the solver:
 
 * ``"twoscale"`` (default): the two-scale method (:func:`twoscale.twoscale.solve_twoscale`);
 * ``"reference"``: the full-grid reference on a grid covering every place contact can
@@ -115,7 +117,7 @@ def as_asperities(tips, *, shape: str = "sphere") -> tuple[Asperity, ...]:
 
 
 def _scene_of(problem, provider, h, shape, given: dict) -> Scene:
-    """The scene to solve: ``problem`` itself, or one built from tips and keywords."""
+    """The scene to solve: ``problem`` itself, or one built from tips or a height map and keywords."""
     if isinstance(problem, Scene):
         extra = [k for k in _SCENE_KEYWORDS if given[k] is not None and not (k == "tilt" and given[k] is False)]
         if extra:
@@ -128,9 +130,24 @@ def _scene_of(problem, provider, h, shape, given: dict) -> Scene:
         if provider is None:
             raise ValueError("give material= (or a provider=) when the tips are not a Scene")
         material = provider.material
-    return Scene(material=material, asperities=as_asperities(problem, shape=shape),
+    surface = _height_map(problem, h)
+    tips = () if surface is not None else as_asperities(problem, shape=shape)
+    return Scene(material=material, asperities=tips, surface=surface,
                  penetration=given["penetration"], total_load=given["total_load"],
                  tilt=bool(given["tilt"]), pivot=given["pivot"] if given["pivot"] is not None else (0.0, 0.0), h=h)
+
+
+def _height_map(problem, h):
+    """``problem`` as a MeasuredSurface conditioned at ``h`` when it is a height map (a
+    MeasuredSurface, or a RawMap built with the default SurfaceOptions), else None."""
+    if isinstance(problem, (Mapping, Sequence, np.ndarray)):
+        return None
+    from .surface.measured import MeasuredSurface, build_surface
+    from .surface.reading import RawMap
+
+    if isinstance(problem, RawMap):
+        return build_surface(problem, h=h)
+    return problem.at(h) if isinstance(problem, MeasuredSurface) else None
 
 
 # ---------------------------------------------------------------- the entry point
@@ -143,11 +160,17 @@ def solve(problem, *, method="twoscale", provider=None, material: Material | Non
 
     Parameters
     ----------
-    problem : Scene, sequence of Asperity, array or mapping of arrays
+    problem : Scene, sequence of Asperity, array, mapping of arrays, MeasuredSurface or RawMap
         A :class:`~twoscale.scene.Scene`, or the tips alone (see :func:`as_asperities`:
         an ``(n, 3)`` array ``x, y, R`` or ``(n, 4)`` ``x, y, R, z``, mm; or
-        ``{"x": ..., "y": ..., "R": ..., "z": ...}``); then give ``material`` (or a
-        ``provider``) and exactly one of ``penetration`` and ``total_load``.
+        ``{"x": ..., "y": ..., "R": ..., "z": ...}``), or a height map as the indenter:
+        ``twoscale.surface.build_surface(RawMap(heights, spacing=0.1, units="um"),
+        SurfaceOptions(...))``, or the ``RawMap`` alone (default options). A map goes
+        through the same conditioning, resampling to ``h`` and defaults (``h`` = its
+        spacing) as a scene file's ``[surface]`` table and gives the same answer; pass
+        the surface, not its ``asperities`` (refused: they need the map). Then give
+        ``material`` (or a ``provider``) and exactly one of ``penetration`` and
+        ``total_load``.
     method : {"twoscale", "reference", "dense", "cg"} or callable, default "twoscale"
         The solver (module docstring). ``"reference"`` picks dense up to 2,000 cells with
         material, CG above; ``result.solver`` says which ran.
@@ -167,7 +190,9 @@ def solve(problem, *, method="twoscale", provider=None, material: Material | Non
         Tips only, with ``tilt``: joint position, mm (default (0, 0)).
     h : float, optional
         Cell size, mm (> 0); overrides the scene's. Default: ``scene.h`` or
-        :func:`twoscale.scene.default_h` (about 32 cells across the smallest loaded contact).
+        :func:`twoscale.scene.default_h` (about 32 cells across the smallest loaded
+        contact); for a height map its spacing (another ``h`` resamples it, refused
+        before allocating when the map would exceed 25 M samples or the memory).
     shape : {"sphere", "paraboloid"}, default "sphere"
         Tips given as arrays: their shape.
     provider_options : mapping, optional
@@ -187,8 +212,9 @@ def solve(problem, *, method="twoscale", provider=None, material: Material | Non
     -------
     ContactResult
         ``result.forces[k]`` (N) is the force of the k-th tip (0-based, input order);
-        ``result.details`` holds what only the method has (typed, :mod:`twoscale.details`);
-        ``print(result)`` gives a one-line summary.
+        ``result.details`` holds what only the method has (typed, :mod:`twoscale.details`),
+        and on a height map ``result.details.surface`` (missing samples, units, contacts
+        at the map's edge); ``print(result)`` gives a one-line summary.
 
     Raises
     ------
@@ -233,9 +259,12 @@ def solve(problem, *, method="twoscale", provider=None, material: Material | Non
         result = solve_reference_scene(scene, provider, h, solver="auto" if method == "reference" else method,
                                        **options)
     if scene.surface is not None:
-        from .surface.edges import warn_edge_contacts
+        from .surface.edges import surface_details, warn_edge_contacts
 
-        warn_edge_contacts(result, scene.surface.hmap.grid)
+        report = surface_details(scene.surface, result)
+        warn_edge_contacts(report.edge_contacts)
+        if hasattr(result.details, "surface"):
+            result = dataclasses.replace(result, details=dataclasses.replace(result.details, surface=report))
     # what came from the on-disk caches (block corrections, surface laws), for result.json
     return dataclasses.replace(result, caches=usage_since(caches_before, solve_caches(provider, scene)))
 

@@ -5,7 +5,9 @@
   (:class:`MicroDetails`: the policy's choice, every attempt, the cross-patch coupling
   routes, merged patches, the paper's eq. 7 start ``p0``);
 * :class:`ReferenceDetails` (``method="reference"``): which full-grid solver ran and on
-  what grid.
+  what grid;
+* :class:`SurfaceDetails` (either method, on a height map): what conditioning did to the
+  map and which contacts reach its edge.
 
 Indices are 0-based, as everywhere in Python (``merged_patches`` lists positions in
 ``scene.asperities``); files written for people number from 1.
@@ -123,11 +125,58 @@ class MicroDetails:
 
 
 @dataclass(frozen=True)
+class SurfaceDetails:
+    """A height map solved as the indenter (``scene.surface``): the map as conditioned,
+    and where the answer needs care.
+
+    Attributes
+    ----------
+    source : str
+        The file, or ``"array"`` for heights given in Python.
+    samples : (ny, nx)
+        Samples of the conditioned map (the solver's lattice).
+    spacing : float
+        Their spacing, mm (the cell size).
+    measured_spacing : float or None
+        The map's own spacing, mm, when it was resampled to ``spacing``; None when not.
+    units : str
+        Units the heights were given in (converted to mm).
+    units_from : str
+        ``"map"`` (the file or the RawMap declares them), ``"option"`` (``units`` given)
+        or ``"default"`` (nothing said: mm, the relief being plausible in mm).
+    missing : int
+        Samples the map had no height for, on the conditioned lattice.
+    fill : {"nearest", "mask"}
+        How they were treated: filled from the nearest measured height, or without
+        material (never in contact).
+    edge_contacts : tuple of int
+        Asperities (0-based) whose contact reaches the map's outermost samples, where the
+        scan ends in a wall and the pressure is a punch corner's.
+    """
+
+    source: str
+    samples: tuple
+    spacing: float
+    measured_spacing: float | None
+    units: str
+    units_from: str
+    missing: int
+    fill: str
+    edge_contacts: tuple = ()
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "samples", tuple(int(n) for n in self.samples))
+        object.__setattr__(self, "edge_contacts", tuple(int(k) for k in self.edge_contacts))
+
+
+@dataclass(frozen=True)
 class TwoScaleDetails:
-    """The two-scale method's own report: its macro step and its micro step."""
+    """The two-scale method's own report: its macro step and its micro step (and, on a
+    height map, :class:`SurfaceDetails`)."""
 
     macro: MacroDetails
     micro: MicroDetails
+    surface: SurfaceDetails | None = None
 
 
 @dataclass(frozen=True)
@@ -144,9 +193,12 @@ class ReferenceDetails:
         CG: iterations made in single precision before the double-precision ones.
     grid_enlargements : int or None
         On a scene: how many times the grid was enlarged because pressure reached its edge.
+    surface : SurfaceDetails or None
+        On a height map: the map as conditioned, contacts at its edge.
     """
 
     solver: str
     working_grid: tuple | None = None
     single_precision_iterations: int | None = None
     grid_enlargements: int | None = None
+    surface: SurfaceDetails | None = None

@@ -159,7 +159,7 @@ class Scene:
         E (MPa) and nu of the elastic body.
     asperities : sequence of Asperity
         The rigid indenters, in scene order (stored as a tuple; at least one; no two
-        tips at the same (x, y)).
+        tips at the same (x, y)); leave out with ``surface``.
     penetration : float, optional
         Rigid approach d, mm (displacement control). Exactly one of ``penetration``
         and ``total_load``; it must exceed the lowest tip recess z so that something
@@ -183,9 +183,12 @@ class Scene:
         in turn in place of ``total_load``; ``twoscale solve`` and :func:`solve_scene`
         use ``total_load`` (conventionally the first case). ``()``: no list, one load.
     surface : MeasuredSurface, optional
-        A height map as indenters (:mod:`twoscale.surface`), instead of ``asperities``:
-        the asperities are then its basins, conditioned at the cell size ``h`` (its own
-        spacing when ``h`` is None), and ``h`` is that cell size.
+        A height map as indenters (:func:`twoscale.surface.build_surface`, what a scene
+        file's ``[surface]`` table builds), instead of ``asperities``: the asperities are
+        then its basins, conditioned at the cell size ``h`` (its own spacing when ``h``
+        is None: the default cell size of a map), and ``h`` is that cell size. The basins
+        of a map (its ``asperities``) are refused without it: they need the map to be
+        resampled to ``h``.
 
     Raises
     ------
@@ -194,7 +197,7 @@ class Scene:
     """
 
     material: Material
-    asperities: tuple
+    asperities: tuple = ()
     penetration: float | None = None
     total_load: float | None = None
     tilt: bool = False
@@ -208,6 +211,12 @@ class Scene:
         if not isinstance(self.material, Material):
             raise SceneError(f"material must be a Material, got {self.material!r}")
         if self.surface is not None:  # the basins of a height map, at the scene's cell size
+            if not callable(getattr(self.surface, "at", None)):
+                raise SceneError(f"surface must be a MeasuredSurface (twoscale.surface.build_surface(RawMap(heights, "
+                                 f"spacing=..., units=...))), got {type(self.surface).__name__}")
+            if len(self.asperities) and tuple(self.asperities) != tuple(self.surface.asperities):
+                raise SceneError("a scene needs exactly one of asperities and a surface (a height map), got both "
+                                 "(with surface=, leave asperities out)")
             object.__setattr__(self, "surface", self.surface.at(self.h))
             object.__setattr__(self, "asperities", tuple(self.surface.asperities))
             object.__setattr__(self, "h", self.surface.h)
@@ -226,6 +235,12 @@ class Scene:
         for k, a in enumerate(asps):
             if not isinstance(a, Asperity):
                 raise SceneError(f"asperity {k + 1} must be an Asperity, got {a!r}")
+            if a.shape == "map" and self.surface is None:   # a basin of a height map, without its map
+                raise SceneError(
+                    f"asperity {k + 1} is a basin of a height map: give the surface itself, "
+                    f"twoscale.solve(surface, material=..., total_load=...) or Scene(surface=surface, ...), "
+                    f"not surface.asperities (the map is then resampled to h, its spacing is the default "
+                    f"h, and the result reports it)")
         seen: dict[tuple[float, float], int] = {}
         for k, a in enumerate(asps):
             key = (a.x + 0.0, a.y + 0.0)  # + 0.0 folds -0.0 into 0.0

@@ -68,7 +68,7 @@ from ..resources import check_solve_memory
 from ..scene import METHODS, Scene, SceneError, default_h, normalise_influence
 from ..sensor import Sensor, forces_from_map, read_sensor_map, read_tip_forces
 from .options import DEFAULT_SENSOR, add_sensor_arguments, sensor_from_args
-from .options import positive_option
+from .options import positive_option, with_h_option
 from .solve import check_out_dir
 from .staging import staged_directory
 
@@ -106,8 +106,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def _scenes(args) -> list[Scene]:
     """The scene once per load case (validated; raises SceneError)."""
     scene = read_scene(args.scene)
-    if args.h is not None:
-        scene = dataclasses.replace(scene, h=positive_option(args.h, "--h", unit="mm"))
+    scene = with_h_option(scene, args.h)
     if args.loads is None:
         if not scene.load_cases:
             return [scene]

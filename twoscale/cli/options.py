@@ -1,5 +1,5 @@
-"""Command-line options shared by several commands: positive numbers, the sensor
-(``--sensor``, ``--sensor-centre``).
+"""Command-line options shared by several commands: positive numbers, the cell size
+(``--h``), the sensor (``--sensor``, ``--sensor-centre``).
 
 Each parser turns the text given into a value or raises :class:`~twoscale.scene.SceneError`
 naming the option and the text (the command prints it as one ``error:`` line, exit 2).
@@ -7,6 +7,7 @@ naming the option and the text (the command prints it as one ``error:`` line, ex
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import math
 
 from ..scene import SceneError
@@ -42,6 +43,17 @@ def positive_option(text: str | None, name: str, *, unit: str) -> float | None:
     if not (math.isfinite(v) and v > 0):
         raise SceneError(f"{name} must be a finite number > 0 ({unit}), got {text!r}")
     return v
+
+
+def with_h_option(scene, text: str | None):
+    """``scene`` at the cell size ``--h`` gives (itself without ``--h``); a height map is
+    resampled here, so that a map too large at that size is refused naming ``--h``."""
+    h = positive_option(text, "--h", unit="mm")
+    if h is None:
+        return scene
+    if scene.surface is None:
+        return dataclasses.replace(scene, h=h)
+    return dataclasses.replace(scene, h=h, surface=scene.surface.at(h, h_name="--h"), asperities=())
 
 
 def int_option(text: str, name: str) -> int:

@@ -17,7 +17,6 @@ interrupted run leaves no partial DIR. Without ``--out`` nothing is written.
 from __future__ import annotations
 
 import argparse
-import dataclasses
 import math
 import sys
 import time
@@ -31,7 +30,7 @@ from ..micro.policy import ITERATIONS
 from ..progress import StatusLine
 from ..resources import check_solve_memory
 from ..scene import METHODS, SceneError, default_h, solve_scene
-from .options import positive_option
+from .options import positive_option, with_h_option
 from .staging import check_output_folder, staged_directory
 
 #: Asperity rows printed in the summary before it is cut short.
@@ -81,9 +80,7 @@ def run(args: argparse.Namespace) -> int:
     """Run ``twoscale solve``; returns the exit code (0, 1 or 2, see module doc)."""
     try:
         scene = read_scene(args.scene)
-        h = positive_option(args.h, "--h", unit="mm")
-        if h is not None:
-            scene = dataclasses.replace(scene, h=h)
+        scene = with_h_option(scene, args.h)
         if getattr(args, "block_field", False):
             if scene.influence["kind"] != "block":
                 raise SceneError(f"--block-field needs [influence] kind = \"block\", "
@@ -108,7 +105,7 @@ def run(args: argparse.Namespace) -> int:
             options["iteration"] = iteration
         # before anything large is allocated: refuse a solve the machine cannot hold
         check_solve_memory(scene, default_h(scene), args.method, iteration=iteration, option="--h",
-                           h_given=h is not None)
+                           h_given=args.h is not None)
         t0 = time.perf_counter()
         quiet_block = {"progress": False} if args.quiet and scene.influence["kind"] == "block" else None
         with StatusLine(quiet=args.quiet) as status:
@@ -169,6 +166,8 @@ def summary(res: dict, scene_path: str, wall: float, path) -> str:
     if res["tilt"] is not None:
         lines.append(f"  tilt         alpha {res['tilt'][0]:.4g} rad, beta {res['tilt'][1]:.4g} rad")
     lines.append(f"  cell size    h = {res['h']:.6g} mm ({res['h_source']}), {res['n_cells']} cells")
+    if res.get("height_map") is not None:
+        lines.extend(_map_lines(res["height_map"]))
     if "micro_choice" in res:
         lines.extend(_micro_lines(res))
     macro = any("macro_force" in a for a in res["asperities"])
@@ -189,6 +188,32 @@ def summary(res: dict, scene_path: str, wall: float, path) -> str:
         names = sorted(p.name for p in folder.iterdir() if not p.name.startswith("."))
         lines.append(f"  wrote        {folder}/: {', '.join(names)}")
     return "\n".join(lines)
+
+
+#: How result.json's ``units_from`` reads in the summary.
+_UNITS_FROM = {"map": "the map's", "option": "surface.units", "default": "none given: mm"}
+
+
+def _map_lines(m: dict) -> list:
+    """The height map as conditioned: samples, units, missing samples, edge contacts."""
+    ny, nx = m["samples"]
+    resampled = "" if m.get("measured_spacing_mm") is None else f" (resampled from {m['measured_spacing_mm']:.6g} mm)"
+    units = f"{m['units']} ({_UNITS_FROM.get(m['units_from'], m['units_from'])})"
+    out = [f"  height map   {m['file']}: {ny} x {nx} samples at {m['spacing_mm']:.6g} mm{resampled}, heights in {units}"]
+    missing = m["missing_samples"]
+    how = ("filled from the nearest measured height" if m["missing_treated_as"] == "nearest"
+           else "left without material (never in contact)")
+    out.append(f"               missing samples: {missing:,} ({100.0 * missing / (nx * ny):.3g} %)"
+               + (f", {how}" if missing else ""))
+    ks = m["edge_asperities"]
+    if ks:
+        names = ", ".join(str(k) for k in ks[:5]) + (f" and {len(ks) - 5} more" if len(ks) > 5 else "")
+        many = len(ks) > 1
+        out.append(f"               edge contacts: {len(ks)} asperit{'ies' if many else 'y'} ({names}) "
+                   f"touch{'' if many else 'es'} the map's edge, where the scan ends in a wall")
+    else:
+        out.append("               edge contacts: none")
+    return out
 
 
 def _micro_lines(res: dict) -> list:

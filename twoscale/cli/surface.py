@@ -69,12 +69,17 @@ def run(args: argparse.Namespace) -> int:
     return 0
 
 
+#: Where the map's units came from, in words.
+_FROM = {"map": "as the file says", "option": "as surface.units says", "default": "none given: mm"}
+
+
 def _text(scene_path: str, s: dict, out) -> str:
     m, seg = s["map"], s["segmentation"]
     lines = [f"twoscale surface {scene_path}",
              f"  map          {m['file']}: {m['samples'][0]} x {m['samples'][1]} samples at {m['spacing_mm']:g} mm, "
              f"{m['missing_samples']} missing ({m['missing_treated_as']}); heights "
-             f"{m['height_range_mm'][0]:.4g} to {m['height_range_mm'][1]:.4g} mm",
+             f"{m['height_range_mm'][0]:.4g} to {m['height_range_mm'][1]:.4g} mm (given in {m['units']}, "
+             f"{_FROM[m['units_from']]})",
              f"  asperities   {seg['asperities']} (of {seg['candidates']} local maxima; min distance "
              f"{seg['min_distance_mm']:g} mm, prominence {seg['prominence_mm']:g} mm)"]
     if s["laws"] is not None:

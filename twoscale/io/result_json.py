@@ -13,8 +13,12 @@ entry per on-disk cache the solve used: ``name``, ``folder``, entries ``read`` f
 stored, ``disabled``, "" when they were); the two-scale
 method adds ``macro``, ``micro_iteration``, ``micro_choice``, ``micro_attempts``,
 ``coupling`` and ``merged_patches`` (asperities numbered from 1), the reference method
-``reference`` (solver, working grid, grid enlargements). Everything is written from the
-typed :attr:`ContactResult.details`, never from string-keyed extras.
+``reference`` (solver, working grid, grid enlargements); a height-map scene adds
+``height_map`` (the map as conditioned: ``file``, ``samples``, ``spacing_mm`` and
+``measured_spacing_mm`` when resampled, ``units``
+and ``units_from``, ``missing_samples`` and ``missing_treated_as``, ``edge_contacts`` and
+``edge_asperities`` numbered from 1). Everything is written from the typed
+:attr:`ContactResult.details`, never from string-keyed extras.
 
 :func:`read_forces` reads the per-asperity forces back.
 """
@@ -31,7 +35,7 @@ import numpy as np
 
 from .._version import __version__
 from .atomic import atomic_output
-from ..details import ReferenceDetails, TwoScaleDetails
+from ..details import ReferenceDetails, SurfaceDetails, TwoScaleDetails
 from ..scene import Scene
 from .scene_file import scene_to_dict
 
@@ -114,7 +118,7 @@ def result_to_dict(result, scene: Scene, *, method: str | None = None, h_source:
         "version": __version__,
         "message": result.message,
         "solver": result.solver,
-        "h_source": h_source or ("scene" if scene.h is not None else "default"),
+        "h_source": h_source or _h_source(scene),
         "n_cells": int(result.n_cells),
         "residuals": {str(k): _residual_summary(v) for k, v in result.residuals.items()},
         "units": dict(UNITS),
@@ -125,8 +129,28 @@ def result_to_dict(result, scene: Scene, *, method: str | None = None, h_source:
     if isinstance(details, TwoScaleDetails):
         out.update(_twoscale_record(details))
     elif isinstance(details, ReferenceDetails):
-        out["reference"] = _plain(dataclasses.asdict(details))
+        out["reference"] = _plain({k: v for k, v in dataclasses.asdict(details).items() if k != "surface"})
+    surface = getattr(details, "surface", None)
+    if surface is not None:
+        out["height_map"] = _height_map_record(surface)
     return out
+
+
+def _height_map_record(s: SurfaceDetails) -> dict:
+    """The ``height_map`` of result.json: the map as conditioned, and the asperities
+    (numbered from 1) whose contact reaches its edge."""
+    return {"file": s.source, "samples": list(s.samples), "spacing_mm": _num(s.spacing),
+            "measured_spacing_mm": None if s.measured_spacing is None else _num(s.measured_spacing), "units": s.units,
+            "units_from": s.units_from, "missing_samples": s.missing, "missing_treated_as": s.fill,
+            "edge_contacts": len(s.edge_contacts), "edge_asperities": [k + 1 for k in s.edge_contacts]}
+
+
+def _h_source(scene: Scene) -> str:
+    """Where the cell size came from, without a command-line option: the scene's h, the
+    default rule, or a height map's own spacing (a map's default)."""
+    if scene.surface is not None and scene.surface.hmap.measured_spacing is None:
+        return "map spacing"
+    return "scene" if scene.h is not None else "default"
 
 
 def _twoscale_record(details: TwoScaleDetails) -> dict:

@@ -16,6 +16,13 @@ The pipeline, one module per step:
 * :mod:`.measured` — all of it for a scene (:func:`load_surface`);
 * :mod:`.texture` — seeded synthetic road textures;
 * :mod:`.figure` — the segmentation drawn over the height map.
+
+To solve a map given in Python, build the surface and pass it (not its asperities) to
+:func:`twoscale.solve`; it is the scene a scene file's ``[surface]`` table builds::
+
+    surface = build_surface(RawMap(heights, spacing=0.1, units="um"), SurfaceOptions(min_distance=2.0))
+    result = twoscale.solve(surface, material=twoscale.Material(10.0, 0.5), total_load=500.0)
+    result.details.surface    # missing samples, units, contacts at the map's edge
 """
 from .heightmap import HeightMap, SurfaceError
 from .indenter import MapAsperity, map_asperities

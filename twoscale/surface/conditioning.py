@@ -12,7 +12,6 @@ import math
 
 import numpy as np
 from scipy import ndimage
-from scipy.interpolate import RegularGridInterpolator
 
 from .heightmap import HeightMap, SurfaceError
 from .reading import MIN_SIDE, RawMap
@@ -20,27 +19,37 @@ from .reading import MIN_SIDE, RawMap
 #: Height units and their size in mm.
 UNITS = {"mm": 1.0, "um": 1e-3, "nm": 1e-6, "m": 1e3}
 #: Most samples a conditioned map may have (a 200 mm square at 0.04 mm), and the memory
-#: one sample costs through segmentation and the solvers' look-ups (an estimate, bytes).
+#: one sample costs through conditioning, segmentation and the solvers' look-ups (an
+#: upper estimate, bytes; measured in docs/surfaces.md, "Size and memory").
 MAX_SAMPLES = 25_000_000
 BYTES_PER_SAMPLE = 200
 #: How missing samples are treated: "nearest" fills each with the nearest measured
 #: height; "mask" leaves them without material (they never touch).
 FILL_MODES = ("nearest", "mask")
+#: Largest relief (height span) over the map's smaller side for heights taken as mm when
+#: no units are given: a measured texture is far flatter (a road: 2-10 mm over 50-200 mm;
+#: a hemisphere: 0.5), while heights in um read as mm are 1000 times too tall (the
+#: example road: 2.9 m over 50 mm).
+MAX_RELIEF_RATIO = 1.0
 
 
 def condition(raw: RawMap, *, spacing: float | None = None, units: str | None = None, fill: str = "nearest",
-              detrend: bool = False, crop=None, h: float | None = None, invert: bool = False) -> HeightMap:
+              detrend: bool = False, crop=None, h: float | None = None, invert: bool = False,
+              h_name: str = "h") -> HeightMap:
     """The raw map as a :class:`HeightMap` in mm, ready for segmentation.
 
     Parameters
     ----------
     raw : RawMap
-        As read by :func:`twoscale.surface.reading.read_heightmap`.
+        As read by :func:`twoscale.surface.reading.read_heightmap`, or made in Python.
     spacing : float, optional
         Sample spacing, mm, for files that do not carry it (must agree with the file's
         when both are known).
     units : {"mm", "um", "nm", "m"}, optional
-        Units of the heights; default the file's, else "mm".
+        Units of the heights; default the file's (``raw.units``). When neither says,
+        the heights are taken as mm, unless their relief exceeds
+        :data:`MAX_RELIEF_RATIO` times the map's smaller side (heights in um read as mm):
+        then an error asks for ``units``.
     fill : {"nearest", "mask"}, default "nearest"
         Missing samples: filled with the nearest measured height, or left without
         material (never in contact). The count is in ``HeightMap.filled`` either way.
@@ -54,73 +63,125 @@ def condition(raw: RawMap, *, spacing: float | None = None, units: str | None = 
     invert : bool, default False
         False: larger heights are closer to the body (summits up, as a road scan).
         True: the map is flipped (a scan of the tread side, or of a mould).
+    h_name : str, default "h"
+        Where ``h`` came from, as a refusal names it (``"grid.h"``, ``"--h"``).
 
     Raises
     ------
     SurfaceError
-        Unknown units or fill mode, no spacing, a crop or resampling that leaves too few
-        samples.
+        Unknown units or fill mode, no spacing, heights implausible in mm without
+        ``units``, a crop or resampling that leaves too few samples, or a map larger than
+        :data:`MAX_SAMPLES` samples or than the memory available after resampling
+        (checked before anything of the resampled size is allocated).
     """
     src = raw.source or "height map"
-    factor = _unit_factor(src, raw.units, units)
+    factor, unit, units_from = _units(src, raw.units, units)
     step = _spacing_mm(src, raw, spacing, factor)
-    z = raw.heights * factor
     if fill not in FILL_MODES:
         raise SurfaceError(f"{src}: fill must be one of {', '.join(FILL_MODES)}, got {fill!r}")
-    missing = np.isnan(z)
+    z, missing = raw.heights, np.isnan(raw.heights)
     if crop is not None:
         z, missing = _crop(src, z, missing, step, crop)
+    if units_from == "default":
+        _check_relief(src, z, step)
+    _check_size(src, z.shape, step, h, h_name)   # before anything of the resampled size exists
+    z = z * factor
     if detrend:
         z = z - _plane(z, missing, step)
     if missing.any():
         z = _fill_nearest(z, missing)
+    measured = None
     if h is not None and not math.isclose(h, step, rel_tol=1e-9):
-        z, missing = _resample(src, z, missing, step, h)
-        step = h
-    if z.size > MAX_SAMPLES:   # before segmentation allocates its arrays
-        raise SurfaceError(f"{src}: {z.shape[0]} x {z.shape[1]} samples at {step:g} mm is more than "
-                           f"{MAX_SAMPLES:.0e} (about {BYTES_PER_SAMPLE * z.size / 1e9:.1f} GB to segment "
-                           f"and solve); crop the map or give a larger [grid] h")
-    _check_relief(src, z, step, assumed_mm=units is None and raw.units is None)
+        z, missing = _resample(z, missing, step, h)
+        measured, step = step, h
     if invert:
         z = -z
     if fill == "mask":
         z = np.where(missing, np.nan, z)
     ny, nx = z.shape
     return HeightMap(z, step, x0=-(nx // 2) * step, y0=-(ny // 2) * step, source=src,
-                     filled=int(missing.sum()))
-
-
-#: Relief (mm) above which heights taken as mm are suspected to be micrometres.
-RELIEF_MM = 20.0
+                     filled=int(missing.sum()), units=unit, units_from=units_from,
+                     measured_spacing=measured)
 
 
 class SurfaceWarning(UserWarning):
-    """A height map that reads as implausible (e.g. heights in um taken as mm)."""
+    """A height-map solve whose answer needs care (contacts reaching the map's edge)."""
 
 
-def _check_relief(src: str, z: np.ndarray, step: float, *, assumed_mm: bool) -> None:
-    """Warn when heights taken as mm (no units given) span more than :data:`RELIEF_MM` and
-    a fifth of the map's smaller side: a road texture's relief is a few mm on a map of
-    50-200 mm, and heights in um read as mm are 1000 times too tall."""
-    import warnings
+def _check_relief(src: str, z: np.ndarray, step: float) -> None:
+    """Refuse heights taken as mm (no units given) whose relief exceeds
+    :data:`MAX_RELIEF_RATIO` times the map's smaller side: heights in um read as mm."""
+    lo, hi = float(np.nanmin(z)), float(np.nanmax(z))
+    side = step * (min(z.shape) - 1)
+    if hi - lo > MAX_RELIEF_RATIO * side:
+        raise SurfaceError(
+            f"{src}: surface.units is not given and the heights, taken as mm, run from {lo:.4g} to {hi:.4g} "
+            f"({hi - lo:.4g} mm of relief on a map {side:.4g} mm wide): they look like another unit; "
+            f"give surface.units (\"um\" if they are micrometres, \"mm\" if they really are mm; in Python "
+            f"SurfaceOptions(units=...) or RawMap(units=...))")
 
-    relief = float(np.nanmax(z) - np.nanmin(z)) if np.isfinite(z).any() else 0.0
-    side = step * min(z.shape)
-    if assumed_mm and relief > max(0.2 * side, RELIEF_MM):
-        warnings.warn(SurfaceWarning(
-            f"{src}: heights taken as mm (no units given) span {relief:.4g} mm on a map {side:.4g} mm "
-            f"wide; if they are in micrometres, set units = \"um\""), stacklevel=3)
+
+def _resampled_shape(src: str, shape: tuple, step: float, h: float) -> tuple[int, int]:
+    """Samples (rows, columns) of a ``shape`` map at spacing ``step`` resampled to ``h``."""
+    if isinstance(h, bool) or not (isinstance(h, (int, float)) and math.isfinite(h) and h > 0):
+        raise SurfaceError(f"{src}: cell size h must be a number > 0 (mm), got {h!r}")
+    ny, nx = shape
+    return math.floor((ny - 1) * step / h + 1e-9) + 1, math.floor((nx - 1) * step / h + 1e-9) + 1
 
 
-def _unit_factor(src: str, declared: str | None, given: str | None) -> float:
-    if given is not None and given not in UNITS:
-        raise SurfaceError(f"{src}: units must be one of {', '.join(UNITS)}, got {given!r}")
-    if declared is not None and declared not in UNITS:   # a file's own units field, unchecked before
-        raise SurfaceError(f"{src}: the file's heights are in {declared!r}, not one of {', '.join(UNITS)}")
+def _check_size(src: str, shape: tuple, step: float, h: float | None, h_name: str) -> None:
+    """Refuse, from the numbers alone, a map over :data:`MAX_SAMPLES` samples or over the
+    memory available (:func:`twoscale.resources.default_limit`) once resampled to ``h``."""
+    from ..resources import default_limit
+
+    resampled = h is not None and not math.isclose(h, step, rel_tol=1e-9)
+    my, mx = _resampled_shape(src, shape, step, h) if resampled else shape
+    if mx < MIN_SIDE or my < MIN_SIDE:
+        raise SurfaceError(f"{src}: resampling to {h_name} = {h!r} mm leaves {my} x {mx} samples "
+                           f"(at least {MIN_SIDE} x {MIN_SIDE})")
+    n = float(mx) * float(my)
+    need, limit = BYTES_PER_SAMPLE * n, default_limit()
+    if n <= MAX_SAMPLES and need <= limit:
+        return
+    width, height = (shape[1] - 1) * step, (shape[0] - 1) * step
+    origin = f"{h_name} = {h:g} mm" if resampled else f"the map's own spacing ({step:g} mm; no {h_name} given)"
+    over = (f"more than {MAX_SAMPLES:,}" if n > MAX_SAMPLES
+            else f"about {need / 1e9:.3g} GB, over 80 % of the memory available now ({limit / 1e9:.3g} GB)")
+    raise SurfaceError(f"{src}: {origin} gives {my:,} x {mx:,} = {n:.3g} samples on {width:.4g} x {height:.4g} mm, "
+                       f"{over}: crop the map or give {h_name} >= {_fitting_h(shape, step, limit):g} mm")
+
+
+def _fitting_h(shape: tuple, step: float, limit: float) -> float:
+    """The smallest two-digit cell size (mm) at which the map fits both bounds."""
+    cap = min(float(MAX_SAMPLES), limit / BYTES_PER_SAMPLE)
+    if not cap >= MIN_SIDE ** 2:
+        return math.inf
+    area = (shape[1] - 1) * (shape[0] - 1) * step * step
+    h = _round_up(max(math.sqrt(area / cap), step * 1e-6))   # samples go as area / h^2
+    while math.prod(_resampled_shape("", shape, step, h)) > cap:   # the +1 sample per side
+        h = _round_up(h * 1.01)
+    return h
+
+
+def _round_up(x: float) -> float:
+    """``x`` rounded up to two significant digits."""
+    e = math.floor(math.log10(x)) - 1
+    return float(f"{math.ceil(x / 10.0 ** e - 1e-9) * 10.0 ** e:.3g}")
+
+
+def _units(src: str, declared: str | None, given: str | None) -> tuple[float, str, str]:
+    """Size of the height unit in mm, its name, and where it came from ("map", "option",
+    "default")."""
+    for name, v in (("units", given), ("the map's units", declared)):
+        if v is not None and v not in UNITS:
+            raise SurfaceError(f"{src}: {name} must be one of {', '.join(UNITS)}, got {v!r}")
     if declared is not None and given is not None and declared != given:
         raise SurfaceError(f"{src}: units = {given!r} but the file says its heights are in {declared!r}")
-    return UNITS[given or declared or "mm"]
+    if declared is not None:
+        return UNITS[declared], declared, "map"
+    if given is not None:
+        return UNITS[given], given, "option"
+    return UNITS["mm"], "mm", "default"
 
 
 def _spacing_mm(src: str, raw: RawMap, given: float | None, factor: float) -> float:
@@ -172,16 +233,21 @@ def _fill_nearest(z, missing) -> np.ndarray:
     return z[tuple(index)]
 
 
-def _resample(src, z, missing, step, h):
-    if not (isinstance(h, (int, float)) and math.isfinite(h) and h > 0):
-        raise SurfaceError(f"{src}: cell size h must be a number > 0 (mm), got {h!r}")
-    ny, nx = z.shape
-    mx, my = math.floor((nx - 1) * step / h + 1e-9) + 1, math.floor((ny - 1) * step / h + 1e-9) + 1
-    if mx < MIN_SIDE or my < MIN_SIDE:
-        raise SurfaceError(f"{src}: resampling to h = {h!r} mm leaves {my} x {mx} samples")
-    x, y = np.arange(nx) * step, np.arange(ny) * step
-    X, Y = np.meshgrid(np.minimum(np.arange(mx) * h, x[-1]), np.minimum(np.arange(my) * h, y[-1]))
-    pts = np.column_stack([Y.ravel(), X.ravel()])
-    out = RegularGridInterpolator((y, x), z)(pts).reshape(my, mx)
-    gone = RegularGridInterpolator((y, x), missing.astype(float), method="nearest")(pts).reshape(my, mx) > 0.5
+def _resample(z, missing, step, h):
+    """Bilinear resampling of ``z`` (spacing ``step``) to spacing ``h``, one axis after the
+    other (no coordinate arrays: the only large arrays are the result and one
+    intermediate), and the nearest sample's ``missing`` flag."""
+    my, mx = _resampled_shape("", z.shape, step, h)
+    (jy, wy, ny_), (ix, wx, nx_) = (_axis(n, m, step, h) for n, m in zip(z.shape, (my, mx)))
+    rows = z[:, ix] * (1.0 - wx) + z[:, ix + 1] * wx
+    out = rows[jy] * (1.0 - wy)[:, None] + rows[jy + 1] * wy[:, None]
+    gone = missing[ny_][:, nx_]
     return out, gone
+
+
+def _axis(n: int, m: int, step: float, h: float):
+    """Along one axis of ``n`` samples resampled to ``m``: the left neighbour and weight of
+    the right one (bilinear), and the nearest sample, of each new sample."""
+    p = np.minimum(np.arange(m) * (h / step), n - 1.0)
+    left = np.minimum(np.floor(p).astype(np.int64), n - 2)
+    return left, p - left, np.minimum(np.floor(p + 0.5).astype(np.int64), n - 1)

@@ -3,7 +3,8 @@
 Beyond its edge a map has no surface, so a stone cut by the edge ends there in a vertical
 wall: where its contact reaches that wall the pressure is a punch corner's (a new user's
 road showed 20.8 MPa on such a stone against 5-7 MPa on whole ones). The solver cannot
-know what lies beyond the scan; it says which asperities are concerned.
+know what lies beyond the scan; it says which asperities are concerned, in a warning and
+in the result's :class:`~twoscale.details.SurfaceDetails` (:func:`surface_details`).
 """
 from __future__ import annotations
 
@@ -11,6 +12,7 @@ import warnings
 
 import numpy as np
 
+from ..details import SurfaceDetails
 from ..grid import Grid
 from .conditioning import SurfaceWarning
 
@@ -30,10 +32,21 @@ def edge_contacts(result, grid: Grid) -> list[int]:
     return sorted(found)
 
 
-def warn_edge_contacts(result, grid: Grid, *, show: int = 5) -> None:
-    """A :class:`SurfaceWarning` naming (from 1) the asperities whose contact reaches the
-    map's edge, where the scan ends in a wall and the pressure is a punch corner's."""
-    ks = edge_contacts(result, grid)
+def surface_details(surface, result) -> SurfaceDetails:
+    """The report of a height-map solve: the conditioned map of ``surface`` (a
+    :class:`~twoscale.surface.MeasuredSurface`) and the asperities of ``result`` whose
+    contact reaches its edge."""
+    hm = surface.hmap
+    return SurfaceDetails(source=hm.source, samples=hm.shape, spacing=hm.h,
+                          measured_spacing=hm.measured_spacing, units=hm.units,
+                          units_from=hm.units_from, missing=hm.filled, fill=surface.options.fill,
+                          edge_contacts=tuple(edge_contacts(result, hm.grid)))
+
+
+def warn_edge_contacts(ks, *, show: int = 5) -> None:
+    """A :class:`SurfaceWarning` naming (from 1) the asperities ``ks`` (0-based) whose
+    contact reaches the map's edge, where the scan ends in a wall and the pressure is a
+    punch corner's; nothing when ``ks`` is empty."""
     if ks:
         names = ", ".join(str(k + 1) for k in ks[:show]) + (f" and {len(ks) - show} more" if len(ks) > show else "")
         warnings.warn(SurfaceWarning(

@@ -38,7 +38,17 @@ class HeightMap:
     source : str, default ""
         Where the heights came from (file name), for messages and records.
     filled : int, default 0
-        How many samples were missing and filled by conditioning.
+        How many samples were missing (filled by conditioning, or left without material
+        with ``fill = "mask"``).
+    units : str, default "mm"
+        Units the heights were given in before conditioning converted them to mm.
+    units_from : str, default ""
+        Where ``units`` came from: ``"map"`` (the file, or the :class:`RawMap`, declares
+        them), ``"option"`` (``SurfaceOptions.units``, the ``[surface]`` table's
+        ``units``), ``"default"`` (nothing said: taken as mm, their relief being
+        plausible in mm); ``""`` for a map made here directly.
+    measured_spacing : float or None, default None
+        Spacing of the samples as measured, mm, when conditioning resampled them to ``h``.
     """
 
     heights: np.ndarray
@@ -47,6 +57,9 @@ class HeightMap:
     y0: float = 0.0
     source: str = ""
     filled: int = 0
+    units: str = "mm"
+    units_from: str = ""
+    measured_spacing: float | None = None
     grid: Grid = field(init=False, repr=False)
 
     def __post_init__(self) -> None:

@@ -190,7 +190,9 @@ class LazyLaw(AsperityLaw):
 
 @dataclass(frozen=True, eq=False)
 class MeasuredSurface:
-    """A height map as indenters; see the module docstring.
+    """A height map as indenters; see the module docstring. Solve it whole,
+    ``twoscale.solve(surface, material=..., total_load=...)`` (or as
+    ``twoscale.Scene(material=..., surface=surface, ...)``), not its ``asperities``.
 
     Attributes
     ----------
@@ -219,12 +221,13 @@ class MeasuredSurface:
         """Spacing of the conditioned map = cell size of the solves, mm."""
         return self.hmap.h
 
-    def at(self, h: float | None) -> "MeasuredSurface":
-        """This surface conditioned at cell size ``h`` (mm); itself when ``h`` is None or
-        its own spacing."""
+    def at(self, h: float | None, *, h_name: str = "h") -> "MeasuredSurface":
+        """This surface conditioned at cell size ``h`` (mm) from the raw map; itself when
+        ``h`` is None or its own spacing. ``h_name``: where ``h`` came from, as a refusal
+        names it (the size is checked before the resampled map is allocated)."""
         if h is None or math.isclose(h, self.h, rel_tol=1e-12):
             return self
-        return build_surface(self.raw, self.options, h=h, cache=self.book.cache)
+        return build_surface(self.raw, self.options, h=h, cache=self.book.cache, h_name=h_name)
 
     def sphere_error(self, material):
         """Error of the equivalent-sphere laws against the tabulated ones
@@ -232,12 +235,36 @@ class MeasuredSurface:
         return sphere_law_error(self.book.table(material), self.asperities)
 
 
-def build_surface(raw: RawMap, options: SurfaceOptions, *, h: float | None = None,
-                  cache: LawCache | None = None) -> MeasuredSurface:
+def build_surface(raw: RawMap, options: SurfaceOptions | None = None, *, h: float | None = None,
+                  cache: LawCache | None = None, h_name: str = "h") -> MeasuredSurface:
     """Condition, segment and make the asperities of a raw map (resampled to ``h`` mm
-    when given)."""
+    when given): what a scene file's ``[surface]`` table builds.
+
+    To solve it, pass the surface itself, ``twoscale.solve(surface, material=...,
+    total_load=...)`` or ``twoscale.Scene(material=..., surface=surface, ...)``: its
+    spacing is then the default cell size, another ``h`` resamples the raw map, and the
+    result reports the map (missing samples, units, contacts at its edge). Its
+    ``asperities`` alone are not a scene (:func:`twoscale.solve` refuses them).
+
+    Parameters
+    ----------
+    raw : RawMap
+        The heights (a file read by :func:`read_heightmap`, or ``RawMap(heights,
+        spacing=..., units=...)`` made in Python).
+    options : SurfaceOptions, optional
+        Conditioning, segmentation and law options (default ``SurfaceOptions()``).
+    h : float, optional
+        Cell size, mm; default the map's spacing.
+    cache : LawCache, optional
+        On-disk cache of the asperity laws (the scene file's reader makes one in the
+        user's cache folder; default here: none).
+    h_name : str, default "h"
+        Where ``h`` came from, as a size refusal names it.
+    """
+    options = options or SurfaceOptions()
     hmap: HeightMap = condition(raw, spacing=options.spacing, units=options.units, fill=options.fill,
-                                detrend=options.detrend, crop=options.crop, h=h, invert=options.invert)
+                                detrend=options.detrend, crop=options.crop, h=h, invert=options.invert,
+                                h_name=h_name)
     seg: Segmentation = segment(hmap, min_distance=options.min_distance, prominence=options.prominence)
     # the laws' key: the map and every option but which law the macro step uses
     digest = hashlib.sha256((hmap.digest() + repr(dataclasses.replace(options, law="tabulated"))).encode())
@@ -249,6 +276,7 @@ def build_surface(raw: RawMap, options: SurfaceOptions, *, h: float | None = Non
 
 
 def load_surface(path: str | os.PathLike, options: SurfaceOptions | None = None, *, h: float | None = None,
-                 cache: LawCache | None = None) -> MeasuredSurface:
-    """Read ``path`` (:func:`twoscale.surface.reading.read_heightmap`) and build the surface."""
-    return build_surface(read_heightmap(path), options or SurfaceOptions(), h=h, cache=cache)
+                 cache: LawCache | None = None, h_name: str = "h") -> MeasuredSurface:
+    """Read ``path`` (:func:`twoscale.surface.reading.read_heightmap`) and build the surface
+    (:func:`build_surface`)."""
+    return build_surface(read_heightmap(path), options, h=h, cache=cache, h_name=h_name)

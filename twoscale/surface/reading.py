@@ -29,27 +29,44 @@ MIN_SIDE = 3
 
 @dataclass(frozen=True, eq=False)
 class RawMap:
-    """Heights as read, before conditioning.
+    """Heights as read, before conditioning: what a file holds, or a height map given in
+    Python (``RawMap(heights, spacing=0.1, units="um")``, then
+    :func:`twoscale.surface.build_surface` and :func:`twoscale.solve`).
 
     Attributes
     ----------
-    heights : (ny, nx) array, in ``units`` (NaN where missing).
+    heights : (ny, nx) array, in ``units`` (NaN where missing); rows are y, columns x.
     spacing : float or None
-        Sample spacing in ``units`` when the file carries it (point lists, instrument
-        formats with physical sizes, ``.npz`` with ``spacing``: then in mm), else None.
+        Sample spacing when known: in mm (files with ``spacing``, or given here), or in
+        ``units`` when ``spacing_units == "heights"`` (point lists, instrument formats);
+        None: given by :class:`~twoscale.surface.SurfaceOptions` (``spacing``).
     units : str or None
-        Height units the file declares ("mm", "um", "m", "nm"), None if it says nothing.
+        Height units the file (or caller) declares ("mm", "um", "nm", "m"), None if
+        nothing says; then ``SurfaceOptions.units``, and without it the heights are taken
+        as mm only when their relief is plausible in mm (:mod:`.conditioning`).
     spacing_units : str or None
-        Units of ``spacing`` (None: mm, as given by the user).
+        Units of ``spacing`` (None: mm).
     source : str
-        The file name.
+        The file name, or ``"array"`` for heights given in Python.
+
+    Raises
+    ------
+    SurfaceError
+        Heights that are not a 2-D numeric grid, smaller than ``MIN_SIDE`` per side, or
+        all missing (the message names ``source``).
     """
 
     heights: np.ndarray
-    spacing: float | None
-    units: str | None
-    spacing_units: str | None
-    source: str
+    spacing: float | None = None
+    units: str | None = None
+    spacing_units: str | None = None
+    source: str = "array"
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "heights", _checked_heights(self.source, self.heights))
+        sp = self.spacing
+        if sp is not None and not (isinstance(sp, (int, float, np.integer, np.floating)) and np.isfinite(sp) and sp > 0):
+            raise SurfaceError(f"{self.source}: the file's spacing must be a number > 0, got {sp!r}")
 
 
 def read_heightmap(path: str | os.PathLike) -> RawMap:
@@ -80,7 +97,7 @@ def read_heightmap(path: str | os.PathLike) -> RawMap:
         raise
     except (OSError, ValueError) as exc:
         raise SurfaceError(f"{name}: cannot read the height map ({_first_line(exc)})") from None
-    return _checked(raw)
+    return raw
 
 
 def _first_line(exc: Exception) -> str:
@@ -88,21 +105,20 @@ def _first_line(exc: Exception) -> str:
     return text[0] if text else type(exc).__name__
 
 
-def _checked(raw: RawMap) -> RawMap:
-    z = np.asarray(raw.heights)
+def _checked_heights(source: str, heights) -> np.ndarray:
+    """``heights`` as a float array with NaN where missing, or a one-line SurfaceError."""
+    z = np.asarray(heights)
     if z.ndim != 2 or not (np.issubdtype(z.dtype, np.integer) or np.issubdtype(z.dtype, np.floating)):
-        raise SurfaceError(f"{raw.source}: heights must be a 2-D numeric grid, got shape {z.shape} of {z.dtype}")
+        raise SurfaceError(f"{source}: heights must be a 2-D numeric grid, got shape {z.shape} of {z.dtype}")
     z = np.array(z, dtype=float)
     if min(z.shape) < MIN_SIDE:
-        raise SurfaceError(f"{raw.source}: height map too small ({z.shape[0]} x {z.shape[1]} samples; "
+        raise SurfaceError(f"{source}: height map too small ({z.shape[0]} x {z.shape[1]} samples; "
                            f"at least {MIN_SIDE} x {MIN_SIDE})")
     if not np.isfinite(z).any():
         kind = "NaN" if np.all(np.isnan(z)) else "NaN or infinite"
-        raise SurfaceError(f"{raw.source}: every height is missing (all {kind})")
+        raise SurfaceError(f"{source}: every height is missing (all {kind})")
     z[~np.isfinite(z)] = np.nan
-    if raw.spacing is not None and not (np.isfinite(raw.spacing) and raw.spacing > 0):
-        raise SurfaceError(f"{raw.source}: the file's spacing must be a number > 0, got {raw.spacing!r}")
-    return RawMap(z, raw.spacing, raw.units, raw.spacing_units, raw.source)
+    return z
 
 
 def _read_npz(name: str) -> RawMap:

@@ -54,6 +54,7 @@ def surface_summary(surface, scene_record: dict, *, table=None, sphere_error=Non
         "version": __version__, "units": {"length": "mm", "area": "mm2", "force": "N"},
         "scene": scene_record,
         "map": {"file": hm.source, "samples": list(hm.shape), "spacing_mm": hm.h,
+                "measured_spacing_mm": hm.measured_spacing, "units": hm.units, "units_from": hm.units_from,
                 "missing_samples": hm.filled, "missing_treated_as": surface.options.fill,
                 "height_range_mm": [float(np.nanmin(hm.heights)), float(np.nanmax(hm.heights))]},
         "segmentation": {"asperities": len(seg), "candidates": seg.candidates,

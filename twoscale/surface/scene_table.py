@@ -80,7 +80,7 @@ def surface_from_table(table: Mapping[str, Any], *, base_dir: str | None = None,
         opts = SurfaceOptions(**options)
     except TypeError as exc:   # a key of the wrong type reaching a comparison
         raise SceneError(f"surface: {exc}") from None
-    return load_surface(os.path.join(base, table["file"]), opts, h=h, cache=cache)
+    return load_surface(os.path.join(base, table["file"]), opts, h=h, cache=cache, h_name="grid.h")
 
 
 def _cache(value, base: str) -> LawCache | None:
@@ -95,8 +95,18 @@ def _cache(value, base: str) -> LawCache | None:
 
 def surface_to_table(surface: MeasuredSurface) -> dict:
     """The ``[surface]`` table of ``surface`` (the file's absolute path, the options that
-    differ from their defaults), for records such as result.json."""
-    out: dict = {"file": os.path.abspath(surface.raw.source)}
+    differ from their defaults), for records such as result.json; heights given in Python
+    are recorded as ``array`` (their shape) with their spacing and units."""
+    raw = surface.raw
+    if os.path.isfile(raw.source):
+        out: dict = {"file": os.path.abspath(raw.source)}
+    else:   # heights given in Python: what the record can say of them
+        ny, nx = raw.heights.shape
+        out = {"array": f"{ny} x {nx} heights given in Python"}
+        if raw.spacing is not None and raw.spacing_units is None:   # in mm
+            out["spacing"] = raw.spacing
+        if raw.units is not None:
+            out["units"] = raw.units
     defaults = SurfaceOptions()
     for f in dataclasses.fields(SurfaceOptions):
         v = getattr(surface.options, f.name)
