@@ -85,8 +85,8 @@ def difference_map(results: Mapping[str, ContactResult], path: str | Path, *, ti
     sc = None
     for k, (key, d) in enumerate(diffs.items()):
         ax = fig.add_axes([(0.6 + k * panel_size) / W, 0.55 / H, 0.8 * panel_size / W, (panel_size - 0.4) / H])
-        plot_tip_values(xy[loaded], d[loaded], ax=ax, diverging=True, vmax=m, cmap=cmap, colourbar=False,
-                        label="force difference (N)")
+        plot_tip_values(xy[loaded], d[loaded], ax=ax, numbers=np.flatnonzero(loaded) + 1, diverging=True,
+                        vmax=m, cmap=cmap, colourbar=False, label="force difference (N)")
         sc = ax.collections[0]
         text = difference_text(d, ref, reference).replace(" = ", "\n= ")
         ax.set_title(f"{key} - {reference}: {text}", fontsize=7)

@@ -93,8 +93,8 @@ def plot_forces(forces: Mapping[str, Any], *, ax=None, title: str | None = None,
     return fig
 
 
-def plot_tip_values(tips, values, *, ax=None, label: str = "force (N)", diverging: bool = False,
-                    vmax: float | None = None, cmap: str | None = None, title: str | None = None,
+def plot_tip_values(tips, values, *, ax=None, numbers=None, label: str = "force (N)",
+                    diverging: bool = False, vmax: float | None = None, cmap: str | None = None, title: str | None = None,
                     colourbar: bool = True, size: tuple[float, float] = (5.6, 4.8), dpi: int = 100):
     """Tips as dots coloured by a value, the ``LABELLED`` (10) largest numbered from 1
     (every tip when at most ``FEW_TIPS``). Returns the matplotlib Figure.
@@ -105,6 +105,9 @@ def plot_tip_values(tips, values, *, ax=None, label: str = "force (N)", divergin
     values : (N,) array
         One value per tip (e.g. its force, N).
     ax : matplotlib Axes, optional
+    numbers : (N,) array of int, optional
+        The tips' numbers as in the CSV files (default 1..N: ``tips`` are every tip in
+        scene order); give them when drawing a subset, e.g. the loaded tips.
     label : str, default "force (N)"
         Colour bar label.
     diverging : bool, default False
@@ -131,7 +134,7 @@ def plot_tip_values(tips, values, *, ax=None, label: str = "force (N)", divergin
     norm = Normalize(-top, top) if diverging else Normalize(0.0, top)
     fig, ax = figure_and_axes(ax, size, dpi, rect=(0.12, 0.1, 0.7, 0.8))
     sc = tips_coloured(ax, xy, v, norm=norm, cmap=cmap or ("RdBu_r" if diverging else "viridis"),
-                       label=label, rank=np.abs(v) if diverging else v)
+                       label=label, rank=np.abs(v) if diverging else v, numbers=numbers)
     if colourbar:
         fig.colorbar(sc, ax=ax).set_label(label)
     if title:
@@ -226,7 +229,7 @@ def force_bars(result: ContactResult, path: str | Path, *, tips=None, macro_forc
         plot_forces(series, ax=fig.add_axes([0.08, 0.13, 0.36, 0.72]))
         on = forces > 0
         mx = fig.add_axes([0.52, 0.13, 0.36, 0.72])
-        plot_tip_values(xy[on], forces[on], ax=mx, colourbar=False,
+        plot_tip_values(xy[on], forces[on], ax=mx, numbers=np.flatnonzero(on) + 1, colourbar=False,
                         title=f"loaded tips coloured by force ({min(LABELLED, loaded)} most loaded numbered)")
         fig.colorbar(mx.collections[0], cax=fig.add_axes([0.90, 0.13, 0.015, 0.72])).set_label("force (N)")
     fig.suptitle(title, fontsize=9, y=0.995, va="top")

@@ -41,16 +41,18 @@ def labelled(values, k: int = LABELLED) -> np.ndarray:
     return np.sort(np.argsort(-v, kind="stable")[:k])
 
 
-def number_tips(ax, xy: np.ndarray, which=None) -> None:
-    """Write tip numbers (from 1, as in the CSV files) beside the tips ``which``
-    (0-based indices into ``xy``; default all), outlined so they read on any colour."""
+def number_tips(ax, xy: np.ndarray, which=None, numbers=None) -> None:
+    """Write tip numbers beside the tips ``which`` (0-based indices into ``xy``; default
+    all), outlined so they read on any colour. ``numbers``: each row's number as in the
+    CSV files (default ``1..N``, for ``xy`` holding every tip in scene order)."""
     from matplotlib import patheffects
 
     outline = [patheffects.withStroke(linewidth=2.0, foreground="white")]
     idx = range(len(xy)) if which is None else which
     for k in idx:
         x, y = xy[k]
-        ax.annotate(str(int(k) + 1), (x, y), xytext=(3, 3), textcoords="offset points", fontsize=7,
+        label = int(k) + 1 if numbers is None else int(numbers[k])
+        ax.annotate(str(label), (x, y), xytext=(3, 3), textcoords="offset points", fontsize=7,
                     color="black", path_effects=outline, clip_on=True)
 
 
@@ -61,12 +63,12 @@ def marker_size(n: int) -> float:
 
 
 def tips_coloured(ax, xy: np.ndarray, values: np.ndarray, *, norm, cmap: str, label: str,
-                  rank=None):
+                  rank=None, numbers=None):
     """Tips as dots coloured by ``values``; the tips of largest ``rank`` (default
-    ``values``) numbered (all when few). Returns the mappable."""
+    ``values``) numbered (all when few) with ``numbers`` (default 1..N). Returns the mappable."""
     sc = ax.scatter(xy[:, 0], xy[:, 1], c=values, norm=norm, cmap=cmap, s=marker_size(len(xy)),
                     edgecolors="0.2", linewidths=0.3 if len(xy) <= 500 else 0.0)
-    number_tips(ax, xy, labelled(values if rank is None else rank))
+    number_tips(ax, xy, labelled(values if rank is None else rank), numbers)
     ax.set_aspect("equal")
     ax.set_xlabel(X_MM)
     ax.set_ylabel(Y_MM)
