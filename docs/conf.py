@@ -13,7 +13,7 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))        # the source tree, also when twoscale is not installed
 os.environ.setdefault("MPLBACKEND", "Agg")
 
-from twoscale import __version__  # noqa: E402
+from twoscale import __version__
 
 project = "twoscale"
 author = "the twoscale authors"

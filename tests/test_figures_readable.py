@@ -16,8 +16,18 @@ pytest.importorskip("matplotlib")
 
 from twoscale.grid import Grid
 from twoscale.indenters import Asperity
-from twoscale.plot import (body_text, compare_forces, compare_maps, difference_map, force_bars,
-                           plot_forces, plot_pressure_map, plot_tip_values, pressure_map, robust_scale)
+from twoscale.plot import (
+    body_text,
+    compare_forces,
+    compare_maps,
+    difference_map,
+    force_bars,
+    plot_forces,
+    plot_pressure_map,
+    plot_tip_values,
+    pressure_map,
+    robust_scale,
+)
 from twoscale.results import ContactResult, PressureField, summarise
 
 BLOCK = {"influence": {"kind": "block", "size": [60.0, 60.0, 10.0], "base": "bonded"}}

@@ -7,8 +7,8 @@ A result holds the pressure on the small grids the solver used (one patch per co
 analysis wants it, assemble the patches onto a grid aligned with them:
 :meth:`~twoscale.ContactResult.pressure_on`. Here on the shipped synthetic road.
 """
-from pathlib import Path
 import warnings
+from pathlib import Path
 
 import matplotlib.pyplot as plt
 import numpy as np

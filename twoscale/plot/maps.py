@@ -270,7 +270,8 @@ def compare_maps(results: Mapping[str, ContactResult], path: str | Path, *, tips
         r = results[key]
         ax = fig.add_axes([(0.6 + k * panel_size) / W, 0.55 / H, 0.82 * panel_size / W, (panel_size - 0.45) / H])
         body = _panel_body(meta, key)
-        head = f"{key}" + (f" ({body})" if body and body != key else "")
+        same = body.replace("-", "") == key.replace("-", "")   # "halfspace" is the half-space
+        head = f"{key}" + (f" ({body})" if body and not same else "")
         sub = f"{r.total_load:.4g} N, {_peak_text(r, sensor)}" + ("" if r.converged else " (NOT converged)")
         plot_pressure_map(r, ax=ax, tips=tips, sensor=sensor, scale=scale, colourbar=False, cmap=cmap,
                           title=f"{head}\n{sub}")

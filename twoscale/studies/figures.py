@@ -137,8 +137,8 @@ def plot_track(case_rows: list, tip_rows: list, scene: str, body: str, load: tup
     extra = right.get_legend_handles_labels()
     ax.legend(handles[0] + extra[0], handles[1] + extra[1], **{**_LEGEND, "bbox_to_anchor": (1.15, 1.0)})
     kind, value = load
-    ax.set(ylabel="tip force (N)", xlabel="distance along the positions (mm)",
-           title=f"{kind} = {value:g} {'N' if kind == 'total' else 'mm'}")
+    ax.set(ylabel="tip force (N)", xlabel="distance along the positions (mm)")
+    ax.set_title(f"{kind} = {value:g} {'N' if kind == 'total' else 'mm'}", fontsize=9)
     ax.grid(lw=0.3)
     return fig
 
