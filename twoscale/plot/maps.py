@@ -142,10 +142,11 @@ def _colourbar(fig, image, scale: ColourScale, cmap, sensor, *, cax=None, ax=Non
 
 
 def pressure_title(result: ContactResult, *, scene=None, name: str | None = None, sensor=None) -> str:
-    """Default title of a pressure map: the scene and body, the load, the peak and how
-    many tips carry load."""
+    """Default title of a pressure map: the scene and body, the load, the contact area,
+    the peak and how many tips carry load."""
     n, loaded = result.n_asperities, int(np.count_nonzero(np.asarray(result.forces) > 0))
-    what = (f"total load {result.total_load:.4g} N, {_peak_text(result, sensor)}, "
+    area = float(np.sum(result.asperities.contact_areas))
+    what = (f"total load {result.total_load:.4g} N, contact area {area:.4g} mm², {_peak_text(result, sensor)}, "
             f"{loaded} of {n} tips loaded" + ("" if result.converged else " (NOT converged)"))
     head = scene_text(scene, name, result=result)
     return f"{head}\n{what}" if head else what
@@ -169,7 +170,8 @@ def plot_pressure_map(result: ContactResult, *, ax=None, tips=None, sensor=None,
     sensor : twoscale.sensor.Sensor, optional
         Draw the sensor-cell means instead of the micro cells.
     title : str, optional
-        Default: :func:`pressure_title` (scene and body, load, peak, loaded tips).
+        Default: :func:`pressure_title` (scene and body, load, contact area, peak,
+        loaded tips).
     scene : Scene or mapping, optional
         The scene solved (its ``influence`` names the body in the title).
     name : str, optional
