@@ -2,7 +2,7 @@
 
 The default two-scale solve against the full-grid FFT reference (and ContactMechanics on
 the same grid with ``--comparators``, about 5 minutes), each in its own process.
-Target: the default solve in <= 60 s. Recorded: docs/scenes.md.
+Target: the default solve in <= 60 s. Recorded: docs/records/scenes.md.
 
 Usage::
 

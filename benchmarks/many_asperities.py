@@ -39,7 +39,7 @@ Usage::
     python benchmarks/many_asperities.py --sizes 100 --no-reference --options '{"far_tol": 0.05}'
     python benchmarks/many_asperities.py --sizes 100 --no-comparators
 
-Measured figures: docs/scaling_status.md.
+Measured figures: docs/records/scaling_status.md.
 """
 from __future__ import annotations
 

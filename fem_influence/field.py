@@ -15,7 +15,7 @@ aggregate sizes (and a few micro cells) of the contact, where the true field is 
 a distributed pressure, not of point forces. A node closer than ``aggregate / 2`` to a
 force horizontally and shallower than ``aggregate / 2`` is evaluated at depth
 ``aggregate / 2`` under that force (finite instead of singular). The correction part is
-smooth and carries no such error beyond the lattice interpolation (docs/fem_status.md).
+smooth and carries no such error beyond the lattice interpolation (docs/records/fem_status.md).
 """
 from __future__ import annotations
 

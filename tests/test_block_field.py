@@ -84,7 +84,7 @@ def test_far_surface_displacement_is_compliance_times_total_force(block):
 def test_bonded_base_does_not_move(block):
     # bonded base: u_Boussinesq + u_correction = 0 there, up to the cubic source-lattice
     # interpolation of the base data (1.3 % of the correction at spacing / thickness 0.5,
-    # docs/fem_status.md): a sign or frame error would leave |u| ~ |u_B|
+    # docs/records/fem_status.md): a sign or frame error would leave |u| ~ |u_B|
     P, f = patch_load()
     fld = block.displacement_field(P, f, aggregate=0.0)
     base = fld.points[:, 2] == fld.points[:, 2].max()

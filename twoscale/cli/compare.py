@@ -338,18 +338,20 @@ def _write_outputs(out: Path, args, scene: Scene, runs, ind, notes, measured: Me
                          "message": r.result.message, "total_load": float(r.result.total_load),
                          "seconds": r.seconds} for r in runs]}
     _write_text(out / "summary.json", json.dumps(summary, indent=2, allow_nan=False) + "\n")
+    name = Path(args.scene).stem   # every figure's title starts with the scene's name
     for load in dict.fromkeys(r.load for r in runs):
         group = {r.body: r.result for r in runs if r.load == load}
         tips = runs[0].scene.asperities
         compare_forces(group, out / f"forces_{load}.png", title=f"force per asperity, {load_title(load)}",
-                       measured=None if measured is None else measured.forces, scene=scene_dict, meta=meta)
+                       measured=None if measured is None else measured.forces, scene=scene_dict, meta=meta,
+                       name=name)
         compare_maps(group, out / f"maps_{load}.png", tips=tips, title=f"pressure, {load_title(load)}",
-                     scene=scene_dict, meta=meta)
+                     scene=scene_dict, meta=meta, name=name)
         compare_maps(group, out / f"sensor_{load}.png", tips=tips, sensor=sensor, scene=scene_dict, meta=meta,
-                     title=f"sensor-cell means ({sensor_text(sensor)}), {load_title(load)}")
+                     title=f"sensor-cell means ({sensor_text(sensor)}), {load_title(load)}", name=name)
         if len(group) > 1:  # each body's tip forces minus the first body's (the half-space)
             difference_map(group, out / f"difference_{load}.png", tips=tips, scene=scene_dict, meta=meta,
-                           title=f"force difference per tip, {load_title(load)}")
+                           title=f"force difference per tip, {load_title(load)}", name=name)
     for r in runs:
         d = out / "runs" / f"{r.body}_{r.load}"
         write_result(r.result, r.scene, d, method=args.method)

@@ -62,7 +62,8 @@ def write_fields_and_figures(result: ContactResult, scene: Scene, out_dir, *, vt
     if figures:
         from ..plot import force_bars, pressure_map
 
-        written.append(pressure_map(result, out / PRESSURE_NAME, tips=scene.asperities, scene=record))
+        name = Path(source).stem if source else None   # the figures' titles name the scene
+        written.append(pressure_map(result, out / PRESSURE_NAME, tips=scene.asperities, scene=record, name=name))
         written.append(force_bars(result, out / FORCES_NAME, tips=scene.asperities,
-                                  macro_forces=result.macro_forces, scene=record))
+                                  macro_forces=result.macro_forces, scene=record, name=name))
     return written

@@ -25,6 +25,15 @@ def new_figure(size: tuple[float, float], dpi: int):
     return fig
 
 
+def figure_and_axes(ax, size: tuple[float, float], dpi: int, rect=(0.1, 0.1, 0.8, 0.8)):
+    """``(ax.figure, ax)`` when an Axes is given (a notebook's, say), else a new Figure
+    of ``size`` inches (:func:`new_figure`) with one Axes at ``rect`` (figure fractions)."""
+    if ax is not None:
+        return getattr(ax.figure, "figure", ax.figure), ax   # the root Figure, also of a SubFigure
+    fig = new_figure(size, dpi)
+    return fig, fig.add_axes(list(rect))
+
+
 def save_png(fig, path: str | Path, *, title: str, scene: Mapping[str, Any] | None = None,
              meta: Mapping[str, Any] | None = None) -> Path:
     """Write ``fig`` to ``path`` (PNG) atomically with version, title and scene metadata.

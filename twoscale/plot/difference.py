@@ -9,19 +9,31 @@ import numpy as np
 
 from ..results import ContactResult
 from ._figure import new_figure, save_png
-from .tips import tip_positions, tips_coloured
+from .forces import plot_tip_values
+from .labels import join_title
+from .tips import tip_positions
+
+
+def difference_text(diff: np.ndarray, ref: np.ndarray, reference: str) -> str:
+    """``largest |dF| 1.2 N at tip 4 = 13.9 % of the largest half-space tip force (8.6 N)``."""
+    k = int(np.argmax(np.abs(diff)))
+    worst, scale = float(abs(diff[k])), float(np.max(np.abs(ref), initial=0.0))
+    share = f" = {100 * worst / scale:.3g} % of the largest {reference} tip force ({scale:.3g} N)" if scale > 0 else ""
+    return f"largest |dF| {worst:.3g} N at tip {k + 1}{share}"
 
 
 def difference_map(results: Mapping[str, ContactResult], path: str | Path, *, tips,
                    reference: str | None = None, title: str | None = None,
-                   scene: Mapping[str, Any] | None = None, meta: Mapping[str, Any] | None = None,
+                   scene: Mapping[str, Any] | None = None, name: str | None = None,
+                   meta: Mapping[str, Any] | None = None,
                    panel_size: float = 3.8, dpi: int = 100, cmap: str = "RdBu_r") -> Path:
     """Per-tip force differences ``F_body - F_reference`` (N) at the tips, as PNG.
 
-    Each panel colours the tips by the difference (red: the body carries more than the
-    reference, blue: less; tips numbered from 1 when few) on a scale symmetric about 0
-    shared by all panels; its title gives the largest difference in N and in percent of
-    the reference's largest tip force.
+    Each panel (:func:`~twoscale.plot.plot_tip_values`, diverging) colours the tips
+    loaded in either body by the difference (red: the body carries more than the
+    reference, blue: less; every tip numbered when few, else the ten largest changes) on
+    a scale symmetric about 0 shared by all panels; its title gives the largest
+    difference in N, the tip, and its share of the reference's largest tip force.
 
     Parameters
     ----------
@@ -34,9 +46,11 @@ def difference_map(results: Mapping[str, ContactResult], path: str | Path, *, ti
     reference : str, optional
         The body subtracted; default the first of ``results``.
     title : str, optional
-        Default "force difference per tip".
+        Default "force difference per tip", after the scene's name when given.
     scene, meta : mapping, optional
         Recorded in the PNG metadata (as in :func:`~twoscale.plot.compare_maps`).
+    name : str, optional
+        The scene's name (e.g. the scene file's stem), first in the title.
     panel_size : float, default 3.8
         Width and height of one panel, inches.
     dpi : int, default 100
@@ -56,32 +70,30 @@ def difference_map(results: Mapping[str, ContactResult], path: str | Path, *, ti
     if xy is None:
         raise ValueError("difference_map needs the tip positions (tips=...)")
     ref = np.asarray(results[reference].forces, dtype=float)
-    diffs = {}
-    for name in names:
-        if name != reference:
-            f = np.asarray(results[name].forces, dtype=float)
+    diffs, loaded = {}, ref > 0
+    for key in names:
+        if key != reference:
+            f = np.asarray(results[key].forces, dtype=float)
             if f.shape != ref.shape or len(xy) != ref.size:
-                raise ValueError(f"{name!r} has {f.size} forces, {reference!r} {ref.size}, tips {len(xy)}")
-            diffs[name] = f - ref
-    from matplotlib.colors import Normalize
-
+                raise ValueError(f"{key!r} has {f.size} forces, {reference!r} {ref.size}, tips {len(xy)}")
+            diffs[key] = f - ref
+            loaded |= f > 0
     m = max(float(np.max(np.abs(d))) for d in diffs.values())
-    norm = Normalize(-m if m > 0 else -1.0, m if m > 0 else 1.0)
-    scale = float(np.max(np.abs(ref)))
     n = len(diffs)
-    W, H = n * panel_size + 1.5, panel_size + 0.9
+    W, H = n * panel_size + 1.5, panel_size + 1.0
     fig = new_figure((W, H), dpi)
     sc = None
-    for k, (name, d) in enumerate(diffs.items()):
+    for k, (key, d) in enumerate(diffs.items()):
         ax = fig.add_axes([(0.6 + k * panel_size) / W, 0.55 / H, 0.8 * panel_size / W, (panel_size - 0.4) / H])
-        sc = tips_coloured(ax, xy, d, norm=norm, cmap=cmap, label="force difference (N)")
-        worst = float(np.max(np.abs(d)))
-        share = f" ({100 * worst / scale:.3g} %)" if scale > 0 else ""
-        ax.set_title(f"{name} - {reference}\nmax |dF| {worst:.3g} N{share}", fontsize=8)
+        plot_tip_values(xy[loaded], d[loaded], ax=ax, numbers=np.flatnonzero(loaded) + 1, diverging=True,
+                        vmax=m, cmap=cmap, colourbar=False, label="force difference (N)")
+        sc = ax.collections[0]
+        text = difference_text(d, ref, reference).replace(" = ", "\n= ")
+        ax.set_title(f"{key} - {reference}: {text}", fontsize=7)
         if k:
             ax.set_ylabel("")
     cb = fig.colorbar(sc, cax=fig.add_axes([(0.7 + (n - 0.15) * panel_size) / W, 0.55 / H, 0.12 / W, (panel_size - 0.4) / H]))
     cb.set_label(f"F - F_{reference} (N)")
-    title = title or "force difference per tip"
+    title = join_title(name or "", title or "force difference per tip")
     fig.suptitle(title, fontsize=10, y=0.995, va="top")
     return save_png(fig, path, title=title, scene=scene, meta=meta)

@@ -27,5 +27,6 @@ def write_outputs(out: str | Path, study: Study, run: StudyRun | None = None, *,
         from .figures import write_figures
 
         write_figures(out, case_rows, tip_rows, ind, track_positions=len(study.positions) > 1,
-                      meta={"study": study.name, "version": __version__})
+                      meta={"study": study.name, "version": __version__},
+                      bodies={b.name: b.influence for b in study.bodies})
     return summary

@@ -1,42 +1,59 @@
-"""The segmentation drawn over the height map (PNG): heights in colour, basin boundaries
-in black, summits numbered (plotting module: matplotlib is imported here only)."""
+"""The segmentation drawn over the height map (PNG): heights in grey, basin boundaries
+in orange, summits as red dots, numbered as in the CSV (plotting module: matplotlib is
+imported here only)."""
 from __future__ import annotations
 
 from pathlib import Path
 
 import numpy as np
 
-from ..plot._figure import new_figure, save_png
+from ..plot._figure import figure_and_axes, save_png
+from ..plot.labels import X_MM, Y_MM
+from ..plot.tips import labelled, number_tips
 
-#: Summits numbered on the figure up to this many (beyond, dots only).
-MAX_NUMBERED = 150
 
+def plot_segmentation(surface, *, ax=None, title: str | None = None, dpi: int = 150):
+    """The segmentation of ``surface`` (a :class:`~twoscale.surface.MeasuredSurface`)
+    over its height map; returns the matplotlib Figure.
 
-def segmentation_figure(surface, path: str | Path, *, scene: dict | None = None, dpi: int = 150) -> Path:
-    """Write the segmentation of ``surface`` (a :class:`~twoscale.surface.MeasuredSurface`)
-    to ``path`` (PNG, with the version and scene in its metadata)."""
+    Summits are numbered from 1 as in the CSV: every one when at most 30, else the ten
+    highest (the stones that touch first).
+
+    Parameters
+    ----------
+    surface : MeasuredSurface
+    ax : matplotlib Axes, optional
+        Draw into this Axes; default a new 7 x 6 inch Figure.
+    title : str, optional
+        Default: the height map's file, the number of asperities and the segmentation's
+        settings.
+    dpi : int, default 150
+    """
     hm, seg = surface.hmap, surface.segmentation
-    xmin, xmax, ymin, ymax = hm.grid.bounds
-    fig = new_figure((7.0, 6.0), dpi)
-    ax = fig.add_subplot(1, 1, 1)
-    image = ax.imshow(hm.heights, origin="lower", extent=(xmin, xmax, ymin, ymax), cmap="gray",
-                      interpolation="nearest")
-    fig.colorbar(image, ax=ax, label="height, mm (larger: closer to the body)")
+    extent = hm.grid.bounds
+    fig, ax = figure_and_axes(ax, (7.0, 6.0), dpi, rect=(0.1, 0.08, 0.7, 0.84))
+    image = ax.imshow(hm.heights, origin="lower", extent=extent, cmap="gray", interpolation="nearest")
+    fig.colorbar(image, ax=ax, label="height (mm); larger: closer to the body")
     edges = np.zeros(seg.labels.shape, dtype=bool)
     edges[:, 1:] |= seg.labels[:, 1:] != seg.labels[:, :-1]
     edges[1:, :] |= seg.labels[1:, :] != seg.labels[:-1, :]
     overlay = np.ma.masked_where(~edges, np.ones(edges.shape))
-    ax.imshow(overlay, origin="lower", extent=(xmin, xmax, ymin, ymax), cmap="autumn", alpha=0.9,
-              interpolation="nearest")
-    x = np.array([a.x for a in surface.asperities])
-    y = np.array([a.y for a in surface.asperities])
-    ax.plot(x, y, "o", color="tab:red", markersize=2.5)
-    if len(x) <= MAX_NUMBERED:
-        for k, (xk, yk) in enumerate(zip(x, y)):
-            ax.annotate(str(k + 1), (xk, yk), fontsize=5, color="tab:red", xytext=(2, 2), textcoords="offset points")
-    ax.set_xlabel("x, mm")
-    ax.set_ylabel("y, mm")
-    title = (f"{Path(hm.source).name}: {len(seg)} asperities (min distance {seg.min_distance:g} mm, "
-             f"prominence {seg.min_prominence:g} mm)")
+    ax.imshow(overlay, origin="lower", extent=extent, cmap="autumn", alpha=0.9, interpolation="nearest")
+    xy = np.array([[a.x, a.y] for a in surface.asperities], dtype=float).reshape(-1, 2)
+    z = np.array([a.z for a in surface.asperities], dtype=float)
+    ax.plot(xy[:, 0], xy[:, 1], "o", color="tab:red", markersize=2.5)
+    number_tips(ax, xy, labelled(-z))   # z is the recess below the highest summit: smallest first
+    ax.set_xlabel(X_MM)
+    ax.set_ylabel(Y_MM)
+    if title is None:
+        title = (f"{Path(hm.source).name}: {len(seg)} asperities (min distance {seg.min_distance:g} mm, "
+                 f"prominence {seg.min_prominence:g} mm)")
     ax.set_title(title, fontsize=8)
-    return save_png(fig, path, title=title, scene=scene)
+    return fig
+
+
+def segmentation_figure(surface, path: str | Path, *, scene: dict | None = None, dpi: int = 150) -> Path:
+    """Write :func:`plot_segmentation` of ``surface`` to ``path`` (PNG, with the version
+    and scene in its metadata)."""
+    fig = plot_segmentation(surface, dpi=dpi)
+    return save_png(fig, path, title=fig.axes[0].get_title(), scene=scene)

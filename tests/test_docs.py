@@ -1,0 +1,72 @@
+"""The documentation: the gallery covers every figure the program writes, the guides speak
+for themselves, and the Sphinx site builds with warnings as errors (slow: it runs the
+examples)."""
+import importlib.util
+import os
+import re
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+DOCS = ROOT / "docs"
+
+
+def _gallery():
+    spec = importlib.util.spec_from_file_location("make_gallery", DOCS / "gallery" / "make_gallery.py")
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    return mod
+
+
+def test_the_gallery_shows_every_figure_the_program_writes():
+    from twoscale.cli.surface import NAMES
+    from twoscale.io.solve_outputs import FORCES_NAME, PRESSURE_NAME
+    shown = {Path(name).name for *_, figures in _gallery().RUNS for name, _ in figures}
+    # solve (spheres and a height map), surface, compare, study, paper
+    expected = {PRESSURE_NAME, FORCES_NAME, NAMES[0], "forces_50N.png", "maps_50N.png", "sensor_50N.png",
+                "difference_50N.png", "load_approach_S2.png", "asperity_forces_S2_block.png", "track_S2_block.png",
+                "indicators_S2.png", "fig3_two_maps.png", "fig4_seven_maps.png", "fig5_profiles.png",
+                "fig6_errors.png"}
+    assert shown == expected
+    index = (DOCS / "gallery" / "index.md").read_text(encoding="utf-8")
+    linked = re.findall(r"\]\((img/[^)]+\.png)\)", index)
+    assert len(linked) == sum(len(f) for *_, f in _gallery().RUNS)
+    for rel in linked:   # every picture the page shows is in the repository
+        assert (DOCS / "gallery" / rel).stat().st_size > 10_000
+    assert (DOCS / "img" / "tour_pressure.png").exists()
+
+
+def test_the_docs_name_no_issue_tracker():
+    pages = list(DOCS.rglob("*.md")) + [ROOT / "README.md"]
+    for page in pages:
+        if "_build" in page.parts:
+            continue
+        text = page.read_text(encoding="utf-8")
+        assert not re.search(r"\bissues? \d+|\bissue-\d+", text, re.IGNORECASE), page
+
+
+def test_every_guide_is_in_the_site():
+    index = (DOCS / "index.md").read_text(encoding="utf-8") + (DOCS / "records" / "index.md").read_text(encoding="utf-8")
+    for page in DOCS.glob("*.md"):
+        if page.stem not in ("index",):
+            assert re.search(rf"^{re.escape(page.stem)}$", index, re.MULTILINE), f"{page.name} is in no table of contents"
+
+
+@pytest.mark.slow
+def test_the_site_builds_with_warnings_as_errors(tmp_path):
+    pytest.importorskip("sphinx")
+    pytest.importorskip("myst_parser")
+    pytest.importorskip("sphinx_gallery")
+    out = tmp_path / "html"
+    done = subprocess.run([sys.executable, "-m", "sphinx", "-W", "-q", "-b", "html", str(DOCS), str(out)],
+                          capture_output=True, text=True, check=False, env={**os.environ, "MPLBACKEND": "Agg"})
+    assert done.returncode == 0, done.stderr[-3000:]
+    plot = (out / "reference" / "plot.html").read_text(encoding="utf-8")
+    assert "plot_pressure_map" in plot and "robust_scale" in plot    # the API reference from docstrings
+    example = (out / "auto_examples" / "plot_seven_spheres.html").read_text(encoding="utf-8")
+    assert "sphx_glr_plot_seven_spheres_001.png" in example          # the example ran and drew
+    assert (out / "_images" / "sphx_glr_plot_seven_spheres_001.png").stat().st_size > 10_000
+
