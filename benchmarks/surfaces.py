@@ -25,7 +25,7 @@ policy's 0.1 (a fresh surface, so its laws are computed again).
 
 Usage::
 
-    python benchmarks/surfaces.py [--size 100] [--h 0.1] [--pressure 0.2] [--seed 1]
+    python benchmarks/surfaces.py [--size 100] [--h 0.1] [--pressure 0.2] [--seed 1] [--stones 2 4]
                                   [--no-cm] [--out FILE.json] [--quiet]
 """
 from __future__ import annotations
@@ -131,11 +131,13 @@ def main(argv=None) -> int:
     parser.add_argument("--h", type=float, default=0.1, help="spacing = cell size, mm")
     parser.add_argument("--pressure", type=float, default=0.2, help="nominal pressure, MPa")
     parser.add_argument("--seed", type=int, default=1)
+    parser.add_argument("--stones", type=float, nargs=2, default=(2.0, 4.0), metavar=("LO", "HI"),
+                        help="stone radii, mm (default 2 4: 314 stones on 100 x 100 mm; 3 6: 161 larger ones)")
     parser.add_argument("--no-cm", action="store_true", help="skip ContactMechanics")
     parser.add_argument("--out", default=None, help="write the figures as JSON")
     _common.add_quiet(parser)
     args = parser.parse_args(argv)
-    z = road(args.size, args.h, seed=args.seed)
+    z = road(args.size, args.h, seed=args.seed, stone_radius=tuple(args.stones))
     load = args.pressure * args.size ** 2
     print(f"road {args.size:g} x {args.size:g} mm at h = {args.h:g} mm ({z.size} cells), seed {args.seed}, "
           f"{args.pressure:g} MPa nominal: W = {load:g} N")

@@ -23,6 +23,8 @@ Usage::
 
     python benchmarks/sweep.py --count 200 --seed 0 --out sweep.jsonl [--table sweep.md]
     python benchmarks/sweep.py --only 17 42        # rerun two scenes, printed in full
+    python benchmarks/sweep.py --part 0/2 --out a.jsonl & python benchmarks/sweep.py --part 1/2 --out b.jsonl
+    python benchmarks/sweep.py --out a.jsonl --read b.jsonl --count 0 --table sweep.md   # one table of both
 
 Results are appended to ``--out`` as one JSON line a scene; a rerun skips the scenes
 already there (delete the file to start again).
@@ -265,6 +267,8 @@ def main(argv=None) -> int:
     p.add_argument("--count", type=int, default=200)
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--only", type=int, nargs="*")
+    p.add_argument("--part", default="0/1", help="K/N: only the scenes whose index is K modulo N (run N at once)")
+    p.add_argument("--read", nargs="*", default=[], help="more result files to summarise with --out")
     p.add_argument("--out", default="sweep.jsonl")
     p.add_argument("--table")
     p.add_argument("--timeout", type=float, default=180.0, help="s, a default solve")
@@ -291,6 +295,8 @@ def main(argv=None) -> int:
     specs = sweep(args.count, args.seed, max_tips=args.max_tips)
     if args.only:
         specs = [s for s in specs if s.index in args.only]
+    k, n = (int(v) for v in args.part.split("/"))
+    specs = [s for s in specs if s.index % n == k]
     done = {r["spec"]["index"] for r in _load(args.out)} if not args.only else set()
     for spec in specs:
         if spec.index in done:
@@ -305,7 +311,9 @@ def main(argv=None) -> int:
         else:
             with open(args.out, "a", encoding="utf-8") as fh:
                 fh.write(json.dumps(rec) + "\n")
-    records = _load(args.out) if not args.only else []
+    records = sum((_load(f) for f in [args.out, *args.read]), []) if not args.only else []
+    latest = {r["spec"]["index"]: r for r in records}  # a scene run again: its last record
+    records = [latest[i] for i in sorted(latest)]
     if records:
         print(summary(records))
         if args.table:

@@ -82,7 +82,9 @@ def self_affine(n: int, h: float, *, seed: int = 0, rms: float = 0.02, hurst: fl
     return field * (rms / field.std()) if field.std() > 0 else field
 
 
-def road(size: float = 50.0, h: float = 0.1, *, seed: int = 0, rms: float = 0.02) -> np.ndarray:
-    """A road texture (n, n), mm: :func:`chippings` plus :func:`self_affine` roughness."""
-    z, _ = chippings(size, h, seed=seed)
+def road(size: float = 50.0, h: float = 0.1, *, seed: int = 0, rms: float = 0.02,
+         stone_radius=(2.0, 4.0)) -> np.ndarray:
+    """A road texture (n, n), mm: :func:`chippings` (stone radii uniform in
+    ``stone_radius``, mm) plus :func:`self_affine` roughness."""
+    z, _ = chippings(size, h, seed=seed, stone_radius=stone_radius)
     return z + self_affine(z.shape[0], h, seed=seed + 1, rms=rms)
