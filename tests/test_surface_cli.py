@@ -100,8 +100,9 @@ def test_surface_command_writes_the_segmentation(map_scene, tmp_path):
     path = map_scene()
     out = tmp_path / "seg"
     assert main(["surface", str(path), "--out", str(out), "--quiet"]) == 0
-    rows = list(csv.DictReader(line for line in (out / "asperities.csv").read_text().splitlines()
-                               if not line.startswith("#")))
+    with open(out / "segmentation.csv", newline="", encoding="utf-8") as fh:   # header first, no options
+        rows = list(csv.DictReader(fh))
+    assert not (out / "asperities.csv").exists()          # named apart from a solve's table
     scene = read_scene(path)
     assert len(rows) == len(scene.asperities)
     assert [int(r["asperity"]) for r in rows] == list(range(1, len(rows) + 1))   # numbered from 1

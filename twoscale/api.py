@@ -216,8 +216,10 @@ def solve(problem, *, method="twoscale", provider=None, material: Material | Non
     force, radius = expected_contacts(scene)
     check_domain(scene, provider, h, radii=radius)
     check_resolution(scene, h, forces=force, radii=radius)
-    if callable(method):
-        return method(provider, scene, h=h, **options)
+    from .setting import with_setting
+
+    if callable(method):  # the body and the nominal area recorded in the result, whatever the method
+        return with_setting(method(provider, scene, h=h, **options), scene, provider)
     if method == "twoscale":
         from .twoscale import solve_twoscale
 
@@ -232,7 +234,7 @@ def solve(problem, *, method="twoscale", provider=None, material: Material | Non
         from .surface.edges import warn_edge_contacts
 
         warn_edge_contacts(result, scene.surface.hmap.grid)
-    return result
+    return with_setting(result, scene, provider)
 
 
 __all__ = ["METHODS", "solve", "asperities", "as_asperities"]

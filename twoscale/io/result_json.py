@@ -7,7 +7,12 @@ order: ``force`` N = integral of the final pressure over the cells the asperity 
 ``contact_area`` mm^2, ``max_pressure`` MPa, and ``macro_force`` N when the method has a
 macro step), ``iterations``, ``timings_s``, ``version``. Added: ``message``, ``solver``
 (the algorithm that ran: ``"twoscale"``, ``"dense"`` or ``"cg"``), ``h_source``, ``n_cells``,
-``residuals`` (per stage: count, first, last, min), ``units``, ``scene``; the two-scale
+``residuals`` (per stage: count, first, last, min), ``units``, ``scene``; the numbers first:
+``contact_area`` (mm^2, the tips' contact areas summed), ``nominal_area`` (mm^2) and
+``nominal_area_basis`` (what it is: the height map, the box of the tips' bases, cut to a
+block's top face; :mod:`twoscale.setting`), ``contact_area_ratio`` (contact / nominal),
+``body`` (``kind``, ``label``, and a block's ``size_mm``, ``base``, ``origin_mm``) and
+``scene_name`` (when known); the two-scale
 method adds ``macro``, ``micro_iteration``, ``micro_choice``, ``micro_attempts``,
 ``coupling`` and ``merged_patches`` (asperities numbered from 1), the reference method
 ``reference`` (solver, working grid, grid enlargements). Everything is written from the
@@ -35,7 +40,7 @@ from .scene_file import scene_to_dict
 __all__ = ["RESULT_NAME", "UNITS", "result_to_dict", "write_result", "read_forces", "read_forces_and_tips"]
 
 RESULT_NAME = "result.json"
-UNITS = {"length": "mm", "force": "N", "pressure": "MPa", "angle": "rad", "time": "s"}
+UNITS = {"length": "mm", "area": "mm2", "force": "N", "pressure": "MPa", "angle": "rad", "time": "s"}
 
 
 def _num(v: Any) -> float | int | None:
@@ -117,11 +122,33 @@ def result_to_dict(result, scene: Scene, *, method: str | None = None, h_source:
         "units": dict(UNITS),
         "scene": scene_to_dict(scene),
     }
+    out.update(_setting_record(result, scene))
     if isinstance(details, TwoScaleDetails):
         out.update(_twoscale_record(details))
     elif isinstance(details, ReferenceDetails):
         out["reference"] = _plain(dataclasses.asdict(details))
     return out
+
+
+def _setting_record(result, scene: Scene) -> dict:
+    """The body solved, the contact area and its ratio to the nominal area (a result made
+    without :func:`twoscale.solve` gets them from the scene here)."""
+    if result.body is None:
+        from ..setting import with_setting
+
+        result = with_setting(result, scene, _InfluenceOnly(scene.influence))
+    ratio = result.contact_ratio
+    return {"contact_area": _num(result.contact_area), "nominal_area": _num(result.nominal_area),
+            "nominal_area_basis": result.nominal_area_basis,
+            "contact_area_ratio": None if ratio is None else _num(ratio),
+            "body": result.body.as_dict(), "scene_name": result.scene_name}
+
+
+class _InfluenceOnly:
+    """A block's settings standing for its provider (the body's description needs no model)."""
+
+    def __init__(self, influence) -> None:
+        self.kind, self.size, self.base, self.origin = (influence.get(k) for k in ("kind", "size", "base", "origin"))
 
 
 def _twoscale_record(details: TwoScaleDetails) -> dict:

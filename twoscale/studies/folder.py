@@ -21,7 +21,8 @@ from .keys import case_key, digest
 #: The marker file of a study folder.
 MARKER = ".twoscale-study.json"
 #: What a study writes at the top of its folder, besides ``cases/`` and the marker.
-OUTPUTS = tuple(f"{name}.{ext}" for name in ("cases", "asperities", "indicators") for ext in ("csv", "parquet")) \
+OUTPUTS = tuple(f"{name}.{ext}" for name in ("cases", "asperities", "indicators")
+                for ext in ("csv", "csv-metadata.json", "parquet")) \
     + ("summary.json", "figures")
 
 
