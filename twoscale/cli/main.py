@@ -16,6 +16,7 @@ from __future__ import annotations
 import argparse
 import importlib
 import importlib.util
+import re
 import sys
 import warnings
 from typing import Sequence
@@ -57,6 +58,13 @@ class _OneLineParser(argparse.ArgumentParser):
         raise SystemExit(2)
 
 
+def plain(text: str) -> str:
+    """Docstring text as a terminal shows it: reStructuredText roles and literals
+    (``:func:`name```, double backquotes) reduced to their words."""
+    text = re.sub(r":[a-z]+:`~?([^`]+)`", r"\1", text)
+    return text.replace("``", "").replace("`", "")
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser with every available subcommand."""
     parser = _OneLineParser(
@@ -66,7 +74,7 @@ def build_parser() -> argparse.ArgumentParser:
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=_OneLineParser)
     sub.required = True
     for name, module in _available_subcommands():
-        doc = (module.__doc__ or name).strip().splitlines()[0]
+        doc = plain((module.__doc__ or name).strip().splitlines()[0])
         p = sub.add_parser(name, help=doc, description=doc)
         module.add_arguments(p)
         if name in OUTPUT_COMMANDS:
