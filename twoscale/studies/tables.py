@@ -5,7 +5,9 @@ finished so far, by this run or an earlier one. Tables (one row per observation,
 the column names), each as CSV with its ``.csv-metadata.json`` and, when ``pyarrow`` is
 installed, Parquet (:mod:`twoscale.io.tables`):
 
-* ``cases``: one row per case (status, reason, total load, approach, tilt, contact area);
+* ``cases``: one row per case (status, reason, total load, approach, tilt, contact area,
+  the cell size ``h_mm`` and ``h_source``: ``solver.h``, ``scene`` or ``lightest load``,
+  see :mod:`twoscale.studies.cases`);
 * ``asperities``: one row per case and tip under the footprint (scene index of the tip,
   its position in the body frame, force, contact area, peak pressure);
 * ``indicators``: per scene, load and position, e_M (tip forces) and e_m (sensor cells)
@@ -26,14 +28,14 @@ from ..io.atomic import atomic_output
 from ..io.result_json import UNITS
 from ..comparison import e_m_or_none
 from ..sensor import e_M
-from .cases import Case
+from .cases import Case, h_source
 from .keys import scene_record
 from .spec import Study
 from .store import CaseStore
 
 CASE_COLUMNS = ("scene", "body", "load_kind", "load", "position", "shift_x_mm", "shift_y_mm", "distance_mm",
                 "status", "reason", "n_tips", "total_load_N", "approach_mm", "tilt_alpha_rad", "tilt_beta_rad",
-                "contact_area_mm2", "h_mm", "strategy", "seconds", "key")
+                "contact_area_mm2", "h_mm", "h_source", "strategy", "seconds", "key")
 TIP_COLUMNS = ("scene", "body", "load_kind", "load", "position", "shift_x_mm", "shift_y_mm", "distance_mm",
                "asperity", "x_mm", "y_mm", "force_N", "contact_area_mm2", "max_pressure_MPa", "key")
 INDICATOR_COLUMNS = ("scene", "load_kind", "load", "position", "distance_mm", "reference", "body",
@@ -58,7 +60,8 @@ def rows(study: Study, cases: list, keys: list, records: dict) -> tuple[list, li
         where = _where(study, case)
         row = {**where, "status": rec["status"], "reason": rec.get("reason", ""), "n_tips": len(rec["tips"]),
                "total_load_N": None, "approach_mm": None, "tilt_alpha_rad": None, "tilt_beta_rad": None,
-               "contact_area_mm2": None, "h_mm": None, "strategy": None, "seconds": rec.get("seconds"), "key": key}
+               "contact_area_mm2": None, "h_mm": None, "h_source": h_source(case, study), "strategy": None,
+               "seconds": rec.get("seconds"), "key": key}
         if res is not None:
             tilt = res["tilt"] or (None, None)
             row.update(total_load_N=res["total_load"], approach_mm=res["penetration"], tilt_alpha_rad=tilt[0],
