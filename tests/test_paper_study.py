@@ -11,6 +11,7 @@ import math
 
 import numpy as np
 import pytest
+from tidy_tables import assert_tidy
 
 from twoscale.cli.main import main
 from twoscale.study import PAPER_SPACINGS, paper_case, reference_surface, run_study
@@ -86,6 +87,8 @@ def test_paper_command_writes_csv_and_figures(tmp_path, capsys):
                  "map_two_0.1.csv", "map_seven_0.2.csv", "fig3_two_maps.png", "fig4_seven_maps.png",
                  "fig5_profiles.png", "fig6_errors.png"):
         assert (tmp_path / name).stat().st_size > 0, name
+    for path in tmp_path.glob("*.csv"):          # every table opens with pandas and csv, no options
+        assert_tidy(path)
     with open(tmp_path / "errors_seven.csv", newline="", encoding="utf-8") as fh:   # header first
         rows = list(csv.DictReader(fh))
     assert json.loads((tmp_path / "errors_seven.csv-metadata.json").read_text())["twoscale"]["parameters"]["R_mm"] > 0

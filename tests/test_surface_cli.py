@@ -7,6 +7,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from tidy_tables import assert_tidy
 
 from twoscale.cli.main import main
 from twoscale.io.scene_file import read_scene
@@ -100,8 +101,7 @@ def test_surface_command_writes_the_segmentation(map_scene, tmp_path):
     path = map_scene()
     out = tmp_path / "seg"
     assert main(["surface", str(path), "--out", str(out), "--quiet"]) == 0
-    with open(out / "segmentation.csv", newline="", encoding="utf-8") as fh:   # header first, no options
-        rows = list(csv.DictReader(fh))
+    rows = assert_tidy(out / "segmentation.csv")      # pandas and csv read it without options
     assert not (out / "asperities.csv").exists()          # named apart from a solve's table
     scene = read_scene(path)
     assert len(rows) == len(scene.asperities)

@@ -137,11 +137,12 @@ def terminal_summary(scene_path: str, runs, ind: dict, changes: list[dict], out,
                          f"{_e_text(e.get('e_m')):>6}   {tips if r is not ref else '-'}")
     first = runs[0].body
     e_M = [v["e_M"] for load in ind.values() for v in load.get(first, {}).values() if v["e_M"] is not None]
-    worst = max(e_M, default=1.0)
+    worst = max(e_M, default=0.0)
+    example = (f": e_M = {worst:.3g} % means tip forces {10 * math.sqrt(worst):.2g} % apart in the root-mean-square "
+               "sense, and single tips can change much more (last column)") if worst > 0 else ""
     lines += ["", "e_M, e_m: the paper's indicators, 100 sum|P - P_ref|^2 / sum|P_ref|^2 in percent, over the tip "
-              "forces (e_M) and the sensor cells' mean pressures (e_m), P_ref the reference body's. They are squares: "
-              f"e_M = {worst:.3g} % means tip forces {10 * math.sqrt(worst):.2g} % apart in the root-mean-square "
-              "sense, and single tips can change much more (last column)."]
+              "forces (e_M) and the sensor cells' mean pressures (e_m), P_ref the reference body's. They are "
+              f"squares{example}."]
     lines.append(f"every tip's change: {out}/changes.csv; forces, areas and pressures: {out}/forces.csv "
                  f"(and forces.md); figures: {out}/*.png")
     return "\n".join(lines)
