@@ -59,6 +59,19 @@ def test_cells_carry_the_precision_of_the_number(value, text):
     assert cell(value) == text
 
 
+def test_parquet_only_beside_long_tables(tmp_path):
+    pytest.importorskip("pyarrow")
+    import pandas as pd
+    from twoscale.io.tables import LONG_TABLE, write_table
+
+    rows = [{"k": k, "force_N": 0.5 * k} for k in range(3)]
+    assert len(write_table(tmp_path, "short", rows, ("k", "force_N"), title="t", parquet=LONG_TABLE)) == 2
+    assert not (tmp_path / "short.parquet").exists()
+    written = write_table(tmp_path, "always", rows, ("k", "force_N"), title="t", parquet=0)
+    assert written[-1].name == "always.parquet"
+    assert pd.read_parquet(written[-1])["force_N"].tolist() == [0.0, 0.5, 1.0]
+
+
 # ---------------------------------------------------------------- every command's tables
 def test_solve_table_opens_without_options(tmp_path):
     out = tmp_path / "run"

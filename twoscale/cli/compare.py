@@ -34,7 +34,7 @@ exit code 130):
   when the method has one); ``changes.csv``: one row per load, block body and asperity,
   the tip's force against its half-space force (``change_N``, ``change_percent`` of the
   tip's own half-space force). Each has its ``.csv-metadata.json`` (version, units, the
-  scene, the bodies and the sensor) and, with pyarrow, a ``.parquet`` copy;
+  scene, the bodies and the sensor) and, from 1,000 rows and with pyarrow, a ``.parquet`` copy;
 * ``forces.md``: the same as Markdown tables, plus e_M (tip forces) and e_m (sensor
   cells) in percent between each pair of bodies, and the bodies, sensor and scene;
 * ``summary.json``: the indicators, convergence, timings, version, units, scene, bodies
@@ -68,7 +68,7 @@ from ..comparison import (CHANGE_FIELDS, ROW_FIELDS, Measured, Run, centre_pivot
 from ..influence.registry import make_body, unavailable
 from ..io.atomic import atomic_output
 from ..io.result_json import UNITS, write_result
-from ..io.tables import write_table
+from ..io.tables import LONG_TABLE, write_table
 from ..io.scene_file import read_scene, scene_to_dict
 from ..progress import Progress
 from ..resources import check_memory, estimate_memory
@@ -267,9 +267,9 @@ def _write_outputs(out: Path, args, scene: Scene, runs, ind, notes, measured: Me
     record = compare_record(scene, runs, sensor)
     scene_dict, meta = record["scene"], {"bodies": record["bodies"], "sensor": record["sensor"]}
     tables = {"source": f"compare {args.scene}", "units": dict(UNITS), **record}
-    write_table(out, "forces", per_asperity_rows(runs, measured), ROW_FIELDS, record=tables, parquet=True,
+    write_table(out, "forces", per_asperity_rows(runs, measured), ROW_FIELDS, record=tables, parquet=LONG_TABLE,
                 title="per load, body and tip: force, contact area, peak pressure", descriptions=FORCE_COLUMNS)
-    write_table(out, "changes", changes, CHANGE_FIELDS, record=tables, parquet=True, descriptions=CHANGE_COLUMNS,
+    write_table(out, "changes", changes, CHANGE_FIELDS, record=tables, parquet=LONG_TABLE, descriptions=CHANGE_COLUMNS,
                 title="per load and tip: each body's tip force against the reference body's (the half-space)")
     md = markdown(args.scene, runs, ind, notes, args.method, measured, sensor)
     md += ("\n<details><summary>scene, bodies and sensor (JSON)</summary>\n\n```json\n"

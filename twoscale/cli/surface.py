@@ -4,7 +4,7 @@
 (basins and summits over the height map), DIR/segmentation.csv (per asperity: summit
 position and height, recess, prominence, basin area, equivalent-sphere radius, law
 exponent, the sphere law's error against the tabulated one; with its
-segmentation.csv-metadata.json and, with pyarrow, segmentation.parquet) and
+segmentation.csv-metadata.json and, from 1,000 asperities and with pyarrow, segmentation.parquet) and
 DIR/surface.json (the map as conditioned, the options, the timings). Exit codes: 0 done; 2 bad input (one
 ``error: ...`` line naming the file or the key; nothing written); 130 interrupted.
 """

@@ -3,7 +3,7 @@
 One row per asperity, numbered from 1 in scene order (the numbers drawn on the figures
 and written in the ``owner`` array of the field files), header on the first line; the
 version, units and scene in ``asperities.csv-metadata.json`` beside it, and the same rows
-in ``asperities.parquet`` when pyarrow is installed (:mod:`twoscale.io.tables`):
+in ``asperities.parquet`` for a long table (1,000 tips or more) when pyarrow is installed (:mod:`twoscale.io.tables`):
 
 ``asperity, x_mm, y_mm, z_mm, R_mm, shape, force_N, contact_area_mm2,
 max_pressure_MPa, mean_pressure_MPa[, macro_force_N]``
@@ -19,7 +19,7 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any, Mapping, Sequence
 
-from .tables import write_table
+from .tables import LONG_TABLE, write_table
 
 #: Units of every table (column names carry them too).
 UNITS = {"length": "mm", "force": "N", "area": "mm2", "pressure": "MPa"}
@@ -87,4 +87,4 @@ def write_asperity_csv(result, asperities: Sequence, path: str | Path, *,
     path = Path(path)
     return write_table(path.parent, path.name.removesuffix(".csv"), rows, fields, record=record,
                        title="per-tip forces, contact areas and pressures of a solve",
-                       descriptions=DESCRIPTIONS, parquet=True)
+                       descriptions=DESCRIPTIONS, parquet=LONG_TABLE)

@@ -5,7 +5,7 @@
   (:func:`twoscale.io.vtk.write_vtk`; open the ``.vtm`` in ParaView);
 * ``asperities.csv``: position, shape, force, contact area, peak and mean pressure per
   asperity, numbered from 1, with ``asperities.csv-metadata.json`` (version, units, scene,
-  columns) and, when pyarrow is installed, ``asperities.parquet``
+  columns) and, from 1,000 tips and with pyarrow, ``asperities.parquet``
   (:func:`twoscale.io.asperity_csv.write_asperity_csv`);
 * ``pressure.png``: pressure map with the tips, numbered when few
   (:func:`twoscale.plot.pressure_map`);

@@ -12,9 +12,10 @@ way:
   the scene or study, what each column holds), in the layout of the W3C "CSV on the Web"
   metadata (``url``, ``tableSchema.columns`` with ``name``, ``datatype``,
   ``dc:description``) plus a ``twoscale`` record.
-* ``NAME.parquet`` for the tables that grow with the number of tips or cases (``parquet=True``),
-  written only when ``pyarrow`` is importable (the ``study`` extra installs it); the CSV is
-  always written.
+* ``NAME.parquet`` beside long tables: a study's tables always, a solve's or a comparison's
+  per-tip tables from :data:`LONG_TABLE` rows on (a short table gains nothing from a binary
+  copy, and importing pyarrow costs a solve some 30 MB of memory); written only when
+  ``pyarrow`` is importable (the ``study`` extra installs it). The CSV is always written.
 """
 from __future__ import annotations
 
@@ -32,6 +33,8 @@ from .atomic import atomic_output
 
 #: Significant digits of the numbers written (see module doc).
 DIGITS = 10
+#: Rows from which a per-tip table is long enough for a Parquet copy (``parquet=LONG_TABLE``).
+LONG_TABLE = 1000
 
 
 def cell(v: Any) -> str:
@@ -91,8 +94,8 @@ def metadata(name: str, rows: list, columns: Sequence[str], *, title: str, recor
 
 def write_table(out_dir: str | Path, name: str, rows: Iterable[Mapping], columns: Sequence[str], *,
                 title: str, record: Mapping | None = None, descriptions: Mapping[str, str] | None = None,
-                parquet: bool = False) -> list[Path]:
-    """Write ``NAME.csv``, ``NAME.csv-metadata.json`` and (``parquet`` and pyarrow) ``NAME.parquet``.
+                parquet: int | None = None) -> list[Path]:
+    """Write ``NAME.csv``, ``NAME.csv-metadata.json`` and (long tables, with pyarrow) ``NAME.parquet``.
 
     Parameters
     ----------
@@ -110,8 +113,9 @@ def write_table(out_dir: str | Path, name: str, rows: Iterable[Mapping], columns
         JSON-ready data recorded under ``twoscale`` (units, scene, study, source, ...).
     descriptions : mapping, optional
         Column name -> one-line meaning.
-    parquet : bool, default False
-        Also write Parquet when ``pyarrow`` is importable.
+    parquet : int, optional
+        Also write Parquet, when ``pyarrow`` is importable, for a table of at least this
+        many rows (0: always; None, the default: never).
 
     Returns
     -------
@@ -125,7 +129,7 @@ def write_table(out_dir: str | Path, name: str, rows: Iterable[Mapping], columns
     meta = metadata(name, rows, columns, title=title, record=record or {}, descriptions=descriptions)
     with atomic_output(written[1]) as tmp:
         tmp.write_text(json.dumps(meta, indent=1, allow_nan=False, default=_json_default) + "\n", encoding="utf-8")
-    if parquet:
+    if parquet is not None and len(rows) >= parquet:
         path = write_parquet(out / f"{name}.parquet", rows, columns)
         if path is not None:
             written.append(path)

@@ -149,7 +149,7 @@ def write_table(out: Path, name: str, table: list, columns: tuple, study: Study 
     record = {"units": dict(UNITS)}
     if study is not None:
         record["study"] = {"name": study.name, "source": study.source}
-    return tables.write_table(out, name, table, columns, title=TITLES.get(name, name), record=record, parquet=True)
+    return tables.write_table(out, name, table, columns, title=TITLES.get(name, name), record=record, parquet=0)
 
 
 def write_tables(out: Path, study: Study, cases: list, keys: list, store: CaseStore, run: dict) -> tuple:

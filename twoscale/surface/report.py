@@ -47,11 +47,11 @@ def write_segmentation_table(rows: list[dict], out_dir: str | Path, name: str = 
                              record: dict | None = None) -> list[Path]:
     """The rows as ``NAME.csv`` with its metadata JSON (and Parquet with pyarrow) in
     ``out_dir`` (:func:`twoscale.io.tables.write_table`)."""
-    from ..io.tables import write_table
+    from ..io.tables import LONG_TABLE, write_table
 
     return write_table(out_dir, name, rows, CSV_COLUMNS, title="asperities of a height map (segmentation)",
                        record={"units": {"length": "mm", "area": "mm2"}, **(record or {})},
-                       descriptions=DESCRIPTIONS, parquet=True)
+                       descriptions=DESCRIPTIONS, parquet=LONG_TABLE)
 
 
 def surface_summary(surface, scene_record: dict, *, table=None, sphere_error=None, seconds: dict) -> dict:
