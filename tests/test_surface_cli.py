@@ -1,6 +1,5 @@
 """Height-map scenes: the [surface] table, ``twoscale surface``, ``twoscale solve`` and
 ``compare`` on them, and the shipped example road (issue 16, points 5-6)."""
-import csv
 import json
 import sys
 from pathlib import Path
