@@ -34,8 +34,9 @@ from ..scene import METHODS, SceneError, default_h, solve_scene
 from .options import positive_option
 from .staging import check_output_folder, staged_directory
 
-#: Asperity rows printed in the summary before it is cut short.
+#: Tips listed in the summary in scene order at most; with more, the TOP_ROWS most loaded.
 MAX_ROWS = 30
+TOP_ROWS = 10
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -195,9 +196,10 @@ def summary(res: dict, scene_path: str, wall: float, path) -> str:
         reach = max([math.hypot(a["x"], a["y"]) for a in res["scene"].get("asperity", [])] or [1.0]) or 1.0
         alpha, beta = near_zero(res["tilt"], abs(res["penetration"]) / reach)
         lines.append(f"  tilt         alpha {alpha} rad, beta {beta} rad")
-    area = f"  contact area {res['contact_area']:.5g} mm2"
+    touching = sum(a["contact_area"] > 0 for a in res["asperities"])
+    area = f"  contact area {res['contact_area']:.5g} mm2 on {touching} of {n} tips"
     if res["contact_area_ratio"] is not None:
-        area += (f" = {100 * res['contact_area_ratio']:.3g} % of the nominal {res['nominal_area']:.5g} mm2 "
+        area += (f", {100 * res['contact_area_ratio']:.3g} % of the nominal {res['nominal_area']:.5g} mm2 "
                  f"({res['nominal_area_basis']})")
     lines.append(area)
     lines.append(f"  cell size    h = {res['h']:.6g} mm ({res['h_source']}), {res['n_cells']} cells")
@@ -213,15 +215,15 @@ def summary(res: dict, scene_path: str, wall: float, path) -> str:
 
 
 def _tip_lines(res: dict, path) -> list[str]:
-    """The tips: all of them up to MAX_ROWS, else the most loaded MAX_ROWS."""
+    """The tips: all of them up to MAX_ROWS, else the TOP_ROWS most loaded."""
     asps = res["asperities"]
     macro = any("macro_force" in a for a in asps)
     order = list(range(len(asps)))
     few = len(asps) <= MAX_ROWS
     if not few:
-        order = sorted(order, key=lambda k: -asps[k]["force"])[:MAX_ROWS]
+        order = sorted(order, key=lambda k: -asps[k]["force"])[:TOP_ROWS]
     lines = ["  asperity      force N   area mm2  p_max MPa" + ("   macro N" if macro else "")
-             + ("   (numbered from 1, scene order)" if few else f"   (the {MAX_ROWS} most loaded)")]
+             + ("   (numbered from 1, scene order)" if few else f"   (the {TOP_ROWS} most loaded of {len(asps)})")]
     for k in order:
         a = asps[k]
         row = f"  {k + 1:8d} {a['force']:11.5g} {a['contact_area']:10.5g} {a['max_pressure']:10.5g}"
@@ -231,7 +233,7 @@ def _tip_lines(res: dict, path) -> list[str]:
     if not few:
         where = (f"in {Path(path).parent / ASPERITY_CSV_NAME}" if path is not None
                  else "(--out DIR writes them all to DIR/asperities.csv)")
-        lines.append(f"  ... {len(asps) - MAX_ROWS} more {where}")
+        lines.append(f"  ... {len(asps) - TOP_ROWS} more {where}")
     return lines
 
 
