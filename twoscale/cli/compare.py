@@ -271,7 +271,7 @@ def _write_outputs(out: Path, args, scene: Scene, runs, ind, notes, measured: Me
                 title="per load, body and tip: force, contact area, peak pressure", descriptions=FORCE_COLUMNS)
     write_table(out, "changes", changes, CHANGE_FIELDS, record=tables, parquet=LONG_TABLE, descriptions=CHANGE_COLUMNS,
                 title="per load and tip: each body's tip force against the reference body's (the half-space)")
-    md = markdown(args.scene, runs, ind, notes, args.method, measured, sensor)
+    md = markdown(args.scene, runs, ind, notes, args.method, measured, sensor, changes)
     md += ("\n<details><summary>scene, bodies and sensor (JSON)</summary>\n\n```json\n"
            + json.dumps(record, indent=1) + "\n```\n</details>\n")
     _write_text(out / "forces.md", md)

@@ -56,12 +56,15 @@ def _fmt(v) -> str:
 
 
 def markdown(scene_path: str, runs, ind: dict, notes: list[str], method: str,
-             measured: Measured | None = None, sensor: Sensor = DEFAULT_SENSOR) -> str:
-    """The Markdown report: per-load tables of forces, areas and peak pressures, indicators,
-    and what each body was (influence settings and loads)."""
+             measured: Measured | None = None, sensor: Sensor = DEFAULT_SENSOR, changes: list | None = None) -> str:
+    """The Markdown report: what changes between the bodies (with ``changes``, the rows of
+    :func:`twoscale.comparison.tip_changes`), per-load tables of forces, areas and peak
+    pressures, indicators, and what each body was (influence settings and loads)."""
     lines = [f"# twoscale compare {scene_path}", "",
              f"twoscale {__version__}; method {method}; units mm, N, MPa.", ""]
     lines += [f"> **Note:** {n}" for n in notes] + ([""] if notes else [])
+    if changes is not None and len({r.body for r in runs}) > 1:
+        lines += changes_markdown(runs, ind, changes)
     for load in dict.fromkeys(r.load for r in runs):
         group = [r for r in runs if r.load == load]
         lines += [f"## Load case: {load_title(load)}", ""]
@@ -114,18 +117,14 @@ def _e_text(v) -> str:
     return "-" if v is None else f"{v:.3g}"
 
 
-def terminal_summary(scene_path: str, runs, ind: dict, changes: list[dict], out, method: str) -> str:
-    """The compact summary printed by ``twoscale compare`` (see module doc)."""
-    labels = {r.body: (r.result.body.label if getattr(r.result, "body", None) is not None else r.body) for r in runs}
-    lines = [f"twoscale compare {scene_path}: method {method}; {len(runs[0].scene.asperities)} tips",
-             "  bodies: " + "; ".join(f"{b} = {label}" for b, label in labels.items())]
-    width = max(len(b) for b in labels)
+def change_table(runs, ind: dict, changes: list[dict]) -> dict:
+    """Per load label: ``(reference body, rows)``, a row per body of strings ``[body,
+    approach (change), contact area (change), e_M, e_m, largest tip changes]``."""
+    out = {}
     for load in dict.fromkeys(r.load for r in runs):
         group = [r for r in runs if r.load == load]
         ref = group[0]
-        lines += ["", f"{load_title(load)}; changes against {ref.body}",
-                  f"  {'body':<{width}}  {'approach mm':<20} {'contact area mm2':<20} {'e_M %':>6} {'e_m %':>6}"
-                  f"   largest tip changes, % of the tip's {ref.body} force"]
+        rows = []
         for r in group:
             res, base = r.result, ref.result
             approach = f"{res.penetration:.4g}" + ("" if r is ref else _change(res.penetration, base.penetration))
@@ -133,19 +132,57 @@ def terminal_summary(scene_path: str, runs, ind: dict, changes: list[dict], out,
             e = ind.get(load, {}).get(ref.body, {}).get(r.body, {})
             top = largest_changes([c for c in changes if c["body"] == r.body and _same_load(c, r.scene)])
             tips = ", ".join(f"tip {c['asperity']} {c['change_percent']:+.1f} %" for c in top)
-            lines.append(f"  {r.body:<{width}}  {approach:<20} {area:<20} {_e_text(e.get('e_M')):>6} "
-                         f"{_e_text(e.get('e_m')):>6}   {tips if r is not ref else '-'}")
+            rows.append([r.body, approach, area, _e_text(e.get("e_M")), _e_text(e.get("e_m")),
+                         tips if r is not ref else "-"])
+        out[load] = (ref.body, rows)
+    return out
+
+
+def indicator_note(runs, ind: dict) -> str:
+    """What e_M and e_m are, with the largest e_M against the first body read as a
+    root-mean-square difference."""
     first = runs[0].body
     e_M = [v["e_M"] for load in ind.values() for v in load.get(first, {}).values() if v["e_M"] is not None]
     worst = max(e_M, default=0.0)
     example = (f": e_M = {worst:.3g} % means tip forces {10 * math.sqrt(worst):.2g} % apart in the root-mean-square "
                "sense, and single tips can change much more (last column)") if worst > 0 else ""
-    lines += ["", "e_M, e_m: the paper's indicators, 100 sum|P - P_ref|^2 / sum|P_ref|^2 in percent, over the tip "
-              "forces (e_M) and the sensor cells' mean pressures (e_m), P_ref the reference body's. They are "
-              f"squares{example}."]
+    return ("e_M, e_m: the paper's indicators, 100 sum|P - P_ref|^2 / sum|P_ref|^2 in percent, over the tip "
+            "forces (e_M) and the sensor cells' mean pressures (e_m), P_ref the reference body's. They are "
+            f"squares{example}.")
+
+
+def _labels(runs) -> dict:
+    return {r.body: (r.result.body.label if getattr(r.result, "body", None) is not None else r.body) for r in runs}
+
+
+def terminal_summary(scene_path: str, runs, ind: dict, changes: list[dict], out, method: str) -> str:
+    """The compact summary printed by ``twoscale compare`` (see module doc)."""
+    labels = _labels(runs)
+    lines = [f"twoscale compare {scene_path}: method {method}; {len(runs[0].scene.asperities)} tips",
+             "  bodies: " + "; ".join(f"{b} = {label}" for b, label in labels.items())]
+    width = max(len(b) for b in labels)
+    for load, (ref, rows) in change_table(runs, ind, changes).items():
+        lines += ["", f"{load_title(load)}; changes against {ref}",
+                  f"  {'body':<{width}}  {'approach mm':<20} {'contact area mm2':<20} {'e_M %':>6} {'e_m %':>6}"
+                  f"   largest tip changes, % of the tip's {ref} force"]
+        for body, approach, area, e_M, e_m, tips in rows:
+            lines.append(f"  {body:<{width}}  {approach:<20} {area:<20} {e_M:>6} {e_m:>6}   {tips}")
+    lines += ["", indicator_note(runs, ind)]
     lines.append(f"every tip's change: {out}/changes.csv; forces, areas and pressures: {out}/forces.csv "
                  f"(and forces.md); figures: {out}/*.png")
     return "\n".join(lines)
+
+
+def changes_markdown(runs, ind: dict, changes: list[dict]) -> list[str]:
+    """The same as :func:`terminal_summary`, as the first section of forces.md."""
+    lines = ["## What changes", "",
+             "Bodies: " + "; ".join(f"{b} = {label}" for b, label in _labels(runs).items()) + ".", ""]
+    for load, (ref, rows) in change_table(runs, ind, changes).items():
+        lines += [f"**{load_title(load)}**, changes against {ref}:", "",
+                  f"| body | approach (mm) | contact area (mm^2) | e_M % | e_m % | largest tip changes, % of the tip's "
+                  f"{ref} force |", "|---|---|---|---|---|---|"]
+        lines += ["| " + " | ".join(r) + " |" for r in rows] + [""]
+    return lines + [indicator_note(runs, ind) + " Every tip's change is in changes.csv.", ""]
 
 
 def _same_load(row: dict, scene: Scene) -> bool:
