@@ -116,6 +116,8 @@ class FrozenMapping(Mapping):
 def tilt_text(result: "ContactResult", spec: str = ".4g") -> str:
     """``"alpha, beta"`` of a tilted result, each shown as 0 when it moves no point of the
     tips' extent by more than 1e-6 of the approach (a solver's round-off, not a tilt)."""
+    if result.tilt is None:
+        return ""
     tips = max((abs(f.grid.x0) + f.grid.nx * f.grid.h for f in result.fields), default=1.0)
     tips = max(tips, max((abs(f.grid.y0) + f.grid.ny * f.grid.h for f in result.fields), default=1.0))
     floor = 1e-6 * abs(result.penetration) / tips

@@ -73,7 +73,7 @@ class Body:
 
     def as_dict(self) -> dict:
         """JSON-ready (result.json's ``body``)."""
-        out = {"kind": self.kind, "label": self.label}
+        out: dict = {"kind": self.kind, "label": self.label}
         if self.size is not None:
             out["size_mm"] = list(self.size)
         if self.base is not None:
