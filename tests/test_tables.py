@@ -22,32 +22,11 @@ from twoscale.influence import HalfSpace
 from twoscale.io.tables import cell
 from twoscale.setting import Body, nominal_area
 
+from test_cli_compare import SMALL, _fake_block
 from tidy_tables import assert_tidy
 
 EXAMPLES = Path(__file__).resolve().parent.parent / "examples"
 
-SMALL = """
-[material]
-E = 6.0
-nu = 0.5
-[load]
-total = 10.0
-tilt = true
-[grid]
-h = 0.3
-[[asperity]]
-x = 0.0
-y = 0.0
-R = 5.0
-[[asperity]]
-x = 8.0
-y = 0.0
-R = 5.0
-[[asperity]]
-x = 0.0
-y = 8.0
-R = 4.0
-"""
 
 
 # ---------------------------------------------------------------- the CSV cells
@@ -83,11 +62,6 @@ def test_solve_table_opens_without_options(tmp_path):
         import pandas as pd
         back = pd.read_parquet(out / "asperities.parquet")
         np.testing.assert_allclose(back["force_N"], [a["force"] for a in res["asperities"]], rtol=1e-15)
-
-
-def _fake_block(material, *, size, base, origin, source_spacing, progress):
-    # stands in for the finite block: the half-space itself (the options are checked apart)
-    return HalfSpace(material)
 
 
 def test_compare_tables_open_without_options_and_hold_numbers(tmp_path, monkeypatch):
