@@ -82,7 +82,8 @@ def _text(scene_path: str, s: dict, out) -> str:
         e = s["laws"]["sphere_law_error"]
         lines.append(f"  laws         tabulated to {s['laws']['depth_mm']:g} mm; equivalent spheres off by "
                      f"{100 * e['median']:.3g} % (median), {100 * e['largest']:.3g} % (largest)")
-    lines.append(f"  time         {s['seconds']['read_and_segment']:.3g} s segmentation, {s['seconds']['laws']:.3g} s laws")
+    laws = f", {s['seconds']['laws']:.3g} s laws" if s["laws"] is not None else ""
+    lines.append(f"  time         {s['seconds']['read_and_segment']:.3g} s segmentation{laws}")
     names = sorted(p.name for p in Path(out).iterdir() if not p.name.startswith("."))
     lines.append(f"  wrote        {out}/: {', '.join(names)}")
     return "\n".join(lines)
