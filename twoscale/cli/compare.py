@@ -37,8 +37,8 @@ exit code 130):
   scene, the bodies and the sensor) and, from 1,000 rows and with pyarrow, a ``.parquet`` copy;
 * ``forces.md``: the same as Markdown tables, plus e_M (tip forces) and e_m (sensor
   cells) in percent between each pair of bodies, and the bodies, sensor and scene;
-* ``summary.json``: the indicators, convergence, timings, version, units, scene, bodies
-  and sensor;
+* ``summary.json``: the indicators, per run the convergence, approach, contact area, the
+  body's label and the time, and the version, units, scene, bodies and sensor;
 * ``forces_<W>N.png`` (forces side by side, as the paper's Figs. 10-11) and
   ``maps_<W>N.png`` (pressure maps side by side) and ``sensor_<W>N.png`` (the same
   averaged on the sensor cells, what e_m compares) for each load, each recording the
@@ -279,6 +279,8 @@ def _write_outputs(out: Path, args, scene: Scene, runs, ind, notes, measured: Me
                **record, "indicators_percent": ind,
                "runs": [{"load": r.load, "body": r.body, "converged": bool(r.result.converged),
                          "message": r.result.message, "total_load": float(r.result.total_load),
+                         "approach_mm": float(r.result.penetration), "contact_area_mm2": r.result.contact_area,
+                         "body_label": r.result.body.label if r.result.body is not None else r.body,
                          "seconds": r.seconds} for r in runs]}
     _write_text(out / "summary.json", json.dumps(summary, indent=2, allow_nan=False) + "\n")
     for load in dict.fromkeys(r.load for r in runs):
