@@ -17,11 +17,12 @@ TWO = str(EXAMPLES / "paper_two_spheres.toml")
 
 
 def _csv_rows(path):
-    """Rows of forces.csv; its two leading '#' lines record version, units and scene."""
-    lines = path.read_text().splitlines()
-    assert lines[0].startswith("# twoscale ") and "units: force N" in lines[0]
-    assert json.loads(lines[1][len("# scene: "):])["material"]["nu"] == 0.5
-    return list(csv.DictReader(line for line in lines if not line.startswith("#")))
+    """Rows of forces.csv (header on the first line); its metadata JSON records version, units and scene."""
+    meta = json.loads(path.with_name(path.name + "-metadata.json").read_text())["twoscale"]
+    assert meta["units"]["force"] == "N" and meta["source"].startswith("compare ")
+    assert meta["scene"]["material"]["nu"] == 0.5
+    with open(path, newline="", encoding="utf-8") as fh:
+        return list(csv.DictReader(fh))
 
 
 def _fake_block(material, *, size, base, origin, source_spacing, progress):
@@ -84,8 +85,8 @@ def test_three_bodies_and_loads(tmp_path, monkeypatch):
     assert len(rows) == 2 * 3 * 3
     by = {}
     for r in rows:
-        by.setdefault((r["load"], r["body"]), []).append(float(r["force_N"]))
-    for load, total in (("50N", 50.0), ("100N", 100.0)):
+        by.setdefault((r["load_N"], r["body"]), []).append(float(r["force_N"]))
+    for load, total in (("50", 50.0), ("100", 100.0)):
         assert sum(by[load, "halfspace"]) == pytest.approx(total, rel=1e-6)
         # the stand-in block is the half-space: identical forces, zero indicators
         assert by[load, "block-bonded"] == by[load, "halfspace"] == by[load, "block-sliding"]
@@ -266,7 +267,7 @@ def test_scene_load_cases_run_without_loads_and_loads_override(tmp_path, monkeyp
     assert main(["compare", str(scene), "--out", str(out), "--quiet"]) == 0
     runs = json.loads((out / "summary.json").read_text())["runs"]
     assert [(r["load"], r["total_load"]) for r in runs] == [("10N", pytest.approx(10.0)), ("20N", pytest.approx(20.0))]
-    assert {r["load"] for r in _csv_rows(out / "forces.csv")} == {"10N", "20N"}
+    assert {float(r["load_N"]) for r in _csv_rows(out / "forces.csv")} == {10.0, 20.0}   # numbers, not "10N"
     # --loads replaces the scene's cases, and the files record the cases actually run
     out2 = tmp_path / "override"
     assert main(["compare", str(scene), "--loads", "15", "--out", str(out2), "--quiet"]) == 0
@@ -422,8 +423,7 @@ def test_every_top_level_file_records_each_body_and_all_loads(tmp_path, monkeypa
                 "block-bonded": {"influence": {**block, "base": "bonded"}, "loads": loads},
                 "block-sliding": {"influence": {**block, "base": "sliding"}, "loads": loads}}
 
-    lines = (out / "forces.csv").read_text().splitlines()
-    csv_meta = {line[2:].split(": ", 1)[0]: json.loads(line[2:].split(": ", 1)[1]) for line in lines[1:4]}
+    csv_meta = json.loads((out / "forces.csv-metadata.json").read_text())["twoscale"]
     summary = json.loads((out / "summary.json").read_text())
     md = (out / "forces.md").read_text()
     md_meta = json.loads(md.split("```json\n", 1)[1].split("\n```", 1)[0])

@@ -96,7 +96,7 @@ def test_compare_interrupted_during_the_solves(scene, tmp_path, monkeypatch, cap
 
 
 def test_compare_interrupted_while_writing(scene, tmp_path, monkeypatch, capsys):
-    monkeypatch.setattr(compare_cli, "_providers", lambda scene, quiet: ({"halfspace": scene.provider()}, []))
+    monkeypatch.setattr(compare_cli, "_providers", lambda scene, quiet, base="both": ({"halfspace": scene.provider()}, []))
     monkeypatch.setattr(compare_cli, "write_result", _interrupt)  # after forces.csv, forces.md, figures
     code = main(["compare", str(scene), "--out", str(tmp_path / "cmp"), "--quiet"])
     assert code == 130

@@ -6,10 +6,12 @@ as the spheres approach; sweeps are reported. The quick setting (cells twice the
 runs by default; the paper's cell sizes are marked slow.
 """
 import csv
+import json
 import math
 
 import numpy as np
 import pytest
+from tidy_tables import assert_tidy
 
 from twoscale.cli.main import main
 from twoscale.study import PAPER_SPACINGS, paper_case, reference_surface, run_study
@@ -85,9 +87,11 @@ def test_paper_command_writes_csv_and_figures(tmp_path, capsys):
                  "map_two_0.1.csv", "map_seven_0.2.csv", "fig3_two_maps.png", "fig4_seven_maps.png",
                  "fig5_profiles.png", "fig6_errors.png"):
         assert (tmp_path / name).stat().st_size > 0, name
-    with open(tmp_path / "errors_seven.csv", encoding="utf-8") as fh:
-        lines = [ln for ln in fh if not ln.startswith("#")]
-    rows = list(csv.DictReader(lines))
+    for path in tmp_path.glob("*.csv"):          # every table opens with pandas and csv, no options
+        assert_tidy(path)
+    with open(tmp_path / "errors_seven.csv", newline="", encoding="utf-8") as fh:   # header first
+        rows = list(csv.DictReader(fh))
+    assert json.loads((tmp_path / "errors_seven.csv-metadata.json").read_text())["twoscale"]["parameters"]["R_mm"] > 0
     assert [float(r["d_over_2R"]) for r in rows] == list(PAPER_SPACINGS["seven"])
     assert all(float(r["err_p_percent"]) <= 0.1 and int(r["sweeps"]) >= 1 for r in rows)
     # the paper: fewer than 10 sweeps; the closest spheres are one block, the farthest seven

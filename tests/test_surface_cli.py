@@ -1,12 +1,12 @@
 """Height-map scenes: the [surface] table, ``twoscale surface``, ``twoscale solve`` and
 ``compare`` on them, and the shipped example road (issue 16, points 5-6)."""
-import csv
 import json
 import sys
 from pathlib import Path
 
 import numpy as np
 import pytest
+from tidy_tables import assert_tidy
 
 from twoscale.cli.main import main
 from twoscale.io.scene_file import read_scene
@@ -100,8 +100,8 @@ def test_surface_command_writes_the_segmentation(map_scene, tmp_path):
     path = map_scene()
     out = tmp_path / "seg"
     assert main(["surface", str(path), "--out", str(out), "--quiet"]) == 0
-    rows = list(csv.DictReader(line for line in (out / "asperities.csv").read_text().splitlines()
-                               if not line.startswith("#")))
+    rows = assert_tidy(out / "segmentation.csv")      # pandas and csv read it without options
+    assert not (out / "asperities.csv").exists()          # named apart from a solve's table
     scene = read_scene(path)
     assert len(rows) == len(scene.asperities)
     assert [int(r["asperity"]) for r in rows] == list(range(1, len(rows) + 1))   # numbered from 1

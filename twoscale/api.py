@@ -246,8 +246,10 @@ def solve(problem, *, method="twoscale", provider=None, material: Material | Non
     force, radius = expected_contacts(scene)
     check_domain(scene, provider, h, radii=radius)
     check_resolution(scene, h, forces=force, radii=radius)
-    if callable(method):
-        return method(provider, scene, h=h, **options)
+    from .setting import with_setting
+
+    if callable(method):  # the body and the nominal area recorded in the result, whatever the method
+        return with_setting(method(provider, scene, h=h, **options), scene, provider)
     if method == "twoscale":
         from .twoscale import solve_twoscale
 
@@ -265,6 +267,7 @@ def solve(problem, *, method="twoscale", provider=None, material: Material | Non
         warn_edge_contacts(report.edge_contacts)
         if hasattr(result.details, "surface"):
             result = dataclasses.replace(result, details=dataclasses.replace(result.details, surface=report))
+    result = with_setting(result, scene, provider)
     # what came from the on-disk caches (block corrections, surface laws), for result.json
     return dataclasses.replace(result, caches=usage_since(caches_before, solve_caches(provider, scene)))
 

@@ -20,8 +20,17 @@ import numpy as np
 from .scene import Scene
 from .sensor import Sensor, centred_tips, e_M, e_m, pivot_from_forces
 
-#: Columns of :func:`per_asperity_rows` (``twoscale compare``'s forces.csv).
-ROW_FIELDS = ("load", "body", "asperity", "force_N", "contact_area_mm2", "max_pressure_MPa", "macro_force_N")
+#: Columns of :func:`per_asperity_rows` (``twoscale compare``'s forces.csv): the load as
+#: numbers, ``load_N`` (the given total load) or ``penetration_mm`` (the given approach), the
+#: other one empty.
+ROW_FIELDS = ("load_N", "penetration_mm", "body", "asperity", "force_N", "contact_area_mm2", "max_pressure_MPa",
+              "macro_force_N")
+#: Columns of :func:`tip_changes` (``twoscale compare``'s changes.csv).
+CHANGE_FIELDS = ("load_N", "penetration_mm", "reference", "body", "asperity", "reference_force_N", "force_N",
+                 "change_N", "change_percent")
+#: Tips whose reference force is below this fraction of the largest are not ranked among the
+#: largest changes (a tip that barely touches changes by any percentage).
+RANKED_FORCE_FRACTION = 0.01
 
 
 @dataclasses.dataclass(frozen=True)
@@ -75,23 +84,59 @@ def centre_pivot(scene: Scene, forces: np.ndarray) -> tuple[Scene, str]:
     return dataclasses.replace(scene, asperities=asps), note
 
 
+def load_values(scene: Scene) -> dict:
+    """The load of a run as numbers: ``{"load_N": W, "penetration_mm": None}`` or the reverse."""
+    return {"load_N": scene.total_load, "penetration_mm": scene.penetration}
+
+
 def per_asperity_rows(runs, measured: Measured | None = None) -> list[dict]:
     """One dict per load, body and asperity (:data:`ROW_FIELDS`; asperities numbered from 1);
-    measured forces as body "measured"; ``macro_force_N`` is "" for a method without a macro step."""
+    measured forces as body "measured"; None where a value does not apply (``macro_force_N``
+    of a method without a macro step)."""
     rows = []
     if measured is not None and measured.forces is not None:
-        rows += [{"load": runs[0].load, "body": "measured", "asperity": k + 1, "force_N": float(f),
-                  "contact_area_mm2": "", "max_pressure_MPa": "", "macro_force_N": ""}
+        rows += [{**load_values(runs[0].scene), "body": "measured", "asperity": k + 1, "force_N": float(f),
+                  "contact_area_mm2": None, "max_pressure_MPa": None, "macro_force_N": None}
                  for k, f in enumerate(measured.forces)]
     for run in runs:
         s = run.result.asperities
         macro = run.result.macro_forces
         for k in range(len(s.forces)):
-            rows.append({"load": run.load, "body": run.body, "asperity": k + 1,
+            rows.append({**load_values(run.scene), "body": run.body, "asperity": k + 1,
                          "force_N": float(s.forces[k]), "contact_area_mm2": float(s.contact_areas[k]),
                          "max_pressure_MPa": float(s.max_pressures[k]),
-                         "macro_force_N": "" if macro is None else float(macro[k])})
+                         "macro_force_N": None if macro is None else float(macro[k])})
     return rows
+
+
+def tip_changes(runs) -> list[dict]:
+    """Per load, each body's tip forces against the first body's (the reference: the
+    half-space in ``twoscale compare``): one dict per load, other body and tip
+    (:data:`CHANGE_FIELDS`), ``change_percent`` in percent of the tip's own reference force
+    (None where the reference tip carries nothing)."""
+    rows = []
+    for load in dict.fromkeys(r.load for r in runs):
+        group = [r for r in runs if r.load == load]
+        ref = group[0]
+        F_ref = np.asarray(ref.result.asperities.forces, dtype=float)
+        for run in group[1:]:
+            F = np.asarray(run.result.asperities.forces, dtype=float)
+            for k in range(F.size):
+                rows.append({**load_values(run.scene), "reference": ref.body, "body": run.body, "asperity": k + 1,
+                             "reference_force_N": float(F_ref[k]), "force_N": float(F[k]),
+                             "change_N": float(F[k] - F_ref[k]),
+                             "change_percent": 100.0 * float(F[k] - F_ref[k]) / F_ref[k] if F_ref[k] > 0 else None})
+    return rows
+
+
+def largest_changes(rows: list[dict], n: int = 3) -> list[dict]:
+    """The ``n`` rows of one load and body of :func:`tip_changes` with the largest change in
+    percent, among the tips whose reference force is at least :data:`RANKED_FORCE_FRACTION`
+    of the largest."""
+    top = max((r["reference_force_N"] for r in rows), default=0.0)
+    ranked = [r for r in rows if r["change_percent"] is not None
+              and r["reference_force_N"] >= RANKED_FORCE_FRACTION * top]
+    return sorted(ranked, key=lambda r: -abs(r["change_percent"]))[:n]
 
 
 def e_m_or_none(p, p_ref):
@@ -186,5 +231,6 @@ def _folder_sensor_map(folder: Path, sensor: Sensor) -> np.ndarray:
     return sensor.average(read_vtk(path))
 
 
-__all__ = ["ROW_FIELDS", "Run", "Measured", "per_asperity_rows", "indicators", "sensor_notes",
+__all__ = ["ROW_FIELDS", "CHANGE_FIELDS", "Run", "Measured", "per_asperity_rows", "tip_changes", "largest_changes",
+           "load_values", "indicators", "sensor_notes",
            "folder_indicators", "centre_pivot", "load_label", "load_title", "sensor_text"]

@@ -6,7 +6,9 @@
   known, ``solving: micro step, two-level: sweep 5, residual 1.2e-04  00:12``.
 
 Both are silent with ``quiet``, when the stream is not a terminal (a log file, a pipe,
-CI), and while the work is younger than ``delay`` seconds (quick runs print nothing).
+CI), and while the work is younger than ``delay`` seconds (quick runs print nothing). In a
+Jupyter notebook (an IPython kernel, whose stderr is no terminal) they are drawn with
+``tqdm.auto``: a notebook progress widget when ipywidgets is installed, text otherwise.
 tqdm is imported when a bar is made, so ``import twoscale`` stays light.
 
 Example
@@ -23,8 +25,20 @@ from typing import Iterable, Iterator, TextIO, TypeVar
 T = TypeVar("T")
 
 
+def in_notebook() -> bool:
+    """True inside a Jupyter kernel (IPython's ``ZMQInteractiveShell``)."""
+    ipython = sys.modules.get("IPython")
+    shell = getattr(ipython, "get_ipython", lambda: None)() if ipython is not None else None
+    return type(shell).__name__ == "ZMQInteractiveShell"
+
+
 def _bar(stream: TextIO | None, quiet: bool, **options):
-    """A tqdm bar on ``stream`` (default stderr), disabled when quiet or off a terminal."""
+    """A tqdm bar on ``stream`` (default stderr), disabled when quiet or off a terminal; in a
+    notebook (default stream) the ``tqdm.auto`` bar."""
+    if stream is None and not quiet and in_notebook():
+        from tqdm.auto import tqdm as auto_tqdm
+
+        return auto_tqdm(**options)
     from tqdm import tqdm
 
     stream = sys.stderr if stream is None else stream

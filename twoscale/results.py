@@ -25,6 +25,7 @@ from .grid import Grid
 
 if TYPE_CHECKING:
     from .details import ReferenceDetails, TwoScaleDetails
+    from .setting import Body
 
 
 def frozen_array(a, dtype=float) -> np.ndarray:
@@ -112,6 +113,17 @@ class FrozenMapping(Mapping):
         return repr(self._data)
 
 
+def tilt_text(result: "ContactResult", spec: str = ".4g") -> str:
+    """``"alpha, beta"`` of a tilted result, each shown as 0 when it moves no point of the
+    tips' extent by more than 1e-6 of the approach (a solver's round-off, not a tilt)."""
+    if result.tilt is None:
+        return ""
+    tips = max((abs(f.grid.x0) + f.grid.nx * f.grid.h for f in result.fields), default=1.0)
+    tips = max(tips, max((abs(f.grid.y0) + f.grid.ny * f.grid.h for f in result.fields), default=1.0))
+    floor = 1e-6 * abs(result.penetration) / tips
+    return ", ".join("0" if abs(t) <= floor else format(t, spec) for t in result.tilt)
+
+
 def _read_only(d) -> Mapping:
     return d if isinstance(d, FrozenMapping) else FrozenMapping(d or {})
 
@@ -152,6 +164,17 @@ class ContactResult:
     caches : tuple of CacheUsage
         What the on-disk caches (block corrections, surface laws) gave and took during this
         solve (:class:`twoscale.io.cache_entry.CacheUsage`); empty when none was used.
+    body : Body or None
+        The elastic body solved (:class:`twoscale.setting.Body`: kind, block size and base,
+        and ``body.label`` for titles, e.g. ``"block 60 x 60 x 10 mm, bonded base"``); set
+        by :func:`twoscale.solve`.
+    nominal_area : float or None
+        Area the contact area is compared with, mm2 (:func:`twoscale.setting.nominal_area`:
+        the height map's area, or the box of the tips' bases, cut to a block's top face);
+        ``nominal_area_basis`` says which. Set by :func:`twoscale.solve`.
+    nominal_area_basis : str
+    scene_name : str
+        The scene's name where known (a scene file's stem, a study's scene name), for titles.
     """
 
     method: str
@@ -168,6 +191,10 @@ class ContactResult:
     details: TwoScaleDetails | ReferenceDetails | None = None
     solver: str = ""
     caches: tuple = ()
+    body: Body | None = None
+    nominal_area: float | None = None
+    nominal_area_basis: str = ""
+    scene_name: str = ""
 
     def __post_init__(self) -> None:
         for name in ("iterations", "residuals", "timings_s"):
@@ -185,6 +212,44 @@ class ContactResult:
     def n_cells(self) -> int:
         """Number of cells the solver carried (its problem size)."""
         return sum(f.grid.size for f in self.fields)
+
+    @property
+    def contact_area(self) -> float:
+        """Total contact area, mm2: the loaded cells' area, summed over the tips."""
+        return float(np.sum(self.asperities.contact_areas))
+
+    @property
+    def contact_ratio(self) -> float | None:
+        """Real-to-nominal contact area ratio, ``contact_area / nominal_area`` (None when the
+        nominal area is not known or zero)."""
+        if not self.nominal_area:
+            return None
+        return self.contact_area / self.nominal_area
+
+    @property
+    def title(self) -> str:
+        """What was solved, for a figure title: ``"S1 on half-space"``, ``"block 60 x 60 x 10 mm,
+        bonded base"`` (the scene's name when known, then the body's label)."""
+        body = self.body.label if self.body is not None else ""
+        if self.scene_name and body:
+            return f"{self.scene_name} on {body}"
+        return self.scene_name or body
+
+    def to_dataframe(self, tips=None):
+        """The per-tip table as a pandas DataFrame (needs pandas): one row per tip, numbered
+        from 1 (``asperity``), with force (N), contact area (mm2), peak and mean pressure
+        (MPa) and the macro step's force; with ``tips`` (the Scene solved or its
+        asperities) also the tip's position, recess, radius and shape. The columns of
+        ``asperities.csv``."""
+        from .display import result_frame
+
+        return result_frame(self, tips)
+
+    def _repr_html_(self) -> str:
+        """Compact notebook display: the headline numbers and the most loaded tips."""
+        from .display import result_html
+
+        return result_html(self)
 
     @property
     def forces(self) -> np.ndarray:
@@ -212,12 +277,13 @@ class ContactResult:
     def __repr__(self) -> str:
         solver = "" if self.solver == self.method else f" ({self.solver})"
         state = "converged" if self.converged else "NOT converged"
-        tilt = "" if self.tilt is None else f", tilt ({self.tilt[0]:.3g}, {self.tilt[1]:.3g}) rad"
+        tilt = "" if self.tilt is None else f", tilt ({tilt_text(self, '.3g')}) rad"
         total_s = self.timings_s.get("total")
         time_txt = "" if total_s is None else f", {total_s:.3g} s"
         tips = f"{self.n_asperities} tip" + ("" if self.n_asperities == 1 else "s")
+        on = f", {self.body.label}" if self.body is not None else ""
         return (f"<ContactResult {self.method}{solver}: {tips}, total load "
-                f"{self.total_load:.6g} N, approach {self.penetration:.6g} mm{tilt}, {state}, "
-                f"{self.n_cells} cells{time_txt}>")
+                f"{self.total_load:.6g} N, approach {self.penetration:.6g} mm{tilt}, "
+                f"contact area {self.contact_area:.4g} mm2{on}, {state}, {self.n_cells} cells{time_txt}>")
 
     __str__ = __repr__

@@ -1,18 +1,23 @@
-"""Compare bodies: solve a scene on the half-space and the finite block, tabulate and plot.
+"""Compare bodies: solve a scene on the half-space and the finite block, and show what changes.
 
 ``twoscale compare SCENE.toml [--loads W ...] [--out DIR] [--method twoscale|reference]
-[--h H] [--vtk] [--measured-forces CSV] [--measured-map CSV] [--centre-pivot]
-[--sensor NX NY CELL] [--sensor-centre X Y] [--quiet]``
+[--h H] [--block-size W D T] [--base bonded|sliding|both] [--vtk] [--measured-forces CSV]
+[--measured-map CSV] [--centre-pivot] [--sensor NX NY CELL] [--sensor-centre X Y] [--quiet]``
 
 Solves the scene on the elastic half-space and, when the finite-block provider
 (``fem_influence``) is available, on the block with a bonded and with a sliding base
-(size and origin from the scene's ``[influence]`` when it is a block, else the paper's
-140 x 140 x 20 mm block centred under the scene). Without the block it runs the
-half-space only and says so on stderr and in every table. Each load case of the scene
-(``[load] cases``, else its one load) is run in turn in place of ``load.total``;
-``--loads`` gives other cases instead.
+(``--base`` keeps one of them; size and origin from the scene's ``[influence]`` when it is
+a block, else the paper's 140 x 140 x 20 mm block centred under the scene; ``--block-size``
+sets width, depth and thickness in mm). Without the block it runs the half-space only and
+says so on stderr and in every table. Each load case of the scene (``[load] cases``, else
+its one load) is run in turn in place of ``load.total``; ``--loads`` gives other cases
+instead.
 
-Measured data of one load case (``twoscale.sensor`` formats) add a ``measured`` column
+The terminal shows, per load, each body's approach and contact area with their change
+against the half-space, e_M and e_m (explained below the table), and the three tips whose
+force changes most in percent of the tip's own half-space force; the files hold the rest.
+
+Measured data of one load case (``twoscale.sensor`` formats) add a ``measured`` body
 and e_M / e_m of every body against the measurement (given only a sensor map, the tip
 forces are integrated from it, each loaded cell to its nearest tip, as in the paper); ``--centre-pivot`` first shifts
 the tips so the joint sits at the measured force centre (paper eq. 13). The sensor is
@@ -24,14 +29,16 @@ Writes into DIR (default ``<scene name>_compare``), created only after every sol
 returned, through a temporary folder renamed to DIR at the end (Ctrl-C leaves no partial DIR;
 exit code 130):
 
-* ``forces.csv``: one row per load, body and asperity (force N, contact area mm^2,
-  max pressure MPa, macro-step force N when the method has one), after four ``#``
-  lines with the version and units, the scene, the bodies (each one's influence
-  settings and loads) and the sensor, as JSON;
+* ``forces.csv``: one row per load, body and asperity (``load_N`` or ``penetration_mm``,
+  ``body``, ``asperity``, force N, contact area mm^2, max pressure MPa, macro-step force N
+  when the method has one); ``changes.csv``: one row per load, block body and asperity,
+  the tip's force against its half-space force (``change_N``, ``change_percent`` of the
+  tip's own half-space force). Each has its ``.csv-metadata.json`` (version, units, the
+  scene, the bodies and the sensor) and, from 1,000 rows and with pyarrow, a ``.parquet`` copy;
 * ``forces.md``: the same as Markdown tables, plus e_M (tip forces) and e_m (sensor
   cells) in percent between each pair of bodies, and the bodies, sensor and scene;
-* ``summary.json``: the indicators, convergence, timings, version, units, scene, bodies
-  and sensor;
+* ``summary.json``: the indicators, per run the convergence, approach, contact area, the
+  body's label and the time, and the version, units, scene, bodies and sensor;
 * ``forces_<W>N.png`` (forces side by side, as the paper's Figs. 10-11) and
   ``maps_<W>N.png`` (pressure maps side by side) and ``sensor_<W>N.png`` (the same
   averaged on the sensor cells, what e_m compares) for each load, each recording the
@@ -45,9 +52,7 @@ be built (everything else still written, with the reason); 2 bad input (one
 from __future__ import annotations
 
 import argparse
-import csv
 import dataclasses
-import io
 import json
 import math
 import sys
@@ -57,17 +62,20 @@ from pathlib import Path
 
 from .._version import __version__
 from ..api import solve
-from ..comparison import (ROW_FIELDS, Measured, Run, centre_pivot, indicators, load_label, load_title,
+from ..comparison import (CHANGE_FIELDS, ROW_FIELDS, Measured, Run, centre_pivot, indicators, load_label, load_title,
+                          tip_changes,
                           per_asperity_rows, sensor_notes, sensor_text)
 from ..influence.registry import make_body, unavailable
 from ..io.atomic import atomic_output
 from ..io.result_json import UNITS, write_result
+from ..io.tables import LONG_TABLE, write_table
 from ..io.scene_file import read_scene, scene_to_dict
 from ..progress import Progress
 from ..resources import check_solve_memory
 from ..scene import METHODS, Scene, SceneError, default_h, normalise_influence
 from ..sensor import Sensor, forces_from_map, read_sensor_map, read_tip_forces
 from .options import DEFAULT_SENSOR, add_sensor_arguments, sensor_from_args
+from .compare_report import compare_record, markdown, terminal_summary
 from .options import positive_option, with_h_option
 from .solve import check_out_dir
 from .staging import staged_directory
@@ -98,6 +106,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                              "are integrated from it")
     parser.add_argument("--centre-pivot", action="store_true",
                         help="shift the tips so the joint sits at the measured force centre (paper eq. 13)")
+    parser.add_argument("--block-size", metavar=("W", "D", "T"), nargs=3, default=None,
+                        help="the finite block's width, depth and thickness in mm (default: the scene's "
+                             "[influence] block, else 140 x 140 x 20)")
+    parser.add_argument("--base", choices=("bonded", "sliding", "both"), default="both",
+                        help="the finite block's base: bonded (no displacement), sliding (no vertical "
+                             "displacement, no shear) or both (default), each compared with the half-space")
     add_sensor_arguments(parser)
     parser.add_argument("--quiet", action="store_true", help="print nothing but errors and warnings")
 
@@ -105,7 +119,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 # ---------------------------------------------------------------- input
 def _scenes(args) -> list[Scene]:
     """The scene once per load case (validated; raises SceneError)."""
-    scene = read_scene(args.scene)
+    scene = _with_block_size(read_scene(args.scene), args)
     scene = with_h_option(scene, args.h)
     if args.loads is None:
         if not scene.load_cases:
@@ -122,10 +136,13 @@ def _scenes(args) -> list[Scene]:
     return [dataclasses.replace(scene, total_load=w, load_cases=tuple(loads)) for w in loads]
 
 
-def sensor_record(sensor: Sensor) -> dict:
-    """The sensor as JSON-ready data (what the files record)."""
-    return {"nx": int(sensor.nx), "ny": int(sensor.ny), "cell_mm": float(sensor.cell),
-            "centre_mm": [float(v) for v in sensor.centre]}
+def _with_block_size(scene: Scene, args) -> Scene:
+    """The scene whose block (its own, else the default one) has the size of ``--block-size``."""
+    if getattr(args, "block_size", None) is None:
+        return scene
+    size = tuple(positive_option(v, "--block-size", unit="mm") for v in args.block_size)
+    own = dict(scene.influence) if scene.influence["kind"] == "block" else {"kind": "block"}
+    return dataclasses.replace(scene, influence=normalise_influence({**own, "size": size}))
 
 
 def _measured(args, scenes: list[Scene], sensor: Sensor = DEFAULT_SENSOR) -> Measured | None:
@@ -171,7 +188,7 @@ def _influence(scene: Scene, body: str) -> dict:
 
 
 # ---------------------------------------------------------------- solving
-def _solve_all(scenes, bodies, method, quiet) -> list[Run]:
+def _solve_all(scenes, bodies, method, quiet, name: str = "") -> list[Run]:
     """Every scene on every body. ``bodies`` (name -> provider) is emptied as it goes: a
     body's provider is dropped once its solves are done, so two finite blocks (each
     holding a factorised FEM model, ~1 GB) are never held at once."""
@@ -184,6 +201,7 @@ def _solve_all(scenes, bodies, method, quiet) -> list[Run]:
                 t0 = time.perf_counter()
                 # the provider built once per body (the block is costly); memory checked before
                 res = solve(sc, method=method, provider=provider, memory_limit=math.inf)
+                res = dataclasses.replace(res, scene_name=name)   # for the figures' titles
                 runs.append(Run(load_label(sc), body, sc, res, time.perf_counter() - t0))
                 bar.update(note=f"{body} {runs[-1].load}")
             del provider
@@ -199,15 +217,16 @@ def _check_memory(scenes, method: str) -> None:
         check_solve_memory(sc, default_h(sc), method, option="--h")
 
 
-def _providers(scene: Scene, quiet: bool) -> tuple[dict, list[str]]:
-    """Providers by body name, and notes on bodies left out (never silently)."""
+def _providers(scene: Scene, quiet: bool, base: str = "both") -> tuple[dict, list[str]]:
+    """Providers by body name (the blocks of ``base``: "bonded", "sliding" or "both"), and
+    notes on bodies left out (never silently)."""
     providers = {"halfspace": dataclasses.replace(scene, influence={"kind": "halfspace"}).provider()}
     notes = []
     factory, why = _block_factory()
     if factory is None:
         notes.append(f"finite block not compared: {why}; half-space only")
         return providers, notes
-    for body in ("block-bonded", "block-sliding"):
+    for body in [b for b in ("block-bonded", "block-sliding") if base in ("both", BODIES[b][1])]:
         opts = _influence(scene, body)
         try:  # the block draws its own progress line while it is built
             providers[body] = factory(scene.material, size=opts["size"], base=opts["base"],
@@ -218,108 +237,27 @@ def _providers(scene: Scene, quiet: bool) -> tuple[dict, list[str]]:
     return providers, notes
 
 
-# ---------------------------------------------------------------- what every file records
-def _load_record(run: Run) -> dict:
-    sc = run.scene
-    value = {"total": float(sc.total_load)} if sc.total_load is not None else {"penetration": float(sc.penetration)}
-    return {"label": run.load, **value}
-
-
-def bodies_record(runs) -> dict:
-    """Per body, in table order: its influence settings (kind; size, base and origin of a
-    block) and every load it was solved at (``label`` and ``total`` N or ``penetration`` mm)."""
-    out: dict = {}
-    for r in runs:
-        body = out.setdefault(r.body, {"influence": scene_to_dict(r.scene)["influence"], "loads": []})
-        body["loads"].append(_load_record(r))
-    return out
-
-
-def compare_record(scene: Scene, runs, sensor: Sensor) -> dict:
-    """What every top-level file of ``compare`` records: the scene as given (after
-    ``--h`` and ``--centre-pivot``; ``load.cases`` lists every load run, ``load.total``
-    is the first), the bodies (:func:`bodies_record`) and the sensor."""
-    return {"scene": scene_to_dict(scene), "bodies": bodies_record(runs), "sensor": sensor_record(sensor)}
-
-
-# ---------------------------------------------------------------- tables
-def _fmt(v) -> str:
-    return "n/a" if v is None else f"{v:.3g}"
-
-
-def markdown(scene_path: str, runs, ind: dict, notes: list[str], method: str,
-             measured: Measured | None = None, sensor: Sensor = DEFAULT_SENSOR) -> str:
-    """The Markdown report: per-load tables of forces, areas and peak pressures, indicators,
-    and what each body was (influence settings and loads)."""
-    lines = [f"# twoscale compare {scene_path}", "",
-             f"twoscale {__version__}; method {method}; units mm, N, MPa.", ""]
-    lines += [f"> **Note:** {n}" for n in notes] + ([""] if notes else [])
-    for load in dict.fromkeys(r.load for r in runs):
-        group = [r for r in runs if r.load == load]
-        lines += [f"## Load case: {load_title(load)}", ""]
-        for r in group:
-            tilt = "" if r.result.tilt is None else (f", tilt alpha {r.result.tilt[0]:.4g} rad, "
-                                                     f"beta {r.result.tilt[1]:.4g} rad")
-            conv = "converged" if r.result.converged else f"NOT converged: {r.result.message}"
-            lines.append(f"- {r.body}: total {r.result.total_load:.5g} N, approach "
-                         f"{r.result.penetration:.5g} mm{tilt}; {conv}; {r.seconds:.3g} s")
-        lines.append("")
-        mf = None if measured is None else measured.forces
-        head = (["asperity"] + ([] if mf is None else ["measured F (N)"])
-                + [f"{r.body} {q}" for q in ("F (N)", "A (mm^2)", "p_max (MPa)") for r in group])
-        lines += ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
-        n = len(group[0].result.asperities.forces)
-        for k in range(n):
-            vals = ([] if mf is None else [f"{mf[k]:.4g}"]) + [
-                f"{getattr(r.result.asperities, q)[k]:.4g}"
-                for q in ("forces", "contact_areas", "max_pressures") for r in group]
-            lines.append(f"| {k + 1} | " + " | ".join(vals) + " |")
-        lines.append("")
-        if load in ind:
-            lines += ["e_M / e_m in percent (row: reference body in the denominator; e_m on the "
-                      f"{sensor_text(sensor)}). Both are ratios of squared norms, "
-                      "e_M = 100 sum|P - P~|^2 / sum|P~|^2: one tip of seven 7 % off gives about 0.07 %, "
-                      "so compare the per-tip forces above as well (docs/method.md section 5).", ""]
-            names = [r.body for r in group]
-            lines += ["| reference | " + " | ".join(names) + " |", "|" + "---|" * (len(names) + 1)]
-            for a in [x for x in ["measured"] + names if x in ind[load]]:
-                cells = ["-" if a == b else f"{_fmt(ind[load][a][b]['e_M'])} / {_fmt(ind[load][a][b]['e_m'])}"
-                         for b in names]
-                lines.append(f"| {a} | " + " | ".join(cells) + " |")
-            lines.append("")
-    lines += ["## Bodies", "", "| body | influence | size (mm) | base | origin (mm) | loads |", "|---|---|---|---|---|---|"]
-    for name, b in bodies_record(runs).items():
-        inf = b["influence"]
-        size = " x ".join(f"{v:g}" for v in inf["size"]) if "size" in inf else "-"
-        origin = "({:g}, {:g})".format(*inf["origin"]) if "origin" in inf else "-"
-        loads = ", ".join(load_title(x["label"]) for x in b["loads"])
-        lines.append(f"| {name} | {inf['kind']} | {size} | {inf.get('base', '-')} | {origin} | {loads} |")
-    lines += ["", f"Sensor: {sensor_text(sensor)}.", ""]
-    return "\n".join(lines)
-
-
 # ---------------------------------------------------------------- writing
+#: What the columns of forces.csv and changes.csv hold (in their metadata JSON).
+FORCE_COLUMNS = {"load_N": "the given total load, N (empty under penetration control)",
+                 "penetration_mm": "the given rigid approach, mm (empty under load control)",
+                 "body": "halfspace, block-bonded, block-sliding, or measured",
+                 "asperity": "tip number, from 1 in scene order", "force_N": "tip force, N",
+                 "contact_area_mm2": "tip contact area, mm2", "max_pressure_MPa": "largest pressure on the tip, MPa",
+                 "macro_force_N": "the macro step's tip force, N (two-scale method)"}
+CHANGE_COLUMNS = {**{k: FORCE_COLUMNS[k] for k in ("load_N", "penetration_mm", "asperity")},
+                  "reference": "the body compared with (the first: the half-space)", "body": "the body judged",
+                  "reference_force_N": "the tip's force on the reference body, N", "force_N": "the tip's force, N",
+                  "change_N": "force_N - reference_force_N, N",
+                  "change_percent": "change in percent of the tip's own reference force (empty when it is 0)"}
+
 def _write_text(path: Path, text: str) -> None:
     with atomic_output(path) as tmp:
         tmp.write_text(text, encoding="utf-8", newline="")
 
 
-def _csv_text(rows, scene_path: str, record: dict) -> str:
-    """CSV after four ``#`` comment lines: version and units, then the scene, the bodies
-    and the sensor of :func:`compare_record`, each as one line of JSON."""
-    buf = io.StringIO()
-    buf.write(f"# twoscale {__version__} compare {scene_path}; units: force N, area mm^2, pressure MPa\n")
-    for key in ("scene", "bodies", "sensor"):
-        buf.write(f"# {key}: {json.dumps(record[key], separators=(',', ':'))}\n")
-    w = csv.DictWriter(buf, fieldnames=ROW_FIELDS, lineterminator="\n")
-    w.writeheader()
-    for row in rows:
-        w.writerow({k: (f"{v:.10g}" if isinstance(v, float) else v) for k, v in row.items()})
-    return buf.getvalue()
-
-
 def _write_outputs(out: Path, args, scene: Scene, runs, ind, notes, measured: Measured | None,
-                   sensor: Sensor) -> None:
+                   sensor: Sensor, changes: list) -> None:
     from ..io.solve_outputs import FIELDS_NAME
     from ..io.vtk import write_vtk
     from ..plot import compare_forces, compare_maps, difference_map
@@ -327,8 +265,12 @@ def _write_outputs(out: Path, args, scene: Scene, runs, ind, notes, measured: Me
     out.mkdir(parents=True, exist_ok=True)
     record = compare_record(scene, runs, sensor)
     scene_dict, meta = record["scene"], {"bodies": record["bodies"], "sensor": record["sensor"]}
-    _write_text(out / "forces.csv", _csv_text(per_asperity_rows(runs, measured), args.scene, record))
-    md = markdown(args.scene, runs, ind, notes, args.method, measured, sensor)
+    tables = {"source": f"compare {args.scene}", "units": dict(UNITS), **record}
+    write_table(out, "forces", per_asperity_rows(runs, measured), ROW_FIELDS, record=tables, parquet=LONG_TABLE,
+                title="per load, body and tip: force, contact area, peak pressure", descriptions=FORCE_COLUMNS)
+    write_table(out, "changes", changes, CHANGE_FIELDS, record=tables, parquet=LONG_TABLE, descriptions=CHANGE_COLUMNS,
+                title="per load and tip: each body's tip force against the reference body's (the half-space)")
+    md = markdown(args.scene, runs, ind, notes, args.method, measured, sensor, changes)
     md += ("\n<details><summary>scene, bodies and sensor (JSON)</summary>\n\n```json\n"
            + json.dumps(record, indent=1) + "\n```\n</details>\n")
     _write_text(out / "forces.md", md)
@@ -336,6 +278,8 @@ def _write_outputs(out: Path, args, scene: Scene, runs, ind, notes, measured: Me
                **record, "indicators_percent": ind,
                "runs": [{"load": r.load, "body": r.body, "converged": bool(r.result.converged),
                          "message": r.result.message, "total_load": float(r.result.total_load),
+                         "approach_mm": float(r.result.penetration), "contact_area_mm2": r.result.contact_area,
+                         "body_label": r.result.body.label if r.result.body is not None else r.body,
                          "seconds": r.seconds} for r in runs]}
     _write_text(out / "summary.json", json.dumps(summary, indent=2, allow_nan=False) + "\n")
     name = Path(args.scene).stem   # every figure's title starts with the scene's name
@@ -376,23 +320,23 @@ def run(args: argparse.Namespace) -> int:
             scenes[0], note = centre_pivot(scenes[0], measured.forces)
             notes.append(note)
         _check_memory(scenes, args.method)  # before the block provider and the solves
-        providers, block_notes = _providers(scenes[0], args.quiet)
+        providers, block_notes = _providers(scenes[0], args.quiet, getattr(args, "base", "both"))
         notes += block_notes
         for n in notes:
             print(f"note: {n}", file=sys.stderr)
-        runs = _solve_all(scenes, providers, args.method, args.quiet)
+        runs = _solve_all(scenes, providers, args.method, args.quiet, Path(args.scene).stem)
     except ValueError as exc:  # SceneError and solver input checks
         print(f"error: {exc}", file=sys.stderr)
         return 2
     ind = indicators(runs, sensor, measured)
+    changes = tip_changes(runs)
     for n in sensor_notes(runs, sensor):
         print(f"note: {n}", file=sys.stderr)
         notes.append(n)
     with staged_directory(out, overwrite=args.overwrite, command=f"compare {args.scene}") as tmp:
-        _write_outputs(tmp, args, scenes[0], runs, ind, notes, measured, sensor)
+        _write_outputs(tmp, args, scenes[0], runs, ind, notes, measured, sensor, changes)
     if not args.quiet:
-        print(markdown(args.scene, runs, ind, notes, args.method, measured, sensor))
-        print(f"\nwrote {out}/")
+        print(terminal_summary(args.scene, runs, ind, changes, out, args.method))
     failed = [r for r in runs if not r.result.converged]
     for r in failed:
         print(f"warning: {r.body} at {r.load} did not converge: {r.result.message}", file=sys.stderr)

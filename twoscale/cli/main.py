@@ -19,6 +19,7 @@ import argparse
 import importlib
 import importlib.util
 import signal
+import re
 import sys
 import threading
 import warnings
@@ -71,6 +72,13 @@ class _OneLineParser(argparse.ArgumentParser):
         raise SystemExit(2)
 
 
+def plain(text: str) -> str:
+    """Docstring text as a terminal shows it: reStructuredText roles and literals
+    (``:func:`name```, double backquotes) reduced to their words."""
+    text = re.sub(r":[a-z]+:`~?([^`]+)`", r"\1", text)
+    return text.replace("``", "").replace("`", "")
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser with every available subcommand."""
     parser = _OneLineParser(
@@ -80,7 +88,7 @@ def build_parser() -> argparse.ArgumentParser:
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=_OneLineParser)
     sub.required = True
     for name, module in _available_subcommands():
-        doc = (module.__doc__ or name).strip().splitlines()[0]
+        doc = plain((module.__doc__ or name).strip().splitlines()[0])
         p = sub.add_parser(name, help=doc, description=doc)
         module.add_arguments(p)
         if name in OUTPUT_COMMANDS:

@@ -33,8 +33,9 @@ from ..scene import METHODS, SceneError, default_h, solve_scene
 from .options import positive_option, with_h_option
 from .staging import check_output_folder, staged_directory
 
-#: Asperity rows printed in the summary before it is cut short.
+#: Tips listed in the summary in scene order at most; with more, the TOP_ROWS most loaded.
 MAX_ROWS = 30
+TOP_ROWS = 10
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -114,6 +115,7 @@ def run(args: argparse.Namespace) -> int:
             result = solve_scene(scene, method=args.method, provider_options=quiet_block, memory_limit=math.inf,
                                  **options)
         wall = time.perf_counter() - t0
+        result = dataclasses.replace(result, scene_name=Path(args.scene).stem)  # for titles and result.json
     except ValueError as exc:  # SceneError and solver input checks
         print(f"error: {exc}", file=sys.stderr)
         return 2
@@ -154,34 +156,56 @@ def write_block_field_file(result, scene, out_dir, *, quiet: bool = False):
     return write_block_field(result, provider, Path(out_dir) / BLOCK_FIELD_NAME, scene=scene_to_dict(scene))
 
 
+#: How each iteration count reads in the summary (counts of 0 are left out).
+ITERATION_WORDS = {"macro": "macro-step Newton iterations", "macro_krylov": "Krylov iterations in them",
+                   "micro": "micro-step sweeps", "corrections": "approach corrections",
+                   "sensitivity_sweeps": "sensitivity sweeps", "outer": "active-set passes",
+                   "cg": "conjugate-gradient iterations", "products": "grid products"}
+
+
+def iteration_text(iterations: dict) -> str:
+    """``"3 macro-step Newton iterations, 6 micro-step sweeps"``: the non-zero counts in words."""
+    parts = [f"{n} {ITERATION_WORDS.get(k, k.replace('_', ' '))}" for k, n in iterations.items() if n]
+    return ", ".join(parts) or "no iterations"
+
+
+def near_zero(values, scale: float, rtol: float = 1e-6) -> list[str]:
+    """Each value formatted to 4 digits, or "0" when below ``rtol * scale`` in size."""
+    return ["0" if abs(v) <= rtol * scale else f"{v:.4g}" for v in values]
+
+
 def summary(res: dict, scene_path: str, wall: float, path) -> str:
-    """A short human-readable summary of a result.json dict."""
-    iters = ", ".join(f"{k} {v}" for k, v in res["iterations"].items()) or "-"
+    """A short human-readable summary of a result.json dict: what was solved, the numbers
+    a reader looks for first, then the tips."""
+    method = "two-scale" if res["method"] == "twoscale" else f"{res['method']} ({res['solver']} solver)"
+    n = len(res["asperities"])
+    material = res["scene"]["material"]
     lines = [
-        f"twoscale solve {scene_path}: method {res['method']} ({res['solver']})",
-        f"  converged    {'yes' if res['converged'] else 'NO: ' + res['message']} (iterations: {iters})",
-        f"  penetration  {res['penetration']:.6g} mm",
+        f"twoscale solve {scene_path}",
+        f"  body         {res['body']['label']} (E = {material['E']:g} MPa, nu = {material['nu']:g}); "
+        f"{n} tip{'s' if n != 1 else ''}",
+        f"  method       {method}",
+        f"  converged    {'yes' if res['converged'] else 'NO: ' + res['message']} ({iteration_text(res['iterations'])})",
         f"  total load   {res['total_load']:.6g} N",
+        f"  approach     {res['penetration']:.6g} mm",
     ]
     if res["tilt"] is not None:
-        lines.append(f"  tilt         alpha {res['tilt'][0]:.4g} rad, beta {res['tilt'][1]:.4g} rad")
+        # the tilt moves the farthest tip by angle x distance: below 1e-6 of the approach it is round-off
+        reach = max([math.hypot(a["x"], a["y"]) for a in res["scene"].get("asperity", [])] or [1.0]) or 1.0
+        alpha, beta = near_zero(res["tilt"], abs(res["penetration"]) / reach)
+        lines.append(f"  tilt         alpha {alpha} rad, beta {beta} rad")
+    touching = sum(a["contact_area"] > 0 for a in res["asperities"])
+    area = f"  contact area {res['contact_area']:.5g} mm2 on {touching} of {n} tips"
+    if res["contact_area_ratio"] is not None:
+        area += (f", {100 * res['contact_area_ratio']:.3g} % of the nominal {res['nominal_area']:.5g} mm2 "
+                 f"({res['nominal_area_basis']})")
+    lines.append(area)
     lines.append(f"  cell size    h = {res['h']:.6g} mm ({res['h_source']}), {res['n_cells']} cells")
     if res.get("height_map") is not None:
         lines.extend(_map_lines(res["height_map"]))
     if "micro_choice" in res:
         lines.extend(_micro_lines(res))
-    macro = any("macro_force" in a for a in res["asperities"])
-    lines.append("  asperity      force N   area mm^2  p_max MPa" + ("   macro N" if macro else "")
-                 + "   (numbered from 1, scene order)")
-    for k, a in enumerate(res["asperities"][:MAX_ROWS]):
-        row = f"  {k + 1:8d} {a['force']:11.5g} {a['contact_area']:11.5g} {a['max_pressure']:10.5g}"
-        if macro:
-            row += f" {a['macro_force']:9.5g}"
-        lines.append(row)
-    if len(res["asperities"]) > MAX_ROWS:
-        where = (f"in {Path(path).parent / ASPERITY_CSV_NAME}" if path is not None
-                 else "(--out DIR writes them all to DIR/asperities.csv)")
-        lines.append(f"  ... {len(res['asperities']) - MAX_ROWS} more {where}")
+    lines.extend(_tip_lines(res, path))
     lines.append(f"  time         {wall:.3g} s")
     if path is not None:
         folder = Path(path).parent
@@ -214,6 +238,29 @@ def _map_lines(m: dict) -> list:
     else:
         out.append("               edge contacts: none")
     return out
+
+
+def _tip_lines(res: dict, path) -> list[str]:
+    """The tips: all of them up to MAX_ROWS, else the TOP_ROWS most loaded."""
+    asps = res["asperities"]
+    macro = any("macro_force" in a for a in asps)
+    order = list(range(len(asps)))
+    few = len(asps) <= MAX_ROWS
+    if not few:
+        order = sorted(order, key=lambda k: -asps[k]["force"])[:TOP_ROWS]
+    lines = ["  asperity      force N   area mm2  p_max MPa" + ("   macro N" if macro else "")
+             + ("   (numbered from 1, scene order)" if few else f"   (the {TOP_ROWS} most loaded of {len(asps)})")]
+    for k in order:
+        a = asps[k]
+        row = f"  {k + 1:8d} {a['force']:11.5g} {a['contact_area']:10.5g} {a['max_pressure']:10.5g}"
+        if macro:
+            row += f" {a['macro_force']:9.5g}"
+        lines.append(row)
+    if not few:
+        where = (f"in {Path(path).parent / ASPERITY_CSV_NAME}" if path is not None
+                 else "(--out DIR writes them all to DIR/asperities.csv)")
+        lines.append(f"  ... {len(asps) - TOP_ROWS} more {where}")
+    return lines
 
 
 def _micro_lines(res: dict) -> list:

@@ -12,8 +12,11 @@ written at once to ``DIR/cases/<key>/`` (atomically, under a hash of its inputs)
 rerunning the same command skips the finished cases and solves the rest (and the failed
 ones again); Ctrl-C leaves the finished cases in place (exit code 130).
 
-When the cases are done: ``DIR/cases.csv``, ``asperities.csv``, ``indicators.csv`` (and
-``.parquet``), ``summary.json`` and ``DIR/figures/*.png``, covering every finished case.
+When the cases are done: ``DIR/cases.csv``, ``asperities.csv``, ``indicators.csv`` (each
+with its ``.csv-metadata.json`` and ``.parquet``), ``summary.json`` and
+``DIR/figures/*.png``, covering every finished case; the terminal shows the headline numbers
+per scene, body and load (:mod:`twoscale.studies.report`) and where the files are. The
+cell size is one per scene and body across the loads (:mod:`twoscale.studies.cases`).
 
 Needs the ``study`` extra (``pip install ".[study]"`` in the repository: dask.distributed, pyarrow).
 
@@ -153,8 +156,10 @@ def _report(summary: dict, run_info, out: Path, *, quiet: bool) -> int:
             print(f"warning: ... and {len(summary[key]) - MAX_LISTED} more (see {out / 'summary.json'})",
                   file=sys.stderr)
     if not quiet:
+        from ..studies.report import study_table
+
         print(f"{summary['cases']} cases: {c['converged']} converged, {c['not-converged']} not converged, "
               f"{c['failed']} failed; this run solved {run_info.ran} ({run_info.where}, "
               f"{run_info.seconds:.1f} s) and skipped {run_info.skipped} finished")
-        print(f"wrote {out}/")
+        print(study_table(out))
     return 0 if c["converged"] == summary["cases"] else 1

@@ -1,10 +1,11 @@
 """Segment the height map of a scene's [surface] and tabulate its asperity laws, without solving.
 
 ``twoscale surface SCENE.toml --out DIR [--no-laws] [--quiet]`` writes DIR/segmentation.png
-(basins and summits over the height map), DIR/asperities.csv (per asperity: summit
+(basins and summits over the height map), DIR/segmentation.csv (per asperity: summit
 position and height, recess, prominence, basin area, equivalent-sphere radius, law
-exponent, the sphere law's error against the tabulated one) and DIR/surface.json (the
-map as conditioned, the options, the timings). Exit codes: 0 done; 2 bad input (one
+exponent, the sphere law's error against the tabulated one; with its
+segmentation.csv-metadata.json and, from 1,000 asperities and with pyarrow, segmentation.parquet) and
+DIR/surface.json (the map as conditioned, the options, the timings). Exit codes: 0 done; 2 bad input (one
 ``error: ...`` line naming the file or the key; nothing written); 130 interrupted.
 """
 from __future__ import annotations
@@ -19,14 +20,14 @@ from ..progress import StatusLine
 from .solve import check_out_dir
 from .staging import staged_directory
 
-NAMES = ("segmentation.png", "asperities.csv", "surface.json")
+NAMES = ("segmentation.png", "segmentation.csv", "surface.json")
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Arguments of ``twoscale surface``."""
     parser.add_argument("scene", metavar="SCENE.toml", help="scene file with a [surface] table")
     parser.add_argument("--out", metavar="DIR", required=True,
-                        help="write DIR/segmentation.png, asperities.csv, surface.json")
+                        help="write DIR/segmentation.png, segmentation.csv, surface.json")
     parser.add_argument("--no-laws", action="store_true",
                         help="segment only: no single-asperity solves (no law exponents, no sphere error)")
     parser.add_argument("--quiet", action="store_true", help="print nothing but errors")
@@ -37,7 +38,7 @@ def run(args: argparse.Namespace) -> int:
     from ..scene import SceneError
     from ..surface.figure import segmentation_figure
     from ..surface.laws import sphere_law_error
-    from ..surface.report import asperity_rows, surface_summary, write_asperity_csv, write_json
+    from ..surface.report import asperity_rows, surface_summary, write_json, write_segmentation_table
 
     t0 = time.perf_counter()
     try:
@@ -62,7 +63,7 @@ def run(args: argparse.Namespace) -> int:
                               seconds={"read_and_segment": t1 - t0, "laws": t2 - t1})
     with staged_directory(args.out) as tmp:
         segmentation_figure(surface, Path(tmp) / NAMES[0], scene=record)
-        write_asperity_csv(rows, Path(tmp) / NAMES[1])
+        write_segmentation_table(rows, tmp, record={"scene": record})
         write_json(summary, Path(tmp) / NAMES[2])
     if not args.quiet:
         print(_text(args.scene, summary, args.out))
@@ -86,6 +87,8 @@ def _text(scene_path: str, s: dict, out) -> str:
         e = s["laws"]["sphere_law_error"]
         lines.append(f"  laws         tabulated to {s['laws']['depth_mm']:g} mm; equivalent spheres off by "
                      f"{100 * e['median']:.3g} % (median), {100 * e['largest']:.3g} % (largest)")
-    lines.append(f"  time         {s['seconds']['read_and_segment']:.3g} s segmentation, {s['seconds']['laws']:.3g} s laws")
-    lines.append(f"  wrote        {Path(out) / NAMES[0]}, {NAMES[1]}, {NAMES[2]}")
+    laws = f", {s['seconds']['laws']:.3g} s laws" if s["laws"] is not None else ""
+    lines.append(f"  time         {s['seconds']['read_and_segment']:.3g} s segmentation{laws}")
+    names = sorted(p.name for p in Path(out).iterdir() if not p.name.startswith("."))
+    lines.append(f"  wrote        {out}/: {', '.join(names)}")
     return "\n".join(lines)

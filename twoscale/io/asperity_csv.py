@@ -1,8 +1,9 @@
 """The per-asperity table of a solve as CSV (``asperities.csv``).
 
 One row per asperity, numbered from 1 in scene order (the numbers drawn on the figures
-and written in the ``owner`` array of the field files), after ``#`` comment lines with
-the version and units, and the scene as one line of JSON:
+and written in the ``owner`` array of the field files), header on the first line; the
+version, units and scene in ``asperities.csv-metadata.json`` beside it, and the same rows
+in ``asperities.parquet`` for a long table (1,000 tips or more) when pyarrow is installed (:mod:`twoscale.io.tables`):
 
 ``asperity, x_mm, y_mm, z_mm, R_mm, shape, force_N, contact_area_mm2,
 max_pressure_MPa, mean_pressure_MPa[, macro_force_N]``
@@ -15,14 +16,13 @@ present for methods that have a macro step.
 """
 from __future__ import annotations
 
-import csv
-import io
-import json
 from pathlib import Path
 from typing import Any, Mapping, Sequence
 
-from .._version import __version__
-from .atomic import atomic_output
+from .tables import LONG_TABLE, write_table
+
+#: Units of every table (column names carry them too).
+UNITS = {"length": "mm", "force": "N", "area": "mm2", "pressure": "MPa"}
 
 ASPERITY_CSV_NAME = "asperities.csv"
 COLUMNS = ("asperity", "x_mm", "y_mm", "z_mm", "R_mm", "shape", "force_N", "contact_area_mm2",
@@ -47,9 +47,23 @@ def asperity_rows(result, asperities: Sequence) -> list[dict]:
     return rows
 
 
+#: What each column holds (recorded in the metadata JSON beside the CSV).
+DESCRIPTIONS = {
+    "asperity": "tip number, from 1 in scene order (as on the figures and in the owner array)",
+    "x_mm": "tip position x, mm", "y_mm": "tip position y, mm",
+    "z_mm": "tip recess above the lowest tip level, mm", "R_mm": "tip radius, mm",
+    "shape": "sphere or paraboloid", "force_N": "integral of the final pressure over the cells the tip owns, N",
+    "contact_area_mm2": "area of the loaded cells the tip owns, mm2",
+    "max_pressure_MPa": "largest cell pressure on the tip, MPa",
+    "mean_pressure_MPa": "force / contact area, MPa (0 without contact)",
+    "macro_force_N": "the macro step's force on the tip, N (two-scale method)",
+}
+
+
 def write_asperity_csv(result, asperities: Sequence, path: str | Path, *,
-                       scene: Mapping[str, Any] | None = None, source: str = "") -> Path:
-    """Write the per-asperity table (see module doc) to ``path``, atomically.
+                       scene: Mapping[str, Any] | None = None, source: str = "") -> list[Path]:
+    """Write the per-asperity table (see module doc) at ``path``, its metadata JSON and,
+    with pyarrow, its Parquet copy beside it (:func:`twoscale.io.tables.write_table`).
 
     Parameters
     ----------
@@ -57,26 +71,20 @@ def write_asperity_csv(result, asperities: Sequence, path: str | Path, *,
     asperities : sequence of Asperity
         The scene's indenters, in scene order.
     path : path-like
+        The CSV's path (``.../asperities.csv``).
     scene : mapping, optional
-        The scene as JSON-able data, recorded in a ``# scene:`` line.
+        The scene as JSON-able data, recorded in the metadata JSON.
     source : str, default ""
-        What produced the file (e.g. the scene file's name), in the first line.
+        What produced the file (e.g. ``solve S1.toml``), recorded in the metadata JSON.
 
     Returns
     -------
-    Path written.
+    list of Path written, the CSV first.
     """
     rows = asperity_rows(result, asperities)
-    buf = io.StringIO()
-    buf.write(f"# twoscale {__version__} {source}; asperities numbered from 1 in scene order; "
-              f"units: length mm, force N, area mm^2, pressure MPa\n".replace("  ", " "))
-    if scene is not None:
-        buf.write(f"# scene: {json.dumps(dict(scene), separators=(',', ':'))}\n")
     fields = COLUMNS + (("macro_force_N",) if rows and "macro_force_N" in rows[0] else ())
-    w = csv.DictWriter(buf, fieldnames=fields, lineterminator="\n")
-    w.writeheader()
-    for row in rows:
-        w.writerow({k: (repr(v) if isinstance(v, float) else v) for k, v in row.items()})
-    with atomic_output(path) as tmp:
-        tmp.write_text(buf.getvalue(), encoding="utf-8", newline="")
-    return Path(path)
+    record = {"source": source, "units": dict(UNITS), "scene": None if scene is None else dict(scene)}
+    path = Path(path)
+    return write_table(path.parent, path.name.removesuffix(".csv"), rows, fields, record=record,
+                       title="per-tip forces, contact areas and pressures of a solve",
+                       descriptions=DESCRIPTIONS, parquet=LONG_TABLE)

@@ -10,7 +10,12 @@ macro step), ``iterations``, ``timings_s``, ``version``. Added: ``message``, ``s
 ``residuals`` (per stage: count, first, last, min), ``units``, ``scene``, ``caches`` (one
 entry per on-disk cache the solve used: ``name``, ``folder``, entries ``read`` from it,
 ``written``, damaged entries ``dropped`` and computed again, and why new entries were not
-stored, ``disabled``, "" when they were); the two-scale
+stored, ``disabled``, "" when they were); the numbers first:
+``contact_area`` (mm^2, the tips' contact areas summed), ``nominal_area`` (mm^2) and
+``nominal_area_basis`` (what it is: the height map, the box of the tips' bases, cut to a
+block's top face; :mod:`twoscale.setting`), ``contact_area_ratio`` (contact / nominal),
+``body`` (``kind``, ``label``, and a block's ``size_mm``, ``base``, ``origin_mm``) and
+``scene_name`` (when known); the two-scale
 method adds ``macro``, ``micro_iteration``, ``micro_choice``, ``micro_attempts``,
 ``coupling`` and ``merged_patches`` (asperities numbered from 1), the reference method
 ``reference`` (solver, working grid, grid enlargements); a height-map scene adds
@@ -42,7 +47,7 @@ from .scene_file import scene_to_dict
 __all__ = ["RESULT_NAME", "UNITS", "result_to_dict", "write_result", "read_forces", "read_forces_and_tips"]
 
 RESULT_NAME = "result.json"
-UNITS = {"length": "mm", "force": "N", "pressure": "MPa", "angle": "rad", "time": "s"}
+UNITS = {"length": "mm", "area": "mm2", "force": "N", "pressure": "MPa", "angle": "rad", "time": "s"}
 
 
 def _num(v: Any) -> float | int | None:
@@ -126,6 +131,7 @@ def result_to_dict(result, scene: Scene, *, method: str | None = None, h_source:
         # what came from the on-disk caches and what was written or dropped there
         "caches": [u.as_dict() for u in result.caches],
     }
+    out.update(_setting_record(result, scene))
     if isinstance(details, TwoScaleDetails):
         out.update(_twoscale_record(details))
     elif isinstance(details, ReferenceDetails):
@@ -151,6 +157,27 @@ def _h_source(scene: Scene) -> str:
     if scene.surface is not None and scene.surface.hmap.measured_spacing is None:
         return "map spacing"
     return "scene" if scene.h is not None else "default"
+
+
+def _setting_record(result, scene: Scene) -> dict:
+    """The body solved, the contact area and its ratio to the nominal area (a result made
+    without :func:`twoscale.solve` gets them from the scene here)."""
+    if result.body is None:
+        from ..setting import with_setting
+
+        result = with_setting(result, scene, _InfluenceOnly(scene.influence))
+    ratio = result.contact_ratio
+    return {"contact_area": _num(result.contact_area), "nominal_area": _num(result.nominal_area),
+            "nominal_area_basis": result.nominal_area_basis,
+            "contact_area_ratio": None if ratio is None else _num(ratio),
+            "body": result.body.as_dict(), "scene_name": result.scene_name}
+
+
+class _InfluenceOnly:
+    """A block's settings standing for its provider (the body's description needs no model)."""
+
+    def __init__(self, influence) -> None:
+        self.kind, self.size, self.base, self.origin = (influence.get(k) for k in ("kind", "size", "base", "origin"))
 
 
 def _twoscale_record(details: TwoScaleDetails) -> dict:

@@ -4,7 +4,9 @@
   indenter height on the solver's grid(s) as VTK image data
   (:func:`twoscale.io.vtk.write_vtk`; open the ``.vtm`` in ParaView);
 * ``asperities.csv``: position, shape, force, contact area, peak and mean pressure per
-  asperity, numbered from 1 (:func:`twoscale.io.asperity_csv.write_asperity_csv`);
+  asperity, numbered from 1, with ``asperities.csv-metadata.json`` (version, units, scene,
+  columns) and, from 1,000 tips and with pyarrow, ``asperities.parquet``
+  (:func:`twoscale.io.asperity_csv.write_asperity_csv`);
 * ``pressure.png``: pressure map with the tips, numbered when few
   (:func:`twoscale.plot.pressure_map`);
 * ``forces.png``: force per asperity (bars when few, histogram and a map of tips
@@ -47,7 +49,8 @@ def write_fields_and_figures(result: ContactResult, scene: Scene, out_dir, *, vt
 
     Returns
     -------
-    list of Path written, in the order above (the ``.vtm`` for the fields).
+    list of Path written, in the order above (the ``.vtm`` for the fields; the table's
+    CSV, metadata and Parquet).
     """
     out = Path(out_dir)
     record = scene_to_dict(scene)
@@ -57,7 +60,7 @@ def write_fields_and_figures(result: ContactResult, scene: Scene, out_dir, *, vt
 
         written.append(write_vtk(result, out / FIELDS_NAME, asperities=scene.asperities,
                                  pivot=scene.pivot, scene=record))
-    written.append(write_asperity_csv(result, scene.asperities, out / ASPERITY_CSV_NAME, scene=record,
+    written.extend(write_asperity_csv(result, scene.asperities, out / ASPERITY_CSV_NAME, scene=record,
                                       source=f"solve {source}" if source else "solve"))
     if figures:
         from ..plot import force_bars, pressure_map

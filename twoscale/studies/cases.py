@@ -6,6 +6,12 @@ position; only the tips whose shifted (x, y) lies in the body's footprint are ke
 others do not touch: beyond the block's top face there is no body, and a window on the
 half-space lets a long texture pass under it). The kept tips keep their index in the
 scene file (``Case`` results report forces by that index).
+
+The cell size is one per scene, body and position across the study's loads, so a load
+sweep does not change the discretisation: ``[solver] h`` when given, else the scene's
+``grid.h``, else the default rule (:func:`twoscale.scene.default_h`) applied at the
+lightest load of the case's kind (smallest total load, or smallest penetration), whose
+contacts are the smallest (:func:`case_h`; ``h_source`` in the cases table says which).
 """
 from __future__ import annotations
 
@@ -97,5 +103,39 @@ def case_scene(case: Case, study: Study) -> Any:
     else:  # penetration control has no joint
         load = dict(penetration=value, total_load=None, tilt=False, pivot=(0.0, 0.0))
     h = study.solver.get("h", scene.h)
-    return dataclasses.replace(scene, asperities=asperities, influence=dict(case.body.influence),
-                               load_cases=(), h=h, **load)
+    built = dataclasses.replace(scene, asperities=asperities, influence=dict(case.body.influence),
+                                load_cases=(), h=h, **load)
+    light = lightest_load(case, study)
+    if light is None or light == case.load:
+        return built
+    return dataclasses.replace(built, h=_default_h_at(dataclasses.replace(case, load=light), study))
+
+
+#: What chose a case's cell size (the cases table's ``h_source``).
+H_SOURCES = ("solver.h", "scene", "lightest load")
+
+
+def h_source(case: Case, study: Study) -> str:
+    """Which rule gives the case's cell size (:data:`H_SOURCES`, module doc)."""
+    if study.solver.get("h") is not None:
+        return "solver.h"
+    return "scene" if case.scene.scene.h is not None else "lightest load"
+
+
+def lightest_load(case: Case, study: Study) -> tuple | None:
+    """The study's lightest load of the case's kind on its scene, whose default cell size the
+    case uses; None when the study or the scene gives h."""
+    if h_source(case, study) != "lightest load":
+        return None
+    return min((ld for ld in study.loads_of(case.scene.scene) if ld[0] == case.load[0]), key=lambda ld: ld[1])
+
+
+def _default_h_at(case: Case, study: Study) -> float | None:
+    """The default cell size of ``case``'s scene (None, the case's own default, when that
+    scene cannot be built or sized: the case then fails or runs and says why)."""
+    from ..scene import SceneError, default_h
+
+    try:
+        return default_h(case_scene(case, study))
+    except SceneError:
+        return None

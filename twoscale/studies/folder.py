@@ -22,7 +22,8 @@ from .lock import LOCK_NAME
 #: The marker file of a study folder.
 MARKER = ".twoscale-study.json"
 #: What a study writes at the top of its folder, besides ``cases/`` and the marker.
-OUTPUTS = tuple(f"{name}.{ext}" for name in ("cases", "asperities", "indicators") for ext in ("csv", "parquet")) \
+OUTPUTS = tuple(f"{name}.{ext}" for name in ("cases", "asperities", "indicators")
+                for ext in ("csv", "csv-metadata.json", "parquet")) \
     + ("summary.json", "figures")
 
 

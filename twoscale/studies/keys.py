@@ -42,7 +42,7 @@ def case_inputs(case: "Case", study: "Study") -> dict:
     """Everything the case's result depends on, as JSON-ready data. The scene enters by the
     digest of its content (``StudyScene.digest``), computed once per scene."""
     fp = case.body.footprint
-    return {
+    out = {
         "key_version": KEY_VERSION,
         "scene": case.scene.digest,
         "influence": {k: (list(v) if isinstance(v, tuple) else v) for k, v in case.body.influence.items()},
@@ -55,6 +55,12 @@ def case_inputs(case: "Case", study: "Study") -> dict:
         "sensor": {"nx": study.sensor.nx, "ny": study.sensor.ny, "cell": float(study.sensor.cell),
                    "centre": list(study.sensor.centre)},
     }
+    from .cases import lightest_load
+
+    light = lightest_load(case, study)
+    if light is not None:  # the default cell size is the lightest load's (studies.cases)
+        out["h_at_load"] = {light[0]: float(light[1])}
+    return out
 
 
 def case_key(case: "Case", study: "Study") -> str:

@@ -2,9 +2,12 @@
 
 Read from the case folders (:mod:`twoscale.studies.store`), so they cover every case
 finished so far, by this run or an earlier one. Tables (one row per observation, units in
-the column names), each as CSV and, when ``pyarrow`` is installed, Parquet:
+the column names), each as CSV with its ``.csv-metadata.json`` and, when ``pyarrow`` is
+installed, Parquet (:mod:`twoscale.io.tables`):
 
-* ``cases``: one row per case (status, reason, total load, approach, tilt, contact area);
+* ``cases``: one row per case (status, reason, total load, approach, tilt, contact area,
+  the cell size ``h_mm`` and ``h_source``: ``solver.h``, ``scene`` or ``lightest load``,
+  see :mod:`twoscale.studies.cases`);
 * ``asperities``: one row per case and tip under the footprint (scene index of the tip,
   its position in the body frame, force, contact area, peak pressure);
 * ``indicators``: per scene, load and position, e_M (tip forces) and e_m (sensor cells)
@@ -13,8 +16,6 @@ the column names), each as CSV and, when ``pyarrow`` is installed, Parquet:
 """
 from __future__ import annotations
 
-import csv
-import io
 import json
 import math
 from pathlib import Path
@@ -22,18 +23,19 @@ from pathlib import Path
 import numpy as np
 
 from .._version import __version__
+from ..io import tables
 from ..io.atomic import atomic_output
 from ..io.result_json import UNITS
 from ..comparison import e_m_or_none
 from ..sensor import e_M
-from .cases import Case
+from .cases import Case, h_source
 from .keys import scene_record
 from .spec import Study
 from .store import CaseStore
 
 CASE_COLUMNS = ("scene", "body", "load_kind", "load", "position", "shift_x_mm", "shift_y_mm", "distance_mm",
                 "status", "reason", "n_tips", "total_load_N", "approach_mm", "tilt_alpha_rad", "tilt_beta_rad",
-                "contact_area_mm2", "h_mm", "strategy", "seconds", "key")
+                "contact_area_mm2", "h_mm", "h_source", "strategy", "seconds", "key")
 TIP_COLUMNS = ("scene", "body", "load_kind", "load", "position", "shift_x_mm", "shift_y_mm", "distance_mm",
                "asperity", "x_mm", "y_mm", "force_N", "contact_area_mm2", "max_pressure_MPa", "key")
 INDICATOR_COLUMNS = ("scene", "load_kind", "load", "position", "distance_mm", "reference", "body",
@@ -58,7 +60,8 @@ def rows(study: Study, cases: list, keys: list, records: dict) -> tuple[list, li
         where = _where(study, case)
         row = {**where, "status": rec["status"], "reason": rec.get("reason", ""), "n_tips": len(rec["tips"]),
                "total_load_N": None, "approach_mm": None, "tilt_alpha_rad": None, "tilt_beta_rad": None,
-               "contact_area_mm2": None, "h_mm": None, "strategy": None, "seconds": rec.get("seconds"), "key": key}
+               "contact_area_mm2": None, "h_mm": None, "h_source": h_source(case, study), "strategy": None,
+               "seconds": rec.get("seconds"), "key": key}
         if res is not None:
             tilt = res["tilt"] or (None, None)
             row.update(total_load_N=res["total_load"], approach_mm=res["penetration"], tilt_alpha_rad=tilt[0],
@@ -134,29 +137,19 @@ def summary(study: Study, case_rows: list, indicators: list, run: dict) -> dict:
             "indicators_percent": indicators, "study": study_record(study)}
 
 
-def _csv(table: list, columns: tuple) -> str:
-    buf = io.StringIO()
-    w = csv.DictWriter(buf, fieldnames=columns, lineterminator="\n")
-    w.writeheader()
-    for row in table:
-        w.writerow({k: ("" if v is None else f"{v:.10g}" if isinstance(v, float) else v) for k, v in row.items()})
-    return buf.getvalue()
+#: One line per table: what it holds (its metadata JSON's title).
+TITLES = {"cases": "one row per case of the study: status, total load, approach, tilt, contact area, cell size",
+          "asperities": "one row per case and tip under the footprint: position, force, contact area, peak pressure",
+          "indicators": "e_M (tip forces) and e_m (sensor cells) of each body against the study's first body, percent"}
 
 
-def write_table(out: Path, name: str, table: list, columns: tuple) -> list:
-    """Write ``name.csv`` and (with pyarrow) ``name.parquet``; returns the paths written."""
-    written = [out / f"{name}.csv"]
-    with atomic_output(written[0]) as tmp:
-        tmp.write_text(_csv(table, columns), encoding="utf-8")
-    try:
-        import pyarrow as pa
-        import pyarrow.parquet as pq
-    except ImportError:
-        return written
-    data = {c: [row.get(c) for row in table] for c in columns}
-    with atomic_output(out / f"{name}.parquet") as tmp:
-        pq.write_table(pa.table(data), tmp)
-    return written + [out / f"{name}.parquet"]
+def write_table(out: Path, name: str, table: list, columns: tuple, study: Study | None = None) -> list:
+    """Write ``name.csv``, its metadata JSON and (with pyarrow) ``name.parquet``
+    (:func:`twoscale.io.tables.write_table`); returns the paths written."""
+    record = {"units": dict(UNITS)}
+    if study is not None:
+        record["study"] = {"name": study.name, "source": study.source}
+    return tables.write_table(out, name, table, columns, title=TITLES.get(name, name), record=record, parquet=0)
 
 
 def write_tables(out: Path, study: Study, cases: list, keys: list, store: CaseStore, run: dict) -> tuple:
@@ -165,9 +158,9 @@ def write_tables(out: Path, study: Study, cases: list, keys: list, store: CaseSt
     records = {k: store.read(k) for k in dict.fromkeys(keys)}
     case_rows, tip_rows = rows(study, cases, keys, records)
     ind = indicator_rows(study, cases, keys, records, store)
-    write_table(out, "cases", case_rows, CASE_COLUMNS)
-    write_table(out, "asperities", tip_rows, TIP_COLUMNS)
-    write_table(out, "indicators", ind, INDICATOR_COLUMNS)
+    write_table(out, "cases", case_rows, CASE_COLUMNS, study)
+    write_table(out, "asperities", tip_rows, TIP_COLUMNS, study)
+    write_table(out, "indicators", ind, INDICATOR_COLUMNS, study)
     record = summary(study, case_rows, ind, run)
     with atomic_output(out / "summary.json") as tmp:
         tmp.write_text(json.dumps(record, indent=1, allow_nan=False, default=_json_default) + "\n", encoding="utf-8")

@@ -1,13 +1,13 @@
-"""CSV files of the study; each starts with comment lines recording the program version,
-the units and the parameters, so a table can be read back and the run rebuilt."""
+"""CSV files of the study: header on the first line; the program version, the units and the
+parameters in the ``.csv-metadata.json`` beside each (:mod:`twoscale.io.tables`), so a
+table can be read back and the run rebuilt."""
 from __future__ import annotations
 
-import csv
 import pathlib
 
 import numpy as np
 
-from .._version import __version__
+from ..io.tables import write_table
 from .cases import MAP_SPACINGS
 from .run import StudyResult
 
@@ -16,22 +16,17 @@ ERROR_COLUMNS = ("d_over_2R", "err_p0_percent", "err_p_percent", "sweeps", "bloc
                  "cells_twoscale", "cells_reference", "total_load_N", "mean_pressure_MPa", "converged")
 
 
-def _header(study: StudyResult, layout: str, what: str) -> list[str]:
+def _record(study: StudyResult, layout: str, what: str) -> dict:
     case = study.cases[layout][0].case
-    return [f"# twoscale {__version__}: paper study ({what}), layout {layout}",
-            f"# units: mm, N, MPa; E = {case.material.E} MPa, nu = {case.material.nu}, R = {case.R} mm, "
-            f"approach d = {case.penetration} mm, cell h = {case.h} mm, exact spheres",
-            f"# quick = {study.quick}; reference solver = {study.reference_method} on the same lattice"]
+    return {"study": f"paper study ({what}), layout {layout}", "units": {"length": "mm", "force": "N", "pressure": "MPa"},
+            "parameters": {"E_MPa": case.material.E, "nu": case.material.nu, "R_mm": case.R,
+                           "approach_mm": case.penetration, "h_mm": case.h, "indenters": "exact spheres"},
+            "quick": study.quick, "reference_solver": f"{study.reference_method} on the same lattice"}
 
 
-def _write(path: pathlib.Path, header: list[str], columns, rows) -> pathlib.Path:
-    with open(path, "w", newline="", encoding="utf-8") as fh:
-        for line in header:
-            fh.write(line + "\n")
-        w = csv.writer(fh)
-        w.writerow(columns)
-        w.writerows(rows)
-    return path
+def _write(out: pathlib.Path, name: str, record: dict, columns, rows) -> list[pathlib.Path]:
+    return write_table(out, name, (dict(zip(columns, r)) for r in rows), columns, title=record["study"],
+                       record=record)
 
 
 def error_rows(study: StudyResult, layout: str) -> list[tuple]:
@@ -54,11 +49,11 @@ def write_csv(study: StudyResult, out: pathlib.Path) -> list[pathlib.Path]:
     out.mkdir(parents=True, exist_ok=True)
     written = []
     for layout, results in study.cases.items():
-        written.append(_write(out / f"errors_{layout}.csv", _header(study, layout, "fig. 6 errors"),
+        written.extend(_write(out, f"errors_{layout}", _record(study, layout, "fig. 6 errors"),
                               ERROR_COLUMNS, error_rows(study, layout)))
         rows = [(r.case.spacing, float(x), float(v)) for r in results for x, v in zip(*r.profile())]
-        written.append(_write(out / f"profile_{layout}.csv",
-                              _header(study, layout, "fig. 5 pressure on the vertical line of the upper asperity"),
+        written.extend(_write(out, f"profile_{layout}",
+                              _record(study, layout, "fig. 5 pressure on the vertical line of the upper asperity"),
                               ("d_over_2R", "r_over_R", "p_over_pm"), rows))
         for r in results:
             if r.case.spacing not in MAP_SPACINGS[layout]:
@@ -66,7 +61,7 @@ def write_csv(study: StudyResult, out: pathlib.Path) -> list[pathlib.Path]:
             X, Y = r.grid.centres()
             on = r.pressure > 0
             rows = zip(X[on] / r.case.R, Y[on] / r.case.R, r.pressure[on] / r.mean_pressure)
-            written.append(_write(out / f"map_{layout}_{r.case.spacing:g}.csv",
-                                  _header(study, layout, f"fig. 3-4 pressure map, d/2R = {r.case.spacing:g}"),
+            written.extend(_write(out, f"map_{layout}_{r.case.spacing:g}",
+                                  _record(study, layout, f"fig. 3-4 pressure map, d/2R = {r.case.spacing:g}"),
                                   ("x_over_R", "y_over_R", "p_over_pm"), rows))
     return written

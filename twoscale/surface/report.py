@@ -2,8 +2,6 @@
 ``twoscale surface`` writes (I/O module; every file records the version and units)."""
 from __future__ import annotations
 
-import csv
-import io
 import json
 import math
 from pathlib import Path
@@ -33,18 +31,27 @@ def asperity_rows(surface, table=None, sphere_error=None) -> list[dict]:
     return rows
 
 
-def write_asperity_csv(rows: list[dict], path: str | Path) -> Path:
-    """The rows as CSV (a first comment line gives the version and units)."""
-    buf = io.StringIO()
-    buf.write(f"# twoscale {__version__}: asperities of a height map; units mm, mm2; "
-              "asperities numbered from 1 as in every table; law_exponent m of P ~ delta^m, sphere_law_error = max |P_sphere - P_tab| / P_tab\n")
-    writer = csv.DictWriter(buf, fieldnames=CSV_COLUMNS, lineterminator="\n")
-    writer.writeheader()
-    for row in rows:
-        writer.writerow({k: (f"{v:.6g}" if isinstance(v, float) else v) for k, v in row.items()})
-    with atomic_output(Path(path)) as tmp:
-        tmp.write_text(buf.getvalue(), encoding="utf-8")
-    return Path(path)
+#: What each column of segmentation.csv holds (recorded in its metadata JSON).
+DESCRIPTIONS = {
+    "asperity": "asperity number, from 1 as in every table",
+    "x_mm": "summit position x, mm", "y_mm": "summit position y, mm",
+    "summit_height_mm": "summit height on the map, mm", "recess_z_mm": "recess below the highest summit, mm",
+    "prominence_mm": "summit prominence, mm", "basin_area_mm2": "area of the asperity's basin, mm2",
+    "sphere_R_mm": "radius of the equivalent sphere, mm",
+    "law_exponent": "exponent m of P ~ delta^m over the law's last tabulated step (empty with --no-laws)",
+    "sphere_law_error": "max |P_sphere - P_tab| / P_tab over the tabulated depths (empty with --no-laws)",
+}
+
+
+def write_segmentation_table(rows: list[dict], out_dir: str | Path, name: str = "segmentation", *,
+                             record: dict | None = None) -> list[Path]:
+    """The rows as ``NAME.csv`` with its metadata JSON (and Parquet with pyarrow) in
+    ``out_dir`` (:func:`twoscale.io.tables.write_table`)."""
+    from ..io.tables import LONG_TABLE, write_table
+
+    return write_table(out_dir, name, rows, CSV_COLUMNS, title="asperities of a height map (segmentation)",
+                       record={"units": {"length": "mm", "area": "mm2"}, **(record or {})},
+                       descriptions=DESCRIPTIONS, parquet=LONG_TABLE)
 
 
 def surface_summary(surface, scene_record: dict, *, table=None, sphere_error=None, seconds: dict) -> dict:
