@@ -307,7 +307,19 @@ def check_resolution(scene: Scene, h: float, *, forces=None, radii=None) -> None
         warnings.warn(ResolutionWarning(
             f"cell size h = {h:g} mm gives asperity {k + 1}'s expected contact (about {2 * a[k]:.2g} mm "
             f"across) only {across[k]:.1f} cells across: its force may be off by 10 % or more "
-            f"(the default rule gives h = {default_h(dataclasses.replace(scene, h=None)):g} mm)"), stacklevel=3)
+            f"({_default_rule_text(scene)})"), stacklevel=3)
+
+
+def _default_rule_text(scene: Scene) -> str:
+    """What the default rule gives for ``scene``, and whether the cell budget coarsened it."""
+    from .scene import CELL_BUDGET
+
+    free = dataclasses.replace(scene, h=None)
+    h, rule = default_h(free), default_h(free, cell_budget=None)
+    if h == rule:
+        return f"the default rule gives h = {h:g} mm"
+    return (f"the default h = {h:g} mm is the rule's {rule:g} mm coarsened to keep the patches within "
+            f"{CELL_BUDGET / 1e6:g} M cells; give h = {rule:g} mm to resolve every contact that matters")
 
 
 def check_domain(scene: Scene, provider, h: float = 0.0, *, radii=None) -> None:

@@ -17,6 +17,7 @@ interrupted run leaves no partial DIR. Without ``--out`` nothing is written.
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import math
 import sys
 import time

@@ -56,6 +56,7 @@ def scene_text(scene=None, name: str | None = None, *, result=None) -> str:
         Used when it carries a ``body`` label of its own (preferred to the scene's).
     """
     body = getattr(result, "body", None)
+    body = getattr(body, "label", body)  # a typed body (twoscale.setting.Body) or a label
     if not isinstance(body, str) or not body:
         inf = _influence_of(scene)
         body = body_text(inf) if (inf is not None or scene is not None) else ""

@@ -146,7 +146,9 @@ def pressure_title(result: ContactResult, *, scene=None, name: str | None = None
     the peak and how many tips carry load."""
     n, loaded = result.n_asperities, int(np.count_nonzero(np.asarray(result.forces) > 0))
     area = float(np.sum(result.asperities.contact_areas))
-    what = (f"total load {result.total_load:.4g} N, contact area {area:.4g} mm²\n{_peak_text(result, sensor)}, "
+    ratio = getattr(result, "contact_ratio", None)
+    share = f" ({100 * ratio:.3g} % of the nominal)" if ratio is not None else ""
+    what = (f"total load {result.total_load:.4g} N, contact area {area:.4g} mm²{share}\n{_peak_text(result, sensor)}, "
             f"{loaded} of {n} tips loaded" + ("" if result.converged else " (NOT converged)"))
     head = scene_text(scene, name, result=result)
     return f"{head}\n{what}" if head else what
