@@ -75,6 +75,9 @@ DENSE_GRID_CELLS = 12_000
 BLOCK_PROVIDER_BYTES = 1.0e9
 #: Default share of the available memory a solve may use.
 DEFAULT_FRACTION = 0.8
+#: A refused solve suggests an h whose estimate is within this share of the limit, so that
+#: following the advice does not start a solve at the machine's edge.
+ADVICE_SHARE = 0.5
 
 #: Measured peak resident memory of ``twoscale solve --quiet --out DIR`` (``/usr/bin/time``
 #: ``%M``; 2 CPUs, numpy 2 / scipy FFT) against the estimate: (scene, method, h mm, cells
@@ -367,7 +370,7 @@ def _advice(estimate: MemoryEstimate, limit: float, option: str, refit=None) -> 
     h = _round_up(h * 1.05, digits=2)  # 5 % slack: the estimate is not exactly 1/h^2
     if refit is not None:
         for _ in range(40):  # cells fall at least as 1 / h: 40 steps of 10 % cover 45x
-            if refit(h).bytes <= limit:
+            if refit(h).bytes <= ADVICE_SHARE * limit:  # room to spare, not the limit's edge
                 break
             h = _round_up(h * 1.1, digits=2)
         else:
