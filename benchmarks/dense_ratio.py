@@ -22,7 +22,7 @@ import _common  # noqa: F401  (single-threaded defaults before numpy loads)
 import numpy as np
 
 from twoscale.material import Material
-from twoscale.scene import solve_scene
+from twoscale.api import solve_scene
 from twoscale.synthetic import random_scene
 
 METHODS = ("twoscale", "reference")

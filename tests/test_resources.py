@@ -20,7 +20,8 @@ from twoscale.io.scene_file import read_scene
 from twoscale.resources import (MemoryEstimate, available_memory, check_memory, default_limit,
                                 estimate_memory)
 from twoscale.reference.on_scene import reference_grid
-from twoscale.scene import Scene, SceneError, default_h, solve_scene
+from twoscale.api import solve_scene
+from twoscale.scene import Scene, SceneError, default_h
 
 EXAMPLES = Path(__file__).resolve().parent.parent / "examples"
 

@@ -15,7 +15,7 @@ import pytest
 from twoscale.analytic import hertz
 from twoscale.cli.main import main
 from twoscale.material import Material
-from twoscale.scene import solve_scene
+from twoscale.api import solve_scene
 from twoscale.studies import execute
 from twoscale.studies.cases import case_scene, expand
 from twoscale.studies.execute import run_study

@@ -10,7 +10,8 @@ import pytest
 
 from twoscale.cli.main import main
 from twoscale.io.scene_file import read_scene
-from twoscale.scene import SceneError, solve_scene
+from twoscale.api import solve_scene
+from twoscale.scene import SceneError
 from twoscale.surface.texture import road
 
 ROOT = Path(__file__).resolve().parents[1]

@@ -13,7 +13,8 @@ from twoscale.indenters import Asperity, surface_on
 from twoscale.influence import HalfSpace
 from twoscale.reference import solve_cg
 from twoscale.reference.on_scene import reference_grid
-from twoscale.scene import Scene, solve_scene
+from twoscale.api import solve_scene
+from twoscale.scene import Scene
 from twoscale.twoscale import solve_twoscale
 
 MAT = Material(E=6.0, nu=0.5)

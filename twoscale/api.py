@@ -27,9 +27,11 @@ from collections.abc import Mapping, Sequence
 import numpy as np
 
 from .control import check_control
+from .errors import ResolutionWarning
 from .indenters import SHAPES, Asperity
 from .material import Material
 from .results import ContactResult
+from .scene import METHODS as SCENE_METHODS
 from .scene import Scene, SceneError, default_h, expected_contact_radii, expected_contacts
 
 #: Names ``method`` accepts (or a callable).
@@ -269,11 +271,19 @@ def solve(problem, *, method="twoscale", provider=None, material: Material | Non
     return dataclasses.replace(result, caches=usage_since(caches_before, solve_caches(provider, scene)))
 
 
-__all__ = ["METHODS", "solve", "asperities", "as_asperities"]
+def solve_scene(scene: Scene, *, method: str = "twoscale", provider_options: Mapping | None = None,
+                memory_limit: float | None = None, **options):
+    """Solve a scene: :func:`solve` with a :class:`Scene`.
+
+    Kept for the scene-file workflow; ``method`` is "twoscale" or "reference" (the
+    methods a scene file's user picks), the other arguments are :func:`solve`'s.
+    """
+    if method not in SCENE_METHODS:
+        raise ValueError(f"method must be one of {SCENE_METHODS}, got {method!r}")
+    return solve(scene, method=method, provider_options=provider_options, memory_limit=memory_limit, **options)
 
 
-class ResolutionWarning(UserWarning):
-    """The cell size resolves some expected contacts with only a few cells."""
+__all__ = ["METHODS", "solve", "solve_scene", "asperities", "as_asperities"]
 
 
 #: Fewest cells across an expected contact before a :class:`ResolutionWarning` (about 10 %

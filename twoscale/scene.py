@@ -19,6 +19,7 @@ import numpy as np
 
 from .analytic import hertz
 from .control import check_control
+from .errors import SceneError
 from .indenters import Asperity
 from .material import Material
 
@@ -43,10 +44,6 @@ MIN_FORCE_FRACTION = 0.01
 #: 15 s on one core, so the default solve stays well within a minute, and the smallest
 #: contact that matters keeps fewer cells (a :class:`~twoscale.api.ResolutionWarning` below 4).
 CELL_BUDGET = 1_500_000
-
-
-class SceneError(ValueError):
-    """Invalid scene data; the message names the field path and the bad value."""
 
 
 # ---------------------------------------------------------------- small validators
@@ -180,7 +177,7 @@ class Scene:
     load_cases : sequence of float, default ()
         With ``total_load`` only: the scene's load cases, total loads in N (each finite
         and > 0, no repeats; stored as a tuple). ``twoscale compare`` runs each of them
-        in turn in place of ``total_load``; ``twoscale solve`` and :func:`solve_scene`
+        in turn in place of ``total_load``; ``twoscale solve`` and :func:`twoscale.api.solve_scene`
         use ``total_load`` (conventionally the first case). ``()``: no list, one load.
     surface : MeasuredSurface, optional
         A height map as indenters (:func:`twoscale.surface.build_surface`, what a scene
@@ -463,17 +460,3 @@ def _round_down(x: float, *, digits: int) -> float:
 #: Methods of the scene-file workflow (``twoscale solve --method``); :func:`twoscale.solve`
 #: also takes the reference solvers by name ("dense", "cg").
 METHODS = ("twoscale", "reference")
-
-
-def solve_scene(scene: Scene, *, method: str = "twoscale", provider_options: Mapping | None = None,
-                memory_limit: float | None = None, **options):
-    """Solve a scene: :func:`twoscale.solve` (:mod:`twoscale.api`) with a :class:`Scene`.
-
-    Kept for the scene-file workflow; ``method`` is "twoscale" or "reference" (the
-    methods a scene file's user picks), the other arguments are :func:`twoscale.solve`'s.
-    """
-    if method not in METHODS:
-        raise ValueError(f"method must be one of {METHODS}, got {method!r}")
-    from .api import solve
-
-    return solve(scene, method=method, provider_options=provider_options, memory_limit=memory_limit, **options)
