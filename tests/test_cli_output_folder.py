@@ -132,7 +132,7 @@ def test_solve_twice_needs_overwrite(scene, tmp_path, monkeypatch, capsys):
 
 
 def test_compare_overwrite_removes_stale_load_files(scene, tmp_path, monkeypatch, capsys):
-    # the case: a run at 100 N, then one at 50 N into the same folder left
+    # the reported case: a run at 100 N, then one at 50 N into the same folder left
     # forces_100N.png and runs/*_100N beside a forces.md that no longer listed them
     monkeypatch.setattr(compare_cli, "_block_factory",
                         lambda: ((lambda material, **kw: HalfSpace(material)), ""))

@@ -1,6 +1,6 @@
 """Validation of the finite-block provider on the paper's 140 x 140 x 20 mm block.
 
-Figures from docs/method.md section 6 / issue 4 (point force at the centre, nu = 0.5,
+Figures from docs/method.md section 6 (point force at the centre, nu = 0.5,
 surface displacement over Boussinesq's): bonded 0.57, 0.22, -0.13 and sliding 0.71,
 0.46 at r = 5, 10 mm, +-0.02; at r = 20 mm the sliding block is more compliant than
 the infinite layer (0.153 against 0.129, the free sides), which two FEM routes confirm and

@@ -24,7 +24,7 @@ def test_factor_limits():
 
 @pytest.mark.parametrize("base,expected", [("bonded", [0.57, 0.22, -0.13]), ("sliding", [0.71, 0.46, 0.13])])
 def test_method_section6_figures(base, expected):
-    # docs/method.md section 6 / issue 4: t = 20 mm, nu = 0.5, r = 5, 10, 20 mm, +-0.02
+    # docs/method.md section 6: t = 20 mm, nu = 0.5, r = 5, 10, 20 mm, +-0.02
     ratio = point_ratio(np.array([5.0, 10.0, 20.0]), 20.0, 0.5, base)
     np.testing.assert_allclose(ratio, expected, atol=0.02)
 

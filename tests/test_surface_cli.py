@@ -1,5 +1,5 @@
 """Height-map scenes: the [surface] table, ``twoscale surface``, ``twoscale solve`` and
-``compare`` on them, and the shipped example road (issue 16, points 5-6)."""
+``compare`` on them, and the shipped example road."""
 import csv
 import json
 import sys
