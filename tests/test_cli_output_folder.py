@@ -13,8 +13,6 @@ from twoscale.cli.main import main
 from twoscale.cli.staging import MANIFEST_NAME, OutputFolderError, check_output_folder, staged_directory
 from twoscale.influence.halfspace import HalfSpace
 
-from test_cli_interrupt import scene  # noqa: F401  (fixture: a one-sphere scene under load control)
-
 
 def _never(*args, **kwargs):
     raise AssertionError("the solve ran although the output folder was refused")

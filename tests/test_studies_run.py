@@ -24,7 +24,7 @@ from twoscale.studies.outputs import write_outputs
 from twoscale.studies.spec import read_study
 from twoscale.studies.store import CaseStore
 
-from test_studies_spec import paraboloid_scene
+from helpers import paraboloid_scene
 
 SCENE = paraboloid_scene([-3.0, 3.0])
 

@@ -189,7 +189,7 @@ def test_a_stalled_two_level_iteration_stops_early_and_says_so():
     from pathlib import Path
 
     sys.path.insert(0, str(Path(__file__).parent))
-    from test_twoscale import random_scene
+    from helpers import random_scene
 
     from twoscale.micro.twolevel import STALL_SWEEPS
     from twoscale.twoscale import solve_twoscale
