@@ -19,8 +19,10 @@ from twoscale.cli.main import build_parser, main
 
 ROOT = pathlib.Path(__file__).resolve().parents[1]
 
-#: A numbered reference to a tracker: "issue 12", "issues 6, 14", "issue #12", "issue-6",
-#: "issues/12", "GH-12". Built from parts so that this file does not match itself.
+#: A numbered reference to a tracker: the word issue (or issues) followed by a number,
+#: with or without a hash, a hyphen or a slash between them, or GH- and a number (see
+#: test_the_pattern_finds_tracker_references; examples there are built from parts so
+#: that this file does not match itself).
 TRACKER = re.compile(r"\bissues?\s*[-#]?\s*\d+|\bissues/\d+|\bGH-\d+", re.IGNORECASE)
 #: Binary or generated files: not read.
 BINARY = {".png", ".jpg", ".npz", ".npy", ".vti", ".vtu", ".vtm", ".msh", ".x3p", ".parquet", ".pdf",
