@@ -1,7 +1,5 @@
 """Figures: PNG files of the requested pixel size, non-blank, with version metadata."""
 import json
-import struct
-import zlib
 
 import numpy as np
 import pytest

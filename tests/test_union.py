@@ -3,14 +3,13 @@ reference on seeded random scenes: penetration control, load control, load with 
 and the mixed-precision CG against the double-precision one."""
 from __future__ import annotations
 
-import math
 
 import numpy as np
 import pytest
 
 from helpers import crowded
 from twoscale import Material
-from twoscale.indenters import Asperity, surface_on
+from twoscale.indenters import surface_on
 from twoscale.influence import HalfSpace
 from twoscale.reference import solve_cg
 from twoscale.reference.on_scene import reference_grid

@@ -17,17 +17,19 @@ What only one method has is in :attr:`ContactResult.details`: :class:`TwoScaleDe
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Mapping, Sequence
+from typing import TYPE_CHECKING, Any, Iterable, Iterator, Mapping, Sequence
 
 import numpy as np
 
 from .grid import Grid
 
 if TYPE_CHECKING:
+    from numpy.typing import ArrayLike, DTypeLike
+
     from .details import ReferenceDetails, TwoScaleDetails
 
 
-def frozen_array(a, dtype=float) -> np.ndarray:
+def frozen_array(a: ArrayLike, dtype: DTypeLike = float) -> np.ndarray:
     """A read-only copy of ``a`` (results never share writable arrays with the caller)."""
     a = np.array(a, dtype=dtype, copy=True)
     a.setflags(write=False)
@@ -96,13 +98,13 @@ class FrozenMapping(Mapping):
 
     __slots__ = ("_data",)
 
-    def __init__(self, data=()) -> None:
+    def __init__(self, data: Mapping | Iterable[tuple] = ()) -> None:
         self._data = dict(data)
 
-    def __getitem__(self, key):
+    def __getitem__(self, key: Any) -> Any:
         return self._data[key]
 
-    def __iter__(self):
+    def __iter__(self) -> Iterator:
         return iter(self._data)
 
     def __len__(self) -> int:
@@ -112,7 +114,7 @@ class FrozenMapping(Mapping):
         return repr(self._data)
 
 
-def _read_only(d) -> Mapping:
+def _read_only(d: Mapping | None) -> Mapping:
     return d if isinstance(d, FrozenMapping) else FrozenMapping(d or {})
 
 

@@ -12,8 +12,8 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from collections.abc import Mapping, Sequence
-from typing import Any
+from collections.abc import Iterator, Mapping, Sequence
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -22,6 +22,9 @@ from .control import check_control
 from .errors import SceneError
 from .indenters import Asperity
 from .material import Material
+
+if TYPE_CHECKING:
+    from .influence.base import InfluenceProvider
 
 #: Influence kinds a scene may ask for.
 INFLUENCE_KINDS = ("halfspace", "block")
@@ -95,10 +98,10 @@ class Influence(Mapping):
         return {"kind": self.kind, "size": self.size, "base": self.base, "origin": self.origin,
                 "source_spacing": self.source_spacing}
 
-    def __getitem__(self, key: str):
+    def __getitem__(self, key: str) -> Any:
         return self._as_dict()[key]
 
-    def __iter__(self):
+    def __iter__(self) -> Iterator[str]:
         return iter(self._as_dict())
 
     def __len__(self) -> int:
@@ -291,7 +294,7 @@ class Scene:
         """Tip positions, shape (N, 2), mm."""
         return np.array([[a.x, a.y] for a in self.asperities], dtype=float)
 
-    def provider(self, **options):
+    def provider(self, **options: Any) -> InfluenceProvider:
         """The influence provider the scene asks for (:mod:`twoscale.influence.registry`).
 
         Parameters
@@ -325,8 +328,9 @@ def _hertz_level(scene: Scene) -> float:
     R = np.array([a.R for a in scene.asperities])
     z = np.array([a.z for a in scene.asperities])
     W = scene.total_load
+    assert W is not None  # every caller passes a scene under load control
 
-    def excess(d):
+    def excess(d: float) -> float:
         return float(np.sum(hertz.load(R, d - z, E_star))) - W
 
     lo = float(z.min())
@@ -359,7 +363,7 @@ def expected_contacts(scene: Scene) -> tuple[np.ndarray, np.ndarray]:
     return hertz.load(R, delta, scene.material.E_star), _contact_radii(scene.asperities, delta)
 
 
-def _contact_radii(asperities, delta) -> np.ndarray:
+def _contact_radii(asperities: Sequence[Asperity], delta: np.ndarray) -> np.ndarray:
     R = np.array([a.R for a in asperities], dtype=float)
     sphere = np.array([a.shape == "sphere" for a in asperities], dtype=bool)
     return np.where(sphere, hertz.sphere_contact_radius(R, delta), hertz.contact_radius(R, delta))

@@ -13,8 +13,7 @@ import math
 import numpy as np
 from scipy import ndimage
 
-from ..errors import SurfaceWarning
-
+from ..errors import SurfaceWarning  # noqa: F401  (documented here; raised by surface.edges)
 from .heightmap import HeightMap, SurfaceError
 from .reading import MIN_SIDE, RawMap
 
