@@ -165,6 +165,11 @@ def test_graph_sees_function_level_and_relative_imports():
     assert sum(len(edges) for edges in graph.values()) > 300
 
 
+def test_errors_import_nothing_of_the_packages():
+    """Raising an error never loads the module that raises it elsewhere."""
+    assert import_graph()["twoscale.errors"] == set()
+
+
 def test_no_import_cycle():
     graph = import_graph()
     cycles = [c for c in strongly_connected(graph) if frozenset(c) not in ALLOWED_CYCLES]
