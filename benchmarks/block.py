@@ -1,4 +1,4 @@
-"""Finite-block provider benchmark: the 25-asperity scene of issue 4 on the 140 x 140 x 20 block.
+"""Finite-block provider benchmark: the 25-asperity scene (5 x 5 spheres) on the 140 x 140 x 20 block.
 
 Scene: 5 x 5 spheres, R = 5 mm, pitch 10 mm, cell h = 0.1 mm, E = 6 MPa, nu = 0.5,
 total load 50 N. Prints, for the bonded and the sliding base:

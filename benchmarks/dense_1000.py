@@ -1,4 +1,4 @@
-"""Issue 14's dense scene: 1,000 spheres on 120 x 120 mm at 1.5 N each, h = 0.06 mm.
+"""A dense road-like scene: 1,000 spheres on 120 x 120 mm at 1.5 N each, h = 0.06 mm.
 
 The default two-scale solve against the full-grid FFT reference (and ContactMechanics on
 the same grid with ``--comparators``, about 5 minutes), each in its own process.
@@ -29,7 +29,7 @@ def main(argv=None) -> int:
     ap.add_argument("--h", type=float, default=0.06, help="cell size, mm")
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--load-per-tip", type=float, default=1.5,
-                    help="N per tip (default 1.5: the issue's scene, 1,500 N on 1,000 tips)")
+                    help="N per tip (default 1.5: 1,500 N on 1,000 tips, a tread block's load)")
     ap.add_argument("--comparators", action="store_true", help="also run ContactMechanics (slow)")
     args = ap.parse_args(argv)
     spec = {"n": args.tips, "kind": "dense", "control": "load", "shape": "sphere", "body": "halfspace",

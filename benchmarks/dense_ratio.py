@@ -7,7 +7,7 @@ to change the modulus), solved ``--repeat`` times by the default two-scale solve
 warm-up solve of a small scene by each (imports and first-call costs are paid by neither).
 Printed per solve: wall and CPU time (``time.process_time``, the steadier figure on a
 shared machine); then the ratios and the largest per-tip force difference.
-Issue 14's target on dense scenes of >= 200 tips: default / reference <= 0.5.
+Target on dense scenes of >= 200 tips: default / reference <= 0.5.
 
 Run: ``cd benchmarks && python dense_ratio.py [--tips 300] [--side 45] [--h 0.05] [--repeat 2]``.
 """
@@ -22,7 +22,7 @@ import _common  # noqa: F401  (single-threaded defaults before numpy loads)
 import numpy as np
 
 from twoscale.material import Material
-from twoscale.scene import solve_scene
+from twoscale.api import solve_scene
 from twoscale.synthetic import random_scene
 
 METHODS = ("twoscale", "reference")

@@ -1,4 +1,4 @@
-"""Direct FEM mode on the whole 140 x 140 x 20 mm block against Love (issue 4, point 7).
+"""Direct FEM mode on the whole 140 x 140 x 20 mm block against Love's closed form.
 
 One central 2 mm cell under unit pressure, the half-space displacement imposed on the sides
 and base (``fem_influence.solve_cell_load(boundary="halfspace")``): the top-face displacement

@@ -1,4 +1,4 @@
-"""Many asperities (issue 6): time, peak memory and per-asperity force error against N.
+"""Many asperities: time, peak memory and per-asperity force error against N.
 
 Random scenes of N spherical asperities (R uniform in 2-6 mm) on a square of side
 ``3 sqrt(N)`` mm (30 mm at N = 100, 95 mm at 1,000, 300 mm at 10,000), tips uniform in

@@ -5,7 +5,7 @@ solve (:func:`twoscale.twoscale.solve_twoscale`, tol 1e-6) and the Polonsky-Keer
 reference grid (:func:`twoscale.reference.solve_cg`, the same call as ``paper_cases.py``)
 run alternately ``--repeat`` times in this process after one warm-up each; printed: the
 medians of CPU time (``time.process_time``, the steadier figure on a shared machine) and
-of wall time, and their ratios. Issue 14's target: default / reference <= 1.2.
+of wall time, and their ratios. Target: default / reference <= 1.2.
 
 Run: ``cd benchmarks && python paper_ratio.py [--repeat 100] [--layouts seven] [--spacings 0.1]``.
 """

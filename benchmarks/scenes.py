@@ -95,7 +95,7 @@ def run_solve(method: str, spec: dict, options: dict) -> dict:
     """One ``solve_scene`` in this process (method "twoscale" or "reference")."""
     import twoscale.reference  # noqa: F401  (imports outside the timed call)
     import twoscale.twoscale  # noqa: F401
-    from twoscale.scene import solve_scene
+    from twoscale.api import solve_scene
     scene = _scene(spec)
     popts = {"progress": False} if spec["body"] == "block" else None
     if popts:

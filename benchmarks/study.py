@@ -1,4 +1,4 @@
-"""A 40-case study serially and on a 2-worker local Dask cluster (issue 17, point 7).
+"""A 40-case study serially and on a 2-worker local Dask cluster.
 
 The study: the S2 scene of ``examples/S2.toml`` (25 spheres of R = 5 mm on a 10 mm lattice,
 E = 6 MPa, nu = 0.5, ball-and-socket joint, h = 0.1 mm) on 2 bodies (the half-space with a
@@ -74,7 +74,7 @@ start = [0.0, 0.0]
 end = [8.0, 0.0]
 step = 2.0
 """
-#: The on-paper study of the issue.
+#: The study described above (scene, bodies, loads, positions).
 BIG = {"textures": 10, "bodies": 3, "loads": 10, "positions": 333}
 
 

@@ -1,4 +1,4 @@
-"""Measured-surface benchmark (issue 16, point 8): a synthetic road on the half-space.
+"""Measured-surface benchmark: a synthetic road on the half-space.
 
 A seeded road texture (:func:`twoscale.surface.texture.road`: packed chippings of 4-8 mm
 with a self-affine micro-roughness), ``--size`` mm square at ``--h`` mm (default 100 mm
@@ -16,7 +16,7 @@ one process, one after the other, single-threaded (``OMP_NUM_THREADS=1``):
 * ``CM``: ContactMechanics ``FreeFFTElasticHalfSpace`` + ``minimize_proxy`` on the same
   heights and grid, load control (when installed: ``pip install ".[bench]"``).
 
-Accuracy against ``ref`` (issue 16, point 7): total load and contact area (percent),
+Accuracy against ``ref`` (target: within 1 %): total load and contact area (percent),
 largest per-asperity force error among the asperities carrying more than 1 % of the
 largest force (percent of their own force: ``force %``) and over all asperities (percent
 of the largest force, the project's per-tip measure: ``of max %``), L2 of the pressure

@@ -1,4 +1,4 @@
-"""Warm starts along a track against cold starts (issue 17, point 2), in one process.
+"""Warm starts along a track against cold starts, in one process.
 
 Along the example study's track (``examples/study.toml``: S2, half-space and block, 200 and
 300 N, 0/5/10 mm) and the benchmark study's (``study.py``: 4 loads, 0-8 mm in 2 mm steps),

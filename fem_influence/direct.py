@@ -118,7 +118,7 @@ def solve_cell_load(material: Material, *, size=(140.0, 140.0, 20.0), h_cell: fl
     -------
     DirectResult
     """
-    from skfem import CellBasis, ElementHex2, FacetBasis, MeshHex
+    from skfem import ElementHex2, FacetBasis, MeshHex
 
     if boundary not in BOUNDARIES:
         raise ValueError(f"boundary must be one of {BOUNDARIES}, got {boundary!r}")
@@ -131,7 +131,6 @@ def solve_cell_load(material: Material, *, size=(140.0, 140.0, 20.0), h_cell: fl
                                _depth_axis(t, h_cell, h_coarse, growth, per_cell=per_cell))
     system = assemble_mixed(mesh, material)
     ns, n = system.n_scalar, system.size
-    ub = CellBasis(mesh, ElementHex2(), intorder=INTORDER)
     X = system.doflocs
     tol = 1e-9 * max(Lx, Ly, t)
     on = lambda cond: np.where(cond)[0]

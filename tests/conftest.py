@@ -1,4 +1,4 @@
-"""Shared test fixtures: paths to the shipped examples and a scene-file writer."""
+"""Shared test fixtures: paths to the shipped examples, a scene-file writer and a one-sphere scene file."""
 from __future__ import annotations
 
 import pathlib
@@ -25,3 +25,28 @@ def write_scene(tmp_path):
         return path
 
     return write
+
+
+#: One sphere (R = 10 mm) on a half-space (E = 10 MPa, nu = 0.5) under a 5 N load, h = 0.25 mm:
+#: a scene that solves in well under a second.
+ONE_SPHERE = """
+[material]
+E = 10.0
+nu = 0.5
+[load]
+total = 5.0
+[grid]
+h = 0.25
+[[asperity]]
+x = 0.0
+y = 0.0
+R = 10.0
+"""
+
+
+@pytest.fixture
+def scene(tmp_path) -> pathlib.Path:
+    """A scene file of one sphere under load control (:data:`ONE_SPHERE`), in a temporary folder."""
+    path = tmp_path / "scene.toml"
+    path.write_text(ONE_SPHERE, encoding="utf-8")
+    return path

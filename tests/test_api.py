@@ -1,4 +1,4 @@
-"""The public entry ``twoscale.solve`` (issue 15 point 1).
+"""The public entry ``twoscale.solve``.
 
 Checks that can fail for a real reason: a Hertz paraboloid against the closed form written
 out here; the same tips given as Asperity objects, arrays and a mapping give identical

@@ -148,7 +148,7 @@ def test_damaged_law_cache_of_the_example_road_warns_and_solves_the_same(tmp_pat
     truncated and four emptied, then ``twoscale solve`` with ``law = "tabulated"``: it
     used to end in a traceback (EOFError / BadZipFile)."""
     from twoscale.io.scene_file import read_scene
-    from twoscale.scene import solve_scene
+    from twoscale.api import solve_scene
 
     monkeypatch.setenv("TWOSCALE_CACHE_DIR", str(tmp_path / "cache"))
     scene = _road_scene(tmp_path)

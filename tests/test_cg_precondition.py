@@ -14,7 +14,7 @@ from twoscale.reference import solve_cg
 from twoscale.reference.on_scene import reference_grid
 from twoscale.scene import Scene
 
-from test_union import crowded
+from helpers import crowded
 
 MAT = Material(E=6.0, nu=0.5)
 HS = HalfSpace(MAT)

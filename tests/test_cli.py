@@ -18,7 +18,8 @@ from twoscale.analytic import hertz
 from twoscale.cli.main import build_parser, main
 from twoscale.indenters import Asperity
 from twoscale.io.result_json import result_to_dict
-from twoscale.scene import Scene, solve_scene
+from twoscale.api import solve_scene
+from twoscale.scene import Scene
 
 E_STAR = Material(10.0, 0.5).E_star
 FIXED_FIELDS = ("converged", "method", "penetration", "tilt", "total_load", "h", "asperities",

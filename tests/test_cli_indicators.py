@@ -1,4 +1,4 @@
-"""``twoscale indicators``: e_M and e_m between two stored solves (issue 5 point 4).
+"""``twoscale indicators``: e_M and e_m between two stored solves.
 
 Independent checks: e_M recomputed from the two result.json files and e_m from sensor
 maps rebuilt here from the two fields.vtm files, both by the formulas of docs/method.md

@@ -16,30 +16,10 @@ from twoscale.cli import solve as solve_cli
 from twoscale.cli.main import EXIT_INTERRUPTED, main
 from twoscale.cli.staging import held_interrupts, staged_directory
 
-SCENE = """
-[material]
-E = 10.0
-nu = 0.5
-[load]
-total = 5.0
-[grid]
-h = 0.25
-[[asperity]]
-x = 0.0
-y = 0.0
-R = 10.0
-"""
 
 
 def _interrupt(*args, **kwargs):
     raise KeyboardInterrupt
-
-
-@pytest.fixture
-def scene(tmp_path):
-    path = tmp_path / "scene.toml"
-    path.write_text(SCENE, encoding="utf-8")
-    return path
 
 
 def _only_interrupted(capsys) -> None:

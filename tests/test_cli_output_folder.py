@@ -13,8 +13,6 @@ from twoscale.cli.main import main
 from twoscale.cli.staging import MANIFEST_NAME, OutputFolderError, check_output_folder, staged_directory
 from twoscale.influence.halfspace import HalfSpace
 
-from test_cli_interrupt import scene  # noqa: F401  (fixture: a one-sphere scene under load control)
-
 
 def _never(*args, **kwargs):
     raise AssertionError("the solve ran although the output folder was refused")
@@ -132,7 +130,7 @@ def test_solve_twice_needs_overwrite(scene, tmp_path, monkeypatch, capsys):
 
 
 def test_compare_overwrite_removes_stale_load_files(scene, tmp_path, monkeypatch, capsys):
-    # the case: a run at 100 N, then one at 50 N into the same folder left
+    # the reported case: a run at 100 N, then one at 50 N into the same folder left
     # forces_100N.png and runs/*_100N beside a forces.md that no longer listed them
     monkeypatch.setattr(compare_cli, "_block_factory",
                         lambda: ((lambda material, **kw: HalfSpace(material)), ""))

@@ -1,5 +1,4 @@
 """Grid, material, indenters and result containers: the plain data everything uses."""
-import math
 
 import numpy as np
 import pytest

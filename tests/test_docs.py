@@ -39,15 +39,6 @@ def test_the_gallery_shows_every_figure_the_program_writes():
     assert (DOCS / "img" / "tour_pressure.png").exists()
 
 
-def test_the_docs_name_no_issue_tracker():
-    pages = list(DOCS.rglob("*.md")) + [ROOT / "README.md"]
-    for page in pages:
-        if "_build" in page.parts:
-            continue
-        text = page.read_text(encoding="utf-8")
-        assert not re.search(r"\bissues? \d+|\bissue-\d+", text, re.IGNORECASE), page
-
-
 def test_every_guide_is_in_the_site():
     index = (DOCS / "index.md").read_text(encoding="utf-8") + (DOCS / "records" / "index.md").read_text(encoding="utf-8")
     for page in DOCS.glob("*.md"):

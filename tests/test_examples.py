@@ -136,7 +136,7 @@ def test_two_spheres_solve_symmetric_and_interacting():
     from scipy.optimize import brentq
 
     from twoscale.analytic import hertz
-    from twoscale.scene import solve_scene
+    from twoscale.api import solve_scene
 
     s = _scene("paper_two_spheres.toml")
     r = solve_scene(s, method="reference")

@@ -7,7 +7,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from twoscale.scene import solve_scene
+from twoscale.api import solve_scene
 from twoscale.synthetic import random_scene
 
 FAST = [

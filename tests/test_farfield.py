@@ -1,4 +1,4 @@
-"""Far-field coupling of distant patches (issues 6, 14, 16): nine moment-matching sources.
+"""Far-field coupling of distant patches (many, dense and measured-surface tips): nine moment-matching sources.
 
 Independent check: the displacement a distant patch's pressure causes on another patch,
 from :class:`~twoscale.micro.farfield.LaggedFarField`, against the exact cross-patch product

@@ -1,11 +1,11 @@
 """Validation of the finite-block provider on the paper's 140 x 140 x 20 mm block.
 
-Figures from docs/method.md section 6 / issue 4 (point force at the centre, nu = 0.5,
-surface displacement over Boussinesq's): bonded 0.57, 0.22, -0.13 and sliding 0.71,
-0.46 at r = 5, 10 mm, +-0.02; at r = 20 mm the sliding block is more compliant than
-the infinite layer (0.153 against 0.129, the free sides), which two FEM routes confirm and
-which fades as the block widens; and the independent layer theory
-(:mod:`fem_influence.layer`, Hankel transform) for an infinite layer. All slow
+Point force at the centre, nu = 0.5, surface displacement over Boussinesq's, against
+the independent layer theory (:mod:`fem_influence.layer`, Hankel transform) for an
+infinite layer of the same thickness: within 0.01 (bonded) and 0.02 (sliding, r = 5,
+10 mm), where the sides are far; at r = 20 mm the sliding block is more compliant than the
+infinite layer (the free sides), which two FEM routes confirm and which fades as the
+block widens. All slow
 (one Q2-Q1 factorisation of ~39k unknowns each, 10-30 s on this machine).
 """
 import numpy as np
@@ -13,7 +13,6 @@ import pytest
 
 from fem_influence import BlockProvider
 from fem_influence.layer import point_ratio
-from meshes import block_mesh
 from twoscale.material import Material
 
 pytestmark = pytest.mark.slow
@@ -38,17 +37,14 @@ def sliding():
     return BlockProvider(material=MAT, base="sliding", use_cache=False, progress=False)
 
 
-def test_bonded_targets(bonded):
-    np.testing.assert_allclose(_ratios(bonded), [0.57, 0.22, -0.13], atol=0.02)
-
-
 def test_bonded_against_layer_theory(bonded):
     # sides 3.5 thicknesses away: the block centre behaves as the infinite layer
     np.testing.assert_allclose(_ratios(bonded), point_ratio(R, 20.0, 0.5, "bonded"), atol=0.01)
 
 
-def test_sliding_targets_near(sliding):
-    np.testing.assert_allclose(_ratios(sliding, R[:2]), [0.71, 0.46], atol=0.02)
+def test_sliding_against_layer_theory_near(sliding):
+    # near the centre (r = 5, 10 mm) the free sides 60 mm away do not matter yet
+    np.testing.assert_allclose(_ratios(sliding, R[:2]), point_ratio(R[:2], 20.0, 0.5, "sliding"), atol=0.02)
 
 
 def test_sliding_far_ratio_is_the_finite_block_by_two_fem_routes(sliding):

@@ -58,7 +58,7 @@ def near_cell():
 
 
 def test_halfspace_data_reproduce_love_on_and_next_to_the_cell(near_cell):
-    # target of issue 4: within 1 % at r = 0 and next to the cell (r = 1, 2 mm), at the
+    # target: within 1 % at r = 0 and next to the cell (r = 1, 2 mm), at the
     # default mesh (6 elements per cell side); measured 0.31 %, 0.11 %, 0.26 %
     assert near_cell[6].max() < 0.01
 

@@ -115,19 +115,19 @@ def test_every_figure_at_any_number_of_tips(n, tmp_path, saved):
 
 
 def test_titles_name_the_scene_and_the_body(tmp_path):
-    from test_plot import _png_info
+    from helpers import png_info
     res, tips, _ = _scene(5)
     p = pressure_map(res, tmp_path / "p.png", tips=tips, scene=BLOCK, name="road")
     f = force_bars(res, tmp_path / "f.png", tips=tips, scene={"influence": {"kind": "halfspace"}}, name="S1")
-    assert "road on a 60 x 60 x 10 mm block, bonded base" in _png_info(p)[1]["Title"]
-    assert "S1 on the half-space" in _png_info(f)[1]["Title"]
+    assert "road on a 60 x 60 x 10 mm block, bonded base" in png_info(p)[1]["Title"]
+    assert "S1 on the half-space" in png_info(f)[1]["Title"]
     assert body_text(None) == "half-space"
     # compare's record names each panel's body
     meta = {"bodies": {"block-bonded": {"influence": BLOCK["influence"]}}}
     from twoscale.plot.maps import _panel_body
     assert _panel_body(meta, "block-bonded") == "60 x 60 x 10 mm block, bonded base"
     m = compare_maps({"block-bonded": res}, tmp_path / "m.png", tips=tips, meta=meta, name="road")
-    assert json.loads(_png_info(m)[1]["Description"])["bodies"] == meta["bodies"]
+    assert json.loads(png_info(m)[1]["Description"])["bodies"] == meta["bodies"]
 
 
 def test_one_huge_corner_peak_does_not_flatten_the_scale(tmp_path):
@@ -186,8 +186,8 @@ def test_study_figures_distinct_colours_and_legend_beside_the_lines(tmp_path):
     bodies = {"block": {"kind": "block", "size": [140.0, 140.0, 20.0], "base": "bonded"}}
     for draw in (asperity_forces, track):
         path = draw(cases, tips, "S2", "block", tmp_path / f"{draw.__name__}.png", {}, bodies)
-        from test_plot import _png_info
-        assert "S2 on block (140 x 140 x 20 mm block, bonded base)" in _png_info(path)[1]["Title"]
+        from helpers import png_info
+        assert "S2 on block (140 x 140 x 20 mm block, bonded base)" in png_info(path)[1]["Title"]
     from twoscale.studies.figures import plot_tip_forces
     fig = plot_tip_forces(cases, tips, "S2", "block")
     ax = fig.axes[0]

@@ -1,4 +1,4 @@
-"""Caches of the influence providers (issue 14): bounded by a running total, LRU, owned.
+"""Caches of the influence providers: bounded by a running total, LRU, owned.
 
 * :class:`~twoscale.influence.cache.BoundedCache`: the bound holds after every insertion and the
   running total equals the sum of the stored sizes; eviction is least recently used; an

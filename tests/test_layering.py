@@ -1,4 +1,4 @@
-"""Import direction (issue 15 point 6): ``fem_influence`` builds on ``twoscale``, never the reverse.
+"""Import direction: ``fem_influence`` builds on ``twoscale``, never the reverse.
 
 ``twoscale`` reaches the finite block only through its body registry
 (:mod:`twoscale.influence.registry`, by module name on first use) or a provider passed in.

@@ -322,7 +322,7 @@ def test_unbalanceable_tilt_is_reported():
     assert not res.converged and res.message
 
 
-# --- matrix-free interaction (issue 6 point 1): point operator + conjugate gradients ----------
+# --- matrix-free interaction (many asperities): point operator + conjugate gradients ----------
 
 @pytest.mark.parametrize("mode", ["penetration", "load", "tilt"])
 @pytest.mark.parametrize("seed", [0, 3])

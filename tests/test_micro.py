@@ -6,7 +6,6 @@ the blocks is also a non-negative least-squares problem (``A = L L^T``:
 ``min |L^T p - L^-1 b|``), solved here by ``scipy.optimize.nnls`` on the dense Love matrix,
 which shares no code with the micro step's active sets, conjugate gradients or sweeps.
 """
-import math
 
 import numpy as np
 import pytest

@@ -1,4 +1,4 @@
-"""The provider contract is complete (issue 14): a body that implements only the abstract
+"""The provider contract is complete: a body that implements only the abstract
 methods (point and cell compliance, a grid operator with only ``apply``) runs the two-scale
 solver, through the defaults of :mod:`twoscale.influence.base`, and gives the half-space's
 answer. Its operators wrap the half-space's dense blocks, so the answers differ only by the

@@ -1,6 +1,6 @@
 """The paper's numerical study (docs/method.md section 4) and the ``twoscale paper`` command.
 
-Acceptance (issue): ``100 ||p - p_r|| / ||p_r|| <= 0.1`` for every d/2R against the
+Acceptance: ``100 ||p - p_r|| / ||p_r|| <= 0.1`` for every d/2R against the
 reference solver on the same lattice; the eq. 7 error ``100 ||p0 - p_r|| / ||p_r||`` grows
 as the spheres approach; sweeps are reported. The quick setting (cells twice the paper's)
 runs by default; the paper's cell sizes are marked slow.

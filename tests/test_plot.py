@@ -1,13 +1,12 @@
 """Figures: PNG files of the requested pixel size, non-blank, with version metadata."""
 import json
-import struct
-import zlib
 
 import numpy as np
 import pytest
 
 pytest.importorskip("matplotlib")
 
+from helpers import png_info
 from twoscale import __version__
 from twoscale.grid import Grid
 from twoscale.indenters import Asperity
@@ -30,25 +29,6 @@ def _result(scale=1.0):
     return ContactResult("twoscale", fields, 0.2, None, float(s.forces.sum()), s, True)
 
 
-def _png_info(path):
-    """Width, height and tEXt chunks of a PNG, read straight from its bytes."""
-    data = path.read_bytes()
-    assert data[:8] == b"\x89PNG\r\n\x1a\n"
-    pos, text, size = 8, {}, None
-    while pos < len(data):
-        n, kind = struct.unpack(">I4s", data[pos:pos + 8])
-        body = data[pos + 8:pos + 8 + n]
-        if kind == b"IHDR":
-            size = struct.unpack(">II", body[:8])
-        elif kind == b"tEXt":
-            k, v = body.split(b"\0", 1)
-            text[k.decode()] = v.decode("latin-1")
-        elif kind == b"zTXt":
-            k, rest = body.split(b"\0", 1)
-            text[k.decode()] = zlib.decompress(rest[1:]).decode("latin-1")
-        pos += 12 + n
-    return size, text
-
 
 def _not_blank(path):
     from matplotlib.image import imread
@@ -61,7 +41,7 @@ def test_pressure_map_size_metadata_and_content(tmp_path):
     asp = [Asperity(-3, 0, 0, 5.0), Asperity(3, 1, 0, 5.0)]
     path = pressure_map(_result(), tmp_path / "p.png", tips=asp, scene={"name": "demo"},
                         size=(5.0, 4.0), dpi=80)
-    size, text = _png_info(path)
+    size, text = png_info(path)
     assert size == (400, 320)
     assert text["Software"] == f"twoscale {__version__}"
     assert json.loads(text["Description"])["scene"] == {"name": "demo"}
@@ -73,7 +53,7 @@ def test_pressure_map_size_metadata_and_content(tmp_path):
 def test_pressure_map_on_sensor_cells_and_plain_tips(tmp_path):
     path = pressure_map(_result(), tmp_path / "s.png", tips=np.array([[-3, 0], [3, 1]]),
                         sensor=Sensor(nx=10, ny=10, cell=1.9))
-    size, _ = _png_info(path)
+    size, _ = png_info(path)
     assert size == (640, 520)
     _not_blank(path)
 
@@ -81,7 +61,7 @@ def test_pressure_map_on_sensor_cells_and_plain_tips(tmp_path):
 def test_force_bars_with_macro_forces(tmp_path):
     r = _result()
     path = force_bars(r, tmp_path / "f.png", macro_forces=[1.0, 2.0], dpi=50)
-    size, text = _png_info(path)
+    size, text = png_info(path)
     assert size == (320, 200)
     assert text["Software"].endswith(__version__)
     _not_blank(path)
@@ -92,10 +72,10 @@ def test_force_bars_with_macro_forces(tmp_path):
 def test_compare_forces_and_maps(tmp_path):
     results = {"half-space": _result(), "block": _result(0.8)}
     p1 = compare_forces(results, tmp_path / "cf.png", measured=[1.0, 2.0])
-    assert _png_info(p1)[0] == (720, 400)
+    assert png_info(p1)[0] == (720, 400)
     _not_blank(p1)
     p2 = compare_maps(results, tmp_path / "cm.png", tips=np.array([[-3, 0], [3, 1]]), panel_size=3.0, dpi=50)
-    assert _png_info(p2)[0] == (int((2 * 3.0 + 1.5) * 50), int((3.0 + 0.8) * 50))
+    assert png_info(p2)[0] == (int((2 * 3.0 + 1.5) * 50), int((3.0 + 0.8) * 50))
     _not_blank(p2)
 
 

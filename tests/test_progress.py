@@ -69,9 +69,6 @@ def test_status_line_draws_late_and_only_on_a_terminal(clock):
         assert stream.getvalue() == ""  # not a terminal, or quiet: silent
 
 
-from test_cli_interrupt import scene  # noqa: F401,E402  (fixture: a one-sphere scene)
-
-
 @pytest.mark.parametrize("quiet", [False, True])
 def test_solve_status_on_a_terminal_unless_quiet(scene, monkeypatch, quiet):
     # a clock that runs 1 s per reading makes every solve "long"; stderr a terminal

@@ -5,7 +5,6 @@ trial contact sets; CG: FFT products and projected gradients), so agreement to 1
 relative in the pressure (L2) and the total load, and in d and the tilt, checks both.
 Also: the KKT conditions of each answer, input validation, and the trivial cases.
 """
-import math
 
 import numpy as np
 import pytest

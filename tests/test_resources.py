@@ -19,8 +19,8 @@ from twoscale.indenters import Asperity
 from twoscale.io.scene_file import read_scene
 from twoscale.resources import (MemoryEstimate, available_memory, check_memory, default_limit,
                                 estimate_memory)
-from twoscale.reference.on_scene import reference_grid
-from twoscale.scene import Scene, SceneError, default_h, solve_scene
+from twoscale.api import solve_scene
+from twoscale.scene import Scene, SceneError, default_h
 
 EXAMPLES = Path(__file__).resolve().parent.parent / "examples"
 
@@ -43,11 +43,17 @@ def fifty_tips_toml(h: float | None = None) -> str:
 
 
 def test_reference_counts_the_reference_grid():
-    h = 0.05
+    # one paraboloid at penetration d: contact can reach r = sqrt(2 R d); the reference grid
+    # covers that plus 5 % and 3 h on each side, with a cell centred on the tip, so it is
+    # n x n cells with n = 2 ceil(r_grid / h - 1/2) + 1
+    h, R, d = 0.05, 10.0, 0.5
     est = estimate_memory(HERTZ, h, "reference")
-    assert est.cells == reference_grid(HERTZ, h).size
-    assert est.method == "reference" and est.h == h
-    assert est.bytes == pytest.approx(sum(b for _, b in est.parts))
+    r_grid = 1.05 * math.sqrt(2 * R * d) + 3 * h
+    n = 2 * math.ceil(r_grid / h - 0.5) + 1
+    assert est.cells == n * n
+    # its FFT products work on the zero-padded grid: at least (2n)^2 complex values
+    grid_bytes = sum(b for name, b in est.parts if "grid" in name)
+    assert grid_bytes >= (2 * n) ** 2 * 16
 
 
 def test_twoscale_counts_one_patch_per_touching_tip():
@@ -152,6 +158,9 @@ PEAK = textwrap.dedent("""
 """)
 
 
+# The measured peak depends on the machine (libraries, allocator, BLAS threads): an
+# opt-in check (-m slow), not part of the default run.
+@pytest.mark.slow
 @pytest.mark.skipif(not sys.platform.startswith("linux"), reason="reads /proc/self/status")
 @pytest.mark.parametrize("method", ["reference", "twoscale"])
 def test_estimate_is_above_the_measured_peak_and_within_a_factor_2_5(tmp_path, method):

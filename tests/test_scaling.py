@@ -1,4 +1,4 @@
-"""Many asperities (issue 6): far-field coupling of the micro step and faster patch building.
+"""Many asperities: far-field coupling of the micro step and faster patch building.
 
 Independent checks: the far-field displacement is compared with the exact cell-by-cell
 product (Love blocks via ``provider.cell_block``, no FFT, no stencil), and whole solves with

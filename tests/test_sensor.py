@@ -128,8 +128,10 @@ def test_e_m_loaded_cells_and_reference_cells():
     # reference cells only: the spurious 0.5 outside the measured area is not counted
     assert e_m(p, ref, cells="reference") == pytest.approx(100 * 1.0 / 5, rel=1e-15)
     # unloaded cells do not change the value
-    big_ref = np.zeros((10, 10)); big_ref[:2, :2] = ref
-    big_p = np.zeros((10, 10)); big_p[:2, :2] = p
+    big_ref = np.zeros((10, 10))
+    big_ref[:2, :2] = ref
+    big_p = np.zeros((10, 10))
+    big_p[:2, :2] = p
     assert e_m(big_p, big_ref) == pytest.approx(e_m(p, ref), rel=1e-15)
 
 

@@ -15,7 +15,7 @@ import pytest
 from twoscale.analytic import hertz
 from twoscale.cli.main import main
 from twoscale.material import Material
-from twoscale.scene import solve_scene
+from twoscale.api import solve_scene
 from twoscale.studies import execute
 from twoscale.studies.cases import case_scene, expand
 from twoscale.studies.execute import run_study
@@ -24,7 +24,7 @@ from twoscale.studies.outputs import write_outputs
 from twoscale.studies.spec import read_study
 from twoscale.studies.store import CaseStore
 
-from test_studies_spec import paraboloid_scene
+from helpers import paraboloid_scene
 
 SCENE = paraboloid_scene([-3.0, 3.0])
 

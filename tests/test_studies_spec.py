@@ -7,19 +7,11 @@ import dataclasses
 import numpy as np
 import pytest
 
+from helpers import paraboloid_scene
 from twoscale.cli.main import main
 from twoscale.studies.cases import case_scene, expand, kept_tips
 from twoscale.studies.keys import case_key
 from twoscale.studies.spec import StudyError, read_study
-
-def paraboloid_scene(xs, zs=None) -> str:
-    """A scene file's text: paraboloids of R = 10 mm at (x, 0), recesses ``zs`` (mm), on a
-    half-space E = 10 MPa, nu = 0.5, h = 0.1 mm (also used by test_studies_run)."""
-    head = "[material]\nE = 10.0\nnu = 0.5\n[load]\npenetration = 0.1\n[grid]\nh = 0.1\n"
-    zs = [0.0] * len(xs) if zs is None else zs
-    return head + "".join(f"[[asperity]]\nx = {x}\ny = 0.0\nz = {z}\nR = 10.0\nshape = \"paraboloid\"\n"
-                          for x, z in zip(xs, zs))
-
 
 SCENE = paraboloid_scene([-10.0, 0.0, 10.0], [0.0, 0.0, 0.02])
 

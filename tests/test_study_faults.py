@@ -22,7 +22,7 @@ import pytest
 from twoscale.cli.main import main
 from twoscale.studies.store import CASE_NAME, SENSOR_NAME
 
-from test_studies_spec import paraboloid_scene
+from helpers import paraboloid_scene
 
 ROOT = Path(__file__).resolve().parents[1]
 #: 24 cases of about 0.1 s each: a fault lands mid-study.

@@ -1,5 +1,5 @@
 """A measured surface on the finite block (fem_influence): the two-scale solve against the
-full-grid reference on the same block, map and grid (issue 16, points 4 and 7).
+full-grid reference on the same block, map and grid.
 
 A 60 x 60 x 10 mm block meshed at 5-10 mm keeps the factorisation to seconds; the map's
 laws are the half-space ones and the block's smooth self-compliance enters the macro step,

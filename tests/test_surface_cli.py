@@ -1,5 +1,5 @@
 """Height-map scenes: the [surface] table, ``twoscale surface``, ``twoscale solve`` and
-``compare`` on them, and the shipped example road (issue 16, points 5-6)."""
+``compare`` on them, and the shipped example road."""
 import json
 import sys
 from pathlib import Path
@@ -10,7 +10,8 @@ from tidy_tables import assert_tidy
 
 from twoscale.cli.main import main
 from twoscale.io.scene_file import read_scene
-from twoscale.scene import SceneError, solve_scene
+from twoscale.api import solve_scene
+from twoscale.scene import SceneError
 from twoscale.surface.texture import road
 
 ROOT = Path(__file__).resolve().parents[1]

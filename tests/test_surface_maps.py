@@ -1,6 +1,6 @@
 """Height maps in: reading (plain formats, instrument formats through SurfaceTopography),
 conditioning (units, missing samples, detrend, crop, resampling, invert, centring) and
-segmentation (summits, prominence, one basin per sample) (issue 16, points 1-2)."""
+segmentation (summits, prominence, one basin per sample)."""
 import numpy as np
 import pytest
 from scipy import ndimage

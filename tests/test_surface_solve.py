@@ -1,4 +1,4 @@
-"""Measured surfaces in the solvers (issue 16, point 7).
+"""Measured surfaces in the solvers.
 
 * the tabulated law of a paraboloid basin against Hertz (closed form);
 * a height map sampled from known spheres gives back their summits, and the same forces

@@ -53,7 +53,7 @@ def test_dense_layout_and_material():
     assert tips.min() < -25 and tips.max() > 25      # spread over the 60 mm square
     assert 3.0 <= R.min() and R.max() <= 6.0 and 0.0 <= z.min() and z.max() <= 0.1
     assert (scene.material.E, scene.material.nu) == (6.0, 0.5)
-    assert scene.total_load == pytest.approx(200 * 2.5)   # the 2-3 N per tip
+    assert scene.total_load == pytest.approx(200 * 2.5)   # a tread's 2-3 N per tip
     assert {a.shape for a in scene.asperities} == {"sphere"}
     assert {a.shape for a in random_scene(5, shape="paraboloid").asperities} == {"paraboloid"}
 

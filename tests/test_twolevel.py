@@ -1,4 +1,4 @@
-"""Two-level micro iteration (issue 6): lagged far field + coarse correction.
+"""Two-level micro iteration (many asperities): lagged far field + coarse correction.
 
 Independent checks: whole solves with ``coarse=True`` against the same solves with every
 cross-patch pair exact (plain block Gauss-Seidel, eq. 8), in the three load modes; the
@@ -140,7 +140,7 @@ def test_block_cg_solves_spd_systems_column_by_column():
 
 
 def test_two_level_runs_unchanged_on_the_finite_block():
-    # issue 6 point 5: the same call on a small bonded block (60 x 60 x 10 mm, coarse mesh):
+    # the same call on a small bonded block (60 x 60 x 10 mm, coarse mesh):
     # forces within 0.5 % of the exact coupling on the same block, and much nearer to it
     # than to the half-space answer (the block's own interaction is what it used)
     fem = pytest.importorskip("fem_influence")
@@ -189,7 +189,7 @@ def test_a_stalled_two_level_iteration_stops_early_and_says_so():
     from pathlib import Path
 
     sys.path.insert(0, str(Path(__file__).parent))
-    from test_twoscale import random_scene
+    from helpers import random_scene
 
     from twoscale.micro.twolevel import STALL_SWEEPS
     from twoscale.twoscale import solve_twoscale

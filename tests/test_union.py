@@ -3,33 +3,23 @@ reference on seeded random scenes: penetration control, load control, load with 
 and the mixed-precision CG against the double-precision one."""
 from __future__ import annotations
 
-import math
 
 import numpy as np
 import pytest
 
+from helpers import crowded
 from twoscale import Material
-from twoscale.indenters import Asperity, surface_on
+from twoscale.indenters import surface_on
 from twoscale.influence import HalfSpace
 from twoscale.reference import solve_cg
 from twoscale.reference.on_scene import reference_grid
-from twoscale.scene import Scene, solve_scene
+from twoscale.api import solve_scene
+from twoscale.scene import Scene
 from twoscale.twoscale import solve_twoscale
 
 MAT = Material(E=6.0, nu=0.5)
 HS = HalfSpace(MAT)
 
-
-def crowded(seed: int, n: int) -> list:
-    """n spheres (R 3-6 mm, tips 0-0.1 mm deep) at random, about 3 mm apart: contacts merge."""
-    rng = np.random.default_rng(seed)
-    side = 3.0 * math.sqrt(n)
-    out: list = []
-    while len(out) < n:
-        x, y = rng.uniform(-side / 2, side / 2, 2)
-        if all(math.hypot(x - a.x, y - a.y) > 1.2 for a in out):
-            out.append(Asperity(float(x), float(y), float(rng.uniform(0.0, 0.1)), float(rng.uniform(3.0, 6.0))))
-    return out
 
 
 @pytest.mark.parametrize("seed,load", [(0, {"penetration": 0.15}), (1, {"total_load": 24.0}),

@@ -22,15 +22,24 @@ from __future__ import annotations
 
 import dataclasses
 import math
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from .control import check_control
+from .errors import ResolutionWarning
 from .indenters import SHAPES, Asperity
 from .material import Material
 from .results import ContactResult
+from .scene import METHODS as SCENE_METHODS
 from .scene import Scene, SceneError, default_h, expected_contact_radii, expected_contacts
+
+if TYPE_CHECKING:
+    from numpy.typing import ArrayLike
+
+    from .influence.base import InfluenceProvider
+    from .surface.measured import MeasuredSurface
 
 #: Names ``method`` accepts (or a callable).
 METHODS = ("twoscale", "reference", "dense", "cg")
@@ -39,7 +48,8 @@ _SCENE_KEYWORDS = ("material", "penetration", "total_load", "tilt", "pivot")
 
 
 # ---------------------------------------------------------------- tips as arrays
-def asperities(x, y, R, z=0.0, *, shape: str = "sphere") -> tuple[Asperity, ...]:
+def asperities(x: ArrayLike, y: ArrayLike, R: ArrayLike, z: ArrayLike = 0.0, *,
+               shape: str = "sphere") -> tuple[Asperity, ...]:
     """Asperities from arrays (broadcast against each other), in array order.
 
     Parameters
@@ -82,7 +92,7 @@ def asperities(x, y, R, z=0.0, *, shape: str = "sphere") -> tuple[Asperity, ...]
     return tuple(out)
 
 
-def as_asperities(tips, *, shape: str = "sphere") -> tuple[Asperity, ...]:
+def as_asperities(tips: Any, *, shape: str = "sphere") -> tuple[Asperity, ...]:
     """Tips in any accepted form as a tuple of Asperity.
 
     ``tips`` is a sequence of :class:`Asperity`; an ``(n, 3)`` array of columns
@@ -116,7 +126,8 @@ def as_asperities(tips, *, shape: str = "sphere") -> tuple[Asperity, ...]:
                      f"arrays, got {type(tips).__name__}")
 
 
-def _scene_of(problem, provider, h, shape, given: dict) -> Scene:
+def _scene_of(problem: Any, provider: InfluenceProvider | None, h: float | None, shape: str,
+              given: dict) -> Scene:
     """The scene to solve: ``problem`` itself, or one built from tips or a height map and keywords."""
     if isinstance(problem, Scene):
         extra = [k for k in _SCENE_KEYWORDS if given[k] is not None and not (k == "tilt" and given[k] is False)]
@@ -137,7 +148,7 @@ def _scene_of(problem, provider, h, shape, given: dict) -> Scene:
                  tilt=bool(given["tilt"]), pivot=given["pivot"] if given["pivot"] is not None else (0.0, 0.0), h=h)
 
 
-def _height_map(problem, h):
+def _height_map(problem: Any, h: float | None) -> MeasuredSurface | None:
     """``problem`` as a MeasuredSurface conditioned at ``h`` when it is a height map (a
     MeasuredSurface, or a RawMap built with the default SurfaceOptions), else None."""
     if isinstance(problem, (Mapping, Sequence, np.ndarray)):
@@ -151,11 +162,12 @@ def _height_map(problem, h):
 
 
 # ---------------------------------------------------------------- the entry point
-def solve(problem, *, method="twoscale", provider=None, material: Material | None = None,
+def solve(problem: Any, *, method: str | Callable[..., ContactResult] = "twoscale",
+          provider: InfluenceProvider | None = None, material: Material | None = None,
           penetration: float | None = None, total_load: float | None = None, tilt: bool = False,
           pivot: tuple[float, float] | None = None, h: float | None = None, shape: str = "sphere",
           provider_options: Mapping | None = None, memory_limit: float | None = None,
-          **options) -> ContactResult:
+          **options: Any) -> ContactResult:
     """Solve a multi-asperity contact.
 
     Parameters
@@ -265,18 +277,26 @@ def solve(problem, *, method="twoscale", provider=None, material: Material | Non
 
         report = surface_details(scene.surface, result)
         warn_edge_contacts(report.edge_contacts)
-        if hasattr(result.details, "surface"):
+        if result.details is not None and hasattr(result.details, "surface"):
             result = dataclasses.replace(result, details=dataclasses.replace(result.details, surface=report))
     result = with_setting(result, scene, provider)
     # what came from the on-disk caches (block corrections, surface laws), for result.json
     return dataclasses.replace(result, caches=usage_since(caches_before, solve_caches(provider, scene)))
 
 
-__all__ = ["METHODS", "solve", "asperities", "as_asperities"]
+def solve_scene(scene: Scene, *, method: str = "twoscale", provider_options: Mapping | None = None,
+                memory_limit: float | None = None, **options: Any) -> ContactResult:
+    """Solve a scene: :func:`solve` with a :class:`Scene`.
+
+    Kept for the scene-file workflow; ``method`` is "twoscale" or "reference" (the
+    methods a scene file's user picks), the other arguments are :func:`solve`'s.
+    """
+    if method not in SCENE_METHODS:
+        raise ValueError(f"method must be one of {SCENE_METHODS}, got {method!r}")
+    return solve(scene, method=method, provider_options=provider_options, memory_limit=memory_limit, **options)
 
 
-class ResolutionWarning(UserWarning):
-    """The cell size resolves some expected contacts with only a few cells."""
+__all__ = ["METHODS", "solve", "solve_scene", "asperities", "as_asperities"]
 
 
 #: Fewest cells across an expected contact before a :class:`ResolutionWarning` (about 10 %
@@ -284,7 +304,8 @@ class ResolutionWarning(UserWarning):
 MIN_CELLS_ACROSS = 4
 
 
-def check_resolution(scene: Scene, h: float, *, forces=None, radii=None) -> None:
+def check_resolution(scene: Scene, h: float, *, forces: np.ndarray | None = None,
+                     radii: np.ndarray | None = None) -> None:
     """Refuse a cell size coarser than every expected contact, and warn when a contact
     that matters (expected force >= 1 % of the largest) gets fewer than
     :data:`MIN_CELLS_ACROSS` cells across; both name the default rule's ``h``.
@@ -322,7 +343,8 @@ def _default_rule_text(scene: Scene) -> str:
             f"{CELL_BUDGET / 1e6:g} M cells; give h = {rule:g} mm to resolve every contact that matters")
 
 
-def check_domain(scene: Scene, provider, h: float = 0.0, *, radii=None) -> None:
+def check_domain(scene: Scene, provider: InfluenceProvider, h: float = 0.0, *,
+                 radii: np.ndarray | None = None) -> None:
     """Raise :class:`SceneError` naming the first asperity (numbered from 1) whose expected
     patch (1.5 contact radii and two cells of size ``h``) reaches outside the region the
     body answers for (``provider.domain()``, in the provider contract). ``radii``: the

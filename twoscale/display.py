@@ -73,7 +73,6 @@ def headline(result) -> list[tuple[str, str]]:
     out.append(("total load", f"{result.total_load:.5g} N"))
     out.append(("approach", f"{result.penetration:.5g} mm"))
     if result.tilt is not None:
-        from .results import tilt_text
 
         out.append(("tilt (alpha, beta)", f"{tilt_text(result)} rad"))
     area = f"{result.contact_area:.4g} mm2"
@@ -141,3 +140,14 @@ def pressure_map_over(result, grid: Grid | None = None) -> tuple[np.ndarray, tup
 
 
 __all__ = ["result_rows", "result_frame", "result_html", "headline", "pressure_map_over"]
+
+
+def tilt_text(result, spec: str = ".4g") -> str:
+    """``"alpha, beta"`` of a tilted result, each shown as 0 when it moves no point of the
+    tips' extent by more than 1e-6 of the approach (a solver's round-off, not a tilt)."""
+    if result.tilt is None:
+        return ""
+    tips = max((abs(f.grid.x0) + f.grid.nx * f.grid.h for f in result.fields), default=1.0)
+    tips = max(tips, max((abs(f.grid.y0) + f.grid.ny * f.grid.h for f in result.fields), default=1.0))
+    floor = 1e-6 * abs(result.penetration) / tips
+    return ", ".join("0" if abs(t) <= floor else format(t, spec) for t in result.tilt)

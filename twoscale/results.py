@@ -17,18 +17,20 @@ What only one method has is in :attr:`ContactResult.details`: :class:`TwoScaleDe
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Mapping, Sequence
+from typing import TYPE_CHECKING, Any, Iterable, Iterator, Mapping, Sequence
 
 import numpy as np
 
 from .grid import Grid
 
 if TYPE_CHECKING:
+    from numpy.typing import ArrayLike, DTypeLike
+
     from .details import ReferenceDetails, TwoScaleDetails
     from .setting import Body
 
 
-def frozen_array(a, dtype=float) -> np.ndarray:
+def frozen_array(a: ArrayLike, dtype: DTypeLike = float) -> np.ndarray:
     """A read-only copy of ``a`` (results never share writable arrays with the caller)."""
     a = np.array(a, dtype=dtype, copy=True)
     a.setflags(write=False)
@@ -97,13 +99,13 @@ class FrozenMapping(Mapping):
 
     __slots__ = ("_data",)
 
-    def __init__(self, data=()) -> None:
+    def __init__(self, data: Mapping | Iterable[tuple] = ()) -> None:
         self._data = dict(data)
 
-    def __getitem__(self, key):
+    def __getitem__(self, key: Any) -> Any:
         return self._data[key]
 
-    def __iter__(self):
+    def __iter__(self) -> Iterator:
         return iter(self._data)
 
     def __len__(self) -> int:
@@ -113,18 +115,7 @@ class FrozenMapping(Mapping):
         return repr(self._data)
 
 
-def tilt_text(result: "ContactResult", spec: str = ".4g") -> str:
-    """``"alpha, beta"`` of a tilted result, each shown as 0 when it moves no point of the
-    tips' extent by more than 1e-6 of the approach (a solver's round-off, not a tilt)."""
-    if result.tilt is None:
-        return ""
-    tips = max((abs(f.grid.x0) + f.grid.nx * f.grid.h for f in result.fields), default=1.0)
-    tips = max(tips, max((abs(f.grid.y0) + f.grid.ny * f.grid.h for f in result.fields), default=1.0))
-    floor = 1e-6 * abs(result.penetration) / tips
-    return ", ".join("0" if abs(t) <= floor else format(t, spec) for t in result.tilt)
-
-
-def _read_only(d) -> Mapping:
+def _read_only(d: Mapping | None) -> Mapping:
     return d if isinstance(d, FrozenMapping) else FrozenMapping(d or {})
 
 
@@ -235,7 +226,7 @@ class ContactResult:
             return f"{self.scene_name} on {body}"
         return self.scene_name or body
 
-    def to_dataframe(self, tips=None):
+    def to_dataframe(self, tips: Any = None) -> Any:
         """The per-tip table as a pandas DataFrame (needs pandas): one row per tip, numbered
         from 1 (``asperity``), with force (N), contact area (mm2), peak and mean pressure
         (MPa) and the macro step's force; with ``tips`` (the Scene solved or its
@@ -277,6 +268,8 @@ class ContactResult:
     def __repr__(self) -> str:
         solver = "" if self.solver == self.method else f" ({self.solver})"
         state = "converged" if self.converged else "NOT converged"
+        from .display import tilt_text
+
         tilt = "" if self.tilt is None else f", tilt ({tilt_text(self, '.3g')}) rad"
         total_s = self.timings_s.get("total")
         time_txt = "" if total_s is None else f", {total_s:.3g} s"

@@ -12,15 +12,19 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from collections.abc import Mapping, Sequence
-from typing import Any
+from collections.abc import Iterator, Mapping, Sequence
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from .analytic import hertz
 from .control import check_control
+from .errors import SceneError
 from .indenters import Asperity
 from .material import Material
+
+if TYPE_CHECKING:
+    from .influence.base import InfluenceProvider
 
 #: Influence kinds a scene may ask for.
 INFLUENCE_KINDS = ("halfspace", "block")
@@ -43,10 +47,6 @@ MIN_FORCE_FRACTION = 0.01
 #: 15 s on one core, so the default solve stays well within a minute, and the smallest
 #: contact that matters keeps fewer cells (a :class:`~twoscale.api.ResolutionWarning` below 4).
 CELL_BUDGET = 1_500_000
-
-
-class SceneError(ValueError):
-    """Invalid scene data; the message names the field path and the bad value."""
 
 
 # ---------------------------------------------------------------- small validators
@@ -98,10 +98,10 @@ class Influence(Mapping):
         return {"kind": self.kind, "size": self.size, "base": self.base, "origin": self.origin,
                 "source_spacing": self.source_spacing}
 
-    def __getitem__(self, key: str):
+    def __getitem__(self, key: str) -> Any:
         return self._as_dict()[key]
 
-    def __iter__(self):
+    def __iter__(self) -> Iterator[str]:
         return iter(self._as_dict())
 
     def __len__(self) -> int:
@@ -180,7 +180,7 @@ class Scene:
     load_cases : sequence of float, default ()
         With ``total_load`` only: the scene's load cases, total loads in N (each finite
         and > 0, no repeats; stored as a tuple). ``twoscale compare`` runs each of them
-        in turn in place of ``total_load``; ``twoscale solve`` and :func:`solve_scene`
+        in turn in place of ``total_load``; ``twoscale solve`` and :func:`twoscale.api.solve_scene`
         use ``total_load`` (conventionally the first case). ``()``: no list, one load.
     surface : MeasuredSurface, optional
         A height map as indenters (:func:`twoscale.surface.build_surface`, what a scene
@@ -294,7 +294,7 @@ class Scene:
         """Tip positions, shape (N, 2), mm."""
         return np.array([[a.x, a.y] for a in self.asperities], dtype=float)
 
-    def provider(self, **options):
+    def provider(self, **options: Any) -> InfluenceProvider:
         """The influence provider the scene asks for (:mod:`twoscale.influence.registry`).
 
         Parameters
@@ -328,8 +328,9 @@ def _hertz_level(scene: Scene) -> float:
     R = np.array([a.R for a in scene.asperities])
     z = np.array([a.z for a in scene.asperities])
     W = scene.total_load
+    assert W is not None  # every caller passes a scene under load control
 
-    def excess(d):
+    def excess(d: float) -> float:
         return float(np.sum(hertz.load(R, d - z, E_star))) - W
 
     lo = float(z.min())
@@ -362,7 +363,7 @@ def expected_contacts(scene: Scene) -> tuple[np.ndarray, np.ndarray]:
     return hertz.load(R, delta, scene.material.E_star), _contact_radii(scene.asperities, delta)
 
 
-def _contact_radii(asperities, delta) -> np.ndarray:
+def _contact_radii(asperities: Sequence[Asperity], delta: np.ndarray) -> np.ndarray:
     R = np.array([a.R for a in asperities], dtype=float)
     sphere = np.array([a.shape == "sphere" for a in asperities], dtype=bool)
     return np.where(sphere, hertz.sphere_contact_radius(R, delta), hertz.contact_radius(R, delta))
@@ -463,17 +464,3 @@ def _round_down(x: float, *, digits: int) -> float:
 #: Methods of the scene-file workflow (``twoscale solve --method``); :func:`twoscale.solve`
 #: also takes the reference solvers by name ("dense", "cg").
 METHODS = ("twoscale", "reference")
-
-
-def solve_scene(scene: Scene, *, method: str = "twoscale", provider_options: Mapping | None = None,
-                memory_limit: float | None = None, **options):
-    """Solve a scene: :func:`twoscale.solve` (:mod:`twoscale.api`) with a :class:`Scene`.
-
-    Kept for the scene-file workflow; ``method`` is "twoscale" or "reference" (the
-    methods a scene file's user picks), the other arguments are :func:`twoscale.solve`'s.
-    """
-    if method not in METHODS:
-        raise ValueError(f"method must be one of {METHODS}, got {method!r}")
-    from .api import solve
-
-    return solve(scene, method=method, provider_options=provider_options, memory_limit=memory_limit, **options)

@@ -6,10 +6,10 @@
 ``"dense"``
     Every tip touches: R uniform in 3-6 mm, tip recesses z uniform in [0, 0.1] mm, about
     200 tips on 60 x 60 mm (side ``L = 60 sqrt(n / 200)`` mm), E = 6 MPa, nu = 0.5,
-    2.5 N per tip (the middle of the 2-3 N of a tyre tread on a road; the first user scene
-    of issue 14 had 1.5 N: ``load_per_tip``).
+    2.5 N per tip (the middle of the 2-3 N of a tyre tread on a road; the first dense user
+    scene had 1.5 N: ``load_per_tip``).
 ``"sparse"``
-    The issue-6 many-asperity layout (``benchmarks/many_asperities.py``): R uniform in
+    The many-asperity layout (``benchmarks/many_asperities.py``): R uniform in
     2-6 mm, side ``3 sqrt(n)`` mm, E = 10 MPa, nu = 0.5, h = 0.04 mm (mean R / 100),
     0.05 N per tip, and the recesses spread so that a fraction ``touching`` (30 %) of
     the tips are reached at the approach where independent Hertz asperities carry the
@@ -48,7 +48,7 @@ MATERIALS = {"dense": (6.0, 0.5), "sparse": (10.0, 0.5)}
 RADII = {"dense": (3.0, 6.0), "sparse": (2.0, 6.0)}
 #: Dense kind: tip recesses uniform in [0, DENSE_SPREAD] mm.
 DENSE_SPREAD = 0.1
-#: Sparse kind: cell size, mm (mean R / 100, as the issue-6 benchmark).
+#: Sparse kind: cell size, mm (mean R / 100, as the many-asperity benchmark).
 SPARSE_H = 0.04
 
 

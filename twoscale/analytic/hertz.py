@@ -11,12 +11,12 @@ from __future__ import annotations
 import numpy as np
 
 
-def contact_radius(R: float, d, E_star: float | None = None):
+def contact_radius(R: float | np.ndarray, d, E_star: float | None = None):
     """Hertz contact radius ``a = sqrt(R d)`` (mm) for penetration ``d >= 0`` (mm)."""
     return np.sqrt(R * np.maximum(d, 0.0))
 
 
-def load(R: float, d, E_star: float):
+def load(R: float | np.ndarray, d, E_star: float):
     """Hertz load ``P = 4/3 E* sqrt(R) d^(3/2)`` (N) at penetration ``d`` (mm); 0 for d <= 0."""
     dp = np.maximum(np.asarray(d, dtype=float), 0.0)
     return 4.0 / 3.0 * E_star * np.sqrt(R) * dp**1.5
@@ -82,7 +82,7 @@ def sphere_load_from_radius(R: float, a, E_star: float):
     return E_star * (a * a * np.arctanh(np.minimum(e, 1.0 - 1e-16)) + R * R * _atanh_minus_identity(e))
 
 
-def sphere_contact_radius(R: float, d):
+def sphere_contact_radius(R: float | np.ndarray, d):
     """Contact radius (mm) of the exact sphere at penetration ``d`` (mm), by Newton on
     ``d(a)``; starts from Hertz's ``sqrt(R d)``, which it approaches for d << R."""
     d = np.maximum(np.asarray(d, dtype=float), 0.0)

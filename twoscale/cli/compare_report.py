@@ -13,7 +13,7 @@ import math
 from .._version import __version__
 from ..comparison import Measured, Run, largest_changes, load_title, sensor_text
 from ..io.scene_file import scene_to_dict
-from ..results import tilt_text
+from ..display import tilt_text
 from ..scene import Scene
 from ..sensor import Sensor
 from .options import DEFAULT_SENSOR

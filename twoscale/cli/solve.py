@@ -30,7 +30,8 @@ from ..io.solve_outputs import write_fields_and_figures
 from ..micro.policy import ITERATIONS
 from ..progress import StatusLine
 from ..resources import check_solve_memory
-from ..scene import METHODS, SceneError, default_h, solve_scene
+from ..api import solve_scene
+from ..scene import METHODS, SceneError, default_h
 from .options import positive_option, with_h_option
 from .staging import check_output_folder, staged_directory
 

@@ -38,14 +38,11 @@ from pathlib import Path
 from typing import Iterator
 
 from .._version import __version__
+from ..errors import OutputFolderError
 from ..io.atomic import current_umask
 
 #: The list of files a run wrote, kept in its output folder.
 MANIFEST_NAME = ".twoscale-manifest.json"
-
-
-class OutputFolderError(ValueError):
-    """An output folder that cannot be used (one line naming the folder and why)."""
 
 
 class Terminated(KeyboardInterrupt):

@@ -1,4 +1,4 @@
-"""A bounded, owned cache of precomputed arrays (issue 14).
+"""A bounded, owned cache of precomputed arrays.
 
 Providers keep read-only quantities that recur across a solve (the half-space's Love offset
 tables, Chebyshev interpolation matrices, separated operators waiting for their transposed

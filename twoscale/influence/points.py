@@ -1,4 +1,4 @@
-"""Sums of point-force displacements: ``u_i = sum_j G(t_i, s_j) F_j`` (issue 6).
+"""Sums of point-force displacements: ``u_i = sum_j G(t_i, s_j) F_j`` (many asperities).
 
 The macro step (``T P``) and the far field of the micro step (patch resultants acting on
 other patches) both need the displacement at many points due to many point forces. Formed

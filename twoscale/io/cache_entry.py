@@ -30,6 +30,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..errors import BadEntry, CacheWarning
 from .atomic import atomic_output
 
 __all__ = ["BadEntry", "CacheUsage", "CacheWarning", "EntryFolder", "read_entry", "write_entry"]
@@ -38,14 +39,6 @@ __all__ = ["BadEntry", "CacheUsage", "CacheWarning", "EntryFolder", "read_entry"
 CHECKSUM = "_sha256"
 #: Bad entries named one line each per folder object; the others are counted in its usage.
 MAX_WARNED = 5
-
-
-class BadEntry(ValueError):
-    """A cache entry that cannot be trusted (the message says why)."""
-
-
-class CacheWarning(UserWarning):
-    """A cache entry was damaged and dropped, or a cache folder cannot be written."""
 
 
 def _checksum(arrays: dict) -> str:

@@ -27,6 +27,7 @@ from typing import Any, Mapping
 from ..indenters import SHAPES, Asperity
 from ..material import Material
 from ..scene import Scene, SceneError, check_number
+from .table_checks import check_keys, field_path, table_of
 
 try:  # Python >= 3.11
     import tomllib
@@ -148,36 +149,6 @@ def scene_to_dict(scene: Scene) -> dict:
 
 
 # ---------------------------------------------------------------- helpers
-def field_path(path: str, key: str) -> str:
-    """``load.total``; ``asperity 4: R`` for a numbered table (numbered from 1)."""
-    if not path:
-        return key
-    return f"{path}: {key}" if path[-1:].isdigit() else f"{path}.{key}"
-
-
-def _shown(key: str) -> str:
-    """A key as written in the message: plain when it is a bare TOML key, else quoted (a key
-    holding a line break or spaces stays on the one line and visible)."""
-    bare = key and all(c.isascii() and (c.isalnum() or c in "_-") for c in key)
-    return key if bare else repr(key)
-
-
-def check_keys(path: str, table: Mapping, allowed, *, required=()) -> None:
-    for key in table:
-        if key not in allowed:
-            raise SceneError(f"unknown key {field_path(path, _shown(key))} = {table[key]!r} "
-                             f"(allowed: {', '.join(allowed)})")
-    for key in required:
-        if key not in table:
-            raise SceneError(f"{field_path(path, key)} is missing (required)")
-
-
-def table_of(path: str, v: Any) -> Mapping:
-    if not isinstance(v, Mapping):
-        raise SceneError(f"{path} must be a table, got {v!r}")
-    return v
-
-
 def _tables(path: str, v: Any) -> list:
     if not isinstance(v, list):
         raise SceneError(f"{path} must be an array of tables ([[{path}]]), got {v!r}")

@@ -1,4 +1,4 @@
-"""The interaction ``T`` of the macro step without an ``N x N`` matrix (issue 6).
+"""The interaction ``T`` of the macro step without an ``N x N`` matrix (for many asperities).
 
 With 10^4 asperities the dense ``T`` is 800 MB and each Newton step factorises the
 active block (``O(N_A^3)``). :class:`MatrixFreeInteraction` keeps only the provider's

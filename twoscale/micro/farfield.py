@@ -1,4 +1,4 @@
-"""Cross-patch coupling with the far field approximated (issue 6: many asperities).
+"""Cross-patch coupling with the far field approximated (many asperities).
 
 The exact coupling (:class:`~.blocks.Coupling`) applies every ``A_kl``: ``N^2`` products per
 sweep. Here a pair is *near* when the distance between the patch centres is below

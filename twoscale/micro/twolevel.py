@@ -1,4 +1,4 @@
-"""Two-level block Gauss-Seidel for many asperities (issue 6).
+"""Two-level block Gauss-Seidel for many asperities.
 
 Each iteration is
 

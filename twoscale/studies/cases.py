@@ -21,6 +21,7 @@ from typing import Any
 
 import numpy as np
 
+from .keys import h_source, lightest_load  # noqa: F401  (the rule lives with the case's key)
 from .spec import Body, Study, StudyScene
 
 
@@ -113,21 +114,6 @@ def case_scene(case: Case, study: Study) -> Any:
 
 #: What chose a case's cell size (the cases table's ``h_source``).
 H_SOURCES = ("solver.h", "scene", "lightest load")
-
-
-def h_source(case: Case, study: Study) -> str:
-    """Which rule gives the case's cell size (:data:`H_SOURCES`, module doc)."""
-    if study.solver.get("h") is not None:
-        return "solver.h"
-    return "scene" if case.scene.scene.h is not None else "lightest load"
-
-
-def lightest_load(case: Case, study: Study) -> tuple | None:
-    """The study's lightest load of the case's kind on its scene, whose default cell size the
-    case uses; None when the study or the scene gives h."""
-    if h_source(case, study) != "lightest load":
-        return None
-    return min((ld for ld in study.loads_of(case.scene.scene) if ld[0] == case.load[0]), key=lambda ld: ld[1])
 
 
 def _default_h_at(case: Case, study: Study) -> float | None:

@@ -21,8 +21,9 @@ from typing import Callable, Iterator
 import numpy as np
 from distributed import Client, LocalCluster, WorkerPlugin, as_completed, get_worker
 
+from ..errors import SchedulerError
 from .providers import MAX_PROVIDERS, ProviderCache
-from .solve import CaseRecord
+from .solve import CaseRecord, solve_ref
 
 #: Name of the worker plugin that holds each worker's providers.
 PLUGIN = "twoscale-study-providers"
@@ -86,14 +87,8 @@ class ProvidersPlugin(WorkerPlugin):
 def cases_task(study, batch: list) -> list:
     """Solve a batch of cases, ``[(ref, key), ...]``, on a worker (its providers from the
     worker's plugin); returns their records in order."""
-    from .execute import solve_ref
-
     providers = get_worker().plugins[PLUGIN].cache
     return [solve_ref(study, ref, key, providers) for ref, key in batch]
-
-
-class SchedulerError(OSError):
-    """The scheduler given by its address cannot be reached (the message names it)."""
 
 
 @contextlib.contextmanager

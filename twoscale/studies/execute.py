@@ -16,11 +16,11 @@ import time
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from .cases import Case, case_at, case_scene, expand, kept_tips
+from .cases import Case, case_scene, expand
 from .keys import case_inputs, case_key
 from ..progress import Progress
 from .providers import ProviderCache, warm_blocks
-from .solve import CaseRecord, run_case
+from .solve import CaseRecord, solve_ref
 from .spec import Study
 from .store import CaseStore
 
@@ -57,13 +57,6 @@ class StudyRun:
     seconds: float
     warm_seconds: dict = field(default_factory=dict)
     startup_seconds: float = 0.0
-
-
-def solve_ref(study: Study, ref: tuple, key: str, providers: ProviderCache) -> CaseRecord:
-    """Solve the case of ``study`` at ``ref`` (see ``Case.ref``) and record it."""
-    case = case_at(study, *ref)
-    return run_case(key, case.label, lambda: case_scene(case, study), kept_tips(case),
-                    method=study.method, options=study.solver, providers=providers, sensor=study.sensor)
 
 
 def pending(study: Study, store: CaseStore) -> tuple[list[Case], list[str], list[Case]]:

@@ -55,8 +55,6 @@ def case_inputs(case: "Case", study: "Study") -> dict:
         "sensor": {"nx": study.sensor.nx, "ny": study.sensor.ny, "cell": float(study.sensor.cell),
                    "centre": list(study.sensor.centre)},
     }
-    from .cases import lightest_load
-
     light = lightest_load(case, study)
     if light is not None:  # the default cell size is the lightest load's (studies.cases)
         out["h_at_load"] = {light[0]: float(light[1])}
@@ -66,3 +64,18 @@ def case_inputs(case: "Case", study: "Study") -> dict:
 def case_key(case: "Case", study: "Study") -> str:
     """The case's key: the :func:`digest` of its inputs."""
     return digest(case_inputs(case, study))
+
+
+def h_source(case: "Case", study: "Study") -> str:
+    """Which rule gives the case's cell size (:data:`H_SOURCES`, module doc)."""
+    if study.solver.get("h") is not None:
+        return "solver.h"
+    return "scene" if case.scene.scene.h is not None else "lightest load"
+
+
+def lightest_load(case: "Case", study: "Study") -> tuple | None:
+    """The study's lightest load of the case's kind on its scene, whose default cell size the
+    case uses; None when the study or the scene gives h."""
+    if h_source(case, study) != "lightest load":
+        return None
+    return min((ld for ld in study.loads_of(case.scene.scene) if ld[0] == case.load[0]), key=lambda ld: ld[1])

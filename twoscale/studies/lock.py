@@ -23,12 +23,10 @@ import warnings
 from pathlib import Path
 from typing import Iterator
 
+from ..errors import StudyBusy
+
 #: The lock file of a study folder.
 LOCK_NAME = ".twoscale-study.lock"
-
-
-class StudyBusy(ValueError):
-    """Another live run holds the study folder (the message names its pid and host)."""
 
 
 def _holder(fd: int) -> str:

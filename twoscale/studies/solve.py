@@ -15,7 +15,9 @@ from typing import Any
 import numpy as np
 
 from ..sensor import Sensor
+from .cases import case_at, case_scene, kept_tips
 from .providers import ProviderCache
+from .spec import Study
 
 @dataclass(frozen=True)
 class Outcome:
@@ -117,3 +119,10 @@ def run_case(key: str, label: str, make_scene, tips: np.ndarray, *, method: str,
     status = "converged" if outcome.converged else "not-converged"
     return CaseRecord(key, label, status, outcome.message, np.asarray(tips, dtype=int), outcome,
                       time.perf_counter() - t0, time.thread_time() - c0)
+
+
+def solve_ref(study: Study, ref: tuple, key: str, providers: ProviderCache) -> CaseRecord:
+    """Solve the case of ``study`` at ``ref`` (see ``Case.ref``) and record it."""
+    case = case_at(study, *ref)
+    return run_case(key, case.label, lambda: case_scene(case, study), kept_tips(case),
+                    method=study.method, options=study.solver, providers=providers, sensor=study.sensor)

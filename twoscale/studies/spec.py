@@ -37,6 +37,7 @@ from typing import Any, Mapping
 
 import numpy as np
 
+from ..errors import StudyError
 from ..io.scene_file import check_keys, field_path, read_scene, read_toml, table_of
 from ..micro.policy import ITERATIONS
 from ..scene import BLOCK_BASES, BLOCK_DEFAULT_SIZE, METHODS, SceneError, check_number, check_pair
@@ -53,10 +54,6 @@ BLOCK_EDGE = 10.0
 SOLVER_KEYS = ("h", "tol", "max_sweeps", "iteration", "far_tol")
 
 TOP_KEYS = ("study", "scene", "body", "load", "positions", "solver", "sensor")
-
-
-class StudyError(SceneError):
-    """Invalid study data; the message names the key and the bad value."""
 
 
 @dataclass(frozen=True)

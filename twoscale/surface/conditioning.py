@@ -13,6 +13,7 @@ import math
 import numpy as np
 from scipy import ndimage
 
+from ..errors import SurfaceWarning  # noqa: F401  (documented here; raised by surface.edges)
 from .heightmap import HeightMap, SurfaceError
 from .reading import MIN_SIDE, RawMap
 
@@ -102,10 +103,6 @@ def condition(raw: RawMap, *, spacing: float | None = None, units: str | None = 
     return HeightMap(z, step, x0=-(nx // 2) * step, y0=-(ny // 2) * step, source=src,
                      filled=int(missing.sum()), units=unit, units_from=units_from,
                      measured_spacing=measured)
-
-
-class SurfaceWarning(UserWarning):
-    """A height-map solve whose answer needs care (contacts reaching the map's edge)."""
 
 
 def _check_relief(src: str, z: np.ndarray, step: float) -> None:

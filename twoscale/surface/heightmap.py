@@ -13,14 +13,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ..errors import SurfaceError
 from ..grid import Grid
-from ..scene import SceneError
-
-
-class SurfaceError(SceneError):
-    """A height map or a surface option that cannot be used; the message names the file
-    or the option and what is wrong (a :class:`~twoscale.scene.SceneError`, so the
-    command line reports it as bad input: exit 2)."""
 
 
 @dataclass(frozen=True, eq=False)

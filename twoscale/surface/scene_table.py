@@ -31,8 +31,8 @@ import dataclasses
 import os
 from typing import Any, Mapping
 
+from ..io.table_checks import check_keys
 from ..scene import SceneError, check_number
-from ..io.scene_file import check_keys
 from .lawcache import LawCache
 from .measured import MeasuredSurface, SurfaceOptions, load_surface
 

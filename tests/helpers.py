@@ -1,0 +1,73 @@
+"""Helpers shared by several test modules (scene builders, a PNG reader).
+
+Plain functions, not fixtures: some build module-level constants. Test modules import
+them from here, never from one another.
+"""
+from __future__ import annotations
+
+import math
+import struct
+import zlib
+
+import numpy as np
+
+from twoscale.indenters import Asperity
+
+
+def png_info(path):
+    """Width, height and tEXt chunks of a PNG, read straight from its bytes."""
+    data = path.read_bytes()
+    assert data[:8] == b"\x89PNG\r\n\x1a\n"
+    pos, text, size = 8, {}, None
+    while pos < len(data):
+        n, kind = struct.unpack(">I4s", data[pos:pos + 8])
+        body = data[pos + 8:pos + 8 + n]
+        if kind == b"IHDR":
+            size = struct.unpack(">II", body[:8])
+        elif kind == b"tEXt":
+            k, v = body.split(b"\0", 1)
+            text[k.decode()] = v.decode("latin-1")
+        elif kind == b"zTXt":
+            k, rest = body.split(b"\0", 1)
+            text[k.decode()] = zlib.decompress(rest[1:]).decode("latin-1")
+        pos += 12 + n
+    return size, text
+
+
+def crowded(seed: int, n: int) -> list:
+    """n spheres (R 3-6 mm, tips 0-0.1 mm deep) at random, about 3 mm apart: contacts merge."""
+    rng = np.random.default_rng(seed)
+    side = 3.0 * math.sqrt(n)
+    out: list = []
+    while len(out) < n:
+        x, y = rng.uniform(-side / 2, side / 2, 2)
+        if all(math.hypot(x - a.x, y - a.y) > 1.2 for a in out):
+            out.append(Asperity(float(x), float(y), float(rng.uniform(0.0, 0.1)), float(rng.uniform(3.0, 6.0))))
+    return out
+
+
+def paraboloid_scene(xs, zs=None) -> str:
+    """A scene file's text: paraboloids of R = 10 mm at (x, 0), recesses ``zs`` (mm), on a
+    half-space E = 10 MPa, nu = 0.5, h = 0.1 mm."""
+    head = "[material]\nE = 10.0\nnu = 0.5\n[load]\npenetration = 0.1\n[grid]\nh = 0.1\n"
+    zs = [0.0] * len(xs) if zs is None else zs
+    return head + "".join(f"[[asperity]]\nx = {x}\ny = 0.0\nz = {z}\nR = 10.0\nshape = \"paraboloid\"\n"
+                          for x, z in zip(xs, zs))
+
+
+def random_scene(seed: int, n: int):
+    """n spheres of radius 4-6 mm in a square, a third of them in tight pairs (their
+    reaches overlap), tip recesses 0-0.35 mm (the deepest never touch)."""
+    rng = np.random.default_rng(seed)
+    side = 6.0 * math.sqrt(n)
+    asps = []
+    while len(asps) < n:
+        x, y = rng.uniform(-side / 2, side / 2, 2)
+        R_ = float(rng.choice([4.0, 5.0, 6.0]))
+        asps.append(Asperity(float(x), float(y), float(rng.uniform(0.0, 0.35)), R_))
+        if len(asps) < n and rng.uniform() < 0.35:
+            ang = rng.uniform(0, 2 * np.pi)
+            dist = rng.uniform(1.0, 2.0)
+            asps.append(Asperity(float(x + dist * np.cos(ang)), float(y + dist * np.sin(ang)),
+                                 float(rng.uniform(0.0, 0.05)), float(rng.choice([4.0, 5.0, 6.0]))))
+    return asps
