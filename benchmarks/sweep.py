@@ -77,6 +77,8 @@ def _figures(res) -> dict:
 def run_one(method: str, spec_dict: dict, h: float | None) -> dict:
     """One solve in this process: ``method`` "twoscale" (default options) or "reference"."""
     import twoscale
+    import twoscale.micro.driver  # noqa: F401  (the solvers' own imports outside the timed call,
+    import twoscale.reference.on_scene  # noqa: F401  as for every code compared)
     from twoscale.resources import estimate_memory
     from twoscale.scene import SceneError, default_h
     with tempfile.TemporaryDirectory() as folder:
