@@ -185,7 +185,10 @@ def solve(problem, *, method="twoscale", provider=None, material: Material | Non
 
     Returns
     -------
-    ContactResult
+    ContactResult or HistoryResult
+        A scene with a load history (``scene.history``; needed for Prony branches) gives a
+        :class:`~twoscale.viscoelastic.result.HistoryResult` (histories as arrays and each
+        output time's ContactResult; :func:`twoscale.viscoelastic.solve.solve_history`).
         ``result.forces[k]`` (N) is the force of the k-th tip (0-based, input order);
         ``result.details`` holds what only the method has (typed, :mod:`twoscale.details`);
         ``print(result)`` gives a one-line summary.
@@ -202,6 +205,13 @@ def solve(problem, *, method="twoscale", provider=None, material: Material | Non
     if provider is not None and provider_options:
         raise ValueError(f"provider_options apply to a provider built here, not to the one passed "
                          f"(got {sorted(provider_options)!r})")
+    if scene.history is not None:  # a load history in time (viscoelastic or elastic): a HistoryResult
+        from .viscoelastic.solve import solve_history
+
+        if callable(method):
+            raise ValueError("a scene with a load history runs with method 'twoscale' or 'reference', not a callable")
+        return solve_history(scene, method=method, provider=provider, h=h,
+                             provider_options=provider_options, **options)
     h = default_h(scene)
     if not callable(method) and (memory_limit is None or memory_limit < math.inf):
         from .resources import check_memory, estimate_memory
