@@ -74,13 +74,13 @@ class Memory:
         return int(self.cells.nbytes + self.p.nbytes + self.m.nbytes)
 
     def history_field(self, dt: float) -> np.ndarray:
-        """``H`` of the next step of length ``dt`` as a flat field (1/MPa * MPa = mm/mm...,
-        the units of ``w``: MPa * (1/MPa))."""
+        """``H`` of the next step of length ``dt`` as a flat field (dimensionless, as ``w``)."""
         H = np.zeros(self.size)
-        if self.cells.size and self.kept.size:
+        if self.cells.size:
             a, g = step_factors(self.J, dt)
-            a, cg = a[self.kept], (self.J.c * g)[self.kept]
-            H[self.cells] = cg.sum() * self.p - a @ self.m
+            # every branch's instantaneous part acts on the last pressure (it is in J_eff),
+            # dropped branches only lose their decayed memory
+            H[self.cells] = float(np.sum(self.J.c * g)) * self.p - a[self.kept] @ self.m
         return H
 
     def advance(self, dt: float, p_new: np.ndarray) -> None:

@@ -176,8 +176,8 @@ class _Run:
 
     def _automatic(self, t: float, marks: np.ndarray) -> None:
         hist, kinks = self.hist, set(self.hist.times.tolist())
-        ctl = Controller(self.steps, marks, float(self.J.lambdas.min()) if self.J.lambdas.size else math.inf,
-                         hist.end)
+        taus = [t for _, t in self.scene.material.prony]  # relaxation is faster than retardation
+        ctl = Controller(self.steps, marks, min(taus, default=math.inf), hist.end)
         ctl.restart(t)
         since_kink = 0
         while t < hist.end and len(self.records) < self.steps.max_steps:

@@ -2,7 +2,7 @@
 
 Automatic steps (the default): every time of the history and every output time is a step
 end; after a step in the load (a first point other than 0) and after every kink the first
-step is short (``FIRST_FRACTION`` of the shortest retardation time, at most a tenth of the
+step is short (``FIRST_FRACTION`` of the shortest relaxation time, at most a tenth of the
 segment), and the steps then grow geometrically, by at most ``growth`` a step, as long as
 the error estimate allows. The estimate: the time-stepping is exact when the pressure is
 linear in time over a step, so its local error is that of the linear interpolation of the
@@ -23,7 +23,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-#: First step after a step or kink, as a fraction of the shortest retardation time.
+#: First step after a step or kink, as a fraction of the shortest relaxation time.
 FIRST_FRACTION = 0.05
 
 
