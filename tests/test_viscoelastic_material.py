@@ -6,7 +6,12 @@ import pytest
 
 from twoscale.io.scene_file import SceneError, scene_from_dict, scene_to_dict
 from twoscale.material import Material
-from twoscale.viscoelastic.prony import CreepCompliance, creep_compliance, relaxation_modulus, volterra_residual
+from twoscale.viscoelastic.prony import (
+    CreepCompliance,
+    creep_compliance,
+    relaxation_modulus,
+    volterra_residual,
+)
 
 TEN = tuple((float(E), float(t)) for E, t in zip(np.geomspace(100.0, 1.0, 10), np.geomspace(1e-6, 1e3, 10)))
 

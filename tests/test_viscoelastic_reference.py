@@ -11,7 +11,13 @@ from twoscale.indenters import Asperity
 from twoscale.material import Material
 from twoscale.scene import Scene
 from twoscale.viscoelastic import LoadHistory, TimeSteps, solve_history
-from twoscale.viscoelastic.closed_forms import creep_approach, creep_radius, hereditary, relaxation_load, ting_radius
+from twoscale.viscoelastic.closed_forms import (
+    creep_approach,
+    creep_radius,
+    hereditary,
+    relaxation_load,
+    ting_radius,
+)
 from twoscale.viscoelastic.prony import creep_compliance
 
 R = 10.0

@@ -10,7 +10,13 @@ import pytest
 import twoscale
 from twoscale.material import Material
 from twoscale.synthetic import random_scene
-from twoscale.viscoelastic import LoadHistory, TimeSteps, creep_compliance, relaxation_modulus, solve_history
+from twoscale.viscoelastic import (
+    LoadHistory,
+    TimeSteps,
+    creep_compliance,
+    relaxation_modulus,
+    solve_history,
+)
 
 PRONY = ((10.0, 0.01), (20.0, 1.0))
 

@@ -22,5 +22,11 @@ def solve_history(scene, **options):
     return run(scene, **options)
 
 
-__all__ = ["LoadHistory", "TimeSteps", "CreepCompliance", "creep_compliance", "relaxation_modulus",
-           "solve_history"]
+__all__ = [
+    "CreepCompliance",
+    "LoadHistory",
+    "TimeSteps",
+    "creep_compliance",
+    "relaxation_modulus",
+    "solve_history",
+]

@@ -10,7 +10,8 @@ naming the field (``load.total[2]``, ``time.output[0]``) and the value.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
+from itertools import pairwise
 
 import numpy as np
 
@@ -47,7 +48,7 @@ class LoadHistory:
     kind: str
     points: tuple
     output: tuple | None = None
-    steps: TimeSteps = TimeSteps()
+    steps: TimeSteps = field(default_factory=TimeSteps)
 
     def __post_init__(self) -> None:
         if self.kind not in KINDS:
@@ -74,7 +75,7 @@ class LoadHistory:
         if self.kind == "total" and not any(v > 0 for _, v in out):
             raise ValueError(f"{path} never exceeds 0 N, got {list(map(list, out))!r}")
         if not isinstance(self.steps, TimeSteps):
-            raise ValueError(f"history steps must be a TimeSteps, got {self.steps!r}")
+            raise ValueError(f"history steps must be a TimeSteps, got {self.steps!r}")  # noqa: TRY004
         if self.output is not None:
             object.__setattr__(self, "output", self._checked_output())
 
@@ -89,7 +90,7 @@ class LoadHistory:
             if not start <= t <= end:
                 raise ValueError(f"time.output[{i}] = {o[i]!r} s is outside the history [{start!r}, {end!r}] s")
             out.append(t)
-        if any(b <= a for a, b in zip(out, out[1:])):
+        if any(b <= a for a, b in pairwise(out)):
             raise ValueError(f"time.output must increase, got {list(o)!r}")
         return tuple(out)
 
@@ -130,4 +131,4 @@ class LoadHistory:
         return self.times
 
 
-__all__ = ["LoadHistory", "KINDS"]
+__all__ = ["KINDS", "LoadHistory"]

@@ -119,4 +119,4 @@ class Memory:
         return out
 
 
-__all__ = ["Memory", "step_factors", "effective_compliance", "DROP"]
+__all__ = ["DROP", "Memory", "effective_compliance", "step_factors"]

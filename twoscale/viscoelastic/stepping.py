@@ -83,7 +83,7 @@ class TimeSteps:
 
 def fixed_times(steps: TimeSteps, end: float, marks) -> np.ndarray:
     """The step ends of a fixed-step run over ``[0, end]``: equal steps plus ``marks``."""
-    n = steps.count if steps.count is not None else max(int(math.ceil(end / steps.size - 1e-9)), 1)
+    n = steps.count if steps.count is not None else max(math.ceil(end / steps.size - 1e-9), 1)
     grid = np.linspace(0.0, end, n + 1) if end > 0 else np.zeros(1)
     return _merge(np.concatenate([grid, np.asarray(marks, dtype=float)]), end)
 
@@ -152,4 +152,4 @@ class Controller:
         return True
 
 
-__all__ = ["TimeSteps", "Controller", "local_error", "fixed_times", "first_step", "FIRST_FRACTION"]
+__all__ = ["FIRST_FRACTION", "Controller", "TimeSteps", "first_step", "fixed_times", "local_error"]

@@ -19,7 +19,7 @@ import numpy as np
 
 from ..grid import Grid
 from ..indenters import Asperity, Surface
-from ..results import ContactResult, PressureField, summarise
+from ..results import ContactResult, summarise
 
 
 def scaled(result: ContactResult, factor: float) -> ContactResult:
@@ -150,4 +150,4 @@ def pressure_on(result: ContactResult, grid: Grid) -> np.ndarray:
     return result.pressure_on(grid).ravel()
 
 
-__all__ = ["StepProblem", "ReferenceStep", "TwoScaleStep", "HistoryAsperity", "scaled", "pressure_on"]
+__all__ = ["HistoryAsperity", "ReferenceStep", "StepProblem", "TwoScaleStep", "pressure_on", "scaled"]
