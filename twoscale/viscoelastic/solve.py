@@ -28,7 +28,7 @@ from .steps import ReferenceStep, StepProblem, TwoScaleStep
 #: The default cell size resolves the glassy contact, but is at most this factor finer
 #: than the relaxed one's (a glassy modulus 1,000 times the relaxed one would otherwise ask
 #: for 100 times the cells).
-MAX_REFINE = 3.0
+MAX_REFINE = 1.5
 
 
 def elastic_scene(scene: Scene) -> Scene:

@@ -45,6 +45,9 @@ class TimeSteps:
         Fixed steps: this step, s (the same additions).
     max_steps : int, default 5000
         Most steps (a run that would need more stops with a message).
+    at : tuple of float, optional
+        Fixed steps: these step ends, s (e.g. another run's, to compare two solvers with
+        the same steps, or each of its steps halved: :meth:`halved`).
     """
 
     tol: float = 2e-3
@@ -52,6 +55,7 @@ class TimeSteps:
     count: int | None = None
     size: float | None = None
     max_steps: int = 5000
+    at: tuple | None = None
 
     def __post_init__(self) -> None:
         if not (isinstance(self.tol, (int, float)) and math.isfinite(self.tol) and 0 < self.tol < 1):
@@ -64,25 +68,42 @@ class TimeSteps:
         if self.size is not None and not (isinstance(self.size, (int, float)) and not isinstance(self.size, bool)
                                           and math.isfinite(self.size) and self.size > 0):
             raise ValueError(f"time.dt must be a number > 0 (s), got {self.size!r}")
-        if self.count is not None and self.size is not None:
-            raise ValueError(f"give time.steps or time.dt, not both (got {self.count!r} and {self.size!r})")
+        if sum(v is not None for v in (self.count, self.size, self.at)) > 1:
+            raise ValueError(f"give one of time.steps, time.dt and explicit step ends, got "
+                             f"{self.count!r}, {self.size!r}, {self.at!r}")
+        if self.at is not None:
+            at = tuple(float(t) for t in self.at)
+            if not at or any(not math.isfinite(t) or t < 0 for t in at):
+                raise ValueError(f"step ends must be finite times >= 0 (s), got {self.at!r}")
+            object.__setattr__(self, "at", tuple(sorted(set(at))))
         if isinstance(self.max_steps, bool) or not isinstance(self.max_steps, int) or self.max_steps < 1:
             raise ValueError(f"time.max_steps must be an integer >= 1, got {self.max_steps!r}")
 
     @property
     def fixed(self) -> bool:
-        return self.count is not None or self.size is not None
+        return self.count is not None or self.size is not None or self.at is not None
+
+    @classmethod
+    def halved(cls, ends) -> "TimeSteps":
+        """Fixed steps at ``ends`` (s) with every step cut in two."""
+        t = np.unique(np.asarray(ends, dtype=float))
+        return cls(at=tuple(np.concatenate([t, 0.5 * (t[1:] + t[:-1])]).tolist()))
 
     def describe(self) -> str:
         if self.count is not None:
             return f"fixed: {self.count} equal steps"
         if self.size is not None:
             return f"fixed: dt = {self.size:g} s"
+        if self.at is not None:
+            return f"fixed: {len(self.at)} given step ends"
         return f"automatic: tol {self.tol:g}, growth {self.growth:g}"
 
 
 def fixed_times(steps: TimeSteps, end: float, marks) -> np.ndarray:
-    """The step ends of a fixed-step run over ``[0, end]``: equal steps plus ``marks``."""
+    """The step ends of a fixed-step run over ``[0, end]``: equal steps (or the given
+    ends) plus ``marks``."""
+    if steps.at is not None:
+        return _merge(np.concatenate([np.asarray(steps.at), np.asarray(marks, dtype=float)]), end)
     n = steps.count if steps.count is not None else max(math.ceil(end / steps.size - 1e-9), 1)
     grid = np.linspace(0.0, end, n + 1) if end > 0 else np.zeros(1)
     return _merge(np.concatenate([grid, np.asarray(marks, dtype=float)]), end)
