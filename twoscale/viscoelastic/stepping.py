@@ -3,7 +3,7 @@
 Automatic steps (the default): every time of the history and every output time is a step
 end; after a step in the load (a first point other than 0) and after every kink the first
 step is short (``FIRST_FRACTION`` of the shortest relaxation time, at most a tenth of the
-segment), and the steps then grow geometrically, by at most ``growth`` a step, as long as
+segment), and the steps then grow geometrically, by at most ``growth`` (4) a step, as long as
 the error estimate allows. The estimate: the time-stepping is exact when the pressure is
 linear in time over a step, so its local error is that of the linear interpolation of the
 response over the step, ``dt^2 |x''| / 8`` for each reported quantity ``x`` (the rigid
@@ -33,10 +33,12 @@ class TimeSteps:
 
     Parameters
     ----------
-    tol : float, default 2e-3
+    tol : float, default 1e-2
         Automatic steps: the largest local error estimate accepted, relative to the
-        largest value of the quantity (module docstring).
-    growth : float, default 2.0
+        largest value of the quantity (module docstring). Measured on 50 dense tips under
+        a 10-branch creep over six decades: forces within 0.03 % of a run with halved
+        steps (37 steps; 2e-3 and growth 2: 0.01 %, 62 steps).
+    growth : float, default 4.0
         Automatic steps: largest ratio of two successive steps.
     count : int, optional
         Fixed steps: this many equal steps over the history (plus the history's and
@@ -50,8 +52,8 @@ class TimeSteps:
         the same steps, or each of its steps halved: :meth:`halved`).
     """
 
-    tol: float = 2e-3
-    growth: float = 2.0
+    tol: float = 1e-2
+    growth: float = 4.0
     count: int | None = None
     size: float | None = None
     max_steps: int = 5000
