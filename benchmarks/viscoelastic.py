@@ -34,7 +34,12 @@ import twoscale
 import twoscale.viscoelastic.solve
 from twoscale.material import Material
 from twoscale.synthetic import random_scene
-from twoscale.viscoelastic import LoadHistory, TimeSteps, creep_compliance, solve_history
+from twoscale.viscoelastic import (
+    LoadHistory,
+    TimeSteps,
+    creep_compliance,
+    solve_history,
+)
 
 
 def prony(E_inf: float, ratio: float, n: int = 10) -> tuple:
@@ -71,7 +76,7 @@ def run_one(n: int, kind: str, args) -> None:
     material = Material(base.material.E, base.material.nu, prony=prony(base.material.E, args.ratio))
     scene = dataclasses.replace(base, material=material, total_load=None, history=history(kind, base.total_load))
     h = twoscale.viscoelastic.solve.history_h(scene) if args.h is None else args.h
-    el, t_el = cpu(lambda: twoscale.solve(dataclasses.replace(base, h=h)))
+    _el, t_el = cpu(lambda: twoscale.solve(dataclasses.replace(base, h=h)))
     res, t_ts = cpu(lambda: solve_history(scene, method="twoscale", h=h))
     print(f"\n{n} tips, {kind}: h = {h:.4g} mm, {len(res.steps)} steps ({res.rejected} redone), "
           f"error estimate {res.error_estimate:.2g}, converged {res.converged}")

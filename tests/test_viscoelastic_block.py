@@ -13,7 +13,7 @@ from twoscale.viscoelastic import LoadHistory, TimeSteps, solve_history
 
 fem_influence = pytest.importorskip("fem_influence")
 
-SMALL = dict(size=(60.0, 60.0, 10.0), h_fine=5.0, h_coarse=10.0, fine_half_width=10.0)
+SMALL = {"size": (60.0, 60.0, 10.0), "h_fine": 5.0, "h_coarse": 10.0, "fine_half_width": 10.0}
 BODY = {"kind": "block", "size": (60.0, 60.0, 10.0)}
 TIPS = (Asperity(0.0, 0.0, 0.0, 6.0), Asperity(5.0, 1.0, 0.02, 5.0), Asperity(-2.0, 5.0, 0.04, 5.0))
 

@@ -86,7 +86,7 @@ class TimeSteps:
         return self.count is not None or self.size is not None or self.at is not None
 
     @classmethod
-    def halved(cls, ends) -> "TimeSteps":
+    def halved(cls, ends) -> TimeSteps:
         """Fixed steps at ``ends`` (s) with every step cut in two."""
         t = np.unique(np.asarray(ends, dtype=float))
         return cls(at=tuple(np.concatenate([t, 0.5 * (t[1:] + t[:-1])]).tolist()))
