@@ -11,7 +11,9 @@
 * the bodies: :class:`HalfSpace`, and :class:`FiniteBlock` (the rubber block on a rigid
   base, from the separate ``fem_influence`` package, imported on first use);
 * :func:`solve`: one entry, ``method`` = "twoscale" (default), "reference", "dense",
-  "cg" or a callable, a prebuilt ``provider=`` accepted; returns a :class:`ContactResult`.
+  "cg" or a callable, a prebuilt ``provider=`` accepted; returns a :class:`ContactResult`
+  (a ``HistoryResult`` for a scene with a :class:`LoadHistory`: viscoelastic rubber,
+  ``Material(E, nu, prony=...)``; :mod:`twoscale.viscoelastic`).
 
 Indices are 0-based in Python (numpy); files and tables written for people number tips
 from 1. Light on import: the solvers, scipy and the finite block (scikit-fem) are imported
@@ -26,10 +28,12 @@ from .results import ContactResult
 from .scene import Scene, SceneError
 
 #: Names imported on first use (module, attribute): the bodies pull in scipy / scikit-fem.
-_LAZY = {"HalfSpace": ("twoscale.influence.halfspace", "HalfSpace")}
+_LAZY = {"HalfSpace": ("twoscale.influence.halfspace", "HalfSpace"),
+         "LoadHistory": ("twoscale.viscoelastic.history", "LoadHistory"),
+         "TimeSteps": ("twoscale.viscoelastic.stepping", "TimeSteps")}
 
 __all__ = ["__version__", "solve", "METHODS", "asperities", "as_asperities", "Material", "Grid", "Asperity",
-           "Scene", "SceneError", "ContactResult", "HalfSpace", "FiniteBlock"]
+           "Scene", "SceneError", "ContactResult", "HalfSpace", "FiniteBlock", "LoadHistory", "TimeSteps"]
 
 
 def __getattr__(name: str):

@@ -20,7 +20,6 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.optimize import brentq
 
 from ..material import Material
 
@@ -65,6 +64,8 @@ def relaxation_modulus(material: Material, t) -> np.ndarray:
 
 def creep_compliance(material: Material) -> CreepCompliance:
     """The exact creep compliance of ``material``'s Prony series (module docstring)."""
+    from scipy.optimize import brentq
+
     Einf = float(material.E)
     if not material.prony:
         return CreepCompliance(1.0 / Einf, np.zeros(0), np.zeros(0))
