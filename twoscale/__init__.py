@@ -11,7 +11,9 @@
 * the bodies: :class:`HalfSpace`, and :class:`FiniteBlock` (the rubber block on a rigid
   base, from the separate ``fem_influence`` package, imported on first use);
 * :func:`solve`: one entry, ``method`` = "twoscale" (default), "reference", "dense",
-  "cg" or a callable, a prebuilt ``provider=`` accepted; returns a :class:`ContactResult`;
+  "cg" or a callable, a prebuilt ``provider=`` accepted; returns a :class:`ContactResult`
+  (a ``HistoryResult`` for a scene with a :class:`LoadHistory`: viscoelastic rubber,
+  ``Material(E, nu, prony=...)``; :mod:`twoscale.viscoelastic`);
 * a height map (a road scan) as the indenter: :class:`RawMap` (heights, spacing in mm,
   units), :func:`build_surface` with :class:`SurfaceOptions` (:mod:`twoscale.surface`),
   then ``solve(surface, material=..., total_load=...)``: the same scene, and the same
@@ -34,11 +36,13 @@ from .scene import Scene, SceneError
 _LAZY = {"HalfSpace": ("twoscale.influence.halfspace", "HalfSpace"),
          "RawMap": ("twoscale.surface.reading", "RawMap"),
          "SurfaceOptions": ("twoscale.surface.measured", "SurfaceOptions"),
-         "build_surface": ("twoscale.surface.measured", "build_surface")}
+         "build_surface": ("twoscale.surface.measured", "build_surface"),
+         "LoadHistory": ("twoscale.viscoelastic.history", "LoadHistory"),
+         "TimeSteps": ("twoscale.viscoelastic.stepping", "TimeSteps")}
 
 __all__ = ["__version__", "solve", "METHODS", "asperities", "as_asperities", "Material", "Grid", "Asperity",
            "Scene", "SceneError", "ContactResult", "HalfSpace", "FiniteBlock", "RawMap", "SurfaceOptions",
-           "build_surface"]
+           "build_surface", "LoadHistory", "TimeSteps"]
 
 
 def __getattr__(name: str):

@@ -40,6 +40,7 @@ if TYPE_CHECKING:
 
     from .influence.base import InfluenceProvider
     from .surface.measured import MeasuredSurface
+    from .viscoelastic.result import HistoryResult
 
 #: Names ``method`` accepts (or a callable).
 METHODS = ("twoscale", "reference", "dense", "cg")
@@ -167,7 +168,7 @@ def solve(problem: Any, *, method: str | Callable[..., ContactResult] = "twoscal
           penetration: float | None = None, total_load: float | None = None, tilt: bool = False,
           pivot: tuple[float, float] | None = None, h: float | None = None, shape: str = "sphere",
           provider_options: Mapping | None = None, memory_limit: float | None = None,
-          **options: Any) -> ContactResult:
+          **options: Any) -> ContactResult | HistoryResult:
     """Solve a multi-asperity contact.
 
     Parameters
@@ -222,7 +223,10 @@ def solve(problem: Any, *, method: str | Callable[..., ContactResult] = "twoscal
 
     Returns
     -------
-    ContactResult
+    ContactResult or HistoryResult
+        A scene with a load history (``scene.history``; needed for Prony branches) gives a
+        :class:`~twoscale.viscoelastic.result.HistoryResult` (histories as arrays and each
+        output time's ContactResult; :func:`twoscale.viscoelastic.solve.solve_history`).
         ``result.forces[k]`` (N) is the force of the k-th tip (0-based, input order);
         ``result.details`` holds what only the method has (typed, :mod:`twoscale.details`),
         and on a height map ``result.details.surface`` (missing samples, units, contacts
@@ -240,6 +244,13 @@ def solve(problem: Any, *, method: str | Callable[..., ContactResult] = "twoscal
     if provider is not None and provider_options:
         raise ValueError(f"provider_options apply to a provider built here, not to the one passed "
                          f"(got {sorted(provider_options)!r})")
+    if scene.history is not None:  # a load history in time (viscoelastic or elastic): a HistoryResult
+        from .viscoelastic.solve import solve_history
+
+        if callable(method):
+            raise ValueError("a scene with a load history runs with method 'twoscale' or 'reference', not a callable")
+        return solve_history(scene, method=method, provider=provider, h=h,
+                             provider_options=provider_options, **options)
     h_given = h is not None
     h = default_h(scene)
     if not callable(method) and (memory_limit is None or memory_limit < math.inf):
@@ -285,7 +296,7 @@ def solve(problem: Any, *, method: str | Callable[..., ContactResult] = "twoscal
 
 
 def solve_scene(scene: Scene, *, method: str = "twoscale", provider_options: Mapping | None = None,
-                memory_limit: float | None = None, **options: Any) -> ContactResult:
+                memory_limit: float | None = None, **options: Any) -> ContactResult | HistoryResult:
     """Solve a scene: :func:`solve` with a :class:`Scene`.
 
     Kept for the scene-file workflow; ``method`` is "twoscale" or "reference" (the

@@ -189,6 +189,10 @@ class Scene:
         is None: the default cell size of a map), and ``h`` is that cell size. The basins
         of a map (its ``asperities``) are refused without it: they need the map to be
         resampled to ``h``.
+    history : LoadHistory, optional
+        A load history in time (:class:`twoscale.viscoelastic.LoadHistory`); then
+        ``total_load`` or ``penetration`` (whichever it prescribes) is its peak value and
+        may be left out. Required when the material has Prony branches.
 
     Raises
     ------
@@ -206,6 +210,7 @@ class Scene:
     influence: Influence = field(default_factory=Influence)
     load_cases: tuple = ()
     surface: Any = None
+    history: Any = None
 
     def __post_init__(self) -> None:
         if not isinstance(self.material, Material):
@@ -221,6 +226,7 @@ class Scene:
             object.__setattr__(self, "asperities", tuple(self.surface.asperities))
             object.__setattr__(self, "h", self.surface.h)
         self._check_asperities()
+        self._take_history()
         self._check_load()
         if self.h is not None:
             object.__setattr__(self, "h", check_number("grid.h", self.h, positive=True, unit="mm"))
@@ -249,6 +255,29 @@ class Scene:
                                  f"as asperity {seen[key] + 1}; two tips cannot share a position")
             seen[key] = k
         object.__setattr__(self, "asperities", asps)
+
+    def _take_history(self) -> None:
+        """A load history sets ``total_load`` or ``penetration`` to its peak (what sizes
+        grids); Prony branches need a history (their answer is one in time)."""
+        from .viscoelastic.history import LoadHistory
+
+        hist = self.history
+        if hist is None:
+            if self.material.viscoelastic:
+                raise SceneError("material.prony needs a load history: write load.total (or load.penetration) "
+                                 f"as [[t, value], ...] (s; N or mm), got a single value "
+                                 f"{self.total_load if self.total_load is not None else self.penetration!r}")
+            return
+        if not isinstance(hist, LoadHistory):
+            raise SceneError(f"history must be a twoscale.viscoelastic.LoadHistory, got {hist!r}")
+        name = "total_load" if hist.kind == "total" else "penetration"
+        other = "penetration" if hist.kind == "total" else "total_load"
+        if getattr(self, other) is not None:
+            raise SceneError(f"a history of load.{hist.kind} and load.{'penetration' if other == 'penetration' else 'total'} "
+                             f"= {getattr(self, other)!r}: give one of the two")
+        if getattr(self, name) not in (None, hist.peak):
+            raise SceneError(f"{name} = {getattr(self, name)!r} is not the history's peak {hist.peak!r}: leave it out")
+        object.__setattr__(self, name, hist.peak)
 
     def _check_load(self) -> None:
         d, W = self.penetration, self.total_load

@@ -112,7 +112,7 @@ def run(args: argparse.Namespace) -> int:
         t0 = time.perf_counter()
         quiet_block = {"progress": False} if args.quiet and scene.influence["kind"] == "block" else None
         with StatusLine(quiet=args.quiet) as status:
-            if args.method == "twoscale":
+            if args.method == "twoscale" and scene.history is None:
                 options["progress"] = status
             result = solve_scene(scene, method=args.method, provider_options=quiet_block, memory_limit=math.inf,
                                  **options)
@@ -121,6 +121,8 @@ def run(args: argparse.Namespace) -> int:
     except ValueError as exc:  # SceneError and solver input checks
         print(f"error: {exc}", file=sys.stderr)
         return 2
+    if scene.history is not None:
+        return _history_done(result, scene, args, wall)
     path = None
     if args.out is not None:
         try:
@@ -134,6 +136,33 @@ def run(args: argparse.Namespace) -> int:
         print(summary(result_to_dict(result, scene, method=args.method, h_source=h_source), args.scene, wall, path))
     if not result.converged:
         print(f"warning: the solve did not converge: {result.message}", file=sys.stderr)
+        return 1
+    return 0
+
+
+def _history_done(result, scene, args, wall: float) -> int:
+    """Write and report a history (``DIR/history.csv``, ``history.png``, ``fields.pvd``,
+    ``result.json``: :mod:`twoscale.io.history_outputs`); the exit code."""
+    from ..io.history_outputs import write_history_outputs
+
+    if args.out is not None:
+        try:
+            with staged_directory(args.out, overwrite=getattr(args, "overwrite", False),
+                                  command=f"solve {args.scene}") as tmp:
+                write_history_outputs(result, scene, tmp)
+        except (OSError, ValueError) as exc:
+            print(f"error: writing {args.out}: {exc}", file=sys.stderr)
+            return 2
+    if not args.quiet:
+        print(f"twoscale solve {args.scene}: history, method {result.method}\n"
+              f"  steps        {len(result.steps)} ({result.rejected} redone), error estimate "
+              f"{result.error_estimate:.2g}\n"
+              f"  output times {len(result.times)}, from {result.times[0]:.4g} to {result.times[-1]:.4g} s\n"
+              f"  last         load {result.total_load[-1]:.6g} N, approach {result.penetration[-1]:.6g} mm, "
+              f"area {result.contact_area[-1]:.6g} mm^2\n"
+              f"  time         {wall:.3g} s" + (f"\n  wrote        {args.out}/" if args.out else ""))
+    if not result.converged:
+        print(f"warning: the history did not converge: {result.message}", file=sys.stderr)
         return 1
     return 0
 

@@ -3,11 +3,16 @@
 The format (see README.md)::
 
     [material]            E (MPa, > 0), nu (-1 < nu <= 0.5)           required
+                          prony = [[E_k, tau_k], ...] (MPa, s) or prony_file = "x.csv"
+                          (columns E_k, tau_k): viscoelastic, E is then the relaxed modulus
     [load]                exactly one of penetration (mm) / total (N)  required
+                          either may be a history [[t, value], ...] (s; mm or N)
                           tilt = true (with total only), pivot = [x, y] (mm, with tilt)
                           cases = [W1, W2, ...] (N, with total only): load cases of
                           `twoscale compare`; `solve` uses total (the first case)
     [grid]                h (mm, > 0)                                  optional
+    [time]                with a history: output = [t1, ...] (s), tol, growth, steps
+                          (fixed count) or dt (fixed size, s), max_steps
     [influence]           kind = "halfspace" | "block" (+ size, base, origin for "block")
     [[asperity]]          x, y (mm), R (mm, > 0) required; z (mm) default 0;
                           shape = "sphere" (default) | "paraboloid"
@@ -36,10 +41,11 @@ except ModuleNotFoundError:  # pragma: no cover - Python 3.10
 
 __all__ = ["SceneError", "read_scene", "scene_from_dict", "scene_to_dict"]
 
-TOP_KEYS = ("material", "load", "grid", "influence", "asperity", "surface")
-MATERIAL_KEYS = ("E", "nu")
+TOP_KEYS = ("material", "load", "grid", "influence", "asperity", "surface", "time")
+MATERIAL_KEYS = ("E", "nu", "prony", "prony_file")
 LOAD_KEYS = ("penetration", "total", "tilt", "pivot", "cases")
 GRID_KEYS = ("h",)
+TIME_KEYS = ("output", "tol", "growth", "steps", "dt", "max_steps")
 ASPERITY_KEYS = ("x", "y", "z", "R", "shape")
 
 
@@ -86,7 +92,7 @@ def scene_from_dict(data: Mapping[str, Any], *, base_dir: str | None = None) -> 
     """Validate a scene given as nested dicts (the parsed TOML) and build a :class:`Scene`.
     ``base_dir``: where a ``[surface]`` file name is relative to (default: the current folder)."""
     check_keys("", data, TOP_KEYS, required=("material", "load"))
-    material = _material(table_of("material", data["material"]))
+    material = _material(table_of("material", data["material"]), base_dir)
     surface = None
     if "asperity" not in data and "surface" not in data:
         raise SceneError("asperity is missing (required: [[asperity]] tables, or a [surface] table)")
@@ -109,7 +115,10 @@ def scene_from_dict(data: Mapping[str, Any], *, base_dir: str | None = None) -> 
     if "cases" in load and isinstance(load["cases"], list) and not load["cases"]:
         # Scene() reads () as "no list"; in a file an empty list is a mistake
         raise SceneError("load.cases is empty, got [] (list at least one total load, N, or leave the key out)")
-    return Scene(material=material, asperities=asperities,
+    history = _history(load, table_of("time", data.get("time", {})))
+    if history is not None:
+        load = {k: v for k, v in load.items() if k != history.kind}
+    return Scene(material=material, asperities=asperities, history=history,
                  penetration=load.get("penetration"), total_load=load.get("total"),
                  tilt=load.get("tilt", False), pivot=load.get("pivot", (0.0, 0.0)),
                  h=grid.get("h"), influence=dict(influence) or None, load_cases=load.get("cases", ()),
@@ -122,7 +131,9 @@ def scene_to_dict(scene: Scene) -> dict:
     ``scene_from_dict(scene_to_dict(s)) == s``.
     """
     load: dict[str, Any] = {}
-    if scene.penetration is not None:
+    if scene.history is not None:
+        load[scene.history.kind] = [[t, v] for t, v in scene.history.points]
+    elif scene.penetration is not None:
         load["penetration"] = float(scene.penetration)
     else:
         load["total"] = float(scene.total_load)
@@ -135,6 +146,10 @@ def scene_to_dict(scene: Scene) -> dict:
         "material": {"E": float(scene.material.E), "nu": float(scene.material.nu)},
         "load": load,
     }
+    if scene.material.prony:
+        out["material"]["prony"] = [list(b) for b in scene.material.prony]
+    if scene.history is not None:
+        out["time"] = _time_table(scene.history)
     if scene.h is not None:
         out["grid"] = {"h": float(scene.h)}
     out["influence"] = {k: (list(v) if isinstance(v, tuple) else v) for k, v in scene.influence.items()}
@@ -159,13 +174,64 @@ def _tables(path: str, v: Any) -> list:
     return v
 
 
-def _material(t: Mapping) -> Material:
-    check_keys("material", t, MATERIAL_KEYS, required=MATERIAL_KEYS)
+def _material(t: Mapping, base_dir: str | None = None) -> Material:
+    check_keys("material", t, MATERIAL_KEYS, required=("E", "nu"))
     E = check_number("material.E", t["E"], positive=True, unit="MPa")
     nu = check_number("material.nu", t["nu"])
     if not -1.0 < nu <= 0.5:
         raise SceneError(f"material.nu must satisfy -1 < nu <= 0.5, got {t['nu']!r}")
-    return Material(E, nu)
+    if "prony" in t and "prony_file" in t:
+        raise SceneError(f"give material.prony or material.prony_file, not both (got {t['prony_file']!r})")
+    prony = t.get("prony", ())
+    if "prony_file" in t:
+        from .prony_csv import read_prony_csv
+
+        prony = read_prony_csv(t["prony_file"], base_dir=base_dir)
+    if prony == []:
+        raise SceneError("material.prony is empty, got [] (list at least one [E_k, tau_k] or leave it out)")
+    try:
+        return Material(E, nu, prony=prony)
+    except ValueError as exc:
+        raise SceneError(str(exc)) from None
+
+
+def _history(load: Mapping, time_table: Mapping):
+    """The load history of ``[load]`` (a list of points as total or penetration) with the
+    ``[time]`` options, or None (``[time]`` then must be empty)."""
+    from ..viscoelastic.history import LoadHistory
+    from ..viscoelastic.stepping import TimeSteps
+
+    check_keys("time", time_table, TIME_KEYS)
+    kinds = [k for k in ("total", "penetration") if isinstance(load.get(k), list)]
+    if not kinds:
+        if time_table:
+            raise SceneError(f"[time] is only used with a load history ([[t, value], ...]), got {dict(time_table)!r}")
+        return None
+    if "total" in load and "penetration" in load:
+        raise SceneError(f"give one of load.total and load.penetration, got both "
+                         f"(total = {load['total']!r}, penetration = {load['penetration']!r})")
+    for key in ("cases",):
+        if key in load:
+            raise SceneError(f"load.{key} cannot go with a load history, got {load[key]!r}")
+    opts = {"tol": "tol", "growth": "growth", "steps": "count", "dt": "size", "max_steps": "max_steps"}
+    try:
+        steps = TimeSteps(**{opts[k]: v for k, v in time_table.items() if k in opts})
+        return LoadHistory(kinds[0], load[kinds[0]], output=time_table.get("output"), steps=steps)
+    except (TypeError, ValueError) as exc:
+        raise SceneError(str(exc)) from None
+
+
+def _time_table(history) -> dict:
+    out: dict[str, Any] = {}
+    if history.output is not None:
+        out["output"] = list(history.output)
+    s = history.steps
+    for key, name in (("tol", "tol"), ("growth", "growth"), ("count", "steps"), ("size", "dt"),
+                      ("max_steps", "max_steps")):
+        v = getattr(s, key)
+        if v is not None:
+            out[name] = v
+    return out
 
 
 def _asperity(path: str, t: Mapping) -> Asperity:

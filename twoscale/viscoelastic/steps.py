@@ -1,0 +1,153 @@
+"""One time step as an elastic contact problem, solved by the full-grid reference or by
+the two-scale method.
+
+A step asks for ``p`` with ``K (J_eff p + H) = d - z`` on the contact (``p >= 0``, no
+overlap elsewhere; :mod:`twoscale.viscoelastic.memory`). With the body's provider built at
+the relaxed modulus ``E0`` (cell matrix ``A0 = K / E0``) this is the elastic problem of that
+provider for the pressure ``p0 = E0 J_eff p`` on the indenter heights ``z + u_H``,
+``u_H = K H = E0 A0 H``, under the load ``E0 J_eff W`` (or the same approach ``d``): every
+elastic solver of the project runs it unchanged, and the answer is scaled back
+(:func:`scaled`). On a finite block with constant nu the same holds, its compliance being
+proportional to ``1 / E``.
+"""
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..grid import Grid
+from ..indenters import Asperity, Surface
+from ..results import ContactResult, summarise
+
+
+def scaled(result: ContactResult, factor: float) -> ContactResult:
+    """``result`` with every pressure, force and load multiplied by ``factor`` (the gap,
+    approach and tilt are unchanged: they are the physical ones)."""
+    fields = tuple(dataclasses.replace(f, pressure=f.pressure * factor) for f in result.fields)
+    return dataclasses.replace(result, fields=fields, total_load=result.total_load * factor,
+                               asperities=summarise(fields, result.n_asperities))
+
+
+@dataclass(frozen=True)
+class StepProblem:
+    """What a step solver needs: the control value (N or mm, physical), the factor
+    ``E0 J_eff`` and the history displacement ``u_H`` on the memory grid (mm)."""
+
+    value: float
+    factor: float
+    u_H: np.ndarray
+    start: ContactResult | None
+
+
+class ReferenceStep:
+    """Steps by the full-grid reference (:func:`twoscale.reference.solve_reference`) on the
+    memory grid, warm-started (CG) from the previous step's pressure."""
+
+    name = "reference"
+
+    def __init__(self, provider, surface: Surface, *, kind: str, tilt: bool, pivot, solver: str = "auto",
+                 options=None):
+        self.provider, self.surface, self.kind = provider, surface, kind
+        self.tilt, self.pivot, self.solver = tilt, pivot, solver
+        self.options = dict(options or {})
+
+    def solve(self, step: StepProblem) -> ContactResult:
+        from ..reference import AUTO_DENSE_CELLS, solve_reference
+
+        s = self.surface
+        surf = Surface(s.grid, s.height + step.u_H, s.owner, s.n_asperities)
+        load = {"penetration": step.value} if self.kind == "penetration" else {"total_load": step.value * step.factor}
+        solver = self.solver
+        if solver == "auto":
+            solver = "dense" if np.count_nonzero(np.isfinite(s.height)) <= AUTO_DENSE_CELLS else "cg"
+        opts = dict(self.options)
+        if solver == "cg" and step.start is not None:
+            opts["start"] = step.start.pressure_on(s.grid) * step.factor
+        result = solve_reference(self.provider, surf, method=solver, tilt=self.tilt, pivot=self.pivot,
+                                 **load, **opts)
+        return scaled(result, 1.0 / step.factor)
+
+
+@dataclass(frozen=True)
+class HistoryAsperity(Asperity):
+    """An asperity whose height includes the history displacement ``u_H`` (looked up on
+    the memory grid): ``z`` is its tip's recess plus ``u_H`` at the tip (what the macro
+    step sees), ``height`` adds ``u_H`` at every cell (what the micro step sees)."""
+
+    lift: float = 0.0
+    lookup: object = dataclasses.field(default=None, compare=False, repr=False)
+
+    def height(self, X, Y):
+        base = super().height(X, Y) - self.lift
+        return base + self.lookup(X, Y)
+
+
+class GridLookup:
+    """``u_H`` at cell centres of the memory grid's lattice (cells beyond it take the
+    nearest edge cell: no contact reaches there)."""
+
+    def __init__(self, grid: Grid, u: np.ndarray):
+        self.grid, self.u = grid, u
+
+    def __call__(self, X, Y):
+        g = self.grid
+        i = np.clip(np.rint((np.asarray(X) - g.x0) / g.h).astype(np.int64), 0, g.nx - 1)
+        j = np.clip(np.rint((np.asarray(Y) - g.y0) / g.h).astype(np.int64), 0, g.ny - 1)
+        return self.u[j, i]
+
+
+class TwoScaleStep:
+    """Steps by the two-scale method (:func:`twoscale.twoscale.solve_twoscale`): the macro
+    step sees each tip lowered by ``u_H`` there, the micro step ``u_H`` on every patch
+    cell; each step starts its macro Newton iteration from the previous step's forces."""
+
+    name = "twoscale"
+
+    def __init__(self, provider, asperities, grid: Grid, *, h: float, kind: str, tilt: bool, pivot,
+                 options=None):
+        self.provider, self.asperities, self.grid, self.h = provider, tuple(asperities), grid, h
+        self.kind, self.tilt, self.pivot = kind, tilt, pivot
+        self.options = dict(options or {})
+        self._reference = None
+
+    def _wrapped(self, u_H: np.ndarray):
+        if not np.any(u_H):
+            return self.asperities
+        look = GridLookup(self.grid, u_H)
+        x = np.array([a.x for a in self.asperities])
+        y = np.array([a.y for a in self.asperities])
+        lift = look(x, y)
+        return tuple(HistoryAsperity(a.x, a.y, a.z + float(l), a.R, a.shape, lift=float(l), lookup=look)
+                     for a, l in zip(self.asperities, lift))
+
+    def solve(self, step: StepProblem) -> ContactResult:
+        from ..twoscale import solve_twoscale
+
+        load = {"penetration": step.value} if self.kind == "penetration" else {"total_load": step.value * step.factor}
+        if self.kind == "total" and step.value <= 0:  # nothing to carry: the reference's trivial answer
+            return self._trivial(step)
+        start = None
+        if step.start is not None and step.start.method == "twoscale" and step.start.total_load > 0:
+            start = scaled(step.start, step.factor)
+        result = solve_twoscale(self.provider, self._wrapped(step.u_H), h=self.h, tilt=self.tilt,
+                                pivot=self.pivot, anchor=(self.grid.x0, self.grid.y0), start=start,
+                                **load, **self.options)
+        return scaled(result, 1.0 / step.factor)
+
+    def _trivial(self, step: StepProblem) -> ContactResult:
+        from ..indenters import surface_on
+
+        if self._reference is None:
+            self._reference = ReferenceStep(self.provider, surface_on(self.grid, self.asperities), kind=self.kind,
+                                            tilt=self.tilt, pivot=self.pivot)
+        return self._reference.solve(step)
+
+
+def pressure_on(result: ContactResult, grid: Grid) -> np.ndarray:
+    """The result's pressure on the memory grid (MPa), as a flat field."""
+    return result.pressure_on(grid).ravel()
+
+
+__all__ = ["HistoryAsperity", "ReferenceStep", "StepProblem", "TwoScaleStep", "pressure_on", "scaled"]
