@@ -30,6 +30,7 @@ from ..io.solve_outputs import write_fields_and_figures
 from ..micro.policy import ITERATIONS
 from ..progress import StatusLine
 from ..resources import check_solve_memory
+from ..results import ContactResult
 from ..api import solve_scene
 from ..scene import METHODS, SceneError, default_h
 from .options import positive_option, with_h_option
@@ -117,7 +118,8 @@ def run(args: argparse.Namespace) -> int:
             result = solve_scene(scene, method=args.method, provider_options=quiet_block, memory_limit=math.inf,
                                  **options)
         wall = time.perf_counter() - t0
-        result = dataclasses.replace(result, scene_name=Path(args.scene).stem)  # for titles and result.json
+        if isinstance(result, ContactResult):  # a history's result names its scene per output time
+            result = dataclasses.replace(result, scene_name=Path(args.scene).stem)  # for titles and result.json
     except ValueError as exc:  # SceneError and solver input checks
         print(f"error: {exc}", file=sys.stderr)
         return 2
