@@ -110,7 +110,10 @@ def markdown(scene_path: str, runs, ind: dict, notes: list[str], method: str,
 
 # ---------------------------------------------------------------- the terminal
 def _change(value: float, ref: float) -> str:
-    return "" if ref == 0 else f" ({100.0 * (value - ref) / ref:+.1f} %)"
+    if ref == 0:
+        return ""
+    pct = round(100.0 * (value - ref) / ref, 1) + 0.0  # + 0.0: a change that rounds to 0 prints as +0.0, not -0.0
+    return f" ({pct:+.1f} %)"
 
 
 def _e_text(v) -> str:
