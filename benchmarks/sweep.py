@@ -137,9 +137,10 @@ def _child(kind: str, spec: dict, h, timeout: float) -> dict:
         out = subprocess.run(cmd, capture_output=True, text=True, timeout=timeout)
     except subprocess.TimeoutExpired:
         return {"error": f"timeout after {timeout:g} s", "time_s": time.perf_counter() - t0}
-    if out.returncode != 0:
-        tail = out.stderr.strip().splitlines()[-1:] or [f"exit code {out.returncode}"]
-        return {"error": tail[0][:300], "time_s": time.perf_counter() - t0, "exit": out.returncode}
+    lines = (out.stderr or "").strip().splitlines()
+    if out.returncode != 0 or not (out.stdout or "").strip():
+        why = lines[-1] if lines else f"exit code {out.returncode}"
+        return {"error": why[:300], "time_s": time.perf_counter() - t0, "exit": out.returncode}
     return json.loads(out.stdout.strip().splitlines()[-1])
 
 
@@ -306,7 +307,10 @@ def main(argv=None) -> int:
         done = {r["spec"]["index"] for f in [args.out, *args.read] for r in _load(f)} if not args.only else set()
         if spec.index in done:
             continue
-        rec = measure(spec.to_dict(), args)
+        try:
+            rec = measure(spec.to_dict(), args)
+        except Exception as exc:  # the driver's own work on one scene: recorded, the sweep goes on
+            rec = {"spec": spec.to_dict(), "ts": {"error": f"sweep driver: {type(exc).__name__}: {exc}"[:300]}}
         x = row(rec)
         print(f"{x['scene']}: {x['verdict']} {x['choice']} ts {_fmt(x['ts_s'], '.2f')} s ref "
               f"{_fmt(x['ref_s'], '.2f')} s ratio {_fmt(x['ratio'], '.3f')} err {_fmt(x['tip_pct'], '.2g')} % "
