@@ -295,7 +295,19 @@ def check_solve_memory(scene: Scene, h: float, method: str = "twoscale", *, iter
     def refit(hh: float) -> MemoryEstimate:
         return estimate_memory(scene, hh, family, iteration=iteration)
 
-    check_memory(refit(h), limit_bytes, option=option, source=source, refit=refit)
+    try:
+        check_memory(refit(h), limit_bytes, option=option, source=source, refit=refit)
+    except SceneError as exc:  # say what makes the grid large: the load asked for
+        raise SceneError(f"{exc}; {_largest_contact(scene)}") from None
+
+
+def _largest_contact(scene: Scene) -> str:
+    """The largest expected contact and the load that makes it, in words."""
+    a = expected_contact_radii(scene)
+    k = int(np.argmax(a))
+    load = (f"load.penetration = {scene.penetration:g} mm" if scene.penetration is not None
+            else f"load.total = {scene.total_load:g} N")
+    return f"the largest expected contact, asperity {k + 1}'s, is about {2 * a[k]:.3g} mm across at {load}"
 
 
 def available_memory() -> float:
