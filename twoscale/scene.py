@@ -365,7 +365,11 @@ def _hertz_level(scene: Scene) -> float:
     lo = float(z.min())
     # the lowest asperity alone, with the smallest radius, carries W at this level
     hi = lo + float(hertz.penetration(R.min(), W, E_star)) * (1 + 1e-9) + 1e-300
-    return brentq(excess, lo, hi, xtol=1e-14 * max(1.0, abs(hi)), rtol=1e-12)
+    try:
+        return brentq(excess, lo, hi, xtol=1e-14 * max(1.0, abs(hi)), rtol=1e-12)
+    except (RuntimeError, ValueError):  # no finite level: a modulus or load outside floating point
+        raise SceneError(f"load.total = {W!r} N cannot be carried at any finite approach on material.E = "
+                         f"{scene.material.E!r} MPa (the Hertz level does not converge): check the units") from None
 
 
 def expected_approaches(scene: Scene) -> np.ndarray:
