@@ -37,7 +37,7 @@ import numpy as np
 
 from .grid import Grid
 from .micro.policy import UNION_MIN_COVERAGE
-from .scene import METHODS, Scene, SceneError, expected_approaches, expected_contact_radii
+from .scene import METHODS, Scene, SceneError, expected_approaches, expected_contact_radii, round_up
 
 #: Resident memory of ``twoscale solve --out`` on a small scene: the interpreter with
 #: numpy, scipy, meshio and matplotlib, bytes (measured: 110-150 MB).
@@ -379,18 +379,13 @@ def _advice(estimate: MemoryEstimate, limit: float, option: str, refit=None) -> 
     if room <= 0:
         return f"the machine has too little memory available for any {option}"
     h = estimate.h * math.sqrt(max(estimate.bytes - BASE_BYTES, 0.0) / room)
-    h = _round_up(h * 1.05, digits=2)  # 5 % slack: the estimate is not exactly 1/h^2
+    h = round_up(h * 1.05, digits=2)  # 5 % slack: the estimate is not exactly 1/h^2
     if refit is not None:
         for _ in range(40):  # cells fall at least as 1 / h: 40 steps of 10 % cover 45x
             if refit(h).bytes <= ADVICE_SHARE * limit:  # room to spare, not the limit's edge
                 break
-            h = _round_up(h * 1.1, digits=2)
+            h = round_up(h * 1.1, digits=2)
         else:
             return f"no {option} up to {h:g} mm fits"
     sep = " " if option.startswith("-") else " = "
     return f"try {option}{sep}{h:g} mm or larger"
-
-
-def _round_up(x: float, *, digits: int) -> float:
-    e = math.floor(math.log10(x)) - (digits - 1)
-    return float(f"{math.ceil(x / 10.0 ** e * (1 - 1e-12)) * 10.0 ** e:.{digits + 1}g}")

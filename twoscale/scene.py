@@ -453,11 +453,13 @@ def default_h(scene: Scene, *, cells_across: int = CELLS_ACROSS,
         raise SceneError(f"grid.h: the smallest expected contact diameter is {diameter!r} mm, so no "
                          f"default cell size can be chosen; give [grid] h")
     h = _round_down(diameter / cells_across, digits=2)
-    if cell_budget is None or patch_cells(radius, h) <= cell_budget:
+    cells = patch_cells(radius, h)
+    if cell_budget is None or cells <= cell_budget:
         return h
-    while patch_cells(radius, h) > cell_budget:  # cells fall about as 1 / h^2
-        h *= max(1.02, 0.99 * math.sqrt(patch_cells(radius, h) / cell_budget))
-    return _round_up(h, digits=2)
+    while cells > cell_budget:  # cells fall about as 1 / h^2
+        h *= max(1.02, 0.99 * math.sqrt(cells / cell_budget))
+        cells = patch_cells(radius, h)
+    return round_up(h, digits=2)
 
 
 #: Patch half-width over the contact radius (the two-scale solver's default ``margin``).
@@ -473,12 +475,7 @@ def patch_cells(radii: np.ndarray, h: float, *, margin: float = PATCH_MARGIN) ->
     return float(np.sum((np.floor(2.0 * (margin * a + 2.0 * h) / h) + 1.0) ** 2))
 
 
-def default_h_coarsened(scene: Scene) -> bool:
-    """Whether :func:`default_h` coarsened the rule's cell size to :data:`CELL_BUDGET`."""
-    return scene.h is None and default_h(scene) != default_h(scene, cell_budget=None)
-
-
-def _round_up(x: float, *, digits: int) -> float:
+def round_up(x: float, *, digits: int) -> float:
     """``x`` rounded up to ``digits`` significant digits."""
     e = math.floor(math.log10(x)) - (digits - 1)
     return float(f"{math.ceil(x / 10.0 ** e * (1 - 1e-12)) * 10.0 ** e:.{digits + 1}g}")
