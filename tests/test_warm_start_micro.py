@@ -11,6 +11,8 @@ from twoscale.synthetic import random_scene
 from twoscale.warm_start import WarmStart, warm_start
 
 H = 0.05
+# the scenes are coarse on purpose (the starts, not the resolution, are under test)
+pytestmark = pytest.mark.filterwarnings("ignore::twoscale.errors.ResolutionWarning")
 
 
 def _scene(control: str, kind: str = "sparse", n: int = 12, shift: float = 0.0):
