@@ -6,7 +6,7 @@ objects, an array, or a mapping of arrays) or a height map (a
 a :class:`~twoscale.surface.RawMap` of heights and spacing) with the material and the load,
 and returns a :class:`~twoscale.results.ContactResult`. ``method`` picks the solver:
 
-* ``"twoscale"`` (default): the two-scale method (:func:`twoscale.twoscale.solve_twoscale`);
+* ``"twoscale"`` (default): the two-scale method (:func:`twoscale.driver.solve_twoscale`);
 * ``"reference"``: the full-grid reference on a grid covering every place contact can
   reach (:func:`twoscale.reference.on_scene.solve_reference_scene`), dense or CG by size; the result says which
   (``result.method == "reference"``, ``result.solver`` ``"dense"`` or ``"cg"``);
@@ -216,7 +216,7 @@ def solve(problem: Any, *, method: str | Callable[..., ContactResult] = "twoscal
         (:func:`twoscale.resources.check_memory`); default 80 % of the memory available
         now; ``math.inf``: no check.
     **options
-        Passed to the solver: :func:`~twoscale.twoscale.solve_twoscale` (``tol``,
+        Passed to the solver: :func:`~twoscale.driver.solve_twoscale` (``tol``,
         ``iteration``, ``far_tol``, ``progress``, ``start`` a warm start from a
         neighbouring solve, ...), the reference solvers (``tol``, ``max_iter``), or your
         callable.
@@ -274,7 +274,7 @@ def solve(problem: Any, *, method: str | Callable[..., ContactResult] = "twoscal
     if callable(method):  # the body and the nominal area recorded in the result, whatever the method
         return with_setting(method(provider, scene, h=h, **options), scene, provider)
     if method == "twoscale":
-        from .twoscale import solve_twoscale
+        from .driver import solve_twoscale
 
         _check_twoscale_keywords(options)
 

@@ -99,7 +99,7 @@ class GridLookup:
 
 
 class TwoScaleStep:
-    """Steps by the two-scale method (:func:`twoscale.twoscale.solve_twoscale`): the macro
+    """Steps by the two-scale method (:func:`twoscale.driver.solve_twoscale`): the macro
     step sees each tip lowered by ``u_H`` there, the micro step ``u_H`` on every patch
     cell; each step starts its macro Newton iteration from the previous step's forces."""
 
@@ -123,7 +123,7 @@ class TwoScaleStep:
                      for a, l in zip(self.asperities, lift))
 
     def solve(self, step: StepProblem) -> ContactResult:
-        from ..twoscale import solve_twoscale
+        from ..driver import solve_twoscale
 
         load = {"penetration": step.value} if self.kind == "penetration" else {"total_load": step.value * step.factor}
         if self.kind == "total" and step.value <= 0:  # nothing to carry: the reference's trivial answer
