@@ -20,14 +20,19 @@ import numpy as np
 from ..grid import Grid
 from ..indenters import Asperity, Surface
 from ..results import ContactResult, summarise
+from ..warm_start import warm_start
 
 
 def scaled(result: ContactResult, factor: float) -> ContactResult:
     """``result`` with every pressure, force and load multiplied by ``factor`` (the gap,
     approach and tilt are unchanged: they are the physical ones)."""
     fields = tuple(dataclasses.replace(f, pressure=f.pressure * factor) for f in result.fields)
+    details = result.details
+    macro = getattr(details, "macro", None)
+    if macro is not None:  # the macro forces too: a start from this result then has one scale
+        details = dataclasses.replace(details, macro=dataclasses.replace(macro, forces=macro.forces * factor))
     return dataclasses.replace(result, fields=fields, total_load=result.total_load * factor,
-                               asperities=summarise(fields, result.n_asperities))
+                               asperities=summarise(fields, result.n_asperities), details=details)
 
 
 @dataclass(frozen=True)
@@ -101,7 +106,8 @@ class GridLookup:
 class TwoScaleStep:
     """Steps by the two-scale method (:func:`twoscale.driver.solve_twoscale`): the macro
     step sees each tip lowered by ``u_H`` there, the micro step ``u_H`` on every patch
-    cell; each step starts its macro Newton iteration from the previous step's forces."""
+    cell; each step starts from the previous step's answer (:mod:`twoscale.warm_start`: its
+    macro forces, approach and tilt, and its pressure around each tip)."""
 
     name = "twoscale"
 
@@ -130,7 +136,10 @@ class TwoScaleStep:
             return self._trivial(step)
         start = None
         if step.start is not None and step.start.method == "twoscale" and step.start.total_load > 0:
-            start = scaled(step.start, step.factor)
+            # the previous step's answer starts both steps: macro forces, and the pressure
+            # around each tip (the tips do not move; the load and the history do)
+            tips = np.array([[a.x, a.y] for a in self.asperities], dtype=float).reshape(-1, 2)
+            start = warm_start(scaled(step.start, step.factor), tips, len(tips), self.h)
         result = solve_twoscale(self.provider, self._wrapped(step.u_H), h=self.h, tilt=self.tilt,
                                 pivot=self.pivot, anchor=(self.grid.x0, self.grid.y0), start=start,
                                 **load, **self.options)
