@@ -180,7 +180,8 @@ def test_welch_agrees_with_the_plain_estimate_on_white_noise():
 
 
 @pytest.mark.parametrize("options, word", [(dict(segment=4), "segment"), (dict(segment=64, overlap=1.0), "overlap"),
-                                           (dict(segment=64, window="nonsense"), "window")])
+                                           (dict(segment=64, window="nonsense"), "window"),
+                                           (dict(segment=8, overlap=0.99), "no step")])
 def test_bad_welch_options_name_the_field(options, word):
     with pytest.raises(SceneError, match=word):
         Welch(**options)

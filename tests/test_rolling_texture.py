@@ -102,6 +102,8 @@ def test_a_strip_shorter_than_one_segment_is_refused():
         mean_profile_depth(np.zeros((4, 800)), DX)
     with pytest.raises(SurfaceError, match="spacing"):
         mean_profile_depth(np.zeros(2000), 0.0)
+    with pytest.raises(SurfaceError, match="every line has more than 10% missing"):
+        texture_spectrum(np.full((2, 100), np.nan), DX)
 
 
 L, H = 800.0, 0.25                         # texture profile: 800 mm at 0.25 mm, 3200 samples

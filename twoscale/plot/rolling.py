@@ -99,6 +99,9 @@ def plot_band_levels(nominal, level_dB, *, ax=None, band_label: str = "third-oct
     ax.set_xlim(-0.6, labels.size - 0.4)
     if finite.any():
         ax.set_ylim(floor, 5.0 * np.ceil(level[finite].max() / 5.0) + 5.0)
+    if not labels.size:
+        ax.text(0.5, 0.5, "no band holds 3 FFT bins: the signal is too short", transform=ax.transAxes,
+                ha="center", va="center")
     ax.set_xlabel(band_label)
     ax.set_ylabel(level_label)
     ax.grid(axis="y", alpha=0.3, zorder=1)

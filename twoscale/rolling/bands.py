@@ -102,6 +102,8 @@ class Welch:
             raise SceneError(f"welch segment must be an integer >= 8 (samples), got {self.segment!r}")
         if not (isinstance(self.overlap, (int, float)) and 0.0 <= self.overlap < 1.0):
             raise SceneError(f"welch overlap must be a fraction in [0, 1), got {self.overlap!r}")
+        if self.step < 1:
+            raise SceneError(f"welch overlap {self.overlap!r} leaves no step between segments of {self.segment} samples")
         from scipy.signal import get_window
 
         try:

@@ -252,10 +252,12 @@ def texture_spectrum(heights, spacing: float, *, max_dropout: float = MAX_DROPOU
     Nyquist frequency (empty arrays when the strip resolves none).
     """
     z = _strip(heights, spacing)
+    if z.shape[1] < 2:
+        raise SurfaceError(f"texture strip has {z.shape[1]} sample along x; a spectrum needs at least 2")
     keep = np.isnan(z).mean(axis=1) <= max_dropout
-    if not np.any(keep) or z.shape[1] < 2:
-        raise SurfaceError(f"texture strip: every line has more than {max_dropout:.0%} missing samples "
-                           "(or fewer than 2 samples); no texture spectrum")
+    if not np.any(keep):
+        raise SurfaceError(f"texture strip: every line has more than {max_dropout:.0%} missing samples; "
+                           "no texture spectrum")
     lines = filled(z[keep])
     power = np.zeros(z.shape[1] // 2 + 1)
     for start in range(0, lines.shape[0], _ROWS):
