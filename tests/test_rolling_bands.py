@@ -74,6 +74,20 @@ def test_a_bin_exact_sine_puts_its_mean_square_in_its_band_only(f0):
     assert np.all(others < 1e-22 * A ** 2)
 
 
+def test_a_ramp_has_the_sawtooth_band_powers_in_every_band():
+    """x_n = J n / N seen as periodic is a sawtooth: with r = exp(-2 pi i k / N),
+    sum_n n r^n = N / (r - 1), so |X_k| = J / (2 sin(pi k / N)) and
+    P_k = J^2 / (2 N^2 sin^2(pi k / N)) for 0 < k < N/2 (about J^2 / (2 pi^2 k^2): the
+    leakage of a jump J between the last and first samples). Every band must hold the
+    sum of these over its own bins, counted here from the band edges."""
+    J = 0.004
+    r = third_octave_levels(J * np.arange(N) / N, DT, reference=REF_APPROACH)
+    for lo, hi, power in zip(r.lower, r.upper, r.mean_square):
+        k = np.arange(int(np.ceil(lo / 1.0)), int(np.ceil(hi / 1.0)))     # bins 1 Hz apart in [lo, hi)
+        assert power == pytest.approx(np.sum(J ** 2 / (2 * N ** 2 * np.sin(np.pi * k / N) ** 2)), rel=1e-9)
+    assert len(r.index) >= 25
+
+
 def _leak_bound(A, f0T, outside_bins):
     """Upper bound of the power of A cos(2 pi f0 t) in the given bins (k >= 1): the DFT of
     each complex exponential is a Dirichlet kernel |sin(pi u) / (N sin(pi u / N))| <=

@@ -25,6 +25,8 @@ from .scale import robust_scale
 TIME_S = "time (s)"
 SHIFT_MM = "shift of the road (mm)"
 AREA_MM2 = "contact area (mm$^2$)"
+#: Colour of the space-time picture: the pressure summed across y times the cell size.
+LINE_LOAD = "line load: pressure summed across y (N/mm)"
 
 
 def _vector(name: str, values, n: int | None = None) -> np.ndarray:
@@ -115,7 +117,7 @@ def _uniform(v: np.ndarray) -> bool:
     return v.size >= 2 and bool(np.all(step > 0)) and np.allclose(step, step[0], rtol=1e-6)
 
 
-def plot_space_time(shifts_mm, x_mm, pressure, *, ax=None, colour_label: str = "pressure summed across y (MPa)",
+def plot_space_time(shifts_mm, x_mm, pressure, *, ax=None, colour_label: str = LINE_LOAD,
                     title: str | None = None, cmap: str = "viridis", size: tuple[float, float] = (6.4, 5.6),
                     dpi: int = 100):
     """The pressure summed across y for every shift (vertical) and body x (horizontal).
@@ -127,7 +129,8 @@ def plot_space_time(shifts_mm, x_mm, pressure, *, ax=None, colour_label: str = "
     x_mm : (K,) array
         Body x of the columns, mm (increasing).
     pressure : (M, K) array
-        Pressure summed across y at each shift and x (unit in ``colour_label``); zero is
+        Pressure summed across y at each shift and x, times the cell size (the line
+        load, N/mm; another quantity with its own ``colour_label``); zero is
         drawn white, and the colour scale ends at the 99th percentile when one peak
         would flatten it (:func:`~twoscale.plot.robust_scale`).
     """
@@ -172,7 +175,7 @@ def bands_figure(path, nominal, level_dB, *, level_label: str = "force level (dB
     return save_png(fig, path, title=title, scene=scene)
 
 
-def space_time_figure(path, shifts_mm, x_mm, pressure, *, colour_label: str = "pressure summed across y (MPa)",
+def space_time_figure(path, shifts_mm, x_mm, pressure, *, colour_label: str = LINE_LOAD,
                       scene: Mapping[str, Any] | None = None, name: str | None = None, dpi: int = 110) -> Path:
     """Write :func:`plot_space_time` to ``path`` (PNG)."""
     title = join_title(scene_text(scene, name), "pressure across the footprint")

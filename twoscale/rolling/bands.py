@@ -29,6 +29,10 @@ The computation, step by step, so that it can be redone by hand (a spreadsheet w
    for an approach under load control (:data:`REF_APPROACH`). A band of exactly zero
    power has the level ``-inf``.
 
+Without a window the signal is taken as periodic: a difference ``J`` between its last and
+first samples leaks like a sawtooth, :math:`P_k = J^2 / (2 N^2 \sin^2(\pi k/N))`, about
+:math:`0.0117\,J^2 \Delta f / f_c` per band; band levels near that are leakage.
+
 **Welch averaging** (option :class:`Welch`): the mean-removed signal is cut into segments
 of ``segment`` samples overlapping by ``overlap`` (a fraction); each segment has its own
 mean removed, is multiplied by the window :math:`w_n` (Hann by default, to keep the
