@@ -60,7 +60,7 @@ from ..errors import SceneError
 REF_FORCE = 1.0
 #: Reference of approach (displacement) levels: 1 um, in mm.
 REF_APPROACH = 1e-3
-#: Mantissas of the nominal band labels (R10 preferred numbers, IEC 61260-1 Annex E).
+#: Mantissas of the nominal band labels: the R10 series of preferred numbers (ISO 3), as IEC 61260-1 labels bands.
 R10 = (1.0, 1.25, 1.6, 2.0, 2.5, 3.15, 4.0, 5.0, 6.3, 8.0)
 #: The fewest FFT bins a band must hold to be reported.
 MIN_BINS = 3
@@ -246,8 +246,10 @@ def _levels(freq, power, nyquist, segments, welch, reference: float, f_ref: floa
     c = centre(ks, f_ref)
     with np.errstate(divide="ignore"):
         level = 10.0 * np.log10(sums / reference ** 2)
-    return BandLevels(ks, c, nominal(ks, f_ref), c * 10.0 ** -0.05, c * 10.0 ** 0.05, sums, level,
-                      count, float(freq[1] - freq[0]), float(reference), float(power.sum()),
+    arrays = [ks, c, nominal(ks, f_ref), c * 10.0 ** -0.05, c * 10.0 ** 0.05, sums, level, count]
+    for a in arrays:
+        a.setflags(write=False)     # a result is a value
+    return BandLevels(*arrays, float(freq[1] - freq[0]), float(reference), float(power.sum()),
                       int(segments), welch)
 
 

@@ -241,6 +241,7 @@ def mean_profile_depth(heights, spacing: float, *, max_dropout: float = MAX_DROP
     if not np.any(np.isfinite(msd)):
         raise SurfaceError(f"texture strip: every {SEGMENT_MM:g} mm segment has more than "
                            f"{max_dropout:.0%} missing samples; no mean profile depth")
+    msd.setflags(write=False)
     return MeanProfileDepth(float(np.nanmean(msd)), msd, n, float(spacing))
 
 
@@ -269,8 +270,10 @@ def texture_spectrum(heights, spacing: float, *, max_dropout: float = MAX_DROPOU
     ks, sums, count = ks[inside], sums[inside], count[inside]
     with np.errstate(divide="ignore"):
         level = 10.0 * np.log10(sums / REF_APPROACH ** 2)
-    return TextureSpectrum(1.0 / centre(ks, 1.0), nominal(-ks, 1.0), sums, level, count,
-                           float(freq[1] - freq[0]), int(keep.sum()), int((~keep).sum()))
+    arrays = [1.0 / centre(ks, 1.0), nominal(-ks, 1.0), sums, level, count]
+    for a in arrays:
+        a.setflags(write=False)
+    return TextureSpectrum(*arrays, float(freq[1] - freq[0]), int(keep.sum()), int((~keep).sum()))
 
 
 def road_texture(heights, spacing: float, *, max_dropout: float = MAX_DROPOUT) -> Texture:
