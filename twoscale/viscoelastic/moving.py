@@ -13,7 +13,10 @@ step all the same.
 
 The memory grid must cover every cell the contact reaches over the run (the footprint
 swept from the first to the last shift); :func:`sweep_grid` builds it for tips, and a step
-whose pressure reaches the grid's edge, or lies partly beyond it, says so (not converged).
+whose pressure reaches the grid's edge, or lies partly beyond it, says so (not converged),
+unless the grid is declared the body's footprint (``MovingOptions(open_edges=True)``: a
+tread block's face, or a window of the half-space under a road, where contact is cut at
+the edge by the body itself).
 
 Drag: ``drag_N = h^2 sum p dz/dx`` over the contact, ``z`` the moving surface's recess (the
 road's, not a fixed face's): the horizontal force the indenter exerts on the body along +x,
@@ -69,12 +72,17 @@ class MovingOptions:
     solver : mapping, default {}
         Options of the step solver (``tol``, ``max_iter`` of the reference; those of
         :func:`twoscale.twoscale.solve_twoscale`).
+    open_edges : bool, default False
+        The memory grid is the body's footprint (a tread block's face, a window of the
+        half-space under a road): contact may reach its edge. Otherwise pressure on the
+        grid's edge means the grid is too small: the position is reported not converged.
     """
 
     method: str = "reference"
     start: str = "ramp"
     keep_results: bool = False
     solver: Mapping = field(default_factory=dict)
+    open_edges: bool = False
 
     def __post_init__(self) -> None:
         if self.method not in METHODS:
@@ -188,7 +196,7 @@ class _Roll:
         self.op = provider.grid_operator(grid)
         self.records: list[StepSummary] = []
         self.results: list = []
-        self.last = None  # (shift, ContactResult, pressure on the grid)
+        self.last = self.before = None  # (shift, ContactResult, pressure on the grid)
         self.quantities: list = []
 
     def _solve(self, shift: float, factor: float, u_H: np.ndarray) -> tuple:
@@ -214,9 +222,15 @@ class _Roll:
         return scaled(solve_reference(self.provider, moved, method=solver, **load, **opts), 1.0 / factor), slope
 
     def _moved_start(self, shift: float) -> np.ndarray:
-        """The previous pressure moved with the indenter by whole cells (a CG warm start)."""
-        prev_shift, _, p = self.last
-        k = int(round((shift - prev_shift) / self.grid.h))
+        """A CG warm start: the last pressure moved with the indenter by whole cells, and
+        extrapolated linearly in time (in the indenter's frame) from the one before."""
+        last = self._moved(self.last[2], shift - self.last[0])
+        if self.before is None:
+            return last
+        return np.maximum(2.0 * last - self._moved(self.before[2], shift - self.before[0]), 0.0)
+
+    def _moved(self, p: np.ndarray, by: float) -> np.ndarray:
+        k = int(round(by / self.grid.h))
         p = p.reshape(self.grid.shape)
         out = np.zeros_like(p)
         if 0 <= k < p.shape[1]:
@@ -242,7 +256,7 @@ class _Roll:
         on_grid = h2 * float(p.sum())
         if abs(on_grid - result.total_load) > 1e-9 * max(abs(result.total_load), 1e-300):
             edge.append(f"{result.total_load - on_grid:.3g} N of pressure lies beyond the memory grid")
-        if _on_edge(p.reshape(self.grid.shape)):
+        if not self.options.open_edges and _on_edge(p.reshape(self.grid.shape)):
             edge.append("pressure reaches the memory grid's edge")
         message = "; ".join(([result.message] if result.message and not result.converged else []) + edge)
         self.quantities.append((np.array([result.penetration if self.kind == "total" else result.total_load]),
@@ -254,7 +268,7 @@ class _Roll:
             dissipated=dissipated, stored=stored, error=self._estimate(dt),
             converged=bool(result.converged) and not edge, message=message, iterations=_iterations(result),
             seconds=time.perf_counter() - t0))
-        self.last = (shift, result, p)
+        self.before, self.last = self.last, (shift, result, p)
         if self.options.keep_results:
             self.results.append(result)
         return result

@@ -138,6 +138,14 @@ class MovingResult:
         d = self.drag[first:None if last is None else last + 1]
         return float(np.sum(0.5 * (d[1:] + d[:-1]) * np.diff(s)))
 
+    def vertical_work(self, first: int = 0, last: int | None = None) -> float:
+        """``int W dd`` from position ``first`` to ``last``, N mm (trapezoidal): the work of
+        the load as the approach changes (0 under penetration control). The energy balance
+        is ``drag_work + vertical_work = stored change + dissipated``."""
+        s = slice(first, None if last is None else last + 1)
+        W, d = self.total_load[s], self.penetration[s]
+        return float(np.sum(0.5 * (W[1:] + W[:-1]) * np.diff(d)))
+
     def dissipated_between(self, first: int = 0, last: int | None = None) -> float:
         """Energy dissipated from position ``first`` to ``last`` (default the end), N mm."""
         return float(np.sum(self.dissipated[first + 1:None if last is None else last + 1]))
