@@ -12,6 +12,7 @@ from twoscale.indenters import Asperity, surface_on
 from twoscale.influence.halfspace import HalfSpace
 from twoscale.material import Material
 from twoscale.reference import solve_reference
+from twoscale.viscoelastic.closed_forms import low_speed_friction
 from twoscale.viscoelastic.dissipation import step_integrals
 from twoscale.viscoelastic.moving import MovingOptions, solve_moving, sweep_grid
 from twoscale.viscoelastic.moving_indenter import MovingAsperities, MovingHeights
@@ -105,7 +106,27 @@ def test_low_speed_drag_is_the_closed_form():
     r, _ = _run(m, SPHERE, np.arange(0.0, 3.0 + 1e-9, 0.1), 0.1, speed=v, penetration=D)
     mu = r.drag[-1] / r.total_load[-1]
     # measured 0.965 at a / h = 14, 0.981 at 28 (first order in h: the tilted punch's edge)
-    assert abs(mu / (v * 8.0 * tau / (m.E * R)) - 1) < 0.05
+    assert abs(mu / low_speed_friction(m, R, v) - 1) < 0.05
+
+
+def test_low_speed_friction_by_its_two_routes():
+    # the closed form's ingredients, checked apart: the low-frequency creep compliance
+    # J~ = 1 / (s E~) gives sum c_j lambda_j = eta / E_inf^2, and for the Hertz pressure
+    # int x dp/dx dA = -W (by quadrature), so the dissipation (eta / E_inf^2) v^2 E_inf W / R
+    # equals drag x v with drag / W = v eta / (E_inf R)
+    from twoscale.viscoelastic.prony import creep_compliance
+
+    m = Material(2.0, 0.5, prony=((3.0, 0.02), (5.0, 0.7), (1.0, 9.0)))
+    J = creep_compliance(m)
+    eta = sum(e * t for e, t in m.prony)
+    assert abs(np.sum(J.c * J.lambdas) / (eta / m.E ** 2) - 1) < 1e-10
+    a, p0 = 1.3, 0.8
+    # p = p0 sqrt(1 - r^2 / a^2); int x dp/dx dA = pi int r^2 dp/dr dr (the angular mean of
+    # cos^2 is 1/2), with r = a sin(t) to take the edge's square root: dp/dr dr = -p0 sin(t) dt
+    t = np.linspace(0.0, 0.5 * np.pi, 20001)
+    integral = np.pi * np.trapezoid((a * np.sin(t)) ** 2 * -p0 * np.sin(t), t)
+    assert abs(integral / -(2 * np.pi * a * a * p0 / 3) - 1) < 1e-3
+    assert low_speed_friction(m, 10.0, 2.0) == pytest.approx(2.0 * eta / (2.0 * 10.0))
 
 
 def _steady_friction(xi: float) -> float:
