@@ -80,12 +80,20 @@ def test_drag_work_is_the_stored_plus_dissipated_energy():
         assert abs(err) < 0.5 * (ds / A) ** 2
         errors.append(abs(err))
     assert errors[0] / errors[1] > 2.5  # order ~2 (measured 3.5)
-    # steady rolling: over the last half the stored energy hardly changes and the mean drag
-    # times the distance is the energy the branches dissipate
-    n = r.shifts.size // 2
+
+
+def test_steady_rolling_mean_drag_times_distance_is_the_dissipation():
+    # long enough for the retardation time (5 tau here) to settle: over the last third the
+    # stored energy is constant (measured 1e-3 of the dissipation) and the mean drag times
+    # the distance is the energy the branches dissipate (measured 0.43 % at ds = a / 7)
+    ds = 0.2
+    m = Material(2.0, 0.5, prony=((8.0, A),))
+    r, _ = _run(m, SPHERE, np.arange(0.0, 24.0 + 1e-9, ds), ds, penetration=D)
+    n = 2 * r.shifts.size // 3
     dissipated = r.dissipated_between(n)
-    assert abs(r.stored[-1] - r.stored[n]) < 0.1 * dissipated
-    assert abs(r.drag_work(n) / dissipated - 1) < 0.1
+    assert abs(r.stored[-1] - r.stored[n]) < 0.01 * dissipated
+    mean_drag = np.mean(0.5 * (r.drag[n + 1:] + r.drag[n:-1]))
+    assert abs(mean_drag * (r.shifts[-1] - r.shifts[n]) / dissipated - 1) < 0.5 * (ds / A) ** 2
 
 
 def test_elastic_drag_is_zero_and_viscoelastic_drag_resists():
@@ -218,3 +226,29 @@ def test_a_grid_too_small_says_so():
     r = solve_moving(m, HalfSpace(m.relaxed()), MovingAsperities(SPHERE), [0.0, 1.0, 2.0], speed=1.0, grid=grid,
                      penetration=D)
     assert not r.converged and "edge" in r.message and r.step_converged[0]
+
+
+def test_a_height_maps_basins_roll_with_both_solvers():
+    # three bumps sampled as a height map (basins by the watershed, as a road's stones): the
+    # two-scale steps see the history displacement through the lifted basins
+    from twoscale.surface import build_surface
+    from twoscale.surface.reading import RawMap
+
+    h = 0.1
+    X, Y = np.meshgrid(np.arange(-60, 61) * h, np.arange(-40, 41) * h)
+    z = np.full(X.shape, -1.0)
+    for bx, by, bz, r in ((-2.0, 0.5, 0.0, 4.0), (1.5, -1.0, 0.05, 6.0), (3.5, 1.8, 0.1, 5.0)):
+        z = np.maximum(z, -bz - ((X - bx) ** 2 + (Y - by) ** 2) / (2 * r))
+    surface = build_surface(RawMap(z, spacing=h, units="mm"))
+    assert len(surface.asperities) == 3
+    m = Material(2.0, 0.5, prony=((8.0, 0.5),))
+    g = surface.hmap.grid
+    grid = Grid.covering(-4.0, 5.0, -3.0, 3.0, h, anchor=(g.x0, g.y0))
+    runs = [solve_moving(m, HalfSpace(m.relaxed()), MovingAsperities(surface.asperities), np.arange(6) * h,
+                         speed=2.0, grid=grid, penetration=0.15, options=MovingOptions(method=method))
+            for method in ("reference", "twoscale")]
+    assert all(r.converged for r in runs)
+    ref, two = runs
+    assert np.abs(two.forces - ref.forces).max() < 1e-4 * np.abs(ref.forces).max()
+    assert np.abs(two.drag - ref.drag).max() < 1e-4 * np.abs(ref.drag).max()
+    assert np.count_nonzero(ref.forces[-1] > 0) == 3
