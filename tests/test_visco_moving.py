@@ -228,19 +228,24 @@ def test_a_grid_too_small_says_so():
     assert not r.converged and "edge" in r.message and r.step_converged[0]
 
 
-def test_a_height_maps_basins_roll_with_both_solvers():
-    # three bumps sampled as a height map (basins by the watershed, as a road's stones): the
-    # two-scale steps see the history displacement through the lifted basins
+def _three_bumps(h=0.1):
+    """Three paraboloids sampled as a height map, one basin each (as a road's stones)."""
     from twoscale.surface import build_surface
     from twoscale.surface.reading import RawMap
 
-    h = 0.1
     X, Y = np.meshgrid(np.arange(-60, 61) * h, np.arange(-40, 41) * h)
     z = np.full(X.shape, -1.0)
     for bx, by, bz, r in ((-2.0, 0.5, 0.0, 4.0), (1.5, -1.0, 0.05, 6.0), (3.5, 1.8, 0.1, 5.0)):
         z = np.maximum(z, -bz - ((X - bx) ** 2 + (Y - by) ** 2) / (2 * r))
     surface = build_surface(RawMap(z, spacing=h, units="mm"))
     assert len(surface.asperities) == 3
+    return surface
+
+
+def test_a_height_maps_basins_roll_with_both_solvers():
+    # the two-scale steps see the history displacement through the lifted basins
+    h = 0.1
+    surface = _three_bumps(h)
     m = Material(2.0, 0.5, prony=((8.0, 0.5),))
     g = surface.hmap.grid
     grid = Grid.covering(-4.0, 5.0, -3.0, 3.0, h, anchor=(g.x0, g.y0))
@@ -252,3 +257,17 @@ def test_a_height_maps_basins_roll_with_both_solvers():
     assert np.abs(two.forces - ref.forces).max() < 1e-4 * np.abs(ref.forces).max()
     assert np.abs(two.drag - ref.drag).max() < 1e-4 * np.abs(ref.drag).max()
     assert np.count_nonzero(ref.forces[-1] > 0) == 3
+
+
+def test_a_history_on_a_height_map_runs_with_both_solvers():
+    # load up, held, down to a third (contacts grow then shrink) on the map's basins
+    from twoscale.scene import Scene
+    from twoscale.viscoelastic import LoadHistory, TimeSteps, solve_history
+
+    m = Material(2.0, 0.5, prony=((8.0, 0.5),))
+    scene = Scene(m, surface=_three_bumps(),
+                  history=LoadHistory("total", ((0.0, 0.0), (1.0, 3.0), (3.0, 3.0), (4.0, 1.0))))
+    ref, two = (solve_history(scene, method=method, steps=TimeSteps(count=12)) for method in ("reference", "twoscale"))
+    assert ref.converged and two.converged
+    assert np.abs(two.forces - ref.forces).max() < 1e-4 * np.abs(ref.forces).max()
+    assert np.abs(two.penetration - ref.penetration).max() < 1e-6 * ref.penetration.max()
