@@ -48,6 +48,21 @@ def test_slow_and_fast_materials_are_static_elastic(factor, modulus, control):
         assert abs(r.contact_area[k] - ref.contact_area) < 1e-9 + 0.02 * ref.contact_area
 
 
+def test_a_relaxed_start_is_the_relaxed_answer_then_glassy_increments():
+    # start="relaxed": held at the first position until relaxed; a material far slower than
+    # the run then adds glassy increments to that relaxed state
+    m = Material(2.0, 0.5, prony=((8.0, 1e7),))
+    shifts = np.arange(0.0, 0.5 + 1e-9, 0.1)
+    grid = sweep_grid(m, SPHERE, shifts, 0.1, penetration=D)
+    r = solve_moving(m, HalfSpace(m.relaxed()), MovingAsperities(SPHERE), shifts, speed=1.0, grid=grid,
+                     penetration=D, options=MovingOptions(start="relaxed"))
+    static = solve_reference(HalfSpace(m.relaxed()), surface_on(grid, SPHERE), penetration=D)
+    assert r.total_load[0] == pytest.approx(static.total_load, rel=1e-8)
+    assert r.dissipated[0] == 0.0
+    # the indenter moved 0.5 mm: the glassy increments (5 x stiffer) raise the load
+    assert r.total_load[-1] > 1.05 * r.total_load[0]
+
+
 def test_twoscale_matches_reference_with_the_same_steps():
     # three spheres rolled over 3 mm at a speed where the branch relaxes over a contact width
     m = Material(2.0, 0.5, prony=((8.0, 0.7),))
@@ -271,3 +286,23 @@ def test_a_history_on_a_height_map_runs_with_both_solvers():
     assert ref.converged and two.converged
     assert np.abs(two.forces - ref.forces).max() < 1e-4 * np.abs(ref.forces).max()
     assert np.abs(two.penetration - ref.penetration).max() < 1e-6 * ref.penetration.max()
+
+
+def test_rolling_on_a_finite_block():
+    # the block's compliance scales as 1 / E too: both solvers agree with the same steps and
+    # the drag's work is the stored plus dissipated energy (the block's operator is symmetric)
+    fem_influence = pytest.importorskip("fem_influence")
+    m = Material(3.0, 0.5, prony=((12.0, 0.5),))
+    block = fem_influence.BlockProvider(material=m.relaxed(), use_cache=False, progress=False,
+                                        size=(60.0, 60.0, 10.0), h_fine=5.0, h_coarse=10.0, fine_half_width=10.0)
+    tips = (Asperity(-3.0, 0.0, 0.0, 8.0, "paraboloid"),)
+    shifts = np.arange(0.0, 1.0 + 1e-9, 0.2)
+    grid = sweep_grid(m, tips, shifts, 0.2, penetration=0.15)
+    ref, two = (solve_moving(m, block, MovingAsperities(tips), shifts, speed=2.0, grid=grid, penetration=0.15,
+                             options=MovingOptions(method=method)) for method in ("reference", "twoscale"))
+    assert ref.converged and two.converged
+    assert np.abs(two.total_load - ref.total_load).max() < 1e-4 * ref.total_load.max()
+    assert np.abs(two.drag - ref.drag).max() < 1e-3 * ref.drag.max()
+    a = math.sqrt(8.0 * 0.15)
+    balance = ref.drag_work() / (ref.stored[-1] - ref.stored[0] + ref.dissipated_between()) - 1
+    assert abs(balance) < 0.5 * (0.2 / a) ** 2

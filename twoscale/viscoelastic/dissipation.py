@@ -55,8 +55,9 @@ def step_integrals(lam: np.ndarray, dt: float) -> tuple[np.ndarray, np.ndarray, 
 class BranchEnergy:
     """The scalars that give the memory's stored and dissipated energy (owned by one run).
 
-    ``S[j] = <m_j, K m_j>`` (N mm / MPa^2... in the units of ``<p, K p> c_j^2``), ``Kp`` the
-    displacement ``K p`` of the last pressure on the whole memory grid (mm)."""
+    ``S[j] = <m_j, K m_j>`` (the memory is dimensionless, ``K`` maps it to mm: mm^3), ``Kp``
+    the displacement ``K p`` of the last pressure on the whole memory grid (mm / (1/MPa)),
+    ``pKp = <p, K p>``. The memory ``m_j`` itself stays in :class:`Memory` (sparse)."""
 
     memory: Memory
     h: float
