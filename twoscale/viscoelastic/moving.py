@@ -140,8 +140,9 @@ def solve_moving(material: Material, provider, indenter, shifts, *, speed: float
         With Prony branches (or none: quasi-static elastic, every position a static solve).
     provider : InfluenceProvider
         The body at the relaxed modulus (``material.relaxed()``): half-space or block.
-    indenter : MovingAsperities or MovingHeights
-        The rigid surface as a function of the shift (:mod:`.moving_indenter`).
+    indenter : MovingIndenter
+        The rigid surface as a function of the shift: :class:`.moving_indenter.MovingAsperities`,
+        :class:`.moving_indenter.MovingHeights`, or any object with their methods.
     shifts : sequence of float
         Positions, mm, increasing (any spacing).
     speed : float

@@ -10,6 +10,9 @@ indenter at ``x`` appears at body ``x + shift`` (a road moving under a tread). T
   coordinates returning the recess (mm, ``inf`` where no material) and the owner (asperity
   index, -1 where none); the full-grid reference runs on it.
 
+Any object with the methods of :class:`MovingIndenter` will do (e.g. a road whose stones
+are kept only inside a tyre's footprint).
+
 Both may add a ``face``: a height (mm) fixed in the body (a tyre's curvature, ``x^2 / 2R``),
 added to the gap but not moved and not part of the slope. ``slope_x`` is the slope along x
 of the moving surface's recess at the cell centres, central differences (one-sided next to
@@ -19,12 +22,32 @@ from __future__ import annotations
 
 import dataclasses
 from dataclasses import dataclass
-from typing import Callable, Sequence
+from typing import Callable, Protocol, Sequence
 
 import numpy as np
 
 from ..grid import Grid
 from ..indenters import Asperity, Surface, surface_on
+
+
+class MovingIndenter(Protocol):
+    """What :func:`twoscale.viscoelastic.moving.solve_moving` asks of a moving indenter."""
+
+    @property
+    def n_asperities(self) -> int:
+        """Asperities the per-tip figures are reported for (the owners' range)."""
+
+    def tips(self, shift: float) -> tuple | None:
+        """The asperities at ``shift`` (mm) for the two-scale solver, in a fixed order and
+        number; None when the indenter has no tips (then only the reference runs)."""
+
+    def surface(self, grid: Grid, shift: float) -> tuple[Surface, np.ndarray]:
+        """The rigid surface on ``grid`` at ``shift`` (recess mm, ``inf`` where no material,
+        owners; any fixed face included) and the slope along x of its moving part."""
+
+    def face_on(self, grid: Grid) -> np.ndarray:
+        """The fixed face's height on ``grid`` (mm; zeros when none): the two-scale steps
+        add it to each tip and patch cell as they add the history displacement."""
 
 
 def slope_x(height: np.ndarray, h: float) -> np.ndarray:
@@ -159,4 +182,4 @@ class MovingHeights:
         return cls(field, n, face)
 
 
-__all__ = ["MovingAsperities", "MovingHeights", "shifted", "slope_x"]
+__all__ = ["MovingAsperities", "MovingHeights", "MovingIndenter", "shifted", "slope_x"]
