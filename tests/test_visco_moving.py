@@ -17,6 +17,7 @@ from twoscale.viscoelastic.dissipation import step_integrals
 from twoscale.viscoelastic.moving import MovingOptions, solve_moving, sweep_grid
 from twoscale.viscoelastic.moving_indenter import MovingAsperities, MovingHeights
 
+_trapezoid = getattr(np, "trapezoid", None) or np.trapz  # numpy < 2 has only trapz
 R, D = 10.0, 0.2
 A = math.sqrt(R * D)  # Hertz contact radius at the approach D, mm
 SPHERE = (Asperity(0.0, 0.0, 0.0, R, "paraboloid"),)
@@ -147,7 +148,7 @@ def test_low_speed_friction_by_its_two_routes():
     # p = p0 sqrt(1 - r^2 / a^2); int x dp/dx dA = pi int r^2 dp/dr dr (the angular mean of
     # cos^2 is 1/2), with r = a sin(t) to take the edge's square root: dp/dr dr = -p0 sin(t) dt
     t = np.linspace(0.0, 0.5 * np.pi, 20001)
-    integral = np.pi * np.trapezoid((a * np.sin(t)) ** 2 * -p0 * np.sin(t), t)
+    integral = np.pi * _trapezoid((a * np.sin(t)) ** 2 * -p0 * np.sin(t), t)
     assert abs(integral / -(2 * np.pi * a * a * p0 / 3) - 1) < 1e-3
     assert low_speed_friction(m, 10.0, 2.0) == pytest.approx(2.0 * eta / (2.0 * 10.0))
 
@@ -205,7 +206,7 @@ def test_step_integrals_match_quadrature():
         s = np.unique(np.concatenate([np.linspace(0.0, dt, 100001), np.geomspace(1e-5 * la, min(dt, 40 * la), 100001)]))
         alpha = np.exp(-s / la)
         gamma = (la / dt) * (1 - alpha)
-        quad = [np.trapezoid(f, s) for f in (alpha ** 2, alpha * gamma, gamma ** 2)]
+        quad = [_trapezoid(f, s) for f in (alpha ** 2, alpha * gamma, gamma ** 2)]
         got = [x[k] for x in step_integrals(lam, dt)]
         for q, g in zip(quad, got):
             assert abs(g - q) <= 1e-6 * max(abs(q), 1e-30) + 1e-12 * dt
