@@ -29,6 +29,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import numbers
 import time
 from dataclasses import dataclass, field
 from typing import Callable, Mapping
@@ -113,7 +114,7 @@ def _check(material, provider, shifts, speed, grid, penetration, total_load) -> 
     if provider.material.relaxed() != material.relaxed():
         raise ValueError(f"the provider's material {provider.material!r} is not the relaxed "
                          f"{material.relaxed()!r} (build the body at the relaxed modulus)")
-    if isinstance(speed, bool) or not isinstance(speed, (int, float)) or not math.isfinite(speed) or speed <= 0:
+    if isinstance(speed, bool) or not isinstance(speed, numbers.Real) or not math.isfinite(speed) or speed <= 0:
         raise ValueError(f"speed must be a finite number > 0 (mm/s), got {speed!r}")
     if not isinstance(grid, Grid):
         raise ValueError(f"grid must be a twoscale.grid.Grid (the memory grid), got {type(grid).__name__}")
@@ -173,8 +174,7 @@ def solve_moving(material: Material, provider, indenter, shifts, *, speed: float
     roll = _Roll(material, provider, indenter, grid, kind, value, options)
     times = (s - s[0]) / float(speed)
     for n, shift in enumerate(s):
-        dt = (math.inf if options.start == "relaxed" else s[1] - s[0] if s.size > 1 else 0.0) / speed \
-            if n == 0 else times[n] - times[n - 1]
+        dt = times[n] - times[n - 1] if n else _first_step(options.start, times)
         result = roll.step(n, float(shift), float(dt))
         if progress is not None:
             progress(f"shift {shift:.4g} mm, t = {times[n]:.4g} s: load {result.total_load:.4g} N, approach "
@@ -182,6 +182,14 @@ def solve_moving(material: Material, provider, indenter, shifts, *, speed: float
         if on_step is not None:
             on_step(n, float(shift), result)
     return roll.result(s, times, float(speed), time.perf_counter() - t0)
+
+
+def _first_step(start: str, times: np.ndarray) -> float:
+    """The step to the first position (s): inf from a relaxed hold, else the ramp over the
+    first step's time (0, the glassy instant, for a single position)."""
+    if start == "relaxed":
+        return math.inf
+    return float(times[1] - times[0]) if times.size > 1 else 0.0
 
 
 class _Roll:
