@@ -321,3 +321,17 @@ def test_rolling_on_a_finite_block():
     a = math.sqrt(8.0 * 0.15)
     balance = ref.drag_work() / (ref.stored[-1] - ref.stored[0] + ref.dissipated_between()) - 1
     assert abs(balance) < 0.5 * (0.2 / a) ** 2
+
+
+def test_each_position_is_reported_as_it_is_solved():
+    m = Material(2.0, 0.5, prony=((8.0, 1.0),))
+    shifts = [0.0, 0.1, 0.2]
+    grid = sweep_grid(m, SPHERE, shifts, 0.1, penetration=D)
+    seen, lines = [], []
+    r = solve_moving(m, HalfSpace(m.relaxed()), MovingAsperities(SPHERE), shifts, speed=1.0, grid=grid,
+                     penetration=D, progress=lines.append,
+                     on_step=lambda n, s, res, row: seen.append((n, s, res.total_load, row.drag)))
+    assert [x[:2] for x in seen] == [(0, 0.0), (1, 0.1), (2, 0.2)] and len(lines) == 3
+    np.testing.assert_array_equal([x[2] for x in seen], r.total_load)
+    np.testing.assert_array_equal([x[3] for x in seen], r.drag)
+    assert r.results == () and r.times.tolist() == [0.0, 0.1, 0.2]

@@ -158,8 +158,9 @@ def solve_moving(material: Material, provider, indenter, shifts, *, speed: float
     progress : callable, optional
         Called with a line per position.
     on_step : callable, optional
-        Called as ``on_step(n, shift, result)`` with each position's ContactResult (to write
-        fields or reduce them as the run goes, without keeping them).
+        Called as ``on_step(n, shift, result, summary)`` with each position's ContactResult
+        and its :class:`~.moving_result.StepSummary` (load, approach, area, drag, energy...):
+        to write rows and fields or reduce them as the run goes, without keeping them.
 
     Returns
     -------
@@ -180,7 +181,7 @@ def solve_moving(material: Material, provider, indenter, shifts, *, speed: float
             progress(f"shift {shift:.4g} mm, t = {times[n]:.4g} s: load {result.total_load:.4g} N, approach "
                      f"{result.penetration:.4g} mm, drag {roll.records[-1].drag:.4g} N")
         if on_step is not None:
-            on_step(n, float(shift), result)
+            on_step(n, float(shift), result, roll.records[-1])
     return roll.result(s, times, float(speed), time.perf_counter() - t0)
 
 
