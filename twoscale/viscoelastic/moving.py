@@ -19,8 +19,10 @@ tread block's face, or a window of the half-space under a road, where contact is
 the edge by the body itself).
 
 Drag: ``drag_N = h^2 sum p dz/dx`` over the contact, ``z`` the moving surface's recess (the
-road's, not a fixed face's): the horizontal force the indenter exerts on the body along +x,
-the direction it moves. Positive drag resists the motion (the road must be pushed); its
+road's, not a fixed face's), that is ``-h^2 sum p dH/dx`` with ``H = -z`` the road's height
+towards the body: the horizontal force the indenter exerts on the body along +x, the
+direction it moves (the road's surface pushes along its normal, which leans back, -x, where
+the road rises). Positive drag resists the motion (the road must be pushed); its
 integral over the distance is the work put in, so over a steady run the mean drag times the
 distance is the energy dissipated in the branches, reported per step from their internal
 variables (:mod:`.dissipation`: exact for a pressure linear in time over a step).
