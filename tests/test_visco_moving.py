@@ -213,6 +213,29 @@ def test_a_sampled_map_moves_between_its_samples():
     assert np.abs(slope - (X - h / 3) / R)[inner].max() < 2 * h / R
 
 
+def test_retardation_dashpots_dissipate_as_the_prony_branches():
+    # one strain history through the Maxwell branches (dashpots E_k tau_k) and its stress
+    # through the Kelvin-Voigt units of the creep compliance (dashpots lambda_j / c_j): the
+    # energy dissipated agrees at every instant (the identity the energy report rests on)
+    from twoscale.viscoelastic.prony import creep_compliance
+
+    m = Material(2.0, 0.5, prony=((3.0, 0.1), (5.0, 2.0), (1.0, 20.0)))
+    Ek, tk = (np.array(c) for c in zip(*m.prony))
+    J = creep_compliance(m)
+    t, dt = np.linspace(0.0, 10.0, 20001, retstep=True)
+    eps = 0.3 * np.sin(0.7 * t) + 0.2 * np.sin(3.1 * t) ** 2
+    ev, ej, dm, dk = np.zeros(3), np.zeros(3), [0.0], [0.0]
+    for e in eps:  # explicit Euler in both: the same discrete history
+        rate = (e - ev) / tk
+        sigma = m.E * e + np.sum(Ek * (e - ev))
+        dm.append(dm[-1] + dt * np.sum(Ek * tk * rate ** 2))
+        ev = ev + dt * rate
+        rate_j = (J.c * sigma - ej) / J.lambdas
+        dk.append(dk[-1] + dt * np.sum(J.lambdas / J.c * rate_j ** 2))
+        ej = ej + dt * rate_j
+    np.testing.assert_allclose(dk, dm, rtol=1e-9, atol=1e-14)
+
+
 def test_step_integrals_match_quadrature():
     lam = np.array([1e-6, 1e-3, 0.3, 2.0, 1e4])
     dt = 0.5

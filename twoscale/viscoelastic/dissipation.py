@@ -20,10 +20,9 @@ dissipation is a quadratic form in ``m_j``, ``dp = p(t + dt) - p(t)`` whose weig
 integrals of ``alpha^2``, ``alpha gamma`` and ``gamma^2`` over the step, in closed form
 (:func:`step_integrals`). It needs the scalars ``<m_j, K m_j>``, carried from step to step by
 the same exact recurrence, and one product ``K dp`` per step; nothing per branch is held on
-the grid. For the Prony branches' relaxation form the total dissipated over a run that
-starts and ends at rest is the same (it is the work put in); the split between stored and
-dissipated along the way is the retardation form's, identical to the Maxwell form's for a
-standard linear solid.
+the grid. The dashpots of the Prony (Maxwell) branches dissipate at the same rate at every
+instant (the two forms are realisations of one material, and their free energies agree):
+a test checks it on a stress history through both sets of branches.
 """
 from __future__ import annotations
 
