@@ -89,6 +89,28 @@ class HistoryAsperity(Asperity):
         return base + self.lookup(X, Y)
 
 
+class LiftedBasins:
+    """The basins of a height map (:class:`twoscale.surface.indenter.BasinMap`) with the
+    history displacement ``u_H`` added to every recess they give, so that the micro step
+    sees it on a map's cells as :class:`HistoryAsperity` gives it on a tip's (the map's
+    asperities are sampled together through their shared basins)."""
+
+    def __init__(self, basins, lookup: GridLookup):
+        self.basins, self.lift = basins, lookup
+        self.grid, self.labels, self.book = basins.grid, basins.labels, basins.book
+
+    @property
+    def n_labels(self) -> int:
+        return self.basins.n_labels
+
+    def lookup(self, X, Y, label: int) -> np.ndarray:
+        return self.basins.lookup(X, Y, label) + self.lift(X, Y)
+
+    def union_on(self, X, Y, index: dict):
+        height, owner = self.basins.union_on(X, Y, index)
+        return np.where(owner >= 0, height + self.lift(X, Y), np.inf), owner
+
+
 class GridLookup:
     """``u_H`` at cell centres of the memory grid's lattice (cells beyond it take the
     nearest edge cell: no contact reaches there)."""
@@ -125,8 +147,17 @@ class TwoScaleStep:
         x = np.array([a.x for a in self.asperities])
         y = np.array([a.y for a in self.asperities])
         lift = look(x, y)
-        return tuple(HistoryAsperity(a.x, a.y, a.z + float(l), a.R, a.shape, lift=float(l), lookup=look)
-                     for a, l in zip(self.asperities, lift))
+        lifted: dict = {}  # a height map's basins, lifted once for all its asperities
+        out = []
+        for a, l in zip(self.asperities, lift):
+            basins = getattr(a, "basins", None)
+            if basins is None:
+                out.append(HistoryAsperity(a.x, a.y, a.z + float(l), a.R, a.shape, lift=float(l), lookup=look))
+                continue
+            if id(basins) not in lifted:
+                lifted[id(basins)] = LiftedBasins(basins, look)
+            out.append(dataclasses.replace(a, z=a.z + float(l), basins=lifted[id(basins)]))
+        return tuple(out)
 
     def solve(self, step: StepProblem) -> ContactResult:
         from ..driver import solve_twoscale
@@ -159,4 +190,4 @@ def pressure_on(result: ContactResult, grid: Grid) -> np.ndarray:
     return result.pressure_on(grid).ravel()
 
 
-__all__ = ["HistoryAsperity", "ReferenceStep", "StepProblem", "TwoScaleStep", "pressure_on", "scaled"]
+__all__ = ["HistoryAsperity", "LiftedBasins", "ReferenceStep", "StepProblem", "TwoScaleStep", "pressure_on", "scaled"]
