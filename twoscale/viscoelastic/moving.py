@@ -217,9 +217,11 @@ class _Roll:
             step = TwoScaleStep(self.provider, self.indenter.tips(shift), self.grid, h=self.grid.h, kind=self.kind,
                                 tilt=False, pivot=(0.0, 0.0), options=o.solver)
             start = self.last[1] if self.last is not None else None
+            before = None if self.last is None else \
+                np.array([[a.x, a.y] for a in self.indenter.tips(self.last[0])], dtype=float).reshape(-1, 2)
             _, slope = self.indenter.surface(self.grid, shift)
             extra = u_H + self.indenter.face_on(self.grid)
-            return step.solve(StepProblem(self.value, factor, extra, start)), slope
+            return step.solve(StepProblem(self.value, factor, extra, start, before)), slope
         from ..reference import AUTO_DENSE_CELLS, solve_reference
 
         surf, slope = self.indenter.surface(self.grid, shift)

@@ -38,12 +38,15 @@ def scaled(result: ContactResult, factor: float) -> ContactResult:
 @dataclass(frozen=True)
 class StepProblem:
     """What a step solver needs: the control value (N or mm, physical), the factor
-    ``E0 J_eff`` and the history displacement ``u_H`` on the memory grid (mm)."""
+    ``E0 J_eff`` and the history displacement ``u_H`` on the memory grid (mm); ``start``
+    the previous step's answer and ``start_tips`` the tips it was solved for ((N, 2) mm;
+    None: this step's own, the tips not having moved)."""
 
     value: float
     factor: float
     u_H: np.ndarray
     start: ContactResult | None
+    start_tips: np.ndarray | None = None
 
 
 class ReferenceStep:
@@ -168,9 +171,10 @@ class TwoScaleStep:
         start = None
         if step.start is not None and step.start.method == "twoscale" and step.start.total_load > 0:
             # the previous step's answer starts both steps: macro forces, and the pressure
-            # around each tip (the tips do not move; the load and the history do)
+            # around each tip, moved with it when the tips moved (rolling)
             tips = np.array([[a.x, a.y] for a in self.asperities], dtype=float).reshape(-1, 2)
-            start = warm_start(scaled(step.start, step.factor), tips, len(tips), self.h)
+            before = tips if step.start_tips is None else step.start_tips
+            start = warm_start(scaled(step.start, step.factor), before, len(tips), self.h)
         result = solve_twoscale(self.provider, self._wrapped(step.u_H), h=self.h, tilt=self.tilt,
                                 pivot=self.pivot, anchor=(self.grid.x0, self.grid.y0), start=start,
                                 **load, **self.options)
