@@ -49,7 +49,8 @@ class Iteration:
         self.change2 = None if tol.change is None else tol.change ** 2
         rows, self.k = len(z), basis.shape[1]
         self.masked = mask is not None   # some cells of some row cannot carry pressure
-        self.mask, self.target, self.index = mask, target, np.arange(rows)
+        self.mask, self.target = mask, target
+        self.index = None   # original row of each live row, once rows were dropped (else the identity)
         self.z = np.where(mask, z, 0.0) if self.masked else z
         self.p = np.maximum(start, 0.0)
         if self.masked:
@@ -60,11 +61,11 @@ class Iteration:
         self.t = np.zeros_like(self.p)
         self.u = self.product(self.p)
         self.products = rows
-        self.G_old, self.conj, self.stale = np.ones(rows), np.zeros(rows, bool), np.zeros(rows, int)
-        self.small, self.done = np.zeros(rows, bool), np.zeros(rows, bool)
+        self.G_old, self.stale = np.ones(rows), np.zeros(rows, int)
+        self.conj, self.small, self.done = np.zeros((3, rows), bool)
         self.pending = False   # rows finished but not yet dropped
         self.left = rows       # rows not finished
-        self.gtol = GAP_RTOL * np.abs(self.z).max(axis=1, initial=0.0)
+        self.gtol = None   # the change rule's penetration tolerance per row, when first needed
         self.scale = self.best = self.it_best = self.basis_scale = None
         if tol.residual is not None:
             self.scale = np.maximum(np.abs(self.u).max(axis=1), _TINY)
@@ -78,6 +79,12 @@ class Iteration:
         self.reasons: list = [None] * rows
         self.iterations = np.zeros(rows, int)
         self.residual, self.out_best, self.denominator = np.full((3, rows), np.nan)
+
+    def gap_tolerance(self) -> np.ndarray:
+        """``GAP_RTOL max|z|`` per live row (mm)."""
+        if self.gtol is None:
+            self.gtol = GAP_RTOL * np.abs(self.z).max(axis=1, initial=0.0)
+        return self.gtol
 
     def product(self, v: np.ndarray) -> np.ndarray:
         return self.apply(v.reshape(len(v), *self.shape)).reshape(len(v), -1)
@@ -117,7 +124,7 @@ class Iteration:
         """The stopping rule: which rows meet their test (None: none)."""
         done = None if res is None else res <= self.tol.residual
         if self.change2 is not None and np.count_nonzero(self.small):
-            pen = ~on & (g < -self.gtol[:, None])
+            pen = ~on & (g < -self.gap_tolerance()[:, None])
             if self.masked:
                 pen &= self.mask
             pen = pen.any(axis=1)
@@ -177,7 +184,7 @@ class Iteration:
                 if np.count_nonzero(gg) == len(gg):
                     return it, g, m, on, g_on, gg, res
         flat = gg == 0.0
-        entering = ~on & (g < -self.gtol[:, None]) & flat[:, None]
+        entering = ~on & (g < -self.gap_tolerance()[:, None]) & flat[:, None]
         if self.masked:
             entering &= self.mask
         self.finish(flat & ~entering.any(axis=1), StopReason.CONVERGED, it, m, res)
@@ -199,7 +206,7 @@ class Iteration:
         count = np.count_nonzero(rows)
         if not count:
             return
-        at = self.index[rows]
+        at = np.flatnonzero(rows) if self.index is None else self.index[rows]
         if self.out_p is None and count == len(rows) and not copy:
             self.out_p, self.out_u = self.p, self.u     # every row at once: the arrays themselves
         else:
@@ -250,7 +257,7 @@ class Iteration:
         denom = row_dot(rp, t)
         bad = ~(denom > 0.0)
         if np.count_nonzero(bad):
-            self.denominator[self.index[bad]] = denom[bad]
+            self.denominator[np.flatnonzero(bad) if self.index is None else self.index[bad]] = denom[bad]
             self.finish(bad, StopReason.BREAKDOWN, it, m, res, copy=True)
             denom[bad] = np.inf   # tau = 0: the row keeps its pressure until it is dropped
         tau = row_dot(g_on, t) / denom
@@ -301,6 +308,8 @@ class Iteration:
         if not self.left:
             return arrays   # all done: nothing to compact
         keep = ~self.done
+        if self.index is None:
+            self.index = np.arange(len(keep))
         for name in self.PER_ROW:
             value = getattr(self, name)
             if value is not None:
