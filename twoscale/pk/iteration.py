@@ -222,7 +222,7 @@ class Iteration:
         self.iterations[at] = it
         if res is not None:
             self.residual[at], self.out_best[at] = res[rows], self.best[rows]
-        for i in at:
+        for i in at.tolist():
             self.reasons[i] = reason
 
     def direction(self, g_on, on, gg):
