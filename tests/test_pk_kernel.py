@@ -4,7 +4,8 @@ row, and its stop reasons.
 Hertz: R = 10 mm, E = 10 MPa, nu = 0.5, penetration d = 0.1 mm (a = 1 mm), the tip at the
 corner of four cells. The pressure sampled at the cell centres has a first-order L2 error
 (the square-root edge, see test_reference_hertz.py: 0.45 % at 2a/h = 64), so the bound is
-written as a multiple of h/a; the load's error is of higher order (about 1.5).
+written as a multiple of h/a; the load's error is of higher order (about 1.5), and the
+rigid approach found under load control is within a small multiple of h/a of Hertz's.
 """
 import math
 
@@ -41,9 +42,9 @@ def test_penetration_control_matches_hertz_to_first_order_in_h(n):
     pe = hertz.pressure(r, R, D, MAT.E_star)
     p = out.pressure[0]
     h_over_a = grid.h / A
-    assert np.linalg.norm(p - pe) / np.linalg.norm(pe) <= 0.25 * h_over_a
+    assert np.linalg.norm(p - pe) / np.linalg.norm(pe) <= 0.25 * h_over_a   # measured 0.14 h/a
     load = grid.h ** 2 * p.sum()
-    assert abs(load / hertz.load(R, D, MAT.E_star) - 1) <= 2.0 * h_over_a ** 1.5
+    assert abs(load / hertz.load(R, D, MAT.E_star) - 1) <= 0.1 * h_over_a ** 1.5     # measured 0.01-0.02
     # the displacement returned is A p
     assert np.allclose(out.displacement[0], op.apply(p), rtol=0, atol=1e-12 * D)
 
@@ -58,7 +59,7 @@ def test_load_control_finds_hertz_approach_as_its_multiplier():
     p = out.pressure[0]
     assert abs(grid.h ** 2 * p.sum() / W - 1) <= 1e-12          # the constraint is held exactly
     # g = A p + z - m vanishes on the contact: m is the rigid approach, Hertz's d to O(h/a)
-    assert abs(out.multipliers[0, 0] / D - 1) <= 0.5 * grid.h / A
+    assert abs(out.multipliers[0, 0] / D - 1) <= 0.01 * grid.h / A      # measured 0.002 h/a
     pe = hertz.pressure(r, R, D, MAT.E_star)
     assert np.linalg.norm(p - pe) / np.linalg.norm(pe) <= 0.25 * grid.h / A
 
