@@ -121,3 +121,26 @@ def test_a_stopping_rule_is_required():
         Tolerance()
     with pytest.raises(ValueError, match="max_iter"):
         Tolerance(residual=1e-8, max_iter=-1)
+
+
+def test_block_gauss_seidel_says_why_it_stopped():
+    """The sweeps' result carries a StopReason: the caller's stop test, the sweep cap, or
+    convergence (what the micro step branches on, not the message)."""
+    from twoscale.indenters import Asperity
+    from twoscale.micro.blocks import Coupling
+    from twoscale.micro.gauss_seidel import gauss_seidel
+    from twoscale.micro.localblock import LocalBlock
+    from twoscale.micro.patches import build_patches
+    d, h = 0.08, 0.07
+    tips = [Asperity(0.0, 0.0, 0.0, 2.0, "paraboloid"), Asperity(0.9, 0.0, 0.002, 2.0, "paraboloid")]
+    patches = build_patches(tips, h=h, forces=np.ones(2), approaches=np.full(2, d), E_star=MAT.E_star)
+    blocks = [LocalBlock(HS, pt) for pt in patches]
+    b = [np.full(blk.n, 0.01) for blk in blocks]          # a flat punch 10 um deep on each block
+    start = [np.zeros(blk.n) for blk in blocks]
+    coupling = Coupling(HS, patches)
+    stopped = gauss_seidel(blocks, coupling, b, start, tol=1e-10, max_sweeps=50, stop=lambda p: True)
+    assert stopped.reason is StopReason.STOPPED and not stopped.converged and stopped.sweeps == 1
+    capped = gauss_seidel(blocks, coupling, b, start, tol=1e-14, max_sweeps=2)
+    assert capped.reason is StopReason.MAX_ITER and "2 sweeps" in capped.message
+    done = gauss_seidel(blocks, coupling, b, start, tol=1e-8, max_sweeps=200)
+    assert done.reason is StopReason.CONVERGED and done.converged and done.message == ""
