@@ -18,6 +18,10 @@ at tol 1e-8: about 60 for 2a/h = 64 and 128). So time ~ iterations x FFT size x 
 keep the grid tight around the cells that can touch. With penetration control the solver
 crops the grid itself to the box of cells with ``z < d`` (no other cell can touch);
 cells with ``inf`` height inside the box are free but still pay for the FFT.
+
+The iteration is the package's one Polonsky-Keer kernel (:func:`twoscale.pk.pk_solve`, one
+row, stopped by the KKT residual); this module prepares the problem (start, cropping,
+precision stages) and builds the result.
 """
 from __future__ import annotations
 
