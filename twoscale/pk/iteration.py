@@ -9,6 +9,8 @@ guarded by one cheap reduction.
 """
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 
 from ..stopping import StopReason
@@ -50,14 +52,14 @@ class Iteration:
         rows, self.k = len(z), basis.shape[1]
         self.masked = mask is not None   # some cells of some row cannot carry pressure
         self.mask, self.target = mask, target
-        self.index = None   # original row of each live row, once rows were dropped (else the identity)
+        self.index: Any = None   # original row of each live row, once rows were dropped (else the identity)
         self.z = np.where(mask, z, 0.0) if self.masked else z
         self.p = np.maximum(start, 0.0)
         if self.masked:
             self.p[~mask] = 0.0
         if self.k:
             restore(self.p, basis, target)
-        self.count = None   # loaded cells per row (one constant constraint column)
+        self.count: Any = None   # loaded cells per row (one constant constraint column)
         self.t = np.zeros_like(self.p)
         self.u = self.product(self.p)
         self.products = rows
@@ -65,8 +67,11 @@ class Iteration:
         self.conj, self.small, self.done = np.zeros((3, rows), bool)
         self.pending = False   # rows finished but not yet dropped
         self.left = rows       # rows not finished
-        self.gtol = None   # the change rule's penetration tolerance per row, when first needed
-        self.scale = self.best = self.it_best = self.basis_scale = None
+        self.gtol: Any = None   # the change rule's penetration tolerance per row, when first needed
+        self.scale: Any = None
+        self.best: Any = None
+        self.it_best: Any = None
+        self.basis_scale: Any = None
         if tol.residual is not None:
             self.scale = np.maximum(np.abs(self.u).max(axis=1), _TINY)
             self.best, self.it_best = np.full(rows, np.inf), np.zeros(rows, int)
@@ -74,7 +79,8 @@ class Iteration:
                 cells = mask.any(axis=0) if self.masked else slice(None)
                 self.basis_scale = np.max(np.abs(basis[cells]), axis=0)
         self.history: list[float] = []
-        self.out_p = self.out_u = None   # allocated when the first rows finish
+        self.out_p: Any = None   # allocated when the first rows finish
+        self.out_u: Any = None
         self.out_m = np.zeros((rows, self.k))
         self.reasons: list = [None] * rows
         self.iterations = np.zeros(rows, int)
