@@ -44,7 +44,7 @@ class Iteration:
     """
 
     PER_ROW = ("p", "t", "u", "z", "mask", "target", "G_old", "conj", "stale", "scale", "best", "it_best",
-               "gtol", "small", "index", "done", "count")
+               "gtol", "small", "index", "done", "count", "free")
 
     def __init__(self, apply, precondition, shape, z, start, mask, basis, target, tol: Tolerance):
         self.apply, self.pc, self.shape, self.basis, self.tol = apply, precondition, shape, basis, tol
@@ -67,6 +67,8 @@ class Iteration:
         self.conj, self.small, self.done = np.zeros((3, rows), bool)
         self.pending = False   # rows finished but not yet dropped
         self.left = rows       # rows not finished
+        self.free: Any = None   # ~mask, for the residual rule
+        self.g: Any = None      # the gap's buffer
         self.gtol: Any = None   # the change rule's penetration tolerance per row, when first needed
         self.scale: Any = None
         self.best: Any = None
@@ -110,7 +112,9 @@ class Iteration:
     def gap(self):
         """Projected gap ``g``, multipliers ``m``, loaded cells ``on`` and ``g`` on them."""
         on = self.p > 0.0
-        g = self.u + self.z
+        if self.g is None or self.g.shape != self.u.shape:
+            self.g = np.empty_like(self.u)   # reused: one large allocation less per iteration
+        g = np.add(self.u, self.z, out=self.g)
         m = None
         if self.k:
             if self.k == 1:
@@ -121,7 +125,9 @@ class Iteration:
     def residuals(self, g, g_on, on) -> np.ndarray | None:
         if self.tol.residual is None:
             return None
-        res = kkt_residual(g, g_on, on, ~self.mask if self.masked else None, self.scale)
+        if self.masked and self.free is None:
+            self.free = ~self.mask
+        res = kkt_residual(g, g_on, on, self.free, self.scale)
         if self.basis_scale is not None:
             res = np.maximum(res, constraint_residual(self.p, self.basis, self.target, self.basis_scale))
         return res
@@ -252,7 +258,10 @@ class Iteration:
         rows = len(g)
         d, G = self.direction(g_on, on, gg)
         beta = (G / self.G_old) * self.conj
-        self.t = t = np.where(on, d + beta[:, None] * self.t, 0.0)
+        t = self.t
+        t *= beta[:, None]
+        t += d
+        t *= on
         self.G_old = G
         r = self.product(t)
         self.products += rows if self.pc is None else 2 * rows
@@ -271,7 +280,7 @@ class Iteration:
         p = self.p
         tau_c = tau[:, None]
         p -= tau_c * t
-        clipped = (p < 0.0).any(axis=1)
+        clipped = p.min(axis=1) < 0.0
         np.maximum(p, 0.0, out=p)
         reenter = (g < 0.0) & (p == 0.0)
         if self.masked:
