@@ -14,7 +14,7 @@ from typing import Any
 import numpy as np
 
 from ..stopping import StopReason
-from .projection import constraint_residual, kkt_residual, project, restore, row_dot
+from .projection import column, constraint_residual, kkt_residual, project, restore, row_dot
 from .result import PKResult, Tolerance
 
 #: Recompute ``u = A p`` from scratch at least this often (the cheap update
@@ -259,7 +259,7 @@ class Iteration:
         d, G = self.direction(g_on, on, gg)
         beta = (G / self.G_old) * self.conj
         t = self.t
-        t *= beta[:, None]
+        t *= column(beta)
         t += d
         t *= on
         self.G_old = G
@@ -278,7 +278,7 @@ class Iteration:
         tau = row_dot(g_on, t) / denom
         p_old = self.p.copy() if self.change2 is not None else None
         p = self.p
-        tau_c = tau[:, None]
+        tau_c = column(tau)
         p -= tau_c * t
         clipped = p.min(axis=1) < 0.0
         np.maximum(p, 0.0, out=p)
@@ -310,7 +310,7 @@ class Iteration:
             return
         self.u -= tau_c * r
         if self.k:
-            self.u *= factor[:, None]
+            self.u *= column(factor)
         self.stale += 1
         if count:
             self.refresh(redo)

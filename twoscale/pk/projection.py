@@ -13,6 +13,12 @@ SHORT_ROW = 4096
 _vecdot = getattr(np, "vecdot", None)
 
 
+def column(v: np.ndarray):
+    """A per-row value ready to scale (B, n) rows: ``v[:, None]``, or the scalar itself for
+    one row (numpy's broadcasting costs more than the product on small blocks)."""
+    return v[0] if len(v) == 1 else v[:, None]
+
+
 def row_dot(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """Row-wise inner products of (B, n) arrays."""
     if _vecdot is not None and a.shape[1] <= SHORT_ROW:
@@ -31,7 +37,7 @@ def project(v: np.ndarray, basis: np.ndarray, on: np.ndarray, count: np.ndarray 
     if k == 1:
         count = np.maximum(on.sum(axis=1), 1) if count is None else count
         c = np.add.reduce(v, axis=1, where=on) / count
-        v -= c[:, None]
+        v -= column(c)
         return c[:, None]
     c = np.zeros((rows, k))
     for i in range(rows):
@@ -50,7 +56,7 @@ def restore(p: np.ndarray, basis: np.ndarray, target: np.ndarray, sweeps: int = 
     if k == 1:
         s = p @ basis[:, 0]
         f = target[:, 0] / s if (s > 0).all() else np.where(s > 0, target[:, 0] / np.where(s > 0, s, 1.0), 1.0)
-        p *= f[:, None]
+        p *= column(f)
         return f
     for i in range(rows):
         _restore_plane(p[i], basis, target[i], sweeps)
