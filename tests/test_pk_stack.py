@@ -1,4 +1,5 @@
-"""Stacked local solves (micro/pk_stack.py) against the one-block solvers they batch.
+"""Stacked local solves (the Polonsky-Keer kernel on a stack of blocks) against the
+one-block solves they batch.
 
 Each block of a stack is an independent contact problem; the stacked iteration must give,
 block by block, what :func:`pk_fixed_approach` / :func:`pk_fixed_force` give on that
@@ -12,8 +13,7 @@ import pytest
 from twoscale import Material
 from twoscale.grid import Grid
 from twoscale.influence import HalfSpace
-from twoscale.micro.pk import pk_fixed_approach, pk_fixed_force
-from twoscale.micro.pk_stack import pk_stack_fixed_approach, pk_stack_fixed_force
+from twoscale.micro.pk import fixed_approach, fixed_force, pk_fixed_approach, pk_fixed_force
 
 HS = HalfSpace(Material(10.0, 0.5))
 H = 0.04
@@ -67,7 +67,7 @@ def test_stacked_fixed_approach_matches_one_block_solves(seed):
         starts.append(np.maximum(b[-1], 0.0) * 50.0 if i % 3 else np.zeros(int(m.sum())))
     mask, B = _canvas(blocks, b)
     _, P0 = _canvas(blocks, starts)
-    p, ok, it = pk_stack_fixed_approach(HS.grid_operator(Grid(0.0, 0.0, H, *CANVAS[::-1])), B, P0, mask, rtol=1e-9)
+    p, ok, it = fixed_approach(HS.grid_operator(Grid(0.0, 0.0, H, *CANVAS[::-1])).apply_stack, B, P0, mask, rtol=1e-9)
     for i, (m, _) in enumerate(blocks):
         ref, ref_ok, ref_it = pk_fixed_approach(_own_matvec(m), b[i], starts[i], rtol=1e-9)
         assert ok[i] == ref_ok and it[i] == ref_it
@@ -82,7 +82,7 @@ def test_stacked_fixed_force_matches_one_block_solves():
     mask, Z = _canvas(blocks, [z[m] for m, z in blocks])
     _, P0 = _canvas(blocks, starts)
     op = HS.grid_operator(Grid(0.0, 0.0, H, *CANVAS[::-1]))
-    p, s, ok, it = pk_stack_fixed_force(op, Z, forces / H ** 2, P0, mask, rtol=1e-9)
+    p, s, ok, it = fixed_force(op.apply_stack, Z, forces / H ** 2, P0, mask, rtol=1e-9)
     for i, (m, z) in enumerate(blocks):
         ref, ref_s, ref_ok, ref_it = pk_fixed_force(_own_matvec(m), z[m], forces[i], H, starts[i], rtol=1e-9)
         assert ok[i] == ref_ok and it[i] == ref_it

@@ -13,7 +13,9 @@ Read it in this order:
   couplings between patches: :class:`.blocks.Coupling` (exact) and :mod:`.farfield` (far
   patches through their resultants);
 * local solvers — :mod:`.local` (eq. 7 and the active-set solve on one block), :mod:`.pk`
-  (Polonsky-Keer CG on one block), :mod:`.blocks` (a block's own influence);
+  (a block's contact problems, eq. 7 and 8, on the one Polonsky-Keer kernel
+  :func:`twoscale.pk.pk_solve`), :mod:`.pk_stack` (the blocks of one size class solved as
+  one stack), :mod:`.blocks` (a block's own influence);
 * patches — :mod:`.patches` (one aligned patch per asperity, merging of close ones) and
   :mod:`.workset` (the patches as the iterations grow them).
 """

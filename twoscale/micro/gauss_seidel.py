@@ -16,6 +16,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..stopping import StopReason
 from .blocks import Coupling
 from .localblock import LocalBlock
 from .local import contact_solve
@@ -37,6 +38,8 @@ class SweepResult:
     history : tuple of float
         Relative change ``||p^{m+1} - p^m|| / ||p^{m+1}||`` after each sweep.
     message : str
+    reason : StopReason
+        Why the sweeps ended (``STOPPED``: the caller's ``stop`` test).
     """
 
     pressures: list
@@ -45,6 +48,7 @@ class SweepResult:
     sweeps: int
     history: tuple
     message: str
+    reason: StopReason
 
 
 def coupled_rhs(coupling: Coupling, k: int, values: list, rhs: np.ndarray) -> np.ndarray:
@@ -119,7 +123,7 @@ def gauss_seidel(blocks: list[LocalBlock], coupling: Coupling, b: list, start: l
     max_sweeps : int
     stop : callable, optional
         ``stop(pressures) -> bool`` checked after each sweep; True ends the sweeps early
-        (``converged=False``, message "stopped"), e.g. to enlarge a patch.
+        (``converged=False``, reason ``STOPPED``, message "stopped"), e.g. to enlarge a patch.
     monitor : callable, optional
         ``monitor(sweep, change)`` after each sweep (progress display).
     """
@@ -136,13 +140,15 @@ def gauss_seidel(blocks: list[LocalBlock], coupling: Coupling, b: list, start: l
             monitor(m, sw.change)
         if sw.failed:
             return SweepResult(p, active, False, m, tuple(history),
-                               f"local active-set solve did not converge on blocks {list(sw.failed)}")
+                               f"local active-set solve did not converge on blocks {list(sw.failed)}",
+                               StopReason.FAILED)
         if sw.change <= tol and not sw.changed:
-            return SweepResult(p, active, True, m, tuple(history), "")
+            return SweepResult(p, active, True, m, tuple(history), "", StopReason.CONVERGED)
         if stop is not None and stop(p):
-            return SweepResult(p, active, False, m, tuple(history), "stopped")
+            return SweepResult(p, active, False, m, tuple(history), "stopped", StopReason.STOPPED)
     return SweepResult(p, active, False, max_sweeps, tuple(history),
-                       f"block Gauss-Seidel reached {max_sweeps} sweeps (last change {history[-1]:.3g})")
+                       f"block Gauss-Seidel reached {max_sweeps} sweeps (last change {history[-1]:.3g})",
+                       StopReason.MAX_ITER)
 
 
 def linear_gauss_seidel(blocks: list[LocalBlock], coupling: Coupling, rhs: list, active: list, *,
@@ -169,6 +175,6 @@ def linear_gauss_seidel(blocks: list[LocalBlock], coupling: Coupling, rhs: list,
         rel = np.sqrt(diff2 / norm2) if norm2 > 0 else 0.0
         history.append(rel)
         if rel <= tol:
-            return SweepResult(x, active, True, m, tuple(history), "")
+            return SweepResult(x, active, True, m, tuple(history), "", StopReason.CONVERGED)
     return SweepResult(x, active, False, max_sweeps, tuple(history),
-                       f"linear block Gauss-Seidel reached {max_sweeps} sweeps")
+                       f"linear block Gauss-Seidel reached {max_sweeps} sweeps", StopReason.MAX_ITER)

@@ -1,138 +1,87 @@
-"""Constrained conjugate gradients on one block (Polonsky & Keer 1999), FFT products.
+"""Contact on blocks of the micro step by the Polonsky-Keer kernel (:mod:`twoscale.pk`).
 
-Used for large blocks instead of the dense active-set method:
-
-* :func:`pk_fixed_approach` — ``p >= 0``, gap ``A p - b >= 0``, ``p . gap = 0``
+* :func:`fixed_approach` — ``p >= 0``, gap ``A p - b >= 0``, ``p . gap = 0``
   (the local step of a Gauss-Seidel sweep, eq. 8);
-* :func:`pk_fixed_force` — the same with ``b = s - z`` and the shift ``s`` unknown so that
+* :func:`fixed_force` — the same with ``b = s - z`` and the shift ``s`` unknown so that
   ``h^2 sum p = P`` (paper eq. 7), the original load-controlled algorithm.
 
-Both start from any ``p >= 0`` (warm starts make a sweep cheap) and stop when the relative
-change of the pressure in one step is below ``rtol`` and no cell penetrates.
+Both work on a stack of independent blocks (leading axis; one row for one block, or the
+blocks of one size class on a common canvas, :mod:`.pk_stack`), start from any
+``p >= 0`` (warm starts make a sweep cheap) and stop when the relative change of a
+block's pressure in one step is below ``rtol`` and no cell penetrates
+(:class:`~twoscale.pk.kernel.Tolerance` ``change``). :func:`pk_fixed_approach` and
+:func:`pk_fixed_force` are the one-block forms, with the block's own product.
 """
 from __future__ import annotations
 
 import numpy as np
 
-
-def _direction(g, S, t, delta, G_old):
-    """Conjugate direction on the contact cells S (zero elsewhere) and ``|g_S|^2``."""
-    G = float(g[S] @ g[S])
-    t = np.where(S, g + (delta * G / G_old if G_old > 0 else 0.0) * t, 0.0)
-    return t, G
+from ..pk.kernel import Tolerance, pk_solve
 
 
-def pk_fixed_approach(matvec, b: np.ndarray, p_start: np.ndarray, *, rtol: float = 1e-10,
-                      max_iter: int = 1000) -> tuple[np.ndarray, bool, int]:
-    """Contact with a given right-hand side ``b`` (mm) on one block.
+def fixed_approach(apply, b: np.ndarray, start: np.ndarray, mask: np.ndarray | None, *, rtol: float,
+                   max_iter: int = 1000) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Contact with given right-hand sides on a stack of blocks.
 
     Parameters
     ----------
-    matvec : callable
-        ``A v`` (mm) for a block vector ``v`` (MPa).
-    b : (n,) array, mm
-    p_start : (n,) array, MPa
-        Warm start (negative entries are clipped).
-    rtol : float, default 1e-10
-        Relative change of the pressure at which to stop.
+    apply : callable
+        ``A v`` (mm) for a stack ``v`` (b, ...) of block pressures (MPa), any number b of rows.
+    b : (B, ...) array, mm
+        Right-hand side of each block (zero off its mask).
+    start : (B, ...) array, MPa
+        Warm starts (negative entries and cells off the masks are set to zero).
+    mask : (B, ...) bool array or None
+        Each block's cells (None: all).
+    rtol : float
+        Relative change of a block's pressure at which it stops.
     max_iter : int, default 1000
 
     Returns
     -------
-    pressure (n,), converged, iterations
+    pressure (B, ...), converged (B,) bool, iterations (B,) int
     """
-    p = np.maximum(np.asarray(p_start, dtype=float), 0.0)
-    t = np.zeros_like(p)
-    delta, G_old = 0.0, 0.0
-    gtol = 1e-12 * float(np.max(np.abs(b), initial=0.0))
-    u = matvec(p)
-    for it in range(1, max_iter + 1):
-        g = u - b
-        S = p > 0.0
-        if not np.any(S):
-            S = g < 0.0
-            if not np.any(S):
-                return p, True, it
-        if not np.any(g[S]):   # exact on the contact cells (a contact of a cell or two can be)
-            entering = ~S & (g < -gtol)
-            if not np.any(entering):
-                return p, True, it
-            S, delta = S | entering, 0.0
-        t, G_old = _direction(g, S, t, delta, G_old)
-        r = matvec(t)
-        denom = float(t[S] @ r[S])
-        if denom <= 0.0:
-            return p, False, it
-        tau = float(g[S] @ t[S]) / denom
-        p_old = p
-        trial = np.where(S, p - tau * t, p)
-        p = np.maximum(trial, 0.0)
-        overlap = (p == 0.0) & (g < 0.0) & ~S
-        delta = 0.0 if np.any(overlap) else 1.0
-        p[overlap] -= tau * g[overlap]
-        # the product is linear: without clipping or new cells, A p follows from A t
-        # (re-evaluated every 25 steps against drift)
-        exact_step = not np.any(overlap) and not np.any(trial < 0.0)
-        u = u - tau * r if exact_step and it % 25 else matvec(p)
-        change = float(np.linalg.norm(p - p_old))
-        norm = float(np.linalg.norm(p))
-        if norm == 0.0 or change <= rtol * norm:
-            u = matvec(p)
-            gap = u - b
-            if not np.any((p == 0.0) & (gap < -gtol)):
-                return p, True, it
-    return p, False, max_iter
+    out = pk_solve(apply, -b, start, mask, Tolerance(change=rtol, max_iter=max_iter))
+    return out.pressure, out.converged, out.iterations
+
+
+def fixed_force(apply, z: np.ndarray, target: np.ndarray, start: np.ndarray, mask: np.ndarray | None, *,
+                rtol: float, max_iter: int = 1000) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Pressures carrying given loads on a stack of blocks, rigid shifts unknown (eq. 7).
+
+    ``z`` (B, ...) mm the indenter heights, ``target`` (B,) the loads over ``h^2`` (MPa
+    cells), ``start`` (> 0 somewhere on each mask); ``apply``, ``mask``, ``rtol`` and
+    ``max_iter`` as in :func:`fixed_approach`.
+
+    Returns pressure (B, ...), shift (B,) mm (``A p = s - z`` on the contact), converged
+    (B,), iterations (B,)."""
+    n = int(np.prod(z.shape[1:]))
+    out = pk_solve(apply, z, start, mask, Tolerance(change=rtol, max_iter=max_iter),
+                   basis=np.ones((n, 1)), target=np.asarray(target, dtype=float)[:, None])
+    return out.pressure, out.multipliers[:, 0], out.converged, out.iterations
+
+
+def _one_row(matvec):
+    return lambda v: matvec(v[0])[None]
+
+
+def pk_fixed_approach(matvec, b: np.ndarray, p_start: np.ndarray, *, rtol: float = 1e-10,
+                      max_iter: int = 1000) -> tuple[np.ndarray, bool, int]:
+    """:func:`fixed_approach` on one block: ``matvec`` gives ``A v`` (mm) for a block
+    vector ``v`` (MPa), ``b`` (n,) mm, ``p_start`` (n,) MPa. Returns pressure (n,),
+    converged, iterations."""
+    b = np.asarray(b, dtype=float)
+    p, ok, it = fixed_approach(_one_row(matvec), b[None], np.asarray(p_start, dtype=float)[None], None,
+                               rtol=rtol, max_iter=max_iter)
+    return p[0], bool(ok[0]), int(it[0])
 
 
 def pk_fixed_force(matvec, z: np.ndarray, force: float, h: float, p_start: np.ndarray, *,
                    rtol: float = 1e-10, max_iter: int = 1000) -> tuple[np.ndarray, float, bool, int]:
-    """Pressure carrying ``force`` (N) on one block, rigid shift unknown (eq. 7).
-
-    Parameters
-    ----------
-    matvec : callable
-        ``A v`` (mm) for a block vector ``v`` (MPa).
-    z : (n,) array, mm
-        Indenter height on the block's cells.
-    force : float, N (> 0)
-    h : float, mm
-    p_start : (n,) array, MPa
-        Initial pressure (> 0 somewhere).
-
-    Returns
-    -------
-    pressure (n,), shift s (mm, ``A p = s - z`` on the contact), converged, iterations
-    """
-    target = force / (h * h)
-    p = np.maximum(np.asarray(p_start, dtype=float), 0.0)
-    p *= target / p.sum()
-    t = np.zeros_like(p)
-    delta, G_old = 0.0, 0.0
-    s = float("nan")
-    u = matvec(p)
-    for it in range(1, max_iter + 1):
-        S = p > 0.0
-        g = u + z
-        s = float(g[S].mean())
-        g = g - s
-        t, G_old = _direction(g, S, t, delta, G_old)
-        At = matvec(t)
-        r = At - At[S].mean()
-        denom = float(t[S] @ r[S])
-        if denom <= 0.0:
-            return p, s, False, it
-        tau = float(g[S] @ t[S]) / denom
-        p_old = p
-        trial = np.where(S, p - tau * t, p)
-        p = np.maximum(trial, 0.0)
-        overlap = (p == 0.0) & (g < 0.0)
-        delta = 0.0 if np.any(overlap) else 1.0
-        p[overlap] -= tau * g[overlap]
-        scale = target / p.sum()
-        p *= scale
-        # A p follows from A t when nothing was clipped or added (every 25 steps: recomputed)
-        exact_step = not np.any(overlap) and not np.any(trial < 0.0) and it % 25
-        u = scale * (u - tau * At) if exact_step else matvec(p)
-        if float(np.linalg.norm(p - p_old)) <= rtol * float(np.linalg.norm(p)):
-            return p, s, True, it
-    return p, s, False, max_iter
+    """:func:`fixed_force` on one block: ``force`` N on cells of side ``h`` mm, ``z``
+    (n,) mm, ``p_start`` (n,) MPa (> 0 somewhere). Returns pressure (n,), shift s (mm),
+    converged, iterations."""
+    z = np.asarray(z, dtype=float)
+    p, s, ok, it = fixed_force(_one_row(matvec), z[None], np.array([force / (h * h)]),
+                               np.asarray(p_start, dtype=float)[None], None, rtol=rtol, max_iter=max_iter)
+    return p[0], float(s[0]), bool(ok[0]), int(it[0])

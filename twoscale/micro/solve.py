@@ -13,6 +13,7 @@ from ..analytic import hertz
 from ..grid import Grid
 from ..indenters import Asperity
 from ..influence.base import InfluenceProvider
+from ..stopping import StopReason
 from .blocks import scatter
 from .localblock import LocalBlock
 from .constraints import block_coordinates, newton_step, resultants, rhs_derivatives
@@ -287,7 +288,7 @@ def _solve_block_gs(state: WorkingSet, p: list, p0: list, theta, tilt, pivot, n_
         sweeps += gs.sweeps
         history += gs.history
         p = gs.pressures
-        if gs.converged or gs.message == "stopped":
+        if gs.converged or gs.reason is StopReason.STOPPED:
             grown = grow(state, p, p0, theta, pivot, tol) if can_grow else 0
             if grown:
                 growths += grown
@@ -339,7 +340,7 @@ def _solve_two_level(state: WorkingSet, p: list, p0: list, theta, tilt, pivot, n
         history += res.history
         p, theta = res.pressures, res.theta
         state.coupling.refresh(p)
-        if res.converged or res.message == "stopped":
+        if res.converged or res.reason is StopReason.STOPPED:
             grown = grow(state, p, p0, theta, pivot, tol) if can_grow else 0
             if grown:
                 growths += grown

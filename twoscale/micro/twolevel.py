@@ -24,6 +24,7 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.sparse as sp
 
+from ..stopping import StopReason
 from .coarse import CoarseSpace
 from .constraints import patch_forces
 from .gauss_seidel import LOCAL_FACTOR, sweep
@@ -55,6 +56,8 @@ class TwoLevelResult:
         Conjugate-gradient iterations of all coarse solves.
     message : str
         "" when converged, "stopped" when ``stop`` ended it, else the reason.
+    reason : StopReason
+        Why the iteration ended (``STOPPED``: the caller's ``stop`` test).
     """
 
     pressures: list
@@ -65,6 +68,7 @@ class TwoLevelResult:
     history: tuple
     coarse_iterations: int
     message: str
+    reason: StopReason
 
 
 def too_slow(history: list, tol: float, remaining: int) -> str:
@@ -168,7 +172,8 @@ def two_level(blocks, coupling, tips: np.ndarray, heights, p: list, theta: np.nd
         sw = sweep(blocks, coupling, b, p, active, local_rtol=local_rtol, levels=levels, stacks=stacks)
         if sw.failed:
             return TwoLevelResult(sw.pressures, sw.active, theta, False, m, tuple(history + [sw.change]), cg_iters,
-                                  f"local active-set solve did not converge on blocks {list(sw.failed)}")
+                                  f"local active-set solve did not converge on blocks {list(sw.failed)}",
+                                  StopReason.FAILED)
         dF = patch_forces(patches, sw.pressures) - before
         step = coarse.correct(blocks, patches, sw.pressures, sw.active, dF, theta, pivot=pivot,
                               n_unknowns=n_unknowns, target=target)
@@ -186,13 +191,14 @@ def two_level(blocks, coupling, tips: np.ndarray, heights, p: list, theta: np.nd
             # no new smallest change in STALL_SWEEPS sweeps: merged contacts make cells flip
             return TwoLevelResult(p, active, theta, False, m, tuple(history), cg_iters,
                                   f"two-level iteration stalled: no smaller change in {STALL_SWEEPS} sweeps "
-                                  f"(last {change:.3g}, best {min(history):.3g})")
+                                  f"(last {change:.3g}, best {min(history):.3g})", StopReason.STAGNATED)
         if change <= tol and not changed:
-            return TwoLevelResult(p, active, theta, True, m, tuple(history), cg_iters, "")
+            return TwoLevelResult(p, active, theta, True, m, tuple(history), cg_iters, "", StopReason.CONVERGED)
         slow = too_slow(history, tol, max_sweeps - m)
         if slow:
-            return TwoLevelResult(p, active, theta, False, m, tuple(history), cg_iters, slow)
+            return TwoLevelResult(p, active, theta, False, m, tuple(history), cg_iters, slow, StopReason.STAGNATED)
         if stop is not None and stop(p):
-            return TwoLevelResult(p, active, theta, False, m, tuple(history), cg_iters, "stopped")
+            return TwoLevelResult(p, active, theta, False, m, tuple(history), cg_iters, "stopped", StopReason.STOPPED)
     return TwoLevelResult(p, active, theta, False, max_sweeps, tuple(history), cg_iters,
-                          f"two-level block Gauss-Seidel reached {max_sweeps} sweeps (last change {history[-1]:.3g})")
+                          f"two-level block Gauss-Seidel reached {max_sweeps} sweeps (last change {history[-1]:.3g})",
+                          StopReason.MAX_ITER)

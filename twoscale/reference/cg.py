@@ -18,6 +18,10 @@ at tol 1e-8: about 60 for 2a/h = 64 and 128). So time ~ iterations x FFT size x 
 keep the grid tight around the cells that can touch. With penetration control the solver
 crops the grid itself to the box of cells with ``z < d`` (no other cell can touch);
 cells with ``inf`` height inside the box are free but still pay for the FFT.
+
+The iteration is the package's one Polonsky-Keer kernel (:func:`twoscale.pk.pk_solve`, one
+row, stopped by the KKT residual); this module prepares the problem (start, cropping,
+precision stages) and builds the result.
 """
 from __future__ import annotations
 
@@ -28,55 +32,13 @@ import numpy as np
 from ..indenters import Surface
 from ..influence.base import InfluenceProvider
 from ..details import ReferenceDetails
+from ..pk.kernel import STALL_ITERATIONS, Tolerance, pk_solve
 from ..results import ContactResult
 from ._problem import ContactProblem, build_result, initial_active_set, make_problem, trivial_result
 
 
-def _restore_constraints(p: np.ndarray, B: np.ndarray, target: np.ndarray, sweeps: int = 4) -> float | None:
-    """Make ``B^T p = target`` by ``p <- p * (B c)`` (in place), keeping ``p >= 0``.
-
-    Returns the scale factor when the correction was a constant (so ``A p`` scales by
-    it too), None when it was not (tilt)."""
-    k = B.shape[1]
-    if k == 0:
-        return 1.0
-    if k == 1:
-        s = float(B[:, 0] @ p)
-        if s <= 0:
-            return 1.0
-        f = target[0] / s
-        p *= f
-        return f
-    for _ in range(sweeps):
-        on = p > 0
-        Bp = B[on]
-        M = Bp.T @ (Bp * p[on, None])
-        c = np.linalg.lstsq(M, target, rcond=1e-13)[0]
-        lam = Bp @ c
-        p[on] *= lam
-        if np.all(lam >= 0):
-            return None
-        np.maximum(p, 0.0, out=p)
-    return None
-
-
-def _project(v: np.ndarray, B: np.ndarray, on: np.ndarray) -> np.ndarray:
-    """Remove from ``v`` (in place) its least-squares fit by the columns of B over ``on``;
-    return the fit coefficients."""
-    k = B.shape[1]
-    if k == 0:
-        return np.zeros(0)
-    if k == 1:
-        c = np.array([v[on].mean()]) if np.any(on) else np.zeros(1)
-        v -= c[0]
-        return c
-    c = np.linalg.lstsq(B[on], v[on], rcond=1e-13)[0]
-    v -= B @ c
-    return c
-
-
-def _initial_pressure(problem: ContactProblem, op, z: np.ndarray, B: np.ndarray, target: np.ndarray,
-                      E_star: float, start: np.ndarray | None = None) -> np.ndarray:
+def _initial_pressure(problem: ContactProblem, op, z: np.ndarray, E_star: float,
+                      start: np.ndarray | None = None) -> np.ndarray:
     """Start from ``start`` (a warm start, e.g. the two-scale macro forces spread as Hertz
     pressures), else from the geometric interference ``max(level - z, 0)`` (level = d, or the
     first-guess level of load control), scaled by a line search on the energy
@@ -94,8 +56,7 @@ def _initial_pressure(problem: ContactProblem, op, z: np.ndarray, B: np.ndarray,
     if problem.mode == "penetration":
         Av = op.apply(v.reshape(problem.grid.shape)).ravel()
         return v * max(float(v @ (problem.penetration - z)), 0.0) / float(v @ Av)
-    _restore_constraints(v, B, target)
-    return v
+    return v   # the kernel scales it to the load (and moments)
 
 
 def solve_cg(provider: InfluenceProvider, surface: Surface, *, penetration: float | None = None,
@@ -147,7 +108,7 @@ def solve_cg(provider: InfluenceProvider, surface: Surface, *, penetration: floa
         a preconditioner run unpreconditioned. The reference keeps it off (the classical
         Polonsky-Keer iteration).
     monitor : callable, optional
-        ``monitor(iteration, residual)`` every ``MONITOR_EVERY`` iterations (progress display).
+        ``monitor(iteration, residual)`` every :data:`twoscale.pk.kernel.MONITOR_EVERY` iterations (progress display).
 
     Returns
     -------
@@ -224,133 +185,19 @@ SINGLE_TOL = 1e-6
 #: The single-precision stage stops when its residual has not halved in this many iterations.
 SINGLE_STALL = 30
 
-#: Iterations between two calls of ``monitor``.
-MONITOR_EVERY = 10
-
-#: Recompute ``u = A p`` from scratch at least this often (the cheap update
-#: ``u <- s (u - tau A t)`` accumulates rounding).
-REFRESH_EVERY = 25
-#: Give up (converged=False) when the KKT residual has not halved for this many iterations.
-STALL_ITERATIONS = 1000
-
-
-def _gap(problem: ContactProblem, z, u, B, on, out):
-    """Gap ``z + u - d`` (penetration control) or its projection orthogonal to the
-    constraint basis on the loaded cells (load control, tilt), into ``out``; returns
-    the rigid-motion multipliers ``m``."""
-    np.add(z, u, out=out)
-    if problem.mode == "penetration":
-        out -= problem.penetration
-        return np.zeros(0)
-    return _project(out, B, on)
-
-
-def _kkt_residual(g, on, free, scale) -> float:
-    """Largest |gap| on loaded cells and largest interpenetration elsewhere, / scale."""
-    g_on = np.where(on, g, 0.0)
-    worst_on = max(float(g_on.max()), -float(g_on.min()))
-    worst_off = -float(np.where(on | free, 0.0, g).min())
-    return max(worst_on, worst_off, 0.0) / scale
-
-
-def _constraint_residual(p, B, target, B_scale) -> float:
-    """Relative violation of the load and moment constraints (0 when there are none;
-    load control and penetration control meet them exactly)."""
-    if B.shape[1] < 2 or target[0] <= 0:
-        return 0.0
-    return float(np.max(np.abs(B.T @ p - target) / (target[0] * np.maximum(B_scale, 1e-300))))
-
-
-def _direction(g_on: np.ndarray, pc, B: np.ndarray, on: np.ndarray, shape) -> tuple[np.ndarray, float]:
-    """The (preconditioned) steepest-descent direction on the loaded cells and its inner
-    product with the gradient: ``pc`` applied to the projected gap, projected in turn so
-    that the step keeps the constraints to first order (``g_on`` itself without ``pc``, or
-    when rounding makes the preconditioned product non-positive)."""
-    if pc is not None:
-        d = pc.apply(g_on.reshape(shape)).ravel()
-        d[~on] = 0.0
-        _project(d, B, on)
-        d[~on] = 0.0
-        G = float(g_on @ d)
-        if G > 0.0:
-            return d, G
-    return g_on, float(g_on @ g_on)
-
-
 def _iterate(problem: ContactProblem, op, E_star: float, tol: float, max_iter: int, start=None,
              stall: int = STALL_ITERATIONS, monitor=None, pc=None):
+    """The Polonsky-Keer kernel (:func:`twoscale.pk.pk_solve`) on the whole grid, one row:
+    ``(p, u, multipliers, iterations, products, residual history, converged, message)``."""
     shape = problem.grid.shape
     cand = problem.candidates.ravel()
-    free = ~cand  # cells without material: never loaded, never checked
     z = np.where(cand, problem.surface.height.ravel(), 0.0)
-    B = problem.basis()
-    target = problem.target()
-    p = _initial_pressure(problem, op, z, B, target, E_star, start)
-    t = np.zeros_like(p)
-    g = np.empty_like(p)
-    B_scale = np.max(np.abs(B[cand]), axis=0) if B.shape[1] else np.zeros(0)
-    G_old, conjugate = 1.0, False
-    hist: list[float] = []
-    u = op.apply(p.reshape(shape)).ravel()
-    scale = max(float(np.abs(u).max()), np.finfo(float).tiny)
-    stale = 0  # iterations since u was last computed from p
-    n_products = 1
-    best, it_best = np.inf, 0
-    for it in range(max_iter + 1):
-        on = p > 0
-        m = _gap(problem, z, u, B, on, g)
-        res = max(_kkt_residual(g, on, free, scale), _constraint_residual(p, B, target, B_scale))
-        if res <= tol and stale:
-            # the cheap update drifted by rounding: confirm with an exact product
-            u = op.apply(p.reshape(shape)).ravel()
-            stale, n_products = 0, n_products + 1
-            m = _gap(problem, z, u, B, on, g)
-            res = max(_kkt_residual(g, on, free, scale), _constraint_residual(p, B, target, B_scale))
-        hist.append(res)
-        if monitor is not None and it % MONITOR_EVERY == 0:
-            monitor(it, res)
-        if res <= tol:
-            return p, u, m, it, n_products, hist, True, f"KKT residual {res:.2e} <= tol after {it} iterations"
-        if res < 0.5 * best:
-            best, it_best = res, it
-        if it == max_iter:
-            break
-        if it - it_best > stall:
-            return p, u, m, it, n_products, hist, False, (
-                f"no progress: KKT residual {res:.2e} has not halved in {stall} iterations "
-                f"(best {best:.2e}, tol {tol:g})")
-        # Polonsky & Keer: conjugate direction on the loaded cells, reset when the set changed
-        g_on = np.where(on, g, 0.0)
-        direction, G = _direction(g_on, pc, B, on, shape)
-        t *= G / G_old if conjugate else 0.0
-        t += direction
-        t[~on] = 0.0
-        G_old = G
-        r = op.apply(t.reshape(shape)).ravel()
-        n_products += 1 if pc is None else 2
-        rp = r
-        if B.shape[1]:
-            rp = r.copy()
-            _project(rp, B, on)
-        denom = float(rp @ t)
-        if not denom > 0:
-            return p, u, m, it, n_products, hist, False, f"CG breakdown (t.A t = {denom:.3e}) after {it} iterations"
-        tau = float(g_on @ t) / denom
-        p -= tau * t
-        clipped = float(p.min()) < 0.0
-        np.maximum(p, 0.0, out=p)
-        reenter = (g < 0.0) & (p == 0.0) & cand
-        conjugate = not reenter.any()
-        if not conjugate:
-            p[reenter] -= tau * g[reenter]
-        factor = _restore_constraints(p, B, target)
-        if clipped or not conjugate or factor is None or stale >= REFRESH_EVERY:
-            u = op.apply(p.reshape(shape)).ravel()
-            scale = max(float(np.abs(u).max()), np.finfo(float).tiny)
-            stale, n_products = 0, n_products + 1
-        else:
-            # p changed by -tau t and a scaling only: A p follows without a product
-            u -= tau * r
-            u *= factor
-            stale += 1
-    return p, u, m, it, n_products, hist, False, f"KKT residual {hist[-1]:.2e} > tol={tol:g} after max_iter={max_iter}"
+    p = _initial_pressure(problem, op, z, E_star, start)
+    level = problem.penetration if problem.mode == "penetration" else 0.0
+    out = pk_solve(lambda v: op.apply(v[0])[None], (z - level).reshape(1, *shape), p.reshape(1, *shape),
+                   None if cand.all() else cand.reshape(1, *shape),
+                   Tolerance(residual=tol, max_iter=max_iter, stall=stall),
+                   basis=problem.basis(), target=problem.target()[None],
+                   precondition=None if pc is None else (lambda v: pc.apply(v[0])[None]), monitor=monitor)
+    return (out.pressure[0].ravel(), out.displacement[0].ravel(), out.multipliers[0], int(out.iterations[0]),
+            out.products, list(out.history), bool(out.converged[0]), out.message(0))

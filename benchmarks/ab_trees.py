@@ -1,0 +1,149 @@
+"""Before/after on one machine in one run: the same solves with two source trees, interleaved.
+
+Each case runs ``--repeat`` times with each tree, alternating which goes first, each solve in
+a fresh process (``PYTHONPATH`` = the tree), single-threaded. Printed per case (one JSON line):
+median CPU time of each tree and the median of the per-pair CPU-time ratios after/before
+(CPU time, and pairs run back to back, because the machine is shared and noisy), whether the
+pressure fields are bit-identical, the largest per-tip force difference over the largest
+force, iterations and convergence of both.
+
+Cases (``KIND:ARG``):
+
+* ``hertz:load|pen|tilt|mixedpc`` — :func:`twoscale.reference.solve_cg` on a Hertz sphere
+  (R 10 mm, E 10 MPa, nu 0.5, 160 x 160 cells; ``bigload``/``bigpen`` 480 x 480), load 5 N or
+  penetration 0.08 mm; ``tilt``: two tips, free tilt; ``mixedpc``: mixed precision, preconditioned;
+* ``stack:stacked|single`` — two-level micro step, 80 spheres (h 0.04 mm, dense blocks up to
+  60 cells), the FFT blocks solved in stacks or, ``single``, one by one;
+* ``family:KIND-CONTROL-SHAPE-N`` / ``family_ref:...`` — a scene of
+  :func:`twoscale.synthetic.scene_family`, default two-scale solve / the reference;
+* ``space:I`` — :func:`twoscale.scenespace.draw` ``(I, seed 0)``, tips only, half-space, at most 300.
+
+Usage::
+
+    git -C REPO archive OLD_COMMIT | tar -x -C /tmp/before
+    python benchmarks/ab_trees.py --before /tmp/before --after . --repeat 3 hertz:bigload stack:single space:3
+"""
+from __future__ import annotations
+
+import argparse
+import hashlib
+import json
+import os
+import statistics
+import subprocess
+import sys
+import time
+
+import numpy as np
+
+
+def _hertz(mode: str):
+    from twoscale import Material
+    from twoscale.grid import Grid
+    from twoscale.indenters import Asperity, surface_on
+    from twoscale.influence import HalfSpace
+    from twoscale.reference import solve_cg
+    big = mode.startswith("big")
+    mode = mode.removeprefix("big")
+    g = Grid.covering(-1.2, 1.2, -1.2, 1.2, 2.4 / (480 if big else 160))
+    tips = [Asperity(0.0, 0.0, 0.0, 10.0)] + ([Asperity(0.5, 0.3, 0.01, 6.0)] if mode == "tilt" else [])
+    kw = {"load": dict(total_load=5.0), "pen": dict(penetration=0.08),
+          "mixedpc": dict(total_load=5.0, precision="mixed", precondition=True),
+          "tilt": dict(total_load=5.0, tilt=True, pivot=(0.1, -0.05))}[mode]
+    surf = surface_on(g, tips)
+    hs = HalfSpace(Material(10.0, 0.5))
+    return lambda: solve_cg(hs, surf, **kw)
+
+
+def _stack(which: str):
+    from twoscale import Material
+    from twoscale.indenters import Asperity
+    from twoscale.influence import HalfSpace
+    from twoscale.micro import pk_stack
+    from twoscale.twoscale import solve_twoscale
+    rng = np.random.default_rng(4)
+    pts: list = []
+    while len(pts) < 80:
+        c = rng.uniform(0.0, 30.0, 2)
+        if not pts or np.min(np.hypot(*(np.array(pts) - c).T)) >= 1.5:
+            pts.append(c)
+    R, z = rng.uniform(2.0, 6.0, 80), rng.uniform(0.0, 0.06, 80)
+    asp = [Asperity(float(x), float(y), float(zz), float(r)) for (x, y), zz, r in zip(pts, z, R)]
+    hs = HalfSpace(Material(10.0, 0.5))
+    if which == "single":
+        pk_stack.BlockStacks.usable = staticmethod(lambda provider: False)
+    return lambda: solve_twoscale(hs, asp, h=0.04, total_load=4.0, tol=1e-8, max_sweeps=200, far_tol=0.05,
+                                  coarse=True, dense_max_cells=60)
+
+
+def _family(name: str, method: str = "twoscale"):
+    from twoscale.api import solve_scene
+    from twoscale.synthetic import scene_family
+    kind, control, shape, n = name.split("-")
+    (_, scene), = dict(scene_family((int(n),), kinds=(kind,), controls=(control,), shapes=(shape,))).items()
+    return lambda: solve_scene(scene, method=method)
+
+
+def _space(index: str):
+    from twoscale import scenespace
+    from twoscale.api import solve_scene
+    scene = scenespace.build(scenespace.draw(int(index), 0, max_tips=300, maps=0.0, block=0.0))
+    return lambda: solve_scene(scene)
+
+
+CASES = {"hertz": _hertz, "stack": _stack, "family": _family, "space": _space,
+         "family_ref": lambda name: _family(name, "reference")}
+
+
+def child(kind: str, arg: str) -> None:
+    """Run one case with the twoscale on ``sys.path``; print one JSON line."""
+    run = CASES[kind](arg)
+    t0 = time.process_time()
+    res = run()
+    cpu = time.process_time() - t0
+    digest = hashlib.sha256(b"".join(np.ascontiguousarray(f.pressure).tobytes() for f in res.fields)).hexdigest()
+    forces = [] if res.asperities is None else np.asarray(res.asperities.forces, dtype=float).tolist()
+    print(json.dumps({"cpu": cpu, "digest": digest[:16], "converged": bool(res.converged), "forces": forces,
+                      "iterations": {k: int(v) for k, v in res.iterations.items()}}))
+
+
+def compare(case: str, trees: dict, repeat: int) -> dict:
+    kind, arg = case.split(":", 1)
+    runs: dict = {"before": [], "after": []}
+    for r in range(repeat):
+        for tag in (("before", "after") if r % 2 == 0 else ("after", "before")):
+            env = dict(os.environ, PYTHONPATH=trees[tag], OMP_NUM_THREADS="1", OPENBLAS_NUM_THREADS="1")
+            out = subprocess.run([sys.executable, os.path.abspath(__file__), "--child", kind, arg], env=env,
+                                 capture_output=True, text=True, check=True)
+            runs[tag].append(json.loads(out.stdout.strip().splitlines()[-1]))
+    b, a = runs["before"][0], runs["after"][0]
+    fb, fa = np.array(b["forces"]), np.array(a["forces"])
+    return {"case": case, "cpu_before": statistics.median(x["cpu"] for x in runs["before"]),
+            "cpu_after": statistics.median(x["cpu"] for x in runs["after"]),
+            "ratio": statistics.median(y["cpu"] / x["cpu"] for x, y in zip(runs["before"], runs["after"])),
+            "bit_identical": b["digest"] == a["digest"],
+            "force_diff": float(np.max(np.abs(fb - fa)) / max(np.abs(fb).max(), 1e-300)) if fb.size else 0.0,
+            "iterations": [b["iterations"], a["iterations"]], "converged": [b["converged"], a["converged"]]}
+
+
+def main(argv=None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("cases", nargs="*")
+    parser.add_argument("--before", help="source tree (holding twoscale/) before the change")
+    parser.add_argument("--after", default=".", help="source tree after the change (default: .)")
+    parser.add_argument("--repeat", type=int, default=3)
+    parser.add_argument("--child", nargs=2, metavar=("KIND", "ARG"), help=argparse.SUPPRESS)
+    args = parser.parse_args(argv)
+    if args.child:
+        child(*args.child)
+        return 0
+    if not args.before or not args.cases:
+        parser.error("give --before TREE and at least one case")
+    trees = {"before": os.path.abspath(args.before), "after": os.path.abspath(args.after)}
+    for case in args.cases:
+        print(json.dumps(compare(case, trees, args.repeat)), flush=True)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,13 @@
+"""Polonsky & Keer's constrained conjugate gradient, one kernel for every caller: the
+full-grid reference (:mod:`twoscale.reference.cg`), one block of the micro step and the
+stacked blocks of one size class (:mod:`twoscale.micro.pk`).
+
+* :mod:`.kernel` — :func:`~.kernel.pk_solve` (the iteration on a stack of rows, its
+  stopping rule :class:`~.kernel.Tolerance` and result :class:`~.kernel.PKResult`);
+* :mod:`.projection` — the constraint pieces: projection of the gap, restoring the load
+  and moments, the residuals the stopping rule reads.
+"""
+from ..stopping import StopReason
+from .kernel import PKResult, Tolerance, pk_solve
+
+__all__ = ["PKResult", "StopReason", "Tolerance", "pk_solve"]

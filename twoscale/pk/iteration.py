@@ -1,0 +1,338 @@
+"""The state of the Polonsky-Keer iteration on a stack of rows (:func:`~.kernel.pk_solve`).
+
+The live rows' arrays are (b, n) (fields flattened), compacted as rows stop; the outputs
+are indexed by the original row. One pass of the loop is :meth:`Iteration.check` (the
+stopping rule, then the contact sets) and :meth:`Iteration.step` (one conjugate-gradient
+step); the algorithm is described in :mod:`.kernel`. Written for the small blocks too,
+where numpy's per-call cost is most of the time: every test that is rarely true is
+guarded by one cheap reduction.
+"""
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from ..stopping import StopReason
+from .projection import column, constraint_residual, kkt_residual, project, restore, row_dot
+from .result import PKResult, Tolerance
+
+#: Recompute ``u = A p`` from scratch at least this often (the cheap update
+#: ``u <- s (u - tau A t)`` accumulates rounding).
+REFRESH_EVERY = 25
+#: Iterations between two calls of ``monitor``.
+MONITOR_EVERY = 10
+#: The change rule's penetration test: a cell off the contact penetrates when its gap is
+#: below ``-GAP_RTOL max|z|`` (rounding of the products is ~1e-16 relative).
+GAP_RTOL = 1e-12
+
+_TINY = np.finfo(float).tiny
+
+
+class Iteration:
+    """Live rows of :func:`~.kernel.pk_solve` and the outputs.
+
+    Parameters
+    ----------
+    apply, precondition : callables on (b, ...) stacks (``precondition`` may be None)
+    shape : tuple
+        Field shape of one row.
+    z, start, mask : (B, n) arrays
+    basis : (n, k) array
+    target : (B, k) array
+    tol : Tolerance
+    """
+
+    PER_ROW = ("p", "t", "u", "z", "mask", "target", "G_old", "conj", "stale", "scale", "best", "it_best",
+               "gtol", "small", "index", "done", "count", "free")
+
+    def __init__(self, apply, precondition, shape, z, start, mask, basis, target, tol: Tolerance):
+        self.apply, self.pc, self.shape, self.basis, self.tol = apply, precondition, shape, basis, tol
+        self.change2 = None if tol.change is None else tol.change ** 2
+        rows, self.k = len(z), basis.shape[1]
+        self.masked = mask is not None   # some cells of some row cannot carry pressure
+        self.mask, self.target = mask, target
+        self.index: Any = None   # original row of each live row, once rows were dropped (else the identity)
+        self.z = np.where(mask, z, 0.0) if self.masked else z
+        self.p = np.maximum(start, 0.0)
+        if self.masked:
+            self.p[~mask] = 0.0
+        if self.k:
+            restore(self.p, basis, target)
+        self.count: Any = None   # loaded cells per row (one constant constraint column)
+        self.t = np.zeros_like(self.p)
+        self.u = self.product(self.p)
+        self.products = rows
+        self.G_old, self.stale = np.ones(rows), np.zeros(rows, int)
+        self.conj, self.small, self.done = np.zeros((3, rows), bool)
+        self.pending = False   # rows finished but not yet dropped
+        self.left = rows       # rows not finished
+        self.free: Any = None   # ~mask, for the residual rule
+        self.g: Any = None      # the gap's buffer
+        self.gtol: Any = None   # the change rule's penetration tolerance per row, when first needed
+        self.scale: Any = None
+        self.best: Any = None
+        self.it_best: Any = None
+        self.basis_scale: Any = None
+        if tol.residual is not None:
+            self.scale = np.maximum(np.abs(self.u).max(axis=1), _TINY)
+            self.best, self.it_best = np.full(rows, np.inf), np.zeros(rows, int)
+            if self.k > 1:
+                cells = mask.any(axis=0) if self.masked else slice(None)
+                self.basis_scale = np.max(np.abs(basis[cells]), axis=0)
+        self.history: list[float] = []
+        self.out_p: Any = None   # allocated when the first rows finish
+        self.out_u: Any = None
+        self.out_m = np.zeros((rows, self.k))
+        self.reasons: list = [None] * rows
+        self.iterations = np.zeros(rows, int)
+        self.residual, self.out_best, self.denominator = np.full((3, rows), np.nan)
+
+    def gap_tolerance(self) -> np.ndarray:
+        """``GAP_RTOL max|z|`` per live row (mm)."""
+        if self.gtol is None:
+            self.gtol = GAP_RTOL * np.abs(self.z).max(axis=1, initial=0.0)
+        return self.gtol
+
+    def product(self, v: np.ndarray) -> np.ndarray:
+        return self.apply(v.reshape(len(v), *self.shape)).reshape(len(v), -1)
+
+    def refresh(self, rows: np.ndarray) -> None:
+        """``u = A p`` from scratch on ``rows`` (a bool mask)."""
+        if np.count_nonzero(rows) == len(rows):
+            self.u = self.product(self.p)
+            self.stale[:] = 0
+        else:
+            self.u[rows] = self.product(self.p[rows])
+            self.stale[rows] = 0
+        if self.scale is not None:
+            self.scale[rows] = np.maximum(np.abs(self.u[rows]).max(axis=1), _TINY)
+        self.products += int(rows.sum())
+
+    def gap(self):
+        """Projected gap ``g``, multipliers ``m``, loaded cells ``on`` and ``g`` on them."""
+        on = self.p > 0.0
+        if self.g is None or self.g.shape != self.u.shape:
+            self.g = np.empty_like(self.u)   # reused: one large allocation less per iteration
+        g = np.add(self.u, self.z, out=self.g)
+        m = None
+        if self.k:
+            if self.k == 1:
+                self.count = np.maximum(on.sum(axis=1), 1)
+            m = project(g, self.basis, on, self.count)
+        return g, m, on, np.where(on, g, 0.0)
+
+    def residuals(self, g, g_on, on) -> np.ndarray | None:
+        if self.tol.residual is None:
+            return None
+        if self.masked and self.free is None:
+            self.free = ~self.mask
+        res = kkt_residual(g, g_on, on, self.free, self.scale)
+        if self.basis_scale is not None:
+            res = np.maximum(res, constraint_residual(self.p, self.basis, self.target, self.basis_scale))
+        return res
+
+    def converged(self, g, on, res) -> np.ndarray | None:
+        """The stopping rule: which rows meet their test (None: none)."""
+        done = None if res is None else res <= self.tol.residual
+        if self.change2 is not None and np.count_nonzero(self.small):
+            pen = ~on & (g < -self.gap_tolerance()[:, None])
+            if self.masked:
+                pen &= self.mask
+            pen = pen.any(axis=1)
+            small = self.small & ~pen
+            done = small if done is None else done | small
+        return done if done is not None and np.count_nonzero(done) else None
+
+    def check(self, it: int, monitor):
+        """Before step ``it + 1``: stop the rows that are done (stopping rule, cap, stall),
+        drop them, and return the live rows' ``(it, g, m, on, g_on, gg, res)`` for
+        :meth:`step`, or None when no row is left."""
+        if not self.left:
+            return None
+        g, m, on, g_on = self.gap()
+        res = self.residuals(g, g_on, on)
+        want = self.converged(g, on, res)
+        if want is not None and np.count_nonzero(want & (self.stale > 0)):
+            # the cheap update drifted by rounding: confirm on an exact product
+            self.refresh(want & (self.stale > 0))
+            g, m, on, g_on = self.gap()
+            res = self.residuals(g, g_on, on)
+            want = self.converged(g, on, res)
+        if res is not None:
+            self.history.append(float(res.max()))
+            if monitor is not None and it % MONITOR_EVERY == 0:
+                monitor(it, float(res.max()))
+        if want is not None:
+            self.finish(want, StopReason.CONVERGED, it, m, res)
+        if res is not None:
+            better = res < 0.5 * self.best
+            self.best, self.it_best = np.where(better, res, self.best), np.where(better, it, self.it_best)
+            stalled = it - self.it_best > self.tol.stall
+            if it < self.tol.max_iter and np.count_nonzero(stalled):
+                self.finish(stalled, StopReason.STAGNATED, it, m, res)
+        if it == self.tol.max_iter:
+            self.finish(np.ones(len(g), bool), StopReason.MAX_ITER, it, m, res)
+        g, m, on, g_on, res = self.drop(g, m, on, g_on, res)
+        if not self.left:
+            return None
+        return self.contact_sets(it, g, m, on, g_on, res)
+
+    def contact_sets(self, it, g, m, on, g_on, res):
+        """Rows without pressure start from their penetrating cells (without constraint);
+        rows whose gap vanishes on the contact take in the cells that penetrate (a
+        conjugacy reset), and are solved when there are none."""
+        gg = row_dot(g_on, g_on)
+        if np.count_nonzero(gg) == len(gg):
+            return it, g, m, on, g_on, gg, res
+        if not self.k:
+            empty = ~on.any(axis=1)
+            if np.count_nonzero(empty):
+                on[empty] = g[empty] < 0.0
+                if self.masked:
+                    on[empty] &= self.mask[empty]
+                g_on = np.where(on, g, 0.0)
+                gg = row_dot(g_on, g_on)
+                if np.count_nonzero(gg) == len(gg):
+                    return it, g, m, on, g_on, gg, res
+        flat = gg == 0.0
+        entering = ~on & (g < -self.gap_tolerance()[:, None]) & flat[:, None]
+        if self.masked:
+            entering &= self.mask
+        self.finish(flat & ~entering.any(axis=1), StopReason.CONVERGED, it, m, res)
+        on |= entering
+        self.conj &= ~flat
+        if self.k == 1:
+            self.count = np.maximum(on.sum(axis=1), 1)
+        if self.k:
+            m = m + project(g, self.basis, on, self.count)   # the projection over the new contact
+        g_on = np.where(on, g, 0.0)
+        gg = row_dot(g_on, g_on)
+        g, m, on, g_on, gg, res = self.drop(g, m, on, g_on, gg, res)
+        return (it, g, m, on, g_on, gg, res) if self.left else None
+
+    def finish(self, rows: np.ndarray, reason: StopReason, it: int, m, res, copy: bool = False) -> None:
+        """Record the outcome of ``rows`` (a bool mask over the live rows; rows already
+        finished keep their first outcome). ``copy``: the live arrays change afterwards."""
+        rows = rows & ~self.done
+        count = np.count_nonzero(rows)
+        if not count:
+            return
+        at = np.flatnonzero(rows) if self.index is None else self.index[rows]
+        if self.out_p is None and count == len(rows) and not copy:
+            self.out_p, self.out_u = self.p, self.u     # every row at once: the arrays themselves
+        else:
+            if self.out_p is None:
+                self.out_p, self.out_u = np.zeros((len(self.reasons), self.p.shape[1])), np.zeros(
+                    (len(self.reasons), self.p.shape[1]))
+            self.out_p[at], self.out_u[at] = self.p[rows], self.u[rows]
+        self.left -= count
+        self.done |= rows
+        self.pending = True
+        if m is not None:
+            self.out_m[at] = m[rows]
+        self.iterations[at] = it
+        if res is not None:
+            self.residual[at], self.out_best[at] = res[rows], self.best[rows]
+        for i in at.tolist():
+            self.reasons[i] = reason
+
+    def direction(self, g_on, on, gg):
+        """Steepest-descent direction on the loaded cells and ``G`` (its inner product with
+        the gradient): the projected gap, or the preconditioner applied to it and projected
+        in turn (rows where rounding makes that product non-positive keep the gap)."""
+        if self.pc is None:
+            return g_on, gg
+        d = self.pc(g_on.reshape(len(g_on), *self.shape)).reshape(len(g_on), -1)
+        d[~on] = 0.0
+        project(d, self.basis, on)
+        d[~on] = 0.0
+        G = row_dot(g_on, d)
+        good = G > 0.0
+        if not good.all():
+            d[~good], G = g_on[~good], np.where(good, G, gg)
+        return d, G
+
+    def step(self, it, g, m, on, g_on, gg, res) -> None:
+        """One Polonsky-Keer step on every live row (see :mod:`.kernel`)."""
+        rows = len(g)
+        d, G = self.direction(g_on, on, gg)
+        beta = (G / self.G_old) * self.conj
+        t = self.t
+        t *= column(beta)
+        t += d
+        t *= on
+        self.G_old = G
+        r = self.product(t)
+        self.products += rows if self.pc is None else 2 * rows
+        rp = r
+        if self.k:
+            rp = r.copy()
+            project(rp, self.basis, on, self.count)
+        denom = row_dot(rp, t)
+        bad = ~(denom > 0.0)
+        if np.count_nonzero(bad):
+            self.denominator[np.flatnonzero(bad) if self.index is None else self.index[bad]] = denom[bad]
+            self.finish(bad, StopReason.BREAKDOWN, it, m, res, copy=True)
+            denom[bad] = np.inf   # tau = 0: the row keeps its pressure until it is dropped
+        tau = row_dot(g_on, t) / denom
+        p_old = self.p.copy() if self.change2 is not None else None
+        p = self.p
+        tau_c = column(tau)
+        p -= tau_c * t
+        clipped = p.min(axis=1) < 0.0
+        np.maximum(p, 0.0, out=p)
+        reenter = (g < 0.0) & (p == 0.0)
+        if self.masked:
+            reenter &= self.mask
+        entered = reenter.any(axis=1)
+        if np.count_nonzero(entered):
+            ri, ci = np.nonzero(reenter)
+            p[ri, ci] -= tau[ri] * g[ri, ci]
+        self.conj = ~entered
+        factor = restore(p, self.basis, self.target) if self.k else 1.0
+        self.update_displacement(r, tau_c, factor, clipped | entered)
+        if p_old is not None:
+            p_old -= p
+            d2, n2 = row_dot(p_old, p_old), row_dot(p, p)
+            self.small = d2 <= self.change2 * n2
+            if np.count_nonzero(n2) < len(n2):
+                self.small |= n2 == 0.0
+        self.drop()
+
+    def update_displacement(self, r, tau_c, factor, changed) -> None:
+        """``u = A p`` after a step: from ``A t`` where ``p`` changed by ``-tau t`` and a
+        constant factor only, from scratch elsewhere and every :data:`REFRESH_EVERY` steps."""
+        redo = changed | (self.stale >= REFRESH_EVERY)
+        count = np.count_nonzero(redo)
+        if factor is None or count == len(redo):
+            self.refresh(np.ones(len(r), bool))
+            return
+        self.u -= tau_c * r
+        if self.k:
+            self.u *= column(factor)
+        self.stale += 1
+        if count:
+            self.refresh(redo)
+
+    def drop(self, *arrays):
+        """Remove the finished rows from the working arrays (and from ``arrays``)."""
+        if not self.pending:
+            return arrays
+        self.pending = False
+        if not self.left:
+            return arrays   # all done: nothing to compact
+        keep = ~self.done
+        if self.index is None:
+            self.index = np.arange(len(keep))
+        for name in self.PER_ROW:
+            value = getattr(self, name)
+            if value is not None:
+                setattr(self, name, value[keep])
+        return tuple(None if a is None else a[keep] for a in arrays)
+
+    def result(self, shape) -> PKResult:
+        rows = len(self.out_p)
+        return PKResult(self.out_p.reshape(rows, *shape), self.out_u.reshape(rows, *shape), self.out_m,
+                        tuple(self.reasons), self.iterations, self.residual, self.out_best, self.denominator,
+                        self.products, tuple(self.history), self.tol)

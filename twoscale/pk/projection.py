@@ -1,0 +1,94 @@
+"""The pieces of Polonsky & Keer's iteration that depend on the constraints: projecting the
+gap on the constraint basis, restoring the load (and moments) after a step, and the
+residuals the stopping rule reads. Every function works row by row on (B, n) stacks.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+
+#: Rows up to this many cells take ``np.vecdot`` (numpy >= 2: least call overhead), longer
+#: ones ``np.einsum`` (several times faster than ``vecdot`` on a million cells).
+SHORT_ROW = 4096
+_vecdot = getattr(np, "vecdot", None)
+
+
+def column(v: np.ndarray):
+    """A per-row value ready to scale (B, n) rows: ``v[:, None]``, or the scalar itself for
+    one row (numpy's broadcasting costs more than the product on small blocks)."""
+    return v[0] if len(v) == 1 else v[:, None]
+
+
+def row_dot(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Row-wise inner products of (B, n) arrays."""
+    if _vecdot is not None and a.shape[1] <= SHORT_ROW:
+        return _vecdot(a, b)
+    return np.einsum("bi,bi->b", a, b)
+
+
+def project(v: np.ndarray, basis: np.ndarray, on: np.ndarray, count: np.ndarray | None = None) -> np.ndarray:
+    """Remove from each row of ``v`` (in place) its least-squares fit by the columns of
+    ``basis`` over the row's cells ``on``; return the coefficients (B, k). One column is
+    taken to be constant: the fit is the mean over ``on`` (0 where ``on`` is empty;
+    ``count``, if given, is ``max(on.sum(axis=1), 1)``)."""
+    rows, k = v.shape[0], basis.shape[1]
+    if k == 0:
+        return np.zeros((rows, 0))
+    if k == 1:
+        count = np.maximum(on.sum(axis=1), 1) if count is None else count
+        c = np.add.reduce(v, axis=1, where=on) / count
+        v -= column(c)
+        return c[:, None]
+    c = np.zeros((rows, k))
+    for i in range(rows):
+        c[i] = np.linalg.lstsq(basis[on[i]], v[i, on[i]], rcond=1e-13)[0]
+        v[i] -= basis @ c[i]
+    return c
+
+
+def restore(p: np.ndarray, basis: np.ndarray, target: np.ndarray, sweeps: int = 4) -> np.ndarray | None:
+    """Make ``B^T p = target`` on every row by ``p <- p * (B c)`` (in place), keeping
+    ``p >= 0``. Returns the per-row factors when the correction was a constant (so ``A p``
+    scales by them too), None when it was not (moments)."""
+    rows, k = p.shape[0], basis.shape[1]
+    if k == 0:
+        return np.ones(rows)
+    if k == 1:
+        s = p @ basis[:, 0]
+        f = target[:, 0] / s if (s > 0).all() else np.where(s > 0, target[:, 0] / np.where(s > 0, s, 1.0), 1.0)
+        p *= column(f)
+        return f
+    for i in range(rows):
+        _restore_plane(p[i], basis, target[i], sweeps)
+    return None
+
+
+def _restore_plane(p: np.ndarray, basis: np.ndarray, target: np.ndarray, sweeps: int) -> None:
+    """:func:`restore` on one row with a plane ``c0 + c1 x + c2 y`` as factor."""
+    for _ in range(sweeps):
+        on = p > 0
+        Bp = basis[on]
+        M = Bp.T @ (Bp * p[on, None])
+        lam = Bp @ np.linalg.lstsq(M, target, rcond=1e-13)[0]
+        p[on] *= lam
+        if np.all(lam >= 0):
+            return
+        np.maximum(p, 0.0, out=p)
+
+
+def kkt_residual(g: np.ndarray, g_on: np.ndarray, on: np.ndarray, free: np.ndarray | None,
+                 scale: np.ndarray) -> np.ndarray:
+    """Per row: largest |gap| on loaded cells and largest interpenetration elsewhere
+    (cells in ``free``, if given, are not checked), over ``scale``."""
+    worst_on = np.maximum(g_on.max(axis=1), -g_on.min(axis=1))
+    worst_off = -np.where(on if free is None else on | free, 0.0, g).min(axis=1)
+    return np.maximum(np.maximum(worst_on, worst_off), 0.0) / scale
+
+
+def constraint_residual(p: np.ndarray, basis: np.ndarray, target: np.ndarray, basis_scale: np.ndarray) -> np.ndarray:
+    """Per row: relative violation of the load and moment constraints (0 with fewer than
+    two constraints or no load: restored exactly)."""
+    if basis.shape[1] < 2:
+        return np.zeros(len(p))
+    viol = np.abs(p @ basis - target) / (np.maximum(target[:, :1], 1e-300) * np.maximum(basis_scale, 1e-300))
+    return np.where(target[:, 0] > 0, viol.max(axis=1), 0.0)
