@@ -1,0 +1,209 @@
+"""The rolling loop: every position of the track solved as a static contact of the road at
+that shift, warm-started from the previous position.
+
+Per position (:func:`solve_position`, the one call a persistent solver object can take
+over): the stones within reach of the footprint (:meth:`~twoscale.rolling.road.Road.stones_at`)
+go to the two-scale solver (:func:`twoscale.twoscale.solve_twoscale`) with the previous
+position's macro forces, approach and tilt as the start (mapped stone by stone:
+:meth:`~twoscale.macro.start.MacroStart.from_result`). The answer is the static solve's to
+its tolerance; only the start differs. Under load control the approach is not known
+before the solve: the stones are taken below a bound on it, and the position is solved
+again with a larger bound when the solved approach exceeds it (never needed when the
+bound holds: no stone left out can touch).
+
+The elastic body only: a viscoelastic material runs through
+:func:`twoscale.viscoelastic.moving.solve_moving` (its memory carried in the body frame).
+"""
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+from typing import Callable
+
+import numpy as np
+
+from ..macro.start import MacroStart
+from ..results import ContactResult
+from .result import RollingResult, StoneSignals
+from .road import Selection, hertz_level
+from .track import Track, prepare
+
+#: Load control: the stones are taken below ``d_prev + BOUND_GROWTH (d_prev - z_low)``.
+BOUND_GROWTH = 0.5
+#: Re-solves of one position allowed when the approach leaves its bound.
+MAX_REBOUNDS = 4
+
+
+@dataclass(frozen=True)
+class RollingOptions:
+    """How the positions are solved.
+
+    Parameters
+    ----------
+    tol : float, default 1e-6
+        The two-scale solver's tolerance (eq. 9: relative change of the pressure).
+    iteration : str, default "auto"
+        The micro step's iteration (:func:`twoscale.twoscale.solve_twoscale`).
+    warm : bool, default True
+        Start each position from the previous one (False: every position from cold, for
+        comparison; the answers agree to the tolerance).
+    h : float, optional
+        Cell size for a scene of tips, mm (default: the scene's rule); a height map's
+        spacing otherwise.
+    """
+
+    tol: float = 1e-6
+    iteration: str = "auto"
+    warm: bool = True
+    h: float | None = None
+
+
+@dataclass(frozen=True)
+class Position:
+    """One solved position: the stones given, the solve, the drag and the line load."""
+
+    index: int
+    selection: Selection
+    result: ContactResult
+    drag: float
+    seconds: float
+
+
+def solve_position(track: Track, selection: Selection, *, start=None, options: RollingOptions) -> ContactResult:
+    """The static solve of the road at one position (the stones of ``selection``), from
+    ``start`` (a :class:`MacroStart` or None): the one call per position."""
+    from ..twoscale import solve_twoscale
+
+    scene = track.scene
+    return solve_twoscale(track.provider, selection.stones, h=track.h, penetration=scene.penetration,
+                          total_load=scene.total_load, tol=options.tol, iteration=options.iteration, start=start)
+
+
+def drag_of(track: Track, selection: Selection, result: ContactResult) -> float:
+    """Force the road exerts on the body along +x, N: the sum over the pressure fields'
+    cells of pressure x the road's x-slope x the cell area."""
+    total = 0.0
+    for f in result.fields:
+        X, Y = f.grid.centres()
+        slope = track.road.road_slope(selection, X, Y, f.owner)
+        total += float(np.sum(f.pressure * slope)) * f.grid.h ** 2
+    return total
+
+
+def _start(previous: Position | None, selection: Selection, warm: bool):
+    """The previous position's macro state in this selection's stone order."""
+    if previous is None or not warm:
+        return None
+    where = {int(n): k for k, n in enumerate(previous.selection.numbers)}
+    index = np.array([where.get(int(n), -1) for n in selection.numbers], dtype=np.int64)
+    return MacroStart.from_result(previous.result, index)
+
+
+def _bound(track: Track, shift: float, previous: Position | None) -> float:
+    """Largest approach the stones are taken for (module docstring)."""
+    scene = track.scene
+    if track.control == "penetration":
+        return float(scene.penetration)
+    if previous is not None:
+        d = previous.result.penetration
+        low = min(s.z for s in previous.selection.stones)
+        return d + BOUND_GROWTH * max(d - low, track.h)
+    wide = track.road.stones_at(shift, np.inf)
+    if not wide.stones:
+        from ..errors import SceneError
+
+        raise SceneError(f"rolling.start = {track.spec.start!r} mm: no stone of the road lies under the footprint "
+                         f"at the first position")
+    d = hertz_level(wide.stones, scene.material.E_star, scene.total_load)
+    low = min(s.z for s in wide.stones)
+    return d + 2.0 * max(d - low, track.h)
+
+
+def step(track: Track, index: int, previous: Position | None, options: RollingOptions) -> Position:
+    """Solve position ``index`` (module docstring)."""
+    t0 = time.perf_counter()
+    shift = float(track.shifts[index])
+    bound = _bound(track, shift, previous)
+    for _ in range(MAX_REBOUNDS + 1):
+        selection = track.road.stones_at(shift, bound)
+        if not selection.stones:   # penetration control: nothing within reach of the body here
+            return Position(index, selection, _no_contact(track), 0.0, time.perf_counter() - t0)
+        result = solve_position(track, selection, start=_start(previous, selection, options.warm), options=options)
+        if track.control == "penetration" or result.penetration < bound:
+            break
+        low = min(s.z for s in selection.stones)
+        bound = result.penetration + BOUND_GROWTH * max(result.penetration - low, track.h)
+    return Position(index, selection, result, drag_of(track, selection, result), time.perf_counter() - t0)
+
+
+def _no_contact(track: Track) -> ContactResult:
+    """The answer where no stone can touch: no load, nothing to solve."""
+    from ..results import summarise
+
+    return ContactResult(method="twoscale", fields=(), penetration=float(track.scene.penetration), tilt=None,
+                         total_load=0.0, asperities=summarise((), 0), converged=True,
+                         message="", timings_s={"total": 0.0})
+
+
+def roll(scene, *, options: RollingOptions | None = None, provider=None,
+         on_position: Callable[[Position], None] | None = None, progress=None) -> RollingResult:
+    """Roll the road of ``scene`` (a :class:`~twoscale.scene.Scene` with ``rolling``) under its body.
+
+    Parameters
+    ----------
+    scene : Scene
+        With ``rolling`` (:class:`~twoscale.rolling.spec.RollingSpec`), a ``surface`` (the
+        road strip) or asperities, and the load: ``penetration`` (mm below the road's
+        highest point, held) or ``total_load`` (N, held).
+    options : RollingOptions, optional
+    provider : InfluenceProvider, optional
+        A prebuilt body (default: the scene's).
+    on_position : callable, optional
+        Called with each solved :class:`Position` (e.g. to write a VTK frame).
+    progress : callable, optional
+        Called with a short text per position.
+
+    Returns
+    -------
+    RollingResult
+    """
+    options = options or RollingOptions()
+    t0 = time.perf_counter()
+    track = prepare(scene, h=options.h, provider=provider)
+    t1 = time.perf_counter()
+    rows, signals, previous = [], [], None
+    for k in range(len(track.shifts)):
+        pos = step(track, k, previous, options)
+        if on_position is not None:
+            on_position(pos)
+        if progress is not None:
+            progress(f"position {k + 1} of {len(track.shifts)}: {pos.result.total_load:.4g} N, {pos.seconds:.2f} s")
+        rows.append(_row(pos))
+        signals.append(_stone_rows(pos))
+        previous = pos
+    t2 = time.perf_counter()
+    return _result(track, rows, signals, {"prepare": t1 - t0, "positions": t2 - t1, "total": t2 - t0})
+
+
+def _row(pos: Position) -> tuple:
+    r = pos.result
+    return (r.total_load, r.penetration, r.contact_area, pos.drag, r.converged, pos.seconds,
+            len(pos.selection.stones), int(r.iterations.get("micro", 0)), r.message)
+
+
+def _stone_rows(pos: Position) -> np.ndarray:
+    a = pos.result.asperities
+    touching = np.flatnonzero(a.contact_areas > 0)
+    return np.column_stack([np.full(len(touching), pos.index), pos.selection.numbers[touching] + 1,
+                            a.forces[touching], a.contact_areas[touching]])
+
+
+def _result(track: Track, rows: list, signals: list, timings: dict) -> RollingResult:
+    cols = list(zip(*rows))
+    stones = np.concatenate(signals) if signals else np.zeros((0, 4))
+    return RollingResult(
+        spec=track.spec, method="twoscale", control=track.control, h=track.h, times=track.times,
+        shifts=track.shifts, total_load=cols[0], penetration=cols[1], contact_area=cols[2], drag=cols[3],
+        converged=cols[4], seconds=cols[5], stones=cols[6], iterations=cols[7], messages=cols[8],
+        asperities=StoneSignals(stones[:, 0], stones[:, 1], stones[:, 2], stones[:, 3]),
+        timings_s=timings, body=track.body)

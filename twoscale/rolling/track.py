@@ -1,0 +1,152 @@
+"""The track of a rolling scene, prepared once: the body, the face window, the road on its
+lattice, the control, and the checks that refuse a run before it starts.
+
+:func:`prepare` turns a :class:`~twoscale.scene.Scene` with ``rolling`` into a
+:class:`Track`: on a height map the strip is resampled (when the step is not a multiple
+of its spacing) and segmented once; the shifts are put on the map's lattice; the strip
+must be longer than the footprint plus the run; under penetration control something must
+touch at the first position.
+"""
+from __future__ import annotations
+
+import dataclasses
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..errors import SceneError
+from ..scene import Scene
+from .road import Road, check_contact
+from .spec import RollingSpec
+
+#: Factor on the Hertz line-contact estimate of a tyre's footprint length under load
+#: control (the texture's tips carry the load on less than the whole face, so the real
+#: footprint is a little longer than the smooth one).
+FOOTPRINT_MARGIN = 1.5
+
+
+@dataclass(frozen=True, eq=False)
+class Track:
+    """Everything the positions share (see the module docstring)."""
+
+    scene: Scene
+    spec: RollingSpec
+    provider: object
+    road: Road
+    h: float
+    shifts: np.ndarray
+    times: np.ndarray
+    control: str
+    body: str
+
+
+def lattice(spec: RollingSpec, spacing: float) -> tuple[float, np.ndarray]:
+    """The spacing (mm) the road is sampled at, at most ``spacing``, of which the step is a
+    whole multiple (``step / ceil(step / spacing)``), and the shifts on its lattice (the
+    start rounded to the nearest multiple of it: a road point at x then always meets a
+    cell centre)."""
+    n = max(1, math.ceil(spec.step / spacing * (1 - 1e-9)))
+    h = spec.step / n
+    start = round(spec.start / h) * h
+    return h, start + spec.step * np.arange(spec.count)
+
+
+def prepare(scene: Scene, *, h: float | None = None, provider=None) -> Track:
+    """The :class:`Track` of ``scene`` (a scene with ``rolling``); ``h``: the cell size for
+    a scene of tips (default :func:`twoscale.scene.default_h` of the scene unshifted),
+    ignored on a height map (its spacing, made a divisor of the step)."""
+    from ..scene import default_h
+
+    spec = scene.rolling
+    if not isinstance(spec, RollingSpec):
+        raise SceneError(f"rolling is missing: the scene has no [rolling] table (got {spec!r})")
+    if scene.material.viscoelastic:
+        _viscoelastic_available()
+    if scene.surface is not None:
+        cell, shifts = lattice(spec, scene.surface.h)
+        if not math.isclose(cell, scene.surface.h, rel_tol=1e-9):
+            scene = dataclasses.replace(scene, surface=scene.surface.at(cell, h_name="rolling.step"), h=cell,
+                                        asperities=())
+        cell = scene.surface.h
+    else:
+        cell = float(h) if h is not None else default_h(dataclasses.replace(scene, rolling=None))
+        shifts = spec.shifts()
+    provider = provider if provider is not None else scene.provider()
+    window = face_window(scene, spec, provider)
+    road = Road(scene, window)
+    control = "penetration" if scene.penetration is not None else "load"
+    track = Track(scene, spec, provider, road, cell, shifts, (shifts - shifts[0]) / spec.speed_mm_s, control,
+                  body_label(scene))
+    if scene.surface is not None:
+        check_length(track)
+    if control == "penetration":
+        check_contact(road, scene.penetration, float(shifts[0]))
+    return track
+
+
+def _viscoelastic_available() -> None:
+    """The viscoelastic rolling lives in :mod:`twoscale.viscoelastic.moving`; refuse
+    (one line naming the field) while it is not there."""
+    try:
+        from ..viscoelastic.moving import solve_moving  # noqa: F401
+    except ImportError:
+        raise SceneError("material.prony with [rolling]: the viscoelastic rolling (twoscale.viscoelastic.moving) "
+                         "is not in this version; give an elastic material (no prony)") from None
+
+
+def face_window(scene: Scene, spec: RollingSpec, provider) -> tuple:
+    """The body's face window (x0, x1, y0, y1), mm, body frame: the footprint when given,
+    else a block's region (its top face less one correction spacing), else unbounded."""
+    if spec.footprint is not None:
+        L, W = spec.footprint
+        box = (-L / 2, L / 2, -W / 2, W / 2)
+        domain = provider.domain()
+        if domain is not None:
+            box = (max(box[0], domain[0]), min(box[1], domain[1]), max(box[2], domain[2]), min(box[3], domain[3]))
+        return box
+    domain = provider.domain()
+    if domain is not None:
+        return tuple(float(v) for v in domain)
+    if spec.tyre_radius is None:
+        raise SceneError("rolling.footprint is missing: a flat face on the half-space needs the footprint "
+                         "[length, width] (mm) that touches the road (or give rolling.tyre_radius)")
+    return (-math.inf, math.inf, -math.inf, math.inf)
+
+
+def footprint_length(track: Track) -> float:
+    """Length of the footprint along x, mm: the window's, else the tyre's estimated contact
+    (penetration: where the face is below the approach; load: the Hertz line contact of
+    the load over the window's or the strip's width, times :data:`FOOTPRINT_MARGIN`)."""
+    x0, x1, y0, y1 = track.road.window
+    if math.isfinite(x1 - x0):
+        return x1 - x0
+    spec, scene = track.spec, track.scene
+    R = spec.tyre_radius
+    if track.control == "penetration":
+        depth = scene.penetration - float(track.road.z.min())
+        return 2.0 * math.sqrt(max(depth, 0.0) * (2.0 * R - max(depth, 0.0))) if depth < R else 2.0 * R
+    width = y1 - y0 if math.isfinite(y1 - y0) else float(track.road.box[:, 3].max() - track.road.box[:, 2].min())
+    a = math.sqrt(4.0 * scene.total_load * R / (math.pi * scene.material.E_star * width))
+    return 2.0 * FOOTPRINT_MARGIN * a
+
+
+def check_length(track: Track) -> None:
+    """Refuse a strip shorter than the footprint plus the run."""
+    rx0, rx1 = track.road.extent_x
+    L = footprint_length(track)
+    s0, s1 = float(track.shifts[0]), float(track.shifts[-1])
+    if rx0 + s1 > -L / 2 or rx1 + s0 < L / 2:
+        raise SceneError(
+            f"surface: the strip is {rx1 - rx0:.6g} mm long along x, shorter than the footprint (about {L:.4g} mm) "
+            f"plus the run from rolling.start = {track.spec.start!r} to rolling.end = {track.spec.end!r} mm "
+            f"(a road point at x appears at body x + shift: the strip must cover the footprint at every shift)")
+
+
+def body_label(scene: Scene) -> str:
+    """The body in words, for titles and ``rolling.json``."""
+    inf = scene.influence
+    if inf["kind"] == "block":
+        Lx, Ly, t = inf["size"]
+        return f"block {Lx:g} x {Ly:g} x {t:g} mm, {inf['base']} base"
+    return "half-space"
