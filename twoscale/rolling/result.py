@@ -74,6 +74,11 @@ class RollingResult:
         The solver's message per position ("" when it converged cleanly).
     asperities : StoneSignals
         The stones in contact at each position.
+    line_x : (m,) array, mm
+        Body x of the cell columns of ``line_load`` (the lattice of cell ``h``).
+    line_load : (n, m) array, N/mm
+        Pressure summed across y (times the cell size) at each position and body x: the
+        space-time picture in which the stones go through the footprint.
     timings_s : mapping
         ``prepare`` (segmentation and the road's tables), ``positions``, ``total``.
     body : str
@@ -96,6 +101,8 @@ class RollingResult:
     iterations: np.ndarray
     messages: tuple
     asperities: StoneSignals
+    line_x: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    line_load: np.ndarray = field(default_factory=lambda: np.zeros((0, 0)))
     timings_s: dict = field(default_factory=dict)
     body: str = ""
 
@@ -108,6 +115,8 @@ class RollingResult:
             if getattr(self, name).shape != (n,):
                 raise ValueError(f"{name} has shape {getattr(self, name).shape}, expected ({n},)")
         object.__setattr__(self, "messages", tuple(self.messages))
+        object.__setattr__(self, "line_x", frozen_array(self.line_x))
+        object.__setattr__(self, "line_load", frozen_array(self.line_load))
         object.__setattr__(self, "timings_s", dict(self.timings_s))
 
     @property

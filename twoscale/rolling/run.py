@@ -146,7 +146,8 @@ def _no_contact(track: Track) -> ContactResult:
 
 
 def roll(scene, *, options: RollingOptions | None = None, provider=None,
-         on_position: Callable[[Position], None] | None = None, progress=None) -> RollingResult:
+         on_position: Callable[[Position], None] | None = None, progress=None,
+         track: Track | None = None) -> RollingResult:
     """Roll the road of ``scene`` (a :class:`~twoscale.scene.Scene` with ``rolling``) under its body.
 
     Parameters
@@ -162,6 +163,9 @@ def roll(scene, *, options: RollingOptions | None = None, provider=None,
         Called with each solved :class:`Position` (e.g. to write a VTK frame).
     progress : callable, optional
         Called with a short text per position.
+    track : Track, optional
+        The scene already prepared (:func:`twoscale.rolling.track.prepare`: checked,
+        segmented), so that a caller that checked it first does not prepare it twice.
 
     Returns
     -------
@@ -169,9 +173,9 @@ def roll(scene, *, options: RollingOptions | None = None, provider=None,
     """
     options = options or RollingOptions()
     t0 = time.perf_counter()
-    track = prepare(scene, h=options.h, provider=provider)
+    track = track if track is not None else prepare(scene, h=options.h, provider=provider)
     t1 = time.perf_counter()
-    rows, signals, previous = [], [], None
+    rows, signals, lines, previous = [], [], [], None
     for k in range(len(track.shifts)):
         pos = step(track, k, previous, options)
         if on_position is not None:
@@ -180,9 +184,10 @@ def roll(scene, *, options: RollingOptions | None = None, provider=None,
             progress(f"position {k + 1} of {len(track.shifts)}: {pos.result.total_load:.4g} N, {pos.seconds:.2f} s")
         rows.append(_row(pos))
         signals.append(_stone_rows(pos))
+        lines.append(_line_load(pos.result))
         previous = pos
     t2 = time.perf_counter()
-    return _result(track, rows, signals, {"prepare": t1 - t0, "positions": t2 - t1, "total": t2 - t0})
+    return _result(track, rows, signals, lines, {"prepare": t1 - t0, "positions": t2 - t1, "total": t2 - t0})
 
 
 def _row(pos: Position) -> tuple:
@@ -198,12 +203,40 @@ def _stone_rows(pos: Position) -> np.ndarray:
                             a.forces[touching], a.contact_areas[touching]])
 
 
-def _result(track: Track, rows: list, signals: list, timings: dict) -> RollingResult:
+def _line_load(result: ContactResult) -> tuple[int, np.ndarray]:
+    """Pressure summed across y (x the cell size), N/mm, per cell column: (first column's
+    lattice index round(x / h), values)."""
+    if not result.fields:
+        return 0, np.zeros(0)
+    h = result.fields[0].grid.h
+    starts = [int(round(f.grid.x0 / h)) for f in result.fields]
+    i0 = min(starts)
+    out = np.zeros(max(s + f.grid.nx for s, f in zip(starts, result.fields)) - i0)
+    for s, f in zip(starts, result.fields):
+        out[s - i0:s - i0 + f.grid.nx] += f.pressure.sum(axis=0) * h
+    return i0, out
+
+
+def _lines(lines: list, h: float) -> tuple[np.ndarray, np.ndarray]:
+    """The line loads of every position on one lattice of columns."""
+    used = [(i0, v) for i0, v in lines if v.size]
+    if not used:
+        return np.zeros(0), np.zeros((len(lines), 0))
+    lo = min(i0 for i0, _ in used)
+    hi = max(i0 + v.size for i0, v in used)
+    out = np.zeros((len(lines), hi - lo))
+    for k, (i0, v) in enumerate(lines):
+        out[k, i0 - lo:i0 - lo + v.size] = v
+    return (lo + np.arange(hi - lo)) * h, out
+
+
+def _result(track: Track, rows: list, signals: list, lines: list, timings: dict) -> RollingResult:
     cols = list(zip(*rows))
+    line_x, line_load = _lines(lines, track.h)
     stones = np.concatenate(signals) if signals else np.zeros((0, 4))
     return RollingResult(
         spec=track.spec, method="twoscale", control=track.control, h=track.h, times=track.times,
         shifts=track.shifts, total_load=cols[0], penetration=cols[1], contact_area=cols[2], drag=cols[3],
         converged=cols[4], seconds=cols[5], stones=cols[6], iterations=cols[7], messages=cols[8],
         asperities=StoneSignals(stones[:, 0], stones[:, 1], stones[:, 2], stones[:, 3]),
-        timings_s=timings, body=track.body)
+        line_x=line_x, line_load=line_load, timings_s=timings, body=track.body)
