@@ -147,13 +147,17 @@ class Road:
 
     def candidates(self, shift: float, bound: float) -> np.ndarray:
         """Stones whose box meets the window at ``shift`` and whose lowest possible point
-        (summit recess + the face's lowest height over the box) lies below ``bound``."""
+        lies below ``bound`` (:meth:`lowest`)."""
+        return np.flatnonzero(self.lowest(shift) < bound)
+
+    def lowest(self, shift: float) -> np.ndarray:
+        """A lower bound of each stone's recess + face at ``shift`` (``inf`` outside the
+        window): the summit recess plus the face's lowest height over the stone's box."""
         x0, x1, y0, y1 = self.window
         bx0, bx1 = self.box[:, 0] + shift, self.box[:, 1] + shift
         meets = (bx1 >= x0) & (bx0 <= x1) & (self.box[:, 3] >= y0) & (self.box[:, 2] <= y1)
         closest = np.clip(0.0, np.maximum(bx0, x0), np.minimum(bx1, x1))
-        low = self.z + self.spec.face(closest)
-        return np.flatnonzero(meets & (low < bound))
+        return np.where(meets, self.z + self.spec.face(closest), np.inf)
 
     def stones_at(self, shift: float, bound: float) -> Selection:
         """The stones that can touch at ``shift`` when the approach is at most ``bound``

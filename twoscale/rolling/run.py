@@ -91,32 +91,52 @@ def drag_of(track: Track, selection: Selection, result: ContactResult) -> float:
 
 
 def _start(previous: Position | None, selection: Selection, warm: bool):
-    """The previous position's macro state in this selection's stone order."""
-    if previous is None or not warm:
+    """The previous position's macro state in this selection's stone order, its approach
+    moved with the lowest stone (so that the start keeps the local approach: a stone that
+    rose under a tyre's face would otherwise start out of contact)."""
+    if previous is None or not warm or not previous.selection.stones:
         return None
     where = {int(n): k for k, n in enumerate(previous.selection.numbers)}
     index = np.array([where.get(int(n), -1) for n in selection.numbers], dtype=np.int64)
-    return MacroStart.from_result(previous.result, index)
+    start = MacroStart.from_result(previous.result, index)
+    low_then = min(s.z for s in previous.selection.stones)
+    low_now = min(s.z for s in selection.stones)
+    return MacroStart(start.forces, previous.result.penetration + (low_now - low_then), start.tilt)
+
+
+def _depth(position: Position | None, h: float) -> float:
+    """The previous position's local approach (approach less its lowest stone's recess), mm."""
+    if position is None or not position.selection.stones:
+        return h
+    low = min(s.z for s in position.selection.stones)
+    return max(position.result.penetration - low, h)
 
 
 def _bound(track: Track, shift: float, previous: Position | None) -> float:
-    """Largest approach the stones are taken for (module docstring)."""
+    """Largest approach the stones are taken for (module docstring): the held approach, or
+    the previous approach moved with this position's lowest possible stone, with room."""
     scene = track.scene
     if track.control == "penetration":
         return float(scene.penetration)
     if previous is not None:
-        d = previous.result.penetration
-        low = min(s.z for s in previous.selection.stones)
-        return d + BOUND_GROWTH * max(d - low, track.h)
+        low = float(np.min(track.road.lowest(shift), initial=np.inf))
+        return max(previous.result.penetration, low + _depth(previous, track.h)) \
+            + BOUND_GROWTH * _depth(previous, track.h)
+    wide = _all_stones(track, shift)
+    d = hertz_level(wide.stones, scene.material.E_star, scene.total_load)
+    low = min(s.z for s in wide.stones)
+    return d + 2.0 * max(d - low, track.h)
+
+
+def _all_stones(track: Track, shift: float) -> Selection:
+    """Every stone under the footprint at ``shift`` (load control: something must be)."""
     wide = track.road.stones_at(shift, np.inf)
     if not wide.stones:
         from ..errors import SceneError
 
-        raise SceneError(f"rolling.start = {track.spec.start!r} mm: no stone of the road lies under the footprint "
-                         f"at the first position")
-    d = hertz_level(wide.stones, scene.material.E_star, scene.total_load)
-    low = min(s.z for s in wide.stones)
-    return d + 2.0 * max(d - low, track.h)
+        raise SceneError(f"rolling: no stone of the road lies under the footprint at shift {shift:g} mm "
+                         f"(check rolling.start, rolling.end and rolling.footprint against the road)")
+    return wide
 
 
 def step(track: Track, index: int, previous: Position | None, options: RollingOptions) -> Position:
@@ -126,13 +146,19 @@ def step(track: Track, index: int, previous: Position | None, options: RollingOp
     bound = _bound(track, shift, previous)
     for _ in range(MAX_REBOUNDS + 1):
         selection = track.road.stones_at(shift, bound)
-        if not selection.stones:   # penetration control: nothing within reach of the body here
-            return Position(index, selection, _no_contact(track), 0.0, time.perf_counter() - t0)
-        result = solve_position(track, selection, start=_start(previous, selection, options.warm), options=options)
+        if not selection.stones:
+            if track.control == "penetration":   # nothing within reach of the body here
+                return Position(index, selection, _no_contact(track), 0.0, time.perf_counter() - t0)
+            bound = min(s.z for s in _all_stones(track, shift).stones) + (1 + BOUND_GROWTH) * _depth(previous, track.h)
+            continue
+        start = _start(previous, selection, options.warm)
+        result = solve_position(track, selection, start=start, options=options)
+        if not result.converged and start is not None:   # a start too far off: the cold solve decides
+            result = solve_position(track, selection, start=None, options=options)
         if track.control == "penetration" or result.penetration < bound:
             break
-        low = min(s.z for s in selection.stones)
-        bound = result.penetration + BOUND_GROWTH * max(result.penetration - low, track.h)
+        bound = result.penetration + BOUND_GROWTH * max(result.penetration - min(s.z for s in selection.stones),
+                                                        track.h)
     return Position(index, selection, result, drag_of(track, selection, result), time.perf_counter() - t0)
 
 

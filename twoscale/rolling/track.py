@@ -78,6 +78,9 @@ def prepare(scene: Scene, *, h: float | None = None, provider=None) -> Track:
     control = "penetration" if scene.penetration is not None else "load"
     track = Track(scene, spec, provider, road, cell, shifts, (shifts - shifts[0]) / spec.speed_mm_s, control,
                   body_label(scene))
+    if spec.tyre_radius is not None and footprint_length(track) < 2.0 * cell:
+        raise SceneError(f"rolling.tyre_radius = {spec.tyre_radius!r} mm leaves no contact wider than a cell "
+                         f"(footprint about {footprint_length(track):.2g} mm at h = {cell:g} mm)")
     if scene.surface is not None:
         check_length(track)
     if control == "penetration":
