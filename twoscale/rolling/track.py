@@ -78,9 +78,9 @@ def prepare(scene: Scene, *, h: float | None = None, provider=None) -> Track:
     control = "penetration" if scene.penetration is not None else "load"
     track = Track(scene, spec, provider, road, cell, shifts, (shifts - shifts[0]) / spec.speed_mm_s, control,
                   body_label(scene))
-    if spec.tyre_radius is not None and footprint_length(track) < 2.0 * cell:
+    if spec.tyre_radius is not None and tyre_contact_length(track) < 2.0 * cell:
         raise SceneError(f"rolling.tyre_radius = {spec.tyre_radius!r} mm leaves no contact wider than a cell "
-                         f"(footprint about {footprint_length(track):.2g} mm at h = {cell:g} mm)")
+                         f"(footprint about {tyre_contact_length(track):.2g} mm at h = {cell:g} mm)")
     if scene.surface is not None:
         check_length(track)
     if control == "penetration":
@@ -118,17 +118,24 @@ def face_window(scene: Scene, spec: RollingSpec, provider) -> tuple:
 
 
 def footprint_length(track: Track) -> float:
-    """Length of the footprint along x, mm: the window's, else the tyre's estimated contact
-    (penetration: where the face is below the approach; load: the Hertz line contact of
-    the load over the window's or the strip's width, times :data:`FOOTPRINT_MARGIN`)."""
-    x0, x1, y0, y1 = track.road.window
-    if math.isfinite(x1 - x0):
+    """Length of the footprint along x, mm: the window's, or the tyre's estimated contact
+    when shorter (:func:`tyre_contact_length`)."""
+    x0, x1, _, _ = track.road.window
+    if track.spec.tyre_radius is None:
         return x1 - x0
+    return min(x1 - x0, tyre_contact_length(track))
+
+
+def tyre_contact_length(track: Track) -> float:
+    """The tyre's estimated contact length along x, mm: under penetration control where the
+    face is below the approach; under load control the Hertz line contact of the load over
+    the window's (or the strip's) width, times :data:`FOOTPRINT_MARGIN`."""
+    _, _, y0, y1 = track.road.window
     spec, scene = track.spec, track.scene
     R = spec.tyre_radius
     if track.control == "penetration":
-        depth = scene.penetration - float(track.road.z.min())
-        return 2.0 * math.sqrt(max(depth, 0.0) * (2.0 * R - max(depth, 0.0))) if depth < R else 2.0 * R
+        depth = max(scene.penetration - float(track.road.z.min()), 0.0)
+        return 2.0 * math.sqrt(depth * (2.0 * R - depth)) if depth < R else 2.0 * R
     width = y1 - y0 if math.isfinite(y1 - y0) else float(track.road.box[:, 3].max() - track.road.box[:, 2].min())
     a = math.sqrt(4.0 * scene.total_load * R / (math.pi * scene.material.E_star * width))
     return 2.0 * FOOTPRINT_MARGIN * a
