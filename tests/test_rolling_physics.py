@@ -109,3 +109,27 @@ def test_mean_drag_over_a_periodic_road_is_zero():
     assert spread > 0.05 * float(np.mean(coarse.total_load))   # the drag does swing
     assert abs(coarse.mean_drag) < 0.02 * spread
     assert abs(fine.mean_drag) < 0.5 * abs(coarse.mean_drag)
+
+
+@pytest.mark.slow
+def test_block_positions_are_static_solves():
+    """A finite block (bonded base): each position equals twoscale.solve of the tips moved
+    by the shift on the same block (a flat face: the block's top face)."""
+    import dataclasses
+
+    import twoscale
+
+    tips = tuple(Asperity(x, y, z, 8.0, "paraboloid")
+                 for x, y, z in [(-12, 0, 0), (-4, 5, 0.02), (4, -4, 0.05), (12, 3, 0.01), (20, -2, 0.0)])
+    spec = RollingSpec(start=-6.0, end=6.0, step=6.0, speed=20.0)
+    scene = Scene(material=MAT, asperities=tips, total_load=30.0, rolling=spec, h=0.2,
+                  influence={"kind": "block", "size": (80.0, 40.0, 10.0), "base": "bonded"})
+    provider = scene.provider(progress=False)
+    run = roll(scene, provider=provider)
+    assert run.all_converged and run.body.startswith("block 80 x 40 x 10")
+    for k, s in enumerate(run.shifts):
+        moved = Scene(material=MAT, asperities=tuple(dataclasses.replace(a, x=a.x + s) for a in tips),
+                      total_load=30.0, h=0.2, influence=scene.influence)
+        static = twoscale.solve(moved, provider=provider)
+        assert run.penetration[k] == pytest.approx(static.penetration, abs=1e-7)
+        assert run.contact_area[k] == pytest.approx(static.contact_area, abs=1e-9)
