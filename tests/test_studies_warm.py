@@ -69,5 +69,5 @@ def test_a_start_of_the_wrong_size_is_refused(first):
         _solve(2.0, [1, 2, 3, 4, 5], start=MacroStart(np.ones(6)))
     with pytest.raises(ValueError, match="index must be 1-D"):
         MacroStart.from_result(first, np.array([0, 6]))
-    with pytest.raises(ValueError, match="start must be a ContactResult or a MacroStart"):
+    with pytest.raises(ValueError, match="start must be a ContactResult, a MacroStart or a WarmStart"):
         _solve(2.0, start=dataclasses.asdict(MacroStart(np.ones(6))))

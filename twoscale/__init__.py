@@ -29,6 +29,7 @@ from .grid import Grid
 from .indenters import Asperity
 from .material import Material
 from .results import ContactResult
+from .options import MacroOptions, MicroOptions, ReferenceOptions, ResolutionOptions, SolverOptions, list_options
 from .scene import Scene, SceneError
 
 #: Names imported on first use (module, attribute): the bodies and the height maps pull in
@@ -38,11 +39,14 @@ _LAZY = {"HalfSpace": ("twoscale.influence.halfspace", "HalfSpace"),
          "SurfaceOptions": ("twoscale.surface.measured", "SurfaceOptions"),
          "build_surface": ("twoscale.surface.measured", "build_surface"),
          "LoadHistory": ("twoscale.viscoelastic.history", "LoadHistory"),
-         "TimeSteps": ("twoscale.viscoelastic.stepping", "TimeSteps")}
+         "TimeSteps": ("twoscale.viscoelastic.stepping", "TimeSteps"),
+         "ContactSolver": ("twoscale.solver", "ContactSolver"),
+         "WarmStart": ("twoscale.warm_start", "WarmStart")}
 
 __all__ = ["__version__", "solve", "METHODS", "asperities", "as_asperities", "Material", "Grid", "Asperity",
            "Scene", "SceneError", "ContactResult", "HalfSpace", "FiniteBlock", "RawMap", "SurfaceOptions",
-           "build_surface", "LoadHistory", "TimeSteps"]
+           "build_surface", "LoadHistory", "TimeSteps", "ContactSolver", "WarmStart", "SolverOptions",
+           "MacroOptions", "MicroOptions", "ReferenceOptions", "ResolutionOptions", "list_options"]
 
 
 def __getattr__(name: str):

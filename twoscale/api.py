@@ -276,6 +276,8 @@ def solve(problem: Any, *, method: str | Callable[..., ContactResult] = "twoscal
     if method == "twoscale":
         from .twoscale import solve_twoscale
 
+        _check_twoscale_keywords(options)
+
         result = solve_twoscale(provider, scene.asperities, h=h, penetration=scene.penetration,
                                 total_load=scene.total_load, tilt=scene.tilt, pivot=scene.pivot, **options)
     else:
@@ -293,6 +295,26 @@ def solve(problem: Any, *, method: str | Callable[..., ContactResult] = "twoscal
     result = with_setting(result, scene, provider)
     # what came from the on-disk caches (block corrections, surface laws), for result.json
     return dataclasses.replace(result, caches=usage_since(caches_before, solve_caches(provider, scene)))
+
+
+#: Keywords of the two-scale solver that are not options (:mod:`twoscale.options`).
+_TWOSCALE_EXTRAS = ("progress", "start", "anchor", "laws", "coarse")
+
+
+def _check_twoscale_keywords(options: Mapping) -> None:
+    """Refuse an unknown or misspelt keyword of the two-scale solver, naming it (the values
+    are checked by the solver)."""
+    from .options import KEYWORDS
+
+    known = {k for k in KEYWORDS if k not in ("h", "memory_limit")}
+    unknown = [k for k in options if k not in known and k not in _TWOSCALE_EXTRAS]
+    if unknown:
+        import difflib
+
+        close = difflib.get_close_matches(unknown[0], sorted(known | set(_TWOSCALE_EXTRAS)), n=3)
+        hint = f" (did you mean {', '.join(repr(c) for c in close)}?)" if close else \
+            " (twoscale.list_options() lists the options)"
+        raise ValueError(f"unknown option {unknown[0]!r} for the two-scale solver{hint}")
 
 
 def solve_scene(scene: Scene, *, method: str = "twoscale", provider_options: Mapping | None = None,

@@ -39,6 +39,10 @@ class MacroDetails:
         Matrix-free: measured relative error of the point operator at the solution.
     seconds : float
         Wall-clock time of the macro step.
+    penetration : float or None
+        The macro step's approach d, mm (the micro step corrects it under load control).
+    tilt : (alpha, beta) or None
+        The macro step's tilt angles, radians (with a ball-and-socket joint).
     """
 
     forces: np.ndarray
@@ -47,6 +51,8 @@ class MacroDetails:
     interaction: str
     operator_error: float | None
     seconds: float
+    penetration: float | None = None
+    tilt: tuple | None = None
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "forces", frozen_array(self.forces))

@@ -120,6 +120,43 @@ def _read_only(d: Mapping | None) -> Mapping:
 
 
 @dataclass(frozen=True)
+class Reuse:
+    """What a :class:`~twoscale.solver.ContactSolver` solve took over from its earlier solves.
+
+    Attributes
+    ----------
+    solve : int
+        This solve's number in the solver object's life (1: the first).
+    body_kept : bool
+        The body (and the tables it built answering earlier solves) was kept.
+    macro_start : bool
+        The macro step started from the previous answer's forces, approach and tilt.
+    pressure_start : int
+        Tips whose micro step started from the previous answer's pressure.
+    kept_bytes : int
+        Bytes the solver object keeps for its next solve (the answer's pressure and tips).
+    """
+
+    solve: int
+    body_kept: bool
+    macro_start: bool
+    pressure_start: int
+    kept_bytes: int
+
+    def __str__(self) -> str:
+        if self.solve == 1 and not self.body_kept:
+            return "first solve: nothing to reuse"
+        parts = ["body kept" if self.body_kept else "body built"]
+        if self.macro_start:
+            parts.append("macro step started from the previous answer")
+        if self.pressure_start:
+            parts.append(f"micro step started from the previous pressure on {self.pressure_start} tips")
+        if not self.macro_start and not self.pressure_start:
+            parts.append("cold start")
+        return f"solve {self.solve}: " + ", ".join(parts)
+
+
+@dataclass(frozen=True)
 class ContactResult:
     """What every solver returns.
 
@@ -166,6 +203,9 @@ class ContactResult:
     nominal_area_basis : str
     scene_name : str
         The scene's name where known (a scene file's stem, a study's scene name), for titles.
+    reuse : Reuse or None
+        What a :class:`~twoscale.solver.ContactSolver` solve reused from earlier solves
+        (None from ``twoscale.solve``).
     """
 
     method: str
@@ -186,6 +226,7 @@ class ContactResult:
     nominal_area: float | None = None
     nominal_area_basis: str = ""
     scene_name: str = ""
+    reuse: Reuse | None = None
 
     def __post_init__(self) -> None:
         for name in ("iterations", "residuals", "timings_s"):

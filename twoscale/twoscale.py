@@ -28,6 +28,7 @@ from .macro.start import MacroStart
 from .influence.separated import check_rtol
 from .micro.driver import fixed_choice, run_micro
 from .results import ContactResult, PressureField, summarise
+from .warm_start import WarmStart
 
 
 def _check(asperities, h, penetration, total_load, tilt, tol, max_sweeps) -> None:
@@ -130,14 +131,15 @@ def solve_twoscale(provider: InfluenceProvider, asperities: Sequence[Asperity], 
         from them (``union-cg``), for the report (``details.micro.p0``, Fig. 6).
     progress : callable or None, default None
         Called with a short stage description (``progress(text)``) as the solve goes on.
-    start : ContactResult or MacroStart, optional
-        Warm start of the macro step, e.g. the solve of the neighbouring position on a
-        track: a previous result with the same tips in the same order (its macro forces,
-        approach and tilt), or a :class:`~twoscale.macro.start.MacroStart` (forces in this
-        solve's tip order, built with ``MacroStart.from_result(result, index)`` when the
-        tips differ). The answer is the same to the tolerances; the macro Newton
-        iteration needs fewer steps when the start is close. The micro step starts, as
-        without it, from the macro forces.
+    start : ContactResult, MacroStart or WarmStart, optional
+        Warm start, e.g. the solve of the neighbouring position on a track: a previous
+        result with the same tips in the same order (its macro forces, approach and
+        tilt), or a :class:`~twoscale.macro.start.MacroStart` (forces in this solve's tip
+        order, built with ``MacroStart.from_result(result, index)`` when the tips
+        differ): the macro Newton iteration starts there, the micro step as without it.
+        A :class:`~twoscale.warm_start.WarmStart` (:func:`~twoscale.warm_start.warm_start`)
+        also starts the micro step from the previous pressure moved with the tips. The
+        answer is the same to the tolerances; the work shrinks when the start is close.
 
     Returns
     -------
@@ -166,7 +168,8 @@ def solve_twoscale(provider: InfluenceProvider, asperities: Sequence[Asperity], 
     micro, plan = run_micro(provider, asperities, macro=macro, h=h, total_load=total_load, free_tilt=tilt,
                             pivot=pivot, tol=tol, max_sweeps=max_sweeps, choice=choice, p0=p0, progress=progress,
                             margin=margin, anchor=anchor, dense_max_cells=dense_max_cells,
-                            separated_rtol=separated_rtol, merge=bool(merge))
+                            separated_rtol=separated_rtol, merge=bool(merge),
+                            start=start.micro if isinstance(start, WarmStart) else None)
     t2 = time.perf_counter()
     return _result(asperities, macro, micro, plan, h, {"macro": t1 - t0, "micro": t2 - t1, "total": t2 - t0})
 
@@ -175,12 +178,14 @@ def _macro_start(start, n: int):
     """``start`` as a :class:`MacroStart` (None: cold start)."""
     if start is None or isinstance(start, MacroStart):
         return start
+    if isinstance(start, WarmStart):
+        return start.macro
     if isinstance(start, ContactResult):
         if len(start.asperities.forces) != n:
             raise ValueError(f"start has {len(start.asperities.forces)} asperities, this solve {n}: "
                              f"give MacroStart.from_result(result, index) to map them")
         return MacroStart.from_result(start)
-    raise ValueError(f"start must be a ContactResult or a MacroStart, got {type(start).__name__}")
+    raise ValueError(f"start must be a ContactResult, a MacroStart or a WarmStart, got {type(start).__name__}")
 
 
 def _caller_choice(iteration, far_tol, coarse):
@@ -211,7 +216,9 @@ def _result(asperities, macro, micro, plan, h, timings) -> ContactResult:
     details = TwoScaleDetails(
         macro=MacroDetails(forces=macro.forces, local_penetrations=macro.local_penetrations,
                            converged=bool(macro.converged), interaction=macro.interaction,
-                           operator_error=macro.operator_error, seconds=timings["macro"]),
+                           operator_error=macro.operator_error, seconds=timings["macro"],
+                           penetration=float(macro.penetration),
+                           tilt=None if macro.tilt is None else tuple(float(t) for t in macro.tilt)),
         micro=MicroDetails(iteration=_iteration_text(plan),
                            strategy=plan.attempts[-1].iteration if plan.attempts else plan.choice.iteration,
                            choice=plan.choice,

@@ -22,6 +22,7 @@ from ..indenters import Asperity
 from ..influence.base import InfluenceProvider
 from .patches import TipTable, build_patches
 from .policy import ITERATIONS, UNION_MIN_COVERAGE, Choice, choose
+from .start import MicroStart
 from .solve import EXACT_FAR_TOL, MicroResult, solve_micro
 from .strategies import BlockGaussSeidel, Exact, FarField, MicroContext, TwoLevel, UnionCG
 from .union import box_of
@@ -85,7 +86,7 @@ def fixed_choice(iteration: str, far_tol: float | None, why: str) -> Choice:
 def run_micro(provider: InfluenceProvider, asperities: Sequence[Asperity], *, macro, h: float,
               total_load: float | None, free_tilt: bool, pivot, tol: float, max_sweeps: int,
               choice: Choice | None = None, p0: bool = False, progress: Callable | None = None,
-              **block_options) -> tuple[MicroResult, MicroPlan]:
+              start: MicroStart | None = None, **block_options) -> tuple[MicroResult, MicroPlan]:
     """Run the micro step after ``macro`` (a :class:`~twoscale.macro.result.MacroResult`).
 
     Parameters
@@ -97,17 +98,23 @@ def run_micro(provider: InfluenceProvider, asperities: Sequence[Asperity], *, ma
         do: they start from them; the union CG then starts from them too).
     progress : callable or None
         Called as ``progress(stage: str)`` when an attempt starts.
+    start : MicroStart or None
+        A previous solve's pressure (:mod:`.start`), the first pressure of every iteration
+        where it has one (eq. 7 or the union CG's own start elsewhere).
     block_options
         Passed to :func:`.solve.solve_micro` (margin, anchor, dense_max_cells, merge, ...).
     """
     asperities = TipTable.of(asperities)  # tip arrays once for every patch built
     forces = np.asarray(macro.forces, dtype=float)
     anchor = block_options.get("anchor", (0.0, 0.0))
-    common = dict(h=h, forces=forces, penetration=macro.penetration, tilt=macro.tilt, pivot=pivot,
+    penetration, tilt = macro.penetration, macro.tilt
+    if start is not None and total_load is not None:
+        penetration, tilt = start.theta(penetration, tilt)
+    common = dict(h=h, forces=forces, penetration=penetration, tilt=tilt, pivot=pivot,
                   total_load=total_load, free_tilt=free_tilt, tol=tol, size_from_forces=bool(macro.converged),
-                  **block_options)
+                  start=start, **block_options)
     # the patches solve_micro would build from the same arguments, built once here
-    theta = (macro.penetration, *(macro.tilt if macro.tilt is not None else (0.0, 0.0)))
+    theta = (penetration, *(tilt if tilt is not None else (0.0, 0.0)))
     patches = build_patches(asperities, h=h, forces=forces if macro.converged else np.full(len(forces), np.inf),
                             approaches=tip_approaches(asperities, theta, pivot), E_star=provider.material.E_star,
                             margin=block_options.get("margin", 1.3), anchor=anchor)

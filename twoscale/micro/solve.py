@@ -102,6 +102,23 @@ def _initial(provider, asperities, patches, blocks, forces, z_blocks, h, rtol: f
     return initial_pressures(blocks, z_blocks, P, approaches, h, rtol=rtol, stacks=stacks)
 
 
+def _starts(provider, asperities, patches, blocks, forces, z_blocks, h, start) -> list:
+    """The first pressure of every (one-asperity) block: ``start``'s where it has one, eq. 7
+    elsewhere."""
+    warm = [None] * len(patches) if start is None else \
+        [start.for_patch(pt, asperities, forces) for pt in patches]
+    cold = [k for k, w in enumerate(warm) if w is None]
+    if cold:
+        # p0 is a start: the sweeps correct it, and at 1e-5 its reported distance from the final
+        # pressure (the paper's Fig. 6, percent-level) moves by ~1e-4 %; 1e-8 cost 10-20 % of the
+        # paper cases' time (two spheres at d/2R = 1: 81 -> 65 ms)
+        eq7 = _initial(provider, asperities, [patches[k] for k in cold], [blocks[k] for k in cold], forces,
+                       [z_blocks[k] for k in cold], h, rtol=P0_RTOL)
+        for k, v in zip(cold, eq7):
+            warm[k] = v
+    return warm
+
+
 def initial_on_patches(provider, asperities, patches, common) -> tuple:
     """Paper eq. 7 on one-asperity ``patches``, summed onto the grid covering them:
     ``(grid, p0 (ny, nx) MPa)``. ``common`` holds h, forces, penetration, tilt, pivot."""
@@ -129,7 +146,8 @@ def solve_micro(provider: InfluenceProvider, asperities: Sequence[Asperity], *, 
                 size_from_forces: bool = True, far_tol: float | None = None,
                 sizing_approaches: np.ndarray | None = None, coarse: bool = False,
                 separated_rtol: float | None = 1e-8, merge: bool = True,
-                merge_growth: float = MERGE_GROWTH, monitor=None, patches: list | None = None) -> MicroResult:
+                merge_growth: float = MERGE_GROWTH, monitor=None, patches: list | None = None,
+                start=None) -> MicroResult:
     """Pressure on patches from the macro forces (docs/method.md section 3).
 
     Parameters
@@ -203,6 +221,9 @@ def solve_micro(provider: InfluenceProvider, asperities: Sequence[Asperity], *, 
     patches : list of Patch or None
         The one-asperity patches these arguments give, already built (the driver builds
         them for its policy); ignored with ``sizing_approaches``, which sizes them anew.
+    start : MicroStart or None
+        A previous solve's pressure (:mod:`.start`): the sweeps start from it on the
+        patches of the asperities it loaded, from eq. 7 elsewhere.
     """
     if coarse and far_tol is None:
         raise ValueError("coarse=True needs far_tol (the two-level iteration holds the far field by resultants)")
@@ -221,11 +242,7 @@ def solve_micro(provider: InfluenceProvider, asperities: Sequence[Asperity], *, 
         patches = build_patches(asperities, h=h, forces=sizing, approaches=approaches,
                                 E_star=provider.material.E_star, margin=margin, anchor=anchor, reuse=patches or ())
     blocks = [LocalBlock(provider, pt, dense_max_cells=dense_max_cells) for pt in patches]
-    # p0 is a start: the sweeps correct it, and at 1e-5 its reported distance from the final
-    # pressure (the paper's Fig. 6, percent-level) moves by ~1e-4 %; 1e-8 cost 10-20 % of the
-    # paper cases' time (two spheres at d/2R = 1: 81 -> 65 ms)
-    p0 = _initial(provider, asperities, patches, blocks, forces, heights(patches, theta, pivot), h,
-                  rtol=P0_RTOL)
+    p0 = _starts(provider, asperities, patches, blocks, forces, heights(patches, theta, pivot), h, start)
     if merge and far_tol is None:
         merged, covers = merge_overlapping(patches, asperities, growth=merge_growth)
         p0 = [p0[c[0]] if len(c) == 1 else

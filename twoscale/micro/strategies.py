@@ -24,7 +24,7 @@ from typing import Callable
 import numpy as np
 
 from .solve import EXACT_FAR_TOL, MicroResult, solve_micro
-from .union import solve_union
+from .union import box_of, solve_union
 
 #: The union CG's KKT residual over the block iterations' tolerance (a relative change of the
 #: pressure between sweeps): at the default 1e-6 the CG stops at the reference solver's 1e-8.
@@ -114,7 +114,11 @@ class UnionCG:
     def run(self, ctx: MicroContext, coupling, *, max_sweeps: int, monitor: Callable | None = None) -> MicroResult:
         common = ctx.common
         start = start_grid = None
-        if ctx.p0:
+        if common.get("start") is not None:  # a previous solve's pressure, moved with the tips
+            start_grid = box_of(ctx.grids, common["h"], common.get("anchor", (0.0, 0.0)))
+            start = common["start"].on_grid(start_grid, ctx.asperities, common["forces"])
+            start_grid = start_grid if start is not None else None
+        if start is None and ctx.p0:
             from .solve import initial_on_patches
 
             start_grid, start = initial_on_patches(ctx.provider, ctx.asperities, ctx.patches, common)

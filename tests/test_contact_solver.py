@@ -1,0 +1,125 @@
+"""The solver object: state kept between solves, the same answers as one-shot solves."""
+from __future__ import annotations
+
+import dataclasses
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import twoscale
+from twoscale.options import MicroOptions, ResolutionOptions, SolverOptions, list_options, options_markdown
+from twoscale.synthetic import random_scene
+
+H = 0.05
+# the scenes are coarse on purpose (the starts, not the resolution, are under test)
+pytestmark = pytest.mark.filterwarnings("ignore::twoscale.errors.ResolutionWarning")
+
+
+def _scene(control="load", shift=0.0, n=10):
+    sc = random_scene(n, kind="sparse", control=control, shape="sphere", seed=5)
+    return dataclasses.replace(sc, asperities=tuple(dataclasses.replace(a, x=a.x + shift) for a in sc.asperities),
+                               h=H)
+
+
+def _close(a, b):
+    return np.abs(a.asperities.forces - b.asperities.forces).max() <= 1e-5 * b.asperities.forces.max()
+
+
+@pytest.mark.parametrize("control", ["load", "penetration"])
+def test_solves_in_a_row_equal_one_shot_solves_and_say_what_they_reused(control):
+    solver = twoscale.ContactSolver()
+    first = solver.solve(_scene(control))
+    assert first.reuse.solve == 1 and not first.reuse.body_kept and "nothing to reuse" in str(first.reuse)
+    again = solver.solve(_scene(control))
+    moved = solver.solve(_scene(control, shift=H))
+    assert _close(again, twoscale.solve(_scene(control)))
+    assert _close(moved, twoscale.solve(_scene(control, shift=H)))
+    for r in (again, moved):
+        assert r.reuse.body_kept and r.reuse.macro_start and r.reuse.pressure_start > 0
+        assert r.iterations["micro"] <= 1 < first.iterations["micro"]
+    assert solver.body is not None and solver.solves == 3
+
+
+def test_a_reset_or_start_none_is_a_cold_start():
+    solver = twoscale.ContactSolver()
+    first = solver.solve(_scene())
+    cold = solver.solve(_scene(), start=None)
+    assert not cold.reuse.macro_start and cold.reuse.pressure_start == 0 and cold.reuse.body_kept
+    assert cold.iterations["micro"] == first.iterations["micro"]
+    solver.reset()
+    assert solver.solve(_scene()).reuse.pressure_start == 0
+
+
+def test_tips_entering_are_matched_by_index_and_unmatched_tips_start_cold():
+    solver = twoscale.ContactSolver()
+    full = _scene()
+    solver.solve(dataclasses.replace(full, asperities=full.asperities[1:]))
+    # one more tip and no index: no map between the tips, a cold start
+    assert solver.solve(full).reuse.macro_start is False
+    solver.solve(dataclasses.replace(full, asperities=full.asperities[1:]))
+    entering = solver.solve(full, index=np.arange(-1, len(full.asperities) - 1))
+    assert entering.reuse.macro_start and _close(entering, twoscale.solve(full))
+
+
+def test_the_kept_pressure_is_bounded():
+    solver = twoscale.ContactSolver(max_start_bytes=0)
+    solver.solve(_scene())
+    second = solver.solve(_scene())
+    assert second.reuse.macro_start and second.reuse.pressure_start == 0 and second.reuse.kept_bytes < 1000
+
+
+def test_options_reach_the_solve_and_a_cell_size_change_drops_the_pressure_start():
+    solver = twoscale.ContactSolver(options=SolverOptions(micro=MicroOptions(iteration="block-gs"),
+                                                          resolution=ResolutionOptions(h=0.06)))
+    r = solver.solve(dataclasses.replace(_scene(), h=None))
+    assert r.details.micro.strategy == "block-gs" and r.fields[0].grid.h == pytest.approx(0.06)
+    other = twoscale.ContactSolver(options=SolverOptions(resolution=ResolutionOptions(h=0.07)))
+    other.solve(_scene())
+    other._previous = dataclasses.replace(other._previous, h=0.08)  # as if the last solve ran at another h
+    assert other.solve(_scene()).reuse.pressure_start == 0
+
+
+def test_a_scene_for_another_body_is_refused():
+    solver = twoscale.ContactSolver()
+    solver.solve(_scene())
+    block = dataclasses.replace(_scene(), influence=twoscale.scene.Influence(kind="block", size=(60, 60, 10)))
+    with pytest.raises(ValueError, match="make another ContactSolver"):
+        solver.solve(block)
+
+
+@pytest.mark.parametrize("bad, match", [
+    ({"micro": {"tols": 1e-6}}, r"unknown option micro.tols \(did you mean 'tol'\?\)"),
+    ({"mikro": {}}, r"unknown option group 'mikro' \(did you mean 'micro'"),
+    ({"micro": {"iteration": "newton"}}, "micro.iteration must be one of"),
+    ({"micro": {"far_tol": 2.0}}, r"micro.far_tol must be a number in \(0, 1\)"),
+    ({"macro": {"max_iter": 0}}, "macro.max_iter must be an integer >= 1"),
+    ({"resolution": {"h": -1}}, "resolution.h must be a finite number > 0"),
+])
+def test_bad_options_are_refused_naming_them(bad, match):
+    with pytest.raises(ValueError, match=match):
+        SolverOptions.from_mapping(bad)
+
+
+def test_a_misspelt_keyword_of_solve_is_refused_naming_it():
+    with pytest.raises(ValueError, match=r"unknown option 'iteraton' for the two-scale solver \(did you mean 'iteration'\?\)"):
+        twoscale.solve(_scene(), iteraton="block-gs")
+    with pytest.raises(ValueError, match="unknown keyword 'tol'"):
+        twoscale.ContactSolver().solve(_scene(), tol=1e-7)
+
+
+def test_every_option_is_listed_documented_and_in_the_docs_table():
+    rows = list_options()
+    groups = {(o.group, o.name) for o in rows}
+    for group, kind in (("macro", twoscale.MacroOptions), ("micro", MicroOptions),
+                        ("reference", twoscale.ReferenceOptions), ("resolution", ResolutionOptions)):
+        assert {(group, f.name) for f in dataclasses.fields(kind)} <= groups
+    assert all(o.doc for o in rows), [o.name for o in rows if not o.doc]
+    page = Path(__file__).resolve().parents[1] / "docs" / "options.md"
+    assert page.read_text() == options_markdown(), "docs/options.md is stale: regenerate it from options_markdown()"
+
+
+def test_flat_keywords_map_to_the_groups():
+    o = SolverOptions.from_keywords(tol=1e-7, macro_tol=1e-9, h=0.1)
+    assert o.micro.tol == 1e-7 and o.macro.tol == 1e-9 and o.resolution.h == 0.1
+    assert o.twoscale_keywords()["tol"] == 1e-7 and o.twoscale_keywords()["macro_tol"] == 1e-9

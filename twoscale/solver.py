@@ -1,0 +1,193 @@
+"""A solver object that keeps its state between solves: :class:`ContactSolver`.
+
+Load histories, rolling and parameter studies solve many nearly identical contact problems
+in a row. ``twoscale.solve`` starts each from nothing; a :class:`ContactSolver`, built once
+for a body and options, keeps what stays valid from one solve to the next:
+
+* **the body** (an influence provider) with the tables it builds as it answers (the
+  half-space's Love offset tables and interpolation matrices, bounded by the body; the
+  finite block's corrections): built at the first solve from the scene when not given;
+* **the previous answer** as the next solve's start (:mod:`twoscale.warm_start`): the macro
+  step starts from its forces, approach and tilt; the micro step from its pressure around
+  each tip, moved with the tip and scaled to the tip's new macro force. The answer does not
+  depend on the start (the same equations, the same tolerances), only the work does. The
+  kept pressure is bounded (``max_start_bytes``); above it only the macro start is kept.
+
+Every result says what it reused (``result.reuse``, a :class:`~twoscale.results.Reuse`).
+Tips are matched by position in the scene (the same tips in the same order, moved or not);
+give ``index=`` when tips enter or leave (each new tip's position among the previous ones,
+-1 for a new one).
+"""
+from __future__ import annotations
+
+import dataclasses
+from typing import Any
+
+import numpy as np
+
+from .influence.base import InfluenceProvider
+from .options import SolverOptions
+from .results import ContactResult, Reuse
+from .scene import Scene, default_h
+from .warm_start import WarmStart, warm_start
+
+#: Bytes of pressure a solver object keeps from its last solve as the next one's start.
+MAX_START_BYTES = 256e6
+
+
+@dataclasses.dataclass(frozen=True)
+class _Previous:
+    """What the last solve leaves for the next: its tips, cell size, result and body kind."""
+
+    tips: np.ndarray
+    h: float
+    result: ContactResult
+    influence: Any
+
+
+class ContactSolver:
+    """Solves contact problems on one body with one set of options, keeping state between solves.
+
+    Parameters
+    ----------
+    body : InfluenceProvider, optional
+        The elastic body (``twoscale.HalfSpace(material)``, ``twoscale.FiniteBlock(...)``, or
+        your own provider). Default: the first scene's (``scene.provider()``), kept for the
+        solves after it (a later scene asking for another body is refused).
+    options : SolverOptions, optional
+        Every option of the solves (:mod:`twoscale.options`); default the documented defaults.
+    method : {"twoscale", "reference"}, default "twoscale"
+        The solver. The reference keeps the body only (it has no warm start).
+    max_start_bytes : float, default 256e6
+        Bound on the pressure kept from the last solve as the next one's start.
+
+    Examples
+    --------
+    >>> solver = twoscale.ContactSolver(options=SolverOptions(micro=MicroOptions(tol=1e-7)))
+    >>> first = solver.solve(scene)
+    >>> moved = solver.solve(scene_moved_by_one_cell)    # starts from ``first``
+    >>> print(moved.reuse)
+    """
+
+    def __init__(self, body: InfluenceProvider | None = None, options: SolverOptions | None = None, *,
+                 method: str = "twoscale", max_start_bytes: float = MAX_START_BYTES) -> None:
+        if options is None:
+            options = SolverOptions()
+        if not isinstance(options, SolverOptions):
+            raise ValueError(f"options must be a twoscale.SolverOptions, got {type(options).__name__} "
+                             f"(SolverOptions.from_mapping turns a mapping into one)")
+        if method not in ("twoscale", "reference"):
+            raise ValueError(f"method must be 'twoscale' or 'reference', got {method!r}")
+        if body is not None and not isinstance(body, InfluenceProvider):
+            raise ValueError(f"body must be an influence provider, got {type(body).__name__}")
+        if not max_start_bytes >= 0:
+            raise ValueError(f"max_start_bytes must be >= 0, got {max_start_bytes!r}")
+        self.options, self.method = options, method
+        self.max_start_bytes = float(max_start_bytes)
+        self._body = body
+        self._body_given = body is not None
+        self._previous: _Previous | None = None
+        self._solves = 0
+
+    @property
+    def body(self) -> InfluenceProvider | None:
+        """The body the solves run on (None before the first solve when none was given)."""
+        return self._body
+
+    @property
+    def solves(self) -> int:
+        """Solves made so far."""
+        return self._solves
+
+    def reset(self) -> None:
+        """Forget the previous answer (the next solve starts cold); the body is kept."""
+        self._previous = None
+
+    def solve(self, problem: Any, *, start: Any = "previous", index: np.ndarray | None = None,
+              **scene_keywords: Any) -> ContactResult:
+        """Solve ``problem`` (what :func:`twoscale.solve` takes: a Scene, tips with
+        ``material=`` and a load, or a height map).
+
+        Parameters
+        ----------
+        start : "previous", None or WarmStart, default "previous"
+            "previous": start from this solver's last answer when it is still valid (same
+            cell size and body; tips matched by ``index`` or by order); None: cold;
+            a :class:`~twoscale.warm_start.WarmStart` of your own.
+        index : (N,) int array, optional
+            Each tip's position among the previous solve's tips, -1 for a new tip.
+        **scene_keywords
+            ``material``, ``penetration``, ``total_load``, ``tilt``, ``pivot``, ``shape``
+            when ``problem`` is tips (as :func:`twoscale.solve`).
+        """
+        from .api import _scene_of, solve as solve_once
+
+        given = {k: scene_keywords.pop(k, None) for k in ("material", "penetration", "total_load", "tilt", "pivot")}
+        given["tilt"] = bool(given["tilt"])
+        shape = scene_keywords.pop("shape", "sphere")
+        if scene_keywords:
+            raise ValueError(f"unknown keyword {sorted(scene_keywords)[0]!r}: options go in SolverOptions, "
+                             f"scene data in the scene (or material=, penetration=, total_load=, tilt=, pivot=)")
+        res = self.options.resolution
+        scene = _scene_of(problem, self._body, res.h, shape, given)
+        body_kept = self._body is not None
+        body = self._bind_body(scene)
+        h = default_h(scene) if scene.history is None else scene.h
+        ws = self._start(scene, h, start, index)
+        keywords = self.options.twoscale_keywords() if self.method == "twoscale" else self.options.reference.keywords()
+        if self.method == "twoscale" and ws is not None and scene.history is None:
+            keywords["start"] = ws
+        result = solve_once(scene, method=self.method, provider=body, h=h,
+                            memory_limit=res.memory_limit, **keywords)
+        self._solves += 1
+        if not isinstance(result, ContactResult):  # a load history: its own steps warm-start each other
+            return result
+        self._remember(scene, h, result)
+        micro_started = 0 if ws is None or ws.micro is None else int(np.count_nonzero(
+            [ws.micro.pressure.loaded(int(k)) for k in ws.micro.index if k >= 0]))
+        reuse = Reuse(solve=self._solves, body_kept=body_kept,
+                      macro_start=ws is not None and ws.macro is not None, pressure_start=micro_started,
+                      kept_bytes=self._kept_bytes())
+        return dataclasses.replace(result, reuse=reuse)
+
+    # ------------------------------------------------------------------ state
+    def _bind_body(self, scene: Scene) -> InfluenceProvider:
+        if self._body is None:
+            self._body = scene.provider()
+        elif not self._body_given and self._previous is not None and scene.influence != self._previous.influence:
+            raise ValueError(f"this solver's body was built for influence {self._previous.influence!r}; "
+                             f"the scene asks for {scene.influence!r}: make another ContactSolver")
+        return self._body
+
+    def _start(self, scene: Scene, h: float, start: Any, index) -> WarmStart | None:
+        if start is None or self.method != "twoscale" or scene.history is not None or scene.surface is not None:
+            return None
+        if isinstance(start, WarmStart):
+            return start
+        if start != "previous":
+            raise ValueError(f"start must be 'previous', None or a WarmStart, got {start!r}")
+        prev = self._previous
+        if prev is None or not prev.result.converged:
+            return None
+        n = len(scene.asperities)
+        if index is None and n != len(prev.tips):
+            return None  # different tips and no map between them: a cold start
+        keep_pressure = abs(prev.h - h) <= 1e-12 * h
+        return warm_start(prev.result, prev.tips, n, h, index=index, pressure=keep_pressure)
+
+    def _remember(self, scene: Scene, h: float, result: ContactResult) -> None:
+        tips = np.array([[a.x, a.y] for a in scene.asperities], dtype=float).reshape(-1, 2)
+        fields_bytes = sum(f.pressure.nbytes + f.owner.nbytes for f in result.fields)
+        if fields_bytes > self.max_start_bytes:
+            result = dataclasses.replace(result, fields=())  # the macro start only
+        self._previous = _Previous(tips, float(h), result, scene.influence)
+
+    def _kept_bytes(self) -> int:
+        prev = self._previous
+        if prev is None:
+            return 0
+        return int(prev.tips.nbytes + sum(f.pressure.nbytes + f.owner.nbytes + f.gap.nbytes
+                                          for f in prev.result.fields))
+
+
+__all__ = ["ContactSolver", "MAX_START_BYTES"]
