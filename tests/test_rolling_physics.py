@@ -73,7 +73,7 @@ def test_drag_of_a_stone_under_a_tilted_face():
     run = roll(scene)
     assert run.all_converged
     for k, c in enumerate(run.shifts):
-        assert run.drag[k] == pytest.approx(-20.0 * c / (R + Rt), rel=0.01, abs=1e-9)
+        assert run.drag[k] == pytest.approx(-20.0 * c / (R + Rt), rel=0.01, abs=1e-6 * 20.0)
     assert run.drag[0] > 0 > run.drag[2]
 
 

@@ -47,6 +47,9 @@ class RollingOptions:
     warm : bool, default True
         Start each position from the previous one (False: every position from cold, for
         comparison; the answers agree to the tolerance).
+    pressure_start : bool, default True
+        With ``warm``: also start the micro step from the previous pressure moved with
+        the road (else the macro step only).
     h : float, optional
         Cell size for a scene of tips, mm (default: the scene's rule); a height map's
         spacing otherwise.
@@ -55,6 +58,7 @@ class RollingOptions:
     tol: float = 1e-6
     iteration: str = "auto"
     warm: bool = True
+    pressure_start: bool = True
     h: float | None = None
 
 
@@ -71,7 +75,11 @@ class Position:
 
 def solve_position(track: Track, selection: Selection, *, start=None, options: RollingOptions) -> ContactResult:
     """The static solve of the road at one position (the stones of ``selection``), from
-    ``start`` (a :class:`MacroStart` or None): the one call per position."""
+    ``start`` (a :class:`~twoscale.warm_start.WarmStart` or None): the one call per position.
+
+    :class:`twoscale.ContactSolver` keeps the same start between solves of a Scene; a
+    position's stones are shifted basins of the strip (not a Scene of their own), so the
+    driver builds the start itself and calls the two-scale solver directly."""
     from ..twoscale import solve_twoscale
 
     scene = track.scene
@@ -90,18 +98,30 @@ def drag_of(track: Track, selection: Selection, result: ContactResult) -> float:
     return total
 
 
-def _start(previous: Position | None, selection: Selection, warm: bool):
-    """The previous position's macro state in this selection's stone order, its approach
-    moved with the lowest stone (so that the start keeps the local approach: a stone that
-    rose under a tyre's face would otherwise start out of contact)."""
-    if previous is None or not warm or not previous.selection.stones:
+def _start(previous: Position | None, selection: Selection, options: RollingOptions):
+    """The previous position's answer as this one's start (:func:`twoscale.warm_start.warm_start`),
+    stone by stone: the macro forces, and the pressure around each stone moved with the
+    road (by the step: the previous tips are given where the stones were, one step back
+    from where they are now); the approach moved with the lowest stone, so that the start
+    keeps the local approach (a stone rising under a tyre's face would otherwise start out
+    of contact)."""
+    if previous is None or not options.warm or not previous.selection.stones:
         return None
+    from ..warm_start import WarmStart, warm_start
+
     where = {int(n): k for k, n in enumerate(previous.selection.numbers)}
     index = np.array([where.get(int(n), -1) for n in selection.numbers], dtype=np.int64)
-    start = MacroStart.from_result(previous.result, index)
+    tips = np.array([[s.x, s.y] for s in previous.selection.stones], dtype=float)
+    moved = selection.shift - previous.selection.shift
+    for m in np.flatnonzero(index >= 0):   # where the road put each kept stone's tip, one step back
+        stone = selection.stones[m]
+        tips[index[m]] = (stone.x - moved, stone.y)
+    h = previous.result.fields[0].grid.h if previous.result.fields else 0.0
+    ws = warm_start(previous.result, tips, len(selection.stones), h or 1.0, index=index, pressure=options.pressure_start)
     low_then = min(s.z for s in previous.selection.stones)
     low_now = min(s.z for s in selection.stones)
-    return MacroStart(start.forces, previous.result.penetration + (low_now - low_then), start.tilt)
+    macro = MacroStart(ws.macro.forces, previous.result.penetration + (low_now - low_then), ws.macro.tilt)
+    return WarmStart(macro, ws.micro)
 
 
 def _depth(position: Position | None, h: float) -> float:
@@ -151,7 +171,7 @@ def step(track: Track, index: int, previous: Position | None, options: RollingOp
                 return Position(index, selection, _no_contact(track), 0.0, time.perf_counter() - t0)
             bound = min(s.z for s in _all_stones(track, shift).stones) + (1 + BOUND_GROWTH) * _depth(previous, track.h)
             continue
-        start = _start(previous, selection, options.warm)
+        start = _start(previous, selection, options)
         result = solve_position(track, selection, start=start, options=options)
         if not result.converged and start is not None:   # a start too far off: the cold solve decides
             result = solve_position(track, selection, start=None, options=options)
