@@ -21,7 +21,10 @@ Usage::
 
     python benchmarks/rolling.py [--length 1000] [--step 1] [--h 0.25] [--load 3000] [--radius 300]
                                  [--width 150] [--samples 3] [--seed 1] [--every 50] [--no-cm]
-                                 [--out FILE.json]
+                                 [--macro-start] [--scale-out] [--out FILE.json]
+
+``--scale-out`` runs the section in one and in two chunks on Dask worker processes
+(:func:`twoscale.rolling.chunks.roll_chunks`) instead, and prints the speed-up.
 """
 from __future__ import annotations
 
@@ -169,6 +172,22 @@ def run(args) -> dict:
     return {"args": vars(args), "info": info, "summary": summary, "samples": rows}
 
 
+def scale_out(args) -> dict:
+    """The run on one and on two Dask worker processes (elastic: independent chunks)."""
+    from twoscale.rolling.chunks import roll_chunks
+
+    scene, info = build(args)
+    times = {}
+    for n in (1, 2):
+        t0 = time.perf_counter()
+        res = roll_chunks(scene, chunks=n, scheduler="processes")
+        times[n] = time.perf_counter() - t0
+        print(f"{n} chunk(s): {times[n]:.1f} s wall for {len(res.shifts)} positions, all converged "
+              f"{res.all_converged}", flush=True)
+    print(f"speed-up of 2 workers: {times[1] / times[2]:.2f}")
+    return {"args": vars(args), "info": info, "wall_s": times, "speedup": times[1] / times[2]}
+
+
 def main(argv=None) -> int:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--length", type=float, default=1000.0, help="run length, mm")
@@ -181,11 +200,13 @@ def main(argv=None) -> int:
     p.add_argument("--seed", type=int, default=1)
     p.add_argument("--every", type=int, default=50, help="print every n-th position")
     p.add_argument("--no-cm", action="store_true", help="skip ContactMechanics")
+    p.add_argument("--scale-out", action="store_true", help="instead of the run: the run in 1 and in 2 chunks on "
+                   "Dask worker processes (twoscale.rolling.chunks), wall times and speed-up")
     p.add_argument("--macro-start", action="store_true", help="start each position's macro step only "
                    "(no pressure start), for comparison")
     p.add_argument("--out", default=None, help="write the figures as JSON")
     args = p.parse_args(argv)
-    out = run(args)
+    out = scale_out(args) if args.scale_out else run(args)
     if args.out:
         Path(args.out).write_text(json.dumps(out, indent=1, default=float) + "\n")
     return 0
