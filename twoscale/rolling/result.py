@@ -2,11 +2,12 @@
 timings, as a frozen :class:`RollingResult` (arrays read-only)."""
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..results import frozen_array
+from ..results import FrozenMapping, frozen_array
 from .spec import RollingSpec
 
 #: Per-position arrays of a :class:`RollingResult` (one entry per position).
@@ -103,7 +104,7 @@ class RollingResult:
     asperities: StoneSignals
     line_x: np.ndarray = field(default_factory=lambda: np.zeros(0))
     line_load: np.ndarray = field(default_factory=lambda: np.zeros((0, 0)))
-    timings_s: dict = field(default_factory=dict)
+    timings_s: Mapping = field(default_factory=dict)
     body: str = ""
 
     def __post_init__(self) -> None:
@@ -117,7 +118,7 @@ class RollingResult:
         object.__setattr__(self, "messages", tuple(self.messages))
         object.__setattr__(self, "line_x", frozen_array(self.line_x))
         object.__setattr__(self, "line_load", frozen_array(self.line_load))
-        object.__setattr__(self, "timings_s", dict(self.timings_s))
+        object.__setattr__(self, "timings_s", FrozenMapping(self.timings_s))
 
     @property
     def all_converged(self) -> bool:
