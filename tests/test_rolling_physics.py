@@ -152,3 +152,17 @@ def test_chunks_give_the_sequential_run(strip):
     assert np.array_equal(split.asperities.stone, whole.asperities.stone)
     assert split.line_load.shape[0] == 4
     assert np.allclose(split.line_load.sum(axis=1) * split.h, whole.line_load.sum(axis=1) * whole.h, rtol=1e-6)
+
+
+@pytest.mark.slow
+def test_strip_on_a_tread_block(strip):
+    """A chip-seal strip under a bonded tread block (flat face: the block's top face): the
+    window keeps every stone's patch inside the region the block answers for, and the load
+    is carried at every position."""
+    spec = RollingSpec(start=-6.0, end=-2.0, step=2.0, speed=30.0)
+    scene = Scene(material=MAT, surface=strip, rolling=spec, total_load=100.0,
+                  influence={"kind": "block", "size": (50.0, 40.0, 10.0), "base": "bonded", "source_spacing": 2.0})
+    run = roll(scene)
+    assert run.all_converged
+    assert np.allclose(run.total_load, 100.0, rtol=1e-6)
+    assert np.all(run.contact_area > 0)

@@ -73,7 +73,7 @@ def prepare(scene: Scene, *, h: float | None = None, provider=None) -> Track:
         cell = float(h) if h is not None else default_h(dataclasses.replace(scene, rolling=None))
         shifts = spec.shifts()
     provider = provider if provider is not None else scene.provider()
-    window = face_window(scene, spec, provider)
+    window = face_window(scene, spec, provider, cell)
     road = Road(scene, window)
     control = "penetration" if scene.penetration is not None else "load"
     track = Track(scene, spec, provider, road, cell, shifts, (shifts - shifts[0]) / spec.speed_mm_s, control,
@@ -96,23 +96,42 @@ def _viscoelastic_available() -> None:
                      "(each position would be solved elastically); give an elastic material (no prony)")
 
 
-def face_window(scene: Scene, spec: RollingSpec, provider) -> tuple:
+def face_window(scene: Scene, spec: RollingSpec, provider, h: float) -> tuple:
     """The body's face window (x0, x1, y0, y1), mm, body frame: the footprint when given,
-    else a block's region (its top face less one correction spacing), else unbounded."""
+    else a block's region, else unbounded. On a block the window stays inside the region
+    the block answers for (its top face less one correction spacing) by a stone's patch
+    (:func:`block_margin`), so that no patch reaches beyond it."""
+    domain = provider.domain()
+    if domain is not None:
+        m = block_margin(scene, h)
+        domain = (domain[0] + m, domain[1] - m, domain[2] + m, domain[3] - m)
+        if domain[1] <= domain[0] or domain[3] <= domain[2]:
+            raise SceneError(f"influence.size: the block answers for too small a region for the road's stones "
+                             f"(patches up to {m:.3g} mm around a summit)")
     if spec.footprint is not None:
         L, W = spec.footprint
         box = (-L / 2, L / 2, -W / 2, W / 2)
-        domain = provider.domain()
         if domain is not None:
             box = (max(box[0], domain[0]), min(box[1], domain[1]), max(box[2], domain[2]), min(box[3], domain[3]))
         return box
-    domain = provider.domain()
     if domain is not None:
         return tuple(float(v) for v in domain)
     if spec.tyre_radius is None:
         raise SceneError("rolling.footprint is missing: a flat face on the half-space needs the footprint "
                          "[length, width] (mm) that touches the road (or give rolling.tyre_radius)")
     return (-math.inf, math.inf, -math.inf, math.inf)
+
+
+def block_margin(scene: Scene, h: float) -> float:
+    """How far a stone's patch may reach beyond the window, mm: the patch margin (1.3) times
+    the largest stone's reach from its summit, plus two cells (a map's stones; 0 for tips,
+    whose patches :func:`twoscale.api.check_domain` sizes from their contacts)."""
+    from ..scene import PATCH_MARGIN
+
+    if scene.surface is None:
+        return 0.0
+    extent = max(float(getattr(a, "extent", 0.0)) for a in scene.asperities)
+    return PATCH_MARGIN * extent + 2.0 * h
 
 
 def footprint_length(track: Track) -> float:
