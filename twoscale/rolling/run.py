@@ -16,6 +16,7 @@ The elastic body only: a viscoelastic material runs through
 """
 from __future__ import annotations
 
+import dataclasses
 import time
 from dataclasses import dataclass
 from typing import Callable
@@ -164,13 +165,15 @@ def step(track: Track, index: int, previous: Position | None, options: RollingOp
     t0 = time.perf_counter()
     shift = float(track.shifts[index])
     bound = _bound(track, shift, previous)
-    for _ in range(MAX_REBOUNDS + 1):
+    selection = track.road.stones_at(shift, bound)
+    if not selection.stones and track.control == "penetration":   # nothing within reach of the body here
+        return Position(index, selection, _no_contact(track), 0.0, time.perf_counter() - t0)
+    if not selection.stones:
+        bound = min(s.z for s in _all_stones(track, shift).stones) + (1 + BOUND_GROWTH) * _depth(previous, track.h)
         selection = track.road.stones_at(shift, bound)
-        if not selection.stones:
-            if track.control == "penetration":   # nothing within reach of the body here
-                return Position(index, selection, _no_contact(track), 0.0, time.perf_counter() - t0)
-            bound = min(s.z for s in _all_stones(track, shift).stones) + (1 + BOUND_GROWTH) * _depth(previous, track.h)
-            continue
+    for attempt in range(MAX_REBOUNDS + 1):
+        if attempt:
+            selection = track.road.stones_at(shift, bound)
         start = _start(previous, selection, options)
         result = solve_position(track, selection, start=start, options=options)
         if not result.converged and start is not None:   # a start too far off: the cold solve decides
@@ -179,6 +182,10 @@ def step(track: Track, index: int, previous: Position | None, options: RollingOp
             break
         bound = result.penetration + BOUND_GROWTH * max(result.penetration - min(s.z for s in selection.stones),
                                                         track.h)
+    else:   # the approach kept passing the bound: stones left out might touch
+        result = dataclasses.replace(result, converged=False, message=(
+            f"{result.message}; " if result.message else "") + f"the approach {result.penetration:.6g} mm still "
+            f"passes the bound {bound:.6g} mm the stones were taken for after {MAX_REBOUNDS} enlargements")
     return Position(index, selection, result, drag_of(track, selection, result), time.perf_counter() - t0)
 
 
