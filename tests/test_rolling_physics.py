@@ -166,3 +166,17 @@ def test_strip_on_a_tread_block(strip):
     assert run.all_converged
     assert np.allclose(run.total_load, 100.0, rtol=1e-6)
     assert np.all(run.contact_area > 0)
+
+
+def test_step_not_a_multiple_of_the_spacing_resamples_the_road(strip):
+    """A 0.6 mm step on a 0.25 mm map: the road is resampled at 0.2 mm (three samples a
+    step), and each position is the static solve of the resampled map at that shift."""
+    spec = RollingSpec(start=-5.0, end=-3.8, step=0.6, speed=30.0, tyre_radius=150.0, footprint=(30.0, 16.0))
+    run = roll(Scene(material=MAT, surface=strip, rolling=spec, total_load=60.0))
+    assert run.h == pytest.approx(0.2)
+    assert np.allclose(run.shifts, [-5.0, -4.4, -3.8])
+    fine = strip.at(0.2)
+    for k in (0, 2):
+        ref, _ = _static_on_map(fine, float(run.shifts[k]), spec, total_load=60.0)
+        assert run.penetration[k] == pytest.approx(ref.penetration, abs=1e-6)
+        assert run.contact_area[k] == pytest.approx(ref.contact_area, abs=2 * 0.2 ** 2)
