@@ -64,7 +64,7 @@ def run_rolling(scene, args: argparse.Namespace) -> int:
 def _roll_into(out: Path, scene, track, options, status):
     """Roll, writing the VTK frames as the positions come, then the tables."""
     from .._version import __version__
-    from ..io.rolling_outputs import FrameWriter, write_rolling_tables
+    from ..io.rolling_outputs import FrameWriter, write_rolling_tables, write_signal_products
     from ..rolling.run import roll
 
     every = max(1, math.ceil(len(track.shifts) / MAX_FRAMES))
@@ -77,19 +77,8 @@ def _roll_into(out: Path, scene, track, options, status):
     result = roll(track.scene, options=options, track=track, on_position=on_position, progress=status)
     frames.close()
     write_rolling_tables(result, scene, out)
-    _signal_products(result, scene, out)
+    write_signal_products(result, scene, out)
     return result
-
-
-def _signal_products(result, scene, out: Path) -> None:
-    """``bands.csv``, ``texture.json`` and the figures.
-
-    TODO(merge): call the third-octave levels (:mod:`twoscale.rolling.bands`), the texture
-    figures (:mod:`twoscale.rolling.texture`) and the rolling figures
-    (:mod:`twoscale.plot.rolling`) here once they are in the package; until then nothing
-    more is written.
-    """
-    return None
 
 
 def frame_grid(track):

@@ -11,7 +11,12 @@
   convergence of every position (converged, micro sweeps, stones, message), the timings;
 * ``fields.pvd`` (+ ``fields/s_NNNN.vti``): the pressure at each position on one grid of the
   body (written as the run goes, :class:`FrameWriter`): a series ParaView animates, its
-  time the position's time.
+  time the position's time;
+* ``bands.csv`` (``band_Hz, level_dB``: third-octave levels of the total force under
+  penetration control, of the approach re 1 um under load control), ``texture.json`` (the
+  strip's MPD and texture spectrum), ``signals.png``, ``bands.png``, ``space_time.png``:
+  :func:`write_signal_products`, through :mod:`twoscale.rolling.bands`,
+  :mod:`twoscale.rolling.texture` and :mod:`twoscale.plot.rolling` where the package has them.
 
 ``drag_N`` is the force the road exerts on the body along +x (the road moves along +x
 under it): the sum over the contact of the pressure times the road's x-slope, times the
@@ -110,6 +115,58 @@ def write_rolling_tables(result, scene, out_dir) -> list[Path]:
     return written
 
 
+def _have(*modules: str) -> bool:
+    import importlib.util
+
+    return all(importlib.util.find_spec(m) is not None for m in modules)
+
+
+def write_signal_products(result, scene, out_dir, *, figures: bool = True) -> list[Path]:
+    """``bands.csv``, ``texture.json`` and the figures (module docstring); nothing where the
+    signal modules are not in the package."""
+    out, written = Path(out_dir), []
+    if _have("twoscale.rolling.bands") and len(result.shifts) >= 2:
+        from ..rolling.bands import REF_APPROACH, REF_FORCE, third_octave_levels
+
+        force = result.control == "penetration"
+        signal, ref = (result.total_load, REF_FORCE) if force else (result.penetration, REF_APPROACH)
+        levels = third_octave_levels(signal, result.spec.step / result.spec.speed_mm_s, reference=ref)
+        cols = levels.columns()
+        rows = [{"band_Hz": float(f), "level_dB": float(v)} for f, v in zip(cols["band_Hz"], cols["level_dB"])]
+        what = "total force, dB re 1 N" if force else "approach, dB re 1 um"
+        written += write_table(out, "bands", rows, ("band_Hz", "level_dB"), title=f"third-octave levels of the {what}",
+                               record={"signal": "total_load_N" if force else "penetration_mm", "reference": ref,
+                                       "resolution_Hz": levels.resolution, "units": UNITS})
+        if figures and _have("twoscale.plot.rolling"):
+            from ..plot.rolling import bands_figure
+
+            written.append(Path(bands_figure(out / "bands.png", cols["band_Hz"], cols["level_dB"],
+                                             level_label=f"level ({what})")))
+    if _have("twoscale.rolling.texture") and scene.surface is not None:
+        from ..rolling.texture import road_texture
+
+        texture = road_texture(scene.surface.hmap.heights, scene.surface.h)
+        path = out / "texture.json"
+        with atomic_output(path) as tmp:
+            tmp.write_text(json.dumps(texture.to_json_dict(), indent=1, allow_nan=False) + "\n", encoding="utf-8")
+        written.append(path)
+    if figures and _have("twoscale.plot.rolling"):
+        written += _figures(result, out)
+    return written
+
+
+def _figures(result, out: Path) -> list[Path]:
+    from ..plot.rolling import signals_figure, space_time_figure
+
+    force = result.control == "penetration"
+    signal = result.total_load if force else result.penetration
+    paths = [signals_figure(out / "signals.png", result.times, signal, result.contact_area,
+                            signal_label="total load (N)" if force else "approach (mm)")]
+    if result.line_x.size:
+        paths.append(space_time_figure(out / "space_time.png", result.shifts, result.line_x, result.line_load))
+    return [Path(p) for p in paths]
+
+
 class FrameWriter:
     """Writes ``fields/s_NNNN.vti`` as the positions come (pressure MPa, owner stone from 1,
     on the grid of ``window`` mm at cell ``h``) and ``fields.pvd`` at :meth:`close`."""
@@ -162,4 +219,4 @@ def _overlap(src, dst):
 
 
 __all__ = ["SIGNAL_COLUMNS", "ASPERITY_SIGNAL_COLUMNS", "FrameWriter", "rolling_to_dict", "signal_rows",
-           "asperity_rows", "write_rolling_json", "write_rolling_tables"]
+           "asperity_rows", "write_rolling_json", "write_rolling_tables", "write_signal_products"]
