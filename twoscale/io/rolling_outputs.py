@@ -145,10 +145,15 @@ def write_signal_products(result, scene, out_dir, *, figures: bool = True) -> li
     if _have("twoscale.rolling.texture") and scene.surface is not None:
         from ..rolling.texture import road_texture
 
-        texture = road_texture(scene.surface.hmap.heights, scene.surface.h)
+        from ..errors import SceneError
+
+        try:
+            content = road_texture(scene.surface.hmap.heights, scene.surface.h).to_json_dict()
+        except SceneError as exc:   # a strip too short for one MPD segment: the run stands, the texture says why
+            content = {"units": {"length": "mm", "level": "dB re 1 um"}, "not_computed": str(exc)}
         path = out / "texture.json"
         with atomic_output(path) as tmp:
-            tmp.write_text(json.dumps(texture.to_json_dict(), indent=1, allow_nan=False) + "\n", encoding="utf-8")
+            tmp.write_text(json.dumps(content, indent=1, allow_nan=False) + "\n", encoding="utf-8")
         written.append(path)
     if figures and _have("twoscale.plot.rolling"):
         written += _figures(result, out)
