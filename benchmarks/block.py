@@ -37,7 +37,7 @@ def run_once(kind: str, base: str) -> dict:
     import numpy as np
 
     from twoscale.material import Material
-    from twoscale.twoscale import solve_twoscale
+    from twoscale.driver import solve_twoscale
 
     mat = Material(E=6.0, nu=0.5)
     t0 = time.perf_counter()

@@ -93,7 +93,7 @@ def _peak_mb() -> float:
 
 
 def run_twoscale(n: int, seed: int, options: dict) -> dict:
-    from twoscale.twoscale import solve_twoscale
+    from twoscale.driver import solve_twoscale
     asp, side = scene(n, seed=seed)
     provider = HalfSpace(MATERIAL)
     t0 = time.perf_counter()

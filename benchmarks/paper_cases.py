@@ -5,9 +5,9 @@ spheres) faster than the classical full matrix inversion. Here, at the paper's c
 (two spheres h = 0.0125 R, d = 0.05 R; seven spheres h = 0.025 R, d = 0.1 R; R = 10 mm,
 E = 10 MPa, nu = 0.5, exact spheres), for each d/2R:
 
-* ``twoscale``: :func:`twoscale.twoscale.solve_twoscale` (macro + micro, ``--tol``, default 1e-6);
+* ``twoscale``: :func:`twoscale.driver.solve_twoscale` (macro + micro, ``--tol``, default 1e-6);
 * ``dense``: Johnson's active-set inversion (:func:`twoscale.reference.solve_dense`) on the
-  reference grid of :func:`twoscale.study.reference_surface` (same lattice; only cells an
+  reference grid of :func:`twoscale.paper.reference_surface` (same lattice; only cells an
   indenter reaches carry unknowns);
 * ``cg``: Polonsky-Keer constrained CG with FFT products on the same grid
   (:func:`twoscale.reference.solve_cg`).
@@ -34,8 +34,8 @@ import numpy as np
 from twoscale.influence import HalfSpace
 from twoscale.reference import solve_cg, solve_dense
 from twoscale.reference.dense import MAX_DENSE_CELLS
-from twoscale.study import PAPER_SPACINGS, paper_case, reference_surface
-from twoscale.twoscale import solve_twoscale
+from twoscale.paper import PAPER_SPACINGS, paper_case, reference_surface
+from twoscale.driver import solve_twoscale
 
 TARGET_VS_DENSE = {"two": 2.0, "seven": 10.0}
 

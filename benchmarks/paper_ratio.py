@@ -1,7 +1,7 @@
 """The paper's cases: the default two-scale solve over the FFT reference, interleaved.
 
 For each case of :mod:`paper_cases` (exact spheres, the paper's cell sizes), the default
-solve (:func:`twoscale.twoscale.solve_twoscale`, tol 1e-6) and the Polonsky-Keer CG on the
+solve (:func:`twoscale.driver.solve_twoscale`, tol 1e-6) and the Polonsky-Keer CG on the
 reference grid (:func:`twoscale.reference.solve_cg`, the same call as ``paper_cases.py``)
 run alternately ``--repeat`` times in this process after one warm-up each; printed: the
 medians of CPU time (``time.process_time``, the steadier figure on a shared machine) and
@@ -20,8 +20,8 @@ import numpy as np
 
 from twoscale.influence import HalfSpace
 from twoscale.reference import solve_cg
-from twoscale.study import PAPER_SPACINGS, paper_case, reference_surface
-from twoscale.twoscale import solve_twoscale
+from twoscale.paper import PAPER_SPACINGS, paper_case, reference_surface
+from twoscale.driver import solve_twoscale
 
 
 def _timed(fn) -> tuple[float, float]:

@@ -94,7 +94,7 @@ def _strategy(res, scene) -> dict:
 def run_solve(method: str, spec: dict, options: dict) -> dict:
     """One ``solve_scene`` in this process (method "twoscale" or "reference")."""
     import twoscale.reference  # noqa: F401  (imports outside the timed call)
-    import twoscale.twoscale  # noqa: F401
+    import twoscale.driver  # noqa: F401
     from twoscale.api import solve_scene
     scene = _scene(spec)
     popts = {"progress": False} if spec["body"] == "block" else None

@@ -83,7 +83,7 @@ def plain_loop(study, part: slice = slice(None)) -> dict:
     CPU seconds."""
     from twoscale.scene import default_h
     from twoscale.studies.cases import case_scene, expand
-    from twoscale.twoscale import solve_twoscale
+    from twoscale.driver import solve_twoscale
 
     providers = {}
     t0, c0 = time.perf_counter(), time.process_time()

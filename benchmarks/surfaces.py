@@ -48,7 +48,7 @@ from twoscale.influence import HalfSpace  # noqa: E402
 from twoscale.reference import solve_reference  # noqa: E402
 from twoscale.surface import RawMap, SurfaceOptions, build_surface  # noqa: E402
 from twoscale.surface.texture import road  # noqa: E402
-from twoscale.twoscale import solve_twoscale  # noqa: E402
+from twoscale.driver import solve_twoscale  # noqa: E402
 
 MAT = Material(10.0, 0.5)
 CM_TOL = 1e-10   # pentol (mm) and forcetol (N) of ContactMechanics

@@ -106,7 +106,7 @@ def test_subprocess_python_m_twoscale(examples_dir, tmp_path):
 
 
 def test_solve_twoscale_default_method_records_macro_force(examples_dir, tmp_path):
-    _needs("twoscale.twoscale")
+    _needs("twoscale.driver")
     out = tmp_path / "ts"
     assert main(["solve", str(examples_dir / "hertz_sphere.toml"), "--out", str(out), "--quiet"]) == 0
     res = _read(out)
@@ -272,7 +272,7 @@ def test_paper_seven_spheres_both_methods_agree(examples_dir, tmp_path):
     # reference solver on the same cell size (independent algorithms), and the
     # hexagon's six-fold symmetry up to the square lattice's anisotropy
     _needs("twoscale.reference")
-    _needs("twoscale.twoscale")
+    _needs("twoscale.driver")
     res = {}
     for method in ("reference", "twoscale"):
         out = tmp_path / method

@@ -85,9 +85,9 @@ def test_compare_interrupted_while_writing(scene, tmp_path, monkeypatch, capsys)
 
 
 def test_paper_interrupted(tmp_path, monkeypatch, capsys):
-    import twoscale.study
+    import twoscale.paper
 
-    monkeypatch.setattr(twoscale.study, "run_study", _interrupt)
+    monkeypatch.setattr(twoscale.paper, "run_study", _interrupt)
     assert main(["paper", "--out", str(tmp_path / "paper"), "--quick", "--quiet"]) == 130
     _only_interrupted(capsys)
     _nothing_but(tmp_path)

@@ -150,12 +150,12 @@ def test_compare_overwrite_removes_stale_load_files(scene, tmp_path, monkeypatch
 
 
 def test_compare_and_paper_refuse_a_file_before_solving(scene, tmp_path, monkeypatch, capsys):
-    import twoscale.study
+    import twoscale.paper
     (tmp_path / "taken").write_text("keep")
     monkeypatch.setattr(compare_cli, "_solve_all", _never)
     assert main(["compare", str(scene), "--out", str(tmp_path / "taken")]) == 2
     _one_error_line(capsys, "--out", "existing file")
-    monkeypatch.setattr(twoscale.study, "run_study", _never)
+    monkeypatch.setattr(twoscale.paper, "run_study", _never)
     assert main(["paper", "--quick", "--out", str(tmp_path / "taken")]) == 2
     _one_error_line(capsys, "--out", "existing file")
     (tmp_path / "full").mkdir()

@@ -166,7 +166,7 @@ def test_without_memory_for_operators_every_pair_falls_back_to_plain_products():
 
 def test_solver_answer_does_not_depend_on_the_routes():
     # a 3 x 3 grid of spheres 6 mm apart (separated pairs) and two close ones (spectral pairs)
-    from twoscale.twoscale import solve_twoscale
+    from twoscale.driver import solve_twoscale
     asps = [Asperity(x=6.0 * i, y=6.0 * j, z=0.0, R=5.0) for j in range(3) for i in range(3)]
     asps.append(Asperity(x=1.8, y=0.4, z=0.0, R=5.0))
     kw = dict(h=0.05, penetration=0.08)

@@ -61,3 +61,18 @@ def test_the_site_builds_with_warnings_as_errors(tmp_path):
     assert "sphx_glr_plot_seven_spheres_001.png" in example          # the example ran and drew
     assert (out / "_images" / "sphx_glr_plot_seven_spheres_001.png").stat().st_size > 10_000
 
+
+
+def test_the_design_layout_names_every_module_and_package():
+    """docs/DESIGN.md's layout table names every top-level module and package of twoscale."""
+    import re
+    from pathlib import Path
+
+    root = Path(__file__).resolve().parents[1]
+    text = (root / "docs" / "DESIGN.md").read_text()
+    layout = text.split("## Layout", 1)[1].split("\n## ", 1)[0]
+    named = set(re.findall(r"`twoscale/([A-Za-z_]+)(?:\.py|/)`", layout))
+    package = root / "twoscale"
+    have = {p.stem for p in package.glob("*.py") if not p.name.startswith("_")} | \
+           {p.name for p in package.iterdir() if p.is_dir() and (p / "__init__.py").exists()}
+    assert have <= named, f"missing from docs/DESIGN.md's layout: {sorted(have - named)}"

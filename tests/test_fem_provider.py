@@ -194,7 +194,7 @@ def test_tilt_on_the_block_matches_the_reference(block):
     # covered asperities the macro step left out, it returned [W, 0, 0] as converged).
     from twoscale.indenters import Asperity, surface_on
     from twoscale.reference import solve_cg
-    from twoscale.twoscale import solve_twoscale
+    from twoscale.driver import solve_twoscale
     asp = [Asperity(0.0, 0.0, 0.0, 5.0), Asperity(8.0, 0.0, 0.0, 5.0), Asperity(0.0, 8.0, 0.0, 4.0)]
     h, W = 0.1, 4.0
     res = solve_twoscale(block, asp, h=h, total_load=W, tilt=True, tol=1e-9)

@@ -26,7 +26,7 @@ from twoscale.influence import HalfSpace
 from twoscale.material import Material
 from twoscale.reference.on_scene import solve_reference_scene
 from twoscale.scene import Scene
-from twoscale.twoscale import solve_twoscale
+from twoscale.driver import solve_twoscale
 
 H = 0.1
 FEW = settings(max_examples=4, deadline=None, derandomize=True, suppress_health_check=list(HealthCheck))

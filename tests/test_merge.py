@@ -14,8 +14,8 @@ from twoscale.indenters import Asperity
 from twoscale.influence import HalfSpace
 from twoscale.micro.patches import make_patch, merge_overlapping
 from twoscale.reference import solve_cg
-from twoscale.study import paper_case, reference_surface
-from twoscale.twoscale import solve_twoscale
+from twoscale.paper import paper_case, reference_surface
+from twoscale.driver import solve_twoscale
 
 MAT = Material(10.0, 0.5)
 HS = HalfSpace(MAT)

@@ -12,7 +12,7 @@ from twoscale.indenters import Asperity
 from twoscale.influence import GridOperator, HalfSpace, InfluenceProvider
 from twoscale.micro.blocks import Coupling
 from twoscale.micro.patches import make_patch
-from twoscale.twoscale import solve_twoscale
+from twoscale.driver import solve_twoscale
 
 MAT = Material(E=10.0, nu=0.5)
 HS = HalfSpace(MAT)

@@ -14,7 +14,7 @@ import pytest
 from tidy_tables import assert_tidy
 
 from twoscale.cli.main import main
-from twoscale.study import PAPER_SPACINGS, paper_case, reference_surface, run_study
+from twoscale.paper import PAPER_SPACINGS, paper_case, reference_surface, run_study
 
 
 @pytest.fixture(scope="module")
@@ -106,10 +106,10 @@ def test_paper_command_rejects_bad_tolerance(tmp_path, capsys):
 
 def _paper_with(study, monkeypatch, tmp_path, capsys, *extra):
     """Run ``twoscale paper`` on an already computed study; (exit code, stdout, stderr, run_study kwargs)."""
-    import twoscale.study
+    import twoscale.paper
 
     calls = []
-    monkeypatch.setattr(twoscale.study, "run_study", lambda **kw: calls.append(kw) or study)
+    monkeypatch.setattr(twoscale.paper, "run_study", lambda **kw: calls.append(kw) or study)
     code = main(["paper", "--out", str(tmp_path), "--quick", "--no-figures", *extra])
     cap = capsys.readouterr()
     return code, cap.out, cap.err, calls[0]

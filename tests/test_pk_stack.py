@@ -96,7 +96,7 @@ def test_two_level_by_levels_and_stacks_matches_the_plain_order(monkeypatch):
     # the same solve with the plain sweep order and one solve per block (no stacks)
     from tests.test_twolevel import _scene
     from twoscale.micro import pk_stack, twolevel
-    from twoscale.twoscale import solve_twoscale
+    from twoscale.driver import solve_twoscale
 
     asp = _scene(40, 4, 20.0)
     kw = dict(h=0.05, total_load=2.0, tol=1e-8, max_sweeps=200, far_tol=0.05, coarse=True, dense_max_cells=60)

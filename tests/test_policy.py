@@ -12,7 +12,7 @@ from twoscale.influence import HalfSpace
 from twoscale.micro.patches import build_patches
 from twoscale.micro.policy import AUTO_FAR_TOL, UNION_MIN_COVERAGE, choose, estimate_costs
 from twoscale.micro.union import box_of
-from twoscale.twoscale import solve_twoscale
+from twoscale.driver import solve_twoscale
 
 MAT = Material(E=6.0, nu=0.5)
 

@@ -16,7 +16,7 @@ from twoscale.influence import HalfSpace
 from twoscale.micro.blocks import Coupling
 from twoscale.micro.farfield import FarFieldCoupling
 from twoscale.micro.patches import make_patch
-from twoscale.twoscale import solve_twoscale
+from twoscale.driver import solve_twoscale
 
 MAT = Material(10.0, 0.5)
 HS = HalfSpace(MAT)

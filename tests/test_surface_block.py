@@ -14,7 +14,7 @@ from twoscale.indenters import surface_on
 from twoscale.reference import solve_reference
 from twoscale.surface import RawMap, SurfaceOptions, build_surface
 from twoscale.surface.texture import road
-from twoscale.twoscale import solve_twoscale
+from twoscale.driver import solve_twoscale
 
 MAT = Material(E=10.0, nu=0.5)
 SMALL = dict(size=(60.0, 60.0, 10.0), h_fine=5.0, h_coarse=10.0, fine_half_width=10.0)

@@ -17,7 +17,7 @@ from twoscale.influence import HalfSpace
 from twoscale.reference import solve_reference
 from twoscale.surface import RawMap, SurfaceOptions, build_surface
 from twoscale.surface.texture import road
-from twoscale.twoscale import solve_twoscale
+from twoscale.driver import solve_twoscale
 
 MAT = Material(10.0, 0.5)
 HS = HalfSpace(MAT)

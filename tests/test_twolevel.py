@@ -14,7 +14,7 @@ from twoscale.influence import HalfSpace
 from twoscale.micro import solve_micro
 from twoscale.krylov import block_cg
 from twoscale.micro.coarse import CoarseSpace
-from twoscale.twoscale import solve_twoscale
+from twoscale.driver import solve_twoscale
 
 MAT = Material(10.0, 0.5)
 HS = HalfSpace(MAT)
@@ -192,7 +192,7 @@ def test_a_stalled_two_level_iteration_stops_early_and_says_so():
     from helpers import random_scene
 
     from twoscale.micro.twolevel import STALL_SWEEPS
-    from twoscale.twoscale import solve_twoscale
+    from twoscale.driver import solve_twoscale
 
     res = solve_twoscale(HalfSpace(MAT), random_scene(2, 18), h=0.15, total_load=108.0, tol=1e-8,
                          iteration="two-level", far_tol=0.05, max_sweeps=100)

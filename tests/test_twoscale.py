@@ -20,7 +20,7 @@ from twoscale.analytic import hertz
 from twoscale.indenters import Asperity, Tilt, surface_on
 from twoscale.influence import GridOperator, HalfSpace, InfluenceProvider
 from twoscale.reference import solve_cg, solve_dense
-from twoscale.twoscale import solve_twoscale
+from twoscale.driver import solve_twoscale
 
 MAT = Material(10.0, 0.5)
 HS = HalfSpace(MAT)

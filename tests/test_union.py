@@ -15,7 +15,7 @@ from twoscale.reference import solve_cg
 from twoscale.reference.on_scene import reference_grid
 from twoscale.api import solve_scene
 from twoscale.scene import Scene
-from twoscale.twoscale import solve_twoscale
+from twoscale.driver import solve_twoscale
 
 MAT = Material(E=6.0, nu=0.5)
 HS = HalfSpace(MAT)

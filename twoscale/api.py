@@ -6,7 +6,7 @@ objects, an array, or a mapping of arrays) or a height map (a
 a :class:`~twoscale.surface.RawMap` of heights and spacing) with the material and the load,
 and returns a :class:`~twoscale.results.ContactResult`. ``method`` picks the solver:
 
-* ``"twoscale"`` (default): the two-scale method (:func:`twoscale.twoscale.solve_twoscale`);
+* ``"twoscale"`` (default): the two-scale method (:func:`twoscale.driver.solve_twoscale`);
 * ``"reference"``: the full-grid reference on a grid covering every place contact can
   reach (:func:`twoscale.reference.on_scene.solve_reference_scene`), dense or CG by size; the result says which
   (``result.method == "reference"``, ``result.solver`` ``"dense"`` or ``"cg"``);
@@ -28,11 +28,11 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from .control import check_control
-from .errors import ResolutionWarning
 from .indenters import SHAPES, Asperity
 from .material import Material
 from .results import ContactResult
 from .scene import METHODS as SCENE_METHODS
+from .resolution import check_resolution
 from .scene import Scene, SceneError, default_h, expected_contact_radii, expected_contacts
 
 if TYPE_CHECKING:
@@ -216,7 +216,7 @@ def solve(problem: Any, *, method: str | Callable[..., ContactResult] = "twoscal
         (:func:`twoscale.resources.check_memory`); default 80 % of the memory available
         now; ``math.inf``: no check.
     **options
-        Passed to the solver: :func:`~twoscale.twoscale.solve_twoscale` (``tol``,
+        Passed to the solver: :func:`~twoscale.driver.solve_twoscale` (``tol``,
         ``iteration``, ``far_tol``, ``progress``, ``start`` a warm start from a
         neighbouring solve, ...), the reference solvers (``tol``, ``max_iter``), or your
         callable.
@@ -274,7 +274,7 @@ def solve(problem: Any, *, method: str | Callable[..., ContactResult] = "twoscal
     if callable(method):  # the body and the nominal area recorded in the result, whatever the method
         return with_setting(method(provider, scene, h=h, **options), scene, provider)
     if method == "twoscale":
-        from .twoscale import solve_twoscale
+        from .driver import solve_twoscale
 
         _check_twoscale_keywords(options)
 
@@ -330,50 +330,6 @@ def solve_scene(scene: Scene, *, method: str = "twoscale", provider_options: Map
 
 
 __all__ = ["METHODS", "solve", "solve_scene", "asperities", "as_asperities"]
-
-
-#: Fewest cells across an expected contact before a :class:`ResolutionWarning` (about 10 %
-#: on a Hertz force at 4 cells across, 1-2 % at 8).
-MIN_CELLS_ACROSS = 4
-
-
-def check_resolution(scene: Scene, h: float, *, forces: np.ndarray | None = None,
-                     radii: np.ndarray | None = None) -> None:
-    """Refuse a cell size coarser than every expected contact, and warn when a contact
-    that matters (expected force >= 1 % of the largest) gets fewer than
-    :data:`MIN_CELLS_ACROSS` cells across; both name the default rule's ``h``.
-    ``forces``, ``radii``: :func:`~twoscale.scene.expected_contacts`, when already known."""
-    import warnings
-
-    from .scene import MIN_FORCE_FRACTION
-
-    force, a = expected_contacts(scene) if forces is None or radii is None else (forces, radii)
-    if not np.any(force > 0):
-        return
-    across = 2.0 * a / h
-    if across.max() < 1.0:
-        raise SceneError(f"cell size h = {h:g} mm is coarser than every expected contact (the largest "
-                         f"about {2 * a.max():.2g} mm across): use a smaller h (the default rule gives "
-                         f"{default_h(dataclasses.replace(scene, h=None)):g} mm)")
-    matters = force >= MIN_FORCE_FRACTION * force.max()
-    k = int(np.argmin(np.where(matters, across, np.inf)))
-    if across[k] < MIN_CELLS_ACROSS:
-        warnings.warn(ResolutionWarning(
-            f"cell size h = {h:g} mm gives asperity {k + 1}'s expected contact (about {2 * a[k]:.2g} mm "
-            f"across) only {across[k]:.1f} cells across: its force may be off by 10 % or more "
-            f"({_default_rule_text(scene)})"), stacklevel=3)
-
-
-def _default_rule_text(scene: Scene) -> str:
-    """What the default rule gives for ``scene``, and whether the cell budget coarsened it."""
-    from .scene import CELL_BUDGET
-
-    free = dataclasses.replace(scene, h=None)
-    h, rule = default_h(free), default_h(free, cell_budget=None)
-    if h == rule:
-        return f"the default rule gives h = {h:g} mm"
-    return (f"the default h = {h:g} mm is the rule's {rule:g} mm coarsened to keep the patches within "
-            f"{CELL_BUDGET / 1e6:g} M cells; give h = {rule:g} mm to resolve every contact that matters")
 
 
 def check_domain(scene: Scene, provider: InfluenceProvider, h: float = 0.0, *,

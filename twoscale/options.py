@@ -247,7 +247,7 @@ class SolverOptions:
                                             for g, v in changes.items()})
 
     def twoscale_keywords(self) -> dict:
-        """The keywords of :func:`twoscale.twoscale.solve_twoscale` these options give."""
+        """The keywords of :func:`twoscale.driver.solve_twoscale` these options give."""
         m, M = self.micro, self.macro
         return dict(tol=m.tol, max_sweeps=m.max_sweeps, iteration=m.iteration, far_tol=m.far_tol,
                     margin=m.margin, dense_max_cells=m.dense_max_cells, separated_rtol=m.separated_rtol,

@@ -17,7 +17,6 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from .analytic import hertz
 from .control import check_control
 from .errors import SceneError
 from .indenters import Asperity
@@ -32,21 +31,6 @@ INFLUENCE_KINDS = ("halfspace", "block")
 BLOCK_BASES = ("bonded", "sliding")
 #: Default finite block (paper's rubber block): width x depth x thickness, mm.
 BLOCK_DEFAULT_SIZE = (140.0, 140.0, 20.0)
-#: Cells across the smallest expected contact diameter chosen by :func:`default_h`.
-CELLS_ACROSS = 32
-#: Asperities expected to carry less than this fraction of the largest expected tip force
-#: are not resolved by :func:`default_h` (their contact would force a needlessly fine
-#: grid). Relative to the largest force, not the total, so the rule keeps the most loaded
-#: tips whatever their number (with 200 similar tips none carries 1 % of the total).
-MIN_FORCE_FRACTION = 0.01
-#: Cells the patches of a default cell size may carry at most (estimated from the scene
-#: before solving, :func:`patch_cells`). Where 32 cells across the smallest contact that
-#: matters would carry more (light loads on many tips whose heights spread: 300 spheres at
-#: 0.1 N each on 60 x 60 mm asked for h = 0.0072 mm and 8 M cells), the default h is
-#: coarsened until the patches fit: the two-level iteration carries about 1 M cells in
-#: 15 s on one core, so the default solve stays well within a minute, and the smallest
-#: contact that matters keeps fewer cells (a :class:`~twoscale.api.ResolutionWarning` below 4).
-CELL_BUDGET = 1_500_000
 
 
 # ---------------------------------------------------------------- small validators
@@ -370,150 +354,13 @@ def _check_rolling(scene: Scene) -> None:
         raise SceneError(f"load.cases cannot go with [rolling], got {list(scene.load_cases)!r}")
 
 
-# ---------------------------------------------------------------- the default cell size
-def _hertz_level(scene: Scene) -> float:
-    """Rigid approach d (mm) at which independent Hertz asperities (no interaction)
-    carry the scene's total load: the root of ``sum_k P_H(R_k, d - z_k) = W``."""
-    from scipy.optimize import brentq
-
-    E_star = scene.material.E_star
-    R = np.array([a.R for a in scene.asperities])
-    z = np.array([a.z for a in scene.asperities])
-    W = scene.total_load
-    assert W is not None  # every caller passes a scene under load control
-
-    def excess(d: float) -> float:
-        return float(np.sum(hertz.load(R, d - z, E_star))) - W
-
-    lo = float(z.min())
-    # the lowest asperity alone, with the smallest radius, carries W at this level
-    hi = lo + float(hertz.penetration(R.min(), W, E_star)) * (1 + 1e-9) + 1e-300
-    try:
-        return brentq(excess, lo, hi, xtol=1e-14 * max(1.0, abs(hi)), rtol=1e-12)
-    except (RuntimeError, ValueError):  # no finite level: a modulus or load outside floating point
-        raise SceneError(f"load.total = {W!r} N cannot be carried at any finite approach on material.E = "
-                         f"{scene.material.E!r} MPa (the Hertz level does not converge): check the units") from None
-
-
-def expected_approaches(scene: Scene) -> np.ndarray:
-    """Estimated local approach of each asperity, mm, shape (N,): ``max(d - z_k, 0)``
-    with d the given penetration or, under load control, the level at which
-    independent Hertz asperities carry the load (tilt and interaction ignored;
-    interaction only lowers the approach, so these are upper estimates)."""
-    d = scene.penetration if scene.penetration is not None else _hertz_level(scene)
-    z = np.array([a.z for a in scene.asperities])
-    return np.maximum(d - z, 0.0)
-
-
-def expected_contact_radii(scene: Scene) -> np.ndarray:
-    """Contact radius of each asperity alone at its expected approach, mm: Hertz
-    ``sqrt(R delta)`` for paraboloids, the exact-sphere (Segedin) radius for spheres."""
-    return _contact_radii(scene.asperities, expected_approaches(scene))
-
-
-def expected_contacts(scene: Scene) -> tuple[np.ndarray, np.ndarray]:
-    """Hertz force (N) and contact radius (mm) of each asperity alone at its expected
-    approach (:func:`expected_approaches`, estimated once)."""
-    delta = expected_approaches(scene)
-    R = np.array([a.R for a in scene.asperities], dtype=float)
-    return hertz.load(R, delta, scene.material.E_star), _contact_radii(scene.asperities, delta)
-
-
-def _contact_radii(asperities: Sequence[Asperity], delta: np.ndarray) -> np.ndarray:
-    R = np.array([a.R for a in asperities], dtype=float)
-    sphere = np.array([a.shape == "sphere" for a in asperities], dtype=bool)
-    return np.where(sphere, hertz.sphere_contact_radius(R, delta), hertz.contact_radius(R, delta))
-
-
-def default_h(scene: Scene, *, cells_across: int = CELLS_ACROSS,
-              min_force_fraction: float = MIN_FORCE_FRACTION, cell_budget: float | None = CELL_BUDGET) -> float:
-    """Cell size (mm) chosen from the scene.
-
-    Rule: estimate each asperity's approach (:func:`expected_approaches`) and its
-    contact radius alone (:func:`expected_contact_radii`); among the asperities whose
-    Hertz force at that approach is at least ``min_force_fraction`` of the largest such
-    force, take the smallest contact diameter 2a and divide it by ``cells_across``;
-    round down to two significant digits: that estimated contact gets 32-35 cells
-    across. The approach estimate ignores interaction, which lowers it, so the real
-    contact is smaller (24-32 cells on the examples; fewer where tips crowd). The
-    threshold is relative to the largest tip force, not to the total load, so it works for
-    any number of asperities (a force ratio of 1 % is an approach ratio of about 5 % and a
-    contact radius ratio of about 20 %). Where the patches would then carry more than
-    ``cell_budget`` cells, h is coarsened until they fit (:data:`CELL_BUDGET`).
-
-    Parameters
-    ----------
-    scene : Scene
-    cells_across : int, default 32
-        Cells across the smallest resolved contact diameter.
-    min_force_fraction : float, default 0.01
-        Asperities expected to carry less than this fraction of the largest expected
-        tip force are not used to choose h (they still get cells; only coarser).
-    cell_budget : float or None, default CELL_BUDGET
-        Largest number of cells the patches may carry (:func:`patch_cells`); where the
-        rule's h would carry more, h is coarsened (rounded up to two digits) until they
-        fit. None: no budget.
-
-    Returns
-    -------
-    float
-        h, mm (> 0).
-
-    Raises
-    ------
-    SceneError
-        When no asperity is expected to carry load (nothing to size the cells on).
-    """
-    if scene.h is not None:
-        return scene.h
-    force, radius = expected_contacts(scene)
-    keep = (force > 0) & (force >= min_force_fraction * force.max())
-    if not np.any(keep):
-        raise SceneError(f"grid.h: no asperity is expected to carry load (largest Hertz estimate "
-                         f"{force.max()!r} N), so no default cell size can be chosen; give [grid] h")
-    diameter = 2.0 * radius[keep].min()
-    if not (math.isfinite(diameter) and diameter > 0):
-        raise SceneError(f"grid.h: the smallest expected contact diameter is {diameter!r} mm, so no "
-                         f"default cell size can be chosen; give [grid] h")
-    h = _round_down(diameter / cells_across, digits=2)
-    cells = patch_cells(radius, h)
-    if cell_budget is None or cells <= cell_budget:
-        return h
-    while cells > cell_budget:  # cells fall about as 1 / h^2
-        h *= max(1.02, 0.99 * math.sqrt(cells / cell_budget))
-        cells = patch_cells(radius, h)
-    return round_up(h, digits=2)
-
-
-#: Patch half-width over the contact radius (the two-scale solver's default ``margin``).
-PATCH_MARGIN = 1.3
-
-
-def patch_cells(radii: np.ndarray, h: float, *, margin: float = PATCH_MARGIN) -> float:
-    """Cells the patches of contacts of radii ``radii`` (mm; 0: no contact) carry at cell
-    size ``h``: squares of half-width ``margin a + 2 h`` (an upper estimate: interaction
-    only shrinks contacts)."""
-    a = np.asarray(radii, dtype=float)
-    a = a[a > 0]
-    return float(np.sum((np.floor(2.0 * (margin * a + 2.0 * h) / h) + 1.0) ** 2))
-
-
-def round_up(x: float, *, digits: int) -> float:
-    """``x`` rounded up to ``digits`` significant digits."""
-    e = math.floor(math.log10(x)) - (digits - 1)
-    return float(f"{math.ceil(x / 10.0 ** e * (1 - 1e-12)) * 10.0 ** e:.{digits + 1}g}")
-
-
-def _round_down(x: float, *, digits: int) -> float:
-    """``x`` rounded down to ``digits`` significant digits (so a readable h never
-    gives fewer cells than asked)."""
-    e = math.floor(math.log10(x)) - (digits - 1)
-    scale = 10.0 ** e
-    q = math.floor(x / scale * (1 + 1e-12))
-    return float(f"{q * scale:.{digits}g}") if q > 0 else x
-
-
-# ---------------------------------------------------------------- solving
 #: Methods of the scene-file workflow (``twoscale solve --method``); :func:`twoscale.solve`
 #: also takes the reference solvers by name ("dense", "cg").
 METHODS = ("twoscale", "reference")
+
+
+# the cell size a scene needs lives in .resolution; kept importable from here
+from .resolution import (  # noqa: E402,F401
+    CELL_BUDGET, CELLS_ACROSS, MIN_FORCE_FRACTION, PATCH_MARGIN, _hertz_level, default_h, expected_approaches,
+    expected_contact_radii, expected_contacts, patch_cells, round_up,
+)

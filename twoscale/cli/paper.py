@@ -41,12 +41,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def _write(study, args, overwrite: bool) -> list:
     """The CSV files and figures, into a temporary folder renamed to ``--out`` at the end."""
-    from ..study.output import write_csv
+    from ..paper.output import write_csv
 
     with staged_directory(args.out, overwrite=overwrite, command="paper") as tmp:
         files = write_csv(study, tmp)
         if not args.no_figures:
-            from ..study.figures import write_figures
+            from ..paper.figures import write_figures
 
             files += write_figures(study, tmp)
     return files
@@ -54,7 +54,7 @@ def _write(study, args, overwrite: bool) -> list:
 
 def run(args: argparse.Namespace) -> int:
     """Run the study; 0 if every case converged and met the 0.1 % acceptance, else 1."""
-    from ..study import run_study
+    from ..paper import run_study
 
     if not (math.isfinite(args.tol) and args.tol > 0):
         print(f"error: --tol must be > 0, got {args.tol}", file=sys.stderr)

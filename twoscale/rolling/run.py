@@ -3,7 +3,7 @@ that shift, warm-started from the previous position.
 
 Per position (:func:`solve_position`, the one call a persistent solver object can take
 over): the stones within reach of the footprint (:meth:`~twoscale.rolling.road.Road.stones_at`)
-go to the two-scale solver (:func:`twoscale.twoscale.solve_twoscale`) with the previous
+go to the two-scale solver (:func:`twoscale.driver.solve_twoscale`) with the previous
 position's macro forces, approach and tilt as the start (mapped stone by stone:
 :meth:`~twoscale.macro.start.MacroStart.from_result`). The answer is the static solve's to
 its tolerance; only the start differs. Under load control the approach is not known
@@ -44,7 +44,7 @@ class RollingOptions:
     tol : float, default 1e-6
         The two-scale solver's tolerance (eq. 9: relative change of the pressure).
     iteration : str, default "auto"
-        The micro step's iteration (:func:`twoscale.twoscale.solve_twoscale`).
+        The micro step's iteration (:func:`twoscale.driver.solve_twoscale`).
     warm : bool, default True
         Start each position from the previous one (False: every position from cold, for
         comparison; the answers agree to the tolerance).
@@ -81,7 +81,7 @@ def solve_position(track: Track, selection: Selection, *, start=None, options: R
     :class:`twoscale.ContactSolver` keeps the same start between solves of a Scene; a
     position's stones are shifted basins of the strip (not a Scene of their own), so the
     driver builds the start itself and calls the two-scale solver directly."""
-    from ..twoscale import solve_twoscale
+    from ..driver import solve_twoscale
 
     scene = track.scene
     return solve_twoscale(track.provider, selection.stones, h=track.h, penetration=scene.penetration,

@@ -56,7 +56,7 @@ def prepare(scene: Scene, *, h: float | None = None, provider=None) -> Track:
     """The :class:`Track` of ``scene`` (a scene with ``rolling``); ``h``: the cell size for
     a scene of tips (default :func:`twoscale.scene.default_h` of the scene unshifted),
     ignored on a height map (its spacing, made a divisor of the step)."""
-    from ..scene import default_h
+    from ..resolution import default_h
 
     spec = scene.rolling
     if not isinstance(spec, RollingSpec):
@@ -126,7 +126,7 @@ def block_margin(scene: Scene, h: float) -> float:
     """How far a stone's patch may reach beyond the window, mm: the patch margin (1.3) times
     the largest stone's reach from its summit, plus two cells (a map's stones; 0 for tips,
     whose patches :func:`twoscale.api.check_domain` sizes from their contacts)."""
-    from ..scene import PATCH_MARGIN
+    from ..resolution import PATCH_MARGIN
 
     if scene.surface is None:
         return 0.0

@@ -1,6 +1,6 @@
 """Parameter studies at scale: many scenes x bodies x loads x positions, on Dask, resumable.
 
-Not to be confused with :mod:`twoscale.study` (singular), which reruns the paper's own
+Not to be confused with :mod:`twoscale.paper`, which reruns the paper's own
 numerical study (figs. 3-6). This package runs what a user's parameter study asks for
 (``twoscale study STUDY.toml --out DIR``), one concept per module:
 

@@ -38,7 +38,7 @@ TRIM_THRESHOLD = None
 #: Seconds to wait for a first worker before sending the study.
 WORKER_WAIT = 120.0
 #: Modules a worker imports when it starts rather than in its first case (about 0.5 s).
-WORKER_IMPORTS = ("twoscale.api", "twoscale.twoscale", "twoscale.scene", "twoscale.reference.on_scene")
+WORKER_IMPORTS = ("twoscale.api", "twoscale.driver", "twoscale.scene", "twoscale.reference.on_scene")
 #: Settings of the local cluster (its workers inherit them through their nannies). Dask's
 #: profiler samples each worker's running task every 10 ms, taking the interpreter lock from
 #: the solver's thread: the cases' wall time on a one-worker cluster was 1.14x that of the

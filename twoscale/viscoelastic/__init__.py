@@ -6,7 +6,10 @@
 * :mod:`.memory`: the creep-form memory and its exact step;
 * :mod:`.steps`: a step as an elastic problem, for the reference and the two-scale solver;
 * :mod:`.solve`: :func:`solve_history`, the driver (``twoscale.solve`` calls it for a scene with a history);
-* :mod:`.closed_forms`: Lee-Radok creep and relaxation, Ting's unloading, for a paraboloid.
+* :mod:`.closed_forms`: Lee-Radok creep and relaxation, Ting's unloading, for a paraboloid;
+* :mod:`.moving`: :func:`solve_moving`, indenters moving under the body (rolling), with
+  :mod:`.moving_indenter` (what moves), :mod:`.moving_result` and :mod:`.dissipation`
+  (the energy the branches dissipate).
 
 Users guide: docs/viscoelastic.md.
 """
@@ -22,6 +25,13 @@ def solve_history(scene, **options):
     return run(scene, **options)
 
 
+def solve_moving(material, provider, indenter, shifts, **options):
+    """See :func:`twoscale.viscoelastic.moving.solve_moving`."""
+    from .moving import solve_moving as run
+
+    return run(material, provider, indenter, shifts, **options)
+
+
 __all__ = [
     "CreepCompliance",
     "LoadHistory",
@@ -29,4 +39,5 @@ __all__ = [
     "creep_compliance",
     "relaxation_modulus",
     "solve_history",
+    "solve_moving",
 ]

@@ -13,6 +13,15 @@ Poisson's ratio, the references of the tests.
   ``W(t) = 4 / (3 R (1 - nu^2)) int_0^{t_1} E(t - s) dA(s)``, ``a(t) = a(t_1)``.
   Under a given load this fixes ``t_1`` and so ``a(t)`` (:func:`ting_radius`).
 
+* A paraboloid moved at a low speed ``v`` (every ``v tau_k`` far below the contact radius)
+  at a held approach or load: the branches act as a viscosity ``eta = sum_k E_k tau_k``
+  (``E(t) -> E_inf + eta delta(t)``), the first-order pressure is that of a flat circular
+  punch tilted by ``eta v / (E_inf R)`` (moment ``4 E* a^3 theta / 3``), so the horizontal
+  force over the load is ``v eta / (E_inf R)``, whatever the contact radius
+  (:func:`low_speed_friction`). The energy route gives the same: the dashpots dissipate
+  ``(eta / E_inf^2) <dp/dt, K dp/dt>`` with ``dp/dt = v dp/dx`` and ``K p = E_inf u``, which
+  integrates by parts to ``eta v^2 W / (E_inf R)``, the drag times ``v``.
+
 Integrals against a Prony kernel ``k0 + sum_k w_k exp(-t / theta_k)`` of a
 piecewise-linear function are exact per segment (:func:`hereditary`).
 """
@@ -39,6 +48,13 @@ def creep_approach(material: Material, R: float, W: float, t) -> np.ndarray:
 def relaxation_load(material: Material, R: float, d: float, t) -> np.ndarray:
     """Load (N) under a step approach ``d`` (mm) held from t = 0."""
     return 4.0 * np.sqrt(R) * d ** 1.5 * relaxation_modulus(material, t) / (3.0 * (1.0 - material.nu ** 2))
+
+
+def low_speed_friction(material: Material, R: float, speed: float) -> float:
+    """Drag over load of a paraboloid of radius ``R`` (mm) moved at a low ``speed`` (mm/s)
+    over the body: ``speed sum_k E_k tau_k / (E_inf R)`` (module docstring); 0 when elastic."""
+    eta = sum(e * t for e, t in material.prony)
+    return float(speed * eta / (material.E * R))
 
 
 def hereditary(k0: float, w, theta, s, x, t) -> np.ndarray:

@@ -59,10 +59,7 @@ def _memory_grid(scene: Scene, h: float):
 
 def _step_solver(scene: Scene, provider, grid, h: float, method: str, options: dict):
     kind = scene.history.kind
-    if method == "twoscale":
-        if scene.surface is not None:
-            raise ValueError("a history on a height map ([surface]) runs with method='reference' "
-                             "(the two-scale step needs asperities given as tips)")
+    if method == "twoscale":  # a height map's basins too (the history displacement lifts their map)
         return TwoScaleStep(provider, scene.asperities, grid, h=h, kind=kind, tilt=scene.tilt,
                             pivot=scene.pivot, options=options)
     if method in ("reference", "dense", "cg"):

@@ -20,25 +20,33 @@ import numpy as np
 from ..grid import Grid
 from ..indenters import Asperity, Surface
 from ..results import ContactResult, summarise
+from ..warm_start import warm_start
 
 
 def scaled(result: ContactResult, factor: float) -> ContactResult:
     """``result`` with every pressure, force and load multiplied by ``factor`` (the gap,
     approach and tilt are unchanged: they are the physical ones)."""
     fields = tuple(dataclasses.replace(f, pressure=f.pressure * factor) for f in result.fields)
+    details = result.details
+    macro = getattr(details, "macro", None)
+    if macro is not None:  # the macro forces too: a start from this result then has one scale
+        details = dataclasses.replace(details, macro=dataclasses.replace(macro, forces=macro.forces * factor))
     return dataclasses.replace(result, fields=fields, total_load=result.total_load * factor,
-                               asperities=summarise(fields, result.n_asperities))
+                               asperities=summarise(fields, result.n_asperities), details=details)
 
 
 @dataclass(frozen=True)
 class StepProblem:
     """What a step solver needs: the control value (N or mm, physical), the factor
-    ``E0 J_eff`` and the history displacement ``u_H`` on the memory grid (mm)."""
+    ``E0 J_eff`` and the history displacement ``u_H`` on the memory grid (mm); ``start``
+    the previous step's answer and ``start_tips`` the tips it was solved for ((N, 2) mm;
+    None: this step's own, the tips not having moved)."""
 
     value: float
     factor: float
     u_H: np.ndarray
     start: ContactResult | None
+    start_tips: np.ndarray | None = None
 
 
 class ReferenceStep:
@@ -84,6 +92,28 @@ class HistoryAsperity(Asperity):
         return base + self.lookup(X, Y)
 
 
+class LiftedBasins:
+    """The basins of a height map (:class:`twoscale.surface.indenter.BasinMap`) with the
+    history displacement ``u_H`` added to every recess they give, so that the micro step
+    sees it on a map's cells as :class:`HistoryAsperity` gives it on a tip's (the map's
+    asperities are sampled together through their shared basins)."""
+
+    def __init__(self, basins, lookup: GridLookup):
+        self.basins, self.lift = basins, lookup
+        self.grid, self.labels, self.book = basins.grid, basins.labels, basins.book
+
+    @property
+    def n_labels(self) -> int:
+        return self.basins.n_labels
+
+    def lookup(self, X, Y, label: int) -> np.ndarray:
+        return self.basins.lookup(X, Y, label) + self.lift(X, Y)
+
+    def union_on(self, X, Y, index: dict):
+        height, owner = self.basins.union_on(X, Y, index)
+        return np.where(owner >= 0, height + self.lift(X, Y), np.inf), owner
+
+
 class GridLookup:
     """``u_H`` at cell centres of the memory grid's lattice (cells beyond it take the
     nearest edge cell: no contact reaches there)."""
@@ -99,9 +129,10 @@ class GridLookup:
 
 
 class TwoScaleStep:
-    """Steps by the two-scale method (:func:`twoscale.twoscale.solve_twoscale`): the macro
+    """Steps by the two-scale method (:func:`twoscale.driver.solve_twoscale`): the macro
     step sees each tip lowered by ``u_H`` there, the micro step ``u_H`` on every patch
-    cell; each step starts its macro Newton iteration from the previous step's forces."""
+    cell; each step starts from the previous step's answer (:mod:`twoscale.warm_start`: its
+    macro forces, approach and tilt, and its pressure around each tip)."""
 
     name = "twoscale"
 
@@ -119,18 +150,31 @@ class TwoScaleStep:
         x = np.array([a.x for a in self.asperities])
         y = np.array([a.y for a in self.asperities])
         lift = look(x, y)
-        return tuple(HistoryAsperity(a.x, a.y, a.z + float(l), a.R, a.shape, lift=float(l), lookup=look)
-                     for a, l in zip(self.asperities, lift))
+        lifted: dict = {}  # a height map's basins, lifted once for all its asperities
+        out = []
+        for a, l in zip(self.asperities, lift):
+            basins = getattr(a, "basins", None)
+            if basins is None:
+                out.append(HistoryAsperity(a.x, a.y, a.z + float(l), a.R, a.shape, lift=float(l), lookup=look))
+                continue
+            if id(basins) not in lifted:
+                lifted[id(basins)] = LiftedBasins(basins, look)
+            out.append(dataclasses.replace(a, z=a.z + float(l), basins=lifted[id(basins)]))
+        return tuple(out)
 
     def solve(self, step: StepProblem) -> ContactResult:
-        from ..twoscale import solve_twoscale
+        from ..driver import solve_twoscale
 
         load = {"penetration": step.value} if self.kind == "penetration" else {"total_load": step.value * step.factor}
         if self.kind == "total" and step.value <= 0:  # nothing to carry: the reference's trivial answer
             return self._trivial(step)
         start = None
         if step.start is not None and step.start.method == "twoscale" and step.start.total_load > 0:
-            start = scaled(step.start, step.factor)
+            # the previous step's answer starts both steps: macro forces, and the pressure
+            # around each tip, moved with it when the tips moved (rolling)
+            tips = np.array([[a.x, a.y] for a in self.asperities], dtype=float).reshape(-1, 2)
+            before = tips if step.start_tips is None else step.start_tips
+            start = warm_start(scaled(step.start, step.factor), before, len(tips), self.h)
         result = solve_twoscale(self.provider, self._wrapped(step.u_H), h=self.h, tilt=self.tilt,
                                 pivot=self.pivot, anchor=(self.grid.x0, self.grid.y0), start=start,
                                 **load, **self.options)
@@ -150,4 +194,4 @@ def pressure_on(result: ContactResult, grid: Grid) -> np.ndarray:
     return result.pressure_on(grid).ravel()
 
 
-__all__ = ["HistoryAsperity", "ReferenceStep", "StepProblem", "TwoScaleStep", "pressure_on", "scaled"]
+__all__ = ["HistoryAsperity", "LiftedBasins", "ReferenceStep", "StepProblem", "TwoScaleStep", "pressure_on", "scaled"]

@@ -10,7 +10,7 @@ from ..grid import Grid
 from ..influence import HalfSpace
 from ..reference import solve_reference
 from ..results import ContactResult
-from ..twoscale import solve_twoscale
+from ..driver import solve_twoscale
 from .cases import PAPER_SPACINGS, PaperCase, paper_cases, reference_surface
 
 
