@@ -106,11 +106,40 @@ def test_tyre_that_leaves_no_contact_under_penetration_control(strip_file, tmp_p
     assert not out.exists()
 
 
-def test_viscoelastic_rolling_refused_until_available(strip_file, tmp_path, capsys):
+def test_viscoelastic_rolling_through_the_cli(strip_file, tmp_path):
     out = tmp_path / "run"
-    code = main(["solve", _scene(strip_file, prony="prony = [[20.0, 0.01]]"), "--out", str(out)])
+    assert main(["solve", _scene(strip_file, prony="prony = [[20.0, 0.01]]"), "--out", str(out), "--quiet"]) == 0
+    meta = json.loads((out / "rolling.json").read_text())
+    assert meta["body"].endswith("viscoelastic") and meta["material"]["prony"] == [[20.0, 0.01]]
+    with open(out / "signals.csv", newline="") as fh:
+        rows = list(csv.reader(fh))
+    assert rows[0][-1] == "drag_N" and len(rows) == 4
+
+
+def test_viscoelastic_rolling_of_tips_refused(tmp_path, capsys):
+    scene = tmp_path / "tips.toml"
+    scene.write_text("""
+[material]
+E = 10.0
+nu = 0.5
+prony = [[20.0, 0.01]]
+[load]
+total = 5.0
+[[asperity]]
+x = 0.0
+y = 0.0
+R = 5.0
+[rolling]
+start = -2.0
+end = 2.0
+step = 1.0
+speed = 10.0
+footprint = [30.0, 30.0]
+""", encoding="utf-8")
+    out = tmp_path / "run"
+    assert main(["solve", str(scene), "--out", str(out)]) == 2
     err = capsys.readouterr().err
-    assert code == 2 and "material.prony" in err and len(err.strip().splitlines()) == 1
+    assert "material.prony" in err and len(err.strip().splitlines()) == 1
     assert not out.exists()
 
 

@@ -66,6 +66,10 @@ class ShiftedBasins:
         return self.base.book
 
     @property
+    def labels(self):
+        return self.base.labels
+
+    @property
     def n_labels(self) -> int:
         return self.base.n_labels
 

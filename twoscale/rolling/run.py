@@ -11,8 +11,9 @@ before the solve: the stones are taken below a bound on it, and the position is 
 again with a larger bound when the solved approach exceeds it (never needed when the
 bound holds: no stone left out can touch).
 
-The elastic body only: a viscoelastic material runs through
-:func:`twoscale.viscoelastic.moving.solve_moving` (its memory carried in the body frame).
+A viscoelastic material (Prony branches) runs through
+:func:`twoscale.viscoelastic.moving.solve_moving` instead (its memory carried in the body
+frame): :func:`twoscale.rolling.viscous.roll_viscoelastic`.
 """
 from __future__ import annotations
 
@@ -227,6 +228,10 @@ def roll(scene, *, options: RollingOptions | None = None, provider=None,
     options = options or RollingOptions()
     t0 = time.perf_counter()
     track = track if track is not None else prepare(scene, h=options.h, provider=provider)
+    if track.scene.material.viscoelastic:   # the memory in the body: the moving-indenter stepping
+        from .viscous import roll_viscoelastic
+
+        return roll_viscoelastic(track, tol=options.tol, progress=progress, on_position=on_position)
     t1 = time.perf_counter()
     rows, signals, lines, previous = [], [], [], None
     for k in range(len(track.shifts)):

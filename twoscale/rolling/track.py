@@ -90,10 +90,13 @@ def prepare(scene: Scene, *, h: float | None = None, provider=None) -> Track:
 
 def _viscoelastic_available() -> None:
     """A viscoelastic material rolls through :func:`twoscale.viscoelastic.moving.solve_moving`
-    (the memory in the body frame), which this driver does not call yet: refuse it in one
-    line naming the field rather than roll the material as if it were elastic."""
-    raise SceneError("material.prony with [rolling]: the viscoelastic rolling is not available in this version "
-                     "(each position would be solved elastically); give an elastic material (no prony)")
+    (:mod:`twoscale.rolling.viscous`); without it, refuse in one line naming the field
+    rather than roll the material as if it were elastic."""
+    import importlib.util
+
+    if importlib.util.find_spec("twoscale.viscoelastic.moving") is None:
+        raise SceneError("material.prony with [rolling]: the viscoelastic rolling (twoscale.viscoelastic.moving) "
+                         "is not in this version; give an elastic material (no prony)")
 
 
 def face_window(scene: Scene, spec: RollingSpec, provider, h: float) -> tuple:
