@@ -91,7 +91,18 @@ def rolling_to_dict(result, scene) -> dict:
                       for s, c, i, n, t, m in zip(result.shifts, result.converged, result.iterations, result.stones,
                                                   result.seconds, result.messages)],
         "timings_s": {k: float(v) for k, v in result.timings_s.items()},
+        **_energy(result),
     }
+
+
+def _energy(result) -> dict:
+    """A viscoelastic run's energy per position and its balance with the drag's work."""
+    if not result.dissipated.size:
+        return {}
+    return {"energy_Nmm": {"dissipated": result.dissipated.tolist(), "stored": result.stored.tolist(),
+                           "drag_work": result.drag_work(),
+                           "stored_change_plus_dissipated": float(result.stored[-1] - result.stored[0]
+                                                                  + np.sum(result.dissipated[1:]))}}
 
 
 def write_rolling_json(result, scene, path) -> Path:

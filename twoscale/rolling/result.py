@@ -80,6 +80,10 @@ class RollingResult:
     line_load : (n, m) array, N/mm
         Pressure summed across y (times the cell size) at each position and body x: the
         space-time picture in which the stones go through the footprint.
+    dissipated, stored : (n,) arrays, N mm
+        A viscoelastic run's energy dissipated in the branches over the step to each position
+        (the first: over the ramp-in) and stored in the body at each position; empty for an
+        elastic run (nothing dissipated; the stored energy is not computed).
     timings_s : mapping
         ``prepare`` (segmentation and the road's tables), ``positions``, ``total``.
     body : str
@@ -104,6 +108,8 @@ class RollingResult:
     asperities: StoneSignals
     line_x: np.ndarray = field(default_factory=lambda: np.zeros(0))
     line_load: np.ndarray = field(default_factory=lambda: np.zeros((0, 0)))
+    dissipated: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    stored: np.ndarray = field(default_factory=lambda: np.zeros(0))
     timings_s: Mapping = field(default_factory=dict)
     body: str = ""
 
@@ -118,6 +124,8 @@ class RollingResult:
         object.__setattr__(self, "messages", tuple(self.messages))
         object.__setattr__(self, "line_x", frozen_array(self.line_x))
         object.__setattr__(self, "line_load", frozen_array(self.line_load))
+        for name in ("dissipated", "stored"):
+            object.__setattr__(self, name, frozen_array(getattr(self, name)))
         object.__setattr__(self, "timings_s", FrozenMapping(self.timings_s))
 
     @property
@@ -130,6 +138,13 @@ class RollingResult:
         """Mean of ``drag`` over the positions, N (the rolling resistance the texture
         causes; zero for an elastic body over a periodic road)."""
         return float(np.mean(self.drag))
+
+    def drag_work(self) -> float:
+        """Work of the drag over the run, N mm: the trapezoid rule over the shifts (for a
+        viscoelastic run it equals the energy stored plus dissipated from the first
+        position on, to second order in the step)."""
+        d, s = self.drag, self.shifts
+        return float(np.sum(0.5 * (d[1:] + d[:-1]) * np.diff(s)))
 
     def __repr__(self) -> str:
         state = "converged" if self.all_converged else f"{int(np.sum(~self.converged))} positions NOT converged"

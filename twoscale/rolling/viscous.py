@@ -144,4 +144,5 @@ def _result(track: Track, numbers: np.ndarray, moving, seconds: float) -> Rollin
         stones=np.full(len(track.shifts), len(numbers)), iterations=moving.iterations,
         messages=tuple("" if c else (moving.message or "did not converge") for c in converged),
         asperities=StoneSignals(pos, numbers[k] + 1, forces[pos, k], areas[pos, k]),
+        dissipated=moving.dissipated, stored=moving.stored,
         timings_s={"prepare": 0.0, "positions": seconds, "total": seconds}, body=track.body + ", viscoelastic")
