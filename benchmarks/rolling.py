@@ -21,7 +21,10 @@ Usage::
 
     python benchmarks/rolling.py [--length 1000] [--step 1] [--h 0.25] [--load 3000] [--radius 300]
                                  [--width 150] [--samples 3] [--seed 1] [--every 50] [--no-cm]
-                                 [--macro-start] [--scale-out] [--out FILE.json]
+                                 [--macro-start] [--visco] [--scale-out] [--out FILE.json]
+
+``--visco`` rolls the section elastic and with a ten-branch Prony tread (tau from 1e-6 to
+1e3 s, glassy modulus five times the relaxed) instead, and prints the CPU ratio.
 
 ``--scale-out`` runs the section in one and in two chunks on Dask worker processes
 (:func:`twoscale.rolling.chunks.roll_chunks`) instead, and prints the speed-up.
@@ -172,6 +175,28 @@ def run(args) -> dict:
     return {"args": vars(args), "info": info, "summary": summary, "samples": rows}
 
 
+#: Ten Prony branches over six decades (tau 1e-6 to 1e3 s), glassy modulus 5 x the relaxed.
+TEN_BRANCHES = tuple((4.0 * MAT.E / 10.0, float(t)) for t in np.logspace(-6.0, 3.0, 10))
+
+
+def visco(args) -> dict:
+    """The section rolled elastic and viscoelastic (ten branches), CPU time of each."""
+    import dataclasses
+
+    from twoscale.rolling import roll
+
+    scene, info = build(args)
+    times = {}
+    for name, material in (("elastic", MAT), ("viscoelastic", Material(MAT.E, MAT.nu, prony=TEN_BRANCHES))):
+        c0 = time.process_time()
+        res = roll(dataclasses.replace(scene, material=material))
+        times[name] = time.process_time() - c0
+        print(f"{name}: {times[name]:.1f} s CPU for {len(res.shifts)} positions, all converged {res.all_converged}, "
+              f"mean drag {res.mean_drag:.4g} N", flush=True)
+    print(f"viscoelastic / elastic: {times['viscoelastic'] / times['elastic']:.2f} (target <= 2)")
+    return {"args": vars(args), "info": info, "cpu_s": times, "ratio": times["viscoelastic"] / times["elastic"]}
+
+
 def scale_out(args) -> dict:
     """The run on one and on two Dask worker processes (elastic: independent chunks)."""
     from twoscale.rolling.chunks import roll_chunks
@@ -200,13 +225,15 @@ def main(argv=None) -> int:
     p.add_argument("--seed", type=int, default=1)
     p.add_argument("--every", type=int, default=50, help="print every n-th position")
     p.add_argument("--no-cm", action="store_true", help="skip ContactMechanics")
+    p.add_argument("--visco", action="store_true", help="instead of the run: the section rolled elastic and with "
+                   "a ten-branch Prony tread (CPU time of each, their ratio; target <= 2)")
     p.add_argument("--scale-out", action="store_true", help="instead of the run: the run in 1 and in 2 chunks on "
                    "Dask worker processes (twoscale.rolling.chunks), wall times and speed-up")
     p.add_argument("--macro-start", action="store_true", help="start each position's macro step only "
                    "(no pressure start), for comparison")
     p.add_argument("--out", default=None, help="write the figures as JSON")
     args = p.parse_args(argv)
-    out = scale_out(args) if args.scale_out else run(args)
+    out = scale_out(args) if args.scale_out else visco(args) if args.visco else run(args)
     if args.out:
         Path(args.out).write_text(json.dumps(out, indent=1, default=float) + "\n")
     return 0
