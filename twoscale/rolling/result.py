@@ -3,12 +3,26 @@ timings, as a frozen :class:`RollingResult` (arrays read-only)."""
 from __future__ import annotations
 
 from collections.abc import Mapping
+from typing import Any
 from dataclasses import dataclass, field
 
 import numpy as np
 
 from ..results import FrozenMapping, frozen_array
 from .spec import RollingSpec
+
+@dataclass(frozen=True)
+class Position:
+    """One solved position: its index, the stones given (a
+    :class:`~twoscale.rolling.road.Selection`), the solve (a ContactResult), the drag (N)
+    and the time it took (s)."""
+
+    index: int
+    selection: Any
+    result: Any
+    drag: float
+    seconds: float
+
 
 #: Per-position arrays of a :class:`RollingResult` (one entry per position).
 SIGNALS = ("times", "shifts", "total_load", "penetration", "contact_area", "drag", "converged",

@@ -26,7 +26,7 @@ import numpy as np
 
 from ..macro.start import MacroStart
 from ..results import ContactResult
-from .result import RollingResult, StoneSignals
+from .result import Position, RollingResult, StoneSignals
 from .road import Selection, hertz_level
 from .track import Track, prepare
 
@@ -62,17 +62,6 @@ class RollingOptions:
     warm: bool = True
     pressure_start: bool = True
     h: float | None = None
-
-
-@dataclass(frozen=True)
-class Position:
-    """One solved position: the stones given, the solve, the drag and the line load."""
-
-    index: int
-    selection: Selection
-    result: ContactResult
-    drag: float
-    seconds: float
 
 
 def solve_position(track: Track, selection: Selection, *, start=None, options: RollingOptions) -> ContactResult:

@@ -24,7 +24,7 @@ import numpy as np
 
 from ..errors import SceneError
 from ..grid import Grid
-from .result import RollingResult, StoneSignals
+from .result import Position, RollingResult, StoneSignals
 from .road import Face, Road, Selection, ShiftedBasins
 from .track import Track, footprint_length
 
@@ -125,8 +125,6 @@ def _positions(numbers: np.ndarray, on_position):
     :class:`~twoscale.rolling.run.Position` (None without it)."""
     if on_position is None:
         return None
-    from .run import Position
-
     def on_step(n: int, shift: float, result, summary=None) -> None:
         on_position(Position(n, Selection((), numbers, shift), result, float("nan"), 0.0))
 
