@@ -28,6 +28,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from .control import check_control
+from .errors import ResolutionWarning
 from .indenters import SHAPES, Asperity
 from .material import Material
 from .results import ContactResult
@@ -329,7 +330,7 @@ def solve_scene(scene: Scene, *, method: str = "twoscale", provider_options: Map
     return solve(scene, method=method, provider_options=provider_options, memory_limit=memory_limit, **options)
 
 
-__all__ = ["METHODS", "solve", "solve_scene", "asperities", "as_asperities"]
+__all__ = ["METHODS", "solve", "solve_scene", "asperities", "as_asperities", "ResolutionWarning"]
 
 
 def check_domain(scene: Scene, provider: InfluenceProvider, h: float = 0.0, *,
