@@ -176,7 +176,11 @@ class Scene:
     history : LoadHistory, optional
         A load history in time (:class:`twoscale.viscoelastic.LoadHistory`); then
         ``total_load`` or ``penetration`` (whichever it prescribes) is its peak value and
-        may be left out. Required when the material has Prony branches.
+        may be left out. Required when the material has Prony branches (unless rolling).
+    rolling : RollingSpec, optional
+        The road rolls under the body (:class:`twoscale.rolling.RollingSpec`, a scene
+        file's ``[rolling]`` table; :func:`twoscale.rolling.roll` solves every position):
+        the time is the rolling's, so no load history, no tilt, no load cases.
 
     Raises
     ------
@@ -195,6 +199,7 @@ class Scene:
     load_cases: tuple = ()
     surface: Any = None
     history: Any = None
+    rolling: Any = None
 
     def __post_init__(self) -> None:
         if not isinstance(self.material, Material):
@@ -246,8 +251,10 @@ class Scene:
         from .viscoelastic.history import LoadHistory
 
         hist = self.history
+        if self.rolling is not None:
+            _check_rolling(self)
         if hist is None:
-            if self.material.viscoelastic:
+            if self.material.viscoelastic and self.rolling is None:
                 raise SceneError("material.prony needs a load history: write load.total (or load.penetration) "
                                  f"as [[t, value], ...] (s; N or mm), got a single value "
                                  f"{self.total_load if self.total_load is not None else self.penetration!r}")
@@ -329,6 +336,22 @@ class Scene:
             return make_body(kind, self.material, **opts, **options)
         except ImportError as exc:
             raise SceneError(f"influence.kind = \"{kind}\": {exc}; use kind = \"halfspace\"") from exc
+
+
+def _check_rolling(scene: Scene) -> None:
+    """A rolling scene: a :class:`~twoscale.rolling.RollingSpec`, its time its own (no load
+    history), the load through the axle (no tilt)."""
+    from .rolling.spec import RollingSpec
+
+    if not isinstance(scene.rolling, RollingSpec):
+        raise SceneError(f"rolling must be a twoscale.rolling.RollingSpec, got {scene.rolling!r}")
+    if scene.history is not None:
+        raise SceneError("a [rolling] scene has the rolling's time: give load.total or load.penetration as one "
+                         f"value, not a history ({scene.history.kind} history given)")
+    if scene.tilt:
+        raise SceneError("load.tilt = true cannot go with [rolling] (the axle holds the body level)")
+    if scene.load_cases:
+        raise SceneError(f"load.cases cannot go with [rolling], got {list(scene.load_cases)!r}")
 
 
 #: Methods of the scene-file workflow (``twoscale solve --method``); :func:`twoscale.solve`

@@ -3,6 +3,9 @@
 ``twoscale solve SCENE.toml [--method twoscale|reference] [--out DIR [--overwrite]] [--h H] [--far-tol F]
 [--block-field] [--quiet]``
 
+A scene with a ``[rolling]`` table runs every position of the road under the body and
+writes its signals instead (:mod:`twoscale.cli.rolling`).
+
 Exit codes: 0 converged; 1 not converged (result.json still written, with
 ``converged = false`` and the solver's message); 2 bad input (one ``error: ...`` line
 on stderr naming the field and the value; nothing written, DIR not created; also when
@@ -85,6 +88,10 @@ def run(args: argparse.Namespace) -> int:
     try:
         scene = read_scene(args.scene)
         scene = with_h_option(scene, args.h)
+        if scene.rolling is not None:   # the road rolls under the body: twoscale.cli.rolling
+            from .rolling import run_rolling
+
+            return run_rolling(scene, args)
         if getattr(args, "block_field", False):
             if scene.influence["kind"] != "block":
                 raise SceneError(f"--block-field needs [influence] kind = \"block\", "

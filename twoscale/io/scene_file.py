@@ -19,6 +19,9 @@ The format (see README.md)::
     [surface]             instead of [[asperity]]: a height map (twoscale.surface);
                           file (relative to the scene file) required, see
                           twoscale.surface.scene_table for the other keys
+    [rolling]             start, end, step (mm), speed (km/h) required; tyre_radius (mm),
+                          tyre_shape, footprint = [length, width] (mm): the road rolls
+                          under the body (twoscale.rolling.spec)
 
 Every problem raises :class:`SceneError` (a ``ValueError``) with a one-line message
 naming the field path (``asperity 4: R``; asperities numbered from 1 in file order) and
@@ -41,7 +44,7 @@ except ModuleNotFoundError:  # pragma: no cover - Python 3.10
 
 __all__ = ["SceneError", "read_scene", "scene_from_dict", "scene_to_dict"]
 
-TOP_KEYS = ("material", "load", "grid", "influence", "asperity", "surface", "time")
+TOP_KEYS = ("material", "load", "grid", "influence", "asperity", "surface", "time", "rolling")
 MATERIAL_KEYS = ("E", "nu", "prony", "prony_file")
 LOAD_KEYS = ("penetration", "total", "tilt", "pivot", "cases")
 GRID_KEYS = ("h",)
@@ -118,7 +121,12 @@ def scene_from_dict(data: Mapping[str, Any], *, base_dir: str | None = None) -> 
     history = _history(load, table_of("time", data.get("time", {})))
     if history is not None:
         load = {k: v for k, v in load.items() if k != history.kind}
-    return Scene(material=material, asperities=asperities, history=history,
+    rolling = None
+    if "rolling" in data:
+        from ..rolling.spec import rolling_from_table
+
+        rolling = rolling_from_table(table_of("rolling", data["rolling"]))
+    return Scene(material=material, asperities=asperities, history=history, rolling=rolling,
                  penetration=load.get("penetration"), total_load=load.get("total"),
                  tilt=load.get("tilt", False), pivot=load.get("pivot", (0.0, 0.0)),
                  h=grid.get("h"), influence=dict(influence) or None, load_cases=load.get("cases", ()),
@@ -152,6 +160,8 @@ def scene_to_dict(scene: Scene) -> dict:
         out["time"] = _time_table(scene.history)
     if scene.h is not None:
         out["grid"] = {"h": float(scene.h)}
+    if scene.rolling is not None:
+        out["rolling"] = scene.rolling.to_table()
     out["influence"] = {k: (list(v) if isinstance(v, tuple) else v) for k, v in scene.influence.items()}
     if scene.surface is not None:  # the [surface] table (file made absolute), not its basins
         from ..surface.scene_table import surface_to_table

@@ -1,0 +1,243 @@
+"""Rolling benchmark: a slick tyre rolled over a chip-seal strip, elastic.
+
+The tyre: radius ``--radius`` mm (300), ``--width`` mm wide (150: the footprint window's
+width), ``--load`` N (3,000) held at every position, on a half-space of tread rubber (E =
+10 MPa, nu = 0.5). The road: a seeded chip-seal strip (:func:`twoscale.rolling.road_strip`,
+stones of 4-8 mm) at ``--h`` mm (0.25), long enough for the footprint plus the run of
+``--length`` mm (1,000) in ``--step`` mm steps (1). Single-threaded
+(``OMP_NUM_THREADS=1``).
+
+Printed: the strip and its segmentation time, the time of every position (``--every`` of
+them; mean, median, largest), the whole run; at ``--samples`` positions spread over the
+run, the same position solved by the full-grid reference on every cell the stones can
+reach (:func:`twoscale.rolling.reference.reference_position`), by the default two-scale
+solve from cold (:func:`~twoscale.rolling.reference.cold_position`) and by
+ContactMechanics (``FreeFFTElasticHalfSpace`` + ``minimize_proxy`` on the reference's grid
+and heights, when installed), with the run's time per position over each (targets: <= 0.1
+of the reference, <= 0.3 of the cold solve) and the run's load, approach, area and drag
+against the reference's.
+
+Usage::
+
+    python benchmarks/rolling.py [--length 1000] [--step 1] [--h 0.25] [--load 3000] [--radius 300]
+                                 [--width 150] [--samples 3] [--seed 1] [--every 50] [--no-cm]
+                                 [--macro-start] [--visco] [--scale-out] [--out FILE.json]
+
+``--visco`` rolls the section elastic and with a ten-branch Prony tread (tau from 1e-6 to
+1e3 s, glassy modulus five times the relaxed) instead, and prints the CPU ratio.
+
+``--scale-out`` runs the section in one and in two chunks on Dask worker processes
+(:func:`twoscale.rolling.chunks.roll_chunks`) instead, and prints the speed-up.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import time
+import warnings
+from pathlib import Path
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+import _common  # noqa: E402,F401  (single-threaded BLAS/FFT before numpy work)
+
+from twoscale import Material  # noqa: E402
+from twoscale.indenters import surface_on  # noqa: E402
+from twoscale.rolling import RollingOptions, RollingSpec, road_strip  # noqa: E402
+from twoscale.rolling.reference import cold_position, reference_grid, reference_position  # noqa: E402
+from twoscale.rolling.run import step  # noqa: E402
+from twoscale.rolling.track import prepare, tyre_contact_length  # noqa: E402
+from twoscale.scene import Scene  # noqa: E402
+from twoscale.surface import RawMap, build_surface  # noqa: E402
+
+MAT = Material(10.0, 0.5)
+CM_TOL = 1e-10
+
+
+def build(args) -> tuple:
+    """The scene: the strip (footprint + run + margins long) segmented once, and the tyre."""
+    t0 = time.perf_counter()
+    half = 0.5 * 2.0 * 1.5 * np.sqrt(4 * args.load * args.radius / (np.pi * MAT.E_star * args.width)) + 10.0
+    length = args.length + 2 * half
+    z = road_strip(length, args.width + 10.0, args.h, seed=args.seed)
+    t1 = time.perf_counter()
+    surface = build_surface(RawMap(z, spacing=args.h, units="mm"))
+    t2 = time.perf_counter()
+    # the strip is centred: at shift s it covers body x in [-length/2 + s, length/2 + s]
+    spec = RollingSpec(start=-args.length / 2, end=args.length / 2, step=args.step, speed=50.0,
+                       tyre_radius=args.radius, footprint=(2 * half, args.width))
+    scene = Scene(material=MAT, surface=surface, total_load=args.load, rolling=spec)
+    info = {"strip_mm": [length, args.width + 10.0], "samples": list(z.shape), "stones": len(surface.asperities),
+            "strip_s": t1 - t0, "segment_s": t2 - t1}
+    return scene, info
+
+
+def contact_mechanics(track, position) -> dict | None:
+    try:
+        from ContactMechanics import FreeFFTElasticHalfSpace
+        from ContactMechanics.Systems import NonSmoothContactSystem
+        from SurfaceTopography import Topography
+    except ImportError:
+        return None
+    sel = position.selection
+    low = min(s.z for s in sel.stones)
+    d = position.result.penetration
+    grid = reference_grid(track, sel, d + 0.5 * max(d - low, track.h))
+    rec = surface_on(grid, sel.stones).height
+    rec = np.where(np.isfinite(rec), rec, np.nanmax(np.where(np.isfinite(rec), rec, np.nan)) + 10.0)
+    size = (grid.ny * grid.h, grid.nx * grid.h)
+    t0, c0 = time.perf_counter(), time.process_time()
+    system = NonSmoothContactSystem(FreeFFTElasticHalfSpace(grid.shape, MAT.E_star, size),
+                                    Topography(-rec, physical_sizes=size))
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        sol = system.minimize_proxy(external_force=track.scene.total_load, pentol=CM_TOL, forcetol=CM_TOL,
+                                    maxiter=2000)
+    force = np.asarray(sol.jac).reshape(grid.shape)
+    return {"time_s": time.perf_counter() - t0, "cpu_s": time.process_time() - c0, "converged": bool(sol.success),
+            "area_mm2": float(np.count_nonzero(force > 0)) * grid.h ** 2, "cells": grid.size}
+
+
+def timed(fn):
+    t0, c0 = time.perf_counter(), time.process_time()
+    out = fn()
+    return out, time.perf_counter() - t0, time.process_time() - c0
+
+
+def compare(track, pos, run_cpu: float, use_cm: bool) -> dict:
+    """The position solved three other ways, and the ratios (module docstring)."""
+    ref, ref_s, ref_cpu = timed(lambda: reference_position(track, pos))
+    cold, cold_s, cold_cpu = timed(lambda: cold_position(track, pos))
+    from twoscale.rolling.run import drag_of
+
+    r = pos.result
+    row = {"shift_mm": float(track.shifts[pos.index]), "stones": len(pos.selection.stones), "run_s": pos.seconds,
+           "run_cpu_s": run_cpu, "ref_s": ref_s, "ref_cpu_s": ref_cpu, "ref_cells": ref.n_cells,
+           "cold_s": cold_s, "cold_cpu_s": cold_cpu, "twoscale_cells": r.n_cells,
+           "ratio_ref": run_cpu / ref_cpu, "ratio_cold": run_cpu / cold_cpu,
+           "approach_err_mm": abs(r.penetration - ref.penetration),
+           "area_err_pct": 100 * abs(r.contact_area - ref.contact_area) / ref.contact_area,
+           "drag_run_N": pos.drag, "drag_ref_N": drag_of(track, pos.selection, ref),
+           "ref_converged": bool(ref.converged), "cold_converged": bool(cold.converged)}
+    cm = contact_mechanics(track, pos) if use_cm else None
+    if cm is not None:
+        row.update({"cm_cpu_s": cm["cpu_s"], "ratio_cm": run_cpu / cm["cpu_s"], "cm_converged": cm["converged"],
+                    "cm_area_err_pct": 100 * abs(cm["area_mm2"] - ref.contact_area) / ref.contact_area})
+    return row
+
+
+def run(args) -> dict:
+    scene, info = build(args)
+    t0 = time.perf_counter()
+    track = prepare(scene)
+    info["prepare_s"] = time.perf_counter() - t0
+    info["positions"] = len(track.shifts)
+    info["footprint_estimate_mm"] = tyre_contact_length(track)
+    print(f"strip {info['strip_mm'][0]:.0f} x {info['strip_mm'][1]:.0f} mm at {args.h} mm ({info['samples'][1]} x "
+          f"{info['samples'][0]} samples, {info['stones']} stones): made in {info['strip_s']:.1f} s, segmented in "
+          f"{info['segment_s']:.1f} s; track prepared in {info['prepare_s']:.1f} s; {info['positions']} positions",
+          flush=True)
+    sample = set(np.linspace(1, len(track.shifts) - 1, args.samples).astype(int)) if args.samples else set()
+    times, cpu, rows, previous = [], [], [], None
+    options = RollingOptions(pressure_start=not args.macro_start)
+    t_run = time.perf_counter()
+    for k in range(len(track.shifts)):
+        c0 = time.process_time()
+        pos = step(track, k, previous, options)
+        cpu.append(time.process_time() - c0)
+        times.append(pos.seconds)
+        if k % args.every == 0 or k == len(track.shifts) - 1:
+            print(f"  position {k:5d} shift {track.shifts[k]:8.2f} mm: {pos.result.total_load:8.1f} N, approach "
+                  f"{pos.result.penetration:.4f} mm, area {pos.result.contact_area:8.1f} mm2, drag {pos.drag:7.2f} N, "
+                  f"{len(pos.selection.stones)} stones, {pos.seconds:.2f} s, converged {pos.result.converged}", flush=True)
+        if k in sample:
+            rows.append(compare(track, pos, cpu[-1], not args.no_cm))
+            print("  sample " + ", ".join(f"{key} {v:.4g}" if isinstance(v, float) else f"{key} {v}"
+                                          for key, v in rows[-1].items()), flush=True)
+        previous = pos
+    wall = time.perf_counter() - t_run
+    t = np.array(times)
+    c = np.array(cpu)
+    summary = {"run_s": wall, "run_cpu_s": float(c.sum()), "mean_s": float(t.mean()),
+               "median_s": float(np.median(t)), "max_s": float(t.max()), "mean_cpu_s": float(c.mean()),
+               "median_cpu_s": float(np.median(c)), "max_cpu_s": float(c.max()),
+               "estimate_1m_cpu_s": float(c.mean()) * 1000.0 / args.step}
+    print(f"run: {wall:.1f} s wall (with the samples' comparisons), {summary['run_cpu_s']:.1f} s CPU in the "
+          f"{len(t)} positions; per position CPU mean {summary['mean_cpu_s']:.3f} s, median "
+          f"{summary['median_cpu_s']:.3f} s, largest {summary['max_cpu_s']:.3f} s (wall mean {summary['mean_s']:.3f} s); "
+          f"1 m at this CPU rate: {summary['estimate_1m_cpu_s']:.0f} s")
+    for key in ("ratio_ref", "ratio_cold", "ratio_cm"):
+        vals = [r[key] for r in rows if key in r]
+        if vals:
+            print(f"{key}: " + ", ".join(f"{v:.3f}" for v in vals))
+    return {"args": vars(args), "info": info, "summary": summary, "samples": rows}
+
+
+#: Ten Prony branches over six decades (tau 1e-6 to 1e3 s), glassy modulus 5 x the relaxed.
+TEN_BRANCHES = tuple((4.0 * MAT.E / 10.0, float(t)) for t in np.logspace(-6.0, 3.0, 10))
+
+
+def visco(args) -> dict:
+    """The section rolled elastic and viscoelastic (ten branches), CPU time of each."""
+    import dataclasses
+
+    from twoscale.rolling import roll
+
+    scene, info = build(args)
+    times = {}
+    for name, material in (("elastic", MAT), ("viscoelastic", Material(MAT.E, MAT.nu, prony=TEN_BRANCHES))):
+        c0 = time.process_time()
+        res = roll(dataclasses.replace(scene, material=material))
+        times[name] = time.process_time() - c0
+        print(f"{name}: {times[name]:.1f} s CPU for {len(res.shifts)} positions, all converged {res.all_converged}, "
+              f"mean drag {res.mean_drag:.4g} N", flush=True)
+    print(f"viscoelastic / elastic: {times['viscoelastic'] / times['elastic']:.2f} (target <= 2)")
+    return {"args": vars(args), "info": info, "cpu_s": times, "ratio": times["viscoelastic"] / times["elastic"]}
+
+
+def scale_out(args) -> dict:
+    """The run on one and on two Dask worker processes (elastic: independent chunks)."""
+    from twoscale.rolling.chunks import roll_chunks
+
+    scene, info = build(args)
+    times = {}
+    for n in (1, 2):
+        t0 = time.perf_counter()
+        res = roll_chunks(scene, chunks=n, scheduler="processes")
+        times[n] = time.perf_counter() - t0
+        print(f"{n} chunk(s): {times[n]:.1f} s wall for {len(res.shifts)} positions, all converged "
+              f"{res.all_converged}", flush=True)
+    print(f"speed-up of 2 workers: {times[1] / times[2]:.2f}")
+    return {"args": vars(args), "info": info, "wall_s": times, "speedup": times[1] / times[2]}
+
+
+def main(argv=None) -> int:
+    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p.add_argument("--length", type=float, default=1000.0, help="run length, mm")
+    p.add_argument("--step", type=float, default=1.0, help="step between positions, mm")
+    p.add_argument("--h", type=float, default=0.25, help="strip spacing = cell size, mm")
+    p.add_argument("--load", type=float, default=3000.0, help="tyre load, N")
+    p.add_argument("--radius", type=float, default=300.0, help="tyre radius, mm")
+    p.add_argument("--width", type=float, default=150.0, help="tyre (footprint) width, mm")
+    p.add_argument("--samples", type=int, default=3, help="positions compared with the reference")
+    p.add_argument("--seed", type=int, default=1)
+    p.add_argument("--every", type=int, default=50, help="print every n-th position")
+    p.add_argument("--no-cm", action="store_true", help="skip ContactMechanics")
+    p.add_argument("--visco", action="store_true", help="instead of the run: the section rolled elastic and with "
+                   "a ten-branch Prony tread (CPU time of each, their ratio; target <= 2)")
+    p.add_argument("--scale-out", action="store_true", help="instead of the run: the run in 1 and in 2 chunks on "
+                   "Dask worker processes (twoscale.rolling.chunks), wall times and speed-up")
+    p.add_argument("--macro-start", action="store_true", help="start each position's macro step only "
+                   "(no pressure start), for comparison")
+    p.add_argument("--out", default=None, help="write the figures as JSON")
+    args = p.parse_args(argv)
+    out = scale_out(args) if args.scale_out else visco(args) if args.visco else run(args)
+    if args.out:
+        Path(args.out).write_text(json.dumps(out, indent=1, default=float) + "\n")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -1,0 +1,150 @@
+"""A [rolling] scene through ``twoscale solve SCENE --out DIR``: the files with exactly
+their columns, and bad input refused with one line naming the field, exit 2, nothing
+written."""
+from __future__ import annotations
+
+import csv
+import json
+
+import numpy as np
+import pytest
+
+from twoscale.cli.main import main
+from twoscale.io.scene_file import read_scene, scene_from_dict, scene_to_dict
+from twoscale.rolling import road_strip
+
+SCENE = """
+[material]
+E = 10.0
+nu = 0.5
+{prony}
+[load]
+{load}
+[surface]
+file = "strip.npy"
+spacing = 0.25
+[rolling]
+{rolling}
+"""
+ROLLING = {"start": "-4.0", "end": "-2.0", "step": "1.0", "speed": "50.0", "tyre_radius": "150.0",
+           "footprint": "[30.0, 12.0]"}
+
+
+@pytest.fixture(scope="module")
+def strip_file(tmp_path_factory):
+    folder = tmp_path_factory.mktemp("strip")
+    np.save(folder / "strip.npy", road_strip(50.0, 16.0, 0.25, seed=5))
+    return folder
+
+
+def _scene(folder, *, load="total = 40.0", prony="", **rolling) -> str:
+    table = {**ROLLING, **rolling}
+    lines = "\n".join(f"{k} = {v}" for k, v in table.items() if v is not None)
+    path = folder / "scene.toml"
+    path.write_text(SCENE.format(load=load, prony=prony, rolling=lines), encoding="utf-8")
+    return str(path)
+
+
+def test_outputs_have_exactly_their_columns(strip_file, tmp_path):
+    out = tmp_path / "run"
+    assert main(["solve", _scene(strip_file), "--out", str(out), "--quiet"]) == 0
+    with open(out / "signals.csv", newline="") as fh:
+        rows = list(csv.reader(fh))
+    assert rows[0] == ["time_s", "shift_mm", "total_load_N", "penetration_mm", "contact_area_mm2", "drag_N"]
+    assert len(rows) == 1 + 3
+    shifts = [float(r[1]) for r in rows[1:]]
+    assert shifts == [-4.0, -3.0, -2.0]
+    # time = distance / speed: 1 mm at 50 km/h
+    assert float(rows[2][0]) == pytest.approx(1.0 / (50.0 * 1e6 / 3600.0), rel=1e-9)
+    assert all(float(r[2]) == pytest.approx(40.0, rel=1e-6) for r in rows[1:])
+    with open(out / "asperity_signals.csv", newline="") as fh:
+        stones = list(csv.reader(fh))
+    assert stones[0] == ["time_s", "shift_mm", "asperity", "force_N", "contact_area_mm2"]
+    by_shift: dict = {}
+    for r in stones[1:]:
+        assert int(r[2]) >= 1 and float(r[4]) > 0
+        by_shift[float(r[1])] = by_shift.get(float(r[1]), 0.0) + float(r[3])
+    assert by_shift[-3.0] == pytest.approx(40.0, rel=1e-6)   # the stones' forces add up to the load
+    meta = json.loads((out / "rolling.json").read_text())
+    assert meta["speed_kmh"] == 50.0 and meta["steps"]["positions"] == 3
+    assert meta["scene"]["rolling"]["tyre_radius"] == 150.0
+    assert [p["converged"] for p in meta["positions"]] == [True] * 3
+    assert (out / "fields.pvd").is_file() and len(list((out / "fields").glob("s_*.vti"))) == 3
+    pd = pytest.importorskip("pandas")
+    pytest.importorskip("pyarrow")
+    table = pd.read_parquet(out / "asperity_signals.parquet")
+    assert list(table.columns) == stones[0] and len(table) == len(stones) - 1
+
+
+@pytest.mark.parametrize("change, field", [
+    ({"end": "-6.0"}, "rolling.end"),
+    ({"step": "0.0"}, "rolling.step"),
+    ({"step": "-1.0"}, "rolling.step"),
+    ({"speed": "0.0"}, "rolling.speed"),
+    ({"speed": "-5.0"}, "rolling.speed"),
+    ({"start": "-20.0"}, "rolling.start"),           # the strip is shorter than footprint + run
+    ({"tyre_radius": None, "footprint": "[49.0, 12.0]"}, "rolling.start"),   # a flat 49 mm tread, 2 mm run
+    ({"tyre_radius": "1e-5"}, "rolling.tyre_radius"),
+    ({"unknown": "1"}, "rolling.unknown"),
+])
+def test_bad_input_exit_2_nothing_written(strip_file, tmp_path, capsys, change, field):
+    out = tmp_path / "run"
+    code = main(["solve", _scene(strip_file, **change), "--out", str(out)])
+    err = capsys.readouterr().err
+    assert code == 2
+    assert len(err.strip().splitlines()) == 1 and err.startswith("error: ")
+    assert field in err
+    assert not out.exists()
+
+
+def test_tyre_that_leaves_no_contact_under_penetration_control(strip_file, tmp_path, capsys):
+    # held 0.01 mm below the strip's highest point on a small tyre: no stone reaches it at the start
+    out = tmp_path / "run"
+    code = main(["solve", _scene(strip_file, load="penetration = 0.001", tyre_radius="5.0"), "--out", str(out)])
+    err = capsys.readouterr().err
+    assert code == 2 and "rolling.tyre_radius" in err and len(err.strip().splitlines()) == 1
+    assert not out.exists()
+
+
+def test_viscoelastic_rolling_through_the_cli(strip_file, tmp_path):
+    out = tmp_path / "run"
+    assert main(["solve", _scene(strip_file, prony="prony = [[20.0, 0.01]]"), "--out", str(out), "--quiet"]) == 0
+    meta = json.loads((out / "rolling.json").read_text())
+    assert meta["body"].endswith("viscoelastic") and meta["material"]["prony"] == [[20.0, 0.01]]
+    with open(out / "signals.csv", newline="") as fh:
+        rows = list(csv.reader(fh))
+    assert rows[0][-1] == "drag_N" and len(rows) == 4
+
+
+def test_viscoelastic_rolling_of_tips_refused(tmp_path, capsys):
+    scene = tmp_path / "tips.toml"
+    scene.write_text("""
+[material]
+E = 10.0
+nu = 0.5
+prony = [[20.0, 0.01]]
+[load]
+total = 5.0
+[[asperity]]
+x = 0.0
+y = 0.0
+R = 5.0
+[rolling]
+start = -2.0
+end = 2.0
+step = 1.0
+speed = 10.0
+footprint = [30.0, 30.0]
+""", encoding="utf-8")
+    out = tmp_path / "run"
+    assert main(["solve", str(scene), "--out", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert "material.prony" in err and len(err.strip().splitlines()) == 1
+    assert not out.exists()
+
+
+def test_rolling_table_round_trip(strip_file):
+    scene = read_scene(_scene(strip_file))
+    again = scene_from_dict(scene_to_dict(scene))
+    assert again.rolling == scene.rolling
+    assert scene.rolling.footprint == (30.0, 12.0)

@@ -1,0 +1,120 @@
+"""``twoscale solve SCENE --out DIR`` on a scene with a ``[rolling]`` table: the road rolls
+under the body; every position is solved and the signals written
+(:mod:`twoscale.io.rolling_outputs`: ``signals.csv``, ``asperity_signals.csv`` (+ Parquet),
+``rolling.json``, ``fields.pvd``).
+
+Exit codes as ``twoscale solve``: 0 every position converged; 1 some did not (the files
+are written all the same, ``rolling.json`` says which); 2 bad input (one ``error: ...``
+line naming the field; nothing written: the files go to a temporary folder renamed to DIR
+at the end).
+"""
+from __future__ import annotations
+
+import argparse
+import math
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+from ..progress import StatusLine
+from .staging import staged_directory
+
+#: VTK frames written at most (every k-th position beyond that: a metre of road at fine
+#: steps would otherwise write gigabytes).
+MAX_FRAMES = 200
+#: Refused options of ``twoscale solve`` on a rolling scene (the run's own solver is fixed).
+_NOT_ROLLING = (("method", "twoscale", "--method"), ("far_tol", None, "--far-tol"), ("block_field", False, "--block-field"))
+
+
+def run_rolling(scene, args: argparse.Namespace) -> int:
+    """Run the rolling scene ``scene`` (read from ``args.scene``); the exit code."""
+    from ..rolling.run import RollingOptions, roll
+    from ..rolling.track import prepare
+
+    try:
+        for key, default, name in _NOT_ROLLING:
+            if getattr(args, key, default) != default:
+                raise ValueError(f"{name} does not apply to a [rolling] scene (each position is a two-scale solve)")
+        options = RollingOptions(iteration=getattr(args, "iteration", "auto"))
+        track = prepare(scene)   # every check before anything is solved or written
+        t0 = time.perf_counter()
+        with StatusLine(quiet=args.quiet) as status:
+            if args.out is None:
+                result = roll(track.scene, options=options, track=track, progress=status)
+            else:
+                with staged_directory(args.out, overwrite=getattr(args, "overwrite", False),
+                                      command=f"solve {args.scene}") as tmp:
+                    result = _roll_into(tmp, scene, track, options, status)
+        wall = time.perf_counter() - t0
+    except ValueError as exc:   # SceneError, an output folder that cannot be used
+        print(f"error: {exc}", file=sys.stderr)
+        return 2
+    if not args.quiet:
+        print(summary(result, args.scene, wall, args.out))
+    if not result.all_converged:
+        bad = int(np.sum(~result.converged))
+        print(f"warning: {bad} of {len(result.shifts)} positions did not converge (rolling.json lists them)",
+              file=sys.stderr)
+        return 1
+    return 0
+
+
+def _roll_into(out: Path, scene, track, options, status):
+    """Roll, writing the VTK frames as the positions come, then the tables."""
+    from .._version import __version__
+    from ..io.rolling_outputs import FrameWriter, write_rolling_tables, write_signal_products
+    from ..rolling.run import roll
+
+    every = max(1, math.ceil(len(track.shifts) / MAX_FRAMES))
+    frames = FrameWriter(out, frame_grid(track), track.times, comment=f"twoscale {__version__}; units mm, MPa, s")
+
+    def on_position(pos) -> None:
+        if pos.index % every == 0:
+            frames(pos)
+
+    result = roll(track.scene, options=options, track=track, on_position=on_position, progress=status)
+    frames.close()
+    write_rolling_tables(result, scene, out)
+    write_signal_products(result, scene, out)
+    return result
+
+
+def frame_grid(track):
+    """The body grid of the VTK frames: the face window, or around a tyre's footprint."""
+    from ..grid import Grid
+    from ..rolling.track import footprint_length
+
+    x0, x1, y0, y1 = track.road.window
+    h = track.h
+    if not math.isfinite(x1 - x0):
+        half = 0.6 * footprint_length(track) + 4 * h
+        x0, x1 = -half, half
+    if not math.isfinite(y1 - y0):
+        box = track.road.box
+        y0, y1 = float(box[:, 2].min()), float(box[:, 3].max())
+    return Grid.covering(x0, x1, y0, y1, h)
+
+
+def summary(result, scene_path: str, wall: float, out) -> str:
+    """What a user reads after a rolling run."""
+    n = len(result.shifts)
+    bad = int(np.sum(~result.converged))
+    lines = [
+        f"twoscale solve {scene_path}: rolling, {result.body}, {result.control} control",
+        f"  positions    {n}, shift {result.shifts[0]:g} to {result.shifts[-1]:g} mm by {result.spec.step:g} mm at "
+        f"{result.spec.speed:g} km/h ({result.times[-1]:.4g} s); cell size {result.h:g} mm",
+        f"  converged    {'all' if bad == 0 else f'{n - bad} of {n}'}",
+        f"  total load   {result.total_load.min():.5g} to {result.total_load.max():.5g} N "
+        f"(mean {result.total_load.mean():.5g})",
+        f"  approach     {result.penetration.min():.5g} to {result.penetration.max():.5g} mm",
+        f"  contact area {result.contact_area.min():.5g} to {result.contact_area.max():.5g} mm2",
+        f"  drag         mean {result.mean_drag:.4g} N (road on body along +x), range {result.drag.min():.4g} "
+        f"to {result.drag.max():.4g} N",
+        f"  time         {wall:.3g} s ({np.mean(result.seconds):.3g} s per position)",
+    ]
+    if out is not None:
+        names = sorted(p.name for p in Path(out).iterdir() if not p.name.startswith("."))
+        lines.append(f"  wrote        {out}/: {', '.join(names)}")
+    return "\n".join(lines)

@@ -1,0 +1,167 @@
+"""What a rolling run returns: a signal per position, the stones' forces, convergence and
+timings, as a frozen :class:`RollingResult` (arrays read-only)."""
+from __future__ import annotations
+
+from collections.abc import Mapping
+from typing import Any
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..results import FrozenMapping, frozen_array
+from .spec import RollingSpec
+
+@dataclass(frozen=True)
+class Position:
+    """One solved position: its index, the stones given (a
+    :class:`~twoscale.rolling.road.Selection`), the solve (a ContactResult), the drag (N)
+    and the time it took (s)."""
+
+    index: int
+    selection: Any
+    result: Any
+    drag: float
+    seconds: float
+
+
+#: Per-position arrays of a :class:`RollingResult` (one entry per position).
+SIGNALS = ("times", "shifts", "total_load", "penetration", "contact_area", "drag", "converged",
+           "seconds", "stones", "iterations")
+
+
+@dataclass(frozen=True)
+class StoneSignals:
+    """Forces of the stones in contact, one row per (position, stone).
+
+    Attributes
+    ----------
+    position : (M,) int array
+        Index of the position (0-based, as in :attr:`RollingResult.shifts`).
+    stone : (M,) int array
+        The stone's number, from 1: its segmentation label + 1 on a height map, its
+        place in the scene's asperity list otherwise.
+    force : (M,) array, N
+    contact_area : (M,) array, mm^2
+    """
+
+    position: np.ndarray
+    stone: np.ndarray
+    force: np.ndarray
+    contact_area: np.ndarray
+
+    def __post_init__(self) -> None:
+        for name in ("position", "stone"):
+            object.__setattr__(self, name, frozen_array(getattr(self, name), np.int64))
+        for name in ("force", "contact_area"):
+            object.__setattr__(self, name, frozen_array(getattr(self, name)))
+
+
+@dataclass(frozen=True)
+class RollingResult:
+    """A rolling run: the road under the body at every position.
+
+    Attributes
+    ----------
+    spec : RollingSpec
+        The run as asked (``shifts`` are the ones solved: on a height map they sit on
+        its lattice, see :func:`twoscale.rolling.run.lattice`).
+    method : str
+        ``"twoscale"`` (the per-position solver).
+    control : str
+        ``"penetration"`` (the approach held, the force varies) or ``"load"``.
+    h : float
+        Cell size, mm (on a height map: its spacing, resampled so that the step is a
+        multiple of it).
+    times, shifts : (n,) arrays, s and mm
+    total_load, penetration, contact_area, drag : (n,) arrays
+        N, mm (below the road's highest point), mm^2, N. ``drag`` is the force the road
+        exerts on the body along +x: the sum over the contact of the pressure times the
+        road's x-slope (the slope of its recess below the highest point), times the cell
+        area; positive when the road pushes the body forward.
+    converged : (n,) bool array
+    seconds : (n,) array
+        Wall-clock time of each position, s.
+    stones : (n,) int array
+        Stones given to the solver at each position (within reach of the footprint).
+    iterations : (n,) int array
+        Micro-step sweeps of each position.
+    messages : tuple of str
+        The solver's message per position ("" when it converged cleanly).
+    asperities : StoneSignals
+        The stones in contact at each position.
+    line_x : (m,) array, mm
+        Body x of the cell columns of ``line_load`` (the lattice of cell ``h``).
+    line_load : (n, m) array, N/mm
+        Pressure summed across y (times the cell size) at each position and body x: the
+        space-time picture in which the stones go through the footprint.
+    dissipated, stored : (n,) arrays, N mm
+        A viscoelastic run's energy dissipated in the branches over the step to each position
+        (the first: over the ramp-in) and stored in the body at each position; empty for an
+        elastic run (nothing dissipated; the stored energy is not computed).
+    timings_s : mapping
+        ``prepare`` (segmentation and the road's tables), ``positions``, ``total``.
+    body : str
+        What the body is (``"half-space"``, ``"block 150 x 100 x 10 mm, bonded base"``).
+    """
+
+    spec: RollingSpec
+    method: str
+    control: str
+    h: float
+    times: np.ndarray
+    shifts: np.ndarray
+    total_load: np.ndarray
+    penetration: np.ndarray
+    contact_area: np.ndarray
+    drag: np.ndarray
+    converged: np.ndarray
+    seconds: np.ndarray
+    stones: np.ndarray
+    iterations: np.ndarray
+    messages: tuple
+    asperities: StoneSignals
+    line_x: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    line_load: np.ndarray = field(default_factory=lambda: np.zeros((0, 0)))
+    dissipated: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    stored: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    timings_s: Mapping = field(default_factory=dict)
+    body: str = ""
+
+    def __post_init__(self) -> None:
+        for name in SIGNALS:
+            dtype = {"converged": bool, "stones": np.int64, "iterations": np.int64}.get(name, float)
+            object.__setattr__(self, name, frozen_array(getattr(self, name), dtype))
+        n = len(self.shifts)
+        for name in SIGNALS:
+            if getattr(self, name).shape != (n,):
+                raise ValueError(f"{name} has shape {getattr(self, name).shape}, expected ({n},)")
+        object.__setattr__(self, "messages", tuple(self.messages))
+        object.__setattr__(self, "line_x", frozen_array(self.line_x))
+        object.__setattr__(self, "line_load", frozen_array(self.line_load))
+        for name in ("dissipated", "stored"):
+            object.__setattr__(self, name, frozen_array(getattr(self, name)))
+        object.__setattr__(self, "timings_s", FrozenMapping(self.timings_s))
+
+    @property
+    def all_converged(self) -> bool:
+        """Whether every position converged."""
+        return bool(np.all(self.converged))
+
+    @property
+    def mean_drag(self) -> float:
+        """Mean of ``drag`` over the positions, N (the rolling resistance the texture
+        causes; zero for an elastic body over a periodic road)."""
+        return float(np.mean(self.drag))
+
+    def drag_work(self) -> float:
+        """Work of the drag over the run, N mm: the trapezoid rule over the shifts (for a
+        viscoelastic run it equals the energy stored plus dissipated from the first
+        position on, to second order in the step)."""
+        d, s = self.drag, self.shifts
+        return float(np.sum(0.5 * (d[1:] + d[:-1]) * np.diff(s)))
+
+    def __repr__(self) -> str:
+        state = "converged" if self.all_converged else f"{int(np.sum(~self.converged))} positions NOT converged"
+        return (f"<RollingResult {len(self.shifts)} positions from {self.shifts[0]:g} to {self.shifts[-1]:g} mm, "
+                f"{self.control} control, load {self.total_load.min():.4g}-{self.total_load.max():.4g} N, "
+                f"mean drag {self.mean_drag:.4g} N, {state}, {self.timings_s.get('total', 0.0):.3g} s>")

@@ -1,0 +1,274 @@
+"""The road at one position: its stones shifted by the position's shift and seen through
+the body's face (a tyre's cylinder, a footprint window).
+
+The strip is segmented once (:class:`Road`); at each position :meth:`Road.stones_at` picks
+the stones within reach of the footprint and returns them as indenters in the body frame:
+a road point at x appears at body x + shift, and the face's height at body x
+(:meth:`~twoscale.rolling.spec.RollingSpec.face`; ``inf`` outside the window) is added to
+the gap. For the basins of a height map the shifted stones look the map up through
+:class:`ShiftedBasins` (no copy of the map); their summit, recess and reach are those of
+the basin plus the face, found on the basin's own samples.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+
+from ..analytic import hertz
+from ..errors import SceneError
+from ..indenters import Asperity
+from ..scene import Scene
+from .spec import RollingSpec
+
+
+@dataclass(frozen=True)
+class Face:
+    """The body's face: the tyre's profile along x and the window outside which the road
+    never touches (body frame, mm; ``inf`` bounds: no window that way)."""
+
+    spec: RollingSpec
+    window: tuple  # (x0, x1, y0, y1)
+
+    def height(self, X, Y) -> np.ndarray:
+        X, Y = np.asarray(X, dtype=float), np.asarray(Y, dtype=float)
+        x0, x1, y0, y1 = self.window
+        inside = (X >= x0) & (X <= x1) & (Y >= y0) & (Y <= y1)
+        return np.where(inside, self.spec.face(X), np.inf)
+
+    def slope(self, x: float) -> float:
+        """d(face)/dx at body x (the tyre's tilt under a stone)."""
+        R = self.spec.tyre_radius
+        if R is None:
+            return 0.0
+        if self.spec.tyre_shape == "parabola":
+            return x / R
+        return x / math.sqrt(max(R * R - x * x, 1e-300))
+
+
+@dataclass(frozen=True, eq=False)
+class ShiftedBasins:
+    """The basins of a height map shifted along x and seen through a face: the ``group``
+    the solvers sample (:func:`twoscale.indenters.surface_on`), as a
+    :class:`~twoscale.surface.indenter.BasinMap` is."""
+
+    base: object          # BasinMap of the whole strip
+    shift: float
+    face: Face
+
+    @property
+    def grid(self):
+        return self.base.grid
+
+    @property
+    def book(self):
+        return self.base.book
+
+    @property
+    def labels(self):
+        return self.base.labels
+
+    @property
+    def n_labels(self) -> int:
+        return self.base.n_labels
+
+    def lookup(self, X, Y, label: int) -> np.ndarray:
+        return self.base.lookup(np.asarray(X) - self.shift, Y, label) + self.face.height(X, Y)
+
+    def union_on(self, X, Y, index: dict):
+        hk, owner = self.base.union_on(np.asarray(X) - self.shift, Y, index)
+        hk = hk + self.face.height(X, Y)
+        return hk, np.where(np.isfinite(hk), owner, -1)
+
+
+@dataclass(frozen=True)
+class ShiftedTip(Asperity):
+    """A sphere or paraboloid of the road shifted by ``shift`` and seen through ``face``;
+    its tip and recess are the first-order ones of the tip on the tilted face."""
+
+    base: Asperity | None = field(default=None, repr=False)
+    shift: float = 0.0
+    face: Face | None = field(default=None, repr=False)
+
+    def height(self, X, Y):
+        return self.base.height(np.asarray(X) - self.shift, Y) + self.face.height(X, Y)
+
+    @property
+    def material_radius(self) -> float:
+        return self.base.material_radius + abs(self.x - self.base.x - self.shift)
+
+    def reach(self, depth: float) -> float:
+        return self.base.reach(depth) + abs(self.x - self.base.x - self.shift)
+
+
+@dataclass(frozen=True)
+class Selection:
+    """The stones of one position: the indenters (body frame) and their numbers in the
+    road (0-based: the segmentation's labels, or the scene's tip order)."""
+
+    stones: tuple
+    numbers: np.ndarray
+    shift: float
+
+
+class Road:
+    """The road of a rolling scene, prepared once: the stones' boxes, and for a height map
+    the basins' samples and the x-slope of the strip (for the drag)."""
+
+    def __init__(self, scene: Scene, face_window: tuple):
+        self.scene = scene
+        self.tips = tuple(scene.asperities)
+        self.spec: RollingSpec = scene.rolling
+        self.window = face_window
+        self.surface = scene.surface
+        z = np.array([a.z for a in self.tips], dtype=float)
+        self.z = z
+        if self.surface is not None:
+            self._prepare_map()
+        else:
+            xy = np.array([[a.x, a.y] for a in self.tips], dtype=float)
+            r = np.array([min(a.material_radius, 1e6) for a in self.tips], dtype=float)
+            self.box = np.column_stack([xy[:, 0] - r, xy[:, 0] + r, xy[:, 1] - r, xy[:, 1] + r])
+
+    def _prepare_map(self) -> None:
+        from ..surface.sphere_fit import basin_cells
+
+        hmap = self.surface.hmap
+        self.basins = self.tips[0].basins
+        self.cells = basin_cells(self.surface.segmentation)
+        X, Y = hmap.grid.centres()
+        self.X, self.Y = X.ravel(), Y.ravel()
+        self.box = np.array([[self.X[c].min(), self.X[c].max(), self.Y[c].min(), self.Y[c].max()]
+                             for c in self.cells])
+        recess = self.basins.recess
+        self.slope_x = _x_slope(recess, hmap.h)
+
+    @property
+    def extent_x(self) -> tuple:
+        """The road's x range (its own frame), mm."""
+        return float(self.box[:, 0].min()), float(self.box[:, 1].max())
+
+    def candidates(self, shift: float, bound: float) -> np.ndarray:
+        """Stones whose box meets the window at ``shift`` and whose lowest possible point
+        lies below ``bound`` (:meth:`lowest`)."""
+        return np.flatnonzero(self.lowest(shift) < bound)
+
+    def lowest(self, shift: float) -> np.ndarray:
+        """A lower bound of each stone's recess + face at ``shift`` (``inf`` outside the
+        window): the summit recess plus the face's lowest height over the stone's box."""
+        x0, x1, y0, y1 = self.window
+        bx0, bx1 = self.box[:, 0] + shift, self.box[:, 1] + shift
+        meets = (bx1 >= x0) & (bx0 <= x1) & (self.box[:, 3] >= y0) & (self.box[:, 2] <= y1)
+        closest = np.clip(0.0, np.maximum(bx0, x0), np.minimum(bx1, x1))
+        return np.where(meets, self.z + self.spec.face(closest), np.inf)
+
+    def stones_at(self, shift: float, bound: float) -> Selection:
+        """The stones that can touch at ``shift`` when the approach is at most ``bound``
+        (mm, below the strip's highest point): none left out can touch, since the body's
+        surface only moves away from the road under pressure."""
+        face = Face(self.spec, self.window)
+        out, numbers = [], []
+        if self.surface is not None:
+            group = ShiftedBasins(self.basins, shift, face)
+            for k in self.candidates(shift, bound):
+                stone = self._map_stone(int(k), shift, face, group)
+                if stone is not None and stone.z < bound:
+                    out.append(stone)
+                    numbers.append(int(k))
+        else:
+            for k in self.candidates(shift, bound):
+                stone = self._tip(self.tips[k], shift, face)
+                if stone.z < bound:
+                    out.append(stone)
+                    numbers.append(int(k))
+        return Selection(tuple(out), np.array(numbers, dtype=np.int64), float(shift))
+
+    def _map_stone(self, k: int, shift: float, face: Face, group: ShiftedBasins):
+        """Basin ``k`` at ``shift``: summit, recess and reach table of recess + face."""
+        a = self.tips[k]
+        cells = self.cells[k]
+        x, y = self.X[cells] + shift, self.Y[cells]
+        rec = self.basins.recess.ravel()[cells] + face.height(x, y)
+        ok = np.isfinite(rec)
+        if not np.any(ok):
+            return None
+        top = int(np.argmin(np.where(ok, rec, np.inf)))
+        xt, yt, zt = float(x[top]), float(y[top]), float(rec[top])
+        fall = rec[ok] - zt
+        r = np.hypot(x[ok] - xt, y[ok] - yt)
+        order = np.argsort(fall, kind="stable")
+        return replace(a, x=xt, y=yt, z=zt, basins=group, extent=float(r.max()),
+                       falls=fall[order], radii=np.maximum.accumulate(r[order]))
+
+    def _tip(self, a: Asperity, shift: float, face: Face) -> ShiftedTip:
+        """A sphere or paraboloid at ``shift``: on the face's tilt g its lowest point moves
+        by -g R along x and sinks by g^2 R / 2 (first order in g)."""
+        xb = a.x + shift
+        g = face.slope(xb)
+        dx = -g * a.R if abs(g) < 0.5 else 0.0
+        z = a.z + float(face.height(np.array(xb), np.array(a.y))) - 0.5 * g * g * a.R * (abs(g) < 0.5)
+        return ShiftedTip(xb + dx, a.y, z, a.R, a.shape, base=a, shift=shift, face=face)
+
+    def road_slope(self, selection: Selection, X, Y, owner) -> np.ndarray:
+        """x-slope of the road's recess (mm/mm) at body points (X, Y) owned by the
+        selection's stones (``owner``: 0-based index into ``selection.stones``, -1 none)."""
+        X, Y, owner = np.asarray(X, dtype=float), np.asarray(Y, dtype=float), np.asarray(owner)
+        out = np.zeros(X.shape)
+        if self.surface is not None:
+            g = self.surface.hmap.grid
+            i = np.rint((X - selection.shift - g.x0) / g.h).astype(np.int64)
+            j = np.rint((Y - g.y0) / g.h).astype(np.int64)
+            inside = (owner >= 0) & (i >= 0) & (i < g.nx) & (j >= 0) & (j < g.ny)
+            out[inside] = self.slope_x[j[inside], i[inside]]
+            return out
+        h = 1e-3 * max(min(a.R for a in self.tips), 1e-9)
+        for n, stone in enumerate(selection.stones):
+            mine = owner == n
+            if np.any(mine):
+                xb, yb = X[mine] - selection.shift, Y[mine]
+                up, down = stone.base.height(xb + h, yb), stone.base.height(xb - h, yb)
+                s = (up - down) / (2.0 * h)
+                out[mine] = np.where(np.isfinite(s), s, 0.0)
+        return out
+
+
+def _x_slope(recess: np.ndarray, h: float) -> np.ndarray:
+    """Central x-differences of the recess (one-sided next to a masked sample or the
+    map's end; 0 where a sample has no neighbour)."""
+    r = np.asarray(recess, dtype=float)
+    left = np.full(r.shape, np.nan)
+    right = np.full(r.shape, np.nan)
+    left[:, 1:], right[:, :-1] = r[:, :-1], r[:, 1:]
+    with np.errstate(invalid="ignore"):
+        central = (right - left) / (2.0 * h)
+        fwd, back = (right - r) / h, (r - left) / h
+    out = np.where(np.isfinite(central), central, np.where(np.isfinite(fwd), fwd, np.where(np.isfinite(back), back, 0.0)))
+    return np.where(np.isfinite(r), out, 0.0)
+
+
+def hertz_level(stones, E_star: float, load: float) -> float:
+    """The approach (mm) at which the stones, each alone a Hertz contact of its radius,
+    carry ``load`` N: a lower estimate of the real one (interaction asks for more)."""
+    from scipy.optimize import brentq
+
+    R = np.array([s.R for s in stones], dtype=float)
+    z = np.array([s.z for s in stones], dtype=float)
+    lo = float(z.min())
+    hi = lo + float(hertz.penetration(R[np.argmin(z)], load, E_star)) + 1e-12
+
+    def excess(d: float) -> float:
+        return float(np.sum(hertz.load(R, np.maximum(d - z, 0.0), E_star))) - load
+
+    return float(brentq(excess, lo, hi, xtol=1e-12))
+
+
+def check_contact(road: Road, bound: float, shift: float) -> None:
+    """Refuse a scene under penetration control in which nothing touches at the first
+    position (a tyre radius or a window that leaves no contact)."""
+    sel = road.stones_at(shift, bound)
+    if len(sel.stones) == 0:
+        if road.spec.tyre_radius is not None:
+            raise SceneError(f"rolling.tyre_radius = {road.spec.tyre_radius!r} mm leaves no contact at the first "
+                             f"position (shift {shift:g} mm, approach {bound:g} mm below the road's highest point)")
+        raise SceneError(f"load.penetration = {bound!r} mm: nothing touches at the first position (shift {shift:g} mm)")

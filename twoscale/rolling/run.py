@@ -1,0 +1,289 @@
+"""The rolling loop: every position of the track solved as a static contact of the road at
+that shift, warm-started from the previous position.
+
+Per position (:func:`solve_position`, the one call a persistent solver object can take
+over): the stones within reach of the footprint (:meth:`~twoscale.rolling.road.Road.stones_at`)
+go to the two-scale solver (:func:`twoscale.driver.solve_twoscale`) with the previous
+position's macro forces, approach and tilt as the start (mapped stone by stone:
+:meth:`~twoscale.macro.start.MacroStart.from_result`). The answer is the static solve's to
+its tolerance; only the start differs. Under load control the approach is not known
+before the solve: the stones are taken below a bound on it, and the position is solved
+again with a larger bound when the solved approach exceeds it (never needed when the
+bound holds: no stone left out can touch).
+
+A viscoelastic material (Prony branches) runs through
+:func:`twoscale.viscoelastic.moving.solve_moving` instead (its memory carried in the body
+frame): :func:`twoscale.rolling.viscous.roll_viscoelastic`.
+"""
+from __future__ import annotations
+
+import dataclasses
+import time
+from dataclasses import dataclass
+from typing import Callable
+
+import numpy as np
+
+from ..macro.start import MacroStart
+from ..results import ContactResult
+from .result import Position, RollingResult, StoneSignals
+from .road import Selection, hertz_level
+from .track import Track, prepare
+
+#: Load control: the stones are taken below ``d_prev + BOUND_GROWTH (d_prev - z_low)``.
+BOUND_GROWTH = 0.5
+#: Re-solves of one position allowed when the approach leaves its bound.
+MAX_REBOUNDS = 4
+
+
+@dataclass(frozen=True)
+class RollingOptions:
+    """How the positions are solved.
+
+    Parameters
+    ----------
+    tol : float, default 1e-6
+        The two-scale solver's tolerance (eq. 9: relative change of the pressure).
+    iteration : str, default "auto"
+        The micro step's iteration (:func:`twoscale.driver.solve_twoscale`).
+    warm : bool, default True
+        Start each position from the previous one (False: every position from cold, for
+        comparison; the answers agree to the tolerance).
+    pressure_start : bool, default True
+        With ``warm``: also start the micro step from the previous pressure moved with
+        the road (else the macro step only).
+    h : float, optional
+        Cell size for a scene of tips, mm (default: the scene's rule); a height map's
+        spacing otherwise.
+    """
+
+    tol: float = 1e-6
+    iteration: str = "auto"
+    warm: bool = True
+    pressure_start: bool = True
+    h: float | None = None
+
+
+def solve_position(track: Track, selection: Selection, *, start=None, options: RollingOptions) -> ContactResult:
+    """The static solve of the road at one position (the stones of ``selection``), from
+    ``start`` (a :class:`~twoscale.warm_start.WarmStart` or None): the one call per position.
+
+    :class:`twoscale.ContactSolver` keeps the same start between solves of a Scene; a
+    position's stones are shifted basins of the strip (not a Scene of their own), so the
+    driver builds the start itself and calls the two-scale solver directly."""
+    from ..driver import solve_twoscale
+
+    scene = track.scene
+    return solve_twoscale(track.provider, selection.stones, h=track.h, penetration=scene.penetration,
+                          total_load=scene.total_load, tol=options.tol, iteration=options.iteration, start=start)
+
+
+def drag_of(track: Track, selection: Selection, result: ContactResult) -> float:
+    """Force the road exerts on the body along +x, N: the sum over the pressure fields'
+    cells of pressure x the road's x-slope x the cell area."""
+    total = 0.0
+    for f in result.fields:
+        X, Y = f.grid.centres()
+        slope = track.road.road_slope(selection, X, Y, f.owner)
+        total += float(np.sum(f.pressure * slope)) * f.grid.h ** 2
+    return total
+
+
+def _start(previous: Position | None, selection: Selection, options: RollingOptions):
+    """The previous position's answer as this one's start (:func:`twoscale.warm_start.warm_start`),
+    stone by stone: the macro forces, and the pressure around each stone moved with the
+    road (by the step: the previous tips are given where the stones were, one step back
+    from where they are now); the approach moved with the lowest stone, so that the start
+    keeps the local approach (a stone rising under a tyre's face would otherwise start out
+    of contact)."""
+    if previous is None or not options.warm or not previous.selection.stones:
+        return None
+    from ..warm_start import WarmStart, warm_start
+
+    where = {int(n): k for k, n in enumerate(previous.selection.numbers)}
+    index = np.array([where.get(int(n), -1) for n in selection.numbers], dtype=np.int64)
+    tips = np.array([[s.x, s.y] for s in previous.selection.stones], dtype=float)
+    moved = selection.shift - previous.selection.shift
+    for m in np.flatnonzero(index >= 0):   # where the road put each kept stone's tip, one step back
+        stone = selection.stones[m]
+        tips[index[m]] = (stone.x - moved, stone.y)
+    h = previous.result.fields[0].grid.h if previous.result.fields else 0.0
+    ws = warm_start(previous.result, tips, len(selection.stones), h or 1.0, index=index, pressure=options.pressure_start)
+    low_then = min(s.z for s in previous.selection.stones)
+    low_now = min(s.z for s in selection.stones)
+    macro = MacroStart(ws.macro.forces, previous.result.penetration + (low_now - low_then), ws.macro.tilt)
+    return WarmStart(macro, ws.micro)
+
+
+def _depth(position: Position | None, h: float) -> float:
+    """The previous position's local approach (approach less its lowest stone's recess), mm."""
+    if position is None or not position.selection.stones:
+        return h
+    low = min(s.z for s in position.selection.stones)
+    return max(position.result.penetration - low, h)
+
+
+def _bound(track: Track, shift: float, previous: Position | None) -> float:
+    """Largest approach the stones are taken for (module docstring): the held approach, or
+    the previous approach moved with this position's lowest possible stone, with room."""
+    scene = track.scene
+    if track.control == "penetration":
+        return float(scene.penetration)
+    if previous is not None:
+        low = float(np.min(track.road.lowest(shift), initial=np.inf))
+        return max(previous.result.penetration, low + _depth(previous, track.h)) \
+            + BOUND_GROWTH * _depth(previous, track.h)
+    wide = _all_stones(track, shift)
+    d = hertz_level(wide.stones, scene.material.E_star, scene.total_load)
+    low = min(s.z for s in wide.stones)
+    return d + 2.0 * max(d - low, track.h)
+
+
+def _all_stones(track: Track, shift: float) -> Selection:
+    """Every stone under the footprint at ``shift`` (load control: something must be)."""
+    wide = track.road.stones_at(shift, np.inf)
+    if not wide.stones:
+        from ..errors import SceneError
+
+        raise SceneError(f"rolling: no stone of the road lies under the footprint at shift {shift:g} mm "
+                         f"(check rolling.start, rolling.end and rolling.footprint against the road)")
+    return wide
+
+
+def step(track: Track, index: int, previous: Position | None, options: RollingOptions) -> Position:
+    """Solve position ``index`` (module docstring)."""
+    t0 = time.perf_counter()
+    shift = float(track.shifts[index])
+    bound = _bound(track, shift, previous)
+    selection = track.road.stones_at(shift, bound)
+    if not selection.stones and track.control == "penetration":   # nothing within reach of the body here
+        return Position(index, selection, _no_contact(track), 0.0, time.perf_counter() - t0)
+    if not selection.stones:
+        bound = min(s.z for s in _all_stones(track, shift).stones) + (1 + BOUND_GROWTH) * _depth(previous, track.h)
+        selection = track.road.stones_at(shift, bound)
+    for attempt in range(MAX_REBOUNDS + 1):
+        if attempt:
+            selection = track.road.stones_at(shift, bound)
+        start = _start(previous, selection, options)
+        result = solve_position(track, selection, start=start, options=options)
+        if not result.converged and start is not None:   # a start too far off: the cold solve decides
+            result = solve_position(track, selection, start=None, options=options)
+        if track.control == "penetration" or result.penetration < bound:
+            break
+        bound = result.penetration + BOUND_GROWTH * max(result.penetration - min(s.z for s in selection.stones),
+                                                        track.h)
+    else:   # the approach kept passing the bound: stones left out might touch
+        result = dataclasses.replace(result, converged=False, message=(
+            f"{result.message}; " if result.message else "") + f"the approach {result.penetration:.6g} mm still "
+            f"passes the bound {bound:.6g} mm the stones were taken for after {MAX_REBOUNDS} enlargements")
+    return Position(index, selection, result, drag_of(track, selection, result), time.perf_counter() - t0)
+
+
+def _no_contact(track: Track) -> ContactResult:
+    """The answer where no stone can touch: no load, nothing to solve."""
+    from ..results import summarise
+
+    return ContactResult(method="twoscale", fields=(), penetration=float(track.scene.penetration), tilt=None,
+                         total_load=0.0, asperities=summarise((), 0), converged=True,
+                         message="", timings_s={"total": 0.0})
+
+
+def roll(scene, *, options: RollingOptions | None = None, provider=None,
+         on_position: Callable[[Position], None] | None = None, progress=None,
+         track: Track | None = None) -> RollingResult:
+    """Roll the road of ``scene`` (a :class:`~twoscale.scene.Scene` with ``rolling``) under its body.
+
+    Parameters
+    ----------
+    scene : Scene
+        With ``rolling`` (:class:`~twoscale.rolling.spec.RollingSpec`), a ``surface`` (the
+        road strip) or asperities, and the load: ``penetration`` (mm below the road's
+        highest point, held) or ``total_load`` (N, held).
+    options : RollingOptions, optional
+    provider : InfluenceProvider, optional
+        A prebuilt body (default: the scene's).
+    on_position : callable, optional
+        Called with each solved :class:`Position` (e.g. to write a VTK frame).
+    progress : callable, optional
+        Called with a short text per position.
+    track : Track, optional
+        The scene already prepared (:func:`twoscale.rolling.track.prepare`: checked,
+        segmented), so that a caller that checked it first does not prepare it twice.
+
+    Returns
+    -------
+    RollingResult
+    """
+    options = options or RollingOptions()
+    t0 = time.perf_counter()
+    track = track if track is not None else prepare(scene, h=options.h, provider=provider)
+    if track.scene.material.viscoelastic:   # the memory in the body: the moving-indenter stepping
+        from .viscous import roll_viscoelastic
+
+        return roll_viscoelastic(track, tol=options.tol, progress=progress, on_position=on_position)
+    t1 = time.perf_counter()
+    rows, signals, lines, previous = [], [], [], None
+    for k in range(len(track.shifts)):
+        pos = step(track, k, previous, options)
+        if on_position is not None:
+            on_position(pos)
+        if progress is not None:
+            progress(f"position {k + 1} of {len(track.shifts)}: {pos.result.total_load:.4g} N, {pos.seconds:.2f} s")
+        rows.append(_row(pos))
+        signals.append(_stone_rows(pos))
+        lines.append(_line_load(pos.result))
+        previous = pos
+    t2 = time.perf_counter()
+    return _result(track, rows, signals, lines, {"prepare": t1 - t0, "positions": t2 - t1, "total": t2 - t0})
+
+
+def _row(pos: Position) -> tuple:
+    r = pos.result
+    return (r.total_load, r.penetration, r.contact_area, pos.drag, r.converged, pos.seconds,
+            len(pos.selection.stones), int(r.iterations.get("micro", 0)), r.message)
+
+
+def _stone_rows(pos: Position) -> np.ndarray:
+    a = pos.result.asperities
+    touching = np.flatnonzero(a.contact_areas > 0)
+    return np.column_stack([np.full(len(touching), pos.index), pos.selection.numbers[touching] + 1,
+                            a.forces[touching], a.contact_areas[touching]])
+
+
+def _line_load(result: ContactResult) -> tuple[int, np.ndarray]:
+    """Pressure summed across y (x the cell size), N/mm, per cell column: (first column's
+    lattice index round(x / h), values)."""
+    if not result.fields:
+        return 0, np.zeros(0)
+    h = result.fields[0].grid.h
+    starts = [int(round(f.grid.x0 / h)) for f in result.fields]
+    i0 = min(starts)
+    out = np.zeros(max(s + f.grid.nx for s, f in zip(starts, result.fields)) - i0)
+    for s, f in zip(starts, result.fields):
+        out[s - i0:s - i0 + f.grid.nx] += f.pressure.sum(axis=0) * h
+    return i0, out
+
+
+def _lines(lines: list, h: float) -> tuple[np.ndarray, np.ndarray]:
+    """The line loads of every position on one lattice of columns."""
+    used = [(i0, v) for i0, v in lines if v.size]
+    if not used:
+        return np.zeros(0), np.zeros((len(lines), 0))
+    lo = min(i0 for i0, _ in used)
+    hi = max(i0 + v.size for i0, v in used)
+    out = np.zeros((len(lines), hi - lo))
+    for k, (i0, v) in enumerate(lines):
+        out[k, i0 - lo:i0 - lo + v.size] = v
+    return (lo + np.arange(hi - lo)) * h, out
+
+
+def _result(track: Track, rows: list, signals: list, lines: list, timings: dict) -> RollingResult:
+    cols = list(zip(*rows))
+    line_x, line_load = _lines(lines, track.h)
+    stones = np.concatenate(signals) if signals else np.zeros((0, 4))
+    return RollingResult(
+        spec=track.spec, method="twoscale", control=track.control, h=track.h, times=track.times,
+        shifts=track.shifts, total_load=cols[0], penetration=cols[1], contact_area=cols[2], drag=cols[3],
+        converged=cols[4], seconds=cols[5], stones=cols[6], iterations=cols[7], messages=cols[8],
+        asperities=StoneSignals(stones[:, 0], stones[:, 1], stones[:, 2], stones[:, 3]),
+        line_x=line_x, line_load=line_load, timings_s=timings, body=track.body)

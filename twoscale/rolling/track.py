@@ -1,0 +1,182 @@
+"""The track of a rolling scene, prepared once: the body, the face window, the road on its
+lattice, the control, and the checks that refuse a run before it starts.
+
+:func:`prepare` turns a :class:`~twoscale.scene.Scene` with ``rolling`` into a
+:class:`Track`: on a height map the strip is resampled (when the step is not a multiple
+of its spacing) and segmented once; the shifts are put on the map's lattice; the strip
+must be longer than the footprint plus the run; under penetration control something must
+touch at the first position.
+"""
+from __future__ import annotations
+
+import dataclasses
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..errors import SceneError
+from ..scene import Scene
+from .road import Road, check_contact
+from .spec import RollingSpec
+
+#: Factor on the Hertz line-contact estimate of a tyre's footprint length under load
+#: control (the texture's tips carry the load on less than the whole face, so the real
+#: footprint is a little longer than the smooth one).
+FOOTPRINT_MARGIN = 1.5
+
+
+@dataclass(frozen=True, eq=False)
+class Track:
+    """Everything the positions share (see the module docstring)."""
+
+    scene: Scene
+    spec: RollingSpec
+    provider: object
+    road: Road
+    h: float
+    shifts: np.ndarray
+    times: np.ndarray
+    control: str
+    body: str
+
+
+def lattice(spec: RollingSpec, spacing: float) -> tuple[float, np.ndarray]:
+    """The spacing (mm) the road is sampled at, at most ``spacing``, of which the step is a
+    whole multiple (``step / ceil(step / spacing)``), and the shifts on its lattice (the
+    start rounded to the nearest multiple of it: a road point at x then always meets a
+    cell centre)."""
+    n = max(1, math.ceil(spec.step / spacing * (1 - 1e-9)))
+    h = spec.step / n
+    start = round(spec.start / h) * h
+    return h, start + spec.step * np.arange(spec.count)
+
+
+def prepare(scene: Scene, *, h: float | None = None, provider=None) -> Track:
+    """The :class:`Track` of ``scene`` (a scene with ``rolling``); ``h``: the cell size for
+    a scene of tips (default :func:`twoscale.scene.default_h` of the scene unshifted),
+    ignored on a height map (its spacing, made a divisor of the step)."""
+    from ..resolution import default_h
+
+    spec = scene.rolling
+    if not isinstance(spec, RollingSpec):
+        raise SceneError(f"rolling is missing: the scene has no [rolling] table (got {spec!r})")
+    if scene.material.viscoelastic:
+        _viscoelastic_available()
+    if scene.surface is not None:
+        cell, shifts = lattice(spec, scene.surface.h)
+        if not math.isclose(cell, scene.surface.h, rel_tol=1e-9):
+            scene = dataclasses.replace(scene, surface=scene.surface.at(cell, h_name="rolling.step"), h=cell,
+                                        asperities=())
+        cell = scene.surface.h
+    else:
+        cell = float(h) if h is not None else default_h(dataclasses.replace(scene, rolling=None))
+        shifts = spec.shifts()
+    provider = provider if provider is not None else scene.provider()
+    window = face_window(scene, spec, provider, cell)
+    road = Road(scene, window)
+    control = "penetration" if scene.penetration is not None else "load"
+    track = Track(scene, spec, provider, road, cell, shifts, (shifts - shifts[0]) / spec.speed_mm_s, control,
+                  body_label(scene))
+    if spec.tyre_radius is not None and tyre_contact_length(track) < 2.0 * cell:
+        raise SceneError(f"rolling.tyre_radius = {spec.tyre_radius!r} mm leaves no contact wider than a cell "
+                         f"(footprint about {tyre_contact_length(track):.2g} mm at h = {cell:g} mm)")
+    if scene.surface is not None:
+        check_length(track)
+    if control == "penetration":
+        check_contact(road, scene.penetration, float(shifts[0]))
+    return track
+
+
+def _viscoelastic_available() -> None:
+    """A viscoelastic material rolls through :func:`twoscale.viscoelastic.moving.solve_moving`
+    (:mod:`twoscale.rolling.viscous`); without it, refuse in one line naming the field
+    rather than roll the material as if it were elastic."""
+    import importlib.util
+
+    if importlib.util.find_spec("twoscale.viscoelastic.moving") is None:
+        raise SceneError("material.prony with [rolling]: the viscoelastic rolling (twoscale.viscoelastic.moving) "
+                         "is not in this version; give an elastic material (no prony)")
+
+
+def face_window(scene: Scene, spec: RollingSpec, provider, h: float) -> tuple:
+    """The body's face window (x0, x1, y0, y1), mm, body frame: the footprint when given,
+    else a block's region, else unbounded. On a block the window stays inside the region
+    the block answers for (its top face less one correction spacing) by a stone's patch
+    (:func:`block_margin`), so that no patch reaches beyond it."""
+    domain = provider.domain()
+    if domain is not None:
+        m = block_margin(scene, h)
+        domain = (domain[0] + m, domain[1] - m, domain[2] + m, domain[3] - m)
+        if domain[1] <= domain[0] or domain[3] <= domain[2]:
+            raise SceneError(f"influence.size: the block answers for too small a region for the road's stones "
+                             f"(patches up to {m:.3g} mm around a summit)")
+    if spec.footprint is not None:
+        L, W = spec.footprint
+        box = (-L / 2, L / 2, -W / 2, W / 2)
+        if domain is not None:
+            box = (max(box[0], domain[0]), min(box[1], domain[1]), max(box[2], domain[2]), min(box[3], domain[3]))
+        return box
+    if domain is not None:
+        return tuple(float(v) for v in domain)
+    if spec.tyre_radius is None:
+        raise SceneError("rolling.footprint is missing: a flat face on the half-space needs the footprint "
+                         "[length, width] (mm) that touches the road (or give rolling.tyre_radius)")
+    return (-math.inf, math.inf, -math.inf, math.inf)
+
+
+def block_margin(scene: Scene, h: float) -> float:
+    """How far a stone's patch may reach beyond the window, mm: the patch margin (1.3) times
+    the largest stone's reach from its summit, plus two cells (a map's stones; 0 for tips,
+    whose patches :func:`twoscale.api.check_domain` sizes from their contacts)."""
+    from ..resolution import PATCH_MARGIN
+
+    if scene.surface is None:
+        return 0.0
+    extent = max(float(getattr(a, "extent", 0.0)) for a in scene.asperities)
+    return PATCH_MARGIN * extent + 2.0 * h
+
+
+def footprint_length(track: Track) -> float:
+    """Length of the footprint along x, mm: the window's, or the tyre's estimated contact
+    when shorter (:func:`tyre_contact_length`)."""
+    x0, x1, _, _ = track.road.window
+    if track.spec.tyre_radius is None:
+        return x1 - x0
+    return min(x1 - x0, tyre_contact_length(track))
+
+
+def tyre_contact_length(track: Track) -> float:
+    """The tyre's estimated contact length along x, mm: under penetration control where the
+    face is below the approach; under load control the Hertz line contact of the load over
+    the window's (or the strip's) width, times :data:`FOOTPRINT_MARGIN`."""
+    _, _, y0, y1 = track.road.window
+    spec, scene = track.spec, track.scene
+    R = spec.tyre_radius
+    if track.control == "penetration":
+        depth = max(scene.penetration - float(track.road.z.min()), 0.0)
+        return 2.0 * math.sqrt(depth * (2.0 * R - depth)) if depth < R else 2.0 * R
+    width = y1 - y0 if math.isfinite(y1 - y0) else float(track.road.box[:, 3].max() - track.road.box[:, 2].min())
+    a = math.sqrt(4.0 * scene.total_load * R / (math.pi * scene.material.E_star * width))
+    return 2.0 * FOOTPRINT_MARGIN * a
+
+
+def check_length(track: Track) -> None:
+    """Refuse a strip shorter than the footprint plus the run."""
+    rx0, rx1 = track.road.extent_x
+    L = footprint_length(track)
+    s0, s1 = float(track.shifts[0]), float(track.shifts[-1])
+    if rx0 + s1 > -L / 2 or rx1 + s0 < L / 2:
+        raise SceneError(
+            f"surface: the strip is {rx1 - rx0:.6g} mm long along x, shorter than the footprint (about {L:.4g} mm) "
+            f"plus the run from rolling.start = {track.spec.start!r} to rolling.end = {track.spec.end!r} mm "
+            f"(a road point at x appears at body x + shift: the strip must cover the footprint at every shift)")
+
+
+def body_label(scene: Scene) -> str:
+    """The body in words, for titles and ``rolling.json``."""
+    inf = scene.influence
+    if inf["kind"] == "block":
+        Lx, Ly, t = inf["size"]
+        return f"block {Lx:g} x {Ly:g} x {t:g} mm, {inf['base']} base"
+    return "half-space"

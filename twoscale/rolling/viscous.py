@@ -1,0 +1,146 @@
+"""A viscoelastic body under a rolling road: the track handed to the moving-indenter stepping
+of :func:`twoscale.viscoelastic.moving.solve_moving` (the memory lives in the body, on a
+grid fixed in it; the road moves under it), its answer read back as a
+:class:`~twoscale.rolling.result.RollingResult`.
+
+:class:`RoadIndenter` is the road as the stepping asks for it
+(:class:`twoscale.viscoelastic.moving_indenter.MovingIndenter`): the stones that pass under
+the face window over the run, in a fixed order, each shifted and seen through the face as
+the elastic run sees them (:meth:`~twoscale.rolling.road.Road.stones_at`); a stone with no
+sample inside the window at a shift stays in the list far from the body. The memory grid is
+the face window (its edges open: the road touches the body's edge there); the body is the
+scene's at the relaxed modulus; each position is one time step, ``dt = step / speed``,
+solved by the two-scale method. A height map's strip only (its stones are looked up
+through the shared basins, which carry the face).
+"""
+from __future__ import annotations
+
+import dataclasses
+import math
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..errors import SceneError
+from ..grid import Grid
+from .result import Position, RollingResult, StoneSignals
+from .road import Face, Road, Selection, ShiftedBasins
+from .track import Track, footprint_length
+
+#: Recess (mm) of a stone that has no sample inside the window at a shift: out of reach.
+FAR = 1e3
+
+
+@dataclass(eq=False)
+class RoadIndenter:
+    """The road's stones ``numbers`` (0-based) moving under the face (module docstring)."""
+
+    road: Road
+    numbers: np.ndarray
+    _last: tuple = field(default=(None, ()), repr=False)
+
+    @property
+    def n_asperities(self) -> int:
+        return len(self.numbers)
+
+    def tips(self, shift: float) -> tuple:
+        if self._last[0] == shift:
+            return self._last[1]
+        road = self.road
+        face = Face(road.spec, road.window)
+        group = ShiftedBasins(road.basins, shift, face)
+        out = []
+        for k in self.numbers:
+            stone = road._map_stone(int(k), shift, face, group)
+            if stone is None:
+                a = road.tips[int(k)]
+                stone = dataclasses.replace(a, x=a.x + shift, z=FAR, basins=group)
+            out.append(stone)
+        self._last = (shift, tuple(out))
+        return self._last[1]
+
+    def surface(self, grid: Grid, shift: float):
+        from ..indenters import surface_on
+
+        tips = self.tips(shift)
+        surf = surface_on(grid, tips)
+        X, Y = grid.centres()
+        slope = self.road.road_slope(Selection(tips, self.numbers, shift), X, Y, surf.owner)
+        return surf, slope
+
+    def face_on(self, grid: Grid) -> np.ndarray:
+        return np.zeros(grid.shape)   # the face is in the stones' heights already
+
+
+def run_stones(track: Track) -> np.ndarray:
+    """The stones (0-based) whose box meets the face window at some shift of the run."""
+    x0, x1, y0, y1 = track.road.window
+    box = track.road.box
+    s0, s1 = float(track.shifts[0]), float(track.shifts[-1])
+    meets = (box[:, 1] + s1 >= x0) & (box[:, 0] + s0 <= x1) & (box[:, 3] >= y0) & (box[:, 2] <= y1)
+    return np.flatnonzero(meets)
+
+
+def memory_grid(track: Track) -> Grid:
+    """The face window (a tyre without one: 0.6 of its estimated footprint each way, across
+    the strip) on the lattice of the cell size."""
+    x0, x1, y0, y1 = track.road.window
+    if not math.isfinite(x1 - x0):
+        half = 0.6 * footprint_length(track) + 4 * track.h
+        x0, x1 = -half, half
+    if not math.isfinite(y1 - y0):
+        y0, y1 = float(track.road.box[:, 2].min()), float(track.road.box[:, 3].max())
+    return Grid.covering(x0, x1, y0, y1, track.h)
+
+
+def roll_viscoelastic(track: Track, *, tol: float = 1e-6, progress=None, on_position=None) -> RollingResult:
+    """Roll ``track`` (a material with Prony branches) through the moving-indenter stepping."""
+    from ..viscoelastic.moving import MovingOptions, solve_moving
+
+    if track.scene.surface is None:
+        raise SceneError("material.prony with [rolling] runs on a [surface] strip; give the road as a height map")
+    t0 = time.perf_counter()
+    scene = track.scene
+    numbers = run_stones(track)
+    indenter = RoadIndenter(track.road, numbers)
+    provider = dataclasses.replace(scene, material=scene.material.relaxed(), rolling=None, surface=None,
+                                   asperities=(_stand_in(),)).provider()
+    moving = solve_moving(scene.material, provider, indenter, track.shifts, speed=track.spec.speed_mm_s,
+                          grid=memory_grid(track), penetration=scene.penetration, total_load=scene.total_load,
+                          options=MovingOptions(method="twoscale", solver={"tol": tol}, open_edges=True),
+                          progress=progress, on_step=_positions(numbers, on_position))
+    return _result(track, numbers, moving, time.perf_counter() - t0)
+
+
+def _stand_in():
+    """A tip for the body-only scene the relaxed provider is built from."""
+    from ..indenters import Asperity
+
+    return Asperity(0.0, 0.0, 0.0, 1.0)
+
+
+def _positions(numbers: np.ndarray, on_position):
+    """``solve_moving``'s ``on_step`` calling ``on_position`` with a
+    :class:`~twoscale.rolling.run.Position` (None without it)."""
+    if on_position is None:
+        return None
+    def on_step(n: int, shift: float, result, summary=None) -> None:
+        on_position(Position(n, Selection((), numbers, shift), result, float("nan"), 0.0))
+
+    return on_step
+
+
+def _result(track: Track, numbers: np.ndarray, moving, seconds: float) -> RollingResult:
+    forces, areas = np.asarray(moving.forces), np.asarray(moving.tip_areas)
+    pos, k = np.nonzero(areas > 0)
+    converged = np.asarray(moving.step_converged, dtype=bool)
+    return RollingResult(
+        spec=track.spec, method="twoscale", control=track.control, h=track.h, times=moving.times,
+        shifts=moving.shifts, total_load=moving.total_load, penetration=moving.penetration,
+        contact_area=moving.contact_area, drag=moving.drag, converged=converged, seconds=moving.seconds,
+        stones=np.full(len(track.shifts), len(numbers)), iterations=moving.iterations,
+        messages=tuple("" if c else (moving.message or "did not converge") for c in converged),
+        asperities=StoneSignals(pos, numbers[k] + 1, forces[pos, k], areas[pos, k]),
+        dissipated=moving.dissipated, stored=moving.stored,
+        timings_s={"prepare": 0.0, "positions": seconds, "total": seconds}, body=track.body + ", viscoelastic")
