@@ -3,6 +3,7 @@ resampled to, and the refusals that name the field."""
 from __future__ import annotations
 
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -63,3 +64,15 @@ def test_lattice_makes_the_step_a_multiple(step, spacing, cell):
 def test_refusals_name_the_field(table, field):
     with pytest.raises(SceneError, match=field.replace(".", r"\.")):
         rolling_from_table(table)
+
+
+def test_a_rolling_scene_is_not_solved_as_one_static_position_by_solve():
+    import dataclasses
+
+    import twoscale
+    from twoscale.io.scene_file import read_scene
+
+    scene = read_scene(Path(__file__).resolve().parents[1] / "examples" / "rolling" / "tyre.toml")
+    with pytest.raises(ValueError, match=r"twoscale.rolling.roll\(scene\)"):
+        twoscale.solve(scene)
+    assert dataclasses.replace(scene, rolling=None).rolling is None

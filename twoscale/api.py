@@ -245,6 +245,10 @@ def solve(problem: Any, *, method: str | Callable[..., ContactResult] = "twoscal
     if provider is not None and provider_options:
         raise ValueError(f"provider_options apply to a provider built here, not to the one passed "
                          f"(got {sorted(provider_options)!r})")
+    if getattr(scene, "rolling", None) is not None:
+        raise ValueError("this scene has a [rolling] table: run it with twoscale.rolling.roll(scene) (or "
+                         "'twoscale solve SCENE --out DIR'); twoscale.solve answers one static position "
+                         "(dataclasses.replace(scene, rolling=None) for the road at rest)")
     if scene.history is not None:  # a load history in time (viscoelastic or elastic): a HistoryResult
         from .viscoelastic.solve import solve_history
 
