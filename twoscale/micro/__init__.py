@@ -22,7 +22,8 @@ Read it in this order:
 from .driver import Attempt, MicroPlan, run_micro
 from .patches import Patch, build_patches, grow_patch
 from .policy import Choice, choose
-from .solve import MicroResult, solve_micro
+from .result import MicroResult
+from .solve import solve_micro
 
 __all__ = ["Attempt", "Choice", "MicroPlan", "MicroResult", "Patch", "build_patches", "choose", "grow_patch",
            "run_micro", "solve_micro"]

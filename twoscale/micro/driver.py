@@ -23,7 +23,8 @@ from ..influence.base import InfluenceProvider
 from .patches import TipTable, build_patches
 from .policy import ITERATIONS, UNION_MIN_COVERAGE, Choice, choose
 from .start import MicroStart
-from .solve import EXACT_FAR_TOL, MicroResult, solve_micro
+from .result import MicroResult
+from .solve import EXACT_FAR_TOL, solve_micro
 from .strategies import BlockGaussSeidel, Exact, FarField, MicroContext, TwoLevel, UnionCG
 from .union import box_of
 from .workset import tip_approaches

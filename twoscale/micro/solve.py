@@ -1,10 +1,9 @@
-"""The block iterations of the micro step: eq. 7, then block Gauss-Seidel (eq. 8-9) with
-sensitivity corrections of the load and tilt, or its two-level variant; patch growth in
-:mod:`.workset`. :mod:`.driver` chooses between these and the union CG (:mod:`.union`)."""
+"""The block iterations of the micro step, set up: the patches, their blocks and coupling
+(:mod:`.workset`), the first pressure (eq. 7, or a previous solve's, :mod:`.start`), merged
+blocks; then the loop of :mod:`.block_iterations` (block Gauss-Seidel, eq. 8-9, or its
+two-level variant). :mod:`.driver` chooses between these and the union CG (:mod:`.union`)."""
 from __future__ import annotations
 
-import math
-from dataclasses import dataclass, field
 from typing import Sequence
 
 import numpy as np
@@ -13,67 +12,14 @@ from ..analytic import hertz
 from ..grid import Grid
 from ..indenters import Asperity
 from ..influence.base import InfluenceProvider
-from ..stopping import StopReason
 from .blocks import scatter
 from .localblock import LocalBlock
-from .constraints import block_coordinates, newton_step, resultants, rhs_derivatives
-from .gauss_seidel import gauss_seidel, linear_gauss_seidel
 from .local import initial_pressures
 from .pk_stack import BlockStacks
 from .patches import TipTable, build_patches, merge_overlapping, transfer
-from .twolevel import two_level
-from .workset import WorkingSet, edges_loaded_any, grow, heights, tip_approaches
-
-
-@dataclass(frozen=True)
-class MicroResult:
-    """Pressure on the patches after the micro step.
-
-    Attributes
-    ----------
-    patches : tuple of Patch
-    pressures : tuple of (ny, nx) arrays, MPa: final pressure on each patch's block.
-    initial : tuple of (ny, nx) arrays, MPa: eq. 7 pressures ``p0`` on the final patches
-        (empty when they were not computed: the union CG without ``p0``).
-    gaps : tuple of (ny, nx) arrays, mm: ``z + tilt + u - d`` (``inf`` where no indenter).
-    penetration : float
-        Approach d, mm (given, or corrected under load control).
-    tilt : (alpha, beta) or None, radians.
-    converged : bool
-    message : str
-    sweeps : int
-        Block Gauss-Seidel sweeps, all rounds together.
-    corrections : int
-        Newton corrections of (d, alpha, beta) (load control only).
-    growths : int
-        Patch enlargements.
-    linear_sweeps : int
-        Sweeps of the sensitivity solves behind the corrections (each with 1 or 3
-        right-hand sides).
-    history : tuple of float
-        Relative change after every sweep (eq. 9).
-    coupling : dict
-        How the cross-patch products were made: pairs per route (``dense``, ``fft``,
-        ``separated``, ``spectral``; :class:`~.blocks.Coupling`) and ``separated_rtol``.
-    merged : tuple of tuple of int
-        Asperities solved together as one block (``merge``), one tuple per merged patch.
-    """
-
-    patches: tuple
-    pressures: tuple
-    initial: tuple
-    gaps: tuple
-    penetration: float
-    tilt: tuple | None
-    converged: bool
-    message: str
-    sweeps: int
-    corrections: int
-    growths: int
-    linear_sweeps: int
-    history: tuple
-    coupling: dict = field(default_factory=dict)
-    merged: tuple = ()
+from .block_iterations import finish, run_block_gauss_seidel, run_two_level
+from .result import MicroResult
+from .workset import WorkingSet, heights, tip_approaches
 
 
 #: Relative change at which the local conjugate gradients of eq. 7 (the start p0) stop.
@@ -89,8 +35,6 @@ MERGE_GROWTH = 2.0
 #: far_tol that makes every pair of patches "near": the two-level iteration with exact coupling.
 EXACT_FAR_TOL = 1e-12
 
-#: Relative change at which the sensitivity sweeps (load and tilt corrections) stop.
-SENSITIVITY_TOL = 1e-3
 
 
 def _initial(provider, asperities, patches, blocks, forces, z_blocks, h, rtol: float = P0_RTOL) -> list:
@@ -143,7 +87,7 @@ def solve_micro(provider: InfluenceProvider, asperities: Sequence[Asperity], *, 
                 free_tilt: bool = False, tol: float = 1e-6, max_sweeps: int = 100,
                 margin: float = 1.3, anchor: tuple[float, float] = (0.0, 0.0),
                 dense_max_cells: int = 400, dense_max_entries: int = 40_000,
-                max_corrections: int = 20, max_growths: int = 50,
+                max_corrections: int = 20, max_growths: int | None = None,
                 size_from_forces: bool = True, far_tol: float | None = None,
                 sizing_approaches: np.ndarray | None = None, coarse: bool = False,
                 separated_rtol: float | None = 1e-8, merge: bool = True,
@@ -184,8 +128,10 @@ def solve_micro(provider: InfluenceProvider, asperities: Sequence[Asperity], *, 
         Cross blocks ``A_kl`` up to this many entries are formed densely, larger by FFT.
     max_corrections : int, default 20
         Newton corrections of (d, alpha, beta) allowed.
-    max_growths : int, default 50
-        Patch enlargements allowed.
+    max_growths : int or None, default None
+        Patch enlargements allowed in all; None: 50, or ``GROWTHS_PER_PATCH`` a patch if
+        more (unloading a viscoelastic body leaves contacts wider than the macro step's
+        elastic estimate on every tip at once).
     size_from_forces : bool, default True
         Size the patches from the macro forces; False sizes them by the geometric reach
         of each indenter (use when the macro step did not converge).
@@ -254,167 +200,14 @@ def solve_micro(provider: InfluenceProvider, asperities: Sequence[Asperity], *, 
     state = WorkingSet(provider, asperities, patches, dense_max_cells, dense_max_entries, far_tol, lagged=coarse,
                    separated_rtol=separated_rtol, blocks=blocks)
     if not patches:
-        return _finish(state, [], [], theta, tilt, pivot, True, "no asperity reaches the body",
+        return finish(state, [], [], theta, tilt, pivot, True, "no asperity reaches the body",
                        {"sweeps": 0, "corrections": 0, "growths": 0, "linear_sweeps": 0}, ())
     p = [v.copy() for v in p0]
     target = None if total_load is None else np.array([total_load, 0.0, 0.0])[:n_unknowns]
     if coarse:
         out_tilt = (tilt if tilt is not None else (0.0, 0.0)) if (tilt is not None or free_tilt) else None
-        return _solve_two_level(state, p, p0, theta, out_tilt, pivot, n_unknowns, target, tol=tol,
+        return run_two_level(state, p, p0, theta, out_tilt, pivot, n_unknowns, target, tol=tol,
                                 max_sweeps=max_sweeps, max_growths=max_growths, monitor=monitor)
-    return _solve_block_gs(state, p, p0, theta, tilt, pivot, n_unknowns, target, free_tilt=free_tilt, tol=tol,
+    return run_block_gauss_seidel(state, p, p0, theta, tilt, pivot, n_unknowns, target, free_tilt=free_tilt, tol=tol,
                            max_sweeps=max_sweeps, max_growths=max_growths, max_corrections=max_corrections,
                            monitor=monitor)
-
-
-def _solve_block_gs(state: WorkingSet, p: list, p0: list, theta, tilt, pivot, n_unknowns, target, *,
-                    free_tilt: bool, tol: float, max_sweeps: int, max_growths: int, max_corrections: int,
-                    monitor=None) -> MicroResult:
-    """The micro step by block Gauss-Seidel (eq. 8-9) with patch growth and, under load
-    control, Newton corrections of the approach and tilt from sensitivity sweeps."""
-    sweeps = corrections = growths = linear_sweeps = 0
-    history: list = []
-
-    def counts():
-        return {"sweeps": sweeps, "corrections": corrections, "growths": growths, "linear_sweeps": linear_sweeps}
-
-    while True:
-        z = state.heights(theta, pivot)
-        can_grow = growths < max_growths
-        gs = gauss_seidel(state.blocks, state.coupling, [theta[0] - zk for zk in z], p, tol=tol,
-                          max_sweeps=max(max_sweeps - sweeps, 1),
-                          stop=(lambda q: edges_loaded_any(state, q)) if can_grow else None,
-                          monitor=None if monitor is None else (lambda m, c: monitor(sweeps + m, c)))
-        sweeps += gs.sweeps
-        history += gs.history
-        p = gs.pressures
-        if gs.converged or gs.reason is StopReason.STOPPED:
-            grown = grow(state, p, p0, theta, pivot, tol) if can_grow else 0
-            if grown:
-                growths += grown
-                continue
-        if not gs.converged:
-            return _finish(state, p, p0, theta, tilt, pivot, False, gs.message, counts(), history)
-        if edges_loaded_any(state, p):
-            return _finish(state, p, p0, theta, tilt, pivot, False,
-                           f"pressure still reaches a patch edge after {max_growths} enlargements", counts(), history)
-        if target is None:
-            break
-        residual = target - resultants(state.patches, p, pivot, n_unknowns)
-        if corrections >= max_corrections:
-            return _finish(state, p, p0, theta, tilt, pivot, False,
-                           f"load/moment corrections reached {max_corrections} (residual {residual})",
-                           counts(), history)
-        corrections += 1
-        p, theta, done, lin = _correct(state, p, gs.active, theta, residual, pivot, n_unknowns, tol)
-        linear_sweeps += lin
-        if done:
-            # the corrected approach and tilt may bring in asperities without a patch
-            grown = grow(state, p, p0, theta, pivot, tol) if growths < max_growths else 0
-            if not grown:
-                break
-            growths += grown
-    out_tilt = (float(theta[1]), float(theta[2])) if (tilt is not None or free_tilt) else None
-    return _finish(state, p, p0, theta, out_tilt, pivot, True, "", counts(), history)
-
-
-def _solve_two_level(state: WorkingSet, p: list, p0: list, theta, tilt, pivot, n_unknowns, target, *,
-                     tol: float, max_sweeps: int, max_growths: int, monitor=None) -> MicroResult:
-    """The micro step by two-level block Gauss-Seidel (:mod:`.twolevel`), with patch growth."""
-    sweeps = growths = 0
-    history: list = []
-    tips = state.tips()
-
-    def counts():
-        return {"sweeps": sweeps, "corrections": sweeps if n_unknowns else 0, "growths": growths,
-                "linear_sweeps": 0}
-
-    while True:
-        can_grow = growths < max_growths
-        res = two_level(state.blocks, state.coupling, tips[[pt.asperity for pt in state.patches]],
-                        lambda th: state.heights(th, pivot), p, theta, pivot=pivot, n_unknowns=n_unknowns,
-                        target=target, tol=tol, max_sweeps=max(max_sweeps - sweeps, 1),
-                        stop=(lambda q: edges_loaded_any(state, q)) if can_grow else None,
-                        monitor=None if monitor is None else (lambda m, c: monitor(sweeps + m, c)))
-        sweeps += res.sweeps
-        history += res.history
-        p, theta = res.pressures, res.theta
-        state.coupling.refresh(p)
-        if res.converged or res.reason is StopReason.STOPPED:
-            grown = grow(state, p, p0, theta, pivot, tol) if can_grow else 0
-            if grown:
-                growths += grown
-                continue
-        if not res.converged:
-            return _finish(state, p, p0, theta, tilt, pivot, False, res.message, counts(), history)
-        if edges_loaded_any(state, p):
-            return _finish(state, p, p0, theta, tilt, pivot, False,
-                           f"pressure still reaches a patch edge after {max_growths} enlargements", counts(), history)
-        break
-    if n_unknowns:
-        residual = np.asarray(target) - np.atleast_1d(resultants(state.patches, p, pivot, n_unknowns))
-        if abs(residual[0]) > 10.0 * tol * abs(target[0]):
-            return _finish(state, p, p0, theta, tilt, pivot, False,
-                           f"two-level iteration stopped with load residual {residual[0]:.3g} N", counts(), history)
-        if n_unknowns == 3:
-            # moments against the load times the load-weighted distance from the pivot
-            arm = _load_arm(state.patches, p, pivot)
-            if np.max(np.abs(residual[1:])) > 10.0 * tol * abs(target[0]) * arm:
-                return _finish(state, p, p0, theta, tilt, pivot, False,
-                               f"two-level iteration stopped with moment residuals {residual[1]:.3g}, "
-                               f"{residual[2]:.3g} N mm", counts(), history)
-    out_tilt = (float(theta[1]), float(theta[2])) if tilt is not None else None
-    return _finish(state, p, p0, theta, out_tilt, pivot, True, "", counts(), history)
-
-
-def _load_arm(patches, pressures: list, pivot) -> float:
-    """Load-weighted rms distance of the pressure from the pivot, mm (at least one cell)."""
-    num = den = 0.0
-    for pt, pk in zip(patches, pressures):
-        xr, yr = block_coordinates(pt, pivot)
-        num += float(np.sum(pk * (xr * xr + yr * yr)))
-        den += float(np.sum(pk))
-    h = patches[0].grid.h if patches else 1.0
-    return max(math.sqrt(num / den), h) if den > 0 else h
-
-
-def _correct(state: WorkingSet, p, active, theta, residual, pivot, n_unknowns, tol):
-    """One Newton correction of (d, alpha, beta) on the current contact sets."""
-    rhs = [rhs_derivatives(pt, pivot, n_unknowns) for pt in state.patches]
-    # The sensitivities need little accuracy: the load and moments hold exactly for any
-    # of them (K is built from the same ones), and their error enters the pressure only
-    # times the (small) correction. Reuse the previous ones when the blocks are the same.
-    prev = state.sensitivities
-    start = prev if prev is not None and [len(v) for v in prev] == [len(r) for r in rhs] else None
-    lin = linear_gauss_seidel(state.blocks, state.coupling, rhs, active,
-                              tol=max(tol, SENSITIVITY_TOL), max_sweeps=500, start=start)
-    state.sensitivities = lin.pressures
-    K = np.atleast_2d(resultants(state.patches, lin.pressures, pivot, n_unknowns))
-    step = newton_step(K, residual)
-    theta = theta.copy()
-    theta[:n_unknowns] += step
-    trial = [pk + s @ step for pk, s in zip(p, lin.pressures)]
-    pmax = max(float(np.max(t, initial=0.0)) for t in trial)
-    ok = all(np.min(t, initial=0.0) >= -1e-9 * pmax for t in trial)
-    if ok:
-        z = state.heights(theta, pivot)
-        u = state.displacement(trial)
-        scale = max(abs(theta[0] - float(np.min(zk, initial=np.inf))) for zk in z if zk.size)
-        for a, uk, zk in zip(active, u, z):
-            gap = uk + zk - theta[0]
-            if np.any(gap[~a] < -10.0 * tol * scale):
-                ok = False
-                break
-    trial = [np.maximum(t, 0.0) for t in trial]
-    return trial, theta, ok, lin.sweeps
-
-
-def _finish(state, p, p0, theta, tilt, pivot, converged, message, counts, history):
-    pressures = [scatter(pt, v) for pt, v in zip(state.patches, p)]
-    initial = [scatter(pt, v) for pt, v in zip(state.patches, p0)]
-    gaps = state.gaps(p, theta, pivot) if state.patches else []
-    return MicroResult(tuple(state.patches), tuple(pressures), tuple(initial), tuple(gaps),
-                       float(theta[0]), tilt, converged, message, counts["sweeps"], counts["corrections"],
-                       counts["growths"], counts["linear_sweeps"], tuple(history),
-                       state.coupling.route_counts(),
-                       tuple(pt.members for pt in state.patches if len(pt.members) > 1))

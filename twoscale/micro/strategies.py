@@ -23,7 +23,8 @@ from typing import Callable
 
 import numpy as np
 
-from .solve import EXACT_FAR_TOL, MicroResult, solve_micro
+from .result import MicroResult
+from .solve import EXACT_FAR_TOL, solve_micro
 from .union import box_of, solve_union
 
 #: The union CG's KKT residual over the block iterations' tolerance (a relative change of the

@@ -1,0 +1,186 @@
+"""The block iterations' loops: block Gauss-Seidel (eq. 8-9) with patch growth and, under
+load control, Newton corrections of the approach and tilt from sensitivity sweeps; and the
+two-level iteration with patch growth. :func:`.solve.solve_micro` sets them up (patches,
+blocks, coupling, the first pressure) and calls one.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from ..stopping import StopReason
+from .blocks import scatter
+from .constraints import block_coordinates, newton_step, resultants, rhs_derivatives
+from .gauss_seidel import gauss_seidel, linear_gauss_seidel
+from .result import MicroResult
+from .twolevel import two_level
+from .workset import WorkingSet, edges_loaded_any, grow
+
+#: Relative change at which the sensitivity sweeps (load and tilt corrections) stop.
+SENSITIVITY_TOL = 1e-3
+
+
+def run_block_gauss_seidel(state: WorkingSet, p: list, p0: list, theta, tilt, pivot, n_unknowns, target, *,
+                    free_tilt: bool, tol: float, max_sweeps: int, max_growths: int | None, max_corrections: int,
+                    monitor=None) -> MicroResult:
+    """The micro step by block Gauss-Seidel (eq. 8-9) with patch growth and, under load
+    control, Newton corrections of the approach and tilt from sensitivity sweeps."""
+    sweeps = corrections = growths = linear_sweeps = 0
+    history: list = []
+
+    def counts():
+        return {"sweeps": sweeps, "corrections": corrections, "growths": growths, "linear_sweeps": linear_sweeps}
+
+    while True:
+        z = state.heights(theta, pivot)
+        can_grow = growths < _budget(state, max_growths)
+        gs = gauss_seidel(state.blocks, state.coupling, [theta[0] - zk for zk in z], p, tol=tol,
+                          max_sweeps=max(max_sweeps - sweeps, 1),
+                          stop=(lambda q: edges_loaded_any(state, q)) if can_grow else None,
+                          monitor=None if monitor is None else (lambda m, c: monitor(sweeps + m, c)))
+        sweeps += gs.sweeps
+        history += gs.history
+        p = gs.pressures
+        if gs.converged or gs.reason is StopReason.STOPPED:
+            grown = grow(state, p, p0, theta, pivot, tol) if can_grow else 0
+            if grown:
+                growths += grown
+                continue
+        if not gs.converged:
+            return finish(state, p, p0, theta, tilt, pivot, False, gs.message, counts(), history)
+        if edges_loaded_any(state, p):
+            return finish(state, p, p0, theta, tilt, pivot, False,
+                           f"pressure still reaches a patch edge after {growths} enlargements", counts(), history)
+        if target is None:
+            break
+        residual = target - resultants(state.patches, p, pivot, n_unknowns)
+        if corrections >= max_corrections:
+            return finish(state, p, p0, theta, tilt, pivot, False,
+                           f"load/moment corrections reached {max_corrections} (residual {residual})",
+                           counts(), history)
+        corrections += 1
+        p, theta, done, lin = _correct(state, p, gs.active, theta, residual, pivot, n_unknowns, tol)
+        linear_sweeps += lin
+        if done:
+            # the corrected approach and tilt may bring in asperities without a patch
+            grown = grow(state, p, p0, theta, pivot, tol) if growths < _budget(state, max_growths) else 0
+            if not grown:
+                break
+            growths += grown
+    out_tilt = (float(theta[1]), float(theta[2])) if (tilt is not None or free_tilt) else None
+    return finish(state, p, p0, theta, out_tilt, pivot, True, "", counts(), history)
+
+
+def run_two_level(state: WorkingSet, p: list, p0: list, theta, tilt, pivot, n_unknowns, target, *,
+                     tol: float, max_sweeps: int, max_growths: int | None, monitor=None) -> MicroResult:
+    """The micro step by two-level block Gauss-Seidel (:mod:`.twolevel`), with patch growth."""
+    sweeps = growths = 0
+    history: list = []
+    tips = state.tips()
+
+    def counts():
+        return {"sweeps": sweeps, "corrections": sweeps if n_unknowns else 0, "growths": growths,
+                "linear_sweeps": 0}
+
+    while True:
+        can_grow = growths < _budget(state, max_growths)
+        res = two_level(state.blocks, state.coupling, tips[[pt.asperity for pt in state.patches]],
+                        lambda th: state.heights(th, pivot), p, theta, pivot=pivot, n_unknowns=n_unknowns,
+                        target=target, tol=tol, max_sweeps=max(max_sweeps - sweeps, 1),
+                        stop=(lambda q: edges_loaded_any(state, q)) if can_grow else None,
+                        monitor=None if monitor is None else (lambda m, c: monitor(sweeps + m, c)))
+        sweeps += res.sweeps
+        history += res.history
+        p, theta = res.pressures, res.theta
+        state.coupling.refresh(p)
+        if res.converged or res.reason is StopReason.STOPPED:
+            grown = grow(state, p, p0, theta, pivot, tol) if can_grow else 0
+            if grown:
+                growths += grown
+                continue
+        if not res.converged:
+            return finish(state, p, p0, theta, tilt, pivot, False, res.message, counts(), history)
+        if edges_loaded_any(state, p):
+            return finish(state, p, p0, theta, tilt, pivot, False,
+                           f"pressure still reaches a patch edge after {growths} enlargements", counts(), history)
+        break
+    if n_unknowns:
+        residual = np.asarray(target) - np.atleast_1d(resultants(state.patches, p, pivot, n_unknowns))
+        if abs(residual[0]) > 10.0 * tol * abs(target[0]):
+            return finish(state, p, p0, theta, tilt, pivot, False,
+                           f"two-level iteration stopped with load residual {residual[0]:.3g} N", counts(), history)
+        if n_unknowns == 3:
+            # moments against the load times the load-weighted distance from the pivot
+            arm = _load_arm(state.patches, p, pivot)
+            if np.max(np.abs(residual[1:])) > 10.0 * tol * abs(target[0]) * arm:
+                return finish(state, p, p0, theta, tilt, pivot, False,
+                               f"two-level iteration stopped with moment residuals {residual[1]:.3g}, "
+                               f"{residual[2]:.3g} N mm", counts(), history)
+    out_tilt = (float(theta[1]), float(theta[2])) if tilt is not None else None
+    return finish(state, p, p0, theta, out_tilt, pivot, True, "", counts(), history)
+
+
+def _load_arm(patches, pressures: list, pivot) -> float:
+    """Load-weighted rms distance of the pressure from the pivot, mm (at least one cell)."""
+    num = den = 0.0
+    for pt, pk in zip(patches, pressures):
+        xr, yr = block_coordinates(pt, pivot)
+        num += float(np.sum(pk * (xr * xr + yr * yr)))
+        den += float(np.sum(pk))
+    h = patches[0].grid.h if patches else 1.0
+    return max(math.sqrt(num / den), h) if den > 0 else h
+
+
+def _correct(state: WorkingSet, p, active, theta, residual, pivot, n_unknowns, tol):
+    """One Newton correction of (d, alpha, beta) on the current contact sets."""
+    rhs = [rhs_derivatives(pt, pivot, n_unknowns) for pt in state.patches]
+    # The sensitivities need little accuracy: the load and moments hold exactly for any
+    # of them (K is built from the same ones), and their error enters the pressure only
+    # times the (small) correction. Reuse the previous ones when the blocks are the same.
+    prev = state.sensitivities
+    start = prev if prev is not None and [len(v) for v in prev] == [len(r) for r in rhs] else None
+    lin = linear_gauss_seidel(state.blocks, state.coupling, rhs, active,
+                              tol=max(tol, SENSITIVITY_TOL), max_sweeps=500, start=start)
+    state.sensitivities = lin.pressures
+    K = np.atleast_2d(resultants(state.patches, lin.pressures, pivot, n_unknowns))
+    step = newton_step(K, residual)
+    theta = theta.copy()
+    theta[:n_unknowns] += step
+    trial = [pk + s @ step for pk, s in zip(p, lin.pressures)]
+    pmax = max(float(np.max(t, initial=0.0)) for t in trial)
+    ok = all(np.min(t, initial=0.0) >= -1e-9 * pmax for t in trial)
+    if ok:
+        z = state.heights(theta, pivot)
+        u = state.displacement(trial)
+        scale = max(abs(theta[0] - float(np.min(zk, initial=np.inf))) for zk in z if zk.size)
+        for a, uk, zk in zip(active, u, z):
+            gap = uk + zk - theta[0]
+            if np.any(gap[~a] < -10.0 * tol * scale):
+                ok = False
+                break
+    trial = [np.maximum(t, 0.0) for t in trial]
+    return trial, theta, ok, lin.sweeps
+
+
+#: Patch enlargements allowed by default: this many in all, or ``GROWTHS_PER_PATCH`` a patch.
+MAX_GROWTHS = 50
+GROWTHS_PER_PATCH = 5
+
+
+def _budget(state: WorkingSet, max_growths: int | None) -> int:
+    """Enlargements allowed in all: ``max_growths`` when given, else the default budget."""
+    if max_growths is not None:
+        return int(max_growths)
+    return max(MAX_GROWTHS, GROWTHS_PER_PATCH * len(state.patches))
+
+
+def finish(state, p, p0, theta, tilt, pivot, converged, message, counts, history):
+    pressures = [scatter(pt, v) for pt, v in zip(state.patches, p)]
+    initial = [scatter(pt, v) for pt, v in zip(state.patches, p0)]
+    gaps = state.gaps(p, theta, pivot) if state.patches else []
+    return MicroResult(tuple(state.patches), tuple(pressures), tuple(initial), tuple(gaps),
+                       float(theta[0]), tilt, converged, message, counts["sweeps"], counts["corrections"],
+                       counts["growths"], counts["linear_sweeps"], tuple(history),
+                       state.coupling.route_counts(),
+                       tuple(pt.members for pt in state.patches if len(pt.members) > 1))
