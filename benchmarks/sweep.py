@@ -273,6 +273,9 @@ def main(argv=None) -> int:
     p.add_argument("--part", default="0/1", help="K/N: only the scenes whose index is K modulo N (run N at once)")
     p.add_argument("--read", nargs="*", default=[], help="more result files to summarise with --out (their scenes are skipped)")
     p.add_argument("--reverse", action="store_true", help="from the last scene down (a third process meets the others)")
+    p.add_argument("--smallest-first", action="store_true",
+                   help="scenes with fewer tips first (maps count as 100 tips): one lane covers the most scenes soonest")
+    p.add_argument("--record", action="store_true", help="with --only: append the reruns to --out (the last record counts)")
     p.add_argument("--out", default="sweep.jsonl")
     p.add_argument("--table")
     p.add_argument("--timeout", type=float, default=180.0, help="s, a default solve")
@@ -303,8 +306,12 @@ def main(argv=None) -> int:
     specs = [s for s in specs if s.index % n == k]
     if args.reverse:
         specs = specs[::-1]
+    if args.smallest_first:
+        specs = sorted(specs, key=lambda s: s.n if s.kind == "tips" else 100)
     for spec in specs:
         done = {r["spec"]["index"] for f in [args.out, *args.read] for r in _load(f)} if not args.only else set()
+        if args.only and args.record:
+            done = set()
         if spec.index in done:
             continue
         try:
@@ -317,10 +324,10 @@ def main(argv=None) -> int:
               f"peak {_fmt(x['peak_mb'], '.0f')}/{_fmt(x['est_mb'], '.0f')} MB", flush=True)
         if args.only:
             print(json.dumps({k: v for k, v in rec.items() if k != "spec"}, default=str)[:3000])
-        else:
+        if not args.only or args.record:
             with open(args.out, "a", encoding="utf-8") as fh:
                 fh.write(json.dumps(rec) + "\n")
-    records = sum((_load(f) for f in [args.out, *args.read]), []) if not args.only else []
+    records = sum((_load(f) for f in [args.out, *args.read]), []) if not args.only or args.record else []
     latest = {r["spec"]["index"]: r for r in records}  # a scene run again: its last record
     records = [latest[i] for i in sorted(latest)]
     if records:
