@@ -23,10 +23,13 @@ def _patches(asps, force, d, h):
     return pts, box_of([p.grid for p in pts], h, (0.0, 0.0)).size
 
 
-def test_one_patch_is_one_local_solve():
+def test_one_patch_is_one_constrained_cg_on_it():
     pts, box = _patches([Asperity(0.0, 0.0, 0.0, 5.0)], 2.0, 0.2, 0.05)
     c = choose(pts, box)
-    assert c.iteration == "block-gs" and c.far_tol is None and not c.by_caller
+    assert c.iteration == "union-cg" and c.far_tol is None and not c.by_caller
+    assert box == pts[0].grid.size  # the box is the patch
+    # with the tilt (a pivot off the tip) the block iteration's local solve and sensitivities
+    assert choose(pts, box, load_control=True, tilt=True).iteration == "block-gs"
 
 
 def test_few_separated_asperities_keep_the_papers_iteration():
