@@ -164,14 +164,18 @@ def choose(patches: Sequence[Patch], box_cells: int, *, merged_contacts: bool = 
         candidates.pop("two-level")
     if figures["coverage"] < model.union_min_coverage and len(candidates) > 1:
         candidates.pop("union-cg")
-    best = min(candidates, key=candidates.get)
     rest = {k: v for k, v in candidates.items() if k != "union-cg"}
-    if best == "union-cg" and rest and candidates[best] > model.union_margin * min(rest.values()):
+    if "union-cg" in candidates and (not rest or candidates["union-cg"] <= model.union_margin * min(rest.values())):
+        best = "union-cg"
+    else:
         best = min(rest, key=rest.get)
     cov = figures["coverage"]
     if best == "union-cg":
+        against = (f", the block iterations {min(rest.values()):.2g} s; it is taken up to "
+                   f"{model.union_margin:g}x theirs") if rest else ""
         reason = (f"{n} patches carry {100 * cov:.0f} % of their bounding box's "
-                  f"{figures['box_cells']} cells: one constrained CG over the box is cheapest")
+                  f"{figures['box_cells']} cells: one constrained CG over the box (predicted "
+                  f"{candidates['union-cg']:.2g} s{against})")
         return Choice("union-cg", None, reason, est)
     if best == "block-gs" and load_control and not merged_contacts:
         reason = (f"{n} patches, {100 * cov:.0f} % of their box: block iterations with exact coupling "
