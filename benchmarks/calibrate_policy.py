@@ -17,8 +17,8 @@ CPU / wall ratio (the machine is shared). The script prints:
 * with ``--emit``, the ``FITTED = CostModel(...)`` block to paste into
   ``twoscale/micro/costmodel.py``.
 
-Only attempts that converged count (a stalled attempt's time is the price of its
-fallback, reported apart).
+Only attempts that converged and took at least ``--min-seconds`` count (a stalled
+attempt's time is the price of its fallback, reported apart).
 
 Usage::
 
@@ -132,6 +132,8 @@ def main(argv=None) -> int:
     p.add_argument("files", nargs="+")
     p.add_argument("--emit", action="store_true", help="print the FITTED block for twoscale/micro/costmodel.py")
     p.add_argument("--margin", type=float, default=1.0, help="union_margin to emit")
+    p.add_argument("--min-seconds", type=float, default=0.02,
+                   help="attempts shorter than this are left out (their time is the clock's resolution and Python)")
     args = p.parse_args(argv)
     from twoscale.micro.costmodel import FITTED
     records = {}
@@ -141,7 +143,7 @@ def main(argv=None) -> int:
                 if line.strip():
                     r = json.loads(line)
                     records[r["spec"]["index"]] = r
-    rows = samples(list(records.values()))
+    rows = [r for r in samples(list(records.values())) if r["seconds"] >= args.min_seconds]
     if not rows:
         print("no timed attempt")
         return 1
