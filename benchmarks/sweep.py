@@ -216,7 +216,7 @@ def verdict(rec: dict) -> str:
     if rec.get("err", {}).get("tip_pct", 0.0) > 0.5:
         return "inaccurate"
     if "ref" in rec and "forces" in rec["ref"]:
-        if rec["ratio_cpu"] > 1.0 and ts["time_s"] > 1.0:
+        if rec["ratio_cpu"] > 1.0 and ts["cpu_s"] > 1.0:  # CPU seconds, as the ratio
             return "slower-than-ref"
     elif ts["cpu_s"] > 60.0:  # CPU seconds: the machine is shared, its wall time is not the code's
         return "over-60s"
