@@ -1,32 +1,34 @@
-"""Check the micro-step policy's cost model against the sweep's measured runs.
+"""Fit the micro-step policy's cost model to the sweep's measured runs.
 
-The policy (:mod:`twoscale.micro.policy`) estimates each iteration's cost in work units
-(grid-product work, ``n log2 n`` per padded FFT) and picks the cheapest, the union CG only
-where its estimate is below ``UNION_MARGIN`` of the block iterations'. Every sweep record
-(``benchmarks/sweep.py``) holds the estimates of all three iterations and the measured time
-of each attempt the driver made. This script turns them into CPU nanoseconds per work unit
-(an attempt's wall time scaled by the solve's CPU / wall ratio, the machine being shared),
-per iteration, and prints:
+The policy (:mod:`twoscale.micro.policy`) estimates each candidate iteration's work in
+grid-product units and turns it into CPU seconds by the cost model
+(:class:`twoscale.micro.costmodel.CostModel`): ``fixed + ns_per_unit x 1e-9 x work``, one
+pair of coefficients per candidate. Every sweep record (``benchmarks/sweep.py``) holds the
+work estimates of all three candidates and the measured time of each attempt the driver
+made; an attempt is charged to the candidate whose estimate describes it (the union CG to
+``union-cg``; block iterations with exact coupling, block Gauss-Seidel or two-level, to
+``block-gs``; with far-field coupling to ``two-level``), its wall time scaled by the solve's
+CPU / wall ratio (the machine is shared). The script prints:
 
-* the median and spread of ns per unit of each iteration (a cost model right to a
-  constant has one number per iteration);
-* the margin the measurements give: ``median ns(block iterations) / median ns(union CG)``,
-  against the policy's ``UNION_MARGIN`` (the union CG should be chosen when
-  ``work(union) < margin x work(blocks)``);
-* every scene where an attempt's ns per unit is more than 2x off its iteration's median
-  (the cost model wrong by more than 2x there).
+* per candidate, the fitted ``fixed`` and ``ns_per_unit`` (least squares on the logarithm
+  of the time, so a 2x error counts the same at 0.1 s and at 100 s);
+* how far the fit and the installed model are off: the median factor and the attempts off
+  by more than 2x, and those attempts by scene;
+* with ``--emit``, the ``FITTED = CostModel(...)`` block to paste into
+  ``twoscale/micro/costmodel.py``.
 
-Only attempts that converged and took at least ``--min-seconds`` count (short runs are
-all fixed cost).
+Only attempts that converged and took at least ``--min-seconds`` count (a stalled
+attempt's time is the price of its fallback, reported apart).
 
 Usage::
 
-    python benchmarks/calibrate_policy.py sweep_a.jsonl [sweep_b.jsonl ...]
+    python benchmarks/calibrate_policy.py sweep_a.jsonl [sweep_b.jsonl ...] [--emit]
 """
 from __future__ import annotations
 
 import argparse
 import json
+import math
 import os
 import sys
 
@@ -35,45 +37,105 @@ import numpy as np
 sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 
 
-def samples(records: list[dict], min_seconds: float) -> list[dict]:
-    """One sample per converged attempt: iteration, ns per work unit, scene label."""
+CANDIDATES = ("union-cg", "block-gs", "two-level")
+#: Largest fixed cost per candidate the fit may give, s.
+MAX_FIXED = 0.3
+
+
+def candidate(iteration: str, far_tol) -> str:
+    """The policy candidate whose work estimate describes an attempt."""
+    if iteration == "union-cg":
+        return "union-cg"
+    return "block-gs" if far_tol is None else "two-level"
+
+
+def samples(records: list[dict]) -> list[dict]:
+    """One sample per attempt: candidate, work units, control (``penetration``, ``load`` or
+    ``tilt``), CPU seconds, converged, scene label."""
     from twoscale.scenespace import SceneSpec
     out = []
     for rec in records:
-        ts = rec.get("ts", {})
+        ts, spec = rec.get("ts", {}), rec["spec"]
         work, attempts = ts.get("work"), ts.get("attempts")
         if not work or not attempts or not ts.get("time_s"):
             continue
-        scale = ts["cpu_s"] / ts["time_s"]  # the solve's share of a core while it ran
+        scale = min(ts["cpu_s"] / ts["time_s"], 1.0)  # the solve's share of a core while it ran
+        control = "tilt" if spec.get("tilt") else spec.get("control", "load")
         for iteration, far_tol, converged, sweeps, seconds in attempts:
-            if not converged or seconds < min_seconds or not work.get(iteration):
+            key = candidate(iteration, far_tol)
+            if not work.get(key):
                 continue
-            out.append({"iteration": iteration, "ns": 1e9 * seconds * scale / work[iteration],
-                        "scene": SceneSpec(**rec["spec"]).label, "seconds": seconds * scale})
+            out.append({"candidate": key, "iteration": iteration, "work": float(work[key]), "control": control,
+                        "seconds": max(seconds * scale, 1e-3), "converged": bool(converged), "sweeps": sweeps,
+                        "scene": SceneSpec(**rec["spec"]).label})
     return out
 
 
 def fit(rows: list[dict]) -> dict:
-    """Median ns per unit by iteration and the margin they give."""
-    by = {}
-    for r in rows:
-        by.setdefault(r["iteration"], []).append(r["ns"])
-    med = {k: float(np.median(v)) for k, v in by.items()}
-    blocks = [v for k, v in by.items() if k != "union-cg"]
-    margin = None
-    if "union-cg" in med and blocks:
-        margin = float(np.median(np.concatenate(blocks))) / med["union-cg"]
-    return {"median_ns": med, "count": {k: len(v) for k, v in by.items()},
-            "spread": {k: (float(np.percentile(v, 10)), float(np.percentile(v, 90))) for k, v in by.items()},
-            "margin": margin}
+    """Least squares on the log of the time: per candidate ``fixed`` seconds and ``ns`` per
+    unit; for the block iterations also the factors of load control and of the tilt on their
+    work (more sweeps: sensitivity or coarse corrections of the approach and the angles),
+    shared by both. The union CG solves the load and the tilt in the same iteration."""
+    from scipy.optimize import least_squares
+    conv = [r for r in rows if r["converged"]]
+    keys = [k for k in CANDIDATES if sum(r["candidate"] == k for r in conv) >= 3]
+    if not keys:
+        return {}
+    w = np.array([r["work"] for r in conv])
+    t = np.array([r["seconds"] for r in conv])
+    which = np.array([keys.index(r["candidate"]) if r["candidate"] in keys else -1 for r in conv])
+    blocks = np.array([r["candidate"] != "union-cg" for r in conv])
+    load = np.array([r["control"] == "load" for r in conv]) & blocks
+    tilt = np.array([r["control"] == "tilt" for r in conv]) & blocks
+    ok = which >= 0
+
+    def predict_(q):
+        fixed, ns = np.exp(q[0:2 * len(keys):2]), np.exp(q[1:2 * len(keys):2])
+        f_load, f_tilt = np.exp(q[-2]), np.exp(q[-1])
+        factor = np.where(load, f_load, np.where(tilt, f_tilt, 1.0))
+        return fixed[which] + 1e-9 * ns[which] * factor * w
+
+    def resid(q):
+        return (np.log(predict_(q)) - np.log(t))[ok]
+    q0 = []
+    for k in keys:
+        sel = which == keys.index(k)
+        q0 += [math.log(max(float(np.min(t[sel])) / 2, 1e-3)), math.log(float(np.median(1e9 * t[sel] / w[sel])))]
+    # a fixed cost of at most MAX_FIXED s: where the data would put more there (the far
+    # field's few mid-size attempts, 2-3 s each), it is scatter, not set-up
+    q0 = [min(v, math.log(MAX_FIXED) - 1e-6) if i % 2 == 0 else v for i, v in enumerate(q0)]
+    hi = np.array([math.log(MAX_FIXED) if i < 2 * len(keys) and i % 2 == 0 else np.inf for i in range(len(q0) + 2)])
+    q = least_squares(resid, np.array(q0 + [0.0, 0.0]), bounds=(-np.inf, hi)).x
+    out = {k: {"fixed": math.exp(q[2 * i]), "ns": math.exp(q[2 * i + 1]), "count": int(np.sum(which == i))}
+           for i, k in enumerate(keys)}
+    out["factors"] = {"load": math.exp(q[-2]), "tilt": math.exp(q[-1])}
+    return out
+
+
+def predict(models: dict, row: dict) -> float:
+    m = models[row["candidate"]]
+    factor = 1.0 if row["candidate"] == "union-cg" else models["factors"].get(row["control"], 1.0)
+    return m["fixed"] + 1e-9 * m["ns"] * factor * row["work"]
+
+
+def report(name: str, models: dict, rows: list[dict]) -> list[dict]:
+    conv = [r for r in rows if r["converged"] and r["candidate"] in models]
+    factors = [predict(models, r) / r["seconds"] for r in conv]
+    off = [(f, r) for f, r in zip(factors, conv) if not 0.5 <= f <= 2.0]
+    med = float(np.exp(np.median(np.abs(np.log(factors))))) if factors else float("nan")
+    print(f"{name}: median factor {med:.2f}, {len(off)} of {len(conv)} attempts off by more than 2x")
+    return off
 
 
 def main(argv=None) -> int:
     p = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     p.add_argument("files", nargs="+")
-    p.add_argument("--min-seconds", type=float, default=0.5)
+    p.add_argument("--emit", action="store_true", help="print the FITTED block for twoscale/micro/costmodel.py")
+    p.add_argument("--margin", type=float, default=1.0, help="union_margin to emit")
+    p.add_argument("--min-seconds", type=float, default=0.02,
+                   help="attempts shorter than this are left out (their time is the clock's resolution and Python)")
     args = p.parse_args(argv)
-    from twoscale.micro.policy import UNION_MARGIN
+    from twoscale.micro.costmodel import FITTED
     records = {}
     for f in args.files:
         with open(f, encoding="utf-8") as fh:
@@ -81,23 +143,40 @@ def main(argv=None) -> int:
                 if line.strip():
                     r = json.loads(line)
                     records[r["spec"]["index"]] = r
-    rows = samples(list(records.values()), args.min_seconds)
+    rows = [r for r in samples(list(records.values())) if r["seconds"] >= args.min_seconds]
     if not rows:
-        print("no converged attempt long enough to time")
+        print("no timed attempt")
         return 1
-    res = fit(rows)
-    print(f"{len(rows)} timed attempts from {len(records)} scenes")
-    for k, m in sorted(res["median_ns"].items()):
-        lo, hi = res["spread"][k]
-        print(f"  {k:10s} {res['count'][k]:4d} attempts: median {m:.3g} ns a unit (10-90 %: {lo:.3g}-{hi:.3g})")
-    if res["margin"] is not None:
-        print(f"margin measured: {res['margin']:.3g} (block iterations' ns / union CG's); policy UNION_MARGIN "
-              f"{UNION_MARGIN:g}")
-    off = [r for r in rows if not 0.5 <= r["ns"] / res["median_ns"][r["iteration"]] <= 2.0]
-    print(f"{len(off)} attempts off their iteration's median by more than 2x:")
-    for r in sorted(off, key=lambda r: -r["ns"] / res["median_ns"][r["iteration"]]):
-        print(f"  {r['iteration']:10s} {r['ns'] / res['median_ns'][r['iteration']]:6.2f}x  {r['seconds']:7.2f} s  "
-              f"{r['scene']}")
+    models = fit(rows)
+    print(f"{len(rows)} attempts from {len(records)} scenes ({sum(r['converged'] for r in rows)} converged)")
+    for k in CANDIDATES:
+        if k in models:
+            m = models[k]
+            print(f"  {k:10s} {m['count']:4d} attempts: fixed {m['fixed']:.3g} s + {m['ns']:.3g} ns a unit")
+    print(f"  block iterations' work x {models['factors']['load']:.3g} under load control, "
+          f"x {models['factors']['tilt']:.3g} with the tilt")
+    installed = {k: {"fixed": FITTED.fixed_seconds[k], "ns": FITTED.ns_per_unit[k]} for k in CANDIDATES}
+    installed["factors"] = {"load": FITTED.load_factor, "tilt": FITTED.tilt_factor}
+    report(f"installed model ({FITTED.fitted_on})", installed, rows)
+    off = report("this fit", models, rows)
+    for f, r in sorted(off, key=lambda x: -abs(math.log(x[0]))):
+        print(f"  {r['candidate']:10s} predicted/measured {f:6.2f}  {r['seconds']:7.2f} s  {r['iteration']} "
+              f"{r['sweeps']} sweeps  {r['scene']}")
+    wasted = [r for r in rows if not r["converged"]]
+    if wasted:
+        print(f"{len(wasted)} attempts did not converge ({sum(r['seconds'] for r in wasted):.1f} s before a fallback):")
+        for r in sorted(wasted, key=lambda r: -r["seconds"]):
+            print(f"  {r['iteration']:10s} {r['seconds']:7.2f} s  {r['sweeps']} sweeps  {r['scene']}")
+    if args.emit and all(k in models for k in CANDIDATES):
+        ns = ", ".join(f'"{k}": {models[k]["ns"]:.3g}' for k in CANDIDATES)
+        fx = ", ".join(f'"{k}": {models[k]["fixed"]:.3g}' for k in CANDIDATES)
+        print("\nFITTED = CostModel(\n"
+              f"    ns_per_unit={{{ns}}},\n"
+              f"    fixed_seconds={{{fx}}},\n"
+              f"    load_factor={models['factors']['load']:.3g},\n"
+              f"    tilt_factor={models['factors']['tilt']:.3g},\n"
+              f"    union_margin={args.margin:g},\n"
+              f"    fitted_on=\"{len(rows)} attempts of {len(records)} sweep scenes\",\n)")
     return 0
 
 

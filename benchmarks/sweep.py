@@ -33,8 +33,10 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import os
 import resource
+import signal
 import subprocess
 import sys
 import tempfile
@@ -78,7 +80,9 @@ def run_one(method: str, spec_dict: dict, h: float | None) -> dict:
     """One solve in this process: ``method`` "twoscale" (default options) or "reference"."""
     import twoscale
     import twoscale.micro.driver  # noqa: F401  (the solvers' own imports outside the timed call,
-    import twoscale.reference.on_scene  # noqa: F401  as for every code compared)
+    import twoscale.reference.on_scene  # noqa: F401  as for every code compared: the two-scale
+    import twoscale.twoscale  # noqa: F401  path's macro step and laws, the reference's
+    import scipy.interpolate, scipy.optimize  # noqa: F401,E401  optimiser; 40-50 ms on one tip)
     from twoscale.resources import estimate_memory
     from twoscale.scene import SceneError, default_h
     with tempfile.TemporaryDirectory() as folder:
@@ -129,14 +133,28 @@ def run_cm(spec_dict: dict, h: float, maxiter: int = 1000) -> dict:
                 "converged": bool(sol.success), "forces": forces.tolist(), "cells": int(grid.size)}
 
 
-def _child(kind: str, spec: dict, h, timeout: float) -> dict:
+def _cpu_limit(seconds: float):
+    """A child's limit of CPU seconds (the machine is shared: wall time is not the code's)."""
+    def apply():
+        limit = int(math.ceil(seconds))
+        resource.setrlimit(resource.RLIMIT_CPU, (limit, limit + 5))
+    return apply
+
+
+def _child(kind: str, spec: dict, h, timeout: float, wall_factor: float = 1.0) -> dict:
+    """One solve in a fresh process, stopped after ``timeout`` s of CPU time (and
+    ``wall_factor`` times that of wall time when that factor is above 1)."""
     cmd = [sys.executable, os.path.abspath(__file__), "--child", kind, "--spec", json.dumps(spec),
            "--h", json.dumps(h)]
     t0 = time.perf_counter()
+    cpu_limited = wall_factor > 1.0
     try:
-        out = subprocess.run(cmd, capture_output=True, text=True, timeout=timeout)
+        out = subprocess.run(cmd, capture_output=True, text=True, timeout=timeout * wall_factor,
+                             preexec_fn=_cpu_limit(timeout) if cpu_limited else None)
     except subprocess.TimeoutExpired:
-        return {"error": f"timeout after {timeout:g} s", "time_s": time.perf_counter() - t0}
+        return {"error": f"timeout after {timeout * wall_factor:g} s of wall time", "time_s": time.perf_counter() - t0}
+    if cpu_limited and out.returncode in (-signal.SIGXCPU, -signal.SIGKILL):
+        return {"error": f"timeout after {timeout:g} s of CPU time", "time_s": time.perf_counter() - t0}
     lines = (out.stderr or "").strip().splitlines()
     if out.returncode != 0 or not (out.stdout or "").strip():
         why = lines[-1] if lines else f"exit code {out.returncode}"
@@ -164,15 +182,15 @@ def measure(spec: dict, args) -> dict:
     """Default two-scale solve, reference and ContactMechanics on one scene."""
     rec = {"spec": spec}
     if spec["body"] == "block":  # the FEM correction is built once and cached: not timed
-        rec["warmup"] = _child("twoscale", spec, None, args.timeout * 3)
-    rec["ts"] = _child("twoscale", spec, None, args.timeout)
+        rec["warmup"] = _child("twoscale", spec, None, args.timeout * 3, args.wall_factor)
+    rec["ts"] = _child("twoscale", spec, None, args.timeout, args.wall_factor)
     h = rec["ts"].get("h")
     if h is None:
         return rec
     fits, cells = _ref_fits(spec, h, args.ref_max_gb)
     rec["ref_cells"] = cells
     if fits:
-        rec["ref"] = _child("reference", spec, h, args.ref_timeout)
+        rec["ref"] = _child("reference", spec, h, args.ref_timeout, args.wall_factor)
         if "forces" in rec["ref"]:
             rec["err"] = _errors(rec["ts"]["forces"], rec["ref"]["forces"])
             rec["ratio_cpu"] = rec["ts"]["cpu_s"] / max(rec["ref"]["cpu_s"], 1e-9)
@@ -180,7 +198,7 @@ def measure(spec: dict, args) -> dict:
             rec["contact_share"] = float(np.count_nonzero(np.asarray(rec["ref"]["forces"]) > 0))
     if (args.cm and spec["kind"] == "tips" and spec["body"] == "halfspace" and fits
             and cells <= args.cm_max_cells):
-        rec["cm"] = _child("cm", spec, h, args.ref_timeout)
+        rec["cm"] = _child("cm", spec, h, args.ref_timeout, args.wall_factor)
         if "forces" in rec["cm"] and "ref" in rec and "forces" in rec["ref"]:
             rec["cm_err"] = _errors(rec["cm"]["forces"], rec["ref"]["forces"])
     return rec
@@ -200,7 +218,7 @@ def verdict(rec: dict) -> str:
     if rec.get("err", {}).get("tip_pct", 0.0) > 0.5:
         return "inaccurate"
     if "ref" in rec and "forces" in rec["ref"]:
-        if rec["ratio_cpu"] > 1.0 and ts["time_s"] > 1.0:
+        if rec["ratio_cpu"] > 1.0 and ts["cpu_s"] > 1.0:  # CPU seconds, as the ratio
             return "slower-than-ref"
     elif ts["cpu_s"] > 60.0:  # CPU seconds: the machine is shared, its wall time is not the code's
         return "over-60s"
@@ -211,7 +229,7 @@ def row(rec: dict) -> dict:
     ts, ref = rec["ts"], rec.get("ref", {})
     from twoscale.scenespace import SceneSpec
     return {"scene": SceneSpec(**rec["spec"]).label, "verdict": verdict(rec), "h": ts.get("h"),
-            "choice": ts.get("choice") or ("refused" if "refused" in ts else ts.get("error", "")[:20]),
+            "choice": ts.get("choice") or ("refused" if "refused" in ts else ts.get("error", "")[:40]),
             "ts_s": ts.get("time_s"), "ref_s": ref.get("time_s"), "ratio": rec.get("ratio_cpu"),
             "tip_pct": rec.get("err", {}).get("tip_pct"), "peak_mb": ts.get("peak_mb"),
             "est_mb": ts.get("estimate_mb"), "cm_s": rec.get("cm", {}).get("time_s")}
@@ -273,10 +291,16 @@ def main(argv=None) -> int:
     p.add_argument("--part", default="0/1", help="K/N: only the scenes whose index is K modulo N (run N at once)")
     p.add_argument("--read", nargs="*", default=[], help="more result files to summarise with --out (their scenes are skipped)")
     p.add_argument("--reverse", action="store_true", help="from the last scene down (a third process meets the others)")
+    p.add_argument("--smallest-first", action="store_true",
+                   help="scenes with fewer tips first (maps count as 100 tips): one lane covers the most scenes soonest")
+    p.add_argument("--record", action="store_true", help="with --only: append the reruns to --out (the last record counts)")
     p.add_argument("--out", default="sweep.jsonl")
     p.add_argument("--table")
     p.add_argument("--timeout", type=float, default=180.0, help="s, a default solve")
     p.add_argument("--ref-timeout", type=float, default=600.0)
+    p.add_argument("--wall-factor", type=float, default=1.0,
+                   help="above 1: the timeouts are of CPU time, and wall time is limited to this times them "
+                        "(a shared machine)")
     p.add_argument("--ref-max-gb", type=float, default=8.0)
     p.add_argument("--cm-max-cells", type=int, default=1_000_000)
     p.add_argument("--no-cm", dest="cm", action="store_false")
@@ -303,8 +327,12 @@ def main(argv=None) -> int:
     specs = [s for s in specs if s.index % n == k]
     if args.reverse:
         specs = specs[::-1]
+    if args.smallest_first:
+        specs = sorted(specs, key=lambda s: s.n if s.kind == "tips" else 100)
     for spec in specs:
         done = {r["spec"]["index"] for f in [args.out, *args.read] for r in _load(f)} if not args.only else set()
+        if args.only and args.record:
+            done = set()
         if spec.index in done:
             continue
         try:
@@ -317,10 +345,10 @@ def main(argv=None) -> int:
               f"peak {_fmt(x['peak_mb'], '.0f')}/{_fmt(x['est_mb'], '.0f')} MB", flush=True)
         if args.only:
             print(json.dumps({k: v for k, v in rec.items() if k != "spec"}, default=str)[:3000])
-        else:
+        if not args.only or args.record:
             with open(args.out, "a", encoding="utf-8") as fh:
                 fh.write(json.dumps(rec) + "\n")
-    records = sum((_load(f) for f in [args.out, *args.read]), []) if not args.only else []
+    records = sum((_load(f) for f in [args.out, *args.read]), []) if not args.only or args.record else []
     latest = {r["spec"]["index"]: r for r in records}  # a scene run again: its last record
     records = [latest[i] for i in sorted(latest)]
     if records:

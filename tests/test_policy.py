@@ -23,10 +23,13 @@ def _patches(asps, force, d, h):
     return pts, box_of([p.grid for p in pts], h, (0.0, 0.0)).size
 
 
-def test_one_patch_is_one_local_solve():
+def test_one_patch_is_one_constrained_cg_on_it():
     pts, box = _patches([Asperity(0.0, 0.0, 0.0, 5.0)], 2.0, 0.2, 0.05)
     c = choose(pts, box)
-    assert c.iteration == "block-gs" and c.far_tol is None and not c.by_caller
+    assert c.iteration == "union-cg" and c.far_tol is None and not c.by_caller
+    assert box == pts[0].grid.size  # the box is the patch
+    # with the tilt (a pivot off the tip) the block iteration's local solve and sensitivities
+    assert choose(pts, box, load_control=True, tilt=True).iteration == "block-gs"
 
 
 def test_few_separated_asperities_keep_the_papers_iteration():
@@ -141,3 +144,28 @@ def test_near_neighbours_follow_the_far_field_rule():
     far = estimate_costs(pts, box_of([p.grid for p in pts], 0.1, (0.0, 0.0)).size)["two-level"]
     crowded = estimate_costs(pts_close, box_close)["two-level"]
     assert crowded > far
+
+
+def test_the_cost_model_decides_and_its_margin_works_both_ways():
+    import dataclasses
+
+    from twoscale.micro.costmodel import FITTED, CostModel
+
+    # four spheres crowding their box, penetration control: exact block iterations and the union CG
+    asps = [Asperity(3.0 * i, 3.0 * j, 0.0, 5.0) for i in range(2) for j in range(2)]
+    pts, box = _patches(asps, 3.0, 0.3, 0.05)
+    work = choose(pts, box).estimates["work"]
+    ratio = work["union-cg"] / work["block-gs"]
+    # a model where the union CG is predicted 1.3x the block iterations
+    model = dataclasses.replace(FITTED, ns_per_unit={"union-cg": 1.3 / ratio, "block-gs": 1.0, "two-level": 1.0},
+                                fixed_seconds={"union-cg": 0.0, "block-gs": 0.0, "two-level": 0.0})
+    assert choose(pts, box, model=dataclasses.replace(model, union_margin=1.0)).iteration == "block-gs"
+    picked = choose(pts, box, model=dataclasses.replace(model, union_margin=1.7))
+    assert picked.iteration == "union-cg" and "1.7x" in picked.reason
+    assert picked.estimates["seconds"]["union-cg"] == pytest.approx(1.3 * picked.estimates["seconds"]["block-gs"],
+                                                                    rel=0.01)
+    # load control makes the block iterations' work dearer: the same model then prefers the union CG
+    assert choose(pts, box, load_control=True,
+                  model=dataclasses.replace(model, union_margin=1.0, load_factor=2.0)).iteration == "union-cg"
+    with pytest.raises(ValueError, match="ns_per_unit"):
+        CostModel(ns_per_unit={"union-cg": 1.0})

@@ -251,7 +251,7 @@ def _twoscale_parts(scene: Scene, h: float, *, union: bool = False) -> tuple[int
         parts["macro interaction matrix"] = 3.0 * 8.0 * n * n  # matrix, its LU, a work copy
     else:
         parts["macro interaction matrix"] = 2000.0 * n  # matrix-free point operator
-    box = _patch_box(scene, r, h) if int(on.sum()) > 1 else None  # one patch: one local solve
+    box = _patch_box(scene, r, h) if int(on.sum()) else None  # one patch: the union CG on it
     if box is not None and (union or cells >= UNION_MIN_COVERAGE * box.size):
         # the union CG runs after the patches are built (and after a block iteration that
         # did not converge): both are held at its peak

@@ -109,7 +109,8 @@ class SphereLaw(_ClosedFormLaw):
             slope = np.arctanh(eps) + eps / (1.0 - eps * eps)
             step = np.where(a > 0, (_sphere_penetration(R, a) - d) / np.where(a > 0, slope, 1.0), 0.0)
             a = np.clip(a - step, 0.0, a_max)
-            if np.all(np.abs(step) <= 1e-12 * a):   # quadratic convergence: the next step is ~1e-24 a
+            # quadratic convergence: the next step is ~1e-24 a; or held at the sphere's edge
+            if np.all((np.abs(step) <= 1e-12 * a) | ((a >= a_max) & (step < 0))):
                 break
         return a
 
@@ -124,7 +125,10 @@ class SphereLaw(_ClosedFormLaw):
             slope = 2.0 * E * a * (np.arctanh(eps) + eps / (1.0 - eps * eps))
             step = np.where(a > 0, (_sphere_load(R, a, E) - P) / np.where(a > 0, slope, 1.0), 0.0)
             a = np.clip(a - step, 0.0, a_max)
-            if np.all(np.abs(step) <= 1e-12 * a):   # quadratic convergence: the next step is ~1e-24 a
+            # quadratic convergence: the next step is ~1e-24 a; or held at the sphere's edge
+            # (a load past what the cap can carry, met by the macro step's safe path: 100
+            # steps each time, 68 of a 70 s solve of four spheres)
+            if np.all((np.abs(step) <= 1e-12 * a) | ((a >= a_max) & (step < 0))):
                 break
         return a
 

@@ -89,7 +89,8 @@ def run_two_level(state: WorkingSet, p: list, p0: list, theta, tilt, pivot, n_un
                         lambda th: state.heights(th, pivot), p, theta, pivot=pivot, n_unknowns=n_unknowns,
                         target=target, tol=tol, max_sweeps=max(max_sweeps - sweeps, 1),
                         stop=(lambda q: edges_loaded_any(state, q)) if can_grow else None,
-                        monitor=None if monitor is None else (lambda m, c: monitor(sweeps + m, c)))
+                        monitor=None if monitor is None else (lambda m, c: monitor(sweeps + m, c)),
+                        earlier=tuple(history))
         sweeps += res.sweeps
         history += res.history
         p, theta = res.pressures, res.theta

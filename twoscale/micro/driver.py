@@ -21,7 +21,7 @@ import numpy as np
 from ..indenters import Asperity
 from ..influence.base import InfluenceProvider
 from .patches import TipTable, build_patches
-from .policy import ITERATIONS, UNION_MIN_COVERAGE, Choice, choose
+from .policy import ITERATIONS, MODEL, UNION_MIN_COVERAGE, Choice, choose
 from .start import MicroStart
 from .result import MicroResult
 from .solve import EXACT_FAR_TOL, solve_micro
@@ -30,8 +30,8 @@ from .union import box_of
 from .workset import tip_approaches
 
 #: Sweeps a two-level attempt chosen by the policy gets (it needs 5-10 where it works)
-#: before the next strategy is tried.
-TWO_LEVEL_SWEEPS = 20
+#: before the next strategy is tried (a field of the cost model, :mod:`.costmodel`).
+TWO_LEVEL_SWEEPS = MODEL.two_level_sweeps
 
 
 @dataclass(frozen=True)
@@ -69,10 +69,11 @@ class MicroPlan:
     attempts: tuple
 
 
-def _plan(patches, box, choice_fixed: Choice | None, merged_contacts: bool, load_control: bool) -> Choice:
+def _plan(patches, box, choice_fixed: Choice | None, merged_contacts: bool, load_control: bool,
+          tilt: bool = False) -> Choice:
     if choice_fixed is not None:
         return choice_fixed
-    return choose(patches, box, merged_contacts=merged_contacts, load_control=load_control)
+    return choose(patches, box, merged_contacts=merged_contacts, load_control=load_control, tilt=tilt)
 
 
 def fixed_choice(iteration: str, far_tol: float | None, why: str) -> Choice:
@@ -123,7 +124,8 @@ def run_micro(provider: InfluenceProvider, asperities: Sequence[Asperity], *, ma
         return solve_micro(provider, asperities, max_sweeps=max_sweeps, **common), \
             MicroPlan(Choice("block-gs", None, "no asperity reaches the body", {}), ())
     picked = _plan(patches, box_of([pt.grid for pt in patches], h, anchor).size, choice,
-                   merged_contacts=bool(macro.safe_path), load_control=total_load is not None)
+                   merged_contacts=bool(macro.safe_path), load_control=total_load is not None,
+                   tilt=bool(free_tilt))
     context = MicroContext(provider, asperities, macro, tuple(patches), common, p0)
     attempts: list = []
     result = None

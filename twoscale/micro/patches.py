@@ -75,9 +75,11 @@ class TipTable(Sequence):
         self.unbounded = ~np.isfinite(self.R)
         # paraboloids: tip recess and curvature radius, for the lower bound of their height
         self.parabolic = np.array([type(a) is Asperity and a.shape == "paraboloid" for a in self.asperities])
+        self.spherical = np.array([type(a) is Asperity and a.shape == "sphere" for a in self.asperities])
         self.z = np.array([a.z for a in self.asperities], dtype=float)
         self.curvature = np.array([a.R for a in self.asperities], dtype=float)
         self._tree = None
+        self._reach = None
 
     @classmethod
     def of(cls, asperities: Sequence[Asperity]) -> "TipTable":
@@ -86,32 +88,54 @@ class TipTable(Sequence):
     def reaching(self, bounds: tuple[float, float, float, float], *, index: bool = True,
                  below: float = math.inf) -> np.ndarray:
         """Sorted indices of the asperities whose material (``r < R``) can reach the box
-        ``(xmin, xmax, ymin, ymax)`` (mm); unbounded ones always, except paraboloids whose
-        lowest point over the box is not below ``below`` (mm: a height the surface is known
-        not to exceed there, so they own no cell of it). With ``index`` the bounded
-        candidates come from a k-d tree of the tips (built on first use, so a solve that
-        builds thousands of patches pays ``O(log N)`` per patch instead of ``O(N)``)."""
+        ``(xmin, xmax, ymin, ymax)`` (mm), unbounded ones included; with a finite ``below``
+        (mm: a height the surface is known not to exceed over the box) not the spheres and
+        paraboloids whose lowest point over the box is not below it (they own no cell of
+        it). With ``index`` the candidates come from a k-d tree of the tips (built on first
+        use): a sphere or paraboloid of curvature radius ``R`` is at least ``r^2 / (2 R)``
+        above its tip at distance ``r``, so none farther than ``sqrt(2 R_max (below -
+        z_min))`` from the box can count, and a solve that builds thousands of patches
+        pays ``O(log N)`` per patch instead of ``O(N)`` (6,933 near-touching spheres of R
+        1.2 mm with contacts of 0.02 mm: 300 spheres reached each patch by their radius,
+        and sampling them was 95 of the solve's 100 s)."""
         xmin, xmax, ymin, ymax = bounds
-        cand = np.arange(len(self.x))
-        bounded = np.flatnonzero(~self.unbounded)
-        unbounded = self.unbounded
-        if math.isfinite(below):
-            dx = np.maximum(np.maximum(xmin - self.x, self.x - xmax), 0.0)
-            dy = np.maximum(np.maximum(ymin - self.y, self.y - ymax), 0.0)
-            low = self.z + (dx * dx + dy * dy) / (2.0 * self.curvature)
-            unbounded = unbounded & ~(self.parabolic & (low >= below))
-        if index and bounded.size > TREE_MIN:
+        n = len(self.x)
+        radius = self._candidate_radius(below) + 0.5 * math.hypot(xmax - xmin, ymax - ymin)
+        if index and n > TREE_MIN and math.isfinite(radius):
             if self._tree is None:
                 from scipy.spatial import cKDTree
-                self._tree = cKDTree(np.column_stack([self.x[bounded], self.y[bounded]]))
-            # every tip within R of the box is within R_max + half-diagonal of its centre
-            radius = float(self.R[bounded].max()) + 0.5 * math.hypot(xmax - xmin, ymax - ymin)
-            near = bounded[self._tree.query_ball_point([0.5 * (xmin + xmax), 0.5 * (ymin + ymax)], radius)]
-            cand = np.union1d(near, np.flatnonzero(unbounded))
+                self._tree = cKDTree(np.column_stack([self.x, self.y]))
+            cand = np.sort(np.asarray(self._tree.query_ball_point([0.5 * (xmin + xmax), 0.5 * (ymin + ymax)],
+                                                                  radius), dtype=np.int64))
+        else:
+            cand = np.arange(n)
         x, y, R = self.x[cand], self.y[cand], self.R[cand]
         dx = np.maximum(np.maximum(xmin - x, x - xmax), 0.0)
         dy = np.maximum(np.maximum(ymin - y, y - ymax), 0.0)
-        return cand[unbounded[cand] | (~self.unbounded[cand] & (np.hypot(dx, dy) < R))]
+        r2 = dx * dx + dy * dy
+        keep = self.unbounded[cand] | (r2 < R * R)
+        if math.isfinite(below):
+            curv = self.curvature[cand]
+            low = np.full(len(cand), -np.inf)
+            par, sph = self.parabolic[cand], self.spherical[cand] & keep
+            low[par] = r2[par] / (2.0 * curv[par])
+            low[sph] = r2[sph] / (curv[sph] + np.sqrt(np.maximum(curv[sph] ** 2 - r2[sph], 0.0)))
+            keep &= ~((par | sph) & (self.z[cand] + low >= below))
+        return cand[keep]
+
+    def _candidate_radius(self, below: float) -> float:
+        """Largest distance (mm) from a box at which an asperity can still own a cell of it."""
+        if self._reach is None:
+            simple = self.parabolic | self.spherical
+            other = ~simple
+            self._reach = (float(np.max(self.R[other], initial=0.0)),  # inf with an unbounded other
+                           float(np.max(self.R[self.spherical], initial=0.0)),
+                           bool(np.any(self.parabolic)),
+                           float(np.max(self.curvature[simple], initial=0.0)),
+                           float(np.min(self.z[simple], initial=np.inf)))
+        other, sphere, parabolic, curv, zmin = self._reach
+        rho = math.sqrt(2.0 * curv * max(below - zmin, 0.0)) if math.isfinite(below) else math.inf
+        return max(other, min(sphere, rho), rho if parabolic else 0.0)
 
     def __len__(self) -> int:
         return len(self.asperities)

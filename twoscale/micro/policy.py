@@ -6,7 +6,7 @@ it covers. The policy estimates the cost of each iteration in grid-product work
 the cheapest that is expected to converge:
 
 * ``union-cg``: one constrained CG over the box of all patches (:mod:`.union`). Cost: about
-  ``UNION_PRODUCTS`` products on the box. Right where patches are many and crowd the box
+  ``union_products`` products on the box. Right where patches are many and crowd the box
   (dense, merged contacts): the cross-patch products then cost more than the box's FFT.
 * ``block-gs``: block Gauss-Seidel over the (merged) patches with exact coupling, the
   paper's iteration (eq. 8). Cost: sweeps x (local solves + every pair of patches). Right
@@ -15,7 +15,9 @@ the cheapest that is expected to converge:
   forces, a coarse correction keeps the sweeps few. Cost grows as N. Right for many
   scattered contacts (sparse scenes of thousands of tips), where the box is mostly empty.
 
-The choice, its reason and the estimates are recorded in the result; a caller may fix the
+Work units become predicted CPU seconds by the cost model (:mod:`.costmodel`, fitted to the
+scene-space sweep's measured attempts). The choice, its reason and the estimates are
+recorded in the result; a caller may fix the
 iteration or coupling instead (``reason`` then says so).
 """
 from __future__ import annotations
@@ -26,56 +28,18 @@ from typing import Sequence
 
 import numpy as np
 
+from .costmodel import FITTED, CostModel
 from .patches import Patch
 
 ITERATIONS = ("union-cg", "block-gs", "two-level")
 
-#: Effective double-precision products of one union CG solve. Unpreconditioned (mixed
-#: precision: ~90 single-precision products at ~1/2.5 the cost, then ~20 double) it was 60,
-#: measured on random dense scenes of 50-200 tips; the FFT preconditioner halves the
-#: iterations (63 against 121 on 300 dense tips) for a quarter of a product each, so
-#: 60 x 1.25 x 63 / 121 ~ 40. With 60, the default ran 300 tips at 2.5 N on 45 x 45 mm
-#: (72 % of the box carried) by the two-level iteration in 1.17 of the reference's time.
-UNION_PRODUCTS = 40.0
-#: The union CG is chosen only when its estimate is below this fraction of the block
-#: iterations' (their cost per work unit spreads more: under the tilt joint the union CG
-#: took 1.2 ns a unit, 0.8 s against 0.5 s for the two-level iteration on S2 at 300 N, whose
-#: estimates were 0.92 of each other; 300 dense tips on 45 x 45 mm, where the union CG wins,
-#: 0.71).
-UNION_MARGIN = 0.8
-#: Block Gauss-Seidel sweeps expected (4-6 on merged blocks, up to ~20 under load control
-#: with sensitivity sweeps).
-GS_SWEEPS = 10.0
-#: Products of one local solve per sweep (dense Cholesky or a short warm-started CG).
-LOCAL_PRODUCTS = 6.0
-#: Patch-sized products per exactly coupled pair of patches and sweep (spectral and
-#: low-rank routes together; see :func:`estimate_costs`).
-PAIR_PRODUCTS = 0.5
-#: Fixed cost of one product, work units (about 0.085 ms at 1.7 ns per unit: a union CG
-#: iteration on the paper's 41 x 39 box costs ~0.08 ms whatever its FFT size).
-PRODUCT_OVERHEAD = 5e4
-#: Near (exactly coupled) pairs per patch under far-field coupling, as costed on the
-#: calibration scene (200 dense tips on 60 x 60 mm, where the patches have 16.4 near
-#: neighbours each at far_tol 0.1, the policy's tolerance then); other scenes scale it by
-#: their own count at the policy's tolerance (:func:`near_neighbours`; at 0.1: 3 on the
-#: 1,000 sparse tips, 22 on 1,000 dense ones, 38 on 300 tips on 45 x 45 mm, where the
-#: constant had the two-level iteration at 23.5 s against 8.7 s for the union CG). The
-#: cost per exactly coupled pair does not depend on the tolerance.
-NEAR_PAIRS = 8.0
-NEAR_PAIRS_CALIBRATION = 16.4
-#: Below this many patches the far field is not used: exact pairs cost little in absolute
-#: terms there, and the far field's error (0.1-0.7 % on lightly loaded tips of an 18-tip
-#: scene) buys nothing.
-FAR_FIELD_MIN_PATCHES = 100
-#: Above this many patches, exact pair coupling is not considered (N^2 pairs).
-EXACT_MAX_PATCHES = 400
-#: The union CG (chosen, or as the fallback of a block iteration that stalled) only where
-#: the patches carry at least this share of their bounding box: below it the box is mostly
-#: empty, its CG costs more than the block iterations wherever they converge, and its
-#: memory grows with the box, not with the contacts (300 light spheres scattered on
-#: 60 x 60 mm, 12 % of the box: a union CG of 9.6 s against 3.0 s for the two-level
-#: iteration, and at a fine h a box of 70 M cells).
-UNION_MIN_COVERAGE = 0.25
+#: The cost model (:mod:`.costmodel`): fitted coefficients, margin and budgets in one
+#: object; the names below are its fields, kept for the modules that read them.
+MODEL = FITTED
+UNION_MARGIN = MODEL.union_margin
+UNION_MIN_COVERAGE = MODEL.union_min_coverage
+FAR_FIELD_MIN_PATCHES = MODEL.far_field_min_patches
+EXACT_MAX_PATCHES = MODEL.exact_max_patches
 #: Far-field tolerance chosen by the policy (relative size of a far pair, see
 #: :class:`~.farfield.LaggedFarField`: nine moment-matching sources per patch, error of
 #: order ``(r / d)^3``). Measured against the full-grid reference (largest per-tip error,
@@ -137,10 +101,10 @@ def near_neighbours(patches: Sequence[Patch], far_tol: float) -> float:
     return float(sum(len(c) for c in near_lists(*patch_frames(patches), far_tol))) / len(patches)
 
 
-def estimate_costs(patches: Sequence[Patch], box_cells: int) -> dict:
+def estimate_costs(patches: Sequence[Patch], box_cells: int, model: CostModel = FITTED) -> dict:
     """Estimated work (grid-product units) of each iteration on these patches.
 
-    A pair of patches coupled exactly costs ``PAIR_PRODUCTS`` patch-sized products per
+    A pair of patches coupled exactly costs ``model.pair_products`` patch-sized products per
     sweep. Calibrated on seeded dense scenes under load control (quiet machine): 200 tips,
     union CG 13.5 s, two-level with far field 6.35 s, with exact coupling 38.6 s, block
     Gauss-Seidel 65.8 s (full-grid reference 23.4 s); 50 tips 2.11, 1.76, 1.49, 2.46 s
@@ -151,18 +115,19 @@ def estimate_costs(patches: Sequence[Patch], box_cells: int) -> dict:
         return {"union-cg": 0.0, "block-gs": 0.0, "two-level": 0.0}
     # a local solve's and a CG iteration's product also has a fixed cost (Python and
     # transform set-up), which decides on small patches; pairs share their transforms
-    local = float(sum(fft_work(c) for c in cells)) + n * PRODUCT_OVERHEAD
+    local = float(sum(fft_work(c) for c in cells)) + n * model.product_overhead
     pair = fft_work(float(np.mean(cells)))
-    union = UNION_PRODUCTS * (fft_work(box_cells) + PRODUCT_OVERHEAD)
-    exact = GS_SWEEPS * (LOCAL_PRODUCTS * local + PAIR_PRODUCTS * n * (n - 1) * pair)
+    union = model.union_products * (fft_work(box_cells) + model.product_overhead)
+    exact = model.gs_sweeps * (model.local_products * local + model.pair_products * n * (n - 1) * pair)
     # far field: the near pairs exact, the rest through one point-operator product of 9 n sources
-    near_pairs = NEAR_PAIRS * near_neighbours(patches, AUTO_FAR_TOL) / NEAR_PAIRS_CALIBRATION
-    near = GS_SWEEPS * (LOCAL_PRODUCTS * local + PAIR_PRODUCTS * near_pairs * n * pair + 10.0 * fft_work(9.0 * n))
+    near_pairs = model.near_pairs * near_neighbours(patches, AUTO_FAR_TOL) / model.near_pairs_calibration
+    near = model.gs_sweeps * (model.local_products * local + model.pair_products * near_pairs * n * pair
+                            + 10.0 * fft_work(9.0 * n))
     return {"union-cg": union, "block-gs": exact, "two-level": near}
 
 
 def choose(patches: Sequence[Patch], box_cells: int, *, merged_contacts: bool = False,
-           load_control: bool = False) -> Choice:
+           load_control: bool = False, tilt: bool = False, model: CostModel = FITTED) -> Choice:
     """The iteration and coupling for these patches (see the module docstring).
 
     ``merged_contacts``: the macro step met contacts so close that they merge (its safe
@@ -174,29 +139,43 @@ def choose(patches: Sequence[Patch], box_cells: int, *, merged_contacts: bool = 
     ``UNION_MIN_COVERAGE`` of their box. ``load_control``: where exact block iterations are
     cheapest, their two-level variant runs first (its coarse step corrects the approach
     and tilt instead of sensitivity sweeps: S1-S3 2.7-3x faster), block Gauss-Seidel if it
-    stalls; the choice names the two-level iteration with exact coupling."""
+    stalls; the choice names the two-level iteration with exact coupling. The work of each
+    candidate becomes predicted CPU seconds by ``model`` (its block iterations' work costs
+    more under load control and with the ``tilt``); the cheapest prediction is chosen, the
+    union CG only below ``model.union_margin`` times the best block iteration's."""
     figures = scene_figures(patches, box_cells)
-    costs = estimate_costs(patches, box_cells)
+    work = estimate_costs(patches, box_cells, model)
+    costs = model.seconds(work, load_control=load_control, tilt=tilt)
     est = {**figures, "merged_contacts": bool(merged_contacts),
-           "work": {k: float(f"{v:.3g}") for k, v in costs.items()}}
+           "work": {k: float(f"{v:.3g}") for k, v in work.items()},
+           "seconds": {k: float(f"{v:.3g}") for k, v in costs.items()}}
     n = figures["patches"]
-    if n <= 1:
+    if n <= 1 and tilt:
         return Choice("block-gs", None, "one patch: a single local solve", est)
+    if n <= 1:
+        # the constrained CG on the patch itself, without the eq. 7 start the block
+        # iterations make first: one sphere 5.9 ms against 15.8 ms (the full-grid
+        # reference 7.4 ms), the same forces
+        return Choice("union-cg", None, "one patch: one constrained CG on it", est)
     candidates = dict(costs)
-    if n > EXACT_MAX_PATCHES:
+    if n > model.exact_max_patches:
         candidates.pop("block-gs")
-    if n < FAR_FIELD_MIN_PATCHES:
+    if n < model.far_field_min_patches:
         candidates.pop("two-level")
-    if figures["coverage"] < UNION_MIN_COVERAGE and len(candidates) > 1:
+    if figures["coverage"] < model.union_min_coverage and len(candidates) > 1:
         candidates.pop("union-cg")
-    best = min(candidates, key=candidates.get)
     rest = {k: v for k, v in candidates.items() if k != "union-cg"}
-    if best == "union-cg" and rest and candidates[best] > UNION_MARGIN * min(rest.values()):
+    if "union-cg" in candidates and (not rest or candidates["union-cg"] <= model.union_margin * min(rest.values())):
+        best = "union-cg"
+    else:
         best = min(rest, key=rest.get)
     cov = figures["coverage"]
     if best == "union-cg":
+        against = (f", the block iterations {min(rest.values()):.2g} s; it is taken up to "
+                   f"{model.union_margin:g}x theirs") if rest else ""
         reason = (f"{n} patches carry {100 * cov:.0f} % of their bounding box's "
-                  f"{figures['box_cells']} cells: one constrained CG over the box is cheapest")
+                  f"{figures['box_cells']} cells: one constrained CG over the box (predicted "
+                  f"{candidates['union-cg']:.2g} s{against})")
         return Choice("union-cg", None, reason, est)
     if best == "block-gs" and load_control and not merged_contacts:
         reason = (f"{n} patches, {100 * cov:.0f} % of their box: block iterations with exact coupling "

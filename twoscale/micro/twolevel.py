@@ -27,17 +27,19 @@ import scipy.sparse as sp
 from ..stopping import StopReason
 from .coarse import CoarseSpace
 from .constraints import patch_forces
+from .costmodel import FITTED
 from .gauss_seidel import LOCAL_FACTOR, sweep
 from .pk_stack import BlockStacks
 
 #: The iteration stops (not converged) when no sweep in this many has made the relative
 #: change smaller than before: where contacts merge it can cycle at a change of ~0.5 for
 #: its whole budget (100 sweeps, 90-125 s on an 80-tip scene).
-STALL_SWEEPS = 10
+STALL_SWEEPS = FITTED.stall_sweeps
 #: Sweeps over which the contraction rate is measured (:func:`too_slow`), and the rate
-#: above which an iteration that cannot reach its tolerance in its budget stops early.
-RATE_SWEEPS = 4
-SLOW_RATE = 0.8
+#: above which an iteration that cannot reach its tolerance in its budget stops early
+#: (both fields of the cost model, :mod:`.costmodel`).
+RATE_SWEEPS = FITTED.rate_sweeps
+SLOW_RATE = FITTED.slow_rate
 
 
 @dataclass(frozen=True)
@@ -89,6 +91,9 @@ def too_slow(history: list, tol: float, remaining: int) -> str:
     needed = math.log(tol / last) / math.log(rate) if rate < 1.0 else math.inf
     if needed <= remaining:
         return ""
+    if rate >= 1.0:
+        return (f"two-level iteration not converging: change {last:.3g}, up {rate:.2f}x a sweep over the last "
+                f"{RATE_SWEEPS}")
     return (f"two-level iteration converging too slowly: change {last:.3g} falling by {rate:.2f} a sweep, "
             f"about {needed:.0f} more sweeps needed, {remaining} left")
 
@@ -126,7 +131,7 @@ def sweep_levels(coupling) -> list:
 
 def two_level(blocks, coupling, tips: np.ndarray, heights, p: list, theta: np.ndarray, *,
               pivot: tuple[float, float], n_unknowns: int, target, tol: float, max_sweeps: int,
-              stop=None, coarse_dense_max: int = 2000, monitor=None) -> TwoLevelResult:
+              stop=None, coarse_dense_max: int = 2000, monitor=None, earlier: tuple = ()) -> TwoLevelResult:
     """Two-level block Gauss-Seidel; see the module docstring.
 
     Parameters
@@ -154,6 +159,11 @@ def two_level(blocks, coupling, tips: np.ndarray, heights, p: list, theta: np.nd
         Coarse systems up to this many patches in contact are solved densely.
     monitor : callable, optional
         ``monitor(sweep, change)`` after each iteration (progress display).
+    earlier : tuple of float, default ()
+        Changes of the earlier rounds of the same solve (a round ends when ``stop`` asks
+        for larger patches): the stall and rate rules count them, so an iteration that
+        grows its patches every few sweeps without converging still stops (281 paraboloids
+        under penetration control: changes of 0.3-12 for 11 sweeps over four rounds).
     """
     patches = coupling.patches
     coarse = CoarseSpace(coupling.provider, tips, lower_near_pattern(coupling), dense_max=coarse_dense_max)
@@ -187,14 +197,15 @@ def two_level(blocks, coupling, tips: np.ndarray, heights, p: list, theta: np.nd
         history.append(change)
         if monitor is not None:
             monitor(m, change)
-        if m > STALL_SWEEPS and min(history[-STALL_SWEEPS:]) >= min(history[:-STALL_SWEEPS]):
+        seen = list(earlier) + history
+        if len(seen) > STALL_SWEEPS and min(seen[-STALL_SWEEPS:]) >= min(seen[:-STALL_SWEEPS]):
             # no new smallest change in STALL_SWEEPS sweeps: merged contacts make cells flip
             return TwoLevelResult(p, active, theta, False, m, tuple(history), cg_iters,
                                   f"two-level iteration stalled: no smaller change in {STALL_SWEEPS} sweeps "
-                                  f"(last {change:.3g}, best {min(history):.3g})", StopReason.STAGNATED)
+                                  f"(last {change:.3g}, best {min(seen):.3g})", StopReason.STAGNATED)
         if change <= tol and not changed:
             return TwoLevelResult(p, active, theta, True, m, tuple(history), cg_iters, "", StopReason.CONVERGED)
-        slow = too_slow(history, tol, max_sweeps - m)
+        slow = too_slow(seen, tol, max_sweeps - m)
         if slow:
             return TwoLevelResult(p, active, theta, False, m, tuple(history), cg_iters, slow, StopReason.STAGNATED)
         if stop is not None and stop(p):
