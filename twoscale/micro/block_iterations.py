@@ -42,16 +42,12 @@ def run_block_gauss_seidel(state: WorkingSet, p: list, p0: list, theta, tilt, pi
         sweeps += gs.sweeps
         history += gs.history
         p = gs.pressures
-        if gs.converged or gs.reason is StopReason.STOPPED:
-            grown = grow(state, p, p0, theta, pivot, tol) if can_grow else 0
-            if grown:
-                growths += grown
-                continue
-        if not gs.converged:
-            return finish(state, p, p0, theta, tilt, pivot, False, gs.message, counts(), history)
-        if edges_loaded_any(state, p):
-            return finish(state, p, p0, theta, tilt, pivot, False,
-                           f"pressure still reaches a patch edge after {growths} enlargements", counts(), history)
+        grown, ended = _round_end(state, gs, p, p0, theta, tilt, pivot, tol, can_grow, growths, counts, history)
+        if grown:
+            growths += grown
+            continue
+        if ended is not None:
+            return ended
         if target is None:
             break
         residual = target - resultants(state.patches, p, pivot, n_unknowns)
@@ -95,16 +91,12 @@ def run_two_level(state: WorkingSet, p: list, p0: list, theta, tilt, pivot, n_un
         history += res.history
         p, theta = res.pressures, res.theta
         state.coupling.refresh(p)
-        if res.converged or res.reason is StopReason.STOPPED:
-            grown = grow(state, p, p0, theta, pivot, tol) if can_grow else 0
-            if grown:
-                growths += grown
-                continue
-        if not res.converged:
-            return finish(state, p, p0, theta, tilt, pivot, False, res.message, counts(), history)
-        if edges_loaded_any(state, p):
-            return finish(state, p, p0, theta, tilt, pivot, False,
-                           f"pressure still reaches a patch edge after {growths} enlargements", counts(), history)
+        grown, ended = _round_end(state, res, p, p0, theta, tilt, pivot, tol, can_grow, growths, counts, history)
+        if grown:
+            growths += grown
+            continue
+        if ended is not None:
+            return ended
         break
     if n_unknowns:
         residual = np.asarray(target) - np.atleast_1d(resultants(state.patches, p, pivot, n_unknowns))
@@ -174,6 +166,22 @@ def _budget(state: WorkingSet, max_growths: int | None) -> int:
     if max_growths is not None:
         return int(max_growths)
     return max(MAX_GROWTHS, GROWTHS_PER_PATCH * len(state.patches))
+
+
+def _round_end(state: WorkingSet, res, p, p0, theta, tilt, pivot, tol, can_grow, growths, counts, history):
+    """What follows a round of sweeps ``res``: ``(grown, None)`` with the patches grown (> 0:
+    sweep again), or ``(0, result)`` when the round failed or pressure still reaches a patch
+    edge, or ``(0, None)`` to go on."""
+    if res.converged or res.reason is StopReason.STOPPED:
+        grown = grow(state, p, p0, theta, pivot, tol) if can_grow else 0
+        if grown:
+            return grown, None
+    if not res.converged:
+        return 0, finish(state, p, p0, theta, tilt, pivot, False, res.message, counts(), history)
+    if edges_loaded_any(state, p):
+        return 0, finish(state, p, p0, theta, tilt, pivot, False,
+                         f"pressure still reaches a patch edge after {growths} enlargements", counts(), history)
+    return 0, None
 
 
 def finish(state, p, p0, theta, tilt, pivot, converged, message, counts, history):
