@@ -123,3 +123,8 @@ def test_flat_keywords_map_to_the_groups():
     o = SolverOptions.from_keywords(tol=1e-7, macro_tol=1e-9, h=0.1)
     assert o.micro.tol == 1e-7 and o.macro.tol == 1e-9 and o.resolution.h == 0.1
     assert o.twoscale_keywords()["tol"] == 1e-7 and o.twoscale_keywords()["macro_tol"] == 1e-9
+
+
+def test_a_group_prefix_on_a_flat_keyword_points_to_the_flat_name():
+    with pytest.raises(ValueError, match=r"unknown option 'micro_tol' .*\(did you mean 'tol'\?\)"):
+        twoscale.solve(_scene(), micro_tol=1e-7)

@@ -316,7 +316,11 @@ def _check_twoscale_keywords(options: Mapping) -> None:
     if unknown:
         import difflib
 
-        close = difflib.get_close_matches(unknown[0], sorted(known | set(_TWOSCALE_EXTRAS)), n=3)
+        key = unknown[0]
+        # a group's prefix on a flat keyword ("micro_tol"): the micro step's options go without it
+        stem = key.split("_", 1)[1] if key.startswith(("micro_", "micro.")) else ""
+        close = [stem] if stem in known else \
+            difflib.get_close_matches(key, sorted(known | set(_TWOSCALE_EXTRAS)), n=3)
         hint = f" (did you mean {', '.join(repr(c) for c in close)}?)" if close else \
             " (twoscale.list_options() lists the options)"
         raise ValueError(f"unknown option {unknown[0]!r} for the two-scale solver{hint}")

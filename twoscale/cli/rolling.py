@@ -114,7 +114,26 @@ def summary(result, scene_path: str, wall: float, out) -> str:
         f"to {result.drag.max():.4g} N",
         f"  time         {wall:.3g} s ({np.mean(result.seconds):.3g} s per position)",
     ]
+    if n >= 2:
+        lines.insert(-1, _bands_line(result))
     if out is not None:
         names = sorted(p.name for p in Path(out).iterdir() if not p.name.startswith("."))
         lines.append(f"  wrote        {out}/: {', '.join(names)}")
     return "\n".join(lines)
+
+
+def _bands_line(result) -> str:
+    """Which third-octave bands the run resolves (a band needs 3 frequency bins), and the road
+    length the 315 Hz band would need at this speed."""
+    from ..rolling.bands import third_octave_levels
+
+    dt = result.spec.step / result.spec.speed_mm_s
+    levels = third_octave_levels(result.total_load if result.control == "penetration" else result.penetration, dt)
+    bands = [f"{float(f):g}" for f in levels.nominal]
+    fc = 1000.0 * 10.0 ** (-5 / 10)                      # the 315 Hz band's exact centre
+    need = 3.0 / (fc * (10 ** 0.05 - 10 ** -0.05)) * result.spec.speed_mm_s
+    said = (f"{len(bands)} third-octave band{'s' if len(bands) != 1 else ''} resolved"
+            + (f" ({bands[0]} to {bands[-1]} Hz)" if len(bands) > 1 else f" ({bands[0]} Hz)" if bands else ""))
+    if not bands or float(levels.nominal[0]) > 315:
+        said += f"; 315 Hz needs a run of about {need:.3g} mm at this speed (3 bins a band)"
+    return f"  bands        {said}"

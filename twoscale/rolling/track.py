@@ -168,7 +168,8 @@ def check_length(track: Track) -> None:
     s0, s1 = float(track.shifts[0]), float(track.shifts[-1])
     if rx0 + s1 > -L / 2 or rx1 + s0 < L / 2:
         raise SceneError(
-            f"surface: the strip is {rx1 - rx0:.6g} mm long along x, shorter than the footprint (about {L:.4g} mm) "
+            f"surface: the strip is {rx1 - rx0:.6g} mm long along x, shorter than the contact length (about {L:.4g} mm, "
+            f"the footprint along x) "
             f"plus the run from rolling.start = {track.spec.start!r} to rolling.end = {track.spec.end!r} mm "
             f"(a road point at x appears at body x + shift: the strip must cover the footprint at every shift)")
 
