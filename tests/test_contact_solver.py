@@ -104,8 +104,12 @@ def test_bad_options_are_refused_naming_them(bad, match):
 def test_a_misspelt_keyword_of_solve_is_refused_naming_it():
     with pytest.raises(ValueError, match=r"unknown option 'iteraton' for the two-scale solver \(did you mean 'iteration'\?\)"):
         twoscale.solve(_scene(), iteraton="block-gs")
-    with pytest.raises(ValueError, match="unknown keyword 'tol'"):
+    with pytest.raises(ValueError, match=r"unknown keyword 'tol' \(did you mean the option micro.tol\?"):
         twoscale.ContactSolver().solve(_scene(), tol=1e-7)
+    with pytest.raises(ValueError, match=r"unknown keyword 'iteraton' \(did you mean the option micro.iteration\?"):
+        twoscale.ContactSolver().solve(_scene(), iteraton="block-gs")
+    with pytest.raises(ValueError, match=r"unknown keyword 'totl_load' \(did you mean 'total_load'\?\)"):
+        twoscale.ContactSolver().solve(_scene(), totl_load=3.0)
 
 
 def test_every_option_is_listed_documented_and_in_the_docs_table():

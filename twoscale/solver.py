@@ -126,8 +126,7 @@ class ContactSolver:
         given["tilt"] = bool(given["tilt"])
         shape = scene_keywords.pop("shape", "sphere")
         if scene_keywords:
-            raise ValueError(f"unknown keyword {sorted(scene_keywords)[0]!r}: options go in SolverOptions, "
-                             f"scene data in the scene (or material=, penetration=, total_load=, tilt=, pivot=)")
+            raise ValueError(_unknown_keyword(sorted(scene_keywords)[0]))
         res = self.options.resolution
         scene = _scene_of(problem, self._body, res.h, shape, given)
         body_kept = self._body is not None
@@ -188,6 +187,24 @@ class ContactSolver:
             return 0
         return int(prev.tips.nbytes + sum(f.pressure.nbytes + f.owner.nbytes + f.gap.nbytes
                                           for f in prev.result.fields))
+
+
+def _unknown_keyword(key: str) -> str:
+    """One line for a keyword ``ContactSolver.solve`` does not take, with the option it may mean."""
+    import difflib
+
+    from .options import KEYWORDS
+
+    scene = ("material", "penetration", "total_load", "tilt", "pivot", "shape")
+    close = difflib.get_close_matches(key, sorted(set(KEYWORDS) | set(scene)), n=1)
+    if close and close[0] in KEYWORDS:
+        group, name = KEYWORDS[close[0]]
+        hint = f" (did you mean the option {group}.{name}? options go in SolverOptions)"
+    elif close:
+        hint = f" (did you mean {close[0]!r}?)"
+    else:
+        hint = ": options go in SolverOptions, scene data in the scene"
+    return f"unknown keyword {key!r}{hint}"
 
 
 __all__ = ["ContactSolver", "MAX_START_BYTES"]
