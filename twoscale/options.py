@@ -247,12 +247,10 @@ class SolverOptions:
                                             for g, v in changes.items()})
 
     def twoscale_keywords(self) -> dict:
-        """The keywords of :func:`twoscale.driver.solve_twoscale` these options give."""
-        m, M = self.micro, self.macro
-        return dict(tol=m.tol, max_sweeps=m.max_sweeps, iteration=m.iteration, far_tol=m.far_tol,
-                    margin=m.margin, dense_max_cells=m.dense_max_cells, separated_rtol=m.separated_rtol,
-                    merge=m.merge, p0=m.p0, macro_tol=M.tol, macro_max_iter=M.max_iter,
-                    macro_dense_max=M.dense_max, macro_operator_rtol=M.operator_rtol)
+        """The keywords of :func:`twoscale.driver.solve_twoscale` these options give (the
+        macro and micro options under their flat names, :data:`KEYWORDS`)."""
+        return {key: getattr(getattr(self, group), name) for key, (group, name) in KEYWORDS.items()
+                if group in ("macro", "micro")}
 
 
 def _close(name: str, known) -> str:

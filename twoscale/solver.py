@@ -176,8 +176,7 @@ class ContactSolver:
 
     def _remember(self, scene: Scene, h: float, result: ContactResult) -> None:
         tips = np.array([[a.x, a.y] for a in scene.asperities], dtype=float).reshape(-1, 2)
-        fields_bytes = sum(f.pressure.nbytes + f.owner.nbytes for f in result.fields)
-        if fields_bytes > self.max_start_bytes:
+        if _fields_bytes(result) > self.max_start_bytes:
             result = dataclasses.replace(result, fields=())  # the macro start only
         self._previous = _Previous(tips, float(h), result, scene.influence)
 
@@ -185,8 +184,12 @@ class ContactSolver:
         prev = self._previous
         if prev is None:
             return 0
-        return int(prev.tips.nbytes + sum(f.pressure.nbytes + f.owner.nbytes + f.gap.nbytes
-                                          for f in prev.result.fields))
+        return int(prev.tips.nbytes + _fields_bytes(prev.result))
+
+
+def _fields_bytes(result: ContactResult) -> int:
+    """Bytes of a result's fields (pressure, owner, gap): what keeping it as a start holds."""
+    return int(sum(f.pressure.nbytes + f.owner.nbytes + f.gap.nbytes for f in result.fields))
 
 
 def _unknown_keyword(key: str) -> str:

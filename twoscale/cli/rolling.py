@@ -125,10 +125,10 @@ def summary(result, scene_path: str, wall: float, out) -> str:
 def _bands_line(result) -> str:
     """Which third-octave bands the run resolves (a band needs 3 frequency bins), and the road
     length the 315 Hz band would need at this speed."""
+    from ..io.rolling_outputs import band_signal
     from ..rolling.bands import third_octave_levels
 
-    dt = result.spec.step / result.spec.speed_mm_s
-    levels = third_octave_levels(result.total_load if result.control == "penetration" else result.penetration, dt)
+    levels = third_octave_levels(band_signal(result), result.spec.step / result.spec.speed_mm_s)
     bands = [f"{float(f):g}" for f in levels.nominal]
     fc = 1000.0 * 10.0 ** (-5 / 10)                      # the 315 Hz band's exact centre
     need = 3.0 / (fc * (10 ** 0.05 - 10 ** -0.05)) * result.spec.speed_mm_s

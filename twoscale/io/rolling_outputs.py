@@ -132,6 +132,12 @@ def _have(*modules: str) -> bool:
     return all(importlib.util.find_spec(m) is not None for m in modules)
 
 
+def band_signal(result) -> np.ndarray:
+    """The signal whose third-octave levels a rolling run reports: the total force under
+    penetration control, the approach under load control."""
+    return result.total_load if result.control == "penetration" else result.penetration
+
+
 def write_signal_products(result, scene, out_dir, *, figures: bool = True) -> list[Path]:
     """``bands.csv``, ``texture.json`` and the figures (module docstring); nothing where the
     signal modules are not in the package."""
@@ -140,8 +146,8 @@ def write_signal_products(result, scene, out_dir, *, figures: bool = True) -> li
         from ..rolling.bands import REF_APPROACH, REF_FORCE, third_octave_levels
 
         force = result.control == "penetration"
-        signal, ref = (result.total_load, REF_FORCE) if force else (result.penetration, REF_APPROACH)
-        levels = third_octave_levels(signal, result.spec.step / result.spec.speed_mm_s, reference=ref)
+        ref = REF_FORCE if force else REF_APPROACH
+        levels = third_octave_levels(band_signal(result), result.spec.step / result.spec.speed_mm_s, reference=ref)
         cols = levels.columns()
         rows = [{"band_Hz": float(f), "level_dB": float(v)} for f, v in zip(cols["band_Hz"], cols["level_dB"])]
         what = "total force, dB re 1 N" if force else "approach, dB re 1 um"

@@ -145,5 +145,6 @@ class MicroStart:
         return self.pressure.on_patch(patch, int(self.index[m]), (a.x, a.y), float(forces[m]))
 
     def on_grid(self, grid: Grid, asperities, forces: np.ndarray) -> np.ndarray | None:
+        """Start on one ``grid`` for every tip (the union CG's box), or None."""
         tips = np.array([[a.x, a.y] for a in asperities], dtype=float).reshape(-1, 2)
         return self.pressure.on_grid(grid, tips, self.index, np.asarray(forces, dtype=float))
