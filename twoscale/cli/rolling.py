@@ -46,7 +46,7 @@ def run_rolling(scene, args: argparse.Namespace) -> int:
             else:
                 with staged_directory(args.out, overwrite=getattr(args, "overwrite", False),
                                       command=f"solve {args.scene}") as tmp:
-                    result = _roll_into(tmp, scene, track, options, status)
+                    result = _roll_into(tmp, scene, track, options, status, Path(args.scene).stem)
         wall = time.perf_counter() - t0
     except ValueError as exc:   # SceneError, an output folder that cannot be used
         print(f"error: {exc}", file=sys.stderr)
@@ -61,7 +61,7 @@ def run_rolling(scene, args: argparse.Namespace) -> int:
     return 0
 
 
-def _roll_into(out: Path, scene, track, options, status):
+def _roll_into(out: Path, scene, track, options, status, name: str | None = None):
     """Roll, writing the VTK frames as the positions come, then the tables."""
     from .._version import __version__
     from ..io.rolling_outputs import FrameWriter, write_rolling_tables, write_signal_products
@@ -77,7 +77,7 @@ def _roll_into(out: Path, scene, track, options, status):
     result = roll(track.scene, options=options, track=track, on_position=on_position, progress=status)
     frames.close()
     write_rolling_tables(result, scene, out)
-    write_signal_products(result, scene, out)
+    write_signal_products(result, scene, out, name=name)
     return result
 
 

@@ -138,10 +138,14 @@ def band_signal(result) -> np.ndarray:
     return result.total_load if result.control == "penetration" else result.penetration
 
 
-def write_signal_products(result, scene, out_dir, *, figures: bool = True) -> list[Path]:
-    """``bands.csv``, ``texture.json`` and the figures (module docstring); nothing where the
-    signal modules are not in the package."""
+def write_signal_products(result, scene, out_dir, *, figures: bool = True, name: str | None = None) -> list[Path]:
+    """``bands.csv``, ``texture.json`` and the figures (module docstring; their titles name
+    the scene, ``name`` its file's stem, and the body); nothing where the signal modules are
+    not in the package."""
+    from .scene_file import scene_to_dict
+
     out, written = Path(out_dir), []
+    record = scene_to_dict(scene)   # the figures' titles and PNG metadata take the scene's record
     if _have("twoscale.rolling.bands") and len(result.shifts) >= 2:
         from ..rolling.bands import REF_APPROACH, REF_FORCE, third_octave_levels
 
@@ -158,7 +162,7 @@ def write_signal_products(result, scene, out_dir, *, figures: bool = True) -> li
             from ..plot.rolling import bands_figure
 
             written.append(Path(bands_figure(out / "bands.png", cols["band_Hz"], cols["level_dB"],
-                                             level_label=f"level ({what})")))
+                                             level_label=f"level ({what})", scene=record, name=name)))
     if _have("twoscale.rolling.texture") and scene.surface is not None:
         from ..rolling.texture import road_texture
 
@@ -173,19 +177,20 @@ def write_signal_products(result, scene, out_dir, *, figures: bool = True) -> li
             tmp.write_text(json.dumps(content, indent=1, allow_nan=False) + "\n", encoding="utf-8")
         written.append(path)
     if figures and _have("twoscale.plot.rolling"):
-        written += _figures(result, out)
+        written += _figures(result, out, record, name)
     return written
 
 
-def _figures(result, out: Path) -> list[Path]:
+def _figures(result, out: Path, scene, name: str | None) -> list[Path]:
     from ..plot.rolling import signals_figure, space_time_figure
 
     force = result.control == "penetration"
     signal = result.total_load if force else result.penetration
     paths = [signals_figure(out / "signals.png", result.times, signal, result.contact_area,
-                            signal_label="total load (N)" if force else "approach (mm)")]
+                            signal_label="total load (N)" if force else "approach (mm)", scene=scene, name=name)]
     if result.line_x.size:
-        paths.append(space_time_figure(out / "space_time.png", result.shifts, result.line_x, result.line_load))
+        paths.append(space_time_figure(out / "space_time.png", result.shifts, result.line_x, result.line_load,
+                                       scene=scene, name=name))
     return [Path(p) for p in paths]
 
 
