@@ -60,7 +60,7 @@ def _stack(which: str):
     from twoscale.indenters import Asperity
     from twoscale.influence import HalfSpace
     from twoscale.micro import pk_stack
-    from twoscale.twoscale import solve_twoscale
+    from twoscale.driver import solve_twoscale
     rng = np.random.default_rng(4)
     pts: list = []
     while len(pts) < 80:

@@ -81,7 +81,7 @@ def run_one(method: str, spec_dict: dict, h: float | None) -> dict:
     import twoscale
     import twoscale.micro.driver  # noqa: F401  (the solvers' own imports outside the timed call,
     import twoscale.reference.on_scene  # noqa: F401  as for every code compared: the two-scale
-    import twoscale.twoscale  # noqa: F401  path's macro step and laws, the reference's
+    import twoscale.driver  # noqa: F401  path's macro step and laws, the reference's
     import scipy.interpolate, scipy.optimize  # noqa: F401,E401  optimiser; 40-50 ms on one tip)
     from twoscale.resources import estimate_memory
     from twoscale.scene import SceneError, default_h

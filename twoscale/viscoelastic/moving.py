@@ -74,7 +74,7 @@ class MovingOptions:
         fields per position); otherwise only the figures.
     solver : mapping, default {}
         Options of the step solver (``tol``, ``max_iter`` of the reference; those of
-        :func:`twoscale.twoscale.solve_twoscale`).
+        :func:`twoscale.driver.solve_twoscale`).
     open_edges : bool, default False
         The memory grid is the body's footprint (a tread block's face, a window of the
         half-space under a road): contact may reach its edge. Otherwise pressure on the
