@@ -39,7 +39,7 @@ sys.path.insert(0, str(ROOT))
 def micro_start(state: dict):
     """Substitute the micro step's eq. 7 start by ``state["previous"]`` moved by
     ``state["shift"]`` (mm) and scaled to each tip's macro force, while inside."""
-    import twoscale.micro.solve as ms
+    import twoscale.micro.setup as ms
 
     real = ms._initial
 

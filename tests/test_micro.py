@@ -16,7 +16,8 @@ from twoscale import Grid, Material
 from twoscale.analytic import hertz
 from twoscale.indenters import Asperity, Tilt
 from twoscale.influence import HalfSpace
-from twoscale.micro import build_patches, solve_micro
+from twoscale.micro import BlockSettings, MicroProblem, build_patches, solve_micro
+from twoscale.options import MicroOptions
 from twoscale.micro.localblock import LocalBlock
 from twoscale.micro.gauss_seidel import linear_gauss_seidel
 from twoscale.micro.blocks import Coupling
@@ -141,8 +142,8 @@ def test_gauss_seidel_matches_nnls_on_the_same_cells(dense_max_cells, merge, sce
     asps = CLOSE if scene == "close" else PAIR
     d, h = 0.08, 0.07
     forces = np.array([float(hertz.load(a.R, d - a.z, ES)) for a in asps])
-    res = solve_micro(HS, asps, h=h, forces=forces, penetration=d, tol=1e-9, dense_max_cells=dense_max_cells,
-                      merge=merge)
+    res = solve_micro(HS, asps, MicroProblem(h=h, forces=forces, penetration=d),
+                      MicroOptions(tol=1e-9, dense_max_cells=dense_max_cells, merge=merge))
     assert res.converged, res.message
     # the overlapping pair, and the close three, are one block only when merging
     assert res.merged == ((tuple(range(len(asps))),) if merge else ())
@@ -160,10 +161,10 @@ def test_patch_grows_when_pressure_reaches_its_edge():
     a = [Asperity(0.0, 0.0, 0.0, 2.0, "paraboloid")]
     d, h = 0.08, 0.07
     P = float(hertz.load(2.0, d, ES))
-    res = solve_micro(HS, a, h=h, forces=np.array([P / 20.0]), penetration=d, tol=1e-9)
+    res = solve_micro(HS, a, MicroProblem(h=h, forces=np.array([P / 20.0]), penetration=d), MicroOptions(tol=1e-9))
     assert res.converged, res.message
     assert res.growths >= 1
-    good = solve_micro(HS, a, h=h, forces=np.array([P]), penetration=d, tol=1e-9)
+    good = solve_micro(HS, a, MicroProblem(h=h, forces=np.array([P]), penetration=d), MicroOptions(tol=1e-9))
     assert good.growths == 0
     f = [h * h * float(r.pressures[0].sum()) for r in (res, good)]
     assert f[0] == pytest.approx(f[1], rel=1e-6)
@@ -172,7 +173,8 @@ def test_patch_grows_when_pressure_reaches_its_edge():
 def test_sweep_limit_is_reported_not_hidden():
     d, h = 0.08, 0.07
     forces = np.zeros(3)  # eq. 7 gives nothing: the sweeps start from zero
-    res = solve_micro(HS, CLOSE, h=h, forces=forces, penetration=d, tol=1e-12, max_sweeps=2, max_growths=0)
+    res = solve_micro(HS, CLOSE, MicroProblem(h=h, forces=forces, penetration=d), MicroOptions(tol=1e-12, max_sweeps=2),
+                      settings=BlockSettings(max_growths=0))
     assert not res.converged
     assert "2 sweeps" in res.message
     assert res.sweeps == 2
@@ -199,8 +201,8 @@ def test_load_control_and_tilt_meet_the_equations_exactly(merge):
     asps = CLOSE
     d, h, W, pivot = 0.08, 0.07, 1.5, (0.1, 0.2)
     forces = np.array([float(hertz.load(a.R, d - a.z, ES)) for a in asps])
-    res = solve_micro(HS, asps, h=h, forces=forces, penetration=d, tilt=(0.0, 0.0), pivot=pivot,
-                      total_load=W, free_tilt=True, tol=1e-8, merge=merge)
+    res = solve_micro(HS, asps, MicroProblem(h=h, forces=forces, penetration=d, tilt=(0.0, 0.0), pivot=pivot,
+                                             total_load=W, free_tilt=True), MicroOptions(tol=1e-8, merge=merge))
     assert res.converged, res.message
     # one block for the three close asperities, or one each
     assert res.merged == (((0, 1, 2),) if merge else ())
@@ -222,7 +224,8 @@ def test_growth_limit_is_reported_not_hidden():
     a = [Asperity(0.0, 0.0, 0.0, 2.0, "paraboloid")]
     d, h = 0.08, 0.07
     P = float(hertz.load(2.0, d, ES))
-    res = solve_micro(HS, a, h=h, forces=np.array([P / 50.0]), penetration=d, tol=1e-8, max_growths=0)
+    res = solve_micro(HS, a, MicroProblem(h=h, forces=np.array([P / 50.0]), penetration=d), MicroOptions(tol=1e-8),
+                      settings=BlockSettings(max_growths=0))
     assert not res.converged
     assert "patch edge" in res.message
 
@@ -245,12 +248,12 @@ def test_unsymmetric_dense_block_falls_back_to_lu():
 PIVOT_ON_TIP = [Asperity(0.0, 0.0, 0.0, 5.0), Asperity(8.0, 0.0, 0.0, 5.0), Asperity(0.0, 8.0, 0.0, 4.0)]
 
 
-def _from_the_lone_tip_answer(W, **kwargs):
+def _from_the_lone_tip_answer(W, h, iteration="block-gs", **options):
     """The micro step started from all the load on tip 0 and a tilt of 0.08 rad about
     both axes, which leaves tips 1 and 2 without a patch."""
-    return solve_micro(HS, PIVOT_ON_TIP, forces=np.array([W, 0.0, 0.0]),
-                       penetration=float(hertz.penetration(5.0, W, ES)), tilt=(0.08, 0.08),
-                       pivot=(0.0, 0.0), total_load=W, free_tilt=True, tol=1e-9, **kwargs)
+    problem = MicroProblem(h=h, forces=np.array([W, 0.0, 0.0]), penetration=float(hertz.penetration(5.0, W, ES)),
+                           tilt=(0.08, 0.08), pivot=(0.0, 0.0), total_load=W, free_tilt=True)
+    return solve_micro(HS, PIVOT_ON_TIP, problem, MicroOptions(tol=1e-9, **options), iteration=iteration)
 
 
 def test_asperities_the_macro_step_left_out_get_patches():
@@ -280,7 +283,7 @@ def test_two_level_says_when_one_patch_must_carry_the_moment():
     # bad start as above the tilt cannot move and tips 1 and 2 are never reached. It must
     # say so rather than return the lone-patch answer (solve_twoscale does not start there:
     # its patches are sized from the macro local penetrations, see the block test).
-    res = _from_the_lone_tip_answer(10.0, h=0.1, far_tol=1e-4, coarse=True, max_sweeps=60)
+    res = _from_the_lone_tip_answer(10.0, h=0.1, far_tol=1e-4, iteration="two-level", max_sweeps=60)
     assert not res.converged
     # it stops at its budget, or sooner when its rate cannot reach the tolerance within it
     assert "60 sweeps" in res.message or ("too slowly" in res.message and "left" in res.message)

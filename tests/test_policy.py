@@ -100,14 +100,15 @@ def test_caller_choice_is_recorded_as_such_and_checked():
 def test_the_driver_composes_iteration_and_coupling_objects():
     from twoscale.micro.driver import TWO_LEVEL_SWEEPS, _order
     from twoscale.micro.policy import Choice
-    from twoscale.micro.strategies import BlockGaussSeidel, Exact, FarField, TwoLevel, UnionCG
+    from twoscale.micro.couplings import Exact, FarField
+    from twoscale.micro.strategies import BlockGaussSeidel, TwoLevel, UnionCG
 
     with pytest.raises(ValueError, match="far-field tol"):
         FarField(1.5)
     # the policy's far field: capped, then the union CG where it stalls
     far = _order(Choice("two-level", 0.1, "r", {}))
     assert [(type(i), c, cap) for i, c, cap in far] == [(TwoLevel, FarField(0.1), TWO_LEVEL_SWEEPS),
-                                                        (UnionCG, Exact(), None)]
+                                                        (UnionCG, None, None)]
     # the caller's far field: exactly what was asked, no fallback
     fixed = _order(Choice("two-level", 0.1, "r", {}, by_caller=True))
     assert [(type(i), c, cap) for i, c, cap in fixed] == [(TwoLevel, FarField(0.1), None)]

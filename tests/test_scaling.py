@@ -116,15 +116,15 @@ def test_far_field_solve_matches_exact(seed):
 
 
 def test_sizing_approaches_validated_and_used():
-    from twoscale.micro import solve_micro
+    from twoscale.micro import MicroProblem, solve_micro
     # second tip: geometric approach 1e-4 mm, but the first one's load (~0.2 N) lowers the
     # body there by P / (pi E* r) ~ 1e-3 mm, so it does not touch
     asp = [Asperity(0.0, 0.0, 0.0, 4.0), Asperity(5.0, 0.0, 0.0199, 4.0)]
     kw = dict(h=0.05, forces=np.array([0.2, 0.0]), penetration=0.02)
     with pytest.raises(ValueError, match="sizing_approaches"):
-        solve_micro(HS, asp, sizing_approaches=np.zeros(3), **kw)
-    full = solve_micro(HS, asp, **kw)
-    small = solve_micro(HS, asp, sizing_approaches=np.array([0.02, -1.0]), **kw)
+        solve_micro(HS, asp, MicroProblem(sizing_approaches=np.zeros(3), **kw))
+    full = solve_micro(HS, asp, MicroProblem(**kw))
+    small = solve_micro(HS, asp, MicroProblem(sizing_approaches=np.array([0.02, -1.0]), **kw))
     # the second tip gets a patch only by default, and carries nothing either way
     assert len(full.patches) == 2 and len(small.patches) == 1
     assert full.converged and small.converged

@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 
 from twoscale import Material
+from twoscale.analytic import hertz
 from twoscale.indenters import Asperity
 from twoscale.influence import HalfSpace
 from twoscale.micro import solve_micro
@@ -90,13 +91,43 @@ def test_two_level_tilt_meets_load_and_moments():
     _compare(exact, approx, 5e-3)
 
 
-def test_coarse_needs_far_tol():
+def test_iterations_take_only_the_couplings_they_accept():
+    from twoscale.micro import MicroContext, MicroProblem
+    from twoscale.micro.couplings import Exact, FarField
+    from twoscale.micro.strategies import BlockGaussSeidel, UnionCG
+    from twoscale.options import MicroOptions
     asp = _scene(3, 0, 6.0)
-    with pytest.raises(ValueError, match="coarse"):
-        solve_micro(HS, asp, h=0.1, forces=np.ones(3), penetration=0.05, coarse=True)
+    problem = MicroProblem(h=0.1, forces=np.ones(3), penetration=0.05)
+    ctx = MicroContext(HS, asp, problem, patches=())
+    with pytest.raises(ValueError, match="union-cg iteration takes no coupling"):
+        UnionCG().run(ctx, Exact(), max_sweeps=10)
+    with pytest.raises(ValueError, match="block-gs iteration takes Exact or FarField"):
+        BlockGaussSeidel().run(ctx, None, max_sweeps=10)
+    with pytest.raises(ValueError, match="far_tol"):
+        solve_micro(HS, asp, problem, MicroOptions(far_tol=0.1), iteration="union-cg")
+    assert FarField(0.1).far_tol == 0.1 and Exact().far_tol is None
+
+
+def test_two_level_with_exact_coupling_reaches_block_gauss_seidel_answer():
+    # the same equations (every pair exact), two iterations: the answers agree to the tolerance
+    from twoscale.micro import MicroProblem
+    from twoscale.options import MicroOptions
+    asp = _scene(6, 1, 7.0)
+    forces = np.array([float(hertz.load(a.R, max(0.06 - a.z, 0.0), MAT.E_star)) for a in asp])
+    problem = MicroProblem(h=0.1, forces=forces, penetration=0.06, total_load=0.8 * float(forces.sum()))
+    opts = MicroOptions(tol=1e-9, merge=False, max_sweeps=200)
+    gs = solve_micro(HS, asp, problem, opts, iteration="block-gs")
+    two = solve_micro(HS, asp, problem, opts, iteration="two-level")
+    assert gs.converged and two.converged, (gs.message, two.message)
+    f_gs = sorted((pt.asperity, 0.01 * float(p.sum())) for pt, p in zip(gs.patches, gs.pressures))
+    f_two = sorted((pt.asperity, 0.01 * float(p.sum())) for pt, p in zip(two.patches, two.pressures))
+    assert [k for k, _ in f_gs] == [k for k, _ in f_two]
+    assert np.allclose([f for _, f in f_gs], [f for _, f in f_two], rtol=1e-6, atol=1e-9 * problem.total_load)
+    assert two.penetration == pytest.approx(gs.penetration, rel=1e-7)
 
 
 def test_coarse_step_vanishes_at_a_fixed_point_and_meets_the_load():
+    from twoscale.micro.constraints import Control
     from twoscale.micro.localblock import LocalBlock
     from twoscale.micro.patches import build_patches
     asp = _scene(8, 4, 12.0)
@@ -111,14 +142,13 @@ def test_coarse_step_vanishes_at_a_fixed_point_and_meets_the_load():
     coarse = CoarseSpace(HS, tips, sp.csr_matrix((len(patches), len(patches))))
     theta = np.array([0.05, 0.0, 0.0])
     # no change in the sweep, penetration control: nothing to correct
-    step = coarse.correct(blocks, patches, p, active, np.zeros(len(patches)), theta, pivot=(0.0, 0.0),
-                          n_unknowns=0, target=None)
+    step = coarse.correct(blocks, patches, p, active, np.zeros(len(patches)), theta, Control())
     assert all(np.array_equal(a, b) for a, b in zip(step.pressures, p))
     assert np.array_equal(step.theta, theta)
     # load control: after the step the pressures carry the load exactly (no clipping here)
     W = sum(0.01 * v.sum() for v in p) * 1.01
-    step = coarse.correct(blocks, patches, p, active, np.zeros(len(patches)), theta, pivot=(0.0, 0.0),
-                          n_unknowns=1, target=np.array([W]))
+    step = coarse.correct(blocks, patches, p, active, np.zeros(len(patches)), theta,
+                          Control((0.0, 0.0), 1, np.array([W])))
     assert sum(0.01 * v.sum() for v in step.pressures) == pytest.approx(W, rel=1e-12)
     assert step.theta[0] > theta[0]
 

@@ -27,6 +27,8 @@ from .macro.solve import DENSE_MAX
 from .macro.start import MacroStart
 from .influence.separated import check_rtol
 from .micro.driver import fixed_choice, run_micro
+from .micro.problem import MicroProblem
+from .options import MicroOptions
 from .results import ContactResult, PressureField, summarise
 from .warm_start import WarmStart
 
@@ -123,7 +125,7 @@ def solve_twoscale(provider: InfluenceProvider, asperities: Sequence[Asperity], 
         Micro step without ``far_tol``: close patches (close or merged contacts) are solved
         as one block when their common grid has at most twice the cells they have apart
         (:func:`twoscale.micro.patches.merge_overlapping`,
-        :data:`twoscale.micro.solve.MERGE_GROWTH`); eq. 7 still gives each asperity its own
+        :data:`twoscale.micro.problem.MERGE_GROWTH`); eq. 7 still gives each asperity its own
         ``p0``. False: one block per asperity, the paper's iteration (more sweeps for close
         asperities: 13-19 against 4 in the paper's closest cases).
     p0 : bool, default False
@@ -165,11 +167,11 @@ def solve_twoscale(provider: InfluenceProvider, asperities: Sequence[Asperity], 
                         start=_macro_start(start, len(asperities)))
     t1 = time.perf_counter()
     choice = _caller_choice(iteration, far_tol, coarse)
-    micro, plan = run_micro(provider, asperities, macro=macro, h=h, total_load=total_load, free_tilt=tilt,
-                            pivot=pivot, tol=tol, max_sweeps=max_sweeps, choice=choice, p0=p0, progress=progress,
-                            margin=margin, anchor=anchor, dense_max_cells=dense_max_cells,
-                            separated_rtol=separated_rtol, merge=bool(merge),
-                            start=start.micro if isinstance(start, WarmStart) else None)
+    micro_options = MicroOptions(tol=tol, max_sweeps=max_sweeps, margin=margin, dense_max_cells=dense_max_cells,
+                                 separated_rtol=separated_rtol, merge=bool(merge), p0=p0)
+    problem = MicroProblem.from_macro(macro, h=h, total_load=total_load, free_tilt=tilt, pivot=pivot, anchor=anchor,
+                                      start=start.micro if isinstance(start, WarmStart) else None)
+    micro, plan = run_micro(provider, asperities, macro, problem, micro_options, choice=choice, progress=progress)
     t2 = time.perf_counter()
     return _result(asperities, macro, micro, plan, h, {"macro": t1 - t0, "micro": t2 - t1, "total": t2 - t0})
 

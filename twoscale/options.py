@@ -88,7 +88,8 @@ class MicroOptions:
     margin : float, default 1.3
         Patch half-width over the Hertz-like contact radius of the macro force.
     dense_max_cells : int, default 400
-        Local blocks up to this many cells are solved densely (Cholesky), larger by CG.
+        Local blocks up to this many cells are solved densely (Cholesky), larger by CG
+        (0: every block by CG).
     separated_rtol : float or None, default 1e-8
         Patches far apart for their size act through the provider's low-rank separated
         operator to this accuracy; None: FFT products only.
@@ -121,7 +122,9 @@ class MicroOptions:
         if not self.margin >= 1.0:
             raise ValueError(f"micro.margin must be >= 1 (patch half-width over the contact radius), "
                              f"got {self.margin!r}")
-        _positive("micro.dense_max_cells", self.dense_max_cells, integer=True)
+        if isinstance(self.dense_max_cells, bool) or not isinstance(self.dense_max_cells, int) \
+                or self.dense_max_cells < 0:
+            raise ValueError(f"micro.dense_max_cells must be an integer >= 0, got {self.dense_max_cells!r}")
         _fraction("micro.separated_rtol", self.separated_rtol)
         for name in ("merge", "p0"):
             if not isinstance(getattr(self, name), bool):

@@ -58,7 +58,7 @@ FFT_WORK_BYTES_PER_CELL = 256.0
 COUPLING_CACHE_BYTES = 8e8
 #: Patch half-width over the contact radius (``solve_twoscale``'s ``margin``).
 MARGIN = 1.3
-#: Cells a merged block may have over its members (``twoscale.micro.solve.MERGE_GROWTH``):
+#: Cells a merged block may have over its members (``twoscale.micro.problem.MERGE_GROWTH``):
 #: the largest block's FFT work is counted this much larger.
 MERGE_GROWTH = 2.0
 #: Largest number of asperities whose macro step holds the dense N x N matrix

@@ -3,27 +3,37 @@
 Read it in this order:
 
 * driver and policy — :mod:`.driver` (:func:`~.driver.run_micro`: builds the patches from
-  the macro forces, runs the chosen iteration and, if it fails, the next, recording every
-  attempt) and :mod:`.policy` (:func:`~.policy.choose`: which iteration and coupling, by a
-  cost estimate from the patches, with its reason);
-* strategies — :mod:`.union` (one constrained CG over the box of the patches),
-  :mod:`.solve` (the block iterations: eq. 7, block Gauss-Seidel (eq. 8-9) with load and
-  tilt corrections, or the two-level variant of :mod:`.twolevel`), :mod:`.gauss_seidel`
-  (the sweeps), :mod:`.coarse` and :mod:`.constraints` (load, moments, coarse correction);
-  couplings between patches: :class:`.blocks.Coupling` (exact) and :mod:`.farfield` (far
-  patches through their resultants);
-* local solvers — :mod:`.local` (eq. 7 and the active-set solve on one block), :mod:`.pk`
-  (a block's contact problems, eq. 7 and 8, on the one Polonsky-Keer kernel
-  :func:`twoscale.pk.pk_solve`), :mod:`.pk_stack` (the blocks of one size class solved as
-  one stack), :mod:`.blocks` (a block's own influence);
+  the macro forces, asks :mod:`.policy` (:func:`~.policy.choose`, priced by
+  :mod:`.costmodel`) which iteration and coupling to run, runs it and, if it fails, the
+  next, recording every attempt; :func:`~.driver.solve_micro`: one iteration with one
+  coupling, without the policy); what every iteration receives is in :mod:`.problem`
+  (:class:`~.problem.MicroProblem`, :class:`~.problem.BlockSettings`,
+  :class:`~.problem.MicroContext`), what it returns in :mod:`.result`;
+* iterations — :mod:`.strategies` (the objects :class:`~.strategies.BlockGaussSeidel`,
+  :class:`~.strategies.TwoLevel`, :class:`~.strategies.UnionCG`, each saying which
+  couplings it accepts); the block iterations are set up by :mod:`.setup` (patches,
+  blocks, eq. 7 or :mod:`.start`'s warm start, merged blocks) and run by
+  :mod:`.block_iterations` (growth, load and tilt corrections) over the sweeps of
+  :mod:`.gauss_seidel` (eq. 8-9) or :mod:`.twolevel` (with the coarse correction of
+  :mod:`.coarse`); load and moments in :mod:`.constraints`; the union CG is
+  :mod:`.union`;
+* couplings — :mod:`.couplings` (the objects :class:`~.couplings.Exact` and
+  :class:`~.couplings.FarField`, each building its product engine):
+  :class:`.blocks.Coupling` (every pair exactly: dense, separated or spectral route),
+  :mod:`.farfield` (far pairs through their resultants, per block or held for a sweep,
+  with the moment-matching sources of :mod:`.sources`);
+* local solvers — :mod:`.localblock` (one block's operator and solves), :mod:`.local`
+  (eq. 7 and the active-set contact solve on one block), :mod:`.pk` (a block's contact
+  problems on the one Polonsky-Keer kernel :func:`twoscale.pk.pk_solve`),
+  :mod:`.pk_stack` (the blocks of one size class solved as one stack);
 * patches — :mod:`.patches` (one aligned patch per asperity, merging of close ones) and
-  :mod:`.workset` (the patches as the iterations grow them).
+  :mod:`.workset` (the patches, blocks and engine as the iterations grow them).
 """
-from .driver import Attempt, MicroPlan, run_micro
+from .driver import Attempt, MicroPlan, run_micro, solve_micro
 from .patches import Patch, build_patches, grow_patch
 from .policy import Choice, choose
+from .problem import BlockSettings, MicroContext, MicroProblem
 from .result import MicroResult
-from .solve import solve_micro
 
-__all__ = ["Attempt", "Choice", "MicroPlan", "MicroResult", "Patch", "build_patches", "choose", "grow_patch",
-           "run_micro", "solve_micro"]
+__all__ = ["Attempt", "BlockSettings", "Choice", "MicroContext", "MicroPlan", "MicroProblem", "MicroResult", "Patch",
+           "build_patches", "choose", "grow_patch", "run_micro", "solve_micro"]

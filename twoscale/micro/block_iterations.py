@@ -1,31 +1,63 @@
 """The block iterations' loops: block Gauss-Seidel (eq. 8-9) with patch growth and, under
 load control, Newton corrections of the approach and tilt from sensitivity sweeps; and the
-two-level iteration with patch growth. :func:`.solve.solve_micro` sets them up (patches,
-blocks, coupling, the first pressure) and calls one.
+two-level iteration with patch growth. :func:`.setup.block_setup` sets them up (patches,
+blocks, the coupling's engine, the first pressure: a :class:`BlockSetup`); the iteration
+objects of :mod:`.strategies` call one of them.
 """
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
+from typing import Callable
 
 import numpy as np
 
 from ..stopping import StopReason
 from .blocks import scatter
-from .constraints import block_coordinates, newton_step, resultants, rhs_derivatives
+from .constraints import Control, block_coordinates, newton_step, resultants, rhs_derivatives
 from .gauss_seidel import gauss_seidel, linear_gauss_seidel
 from .result import MicroResult
-from .twolevel import two_level
+from .twolevel import SweepLimits, two_level
 from .workset import WorkingSet, edges_loaded_any, grow
 
 #: Relative change at which the sensitivity sweeps (load and tilt corrections) stop.
 SENSITIVITY_TOL = 1e-3
 
 
-def run_block_gauss_seidel(state: WorkingSet, p: list, p0: list, theta, tilt, pivot, n_unknowns, target, *,
-                    free_tilt: bool, tol: float, max_sweeps: int, max_growths: int | None, max_corrections: int,
-                    monitor=None) -> MicroResult:
+@dataclass(frozen=True)
+class BlockSetup:
+    """A block iteration ready to run.
+
+    Attributes
+    ----------
+    state : WorkingSet
+        Patches, blocks and the coupling's engine (changed as patches grow).
+    p0 : list of (n_k,) arrays, MPa
+        The first pressure of every block (eq. 7 or a previous solve's); carried over
+        when patches grow (the list is updated in place).
+    theta : (3,) array
+        (d, alpha, beta) to start from.
+    tilt : (alpha, beta) or None
+        The tilt reported when the iteration fails early (radians).
+    control : Control
+        Pivot, rigid-body unknowns and their target.
+    """
+
+    state: WorkingSet
+    p0: list
+    theta: np.ndarray
+    tilt: tuple | None
+    control: Control
+
+
+def run_block_gauss_seidel(setup: BlockSetup, *, free_tilt: bool, tol: float, max_sweeps: int,
+                           max_growths: int | None, max_corrections: int,
+                           monitor: Callable | None = None) -> MicroResult:
     """The micro step by block Gauss-Seidel (eq. 8-9) with patch growth and, under load
     control, Newton corrections of the approach and tilt from sensitivity sweeps."""
+    state, p0, theta, tilt = setup.state, setup.p0, setup.theta, setup.tilt
+    pivot, n_unknowns, target = setup.control.pivot, setup.control.n_unknowns, setup.control.target
+    p = [v.copy() for v in p0]
     sweeps = corrections = growths = linear_sweeps = 0
     history: list = []
 
@@ -42,7 +74,7 @@ def run_block_gauss_seidel(state: WorkingSet, p: list, p0: list, theta, tilt, pi
         sweeps += gs.sweeps
         history += gs.history
         p = gs.pressures
-        grown, ended = _round_end(state, gs, p, p0, theta, tilt, pivot, tol, can_grow, growths, counts, history)
+        grown, ended = _round_end(setup, gs, p, theta, tilt, tol, can_grow, growths, counts, history)
         if grown:
             growths += grown
             continue
@@ -52,7 +84,7 @@ def run_block_gauss_seidel(state: WorkingSet, p: list, p0: list, theta, tilt, pi
             break
         residual = target - resultants(state.patches, p, pivot, n_unknowns)
         if corrections >= max_corrections:
-            return finish(state, p, p0, theta, tilt, pivot, False,
+            return finish(setup, p, theta, tilt, False,
                            f"load/moment corrections reached {max_corrections} (residual {residual})",
                            counts(), history)
         corrections += 1
@@ -65,12 +97,15 @@ def run_block_gauss_seidel(state: WorkingSet, p: list, p0: list, theta, tilt, pi
                 break
             growths += grown
     out_tilt = (float(theta[1]), float(theta[2])) if (tilt is not None or free_tilt) else None
-    return finish(state, p, p0, theta, out_tilt, pivot, True, "", counts(), history)
+    return finish(setup, p, theta, out_tilt, True, "", counts(), history)
 
 
-def run_two_level(state: WorkingSet, p: list, p0: list, theta, tilt, pivot, n_unknowns, target, *,
-                     tol: float, max_sweeps: int, max_growths: int | None, monitor=None) -> MicroResult:
+def run_two_level(setup: BlockSetup, *, tol: float, max_sweeps: int, max_growths: int | None,
+                  monitor: Callable | None = None) -> MicroResult:
     """The micro step by two-level block Gauss-Seidel (:mod:`.twolevel`), with patch growth."""
+    state, p0, theta, tilt = setup.state, setup.p0, setup.theta, setup.tilt
+    pivot, n_unknowns, target = setup.control.pivot, setup.control.n_unknowns, setup.control.target
+    p = [v.copy() for v in p0]
     sweeps = growths = 0
     history: list = []
     tips = state.tips()
@@ -81,17 +116,17 @@ def run_two_level(state: WorkingSet, p: list, p0: list, theta, tilt, pivot, n_un
 
     while True:
         can_grow = growths < _budget(state, max_growths)
+        limits = SweepLimits(tol=tol, max_sweeps=max(max_sweeps - sweeps, 1),
+                             stop=(lambda q: edges_loaded_any(state, q)) if can_grow else None,
+                             monitor=None if monitor is None else (lambda m, c: monitor(sweeps + m, c)),
+                             earlier=tuple(history))
         res = two_level(state.blocks, state.coupling, tips[[pt.asperity for pt in state.patches]],
-                        lambda th: state.heights(th, pivot), p, theta, pivot=pivot, n_unknowns=n_unknowns,
-                        target=target, tol=tol, max_sweeps=max(max_sweeps - sweeps, 1),
-                        stop=(lambda q: edges_loaded_any(state, q)) if can_grow else None,
-                        monitor=None if monitor is None else (lambda m, c: monitor(sweeps + m, c)),
-                        earlier=tuple(history))
+                        lambda th: state.heights(th, pivot), p, theta, setup.control, limits)
         sweeps += res.sweeps
         history += res.history
         p, theta = res.pressures, res.theta
         state.coupling.refresh(p)
-        grown, ended = _round_end(state, res, p, p0, theta, tilt, pivot, tol, can_grow, growths, counts, history)
+        grown, ended = _round_end(setup, res, p, theta, tilt, tol, can_grow, growths, counts, history)
         if grown:
             growths += grown
             continue
@@ -101,17 +136,17 @@ def run_two_level(state: WorkingSet, p: list, p0: list, theta, tilt, pivot, n_un
     if n_unknowns:
         residual = np.asarray(target) - np.atleast_1d(resultants(state.patches, p, pivot, n_unknowns))
         if abs(residual[0]) > 10.0 * tol * abs(target[0]):
-            return finish(state, p, p0, theta, tilt, pivot, False,
+            return finish(setup, p, theta, tilt, False,
                            f"two-level iteration stopped with load residual {residual[0]:.3g} N", counts(), history)
         if n_unknowns == 3:
             # moments against the load times the load-weighted distance from the pivot
             arm = _load_arm(state.patches, p, pivot)
             if np.max(np.abs(residual[1:])) > 10.0 * tol * abs(target[0]) * arm:
-                return finish(state, p, p0, theta, tilt, pivot, False,
+                return finish(setup, p, theta, tilt, False,
                                f"two-level iteration stopped with moment residuals {residual[1]:.3g}, "
                                f"{residual[2]:.3g} N mm", counts(), history)
     out_tilt = (float(theta[1]), float(theta[2])) if tilt is not None else None
-    return finish(state, p, p0, theta, out_tilt, pivot, True, "", counts(), history)
+    return finish(setup, p, theta, out_tilt, True, "", counts(), history)
 
 
 def _load_arm(patches, pressures: list, pivot) -> float:
@@ -168,23 +203,28 @@ def _budget(state: WorkingSet, max_growths: int | None) -> int:
     return max(MAX_GROWTHS, GROWTHS_PER_PATCH * len(state.patches))
 
 
-def _round_end(state: WorkingSet, res, p, p0, theta, tilt, pivot, tol, can_grow, growths, counts, history):
+def _round_end(setup: BlockSetup, res, p, theta, tilt, tol, can_grow, growths, counts, history):
     """What follows a round of sweeps ``res``: ``(grown, None)`` with the patches grown (> 0:
     sweep again), or ``(0, result)`` when the round failed or pressure still reaches a patch
     edge, or ``(0, None)`` to go on."""
+    state, p0, pivot = setup.state, setup.p0, setup.control.pivot
     if res.converged or res.reason is StopReason.STOPPED:
         grown = grow(state, p, p0, theta, pivot, tol) if can_grow else 0
         if grown:
             return grown, None
     if not res.converged:
-        return 0, finish(state, p, p0, theta, tilt, pivot, False, res.message, counts(), history)
+        return 0, finish(setup, p, theta, tilt, False, res.message, counts(), history)
     if edges_loaded_any(state, p):
-        return 0, finish(state, p, p0, theta, tilt, pivot, False,
+        return 0, finish(setup, p, theta, tilt, False,
                          f"pressure still reaches a patch edge after {growths} enlargements", counts(), history)
     return 0, None
 
 
-def finish(state, p, p0, theta, tilt, pivot, converged, message, counts, history):
+def finish(setup: BlockSetup, p: list, theta, tilt, converged: bool, message: str, counts: dict,
+           history) -> MicroResult:
+    """The :class:`MicroResult` of ``setup``'s iteration ending at pressures ``p`` and
+    ``theta`` (``counts``: sweeps, corrections, growths, linear_sweeps)."""
+    state, p0, pivot = setup.state, setup.p0, setup.control.pivot
     pressures = [scatter(pt, v) for pt, v in zip(state.patches, p)]
     initial = [scatter(pt, v) for pt, v in zip(state.patches, p0)]
     gaps = state.gaps(p, theta, pivot) if state.patches else []

@@ -40,7 +40,7 @@ import scipy.sparse as sp
 
 from ..influence.base import InfluenceProvider
 from ..krylov import block_cg
-from .constraints import block_coordinates, resultants
+from .constraints import Control, block_coordinates, resultants
 
 
 #: Relative residual of the conjugate-gradient solves for ``s_k`` on large blocks.
@@ -129,8 +129,8 @@ class CoarseSpace:
         resultants by ``dF`` (N)."""
         return -(self._operator().apply(dF) - self.lower @ dF)
 
-    def correct(self, blocks, patches, pressures: list, active: list, dF: np.ndarray, theta: np.ndarray, *,
-                pivot: tuple[float, float], n_unknowns: int, target: np.ndarray | None) -> CoarseStep:
+    def correct(self, blocks, patches, pressures: list, active: list, dF: np.ndarray, theta: np.ndarray,
+                control: Control) -> CoarseStep:
         """One coarse step after a sweep; see the module docstring.
 
         Parameters
@@ -141,12 +141,11 @@ class CoarseSpace:
             Change of each block's resultant during the sweep.
         theta : (3,) array
             (d, alpha, beta) used by the sweep.
-        pivot : (px, py), mm
-        n_unknowns : 0, 1 or 3
-            Rigid-body unknowns corrected (penetration control, load, load + tilt).
-        target : (n_unknowns,) array or None
-            Total load (N) and moments (0) to meet.
+        control : Control
+            Pivot (mm), rigid-body unknowns corrected (0 penetration control, 1 load, 3 load
+            and tilt) and their target: total load (N) and moments (0).
         """
+        pivot, n_unknowns, target = control.pivot, control.n_unknowns, control.target
         n = len(patches)
         h2 = patches[0].grid.h ** 2 if n else 1.0
         shapes = [None] * n

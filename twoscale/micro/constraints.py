@@ -9,9 +9,31 @@ sides) give the exact Jacobian ``K_ij = h^2 sum G_i s_j`` of the resultants
 """
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 
 from .patches import Patch
+
+
+@dataclass(frozen=True)
+class Control:
+    """What the rigid-body unknowns of an iteration must meet.
+
+    Attributes
+    ----------
+    pivot : (px, py), mm
+        Tilt pivot (moments are taken about it).
+    n_unknowns : 0, 1 or 3
+        Unknowns corrected: none (penetration control), the approach (load), the approach
+        and the tilt (load and zero moments).
+    target : (n_unknowns,) array or None
+        Total load (N) and moments (0) to meet.
+    """
+
+    pivot: tuple = (0.0, 0.0)
+    n_unknowns: int = 0
+    target: np.ndarray | None = None
 
 
 def block_coordinates(patch: Patch, pivot: tuple[float, float]) -> tuple[np.ndarray, np.ndarray]:

@@ -8,7 +8,8 @@ outcome), so nothing is restarted behind the user's back.
 
 The strategies are objects of :mod:`.strategies`: an iteration (:class:`~.strategies.UnionCG`,
 :class:`~.strategies.BlockGaussSeidel`, :class:`~.strategies.TwoLevel`) run with a coupling
-(:class:`~.strategies.Exact` or :class:`~.strategies.FarField`).
+it accepts (:class:`~.couplings.Exact` or :class:`~.couplings.FarField`; none for the union
+CG). :func:`solve_micro` runs one iteration with one coupling, without the policy.
 """
 from __future__ import annotations
 
@@ -16,18 +17,19 @@ import time
 from dataclasses import dataclass
 from typing import Callable, Sequence
 
-import numpy as np
 
 from ..indenters import Asperity
 from ..influence.base import InfluenceProvider
-from .patches import TipTable, build_patches
+from ..options import MicroOptions
+from .couplings import Exact, coupling_for
+from .patches import TipTable
 from .policy import ITERATIONS, MODEL, UNION_MIN_COVERAGE, Choice, choose
-from .start import MicroStart
+from .problem import BlockSettings, MicroContext, MicroProblem
 from .result import MicroResult
-from .solve import EXACT_FAR_TOL, solve_micro
-from .strategies import BlockGaussSeidel, Exact, FarField, MicroContext, TwoLevel, UnionCG
+from .setup import one_asperity_patches
+from .strategies import ITERATIONS as STRATEGIES
+from .strategies import BlockGaussSeidel, TwoLevel, UnionCG
 from .union import box_of
-from .workset import tip_approaches
 
 #: Sweeps a two-level attempt chosen by the policy gets (it needs 5-10 where it works)
 #: before the next strategy is tried (a field of the cost model, :mod:`.costmodel`).
@@ -85,74 +87,80 @@ def fixed_choice(iteration: str, far_tol: float | None, why: str) -> Choice:
     return Choice(iteration, far_tol, why, {}, by_caller=True)
 
 
-def run_micro(provider: InfluenceProvider, asperities: Sequence[Asperity], *, macro, h: float,
-              total_load: float | None, free_tilt: bool, pivot, tol: float, max_sweeps: int,
-              choice: Choice | None = None, p0: bool = False, progress: Callable | None = None,
-              start: MicroStart | None = None, **block_options) -> tuple[MicroResult, MicroPlan]:
+def run_micro(provider: InfluenceProvider, asperities: Sequence[Asperity], macro, problem: MicroProblem,
+              options: MicroOptions, *, choice: Choice | None = None,
+              progress: Callable | None = None) -> tuple[MicroResult, MicroPlan]:
     """Run the micro step after ``macro`` (a :class:`~twoscale.macro.result.MacroResult`).
 
     Parameters
     ----------
+    problem : MicroProblem
+        What the macro step leaves (:meth:`~.problem.MicroProblem.from_macro`).
+    options : MicroOptions
+        Tolerance, sweeps, patches, coupling settings; ``p0`` also computes the paper's
+        eq. 7 pressures for the report (the block iterations always do: they start from
+        them; the union CG then starts from them too).
     choice : Choice or None
         Fixed by the caller (:func:`fixed_choice`), or None to let the policy choose.
-    p0 : bool, default False
-        Also compute the paper's eq. 7 pressures for the report (the block iterations always
-        do: they start from them; the union CG then starts from them too).
     progress : callable or None
         Called as ``progress(stage: str)`` when an attempt starts.
-    start : MicroStart or None
-        A previous solve's pressure (:mod:`.start`), the first pressure of every iteration
-        where it has one (eq. 7 or the union CG's own start elsewhere).
-    block_options
-        Passed to :func:`.solve.solve_micro` (margin, anchor, dense_max_cells, merge, ...).
     """
     asperities = TipTable.of(asperities)  # tip arrays once for every patch built
-    forces = np.asarray(macro.forces, dtype=float)
-    anchor = block_options.get("anchor", (0.0, 0.0))
-    penetration, tilt = macro.penetration, macro.tilt
-    if start is not None and total_load is not None:
-        penetration, tilt = start.theta(penetration, tilt)
-    common = dict(h=h, forces=forces, penetration=penetration, tilt=tilt, pivot=pivot,
-                  total_load=total_load, free_tilt=free_tilt, tol=tol, size_from_forces=bool(macro.converged),
-                  start=start, **block_options)
-    # the patches solve_micro would build from the same arguments, built once here
-    theta = (penetration, *(tilt if tilt is not None else (0.0, 0.0)))
-    patches = build_patches(asperities, h=h, forces=forces if macro.converged else np.full(len(forces), np.inf),
-                            approaches=tip_approaches(asperities, theta, pivot), E_star=provider.material.E_star,
-                            margin=block_options.get("margin", 1.3), anchor=anchor)
+    patches = one_asperity_patches(provider, asperities, problem, options.margin)
+    context = MicroContext(provider, asperities, problem, options, BlockSettings(), tuple(patches))
     if not patches:
-        return solve_micro(provider, asperities, max_sweeps=max_sweeps, **common), \
+        return BlockGaussSeidel().run(context, Exact(), max_sweeps=options.max_sweeps), \
             MicroPlan(Choice("block-gs", None, "no asperity reaches the body", {}), ())
-    picked = _plan(patches, box_of([pt.grid for pt in patches], h, anchor).size, choice,
-                   merged_contacts=bool(macro.safe_path), load_control=total_load is not None,
-                   tilt=bool(free_tilt))
-    context = MicroContext(provider, asperities, macro, tuple(patches), common, p0)
+    picked = _plan(patches, box_of([pt.grid for pt in patches], problem.h, problem.anchor).size, choice,
+                   merged_contacts=bool(macro.safe_path), load_control=problem.total_load is not None,
+                   tilt=bool(problem.free_tilt))
     attempts: list = []
     result = None
     for iteration, coupling, sweeps_cap in _order(picked):
         stage = f"micro step, {iteration.name}" + (f" ({coupling.name} {coupling.far_tol:g})"
-                                                   if coupling.far_tol is not None else "")
+                                                   if coupling is not None and coupling.far_tol is not None else "")
         monitor = None
         if progress is not None:
             progress(stage)
             unit = "CG iteration" if isinstance(iteration, UnionCG) else "sweep"
             monitor = (lambda k, r, _s=stage, _u=unit: progress(f"{_s}: {_u} {k}, residual {r:.1e}"))
         t = time.perf_counter()
-        cap = min(max_sweeps, sweeps_cap) if sweeps_cap else max_sweeps
+        cap = min(options.max_sweeps, sweeps_cap) if sweeps_cap else options.max_sweeps
         result = iteration.run(context, coupling, max_sweeps=cap, monitor=monitor)
-        attempts.append(Attempt(iteration.name, coupling.far_tol, bool(result.converged), int(result.sweeps),
-                                time.perf_counter() - t, result.message))
+        attempts.append(Attempt(iteration.name, None if coupling is None else coupling.far_tol,
+                                bool(result.converged), int(result.sweeps), time.perf_counter() - t, result.message))
         if result.converged:
             break
     return result, MicroPlan(picked, tuple(attempts))
 
 
+def solve_micro(provider: InfluenceProvider, asperities: Sequence[Asperity], problem: MicroProblem,
+                options: MicroOptions | None = None, *, iteration: str = "block-gs",
+                settings: BlockSettings | None = None, monitor: Callable | None = None) -> MicroResult:
+    """The micro step by one iteration without the policy or fallbacks (docs/method.md
+    section 3): ``iteration`` (``"block-gs"``, ``"two-level"`` or ``"union-cg"``) with the
+    coupling ``options.far_tol`` names (None exact; the union CG takes none), for at most
+    ``options.max_sweeps`` sweeps; ``settings`` the block iterations' internal limits
+    (:class:`~.problem.BlockSettings`). :func:`run_micro` is the driver's entry."""
+    options = MicroOptions() if options is None else options
+    if iteration not in ITERATIONS:
+        raise ValueError(f"iteration must be one of {ITERATIONS}, got {iteration!r}")
+    if iteration == "union-cg" and options.far_tol is not None:
+        raise ValueError("far_tol applies to the block iterations, not to iteration='union-cg'")
+    asperities = TipTable.of(asperities)
+    patches = one_asperity_patches(provider, asperities, problem, options.margin)
+    context = MicroContext(provider, asperities, problem, options, settings or BlockSettings(), tuple(patches))
+    strategy = STRATEGIES[iteration]()
+    coupling = None if iteration == "union-cg" else coupling_for(options.far_tol)
+    return strategy.run(context, coupling, max_sweeps=options.max_sweeps, monitor=monitor)
+
+
 def _order(choice: Choice) -> list:
     """Attempts to make, in order: ``(iteration, coupling, sweep cap or None)``. The caller's
     choice runs alone; the policy's is followed by a fallback where it can stall."""
-    coupling = Exact() if choice.far_tol is None or choice.far_tol <= EXACT_FAR_TOL else FarField(choice.far_tol)
+    coupling = coupling_for(choice.far_tol)
     if choice.iteration == "union-cg":
-        return [(UnionCG(), Exact(), None)]
+        return [(UnionCG(), None, None)]
     if choice.iteration == "block-gs":
         return [(BlockGaussSeidel(), coupling, None)]
     if choice.by_caller:
@@ -164,5 +172,5 @@ def _order(choice: Choice) -> list:
     # where the patches crowd their box; elsewhere its box is mostly empty (and may not fit
     # in memory), and block Gauss-Seidel with the same coupling decides
     if choice.estimates.get("coverage", 1.0) >= UNION_MIN_COVERAGE:
-        return [(TwoLevel(), coupling, TWO_LEVEL_SWEEPS), (UnionCG(), Exact(), None)]
+        return [(TwoLevel(), coupling, TWO_LEVEL_SWEEPS), (UnionCG(), None, None)]
     return [(TwoLevel(), coupling, TWO_LEVEL_SWEEPS), (BlockGaussSeidel(), coupling, None)]

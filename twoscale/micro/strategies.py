@@ -1,31 +1,35 @@
-"""The micro step's strategies: an iteration composed with a coupling.
+"""The micro step's iterations, each a small frozen object composed with a coupling.
 
-Two orthogonal choices, each a small frozen object (in the spirit of a Krylov method
-composed with a preconditioner):
+Two orthogonal choices (in the spirit of a Krylov method composed with a preconditioner):
 
-* a **coupling** says how patches act on each other: :class:`Exact` (every pair through
-  the provider's operators, :class:`.blocks.Coupling`) or :class:`FarField` (pairs farther
-  apart than ``(r_k + r_l) / sqrt(tol)`` through their resultant forces,
-  :mod:`.farfield`);
-* an **iteration** solves the micro step with a coupling: :class:`BlockGaussSeidel` (the
-  paper's eq. 8-9 with sensitivity corrections of the load and tilt), :class:`TwoLevel`
-  (block Gauss-Seidel with a coarse correction by the linearised macro equations), or
-  :class:`UnionCG` (one constrained CG over the box of the patches; it needs no
-  coupling).
+* a **coupling** (:mod:`.couplings`) says how patches act on each other and builds the
+  engine of the cross-patch products: :class:`~.couplings.Exact` or
+  :class:`~.couplings.FarField`;
+* an **iteration** solves the micro step with any coupling it accepts (``accepts``, a tuple
+  of coupling types): :class:`BlockGaussSeidel` (the paper's eq. 8-9 with sensitivity
+  corrections of the load and tilt) and :class:`TwoLevel` (block Gauss-Seidel with a
+  coarse correction by the linearised macro equations) take either coupling;
+  :class:`UnionCG` (one constrained CG over the box of the patches) accepts none.
 
-Every iteration has ``name`` and ``run(context, coupling, *, max_sweeps, monitor)`` returning
-a :class:`~.solve.MicroResult`; :mod:`.driver` composes them in the order the policy gives.
+Every iteration has ``name``, ``accepts`` and ``run(context, coupling, *, max_sweeps,
+monitor)`` returning a :class:`~.result.MicroResult`; the block iterations set up their
+blocks (:func:`.setup.block_setup`) and run their loop (:mod:`.block_iterations`) directly.
+:mod:`.driver` composes them in the order the policy gives.
 """
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
-from typing import Callable
+from typing import Callable, ClassVar
 
 import numpy as np
 
+from .block_iterations import finish, run_block_gauss_seidel, run_two_level
+from .couplings import Exact, FarField
+from .problem import MicroContext
 from .result import MicroResult
-from .solve import EXACT_FAR_TOL, solve_micro
-from .union import box_of, solve_union
+from .setup import block_setup, initial_on_patches
+from .union import UnionSettings, box_of, solve_union
 
 #: The union CG's KKT residual over the block iterations' tolerance (a relative change of the
 #: pressure between sweeps): at the default 1e-6 the CG stops at the reference solver's 1e-8.
@@ -38,114 +42,97 @@ UNION_SMALL_CELLS = 40_000
 UNION_SMALL_TOL_FACTOR = 1e-4
 
 
-@dataclass(frozen=True)
-class Exact:
-    """Every pair of patches coupled exactly."""
-
-    name: str = "exact"
-
-    @property
-    def far_tol(self) -> float | None:
-        return None
-
-
-@dataclass(frozen=True)
-class FarField:
-    """Patches farther apart than ``(r_k + r_l) / sqrt(tol)`` act through their resultants
-    (relative error per far pair about ``tol``, 0 < tol < 1)."""
-
-    tol: float
-    name: str = "far field"
-
-    def __post_init__(self) -> None:
-        if not (isinstance(self.tol, (int, float)) and 0.0 < self.tol < 1.0):
-            raise ValueError(f"far-field tol must be a number in (0, 1), got {self.tol!r}")
-
-    @property
-    def far_tol(self) -> float | None:
-        return float(self.tol)
+def _check(iteration, coupling) -> None:
+    """Refuse a coupling the iteration does not accept (None where it accepts none)."""
+    if iteration.accepts and isinstance(coupling, iteration.accepts):
+        return
+    if not iteration.accepts and coupling is None:
+        return
+    wanted = " or ".join(c.__name__ for c in iteration.accepts) or "no coupling"
+    raise ValueError(f"the {iteration.name} iteration takes {wanted}, got {coupling!r}")
 
 
-@dataclass(frozen=True)
-class MicroContext:
-    """What every iteration needs: the body, the indenters, the macro result, the patches
-    the policy saw (built once: the block iterations start from them, the union CG uses
-    their extent), and the options of the micro step (``common``: h, forces, penetration,
-    tilt, pivot, total_load, free_tilt, tol and the block options)."""
-
-    provider: object
-    asperities: object
-    macro: object
-    patches: tuple
-    common: dict
-    p0: bool = False
-
-    @property
-    def grids(self) -> tuple:
-        return tuple(pt.grid for pt in self.patches)
+def _no_patch(setup) -> MicroResult:
+    """The result when no asperity reaches the body."""
+    return finish(setup, [], setup.theta, setup.tilt, True, "no asperity reaches the body",
+                  {"sweeps": 0, "corrections": 0, "growths": 0, "linear_sweeps": 0}, ())
 
 
 @dataclass(frozen=True)
 class BlockGaussSeidel:
-    """The paper's block Gauss-Seidel (eq. 8-9) from eq. 7 over the (merged) patches."""
+    """The paper's block Gauss-Seidel (eq. 8-9) from eq. 7 over the patches, merged where
+    close with exact coupling (``options.merge``)."""
 
     name: str = "block-gs"
+    accepts: ClassVar[tuple] = (Exact, FarField)
 
     def run(self, ctx: MicroContext, coupling, *, max_sweeps: int, monitor: Callable | None = None) -> MicroResult:
-        return solve_micro(ctx.provider, ctx.asperities, max_sweeps=max_sweeps, far_tol=coupling.far_tol,
-                           coarse=False, sizing_approaches=_sizing(ctx.macro, coupling.far_tol), monitor=monitor,
-                           patches=list(ctx.patches), **ctx.common)
+        _check(self, coupling)
+        setup = block_setup(ctx, coupling, held=False, merge=ctx.options.merge and isinstance(coupling, Exact),
+                            sizing_approaches=_sizing(ctx, coupling))
+        if not setup.state.patches:
+            return _no_patch(setup)
+        pb = ctx.problem
+        return run_block_gauss_seidel(setup, free_tilt=pb.free_tilt, tol=ctx.options.tol, max_sweeps=max_sweeps,
+                                      max_growths=ctx.settings.max_growths,
+                                      max_corrections=ctx.settings.max_corrections, monitor=monitor)
 
 
 @dataclass(frozen=True)
 class TwoLevel:
     """Block Gauss-Seidel with a coarse correction (:mod:`.twolevel`), which also moves the
-    approach and tilt under load control."""
+    approach and tilt under load control; one block per asperity (the coarse space's
+    unknowns are the tips' resultants)."""
 
     name: str = "two-level"
+    accepts: ClassVar[tuple] = (Exact, FarField)
 
     def run(self, ctx: MicroContext, coupling, *, max_sweeps: int, monitor: Callable | None = None) -> MicroResult:
-        far_tol = coupling.far_tol if coupling.far_tol is not None else EXACT_FAR_TOL
-        return solve_micro(ctx.provider, ctx.asperities, max_sweeps=max_sweeps, far_tol=far_tol, coarse=True,
-                           sizing_approaches=_sizing(ctx.macro, coupling.far_tol), monitor=monitor,
-                           patches=list(ctx.patches), **ctx.common)
+        _check(self, coupling)
+        setup = block_setup(ctx, coupling, held=True, merge=False, sizing_approaches=_sizing(ctx, coupling))
+        if not setup.state.patches:
+            return _no_patch(setup)
+        pb = ctx.problem
+        if pb.tilt is not None or pb.free_tilt:
+            setup = dataclasses.replace(setup, tilt=pb.tilt if pb.tilt is not None else (0.0, 0.0))
+        return run_two_level(setup, tol=ctx.options.tol, max_sweeps=max_sweeps, max_growths=ctx.settings.max_growths,
+                             monitor=monitor)
 
 
 @dataclass(frozen=True)
 class UnionCG:
-    """One constrained CG over the box of the patches (:func:`.union.solve_union`)."""
+    """One constrained CG over the box of the patches (:func:`.union.solve_union`); it
+    couples the patches through the box itself, so it accepts no coupling."""
 
     name: str = "union-cg"
     precision: str = "auto"
+    accepts: ClassVar[tuple] = ()
 
-    def run(self, ctx: MicroContext, coupling, *, max_sweeps: int, monitor: Callable | None = None) -> MicroResult:
-        common = ctx.common
+    def run(self, ctx: MicroContext, coupling=None, *, max_sweeps: int,
+            monitor: Callable | None = None) -> MicroResult:
+        _check(self, coupling)
+        pb = ctx.problem
+        grids = tuple(pt.grid for pt in ctx.patches)
         start = start_grid = None
-        if common.get("start") is not None:  # a previous solve's pressure, moved with the tips
-            start_grid = box_of(ctx.grids, common["h"], common.get("anchor", (0.0, 0.0)))
-            start = common["start"].on_grid(start_grid, ctx.asperities, common["forces"])
+        if pb.start is not None:  # a previous solve's pressure, moved with the tips
+            start_grid = box_of(grids, pb.h, pb.anchor)
+            start = pb.start.on_grid(start_grid, ctx.asperities, pb.forces)
             start_grid = start_grid if start is not None else None
-        if start is None and ctx.p0:
-            from .solve import initial_on_patches
-
-            start_grid, start = initial_on_patches(ctx.provider, ctx.asperities, ctx.patches, common)
-        load = common["total_load"]
-        anchor = common.get("anchor", (0.0, 0.0))
-        small = box_of(ctx.grids, common["h"], anchor).size <= UNION_SMALL_CELLS
+        if start is None and ctx.options.p0:
+            start_grid, start = initial_on_patches(ctx)
+        small = box_of(grids, pb.h, pb.anchor).size <= UNION_SMALL_CELLS
         factor = UNION_SMALL_TOL_FACTOR if small else UNION_TOL_FACTOR
-        out = solve_union(ctx.provider, ctx.asperities, ctx.grids, h=common["h"],
-                          anchor=anchor, penetration=None if load is not None
-                          else common["penetration"], total_load=load, free_tilt=common["free_tilt"],
-                          pivot=common["pivot"], tol=factor * common["tol"], start=start,
-                          start_grid=start_grid, approaches=_approaches(ctx.macro), precision=self.precision,
-                          monitor=monitor)
+        settings = UnionSettings(tol=factor * ctx.options.tol, precision=self.precision)
+        out = solve_union(ctx.provider, ctx.asperities, grids, pb, settings,
+                          start=None if start is None else (start_grid, start),
+                          approaches=pb.local_penetrations, monitor=monitor)
         r, field = out.result, out.result.fields[0]
         converged = bool(r.converged) and not out.on_edge
         message = r.message if not r.converged else (
             f"pressure still reaches the box's edge after {out.enlargements} enlargements" if out.on_edge else "")
         # eq. 7 pressures only where computed (p0=True): none to report otherwise
         initial = (start_grid.embed_in(start, out.patch.grid),) if start is not None else ()
-        tilt = r.tilt if common["free_tilt"] else None
+        tilt = r.tilt if pb.free_tilt else None
         return MicroResult((out.patch,), (field.pressure,), initial, (field.gap,), float(r.penetration), tilt,
                            converged, message, int(out.iterations), 0, int(out.enlargements), 0,
                            tuple(r.residuals.get("gap", ())), {"box": int(out.patch.grid.size),
@@ -156,15 +143,14 @@ class UnionCG:
 ITERATIONS = {"union-cg": UnionCG, "block-gs": BlockGaussSeidel, "two-level": TwoLevel}
 
 
-def _approaches(macro):
-    # the macro local approaches place the union CG's start, where the macro step converged
-    return np.asarray(macro.local_penetrations, dtype=float) if macro.converged else None
-
-
-def _sizing(macro, far_tol):
-    # patch sizing from the macro local penetrations (far-field coupling only): with
-    # thousands of asperities the bulk deflection makes d - z_k > 0 for all
-    if far_tol is None or not macro.converged:
+def _sizing(ctx: MicroContext, coupling):
+    """Approaches sizing the patches: the problem's, else with far-field coupling the macro
+    local penetrations plus a fifth of the largest (with thousands of asperities the bulk
+    deflection makes d - z_k > 0 for all), else None (the geometric approaches)."""
+    pb = ctx.problem
+    if pb.sizing_approaches is not None:
+        return pb.sizing_approaches
+    if not isinstance(coupling, FarField) or pb.local_penetrations is None:
         return None
-    delta = np.asarray(macro.local_penetrations, dtype=float)
+    delta = np.asarray(pb.local_penetrations, dtype=float)
     return delta + 0.2 * max(float(delta.max()), 0.0)

@@ -20,13 +20,14 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import Callable
 
 import numpy as np
 import scipy.sparse as sp
 
 from ..stopping import StopReason
 from .coarse import CoarseSpace
-from .constraints import patch_forces
+from .constraints import Control, patch_forces
 from .costmodel import FITTED
 from .gauss_seidel import LOCAL_FACTOR, sweep
 from .pk_stack import BlockStacks
@@ -40,6 +41,35 @@ STALL_SWEEPS = FITTED.stall_sweeps
 #: (both fields of the cost model, :mod:`.costmodel`).
 RATE_SWEEPS = FITTED.rate_sweeps
 SLOW_RATE = FITTED.slow_rate
+#: Coarse systems up to this many patches in contact are solved densely.
+COARSE_DENSE_MAX = 2000
+
+
+@dataclass(frozen=True)
+class SweepLimits:
+    """When a round of sweeps ends.
+
+    Attributes
+    ----------
+    tol : float
+        Eq. 9 relative change at which to stop.
+    max_sweeps : int
+    stop : callable, optional
+        ``stop(pressures) -> bool`` after each iteration (e.g. a loaded patch edge).
+    monitor : callable, optional
+        ``monitor(sweep, change)`` after each iteration (progress display).
+    earlier : tuple of float, default ()
+        Changes of the earlier rounds of the same solve (a round ends when ``stop`` asks
+        for larger patches): the stall and rate rules count them, so an iteration that
+        grows its patches every few sweeps without converging still stops (281 paraboloids
+        under penetration control: changes of 0.3-12 for 11 sweeps over four rounds).
+    """
+
+    tol: float
+    max_sweeps: int
+    stop: Callable | None = None
+    monitor: Callable | None = None
+    earlier: tuple = ()
 
 
 @dataclass(frozen=True)
@@ -129,15 +159,16 @@ def sweep_levels(coupling) -> list:
     return [part.tolist() for part in np.split(order, bounds)] if n else []
 
 
-def two_level(blocks, coupling, tips: np.ndarray, heights, p: list, theta: np.ndarray, *,
-              pivot: tuple[float, float], n_unknowns: int, target, tol: float, max_sweeps: int,
-              stop=None, coarse_dense_max: int = 2000, monitor=None, earlier: tuple = ()) -> TwoLevelResult:
+def two_level(blocks, coupling, tips: np.ndarray, heights, p: list, theta: np.ndarray, control: Control,
+              limits: SweepLimits) -> TwoLevelResult:
     """Two-level block Gauss-Seidel; see the module docstring.
 
     Parameters
     ----------
     blocks : list of LocalBlock
-    coupling : LaggedFarField
+    coupling : an engine with a held far field
+        :class:`~.farfield.LaggedFarField`, or :class:`~.couplings.ExactProducts` (every
+        pair near, nothing held).
     tips : (N, 2) array, mm
         Tip of each block's asperity, in block order.
     heights : callable, theta -> list of (n_k,) arrays
@@ -146,27 +177,15 @@ def two_level(blocks, coupling, tips: np.ndarray, heights, p: list, theta: np.nd
         Start (e.g. paper eq. 7).
     theta : (3,) array
         (d, alpha, beta) to start from; corrected under load control.
-    pivot : (px, py), mm
-    n_unknowns : 0, 1 or 3
-    target : (n_unknowns,) array or None
-        Load (N) and moments (0).
-    tol : float
-        Eq. 9 relative change at which to stop.
-    max_sweeps : int
-    stop : callable, optional
-        ``stop(pressures) -> bool`` after each iteration (e.g. a loaded patch edge).
-    coarse_dense_max : int, default 2000
-        Coarse systems up to this many patches in contact are solved densely.
-    monitor : callable, optional
-        ``monitor(sweep, change)`` after each iteration (progress display).
-    earlier : tuple of float, default ()
-        Changes of the earlier rounds of the same solve (a round ends when ``stop`` asks
-        for larger patches): the stall and rate rules count them, so an iteration that
-        grows its patches every few sweeps without converging still stops (281 paraboloids
-        under penetration control: changes of 0.3-12 for 11 sweeps over four rounds).
+    control : Control
+        Pivot (mm), rigid-body unknowns (0, 1 or 3) and their target (load N, moments 0).
+    limits : SweepLimits
+        Tolerance, sweeps, the caller's stop test, monitor and the earlier rounds' changes.
     """
+    tol, max_sweeps, stop, monitor, earlier = (limits.tol, limits.max_sweeps, limits.stop, limits.monitor,
+                                               limits.earlier)
     patches = coupling.patches
-    coarse = CoarseSpace(coupling.provider, tips, lower_near_pattern(coupling), dense_max=coarse_dense_max)
+    coarse = CoarseSpace(coupling.provider, tips, lower_near_pattern(coupling), dense_max=COARSE_DENSE_MAX)
     levels = sweep_levels(coupling)
     stacks = BlockStacks(coupling.provider) if BlockStacks.usable(coupling.provider) else None
     theta = np.array(theta, dtype=float)
@@ -185,8 +204,7 @@ def two_level(blocks, coupling, tips: np.ndarray, heights, p: list, theta: np.nd
                                   f"local active-set solve did not converge on blocks {list(sw.failed)}",
                                   StopReason.FAILED)
         dF = patch_forces(patches, sw.pressures) - before
-        step = coarse.correct(blocks, patches, sw.pressures, sw.active, dF, theta, pivot=pivot,
-                              n_unknowns=n_unknowns, target=target)
+        step = coarse.correct(blocks, patches, sw.pressures, sw.active, dF, theta, control)
         cg_iters += step.iterations
         new_active = [v > 0.0 for v in step.pressures]
         diff2 = sum(float(np.sum((a - c) ** 2)) for a, c in zip(step.pressures, p))

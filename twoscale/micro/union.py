@@ -86,38 +86,17 @@ def _on_edge(p: np.ndarray) -> bool:
     return bool(np.any(p[0, :] > 0) or np.any(p[-1, :] > 0) or np.any(p[:, 0] > 0) or np.any(p[:, -1] > 0))
 
 
-def solve_union(provider: InfluenceProvider, asperities: Sequence[Asperity], grids: Sequence[Grid], *,
-                h: float, anchor: tuple[float, float], penetration: float | None,
-                total_load: float | None, free_tilt: bool, pivot: tuple[float, float], tol: float,
-                start: np.ndarray | None = None, start_grid: Grid | None = None,
-                approaches: np.ndarray | None = None, max_iter: int = 20_000, max_enlargements: int = MAX_ENLARGEMENTS,
-                precision: str = "auto", precondition: bool = True, monitor=None) -> UnionOutcome:
-    """Solve the micro step as one problem on the box of the patches' ``grids``.
+@dataclass(frozen=True)
+class UnionSettings:
+    """How the union CG runs.
 
-    Parameters
+    Attributes
     ----------
-    provider, asperities
-        The body and the indenters.
-    grids : sequence of Grid
-        The grids of the macro step's patches (only their extent is used).
-    h : float
-        Cell side, mm.
-    anchor : (float, float)
-        A cell centre of the lattice, mm.
-    penetration, total_load : float or None
-        Exactly one: the approach d (mm) or the total load (N).
-    free_tilt : bool
-        Ball-and-socket joint (with ``total_load``), about ``pivot`` (mm).
     tol : float
         KKT residual of the CG relative to the largest displacement.
-    start : (ny, nx) array or None
-        Warm start on ``start_grid`` (e.g. eq. 7 pressures), MPa; default: from
-        ``approaches``, else the CG's own.
-    approaches : (N,) array or None
-        The macro step's local approach of each asperity, mm (:func:`interference_start`).
     max_iter : int, default 20000
         CG iterations per box.
-    max_enlargements : int, default 3
+    max_enlargements : int, default ``MAX_ENLARGEMENTS`` (3)
         Box enlargements when pressure reaches its edge.
     precision : {"auto", "mixed", "double"}, default "auto"
         Of the CG's products (:func:`twoscale.reference.cg.solve_cg`): ``"mixed"``
@@ -126,14 +105,47 @@ def solve_union(provider: InfluenceProvider, asperities: Sequence[Asperity], gri
     precondition : bool, default True
         Precondition the CG by the operator's approximate inverse (``solve_cg``'s
         ``precondition``): half the iterations on merged contacts.
+    """
+
+    tol: float
+    max_iter: int = 20_000
+    max_enlargements: int = MAX_ENLARGEMENTS
+    precision: str = "auto"
+    precondition: bool = True
+
+
+def solve_union(provider: InfluenceProvider, asperities: Sequence[Asperity], grids: Sequence[Grid], problem,
+                settings: UnionSettings, *, start: tuple | None = None, approaches: np.ndarray | None = None,
+                monitor=None) -> UnionOutcome:
+    """Solve the micro step as one problem on the box of the patches' ``grids``.
+
+    Parameters
+    ----------
+    provider, asperities
+        The body and the indenters.
+    grids : sequence of Grid
+        The grids of the macro step's patches (only their extent is used).
+    problem : MicroProblem
+        Cell side ``h`` and ``anchor`` (mm), the control (``total_load`` N, else the
+        ``penetration`` mm), ``free_tilt`` about ``pivot`` (mm).
+    settings : UnionSettings
+        Tolerance, iterations, enlargements, precision, preconditioner.
+    start : (Grid, (ny, nx) array) or None
+        Warm start on its grid (e.g. eq. 7 pressures), MPa; default: from
+        ``approaches``, else the CG's own.
+    approaches : (N,) array or None
+        The macro step's local approach of each asperity, mm (:func:`interference_start`).
     monitor : callable, optional
         ``monitor(iteration, residual)``, passed to the CG (progress display).
     """
     from ..reference.cg import solve_cg
 
+    h, anchor, pivot = problem.h, problem.anchor, problem.pivot
+    penetration = None if problem.total_load is not None else problem.penetration
+    start_grid, start = (None, None) if start is None else start
     grow, iterations, products = 1.0, 0, 0
     previous = None
-    for enlargement in range(max_enlargements + 1):
+    for enlargement in range(settings.max_enlargements + 1):
         grid = box_of(grids, h, anchor, grow=grow)
         surface = surface_on(grid, asperities)
         if previous is not None:
@@ -144,10 +156,10 @@ def solve_union(provider: InfluenceProvider, asperities: Sequence[Asperity], gri
             warm = interference_start(surface, asperities, approaches)
         else:
             warm = None
-        result = solve_cg(provider, surface, penetration=penetration, total_load=total_load, tilt=free_tilt,
-                          pivot=pivot, tol=tol, max_iter=max_iter, start=warm,
-                          precision=_precision(precision, grid.size), precondition=precondition,
-                          monitor=monitor)
+        result = solve_cg(provider, surface, penetration=penetration, total_load=problem.total_load,
+                          tilt=problem.free_tilt, pivot=pivot, tol=settings.tol, max_iter=settings.max_iter,
+                          start=warm, precision=_precision(settings.precision, grid.size),
+                          precondition=settings.precondition, monitor=monitor)
         iterations += int(result.iterations.get("cg", 0))
         products += int(result.iterations.get("products", 0))
         if not result.converged or not _on_edge(result.fields[0].pressure):

@@ -3,7 +3,7 @@
 :class:`WorkingSet` holds what the block iterations change as they go (patches grow when
 pressure reaches an edge or an asperity penetrates outside its block; asperities the macro
 step left out get a patch when the final approach reaches them). The functions here decide
-and make those changes; :mod:`.solve` runs the iterations.
+and make those changes; :mod:`.block_iterations` runs the iterations.
 """
 from __future__ import annotations
 
@@ -11,10 +11,9 @@ import numpy as np
 
 from ..grid import Grid
 from ..indenters import Tilt
-from .blocks import Coupling, scatter
+from .blocks import scatter
 from .localblock import LocalBlock
 from .constraints import member_forces
-from .farfield import FarFieldCoupling, LaggedFarField
 from .gauss_seidel import coupled_rhs
 from .patches import edges_loaded, extend_patch, grow_patch, make_patch, transfer
 
@@ -22,23 +21,15 @@ from .patches import edges_loaded, extend_patch, grow_patch, make_patch, transfe
 class WorkingSet:
     """Mutable working set of the micro step (patches, blocks, pressures); internal."""
 
-    def __init__(self, provider, asperities, patches, dense_max_cells, dense_max_entries, far_tol=None,
-                 lagged=False, separated_rtol=1e-8, blocks=None):
+    def __init__(self, provider, asperities, patches, coupling, *, dense_max_cells: int, blocks=None):
         self.provider, self.asperities = provider, asperities
         self.dense_max_cells = dense_max_cells
         self.patches = list(patches)
         blocks = [None] * len(self.patches) if blocks is None else list(blocks)
         self.blocks = [blk if blk is not None else LocalBlock(provider, pt, dense_max_cells=dense_max_cells)
                        for pt, blk in zip(self.patches, blocks)]
-        if far_tol is None:
-            self.coupling = Coupling(provider, self.patches, dense_max_entries=dense_max_entries,
-                                     separated_rtol=separated_rtol)
-        elif lagged:
-            self.coupling = LaggedFarField(provider, self.patches, far_tol=far_tol,
-                                           dense_max_entries=dense_max_entries, separated_rtol=separated_rtol)
-        else:
-            self.coupling = FarFieldCoupling(provider, self.patches, far_tol=far_tol,
-                                             dense_max_entries=dense_max_entries, separated_rtol=separated_rtol)
+        # the product engine a coupling object built for these patches (:mod:`.couplings`)
+        self.coupling = coupling
         self.sensitivities = None
 
     def tips(self) -> np.ndarray:

@@ -1,0 +1,140 @@
+"""What every iteration of the micro step receives: :class:`MicroProblem` (the problem as the
+macro step leaves it), :class:`BlockSettings` (the block iterations' internal limits) and
+:class:`MicroContext` (both, with the user's :class:`~twoscale.options.MicroOptions` and the
+patches the policy saw), passed whole from the driver to the strategies."""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..options import MicroOptions
+
+#: Merged blocks may cover this many times the cells of their patches: one constrained CG
+#: on the common grid then costs about what the sweeps over the separate patches do (paper
+#: cases, best of 4: seven spheres at d/2R = 0.5 248 -> 177 ms, at 1 241 -> 181 ms against
+#: no growth, 1; two at d/2R = 1 stays apart; at 3, two at d/2R = 1 merged and went
+#: 66 -> 122 ms).
+MERGE_GROWTH = 2.0
+
+
+@dataclass(frozen=True)
+class MicroProblem:
+    """The micro step's problem (docs/method.md section 3).
+
+    Attributes
+    ----------
+    h : float
+        Cell side, mm.
+    forces : (N,) array
+        Macro tip forces, N (eq. 7 and patch sizes).
+    penetration : float
+        Approach d, mm (the macro one under load control).
+    tilt : (alpha, beta) or None, default None
+        Tilt angles, radians (the macro ones when ``free_tilt``).
+    pivot : (float, float), default (0, 0)
+        Tilt pivot, mm.
+    total_load : float or None, default None
+        Load control: the approach (and the tilt when ``free_tilt``) are corrected until
+        the pressure carries ``total_load`` N (and zero moments about the pivot).
+    free_tilt : bool, default False
+        Ball-and-socket joint (needs ``total_load``).
+    anchor : (float, float), default (0, 0)
+        A cell centre of the common lattice, mm.
+    size_from_forces : bool, default True
+        Size the patches from the macro forces; False sizes them by the geometric reach
+        of each indenter (use when the macro step did not converge).
+    sizing_approaches : (N,) array or None, default None
+        Approach of each tip used to size the patches, mm (<= 0: no patch); default the
+        geometric ``d - z_k - tilt``, or with far-field coupling the macro local approaches
+        plus a fifth of the largest (``local_penetrations``). Asperities penetrating
+        outside every block are still given a patch by the growth step.
+    local_penetrations : (N,) array or None, default None
+        The macro step's local approach of each tip, mm, where it converged (the union
+        CG's start, the far-field patch sizes).
+    start : MicroStart or None, default None
+        A previous solve's pressure (:mod:`.start`): the iterations start from it on the
+        patches of the asperities it loaded, from eq. 7 elsewhere.
+    """
+
+    h: float
+    forces: np.ndarray
+    penetration: float
+    tilt: tuple | None = None
+    pivot: tuple = (0.0, 0.0)
+    total_load: float | None = None
+    free_tilt: bool = False
+    anchor: tuple = (0.0, 0.0)
+    size_from_forces: bool = True
+    sizing_approaches: np.ndarray | None = None
+    local_penetrations: np.ndarray | None = None
+    start: object = None
+
+    @classmethod
+    def from_macro(cls, macro, *, h: float, total_load: float | None, free_tilt: bool, pivot: tuple,
+                   anchor: tuple = (0.0, 0.0), start=None) -> "MicroProblem":
+        """The problem the macro step ``macro`` (a :class:`~twoscale.macro.result.MacroResult`)
+        leaves: its forces, approach and tilt (under load control moved by the correction
+        the ``start``'s micro step made to its own macro step), the local penetrations
+        where it converged."""
+        penetration, tilt = macro.penetration, macro.tilt
+        if start is not None and total_load is not None:
+            penetration, tilt = start.theta(penetration, tilt)
+        local = np.asarray(macro.local_penetrations, dtype=float) if macro.converged else None
+        return cls(h=h, forces=np.asarray(macro.forces, dtype=float), penetration=penetration, tilt=tilt,
+                   pivot=pivot, total_load=total_load, free_tilt=free_tilt, anchor=anchor,
+                   size_from_forces=bool(macro.converged), local_penetrations=local, start=start)
+
+    @property
+    def theta(self) -> np.ndarray:
+        """``(d, alpha, beta)``: approach (mm) and tilt (radians, 0 without)."""
+        return np.array([self.penetration, *(self.tilt if self.tilt is not None else (0.0, 0.0))], dtype=float)
+
+    @property
+    def n_unknowns(self) -> int:
+        """Rigid-body unknowns the iterations correct: 0 (penetration control), 1 (load), 3 (load and tilt)."""
+        return 0 if self.total_load is None else (3 if self.free_tilt else 1)
+
+    @property
+    def target(self) -> np.ndarray | None:
+        """Load (N) and moments (0) to meet, ``(n_unknowns,)``, or None."""
+        return None if self.total_load is None else np.array([self.total_load, 0.0, 0.0])[:self.n_unknowns]
+
+
+@dataclass(frozen=True)
+class BlockSettings:
+    """Limits of the block iterations that are not user options (their defaults live here).
+
+    Attributes
+    ----------
+    dense_max_entries : int, default 40000
+        Cross blocks ``A_kl`` up to this many entries are formed densely, larger by FFT.
+    max_corrections : int, default 20
+        Newton corrections of (d, alpha, beta) allowed (block Gauss-Seidel).
+    max_growths : int or None, default None
+        Patch enlargements allowed in all; None: 50, or ``GROWTHS_PER_PATCH`` a patch if
+        more (unloading a viscoelastic body leaves contacts wider than the macro step's
+        elastic estimate on every tip at once).
+    merge_growth : float, default ``MERGE_GROWTH`` (2)
+        Cells a merged grid may have over its members' grids together (>= 1).
+    """
+
+    dense_max_entries: int = 40_000
+    max_corrections: int = 20
+    max_growths: int | None = None
+    merge_growth: float = MERGE_GROWTH
+
+
+@dataclass(frozen=True)
+class MicroContext:
+    """What every iteration needs: the body, the indenters (a ``TipTable``), the problem,
+    the options, the block settings, and the one-asperity patches the policy saw (built
+    once: the block iterations start from them, the union CG uses their extent; None:
+    built from the problem)."""
+
+    provider: object
+    asperities: object
+    problem: MicroProblem
+    options: MicroOptions = field(default_factory=MicroOptions)
+    settings: BlockSettings = field(default_factory=BlockSettings)
+    patches: tuple | None = None
