@@ -12,7 +12,16 @@ from scipy.optimize import brentq
 from twoscale import Material
 from twoscale.influence.halfspace import HalfSpace
 from twoscale.laws import CompliantLaw, HertzLaw, SphereLaw, TabulatedLaw
-from twoscale.macro import solve_macro
+from twoscale.control import Loading
+from twoscale.macro import solve_macro as _solve_macro
+from twoscale.options import MacroOptions
+
+
+def solve_macro(provider, tips, z, laws, *, start=None, self_compliance=True, **keywords):
+    """``twoscale.macro.solve_macro`` with its loading and options given as keywords here."""
+    load = {k: keywords.pop(k) for k in ("penetration", "total_load", "tilt", "pivot") if k in keywords}
+    return _solve_macro(provider, tips, z, laws, Loading(**load), MacroOptions(**keywords), start=start,
+                        self_compliance=self_compliance)
 
 MAT = Material(10.0, 0.5)
 E_STAR = MAT.E_star
@@ -424,5 +433,5 @@ def test_matrix_free_input_errors():
         solve_macro(HS, tips, np.zeros(3), law, penetration=0.1, dense_max=1)
     with pytest.raises(ValueError, match="dense_max must be an integer >= 1, got 0"):
         solve_macro(HS, tips[:2], np.zeros(2), law, penetration=0.1, dense_max=0)
-    with pytest.raises(ValueError, match="operator_rtol must be in \\(0, 1\\), got 2"):
+    with pytest.raises(ValueError, match="operator_rtol must be a number in \\(0, 1\\), got 2"):
         solve_macro(HS, tips[:2], np.zeros(2), law, penetration=0.1, operator_rtol=2)

@@ -164,11 +164,14 @@ def _height_map(problem: Any, h: float | None) -> MeasuredSurface | None:
 
 
 # ---------------------------------------------------------------- the entry point
+#: Keywords of :func:`solve` beside its named ones and the solver's options, with their
+#: defaults: the tips' joint and shape, the body's build options, the memory bound.
+CALL_KEYWORDS = {"tilt": False, "pivot": None, "shape": "sphere", "provider_options": None, "memory_limit": None}
+
+
 def solve(problem: Any, *, method: str | Callable[..., ContactResult] = "twoscale",
           provider: InfluenceProvider | None = None, material: Material | None = None,
-          penetration: float | None = None, total_load: float | None = None, tilt: bool = False,
-          pivot: tuple[float, float] | None = None, h: float | None = None, shape: str = "sphere",
-          provider_options: Mapping | None = None, memory_limit: float | None = None,
+          penetration: float | None = None, total_load: float | None = None, h: float | None = None,
           **options: Any) -> ContactResult | HistoryResult:
     """Solve a multi-asperity contact.
 
@@ -217,10 +220,13 @@ def solve(problem: Any, *, method: str | Callable[..., ContactResult] = "twoscal
         (:func:`twoscale.resources.check_memory`); default 80 % of the memory available
         now; ``math.inf``: no check.
     **options
-        Passed to the solver: :func:`~twoscale.driver.solve_twoscale` (``tol``,
-        ``iteration``, ``far_tol``, ``progress``, ``start`` a warm start from a
-        neighbouring solve, ...), the reference solvers (``tol``, ``max_iter``), or your
-        callable.
+        ``tilt``, ``pivot``, ``shape``, ``provider_options`` and ``memory_limit`` (above);
+        the rest is passed to the solver: :func:`~twoscale.driver.solve_twoscale` (a
+        :class:`~twoscale.options.SolverOptions` as ``options=``, the flat option keywords
+        ``tol``, ``iteration``, ``far_tol``, ... of docs/options.md, ``progress``,
+        ``start`` a warm start from a neighbouring solve; an unknown or misspelt one is
+        refused naming the closest), the reference solvers (``tol``, ``max_iter``), or
+        your callable.
 
     Returns
     -------
@@ -238,8 +244,11 @@ def solve(problem: Any, *, method: str | Callable[..., ContactResult] = "twoscal
     ValueError
         Invalid input (:class:`~twoscale.scene.SceneError` for scene data), naming the bad value.
     """
-    given = dict(material=material, penetration=penetration, total_load=total_load, tilt=tilt, pivot=pivot)
-    scene = _scene_of(problem, provider, h, shape, given)
+    call = {k: options.pop(k, default) for k, default in CALL_KEYWORDS.items()}
+    provider_options, memory_limit = call["provider_options"], call["memory_limit"]
+    given = dict(material=material, penetration=penetration, total_load=total_load, tilt=call["tilt"],
+                 pivot=call["pivot"])
+    scene = _scene_of(problem, provider, h, call["shape"], given)
     if not (callable(method) or method in METHODS):
         raise ValueError(f"method must be one of {METHODS} or a callable, got {method!r}")
     if provider is not None and provider_options:
@@ -256,12 +265,18 @@ def solve(problem: Any, *, method: str | Callable[..., ContactResult] = "twoscal
             raise ValueError("a scene with a load history runs with method 'twoscale' or 'reference', not a callable")
         return solve_history(scene, method=method, provider=provider, h=h,
                              provider_options=provider_options, **options)
+    if method == "twoscale":  # a misspelt keyword is refused before the body is built
+        from .driver import check_keywords
+
+        check_keywords(options)
     h_given = h is not None
     h = default_h(scene)
     if not callable(method) and (memory_limit is None or memory_limit < math.inf):
         from .resources import check_solve_memory
 
-        iteration = options.get("iteration", "auto") if method == "twoscale" else "auto"
+        base = options.get("options")
+        iteration = options.get("iteration", base.micro.iteration if base is not None else "auto") \
+            if method == "twoscale" else "auto"
         check_solve_memory(scene, h, "twoscale" if method == "twoscale" else "reference", iteration=iteration,
                            limit_bytes=memory_limit, option="h" if h_given else "grid.h", h_given=h_given)
     from .io.cache_entry import solve_caches, usage_since
@@ -281,8 +296,6 @@ def solve(problem: Any, *, method: str | Callable[..., ContactResult] = "twoscal
     if method == "twoscale":
         from .driver import solve_twoscale
 
-        _check_twoscale_keywords(options)
-
         result = solve_twoscale(provider, scene.asperities, h=h, penetration=scene.penetration,
                                 total_load=scene.total_load, tilt=scene.tilt, pivot=scene.pivot, **options)
     else:
@@ -300,30 +313,6 @@ def solve(problem: Any, *, method: str | Callable[..., ContactResult] = "twoscal
     result = with_setting(result, scene, provider)
     # what came from the on-disk caches (block corrections, surface laws), for result.json
     return dataclasses.replace(result, caches=usage_since(caches_before, solve_caches(provider, scene)))
-
-
-#: Keywords of the two-scale solver that are not options (:mod:`twoscale.options`).
-_TWOSCALE_EXTRAS = ("progress", "start", "anchor", "laws", "coarse")
-
-
-def _check_twoscale_keywords(options: Mapping) -> None:
-    """Refuse an unknown or misspelt keyword of the two-scale solver, naming it (the values
-    are checked by the solver)."""
-    from .options import KEYWORDS
-
-    known = {k for k in KEYWORDS if k not in ("h", "memory_limit")}
-    unknown = [k for k in options if k not in known and k not in _TWOSCALE_EXTRAS]
-    if unknown:
-        import difflib
-
-        key = unknown[0]
-        # a group's prefix on a flat keyword ("micro_tol"): the micro step's options go without it
-        stem = key.split("_", 1)[1] if key.startswith(("micro_", "micro.")) else ""
-        close = [stem] if stem in known else \
-            difflib.get_close_matches(key, sorted(known | set(_TWOSCALE_EXTRAS)), n=3)
-        hint = f" (did you mean {', '.join(repr(c) for c in close)}?)" if close else \
-            " (twoscale.list_options() lists the options)"
-        raise ValueError(f"unknown option {unknown[0]!r} for the two-scale solver{hint}")
 
 
 def solve_scene(scene: Scene, *, method: str = "twoscale", provider_options: Mapping | None = None,

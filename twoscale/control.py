@@ -1,4 +1,5 @@
-"""Penetration or load control: the one check that exactly one of the two is given.
+"""Penetration or load control: the one check that exactly one of the two is given, and
+:class:`Loading`, the two with the tilt joint as one value passed to the solvers.
 
 Every solver and the scene take either a rigid approach d (mm, penetration control) or a
 total load W (N, load control). :func:`check_control` is the single place that says
@@ -7,6 +8,8 @@ and ``total_load`` for the Python functions, ``load.penetration`` and ``load.tot
 the scene file).
 """
 from __future__ import annotations
+
+from dataclasses import dataclass
 
 #: Names of the two quantities in the Python functions.
 PYTHON_NAMES = ("penetration", "total_load")
@@ -37,3 +40,26 @@ def check_control(penetration, total_load, *, names: tuple[str, str] = PYTHON_NA
         raise error(f"give exactly one of {names[0]} (mm) or {names[1]} (N), got "
                     f"{names[0]}={penetration!r}, {names[1]}={total_load!r}")
     return "penetration" if penetration is not None else "load"
+
+
+@dataclass(frozen=True)
+class Loading:
+    """How the rigid indenter is driven (checked by the solver that receives it).
+
+    Attributes
+    ----------
+    penetration : float or None, default None
+        Rigid approach d, mm (penetration control).
+    total_load : float or None, default None
+        Total load W, N (load control); exactly one of the two.
+    tilt : bool, default False
+        Ball-and-socket joint (with ``total_load``): the tilt angles are solved so that
+        the moments about ``pivot`` vanish.
+    pivot : (float, float), default (0, 0)
+        Pivot of the joint, mm.
+    """
+
+    penetration: float | None = None
+    total_load: float | None = None
+    tilt: bool = False
+    pivot: tuple = (0.0, 0.0)

@@ -11,54 +11,64 @@ Only the cells where contact can be are modelled, which is where the speed comes
 """
 from __future__ import annotations
 
+import difflib
 import math
 import time
-from typing import Sequence
+from dataclasses import dataclass, field
+from typing import Callable, Sequence
 
 import numpy as np
 
-from .control import check_control
+from .control import Loading, check_control
 from .details import Coupling, MacroDetails, MicroDetails, TwoScaleDetails
 from .indenters import Asperity
 from .influence.base import InfluenceProvider
 from .laws import law_for
 from .macro import solve_macro
-from .macro.solve import DENSE_MAX
 from .macro.start import MacroStart
 from .influence.separated import check_rtol
 from .micro.driver import fixed_choice, run_micro
 from .micro.problem import MicroProblem
-from .options import MicroOptions
+from .options import KEYWORDS, SolverOptions
 from .results import ContactResult, PressureField, summarise
 from .warm_start import WarmStart
 
 
-def _check(asperities, h, penetration, total_load, tilt, tol, max_sweeps) -> None:
+def _check(asperities, h, loading: Loading) -> None:
     if len(asperities) == 0:
         raise ValueError("asperities must not be empty")
     if not all(isinstance(a, Asperity) for a in asperities):
         raise ValueError("asperities must be Asperity objects")
     if isinstance(h, bool) or not isinstance(h, (int, float)) or not math.isfinite(h) or h <= 0:
         raise ValueError(f"cell size h must be a finite number > 0 (mm), got {h!r}")
-    check_control(penetration, total_load)
-    if tilt and total_load is None:
+    check_control(loading.penetration, loading.total_load)
+    if loading.tilt and loading.total_load is None:
         raise ValueError("tilt=True needs total_load (ball-and-socket joint under load control)")
-    if not (isinstance(tol, (int, float)) and math.isfinite(tol) and tol > 0):
-        raise ValueError(f"tol must be a finite number > 0, got {tol!r}")
-    if isinstance(max_sweeps, bool) or not isinstance(max_sweeps, int) or max_sweeps < 1:
-        raise ValueError(f"max_sweeps must be an integer >= 1, got {max_sweeps!r}")
+
+
+#: Keywords of :func:`solve_twoscale` beside the loading and the flat option names of the
+#: macro and micro groups (:data:`twoscale.options.KEYWORDS`).
+EXTRAS = ("options", "laws", "anchor", "coarse", "progress", "start")
+
+
+def check_keywords(keywords) -> None:
+    """Refuse an unknown or misspelt keyword of :func:`solve_twoscale`, naming it and the
+    closest known ones (the values are checked by the option objects and the solver)."""
+    known = {k for k, (group, _) in KEYWORDS.items() if group in ("macro", "micro")}
+    unknown = [k for k in keywords if k not in known and k not in EXTRAS]
+    if unknown:
+        key = unknown[0]
+        # a group's prefix on a flat keyword ("micro_tol"): the micro step's options go without it
+        stem = key.split("_", 1)[1] if key.startswith(("micro_", "micro.")) else ""
+        close = [stem] if stem in known else difflib.get_close_matches(key, sorted(known | set(EXTRAS)), n=3)
+        hint = f" (did you mean {', '.join(repr(c) for c in close)}?)" if close else \
+            " (twoscale.list_options() lists the options)"
+        raise ValueError(f"unknown option {key!r} for the two-scale solver{hint}")
 
 
 def solve_twoscale(provider: InfluenceProvider, asperities: Sequence[Asperity], *, h: float,
                    penetration: float | None = None, total_load: float | None = None,
-                   tilt: bool = False, pivot: tuple[float, float] = (0.0, 0.0), tol: float = 1e-6,
-                   max_sweeps: int = 100, laws=None, margin: float = 1.3,
-                   anchor: tuple[float, float] = (0.0, 0.0), dense_max_cells: int = 400,
-                   macro_tol: float = 1e-10, macro_max_iter: int = 100,
-                   macro_dense_max: int = DENSE_MAX, macro_operator_rtol: float = 1e-6,
-                   iteration: str = "auto", far_tol: float | None = None, coarse: bool | None = None,
-                   separated_rtol: float | None = 1e-8, merge: bool = True, p0: bool = False,
-                   progress=None, start=None) -> ContactResult:
+                   tilt: bool = False, pivot: tuple[float, float] = (0.0, 0.0), **options) -> ContactResult:
     """Multi-asperity contact by the two-scale iterative method.
 
     Parameters
@@ -78,27 +88,15 @@ def solve_twoscale(provider: InfluenceProvider, asperities: Sequence[Asperity], 
         and beta (about y) so that the moments about ``pivot`` vanish.
     pivot : (float, float), default (0, 0)
         Pivot of the joint, mm.
-    tol : float, default 1e-6
-        Eq. 9 tolerance on the relative change of the pressure between sweeps.
-    max_sweeps : int, default 100
-        Block Gauss-Seidel sweeps allowed (all rounds together).
-    laws : sequence of AsperityLaw, optional
-        Load-penetration law per asperity; default ``law_for(asperity, provider.material)``.
-    margin : float, default 1.3
-        Patch half-width over the Hertz-like contact radius of the macro force.
-    anchor : (float, float), default (0, 0)
-        A cell centre of the lattice, mm (use the reference grid's to compare cell by cell).
-    dense_max_cells : int, default 400
-        Blocks up to this many cells are solved densely, larger ones by FFT + CG.
-    macro_tol : float, default 1e-10
-        Relative residual of the macro Newton iteration.
-    macro_max_iter : int, default 100
-    macro_dense_max : int, default 3000
-        Up to this many asperities the macro step factorises the dense interaction;
-        above, it is matrix-free (fast point operator + conjugate gradients), its
-        operator error reported in ``details.macro.operator_error``.
-    macro_operator_rtol : float, default 1e-6
-        Accuracy of that point operator (relative to ``max |u|``).
+    **options
+        ``options``: a :class:`~twoscale.options.SolverOptions` (its macro and micro
+        groups; default the documented defaults), changed by the flat option keywords of
+        those groups (docs/options.md): ``tol`` (1e-6, eq. 9 relative change),
+        ``max_sweeps`` (100), ``iteration``, ``far_tol``, ``margin``, ``dense_max_cells``,
+        ``separated_rtol``, ``merge``, ``p0``, ``macro_tol``, ``macro_max_iter``,
+        ``macro_dense_max``, ``macro_operator_rtol``; and ``laws``, ``anchor``, ``coarse``,
+        ``progress``, ``start`` below. An unknown or misspelt keyword is an error naming
+        the closest known ones.
     iteration : {"auto", "union-cg", "block-gs", "two-level"}, default "auto"
         The micro step's iteration (:mod:`twoscale.micro.driver`). ``"auto"``: the policy
         (:mod:`twoscale.micro.policy`) picks from the patches the macro forces give (how
@@ -115,12 +113,6 @@ def solve_twoscale(provider: InfluenceProvider, asperities: Sequence[Asperity], 
         resultant force (:mod:`twoscale.micro.farfield`). Given with ``iteration="auto"``
         it selects the two-level iteration. Patches are then sized from the macro local
         penetrations (bulk deflection included).
-    coarse : bool or None, default None
-        Older spelling of ``iteration``: True = ``"two-level"``, False = ``"block-gs"``.
-    separated_rtol : float or None, default 1e-8
-        Micro step: patches far apart for their size are coupled through the provider's
-        low-rank separated operator (half-space: Chebyshev interpolation of Love's kernel),
-        accurate to this fraction of the pair's displacement; None: FFT products only.
     merge : bool, default True
         Micro step without ``far_tol``: close patches (close or merged contacts) are solved
         as one block when their common grid has at most twice the cells they have apart
@@ -128,9 +120,12 @@ def solve_twoscale(provider: InfluenceProvider, asperities: Sequence[Asperity], 
         :data:`twoscale.micro.problem.MERGE_GROWTH`); eq. 7 still gives each asperity its own
         ``p0``. False: one block per asperity, the paper's iteration (more sweeps for close
         asperities: 13-19 against 4 in the paper's closest cases).
-    p0 : bool, default False
-        Compute the paper's eq. 7 pressures even where the chosen iteration does not start
-        from them (``union-cg``), for the report (``details.micro.p0``, Fig. 6).
+    laws : sequence of AsperityLaw, optional
+        Load-penetration law per asperity; default ``law_for(asperity, provider.material)``.
+    anchor : (float, float), default (0, 0)
+        A cell centre of the lattice, mm (use the reference grid's to compare cell by cell).
+    coarse : bool or None, default None
+        Older spelling of ``iteration``: True = ``"two-level"``, False = ``"block-gs"``.
     progress : callable or None, default None
         Called with a short stage description (``progress(text)``) as the solve goes on.
     start : ContactResult, MacroStart or WarmStart, optional
@@ -153,23 +148,49 @@ def solve_twoscale(provider: InfluenceProvider, asperities: Sequence[Asperity], 
         routes, ``merged_patches`` as 0-based asperity indices, eq. 7's ``p0`` and
         ``p0_change_percent = 100 ||p0 - p|| / ||p||`` or None, see ``p0``).
     """
-    _check(asperities, h, penetration, total_load, tilt, tol, max_sweeps)
-    check_rtol(separated_rtol, "separated_rtol", allow_none=True)
+    check_keywords(options)
+    extras = {k: options.pop(k) for k in EXTRAS if k in options}
+    base = extras.get("options")
+    if base is not None and not isinstance(base, SolverOptions):
+        raise ValueError(f"options must be a twoscale.SolverOptions, got {type(base).__name__}")
+    run = TwoScaleRun(options=SolverOptions.from_keywords(base, **options), laws=extras.get("laws"),
+                      anchor=extras.get("anchor", (0.0, 0.0)), coarse=extras.get("coarse"),
+                      progress=extras.get("progress"), start=extras.get("start"))
+    return run_twoscale(provider, asperities, h, Loading(penetration, total_load, tilt, pivot), run)
+
+
+@dataclass(frozen=True)
+class TwoScaleRun:
+    """How one two-scale solve runs, beside the body, the tips and the loading: the options
+    (macro and micro groups), the tips' laws, the lattice anchor, the older ``coarse``
+    spelling, a progress callback and a warm start (:func:`solve_twoscale`'s keywords)."""
+
+    options: SolverOptions = field(default_factory=SolverOptions)
+    laws: Sequence | None = None
+    anchor: tuple = (0.0, 0.0)
+    coarse: bool | None = None
+    progress: Callable | None = None
+    start: object = None
+
+
+def run_twoscale(provider: InfluenceProvider, asperities: Sequence[Asperity], h: float, loading: Loading,
+                 run: TwoScaleRun) -> ContactResult:
+    """:func:`solve_twoscale` with its arguments as typed objects."""
+    _check(asperities, h, loading)
+    macro_options, micro_options = run.options.macro, run.options.micro
+    check_rtol(micro_options.separated_rtol, "separated_rtol", allow_none=True)
+    progress, start = run.progress, run.start
     t0 = time.perf_counter()
-    laws = [law_for(a, provider.material) for a in asperities] if laws is None else laws
+    laws = [law_for(a, provider.material) for a in asperities] if run.laws is None else run.laws
     tips = np.array([[a.x, a.y] for a in asperities], dtype=float)
     z = np.array([a.z for a in asperities], dtype=float)
     if progress is not None:
         progress(f"macro step, {len(asperities)} asperities")
-    macro = solve_macro(provider, tips, z, laws, penetration=penetration, total_load=total_load,
-                        tilt=tilt, pivot=pivot, tol=macro_tol, max_iter=macro_max_iter,
-                        dense_max=macro_dense_max, operator_rtol=macro_operator_rtol,
-                        start=_macro_start(start, len(asperities)))
+    macro = solve_macro(provider, tips, z, laws, loading, macro_options, start=_macro_start(start, len(asperities)))
     t1 = time.perf_counter()
-    choice = _caller_choice(iteration, far_tol, coarse)
-    micro_options = MicroOptions(tol=tol, max_sweeps=max_sweeps, margin=margin, dense_max_cells=dense_max_cells,
-                                 separated_rtol=separated_rtol, merge=bool(merge), p0=p0)
-    problem = MicroProblem.from_macro(macro, h=h, total_load=total_load, free_tilt=tilt, pivot=pivot, anchor=anchor,
+    choice = _caller_choice(micro_options.iteration, micro_options.far_tol, run.coarse)
+    problem = MicroProblem.from_macro(macro, h=h, total_load=loading.total_load, free_tilt=loading.tilt,
+                                      pivot=loading.pivot, anchor=run.anchor,
                                       start=start.micro if isinstance(start, WarmStart) else None)
     micro, plan = run_micro(provider, asperities, macro, problem, micro_options, choice=choice, progress=progress)
     t2 = time.perf_counter()

@@ -6,9 +6,10 @@ import time
 import numpy as np
 from scipy.spatial import cKDTree
 
-from ..control import check_control
+from ..control import Loading, check_control
 from ..influence.base import InfluenceProvider
 from ..laws import AsperityLaw, LawStack
+from ..options import MacroOptions
 from .interaction import MatrixFreeInteraction, sampled_operator_error
 from .result import MacroResult
 from .start import MacroStart
@@ -16,7 +17,7 @@ from .robust import FAST_STEPS, minimise_then_polish, run_newton, solve_dual
 from .system import MacroSystem
 
 #: Default largest N solved with a dense interaction matrix (72 MB at 3,000).
-DENSE_MAX = 3000
+DENSE_MAX = MacroOptions.dense_max
 
 
 #: Above this many asperities a stalled Newton is not followed by the safe path
@@ -25,12 +26,9 @@ DENSE_MAX = 3000
 #: the macro forces only size the patches and start the micro step.
 SAFE_PATH_MAX_TIPS = 1000
 
-def solve_macro(provider: InfluenceProvider, tips, z, laws, *,
-                penetration: float | None = None, total_load: float | None = None,
-                tilt: bool = False, pivot: tuple[float, float] = (0.0, 0.0),
-                self_compliance: bool = True, tol: float = 1e-10,
-                max_iter: int = 100, dense_max: int = DENSE_MAX,
-                operator_rtol: float = 1e-6, start: MacroStart | None = None) -> MacroResult:
+def solve_macro(provider: InfluenceProvider, tips, z, laws, loading: Loading,
+                options: MacroOptions | None = None, *, self_compliance: bool = True,
+                start: MacroStart | None = None) -> MacroResult:
     """Tip forces of N interacting asperities (docs/method.md section 2; paper eqs. 4-5, 11-12).
 
     Solves ``P_k = f_k(delta_k) H(delta_k)`` with ``delta_k = d - z_k - [beta (x_k - px)
@@ -54,31 +52,29 @@ def solve_macro(provider: InfluenceProvider, tips, z, laws, *,
         Tip recesses: asperity k touches when ``d > z_k``.
     laws : AsperityLaw or sequence of N AsperityLaw
         Each asperity's own law on the half-space (one law is used for all).
-    penetration : float, optional
-        Rigid approach d, mm (penetration control).
-    total_load : float, optional
-        Total load W > 0, N (load control); exactly one of the two is given.
-    tilt : bool, default False
-        Ball-and-socket joint (only with ``total_load``): adds the angles alpha (about
-        x) and beta (about y), radians, with zero moment about the pivot.
-    pivot : (px, py), default (0, 0)
-        Pivot of the tilt, mm.
+    loading : Loading
+        Exactly one of ``penetration`` (rigid approach d, mm) and ``total_load`` (W > 0,
+        N); ``tilt`` (only with ``total_load``): a ball-and-socket joint, adding the angles
+        alpha (about x) and beta (about y), radians, with zero moment about ``pivot`` (mm).
+    options : MacroOptions, optional
+        The Newton iteration's ``tol``, ``max_iter``, ``dense_max`` and
+        ``operator_rtol`` (below; default :class:`~twoscale.options.MacroOptions`).
     self_compliance : bool, default True
         Add ``c_k`` (zero on the half-space). Set False when the laws already contain
         the body's own compliance (e.g. tabulated from single-asperity solves on it).
-    tol : float, default 1e-10
+    options.tol : float, default 1e-10
         Relative residual: ``||r||_2 <= tol * ||P||_2``, with ``r`` the force residuals
         ``P_k - f_k(delta_k)`` and the equilibrium rows (moments divided by the RMS tip
         distance from the pivot), all in N.
-    max_iter : int, default 100
+    options.max_iter : int, default 100
         Maximum Newton steps; reaching it gives ``converged=False``.
-    dense_max : int, default 3000
+    options.dense_max : int, default 3000
         Largest N solved with the dense ``N x N`` interaction matrix (LU per Newton step).
         Above it the interaction is matrix-free (:mod:`twoscale.macro.interaction`):
         products by ``provider.point_operator(tips, tips, rtol=operator_rtol)``, Newton
         steps by conjugate gradients, memory ``O(N)``; the operator's error at the
         solution is measured on a sample of tips and reported (``operator_error``).
-    operator_rtol : float, default 1e-6
+    options.operator_rtol : float, default 1e-6
         Accuracy asked of the point operator in the matrix-free mode (relative to
         ``max |u|``); the forces then solve the macro equations with ``T`` perturbed by
         about that much.
@@ -94,6 +90,9 @@ def solve_macro(provider: InfluenceProvider, tips, z, laws, *,
     MacroResult
     """
     t0 = time.perf_counter()
+    options = MacroOptions() if options is None else options
+    tol, max_iter, dense_max, operator_rtol = options.tol, options.max_iter, options.dense_max, options.operator_rtol
+    penetration, total_load, tilt, pivot = loading.penetration, loading.total_load, loading.tilt, loading.pivot
     tips, z, stack = _check_scene(tips, z, laws)
     mode = _check_load(penetration, total_load, tilt, pivot, tol, max_iter)
     if isinstance(dense_max, bool) or not isinstance(dense_max, (int, np.integer)) or dense_max < 1:
