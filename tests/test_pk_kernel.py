@@ -15,7 +15,7 @@ import pytest
 from twoscale import Grid, Material
 from twoscale.analytic import hertz
 from twoscale.influence import HalfSpace
-from twoscale.pk import StopReason, Tolerance, pk_solve
+from twoscale.pk import Constraint, StopReason, Tolerance, pk_solve
 
 MAT = Material(10.0, 0.5)
 HS = HalfSpace(MAT)
@@ -53,8 +53,8 @@ def test_load_control_finds_hertz_approach_as_its_multiplier():
     grid, r, z, op = _hertz_problem(48)
     W = float(hertz.load(R, D, MAT.E_star))
     out = pk_solve(op.apply_stack, z[None], np.ones((1, *z.shape)), np.ones((1, *z.shape), bool),
-                   Tolerance(residual=1e-10, max_iter=500), basis=np.ones((z.size, 1)),
-                   target=np.array([[W / grid.h ** 2]]))
+                   Tolerance(residual=1e-10, max_iter=500),
+                   constraint=Constraint(np.ones((z.size, 1)), np.array([[W / grid.h ** 2]])))
     assert out.converged.all()
     p = out.pressure[0]
     assert abs(grid.h ** 2 * p.sum() / W - 1) <= 1e-12          # the constraint is held exactly

@@ -256,6 +256,16 @@ class SolverOptions:
                 if group in ("macro", "micro")}
 
 
+def settings_from(kind: type, keywords: Mapping[str, Any], what: str) -> Any:
+    """``kind(**keywords)`` for a frozen dataclass of settings, an unknown keyword refused
+    by name with the closest fields (``what`` names the function in the message)."""
+    known = {f.name for f in dataclasses.fields(kind)}
+    for key in keywords:
+        if key not in known:
+            raise ValueError(f"unknown keyword {key!r} for {what}{_close(key, known)}")
+    return kind(**keywords)
+
+
 def _close(name: str, known) -> str:
     match = difflib.get_close_matches(name, sorted(known), n=3)
     return f" (did you mean {', '.join(repr(m) for m in match)}?)" if match else \

@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..pk.kernel import Tolerance, pk_solve
+from ..pk.kernel import Constraint, Tolerance, pk_solve
 
 
 def fixed_approach(apply, b: np.ndarray, start: np.ndarray, mask: np.ndarray | None, *, rtol: float,
@@ -57,7 +57,7 @@ def fixed_force(apply, z: np.ndarray, target: np.ndarray, start: np.ndarray, mas
     (B,), iterations (B,)."""
     n = int(np.prod(z.shape[1:]))
     out = pk_solve(apply, z, start, mask, Tolerance(change=rtol, max_iter=max_iter),
-                   basis=np.ones((n, 1)), target=np.asarray(target, dtype=float)[:, None])
+                   constraint=Constraint(np.ones((n, 1)), np.asarray(target, dtype=float)[:, None]))
     return out.pressure, out.multipliers[:, 0], out.converged, out.iterations
 
 

@@ -8,6 +8,6 @@ stacked blocks of one size class (:mod:`twoscale.micro.pk`).
   and moments, the residuals the stopping rule reads.
 """
 from ..stopping import StopReason
-from .kernel import PKResult, Tolerance, pk_solve
+from .kernel import Constraint, PKResult, Tolerance, pk_solve
 
-__all__ = ["PKResult", "StopReason", "Tolerance", "pk_solve"]
+__all__ = ["Constraint", "PKResult", "StopReason", "Tolerance", "pk_solve"]

@@ -26,6 +26,7 @@ costs what the live rows cost, one operator call per iteration for all of them.
 """
 from __future__ import annotations
 
+from dataclasses import dataclass
 from typing import Callable
 
 import numpy as np
@@ -36,9 +37,25 @@ from .result import STALL_ITERATIONS, PKResult, Tolerance
 Operator = Callable[[np.ndarray], np.ndarray]
 
 
+@dataclass(frozen=True)
+class Constraint:
+    """What the rows' pressures must carry: ``basis^T p = target`` per row.
+
+    Attributes
+    ----------
+    basis : (n, k) array
+        Constraint basis over the flattened field, shared by the rows: one constant
+        column (load), or more (load and moments).
+    target : (B, k) array
+        ``basis^T p`` to hold, per row (the load over ``h^2``).
+    """
+
+    basis: np.ndarray
+    target: np.ndarray
+
+
 def pk_solve(apply: Operator, z: np.ndarray, start: np.ndarray, mask: np.ndarray | None, tolerance: Tolerance, *,
-             basis: np.ndarray | None = None, target: np.ndarray | None = None,
-             precondition: Operator | None = None, monitor=None) -> PKResult:
+             constraint: Constraint | None = None, precondition: Operator | None = None, monitor=None) -> PKResult:
     """Polonsky & Keer's constrained CG on a stack of independent contact problems.
 
     Parameters
@@ -56,11 +73,8 @@ def pk_solve(apply: Operator, z: np.ndarray, start: np.ndarray, mask: np.ndarray
         Cells that may carry pressure (others are neither loaded nor checked); None: all.
     tolerance : Tolerance
         The stopping rule and the iteration cap.
-    basis : (n, k) array, optional
-        Constraint basis over the flattened field, shared by the rows: none (k = 0, the
-        gap is given), one constant column (load), or more (load and moments).
-    target : (B, k) array, optional
-        ``B^T p`` to hold, per row (the load over ``h^2``).
+    constraint : Constraint, optional
+        Load (and moments) to carry, the rigid shifts unknown; None: the gap is given.
     precondition : callable, optional
         Approximate inverse of ``A`` on a stack, applied to the projected gap to make
         the search direction.
@@ -73,10 +87,10 @@ def pk_solve(apply: Operator, z: np.ndarray, start: np.ndarray, mask: np.ndarray
     """
     shape = z.shape[1:]
     rows = len(z)
-    if basis is None:
+    if constraint is None:
         basis, target = np.zeros((z[0].size, 0)), np.zeros((rows, 0))
     else:
-        target = np.asarray(target, dtype=float).reshape(rows, -1)
+        basis, target = constraint.basis, np.asarray(constraint.target, dtype=float).reshape(rows, -1)
     stack = Iteration(apply, precondition, shape, z.reshape(rows, -1), start.reshape(rows, -1),
                       None if mask is None else mask.reshape(rows, -1), basis, target, tolerance)
     for it in range(tolerance.max_iter + 1):
@@ -87,4 +101,4 @@ def pk_solve(apply: Operator, z: np.ndarray, start: np.ndarray, mask: np.ndarray
     return stack.result(shape)
 
 
-__all__ = ["GAP_RTOL", "MONITOR_EVERY", "PKResult", "REFRESH_EVERY", "STALL_ITERATIONS", "Tolerance", "pk_solve"]
+__all__ = ["Constraint", "GAP_RTOL", "MONITOR_EVERY", "PKResult", "REFRESH_EVERY", "STALL_ITERATIONS", "Tolerance", "pk_solve"]

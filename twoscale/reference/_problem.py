@@ -180,24 +180,38 @@ def trivial_result(problem: ContactProblem, method: str, timings: dict) -> Conta
         if np.any(z[cand] < problem.penetration):
             return None
         return build_result(problem, method, np.zeros(problem.grid.shape), np.zeros(problem.grid.shape),
-                            problem.penetration, None, True, "no cell reaches the indenter: zero pressure",
-                            {"outer": 0}, {}, timings)
+                            problem.penetration, None,
+                            Outcome(True, "no cell reaches the indenter: zero pressure", {"outer": 0}, {}, timings))
     if not np.any(cand):
         raise ValueError("surface has no cell with indenter material: total_load cannot be carried")
     if problem.total_load > 0:
         return None
     tilt = (0.0, 0.0) if problem.mode == "tilt" else None
     return build_result(problem, method, np.zeros(problem.grid.shape), np.zeros(problem.grid.shape),
-                        float(np.min(z[cand])), tilt, True, "total_load = 0: zero pressure",
-                        {"outer": 0}, {}, timings)
+                        float(np.min(z[cand])), tilt, Outcome(True, "total_load = 0: zero pressure",
+                                                              {"outer": 0}, {}, timings))
+
+
+@dataclass(frozen=True)
+class Outcome:
+    """How a reference solve ended: converged, its message, iteration counts, residual
+    histories, timings (s) and the solver's details."""
+
+    converged: bool
+    message: str
+    iterations: dict
+    residuals: dict
+    timings: dict
+    details: ReferenceDetails | None = None
 
 
 def build_result(problem: ContactProblem, method: str, pressure: np.ndarray, displacement: np.ndarray,
-                 d: float, tilt, converged: bool, message: str, iterations: dict, residuals: dict,
-                 timings: dict, details: ReferenceDetails | None = None) -> ContactResult:
-    """Assemble the :class:`ContactResult` from the pressure and displacement (ny, nx);
-    ``method`` is the solver that ran ("dense" or "cg"), recorded as ``result.solver``
-    (``result.method`` is "reference")."""
+                 d: float, tilt, outcome: Outcome) -> ContactResult:
+    """Assemble the :class:`ContactResult` from the pressure and displacement (ny, nx),
+    the approach ``d`` (mm) and ``tilt``; ``method`` is the solver that ran ("dense" or
+    "cg"), recorded as ``result.solver`` (``result.method`` is "reference")."""
+    converged, message, iterations = outcome.converged, outcome.message, outcome.iterations
+    residuals, timings, details = outcome.residuals, outcome.timings, outcome.details
     surface = problem.surface
     with np.errstate(invalid="ignore"):
         gap = heights_with_tilt(problem, tilt) + displacement - d

@@ -26,15 +26,18 @@ precision stages) and builds the result.
 from __future__ import annotations
 
 import time
+from dataclasses import dataclass
+from typing import Callable
 
 import numpy as np
 
 from ..indenters import Surface
 from ..influence.base import InfluenceProvider
 from ..details import ReferenceDetails
-from ..pk.kernel import STALL_ITERATIONS, Tolerance, pk_solve
+from ..pk.kernel import STALL_ITERATIONS, Constraint, Tolerance, pk_solve
+from ..options import settings_from
 from ..results import ContactResult
-from ._problem import ContactProblem, build_result, initial_active_set, make_problem, trivial_result
+from ._problem import ContactProblem, Outcome, build_result, initial_active_set, make_problem, trivial_result
 
 
 def _initial_pressure(problem: ContactProblem, op, z: np.ndarray, E_star: float,
@@ -59,10 +62,21 @@ def _initial_pressure(problem: ContactProblem, op, z: np.ndarray, E_star: float,
     return v   # the kernel scales it to the load (and moments)
 
 
+@dataclass(frozen=True)
+class CGSettings:
+    """How :func:`solve_cg` iterates (its keywords ``tol``, ``max_iter``, ``precision``,
+    ``precondition``, ``monitor``; documented there)."""
+
+    tol: float = 1e-8
+    max_iter: int = 20_000
+    precision: str = "double"
+    precondition: bool = False
+    monitor: Callable | None = None
+
+
 def solve_cg(provider: InfluenceProvider, surface: Surface, *, penetration: float | None = None,
              total_load: float | None = None, tilt: bool = False, pivot=(0.0, 0.0),
-             tol: float = 1e-8, max_iter: int = 20_000, start: np.ndarray | None = None,
-             precision: str = "double", precondition: bool = False, monitor=None) -> ContactResult:
+             start: np.ndarray | None = None, **settings) -> ContactResult:
     """Full-grid contact by Polonsky & Keer's constrained conjugate gradient.
 
     Parameters
@@ -80,6 +94,13 @@ def solve_cg(provider: InfluenceProvider, surface: Surface, *, penetration: floa
         rad) of a ball-and-socket joint at ``pivot`` so that both moments vanish.
     pivot : (float, float), default (0, 0)
         Joint position, mm.
+    start : (ny, nx) array or None, default None
+        Warm start, MPa, on ``surface.grid`` (negative entries and cells without material
+        are ignored; it is rescaled to the load, or by a line search on the energy under
+        penetration control). None: the geometric interference.
+    **settings
+        The iteration's settings (:class:`CGSettings`), below; an unknown one is refused
+        by name.
     tol : float, default 1e-8
         Stop when the gap on the loaded cells and the interpenetration elsewhere are
         both below ``tol`` times the largest displacement (1e-8 leaves the pressure
@@ -87,10 +108,6 @@ def solve_cg(provider: InfluenceProvider, surface: Surface, *, penetration: floa
         costs about 10 more iterations).
     max_iter : int, default 20000
         Most CG iterations (two grid products each).
-    start : (ny, nx) array or None, default None
-        Warm start, MPa, on ``surface.grid`` (negative entries and cells without material
-        are ignored; it is rescaled to the load, or by a line search on the energy under
-        penetration control). None: the geometric interference.
     precision : {"double", "mixed"}, default "double"
         ``"mixed"``: iterate first with the operator's single-precision products
         (:meth:`~twoscale.influence.base.GridOperator.single_precision`; on the half-space
@@ -118,6 +135,8 @@ def solve_cg(provider: InfluenceProvider, surface: Surface, *, penetration: floa
         :class:`~twoscale.details.ReferenceDetails` (working grid, single-precision iterations).
     """
     t0 = time.perf_counter()
+    cg = settings_from(CGSettings, settings, "solve_cg")
+    tol, max_iter, precision, precondition, monitor = cg.tol, cg.max_iter, cg.precision, cg.precondition, cg.monitor
     problem = make_problem(surface, penetration=penetration, total_load=total_load, tilt=tilt, pivot=pivot)
     trivial = trivial_result(problem, "cg", {"total": time.perf_counter() - t0})
     if trivial is not None:
@@ -157,8 +176,8 @@ def solve_cg(provider: InfluenceProvider, surface: Surface, *, penetration: floa
     t_end = time.perf_counter()
     timings = {"operator": t_op - t0, "solve": t_end - t_op, "total": t_end - t0}
     details = ReferenceDetails("cg", working_grid=(work.grid.nx, work.grid.ny), single_precision_iterations=it0)
-    return build_result(problem, "cg", p, u, d, tilt_angles, converged, message,
-                        {"cg": it, "products": n_products}, {"gap": hist}, timings, details)
+    return build_result(problem, "cg", p, u, d, tilt_angles,
+                        Outcome(converged, message, {"cg": it, "products": n_products}, {"gap": hist}, timings, details))
 
 
 def _cropped(problem: ContactProblem) -> ContactProblem:
@@ -197,7 +216,7 @@ def _iterate(problem: ContactProblem, op, E_star: float, tol: float, max_iter: i
     out = pk_solve(lambda v: op.apply(v[0])[None], (z - level).reshape(1, *shape), p.reshape(1, *shape),
                    None if cand.all() else cand.reshape(1, *shape),
                    Tolerance(residual=tol, max_iter=max_iter, stall=stall),
-                   basis=problem.basis(), target=problem.target()[None],
+                   constraint=Constraint(problem.basis(), problem.target()[None]),
                    precondition=None if pc is None else (lambda v: pc.apply(v[0])[None]), monitor=monitor)
     return (out.pressure[0].ravel(), out.displacement[0].ravel(), out.multipliers[0], int(out.iterations[0]),
             out.products, list(out.history), bool(out.converged[0]), out.message(0))

@@ -17,14 +17,16 @@ with material, n_S = trial contact cells): about 10^4 cells is the practical lim
 from __future__ import annotations
 
 import time
+from dataclasses import dataclass
 
 import numpy as np
 import scipy.linalg as sla
 
 from ..indenters import Surface
 from ..influence.base import InfluenceProvider
+from ..options import settings_from
 from ..results import ContactResult
-from ._problem import ContactProblem, build_result, initial_active_set, make_problem, trivial_result
+from ._problem import ContactProblem, Outcome, build_result, initial_active_set, make_problem, trivial_result
 
 #: Largest number of cells with material the dense solver accepts by default.
 MAX_DENSE_CELLS = 12_000
@@ -54,9 +56,19 @@ def _solve_on_set(A: np.ndarray, z: np.ndarray, B: np.ndarray, target: np.ndarra
     return -Az + AB @ m, m
 
 
+@dataclass(frozen=True)
+class DenseSettings:
+    """How :func:`solve_dense` iterates (its keywords ``tol``, ``max_iter``, ``max_cells``;
+    documented there)."""
+
+    tol: float = 1e-10
+    max_iter: int = 200
+    max_cells: int = MAX_DENSE_CELLS
+
+
 def solve_dense(provider: InfluenceProvider, surface: Surface, *, penetration: float | None = None,
                 total_load: float | None = None, tilt: bool = False, pivot=(0.0, 0.0),
-                tol: float = 1e-10, max_iter: int = 200, max_cells: int = MAX_DENSE_CELLS) -> ContactResult:
+                **settings) -> ContactResult:
     """Full-grid contact by Johnson's active-set matrix inversion.
 
     Parameters
@@ -75,6 +87,9 @@ def solve_dense(provider: InfluenceProvider, surface: Surface, *, penetration: f
         rad) of a ball-and-socket joint at ``pivot`` so that both moments vanish.
     pivot : (float, float), default (0, 0)
         Joint position, mm.
+    **settings
+        The iteration's settings (:class:`DenseSettings`), below; an unknown one is
+        refused by name.
     tol : float, default 1e-10
         Interpenetration allowed outside the contact, relative to the largest
         displacement.
@@ -90,6 +105,8 @@ def solve_dense(provider: InfluenceProvider, surface: Surface, *, penetration: f
         cells changed per pass (``"changes"``) and the size of the trial set (``"active"``).
     """
     t0 = time.perf_counter()
+    dense = settings_from(DenseSettings, settings, "solve_dense")
+    tol, max_iter, max_cells = dense.tol, dense.max_iter, dense.max_cells
     problem = make_problem(surface, penetration=penetration, total_load=total_load, tilt=tilt, pivot=pivot)
     trivial = trivial_result(problem, "dense", {"total": time.perf_counter() - t0})
     if trivial is not None:
@@ -194,5 +211,5 @@ def _active_set(problem: ContactProblem, provider, A, idx, tol, max_iter, t0, t_
     disp = provider.grid_operator(problem.grid).apply(pressure.reshape(problem.grid.shape))
     t_end = time.perf_counter()
     timings = {"matrix": t_matrix - t0, "solve": t_end - t_matrix, "total": t_end - t0}
-    return build_result(problem, "dense", pressure.reshape(problem.grid.shape), disp, d, tilt, converged,
-                        message, {"outer": it}, {"changes": changes, "active": sizes}, timings)
+    return build_result(problem, "dense", pressure.reshape(problem.grid.shape), disp, d, tilt,
+                        Outcome(converged, message, {"outer": it}, {"changes": changes, "active": sizes}, timings))
