@@ -24,6 +24,7 @@ actually carried. Units: mm, N, MPa.
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 from typing import Iterator, Sequence
 
 import numpy as np
@@ -31,6 +32,7 @@ import numpy as np
 from .analytic import hertz
 from .indenters import SHAPES, Asperity
 from .material import Material
+from .options import settings_from
 from .scene import BLOCK_DEFAULT_SIZE, Scene, _hertz_level
 
 KINDS = ("dense", "sparse")
@@ -57,9 +59,18 @@ def square_side(n_tips: int, kind: str) -> float:
     return 60.0 * math.sqrt(n_tips / 200.0) if kind == "dense" else 3.0 * math.sqrt(n_tips)
 
 
+@dataclass(frozen=True)
+class Variation:
+    """The rarer settings of :func:`random_scene` (its keywords ``load_per_tip``,
+    ``touching`` and ``side``, documented there)."""
+
+    load_per_tip: float | None = None
+    touching: float = 0.3
+    side: float | None = None
+
+
 def random_scene(n_tips: int, *, kind: str = "dense", control: str = "load", shape: str = "sphere",
-                 body: str = "halfspace", seed: int = 0, h: float | None = None,
-                 load_per_tip: float | None = None, touching: float = 0.3, side: float | None = None) -> Scene:
+                 body: str = "halfspace", seed: int = 0, h: float | None = None, **variation) -> Scene:
     """A seeded random scene of ``n_tips`` rigid asperities.
 
     Parameters
@@ -82,6 +93,9 @@ def random_scene(n_tips: int, *, kind: str = "dense", control: str = "load", sha
     h : float, optional
         Cell size, mm (> 0). None: the kind's default (dense: chosen by
         :func:`twoscale.scene.default_h`; sparse: ``SPARSE_H``).
+    **variation
+        ``load_per_tip``, ``side``, ``touching`` (below; :class:`Variation`); another
+        keyword is refused by name.
     load_per_tip : float, optional
         Load per tip, N (> 0); None: 2.5 (dense) or 0.05 (sparse).
     side : float, optional
@@ -101,6 +115,8 @@ def random_scene(n_tips: int, *, kind: str = "dense", control: str = "load", sha
         Naming the bad argument and its value (also when the tips do not fit on the block
         or cannot be placed ``MIN_SPACING`` apart).
     """
+    v = settings_from(Variation, variation, "random_scene")
+    load_per_tip, touching, side = v.load_per_tip, v.touching, v.side
     if isinstance(n_tips, bool) or not isinstance(n_tips, (int, np.integer)) or n_tips < 1:
         raise ValueError(f"n_tips must be an integer >= 1, got {n_tips!r}")
     for name, value, allowed in (("kind", kind, KINDS), ("control", control, CONTROLS),

@@ -9,11 +9,13 @@ is when the cell size equals the spacing.
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 
 import numpy as np
 from scipy import ndimage
 
 from ..errors import SurfaceWarning  # noqa: F401  (documented here; raised by surface.edges)
+from ..options import settings_from
 from .heightmap import HeightMap, SurfaceError
 from .reading import MIN_SIDE, RawMap
 
@@ -34,15 +36,32 @@ FILL_MODES = ("nearest", "mask")
 MAX_RELIEF_RATIO = 1.0
 
 
-def condition(raw: RawMap, *, spacing: float | None = None, units: str | None = None, fill: str = "nearest",
-              detrend: bool = False, crop=None, h: float | None = None, invert: bool = False,
-              h_name: str = "h") -> HeightMap:
+@dataclass(frozen=True)
+class Conditioning:
+    """How a raw map is conditioned (the keywords ``spacing``, ``units``, ``fill``,
+    ``detrend``, ``crop``, ``invert`` of :func:`condition`, documented there)."""
+
+    spacing: float | None = None
+    units: str | None = None
+    fill: str = "nearest"
+    detrend: bool = False
+    crop: tuple | None = None
+    invert: bool = False
+
+
+def condition(raw: RawMap, *, h: float | None = None, h_name: str = "h", **conditioning) -> HeightMap:
     """The raw map as a :class:`HeightMap` in mm, ready for segmentation.
 
     Parameters
     ----------
     raw : RawMap
         As read by :func:`twoscale.surface.reading.read_heightmap`, or made in Python.
+    h : float, optional
+        Resample (bilinear) to this spacing, mm; default: keep the spacing.
+    h_name : str, default "h"
+        Where ``h`` came from, as a refusal names it (``"grid.h"``, ``"--h"``).
+    **conditioning
+        The keywords below (:class:`Conditioning`); another is refused by name.
     spacing : float, optional
         Sample spacing, mm, for files that do not carry it (must agree with the file's
         when both are known).
@@ -59,13 +78,9 @@ def condition(raw: RawMap, *, spacing: float | None = None, units: str | None = 
     crop : (xmin, xmax, ymin, ymax), optional
         Keep the samples in this window, mm, measured from the first sample (before
         centring).
-    h : float, optional
-        Resample (bilinear) to this spacing, mm; default: keep the spacing.
     invert : bool, default False
         False: larger heights are closer to the body (summits up, as a road scan).
         True: the map is flipped (a scan of the tread side, or of a mould).
-    h_name : str, default "h"
-        Where ``h`` came from, as a refusal names it (``"grid.h"``, ``"--h"``).
 
     Raises
     ------
@@ -75,6 +90,8 @@ def condition(raw: RawMap, *, spacing: float | None = None, units: str | None = 
         :data:`MAX_SAMPLES` samples or than the memory available after resampling
         (checked before anything of the resampled size is allocated).
     """
+    c = settings_from(Conditioning, conditioning, "condition")
+    spacing, units, fill, detrend, crop, invert = c.spacing, c.units, c.fill, c.detrend, c.crop, c.invert
     src = raw.source or "height map"
     factor, unit, units_from = _units(src, raw.units, units)
     step = _spacing_mm(src, raw, spacing, factor)
