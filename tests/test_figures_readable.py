@@ -17,6 +17,8 @@ pytest.importorskip("matplotlib")
 from twoscale.grid import Grid
 from twoscale.indenters import Asperity
 from twoscale.plot import (
+    Caption,
+    FigureStyle,
     body_text,
     compare_forces,
     compare_maps,
@@ -91,12 +93,13 @@ def test_every_figure_at_any_number_of_tips(n, tmp_path, saved):
     # the "block": the same contacts, tip forces changed by -20 % to +20 % along the scene
     other = ContactResult("twoscale", res.fields, 0.1, None, res.total_load,
                           dataclasses.replace(res.asperities, forces=res.forces * np.linspace(0.8, 1.2, n)), True)
-    pmap = pressure_map(res, tmp_path / "p.png", tips=tips, scene=BLOCK, name="road")
-    force_bars(res, tmp_path / "f.png", tips=tips, macro_forces=res.forces, scene=BLOCK, name="road")
-    compare_forces({"half-space": res, "block": other}, tmp_path / "c.png", name="road")
-    compare_maps({"half-space": res, "block": other}, tmp_path / "m.png", tips=tips, name="road")
+    road = Caption(scene=BLOCK, name="road")
+    pmap = pressure_map(res, tmp_path / "p.png", tips=tips, caption=road)
+    force_bars(res, tmp_path / "f.png", tips=tips, macro_forces=res.forces, caption=road)
+    compare_forces({"half-space": res, "block": other}, tmp_path / "c.png", caption=Caption(name="road"))
+    compare_maps({"half-space": res, "block": other}, tmp_path / "m.png", tips=tips, caption=Caption(name="road"))
     if n > 1:
-        difference_map({"half-space": res, "block": other}, tmp_path / "d.png", tips=tips, name="road")
+        difference_map({"half-space": res, "block": other}, tmp_path / "d.png", tips=tips, caption=Caption(name="road"))
     assert pmap.stat().st_size > 5000
     fig_p, fig_f = saved[0], saved[1]
     forces = res.forces
@@ -117,8 +120,9 @@ def test_every_figure_at_any_number_of_tips(n, tmp_path, saved):
 def test_titles_name_the_scene_and_the_body(tmp_path):
     from helpers import png_info
     res, tips, _ = _scene(5)
-    p = pressure_map(res, tmp_path / "p.png", tips=tips, scene=BLOCK, name="road")
-    f = force_bars(res, tmp_path / "f.png", tips=tips, scene={"influence": {"kind": "halfspace"}}, name="S1")
+    p = pressure_map(res, tmp_path / "p.png", tips=tips, caption=Caption(scene=BLOCK, name="road"))
+    f = force_bars(res, tmp_path / "f.png", tips=tips,
+                   caption=Caption(scene={"influence": {"kind": "halfspace"}}, name="S1"))
     assert "road on a 60 x 60 x 10 mm block, bonded base" in png_info(p)[1]["Title"]
     assert "S1 on the half-space" in png_info(f)[1]["Title"]
     assert body_text(None) == "half-space"
@@ -126,7 +130,7 @@ def test_titles_name_the_scene_and_the_body(tmp_path):
     meta = {"bodies": {"block-bonded": {"influence": BLOCK["influence"]}}}
     from twoscale.plot.maps import _panel_body
     assert _panel_body(meta, "block-bonded") == "60 x 60 x 10 mm block, bonded base"
-    m = compare_maps({"block-bonded": res}, tmp_path / "m.png", tips=tips, meta=meta, name="road")
+    m = compare_maps({"block-bonded": res}, tmp_path / "m.png", tips=tips, caption=Caption(meta=meta, name="road"))
     assert json.loads(png_info(m)[1]["Description"])["bodies"] == meta["bodies"]
 
 
@@ -140,7 +144,7 @@ def test_one_huge_corner_peak_does_not_flatten_the_scale(tmp_path):
     fields = (PressureField(f0.grid, p, f0.owner, f0.gap),) + res.fields[1:]
     s = summarise(fields, 30)
     peaky = ContactResult("twoscale", fields, 0.1, None, float(s.forces.sum()), s, True)
-    fig = plot_pressure_map(peaky, tips=tips, scene=BLOCK, name="road")
+    fig = plot_pressure_map(peaky, tips=tips, caption=Caption(scene=BLOCK, name="road"))
     ax, cax = fig.axes[0], fig.axes[1]
     top = ax.images[0].norm.vmax
     assert top <= 1.0 + 1e-9                          # the scale ends among the ordinary cells
@@ -160,7 +164,7 @@ def test_plot_functions_draw_into_a_given_axes_and_return_its_figure():
     ax1, ax2 = sub[0].subplots(), sub[1].subplots()
     assert plot_pressure_map(res, ax=ax1, tips=tips) is fig
     assert plot_forces({"a": res}, ax=ax2) is fig
-    assert plot_tip_values(tips, res.forces, ax=ax2, colourbar=False) is fig
+    assert plot_tip_values(tips, res.forces, ax=ax2, style=FigureStyle(colourbar=False)) is fig
     assert ax1.images and ax2.patches
     alone = plot_pressure_map(res, tips=tips)
     assert isinstance(alone, Figure) and alone is not fig

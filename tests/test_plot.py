@@ -10,7 +10,7 @@ from helpers import png_info
 from twoscale import __version__
 from twoscale.grid import Grid
 from twoscale.indenters import Asperity
-from twoscale.plot import compare_forces, compare_maps, force_bars, pressure_map
+from twoscale.plot import Caption, FigureStyle, compare_forces, compare_maps, force_bars, pressure_map
 from twoscale.results import ContactResult, PressureField, summarise
 from twoscale.sensor import Sensor
 
@@ -39,8 +39,8 @@ def _not_blank(path):
 
 def test_pressure_map_size_metadata_and_content(tmp_path):
     asp = [Asperity(-3, 0, 0, 5.0), Asperity(3, 1, 0, 5.0)]
-    path = pressure_map(_result(), tmp_path / "p.png", tips=asp, scene={"name": "demo"},
-                        size=(5.0, 4.0), dpi=80)
+    path = pressure_map(_result(), tmp_path / "p.png", tips=asp, caption=Caption(scene={"name": "demo"}),
+                        style=FigureStyle(size=(5.0, 4.0), dpi=80))
     size, text = png_info(path)
     assert size == (400, 320)
     assert text["Software"] == f"twoscale {__version__}"
@@ -60,7 +60,7 @@ def test_pressure_map_on_sensor_cells_and_plain_tips(tmp_path):
 
 def test_force_bars_with_macro_forces(tmp_path):
     r = _result()
-    path = force_bars(r, tmp_path / "f.png", macro_forces=[1.0, 2.0], dpi=50)
+    path = force_bars(r, tmp_path / "f.png", macro_forces=[1.0, 2.0], style=FigureStyle(dpi=50))
     size, text = png_info(path)
     assert size == (320, 200)
     assert text["Software"].endswith(__version__)
@@ -74,7 +74,8 @@ def test_compare_forces_and_maps(tmp_path):
     p1 = compare_forces(results, tmp_path / "cf.png", measured=[1.0, 2.0])
     assert png_info(p1)[0] == (720, 400)
     _not_blank(p1)
-    p2 = compare_maps(results, tmp_path / "cm.png", tips=np.array([[-3, 0], [3, 1]]), panel_size=3.0, dpi=50)
+    p2 = compare_maps(results, tmp_path / "cm.png", tips=np.array([[-3, 0], [3, 1]]),
+                      style=FigureStyle(panel_size=3.0, dpi=50))
     assert png_info(p2)[0] == (int((2 * 3.0 + 1.5) * 50), int((3.0 + 0.8) * 50))
     _not_blank(p2)
 
@@ -87,7 +88,7 @@ def test_bad_arguments(tmp_path):
     with pytest.raises(ValueError, match="at least one"):
         compare_forces({}, tmp_path / "c.png")
     with pytest.raises(ValueError, match="size"):
-        pressure_map(_result(), tmp_path / "p.png", size=(0, 3))
+        pressure_map(_result(), tmp_path / "p.png", style=FigureStyle(size=(0, 3)))
     assert list(tmp_path.iterdir()) == []
 
 
@@ -95,8 +96,9 @@ def test_pressure_map_draws_the_tips(tmp_path):
     # the same map with and without tips differs, and only where the markers go: around
     # the tips' pixel positions (axes from the result's patches)
     import matplotlib.image as mpimg
-    with_tips = pressure_map(_result(), tmp_path / "a.png", tips=np.array([[-3.0, 0.0], [3.0, 1.0]]), dpi=60)
-    without = pressure_map(_result(), tmp_path / "b.png", dpi=60)
+    with_tips = pressure_map(_result(), tmp_path / "a.png", tips=np.array([[-3.0, 0.0], [3.0, 1.0]]),
+                             style=FigureStyle(dpi=60))
+    without = pressure_map(_result(), tmp_path / "b.png", style=FigureStyle(dpi=60))
     a, b = mpimg.imread(with_tips), mpimg.imread(without)
     assert a.shape == b.shape
     diff = np.any(np.abs(a - b) > 1e-3, axis=-1)

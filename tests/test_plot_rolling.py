@@ -9,6 +9,7 @@ pytest.importorskip("matplotlib")
 from helpers import png_info
 from twoscale import __version__
 from twoscale.plot._figure import new_figure
+from twoscale.plot.style import Caption, FigureStyle
 from twoscale.plot.rolling import (
     bands_figure,
     plot_band_levels,
@@ -35,8 +36,9 @@ def test_signals_on_two_stacked_panels_and_into_given_axes(tmp_path):
     assert axes[0].get_ylabel() == "approach (mm)"
     with pytest.raises(ValueError, match="contact_area_mm2 has 3 values, expected 50"):
         plot_signals(T, FORCE, AREA[:3])
-    path = signals_figure(tmp_path / "signals.png", T, FORCE, AREA, scene={"influence": {"kind": "halfspace"}},
-                          name="road", dpi=50)
+    path = signals_figure(tmp_path / "signals.png", T, FORCE, AREA,
+                          caption=Caption(scene={"influence": {"kind": "halfspace"}}, name="road"),
+                          style=FigureStyle(dpi=50))
     size, text = png_info(path)
     assert size == (350, 250) and text["Software"] == f"twoscale {__version__}"
     assert text["Title"] == "road on the half-space: rolling signals"
@@ -56,7 +58,7 @@ def test_band_levels_bars_labels_and_highlight(tmp_path):
                                                             "1250", "1600", "2000", "2500"]
     span = ax.patches[0].get_extents().transformed(ax.transData.inverted())
     assert span.x0 == pytest.approx(0.5) and span.x1 == pytest.approx(9.5)    # bands 315 ... 2000
-    path = bands_figure(tmp_path / "bands.png", nominal, level, dpi=40)
+    path = bands_figure(tmp_path / "bands.png", nominal, level, style=FigureStyle(dpi=40))
     assert png_info(path)[0] == (280, 160)
 
 
@@ -78,6 +80,7 @@ def test_space_time_draws_the_array_it_is_given(tmp_path):
         plot_space_time(shifts, x, p.T)
     spiked = p.copy()
     spiked[3, 3] = 1e3                         # one peak does not flatten the scale
-    path = space_time_figure(tmp_path / "st.png", shifts, x, spiked, scene={"name": "demo"}, dpi=40)
+    path = space_time_figure(tmp_path / "st.png", shifts, x, spiked, caption=Caption(scene={"name": "demo"}),
+                             style=FigureStyle(dpi=40))
     assert json.loads(png_info(path)[1]["Description"])["scene"] == {"name": "demo"}
     assert "clipped" in plot_space_time(shifts, x, spiked).axes[1].get_ylabel()

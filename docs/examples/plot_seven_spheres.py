@@ -11,7 +11,7 @@ import matplotlib.pyplot as plt
 
 import twoscale
 from twoscale.io import read_scene
-from twoscale.plot import plot_forces, plot_pressure_map
+from twoscale.plot import Caption, plot_forces, plot_pressure_map
 
 ROOT = Path(twoscale.__file__).resolve().parents[1]
 scene = read_scene(ROOT / "examples" / "paper_seven_spheres.toml")
@@ -22,7 +22,7 @@ print(result)
 # One call per panel; ``name`` is the scene's name in the title, the body comes from the
 # scene. Tips are numbered from 1, as in every table the command line writes.
 fig, (left, right) = plt.subplots(1, 2, figsize=(11, 4.6), layout="constrained")
-plot_pressure_map(result, ax=left, tips=scene.asperities, scene=scene, name="paper_seven_spheres")
+plot_pressure_map(result, ax=left, tips=scene.asperities, caption=Caption(scene=scene, name="paper_seven_spheres"))
 plot_forces({"macro step": result.macro_forces, "final pressure": result}, ax=right,
             title="force per asperity")
 plt.show()

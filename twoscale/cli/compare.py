@@ -260,7 +260,7 @@ def _write_outputs(out: Path, args, scene: Scene, runs, ind, notes, measured: Me
                    sensor: Sensor, changes: list) -> None:
     from ..io.solve_outputs import FIELDS_NAME
     from ..io.vtk import write_vtk
-    from ..plot import compare_forces, compare_maps, difference_map
+    from ..plot import Caption, compare_forces, compare_maps, difference_map
 
     out.mkdir(parents=True, exist_ok=True)
     record = compare_record(scene, runs, sensor)
@@ -283,19 +283,21 @@ def _write_outputs(out: Path, args, scene: Scene, runs, ind, notes, measured: Me
                          "seconds": r.seconds} for r in runs]}
     _write_text(out / "summary.json", json.dumps(summary, indent=2, allow_nan=False) + "\n")
     name = Path(args.scene).stem   # every figure's title starts with the scene's name
+
+    def caption(title: str) -> Caption:
+        return Caption(title=title, scene=scene_dict, name=name, meta=meta)
+
     for load in dict.fromkeys(r.load for r in runs):
         group = {r.body: r.result for r in runs if r.load == load}
         tips = runs[0].scene.asperities
-        compare_forces(group, out / f"forces_{load}.png", title=f"force per asperity, {load_title(load)}",
-                       measured=None if measured is None else measured.forces, scene=scene_dict, meta=meta,
-                       name=name)
-        compare_maps(group, out / f"maps_{load}.png", tips=tips, title=f"pressure, {load_title(load)}",
-                     scene=scene_dict, meta=meta, name=name)
-        compare_maps(group, out / f"sensor_{load}.png", tips=tips, sensor=sensor, scene=scene_dict, meta=meta,
-                     title=f"sensor-cell means ({sensor_text(sensor)}), {load_title(load)}", name=name)
+        compare_forces(group, out / f"forces_{load}.png", measured=None if measured is None else measured.forces,
+                       caption=caption(f"force per asperity, {load_title(load)}"))
+        compare_maps(group, out / f"maps_{load}.png", tips=tips, caption=caption(f"pressure, {load_title(load)}"))
+        compare_maps(group, out / f"sensor_{load}.png", tips=tips, sensor=sensor,
+                     caption=caption(f"sensor-cell means ({sensor_text(sensor)}), {load_title(load)}"))
         if len(group) > 1:  # each body's tip forces minus the first body's (the half-space)
-            difference_map(group, out / f"difference_{load}.png", tips=tips, scene=scene_dict, meta=meta,
-                           title=f"force difference per tip, {load_title(load)}", name=name)
+            difference_map(group, out / f"difference_{load}.png", tips=tips,
+                           caption=caption(f"force difference per tip, {load_title(load)}"))
     for r in runs:
         d = out / "runs" / f"{r.body}_{r.load}"
         write_result(r.result, r.scene, d, method=args.method)

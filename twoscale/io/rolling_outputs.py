@@ -160,9 +160,10 @@ def write_signal_products(result, scene, out_dir, *, figures: bool = True, name:
                                        "resolution_Hz": levels.resolution, "units": UNITS})
         if figures and _have("twoscale.plot.rolling"):
             from ..plot.rolling import bands_figure
+            from ..plot.style import Caption
 
             written.append(Path(bands_figure(out / "bands.png", cols["band_Hz"], cols["level_dB"],
-                                             level_label=f"level ({what})", scene=record, name=name)))
+                                             level_label=f"level ({what})", caption=Caption(scene=record, name=name))))
     if _have("twoscale.rolling.texture") and scene.surface is not None:
         from ..rolling.texture import road_texture
 
@@ -183,14 +184,16 @@ def write_signal_products(result, scene, out_dir, *, figures: bool = True, name:
 
 def _figures(result, out: Path, scene, name: str | None) -> list[Path]:
     from ..plot.rolling import signals_figure, space_time_figure
+    from ..plot.style import Caption
 
+    caption = Caption(scene=scene, name=name)
     force = result.control == "penetration"
     signal = result.total_load if force else result.penetration
     paths = [signals_figure(out / "signals.png", result.times, signal, result.contact_area,
-                            signal_label="total load (N)" if force else "approach (mm)", scene=scene, name=name)]
+                            signal_label="total load (N)" if force else "approach (mm)", caption=caption)]
     if result.line_x.size:
         paths.append(space_time_figure(out / "space_time.png", result.shifts, result.line_x, result.line_load,
-                                       scene=scene, name=name))
+                                       caption=caption))
     return [Path(p) for p in paths]
 
 

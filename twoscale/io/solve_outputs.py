@@ -63,10 +63,11 @@ def write_fields_and_figures(result: ContactResult, scene: Scene, out_dir, *, vt
     written.extend(write_asperity_csv(result, scene.asperities, out / ASPERITY_CSV_NAME, scene=record,
                                       source=f"solve {source}" if source else "solve"))
     if figures:
-        from ..plot import force_bars, pressure_map
+        from ..plot import Caption, force_bars, pressure_map
 
         name = Path(source).stem if source else None   # the figures' titles name the scene
-        written.append(pressure_map(result, out / PRESSURE_NAME, tips=scene.asperities, scene=record, name=name))
+        caption = Caption(scene=record, name=name)
+        written.append(pressure_map(result, out / PRESSURE_NAME, tips=scene.asperities, caption=caption))
         written.append(force_bars(result, out / FORCES_NAME, tips=scene.asperities,
-                                  macro_forces=result.macro_forces, scene=record, name=name))
+                                  macro_forces=result.macro_forces, caption=caption))
     return written

@@ -14,6 +14,10 @@ Two kinds of function:
   a footer and in its metadata (``Software``), its title in ``Title``, and the scene
   (when given) as JSON in ``Description``; files are written atomically.
 
+Every function takes what the figure says about itself as a :class:`Caption` (title, scene
+record, scene name, PNG metadata; the ``plot_*`` of one panel take a ``title``) and how it is
+drawn as a :class:`FigureStyle` (size, dpi, colour map, colour bar and scale, panel size).
+
 Tips are numbered from 1 (scene order, as in every table and CSV file). Figures stay
 readable from one tip to thousands: up to ``FEW_TIPS`` (30) tips are numbered and get one
 bar each; with more, the ten most loaded are numbered, and histograms and maps of tips
@@ -27,7 +31,8 @@ from .forces import compare_forces, force_bars, plot_forces, plot_parity, plot_t
 from .labels import body_text, scene_text
 from .maps import compare_maps, plot_pressure_map, pressure_map
 from .scale import ColourScale, robust_scale
+from .style import Caption, FigureStyle
 
 __all__ = ["plot_pressure_map", "plot_forces", "plot_tip_values", "plot_parity",
            "pressure_map", "force_bars", "compare_forces", "compare_maps", "difference_map",
-           "body_text", "scene_text", "ColourScale", "robust_scale"]
+           "body_text", "scene_text", "Caption", "ColourScale", "FigureStyle", "robust_scale"]

@@ -3,7 +3,7 @@ half-space), one panel per body against a reference body, on one diverging colou
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Any, Mapping
+from typing import Mapping
 
 import numpy as np
 
@@ -11,6 +11,8 @@ from ..results import ContactResult
 from ._figure import new_figure, save_png
 from .forces import plot_tip_values
 from .labels import join_title
+from .scale import ColourScale
+from .style import NO_CAPTION, PLAIN, Caption, FigureStyle
 from .tips import tip_positions
 
 
@@ -22,11 +24,8 @@ def difference_text(diff: np.ndarray, ref: np.ndarray, reference: str) -> str:
     return f"largest |dF| {worst:.3g} N at tip {k + 1}{share}"
 
 
-def difference_map(results: Mapping[str, ContactResult], path: str | Path, *, tips,
-                   reference: str | None = None, title: str | None = None,
-                   scene: Mapping[str, Any] | None = None, name: str | None = None,
-                   meta: Mapping[str, Any] | None = None,
-                   panel_size: float = 3.8, dpi: int = 100, cmap: str = "RdBu_r") -> Path:
+def difference_map(results: Mapping[str, ContactResult], path: str | Path, *, tips, reference: str | None = None,
+                   caption: Caption = NO_CAPTION, style: FigureStyle = PLAIN) -> Path:
     """Per-tip force differences ``F_body - F_reference`` (N) at the tips, as PNG.
 
     Each panel (:func:`~twoscale.plot.plot_tip_values`, diverging) colours the tips
@@ -45,22 +44,19 @@ def difference_map(results: Mapping[str, ContactResult], path: str | Path, *, ti
         Tip positions.
     reference : str, optional
         The body subtracted; default the first of ``results``.
-    title : str, optional
-        Default "force difference per tip", after the scene's name when given.
-    scene, meta : mapping, optional
-        Recorded in the PNG metadata (as in :func:`~twoscale.plot.compare_maps`).
-    name : str, optional
-        The scene's name (e.g. the scene file's stem), first in the title.
-    panel_size : float, default 3.8
-        Width and height of one panel, inches.
-    dpi : int, default 100
-    cmap : str, default "RdBu_r"
-        A diverging colour map (white at zero).
+    caption : Caption, optional
+        ``title`` (default "force difference per tip", after the scene's ``name`` when
+        given); ``scene`` and ``meta`` recorded in the PNG metadata (as in
+        :func:`~twoscale.plot.compare_maps`).
+    style : FigureStyle, optional
+        ``panel_size`` (3.8 inches, width and height of one panel), ``dpi`` (100),
+        ``cmap`` ("RdBu_r": a diverging colour map, white at zero).
 
     Returns
     -------
     Path of the PNG written.
     """
+    panel_size, dpi, cmap = style.pick("panel_size", 3.8), style.pick("dpi", 100), style.pick("cmap", "RdBu_r")
     names = list(results)
     reference = names[0] if reference is None else reference
     if reference not in results or len(names) < 2:
@@ -86,7 +82,8 @@ def difference_map(results: Mapping[str, ContactResult], path: str | Path, *, ti
     for k, (key, d) in enumerate(diffs.items()):
         ax = fig.add_axes([(0.6 + k * panel_size) / W, 0.55 / H, 0.8 * panel_size / W, (panel_size - 0.4) / H])
         plot_tip_values(xy[loaded], d[loaded], ax=ax, numbers=np.flatnonzero(loaded) + 1, diverging=True,
-                        vmax=m, cmap=cmap, colourbar=False, label="force difference (N)")
+                        label="force difference (N)",
+                        style=FigureStyle(scale=ColourScale(m, m), cmap=cmap, colourbar=False))
         sc = ax.collections[0]
         text = difference_text(d, ref, reference).replace(" = ", "\n= ")
         ax.set_title(f"{key} - {reference}: {text}", fontsize=7)
@@ -94,6 +91,6 @@ def difference_map(results: Mapping[str, ContactResult], path: str | Path, *, ti
             ax.set_ylabel("")
     cb = fig.colorbar(sc, cax=fig.add_axes([(0.7 + (n - 0.15) * panel_size) / W, 0.55 / H, 0.12 / W, (panel_size - 0.4) / H]))
     cb.set_label(f"F - F_{reference} (N)")
-    title = join_title(name or "", title or "force difference per tip")
+    title = join_title(caption.name or "", caption.title or "force difference per tip")
     fig.suptitle(title, fontsize=10, y=0.995, va="top")
-    return save_png(fig, path, title=title, scene=scene, meta=meta)
+    return save_png(fig, path, title=title, scene=caption.scene, meta=caption.meta)

@@ -18,6 +18,7 @@ import numpy as np
 from ..results import ContactResult
 from ._figure import figure_and_axes, new_figure, save_png
 from .labels import join_title, scene_text
+from .style import NO_CAPTION, PLAIN, Caption, FigureStyle
 from .tips import FEW_TIPS, LABELLED, tip_positions, tips_coloured
 
 
@@ -67,8 +68,7 @@ def _histograms(ax, series: Mapping[str, np.ndarray]) -> None:
         ax.legend(fontsize=8)
 
 
-def plot_forces(forces: Mapping[str, Any], *, ax=None, title: str | None = None,
-                size: tuple[float, float] = (6.4, 4.0), dpi: int = 100):
+def plot_forces(forces: Mapping[str, Any], *, ax=None, title: str | None = None, style: FigureStyle = PLAIN):
     """Tip forces of one or several series: bars per asperity (at most ``FEW_TIPS``
     tips) or step histograms on shared bins (more). Returns the matplotlib Figure.
 
@@ -77,13 +77,13 @@ def plot_forces(forces: Mapping[str, Any], *, ax=None, title: str | None = None,
     forces : mapping name -> ContactResult or (N,) array of N
         One series each (e.g. ``{"macro step": ..., "final pressure": result}``).
     ax : matplotlib Axes, optional
-        Draw into this Axes; default a new Figure of ``size`` inches.
+        Draw into this Axes; default a new Figure of ``style.size`` inches.
     title : str, optional
-    size : (float, float), default (6.4, 4.0)
-    dpi : int, default 100
+    style : FigureStyle, optional
+        ``size`` ((6.4, 4.0) inches), ``dpi`` (100).
     """
     series = _series(forces)
-    fig, ax = figure_and_axes(ax, size, dpi, rect=(0.11, 0.14, 0.86, 0.74))
+    fig, ax = figure_and_axes(ax, style.pick("size", (6.4, 4.0)), style.pick("dpi", 100), rect=(0.11, 0.14, 0.86, 0.74))
     if len(next(iter(series.values()))) <= FEW_TIPS:
         _grouped_bars(ax, series)
     else:
@@ -93,9 +93,8 @@ def plot_forces(forces: Mapping[str, Any], *, ax=None, title: str | None = None,
     return fig
 
 
-def plot_tip_values(tips, values, *, ax=None, numbers=None, label: str = "force (N)",
-                    diverging: bool = False, vmax: float | None = None, cmap: str | None = None, title: str | None = None,
-                    colourbar: bool = True, size: tuple[float, float] = (5.6, 4.8), dpi: int = 100):
+def plot_tip_values(tips, values, *, ax=None, numbers=None, label: str = "force (N)", diverging: bool = False,
+                    title: str | None = None, style: FigureStyle = PLAIN):
     """Tips as dots coloured by a value, the ``LABELLED`` (10) largest numbered from 1
     (every tip when at most ``FEW_TIPS``). Returns the matplotlib Figure.
 
@@ -113,14 +112,11 @@ def plot_tip_values(tips, values, *, ax=None, numbers=None, label: str = "force 
     diverging : bool, default False
         A scale symmetric about 0 (red above, blue below; numbers on the largest
         ``|value|``) instead of 0 to the largest value.
-    vmax : float, optional
-        End of the scale (default the largest ``|value|``).
-    cmap : str, optional
-        Default "viridis", or "RdBu_r" when diverging.
     title : str, optional
-    colourbar : bool, default True
-    size : (float, float), default (5.6, 4.8)
-    dpi : int, default 100
+    style : FigureStyle, optional
+        ``scale`` (its ``top`` ends the scale; default the largest ``|value|``),
+        ``cmap`` ("viridis", or "RdBu_r" when diverging), ``colourbar`` (True), ``size``
+        ((5.6, 4.8) inches), ``dpi`` (100).
     """
     from matplotlib.colors import Normalize
 
@@ -129,21 +125,20 @@ def plot_tip_values(tips, values, *, ax=None, numbers=None, label: str = "force 
     if xy is None or len(xy) != v.size:
         raise ValueError(f"plot_tip_values needs one tip per value, got {0 if xy is None else len(xy)} "
                          f"tips and {v.size} values")
-    top = float(np.max(np.abs(v), initial=0.0)) if vmax is None else float(vmax)
+    top = float(np.max(np.abs(v), initial=0.0)) if style.scale is None else float(style.scale.top)
     top = top if top > 0 else 1.0
     norm = Normalize(-top, top) if diverging else Normalize(0.0, top)
-    fig, ax = figure_and_axes(ax, size, dpi, rect=(0.12, 0.1, 0.7, 0.8))
-    sc = tips_coloured(ax, xy, v, norm=norm, cmap=cmap or ("RdBu_r" if diverging else "viridis"),
+    fig, ax = figure_and_axes(ax, style.pick("size", (5.6, 4.8)), style.pick("dpi", 100), rect=(0.12, 0.1, 0.7, 0.8))
+    sc = tips_coloured(ax, xy, v, norm=norm, cmap=style.pick("cmap", "RdBu_r" if diverging else "viridis"),
                        label=label, rank=np.abs(v) if diverging else v, numbers=numbers)
-    if colourbar:
+    if style.colourbar:
         fig.colorbar(sc, ax=ax).set_label(label)
     if title:
         ax.set_title(title, fontsize=9)
     return fig
 
 
-def plot_parity(forces: Mapping[str, Any], *, ax=None, title: str | None = None,
-                size: tuple[float, float] = (4.8, 4.8), dpi: int = 100):
+def plot_parity(forces: Mapping[str, Any], *, ax=None, title: str | None = None, style: FigureStyle = PLAIN):
     """Each series' tip forces against the first series' (one dot per tip; y = x
     dashed). Returns the matplotlib Figure.
 
@@ -153,12 +148,12 @@ def plot_parity(forces: Mapping[str, Any], *, ax=None, title: str | None = None,
         The first is the x axis (at least two series).
     ax : matplotlib Axes, optional
     title : str, optional
-    size : (float, float), default (4.8, 4.8)
-    dpi : int, default 100
+    style : FigureStyle, optional
+        ``size`` ((4.8, 4.8) inches), ``dpi`` (100).
     """
     series = _series(forces)
     names = list(series)
-    fig, ax = figure_and_axes(ax, size, dpi, rect=(0.15, 0.12, 0.8, 0.78))
+    fig, ax = figure_and_axes(ax, style.pick("size", (4.8, 4.8)), style.pick("dpi", 100), rect=(0.15, 0.12, 0.8, 0.78))
     ref = series[names[0]]
     for name in names[1:]:
         ax.scatter(ref, series[name], s=4, label=name, alpha=0.7, linewidths=0)
@@ -179,8 +174,7 @@ def plot_parity(forces: Mapping[str, Any], *, ax=None, title: str | None = None,
 
 
 def force_bars(result: ContactResult, path: str | Path, *, tips=None, macro_forces: Sequence[float] | None = None,
-               title: str | None = None, scene: Mapping[str, Any] | None = None, name: str | None = None,
-               size: tuple[float, float] = (6.4, 4.0), dpi: int = 100) -> Path:
+               caption: Caption = NO_CAPTION, style: FigureStyle = PLAIN) -> Path:
     """Force per asperity (integral of the final pressure over its cells) as PNG.
 
     Parameters
@@ -194,15 +188,12 @@ def force_bars(result: ContactResult, path: str | Path, *, tips=None, macro_forc
     macro_forces : (N,) array, optional
         Macro-step tip forces, N, drawn beside the final forces (a second histogram
         with many tips).
-    title : str, optional
-        Default: the scene and body, then the total load.
-    scene : mapping, optional
-        Recorded in the PNG metadata; its ``influence`` names the body in the title.
-    name : str, optional
-        The scene's name for the title (e.g. the scene file's stem).
-    size : (float, float), default (6.4, 4.0)
-        Figure size, inches.
-    dpi : int, default 100
+    caption : Caption, optional
+        ``title`` (default: the scene and body, then the total load); ``scene`` recorded
+        in the PNG metadata, its ``influence`` naming the body in the title; ``name`` the
+        scene's name for the title (e.g. the scene file's stem).
+    style : FigureStyle, optional
+        ``size`` ((6.4, 4.0) inches), ``dpi`` (100).
 
     Returns
     -------
@@ -217,30 +208,28 @@ def force_bars(result: ContactResult, path: str | Path, *, tips=None, macro_forc
                              f"{forces.size} (one per asperity)")
         series = {"macro step": macro, **series}
     n, loaded = forces.size, int(np.count_nonzero(forces > 0))
+    title, scene, size, dpi = caption.title, caption.scene, style.pick("size", (6.4, 4.0)), style.pick("dpi", 100)
     if title is None:
-        title = join_title(scene_text(scene, name, result=result),
+        title = join_title(scene_text(scene, caption.name, result=result),
                            f"force per asperity, total {float(result.total_load):.4g} N "
                            f"({loaded} of {n} tips loaded)")
     xy, _ = tip_positions(tips)
     if n <= FEW_TIPS or xy is None:
-        fig = plot_forces(series, size=size, dpi=dpi)
+        fig = plot_forces(series, style=FigureStyle(size=size, dpi=dpi))
     else:
         fig = new_figure((size[0] * 1.6, size[1] * 1.1), dpi)
         plot_forces(series, ax=fig.add_axes([0.08, 0.13, 0.36, 0.72]))
         on = forces > 0
         mx = fig.add_axes([0.52, 0.13, 0.36, 0.72])
-        plot_tip_values(xy[on], forces[on], ax=mx, numbers=np.flatnonzero(on) + 1, colourbar=False,
+        plot_tip_values(xy[on], forces[on], ax=mx, numbers=np.flatnonzero(on) + 1, style=FigureStyle(colourbar=False),
                         title=f"loaded tips coloured by force ({min(LABELLED, loaded)} most loaded numbered)")
         fig.colorbar(mx.collections[0], cax=fig.add_axes([0.90, 0.13, 0.015, 0.72])).set_label("force (N)")
     fig.suptitle(title, fontsize=9, y=0.995, va="top")
     return save_png(fig, path, title=title, scene=scene)
 
 
-def compare_forces(results: Mapping[str, ContactResult], path: str | Path, *,
-                   measured: Sequence[float] | None = None, title: str | None = None,
-                   scene: Mapping[str, Any] | None = None, name: str | None = None,
-                   meta: Mapping[str, Any] | None = None,
-                   size: tuple[float, float] = (7.2, 4.0), dpi: int = 100) -> Path:
+def compare_forces(results: Mapping[str, ContactResult], path: str | Path, *, measured: Sequence[float] | None = None,
+                   caption: Caption = NO_CAPTION, style: FigureStyle = PLAIN) -> Path:
     """Forces per asperity of several results side by side (paper Figs. 10-11), as PNG.
 
     Parameters
@@ -251,17 +240,12 @@ def compare_forces(results: Mapping[str, ContactResult], path: str | Path, *,
         Output ``.png``.
     measured : (N,) array, optional
         Measured tip forces, N, drawn first.
-    title : str, optional
-        Default "force per asperity", after the scene's name when given.
-    scene : mapping, optional
-        Recorded in the PNG metadata.
-    name : str, optional
-        The scene's name (e.g. the scene file's stem), first in the title.
-    meta : mapping, optional
-        Further JSON-ready entries of the PNG ``Description`` (e.g. the bodies compared).
-    size : (float, float), default (7.2, 4.0)
-        Figure size, inches.
-    dpi : int, default 100
+    caption : Caption, optional
+        ``title`` (default "force per asperity", after the scene's ``name`` when given);
+        ``scene`` and further ``meta`` entries (e.g. the bodies compared) recorded in the
+        PNG ``Description``.
+    style : FigureStyle, optional
+        ``size`` ((7.2, 4.0) inches), ``dpi`` (100).
 
     Returns
     -------
@@ -272,13 +256,14 @@ def compare_forces(results: Mapping[str, ContactResult], path: str | Path, *,
     series = {} if measured is None else {"measured": np.asarray(measured, float)}
     series.update(results)
     series = _series(series)
-    title = join_title(name or "", title or "force per asperity")
+    title = join_title(caption.name or "", caption.title or "force per asperity")
+    size, dpi = style.pick("size", (7.2, 4.0)), style.pick("dpi", 100)
     n = len(next(iter(series.values())))
     if n <= FEW_TIPS:
-        fig = plot_forces(series, size=size, dpi=dpi)
+        fig = plot_forces(series, style=FigureStyle(size=size, dpi=dpi))
     else:
         fig = new_figure((size[0] * 1.4, size[1] * 1.1), dpi)
         plot_forces(series, ax=fig.add_axes([0.08, 0.13, 0.38, 0.72]))
         plot_parity(series, ax=fig.add_axes([0.58, 0.13, 0.38, 0.72]))
     fig.suptitle(f"{title} ({n} tips)", fontsize=9, y=0.995, va="top")
-    return save_png(fig, path, title=title, scene=scene, meta=meta)
+    return save_png(fig, path, title=title, scene=caption.scene, meta=caption.meta)

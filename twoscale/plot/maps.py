@@ -9,7 +9,7 @@ colour bar.
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Any, Mapping, Sequence
+from typing import Mapping, Sequence
 
 import numpy as np
 
@@ -17,6 +17,7 @@ from ..results import ContactResult
 from ._figure import figure_and_axes, new_figure, save_png
 from .labels import X_MM, Y_MM, body_text, join_title, scene_text
 from .scale import ColourScale, robust_scale
+from .style import NO_CAPTION, PLAIN, Caption, FigureStyle
 from .tips import FEW_TIPS, labelled, marker_size, number_tips, tip_positions
 
 #: With more loaded patches than this, a map draws them as one raster (see :func:`_raster`).
@@ -154,69 +155,60 @@ def pressure_title(result: ContactResult, *, scene=None, name: str | None = None
     return f"{head}\n{what}" if head else what
 
 
-def plot_pressure_map(result: ContactResult, *, ax=None, tips=None, sensor=None, title: str | None = None,
-                      scene: Mapping[str, Any] | Any = None, name: str | None = None,
-                      scale: ColourScale | None = None, colourbar: bool = True, cmap: str = "viridis",
-                      size: tuple[float, float] = (6.4, 5.2), dpi: int = 100):
+def plot_pressure_map(result: ContactResult, *, ax=None, tips=None, sensor=None, caption: Caption = NO_CAPTION,
+                      style: FigureStyle = PLAIN):
     """Map of the contact pressure with the loaded tips; returns the matplotlib Figure.
 
     Parameters
     ----------
     result : ContactResult
     ax : matplotlib Axes, optional
-        Draw into this Axes (e.g. in a notebook); default a new Figure of ``size``.
+        Draw into this Axes (e.g. in a notebook); default a new Figure of ``style.size``.
     tips : (N, 2) array of mm or sequence of Asperity, optional
         One per asperity of ``result``. The loaded tips (force > 0) are drawn as crosses:
         numbered from 1 (scene order, as in the CSV files) when at most ``FEW_TIPS``
         (30), else the ``LABELLED`` (10) most loaded.
     sensor : twoscale.sensor.Sensor, optional
         Draw the sensor-cell means instead of the micro cells.
-    title : str, optional
-        Default: :func:`pressure_title` (scene and body, load, contact area, peak,
-        loaded tips).
-    scene : Scene or mapping, optional
-        The scene solved (its ``influence`` names the body in the title).
-    name : str, optional
-        The scene's name for the title (e.g. the scene file's stem).
-    scale : ColourScale, optional
-        Default :func:`map_scale` of this result (robust to a single peak).
-    colourbar : bool, default True
-    cmap : str, default "viridis"
-    size : (float, float), default (6.4, 5.2)
-        Figure size, inches, when ``ax`` is None.
-    dpi : int, default 100
+    caption : Caption, optional
+        ``title`` (default :func:`pressure_title`: scene and body, load, contact area,
+        peak, loaded tips), the ``scene`` solved (a Scene or mapping: its ``influence``
+        names the body in the title) and its ``name``.
+    style : FigureStyle, optional
+        ``scale`` (default :func:`map_scale` of this result, robust to a single peak),
+        ``colourbar`` (True), ``cmap`` ("viridis"), ``size`` ((6.4, 5.2) inches, when
+        ``ax`` is None), ``dpi`` (100).
 
     Returns
     -------
     matplotlib.figure.Figure
     """
+    cmap = style.pick("cmap", "viridis")
     tips_xy, _ = tip_positions(tips)
-    scale = scale or map_scale([result], sensor)
+    scale = style.scale or map_scale([result], sensor)
     own = ax is None
-    fig, ax = figure_and_axes(ax, size, dpi, rect=(0.1, 0.1, 0.68, 0.78))
+    fig, ax = figure_and_axes(ax, style.pick("size", (6.4, 5.2)), style.pick("dpi", 100), rect=(0.1, 0.1, 0.68, 0.78))
     image = _draw(ax, result, scale.norm(), tips_xy=tips_xy, sensor=sensor, cmap=cmap)
     on = None if tips_xy is None else tips_xy[np.asarray(result.forces) > 0]
     x0, x1, y0, y1 = _content_box([result], on)
     ax.set_xlim(x0, x1)
     ax.set_ylim(y0, y1)
-    if colourbar:
+    if style.colourbar:
         _colourbar(fig, image, scale, cmap, sensor, cax=fig.add_axes([0.82, 0.1, 0.03, 0.78]) if own else None, ax=ax)
-    ax.set_title(title if title is not None else pressure_title(result, scene=scene, name=name, sensor=sensor),
-                 fontsize=9)
+    title = caption.title
+    ax.set_title(title if title is not None else
+                 pressure_title(result, scene=caption.scene, name=caption.name, sensor=sensor), fontsize=9)
     return fig
 
 
-def pressure_map(result: ContactResult, path: str | Path, *, tips=None, sensor=None,
-                 title: str | None = None, scene: Mapping[str, Any] | None = None, name: str | None = None,
-                 size: tuple[float, float] = (6.4, 5.2), dpi: int = 100, cmap: str = "viridis") -> Path:
-    """Write :func:`plot_pressure_map` to ``path`` (PNG; the scene record in its metadata).
+def pressure_map(result: ContactResult, path: str | Path, *, tips=None, sensor=None, caption: Caption = NO_CAPTION,
+                 style: FigureStyle = PLAIN) -> Path:
+    """Write :func:`plot_pressure_map` to ``path`` (PNG; the caption's scene record in its metadata).
 
-    Parameters are those of :func:`plot_pressure_map`; ``scene`` (a mapping) is also
-    recorded in the PNG. Returns the Path written.
+    Parameters are those of :func:`plot_pressure_map`. Returns the Path written.
     """
-    fig = plot_pressure_map(result, tips=tips, sensor=sensor, title=title, scene=scene, name=name,
-                            size=size, dpi=dpi, cmap=cmap)
-    return save_png(fig, path, title=fig.axes[0].get_title().replace("\n", " - "), scene=scene)
+    fig = plot_pressure_map(result, tips=tips, sensor=sensor, caption=caption, style=style)
+    return save_png(fig, path, title=fig.axes[0].get_title().replace("\n", " - "), scene=caption.scene)
 
 
 def _panel_body(meta: Mapping | None, name: str) -> str:
@@ -226,14 +218,12 @@ def _panel_body(meta: Mapping | None, name: str) -> str:
 
 
 def compare_maps(results: Mapping[str, ContactResult], path: str | Path, *, tips=None, sensor=None,
-                 title: str | None = None, scene: Mapping[str, Any] | None = None, name: str | None = None,
-                 meta: Mapping[str, Any] | None = None,
-                 panel_size: float = 3.6, dpi: int = 100, cmap: str = "viridis") -> Path:
+                 caption: Caption = NO_CAPTION, style: FigureStyle = PLAIN) -> Path:
     """Pressure maps of several results side by side on one colour scale, as PNG.
 
     Each panel is :func:`plot_pressure_map` on the shared scale (:func:`map_scale` of
-    all results); its title names the body (from ``meta["bodies"]`` when given, as
-    ``twoscale compare`` writes it), the load and the peak.
+    all results); its title names the body (from ``caption.meta["bodies"]`` when given,
+    as ``twoscale compare`` writes it), the load and the peak.
 
     Parameters
     ----------
@@ -241,23 +231,22 @@ def compare_maps(results: Mapping[str, ContactResult], path: str | Path, *, tips
         One panel each, in mapping order (at least one).
     path : path-like
         Output ``.png``.
-    tips, sensor, scene, cmap
+    tips, sensor
         As in :func:`plot_pressure_map`.
-    title : str, optional
-        Figure title; default "pressure maps", after the scene's name when given.
-    name : str, optional
-        The scene's name (e.g. the scene file's stem), first in the title.
-    meta : mapping, optional
-        Further JSON-ready entries of the PNG ``Description`` (e.g. the bodies compared).
-    panel_size : float, default 3.6
-        Width and height of one panel, inches; the figure is
-        ``(n * panel_size + 1.5) x (panel_size + 0.8)`` inches.
-    dpi : int, default 100
+    caption : Caption, optional
+        ``title`` (default "pressure maps", after the scene's ``name`` when given), the
+        ``scene`` record and further ``meta`` entries of the PNG ``Description`` (e.g.
+        the bodies compared).
+    style : FigureStyle, optional
+        ``panel_size`` (3.6 inches: the figure is ``(n * panel_size + 1.5) x
+        (panel_size + 0.8)`` inches), ``dpi`` (100), ``cmap`` ("viridis").
 
     Returns
     -------
     Path of the PNG written.
     """
+    panel_size, dpi, cmap = style.pick("panel_size", 3.6), style.pick("dpi", 100), style.pick("cmap", "viridis")
+    meta = caption.meta
     if not results:
         raise ValueError("compare_maps needs at least one result, got none")
     names = list(results)
@@ -277,8 +266,8 @@ def compare_maps(results: Mapping[str, ContactResult], path: str | Path, *, tips
         same = body.replace("-", "") == key.replace("-", "")   # "halfspace" is the half-space
         head = f"{key}" + (f" ({body})" if body and not same else "")
         sub = f"{r.total_load:.4g} N, {_peak_text(r, sensor)}" + ("" if r.converged else " (NOT converged)")
-        plot_pressure_map(r, ax=ax, tips=tips, sensor=sensor, scale=scale, colourbar=False, cmap=cmap,
-                          title=f"{head}\n{sub}")
+        plot_pressure_map(r, ax=ax, tips=tips, sensor=sensor, caption=Caption(title=f"{head}\n{sub}"),
+                          style=FigureStyle(scale=scale, colourbar=False, cmap=cmap))
         ax.title.set_fontsize(8)
         ax.set_xlim(box[0], box[1])
         ax.set_ylim(box[2], box[3])
@@ -286,6 +275,6 @@ def compare_maps(results: Mapping[str, ContactResult], path: str | Path, *, tips
             ax.set_ylabel("")
     cax = fig.add_axes([(W - 0.85) / W, 0.55 / H, 0.12 / W, (panel_size - 0.45) / H])
     _colourbar(fig, None, scale, cmap, sensor, cax=cax)
-    title = join_title(name or "", title or "pressure maps")
+    title = join_title(caption.name or "", caption.title or "pressure maps")
     fig.suptitle(title, fontsize=10, y=0.995, va="top")
-    return save_png(fig, path, title=title, scene=scene, meta=meta)
+    return save_png(fig, path, title=title, scene=caption.scene, meta=meta)

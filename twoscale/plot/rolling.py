@@ -14,13 +14,12 @@ them into PNG files with the version and scene metadata (:func:`~twoscale.plot._
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Any, Mapping
-
 import numpy as np
 
 from ._figure import figure_and_axes, new_figure, save_png
 from .labels import X_MM, join_title, scene_text
 from .scale import robust_scale
+from .style import NO_CAPTION, PLAIN, Caption, FigureStyle
 
 TIME_S = "time (s)"
 SHIFT_MM = "shift of the road (mm)"
@@ -37,7 +36,7 @@ def _vector(name: str, values, n: int | None = None) -> np.ndarray:
 
 
 def plot_signals(time_s, signal, contact_area_mm2, *, signal_label: str = "total load (N)", axes=None,
-                 title: str | None = None, size: tuple[float, float] = (7.0, 5.0), dpi: int = 100):
+                 title: str | None = None, style: FigureStyle = PLAIN):
     """A signal and the contact area against time, on two stacked panels sharing the time axis.
 
     Parameters
@@ -47,14 +46,16 @@ def plot_signals(time_s, signal, contact_area_mm2, *, signal_label: str = "total
     signal_label : str, default "total load (N)"
         Axis label of the upper panel (``"approach (mm)"`` under load control).
     axes : pair of matplotlib Axes, optional
-        Draw into these; default a new Figure of ``size`` inches.
+        Draw into these; default a new Figure of ``style.size`` inches.
     title : str, optional
+    style : FigureStyle, optional
+        ``size`` ((7.0, 5.0) inches), ``dpi`` (100).
     """
     t = _vector("time_s", time_s)
     y = _vector("signal", signal, t.size)
     area = _vector("contact_area_mm2", contact_area_mm2, t.size)
     if axes is None:
-        fig = new_figure(size, dpi)
+        fig = new_figure(style.pick("size", (7.0, 5.0)), style.pick("dpi", 100))
         axes = fig.subplots(2, 1, sharex=True)
     else:
         fig = getattr(axes[0].figure, "figure", axes[0].figure)
@@ -71,7 +72,7 @@ def plot_signals(time_s, signal, contact_area_mm2, *, signal_label: str = "total
 
 def plot_band_levels(nominal, level_dB, *, ax=None, band_label: str = "third-octave band (Hz)",
                      level_label: str = "level (dB re 1 N)", highlight: tuple[float, float] | None = None,
-                     title: str | None = None, size: tuple[float, float] = (7.0, 4.0), dpi: int = 100):
+                     title: str | None = None, style: FigureStyle = PLAIN):
     """Third-octave levels as bars over the bands' nominal labels.
 
     Parameters
@@ -84,8 +85,11 @@ def plot_band_levels(nominal, level_dB, *, ax=None, band_label: str = "third-oct
     highlight : (low, high), optional
         Shade the bands whose labels lie in this range (e.g. 315-2000 Hz, the bands
         rolling-noise models take).
+    title : str, optional
+    style : FigureStyle, optional
+        ``size`` ((7.0, 4.0) inches), ``dpi`` (100).
     """
-    fig, ax = figure_and_axes(ax, size, dpi, rect=(0.12, 0.2, 0.84, 0.7))
+    fig, ax = figure_and_axes(ax, style.pick("size", (7.0, 4.0)), style.pick("dpi", 100), rect=(0.12, 0.2, 0.84, 0.7))
     labels = _vector("nominal", nominal)
     level = _vector("level_dB", level_dB, labels.size)
     position = np.arange(labels.size)
@@ -118,8 +122,7 @@ def _uniform(v: np.ndarray) -> bool:
 
 
 def plot_space_time(shifts_mm, x_mm, pressure, *, ax=None, colour_label: str = LINE_LOAD,
-                    title: str | None = None, cmap: str = "viridis", size: tuple[float, float] = (6.4, 5.6),
-                    dpi: int = 100):
+                    title: str | None = None, style: FigureStyle = PLAIN):
     """The pressure summed across y for every shift (vertical) and body x (horizontal).
 
     Parameters
@@ -133,12 +136,16 @@ def plot_space_time(shifts_mm, x_mm, pressure, *, ax=None, colour_label: str = L
         load, N/mm; another quantity with its own ``colour_label``); zero is
         drawn white, and the colour scale ends at the 99th percentile when one peak
         would flatten it (:func:`~twoscale.plot.robust_scale`).
+    title : str, optional
+    style : FigureStyle, optional
+        ``cmap`` ("viridis"), ``size`` ((6.4, 5.6) inches), ``dpi`` (100).
     """
+    cmap = style.pick("cmap", "viridis")
     s, x = _vector("shifts_mm", shifts_mm), _vector("x_mm", x_mm)
     p = np.asarray(pressure, dtype=float)
     if p.shape != (s.size, x.size):
         raise ValueError(f"pressure has shape {p.shape}, expected (shifts, x) = {(s.size, x.size)}")
-    fig, ax = figure_and_axes(ax, size, dpi, rect=(0.13, 0.1, 0.72, 0.82))
+    fig, ax = figure_and_axes(ax, style.pick("size", (6.4, 5.6)), style.pick("dpi", 100), rect=(0.13, 0.1, 0.72, 0.82))
     scale = robust_scale(p)
     shown = np.ma.masked_less_equal(p, 0.0)
     if _uniform(s) and _uniform(x):
@@ -157,27 +164,31 @@ def plot_space_time(shifts_mm, x_mm, pressure, *, ax=None, colour_label: str = L
 
 
 def signals_figure(path, time_s, signal, contact_area_mm2, *, signal_label: str = "total load (N)",
-                   scene: Mapping[str, Any] | None = None, name: str | None = None, dpi: int = 110) -> Path:
-    """Write :func:`plot_signals` to ``path`` (PNG); the title names the scene and body."""
-    title = join_title(scene_text(scene, name), "rolling signals")
-    fig = plot_signals(time_s, signal, contact_area_mm2, signal_label=signal_label, title=title, dpi=dpi)
+                   caption: Caption = NO_CAPTION, style: FigureStyle = PLAIN) -> Path:
+    """Write :func:`plot_signals` to ``path`` (PNG); the title names the caption's scene and
+    body (``style.dpi`` default 110)."""
+    title = join_title(scene_text(caption.scene, caption.name), "rolling signals")
+    fig = plot_signals(time_s, signal, contact_area_mm2, signal_label=signal_label, title=title,
+                       style=FigureStyle(dpi=style.pick("dpi", 110)))
     fig.tight_layout(rect=(0, 0.02, 1, 1))
-    return save_png(fig, path, title=title, scene=scene)
+    return save_png(fig, path, title=title, scene=caption.scene)
 
 
 def bands_figure(path, nominal, level_dB, *, level_label: str = "force level (dB re 1 N)",
                  band_label: str = "third-octave band (Hz)", highlight: tuple[float, float] | None = (315.0, 2000.0),
-                 scene: Mapping[str, Any] | None = None, name: str | None = None, dpi: int = 110) -> Path:
-    """Write :func:`plot_band_levels` to ``path`` (PNG), 315-2000 Hz shaded by default."""
-    title = join_title(scene_text(scene, name), "third-octave levels")
+                 caption: Caption = NO_CAPTION, style: FigureStyle = PLAIN) -> Path:
+    """Write :func:`plot_band_levels` to ``path`` (PNG), 315-2000 Hz shaded by default
+    (``style.dpi`` default 110)."""
+    title = join_title(scene_text(caption.scene, caption.name), "third-octave levels")
     fig = plot_band_levels(nominal, level_dB, band_label=band_label, level_label=level_label,
-                           highlight=highlight, title=title, dpi=dpi)
-    return save_png(fig, path, title=title, scene=scene)
+                           highlight=highlight, title=title, style=FigureStyle(dpi=style.pick("dpi", 110)))
+    return save_png(fig, path, title=title, scene=caption.scene)
 
 
 def space_time_figure(path, shifts_mm, x_mm, pressure, *, colour_label: str = LINE_LOAD,
-                      scene: Mapping[str, Any] | None = None, name: str | None = None, dpi: int = 110) -> Path:
-    """Write :func:`plot_space_time` to ``path`` (PNG)."""
-    title = join_title(scene_text(scene, name), "pressure across the footprint")
-    fig = plot_space_time(shifts_mm, x_mm, pressure, colour_label=colour_label, title=title, dpi=dpi)
-    return save_png(fig, path, title=title, scene=scene)
+                      caption: Caption = NO_CAPTION, style: FigureStyle = PLAIN) -> Path:
+    """Write :func:`plot_space_time` to ``path`` (PNG; ``style.dpi`` default 110)."""
+    title = join_title(scene_text(caption.scene, caption.name), "pressure across the footprint")
+    fig = plot_space_time(shifts_mm, x_mm, pressure, colour_label=colour_label, title=title,
+                          style=FigureStyle(dpi=style.pick("dpi", 110)))
+    return save_png(fig, path, title=title, scene=caption.scene)
