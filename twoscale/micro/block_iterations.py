@@ -84,7 +84,7 @@ def run_block_gauss_seidel(setup: BlockSetup, *, free_tilt: bool, tol: float, ma
             break
         residual = target - resultants(state.patches, p, pivot, n_unknowns)
         if corrections >= max_corrections:
-            return finish(setup, p, theta, tilt, False,
+            return finish(setup, p, theta, tilt, StopReason.MAX_ITER,
                            f"load/moment corrections reached {max_corrections} (residual {residual})",
                            counts(), history)
         corrections += 1
@@ -97,7 +97,7 @@ def run_block_gauss_seidel(setup: BlockSetup, *, free_tilt: bool, tol: float, ma
                 break
             growths += grown
     out_tilt = (float(theta[1]), float(theta[2])) if (tilt is not None or free_tilt) else None
-    return finish(setup, p, theta, out_tilt, True, "", counts(), history)
+    return finish(setup, p, theta, out_tilt, StopReason.CONVERGED, "", counts(), history)
 
 
 def run_two_level(setup: BlockSetup, *, tol: float, max_sweeps: int, max_growths: int | None,
@@ -136,17 +136,17 @@ def run_two_level(setup: BlockSetup, *, tol: float, max_sweeps: int, max_growths
     if n_unknowns:
         residual = np.asarray(target) - np.atleast_1d(resultants(state.patches, p, pivot, n_unknowns))
         if abs(residual[0]) > 10.0 * tol * abs(target[0]):
-            return finish(setup, p, theta, tilt, False,
+            return finish(setup, p, theta, tilt, StopReason.FAILED,
                            f"two-level iteration stopped with load residual {residual[0]:.3g} N", counts(), history)
         if n_unknowns == 3:
             # moments against the load times the load-weighted distance from the pivot
             arm = _load_arm(state.patches, p, pivot)
             if np.max(np.abs(residual[1:])) > 10.0 * tol * abs(target[0]) * arm:
-                return finish(setup, p, theta, tilt, False,
+                return finish(setup, p, theta, tilt, StopReason.FAILED,
                                f"two-level iteration stopped with moment residuals {residual[1]:.3g}, "
                                f"{residual[2]:.3g} N mm", counts(), history)
     out_tilt = (float(theta[1]), float(theta[2])) if tilt is not None else None
-    return finish(setup, p, theta, out_tilt, True, "", counts(), history)
+    return finish(setup, p, theta, out_tilt, StopReason.CONVERGED, "", counts(), history)
 
 
 def _load_arm(patches, pressures: list, pivot) -> float:
@@ -213,23 +213,23 @@ def _round_end(setup: BlockSetup, res, p, theta, tilt, tol, can_grow, growths, c
         if grown:
             return grown, None
     if not res.converged:
-        return 0, finish(setup, p, theta, tilt, False, res.message, counts(), history)
+        return 0, finish(setup, p, theta, tilt, res.reason, res.message, counts(), history)
     if edges_loaded_any(state, p):
-        return 0, finish(setup, p, theta, tilt, False,
+        return 0, finish(setup, p, theta, tilt, StopReason.MAX_ITER,
                          f"pressure still reaches a patch edge after {growths} enlargements", counts(), history)
     return 0, None
 
 
-def finish(setup: BlockSetup, p: list, theta, tilt, converged: bool, message: str, counts: dict,
+def finish(setup: BlockSetup, p: list, theta, tilt, reason: StopReason, message: str, counts: dict,
            history) -> MicroResult:
     """The :class:`MicroResult` of ``setup``'s iteration ending at pressures ``p`` and
-    ``theta`` (``counts``: sweeps, corrections, growths, linear_sweeps)."""
+    ``theta`` for ``reason`` (``counts``: sweeps, corrections, growths, linear_sweeps)."""
     state, p0, pivot = setup.state, setup.p0, setup.control.pivot
     pressures = [scatter(pt, v) for pt, v in zip(state.patches, p)]
     initial = [scatter(pt, v) for pt, v in zip(state.patches, p0)]
     gaps = state.gaps(p, theta, pivot) if state.patches else []
     return MicroResult(tuple(state.patches), tuple(pressures), tuple(initial), tuple(gaps),
-                       float(theta[0]), tilt, converged, message, counts["sweeps"], counts["corrections"],
+                       float(theta[0]), tilt, reason.converged, message, counts["sweeps"], counts["corrections"],
                        counts["growths"], counts["linear_sweeps"], tuple(history),
                        state.coupling.route_counts(),
-                       tuple(pt.members for pt in state.patches if len(pt.members) > 1))
+                       tuple(pt.members for pt in state.patches if len(pt.members) > 1), reason)

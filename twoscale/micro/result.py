@@ -3,6 +3,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
+from ..stopping import StopReason
+
 
 @dataclass(frozen=True)
 class MicroResult:
@@ -36,6 +38,9 @@ class MicroResult:
         ``separated``, ``spectral``; :class:`~.blocks.Coupling`) and ``separated_rtol``.
     merged : tuple of tuple of int
         Asperities solved together as one block (``merge``), one tuple per merged patch.
+    reason : StopReason
+        Why the iteration ended (``message`` says it in words); ``reason.converged`` is
+        ``converged``.
     """
 
     patches: tuple
@@ -53,3 +58,8 @@ class MicroResult:
     history: tuple
     coupling: dict = field(default_factory=dict)
     merged: tuple = ()
+    reason: StopReason = StopReason.CONVERGED
+
+    def __post_init__(self) -> None:
+        if self.reason.converged != bool(self.converged):
+            raise ValueError(f"stop reason {self.reason} disagrees with converged={self.converged!r}")

@@ -24,6 +24,7 @@ from typing import Callable, ClassVar
 
 import numpy as np
 
+from ..stopping import StopReason
 from .block_iterations import finish, run_block_gauss_seidel, run_two_level
 from .couplings import Exact, FarField
 from .problem import MicroContext
@@ -54,7 +55,7 @@ def _check(iteration, coupling) -> None:
 
 def _no_patch(setup) -> MicroResult:
     """The result when no asperity reaches the body."""
-    return finish(setup, [], setup.theta, setup.tilt, True, "no asperity reaches the body",
+    return finish(setup, [], setup.theta, setup.tilt, StopReason.CONVERGED, "no asperity reaches the body",
                   {"sweeps": 0, "corrections": 0, "growths": 0, "linear_sweeps": 0}, ())
 
 
@@ -130,6 +131,8 @@ class UnionCG:
         converged = bool(r.converged) and not out.on_edge
         message = r.message if not r.converged else (
             f"pressure still reaches the box's edge after {out.enlargements} enlargements" if out.on_edge else "")
+        # the CG's own outcome is in its message; an edge still loaded used up the enlargements
+        reason = StopReason.CONVERGED if converged else (StopReason.MAX_ITER if r.converged else StopReason.FAILED)
         # eq. 7 pressures only where computed (p0=True): none to report otherwise
         initial = (start_grid.embed_in(start, out.patch.grid),) if start is not None else ()
         tilt = r.tilt if pb.free_tilt else None
@@ -137,7 +140,7 @@ class UnionCG:
                            converged, message, int(out.iterations), 0, int(out.enlargements), 0,
                            tuple(r.residuals.get("gap", ())), {"box": int(out.patch.grid.size),
                                                               "products": int(out.products)},
-                           (tuple(out.patch.members),) if len(out.patch.members) > 1 else ())
+                           (tuple(out.patch.members),) if len(out.patch.members) > 1 else (), reason)
 
 
 ITERATIONS = {"union-cg": UnionCG, "block-gs": BlockGaussSeidel, "two-level": TwoLevel}
