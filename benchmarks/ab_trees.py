@@ -16,7 +16,12 @@ Cases (``KIND:ARG``):
   60 cells), the FFT blocks solved in stacks or, ``single``, one by one;
 * ``family:KIND-CONTROL-SHAPE-N`` / ``family_ref:...`` — a scene of
   :func:`twoscale.synthetic.scene_family`, default two-scale solve / the reference;
-* ``space:I`` — :func:`twoscale.scenespace.draw` ``(I, seed 0)``, tips only, half-space, at most 300.
+* ``space:I`` — :func:`twoscale.scenespace.draw` ``(I, seed 0)``, tips only, half-space, at most 300;
+* ``file:PATH`` / ``file_ref:PATH`` — a scene file (e.g. the paper's ``examples/S1.toml``, the
+  road ``examples/road/road.toml``), read and solved with the default options / the reference.
+
+Both trees need not spell the API alike: the cases import the one-shot scene solve and
+the two-scale driver from where each tree keeps them.
 
 Usage::
 
@@ -55,12 +60,28 @@ def _hertz(mode: str):
     return lambda: solve_cg(hs, surf, **kw)
 
 
+def _solve_scene():
+    try:
+        from twoscale.api import solve_scene
+    except ImportError:   # trees before the scene solve moved to the API module
+        from twoscale.scene import solve_scene
+    return solve_scene
+
+
+def _solve_twoscale():
+    try:
+        from twoscale.driver import solve_twoscale
+    except ImportError:   # trees before the driver's module was named for what it holds
+        from twoscale.twoscale import solve_twoscale
+    return solve_twoscale
+
+
 def _stack(which: str):
     from twoscale import Material
     from twoscale.indenters import Asperity
     from twoscale.influence import HalfSpace
     from twoscale.micro import pk_stack
-    from twoscale.driver import solve_twoscale
+    solve_twoscale = _solve_twoscale()
     rng = np.random.default_rng(4)
     pts: list = []
     while len(pts) < 80:
@@ -77,7 +98,7 @@ def _stack(which: str):
 
 
 def _family(name: str, method: str = "twoscale"):
-    from twoscale.api import solve_scene
+    solve_scene = _solve_scene()
     from twoscale.synthetic import scene_family
     kind, control, shape, n = name.split("-")
     (_, scene), = dict(scene_family((int(n),), kinds=(kind,), controls=(control,), shapes=(shape,))).items()
@@ -86,13 +107,20 @@ def _family(name: str, method: str = "twoscale"):
 
 def _space(index: str):
     from twoscale import scenespace
-    from twoscale.api import solve_scene
+    solve_scene = _solve_scene()
     scene = scenespace.build(scenespace.draw(int(index), 0, max_tips=300, maps=0.0, block=0.0))
     return lambda: solve_scene(scene)
 
 
-CASES = {"hertz": _hertz, "stack": _stack, "family": _family, "space": _space,
-         "family_ref": lambda name: _family(name, "reference")}
+def _file(path: str, method: str = "twoscale"):
+    from twoscale.io.scene_file import read_scene
+    solve_scene = _solve_scene()
+    scene = read_scene(path)
+    return lambda: solve_scene(scene, method=method)
+
+
+CASES = {"hertz": _hertz, "stack": _stack, "family": _family, "space": _space, "file": _file,
+         "family_ref": lambda name: _family(name, "reference"), "file_ref": lambda path: _file(path, "reference")}
 
 
 def child(kind: str, arg: str) -> None:
@@ -109,6 +137,8 @@ def child(kind: str, arg: str) -> None:
 
 def compare(case: str, trees: dict, repeat: int) -> dict:
     kind, arg = case.split(":", 1)
+    if kind.startswith("file"):
+        arg = os.path.abspath(arg)
     runs: dict = {"before": [], "after": []}
     for r in range(repeat):
         for tag in (("before", "after") if r % 2 == 0 else ("after", "before")):

@@ -35,37 +35,8 @@ from twoscale.progress import Progress
 from .assembly import INTORDER
 from .cache import FieldCache, cache_key, default_cache_dir
 from .layer import BASES
-from .interpolate import TopInterpolator
+from .lattice_state import LatticeState
 from .operators import BlockCorrection, BlockGridOperator, lagrange_1d
-
-
-@dataclass
-class _State:
-    """Mutable, explicit cache of one provider: factorisation (lazy) and lattice fields.
-
-    ``table`` holds the known fields as columns (n_top, K) and ``index`` maps a
-    lattice node ``(i, j)`` to its column; both are rebuilt by :meth:`refresh`.
-    """
-
-    fields: FieldCache
-    solver: object = None
-    timings_s: dict = field(default_factory=dict)
-    table: np.ndarray = None
-    index: dict = field(default_factory=dict)
-    interpolator: TopInterpolator = None
-    grid_memo: dict = field(default_factory=dict)
-    mirror: object = None
-
-    def refresh(self) -> None:
-        keys = list(self.fields.fields)
-        self.index = {k: c for c, k in enumerate(keys)}
-        self.table = np.array([self.fields.fields[k] for k in keys]).T if keys else None
-        if self.interpolator is None and self.fields.top_xy is not None:
-            self.interpolator = TopInterpolator(self.fields.top_xy)
-
-    def column_of(self, nodes: np.ndarray) -> np.ndarray:
-        get = self.index.get
-        return np.array([get((i, j), -1) for i, j in nodes.tolist()], dtype=np.int64)
 
 
 @dataclass(frozen=True, eq=False)
@@ -159,7 +130,7 @@ class BlockProvider(InfluenceProvider):
                         intorder=INTORDER)
         fc = FieldCache(key, directory)
         fc.load()
-        state = _State(fields=fc)
+        state = LatticeState(fields=fc)
         state.refresh()
         object.__setattr__(self, "_state", state)
         object.__setattr__(self, "_halfspace", HalfSpace(self.material))

@@ -14,6 +14,52 @@ import numpy as np
 from twoscale.indenters import Asperity
 
 
+#: A scene file of three spheres under load control with a free tilt (h 0.3 mm).
+THREE_SPHERES_TILT = """
+[material]
+E = 6.0
+nu = 0.5
+[load]
+total = 10.0
+tilt = true
+[grid]
+h = 0.3
+[[asperity]]
+x = 0.0
+y = 0.0
+R = 5.0
+[[asperity]]
+x = 8.0
+y = 0.0
+R = 5.0
+[[asperity]]
+x = 0.0
+y = 8.0
+R = 4.0
+"""
+
+
+def half_space_as_block(material, *, size, base, origin, source_spacing, progress):
+    """Stands in for the finite block's builder: the half-space itself, so that every body
+    of a comparison must agree exactly."""
+    from twoscale.influence import HalfSpace
+    return HalfSpace(material)
+
+
+def spaced_spheres(n, seed, side, spread=0.06):
+    """``n`` spheres (R 2-6 mm, tip heights spread over ``spread`` mm) at random on a
+    ``side`` x ``side`` mm square, centres at least 1.5 mm apart (seeded)."""
+    rng = np.random.default_rng(seed)
+    pts = []
+    while len(pts) < n:
+        c = rng.uniform(0.0, side, 2)
+        if not pts or np.min(np.hypot(*(np.array(pts) - c).T)) >= 1.5:
+            pts.append(c)
+    R = rng.uniform(2.0, 6.0, n)
+    z = rng.uniform(0.0, spread, n)
+    return [Asperity(float(x), float(y), float(zz), float(r)) for (x, y), zz, r in zip(pts, z, R)]
+
+
 def png_info(path):
     """Width, height and tEXt chunks of a PNG, read straight from its bytes."""
     data = path.read_bytes()

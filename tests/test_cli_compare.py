@@ -10,7 +10,8 @@ pytest.importorskip("matplotlib")
 
 from twoscale.cli import compare
 from twoscale.cli.main import main
-from twoscale.influence import HalfSpace
+
+from helpers import THREE_SPHERES_TILT, half_space_as_block
 
 EXAMPLES = Path(__file__).resolve().parent.parent / "examples"
 TWO = str(EXAMPLES / "paper_two_spheres.toml")
@@ -23,11 +24,6 @@ def _csv_rows(path):
     assert meta["scene"]["material"]["nu"] == 0.5
     with open(path, newline="", encoding="utf-8") as fh:
         return list(csv.DictReader(fh))
-
-
-def _fake_block(material, *, size, base, origin, source_spacing, progress):
-    # stands in for the finite block: the half-space itself, so every body must agree exactly
-    return HalfSpace(material)
 
 
 def test_half_space_only_says_so(tmp_path, monkeypatch, capsys):
@@ -50,34 +46,12 @@ def test_half_space_only_says_so(tmp_path, monkeypatch, capsys):
     assert summary["notes"] and summary["units"]["force"] == "N"
 
 
-SMALL = """
-[material]
-E = 6.0
-nu = 0.5
-[load]
-total = 10.0
-tilt = true
-[grid]
-h = 0.3
-[[asperity]]
-x = 0.0
-y = 0.0
-R = 5.0
-[[asperity]]
-x = 8.0
-y = 0.0
-R = 5.0
-[[asperity]]
-x = 0.0
-y = 8.0
-R = 4.0
-"""
 
 
 def test_three_bodies_and_loads(tmp_path, monkeypatch):
-    monkeypatch.setattr(compare, "_block_factory", lambda: (_fake_block, ""))
+    monkeypatch.setattr(compare, "_block_factory", lambda: (half_space_as_block, ""))
     scene = tmp_path / "small.toml"
-    scene.write_text(SMALL)
+    scene.write_text(THREE_SPHERES_TILT)
     out = tmp_path / "cmp"
     code = main(["compare", str(scene), "--loads", "50", "100", "--out", str(out), "--quiet", "--vtk"])
     assert code == 0
@@ -156,7 +130,7 @@ def test_measured_data_and_pivot_centring(tmp_path, monkeypatch):
 
     monkeypatch.setattr(compare, "_block_factory", lambda: (None, "no block in this test"))
     scene = tmp_path / "small.toml"
-    scene.write_text(SMALL)
+    scene.write_text(THREE_SPHERES_TILT)
     forces = tmp_path / "forces.csv"
     forces.write_text("index,force\n0,2\n1,3\n2,5\n")
     smap = np.zeros((44, 44))
@@ -193,7 +167,7 @@ def test_measured_data_and_pivot_centring(tmp_path, monkeypatch):
 ])
 def test_measured_option_errors(tmp_path, capsys, extra, match):
     scene = tmp_path / "small.toml"
-    scene.write_text(SMALL)
+    scene.write_text(THREE_SPHERES_TILT)
     out = tmp_path / "cmp"
     assert main(["compare", str(scene), "--out", str(out), "--quiet"] + extra) == 2
     assert match in capsys.readouterr().err
@@ -202,7 +176,7 @@ def test_measured_option_errors(tmp_path, capsys, extra, match):
 
 def test_measured_forces_wrong_count(tmp_path, capsys):
     scene = tmp_path / "small.toml"
-    scene.write_text(SMALL)
+    scene.write_text(THREE_SPHERES_TILT)
     f = tmp_path / "f.csv"
     f.write_text("index,force\n0,1\n1,1\n")
     assert main(["compare", str(scene), "--measured-forces", str(f), "--out", str(tmp_path / "o"), "--quiet"]) == 2
@@ -227,7 +201,7 @@ def test_real_finite_block_is_stiffer(tmp_path):
 def test_measured_map_only_gives_forces_from_the_map(tmp_path, monkeypatch):
     monkeypatch.setattr(compare, "_block_factory", lambda: (None, "no block in this test"))
     scene = tmp_path / "small.toml"
-    scene.write_text(SMALL)
+    scene.write_text(THREE_SPHERES_TILT)
     smap = np.zeros((44, 44))
     smap[22, 22] = 1.0            # cell centred at (0.95, 0.95) mm: nearest tip is (0, 0)
     smap[22, 26] = 2.0            # (8.55, 0.95): nearest tip (8, 0)
@@ -262,7 +236,7 @@ def test_subprocess_compare_on_shipped_scene(tmp_path):
 def test_scene_load_cases_run_without_loads_and_loads_override(tmp_path, monkeypatch):
     monkeypatch.setattr(compare, "_block_factory", lambda: (None, "no block in this test"))
     scene = tmp_path / "small.toml"
-    scene.write_text(SMALL.replace("total = 10.0", "total = 10.0\ncases = [10.0, 20.0]"))
+    scene.write_text(THREE_SPHERES_TILT.replace("total = 10.0", "total = 10.0\ncases = [10.0, 20.0]"))
     out = tmp_path / "cases"
     assert main(["compare", str(scene), "--out", str(out), "--quiet"]) == 0
     runs = json.loads((out / "summary.json").read_text())["runs"]
@@ -299,7 +273,7 @@ def compare_args(argv):
 ])
 def test_bad_scene_load_cases_exit_2(tmp_path, capsys, cases, field, value):
     scene = tmp_path / "small.toml"
-    scene.write_text(SMALL.replace("total = 10.0", f"total = 10.0\ncases = {cases}"))
+    scene.write_text(THREE_SPHERES_TILT.replace("total = 10.0", f"total = 10.0\ncases = {cases}"))
     out = tmp_path / "cmp"
     assert main(["compare", str(scene), "--out", str(out), "--quiet"]) == 2
     err = capsys.readouterr().err
@@ -325,7 +299,7 @@ def test_sensor_options_feed_map_reading_forces_and_e_m(tmp_path, monkeypatch):
 
     monkeypatch.setattr(compare, "_block_factory", lambda: (None, "no block in this test"))
     scene = tmp_path / "small.toml"
-    scene.write_text(SMALL)
+    scene.write_text(THREE_SPHERES_TILT)
     # 8 x 6 cells of 2 mm centred at (4, 0): cell centres x = -3, -1, ..., 11 and y = -5, ..., 5
     sensor = Sensor(8, 6, 2.0, (4.0, 0.0))
     smap = np.zeros((6, 8))
@@ -350,7 +324,7 @@ def test_sensor_options_feed_map_reading_forces_and_e_m(tmp_path, monkeypatch):
 
 def test_measured_map_must_have_the_sensor_shape(tmp_path, capsys):
     scene = tmp_path / "small.toml"
-    scene.write_text(SMALL)
+    scene.write_text(THREE_SPHERES_TILT)
     mpath = tmp_path / "map.csv"
     mpath.write_text("\n".join(",".join(["0"] * 44) for _ in range(44)) + "\n")   # the default 44 x 44
     out = tmp_path / "cmp"
@@ -372,7 +346,7 @@ def test_measured_map_must_have_the_sensor_shape(tmp_path, capsys):
 ])
 def test_bad_sensor_options_exit_2(tmp_path, capsys, extra, name, value):
     scene = tmp_path / "small.toml"
-    scene.write_text(SMALL)
+    scene.write_text(THREE_SPHERES_TILT)
     out = tmp_path / "cmp"
     assert main(["compare", str(scene), "--out", str(out), "--quiet", *extra]) == 2
     err = capsys.readouterr().err
@@ -382,9 +356,9 @@ def test_bad_sensor_options_exit_2(tmp_path, capsys, extra, name, value):
 
 
 def test_sensor_away_from_the_contact_is_noted_not_fatal(tmp_path, monkeypatch, capsys):
-    monkeypatch.setattr(compare, "_block_factory", lambda: (_fake_block, ""))
+    monkeypatch.setattr(compare, "_block_factory", lambda: (half_space_as_block, ""))
     scene = tmp_path / "small.toml"
-    scene.write_text(SMALL)
+    scene.write_text(THREE_SPHERES_TILT)
     out = tmp_path / "cmp"
     assert main(["compare", str(scene), "--sensor", "4", "4", "1", "--sensor-centre", "100", "100",
                  "--out", str(out), "--quiet"]) == 0
@@ -394,7 +368,7 @@ def test_sensor_away_from_the_contact_is_noted_not_fatal(tmp_path, monkeypatch, 
 
 
 # ---------------------------------------------------------------- every top-level file records each body
-BLOCK_SCENE = SMALL.replace("total = 10.0", "total = 10.0\ncases = [10.0, 20.0]") + """
+BLOCK_SCENE = THREE_SPHERES_TILT.replace("total = 10.0", "total = 10.0\ncases = [10.0, 20.0]") + """
 [influence]
 kind = "block"
 size = [100.0, 120.0, 20.0]
@@ -412,7 +386,7 @@ def _png_description(path):
 def test_every_top_level_file_records_each_body_and_all_loads(tmp_path, monkeypatch):
     from twoscale.io.scene_file import scene_from_dict
 
-    monkeypatch.setattr(compare, "_block_factory", lambda: (_fake_block, ""))
+    monkeypatch.setattr(compare, "_block_factory", lambda: (half_space_as_block, ""))
     scene = tmp_path / "block.toml"
     scene.write_text(BLOCK_SCENE)
     out = tmp_path / "cmp"

@@ -94,11 +94,11 @@ def test_stacked_fixed_force_matches_one_block_solves():
 def test_two_level_by_levels_and_stacks_matches_the_plain_order(monkeypatch):
     # 40 spheres, small dense limit so that most blocks are FFT blocks solved in stacks;
     # the same solve with the plain sweep order and one solve per block (no stacks)
-    from tests.test_twolevel import _scene
+    from helpers import spaced_spheres
     from twoscale.micro import pk_stack, twolevel
     from twoscale.driver import solve_twoscale
 
-    asp = _scene(40, 4, 20.0)
+    asp = spaced_spheres(40, 4, 20.0)
     kw = dict(h=0.05, total_load=2.0, tol=1e-8, max_sweeps=200, far_tol=0.05, coarse=True, dense_max_cells=60)
     stacked = solve_twoscale(HS, asp, **kw)
     monkeypatch.setattr(twolevel, "sweep_levels", lambda coupling: None)

@@ -22,7 +22,7 @@ from twoscale.influence import HalfSpace
 from twoscale.io.tables import cell
 from twoscale.setting import Body, nominal_area
 
-from test_cli_compare import SMALL, _fake_block
+from helpers import THREE_SPHERES_TILT, half_space_as_block
 from tidy_tables import assert_tidy
 
 EXAMPLES = Path(__file__).resolve().parent.parent / "examples"
@@ -65,9 +65,9 @@ def test_solve_table_opens_without_options(tmp_path):
 
 
 def test_compare_tables_open_without_options_and_hold_numbers(tmp_path, monkeypatch):
-    monkeypatch.setattr(compare, "_block_factory", lambda: (_fake_block, ""))
+    monkeypatch.setattr(compare, "_block_factory", lambda: (half_space_as_block, ""))
     scene = tmp_path / "small.toml"
-    scene.write_text(SMALL)
+    scene.write_text(THREE_SPHERES_TILT)
     out = tmp_path / "cmp"
     assert main(["compare", str(scene), "--loads", "10", "20", "--out", str(out), "--quiet"]) == 0
     forces = assert_tidy(out / "forces.csv", rows=2 * 3 * 3)
@@ -97,7 +97,7 @@ def test_study_tables_open_without_options(tmp_path, capsys):
 
 
 def _study(tmp_path, loads):
-    (tmp_path / "noh.toml").write_text(SMALL.replace("[grid]\nh = 0.3\n", ""))
+    (tmp_path / "noh.toml").write_text(THREE_SPHERES_TILT.replace("[grid]\nh = 0.3\n", ""))
     path = tmp_path / "study.toml"
     path.write_text(f"""
 [study]
@@ -205,7 +205,7 @@ def test_compare_terminal_is_compact_and_block_options_reach_the_body(tmp_path, 
 
     monkeypatch.setattr(compare, "_block_factory", lambda: (factory, ""))
     scene = tmp_path / "small.toml"
-    scene.write_text(SMALL)
+    scene.write_text(THREE_SPHERES_TILT)
     out = tmp_path / "cmp"
     assert main(["compare", str(scene), "--loads", "10", "20", "--block-size", "60", "50", "10",
                  "--base", "bonded", "--out", str(out)]) == 0
@@ -221,7 +221,7 @@ def test_compare_terminal_is_compact_and_block_options_reach_the_body(tmp_path, 
                                           (["--base", "glued"], "--base")])
 def test_bad_block_options_exit_2(tmp_path, capsys, extra, match):
     scene = tmp_path / "small.toml"
-    scene.write_text(SMALL)
+    scene.write_text(THREE_SPHERES_TILT)
     out = tmp_path / "cmp"
     assert main(["compare", str(scene), "--out", str(out), "--quiet", *extra]) == 2
     assert match in capsys.readouterr().err and not out.exists()

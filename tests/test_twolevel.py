@@ -17,20 +17,10 @@ from twoscale.krylov import block_cg
 from twoscale.micro.coarse import CoarseSpace
 from twoscale.driver import solve_twoscale
 
+from helpers import random_scene, spaced_spheres
+
 MAT = Material(10.0, 0.5)
 HS = HalfSpace(MAT)
-
-
-def _scene(n, seed, side, spread=0.06):
-    rng = np.random.default_rng(seed)
-    pts = []
-    while len(pts) < n:
-        c = rng.uniform(0.0, side, 2)
-        if not pts or np.min(np.hypot(*(np.array(pts) - c).T)) >= 1.5:
-            pts.append(c)
-    R = rng.uniform(2.0, 6.0, n)
-    z = rng.uniform(0.0, spread, n)
-    return [Asperity(float(x), float(y), float(zz), float(r)) for (x, y), zz, r in zip(pts, z, R)]
 
 
 def _compare(exact, approx, bound):
@@ -44,7 +34,7 @@ def _compare(exact, approx, bound):
 def test_two_level_load_control_matches_exact_coupling(seed):
     # 60 spheres on 24 mm, far_tol = 0.01: within 0.5 % of the exact coupling per
     # asperity (the far field by resultants at the tips is the only approximation)
-    asp = _scene(60, seed, 24.0)
+    asp = spaced_spheres(60, seed, 24.0)
     kw = dict(h=0.1, total_load=3.0, tol=1e-7, max_sweeps=200)
     exact = solve_twoscale(HS, asp, **kw)
     approx = solve_twoscale(HS, asp, far_tol=0.01, coarse=True, **kw)
@@ -58,7 +48,7 @@ def test_two_level_load_control_matches_exact_coupling(seed):
 
 
 def test_two_level_penetration_control_matches_exact_coupling():
-    asp = _scene(50, 2, 22.0)
+    asp = spaced_spheres(50, 2, 22.0)
     kw = dict(h=0.1, penetration=0.05, tol=1e-7, max_sweeps=200)
     exact = solve_twoscale(HS, asp, **kw)
     approx = solve_twoscale(HS, asp, far_tol=0.01, coarse=True, **kw)
@@ -70,7 +60,7 @@ def test_two_level_penetration_control_matches_exact_coupling():
 def test_two_level_tilt_meets_load_and_moments():
     # ball-and-socket joint: total load and both moments about the pivot vanish to 1e-6
     # of (W, W * RMS arm), and the forces and angles match the exact coupling
-    asp = _scene(40, 3, 20.0)
+    asp = spaced_spheres(40, 3, 20.0)
     pivot = (9.0, 11.0)
     kw = dict(h=0.1, total_load=2.5, tilt=True, pivot=pivot, tol=1e-7, max_sweeps=300)
     exact = solve_twoscale(HS, asp, **kw)
@@ -96,7 +86,7 @@ def test_iterations_take_only_the_couplings_they_accept():
     from twoscale.micro.couplings import Exact, FarField
     from twoscale.micro.strategies import BlockGaussSeidel, UnionCG
     from twoscale.options import MicroOptions
-    asp = _scene(3, 0, 6.0)
+    asp = spaced_spheres(3, 0, 6.0)
     problem = MicroProblem(h=0.1, forces=np.ones(3), penetration=0.05)
     ctx = MicroContext(HS, asp, problem, patches=())
     with pytest.raises(ValueError, match="union-cg iteration takes no coupling"):
@@ -112,7 +102,7 @@ def test_two_level_with_exact_coupling_reaches_block_gauss_seidel_answer():
     # the same equations (every pair exact), two iterations: the answers agree to the tolerance
     from twoscale.micro import MicroProblem
     from twoscale.options import MicroOptions
-    asp = _scene(6, 1, 7.0)
+    asp = spaced_spheres(6, 1, 7.0)
     forces = np.array([float(hertz.load(a.R, max(0.06 - a.z, 0.0), MAT.E_star)) for a in asp])
     problem = MicroProblem(h=0.1, forces=forces, penetration=0.06, total_load=0.8 * float(forces.sum()))
     opts = MicroOptions(tol=1e-9, merge=False, max_sweeps=200)
@@ -130,7 +120,7 @@ def test_coarse_step_vanishes_at_a_fixed_point_and_meets_the_load():
     from twoscale.micro.constraints import Control
     from twoscale.micro.localblock import LocalBlock
     from twoscale.micro.patches import build_patches
-    asp = _scene(8, 4, 12.0)
+    asp = spaced_spheres(8, 4, 12.0)
     patches = build_patches(asp, h=0.1, forces=np.full(8, np.inf), approaches=np.full(8, 0.06),
                             E_star=MAT.E_star, margin=1.3, anchor=(0.0, 0.0))
     blocks = [LocalBlock(HS, pt) for pt in patches]
@@ -176,7 +166,7 @@ def test_two_level_runs_unchanged_on_the_finite_block():
     fem = pytest.importorskip("fem_influence")
     block = fem.BlockProvider(material=MAT, size=(60.0, 60.0, 10.0), h_fine=5.0, h_coarse=10.0,
                               fine_half_width=10.0, use_cache=False, progress=False)
-    asp = [a for a in _scene(30, 5, 18.0)]
+    asp = [a for a in spaced_spheres(30, 5, 18.0)]
     asp = [Asperity(a.x - 9.0, a.y - 9.0, a.z, a.R) for a in asp]
     kw = dict(h=0.1, total_load=2.0, tol=1e-7, max_sweeps=200)
     exact = solve_twoscale(block, asp, **kw)
@@ -192,7 +182,7 @@ def test_two_level_runs_unchanged_on_the_finite_block():
 def test_matrix_free_macro_step_gives_the_same_two_scale_answer():
     # below 4e6 pairs the point operator is exact, so a matrix-free macro step changes
     # nothing but the way the Newton steps are solved: the final answer is the same
-    asp = _scene(40, 3, 20.0)
+    asp = spaced_spheres(40, 3, 20.0)
     kw = dict(h=0.1, total_load=2.0, tilt=True, pivot=(10.0, 10.0), tol=1e-7, far_tol=0.01)
     dense = solve_twoscale(HS, asp, **kw)
     free = solve_twoscale(HS, asp, macro_dense_max=1, **kw)
@@ -215,12 +205,6 @@ def test_matrix_free_macro_step_gives_the_same_two_scale_answer():
 def test_a_stalled_two_level_iteration_stops_early_and_says_so():
     # merged contacts (seeded 18-tip scene): cells flip between contact states, the
     # iteration cycles; it used to spend its whole budget (100 sweeps) before saying so
-    import sys
-    from pathlib import Path
-
-    sys.path.insert(0, str(Path(__file__).parent))
-    from helpers import random_scene
-
     from twoscale.micro.twolevel import STALL_SWEEPS
     from twoscale.driver import solve_twoscale
 

@@ -1,0 +1,45 @@
+"""The mutable state of one finite-block provider: its factorisation and lattice fields.
+
+A :class:`~fem_influence.provider.BlockProvider` is a frozen description of a body; what
+it learns while answering (the factorisation, built lazily, and the correction fields of
+the source-lattice nodes solved so far) lives here, owned by that provider.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .cache import FieldCache
+from .interpolate import TopInterpolator
+
+
+@dataclass
+class LatticeState:
+    """Mutable, explicit cache of one provider: factorisation (lazy) and lattice fields.
+
+    ``table`` holds the known fields as columns (n_top, K) and ``index`` maps a
+    lattice node ``(i, j)`` to its column; both are rebuilt by :meth:`refresh`.
+    """
+
+    fields: FieldCache
+    solver: object = None
+    timings_s: dict = field(default_factory=dict)
+    table: np.ndarray = None
+    index: dict = field(default_factory=dict)
+    interpolator: TopInterpolator = None
+    grid_memo: dict = field(default_factory=dict)
+    mirror: object = None
+
+    def refresh(self) -> None:
+        keys = list(self.fields.fields)
+        self.index = {k: c for c, k in enumerate(keys)}
+        self.table = np.array([self.fields.fields[k] for k in keys]).T if keys else None
+        if self.interpolator is None and self.fields.top_xy is not None:
+            self.interpolator = TopInterpolator(self.fields.top_xy)
+
+    def column_of(self, nodes: np.ndarray) -> np.ndarray:
+        get = self.index.get
+        return np.array([get((i, j), -1) for i, j in nodes.tolist()], dtype=np.int64)
+
+
