@@ -27,8 +27,7 @@ from .policy import ITERATIONS, MODEL, UNION_MIN_COVERAGE, Choice, choose
 from .problem import BlockSettings, MicroContext, MicroProblem
 from .result import MicroResult
 from .setup import one_asperity_patches
-from .strategies import ITERATIONS as STRATEGIES
-from .strategies import BlockGaussSeidel, TwoLevel, UnionCG
+from .strategies import STRATEGIES, BlockGaussSeidel, TwoLevel, UnionCG
 from .union import box_of
 
 #: Sweeps a two-level attempt chosen by the policy gets (it needs 5-10 where it works)

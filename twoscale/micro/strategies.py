@@ -143,7 +143,8 @@ class UnionCG:
                            (tuple(out.patch.members),) if len(out.patch.members) > 1 else (), reason)
 
 
-ITERATIONS = {"union-cg": UnionCG, "block-gs": BlockGaussSeidel, "two-level": TwoLevel}
+#: The iteration objects by the names the policy and the caller use.
+STRATEGIES = {"union-cg": UnionCG, "block-gs": BlockGaussSeidel, "two-level": TwoLevel}
 
 
 def _sizing(ctx: MicroContext, coupling):
