@@ -21,6 +21,7 @@ from .control import check_control
 from .details import Coupling, MacroDetails, MicroDetails, TwoScaleDetails
 from .indenters import Asperity
 from .influence.base import InfluenceProvider
+from .influence.cached import with_caches
 from .laws import law_for
 from .macro import solve_macro
 from .macro.solve import DENSE_MAX
@@ -153,6 +154,7 @@ def solve_twoscale(provider: InfluenceProvider, asperities: Sequence[Asperity], 
     """
     _check(asperities, h, penetration, total_load, tilt, tol, max_sweeps)
     check_rtol(separated_rtol, "separated_rtol", allow_none=True)
+    provider = with_caches(provider)  # a solver object's caches, or this solve's own
     t0 = time.perf_counter()
     laws = [law_for(a, provider.material) for a in asperities] if laws is None else laws
     tips = np.array([[a.x, a.y] for a in asperities], dtype=float)
