@@ -132,3 +132,39 @@ def test_flat_keywords_map_to_the_groups():
 def test_a_group_prefix_on_a_flat_keyword_points_to_the_flat_name():
     with pytest.raises(ValueError, match=r"unknown option 'micro_tol' .*\(did you mean 'tol'\?\)"):
         twoscale.solve(_scene(), micro_tol=1e-7)
+
+
+@pytest.mark.parametrize("far_tol", [None, 0.1])
+def test_each_quantity_is_computed_once_per_solve(far_tol):
+    """The Hertz level under load control (asked for by the cell size, the memory estimate,
+    the resolution check and the nominal area), the memory check, each patch and the
+    result are computed once per solve, by a solver object and one-shot, with and without
+    the far field."""
+    from unittest import mock
+
+    import twoscale.driver as driver
+    import twoscale.micro.patches as patches
+    import twoscale.resolution as resolution
+    import twoscale.resources as resources
+
+    built = []
+    real_make_patch = patches.make_patch
+
+    def make_patch(k, grid, asperities):
+        built.append((k, grid))
+        return real_make_patch(k, grid, asperities)
+
+    options = SolverOptions.from_keywords(far_tol=far_tol)
+    solves = {"solver": lambda sc: twoscale.ContactSolver(options=options).solve(sc),
+              "one-shot": lambda sc: twoscale.solve(sc, **options.twoscale_keywords())}
+    for how, solve in solves.items():
+        scene = dataclasses.replace(_scene(), h=None)   # the cell size chosen from the scene
+        with mock.patch.object(resolution, "_solve_hertz_level", wraps=resolution._solve_hertz_level) as level, \
+                mock.patch.object(resources, "check_solve_memory", wraps=resources.check_solve_memory) as memory, \
+                mock.patch.object(patches, "make_patch", side_effect=make_patch), \
+                mock.patch.object(driver, "_result", wraps=driver._result) as result:
+            r = solve(scene)
+        assert (level.call_count, memory.call_count, result.call_count) == (1, 1, 1), how
+        assert len(set(built)) == len(built) > 0, f"{how}: a patch was built twice"
+        assert r.converged and r.details.micro.attempts[-1].far_tol == far_tol
+        built.clear()

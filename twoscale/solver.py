@@ -154,8 +154,10 @@ class ContactSolver:
         if self.method == "twoscale" and ws is not None and scene.history is None:
             keywords["start"] = ws
         self.caches.start_solve()
-        result = solve_once(scene, method=self.method, provider=CachedBody(body, self.caches), h=h,
-                            memory_limit=res.memory_limit, **keywords)
+        # h=None when the scene chose it: the solve then works on this very scene object and
+        # finds what choosing h estimated (the Hertz level) already solved
+        result = solve_once(scene, method=self.method, provider=CachedBody(body, self.caches),
+                            h=res.h if scene.history is None else h, memory_limit=res.memory_limit, **keywords)
         self._solves += 1
         if not isinstance(result, ContactResult):  # a load history: its own steps warm-start each other
             return result
