@@ -88,8 +88,12 @@ class OperatorCaches:
 
 
 def _pair_key(kind: str, target: Grid, source: Grid, *extra) -> tuple:
-    """Key of a pair operator on a translation-invariant body: the pair's relative geometry."""
-    ti, tj = target.offset_in(source)
+    """Key of a pair operator on a translation-invariant body: the pair's relative geometry
+    (the grids themselves when they are off each other's lattice)."""
+    try:
+        ti, tj = target.offset_in(source)
+    except ValueError:
+        return (kind, target, source, *extra)
     return (kind, float(source.h), target.nx, target.ny, source.nx, source.ny, ti, tj, *extra)
 
 

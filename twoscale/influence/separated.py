@@ -88,8 +88,12 @@ def box_gap(target: Grid, source: Grid) -> float:
 def relative_frames(target: Grid, source: Grid) -> tuple[Grid, Grid]:
     """The pair in the frame of the source's lattice: the source's first cell at the origin,
     the target at its integer cell offset (so that what is built from them depends only on
-    the pair's relative position, to the last bit)."""
-    ti, tj = target.offset_in(source)
+    the pair's relative position, to the last bit); grids off each other's lattice stay
+    as they are."""
+    try:
+        ti, tj = target.offset_in(source)
+    except ValueError:
+        return target, source
     h = float(source.h)
     return Grid(ti * h, tj * h, h, target.nx, target.ny), Grid(0.0, 0.0, h, source.nx, source.ny)
 
