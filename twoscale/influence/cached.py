@@ -87,6 +87,16 @@ class OperatorCaches:
         self.operators.clear()
 
 
+def _takes_tables(body: InfluenceProvider, method: str) -> bool:
+    """Whether ``body``'s ``method`` takes the keyword ``tables``."""
+    import inspect
+
+    try:
+        return "tables" in inspect.signature(getattr(body, method)).parameters
+    except (TypeError, ValueError):
+        return False
+
+
 def _pair_key(kind: str, target: Grid, source: Grid, *extra) -> tuple:
     """Key of a pair operator on a translation-invariant body: the pair's relative geometry
     (the grids themselves when they are off each other's lattice)."""
@@ -107,7 +117,9 @@ class CachedBody(InfluenceProvider):
             body = body.body
         self.body, self.caches = body, caches
         self._invariant = bool(getattr(body, "translation_invariant", False))
-        self._tables = {"tables": caches.tables} if self._invariant else {}
+        # the caller-owned tables go to the methods that take them (a subclass may not)
+        self._tables = {name: {"tables": caches.tables} if self._invariant and _takes_tables(body, name) else {}
+                        for name in ("grid_matrix", "grid_operator", "separated_operator")}
 
     def __getattr__(self, name: str) -> Any:
         # only reached for names this object does not have: the body's attributes
@@ -160,7 +172,7 @@ class CachedBody(InfluenceProvider):
 
     # ------------------------------------------------------------------ through the caches
     def grid_matrix(self, target: Grid, source: Grid | None = None) -> np.ndarray:
-        return self.body.grid_matrix(target, source, **self._tables)
+        return self.body.grid_matrix(target, source, **self._tables["grid_matrix"])
 
     def grid_operator(self, target: Grid, source: Grid | None = None) -> GridOperator:
         source = target if source is None else source
@@ -169,7 +181,7 @@ class CachedBody(InfluenceProvider):
         key = _pair_key("fft", target, source)
         op = self._kept("fft", key, target, source)
         if op is None:
-            op = self._keep("fft", key, self.body.grid_operator(target, source, **self._tables))
+            op = self._keep("fft", key, self.body.grid_operator(target, source, **self._tables["grid_operator"]))
         return op
 
     def separated_operator(self, target: Grid, source: Grid, *, rtol: float = 1e-8):
@@ -183,8 +195,8 @@ class CachedBody(InfluenceProvider):
                               source, target)
             op = back.transposed() if back is not None and back is not _TOO_CLOSE else back
         if op is None:
-            op = self._keep("separated", key, self.body.separated_operator(target, source, rtol=rtol,
-                                                                             **self._tables))
+            op = self._keep("separated", key, self.body.separated_operator(
+                target, source, rtol=rtol, **self._tables["separated_operator"]))
         return None if op is _TOO_CLOSE else op
 
     def _kept(self, kind: str, key: tuple, target: Grid, source: Grid):
