@@ -38,7 +38,13 @@ def test_solves_in_a_row_equal_one_shot_solves_and_say_what_they_reused(control)
     for r in (again, moved):
         assert r.reuse.body_kept and r.reuse.macro_start and r.reuse.pressure_start > 0
         assert r.iterations["micro"] <= 1 < first.iterations["micro"]
+        # the operators between patches (and of each patch on itself) are taken over, also
+        # for the scene moved by one cell: on the half-space they depend on relative positions
+        assert sum(r.reuse.operators_kept.values()) > 0 and "patch operators kept" in str(r.reuse)
+        assert 0 < r.reuse.cache_bytes <= r.reuse.cache_max_bytes
+    assert not first.reuse.operators_kept and sum(first.reuse.operators_built.values()) > 0
     assert solver.body is not None and solver.solves == 3
+    assert vars(solver.body) == {"material": solver.body.material}   # the body keeps nothing
 
 
 def test_a_reset_or_start_none_is_a_cold_start():
@@ -62,11 +68,15 @@ def test_tips_entering_are_matched_by_index_and_unmatched_tips_start_cold():
     assert entering.reuse.macro_start and _close(entering, twoscale.solve(full))
 
 
-def test_the_kept_pressure_is_bounded():
-    solver = twoscale.ContactSolver(max_start_bytes=0)
+def test_the_kept_pressure_and_the_caches_are_bounded():
+    solver = twoscale.ContactSolver(max_start_bytes=0, max_cache_bytes=0)
     solver.solve(_scene())
     second = solver.solve(_scene())
     assert second.reuse.macro_start and second.reuse.pressure_start == 0 and second.reuse.kept_bytes < 1000
+    assert second.reuse.cache_bytes == 0 and not second.reuse.operators_kept
+    assert _close(second, twoscale.solve(_scene()))
+    with pytest.raises(ValueError, match="max_cache_bytes must be a number >= 0"):
+        twoscale.ContactSolver(max_cache_bytes=-1)
 
 
 def test_options_reach_the_solve_and_a_cell_size_change_drops_the_pressure_start():
