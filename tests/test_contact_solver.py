@@ -38,7 +38,13 @@ def test_solves_in_a_row_equal_one_shot_solves_and_say_what_they_reused(control)
     for r in (again, moved):
         assert r.reuse.body_kept and r.reuse.macro_start and r.reuse.pressure_start > 0
         assert r.iterations["micro"] <= 1 < first.iterations["micro"]
+        # the operators between patches (and of each patch on itself) are taken over, also
+        # for the scene moved by one cell: on the half-space they depend on relative positions
+        assert sum(r.reuse.operators_kept.values()) > 0 and "patch operators kept" in str(r.reuse)
+        assert 0 < r.reuse.cache_bytes <= r.reuse.cache_max_bytes
+    assert not first.reuse.operators_kept and sum(first.reuse.operators_built.values()) > 0
     assert solver.body is not None and solver.solves == 3
+    assert vars(solver.body) == {"material": solver.body.material}   # the body keeps nothing
 
 
 def test_a_reset_or_start_none_is_a_cold_start():
@@ -62,11 +68,15 @@ def test_tips_entering_are_matched_by_index_and_unmatched_tips_start_cold():
     assert entering.reuse.macro_start and _close(entering, twoscale.solve(full))
 
 
-def test_the_kept_pressure_is_bounded():
-    solver = twoscale.ContactSolver(max_start_bytes=0)
+def test_the_kept_pressure_and_the_caches_are_bounded():
+    solver = twoscale.ContactSolver(max_start_bytes=0, max_cache_bytes=0)
     solver.solve(_scene())
     second = solver.solve(_scene())
     assert second.reuse.macro_start and second.reuse.pressure_start == 0 and second.reuse.kept_bytes < 1000
+    assert second.reuse.cache_bytes == 0 and not second.reuse.operators_kept
+    assert _close(second, twoscale.solve(_scene()))
+    with pytest.raises(ValueError, match="max_cache_bytes must be a number >= 0"):
+        twoscale.ContactSolver(max_cache_bytes=-1)
 
 
 def test_options_reach_the_solve_and_a_cell_size_change_drops_the_pressure_start():
@@ -132,3 +142,39 @@ def test_flat_keywords_map_to_the_groups():
 def test_a_group_prefix_on_a_flat_keyword_points_to_the_flat_name():
     with pytest.raises(ValueError, match=r"unknown option 'micro_tol' .*\(did you mean 'tol'\?\)"):
         twoscale.solve(_scene(), micro_tol=1e-7)
+
+
+@pytest.mark.parametrize("far_tol", [None, 0.1])
+def test_each_quantity_is_computed_once_per_solve(far_tol):
+    """The Hertz level under load control (asked for by the cell size, the memory estimate,
+    the resolution check and the nominal area), the memory check, each patch and the
+    result are computed once per solve, by a solver object and one-shot, with and without
+    the far field."""
+    from unittest import mock
+
+    import twoscale.driver as driver
+    import twoscale.micro.patches as patches
+    import twoscale.resolution as resolution
+    import twoscale.resources as resources
+
+    built = []
+    real_make_patch = patches.make_patch
+
+    def make_patch(k, grid, asperities):
+        built.append((k, grid))
+        return real_make_patch(k, grid, asperities)
+
+    options = SolverOptions.from_keywords(far_tol=far_tol)
+    solves = {"solver": lambda sc: twoscale.ContactSolver(options=options).solve(sc),
+              "one-shot": lambda sc: twoscale.solve(sc, **options.twoscale_keywords())}
+    for how, solve in solves.items():
+        scene = dataclasses.replace(_scene(), h=None)   # the cell size chosen from the scene
+        with mock.patch.object(resolution, "_solve_hertz_level", wraps=resolution._solve_hertz_level) as level, \
+                mock.patch.object(resources, "check_solve_memory", wraps=resources.check_solve_memory) as memory, \
+                mock.patch.object(patches, "make_patch", side_effect=make_patch), \
+                mock.patch.object(driver, "_result", wraps=driver._result) as result:
+            r = solve(scene)
+        assert (level.call_count, memory.call_count, result.call_count) == (1, 1, 1), how
+        assert len(set(built)) == len(built) > 0, f"{how}: a patch was built twice"
+        assert r.converged and r.details.micro.attempts[-1].far_tol == far_tol
+        built.clear()

@@ -4,9 +4,12 @@
   running total equals the sum of the stored sizes; eviction is least recently used; an
   insertion's cost does not grow with the number of entries (the module-global cache it
   replaces re-summed every entry at each insertion: 20,000 insertions took minutes);
-* the half-space's caches (Love tables, Chebyshev matrices, separated operators waiting for
-  their transpose) belong to the instance: two providers never share an entry, and the
-  provider's value (equality, hash) ignores them.
+* the caches of Love tables, Chebyshev matrices and operators between patches belong to a
+  solver (:class:`~twoscale.influence.cached.OperatorCaches`, seen by the solves through a
+  :class:`~twoscale.influence.cached.CachedBody`), never to the body: the half-space's value
+  is its material, two solvers never share an entry, and each cache keeps its bound;
+* on the half-space a pair operator serves every pair translated from it by whole cells,
+  with the product of an operator built for the translated pair itself.
 """
 import time
 
@@ -16,6 +19,7 @@ import pytest
 from twoscale import Grid, Material
 from twoscale.influence import HalfSpace
 from twoscale.influence.cache import BoundedCache
+from twoscale.influence.cached import CachedBody, OperatorCaches
 
 MAT = Material(E=10.0, nu=0.3)
 
@@ -66,39 +70,63 @@ def test_insertion_cost_does_not_grow_with_the_entries(max_bytes):
     assert cache.nbytes == sum(cache.sizes().values()) <= max_bytes
 
 
-def test_two_half_spaces_do_not_share_entries():
-    a, b = HalfSpace(MAT), HalfSpace(MAT)
-    assert a == b and hash(a) == hash(b)            # the caches are not part of the value
+def test_the_half_space_keeps_nothing_and_two_solvers_do_not_share_entries():
+    assert set(vars(HalfSpace(MAT))) == {"material"}      # its value, and nothing else
+    a, b = CachedBody(HalfSpace(MAT), OperatorCaches()), CachedBody(HalfSpace(MAT), OperatorCaches())
+    assert a.body == b.body and a.kind == "halfspace" and a.material == MAT
     g = Grid(0.0, 0.0, 0.1, 12, 9)
     a.grid_matrix(g)
-    assert len(a.tables) == 2 and len(b.tables) == 0   # the table and the quadrant it was cut from
+    assert len(a.caches.tables) == 2 and len(b.caches.tables) == 0  # the table and the quadrant it was cut from
     a.grid_operator(g)                              # the same offset table: a hit
-    assert a.tables.hits == 1 and b.tables.hits == 0
+    assert a.caches.tables.hits == 1 and b.caches.tables.hits == 0
+    assert len(a.caches.operators) == 1 and len(b.caches.operators) == 0
 
     far = Grid(5.0, 0.0, 0.1, 12, 9)
     op = a.separated_operator(far, g, rtol=1e-6)
-    assert op is not None and len(a.pending) == 1 and len(b.pending) == 0
-    assert len(a.tables) > 1                        # its Chebyshev matrices, in a's cache
+    assert op is not None and len(a.caches.operators) == 2 and len(b.caches.operators) == 0
     back = b.separated_operator(g, far, rtol=1e-6)  # b has not seen (far, g): built anew
-    assert len(b.pending) == 1 and len(a.pending) == 1
-    again = a.separated_operator(g, far, rtol=1e-6)  # a's transposed request: taken out
-    assert len(a.pending) == 0
+    assert len(b.caches.operators) == 1
+    again = a.separated_operator(g, far, rtol=1e-6)  # a's reverse pair: the transposed operator
+    assert len(a.caches.operators) == 2 and a.caches.built == {"fft": 1, "separated": 1}
     p = np.random.default_rng(1).uniform(size=far.shape)
     assert np.allclose(again.apply(p), back.apply(p), rtol=1e-12, atol=0.0)
 
 
-def test_half_space_caches_stay_within_their_bounds():
-    hs = HalfSpace(MAT)
-    hs.pending.max_bytes = 50_000
-    hs.tables.max_bytes = 200_000
+@pytest.mark.parametrize("kind", ["fft", "separated"])
+def test_a_translated_pair_takes_the_operator_over(kind):
+    """The same pair moved by whole cells, in the next solve: the operator is the one kept,
+    its product equal to a fresh operator's for the moved grids (the arrays depend on the
+    relative position only)."""
+    body = CachedBody(HalfSpace(MAT), OperatorCaches())
+    make = (lambda t, s: body.grid_operator(t, s)) if kind == "fft" else \
+        (lambda t, s: body.separated_operator(t, s, rtol=1e-8))
+    g, other = Grid(0.0, 0.0, 0.1, 12, 9), Grid(6.0, 0.7, 0.1, 10, 11)
+    body.caches.start_solve()
+    make(other, g)
+    body.caches.start_solve()
+    dx, dy = 0.1 * 7, -0.1 * 3
+    gm, om = (Grid(q.x0 + dx, q.y0 + dy, q.h, q.nx, q.ny) for q in (g, other))
+    moved = make(om, gm)
+    assert body.caches.kept == {kind: 1} and body.caches.built == {}
+    assert moved.target == om and moved.source == gm
+    fresh = HalfSpace(MAT).grid_operator(om, gm) if kind == "fft" else \
+        HalfSpace(MAT).separated_operator(om, gm, rtol=1e-8)
+    p = np.random.default_rng(2).uniform(size=gm.shape)
+    assert np.allclose(moved.apply(p), fresh.apply(p), rtol=1e-13, atol=0.0)
+
+
+def test_solver_caches_stay_within_their_bounds():
+    body = CachedBody(HalfSpace(MAT), OperatorCaches(table_bytes=200_000, operator_bytes=50_000))
     g = Grid(0.0, 0.0, 0.1, 10, 10)
+    caches = (body.caches.operators, body.caches.tables)
     for i in range(40):
-        hs.separated_operator(Grid(4.0 + 0.3 * i, 0.1 * i, 0.1, 10, 10), g, rtol=1e-6)
-        hs.grid_matrix(Grid(0.1 * i, 0.0, 0.1, 10 + i, 10), g)
-        for cache in (hs.pending, hs.tables):
+        body.separated_operator(Grid(4.0 + 0.3 * i, 0.1 * i, 0.1, 10, 10), g, rtol=1e-6)
+        body.grid_matrix(Grid(0.1 * i, 0.0, 0.1, 10 + i, 10), g)
+        for cache in caches:
             assert cache.nbytes <= cache.max_bytes
             assert cache.nbytes == sum(cache.sizes().values())
-    assert hs.pending.evictions > 0 and hs.tables.evictions > 0
+    assert all(cache.evictions > 0 for cache in caches)
+    assert body.caches.nbytes <= body.caches.max_bytes == 250_000
 
 
 def test_separated_keys_are_values():
@@ -118,13 +146,14 @@ def test_offset_tables_cut_from_the_quadrant_equal_love_values():
     from twoscale.analytic.halfspace import love_rectangle
 
     hs = HalfSpace(MAT)
+    tables = BoundedCache(64e6)   # the quadrant kept between windows (and grown)
     h = 0.05
     rng = np.random.default_rng(3)
     for ox0, oy0, mx, my in [(-5, -7, 11, 15), (3, -20, 4, 9), (-30, 2, 8, 5), (0, 0, 1, 1),
                              *[tuple(int(v) for v in rng.integers(-150, 150, 2)) + tuple(int(v) for v in
                                                                                        rng.integers(1, 120, 2))
                                for _ in range(20)]]:
-        got = hs._window(h, ox0, oy0, mx, my)
+        got = hs._window(h, ox0, oy0, mx, my, tables)
         ox, oy = (ox0 + np.arange(mx)) * h, (oy0 + np.arange(my)) * h
         want = love_rectangle(ox[None, :], oy[:, None], h / 2, h / 2, hs.E_star)
         assert got.shape == want.shape

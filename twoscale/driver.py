@@ -23,6 +23,7 @@ from .control import Loading, check_control
 from .details import Coupling, MacroDetails, MicroDetails, TwoScaleDetails
 from .indenters import Asperity
 from .influence.base import InfluenceProvider
+from .influence.cached import with_caches
 from .laws import law_for
 from .macro import solve_macro
 from .macro.start import MacroStart
@@ -179,6 +180,7 @@ def run_twoscale(provider: InfluenceProvider, asperities: Sequence[Asperity], h:
     _check(asperities, h, loading)
     macro_options, micro_options = run.options.macro, run.options.micro
     check_rtol(micro_options.separated_rtol, "separated_rtol", allow_none=True)
+    provider = with_caches(provider)  # a solver object's caches, or this solve's own
     progress, start = run.progress, run.start
     t0 = time.perf_counter()
     laws = [law_for(a, provider.material) for a in asperities] if run.laws is None else run.laws

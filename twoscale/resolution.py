@@ -40,7 +40,20 @@ CELL_BUDGET = 1_500_000
 
 def _hertz_level(scene: Scene) -> float:
     """Rigid approach d (mm) at which independent Hertz asperities (no interaction)
-    carry the scene's total load: the root of ``sum_k P_H(R_k, d - z_k) = W``."""
+    carry the scene's total load: the root of ``sum_k P_H(R_k, d - z_k) = W``.
+
+    A pure function of the frozen scene's material, tips and load, asked for by the cell
+    size, the memory estimate, the resolution check and the nominal area of one solve:
+    solved once per scene object and kept with it, as a cached property would be."""
+    level = scene.__dict__.get("_hertz_level")
+    if level is None:
+        level = _solve_hertz_level(scene)
+        scene.__dict__["_hertz_level"] = level   # not a field: equality, hash and repr ignore it
+    return level
+
+
+def _solve_hertz_level(scene: Scene) -> float:
+    """:func:`_hertz_level` solved (Brent's method on the load's excess)."""
     from scipy.optimize import brentq
 
     E_star = scene.material.E_star

@@ -128,13 +128,26 @@ class Reuse:
     solve : int
         This solve's number in the solver object's life (1: the first).
     body_kept : bool
-        The body (and the tables it built answering earlier solves) was kept.
+        The body was kept from an earlier solve.
     macro_start : bool
         The macro step started from the previous answer's forces, approach and tilt.
     pressure_start : int
         Tips whose micro step started from the previous answer's pressure.
     kept_bytes : int
-        Bytes the solver object keeps for its next solve (the answer's pressure and tips).
+        Bytes the solver object keeps for its next solve's start (the answer's pressure and
+        tips; its caches are ``cache_bytes``).
+    operators_kept : Mapping
+        Operators between patches (or of a patch on itself) this solve took over from
+        earlier ones, by kind: ``"fft"`` (kernel spectra), ``"separated"`` (low-rank
+        blocks); on a half-space a pair translated by whole cells counts (its operator
+        depends on the pair's relative position only).
+    operators_built : Mapping
+        The same, built by this solve.
+    cache_bytes : int
+        Bytes in the solver object's caches after this solve (offset tables, interpolation
+        matrices, pair operators), at most ``cache_max_bytes``.
+    cache_max_bytes : float
+        Their bound.
     """
 
     solve: int
@@ -142,6 +155,14 @@ class Reuse:
     macro_start: bool
     pressure_start: int
     kept_bytes: int
+    operators_kept: Mapping = field(default_factory=dict)
+    operators_built: Mapping = field(default_factory=dict)
+    cache_bytes: int = 0
+    cache_max_bytes: float = 0.0
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "operators_kept", _read_only(self.operators_kept))
+        object.__setattr__(self, "operators_built", _read_only(self.operators_built))
 
     def __str__(self) -> str:
         if self.solve == 1 and not self.body_kept:
@@ -153,7 +174,13 @@ class Reuse:
             parts.append(f"micro step started from the previous pressure on {self.pressure_start} tips")
         if not self.macro_start and not self.pressure_start:
             parts.append("cold start")
-        return f"solve {self.solve}: " + ", ".join(parts)
+        kept, built = sum(self.operators_kept.values()), sum(self.operators_built.values())
+        if kept or built:
+            parts.append(f"{kept} patch operators kept, {built} built")
+        text = f"solve {self.solve}: " + ", ".join(parts)
+        if self.cache_max_bytes:
+            text += f" (caches {self.cache_bytes / 1e6:.1f} of {self.cache_max_bytes / 1e6:.0f} MB)"
+        return text
 
 
 @dataclass(frozen=True)

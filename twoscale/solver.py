@@ -4,9 +4,15 @@ Load histories, rolling and parameter studies solve many nearly identical contac
 in a row. ``twoscale.solve`` starts each from nothing; a :class:`ContactSolver`, built once
 for a body and options, keeps what stays valid from one solve to the next:
 
-* **the body** (an influence provider) with the tables it builds as it answers (the
-  half-space's Love offset tables and interpolation matrices, bounded by the body; the
-  finite block's corrections): built at the first solve from the scene when not given;
+* **the body** (an influence provider): built at the first solve from the scene when not
+  given (the finite block keeps its corrections);
+* **its caches** (:class:`~twoscale.influence.cached.OperatorCaches`, bounded by
+  ``max_cache_bytes``): the half-space's Love offset tables and interpolation matrices, and
+  the operators between patches (kernel spectra of FFT products, separated low-rank
+  blocks) and of a patch on itself, kept by the pair's relative position: the same scene
+  again, or moved by whole cells (a rolling road's next position), finds them built.
+  The body itself keeps nothing; the solver passes it to the solves seen through these
+  caches (:class:`~twoscale.influence.cached.CachedBody`);
 * **the previous answer** as the next solve's start (:mod:`twoscale.warm_start`): the macro
   step starts from its forces, approach and tilt; the micro step from its pressure around
   each tip, moved with the tip and scaled to the tip's new macro force. The answer does not
@@ -26,6 +32,7 @@ from typing import Any
 import numpy as np
 
 from .influence.base import InfluenceProvider
+from .influence.cached import OPERATOR_CACHE_BYTES, TABLE_CACHE_BYTES, CachedBody, OperatorCaches
 from .options import SolverOptions
 from .results import ContactResult, Reuse
 from .scene import Scene, default_h
@@ -33,6 +40,8 @@ from .warm_start import WarmStart, warm_start
 
 #: Bytes of pressure a solver object keeps from its last solve as the next one's start.
 MAX_START_BYTES = 256e6
+#: Bound of a solver object's caches (offset tables and pair operators), bytes.
+MAX_CACHE_BYTES = TABLE_CACHE_BYTES + OPERATOR_CACHE_BYTES
 
 
 @dataclasses.dataclass(frozen=True)
@@ -60,6 +69,9 @@ class ContactSolver:
         The solver. The reference keeps the body only (it has no warm start).
     max_start_bytes : float, default 256e6
         Bound on the pressure kept from the last solve as the next one's start.
+    max_cache_bytes : float, default 256e6
+        Bound on the caches kept between solves (a quarter for offset tables and
+        interpolation matrices, the rest for operators between patches); 0 keeps none.
 
     Examples
     --------
@@ -70,7 +82,8 @@ class ContactSolver:
     """
 
     def __init__(self, body: InfluenceProvider | None = None, options: SolverOptions | None = None, *,
-                 method: str = "twoscale", max_start_bytes: float = MAX_START_BYTES) -> None:
+                 method: str = "twoscale", max_start_bytes: float = MAX_START_BYTES,
+                 max_cache_bytes: float = MAX_CACHE_BYTES) -> None:
         if options is None:
             options = SolverOptions()
         if not isinstance(options, SolverOptions):
@@ -80,10 +93,13 @@ class ContactSolver:
             raise ValueError(f"method must be 'twoscale' or 'reference', got {method!r}")
         if body is not None and not isinstance(body, InfluenceProvider):
             raise ValueError(f"body must be an influence provider, got {type(body).__name__}")
-        if not max_start_bytes >= 0:
-            raise ValueError(f"max_start_bytes must be >= 0, got {max_start_bytes!r}")
+        for name, value in (("max_start_bytes", max_start_bytes), ("max_cache_bytes", max_cache_bytes)):
+            if isinstance(value, bool) or not isinstance(value, (int, float)) or not value >= 0:
+                raise ValueError(f"{name} must be a number >= 0 (bytes), got {value!r}")
         self.options, self.method = options, method
         self.max_start_bytes = float(max_start_bytes)
+        share = TABLE_CACHE_BYTES / MAX_CACHE_BYTES
+        self.caches = OperatorCaches(share * max_cache_bytes, (1.0 - share) * max_cache_bytes)
         self._body = body
         self._body_given = body is not None
         self._previous: _Previous | None = None
@@ -100,7 +116,8 @@ class ContactSolver:
         return self._solves
 
     def reset(self) -> None:
-        """Forget the previous answer (the next solve starts cold); the body is kept."""
+        """Forget the previous answer (the next solve starts cold); the body and the caches
+        (valid for any scene on the body) are kept."""
         self._previous = None
 
     def solve(self, problem: Any, *, start: Any = "previous", index: np.ndarray | None = None,
@@ -136,17 +153,22 @@ class ContactSolver:
         keywords = self.options.twoscale_keywords() if self.method == "twoscale" else self.options.reference.keywords()
         if self.method == "twoscale" and ws is not None and scene.history is None:
             keywords["start"] = ws
-        result = solve_once(scene, method=self.method, provider=body, h=h,
-                            memory_limit=res.memory_limit, **keywords)
+        self.caches.start_solve()
+        # h=None when the scene chose it: the solve then works on this very scene object and
+        # finds what choosing h estimated (the Hertz level) already solved
+        result = solve_once(scene, method=self.method, provider=CachedBody(body, self.caches),
+                            h=res.h if scene.history is None else h, memory_limit=res.memory_limit, **keywords)
         self._solves += 1
         if not isinstance(result, ContactResult):  # a load history: its own steps warm-start each other
             return result
         self._remember(scene, h, result)
         micro_started = 0 if ws is None or ws.micro is None else int(np.count_nonzero(
             [ws.micro.pressure.loaded(int(k)) for k in ws.micro.index if k >= 0]))
+        caches = self.caches
         reuse = Reuse(solve=self._solves, body_kept=body_kept,
                       macro_start=ws is not None and ws.macro is not None, pressure_start=micro_started,
-                      kept_bytes=self._kept_bytes())
+                      kept_bytes=self._kept_bytes(), operators_kept=dict(caches.kept),
+                      operators_built=dict(caches.built), cache_bytes=caches.nbytes, cache_max_bytes=caches.max_bytes)
         return dataclasses.replace(result, reuse=reuse)
 
     # ------------------------------------------------------------------ state
@@ -210,4 +232,4 @@ def _unknown_keyword(key: str) -> str:
     return f"unknown keyword {key!r}{hint}"
 
 
-__all__ = ["ContactSolver", "MAX_START_BYTES"]
+__all__ = ["ContactSolver", "MAX_CACHE_BYTES", "MAX_START_BYTES"]

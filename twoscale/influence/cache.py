@@ -1,12 +1,13 @@
 """A bounded, owned cache of precomputed arrays.
 
-Providers keep read-only quantities that recur across a solve (the half-space's Love offset
-tables, Chebyshev interpolation matrices, separated operators waiting for their transposed
-request). Each such cache is a :class:`BoundedCache` held by the object that fills it (the
-provider instance), keyed by values (grid shapes, offsets, ``h``, ``rtol``), and bounded in
-bytes by a running total: an insertion costs O(1) plus the evictions it causes, whatever the
-number of entries (a module-global dict whose size was re-summed at every insertion made a
-200-tip scene quadratic in its patch pairs).
+Read-only quantities recur across the patches of a solve and across the solves of a solver
+object (the half-space's Love offset tables and Chebyshev interpolation matrices, the
+operators between patches). Each such cache is a :class:`BoundedCache` held by the object
+that owns it (a solver's :class:`~twoscale.influence.cached.OperatorCaches`, never the body),
+keyed by values (grid shapes, offsets, ``h``, ``rtol``), and bounded in bytes by a running
+total: an insertion costs O(1) plus the evictions it causes, whatever the number of entries
+(a module-global dict whose size was re-summed at every insertion made a 200-tip scene
+quadratic in its patch pairs).
 """
 from __future__ import annotations
 

@@ -1,6 +1,7 @@
 """The elastic half-space: Boussinesq point compliance, Love cell blocks, FFT products."""
 from __future__ import annotations
 
+import copy
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -11,6 +12,8 @@ from ..grid import Grid
 from ..material import Material
 from .base import GridOperator, InfluenceProvider
 from .cache import BoundedCache
+from .circulant import CirculantInverse
+from .separated import relative_frames
 
 
 def _pairwise(targets: np.ndarray, sources: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -19,13 +22,9 @@ def _pairwise(targets: np.ndarray, sources: np.ndarray) -> tuple[np.ndarray, np.
     return t[:, None, 0] - s[None, :, 0], t[:, None, 1] - s[None, :, 1]
 
 
-#: Offset tables up to this many entries (a 100 x 100 patch's self table: 4e4) are cached.
+#: Offset tables up to this many entries (a 100 x 100 patch's self table: 4e4) are kept in
+#: the caller's ``tables``.
 TABLE_CACHE_ENTRIES = 40_000
-#: Bound of each half-space's cache of offset tables and interpolation matrices, bytes
-#: (about 200 of the largest cached tables).
-TABLE_CACHE_BYTES = 64e6
-#: Bound of each half-space's separated operators waiting for their transposed request, bytes.
-SEPARATED_CACHE_BYTES = 64e6
 #: Largest quadrant of Love values kept per cell size (entries; 16 MB): every offset table
 #: within it is a gather from it instead of new Love evaluations.
 QUADRANT_MAX_ENTRIES = 2_000_000
@@ -65,26 +64,19 @@ class HalfSpace(InfluenceProvider):
     material : Material
         E (MPa) and nu of the body; only ``E* = E / (1 - nu^2)`` matters.
 
-    Attributes
-    ----------
-    tables : BoundedCache
-        This half-space's read-only arrays that recur across patches: Love offset tables
-        (key: ``h`` and the offset window) and Chebyshev interpolation matrices (key: the
-        grid's box, node count, cells and ``h``); at most ``TABLE_CACHE_BYTES``.
-    pending : BoundedCache
-        Separated operators waiting for their transposed request (key: ``target``,
-        ``source``, ``rtol``), taken out when it comes; at most ``SEPARATED_CACHE_BYTES``.
-        Neither is part of the provider's value (equality, hash, repr).
+    The half-space keeps nothing: its value is its material. The read-only arrays that
+    recur across patches (Love offset tables, key ``h`` and the offset window; Chebyshev
+    interpolation matrices) go to a ``tables`` cache the caller owns and passes
+    (:meth:`grid_matrix`, :meth:`grid_operator`, :meth:`separated_operator`): a solver
+    object's (:class:`~twoscale.influence.cached.CachedBody`), bounded there. Its cell
+    kernel depends only on lattice offsets (``translation_invariant``): an operator between
+    two grids serves every pair of grids translated from them (``operator.moved``).
     """
 
     material: Material
     kind: str = field(default="halfspace", init=False)
     cheap_grid_matrix = True    # a strided copy of a cached Love table (not a field)
-    tables: BoundedCache = field(default_factory=lambda: BoundedCache(TABLE_CACHE_BYTES, name="halfspace tables"),
-                                 init=False, repr=False, compare=False)
-    pending: BoundedCache = field(default_factory=lambda: BoundedCache(SEPARATED_CACHE_BYTES,
-                                                                       name="halfspace separated"),
-                                  init=False, repr=False, compare=False)
+    translation_invariant = True
 
     @property
     def E_star(self) -> float:
@@ -101,47 +93,51 @@ class HalfSpace(InfluenceProvider):
     # The half-space kernel depends only on the lattice offset between cells, so
     # dense blocks and fast products on aligned grids are built from one table of
     # Love values over the offsets that occur.
-    def _offset_table(self, target: Grid, source: Grid):
+    def _offset_table(self, target: Grid, source: Grid, tables: BoundedCache | None):
         ti, tj = target.offset_in(source)
         ox0, oy0 = ti - (source.nx - 1), tj - (source.ny - 1)
         mx, my = target.nx + source.nx - 1, target.ny + source.ny - 1
         h = float(source.h)
-        if mx * my > TABLE_CACHE_ENTRIES:
-            return self._window(h, ox0, oy0, mx, my), ox0, oy0
+        if mx * my > TABLE_CACHE_ENTRIES or tables is None:
+            return self._window(h, ox0, oy0, mx, my, tables), ox0, oy0
         # patch-sized tables recur (every patch of the same shape has the same self table):
-        # kept, read-only, in this half-space's bounded cache (``h`` exact: a table is only
+        # kept, read-only, in the caller's bounded cache (``h`` exact: a table is only
         # reused for the very cell size it was made for)
         key = ("love", h, ox0, oy0, mx, my)
-        table = self.tables.get(key)
+        table = tables.get(key)
         if table is None:
-            table = self.tables.put(key, self._window(h, ox0, oy0, mx, my), 8 * mx * my)
+            table = tables.put(key, self._window(h, ox0, oy0, mx, my, tables), 8 * mx * my)
         return table, ox0, oy0
 
-    def _window(self, h: float, ox0: int, oy0: int, mx: int, my: int) -> np.ndarray:
+    def _window(self, h: float, ox0: int, oy0: int, mx: int, my: int,
+                tables: BoundedCache | None) -> np.ndarray:
         """Love's kernel on the offsets ``(oy0 + m, ox0 + n) h`` (read-only): a gather from
-        the quadrant of offsets ``(|oy|, |ox|)`` (the kernel is even in both), which this
-        half-space keeps per ``h`` in ``tables`` and grows when a window reaches beyond it;
-        computed directly when the quadrant would exceed ``QUADRANT_MAX_ENTRIES``. Near
-        pairs of patches each have their own window: the gather costs a copy where new
-        Love values cost ~50x more."""
+        the quadrant of offsets ``(|oy|, |ox|)`` (the kernel is even in both), kept per ``h``
+        in the caller's ``tables`` (without them, a quadrant for this window only) and grown
+        when a window reaches beyond it; computed directly when the quadrant would exceed
+        ``QUADRANT_MAX_ENTRIES``. Near pairs of patches each have their own
+        window: the gather costs a copy where new Love values cost ~50x more."""
         ax = max(abs(ox0), abs(ox0 + mx - 1)) + 1
         ay = max(abs(oy0), abs(oy0 + my - 1)) + 1
         key = ("love-quadrant", h)
-        quadrant = self.tables.get(key)
+        quadrant = None if tables is None else tables.get(key)
         if quadrant is None or quadrant.shape[0] < ay or quadrant.shape[1] < ax:
             if quadrant is not None:
                 ax = max(ax, min(int(QUADRANT_GROWTH * quadrant.shape[1]), QUADRANT_MAX_ENTRIES // ay))
                 ay = max(ay, min(int(QUADRANT_GROWTH * quadrant.shape[0]), QUADRANT_MAX_ENTRIES // ax))
             if ax * ay > QUADRANT_MAX_ENTRIES:
                 return _love_table(self.E_star, h, ox0, oy0, mx, my)
-            quadrant = self.tables.put(key, _love_table(self.E_star, h, 0, 0, ax, ay), 8 * ax * ay)
+            quadrant = _love_table(self.E_star, h, 0, 0, ax, ay)
+            if tables is not None:
+                tables.put(key, quadrant, 8 * ax * ay)
         table = _folded(_folded(quadrant, oy0, my, axis=0), ox0, mx, axis=1)
         table.setflags(write=False)
         return table
 
-    def grid_matrix(self, target: Grid, source: Grid | None = None) -> np.ndarray:
+    def grid_matrix(self, target: Grid, source: Grid | None = None, *,
+                    tables: BoundedCache | None = None) -> np.ndarray:
         source = target if source is None else source
-        table, _, _ = self._offset_table(target, source)
+        table, _, _ = self._offset_table(target, source, tables)
         # Entry (target (jt, it), source (js, is)) is table[jt - js + nys - 1, it - is + nxs - 1].
         # In the flipped table F that is F[(nyt-1-jt) + js, (nxt-1-it) + is]: a sliding
         # window of F read backwards, so the block-Toeplitz matrix is one strided copy.
@@ -149,29 +145,31 @@ class HalfSpace(InfluenceProvider):
         windows = np.lib.stride_tricks.sliding_window_view(flipped, (source.ny, source.nx))
         return np.ascontiguousarray(windows[::-1, ::-1]).reshape(target.size, source.size)
 
-    def grid_operator(self, target: Grid, source: Grid | None = None) -> "ConvolutionOperator":
+    def grid_operator(self, target: Grid, source: Grid | None = None, *,
+                      tables: BoundedCache | None = None) -> "ConvolutionOperator":
         source = target if source is None else source
-        table, _, _ = self._offset_table(target, source)
+        table, _, _ = self._offset_table(target, source, tables)
         return ConvolutionOperator(target, source, table)
 
-    def separated_operator(self, target: Grid, source: Grid, *, rtol: float = 1e-8):
+    def separated_operator(self, target: Grid, source: Grid, *, rtol: float = 1e-8,
+                           tables: BoundedCache | None = None):
         """Chebyshev low-rank block (:class:`~.separated.SeparatedOperator`) for a
         well-separated pair, with Love's cell kernel by its multipole expansion
         (:func:`~twoscale.analytic.halfspace.love_far_field`); ``None`` when the pair is
-        too close for ``rtol``."""
+        too close for ``rtol``. Built in the frame of the source's lattice (the source's
+        first cell at the origin, the target at its integer offset), so that its arrays
+        depend only on the pair's relative position: the same arrays serve every
+        translated pair (:meth:`~.separated.SeparatedOperator.moved`)."""
         from .separated import SeparatedOperator, plan
 
-        # the micro step asks for (k, l) and then (l, k): the second is the first transposed
-        back = self.pending.pop((source, target, rtol))
-        if back is not None:
-            return back.transposed()
-        sep = plan(target, source, rtol)
+        rel_target, rel_source = relative_frames(target, source)
+        sep = plan(rel_target, rel_source, rtol)
         if sep is None:
             return None
         E_star, h = self.E_star, float(source.h)
-        op = SeparatedOperator(target, source, lambda dx, dy: love_far_field(dx, dy, h, E_star, sep.order), sep,
-                               cache=self.tables)
-        return self.pending.put((target, source, rtol), op, op.nbytes)
+        op = SeparatedOperator(rel_target, rel_source, lambda dx, dy: love_far_field(dx, dy, h, E_star, sep.order),
+                               sep, cache=tables)
+        return op.moved(target, source)
 
     def point_operator(self, targets, sources, *, exclude=None, rtol: float = 1e-6):
         """As :meth:`InfluenceProvider.point_operator`; above ``FAST_ENTRIES`` pairs an
@@ -199,6 +197,9 @@ class ConvolutionOperator(GridOperator):
         my, mx = table.shape
         self._shape = (sfft.next_fast_len(my, real=True), sfft.next_fast_len(mx, real=True))
         self._khat = sfft.rfft2(table, s=self._shape)
+        # transforms derived from the kernel (the preconditioner's, the float32 spectrum),
+        # made on first use and shared with the moved copies of this operator
+        self._derived: dict = {}
 
     def apply(self, p: np.ndarray) -> np.ndarray:
         p = np.asarray(p, dtype=float)
@@ -261,6 +262,13 @@ class ConvolutionOperator(GridOperator):
         one's kernel spectrum."""
         return _TransposedConvolution(self)
 
+    def moved(self, target: Grid, source: Grid) -> "ConvolutionOperator":
+        """This operator for ``target`` and ``source`` translated together by whole cells
+        from its own pair (the same kernel spectrum: it depends on the offsets only)."""
+        out = copy.copy(self)
+        out.target, out.source = target, source
+        return out
+
     def finish(self, a: np.ndarray) -> np.ndarray:
         """Target displacement from a (sum of) :meth:`multiply` result(s); ``a`` is overwritten."""
         my, mx = self._shape
@@ -284,7 +292,10 @@ class _SingleConvolution(GridOperator):
     def __init__(self, parent: "ConvolutionOperator"):
         self.target, self.source = parent.target, parent.source
         self._shape = parent.fft_shape
-        self._khat = parent._khat.astype(np.complex64)
+        derived = parent._derived
+        if "complex64" not in derived:
+            derived["complex64"] = parent._khat.astype(np.complex64)
+        self._khat = derived["complex64"]
         self._parent = parent
 
     @property
@@ -301,47 +312,6 @@ class _SingleConvolution(GridOperator):
         return CirculantInverse.of(self._parent, self._parent._khat, np.float32)
 
 
-class CirculantInverse(GridOperator):
-    """Approximate inverse of a square zero-padded convolution: the kernel wrapped onto the
-    grid's own torus (offsets ``-(n // 2) .. (n - 1) // 2`` per axis, no padding), inverted
-    in Fourier space (the kernel is even, so its spectrum is real). Restricted to the
-    loaded cells of a contact it is the classical FFT preconditioner of the constrained
-    conjugate gradient (Vollebregt 2014), which keeps the iteration count from growing with
-    the cells across a contact. One application costs an unpadded FFT pair, about a quarter
-    of a product (the padded circulant's inverse was measured: no fewer iterations, 70
-    against 68 on 300 merged tips)."""
-
-    def __init__(self, grid: Grid, multiplier: np.ndarray):
-        self.target = self.source = grid
-        self._m = multiplier
-
-    @classmethod
-    def of(cls, op: GridOperator, khat: np.ndarray, dtype) -> "CirculantInverse | None":
-        """For ``op`` (source == target, half-spectrum ``khat`` of its padded table, whose
-        entry 0 is the offset ``-(n - 1)``), or None when the wrapped kernel's spectrum is
-        not positive."""
-        if op.source != op.target:
-            return None
-        g = op.source
-        table = sfft.irfft2(khat, s=op.fft_shape)
-        jy, jx = np.arange(g.ny), np.arange(g.nx)
-        jy = np.where(jy <= (g.ny - 1) // 2, jy, jy - g.ny) + g.ny - 1
-        jx = np.where(jx <= (g.nx - 1) // 2, jx, jx - g.nx) + g.nx - 1
-        spectrum = sfft.rfft2(table[np.ix_(jy, jx)]).real
-        if not float(spectrum.min()) > 0.0:
-            return None
-        return cls(g, (1.0 / spectrum).astype(dtype))
-
-    def apply(self, v: np.ndarray) -> np.ndarray:
-        a = sfft.rfft2(np.asarray(v, dtype=self._m.dtype))
-        a *= self._m
-        return sfft.irfft2(a, s=self.source.shape).astype(np.float64, copy=False)
-
-    @property
-    def nbytes(self) -> int:
-        return self._m.nbytes
-
-
 class _TransposedConvolution(ConvolutionOperator):
     """The transpose of a :class:`ConvolutionOperator`, holding only a reference to its
     kernel spectrum. The reverse pair's offset table is the parent's reversed along both
@@ -352,6 +322,7 @@ class _TransposedConvolution(ConvolutionOperator):
     def __init__(self, parent: ConvolutionOperator):
         self.target, self.source = parent.source, parent.target
         self._shape = parent.fft_shape
+        self._derived = {}
         self._parent = parent._khat
         ny, nx = self._shape
         my, mx = parent.target.ny + parent.source.ny - 1, parent.target.nx + parent.source.nx - 1

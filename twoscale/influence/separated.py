@@ -29,6 +29,7 @@ range of separations, sizes and tolerances.
 """
 from __future__ import annotations
 
+import copy
 import math
 from dataclasses import dataclass
 
@@ -82,6 +83,19 @@ def box_gap(target: Grid, source: Grid) -> float:
     gx = max(sx0 - tx1, tx0 - sx1, 0.0)
     gy = max(sy0 - ty1, ty0 - sy1, 0.0)
     return math.hypot(gx, gy)
+
+
+def relative_frames(target: Grid, source: Grid) -> tuple[Grid, Grid]:
+    """The pair in the frame of the source's lattice: the source's first cell at the origin,
+    the target at its integer cell offset (so that what is built from them depends only on
+    the pair's relative position, to the last bit); grids off each other's lattice stay
+    as they are."""
+    try:
+        ti, tj = target.offset_in(source)
+    except ValueError:
+        return target, source
+    h = float(source.h)
+    return Grid(ti * h, tj * h, h, target.nx, target.ny), Grid(0.0, 0.0, h, source.nx, source.ny)
 
 
 @dataclass(frozen=True)
@@ -201,6 +215,14 @@ class SeparatedOperator(GridOperator):
         out.plan = SeparationPlan(q=(qsx, qsy, qtx, qty), order=self.plan.order)
         out._Stx, out._Sty, out._Ssx, out._Ssy = self._Ssx, self._Ssy, self._Stx, self._Sty
         out._K = self._K.T
+        return out
+
+    def moved(self, target: Grid, source: Grid) -> "SeparatedOperator":
+        """This operator for ``target`` and ``source`` translated together from its own pair
+        (the arrays depend only on the cells' positions within each box and on the nodes'
+        differences: shared, not copied)."""
+        out = copy.copy(self)
+        out.target, out.source = target, source
         return out
 
     @property

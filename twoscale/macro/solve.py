@@ -105,9 +105,10 @@ def solve_macro(provider: InfluenceProvider, tips, z, laws, loading: Loading,
         T = _matrix_free_interaction(provider, tips, self_compliance, operator_rtol)
     t1 = time.perf_counter()
     system = _build_system(T, tips, z, stack, penetration, total_load, tilt, pivot)
-    x0 = _initial_guess(system, z, stack, penetration, total_load, tilt)
-    if start is not None:
-        x0 = start.unknowns(len(z), x0[len(z):])
+    if start is None:
+        x0 = _initial_guess(system, z, stack, penetration, total_load, tilt)
+    else:  # the cold start's forces are not needed, nor its approach when the start has one
+        x0 = start.unknowns(len(z), _rigid_start(z, stack, total_load, tilt, start))
     x, converged, message, steps, residuals, safe_path = _newton_then_safe(system, x0, tol=tol, max_iter=max_iter)
     t2 = time.perf_counter()
     P, g = system.split(x)
@@ -259,6 +260,15 @@ def _initial_guess(system: MacroSystem, z, stack: LawStack, penetration, total_l
     P0 = np.zeros(n)
     extra = [d0, 0.0, 0.0] if tilt else [d0]
     return np.concatenate([P0, extra])
+
+
+def _rigid_start(z, stack: LawStack, total_load, tilt, start: MacroStart) -> np.ndarray:
+    """The cold start's rigid-body unknowns (:func:`_initial_guess`) that a warm ``start``
+    does not replace: the approach ``d0`` only when the start has none, zero tilts."""
+    if total_load is None:
+        return np.zeros(0)
+    d0 = start.penetration if start.penetration is not None else _independent_approach(z, stack, float(total_load))
+    return np.array([d0, 0.0, 0.0] if tilt else [d0], dtype=float)
 
 
 def _secant_forces(system: MacroSystem, stack: LawStack) -> np.ndarray:

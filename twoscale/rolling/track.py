@@ -16,6 +16,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import SceneError
+from ..influence.cached import with_caches
 from ..scene import Scene
 from .road import Road, check_contact
 from .spec import RollingSpec
@@ -72,7 +73,8 @@ def prepare(scene: Scene, *, h: float | None = None, provider=None) -> Track:
     else:
         cell = float(h) if h is not None else default_h(dataclasses.replace(scene, rolling=None))
         shifts = spec.shifts()
-    provider = provider if provider is not None else scene.provider()
+    # the body through caches kept for the whole run (tables, operators between patches)
+    provider = with_caches(provider if provider is not None else scene.provider())
     window = face_window(scene, spec, provider, cell)
     road = Road(scene, window)
     control = "penetration" if scene.penetration is not None else "load"

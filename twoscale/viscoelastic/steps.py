@@ -19,6 +19,7 @@ import numpy as np
 
 from ..grid import Grid
 from ..indenters import Asperity, Surface
+from ..influence.cached import with_caches
 from ..results import ContactResult, summarise
 from ..warm_start import warm_start
 
@@ -138,7 +139,8 @@ class TwoScaleStep:
 
     def __init__(self, provider, asperities, grid: Grid, *, h: float, kind: str, tilt: bool, pivot,
                  options=None):
-        self.provider, self.asperities, self.grid, self.h = provider, tuple(asperities), grid, h
+        # the body through caches kept for every step (tables, operators between patches)
+        self.provider, self.asperities, self.grid, self.h = with_caches(provider), tuple(asperities), grid, h
         self.kind, self.tilt, self.pivot = kind, tilt, pivot
         self.options = dict(options or {})
         self._reference = None
