@@ -156,15 +156,26 @@ def _newton_then_safe(system: MacroSystem, x0: np.ndarray, *, tol: float, max_it
         safe = minimise_then_polish(system, starts, tol=tol, max_iter=max_iter)
     else:
         safe = solve_dual(system, x0, tol=tol, max_iter=max_iter)
-    r = system.residual(safe.x)
-    P = safe.x[: system.n]
+    x = safe.x
+    if not safe.converged and _residual_norm(system, fast.x) < _residual_norm(system, x):
+        # a failed safe path can end far from any solution (a dual ascent that cannot balance
+        # the moments with point forces sent the approach to 1e7 mm and the micro step sized
+        # a patch as the whole sphere): the micro step starts from the better iterate
+        x = fast.x
+    r = system.residual(x)
+    P = x[: system.n]
     norm = float(np.linalg.norm(r))
     final = norm / max(float(np.linalg.norm(P)) or W, norm) if norm > 0 else 0.0
     history = fast.residuals + (final,)
     why = ("Newton converged to an unstable equilibrium (active compliance indefinite: merged "
            "contacts)" if fast.converged else f"Newton stalled ({fast.message})")
     message = f"{why}; {safe.message}"
-    return safe.x, safe.converged, message, fast.iterations + safe.newton_steps, history, True
+    return x, safe.converged, message, fast.iterations + safe.newton_steps, history, True
+
+
+def _residual_norm(system: MacroSystem, x: np.ndarray) -> float:
+    r = system.residual(x)
+    return float(np.linalg.norm(r)) if np.all(np.isfinite(r)) else np.inf
 
 
 def _check_scene(tips, z, laws) -> tuple[np.ndarray, np.ndarray, LawStack]:
