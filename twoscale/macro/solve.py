@@ -4,6 +4,7 @@ from __future__ import annotations
 import time
 
 import numpy as np
+from scipy.optimize import brentq
 from scipy.spatial import cKDTree
 
 from ..control import check_control
@@ -303,7 +304,7 @@ def _secant_forces(system: MacroSystem, stack: LawStack) -> np.ndarray:
 
 
 def _independent_approach(z: np.ndarray, stack: LawStack, W: float) -> float:
-    """``d`` with ``sum_k f_k(d - z_k) = W`` (no interaction), by bracketing and bisection.
+    """``d`` with ``sum_k f_k(d - z_k) = W`` (no interaction), by bracketing and Brent's method.
 
     The bracket grows from a small step by half each time, so the laws are asked only for
     tips within about 1.5 times the final approach: a tabulated law built on first use
@@ -315,12 +316,7 @@ def _independent_approach(z: np.ndarray, stack: LawStack, W: float) -> float:
         lo, hi = hi, hi + 0.5 * (hi - float(np.min(z)))
         if not np.isfinite(hi):
             raise ValueError(f"the laws cannot carry total_load={W!r} N")
-    for _ in range(200):
-        mid = 0.5 * (lo + hi)
-        if mid <= lo or mid >= hi:
-            break
-        if np.sum(stack.force(mid - z)) < W:
-            lo = mid
-        else:
-            hi = mid
-    return hi
+    # Brent's method on the bracket: 8-12 law evaluations where bisection to the last bit
+    # took about 50 (40 % of a one-sphere solve's CPU time went to this start)
+    return float(brentq(lambda d: float(np.sum(stack.force(d - z))) - W, lo, hi, xtol=1e-300,
+                        rtol=4.0 * np.finfo(float).eps))
