@@ -66,6 +66,9 @@ def _figures(res) -> dict:
     out = {"converged": bool(res.converged), "message": res.message, "forces": forces.tolist(),
            "total_load": float(res.total_load), "penetration": float(res.penetration),
            "cells": int(res.n_cells), "area": float(np.sum(res.asperities.contact_areas))}
+    if res.method == "reference":  # the default route of the smallest scenes: their full grid's CG
+        out["choice"] = "full-grid"
+        out["reason"] = res.message.split(";")[0]
     if micro is not None:
         out["choice"] = micro.choice.iteration
         out["reason"] = micro.choice.reason

@@ -30,3 +30,37 @@ def test_the_load_control_start_carries_the_load_in_few_law_evaluations(law, z):
     carried = float(np.sum(LawStack([law] * len(z)).force(d - z)))
     assert carried == pytest.approx(W, rel=1e-12)
     assert _Counting.calls <= 35
+
+
+def test_the_smallest_scenes_take_their_full_grid_and_say_so():
+    # 12 merged spheres under penetration control on a full grid of 2,491 cells: the macro
+    # step's safe path alone (0.11 s of CPU) cost three times the whole full-grid CG
+    import twoscale
+    from twoscale.micro.policy import FULL_GRID_MAX_CELLS
+    from twoscale.reference.on_scene import reference_grid
+    from twoscale.scene import default_h
+    from twoscale.scenespace import build, draw
+
+    scene = build(draw(152, 0))
+    h = default_h(scene) if scene.h is None else scene.h
+    assert reference_grid(scene, h).size <= FULL_GRID_MAX_CELLS
+    res = twoscale.solve(scene)
+    ref = twoscale.solve(scene, method="reference")
+    assert res.method == "reference" and res.converged
+    assert res.message.startswith("default route: the full grid has 2,491 cells")
+    assert np.array_equal(res.asperities.forces, ref.asperities.forces)
+    # any option asks for the two-scale solver itself
+    res = twoscale.solve(scene, tol=1e-6)
+    assert res.method == "twoscale" and res.details.micro.attempts[-1].converged
+    f, r = np.asarray(res.asperities.forces), np.asarray(ref.asperities.forces)
+    assert np.max(np.abs(f - r)) <= 1e-3 * np.max(r)
+
+
+def test_a_larger_full_grid_keeps_the_two_scale_route():
+    # two spheres 1.5 contact diameters apart on a full grid of 8,736 cells: the two-scale
+    # solve ran at 0.9x the full grid's
+    import twoscale
+    from twoscale.scenespace import build, draw
+
+    res = twoscale.solve(build(draw(199, 0)))
+    assert res.method == "twoscale" and res.converged
