@@ -70,3 +70,30 @@ def test_near_touching_spheres_by_the_thousand():
     res, ref = _solve_both(64)
     assert res.details.micro.choice.iteration == "union-cg"
     _check_forces(res, ref)
+
+
+def test_a_failed_macro_step_hands_the_micro_step_its_best_iterate():
+    # 4 tilted spheres of R 9.3 mm, pivot off the centroid: point forces cannot balance the
+    # moments, the safe path's dual ascent stalled with the approach at 1e7 mm, and the
+    # micro step sized one patch as the whole sphere (18.8 M cells: killed after 90 s)
+    from twoscale.laws import law_for
+    from twoscale.macro import solve_macro
+
+    scene = build(draw(52, 0))
+    provider = scene.provider()
+    tips = np.array([[a.x, a.y] for a in scene.asperities])
+    z = np.array([a.z for a in scene.asperities])
+    laws = [law_for(a, provider.material) for a in scene.asperities]
+    macro = solve_macro(provider, tips, z, laws, total_load=scene.total_load, tilt=True, pivot=scene.pivot)
+    assert not macro.converged and macro.safe_path
+    radii = np.array([a.R for a in scene.asperities])
+    assert np.all(np.isfinite(macro.local_penetrations))
+    assert np.all(macro.local_penetrations < 0.1 * radii)  # a cap, not a buried sphere
+    assert abs(macro.penetration) < 1.0 and max(abs(t) for t in macro.tilt) < 1.0
+
+
+@pytest.mark.slow
+def test_tilted_spheres_the_point_forces_cannot_balance():
+    # the same scene solved: the union CG balances the moments on the real contacts
+    res, ref = _solve_both(52)
+    _check_forces(res, ref)

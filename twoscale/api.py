@@ -7,6 +7,9 @@ a :class:`~twoscale.surface.RawMap` of heights and spacing) with the material an
 and returns a :class:`~twoscale.results.ContactResult`. ``method`` picks the solver:
 
 * ``"twoscale"`` (default): the two-scale method (:func:`twoscale.driver.solve_twoscale`);
+  called without options on a scene of a few tips whose full grid has at most
+  :data:`twoscale.micro.policy.FULL_GRID_MAX_CELLS` cells, that grid's one CG instead (the
+  cheapest solve there; ``result.method == "reference"`` and ``result.message`` says why);
 * ``"reference"``: the full-grid reference on a grid covering every place contact can
   reach (:func:`twoscale.reference.on_scene.solve_reference_scene`), dense or CG by size; the result says which
   (``result.method == "reference"``, ``result.solver`` ``"dense"`` or ``"cg"``);
@@ -293,7 +296,14 @@ def solve(problem: Any, *, method: str | Callable[..., ContactResult] = "twoscal
 
     if callable(method):  # the body and the nominal area recorded in the result, whatever the method
         return with_setting(method(provider, scene, h=h, **options), scene, provider)
-    if method == "twoscale":
+    # any option asks for the two-scale solver itself (the command line passes its progress display)
+    route = _full_grid_route(scene, h) if method == "twoscale" and not options else None
+    if route is not None:  # the smallest scenes: their full grid's one CG, said in the result
+        from .reference.on_scene import solve_reference_scene
+
+        result = solve_reference_scene(scene, provider, h, solver="auto")
+        result = dataclasses.replace(result, message=f"default route: {route}; {result.message}".rstrip("; "))
+    elif method == "twoscale":
         from .driver import solve_twoscale
 
         result = solve_twoscale(provider, scene.asperities, h=h, penetration=scene.penetration,
@@ -313,6 +323,18 @@ def solve(problem: Any, *, method: str | Callable[..., ContactResult] = "twoscal
     result = with_setting(result, scene, provider)
     # what came from the on-disk caches (block corrections, surface laws), for result.json
     return dataclasses.replace(result, caches=usage_since(caches_before, solve_caches(provider, scene)))
+
+
+def _full_grid_route(scene: Scene, h: float) -> str | None:
+    """Why a default two-scale solve of ``scene`` runs as its full grid's one CG
+    (:func:`twoscale.micro.policy.full_grid_route`), or None (tips only, a few of them)."""
+    from .micro.policy import FULL_GRID_MAX_TIPS, full_grid_route
+
+    if scene.surface is not None or len(scene.asperities) > FULL_GRID_MAX_TIPS:
+        return None
+    from .reference.on_scene import reference_grid
+
+    return full_grid_route(int(reference_grid(scene, h).size))
 
 
 def solve_scene(scene: Scene, *, method: str = "twoscale", provider_options: Mapping | None = None,

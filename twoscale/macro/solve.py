@@ -4,6 +4,7 @@ from __future__ import annotations
 import time
 
 import numpy as np
+from scipy.optimize import brentq
 from scipy.spatial import cKDTree
 
 from ..control import Loading, check_control
@@ -156,15 +157,26 @@ def _newton_then_safe(system: MacroSystem, x0: np.ndarray, *, tol: float, max_it
         safe = minimise_then_polish(system, starts, tol=tol, max_iter=max_iter)
     else:
         safe = solve_dual(system, x0, tol=tol, max_iter=max_iter)
-    r = system.residual(safe.x)
-    P = safe.x[: system.n]
+    x = safe.x
+    if not safe.converged and _residual_norm(system, fast.x) < _residual_norm(system, x):
+        # a failed safe path can end far from any solution (a dual ascent that cannot balance
+        # the moments with point forces sent the approach to 1e7 mm and the micro step sized
+        # a patch as the whole sphere): the micro step starts from the better iterate
+        x = fast.x
+    r = system.residual(x)
+    P = x[: system.n]
     norm = float(np.linalg.norm(r))
     final = norm / max(float(np.linalg.norm(P)) or W, norm) if norm > 0 else 0.0
     history = fast.residuals + (final,)
     why = ("Newton converged to an unstable equilibrium (active compliance indefinite: merged "
            "contacts)" if fast.converged else f"Newton stalled ({fast.message})")
     message = f"{why}; {safe.message}"
-    return safe.x, safe.converged, message, fast.iterations + safe.newton_steps, history, True
+    return x, safe.converged, message, fast.iterations + safe.newton_steps, history, True
+
+
+def _residual_norm(system: MacroSystem, x: np.ndarray) -> float:
+    r = system.residual(x)
+    return float(np.linalg.norm(r)) if np.all(np.isfinite(r)) else np.inf
 
 
 def _check_scene(tips, z, laws) -> tuple[np.ndarray, np.ndarray, LawStack]:
@@ -301,7 +313,7 @@ def _secant_forces(system: MacroSystem, stack: LawStack) -> np.ndarray:
 
 
 def _independent_approach(z: np.ndarray, stack: LawStack, W: float) -> float:
-    """``d`` with ``sum_k f_k(d - z_k) = W`` (no interaction), by bracketing and bisection.
+    """``d`` with ``sum_k f_k(d - z_k) = W`` (no interaction), by bracketing and Brent's method.
 
     The bracket grows from a small step by half each time, so the laws are asked only for
     tips within about 1.5 times the final approach: a tabulated law built on first use
@@ -313,12 +325,7 @@ def _independent_approach(z: np.ndarray, stack: LawStack, W: float) -> float:
         lo, hi = hi, hi + 0.5 * (hi - float(np.min(z)))
         if not np.isfinite(hi):
             raise ValueError(f"the laws cannot carry total_load={W!r} N")
-    for _ in range(200):
-        mid = 0.5 * (lo + hi)
-        if mid <= lo or mid >= hi:
-            break
-        if np.sum(stack.force(mid - z)) < W:
-            lo = mid
-        else:
-            hi = mid
-    return hi
+    # Brent's method on the bracket: 8-12 law evaluations where bisection to the last bit
+    # took about 50 (40 % of a one-sphere solve's CPU time went to this start)
+    return float(brentq(lambda d: float(np.sum(stack.force(d - z))) - W, lo, hi, xtol=1e-300,
+                        rtol=4.0 * np.finfo(float).eps))

@@ -52,6 +52,28 @@ EXACT_MAX_PATCHES = MODEL.exact_max_patches
 AUTO_FAR_TOL = 0.3
 
 
+#: A default solve whose full grid (the reference solver's, :func:`twoscale.reference.on_scene.
+#: reference_grid`) has at most this many cells is that grid's one constrained CG: the
+#: macro step, the patches and the policy then cost as much as the whole solve. Measured
+#: on the scene-space sweep (CPU s, fresh processes, two-scale against the full grid):
+#: grids of 2,500-3,100 cells 0.032-0.040 against 0.032-0.036 (1-2 tips, 0.9-1.2x) and 12
+#: merged spheres 0.17 against 0.03 (the macro step's safe path alone 0.11 s); from 8,700
+#: cells the two-scale solve ran at 0.5-1.1x (median 0.7).
+FULL_GRID_MAX_CELLS = 5_000
+#: Scenes with more tips than this are not tried for that route (their full grid is
+#: larger, and sizing it costs a loop over the tips).
+FULL_GRID_MAX_TIPS = 64
+
+
+def full_grid_route(cells: int) -> str | None:
+    """The reason to solve a scene whose full grid has ``cells`` cells as one CG over it
+    (the default two-scale route's honest choice on the smallest scenes), or None."""
+    if cells > FULL_GRID_MAX_CELLS:
+        return None
+    return (f"the full grid has {cells:,} cells (at most {FULL_GRID_MAX_CELLS:,}): one constrained CG "
+            "over it is the cheapest solve, the two-scale macro step alone costs as much")
+
+
 @dataclass(frozen=True)
 class Choice:
     """What the policy chose.
