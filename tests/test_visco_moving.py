@@ -14,7 +14,7 @@ from twoscale.material import Material
 from twoscale.reference import solve_reference
 from twoscale.viscoelastic.closed_forms import low_speed_friction
 from twoscale.viscoelastic.dissipation import step_integrals
-from twoscale.viscoelastic.moving import MovingOptions, solve_moving, sweep_grid
+from twoscale.viscoelastic.moving import Motion, MovingOptions, solve_moving, sweep_grid
 from twoscale.viscoelastic.moving_indenter import MovingAsperities, MovingHeights
 
 _trapezoid = getattr(np, "trapezoid", None) or np.trapz  # numpy < 2 has only trapz
@@ -26,8 +26,9 @@ THREE = (Asperity(0.0, 0.0, 0.0, 8.0), Asperity(0.9, 2.2, 0.04, 12.0), Asperity(
 
 def _run(material, tips, shifts, h, *, speed=1.0, method="reference", **control):
     grid = sweep_grid(material, tips, shifts, h, **control)
-    return solve_moving(material, HalfSpace(material.relaxed()), MovingAsperities(tips), shifts, speed=speed,
-                        grid=grid, options=MovingOptions(method=method, keep_results=True), **control), grid
+    return solve_moving(material, HalfSpace(material.relaxed()), MovingAsperities(tips),
+                        Motion(shifts, speed, grid, **control),
+                        options=MovingOptions(method=method, keep_results=True)), grid
 
 
 @pytest.mark.parametrize("factor, modulus", [(1e-7, "relaxed"), (1e7, "glassy")])
@@ -258,8 +259,25 @@ def test_bad_input_names_the_value(change, match):
     args = {"shifts": [0.0, 0.1], "speed": 1.0, "penetration": D}
     args.update(change)
     grid = sweep_grid(m, SPHERE, [0.0, 0.1], 0.1, penetration=D)
+    shifts = args.pop("shifts")
     with pytest.raises(ValueError, match=match):
-        solve_moving(m, HalfSpace(m.relaxed()), MovingAsperities(SPHERE), args.pop("shifts"), grid=grid, **args)
+        solve_moving(m, HalfSpace(m.relaxed()), MovingAsperities(SPHERE), Motion(shifts, grid=grid, **args))
+    with pytest.raises(ValueError, match=match):  # the keyword form builds the same Motion
+        solve_moving(m, HalfSpace(m.relaxed()), MovingAsperities(SPHERE), shifts, grid=grid, **args)
+
+
+def test_the_keyword_form_builds_the_same_motion_and_mixing_is_refused():
+    m = Material(2.0, 0.5, prony=((8.0, 1.0),))
+    shifts = [0.0, 0.1, 0.2]
+    grid = sweep_grid(m, SPHERE, shifts, 0.1, penetration=D)
+    body, tips = HalfSpace(m.relaxed()), MovingAsperities(SPHERE)
+    a = solve_moving(m, body, tips, Motion(shifts, 1.0, grid, penetration=D))
+    b = solve_moving(m, body, tips, shifts, speed=1.0, grid=grid, penetration=D)
+    assert np.array_equal(a.forces, b.forces) and np.array_equal(a.drag, b.drag)
+    with pytest.raises(ValueError, match="not both"):
+        solve_moving(m, body, tips, Motion(shifts, 1.0, grid, penetration=D), speed=2.0)
+    with pytest.raises(TypeError, match="spede"):
+        solve_moving(m, body, tips, shifts, spede=1.0, grid=grid, penetration=D)
 
 
 def test_a_body_at_another_modulus_and_a_field_for_twoscale_are_refused():

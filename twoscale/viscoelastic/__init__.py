@@ -25,11 +25,11 @@ def solve_history(scene, **options):
     return run(scene, **options)
 
 
-def solve_moving(material, provider, indenter, shifts, **options):
+def solve_moving(material, provider, indenter, motion, **options):
     """See :func:`twoscale.viscoelastic.moving.solve_moving`."""
     from .moving import solve_moving as run
 
-    return run(material, provider, indenter, shifts, **options)
+    return run(material, provider, indenter, motion, **options)
 
 
 __all__ = [

@@ -110,31 +110,87 @@ def sweep_grid(material: Material, asperities, shifts, h: float, *, penetration=
     return Grid.covering(x0 + float(s.min()), x1 + float(s.max()), y0, y1, h, anchor=(g.x0, g.y0))
 
 
-def _check(material, provider, shifts, speed, grid, penetration, total_load) -> np.ndarray:
+@dataclass(frozen=True)
+class Motion:
+    """Where the indenter goes, how fast, on which memory grid and under which control.
+
+    Parameters
+    ----------
+    shifts : sequence of float
+        Positions, mm, increasing (any spacing).
+    speed : float
+        mm/s (1 km/h = 277.8 mm/s): position n is at ``t = (shift_n - shift_0) / speed``.
+    grid : Grid
+        The memory grid, fixed in the body: it must cover every cell the contact reaches
+        (:func:`sweep_grid` for tips; a footprint window for a road under a tyre). The
+        reference solves on it; the two-scale patches lie on its lattice.
+    penetration, total_load : float
+        The control, held over the run: rigid approach (mm) or total load (N); one of them.
+    """
+
+    shifts: tuple
+    speed: float
+    grid: Grid
+    penetration: float | None = None
+    total_load: float | None = None
+
+    def __post_init__(self) -> None:
+        speed = self.speed
+        if isinstance(speed, bool) or not isinstance(speed, numbers.Real) or not math.isfinite(speed) or speed <= 0:
+            raise ValueError(f"speed must be a finite number > 0 (mm/s), got {speed!r}")
+        if not isinstance(self.grid, Grid):
+            raise ValueError(f"grid must be a twoscale.grid.Grid (the memory grid), got {type(self.grid).__name__}")
+        check_control(self.penetration, self.total_load)
+        try:
+            s = np.asarray(self.shifts, dtype=float)
+        except (TypeError, ValueError):
+            s = np.array([np.nan])
+        if s.ndim != 1 or s.size < 1 or not np.all(np.isfinite(s)):
+            raise ValueError(f"shifts must be a non-empty list of finite numbers (mm), got {self.shifts!r}")
+        if np.any(np.diff(s) <= 0):
+            k = int(np.argmax(np.diff(s) <= 0)) + 1
+            raise ValueError(f"shifts must increase (the indenter moves along +x), got shifts[{k}] = {s[k]!r} "
+                             f"after {s[k - 1]!r}")
+        object.__setattr__(self, "shifts", tuple(s.tolist()))
+
+    @property
+    def control(self) -> tuple[str, float]:
+        """``("penetration", mm)`` or ``("total", N)``."""
+        if self.penetration is not None:
+            return "penetration", float(self.penetration)
+        return "total", float(self.total_load)
+
+
+#: The keywords of :class:`Motion` that :func:`solve_moving` still takes with the shifts
+#: as its fourth argument.
+MOTION_KEYWORDS = ("speed", "grid", "penetration", "total_load")
+
+
+def _motion(motion, legacy: dict) -> Motion:
+    if isinstance(motion, Motion):
+        if legacy:
+            raise ValueError(f"give the run as a Motion or as shifts with {', '.join(MOTION_KEYWORDS)}, "
+                             f"not both (got {sorted(legacy)!r} with a Motion)")
+        return motion
+    unknown = sorted(set(legacy) - set(MOTION_KEYWORDS))
+    if unknown:
+        raise TypeError(f"solve_moving() got unexpected keyword arguments {unknown!r}")
+    if "speed" not in legacy or "grid" not in legacy:
+        raise ValueError("give the run as a Motion(shifts, speed, grid, penetration=... or total_load=...)")
+    return Motion(motion, **legacy)
+
+
+def _check(material, provider) -> None:
     if not isinstance(material, Material):
         raise ValueError(f"material must be a twoscale.material.Material, got {type(material).__name__}")
     if provider.material.relaxed() != material.relaxed():
         raise ValueError(f"the provider's material {provider.material!r} is not the relaxed "
                          f"{material.relaxed()!r} (build the body at the relaxed modulus)")
-    if isinstance(speed, bool) or not isinstance(speed, numbers.Real) or not math.isfinite(speed) or speed <= 0:
-        raise ValueError(f"speed must be a finite number > 0 (mm/s), got {speed!r}")
-    if not isinstance(grid, Grid):
-        raise ValueError(f"grid must be a twoscale.grid.Grid (the memory grid), got {type(grid).__name__}")
-    check_control(penetration, total_load)
-    s = np.asarray(shifts, dtype=float)
-    if s.ndim != 1 or s.size < 1 or not np.all(np.isfinite(s)):
-        raise ValueError(f"shifts must be a non-empty list of finite numbers (mm), got {shifts!r}")
-    if np.any(np.diff(s) <= 0):
-        k = int(np.argmax(np.diff(s) <= 0)) + 1
-        raise ValueError(f"shifts must increase (the indenter moves along +x), got shifts[{k}] = {s[k]!r} "
-                         f"after {s[k - 1]!r}")
-    return s
 
 
-def solve_moving(material: Material, provider, indenter, shifts, *, speed: float, grid: Grid,
-                 penetration: float | None = None, total_load: float | None = None,
+def solve_moving(material: Material, provider, indenter, motion: Motion, *,
                  options: MovingOptions | None = None, progress: Callable | None = None,
-                 on_step: Callable | None = None) -> MovingResult:
+                 on_step: Callable | None = None, **legacy) -> MovingResult:
     """Move ``indenter`` through ``shifts`` under a viscoelastic body, the memory in the body.
 
     Parameters
@@ -146,16 +202,10 @@ def solve_moving(material: Material, provider, indenter, shifts, *, speed: float
     indenter : MovingIndenter
         The rigid surface as a function of the shift: :class:`.moving_indenter.MovingAsperities`,
         :class:`.moving_indenter.MovingHeights`, or any object with their methods.
-    shifts : sequence of float
-        Positions, mm, increasing (any spacing).
-    speed : float
-        mm/s (1 km/h = 277.8 mm/s): position n is at ``t = (shift_n - shift_0) / speed``.
-    grid : Grid
-        The memory grid, fixed in the body: it must cover every cell the contact reaches
-        (:func:`sweep_grid` for tips; a footprint window for a road under a tyre). The
-        reference solves on it; the two-scale patches lie on its lattice.
-    penetration, total_load : float
-        The control, held over the run: rigid approach (mm) or total load (N); one of them.
+    motion : Motion
+        The positions (mm), the speed (mm/s), the memory grid and the held control.
+        The older form, the shifts here with ``speed=``, ``grid=``, ``penetration=`` or
+        ``total_load=`` as keywords (``**legacy``), builds the same :class:`Motion`.
     options : MovingOptions, optional
     progress : callable, optional
         Called with a line per position.
@@ -169,13 +219,15 @@ def solve_moving(material: Material, provider, indenter, shifts, *, speed: float
     MovingResult
     """
     t0 = time.perf_counter()
-    s = _check(material, provider, shifts, speed, grid, penetration, total_load)
+    motion = _motion(motion, legacy)
+    _check(material, provider)
+    s, grid = np.asarray(motion.shifts, dtype=float), motion.grid
     options = options or MovingOptions()
     if options.method == "twoscale" and indenter.tips(float(s[0])) is None:
         raise ValueError("method 'twoscale' needs tips (MovingAsperities); a height field runs with 'reference'")
-    kind, value = ("penetration", float(penetration)) if penetration is not None else ("total", float(total_load))
+    kind, value = motion.control
     roll = _Roll(material, provider, indenter, grid, kind, value, options)
-    times = (s - s[0]) / float(speed)
+    times = (s - s[0]) / float(motion.speed)
     for n, shift in enumerate(s):
         dt = times[n] - times[n - 1] if n else _first_step(options.start, times)
         result = roll.step(n, float(shift), float(dt))
@@ -184,7 +236,7 @@ def solve_moving(material: Material, provider, indenter, shifts, *, speed: float
                      f"{result.penetration:.4g} mm, drag {roll.records[-1].drag:.4g} N")
         if on_step is not None:
             on_step(n, float(shift), result, roll.records[-1])
-    return roll.result(s, times, float(speed), time.perf_counter() - t0)
+    return roll.result(s, times, float(motion.speed), time.perf_counter() - t0)
 
 
 def _first_step(start: str, times: np.ndarray) -> float:
@@ -314,4 +366,4 @@ def _iterations(result) -> int:
     return int(sum(v for v in result.iterations.values() if isinstance(v, (int, np.integer))))
 
 
-__all__ = ["METHODS", "MovingOptions", "solve_moving", "sweep_grid"]
+__all__ = ["METHODS", "MOTION_KEYWORDS", "Motion", "MovingOptions", "solve_moving", "sweep_grid"]

@@ -25,6 +25,8 @@ import numpy as np
 
 #: First step after a step or kink, as a fraction of the shortest relaxation time.
 FIRST_FRACTION = 0.05
+#: A mark (history or output time) at most this many steps away is reached in one step.
+STRETCH = 1.25
 
 
 @dataclass(frozen=True)
@@ -156,10 +158,15 @@ class Controller:
         return float(later[0]) if later.size else self.end
 
     def propose(self, t: float) -> float:
-        """The next step end after ``t`` (never beyond the next mark)."""
+        """The next step end after ``t`` (never beyond the next mark): the mark itself when
+        it is at most :data:`STRETCH` steps away, half way to it when at most two steps
+        (no sliver of a step before a mark)."""
         nxt = self._next_mark(t)
-        if t + self.dt >= nxt - 1e-9 * max(self.dt, 1e-300) or nxt - (t + self.dt) < 0.1 * self.dt:
+        left = nxt - t
+        if left <= STRETCH * self.dt:
             return nxt
+        if left <= 2.0 * self.dt:
+            return t + 0.5 * left
         return t + self.dt
 
     def accept(self, dt: float, error: float | None) -> bool:
@@ -175,4 +182,4 @@ class Controller:
         return True
 
 
-__all__ = ["FIRST_FRACTION", "Controller", "TimeSteps", "first_step", "fixed_times", "local_error"]
+__all__ = ["FIRST_FRACTION", "STRETCH", "Controller", "TimeSteps", "first_step", "fixed_times", "local_error"]

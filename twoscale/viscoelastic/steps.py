@@ -23,6 +23,11 @@ from ..influence.cached import with_caches
 from ..results import ContactResult, summarise
 from ..warm_start import warm_start
 
+#: The micro iteration of a warm-started two-scale step (None: the policy's, as cold).
+WARM_ITERATION = "two-level"
+#: Options that fix the micro iteration: given by the caller, they are kept.
+WARM_FIXED = frozenset({"iteration", "far_tol", "coarse"})
+
 
 def scaled(result: ContactResult, factor: float) -> ContactResult:
     """``result`` with every pressure, force and load multiplied by ``factor`` (the gap,
@@ -41,13 +46,15 @@ class StepProblem:
     """What a step solver needs: the control value (N or mm, physical), the factor
     ``E0 J_eff`` and the history displacement ``u_H`` on the memory grid (mm); ``start``
     the previous step's answer and ``start_tips`` the tips it was solved for ((N, 2) mm;
-    None: this step's own, the tips not having moved)."""
+    None: this step's own, the tips not having moved); ``tol`` the two-scale micro
+    tolerance of this step (None: the solver's own)."""
 
     value: float
     factor: float
     u_H: np.ndarray
     start: ContactResult | None
     start_tips: np.ndarray | None = None
+    tol: float | None = None
 
 
 class ReferenceStep:
@@ -177,9 +184,22 @@ class TwoScaleStep:
             tips = np.array([[a.x, a.y] for a in self.asperities], dtype=float).reshape(-1, 2)
             before = tips if step.start_tips is None else step.start_tips
             start = warm_start(scaled(step.start, step.factor), before, len(tips), self.h)
-        result = solve_twoscale(self.provider, self._wrapped(step.u_H), h=self.h, tilt=self.tilt,
-                                pivot=self.pivot, anchor=(self.grid.x0, self.grid.y0), start=start,
-                                **load, **self.options)
+        options = dict(self.options)
+        if step.tol is not None:
+            options["tol"] = step.tol
+        asperities = self._wrapped(step.u_H)
+        run = lambda **extra: solve_twoscale(self.provider, asperities, h=self.h, tilt=self.tilt,  # noqa: E731
+                                             pivot=self.pivot, anchor=(self.grid.x0, self.grid.y0),
+                                             start=start, **load, **options, **extra)
+        if start is not None and WARM_ITERATION and not WARM_FIXED.intersection(options):
+            # from a near start the two-level iteration needs a few sweeps, where the
+            # policy, costing a cold solve, may pick the union CG; the policy decides
+            # again if it does not converge
+            result = run(iteration=WARM_ITERATION)
+            if not result.converged:
+                result = run()
+        else:
+            result = run()
         return scaled(result, 1.0 / step.factor)
 
     def _trivial(self, step: StepProblem) -> ContactResult:
