@@ -283,7 +283,8 @@ def roll(scene, *, options: RollingOptions | None = None, provider=None,
         lines.append(_line_load(pos.result))
         previous = pos
     t2 = time.perf_counter()
-    return _result(track, rows, signals, lines, {"prepare": t1 - t0, "positions": t2 - t1, "total": t2 - t0})
+    return _result(track, rows, signals, lines, {"prepare": t1 - t0, "positions": t2 - t1, "total": t2 - t0},
+                   "twoscale" if state is None else "window-cg")
 
 
 def _row(pos: Position) -> tuple:
@@ -326,12 +327,12 @@ def _lines(lines: list, h: float) -> tuple[np.ndarray, np.ndarray]:
     return (lo + np.arange(hi - lo)) * h, out
 
 
-def _result(track: Track, rows: list, signals: list, lines: list, timings: dict) -> RollingResult:
+def _result(track: Track, rows: list, signals: list, lines: list, timings: dict, method: str) -> RollingResult:
     cols = list(zip(*rows))
     line_x, line_load = _lines(lines, track.h)
     stones = np.concatenate(signals) if signals else np.zeros((0, 4))
     return RollingResult(
-        spec=track.spec, method="twoscale", control=track.control, h=track.h, times=track.times,
+        spec=track.spec, method=method, control=track.control, h=track.h, times=track.times,
         shifts=track.shifts, total_load=cols[0], penetration=cols[1], contact_area=cols[2], drag=cols[3],
         converged=cols[4], seconds=cols[5], stones=cols[6], iterations=cols[7], messages=cols[8],
         asperities=StoneSignals(stones[:, 0], stones[:, 1], stones[:, 2], stones[:, 3]),

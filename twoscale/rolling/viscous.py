@@ -133,7 +133,8 @@ def roll_viscoelastic(track: Track, *, tol: float = 1e-6, progress=None, on_posi
     moving = solve_moving(scene.material, provider, indenter, track.shifts, speed=track.spec.speed_mm_s,
                           grid=memory_grid(track), penetration=scene.penetration, total_load=scene.total_load,
                           options=options, progress=progress, on_step=_positions(numbers, on_position))
-    return _result(track, numbers, moving, time.perf_counter() - t0)
+    return _result(track, numbers, moving, time.perf_counter() - t0,
+                   "window-cg" if options.method == "cg" else "twoscale")
 
 
 def _stand_in():
@@ -154,12 +155,12 @@ def _positions(numbers: np.ndarray, on_position):
     return on_step
 
 
-def _result(track: Track, numbers: np.ndarray, moving, seconds: float) -> RollingResult:
+def _result(track: Track, numbers: np.ndarray, moving, seconds: float, method: str) -> RollingResult:
     forces, areas = np.asarray(moving.forces), np.asarray(moving.tip_areas)
     pos, k = np.nonzero(areas > 0)
     converged = np.asarray(moving.step_converged, dtype=bool)
     return RollingResult(
-        spec=track.spec, method="twoscale", control=track.control, h=track.h, times=moving.times,
+        spec=track.spec, method=method, control=track.control, h=track.h, times=moving.times,
         shifts=moving.shifts, total_load=moving.total_load, penetration=moving.penetration,
         contact_area=moving.contact_area, drag=moving.drag, converged=converged, seconds=moving.seconds,
         stones=np.full(len(track.shifts), len(numbers)), iterations=moving.iterations,
