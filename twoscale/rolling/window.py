@@ -10,7 +10,9 @@ its preconditioner at every position. Here the position is that CG directly:
   (the cells of the position's stones below the approach bound); it is kept from
   position to position and only grows, by a margin, when the contact would leave it, so
   the half-space's zero-padded FFT operator, its single-precision twin and the circulant
-  preconditioner are built once (:class:`KeptBody`);
+  preconditioner are built once (:class:`KeptBody`) under load control (under penetration
+  control the CG crops the window to the box of the cells below the held approach, and the
+  operator is rebuilt when that box changes size);
 * the **start** is the previous pressure moved with the road by exactly the step (the
   step is a whole number of cells on a height map), extrapolated linearly from the two
   previous positions (a stone's pressure changes smoothly as it rolls through the
