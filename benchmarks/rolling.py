@@ -21,7 +21,8 @@ Usage::
 
     python benchmarks/rolling.py [--length 1000] [--step 1] [--h 0.25] [--load 3000] [--radius 300]
                                  [--width 150] [--samples 3] [--seed 1] [--every 50] [--no-cm]
-                                 [--macro-start] [--visco] [--scale-out] [--out FILE.json]
+                                 [--macro-start] [--visco] [--scale-out] [--solver auto|window|twoscale]
+                                 [--out FILE.json]
 
 ``--visco`` rolls the section elastic and with a ten-branch Prony tread (tau from 1e-6 to
 1e3 s, glassy modulus five times the relaxed) instead, and prints the CPU ratio.
@@ -47,7 +48,7 @@ from twoscale import Material  # noqa: E402
 from twoscale.indenters import surface_on  # noqa: E402
 from twoscale.rolling import RollingOptions, RollingSpec, road_strip  # noqa: E402
 from twoscale.rolling.reference import cold_position, reference_grid, reference_position  # noqa: E402
-from twoscale.rolling.run import step  # noqa: E402
+from twoscale.rolling.run import step, window_state  # noqa: E402
 from twoscale.rolling.track import prepare, tyre_contact_length  # noqa: E402
 from twoscale.scene import Scene  # noqa: E402
 from twoscale.surface import RawMap, build_surface  # noqa: E402
@@ -141,13 +142,17 @@ def run(args) -> dict:
           flush=True)
     sample = set(np.linspace(1, len(track.shifts) - 1, args.samples).astype(int)) if args.samples else set()
     times, cpu, rows, previous = [], [], [], None
-    options = RollingOptions(pressure_start=not args.macro_start)
+    options = RollingOptions(pressure_start=not args.macro_start, solver=args.solver)
+    state = window_state(track, options)
+    info["solver"] = "window" if state is not None else "twoscale"
     t_run = time.perf_counter()
+    iterations = []
     for k in range(len(track.shifts)):
         c0 = time.process_time()
-        pos = step(track, k, previous, options)
+        pos = step(track, k, previous, options, state)
         cpu.append(time.process_time() - c0)
         times.append(pos.seconds)
+        iterations.append(int(pos.result.iterations.get("cg", pos.result.iterations.get("micro", 0))))
         if k % args.every == 0 or k == len(track.shifts) - 1:
             print(f"  position {k:5d} shift {track.shifts[k]:8.2f} mm: {pos.result.total_load:8.1f} N, approach "
                   f"{pos.result.penetration:.4f} mm, area {pos.result.contact_area:8.1f} mm2, drag {pos.drag:7.2f} N, "
@@ -163,11 +168,13 @@ def run(args) -> dict:
     summary = {"run_s": wall, "run_cpu_s": float(c.sum()), "mean_s": float(t.mean()),
                "median_s": float(np.median(t)), "max_s": float(t.max()), "mean_cpu_s": float(c.mean()),
                "median_cpu_s": float(np.median(c)), "max_cpu_s": float(c.max()),
-               "estimate_1m_cpu_s": float(c.mean()) * 1000.0 / args.step}
+               "estimate_1m_cpu_s": float(c.mean()) * 1000.0 / args.step,
+               "iterations_mean": float(np.mean(iterations)), "iterations_max": int(np.max(iterations))}
     print(f"run: {wall:.1f} s wall (with the samples' comparisons), {summary['run_cpu_s']:.1f} s CPU in the "
           f"{len(t)} positions; per position CPU mean {summary['mean_cpu_s']:.3f} s, median "
           f"{summary['median_cpu_s']:.3f} s, largest {summary['max_cpu_s']:.3f} s (wall mean {summary['mean_s']:.3f} s); "
-          f"1 m at this CPU rate: {summary['estimate_1m_cpu_s']:.0f} s")
+          f"1 m at this CPU rate: {summary['estimate_1m_cpu_s']:.0f} s; CG iterations (micro sweeps) mean "
+          f"{summary['iterations_mean']:.1f}, largest {summary['iterations_max']} ({info['solver']})")
     for key in ("ratio_ref", "ratio_cold", "ratio_cm"):
         vals = [r[key] for r in rows if key in r]
         if vals:
@@ -231,6 +238,8 @@ def main(argv=None) -> int:
                    "Dask worker processes (twoscale.rolling.chunks), wall times and speed-up")
     p.add_argument("--macro-start", action="store_true", help="start each position's macro step only "
                    "(no pressure start), for comparison")
+    p.add_argument("--solver", default="auto", choices=("auto", "window", "twoscale"),
+                   help="the positions' solver (RollingOptions.solver)")
     p.add_argument("--out", default=None, help="write the figures as JSON")
     args = p.parse_args(argv)
     out = scale_out(args) if args.scale_out else visco(args) if args.visco else run(args)

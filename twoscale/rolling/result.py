@@ -66,7 +66,8 @@ class RollingResult:
         The run as asked (``shifts`` are the ones solved: on a height map they sit on
         its lattice, see :func:`twoscale.rolling.run.lattice`).
     method : str
-        ``"twoscale"`` (the per-position solver).
+        The per-position solver: ``"window-cg"`` (one constrained CG over a window kept in
+        the body, :mod:`twoscale.rolling.window`) or ``"twoscale"`` (the two-scale solver).
     control : str
         ``"penetration"`` (the approach held, the force varies) or ``"load"``.
     h : float
@@ -84,7 +85,8 @@ class RollingResult:
     stones : (n,) int array
         Stones given to the solver at each position (within reach of the footprint).
     iterations : (n,) int array
-        Micro-step sweeps of each position.
+        Per position: the micro step's sweeps (``method="twoscale"``) or the CG's
+        iterations (``"window-cg"``).
     messages : tuple of str
         The solver's message per position ("" when it converged cleanly).
     asperities : StoneSignals

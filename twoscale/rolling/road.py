@@ -23,6 +23,10 @@ from ..scene import Scene
 from .spec import RollingSpec
 
 
+#: Points this close to the face window's edge (mm) are inside it (rounding of cell centres).
+EDGE_TOL = 1e-9
+
+
 @dataclass(frozen=True)
 class Face:
     """The body's face: the tyre's profile along x and the window outside which the road
@@ -34,7 +38,8 @@ class Face:
     def height(self, X, Y) -> np.ndarray:
         X, Y = np.asarray(X, dtype=float), np.asarray(Y, dtype=float)
         x0, x1, y0, y1 = self.window
-        inside = (X >= x0) & (X <= x1) & (Y >= y0) & (Y <= y1)
+        e = EDGE_TOL   # a cell centre on the window's edge is inside, however its grid was built
+        inside = (X >= x0 - e) & (X <= x1 + e) & (Y >= y0 - e) & (Y <= y1 + e)
         return np.where(inside, self.spec.face(X), np.inf)
 
     def slope(self, x: float) -> float:

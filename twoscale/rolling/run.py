@@ -55,6 +55,12 @@ class RollingOptions:
     h : float, optional
         Cell size for a scene of tips, mm (default: the scene's rule); a height map's
         spacing otherwise.
+    solver : {"auto", "window", "twoscale"}, default "auto"
+        ``"window"``: each position one constrained CG over a window kept in the body, its
+        FFT operator built once, started from the previous pressures moved with the road
+        (:mod:`twoscale.rolling.window`); ``"twoscale"``: the two-scale solver per
+        position (:func:`solve_position`); ``"auto"``: the window on a translation-invariant
+        body (the half-space) with ``iteration="auto"``, else the two-scale solver.
     """
 
     tol: float = 1e-6
@@ -62,6 +68,15 @@ class RollingOptions:
     warm: bool = True
     pressure_start: bool = True
     h: float | None = None
+    solver: str = "auto"
+
+    def __post_init__(self) -> None:
+        if self.solver not in SOLVERS:
+            raise ValueError(f"RollingOptions.solver must be one of {SOLVERS}, got {self.solver!r}")
+
+
+#: The per-position solvers of :class:`RollingOptions`.
+SOLVERS = ("auto", "window", "twoscale")
 
 
 def solve_position(track: Track, selection: Selection, *, start=None, options: RollingOptions) -> ContactResult:
@@ -150,8 +165,10 @@ def _all_stones(track: Track, shift: float) -> Selection:
     return wide
 
 
-def step(track: Track, index: int, previous: Position | None, options: RollingOptions) -> Position:
-    """Solve position ``index`` (module docstring)."""
+def step(track: Track, index: int, previous: Position | None, options: RollingOptions,
+         state=None) -> Position:
+    """Solve position ``index`` (module docstring); ``state``: a
+    :class:`~twoscale.rolling.window.WindowState` to solve it on the kept window instead."""
     t0 = time.perf_counter()
     shift = float(track.shifts[index])
     bound = _bound(track, shift, previous)
@@ -164,10 +181,7 @@ def step(track: Track, index: int, previous: Position | None, options: RollingOp
     for attempt in range(MAX_REBOUNDS + 1):
         if attempt:
             selection = track.road.stones_at(shift, bound)
-        start = _start(previous, selection, options)
-        result = solve_position(track, selection, start=start, options=options)
-        if not result.converged and start is not None:   # a start too far off: the cold solve decides
-            result = solve_position(track, selection, start=None, options=options)
+        result = _solve(track, selection, bound, previous, options, state)
         if track.control == "penetration" or result.penetration < bound:
             break
         bound = result.penetration + BOUND_GROWTH * max(result.penetration - min(s.z for s in selection.stones),
@@ -177,6 +191,40 @@ def step(track: Track, index: int, previous: Position | None, options: RollingOp
             f"{result.message}; " if result.message else "") + f"the approach {result.penetration:.6g} mm still "
             f"passes the bound {bound:.6g} mm the stones were taken for after {MAX_REBOUNDS} enlargements")
     return Position(index, selection, result, drag_of(track, selection, result), time.perf_counter() - t0)
+
+
+def _solve(track: Track, selection: Selection, bound: float, previous: Position | None, options: RollingOptions,
+           state) -> ContactResult:
+    """One position's static solve: on the kept window (``state``), else by the two-scale
+    solver warm-started from ``previous``; a solve that does not converge is redone by
+    the two-scale solver from cold."""
+    if state is not None:
+        from .window import solve_window
+
+        result = solve_window(track, selection, bound, state, options.tol)
+        if result is not None and result.converged:
+            state.keep(result, selection.shift)
+            return result
+        state.past.clear()
+    else:
+        start = _start(previous, selection, options)
+        result = solve_position(track, selection, start=start, options=options)
+        if result.converged or start is None:
+            return result
+    return solve_position(track, selection, start=None, options=options)
+
+
+def window_state(track: Track, options: RollingOptions):
+    """The :class:`~twoscale.rolling.window.WindowState` of a run on the window path
+    (:class:`RollingOptions` ``solver``), or None."""
+    from .window import KeptBody, WindowState
+
+    if options.solver == "twoscale" or (options.solver == "auto" and options.iteration != "auto"):
+        return None
+    body = KeptBody(track.provider)
+    if options.solver == "auto" and not body.invariant:
+        return None
+    return WindowState(body)
 
 
 def _no_contact(track: Track) -> ContactResult:
@@ -223,8 +271,9 @@ def roll(scene, *, options: RollingOptions | None = None, provider=None,
         return roll_viscoelastic(track, tol=options.tol, progress=progress, on_position=on_position)
     t1 = time.perf_counter()
     rows, signals, lines, previous = [], [], [], None
+    state = window_state(track, options)
     for k in range(len(track.shifts)):
-        pos = step(track, k, previous, options)
+        pos = step(track, k, previous, options, state)
         if on_position is not None:
             on_position(pos)
         if progress is not None:
@@ -234,13 +283,14 @@ def roll(scene, *, options: RollingOptions | None = None, provider=None,
         lines.append(_line_load(pos.result))
         previous = pos
     t2 = time.perf_counter()
-    return _result(track, rows, signals, lines, {"prepare": t1 - t0, "positions": t2 - t1, "total": t2 - t0})
+    return _result(track, rows, signals, lines, {"prepare": t1 - t0, "positions": t2 - t1, "total": t2 - t0},
+                   "twoscale" if state is None else "window-cg")
 
 
 def _row(pos: Position) -> tuple:
     r = pos.result
     return (r.total_load, r.penetration, r.contact_area, pos.drag, r.converged, pos.seconds,
-            len(pos.selection.stones), int(r.iterations.get("micro", 0)), r.message)
+            len(pos.selection.stones), int(r.iterations.get("micro", r.iterations.get("cg", 0))), r.message)
 
 
 def _stone_rows(pos: Position) -> np.ndarray:
@@ -277,12 +327,12 @@ def _lines(lines: list, h: float) -> tuple[np.ndarray, np.ndarray]:
     return (lo + np.arange(hi - lo)) * h, out
 
 
-def _result(track: Track, rows: list, signals: list, lines: list, timings: dict) -> RollingResult:
+def _result(track: Track, rows: list, signals: list, lines: list, timings: dict, method: str) -> RollingResult:
     cols = list(zip(*rows))
     line_x, line_load = _lines(lines, track.h)
     stones = np.concatenate(signals) if signals else np.zeros((0, 4))
     return RollingResult(
-        spec=track.spec, method="twoscale", control=track.control, h=track.h, times=track.times,
+        spec=track.spec, method=method, control=track.control, h=track.h, times=track.times,
         shifts=track.shifts, total_load=cols[0], penetration=cols[1], contact_area=cols[2], drag=cols[3],
         converged=cols[4], seconds=cols[5], stones=cols[6], iterations=cols[7], messages=cols[8],
         asperities=StoneSignals(stones[:, 0], stones[:, 1], stones[:, 2], stones[:, 3]),

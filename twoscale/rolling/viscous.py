@@ -8,10 +8,16 @@ grid fixed in it; the road moves under it), its answer read back as a
 the face window over the run, in a fixed order, each shifted and seen through the face as
 the elastic run sees them (:meth:`~twoscale.rolling.road.Road.stones_at`); a stone with no
 sample inside the window at a shift stays in the list far from the body. The memory grid is
-the face window (its edges open: the road touches the body's edge there); the body is the
-scene's at the relaxed modulus; each position is one time step, ``dt = step / speed``,
-solved by the two-scale method. A height map's strip only (its stones are looked up
-through the shared basins, which carry the face).
+the face window (its edges open: the road touches the body's edge there), grown to sides
+of 5-smooth lengths (:func:`twoscale.rolling.window.fast_grid`); the body is the scene's at
+the relaxed modulus; each position is one time step, ``dt = step / speed``. On a
+translation-invariant body (the half-space) each step is one constrained CG over the memory
+grid (its operator kept for the run, :class:`~twoscale.rolling.window.KeptBody`;
+preconditioned, mixed precision, to the KKT residual of the two-scale solver's union CG;
+started from the previous pressure moved with the road, extrapolated from the one
+before), as the elastic run's window path; on another body by the two-scale method. A
+height map's strip only (its stones are looked up through the shared basins, which carry
+the face).
 """
 from __future__ import annotations
 
@@ -61,12 +67,19 @@ class RoadIndenter:
         return self._last[1]
 
     def surface(self, grid: Grid, shift: float):
-        from ..indenters import surface_on
+        """The road's heights on ``grid`` at ``shift`` (owner: the place in ``numbers``),
+        looked up through the shared basins for the stones whose box meets the window
+        there (the others have no sample inside it), and the road's x-slope."""
+        from ..indenters import Surface
 
-        tips = self.tips(shift)
-        surf = surface_on(grid, tips)
+        road = self.road
+        near = np.intersect1d(road.candidates(shift, np.inf), self.numbers)
+        place = np.searchsorted(self.numbers, near)
+        group = ShiftedBasins(road.basins, shift, Face(road.spec, road.window))
         X, Y = grid.centres()
-        slope = self.road.road_slope(Selection(tips, self.numbers, shift), X, Y, surf.owner)
+        height, owner = group.union_on(X, Y, {int(road.tips[k].label): int(m) for k, m in zip(near, place)})
+        surf = Surface(grid, height, owner, len(self.numbers))
+        slope = road.road_slope(Selection((), self.numbers, shift), X, Y, surf.owner)
         return surf, slope
 
     def face_on(self, grid: Grid) -> np.ndarray:
@@ -85,18 +98,22 @@ def run_stones(track: Track) -> np.ndarray:
 def memory_grid(track: Track) -> Grid:
     """The face window (a tyre without one: 0.6 of its estimated footprint each way, across
     the strip) on the lattice of the cell size."""
+    from .window import fast_grid
+
     x0, x1, y0, y1 = track.road.window
     if not math.isfinite(x1 - x0):
         half = 0.6 * footprint_length(track) + 4 * track.h
         x0, x1 = -half, half
     if not math.isfinite(y1 - y0):
         y0, y1 = float(track.road.box[:, 2].min()), float(track.road.box[:, 3].max())
-    return Grid.covering(x0, x1, y0, y1, track.h)
+    return fast_grid(Grid.covering(x0, x1, y0, y1, track.h))
 
 
 def roll_viscoelastic(track: Track, *, tol: float = 1e-6, progress=None, on_position=None) -> RollingResult:
     """Roll ``track`` (a material with Prony branches) through the moving-indenter stepping."""
+    from ..micro.strategies import UNION_TOL_FACTOR
     from ..viscoelastic.moving import MovingOptions, solve_moving
+    from .window import KeptBody
 
     if track.scene.surface is None:
         raise SceneError("material.prony with [rolling] runs on a [surface] strip; give the road as a height map")
@@ -106,11 +123,18 @@ def roll_viscoelastic(track: Track, *, tol: float = 1e-6, progress=None, on_posi
     indenter = RoadIndenter(track.road, numbers)
     provider = dataclasses.replace(scene, material=scene.material.relaxed(), rolling=None, surface=None,
                                    asperities=(_stand_in(),)).provider()
+    body = KeptBody(provider)
+    if body.invariant:
+        options = MovingOptions(method="cg", open_edges=True, solver={
+            "tol": tol * UNION_TOL_FACTOR, "precision": "mixed", "precondition": True})
+        provider = body
+    else:
+        options = MovingOptions(method="twoscale", solver={"tol": tol}, open_edges=True)
     moving = solve_moving(scene.material, provider, indenter, track.shifts, speed=track.spec.speed_mm_s,
                           grid=memory_grid(track), penetration=scene.penetration, total_load=scene.total_load,
-                          options=MovingOptions(method="twoscale", solver={"tol": tol}, open_edges=True),
-                          progress=progress, on_step=_positions(numbers, on_position))
-    return _result(track, numbers, moving, time.perf_counter() - t0)
+                          options=options, progress=progress, on_step=_positions(numbers, on_position))
+    return _result(track, numbers, moving, time.perf_counter() - t0,
+                   "window-cg" if options.method == "cg" else "twoscale")
 
 
 def _stand_in():
@@ -131,12 +155,12 @@ def _positions(numbers: np.ndarray, on_position):
     return on_step
 
 
-def _result(track: Track, numbers: np.ndarray, moving, seconds: float) -> RollingResult:
+def _result(track: Track, numbers: np.ndarray, moving, seconds: float, method: str) -> RollingResult:
     forces, areas = np.asarray(moving.forces), np.asarray(moving.tip_areas)
     pos, k = np.nonzero(areas > 0)
     converged = np.asarray(moving.step_converged, dtype=bool)
     return RollingResult(
-        spec=track.spec, method="twoscale", control=track.control, h=track.h, times=moving.times,
+        spec=track.spec, method=method, control=track.control, h=track.h, times=moving.times,
         shifts=moving.shifts, total_load=moving.total_load, penetration=moving.penetration,
         contact_area=moving.contact_area, drag=moving.drag, converged=converged, seconds=moving.seconds,
         stones=np.full(len(track.shifts), len(numbers)), iterations=moving.iterations,

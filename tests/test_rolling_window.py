@@ -1,0 +1,87 @@
+"""The rolling path on a kept window (twoscale.rolling.window): the same answers as the
+two-scale solver per position, its FFT operator built once for the run, the start the
+previous pressures moved with the road by whole cells."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from twoscale import Material
+from twoscale.grid import Grid
+from twoscale.influence import HalfSpace
+from twoscale.rolling import RollingOptions, RollingSpec, road_strip, roll
+from twoscale.rolling.window import WindowState, fast_grid
+from twoscale.scene import Scene
+from twoscale.surface import RawMap, build_surface
+
+MAT = Material(10.0, 0.5)
+
+
+@pytest.fixture(scope="module")
+def strip():
+    return build_surface(RawMap(road_strip(60.0, 20.0, 0.25, seed=3), spacing=0.25, units="mm"))
+
+
+class CountingHalfSpace(HalfSpace):
+    """A half-space that counts the square FFT operators asked of it."""
+
+    def __init__(self, material):
+        super().__init__(material)
+        self.square = 0
+
+    def grid_operator(self, target, source=None):
+        if source is None or source == target:
+            self.square += 1
+        return super().grid_operator(target, source)
+
+
+@pytest.mark.parametrize("load", [{"total_load": 60.0}, {"penetration": 0.9}])
+def test_window_and_two_scale_give_the_same_positions(strip, load):
+    """Two solvers of the same static problems: the window's CG and the two-scale solver."""
+    spec = RollingSpec(start=-6.0, end=-3.0, step=1.0, speed=30.0, tyre_radius=150.0, footprint=(30.0, 16.0))
+    scene = Scene(material=MAT, surface=strip, rolling=spec, **load)
+    window = roll(scene, options=RollingOptions(solver="window"))
+    two = roll(scene, options=RollingOptions(solver="twoscale"))
+    assert window.all_converged and two.all_converged
+    np.testing.assert_allclose(window.total_load, two.total_load, rtol=1e-5)
+    np.testing.assert_allclose(window.penetration, two.penetration, atol=1e-6)
+    np.testing.assert_allclose(window.contact_area, two.contact_area, atol=2 * 0.25 ** 2)
+    np.testing.assert_allclose(window.drag, two.drag, atol=1e-4 * np.max(two.total_load))
+
+
+def test_the_operator_is_built_once_for_the_run(strip):
+    """Load control: the window holds from position to position, so the body builds its
+    FFT operator once (or again only when the contact leaves the window)."""
+    spec = RollingSpec(start=-6.0, end=0.0, step=1.0, speed=30.0, tyre_radius=150.0, footprint=(30.0, 16.0))
+    body = CountingHalfSpace(MAT)
+    run = roll(Scene(material=MAT, surface=strip, rolling=spec, total_load=60.0), provider=body)
+    assert run.all_converged and len(run.shifts) == 7
+    assert 1 <= body.square <= 2
+
+
+def test_start_is_the_pressure_moved_by_whole_cells():
+    """A pressure moved with the road by two steps of 3 cells; two positions give the linear
+    extrapolation in the road's frame (clipped at 0)."""
+    g = Grid(-2.0, -1.0, 0.5, 12, 5)
+    p = np.zeros(g.shape)
+    p[2, 4] = 3.0
+    state = WindowState(body=None, grid=g)
+    state.past = [(g, p, 0.0)]
+    moved = state.start(g, 1.5)
+    assert moved[2, 7] == 3.0 and moved.sum() == 3.0
+    q = np.zeros(g.shape)
+    q[2, 7] = 4.0   # the same cell of the road one step later carries 4
+    state.past = [(g, p, 0.0), (g, q, 1.5)]
+    ahead = state.start(g, 3.0)
+    assert ahead[2, 10] == pytest.approx(5.0) and ahead.sum() == pytest.approx(5.0)
+
+
+def test_window_sides_are_fft_friendly():
+    g = fast_grid(Grid(0.0, 0.0, 0.25, 383, 617))
+    assert (g.nx, g.ny) == (384, 625)
+    assert g.x0 <= 0.0 and g.x0 + (g.nx - 1) * g.h >= 382 * 0.25
+
+
+def test_unknown_solver_is_refused():
+    with pytest.raises(ValueError, match="solver"):
+        RollingOptions(solver="fast")
