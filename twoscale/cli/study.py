@@ -134,7 +134,13 @@ def _run_locked(args, study, out: Path, digest: str, created: bool, workers: int
     from ..studies.execute import run_study
     from ..studies.folder import mark_study_folder
     from ..studies.outputs import write_outputs
+    from ..studies.rolling_run import run_rolling_study
+    from ..studies.rolling_spec import RollingStudy
+    from ..studies.rolling_tables import write_rolling_outputs
 
+    rolling = isinstance(study, RollingStudy)
+    if rolling:   # road sections x bodies x materials x loads x speeds
+        run_study, write_outputs = run_rolling_study, write_rolling_outputs
     mark_study_folder(out, study, digest)
     try:
         run_info = run_study(study, out, workers=workers, scheduler=args.scheduler, batch=batch, quiet=args.quiet)
@@ -144,10 +150,10 @@ def _run_locked(args, study, out: Path, digest: str, created: bool, workers: int
         print(f"error: {exc}", file=sys.stderr)
         return 2
     summary = write_outputs(out, study, run_info)
-    return _report(summary, run_info, out, quiet=args.quiet)
+    return _report(summary, run_info, out, quiet=args.quiet, rolling=rolling)
 
 
-def _report(summary: dict, run_info, out: Path, *, quiet: bool) -> int:
+def _report(summary: dict, run_info, out: Path, *, quiet: bool, rolling: bool = False) -> int:
     c = summary["counts"]
     for what, key in (("failed", "failed"), ("did not converge", "not_converged")):
         for item in summary[key][:MAX_LISTED]:
@@ -157,9 +163,10 @@ def _report(summary: dict, run_info, out: Path, *, quiet: bool) -> int:
                   file=sys.stderr)
     if not quiet:
         from ..studies.report import study_table
+        from ..studies.rolling_tables import rolling_table
 
         print(f"{summary['cases']} cases: {c['converged']} converged, {c['not-converged']} not converged, "
               f"{c['failed']} failed; this run solved {run_info.ran} ({run_info.where}, "
               f"{run_info.seconds:.1f} s) and skipped {run_info.skipped} finished")
-        print(study_table(out))
+        print(rolling_table(out) if rolling else study_table(out))
     return 0 if c["converged"] == summary["cases"] else 1

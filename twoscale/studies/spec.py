@@ -145,7 +145,8 @@ class Study:
 
 # ---------------------------------------------------------------- reading
 def read_study(path: str | os.PathLike) -> Study:
-    """Read and validate a study file (and every scene file it names).
+    """Read and validate a study file (and every scene file it names); a file with a
+    ``[rolling]`` table is a rolling study (:mod:`twoscale.studies.rolling_spec`).
 
     Raises
     ------
@@ -154,6 +155,11 @@ def read_study(path: str | os.PathLike) -> Study:
     """
     data = read_toml(path, "study", StudyError)
     try:
+        if "rolling" in data:   # road sections x bodies x materials x loads x speeds
+            from .rolling_spec import rolling_study_from_dict
+
+            return rolling_study_from_dict(data, base=Path(path).parent, name=Path(path).stem,
+                                           source=os.fspath(path))
         return study_from_dict(data, base=Path(path).parent, name=Path(path).stem, source=os.fspath(path))
     except SceneError as exc:
         raise StudyError(f"{os.fspath(path)}: {exc}") from None
