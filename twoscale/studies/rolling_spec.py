@@ -223,8 +223,7 @@ def _bodies(v: Any) -> tuple:
         except SceneError as exc:
             raise StudyError(f"{path}: {str(exc).replace('rolling.', '')}") from None
         if kind == "halfspace" and "tyre_radius" not in face and "footprint" not in face:
-            raise StudyError(f"{path}: a flat face on the half-space needs {field_path(path, 'footprint')} "
-                             "(or a tyre_radius)")
+            raise StudyError(f"{path}: a flat face on the half-space needs a footprint (or a tyre_radius)")
         out.append(RollingBody(t["name"], influence, face))
     return tuple(out)
 
