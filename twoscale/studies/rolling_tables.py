@@ -122,20 +122,27 @@ def study_record(study: RollingStudy) -> dict:
                            "prony": [list(p) for p in m.material.prony]} for m in study.materials]}
 
 
+def _rms(row: dict, num) -> str:
+    """The fluctuating signal's rms: the approach's under a held load, the load's under a held approach."""
+    if row["load_kind"] == "total":
+        return num(row["approach_rms_mm"], ".3g") + " mm"
+    return num(row["load_rms_N"], ".3g") + " N"
+
+
 def rolling_table(out: str | Path, max_rows: int = 40) -> str:
     """The terminal's table, read back from ``cases.csv`` as any user's script would."""
     out = Path(out)
     with open(out / "cases.csv", newline="", encoding="utf-8") as fh:
         cases = list(csv.DictReader(fh))
-    head = ["section", "body", "material", "load", "km/h", "status", "mean load N", "load rms N", "mean drag N",
-            "drag/load"]
+    head = ["section", "body", "material", "load", "km/h", "status", "mean load N", "mean approach mm",
+            "rms (held load: approach; held approach: load)", "mean drag N", "drag/load"]
 
     def num(v: str, spec: str) -> str:
         return "-" if v in ("", None) or not math.isfinite(float(v)) else format(float(v), spec)
 
     body = [[r["section"], r["body"], r["material"], _load(r["load_kind"], float(r["load"])),
-             num(r["speed_kmh"], "g"), r["status"], num(r["mean_load_N"], ".5g"), num(r["load_rms_N"], ".3g"),
-             num(r["mean_drag_N"], ".4g"), num(r["friction_coefficient"], ".3g")] for r in cases[:max_rows]]
+             num(r["speed_kmh"], "g"), r["status"], num(r["mean_load_N"], ".5g"), num(r["mean_approach_mm"], ".4g"),
+             _rms(r, num), num(r["mean_drag_N"], ".4g"), num(r["friction_coefficient"], ".3g")] for r in cases[:max_rows]]
     widths = [max(len(x) for x in col) for col in zip(head, *body)]
     lines = ["  " + "  ".join(c.ljust(w) for c, w in zip(row, widths)).rstrip() for row in [head, *body]]
     if len(cases) > max_rows:
