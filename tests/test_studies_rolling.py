@@ -206,3 +206,23 @@ def test_offsets_and_seeds_make_sections(tmp_path):
     visco = [c for c in cases if c.viscoelastic]
     assert len({solve_key(c, study) for c in visco}) == len(visco)
     assert dataclasses.replace(study, figures=True).figures
+
+
+def test_strip_file_sections_are_keyed_by_the_files_content(tmp_path):
+    """A section read from a strip file: its key follows the file's bytes, not its name; the
+    shipped example study reads."""
+    from pathlib import Path
+
+    heights = road_strip(50.0, 14.0, 0.25, seed=7)
+    np.save(tmp_path / "strip.npy", heights)
+    text = STUDY.replace('generate = { length = 50.0, width = 14.0, h = 0.25, seed = 7 }\n'
+                         'surface = { min_distance = 2.0, prominence = 0.1 }',
+                         'surface = { file = "strip.npy", spacing = 0.25, min_distance = 2.0 }\noffsets = [0.0, 4.0]')
+    path = tmp_path / "s.toml"
+    path.write_text(text, encoding="utf-8")
+    keys = [case_key(c, read_study(path)) for c in expand(read_study(path))]
+    assert len(set(keys)) == len(keys) == 2 * 2 * 2
+    np.save(tmp_path / "strip.npy", heights[:, ::-1])
+    assert not set(keys) & {case_key(c, read_study(path)) for c in expand(read_study(path))}
+    example = read_study(Path(__file__).resolve().parents[1] / "examples" / "rolling" / "study.toml")
+    assert example.n_cases == 8 and [s.name for s in example.sections] == ["example@0mm", "example@30mm"]

@@ -3,7 +3,10 @@
 ``twoscale study STUDY.toml --out DIR [--workers N] [--scheduler ADDRESS] [--batch B] [--quiet]``
 
 The study file (TOML) lists scene files, bodies, loads (or penetrations), positions (a list
-of shifts or a straight track) and solver options; see :mod:`twoscale.studies.spec`. Each
+of shifts or a straight track) and solver options; see :mod:`twoscale.studies.spec`. A study
+file with a ``[rolling]`` table rolls road sections under bodies instead (sections x bodies x
+materials x loads x speeds, each case a rolling run's files; :mod:`twoscale.studies.rolling_spec`),
+and writes ``cases.csv`` and ``bands.csv`` across its cases. Each
 case is solved as a task on ``dask.distributed``: a local cluster of N worker processes
 (``--workers``, default the number of CPUs; 0 solves in this process, one case after the
 other), or an existing cluster (``--scheduler tcp://host:8786``); ``--batch B`` puts B
