@@ -4,7 +4,8 @@ Not to be confused with :mod:`twoscale.paper`, which reruns the paper's own
 numerical study (figs. 3-6). This package runs what a user's parameter study asks for
 (``twoscale study STUDY.toml --out DIR``), one concept per module:
 
-* :mod:`.spec`: the study file (TOML), validated like scenes;
+* :mod:`.spec`: the study file (TOML), validated like scenes (:mod:`.checks` shared with
+  the rolling studies' reader);
 * :mod:`.cases`: expansion into cases, and the scene each case solves (tips shifted by
   the position, only those under the body's footprint kept);
 * :mod:`.keys`: a case's key, a hash of its inputs;

@@ -35,7 +35,7 @@ from ..errors import StudyError
 from ..io.scene_file import check_keys, field_path, table_of
 from ..scene import BLOCK_BASES, SceneError, check_number, check_pair
 from .keys import digest
-from .spec import _name, _tables
+from .checks import name as _name, tables as _tables
 
 TOP_KEYS = ("study", "section", "body", "material", "rolling", "load", "solver")
 BODY_KEYS = ("name", "kind", "size", "base", "origin", "tyre_radius", "tyre_shape", "footprint")
