@@ -3,7 +3,10 @@
 ``twoscale study STUDY.toml --out DIR [--workers N] [--scheduler ADDRESS] [--batch B] [--quiet]``
 
 The study file (TOML) lists scene files, bodies, loads (or penetrations), positions (a list
-of shifts or a straight track) and solver options; see :mod:`twoscale.studies.spec`. Each
+of shifts or a straight track) and solver options; see :mod:`twoscale.studies.spec`. A study
+file with a ``[rolling]`` table rolls road sections under bodies instead (sections x bodies x
+materials x loads x speeds, each case a rolling run's files; :mod:`twoscale.studies.rolling_spec`),
+and writes ``cases.csv`` and ``bands.csv`` across its cases. Each
 case is solved as a task on ``dask.distributed``: a local cluster of N worker processes
 (``--workers``, default the number of CPUs; 0 solves in this process, one case after the
 other), or an existing cluster (``--scheduler tcp://host:8786``); ``--batch B`` puts B
@@ -134,7 +137,13 @@ def _run_locked(args, study, out: Path, digest: str, created: bool, workers: int
     from ..studies.execute import run_study
     from ..studies.folder import mark_study_folder
     from ..studies.outputs import write_outputs
+    from ..studies.rolling_run import run_rolling_study
+    from ..studies.rolling_spec import RollingStudy
+    from ..studies.rolling_tables import write_rolling_outputs
 
+    rolling = isinstance(study, RollingStudy)
+    if rolling:   # road sections x bodies x materials x loads x speeds
+        run_study, write_outputs = run_rolling_study, write_rolling_outputs
     mark_study_folder(out, study, digest)
     try:
         run_info = run_study(study, out, workers=workers, scheduler=args.scheduler, batch=batch, quiet=args.quiet)
@@ -144,10 +153,10 @@ def _run_locked(args, study, out: Path, digest: str, created: bool, workers: int
         print(f"error: {exc}", file=sys.stderr)
         return 2
     summary = write_outputs(out, study, run_info)
-    return _report(summary, run_info, out, quiet=args.quiet)
+    return _report(summary, run_info, out, quiet=args.quiet, rolling=rolling)
 
 
-def _report(summary: dict, run_info, out: Path, *, quiet: bool) -> int:
+def _report(summary: dict, run_info, out: Path, *, quiet: bool, rolling: bool = False) -> int:
     c = summary["counts"]
     for what, key in (("failed", "failed"), ("did not converge", "not_converged")):
         for item in summary[key][:MAX_LISTED]:
@@ -157,9 +166,10 @@ def _report(summary: dict, run_info, out: Path, *, quiet: bool) -> int:
                   file=sys.stderr)
     if not quiet:
         from ..studies.report import study_table
+        from ..studies.rolling_tables import rolling_table
 
         print(f"{summary['cases']} cases: {c['converged']} converged, {c['not-converged']} not converged, "
               f"{c['failed']} failed; this run solved {run_info.ran} ({run_info.where}, "
               f"{run_info.seconds:.1f} s) and skipped {run_info.skipped} finished")
-        print(study_table(out))
+        print(rolling_table(out) if rolling else study_table(out))
     return 0 if c["converged"] == summary["cases"] else 1

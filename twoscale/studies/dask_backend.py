@@ -16,6 +16,7 @@ import contextlib
 import importlib
 import logging
 import signal
+import uuid
 from typing import Callable, Iterator
 
 import numpy as np
@@ -23,6 +24,8 @@ from distributed import Client, LocalCluster, WorkerPlugin, as_completed, get_wo
 
 from ..errors import SchedulerError
 from .providers import MAX_PROVIDERS, ProviderCache
+from .rolling_cases import StripCache
+from .rolling_solve import solve_group
 from .solve import CaseRecord, solve_ref
 
 #: Name of the worker plugin that holds each worker's providers.
@@ -71,9 +74,11 @@ class ProvidersPlugin(WorkerPlugin):
     def __init__(self, max_providers: int = MAX_PROVIDERS):
         self.max_providers = max_providers
         self.cache = None
+        self.strips = None
 
     def setup(self, worker) -> None:
         self.cache = ProviderCache(self.max_providers)
+        self.strips = StripCache()   # a rolling study's strips, segmented once per worker
         try:  # Ctrl-C is the study's (it cancels and closes the cluster), not each worker's
             signal.signal(signal.SIGINT, signal.SIG_IGN)
         except ValueError:  # not the worker process's main thread: leave it
@@ -89,6 +94,13 @@ def cases_task(study, batch: list) -> list:
     worker's plugin); returns their records in order."""
     providers = get_worker().plugins[PLUGIN].cache
     return [solve_ref(study, ref, key, providers) for ref, key in batch]
+
+
+def rolling_task(study, batch: list) -> list:
+    """Solve a batch of a rolling study's solves (each ``[(ref, key), ...]``, the cases one
+    roll serves) on a worker; returns their records, flat, in order."""
+    plugin = get_worker().plugins[PLUGIN]
+    return [r for group in batch for r in solve_group(study, group, plugin.strips, plugin.cache)]
 
 
 @contextlib.contextmanager
@@ -134,22 +146,33 @@ def run_on_dask(client: Client, study, todo: list, labels: dict, on_record: Call
                 batch: int = 1) -> None:
     """Submit the ``(ref, key)`` of ``todo`` in tasks of ``batch`` consecutive cases (the
     client's workers have the providers plugin: :func:`dask_client`) and hand
-    each record to ``on_record`` as its task returns. A task that dies with its worker
-    gives its cases failed records with the reason. On any exception (Ctrl-C included) the
-    remaining tasks are cancelled (a batch's cases are written when the whole batch is done)."""
+    each record to ``on_record`` as its task returns (:func:`run_tasks`)."""
+    def failed(item, reason):
+        return [CaseRecord(item[1], labels[item[1]], "failed", reason, np.zeros(0, dtype=int), None, float("nan"))]
+
+    run_tasks(client, study, todo, cases_task, on_record, failed, batch=batch)
+
+
+def run_tasks(client: Client, payload, items: list, task: Callable, on_record: Callable, failed: Callable, *,
+              batch: int = 1) -> None:
+    """Submit ``task(payload, items[i:i + batch])`` for every batch of ``items`` (``payload``,
+    the study, is sent to each worker once) and hand each record the tasks return to
+    ``on_record`` as they come. A task that dies with its worker gives ``failed(item, reason)``
+    for each of its items. On any exception (Ctrl-C included) the remaining tasks are
+    cancelled (a batch's records arrive when the whole batch is done)."""
     client.wait_for_workers(1, timeout=WORKER_WAIT)
-    [shared] = client.scatter([study], broadcast=True, hash=False)  # later workers fetch it
-    batches = [todo[i:i + batch] for i in range(0, len(todo), batch)]
-    futures = {client.submit(cases_task, shared, b, key=f"twoscale-cases-{b[0][1]}-{len(b)}", pure=False): b
-               for b in batches}
+    [shared] = client.scatter([payload], broadcast=True, hash=False)  # later workers fetch it
+    batches = [items[i:i + batch] for i in range(0, len(items), batch)]
+    run = uuid.uuid4().hex[:12]
+    futures = {client.submit(task, shared, b, key=f"twoscale-{task.__name__}-{run}-{i}", pure=False): b
+               for i, b in enumerate(batches)}
     try:
         for fut in as_completed(futures):
             try:
                 records = fut.result()
             except Exception as exc:  # noqa: BLE001 - the worker died or the task could not run
                 reason = f"{type(exc).__name__} on the cluster: {exc}"
-                records = [CaseRecord(key, labels[key], "failed", reason, np.zeros(0, dtype=int), None, float("nan"))
-                           for _, key in futures[fut]]
+                records = [r for item in futures[fut] for r in failed(item, reason)]
             for record in records:
                 on_record(record)
     except BaseException:

@@ -22,13 +22,19 @@ from .lock import LOCK_NAME
 #: The marker file of a study folder.
 MARKER = ".twoscale-study.json"
 #: What a study writes at the top of its folder, besides ``cases/`` and the marker.
-OUTPUTS = tuple(f"{name}.{ext}" for name in ("cases", "asperities", "indicators")
+OUTPUTS = tuple(f"{name}.{ext}" for name in ("cases", "asperities", "indicators", "bands")
                 for ext in ("csv", "csv-metadata.json", "parquet")) \
     + ("summary.json", "figures")
 
 
 def study_digest(study) -> str:
     """Digest of the study's set of case keys (two files giving the same cases agree)."""
+    from .rolling_spec import RollingStudy
+
+    if isinstance(study, RollingStudy):
+        from . import rolling_cases
+
+        return digest(sorted(set(rolling_cases.case_key(c, study) for c in rolling_cases.expand(study))))
     return digest(sorted(set(case_key(c, study) for c in expand(study))))
 
 

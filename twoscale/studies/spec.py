@@ -42,6 +42,7 @@ from ..io.scene_file import check_keys, field_path, read_scene, read_toml, table
 from ..micro.policy import ITERATIONS
 from ..scene import BLOCK_BASES, BLOCK_DEFAULT_SIZE, METHODS, SceneError, check_number, check_pair
 from ..sensor import Sensor
+from .checks import name as _name, tables as _tables
 from .keys import digest, scene_record
 
 #: Largest number of cases a study may expand to (checked before expanding).
@@ -145,7 +146,8 @@ class Study:
 
 # ---------------------------------------------------------------- reading
 def read_study(path: str | os.PathLike) -> Study:
-    """Read and validate a study file (and every scene file it names).
+    """Read and validate a study file (and every scene file it names); a file with a
+    ``[rolling]`` table is a rolling study (:mod:`twoscale.studies.rolling_spec`).
 
     Raises
     ------
@@ -154,6 +156,11 @@ def read_study(path: str | os.PathLike) -> Study:
     """
     data = read_toml(path, "study", StudyError)
     try:
+        if "rolling" in data:   # road sections x bodies x materials x loads x speeds
+            from .rolling_spec import rolling_study_from_dict
+
+            return rolling_study_from_dict(data, base=Path(path).parent, name=Path(path).stem,
+                                           source=os.fspath(path))
         return study_from_dict(data, base=Path(path).parent, name=Path(path).stem, source=os.fspath(path))
     except SceneError as exc:
         raise StudyError(f"{os.fspath(path)}: {exc}") from None
@@ -333,19 +340,3 @@ def _sensor(t: Mapping) -> Sensor:
 
 # ---------------------------------------------------------------- helpers
 _keys = check_keys  # the scene file's key checks: unknown keys are errors, never ignored
-
-
-def _tables(path: str, v: Any) -> list:
-    if not isinstance(v, list) or not v:
-        raise StudyError(f"{path} must be a non-empty array of tables ([[{path}]]), got {v!r}")
-    for k, t in enumerate(v):
-        table_of(f"{path} {k + 1}", t)
-    return v
-
-
-def _name(path: str, v: Any, seen: set) -> None:
-    if not isinstance(v, str) or not v or any(c in v for c in "/\\\n"):
-        raise StudyError(f"{path} must be a non-empty name without slashes, got {v!r}")
-    if v in seen:
-        raise StudyError(f"{path} repeats the name {v!r}")
-    seen.add(v)

@@ -11,6 +11,7 @@ interrupted write leaves only a ``.<key>.tmp-*`` folder, removed by the next run
 from __future__ import annotations
 
 import contextlib
+import io
 import json
 import os
 import shutil
@@ -81,17 +82,27 @@ class CaseStore:
 
     def write(self, record: CaseRecord, inputs: dict) -> Path:
         """Write the record's folder atomically (a previous folder of the key is replaced)."""
+        files = {}
+        if record.outcome is not None:
+            buffer = io.BytesIO()
+            np.save(buffer, record.outcome.sensor_map, allow_pickle=False)
+            files[SENSOR_NAME] = buffer.getvalue()
+        return self.write_folder(record.key, record_to_dict(record, inputs), files)
+
+    def write_folder(self, key: str, content: dict, files: dict) -> Path:
+        """Write ``key``'s folder atomically: ``case.json`` holding ``content`` and each of
+        ``files`` (``{name: bytes}``); a previous folder of the key is replaced."""
         self.folder.mkdir(parents=True, exist_ok=True)
-        tmp = Path(tempfile.mkdtemp(prefix=f".{record.key}.tmp-", dir=self.folder))
+        tmp = Path(tempfile.mkdtemp(prefix=f".{key}.tmp-", dir=self.folder))
         try:
-            text = json.dumps(record_to_dict(record, inputs), indent=1, allow_nan=True)
+            text = json.dumps(content, indent=1, allow_nan=True)
             (tmp / CASE_NAME).write_text(text + "\n", encoding="utf-8")
-            if record.outcome is not None:
-                np.save(tmp / SENSOR_NAME, record.outcome.sensor_map, allow_pickle=False)
+            for name, data in files.items():
+                (tmp / name).write_bytes(data)
             os.chmod(tmp, 0o777 & ~current_umask())
-            final = self.path(record.key)
+            final = self.path(key)
             if final.exists():  # a failed case solved again: the old folder goes
-                old = Path(tempfile.mkdtemp(prefix=f".{record.key}.old-", dir=self.folder))
+                old = Path(tempfile.mkdtemp(prefix=f".{key}.old-", dir=self.folder))
                 os.replace(final, old / "x")
                 shutil.rmtree(old, ignore_errors=True)
             os.rename(tmp, final)
