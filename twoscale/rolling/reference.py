@@ -8,29 +8,11 @@ from __future__ import annotations
 
 import math
 
-import numpy as np
-
-from ..grid import Grid
 from ..indenters import surface_on
 from ..results import ContactResult
-from .road import Selection
 from .run import Position, RollingOptions, drag_of, solve_position
+from .window import reference_grid
 from .track import Track
-
-
-def reference_grid(track: Track, selection: Selection, bound: float) -> Grid:
-    """Cells of size ``track.h`` (on the lattice h Z^2) covering every place a stone of
-    ``selection`` can touch when the approach is at most ``bound``, within the face window."""
-    h = track.h
-    boxes = []
-    for s in selection.stones:
-        r = s.reach(max(bound - s.z, 0.0)) * 1.05 + 3.0 * h
-        boxes.append((s.x - r, s.x + r, s.y - r, s.y + r))
-    b = np.array(boxes)
-    x0, x1, y0, y1 = track.road.window
-    lo_x, hi_x = max(b[:, 0].min(), x0 - h), min(b[:, 1].max(), x1 + h)
-    lo_y, hi_y = max(b[:, 2].min(), y0 - h), min(b[:, 3].max(), y1 + h)
-    return Grid.covering(lo_x, hi_x, lo_y, hi_y, h)
 
 
 def reference_position(track: Track, position: Position, *, tol: float = 1e-8) -> ContactResult:

@@ -36,6 +36,8 @@ import numpy as np
 
 from ..grid import Grid
 from ..indenters import surface_on
+from .road import Selection
+from .track import Track
 
 #: Cells added on every side when the window is built or grows.
 MARGIN_CELLS = 8
@@ -174,12 +176,25 @@ def _overlap(offset: int, n_src: int, n_dst: int):
     return slice(lo, hi), slice(lo + offset, hi + offset)
 
 
+def reference_grid(track: Track, selection: Selection, bound: float) -> Grid:
+    """Cells of size ``track.h`` (on the lattice h Z^2) covering every place a stone of
+    ``selection`` can touch when the approach is at most ``bound``, within the face window."""
+    h = track.h
+    boxes = []
+    for s in selection.stones:
+        r = s.reach(max(bound - s.z, 0.0)) * 1.05 + 3.0 * h
+        boxes.append((s.x - r, s.x + r, s.y - r, s.y + r))
+    b = np.array(boxes)
+    x0, x1, y0, y1 = track.road.window
+    lo_x, hi_x = max(b[:, 0].min(), x0 - h), min(b[:, 1].max(), x1 + h)
+    lo_y, hi_y = max(b[:, 2].min(), y0 - h), min(b[:, 3].max(), y1 + h)
+    return Grid.covering(lo_x, hi_x, lo_y, hi_y, h)
+
+
 def contact_box(track, selection, bound: float) -> Grid | None:
     """The box of the cells of ``selection``'s stones that lie below ``bound`` (the only
     ones that can touch when the approach is at most ``bound``), on the run's lattice;
     None when no cell is that low."""
-    from .reference import reference_grid
-
     reach = reference_grid(track, selection, bound)
     s = surface_on(reach, selection.stones)
     low = np.isfinite(s.height) & (s.height < bound)
