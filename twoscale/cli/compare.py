@@ -53,29 +53,24 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
-import json
 import math
 import sys
 import time
 from pathlib import Path
 
 
-from .._version import __version__
 from ..api import solve
-from ..comparison import (CHANGE_FIELDS, ROW_FIELDS, Measured, Run, centre_pivot, indicators, load_label, load_title,
-                          tip_changes,
-                          per_asperity_rows, sensor_notes, sensor_text)
+from ..comparison import (Measured, Run, centre_pivot, indicators, load_label, tip_changes,
+                          sensor_notes)
 from ..influence.registry import make_body, unavailable
-from ..io.atomic import atomic_output
-from ..io.result_json import UNITS, write_result
-from ..io.tables import LONG_TABLE, write_table
-from ..io.scene_file import read_scene, scene_to_dict
+from ..io.scene_file import read_scene
 from ..progress import Progress
 from ..resources import check_solve_memory
 from ..scene import METHODS, Scene, SceneError, default_h, normalise_influence
 from ..sensor import Sensor, forces_from_map, read_sensor_map, read_tip_forces
 from .options import DEFAULT_SENSOR, add_sensor_arguments, sensor_from_args
-from .compare_report import compare_record, markdown, terminal_summary
+from .compare_outputs import Comparison, write_outputs
+from .compare_report import terminal_summary
 from .options import positive_option, with_h_option
 from .solve import check_out_dir
 from .staging import staged_directory
@@ -237,75 +232,6 @@ def _providers(scene: Scene, quiet: bool, base: str = "both") -> tuple[dict, lis
     return providers, notes
 
 
-# ---------------------------------------------------------------- writing
-#: What the columns of forces.csv and changes.csv hold (in their metadata JSON).
-FORCE_COLUMNS = {"load_N": "the given total load, N (empty under penetration control)",
-                 "penetration_mm": "the given rigid approach, mm (empty under load control)",
-                 "body": "halfspace, block-bonded, block-sliding, or measured",
-                 "asperity": "tip number, from 1 in scene order", "force_N": "tip force, N",
-                 "contact_area_mm2": "tip contact area, mm2", "max_pressure_MPa": "largest pressure on the tip, MPa",
-                 "macro_force_N": "the macro step's tip force, N (two-scale method)"}
-CHANGE_COLUMNS = {**{k: FORCE_COLUMNS[k] for k in ("load_N", "penetration_mm", "asperity")},
-                  "reference": "the body compared with (the first: the half-space)", "body": "the body judged",
-                  "reference_force_N": "the tip's force on the reference body, N", "force_N": "the tip's force, N",
-                  "change_N": "force_N - reference_force_N, N",
-                  "change_percent": "change in percent of the tip's own reference force (empty when it is 0)"}
-
-def _write_text(path: Path, text: str) -> None:
-    with atomic_output(path) as tmp:
-        tmp.write_text(text, encoding="utf-8", newline="")
-
-
-def _write_outputs(out: Path, args, scene: Scene, runs, ind, notes, measured: Measured | None,
-                   sensor: Sensor, changes: list) -> None:
-    from ..io.solve_outputs import FIELDS_NAME
-    from ..io.vtk import write_vtk
-    from ..plot import Caption, compare_forces, compare_maps, difference_map
-
-    out.mkdir(parents=True, exist_ok=True)
-    record = compare_record(scene, runs, sensor)
-    scene_dict, meta = record["scene"], {"bodies": record["bodies"], "sensor": record["sensor"]}
-    tables = {"source": f"compare {args.scene}", "units": dict(UNITS), **record}
-    write_table(out, "forces", per_asperity_rows(runs, measured), ROW_FIELDS, record=tables, parquet=LONG_TABLE,
-                title="per load, body and tip: force, contact area, peak pressure", descriptions=FORCE_COLUMNS)
-    write_table(out, "changes", changes, CHANGE_FIELDS, record=tables, parquet=LONG_TABLE, descriptions=CHANGE_COLUMNS,
-                title="per load and tip: each body's tip force against the reference body's (the half-space)")
-    md = markdown(args.scene, runs, ind, notes, args.method, measured, sensor, changes)
-    md += ("\n<details><summary>scene, bodies and sensor (JSON)</summary>\n\n```json\n"
-           + json.dumps(record, indent=1) + "\n```\n</details>\n")
-    _write_text(out / "forces.md", md)
-    summary = {"version": __version__, "units": dict(UNITS), "method": args.method, "notes": notes,
-               **record, "indicators_percent": ind,
-               "runs": [{"load": r.load, "body": r.body, "converged": bool(r.result.converged),
-                         "message": r.result.message, "total_load": float(r.result.total_load),
-                         "approach_mm": float(r.result.penetration), "contact_area_mm2": r.result.contact_area,
-                         "body_label": r.result.body.label if r.result.body is not None else r.body,
-                         "seconds": r.seconds} for r in runs]}
-    _write_text(out / "summary.json", json.dumps(summary, indent=2, allow_nan=False) + "\n")
-    name = Path(args.scene).stem   # every figure's title starts with the scene's name
-
-    def caption(title: str) -> Caption:
-        return Caption(title=title, scene=scene_dict, name=name, meta=meta)
-
-    for load in dict.fromkeys(r.load for r in runs):
-        group = {r.body: r.result for r in runs if r.load == load}
-        tips = runs[0].scene.asperities
-        compare_forces(group, out / f"forces_{load}.png", measured=None if measured is None else measured.forces,
-                       caption=caption(f"force per asperity, {load_title(load)}"))
-        compare_maps(group, out / f"maps_{load}.png", tips=tips, caption=caption(f"pressure, {load_title(load)}"))
-        compare_maps(group, out / f"sensor_{load}.png", tips=tips, sensor=sensor,
-                     caption=caption(f"sensor-cell means ({sensor_text(sensor)}), {load_title(load)}"))
-        if len(group) > 1:  # each body's tip forces minus the first body's (the half-space)
-            difference_map(group, out / f"difference_{load}.png", tips=tips,
-                           caption=caption(f"force difference per tip, {load_title(load)}"))
-    for r in runs:
-        d = out / "runs" / f"{r.body}_{r.load}"
-        write_result(r.result, r.scene, d, method=args.method)
-        if args.vtk:
-            write_vtk(r.result, d / FIELDS_NAME, asperities=r.scene.asperities, pivot=r.scene.pivot,
-                      scene=scene_to_dict(r.scene))
-
-
 def run(args: argparse.Namespace) -> int:
     """Run ``twoscale compare``; returns the exit code (0, 1 or 2, see module doc)."""
     out = Path(args.out) if args.out is not None else Path(f"{Path(args.scene).stem}_compare")
@@ -336,7 +262,7 @@ def run(args: argparse.Namespace) -> int:
         print(f"note: {n}", file=sys.stderr)
         notes.append(n)
     with staged_directory(out, overwrite=args.overwrite, command=f"compare {args.scene}") as tmp:
-        _write_outputs(tmp, args, scenes[0], runs, ind, notes, measured, sensor, changes)
+        write_outputs(tmp, args, Comparison(scenes[0], runs, ind, notes, measured, sensor, changes))
     if not args.quiet:
         print(terminal_summary(args.scene, runs, ind, changes, out, args.method))
     failed = [r for r in runs if not r.result.converged]
