@@ -10,7 +10,6 @@ numbered from 1 in file order) and the bad value.
 """
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, field
 from collections.abc import Iterator, Mapping, Sequence
 from typing import TYPE_CHECKING, Any
@@ -21,6 +20,7 @@ from .control import check_control
 from .errors import SceneError
 from .indenters import Asperity
 from .material import Material
+from .values import check_number, check_pair, is_number  # noqa: F401 (re-exported: scene and study readers)
 
 if TYPE_CHECKING:
     from .influence.base import InfluenceProvider
@@ -31,31 +31,6 @@ INFLUENCE_KINDS = ("halfspace", "block")
 BLOCK_BASES = ("bonded", "sliding")
 #: Default finite block (paper's rubber block): width x depth x thickness, mm.
 BLOCK_DEFAULT_SIZE = (140.0, 140.0, 20.0)
-
-
-# ---------------------------------------------------------------- small validators
-def is_number(v: Any) -> bool:
-    """True for int/float (and numpy scalars) but not bool."""
-    return isinstance(v, (int, float, np.integer, np.floating)) and not isinstance(v, (bool, np.bool_))
-
-
-def check_number(path: str, v: Any, *, positive: bool = False, unit: str = "") -> float:
-    """Return ``float(v)`` or raise :class:`SceneError` naming ``path`` and ``v``."""
-    unit_txt = f" ({unit})" if unit else ""
-    if not is_number(v):
-        raise SceneError(f"{path} must be a number{unit_txt}, got {v!r}")
-    if not math.isfinite(v):
-        raise SceneError(f"{path} must be a finite number{unit_txt}, got {v!r}")
-    if positive and not v > 0:
-        raise SceneError(f"{path} must be > 0{unit_txt}, got {v!r}")
-    return float(v)
-
-
-def check_pair(path: str, v: Any, n: int = 2, *, positive: bool = False, unit: str = "") -> tuple:
-    """Return a tuple of ``n`` finite floats or raise naming ``path`` and ``v``."""
-    if isinstance(v, (str, bytes)) or not isinstance(v, (Sequence, np.ndarray)) or len(v) != n:
-        raise SceneError(f"{path} must be a list of {n} numbers, got {v!r}")
-    return tuple(check_number(f"{path}[{i}]", x, positive=positive, unit=unit) for i, x in enumerate(v))
 
 
 @dataclass(frozen=True, eq=False)
