@@ -26,7 +26,8 @@ import numpy as np
 
 from ..macro.start import MacroStart
 from ..results import ContactResult
-from .result import Position, RollingResult, StoneSignals
+from .record import Recorder
+from .result import Position, RollingResult
 from .road import Selection, hertz_level
 from .track import Track, prepare
 
@@ -270,7 +271,7 @@ def roll(scene, *, options: RollingOptions | None = None, provider=None,
 
         return roll_viscoelastic(track, tol=options.tol, progress=progress, on_position=on_position)
     t1 = time.perf_counter()
-    rows, signals, lines, previous = [], [], [], None
+    record, previous = Recorder(), None
     state = window_state(track, options)
     for k in range(len(track.shifts)):
         pos = step(track, k, previous, options, state)
@@ -278,62 +279,8 @@ def roll(scene, *, options: RollingOptions | None = None, provider=None,
             on_position(pos)
         if progress is not None:
             progress(f"position {k + 1} of {len(track.shifts)}: {pos.result.total_load:.4g} N, {pos.seconds:.2f} s")
-        rows.append(_row(pos))
-        signals.append(_stone_rows(pos))
-        lines.append(_line_load(pos.result))
+        record.add(pos)
         previous = pos
     t2 = time.perf_counter()
-    return _result(track, rows, signals, lines, {"prepare": t1 - t0, "positions": t2 - t1, "total": t2 - t0},
-                   "twoscale" if state is None else "window-cg")
-
-
-def _row(pos: Position) -> tuple:
-    r = pos.result
-    return (r.total_load, r.penetration, r.contact_area, pos.drag, r.converged, pos.seconds,
-            len(pos.selection.stones), int(r.iterations.get("micro", r.iterations.get("cg", 0))), r.message)
-
-
-def _stone_rows(pos: Position) -> np.ndarray:
-    a = pos.result.asperities
-    touching = np.flatnonzero(a.contact_areas > 0)
-    return np.column_stack([np.full(len(touching), pos.index), pos.selection.numbers[touching] + 1,
-                            a.forces[touching], a.contact_areas[touching]])
-
-
-def _line_load(result: ContactResult) -> tuple[int, np.ndarray]:
-    """Pressure summed across y (x the cell size), N/mm, per cell column: (first column's
-    lattice index round(x / h), values)."""
-    if not result.fields:
-        return 0, np.zeros(0)
-    h = result.fields[0].grid.h
-    starts = [int(round(f.grid.x0 / h)) for f in result.fields]
-    i0 = min(starts)
-    out = np.zeros(max(s + f.grid.nx for s, f in zip(starts, result.fields)) - i0)
-    for s, f in zip(starts, result.fields):
-        out[s - i0:s - i0 + f.grid.nx] += f.pressure.sum(axis=0) * h
-    return i0, out
-
-
-def _lines(lines: list, h: float) -> tuple[np.ndarray, np.ndarray]:
-    """The line loads of every position on one lattice of columns."""
-    used = [(i0, v) for i0, v in lines if v.size]
-    if not used:
-        return np.zeros(0), np.zeros((len(lines), 0))
-    lo = min(i0 for i0, _ in used)
-    hi = max(i0 + v.size for i0, v in used)
-    out = np.zeros((len(lines), hi - lo))
-    for k, (i0, v) in enumerate(lines):
-        out[k, i0 - lo:i0 - lo + v.size] = v
-    return (lo + np.arange(hi - lo)) * h, out
-
-
-def _result(track: Track, rows: list, signals: list, lines: list, timings: dict, method: str) -> RollingResult:
-    cols = list(zip(*rows))
-    line_x, line_load = _lines(lines, track.h)
-    stones = np.concatenate(signals) if signals else np.zeros((0, 4))
-    return RollingResult(
-        spec=track.spec, method=method, control=track.control, h=track.h, times=track.times,
-        shifts=track.shifts, total_load=cols[0], penetration=cols[1], contact_area=cols[2], drag=cols[3],
-        converged=cols[4], seconds=cols[5], stones=cols[6], iterations=cols[7], messages=cols[8],
-        asperities=StoneSignals(stones[:, 0], stones[:, 1], stones[:, 2], stones[:, 3]),
-        line_x=line_x, line_load=line_load, timings_s=timings, body=track.body)
+    return record.result(track, {"prepare": t1 - t0, "positions": t2 - t1, "total": t2 - t0},
+                         "twoscale" if state is None else "window-cg")
