@@ -77,6 +77,7 @@ def test_a_failed_macro_step_hands_the_micro_step_its_best_iterate():
     # moments, the safe path's dual ascent stalled with the approach at 1e7 mm, and the
     # micro step sized one patch as the whole sphere (18.8 M cells: killed after 90 s)
     from twoscale.laws import law_for
+    from twoscale.control import Loading
     from twoscale.macro import solve_macro
 
     scene = build(draw(52, 0))
@@ -84,7 +85,7 @@ def test_a_failed_macro_step_hands_the_micro_step_its_best_iterate():
     tips = np.array([[a.x, a.y] for a in scene.asperities])
     z = np.array([a.z for a in scene.asperities])
     laws = [law_for(a, provider.material) for a in scene.asperities]
-    macro = solve_macro(provider, tips, z, laws, total_load=scene.total_load, tilt=True, pivot=scene.pivot)
+    macro = solve_macro(provider, tips, z, laws, Loading(total_load=scene.total_load, tilt=True, pivot=scene.pivot))
     assert not macro.converged and macro.safe_path
     radii = np.array([a.R for a in scene.asperities])
     assert np.all(np.isfinite(macro.local_penetrations))
