@@ -32,15 +32,14 @@ import numpy as np
 
 from .control import check_control
 from .errors import ResolutionWarning
-from .indenters import SHAPES, Asperity
 from .material import Material
 from .results import ContactResult
 from .scene import METHODS as SCENE_METHODS
 from .resolution import check_resolution
 from .scene import Scene, SceneError, default_h, expected_contact_radii, expected_contacts
+from .tips import as_asperities, asperities  # noqa: F401 (twoscale.asperities, twoscale.as_asperities)
 
 if TYPE_CHECKING:
-    from numpy.typing import ArrayLike
 
     from .influence.base import InfluenceProvider
     from .surface.measured import MeasuredSurface
@@ -50,85 +49,6 @@ if TYPE_CHECKING:
 METHODS = ("twoscale", "reference", "dense", "cg")
 #: Scene fields that come from ``solve``'s keywords when tips are given instead of a Scene.
 _SCENE_KEYWORDS = ("material", "penetration", "total_load", "tilt", "pivot")
-
-
-# ---------------------------------------------------------------- tips as arrays
-def asperities(x: ArrayLike, y: ArrayLike, R: ArrayLike, z: ArrayLike = 0.0, *,
-               shape: str = "sphere") -> tuple[Asperity, ...]:
-    """Asperities from arrays (broadcast against each other), in array order.
-
-    Parameters
-    ----------
-    x, y : array_like
-        Tip positions, mm.
-    R : array_like
-        Tip radii, mm (> 0).
-    z : array_like, default 0
-        Tip recesses, mm (a larger z touches later).
-    shape : {"sphere", "paraboloid"} or array_like of them, default "sphere"
-
-    Returns
-    -------
-    tuple of Asperity
-        ``result.asperities.forces[k]`` of a solve belongs to the k-th (0-based) entry.
-
-    Raises
-    ------
-    ValueError
-        Arrays that do not broadcast to one dimension, or a bad value (named with its
-        0-based index and the tip's number from 1, e.g. ``R[3] (tip 4) must be > 0 (mm), got -1.0``).
-    """
-    try:
-        cols = np.broadcast_arrays(*(np.asarray(v, dtype=float) for v in (x, y, z, R)), np.asarray(shape))
-    except ValueError as exc:
-        raise ValueError(f"x, y, R, z and shape must broadcast to one length ({exc})") from None
-    if cols[0].ndim != 1 or cols[0].size == 0:
-        raise ValueError(f"x, y, R, z must be 1-D with at least one tip, got shape {cols[0].shape}")
-    out = []
-    for k, (xk, yk, zk, rk, sk) in enumerate(zip(*cols)):
-        for name, v in (("x", xk), ("y", yk), ("z", zk), ("R", rk)):
-            if not math.isfinite(v):
-                raise ValueError(f"{name}[{k}] (tip {k + 1}) must be a finite number (mm), got {float(v)!r}")
-        if not rk > 0:
-            raise ValueError(f"R[{k}] (tip {k + 1}) must be > 0 (mm), got {float(rk)!r}")
-        if str(sk) not in SHAPES:
-            raise ValueError(f"shape[{k}] (tip {k + 1}) must be one of {SHAPES}, got {str(sk)!r}")
-        out.append(Asperity(float(xk), float(yk), float(zk), float(rk), str(sk)))
-    return tuple(out)
-
-
-def as_asperities(tips: Any, *, shape: str = "sphere") -> tuple[Asperity, ...]:
-    """Tips in any accepted form as a tuple of Asperity.
-
-    ``tips`` is a sequence of :class:`Asperity`; an ``(n, 3)`` array of columns
-    ``x, y, R`` or an ``(n, 4)`` array of ``x, y, R, z`` (mm; ``R`` is always the third
-    column), or the same as a list of rows of numbers; or a mapping with arrays ``"x"``,
-    ``"y"``, ``"R"`` and optionally ``"z"`` and ``"shape"``. ``shape`` applies to the
-    array forms. A sequence of numpy arrays is refused: ``(x, y, R)`` columns and three
-    rows look alike.
-    """
-    if isinstance(tips, Mapping):
-        missing = [k for k in ("x", "y", "R") if k not in tips]
-        unknown = [k for k in tips if k not in ("x", "y", "R", "z", "shape")]
-        if missing or unknown:
-            raise ValueError(f"tips as a mapping need keys x, y, R (optional z, shape); "
-                             f"missing {missing}, unknown {unknown}")
-        return asperities(tips["x"], tips["y"], tips["R"], tips.get("z", 0.0), shape=tips.get("shape", shape))
-    if isinstance(tips, Sequence) and any(isinstance(t, np.ndarray) for t in tips):
-        # (x, y, R) columns and [row, row, row] rows look alike for 3 or 4 tips: refuse to guess
-        raise ValueError("tips as a sequence of numpy arrays are ambiguous (rows or columns?): give "
-                         "np.column_stack([x, y, R]), {'x': x, 'y': y, 'R': R} or twoscale.asperities(x, y, R, z)")
-    if isinstance(tips, np.ndarray) or (isinstance(tips, Sequence) and tips and
-                                        not isinstance(tips[0], Asperity)):
-        a = np.asarray(tips, dtype=float)
-        if a.ndim != 2 or a.shape[1] not in (3, 4):
-            raise ValueError(f"tips as an array must have shape (n, 3) [x, y, R] or (n, 4) [x, y, R, z], "
-                             f"got {a.shape}")
-        return asperities(a[:, 0], a[:, 1], a[:, 2], a[:, 3] if a.shape[1] == 4 else 0.0, shape=shape)
-    if isinstance(tips, Sequence) and all(isinstance(t, Asperity) for t in tips):
-        return tuple(tips)
-    raise ValueError(f"tips must be Asperity objects, an (n, 3) or (n, 4) array, or a mapping of "
-                     f"arrays, got {type(tips).__name__}")
 
 
 def _scene_of(problem: Any, provider: InfluenceProvider | None, h: float | None, shape: str,
