@@ -178,3 +178,18 @@ def test_each_quantity_is_computed_once_per_solve(far_tol):
         assert len(set(built)) == len(built) > 0, f"{how}: a patch was built twice"
         assert r.converged and r.details.micro.attempts[-1].far_tol == far_tol
         built.clear()
+
+
+def test_the_command_line_builds_the_result_record_once(tmp_path, capsys):
+    """``twoscale solve SCENE --out DIR`` writes result.json and prints the summary from one
+    record."""
+    from unittest import mock
+
+    import twoscale.cli.solve as cli_solve
+    from twoscale.cli.main import main
+
+    scene = Path(__file__).resolve().parents[1] / "examples" / "paper_seven_spheres.toml"
+    with mock.patch.object(cli_solve, "result_to_dict", wraps=cli_solve.result_to_dict) as record:
+        assert main(["solve", str(scene), "--out", str(tmp_path / "out")]) == 0
+    assert record.call_count == 1 and (tmp_path / "out" / "result.json").exists()
+    assert "cell size" in capsys.readouterr().out

@@ -133,16 +133,18 @@ def run(args: argparse.Namespace) -> int:
     if scene.history is not None:
         return _history_done(result, scene, args, wall)
     path = None
+    # result.json's content and the terminal summary: one dictionary
+    record = None if args.out is None and args.quiet else \
+        result_to_dict(result, scene, method=args.method, h_source="--h" if args.h is not None else None)
     if args.out is not None:
         try:
-            write_outputs(result, scene, args)
+            write_outputs(result, scene, args, record=record)
         except (OSError, ValueError) as exc:  # a folder changed during the solve, a full disk, ...
             print(f"error: writing {args.out}: {exc}", file=sys.stderr)
             return 2
         path = Path(args.out) / RESULT_NAME
     if not args.quiet:
-        h_source = "--h" if args.h is not None else None
-        print(summary(result_to_dict(result, scene, method=args.method, h_source=h_source), args.scene, wall, path))
+        print(summary(record, args.scene, wall, path))
     if not result.converged:
         print(f"warning: the solve did not converge: {result.message}", file=sys.stderr)
         return 1
@@ -176,12 +178,14 @@ def _history_done(result, scene, args, wall: float) -> int:
     return 0
 
 
-def write_outputs(result, scene, args) -> None:
+def write_outputs(result, scene, args, *, record: dict | None = None) -> None:
     """Write every file of ``--out`` into a temporary folder renamed to DIR at the end
-    (whole or nothing; an earlier output replaced only with ``--overwrite``)."""
+    (whole or nothing; an earlier output replaced only with ``--overwrite``); ``record``:
+    result.json's content when already built."""
     with staged_directory(args.out, overwrite=getattr(args, "overwrite", False),
                           command=f"solve {args.scene}") as tmp:
-        write_result(result, scene, tmp, method=args.method, h_source="--h" if args.h is not None else None)
+        write_result(result, scene, tmp, method=args.method, h_source="--h" if args.h is not None else None,
+                     record=record)
         write_fields_and_figures(result, scene, tmp, source=str(args.scene))
         if getattr(args, "block_field", False):
             write_block_field_file(result, scene, tmp, quiet=args.quiet)

@@ -200,13 +200,16 @@ def _twoscale_record(details: TwoScaleDetails) -> dict:
 
 
 def write_result(result, scene: Scene, out_dir: str | os.PathLike, *, method: str | None = None,
-                 h_source: str | None = None) -> Path:
+                 h_source: str | None = None, record: dict | None = None) -> Path:
     """Write ``out_dir/result.json`` atomically (temporary file, then ``os.replace``).
 
     The directory is created if needed; call this only once a solve has returned, so a
-    failed run leaves nothing behind. Returns the path written.
+    failed run leaves nothing behind. ``record``: :func:`result_to_dict`'s answer for the
+    same arguments when the caller has it already. Returns the path written.
     """
-    text = json.dumps(result_to_dict(result, scene, method=method, h_source=h_source), indent=2, allow_nan=False) + "\n"
+    if record is None:
+        record = result_to_dict(result, scene, method=method, h_source=h_source)
+    text = json.dumps(record, indent=2, allow_nan=False) + "\n"
     target = Path(out_dir) / RESULT_NAME
     with atomic_output(target) as tmp:
         tmp.write_text(text, encoding="utf-8")
