@@ -187,9 +187,11 @@ class TwoScaleStep:
         if step.tol is not None:
             options["tol"] = step.tol
         asperities = self._wrapped(step.u_H)
-        run = lambda **extra: solve_twoscale(self.provider, asperities, h=self.h, tilt=self.tilt,  # noqa: E731
-                                             pivot=self.pivot, anchor=(self.grid.x0, self.grid.y0),
-                                             start=start, **load, **options, **extra)
+
+        def run(**extra) -> ContactResult:
+            return solve_twoscale(self.provider, asperities, h=self.h, tilt=self.tilt, pivot=self.pivot,
+                                  anchor=(self.grid.x0, self.grid.y0), start=start, **load, **options, **extra)
+
         warm = self._warm_choice(start, options)
         result = run(**warm) if warm else run()
         if warm and not result.converged:  # the policy decides again
