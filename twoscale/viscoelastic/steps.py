@@ -151,6 +151,7 @@ class TwoScaleStep:
         self.kind, self.tilt, self.pivot = kind, tilt, pivot
         self.options = dict(options or {})
         self._reference = None
+        self._far_tol = None  # the far-field tolerance the policy last chose
 
     def _wrapped(self, u_H: np.ndarray):
         if not np.any(u_H):
@@ -188,19 +189,27 @@ class TwoScaleStep:
         if step.tol is not None:
             options["tol"] = step.tol
         asperities = self._wrapped(step.u_H)
-        run = lambda **extra: solve_twoscale(self.provider, asperities, h=self.h, tilt=self.tilt,  # noqa: E731
-                                             pivot=self.pivot, anchor=(self.grid.x0, self.grid.y0),
-                                             start=start, **load, **options, **extra)
-        if start is not None and WARM_ITERATION and not WARM_FIXED.intersection(options):
-            # from a near start the two-level iteration needs a few sweeps, where the
-            # policy, costing a cold solve, may pick the union CG; the policy decides
-            # again if it does not converge
-            result = run(iteration=WARM_ITERATION)
-            if not result.converged:
-                result = run()
-        else:
+
+        def run(**extra) -> ContactResult:
+            return solve_twoscale(self.provider, asperities, h=self.h, tilt=self.tilt, pivot=self.pivot,
+                                  anchor=(self.grid.x0, self.grid.y0), start=start, **load, **options, **extra)
+
+        warm = self._warm_choice(start, options)
+        result = run(**warm) if warm else run()
+        if warm and not result.converged:  # the policy decides again
             result = run()
+        choice = getattr(getattr(result.details, "micro", None), "choice", None)
+        if choice is not None and not choice.by_caller:
+            self._far_tol = choice.far_tol
         return scaled(result, 1.0 / step.factor)
+
+    def _warm_choice(self, start, options) -> dict:
+        """The micro iteration of a warm-started step: from a near start the two-level
+        iteration needs a few sweeps, where the policy, costing a cold solve, may pick the
+        union CG; it keeps the far-field coupling the policy last chose (none: exact)."""
+        if start is None or not WARM_ITERATION or WARM_FIXED.intersection(options):
+            return {}
+        return {"far_tol": self._far_tol} if self._far_tol is not None else {"iteration": WARM_ITERATION}
 
     def _trivial(self, step: StepProblem) -> ContactResult:
         from ..indenters import surface_on
