@@ -12,6 +12,7 @@ import textwrap
 import pytest
 
 from twoscale.cli import compare as compare_cli
+from twoscale.cli import compare_outputs
 from twoscale.cli import solve as solve_cli
 from twoscale.cli.main import EXIT_INTERRUPTED, main
 from twoscale.cli.staging import held_interrupts, staged_directory
@@ -77,7 +78,7 @@ def test_compare_interrupted_during_the_solves(scene, tmp_path, monkeypatch, cap
 
 def test_compare_interrupted_while_writing(scene, tmp_path, monkeypatch, capsys):
     monkeypatch.setattr(compare_cli, "_providers", lambda scene, quiet, base="both": ({"halfspace": scene.provider()}, []))
-    monkeypatch.setattr(compare_cli, "write_result", _interrupt)  # after forces.csv, forces.md, figures
+    monkeypatch.setattr(compare_outputs, "write_result", _interrupt)  # after forces.csv, forces.md, figures
     code = main(["compare", str(scene), "--out", str(tmp_path / "cmp"), "--quiet"])
     assert code == 130
     _only_interrupted(capsys)
