@@ -1,4 +1,5 @@
 """Small helpers shared by the benchmark scripts: timing and table printing."""
+
 from __future__ import annotations
 
 import os
@@ -33,6 +34,7 @@ def progress(total: int, label: str, quiet: bool = False):
     """A progress bar on stderr for a benchmark's loop (drawn on a terminal after 2 s;
     nothing with ``quiet``): :class:`twoscale.progress.Progress`."""
     from twoscale.progress import Progress
+
     return Progress(total, label=label, quiet=quiet)
 
 

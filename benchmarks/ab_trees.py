@@ -28,6 +28,7 @@ Usage::
     git -C REPO archive OLD_COMMIT | tar -x -C /tmp/before
     python benchmarks/ab_trees.py --before /tmp/before --after . --repeat 3 hertz:bigload stack:single space:3
 """
+
 from __future__ import annotations
 
 import argparse
@@ -48,13 +49,17 @@ def _hertz(mode: str):
     from twoscale.indenters import Asperity, surface_on
     from twoscale.influence import HalfSpace
     from twoscale.reference import solve_cg
+
     big = mode.startswith("big")
     mode = mode.removeprefix("big")
     g = Grid.covering(-1.2, 1.2, -1.2, 1.2, 2.4 / (480 if big else 160))
     tips = [Asperity(0.0, 0.0, 0.0, 10.0)] + ([Asperity(0.5, 0.3, 0.01, 6.0)] if mode == "tilt" else [])
-    kw = {"load": dict(total_load=5.0), "pen": dict(penetration=0.08),
-          "mixedpc": dict(total_load=5.0, precision="mixed", precondition=True),
-          "tilt": dict(total_load=5.0, tilt=True, pivot=(0.1, -0.05))}[mode]
+    kw = {
+        "load": dict(total_load=5.0),
+        "pen": dict(penetration=0.08),
+        "mixedpc": dict(total_load=5.0, precision="mixed", precondition=True),
+        "tilt": dict(total_load=5.0, tilt=True, pivot=(0.1, -0.05)),
+    }[mode]
     surf = surface_on(g, tips)
     hs = HalfSpace(Material(10.0, 0.5))
     return lambda: solve_cg(hs, surf, **kw)
@@ -63,7 +68,7 @@ def _hertz(mode: str):
 def _solve_scene():
     try:
         from twoscale.api import solve_scene
-    except ImportError:   # trees before the scene solve moved to the API module
+    except ImportError:  # trees before the scene solve moved to the API module
         from twoscale.scene import solve_scene
     return solve_scene
 
@@ -71,7 +76,7 @@ def _solve_scene():
 def _solve_twoscale():
     try:
         from twoscale.driver import solve_twoscale
-    except ImportError:   # trees before the driver's module was named for what it holds
+    except ImportError:  # trees before the driver's module was named for what it holds
         from twoscale.twoscale import solve_twoscale
     return solve_twoscale
 
@@ -81,6 +86,7 @@ def _stack(which: str):
     from twoscale.indenters import Asperity
     from twoscale.influence import HalfSpace
     from twoscale.micro import pk_stack
+
     solve_twoscale = _solve_twoscale()
     rng = np.random.default_rng(4)
     pts: list = []
@@ -93,20 +99,23 @@ def _stack(which: str):
     hs = HalfSpace(Material(10.0, 0.5))
     if which == "single":
         pk_stack.BlockStacks.usable = staticmethod(lambda provider: False)
-    return lambda: solve_twoscale(hs, asp, h=0.04, total_load=4.0, tol=1e-8, max_sweeps=200, far_tol=0.05,
-                                  coarse=True, dense_max_cells=60)
+    return lambda: solve_twoscale(
+        hs, asp, h=0.04, total_load=4.0, tol=1e-8, max_sweeps=200, far_tol=0.05, coarse=True, dense_max_cells=60
+    )
 
 
 def _family(name: str, method: str = "twoscale"):
     solve_scene = _solve_scene()
     from twoscale.synthetic import scene_family
+
     kind, control, shape, n = name.split("-")
-    (_, scene), = dict(scene_family((int(n),), kinds=(kind,), controls=(control,), shapes=(shape,))).items()
+    ((_, scene),) = dict(scene_family((int(n),), kinds=(kind,), controls=(control,), shapes=(shape,))).items()
     return lambda: solve_scene(scene, method=method)
 
 
 def _space(index: str):
     from twoscale import scenespace
+
     solve_scene = _solve_scene()
     scene = scenespace.build(scenespace.draw(int(index), 0, max_tips=300, maps=0.0, block=0.0))
     return lambda: solve_scene(scene)
@@ -114,13 +123,21 @@ def _space(index: str):
 
 def _file(path: str, method: str = "twoscale"):
     from twoscale.io.scene_file import read_scene
+
     solve_scene = _solve_scene()
     scene = read_scene(path)
     return lambda: solve_scene(scene, method=method)
 
 
-CASES = {"hertz": _hertz, "stack": _stack, "family": _family, "space": _space, "file": _file,
-         "family_ref": lambda name: _family(name, "reference"), "file_ref": lambda path: _file(path, "reference")}
+CASES = {
+    "hertz": _hertz,
+    "stack": _stack,
+    "family": _family,
+    "space": _space,
+    "file": _file,
+    "family_ref": lambda name: _family(name, "reference"),
+    "file_ref": lambda path: _file(path, "reference"),
+}
 
 
 def child(kind: str, arg: str) -> None:
@@ -131,8 +148,17 @@ def child(kind: str, arg: str) -> None:
     cpu = time.process_time() - t0
     digest = hashlib.sha256(b"".join(np.ascontiguousarray(f.pressure).tobytes() for f in res.fields)).hexdigest()
     forces = [] if res.asperities is None else np.asarray(res.asperities.forces, dtype=float).tolist()
-    print(json.dumps({"cpu": cpu, "digest": digest[:16], "converged": bool(res.converged), "forces": forces,
-                      "iterations": {k: int(v) for k, v in res.iterations.items()}}))
+    print(
+        json.dumps(
+            {
+                "cpu": cpu,
+                "digest": digest[:16],
+                "converged": bool(res.converged),
+                "forces": forces,
+                "iterations": {k: int(v) for k, v in res.iterations.items()},
+            }
+        )
+    )
 
 
 def compare(case: str, trees: dict, repeat: int) -> dict:
@@ -141,19 +167,28 @@ def compare(case: str, trees: dict, repeat: int) -> dict:
         arg = os.path.abspath(arg)
     runs: dict = {"before": [], "after": []}
     for r in range(repeat):
-        for tag in (("before", "after") if r % 2 == 0 else ("after", "before")):
+        for tag in ("before", "after") if r % 2 == 0 else ("after", "before"):
             env = dict(os.environ, PYTHONPATH=trees[tag], OMP_NUM_THREADS="1", OPENBLAS_NUM_THREADS="1")
-            out = subprocess.run([sys.executable, os.path.abspath(__file__), "--child", kind, arg], env=env,
-                                 capture_output=True, text=True, check=True)
+            out = subprocess.run(
+                [sys.executable, os.path.abspath(__file__), "--child", kind, arg],
+                env=env,
+                capture_output=True,
+                text=True,
+                check=True,
+            )
             runs[tag].append(json.loads(out.stdout.strip().splitlines()[-1]))
     b, a = runs["before"][0], runs["after"][0]
     fb, fa = np.array(b["forces"]), np.array(a["forces"])
-    return {"case": case, "cpu_before": statistics.median(x["cpu"] for x in runs["before"]),
-            "cpu_after": statistics.median(x["cpu"] for x in runs["after"]),
-            "ratio": statistics.median(y["cpu"] / x["cpu"] for x, y in zip(runs["before"], runs["after"])),
-            "bit_identical": b["digest"] == a["digest"],
-            "force_diff": float(np.max(np.abs(fb - fa)) / max(np.abs(fb).max(), 1e-300)) if fb.size else 0.0,
-            "iterations": [b["iterations"], a["iterations"]], "converged": [b["converged"], a["converged"]]}
+    return {
+        "case": case,
+        "cpu_before": statistics.median(x["cpu"] for x in runs["before"]),
+        "cpu_after": statistics.median(x["cpu"] for x in runs["after"]),
+        "ratio": statistics.median(y["cpu"] / x["cpu"] for x, y in zip(runs["before"], runs["after"])),
+        "bit_identical": b["digest"] == a["digest"],
+        "force_diff": float(np.max(np.abs(fb - fa)) / max(np.abs(fb).max(), 1e-300)) if fb.size else 0.0,
+        "iterations": [b["iterations"], a["iterations"]],
+        "converged": [b["converged"], a["converged"]],
+    }
 
 
 def main(argv=None) -> int:

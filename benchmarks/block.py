@@ -12,6 +12,7 @@ Run: ``python benchmarks/block.py [--repeat 3] [--quiet]`` (about 1.5 minutes on
 machine; warm and half-space cases keep the fastest of ``--repeat`` fresh processes, cold
 cases run once; ``--quiet``: no progress bar).
 """
+
 from __future__ import annotations
 
 import json
@@ -27,6 +28,7 @@ ROOT = os.path.dirname(HERE)
 
 def _scene():
     from twoscale.indenters import Asperity
+
     return [Asperity(x=10.0 * i, y=10.0 * j, z=0.0, R=5.0) for j in range(-2, 3) for i in range(-2, 3)]
 
 
@@ -43,34 +45,48 @@ def run_once(kind: str, base: str) -> dict:
     t0 = time.perf_counter()
     if kind == "block":
         from fem_influence import BlockProvider
+
         prov = BlockProvider(material=mat, base=base, progress=False)
     else:
         from twoscale.influence.halfspace import HalfSpace
+
         prov = HalfSpace(mat)
     t1 = time.perf_counter()
     res = solve_twoscale(prov, _scene(), h=0.1, total_load=50.0)
     t2 = time.perf_counter()
     forces = np.asarray(res.macro_forces)
     rss = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
-    return {"kind": kind, "base": base, "construct_s": t1 - t0, "solve_s": t2 - t1, "total_s": t2 - t0,
-            "peak_rss_mb": rss, "converged": bool(res.converged), "penetration": float(res.penetration),
-            "f_centre": float(forces[12]), "f_corner": float(forces[0]),
-            "timings": getattr(prov, "timings_s", {})}
+    return {
+        "kind": kind,
+        "base": base,
+        "construct_s": t1 - t0,
+        "solve_s": t2 - t1,
+        "total_s": t2 - t0,
+        "peak_rss_mb": rss,
+        "converged": bool(res.converged),
+        "penetration": float(res.penetration),
+        "f_centre": float(forces[12]),
+        "f_corner": float(forces[0]),
+        "timings": getattr(prov, "timings_s", {}),
+    }
 
 
 def _subprocess(kind: str, base: str, cache: str) -> dict:
     env = dict(os.environ, TWOSCALE_CACHE_DIR=cache, OMP_NUM_THREADS="1", PYTHONPATH=ROOT)
-    out = subprocess.run([sys.executable, __file__, "--once", kind, base], env=env, check=True,
-                         capture_output=True, text=True).stdout
+    out = subprocess.run(
+        [sys.executable, __file__, "--once", kind, base], env=env, check=True, capture_output=True, text=True
+    ).stdout
     return json.loads(out.strip().splitlines()[-1])
 
 
 def main(quiet: bool = False, repeat: int = 3) -> None:
     sys.path.insert(0, ROOT)
     from twoscale.progress import Progress
+
     rows = []
-    runs = [("half-space", "halfspace", "-")] + [(f"{base} {state}", "block", base)
-                                                 for base in ("bonded", "sliding") for state in ("cold", "warm")]
+    runs = [("half-space", "halfspace", "-")] + [
+        (f"{base} {state}", "block", base) for base in ("bonded", "sliding") for state in ("cold", "warm")
+    ]
     # cold runs fill the cache, so they run once; the others keep the fastest of ``repeat``
     # fresh processes (the machine is shared: single runs of one solve varied by up to 1.8x)
     total = sum(1 if "cold" in name else repeat for name, _, _ in runs)
@@ -83,12 +99,16 @@ def main(quiet: bool = False, repeat: int = 3) -> None:
                 bar.update(note=name)
             rows.append((name, best))
     hs = rows[0][1]["solve_s"]
-    print(f"{'case':>14} {'build+solve s':>14} {'solve s':>8} {'x half-space':>12} {'peak MB':>8} "
-          f"{'d mm':>7} {'F centre':>9} {'F corner':>9}")
+    print(
+        f"{'case':>14} {'build+solve s':>14} {'solve s':>8} {'x half-space':>12} {'peak MB':>8} "
+        f"{'d mm':>7} {'F centre':>9} {'F corner':>9}"
+    )
     for name, r in rows:
-        print(f"{name:>14} {r['total_s']:14.2f} {r['solve_s']:8.2f} {r['solve_s'] / hs:12.2f} "
-              f"{r['peak_rss_mb']:8.0f} {r['penetration']:7.4f} {r['f_centre']:9.4f} {r['f_corner']:9.4f}"
-              f"  {'' if r['converged'] else 'NOT CONVERGED'} {r['timings'] if 'cold' in name else ''}")
+        print(
+            f"{name:>14} {r['total_s']:14.2f} {r['solve_s']:8.2f} {r['solve_s'] / hs:12.2f} "
+            f"{r['peak_rss_mb']:8.0f} {r['penetration']:7.4f} {r['f_centre']:9.4f} {r['f_corner']:9.4f}"
+            f"  {'' if r['converged'] else 'NOT CONVERGED'} {r['timings'] if 'cold' in name else ''}"
+        )
 
 
 if __name__ == "__main__":
@@ -96,9 +116,14 @@ if __name__ == "__main__":
         print(json.dumps(run_once(sys.argv[2], sys.argv[3])))
     else:
         import argparse
+
         ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-        ap.add_argument("--repeat", type=int, default=3,
-                        help="fresh processes per warm or half-space case, fastest kept (default 3)")
+        ap.add_argument(
+            "--repeat",
+            type=int,
+            default=3,
+            help="fresh processes per warm or half-space case, fastest kept (default 3)",
+        )
         ap.add_argument("--quiet", action="store_true", help="no progress bar")
         args = ap.parse_args()
         if args.repeat < 1:

@@ -24,6 +24,7 @@ Usage::
 
     python benchmarks/calibrate_policy.py sweep_a.jsonl [sweep_b.jsonl ...] [--emit]
 """
+
 from __future__ import annotations
 
 import argparse
@@ -53,6 +54,7 @@ def samples(records: list[dict]) -> list[dict]:
     """One sample per attempt: candidate, work units, control (``penetration``, ``load`` or
     ``tilt``), CPU seconds, converged, scene label."""
     from twoscale.scenespace import SceneSpec
+
     out = []
     for rec in records:
         ts, spec = rec.get("ts", {}), rec["spec"]
@@ -65,9 +67,18 @@ def samples(records: list[dict]) -> list[dict]:
             key = candidate(iteration, far_tol)
             if not work.get(key):
                 continue
-            out.append({"candidate": key, "iteration": iteration, "work": float(work[key]), "control": control,
-                        "seconds": max(seconds * scale, 1e-3), "converged": bool(converged), "sweeps": sweeps,
-                        "scene": SceneSpec(**rec["spec"]).label})
+            out.append(
+                {
+                    "candidate": key,
+                    "iteration": iteration,
+                    "work": float(work[key]),
+                    "control": control,
+                    "seconds": max(seconds * scale, 1e-3),
+                    "converged": bool(converged),
+                    "sweeps": sweeps,
+                    "scene": SceneSpec(**rec["spec"]).label,
+                }
+            )
     return out
 
 
@@ -77,6 +88,7 @@ def fit(rows: list[dict]) -> dict:
     work (more sweeps: sensitivity or coarse corrections of the approach and the angles),
     shared by both. The union CG solves the load and the tilt in the same iteration."""
     from scipy.optimize import least_squares
+
     conv = [r for r in rows if r["converged"]]
     keys = [k for k in CANDIDATES if sum(r["candidate"] == k for r in conv) >= 3]
     if not keys:
@@ -90,13 +102,14 @@ def fit(rows: list[dict]) -> dict:
     ok = which >= 0
 
     def predict_(q):
-        fixed, ns = np.exp(q[0:2 * len(keys):2]), np.exp(q[1:2 * len(keys):2])
+        fixed, ns = np.exp(q[0 : 2 * len(keys) : 2]), np.exp(q[1 : 2 * len(keys) : 2])
         f_load, f_tilt = np.exp(q[-2]), np.exp(q[-1])
         factor = np.where(load, f_load, np.where(tilt, f_tilt, 1.0))
         return fixed[which] + 1e-9 * ns[which] * factor * w
 
     def resid(q):
         return (np.log(predict_(q)) - np.log(t))[ok]
+
     q0 = []
     for k in keys:
         sel = which == keys.index(k)
@@ -106,8 +119,10 @@ def fit(rows: list[dict]) -> dict:
     q0 = [min(v, math.log(MAX_FIXED) - 1e-6) if i % 2 == 0 else v for i, v in enumerate(q0)]
     hi = np.array([math.log(MAX_FIXED) if i < 2 * len(keys) and i % 2 == 0 else np.inf for i in range(len(q0) + 2)])
     q = least_squares(resid, np.array(q0 + [0.0, 0.0]), bounds=(-np.inf, hi)).x
-    out = {k: {"fixed": math.exp(q[2 * i]), "ns": math.exp(q[2 * i + 1]), "count": int(np.sum(which == i))}
-           for i, k in enumerate(keys)}
+    out = {
+        k: {"fixed": math.exp(q[2 * i]), "ns": math.exp(q[2 * i + 1]), "count": int(np.sum(which == i))}
+        for i, k in enumerate(keys)
+    }
     out["factors"] = {"load": math.exp(q[-2]), "tilt": math.exp(q[-1])}
     return out
 
@@ -132,10 +147,15 @@ def main(argv=None) -> int:
     p.add_argument("files", nargs="+")
     p.add_argument("--emit", action="store_true", help="print the FITTED block for twoscale/micro/costmodel.py")
     p.add_argument("--margin", type=float, default=1.0, help="union_margin to emit")
-    p.add_argument("--min-seconds", type=float, default=0.02,
-                   help="attempts shorter than this are left out (their time is the clock's resolution and Python)")
+    p.add_argument(
+        "--min-seconds",
+        type=float,
+        default=0.02,
+        help="attempts shorter than this are left out (their time is the clock's resolution and Python)",
+    )
     args = p.parse_args(argv)
     from twoscale.micro.costmodel import FITTED
+
     records = {}
     for f in args.files:
         with open(f, encoding="utf-8") as fh:
@@ -153,15 +173,19 @@ def main(argv=None) -> int:
         if k in models:
             m = models[k]
             print(f"  {k:10s} {m['count']:4d} attempts: fixed {m['fixed']:.3g} s + {m['ns']:.3g} ns a unit")
-    print(f"  block iterations' work x {models['factors']['load']:.3g} under load control, "
-          f"x {models['factors']['tilt']:.3g} with the tilt")
+    print(
+        f"  block iterations' work x {models['factors']['load']:.3g} under load control, "
+        f"x {models['factors']['tilt']:.3g} with the tilt"
+    )
     installed = {k: {"fixed": FITTED.fixed_seconds[k], "ns": FITTED.ns_per_unit[k]} for k in CANDIDATES}
     installed["factors"] = {"load": FITTED.load_factor, "tilt": FITTED.tilt_factor}
     report(f"installed model ({FITTED.fitted_on})", installed, rows)
     off = report("this fit", models, rows)
     for f, r in sorted(off, key=lambda x: -abs(math.log(x[0]))):
-        print(f"  {r['candidate']:10s} predicted/measured {f:6.2f}  {r['seconds']:7.2f} s  {r['iteration']} "
-              f"{r['sweeps']} sweeps  {r['scene']}")
+        print(
+            f"  {r['candidate']:10s} predicted/measured {f:6.2f}  {r['seconds']:7.2f} s  {r['iteration']} "
+            f"{r['sweeps']} sweeps  {r['scene']}"
+        )
     wasted = [r for r in rows if not r["converged"]]
     if wasted:
         print(f"{len(wasted)} attempts did not converge ({sum(r['seconds'] for r in wasted):.1f} s before a fallback):")
@@ -170,13 +194,15 @@ def main(argv=None) -> int:
     if args.emit and all(k in models for k in CANDIDATES):
         ns = ", ".join(f'"{k}": {models[k]["ns"]:.3g}' for k in CANDIDATES)
         fx = ", ".join(f'"{k}": {models[k]["fixed"]:.3g}' for k in CANDIDATES)
-        print("\nFITTED = CostModel(\n"
-              f"    ns_per_unit={{{ns}}},\n"
-              f"    fixed_seconds={{{fx}}},\n"
-              f"    load_factor={models['factors']['load']:.3g},\n"
-              f"    tilt_factor={models['factors']['tilt']:.3g},\n"
-              f"    union_margin={args.margin:g},\n"
-              f"    fitted_on=\"{len(rows)} attempts of {len(records)} sweep scenes\",\n)")
+        print(
+            "\nFITTED = CostModel(\n"
+            f"    ns_per_unit={{{ns}}},\n"
+            f"    fixed_seconds={{{fx}}},\n"
+            f"    load_factor={models['factors']['load']:.3g},\n"
+            f"    tilt_factor={models['factors']['tilt']:.3g},\n"
+            f"    union_margin={args.margin:g},\n"
+            f'    fitted_on="{len(rows)} attempts of {len(records)} sweep scenes",\n)'
+        )
     return 0
 
 

@@ -8,6 +8,7 @@ Usage::
 
     cd benchmarks && python dense_1000.py [--tips 1000] [--side 120] [--h 0.06] [--comparators]
 """
+
 from __future__ import annotations
 
 import argparse
@@ -28,12 +29,25 @@ def main(argv=None) -> int:
     ap.add_argument("--side", type=float, default=120.0, help="side of the square of tips, mm")
     ap.add_argument("--h", type=float, default=0.06, help="cell size, mm")
     ap.add_argument("--seed", type=int, default=0)
-    ap.add_argument("--load-per-tip", type=float, default=1.5,
-                    help="N per tip (default 1.5: 1,500 N on 1,000 tips, a tread block's load)")
+    ap.add_argument(
+        "--load-per-tip",
+        type=float,
+        default=1.5,
+        help="N per tip (default 1.5: 1,500 N on 1,000 tips, a tread block's load)",
+    )
     ap.add_argument("--comparators", action="store_true", help="also run ContactMechanics (slow)")
     args = ap.parse_args(argv)
-    spec = {"n": args.tips, "kind": "dense", "control": "load", "shape": "sphere", "body": "halfspace",
-            "seed": args.seed, "h": args.h, "side": args.side, "load_per_tip": args.load_per_tip}
+    spec = {
+        "n": args.tips,
+        "kind": "dense",
+        "control": "load",
+        "shape": "sphere",
+        "body": "halfspace",
+        "seed": args.seed,
+        "h": args.h,
+        "side": args.side,
+        "load_per_tip": args.load_per_tip,
+    }
     out = {}
     for method in ["twoscale", "reference"] + (["CM"] if args.comparators else []):
         cmd = [sys.executable, os.path.join(HERE, "scenes.py"), "--single", method, "--spec", json.dumps(spec)]
@@ -41,10 +55,14 @@ def main(argv=None) -> int:
         out[method] = json.loads(text)
         rec = out[method]
         extra = rec.get("strategy", {}).get("micro_iteration", "")
-        print(f"{method:10s} {rec['time_s']:8.1f} s  converged {rec['converged']}  peak {rec['peak_mb']:.0f} MB  {extra}")
+        print(
+            f"{method:10s} {rec['time_s']:8.1f} s  converged {rec['converged']}  peak {rec['peak_mb']:.0f} MB  {extra}"
+        )
     f, r = np.asarray(out["twoscale"]["forces"]), np.asarray(out["reference"]["forces"])
-    print(f"default / reference: {out['twoscale']['time_s'] / out['reference']['time_s']:.3f}; "
-          f"per-tip error {100 * np.abs(f - r).max() / r.max():.3g} % of the largest force")
+    print(
+        f"default / reference: {out['twoscale']['time_s'] / out['reference']['time_s']:.3f}; "
+        f"per-tip error {100 * np.abs(f - r).max() / r.max():.3g} % of the largest force"
+    )
     return 0
 
 

@@ -11,6 +11,7 @@ Target on dense scenes of >= 200 tips: default / reference <= 0.5.
 
 Run: ``cd benchmarks && python dense_ratio.py [--tips 300] [--side 45] [--h 0.05] [--repeat 2]``.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -46,19 +47,24 @@ def main(argv=None) -> int:
     times: dict = {m: [] for m in METHODS}
     results: dict = {}
     for rep in range(args.repeat):
-        for method in (METHODS if rep % 2 == 0 else METHODS[::-1]):
+        for method in METHODS if rep % 2 == 0 else METHODS[::-1]:
             c0, t0 = time.process_time(), time.perf_counter()
             res = solve_scene(scene, method=method)
             times[method].append((time.perf_counter() - t0, time.process_time() - c0))
             results[method] = res
-            print(f"{method:10s} wall {times[method][-1][0]:7.2f} s  CPU {times[method][-1][1]:7.2f} s  "
-                  f"converged {res.converged}  iterations {res.iterations}", flush=True)
+            print(
+                f"{method:10s} wall {times[method][-1][0]:7.2f} s  CPU {times[method][-1][1]:7.2f} s  "
+                f"converged {res.converged}  iterations {res.iterations}",
+                flush=True,
+            )
     wall = sum(t[0] for t in times["twoscale"]) / sum(t[0] for t in times["reference"])
     cpu = sum(t[1] for t in times["twoscale"]) / sum(t[1] for t in times["reference"])
     f, g = results["twoscale"].asperities.forces, results["reference"].asperities.forces
     micro = results["twoscale"].details.micro
-    print(f"default / reference: CPU {cpu:.3f}, wall {wall:.3f}; iteration {micro.strategy}; "
-          f"per-tip difference {100 * np.abs(f - g).max() / g.max():.2g} % of the largest force")
+    print(
+        f"default / reference: CPU {cpu:.3f}, wall {wall:.3f}; iteration {micro.strategy}; "
+        f"per-tip difference {100 * np.abs(f - g).max() / g.max():.2g} % of the largest force"
+    )
     return 0
 
 

@@ -11,6 +11,7 @@ coarser local mesh (tests/test_fem_direct.py); this script is the full-size run.
 Run: ``python benchmarks/direct_fem.py [--per-cell 6] [--growth 1.8]`` (about 9 minutes and
 5.5 GB at the defaults on the 2-core machine).
 """
+
 from __future__ import annotations
 
 import argparse
@@ -36,8 +37,7 @@ def main() -> int:
     h_cell = 2.0
     r = np.array([0.0, 1.0, 2.0, 4.0, 6.0, 10.0, 20.0, 30.0, 40.0])
     t0 = time.perf_counter()
-    res = solve_cell_load(mat, boundary="halfspace", h_cell=h_cell, r=r, growth=args.growth,
-                          per_cell=args.per_cell)
+    res = solve_cell_load(mat, boundary="halfspace", h_cell=h_cell, r=r, growth=args.growth, per_cell=args.per_cell)
     wall = time.perf_counter() - t0
     love = love_rectangle(r, 0 * r, h_cell / 2, h_cell / 2, mat.E_star)
     err = res.u / love - 1
@@ -45,8 +45,10 @@ def main() -> int:
     for ri, ui, li, ei in zip(r, res.u, love, err):
         print(f"{ri:6.1f} {ui:12.6f} {li:12.6f} {100 * ei:8.3f}")
     peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
-    print(f"{res.n_unknowns} unknowns, {res.n_elements} elements (quarter block), residual {res.residual:.1e}, "
-          f"{wall:.0f} s, peak {peak:.0f} MB")
+    print(
+        f"{res.n_unknowns} unknowns, {res.n_elements} elements (quarter block), residual {res.residual:.1e}, "
+        f"{wall:.0f} s, peak {peak:.0f} MB"
+    )
     ok = res.converged and np.abs(err).max() <= TARGET
     print(f"max |error| {100 * np.abs(err).max():.3f} % (target {100 * TARGET:.0f} %): {'PASS' if ok else 'MISS'}")
     return 0 if ok else 1

@@ -7,6 +7,7 @@ under a square of spheres), so only the writing is timed: ``write_vtk`` with the
 indenter height, as ``twoscale solve --out`` writes it, best of three; then the file is
 read back with ``read_vtk`` and compared. docs/outputs.md quotes the 1200 x 1200 line.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -57,8 +58,9 @@ def main() -> None:
             size = sum(f.stat().st_size for f in path.with_suffix("").iterdir()) / 1e6
             rows.append({"cells": n * n, "write_s": t, "MB": size, "same": str(same)})
             bar.update()
-    _common.print_table(rows, [("cells", "cells", "d"), ("write_s", "write s", ".3f"),
-                               ("MB", "MB", ".1f"), ("same", "read back", "s")])
+    _common.print_table(
+        rows, [("cells", "cells", "d"), ("write_s", "write s", ".3f"), ("MB", "MB", ".1f"), ("same", "read back", "s")]
+    )
 
 
 if __name__ == "__main__":

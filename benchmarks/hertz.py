@@ -27,6 +27,7 @@ our cg and of CM and compares their times (target: cg at least 3x faster).
 
 Run: ``python benchmarks/hertz.py [--sizes 32 64 128] [--repeat 3]``.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -64,9 +65,11 @@ def hertz_grid(n: int, margin: float = 1.1) -> Grid:
 
 def errors(p: np.ndarray, X: np.ndarray, Y: np.ndarray, h: float) -> dict:
     pe = hertz.pressure(np.hypot(X, Y), R, D, MAT.E_star)
-    return {"load_err": abs(h * h * p.sum() / P_HERTZ - 1),
-            "l2_err": float(np.linalg.norm(p - pe) / np.linalg.norm(pe)),
-            "area_err": abs(h * h * np.count_nonzero(p > 0) / (math.pi * A * A) - 1)}
+    return {
+        "load_err": abs(h * h * p.sum() / P_HERTZ - 1),
+        "l2_err": float(np.linalg.norm(p - pe) / np.linalg.norm(pe)),
+        "area_err": abs(h * h * np.count_nonzero(p > 0) / (math.pi * A * A) - 1),
+    }
 
 
 # ------------------------------------------------------------------ the codes
@@ -76,6 +79,7 @@ def run_ours(solver, grid, **kw):
     def go():
         s = surface_on(grid, [Asperity(0.0, 0.0, 0.0, R, "paraboloid")])
         return solver(hs, s, penetration=D, **kw)
+
     return go
 
 
@@ -89,7 +93,7 @@ def run_contact_mechanics(grid, pentol=None):
 
     def go():
         # CM: rigid heights (peak at 0), offset = indentation; forces per pixel
-        heights = -(X ** 2 + Y ** 2) / (2 * R)
+        heights = -(X**2 + Y**2) / (2 * R)
         substrate = FreeFFTElasticHalfSpace(grid.shape, MAT.E_star, size)
         system = NonSmoothContactSystem(substrate, Topography(heights, physical_sizes=size))
         kw = {} if pentol is None else {"pentol": pentol}
@@ -97,11 +101,13 @@ def run_contact_mechanics(grid, pentol=None):
             warnings.simplefilter("ignore")
             sol = system.minimize_proxy(offset=D, **kw)
         return sol
+
     return go
 
 
 def run_tamaas(n_cells: int, h: float):
     import tamaas as tm
+
     tm.set_log_level(tm.LogLevel.error)
     L = n_cells * h
     x = (np.arange(n_cells) + 0.5) * h - 0.5 * L  # tip at the corner of four cells
@@ -110,9 +116,10 @@ def run_tamaas(n_cells: int, h: float):
     def go():
         model = tm.ModelFactory.createModel(tm.model_type.basic_2d, [L, L], [n_cells, n_cells])
         model.E, model.nu = MAT.E, MAT.nu
-        solver = tm.PolonskyKeerRey(model, -(X ** 2 + Y ** 2) / (2 * R), 1e-12)
-        solver.solve(P_HERTZ / L ** 2)
+        solver = tm.PolonskyKeerRey(model, -(X**2 + Y**2) / (2 * R), 1e-12)
+        solver.solve(P_HERTZ / L**2)
         return np.array(model.traction)
+
     return go, X, Y
 
 
@@ -136,8 +143,18 @@ def bench_size(n: int, repeat: int, max_dense: int) -> list[dict]:
         r, t = best_time(run_ours(solver, grid, **kw), repeat)
         p = r.fields[0].pressure
         it = r.iterations.get("cg", r.iterations.get("outer"))
-        rows.append({"code": name, "n": n, "cells": grid.size, "time": t, "iters": it, "converged": r.converged,
-                     "solver_err": float(np.linalg.norm(p - exact) / np.linalg.norm(exact)), **errors(p, X, Y, h)})
+        rows.append(
+            {
+                "code": name,
+                "n": n,
+                "cells": grid.size,
+                "time": t,
+                "iters": it,
+                "converged": r.converged,
+                "solver_err": float(np.linalg.norm(p - exact) / np.linalg.norm(exact)),
+                **errors(p, X, Y, h),
+            }
+        )
 
     floor = errors(exact, X, Y, h)["l2_err"]
     if grid.size <= max_dense:
@@ -148,16 +165,34 @@ def bench_size(n: int, repeat: int, max_dense: int) -> list[dict]:
         for name, pentol in (("CM", None), ("CM-1e-6", 1e-6 * D), ("CM-1e-9", 1e-9 * D)):
             sol, t = best_time(run_contact_mechanics(grid, pentol), repeat)
             p = np.asarray(sol.jac) / (h * h)
-            rows.append({"code": name, "n": n, "cells": grid.size, "time": t, "iters": sol.nit,
-                         "converged": bool(sol.success),
-                         "solver_err": float(np.linalg.norm(p - exact) / np.linalg.norm(exact)),
-                         **errors(p, X, Y, h)})
+            rows.append(
+                {
+                    "code": name,
+                    "n": n,
+                    "cells": grid.size,
+                    "time": t,
+                    "iters": sol.nit,
+                    "converged": bool(sol.success),
+                    "solver_err": float(np.linalg.norm(p - exact) / np.linalg.norm(exact)),
+                    **errors(p, X, Y, h),
+                }
+            )
     if _available("tamaas"):
         n_cells = 4 * n  # periodic cell 8a wide
         go, TX, TY = run_tamaas(n_cells, h)
         p, t = best_time(go, repeat)
-        rows.append({"code": "Tamaas", "n": n, "cells": n_cells * n_cells, "time": t, "iters": None,
-                     "converged": True, "solver_err": None, **errors(p, TX, TY, h)})
+        rows.append(
+            {
+                "code": "Tamaas",
+                "n": n,
+                "cells": n_cells * n_cells,
+                "time": t,
+                "iters": None,
+                "converged": True,
+                "solver_err": None,
+                **errors(p, TX, TY, h),
+            }
+        )
     for row in rows:
         row["equal"] = row["converged"] and abs(row["l2_err"] - floor) <= 0.01 * floor
     return rows
@@ -184,38 +219,61 @@ def verdict(rows: list[dict]) -> tuple[bool, list[str]]:
             continue
         ratio = cm["time"] / cg["time"]
         ok &= ratio >= 3.0
-        lines.append(f"2a/h = {n:4d}: {cm['code']} {cm['time']:.3f} s / {cg['code']} {cg['time']:.3f} s = "
-                     f"{ratio:5.2f} (target >= 3), L2 error {100 * cg['l2_err']:.4f} % vs "
-                     f"{100 * cm['l2_err']:.4f} % -> {'PASS' if ratio >= 3.0 else 'MISS'}")
+        lines.append(
+            f"2a/h = {n:4d}: {cm['code']} {cm['time']:.3f} s / {cg['code']} {cg['time']:.3f} s = "
+            f"{ratio:5.2f} (target >= 3), L2 error {100 * cg['l2_err']:.4f} % vs "
+            f"{100 * cm['l2_err']:.4f} % -> {'PASS' if ratio >= 3.0 else 'MISS'}"
+        )
         tam = [r for r in here if r["code"] == "Tamaas"]
         if tam:
-            lines.append(f"              Tamaas {tam[0]['time']:.3f} s / {cg['code']} = "
-                         f"{tam[0]['time'] / cg['time']:5.2f} (periodic cell 8a; its L2 error "
-                         f"{100 * tam[0]['l2_err']:.3f} % is not equal)")
+            lines.append(
+                f"              Tamaas {tam[0]['time']:.3f} s / {cg['code']} = "
+                f"{tam[0]['time'] / cg['time']:5.2f} (periodic cell 8a; its L2 error "
+                f"{100 * tam[0]['l2_err']:.3f} % is not equal)"
+            )
     return ok and seen, lines
 
 
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    parser.add_argument("--sizes", type=int, nargs="+", default=[32, 64, 128],
-                        help="cells across the contact diameter 2a/h (default: 32 64 128)")
+    parser.add_argument(
+        "--sizes",
+        type=int,
+        nargs="+",
+        default=[32, 64, 128],
+        help="cells across the contact diameter 2a/h (default: 32 64 128)",
+    )
     parser.add_argument("--repeat", type=int, default=3, help="runs per code, best time kept (default 3)")
-    parser.add_argument("--max-dense", type=int, default=10_000,
-                        help="largest grid (cells) given to the dense solver (default 10000)")
+    parser.add_argument(
+        "--max-dense", type=int, default=10_000, help="largest grid (cells) given to the dense solver (default 10000)"
+    )
     _common.add_quiet(parser)
     args = parser.parse_args(argv)
-    print(f"Hertz: R = {R} mm, E = {MAT.E} MPa, nu = {MAT.nu}, d = {D} mm, a = {A:.4f} mm, "
-          f"P = {P_HERTZ:.4f} N; OMP_NUM_THREADS={os.environ.get('OMP_NUM_THREADS')}")
+    print(
+        f"Hertz: R = {R} mm, E = {MAT.E} MPa, nu = {MAT.nu}, d = {D} mm, a = {A:.4f} mm, "
+        f"P = {P_HERTZ:.4f} N; OMP_NUM_THREADS={os.environ.get('OMP_NUM_THREADS')}"
+    )
     rows = []
     with _common.progress(len(args.sizes), "hertz sizes", args.quiet) as bar:
         for n in args.sizes:
             rows += bench_size(n, args.repeat, args.max_dense)
             bar.update(note=f"2a/h = {n}")
-    print_table(rows, [("code", "code", "s"), ("n", "2a/h", "d"), ("cells", "cells", "d"),
-                       ("time", "time s", ".3f"), ("iters", "iters", "d"), ("load_err", "load err", ".2e"),
-                       ("l2_err", "L2 err", ".3e"), ("area_err", "area err", ".2e"),
-                       ("solver_err", "solver err", ".1e"), ("converged", "converged", ""),
-                       ("equal", "equal err", "")])
+    print_table(
+        rows,
+        [
+            ("code", "code", "s"),
+            ("n", "2a/h", "d"),
+            ("cells", "cells", "d"),
+            ("time", "time s", ".3f"),
+            ("iters", "iters", "d"),
+            ("load_err", "load err", ".2e"),
+            ("l2_err", "L2 err", ".3e"),
+            ("area_err", "area err", ".2e"),
+            ("solver_err", "solver err", ".1e"),
+            ("converged", "converged", ""),
+            ("equal", "equal err", ""),
+        ],
+    )
     ok, lines = verdict(rows)
     for line in lines:
         print(line)

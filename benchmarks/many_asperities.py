@@ -41,6 +41,7 @@ Usage::
 
 Measured figures: docs/records/scaling_status.md.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -63,9 +64,9 @@ from twoscale.influence.halfspace import HalfSpace  # noqa: E402
 from twoscale.material import Material  # noqa: E402
 
 MATERIAL = Material(10.0, 0.5)
-H = 0.04            # mm: mean R (4 mm) / 100
-SPREAD = 0.06       # mm: tip recesses uniform in [0, SPREAD]
-LOAD_PER_ASPERITY = 0.05   # N: W = this * N (53 % touch at N = 100, 57 % at 1,000, macro step)
+H = 0.04  # mm: mean R (4 mm) / 100
+SPREAD = 0.06  # mm: tip recesses uniform in [0, SPREAD]
+LOAD_PER_ASPERITY = 0.05  # N: W = this * N (53 % touch at N = 100, 57 % at 1,000, macro step)
 
 
 def scene(n: int, *, seed: int = 0, min_spacing: float = 1.5):
@@ -94,22 +95,33 @@ def _peak_mb() -> float:
 
 def run_twoscale(n: int, seed: int, options: dict) -> dict:
     from twoscale.driver import solve_twoscale
+
     asp, side = scene(n, seed=seed)
     provider = HalfSpace(MATERIAL)
     t0 = time.perf_counter()
-    res = solve_twoscale(provider, asp, h=H, total_load=LOAD_PER_ASPERITY * n, tol=1e-6,
-                         max_sweeps=200, **options)
+    res = solve_twoscale(provider, asp, h=H, total_load=LOAD_PER_ASPERITY * n, tol=1e-6, max_sweeps=200, **options)
     t = time.perf_counter() - t0
     forces = np.asarray(res.asperities.forces)
     cells = int(sum(f.grid.size for f in res.fields))
-    return {"method": "twoscale", "n": n, "time_s": t, "peak_mb": _peak_mb(), "cells": cells,
-            "forces": forces.tolist(), "converged": bool(res.converged), "message": res.message,
-            "touching": float(np.mean(forces > 0)), "timings": dict(res.timings_s),
-            "iterations": {k: int(v) for k, v in res.iterations.items()}, "side_mm": side}
+    return {
+        "method": "twoscale",
+        "n": n,
+        "time_s": t,
+        "peak_mb": _peak_mb(),
+        "cells": cells,
+        "forces": forces.tolist(),
+        "converged": bool(res.converged),
+        "message": res.message,
+        "touching": float(np.mean(forces > 0)),
+        "timings": dict(res.timings_s),
+        "iterations": {k: int(v) for k, v in res.iterations.items()},
+        "side_mm": side,
+    }
 
 
 def run_reference(n: int, seed: int, options: dict) -> dict:
     from twoscale.reference import solve_cg
+
     asp, side = scene(n, seed=seed)
     provider = HalfSpace(MATERIAL)
     grid = Grid.covering(-6.0, side + 6.0, -6.0, side + 6.0, H)
@@ -118,15 +130,24 @@ def run_reference(n: int, seed: int, options: dict) -> dict:
     res = solve_cg(provider, surf, total_load=LOAD_PER_ASPERITY * n, tol=1e-8)
     t = time.perf_counter() - t0
     forces = np.asarray(res.asperities.forces)
-    return {"method": "fft-cg", "n": n, "time_s": t, "peak_mb": _peak_mb(), "cells": int(grid.size),
-            "forces": forces.tolist(), "converged": bool(res.converged), "message": res.message,
-            "touching": float(np.mean(forces > 0)), "side_mm": side}
+    return {
+        "method": "fft-cg",
+        "n": n,
+        "time_s": t,
+        "peak_mb": _peak_mb(),
+        "cells": int(grid.size),
+        "forces": forces.tolist(),
+        "converged": bool(res.converged),
+        "message": res.message,
+        "touching": float(np.mean(forces > 0)),
+        "side_mm": side,
+    }
 
 
-CLIP = 1.0   # mm: heights above this (and inf) sit this far down for the comparators
-CM_PENTOL = 1e-10   # mm: CM's bound on rms/max interpenetration and on the last update of u
+CLIP = 1.0  # mm: heights above this (and inf) sit this far down for the comparators
+CM_PENTOL = 1e-10  # mm: CM's bound on rms/max interpenetration and on the last update of u
 CM_FORCETOL = 1e-10  # N: CM's bound on tensile pixel forces
-TAMAAS_TOL = 1e-12   # Tamaas's relative complementarity error
+TAMAAS_TOL = 1e-12  # Tamaas's relative complementarity error
 
 
 def _scene_surface(n: int, seed: int):
@@ -153,6 +174,7 @@ def run_contact_mechanics(n: int, seed: int, options: dict) -> dict:
     from ContactMechanics import FreeFFTElasticHalfSpace
     from ContactMechanics.Systems import NonSmoothContactSystem
     from SurfaceTopography import Topography
+
     W = LOAD_PER_ASPERITY * n
     t0 = time.perf_counter()
     asp, side, grid, surf = _scene_surface(n, seed)
@@ -162,19 +184,30 @@ def run_contact_mechanics(n: int, seed: int, options: dict) -> dict:
     system = NonSmoothContactSystem(substrate, Topography(heights, physical_sizes=size))
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        sol = system.minimize_proxy(external_force=W, pentol=CM_PENTOL, forcetol=CM_FORCETOL,
-                                    maxiter=20_000)
+        sol = system.minimize_proxy(external_force=W, pentol=CM_PENTOL, forcetol=CM_FORCETOL, maxiter=20_000)
     t = time.perf_counter() - t0
     pix = np.asarray(sol.jac)  # forces per pixel, N (pressure * h^2), >= 0
     forces = _owned_forces(surf, pix)
-    return {"method": "CM", "n": n, "time_s": t, "peak_mb": _peak_mb(), "cells": int(grid.size),
-            "forces": forces.tolist(), "converged": bool(sol.success), "message": str(sol.message),
-            "iterations": int(sol.nit), "total_load": float(pix.sum()), "clipped_loaded": _clip_check(surf, pix),
-            "touching": float(np.mean(forces > 0)), "side_mm": side}
+    return {
+        "method": "CM",
+        "n": n,
+        "time_s": t,
+        "peak_mb": _peak_mb(),
+        "cells": int(grid.size),
+        "forces": forces.tolist(),
+        "converged": bool(sol.success),
+        "message": str(sol.message),
+        "iterations": int(sol.nit),
+        "total_load": float(pix.sum()),
+        "clipped_loaded": _clip_check(surf, pix),
+        "touching": float(np.mean(forces > 0)),
+        "side_mm": side,
+    }
 
 
 def run_tamaas(n: int, seed: int, options: dict) -> dict:
     import tamaas as tm
+
     tm.set_log_level(tm.LogLevel.error)
     W = LOAD_PER_ASPERITY * n
     t0 = time.perf_counter()
@@ -182,7 +215,7 @@ def run_tamaas(n: int, seed: int, options: dict) -> dict:
     ny, nx = 2 * grid.ny, 2 * grid.nx  # periodic cell twice the scene grid in x and y
     Ly, Lx = ny * grid.h, nx * grid.h
     heights = np.full((ny, nx), -CLIP)
-    heights[:grid.ny, :grid.nx] = -np.minimum(surf.height, CLIP)
+    heights[: grid.ny, : grid.nx] = -np.minimum(surf.height, CLIP)
     model = tm.ModelFactory.createModel(tm.model_type.basic_2d, [Ly, Lx], [ny, nx])
     model.E, model.nu = MATERIAL.E, MATERIAL.nu
     solver = tm.PolonskyKeerRey(model, heights, TAMAAS_TOL)
@@ -190,26 +223,45 @@ def run_tamaas(n: int, seed: int, options: dict) -> dict:
     err = float(solver.solve(W / (Lx * Ly)))
     t = time.perf_counter() - t0
     p = np.array(model.traction).reshape(ny, nx)
-    pix = p * grid.h ** 2
-    scene_pix = pix[:grid.ny, :grid.nx]
+    pix = p * grid.h**2
+    scene_pix = pix[: grid.ny, : grid.nx]
     forces = _owned_forces(surf, scene_pix)
-    return {"method": "Tamaas", "n": n, "time_s": t, "peak_mb": _peak_mb(), "cells": int(nx * ny),
-            "forces": forces.tolist(), "converged": bool(err <= TAMAAS_TOL), "message": f"error {err:.2e}",
-            "total_load": float(pix.sum()), "padding_load": float(pix.sum() - scene_pix.sum()),
-            "clipped_loaded": _clip_check(surf, scene_pix), "touching": float(np.mean(forces > 0)),
-            "side_mm": side}
+    return {
+        "method": "Tamaas",
+        "n": n,
+        "time_s": t,
+        "peak_mb": _peak_mb(),
+        "cells": int(nx * ny),
+        "forces": forces.tolist(),
+        "converged": bool(err <= TAMAAS_TOL),
+        "message": f"error {err:.2e}",
+        "total_load": float(pix.sum()),
+        "padding_load": float(pix.sum() - scene_pix.sum()),
+        "clipped_loaded": _clip_check(surf, scene_pix),
+        "touching": float(np.mean(forces > 0)),
+        "side_mm": side,
+    }
 
 
-RUNNERS = {"twoscale": run_twoscale, "fft-cg": run_reference, "CM": run_contact_mechanics,
-           "Tamaas": run_tamaas}
+RUNNERS = {"twoscale": run_twoscale, "fft-cg": run_reference, "CM": run_contact_mechanics, "Tamaas": run_tamaas}
 COMPARATORS = {"CM": ("ContactMechanics", "SurfaceTopography"), "Tamaas": ("tamaas",)}
 #: cells each comparator solves on, per cell of the scene grid (Tamaas: periodic cell 2x in x and y)
 COMPARATOR_CELLS = {"CM": 1, "Tamaas": 4}
 
 
 def _subprocess(method: str, n: int, seed: int, options: dict, timeout: float) -> dict:
-    cmd = [sys.executable, os.path.abspath(__file__), "--single", method, "--sizes", str(n),
-           "--seed", str(seed), "--options", json.dumps(options)]
+    cmd = [
+        sys.executable,
+        os.path.abspath(__file__),
+        "--single",
+        method,
+        "--sizes",
+        str(n),
+        "--seed",
+        str(seed),
+        "--options",
+        json.dumps(options),
+    ]
     try:
         out = subprocess.run(cmd, capture_output=True, text=True, timeout=timeout)
     except subprocess.TimeoutExpired:
@@ -227,8 +279,11 @@ def force_errors(forces, reference) -> dict:
     mean = float(r[touching].mean()) if touching.any() else 1.0
     big = r >= 0.05 * mean
     rel = float(np.max(np.abs(f[big] - r[big]) / r[big])) if big.any() else 0.0
-    return {"max_rel_pct": 100 * rel, "max_over_mean_pct": 100 * float(np.max(np.abs(f - r))) / mean,
-            "total_pct": 100 * abs(f.sum() - r.sum()) / r.sum()}
+    return {
+        "max_rel_pct": 100 * rel,
+        "max_over_mean_pct": 100 * float(np.max(np.abs(f - r))) / mean,
+        "total_pct": 100 * abs(f.sum() - r.sum()) / r.sum(),
+    }
 
 
 def main(argv=None) -> int:
@@ -236,17 +291,29 @@ def main(argv=None) -> int:
     ap.add_argument("--sizes", type=int, nargs="+", default=[100])
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--no-reference", action="store_true", help="skip the full-grid FFT solve")
-    ap.add_argument("--reference-max-cells", type=float, default=6e6,
-                    help="largest full grid attempted (cells), default 6e6")
+    ap.add_argument(
+        "--reference-max-cells", type=float, default=6e6, help="largest full grid attempted (cells), default 6e6"
+    )
     ap.add_argument("--timeout", type=float, default=1800.0, help="per solve, s")
-    ap.add_argument("--options", default='{}',
-                    help='JSON keyword arguments for solve_twoscale, default {} (what a user gets: '
-                         'the policy chooses the iteration and coupling; e.g. {"far_tol": 0.2} to fix them)')
-    ap.add_argument("--comparators", action=argparse.BooleanOptionalAction, default=True,
-                    help="run ContactMechanics and Tamaas where installed (default on)")
-    ap.add_argument("--comparator-max-cells", type=float, default=None,
-                    help="largest grid a comparator is run on, counting its own cells (Tamaas: 4x "
-                         "the scene grid), default --reference-max-cells")
+    ap.add_argument(
+        "--options",
+        default="{}",
+        help="JSON keyword arguments for solve_twoscale, default {} (what a user gets: "
+        'the policy chooses the iteration and coupling; e.g. {"far_tol": 0.2} to fix them)',
+    )
+    ap.add_argument(
+        "--comparators",
+        action=argparse.BooleanOptionalAction,
+        default=True,
+        help="run ContactMechanics and Tamaas where installed (default on)",
+    )
+    ap.add_argument(
+        "--comparator-max-cells",
+        type=float,
+        default=None,
+        help="largest grid a comparator is run on, counting its own cells (Tamaas: 4x "
+        "the scene grid), default --reference-max-cells",
+    )
     _common.add_quiet(ap)
     ap.add_argument("--single", choices=sorted(RUNNERS), help=argparse.SUPPRESS)
     ap.add_argument("--json", help="write all records to this file")
@@ -290,8 +357,10 @@ def main(argv=None) -> int:
                 records.append(others[label])
             else:
                 skipped.append(f"{label} ({own:.3g} cells)")
-        line = {k: ts.get(k) for k in ("n", "time_s", "peak_mb", "cells", "touching", "converged", "timings",
-                                        "iterations", "error")}
+        line = {
+            k: ts.get(k)
+            for k in ("n", "time_s", "peak_mb", "cells", "touching", "converged", "timings", "iterations", "error")
+        }
         if ref is not None and "forces" in ref and "forces" in ts:
             line["reference"] = {k: ref.get(k) for k in ("time_s", "peak_mb", "cells", "converged")}
             line["errors"] = force_errors(ts["forces"], ref["forces"])
@@ -301,9 +370,21 @@ def main(argv=None) -> int:
         else:
             line["reference"] = f"skipped ({cells:.3g} cells)"
         for label, rec in others.items():
-            entry = {k: rec.get(k) for k in ("time_s", "peak_mb", "cells", "converged", "iterations",
-                                             "total_load", "clipped_loaded", "padding_load", "error")
-                     if k in rec}
+            entry = {
+                k: rec.get(k)
+                for k in (
+                    "time_s",
+                    "peak_mb",
+                    "cells",
+                    "converged",
+                    "iterations",
+                    "total_load",
+                    "clipped_loaded",
+                    "padding_load",
+                    "error",
+                )
+                if k in rec
+            }
             if "forces" in rec and "forces" in ts:
                 entry["twoscale_vs_it"] = force_errors(ts["forces"], rec["forces"])
                 entry["speedup"] = rec["time_s"] / ts["time_s"]

@@ -23,6 +23,7 @@ and faster than cg on the full grid. Prints PASS/MISS per case and for each layo
 
 Run: ``python benchmarks/paper_cases.py [--layouts two seven] [--repeat 3] [--max-dense-gb 2]``.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -49,18 +50,26 @@ def run_case(layout: str, spacing: float, *, repeat: int, max_dense_gb: float, t
     hs = HalfSpace(case.material)
     surf = reference_surface(case)
     d = case.penetration
-    ts, t_ts = _common.best_time(lambda: solve_twoscale(hs, case.asperities, h=case.h, penetration=d, tol=tol),
-                                  repeat)
+    ts, t_ts = _common.best_time(lambda: solve_twoscale(hs, case.asperities, h=case.h, penetration=d, tol=tol), repeat)
     cg, t_cg = _common.best_time(lambda: solve_cg(hs, surf, penetration=d), repeat)
     p = ts.pressure_on(surf.grid)
-    row = {"layout": layout, "s": spacing, "cells_2s": ts.n_cells,
-           "cells_ref": int(np.isfinite(surf.height).sum()), "grid_ref": surf.grid.size,
-           "sweeps": ts.iterations["micro"], "t_2s": t_ts, "t_cg": t_cg, "x_cg": t_cg / t_ts,
-           "err_cg": _err(p, cg.pressure_on(surf.grid)), "converged": ts.converged and cg.converged}
+    row = {
+        "layout": layout,
+        "s": spacing,
+        "cells_2s": ts.n_cells,
+        "cells_ref": int(np.isfinite(surf.height).sum()),
+        "grid_ref": surf.grid.size,
+        "sweeps": ts.iterations["micro"],
+        "t_2s": t_ts,
+        "t_cg": t_cg,
+        "x_cg": t_cg / t_ts,
+        "err_cg": _err(p, cg.pressure_on(surf.grid)),
+        "converged": ts.converged and cg.converged,
+    }
     # the dense solver forms the whole grid's matrix up to MAX_DENSE_CELLS grid cells, else
     # only that of the cells with material
     n = surf.grid.size if surf.grid.size <= MAX_DENSE_CELLS else row["cells_ref"]
-    gb = 8.0 * n ** 2 / 1e9
+    gb = 8.0 * n**2 / 1e9
     if gb <= max_dense_gb:
         dense, t_dense = _common.best_time(lambda: solve_dense(hs, surf, penetration=d), max(1, repeat // 3))
         row.update(t_dense=t_dense, x_dense=t_dense / t_ts, err_dense=_err(p, dense.pressure_on(surf.grid)))
@@ -76,8 +85,9 @@ def main(argv=None) -> int:
     ap.add_argument("--spacings", nargs="+", type=float, default=None, help="d/2R values (default: the paper's)")
     ap.add_argument("--repeat", type=int, default=3)
     ap.add_argument("--max-dense-gb", type=float, default=2.0)
-    ap.add_argument("--tol", type=float, default=1e-6,
-                    help="two-scale eq. 9 tolerance (the paper's squared-norm epsilon is tol^2)")
+    ap.add_argument(
+        "--tol", type=float, default=1e-6, help="two-scale eq. 9 tolerance (the paper's squared-norm epsilon is tol^2)"
+    )
     _common.add_quiet(ap)
     args = ap.parse_args(argv)
     rows = []
@@ -86,10 +96,20 @@ def main(argv=None) -> int:
         for layout, s in cases:
             rows.append(run_case(layout, s, repeat=args.repeat, max_dense_gb=args.max_dense_gb, tol=args.tol))
             bar.update(note=f"{layout} d/2R = {s:g}")
-    cols = [("layout", "layout", "s"), ("s", "d/2R", "g"), ("cells_2s", "cells 2s", "d"),
-            ("cells_ref", "cells ref", "d"), ("sweeps", "sweeps", "d"), ("t_2s", "t 2s (s)", ".3f"),
-            ("t_dense", "t dense", ".3f"), ("t_cg", "t cg", ".3f"), ("x_dense", "x dense", ".2f"),
-            ("x_cg", "x cg", ".2f"), ("err_dense", "err% dense", ".1e"), ("err_cg", "err% cg", ".1e")]
+    cols = [
+        ("layout", "layout", "s"),
+        ("s", "d/2R", "g"),
+        ("cells_2s", "cells 2s", "d"),
+        ("cells_ref", "cells ref", "d"),
+        ("sweeps", "sweeps", "d"),
+        ("t_2s", "t 2s (s)", ".3f"),
+        ("t_dense", "t dense", ".3f"),
+        ("t_cg", "t cg", ".3f"),
+        ("x_dense", "x dense", ".2f"),
+        ("x_cg", "x cg", ".2f"),
+        ("err_dense", "err% dense", ".1e"),
+        ("err_cg", "err% cg", ".1e"),
+    ]
     _common.print_table(rows, cols)
     ok_all = True
     for layout in args.layouts:
@@ -97,8 +117,10 @@ def main(argv=None) -> int:
         for r in lrows:
             verdict = []
             if "x_dense" in r:
-                verdict.append(f"vs dense {r['x_dense']:.2f}x (target {TARGET_VS_DENSE[layout]:g}x): "
-                               f"{'PASS' if r['x_dense'] >= TARGET_VS_DENSE[layout] else 'MISS'}")
+                verdict.append(
+                    f"vs dense {r['x_dense']:.2f}x (target {TARGET_VS_DENSE[layout]:g}x): "
+                    f"{'PASS' if r['x_dense'] >= TARGET_VS_DENSE[layout] else 'MISS'}"
+                )
             else:
                 verdict.append(r["dense_note"])
             verdict.append(f"vs cg {r['x_cg']:.2f}x (target > 1x): {'PASS' if r['x_cg'] > 1.0 else 'MISS'}")
@@ -107,8 +129,10 @@ def main(argv=None) -> int:
         dense_ok = all(r["x_dense"] >= TARGET_VS_DENSE[layout] for r in lrows if "x_dense" in r)
         cg_ok = all(r["x_cg"] > 1.0 for r in lrows)
         ok_all &= dense_ok and cg_ok
-        print(f"{layout} spheres: dense target {'PASS' if dense_ok else 'MISS'} "
-              f"(on {sum('x_dense' in r for r in lrows)} of {len(lrows)} cases), cg target {'PASS' if cg_ok else 'MISS'}")
+        print(
+            f"{layout} spheres: dense target {'PASS' if dense_ok else 'MISS'} "
+            f"(on {sum('x_dense' in r for r in lrows)} of {len(lrows)} cases), cg target {'PASS' if cg_ok else 'MISS'}"
+        )
     return 0 if ok_all else 1
 
 

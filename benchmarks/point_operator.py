@@ -14,6 +14,7 @@ full product (scaled from the rows computed).
 
 Run: ``python benchmarks/point_operator.py [--sizes 1000 10000] [--rtol 1e-4 1e-6]``.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -41,7 +42,7 @@ from _common import best_time, print_table
 MAT = Material(10.0, 0.5)
 HS = HalfSpace(MAT)
 SIZE = 300.0  # mm
-NEAR = 6.0    # mm, far-field exclusion radius
+NEAR = 6.0  # mm, far-field exclusion radius
 
 
 def scene(kind: str, n: int, rng):
@@ -73,10 +74,26 @@ def bench(kind: str, n: int, rtols, rows: int, repeat: int) -> list[dict]:
         _, t3 = best_time(lambda: op.apply(F), repeat=repeat)
         err = np.max(np.abs(u[sub] - ref)) / np.max(np.abs(ref))
         p = op.params
-        out.append(dict(scene=kind, N=n, M=len(t), rtol=rtol, build=build, apply=t1, apply3=t3,
-                        dense=t_dense * len(t) / len(sub), err=err, order=p.order, sigma=p.sigma,
-                        H=p.spacing, rcut=p.r_cut, mesh=f"{op.mesh_shape[0]}x{op.mesh_shape[1]}",
-                        mnnz=op.nnz / 1e6, rows=len(sub)))
+        out.append(
+            dict(
+                scene=kind,
+                N=n,
+                M=len(t),
+                rtol=rtol,
+                build=build,
+                apply=t1,
+                apply3=t3,
+                dense=t_dense * len(t) / len(sub),
+                err=err,
+                order=p.order,
+                sigma=p.sigma,
+                H=p.spacing,
+                rcut=p.r_cut,
+                mesh=f"{op.mesh_shape[0]}x{op.mesh_shape[1]}",
+                mnnz=op.nnz / 1e6,
+                rows=len(sub),
+            )
+        )
     return out
 
 
@@ -87,17 +104,35 @@ def main(argv=None) -> int:
     parser.add_argument("--rows", type=int, default=2000, help="dense reference rows for large N (default 2000)")
     parser.add_argument("--repeat", type=int, default=3, help="apply runs, best time kept (default 3)")
     args = parser.parse_args(argv)
-    print(f"Point operators, half-space E = {MAT.E} MPa, nu = {MAT.nu}, tips in {SIZE:g} x {SIZE:g} mm; "
-          f"OMP_NUM_THREADS={os.environ.get('OMP_NUM_THREADS')}")
+    print(
+        f"Point operators, half-space E = {MAT.E} MPa, nu = {MAT.nu}, tips in {SIZE:g} x {SIZE:g} mm; "
+        f"OMP_NUM_THREADS={os.environ.get('OMP_NUM_THREADS')}"
+    )
     rows = []
     for n in args.sizes:
         for kind in ("macro", "far"):
             rows += bench(kind, n, args.rtol, args.rows, args.repeat)
-    print_table(rows, [("scene", "scene", "s"), ("N", "N", "d"), ("M", "M", "d"), ("rtol", "rtol", ".0e"),
-                       ("build", "build s", ".3f"), ("apply", "apply s", ".4f"), ("apply3", "apply(3) s", ".4f"),
-                       ("dense", "dense s", ".3f"), ("err", "error", ".2e"), ("rows", "ref rows", "d"),
-                       ("order", "p", "d"), ("sigma", "sigma mm", ".2f"), ("H", "H mm", ".3f"),
-                       ("rcut", "r_cut mm", ".2f"), ("mesh", "FFT mesh", "s"), ("mnnz", "nnz 1e6", ".2f")])
+    print_table(
+        rows,
+        [
+            ("scene", "scene", "s"),
+            ("N", "N", "d"),
+            ("M", "M", "d"),
+            ("rtol", "rtol", ".0e"),
+            ("build", "build s", ".3f"),
+            ("apply", "apply s", ".4f"),
+            ("apply3", "apply(3) s", ".4f"),
+            ("dense", "dense s", ".3f"),
+            ("err", "error", ".2e"),
+            ("rows", "ref rows", "d"),
+            ("order", "p", "d"),
+            ("sigma", "sigma mm", ".2f"),
+            ("H", "H mm", ".3f"),
+            ("rcut", "r_cut mm", ".2f"),
+            ("mesh", "FFT mesh", "s"),
+            ("mnnz", "nnz 1e6", ".2f"),
+        ],
+    )
     return 0
 
 

@@ -30,6 +30,7 @@ Usage::
 ``--scale-out`` runs the section in one and in two chunks on Dask worker processes
 (:func:`twoscale.rolling.chunks.roll_chunks`) instead, and prints the speed-up.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -67,11 +68,22 @@ def build(args) -> tuple:
     surface = build_surface(RawMap(z, spacing=args.h, units="mm"))
     t2 = time.perf_counter()
     # the strip is centred: at shift s it covers body x in [-length/2 + s, length/2 + s]
-    spec = RollingSpec(start=-args.length / 2, end=args.length / 2, step=args.step, speed=50.0,
-                       tyre_radius=args.radius, footprint=(2 * half, args.width))
+    spec = RollingSpec(
+        start=-args.length / 2,
+        end=args.length / 2,
+        step=args.step,
+        speed=50.0,
+        tyre_radius=args.radius,
+        footprint=(2 * half, args.width),
+    )
     scene = Scene(material=MAT, surface=surface, total_load=args.load, rolling=spec)
-    info = {"strip_mm": [length, args.width + 10.0], "samples": list(z.shape), "stones": len(surface.asperities),
-            "strip_s": t1 - t0, "segment_s": t2 - t1}
+    info = {
+        "strip_mm": [length, args.width + 10.0],
+        "samples": list(z.shape),
+        "stones": len(surface.asperities),
+        "strip_s": t1 - t0,
+        "segment_s": t2 - t1,
+    }
     return scene, info
 
 
@@ -90,15 +102,20 @@ def contact_mechanics(track, position) -> dict | None:
     rec = np.where(np.isfinite(rec), rec, np.nanmax(np.where(np.isfinite(rec), rec, np.nan)) + 10.0)
     size = (grid.ny * grid.h, grid.nx * grid.h)
     t0, c0 = time.perf_counter(), time.process_time()
-    system = NonSmoothContactSystem(FreeFFTElasticHalfSpace(grid.shape, MAT.E_star, size),
-                                    Topography(-rec, physical_sizes=size))
+    system = NonSmoothContactSystem(
+        FreeFFTElasticHalfSpace(grid.shape, MAT.E_star, size), Topography(-rec, physical_sizes=size)
+    )
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        sol = system.minimize_proxy(external_force=track.scene.total_load, pentol=CM_TOL, forcetol=CM_TOL,
-                                    maxiter=2000)
+        sol = system.minimize_proxy(external_force=track.scene.total_load, pentol=CM_TOL, forcetol=CM_TOL, maxiter=2000)
     force = np.asarray(sol.jac).reshape(grid.shape)
-    return {"time_s": time.perf_counter() - t0, "cpu_s": time.process_time() - c0, "converged": bool(sol.success),
-            "area_mm2": float(np.count_nonzero(force > 0)) * grid.h ** 2, "cells": grid.size}
+    return {
+        "time_s": time.perf_counter() - t0,
+        "cpu_s": time.process_time() - c0,
+        "converged": bool(sol.success),
+        "area_mm2": float(np.count_nonzero(force > 0)) * grid.h**2,
+        "cells": grid.size,
+    }
 
 
 def timed(fn):
@@ -114,18 +131,36 @@ def compare(track, pos, run_cpu: float, use_cm: bool) -> dict:
     from twoscale.rolling.run import drag_of
 
     r = pos.result
-    row = {"shift_mm": float(track.shifts[pos.index]), "stones": len(pos.selection.stones), "run_s": pos.seconds,
-           "run_cpu_s": run_cpu, "ref_s": ref_s, "ref_cpu_s": ref_cpu, "ref_cells": ref.n_cells,
-           "cold_s": cold_s, "cold_cpu_s": cold_cpu, "twoscale_cells": r.n_cells,
-           "ratio_ref": run_cpu / ref_cpu, "ratio_cold": run_cpu / cold_cpu,
-           "approach_err_mm": abs(r.penetration - ref.penetration),
-           "area_err_pct": 100 * abs(r.contact_area - ref.contact_area) / ref.contact_area,
-           "drag_run_N": pos.drag, "drag_ref_N": drag_of(track, pos.selection, ref),
-           "ref_converged": bool(ref.converged), "cold_converged": bool(cold.converged)}
+    row = {
+        "shift_mm": float(track.shifts[pos.index]),
+        "stones": len(pos.selection.stones),
+        "run_s": pos.seconds,
+        "run_cpu_s": run_cpu,
+        "ref_s": ref_s,
+        "ref_cpu_s": ref_cpu,
+        "ref_cells": ref.n_cells,
+        "cold_s": cold_s,
+        "cold_cpu_s": cold_cpu,
+        "twoscale_cells": r.n_cells,
+        "ratio_ref": run_cpu / ref_cpu,
+        "ratio_cold": run_cpu / cold_cpu,
+        "approach_err_mm": abs(r.penetration - ref.penetration),
+        "area_err_pct": 100 * abs(r.contact_area - ref.contact_area) / ref.contact_area,
+        "drag_run_N": pos.drag,
+        "drag_ref_N": drag_of(track, pos.selection, ref),
+        "ref_converged": bool(ref.converged),
+        "cold_converged": bool(cold.converged),
+    }
     cm = contact_mechanics(track, pos) if use_cm else None
     if cm is not None:
-        row.update({"cm_cpu_s": cm["cpu_s"], "ratio_cm": run_cpu / cm["cpu_s"], "cm_converged": cm["converged"],
-                    "cm_area_err_pct": 100 * abs(cm["area_mm2"] - ref.contact_area) / ref.contact_area})
+        row.update(
+            {
+                "cm_cpu_s": cm["cpu_s"],
+                "ratio_cm": run_cpu / cm["cpu_s"],
+                "cm_converged": cm["converged"],
+                "cm_area_err_pct": 100 * abs(cm["area_mm2"] - ref.contact_area) / ref.contact_area,
+            }
+        )
     return row
 
 
@@ -136,10 +171,12 @@ def run(args) -> dict:
     info["prepare_s"] = time.perf_counter() - t0
     info["positions"] = len(track.shifts)
     info["footprint_estimate_mm"] = tyre_contact_length(track)
-    print(f"strip {info['strip_mm'][0]:.0f} x {info['strip_mm'][1]:.0f} mm at {args.h} mm ({info['samples'][1]} x "
-          f"{info['samples'][0]} samples, {info['stones']} stones): made in {info['strip_s']:.1f} s, segmented in "
-          f"{info['segment_s']:.1f} s; track prepared in {info['prepare_s']:.1f} s; {info['positions']} positions",
-          flush=True)
+    print(
+        f"strip {info['strip_mm'][0]:.0f} x {info['strip_mm'][1]:.0f} mm at {args.h} mm ({info['samples'][1]} x "
+        f"{info['samples'][0]} samples, {info['stones']} stones): made in {info['strip_s']:.1f} s, segmented in "
+        f"{info['segment_s']:.1f} s; track prepared in {info['prepare_s']:.1f} s; {info['positions']} positions",
+        flush=True,
+    )
     sample = set(np.linspace(1, len(track.shifts) - 1, args.samples).astype(int)) if args.samples else set()
     times, cpu, rows, previous = [], [], [], None
     options = RollingOptions(pressure_start=not args.macro_start, solver=args.solver)
@@ -154,27 +191,43 @@ def run(args) -> dict:
         times.append(pos.seconds)
         iterations.append(int(pos.result.iterations.get("cg", pos.result.iterations.get("micro", 0))))
         if k % args.every == 0 or k == len(track.shifts) - 1:
-            print(f"  position {k:5d} shift {track.shifts[k]:8.2f} mm: {pos.result.total_load:8.1f} N, approach "
-                  f"{pos.result.penetration:.4f} mm, area {pos.result.contact_area:8.1f} mm2, drag {pos.drag:7.2f} N, "
-                  f"{len(pos.selection.stones)} stones, {pos.seconds:.2f} s, converged {pos.result.converged}", flush=True)
+            print(
+                f"  position {k:5d} shift {track.shifts[k]:8.2f} mm: {pos.result.total_load:8.1f} N, approach "
+                f"{pos.result.penetration:.4f} mm, area {pos.result.contact_area:8.1f} mm2, drag {pos.drag:7.2f} N, "
+                f"{len(pos.selection.stones)} stones, {pos.seconds:.2f} s, converged {pos.result.converged}",
+                flush=True,
+            )
         if k in sample:
             rows.append(compare(track, pos, cpu[-1], not args.no_cm))
-            print("  sample " + ", ".join(f"{key} {v:.4g}" if isinstance(v, float) else f"{key} {v}"
-                                          for key, v in rows[-1].items()), flush=True)
+            print(
+                "  sample "
+                + ", ".join(f"{key} {v:.4g}" if isinstance(v, float) else f"{key} {v}" for key, v in rows[-1].items()),
+                flush=True,
+            )
         previous = pos
     wall = time.perf_counter() - t_run
     t = np.array(times)
     c = np.array(cpu)
-    summary = {"run_s": wall, "run_cpu_s": float(c.sum()), "mean_s": float(t.mean()),
-               "median_s": float(np.median(t)), "max_s": float(t.max()), "mean_cpu_s": float(c.mean()),
-               "median_cpu_s": float(np.median(c)), "max_cpu_s": float(c.max()),
-               "estimate_1m_cpu_s": float(c.mean()) * 1000.0 / args.step,
-               "iterations_mean": float(np.mean(iterations)), "iterations_max": int(np.max(iterations))}
-    print(f"run: {wall:.1f} s wall (with the samples' comparisons), {summary['run_cpu_s']:.1f} s CPU in the "
-          f"{len(t)} positions; per position CPU mean {summary['mean_cpu_s']:.3f} s, median "
-          f"{summary['median_cpu_s']:.3f} s, largest {summary['max_cpu_s']:.3f} s (wall mean {summary['mean_s']:.3f} s); "
-          f"1 m at this CPU rate: {summary['estimate_1m_cpu_s']:.0f} s; CG iterations (micro sweeps) mean "
-          f"{summary['iterations_mean']:.1f}, largest {summary['iterations_max']} ({info['solver']})")
+    summary = {
+        "run_s": wall,
+        "run_cpu_s": float(c.sum()),
+        "mean_s": float(t.mean()),
+        "median_s": float(np.median(t)),
+        "max_s": float(t.max()),
+        "mean_cpu_s": float(c.mean()),
+        "median_cpu_s": float(np.median(c)),
+        "max_cpu_s": float(c.max()),
+        "estimate_1m_cpu_s": float(c.mean()) * 1000.0 / args.step,
+        "iterations_mean": float(np.mean(iterations)),
+        "iterations_max": int(np.max(iterations)),
+    }
+    print(
+        f"run: {wall:.1f} s wall (with the samples' comparisons), {summary['run_cpu_s']:.1f} s CPU in the "
+        f"{len(t)} positions; per position CPU mean {summary['mean_cpu_s']:.3f} s, median "
+        f"{summary['median_cpu_s']:.3f} s, largest {summary['max_cpu_s']:.3f} s (wall mean {summary['mean_s']:.3f} s); "
+        f"1 m at this CPU rate: {summary['estimate_1m_cpu_s']:.0f} s; CG iterations (micro sweeps) mean "
+        f"{summary['iterations_mean']:.1f}, largest {summary['iterations_max']} ({info['solver']})"
+    )
     for key in ("ratio_ref", "ratio_cold", "ratio_cm"):
         vals = [r[key] for r in rows if key in r]
         if vals:
@@ -198,8 +251,11 @@ def visco(args) -> dict:
         c0 = time.process_time()
         res = roll(dataclasses.replace(scene, material=material))
         times[name] = time.process_time() - c0
-        print(f"{name}: {times[name]:.1f} s CPU for {len(res.shifts)} positions, all converged {res.all_converged}, "
-              f"mean drag {res.mean_drag:.4g} N", flush=True)
+        print(
+            f"{name}: {times[name]:.1f} s CPU for {len(res.shifts)} positions, all converged {res.all_converged}, "
+            f"mean drag {res.mean_drag:.4g} N",
+            flush=True,
+        )
     print(f"viscoelastic / elastic: {times['viscoelastic'] / times['elastic']:.2f} (target <= 2)")
     return {"args": vars(args), "info": info, "cpu_s": times, "ratio": times["viscoelastic"] / times["elastic"]}
 
@@ -214,8 +270,10 @@ def scale_out(args) -> dict:
         t0 = time.perf_counter()
         res = roll_chunks(scene, chunks=n, scheduler="processes")
         times[n] = time.perf_counter() - t0
-        print(f"{n} chunk(s): {times[n]:.1f} s wall for {len(res.shifts)} positions, all converged "
-              f"{res.all_converged}", flush=True)
+        print(
+            f"{n} chunk(s): {times[n]:.1f} s wall for {len(res.shifts)} positions, all converged {res.all_converged}",
+            flush=True,
+        )
     print(f"speed-up of 2 workers: {times[1] / times[2]:.2f}")
     return {"args": vars(args), "info": info, "wall_s": times, "speedup": times[1] / times[2]}
 
@@ -232,14 +290,29 @@ def main(argv=None) -> int:
     p.add_argument("--seed", type=int, default=1)
     p.add_argument("--every", type=int, default=50, help="print every n-th position")
     p.add_argument("--no-cm", action="store_true", help="skip ContactMechanics")
-    p.add_argument("--visco", action="store_true", help="instead of the run: the section rolled elastic and with "
-                   "a ten-branch Prony tread (CPU time of each, their ratio; target <= 2)")
-    p.add_argument("--scale-out", action="store_true", help="instead of the run: the run in 1 and in 2 chunks on "
-                   "Dask worker processes (twoscale.rolling.chunks), wall times and speed-up")
-    p.add_argument("--macro-start", action="store_true", help="start each position's macro step only "
-                   "(no pressure start), for comparison")
-    p.add_argument("--solver", default="auto", choices=("auto", "window", "twoscale"),
-                   help="the positions' solver (RollingOptions.solver)")
+    p.add_argument(
+        "--visco",
+        action="store_true",
+        help="instead of the run: the section rolled elastic and with "
+        "a ten-branch Prony tread (CPU time of each, their ratio; target <= 2)",
+    )
+    p.add_argument(
+        "--scale-out",
+        action="store_true",
+        help="instead of the run: the run in 1 and in 2 chunks on "
+        "Dask worker processes (twoscale.rolling.chunks), wall times and speed-up",
+    )
+    p.add_argument(
+        "--macro-start",
+        action="store_true",
+        help="start each position's macro step only (no pressure start), for comparison",
+    )
+    p.add_argument(
+        "--solver",
+        default="auto",
+        choices=("auto", "window", "twoscale"),
+        help="the positions' solver (RollingOptions.solver)",
+    )
     p.add_argument("--out", default=None, help="write the figures as JSON")
     args = p.parse_args(argv)
     out = scale_out(args) if args.scale_out else visco(args) if args.visco else run(args)

@@ -12,6 +12,7 @@ the chunks, the load average before and after; then the ratio of the median wall
 
 Run: ``python benchmarks/rolling_scaleout.py [--length 120] [--step 1] [--rounds 2] [--chunks 2]``.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -53,8 +54,10 @@ def main(argv=None) -> None:
     args = ap.parse_args(argv)
     scene = section(args.length, args.step)
     n = scene.rolling.count
-    print(f"{n} positions ({args.length:g} mm in {args.step:g} mm steps), {args.chunks} chunks; "
-          f"{os.cpu_count()} CPUs, load average {os.getloadavg()}")
+    print(
+        f"{n} positions ({args.length:g} mm in {args.step:g} mm steps), {args.chunks} chunks; "
+        f"{os.cpu_count()} CPUs, load average {os.getloadavg()}"
+    )
     walls: dict = {1: [], 2: []}
     with dask_client(workers=1) as one, dask_client(workers=2) as two:
         clients = {1: one, 2: two}
@@ -70,13 +73,18 @@ def main(argv=None) -> None:
                 if reference is None:
                     reference = result
                 same = abs(result.total_load - reference.total_load).max() if reference is not result else 0.0
-                print(f"round {r + 1}, {w} worker{'s' if w > 1 else ''}: wall {wall:7.2f} s, positions "
-                      f"{positions:7.2f} s summed over the chunks, load average {la0:.2f} -> {la1:.2f}, "
-                      f"all converged {result.all_converged}, largest load difference to the first run "
-                      f"{same:.2e} N", flush=True)
+                print(
+                    f"round {r + 1}, {w} worker{'s' if w > 1 else ''}: wall {wall:7.2f} s, positions "
+                    f"{positions:7.2f} s summed over the chunks, load average {la0:.2f} -> {la1:.2f}, "
+                    f"all converged {result.all_converged}, largest load difference to the first run "
+                    f"{same:.2e} N",
+                    flush=True,
+                )
     m1, m2 = statistics.median(walls[1]), statistics.median(walls[2])
-    print(f"median wall: 1 worker {m1:.2f} s, 2 workers {m2:.2f} s: 2 workers {m1 / m2:.2f}x one "
-          f"(target >= 1.6); per round {[f'{a / b:.2f}' for a, b in zip(walls[1], walls[2])]}")
+    print(
+        f"median wall: 1 worker {m1:.2f} s, 2 workers {m2:.2f} s: 2 workers {m1 / m2:.2f}x one "
+        f"(target >= 1.6); per round {[f'{a / b:.2f}' for a, b in zip(walls[1], walls[2])]}"
+    )
 
 
 if __name__ == "__main__":

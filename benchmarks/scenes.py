@@ -34,6 +34,7 @@ Usage::
 
 ``--quick``: spheres only and no block (half the half-space scenes, no FEM build).
 """
+
 from __future__ import annotations
 
 import argparse
@@ -51,20 +52,29 @@ import numpy as np
 sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 from benchmarks import _common  # noqa: E402  (single-threaded BLAS/FFT by default)
 
-FALLBACK_H = 0.05   # mm: when default_h raises (dense kind)
-CLIP = 1.0          # mm: heights above this (and inf) sit this far down for ContactMechanics
-CM_PENTOL = 1e-10   # mm
+FALLBACK_H = 0.05  # mm: when default_h raises (dense kind)
+CLIP = 1.0  # mm: heights above this (and inf) sit this far down for ContactMechanics
+CM_PENTOL = 1e-10  # mm
 CM_FORCETOL = 1e-10  # N
 #: result.json keys saying which micro iteration ran (recorded with ``micro_strategy``)
 STRATEGY_KEYS = ("micro_iteration", "micro_choice", "micro_attempts")
-CM_MAXITER = 1000   # converged CM runs here take ~60-100 iterations; a stalled one stops here
+CM_MAXITER = 1000  # converged CM runs here take ~60-100 iterations; a stalled one stops here
 
 
 def _scene(spec: dict):
     from twoscale.synthetic import random_scene
-    return random_scene(spec["n"], kind=spec["kind"], control=spec["control"], shape=spec["shape"],
-                        body=spec["body"], seed=spec["seed"], h=spec["h"], side=spec.get("side"),
-                        load_per_tip=spec.get("load_per_tip"))
+
+    return random_scene(
+        spec["n"],
+        kind=spec["kind"],
+        control=spec["control"],
+        shape=spec["shape"],
+        body=spec["body"],
+        seed=spec["seed"],
+        h=spec["h"],
+        side=spec.get("side"),
+        load_per_tip=spec.get("load_per_tip"),
+    )
 
 
 def _rss_mb() -> float:
@@ -73,17 +83,26 @@ def _rss_mb() -> float:
 
 def _summary(res, t: float, base_mb: float) -> dict:
     forces = np.asarray(res.asperities.forces)
-    return {"time_s": t, "peak_mb": _rss_mb(), "base_mb": base_mb, "converged": bool(res.converged),
-            "message": res.message, "forces": forces.tolist(), "total_load": float(res.total_load),
-            "penetration": float(res.penetration), "cells": int(res.n_cells),
-            "iterations": {k: int(v) for k, v in res.iterations.items()},
-            "timings": {k: float(v) for k, v in res.timings_s.items()},
-            "touching": float(np.mean(forces > 0))}
+    return {
+        "time_s": t,
+        "peak_mb": _rss_mb(),
+        "base_mb": base_mb,
+        "converged": bool(res.converged),
+        "message": res.message,
+        "forces": forces.tolist(),
+        "total_load": float(res.total_load),
+        "penetration": float(res.penetration),
+        "cells": int(res.n_cells),
+        "iterations": {k: int(v) for k, v in res.iterations.items()},
+        "timings": {k: float(v) for k, v in res.timings_s.items()},
+        "touching": float(np.mean(forces > 0)),
+    }
 
 
 def _strategy(res, scene) -> dict:
     """Which micro iteration ran (two-scale only), from the typed result as result.json writes it."""
     from twoscale.io.result_json import result_to_dict
+
     micro = getattr(res.details, "micro", None)
     if micro is None:
         return {}
@@ -96,6 +115,7 @@ def run_solve(method: str, spec: dict, options: dict) -> dict:
     import twoscale.reference  # noqa: F401  (imports outside the timed call)
     import twoscale.driver  # noqa: F401
     from twoscale.api import solve_scene
+
     scene = _scene(spec)
     popts = {"progress": False} if spec["body"] == "block" else None
     if popts:
@@ -119,6 +139,7 @@ def run_contact_mechanics(spec: dict, options: dict) -> dict:
 
     from twoscale.indenters import surface_on
     from twoscale.reference.on_scene import reference_grid
+
     scene = _scene(spec)
     base_mb = _rss_mb()
     t0 = time.perf_counter()
@@ -127,31 +148,50 @@ def run_contact_mechanics(spec: dict, options: dict) -> dict:
     size = (grid.ny * grid.h, grid.nx * grid.h)
     substrate = FreeFFTElasticHalfSpace(grid.shape, scene.material.E_star, size)
     system = NonSmoothContactSystem(substrate, Topography(-np.minimum(surf.height, CLIP), physical_sizes=size))
-    load = ({"offset": scene.penetration} if scene.penetration is not None
-            else {"external_force": scene.total_load})
+    load = {"offset": scene.penetration} if scene.penetration is not None else {"external_force": scene.total_load}
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        sol = system.minimize_proxy(pentol=CM_PENTOL, forcetol=CM_FORCETOL,
-                                    maxiter=options.get("maxiter", CM_MAXITER), **load)
+        sol = system.minimize_proxy(
+            pentol=CM_PENTOL, forcetol=CM_FORCETOL, maxiter=options.get("maxiter", CM_MAXITER), **load
+        )
     t = time.perf_counter() - t0
-    pix = np.asarray(sol.jac).ravel()   # force per pixel, N
+    pix = np.asarray(sol.jac).ravel()  # force per pixel, N
     own = surf.owner.ravel()
     ok = own >= 0
     forces = np.bincount(own[ok], weights=pix[ok], minlength=len(scene.asperities))
     clipped = int(np.count_nonzero((pix > 0) & ~(surf.height.ravel() < CLIP)))
-    return {"time_s": t, "peak_mb": _rss_mb(), "base_mb": base_mb, "converged": bool(sol.success),
-            "message": str(sol.message), "sweeps": int(sol.nit), "forces": forces.tolist(),
-            "total_load": float(pix.sum()), "cells": int(grid.size), "clipped_loaded": clipped}
+    return {
+        "time_s": t,
+        "peak_mb": _rss_mb(),
+        "base_mb": base_mb,
+        "converged": bool(sol.success),
+        "message": str(sol.message),
+        "sweeps": int(sol.nit),
+        "forces": forces.tolist(),
+        "total_load": float(pix.sum()),
+        "cells": int(grid.size),
+        "clipped_loaded": clipped,
+    }
 
 
-RUNNERS = {"twoscale": lambda spec, opts: run_solve("twoscale", spec, opts),
-           "reference": lambda spec, opts: run_solve("reference", spec, opts),
-           "CM": run_contact_mechanics}
+RUNNERS = {
+    "twoscale": lambda spec, opts: run_solve("twoscale", spec, opts),
+    "reference": lambda spec, opts: run_solve("reference", spec, opts),
+    "CM": run_contact_mechanics,
+}
 
 
 def _subprocess(method: str, spec: dict, options: dict, timeout: float) -> dict:
-    cmd = [sys.executable, os.path.abspath(__file__), "--single", method, "--spec", json.dumps(spec),
-           "--options", json.dumps(options)]
+    cmd = [
+        sys.executable,
+        os.path.abspath(__file__),
+        "--single",
+        method,
+        "--spec",
+        json.dumps(spec),
+        "--options",
+        json.dumps(options),
+    ]
     try:
         out = subprocess.run(cmd, capture_output=True, text=True, timeout=timeout)  # kills the child on timeout
     except subprocess.TimeoutExpired:
@@ -165,13 +205,16 @@ def _subprocess(method: str, spec: dict, options: dict, timeout: float) -> dict:
 def force_errors(forces, reference) -> dict:
     """Per-tip error ``max_k |F_k - F_ref,k| / max F_ref`` and total-load error, percent."""
     f, r = np.asarray(forces), np.asarray(reference)
-    return {"tip_pct": 100.0 * float(np.max(np.abs(f - r))) / float(r.max()),
-            "total_pct": 100.0 * abs(float(f.sum()) - float(r.sum())) / float(r.sum())}
+    return {
+        "tip_pct": 100.0 * float(np.max(np.abs(f - r))) / float(r.max()),
+        "total_pct": 100.0 * abs(float(f.sum()) - float(r.sum())) / float(r.sum()),
+    }
 
 
 def cell_size(scene) -> tuple[float, str]:
     """The scene's h, else default_h, else FALLBACK_H (with where it came from)."""
     from twoscale.scene import default_h
+
     if scene.h is not None:
         return scene.h, "scene"
     try:
@@ -183,11 +226,15 @@ def cell_size(scene) -> tuple[float, str]:
 def family(sizes, quick: bool, seed: int):
     """(name, spec without h, scene) for every scene benchmarked."""
     from twoscale.synthetic import BLOCK_MAX_SIDE, scene_family, square_side
+
     shapes = ("sphere",) if quick else ("sphere", "paraboloid")
     for name, scene in scene_family(sizes, shapes=shapes, seed=seed):
         kind, control, shape, body, n = name.split("-")
-        yield name, {"n": int(n[1:]), "kind": kind, "control": control, "shape": shape, "body": body,
-                     "seed": seed}, scene
+        yield (
+            name,
+            {"n": int(n[1:]), "kind": kind, "control": control, "shape": shape, "body": body, "seed": seed},
+            scene,
+        )
     n = min(sizes)
     if quick:
         return
@@ -216,20 +263,49 @@ def _row(rec: dict) -> dict:
         if "error" in r:
             return "timeout" if r["error"] == "timeout" else "error"
         return r["skipped"].split(" ")[0]
-    return {"kind": s["kind"], "ctrl": "load" if s["control"] == "load" else "d", "shape": s["shape"][:6],
-            "body": s["body"][:5], "n": s["n"], "h": s["h"], "hsrc": rec["h_source"].split(" ")[0],
-            "ts_s": t(ts), "conv": str(ts.get("converged", "-")), "sweeps": ts.get("sweeps"),
-            "strat": _strategy_label(ts), "peak_mb": ts.get("peak_mb"), "ref_cells": rec["reference_cells"],
-            "ref_s": t(ref), "cm_s": t(cm), "tip_pct": rec.get("errors", {}).get("tip_pct"),
-            "tot_pct": rec.get("errors", {}).get("total_pct"), "ts/ref": rec.get("ratio")}
+
+    return {
+        "kind": s["kind"],
+        "ctrl": "load" if s["control"] == "load" else "d",
+        "shape": s["shape"][:6],
+        "body": s["body"][:5],
+        "n": s["n"],
+        "h": s["h"],
+        "hsrc": rec["h_source"].split(" ")[0],
+        "ts_s": t(ts),
+        "conv": str(ts.get("converged", "-")),
+        "sweeps": ts.get("sweeps"),
+        "strat": _strategy_label(ts),
+        "peak_mb": ts.get("peak_mb"),
+        "ref_cells": rec["reference_cells"],
+        "ref_s": t(ref),
+        "cm_s": t(cm),
+        "tip_pct": rec.get("errors", {}).get("tip_pct"),
+        "tot_pct": rec.get("errors", {}).get("total_pct"),
+        "ts/ref": rec.get("ratio"),
+    }
 
 
-COLUMNS = [("kind", "kind", ""), ("ctrl", "ctrl", ""), ("shape", "shape", ""), ("body", "body", ""),
-           ("n", "n", "d"), ("h", "h mm", ".3g"), ("hsrc", "h from", ""), ("ts_s", "ts s", ".3g"),
-           ("conv", "conv", ""), ("sweeps", "sweeps", "d"), ("strat", "strategy", ""),
-           ("peak_mb", "ts MB", ".0f"), ("ref_cells", "ref cells", ".3g"), ("ref_s", "ref s", ".3g"),
-           ("cm_s", "CM s", ".3g"), ("tip_pct", "tip err %", ".3g"), ("tot_pct", "tot err %", ".3g"),
-           ("ts/ref", "ts/ref", ".3g")]
+COLUMNS = [
+    ("kind", "kind", ""),
+    ("ctrl", "ctrl", ""),
+    ("shape", "shape", ""),
+    ("body", "body", ""),
+    ("n", "n", "d"),
+    ("h", "h mm", ".3g"),
+    ("hsrc", "h from", ""),
+    ("ts_s", "ts s", ".3g"),
+    ("conv", "conv", ""),
+    ("sweeps", "sweeps", "d"),
+    ("strat", "strategy", ""),
+    ("peak_mb", "ts MB", ".0f"),
+    ("ref_cells", "ref cells", ".3g"),
+    ("ref_s", "ref s", ".3g"),
+    ("cm_s", "CM s", ".3g"),
+    ("tip_pct", "tip err %", ".3g"),
+    ("tot_pct", "tot err %", ".3g"),
+    ("ts/ref", "ts/ref", ".3g"),
+]
 
 
 def _formatted(row: dict) -> dict:
@@ -245,6 +321,7 @@ class _Str(str):
 def measure(name: str, spec: dict, scene, args, options: dict, cm_ok: bool, run) -> dict:
     """Every solve of one scene; ``run(method, spec, options)`` runs one in a subprocess."""
     from twoscale.reference.on_scene import reference_grid
+
     h, source = cell_size(scene)
     spec = {**spec, "h": h}
     cells = int(reference_grid(_scene(spec), h).size)
@@ -273,16 +350,24 @@ def measure(name: str, spec: dict, scene, args, options: dict, cm_ok: bool, run)
 
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--sizes", type=int, nargs="+", default=[50, 200, 1000],
-                    help="tip counts, default 50 200 1000")
+    ap.add_argument("--sizes", type=int, nargs="+", default=[50, 200, 1000], help="tip counts, default 50 200 1000")
     ap.add_argument("--quick", action="store_true", help="spheres only, no block")
     ap.add_argument("--seed", type=int, default=0)
-    ap.add_argument("--comparators", action=argparse.BooleanOptionalAction, default=True,
-                    help="run ContactMechanics where installed (default on)")
-    ap.add_argument("--reference-max-cells", type=float, default=6e6,
-                    help="largest full grid for the reference and CM (cells), default 6e6")
-    ap.add_argument("--cm-maxiter", type=int, default=CM_MAXITER,
-                    help=f"ContactMechanics iteration limit, default {CM_MAXITER}")
+    ap.add_argument(
+        "--comparators",
+        action=argparse.BooleanOptionalAction,
+        default=True,
+        help="run ContactMechanics where installed (default on)",
+    )
+    ap.add_argument(
+        "--reference-max-cells",
+        type=float,
+        default=6e6,
+        help="largest full grid for the reference and CM (cells), default 6e6",
+    )
+    ap.add_argument(
+        "--cm-maxiter", type=int, default=CM_MAXITER, help=f"ContactMechanics iteration limit, default {CM_MAXITER}"
+    )
     ap.add_argument("--timeout", type=float, default=900.0, help="per solve, s (default 900)")
     ap.add_argument("--options", default="{}", help="JSON keyword arguments for the two-scale solve, default {}")
     ap.add_argument("--out", help="write the records (JSON) to this file")
@@ -313,18 +398,35 @@ def main(argv=None) -> int:
     bar.close()
     _common.print_table([_formatted(_row(r)) for r in records], COLUMNS)
     for r in records:
-        notes = [f"{r['name']}: {m}: {r[m].get('message') or r[m].get('error')}"
-                 for m in ("twoscale", "reference", "CM") if r[m].get("error") or r[m].get("converged") is False]
+        notes = [
+            f"{r['name']}: {m}: {r[m].get('message') or r[m].get('error')}"
+            for m in ("twoscale", "reference", "CM")
+            if r[m].get("error") or r[m].get("converged") is False
+        ]
         notes += [f"{r['name']}: h {r['h_source']}"] if r["h_source"].startswith("fallback") else []
-        notes += [f"{r['name']}: CM vs reference tip {r['CM_vs_reference']['tip_pct']:.3g} %, total "
-                  f"{r['CM_vs_reference']['total_pct']:.3g} %"] if "CM_vs_reference" in r else []
+        notes += (
+            [
+                f"{r['name']}: CM vs reference tip {r['CM_vs_reference']['tip_pct']:.3g} %, total "
+                f"{r['CM_vs_reference']['total_pct']:.3g} %"
+            ]
+            if "CM_vs_reference" in r
+            else []
+        )
         for line in notes:
             print(line)
     if args.out:
         import twoscale
-        meta = {"twoscale_version": twoscale.__version__, "argv": sys.argv, "options": options,
-                "date": time.strftime("%Y-%m-%d %H:%M:%S"), "host": platform.node(), "cpus": os.cpu_count(),
-                "threads": os.environ.get("OMP_NUM_THREADS"), "units": "mm, N, MPa, s, MB"}
+
+        meta = {
+            "twoscale_version": twoscale.__version__,
+            "argv": sys.argv,
+            "options": options,
+            "date": time.strftime("%Y-%m-%d %H:%M:%S"),
+            "host": platform.node(),
+            "cpus": os.cpu_count(),
+            "threads": os.environ.get("OMP_NUM_THREADS"),
+            "units": "mm, N, MPa, s, MB",
+        }
         with open(args.out, "w") as fh:
             json.dump({"meta": meta, "records": records}, fh, indent=1)
     return 0

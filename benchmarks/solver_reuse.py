@@ -19,6 +19,7 @@ Usage::
 
     python benchmarks/solver_reuse.py [--sizes 50 200] [--repeat 3] [--only seven sparse]
 """
+
 from __future__ import annotations
 
 import argparse
@@ -43,11 +44,14 @@ def _scenes(sizes):
     from twoscale.io.scene_file import read_scene
     from twoscale.synthetic import scene_family
 
-    out = [("S2", read_scene(os.path.join(ROOT, "examples", "S2.toml"))),
-           ("seven spheres", read_scene(os.path.join(ROOT, "examples", "paper_seven_spheres.toml")))]
+    out = [
+        ("S2", read_scene(os.path.join(ROOT, "examples", "S2.toml"))),
+        ("seven spheres", read_scene(os.path.join(ROOT, "examples", "paper_seven_spheres.toml"))),
+    ]
     out += list(scene_family(sizes=sizes, shapes=("sphere",)))
-    return [(name, dataclasses.replace(s, h=s.h if s.h is not None else twoscale.scene.default_h(s)))
-            for name, s in out]
+    return [
+        (name, dataclasses.replace(s, h=s.h if s.h is not None else twoscale.scene.default_h(s))) for name, s in out
+    ]
 
 
 def shifted(scene, dx: float):
@@ -79,14 +83,22 @@ def measure(scene, repeat: int) -> dict:
         rows["cold"].append(t_cold)
         rows["again"].append(t_again)
         rows["shifted"].append(t_shift)
-        rows["it"] = {"cold": cold.iterations["micro"], "again": again.iterations["micro"],
-                      "shifted": moved_r.iterations["micro"], "strategy": cold.details.micro.strategy}
-        rows["operators"] = {k: (sum(r.reuse.operators_kept.values()), sum(r.reuse.operators_built.values()))
-                             for k, r in (("again", again), ("shifted", moved_r))}
+        rows["it"] = {
+            "cold": cold.iterations["micro"],
+            "again": again.iterations["micro"],
+            "shifted": moved_r.iterations["micro"],
+            "strategy": cold.details.micro.strategy,
+        }
+        rows["operators"] = {
+            k: (sum(r.reuse.operators_kept.values()), sum(r.reuse.operators_built.values()))
+            for k, r in (("again", again), ("shifted", moved_r))
+        }
         ref_moved = twoscale.solve(moved, provider=scene.provider())
         scale = cold.asperities.forces.max()
-        rows["error"] = max(float(np.abs(again.asperities.forces - cold.asperities.forces).max() / scale),
-                            float(np.abs(moved_r.asperities.forces - ref_moved.asperities.forces).max() / scale))
+        rows["error"] = max(
+            float(np.abs(again.asperities.forces - cold.asperities.forces).max() / scale),
+            float(np.abs(moved_r.asperities.forces - ref_moved.asperities.forces).max() / scale),
+        )
     return rows
 
 
@@ -96,8 +108,10 @@ def main(argv=None) -> int:
     ap.add_argument("--repeat", type=int, default=3, help="interleaved repetitions per scene")
     ap.add_argument("--only", nargs="*", default=None, help="scenes whose name contains one of these")
     args = ap.parse_args(argv)
-    print(f"{'scene':42s} {'tips':>5s} {'micro':>10s} {'cold s':>8s} {'again':>6s} {'shifted':>7s} "
-          f"{'iterations c/a/s':>17s} {'kept/built a':>12s} {'kept/built s':>12s} {'force diff':>10s}")
+    print(
+        f"{'scene':42s} {'tips':>5s} {'micro':>10s} {'cold s':>8s} {'again':>6s} {'shifted':>7s} "
+        f"{'iterations c/a/s':>17s} {'kept/built a':>12s} {'kept/built s':>12s} {'force diff':>10s}"
+    )
     worst = {"again": 0.0, "shifted": 0.0}
     for name, scene in _scenes(tuple(args.sizes)):
         if args.only and not any(part in name for part in args.only):
@@ -108,9 +122,12 @@ def main(argv=None) -> int:
         shift = statistics.median(s / c for s, c in zip(r["shifted"], r["cold"]))
         worst = {"again": max(worst["again"], again), "shifted": max(worst["shifted"], shift)}
         it, ops = r["it"], {k: "%d/%d" % v for k, v in r["operators"].items()}
-        print(f"{name:42s} {len(scene.asperities):5d} {it['strategy']:>10s} {cold:8.3f} {again:6.2f} {shift:7.2f} "
-              f"{it['cold']:>7d}/{it['again']}/{it['shifted']:<7d} {ops['again']:>12s} {ops['shifted']:>12s} "
-              f"{r['error']:10.1e}", flush=True)
+        print(
+            f"{name:42s} {len(scene.asperities):5d} {it['strategy']:>10s} {cold:8.3f} {again:6.2f} {shift:7.2f} "
+            f"{it['cold']:>7d}/{it['again']}/{it['shifted']:<7d} {ops['again']:>12s} {ops['shifted']:>12s} "
+            f"{r['error']:10.1e}",
+            flush=True,
+        )
     print(f"worst: again {worst['again']:.2f} (target 0.3), shifted {worst['shifted']:.2f} (target 0.5)")
     return 0
 

@@ -39,6 +39,7 @@ Usage::
 
     cd benchmarks && python study.py [--out study_bench.json] [--quiet] [--repeat N]
 """
+
 from __future__ import annotations
 
 import argparse
@@ -91,8 +92,14 @@ def plain_loop(study, part: slice = slice(None)) -> dict:
         sc = case_scene(case, study)
         if case.body.name not in providers:
             providers[case.body.name] = sc.provider(**({"progress": False} if case.body.name == "block" else {}))
-        r = solve_twoscale(providers[case.body.name], sc.asperities, h=default_h(sc), total_load=sc.total_load,
-                           tilt=sc.tilt, pivot=sc.pivot)
+        r = solve_twoscale(
+            providers[case.body.name],
+            sc.asperities,
+            h=default_h(sc),
+            total_load=sc.total_load,
+            tilt=sc.tilt,
+            pivot=sc.pivot,
+        )
         assert r.converged, case.label
     return {"wall_s": time.perf_counter() - t0, "cpu_s": time.process_time() - c0}
 
@@ -123,16 +130,26 @@ def launch(kinds: list[str], path: Path, tmp: Path) -> dict:
     import subprocess
 
     load, k0, t0 = os.getloadavg()[0], _children_cpu(), time.perf_counter()
-    procs = [subprocess.Popen([sys.executable, __file__, "--child", kind, "--study", str(path),
-                               "--dir", str(tmp / kind)], stdout=subprocess.PIPE, text=True)
-             for kind in kinds]
+    procs = [
+        subprocess.Popen(
+            [sys.executable, __file__, "--child", kind, "--study", str(path), "--dir", str(tmp / kind)],
+            stdout=subprocess.PIPE,
+            text=True,
+        )
+        for kind in kinds
+    ]
     outs = [p.communicate()[0] for p in procs]
     wall, cpu = time.perf_counter() - t0, _children_cpu() - k0
     if any(p.returncode for p in procs):
         raise RuntimeError(f"a run of {kinds} failed: exit codes {[p.returncode for p in procs]}")
     inside = [json.loads(o.strip().splitlines()[-1]) for o in outs]
-    return {"process_wall_s": wall, "process_cpu_s": cpu, "load_before": load,
-            "load_after": os.getloadavg()[0], "inside": inside}
+    return {
+        "process_wall_s": wall,
+        "process_cpu_s": cpu,
+        "load_before": load,
+        "load_after": os.getloadavg()[0],
+        "inside": inside,
+    }
 
 
 def run(kind: str, path: Path, tmp: Path) -> dict:
@@ -144,8 +161,12 @@ def run(kind: str, path: Path, tmp: Path) -> dict:
         return {**{k: v for k, v in r.items() if k != "inside"}, **r["inside"][0]}
     r = launch(["half0", "half1"], path, tmp)
     halves = r.pop("inside")
-    return {**r, "wall_s": max(h["wall_s"] for h in halves), "cpu_s": sum(h["cpu_s"] for h in halves),
-            "startup_cpu_s": sum(h["startup_cpu_s"] for h in halves)}
+    return {
+        **r,
+        "wall_s": max(h["wall_s"] for h in halves),
+        "cpu_s": sum(h["cpu_s"] for h in halves),
+        "startup_cpu_s": sum(h["startup_cpu_s"] for h in halves),
+    }
 
 
 def timed_study(study, out: Path, workers: int, quiet: bool) -> dict:
@@ -160,9 +181,17 @@ def timed_study(study, out: Path, workers: int, quiet: bool) -> dict:
     wall, cpu, children = time.perf_counter() - t0, time.process_time() - c0, _children_cpu() - k0
     recs = [CaseStore(out).read(k) for k in dict.fromkeys(run.keys)]
     assert all(r["status"] == "converged" for r in recs), [r["reason"] for r in recs if r["status"] != "converged"]
-    return {"wall_s": wall, "solving_wall_s": run.seconds, "cpu_s": cpu, "workers_cpu_s": children,
-            "startup_s": run.startup_seconds, "load_before": load, "load_after": os.getloadavg()[0],
-            "cases_wall_s": sum(r["seconds"] for r in recs), "cases_cpu_s": sum(r["cpu_seconds"] for r in recs)}
+    return {
+        "wall_s": wall,
+        "solving_wall_s": run.seconds,
+        "cpu_s": cpu,
+        "workers_cpu_s": children,
+        "startup_s": run.startup_seconds,
+        "load_before": load,
+        "load_after": os.getloadavg()[0],
+        "cases_wall_s": sum(r["seconds"] for r in recs),
+        "cases_cpu_s": sum(r["cpu_seconds"] for r in recs),
+    }
 
 
 def _children_cpu() -> float:
@@ -190,52 +219,71 @@ def on_paper(per_case_s: float, efficiency: float, block_build_s: float) -> list
 def figures(runs: dict, warm: float, n: int = 40) -> dict:
     """The benchmark's figures from the four runs of :func:`run` (see the module doc)."""
     plain, serial, dask, pair = (runs[k] for k in ("plain", "serial", "dask", "pair"))
-    rec = {"cases": n, "block_build_s": warm, **runs,
-           "speedup": serial["process_wall_s"] / dask["process_wall_s"],
-           "speedup_inside": serial["wall_s"] / dask["wall_s"],
-           # the machinery's own CPU: the serial run's CPU less the cases' own
-           "machinery_cpu_per_case_s": (serial["cpu_s"] - serial["cases_cpu_s"]) / n,
-           "serial_minus_plain_cpu_per_case_s": (serial["process_cpu_s"] - plain["process_cpu_s"]) / n,
-           # scheduling, transfers, worker start and idle workers: two workers' time not in cases
-           "dask_overhead_per_case_s": (2 * dask["wall_s"] - dask["cases_wall_s"]) / n,
-           "worker_cpu_ratio": dask["cases_cpu_s"] / serial["cases_cpu_s"],
-           "per_case_cpu_s": serial["cases_cpu_s"] / n,
-           # with the two cores to itself, a run would take at least the CPU its process tree
-           # used spread over them (an estimate that ignores the last case's tail)
-           "speedup_idle_estimate": serial["process_cpu_s"] / (dask["process_cpu_s"] / 2),
-           "pair_ceiling": plain["process_cpu_s"] / (pair["process_cpu_s"] / 2),
-           "pair_cpu_ratio": pair["process_cpu_s"] / plain["process_cpu_s"],
-           "dask_over_pair_wall": dask["process_wall_s"] / pair["process_wall_s"],
-           "dask_over_pair_cpu": dask["process_cpu_s"] / pair["process_cpu_s"]}
+    rec = {
+        "cases": n,
+        "block_build_s": warm,
+        **runs,
+        "speedup": serial["process_wall_s"] / dask["process_wall_s"],
+        "speedup_inside": serial["wall_s"] / dask["wall_s"],
+        # the machinery's own CPU: the serial run's CPU less the cases' own
+        "machinery_cpu_per_case_s": (serial["cpu_s"] - serial["cases_cpu_s"]) / n,
+        "serial_minus_plain_cpu_per_case_s": (serial["process_cpu_s"] - plain["process_cpu_s"]) / n,
+        # scheduling, transfers, worker start and idle workers: two workers' time not in cases
+        "dask_overhead_per_case_s": (2 * dask["wall_s"] - dask["cases_wall_s"]) / n,
+        "worker_cpu_ratio": dask["cases_cpu_s"] / serial["cases_cpu_s"],
+        "per_case_cpu_s": serial["cases_cpu_s"] / n,
+        # with the two cores to itself, a run would take at least the CPU its process tree
+        # used spread over them (an estimate that ignores the last case's tail)
+        "speedup_idle_estimate": serial["process_cpu_s"] / (dask["process_cpu_s"] / 2),
+        "pair_ceiling": plain["process_cpu_s"] / (pair["process_cpu_s"] / 2),
+        "pair_cpu_ratio": pair["process_cpu_s"] / plain["process_cpu_s"],
+        "dask_over_pair_wall": dask["process_wall_s"] / pair["process_wall_s"],
+        "dask_over_pair_cpu": dask["process_cpu_s"] / pair["process_cpu_s"],
+    }
     efficiency = min(1.0, rec["speedup_idle_estimate"] / 2)
     rec["efficiency"] = efficiency
-    rec["on_paper"] = on_paper(rec["per_case_cpu_s"] + max(rec["machinery_cpu_per_case_s"], 0.0), efficiency,
-                               block_build_s=warm)
+    rec["on_paper"] = on_paper(
+        rec["per_case_cpu_s"] + max(rec["machinery_cpu_per_case_s"], 0.0), efficiency, block_build_s=warm
+    )
     return rec
 
 
 def report(rec: dict) -> None:
     n = rec["cases"]
-    print(f"{n} cases (S2, half-space + block, 4 loads x 5 positions); block correction built in "
-          f"{rec['block_build_s']:.1f} s before the runs; each run a fresh process")
+    print(
+        f"{n} cases (S2, half-space + block, 4 loads x 5 positions); block correction built in "
+        f"{rec['block_build_s']:.1f} s before the runs; each run a fresh process"
+    )
     print("run         process wall / CPU (s)   inside wall / CPU (s)   start-up CPU (s)   load")
     for k in ("plain", "serial", "dask", "pair"):
         r = rec[k]
-        print(f"{k:10s}  {r['process_wall_s']:8.1f} / {r['process_cpu_s']:6.1f}      {r['wall_s']:8.1f} / "
-              f"{r['cpu_s']:6.1f}     {r['startup_cpu_s']:6.2f}           {r['load_before']:.1f} -> {r['load_after']:.1f}")
+        print(
+            f"{k:10s}  {r['process_wall_s']:8.1f} / {r['process_cpu_s']:6.1f}      {r['wall_s']:8.1f} / "
+            f"{r['cpu_s']:6.1f}     {r['startup_cpu_s']:6.2f}           {r['load_before']:.1f} -> {r['load_after']:.1f}"
+        )
     s, d = rec["serial"], rec["dask"]
-    print(f"serial cases' own CPU {s['cases_cpu_s']:.1f} s ({rec['per_case_cpu_s']:.2f} s per case); the workers' "
-          f"{d['cases_cpu_s']:.1f} s = {rec['worker_cpu_ratio']:.2f} x; workers' processes {d['workers_cpu_s']:.1f} s CPU")
-    print(f"machinery CPU per case {rec['machinery_cpu_per_case_s']:+.3f} s (serial process CPU - plain's: "
-          f"{rec['serial_minus_plain_cpu_per_case_s']:+.3f} s per case); target <= 0.2 s")
+    print(
+        f"serial cases' own CPU {s['cases_cpu_s']:.1f} s ({rec['per_case_cpu_s']:.2f} s per case); the workers' "
+        f"{d['cases_cpu_s']:.1f} s = {rec['worker_cpu_ratio']:.2f} x; workers' processes {d['workers_cpu_s']:.1f} s CPU"
+    )
+    print(
+        f"machinery CPU per case {rec['machinery_cpu_per_case_s']:+.3f} s (serial process CPU - plain's: "
+        f"{rec['serial_minus_plain_cpu_per_case_s']:+.3f} s per case); target <= 0.2 s"
+    )
     print(f"Dask overhead per case {rec['dask_overhead_per_case_s']:+.3f} s (2 x wall - cases' own wall, / {n})")
-    print(f"pair: CPU {rec['pair_cpu_ratio']:.2f} x the plain process's (ceiling for two processes here "
-          f"{rec['pair_ceiling']:.2f}x); the 2-worker study took {rec['dask_over_pair_wall']:.2f}x its wall, "
-          f"{rec['dask_over_pair_cpu']:.2f}x its CPU")
-    print(f"speed-up serial / dask: processes' wall {rec['speedup']:.2f}x, inside {rec['speedup_inside']:.2f}x; "
-          f"estimated with the two cores to itself (CPU) {rec['speedup_idle_estimate']:.2f}x; target >= 1.7x")
-    print(f"on paper, 100,000 cases at {rec['per_case_cpu_s']:.2f} s CPU per case, parallel efficiency "
-          f"{rec['efficiency']:.2f}, 2 block builds of {rec['block_build_s']:.0f} s per machine:")
+    print(
+        f"pair: CPU {rec['pair_cpu_ratio']:.2f} x the plain process's (ceiling for two processes here "
+        f"{rec['pair_ceiling']:.2f}x); the 2-worker study took {rec['dask_over_pair_wall']:.2f}x its wall, "
+        f"{rec['dask_over_pair_cpu']:.2f}x its CPU"
+    )
+    print(
+        f"speed-up serial / dask: processes' wall {rec['speedup']:.2f}x, inside {rec['speedup_inside']:.2f}x; "
+        f"estimated with the two cores to itself (CPU) {rec['speedup_idle_estimate']:.2f}x; target >= 1.7x"
+    )
+    print(
+        f"on paper, 100,000 cases at {rec['per_case_cpu_s']:.2f} s CPU per case, parallel efficiency "
+        f"{rec['efficiency']:.2f}, 2 block builds of {rec['block_build_s']:.0f} s per machine:"
+    )
     for r in rec["on_paper"]:
         print(f"  {r['machines']:4d} machines x {r['cores_each']:2d} cores: {r['hours']:8.2f} h")
 
@@ -265,7 +313,7 @@ def main(argv=None) -> int:
         path.write_text(STUDY.format(scene=(ROOT / "examples" / "S2.toml").as_posix()), encoding="utf-8")
         study = read_study(path)
         assert study.n_cases == 40
-        t = time.perf_counter()   # the block's correction, once
+        t = time.perf_counter()  # the block's correction, once
         warm_blocks([case_scene(c, study) for c in expand(study) if c.body.name == "block"], progress=not args.quiet)
         warm = time.perf_counter() - t
         for i in range(args.repeat):

@@ -28,6 +28,7 @@ Usage::
     python benchmarks/surfaces.py [--size 100] [--h 0.1] [--pressure 0.2] [--seed 1] [--stones 2 4]
                                   [--no-cm] [--out FILE.json] [--quiet]
 """
+
 from __future__ import annotations
 
 import argparse
@@ -51,7 +52,7 @@ from twoscale.surface.texture import road  # noqa: E402
 from twoscale.driver import solve_twoscale  # noqa: E402
 
 MAT = Material(10.0, 0.5)
-CM_TOL = 1e-10   # pentol (mm) and forcetol (N) of ContactMechanics
+CM_TOL = 1e-10  # pentol (mm) and forcetol (N) of ContactMechanics
 #: A tighter far-field tolerance than the policy's (0.1), run as a second two-scale row.
 TIGHT_FAR_TOL = 0.02
 
@@ -63,8 +64,15 @@ def run_twoscale(z: np.ndarray, h: float, load: float, *, law: str = "auto", **o
     laws = _timed_laws(surface.book)
     res = solve_twoscale(HalfSpace(MAT), surface.asperities, h=h, total_load=load, **options)
     t2 = time.perf_counter()
-    return {"surface": surface, "result": res, "segment_s": t1 - t0, "laws_s": laws["seconds"],
-            "laws": surface.book.tabulated, "solve_s": t2 - t1 - laws["seconds"], "time_s": t2 - t0}
+    return {
+        "surface": surface,
+        "result": res,
+        "segment_s": t1 - t0,
+        "laws_s": laws["seconds"],
+        "laws": surface.book.tabulated,
+        "solve_s": t2 - t1 - laws["seconds"],
+        "time_s": t2 - t0,
+    }
 
 
 def _timed_laws(book) -> dict:
@@ -78,6 +86,7 @@ def _timed_laws(book) -> dict:
             return row(label, material)
         finally:
             spent["seconds"] += time.perf_counter() - t0
+
     book.row = timed
     return spent
 
@@ -105,24 +114,29 @@ def run_contact_mechanics(surface, load: float) -> dict | None:
         warnings.simplefilter("ignore")
         sol = system.minimize_proxy(external_force=load, pentol=CM_TOL, forcetol=CM_TOL, maxiter=2000)
     t = time.perf_counter() - t0
-    force = np.asarray(sol.jac).reshape(grid.shape)       # N per cell
-    return {"pressure": force / grid.h ** 2, "time_s": t, "converged": bool(sol.success), "iterations": int(sol.nit)}
+    force = np.asarray(sol.jac).reshape(grid.shape)  # N per cell
+    return {"pressure": force / grid.h**2, "time_s": t, "converged": bool(sol.success), "iterations": int(sol.nit)}
 
 
 def accuracy(pressure: np.ndarray, owner: np.ndarray, ref_pressure: np.ndarray, h: float, n: int) -> dict:
     """Errors of a pressure field against the reference's on the same grid, percent."""
+
     def forces(p):
         ok = owner >= 0
         return np.bincount(owner[ok], weights=p[ok] * h * h, minlength=n)
+
     f, g = forces(pressure), forces(ref_pressure)
     big = g > 0.01 * g.max()
-    return {"load_pct": 100 * abs(f.sum() - g.sum()) / g.sum(),
-            "area_pct": 100 * abs(np.count_nonzero(pressure > 0) - np.count_nonzero(ref_pressure > 0))
-            / np.count_nonzero(ref_pressure > 0),
-            "force_pct": 100 * float(np.max(np.abs(f - g)[big] / g[big])),
-            "force_of_max_pct": 100 * float(np.max(np.abs(f - g)) / g.max()),
-            "l2_pct": 100 * float(np.linalg.norm(pressure - ref_pressure) / np.linalg.norm(ref_pressure)),
-            "loaded_asperities": int(np.count_nonzero(g > 0))}
+    return {
+        "load_pct": 100 * abs(f.sum() - g.sum()) / g.sum(),
+        "area_pct": 100
+        * abs(np.count_nonzero(pressure > 0) - np.count_nonzero(ref_pressure > 0))
+        / np.count_nonzero(ref_pressure > 0),
+        "force_pct": 100 * float(np.max(np.abs(f - g)[big] / g[big])),
+        "force_of_max_pct": 100 * float(np.max(np.abs(f - g)) / g.max()),
+        "l2_pct": 100 * float(np.linalg.norm(pressure - ref_pressure) / np.linalg.norm(ref_pressure)),
+        "loaded_asperities": int(np.count_nonzero(g > 0)),
+    }
 
 
 def main(argv=None) -> int:
@@ -131,56 +145,101 @@ def main(argv=None) -> int:
     parser.add_argument("--h", type=float, default=0.1, help="spacing = cell size, mm")
     parser.add_argument("--pressure", type=float, default=0.2, help="nominal pressure, MPa")
     parser.add_argument("--seed", type=int, default=1)
-    parser.add_argument("--stones", type=float, nargs=2, default=(2.0, 4.0), metavar=("LO", "HI"),
-                        help="stone radii, mm (default 2 4: 314 stones on 100 x 100 mm; 3 6: 161 larger ones)")
+    parser.add_argument(
+        "--stones",
+        type=float,
+        nargs=2,
+        default=(2.0, 4.0),
+        metavar=("LO", "HI"),
+        help="stone radii, mm (default 2 4: 314 stones on 100 x 100 mm; 3 6: 161 larger ones)",
+    )
     parser.add_argument("--no-cm", action="store_true", help="skip ContactMechanics")
     parser.add_argument("--out", default=None, help="write the figures as JSON")
     _common.add_quiet(parser)
     args = parser.parse_args(argv)
     z = road(args.size, args.h, seed=args.seed, stone_radius=tuple(args.stones))
-    load = args.pressure * args.size ** 2
-    print(f"road {args.size:g} x {args.size:g} mm at h = {args.h:g} mm ({z.size} cells), seed {args.seed}, "
-          f"{args.pressure:g} MPa nominal: W = {load:g} N")
+    load = args.pressure * args.size**2
+    print(
+        f"road {args.size:g} x {args.size:g} mm at h = {args.h:g} mm ({z.size} cells), seed {args.seed}, "
+        f"{args.pressure:g} MPa nominal: W = {load:g} N"
+    )
     ts = run_twoscale(z, args.h, load)
     surface, res = ts["surface"], ts["result"]
     grid = surface.hmap.grid
     owner = surface_on(grid, surface.asperities).owner
     ref = run_reference(surface, load)
     ref_p = ref["result"].pressure_on(grid)
-    rows = {"ts": {"time_s": ts["time_s"], "converged": res.converged,
-                   **accuracy(res.pressure_on(grid), owner, ref_p, args.h, len(surface.asperities))},
-            "ref": {"time_s": ref["time_s"], "converged": ref["result"].converged}}
+    rows = {
+        "ts": {
+            "time_s": ts["time_s"],
+            "converged": res.converged,
+            **accuracy(res.pressure_on(grid), owner, ref_p, args.h, len(surface.asperities)),
+        },
+        "ref": {"time_s": ref["time_s"], "converged": ref["result"].converged},
+    }
     tab = run_twoscale(z, args.h, load, law="tabulated")
     rows["ts-tabulated"] = {
-        "time_s": tab["time_s"], "converged": tab["result"].converged, "laws": tab["laws"],
-        **accuracy(tab["result"].pressure_on(grid), owner, ref_p, args.h, len(surface.asperities))}
-    tight = run_twoscale(z, args.h, load, far_tol=TIGHT_FAR_TOL)   # fresh surface
+        "time_s": tab["time_s"],
+        "converged": tab["result"].converged,
+        "laws": tab["laws"],
+        **accuracy(tab["result"].pressure_on(grid), owner, ref_p, args.h, len(surface.asperities)),
+    }
+    tight = run_twoscale(z, args.h, load, far_tol=TIGHT_FAR_TOL)  # fresh surface
     rows[f"ts-{TIGHT_FAR_TOL:g}"] = {
-        "time_s": tight["time_s"], "converged": tight["result"].converged,
-        **accuracy(tight["result"].pressure_on(grid), owner, ref_p, args.h, len(surface.asperities))}
+        "time_s": tight["time_s"],
+        "converged": tight["result"].converged,
+        **accuracy(tight["result"].pressure_on(grid), owner, ref_p, args.h, len(surface.asperities)),
+    }
     cm = None if args.no_cm else run_contact_mechanics(surface, load)
     if cm is not None:
-        rows["CM"] = {"time_s": cm["time_s"], "converged": cm["converged"], "iterations": cm["iterations"],
-                      **accuracy(cm["pressure"], owner, ref_p, args.h, len(surface.asperities))}
-    record = {"size_mm": args.size, "h_mm": args.h, "cells": int(z.size), "seed": args.seed,
-              "pressure_MPa": args.pressure, "load_N": load, "asperities": len(surface.asperities),
-              "segment_s": ts["segment_s"], "laws_s": ts["laws_s"], "laws": ts["laws"], "solve_s": ts["solve_s"],
-              "micro_iteration": res.details.micro.iteration, "codes": rows,
-              "ref_over_ts": ref["time_s"] / ts["time_s"],
-              "cm_over_ts": cm["time_s"] / ts["time_s"] if cm is not None else None}
-    print(f"{len(surface.asperities)} asperities; two-scale: segmentation {ts['segment_s']:.3g} s, {ts['laws']} laws "
-          f"{ts['laws_s']:.3g} s, solve {ts['solve_s']:.3g} s ({record['micro_iteration']})")
-    _common.print_table([{"code": k, **v} for k, v in rows.items()],
-                        [("code", "code", "s"), ("time_s", "time s", ".3g"), ("converged", "converged", ""),
-                         ("load_pct", "load %", ".2g"), ("area_pct", "area %", ".2g"),
-                         ("force_pct", "force %", ".2g"), ("force_of_max_pct", "of max %", ".2g"),
-                         ("l2_pct", "L2 %", ".2g")])
+        rows["CM"] = {
+            "time_s": cm["time_s"],
+            "converged": cm["converged"],
+            "iterations": cm["iterations"],
+            **accuracy(cm["pressure"], owner, ref_p, args.h, len(surface.asperities)),
+        }
+    record = {
+        "size_mm": args.size,
+        "h_mm": args.h,
+        "cells": int(z.size),
+        "seed": args.seed,
+        "pressure_MPa": args.pressure,
+        "load_N": load,
+        "asperities": len(surface.asperities),
+        "segment_s": ts["segment_s"],
+        "laws_s": ts["laws_s"],
+        "laws": ts["laws"],
+        "solve_s": ts["solve_s"],
+        "micro_iteration": res.details.micro.iteration,
+        "codes": rows,
+        "ref_over_ts": ref["time_s"] / ts["time_s"],
+        "cm_over_ts": cm["time_s"] / ts["time_s"] if cm is not None else None,
+    }
+    print(
+        f"{len(surface.asperities)} asperities; two-scale: segmentation {ts['segment_s']:.3g} s, {ts['laws']} laws "
+        f"{ts['laws_s']:.3g} s, solve {ts['solve_s']:.3g} s ({record['micro_iteration']})"
+    )
+    _common.print_table(
+        [{"code": k, **v} for k, v in rows.items()],
+        [
+            ("code", "code", "s"),
+            ("time_s", "time s", ".3g"),
+            ("converged", "converged", ""),
+            ("load_pct", "load %", ".2g"),
+            ("area_pct", "area %", ".2g"),
+            ("force_pct", "force %", ".2g"),
+            ("force_of_max_pct", "of max %", ".2g"),
+            ("l2_pct", "L2 %", ".2g"),
+        ],
+    )
     ok = [record["ref_over_ts"] >= 3.0] + ([record["cm_over_ts"] >= 5.0] if cm is not None else [])
     acc = rows["ts"]
     ok.append(acc["load_pct"] <= 0.5 and acc["area_pct"] <= 0.5 and acc["force_pct"] <= 1.0 and acc["l2_pct"] <= 2.0)
-    print(f"ref / ts = {record['ref_over_ts']:.3g} (target >= 3)"
-          + (f", CM / ts = {record['cm_over_ts']:.3g} (target >= 5)" if cm is not None else ", CM not run")
-          + f": {'PASS' if all(ok) else 'MISS'}")
+    print(
+        f"ref / ts = {record['ref_over_ts']:.3g} (target >= 3)"
+        + (f", CM / ts = {record['cm_over_ts']:.3g} (target >= 5)" if cm is not None else ", CM not run")
+        + f": {'PASS' if all(ok) else 'MISS'}"
+    )
     if args.out:
         Path(args.out).write_text(json.dumps(record, indent=2, default=bool) + "\n", encoding="utf-8")
     return 0

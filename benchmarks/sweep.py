@@ -29,6 +29,7 @@ Usage::
 Results are appended to ``--out`` as one JSON line a scene; a rerun skips the scenes
 already there (delete the file to start again).
 """
+
 from __future__ import annotations
 
 import argparse
@@ -57,15 +58,22 @@ def _rss_mb() -> float:
 
 def _scene(spec_dict: dict, folder: str):
     from twoscale.scenespace import SceneSpec, build
+
     return build(SceneSpec(**spec_dict), folder)
 
 
 def _figures(res) -> dict:
     forces = np.asarray(res.asperities.forces, dtype=float)
     micro = getattr(res.details, "micro", None)
-    out = {"converged": bool(res.converged), "message": res.message, "forces": forces.tolist(),
-           "total_load": float(res.total_load), "penetration": float(res.penetration),
-           "cells": int(res.n_cells), "area": float(np.sum(res.asperities.contact_areas))}
+    out = {
+        "converged": bool(res.converged),
+        "message": res.message,
+        "forces": forces.tolist(),
+        "total_load": float(res.total_load),
+        "penetration": float(res.penetration),
+        "cells": int(res.n_cells),
+        "area": float(np.sum(res.asperities.contact_areas)),
+    }
     if res.method == "reference":  # the default route of the smallest scenes: their full grid's CG
         out["choice"] = "full-grid"
         out["reason"] = res.message.split(";")[0]
@@ -74,8 +82,7 @@ def _figures(res) -> dict:
         out["reason"] = micro.choice.reason
         out["work"] = micro.choice.estimates.get("work")
         out["coverage"] = micro.choice.estimates.get("coverage")
-        out["attempts"] = [[a.iteration, a.far_tol, a.converged, a.sweeps, round(a.seconds, 3)]
-                           for a in micro.attempts]
+        out["attempts"] = [[a.iteration, a.far_tol, a.converged, a.sweeps, round(a.seconds, 3)] for a in micro.attempts]
     return out
 
 
@@ -88,6 +95,7 @@ def run_one(method: str, spec_dict: dict, h: float | None) -> dict:
     import scipy.interpolate, scipy.optimize  # noqa: F401,E401  optimiser; 40-50 ms on one tip)
     from twoscale.resources import estimate_memory
     from twoscale.scene import SceneError, default_h
+
     with tempfile.TemporaryDirectory() as folder:
         t0, c0 = time.perf_counter(), time.process_time()
         try:
@@ -100,9 +108,15 @@ def run_one(method: str, spec_dict: dict, h: float | None) -> dict:
                 res = twoscale.solve(scene, method=method, h=h, provider_options=popts)
         except SceneError as exc:
             return {"refused": str(exc), "time_s": time.perf_counter() - t0, "peak_mb": _rss_mb()}
-        out = {"time_s": time.perf_counter() - t0, "cpu_s": time.process_time() - c0, "peak_mb": _rss_mb(),
-               "h": float(used_h), "estimate_mb": est.bytes / 1e6, "estimate_cells": est.cells,
-               "warnings": sorted({str(w.message).split(":")[0][:80] for w in caught})}
+        out = {
+            "time_s": time.perf_counter() - t0,
+            "cpu_s": time.process_time() - c0,
+            "peak_mb": _rss_mb(),
+            "h": float(used_h),
+            "estimate_mb": est.bytes / 1e6,
+            "estimate_cells": est.cells,
+            "warnings": sorted({str(w.message).split(":")[0][:80] for w in caught}),
+        }
         out.update(_figures(res))
         return out
 
@@ -115,6 +129,7 @@ def run_cm(spec_dict: dict, h: float, maxiter: int = 1000) -> dict:
 
     from twoscale.indenters import surface_on
     from twoscale.reference.on_scene import reference_grid
+
     with tempfile.TemporaryDirectory() as folder:
         scene = _scene(spec_dict, folder)
         t0, c0 = time.perf_counter(), time.process_time()
@@ -123,8 +138,7 @@ def run_cm(spec_dict: dict, h: float, maxiter: int = 1000) -> dict:
         size = (grid.ny * grid.h, grid.nx * grid.h)
         substrate = FreeFFTElasticHalfSpace(grid.shape, scene.material.E_star, size)
         system = NonSmoothContactSystem(substrate, Topography(-np.minimum(surf.height, 1.0), physical_sizes=size))
-        load = ({"offset": scene.penetration} if scene.penetration is not None
-                else {"external_force": scene.total_load})
+        load = {"offset": scene.penetration} if scene.penetration is not None else {"external_force": scene.total_load}
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
             sol = system.minimize_proxy(pentol=1e-10, forcetol=1e-10, maxiter=maxiter, **load)
@@ -132,28 +146,40 @@ def run_cm(spec_dict: dict, h: float, maxiter: int = 1000) -> dict:
         own = surf.owner.ravel()
         ok = own >= 0
         forces = np.bincount(own[ok], weights=pix[ok], minlength=len(scene.asperities))
-        return {"time_s": time.perf_counter() - t0, "cpu_s": time.process_time() - c0, "peak_mb": _rss_mb(),
-                "converged": bool(sol.success), "forces": forces.tolist(), "cells": int(grid.size)}
+        return {
+            "time_s": time.perf_counter() - t0,
+            "cpu_s": time.process_time() - c0,
+            "peak_mb": _rss_mb(),
+            "converged": bool(sol.success),
+            "forces": forces.tolist(),
+            "cells": int(grid.size),
+        }
 
 
 def _cpu_limit(seconds: float):
     """A child's limit of CPU seconds (the machine is shared: wall time is not the code's)."""
+
     def apply():
         limit = int(math.ceil(seconds))
         resource.setrlimit(resource.RLIMIT_CPU, (limit, limit + 5))
+
     return apply
 
 
 def _child(kind: str, spec: dict, h, timeout: float, wall_factor: float = 1.0) -> dict:
     """One solve in a fresh process, stopped after ``timeout`` s of CPU time (and
     ``wall_factor`` times that of wall time when that factor is above 1)."""
-    cmd = [sys.executable, os.path.abspath(__file__), "--child", kind, "--spec", json.dumps(spec),
-           "--h", json.dumps(h)]
+    cmd = [sys.executable, os.path.abspath(__file__), "--child", kind, "--spec", json.dumps(spec), "--h", json.dumps(h)]
     t0 = time.perf_counter()
     cpu_limited = wall_factor > 1.0
     try:
-        out = subprocess.run(cmd, capture_output=True, text=True, timeout=timeout * wall_factor,
-                             preexec_fn=_cpu_limit(timeout) if cpu_limited else None)
+        out = subprocess.run(
+            cmd,
+            capture_output=True,
+            text=True,
+            timeout=timeout * wall_factor,
+            preexec_fn=_cpu_limit(timeout) if cpu_limited else None,
+        )
     except subprocess.TimeoutExpired:
         return {"error": f"timeout after {timeout * wall_factor:g} s of wall time", "time_s": time.perf_counter() - t0}
     if cpu_limited and out.returncode in (-signal.SIGXCPU, -signal.SIGKILL):
@@ -169,12 +195,15 @@ def _errors(f, r) -> dict:
     f, r = np.asarray(f, dtype=float), np.asarray(r, dtype=float)
     if r.size == 0 or not r.max() > 0:
         return {}
-    return {"tip_pct": 100.0 * float(np.max(np.abs(f - r))) / float(r.max()),
-            "total_pct": 100.0 * abs(float(f.sum()) - float(r.sum())) / float(r.sum())}
+    return {
+        "tip_pct": 100.0 * float(np.max(np.abs(f - r))) / float(r.max()),
+        "total_pct": 100.0 * abs(float(f.sum()) - float(r.sum())) / float(r.sum()),
+    }
 
 
 def _ref_fits(spec: dict, h: float, max_gb: float) -> tuple[bool, float]:
     from twoscale.resources import estimate_memory
+
     with tempfile.TemporaryDirectory() as folder:
         scene = _scene(spec, folder)
         est = estimate_memory(scene, h, "reference")
@@ -199,8 +228,7 @@ def measure(spec: dict, args) -> dict:
             rec["ratio_cpu"] = rec["ts"]["cpu_s"] / max(rec["ref"]["cpu_s"], 1e-9)
             rec["ratio_wall"] = rec["ts"]["time_s"] / max(rec["ref"]["time_s"], 1e-9)
             rec["contact_share"] = float(np.count_nonzero(np.asarray(rec["ref"]["forces"]) > 0))
-    if (args.cm and spec["kind"] == "tips" and spec["body"] == "halfspace" and fits
-            and cells <= args.cm_max_cells):
+    if args.cm and spec["kind"] == "tips" and spec["body"] == "halfspace" and fits and cells <= args.cm_max_cells:
         rec["cm"] = _child("cm", spec, h, args.ref_timeout, args.wall_factor)
         if "forces" in rec["cm"] and "ref" in rec and "forces" in rec["ref"]:
             rec["cm_err"] = _errors(rec["cm"]["forces"], rec["ref"]["forces"])
@@ -231,11 +259,21 @@ def verdict(rec: dict) -> str:
 def row(rec: dict) -> dict:
     ts, ref = rec["ts"], rec.get("ref", {})
     from twoscale.scenespace import SceneSpec
-    return {"scene": SceneSpec(**rec["spec"]).label, "verdict": verdict(rec), "h": ts.get("h"),
-            "choice": ts.get("choice") or ("refused" if "refused" in ts else ts.get("error", "")[:40]),
-            "ts_s": ts.get("time_s"), "ts_cpu": ts.get("cpu_s"), "ref_s": ref.get("time_s"), "ratio": rec.get("ratio_cpu"),
-            "tip_pct": rec.get("err", {}).get("tip_pct"), "peak_mb": ts.get("peak_mb"),
-            "est_mb": ts.get("estimate_mb"), "cm_s": rec.get("cm", {}).get("time_s")}
+
+    return {
+        "scene": SceneSpec(**rec["spec"]).label,
+        "verdict": verdict(rec),
+        "h": ts.get("h"),
+        "choice": ts.get("choice") or ("refused" if "refused" in ts else ts.get("error", "")[:40]),
+        "ts_s": ts.get("time_s"),
+        "ts_cpu": ts.get("cpu_s"),
+        "ref_s": ref.get("time_s"),
+        "ratio": rec.get("ratio_cpu"),
+        "tip_pct": rec.get("err", {}).get("tip_pct"),
+        "peak_mb": ts.get("peak_mb"),
+        "est_mb": ts.get("estimate_mb"),
+        "cm_s": rec.get("cm", {}).get("time_s"),
+    }
 
 
 def _fmt(v, spec: str) -> str:
@@ -246,19 +284,25 @@ def table(records: list[dict]) -> str:
     """A Markdown table of the records, worst first (failures, then by time ratio)."""
     order = {"ok": 1, "refused": 1}
     rows = sorted((row(r) for r in records), key=lambda x: (order.get(x["verdict"], 0), -(x["ratio"] or 0)))
-    lines = ["| scene | verdict | h mm | micro step | default s | default CPU s | ref s | CPU ratio | tip err % | peak MB "
-             "| est. MB | CM s |", "|---|---|---|---|---|---|---|---|---|---|---|---|"]
+    lines = [
+        "| scene | verdict | h mm | micro step | default s | default CPU s | ref s | CPU ratio | tip err % | peak MB "
+        "| est. MB | CM s |",
+        "|---|---|---|---|---|---|---|---|---|---|---|---|",
+    ]
     for x in rows:
-        lines.append(f"| {x['scene']} | {x['verdict']} | {_fmt(x['h'], '.3g')} | {x['choice']} | "
-                     f"{_fmt(x['ts_s'], '.2f')} | {_fmt(x['ts_cpu'], '.2f')} | {_fmt(x['ref_s'], '.2f')} | "
-                     f"{_fmt(x['ratio'], '.3f')} | "
-                     f"{_fmt(x['tip_pct'], '.2g')} | {_fmt(x['peak_mb'], '.0f')} | {_fmt(x['est_mb'], '.0f')} | "
-                     f"{_fmt(x['cm_s'], '.2f')} |")
+        lines.append(
+            f"| {x['scene']} | {x['verdict']} | {_fmt(x['h'], '.3g')} | {x['choice']} | "
+            f"{_fmt(x['ts_s'], '.2f')} | {_fmt(x['ts_cpu'], '.2f')} | {_fmt(x['ref_s'], '.2f')} | "
+            f"{_fmt(x['ratio'], '.3f')} | "
+            f"{_fmt(x['tip_pct'], '.2g')} | {_fmt(x['peak_mb'], '.0f')} | {_fmt(x['est_mb'], '.0f')} | "
+            f"{_fmt(x['cm_s'], '.2f')} |"
+        )
     return "\n".join(lines) + "\n"
 
 
 def summary(records: list[dict]) -> str:
     from collections import Counter
+
     v = Counter(verdict(r) for r in records)
     rat = [r["ratio_cpu"] for r in records if "ratio_cpu" in r]
     err = [r["err"]["tip_pct"] for r in records if "tip_pct" in r.get("err", {})]
@@ -267,8 +311,10 @@ def summary(records: list[dict]) -> str:
     free = [r["ts"]["cpu_s"] for r in records if "ref" not in r and "cpu_s" in r["ts"]]
     parts = [f"{len(records)} scenes: " + ", ".join(f"{k} {n}" for k, n in v.most_common())]
     if rat:
-        parts.append(f"CPU ratio default/reference: median {np.median(rat):.3f}, worst {max(rat):.3f} "
-                     f"({len(rat)} scenes with a reference)")
+        parts.append(
+            f"CPU ratio default/reference: median {np.median(rat):.3f}, worst {max(rat):.3f} "
+            f"({len(rat)} scenes with a reference)"
+        )
     if err:
         parts.append(f"per-tip force error: median {np.median(err):.2g} %, worst {max(err):.2g} %")
     if over:
@@ -293,18 +339,28 @@ def main(argv=None) -> int:
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--only", type=int, nargs="*")
     p.add_argument("--part", default="0/1", help="K/N: only the scenes whose index is K modulo N (run N at once)")
-    p.add_argument("--read", nargs="*", default=[], help="more result files to summarise with --out (their scenes are skipped)")
+    p.add_argument(
+        "--read", nargs="*", default=[], help="more result files to summarise with --out (their scenes are skipped)"
+    )
     p.add_argument("--reverse", action="store_true", help="from the last scene down (a third process meets the others)")
-    p.add_argument("--smallest-first", action="store_true",
-                   help="scenes with fewer tips first (maps count as 100 tips): one lane covers the most scenes soonest")
-    p.add_argument("--record", action="store_true", help="with --only: append the reruns to --out (the last record counts)")
+    p.add_argument(
+        "--smallest-first",
+        action="store_true",
+        help="scenes with fewer tips first (maps count as 100 tips): one lane covers the most scenes soonest",
+    )
+    p.add_argument(
+        "--record", action="store_true", help="with --only: append the reruns to --out (the last record counts)"
+    )
     p.add_argument("--out", default="sweep.jsonl")
     p.add_argument("--table")
     p.add_argument("--timeout", type=float, default=180.0, help="s, a default solve")
     p.add_argument("--ref-timeout", type=float, default=600.0)
-    p.add_argument("--wall-factor", type=float, default=1.0,
-                   help="above 1: the timeouts are of CPU time, and wall time is limited to this times them "
-                        "(a shared machine)")
+    p.add_argument(
+        "--wall-factor",
+        type=float,
+        default=1.0,
+        help="above 1: the timeouts are of CPU time, and wall time is limited to this times them (a shared machine)",
+    )
     p.add_argument("--ref-max-gb", type=float, default=8.0)
     p.add_argument("--cm-max-cells", type=int, default=1_000_000)
     p.add_argument("--no-cm", dest="cm", action="store_false")
@@ -324,6 +380,7 @@ def main(argv=None) -> int:
         except ImportError:
             args.cm = False
     from twoscale.scenespace import sweep
+
     specs = sweep(args.count, args.seed, max_tips=args.max_tips)
     if args.only:
         specs = [s for s in specs if s.index in args.only]
@@ -344,9 +401,12 @@ def main(argv=None) -> int:
         except Exception as exc:  # the driver's own work on one scene: recorded, the sweep goes on
             rec = {"spec": spec.to_dict(), "ts": {"error": f"sweep driver: {type(exc).__name__}: {exc}"[:300]}}
         x = row(rec)
-        print(f"{x['scene']}: {x['verdict']} {x['choice']} ts {_fmt(x['ts_s'], '.2f')} s ref "
-              f"{_fmt(x['ref_s'], '.2f')} s ratio {_fmt(x['ratio'], '.3f')} err {_fmt(x['tip_pct'], '.2g')} % "
-              f"peak {_fmt(x['peak_mb'], '.0f')}/{_fmt(x['est_mb'], '.0f')} MB", flush=True)
+        print(
+            f"{x['scene']}: {x['verdict']} {x['choice']} ts {_fmt(x['ts_s'], '.2f')} s ref "
+            f"{_fmt(x['ref_s'], '.2f')} s ratio {_fmt(x['ratio'], '.3f')} err {_fmt(x['tip_pct'], '.2g')} % "
+            f"peak {_fmt(x['peak_mb'], '.0f')}/{_fmt(x['est_mb'], '.0f')} MB",
+            flush=True,
+        )
         if args.only:
             print(json.dumps({k: v for k, v in rec.items() if k != "spec"}, default=str)[:3000])
         if not args.only or args.record:

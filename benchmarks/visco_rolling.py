@@ -23,6 +23,7 @@ energy dissipated there and the drag work against it, the peak memory. CPU time 
 
 Run: ``cd benchmarks && python visco_rolling.py [--speed 50] [--ratio 20] [--runs sphere road]``.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -54,8 +55,13 @@ def sphere_case():
     tips = (Asperity(0.0, 0.0, 0.0, 10.0),)
     h = 0.1
     shifts = np.arange(-10.0, 10.0 + 1e-9, h)
-    return MovingAsperities(tips), shifts, {"penetration": 0.2}, lambda m: sweep_grid(m, tips, shifts, h,
-                                                                                     penetration=0.2), False
+    return (
+        MovingAsperities(tips),
+        shifts,
+        {"penetration": 0.2},
+        lambda m: sweep_grid(m, tips, shifts, h, penetration=0.2),
+        False,
+    )
 
 
 def road_case():
@@ -67,8 +73,9 @@ def road_case():
     z = road(size, h, seed=2026)
     hmap = HeightMap(z, h, x0=-0.5 * size + 0.5 * h, y0=-0.5 * size + 0.5 * h)
     seg = segment(hmap)
-    indenter = MovingHeights.from_map(float(np.nanmax(z)) - z, seg.labels, hmap.grid,
-                                      face=lambda X, Y: X ** 2 / (2.0 * 300.0))
+    indenter = MovingHeights.from_map(
+        float(np.nanmax(z)) - z, seg.labels, hmap.grid, face=lambda X, Y: X**2 / (2.0 * 300.0)
+    )
     window = Grid.covering(-20.0, 20.0, -10.0, 10.0, h, anchor=(hmap.grid.x0, hmap.grid.y0))
     shifts = np.arange(-25.0, 25.0 + 1e-9, 0.5)
     return indenter, shifts, {"total_load": 80.0}, lambda m: window, True
@@ -79,8 +86,9 @@ def run(name, material, case, method, speed):
     grid = grid_of(material)
     opts = MovingOptions(method=method, open_edges=open_edges)
     c0 = time.process_time()
-    r = solve_moving(material, HalfSpace(material.relaxed()), indenter, shifts, speed=speed, grid=grid,
-                     options=opts, **control)
+    r = solve_moving(
+        material, HalfSpace(material.relaxed()), indenter, shifts, speed=speed, grid=grid, options=opts, **control
+    )
     return r, time.process_time() - c0
 
 
@@ -89,16 +97,20 @@ def report(name, method, visco, elastic, glassy):
     n = rv.shifts.size
     half = n // 2
     D = rv.dissipated_between(half)
-    print(f"{name:7s} {method:9s} {n:4d} positions, grid {rv.grid.nx} x {rv.grid.ny}: viscoelastic "
-          f"{cv:7.2f} s ({1e3 * cv / n:6.1f} ms/pos), elastic {ce:7.2f} s ({1e3 * ce / n:6.1f} ms/pos), "
-          f"ratio {cv / ce:4.2f}; elastic at the glassy modulus {cg:7.2f} s, ratio {cv / cg:4.2f}; "
-          f"iterations {rv.iterations.sum()} vs {re.iterations.sum()} and {rg.iterations.sum()}")
-    print(f"        mean drag {np.mean(rv.drag[half:]):.4g} N (elastic {np.mean(re.drag[half:]):.3g} N), "
-          f"mean load {np.mean(rv.total_load[half:]):.4g} N; second half: drag work {rv.drag_work(half):.4g} N mm "
-          f"+ vertical {rv.vertical_work(half):.4g} N mm, "
-          f"dissipated {D:.4g} N mm, stored change {rv.stored[-1] - rv.stored[half]:.3g} N mm; "
-          f"memory peak {rv.memory['peak_cells']} cells ({rv.memory['peak_bytes'] / 1e6:.2f} MB); "
-          f"converged {rv.converged and re.converged}; max error estimate {rv.max_error:.2g}")
+    print(
+        f"{name:7s} {method:9s} {n:4d} positions, grid {rv.grid.nx} x {rv.grid.ny}: viscoelastic "
+        f"{cv:7.2f} s ({1e3 * cv / n:6.1f} ms/pos), elastic {ce:7.2f} s ({1e3 * ce / n:6.1f} ms/pos), "
+        f"ratio {cv / ce:4.2f}; elastic at the glassy modulus {cg:7.2f} s, ratio {cv / cg:4.2f}; "
+        f"iterations {rv.iterations.sum()} vs {re.iterations.sum()} and {rg.iterations.sum()}"
+    )
+    print(
+        f"        mean drag {np.mean(rv.drag[half:]):.4g} N (elastic {np.mean(re.drag[half:]):.3g} N), "
+        f"mean load {np.mean(rv.total_load[half:]):.4g} N; second half: drag work {rv.drag_work(half):.4g} N mm "
+        f"+ vertical {rv.vertical_work(half):.4g} N mm, "
+        f"dissipated {D:.4g} N mm, stored change {rv.stored[-1] - rv.stored[half]:.3g} N mm; "
+        f"memory peak {rv.memory['peak_cells']} cells ({rv.memory['peak_bytes'] / 1e6:.2f} MB); "
+        f"converged {rv.converged and re.converged}; max error estimate {rv.max_error:.2g}"
+    )
 
 
 def main(argv=None) -> None:
@@ -117,8 +129,13 @@ def main(argv=None) -> None:
         make, methods = cases[name]
         case = make()
         for method in methods:
-            report(name, method, run(name, visco, case, method, speed), run(name, elastic, case, method, speed),
-                   run(name, visco.at_modulus(visco.E_glassy), case, method, speed))
+            report(
+                name,
+                method,
+                run(name, visco, case, method, speed),
+                run(name, elastic, case, method, speed),
+                run(name, visco.at_modulus(visco.E_glassy), case, method, speed),
+            )
 
 
 if __name__ == "__main__":

@@ -27,6 +27,7 @@ periodic box twice the memory grid, with the default run's step ends, at the cel
 Run: ``cd benchmarks && PYTHONPATH=.. python viscoelastic.py [--tips 50 200] [--road]
 [--histories creep cycle] [--reference] [--halved] [--exact] [--tamaas]``.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -81,15 +82,18 @@ def compare(a, b) -> dict:
     each of them: the same or halved steps)."""
     b = _at(b, np.isin(b.times, a.times))
     scale = float(np.abs(b.forces).max())
-    return {"forces": float(np.abs(a.forces - b.forces).max() / scale),
-            "load": float(np.abs(a.total_load - b.total_load).max() / np.abs(b.total_load).max()),
-            "approach": float(np.abs(a.penetration - b.penetration).max() / np.abs(b.penetration).max())}
+    return {
+        "forces": float(np.abs(a.forces - b.forces).max() / scale),
+        "load": float(np.abs(a.total_load - b.total_load).max() / np.abs(b.total_load).max()),
+        "approach": float(np.abs(a.penetration - b.penetration).max() / np.abs(b.penetration).max()),
+    }
 
 
 def _at(r, keep: np.ndarray):
     """The histories of ``r`` at the output times ``keep`` selects."""
-    return types.SimpleNamespace(times=r.times[keep], forces=r.forces[keep], total_load=r.total_load[keep],
-                                 penetration=r.penetration[keep])
+    return types.SimpleNamespace(
+        times=r.times[keep], forces=r.forces[keep], total_load=r.total_load[keep], penetration=r.penetration[keep]
+    )
 
 
 def elastic_scene(name: str, args) -> Scene:
@@ -100,7 +104,7 @@ def elastic_scene(name: str, args) -> Scene:
 
         z = road(args.road_size, args.road_h, seed=1)
         surface = build_surface(RawMap(z, args.road_h, "mm", None, "synthetic road"))
-        return Scene(Material(6.0, 0.5), surface=surface, total_load=ROAD_PRESSURE * args.road_size ** 2)
+        return Scene(Material(6.0, 0.5), surface=surface, total_load=ROAD_PRESSURE * args.road_size**2)
     return random_scene(int(name), kind="dense", seed=0, h=args.h)
 
 
@@ -112,28 +116,43 @@ def run_one(name: str, kind: str, args) -> None:
     _el, t_el = cpu(lambda: twoscale.solve(dataclasses.replace(base, h=h)))
     res, t_ts = cpu(lambda: solve_history(scene, method="twoscale", h=h))
     label = f"road {args.road_size:g} mm ({len(base.asperities)} stones)" if name == "road" else f"{name} tips"
-    print(f"\n{label}, {kind}: h = {h:.4g} mm, {len(res.steps)} steps ({res.rejected} redone), "
-          f"error estimate {res.error_estimate:.2g}, converged {res.converged}", flush=True)
-    print(f"  two-scale history  CPU {t_ts:8.2f} s = {t_ts / t_el:6.2f} elastic solves ({t_el:.2f} s each); "
-          f"memory {res.memory['peak_cells']} cells x {res.memory['bytes_per_cell']} B "
-          f"(grid {res.memory['grid_cells']} cells)", flush=True)
+    print(
+        f"\n{label}, {kind}: h = {h:.4g} mm, {len(res.steps)} steps ({res.rejected} redone), "
+        f"error estimate {res.error_estimate:.2g}, converged {res.converged}",
+        flush=True,
+    )
+    print(
+        f"  two-scale history  CPU {t_ts:8.2f} s = {t_ts / t_el:6.2f} elastic solves ({t_el:.2f} s each); "
+        f"memory {res.memory['peak_cells']} cells x {res.memory['bytes_per_cell']} B "
+        f"(grid {res.memory['grid_cells']} cells)",
+        flush=True,
+    )
     ends = tuple(s.t for s in res.steps)
     if args.halved:
         half, t_half = cpu(lambda: solve_history(scene, method="twoscale", h=h, steps=TimeSteps.halved(ends)))
         d = compare(res, half)
-        print(f"  halved steps       CPU {t_half:8.2f} s; max difference forces {100 * d['forces']:.3g} %, "
-              f"load {100 * d['load']:.3g} %, approach {100 * d['approach']:.3g} %", flush=True)
+        print(
+            f"  halved steps       CPU {t_half:8.2f} s; max difference forces {100 * d['forces']:.3g} %, "
+            f"load {100 * d['load']:.3g} %, approach {100 * d['approach']:.3g} %",
+            flush=True,
+        )
     if args.reference:
         cells = res.memory["grid_cells"]
         if cells > args.reference_max_cells:
-            print(f"  reference, same steps: skipped ({cells} cells > --reference-max-cells "
-                  f"{args.reference_max_cells:g})", flush=True)
+            print(
+                f"  reference, same steps: skipped ({cells} cells > --reference-max-cells "
+                f"{args.reference_max_cells:g})",
+                flush=True,
+            )
         else:
             ref, t_ref = cpu(lambda: solve_history(scene, method="reference", h=h, steps=TimeSteps(at=ends)))
             d = compare(res, ref)
-            print(f"  reference, same steps CPU {t_ref:8.2f} s; two-scale / reference {t_ts / t_ref:.3f}; "
-                  f"difference forces {100 * d['forces']:.3g} %, load {100 * d['load']:.3g} %, "
-                  f"approach {100 * d['approach']:.3g} %", flush=True)
+            print(
+                f"  reference, same steps CPU {t_ref:8.2f} s; two-scale / reference {t_ts / t_ref:.3f}; "
+                f"difference forces {100 * d['forces']:.3g} %, load {100 * d['load']:.3g} %, "
+                f"approach {100 * d['approach']:.3g} %",
+                flush=True,
+            )
     if args.exact and kind == "creep":
         J = creep_compliance(material)
         worst = 0.0
@@ -161,9 +180,10 @@ def tamaas_history(scene: Scene, grid, ends) -> tuple:
     model = tm.Model(tm.model_type.basic_2d, [2 * ny * grid.h, 2 * nx * grid.h], [2 * ny, 2 * nx])
     model.E, model.nu = float(m.E), float(m.nu)
     G = [float(E_k) / (2.0 * (1.0 + m.nu)) for E_k, _ in m.prony]
-    solver = tm.MaxwellViscoelastic(model, heights, 1e-10, time_step=0.0, shear_moduli=G,
-                                    characteristic_times=[float(t) for _, t in m.prony])
-    area = 4.0 * grid.size * grid.h ** 2
+    solver = tm.MaxwellViscoelastic(
+        model, heights, 1e-10, time_step=0.0, shear_moduli=G, characteristic_times=[float(t) for _, t in m.prony]
+    )
+    area = 4.0 * grid.size * grid.h**2
     owner = s.owner.ravel()
     forces, areas, t_prev = [], [], 0.0
     for t in ends:
@@ -174,9 +194,9 @@ def tamaas_history(scene: Scene, grid, ends) -> tuple:
             solver.solve(W / area)
             p = np.array(model.traction).reshape(2 * ny, 2 * nx)
         t_prev = t
-        q = p[:ny, :nx].ravel() * grid.h ** 2
+        q = p[:ny, :nx].ravel() * grid.h**2
         forces.append(np.bincount(owner[owner >= 0], q[owner >= 0], minlength=s.n_asperities))
-        areas.append(np.count_nonzero(p > 0) * grid.h ** 2)
+        areas.append(np.count_nonzero(p > 0) * grid.h**2)
     return np.array(forces), np.array(areas)
 
 
@@ -197,10 +217,13 @@ def compare_tamaas(scene: Scene, ends, args) -> None:
     keep = np.isin(np.asarray(ends), two.times)
     f = forces[keep]
     scale = float(np.abs(two.forces).max())
-    print(f"  Tamaas MaxwellViscoelastic, box {2 * grid.shape[0]} x {2 * grid.shape[1]} at h = {h:g} mm, same "
-          f"{len(ends)} steps: CPU {t_tm:8.2f} s (two-scale, same h and steps, {t_two:.2f} s); "
-          f"forces differ by {100 * float(np.abs(f - two.forces).max()) / scale:.3g} % of the largest, "
-          f"contact area by {100 * float(np.abs(areas[keep] / two.contact_area - 1).max()):.3g} %", flush=True)
+    print(
+        f"  Tamaas MaxwellViscoelastic, box {2 * grid.shape[0]} x {2 * grid.shape[1]} at h = {h:g} mm, same "
+        f"{len(ends)} steps: CPU {t_tm:8.2f} s (two-scale, same h and steps, {t_two:.2f} s); "
+        f"forces differ by {100 * float(np.abs(f - two.forces).max()) / scale:.3g} % of the largest, "
+        f"contact area by {100 * float(np.abs(areas[keep] / two.contact_area - 1).max()):.3g} %",
+        flush=True,
+    )
 
 
 def main(argv=None) -> int:

@@ -19,6 +19,7 @@ Usage::
 
     cd benchmarks && python warm_start.py
 """
+
 from __future__ import annotations
 
 import sys
@@ -52,8 +53,10 @@ def micro_start(state: dict):
         moved = []
         for pt, p7 in zip(patches, out):
             g = pt.grid
-            i, j = np.meshgrid(np.rint((g.x0 - dx) / h + np.arange(g.nx)).astype(int),
-                               np.rint((g.y0 - dy) / h + np.arange(g.ny)).astype(int))
+            i, j = np.meshgrid(
+                np.rint((g.x0 - dx) / h + np.arange(g.nx)).astype(int),
+                np.rint((g.y0 - dy) / h + np.arange(g.ny)).astype(int),
+            )
             v = np.array([table.get(c, 0.0) for c in zip(i.ravel(), j.ravel())]).reshape(g.shape)[pt.owned]
             s, P = h * h * v.sum(), float(forces[pt.asperity])
             moved.append(v * (P / s) if s > 0 and P > 0 else p7)
@@ -71,7 +74,9 @@ def _cells(result, h: float) -> dict:
     table: dict = {}
     for f in result.fields:
         g = f.grid
-        i, j = np.meshgrid(np.rint(g.x0 / h + np.arange(g.nx)).astype(int), np.rint(g.y0 / h + np.arange(g.ny)).astype(int))
+        i, j = np.meshgrid(
+            np.rint(g.x0 / h + np.arange(g.nx)).astype(int), np.rint(g.y0 / h + np.arange(g.ny)).astype(int)
+        )
         for c, v in zip(zip(i.ravel(), j.ravel()), f.pressure.ravel()):
             if v > 0:
                 table[c] = table.get(c, 0.0) + float(v)
@@ -118,15 +123,19 @@ def main() -> int:
     with tempfile.TemporaryDirectory() as tmp:
         path = Path(tmp) / "bench.toml"
         path.write_text(STUDY.format(scene=(ROOT / "examples" / "S2.toml").as_posix()), encoding="utf-8")
-        studies = {"example track (examples/study.toml)": read_study(ROOT / "examples" / "study.toml"),
-                   "benchmark track (study.py)": read_study(path)}
+        studies = {
+            "example track (examples/study.toml)": read_study(ROOT / "examples" / "study.toml"),
+            "benchmark track (study.py)": read_study(path),
+        }
         t0 = time.perf_counter()
         for name, study in studies.items():
             out = track(study)
             print(name)
             for k, v in out.items():
-                print(f"  {k:6s} macro steps {v['macro_steps']:4.0f}  macro {v['macro_s']:6.3f} s  "
-                      f"micro sweeps {v['micro_sweeps']:4.0f}  micro {v['micro_s']:6.2f} s")
+                print(
+                    f"  {k:6s} macro steps {v['macro_steps']:4.0f}  macro {v['macro_s']:6.3f} s  "
+                    f"micro sweeps {v['micro_sweeps']:4.0f}  micro {v['micro_s']:6.2f} s"
+                )
         print(f"({time.perf_counter() - t0:.0f} s)")
     return 0
 

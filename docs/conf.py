@@ -5,12 +5,13 @@ The guides are Markdown (MyST), the API reference comes from the numpydoc docstr
 (autodoc + napoleon), and the examples in ``docs/examples`` run at build time
 (sphinx-gallery) so their figures are the current tool's.
 """
+
 import os
 import sys
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(ROOT))        # the source tree, also when twoscale is not installed
+sys.path.insert(0, str(ROOT))  # the source tree, also when twoscale is not installed
 os.environ.setdefault("MPLBACKEND", "Agg")
 
 from twoscale import __version__
@@ -38,7 +39,7 @@ napoleon_google_docstring = False
 napoleon_numpy_docstring = True
 napoleon_use_rtype = False
 autodoc_member_order = "bysource"
-autodoc_typehints = "none"          # the docstrings give types with units
+autodoc_typehints = "none"  # the docstrings give types with units
 autodoc_default_options = {"members": True}
 
 sphinx_gallery_conf = {
@@ -54,5 +55,8 @@ sphinx_gallery_conf = {
 
 html_theme = "alabaster"
 html_title = f"twoscale {version}"
-html_theme_options = {"description": "Multi-asperity contact on elastic bodies", "page_width": "1100px",
-                      "sidebar_width": "230px"}
+html_theme_options = {
+    "description": "Multi-asperity contact on elastic bodies",
+    "page_width": "1100px",
+    "sidebar_width": "230px",
+}

@@ -13,6 +13,7 @@ points); the element matrices are formed here with vectorised ``einsum`` over al
 elements at once, which is an order of magnitude faster than the generic form
 assembly for Q2 hexahedra.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -79,9 +80,9 @@ def assemble_mixed(mesh, material: Material) -> MixedSystem:
     E, nu = material.E, material.nu
     mu = E / (2.0 * (1.0 + nu))
     inv_lam = 0.0 if nu == 0.5 else (1.0 + nu) * (1.0 - 2.0 * nu) / (E * nu) if nu != 0 else None
-    G = np.stack([ub.basis[i][0].grad for i in range(ub.Nbfun)])   # (27, 3, ne, nq)
+    G = np.stack([ub.basis[i][0].grad for i in range(ub.Nbfun)])  # (27, 3, ne, nq)
     psi = np.stack([np.asarray(pb.basis[k][0]) for k in range(pb.Nbfun)])  # (8, ne, nq)
-    dx = ub.dx                                                     # (ne, nq)
+    dx = ub.dx  # (ne, nq)
     # batched matmul over elements: rows (a, i), columns (b, j), contraction over q
     Gr = np.ascontiguousarray(np.transpose(G, (2, 1, 0, 3))).reshape(G.shape[2], 3 * G.shape[0], -1)
     M = np.matmul(Gr * dx[:, None, :], np.transpose(Gr, (0, 2, 1)))
@@ -92,8 +93,8 @@ def assemble_mixed(mesh, material: Material) -> MixedSystem:
     Ke = mu * (np.eye(3)[None, :, :, None, None] * S[:, None, None] + np.transpose(M, (0, 2, 1, 3, 4)))
     Be = np.einsum("keq,iaeq->eaik", psi * dx[None], G, optimize=True)  # (ne, 3, 27, 8)
     ns = ub.N
-    udofs = ub.element_dofs.T                                       # (ne, 27)
-    pdofs = pb.element_dofs.T + 3 * ns                              # (ne, 8)
+    udofs = ub.element_dofs.T  # (ne, 27)
+    pdofs = pb.element_dofs.T + 3 * ns  # (ne, 8)
     gu = (np.arange(3)[None, :, None] * ns + udofs[:, None, :]).reshape(ne, 3 * nb)
     rows = [np.repeat(gu, 3 * nb, axis=1).ravel()]
     cols = [np.tile(gu, (1, 3 * nb)).ravel()]

@@ -10,6 +10,7 @@ The combinations ``(1 - z/rho)/r^2`` and ``r/(rho (rho + z))`` are written as
 ``1/(rho (rho + z))`` and ``r/(rho (rho + z))``, which are regular on the axis
 ``r = 0`` for ``z > 0``.
 """
+
 from __future__ import annotations
 
 import numpy as np
@@ -85,11 +86,11 @@ def point_stress(points, material: Material, *, source=(0.0, 0.0), P: float = 1.
     x, y, z, r, rho = _split(points, source)
     nu = material.nu
     c = P / (2.0 * np.pi)
-    inv = 1.0 / (rho * (rho + z))            # (1 - z/rho)/r^2
+    inv = 1.0 / (rho * (rho + z))  # (1 - z/rho)/r^2
     s_rr = c * ((1.0 - 2.0 * nu) * inv - 3.0 * z * r * r / rho**5)
     s_tt = -c * (1.0 - 2.0 * nu) * (inv - z / rho**3)
     s_zz = -3.0 * c * z**3 / rho**5
-    t_rz_r = -3.0 * c * z * z / rho**5        # tau_rz / r
+    t_rz_r = -3.0 * c * z * z / rho**5  # tau_rz / r
     with np.errstate(invalid="ignore", divide="ignore"):
         cos = np.where(r > 0, x / np.where(r > 0, r, 1.0), 1.0)
         sin = np.where(r > 0, y / np.where(r > 0, r, 1.0), 0.0)

@@ -9,6 +9,7 @@ its fields solved again, and a folder that cannot be written leaves the fields i
 memory with one warning. Two processes solving the same block at once each write
 the fields they hold; the last rename's file stays, whole.
 """
+
 from __future__ import annotations
 
 import hashlib
@@ -94,7 +95,12 @@ class FieldCache:
         if self._folder is None:
             return
         keys = sorted(self.fields)
-        self._folder.save(self.path.name, {
-            "key": np.array(self.key), "top_xy": self.top_xy,
-            "nodes": np.array(keys, dtype=np.int64).reshape(-1, 2),
-            "fields": np.array([self.fields[k] for k in keys])})
+        self._folder.save(
+            self.path.name,
+            {
+                "key": np.array(self.key),
+                "top_xy": self.top_xy,
+                "nodes": np.array(keys, dtype=np.int64).reshape(-1, 2),
+                "fields": np.array([self.fields[k] for k in keys]),
+            },
+        )

@@ -19,6 +19,7 @@ system matrix depends on mesh, nu and base only; it is factorised once (sparse L
 SuperLU with a minimum-degree ordering on ``A + A^T``) and every source point is
 one more right-hand side. The field is computed for ``E = 1`` MPa and scales as ``1/E``.
 """
+
 from __future__ import annotations
 
 import time
@@ -63,7 +64,7 @@ def block_geometry(mesh, *, tol: float = 1e-8) -> BlockGeometry:
         raise ValueError(f"block mesh top face must be at depth 0, smallest depth is {z.min()!r}")
     t = float(z.max())
     bf = mesh.boundary_facets()
-    fz = mesh.p[2, mesh.facets[:, bf]]                       # (4, nbf)
+    fz = mesh.p[2, mesh.facets[:, bf]]  # (4, nbf)
     top = bf[np.all(np.abs(fz) <= tol * t, axis=0)]
     base = bf[np.all(np.abs(fz - t) <= tol * t, axis=0)]
     sides = np.setdiff1d(bf, np.concatenate([top, base]))
@@ -127,6 +128,7 @@ class CorrectionSolver:
         system = assemble_mixed(mesh, Material(1.0, nu))
         ns, n = system.n_scalar, system.size
         from skfem import CellBasis
+
         ub = CellBasis(mesh, ElementHex2(), intorder=INTORDER)
         top_dofs = np.unique(ub.get_dofs(geo.top).all())
         base_dofs = np.unique(ub.get_dofs(geo.base).all())
@@ -141,29 +143,41 @@ class CorrectionSolver:
         A = system.matrix
         t1 = time.perf_counter()
         A_ff = A[free][:, free].tocsc()
-        lu = spla.splu(A_ff, permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0,
-                       options=dict(SymmetricMode=True))
+        lu = spla.splu(A_ff, permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0, options=dict(SymmetricMode=True))
         t2 = time.perf_counter()
         fixed_base = fixed[fixed < 3 * ns]
-        return cls(mesh=mesh, nu=nu, base=base, top_xy=system.doflocs[:2, top_dofs].T.copy(),
-                   timings_s={"assembly": t1 - t0, "factorisation": t2 - t1},
-                   _lu=lu, _free=free, _fixed=fixed, _A_fd=A[free][:, fixed].tocsc(), _n=n, _ns=ns,
-                   _top_dofs=top_dofs, _fixed_base_dofs=fixed_base,
-                   _base_xyz=system.doflocs[:, fixed_base % ns].T.copy(), _loads=loads, _matrix=A_ff)
+        return cls(
+            mesh=mesh,
+            nu=nu,
+            base=base,
+            top_xy=system.doflocs[:2, top_dofs].T.copy(),
+            timings_s={"assembly": t1 - t0, "factorisation": t2 - t1},
+            _lu=lu,
+            _free=free,
+            _fixed=fixed,
+            _A_fd=A[free][:, fixed].tocsc(),
+            _n=n,
+            _ns=ns,
+            _top_dofs=top_dofs,
+            _fixed_base_dofs=fixed_base,
+            _base_xyz=system.doflocs[:, fixed_base % ns].T.copy(),
+            _loads=loads,
+            _matrix=A_ff,
+        )
 
     def _rhs(self, source: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         mat = Material(1.0, self.nu)
         f = np.zeros(self._n)
         for part, fb in self._loads:
-            X = np.asarray(fb.global_coordinates())                 # (3, nf, nq)
-            nrm = np.asarray(fb.normals)                            # (3, nf, nq)
-            sig = point_stress(np.moveaxis(X, 0, -1), mat, source=source)   # (nf, nq, 3, 3)
+            X = np.asarray(fb.global_coordinates())  # (3, nf, nq)
+            nrm = np.asarray(fb.normals)  # (3, nf, nq)
+            sig = point_stress(np.moveaxis(X, 0, -1), mat, source=source)  # (nf, nq, 3, 3)
             trac = -np.einsum("fqab,bfq->afq", sig, nrm)
             if part == "base":
-                trac[2] = 0.0                                  # only the shear is a load there
+                trac[2] = 0.0  # only the shear is a load there
             phi = np.stack([np.asarray(fb.basis[i][0]) for i in range(fb.Nbfun)])  # (27, nf, nq)
             fe = np.einsum("ifq,afq,fq->aif", phi, trac, fb.dx)
-            dofs = fb.element_dofs                             # (27, nf)
+            dofs = fb.element_dofs  # (27, nf)
             for a in range(3):
                 f += np.bincount((dofs + a * self._ns).ravel(), fe[a].ravel(), minlength=self._n)
         ud = np.zeros(len(self._fixed))
@@ -171,7 +185,7 @@ class CorrectionSolver:
         uB = point_displacement(self._base_xyz, mat, source=source)
         vals = -uB[np.arange(len(comp)), comp]
         if self.base == "sliding":
-            vals = np.where(comp == 2, vals, 0.0)              # rigid-motion pins stay at 0
+            vals = np.where(comp == 2, vals, 0.0)  # rigid-motion pins stay at 0
         ud[: len(vals)] = vals
         return f, ud
 
@@ -214,7 +228,7 @@ class CorrectionSolver:
         full = self._solve_full(sources, c)[:, 0]
         nv = self.mesh.p.shape[1]
         # ElementHex2 numbers the vertex dofs first, in mesh.p order
-        return np.column_stack([full[a * self._ns: a * self._ns + nv] for a in range(3)])
+        return np.column_stack([full[a * self._ns : a * self._ns + nv] for a in range(3)])
 
     def _solve_full(self, sources: np.ndarray, combine: np.ndarray | None = None) -> np.ndarray:
         """All displacement/pressure dofs, one column per source (or one column for ``combine``)."""
@@ -239,8 +253,10 @@ class CorrectionSolver:
             res = np.linalg.norm(self._matrix @ x - b, axis=0) / bn
         self.residuals.extend(res.tolist())
         if res.max() > RESIDUAL_TOL:
-            raise RuntimeError(f"correction solve inaccurate: relative residual {res.max():.2e} > "
-                               f"{RESIDUAL_TOL:.0e} after 3 refinement steps (mesh, nu={self.nu}, base={self.base})")
+            raise RuntimeError(
+                f"correction solve inaccurate: relative residual {res.max():.2e} > "
+                f"{RESIDUAL_TOL:.0e} after 3 refinement steps (mesh, nu={self.nu}, base={self.base})"
+            )
         full = np.zeros((self._n, U.shape[1]))
         full[self._free] = x
         full[self._fixed] = U

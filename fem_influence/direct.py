@@ -9,6 +9,7 @@ block is meshed (symmetry planes x = 0 and y = 0), graded from ``h_cell / per_ce
 elements under the cell (``per_cell`` per side) to ``h_coarse``, with Taylor-Hood Q2-Q1
 elements.
 """
+
 from __future__ import annotations
 
 import time
@@ -53,8 +54,9 @@ class DirectResult:
     timings_s: dict
 
 
-def _axis(end: float, h_cell: float, h_coarse: float, growth: float, fine: float = 1.5,
-          per_cell: int = 4) -> np.ndarray:
+def _axis(
+    end: float, h_cell: float, h_coarse: float, growth: float, fine: float = 1.5, per_cell: int = 4
+) -> np.ndarray:
     # 0 .. fine * h_cell at h_cell/per_cell (the pressure edge at h_cell/2 is a node), then
     # geometric growth to h_coarse up to ``end``
     x = list(np.arange(0.0, fine * h_cell + 1e-9, h_cell / per_cell))
@@ -65,8 +67,9 @@ def _axis(end: float, h_cell: float, h_coarse: float, growth: float, fine: float
     return np.array(x)
 
 
-def _depth_axis(t: float, h_cell: float, h_coarse: float, growth: float, fine: float = 1.0,
-                per_cell: int = 4) -> np.ndarray:
+def _depth_axis(
+    t: float, h_cell: float, h_coarse: float, growth: float, fine: float = 1.0, per_cell: int = 4
+) -> np.ndarray:
     z = list(np.arange(0.0, min(fine * h_cell, t) + 1e-9, h_cell / per_cell))
     h = h_cell / per_cell
     while z[-1] < t - 1e-9:
@@ -87,9 +90,17 @@ def _cell_halfspace_displacement(points: np.ndarray, material: Material, h_cell:
     return u
 
 
-def solve_cell_load(material: Material, *, size=(140.0, 140.0, 20.0), h_cell: float = 2.0,
-                    boundary: str = "bonded", r=None, h_coarse: float = 10.0,
-                    growth: float = 1.5, per_cell: int = 6) -> DirectResult:
+def solve_cell_load(
+    material: Material,
+    *,
+    size=(140.0, 140.0, 20.0),
+    h_cell: float = 2.0,
+    boundary: str = "bonded",
+    r=None,
+    h_coarse: float = 10.0,
+    growth: float = 1.5,
+    per_cell: int = 6,
+) -> DirectResult:
     """Solve the block under unit pressure on the central cell of side ``h_cell``.
 
     Parameters
@@ -126,15 +137,17 @@ def solve_cell_load(material: Material, *, size=(140.0, 140.0, 20.0), h_cell: fl
     t0 = time.perf_counter()
     if per_cell < 2 or per_cell % 2:
         raise ValueError(f"per_cell must be an even integer >= 2, got {per_cell!r}")
-    mesh = MeshHex.init_tensor(_axis(Lx / 2, h_cell, h_coarse, growth, per_cell=per_cell),
-                               _axis(Ly / 2, h_cell, h_coarse, growth, per_cell=per_cell),
-                               _depth_axis(t, h_cell, h_coarse, growth, per_cell=per_cell))
+    mesh = MeshHex.init_tensor(
+        _axis(Lx / 2, h_cell, h_coarse, growth, per_cell=per_cell),
+        _axis(Ly / 2, h_cell, h_coarse, growth, per_cell=per_cell),
+        _depth_axis(t, h_cell, h_coarse, growth, per_cell=per_cell),
+    )
     system = assemble_mixed(mesh, material)
     ns, n = system.n_scalar, system.size
     X = system.doflocs
     tol = 1e-9 * max(Lx, Ly, t)
     on = lambda cond: np.where(cond)[0]
-    fixed_list = [on(np.abs(X[0]) < tol) + 0 * ns, on(np.abs(X[1]) < tol) + 1 * ns]   # symmetry planes
+    fixed_list = [on(np.abs(X[0]) < tol) + 0 * ns, on(np.abs(X[1]) < tol) + 1 * ns]  # symmetry planes
     values = [np.zeros(len(fixed_list[0])), np.zeros(len(fixed_list[1]))]
     base = on(np.abs(X[2] - t) < tol)
     sides = on((np.abs(X[0] - Lx / 2) < tol) | (np.abs(X[1] - Ly / 2) < tol))
@@ -153,11 +166,12 @@ def solve_cell_load(material: Material, *, size=(140.0, 140.0, 20.0), h_cell: fl
         values.append(np.zeros(len(base)))
     dofs = np.concatenate(fixed_list)
     vals = np.concatenate(values)
-    dofs, first = np.unique(dofs, return_index=True)     # symmetry zeros win on shared edges
+    dofs, first = np.unique(dofs, return_index=True)  # symmetry zeros win on shared edges
     vals = vals[first]
     # unit pressure on the loaded quarter cell: traction +1 MPa along depth on top facets
-    loaded = mesh.facets_satisfying(lambda x: (np.abs(x[2]) < tol) & (x[0] < h_cell / 2) & (x[1] < h_cell / 2),
-                                    boundaries_only=True)
+    loaded = mesh.facets_satisfying(
+        lambda x: (np.abs(x[2]) < tol) & (x[0] < h_cell / 2) & (x[1] < h_cell / 2), boundaries_only=True
+    )
     fb = FacetBasis(mesh, ElementHex2(), facets=loaded, intorder=INTORDER)
     phi = np.stack([np.asarray(fb.basis[i][0]) for i in range(fb.Nbfun)])
     fz = np.einsum("ifq,fq->if", phi, fb.dx)
@@ -178,5 +192,12 @@ def solve_cell_load(material: Material, *, size=(140.0, 140.0, 20.0), h_cell: fl
     r = np.linspace(0.0, 40.0, 9) if r is None else np.asarray(r, dtype=float)
     interp = TopInterpolator(X[:2, top].T)
     uz = interp(np.column_stack([r, np.zeros_like(r)]), u[2 * ns + top][:, None])[:, 0]
-    return DirectResult(r=r, u=uz, n_elements=mesh.nelements, n_unknowns=len(free), residual=res,
-                        converged=res < 1e-8, timings_s={"assembly": t1 - t0, "solve": t2 - t1})
+    return DirectResult(
+        r=r,
+        u=uz,
+        n_elements=mesh.nelements,
+        n_unknowns=len(free),
+        residual=res,
+        converged=res < 1e-8,
+        timings_s={"assembly": t1 - t0, "solve": t2 - t1},
+    )

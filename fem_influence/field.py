@@ -17,6 +17,7 @@ force horizontally and shallower than ``aggregate / 2`` is evaluated at depth
 ``aggregate / 2`` under that force (finite instead of singular). The correction part is
 smooth and carries no such error beyond the lattice interpolation (docs/records/fem_status.md).
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -84,8 +85,9 @@ def aggregate_forces(points, forces, size: float) -> tuple[np.ndarray, np.ndarra
     return np.column_stack([X, Y]), F
 
 
-def halfspace_field(nodes: np.ndarray, sources: np.ndarray, forces: np.ndarray, material: Material,
-                    *, lift: float) -> np.ndarray:
+def halfspace_field(
+    nodes: np.ndarray, sources: np.ndarray, forces: np.ndarray, material: Material, *, lift: float
+) -> np.ndarray:
     """Sum of Boussinesq point-force fields at ``nodes`` (n, 3: x, y, depth), mm.
 
     A node within ``lift / 2`` of a force horizontally and shallower than ``lift / 2``

@@ -8,6 +8,7 @@ Two ways, chosen from the node layout:
 * otherwise (user meshes): Clough-Tocher (C1, cubic) on the Delaunay
   triangulation of the nodes.
 """
+
 from __future__ import annotations
 
 import numpy as np
@@ -34,7 +35,7 @@ class TopInterpolator:
         self.top_xy = np.asarray(top_xy, dtype=float)
         xs = np.unique(np.round(self.top_xy[:, 0], 9))
         ys = np.unique(np.round(self.top_xy[:, 1], 9))
-        self.rectilinear = (len(xs) * len(ys) == len(self.top_xy) and len(xs) % 2 == 1 and len(ys) % 2 == 1)
+        self.rectilinear = len(xs) * len(ys) == len(self.top_xy) and len(xs) % 2 == 1 and len(ys) % 2 == 1
         if self.rectilinear:
             ix = np.searchsorted(xs, np.round(self.top_xy[:, 0], 9))
             iy = np.searchsorted(ys, np.round(self.top_xy[:, 1], 9))

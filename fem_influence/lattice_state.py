@@ -4,6 +4,7 @@ A :class:`~fem_influence.provider.BlockProvider` is a frozen description of a bo
 it learns while answering (the factorisation, built lazily, and the correction fields of
 the source-lattice nodes solved so far) lives here, owned by that provider.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass, field
@@ -41,5 +42,3 @@ class LatticeState:
     def column_of(self, nodes: np.ndarray) -> np.ndarray:
         get = self.index.get
         return np.array([get((i, j), -1) for i, j in nodes.tolist()], dtype=np.int64)
-
-

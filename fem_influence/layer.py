@@ -14,6 +14,7 @@ The axisymmetric point-force displacement is the Hankel transform
 ``u / u_B = 1 + (r/t) int_0^inf (g(s) - 1) J0(s r/t) ds``, whose integrand decays
 like ``exp(-2s)``, so Gauss-Legendre quadrature on ``[0, s_max]`` converges fast.
 """
+
 from __future__ import annotations
 
 import numpy as np

@@ -7,6 +7,7 @@
 * :class:`BlockGridOperator`: a grid product, half-space FFT convolution plus the
   low-rank correction ``h^2 U (W p)``.
 """
+
 from __future__ import annotations
 
 from typing import TYPE_CHECKING
@@ -47,7 +48,7 @@ class BlockCorrection(LowRankCorrection):
     def coefficients(self, source: Grid, p: np.ndarray) -> np.ndarray:
         cols, W = self._p._source_weights(source)
         c = np.zeros(self._p._state.table.shape[1])
-        c[cols] = source.h ** 2 * (W @ np.asarray(p, dtype=float).ravel())    # columns are distinct nodes
+        c[cols] = source.h**2 * (W @ np.asarray(p, dtype=float).ravel())  # columns are distinct nodes
         return c
 
     def evaluate(self, target: Grid, c: np.ndarray) -> np.ndarray:

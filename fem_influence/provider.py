@@ -18,6 +18,7 @@ midpoint rule is accurate to ``O(h^2 / t^2)`` relative), and grid products use t
 half-space FFT convolution plus the low-rank product ``h^2 U (W p)`` with
 ``U = C(targets, lattice)`` and ``W`` the sparse source-interpolation weights.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass, field
@@ -112,8 +113,12 @@ class BlockProvider(InfluenceProvider):
             if len(size) != 3 or min(size) <= 0:
                 raise ValueError(f"size must be three positive lengths (mm), got {self.size!r}")
             w = self.fine_half_width
-            mesh = block_mesh(size, h_fine=self.h_fine, h_coarse=self.h_coarse,
-                              fine_box=(origin[0] - w, origin[0] + w, origin[1] - w, origin[1] + w))
+            mesh = block_mesh(
+                size,
+                h_fine=self.h_fine,
+                h_coarse=self.h_coarse,
+                fine_box=(origin[0] - w, origin[0] + w, origin[1] - w, origin[1] + w),
+            )
         elif isinstance(mesh, (str, Path)):
             mesh = read_block_mesh(mesh)
         p = mesh.p
@@ -126,8 +131,7 @@ class BlockProvider(InfluenceProvider):
         directory = None
         if self.use_cache:
             directory = Path(self.cache_dir) if self.cache_dir is not None else default_cache_dir()
-        key = cache_key(mesh, nu=self.material.nu, base=self.base, spacing=self.source_spacing,
-                        intorder=INTORDER)
+        key = cache_key(mesh, nu=self.material.nu, base=self.base, spacing=self.source_spacing, intorder=INTORDER)
         fc = FieldCache(key, directory)
         fc.load()
         state = LatticeState(fields=fc)
@@ -173,14 +177,16 @@ class BlockProvider(InfluenceProvider):
             # of ~20 % of C measured 3 mm from a side): refuse rather than answer badly
             bad = S[out][0] - np.asarray(self.origin)
             x_lo, x_hi, y_lo, y_hi = self.domain()
-            raise ValueError(f"loaded point ({bad[0]:.3g}, {bad[1]:.3g}) mm (scene frame) is outside "
-                             f"the block's answered region x in [{x_lo:.4g}, {x_hi:.4g}], y in "
-                             f"[{y_lo:.4g}, {y_hi:.4g}] mm (one source_spacing = {d} mm inside the "
-                             f"sides); move the indenters inward or lower source_spacing")
+            raise ValueError(
+                f"loaded point ({bad[0]:.3g}, {bad[1]:.3g}) mm (scene frame) is outside "
+                f"the block's answered region x in [{x_lo:.4g}, {x_hi:.4g}], y in "
+                f"[{y_lo:.4g}, {y_hi:.4g}] mm (one source_spacing = {d} mm inside the "
+                f"sides); move the indenters inward or lower source_spacing"
+            )
         ix, wx = lagrange_1d(S[:, 0], d, x0, x1)
         iy, wy = lagrange_1d(S[:, 1], d, y0, y1)
         nx = x1 - x0 + 1
-        lin = ((iy[:, None, :] - y0) * nx + (ix[:, :, None] - x0)).reshape(len(S), -1)   # (N, 16)
+        lin = ((iy[:, None, :] - y0) * nx + (ix[:, :, None] - x0)).reshape(len(S), -1)  # (N, 16)
         Wt = (wx[:, :, None] * wy[:, None, :]).reshape(len(S), -1)
         used, inv = np.unique(lin, return_inverse=True)
         cols = np.repeat(np.arange(len(S)), lin.shape[1])
@@ -203,8 +209,9 @@ class BlockProvider(InfluenceProvider):
         # others are the same fields read at mirrored nodes
         solve = np.unique(np.abs(missing), axis=0) if perms is not None else missing
         solve = solve[st.column_of(solve) < 0] if len(solve) else solve
-        pr = Progress(len(solve) + 1, label=f"block correction ({self.base}, nu={self.material.nu})",
-                      quiet=not self.progress)
+        pr = Progress(
+            len(solve) + 1, label=f"block correction ({self.base}, nu={self.material.nu})", quiet=not self.progress
+        )
         if len(solve) and st.solver is None:
             st.solver = CorrectionSolver.build(self.mesh, self.material.nu, self.base)
             for k, v in st.solver.timings_s.items():
@@ -213,7 +220,7 @@ class BlockProvider(InfluenceProvider):
         t0 = time.perf_counter()
         batch = 32
         for b in range(0, len(solve), batch):
-            chunk = solve[b:b + batch]
+            chunk = solve[b : b + batch]
             fields = st.solver.top_displacement(chunk * self.source_spacing)
             st.fields.add(chunk, fields, st.solver.top_xy)
             pr.update(len(chunk), note="sources")
@@ -300,13 +307,19 @@ class BlockProvider(InfluenceProvider):
         u_c = np.zeros_like(u_b)
         if len(f):
             lattice, W = self._weights(P)
-            coeff = W @ f                                  # force carried by each lattice node, N
+            coeff = W @ f  # force carried by each lattice node, N
             if st.solver is None:
                 st.solver = CorrectionSolver.build(self.mesh, self.material.nu, self.base)
             u_c = st.solver.vertex_displacement(lattice * self.source_spacing, coeff) / self.material.E
-        return BlockField(points=nodes_xyz, displacement=u_b + u_c, halfspace=u_b,
-                          cells=np.asarray(self.mesh.t.T, dtype=np.int64), n_forces=len(F),
-                          total_force=float(f.sum()), aggregate=float(aggregate))
+        return BlockField(
+            points=nodes_xyz,
+            displacement=u_b + u_c,
+            halfspace=u_b,
+            cells=np.asarray(self.mesh.t.T, dtype=np.int64),
+            n_forces=len(F),
+            total_force=float(f.sum()),
+            aggregate=float(aggregate),
+        )
 
     # ------------------------------------------------------------------ the contract
     def point_compliance(self, targets, sources):
@@ -321,8 +334,9 @@ class BlockProvider(InfluenceProvider):
 
     def grid_matrix(self, target: Grid, source: Grid | None = None) -> np.ndarray:
         source = target if source is None else source
-        return (self._halfspace.grid_matrix(target, source)
-                + target.h ** 2 * self.correction(target.points(), source.points()))
+        return self._halfspace.grid_matrix(target, source) + target.h**2 * self.correction(
+            target.points(), source.points()
+        )
 
     def grid_operator(self, target: Grid, source: Grid | None = None) -> "BlockGridOperator":
         source = target if source is None else source
@@ -372,7 +386,7 @@ class BlockProvider(InfluenceProvider):
         # source weights W depend on one grid each, so they are kept per grid
         cols, W = self._source_weights(source)
         U = self._target_values(target, cols)
-        return BlockGridOperator(halfspace_op, U, W, target.h ** 2)
+        return BlockGridOperator(halfspace_op, U, W, target.h**2)
 
     def _nodes_of(self, cols: np.ndarray) -> np.ndarray:
         keys = list(self._state.index)

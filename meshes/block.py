@@ -1,4 +1,5 @@
 """The default block mesh: hexahedra, fine around the scene, graded to the sides."""
+
 from __future__ import annotations
 
 import math
@@ -6,8 +7,9 @@ import math
 import numpy as np
 
 
-def graded_axis(lo: float, hi: float, *, fine_lo: float, fine_hi: float, h_fine: float,
-                h_coarse: float, growth: float = 1.3) -> np.ndarray:
+def graded_axis(
+    lo: float, hi: float, *, fine_lo: float, fine_hi: float, h_fine: float, h_coarse: float, growth: float = 1.3
+) -> np.ndarray:
     """Node coordinates on ``[lo, hi]``: spacing ``<= h_fine`` on ``[fine_lo, fine_hi]``,
     growing geometrically by ``growth`` up to ``h_coarse`` outside it.
 
@@ -35,6 +37,7 @@ def graded_axis(lo: float, hi: float, *, fine_lo: float, fine_hi: float, h_fine:
     a, b = max(lo, min(fine_lo, hi)), min(hi, max(fine_hi, lo))
     n = max(1, math.ceil((b - a) / h_fine - 1e-9)) if b > a else 0
     core = list(np.linspace(a, b, n + 1)) if n else [a]
+
     def grow(start: float, end: float) -> list[float]:
         # geometric steps away from the fine part, last interval stretched to hit ``end``
         out, x, h, sgn = [], start, h_fine, np.sign(end - start)
@@ -46,13 +49,21 @@ def graded_axis(lo: float, hi: float, *, fine_lo: float, fine_hi: float, h_fine:
                 x = x + sgn * h
             out.append(x)
         return out
+
     left = grow(core[0], lo)[::-1]
     right = grow(core[-1], hi)
     return np.array(left + core + right)
 
 
-def block_mesh(size=(140.0, 140.0, 20.0), *, h_fine: float = 5.0, h_coarse: float = 12.0,
-               fine_box=(-20.0, 20.0, -20.0, 20.0), nz: int | None = None, growth: float = 1.3):
+def block_mesh(
+    size=(140.0, 140.0, 20.0),
+    *,
+    h_fine: float = 5.0,
+    h_coarse: float = 12.0,
+    fine_box=(-20.0, 20.0, -20.0, 20.0),
+    nz: int | None = None,
+    growth: float = 1.3,
+):
     """Graded hexahedral mesh of the block (scikit-fem ``MeshHex``, Q1 geometry).
 
     Parameters
@@ -80,10 +91,12 @@ def block_mesh(size=(140.0, 140.0, 20.0), *, h_fine: float = 5.0, h_coarse: floa
     Lx, Ly, t = (float(v) for v in size)
     if min(Lx, Ly, t) <= 0:
         raise ValueError(f"block size must be positive (mm), got {size!r}")
-    x = graded_axis(-Lx / 2, Lx / 2, fine_lo=fine_box[0], fine_hi=fine_box[1], h_fine=h_fine,
-                    h_coarse=h_coarse, growth=growth)
-    y = graded_axis(-Ly / 2, Ly / 2, fine_lo=fine_box[2], fine_hi=fine_box[3], h_fine=h_fine,
-                    h_coarse=h_coarse, growth=growth)
+    x = graded_axis(
+        -Lx / 2, Lx / 2, fine_lo=fine_box[0], fine_hi=fine_box[1], h_fine=h_fine, h_coarse=h_coarse, growth=growth
+    )
+    y = graded_axis(
+        -Ly / 2, Ly / 2, fine_lo=fine_box[2], fine_hi=fine_box[3], h_fine=h_fine, h_coarse=h_coarse, growth=growth
+    )
     nz = max(1, math.ceil(t / h_fine - 1e-9)) if nz is None else int(nz)
     if nz < 1:
         raise ValueError(f"nz must be >= 1, got {nz!r}")

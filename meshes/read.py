@@ -1,4 +1,5 @@
 """Reading and writing block meshes with meshio (any format meshio knows)."""
+
 from __future__ import annotations
 
 import numpy as np

@@ -1,4 +1,5 @@
 """Shared test fixtures: paths to the shipped examples, a scene-file writer and a one-sphere scene file."""
+
 from __future__ import annotations
 
 import pathlib

@@ -3,6 +3,7 @@
 Plain functions, not fixtures: some build module-level constants. Test modules import
 them from here, never from one another.
 """
+
 from __future__ import annotations
 
 import math
@@ -43,6 +44,7 @@ def half_space_as_block(material, *, size, base, origin, source_spacing, progres
     """Stands in for the finite block's builder: the half-space itself, so that every body
     of a comparison must agree exactly."""
     from twoscale.influence import HalfSpace
+
     return HalfSpace(material)
 
 
@@ -66,8 +68,8 @@ def png_info(path):
     assert data[:8] == b"\x89PNG\r\n\x1a\n"
     pos, text, size = 8, {}, None
     while pos < len(data):
-        n, kind = struct.unpack(">I4s", data[pos:pos + 8])
-        body = data[pos + 8:pos + 8 + n]
+        n, kind = struct.unpack(">I4s", data[pos : pos + 8])
+        body = data[pos + 8 : pos + 8 + n]
         if kind == b"IHDR":
             size = struct.unpack(">II", body[:8])
         elif kind == b"tEXt":
@@ -97,8 +99,9 @@ def paraboloid_scene(xs, zs=None) -> str:
     half-space E = 10 MPa, nu = 0.5, h = 0.1 mm."""
     head = "[material]\nE = 10.0\nnu = 0.5\n[load]\npenetration = 0.1\n[grid]\nh = 0.1\n"
     zs = [0.0] * len(xs) if zs is None else zs
-    return head + "".join(f"[[asperity]]\nx = {x}\ny = 0.0\nz = {z}\nR = 10.0\nshape = \"paraboloid\"\n"
-                          for x, z in zip(xs, zs))
+    return head + "".join(
+        f'[[asperity]]\nx = {x}\ny = 0.0\nz = {z}\nR = 10.0\nshape = "paraboloid"\n' for x, z in zip(xs, zs)
+    )
 
 
 def random_scene(seed: int, n: int):
@@ -114,6 +117,12 @@ def random_scene(seed: int, n: int):
         if len(asps) < n and rng.uniform() < 0.35:
             ang = rng.uniform(0, 2 * np.pi)
             dist = rng.uniform(1.0, 2.0)
-            asps.append(Asperity(float(x + dist * np.cos(ang)), float(y + dist * np.sin(ang)),
-                                 float(rng.uniform(0.0, 0.05)), float(rng.choice([4.0, 5.0, 6.0]))))
+            asps.append(
+                Asperity(
+                    float(x + dist * np.cos(ang)),
+                    float(y + dist * np.sin(ang)),
+                    float(rng.uniform(0.0, 0.05)),
+                    float(rng.choice([4.0, 5.0, 6.0])),
+                )
+            )
     return asps

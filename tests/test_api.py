@@ -7,6 +7,7 @@ a provider passed in is the one used (a counting wrapper, and a block scene solv
 fem_influence); the printed result is one short line; numbering is 0-based in Python and
 1-based where a person reads it (result.json, the terminal table).
 """
+
 import collections
 import math
 import sys
@@ -26,7 +27,7 @@ E_STAR = 10.0 / (1 - 0.25)
 def _hertz(R, d):
     """Hertz (1882) for a paraboloid: load N, contact radius mm, peak pressure MPa."""
     a = math.sqrt(R * d)
-    return 4.0 / 3.0 * E_STAR * math.sqrt(R) * d ** 1.5, a, 2.0 * E_STAR * a / (math.pi * R)
+    return 4.0 / 3.0 * E_STAR * math.sqrt(R) * d**1.5, a, 2.0 * E_STAR * a / (math.pi * R)
 
 
 @pytest.mark.parametrize("method", ["twoscale", "reference"])
@@ -58,8 +59,12 @@ def test_arrays_and_objects_give_identical_results():
     objects = [Asperity(float(a), float(b), float(c), float(r)) for a, b, c, r in zip(x, y, z, R)]
     kw = dict(material=MAT, total_load=6.0, h=0.08)
     ref = twoscale.solve(objects, **kw)
-    forms = [np.column_stack([x, y, R, z]), {"x": x, "y": y, "R": R, "z": z}, twoscale.asperities(x, y, R, z),
-             np.column_stack([x, y, R, z]).tolist()]
+    forms = [
+        np.column_stack([x, y, R, z]),
+        {"x": x, "y": y, "R": R, "z": z},
+        twoscale.asperities(x, y, R, z),
+        np.column_stack([x, y, R, z]).tolist(),
+    ]
     for tips in forms:
         got = twoscale.solve(tips, **kw)
         assert np.array_equal(got.forces, ref.forces) and got.penetration == ref.penetration
@@ -80,11 +85,10 @@ def test_reference_and_twoscale_agree_on_a_random_scene():
     assert np.max(np.abs(F - Fr)) <= 5e-3 * Fr.max()
 
 
-
 def test_reference_by_name_reports_the_solver_that_ran():
-    scene = random_scene(4, seed=2, h=0.3)     # 1,385 cells with material: dense is quick
+    scene = random_scene(4, seed=2, h=0.3)  # 1,385 cells with material: dense is quick
     auto = twoscale.solve(scene, method="reference")
-    assert auto.method == "reference" and auto.solver == "dense"   # <= 2,000 cells: dense
+    assert auto.method == "reference" and auto.solver == "dense"  # <= 2,000 cells: dense
     for solver in ("dense", "cg"):
         got = twoscale.solve(scene, method=solver)
         assert got.method == "reference" and got.solver == solver == got.details.solver
@@ -118,8 +122,9 @@ def test_a_provider_passed_in_is_used(method, monkeypatch):
     np.testing.assert_array_equal(got.forces, plain.forces)
     # a block scene with the half-space passed in: the scene's body is not built
     monkeypatch.setitem(sys.modules, "fem_influence", None)
-    block = Scene(MAT, twoscale.asperities([0.0, 4.0], [0.0, 0.0], 5.0), total_load=4.0, h=0.1,
-                  influence={"kind": "block"})
+    block = Scene(
+        MAT, twoscale.asperities([0.0, 4.0], [0.0, 0.0], 5.0), total_load=4.0, h=0.1, influence={"kind": "block"}
+    )
     assert np.array_equal(twoscale.solve(block, provider=CountingHalfSpace(MAT), method=method).forces, plain.forces)
     with pytest.raises(twoscale.SceneError, match="fem_influence"):
         twoscale.solve(block, method=method)
@@ -151,7 +156,7 @@ def test_the_result_prints_as_one_short_line():
 def test_merged_patches_are_0_based_in_python_and_1_based_in_result_json():
     from twoscale.io.result_json import result_to_dict
 
-    tips = [[30.0, 0.0, 5.0], [0.0, 0.0, 5.0], [0.9, 0.0, 5.0]]   # the last two touch
+    tips = [[30.0, 0.0, 5.0], [0.0, 0.0, 5.0], [0.9, 0.0, 5.0]]  # the last two touch
     res = twoscale.solve(tips, material=MAT, total_load=6.0, h=0.05, iteration="block-gs")
     assert res.details.micro.merged_patches == ((1, 2),)
     record = result_to_dict(res, Scene(MAT, twoscale.as_asperities(tips), total_load=6.0, h=0.05))
@@ -162,28 +167,39 @@ def test_the_terminal_table_numbers_tips_from_1(tmp_path, capsys):
     from twoscale.cli.main import main
 
     scene = tmp_path / "s.toml"
-    scene.write_text("[material]\nE = 10.0\nnu = 0.5\n[load]\ntotal = 3.0\n[grid]\nh = 0.1\n"
-                     "[[asperity]]\nx = 0.0\ny = 0.0\nR = 5.0\n[[asperity]]\nx = 6.0\ny = 0.0\nR = 5.0\n")
+    scene.write_text(
+        "[material]\nE = 10.0\nnu = 0.5\n[load]\ntotal = 3.0\n[grid]\nh = 0.1\n"
+        "[[asperity]]\nx = 0.0\ny = 0.0\nR = 5.0\n[[asperity]]\nx = 6.0\ny = 0.0\nR = 5.0\n"
+    )
     assert main(["solve", str(scene)]) == 0
     rows = [line.split() for line in capsys.readouterr().out.splitlines() if line.startswith("  ")]
     numbers = [r[0] for r in rows if len(r) >= 4 and r[0].isdigit()]
     assert numbers == ["1", "2"]
 
 
-@pytest.mark.parametrize("call, match", [
-    (lambda: twoscale.solve(random_scene(2), penetration=0.1), "Scene carries its own penetration"),
-    (lambda: twoscale.solve([[0, 0, 5.0]], penetration=0.1), "material"),
-    (lambda: twoscale.solve([[0, 0, 5.0]], material=MAT), "exactly one of penetration"),
-    (lambda: twoscale.solve(np.zeros((2, 5)), material=MAT, penetration=0.1), r"\(n, 3\)"),
-    (lambda: twoscale.solve([[0, 0, -5.0]], material=MAT, penetration=0.1), r"R\[0\] \(tip 1\) must be > 0"),
-    (lambda: twoscale.solve({"x": [0], "R": [5.0]}, material=MAT, penetration=0.1), "missing"),
-    # three column arrays of three tips would read as three rows: refused, not guessed
-    (lambda: twoscale.solve((np.zeros(3), np.arange(3.0), np.full(3, 5.0)), material=MAT, penetration=0.1),
-     "ambiguous"),
-    (lambda: twoscale.solve([[0, 0, 5.0]], material=MAT, penetration=0.1, method="lu"), "method must be"),
-    (lambda: twoscale.solve([[0, 0, 5.0]], provider=HalfSpace(Material(5.0, 0.3)), material=MAT,
-                            penetration=0.1), "material"),
-])
+@pytest.mark.parametrize(
+    "call, match",
+    [
+        (lambda: twoscale.solve(random_scene(2), penetration=0.1), "Scene carries its own penetration"),
+        (lambda: twoscale.solve([[0, 0, 5.0]], penetration=0.1), "material"),
+        (lambda: twoscale.solve([[0, 0, 5.0]], material=MAT), "exactly one of penetration"),
+        (lambda: twoscale.solve(np.zeros((2, 5)), material=MAT, penetration=0.1), r"\(n, 3\)"),
+        (lambda: twoscale.solve([[0, 0, -5.0]], material=MAT, penetration=0.1), r"R\[0\] \(tip 1\) must be > 0"),
+        (lambda: twoscale.solve({"x": [0], "R": [5.0]}, material=MAT, penetration=0.1), "missing"),
+        # three column arrays of three tips would read as three rows: refused, not guessed
+        (
+            lambda: twoscale.solve((np.zeros(3), np.arange(3.0), np.full(3, 5.0)), material=MAT, penetration=0.1),
+            "ambiguous",
+        ),
+        (lambda: twoscale.solve([[0, 0, 5.0]], material=MAT, penetration=0.1, method="lu"), "method must be"),
+        (
+            lambda: twoscale.solve(
+                [[0, 0, 5.0]], provider=HalfSpace(Material(5.0, 0.3)), material=MAT, penetration=0.1
+            ),
+            "material",
+        ),
+    ],
+)
 def test_bad_input_names_the_value(call, match):
     with pytest.raises(ValueError, match=match):
         call()
@@ -198,8 +214,13 @@ def test_public_names():
 
 def test_scene_influence_is_read_only():
     scene = Scene(MAT, (Asperity(0.0, 0.0, 0.0, 5.0),), penetration=0.1, influence={"kind": "block"})
-    assert scene.influence == {"kind": "block", "size": (140.0, 140.0, 20.0), "base": "bonded",
-                               "origin": (0.0, 0.0), "source_spacing": 5.0}
+    assert scene.influence == {
+        "kind": "block",
+        "size": (140.0, 140.0, 20.0),
+        "base": "bonded",
+        "origin": (0.0, 0.0),
+        "source_spacing": 5.0,
+    }
     with pytest.raises(TypeError):
         scene.influence["kind"] = "halfspace"
     assert hash(Scene(MAT, scene.asperities, penetration=0.1).influence) is not None

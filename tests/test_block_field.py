@@ -6,6 +6,7 @@ reached by a different path: top-face interpolant of per-lattice fields vs one c
 volume solve), the bonded base condition u = 0 (the field must cancel the Boussinesq
 displacement there), and a round trip of the .vtu file through meshio.
 """
+
 from __future__ import annotations
 
 import json
@@ -59,7 +60,7 @@ def test_surface_matches_point_compliance_without_aggregation(block):
 
 def halfspace_scale(W, r):
     """Boussinesq surface displacement W / (pi E* r), mm: the scale of the far-field errors."""
-    return W * (1.0 - MAT.nu ** 2) / (np.pi * MAT.E * r)
+    return W * (1.0 - MAT.nu**2) / (np.pi * MAT.E * r)
 
 
 def test_far_surface_displacement_is_compliance_times_total_force(block):
@@ -77,7 +78,7 @@ def test_far_surface_displacement_is_compliance_times_total_force(block):
     r = np.hypot(*(fld.points[idx, :2] - c).T)
     expect = block.point_compliance(fld.points[idx, :2], c[None, :])[:, 0] * f.sum()
     err = np.abs(fld.displacement[idx, 2] - expect)
-    assert np.all(err <= (s2 + 1.0) / r ** 2 * halfspace_scale(f.sum(), r)), err.max()
+    assert np.all(err <= (s2 + 1.0) / r**2 * halfspace_scale(f.sum(), r)), err.max()
     assert fld.total_force == pytest.approx(3.0)
 
 
@@ -170,12 +171,15 @@ def test_cli_block_field_round_trip(tmp_path, monkeypatch):
     expect = provider.point_compliance(pts[idx, :2], c[None, :])[:, 0] * F.sum()
     r = np.hypot(*(pts[idx, :2] - c).T)
     err = np.abs(-content.displacement[idx, 2] - expect)
-    assert np.all(err <= (s2 + 1.0) / r ** 2 * halfspace_scale(F.sum(), r)), err.max()
+    assert np.all(err <= (s2 + 1.0) / r**2 * halfspace_scale(F.sum(), r)), err.max()
 
 
-@pytest.mark.parametrize("extra, message", [
-    ([], '--block-field needs [influence] kind = "block"'),
-])
+@pytest.mark.parametrize(
+    "extra, message",
+    [
+        ([], '--block-field needs [influence] kind = "block"'),
+    ],
+)
 def test_block_field_needs_block(tmp_path, capsys, extra, message):
     scene = tmp_path / "s.toml"
     scene.write_text(SCENE.format(kind="halfspace", block=""))

@@ -7,6 +7,7 @@ written (a file in its place, a full disk); two processes building the same entr
 once. What must hold: the solve goes on with the same answer, each damaged entry is
 named in one warning line and rebuilt, result.json says what came from the cache.
 """
+
 from __future__ import annotations
 
 import errno
@@ -52,7 +53,7 @@ def test_entry_round_trip_and_every_kind_of_damage(tmp_path):
     assert size == path.stat().st_size
     back = read_entry(path)
     assert set(back) == set(arrays) and np.array_equal(back["a"], arrays["a"]) and str(back["key"]) == "abc"
-    assert [p.name for p in tmp_path.iterdir()] == ["e.npz"]   # no temporary file left
+    assert [p.name for p in tmp_path.iterdir()] == ["e.npz"]  # no temporary file left
     with pytest.raises(FileNotFoundError):
         read_entry(tmp_path / "absent.npz")
     cases = {}
@@ -60,8 +61,9 @@ def test_entry_round_trip_and_every_kind_of_damage(tmp_path):
     cases["emptied"] = lambda p: p.write_bytes(b"")
     cases["garbage"] = lambda p: p.write_bytes(b"\x00" * 100)
     # a whole npz whose arrays were changed after the checksum (a tampered or mixed entry)
-    cases["checksum"] = lambda p: np.savez(p, a=np.zeros((2, 3)), key=np.array("abc"), flag=np.array(True),
-                                           _sha256=read_entry_checksum(p))
+    cases["checksum"] = lambda p: np.savez(
+        p, a=np.zeros((2, 3)), key=np.array("abc"), flag=np.array(True), _sha256=read_entry_checksum(p)
+    )
     cases["no checksum"] = lambda p: np.savez(p, **arrays)
     for damage in cases.values():
         write_entry(path, arrays)
@@ -82,7 +84,7 @@ def test_entry_folder_drops_a_bad_entry_with_one_warning_and_counts_it(tmp_path)
     with warnings.catch_warnings(record=True) as rec:
         warnings.simplefilter("always")
         assert folder.load("x.npz") is None
-        assert folder.load("x.npz") is None          # gone now: absent, no second warning
+        assert folder.load("x.npz") is None  # gone now: absent, no second warning
     lines = _cache_warnings(rec)
     assert len(lines) == 1 and "x.npz" in lines[0] and "\n" not in lines[0]
     assert not (tmp_path / "x.npz").exists()
@@ -100,12 +102,20 @@ def test_many_bad_entries_give_a_bounded_number_of_lines(tmp_path):
         warnings.simplefilter("always")
         for k in range(12):
             assert folder.load(f"{k}.npz") is None
-    assert len(_cache_warnings(rec)) == 6           # five named, then one line for the rest
+    assert len(_cache_warnings(rec)) == 6  # five named, then one line for the rest
     assert len(folder.usage().dropped) == 12
 
 
-@pytest.mark.parametrize("fault", ["file in place of the folder", "disk full", pytest.param(
-    "read-only folder", marks=pytest.mark.skipif(os.geteuid() == 0, reason="root writes into read-only folders"))])
+@pytest.mark.parametrize(
+    "fault",
+    [
+        "file in place of the folder",
+        "disk full",
+        pytest.param(
+            "read-only folder", marks=pytest.mark.skipif(os.geteuid() == 0, reason="root writes into read-only folders")
+        ),
+    ],
+)
 def test_an_unwritable_folder_warns_once_and_keeps_nothing(tmp_path, monkeypatch, fault):
     if fault == "file in place of the folder":
         where = tmp_path / "blocked"
@@ -173,8 +183,9 @@ def test_damaged_law_cache_of_the_example_road_warns_and_solves_the_same(tmp_pat
     assert set(usage["dropped"]) <= {p.name for p in victims} and len(dropped) == len(usage["dropped"])
     assert all(any(name in line for line in dropped) for name in usage["dropped"])
     # the rebuilt tables are the same tables: the same answer
-    np.testing.assert_allclose([a["force"] for a in damaged["asperities"]], clean.asperities.forces,
-                               rtol=1e-10, atol=1e-12)
+    np.testing.assert_allclose(
+        [a["force"] for a in damaged["asperities"]], clean.asperities.forces, rtol=1e-10, atol=1e-12
+    )
     # and the cache is whole again: the next solve reads every law it needs
     again = solve_scene(read_scene(scene)).caches[0]
     assert again.dropped == () and again.written == 0 and again.read == clean.caches[0].read
@@ -184,13 +195,14 @@ def test_law_cache_that_cannot_be_written_solves_without_it(tmp_path, capsys):
     from twoscale.surface.texture import road
 
     # a 12 mm road of the same texture (a few stones: the fault, not the solve, is tested)
-    np.savez(tmp_path / "small.npz", heights=road(12.0, 0.1, seed=4), spacing=np.array(0.1),
-             units=np.array("mm"))
+    np.savez(tmp_path / "small.npz", heights=road(12.0, 0.1, seed=4), spacing=np.array(0.1), units=np.array("mm"))
     blocked = tmp_path / "cache-is-a-file"
     blocked.write_text("")
     scene = tmp_path / "small.toml"
-    scene.write_text('[material]\nE = 10.0\nnu = 0.5\n[load]\ntotal = 20.0\n[surface]\nfile = "small.npz"\n'
-                     f'law = "tabulated"\nlaw_cache = "{blocked.name}"\n')
+    scene.write_text(
+        '[material]\nE = 10.0\nnu = 0.5\n[load]\ntotal = 20.0\n[surface]\nfile = "small.npz"\n'
+        f'law = "tabulated"\nlaw_cache = "{blocked.name}"\n'
+    )
     capsys.readouterr()
     assert main(["solve", str(scene), "--out", str(tmp_path / "out"), "--quiet"]) == 0
     err = capsys.readouterr().err
@@ -205,8 +217,15 @@ def test_damaged_block_cache_is_dropped_and_solved_again(tmp_path):
     from fem_influence import BlockProvider
     from twoscale.material import Material
 
-    small = dict(material=Material(2.0, 0.5), size=(60.0, 60.0, 10.0), h_fine=5.0, h_coarse=10.0,
-                 fine_half_width=10.0, progress=False, cache_dir=tmp_path)
+    small = dict(
+        material=Material(2.0, 0.5),
+        size=(60.0, 60.0, 10.0),
+        h_fine=5.0,
+        h_coarse=10.0,
+        fine_half_width=10.0,
+        progress=False,
+        cache_dir=tmp_path,
+    )
     t, s = np.array([[5.0, 0.0], [0.0, 9.0]]), np.array([[0.0, 0.0], [1.0, 2.0]])
     C1 = BlockProvider(**small).correction(t, s)
     [entry] = tmp_path.glob("block-*.npz")
@@ -217,7 +236,7 @@ def test_damaged_block_cache_is_dropped_and_solved_again(tmp_path):
         C2 = again.correction(t, s)
     [line] = _cache_warnings(rec)
     assert entry.name in line
-    assert again._state.solver is not None              # solved again, not read
+    assert again._state.solver is not None  # solved again, not read
     np.testing.assert_allclose(C2, C1, rtol=1e-10, atol=1e-14)
     [usage] = again.cache_usage()
     assert usage.dropped == (entry.name,) and usage.written >= 1
@@ -245,8 +264,12 @@ def test_two_processes_writing_one_entry_both_succeed_and_leave_it_whole(tmp_pat
     path = tmp_path / "entry.npz"
     start = time.time() + 1.5
     env = dict(os.environ, PYTHONPATH=str(ROOT))
-    procs = [subprocess.Popen([sys.executable, "-c", _WRITER, str(path), str(start), str(k)], env=env,
-                              stderr=subprocess.PIPE, text=True) for k in range(2)]
+    procs = [
+        subprocess.Popen(
+            [sys.executable, "-c", _WRITER, str(path), str(start), str(k)], env=env, stderr=subprocess.PIPE, text=True
+        )
+        for k in range(2)
+    ]
     reads = 0
     deadline = time.time() + 60
     while any(p.poll() is None for p in procs) and time.time() < deadline:
@@ -257,7 +280,7 @@ def test_two_processes_writing_one_entry_both_succeed_and_leave_it_whole(tmp_pat
     outs = [p.communicate(timeout=60)[1] for p in procs]
     assert [p.returncode for p in procs] == [0, 0], outs
     assert str(read_entry(path)["key"]) == "same"
-    assert sorted(p.name for p in tmp_path.iterdir()) == ["entry.npz"]   # no temporary files left
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["entry.npz"]  # no temporary files left
     assert reads > 0
 
 
@@ -287,9 +310,16 @@ def test_two_processes_tabulating_the_same_laws_both_succeed(tmp_path):
     folder = tmp_path / "laws"
     start = time.time() + 2.0
     env = dict(os.environ, PYTHONPATH=str(ROOT))
-    procs = [subprocess.Popen([sys.executable, "-c", _SURFACE_RUN, str(folder), str(start),
-                               str(tmp_path / f"P{k}.npy")], env=env, stdout=subprocess.PIPE,
-                              stderr=subprocess.PIPE, text=True) for k in range(2)]
+    procs = [
+        subprocess.Popen(
+            [sys.executable, "-c", _SURFACE_RUN, str(folder), str(start), str(tmp_path / f"P{k}.npy")],
+            env=env,
+            stdout=subprocess.PIPE,
+            stderr=subprocess.PIPE,
+            text=True,
+        )
+        for k in range(2)
+    ]
     outs = [p.communicate(timeout=120) for p in procs]
     assert [p.returncode for p in procs] == [0, 0], [o[1] for o in outs]
     P0, P1 = np.load(tmp_path / "P0.npy"), np.load(tmp_path / "P1.npy")
@@ -301,7 +331,10 @@ def test_two_processes_tabulating_the_same_laws_both_succeed(tmp_path):
     for p in entries:
         read_entry(p)
     # and a third run reads them all
-    s = build_surface(RawMap(road(12.0, 0.1, seed=4), 0.1, "mm", None, "road"),
-                      SurfaceOptions(law="tabulated"), cache=LawCache(folder))
+    s = build_surface(
+        RawMap(road(12.0, 0.1, seed=4), 0.1, "mm", None, "road"),
+        SurfaceOptions(law="tabulated"),
+        cache=LawCache(folder),
+    )
     np.testing.assert_array_equal(s.book.table(Material(10.0, 0.5)).P, P0)
     assert s.book.tabulated == 0 and s.book.cache.usage().read == n

@@ -1,6 +1,7 @@
 """The preconditioned constrained CG (``solve_cg(precondition=True)``, used by the union
 iteration) against the classical Polonsky-Keer CG on the same grid, and its
 preconditioner (the inverse of the kernel wrapped on the grid's torus) on its own."""
+
 from __future__ import annotations
 
 import numpy as np
@@ -20,8 +21,9 @@ MAT = Material(E=6.0, nu=0.5)
 HS = HalfSpace(MAT)
 
 
-@pytest.mark.parametrize("seed,load", [(4, {"penetration": 0.12}), (5, {"total_load": 30.0}),
-                                       (6, {"total_load": 30.0, "tilt": True})])
+@pytest.mark.parametrize(
+    "seed,load", [(4, {"penetration": 0.12}), (5, {"total_load": 30.0}), (6, {"total_load": 30.0, "tilt": True})]
+)
 def test_preconditioned_cg_finds_the_same_contact_in_fewer_iterations(seed, load):
     asps = crowded(seed, 16)
     h = 0.08
@@ -58,9 +60,9 @@ def test_circulant_inverse_is_symmetric_positive_and_inverts_the_operator_inside
     # a smooth pressure far from the grid's edge: the kernel's wrap-around on the grid's
     # torus is all that separates pc(A p) from p (measured 0.17 % in L2 at 0.1 mm cells)
     X, Y = g.centres()
-    p = np.maximum(1.0 - (X ** 2 + Y ** 2) / 1.5 ** 2, 0.0)
+    p = np.maximum(1.0 - (X**2 + Y**2) / 1.5**2, 0.0)
     back = pc.apply(op.apply(p))
-    inside = X ** 2 + Y ** 2 < 1.2 ** 2
+    inside = X**2 + Y**2 < 1.2**2
     assert np.linalg.norm((back - p)[inside]) <= 0.01 * np.linalg.norm(p[inside])
 
 
@@ -76,11 +78,20 @@ def test_the_block_takes_its_half_space_part_as_preconditioner():
     fem = pytest.importorskip("fem_influence")
     from twoscale.indenters import Asperity
 
-    block = fem.BlockProvider(material=MAT, size=(60.0, 60.0, 10.0), h_fine=5.0, h_coarse=10.0,
-                              fine_half_width=10.0, use_cache=False, progress=False)
+    block = fem.BlockProvider(
+        material=MAT,
+        size=(60.0, 60.0, 10.0),
+        h_fine=5.0,
+        h_coarse=10.0,
+        fine_half_width=10.0,
+        use_cache=False,
+        progress=False,
+    )
     rng = np.random.default_rng(3)
-    asps = [Asperity(float(x), float(y), float(z), 4.0)
-            for x, y, z in zip(rng.uniform(-4, 4, 10), rng.uniform(-4, 4, 10), rng.uniform(0, 0.02, 10))]
+    asps = [
+        Asperity(float(x), float(y), float(z), 4.0)
+        for x, y, z in zip(rng.uniform(-4, 4, 10), rng.uniform(-4, 4, 10), rng.uniform(0, 0.02, 10))
+    ]
     grid = Grid.covering(-6.0, 6.0, -6.0, 6.0, 0.1)
     surf = surface_on(grid, asps)
     plain = solve_cg(block, surf, total_load=5.0, tol=1e-9)

@@ -1,5 +1,6 @@
 """The command line, in-process and as a subprocess: result.json against Hertz, exit
 codes, one-line errors, nothing written on bad input."""
+
 from __future__ import annotations
 
 import dataclasses
@@ -22,8 +23,18 @@ from twoscale.api import solve_scene
 from twoscale.scene import Scene
 
 E_STAR = Material(10.0, 0.5).E_star
-FIXED_FIELDS = ("converged", "method", "penetration", "tilt", "total_load", "h", "asperities",
-                "iterations", "timings_s", "version")
+FIXED_FIELDS = (
+    "converged",
+    "method",
+    "penetration",
+    "tilt",
+    "total_load",
+    "h",
+    "asperities",
+    "iterations",
+    "timings_s",
+    "version",
+)
 ASPERITY_FIELDS = ("force", "contact_area", "max_pressure")
 
 HERTZ_TEXT = """
@@ -69,8 +80,7 @@ def _check_fixed_fields(res: dict, *, method: str, n_asperities: int) -> None:
 def test_solve_reference_matches_hertz(shape, law, write_scene, tmp_path, capsys):
     _needs("twoscale.reference")
     out = tmp_path / "out"
-    code = main(["solve", str(write_scene(HERTZ_TEXT.format(shape=shape))), "--method", "reference",
-                 "--out", str(out)])
+    code = main(["solve", str(write_scene(HERTZ_TEXT.format(shape=shape))), "--method", "reference", "--out", str(out)])
     assert code == 0
     res = _read(out)
     _check_fixed_fields(res, method="reference", n_asperities=1)
@@ -90,9 +100,23 @@ def test_subprocess_python_m_twoscale(examples_dir, tmp_path):
     _needs("twoscale.reference")
     out = tmp_path / "sub"
     env = {**os.environ, "OMP_NUM_THREADS": "1"}
-    proc = subprocess.run([sys.executable, "-m", "twoscale", "solve", str(examples_dir / "hertz_sphere.toml"),
-                           "--method", "reference", "--out", str(out)],
-                          capture_output=True, text=True, env=env, timeout=120)
+    proc = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "twoscale",
+            "solve",
+            str(examples_dir / "hertz_sphere.toml"),
+            "--method",
+            "reference",
+            "--out",
+            str(out),
+        ],
+        capture_output=True,
+        text=True,
+        env=env,
+        timeout=120,
+    )
     assert proc.returncode == 0, proc.stderr
     res = _read(out)
     _check_fixed_fields(res, method="reference", n_asperities=1)
@@ -120,8 +144,22 @@ def test_solve_twoscale_default_method_records_macro_force(examples_dir, tmp_pat
 def test_h_option_overrides_scene(examples_dir, tmp_path):
     _needs("twoscale.reference")
     out = tmp_path / "h"
-    assert main(["solve", str(examples_dir / "hertz_sphere.toml"), "--method", "reference",
-                 "--h", "0.2", "--out", str(out), "--quiet"]) == 0
+    assert (
+        main(
+            [
+                "solve",
+                str(examples_dir / "hertz_sphere.toml"),
+                "--method",
+                "reference",
+                "--h",
+                "0.2",
+                "--out",
+                str(out),
+                "--quiet",
+            ]
+        )
+        == 0
+    )
     res = _read(out)
     assert res["h"] == 0.2 and res["h_source"] == "--h" and res["scene"]["grid"] == {"h": 0.2}
 
@@ -136,7 +174,7 @@ def test_force_is_integral_over_owned_cells_and_tilt_is_reported():
     res = result_to_dict(result, scene)
     (f,) = result.fields
     for k in range(2):
-        own = f.pressure[f.owner == k].sum() * f.grid.h ** 2
+        own = f.pressure[f.owner == k].sum() * f.grid.h**2
         assert res["asperities"][k]["force"] == pytest.approx(own, rel=1e-12)
     assert res["total_load"] == pytest.approx(5.0, rel=1e-6)
     assert isinstance(res["tilt"], list) and len(res["tilt"]) == 2 and all(np.isfinite(res["tilt"]))
@@ -181,7 +219,7 @@ def _edited(old: str, new: str) -> str:
 BAD = {
     "negative radius": (_edited("R = 10.0", "R = -3.5"), "asperity 1: R", "-3.5"),
     "nu above 0.5": (_edited("nu = 0.5", "nu = 0.75"), "material.nu", "0.75"),
-    "unknown key": (SPHERE_TEXT + "colour = \"red\"\n", "asperity 1: colour", "'red'"),
+    "unknown key": (SPHERE_TEXT + 'colour = "red"\n', "asperity 1: colour", "'red'"),
     "bool as number": (_edited("E = 10.0", "E = true"), "material.E", "True"),
     "unknown shape": (HERTZ_TEXT.format(shape="cone"), "asperity 1: shape", "'cone'"),
     "both loads": (_edited("[load]", "[load]\ntotal = 3.0"), "load.total", "3.0"),
@@ -198,8 +236,7 @@ BAD = {
     "E is a string": (_edited("E = 10.0", 'E = "10"'), "material.E", "'10'"),
     "R infinite": (_edited("R = 10.0", "R = inf"), "asperity 1: R", "inf"),
     "x minus infinity": (_edited("x = 0.0", "x = -inf"), "asperity 1: x", "-inf"),
-    "penetration infinite": (_edited("penetration = 0.5", "penetration = inf"),
-                             "load.penetration", "inf"),
+    "penetration infinite": (_edited("penetration = 0.5", "penetration = inf"), "load.penetration", "inf"),
     "load cases with penetration": (_edited("[load]", "[load]\ncases = [5.0]"), "load.cases", "[5.0]"),
     "load case zero": (_edited("penetration = 0.5", "total = 5.0\ncases = [5.0, 0.0]"), "load.cases[1]", "0.0"),
 }
@@ -245,8 +282,12 @@ def test_block_without_fem_influence_exit_2(write_scene, tmp_path, capsys, monke
 def test_subprocess_bad_input(write_scene, tmp_path):
     out = tmp_path / "never"
     path = write_scene(_edited("R = 10.0", "R = -3.5"))
-    proc = subprocess.run([sys.executable, "-m", "twoscale", "solve", str(path), "--out", str(out)],
-                          capture_output=True, text=True, timeout=60)
+    proc = subprocess.run(
+        [sys.executable, "-m", "twoscale", "solve", str(path), "--out", str(out)],
+        capture_output=True,
+        text=True,
+        timeout=60,
+    )
     assert proc.returncode == 2
     assert proc.stderr.count("\n") == 1 and "asperity 1: R" in proc.stderr and "-3.5" in proc.stderr
     assert proc.stdout == "" and not out.exists()
@@ -276,8 +317,9 @@ def test_paper_seven_spheres_both_methods_agree(examples_dir, tmp_path):
     res = {}
     for method in ("reference", "twoscale"):
         out = tmp_path / method
-        code = main(["solve", str(examples_dir / "paper_seven_spheres.toml"), "--method", method,
-                     "--out", str(out), "--quiet"])
+        code = main(
+            ["solve", str(examples_dir / "paper_seven_spheres.toml"), "--method", method, "--out", str(out), "--quiet"]
+        )
         assert code == 0
         res[method] = _read(out)
         _check_fixed_fields(res[method], method=method, n_asperities=7)
@@ -293,8 +335,9 @@ def test_paper_seven_spheres_both_methods_agree(examples_dir, tmp_path):
 
 # ---------------------------------------------------------------- reference grid enlargement
 def _paraboloid_scene():
-    return Scene(material=Material(10.0, 0.5), asperities=[Asperity(0.0, 0.0, 0.0, 10.0, "paraboloid")],
-                 penetration=0.5, h=0.1)
+    return Scene(
+        material=Material(10.0, 0.5), asperities=[Asperity(0.0, 0.0, 0.0, 10.0, "paraboloid")], penetration=0.5, h=0.1
+    )
 
 
 def test_reference_grid_too_small_is_enlarged(monkeypatch):
@@ -333,8 +376,21 @@ def test_bad_far_tol_exit_2(value, examples_dir, tmp_path, capsys):
 
 def test_far_tol_needs_the_twoscale_method(examples_dir, tmp_path, capsys):
     out = tmp_path / "never"
-    assert main(["solve", str(examples_dir / "hertz_sphere.toml"), "--method", "reference",
-                 "--far-tol", "0.2", "--out", str(out)]) == 2
+    assert (
+        main(
+            [
+                "solve",
+                str(examples_dir / "hertz_sphere.toml"),
+                "--method",
+                "reference",
+                "--far-tol",
+                "0.2",
+                "--out",
+                str(out),
+            ]
+        )
+        == 2
+    )
     assert "--far-tol" in capsys.readouterr().err
     assert not out.exists()
 
@@ -367,8 +423,13 @@ def test_solve_records_the_policy_choice_and_takes_an_expert_iteration(examples_
     assert res["micro_iteration"] == "union CG"
 
 
-@pytest.mark.parametrize("extra,needle", [(["--iteration", "union-cg", "--far-tol", "0.1"], "--far-tol"),
-                                          (["--method", "reference", "--iteration", "block-gs"], "--iteration")])
+@pytest.mark.parametrize(
+    "extra,needle",
+    [
+        (["--iteration", "union-cg", "--far-tol", "0.1"], "--far-tol"),
+        (["--method", "reference", "--iteration", "block-gs"], "--iteration"),
+    ],
+)
 def test_solve_refuses_iteration_options_that_do_not_apply(examples_dir, tmp_path, capsys, extra, needle):
     out = tmp_path / "out"
     assert main(["solve", str(examples_dir / "hertz_sphere.toml"), "--out", str(out)] + extra) == 2
@@ -381,4 +442,4 @@ def test_summary_numbers_asperities_from_one(examples_dir, capsys):
     lines = capsys.readouterr().out.splitlines()
     head = next(i for i, ln in enumerate(lines) if ln.strip().startswith("asperity"))
     assert "numbered from 1" in lines[head]
-    assert [ln.split()[0] for ln in lines[head + 1:head + 3]] == ["1", "2"]
+    assert [ln.split()[0] for ln in lines[head + 1 : head + 3]] == ["1", "2"]

@@ -1,4 +1,5 @@
 """``twoscale cache``: list each cache (folder, entries, size) and clear all or one."""
+
 from __future__ import annotations
 
 import numpy as np

@@ -1,4 +1,5 @@
 """`twoscale compare`: outputs, indicators, bodies, and bad input (exit 2, nothing written)."""
+
 import csv
 import json
 from pathlib import Path
@@ -41,11 +42,9 @@ def test_half_space_only_says_so(tmp_path, monkeypatch, capsys):
     assert float(rows[0]["force_N"]) == pytest.approx(float(rows[1]["force_N"]), rel=1e-5)
     for name in ("forces_d0.5mm.png", "maps_d0.5mm.png", "sensor_d0.5mm.png", "summary.json"):
         assert (out / name).stat().st_size > 0
-    assert not (out / "difference_d0.5mm.png").exists()   # one body: nothing to subtract
+    assert not (out / "difference_d0.5mm.png").exists()  # one body: nothing to subtract
     summary = json.loads((out / "summary.json").read_text())
     assert summary["notes"] and summary["units"]["force"] == "N"
-
-
 
 
 def test_three_bodies_and_loads(tmp_path, monkeypatch):
@@ -74,6 +73,7 @@ def test_three_bodies_and_loads(tmp_path, monkeypatch):
 class _Res:
     def __init__(self, forces, fields):
         from twoscale.results import AsperitySummary
+
         f = np.asarray(forces, float)
         self.asperities = AsperitySummary(f, f, f)
         self.fields = fields
@@ -88,8 +88,10 @@ def test_indicators_closed_form():
     g = Grid(0.05, 0.05, 0.1, 10, 10)
     f = PressureField(g, np.ones(g.shape), np.zeros(g.shape), np.zeros(g.shape))
     f2 = PressureField(g, 1.1 * np.ones(g.shape), np.zeros(g.shape), np.zeros(g.shape))
-    runs = [comparison.Run("50N", "halfspace", None, _Res([1.0, 2.0], (f,)), 0.0),
-            comparison.Run("50N", "block-bonded", None, _Res([1.1, 2.2], (f2,)), 0.0)]
+    runs = [
+        comparison.Run("50N", "halfspace", None, _Res([1.0, 2.0], (f,)), 0.0),
+        comparison.Run("50N", "block-bonded", None, _Res([1.1, 2.2], (f2,)), 0.0),
+    ]
     ind = comparison.indicators(runs, Sensor())
     # 10 % everywhere: e_M = e_m = 100 * 0.1^2 = 1 %, relative to the row's body
     assert ind["50N"]["halfspace"]["block-bonded"]["e_M"] == pytest.approx(1.0, rel=1e-12)
@@ -98,10 +100,13 @@ def test_indicators_closed_form():
     assert ind["50N"]["block-bonded"]["halfspace"]["e_M"] == pytest.approx(100 / 121, rel=1e-12)
 
 
-@pytest.mark.parametrize("extra, match", [
-    (["--loads", "50"], "--loads needs a scene under load control"),
-    (["--h", "-1"], "--h must be"),
-])
+@pytest.mark.parametrize(
+    "extra, match",
+    [
+        (["--loads", "50"], "--loads needs a scene under load control"),
+        (["--h", "-1"], "--h must be"),
+    ],
+)
 def test_bad_input_exit_2_nothing_written(tmp_path, capsys, extra, match):
     out = tmp_path / "cmp"
     assert main(["compare", TWO, "--out", str(out), "--quiet"] + extra) == 2
@@ -138,8 +143,23 @@ def test_measured_data_and_pivot_centring(tmp_path, monkeypatch):
     mpath = tmp_path / "map.csv"
     mpath.write_text("\n".join(",".join(f"{v:g}" for v in row) for row in smap) + "\n")
     out = tmp_path / "cmp"
-    code = main(["compare", str(scene), "--loads", "10", "--measured-forces", str(forces),
-                 "--measured-map", str(mpath), "--centre-pivot", "--vtk", "--out", str(out), "--quiet"])
+    code = main(
+        [
+            "compare",
+            str(scene),
+            "--loads",
+            "10",
+            "--measured-forces",
+            str(forces),
+            "--measured-map",
+            str(mpath),
+            "--centre-pivot",
+            "--vtk",
+            "--out",
+            str(out),
+            "--quiet",
+        ]
+    )
     assert code == 0
     # eq. 13 with the applied load 10 N: x0 = 8 * 3 / 10 = 2.4, y0 = 8 * 5 / 10 = 4.0
     res = json.loads((out / "runs" / "halfspace_10N" / "result.json").read_text())
@@ -155,16 +175,19 @@ def test_measured_data_and_pivot_centring(tmp_path, monkeypatch):
     fields = read_vtk(out / "runs" / "halfspace_10N" / "fields.vtm").fields
     P = sum(Sensor().average_field(f.grid, f.pressure) for f in fields)
     loaded = (P != 0) | (smap != 0)
-    e_m_expected = 100 * np.sum((P - smap)[loaded] ** 2) / np.sum(smap ** 2)
+    e_m_expected = 100 * np.sum((P - smap)[loaded] ** 2) / np.sum(smap**2)
     ind = json.loads((out / "summary.json").read_text())["indicators_percent"]["10N"]["measured"]["halfspace"]
-    assert ind["e_M"] == pytest.approx(100 * np.sum((F - m) ** 2) / np.sum(m ** 2), rel=1e-8)
+    assert ind["e_M"] == pytest.approx(100 * np.sum((F - m) ** 2) / np.sum(m**2), rel=1e-8)
     assert ind["e_m"] == pytest.approx(e_m_expected, rel=1e-8)
 
 
-@pytest.mark.parametrize("extra, match", [
-    (["--centre-pivot"], "needs measured data"),
-    (["--loads", "10", "20", "--measured-forces", "F"], "one load case"),
-])
+@pytest.mark.parametrize(
+    "extra, match",
+    [
+        (["--centre-pivot"], "needs measured data"),
+        (["--loads", "10", "20", "--measured-forces", "F"], "one load case"),
+    ],
+)
 def test_measured_option_errors(tmp_path, capsys, extra, match):
     scene = tmp_path / "small.toml"
     scene.write_text(THREE_SPHERES_TILT)
@@ -203,14 +226,14 @@ def test_measured_map_only_gives_forces_from_the_map(tmp_path, monkeypatch):
     scene = tmp_path / "small.toml"
     scene.write_text(THREE_SPHERES_TILT)
     smap = np.zeros((44, 44))
-    smap[22, 22] = 1.0            # cell centred at (0.95, 0.95) mm: nearest tip is (0, 0)
-    smap[22, 26] = 2.0            # (8.55, 0.95): nearest tip (8, 0)
+    smap[22, 22] = 1.0  # cell centred at (0.95, 0.95) mm: nearest tip is (0, 0)
+    smap[22, 26] = 2.0  # (8.55, 0.95): nearest tip (8, 0)
     mpath = tmp_path / "map.csv"
     mpath.write_text("\n".join(",".join(f"{v:g}" for v in row) for row in smap) + "\n")
     out = tmp_path / "cmp"
     assert main(["compare", str(scene), "--measured-map", str(mpath), "--out", str(out), "--quiet"]) == 0
     rows = [r for r in _csv_rows(out / "forces.csv") if r["body"] == "measured"]
-    assert [float(r["force_N"]) for r in rows] == pytest.approx([1.9 ** 2, 2 * 1.9 ** 2, 0.0])
+    assert [float(r["force_N"]) for r in rows] == pytest.approx([1.9**2, 2 * 1.9**2, 0.0])
     assert "integrated from the sensor map" in (out / "forces.md").read_text()
 
 
@@ -221,8 +244,12 @@ def test_subprocess_compare_on_shipped_scene(tmp_path):
     import sys
 
     out = tmp_path / "cmp"
-    proc = subprocess.run([sys.executable, "-m", "twoscale", "compare", TWO, "--out", str(out), "--quiet"],
-                          capture_output=True, text=True, timeout=1200)
+    proc = subprocess.run(
+        [sys.executable, "-m", "twoscale", "compare", TWO, "--out", str(out), "--quiet"],
+        capture_output=True,
+        text=True,
+        timeout=1200,
+    )
     assert proc.returncode == 0, proc.stderr
     assert proc.stdout == ""
     rows = _csv_rows(out / "forces.csv")
@@ -241,7 +268,7 @@ def test_scene_load_cases_run_without_loads_and_loads_override(tmp_path, monkeyp
     assert main(["compare", str(scene), "--out", str(out), "--quiet"]) == 0
     runs = json.loads((out / "summary.json").read_text())["runs"]
     assert [(r["load"], r["total_load"]) for r in runs] == [("10N", pytest.approx(10.0)), ("20N", pytest.approx(20.0))]
-    assert {float(r["load_N"]) for r in _csv_rows(out / "forces.csv")} == {10.0, 20.0}   # numbers, not "10N"
+    assert {float(r["load_N"]) for r in _csv_rows(out / "forces.csv")} == {10.0, 20.0}  # numbers, not "10N"
     # --loads replaces the scene's cases, and the files record the cases actually run
     out2 = tmp_path / "override"
     assert main(["compare", str(scene), "--loads", "15", "--out", str(out2), "--quiet"]) == 0
@@ -250,8 +277,10 @@ def test_scene_load_cases_run_without_loads_and_loads_override(tmp_path, monkeyp
     assert summary["scene"]["load"]["cases"] == [15.0] and summary["scene"]["load"]["total"] == 15.0
 
 
-@pytest.mark.parametrize("name, cases", [("S1.toml", [50.0, 100.0, 150.0]), ("S2.toml", [200.0, 250.0, 300.0]),
-                                         ("S3.toml", [200.0, 250.0, 300.0])])
+@pytest.mark.parametrize(
+    "name, cases",
+    [("S1.toml", [50.0, 100.0, 150.0]), ("S2.toml", [200.0, 250.0, 300.0]), ("S3.toml", [200.0, 250.0, 300.0])],
+)
 def test_shipped_scenes_compare_every_load_case(name, cases):
     # what `twoscale compare examples/S2.toml` (no --loads) would solve, without solving
     args = compare_args([str(EXAMPLES / name)])
@@ -261,16 +290,20 @@ def test_shipped_scenes_compare_every_load_case(name, cases):
 
 def compare_args(argv):
     from twoscale.cli.main import build_parser
+
     return build_parser().parse_args(["compare", *argv])
 
 
-@pytest.mark.parametrize("cases, field, value", [
-    ("[10.0, 0.0]", "load.cases[1]", "0.0"),
-    ("[10.0, inf]", "load.cases[1]", "inf"),
-    ("[10.0, 10.0]", "load.cases", "[10.0, 10.0]"),
-    ("[]", "load.cases", "[]"),
-    ('"10, 20"', "load.cases", "'10, 20'"),
-])
+@pytest.mark.parametrize(
+    "cases, field, value",
+    [
+        ("[10.0, 0.0]", "load.cases[1]", "0.0"),
+        ("[10.0, inf]", "load.cases[1]", "inf"),
+        ("[10.0, 10.0]", "load.cases", "[10.0, 10.0]"),
+        ("[]", "load.cases", "[]"),
+        ('"10, 20"', "load.cases", "'10, 20'"),
+    ],
+)
 def test_bad_scene_load_cases_exit_2(tmp_path, capsys, cases, field, value):
     scene = tmp_path / "small.toml"
     scene.write_text(THREE_SPHERES_TILT.replace("total = 10.0", f"total = 10.0\ncases = {cases}"))
@@ -303,13 +336,33 @@ def test_sensor_options_feed_map_reading_forces_and_e_m(tmp_path, monkeypatch):
     # 8 x 6 cells of 2 mm centred at (4, 0): cell centres x = -3, -1, ..., 11 and y = -5, ..., 5
     sensor = Sensor(8, 6, 2.0, (4.0, 0.0))
     smap = np.zeros((6, 8))
-    smap[2, 1] = 1.0              # centre (-1, -1): nearest tip (0, 0)
-    smap[2, 5] = 2.0              # centre (7, -1): nearest tip (8, 0)
+    smap[2, 1] = 1.0  # centre (-1, -1): nearest tip (0, 0)
+    smap[2, 5] = 2.0  # centre (7, -1): nearest tip (8, 0)
     mpath = tmp_path / "map.csv"
     mpath.write_text("\n".join(",".join(f"{v:g}" for v in row) for row in smap) + "\n")
     out = tmp_path / "cmp"
-    assert main(["compare", str(scene), "--sensor", "8", "6", "2.0", "--sensor-centre", "4", "0",
-                 "--measured-map", str(mpath), "--vtk", "--out", str(out), "--quiet"]) == 0
+    assert (
+        main(
+            [
+                "compare",
+                str(scene),
+                "--sensor",
+                "8",
+                "6",
+                "2.0",
+                "--sensor-centre",
+                "4",
+                "0",
+                "--measured-map",
+                str(mpath),
+                "--vtk",
+                "--out",
+                str(out),
+                "--quiet",
+            ]
+        )
+        == 0
+    )
     rows = [r for r in _csv_rows(out / "forces.csv") if r["body"] == "measured"]
     assert [float(r["force_N"]) for r in rows] == pytest.approx([4.0, 8.0, 0.0])
     summary = json.loads((out / "summary.json").read_text())
@@ -317,7 +370,7 @@ def test_sensor_options_feed_map_reading_forces_and_e_m(tmp_path, monkeypatch):
     fields = read_vtk(out / "runs" / "halfspace_10N" / "fields.vtm").fields
     P = sum(sensor.average_field(f.grid, f.pressure) for f in fields)
     loaded = (P != 0) | (smap != 0)
-    expected = 100 * np.sum((P - smap)[loaded] ** 2) / np.sum(smap ** 2)
+    expected = 100 * np.sum((P - smap)[loaded] ** 2) / np.sum(smap**2)
     assert summary["indicators_percent"]["10N"]["measured"]["halfspace"]["e_m"] == pytest.approx(expected, rel=1e-8)
     assert "8 x 6 sensor cells of 2 mm centred at (4, 0) mm" in (out / "forces.md").read_text()
 
@@ -326,24 +379,43 @@ def test_measured_map_must_have_the_sensor_shape(tmp_path, capsys):
     scene = tmp_path / "small.toml"
     scene.write_text(THREE_SPHERES_TILT)
     mpath = tmp_path / "map.csv"
-    mpath.write_text("\n".join(",".join(["0"] * 44) for _ in range(44)) + "\n")   # the default 44 x 44
+    mpath.write_text("\n".join(",".join(["0"] * 44) for _ in range(44)) + "\n")  # the default 44 x 44
     out = tmp_path / "cmp"
-    assert main(["compare", str(scene), "--sensor", "20", "10", "1.9", "--measured-map", str(mpath),
-                 "--out", str(out), "--quiet"]) == 2
+    assert (
+        main(
+            [
+                "compare",
+                str(scene),
+                "--sensor",
+                "20",
+                "10",
+                "1.9",
+                "--measured-map",
+                str(mpath),
+                "--out",
+                str(out),
+                "--quiet",
+            ]
+        )
+        == 2
+    )
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "44 rows" in err and "ny = 10" in err, err
     assert not out.exists()
 
 
-@pytest.mark.parametrize("extra, name, value", [
-    (["--sensor", "0", "44", "1.9"], "--sensor NX", "'0'"),
-    (["--sensor", "44", "4.5", "1.9"], "--sensor NY", "'4.5'"),
-    (["--sensor", "x", "44", "1.9"], "--sensor NX", "'x'"),
-    (["--sensor", "44", "44", "-1"], "--sensor CELL", "'-1'"),
-    (["--sensor", "44", "44", "nan"], "--sensor CELL", "'nan'"),
-    (["--sensor-centre", "inf", "0"], "--sensor-centre X", "'inf'"),
-    (["--sensor-centre", "0", "up"], "--sensor-centre Y", "'up'"),
-])
+@pytest.mark.parametrize(
+    "extra, name, value",
+    [
+        (["--sensor", "0", "44", "1.9"], "--sensor NX", "'0'"),
+        (["--sensor", "44", "4.5", "1.9"], "--sensor NY", "'4.5'"),
+        (["--sensor", "x", "44", "1.9"], "--sensor NX", "'x'"),
+        (["--sensor", "44", "44", "-1"], "--sensor CELL", "'-1'"),
+        (["--sensor", "44", "44", "nan"], "--sensor CELL", "'nan'"),
+        (["--sensor-centre", "inf", "0"], "--sensor-centre X", "'inf'"),
+        (["--sensor-centre", "0", "up"], "--sensor-centre Y", "'up'"),
+    ],
+)
 def test_bad_sensor_options_exit_2(tmp_path, capsys, extra, name, value):
     scene = tmp_path / "small.toml"
     scene.write_text(THREE_SPHERES_TILT)
@@ -360,25 +432,46 @@ def test_sensor_away_from_the_contact_is_noted_not_fatal(tmp_path, monkeypatch, 
     scene = tmp_path / "small.toml"
     scene.write_text(THREE_SPHERES_TILT)
     out = tmp_path / "cmp"
-    assert main(["compare", str(scene), "--sensor", "4", "4", "1", "--sensor-centre", "100", "100",
-                 "--out", str(out), "--quiet"]) == 0
+    assert (
+        main(
+            [
+                "compare",
+                str(scene),
+                "--sensor",
+                "4",
+                "4",
+                "1",
+                "--sensor-centre",
+                "100",
+                "100",
+                "--out",
+                str(out),
+                "--quiet",
+            ]
+        )
+        == 0
+    )
     assert "carries 0 N of the 10 N of halfspace" in capsys.readouterr().err
     ind = json.loads((out / "summary.json").read_text())["indicators_percent"]["10N"]
     assert ind["halfspace"]["block-bonded"] == {"e_M": 0.0, "e_m": None}
 
 
 # ---------------------------------------------------------------- every top-level file records each body
-BLOCK_SCENE = THREE_SPHERES_TILT.replace("total = 10.0", "total = 10.0\ncases = [10.0, 20.0]") + """
+BLOCK_SCENE = (
+    THREE_SPHERES_TILT.replace("total = 10.0", "total = 10.0\ncases = [10.0, 20.0]")
+    + """
 [influence]
 kind = "block"
 size = [100.0, 120.0, 20.0]
 base = "sliding"
 origin = [3.0, -4.0]
 """
+)
 
 
 def _png_description(path):
     from PIL import Image
+
     with Image.open(path) as im:
         return json.loads(im.text["Description"])
 
@@ -393,9 +486,11 @@ def test_every_top_level_file_records_each_body_and_all_loads(tmp_path, monkeypa
     assert main(["compare", str(scene), "--out", str(out), "--quiet"]) == 0
     loads = [{"label": "10N", "total": 10.0}, {"label": "20N", "total": 20.0}]
     block = {"kind": "block", "size": [100.0, 120.0, 20.0], "origin": [3.0, -4.0], "source_spacing": 5.0}
-    expected = {"halfspace": {"influence": {"kind": "halfspace"}, "loads": loads},
-                "block-bonded": {"influence": {**block, "base": "bonded"}, "loads": loads},
-                "block-sliding": {"influence": {**block, "base": "sliding"}, "loads": loads}}
+    expected = {
+        "halfspace": {"influence": {"kind": "halfspace"}, "loads": loads},
+        "block-bonded": {"influence": {**block, "base": "bonded"}, "loads": loads},
+        "block-sliding": {"influence": {**block, "base": "sliding"}, "loads": loads},
+    }
 
     csv_meta = json.loads((out / "forces.csv-metadata.json").read_text())["twoscale"]
     summary = json.loads((out / "summary.json").read_text())
@@ -407,13 +502,14 @@ def test_every_top_level_file_records_each_body_and_all_loads(tmp_path, monkeypa
     for name, rec in records.items():
         assert rec["bodies"] == expected, name
         assert rec["scene"]["load"]["cases"] == [10.0, 20.0] and rec["scene"]["load"]["total"] == 10.0, name
-        assert rec["scene"]["influence"]["base"] == "sliding", name       # the file's own [influence]
+        assert rec["scene"]["influence"]["base"] == "sliding", name  # the file's own [influence]
         assert rec["sensor"] == {"nx": 44, "ny": 44, "cell_mm": 1.9, "centre_mm": [0.0, 0.0]}, name
     assert "| block-bonded | block | 100 x 120 x 20 | bonded | (3, -4) | total load 10 N, total load 20 N |" in md
     # the record rebuilds every solve: scene + the body's influence + the load
     for body, b in expected.items():
         for load in b["loads"]:
-            rebuilt = dict(summary["scene"], influence=b["influence"],
-                           load=dict(summary["scene"]["load"], total=load["total"]))
+            rebuilt = dict(
+                summary["scene"], influence=b["influence"], load=dict(summary["scene"]["load"], total=load["total"])
+            )
             run = json.loads((out / "runs" / f"{body}_{load['label']}" / "result.json").read_text())
             assert scene_from_dict(rebuilt) == scene_from_dict(run["scene"]), (body, load)

@@ -4,6 +4,7 @@ Independent checks: e_M recomputed from the two result.json files and e_m from s
 maps rebuilt here from the two fields.vtm files, both by the formulas of docs/method.md
 section 5 written out; a run against itself gives 0; bad input exits with 2.
 """
+
 import json
 
 import numpy as np
@@ -54,7 +55,7 @@ def test_indicators_match_the_formulas(runs, tmp_path, capsys):
     assert main(["indicators", str(a), str(b), "--json", str(target), "--sensor", "20", "20", "1.0"]) == 0
     rec = json.loads(target.read_text())
     P, R = _forces(a), _forces(b)
-    assert rec["e_M_percent"] == pytest.approx(100 * np.sum((P - R) ** 2) / np.sum(R ** 2), rel=1e-12)
+    assert rec["e_M_percent"] == pytest.approx(100 * np.sum((P - R) ** 2) / np.sum(R**2), rel=1e-12)
     s = Sensor(20, 20, 1.0)
     maps = []
     for folder in (a, b):
@@ -65,7 +66,7 @@ def test_indicators_match_the_formulas(runs, tmp_path, capsys):
     p, r = maps
     mask = (p != 0) | (r != 0)
     assert rec["e_m_percent"] == pytest.approx(100 * np.sum((p - r)[mask] ** 2) / np.sum(r[mask] ** 2), rel=1e-12)
-    assert rec["e_M_percent"] > 1.0 and rec["e_m_percent"] > 0.1     # 20 % more load: not small
+    assert rec["e_M_percent"] > 1.0 and rec["e_m_percent"] > 0.1  # 20 % more load: not small
     assert rec["sensor"] == {"nx": 20, "ny": 20, "cell": 1.0, "centre": [0.0, 0.0]}
     assert rec["version"] and rec["units"]["force"] == "N"
     assert "e_M = " in capsys.readouterr().out

@@ -1,6 +1,7 @@
 """Ctrl-C (KeyboardInterrupt) in ``twoscale solve / compare / paper``: one line
 ``interrupted`` on stderr, exit code 130, and no output folder, whether the interrupt
 comes during the solve or while the files are written."""
+
 from __future__ import annotations
 
 import os
@@ -16,7 +17,6 @@ from twoscale.cli import compare_outputs
 from twoscale.cli import solve as solve_cli
 from twoscale.cli.main import EXIT_INTERRUPTED, main
 from twoscale.cli.staging import held_interrupts, staged_directory
-
 
 
 def _interrupt(*args, **kwargs):
@@ -77,7 +77,9 @@ def test_compare_interrupted_during_the_solves(scene, tmp_path, monkeypatch, cap
 
 
 def test_compare_interrupted_while_writing(scene, tmp_path, monkeypatch, capsys):
-    monkeypatch.setattr(compare_cli, "_providers", lambda scene, quiet, base="both": ({"halfspace": scene.provider()}, []))
+    monkeypatch.setattr(
+        compare_cli, "_providers", lambda scene, quiet, base="both": ({"halfspace": scene.provider()}, [])
+    )
     monkeypatch.setattr(compare_outputs, "write_result", _interrupt)  # after forces.csv, forces.md, figures
     code = main(["compare", str(scene), "--out", str(tmp_path / "cmp"), "--quiet"])
     assert code == 130
@@ -125,8 +127,7 @@ def test_real_sigint_to_the_command(scene, tmp_path):
         from twoscale.cli.main import main
         sys.exit(main(["solve", {str(scene)!r}, "--out", {str(tmp_path / "out")!r}, "--quiet"]))
     """)
-    proc = subprocess.Popen([sys.executable, "-c", code], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-                            text=True)
+    proc = subprocess.Popen([sys.executable, "-c", code], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     try:
         assert proc.stdout.readline().strip() == "solving"
         proc.send_signal(signal.SIGINT)

@@ -1,6 +1,7 @@
 """Output folders of ``solve / compare / paper``: a non-empty folder is refused (exit 2, one
 line, nothing written, before any solve) unless ``--overwrite``, which removes exactly the
 files the earlier run listed in its manifest; a folder holding other files is never cleared."""
+
 from __future__ import annotations
 
 import json
@@ -89,7 +90,7 @@ def test_folder_changed_during_the_run_is_left_alone(tmp_path):
             out.mkdir()
             (out / "appeared.txt").write_text("x")
     assert _tree(out) == ["appeared.txt"]
-    assert sorted(p.name for p in tmp_path.iterdir()) == ["run"]   # no temporary folder left
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["run"]  # no temporary folder left
 
 
 # ---------------------------------------------------------------- the commands
@@ -132,8 +133,7 @@ def test_solve_twice_needs_overwrite(scene, tmp_path, monkeypatch, capsys):
 def test_compare_overwrite_removes_stale_load_files(scene, tmp_path, monkeypatch, capsys):
     # the reported case: a run at 100 N, then one at 50 N into the same folder left
     # forces_100N.png and runs/*_100N beside a forces.md that no longer listed them
-    monkeypatch.setattr(compare_cli, "_block_factory",
-                        lambda: ((lambda material, **kw: HalfSpace(material)), ""))
+    monkeypatch.setattr(compare_cli, "_block_factory", lambda: ((lambda material, **kw: HalfSpace(material)), ""))
     out = tmp_path / "cmp"
     assert main(["compare", str(scene), "--out", str(out), "--loads", "5", "--quiet"]) == 0
     assert (out / "forces_5N.png").exists() and (out / "runs" / "halfspace_5N").is_dir()
@@ -141,8 +141,7 @@ def test_compare_overwrite_removes_stale_load_files(scene, tmp_path, monkeypatch
     assert main(["compare", str(scene), "--out", str(out), "--loads", "4", "--quiet"]) == 2
     _one_error_line(capsys, "--overwrite")
     monkeypatch.undo()
-    monkeypatch.setattr(compare_cli, "_block_factory",
-                        lambda: ((lambda material, **kw: HalfSpace(material)), ""))
+    monkeypatch.setattr(compare_cli, "_block_factory", lambda: ((lambda material, **kw: HalfSpace(material)), ""))
     assert main(["compare", str(scene), "--out", str(out), "--loads", "4", "--quiet", "--overwrite"]) == 0
     names = _tree(out)
     assert "forces_4N.png" in names and "runs/halfspace_4N/result.json" in names
@@ -151,6 +150,7 @@ def test_compare_overwrite_removes_stale_load_files(scene, tmp_path, monkeypatch
 
 def test_compare_and_paper_refuse_a_file_before_solving(scene, tmp_path, monkeypatch, capsys):
     import twoscale.paper
+
     (tmp_path / "taken").write_text("keep")
     monkeypatch.setattr(compare_cli, "_solve_all", _never)
     assert main(["compare", str(scene), "--out", str(tmp_path / "taken")]) == 2

@@ -2,6 +2,7 @@
 without a docstring saying what it does (in both packages), no public function of twoscale
 with more than 8 parameters, and test modules that share helpers through
 ``tests/helpers.py`` or ``conftest.py``, never by importing one another."""
+
 from __future__ import annotations
 
 import ast
@@ -67,8 +68,14 @@ def test_test_modules_do_not_import_one_another():
     found = []
     for p in sorted((ROOT / "tests").glob("test_*.py")):
         for node in ast.walk(ast.parse(p.read_text())):
-            names = [node.module or ""] if isinstance(node, ast.ImportFrom) else (
-                [a.name for a in node.names] if isinstance(node, ast.Import) else [])
-            found += [f"{p.name}:{node.lineno} {n}" for n in names
-                      if n.split(".")[-1].startswith("test_") or n.startswith("tests.test_")]
+            names = (
+                [node.module or ""]
+                if isinstance(node, ast.ImportFrom)
+                else ([a.name for a in node.names] if isinstance(node, ast.Import) else [])
+            )
+            found += [
+                f"{p.name}:{node.lineno} {n}"
+                for n in names
+                if n.split(".")[-1].startswith("test_") or n.startswith("tests.test_")
+            ]
     assert not found, f"test modules importing other test modules (use tests/helpers.py): {found}"

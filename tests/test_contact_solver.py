@@ -1,4 +1,5 @@
 """The solver object: state kept between solves, the same answers as one-shot solves."""
+
 from __future__ import annotations
 
 import dataclasses
@@ -18,8 +19,7 @@ pytestmark = pytest.mark.filterwarnings("ignore::twoscale.errors.ResolutionWarni
 
 def _scene(control="load", shift=0.0, n=10):
     sc = random_scene(n, kind="sparse", control=control, shape="sphere", seed=5)
-    return dataclasses.replace(sc, asperities=tuple(dataclasses.replace(a, x=a.x + shift) for a in sc.asperities),
-                               h=H)
+    return dataclasses.replace(sc, asperities=tuple(dataclasses.replace(a, x=a.x + shift) for a in sc.asperities), h=H)
 
 
 def _close(a, b):
@@ -44,7 +44,7 @@ def test_solves_in_a_row_equal_one_shot_solves_and_say_what_they_reused(control)
         assert 0 < r.reuse.cache_bytes <= r.reuse.cache_max_bytes
     assert not first.reuse.operators_kept and sum(first.reuse.operators_built.values()) > 0
     assert solver.body is not None and solver.solves == 3
-    assert vars(solver.body) == {"material": solver.body.material}   # the body keeps nothing
+    assert vars(solver.body) == {"material": solver.body.material}  # the body keeps nothing
 
 
 def test_a_reset_or_start_none_is_a_cold_start():
@@ -80,8 +80,9 @@ def test_the_kept_pressure_and_the_caches_are_bounded():
 
 
 def test_options_reach_the_solve_and_a_cell_size_change_drops_the_pressure_start():
-    solver = twoscale.ContactSolver(options=SolverOptions(micro=MicroOptions(iteration="block-gs"),
-                                                          resolution=ResolutionOptions(h=0.06)))
+    solver = twoscale.ContactSolver(
+        options=SolverOptions(micro=MicroOptions(iteration="block-gs"), resolution=ResolutionOptions(h=0.06))
+    )
     r = solver.solve(dataclasses.replace(_scene(), h=None))
     assert r.details.micro.strategy == "block-gs" and r.fields[0].grid.h == pytest.approx(0.06)
     other = twoscale.ContactSolver(options=SolverOptions(resolution=ResolutionOptions(h=0.07)))
@@ -98,21 +99,26 @@ def test_a_scene_for_another_body_is_refused():
         solver.solve(block)
 
 
-@pytest.mark.parametrize("bad, match", [
-    ({"micro": {"tols": 1e-6}}, r"unknown option micro.tols \(did you mean 'tol'\?\)"),
-    ({"mikro": {}}, r"unknown option group 'mikro' \(did you mean 'micro'"),
-    ({"micro": {"iteration": "newton"}}, "micro.iteration must be one of"),
-    ({"micro": {"far_tol": 2.0}}, r"micro.far_tol must be a number in \(0, 1\)"),
-    ({"macro": {"max_iter": 0}}, "macro.max_iter must be an integer >= 1"),
-    ({"resolution": {"h": -1}}, "resolution.h must be a finite number > 0"),
-])
+@pytest.mark.parametrize(
+    "bad, match",
+    [
+        ({"micro": {"tols": 1e-6}}, r"unknown option micro.tols \(did you mean 'tol'\?\)"),
+        ({"mikro": {}}, r"unknown option group 'mikro' \(did you mean 'micro'"),
+        ({"micro": {"iteration": "newton"}}, "micro.iteration must be one of"),
+        ({"micro": {"far_tol": 2.0}}, r"micro.far_tol must be a number in \(0, 1\)"),
+        ({"macro": {"max_iter": 0}}, "macro.max_iter must be an integer >= 1"),
+        ({"resolution": {"h": -1}}, "resolution.h must be a finite number > 0"),
+    ],
+)
 def test_bad_options_are_refused_naming_them(bad, match):
     with pytest.raises(ValueError, match=match):
         SolverOptions.from_mapping(bad)
 
 
 def test_a_misspelt_keyword_of_solve_is_refused_naming_it():
-    with pytest.raises(ValueError, match=r"unknown option 'iteraton' for the two-scale solver \(did you mean 'iteration'\?\)"):
+    with pytest.raises(
+        ValueError, match=r"unknown option 'iteraton' for the two-scale solver \(did you mean 'iteration'\?\)"
+    ):
         twoscale.solve(_scene(), iteraton="block-gs")
     with pytest.raises(ValueError, match=r"unknown keyword 'tol' \(did you mean the option micro.tol\?"):
         twoscale.ContactSolver().solve(_scene(), tol=1e-7)
@@ -125,8 +131,12 @@ def test_a_misspelt_keyword_of_solve_is_refused_naming_it():
 def test_every_option_is_listed_documented_and_in_the_docs_table():
     rows = list_options()
     groups = {(o.group, o.name) for o in rows}
-    for group, kind in (("macro", twoscale.MacroOptions), ("micro", MicroOptions),
-                        ("reference", twoscale.ReferenceOptions), ("resolution", ResolutionOptions)):
+    for group, kind in (
+        ("macro", twoscale.MacroOptions),
+        ("micro", MicroOptions),
+        ("reference", twoscale.ReferenceOptions),
+        ("resolution", ResolutionOptions),
+    ):
         assert {(group, f.name) for f in dataclasses.fields(kind)} <= groups
     assert all(o.doc for o in rows), [o.name for o in rows if not o.doc]
     page = Path(__file__).resolve().parents[1] / "docs" / "options.md"
@@ -165,14 +175,18 @@ def test_each_quantity_is_computed_once_per_solve(far_tol):
         return real_make_patch(k, grid, asperities)
 
     options = SolverOptions.from_keywords(far_tol=far_tol)
-    solves = {"solver": lambda sc: twoscale.ContactSolver(options=options).solve(sc),
-              "one-shot": lambda sc: twoscale.solve(sc, **options.twoscale_keywords())}
+    solves = {
+        "solver": lambda sc: twoscale.ContactSolver(options=options).solve(sc),
+        "one-shot": lambda sc: twoscale.solve(sc, **options.twoscale_keywords()),
+    }
     for how, solve in solves.items():
-        scene = dataclasses.replace(_scene(), h=None)   # the cell size chosen from the scene
-        with mock.patch.object(resolution, "_solve_hertz_level", wraps=resolution._solve_hertz_level) as level, \
-                mock.patch.object(resources, "check_solve_memory", wraps=resources.check_solve_memory) as memory, \
-                mock.patch.object(patches, "make_patch", side_effect=make_patch), \
-                mock.patch.object(driver, "_result", wraps=driver._result) as result:
+        scene = dataclasses.replace(_scene(), h=None)  # the cell size chosen from the scene
+        with (
+            mock.patch.object(resolution, "_solve_hertz_level", wraps=resolution._solve_hertz_level) as level,
+            mock.patch.object(resources, "check_solve_memory", wraps=resources.check_solve_memory) as memory,
+            mock.patch.object(patches, "make_patch", side_effect=make_patch),
+            mock.patch.object(driver, "_result", wraps=driver._result) as result,
+        ):
             r = solve(scene)
         assert (level.call_count, memory.call_count, result.call_count) == (1, 1, 1), how
         assert len(set(built)) == len(built) > 0, f"{how}: a patch was built twice"

@@ -10,8 +10,12 @@ from twoscale.results import PressureField, summarise, ContactResult
 
 def test_material_E_star_and_validation():
     assert Material(10.0, 0.5).E_star == pytest.approx(10.0 / 0.75)
-    for kwargs, shown in [(dict(E=-1.0, nu=0.3), "-1.0"), (dict(E=float("nan"), nu=0.3), "nan"),
-                          (dict(E=1.0, nu=0.51), "0.51"), (dict(E=1.0, nu=-1.0), "-1.0")]:
+    for kwargs, shown in [
+        (dict(E=-1.0, nu=0.3), "-1.0"),
+        (dict(E=float("nan"), nu=0.3), "nan"),
+        (dict(E=1.0, nu=0.51), "0.51"),
+        (dict(E=1.0, nu=-1.0), "-1.0"),
+    ]:
         with pytest.raises(ValueError, match=shown):
             Material(**kwargs)
 

@@ -1,6 +1,7 @@
 """Cross-patch products of the micro step (twoscale.micro.blocks.Coupling): the fast routes
 (near pairs summed in Fourier space on a common padded shape, separated pairs through
 Chebyshev nodes) against the dense blocks of the provider (Love's closed form, exact)."""
+
 import dataclasses
 
 import numpy as np
@@ -23,7 +24,7 @@ def _scene():
     asps = [Asperity(x=x, y=y, z=0.0, R=5.0) for x, y in tips]
     patches = []
     for k, (x, y) in enumerate(tips):
-        w = 1.2 + 0.2 * k                                   # patches of different shapes
+        w = 1.2 + 0.2 * k  # patches of different shapes
         patches.append(make_patch(k, Grid.covering(x - w, x + w, y - 1.1, y + 1.1, H), asps))
     return asps, patches
 
@@ -49,9 +50,9 @@ def test_fast_routes_equal_the_dense_blocks():
             ref = _exact(patches, k, values, b)
             got = fast.rhs(k, values, b)
             np.testing.assert_allclose(got, ref, atol=1e-9 * np.abs(b - ref).max())
-            values[k] = rng.random(len(values[k]))        # a Gauss-Seidel update: a new vector
+            values[k] = rng.random(len(values[k]))  # a Gauss-Seidel update: a new vector
     kinds = {route[0] for route in fast._routes.values()}
-    assert kinds == {"spectral", "separated"}           # near pairs took one route, far pairs the other
+    assert kinds == {"spectral", "separated"}  # near pairs took one route, far pairs the other
 
 
 def test_growth_into_another_size_class_rebuilds_the_spectral_pairs():
@@ -61,15 +62,18 @@ def test_growth_into_another_size_class_rebuilds_the_spectral_pairs():
     values = [rng.random(int(p.owned.sum())) for p in patches]
     fast.rhs(0, values, np.zeros(len(values[0])))
     before = size_class(patches[1].grid.nx)
-    for _ in range(3):                                     # into a larger size class
+    for _ in range(3):  # into a larger size class
         patches[1] = grow_patch(patches[1], (True, True, True, True), asps)
     assert size_class(patches[1].grid.nx) > before
     fast.replace(1, patches[1])
     values[1] = rng.random(int(patches[1].owned.sum()))
     for k in (0, 1, 2):
         b = np.zeros(int(patches[k].owned.sum()))
-        np.testing.assert_allclose(fast.rhs(k, values, b), _exact(patches, k, values, b),
-                                   atol=1e-9 * np.abs(_exact(patches, k, values, b)).max())
+        np.testing.assert_allclose(
+            fast.rhs(k, values, b),
+            _exact(patches, k, values, b),
+            atol=1e-9 * np.abs(_exact(patches, k, values, b)).max(),
+        )
 
 
 def test_several_right_hand_sides_at_once():
@@ -97,8 +101,16 @@ def test_a_changed_vector_in_place_of_the_old_one_is_seen(kwargs):
 @pytest.fixture(scope="module")
 def small_block():
     from fem_influence import BlockProvider
-    return BlockProvider(material=Material(E=2.0, nu=0.5), use_cache=False, progress=False,
-                         size=(60.0, 60.0, 10.0), h_fine=5.0, h_coarse=10.0, fine_half_width=10.0)
+
+    return BlockProvider(
+        material=Material(E=2.0, nu=0.5),
+        use_cache=False,
+        progress=False,
+        size=(60.0, 60.0, 10.0),
+        h_fine=5.0,
+        h_coarse=10.0,
+        fine_half_width=10.0,
+    )
 
 
 def _exact_with(provider, patches, k, values, rhs):
@@ -148,7 +160,7 @@ def test_size_class_ladder():
     ladder = [size_class(n) for n in range(1, 200)]
     assert ladder[:8] == [8] * 8
     assert all(size_class(n) >= n for n in range(1, 500))
-    assert all(size_class(n) <= max(8, 1.2 * n + 1) for n in range(1, 500))      # at most ~20 % padding
+    assert all(size_class(n) <= max(8, 1.2 * n + 1) for n in range(1, 500))  # at most ~20 % padding
     assert len(set(ladder)) < 20
 
 
@@ -167,6 +179,7 @@ def test_without_memory_for_operators_every_pair_falls_back_to_plain_products():
 def test_solver_answer_does_not_depend_on_the_routes():
     # a 3 x 3 grid of spheres 6 mm apart (separated pairs) and two close ones (spectral pairs)
     from twoscale.driver import solve_twoscale
+
     asps = [Asperity(x=6.0 * i, y=6.0 * j, z=0.0, R=5.0) for j in range(3) for i in range(3)]
     asps.append(Asperity(x=1.8, y=0.4, z=0.0, R=5.0))
     kw = dict(h=0.05, penetration=0.08)
@@ -185,6 +198,7 @@ def test_solver_answer_does_not_depend_on_the_routes():
     assert off.separated == 0 and off.separated_rtol is None
     from twoscale.io.result_json import result_to_dict
     from twoscale.scene import Scene
+
     scene = Scene(material=HS.material, asperities=asps, penetration=0.08, h=0.05)
     assert result_to_dict(fast, scene)["coupling"] == dataclasses.asdict(used)
     with pytest.raises(ValueError, match="separated_rtol"):

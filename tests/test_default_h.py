@@ -1,6 +1,7 @@
 """The default cell size (twoscale.scene.default_h) for any number of asperities: the
 smallest contact it resolves gets 32 cells across (rounded down to two digits), checked
 against an independent Hertz estimate computed here; the examples keep their h."""
+
 from __future__ import annotations
 
 import dataclasses
@@ -45,6 +46,7 @@ def random_scene(n: int, *, side: float, total: float, seed: int = 0) -> Scene:
 def hertz_forces(R: np.ndarray, z: np.ndarray, W: float, E_star: float) -> np.ndarray:
     """Forces (N) of independent Hertz contacts P = 4/3 E* sqrt(R) delta^1.5 at the
     common level d where they sum to W (delta = d - z)."""
+
     def load(d):
         return 4.0 / 3.0 * E_star * np.sqrt(R) * np.maximum(d - z, 0.0) ** 1.5
 
@@ -79,9 +81,11 @@ def test_any_number_of_tips_gets_a_cell_size(n):
 
 def test_a_light_tip_does_not_set_h():
     # two tips share the load; a third, 0.39 mm higher, carries under 1 % of their force
-    scene = Scene(material=Material(E=10.0, nu=0.5), total_load=20.0,
-                  asperities=[Asperity(0.0, 0.0, 0.0, 5.0), Asperity(20.0, 0.0, 0.0, 5.0),
-                              Asperity(40.0, 0.0, 0.39, 5.0)])
+    scene = Scene(
+        material=Material(E=10.0, nu=0.5),
+        total_load=20.0,
+        asperities=[Asperity(0.0, 0.0, 0.0, 5.0), Asperity(20.0, 0.0, 0.0, 5.0), Asperity(40.0, 0.0, 0.39, 5.0)],
+    )
     h = default_h(scene)
     assert default_h(scene, min_force_fraction=0.0) < h / 3  # resolving it would cost 10x the cells
 

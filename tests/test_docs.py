@@ -1,6 +1,7 @@
 """The documentation: the gallery covers every figure the program writes, the guides speak
 for themselves, and the Sphinx site builds with warnings as errors (slow: it runs the
 examples)."""
+
 import importlib.util
 import os
 import re
@@ -24,26 +25,44 @@ def _gallery():
 def test_the_gallery_shows_every_figure_the_program_writes():
     from twoscale.cli.surface import NAMES
     from twoscale.io.solve_outputs import FORCES_NAME, PRESSURE_NAME
+
     shown = {Path(name).name for *_, figures in _gallery().RUNS for name, _ in figures}
     # solve (spheres and a height map), surface, compare, study, paper
-    expected = {PRESSURE_NAME, FORCES_NAME, NAMES[0], "forces_50N.png", "maps_50N.png", "sensor_50N.png",
-                "difference_50N.png", "load_approach_S2.png", "asperity_forces_S2_block.png", "track_S2_block.png",
-                "indicators_S2.png", "fig3_two_maps.png", "fig4_seven_maps.png", "fig5_profiles.png",
-                "fig6_errors.png"}
+    expected = {
+        PRESSURE_NAME,
+        FORCES_NAME,
+        NAMES[0],
+        "forces_50N.png",
+        "maps_50N.png",
+        "sensor_50N.png",
+        "difference_50N.png",
+        "load_approach_S2.png",
+        "asperity_forces_S2_block.png",
+        "track_S2_block.png",
+        "indicators_S2.png",
+        "fig3_two_maps.png",
+        "fig4_seven_maps.png",
+        "fig5_profiles.png",
+        "fig6_errors.png",
+    }
     assert shown == expected
     index = (DOCS / "gallery" / "index.md").read_text(encoding="utf-8")
     linked = re.findall(r"\]\((img/[^)]+\.png)\)", index)
     assert len(linked) == sum(len(f) for *_, f in _gallery().RUNS)
-    for rel in linked:   # every picture the page shows is in the repository
+    for rel in linked:  # every picture the page shows is in the repository
         assert (DOCS / "gallery" / rel).stat().st_size > 10_000
     assert (DOCS / "img" / "tour_pressure.png").exists()
 
 
 def test_every_guide_is_in_the_site():
-    index = (DOCS / "index.md").read_text(encoding="utf-8") + (DOCS / "records" / "index.md").read_text(encoding="utf-8")
+    index = (DOCS / "index.md").read_text(encoding="utf-8") + (DOCS / "records" / "index.md").read_text(
+        encoding="utf-8"
+    )
     for page in DOCS.glob("*.md"):
         if page.stem not in ("index",):
-            assert re.search(rf"^{re.escape(page.stem)}$", index, re.MULTILINE), f"{page.name} is in no table of contents"
+            assert re.search(rf"^{re.escape(page.stem)}$", index, re.MULTILINE), (
+                f"{page.name} is in no table of contents"
+            )
 
 
 @pytest.mark.slow
@@ -52,15 +71,19 @@ def test_the_site_builds_with_warnings_as_errors(tmp_path):
     pytest.importorskip("myst_parser")
     pytest.importorskip("sphinx_gallery")
     out = tmp_path / "html"
-    done = subprocess.run([sys.executable, "-m", "sphinx", "-W", "-q", "-b", "html", str(DOCS), str(out)],
-                          capture_output=True, text=True, check=False, env={**os.environ, "MPLBACKEND": "Agg"})
+    done = subprocess.run(
+        [sys.executable, "-m", "sphinx", "-W", "-q", "-b", "html", str(DOCS), str(out)],
+        capture_output=True,
+        text=True,
+        check=False,
+        env={**os.environ, "MPLBACKEND": "Agg"},
+    )
     assert done.returncode == 0, done.stderr[-3000:]
     plot = (out / "reference" / "plot.html").read_text(encoding="utf-8")
-    assert "plot_pressure_map" in plot and "robust_scale" in plot    # the API reference from docstrings
+    assert "plot_pressure_map" in plot and "robust_scale" in plot  # the API reference from docstrings
     example = (out / "auto_examples" / "plot_seven_spheres.html").read_text(encoding="utf-8")
-    assert "sphx_glr_plot_seven_spheres_001.png" in example          # the example ran and drew
+    assert "sphx_glr_plot_seven_spheres_001.png" in example  # the example ran and drew
     assert (out / "_images" / "sphx_glr_plot_seven_spheres_001.png").stat().st_size > 10_000
-
 
 
 def test_the_design_layout_names_every_module_and_package():
@@ -73,6 +96,7 @@ def test_the_design_layout_names_every_module_and_package():
     layout = text.split("## Layout", 1)[1].split("\n## ", 1)[0]
     named = set(re.findall(r"`twoscale/([A-Za-z_]+)(?:\.py|/)`", layout))
     package = root / "twoscale"
-    have = {p.stem for p in package.glob("*.py") if not p.name.startswith("_")} | \
-           {p.name for p in package.iterdir() if p.is_dir() and (p / "__init__.py").exists()}
+    have = {p.stem for p in package.glob("*.py") if not p.name.startswith("_")} | {
+        p.name for p in package.iterdir() if p.is_dir() and (p / "__init__.py").exists()
+    }
     assert have <= named, f"missing from docs/DESIGN.md's layout: {sorted(have - named)}"

@@ -1,4 +1,5 @@
 """The shipped scenes parse, and their geometry is what their comments say."""
+
 import itertools
 import math
 import re
@@ -39,7 +40,7 @@ def test_every_example_parses_with_distinct_tips(path):
     s = read_scene(path)
     d = _distances(s)
     off = d[~np.eye(len(d), dtype=bool)]
-    assert off.size == 0 or off.min() > 0          # no two tips at one place
+    assert off.size == 0 or off.min() > 0  # no two tips at one place
     assert "Units: mm, N, MPa" in path.read_text()
 
 
@@ -55,14 +56,14 @@ def test_paper_two_spheres():
     assert (s.material.E, s.material.nu) == (10.0, 0.5)
     assert s.penetration == pytest.approx(0.05 * R)
     assert s.h == pytest.approx(0.0125 * R)
-    assert _distances(s)[0, 1] == pytest.approx(2 * R * 0.25)        # d_c / 2R = 0.25
+    assert _distances(s)[0, 1] == pytest.approx(2 * R * 0.25)  # d_c / 2R = 0.25
     assert all(a.z == 0 and a.shape == "sphere" for a in s.asperities)
 
 
 def _common_experiment(s, total):
     assert (s.material.E, s.material.nu) == (6.0, 0.5)
     assert s.total_load == total and s.tilt and s.pivot == (0.0, 0.0)
-    assert s.load_cases[0] == total                  # `solve` runs the first load case
+    assert s.load_cases[0] == total  # `solve` runs the first load case
     assert all(a.z == 0 and a.shape == "sphere" for a in s.asperities)
     # every sphere lies on the default 44 x 1.9 mm sensor, centred on the joint
     half = 0.5 * Sensor().nx * Sensor().cell
@@ -74,10 +75,10 @@ def test_S1_hexagon():
     s = _scene("S1.toml")
     _common_experiment(s, 50.0)
     assert _load_cases("S1.toml") == [50, 100, 150]
-    assert s.load_cases == tuple(_load_cases("S1.toml"))      # the key lists what the comment says
+    assert s.load_cases == tuple(_load_cases("S1.toml"))  # the key lists what the comment says
     assert len(s.asperities) == 7 and all(a.R == 6.0 for a in s.asperities)
     r = np.hypot(*s.tips.T)
-    assert r[0] == 0 and np.allclose(r[1:], 15.0, rtol=1e-12)          # hexagon radius 15 mm
+    assert r[0] == 0 and np.allclose(r[1:], 15.0, rtol=1e-12)  # hexagon radius 15 mm
     angles = np.sort(np.degrees(np.arctan2(s.tips[1:, 1], s.tips[1:, 0])) % 360)
     np.testing.assert_allclose(angles, np.arange(0, 360, 60), atol=1e-9)
 
@@ -86,10 +87,10 @@ def test_S2_square_lattice():
     s = _scene("S2.toml")
     _common_experiment(s, 200.0)
     assert _load_cases("S2.toml") == [200, 250, 300]
-    assert s.load_cases == tuple(_load_cases("S2.toml"))      # the key lists what the comment says
+    assert s.load_cases == tuple(_load_cases("S2.toml"))  # the key lists what the comment says
     assert len(s.asperities) == 25 and all(a.R == 5.0 for a in s.asperities)
     xs, ys = np.unique(s.tips[:, 0]), np.unique(s.tips[:, 1])
-    np.testing.assert_allclose(xs, [-20, -10, 0, 10, 20])              # pitch 10 mm, centred
+    np.testing.assert_allclose(xs, [-20, -10, 0, 10, 20])  # pitch 10 mm, centred
     np.testing.assert_allclose(ys, [-20, -10, 0, 10, 20])
 
 
@@ -112,7 +113,7 @@ def test_S3_random_layout_matches_its_recipe():
     s = _scene("S3.toml")
     _common_experiment(s, 200.0)
     assert _load_cases("S3.toml") == [200, 250, 300]
-    assert s.load_cases == tuple(_load_cases("S3.toml"))      # the key lists what the comment says
+    assert s.load_cases == tuple(_load_cases("S3.toml"))  # the key lists what the comment says
     R = np.array([a.R for a in s.asperities])
     assert len(R) == 24 and set(R) == {4.0, 5.0, 6.0}
     text = (EXAMPLES / "S3.toml").read_text()
@@ -121,7 +122,7 @@ def test_S3_random_layout_matches_its_recipe():
     # sphere bases do not overlap: at least 0.5 mm clear (0.1 mm rounding allowed)
     for i, j in itertools.combinations(range(24), 2):
         assert _distances(s)[i, j] >= R[i] + R[j] + 0.5 - 0.15
-    assert np.all(np.abs(s.tips.mean(axis=0)) <= 0.1)                 # centroid at the joint
+    assert np.all(np.abs(s.tips.mean(axis=0)) <= 0.1)  # centroid at the joint
     tips, radii = _s3_as_described()
     np.testing.assert_allclose(s.tips, tips, atol=1e-9)
     np.testing.assert_array_equal(R, radii)
@@ -146,7 +147,7 @@ def test_two_spheres_solve_symmetric_and_interacting():
     E_star, d = s.material.E_star, s.penetration
     T = 1.0 / (math.pi * E_star * _distances(s)[0, 1])
     P = brentq(lambda P: P - float(hertz.sphere_load(10.0, d - T * P, E_star)), 0.0, 100.0)
-    assert P < 0.8 * float(hertz.sphere_load(10.0, d, E_star))       # the interaction is strong
+    assert P < 0.8 * float(hertz.sphere_load(10.0, d, E_star))  # the interaction is strong
     assert f[0] == pytest.approx(P, rel=0.02)
 
 
@@ -177,7 +178,7 @@ def test_S2_solves_with_lattice_symmetry(tmp_path):
     res = _solve_cli("S2.toml", tmp_path)
     assert res["converged"] and res["total_load"] == pytest.approx(200.0, rel=1e-9)
     F = np.array([a["force"] for a in res["asperities"]]).reshape(5, 5)
-    for G in (F[::-1], F[:, ::-1], F.T):           # mirror in x, in y, and the diagonal
+    for G in (F[::-1], F[:, ::-1], F.T):  # mirror in x, in y, and the diagonal
         np.testing.assert_allclose(G, F, rtol=1e-3)
     # interaction: the centre carries least, the corners most
     assert F[2, 2] == F.min() and F[0, 0] == pytest.approx(F.max(), rel=1e-3)
@@ -188,4 +189,4 @@ def test_S3_solves(tmp_path):
     res = _solve_cli("S3.toml", tmp_path)
     assert res["converged"] and res["total_load"] == pytest.approx(200.0, rel=1e-9)
     F = np.array([a["force"] for a in res["asperities"]])
-    assert np.all(F > 0)                              # every sphere touches at 200 N
+    assert np.all(F > 0)  # every sphere touches at 200 N

@@ -7,6 +7,7 @@ Checks exit code 0, the four output files, and that result.json describes the sc
 that was run (asperity count, cell size, a total load equal to the scene's under load
 control).
 """
+
 from __future__ import annotations
 
 import json
@@ -28,27 +29,32 @@ OUTPUTS = ("result.json", "fields.vtm", "pressure.png", "forces.png")
 
 def coarse_h(scene) -> float:
     """Three times the scene's cell size, capped so the smallest sphere keeps ~8 cells per radius."""
-    h = scene.h if scene.h is not None else 0.13        # the default rule's choice for hertz_sphere
+    h = scene.h if scene.h is not None else 0.13  # the default rule's choice for hertz_sphere
     r_min = min(a.R for a in scene.asperities)
     return min(3.0 * h, r_min / 16.0)
 
 
 def run_cli(scene_path: Path, out: Path, *extra: str) -> subprocess.CompletedProcess:
     env = dict(os.environ, OMP_NUM_THREADS="1", PYTHONPATH=str(ROOT) + os.pathsep + os.environ.get("PYTHONPATH", ""))
-    return subprocess.run([sys.executable, "-m", "twoscale", "solve", str(scene_path), "--out", str(out),
-                           "--quiet", *extra], capture_output=True, text=True, env=env, cwd=str(ROOT),
-                          timeout=600)
+    return subprocess.run(
+        [sys.executable, "-m", "twoscale", "solve", str(scene_path), "--out", str(out), "--quiet", *extra],
+        capture_output=True,
+        text=True,
+        env=env,
+        cwd=str(ROOT),
+        timeout=600,
+    )
 
 
 def check_outputs(proc, scene, out: Path, h: float, h_source: str = "scene") -> None:
     assert proc.returncode == 0, proc.stderr
-    assert proc.stdout == ""                            # --quiet
+    assert proc.stdout == ""  # --quiet
     for name in OUTPUTS:
         assert (out / name).is_file() and (out / name).stat().st_size > 0, name
     res = json.loads((out / "result.json").read_text())
     assert res["converged"] is True
     assert len(res["asperities"]) == len(scene.asperities)
-    if h is not None:                                   # None: the default rule chose it
+    if h is not None:  # None: the default rule chose it
         assert res["h"] == pytest.approx(h)
     assert res["h_source"] == (h_source if h is not None else "default")
     if scene.total_load is not None:
@@ -57,8 +63,13 @@ def check_outputs(proc, scene, out: Path, h: float, h_source: str = "scene") -> 
 
 
 def test_every_scene_is_tested():
-    assert {p.name for p in EXAMPLES} >= {"paper_two_spheres.toml", "paper_seven_spheres.toml",
-                                          "S1.toml", "S2.toml", "S3.toml"}
+    assert {p.name for p in EXAMPLES} >= {
+        "paper_two_spheres.toml",
+        "paper_seven_spheres.toml",
+        "S1.toml",
+        "S2.toml",
+        "S3.toml",
+    }
 
 
 @pytest.mark.parametrize("path", EXAMPLES, ids=lambda p: p.stem)

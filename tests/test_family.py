@@ -2,6 +2,7 @@
 reference on the same grid: the default two-scale solve (the policy's choice) must
 converge with every tip's force within 0.5 % of the largest force and the total within
 0.5 %. A fast subset runs by default (coarse cells); the rest is marked slow."""
+
 from __future__ import annotations
 
 import numpy as np
@@ -33,8 +34,10 @@ def _check(n, kind, control, shape, seed, h):
     ref = solve_scene(scene, method="reference")
     assert ref.converged, ref.message
     F, Fr = np.asarray(res.asperities.forces), np.asarray(ref.asperities.forces)
-    assert np.max(np.abs(F - Fr)) <= 5e-3 * Fr.max(), (res.details.micro.choice.reason,
-                                                      np.max(np.abs(F - Fr)) / Fr.max())
+    assert np.max(np.abs(F - Fr)) <= 5e-3 * Fr.max(), (
+        res.details.micro.choice.reason,
+        np.max(np.abs(F - Fr)) / Fr.max(),
+    )
     assert res.total_load == pytest.approx(ref.total_load, rel=5e-3)
     # the policy's record: what it chose, why, and every attempt
     choice = res.details.micro.choice

@@ -7,6 +7,7 @@ that carry the load's moments ``x^i y^j`` (``i, j <= 2``) leave an error of orde
 ``(r / d)^3``; a single resultant at the patch centre, for an off-centre load, of order
 ``r / d``.
 """
+
 import numpy as np
 import pytest
 
@@ -61,12 +62,12 @@ def test_sources_carry_the_moments_up_to_second_order():
     S = source_strengths(pts, p[:, None], centre, delta, g.h)[:, 0]
     for i in range(3):
         for j in range(3):
-            m_cells = np.sum(g.h ** 2 * p * pts[:, 0] ** i * pts[:, 1] ** j)
+            m_cells = np.sum(g.h**2 * p * pts[:, 0] ** i * pts[:, 1] ** j)
             assert np.isclose(S @ (nodes[:, 0] ** i * nodes[:, 1] ** j), m_cells, rtol=1e-12)
 
 
 def test_far_patch_error_falls_as_the_cube_of_size_over_distance():
-    r = 0.5 * np.hypot(40 * H, 40 * H)   # half-diagonal of a 41 x 41 patch
+    r = 0.5 * np.hypot(40 * H, 40 * H)  # half-diagonal of a 41 x 41 patch
     d = np.array([4.0, 8.0, 16.0]) * r
     err = _errors(d / np.hypot(1.0, 0.3))
     order = np.log(err[:-1] / err[1:]) / np.log(2.0)
@@ -88,6 +89,6 @@ def test_far_field_beats_a_resultant_at_the_centre(seed):
     X, Y = patches[0].grid.centres()
     centre = np.array([d, 0.0]) + 0.5 * (n - 1) * H
     r = np.hypot(X - centre[0], Y - centre[1])
-    resultant = H * H * v1.sum() / (np.pi * HS.material.E_star * r)   # Boussinesq, nu-free form
+    resultant = H * H * v1.sum() / (np.pi * HS.material.E_star * r)  # Boussinesq, nu-free form
     old = np.abs(resultant - exact).max() / np.abs(exact).max()
     assert err < old / 5.0, (err, old)

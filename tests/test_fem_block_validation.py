@@ -8,6 +8,7 @@ infinite layer (the free sides), which two FEM routes confirm and which fades as
 block widens. All slow
 (one Q2-Q1 factorisation of ~39k unknowns each, 10-30 s on this machine).
 """
+
 import numpy as np
 import pytest
 
@@ -60,8 +61,10 @@ def test_sliding_far_ratio_is_the_finite_block_by_two_fem_routes(sliding):
     cell = solve_cell_load(MAT, boundary="sliding", h_cell=2.0, r=R[2:], growth=1.5, h_coarse=8.0, per_cell=4)
     assert cell.converged
     direct_ratio = cell.u[0] / 2.0**2 * np.pi * MAT.E_star * R[2]
-    print(f"sliding, r = 20 mm: provider {provider_ratio:.4f}, direct {direct_ratio:.4f}, "
-          f"layer {point_ratio(R[2:], 20.0, 0.5, 'sliding')[0]:.4f}")
+    print(
+        f"sliding, r = 20 mm: provider {provider_ratio:.4f}, direct {direct_ratio:.4f}, "
+        f"layer {point_ratio(R[2:], 20.0, 0.5, 'sliding')[0]:.4f}"
+    )
     assert provider_ratio == pytest.approx(direct_ratio, abs=0.005)
     # and it is not the layer's value: the difference is the block's, larger than the routes' gap
     layer = point_ratio(R[2:], 20.0, 0.5, "sliding")[0]
@@ -73,8 +76,9 @@ def test_widening_the_sliding_block_moves_the_far_ratio_to_the_layer(sliding):
     layer = point_ratio(R[2:], 20.0, 0.5, "sliding")[0]
     gaps = [abs(_ratios(sliding, R[2:])[0] - layer)]
     for L, hc in ((210.0, 16.0), (280.0, 20.0)):
-        wide = BlockProvider(material=MAT, base="sliding", size=(L, L, 20.0), h_coarse=hc,
-                             use_cache=False, progress=False)
+        wide = BlockProvider(
+            material=MAT, base="sliding", size=(L, L, 20.0), h_coarse=hc, use_cache=False, progress=False
+        )
         gaps.append(abs(_ratios(wide, R[2:])[0] - layer))
     print(f"|ratio - layer| at r = 20 mm for 140, 210, 280 mm blocks: {gaps}")
     assert gaps[0] > gaps[1] > gaps[2]
@@ -82,8 +86,9 @@ def test_widening_the_sliding_block_moves_the_far_ratio_to_the_layer(sliding):
 
 
 def test_sliding_wide_block_is_the_layer():
-    wide = BlockProvider(material=MAT, base="sliding", size=(280.0, 280.0, 20.0), h_coarse=20.0,
-                         use_cache=False, progress=False)
+    wide = BlockProvider(
+        material=MAT, base="sliding", size=(280.0, 280.0, 20.0), h_coarse=20.0, use_cache=False, progress=False
+    )
     np.testing.assert_allclose(_ratios(wide), point_ratio(R, 20.0, 0.5, "sliding"), atol=0.01)
 
 
@@ -98,9 +103,16 @@ def test_correction_vanishes_as_block_grows(bonded):
     c = [bonded.correction(np.array([[5.0, 0.0]]), np.zeros((1, 2)))[0, 0]]
     scales = [1.0, 2.0, 4.0]
     for s in scales[1:]:
-        big = BlockProvider(material=MAT, size=(140.0 * s, 140.0 * s, 20.0 * s), h_fine=5.0 * s,
-                            h_coarse=12.0 * s, fine_half_width=25.0 * s, source_spacing=5.0 * s,
-                            use_cache=False, progress=False)
+        big = BlockProvider(
+            material=MAT,
+            size=(140.0 * s, 140.0 * s, 20.0 * s),
+            h_fine=5.0 * s,
+            h_coarse=12.0 * s,
+            fine_half_width=25.0 * s,
+            source_spacing=5.0 * s,
+            use_cache=False,
+            progress=False,
+        )
         c.append(big.correction(np.array([[5.0, 0.0]]), np.zeros((1, 2)))[0, 0])
     rate = np.polyfit(np.log(scales), np.log(np.abs(c)), 1)[0]
     print(f"|C(5 mm)| for block scale {scales}: {np.abs(c)}; rate {rate:.3f}")

@@ -1,4 +1,5 @@
 """Boussinesq interior fields: surface limit, Hooke's law, equilibrium, resultant force."""
+
 import numpy as np
 import pytest
 
@@ -14,7 +15,7 @@ def test_surface_displacement_is_boussinesq(nu):
     u = point_displacement(pts, mat, P=2.0)
     np.testing.assert_allclose(u[:, 2], 2.0 * (1 - nu**2) / (np.pi * mat.E * r), rtol=1e-13)
     # radial surface displacement: -(1-2nu)(1+nu) P / (2 pi E r) (towards the load)
-    ur = (u[:, 0] * np.cos(0.7) + u[:, 1] * np.sin(0.7))
+    ur = u[:, 0] * np.cos(0.7) + u[:, 1] * np.sin(0.7)
     np.testing.assert_allclose(ur, -(1 - 2 * nu) * (1 + nu) * 2.0 / (2 * np.pi * mat.E * r), atol=1e-14)
 
 
@@ -24,7 +25,7 @@ def _num_grad(f, p, eps=1e-5):
         dp = np.zeros(3)
         dp[d] = eps
         cols.append((f(p + dp) - f(p - dp)) / (2 * eps))
-    return np.stack(cols, axis=-1)        # [..., component, derivative]
+    return np.stack(cols, axis=-1)  # [..., component, derivative]
 
 
 @pytest.mark.parametrize("nu", [0.25, 0.49])

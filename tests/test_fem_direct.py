@@ -9,6 +9,7 @@
   midpoint rule over the cell ~ (h/t)^2/24 = 0.04 %; bound 0.5 % of max |C|).
 Slow: three solves of ~65k unknowns (1-2 min each on this machine).
 """
+
 import numpy as np
 import pytest
 
@@ -50,8 +51,7 @@ def near_cell():
     love = love_rectangle(r, 0 * r, H_CELL / 2, H_CELL / 2, MAT.E_star)
     out = {}
     for per_cell in (4, 6):
-        res = solve_cell_load(MAT, boundary="halfspace", size=(20.0, 20.0, 10.0), h_cell=H_CELL, r=r,
-                              per_cell=per_cell)
+        res = solve_cell_load(MAT, boundary="halfspace", size=(20.0, 20.0, 10.0), h_cell=H_CELL, r=r, per_cell=per_cell)
         assert res.converged
         out[per_cell] = np.abs(res.u / love - 1)
     return out
@@ -68,7 +68,7 @@ def test_near_cell_error_falls_with_the_local_mesh(near_cell):
     # 1.41 % -> 0.31 % at r = 0 (order 3.7) from 4 to 6 elements per side
     order = np.log(near_cell[4][0] / near_cell[6][0]) / np.log(6 / 4)
     assert order > 2.0
-    assert near_cell[4].max() > 0.01 > near_cell[6].max()     # the old default missed the target
+    assert near_cell[4].max() > 0.01 > near_cell[6].max()  # the old default missed the target
 
 
 @pytest.mark.parametrize("base", ["bonded", "sliding"])

@@ -7,6 +7,7 @@
   clearly from the half-space (so the comparison can fail).
 Slow: each block needs one factorisation.
 """
+
 import numpy as np
 import pytest
 
@@ -24,7 +25,7 @@ from twoscale.reference import solve_reference
 pytestmark = pytest.mark.slow
 
 MAT = Material(E=6.0, nu=0.5)
-R_SPHERE, D = 10.0, 0.2          # contact radius sqrt(R d) = 1.41 mm, 28 cells across at h = 0.1
+R_SPHERE, D = 10.0, 0.2  # contact radius sqrt(R d) = 1.41 mm, 28 cells across at h = 0.1
 H = 0.1
 
 
@@ -47,7 +48,7 @@ class LayerProvider(InfluenceProvider):
         t = np.asarray(targets, float).reshape(-1, 2)
         s = np.asarray(sources, float).reshape(-1, 2)
         r = np.hypot(t[:, None, 0] - s[None, :, 0], t[:, None, 1] - s[None, :, 1])
-        r = np.maximum(r, 1e-4 * self.t)              # C is smooth: its r -> 0 limit
+        r = np.maximum(r, 1e-4 * self.t)  # C is smooth: its r -> 0 limit
         ru = np.unique(r)
         c = (point_ratio(ru, self.t, self.material.nu, self.base) - 1.0) / (np.pi * self.material.E_star * ru)
         return c[np.searchsorted(ru, r)]
@@ -65,6 +66,7 @@ class LayerProvider(InfluenceProvider):
         class _Dense(GridOperator):
             def apply(self_inner, p):
                 return (M @ np.asarray(p).ravel()).reshape(target.shape)
+
         op = _Dense()
         op.target, op.source = target, source
         return op

@@ -1,5 +1,6 @@
 """Layer theory (docs/method.md section 6): its limits (thick layer, long waves) and its
 Hankel integral against adaptive quadrature."""
+
 import numpy as np
 import pytest
 from scipy.integrate import quad
@@ -32,7 +33,7 @@ def test_long_wave_limit_is_the_layer_compressed_as_a_whole(nu):
     # Sliding base: no shear on either face, so no lateral stress along the wave and plane
     # strain across it: c = (1 - nu^2) / E = 1 / E*. Elementary elasticity, not this code.
     E = 1.0
-    E_star = E / (1 - nu ** 2)
+    E_star = E / (1 - nu**2)
     confined = (1 + nu) * (1 - 2 * nu) / (E * (1 - nu))
     s = 1e-5
     assert layer_factor(s, nu, "bonded") / s == pytest.approx(E_star * confined / 2, abs=1e-6)

@@ -1,4 +1,5 @@
 """Block mesh recipe and the meshio reader/writer."""
+
 import numpy as np
 import pytest
 
@@ -12,7 +13,7 @@ def test_graded_axis_spacing():
     assert np.all(dx > 0)
     inside = (x[:-1] >= -20.0) & (x[1:] <= 20.0)
     assert np.all(dx[inside] <= 5.0 + 1e-12)
-    assert dx.max() <= 1.5 * 12.0          # last interval may stretch to reach the end
+    assert dx.max() <= 1.5 * 12.0  # last interval may stretch to reach the end
     # neighbouring elements differ by at most the growth ratio (plus the end stretch)
     assert np.all(dx[1:] / dx[:-1] < 1.5 * 1.3) and np.all(dx[:-1] / dx[1:] < 1.5 * 1.3)
 
@@ -30,6 +31,7 @@ def test_block_mesh_extent_and_volume():
     np.testing.assert_allclose(lo, [-70.0, -50.0, 0.0])
     np.testing.assert_allclose(hi, [70.0, 50.0, 20.0])
     from skfem import CellBasis, ElementHex1
+
     vol = CellBasis(m, ElementHex1()).dx.sum()
     assert vol == pytest.approx(140.0 * 100.0 * 20.0, rel=1e-12)
 
@@ -45,6 +47,7 @@ def test_meshio_roundtrip(tmp_path, suffix):
     assert r.nelements == m.nelements
     np.testing.assert_allclose(np.sort(r.p, axis=1), np.sort(m.p, axis=1), atol=1e-9)
     from skfem import CellBasis, ElementHex1
+
     dx = CellBasis(r, ElementHex1()).dx
     assert np.all(dx > 0)
     assert dx.sum() == pytest.approx(60.0 * 40.0 * 10.0, rel=1e-10)
@@ -52,11 +55,13 @@ def test_meshio_roundtrip(tmp_path, suffix):
 
 def test_reader_recentres_top_face(tmp_path):
     import meshio
+
     m = block_mesh((20.0, 20.0, 5.0), h_fine=5.0, h_coarse=5.0)
     p = m.p.T.copy()
-    p[:, 2] = -p[:, 2] + 7.0          # top face at z = 7
-    p[:, 0] += 100.0                  # footprint centred at x = 100
+    p[:, 2] = -p[:, 2] + 7.0  # top face at z = 7
+    p[:, 0] += 100.0  # footprint centred at x = 100
     from skfem.io.meshio import HEX_MAPPING
+
     meshio.write(tmp_path / "b.vtu", meshio.Mesh(p, [("hexahedron", m.t.T[:, HEX_MAPPING[:8]])]))
     r = read_block_mesh(tmp_path / "b.vtu")
     np.testing.assert_allclose(r.p.min(axis=1), [-10.0, -10.0, 0.0], atol=1e-12)
@@ -65,6 +70,7 @@ def test_reader_recentres_top_face(tmp_path):
 
 def test_reader_rejects_non_hex(tmp_path):
     import meshio
+
     meshio.write(tmp_path / "t.vtu", meshio.Mesh(np.eye(3), [("triangle", np.array([[0, 1, 2]]))]))
     with pytest.raises(ValueError, match="hexahedron"):
         read_block_mesh(tmp_path / "t.vtu")

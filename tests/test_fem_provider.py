@@ -4,6 +4,7 @@ A 60 x 60 x 10 mm block meshed at 5-10 mm keeps these tests to seconds; the
 validation against docs/method.md section 6 on the 140 x 140 x 20 mm block is in
 test_fem_block_validation.py (slow).
 """
+
 import numpy as np
 import pytest
 
@@ -43,6 +44,7 @@ def test_small_block_against_layer_theory(block):
     # sides 3 thicknesses away: the centre of a 60 x 60 x 10 block is close to an
     # infinite 10 mm layer (independent Hankel-transform solution) for r <= t
     from fem_influence.layer import point_ratio
+
     r = np.array([1.0, 2.5, 5.0, 10.0])
     C = block.correction(np.column_stack([r, 0 * r]), np.zeros((1, 2)))[:, 0]
     C_layer = (point_ratio(r, 10.0, 0.5) - 1.0) / (np.pi * MAT.E_star * r)
@@ -62,6 +64,7 @@ def test_source_interpolation_error(block):
     # source; halving the spacing must cut the error by ~2^4, and at spacing/thickness
     # = 0.25 (the default 5 mm on 20 mm) it must be below 0.2 % of |C|
     from scipy.interpolate import CloughTocher2DInterpolator
+
     solver = CorrectionSolver.build(block.mesh, MAT.nu, "bonded")
     srcs = np.array([[2.3, -1.7], [1.25, 1.25], [6.2, 3.9]])
     tgt = np.array([[0.0, 0.0], [5.0, 5.0], [-8.0, 2.0], [2.3, -1.7]])
@@ -86,8 +89,9 @@ def test_cell_block_grid_matrix_operator_agree(block):
     p = np.random.default_rng(1).random(g.shape)
     np.testing.assert_allclose(block.grid_operator(g).apply(p).ravel(), dense @ p.ravel(), rtol=1e-10)
     ps = p[1:4, 2:6]
-    np.testing.assert_allclose(block.grid_operator(g, sub).apply(ps).ravel(),
-                               block.grid_matrix(g, sub) @ ps.ravel(), rtol=1e-10)
+    np.testing.assert_allclose(
+        block.grid_operator(g, sub).apply(ps).ravel(), block.grid_matrix(g, sub) @ ps.ravel(), rtol=1e-10
+    )
 
 
 def test_self_compliance_is_diagonal(block):
@@ -99,8 +103,7 @@ def test_self_compliance_is_diagonal(block):
 def test_origin_shifts_the_scene(block):
     shifted = BlockProvider(material=MAT, origin=(4.0, -2.0), mesh=block.mesh, use_cache=False, progress=False)
     t, s = np.array([[1.0, 2.0], [-3.0, 0.5]]), np.array([[0.0, 0.0], [2.0, 1.0]])
-    np.testing.assert_allclose(shifted.correction(t, s), block.correction(t + [4.0, -2.0], s + [4.0, -2.0]),
-                               rtol=1e-12)
+    np.testing.assert_allclose(shifted.correction(t, s), block.correction(t + [4.0, -2.0], s + [4.0, -2.0]), rtol=1e-12)
 
 
 def test_modulus_scaling(block):
@@ -119,7 +122,7 @@ def test_disk_cache_roundtrip(tmp_path, monkeypatch):
     assert len(files) == 1
     warm = BlockProvider(material=MAT, progress=False, **SMALL)
     C2 = warm.correction(t, s)
-    assert warm._state.solver is None            # nothing solved, nothing factorised
+    assert warm._state.solver is None  # nothing solved, nothing factorised
     np.testing.assert_array_equal(C1, C2)
     other = BlockProvider(material=Material(2.0, 0.45), progress=False, **SMALL)
     assert other._state.fields.key != warm._state.fields.key
@@ -150,6 +153,7 @@ def test_nu_half_against_nearly_half(block):
 
 def test_user_mesh_file(block, tmp_path):
     from meshes import write_block_mesh
+
     path = tmp_path / "user.vtu"
     write_block_mesh(block.mesh, path)
     user = BlockProvider(material=MAT, mesh=str(path), use_cache=False, progress=False)
@@ -195,12 +199,12 @@ def test_tilt_on_the_block_matches_the_reference(block):
     from twoscale.indenters import Asperity, surface_on
     from twoscale.reference import solve_cg
     from twoscale.driver import solve_twoscale
+
     asp = [Asperity(0.0, 0.0, 0.0, 5.0), Asperity(8.0, 0.0, 0.0, 5.0), Asperity(0.0, 8.0, 0.0, 4.0)]
     h, W = 0.1, 4.0
     res = solve_twoscale(block, asp, h=h, total_load=W, tilt=True, tol=1e-9)
     assert res.converged, res.message
-    ref = solve_cg(block, surface_on(Grid.covering(-6.0, 14.0, -6.0, 14.0, h), asp), total_load=W,
-                   tilt=True, tol=1e-10)
+    ref = solve_cg(block, surface_on(Grid.covering(-6.0, 14.0, -6.0, 14.0, h), asp), total_load=W, tilt=True, tol=1e-10)
     assert ref.converged
     Fr = np.asarray(ref.asperities.forces)
     assert Fr[1] > 0.01 * W and Fr[2] > 0.01 * W

@@ -6,6 +6,7 @@ the ten most loaded when many), markers on loaded tips only, titles naming the s
 the body, a colour scale that one huge corner peak does not flatten, ``ax=`` honoured,
 distinct colours and legends beside the lines in the study figures.
 """
+
 import dataclasses
 import json
 
@@ -38,7 +39,7 @@ BLOCK = {"influence": {"kind": "block", "size": [60.0, 60.0, 10.0], "base": "bon
 def _patch(cx, cy, a, p0, h, owner):
     g = Grid.covering(cx - 1.2 * a, cx + 1.2 * a, cy - 1.2 * a, cy + 1.2 * a, h)
     X, Y = g.centres()
-    p = p0 * np.sqrt(np.clip(1 - ((X - cx) ** 2 + (Y - cy) ** 2) / a ** 2, 0, None))
+    p = p0 * np.sqrt(np.clip(1 - ((X - cx) ** 2 + (Y - cy) ** 2) / a**2, 0, None))
     return PressureField(g, p, np.full(g.shape, owner), np.where(p > 0, 0.0, 0.1))
 
 
@@ -59,8 +60,7 @@ def _scene(n, seed=0, unloaded_every=4):
 
 
 def _numbers(fig):
-    return {int(t.get_text()): tuple(np.round(t.xy, 9)) for ax in fig.axes for t in ax.texts
-            if t.get_text().isdigit()}
+    return {int(t.get_text()): tuple(np.round(t.xy, 9)) for ax in fig.axes for t in ax.texts if t.get_text().isdigit()}
 
 
 def _expected_numbers(tips, values, among):
@@ -77,11 +77,13 @@ def saved(monkeypatch):
     import twoscale.plot.difference
     import twoscale.plot.forces
     import twoscale.plot.maps
+
     figs = []
 
     def keep(fig, path, **kw):
         figs.append(fig)
         return fig_mod.save_png(fig, path, **kw)
+
     for mod in (twoscale.plot.forces, twoscale.plot.maps, twoscale.plot.difference):
         monkeypatch.setattr(mod, "save_png", keep)
     return figs
@@ -91,8 +93,15 @@ def saved(monkeypatch):
 def test_every_figure_at_any_number_of_tips(n, tmp_path, saved):
     res, tips, loaded = _scene(n)
     # the "block": the same contacts, tip forces changed by -20 % to +20 % along the scene
-    other = ContactResult("twoscale", res.fields, 0.1, None, res.total_load,
-                          dataclasses.replace(res.asperities, forces=res.forces * np.linspace(0.8, 1.2, n)), True)
+    other = ContactResult(
+        "twoscale",
+        res.fields,
+        0.1,
+        None,
+        res.total_load,
+        dataclasses.replace(res.asperities, forces=res.forces * np.linspace(0.8, 1.2, n)),
+        True,
+    )
     road = Caption(scene=BLOCK, name="road")
     pmap = pressure_map(res, tmp_path / "p.png", tips=tips, caption=road)
     force_bars(res, tmp_path / "f.png", tips=tips, macro_forces=res.forces, caption=road)
@@ -110,7 +119,7 @@ def test_every_figure_at_any_number_of_tips(n, tmp_path, saved):
     assert _numbers(fig_p) == _expected_numbers(tips, forces, loaded)
     if n > 30:
         assert _numbers(fig_f) == _expected_numbers(tips, forces, loaded)
-    if n > 1:   # the difference map numbers the largest changes among the loaded tips
+    if n > 1:  # the difference map numbers the largest changes among the loaded tips
         change = np.abs(other.forces - forces)
         assert _numbers(saved[-1]) == _expected_numbers(tips, change, loaded)
     for fig in saved:
@@ -119,16 +128,19 @@ def test_every_figure_at_any_number_of_tips(n, tmp_path, saved):
 
 def test_titles_name_the_scene_and_the_body(tmp_path):
     from helpers import png_info
+
     res, tips, _ = _scene(5)
     p = pressure_map(res, tmp_path / "p.png", tips=tips, caption=Caption(scene=BLOCK, name="road"))
-    f = force_bars(res, tmp_path / "f.png", tips=tips,
-                   caption=Caption(scene={"influence": {"kind": "halfspace"}}, name="S1"))
+    f = force_bars(
+        res, tmp_path / "f.png", tips=tips, caption=Caption(scene={"influence": {"kind": "halfspace"}}, name="S1")
+    )
     assert "road on a 60 x 60 x 10 mm block, bonded base" in png_info(p)[1]["Title"]
     assert "S1 on the half-space" in png_info(f)[1]["Title"]
     assert body_text(None) == "half-space"
     # compare's record names each panel's body
     meta = {"bodies": {"block-bonded": {"influence": BLOCK["influence"]}}}
     from twoscale.plot.maps import _panel_body
+
     assert _panel_body(meta, "block-bonded") == "60 x 60 x 10 mm block, bonded base"
     m = compare_maps({"block-bonded": res}, tmp_path / "m.png", tips=tips, caption=Caption(meta=meta, name="road"))
     assert json.loads(png_info(m)[1]["Description"])["bodies"] == meta["bodies"]
@@ -147,8 +159,8 @@ def test_one_huge_corner_peak_does_not_flatten_the_scale(tmp_path):
     fig = plot_pressure_map(peaky, tips=tips, caption=Caption(scene=BLOCK, name="road"))
     ax, cax = fig.axes[0], fig.axes[1]
     top = ax.images[0].norm.vmax
-    assert top <= 1.0 + 1e-9                          # the scale ends among the ordinary cells
-    assert "peak 1e+03 MPa at tip 1" in ax.get_title()   # the true peak and its tip, reported
+    assert top <= 1.0 + 1e-9  # the scale ends among the ordinary cells
+    assert "peak 1e+03 MPa at tip 1" in ax.get_title()  # the true peak and its tip, reported
     assert "peak 1e+03" in cax.get_ylabel()
     # a smooth map is not clipped: the scale ends at its peak
     smooth = robust_scale(np.concatenate([f.pressure.ravel() for f in res.fields]))
@@ -158,6 +170,7 @@ def test_one_huge_corner_peak_does_not_flatten_the_scale(tmp_path):
 
 def test_plot_functions_draw_into_a_given_axes_and_return_its_figure():
     from matplotlib.figure import Figure
+
     res, tips, _ = _scene(40)
     fig = Figure()
     sub = fig.subfigures(1, 2)
@@ -176,28 +189,44 @@ def _study_rows(n_tips=40, loads=(100.0, 200.0), positions=(0, 1, 2)):
         for pos in positions:
             key = f"k{li}{pos}"
             f = np.linspace(1.0, 2.0, n_tips) * W / n_tips * (1 + 0.1 * pos)
-            cases.append({"scene": "S2", "body": "block", "position": pos, "load_kind": "total", "load": W,
-                          "distance_mm": 5.0 * pos, "total_load_N": float(f.sum()), "approach_mm": 0.1 * (li + 1),
-                          "contact_area_mm2": 10.0 * (li + 1), "key": key})
-            tips += [{"scene": "S2", "body": "block", "position": pos, "asperity": k + 1, "force_N": float(f[k]),
-                      "key": key} for k in range(n_tips)]
+            cases.append(
+                {
+                    "scene": "S2",
+                    "body": "block",
+                    "position": pos,
+                    "load_kind": "total",
+                    "load": W,
+                    "distance_mm": 5.0 * pos,
+                    "total_load_N": float(f.sum()),
+                    "approach_mm": 0.1 * (li + 1),
+                    "contact_area_mm2": 10.0 * (li + 1),
+                    "key": key,
+                }
+            )
+            tips += [
+                {"scene": "S2", "body": "block", "position": pos, "asperity": k + 1, "force_N": float(f[k]), "key": key}
+                for k in range(n_tips)
+            ]
     return cases, tips
 
 
 def test_study_figures_distinct_colours_and_legend_beside_the_lines(tmp_path):
     from twoscale.studies.figures import asperity_forces, track
+
     cases, tips = _study_rows()
     bodies = {"block": {"kind": "block", "size": [140.0, 140.0, 20.0], "base": "bonded"}}
     for draw in (asperity_forces, track):
         path = draw(cases, tips, "S2", "block", tmp_path / f"{draw.__name__}.png", {}, bodies)
         from helpers import png_info
+
         assert "S2 on block (140 x 140 x 20 mm block, bonded base)" in png_info(path)[1]["Title"]
     from twoscale.studies.figures import plot_tip_forces
+
     fig = plot_tip_forces(cases, tips, "S2", "block")
     ax = fig.axes[0]
     colours = [ln.get_color() for ln in ax.lines]
-    assert len(colours) == 10 and len(set(colours)) == 10        # the 10 most loaded, no colour twice
+    assert len(colours) == 10 and len(set(colours)) == 10  # the 10 most loaded, no colour twice
     assert [ln.get_label() for ln in ax.lines][:3] == ["tip 40", "tip 39", "tip 38"]
     fig.canvas.draw()
     legend, axes_box = ax.get_legend().get_window_extent(), ax.get_window_extent()
-    assert legend.x0 >= axes_box.x1                              # beside the plot, over no line
+    assert legend.x0 >= axes_box.x1  # beside the plot, over no line

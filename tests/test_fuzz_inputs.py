@@ -8,6 +8,7 @@ stub: the solve itself is tested elsewhere), so every check made before solving 
 exercised, the memory estimate included. A few hundred examples in the default run;
 ``-m slow`` runs thousands.
 """
+
 from __future__ import annotations
 
 import copy
@@ -25,30 +26,91 @@ from hypothesis import strategies as st
 from twoscale.cli import solve as solve_cli
 from twoscale.cli.main import main
 
-FAST = settings(max_examples=150, deadline=None, derandomize=True,
-                suppress_health_check=[HealthCheck.too_slow, HealthCheck.function_scoped_fixture])
-MANY = settings(max_examples=3000, deadline=None, derandomize=True,
-                suppress_health_check=[HealthCheck.too_slow, HealthCheck.function_scoped_fixture])
+FAST = settings(
+    max_examples=150,
+    deadline=None,
+    derandomize=True,
+    suppress_health_check=[HealthCheck.too_slow, HealthCheck.function_scoped_fixture],
+)
+MANY = settings(
+    max_examples=3000,
+    deadline=None,
+    derandomize=True,
+    suppress_health_check=[HealthCheck.too_slow, HealthCheck.function_scoped_fixture],
+)
 
 # ------------------------------------------------------------------ TOML values
-SPECIAL = [0, -1, 1, 2, 0.0, -0.0, 1e-320, 1e-12, 0.5, 0.4999999, 0.50001, -1.0, 1e12, 1e308, -1e308,
-           math.nan, math.inf, -math.inf, 2 ** 63 - 1, -(2 ** 63), "", "mm", "sphere", "paraboloid",
-           "block", "halfspace", "bonded", "sliding", True, False]
+SPECIAL = [
+    0,
+    -1,
+    1,
+    2,
+    0.0,
+    -0.0,
+    1e-320,
+    1e-12,
+    0.5,
+    0.4999999,
+    0.50001,
+    -1.0,
+    1e12,
+    1e308,
+    -1e308,
+    math.nan,
+    math.inf,
+    -math.inf,
+    2**63 - 1,
+    -(2**63),
+    "",
+    "mm",
+    "sphere",
+    "paraboloid",
+    "block",
+    "halfspace",
+    "bonded",
+    "sliding",
+    True,
+    False,
+]
 scalars = st.one_of(
     st.sampled_from(SPECIAL),
     st.booleans(),
-    st.integers(-(2 ** 63), 2 ** 63 - 1),
+    st.integers(-(2**63), 2**63 - 1),
     st.floats(allow_nan=True, allow_infinity=True),
     st.text(max_size=6),
     st.datetimes(min_value=datetime.datetime(1, 1, 1), max_value=datetime.datetime(9999, 1, 1)),
     st.dates(),
 )
-keys = st.one_of(st.sampled_from(["x", "y", "z", "R", "E", "nu", "h", "total", "penetration", "kind",
-                                  "size", "base", "origin", "shape", "file", "law", "crop", "tilt"]),
-                 st.text(min_size=1, max_size=5))
-values = st.recursive(scalars, lambda inner: st.one_of(st.lists(inner, max_size=4),
-                                                       st.dictionaries(keys, inner, max_size=3)),
-                      max_leaves=6)
+keys = st.one_of(
+    st.sampled_from(
+        [
+            "x",
+            "y",
+            "z",
+            "R",
+            "E",
+            "nu",
+            "h",
+            "total",
+            "penetration",
+            "kind",
+            "size",
+            "base",
+            "origin",
+            "shape",
+            "file",
+            "law",
+            "crop",
+            "tilt",
+        ]
+    ),
+    st.text(min_size=1, max_size=5),
+)
+values = st.recursive(
+    scalars,
+    lambda inner: st.one_of(st.lists(inner, max_size=4), st.dictionaries(keys, inner, max_size=3)),
+    max_leaves=6,
+)
 
 
 def toml_string(text: str) -> str:
@@ -142,11 +204,13 @@ BASE_SCENE = {
     "material": {"E": 10.0, "nu": 0.5},
     "load": {"penetration": 0.05},
     "grid": {"h": 0.1},
-    "asperity": [{"x": -3.0, "y": 0.0, "R": 10.0},
-                 {"x": 3.0, "y": 0.0, "z": 0.01, "R": 10.0, "shape": "paraboloid"}],
+    "asperity": [{"x": -3.0, "y": 0.0, "R": 10.0}, {"x": 3.0, "y": 0.0, "z": 0.01, "R": 10.0, "shape": "paraboloid"}],
 }
-BLOCK_SCENE = dict(copy.deepcopy(BASE_SCENE), load={"total": 5.0, "tilt": True, "pivot": [0.0, 0.0]},
-                   influence={"kind": "block", "size": [60.0, 60.0, 10.0], "base": "bonded"})
+BLOCK_SCENE = dict(
+    copy.deepcopy(BASE_SCENE),
+    load={"total": 5.0, "tilt": True, "pivot": [0.0, 0.0]},
+    influence={"kind": "block", "size": [60.0, 60.0, 10.0], "base": "bonded"},
+)
 
 
 class _Reached(Exception):
@@ -181,7 +245,7 @@ def _run_scene(data: dict, capsys, touched=None) -> None:
         err = capsys.readouterr().err
         assert code == 2, err
         line = _one_line(err)
-        if touched:   # the line names what was changed
+        if touched:  # the line names what was changed
             assert any(name in line for name in _names(touched)), (touched, line)
 
 
@@ -192,8 +256,7 @@ def test_scene_files_from_random_values_validate_or_fail_in_one_line(case, capsy
 
 
 @FAST
-@given(data=st.dictionaries(keys | st.sampled_from(list(BASE_SCENE) + ["influence", "surface"]), values,
-                            max_size=5))
+@given(data=st.dictionaries(keys | st.sampled_from(list(BASE_SCENE) + ["influence", "surface"]), values, max_size=5))
 def test_scene_files_of_random_structure_fail_in_one_line(data, capsys, solve_stub):
     _run_scene(data, capsys)
 
@@ -221,8 +284,10 @@ SCENE_TEXT = toml_text(BASE_SCENE)
 BASE_STUDY = {
     "study": {"name": "fuzz", "method": "twoscale"},
     "scene": [{"file": "scene.toml", "name": "pair"}],
-    "body": [{"name": "hs", "kind": "halfspace", "window": [20.0, 10.0]},
-             {"name": "blk", "kind": "block", "size": [60.0, 60.0, 10.0], "base": "sliding"}],
+    "body": [
+        {"name": "hs", "kind": "halfspace", "window": [20.0, 10.0]},
+        {"name": "blk", "kind": "block", "size": [60.0, 60.0, 10.0], "base": "sliding"},
+    ],
     "load": {"penetration": [0.05, 0.1]},
     "positions": {"start": [0.0, 0.0], "end": [1.0, 0.0], "step": 0.5},
     "solver": {"h": 0.1, "tol": 1e-8},
@@ -240,7 +305,7 @@ def _check_study(data: dict, touched=None) -> None:
         path.write_text(toml_text(data), encoding="utf-8")
         try:
             study = read_study(path)
-            study_digest(study)     # the expansion into cases and their keys
+            study_digest(study)  # the expansion into cases and their keys
         except ValueError as exc:
             msg = str(exc)
             assert msg and "\n" not in msg, msg
@@ -264,10 +329,13 @@ def test_study_files_many(case):
 # ------------------------------------------------------------------ height maps
 def _array(draw) -> np.ndarray:
     shape = draw(st.sampled_from([(1, 1), (1, 40), (40, 1), (3, 3), (8, 8), (24, 30), (0, 5), (5,), (2, 3, 4)]))
-    kind = draw(st.sampled_from(["random", "nan", "inf", "constant", "huge", "int", "bool", "complex", "str",
-                                 "float16", "spikes"]))
+    kind = draw(
+        st.sampled_from(
+            ["random", "nan", "inf", "constant", "huge", "int", "bool", "complex", "str", "float16", "spikes"]
+        )
+    )
     n = int(np.prod(shape))
-    rng = np.random.default_rng(draw(st.integers(0, 2 ** 32 - 1)))
+    rng = np.random.default_rng(draw(st.integers(0, 2**32 - 1)))
     z = rng.normal(size=n)
     if kind == "nan":
         z[rng.random(n) < draw(st.sampled_from([0.1, 0.9, 1.0]))] = np.nan
@@ -297,14 +365,32 @@ def _array(draw) -> np.ndarray:
 def height_maps(draw):
     arrays = {"heights": _array(draw)}
     if draw(st.booleans()):
-        arrays["spacing"] = draw(st.sampled_from([0.1, 0.5, 0.0, -1.0, np.nan, np.inf, 1e-9, 1e9, -1e-300])
-                                 .map(np.array) | st.sampled_from([np.array([0.1, 0.2]), np.array("0.1"),
-                                                                   np.array(1, dtype=np.int8)]))
+        arrays["spacing"] = draw(
+            st.sampled_from([0.1, 0.5, 0.0, -1.0, np.nan, np.inf, 1e-9, 1e9, -1e-300]).map(np.array)
+            | st.sampled_from([np.array([0.1, 0.2]), np.array("0.1"), np.array(1, dtype=np.int8)])
+        )
     if draw(st.booleans()):
         arrays["units"] = np.array(draw(st.sampled_from(["mm", "um", "nm", "m", "furlong", ""])))
-    options = draw(st.dictionaries(st.sampled_from(["spacing", "units", "fill", "detrend", "crop", "invert",
-                                                    "min_distance", "prominence", "cap_depth", "law"]),
-                                   values, max_size=2))
+    options = draw(
+        st.dictionaries(
+            st.sampled_from(
+                [
+                    "spacing",
+                    "units",
+                    "fill",
+                    "detrend",
+                    "crop",
+                    "invert",
+                    "min_distance",
+                    "prominence",
+                    "cap_depth",
+                    "law",
+                ]
+            ),
+            values,
+            max_size=2,
+        )
+    )
     return arrays, options
 
 

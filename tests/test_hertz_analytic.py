@@ -8,6 +8,7 @@ Expected figures are derived here, not copied from the code:
   penetration ``P_sphere / P_Hertz = 1 - d/(10 R) + O((d/R)^2)``: first order in d/R, the
   sphere carrying less (0.5 % at d = R/20).
 """
+
 import math
 
 import numpy as np
@@ -52,8 +53,15 @@ def test_pressure_integrates_to_load_and_peak(d):
     a = math.sqrt(R * d)
     P = float(hertz.load(R, d, E_STAR))
     # substitution r = a sin(t) removes the square-root edge for the quadrature
-    integral = integrate.quad(lambda t: 2 * math.pi * float(hertz.pressure(a * math.sin(t), R, d, E_STAR))
-                              * a * math.sin(t) * a * math.cos(t), 0.0, 0.5 * math.pi, epsabs=0, epsrel=1e-12)[0]
+    integral = integrate.quad(
+        lambda t: (
+            2 * math.pi * float(hertz.pressure(a * math.sin(t), R, d, E_STAR)) * a * math.sin(t) * a * math.cos(t)
+        ),
+        0.0,
+        0.5 * math.pi,
+        epsabs=0,
+        epsrel=1e-12,
+    )[0]
     assert integral == pytest.approx(P, rel=1e-10)
     p0 = float(hertz.max_pressure(R, d, E_STAR))
     assert p0 == pytest.approx(3 * P / (2 * math.pi * a * a), rel=1e-13)

@@ -11,6 +11,7 @@ submodule, not a dependency the code chose. Imports under ``if TYPE_CHECKING:``
 are not edges either: they are never executed (annotations are strings under
 ``from __future__ import annotations``) and only name a type for the reader.
 """
+
 from __future__ import annotations
 
 import ast
@@ -173,8 +174,7 @@ def test_errors_import_nothing_of_the_packages():
 def test_no_import_cycle():
     graph = import_graph()
     cycles = [c for c in strongly_connected(graph) if frozenset(c) not in ALLOWED_CYCLES]
-    message = "\n".join(" -> ".join(one_cycle(graph, c)) + f"   (component of {len(c)})"
-                        for c in cycles)
+    message = "\n".join(" -> ".join(one_cycle(graph, c)) + f"   (component of {len(c)})" for c in cycles)
     assert not cycles, "import cycles:\n" + message
 
 

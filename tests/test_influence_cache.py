@@ -11,6 +11,7 @@
 * on the half-space a pair operator serves every pair translated from it by whole cells,
   with the product of an operator built for the translated pair itself.
 """
+
 import time
 
 import numpy as np
@@ -28,7 +29,7 @@ def test_bound_holds_and_running_total_is_the_true_sum():
     rng = np.random.default_rng(0)
     cache = BoundedCache(10_000)
     for i in range(3000):
-        key = int(rng.integers(0, 500))            # replacements of existing keys too
+        key = int(rng.integers(0, 500))  # replacements of existing keys too
         cache.put(key, i, int(rng.integers(0, 400)))
         assert cache.nbytes <= cache.max_bytes
         if i % 97 == 0:
@@ -43,7 +44,7 @@ def test_eviction_is_least_recently_used():
     cache = BoundedCache(3)
     for key in "abc":
         cache.put(key, key.upper(), 1)
-    assert cache.get("a") == "A"                    # a is now the most recently used
+    assert cache.get("a") == "A"  # a is now the most recently used
     cache.put("d", "D", 1)
     assert "b" not in cache and list(cache.sizes()) == ["c", "a", "d"]
     assert (cache.hits, cache.evictions) == (1, 1)
@@ -60,7 +61,7 @@ def test_an_entry_larger_than_the_bound_is_not_stored():
         BoundedCache(-1)
 
 
-@pytest.mark.parametrize("max_bytes", [1e12, 1000])    # everything kept / constant eviction
+@pytest.mark.parametrize("max_bytes", [1e12, 1000])  # everything kept / constant eviction
 def test_insertion_cost_does_not_grow_with_the_entries(max_bytes):
     cache = BoundedCache(max_bytes)
     t0 = time.perf_counter()
@@ -71,13 +72,13 @@ def test_insertion_cost_does_not_grow_with_the_entries(max_bytes):
 
 
 def test_the_half_space_keeps_nothing_and_two_solvers_do_not_share_entries():
-    assert set(vars(HalfSpace(MAT))) == {"material"}      # its value, and nothing else
+    assert set(vars(HalfSpace(MAT))) == {"material"}  # its value, and nothing else
     a, b = CachedBody(HalfSpace(MAT), OperatorCaches()), CachedBody(HalfSpace(MAT), OperatorCaches())
     assert a.body == b.body and a.kind == "halfspace" and a.material == MAT
     g = Grid(0.0, 0.0, 0.1, 12, 9)
     a.grid_matrix(g)
     assert len(a.caches.tables) == 2 and len(b.caches.tables) == 0  # the table and the quadrant it was cut from
-    a.grid_operator(g)                              # the same offset table: a hit
+    a.grid_operator(g)  # the same offset table: a hit
     assert a.caches.tables.hits == 1 and b.caches.tables.hits == 0
     assert len(a.caches.operators) == 1 and len(b.caches.operators) == 0
 
@@ -98,8 +99,11 @@ def test_a_translated_pair_takes_the_operator_over(kind):
     its product equal to a fresh operator's for the moved grids (the arrays depend on the
     relative position only)."""
     body = CachedBody(HalfSpace(MAT), OperatorCaches())
-    make = (lambda t, s: body.grid_operator(t, s)) if kind == "fft" else \
-        (lambda t, s: body.separated_operator(t, s, rtol=1e-8))
+    make = (
+        (lambda t, s: body.grid_operator(t, s))
+        if kind == "fft"
+        else (lambda t, s: body.separated_operator(t, s, rtol=1e-8))
+    )
     g, other = Grid(0.0, 0.0, 0.1, 12, 9), Grid(6.0, 0.7, 0.1, 10, 11)
     body.caches.start_solve()
     make(other, g)
@@ -109,8 +113,9 @@ def test_a_translated_pair_takes_the_operator_over(kind):
     moved = make(om, gm)
     assert body.caches.kept == {kind: 1} and body.caches.built == {}
     assert moved.target == om and moved.source == gm
-    fresh = HalfSpace(MAT).grid_operator(om, gm) if kind == "fft" else \
-        HalfSpace(MAT).separated_operator(om, gm, rtol=1e-8)
+    fresh = (
+        HalfSpace(MAT).grid_operator(om, gm) if kind == "fft" else HalfSpace(MAT).separated_operator(om, gm, rtol=1e-8)
+    )
     p = np.random.default_rng(2).uniform(size=gm.shape)
     assert np.allclose(moved.apply(p), fresh.apply(p), rtol=1e-13, atol=0.0)
 
@@ -146,13 +151,19 @@ def test_offset_tables_cut_from_the_quadrant_equal_love_values():
     from twoscale.analytic.halfspace import love_rectangle
 
     hs = HalfSpace(MAT)
-    tables = BoundedCache(64e6)   # the quadrant kept between windows (and grown)
+    tables = BoundedCache(64e6)  # the quadrant kept between windows (and grown)
     h = 0.05
     rng = np.random.default_rng(3)
-    for ox0, oy0, mx, my in [(-5, -7, 11, 15), (3, -20, 4, 9), (-30, 2, 8, 5), (0, 0, 1, 1),
-                             *[tuple(int(v) for v in rng.integers(-150, 150, 2)) + tuple(int(v) for v in
-                                                                                       rng.integers(1, 120, 2))
-                               for _ in range(20)]]:
+    for ox0, oy0, mx, my in [
+        (-5, -7, 11, 15),
+        (3, -20, 4, 9),
+        (-30, 2, 8, 5),
+        (0, 0, 1, 1),
+        *[
+            tuple(int(v) for v in rng.integers(-150, 150, 2)) + tuple(int(v) for v in rng.integers(1, 120, 2))
+            for _ in range(20)
+        ],
+    ]:
         got = hs._window(h, ox0, oy0, mx, my, tables)
         ox, oy = (ox0 + np.arange(mx)) * h, (oy0 + np.arange(my)) * h
         want = love_rectangle(ox[None, :], oy[:, None], h / 2, h / 2, hs.E_star)

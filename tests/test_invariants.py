@@ -11,6 +11,7 @@ Small half-space scenes of 1-4 spheres or paraboloids under penetration or load 
 * at a fixed penetration the forces scale with E (the body is linear);
 * the two-scale solver and the full-grid reference agree.
 """
+
 from __future__ import annotations
 
 import dataclasses
@@ -41,9 +42,15 @@ def scenes(draw):
         # tips on a coarse lattice of whole cells, apart enough to be distinct asperities
         x = draw(st.integers(-30, 30)) * H + 7.0 * (k - (n - 1) / 2)
         y = draw(st.integers(-30, 30)) * H
-        tips.append(Asperity(x, y, draw(st.sampled_from([0.0, 0.005, 0.01])),
-                             draw(st.sampled_from([5.0, 8.0, 12.0])),
-                             draw(st.sampled_from(["sphere", "paraboloid"]))))
+        tips.append(
+            Asperity(
+                x,
+                y,
+                draw(st.sampled_from([0.0, 0.005, 0.01])),
+                draw(st.sampled_from([5.0, 8.0, 12.0])),
+                draw(st.sampled_from(["sphere", "paraboloid"])),
+            )
+        )
     material = Material(draw(st.sampled_from([2.0, 10.0])), draw(st.sampled_from([0.3, 0.5])))
     if draw(st.booleans()):
         return Scene(material=material, asperities=tuple(tips), penetration=draw(st.sampled_from([0.03, 0.06])), h=H)
@@ -51,8 +58,9 @@ def scenes(draw):
 
 
 def _solve(scene: Scene):
-    return solve_twoscale(HalfSpace(scene.material), scene.asperities, h=H, penetration=scene.penetration,
-                          total_load=scene.total_load)
+    return solve_twoscale(
+        HalfSpace(scene.material), scene.asperities, h=H, penetration=scene.penetration, total_load=scene.total_load
+    )
 
 
 def _box(result, margin: int = 10) -> Grid:
@@ -93,11 +101,11 @@ def test_pressure_gap_complementarity_and_load(scene):
 @given(scene=scenes(), shift=st.tuples(st.integers(-20, 20), st.integers(-20, 20)))
 def test_mirrored_and_translated_scenes(scene, shift):
     res = _solve(scene)
-    mirrored = dataclasses.replace(scene, asperities=tuple(dataclasses.replace(a, x=-a.x)
-                                                            for a in scene.asperities))
-    moved = dataclasses.replace(scene, asperities=tuple(dataclasses.replace(a, x=a.x + shift[0] * H,
-                                                                            y=a.y + shift[1] * H)
-                                                         for a in scene.asperities))
+    mirrored = dataclasses.replace(scene, asperities=tuple(dataclasses.replace(a, x=-a.x) for a in scene.asperities))
+    moved = dataclasses.replace(
+        scene,
+        asperities=tuple(dataclasses.replace(a, x=a.x + shift[0] * H, y=a.y + shift[1] * H) for a in scene.asperities),
+    )
     scale = res.forces.max()
     # the same problem on the same lattice: equal to the solver's tolerance
     np.testing.assert_allclose(_solve(moved).forces, res.forces, atol=1e-6 * scale)
@@ -113,7 +121,7 @@ def test_forces_scale_with_E_at_fixed_penetration(scene):
     np.testing.assert_allclose(F3, 3.0 * F, rtol=1e-7, atol=1e-9 * F3.max())
 
 
-@settings(FEW, max_examples=3)   # the full-grid reference is the slow one
+@settings(FEW, max_examples=3)  # the full-grid reference is the slow one
 @given(scene=scenes())
 def test_twoscale_and_reference_agree(scene):
     ts = _solve(scene)

@@ -1,4 +1,5 @@
 """Asperity laws: closed forms, inverses, tangents, the tabulated interpolant's order."""
+
 import math
 
 import numpy as np
@@ -6,8 +7,7 @@ import pytest
 
 from twoscale import Material
 from twoscale.indenters import Asperity
-from twoscale.laws import (CompliantLaw, HertzLaw, LawStack, SphereLaw, TabulatedLaw,
-                           compliant, law_for)
+from twoscale.laws import CompliantLaw, HertzLaw, LawStack, SphereLaw, TabulatedLaw, compliant, law_for
 
 E_STAR = 10.0 / 0.75
 R = 5.0
@@ -59,7 +59,7 @@ def test_sphere_tends_to_hertz_for_small_penetration():
 @pytest.mark.parametrize("name", sorted(LAWS))
 def test_round_trip(name):
     law = LAWS[name]
-    d = np.array([1e-6, 1e-3, 0.05, 0.2, 0.45, 0.8])   # 0.8 is beyond the table
+    d = np.array([1e-6, 1e-3, 0.05, 0.2, 0.45, 0.8])  # 0.8 is beyond the table
     assert np.allclose(law.penetration(law.force(d)), d, rtol=1e-9, atol=0)
     P = np.array([1e-5, 0.1, 3.0, 20.0, 120.0])
     assert np.allclose(law.force(law.penetration(P)), P, rtol=1e-9, atol=0)
@@ -98,7 +98,7 @@ def test_tabulated_reproduces_hertz_to_interpolation_order():
     inner, near0 = [], []
     for n in ns:
         law = TabulatedLaw(*hertz_table(n))
-        d = np.linspace(0.125, 0.5, 3001)   # away from the singular curvature at 0
+        d = np.linspace(0.125, 0.5, 3001)  # away from the singular curvature at 0
         inner.append(np.max(np.abs(law.force(d) - hertz.force(d))) / hertz.force(0.5))
         d0 = np.linspace(0.0, 0.5, 3001)
         near0.append(np.max(np.abs(law.force(d0) - hertz.force(d0))) / hertz.force(0.5))
@@ -121,16 +121,19 @@ def test_tabulated_extrapolation_is_power_law_and_c1():
     assert law.force(1.0) == pytest.approx(float(hertz.force(1.0)), rel=2e-3)
 
 
-@pytest.mark.parametrize("delta, P, shown", [
-    ([0.0, 0.1, 0.2], [1.0, 2.0, 3.0], "start at"),
-    ([0.1, 0.2], [0.0, 1.0], "start at"),
-    ([0.0, 0.2, 0.1], [0.0, 1.0, 2.0], "delta must be strictly increasing"),
-    ([0.0, 0.1, 0.2], [0.0, 2.0, 1.0], "P must be strictly increasing"),
-    ([0.0, 0.1, 0.2], [0.0, 1.0, 1.0], "P must be strictly increasing"),
-    ([0.0, 0.1, np.nan], [0.0, 1.0, 2.0], "non-finite"),
-    ([0.0], [0.0], "length >= 2"),
-    ([0.0, 0.1], [0.0, 1.0, 2.0], "equal length"),
-])
+@pytest.mark.parametrize(
+    "delta, P, shown",
+    [
+        ([0.0, 0.1, 0.2], [1.0, 2.0, 3.0], "start at"),
+        ([0.1, 0.2], [0.0, 1.0], "start at"),
+        ([0.0, 0.2, 0.1], [0.0, 1.0, 2.0], "delta must be strictly increasing"),
+        ([0.0, 0.1, 0.2], [0.0, 2.0, 1.0], "P must be strictly increasing"),
+        ([0.0, 0.1, 0.2], [0.0, 1.0, 1.0], "P must be strictly increasing"),
+        ([0.0, 0.1, np.nan], [0.0, 1.0, 2.0], "non-finite"),
+        ([0.0], [0.0], "length >= 2"),
+        ([0.0, 0.1], [0.0, 1.0, 2.0], "equal length"),
+    ],
+)
 def test_tabulated_rejects_invalid_tables(delta, P, shown):
     with pytest.raises(ValueError, match=shown):
         TabulatedLaw(delta, P)
@@ -154,7 +157,7 @@ def test_compliant_law_is_the_law_in_series_with_c():
 
 
 def test_compliant_law_too_negative_raises():
-    law = CompliantLaw(HertzLaw(R, E_STAR), -0.5)   # 1/|c| = 2 N/mm: Hertz passes it at delta ~ 1e-3
+    law = CompliantLaw(HertzLaw(R, E_STAR), -0.5)  # 1/|c| = 2 N/mm: Hertz passes it at delta ~ 1e-3
     with pytest.raises(ValueError, match="not monotone"):
         law.force(1.0)
 
@@ -189,14 +192,22 @@ def test_invalid_parameters_raise():
 @pytest.mark.parametrize("name", sorted(LAWS))
 def test_complementary_energy_integrates_the_inverse_law(name):
     from scipy.integrate import quad
+
     law = LAWS[name]
-    P = np.array([0.0, 0.05, 2.0, 30.0, 90.0])   # 90 N is beyond the table
+    P = np.array([0.0, 0.05, 2.0, 30.0, 90.0])  # 90 N is beyond the table
     phi = law.complementary_energy(P)
     assert phi[0] == 0.0
     kinks = getattr(law, "P_table", np.zeros(0))
     for p, value in zip(P[1:], phi[1:]):
-        ref = quad(lambda s: float(law.penetration(s)), 0.0, p, points=kinks[(kinks > 0) & (kinks < p)],
-                   epsabs=0.0, epsrel=1e-12, limit=400)[0]
+        ref = quad(
+            lambda s: float(law.penetration(s)),
+            0.0,
+            p,
+            points=kinks[(kinks > 0) & (kinks < p)],
+            epsabs=0.0,
+            epsrel=1e-12,
+            limit=400,
+        )[0]
         assert value == pytest.approx(ref, rel=1e-9)
     eps = 1e-5
     fd = (law.complementary_energy(P[2:] + eps) - law.complementary_energy(P[2:] - eps)) / (2 * eps)

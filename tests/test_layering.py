@@ -7,6 +7,7 @@ Checked two ways: no import statement in ``twoscale`` names ``fem_influence``, a
 outside the command line imports from ``twoscale.cli``, and no module imports a private
 name (``_x``) of another package folder.
 """
+
 import ast
 import os
 import pathlib
@@ -33,13 +34,22 @@ def _modules():
 
 
 def test_no_twoscale_module_imports_fem_influence():
-    offenders = [str(p.relative_to(ROOT)) for p in _modules()
-                 for module, _, _ in _imports(p) if module.split(".")[0] == "fem_influence"]
+    offenders = [
+        str(p.relative_to(ROOT))
+        for p in _modules()
+        for module, _, _ in _imports(p)
+        if module.split(".")[0] == "fem_influence"
+    ]
     assert offenders == []
     # the registry is the one place that names the package, as data
-    named = [str(p.relative_to(ROOT)) for p in _modules()
-             if any(isinstance(n, ast.Constant) and n.value == "fem_influence"
-                    for n in ast.walk(ast.parse(p.read_text(encoding="utf-8"))))]
+    named = [
+        str(p.relative_to(ROOT))
+        for p in _modules()
+        if any(
+            isinstance(n, ast.Constant) and n.value == "fem_influence"
+            for n in ast.walk(ast.parse(p.read_text(encoding="utf-8")))
+        )
+    ]
     assert named == [str(REGISTRY.relative_to(ROOT))]
 
 
@@ -55,9 +65,12 @@ def test_library_modules_do_not_import_the_command_line():
 
 
 def test_commands_import_no_private_names_of_each_other():
-    offenders = [(str(p.relative_to(ROOT)), names) for p in (PACKAGE / "cli").glob("*.py")
-                 for module, names, _ in _imports(p)
-                 if any(n.startswith("_") and n != "__version__" for n in names)]
+    offenders = [
+        (str(p.relative_to(ROOT)), names)
+        for p in (PACKAGE / "cli").glob("*.py")
+        for module, names, _ in _imports(p)
+        if any(n.startswith("_") and n != "__version__" for n in names)
+    ]
     assert offenders == []
 
 
@@ -91,14 +104,15 @@ assert block.__module__.startswith("fem_influence"), block
 
 def _run(code: str) -> subprocess.CompletedProcess:
     env = {**os.environ, "PYTHONPATH": str(ROOT), "MPLBACKEND": "Agg"}
-    return subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300,
-                          cwd=str(ROOT), env=env)
+    return subprocess.run(
+        [sys.executable, "-c", code], capture_output=True, text=True, timeout=300, cwd=str(ROOT), env=env
+    )
 
 
 def test_every_twoscale_module_imports_without_fem_influence():
     proc = _run(_BLOCKED)
     assert proc.returncode == 0, proc.stderr
-    assert int(proc.stdout.split()[-1]) > 50      # the walk reached the whole package
+    assert int(proc.stdout.split()[-1]) > 50  # the walk reached the whole package
 
 
 def test_import_twoscale_is_light_and_the_block_comes_on_first_use():

@@ -11,6 +11,7 @@
 * ``grid_matrix`` is symmetric, equals ``cell_block`` built point by point, and the FFT
   ``grid_operator`` reproduces the dense product to 1e-12 relative.
 """
+
 import math
 
 import numpy as np
@@ -40,8 +41,7 @@ def _quadrature(x: float, y: float, a: float = A, b: float = B) -> float:
     if abs(x) <= a and abs(y) <= b:
         s = sum(_corner_integral(w, l) for w in (a - x, a + x) for l in (b - y, b + y))
     else:
-        s = integrate.dblquad(lambda yy, xx: 1.0 / math.hypot(x - xx, y - yy), -a, a, -b, b,
-                              epsabs=0, epsrel=1e-12)[0]
+        s = integrate.dblquad(lambda yy, xx: 1.0 / math.hypot(x - xx, y - yy), -a, a, -b, b, epsabs=0, epsrel=1e-12)[0]
     return s / (math.pi * E_STAR)
 
 
@@ -127,12 +127,15 @@ def _dense_product(tgt, src, p):
     return (HS.cell_block(tgt.points(), src.points(), src.h) @ p.ravel()).reshape(tgt.shape)
 
 
-@pytest.mark.parametrize("tgt_src", [
-    ((0.0, 0.0, 32, 32), None),                      # square, self
-    ((0.1, 0.2, 17, 23), None),                      # odd, non-square, self
-    ((-0.3, 0.5, 13, 7), (0.0, 0.0, 21, 15)),        # target inside/overlapping the source
-    ((2.0, -1.0, 9, 12), (0.0, 0.0, 11, 5)),         # disjoint target, far away
-])
+@pytest.mark.parametrize(
+    "tgt_src",
+    [
+        ((0.0, 0.0, 32, 32), None),  # square, self
+        ((0.1, 0.2, 17, 23), None),  # odd, non-square, self
+        ((-0.3, 0.5, 13, 7), (0.0, 0.0, 21, 15)),  # target inside/overlapping the source
+        ((2.0, -1.0, 9, 12), (0.0, 0.0, 11, 5)),  # disjoint target, far away
+    ],
+)
 def test_fft_operator_equals_dense_product(tgt_src):
     h = 0.1
     t, s = tgt_src

@@ -3,6 +3,7 @@
 Checks are independent of the solver: equations are recomputed from scratch with the
 Boussinesq kernel written out here, scalar cases are solved with brentq.
 """
+
 import math
 
 import numpy as np
@@ -20,8 +21,10 @@ from twoscale.options import MacroOptions
 def solve_macro(provider, tips, z, laws, *, start=None, self_compliance=True, **keywords):
     """``twoscale.macro.solve_macro`` with its loading and options given as keywords here."""
     load = {k: keywords.pop(k) for k in ("penetration", "total_load", "tilt", "pivot") if k in keywords}
-    return _solve_macro(provider, tips, z, laws, Loading(**load), MacroOptions(**keywords), start=start,
-                        self_compliance=self_compliance)
+    return _solve_macro(
+        provider, tips, z, laws, Loading(**load), MacroOptions(**keywords), start=start, self_compliance=self_compliance
+    )
+
 
 MAT = Material(10.0, 0.5)
 E_STAR = MAT.E_star
@@ -40,12 +43,11 @@ def check_equations(res, tips, z, laws, T, pivot=(0.0, 0.0), rtol=1e-10):
     """Recompute delta_k from scratch and check P_k = f_k(delta_k) H(delta_k)."""
     P = res.forces
     alpha, beta = res.tilt if res.tilt is not None else (0.0, 0.0)
-    delta = (res.penetration - z - beta * (tips[:, 0] - pivot[0]) - alpha * (tips[:, 1] - pivot[1])
-             - T @ P)
+    delta = res.penetration - z - beta * (tips[:, 0] - pivot[0]) - alpha * (tips[:, 1] - pivot[1]) - T @ P
     f = np.array([law.force(max(dk, 0.0)) for law, dk in zip(laws, delta)])
     assert np.all(P >= 0)
-    assert np.linalg.norm(P - f) <= rtol * np.linalg.norm(P)   # the documented criterion
-    assert np.all(P[delta <= 0] == 0)             # complementarity: no force out of contact
+    assert np.linalg.norm(P - f) <= rtol * np.linalg.norm(P)  # the documented criterion
+    assert np.all(P[delta <= 0] == 0)  # complementarity: no force out of contact
     assert np.array_equal(res.in_contact, delta > 0)
     assert np.allclose(res.local_penetrations, delta, rtol=0, atol=1e-12 * max(1.0, np.max(np.abs(delta))))
 
@@ -65,7 +67,7 @@ def random_scene(seed, *, close=(2.5, 3.5), close_fraction=1 / 6, spheres_only=F
     s = rng.uniform(*close, n_close)
     tips = np.vstack([tips, tips[partner] + np.column_stack([s * np.cos(ang), s * np.sin(ang)])])
     z = rng.uniform(0.0, 0.15, n)
-    z[rng.choice(n, max(2, n // 8), replace=False)] = rng.uniform(1.0, 2.0)   # out of contact
+    z[rng.choice(n, max(2, n // 8), replace=False)] = rng.uniform(1.0, 2.0)  # out of contact
     radii = rng.uniform(4.0, 6.0, n)
     kinds = np.ones(n, bool) if spheres_only else rng.random(n) < 0.5
     laws = [SphereLaw(r, E_STAR) if k else HertzLaw(r, E_STAR) for r, k in zip(radii, kinds)]
@@ -93,7 +95,7 @@ def test_two_identical_asperities_solve_the_scalar_equation(s, law):
     res = solve_macro(HS, np.array([[0.0, 0.0], [s, 0.0]]), np.zeros(2), law, penetration=d)
     assert res.converged
     assert np.allclose(res.forces, P_ref, rtol=1e-11)
-    assert P_ref < 0.99 * law.force(d)   # the interaction matters in this test
+    assert P_ref < 0.99 * law.force(d)  # the interaction matters in this test
 
 
 def test_far_apart_asperities_are_independent():
@@ -114,7 +116,7 @@ def test_random_scene_penetration_control(seed):
     assert res.iterations <= 20
     assert res.residuals[-1] <= 1e-10
     check_equations(res, tips, z, laws, boussinesq_interaction(tips))
-    assert 0 < res.in_contact.sum() < len(z)        # the scene mixes contact and no contact
+    assert 0 < res.in_contact.sum() < len(z)  # the scene mixes contact and no contact
 
 
 @pytest.mark.parametrize("seed", range(8))
@@ -158,8 +160,7 @@ def hexagon(radius, centre=True):
 
 def test_tilt_vanishes_on_a_symmetric_scene():
     tips = hexagon(6.0) + np.array([3.0, -2.0])
-    res = solve_macro(HS, tips, np.zeros(7), SphereLaw(6.0, E_STAR), total_load=100.0, tilt=True,
-                      pivot=(3.0, -2.0))
+    res = solve_macro(HS, tips, np.zeros(7), SphereLaw(6.0, E_STAR), total_load=100.0, tilt=True, pivot=(3.0, -2.0))
     assert res.converged
     assert max(abs(res.tilt[0]), abs(res.tilt[1])) < 1e-14
     plain = solve_macro(HS, tips, np.zeros(7), SphereLaw(6.0, E_STAR), total_load=100.0)
@@ -201,15 +202,14 @@ def test_macro_uses_the_provider_compliance():
     s, d = 3.0, 0.3
     c = -1.0 / (math.pi * E_STAR * body.t)
     t = math.exp(-s / body.t) / (math.pi * E_STAR * s)
-    own = CompliantLaw(law, c)   # delta = delta_law(P) + c P, independently inverted
+    own = CompliantLaw(law, c)  # delta = delta_law(P) + c P, independently inverted
     P_ref = brentq(lambda P: P - own.force(d - t * P), 0.0, 2 * float(law.force(d)), xtol=1e-15, rtol=1e-15)
     res = solve_macro(body, np.array([[0.0, 0.0], [0.0, s]]), np.zeros(2), law, penetration=d)
     assert res.converged and np.allclose(res.forces, P_ref, rtol=1e-10)
     half = solve_macro(HS, np.array([[0.0, 0.0], [0.0, s]]), np.zeros(2), law, penetration=d)
     assert abs(half.forces[0] - P_ref) > 0.02 * P_ref
     # laws that already hold the body's own compliance: self_compliance=False
-    res = solve_macro(body, np.array([[0.0, 0.0], [0.0, s]]), np.zeros(2), own, penetration=d,
-                      self_compliance=False)
+    res = solve_macro(body, np.array([[0.0, 0.0], [0.0, s]]), np.zeros(2), own, penetration=d, self_compliance=False)
     assert res.converged and np.allclose(res.forces, P_ref, rtol=1e-9)
 
 
@@ -245,15 +245,18 @@ def test_result_fields():
         res.forces[0] = 1.0
 
 
-@pytest.mark.parametrize("kwargs, shown", [
-    (dict(), "exactly one"),
-    (dict(penetration=0.1, total_load=1.0), "exactly one"),
-    (dict(penetration=0.1, tilt=True), "tilt"),
-    (dict(total_load=-1.0), "-1.0"),
-    (dict(penetration=float("nan")), "nan"),
-    (dict(penetration=0.1, max_iter=0), "max_iter"),
-    (dict(penetration=0.1, tol=0.0), "tol"),
-])
+@pytest.mark.parametrize(
+    "kwargs, shown",
+    [
+        (dict(), "exactly one"),
+        (dict(penetration=0.1, total_load=1.0), "exactly one"),
+        (dict(penetration=0.1, tilt=True), "tilt"),
+        (dict(total_load=-1.0), "-1.0"),
+        (dict(penetration=float("nan")), "nan"),
+        (dict(penetration=0.1, max_iter=0), "max_iter"),
+        (dict(penetration=0.1, tol=0.0), "tol"),
+    ],
+)
 def test_invalid_load_raises(kwargs, shown):
     tips = np.array([[0.0, 0.0], [5.0, 0.0]])
     with pytest.raises(ValueError, match=shown):
@@ -280,8 +283,11 @@ def merged_scene(seed):
 
 def load_kwargs(mode, W, pivot):
     """solve_macro's load arguments for a mode: penetration 0.4 mm, total W, or W with tilt."""
-    return {"penetration": dict(penetration=0.4), "load": dict(total_load=W),
-            "tilt": dict(total_load=W, tilt=True, pivot=pivot)}[mode]
+    return {
+        "penetration": dict(penetration=0.4),
+        "load": dict(total_load=W),
+        "tilt": dict(total_load=W, tilt=True, pivot=pivot),
+    }[mode]
 
 
 def merged_case(seed, mode):
@@ -307,7 +313,7 @@ def test_merged_contacts_converge_on_the_safe_path(mode):
             assert abs(res.forces.sum() - W) <= 1e-10 * W
         if mode == "tilt":
             _tilt_equations(res, tips, pivot, W)
-    assert used_safe_path   # the scenes do exercise it
+    assert used_safe_path  # the scenes do exercise it
 
 
 @pytest.mark.parametrize("ratio", [0.1, 0.2, 0.5, 5.0])
@@ -319,19 +325,21 @@ def test_paper_seven_spheres(ratio):
     res = solve_macro(HS, tips, np.zeros(7), law, penetration=0.1 * R)
     assert res.converged, res.message
     check_equations(res, tips, np.zeros(7), [law] * 7, boussinesq_interaction(tips))
-    assert np.allclose(res.forces[1:], res.forces[1], rtol=1e-9)   # six-fold symmetry
-    assert res.forces[0] < res.forces[1]                          # the centre is shielded
+    assert np.allclose(res.forces[1:], res.forces[1], rtol=1e-9)  # six-fold symmetry
+    assert res.forces[0] < res.forces[1]  # the centre is shielded
 
 
 def test_unbalanceable_tilt_is_reported():
     # the pivot lies outside the tips' convex hull: no tilt can cancel the moment
     tips = np.array([[0.0, 0.0], [10.0, 0.0], [0.0, 10.0], [10.0, 10.0]])
-    res = solve_macro(HS, tips, np.zeros(4), SphereLaw(5.0, E_STAR), total_load=40.0, tilt=True,
-                      pivot=(50.0, 5.0), max_iter=30)
+    res = solve_macro(
+        HS, tips, np.zeros(4), SphereLaw(5.0, E_STAR), total_load=40.0, tilt=True, pivot=(50.0, 5.0), max_iter=30
+    )
     assert not res.converged and res.message
 
 
 # --- matrix-free interaction (many asperities): point operator + conjugate gradients ----------
+
 
 @pytest.mark.parametrize("mode", ["penetration", "load", "tilt"])
 @pytest.mark.parametrize("seed", [0, 3])
@@ -405,15 +413,16 @@ def test_matrix_free_with_the_fast_operator_is_within_its_tolerance():
     W = 0.05 * len(z)
     rtol = 1e-6
     dense = solve_macro(HS, tips, z, laws, total_load=W, tilt=True, pivot=(60.0, 70.0))
-    free = solve_macro(HS, tips, z, laws, total_load=W, tilt=True, pivot=(60.0, 70.0), dense_max=2000,
-                       operator_rtol=rtol)
+    free = solve_macro(
+        HS, tips, z, laws, total_load=W, tilt=True, pivot=(60.0, 70.0), dense_max=2000, operator_rtol=rtol
+    )
     assert free.interaction == "matrix-free" and free.converged, free.message
     assert 0.3 < free.in_contact.mean() < 0.9
     T = boussinesq_interaction(tips)
     u_max = np.abs(T @ dense.forces).max()
-    assert 0 < free.operator_error <= rtol            # measured on a sample, as promised
+    assert 0 < free.operator_error <= rtol  # measured on a sample, as promised
     stiff = np.array([law.stiffness(max(d, 0.0)) for law, d in zip(laws, dense.local_penetrations)])
-    bound = 3.0 * rtol * u_max * stiff.max()          # 3x: the load and moment rows shift d, alpha, beta too
+    bound = 3.0 * rtol * u_max * stiff.max()  # 3x: the load and moment rows shift d, alpha, beta too
     assert np.max(np.abs(free.forces - dense.forces)) <= bound
     assert abs(free.forces.sum() - W) <= 1e-10 * W
     # the equations with the exact T hold to the operator's error: delta_k within

@@ -4,6 +4,7 @@ Independent checks: the merge criterion (a merged grid has at most ``growth`` ti
 cells of its members' grids) is recounted here from the grids; the merged solve is compared with the paper's one
 block per asperity and with the reference solver on the same lattice.
 """
+
 import math
 
 import numpy as np
@@ -26,12 +27,16 @@ def _ring(spacing, half, centre_half):
     """A centre tip and six on a hexagon of radius ``spacing`` (a vertex on top), square
     patches of half-width ``half`` (``centre_half`` for the centre, which its neighbours
     shield: the paper's seven spheres at d/2R = 0.3 give 3.0 and 3.75 mm at spacing 6 mm)."""
-    tips = [(0.0, 0.0)] + [(spacing * math.cos(k * math.pi / 3 + math.pi / 2),
-                            spacing * math.sin(k * math.pi / 3 + math.pi / 2)) for k in range(6)]
+    tips = [(0.0, 0.0)] + [
+        (spacing * math.cos(k * math.pi / 3 + math.pi / 2), spacing * math.sin(k * math.pi / 3 + math.pi / 2))
+        for k in range(6)
+    ]
     asps = [Asperity(x, y, 0.0, 10.0) for x, y in tips]
     halves = [centre_half] + [half] * 6
-    patches = [make_patch(k, Grid.covering(x - r + 1e-9, x + r - 1e-9, y - r + 1e-9, y + r - 1e-9, H), asps)
-               for k, ((x, y), r) in enumerate(zip(tips, halves))]
+    patches = [
+        make_patch(k, Grid.covering(x - r + 1e-9, x + r - 1e-9, y - r + 1e-9, y + r - 1e-9, H), asps)
+        for k, ((x, y), r) in enumerate(zip(tips, halves))
+    ]
     return asps, patches
 
 
@@ -68,7 +73,7 @@ def test_far_patches_stay_one_per_asperity():
 def test_growth_bounds_the_merged_grid(growth):
     asps, patches = _ring(10.0, 3.6, 3.6)
     total = _union_cells([pt.grid for pt in patches]) / sum(pt.grid.size for pt in patches)
-    assert 1.5 < total < 2.0     # the ring of spacing 10 mm: all seven fit a grid 1.5-2x theirs
+    assert 1.5 < total < 2.0  # the ring of spacing 10 mm: all seven fit a grid 1.5-2x theirs
     merged, covers = merge_overlapping(patches, asps, growth=growth)
     for m, c in zip(merged, covers):
         assert m.grid.size <= growth * sum(patches[i].grid.size for i in c)
@@ -84,10 +89,10 @@ def test_merged_block_is_the_union_of_the_members_owned_cells():
     count = np.zeros(m.grid.shape, int)
     for pt in patches:
         di, dj = pt.grid.offset_in(m.grid)
-        window = m.owned[dj:dj + pt.grid.ny, di:di + pt.grid.nx]
+        window = m.owned[dj : dj + pt.grid.ny, di : di + pt.grid.nx]
         # every cell a member owned on its own patch is in the merged block
         assert np.all(window[pt.owned])
-        count[dj:dj + pt.grid.ny, di:di + pt.grid.nx] += pt.owned
+        count[dj : dj + pt.grid.ny, di : di + pt.grid.nx] += pt.owned
     # and the block holds nothing else: cells nobody owned on a patch are owned by nobody
     # (no indenter reaches them) or lie outside every member patch
     assert np.all(m.owned[count > 0])
@@ -127,6 +132,7 @@ def test_merged_solve_matches_one_block_per_asperity_and_the_reference(layout, s
 def test_result_json_names_the_merged_asperities_from_one():
     from twoscale.io.result_json import result_to_dict
     from twoscale.scene import Scene
+
     # a merged pair (tips 0.6 mm apart, contact radius ~1 mm) and a far sphere
     # (mirror-symmetric about x = 0.05, between two cell columns, so ownership has no ties)
     asps = [Asperity(-0.25, 0.0, 0.0, 5.0), Asperity(0.35, 0.0, 0.0, 5.0), Asperity(0.05, 12.0, 0.0, 5.0)]

@@ -1,5 +1,6 @@
 """What the user reads: messages that name the bad thing and say what to change, and docs
 that stay inside the repository."""
+
 from __future__ import annotations
 
 import pathlib
@@ -37,8 +38,8 @@ def test_tip_near_the_block_side_is_named_with_the_option_to_change(write_scene,
     assert main(["solve", str(path), "--out", str(out)]) == 2
     err = capsys.readouterr().err.strip()
     assert "\n" not in err and err.startswith("error: ")
-    assert "asperity 2 at (66, 0) mm" in err          # numbered from 1, the second tip
-    assert "influence.source_spacing" in err           # an option the scene file accepts
+    assert "asperity 2 at (66, 0) mm" in err  # numbered from 1, the second tip
+    assert "influence.source_spacing" in err  # an option the scene file accepts
     assert not out.exists()
 
 
@@ -95,7 +96,9 @@ def test_method_page_has_the_sections_the_code_cites():
     text = (ROOT / "docs" / "method.md").read_text(encoding="utf-8")
     sections = {int(m) for m in re.findall(r"^## (\d+)\.", text, flags=re.M)}
     cited = set()
-    for path in list(ROOT.glob("twoscale/**/*.py")) + list(ROOT.glob("fem_influence/*.py")) + list(ROOT.glob("tests/*.py")):
+    for path in (
+        list(ROOT.glob("twoscale/**/*.py")) + list(ROOT.glob("fem_influence/*.py")) + list(ROOT.glob("tests/*.py"))
+    ):
         for m in re.findall(r"docs/method\.md sections? (\d+)(?:-(\d+))?", path.read_text(encoding="utf-8")):
             cited |= {int(v) for v in m if v}
     assert cited and cited <= sections
@@ -132,44 +135,52 @@ def test_python_solve_warns_and_refuses_the_same_way():
 
     mat = Material(6.0, 0.5)
     with pytest.raises(SceneError, match="coarser than every expected contact"):
-        twoscale.solve([[0.0, 0.0, 5.0]], material=mat, penetration=0.1, h=2.0)   # contact ~1.4 mm
+        twoscale.solve([[0.0, 0.0, 5.0]], material=mat, penetration=0.1, h=2.0)  # contact ~1.4 mm
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         twoscale.solve([[0.0, 0.0, 5.0]], material=mat, penetration=0.1, h=0.5)
     assert [type(w.message) for w in caught] == [ResolutionWarning]
     with warnings.catch_warnings():
         warnings.simplefilter("error")
-        twoscale.solve([[0.0, 0.0, 5.0]], material=mat, penetration=0.1)      # the default h: silent
+        twoscale.solve([[0.0, 0.0, 5.0]], material=mat, penetration=0.1)  # the default h: silent
 
 
 def test_heights_in_um_taken_as_mm_are_refused(tmp_path, capsys):
     import numpy as np
 
     y, x = np.mgrid[0:120, 0:120] * 0.1
-    z = 800.0 * np.exp(-((x - 6.0) ** 2 + (y - 6.0) ** 2) / 4.0)       # an 0.8 mm bump, in um
+    z = 800.0 * np.exp(-((x - 6.0) ** 2 + (y - 6.0) ** 2) / 4.0)  # an 0.8 mm bump, in um
     np.save(tmp_path / "bump.npy", z)
     scene = tmp_path / "bump.toml"
-    scene.write_text('[material]\nE = 6.0\nnu = 0.5\n[load]\ntotal = 5.0\n[surface]\nfile = "bump.npy"\n'
-                     'spacing = 0.1\n', encoding="utf-8")
+    scene.write_text(
+        '[material]\nE = 6.0\nnu = 0.5\n[load]\ntotal = 5.0\n[surface]\nfile = "bump.npy"\nspacing = 0.1\n',
+        encoding="utf-8",
+    )
     assert main(["surface", str(scene), "--out", str(tmp_path / "seg"), "--no-laws"]) == 2
     out, err = capsys.readouterr()
     assert err.startswith("error: ") and err.count("\n") == 1 and not (tmp_path / "seg").exists()
     assert "surface.units is not given" in err and " to 800 (800 mm of relief on a map 11.9 mm wide)" in err
-    scene.write_text(scene.read_text().replace('spacing = 0.1', 'spacing = 0.1\nunits = "um"'), encoding="utf-8")
+    scene.write_text(scene.read_text().replace("spacing = 0.1", 'spacing = 0.1\nunits = "um"'), encoding="utf-8")
     assert main(["surface", str(scene), "--out", str(tmp_path / "seg2"), "--no-laws"]) == 0
     out, err = capsys.readouterr()
     assert err == "" and " to 0.8 mm" in out
 
 
 def test_indicators_between_different_scenes_warn(write_scene, tmp_path, capsys):
-    text = ("[material]\nE = 6.0\nnu = 0.5\n[load]\npenetration = 0.05\n[grid]\nh = 0.05\n"
-            "[[asperity]]\nx = 0.0\ny = 0.0\nR = 5.0\n[[asperity]]\nx = {x}\ny = 0.0\nR = 5.0\n")
+    text = (
+        "[material]\nE = 6.0\nnu = 0.5\n[load]\npenetration = 0.05\n[grid]\nh = 0.05\n"
+        "[[asperity]]\nx = 0.0\ny = 0.0\nR = 5.0\n[[asperity]]\nx = {x}\ny = 0.0\nR = 5.0\n"
+    )
     for name, x in (("a", 4.0), ("b", 4.0), ("c", 5.0)):
-        assert main(["solve", str(write_scene(text.format(x=x), f"{name}.toml")), "--out", str(tmp_path / name),
-                     "--quiet"]) == 0
+        assert (
+            main(
+                ["solve", str(write_scene(text.format(x=x), f"{name}.toml")), "--out", str(tmp_path / name), "--quiet"]
+            )
+            == 0
+        )
     capsys.readouterr()
     assert main(["indicators", str(tmp_path / "a"), str(tmp_path / "b")]) == 0
-    assert "warning" not in capsys.readouterr().err                # the same scene twice: silent
+    assert "warning" not in capsys.readouterr().err  # the same scene twice: silent
     assert main(["indicators", str(tmp_path / "a"), str(tmp_path / "c")]) == 0
     err = capsys.readouterr().err
     assert err.startswith("warning: ") and "asperity 2: (4, 0) against (5, 0) mm" in err
@@ -204,11 +215,14 @@ def test_contacts_reaching_the_map_edge_are_named(tmp_path):
     from twoscale.io.scene_file import read_scene
     from twoscale.surface.conditioning import SurfaceWarning
 
-    y, x = np.mgrid[0:121, 0:121] * 0.1            # 12 x 12 mm at 0.1 mm
-    bump = lambda cx, cy: 0.5 * np.exp(-((x - cx) ** 2 + (y - cy) ** 2) / 2.0)   # noqa: E731
+    y, x = np.mgrid[0:121, 0:121] * 0.1  # 12 x 12 mm at 0.1 mm
+    bump = lambda cx, cy: 0.5 * np.exp(-((x - cx) ** 2 + (y - cy) ** 2) / 2.0)  # noqa: E731
     scene = tmp_path / "s.toml"
-    scene.write_text('[material]\nE = 6.0\nnu = 0.5\n[load]\ntotal = 2.0\n[surface]\nfile = "m.npy"\n'
-                     'spacing = 0.1\nunits = "mm"\nlaw = "sphere"\n', encoding="utf-8")
+    scene.write_text(
+        '[material]\nE = 6.0\nnu = 0.5\n[load]\ntotal = 2.0\n[surface]\nfile = "m.npy"\n'
+        'spacing = 0.1\nunits = "mm"\nlaw = "sphere"\n',
+        encoding="utf-8",
+    )
     for centres, expected in (([(6.0, 6.0)], []), ([(6.0, 6.0), (6.0, 0.0)], [2])):
         np.save(tmp_path / "m.npy", sum(bump(cx, cy) for cx, cy in centres))
         s = read_scene(scene)
@@ -219,6 +233,6 @@ def test_contacts_reaching_the_map_edge_are_named(tmp_path):
         assert res.converged
         if not expected:
             assert edge == []
-        else:   # the stone centred on the map's lower edge, numbered from 1 in scene order
+        else:  # the stone centred on the map's lower edge, numbered from 1 in scene order
             k = int(np.argmin([abs(a.y - (-6.0)) for a in s.asperities]))
             assert len(edge) == 1 and f"asperity {k + 1} reaches the edge" in str(edge[0].message)

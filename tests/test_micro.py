@@ -59,7 +59,7 @@ def test_eq7_carries_the_force_and_dense_and_cg_agree():
     cg = initial_pressure(LocalBlock(HS, pt, dense_max_cells=0), z, P, pt.grid.h, approach=0.2)
     for sol in (dense, cg):
         assert sol.converged
-        assert pt.grid.h ** 2 * sol.pressure.sum() == pytest.approx(P, rel=1e-9)
+        assert pt.grid.h**2 * sol.pressure.sum() == pytest.approx(P, rel=1e-9)
         assert sol.pressure.min() >= 0.0
     assert np.linalg.norm(dense.pressure - cg.pressure) <= 1e-6 * np.linalg.norm(dense.pressure)
     # the rigid shift is the local approach; Hertz gives it to the discretisation error
@@ -85,7 +85,7 @@ def test_block_products_on_the_owned_box_equal_the_whole_patch_matrix():
     asps = [Asperity(0.0, 0.0, 0.0, 2.0), Asperity(0.5, 0.1, -0.01, 2.0)]
     pt = make_patch(0, Grid.covering(-0.7, 0.7, -0.7, 0.7, 0.05), asps)
     idx = np.flatnonzero(pt.owned.ravel())
-    A = HS.cell_block(pt.grid.points()[idx], pt.grid.points()[idx], 0.05)   # independent of the grid code
+    A = HS.cell_block(pt.grid.points()[idx], pt.grid.points()[idx], 0.05)  # independent of the grid code
     v = np.random.default_rng(3).uniform(0.0, 1.0, idx.size)
     for dmc in (10_000, 0):
         blk = LocalBlock(HS, pt, dense_max_cells=dmc)
@@ -106,14 +106,20 @@ def _scatter(pt, v):
 def test_patches_share_the_lattice_and_no_cell_is_counted_twice():
     asps = [Asperity(0.0, 0.0, 0.0, 2.0), Asperity(0.5, 0.1, 0.01, 1.5), Asperity(-0.3, 0.6, 0.0, 2.5)]
     h = 0.05
-    patches = build_patches(asps, h=h, forces=np.array([1.0, 0.8, 1.2]), approaches=np.array([0.1, 0.09, 0.1]),
-                            E_star=ES, anchor=(0.01, -0.02))
+    patches = build_patches(
+        asps,
+        h=h,
+        forces=np.array([1.0, 0.8, 1.2]),
+        approaches=np.array([0.1, 0.09, 0.1]),
+        E_star=ES,
+        anchor=(0.01, -0.02),
+    )
     assert len(patches) == 3
     big = Grid.covering(-2.0, 2.0, -2.0, 2.0, h, anchor=(0.01, -0.02))
     count = np.zeros(big.shape, int)
     for pt in patches:
         di, dj = pt.grid.offset_in(big)  # raises if not on the common lattice
-        count[dj:dj + pt.grid.ny, di:di + pt.grid.nx] += pt.owned
+        count[dj : dj + pt.grid.ny, di : di + pt.grid.nx] += pt.owned
     assert count.max() == 1
     # the patches overlap, yet the owned cells are disjoint
     assert sum(int(pt.owned.sum()) for pt in patches) < sum(pt.grid.size for pt in patches)
@@ -121,29 +127,44 @@ def test_patches_share_the_lattice_and_no_cell_is_counted_twice():
 
 def test_asperity_out_of_reach_gets_no_patch():
     asps = [Asperity(0.0, 0.0, 0.0, 2.0), Asperity(3.0, 0.0, 0.5, 2.0)]
-    patches = build_patches(asps, h=0.1, forces=np.array([1.0, 0.0]), approaches=np.array([0.2, -0.3]),
-                            E_star=ES)
+    patches = build_patches(asps, h=0.1, forces=np.array([1.0, 0.0]), approaches=np.array([0.2, -0.3]), E_star=ES)
     assert [pt.asperity for pt in patches] == [0]
 
 
 # ---------------------------------------------------------------- Gauss-Seidel
-CLOSE = [Asperity(0.0, 0.0, 0.0, 2.0, "paraboloid"), Asperity(0.9, 0.3, 0.005, 1.5, "paraboloid"),
-         Asperity(-0.6, 0.8, 0.01, 2.5, "paraboloid")]
+CLOSE = [
+    Asperity(0.0, 0.0, 0.0, 2.0, "paraboloid"),
+    Asperity(0.9, 0.3, 0.005, 1.5, "paraboloid"),
+    Asperity(-0.6, 0.8, 0.01, 2.5, "paraboloid"),
+]
 
 
 # two tips closer than their contact radii (0.4 mm): merged contacts, one block when merging
 PAIR = [Asperity(-0.3, 0.0, 0.0, 2.0, "paraboloid"), Asperity(0.3, 0.05, 0.002, 2.0, "paraboloid")]
 
 
-@pytest.mark.parametrize("dense_max_cells,merge,scene", [
-    (10_000, False, "close"), (0, False, "close"), (10_000, True, "close"),
-    (10_000, False, "pair"), (0, False, "pair"), (10_000, True, "pair"), (0, True, "pair")])
+@pytest.mark.parametrize(
+    "dense_max_cells,merge,scene",
+    [
+        (10_000, False, "close"),
+        (0, False, "close"),
+        (10_000, True, "close"),
+        (10_000, False, "pair"),
+        (0, False, "pair"),
+        (10_000, True, "pair"),
+        (0, True, "pair"),
+    ],
+)
 def test_gauss_seidel_matches_nnls_on_the_same_cells(dense_max_cells, merge, scene):
     asps = CLOSE if scene == "close" else PAIR
     d, h = 0.08, 0.07
     forces = np.array([float(hertz.load(a.R, d - a.z, ES)) for a in asps])
-    res = solve_micro(HS, asps, MicroProblem(h=h, forces=forces, penetration=d),
-                      MicroOptions(tol=1e-9, dense_max_cells=dense_max_cells, merge=merge))
+    res = solve_micro(
+        HS,
+        asps,
+        MicroProblem(h=h, forces=forces, penetration=d),
+        MicroOptions(tol=1e-9, dense_max_cells=dense_max_cells, merge=merge),
+    )
     assert res.converged, res.message
     # the overlapping pair, and the close three, are one block only when merging
     assert res.merged == ((tuple(range(len(asps))),) if merge else ())
@@ -173,8 +194,13 @@ def test_patch_grows_when_pressure_reaches_its_edge():
 def test_sweep_limit_is_reported_not_hidden():
     d, h = 0.08, 0.07
     forces = np.zeros(3)  # eq. 7 gives nothing: the sweeps start from zero
-    res = solve_micro(HS, CLOSE, MicroProblem(h=h, forces=forces, penetration=d), MicroOptions(tol=1e-12, max_sweeps=2),
-                      settings=BlockSettings(max_growths=0))
+    res = solve_micro(
+        HS,
+        CLOSE,
+        MicroProblem(h=h, forces=forces, penetration=d),
+        MicroOptions(tol=1e-12, max_sweeps=2),
+        settings=BlockSettings(max_growths=0),
+    )
     assert not res.converged
     assert "2 sweeps" in res.message
     assert res.sweeps == 2
@@ -201,8 +227,12 @@ def test_load_control_and_tilt_meet_the_equations_exactly(merge):
     asps = CLOSE
     d, h, W, pivot = 0.08, 0.07, 1.5, (0.1, 0.2)
     forces = np.array([float(hertz.load(a.R, d - a.z, ES)) for a in asps])
-    res = solve_micro(HS, asps, MicroProblem(h=h, forces=forces, penetration=d, tilt=(0.0, 0.0), pivot=pivot,
-                                             total_load=W, free_tilt=True), MicroOptions(tol=1e-8, merge=merge))
+    res = solve_micro(
+        HS,
+        asps,
+        MicroProblem(h=h, forces=forces, penetration=d, tilt=(0.0, 0.0), pivot=pivot, total_load=W, free_tilt=True),
+        MicroOptions(tol=1e-8, merge=merge),
+    )
     assert res.converged, res.message
     # one block for the three close asperities, or one each
     assert res.merged == (((0, 1, 2),) if merge else ())
@@ -214,8 +244,10 @@ def test_load_control_and_tilt_meet_the_equations_exactly(merge):
     assert abs(P @ X) <= 1e-9 * W * arm and abs(P @ Y) <= 1e-9 * W * arm
     # same cells, tilted surface at the solved d, alpha, beta: NNLS gives the same pressure
     t = Tilt(res.tilt[0], res.tilt[1], pivot)
-    b = [res.penetration - pt.height[pt.owned] - t.height(*(c[pt.owned] for c in pt.grid.centres()))
-         for pt in res.patches]
+    b = [
+        res.penetration - pt.height[pt.owned] - t.height(*(c[pt.owned] for c in pt.grid.centres()))
+        for pt in res.patches
+    ]
     ref = _nnls_contact(HS, res.patches, b)
     assert np.linalg.norm(_blocks_of(res) - ref) <= 1e-5 * np.linalg.norm(ref)
 
@@ -224,8 +256,13 @@ def test_growth_limit_is_reported_not_hidden():
     a = [Asperity(0.0, 0.0, 0.0, 2.0, "paraboloid")]
     d, h = 0.08, 0.07
     P = float(hertz.load(2.0, d, ES))
-    res = solve_micro(HS, a, MicroProblem(h=h, forces=np.array([P / 50.0]), penetration=d), MicroOptions(tol=1e-8),
-                      settings=BlockSettings(max_growths=0))
+    res = solve_micro(
+        HS,
+        a,
+        MicroProblem(h=h, forces=np.array([P / 50.0]), penetration=d),
+        MicroOptions(tol=1e-8),
+        settings=BlockSettings(max_growths=0),
+    )
     assert not res.converged
     assert "patch edge" in res.message
 
@@ -251,8 +288,15 @@ PIVOT_ON_TIP = [Asperity(0.0, 0.0, 0.0, 5.0), Asperity(8.0, 0.0, 0.0, 5.0), Aspe
 def _from_the_lone_tip_answer(W, h, iteration="block-gs", **options):
     """The micro step started from all the load on tip 0 and a tilt of 0.08 rad about
     both axes, which leaves tips 1 and 2 without a patch."""
-    problem = MicroProblem(h=h, forces=np.array([W, 0.0, 0.0]), penetration=float(hertz.penetration(5.0, W, ES)),
-                           tilt=(0.08, 0.08), pivot=(0.0, 0.0), total_load=W, free_tilt=True)
+    problem = MicroProblem(
+        h=h,
+        forces=np.array([W, 0.0, 0.0]),
+        penetration=float(hertz.penetration(5.0, W, ES)),
+        tilt=(0.08, 0.08),
+        pivot=(0.0, 0.0),
+        total_load=W,
+        free_tilt=True,
+    )
     return solve_micro(HS, PIVOT_ON_TIP, problem, MicroOptions(tol=1e-9, **options), iteration=iteration)
 
 
@@ -263,6 +307,7 @@ def test_asperities_the_macro_step_left_out_get_patches():
     # step must bring them in and agree with the full-grid reference solving its own tilt.
     from twoscale.indenters import surface_on
     from twoscale.reference import solve_cg
+
     asp, h, W = PIVOT_ON_TIP, 0.1, 10.0
     res = _from_the_lone_tip_answer(W, h=h)
     assert res.converged, res.message
@@ -272,7 +317,7 @@ def test_asperities_the_macro_step_left_out_get_patches():
     assert ref.converged
     F = np.array([h * h * p.sum() for p in res.pressures])[np.argsort([pt.asperity for pt in res.patches])]
     Fr = np.asarray(ref.asperities.forces)
-    assert Fr[1] > 0.02 * W and Fr[2] > 0.02 * W       # the case bites: tips 1 and 2 carry load
+    assert Fr[1] > 0.02 * W and Fr[2] > 0.02 * W  # the case bites: tips 1 and 2 carry load
     assert np.max(np.abs(F - Fr)) <= 1e-5 * W
     assert np.allclose(res.tilt, ref.tilt, rtol=1e-4)
 

@@ -4,6 +4,7 @@ solver, through the defaults of :mod:`twoscale.influence.base`, and gives the ha
 answer. Its operators wrap the half-space's dense blocks, so the answers differ only by the
 solver tolerance and the half-space's separated route (1e-8 of a pair's displacement).
 """
+
 import numpy as np
 import pytest
 
@@ -62,8 +63,10 @@ def test_default_stages_compose_to_apply():
 
 
 def test_coupling_routes_with_a_minimal_provider_equal_the_dense_blocks():
-    patches = [make_patch(k, Grid.covering(a.x - 1.0, a.x + 1.2, a.y - 0.9, a.y + 1.0, 0.1), SPHERES)
-               for k, a in enumerate(SPHERES)]
+    patches = [
+        make_patch(k, Grid.covering(a.x - 1.0, a.x + 1.2, a.y - 0.9, a.y + 1.0, 0.1), SPHERES)
+        for k, a in enumerate(SPHERES)
+    ]
     rng = np.random.default_rng(2)
     values = [rng.uniform(size=int(pt.owned.sum())) for pt in patches]
     fast = Coupling(MinimalProvider(MAT), patches, dense_max_entries=0)
@@ -87,4 +90,4 @@ def test_minimal_provider_solves_like_the_half_space(load):
     assert np.all(F_ref > 0)
     assert np.allclose(F, F_ref, rtol=1e-6, atol=0.0)
     assert got.penetration == pytest.approx(ref.penetration, rel=1e-6)
-    assert got.details.micro.coupling.spectral > 0          # the cross products went through the defaults
+    assert got.details.micro.coupling.spectral > 0  # the cross products went through the defaults

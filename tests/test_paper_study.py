@@ -5,6 +5,7 @@ reference solver on the same lattice; the eq. 7 error ``100 ||p0 - p_r|| / ||p_r
 as the spheres approach; sweeps are reported. The quick setting (cells twice the paper's)
 runs by default; the paper's cell sizes are marked slow.
 """
+
 import csv
 import json
 import math
@@ -58,8 +59,9 @@ def test_far_spheres_are_hertzian(quick_study):
 
 def test_cases_follow_the_paper():
     two = paper_case("two", 0.25)
-    assert math.hypot(two.asperities[0].x - two.asperities[1].x, two.asperities[0].y - two.asperities[1].y) \
-        == pytest.approx(0.25 * 2 * 10.0)
+    assert math.hypot(
+        two.asperities[0].x - two.asperities[1].x, two.asperities[0].y - two.asperities[1].y
+    ) == pytest.approx(0.25 * 2 * 10.0)
     assert two.h == pytest.approx(0.0125 * 10.0) and two.penetration == pytest.approx(0.05 * 10.0)
     seven = paper_case("seven", 0.5)
     r = [math.hypot(a.x, a.y) for a in seven.asperities]
@@ -83,13 +85,22 @@ def test_paper_command_writes_csv_and_figures(tmp_path, capsys):
     out = capsys.readouterr().out
     assert code == 0, out
     assert "PASS" in out
-    for name in ("errors_two.csv", "errors_seven.csv", "profile_two.csv", "profile_seven.csv",
-                 "map_two_0.1.csv", "map_seven_0.2.csv", "fig3_two_maps.png", "fig4_seven_maps.png",
-                 "fig5_profiles.png", "fig6_errors.png"):
+    for name in (
+        "errors_two.csv",
+        "errors_seven.csv",
+        "profile_two.csv",
+        "profile_seven.csv",
+        "map_two_0.1.csv",
+        "map_seven_0.2.csv",
+        "fig3_two_maps.png",
+        "fig4_seven_maps.png",
+        "fig5_profiles.png",
+        "fig6_errors.png",
+    ):
         assert (tmp_path / name).stat().st_size > 0, name
-    for path in tmp_path.glob("*.csv"):          # every table opens with pandas and csv, no options
+    for path in tmp_path.glob("*.csv"):  # every table opens with pandas and csv, no options
         assert_tidy(path)
-    with open(tmp_path / "errors_seven.csv", newline="", encoding="utf-8") as fh:   # header first
+    with open(tmp_path / "errors_seven.csv", newline="", encoding="utf-8") as fh:  # header first
         rows = list(csv.DictReader(fh))
     assert json.loads((tmp_path / "errors_seven.csv-metadata.json").read_text())["twoscale"]["parameters"]["R_mm"] > 0
     assert [float(r["d_over_2R"]) for r in rows] == list(PAPER_SPACINGS["seven"])
@@ -118,7 +129,7 @@ def _paper_with(study, monkeypatch, tmp_path, capsys, *extra):
 def test_paper_quiet_prints_nothing_and_still_writes(quick_study, monkeypatch, tmp_path, capsys):
     code, out, err, kw = _paper_with(quick_study, monkeypatch, tmp_path / "q", capsys, "--quiet")
     assert code == 0 and out == "" and err == ""
-    assert not kw["progress"].enabled                 # no status line either
+    assert not kw["progress"].enabled  # no status line either
     assert (tmp_path / "q" / "errors_two.csv").stat().st_size > 0
     # without --quiet: the table and the acceptance, and a progress callback
     code, out, err, kw = _paper_with(quick_study, monkeypatch, tmp_path / "loud", capsys)

@@ -1,5 +1,6 @@
 """Patches skip the indenters that cannot own a cell of them, and come out as if every
 indenter had been sampled (heights and owners cell for cell)."""
+
 import numpy as np
 import pytest
 
@@ -13,8 +14,9 @@ def _tips(n, seed, shapes):
     xy = rng.uniform(-2.0, 2.0, (n, 2))
     R = rng.uniform(0.3, 3.0, n)
     z = rng.uniform(0.0, 0.02, n)
-    return [Asperity(float(x), float(y), float(zk), float(r), str(rng.choice(shapes)))
-            for (x, y), zk, r in zip(xy, z, R)]
+    return [
+        Asperity(float(x), float(y), float(zk), float(r), str(rng.choice(shapes))) for (x, y), zk, r in zip(xy, z, R)
+    ]
 
 
 @pytest.mark.parametrize("shapes", [("sphere",), ("paraboloid",), ("sphere", "paraboloid")])

@@ -7,6 +7,7 @@ block alone with the block's own FFT operator (same iteration counts, pressures 
 rounding), whatever the block's size within the canvas, its mask, or whether it touches.
 The sweep by levels must give what the plain order gives.
 """
+
 import numpy as np
 import pytest
 
@@ -44,6 +45,7 @@ def _own_matvec(mask):
         a = np.zeros(mask.shape)
         a[mask] = v
         return op.apply(a)[mask]
+
     return matvec
 
 
@@ -51,7 +53,7 @@ def _canvas(blocks, values):
     mask = np.zeros((len(blocks), *CANVAS), bool)
     out = np.zeros(mask.shape)
     for i, ((m, _), v) in enumerate(zip(blocks, values)):
-        mask[i, :m.shape[0], :m.shape[1]] = m
+        mask[i, : m.shape[0], : m.shape[1]] = m
         out[i][mask[i]] = v
     return mask, out
 
@@ -62,7 +64,7 @@ def test_stacked_fixed_approach_matches_one_block_solves(seed):
     rng = np.random.default_rng(seed + 10)
     b, starts = [], []
     for i, (m, z) in enumerate(blocks):
-        d = -0.01 if i == 2 else rng.uniform(0.002, 0.01)     # block 2 does not touch
+        d = -0.01 if i == 2 else rng.uniform(0.002, 0.01)  # block 2 does not touch
         b.append(d - z[m])
         starts.append(np.maximum(b[-1], 0.0) * 50.0 if i % 3 else np.zeros(int(m.sum())))
     mask, B = _canvas(blocks, b)
@@ -82,13 +84,13 @@ def test_stacked_fixed_force_matches_one_block_solves():
     mask, Z = _canvas(blocks, [z[m] for m, z in blocks])
     _, P0 = _canvas(blocks, starts)
     op = HS.grid_operator(Grid(0.0, 0.0, H, *CANVAS[::-1]))
-    p, s, ok, it = fixed_force(op.apply_stack, Z, forces / H ** 2, P0, mask, rtol=1e-9)
+    p, s, ok, it = fixed_force(op.apply_stack, Z, forces / H**2, P0, mask, rtol=1e-9)
     for i, (m, z) in enumerate(blocks):
         ref, ref_s, ref_ok, ref_it = pk_fixed_force(_own_matvec(m), z[m], forces[i], H, starts[i], rtol=1e-9)
         assert ok[i] == ref_ok and it[i] == ref_it
         assert np.allclose(p[i][mask[i]], ref, rtol=0.0, atol=1e-12 * ref.max())
         assert abs(s[i] - ref_s) <= 1e-12 * abs(ref_s)
-        assert abs(H ** 2 * p[i].sum() - forces[i]) <= 1e-12 * forces[i]
+        assert abs(H**2 * p[i].sum() - forces[i]) <= 1e-12 * forces[i]
 
 
 def test_two_level_by_levels_and_stacks_matches_the_plain_order(monkeypatch):

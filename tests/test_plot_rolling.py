@@ -1,4 +1,5 @@
 """Figures of a rolling run from plain arrays: what is drawn is what was given."""
+
 import json
 
 import numpy as np
@@ -36,9 +37,14 @@ def test_signals_on_two_stacked_panels_and_into_given_axes(tmp_path):
     assert axes[0].get_ylabel() == "approach (mm)"
     with pytest.raises(ValueError, match="contact_area_mm2 has 3 values, expected 50"):
         plot_signals(T, FORCE, AREA[:3])
-    path = signals_figure(tmp_path / "signals.png", T, FORCE, AREA,
-                          caption=Caption(scene={"influence": {"kind": "halfspace"}}, name="road"),
-                          style=FigureStyle(dpi=50))
+    path = signals_figure(
+        tmp_path / "signals.png",
+        T,
+        FORCE,
+        AREA,
+        caption=Caption(scene={"influence": {"kind": "halfspace"}}, name="road"),
+        style=FigureStyle(dpi=50),
+    )
     size, text = png_info(path)
     assert size == (350, 250) and text["Software"] == f"twoscale {__version__}"
     assert text["Title"] == "road on the half-space: rolling signals"
@@ -49,15 +55,26 @@ def test_band_levels_bars_labels_and_highlight(tmp_path):
     level = np.array([61.0, 64.5, 70.2, -np.inf, 68.0, 66.0, 62.0, 60.0, 58.0, 53.3, 47.0])
     fig = plot_band_levels(nominal, level, highlight=(315, 2000))
     ax = fig.axes[0]
-    bars = ax.patches[1:]                     # the first patch is the shaded span
-    assert len(bars) == 10                    # no bar for the band of zero power
-    floor = 30.0                              # 10 dB below the lowest level rounded down to 10 dB
+    bars = ax.patches[1:]  # the first patch is the shaded span
+    assert len(bars) == 10  # no bar for the band of zero power
+    floor = 30.0  # 10 dB below the lowest level rounded down to 10 dB
     np.testing.assert_allclose([b.get_y() for b in bars], floor)
     np.testing.assert_allclose([b.get_y() + b.get_height() for b in bars], level[np.isfinite(level)])
-    assert [t.get_text() for t in ax.get_xticklabels()] == ["250", "315", "400", "500", "630", "800", "1000",
-                                                            "1250", "1600", "2000", "2500"]
+    assert [t.get_text() for t in ax.get_xticklabels()] == [
+        "250",
+        "315",
+        "400",
+        "500",
+        "630",
+        "800",
+        "1000",
+        "1250",
+        "1600",
+        "2000",
+        "2500",
+    ]
     span = ax.patches[0].get_extents().transformed(ax.transData.inverted())
-    assert span.x0 == pytest.approx(0.5) and span.x1 == pytest.approx(9.5)    # bands 315 ... 2000
+    assert span.x0 == pytest.approx(0.5) and span.x1 == pytest.approx(9.5)  # bands 315 ... 2000
     path = bands_figure(tmp_path / "bands.png", nominal, level, style=FigureStyle(dpi=40))
     assert png_info(path)[0] == (280, 160)
 
@@ -65,7 +82,7 @@ def test_band_levels_bars_labels_and_highlight(tmp_path):
 def test_space_time_draws_the_array_it_is_given(tmp_path):
     shifts = np.arange(-20.0, 20.0, 0.5)
     x = np.arange(-30.0, 30.0, 0.25)
-    p = np.maximum(0.0, 1.0 - ((x[None, :] - shifts[:, None]) / 3.0) ** 2)   # a stone at body x = shift
+    p = np.maximum(0.0, 1.0 - ((x[None, :] - shifts[:, None]) / 3.0) ** 2)  # a stone at body x = shift
     fig = plot_space_time(shifts, x, p)
     image = fig.axes[0].images[0]
     np.testing.assert_array_equal(image.get_array().filled(0.0), p)
@@ -79,8 +96,9 @@ def test_space_time_draws_the_array_it_is_given(tmp_path):
     with pytest.raises(ValueError, match=r"expected \(shifts, x\) = \(80, 240\)"):
         plot_space_time(shifts, x, p.T)
     spiked = p.copy()
-    spiked[3, 3] = 1e3                         # one peak does not flatten the scale
-    path = space_time_figure(tmp_path / "st.png", shifts, x, spiked, caption=Caption(scene={"name": "demo"}),
-                             style=FigureStyle(dpi=40))
+    spiked[3, 3] = 1e3  # one peak does not flatten the scale
+    path = space_time_figure(
+        tmp_path / "st.png", shifts, x, spiked, caption=Caption(scene={"name": "demo"}), style=FigureStyle(dpi=40)
+    )
     assert json.loads(png_info(path)[1]["Description"])["scene"] == {"name": "demo"}
     assert "clipped" in plot_space_time(shifts, x, spiked).axes[1].get_ylabel()

@@ -1,5 +1,6 @@
 """Point operators (sums of point-force displacements): the exact chunked default against
 a direct double loop, the half-space Ewald operator against the default, validation."""
+
 import math
 
 import numpy as np
@@ -79,8 +80,10 @@ def test_ewald_matches_dense(scene, rtol):
 
 def test_ewald_error_falls_with_rtol(scene):
     t, s, exclude, F, u = scene
-    errors = [rel_error(EwaldPointOperator(MAT.E_star, t, s, exclude=exclude, rtol=r).apply(F), u)
-              for r in (1e-2, 1e-4, 1e-6, 1e-8)]
+    errors = [
+        rel_error(EwaldPointOperator(MAT.E_star, t, s, exclude=exclude, rtol=r).apply(F), u)
+        for r in (1e-2, 1e-4, 1e-6, 1e-8)
+    ]
     assert all(e <= r for e, r in zip(errors, (1e-2, 1e-4, 1e-6, 1e-8)))
     assert all(b < 0.1 * a for a, b in zip(errors, errors[1:]))
 
@@ -121,11 +124,14 @@ def test_halfspace_dispatch_by_size():
     assert rel_error(op.apply(F), ref) <= 1e-6
 
 
-@pytest.mark.parametrize("make", [
-    lambda: EwaldPointOperator(MAT.E_star, np.zeros((5, 3)), np.zeros((4, 2))),
-    lambda: HS.point_operator(np.zeros((5, 2)), np.zeros(4)),
-    lambda: EwaldPointOperator(MAT.E_star, np.zeros((5, 2)), [[0.0, np.nan]]),
-])
+@pytest.mark.parametrize(
+    "make",
+    [
+        lambda: EwaldPointOperator(MAT.E_star, np.zeros((5, 3)), np.zeros((4, 2))),
+        lambda: HS.point_operator(np.zeros((5, 2)), np.zeros(4)),
+        lambda: EwaldPointOperator(MAT.E_star, np.zeros((5, 2)), [[0.0, np.nan]]),
+    ],
+)
 def test_bad_points_raise(make):
     with pytest.raises(ValueError, match="targets|sources"):
         make()

@@ -1,4 +1,5 @@
 """The micro step's policy (twoscale.micro.policy) on clear cases, and the driver's record."""
+
 from __future__ import annotations
 
 import math
@@ -35,8 +36,9 @@ def test_one_patch_is_one_constrained_cg_on_it():
 def test_few_separated_asperities_keep_the_papers_iteration():
     # the paper's seven spheres at d/2R = 5: patches are specks in a large box
     R, dc = 10.0, 100.0
-    asps = [Asperity(0.0, 0.0, 0.0, R)] + [Asperity(dc * math.cos(k * math.pi / 3), dc * math.sin(k * math.pi / 3),
-                                                    0.0, R) for k in range(6)]
+    asps = [Asperity(0.0, 0.0, 0.0, R)] + [
+        Asperity(dc * math.cos(k * math.pi / 3), dc * math.sin(k * math.pi / 3), 0.0, R) for k in range(6)
+    ]
     pts, box = _patches(asps, 20.0, 1.0, 0.25)
     c = choose(pts, box)
     assert c.iteration == "block-gs" and c.far_tol is None
@@ -107,8 +109,10 @@ def test_the_driver_composes_iteration_and_coupling_objects():
         FarField(1.5)
     # the policy's far field: capped, then the union CG where it stalls
     far = _order(Choice("two-level", 0.1, "r", {}))
-    assert [(type(i), c, cap) for i, c, cap in far] == [(TwoLevel, FarField(0.1), TWO_LEVEL_SWEEPS),
-                                                        (UnionCG, None, None)]
+    assert [(type(i), c, cap) for i, c, cap in far] == [
+        (TwoLevel, FarField(0.1), TWO_LEVEL_SWEEPS),
+        (UnionCG, None, None),
+    ]
     # the caller's far field: exactly what was asked, no fallback
     fixed = _order(Choice("two-level", 0.1, "r", {}, by_caller=True))
     assert [(type(i), c, cap) for i, c, cap in fixed] == [(TwoLevel, FarField(0.1), None)]
@@ -117,8 +121,9 @@ def test_the_driver_composes_iteration_and_coupling_objects():
     assert [(type(i), c) for i, c, _ in exact] == [(TwoLevel, Exact()), (BlockGaussSeidel, Exact())]
     assert [(type(i), c) for i, c, _ in _order(Choice("block-gs", None, "r", {}))] == [(BlockGaussSeidel, Exact())]
     # block Gauss-Seidel takes a far-field coupling too (orthogonal choices)
-    assert [(type(i), c) for i, c, _ in _order(Choice("block-gs", 0.2, "r", {}, by_caller=True))] == \
-        [(BlockGaussSeidel, FarField(0.2))]
+    assert [(type(i), c) for i, c, _ in _order(Choice("block-gs", 0.2, "r", {}, by_caller=True))] == [
+        (BlockGaussSeidel, FarField(0.2))
+    ]
 
 
 def test_near_neighbours_follow_the_far_field_rule():
@@ -126,18 +131,22 @@ def test_near_neighbours_follow_the_far_field_rule():
     # distance (r_k + r_l) / sqrt(far_tol) = 2 r / sqrt(far_tol), counted independently here
     from twoscale.micro.policy import near_neighbours
 
-    FAR_TOL = 0.1                   # reaches several lattice rows (the policy's own is larger)
+    FAR_TOL = 0.1  # reaches several lattice rows (the policy's own is larger)
 
     asps = [Asperity(10.0 * i, 10.0 * j, 0.0, 5.0) for i in range(15) for j in range(15)]
     pts, _ = _patches(asps, 1.0, 0.2, 0.1)
     b = pts[0].grid.bounds
     r = 0.5 * math.hypot(b[1] - b[0], b[3] - b[2])
     reach = 2.0 * r / math.sqrt(FAR_TOL)
-    centre = 7                      # the middle patch sees the whole disc of lattice points
-    expected = sum(1 for i in range(15) for j in range(15)
-                   if (i, j) != (centre, centre) and 10.0 * math.hypot(i - centre, j - centre) < reach)
+    centre = 7  # the middle patch sees the whole disc of lattice points
+    expected = sum(
+        1
+        for i in range(15)
+        for j in range(15)
+        if (i, j) != (centre, centre) and 10.0 * math.hypot(i - centre, j - centre) < reach
+    )
     got_all = near_neighbours(pts, FAR_TOL)
-    assert 0 < got_all <= expected                 # edges and corners see fewer
+    assert 0 < got_all <= expected  # edges and corners see fewer
     # crowding the same patches twice as close raises the count, which the two-level cost follows
     close = [Asperity(5.0 * i, 5.0 * j, 0.0, 5.0) for i in range(15) for j in range(15)]
     pts_close, box_close = _patches(close, 1.0, 0.2, 0.1)
@@ -158,15 +167,23 @@ def test_the_cost_model_decides_and_its_margin_works_both_ways():
     work = choose(pts, box).estimates["work"]
     ratio = work["union-cg"] / work["block-gs"]
     # a model where the union CG is predicted 1.3x the block iterations
-    model = dataclasses.replace(FITTED, ns_per_unit={"union-cg": 1.3 / ratio, "block-gs": 1.0, "two-level": 1.0},
-                                fixed_seconds={"union-cg": 0.0, "block-gs": 0.0, "two-level": 0.0})
+    model = dataclasses.replace(
+        FITTED,
+        ns_per_unit={"union-cg": 1.3 / ratio, "block-gs": 1.0, "two-level": 1.0},
+        fixed_seconds={"union-cg": 0.0, "block-gs": 0.0, "two-level": 0.0},
+    )
     assert choose(pts, box, model=dataclasses.replace(model, union_margin=1.0)).iteration == "block-gs"
     picked = choose(pts, box, model=dataclasses.replace(model, union_margin=1.7))
     assert picked.iteration == "union-cg" and "1.7x" in picked.reason
-    assert picked.estimates["seconds"]["union-cg"] == pytest.approx(1.3 * picked.estimates["seconds"]["block-gs"],
-                                                                    rel=0.01)
+    assert picked.estimates["seconds"]["union-cg"] == pytest.approx(
+        1.3 * picked.estimates["seconds"]["block-gs"], rel=0.01
+    )
     # load control makes the block iterations' work dearer: the same model then prefers the union CG
-    assert choose(pts, box, load_control=True,
-                  model=dataclasses.replace(model, union_margin=1.0, load_factor=2.0)).iteration == "union-cg"
+    assert (
+        choose(
+            pts, box, load_control=True, model=dataclasses.replace(model, union_margin=1.0, load_factor=2.0)
+        ).iteration
+        == "union-cg"
+    )
     with pytest.raises(ValueError, match="ns_per_unit"):
         CostModel(ns_per_unit={"union-cg": 1.0})

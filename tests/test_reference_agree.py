@@ -18,15 +18,25 @@ HS = HalfSpace(Material(10.0, 0.5))
 
 SCENES = {
     # two spheres whose caps overlap (the union's crease touches), one lower one out of reach
-    "overlapping": ([Asperity(0.0, 0.0, 0.0, 1.0), Asperity(0.7, 0.1, 0.005, 0.8),
-                     Asperity(-0.4, -1.2, 0.2, 1.0)], Grid.covering(-1.0, 1.4, -1.8, 0.9, 0.05)),
+    "overlapping": (
+        [Asperity(0.0, 0.0, 0.0, 1.0), Asperity(0.7, 0.1, 0.005, 0.8), Asperity(-0.4, -1.2, 0.2, 1.0)],
+        Grid.covering(-1.0, 1.4, -1.8, 0.9, 0.05),
+    ),
     # four asperities, mixed shapes and heights, one barely touching
-    "mixed": ([Asperity(0.0, 0.0, 0.0, 1.0, "sphere"), Asperity(0.9, 0.2, 0.01, 0.8, "sphere"),
-               Asperity(-0.5, 0.8, 0.02, 1.2, "paraboloid"), Asperity(0.1, -1.0, 0.028, 1.0)],
-              Grid.covering(-1.2, 1.5, -1.5, 1.3, 0.05)),
+    "mixed": (
+        [
+            Asperity(0.0, 0.0, 0.0, 1.0, "sphere"),
+            Asperity(0.9, 0.2, 0.01, 0.8, "sphere"),
+            Asperity(-0.5, 0.8, 0.02, 1.2, "paraboloid"),
+            Asperity(0.1, -1.0, 0.028, 1.0),
+        ],
+        Grid.covering(-1.2, 1.5, -1.5, 1.3, 0.05),
+    ),
     # three separate spheres on a non-square grid, odd sizes
-    "separate": ([Asperity(-1.0, 0.0, 0.0, 1.5), Asperity(0.6, 0.3, 0.01, 1.0), Asperity(1.8, -0.4, 0.04, 2.0)],
-                 Grid.covering(-1.6, 2.4, -0.8, 0.9, 0.045)),
+    "separate": (
+        [Asperity(-1.0, 0.0, 0.0, 1.5), Asperity(0.6, 0.3, 0.01, 1.0), Asperity(1.8, -0.4, 0.04, 2.0)],
+        Grid.covering(-1.6, 2.4, -0.8, 0.9, 0.045),
+    ),
 }
 
 
@@ -88,8 +98,9 @@ def test_load_control_inverts_penetration_control():
     assert rl.penetration == pytest.approx(0.04, rel=1e-6)
 
 
-@pytest.mark.parametrize("name,pivot", [("mixed", (0.1, 0.1)), ("separate", (0.3, 0.0)),
-                                        ("overlapping", (0.35, -0.05))])
+@pytest.mark.parametrize(
+    "name,pivot", [("mixed", (0.1, 0.1)), ("separate", (0.3, 0.0)), ("overlapping", (0.35, -0.05))]
+)
 def test_tilt(name, pivot):
     asps, grid = SCENES[name]
     s = surface_on(grid, asps)
@@ -98,7 +109,7 @@ def test_tilt(name, pivot):
     rc = solve_cg(HS, s, total_load=W, tilt=True, pivot=pivot)
     _agree(rd, rc, grid)
     X, Y = grid.centres()
-    h2 = grid.h ** 2
+    h2 = grid.h**2
     # moment scale: load times the size of the loaded region
     arm = max(np.ptp(X[rd.fields[0].pressure > 0]), np.ptp(Y[rd.fields[0].pressure > 0]))
     for r in (rd, rc):
@@ -116,8 +127,12 @@ def test_tilt(name, pivot):
 def test_tilt_recovers_an_imposed_rotation():
     """A surface rotated by known angles about the pivot, loaded through the joint there,
     must come back with the opposite angles when the untilted problem is symmetric."""
-    asps = [Asperity(-0.8, 0.0, 0.0, 1.0), Asperity(0.8, 0.0, 0.0, 1.0),
-            Asperity(0.0, 0.8, 0.0, 1.0), Asperity(0.0, -0.8, 0.0, 1.0)]
+    asps = [
+        Asperity(-0.8, 0.0, 0.0, 1.0),
+        Asperity(0.8, 0.0, 0.0, 1.0),
+        Asperity(0.0, 0.8, 0.0, 1.0),
+        Asperity(0.0, -0.8, 0.0, 1.0),
+    ]
     grid = Grid.covering(-1.3, 1.3, -1.3, 1.3, 0.05)
     alpha, beta = 0.004, -0.006
     s = surface_on(grid, asps, Tilt(alpha, beta, (0.0, 0.0)))
@@ -155,16 +170,19 @@ def test_nothing_touches_gives_zero_pressure(solver):
 
 
 @pytest.mark.parametrize("solver", [solve_dense, solve_cg])
-@pytest.mark.parametrize("kw,word", [
-    ({}, "exactly one"),
-    ({"penetration": 0.1, "total_load": 1.0}, "exactly one"),
-    ({"penetration": 0.1, "tilt": True}, "tilt"),
-    ({"penetration": float("nan")}, "penetration"),
-    ({"total_load": -1.0}, "total_load"),
-    ({"total_load": float("inf")}, "total_load"),
-    ({"total_load": 1.0, "tilt": True, "pivot": (0.0, float("nan"))}, "pivot"),
-    ({"total_load": 1.0, "tilt": True, "pivot": (5.0, 0.0)}, "pivot"),  # outside the grid: no equilibrium
-])
+@pytest.mark.parametrize(
+    "kw,word",
+    [
+        ({}, "exactly one"),
+        ({"penetration": 0.1, "total_load": 1.0}, "exactly one"),
+        ({"penetration": 0.1, "tilt": True}, "tilt"),
+        ({"penetration": float("nan")}, "penetration"),
+        ({"total_load": -1.0}, "total_load"),
+        ({"total_load": float("inf")}, "total_load"),
+        ({"total_load": 1.0, "tilt": True, "pivot": (0.0, float("nan"))}, "pivot"),
+        ({"total_load": 1.0, "tilt": True, "pivot": (5.0, 0.0)}, "pivot"),  # outside the grid: no equilibrium
+    ],
+)
 def test_invalid_input_raises_naming_the_value(solver, kw, word):
     asps, grid = SCENES["mixed"]
     s = surface_on(grid, asps)
@@ -198,13 +216,23 @@ def test_tilt_with_pivot_off_the_line_of_two_asperities():
 @pytest.mark.parametrize("seed", [3, 8])
 def test_random_scenes_all_modes(seed):
     rng = np.random.default_rng(seed)
-    asps = [Asperity(float(rng.uniform(-3, 3)), float(rng.uniform(-3, 3)), float(rng.uniform(0, 0.05)),
-                     float(rng.uniform(1, 3)), str(rng.choice(["sphere", "paraboloid"])))
-            for _ in range(int(rng.integers(3, 7)))]
+    asps = [
+        Asperity(
+            float(rng.uniform(-3, 3)),
+            float(rng.uniform(-3, 3)),
+            float(rng.uniform(0, 0.05)),
+            float(rng.uniform(1, 3)),
+            str(rng.choice(["sphere", "paraboloid"])),
+        )
+        for _ in range(int(rng.integers(3, 7)))
+    ]
     grid = Grid.covering(-4.0, 4.0, -4.0, 4.0, 0.16)
     s = surface_on(grid, asps)
-    for kw in (dict(penetration=0.06), dict(total_load=3.0),
-               dict(total_load=3.0, tilt=True, pivot=(float(rng.uniform(-1, 1)), float(rng.uniform(-1, 1))))):
+    for kw in (
+        dict(penetration=0.06),
+        dict(total_load=3.0),
+        dict(total_load=3.0, tilt=True, pivot=(float(rng.uniform(-1, 1)), float(rng.uniform(-1, 1)))),
+    ):
         _agree(solve_dense(HS, s, **kw), solve_cg(HS, s, **kw), grid)
 
 

@@ -23,6 +23,7 @@ Exact spheres (``shape="sphere"``) rise faster than the paraboloid by about r^4 
 at the same penetration they carry less load (Segedin: ``P/P_Hertz = 1 - d/(10 R)``,
 0.5 % less at d = R/20 as here), and they are checked against Segedin's law, not Hertz.
 """
+
 import math
 
 import numpy as np
@@ -76,7 +77,7 @@ def cg_series():
 
 
 def _rate(errs, key):
-    h = 2 * A / np.array(SIZES[:len(errs)], dtype=float)
+    h = 2 * A / np.array(SIZES[: len(errs)], dtype=float)
     return np.polyfit(np.log(h), np.log([e[key] for e in errs]), 1)[0]
 
 
@@ -140,4 +141,7 @@ def test_exact_sphere_follows_segedin_not_hertz():
     assert abs(r.total_load / p_seg - 1) <= 1e-3
     # at d = R/20 the cap carries about 0.5 % less than the paraboloid
     assert -0.006 < r.total_load / P_HERTZ - 1 < -0.004
-    assert abs(float(r.asperities.contact_areas[0]) / (math.pi * float(hertz.sphere_contact_radius(R, D)) ** 2) - 1) <= 0.02
+    assert (
+        abs(float(r.asperities.contact_areas[0]) / (math.pi * float(hertz.sphere_contact_radius(R, D)) ** 2) - 1)
+        <= 0.02
+    )

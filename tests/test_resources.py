@@ -1,6 +1,7 @@
 """Memory estimate before a solve (twoscale.resources): the counts against the grids the
 solvers build, the check's one-line message, the CLI refusing a scene the machine cannot
 hold (exit 2, nothing written), and the estimate against a measured peak."""
+
 from __future__ import annotations
 
 import json
@@ -17,15 +18,17 @@ from twoscale import Material
 from twoscale.cli.main import main
 from twoscale.indenters import Asperity
 from twoscale.io.scene_file import read_scene
-from twoscale.resources import (MemoryEstimate, available_memory, check_memory, default_limit,
-                                estimate_memory)
+from twoscale.resources import MemoryEstimate, available_memory, check_memory, default_limit, estimate_memory
 from twoscale.api import solve_scene
 from twoscale.scene import Scene, SceneError, default_h
 
 EXAMPLES = Path(__file__).resolve().parent.parent / "examples"
 
-HERTZ = Scene(material=Material(E=10.0, nu=0.5), penetration=0.5,
-              asperities=[Asperity(x=0.0, y=0.0, z=0.0, R=10.0, shape="paraboloid")])
+HERTZ = Scene(
+    material=Material(E=10.0, nu=0.5),
+    penetration=0.5,
+    asperities=[Asperity(x=0.0, y=0.0, z=0.0, R=10.0, shape="paraboloid")],
+)
 
 
 def fifty_tips_toml(h: float | None = None) -> str:
@@ -62,13 +65,16 @@ def test_twoscale_counts_one_patch_per_touching_tip():
     est = estimate_memory(HERTZ, h, "twoscale")
     a = math.sqrt(10.0 * 0.5)
     across = math.floor(2 * (1.3 * a + 2 * h) / h) + 1
-    assert est.cells == across ** 2
+    assert est.cells == across**2
 
 
 def test_union_cg_asked_for_counts_the_box_of_the_patches():
     # two tips 40 mm apart on a diagonal: their box is mostly empty, counted only when asked for
-    scene = Scene(material=Material(E=10.0, nu=0.5), penetration=0.5,
-                  asperities=[Asperity(0.0, 0.0, 0.0, 10.0), Asperity(40.0, 40.0, 0.0, 10.0)])
+    scene = Scene(
+        material=Material(E=10.0, nu=0.5),
+        penetration=0.5,
+        asperities=[Asperity(0.0, 0.0, 0.0, 10.0), Asperity(40.0, 40.0, 0.0, 10.0)],
+    )
     auto = estimate_memory(scene, 0.05, "twoscale")
     union = estimate_memory(scene, 0.05, "twoscale", iteration="union-cg")
     assert union.bytes > 2 * auto.bytes and "union box" in union.dominant
@@ -112,8 +118,11 @@ def test_available_memory_is_read():
 def test_solve_scene_refuses_before_allocating_and_can_be_told_not_to_check():
     with pytest.raises(SceneError, match="grid.h"):
         solve_scene(HERTZ, method="reference", memory_limit=1e6)
-    res = solve_scene(Scene(material=HERTZ.material, asperities=HERTZ.asperities, penetration=0.5, h=0.25),
-                      method="reference", memory_limit=math.inf)
+    res = solve_scene(
+        Scene(material=HERTZ.material, asperities=HERTZ.asperities, penetration=0.5, h=0.25),
+        method="reference",
+        memory_limit=math.inf,
+    )
     assert res.converged
 
 
@@ -167,8 +176,25 @@ def test_estimate_is_above_the_measured_peak_and_within_a_factor_2_5(tmp_path, m
     # a whole `twoscale solve --out` run (outputs included) in a fresh interpreter
     h = 0.02
     path = EXAMPLES / "hertz_sphere.toml"
-    run = subprocess.run([sys.executable, "-c", PEAK, "solve", str(path), "--method", method, "--h", str(h),
-                          "--quiet", "--out", str(tmp_path / "out")], capture_output=True, text=True, timeout=600)
+    run = subprocess.run(
+        [
+            sys.executable,
+            "-c",
+            PEAK,
+            "solve",
+            str(path),
+            "--method",
+            method,
+            "--h",
+            str(h),
+            "--quiet",
+            "--out",
+            str(tmp_path / "out"),
+        ],
+        capture_output=True,
+        text=True,
+        timeout=600,
+    )
     got = json.loads(run.stdout.strip().splitlines()[-1])
     assert got["code"] == 0, run.stderr
     est = estimate_memory(read_scene(path), h, method)

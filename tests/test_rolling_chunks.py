@@ -6,6 +6,7 @@ warm-up it does not.
 One Prony branch (E_1 = 40 MPa, tau = 2 ms on E = 10 MPa): one Kelvin-Voigt unit with
 c / J(0) = 4 and retardation time lambda = 10 ms, 0.5 mm at 0.18 km/h (50 mm/s).
 """
+
 from __future__ import annotations
 
 import dataclasses
@@ -39,9 +40,9 @@ def test_warmup_bound_is_the_units_decay():
         expected = 4.0 * -math.expm1(-t_a / lam) * math.exp(-T_w / lam)
         assert warmup_bound(TREAD, t_a, T_w) == pytest.approx(expected, rel=1e-9)
     assert warmup_bound(Material(10.0, 0.5), 1.0, 0.0) == 0.0
-    times = np.arange(40) * 0.01   # 10 ms a position: exp(-w) <= 1e-3 / 4 from w = 9 (t_a large)
+    times = np.arange(40) * 0.01  # 10 ms a position: exp(-w) <= 1e-3 / 4 from w = 9 (t_a large)
     assert warmup_positions(TREAD, times, 30, 1e-3) == 9
-    assert warmup_positions(TREAD, times, 3, 1e-3) == 3   # not enough before it: from the start
+    assert warmup_positions(TREAD, times, 3, 1e-3) == 3  # not enough before it: from the start
 
 
 def test_viscoelastic_chunks_with_warmup_give_the_sequential_run(scene):
@@ -51,7 +52,7 @@ def test_viscoelastic_chunks_with_warmup_give_the_sequential_run(scene):
     whole = roll(scene)
     track = prepare(scene)
     parts = plan(track, 2, 1e-3)
-    assert parts == [(0, 12, 0), (12, 25, 9)]   # 4.5 mm of warm-up before the second chunk
+    assert parts == [(0, 12, 0), (12, 25, 9)]  # 4.5 mm of warm-up before the second chunk
     split = roll_chunks(scene, chunks=2, scheduler="synchronous", warmup_tol=1e-3)
     assert split.all_converged and split.timings_s["warmup_positions"] == 9
     assert np.array_equal(split.shifts, whole.shifts) and np.allclose(split.times, whole.times)

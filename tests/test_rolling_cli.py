@@ -1,6 +1,7 @@
 """A [rolling] scene through ``twoscale solve SCENE --out DIR``: the files with exactly
 their columns, and bad input refused with one line naming the field, exit 2, nothing
 written."""
+
 from __future__ import annotations
 
 import csv
@@ -26,8 +27,14 @@ spacing = 0.25
 [rolling]
 {rolling}
 """
-ROLLING = {"start": "-4.0", "end": "-2.0", "step": "1.0", "speed": "50.0", "tyre_radius": "150.0",
-           "footprint": "[30.0, 12.0]"}
+ROLLING = {
+    "start": "-4.0",
+    "end": "-2.0",
+    "step": "1.0",
+    "speed": "50.0",
+    "tyre_radius": "150.0",
+    "footprint": "[30.0, 12.0]",
+}
 
 
 @pytest.fixture(scope="module")
@@ -64,7 +71,7 @@ def test_outputs_have_exactly_their_columns(strip_file, tmp_path):
     for r in stones[1:]:
         assert int(r[2]) >= 1 and float(r[4]) > 0
         by_shift[float(r[1])] = by_shift.get(float(r[1]), 0.0) + float(r[3])
-    assert by_shift[-3.0] == pytest.approx(40.0, rel=1e-6)   # the stones' forces add up to the load
+    assert by_shift[-3.0] == pytest.approx(40.0, rel=1e-6)  # the stones' forces add up to the load
     meta = json.loads((out / "rolling.json").read_text())
     assert meta["speed_kmh"] == 50.0 and meta["steps"]["positions"] == 3
     assert meta["scene"]["rolling"]["tyre_radius"] == 150.0
@@ -76,17 +83,20 @@ def test_outputs_have_exactly_their_columns(strip_file, tmp_path):
     assert list(table.columns) == stones[0] and len(table) == len(stones) - 1
 
 
-@pytest.mark.parametrize("change, field", [
-    ({"end": "-6.0"}, "rolling.end"),
-    ({"step": "0.0"}, "rolling.step"),
-    ({"step": "-1.0"}, "rolling.step"),
-    ({"speed": "0.0"}, "rolling.speed"),
-    ({"speed": "-5.0"}, "rolling.speed"),
-    ({"start": "-20.0"}, "rolling.start"),           # the strip is shorter than footprint + run
-    ({"tyre_radius": None, "footprint": "[49.0, 12.0]"}, "rolling.start"),   # a flat 49 mm tread, 2 mm run
-    ({"tyre_radius": "1e-5"}, "rolling.tyre_radius"),
-    ({"unknown": "1"}, "rolling.unknown"),
-])
+@pytest.mark.parametrize(
+    "change, field",
+    [
+        ({"end": "-6.0"}, "rolling.end"),
+        ({"step": "0.0"}, "rolling.step"),
+        ({"step": "-1.0"}, "rolling.step"),
+        ({"speed": "0.0"}, "rolling.speed"),
+        ({"speed": "-5.0"}, "rolling.speed"),
+        ({"start": "-20.0"}, "rolling.start"),  # the strip is shorter than footprint + run
+        ({"tyre_radius": None, "footprint": "[49.0, 12.0]"}, "rolling.start"),  # a flat 49 mm tread, 2 mm run
+        ({"tyre_radius": "1e-5"}, "rolling.tyre_radius"),
+        ({"unknown": "1"}, "rolling.unknown"),
+    ],
+)
 def test_bad_input_exit_2_nothing_written(strip_file, tmp_path, capsys, change, field):
     out = tmp_path / "run"
     code = main(["solve", _scene(strip_file, **change), "--out", str(out)])
@@ -118,7 +128,8 @@ def test_viscoelastic_rolling_through_the_cli(strip_file, tmp_path):
 
 def test_viscoelastic_rolling_of_tips_refused(tmp_path, capsys):
     scene = tmp_path / "tips.toml"
-    scene.write_text("""
+    scene.write_text(
+        """
 [material]
 E = 10.0
 nu = 0.5
@@ -135,7 +146,9 @@ end = 2.0
 step = 1.0
 speed = 10.0
 footprint = [30.0, 30.0]
-""", encoding="utf-8")
+""",
+        encoding="utf-8",
+    )
     out = tmp_path / "run"
     assert main(["solve", str(scene), "--out", str(out)]) == 2
     err = capsys.readouterr().err

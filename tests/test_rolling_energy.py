@@ -14,6 +14,7 @@ shrinks (measured -71 %, -16 %, -4.3 %, -0.87 % at 0.5, 0.25, 0.125, 0.0625 mm: 
 (pressure x the central x-difference of the sampled recess) carries in addition the error
 of that slope on the texture's samples (about -16 % here, whatever the step).
 """
+
 from __future__ import annotations
 
 import numpy as np
@@ -44,8 +45,9 @@ def texture():
     size = 40.0
     z = road(size, H, seed=2026, rms=0.02)
     hmap = HeightMap(z, H, x0=-0.5 * size + 0.5 * H, y0=-0.5 * size + 0.5 * H)
-    indenter = MovingHeights.from_map(float(np.nanmax(z)) - z, segment(hmap).labels, hmap.grid,
-                                      face=lambda X, Y: X ** 2 / 100.0)
+    indenter = MovingHeights.from_map(
+        float(np.nanmax(z)) - z, segment(hmap).labels, hmap.grid, face=lambda X, Y: X**2 / 100.0
+    )
     window = Grid.covering(-10.0, 10.0, -5.0, 5.0, H, anchor=(hmap.grid.x0, hmap.grid.y0))
     return indenter, window
 
@@ -55,8 +57,16 @@ def _balance(texture, ds: float) -> tuple[float, float]:
     indenter, window = texture
     material = Material(6.0, 0.5, prony=_prony())
     shifts = np.arange(-5.0, 5.0 + 1e-9, ds)
-    r = solve_moving(material, HalfSpace(material.relaxed()), indenter, shifts, speed=0.5 * KMH, grid=window,
-                     total_load=20.0, options=MovingOptions(method="reference", open_edges=True, keep_results=True))
+    r = solve_moving(
+        material,
+        HalfSpace(material.relaxed()),
+        indenter,
+        shifts,
+        speed=0.5 * KMH,
+        grid=window,
+        total_load=20.0,
+        options=MovingOptions(method="reference", open_edges=True, keep_results=True),
+    )
     assert r.converged
     face = indenter.face_on(window)
     P = [res.pressure_on(window) for res in r.results]
@@ -76,7 +86,7 @@ def test_branch_energy_meets_the_roads_work_as_the_step_shrinks(texture):
     errors = np.abs(np.array(errors))
     assert np.all(np.diff(errors) < 0)
     order = np.polyfit(np.log(steps), np.log(errors), 1)[0]
-    assert order > 1.5                                   # measured about 2
-    assert errors[-1] < 0.02                             # measured 0.87 %
+    assert order > 1.5  # measured about 2
+    assert errors[-1] < 0.02  # measured 0.87 %
     # the friction converges with the step (measured 0.089, 0.121, 0.138 N: first order)
     assert 0 < drags[2] - drags[1] < 0.6 * (drags[1] - drags[0])

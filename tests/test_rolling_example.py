@@ -1,5 +1,6 @@
 """The shipped rolling example: its strip is what make_strip.py makes, its scene passes
 every check, and (slow) it runs to the end with the load held."""
+
 from __future__ import annotations
 
 import csv

@@ -1,6 +1,7 @@
 """Elastic rolling: each position equals a static solve of the road at that shift (built
 here from the height array alone, without the driver's stones), the drag of a stone under
 a tilted face has its closed form, and the mean drag over a periodic road is zero."""
+
 from __future__ import annotations
 
 import math
@@ -40,7 +41,7 @@ def _static_on_map(surface, shift: float, spec: RollingSpec, **load):
     result = solve_reference(HalfSpace(MAT), Surface(grid, recess, owner, 1), tol=1e-9, **load)
     rx = float(np.nanmax(hm.heights)) - hm.heights
     slope = np.gradient(rx, g.h, axis=1)
-    drag = float(np.sum(result.fields[0].pressure * slope)) * g.h ** 2
+    drag = float(np.sum(result.fields[0].pressure * slope)) * g.h**2
     return result, drag
 
 
@@ -56,7 +57,7 @@ def test_each_position_is_the_static_solve(strip, load):
         assert run.total_load[k] == pytest.approx(W, rel=1e-5)
         assert run.penetration[k] == pytest.approx(ref.penetration, abs=1e-6)
         # the contact area counts cells: one cell either way at most per stone's edge
-        assert run.contact_area[k] == pytest.approx(ref.contact_area, abs=2 * 0.25 ** 2)
+        assert run.contact_area[k] == pytest.approx(ref.contact_area, abs=2 * 0.25**2)
         # the drag is a small difference of large terms: to the tolerance of the load
         assert run.drag[k] == pytest.approx(drag, abs=1e-4 * W)
 
@@ -91,8 +92,9 @@ def _periodic_road(period: float, h: float, length: float, width: float) -> np.n
 def _periodic_run(h: float):
     period = 8.0
     surface = build_surface(RawMap(_periodic_road(period, h, 96.0, 16.0), spacing=h, units="mm"))
-    spec = RollingSpec(start=-8.0, end=-8.0 + period - 0.5, step=0.5, speed=20.0, tyre_radius=20.0,
-                       footprint=(40.0, 16.0))
+    spec = RollingSpec(
+        start=-8.0, end=-8.0 + period - 0.5, step=0.5, speed=20.0, tyre_radius=20.0, footprint=(40.0, 16.0)
+    )
     return roll(Scene(material=MAT, surface=surface, penetration=0.5, rolling=spec))
 
 
@@ -106,7 +108,7 @@ def test_mean_drag_over_a_periodic_road_is_zero():
         assert run.all_converged
         assert len(run.shifts) == 16
     spread = float(np.max(np.abs(coarse.drag)))
-    assert spread > 0.05 * float(np.mean(coarse.total_load))   # the drag does swing
+    assert spread > 0.05 * float(np.mean(coarse.total_load))  # the drag does swing
     assert abs(coarse.mean_drag) < 0.02 * spread
     assert abs(fine.mean_drag) < 0.5 * abs(coarse.mean_drag)
 
@@ -119,17 +121,30 @@ def test_block_positions_are_static_solves():
 
     import twoscale
 
-    tips = tuple(Asperity(x, y, z, 8.0, "paraboloid")
-                 for x, y, z in [(-12, 0, 0), (-4, 5, 0.02), (4, -4, 0.05), (12, 3, 0.01), (20, -2, 0.0)])
+    tips = tuple(
+        Asperity(x, y, z, 8.0, "paraboloid")
+        for x, y, z in [(-12, 0, 0), (-4, 5, 0.02), (4, -4, 0.05), (12, 3, 0.01), (20, -2, 0.0)]
+    )
     spec = RollingSpec(start=-6.0, end=6.0, step=6.0, speed=20.0)
-    scene = Scene(material=MAT, asperities=tips, total_load=30.0, rolling=spec, h=0.2,
-                  influence={"kind": "block", "size": (80.0, 40.0, 10.0), "base": "bonded"})
+    scene = Scene(
+        material=MAT,
+        asperities=tips,
+        total_load=30.0,
+        rolling=spec,
+        h=0.2,
+        influence={"kind": "block", "size": (80.0, 40.0, 10.0), "base": "bonded"},
+    )
     provider = scene.provider(progress=False)
     run = roll(scene, provider=provider)
     assert run.all_converged and run.body.startswith("block 80 x 40 x 10")
     for k, s in enumerate(run.shifts):
-        moved = Scene(material=MAT, asperities=tuple(dataclasses.replace(a, x=a.x + s) for a in tips),
-                      total_load=30.0, h=0.2, influence=scene.influence)
+        moved = Scene(
+            material=MAT,
+            asperities=tuple(dataclasses.replace(a, x=a.x + s) for a in tips),
+            total_load=30.0,
+            h=0.2,
+            influence=scene.influence,
+        )
         static = twoscale.solve(moved, provider=provider)
         assert run.penetration[k] == pytest.approx(static.penetration, abs=1e-7)
         assert run.contact_area[k] == pytest.approx(static.contact_area, abs=1e-9)
@@ -146,7 +161,7 @@ def test_chunks_give_the_sequential_run(strip):
     split = roll_chunks(scene, chunks=2, scheduler="synchronous")
     assert np.array_equal(split.shifts, whole.shifts) and np.allclose(split.times, whole.times)
     assert np.allclose(split.penetration, whole.penetration, atol=1e-6)
-    assert np.allclose(split.contact_area, whole.contact_area, atol=2 * 0.25 ** 2)
+    assert np.allclose(split.contact_area, whole.contact_area, atol=2 * 0.25**2)
     assert np.allclose(split.drag, whole.drag, atol=1e-4 * 60.0)
     assert np.array_equal(split.asperities.position, whole.asperities.position)
     assert np.array_equal(split.asperities.stone, whole.asperities.stone)
@@ -160,8 +175,13 @@ def test_strip_on_a_tread_block(strip):
     window keeps every stone's patch inside the region the block answers for, and the load
     is carried at every position."""
     spec = RollingSpec(start=-6.0, end=-2.0, step=2.0, speed=30.0)
-    scene = Scene(material=MAT, surface=strip, rolling=spec, total_load=100.0,
-                  influence={"kind": "block", "size": (50.0, 40.0, 10.0), "base": "bonded", "source_spacing": 2.0})
+    scene = Scene(
+        material=MAT,
+        surface=strip,
+        rolling=spec,
+        total_load=100.0,
+        influence={"kind": "block", "size": (50.0, 40.0, 10.0), "base": "bonded", "source_spacing": 2.0},
+    )
     run = roll(scene)
     assert run.all_converged
     assert np.allclose(run.total_load, 100.0, rtol=1e-6)
@@ -179,4 +199,4 @@ def test_step_not_a_multiple_of_the_spacing_resamples_the_road(strip):
     for k in (0, 2):
         ref, _ = _static_on_map(fine, float(run.shifts[k]), spec, total_load=60.0)
         assert run.penetration[k] == pytest.approx(ref.penetration, abs=1e-6)
-        assert run.contact_area[k] == pytest.approx(ref.contact_area, abs=2 * 0.2 ** 2)
+        assert run.contact_area[k] == pytest.approx(ref.contact_area, abs=2 * 0.2**2)

@@ -4,6 +4,7 @@ Profiles are sampled at x_i = (i + 1/2) dx inside each 100 mm segment, so that a
 samples are symmetric about its centre: a profile even about the centre has a
 least-squares slope of exactly zero, and slope suppression only removes its mean.
 """
+
 import json
 
 import numpy as np
@@ -12,8 +13,8 @@ import pytest
 from twoscale.errors import SurfaceError
 from twoscale.rolling.texture import mean_profile_depth, road_texture, texture_spectrum
 
-DX = 0.1                                   # mm
-U = (np.arange(1000) + 0.5) * DX - 50.0    # position from a segment's centre, mm
+DX = 0.1  # mm
+U = (np.arange(1000) + 0.5) * DX - 50.0  # position from a segment's centre, mm
 
 
 def _square(A, duty=0.5, period=10.0):
@@ -31,7 +32,7 @@ def test_mpd_of_a_square_wave(duty):
     MSD = A - A (2f - 1) = 2 A (1 - f); f = 1/2 gives MPD = A."""
     A = 0.8
     z = _square(A, duty)
-    f = np.mean(z > 0)                       # the sampled duty (0.24 for 0.25 at 0.1 mm)
+    f = np.mean(z > 0)  # the sampled duty (0.24 for 0.25 at 0.1 mm)
     assert abs(f - duty) < 0.011
     m = mean_profile_depth(z, DX)
     assert m.mpd == pytest.approx(2 * A * (1 - f), rel=1e-12)
@@ -72,7 +73,7 @@ def test_mpd_removes_the_slope_of_a_tilted_profile():
 
 def test_mpd_of_a_strip_averages_lines_and_segments_and_drops_the_tail():
     amplitudes = np.array([0.2, 0.5, 1.1])
-    tail = np.full(600, 50.0)                # 60 mm after the third segment: not used
+    tail = np.full(600, 50.0)  # 60 mm after the third segment: not used
     tail[::7] = -50.0
     strip = np.stack([np.concatenate([_square(a)] * 3 + [tail]) for a in amplitudes])
     m = mean_profile_depth(strip, DX)
@@ -85,9 +86,9 @@ def test_mpd_fills_short_dropouts_and_leaves_out_segments_missing_too_much():
     A = 0.8
     first = _square(A)
     inner = np.flatnonzero((first[1:-1] == first[:-2]) & (first[1:-1] == first[2:])) + 1
-    first[inner[::3][:50]] = np.nan                   # 5 % missing, single samples inside plateaus
+    first[inner[::3][:50]] = np.nan  # 5 % missing, single samples inside plateaus
     second = _square(3 * A)
-    second[100:300] = np.nan                          # 20 % missing: left out
+    second[100:300] = np.nan  # 20 % missing: left out
     m = mean_profile_depth(np.concatenate([first, second]), DX)
     # linear interpolation between equal neighbours restores the plateaus exactly
     assert m.mpd == pytest.approx(A, rel=1e-12)
@@ -106,7 +107,7 @@ def test_a_strip_shorter_than_one_segment_is_refused():
         texture_spectrum(np.full((2, 100), np.nan), DX)
 
 
-L, H = 800.0, 0.25                         # texture profile: 800 mm at 0.25 mm, 3200 samples
+L, H = 800.0, 0.25  # texture profile: 800 mm at 0.25 mm, 3200 samples
 X = np.arange(int(L / H)) * H
 XC = 0.5 * (X[0] + X[-1])
 
@@ -119,7 +120,7 @@ def test_texture_level_of_a_sinusoid_in_its_band():
     A = 0.3
     s = texture_spectrum(A * np.cos(2 * np.pi * (X - XC) / 8.0), H)
     b = int(np.flatnonzero(s.nominal == 8.0)[0])
-    assert s.wavelength[b] == pytest.approx(10 ** 0.9, rel=1e-14)
+    assert s.wavelength[b] == pytest.approx(10**0.9, rel=1e-14)
     assert s.level_dB[b] == pytest.approx(20 * np.log10(A / np.sqrt(2) / 1e-3), abs=1e-9)
     assert np.all(np.delete(s.level_dB, b) < s.level_dB[b] - 200)
     # bands resolved by 800 mm at 0.25 mm (df = 1/800 per mm, Nyquist 2 per mm): 80 mm
@@ -132,10 +133,10 @@ def test_texture_levels_are_power_averages_over_lines():
     amplitudes = np.array([0.1, 0.3, 0.05])
     strip = amplitudes[:, None] * np.cos(2 * np.pi * (X - XC) / 20.0)[None, :]
     broken = strip[0].copy()
-    broken[::5] = np.nan                               # 20 % missing: this line is left out
+    broken[::5] = np.nan  # 20 % missing: this line is left out
     s = texture_spectrum(np.vstack([strip, broken]), H)
     b = int(np.flatnonzero(s.nominal == 20.0)[0])
-    expected = 10 * np.log10(np.mean(amplitudes ** 2 / 2) / 1e-6)   # not the mean of the levels
+    expected = 10 * np.log10(np.mean(amplitudes**2 / 2) / 1e-6)  # not the mean of the levels
     assert s.level_dB[b] == pytest.approx(expected, abs=1e-9)
     assert s.lines == 3 and s.lines_dropped == 1
 

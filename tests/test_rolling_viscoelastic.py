@@ -1,6 +1,7 @@
 """A viscoelastic body under a rolling road (through the moving-indenter stepping): the
 limits. Far slower than every branch it answers as the relaxed elastic body at every
 position; far faster (every relaxation time far above the run), as the glassy one."""
+
 from __future__ import annotations
 
 import numpy as np
@@ -24,10 +25,13 @@ def _scene(strip, speed: float, material: Material) -> Scene:
     return Scene(material=material, surface=strip, penetration=0.9, rolling=spec)
 
 
-@pytest.mark.parametrize("speed, taus, modulus", [
-    (1e-6, None, "relaxed"),            # 1 mm in an hour against tau of 1-10 ms
-    (100.0, (1e5, 1e6), "glassy"),      # 1 mm in 36 us against tau of a day and more
-])
+@pytest.mark.parametrize(
+    "speed, taus, modulus",
+    [
+        (1e-6, None, "relaxed"),  # 1 mm in an hour against tau of 1-10 ms
+        (100.0, (1e5, 1e6), "glassy"),  # 1 mm in 36 us against tau of a day and more
+    ],
+)
 def test_limits_are_the_elastic_rollings(strip, speed, taus, modulus):
     prony = PRONY if taus is None else tuple((E, t) for (E, _), t in zip(PRONY, taus))
     run = roll(_scene(strip, speed, Material(10.0, 0.5, prony=prony)))
@@ -36,7 +40,7 @@ def test_limits_are_the_elastic_rollings(strip, speed, taus, modulus):
     assert run.all_converged and elastic.all_converged
     assert run.body.endswith("viscoelastic")
     assert np.allclose(run.total_load, elastic.total_load, rtol=2e-3)
-    assert np.allclose(run.contact_area, elastic.contact_area, atol=4 * 0.25 ** 2)
+    assert np.allclose(run.contact_area, elastic.contact_area, atol=4 * 0.25**2)
     assert np.allclose(run.drag, elastic.drag, atol=2e-3 * float(np.max(elastic.total_load)))
 
 

@@ -1,6 +1,7 @@
 """The rolling path on a kept window (twoscale.rolling.window): the same answers as the
 two-scale solver per position, its FFT operator built once for the run, the start the
 previous pressures moved with the road by whole cells."""
+
 from __future__ import annotations
 
 import numpy as np
@@ -45,7 +46,7 @@ def test_window_and_two_scale_give_the_same_positions(strip, load):
     assert window.all_converged and two.all_converged
     np.testing.assert_allclose(window.total_load, two.total_load, rtol=1e-5)
     np.testing.assert_allclose(window.penetration, two.penetration, atol=1e-6)
-    np.testing.assert_allclose(window.contact_area, two.contact_area, atol=2 * 0.25 ** 2)
+    np.testing.assert_allclose(window.contact_area, two.contact_area, atol=2 * 0.25**2)
     np.testing.assert_allclose(window.drag, two.drag, atol=1e-4 * np.max(two.total_load))
 
 
@@ -70,7 +71,7 @@ def test_start_is_the_pressure_moved_by_whole_cells():
     moved = state.start(g, 1.5)
     assert moved[2, 7] == 3.0 and moved.sum() == 3.0
     q = np.zeros(g.shape)
-    q[2, 7] = 4.0   # the same cell of the road one step later carries 4
+    q[2, 7] = 4.0  # the same cell of the road one step later carries 4
     state.past = [(g, p, 0.0), (g, q, 1.5)]
     ahead = state.start(g, 3.0)
     assert ahead[2, 10] == pytest.approx(5.0) and ahead.sum() == pytest.approx(5.0)

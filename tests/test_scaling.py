@@ -5,6 +5,7 @@ product (Love blocks via ``provider.cell_block``, no FFT, no stencil), and whole
 the far field approximated are compared with the same solves with every pair exact; the
 patch sampling is compared with :func:`surface_on` over all asperities.
 """
+
 import math
 
 import numpy as np
@@ -70,16 +71,18 @@ def test_far_pair_error_within_tolerance(far_tol):
 
 def test_near_pairs_are_exact():
     asp = _scene(12, 1, 8.0)
-    pts = [make_patch(k, Grid.covering(a.x - 0.5, a.x + 0.5, a.y - 0.5, a.y + 0.5, 0.05), asp)
-           for k, a in enumerate(asp)]
+    pts = [
+        make_patch(k, Grid.covering(a.x - 0.5, a.x + 0.5, a.y - 0.5, a.y + 0.5, 0.05), asp) for k, a in enumerate(asp)
+    ]
     values = [_hertz_block(pt) for pt in pts]
     exact = Coupling(HS, pts)
-    near_all = FarFieldCoupling(HS, pts, far_tol=1e-6)   # cut beyond the scene: every pair near
+    near_all = FarFieldCoupling(HS, pts, far_tol=1e-6)  # cut beyond the scene: every pair near
     for k in range(len(pts)):
         b = np.zeros(len(values[k]))
         assert np.allclose(near_all.rhs(k, values, b), exact.rhs(k, values, b), rtol=1e-12, atol=1e-15)
-        assert np.allclose(near_all.patch_displacement(k, values), exact.patch_displacement(k, values),
-                           rtol=1e-12, atol=1e-15)
+        assert np.allclose(
+            near_all.patch_displacement(k, values), exact.patch_displacement(k, values), rtol=1e-12, atol=1e-15
+        )
 
 
 def test_far_tol_validated():
@@ -106,7 +109,7 @@ def test_far_field_solve_matches_exact(seed):
     asp = _scene(60, seed, 24.0)
     kw = dict(h=0.1, total_load=3.0, tol=1e-7, max_sweeps=200)
     exact = solve_twoscale(HS, asp, **kw)
-    approx = solve_twoscale(HS, asp, far_tol=0.01, coarse=False, **kw)   # block-by-block far field
+    approx = solve_twoscale(HS, asp, far_tol=0.01, coarse=False, **kw)  # block-by-block far field
     assert exact.converged and approx.converged
     fe, fa = np.asarray(exact.asperities.forces), np.asarray(approx.asperities.forces)
     touching = fe > 0.05 * fe[fe > 0].mean()
@@ -117,6 +120,7 @@ def test_far_field_solve_matches_exact(seed):
 
 def test_sizing_approaches_validated_and_used():
     from twoscale.micro import MicroProblem, solve_micro
+
     # second tip: geometric approach 1e-4 mm, but the first one's load (~0.2 N) lowers the
     # body there by P / (pi E* r) ~ 1e-3 mm, so it does not touch
     asp = [Asperity(0.0, 0.0, 0.0, 4.0), Asperity(5.0, 0.0, 0.0199, 4.0)]
@@ -128,7 +132,7 @@ def test_sizing_approaches_validated_and_used():
     # the second tip gets a patch only by default, and carries nothing either way
     assert len(full.patches) == 2 and len(small.patches) == 1
     assert full.converged and small.converged
-    p_full = sum(0.05 ** 2 * p.sum() for p in full.pressures)
-    p_small = sum(0.05 ** 2 * p.sum() for p in small.pressures)
+    p_full = sum(0.05**2 * p.sum() for p in full.pressures)
+    p_small = sum(0.05**2 * p.sum() for p in small.pressures)
     assert p_small == pytest.approx(p_full, rel=1e-9)
     assert np.all(full.pressures[1] == 0.0)

@@ -1,5 +1,6 @@
 """Scene files: every malformed input gets one message naming the field and the value;
 valid scenes round-trip through dicts (and JSON); the default cell size follows its rule."""
+
 from __future__ import annotations
 
 import copy
@@ -37,11 +38,13 @@ def mutated(change) -> dict:
 
 def _set(path, value):
     """A mutator setting ``data[k1][k2]... = value`` (integers index lists)."""
+
     def change(data):
         d = data
         for k in path[:-1]:
             d = d[k]
         d[path[-1]] = value
+
     return change
 
 
@@ -51,6 +54,7 @@ def _del(path):
         for k in path[:-1]:
             d = d[k]
         del d[path[-1]]
+
     return change
 
 
@@ -58,6 +62,7 @@ def _both(*changes):
     def change(data):
         for c in changes:
             c(data)
+
     return change
 
 
@@ -94,12 +99,22 @@ MALFORMED = {
     "both penetration and total": (_set(("load", "total"), 60.0), "load.total", "60.0"),
     "neither penetration nor total": (_del(("load", "penetration")), "load.penetration", "None"),
     "tilt without total": (_set(("load", "tilt"), True), "load.tilt", "penetration = 0.5"),
-    "tilt not a bool": (_both(_del(("load", "penetration")), _set(("load", "total"), 10.0),
-                              _set(("load", "tilt"), 1)), "load.tilt", "1"),
+    "tilt not a bool": (
+        _both(_del(("load", "penetration")), _set(("load", "total"), 10.0), _set(("load", "tilt"), 1)),
+        "load.tilt",
+        "1",
+    ),
     "pivot without tilt": (_set(("load", "pivot"), [1.0, 2.0]), "load.pivot", "[1.0, 2.0]"),
-    "pivot of three numbers": (_both(_del(("load", "penetration")), _set(("load", "total"), 10.0),
-                                     _set(("load", "tilt"), True), _set(("load", "pivot"), [0.0, 0.0, 1.0])),
-                               "load.pivot", "[0.0, 0.0, 1.0]"),
+    "pivot of three numbers": (
+        _both(
+            _del(("load", "penetration")),
+            _set(("load", "total"), 10.0),
+            _set(("load", "tilt"), True),
+            _set(("load", "pivot"), [0.0, 0.0, 1.0]),
+        ),
+        "load.pivot",
+        "[0.0, 0.0, 1.0]",
+    ),
     "total zero": (_both(_del(("load", "penetration")), _set(("load", "total"), 0.0)), "load.total", "0.0"),
     "total negative": (_both(_del(("load", "penetration")), _set(("load", "total"), -5.0)), "load.total", "-5.0"),
     "penetration reaches nothing": (_set(("load", "penetration"), -0.25), "load.penetration", "-0.25"),
@@ -107,8 +122,11 @@ MALFORMED = {
     "asperity not a list": (_set(("asperity",), 5), "asperity", "5"),
     "asperity entry not a table": (_set(("asperity", 1), 5), "asperity 2", "5"),
     "material not a table": (_set(("material",), 5), "material", "5"),
-    "two tips at one place": (_both(_set(("asperity", 3, "x"), 30.0), _set(("asperity", 3, "y"), 0.0)),
-                              "asperity 4", "(30.0, 0.0)"),
+    "two tips at one place": (
+        _both(_set(("asperity", 3, "x"), 30.0), _set(("asperity", 3, "y"), 0.0)),
+        "asperity 4",
+        "(30.0, 0.0)",
+    ),
     "R infinite": (_set(("asperity", 0, "R"), math.inf), "asperity 1: R", "inf"),
     "x nan": (_set(("asperity", 1, "x"), math.nan), "asperity 2: x", "nan"),
     "z -inf": (_set(("asperity", 2, "z"), -math.inf), "asperity 3: z", "-inf"),
@@ -120,15 +138,23 @@ MALFORMED = {
     "h a string": (_set(("grid",), {"h": "fine"}), "grid.h", "'fine'"),
     "unknown shape": (_set(("asperity", 2, "shape"), "cube"), "asperity 3: shape", "'cube'"),
     "unknown influence kind": (_set(("influence",), {"kind": "layer"}), "influence.kind", "'layer'"),
-    "block option on halfspace": (_set(("influence",), {"kind": "halfspace", "base": "bonded"}),
-                                  "influence.base", "'bonded'"),
+    "block option on halfspace": (
+        _set(("influence",), {"kind": "halfspace", "base": "bonded"}),
+        "influence.base",
+        "'bonded'",
+    ),
     "unknown block base": (_set(("influence",), {"kind": "block", "base": "glued"}), "influence.base", "'glued'"),
-    "negative block size": (_set(("influence",), {"kind": "block", "size": [140.0, 140.0, -20.0]}),
-                            "influence.size[2]", "-20.0"),
-    "block size of two numbers": (_set(("influence",), {"kind": "block", "size": [140.0, 20.0]}),
-                                  "influence.size", "[140.0, 20.0]"),
-    "unknown block key": (_set(("influence",), {"kind": "block", "thickness": 20.0}),
-                          "influence.thickness", "20.0"),
+    "negative block size": (
+        _set(("influence",), {"kind": "block", "size": [140.0, 140.0, -20.0]}),
+        "influence.size[2]",
+        "-20.0",
+    ),
+    "block size of two numbers": (
+        _set(("influence",), {"kind": "block", "size": [140.0, 20.0]}),
+        "influence.size",
+        "[140.0, 20.0]",
+    ),
+    "unknown block key": (_set(("influence",), {"kind": "block", "thickness": 20.0}), "influence.thickness", "20.0"),
     "load cases with penetration": (_set(("load", "cases"), [1.0, 2.0]), "load.cases", "[1.0, 2.0]"),
     "load cases empty": (_cases([]), "load.cases", "[]"),
     "load cases not a list": (_cases(200.0), "load.cases", "200.0"),
@@ -164,6 +190,7 @@ def test_malformed_scene_names_field_and_value(case):
 
 def _toml(data: dict) -> str:
     """A small TOML writer for these tests' dicts (floats via repr keep nan/inf)."""
+
     def val(v):
         if isinstance(v, bool):
             return "true" if v else "false"
@@ -220,11 +247,23 @@ def test_shipped_examples_are_valid(examples_dir):
 # ---------------------------------------------------------------- round trips
 ROUND_TRIP = {
     "penetration": BASE,
-    "load with tilt and pivot": mutated(_both(_del(("load", "penetration")), _set(("load", "total"), 60.0),
-                                              _set(("load", "tilt"), True), _set(("load", "pivot"), [1.5, -2.0]))),
-    "block with options and h": mutated(_both(_set(("grid",), {"h": 0.05}),
-                                              _set(("influence",), {"kind": "block", "size": [100.0, 120.0, 20.0],
-                                                                    "base": "sliding", "origin": [3.0, -4.0]}))),
+    "load with tilt and pivot": mutated(
+        _both(
+            _del(("load", "penetration")),
+            _set(("load", "total"), 60.0),
+            _set(("load", "tilt"), True),
+            _set(("load", "pivot"), [1.5, -2.0]),
+        )
+    ),
+    "block with options and h": mutated(
+        _both(
+            _set(("grid",), {"h": 0.05}),
+            _set(
+                ("influence",),
+                {"kind": "block", "size": [100.0, 120.0, 20.0], "base": "sliding", "origin": [3.0, -4.0]},
+            ),
+        )
+    ),
     "block defaults": mutated(_set(("influence",), {"kind": "block"})),
     "load cases": mutated(_cases([200.0, 250, 300.0])),
 }
@@ -258,8 +297,13 @@ def test_load_cases_from_a_toml_file(write_scene):
 
 def test_block_defaults_are_the_paper_block():
     scene = scene_from_dict(ROUND_TRIP["block defaults"])
-    assert scene.influence == {"kind": "block", "size": (140.0, 140.0, 20.0), "base": "bonded", "origin": (0.0, 0.0),
-                               "source_spacing": 5.0}
+    assert scene.influence == {
+        "kind": "block",
+        "size": (140.0, 140.0, 20.0),
+        "base": "bonded",
+        "origin": (0.0, 0.0),
+        "source_spacing": 5.0,
+    }
 
 
 def test_block_without_fem_influence_names_kind(monkeypatch):
@@ -275,8 +319,13 @@ def test_python_api_same_checks():
     a = Asperity(0.0, 0.0, 0.0, 10.0)
     scene = Scene(material=mat, asperities=[a], penetration=0.5)
     assert scene.asperities == (a,)
-    assert scene == scene_from_dict({"material": {"E": 10.0, "nu": 0.5}, "load": {"penetration": 0.5},
-                                     "asperity": [{"x": 0.0, "y": 0.0, "z": 0.0, "R": 10.0}]})
+    assert scene == scene_from_dict(
+        {
+            "material": {"E": 10.0, "nu": 0.5},
+            "load": {"penetration": 0.5},
+            "asperity": [{"x": 0.0, "y": 0.0, "z": 0.0, "R": 10.0}],
+        }
+    )
     with pytest.raises(SceneError, match="asperity 2 .*-0.0"):
         Scene(material=mat, asperities=[a, Asperity(-0.0, 0.0, 1.0, 5.0)], penetration=0.5)
     with pytest.raises(SceneError, match="exactly one"):
@@ -310,7 +359,7 @@ def test_default_h_ignores_asperities_carrying_under_one_percent():
     mat = Material(10.0, 0.5)
     main = Asperity(0.0, 0.0, 0.0, 10.0, "paraboloid")
     barely = Asperity(20.0, 0.0, 0.49, 10.0, "paraboloid")  # approach 0.01: (0.01/0.5)^1.5 = 0.3 % of the force
-    fair = Asperity(20.0, 0.0, 0.3, 10.0, "paraboloid")     # approach 0.2: 25 % of the force
+    fair = Asperity(20.0, 0.0, 0.3, 10.0, "paraboloid")  # approach 0.2: 25 % of the force
     alone = default_h(Scene(material=mat, asperities=[main], penetration=0.5))
     assert default_h(Scene(material=mat, asperities=[main, barely], penetration=0.5)) == alone
     h_fair = default_h(Scene(material=mat, asperities=[main, fair], penetration=0.5))
@@ -318,8 +367,10 @@ def test_default_h_ignores_asperities_carrying_under_one_percent():
 
 
 def test_scene_h_wins_over_default():
-    assert default_h(Scene(material=Material(10.0, 0.5), asperities=[Asperity(0, 0, 0, 10.0)],
-                           penetration=0.5, h=0.37)) == 0.37
+    assert (
+        default_h(Scene(material=Material(10.0, 0.5), asperities=[Asperity(0, 0, 0, 10.0)], penetration=0.5, h=0.37))
+        == 0.37
+    )
 
 
 # ---------------------------------------------------------------- reference grid

@@ -7,6 +7,7 @@
   and the ``twoscale COMMAND ...`` line opening each bullet) list exactly the options
   that ``twoscale COMMAND --help`` prints.
 """
+
 from __future__ import annotations
 
 import pathlib
@@ -25,8 +26,26 @@ ROOT = pathlib.Path(__file__).resolve().parents[1]
 #: that this file does not match itself).
 TRACKER = re.compile(r"\bissues?\s*[-#]?\s*\d+|\bissues/\d+|\bGH-\d+", re.IGNORECASE)
 #: Binary or generated files: not read.
-BINARY = {".png", ".jpg", ".npz", ".npy", ".vti", ".vtu", ".vtm", ".msh", ".x3p", ".parquet", ".pdf",
-          ".gz", ".zip", ".pkl", ".sur", ".datx", ".opd", ".plu"}
+BINARY = {
+    ".png",
+    ".jpg",
+    ".npz",
+    ".npy",
+    ".vti",
+    ".vtu",
+    ".vtm",
+    ".msh",
+    ".x3p",
+    ".parquet",
+    ".pdf",
+    ".gz",
+    ".zip",
+    ".pkl",
+    ".sur",
+    ".datx",
+    ".opd",
+    ".plu",
+}
 
 
 def tracked_text_files() -> list[pathlib.Path]:
@@ -36,14 +55,23 @@ def tracked_text_files() -> list[pathlib.Path]:
         names = [n for n in out.decode().split("\0") if n]
     except (OSError, subprocess.CalledProcessError):
         skip = {".git", ".venv", "_build", "__pycache__", ".pytest_cache", ".mypy_cache", ".ruff_cache"}
-        names = [str(p.relative_to(ROOT)) for p in ROOT.rglob("*")
-                 if p.is_file() and not skip & set(p.relative_to(ROOT).parts)]
+        names = [
+            str(p.relative_to(ROOT))
+            for p in ROOT.rglob("*")
+            if p.is_file() and not skip & set(p.relative_to(ROOT).parts)
+        ]
     return [ROOT / n for n in names if pathlib.Path(n).suffix.lower() not in BINARY and (ROOT / n).is_file()]
 
 
 def test_the_pattern_finds_tracker_references():
-    hits = ["see issue " + "12", "Issue #" + "4's target", "(issues " + "6, 14, 16)", "the issue-" + "6 layout",
-            "github.com/x/y/issues/" + "3", "GH-" + "7"]
+    hits = [
+        "see issue " + "12",
+        "Issue #" + "4's target",
+        "(issues " + "6, 14, 16)",
+        "the issue-" + "6 layout",
+        "github.com/x/y/issues/" + "3",
+        "GH-" + "7",
+    ]
     misses = ["a known issue with the mesh", "tissue 12", "issued 3 times"]
     assert all(TRACKER.search(s) for s in hits)
     assert not any(TRACKER.search(s) for s in misses)
@@ -109,7 +137,9 @@ def test_readme_has_a_synopsis_for_every_subcommand():
 def test_readme_synopsis_matches_help(command, capsys):
     documented = options_in(readme_synopses()[command])
     actual = help_options(command, capsys)
-    assert not documented - actual, f"README lists options `twoscale {command}` does not have: " \
-                                    f"{sorted(documented - actual)}"
-    assert not actual - documented, f"README's synopsis of `twoscale {command}` leaves out " \
-                                    f"{sorted(actual - documented)}"
+    assert not documented - actual, (
+        f"README lists options `twoscale {command}` does not have: {sorted(documented - actual)}"
+    )
+    assert not actual - documented, (
+        f"README's synopsis of `twoscale {command}` leaves out {sorted(actual - documented)}"
+    )

@@ -1,16 +1,16 @@
 """Sensor averaging, indicators e_M / e_m, measured-data readers, pivot centring (eq. 13)."""
+
 import numpy as np
 import pytest
 
 from twoscale.grid import Grid
 from twoscale.results import ContactResult, PressureField, summarise
-from twoscale.sensor import (Sensor, centred_tips, e_M, e_m, pivot_from_forces,
-                             read_sensor_map, read_tip_forces)
+from twoscale.sensor import Sensor, centred_tips, e_M, e_m, pivot_from_forces, read_sensor_map, read_tip_forces
 
 
 def _result(fields, n=1):
     s = summarise(fields, n)
-    total = sum(float(f.pressure.sum()) * f.grid.h ** 2 for f in fields)
+    total = sum(float(f.pressure.sum()) * f.grid.h**2 for f in fields)
     return ContactResult("test", tuple(fields), 0.1, None, total, s, True)
 
 
@@ -181,7 +181,7 @@ def test_read_tip_forces_both_layouts(tmp_path):
     m = read_tip_forces(b)
     np.testing.assert_array_equal(m.force, [4.0, 3.0, 5.0])
     assert m.tips is None
-    c = tmp_path / "numbered.csv"   # numbered from 1, as the program's own tables
+    c = tmp_path / "numbered.csv"  # numbered from 1, as the program's own tables
     c.write_text("asperity,force\n2,3.0\n1,4.0\n3,5.0\n")
     np.testing.assert_array_equal(read_tip_forces(c).force, [4.0, 3.0, 5.0])
     c.write_text("asperity,force\n0,3.0\n1,4.0\n")
@@ -189,17 +189,20 @@ def test_read_tip_forces_both_layouts(tmp_path):
         read_tip_forces(c)
 
 
-@pytest.mark.parametrize("text, match", [
-    ("", "no data"),
-    ("a,b\n1,2\n", "header"),
-    ("index,force\n", "no rows"),
-    ("index,force\n0,abc\n", ":2: column 'force' is not a number"),
-    ("index,force\n0,nan\n", "not finite"),
-    ("index,force\n0,1,2\n", "expected 2 columns"),
-    ("index,force\n0,-1\n", ">= 0"),
-    ("index,force\n0,1\n0,2\n", "each once"),
-    ("x,y,force\n0,0,1\n", "3 asperities"),
-])
+@pytest.mark.parametrize(
+    "text, match",
+    [
+        ("", "no data"),
+        ("a,b\n1,2\n", "header"),
+        ("index,force\n", "no rows"),
+        ("index,force\n0,abc\n", ":2: column 'force' is not a number"),
+        ("index,force\n0,nan\n", "not finite"),
+        ("index,force\n0,1,2\n", "expected 2 columns"),
+        ("index,force\n0,-1\n", ">= 0"),
+        ("index,force\n0,1\n0,2\n", "each once"),
+        ("x,y,force\n0,0,1\n", "3 asperities"),
+    ],
+)
 def test_read_tip_forces_errors(tmp_path, text, match):
     f = tmp_path / "f.csv"
     f.write_text(text)
@@ -237,7 +240,7 @@ def test_forces_from_map_recovers_separated_tip_forces():
     for k, (cx, cy, a) in enumerate([(-10.0, 3.0, 2.0), (12.0, -5.0, 3.0)]):
         g = Grid.covering(cx - a, cx + a, cy - a, cy + a, 0.07)
         X, Y = g.centres()
-        p = np.sqrt(np.clip(1 - ((X - cx) ** 2 + (Y - cy) ** 2) / a ** 2, 0, None))
+        p = np.sqrt(np.clip(1 - ((X - cx) ** 2 + (Y - cy) ** 2) / a**2, 0, None))
         fields.append(_field(g, p, owner=k))
     res = _result(fields, n=2)
     s = Sensor()

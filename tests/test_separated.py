@@ -4,14 +4,21 @@ Checked against independent values: Love's closed form for the cell expansion, t
 zero-padded FFT product (itself checked against the dense Love matrix in
 test_reference_*) for the Chebyshev blocks.
 """
+
 import numpy as np
 import pytest
 
 from twoscale.analytic.halfspace import love_far_field, love_rectangle
 from twoscale.grid import Grid
 from twoscale.influence.halfspace import HalfSpace
-from twoscale.influence.separated import (FAR_FIELD_BOUND, SeparatedOperator, box_gap, chebyshev_points,
-                                          lagrange_matrix, plan)
+from twoscale.influence.separated import (
+    FAR_FIELD_BOUND,
+    SeparatedOperator,
+    box_gap,
+    chebyshev_points,
+    lagrange_matrix,
+    plan,
+)
 from twoscale.material import Material
 from twoscale.micro.blocks import Coupling
 from twoscale.micro.patches import Patch
@@ -49,14 +56,14 @@ def test_love_far_field_rejects_a_bad_order():
 def test_lagrange_on_chebyshev_points_is_exact_for_polynomials():
     nodes = chebyshev_points(-1.0, 2.0, 7)
     x = np.linspace(-1.0, 2.0, 50)
-    poly = lambda t: 3 * t ** 6 - t ** 3 + 0.5
+    poly = lambda t: 3 * t**6 - t**3 + 0.5
     np.testing.assert_allclose(lagrange_matrix(nodes, x) @ poly(nodes), poly(x), rtol=1e-12, atol=1e-12)
     # a point on a node returns the node's value exactly
     np.testing.assert_array_equal(lagrange_matrix(nodes, nodes[2:3]), np.eye(7)[2:3])
 
 
 def test_box_gap():
-    a = Grid(0.0, 0.0, 0.1, 11, 11)            # centres 0..1
+    a = Grid(0.0, 0.0, 0.1, 11, 11)  # centres 0..1
     assert box_gap(a, Grid(3.0, 0.5, 0.1, 5, 5)) == pytest.approx(2.0)
     assert box_gap(a, Grid(4.0, 5.0, 0.1, 1, 1)) == pytest.approx(5.0)
     assert box_gap(a, Grid(0.5, 0.5, 0.1, 30, 30)) == 0.0
@@ -65,7 +72,7 @@ def test_box_gap():
 def test_close_or_overlapping_pairs_are_not_separated():
     a = Grid(0.0, 0.0, 0.1, 30, 30)
     assert HS.separated_operator(a, a) is None
-    assert HS.separated_operator(a, Grid(3.2, 0.0, 0.1, 30, 30)) is None        # gap 0.3 mm = 3 h
+    assert HS.separated_operator(a, Grid(3.2, 0.0, 0.1, 30, 30)) is None  # gap 0.3 mm = 3 h
     assert plan(a, Grid(20.0, 0.0, 0.1, 30, 30), 1e-10) is not None
     with pytest.raises(ValueError, match="rtol"):
         plan(a, a, 0.0)
@@ -98,8 +105,9 @@ def test_transposed_equals_the_reverse_build():
     t, s = Grid(0.0, 0.0, 0.1, 25, 18), Grid(9.0, -4.0, 0.1, 12, 30)
     fwd = HS.separated_operator(t, s, rtol=1e-10)
     back = fwd.transposed()
-    fresh = SeparatedOperator(s, t, lambda dx, dy: love_far_field(dx, dy, 0.1, HS.E_star, fwd.plan.order),
-                              plan(s, t, 1e-10))
+    fresh = SeparatedOperator(
+        s, t, lambda dx, dy: love_far_field(dx, dy, 0.1, HS.E_star, fwd.plan.order), plan(s, t, 1e-10)
+    )
     q = np.random.default_rng(0).random(t.shape)
     np.testing.assert_allclose(back.apply(q), fresh.apply(q), rtol=1e-12)
     # and the two directions agree with reciprocity: <p, A_ts q> = <A_st p, q>
@@ -108,7 +116,7 @@ def test_transposed_equals_the_reverse_build():
 
 
 def _patches(h=0.1):
-    centres = [(0.0, 0.0), (8.0, 1.0), (-3.0, 9.0), (1.5, 0.5)]      # the last one is close to the first
+    centres = [(0.0, 0.0), (8.0, 1.0), (-3.0, 9.0), (1.5, 0.5)]  # the last one is close to the first
     out = []
     for a, (x, y) in enumerate(centres):
         g = Grid.covering(x - 1.2, x + 1.2, y - 1.0, y + 1.0, h)

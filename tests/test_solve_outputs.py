@@ -1,4 +1,5 @@
 """`twoscale solve --out DIR` also writes fields.vtm (+ fields/), asperities.csv, pressure.png and forces.png."""
+
 import json
 from pathlib import Path
 
@@ -19,11 +20,20 @@ EXAMPLES = Path(__file__).resolve().parent.parent / "examples"
 @pytest.mark.parametrize("method", ["reference", "twoscale"])
 def test_solve_writes_fields_and_figures(tmp_path, method):
     out = tmp_path / "run"
-    assert main(["solve", str(EXAMPLES / "paper_two_spheres.toml"), "--method", method,
-                 "--out", str(out), "--quiet"]) == 0
-    names = {p.name for p in out.iterdir()} - {"asperities.parquet"}      # Parquet when pyarrow is installed
-    assert sorted(names) == [".twoscale-manifest.json", "asperities.csv", "asperities.csv-metadata.json", "fields",
-                             "fields.vtm", "forces.png", "pressure.png", "result.json"]
+    assert (
+        main(["solve", str(EXAMPLES / "paper_two_spheres.toml"), "--method", method, "--out", str(out), "--quiet"]) == 0
+    )
+    names = {p.name for p in out.iterdir()} - {"asperities.parquet"}  # Parquet when pyarrow is installed
+    assert sorted(names) == [
+        ".twoscale-manifest.json",
+        "asperities.csv",
+        "asperities.csv-metadata.json",
+        "fields",
+        "fields.vtm",
+        "forces.png",
+        "pressure.png",
+        "result.json",
+    ]
     res = json.loads((out / "result.json").read_text())
     back = read_vtk(out / "fields.vtm")
     # the per-asperity forces integrated from the written fields are result.json's forces
@@ -33,7 +43,7 @@ def test_solve_writes_fields_and_figures(tmp_path, method):
     assert back.metadata["scene"] == res["scene"]
     # indenter height at each tip is the tip recess (0): the exact cap starts there
     for f, z in zip(back.fields, back.indenter_height):
-        assert np.nanmin(np.where(np.isfinite(z), z, np.nan)) == pytest.approx(0.0, abs=f.grid.h ** 2 / 10)
+        assert np.nanmin(np.where(np.isfinite(z), z, np.nan)) == pytest.approx(0.0, abs=f.grid.h**2 / 10)
     _check_asperity_csv(out / "asperities.csv", res, macro=(method == "twoscale"))
     for name in ("pressure.png", "forces.png"):
         assert (out / name).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
@@ -47,10 +57,11 @@ def test_bad_input_writes_none_of_them(tmp_path):
 
 def _check_asperity_csv(path, res, *, macro):
     import csv
+
     meta = json.loads(path.with_name(path.name + "-metadata.json").read_text())
     assert meta["twoscale"]["version"] == __version__ and meta["twoscale"]["source"].startswith("solve ")
     assert meta["twoscale"]["scene"] == res["scene"] and meta["twoscale"]["units"]["force"] == "N"
-    with open(path, newline="", encoding="utf-8") as fh:       # the header on the first line
+    with open(path, newline="", encoding="utf-8") as fh:  # the header on the first line
         rows = list(csv.DictReader(fh))
     assert [int(r["asperity"]) for r in rows] == list(range(1, len(res["asperities"]) + 1))
     assert ("macro_force_N" in rows[0]) == macro

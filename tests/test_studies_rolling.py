@@ -6,6 +6,7 @@ The study: a seeded chip-seal strip (50 x 14 mm at 0.25 mm) under a slick tyre's
 (R 150 mm, a 24 x 12 mm footprint) at a held approach of 0.9 mm, three positions 1 mm
 apart, an elastic and a viscoelastic tread (one branch, tau 2 ms), two speeds.
 """
+
 from __future__ import annotations
 
 import dataclasses
@@ -74,8 +75,10 @@ def study_file(tmp_path):
 
 def _direct(material: Material, speed: float):
     """The case rolled by hand: the strip built from its seed, the scene from its parts."""
-    strip = build_surface(RawMap(road_strip(50.0, 14.0, 0.25, seed=7), spacing=0.25, units="mm"),
-                          SurfaceOptions(min_distance=2.0, prominence=0.1))
+    strip = build_surface(
+        RawMap(road_strip(50.0, 14.0, 0.25, seed=7), spacing=0.25, units="mm"),
+        SurfaceOptions(min_distance=2.0, prominence=0.1),
+    )
     spec = RollingSpec(start=-3.0, end=-1.0, step=1.0, speed=speed, tyre_radius=150.0, footprint=(24.0, 12.0))
     return roll(Scene(material=material, surface=strip, penetration=0.9, rolling=spec))
 
@@ -107,9 +110,9 @@ def test_cases_equal_direct_rolling_runs_and_resume(study_file, tmp_path, monkey
         run_rolling_study(study, out, quiet=True)
     store = CaseStore(out)
     keys = [case_key(c, study) for c in expand(study)]
-    assert [k for k in keys if store.finished(k)] == calls[0] == keys[:2]   # elastic, both speeds
+    assert [k for k in keys if store.finished(k)] == calls[0] == keys[:2]  # elastic, both speeds
     stamps = {k: os.stat(store.path(k) / "case.json").st_mtime_ns for k in keys[:2]}
-    (store.folder / f".{keys[0]}.tmp-left").mkdir()   # what a killed write leaves
+    (store.folder / f".{keys[0]}.tmp-left").mkdir()  # what a killed write leaves
     monkeypatch.setattr(rolling_run, "solve_group", real)
     run = run_rolling_study(study, out, quiet=True)
     assert (run.ran, run.skipped) == (2, 2)
@@ -123,8 +126,14 @@ def test_cases_equal_direct_rolling_runs_and_resume(study_file, tmp_path, monkey
     for case, key in zip(expand(study), keys):
         direct = _direct(case.material.material, case.speed)
         got = _signals(store.path(key))
-        assert list(got.columns) == ["time_s", "shift_mm", "total_load_N", "penetration_mm", "contact_area_mm2",
-                                     "drag_N"]
+        assert list(got.columns) == [
+            "time_s",
+            "shift_mm",
+            "total_load_N",
+            "penetration_mm",
+            "contact_area_mm2",
+            "drag_N",
+        ]
         np.testing.assert_allclose(got["shift_mm"], direct.shifts)
         np.testing.assert_allclose(got["time_s"], direct.times, rtol=1e-12)
         np.testing.assert_allclose(got["total_load_N"], direct.total_load, rtol=1e-9)
@@ -140,8 +149,9 @@ def test_cases_equal_direct_rolling_runs_and_resume(study_file, tmp_path, monkey
     # the slow tread drags more than the elastic one at the same speed; its energy is there
     visco = table[table.material == "tread"]
     assert np.all(visco.dissipated_per_mm_N > 0) and table.dissipated_per_mm_N.isna().sum() == 2
-    assert float(visco[visco.speed_kmh == 1.8].mean_drag_N.iloc[0]) > \
-        2.0 * float(table[(table.material == "rubber") & (table.speed_kmh == 1.8)].mean_drag_N.iloc[0])
+    assert float(visco[visco.speed_kmh == 1.8].mean_drag_N.iloc[0]) > 2.0 * float(
+        table[(table.material == "rubber") & (table.speed_kmh == 1.8)].mean_drag_N.iloc[0]
+    )
 
 
 @pytest.mark.slow
@@ -151,9 +161,12 @@ def test_cli_runs_on_two_workers_and_lists_bands(study_file, tmp_path, capsys):
     roll serves the elastic tread's two speeds: the faster's bands lie higher)."""
     import pandas as pd
 
-    text = STUDY.replace('name = "tread"', 'name = "tread"\n# one material only') \
-        .replace("end = -1.0", "end = 12.0").replace("step = 1.0", "step = 0.25")   # 61 positions
-    text = text[:text.index("[[material]]\nname = \"tread\"")] + text[text.index("[rolling]"):]
+    text = (
+        STUDY.replace('name = "tread"', 'name = "tread"\n# one material only')
+        .replace("end = -1.0", "end = 12.0")
+        .replace("step = 1.0", "step = 0.25")
+    )  # 61 positions
+    text = text[: text.index('[[material]]\nname = "tread"')] + text[text.index("[rolling]") :]
     path = tmp_path / "s.toml"
     path.write_text(text, encoding="utf-8")
     out = tmp_path / "out"
@@ -163,23 +176,28 @@ def test_cli_runs_on_two_workers_and_lists_bands(study_file, tmp_path, capsys):
     assert set(bands.signal) == {"total_load_N"}
     from twoscale.rolling.bands import third_octave_levels
 
-    for speed in (1.8, 50.0):   # each case's levels are those of its own force signal and time step
+    for speed in (1.8, 50.0):  # each case's levels are those of its own force signal and time step
         mine = bands[bands.speed_kmh == speed].sort_values("band_Hz")
         signals = _signals(out / "cases" / mine.key.iloc[0])
         levels = third_octave_levels(signals.total_load_N.to_numpy(), 0.25 / (speed / 3.6e-3))
         np.testing.assert_allclose(mine.band_Hz, levels.nominal)
-        np.testing.assert_allclose(mine.level_dB, levels.columns()["level_dB"], atol=1e-8)   # CSV: 10 digits
+        np.testing.assert_allclose(mine.level_dB, levels.columns()["level_dB"], atol=1e-8)  # CSV: 10 digits
     assert bands[bands.speed_kmh == 50.0].band_Hz.min() > bands[bands.speed_kmh == 1.8].band_Hz.max()
 
 
-@pytest.mark.parametrize("change, words", [
-    (("speeds = [1.8, 50.0]", "speeds = [0.0]"), "rolling.speeds[0] must be > 0"),
-    (("end = -1.0", "end = -4.0"), "rolling.end must not be before"),
-    (("kind = \"halfspace\"\ntyre_radius = 150.0\nfootprint = [24.0, 12.0]", "kind = \"halfspace\""),
-     "body 1: a flat face on the half-space needs a footprint"),
-    (("seed = 7 }", "seed = 7 }\nseeds = [1, 2]"), "generate.seed or seeds"),
-    (("E = 10.0\nnu = 0.5\nprony", "E = -1.0\nnu = 0.5\nprony"), "material 2: material.E must be"),
-])
+@pytest.mark.parametrize(
+    "change, words",
+    [
+        (("speeds = [1.8, 50.0]", "speeds = [0.0]"), "rolling.speeds[0] must be > 0"),
+        (("end = -1.0", "end = -4.0"), "rolling.end must not be before"),
+        (
+            ('kind = "halfspace"\ntyre_radius = 150.0\nfootprint = [24.0, 12.0]', 'kind = "halfspace"'),
+            "body 1: a flat face on the half-space needs a footprint",
+        ),
+        (("seed = 7 }", "seed = 7 }\nseeds = [1, 2]"), "generate.seed or seeds"),
+        (("E = 10.0\nnu = 0.5\nprony", "E = -1.0\nnu = 0.5\nprony"), "material 2: material.E must be"),
+    ],
+)
 def test_bad_input_is_one_line_and_nothing_written(study_file, tmp_path, capsys, change, words):
     path = tmp_path / "bad.toml"
     path.write_text(STUDY.replace(*change), encoding="utf-8")
@@ -199,10 +217,10 @@ def test_offsets_and_seeds_make_sections(tmp_path):
     cases = expand(study)
     from twoscale.studies.rolling_cases import rolling_spec, solve_key
 
-    spec = rolling_spec(cases[4], study)   # the second section: 5 mm further along the strip
+    spec = rolling_spec(cases[4], study)  # the second section: 5 mm further along the strip
     assert (spec.start, spec.end) == (-8.0, -6.0)
     elastic = [c for c in cases if not c.viscoelastic]
-    assert len({solve_key(c, study) for c in elastic}) == len(elastic) // 2      # the speeds share a roll
+    assert len({solve_key(c, study) for c in elastic}) == len(elastic) // 2  # the speeds share a roll
     visco = [c for c in cases if c.viscoelastic]
     assert len({solve_key(c, study) for c in visco}) == len(visco)
     assert dataclasses.replace(study, figures=True).figures
@@ -215,9 +233,11 @@ def test_strip_file_sections_are_keyed_by_the_files_content(tmp_path):
 
     heights = road_strip(50.0, 14.0, 0.25, seed=7)
     np.save(tmp_path / "strip.npy", heights)
-    text = STUDY.replace('generate = { length = 50.0, width = 14.0, h = 0.25, seed = 7 }\n'
-                         'surface = { min_distance = 2.0, prominence = 0.1 }',
-                         'surface = { file = "strip.npy", spacing = 0.25, min_distance = 2.0 }\noffsets = [0.0, 4.0]')
+    text = STUDY.replace(
+        "generate = { length = 50.0, width = 14.0, h = 0.25, seed = 7 }\n"
+        "surface = { min_distance = 2.0, prominence = 0.1 }",
+        'surface = { file = "strip.npy", spacing = 0.25, min_distance = 2.0 }\noffsets = [0.0, 4.0]',
+    )
     path = tmp_path / "s.toml"
     path.write_text(text, encoding="utf-8")
     keys = [case_key(c, read_study(path)) for c in expand(read_study(path))]

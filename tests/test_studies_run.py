@@ -4,6 +4,7 @@ The scene: two paraboloids (R = 10 mm) 6 mm apart on a half-space (E = 10 MPa, n
 under penetration control. Body "both" sees both tips; body "left" is a window around the
 left tip only, so there the left tip is alone: Hertz's closed form.
 """
+
 from __future__ import annotations
 
 import json
@@ -62,11 +63,11 @@ def _forces(store, key):
 
 
 def test_dask_cluster_gives_the_one_by_one_numbers(study, tmp_path):
-    run = run_study(study, tmp_path / "out", workers=2, batch=3, quiet=True)   # tasks of 3, 3 and 2 cases
+    run = run_study(study, tmp_path / "out", workers=2, batch=3, quiet=True)  # tasks of 3, 3 and 2 cases
     assert run.ran == 8 and run.skipped == 0 and "2 workers" in run.where
     store = CaseStore(tmp_path / "out")
     for case, key in zip(expand(study), run.keys):
-        alone = solve_scene(case_scene(case, study))           # the public solver, one case
+        alone = solve_scene(case_scene(case, study))  # the public solver, one case
         assert store.status(key) == "converged"
         np.testing.assert_allclose(_forces(store, key), alone.asperities.forces, rtol=1e-12, atol=1e-12)
 
@@ -104,9 +105,9 @@ def test_resume_skips_finished_cases(study, tmp_path, monkeypatch):
         run_study(study, out, quiet=True)
     store = CaseStore(out)
     finished = [k for k in dict.fromkeys(case_key(c, study) for c in expand(study)) if store.finished(k)]
-    assert finished == calls                               # the cases done before Ctrl-C are intact
+    assert finished == calls  # the cases done before Ctrl-C are intact
     stamps = {k: os.stat(store.path(k) / "case.json").st_mtime_ns for k in finished}
-    (store.folder / f".{calls[0]}.tmp-left").mkdir()       # what an interrupted write leaves
+    (store.folder / f".{calls[0]}.tmp-left").mkdir()  # what an interrupted write leaves
     monkeypatch.setattr(execute, "solve_ref", real)
     run = run_study(study, out, quiet=True)
     assert (run.ran, run.skipped) == (5, 3)
@@ -139,21 +140,35 @@ def test_outputs_tables_and_figures(study, tmp_path):
     assert summary["counts"]["converged"] == 8
     cases = pa.read_table(out / "cases.parquet").to_pylist()
     tips = pa.read_table(out / "asperities.parquet").to_pylist()
-    assert len(cases) == 8 and len(tips) == 4 * 2 + 4 * 1         # "both": 2 tips, "left": 1
+    assert len(cases) == 8 and len(tips) == 4 * 2 + 4 * 1  # "both": 2 tips, "left": 1
     for c in cases:  # each case's total is the sum of its tips' forces
         assert c["total_load_N"] == pytest.approx(sum(t["force_N"] for t in tips if t["key"] == c["key"]), rel=1e-9)
     assert (out / "cases.csv").read_text().splitlines()[0].startswith("scene,body,load_kind,load,position")
     ind = pa.read_table(out / "indicators.parquet").to_pylist()
     assert {(r["reference"], r["body"]) for r in ind} == {("both", "left")} and len(ind) == 4
     for r in ind:  # e_M of "left" against "both": the right tip is missing from "left"
-        both = {t["asperity"]: t["force_N"] for t in tips if (t["body"], t["load"], t["position"]) == ("both", r["load"], r["position"])}
-        left = {t["asperity"]: t["force_N"] for t in tips if (t["body"], t["load"], t["position"]) == ("left", r["load"], r["position"])}
+        both = {
+            t["asperity"]: t["force_N"]
+            for t in tips
+            if (t["body"], t["load"], t["position"]) == ("both", r["load"], r["position"])
+        }
+        left = {
+            t["asperity"]: t["force_N"]
+            for t in tips
+            if (t["body"], t["load"], t["position"]) == ("left", r["load"], r["position"])
+        }
         # tips numbered from 1, as in the scene file
         expected = 100 * ((left[1] - both[1]) ** 2 + both[2] ** 2) / (both[1] ** 2 + both[2] ** 2)
         assert r["e_M_percent"] == pytest.approx(expected, rel=1e-9)
     names = sorted(p.name for p in (out / "figures").iterdir())
-    assert names == ["asperity_forces_pair_both.png", "asperity_forces_pair_left.png", "indicators_pair.png",
-                     "load_approach_pair.png", "track_pair_both.png", "track_pair_left.png"]
+    assert names == [
+        "asperity_forces_pair_both.png",
+        "asperity_forces_pair_left.png",
+        "indicators_pair.png",
+        "load_approach_pair.png",
+        "track_pair_both.png",
+        "track_pair_left.png",
+    ]
 
 
 def test_existing_scheduler_and_the_reference_method(tmp_path):
@@ -167,17 +182,19 @@ def test_existing_scheduler_and_the_reference_method(tmp_path):
     (tmp_path / "scene.toml").write_text(SCENE, encoding="utf-8")
     text = STUDY.replace('name = "two tips"', 'name = "ref"\nmethod = "reference"')
     text = text.replace("penetration = [0.05, 0.1]", "penetration = [0.1]").replace(
-        "[[0.0, 0.0], [0.5, 0.0]]", "[[0.0, 0.0]]")
+        "[[0.0, 0.0], [0.5, 0.0]]", "[[0.0, 0.0]]"
+    )
     (tmp_path / "ref.toml").write_text(text, encoding="utf-8")
     ref = read_study(tmp_path / "ref.toml")
     (tmp_path / "ts.toml").write_text(text.replace('method = "reference"', ""), encoding="utf-8")
     ts = read_study(tmp_path / "ts.toml")
-    with LocalCluster(n_workers=1, threads_per_worker=1, processes=False, dashboard_address=None,
-                      silence_logs=logging.ERROR) as cluster:
+    with LocalCluster(
+        n_workers=1, threads_per_worker=1, processes=False, dashboard_address=None, silence_logs=logging.ERROR
+    ) as cluster:
         run = run_study(ref, tmp_path / "out", scheduler=cluster.scheduler_address, quiet=True)
     assert run.where == cluster.scheduler_address and run.ran == 2
     run_ts = run_study(ts, tmp_path / "out", quiet=True)
-    assert set(run_ts.keys).isdisjoint(run.keys)          # the method is an input
+    assert set(run_ts.keys).isdisjoint(run.keys)  # the method is an input
     store = CaseStore(tmp_path / "out")
     for k_ref, k_ts in zip(run.keys, run_ts.keys):
         np.testing.assert_allclose(_forces(store, k_ref), _forces(store, k_ts), rtol=5e-3)
@@ -186,8 +203,9 @@ def test_existing_scheduler_and_the_reference_method(tmp_path):
 def test_non_converged_case_is_recorded_with_the_solver_message(tmp_path, capsys):
     (tmp_path / "scene.toml").write_text(SCENE, encoding="utf-8")
     text = STUDY + '[solver]\niteration = "block-gs"\nmax_sweeps = 1\ntol = 1e-14\n'
-    text = text.replace("[[0.0, 0.0], [0.5, 0.0]]", "[[0.0, 0.0]]").replace("penetration = [0.05, 0.1]",
-                                                                              "penetration = [0.1]")
+    text = text.replace("[[0.0, 0.0], [0.5, 0.0]]", "[[0.0, 0.0]]").replace(
+        "penetration = [0.05, 0.1]", "penetration = [0.1]"
+    )
     (tmp_path / "study.toml").write_text(text, encoding="utf-8")
     out = tmp_path / "out"
     assert main(["study", str(tmp_path / "study.toml"), "--out", str(out), "--workers", "0", "--quiet"]) == 1
@@ -205,12 +223,11 @@ def test_the_example_study_runs(tmp_path, examples_dir):
     """The README's tour step: the shipped example on a 2-worker cluster (builds the
     block's correction the first time: up to a minute)."""
     out = tmp_path / "s2_study"
-    assert main(["study", str(examples_dir / "study.toml"), "--out", str(out), "--workers", "2",
-                 "--quiet"]) == 0
+    assert main(["study", str(examples_dir / "study.toml"), "--out", str(out), "--workers", "2", "--quiet"]) == 0
     summary = json.loads((out / "summary.json").read_text())
     assert summary["counts"]["converged"] == 12
     for c in json.loads((out / "summary.json").read_text())["indicators_percent"]:
-        assert 0 < c["e_M_percent"] < 5        # block against half-space: close, not equal
+        assert 0 < c["e_M_percent"] < 5  # block against half-space: close, not equal
     assert len(list((out / "figures").glob("*.png"))) == 6
 
 
@@ -229,25 +246,29 @@ def test_unreachable_scheduler_exits_2(study, tmp_path, capsys, monkeypatch):
 def test_study_folder_is_refused_unless_it_is_this_studys(study, tmp_path, capsys):
     out = tmp_path / "out"
     out.mkdir()
-    (out / "asperities.csv").write_text("my own table\n", encoding="utf-8")        # a user's file
+    (out / "asperities.csv").write_text("my own table\n", encoding="utf-8")  # a user's file
     assert main(["study", study.source, "--out", str(out), "--workers", "0", "--quiet"]) == 2
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "is no twoscale study folder" in err
-    assert (out / "asperities.csv").read_text() == "my own table\n"               # untouched
+    assert (out / "asperities.csv").read_text() == "my own table\n"  # untouched
     fresh = tmp_path / "fresh"
     assert main(["study", study.source, "--out", str(fresh), "--workers", "0", "--quiet"]) == 0
     cases = {p.name for p in (fresh / "cases").iterdir()}
-    assert main(["study", study.source, "--out", str(fresh), "--workers", "0", "--quiet"]) == 0   # resume
+    assert main(["study", study.source, "--out", str(fresh), "--workers", "0", "--quiet"]) == 0  # resume
     # another study (one load only) into that folder: refused, then replaced with --overwrite
     other = tmp_path / "other.toml"
-    other.write_text(STUDY.replace("penetration = [0.05, 0.1]", "penetration = [0.05]").replace(
-        'name = "two tips"', 'name = "half"'), encoding="utf-8")
+    other.write_text(
+        STUDY.replace("penetration = [0.05, 0.1]", "penetration = [0.05]").replace(
+            'name = "two tips"', 'name = "half"'
+        ),
+        encoding="utf-8",
+    )
     capsys.readouterr()
     assert main(["study", str(other), "--out", str(fresh), "--workers", "0", "--quiet"]) == 2
     assert "holds another study ('two tips')" in capsys.readouterr().err
     assert main(["study", str(other), "--out", str(fresh), "--workers", "0", "--quiet", "--overwrite"]) == 0
     summary = json.loads((fresh / "summary.json").read_text())
-    assert summary["run"]["ran"] == 0 and summary["cases"] == 4      # its 4 cases were among the 8 kept
+    assert summary["run"]["ran"] == 0 and summary["cases"] == 4  # its 4 cases were among the 8 kept
     assert {p.name for p in (fresh / "cases").iterdir()} == cases
 
 

@@ -1,5 +1,6 @@
 """Study files: validation (one line naming the bad value, exit 2, nothing written),
 expansion into cases, footprints and case keys."""
+
 from __future__ import annotations
 
 import dataclasses
@@ -61,10 +62,16 @@ def test_footprint_keeps_the_tips_inside_the_window(study_file):
 
 
 def test_block_footprint_defaults_to_the_top_face_less_the_edge(study_file):
-    study = read_study(study_file(STUDY.replace('kind = "halfspace"\nwindow = [22.0, 10.0]',
-                                                'kind = "block"\nsize = [40.0, 40.0, 10.0]\norigin = [-5.0, 0.0]')))
+    study = read_study(
+        study_file(
+            STUDY.replace(
+                'kind = "halfspace"\nwindow = [22.0, 10.0]',
+                'kind = "block"\nsize = [40.0, 40.0, 10.0]\norigin = [-5.0, 0.0]',
+            )
+        )
+    )
     fp = study.bodies[0].footprint
-    assert fp.size == (20.0, 20.0) and fp.centre == (5.0, 0.0)   # face centre at -origin: x in [-5, 15]
+    assert fp.size == (20.0, 20.0) and fp.centre == (5.0, 0.0)  # face centre at -origin: x in [-5, 15]
     assert [kept_tips(c).tolist() for c in expand(study)[:3]] == [[1, 2], [1, 2], [0, 1, 2]]
 
 
@@ -82,7 +89,7 @@ def test_case_keys_follow_inputs_not_names(study_file, tmp_path):
 def test_a_case_without_tips_under_the_footprint_is_an_error_of_that_case(study_file):
     study = read_study(study_file(STUDY.replace("window = [22.0, 10.0]", "window = [2.0, 2.0]")))
     cases = expand(study)
-    assert kept_tips(cases[2]).size == 0            # tip 1 moved 5 mm out of |x| <= 1
+    assert kept_tips(cases[2]).size == 0  # tip 1 moved 5 mm out of |x| <= 1
     with pytest.raises(ValueError, match="no tip lies in the footprint"):
         case_scene(cases[2], study)
 
@@ -108,15 +115,18 @@ def test_bad_study_exits_2_naming_the_value(study_file, tmp_path, capsys, extra,
     assert not out.exists()
 
 
-@pytest.mark.parametrize("old, new, where", [
-    ("penetration = [0.05, 0.1]", "penetration = [0.05, 0.05]", "load.penetration"),
-    ("penetration = [0.05, 0.1]", "total = [0.0]", "load.total[0]"),
-    ("step = 2.5", "step = 50.0", "positions.step"),
-    ("end = [5.0, 0.0]", "", "positions.end"),
-    ('file = "scene.toml"', 'file = "missing.toml"', "missing.toml"),
-    ('kind = "halfspace"', 'kind = "rubber"', "body 1: kind"),
-    ("window = [22.0, 10.0]", "window = [22.0, -1.0]", "body 1: window[1]"),
-])
+@pytest.mark.parametrize(
+    "old, new, where",
+    [
+        ("penetration = [0.05, 0.1]", "penetration = [0.05, 0.05]", "load.penetration"),
+        ("penetration = [0.05, 0.1]", "total = [0.0]", "load.total[0]"),
+        ("step = 2.5", "step = 50.0", "positions.step"),
+        ("end = [5.0, 0.0]", "", "positions.end"),
+        ('file = "scene.toml"', 'file = "missing.toml"', "missing.toml"),
+        ('kind = "halfspace"', 'kind = "rubber"', "body 1: kind"),
+        ("window = [22.0, 10.0]", "window = [22.0, -1.0]", "body 1: window[1]"),
+    ],
+)
 def test_bad_values_are_named(study_file, capsys, tmp_path, old, new, where):
     assert old in STUDY
     out = tmp_path / "out"
@@ -151,37 +161,43 @@ def test_core_imports_without_dask():
     import subprocess
     import sys
 
-    code = ("import sys; sys.modules['distributed'] = None; sys.modules['pyarrow'] = None\n"
-            "import twoscale.studies, twoscale.studies.execute, twoscale.scene, twoscale.cli.main\n"
-            "print('ok')")
+    code = (
+        "import sys; sys.modules['distributed'] = None; sys.modules['pyarrow'] = None\n"
+        "import twoscale.studies, twoscale.studies.execute, twoscale.scene, twoscale.cli.main\n"
+        "print('ok')"
+    )
     proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
     assert proc.stdout.strip() == "ok", proc.stderr
 
 
 def test_track_positions_are_evenly_spaced_on_the_line(study_file):
-    study = read_study(study_file(STUDY.replace("end = [5.0, 0.0]", "end = [3.0, 4.0]").replace("step = 2.5", "step = 2.0")))
+    study = read_study(
+        study_file(STUDY.replace("end = [5.0, 0.0]", "end = [3.0, 4.0]").replace("step = 2.5", "step = 2.0"))
+    )
     P = np.array(study.positions)
     assert study.track and len(P) == 3
     np.testing.assert_allclose(np.hypot(*np.diff(P, axis=0).T), 2.0)
-    np.testing.assert_allclose(P[-1], [2.4, 3.2])      # 4 mm along the 5 mm line
+    np.testing.assert_allclose(P[-1], [2.4, 3.2])  # 4 mm along the 5 mm line
     assert dataclasses.is_dataclass(study)
 
 
 def test_without_load_each_scene_runs_its_own_cases(tmp_path, examples_dir):
     # S2.toml lists load cases 200, 250 and 300 N under a tilting joint
-    text = (f'[[scene]]\nfile = "{(examples_dir / "S2.toml").as_posix()}"\n'
-            '[[body]]\nname = "hs"\nkind = "halfspace"\n[load]\ntilt = false\n')
+    text = (
+        f'[[scene]]\nfile = "{(examples_dir / "S2.toml").as_posix()}"\n'
+        '[[body]]\nname = "hs"\nkind = "halfspace"\n[load]\ntilt = false\n'
+    )
     (tmp_path / "s.toml").write_text(text, encoding="utf-8")
     study = read_study(tmp_path / "s.toml")
     cases = expand(study)
     assert [c.load for c in cases] == [("total", 200.0), ("total", 250.0), ("total", 300.0)]
     scene = case_scene(cases[1], study)
     assert (scene.total_load, scene.tilt, scene.load_cases, len(scene.asperities)) == (250.0, False, (), 25)
-    assert scene.h == 0.1                                 # the scene's own cell size
+    assert scene.h == 0.1  # the scene's own cell size
 
 
 def test_the_example_study_is_valid(examples_dir):
     study = read_study(examples_dir / "study.toml")
     assert study.n_cases == 12 >= 8
     assert [b.influence["kind"] for b in study.bodies] == ["halfspace", "block"]
-    assert all(kept_tips(c).size == 25 for c in expand(study))   # every tip stays under both footprints
+    assert all(kept_tips(c).size == 25 for c in expand(study))  # every tip stays under both footprints

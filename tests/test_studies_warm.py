@@ -6,6 +6,7 @@ The scene: six spheres (R = 5 mm, recesses 0-0.03 mm) on a 10 mm lattice, on the
 shifts the tips by 2 mm along x: the joint stays, so the surface tilts further and every
 force changes (the step is not a translation of the solution).
 """
+
 from __future__ import annotations
 
 import dataclasses
@@ -28,8 +29,7 @@ def _tips(shift: float, keep=None):
 
 
 def _solve(shift: float, keep=None, start=None):
-    return twoscale.solve(_tips(shift, keep), material=MATERIAL, total_load=60.0, tilt=True, h=0.2,
-                          start=start)
+    return twoscale.solve(_tips(shift, keep), material=MATERIAL, total_load=60.0, tilt=True, h=0.2, start=start)
 
 
 @pytest.fixture(scope="module")
@@ -41,7 +41,7 @@ def test_warm_start_gives_the_cold_answer_in_no_more_newton_steps(first):
     cold, warm = _solve(2.0), _solve(2.0, start=first)
     assert cold.converged and warm.converged
     moved = np.abs(cold.details.macro.forces - first.details.macro.forces)
-    assert moved.max() > 0.05 * cold.details.macro.forces.max()        # the step changes the forces
+    assert moved.max() > 0.05 * cold.details.macro.forces.max()  # the step changes the forces
     # the same macro equations: the same forces to the macro tolerance (1e-10 relative)
     np.testing.assert_allclose(warm.details.macro.forces, cold.details.macro.forces, rtol=0, atol=1e-8 * 60)
     # the micro step starts from those forces: the same pressure to its tolerance (1e-6)

@@ -5,6 +5,7 @@ Each fault is injected into a real ``twoscale study`` process; afterwards the sa
 must finish the study, and its tables must equal those of an uninterrupted run (every
 case once, none lost, none half-written). Only loopback addresses; every wait is bounded.
 """
+
 from __future__ import annotations
 
 import json
@@ -68,9 +69,14 @@ def reference(tmp_path_factory):
 
 def _start(study: Path, out: Path, *extra: str) -> subprocess.Popen:
     env = dict(os.environ, PYTHONPATH=str(ROOT))
-    return subprocess.Popen([sys.executable, "-m", "twoscale", "study", str(study), "--out", str(out),
-                             "--quiet", *extra], env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-                            text=True, start_new_session=True)
+    return subprocess.Popen(
+        [sys.executable, "-m", "twoscale", "study", str(study), "--out", str(out), "--quiet", *extra],
+        env=env,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        start_new_session=True,
+    )
 
 
 def _finished_cases(out: Path) -> int:
@@ -107,7 +113,7 @@ def _tables_equal(out: Path, ref: Path) -> None:
         assert len(a) == len(b)
         pd.testing.assert_frame_equal(a.drop(columns=drop), b.drop(columns=drop), check_exact=False, rtol=1e-9)
     cases = pd.read_csv(out / "cases.csv")
-    assert len(cases) == N_CASES and cases["key"].is_unique    # none lost, none twice
+    assert len(cases) == N_CASES and cases["key"].is_unique  # none lost, none twice
 
 
 def _stop(proc: subprocess.Popen) -> None:
@@ -158,7 +164,7 @@ def test_second_run_on_one_folder_is_refused_and_a_killed_run_holds_nothing(refe
         assert main(["study", str(study), "--out", str(out), "--workers", "0"]) == 3
         err = capsys.readouterr().err.strip().splitlines()
         assert len(err) == 1 and f"pid {first.pid}" in err[0] and "in use" in err[0]
-        os.kill(first.pid, signal.SIGKILL)   # the holder dies without releasing anything itself
+        os.kill(first.pid, signal.SIGKILL)  # the holder dies without releasing anything itself
         first.communicate(timeout=30)
     finally:
         _stop(first)
@@ -184,23 +190,42 @@ def test_scheduler_and_two_workers_as_processes_one_worker_killed(reference, tmp
     procs = []
 
     def spawn(cmd):
-        p = subprocess.Popen(cmd, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
-                             start_new_session=True, cwd=tmp_path)
+        p = subprocess.Popen(
+            cmd, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True, cwd=tmp_path
+        )
         procs.append(p)
         return p
 
     try:
-        spawn(_dask_cli("scheduler", "--host", "127.0.0.1", "--port", "0", "--no-dashboard",
-                        "--scheduler-file", str(sched_file)))
+        spawn(
+            _dask_cli(
+                "scheduler", "--host", "127.0.0.1", "--port", "0", "--no-dashboard", "--scheduler-file", str(sched_file)
+            )
+        )
         deadline = time.monotonic() + 60
         while not sched_file.exists() or not sched_file.read_text().strip():
             assert time.monotonic() < deadline and procs[0].poll() is None
             time.sleep(0.1)
         address = json.loads(sched_file.read_text())["address"]
         assert address.startswith("tcp://127.0.0.1:")
-        workers = [spawn(_dask_cli("worker", "--scheduler-file", str(sched_file), "--host", "127.0.0.1",
-                                   "--nthreads", "1", "--no-nanny", "--no-dashboard", "--death-timeout", "60"))
-                   for _ in range(2)]
+        workers = [
+            spawn(
+                _dask_cli(
+                    "worker",
+                    "--scheduler-file",
+                    str(sched_file),
+                    "--host",
+                    "127.0.0.1",
+                    "--nthreads",
+                    "1",
+                    "--no-nanny",
+                    "--no-dashboard",
+                    "--death-timeout",
+                    "60",
+                )
+            )
+            for _ in range(2)
+        ]
         driver = _start(study, out, "--scheduler", address)
         procs.append(driver)
         _wait_for_cases(driver, out, 4, timeout=120)
@@ -208,7 +233,7 @@ def test_scheduler_and_two_workers_as_processes_one_worker_killed(reference, tmp
         _, err = driver.communicate(timeout=180)
         assert "Traceback" not in err
         assert driver.returncode in (0, 1), err
-        if driver.returncode == 1:   # some case failed with the worker: recorded, solved by a rerun
+        if driver.returncode == 1:  # some case failed with the worker: recorded, solved by a rerun
             assert "failed" in err
             again = _start(study, out, "--scheduler", address)
             procs.append(again)

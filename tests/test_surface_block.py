@@ -5,6 +5,7 @@ A 60 x 60 x 10 mm block meshed at 5-10 mm keeps the factorisation to seconds; th
 laws are the half-space ones and the block's smooth self-compliance enters the macro step,
 as for spheres, so only the micro step (the answer) sees the whole block.
 """
+
 import numpy as np
 import pytest
 

@@ -1,5 +1,6 @@
 """Height-map scenes: the [surface] table, ``twoscale surface``, ``twoscale solve`` and
 ``compare`` on them, and the shipped example road."""
+
 import json
 import sys
 from pathlib import Path
@@ -37,11 +38,13 @@ law_cache = "cache"
 @pytest.fixture
 def map_scene(tmp_path):
     """``map_scene(load=..., units="mm", extra="")``: a 12 mm road texture and its scene."""
+
     def make(load=40.0, units="mm", extra="", scale=1.0):
         np.save(tmp_path / "map.npy", road(12.0, 0.1, seed=7) * scale)
         path = tmp_path / "scene.toml"
         path.write_text(SCENE.format(load=load, units=units, extra=extra), encoding="utf-8")
         return path
+
     return make
 
 
@@ -49,10 +52,10 @@ def test_surface_scene_reads_the_map(map_scene):
     scene = read_scene(map_scene())
     assert scene.surface is not None and scene.h == 0.1
     assert scene.asperities == scene.surface.asperities and len(scene.asperities) >= 3
-    assert min(a.z for a in scene.asperities) == 0.0            # the highest summit sets z = 0
-    um = read_scene(map_scene(units="um", scale=1e3))             # the same heights in um
+    assert min(a.z for a in scene.asperities) == 0.0  # the highest summit sets z = 0
+    um = read_scene(map_scene(units="um", scale=1e3))  # the same heights in um
     assert [a.z for a in um.asperities] == pytest.approx([a.z for a in scene.asperities])
-    coarse = scene.surface.at(0.2)   # conditioned again from the file as read
+    coarse = scene.surface.at(0.2)  # conditioned again from the file as read
     assert coarse.h == 0.2 and coarse.hmap.shape == (60, 60)
 
 
@@ -63,12 +66,15 @@ def test_grid_h_resamples_the_map(map_scene, tmp_path):
     assert scene.h == 0.2 and scene.surface.hmap.shape == (60, 60)
 
 
-@pytest.mark.parametrize("extra, message", [
-    ("colour = 1", "unknown key surface.colour"),
-    ("units = \"inch\"", "units must be one of"),
-    ("prominence = -1", "prominence"),
-    ("law = \"magic\"", "surface.law must be one of"),
-])
+@pytest.mark.parametrize(
+    "extra, message",
+    [
+        ("colour = 1", "unknown key surface.colour"),
+        ('units = "inch"', "units must be one of"),
+        ("prominence = -1", "prominence"),
+        ('law = "magic"', "surface.law must be one of"),
+    ],
+)
 def test_bad_surface_keys(map_scene, extra, message):
     path = map_scene()
     text = path.read_text().replace('units = "mm"\n', "") if extra.startswith("units") else path.read_text()
@@ -101,17 +107,17 @@ def test_surface_command_writes_the_segmentation(map_scene, tmp_path):
     path = map_scene()
     out = tmp_path / "seg"
     assert main(["surface", str(path), "--out", str(out), "--quiet"]) == 0
-    rows = assert_tidy(out / "segmentation.csv")      # pandas and csv read it without options
-    assert not (out / "asperities.csv").exists()          # named apart from a solve's table
+    rows = assert_tidy(out / "segmentation.csv")  # pandas and csv read it without options
+    assert not (out / "asperities.csv").exists()  # named apart from a solve's table
     scene = read_scene(path)
     assert len(rows) == len(scene.asperities)
-    assert [int(r["asperity"]) for r in rows] == list(range(1, len(rows) + 1))   # numbered from 1
+    assert [int(r["asperity"]) for r in rows] == list(range(1, len(rows) + 1))  # numbered from 1
     assert float(rows[0]["recess_z_mm"]) == 0.0 and 1.0 < float(rows[0]["law_exponent"]) < 2.0
     summary = json.loads((out / "surface.json").read_text())
     assert summary["segmentation"]["asperities"] == len(rows)
     assert summary["laws"]["all_solves_converged"] is True
     assert (out / "segmentation.png").stat().st_size > 0
-    assert any((tmp_path / "cache").glob("*.npz"))              # the laws went to the cache
+    assert any((tmp_path / "cache").glob("*.npz"))  # the laws went to the cache
 
 
 def test_solve_and_reference_on_a_map_scene(map_scene, tmp_path):
@@ -156,7 +162,7 @@ def test_example_road_is_its_script_output(tmp_path):
         assert a["heights"].shape == (500, 500)
     scene = read_scene(ROAD / "road.toml")
     assert scene.surface.hmap.h == 0.1 and len(scene.asperities) >= 50
-    assert scene.total_load == pytest.approx(0.2 * 50.0 * 50.0)   # 0.2 MPa nominal
+    assert scene.total_load == pytest.approx(0.2 * 50.0 * 50.0)  # 0.2 MPa nominal
 
 
 @pytest.mark.slow

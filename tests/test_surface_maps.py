@@ -1,6 +1,7 @@
 """Height maps in: reading (plain formats, instrument formats through SurfaceTopography),
 conditioning (units, missing samples, detrend, crop, resampling, invert, centring) and
 segmentation (summits, prominence, one basin per sample)."""
+
 import numpy as np
 import pytest
 from scipy import ndimage
@@ -21,7 +22,7 @@ def test_plain_formats_round_trip(tmp_path):
     np.savetxt(tmp_path / "d.csv", z, delimiter=",")
     for name in ("a.npy", "c.txt", "d.csv"):
         raw = read_heightmap(tmp_path / name)
-        assert raw.heights.shape == (7, 9)   # rows y, columns x
+        assert raw.heights.shape == (7, 9)  # rows y, columns x
         np.testing.assert_allclose(raw.heights, z, rtol=1e-15)
         assert raw.spacing is None
     raw = read_heightmap(tmp_path / "b.npz")
@@ -35,11 +36,11 @@ def test_point_list_with_a_missing_point(tmp_path):
     z = _grid(5, 6)
     J, I = np.indices(z.shape)
     pts = np.column_stack([I.ravel() * 0.5 + 3.0, J.ravel() * 0.5 - 1.0, z.ravel()])
-    np.savetxt(tmp_path / "p.xyz", np.delete(pts, 7, axis=0)[::-1])   # any order, one point gone
+    np.savetxt(tmp_path / "p.xyz", np.delete(pts, 7, axis=0)[::-1])  # any order, one point gone
     raw = read_heightmap(tmp_path / "p.xyz")
     assert raw.spacing == 0.5 and raw.heights.shape == (5, 6)
     assert np.isnan(raw.heights.ravel()[7])
-    hm = condition(raw, units="mm")   # random heights: implausible as mm unless said so
+    hm = condition(raw, units="mm")  # random heights: implausible as mm unless said so
     assert hm.filled == 1 and np.all(np.isfinite(hm.heights))
 
 
@@ -53,16 +54,19 @@ def test_instrument_format_through_surfacetopography(tmp_path):
     raw = read_heightmap(tmp_path / "scan.nc")
     assert raw.heights.shape == (6, 8)
     hm = condition(raw)
-    assert hm.h == pytest.approx(2e-3, rel=1e-6)          # 2 um in mm
+    assert hm.h == pytest.approx(2e-3, rel=1e-6)  # 2 um in mm
     assert hm.filled == 1
     ok = ~np.isnan(z)
     np.testing.assert_allclose(hm.heights[ok], z[ok] * 1e3, rtol=1e-6)
 
 
-@pytest.mark.parametrize("content, name, message", [
-    (b"\x00\x01garbage", "scan.qqq", "unknown height map format"),
-    (None, "missing.npy", "not found"),
-])
+@pytest.mark.parametrize(
+    "content, name, message",
+    [
+        (b"\x00\x01garbage", "scan.qqq", "unknown height map format"),
+        (None, "missing.npy", "not found"),
+    ],
+)
 def test_bad_files_name_the_file(tmp_path, content, name, message):
     path = tmp_path / name
     if content is not None:
@@ -101,7 +105,7 @@ def test_detrend_crop_resample_invert_centre():
     assert np.unravel_index(np.argmax(hm.heights), hm.shape) == (10, 15)
     crop = condition(_raw(plane), crop=(0.5, 1.5, 0.2, 0.8))
     assert crop.shape == (7, 11)
-    fine = condition(_raw(plane), h=0.05)   # bilinear: exact on a plane
+    fine = condition(_raw(plane), h=0.05)  # bilinear: exact on a plane
     assert fine.shape == (41, 61)
     np.testing.assert_allclose(fine.heights[::2, ::2], plane, atol=1e-12)
     flipped = condition(_raw(plane), invert=True)
@@ -120,7 +124,7 @@ def test_missing_samples_filled_or_masked():
 def _two_bumps(low_peak):
     x = np.arange(-40, 41) * 0.1
     X, Y = np.meshgrid(x, x)
-    return X, Y, np.exp(-((X + 1.5) ** 2 + Y ** 2)) + low_peak * np.exp(-((X - 1.5) ** 2 + Y ** 2))
+    return X, Y, np.exp(-((X + 1.5) ** 2 + Y**2)) + low_peak * np.exp(-((X - 1.5) ** 2 + Y**2))
 
 
 def test_prominence_keeps_or_drops_the_lower_summit():
@@ -132,7 +136,7 @@ def test_prominence_keeps_or_drops_the_lower_summit():
     assert len(seg) == 2
     assert seg.prominence[1] == pytest.approx(seg.heights[1] - saddle, abs=1e-12)
     assert len(segment(hm, min_distance=0.5, prominence=seg.prominence[1] + 1e-3)) == 1
-    assert len(segment(hm, min_distance=3.5, prominence=0.0)) == 1   # too close for the distance
+    assert len(segment(hm, min_distance=3.5, prominence=0.0)) == 1  # too close for the distance
 
 
 def test_every_sample_in_one_connected_basin():
@@ -143,7 +147,7 @@ def test_every_sample_in_one_connected_basin():
     for k in range(len(seg)):
         assert ndimage.label(seg.labels == k, structure=np.ones((3, 3)))[1] == 1
         j, i = seg.summits[k]
-        assert seg.labels[j, i] == k and z[j, i] == z[seg.labels == k].max()   # the basin's top
+        assert seg.labels[j, i] == k and z[j, i] == z[seg.labels == k].max()  # the basin's top
 
 
 def test_a_map_too_large_is_refused_before_segmentation(monkeypatch):
@@ -152,4 +156,4 @@ def test_a_map_too_large_is_refused_before_segmentation(monkeypatch):
     monkeypatch.setattr(conditioning, "MAX_SAMPLES", 100)
     with pytest.raises(SurfaceError, match="crop the map or give h >= 0.2 mm"):
         condition(_raw(np.zeros((20, 20))))
-    assert condition(_raw(np.zeros((20, 20))), h=0.2).shape == (10, 10)   # resampled: fits
+    assert condition(_raw(np.zeros((20, 20))), h=0.2).shape == (10, 10)  # resampled: fits

@@ -7,6 +7,7 @@
   on the same map and grid: total load and contact area within 0.5 %, per-asperity forces
   within 1 %, pressure field within 2 % (L2), under load and penetration control.
 """
+
 import numpy as np
 import pytest
 
@@ -36,7 +37,7 @@ def _surface(z, h, **options):
 def test_paraboloid_basin_law_matches_hertz(R):
     h = 0.05
     X, Y = _lattice(121, h)
-    s = _surface(-(X ** 2 + Y ** 2) / (2 * R), h, prominence=0.01, law_depth=0.1)
+    s = _surface(-(X**2 + Y**2) / (2 * R), h, prominence=0.01, law_depth=0.1)
     assert len(s.asperities) == 1
     assert s.asperities[0].R == pytest.approx(R, rel=1e-6)  # the cap fit of an exact paraboloid
     table = s.book.table(MAT)
@@ -48,13 +49,17 @@ def test_paraboloid_basin_law_matches_hertz(R):
     assert s.sphere_error(MAT).largest < 0.03
 
 
-SPHERES = [Asperity(-3.0, -2.0, 0.0, 4.0), Asperity(2.5, 1.5, 0.05, 3.0), Asperity(-1.0, 3.5, 0.1, 5.0),
-           Asperity(3.0, -4.0, 0.02, 2.5)]
+SPHERES = [
+    Asperity(-3.0, -2.0, 0.0, 4.0),
+    Asperity(2.5, 1.5, 0.05, 3.0),
+    Asperity(-1.0, 3.5, 0.1, 5.0),
+    Asperity(3.0, -4.0, 0.02, 2.5),
+]
 
 
 def _spheres_map(h=0.1, n=151):
     X, Y = _lattice(n, h)
-    z = np.full(X.shape, -1.0)   # a floor below every cap, never reached
+    z = np.full(X.shape, -1.0)  # a floor below every cap, never reached
     for a in SPHERES:
         z = np.maximum(z, -a.height(X, Y))
     return z
@@ -66,10 +71,10 @@ def test_map_of_spheres_gives_back_the_sphere_scene(load):
     s = _surface(_spheres_map(h), h, min_distance=1.0, prominence=0.1)
     assert len(s.asperities) == len(SPHERES)
     got = {(round(a.x, 6), round(a.y, 6)): a for a in s.asperities}
-    for sp in SPHERES:   # every summit found on its sample, with its recess and radius
+    for sp in SPHERES:  # every summit found on its sample, with its recess and radius
         a = got[(sp.x, sp.y)]
         assert a.z == pytest.approx(sp.z, abs=1e-12)
-        assert a.R == pytest.approx(sp.R, rel=0.02)   # the exact sphere's cap is not a paraboloid
+        assert a.R == pytest.approx(sp.R, rel=0.02)  # the exact sphere's cap is not a paraboloid
     on_map = solve_twoscale(HS, s.asperities, h=h, **load)
     spheres = solve_twoscale(HS, SPHERES, h=h, **load)
     assert on_map.converged and spheres.converged, (on_map.message, spheres.message)
@@ -97,21 +102,23 @@ def test_road_texture_twoscale_agrees_with_the_reference(seed):
     h = 0.1
     s = _surface(road(16.0, h, seed=seed), h)
     assert len(s.asperities) >= 5
-    W = 0.2 * 16.0 * 16.0   # 0.2 MPa nominal
+    W = 0.2 * 16.0 * 16.0  # 0.2 MPa nominal
     two = solve_twoscale(HS, s.asperities, h=h, total_load=W)
     ref = solve_reference(HS, surface_on(s.hmap.grid, s.asperities), total_load=W)
     _compare(two, ref, s.hmap.grid)
     d = two.penetration  # and under penetration control at that approach
-    _compare(solve_twoscale(HS, s.asperities, h=h, penetration=d),
-             solve_reference(HS, surface_on(s.hmap.grid, s.asperities), penetration=d), s.hmap.grid)
+    _compare(
+        solve_twoscale(HS, s.asperities, h=h, penetration=d),
+        solve_reference(HS, surface_on(s.hmap.grid, s.asperities), penetration=d),
+        s.hmap.grid,
+    )
 
 
 def test_tilt_on_a_map():
     h = 0.1
     s = _surface(road(16.0, h, seed=3), h)
     two = solve_twoscale(HS, s.asperities, h=h, total_load=40.0, tilt=True, pivot=(1.0, -0.5))
-    ref = solve_reference(HS, surface_on(s.hmap.grid, s.asperities), total_load=40.0, tilt=True,
-                          pivot=(1.0, -0.5))
+    ref = solve_reference(HS, surface_on(s.hmap.grid, s.asperities), total_load=40.0, tilt=True, pivot=(1.0, -0.5))
     _compare(two, ref, s.hmap.grid)
     assert np.allclose(two.tilt, ref.tilt, rtol=0.01, atol=1e-6)
 
@@ -123,7 +130,7 @@ def test_laws_are_tabulated_only_where_pressed_and_cached(tmp_path):
     z = road(16.0, h, seed=2)
     tab = SurfaceOptions(law="tabulated")
     s = build_surface(RawMap(z, h, "mm", None, "road"), tab, cache=LawCache(tmp_path))
-    res = solve_twoscale(HS, s.asperities, h=h, total_load=5.0)   # a light load: the top stones only
+    res = solve_twoscale(HS, s.asperities, h=h, total_load=5.0)  # a light load: the top stones only
     touched = int(np.count_nonzero(res.details.macro.local_penetrations > 0))
     assert res.converged and 0 < s.book.tabulated < len(s.asperities)
     assert s.book.tabulated >= touched
@@ -154,7 +161,6 @@ def test_auto_law_tabulates_nothing_and_takes_the_cached_tables(tmp_path):
     np.testing.assert_allclose(res2.details.macro.forces, ref.details.macro.forces, rtol=1e-9, atol=1e-12)
 
 
-
 def test_far_field_on_a_road_keeps_every_stone_within_one_percent():
     """The policy's far-field coupling on map basins (the loads sit off the summits):
     forced here on a road small enough for the default run (the policy itself takes the
@@ -162,7 +168,7 @@ def test_far_field_on_a_road_keeps_every_stone_within_one_percent():
     from twoscale.micro.policy import AUTO_FAR_TOL
 
     h = 0.1
-    s = _surface(road(36.0, h, seed=1), h)   # the old resultant at each summit: 4.5 % on one stone
+    s = _surface(road(36.0, h, seed=1), h)  # the old resultant at each summit: 4.5 % on one stone
     W = 0.2 * 36.0 * 36.0
     two = solve_twoscale(HS, s.asperities, h=h, total_load=W, iteration="two-level", far_tol=AUTO_FAR_TOL)
     assert two.details.micro.attempts[-1].far_tol == AUTO_FAR_TOL

@@ -1,6 +1,7 @@
 """Fixed costs of the default solve on the sweep's smallest scenes (one or two tips, where
 the full-grid reference takes 10-30 ms): counted in law evaluations and products, not
 timed."""
+
 import numpy as np
 import pytest
 
@@ -16,8 +17,7 @@ class _Counting(LawStack):
         return super().force(delta)
 
 
-@pytest.mark.parametrize("law, z", [(SphereLaw(20.0, 20.0), [0.0]),
-                                    (HertzLaw(3.0, 5.0), [0.0, 0.01, 0.3])])
+@pytest.mark.parametrize("law, z", [(SphereLaw(20.0, 20.0), [0.0]), (HertzLaw(3.0, 5.0), [0.0, 0.01, 0.3])])
 def test_the_load_control_start_carries_the_load_in_few_law_evaluations(law, z):
     # the cold start of the macro step under load control: the approach at which the tips,
     # alone, carry W; bisection to the last bit asked the laws 66 times (40 % of a
@@ -76,11 +76,14 @@ def test_a_large_union_box_is_sampled_tile_by_tile_to_the_same_surface(shape):
     from twoscale.micro.union import SAMPLE_TILE, box_surface
 
     rng = np.random.default_rng(3)
-    tips = [Asperity(float(x), float(y), float(z), float(r), shape)
-            for x, y, z, r in zip(rng.uniform(-6, 6, 80), rng.uniform(-6, 6, 80),
-                                  rng.uniform(0, 0.05, 80), rng.uniform(0.5, 3.0, 80))]
+    tips = [
+        Asperity(float(x), float(y), float(z), float(r), shape)
+        for x, y, z, r in zip(
+            rng.uniform(-6, 6, 80), rng.uniform(-6, 6, 80), rng.uniform(0, 0.05, 80), rng.uniform(0.5, 3.0, 80)
+        )
+    ]
     grid = Grid.covering(-6.5, 6.5, -6.2, 6.2, 0.04)
-    assert grid.size > 4 * SAMPLE_TILE ** 2
+    assert grid.size > 4 * SAMPLE_TILE**2
     tiled, whole = box_surface(grid, TipTable.of(tips)), surface_on(grid, tips)
     assert np.array_equal(tiled.owner, whole.owner)
     # the tiles' cell centres are x0 + i0 h + i h, the box's x0 + (i0 + i) h: rounding only

@@ -2,6 +2,7 @@
 went wrong once: each is solved with the default options and by the full-grid reference at
 the same cell size; the tip forces must agree and the micro step must take the route the
 cost model gives (not timed: the sweep's record holds the times)."""
+
 import tempfile
 
 import numpy as np
@@ -37,8 +38,9 @@ def test_few_tips_under_load_crowding_their_box_take_the_union_cg(index):
     micro = res.details.micro
     assert micro.choice.iteration == "union-cg" and not micro.choice.by_caller
     assert [a.iteration for a in micro.attempts] == ["union-cg"]
-    assert micro.choice.estimates["seconds"]["union-cg"] < min(micro.choice.estimates["seconds"]["block-gs"],
-                                                               micro.choice.estimates["seconds"]["two-level"])
+    assert micro.choice.estimates["seconds"]["union-cg"] < min(
+        micro.choice.estimates["seconds"]["block-gs"], micro.choice.estimates["seconds"]["two-level"]
+    )
     _check_forces(res, ref)
 
 

@@ -1,4 +1,5 @@
 """The seeded random scenes of twoscale.synthetic: determinism, layout, load level."""
+
 from __future__ import annotations
 
 import math
@@ -17,10 +18,10 @@ def _arrays(scene: Scene):
 
 def _hertz_total(scene: Scene, d: float) -> float:
     # written out here (not the library's hertz.load): P = 4/3 E* sqrt(R) delta^1.5
-    E_star = scene.material.E / (1.0 - scene.material.nu ** 2)
+    E_star = scene.material.E / (1.0 - scene.material.nu**2)
     _, z, R = _arrays(scene)
     delta = np.clip(d - z, 0.0, None)
-    return float(np.sum(4.0 / 3.0 * E_star * np.sqrt(R) * delta ** 1.5))
+    return float(np.sum(4.0 / 3.0 * E_star * np.sqrt(R) * delta**1.5))
 
 
 @pytest.mark.parametrize("kind", ["dense", "sparse"])
@@ -50,10 +51,10 @@ def test_dense_layout_and_material():
     scene = random_scene(200, seed=2)
     tips, z, R = _arrays(scene)
     assert math.isclose(square_side(200, "dense"), 60.0)
-    assert tips.min() < -25 and tips.max() > 25      # spread over the 60 mm square
+    assert tips.min() < -25 and tips.max() > 25  # spread over the 60 mm square
     assert 3.0 <= R.min() and R.max() <= 6.0 and 0.0 <= z.min() and z.max() <= 0.1
     assert (scene.material.E, scene.material.nu) == (6.0, 0.5)
-    assert scene.total_load == pytest.approx(200 * 2.5)   # a tread's 2-3 N per tip
+    assert scene.total_load == pytest.approx(200 * 2.5)  # a tread's 2-3 N per tip
     assert {a.shape for a in scene.asperities} == {"sphere"}
     assert {a.shape for a in random_scene(5, shape="paraboloid").asperities} == {"paraboloid"}
 
@@ -91,21 +92,24 @@ def test_block_scene_fits_on_the_block_top_face():
     tips, _, _ = _arrays(scene)
     assert np.abs(tips).max() <= 60.0
     with pytest.raises(ValueError, match="n_tips = 900"):
-        random_scene(900, body="block")   # dense side 127 mm > 120 mm
+        random_scene(900, body="block")  # dense side 127 mm > 120 mm
 
 
-@pytest.mark.parametrize("kwargs, named", [
-    ({"n_tips": 0}, "n_tips"),
-    ({"n_tips": 2.5}, "2.5"),
-    ({"kind": "medium"}, "'medium'"),
-    ({"control": "force"}, "'force'"),
-    ({"shape": "cone"}, "'cone'"),
-    ({"body": "layer"}, "'layer'"),
-    ({"seed": -1}, "seed"),
-    ({"h": 0.0}, "h must"),
-    ({"load_per_tip": -1.0}, "-1.0"),
-    ({"touching": 1.5}, "1.5"),
-])
+@pytest.mark.parametrize(
+    "kwargs, named",
+    [
+        ({"n_tips": 0}, "n_tips"),
+        ({"n_tips": 2.5}, "2.5"),
+        ({"kind": "medium"}, "'medium'"),
+        ({"control": "force"}, "'force'"),
+        ({"shape": "cone"}, "'cone'"),
+        ({"body": "layer"}, "'layer'"),
+        ({"seed": -1}, "seed"),
+        ({"h": 0.0}, "h must"),
+        ({"load_per_tip": -1.0}, "-1.0"),
+        ({"touching": 1.5}, "1.5"),
+    ],
+)
 def test_bad_arguments_raise_naming_the_value(kwargs, named):
     args = {"n_tips": 10, **kwargs}
     n = args.pop("n_tips")
@@ -115,7 +119,7 @@ def test_bad_arguments_raise_naming_the_value(kwargs, named):
 
 def test_scene_family_names_and_count():
     family = list(scene_family(sizes=(10, 20), shapes=("sphere",)))
-    assert len(family) == 2 * 2 * 2            # sizes x kinds x controls
+    assert len(family) == 2 * 2 * 2  # sizes x kinds x controls
     names = [name for name, _ in family]
     assert names[0] == "dense-load-sphere-halfspace-n10"
     assert len(set(names)) == len(names)

@@ -5,6 +5,7 @@ Every CSV a command writes is opened with pandas and the csv module without opti
 checked against Hertz's closed form; the body is named in the result, result.json and the
 summary; compare leads with the per-tip changes; a study keeps one cell size across loads.
 """
+
 from __future__ import annotations
 
 import json
@@ -28,12 +29,23 @@ from tidy_tables import assert_tidy
 EXAMPLES = Path(__file__).resolve().parent.parent / "examples"
 
 
-
 # ---------------------------------------------------------------- the CSV cells
-@pytest.mark.parametrize("value, text", [
-    (7.490000000000001, "7.49"), (0.1 + 0.2, "0.3"), (-0.0, "0"), (1e-20, "1e-20"), (12, "12"),
-    (np.int64(3), "3"), (None, ""), (math.nan, ""), (True, "true"), (np.float32(0.5), "0.5"), ("halfspace", "halfspace"),
-])
+@pytest.mark.parametrize(
+    "value, text",
+    [
+        (7.490000000000001, "7.49"),
+        (0.1 + 0.2, "0.3"),
+        (-0.0, "0"),
+        (1e-20, "1e-20"),
+        (12, "12"),
+        (np.int64(3), "3"),
+        (None, ""),
+        (math.nan, ""),
+        (True, "true"),
+        (np.float32(0.5), "0.5"),
+        ("halfspace", "halfspace"),
+    ],
+)
 def test_cells_carry_the_precision_of_the_number(value, text):
     assert cell(value) == text
 
@@ -58,8 +70,9 @@ def test_solve_table_opens_without_options(tmp_path):
     rows = assert_tidy(out / "asperities.csv", rows=7)
     res = json.loads((out / "result.json").read_text())
     assert sum(float(r["contact_area_mm2"]) for r in rows) == pytest.approx(res["contact_area"], rel=1e-9)
-    if (out / "asperities.parquet").exists():     # with pyarrow: the same rows, typed
+    if (out / "asperities.parquet").exists():  # with pyarrow: the same rows, typed
         import pandas as pd
+
         back = pd.read_parquet(out / "asperities.parquet")
         np.testing.assert_allclose(back["force_N"], [a["force"] for a in res["asperities"]], rtol=1e-15)
 
@@ -89,6 +102,7 @@ def test_study_tables_open_without_options(tmp_path, capsys):
     from twoscale.io.scene_file import read_scene
     from twoscale.scene import default_h
     import dataclasses
+
     light = dataclasses.replace(read_scene(tmp_path / "noh.toml"), total_load=10.0, load_cases=())
     assert [float(r["h_mm"]) for r in cases] == [default_h(light)] * 2
     assert {r["h_source"] for r in cases} == {"lightest load"}
@@ -122,8 +136,12 @@ def test_contact_area_is_hertz_and_the_ratio_pi_over_16():
     from twoscale.material import Material
 
     R, d, h = 10.0, 0.2, 0.05
-    res = twoscale.solve(twoscale.asperities([0.0], [0.0], [R], shape="paraboloid"),
-                         material=Material(E=10.0, nu=0.5), penetration=d, h=h)
+    res = twoscale.solve(
+        twoscale.asperities([0.0], [0.0], [R], shape="paraboloid"),
+        material=Material(E=10.0, nu=0.5),
+        penetration=d,
+        h=h,
+    )
     a = math.sqrt(R * d)
     # the loaded cells' area differs from the disc by about one cell along the perimeter
     assert res.contact_area == pytest.approx(math.pi * a * a, abs=2 * math.pi * a * h)
@@ -137,7 +155,7 @@ def test_nominal_area_is_cut_to_the_block_top_face():
     from twoscale.material import Material
     from twoscale.scene import Scene
 
-    tips = asperities([-20.0, 20.0], [0.0, 0.0], [6.0])   # spheres: bases of radius 6
+    tips = asperities([-20.0, 20.0], [0.0, 0.0], [6.0])  # spheres: bases of radius 6
     scene = Scene(material=Material(E=6.0, nu=0.5), asperities=tips, penetration=0.5)
     assert nominal_area(scene, Body())[0] == pytest.approx(52.0 * 12.0)
     block = Body(kind="block", size=(40.0, 60.0, 10.0), base="bonded", origin=(0.0, 0.0))
@@ -159,16 +177,17 @@ def test_solve_summary_leads_with_the_body_and_the_contact_area(tmp_path, capsys
     assert main(["solve", str(EXAMPLES / "S1.toml"), "--out", str(out)]) == 0
     text = capsys.readouterr().out
     assert "body         half-space" in text and "contact area" in text and "% of the nominal" in text
-    assert "macro_krylov" not in text and "sensitivity_sweeps" not in text    # no internal names
-    assert "alpha 0 rad, beta 0 rad" in text      # the symmetric scene's round-off tilt shows as 0
+    assert "macro_krylov" not in text and "sensitivity_sweeps" not in text  # no internal names
+    assert "alpha 0 rad, beta 0 rad" in text  # the symmetric scene's round-off tilt shows as 0
     res = json.loads((out / "result.json").read_text())
     assert res["body"] == {"kind": "halfspace", "label": "half-space"} and res["scene_name"] == "S1"
     assert res["contact_area_ratio"] == pytest.approx(res["contact_area"] / res["nominal_area"], rel=1e-12)
-    assert abs(res["tilt"][0]) < 1e-8                # the number itself is kept
+    assert abs(res["tilt"][0]) < 1e-8  # the number itself is kept
 
 
 def test_help_texts_are_plain_text(capsys):
     from twoscale.cli.main import build_parser
+
     for argv in (["--help"], ["compare", "--help"], ["indicators", "--help"], ["solve", "--help"]):
         with pytest.raises(SystemExit):
             build_parser().parse_args(argv)
@@ -188,8 +207,10 @@ def test_tip_changes_in_percent_of_the_tips_own_force():
     class Sc:
         total_load, penetration = 50.0, None
 
-    runs = [comparison.Run("50N", "halfspace", Sc, Res([1.0, 4.0, 5.0, 1e-4]), 0.0),
-            comparison.Run("50N", "block", Sc, Res([1.1, 3.0, 5.0, 1e-3]), 0.0)]
+    runs = [
+        comparison.Run("50N", "halfspace", Sc, Res([1.0, 4.0, 5.0, 1e-4]), 0.0),
+        comparison.Run("50N", "block", Sc, Res([1.1, 3.0, 5.0, 1e-3]), 0.0),
+    ]
     rows = comparison.tip_changes(runs)
     assert [r["change_percent"] for r in rows] == pytest.approx([10.0, -25.0, 0.0, 900.0])
     # tip 4 barely touches (under 1 % of the largest force): not ranked
@@ -207,18 +228,37 @@ def test_compare_terminal_is_compact_and_block_options_reach_the_body(tmp_path, 
     scene = tmp_path / "small.toml"
     scene.write_text(THREE_SPHERES_TILT)
     out = tmp_path / "cmp"
-    assert main(["compare", str(scene), "--loads", "10", "20", "--block-size", "60", "50", "10",
-                 "--base", "bonded", "--out", str(out)]) == 0
+    assert (
+        main(
+            [
+                "compare",
+                str(scene),
+                "--loads",
+                "10",
+                "20",
+                "--block-size",
+                "60",
+                "50",
+                "10",
+                "--base",
+                "bonded",
+                "--out",
+                str(out),
+            ]
+        )
+        == 0
+    )
     assert [(o["size"], o["base"]) for o in built] == [((60.0, 50.0, 10.0), "bonded")]
     bodies = json.loads((out / "summary.json").read_text())["bodies"]
     assert list(bodies) == ["halfspace", "block-bonded"] and bodies["block-bonded"]["influence"]["size"] == [60, 50, 10]
     text = capsys.readouterr().out
-    assert len(text.splitlines()) < 20 and "|---" not in text          # no Markdown table in the terminal
+    assert len(text.splitlines()) < 20 and "|---" not in text  # no Markdown table in the terminal
     assert "largest tip changes" in text and "changes.csv" in text and "e_M, e_m:" in text
 
 
-@pytest.mark.parametrize("extra, match", [(["--block-size", "60", "0", "10"], "--block-size"),
-                                          (["--base", "glued"], "--base")])
+@pytest.mark.parametrize(
+    "extra, match", [(["--block-size", "60", "0", "10"], "--block-size"), (["--base", "glued"], "--base")]
+)
 def test_bad_block_options_exit_2(tmp_path, capsys, extra, match):
     scene = tmp_path / "small.toml"
     scene.write_text(THREE_SPHERES_TILT)
@@ -242,7 +282,7 @@ def test_result_table_view_and_full_pressure_map():
     assert "half-space" in html and "contact area" in html and html.count("<tr>") < 30
     P, extent = pressure_map_over(res)
     h = res.fields[0].grid.h
-    assert P.sum() * h * h == pytest.approx(res.total_load, rel=1e-9)     # every patch once
+    assert P.sum() * h * h == pytest.approx(res.total_load, rel=1e-9)  # every patch once
     assert extent[1] - extent[0] == pytest.approx(P.shape[1] * h)
 
 
@@ -255,4 +295,4 @@ def test_progress_is_drawn_in_a_notebook(monkeypatch):
     with progress.Progress(3, quiet=True) as bar:
         assert not bar.enabled
     monkeypatch.undo()
-    assert progress.in_notebook() is False          # pytest is no Jupyter kernel
+    assert progress.in_notebook() is False  # pytest is no Jupyter kernel

@@ -5,6 +5,7 @@ cross-patch pair exact (plain block Gauss-Seidel, eq. 8), in the three load mode
 load and moment equations against their closed-form statement; the coarse step against
 its defining property (zero at a fixed point, exact load after the step).
 """
+
 import numpy as np
 import pytest
 
@@ -70,7 +71,7 @@ def test_two_level_tilt_meets_load_and_moments():
     Mx = My = 0.0
     for f in approx.fields:
         X, Y = f.grid.centres()
-        w = f.grid.h ** 2 * f.pressure
+        w = f.grid.h**2 * f.pressure
         W += w.sum()
         Mx += ((Y - pivot[1]) * w).sum()
         My += ((X - pivot[0]) * w).sum()
@@ -86,6 +87,7 @@ def test_iterations_take_only_the_couplings_they_accept():
     from twoscale.micro.couplings import Exact, FarField
     from twoscale.micro.strategies import BlockGaussSeidel, UnionCG
     from twoscale.options import MicroOptions
+
     asp = spaced_spheres(3, 0, 6.0)
     problem = MicroProblem(h=0.1, forces=np.ones(3), penetration=0.05)
     ctx = MicroContext(HS, asp, problem, patches=())
@@ -102,6 +104,7 @@ def test_two_level_with_exact_coupling_reaches_block_gauss_seidel_answer():
     # the same equations (every pair exact), two iterations: the answers agree to the tolerance
     from twoscale.micro import MicroProblem
     from twoscale.options import MicroOptions
+
     asp = spaced_spheres(6, 1, 7.0)
     forces = np.array([float(hertz.load(a.R, max(0.06 - a.z, 0.0), MAT.E_star)) for a in asp])
     problem = MicroProblem(h=0.1, forces=forces, penetration=0.06, total_load=0.8 * float(forces.sum()))
@@ -120,15 +123,24 @@ def test_coarse_step_vanishes_at_a_fixed_point_and_meets_the_load():
     from twoscale.micro.constraints import Control
     from twoscale.micro.localblock import LocalBlock
     from twoscale.micro.patches import build_patches
+
     asp = spaced_spheres(8, 4, 12.0)
-    patches = build_patches(asp, h=0.1, forces=np.full(8, np.inf), approaches=np.full(8, 0.06),
-                            E_star=MAT.E_star, margin=1.3, anchor=(0.0, 0.0))
+    patches = build_patches(
+        asp,
+        h=0.1,
+        forces=np.full(8, np.inf),
+        approaches=np.full(8, 0.06),
+        E_star=MAT.E_star,
+        margin=1.3,
+        anchor=(0.0, 0.0),
+    )
     blocks = [LocalBlock(HS, pt) for pt in patches]
     rng = np.random.default_rng(0)
     p = [np.where(rng.random(b.n) < 0.5, rng.random(b.n), 0.0) for b in blocks]
     active = [v > 0 for v in p]
     tips = np.array([[asp[pt.asperity].x, asp[pt.asperity].y] for pt in patches])
     import scipy.sparse as sp
+
     coarse = CoarseSpace(HS, tips, sp.csr_matrix((len(patches), len(patches))))
     theta = np.array([0.05, 0.0, 0.0])
     # no change in the sweep, penetration control: nothing to correct
@@ -137,8 +149,9 @@ def test_coarse_step_vanishes_at_a_fixed_point_and_meets_the_load():
     assert np.array_equal(step.theta, theta)
     # load control: after the step the pressures carry the load exactly (no clipping here)
     W = sum(0.01 * v.sum() for v in p) * 1.01
-    step = coarse.correct(blocks, patches, p, active, np.zeros(len(patches)), theta,
-                          Control((0.0, 0.0), 1, np.array([W])))
+    step = coarse.correct(
+        blocks, patches, p, active, np.zeros(len(patches)), theta, Control((0.0, 0.0), 1, np.array([W]))
+    )
     assert sum(0.01 * v.sum() for v in step.pressures) == pytest.approx(W, rel=1e-12)
     assert step.theta[0] > theta[0]
 
@@ -164,8 +177,15 @@ def test_two_level_runs_unchanged_on_the_finite_block():
     # forces within 0.5 % of the exact coupling on the same block, and much nearer to it
     # than to the half-space answer (the block's own interaction is what it used)
     fem = pytest.importorskip("fem_influence")
-    block = fem.BlockProvider(material=MAT, size=(60.0, 60.0, 10.0), h_fine=5.0, h_coarse=10.0,
-                              fine_half_width=10.0, use_cache=False, progress=False)
+    block = fem.BlockProvider(
+        material=MAT,
+        size=(60.0, 60.0, 10.0),
+        h_fine=5.0,
+        h_coarse=10.0,
+        fine_half_width=10.0,
+        use_cache=False,
+        progress=False,
+    )
     asp = [a for a in spaced_spheres(30, 5, 18.0)]
     asp = [Asperity(a.x - 9.0, a.y - 9.0, a.z, a.R) for a in asp]
     kw = dict(h=0.1, total_load=2.0, tol=1e-7, max_sweeps=200)
@@ -194,12 +214,12 @@ def test_matrix_free_macro_step_gives_the_same_two_scale_answer():
     # result.json says how the macro step held the interaction
     from twoscale.io.result_json import result_to_dict
     from twoscale.scene import Scene
+
     scene = Scene(material=MAT, asperities=asp, total_load=2.0, tilt=True, pivot=(10.0, 10.0), h=0.1)
     assert result_to_dict(dense, scene)["macro"] == {"interaction": "dense", "operator_error": None}
     assert result_to_dict(dense, scene)["micro_iteration"] == "two-level (far-field coupling)"
     rec = result_to_dict(free, scene)["macro"]
     assert rec["interaction"] == "matrix-free" and 0.0 <= rec["operator_error"] <= 1e-12
-
 
 
 def test_a_stalled_two_level_iteration_stops_early_and_says_so():
@@ -208,7 +228,15 @@ def test_a_stalled_two_level_iteration_stops_early_and_says_so():
     from twoscale.micro.twolevel import STALL_SWEEPS
     from twoscale.driver import solve_twoscale
 
-    res = solve_twoscale(HalfSpace(MAT), random_scene(2, 18), h=0.15, total_load=108.0, tol=1e-8,
-                         iteration="two-level", far_tol=0.05, max_sweeps=100)
+    res = solve_twoscale(
+        HalfSpace(MAT),
+        random_scene(2, 18),
+        h=0.15,
+        total_load=108.0,
+        tol=1e-8,
+        iteration="two-level",
+        far_tol=0.05,
+        max_sweeps=100,
+    )
     assert not res.converged and "stalled" in res.message
     assert res.iterations["micro"] < 100 - 2 * STALL_SWEEPS

@@ -9,6 +9,7 @@
   tilted indenter at the two-scale's d, alpha, beta gives the same pressure;
 * result contents and input validation.
 """
+
 import math
 
 import numpy as np
@@ -50,6 +51,7 @@ def test_single_paraboloid_meets_the_hertz_targets(load):
 
 # ---------------------------------------------------------------- random scenes
 
+
 def reference_on_same_lattice(asps, h, d_max, tilt=None, **load):
     """Reference CG on a grid of the same lattice covering every reachable cell."""
     reach = max(a.reach(d_max - a.z) for a in asps) + 3 * h
@@ -62,9 +64,15 @@ def reference_on_same_lattice(asps, h, d_max, tilt=None, **load):
 def _scene_checks(asps, ref):
     F = ref.asperities.forces
     assert np.any(F == 0.0), "scene must have asperities out of contact"
-    pairs = [(i, j) for i in range(len(asps)) for j in range(i) if F[i] > 0 and F[j] > 0
-             and math.hypot(asps[i].x - asps[j].x, asps[i].y - asps[j].y)
-             < asps[i].reach(ref.penetration) + asps[j].reach(ref.penetration)]
+    pairs = [
+        (i, j)
+        for i in range(len(asps))
+        for j in range(i)
+        if F[i] > 0
+        and F[j] > 0
+        and math.hypot(asps[i].x - asps[j].x, asps[i].y - asps[j].y)
+        < asps[i].reach(ref.penetration) + asps[j].reach(ref.penetration)
+    ]
     assert pairs, "scene must have touching asperities whose reaches overlap"
 
 
@@ -107,7 +115,7 @@ def test_tilt_meets_load_and_moments_and_matches_the_tilted_reference():
     res = solve_twoscale(HS, asps, h=h, total_load=W, tilt=True, pivot=pivot)
     assert res.converged, res.message
     assert res.tilt is not None and res.tilt != (0.0, 0.0)
-    P = np.concatenate([f.grid.h ** 2 * f.pressure.ravel() for f in res.fields])
+    P = np.concatenate([f.grid.h**2 * f.pressure.ravel() for f in res.fields])
     X = np.concatenate([f.grid.centres()[0].ravel() for f in res.fields]) - pivot[0]
     Y = np.concatenate([f.grid.centres()[1].ravel() for f in res.fields]) - pivot[1]
     arm = float(np.sqrt(np.sum(P * (X * X + Y * Y)) / W))  # load-weighted radius, mm
@@ -133,7 +141,7 @@ def test_result_reports_macro_micro_and_p0():
     assert set(res.timings_s) >= {"macro", "micro", "total"}
     assert res.macro_forces.shape == (2,)
     # eq. 7: the first pressure of each patch is a Hertz pressure carrying its macro force
-    p0_force = sum(float(q.sum()) for q in res.details.micro.p0) * 0.125 ** 2
+    p0_force = sum(float(q.sum()) for q in res.details.micro.p0) * 0.125**2
     assert p0_force == pytest.approx(res.macro_forces.sum(), rel=1e-9)
     # close spheres: eq. 7 alone is far off, the sweeps fix it
     assert res.details.micro.p0_change_percent > 5.0
@@ -147,14 +155,17 @@ def test_out_of_reach_scene_gives_zero_pressure():
     assert res.converged and res.total_load == 0.0
 
 
-@pytest.mark.parametrize("kwargs,word", [
-    ({"h": 0.1}, "exactly one"),
-    ({"h": 0.1, "penetration": 0.1, "total_load": 1.0}, "exactly one"),
-    ({"h": -0.1, "penetration": 0.1}, "h"),
-    ({"h": 0.1, "penetration": 0.1, "tilt": True}, "tilt"),
-    ({"h": 0.1, "penetration": 0.1, "tol": 0.0}, "tol"),
-    ({"h": 0.1, "penetration": 0.1, "max_sweeps": 0}, "max_sweeps"),
-])
+@pytest.mark.parametrize(
+    "kwargs,word",
+    [
+        ({"h": 0.1}, "exactly one"),
+        ({"h": 0.1, "penetration": 0.1, "total_load": 1.0}, "exactly one"),
+        ({"h": -0.1, "penetration": 0.1}, "h"),
+        ({"h": 0.1, "penetration": 0.1, "tilt": True}, "tilt"),
+        ({"h": 0.1, "penetration": 0.1, "tol": 0.0}, "tol"),
+        ({"h": 0.1, "penetration": 0.1, "max_sweeps": 0}, "max_sweeps"),
+    ],
+)
 def test_invalid_input_raises_naming_the_value(kwargs, word):
     with pytest.raises(ValueError, match=word):
         solve_twoscale(HS, [Asperity(0.0, 0.0, 0.0, 5.0)], **kwargs)
@@ -186,7 +197,7 @@ class SmoothedHalfSpace(InfluenceProvider):
         t = np.asarray(targets, float).reshape(-1, 2)
         s = np.asarray(sources, float).reshape(-1, 2)
         r2 = (t[:, None, 0] - s[None, :, 0]) ** 2 + (t[:, None, 1] - s[None, :, 1]) ** 2
-        return self.c0 * np.exp(-r2 / self.L ** 2)
+        return self.c0 * np.exp(-r2 / self.L**2)
 
     def point_compliance(self, targets, sources):
         return self._hs.point_compliance(targets, sources) + self._corr(targets, sources)
@@ -213,8 +224,12 @@ class SmoothedHalfSpace(InfluenceProvider):
 def test_any_provider_through_the_contract():
     # correction: 30 % of Boussinesq at r = 2 mm, decaying over 3 mm
     body = SmoothedHalfSpace(MAT, c0=0.3 / (np.pi * MAT.E_star * 2.0), L=3.0)
-    asps = [Asperity(0.0, 0.0, 0.0, 5.0), Asperity(1.6, 0.4, 0.01, 4.0), Asperity(-0.5, 2.0, 0.03, 6.0),
-            Asperity(4.0, -3.0, 0.5, 5.0)]
+    asps = [
+        Asperity(0.0, 0.0, 0.0, 5.0),
+        Asperity(1.6, 0.4, 0.01, 4.0),
+        Asperity(-0.5, 2.0, 0.03, 6.0),
+        Asperity(4.0, -3.0, 0.5, 5.0),
+    ]
     h, d = 0.2, 0.2
     res = solve_twoscale(body, asps, h=h, penetration=d)
     assert res.converged, res.message

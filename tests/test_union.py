@@ -1,6 +1,7 @@
 """The union iteration (one constrained CG over the patches' box) against the full-grid
 reference on seeded random scenes: penetration control, load control, load with tilt;
 and the mixed-precision CG against the double-precision one."""
+
 from __future__ import annotations
 
 
@@ -21,9 +22,9 @@ MAT = Material(E=6.0, nu=0.5)
 HS = HalfSpace(MAT)
 
 
-
-@pytest.mark.parametrize("seed,load", [(0, {"penetration": 0.15}), (1, {"total_load": 24.0}),
-                                       (2, {"total_load": 24.0, "tilt": True})])
+@pytest.mark.parametrize(
+    "seed,load", [(0, {"penetration": 0.15}), (1, {"total_load": 24.0}), (2, {"total_load": 24.0, "tilt": True})]
+)
 def test_union_cg_matches_the_reference(seed, load):
     asps = crowded(seed, 12)
     h = 0.1

@@ -2,6 +2,7 @@
 the two-scale method against the full-grid reference with the same steps, the energy balance
 of the drag (second order in the step), zero drag on an elastic body, the low-speed drag of a
 paraboloid in closed form and the hysteresis-friction curve."""
+
 import math
 
 import numpy as np
@@ -26,9 +27,13 @@ THREE = (Asperity(0.0, 0.0, 0.0, 8.0), Asperity(0.9, 2.2, 0.04, 12.0), Asperity(
 
 def _run(material, tips, shifts, h, *, speed=1.0, method="reference", **control):
     grid = sweep_grid(material, tips, shifts, h, **control)
-    return solve_moving(material, HalfSpace(material.relaxed()), MovingAsperities(tips),
-                        Motion(shifts, speed, grid, **control),
-                        options=MovingOptions(method=method, keep_results=True)), grid
+    return solve_moving(
+        material,
+        HalfSpace(material.relaxed()),
+        MovingAsperities(tips),
+        Motion(shifts, speed, grid, **control),
+        options=MovingOptions(method=method, keep_results=True),
+    ), grid
 
 
 @pytest.mark.parametrize("factor, modulus", [(1e-7, "relaxed"), (1e7, "glassy")])
@@ -56,8 +61,16 @@ def test_a_relaxed_start_is_the_relaxed_answer_then_glassy_increments():
     m = Material(2.0, 0.5, prony=((8.0, 1e7),))
     shifts = np.arange(0.0, 0.5 + 1e-9, 0.1)
     grid = sweep_grid(m, SPHERE, shifts, 0.1, penetration=D)
-    r = solve_moving(m, HalfSpace(m.relaxed()), MovingAsperities(SPHERE), shifts, speed=1.0, grid=grid,
-                     penetration=D, options=MovingOptions(start="relaxed"))
+    r = solve_moving(
+        m,
+        HalfSpace(m.relaxed()),
+        MovingAsperities(SPHERE),
+        shifts,
+        speed=1.0,
+        grid=grid,
+        penetration=D,
+        options=MovingOptions(start="relaxed"),
+    )
     static = solve_reference(HalfSpace(m.relaxed()), surface_on(grid, SPHERE), penetration=D)
     assert r.total_load[0] == pytest.approx(static.total_load, rel=1e-8)
     assert r.dissipated[0] == 0.0
@@ -109,7 +122,7 @@ def test_steady_rolling_mean_drag_times_distance_is_the_dissipation():
     n = 2 * r.shifts.size // 3
     dissipated = r.dissipated_between(n)
     assert abs(r.stored[-1] - r.stored[n]) < 0.01 * dissipated
-    mean_drag = np.mean(0.5 * (r.drag[n + 1:] + r.drag[n:-1]))
+    mean_drag = np.mean(0.5 * (r.drag[n + 1 :] + r.drag[n:-1]))
     assert abs(mean_drag * (r.shifts[-1] - r.shifts[n]) / dissipated - 1) < 0.5 * (ds / A) ** 2
 
 
@@ -158,7 +171,7 @@ def test_low_speed_friction_by_its_two_routes():
     m = Material(2.0, 0.5, prony=((3.0, 0.02), (5.0, 0.7), (1.0, 9.0)))
     J = creep_compliance(m)
     eta = sum(e * t for e, t in m.prony)
-    assert abs(np.sum(J.c * J.lambdas) / (eta / m.E ** 2) - 1) < 1e-10
+    assert abs(np.sum(J.c * J.lambdas) / (eta / m.E**2) - 1) < 1e-10
     a, p0 = 1.3, 0.8
     # p = p0 sqrt(1 - r^2 / a^2); int x dp/dx dA = pi int r^2 dp/dr dr (the angular mean of
     # cos^2 is 1/2), with r = a sin(t) to take the edge's square root: dp/dr dr = -p0 sin(t) dt
@@ -192,10 +205,11 @@ def test_a_height_field_moves_as_the_tips_do():
     tips, grid = _run(m, SPHERE, shifts, 0.1, penetration=D)
 
     def field(X, Y):
-        return (X ** 2 + Y ** 2) / (2 * R), np.zeros(np.shape(X), dtype=np.int64)
+        return (X**2 + Y**2) / (2 * R), np.zeros(np.shape(X), dtype=np.int64)
 
-    heights = solve_moving(m, HalfSpace(m.relaxed()), MovingHeights(field, 1), shifts, speed=1.0, grid=grid,
-                           penetration=D)
+    heights = solve_moving(
+        m, HalfSpace(m.relaxed()), MovingHeights(field, 1), shifts, speed=1.0, grid=grid, penetration=D
+    )
     assert np.allclose(heights.forces, tips.forces, rtol=1e-7)
     assert np.allclose(heights.drag, tips.drag, rtol=1e-6, atol=1e-12)
 
@@ -205,9 +219,9 @@ def test_a_sampled_map_moves_between_its_samples():
     h = 0.1
     g = Grid(-3.0, -3.0, h, 61, 61)
     X, Y = g.centres()
-    moving = MovingHeights.from_map((X ** 2 + Y ** 2) / (2 * R), np.zeros(g.shape, dtype=np.int64), g)
+    moving = MovingHeights.from_map((X**2 + Y**2) / (2 * R), np.zeros(g.shape, dtype=np.int64), g)
     surf, slope = moving.surface(g, h / 3)
-    exact = ((X - h / 3) ** 2 + Y ** 2) / (2 * R)
+    exact = ((X - h / 3) ** 2 + Y**2) / (2 * R)
     inner = np.isfinite(surf.height)
     assert inner.sum() == g.size - g.ny  # the first column has no sample on its left
     assert np.abs(surf.height - exact)[inner].max() < h * h / (8 * R) + 1e-12
@@ -229,10 +243,10 @@ def test_retardation_dashpots_dissipate_as_the_prony_branches():
     for e in eps:  # explicit Euler in both: the same discrete history
         rate = (e - ev) / tk
         sigma = m.E * e + np.sum(Ek * (e - ev))
-        dm.append(dm[-1] + dt * np.sum(Ek * tk * rate ** 2))
+        dm.append(dm[-1] + dt * np.sum(Ek * tk * rate**2))
         ev = ev + dt * rate
         rate_j = (J.c * sigma - ej) / J.lambdas
-        dk.append(dk[-1] + dt * np.sum(J.lambdas / J.c * rate_j ** 2))
+        dk.append(dk[-1] + dt * np.sum(J.lambdas / J.c * rate_j**2))
         ej = ej + dt * rate_j
     np.testing.assert_allclose(dk, dm, rtol=1e-9, atol=1e-14)
 
@@ -244,16 +258,20 @@ def test_step_integrals_match_quadrature():
         s = np.unique(np.concatenate([np.linspace(0.0, dt, 100001), np.geomspace(1e-5 * la, min(dt, 40 * la), 100001)]))
         alpha = np.exp(-s / la)
         gamma = (la / dt) * (1 - alpha)
-        quad = [_trapezoid(f, s) for f in (alpha ** 2, alpha * gamma, gamma ** 2)]
+        quad = [_trapezoid(f, s) for f in (alpha**2, alpha * gamma, gamma**2)]
         got = [x[k] for x in step_integrals(lam, dt)]
         for q, g in zip(quad, got):
             assert abs(g - q) <= 1e-6 * max(abs(q), 1e-30) + 1e-12 * dt
 
 
-@pytest.mark.parametrize("change, match", [
-    ({"speed": 0.0}, "speed"), ({"shifts": [0.0, 0.2, 0.1]}, r"shifts\[2\]"),
-    ({"penetration": None}, "penetration"),
-])
+@pytest.mark.parametrize(
+    "change, match",
+    [
+        ({"speed": 0.0}, "speed"),
+        ({"shifts": [0.0, 0.2, 0.1]}, r"shifts\[2\]"),
+        ({"penetration": None}, "penetration"),
+    ],
+)
 def test_bad_input_names_the_value(change, match):
     m = Material(2.0, 0.5, prony=((8.0, 1.0),))
     args = {"shifts": [0.0, 0.1], "speed": 1.0, "penetration": D}
@@ -284,18 +302,28 @@ def test_a_body_at_another_modulus_and_a_field_for_twoscale_are_refused():
     m = Material(2.0, 0.5, prony=((8.0, 1.0),))
     grid = sweep_grid(m, SPHERE, [0.0, 0.1], 0.1, penetration=D)
     with pytest.raises(ValueError, match="relaxed"):
-        solve_moving(m, HalfSpace(Material(10.0, 0.5)), MovingAsperities(SPHERE), [0.0], speed=1.0, grid=grid,
-                     penetration=D)
+        solve_moving(
+            m, HalfSpace(Material(10.0, 0.5)), MovingAsperities(SPHERE), [0.0], speed=1.0, grid=grid, penetration=D
+        )
     with pytest.raises(ValueError, match="twoscale"):
-        solve_moving(m, HalfSpace(m.relaxed()), MovingHeights(lambda X, Y: (X, X), 1), [0.0], speed=1.0,
-                     grid=grid, penetration=D, options=MovingOptions(method="twoscale"))
+        solve_moving(
+            m,
+            HalfSpace(m.relaxed()),
+            MovingHeights(lambda X, Y: (X, X), 1),
+            [0.0],
+            speed=1.0,
+            grid=grid,
+            penetration=D,
+            options=MovingOptions(method="twoscale"),
+        )
 
 
 def test_a_grid_too_small_says_so():
     m = Material(2.0, 0.5, prony=((8.0, 1.0),))
     grid = sweep_grid(m, SPHERE, [0.0], 0.1, penetration=D)  # covers the first position only
-    r = solve_moving(m, HalfSpace(m.relaxed()), MovingAsperities(SPHERE), [0.0, 1.0, 2.0], speed=1.0, grid=grid,
-                     penetration=D)
+    r = solve_moving(
+        m, HalfSpace(m.relaxed()), MovingAsperities(SPHERE), [0.0, 1.0, 2.0], speed=1.0, grid=grid, penetration=D
+    )
     assert not r.converged and "edge" in r.message and r.step_converged[0]
 
 
@@ -320,9 +348,19 @@ def test_a_height_maps_basins_roll_with_both_solvers():
     m = Material(2.0, 0.5, prony=((8.0, 0.5),))
     g = surface.hmap.grid
     grid = Grid.covering(-4.0, 5.0, -3.0, 3.0, h, anchor=(g.x0, g.y0))
-    runs = [solve_moving(m, HalfSpace(m.relaxed()), MovingAsperities(surface.asperities), np.arange(6) * h,
-                         speed=2.0, grid=grid, penetration=0.15, options=MovingOptions(method=method))
-            for method in ("reference", "twoscale")]
+    runs = [
+        solve_moving(
+            m,
+            HalfSpace(m.relaxed()),
+            MovingAsperities(surface.asperities),
+            np.arange(6) * h,
+            speed=2.0,
+            grid=grid,
+            penetration=0.15,
+            options=MovingOptions(method=method),
+        )
+        for method in ("reference", "twoscale")
+    ]
     assert all(r.converged for r in runs)
     ref, two = runs
     assert np.abs(two.forces - ref.forces).max() < 1e-4 * np.abs(ref.forces).max()
@@ -336,8 +374,9 @@ def test_a_history_on_a_height_map_runs_with_both_solvers():
     from twoscale.viscoelastic import LoadHistory, TimeSteps, solve_history
 
     m = Material(2.0, 0.5, prony=((8.0, 0.5),))
-    scene = Scene(m, surface=_three_bumps(),
-                  history=LoadHistory("total", ((0.0, 0.0), (1.0, 3.0), (3.0, 3.0), (4.0, 1.0))))
+    scene = Scene(
+        m, surface=_three_bumps(), history=LoadHistory("total", ((0.0, 0.0), (1.0, 3.0), (3.0, 3.0), (4.0, 1.0)))
+    )
     ref, two = (solve_history(scene, method=method, steps=TimeSteps(count=12)) for method in ("reference", "twoscale"))
     assert ref.converged and two.converged
     assert np.abs(two.forces - ref.forces).max() < 1e-4 * np.abs(ref.forces).max()
@@ -349,13 +388,31 @@ def test_rolling_on_a_finite_block():
     # the drag's work is the stored plus dissipated energy (the block's operator is symmetric)
     fem_influence = pytest.importorskip("fem_influence")
     m = Material(3.0, 0.5, prony=((12.0, 0.5),))
-    block = fem_influence.BlockProvider(material=m.relaxed(), use_cache=False, progress=False,
-                                        size=(60.0, 60.0, 10.0), h_fine=5.0, h_coarse=10.0, fine_half_width=10.0)
+    block = fem_influence.BlockProvider(
+        material=m.relaxed(),
+        use_cache=False,
+        progress=False,
+        size=(60.0, 60.0, 10.0),
+        h_fine=5.0,
+        h_coarse=10.0,
+        fine_half_width=10.0,
+    )
     tips = (Asperity(-3.0, 0.0, 0.0, 8.0, "paraboloid"),)
     shifts = np.arange(0.0, 1.0 + 1e-9, 0.2)
     grid = sweep_grid(m, tips, shifts, 0.2, penetration=0.15)
-    ref, two = (solve_moving(m, block, MovingAsperities(tips), shifts, speed=2.0, grid=grid, penetration=0.15,
-                             options=MovingOptions(method=method)) for method in ("reference", "twoscale"))
+    ref, two = (
+        solve_moving(
+            m,
+            block,
+            MovingAsperities(tips),
+            shifts,
+            speed=2.0,
+            grid=grid,
+            penetration=0.15,
+            options=MovingOptions(method=method),
+        )
+        for method in ("reference", "twoscale")
+    )
     assert ref.converged and two.converged
     assert np.abs(two.total_load - ref.total_load).max() < 1e-4 * ref.total_load.max()
     assert np.abs(two.drag - ref.drag).max() < 1e-3 * ref.drag.max()
@@ -369,9 +426,17 @@ def test_each_position_is_reported_as_it_is_solved():
     shifts = [0.0, 0.1, 0.2]
     grid = sweep_grid(m, SPHERE, shifts, 0.1, penetration=D)
     seen, lines = [], []
-    r = solve_moving(m, HalfSpace(m.relaxed()), MovingAsperities(SPHERE), shifts, speed=1.0, grid=grid,
-                     penetration=D, progress=lines.append,
-                     on_step=lambda n, s, res, row: seen.append((n, s, res.total_load, row.drag)))
+    r = solve_moving(
+        m,
+        HalfSpace(m.relaxed()),
+        MovingAsperities(SPHERE),
+        shifts,
+        speed=1.0,
+        grid=grid,
+        penetration=D,
+        progress=lines.append,
+        on_step=lambda n, s, res, row: seen.append((n, s, res.total_load, row.drag)),
+    )
     assert [x[:2] for x in seen] == [(0, 0.0), (1, 0.1), (2, 0.2)] and len(lines) == 3
     np.testing.assert_array_equal([x[2] for x in seen], r.total_load)
     np.testing.assert_array_equal([x[3] for x in seen], r.drag)

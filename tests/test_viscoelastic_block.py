@@ -2,6 +2,7 @@
 against the reference with the same steps; the glassy instant against the elastic solve
 on a block built at the glassy modulus (the block's compliance scales as 1 / E), the
 long-time state against the elastic solve at the relaxed modulus."""
+
 import numpy as np
 import pytest
 
@@ -25,14 +26,20 @@ def _block(E):
 def test_block_history():
     m = Material(3.0, 0.5, prony=((12.0, 0.1), (15.0, 10.0)))
     end = 3000.0  # retardation times up to ~100 s: relaxed at the end
-    scene = Scene(m, TIPS, h=0.15, influence=BODY,
-                  history=LoadHistory("total", ((0.0, 6.0), (end, 6.0)), output=(0.0, 1.0, 100.0, end)))
+    scene = Scene(
+        m,
+        TIPS,
+        h=0.15,
+        influence=BODY,
+        history=LoadHistory("total", ((0.0, 6.0), (end, 6.0)), output=(0.0, 1.0, 100.0, end)),
+    )
     block = _block(m.E)
     ts = solve_history(scene, method="twoscale", provider=block)
     ref = solve_history(scene, method="cg", provider=block, steps=TimeSteps(at=tuple(s.t for s in ts.steps)))
     assert np.abs(ts.forces - ref.forces).max() < 1e-5 * ref.forces.max()
-    glassy = twoscale.solve(Scene(Material(m.E_glassy, 0.5), TIPS, h=0.15, total_load=6.0, influence=BODY),
-                            provider=_block(m.E_glassy))
+    glassy = twoscale.solve(
+        Scene(Material(m.E_glassy, 0.5), TIPS, h=0.15, total_load=6.0, influence=BODY), provider=_block(m.E_glassy)
+    )
     assert ts.penetration[0] == pytest.approx(glassy.penetration, rel=1e-8)
     np.testing.assert_allclose(ts.forces[0], glassy.forces, rtol=1e-6)
     relaxed = twoscale.solve(Scene(m.relaxed(), TIPS, h=0.15, total_load=6.0, influence=BODY), provider=block)

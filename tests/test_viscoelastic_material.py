@@ -1,6 +1,7 @@
 """Prony-series material: relaxation modulus, exact creep compliance (checked by the
 Volterra identity by quadrature, and by the standard linear solid's closed form), input
 checks, and elastic scenes unchanged."""
+
 import numpy as np
 import pytest
 
@@ -56,22 +57,29 @@ def test_elastic_material_unchanged():
     assert J(np.array([0.0, 5.0])) == pytest.approx([0.1, 0.1])
 
 
-@pytest.mark.parametrize("prony, text", [
-    (((-1.0, 1.0),), "material.prony[0]: E_k must be > 0 (MPa), got -1.0"),
-    (((1.0, 0.0),), "material.prony[0]: tau_k must be > 0 (s), got 0.0"),
-    (((1.0, 1.0), (2.0, float("nan"))), "material.prony[1]: tau_k must be a finite number (s), got nan"),
-    (((1.0, 1.0), (2.0, 1.0)), "material.prony[1]: tau_k = 1.0 s repeats"),
-    (((1.0,),), "material.prony[0] must be a pair"),
-])
+@pytest.mark.parametrize(
+    "prony, text",
+    [
+        (((-1.0, 1.0),), "material.prony[0]: E_k must be > 0 (MPa), got -1.0"),
+        (((1.0, 0.0),), "material.prony[0]: tau_k must be > 0 (s), got 0.0"),
+        (((1.0, 1.0), (2.0, float("nan"))), "material.prony[1]: tau_k must be a finite number (s), got nan"),
+        (((1.0, 1.0), (2.0, 1.0)), "material.prony[1]: tau_k = 1.0 s repeats"),
+        (((1.0,),), "material.prony[0] must be a pair"),
+    ],
+)
 def test_bad_branches(prony, text):
-    with pytest.raises(ValueError, match=text.replace("(", r"\(").replace(")", r"\)").replace("[", r"\[")
-                       .replace("]", r"\]")):
+    with pytest.raises(
+        ValueError, match=text.replace("(", r"\(").replace(")", r"\)").replace("[", r"\[").replace("]", r"\]")
+    ):
         Material(2.0, 0.5, prony=prony)
 
 
-SCENE = {"material": {"E": 2.0, "nu": 0.5, "prony": [[8.0, 1.0], [4.0, 0.1]]},
-         "load": {"total": [[0, 5.0], [10, 5.0]]}, "time": {"output": [0, 1, 10]},
-         "asperity": [{"x": 0.0, "y": 0.0, "R": 10.0}]}
+SCENE = {
+    "material": {"E": 2.0, "nu": 0.5, "prony": [[8.0, 1.0], [4.0, 0.1]]},
+    "load": {"total": [[0, 5.0], [10, 5.0]]},
+    "time": {"output": [0, 1, 10]},
+    "asperity": [{"x": 0.0, "y": 0.0, "R": 10.0}],
+}
 
 
 def test_scene_file_round_trip_and_csv(tmp_path):
@@ -83,15 +91,19 @@ def test_scene_file_round_trip_and_csv(tmp_path):
     assert scene_from_dict(d, base_dir=str(tmp_path)).material == s.material
 
 
-@pytest.mark.parametrize("change, text", [
-    ({"material": {"E": 2.0, "nu": 0.5, "prony": [[8.0, -1.0]]}}, "material.prony[0]: tau_k must be > 0"),
-    ({"load": {"total": [[0, 5.0], [0, 6.0]]}}, "load.total[1] time must be greater"),
-    ({"load": {"total": [[0, 5.0]], "penetration": [[0, 0.1]]}}, "give one of load.total and load.penetration"),
-    ({"time": {"output": [11.0]}}, "time.output[0] = 11.0 s is outside the history"),
-    ({"load": {"total": 5.0}, "time": {}}, "material.prony needs a load history"),
-    ({"time": {"steps": 0}}, "time.steps must be an integer >= 1, got 0"),
-])
+@pytest.mark.parametrize(
+    "change, text",
+    [
+        ({"material": {"E": 2.0, "nu": 0.5, "prony": [[8.0, -1.0]]}}, "material.prony[0]: tau_k must be > 0"),
+        ({"load": {"total": [[0, 5.0], [0, 6.0]]}}, "load.total[1] time must be greater"),
+        ({"load": {"total": [[0, 5.0]], "penetration": [[0, 0.1]]}}, "give one of load.total and load.penetration"),
+        ({"time": {"output": [11.0]}}, "time.output[0] = 11.0 s is outside the history"),
+        ({"load": {"total": 5.0}, "time": {}}, "material.prony needs a load history"),
+        ({"time": {"steps": 0}}, "time.steps must be an integer >= 1, got 0"),
+    ],
+)
 def test_bad_scene_data(change, text):
-    with pytest.raises(SceneError, match=text.replace("(", r"\(").replace(")", r"\)").replace("[", r"\[")
-                       .replace("]", r"\]")):
+    with pytest.raises(
+        SceneError, match=text.replace("(", r"\(").replace(")", r"\)").replace("[", r"\[").replace("]", r"\]")
+    ):
         scene_from_dict(dict(SCENE, **change))

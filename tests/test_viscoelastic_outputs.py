@@ -1,6 +1,7 @@
 """``twoscale solve`` on a scene with a load history: the files (history.csv columns
 exactly as specified, fields.pvd time series, result.json record, history.png) and the
 bad-input exits."""
+
 import csv
 import json
 import xml.etree.ElementTree as ET
@@ -81,12 +82,15 @@ def test_solve_writes_the_history_files(tmp_path, tilt):
     assert (out / "history.png").stat().st_size > 0
 
 
-@pytest.mark.parametrize("change, text", [
-    ("prony = [[8.0, 1.0]]", "prony = [[8.0, -1.0]]"),
-    ("total = [[0, 2.0], [2, 2.0], [3, 0.5]]", "total = [[0, 2.0], [2, 2.0], [1, 0.5]]"),
-    ("total = [[0, 2.0], [2, 2.0], [3, 0.5]]", "total = [[0, 2.0], [3, 0.5]]\npenetration = [[0, 0.1]]"),
-    ("output = [0, 0.5, 2, 2.5, 3]", "output = [0, 4]"),
-])
+@pytest.mark.parametrize(
+    "change, text",
+    [
+        ("prony = [[8.0, 1.0]]", "prony = [[8.0, -1.0]]"),
+        ("total = [[0, 2.0], [2, 2.0], [3, 0.5]]", "total = [[0, 2.0], [2, 2.0], [1, 0.5]]"),
+        ("total = [[0, 2.0], [2, 2.0], [3, 0.5]]", "total = [[0, 2.0], [3, 0.5]]\npenetration = [[0, 0.1]]"),
+        ("output = [0, 0.5, 2, 2.5, 3]", "output = [0, 4]"),
+    ],
+)
 def test_bad_input_exits_2_and_writes_nothing(tmp_path, capsys, change, text):
     scene = _write(tmp_path, SCENE.format(tilt="").replace(change, text))
     out = tmp_path / "out"

@@ -1,6 +1,7 @@
 """Viscoelastic histories on the full-grid reference against closed forms for a paraboloid
 (Lee-Radok creep and relaxation, Ting's shrinking contact), the glassy and relaxed limits,
 and the order of convergence in the time step (measured)."""
+
 import dataclasses
 
 import numpy as np
@@ -62,8 +63,9 @@ def test_limits_are_elastic(factor, modulus):
     prony = tuple((E, factor * span * t) for E, t in THREE)
     m = Material(2.0, 0.5, prony=prony)
     E = m.E_glassy if modulus == "glassy" else m.E
-    r = solve_history(_scene(prony, "total", ((0.0, 5.0), (span, 5.0)), 0.1, output=(span,)),
-                      method="reference", tol=1e-10)
+    r = solve_history(
+        _scene(prony, "total", ((0.0, 5.0), (span, 5.0)), 0.1, output=(span,)), method="reference", tol=1e-10
+    )
     el = twoscale.solve(Scene(Material(E, 0.5), TIP, total_load=5.0, h=0.1), method="cg", tol=1e-10)
     assert r.penetration[-1] == pytest.approx(el.penetration, rel=2e-5)
     assert r.contact_area[-1] == pytest.approx(float(np.sum(el.asperities.contact_areas)), rel=1e-12)

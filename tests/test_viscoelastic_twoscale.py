@@ -2,6 +2,7 @@
 the same steps on seeded random scenes (growing and shrinking contacts), and the
 correspondence principle on multi-asperity scenes (step load: the elastic answer at
 modulus 1 / J(t); step penetration: every force scales as E(t))."""
+
 import dataclasses
 
 import numpy as np
@@ -23,16 +24,16 @@ PRONY = ((10.0, 0.01), (20.0, 1.0))
 
 def _visco(scene, kind, points, **hist):
     m = Material(scene.material.E, scene.material.nu, prony=PRONY)
-    return dataclasses.replace(scene, material=m, total_load=None, penetration=None,
-                               history=LoadHistory(kind, points, **hist))
+    return dataclasses.replace(
+        scene, material=m, total_load=None, penetration=None, history=LoadHistory(kind, points, **hist)
+    )
 
 
 @pytest.mark.parametrize("seed", [3, 11])
 def test_twoscale_matches_the_reference_with_the_same_steps(seed):
     base = random_scene(6, seed=seed, h=0.15)
     W = base.total_load
-    scene = _visco(base, "total", ((0.0, 0.0), (0.5, W), (2.0, W), (3.0, 0.3 * W)),
-                   steps=TimeSteps(count=8))
+    scene = _visco(base, "total", ((0.0, 0.0), (0.5, W), (2.0, W), (3.0, 0.3 * W)), steps=TimeSteps(count=8))
     ts = solve_history(scene, method="twoscale")
     ref = solve_history(scene, method="cg")
     assert ts.converged and ref.converged

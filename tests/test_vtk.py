@@ -1,5 +1,6 @@
 """VTK image data output: write -> read round trip, metadata, owner numbering, indenter height,
 atomic writing, and VTK itself (through pyvista) reading the files."""
+
 import json
 import math
 
@@ -18,7 +19,7 @@ def _two_patch_result(tilt=(0.01, -0.02)):
     g1 = Grid(0.05, 0.05, 0.1, 4, 3)
     g2 = Grid(1.05, -0.15, 0.1, 3, 5)
     gap1 = rng.random(g1.shape)
-    gap1[0, 0] = np.inf                    # no indenter material there
+    gap1[0, 0] = np.inf  # no indenter material there
     f1 = PressureField(g1, rng.random(g1.shape), np.zeros(g1.shape), gap1)
     f2 = PressureField(g2, rng.random(g2.shape) * 1e-7, np.ones(g2.shape), rng.random(g2.shape))
     fields = (f1, f2)
@@ -57,7 +58,7 @@ def test_metadata_readable_in_text_and_no_temp_left(tmp_path):
     head = text.splitlines()[1]
     assert head.startswith("<!-- twoscale ") and head.endswith("-->")
     # the comment holds the same JSON; "--" inside it was escaped and reads back equal
-    meta = json.loads(head[head.index("{"):-3])
+    meta = json.loads(head[head.index("{") : -3])
     assert meta["scene"] == {"note": "a--b"} and meta["version"] == __version__
     assert "--" not in head[4:-3]
     assert sorted(p.name for p in tmp_path.iterdir()) == ["f", "f.vtm"]
@@ -73,7 +74,7 @@ def test_indenter_height_with_tilt(tmp_path):
         X, Y = f.grid.centres()
         # independent evaluation: lower envelope of the exact cap and the paraboloid, + tilt
         r1 = (X - 0.2) ** 2 + (Y - 0.1) ** 2
-        z1 = 5.0 - np.sqrt(5.0 ** 2 - r1)
+        z1 = 5.0 - np.sqrt(5.0**2 - r1)
         z2 = 0.01 + ((X - 1.2) ** 2 + (Y - 0.1) ** 2) / 6.0
         expected = np.minimum(z1, z2) + beta * (X - pivot[0]) + alpha * (Y - pivot[1])
         np.testing.assert_allclose(z, expected, rtol=1e-12, atol=1e-15)
@@ -86,7 +87,7 @@ def test_union_layout(tmp_path):
     xmin, xmax, ymin, ymax = f.grid.bounds
     assert (xmin, ymin) == pytest.approx((0.0, -0.2)) and (xmax, ymax) == pytest.approx((1.3, 0.3))
     np.testing.assert_array_equal(f.pressure, res.pressure_on(f.grid))
-    assert f.pressure.sum() * f.grid.h ** 2 == pytest.approx(res.total_load, rel=1e-12)
+    assert f.pressure.sum() * f.grid.h**2 == pytest.approx(res.total_load, rel=1e-12)
     # cells covered by no patch have no owner and an infinite gap
     assert f.owner[0, 5] == -1 and math.isinf(f.gap[0, 5])
     assert back.metadata["layout"] == "union"
@@ -103,6 +104,7 @@ def test_bad_arguments_write_nothing(tmp_path):
 
 def test_reader_rejects_foreign_file(tmp_path):
     from twoscale.io.vti import write_multiblock
+
     write_multiblock(tmp_path / "other.vtm", [])
     with pytest.raises(ValueError, match="not written by twoscale"):
         read_vtk(tmp_path / "other.vtm")
@@ -112,6 +114,7 @@ def test_owner_numbered_from_one_in_the_file(tmp_path):
     # in memory owner is 0-based with -1 for "none"; a person reading the file sees the
     # asperity numbers of the tables (from 1) and 0 for "none"
     from twoscale.io.vti import read_image
+
     res = _two_patch_result()
     owner0 = np.array(res.fields[0].owner)
     owner0[0, 1] = -1
@@ -139,11 +142,13 @@ def test_vtk_itself_reads_the_file(tmp_path):
         assert block.n_cells == f.grid.size
         np.testing.assert_array_equal(np.asarray(block.cell_data["pressure_MPa"]), f.pressure.ravel())
         np.testing.assert_array_equal(np.asarray(block.cell_data["owner"]), f.owner.ravel() + 1)
-        np.testing.assert_array_equal(np.asarray(block.cell_data["gap_mm"]),
-                                      np.where(np.isinf(f.gap), np.nan, f.gap).ravel())
-        np.testing.assert_array_equal(np.asarray(block.cell_data["indenter_height_mm"]),
-                                      np.where(np.isinf(back.indenter_height[k]), np.nan,
-                                               back.indenter_height[k]).ravel())
+        np.testing.assert_array_equal(
+            np.asarray(block.cell_data["gap_mm"]), np.where(np.isinf(f.gap), np.nan, f.gap).ravel()
+        )
+        np.testing.assert_array_equal(
+            np.asarray(block.cell_data["indenter_height_mm"]),
+            np.where(np.isinf(back.indenter_height[k]), np.nan, back.indenter_height[k]).ravel(),
+        )
         meta = json.loads(bytes(np.asarray(block.field_data["twoscale_metadata"], dtype=np.uint8)))
         assert meta["version"] == __version__ and meta["patch"] == k + 1
         # cell centres of the image are the grid's cell centres, in the plane z = 0
@@ -168,6 +173,7 @@ def test_rewrite_replaces_the_images(tmp_path):
 def test_written_file_has_ordinary_permissions(tmp_path):
     # the temporary file is created owner-only; the result must follow the umask
     import os
+
     mask = os.umask(0o022)
     try:
         path = write_vtk(_two_patch_result(), tmp_path / "f.vtm")
@@ -182,10 +188,18 @@ def test_indenter_height_of_many_mixed_tips_is_the_rigid_surface(tmp_path):
     # thousands of tips are evaluated only where they can be lowest: the result must be
     # the full lower envelope that surface_on computes from every indenter on every cell
     from twoscale.indenters import surface_on
+
     rng = np.random.default_rng(3)
-    asp = [Asperity(float(x), float(y), float(z), float(R), shape=str(s)) for x, y, z, R, s in zip(
-        rng.uniform(-10, 10, 300), rng.uniform(-10, 10, 300), rng.uniform(0, 0.3, 300),
-        rng.uniform(0.5, 3.0, 300), rng.choice(["sphere", "paraboloid"], 300, p=[0.8, 0.2]))]
+    asp = [
+        Asperity(float(x), float(y), float(z), float(R), shape=str(s))
+        for x, y, z, R, s in zip(
+            rng.uniform(-10, 10, 300),
+            rng.uniform(-10, 10, 300),
+            rng.uniform(0, 0.3, 300),
+            rng.uniform(0.5, 3.0, 300),
+            rng.choice(["sphere", "paraboloid"], 300, p=[0.8, 0.2]),
+        )
+    ]
     grids = [Grid(float(x), float(y), 0.1, 30, 20) for x, y in rng.uniform(-12, 10, (6, 2))]
     fields = tuple(PressureField(g, np.zeros(g.shape), np.zeros(g.shape), np.zeros(g.shape)) for g in grids)
     s = summarise(fields, 300)

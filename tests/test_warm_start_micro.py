@@ -1,4 +1,5 @@
 """The micro step's warm start from a neighbouring solve's pressure: same answer, less work."""
+
 from __future__ import annotations
 
 import dataclasses

@@ -1,5 +1,6 @@
 """A check shared by the tests of every command that writes tables: the table opens as a
 user opens it (pandas and the csv module, no options) and says what it holds."""
+
 from __future__ import annotations
 
 import csv
@@ -30,7 +31,7 @@ def assert_tidy(path: Path, rows: int | None = None) -> list[dict]:
     for col in header:
         if NUMERIC.search(col) and frame[col].notna().any():
             assert pd.api.types.is_numeric_dtype(frame[col]), f"{path.name}: {col} is not numeric"
-    for r in records:      # numbers written with the precision they carry: at most 10 digits
+    for r in records:  # numbers written with the precision they carry: at most 10 digits
         for col, v in r.items():
             if NUMERIC.search(col) and v:
                 mantissa = v.lstrip("-").split("e")[0].replace(".", "").lstrip("0")

@@ -23,6 +23,7 @@ Indices are 0-based in Python (numpy); files and tables written for people numbe
 from 1. Light on import: the solvers, scipy and the finite block (scikit-fem) are imported
 when first used.
 """
+
 from ._version import __version__
 from .api import METHODS, as_asperities, asperities, solve
 from .grid import Grid
@@ -34,19 +35,45 @@ from .scene import Scene, SceneError
 
 #: Names imported on first use (module, attribute): the bodies and the height maps pull in
 #: scipy / scikit-fem / scikit-image.
-_LAZY = {"HalfSpace": ("twoscale.influence.halfspace", "HalfSpace"),
-         "RawMap": ("twoscale.surface.reading", "RawMap"),
-         "SurfaceOptions": ("twoscale.surface.measured", "SurfaceOptions"),
-         "build_surface": ("twoscale.surface.measured", "build_surface"),
-         "LoadHistory": ("twoscale.viscoelastic.history", "LoadHistory"),
-         "TimeSteps": ("twoscale.viscoelastic.stepping", "TimeSteps"),
-         "ContactSolver": ("twoscale.solver", "ContactSolver"),
-         "WarmStart": ("twoscale.warm_start", "WarmStart")}
+_LAZY = {
+    "HalfSpace": ("twoscale.influence.halfspace", "HalfSpace"),
+    "RawMap": ("twoscale.surface.reading", "RawMap"),
+    "SurfaceOptions": ("twoscale.surface.measured", "SurfaceOptions"),
+    "build_surface": ("twoscale.surface.measured", "build_surface"),
+    "LoadHistory": ("twoscale.viscoelastic.history", "LoadHistory"),
+    "TimeSteps": ("twoscale.viscoelastic.stepping", "TimeSteps"),
+    "ContactSolver": ("twoscale.solver", "ContactSolver"),
+    "WarmStart": ("twoscale.warm_start", "WarmStart"),
+}
 
-__all__ = ["__version__", "solve", "METHODS", "asperities", "as_asperities", "Material", "Grid", "Asperity",
-           "Scene", "SceneError", "ContactResult", "HalfSpace", "FiniteBlock", "RawMap", "SurfaceOptions",
-           "build_surface", "LoadHistory", "TimeSteps", "ContactSolver", "WarmStart", "SolverOptions",
-           "MacroOptions", "MicroOptions", "ReferenceOptions", "ResolutionOptions", "list_options"]
+__all__ = [
+    "__version__",
+    "solve",
+    "METHODS",
+    "asperities",
+    "as_asperities",
+    "Material",
+    "Grid",
+    "Asperity",
+    "Scene",
+    "SceneError",
+    "ContactResult",
+    "HalfSpace",
+    "FiniteBlock",
+    "RawMap",
+    "SurfaceOptions",
+    "build_surface",
+    "LoadHistory",
+    "TimeSteps",
+    "ContactSolver",
+    "WarmStart",
+    "SolverOptions",
+    "MacroOptions",
+    "MicroOptions",
+    "ReferenceOptions",
+    "ResolutionOptions",
+    "list_options",
+]
 
 
 def __getattr__(name: str):

@@ -21,6 +21,7 @@ The elastic body is the scene's (half-space by default) unless a prebuilt ``prov
 passed (e.g. a finite block built once for several solves). Units: mm, N, MPa. Python
 indices are 0-based (numpy); files and tables written for people number tips from 1.
 """
+
 from __future__ import annotations
 
 import dataclasses
@@ -40,7 +41,6 @@ from .scene import Scene, SceneError, default_h, expected_contact_radii, expecte
 from .tips import as_asperities, asperities  # noqa: F401 (twoscale.asperities, twoscale.as_asperities)
 
 if TYPE_CHECKING:
-
     from .influence.base import InfluenceProvider
     from .surface.measured import MeasuredSurface
     from .viscoelastic.result import HistoryResult
@@ -51,14 +51,15 @@ METHODS = ("twoscale", "reference", "dense", "cg")
 _SCENE_KEYWORDS = ("material", "penetration", "total_load", "tilt", "pivot")
 
 
-def _scene_of(problem: Any, provider: InfluenceProvider | None, h: float | None, shape: str,
-              given: dict) -> Scene:
+def _scene_of(problem: Any, provider: InfluenceProvider | None, h: float | None, shape: str, given: dict) -> Scene:
     """The scene to solve: ``problem`` itself, or one built from tips or a height map and keywords."""
     if isinstance(problem, Scene):
         extra = [k for k in _SCENE_KEYWORDS if given[k] is not None and not (k == "tilt" and given[k] is False)]
         if extra:
-            raise ValueError(f"a Scene carries its own {', '.join(extra)}; change the scene "
-                             f"(dataclasses.replace) instead of passing {extra[0]}=")
+            raise ValueError(
+                f"a Scene carries its own {', '.join(extra)}; change the scene "
+                f"(dataclasses.replace) instead of passing {extra[0]}="
+            )
         return problem if h is None else dataclasses.replace(problem, h=h)
     check_control(given["penetration"], given["total_load"])
     material = given["material"]
@@ -68,9 +69,16 @@ def _scene_of(problem: Any, provider: InfluenceProvider | None, h: float | None,
         material = provider.material
     surface = _height_map(problem, h)
     tips = () if surface is not None else as_asperities(problem, shape=shape)
-    return Scene(material=material, asperities=tips, surface=surface,
-                 penetration=given["penetration"], total_load=given["total_load"],
-                 tilt=bool(given["tilt"]), pivot=given["pivot"] if given["pivot"] is not None else (0.0, 0.0), h=h)
+    return Scene(
+        material=material,
+        asperities=tips,
+        surface=surface,
+        penetration=given["penetration"],
+        total_load=given["total_load"],
+        tilt=bool(given["tilt"]),
+        pivot=given["pivot"] if given["pivot"] is not None else (0.0, 0.0),
+        h=h,
+    )
 
 
 def _height_map(problem: Any, h: float | None) -> MeasuredSurface | None:
@@ -92,10 +100,17 @@ def _height_map(problem: Any, h: float | None) -> MeasuredSurface | None:
 CALL_KEYWORDS = {"tilt": False, "pivot": None, "shape": "sphere", "provider_options": None, "memory_limit": None}
 
 
-def solve(problem: Any, *, method: str | Callable[..., ContactResult] = "twoscale",
-          provider: InfluenceProvider | None = None, material: Material | None = None,
-          penetration: float | None = None, total_load: float | None = None, h: float | None = None,
-          **options: Any) -> ContactResult | HistoryResult:
+def solve(
+    problem: Any,
+    *,
+    method: str | Callable[..., ContactResult] = "twoscale",
+    provider: InfluenceProvider | None = None,
+    material: Material | None = None,
+    penetration: float | None = None,
+    total_load: float | None = None,
+    h: float | None = None,
+    **options: Any,
+) -> ContactResult | HistoryResult:
     """Solve a multi-asperity contact.
 
     Parameters
@@ -169,25 +184,28 @@ def solve(problem: Any, *, method: str | Callable[..., ContactResult] = "twoscal
     """
     call = {k: options.pop(k, default) for k, default in CALL_KEYWORDS.items()}
     provider_options, memory_limit = call["provider_options"], call["memory_limit"]
-    given = dict(material=material, penetration=penetration, total_load=total_load, tilt=call["tilt"],
-                 pivot=call["pivot"])
+    given = dict(
+        material=material, penetration=penetration, total_load=total_load, tilt=call["tilt"], pivot=call["pivot"]
+    )
     scene = _scene_of(problem, provider, h, call["shape"], given)
     if not (callable(method) or method in METHODS):
         raise ValueError(f"method must be one of {METHODS} or a callable, got {method!r}")
     if provider is not None and provider_options:
-        raise ValueError(f"provider_options apply to a provider built here, not to the one passed "
-                         f"(got {sorted(provider_options)!r})")
+        raise ValueError(
+            f"provider_options apply to a provider built here, not to the one passed (got {sorted(provider_options)!r})"
+        )
     if getattr(scene, "rolling", None) is not None:
-        raise ValueError("this scene has a [rolling] table: run it with twoscale.rolling.roll(scene) (or "
-                         "'twoscale solve SCENE --out DIR'); twoscale.solve answers one static position "
-                         "(dataclasses.replace(scene, rolling=None) for the road at rest)")
+        raise ValueError(
+            "this scene has a [rolling] table: run it with twoscale.rolling.roll(scene) (or "
+            "'twoscale solve SCENE --out DIR'); twoscale.solve answers one static position "
+            "(dataclasses.replace(scene, rolling=None) for the road at rest)"
+        )
     if scene.history is not None:  # a load history in time (viscoelastic or elastic): a HistoryResult
         from .viscoelastic.solve import solve_history
 
         if callable(method):
             raise ValueError("a scene with a load history runs with method 'twoscale' or 'reference', not a callable")
-        return solve_history(scene, method=method, provider=provider, h=h,
-                             provider_options=provider_options, **options)
+        return solve_history(scene, method=method, provider=provider, h=h, provider_options=provider_options, **options)
     if method == "twoscale":  # a misspelt keyword is refused before the body is built
         from .driver import check_keywords
 
@@ -198,10 +216,20 @@ def solve(problem: Any, *, method: str | Callable[..., ContactResult] = "twoscal
         from .resources import check_solve_memory
 
         base = options.get("options")
-        iteration = options.get("iteration", base.micro.iteration if base is not None else "auto") \
-            if method == "twoscale" else "auto"
-        check_solve_memory(scene, h, "twoscale" if method == "twoscale" else "reference", iteration=iteration,
-                           limit_bytes=memory_limit, option="h" if h_given else "grid.h", h_given=h_given)
+        iteration = (
+            options.get("iteration", base.micro.iteration if base is not None else "auto")
+            if method == "twoscale"
+            else "auto"
+        )
+        check_solve_memory(
+            scene,
+            h,
+            "twoscale" if method == "twoscale" else "reference",
+            iteration=iteration,
+            limit_bytes=memory_limit,
+            option="h" if h_given else "grid.h",
+            h_given=h_given,
+        )
     from .io.cache_entry import solve_caches, usage_since
 
     caches_before = () if provider is None else solve_caches(provider, scene)
@@ -226,13 +254,22 @@ def solve(problem: Any, *, method: str | Callable[..., ContactResult] = "twoscal
     elif method == "twoscale":
         from .driver import solve_twoscale
 
-        result = solve_twoscale(provider, scene.asperities, h=h, penetration=scene.penetration,
-                                total_load=scene.total_load, tilt=scene.tilt, pivot=scene.pivot, **options)
+        result = solve_twoscale(
+            provider,
+            scene.asperities,
+            h=h,
+            penetration=scene.penetration,
+            total_load=scene.total_load,
+            tilt=scene.tilt,
+            pivot=scene.pivot,
+            **options,
+        )
     else:
         from .reference.on_scene import solve_reference_scene
 
-        result = solve_reference_scene(scene, provider, h, solver="auto" if method == "reference" else method,
-                                       **options)
+        result = solve_reference_scene(
+            scene, provider, h, solver="auto" if method == "reference" else method, **options
+        )
     if scene.surface is not None:
         from .surface.edges import surface_details, warn_edge_contacts
 
@@ -257,8 +294,14 @@ def _full_grid_route(scene: Scene, h: float) -> str | None:
     return full_grid_route(int(reference_grid(scene, h).size))
 
 
-def solve_scene(scene: Scene, *, method: str = "twoscale", provider_options: Mapping | None = None,
-                memory_limit: float | None = None, **options: Any) -> ContactResult | HistoryResult:
+def solve_scene(
+    scene: Scene,
+    *,
+    method: str = "twoscale",
+    provider_options: Mapping | None = None,
+    memory_limit: float | None = None,
+    **options: Any,
+) -> ContactResult | HistoryResult:
     """Solve a scene: :func:`solve` with a :class:`Scene`.
 
     Kept for the scene-file workflow; ``method`` is "twoscale" or "reference" (the
@@ -272,8 +315,7 @@ def solve_scene(scene: Scene, *, method: str = "twoscale", provider_options: Map
 __all__ = ["METHODS", "solve", "solve_scene", "asperities", "as_asperities", "ResolutionWarning"]
 
 
-def check_domain(scene: Scene, provider: InfluenceProvider, h: float = 0.0, *,
-                 radii: np.ndarray | None = None) -> None:
+def check_domain(scene: Scene, provider: InfluenceProvider, h: float = 0.0, *, radii: np.ndarray | None = None) -> None:
     """Raise :class:`SceneError` naming the first asperity (numbered from 1) whose expected
     patch (1.5 contact radii and two cells of size ``h``) reaches outside the region the
     body answers for (``provider.domain()``, in the provider contract). ``radii``: the
@@ -289,10 +331,12 @@ def check_domain(scene: Scene, provider: InfluenceProvider, h: float = 0.0, *,
             raise SceneError(
                 f"asperity {k + 1} at ({x:.4g}, {y:.4g}) mm lies outside the region the block answers "
                 f"for, x in [{x0:.4g}, {x1:.4g}], y in [{y0:.4g}, {y1:.4g}] mm (one "
-                f"influence.source_spacing inside its sides): move it, or check influence.origin")
+                f"influence.source_spacing inside its sides): move it, or check influence.origin"
+            )
         if x - rk < x0 or x + rk > x1 or y - rk < y0 or y + rk > y1:
             raise SceneError(
                 f"asperity {k + 1} at ({x:.4g}, {y:.4g}) mm: its contact patch (about {rk:.2g} mm around "
                 f"the tip) reaches outside the region the block answers for, x in [{x0:.4g}, {x1:.4g}], "
                 f"y in [{y0:.4g}, {y1:.4g}] mm (one influence.source_spacing inside its sides): "
-                f"move it inward, or lower influence.source_spacing (default 5 mm)")
+                f"move it inward, or lower influence.source_spacing (default 5 mm)"
+            )

@@ -12,6 +12,7 @@ Two caches keep work between runs, each in its own folder of ``.npz`` entries
 Removing either folder is always safe: the entries are computed again when needed (a
 block's first solve then takes the FEM solves' time again).
 """
+
 from __future__ import annotations
 
 import os
@@ -76,7 +77,7 @@ class CacheFolder:
         for p in self.entries():
             try:
                 total += p.stat().st_size
-            except OSError:   # removed meanwhile by another run
+            except OSError:  # removed meanwhile by another run
                 pass
         return total
 
@@ -95,7 +96,9 @@ class CacheFolder:
 
 def caches() -> tuple[CacheFolder, ...]:
     """Every cache of the program, at its folder for the current environment."""
-    return (CacheFolder(BLOCK, "finite block: FEM correction fields per mesh, nu and base",
-                        block_cache_dir(), "block-*.npz"),
-            CacheFolder(LAWS, "height maps: tabulated law of each asperity",
-                        law_cache_dir(), "*.npz"))
+    return (
+        CacheFolder(
+            BLOCK, "finite block: FEM correction fields per mesh, nu and base", block_cache_dir(), "block-*.npz"
+        ),
+        CacheFolder(LAWS, "height maps: tabulated law of each asperity", law_cache_dir(), "*.npz"),
+    )

@@ -9,6 +9,7 @@ pair of bodies at each load, and against measured data (:class:`Measured`);
 Numbering: rows written for people (:func:`per_asperity_rows`) number asperities from 1,
 as the scene file lists them; arrays are 0-based.
 """
+
 from __future__ import annotations
 
 import dataclasses
@@ -23,11 +24,28 @@ from .sensor import Sensor, centred_tips, e_M, e_m, pivot_from_forces
 #: Columns of :func:`per_asperity_rows` (``twoscale compare``'s forces.csv): the load as
 #: numbers, ``load_N`` (the given total load) or ``penetration_mm`` (the given approach), the
 #: other one empty.
-ROW_FIELDS = ("load_N", "penetration_mm", "body", "asperity", "force_N", "contact_area_mm2", "max_pressure_MPa",
-              "macro_force_N")
+ROW_FIELDS = (
+    "load_N",
+    "penetration_mm",
+    "body",
+    "asperity",
+    "force_N",
+    "contact_area_mm2",
+    "max_pressure_MPa",
+    "macro_force_N",
+)
 #: Columns of :func:`tip_changes` (``twoscale compare``'s changes.csv).
-CHANGE_FIELDS = ("load_N", "penetration_mm", "reference", "body", "asperity", "reference_force_N", "force_N",
-                 "change_N", "change_percent")
+CHANGE_FIELDS = (
+    "load_N",
+    "penetration_mm",
+    "reference",
+    "body",
+    "asperity",
+    "reference_force_N",
+    "force_N",
+    "change_N",
+    "change_percent",
+)
 #: Tips whose reference force is below this fraction of the largest are not ranked among the
 #: largest changes (a tip that barely touches changes by any percentage).
 RANKED_FORCE_FRACTION = 0.01
@@ -79,8 +97,7 @@ def centre_pivot(scene: Scene, forces: np.ndarray) -> tuple[Scene, str]:
     x0, y0 = pivot_from_forces(scene.tips, forces, total=scene.total_load)
     tips = centred_tips(scene.tips, forces, total=scene.total_load)
     asps = tuple(dataclasses.replace(a, x=float(t[0]), y=float(t[1])) for a, t in zip(scene.asperities, tips))
-    note = (f"tips shifted by ({-x0:.4g}, {-y0:.4g}) mm so the joint sits at the measured force "
-            f"centre (paper eq. 13)")
+    note = f"tips shifted by ({-x0:.4g}, {-y0:.4g}) mm so the joint sits at the measured force centre (paper eq. 13)"
     return dataclasses.replace(scene, asperities=asps), note
 
 
@@ -95,17 +112,33 @@ def per_asperity_rows(runs, measured: Measured | None = None) -> list[dict]:
     of a method without a macro step)."""
     rows = []
     if measured is not None and measured.forces is not None:
-        rows += [{**load_values(runs[0].scene), "body": "measured", "asperity": k + 1, "force_N": float(f),
-                  "contact_area_mm2": None, "max_pressure_MPa": None, "macro_force_N": None}
-                 for k, f in enumerate(measured.forces)]
+        rows += [
+            {
+                **load_values(runs[0].scene),
+                "body": "measured",
+                "asperity": k + 1,
+                "force_N": float(f),
+                "contact_area_mm2": None,
+                "max_pressure_MPa": None,
+                "macro_force_N": None,
+            }
+            for k, f in enumerate(measured.forces)
+        ]
     for run in runs:
         s = run.result.asperities
         macro = run.result.macro_forces
         for k in range(len(s.forces)):
-            rows.append({**load_values(run.scene), "body": run.body, "asperity": k + 1,
-                         "force_N": float(s.forces[k]), "contact_area_mm2": float(s.contact_areas[k]),
-                         "max_pressure_MPa": float(s.max_pressures[k]),
-                         "macro_force_N": None if macro is None else float(macro[k])})
+            rows.append(
+                {
+                    **load_values(run.scene),
+                    "body": run.body,
+                    "asperity": k + 1,
+                    "force_N": float(s.forces[k]),
+                    "contact_area_mm2": float(s.contact_areas[k]),
+                    "max_pressure_MPa": float(s.max_pressures[k]),
+                    "macro_force_N": None if macro is None else float(macro[k]),
+                }
+            )
     return rows
 
 
@@ -122,10 +155,18 @@ def tip_changes(runs) -> list[dict]:
         for run in group[1:]:
             F = np.asarray(run.result.asperities.forces, dtype=float)
             for k in range(F.size):
-                rows.append({**load_values(run.scene), "reference": ref.body, "body": run.body, "asperity": k + 1,
-                             "reference_force_N": float(F_ref[k]), "force_N": float(F[k]),
-                             "change_N": float(F[k] - F_ref[k]),
-                             "change_percent": 100.0 * float(F[k] - F_ref[k]) / F_ref[k] if F_ref[k] > 0 else None})
+                rows.append(
+                    {
+                        **load_values(run.scene),
+                        "reference": ref.body,
+                        "body": run.body,
+                        "asperity": k + 1,
+                        "reference_force_N": float(F_ref[k]),
+                        "force_N": float(F[k]),
+                        "change_N": float(F[k] - F_ref[k]),
+                        "change_percent": 100.0 * float(F[k] - F_ref[k]) / F_ref[k] if F_ref[k] > 0 else None,
+                    }
+                )
     return rows
 
 
@@ -134,8 +175,9 @@ def largest_changes(rows: list[dict], n: int = 3) -> list[dict]:
     percent, among the tips whose reference force is at least :data:`RANKED_FORCE_FRACTION`
     of the largest."""
     top = max((r["reference_force_N"] for r in rows), default=0.0)
-    ranked = [r for r in rows if r["change_percent"] is not None
-              and r["reference_force_N"] >= RANKED_FORCE_FRACTION * top]
+    ranked = [
+        r for r in rows if r["change_percent"] is not None and r["reference_force_N"] >= RANKED_FORCE_FRACTION * top
+    ]
     return sorted(ranked, key=lambda r: -abs(r["change_percent"]))[:n]
 
 
@@ -160,8 +202,7 @@ def indicators(runs, sensor: Sensor | None = None, measured: Measured | None = N
         for r in runs:
             out.setdefault(r.load, {}).setdefault("measured", {})[r.body] = {
                 "e_M": None if measured.forces is None else e_M(r.result.asperities.forces, measured.forces),
-                "e_m": None if measured.sensor_map is None else e_m_or_none(maps[r.load, r.body],
-                                                                             measured.sensor_map),
+                "e_m": None if measured.sensor_map is None else e_m_or_none(maps[r.load, r.body], measured.sensor_map),
             }
     for ref in runs:
         for other in runs:
@@ -181,8 +222,10 @@ def sensor_notes(runs, sensor: Sensor, *, rtol: float = 1e-3) -> list[str]:
     for r in runs:
         seen = sensor.force(sensor.average(r.result))
         if seen < (1.0 - rtol) * r.result.total_load:
-            notes.append(f"the sensor ({sensor_text(sensor)}) carries {seen:.4g} N of the "
-                         f"{r.result.total_load:.4g} N of {r.body} at {load_title(r.load)}")
+            notes.append(
+                f"the sensor ({sensor_text(sensor)}) carries {seen:.4g} N of the "
+                f"{r.result.total_load:.4g} N of {r.body} at {load_title(r.load)}"
+            )
     return notes
 
 
@@ -201,8 +244,9 @@ def folder_indicators(run: str | os.PathLike, reference: str | os.PathLike, sens
     run, reference = Path(run), Path(reference)
     (P, tips), (P_ref, tips_ref) = read_forces_and_tips(run), read_forces_and_tips(reference)
     if P.shape != P_ref.shape:
-        raise ValueError(f"{run} has {P.size} asperities and {reference} has {P_ref.size}: "
-                         "e_M compares the same asperities")
+        raise ValueError(
+            f"{run} has {P.size} asperities and {reference} has {P_ref.size}: e_M compares the same asperities"
+        )
     _warn_if_tips_differ(run, reference, tips, tips_ref)
     p, p_ref = _folder_sensor_map(run, sensor), _folder_sensor_map(reference, sensor)
     return {"e_M": e_M(P, P_ref), "e_m": e_m_or_none(p, p_ref)}
@@ -216,9 +260,12 @@ def _warn_if_tips_differ(run: Path, reference: Path, a: np.ndarray, b: np.ndarra
     if a.shape == b.shape and a.size and np.all(np.isfinite(a)) and np.all(np.isfinite(b)):
         k = np.flatnonzero(np.hypot(*(a - b).T) > tol)
         if k.size:
-            warnings.warn(f"{run} and {reference} have asperities at different places (asperity {k[0] + 1}: "
-                          f"({a[k[0], 0]:g}, {a[k[0], 1]:g}) against ({b[k[0], 0]:g}, {b[k[0], 1]:g}) mm): "
-                          "the indicators compare different scenes", stacklevel=3)
+            warnings.warn(
+                f"{run} and {reference} have asperities at different places (asperity {k[0] + 1}: "
+                f"({a[k[0], 0]:g}, {a[k[0], 1]:g}) against ({b[k[0], 0]:g}, {b[k[0], 1]:g}) mm): "
+                "the indicators compare different scenes",
+                stacklevel=3,
+            )
 
 
 def _folder_sensor_map(folder: Path, sensor: Sensor) -> np.ndarray:
@@ -231,6 +278,20 @@ def _folder_sensor_map(folder: Path, sensor: Sensor) -> np.ndarray:
     return sensor.average(read_vtk(path))
 
 
-__all__ = ["ROW_FIELDS", "CHANGE_FIELDS", "Run", "Measured", "per_asperity_rows", "tip_changes", "largest_changes",
-           "load_values", "indicators", "sensor_notes",
-           "folder_indicators", "centre_pivot", "load_label", "load_title", "sensor_text"]
+__all__ = [
+    "ROW_FIELDS",
+    "CHANGE_FIELDS",
+    "Run",
+    "Measured",
+    "per_asperity_rows",
+    "tip_changes",
+    "largest_changes",
+    "load_values",
+    "indicators",
+    "sensor_notes",
+    "folder_indicators",
+    "centre_pivot",
+    "load_label",
+    "load_title",
+    "sensor_text",
+]

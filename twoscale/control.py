@@ -7,6 +7,7 @@ total load W (N, load control). :func:`check_control` is the single place that s
 and ``total_load`` for the Python functions, ``load.penetration`` and ``load.total`` for
 the scene file).
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -15,8 +16,9 @@ from dataclasses import dataclass
 PYTHON_NAMES = ("penetration", "total_load")
 
 
-def check_control(penetration, total_load, *, names: tuple[str, str] = PYTHON_NAMES,
-                  error: type[Exception] = ValueError) -> str:
+def check_control(
+    penetration, total_load, *, names: tuple[str, str] = PYTHON_NAMES, error: type[Exception] = ValueError
+) -> str:
     """``"penetration"`` or ``"load"``: which control the caller chose.
 
     Parameters
@@ -37,8 +39,10 @@ def check_control(penetration, total_load, *, names: tuple[str, str] = PYTHON_NA
         total_load (N), got penetration=None, total_load=None``.
     """
     if (penetration is None) == (total_load is None):
-        raise error(f"give exactly one of {names[0]} (mm) or {names[1]} (N), got "
-                    f"{names[0]}={penetration!r}, {names[1]}={total_load!r}")
+        raise error(
+            f"give exactly one of {names[0]} (mm) or {names[1]} (N), got "
+            f"{names[0]}={penetration!r}, {names[1]}={total_load!r}"
+        )
     return "penetration" if penetration is not None else "load"
 
 

@@ -12,6 +12,7 @@
 Indices are 0-based, as everywhere in Python (``merged_patches`` lists positions in
 ``scene.asperities``); files written for people number from 1.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass, replace
@@ -77,8 +78,7 @@ class Coupling:
     @classmethod
     def of(cls, routes: Mapping) -> "Coupling":
         """From the micro step's route counts (:meth:`twoscale.micro.blocks.Coupling.route_counts`)."""
-        return cls(**{k: routes[k] for k in ("dense", "fft", "separated", "spectral", "separated_rtol")
-                      if k in routes})
+        return cls(**{k: routes[k] for k in ("dense", "fft", "separated", "spectral", "separated_rtol") if k in routes})
 
 
 @dataclass(frozen=True)

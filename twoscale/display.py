@@ -23,6 +23,7 @@ patches, i.e. the same cell size ``h`` and cell centres on the same lattice, as
 :meth:`twoscale.grid.Grid.covering` builds). The map of a scene of many tips far apart is mostly
 zeros: its size is reported before it is allocated (:data:`MAX_CELLS`).
 """
+
 from __future__ import annotations
 
 import html
@@ -47,8 +48,13 @@ def result_rows(result, tips=None) -> list[dict]:
     rows = []
     for k in range(result.n_asperities):
         f, a = float(s.forces[k]), float(s.contact_areas[k])
-        row = {"asperity": k + 1, "force_N": f, "contact_area_mm2": a, "max_pressure_MPa": float(s.max_pressures[k]),
-               "mean_pressure_MPa": f / a if a > 0 else 0.0}
+        row = {
+            "asperity": k + 1,
+            "force_N": f,
+            "contact_area_mm2": a,
+            "max_pressure_MPa": float(s.max_pressures[k]),
+            "mean_pressure_MPa": f / a if a > 0 else 0.0,
+        }
         if macro is not None:
             row["macro_force_N"] = float(macro[k])
         rows.append(row)
@@ -73,12 +79,13 @@ def headline(result) -> list[tuple[str, str]]:
     out.append(("total load", f"{result.total_load:.5g} N"))
     out.append(("approach", f"{result.penetration:.5g} mm"))
     if result.tilt is not None:
-
         out.append(("tilt (alpha, beta)", f"{tilt_text(result)} rad"))
     area = f"{result.contact_area:.4g} mm2"
     if result.contact_ratio is not None:
-        area += (f" = {100 * result.contact_ratio:.3g} % of the nominal {result.nominal_area:.4g} mm2"
-                 f" ({result.nominal_area_basis})")
+        area += (
+            f" = {100 * result.contact_ratio:.3g} % of the nominal {result.nominal_area:.4g} mm2"
+            f" ({result.nominal_area_basis})"
+        )
     out.append(("contact area", area))
     out.append(("converged", "yes" if result.converged else f"NO: {result.message}"))
     return out
@@ -87,17 +94,26 @@ def headline(result) -> list[tuple[str, str]]:
 def result_html(result) -> str:
     """A compact HTML view: the headline numbers, then the most loaded tips."""
     e = html.escape
-    rows = "".join(f"<tr><th style='text-align:left'>{e(k)}</th><td style='text-align:left'>{e(v)}</td></tr>"
-                   for k, v in headline(result))
+    rows = "".join(
+        f"<tr><th style='text-align:left'>{e(k)}</th><td style='text-align:left'>{e(v)}</td></tr>"
+        for k, v in headline(result)
+    )
     tips = result_rows(result)
     order = sorted(tips, key=lambda r: -r["force_N"])[:HTML_TIPS]
     head = "".join(f"<th>{e(c)}</th>" for c in order[0]) if order else ""
-    body = "".join("<tr>" + "".join(f"<td>{v:.4g}</td>" if isinstance(v, float) else f"<td>{v}</td>"
-                                     for v in r.values()) + "</tr>" for r in order)
-    more = (f"<p>the {len(order)} most loaded of {len(tips)} tips; all of them: "
-            "<code>result.to_dataframe()</code></p>") if len(tips) > len(order) else ""
-    return (f"<div><b>ContactResult</b><table>{rows}</table>"
-            f"<table><thead><tr>{head}</tr></thead><tbody>{body}</tbody></table>{more}</div>")
+    body = "".join(
+        "<tr>" + "".join(f"<td>{v:.4g}</td>" if isinstance(v, float) else f"<td>{v}</td>" for v in r.values()) + "</tr>"
+        for r in order
+    )
+    more = (
+        (f"<p>the {len(order)} most loaded of {len(tips)} tips; all of them: <code>result.to_dataframe()</code></p>")
+        if len(tips) > len(order)
+        else ""
+    )
+    return (
+        f"<div><b>ContactResult</b><table>{rows}</table>"
+        f"<table><thead><tr>{head}</tr></thead><tbody>{body}</tbody></table>{more}</div>"
+    )
 
 
 def pressure_map_over(result, grid: Grid | None = None) -> tuple[np.ndarray, tuple]:
@@ -129,8 +145,10 @@ def pressure_map_over(result, grid: Grid | None = None) -> tuple[np.ndarray, tup
         y1 = max(f.grid.y0 + (f.grid.ny - 1) * f.grid.h for f in result.fields)
         nx, ny = int(round((x1 - x0) / g0.h)) + 1, int(round((y1 - y0) / g0.h)) + 1
         if nx * ny > MAX_CELLS:
-            raise ValueError(f"the map over every patch would have {nx} x {ny} cells ({8e-9 * nx * ny:.2g} GB); "
-                             f"give a smaller grid= (at most {MAX_CELLS:,} cells)")
+            raise ValueError(
+                f"the map over every patch would have {nx} x {ny} cells ({8e-9 * nx * ny:.2g} GB); "
+                f"give a smaller grid= (at most {MAX_CELLS:,} cells)"
+            )
         grid = Grid(x0, y0, g0.h, nx, ny)
     elif grid.size > MAX_CELLS:
         raise ValueError(f"grid has {grid.nx} x {grid.ny} cells, more than {MAX_CELLS:,}")

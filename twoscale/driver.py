@@ -9,6 +9,7 @@
 
 Only the cells where contact can be are modelled, which is where the speed comes from.
 """
+
 from __future__ import annotations
 
 import difflib
@@ -62,14 +63,25 @@ def check_keywords(keywords) -> None:
         # a group's prefix on a flat keyword ("micro_tol"): the micro step's options go without it
         stem = key.split("_", 1)[1] if key.startswith(("micro_", "micro.")) else ""
         close = [stem] if stem in known else difflib.get_close_matches(key, sorted(known | set(EXTRAS)), n=3)
-        hint = f" (did you mean {', '.join(repr(c) for c in close)}?)" if close else \
-            " (twoscale.list_options() lists the options)"
+        hint = (
+            f" (did you mean {', '.join(repr(c) for c in close)}?)"
+            if close
+            else " (twoscale.list_options() lists the options)"
+        )
         raise ValueError(f"unknown option {key!r} for the two-scale solver{hint}")
 
 
-def solve_twoscale(provider: InfluenceProvider, asperities: Sequence[Asperity], *, h: float,
-                   penetration: float | None = None, total_load: float | None = None,
-                   tilt: bool = False, pivot: tuple[float, float] = (0.0, 0.0), **options) -> ContactResult:
+def solve_twoscale(
+    provider: InfluenceProvider,
+    asperities: Sequence[Asperity],
+    *,
+    h: float,
+    penetration: float | None = None,
+    total_load: float | None = None,
+    tilt: bool = False,
+    pivot: tuple[float, float] = (0.0, 0.0),
+    **options,
+) -> ContactResult:
     """Multi-asperity contact by the two-scale iterative method.
 
     Parameters
@@ -154,9 +166,14 @@ def solve_twoscale(provider: InfluenceProvider, asperities: Sequence[Asperity], 
     base = extras.get("options")
     if base is not None and not isinstance(base, SolverOptions):
         raise ValueError(f"options must be a twoscale.SolverOptions, got {type(base).__name__}")
-    run = TwoScaleRun(options=SolverOptions.from_keywords(base, **options), laws=extras.get("laws"),
-                      anchor=extras.get("anchor", (0.0, 0.0)), coarse=extras.get("coarse"),
-                      progress=extras.get("progress"), start=extras.get("start"))
+    run = TwoScaleRun(
+        options=SolverOptions.from_keywords(base, **options),
+        laws=extras.get("laws"),
+        anchor=extras.get("anchor", (0.0, 0.0)),
+        coarse=extras.get("coarse"),
+        progress=extras.get("progress"),
+        start=extras.get("start"),
+    )
     return run_twoscale(provider, asperities, h, Loading(penetration, total_load, tilt, pivot), run)
 
 
@@ -174,8 +191,9 @@ class TwoScaleRun:
     start: object = None
 
 
-def run_twoscale(provider: InfluenceProvider, asperities: Sequence[Asperity], h: float, loading: Loading,
-                 run: TwoScaleRun) -> ContactResult:
+def run_twoscale(
+    provider: InfluenceProvider, asperities: Sequence[Asperity], h: float, loading: Loading, run: TwoScaleRun
+) -> ContactResult:
     """:func:`solve_twoscale` with its arguments as typed objects."""
     _check(asperities, h, loading)
     macro_options, micro_options = run.options.macro, run.options.micro
@@ -191,9 +209,15 @@ def run_twoscale(provider: InfluenceProvider, asperities: Sequence[Asperity], h:
     macro = solve_macro(provider, tips, z, laws, loading, macro_options, start=_macro_start(start, len(asperities)))
     t1 = time.perf_counter()
     choice = _caller_choice(micro_options.iteration, micro_options.far_tol, run.coarse)
-    problem = MicroProblem.from_macro(macro, h=h, total_load=loading.total_load, free_tilt=loading.tilt,
-                                      pivot=loading.pivot, anchor=run.anchor,
-                                      start=start.micro if isinstance(start, WarmStart) else None)
+    problem = MicroProblem.from_macro(
+        macro,
+        h=h,
+        total_load=loading.total_load,
+        free_tilt=loading.tilt,
+        pivot=loading.pivot,
+        anchor=run.anchor,
+        start=start.micro if isinstance(start, WarmStart) else None,
+    )
     micro, plan = run_micro(provider, asperities, macro, problem, micro_options, choice=choice, progress=progress)
     t2 = time.perf_counter()
     return _result(asperities, macro, micro, plan, h, {"macro": t1 - t0, "micro": t2 - t1, "total": t2 - t0})
@@ -207,8 +231,10 @@ def _macro_start(start, n: int):
         return start.macro
     if isinstance(start, ContactResult):
         if len(start.asperities.forces) != n:
-            raise ValueError(f"start has {len(start.asperities.forces)} asperities, this solve {n}: "
-                             f"give MacroStart.from_result(result, index) to map them")
+            raise ValueError(
+                f"start has {len(start.asperities.forces)} asperities, this solve {n}: "
+                f"give MacroStart.from_result(result, index) to map them"
+            )
         return MacroStart.from_result(start)
     raise ValueError(f"start must be a ContactResult, a MacroStart or a WarmStart, got {type(start).__name__}")
 
@@ -229,8 +255,9 @@ def _caller_choice(iteration, far_tol, coarse):
 
 
 def _result(asperities, macro, micro, plan, h, timings) -> ContactResult:
-    fields = tuple(PressureField(pt.grid, p, pt.owner, g)
-                   for pt, p, g in zip(micro.patches, micro.pressures, micro.gaps))
+    fields = tuple(
+        PressureField(pt.grid, p, pt.owner, g) for pt, p, g in zip(micro.patches, micro.pressures, micro.gaps)
+    )
     p = np.concatenate([v.ravel() for v in micro.pressures]) if fields else np.zeros(0)
     change = None
     if micro.initial:
@@ -239,27 +266,49 @@ def _result(asperities, macro, micro, plan, h, timings) -> ContactResult:
         change = 100.0 * float(np.linalg.norm(p0 - p)) / norm if norm > 0 else 0.0
     messages = [m for m in (("macro step: " + macro.message) if not macro.converged else "", micro.message) if m]
     details = TwoScaleDetails(
-        macro=MacroDetails(forces=macro.forces, local_penetrations=macro.local_penetrations,
-                           converged=bool(macro.converged), interaction=macro.interaction,
-                           operator_error=macro.operator_error, seconds=timings["macro"],
-                           penetration=float(macro.penetration),
-                           tilt=None if macro.tilt is None else tuple(float(t) for t in macro.tilt)),
-        micro=MicroDetails(iteration=_iteration_text(plan),
-                           strategy=plan.attempts[-1].iteration if plan.attempts else plan.choice.iteration,
-                           choice=plan.choice,
-                           attempts=plan.attempts, coupling=Coupling.of(micro.coupling),
-                           merged_patches=micro.merged, growths=int(micro.growths),
-                           p0=tuple(micro.initial) if micro.initial else None, p0_change_percent=change,
-                           seconds=timings["micro"]))
+        macro=MacroDetails(
+            forces=macro.forces,
+            local_penetrations=macro.local_penetrations,
+            converged=bool(macro.converged),
+            interaction=macro.interaction,
+            operator_error=macro.operator_error,
+            seconds=timings["macro"],
+            penetration=float(macro.penetration),
+            tilt=None if macro.tilt is None else tuple(float(t) for t in macro.tilt),
+        ),
+        micro=MicroDetails(
+            iteration=_iteration_text(plan),
+            strategy=plan.attempts[-1].iteration if plan.attempts else plan.choice.iteration,
+            choice=plan.choice,
+            attempts=plan.attempts,
+            coupling=Coupling.of(micro.coupling),
+            merged_patches=micro.merged,
+            growths=int(micro.growths),
+            p0=tuple(micro.initial) if micro.initial else None,
+            p0_change_percent=change,
+            seconds=timings["micro"],
+        ),
+    )
     return ContactResult(
-        method="twoscale", fields=fields, penetration=micro.penetration, tilt=micro.tilt,
-        total_load=float(h * h * p.sum()), asperities=summarise(fields, len(asperities)),
-        converged=bool(micro.converged), message="; ".join(messages),
-        iterations={"macro": int(macro.iterations), "macro_krylov": int(macro.krylov_iterations),
-                    "micro": int(micro.sweeps),
-                    "corrections": int(micro.corrections), "sensitivity_sweeps": int(micro.linear_sweeps)},
+        method="twoscale",
+        fields=fields,
+        penetration=micro.penetration,
+        tilt=micro.tilt,
+        total_load=float(h * h * p.sum()),
+        asperities=summarise(fields, len(asperities)),
+        converged=bool(micro.converged),
+        message="; ".join(messages),
+        iterations={
+            "macro": int(macro.iterations),
+            "macro_krylov": int(macro.krylov_iterations),
+            "micro": int(micro.sweeps),
+            "corrections": int(micro.corrections),
+            "sensitivity_sweeps": int(micro.linear_sweeps),
+        },
         residuals={"macro": tuple(macro.residuals), "micro": tuple(micro.history)},
-        timings_s=timings, details=details)
+        timings_s=timings,
+        details=details,
+    )
 
 
 def _iteration_text(plan) -> str:
@@ -272,6 +321,9 @@ def _iteration_text(plan) -> str:
     if last.iteration == "two-level":
         text += " (far-field coupling)" if last.far_tol is not None else " (exact coupling)"
     if len(plan.attempts) > 1:
-        text += " (" + "; ".join(f"{names[a.iteration]} did not converge in {a.sweeps} sweeps"
-                                 for a in plan.attempts[:-1]) + ")"
+        text += (
+            " ("
+            + "; ".join(f"{names[a.iteration]} did not converge in {a.sweeps} sweeps" for a in plan.attempts[:-1])
+            + ")"
+        )
     return text

@@ -8,6 +8,7 @@ documented (``twoscale.scene.SceneError``, ``twoscale.surface.heightmap.SurfaceE
 Bad input is a :class:`SceneError` (a ``ValueError``) whose one-line message names the
 bad value; the command line turns it into exit status 2.
 """
+
 from __future__ import annotations
 
 

@@ -3,6 +3,7 @@
 Fields on a grid are numpy arrays of shape ``(ny, nx)``: row index = y, column = x.
 Cell ``(j, i)`` has its centre at ``(x0 + i*h, y0 + j*h)``.
 """
+
 from __future__ import annotations
 
 import math
@@ -40,8 +41,9 @@ class Grid:
 
     # ------------------------------------------------------------------ constructors
     @classmethod
-    def covering(cls, xmin: float, xmax: float, ymin: float, ymax: float, h: float,
-                 *, anchor: tuple[float, float] = (0.0, 0.0)) -> "Grid":
+    def covering(
+        cls, xmin: float, xmax: float, ymin: float, ymax: float, h: float, *, anchor: tuple[float, float] = (0.0, 0.0)
+    ) -> "Grid":
         """Smallest grid of cell size ``h`` whose cells cover the box, with cell
         centres on the lattice ``anchor + h * Z^2`` (so grids built with the same
         ``h`` and anchor are aligned and can exchange cells)."""
@@ -93,8 +95,12 @@ class Grid:
     def bounds(self) -> tuple[float, float, float, float]:
         """Outer edges ``(xmin, xmax, ymin, ymax)`` of the cells, mm."""
         hh = 0.5 * self.h
-        return (self.x0 - hh, self.x0 + (self.nx - 1) * self.h + hh,
-                self.y0 - hh, self.y0 + (self.ny - 1) * self.h + hh)
+        return (
+            self.x0 - hh,
+            self.x0 + (self.nx - 1) * self.h + hh,
+            self.y0 - hh,
+            self.y0 + (self.ny - 1) * self.h + hh,
+        )
 
     def offset_in(self, parent: "Grid") -> tuple[int, int]:
         """Integer offset ``(di, dj)`` of this grid's cell (0,0) in an aligned ``parent``."""

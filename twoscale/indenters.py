@@ -3,6 +3,7 @@
 The rigid surface is the union of the indenters: at each point the indenter nearest
 the body (lowest height) counts, and the cell belongs to it.
 """
+
 from __future__ import annotations
 
 import math

@@ -4,6 +4,7 @@ Both solve ``(diag(w) + T_AA) x = b`` with ``T`` a point compliance applied by a
 :class:`~twoscale.influence.points.PointOperator` (no ``N x N`` matrix), for a few
 right-hand sides at once: one product per iteration serves all columns.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -34,8 +35,15 @@ class CGOutcome:
     breakdown: bool = False
 
 
-def block_cg(matvec: Callable[[np.ndarray], np.ndarray], precond: np.ndarray, rhs: np.ndarray, *,
-             rtol: float, max_iter: int, x0: np.ndarray | None = None) -> CGOutcome:
+def block_cg(
+    matvec: Callable[[np.ndarray], np.ndarray],
+    precond: np.ndarray,
+    rhs: np.ndarray,
+    *,
+    rtol: float,
+    max_iter: int,
+    x0: np.ndarray | None = None,
+) -> CGOutcome:
     """Jacobi-preconditioned conjugate gradients on the columns of ``rhs`` at once.
 
     Parameters

@@ -1,5 +1,6 @@
 """Material of the body (the indenters are rigid): linear elastic, or linear viscoelastic
 with a Prony series (generalized Maxwell model) at constant Poisson's ratio."""
+
 from __future__ import annotations
 
 from typing import Any
@@ -90,6 +91,7 @@ def check_prony(prony: Any) -> tuple:
     taus = [t for _, t in out]
     for k, t in enumerate(taus):
         if t in taus[:k]:
-            raise ValueError(f"material.prony[{k}]: tau_k = {t!r} s repeats an earlier branch's "
-                             f"(merge the two: add their E_k)")
+            raise ValueError(
+                f"material.prony[{k}]: tau_k = {t!r} s repeats an earlier branch's (merge the two: add their E_k)"
+            )
     return tuple(out)

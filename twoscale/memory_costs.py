@@ -3,6 +3,7 @@
 The constants :mod:`twoscale.resources` turns counted cells into bytes with, and the
 measured peaks they were checked against (:data:`CALIBRATION`). Bytes, mm.
 """
+
 from __future__ import annotations
 
 #: Resident memory of ``twoscale solve --out`` on a small scene: the interpreter with

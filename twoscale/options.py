@@ -10,6 +10,7 @@ a bad value is an error naming the option when the object is made, and
 with the closest known names. :func:`list_options` lists them all (the docs' table of
 options, ``docs/options.md``, is generated from it by :func:`options_markdown`).
 """
+
 from __future__ import annotations
 
 import dataclasses
@@ -120,10 +121,14 @@ class MicroOptions:
             raise ValueError("micro.far_tol applies to the block iterations, not to iteration='union-cg'")
         _positive("micro.margin", self.margin)
         if not self.margin >= 1.0:
-            raise ValueError(f"micro.margin must be >= 1 (patch half-width over the contact radius), "
-                             f"got {self.margin!r}")
-        if isinstance(self.dense_max_cells, bool) or not isinstance(self.dense_max_cells, int) \
-                or self.dense_max_cells < 0:
+            raise ValueError(
+                f"micro.margin must be >= 1 (patch half-width over the contact radius), got {self.margin!r}"
+            )
+        if (
+            isinstance(self.dense_max_cells, bool)
+            or not isinstance(self.dense_max_cells, int)
+            or self.dense_max_cells < 0
+        ):
             raise ValueError(f"micro.dense_max_cells must be an integer >= 0, got {self.dense_max_cells!r}")
         _fraction("micro.separated_rtol", self.separated_rtol)
         for name in ("merge", "p0"):
@@ -152,8 +157,11 @@ class ReferenceOptions:
     def __post_init__(self) -> None:
         _positive("reference.tol", self.tol, allow_none=True)
         _positive("reference.max_iter", self.max_iter, integer=True, allow_none=True)
-        if isinstance(self.max_enlargements, bool) or not isinstance(self.max_enlargements, int) \
-                or self.max_enlargements < 0:
+        if (
+            isinstance(self.max_enlargements, bool)
+            or not isinstance(self.max_enlargements, int)
+            or self.max_enlargements < 0
+        ):
             raise ValueError(f"reference.max_enlargements must be an integer >= 0, got {self.max_enlargements!r}")
 
     def keywords(self) -> dict:
@@ -182,25 +190,35 @@ class ResolutionOptions:
 
     def __post_init__(self) -> None:
         _positive("resolution.h", self.h, allow_none=True)
-        if self.memory_limit is not None and (isinstance(self.memory_limit, bool) or
-                                              not isinstance(self.memory_limit, (int, float))
-                                              or not self.memory_limit > 0):
-            raise ValueError(f"resolution.memory_limit must be a number of bytes > 0 (or inf), "
-                             f"got {self.memory_limit!r}")
+        if self.memory_limit is not None and (
+            isinstance(self.memory_limit, bool)
+            or not isinstance(self.memory_limit, (int, float))
+            or not self.memory_limit > 0
+        ):
+            raise ValueError(
+                f"resolution.memory_limit must be a number of bytes > 0 (or inf), got {self.memory_limit!r}"
+            )
 
 
 #: The option groups, by the name a mapping uses.
-GROUPS = {"macro": MacroOptions, "micro": MicroOptions, "reference": ReferenceOptions,
-          "resolution": ResolutionOptions}
+GROUPS = {"macro": MacroOptions, "micro": MicroOptions, "reference": ReferenceOptions, "resolution": ResolutionOptions}
 #: Flat keywords (``twoscale.solve``'s) -> (group, field).
 KEYWORDS = {
-    "tol": ("micro", "tol"), "max_sweeps": ("micro", "max_sweeps"), "iteration": ("micro", "iteration"),
-    "far_tol": ("micro", "far_tol"), "margin": ("micro", "margin"),
-    "dense_max_cells": ("micro", "dense_max_cells"), "separated_rtol": ("micro", "separated_rtol"),
-    "merge": ("micro", "merge"), "p0": ("micro", "p0"),
-    "macro_tol": ("macro", "tol"), "macro_max_iter": ("macro", "max_iter"),
-    "macro_dense_max": ("macro", "dense_max"), "macro_operator_rtol": ("macro", "operator_rtol"),
-    "h": ("resolution", "h"), "memory_limit": ("resolution", "memory_limit"),
+    "tol": ("micro", "tol"),
+    "max_sweeps": ("micro", "max_sweeps"),
+    "iteration": ("micro", "iteration"),
+    "far_tol": ("micro", "far_tol"),
+    "margin": ("micro", "margin"),
+    "dense_max_cells": ("micro", "dense_max_cells"),
+    "separated_rtol": ("micro", "separated_rtol"),
+    "merge": ("micro", "merge"),
+    "p0": ("micro", "p0"),
+    "macro_tol": ("macro", "tol"),
+    "macro_max_iter": ("macro", "max_iter"),
+    "macro_dense_max": ("macro", "dense_max"),
+    "macro_operator_rtol": ("macro", "operator_rtol"),
+    "h": ("resolution", "h"),
+    "memory_limit": ("resolution", "memory_limit"),
 }
 
 
@@ -246,14 +264,16 @@ class SolverOptions:
                 raise ValueError(f"unknown option {key!r}{_close(key, KEYWORDS)}")
             group, name = KEYWORDS[key]
             changes.setdefault(group, {})[name] = value
-        return dataclasses.replace(base, **{g: dataclasses.replace(getattr(base, g), **v)
-                                            for g, v in changes.items()})
+        return dataclasses.replace(base, **{g: dataclasses.replace(getattr(base, g), **v) for g, v in changes.items()})
 
     def twoscale_keywords(self) -> dict:
         """The keywords of :func:`twoscale.driver.solve_twoscale` these options give (the
         macro and micro options under their flat names, :data:`KEYWORDS`)."""
-        return {key: getattr(getattr(self, group), name) for key, (group, name) in KEYWORDS.items()
-                if group in ("macro", "micro")}
+        return {
+            key: getattr(getattr(self, group), name)
+            for key, (group, name) in KEYWORDS.items()
+            if group in ("macro", "micro")
+        }
 
 
 def settings_from(kind: type, keywords: Mapping[str, Any], what: str) -> Any:
@@ -268,8 +288,7 @@ def settings_from(kind: type, keywords: Mapping[str, Any], what: str) -> Any:
 
 def _close(name: str, known) -> str:
     match = difflib.get_close_matches(name, sorted(known), n=3)
-    return f" (did you mean {', '.join(repr(m) for m in match)}?)" if match else \
-        f" (known: {', '.join(sorted(known))})"
+    return f" (did you mean {', '.join(repr(m) for m in match)}?)" if match else f" (known: {', '.join(sorted(known))})"
 
 
 @dataclass(frozen=True)
@@ -312,13 +331,18 @@ def _attribute_docs(doc: str) -> dict:
 
 def options_markdown() -> str:
     """The table of options in the docs (``docs/options.md``), generated from :func:`list_options`."""
-    rows = ["# Options", "",
-            "Every option of a solve, by group (`twoscale.SolverOptions`; this page is generated by "
-            "`twoscale.options.options_markdown()` from the option objects themselves). In Python: "
-            "`twoscale.ContactSolver(body, SolverOptions(micro=MicroOptions(tol=1e-7)))`, or "
-            "`SolverOptions.from_mapping({\"micro\": {\"tol\": 1e-7}})`; `twoscale.solve` takes the "
-            "flat keywords of the last column.", "",
-            "| option | default | flat keyword | meaning |", "|---|---|---|---|"]
+    rows = [
+        "# Options",
+        "",
+        "Every option of a solve, by group (`twoscale.SolverOptions`; this page is generated by "
+        "`twoscale.options.options_markdown()` from the option objects themselves). In Python: "
+        "`twoscale.ContactSolver(body, SolverOptions(micro=MicroOptions(tol=1e-7)))`, or "
+        '`SolverOptions.from_mapping({"micro": {"tol": 1e-7}})`; `twoscale.solve` takes the '
+        "flat keywords of the last column.",
+        "",
+        "| option | default | flat keyword | meaning |",
+        "|---|---|---|---|",
+    ]
     flat = {v: k for k, v in KEYWORDS.items()}
     for o in list_options():
         key = flat.get((o.group, o.name), "")

@@ -17,6 +17,7 @@ Example
 ...     for _ in range(3):
 ...         bar.update()
 """
+
 from __future__ import annotations
 
 import sys
@@ -64,14 +65,14 @@ class Progress:
         Seconds before the first drawing, s.
     """
 
-    def __init__(self, total: int, *, label: str = "", quiet: bool = False,
-                 stream: TextIO | None = None, delay: float = 2.0) -> None:
+    def __init__(
+        self, total: int, *, label: str = "", quiet: bool = False, stream: TextIO | None = None, delay: float = 2.0
+    ) -> None:
         if total < 0:
             raise ValueError(f"progress total must be >= 0, got {total!r}")
         self.total = int(total)
         self.done = 0
-        self._bar = _bar(stream, quiet, total=self.total, desc=label or None, delay=delay,
-                         mininterval=0.5, leave=True)
+        self._bar = _bar(stream, quiet, total=self.total, desc=label or None, delay=delay, mininterval=0.5, leave=True)
 
     @property
     def enabled(self) -> bool:
@@ -95,8 +96,15 @@ class Progress:
         self.close()
 
 
-def track(items: Iterable[T], *, total: int | None = None, label: str = "", quiet: bool = False,
-          stream: TextIO | None = None, delay: float = 2.0) -> Iterator[T]:
+def track(
+    items: Iterable[T],
+    *,
+    total: int | None = None,
+    label: str = "",
+    quiet: bool = False,
+    stream: TextIO | None = None,
+    delay: float = 2.0,
+) -> Iterator[T]:
     """Yield ``items`` while drawing a :class:`Progress` bar (same options)."""
     if total is None:
         items = list(items)
@@ -126,11 +134,26 @@ class StatusLine:
         Seconds between two drawings.
     """
 
-    def __init__(self, *, label: str = "solving", quiet: bool = False, stream: TextIO | None = None,
-                 delay: float = 3.0, interval: float = 0.5) -> None:
+    def __init__(
+        self,
+        *,
+        label: str = "solving",
+        quiet: bool = False,
+        stream: TextIO | None = None,
+        delay: float = 3.0,
+        interval: float = 0.5,
+    ) -> None:
         self.label = label
-        self._bar = _bar(stream, quiet, total=None, desc=label, delay=delay, mininterval=interval,
-                         leave=False, bar_format="{desc}  {elapsed}")
+        self._bar = _bar(
+            stream,
+            quiet,
+            total=None,
+            desc=label,
+            delay=delay,
+            mininterval=interval,
+            leave=False,
+            bar_format="{desc}  {elapsed}",
+        )
 
     @property
     def enabled(self) -> bool:

@@ -6,6 +6,7 @@ asperities carry the load); :func:`default_h` puts :data:`CELLS_ACROSS` cells ac
 smallest contact that matters, coarsened while the patches would exceed
 :data:`CELL_BUDGET` cells.
 """
+
 from __future__ import annotations
 
 import dataclasses
@@ -48,7 +49,7 @@ def _hertz_level(scene: Scene) -> float:
     level = scene.__dict__.get("_hertz_level")
     if level is None:
         level = _solve_hertz_level(scene)
-        scene.__dict__["_hertz_level"] = level   # not a field: equality, hash and repr ignore it
+        scene.__dict__["_hertz_level"] = level  # not a field: equality, hash and repr ignore it
     return level
 
 
@@ -71,8 +72,10 @@ def _solve_hertz_level(scene: Scene) -> float:
     try:
         return brentq(excess, lo, hi, xtol=1e-14 * max(1.0, abs(hi)), rtol=1e-12)
     except (RuntimeError, ValueError):  # no finite level: a modulus or load outside floating point
-        raise SceneError(f"load.total = {W!r} N cannot be carried at any finite approach on material.E = "
-                         f"{scene.material.E!r} MPa (the Hertz level does not converge): check the units") from None
+        raise SceneError(
+            f"load.total = {W!r} N cannot be carried at any finite approach on material.E = "
+            f"{scene.material.E!r} MPa (the Hertz level does not converge): check the units"
+        ) from None
 
 
 def expected_approaches(scene: Scene) -> np.ndarray:
@@ -105,8 +108,13 @@ def _contact_radii(asperities: Sequence[Asperity], delta: np.ndarray) -> np.ndar
     return np.where(sphere, hertz.sphere_contact_radius(R, delta), hertz.contact_radius(R, delta))
 
 
-def default_h(scene: Scene, *, cells_across: int = CELLS_ACROSS,
-              min_force_fraction: float = MIN_FORCE_FRACTION, cell_budget: float | None = CELL_BUDGET) -> float:
+def default_h(
+    scene: Scene,
+    *,
+    cells_across: int = CELLS_ACROSS,
+    min_force_fraction: float = MIN_FORCE_FRACTION,
+    cell_budget: float | None = CELL_BUDGET,
+) -> float:
     """Cell size (mm) chosen from the scene.
 
     Rule: estimate each asperity's approach (:func:`expected_approaches`) and its
@@ -149,12 +157,16 @@ def default_h(scene: Scene, *, cells_across: int = CELLS_ACROSS,
     force, radius = expected_contacts(scene)
     keep = (force > 0) & (force >= min_force_fraction * force.max())
     if not np.any(keep):
-        raise SceneError(f"grid.h: no asperity is expected to carry load (largest Hertz estimate "
-                         f"{force.max()!r} N), so no default cell size can be chosen; give [grid] h")
+        raise SceneError(
+            f"grid.h: no asperity is expected to carry load (largest Hertz estimate "
+            f"{force.max()!r} N), so no default cell size can be chosen; give [grid] h"
+        )
     diameter = 2.0 * radius[keep].min()
     if not (math.isfinite(diameter) and diameter > 0):
-        raise SceneError(f"grid.h: the smallest expected contact diameter is {diameter!r} mm, so no "
-                         f"default cell size can be chosen; give [grid] h")
+        raise SceneError(
+            f"grid.h: the smallest expected contact diameter is {diameter!r} mm, so no "
+            f"default cell size can be chosen; give [grid] h"
+        )
     h = _round_down(diameter / cells_across, digits=2)
     cells = patch_cells(radius, h)
     if cell_budget is None or cells <= cell_budget:
@@ -181,14 +193,14 @@ def patch_cells(radii: np.ndarray, h: float, *, margin: float = PATCH_MARGIN) ->
 def round_up(x: float, *, digits: int) -> float:
     """``x`` rounded up to ``digits`` significant digits."""
     e = math.floor(math.log10(x)) - (digits - 1)
-    return float(f"{math.ceil(x / 10.0 ** e * (1 - 1e-12)) * 10.0 ** e:.{digits + 1}g}")
+    return float(f"{math.ceil(x / 10.0**e * (1 - 1e-12)) * 10.0**e:.{digits + 1}g}")
 
 
 def _round_down(x: float, *, digits: int) -> float:
     """``x`` rounded down to ``digits`` significant digits (so a readable h never
     gives fewer cells than asked)."""
     e = math.floor(math.log10(x)) - (digits - 1)
-    scale = 10.0 ** e
+    scale = 10.0**e
     q = math.floor(x / scale * (1 + 1e-12))
     return float(f"{q * scale:.{digits}g}") if q > 0 else x
 
@@ -201,8 +213,9 @@ def _round_down(x: float, *, digits: int) -> float:
 MIN_CELLS_ACROSS = 4
 
 
-def check_resolution(scene: Scene, h: float, *, forces: np.ndarray | None = None,
-                     radii: np.ndarray | None = None) -> None:
+def check_resolution(
+    scene: Scene, h: float, *, forces: np.ndarray | None = None, radii: np.ndarray | None = None
+) -> None:
     """Refuse a cell size coarser than every expected contact, and warn when a contact
     that matters (expected force >= 1 % of the largest) gets fewer than
     :data:`MIN_CELLS_ACROSS` cells across; both name the default rule's ``h``.
@@ -214,16 +227,22 @@ def check_resolution(scene: Scene, h: float, *, forces: np.ndarray | None = None
         return
     across = 2.0 * a / h
     if across.max() < 1.0:
-        raise SceneError(f"cell size h = {h:g} mm is coarser than every expected contact (the largest "
-                         f"about {2 * a.max():.2g} mm across): use a smaller h (the default rule gives "
-                         f"{default_h(dataclasses.replace(scene, h=None)):g} mm)")
+        raise SceneError(
+            f"cell size h = {h:g} mm is coarser than every expected contact (the largest "
+            f"about {2 * a.max():.2g} mm across): use a smaller h (the default rule gives "
+            f"{default_h(dataclasses.replace(scene, h=None)):g} mm)"
+        )
     matters = force >= MIN_FORCE_FRACTION * force.max()
     k = int(np.argmin(np.where(matters, across, np.inf)))
     if across[k] < MIN_CELLS_ACROSS:
-        warnings.warn(ResolutionWarning(
-            f"cell size h = {h:g} mm gives asperity {k + 1}'s expected contact (about {2 * a[k]:.2g} mm "
-            f"across) only {across[k]:.1f} cells across: its force may be off by 10 % or more "
-            f"({_default_rule_text(scene)})"), stacklevel=3)
+        warnings.warn(
+            ResolutionWarning(
+                f"cell size h = {h:g} mm gives asperity {k + 1}'s expected contact (about {2 * a[k]:.2g} mm "
+                f"across) only {across[k]:.1f} cells across: its force may be off by 10 % or more "
+                f"({_default_rule_text(scene)})"
+            ),
+            stacklevel=3,
+        )
 
 
 def _default_rule_text(scene: Scene) -> str:
@@ -232,5 +251,7 @@ def _default_rule_text(scene: Scene) -> str:
     h, rule = default_h(free), default_h(free, cell_budget=None)
     if h == rule:
         return f"the default rule gives h = {h:g} mm"
-    return (f"the default h = {h:g} mm is the rule's {rule:g} mm coarsened to keep the patches within "
-            f"{CELL_BUDGET / 1e6:g} M cells; give h = {rule:g} mm to resolve every contact that matters")
+    return (
+        f"the default h = {h:g} mm is the rule's {rule:g} mm coarsened to keep the patches within "
+        f"{CELL_BUDGET / 1e6:g} M cells; give h = {rule:g} mm to resolve every contact that matters"
+    )

@@ -27,6 +27,7 @@ micro step falls back to after a far-field iteration failed on a sparse scene.
 
 Units: bytes, mm.
 """
+
 from __future__ import annotations
 
 import math
@@ -37,10 +38,23 @@ import numpy as np
 
 from .grid import Grid
 from .memory_costs import (
-    BASE_BYTES, GRID_BYTES_PER_CELL, PATCH_BYTES_PER_CELL, FFT_WORK_BYTES_PER_CELL, COUPLING_CACHE_BYTES, MARGIN,
-    MERGE_GROWTH, MACRO_DENSE_MAX, DENSE_CELLS, DENSE_GRID_CELLS, BLOCK_PROVIDER_BYTES, DEFAULT_FRACTION, ADVICE_SHARE)
+    BASE_BYTES,
+    GRID_BYTES_PER_CELL,
+    PATCH_BYTES_PER_CELL,
+    FFT_WORK_BYTES_PER_CELL,
+    COUPLING_CACHE_BYTES,
+    MARGIN,
+    MERGE_GROWTH,
+    MACRO_DENSE_MAX,
+    DENSE_CELLS,
+    DENSE_GRID_CELLS,
+    BLOCK_PROVIDER_BYTES,
+    DEFAULT_FRACTION,
+    ADVICE_SHARE,
+)
 from .micro.policy import UNION_MIN_COVERAGE
 from .scene import METHODS, Scene, SceneError, expected_approaches, expected_contact_radii, round_up
+
 
 @dataclass(frozen=True)
 class MemoryEstimate:
@@ -74,8 +88,10 @@ class MemoryEstimate:
     @property
     def text(self) -> str:
         """One line: the total in GB, the cells and what dominates."""
-        return (f"about {self.bytes / 1e9:.3g} GB for {self.cells:,} cells at h = {self.h:g} mm "
-                f"({self.method}; mostly {self.dominant})")
+        return (
+            f"about {self.bytes / 1e9:.3g} GB for {self.cells:,} cells at h = {self.h:g} mm "
+            f"({self.method}; mostly {self.dominant})"
+        )
 
     def __str__(self) -> str:
         return self.text
@@ -105,8 +121,7 @@ def _padded(cells: float) -> float:
 
 
 # ---------------------------------------------------------------- the estimate
-def estimate_memory(scene: Scene, h: float, method: str = "twoscale", *,
-                    iteration: str = "auto") -> MemoryEstimate:
+def estimate_memory(scene: Scene, h: float, method: str = "twoscale", *, iteration: str = "auto") -> MemoryEstimate:
     """Peak memory of solving ``scene`` at cell size ``h`` with ``method``.
 
     Parameters
@@ -140,27 +155,30 @@ def estimate_memory(scene: Scene, h: float, method: str = "twoscale", *,
         else:
             cells, extra = _twoscale_parts(scene, h, union=iteration == "union-cg")
             parts.update(extra)
-    except OverflowError:   # cells past any float (h = 1e-320 mm): no count to report
-        raise SceneError(f"cell size h = {h!r} mm is too small: the scene's cells cannot even be "
-                         f"counted (over 1e308 of them)") from None
+    except OverflowError:  # cells past any float (h = 1e-320 mm): no count to report
+        raise SceneError(
+            f"cell size h = {h!r} mm is too small: the scene's cells cannot even be counted (over 1e308 of them)"
+        ) from None
     if scene.influence["kind"] == "block":
         parts["finite-block provider (FEM build)"] = BLOCK_PROVIDER_BYTES
     total = float(sum(parts.values()))
-    dominant = max((k for k in parts if k != "interpreter and libraries"), key=parts.get,
-                   default="interpreter and libraries")
-    return MemoryEstimate(total, cells, dominant, method, float(h),
-                          tuple((k, float(v)) for k, v in parts.items()))
+    dominant = max(
+        (k for k in parts if k != "interpreter and libraries"), key=parts.get, default="interpreter and libraries"
+    )
+    return MemoryEstimate(total, cells, dominant, method, float(h), tuple((k, float(v)) for k, v in parts.items()))
 
 
 def _grid_parts(scene: Scene, grid: Grid, name: str) -> dict:
     n = float(grid.size)
-    parts = {f"the {name} ({grid.ny} x {grid.nx} cells) and its FFT work":
-             (GRID_BYTES_PER_CELL + FFT_WORK_BYTES_PER_CELL) * n}
+    parts = {
+        f"the {name} ({grid.ny} x {grid.nx} cells) and its FFT work": (GRID_BYTES_PER_CELL + FFT_WORK_BYTES_PER_CELL)
+        * n
+    }
     if name == "reference grid":
         material = _material_cells(scene, grid)
         if material <= DENSE_CELLS:  # the dense solver: its matrix, a sub-matrix, a factor
             whole = n if n <= DENSE_GRID_CELLS else 0.0
-            parts["dense influence matrix"] = 8.0 * (whole ** 2 + 2.0 * material ** 2)
+            parts["dense influence matrix"] = 8.0 * (whole**2 + 2.0 * material**2)
     return parts
 
 
@@ -169,7 +187,7 @@ def _material_cells(scene: Scene, grid: Grid) -> float:
     paraboloids, the discs ``r < R`` of the spheres otherwise."""
     if any(a.shape != "sphere" for a in scene.asperities):
         return float(grid.size)
-    discs = sum(math.pi * (a.R + grid.h) ** 2 for a in scene.asperities) / grid.h ** 2
+    discs = sum(math.pi * (a.R + grid.h) ** 2 for a in scene.asperities) / grid.h**2
     return float(min(grid.size, discs))
 
 
@@ -177,14 +195,16 @@ def _twoscale_parts(scene: Scene, h: float, *, union: bool = False) -> tuple[int
     r = patch_half_widths(scene, h)
     on = r > 0
     across = _cells_across(r[on], h)
-    patch_cells = across ** 2
+    patch_cells = across**2
     cells = int(patch_cells.sum())
     n = len(scene.asperities)
     # a merged block (overlapping patches solved together) may have up to MERGE_GROWTH
     # times its members' cells: its FFT work, not the patches' arrays, grows with it
     growth = MERGE_GROWTH if int(on.sum()) > 1 else 1.0
-    parts = {f"{int(on.sum())} patches": PATCH_BYTES_PER_CELL * cells,
-             "FFT work on the largest patch": FFT_WORK_BYTES_PER_CELL * growth * float(patch_cells.max(initial=0))}
+    parts = {
+        f"{int(on.sum())} patches": PATCH_BYTES_PER_CELL * cells,
+        "FFT work on the largest patch": FFT_WORK_BYTES_PER_CELL * growth * float(patch_cells.max(initial=0)),
+    }
     if int(on.sum()) > 1:
         parts["cached cross-patch operators"] = min(COUPLING_CACHE_BYTES, _pair_bytes(across))
     if n <= MACRO_DENSE_MAX:
@@ -204,7 +224,7 @@ def _pair_bytes(across: np.ndarray) -> float:
     """Bytes of every cross-patch FFT operator, ``sum_{k != l} 8 (n_k + n_l)^2`` with
     ``n`` cells across (``Coupling.full_operator``'s size of a half-spectrum)."""
     s = float(across.sum())
-    sq = float((across ** 2).sum())
+    sq = float((across**2).sum())
     return 8.0 * (2.0 * (len(across) - 1) * sq + 2.0 * (s * s - sq))
 
 
@@ -214,13 +234,26 @@ def _patch_box(scene: Scene, r: np.ndarray, h: float) -> Grid | None:
         return None
     tips = scene.tips[on]
     rr = r[on]
-    return Grid.covering(float((tips[:, 0] - rr).min()), float((tips[:, 0] + rr).max()),
-                         float((tips[:, 1] - rr).min()), float((tips[:, 1] + rr).max()), h)
+    return Grid.covering(
+        float((tips[:, 0] - rr).min()),
+        float((tips[:, 0] + rr).max()),
+        float((tips[:, 1] - rr).min()),
+        float((tips[:, 1] + rr).max()),
+        h,
+    )
 
 
 # ---------------------------------------------------------------- the check
-def check_solve_memory(scene: Scene, h: float, method: str = "twoscale", *, iteration: str = "auto",
-                       limit_bytes: float | None = None, option: str = "--h", h_given: bool = False) -> None:
+def check_solve_memory(
+    scene: Scene,
+    h: float,
+    method: str = "twoscale",
+    *,
+    iteration: str = "auto",
+    limit_bytes: float | None = None,
+    option: str = "--h",
+    h_given: bool = False,
+) -> None:
     """:func:`check_memory` for solving ``scene`` at ``h``: the refusal names where h came
     from (``option``, the scene's ``grid.h``, or the default rule) and suggests an h whose
     estimate was checked to fit."""
@@ -245,8 +278,11 @@ def _largest_contact(scene: Scene) -> str:
     """The largest expected contact and the load that makes it, in words."""
     a = expected_contact_radii(scene)
     k = int(np.argmax(a))
-    load = (f"load.penetration = {scene.penetration:g} mm" if scene.penetration is not None
-            else f"load.total = {scene.total_load:g} N")
+    load = (
+        f"load.penetration = {scene.penetration:g} mm"
+        if scene.penetration is not None
+        else f"load.total = {scene.total_load:g} N"
+    )
     return f"the largest expected contact, asperity {k + 1}'s, is about {2 * a[k]:.3g} mm across at {load}"
 
 
@@ -271,8 +307,14 @@ def default_limit() -> float:
     return DEFAULT_FRACTION * available_memory()
 
 
-def check_memory(estimate: MemoryEstimate, limit_bytes: float | None = None, *, option: str = "--h",
-                 source: str | None = None, refit=None) -> None:
+def check_memory(
+    estimate: MemoryEstimate,
+    limit_bytes: float | None = None,
+    *,
+    option: str = "--h",
+    source: str | None = None,
+    refit=None,
+) -> None:
     """Raise :class:`SceneError` when ``estimate`` exceeds the limit.
 
     Parameters
@@ -310,7 +352,8 @@ def check_memory(estimate: MemoryEstimate, limit_bytes: float | None = None, *, 
     raise SceneError(
         f"the solve at {where} needs about {gb} GB of memory ({estimate.cells:,} "
         f"cells, mostly {estimate.dominant}), over the limit of {limit / 1e9:.3g} GB ({which}); "
-        f"{_advice(estimate, limit, option, refit)}")
+        f"{_advice(estimate, limit, option, refit)}"
+    )
 
 
 def _advice(estimate: MemoryEstimate, limit: float, option: str, refit=None) -> str:

@@ -14,6 +14,7 @@ file lists them.
 What only one method has is in :attr:`ContactResult.details`: :class:`TwoScaleDetails`
 (macro step, micro step) or :class:`ReferenceDetails`; see :mod:`twoscale.details`.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass, field
@@ -85,7 +86,7 @@ def summarise(fields: Sequence[PressureField], n_asperities: int) -> AsperitySum
         own = f.owner.ravel()
         p = f.pressure.ravel()
         ok = own >= 0
-        h2 = f.grid.h ** 2
+        h2 = f.grid.h**2
         forces += h2 * np.bincount(own[ok], weights=p[ok], minlength=n_asperities)
         areas += h2 * np.bincount(own[ok], weights=(p[ok] > 0).astype(float), minlength=n_asperities)
         if np.any(ok):
@@ -330,7 +331,7 @@ class ContactResult:
             i1, j1 = min(di + f.grid.nx, grid.nx), min(dj + f.grid.ny, grid.ny)
             if i1 <= i0 or j1 <= j0:
                 continue
-            out[j0:j1, i0:i1] += f.pressure[j0 - dj:j1 - dj, i0 - di:i1 - di]
+            out[j0:j1, i0:i1] += f.pressure[j0 - dj : j1 - dj, i0 - di : i1 - di]
         return out
 
     def __repr__(self) -> str:
@@ -343,8 +344,10 @@ class ContactResult:
         time_txt = "" if total_s is None else f", {total_s:.3g} s"
         tips = f"{self.n_asperities} tip" + ("" if self.n_asperities == 1 else "s")
         on = f", {self.body.label}" if self.body is not None else ""
-        return (f"<ContactResult {self.method}{solver}: {tips}, total load "
-                f"{self.total_load:.6g} N, approach {self.penetration:.6g} mm{tilt}, "
-                f"contact area {self.contact_area:.4g} mm2{on}, {state}, {self.n_cells} cells{time_txt}>")
+        return (
+            f"<ContactResult {self.method}{solver}: {tips}, total load "
+            f"{self.total_load:.6g} N, approach {self.penetration:.6g} mm{tilt}, "
+            f"contact area {self.contact_area:.4g} mm2{on}, {state}, {self.n_cells} cells{time_txt}>"
+        )
 
     __str__ = __repr__

@@ -8,6 +8,7 @@ Invalid data raise :class:`SceneError` (a ``ValueError``) whose one-line message
 the field by its path in the scene file (``load.total``, ``asperity 4: R``; asperities
 numbered from 1 in file order) and the bad value.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass, field
@@ -54,8 +55,13 @@ class Influence(Mapping):
     def _as_dict(self) -> dict:
         if self.kind == "halfspace":
             return {"kind": "halfspace"}
-        return {"kind": self.kind, "size": self.size, "base": self.base, "origin": self.origin,
-                "source_spacing": self.source_spacing}
+        return {
+            "kind": self.kind,
+            "size": self.size,
+            "base": self.base,
+            "origin": self.origin,
+            "source_spacing": self.source_spacing,
+        }
 
     def __getitem__(self, key: str) -> Any:
         return self._as_dict()[key]
@@ -90,8 +96,10 @@ def normalise_influence(influence: Mapping | None) -> Influence:
     allowed = {"kind"} if kind == "halfspace" else {"kind", "size", "base", "origin", "source_spacing"}
     for key in influence:
         if key not in allowed:
-            raise SceneError(f"influence.{key} is not a known key for kind = {kind!r} "
-                             f"(allowed: {sorted(allowed)}), got {influence[key]!r}")
+            raise SceneError(
+                f"influence.{key} is not a known key for kind = {kind!r} "
+                f"(allowed: {sorted(allowed)}), got {influence[key]!r}"
+            )
     if kind == "halfspace":
         return Influence()
     base = influence.get("base", "bonded")
@@ -102,8 +110,9 @@ def normalise_influence(influence: Mapping | None) -> Influence:
         size=check_pair("influence.size", influence.get("size", BLOCK_DEFAULT_SIZE), 3, positive=True, unit="mm"),
         base=base,
         origin=check_pair("influence.origin", influence.get("origin", (0.0, 0.0)), unit="mm"),
-        source_spacing=check_number("influence.source_spacing", influence.get("source_spacing", 5.0),
-                                    positive=True, unit="mm"),
+        source_spacing=check_number(
+            "influence.source_spacing", influence.get("source_spacing", 5.0), positive=True, unit="mm"
+        ),
     )
 
 
@@ -181,11 +190,15 @@ class Scene:
             raise SceneError(f"material must be a Material, got {self.material!r}")
         if self.surface is not None:  # the basins of a height map, at the scene's cell size
             if not callable(getattr(self.surface, "at", None)):
-                raise SceneError(f"surface must be a MeasuredSurface (twoscale.surface.build_surface(RawMap(heights, "
-                                 f"spacing=..., units=...))), got {type(self.surface).__name__}")
+                raise SceneError(
+                    f"surface must be a MeasuredSurface (twoscale.surface.build_surface(RawMap(heights, "
+                    f"spacing=..., units=...))), got {type(self.surface).__name__}"
+                )
             if len(self.asperities) and tuple(self.asperities) != tuple(self.surface.asperities):
-                raise SceneError("a scene needs exactly one of asperities and a surface (a height map), got both "
-                                 "(with surface=, leave asperities out)")
+                raise SceneError(
+                    "a scene needs exactly one of asperities and a surface (a height map), got both "
+                    "(with surface=, leave asperities out)"
+                )
             object.__setattr__(self, "surface", self.surface.at(self.h))
             object.__setattr__(self, "asperities", tuple(self.surface.asperities))
             object.__setattr__(self, "h", self.surface.h)
@@ -205,18 +218,21 @@ class Scene:
         for k, a in enumerate(asps):
             if not isinstance(a, Asperity):
                 raise SceneError(f"asperity {k + 1} must be an Asperity, got {a!r}")
-            if a.shape == "map" and self.surface is None:   # a basin of a height map, without its map
+            if a.shape == "map" and self.surface is None:  # a basin of a height map, without its map
                 raise SceneError(
                     f"asperity {k + 1} is a basin of a height map: give the surface itself, "
                     f"twoscale.solve(surface, material=..., total_load=...) or Scene(surface=surface, ...), "
                     f"not surface.asperities (the map is then resampled to h, its spacing is the default "
-                    f"h, and the result reports it)")
+                    f"h, and the result reports it)"
+                )
         seen: dict[tuple[float, float], int] = {}
         for k, a in enumerate(asps):
             key = (a.x + 0.0, a.y + 0.0)  # + 0.0 folds -0.0 into 0.0
             if key in seen:
-                raise SceneError(f"asperity {k + 1} is at the same place (x, y) = ({a.x!r}, {a.y!r}) "
-                                 f"as asperity {seen[key] + 1}; two tips cannot share a position")
+                raise SceneError(
+                    f"asperity {k + 1} is at the same place (x, y) = ({a.x!r}, {a.y!r}) "
+                    f"as asperity {seen[key] + 1}; two tips cannot share a position"
+                )
             seen[key] = k
         object.__setattr__(self, "asperities", asps)
 
@@ -230,17 +246,21 @@ class Scene:
             _check_rolling(self)
         if hist is None:
             if self.material.viscoelastic and self.rolling is None:
-                raise SceneError("material.prony needs a load history: write load.total (or load.penetration) "
-                                 f"as [[t, value], ...] (s; N or mm), got a single value "
-                                 f"{self.total_load if self.total_load is not None else self.penetration!r}")
+                raise SceneError(
+                    "material.prony needs a load history: write load.total (or load.penetration) "
+                    f"as [[t, value], ...] (s; N or mm), got a single value "
+                    f"{self.total_load if self.total_load is not None else self.penetration!r}"
+                )
             return
         if not isinstance(hist, LoadHistory):
             raise SceneError(f"history must be a twoscale.viscoelastic.LoadHistory, got {hist!r}")
         name = "total_load" if hist.kind == "total" else "penetration"
         other = "penetration" if hist.kind == "total" else "total_load"
         if getattr(self, other) is not None:
-            raise SceneError(f"a history of load.{hist.kind} and load.{'penetration' if other == 'penetration' else 'total'} "
-                             f"= {getattr(self, other)!r}: give one of the two")
+            raise SceneError(
+                f"a history of load.{hist.kind} and load.{'penetration' if other == 'penetration' else 'total'} "
+                f"= {getattr(self, other)!r}: give one of the two"
+            )
         if getattr(self, name) not in (None, hist.peak):
             raise SceneError(f"{name} = {getattr(self, name)!r} is not the history's peak {hist.peak!r}: leave it out")
         object.__setattr__(self, name, hist.peak)
@@ -257,12 +277,16 @@ class Scene:
             d = check_number("load.penetration", d, unit="mm")
             zmin = min(a.z for a in self.asperities)
             if not d > zmin:
-                raise SceneError(f"load.penetration must exceed the lowest tip recess z = {zmin!r} mm "
-                                 f"(otherwise nothing touches), got {d!r}")
+                raise SceneError(
+                    f"load.penetration must exceed the lowest tip recess z = {zmin!r} mm "
+                    f"(otherwise nothing touches), got {d!r}"
+                )
             object.__setattr__(self, "penetration", d)
             if self.tilt:
-                raise SceneError("load.tilt = true needs load.total (the tilt is solved from the "
-                                 f"moment balance under a given load), got penetration = {d!r}")
+                raise SceneError(
+                    "load.tilt = true needs load.total (the tilt is solved from the "
+                    f"moment balance under a given load), got penetration = {d!r}"
+                )
         else:
             object.__setattr__(self, "total_load", check_number("load.total", W, positive=True, unit="N"))
         if not self.tilt and pivot != (0.0, 0.0):
@@ -276,8 +300,10 @@ class Scene:
         if len(cases) == 0:
             return ()
         if self.total_load is None:
-            raise SceneError(f"load.cases = {list(cases)!r} needs load.total (the cases are total loads), "
-                             f"got penetration = {self.penetration!r}")
+            raise SceneError(
+                f"load.cases = {list(cases)!r} needs load.total (the cases are total loads), "
+                f"got penetration = {self.penetration!r}"
+            )
         out = tuple(check_number(f"load.cases[{i}]", w, positive=True, unit="N") for i, w in enumerate(cases))
         if len(set(out)) != len(out):
             raise SceneError(f"load.cases has repeated values, got {list(cases)!r}")
@@ -310,7 +336,7 @@ class Scene:
         try:
             return make_body(kind, self.material, **opts, **options)
         except ImportError as exc:
-            raise SceneError(f"influence.kind = \"{kind}\": {exc}; use kind = \"halfspace\"") from exc
+            raise SceneError(f'influence.kind = "{kind}": {exc}; use kind = "halfspace"') from exc
 
 
 def _check_rolling(scene: Scene) -> None:
@@ -321,8 +347,10 @@ def _check_rolling(scene: Scene) -> None:
     if not isinstance(scene.rolling, RollingSpec):
         raise SceneError(f"rolling must be a twoscale.rolling.RollingSpec, got {scene.rolling!r}")
     if scene.history is not None:
-        raise SceneError("a [rolling] scene has the rolling's time: give load.total or load.penetration as one "
-                         f"value, not a history ({scene.history.kind} history given)")
+        raise SceneError(
+            "a [rolling] scene has the rolling's time: give load.total or load.penetration as one "
+            f"value, not a history ({scene.history.kind} history given)"
+        )
     if scene.tilt:
         raise SceneError("load.tilt = true cannot go with [rolling] (the axle holds the body level)")
     if scene.load_cases:
@@ -336,6 +364,15 @@ METHODS = ("twoscale", "reference")
 
 # the cell size a scene needs lives in .resolution; kept importable from here
 from .resolution import (  # noqa: E402,F401
-    CELL_BUDGET, CELLS_ACROSS, MIN_FORCE_FRACTION, PATCH_MARGIN, _hertz_level, default_h, expected_approaches,
-    expected_contact_radii, expected_contacts, patch_cells, round_up,
+    CELL_BUDGET,
+    CELLS_ACROSS,
+    MIN_FORCE_FRACTION,
+    PATCH_MARGIN,
+    _hertz_level,
+    default_h,
+    expected_approaches,
+    expected_contact_radii,
+    expected_contacts,
+    patch_cells,
+    round_up,
 )

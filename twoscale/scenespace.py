@@ -21,6 +21,7 @@ round-trips through JSON; :func:`build` makes the :class:`~twoscale.scene.Scene`
 map is written as ``.npz`` beside a scene table in a folder the caller gives, and read
 back through the scene-file route a user takes). Units: mm, N, MPa.
 """
+
 from __future__ import annotations
 
 import dataclasses
@@ -108,12 +109,16 @@ class SceneSpec:
     def label(self) -> str:
         """One line naming the scene's axes."""
         if self.kind != "tips":
-            return (f"#{self.index} {self.kind} {self.size:.0f} mm {self.load_per_tip:.3g} MPa {self.control}"
-                    f"{' h x' + format(self.h_factor, '.2g') if self.h_factor else ''} {self.body}")
-        return (f"#{self.index} {self.n} {self.shape}s {self.layout} s/2a {self.spacing:.3g} "
-                f"{self.load_per_tip:.2g} N R {self.radius:.2g}+-{100 * self.radius_spread:.0f}% "
-                f"dz {self.height_spread:.2g} {self.control}{' tilt' if self.tilt else ''}"
-                f"{' h x' + format(self.h_factor, '.2g') if self.h_factor else ''} {self.body}")
+            return (
+                f"#{self.index} {self.kind} {self.size:.0f} mm {self.load_per_tip:.3g} MPa {self.control}"
+                f"{' h x' + format(self.h_factor, '.2g') if self.h_factor else ''} {self.body}"
+            )
+        return (
+            f"#{self.index} {self.n} {self.shape}s {self.layout} s/2a {self.spacing:.3g} "
+            f"{self.load_per_tip:.2g} N R {self.radius:.2g}+-{100 * self.radius_spread:.0f}% "
+            f"dz {self.height_spread:.2g} {self.control}{' tilt' if self.tilt else ''}"
+            f"{' h x' + format(self.h_factor, '.2g') if self.h_factor else ''} {self.body}"
+        )
 
     def to_dict(self) -> dict:
         return dataclasses.asdict(self)
@@ -126,11 +131,10 @@ def _loguniform(rng: np.random.Generator, lo: float, hi: float) -> float:
 def _capped_load(load: float, R: float, E_star: float) -> float:
     """``load`` capped so that a lone tip's Hertz contact radius stays below MAX_A_OVER_R R."""
     a_max = MAX_A_OVER_R * R
-    return min(load, 4.0 * E_star * a_max ** 3 / (3.0 * R))
+    return min(load, 4.0 * E_star * a_max**3 / (3.0 * R))
 
 
-def draw(index: int, seed: int = 0, *, max_tips: int = 10_000, maps: float = 0.12,
-         block: float = 0.06) -> SceneSpec:
+def draw(index: int, seed: int = 0, *, max_tips: int = 10_000, maps: float = 0.12, block: float = 0.06) -> SceneSpec:
     """The ``index``-th scene of the sweep with ``seed`` (the same pair, the same scene).
 
     ``maps``: probability of a height map; ``block``: of the finite block body.
@@ -145,14 +149,32 @@ def draw(index: int, seed: int = 0, *, max_tips: int = 10_000, maps: float = 0.1
         size = float(rng.choice([30.0, 50.0, 70.0]))
         pressure = _loguniform(rng, 0.05, 0.5)
         control = "load"
-        return SceneSpec(index, seed, kind, 0, "uniform", 0.0, pressure, control, False, 0.0, 0.0, 0.0,
-                         "sphere", body if size <= BLOCK_SIDE else "halfspace", 10.0, 0.5, h_factor, size)
+        return SceneSpec(
+            index,
+            seed,
+            kind,
+            0,
+            "uniform",
+            0.0,
+            pressure,
+            control,
+            False,
+            0.0,
+            0.0,
+            0.0,
+            "sphere",
+            body if size <= BLOCK_SIDE else "halfspace",
+            10.0,
+            0.5,
+            h_factor,
+            size,
+        )
     n = int(round(_loguniform(rng, 1.0, max_tips + 0.49)))
     layout = str(rng.choice(LAYOUTS, p=[0.6, 0.25, 0.15]))
     radius = _loguniform(rng, 0.5, 20.0)
     radius_spread = float(rng.uniform(0.0, 0.6))
     shape = str(rng.choice(["sphere", "paraboloid"]))
-    E_star = E / (1.0 - nu ** 2)
+    E_star = E / (1.0 - nu**2)
     load = _capped_load(_loguniform(rng, 1e-4, 10.0), radius * (1.0 - radius_spread), E_star)
     control = str(rng.choice(["load", "penetration"]))
     tilt = bool(control == "load" and n >= 3 and rng.uniform() < 0.25)
@@ -164,8 +186,26 @@ def draw(index: int, seed: int = 0, *, max_tips: int = 10_000, maps: float = 0.1
     size = min(side, HALFSPACE_SIDE)
     delta = a * a / radius
     height_spread = float(rng.choice([0.0, 0.3, 1.0, 3.0]))
-    return SceneSpec(index, seed, "tips", n, layout, spacing, load, control, tilt, radius, radius_spread,
-                     height_spread, shape, body, E, nu, h_factor, size if delta > 0 else side)
+    return SceneSpec(
+        index,
+        seed,
+        "tips",
+        n,
+        layout,
+        spacing,
+        load,
+        control,
+        tilt,
+        radius,
+        radius_spread,
+        height_spread,
+        shape,
+        body,
+        E,
+        nu,
+        h_factor,
+        size if delta > 0 else side,
+    )
 
 
 def _positions(spec: SceneSpec, rng: np.random.Generator) -> np.ndarray:
@@ -198,14 +238,19 @@ def _tip_scene(spec: SceneSpec) -> Scene:
     R = spec.radius * rng.uniform(1.0 - spec.radius_spread, 1.0 + spec.radius_spread, spec.n)
     delta = float(hertz.penetration(float(np.median(R)), spec.load_per_tip, material.E_star))
     z = rng.uniform(0.0, spec.height_spread * delta, spec.n)
-    tips = tuple(Asperity(float(x), float(y), float(zk), float(rk), spec.shape)
-                 for (x, y), zk, rk in zip(xy, z, R))
+    tips = tuple(Asperity(float(x), float(y), float(zk), float(rk), spec.shape) for (x, y), zk, rk in zip(xy, z, R))
     influence = {"kind": "block"} if spec.body == "block" else {"kind": "halfspace"}
     total = spec.load_per_tip * spec.n
     if spec.control == "load":
         pivot = (float(xy[:, 0].mean() + 0.1 * spec.size), float(xy[:, 1].mean() - 0.05 * spec.size))
-        return Scene(material, tips, total_load=total, tilt=spec.tilt, pivot=pivot if spec.tilt else (0.0, 0.0),
-                     influence=influence)
+        return Scene(
+            material,
+            tips,
+            total_load=total,
+            tilt=spec.tilt,
+            pivot=pivot if spec.tilt else (0.0, 0.0),
+            influence=influence,
+        )
     # the approach at which independent Hertz tips would carry the total
     loaded = Scene(material, tips, total_load=total, influence=influence)
     return Scene(material, tips, penetration=float(_hertz_level(loaded)), influence=influence)
@@ -221,13 +266,16 @@ def _map_scene(spec: SceneSpec, folder: str) -> Scene:
     if spec.kind == "road-hole":
         n = z.shape[0]
         z = z.copy()
-        z[n // 3: n // 3 + 40, n // 2: n // 2 + 40] = np.nan  # a 4 x 4 mm hole
+        z[n // 3 : n // 3 + 40, n // 2 : n // 2 + 40] = np.nan  # a 4 x 4 mm hole
     if spec.kind == "road-um":
         np.savez(os.path.join(folder, surface["file"]), heights=z * 1000.0, spacing=spacing, units="um")
     else:
         np.savez(os.path.join(folder, surface["file"]), heights=z, spacing=spacing)
-    table = {"material": {"E": spec.E, "nu": spec.nu}, "load": {"total": spec.load_per_tip * spec.size ** 2},
-             "surface": surface}
+    table = {
+        "material": {"E": spec.E, "nu": spec.nu},
+        "load": {"total": spec.load_per_tip * spec.size**2},
+        "surface": surface,
+    }
     if spec.body == "block":
         table["influence"] = {"kind": "block"}
     return scene_from_dict(table, base_dir=folder)
@@ -243,6 +291,7 @@ def build(spec: SceneSpec, folder: str | None = None) -> Scene:
         scene = _map_scene(spec, folder)
     if spec.h_factor:
         from .scene import default_h
+
         scene = dataclasses.replace(scene, h=float(f"{spec.h_factor * default_h(scene):.2g}"))
     return scene
 

@@ -16,6 +16,7 @@ Measured data: CSV of tip forces (``x,y,force`` or ``index,force``) and CSV of a
 map (``ny`` rows of ``nx`` pressures, MPa). Pivot centring from measured forces is the
 paper's eq. 13.
 """
+
 from __future__ import annotations
 
 import csv
@@ -191,8 +192,7 @@ def e_m(p: np.ndarray, p_ref: np.ndarray, *, cells: str = "loaded") -> float:
 
 
 # ---------------------------------------------------------------------- pivot centring
-def pivot_from_forces(tips: np.ndarray, forces: Sequence[float], *,
-                      total: float | None = None) -> tuple[float, float]:
+def pivot_from_forces(tips: np.ndarray, forces: Sequence[float], *, total: float | None = None) -> tuple[float, float]:
     """Pivot position from measured tip forces (paper eq. 13).
 
     ``x0 = sum_k x_k P_k / Pbar``, ``y0 = sum_k y_k P_k / Pbar``.
@@ -222,15 +222,15 @@ def pivot_from_forces(tips: np.ndarray, forces: Sequence[float], *,
     return float(t[:, 0] @ f / P), float(t[:, 1] @ f / P)
 
 
-def centred_tips(tips: np.ndarray, forces: Sequence[float], *,
-                 total: float | None = None) -> np.ndarray:
+def centred_tips(tips: np.ndarray, forces: Sequence[float], *, total: float | None = None) -> np.ndarray:
     """Tips shifted by ``(-x0, -y0)`` so the pivot of eq. 13 is the origin, (N, 2) mm."""
     x0, y0 = pivot_from_forces(tips, forces, total=total)
     return np.asarray(tips, dtype=float) - np.array([x0, y0])
 
 
-def forces_from_map(sensor_map: np.ndarray, tips: np.ndarray, *, sensor: Sensor = Sensor(),
-                    radius: float | None = None) -> np.ndarray:
+def forces_from_map(
+    sensor_map: np.ndarray, tips: np.ndarray, *, sensor: Sensor = Sensor(), radius: float | None = None
+) -> np.ndarray:
     """Tip forces integrated from a sensor pressure map (as the paper did for its measurements).
 
     Each loaded sensor cell goes to the nearest tip (its centre's distance), and a tip's
@@ -263,7 +263,7 @@ def forces_from_map(sensor_map: np.ndarray, tips: np.ndarray, *, sensor: Sensor 
     loaded = P != 0
     d2 = (X[loaded][:, None] - t[None, :, 0]) ** 2 + (Y[loaded][:, None] - t[None, :, 1]) ** 2
     nearest = np.argmin(d2, axis=1)
-    keep = np.ones(len(nearest), bool) if radius is None else d2[np.arange(len(nearest)), nearest] <= radius ** 2
+    keep = np.ones(len(nearest), bool) if radius is None else d2[np.arange(len(nearest)), nearest] <= radius**2
     area = sensor.cell * sensor.cell
     return area * np.bincount(nearest[keep], weights=P[loaded][keep], minlength=len(t))
 
@@ -334,8 +334,9 @@ def read_tip_forces(path: str | Path, *, n_asperities: int | None = None) -> Mea
     (hline, header), body = rows[0], rows[1:]
     cols = [c.lower() for c in header]
     if cols not in (["x", "y", "force"], ["asperity", "force"], ["index", "force"]):
-        raise ValueError(f"{path}:{hline}: header must be 'x,y,force', 'asperity,force' or 'index,force', "
-                         f"got {','.join(header)!r}")
+        raise ValueError(
+            f"{path}:{hline}: header must be 'x,y,force', 'asperity,force' or 'index,force', got {','.join(header)!r}"
+        )
     if not body:
         raise ValueError(f"{path}: header but no rows")
     vals = []
@@ -351,8 +352,9 @@ def read_tip_forces(path: str | Path, *, n_asperities: int | None = None) -> Mea
         idx = a[:, 0] - first
         n = len(idx)
         if np.any(idx != np.round(idx)) or sorted(idx.astype(int).tolist()) != list(range(n)):
-            raise ValueError(f"{path}: {cols[0]} must be the integers {first}..{n - 1 + first}, each once; "
-                             f"got {a[:, 0].tolist()}")
+            raise ValueError(
+                f"{path}: {cols[0]} must be the integers {first}..{n - 1 + first}, each once; got {a[:, 0].tolist()}"
+            )
         force = np.zeros(n)
         force[idx.astype(int)] = a[:, 1]
         tips = None

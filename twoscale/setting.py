@@ -14,6 +14,7 @@ each cut to the block's top face when the body is a finite block (only contact i
 face is possible). The ratio ``contact_area / nominal_area`` is the real-to-nominal contact
 area ratio of tribology.
 """
+
 from __future__ import annotations
 
 import math
@@ -48,10 +49,12 @@ class Body:
     def of(cls, provider) -> "Body":
         """The body of an influence provider (its ``kind``, and a block's size, base, origin)."""
         size, origin = getattr(provider, "size", None), getattr(provider, "origin", None)
-        return cls(kind=str(getattr(provider, "kind", type(provider).__name__)),
-                   size=None if size is None else tuple(float(v) for v in size),
-                   base=getattr(provider, "base", None),
-                   origin=None if origin is None else tuple(float(v) for v in origin))
+        return cls(
+            kind=str(getattr(provider, "kind", type(provider).__name__)),
+            size=None if size is None else tuple(float(v) for v in size),
+            base=getattr(provider, "base", None),
+            origin=None if origin is None else tuple(float(v) for v in origin),
+        )
 
     @property
     def label(self) -> str:
@@ -98,8 +101,15 @@ def indenter_box(scene) -> tuple[tuple[float, float, float, float], str]:
     r = [a.R if a.shape == "sphere" else a.reach(reach) for a in scene.asperities]
     xs = [a.x for a in scene.asperities]
     ys = [a.y for a in scene.asperities]
-    return ((min(x - rk for x, rk in zip(xs, r)), max(x + rk for x, rk in zip(xs, r)),
-             min(y - rk for y, rk in zip(ys, r)), max(y + rk for y, rk in zip(ys, r))), "tips' bases")
+    return (
+        (
+            min(x - rk for x, rk in zip(xs, r)),
+            max(x + rk for x, rk in zip(xs, r)),
+            min(y - rk for y, rk in zip(ys, r)),
+            max(y + rk for y, rk in zip(ys, r)),
+        ),
+        "tips' bases",
+    )
 
 
 def nominal_area(scene, body: Body) -> tuple[float, str]:
@@ -110,9 +120,6 @@ def nominal_area(scene, body: Body) -> tuple[float, str]:
         x0, x1, y0, y1 = max(x0, face[0]), min(x1, face[1]), max(y0, face[2]), min(y1, face[3])
         basis += " within the block's top face"
     return max(x1 - x0, 0.0) * max(y1 - y0, 0.0), basis
-
-
-
 
 
 def with_setting(result, scene, provider, *, scene_name: str = ""):
@@ -126,6 +133,9 @@ def with_setting(result, scene, provider, *, scene_name: str = ""):
         return result
     body = Body.of(provider)
     area, basis = nominal_area(scene, body)
-    return dataclasses.replace(result, body=body, nominal_area=area, nominal_area_basis=basis,
-                               scene_name=scene_name or result.scene_name)
+    return dataclasses.replace(
+        result, body=body, nominal_area=area, nominal_area_basis=basis, scene_name=scene_name or result.scene_name
+    )
+
+
 __all__ = ["Body", "nominal_area", "indenter_box", "with_setting"]

@@ -24,6 +24,7 @@ Tips are matched by position in the scene (the same tips in the same order, move
 give ``index=`` when tips enter or leave (each new tip's position among the previous ones,
 -1 for a new one).
 """
+
 from __future__ import annotations
 
 import dataclasses
@@ -81,14 +82,22 @@ class ContactSolver:
     >>> print(moved.reuse)
     """
 
-    def __init__(self, body: InfluenceProvider | None = None, options: SolverOptions | None = None, *,
-                 method: str = "twoscale", max_start_bytes: float = MAX_START_BYTES,
-                 max_cache_bytes: float = MAX_CACHE_BYTES) -> None:
+    def __init__(
+        self,
+        body: InfluenceProvider | None = None,
+        options: SolverOptions | None = None,
+        *,
+        method: str = "twoscale",
+        max_start_bytes: float = MAX_START_BYTES,
+        max_cache_bytes: float = MAX_CACHE_BYTES,
+    ) -> None:
         if options is None:
             options = SolverOptions()
         if not isinstance(options, SolverOptions):
-            raise ValueError(f"options must be a twoscale.SolverOptions, got {type(options).__name__} "
-                             f"(SolverOptions.from_mapping turns a mapping into one)")
+            raise ValueError(
+                f"options must be a twoscale.SolverOptions, got {type(options).__name__} "
+                f"(SolverOptions.from_mapping turns a mapping into one)"
+            )
         if method not in ("twoscale", "reference"):
             raise ValueError(f"method must be 'twoscale' or 'reference', got {method!r}")
         if body is not None and not isinstance(body, InfluenceProvider):
@@ -120,8 +129,9 @@ class ContactSolver:
         (valid for any scene on the body) are kept."""
         self._previous = None
 
-    def solve(self, problem: Any, *, start: Any = "previous", index: np.ndarray | None = None,
-              **scene_keywords: Any) -> ContactResult:
+    def solve(
+        self, problem: Any, *, start: Any = "previous", index: np.ndarray | None = None, **scene_keywords: Any
+    ) -> ContactResult:
         """Solve ``problem`` (what :func:`twoscale.solve` takes: a Scene, tips with
         ``material=`` and a load, or a height map).
 
@@ -156,19 +166,35 @@ class ContactSolver:
         self.caches.start_solve()
         # h=None when the scene chose it: the solve then works on this very scene object and
         # finds what choosing h estimated (the Hertz level) already solved
-        result = solve_once(scene, method=self.method, provider=CachedBody(body, self.caches),
-                            h=res.h if scene.history is None else h, memory_limit=res.memory_limit, **keywords)
+        result = solve_once(
+            scene,
+            method=self.method,
+            provider=CachedBody(body, self.caches),
+            h=res.h if scene.history is None else h,
+            memory_limit=res.memory_limit,
+            **keywords,
+        )
         self._solves += 1
         if not isinstance(result, ContactResult):  # a load history: its own steps warm-start each other
             return result
         self._remember(scene, h, result)
-        micro_started = 0 if ws is None or ws.micro is None else int(np.count_nonzero(
-            [ws.micro.pressure.loaded(int(k)) for k in ws.micro.index if k >= 0]))
+        micro_started = (
+            0
+            if ws is None or ws.micro is None
+            else int(np.count_nonzero([ws.micro.pressure.loaded(int(k)) for k in ws.micro.index if k >= 0]))
+        )
         caches = self.caches
-        reuse = Reuse(solve=self._solves, body_kept=body_kept,
-                      macro_start=ws is not None and ws.macro is not None, pressure_start=micro_started,
-                      kept_bytes=self._kept_bytes(), operators_kept=dict(caches.kept),
-                      operators_built=dict(caches.built), cache_bytes=caches.nbytes, cache_max_bytes=caches.max_bytes)
+        reuse = Reuse(
+            solve=self._solves,
+            body_kept=body_kept,
+            macro_start=ws is not None and ws.macro is not None,
+            pressure_start=micro_started,
+            kept_bytes=self._kept_bytes(),
+            operators_kept=dict(caches.kept),
+            operators_built=dict(caches.built),
+            cache_bytes=caches.nbytes,
+            cache_max_bytes=caches.max_bytes,
+        )
         return dataclasses.replace(result, reuse=reuse)
 
     # ------------------------------------------------------------------ state
@@ -176,8 +202,10 @@ class ContactSolver:
         if self._body is None:
             self._body = scene.provider()
         elif not self._body_given and self._previous is not None and scene.influence != self._previous.influence:
-            raise ValueError(f"this solver's body was built for influence {self._previous.influence!r}; "
-                             f"the scene asks for {scene.influence!r}: make another ContactSolver")
+            raise ValueError(
+                f"this solver's body was built for influence {self._previous.influence!r}; "
+                f"the scene asks for {scene.influence!r}: make another ContactSolver"
+            )
         return self._body
 
     def _start(self, scene: Scene, h: float, start: Any, index) -> WarmStart | None:

@@ -3,6 +3,7 @@
 Control flow compares these members (like PETSc's ``KSPConvergedReason``); the sentence a
 user reads (``result.message``) is derived from them and the numbers of the run.
 """
+
 from __future__ import annotations
 
 import enum

@@ -21,6 +21,7 @@ another. Under penetration control the approach is the one at which independent 
 paraboloids (no interaction) carry ``n * load_per_tip``; interaction lowers the load
 actually carried. Units: mm, N, MPa.
 """
+
 from __future__ import annotations
 
 import math
@@ -69,8 +70,17 @@ class Variation:
     side: float | None = None
 
 
-def random_scene(n_tips: int, *, kind: str = "dense", control: str = "load", shape: str = "sphere",
-                 body: str = "halfspace", seed: int = 0, h: float | None = None, **variation) -> Scene:
+def random_scene(
+    n_tips: int,
+    *,
+    kind: str = "dense",
+    control: str = "load",
+    shape: str = "sphere",
+    body: str = "halfspace",
+    seed: int = 0,
+    h: float | None = None,
+    **variation,
+) -> Scene:
     """A seeded random scene of ``n_tips`` rigid asperities.
 
     Parameters
@@ -119,24 +129,33 @@ def random_scene(n_tips: int, *, kind: str = "dense", control: str = "load", sha
     load_per_tip, touching, side = v.load_per_tip, v.touching, v.side
     if isinstance(n_tips, bool) or not isinstance(n_tips, (int, np.integer)) or n_tips < 1:
         raise ValueError(f"n_tips must be an integer >= 1, got {n_tips!r}")
-    for name, value, allowed in (("kind", kind, KINDS), ("control", control, CONTROLS),
-                                 ("shape", shape, SHAPES), ("body", body, BODIES)):
+    for name, value, allowed in (
+        ("kind", kind, KINDS),
+        ("control", control, CONTROLS),
+        ("shape", shape, SHAPES),
+        ("body", body, BODIES),
+    ):
         if value not in allowed:
             raise ValueError(f"{name} must be one of {allowed}, got {value!r}")
     if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
         raise ValueError(f"seed must be an integer >= 0, got {seed!r}")
     h = _check_positive("h", h, allow_none=True)
     load_per_tip = LOAD_PER_TIP[kind] if load_per_tip is None else _check_positive("load_per_tip", load_per_tip)
-    if isinstance(touching, bool) or not isinstance(touching, (int, float, np.integer, np.floating)) \
-            or not 0 < touching <= 1:
+    if (
+        isinstance(touching, bool)
+        or not isinstance(touching, (int, float, np.integer, np.floating))
+        or not 0 < touching <= 1
+    ):
         raise ValueError(f"touching must be a number in (0, 1], got {touching!r}")
     n = int(n_tips)
     side = square_side(n, kind) if side is None else _check_positive("side", side)
     if body == "block" and side > BLOCK_MAX_SIDE:
         most = _most_tips(kind)
-        raise ValueError(f"n_tips = {n} needs a square of side {side:.1f} mm, larger than the "
-                         f"{BLOCK_MAX_SIDE:g} mm that fit on the default block's top face "
-                         f"({BLOCK_DEFAULT_SIZE[0]:g} mm); at most {most} tips for kind = {kind!r}")
+        raise ValueError(
+            f"n_tips = {n} needs a square of side {side:.1f} mm, larger than the "
+            f"{BLOCK_MAX_SIDE:g} mm that fit on the default block's top face "
+            f"({BLOCK_DEFAULT_SIZE[0]:g} mm); at most {most} tips for kind = {kind!r}"
+        )
     rng = np.random.default_rng(int(seed))
     tips = spaced_points(rng, n, side)
     R = rng.uniform(*RADII[kind], size=n)
@@ -148,8 +167,7 @@ def random_scene(n_tips: int, *, kind: str = "dense", control: str = "load", sha
     else:
         z = sparse_recesses(rng.uniform(0.0, 1.0, size=n), R, total, material.E_star, touching)
         h = SPARSE_H if h is None else h
-    asperities = tuple(Asperity(float(x), float(y), float(zk), float(rk), shape)
-                       for (x, y), zk, rk in zip(tips, z, R))
+    asperities = tuple(Asperity(float(x), float(y), float(zk), float(rk), shape) for (x, y), zk, rk in zip(tips, z, R))
     influence = {"kind": "block"} if body == "block" else {"kind": "halfspace"}
     loaded = Scene(material, asperities, total_load=total, h=h, influence=influence)
     if control == "load":
@@ -160,8 +178,12 @@ def random_scene(n_tips: int, *, kind: str = "dense", control: str = "load", sha
 def _check_positive(name: str, value, *, allow_none: bool = False) -> float | None:
     if value is None and allow_none:
         return None
-    if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)) \
-            or not math.isfinite(value) or not value > 0:
+    if (
+        isinstance(value, bool)
+        or not isinstance(value, (int, float, np.integer, np.floating))
+        or not math.isfinite(value)
+        or not value > 0
+    ):
         raise ValueError(f"{name} must be a finite number > 0, got {value!r}")
     return float(value)
 
@@ -174,8 +196,9 @@ def _most_tips(kind: str) -> int:
     return n
 
 
-def spaced_points(rng: np.random.Generator, n: int, side: float, *,
-                  min_spacing: float = MIN_SPACING, max_tries: int = 100) -> np.ndarray:
+def spaced_points(
+    rng: np.random.Generator, n: int, side: float, *, min_spacing: float = MIN_SPACING, max_tries: int = 100
+) -> np.ndarray:
     """``n`` points uniform on ``[-side/2, side/2]^2`` (mm), none closer than
     ``min_spacing`` to another (rejection; candidates drawn ``n`` at a time).
 
@@ -200,12 +223,13 @@ def spaced_points(rng: np.random.Generator, n: int, side: float, *,
             count += 1
             if count == n:
                 return pts
-    raise ValueError(f"min_spacing = {min_spacing!r} mm: could not place {n} tips on a square of "
-                     f"side {side:.3g} mm in {max_tries * n} tries")
+    raise ValueError(
+        f"min_spacing = {min_spacing!r} mm: could not place {n} tips on a square of "
+        f"side {side:.3g} mm in {max_tries * n} tries"
+    )
 
 
-def sparse_recesses(u: np.ndarray, R: np.ndarray, total_load: float, E_star: float,
-                    touching: float) -> np.ndarray:
+def sparse_recesses(u: np.ndarray, R: np.ndarray, total_load: float, E_star: float, touching: float) -> np.ndarray:
     """Tip recesses z = s u (mm) such that independent Hertz paraboloids carry
     ``total_load`` (N) at an approach d = s u* reaching exactly ``m = round(touching n)``
     tips (at least one): u* is halfway between the m-th and (m+1)-th smallest u.
@@ -222,9 +246,15 @@ def sparse_recesses(u: np.ndarray, R: np.ndarray, total_load: float, E_star: flo
     return s * u
 
 
-def scene_family(sizes: Sequence[int] = (50, 200, 1000), *, kinds: Sequence[str] = KINDS,
-                 controls: Sequence[str] = CONTROLS, shapes: Sequence[str] = SHAPES,
-                 bodies: Sequence[str] = ("halfspace",), seed: int = 0) -> Iterator[tuple[str, Scene]]:
+def scene_family(
+    sizes: Sequence[int] = (50, 200, 1000),
+    *,
+    kinds: Sequence[str] = KINDS,
+    controls: Sequence[str] = CONTROLS,
+    shapes: Sequence[str] = SHAPES,
+    bodies: Sequence[str] = ("halfspace",),
+    seed: int = 0,
+) -> Iterator[tuple[str, Scene]]:
     """Yield ``(name, scene)`` for every combination of the arguments, sizes outermost.
 
     Names read ``"{kind}-{control}-{shape}-{body}-n{size}"``; the scenes are
@@ -235,5 +265,7 @@ def scene_family(sizes: Sequence[int] = (50, 200, 1000), *, kinds: Sequence[str]
             for kind in kinds:
                 for control in controls:
                     for shape in shapes:
-                        yield (f"{kind}-{control}-{shape}-{body}-n{n}",
-                               random_scene(n, kind=kind, control=control, shape=shape, body=body, seed=seed))
+                        yield (
+                            f"{kind}-{control}-{shape}-{body}-n{n}",
+                            random_scene(n, kind=kind, control=control, shape=shape, body=body, seed=seed),
+                        )

@@ -4,6 +4,7 @@ What :func:`twoscale.solve` accepts as tips besides a scene: :func:`asperities` 
 columns, :func:`as_asperities` from any accepted form; a bad value is named by its 0-based
 index and the tip's number from 1. Units: mm.
 """
+
 from __future__ import annotations
 
 import math
@@ -18,8 +19,9 @@ if TYPE_CHECKING:
     from numpy.typing import ArrayLike
 
 
-def asperities(x: ArrayLike, y: ArrayLike, R: ArrayLike, z: ArrayLike = 0.0, *,
-               shape: str = "sphere") -> tuple[Asperity, ...]:
+def asperities(
+    x: ArrayLike, y: ArrayLike, R: ArrayLike, z: ArrayLike = 0.0, *, shape: str = "sphere"
+) -> tuple[Asperity, ...]:
     """Asperities from arrays (broadcast against each other), in array order.
 
     Parameters
@@ -76,21 +78,23 @@ def as_asperities(tips: Any, *, shape: str = "sphere") -> tuple[Asperity, ...]:
         missing = [k for k in ("x", "y", "R") if k not in tips]
         unknown = [k for k in tips if k not in ("x", "y", "R", "z", "shape")]
         if missing or unknown:
-            raise ValueError(f"tips as a mapping need keys x, y, R (optional z, shape); "
-                             f"missing {missing}, unknown {unknown}")
+            raise ValueError(
+                f"tips as a mapping need keys x, y, R (optional z, shape); missing {missing}, unknown {unknown}"
+            )
         return asperities(tips["x"], tips["y"], tips["R"], tips.get("z", 0.0), shape=tips.get("shape", shape))
     if isinstance(tips, Sequence) and any(isinstance(t, np.ndarray) for t in tips):
         # (x, y, R) columns and [row, row, row] rows look alike for 3 or 4 tips: refuse to guess
-        raise ValueError("tips as a sequence of numpy arrays are ambiguous (rows or columns?): give "
-                         "np.column_stack([x, y, R]), {'x': x, 'y': y, 'R': R} or twoscale.asperities(x, y, R, z)")
-    if isinstance(tips, np.ndarray) or (isinstance(tips, Sequence) and tips and
-                                        not isinstance(tips[0], Asperity)):
+        raise ValueError(
+            "tips as a sequence of numpy arrays are ambiguous (rows or columns?): give "
+            "np.column_stack([x, y, R]), {'x': x, 'y': y, 'R': R} or twoscale.asperities(x, y, R, z)"
+        )
+    if isinstance(tips, np.ndarray) or (isinstance(tips, Sequence) and tips and not isinstance(tips[0], Asperity)):
         a = np.asarray(tips, dtype=float)
         if a.ndim != 2 or a.shape[1] not in (3, 4):
-            raise ValueError(f"tips as an array must have shape (n, 3) [x, y, R] or (n, 4) [x, y, R, z], "
-                             f"got {a.shape}")
+            raise ValueError(f"tips as an array must have shape (n, 3) [x, y, R] or (n, 4) [x, y, R, z], got {a.shape}")
         return asperities(a[:, 0], a[:, 1], a[:, 2], a[:, 3] if a.shape[1] == 4 else 0.0, shape=shape)
     if isinstance(tips, Sequence) and all(isinstance(t, Asperity) for t in tips):
         return tuple(tips)
-    raise ValueError(f"tips must be Asperity objects, an (n, 3) or (n, 4) array, or a mapping of "
-                     f"arrays, got {type(tips).__name__}")
+    raise ValueError(
+        f"tips must be Asperity objects, an (n, 3) or (n, 4) array, or a mapping of arrays, got {type(tips).__name__}"
+    )

@@ -4,6 +4,7 @@ Each check returns the value as floats or raises :class:`~twoscale.errors.SceneE
 whose one-line message names the field by its path (``load.total``, ``pivot[1]``) and the
 bad value.
 """
+
 from __future__ import annotations
 
 import math

@@ -7,6 +7,7 @@ previous result, the tips it was solved for and the tips of the new solve, match
 (the same tips in the same order by default; ``index[m] = -1`` for a tip the previous solve
 did not have). The answer does not depend on the start, only the work does.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -25,8 +26,9 @@ class WarmStart:
     micro: MicroStart | None = None
 
 
-def warm_start(result, previous_tips: np.ndarray, n_tips: int, h: float, *,
-               index: np.ndarray | None = None, pressure: bool = True) -> WarmStart:
+def warm_start(
+    result, previous_tips: np.ndarray, n_tips: int, h: float, *, index: np.ndarray | None = None, pressure: bool = True
+) -> WarmStart:
     """The start a previous two-scale ``result`` gives a solve of ``n_tips`` tips at cell size ``h``.
 
     Parameters
@@ -48,21 +50,23 @@ def warm_start(result, previous_tips: np.ndarray, n_tips: int, h: float, *,
     previous_tips = np.asarray(previous_tips, dtype=float).reshape(-1, 2)
     if index is None:
         if n_tips != len(previous_tips):
-            raise ValueError(f"the previous solve had {len(previous_tips)} tips, this one {n_tips}: "
-                             f"give index (each new tip's previous position, -1 for a new one)")
+            raise ValueError(
+                f"the previous solve had {len(previous_tips)} tips, this one {n_tips}: "
+                f"give index (each new tip's previous position, -1 for a new one)"
+            )
         index = np.arange(n_tips)
     index = np.asarray(index, dtype=np.int64)
     if index.shape != (n_tips,) or np.any(index >= len(previous_tips)) or np.any(index < -1):
         raise ValueError(f"index must hold {n_tips} positions in [-1, {len(previous_tips) - 1}]")
-    macro = MacroStart.from_result(result, None if np.array_equal(index, np.arange(len(previous_tips)))
-                                   else index)
+    macro = MacroStart.from_result(result, None if np.array_equal(index, np.arange(len(previous_tips))) else index)
     micro = None
     grids = [f.grid.h for f in getattr(result, "fields", ())]
     if pressure and grids and all(abs(g - h) <= 1e-12 * h for g in grids):
         macro_forces = getattr(getattr(getattr(result, "details", None), "macro", None), "forces", None)
         forces = result.asperities.forces if macro_forces is None else macro_forces
-        micro = MicroStart(PressureStart.from_fields(result.fields, previous_tips, h, forces), index,
-                           _theta_offset(result))
+        micro = MicroStart(
+            PressureStart.from_fields(result.fields, previous_tips, h, forces), index, _theta_offset(result)
+        )
     return WarmStart(macro, micro)
 
 

@@ -7,6 +7,7 @@ A result holds the pressure on the small grids the solver used (one patch per co
 analysis wants it, assemble the patches onto a grid aligned with them:
 :meth:`~twoscale.ContactResult.pressure_on`. Here on the shipped synthetic road.
 """
+
 import warnings
 from pathlib import Path
 
@@ -19,7 +20,7 @@ from twoscale.io import read_scene
 
 ROOT = Path(twoscale.__file__).resolve().parents[1]
 scene = read_scene(ROOT / "examples" / "road" / "road.toml")
-with warnings.catch_warnings():   # stones cut by the map's edge: a warning the CLI prints
+with warnings.catch_warnings():  # stones cut by the map's edge: a warning the CLI prints
     warnings.simplefilter("ignore")
     result = twoscale.solve(scene)
 print(result)
@@ -31,9 +32,11 @@ print(result)
 h = result.fields[0].grid.h
 b = np.array([f.grid.bounds for f in result.fields])
 grid = Grid.covering(b[:, 0].min(), b[:, 1].max(), b[:, 2].min(), b[:, 3].max(), h)
-P = result.pressure_on(grid)                       # (ny, nx) MPa, zero where no contact
-print(f"map {P.shape[1]} x {P.shape[0]} cells of {h:g} mm; "
-      f"force {P.sum() * h * h:.4g} N (result: {result.total_load:.4g} N)")
+P = result.pressure_on(grid)  # (ny, nx) MPa, zero where no contact
+print(
+    f"map {P.shape[1]} x {P.shape[0]} cells of {h:g} mm; "
+    f"force {P.sum() * h * h:.4g} N (result: {result.total_load:.4g} N)"
+)
 
 # %%
 # Plot it with a colour scale that the stones cut by the map's edge (a punch corner's

@@ -6,6 +6,7 @@ A paraboloid (R = 10 mm) pressed 0.1 mm into a half-space (E = 10 MPa, nu = 0.5)
 computed pressure along a line through the tip against Hertz's
 :math:`p(r) = p_0 \\sqrt{1 - r^2/a^2}`, and the load against :math:`\\tfrac43 E^* R^{1/2} d^{3/2}`.
 """
+
 import matplotlib.pyplot as plt
 import numpy as np
 

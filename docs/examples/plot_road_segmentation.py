@@ -6,6 +6,7 @@ The shipped synthetic road (50 x 50 mm at 0.1 mm) segmented into one asperity pe
 (summits and watershed basins), as ``twoscale surface`` draws it: the ten highest summits
 carry the numbers they have in ``asperities.csv``.
 """
+
 from pathlib import Path
 
 import matplotlib.pyplot as plt

@@ -5,6 +5,7 @@ The paper's seven spheres: pressure map and forces in one figure
 Read a scene file, solve it on the elastic half-space and draw the pressure map and the
 force per asperity side by side, into Axes of our own (as in a notebook).
 """
+
 from pathlib import Path
 
 import matplotlib.pyplot as plt
@@ -23,13 +24,13 @@ print(result)
 # scene. Tips are numbered from 1, as in every table the command line writes.
 fig, (left, right) = plt.subplots(1, 2, figsize=(11, 4.6), layout="constrained")
 plot_pressure_map(result, ax=left, tips=scene.asperities, caption=Caption(scene=scene, name="paper_seven_spheres"))
-plot_forces({"macro step": result.macro_forces, "final pressure": result}, ax=right,
-            title="force per asperity")
+plot_forces({"macro step": result.macro_forces, "final pressure": result}, ax=right, title="force per asperity")
 plt.show()
 
 # %%
 # The numbers behind the figure: force (N), contact area (mm^2) and peak pressure (MPa)
 # of each tip, in scene order (0-based in Python, numbered from 1 in files).
-for k, (f, a, p) in enumerate(zip(result.forces, result.asperities.contact_areas,
-                                  result.asperities.max_pressures), start=1):
+for k, (f, a, p) in enumerate(
+    zip(result.forces, result.asperities.contact_areas, result.asperities.max_pressures), start=1
+):
     print(f"tip {k}: {f:7.3f} N  {a:6.2f} mm^2  {p:5.3f} MPa")

@@ -7,6 +7,7 @@ integers (the file says so: ``units = "um"``, ``spacing = 0.1`` mm) to keep it s
 
     python examples/road/make_road.py            # rewrites examples/road/road.npz
 """
+
 from __future__ import annotations
 
 import sys
@@ -15,7 +16,7 @@ from pathlib import Path
 import numpy as np
 
 SEED = 2026
-SIZE, SPACING = 50.0, 0.1   # mm
+SIZE, SPACING = 50.0, 0.1  # mm
 
 
 def make(path: Path) -> Path:

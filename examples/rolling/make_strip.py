@@ -8,6 +8,7 @@ Heights are stored in um as 16-bit integers (the file says so: ``units = "um"``,
 
     python examples/rolling/make_strip.py        # rewrites examples/rolling/strip.npz
 """
+
 from __future__ import annotations
 
 import sys
@@ -16,7 +17,7 @@ from pathlib import Path
 import numpy as np
 
 SEED = 2026
-LENGTH, WIDTH, SPACING = 200.0, 50.0, 0.25   # mm
+LENGTH, WIDTH, SPACING = 200.0, 50.0, 0.25  # mm
 
 
 def make(path: Path) -> Path:

@@ -2,6 +2,7 @@
 
 Both give the vertical surface displacement (positive into the body) in mm.
 """
+
 from __future__ import annotations
 
 import numpy as np
@@ -51,7 +52,7 @@ def love_rectangle(x, y, a: float, b: float, E_star: float):
     near = ~far
     if np.any(near):
         xn, yn = x[near], y[near]
-        s = (_F(xn + a, yn + b) - _F(xn + a, yn - b) - _F(xn - a, yn + b) + _F(xn - a, yn - b))
+        s = _F(xn + a, yn + b) - _F(xn + a, yn - b) - _F(xn - a, yn + b) + _F(xn - a, yn - b)
         out[near] = s
     if np.any(far):
         xf, yf, rf2 = x[far], y[far], r2[far]
@@ -94,5 +95,5 @@ def love_far_field(x, y, h: float, E_star: float, order: int = 4):
             x2y2 = (x * x) * (y * y)
             r4 = r2 * r2
             t4 = (3.0 / 1920.0) * (11.0 * r4 - 70.0 * x2y2) + (3.0 / 576.0) * (35.0 * x2y2 - 4.0 * r4)
-            out = out + h ** 4 * t4 * (inv_r2 * inv_r2) ** 2 * inv_r
+            out = out + h**4 * t4 * (inv_r2 * inv_r2) ** 2 * inv_r
     return (h * h / (np.pi * E_star)) * out

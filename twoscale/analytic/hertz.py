@@ -6,6 +6,7 @@ rises faster (higher by about ``r^4 / 8R^3``), so at the same penetration it has
 contact and carries less load (0.5 % less at d = R/20): :func:`sphere_load` gives the
 exact-sphere law (Segedin).
 """
+
 from __future__ import annotations
 
 import numpy as np
@@ -59,7 +60,7 @@ def _atanh_minus_identity(e):
     e2 = e * e
     series = np.zeros_like(e)
     term = e * e2
-    for n in range(1, 14):   # e < 0.1: the first omitted term is below 1e-16 of the sum
+    for n in range(1, 14):  # e < 0.1: the first omitted term is below 1e-16 of the sum
         series = series + term / (2 * n + 1)
         term = term * e2
     return np.where(e < 0.1, series, np.arctanh(np.minimum(e, 1.0 - 1e-16)) - e)

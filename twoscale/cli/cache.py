@@ -12,6 +12,7 @@ else ``~/.cache/twoscale/fem`` and ``~/.cache/twoscale/surface-laws`` (see
 Exit codes: 0 done; 2 bad input (an unknown cache name), or a folder that cannot be read
 or cleared (one ``error: ...`` line).
 """
+
 from __future__ import annotations
 
 import argparse
@@ -25,10 +26,20 @@ ACTIONS = ("list", "clear")
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Arguments of ``twoscale cache``."""
     names = tuple(c.name for c in caches())
-    parser.add_argument("action", nargs="?", choices=ACTIONS, default="list",
-                        help="list (default): each cache's folder, entries and size; clear: delete entries")
-    parser.add_argument("name", nargs="?", choices=names, default=None,
-                        help=f"with clear: only this cache ({' or '.join(names)}); default every cache")
+    parser.add_argument(
+        "action",
+        nargs="?",
+        choices=ACTIONS,
+        default="list",
+        help="list (default): each cache's folder, entries and size; clear: delete entries",
+    )
+    parser.add_argument(
+        "name",
+        nargs="?",
+        choices=names,
+        default=None,
+        help=f"with clear: only this cache ({' or '.join(names)}); default every cache",
+    )
 
 
 def human_size(n: int) -> str:
@@ -48,7 +59,9 @@ def run(args: argparse.Namespace) -> int:
             chosen = list(caches())
         rows = [(c.name, str(c.folder), str(len(c.entries())), human_size(c.size()), c.description) for c in chosen]
         widths = [max(len(r[i]) for r in rows + [("cache", "folder", "entries", "size")]) for i in range(4)]
-        print(f"{'cache':<{widths[0]}}  {'folder':<{widths[1]}}  {'entries':>{widths[2]}}  {'size':>{widths[3]}}  holds")
+        print(
+            f"{'cache':<{widths[0]}}  {'folder':<{widths[1]}}  {'entries':>{widths[2]}}  {'size':>{widths[3]}}  holds"
+        )
         for r in rows:
             print(f"{r[0]:<{widths[0]}}  {r[1]:<{widths[1]}}  {r[2]:>{widths[2]}}  {r[3]:>{widths[3]}}  {r[4]}")
         return 0

@@ -49,6 +49,7 @@ Exit codes: 0 every solve converged; 1 some solve did not converge or a body cou
 be built (everything else still written, with the reason); 2 bad input (one
 ``error: ...`` line, nothing written).
 """
+
 from __future__ import annotations
 
 import argparse
@@ -60,8 +61,7 @@ from pathlib import Path
 
 
 from ..api import solve
-from ..comparison import (Measured, Run, centre_pivot, indicators, load_label, tip_changes,
-                          sensor_notes)
+from ..comparison import Measured, Run, centre_pivot, indicators, load_label, tip_changes, sensor_notes
 from ..influence.registry import make_body, unavailable
 from ..io.scene_file import read_scene
 from ..progress import Progress
@@ -76,37 +76,60 @@ from .solve import check_out_dir
 from .staging import staged_directory
 
 #: Bodies compared, in table order: name -> (influence kind, block base).
-BODIES = {"halfspace": ("halfspace", None), "block-bonded": ("block", "bonded"),
-          "block-sliding": ("block", "sliding")}
+BODIES = {"halfspace": ("halfspace", None), "block-bonded": ("block", "bonded"), "block-sliding": ("block", "sliding")}
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Arguments of ``twoscale compare``."""
     parser.add_argument("scene", metavar="SCENE.toml", help="scene file (TOML; units mm, N, MPa)")
-    parser.add_argument("--loads", metavar="W", nargs="+", default=None,
-                        help="total loads in N, each replacing load.total of the scene "
-                             "(default: the scene's [load] cases, else its one load)")
-    parser.add_argument("--out", metavar="DIR", default=None,
-                        help="output directory (default: <scene name>_compare)")
-    parser.add_argument("--method", choices=METHODS, default="twoscale",
-                        help="solver for every body (default twoscale)")
-    parser.add_argument("--h", metavar="H", default=None,
-                        help="cell size in mm, overriding [grid] h of the scene")
+    parser.add_argument(
+        "--loads",
+        metavar="W",
+        nargs="+",
+        default=None,
+        help="total loads in N, each replacing load.total of the scene "
+        "(default: the scene's [load] cases, else its one load)",
+    )
+    parser.add_argument("--out", metavar="DIR", default=None, help="output directory (default: <scene name>_compare)")
+    parser.add_argument(
+        "--method", choices=METHODS, default="twoscale", help="solver for every body (default twoscale)"
+    )
+    parser.add_argument("--h", metavar="H", default=None, help="cell size in mm, overriding [grid] h of the scene")
     parser.add_argument("--vtk", action="store_true", help="also write runs/*/fields.vtm")
-    parser.add_argument("--measured-forces", metavar="CSV", default=None,
-                        help="measured tip forces (header x,y,force, asperity,force (from 1) or index,force (from 0); N), one load case")
-    parser.add_argument("--measured-map", metavar="CSV", default=None,
-                        help="measured sensor map: NY rows of NX pressures (MPa; the sensor's, default "
-                             "44 x 44), first row at smallest y; without --measured-forces the tip forces "
-                             "are integrated from it")
-    parser.add_argument("--centre-pivot", action="store_true",
-                        help="shift the tips so the joint sits at the measured force centre (paper eq. 13)")
-    parser.add_argument("--block-size", metavar=("W", "D", "T"), nargs=3, default=None,
-                        help="the finite block's width, depth and thickness in mm (default: the scene's "
-                             "[influence] block, else 140 x 140 x 20)")
-    parser.add_argument("--base", choices=("bonded", "sliding", "both"), default="both",
-                        help="the finite block's base: bonded (no displacement), sliding (no vertical "
-                             "displacement, no shear) or both (default), each compared with the half-space")
+    parser.add_argument(
+        "--measured-forces",
+        metavar="CSV",
+        default=None,
+        help="measured tip forces (header x,y,force, asperity,force (from 1) or index,force (from 0); N), one load case",
+    )
+    parser.add_argument(
+        "--measured-map",
+        metavar="CSV",
+        default=None,
+        help="measured sensor map: NY rows of NX pressures (MPa; the sensor's, default "
+        "44 x 44), first row at smallest y; without --measured-forces the tip forces "
+        "are integrated from it",
+    )
+    parser.add_argument(
+        "--centre-pivot",
+        action="store_true",
+        help="shift the tips so the joint sits at the measured force centre (paper eq. 13)",
+    )
+    parser.add_argument(
+        "--block-size",
+        metavar=("W", "D", "T"),
+        nargs=3,
+        default=None,
+        help="the finite block's width, depth and thickness in mm (default: the scene's "
+        "[influence] block, else 140 x 140 x 20)",
+    )
+    parser.add_argument(
+        "--base",
+        choices=("bonded", "sliding", "both"),
+        default="both",
+        help="the finite block's base: bonded (no displacement), sliding (no vertical "
+        "displacement, no shear) or both (default), each compared with the half-space",
+    )
     add_sensor_arguments(parser)
     parser.add_argument("--quiet", action="store_true", help="print nothing but errors and warnings")
 
@@ -122,8 +145,10 @@ def _scenes(args) -> list[Scene]:
         loads = list(scene.load_cases)
     else:
         if scene.total_load is None:
-            raise SceneError(f"--loads needs a scene under load control (load.total); "
-                             f"{args.scene} gives load.penetration = {scene.penetration!r}")
+            raise SceneError(
+                f"--loads needs a scene under load control (load.total); "
+                f"{args.scene} gives load.penetration = {scene.penetration!r}"
+            )
         loads = [positive_option(w, "--loads", unit="N") for w in args.loads]
         if len(set(loads)) != len(loads):
             raise SceneError(f"--loads has repeated values, got {args.loads!r}")
@@ -144,15 +169,18 @@ def _measured(args, scenes: list[Scene], sensor: Sensor = DEFAULT_SENSOR) -> Mea
     """Read the measured data named on the command line (raises ValueError)."""
     if args.measured_forces is None and args.measured_map is None:
         if args.centre_pivot:
-            raise SceneError("--centre-pivot needs measured data (--measured-forces or --measured-map): "
-                             "eq. 13 uses the measured forces")
+            raise SceneError(
+                "--centre-pivot needs measured data (--measured-forces or --measured-map): "
+                "eq. 13 uses the measured forces"
+            )
         return None
     if len(scenes) != 1:
         if args.loads is None:
-            raise SceneError(f"measured data belong to one load case; the scene lists load.cases = "
-                             f"{list(scenes[0].load_cases)!r}: choose one with --loads W")
-        raise SceneError(f"measured data belong to one load case; give at most one --loads value, "
-                         f"got {args.loads!r}")
+            raise SceneError(
+                f"measured data belong to one load case; the scene lists load.cases = "
+                f"{list(scenes[0].load_cases)!r}: choose one with --loads W"
+            )
+        raise SceneError(f"measured data belong to one load case; give at most one --loads value, got {args.loads!r}")
     forces = None
     if args.measured_forces is not None:
         forces = read_tip_forces(args.measured_forces, n_asperities=len(scenes[0].asperities)).force
@@ -178,8 +206,13 @@ def _influence(scene: Scene, body: str) -> dict:
     # the scene's own block options where it has a block, else the defaults, with this base
     own = {k: v for k, v in scene.influence.items() if k != "base"} if scene.influence["kind"] == "block" else {}
     inf = normalise_influence({**own, "kind": "block", "base": base})
-    return {"kind": "block", "size": tuple(inf["size"]), "base": base, "origin": tuple(inf["origin"]),
-            "source_spacing": inf["source_spacing"]}
+    return {
+        "kind": "block",
+        "size": tuple(inf["size"]),
+        "base": base,
+        "origin": tuple(inf["origin"]),
+        "source_spacing": inf["source_spacing"],
+    }
 
 
 # ---------------------------------------------------------------- solving
@@ -196,7 +229,7 @@ def _solve_all(scenes, bodies, method, quiet, name: str = "") -> list[Run]:
                 t0 = time.perf_counter()
                 # the provider built once per body (the block is costly); memory checked before
                 res = solve(sc, method=method, provider=provider, memory_limit=math.inf)
-                res = dataclasses.replace(res, scene_name=name)   # for the figures' titles
+                res = dataclasses.replace(res, scene_name=name)  # for the figures' titles
                 runs.append(Run(load_label(sc), body, sc, res, time.perf_counter() - t0))
                 bar.update(note=f"{body} {runs[-1].load}")
             del provider
@@ -224,9 +257,14 @@ def _providers(scene: Scene, quiet: bool, base: str = "both") -> tuple[dict, lis
     for body in [b for b in ("block-bonded", "block-sliding") if base in ("both", BODIES[b][1])]:
         opts = _influence(scene, body)
         try:  # the block draws its own progress line while it is built
-            providers[body] = factory(scene.material, size=opts["size"], base=opts["base"],
-                                      origin=opts["origin"], source_spacing=opts["source_spacing"],
-                                      progress=not quiet)
+            providers[body] = factory(
+                scene.material,
+                size=opts["size"],
+                base=opts["base"],
+                origin=opts["origin"],
+                source_spacing=opts["source_spacing"],
+                progress=not quiet,
+            )
         except (ValueError, RuntimeError) as exc:
             notes.append(f"{body} could not be built: {exc}")
     return providers, notes
@@ -242,8 +280,7 @@ def run(args: argparse.Namespace) -> int:
         measured = _measured(args, scenes, sensor)
         notes = []
         if measured is not None and measured.forces_from_map:
-            notes.append("measured tip forces integrated from the sensor map (each loaded cell to "
-                         "its nearest tip)")
+            notes.append("measured tip forces integrated from the sensor map (each loaded cell to its nearest tip)")
         if args.centre_pivot:
             scenes[0], note = centre_pivot(scenes[0], measured.forces)
             notes.append(note)

@@ -15,6 +15,7 @@ Prints both; ``--json FILE`` also writes them with the two folders, the sensor, 
 version and the units. Bad input (missing or foreign files, different asperity counts, bad
 sensor values): one ``error:`` line, exit code 2, nothing written.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -48,15 +49,24 @@ def run(args: argparse.Namespace) -> int:
         print(f"error: {exc}", file=sys.stderr)
         return 2
     e_m_text = "n/a (reference map zero on every sensor cell)" if out["e_m"] is None else f"{out['e_m']:.4g} %"
-    print(f"e_M = {out['e_M']:.4g} %  (forces of {args.run} against {args.reference}; a ratio of squared "
-          f"norms, 100 sum|P - P~|^2 / sum|P~|^2: one tip of seven 7 % off gives about 0.07 %)")
-    print(f"e_m = {e_m_text}  (squared norms likewise; sensor {sensor.nx} x {sensor.ny} cells of {sensor.cell:g} mm "
-          f"at ({sensor.centre[0]:g}, {sensor.centre[1]:g}) mm)")
+    print(
+        f"e_M = {out['e_M']:.4g} %  (forces of {args.run} against {args.reference}; a ratio of squared "
+        f"norms, 100 sum|P - P~|^2 / sum|P~|^2: one tip of seven 7 % off gives about 0.07 %)"
+    )
+    print(
+        f"e_m = {e_m_text}  (squared norms likewise; sensor {sensor.nx} x {sensor.ny} cells of {sensor.cell:g} mm "
+        f"at ({sensor.centre[0]:g}, {sensor.centre[1]:g}) mm)"
+    )
     if args.json is not None:
-        record = {"e_M_percent": out["e_M"], "e_m_percent": out["e_m"], "run": str(args.run),
-                  "reference": str(args.reference),
-                  "sensor": {"nx": sensor.nx, "ny": sensor.ny, "cell": sensor.cell, "centre": list(sensor.centre)},
-                  "version": __version__, "units": dict(UNITS)}
+        record = {
+            "e_M_percent": out["e_M"],
+            "e_m_percent": out["e_m"],
+            "run": str(args.run),
+            "reference": str(args.reference),
+            "sensor": {"nx": sensor.nx, "ny": sensor.ny, "cell": sensor.cell, "centre": list(sensor.centre)},
+            "version": __version__,
+            "units": dict(UNITS),
+        }
         with atomic_output(Path(args.json)) as tmp:
             tmp.write_text(json.dumps(record, indent=2) + "\n", encoding="utf-8")
     return 0

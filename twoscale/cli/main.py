@@ -13,6 +13,7 @@ through a temporary folder renamed at the end, so no partial output is left); 14
 terminated by SIGTERM (what batch schedulers and ``kill`` send): handled like Ctrl-C, with
 the line ``terminated`` (a second SIGTERM during the clean-up is ignored).
 """
+
 from __future__ import annotations
 
 import argparse
@@ -35,9 +36,8 @@ EXIT_TERMINATED = 143
 
 
 def _on_sigterm(signum, frame) -> None:
-    signal.signal(signal.SIGTERM, signal.SIG_IGN)   # let the clean-up finish
+    signal.signal(signal.SIGTERM, signal.SIG_IGN)  # let the clean-up finish
     raise Terminated()
-
 
 
 #: Subcommands: (name, module, required). Optional ones appear when their module exists.
@@ -82,8 +82,8 @@ def plain(text: str) -> str:
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser with every available subcommand."""
     parser = _OneLineParser(
-        prog="twoscale",
-        description="Two-scale multi-asperity contact on elastic bodies (units mm, N, MPa).")
+        prog="twoscale", description="Two-scale multi-asperity contact on elastic bodies (units mm, N, MPa)."
+    )
     parser.add_argument("--version", action="version", version=f"twoscale {__version__}")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=_OneLineParser)
     sub.required = True
@@ -92,9 +92,12 @@ def build_parser() -> argparse.ArgumentParser:
         p = sub.add_parser(name, help=doc, description=doc)
         module.add_arguments(p)
         if name in OUTPUT_COMMANDS:
-            p.add_argument("--overwrite", action="store_true",
-                           help="replace an earlier twoscale output in the folder: removes only the files "
-                                "listed in its .twoscale-manifest.json (a folder holding other files is refused)")
+            p.add_argument(
+                "--overwrite",
+                action="store_true",
+                help="replace an earlier twoscale output in the folder: removes only the files "
+                "listed in its .twoscale-manifest.json (a folder holding other files is refused)",
+            )
         p.set_defaults(_run=module.run)
     return parser
 

@@ -4,6 +4,7 @@
 Each parser turns the text given into a value or raises :class:`~twoscale.scene.SceneError`
 naming the option and the text (the command prints it as one ``error:`` line, exit 2).
 """
+
 from __future__ import annotations
 
 import argparse
@@ -19,11 +20,21 @@ DEFAULT_SENSOR = Sensor()
 
 def add_sensor_arguments(parser: argparse.ArgumentParser) -> None:
     """``--sensor NX NY CELL`` and ``--sensor-centre X Y``."""
-    parser.add_argument("--sensor", metavar=("NX", "NY", "CELL"), nargs=3, default=None,
-                        help=f"sensor cells along x and y (integers >= 1) and cell side in mm "
-                             f"(default {DEFAULT_SENSOR.nx} {DEFAULT_SENSOR.ny} {DEFAULT_SENSOR.cell:g})")
-    parser.add_argument("--sensor-centre", metavar=("X", "Y"), nargs=2, default=None,
-                        help="sensor centre in scene coordinates, mm (default 0 0)")
+    parser.add_argument(
+        "--sensor",
+        metavar=("NX", "NY", "CELL"),
+        nargs=3,
+        default=None,
+        help=f"sensor cells along x and y (integers >= 1) and cell side in mm "
+        f"(default {DEFAULT_SENSOR.nx} {DEFAULT_SENSOR.ny} {DEFAULT_SENSOR.cell:g})",
+    )
+    parser.add_argument(
+        "--sensor-centre",
+        metavar=("X", "Y"),
+        nargs=2,
+        default=None,
+        help="sensor centre in scene coordinates, mm (default 0 0)",
+    )
 
 
 def positive_option(text: str | None, name: str, *, unit: str) -> float | None:
@@ -87,6 +98,8 @@ def sensor_from_args(args: argparse.Namespace) -> Sensor:
         ny = int_option(args.sensor[1], "--sensor NY")
         cell = positive_option(args.sensor[2], "--sensor CELL", unit="mm")
     if args.sensor_centre is not None:
-        centre = (finite_option(args.sensor_centre[0], "--sensor-centre X", unit="mm"),
-                  finite_option(args.sensor_centre[1], "--sensor-centre Y", unit="mm"))
+        centre = (
+            finite_option(args.sensor_centre[0], "--sensor-centre X", unit="mm"),
+            finite_option(args.sensor_centre[1], "--sensor-centre Y", unit="mm"),
+        )
     return Sensor(nx, ny, cell, centre)

@@ -8,6 +8,7 @@ are written all the same, ``rolling.json`` says which); 2 bad input (one ``error
 line naming the field; nothing written: the files go to a temporary folder renamed to DIR
 at the end).
 """
+
 from __future__ import annotations
 
 import argparse
@@ -25,7 +26,11 @@ from .staging import staged_directory
 #: steps would otherwise write gigabytes).
 MAX_FRAMES = 200
 #: Refused options of ``twoscale solve`` on a rolling scene (the run's own solver is fixed).
-_NOT_ROLLING = (("method", "twoscale", "--method"), ("far_tol", None, "--far-tol"), ("block_field", False, "--block-field"))
+_NOT_ROLLING = (
+    ("method", "twoscale", "--method"),
+    ("far_tol", None, "--far-tol"),
+    ("block_field", False, "--block-field"),
+)
 
 
 def run_rolling(scene, args: argparse.Namespace) -> int:
@@ -38,25 +43,28 @@ def run_rolling(scene, args: argparse.Namespace) -> int:
             if getattr(args, key, default) != default:
                 raise ValueError(f"{name} does not apply to a [rolling] scene (each position is a two-scale solve)")
         options = RollingOptions(iteration=getattr(args, "iteration", "auto"))
-        track = prepare(scene)   # every check before anything is solved or written
+        track = prepare(scene)  # every check before anything is solved or written
         t0 = time.perf_counter()
         with StatusLine(quiet=args.quiet) as status:
             if args.out is None:
                 result = roll(track.scene, options=options, track=track, progress=status)
             else:
-                with staged_directory(args.out, overwrite=getattr(args, "overwrite", False),
-                                      command=f"solve {args.scene}") as tmp:
+                with staged_directory(
+                    args.out, overwrite=getattr(args, "overwrite", False), command=f"solve {args.scene}"
+                ) as tmp:
                     result = _roll_into(tmp, scene, track, options, status, Path(args.scene).stem)
         wall = time.perf_counter() - t0
-    except ValueError as exc:   # SceneError, an output folder that cannot be used
+    except ValueError as exc:  # SceneError, an output folder that cannot be used
         print(f"error: {exc}", file=sys.stderr)
         return 2
     if not args.quiet:
         print(summary(result, args.scene, wall, args.out))
     if not result.all_converged:
         bad = int(np.sum(~result.converged))
-        print(f"warning: {bad} of {len(result.shifts)} positions did not converge (rolling.json lists them)",
-              file=sys.stderr)
+        print(
+            f"warning: {bad} of {len(result.shifts)} positions did not converge (rolling.json lists them)",
+            file=sys.stderr,
+        )
         return 1
     return 0
 
@@ -130,10 +138,11 @@ def _bands_line(result) -> str:
 
     levels = third_octave_levels(band_signal(result), result.spec.step / result.spec.speed_mm_s)
     bands = [f"{float(f):g}" for f in levels.nominal]
-    fc = 1000.0 * 10.0 ** (-5 / 10)                      # the 315 Hz band's exact centre
-    need = 3.0 / (fc * (10 ** 0.05 - 10 ** -0.05)) * result.spec.speed_mm_s
-    said = (f"{len(bands)} third-octave band{'s' if len(bands) != 1 else ''} resolved"
-            + (f" ({bands[0]} to {bands[-1]} Hz)" if len(bands) > 1 else f" ({bands[0]} Hz)" if bands else ""))
+    fc = 1000.0 * 10.0 ** (-5 / 10)  # the 315 Hz band's exact centre
+    need = 3.0 / (fc * (10**0.05 - 10**-0.05)) * result.spec.speed_mm_s
+    said = f"{len(bands)} third-octave band{'s' if len(bands) != 1 else ''} resolved" + (
+        f" ({bands[0]} to {bands[-1]} Hz)" if len(bands) > 1 else f" ({bands[0]} Hz)" if bands else ""
+    )
     if not bands or float(levels.nominal[0]) > 315:
         said += f"; 315 Hz needs a run of about {need:.3g} mm at this speed (3 bins a band)"
     return f"  bands        {said}"

@@ -17,6 +17,7 @@ interrupted (Ctrl-C). ``--out`` naming an existing file, or a non-empty folder w
 manifest). The files are written into a temporary folder renamed to DIR at the end, so an
 interrupted run leaves no partial DIR. Without ``--out`` nothing is written.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -47,26 +48,47 @@ TOP_ROWS = 10
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Arguments of ``twoscale solve``."""
     parser.add_argument("scene", metavar="SCENE.toml", help="scene file (TOML; units mm, N, MPa)")
-    parser.add_argument("--method", choices=METHODS, default="twoscale",
-                        help="two-scale solver (default) or classical reference solver on the full grid")
-    parser.add_argument("--out", metavar="DIR", default=None,
-                        help="write DIR/result.json, asperities.csv, fields.vtm (+ fields/), pressure.png, "
-                             "forces.png (DIR created after a successful solve; a non-empty DIR needs --overwrite)")
-    parser.add_argument("--h", metavar="H", default=None,
-                        help="cell size in mm, overriding [grid] h of the scene")
-    parser.add_argument("--iteration", choices=("auto",) + ITERATIONS, default="auto",
-                        help="micro step's iteration (experts; default auto: chosen by the solver's "
-                             "policy from the scene, with its reason in result.json)")
-    parser.add_argument("--far-tol", metavar="F", default=None,
-                        help="far-field coupling tolerance of the block iterations (experts; 0 < F < 1): "
-                             "patches farther apart than (r_k + r_l)/sqrt(F) interact through their "
-                             "resultant forces; alone it selects the two-level iteration")
-    parser.add_argument("--block-field", action="store_true",
-                        help="with [influence] kind = \"block\" and --out: also write "
-                             "DIR/block_displacement.vtu (displacement inside the block)")
-    parser.add_argument("--quiet", action="store_true",
-                        help="print nothing but errors (no status line or progress bar either; they are "
-                             "drawn only when stderr is a terminal)")
+    parser.add_argument(
+        "--method",
+        choices=METHODS,
+        default="twoscale",
+        help="two-scale solver (default) or classical reference solver on the full grid",
+    )
+    parser.add_argument(
+        "--out",
+        metavar="DIR",
+        default=None,
+        help="write DIR/result.json, asperities.csv, fields.vtm (+ fields/), pressure.png, "
+        "forces.png (DIR created after a successful solve; a non-empty DIR needs --overwrite)",
+    )
+    parser.add_argument("--h", metavar="H", default=None, help="cell size in mm, overriding [grid] h of the scene")
+    parser.add_argument(
+        "--iteration",
+        choices=("auto",) + ITERATIONS,
+        default="auto",
+        help="micro step's iteration (experts; default auto: chosen by the solver's "
+        "policy from the scene, with its reason in result.json)",
+    )
+    parser.add_argument(
+        "--far-tol",
+        metavar="F",
+        default=None,
+        help="far-field coupling tolerance of the block iterations (experts; 0 < F < 1): "
+        "patches farther apart than (r_k + r_l)/sqrt(F) interact through their "
+        "resultant forces; alone it selects the two-level iteration",
+    )
+    parser.add_argument(
+        "--block-field",
+        action="store_true",
+        help='with [influence] kind = "block" and --out: also write '
+        "DIR/block_displacement.vtu (displacement inside the block)",
+    )
+    parser.add_argument(
+        "--quiet",
+        action="store_true",
+        help="print nothing but errors (no status line or progress bar either; they are "
+        "drawn only when stderr is a terminal)",
+    )
 
 
 def check_out_dir(out, *, overwrite: bool = False) -> None:
@@ -88,14 +110,15 @@ def run(args: argparse.Namespace) -> int:
     try:
         scene = read_scene(args.scene)
         scene = with_h_option(scene, args.h)
-        if scene.rolling is not None:   # the road rolls under the body: twoscale.cli.rolling
+        if scene.rolling is not None:  # the road rolls under the body: twoscale.cli.rolling
             from .rolling import run_rolling
 
             return run_rolling(scene, args)
         if getattr(args, "block_field", False):
             if scene.influence["kind"] != "block":
-                raise SceneError(f"--block-field needs [influence] kind = \"block\", "
-                                 f"got kind = {scene.influence['kind']!r}")
+                raise SceneError(
+                    f'--block-field needs [influence] kind = "block", got kind = {scene.influence["kind"]!r}'
+                )
             if args.out is None:
                 raise SceneError("--block-field needs --out DIR")
         check_out_dir(args.out, overwrite=getattr(args, "overwrite", False))
@@ -115,15 +138,17 @@ def run(args: argparse.Namespace) -> int:
                 raise SceneError("--far-tol applies to the block iterations, not to --iteration union-cg")
             options["iteration"] = iteration
         # before anything large is allocated: refuse a solve the machine cannot hold
-        check_solve_memory(scene, default_h(scene), args.method, iteration=iteration, option="--h",
-                           h_given=args.h is not None)
+        check_solve_memory(
+            scene, default_h(scene), args.method, iteration=iteration, option="--h", h_given=args.h is not None
+        )
         t0 = time.perf_counter()
         quiet_block = {"progress": False} if args.quiet and scene.influence["kind"] == "block" else None
         with StatusLine(quiet=args.quiet) as status:
             if args.method == "twoscale" and scene.history is None:
                 options["progress"] = status
-            result = solve_scene(scene, method=args.method, provider_options=quiet_block, memory_limit=math.inf,
-                                 **options)
+            result = solve_scene(
+                scene, method=args.method, provider_options=quiet_block, memory_limit=math.inf, **options
+            )
         wall = time.perf_counter() - t0
         if isinstance(result, ContactResult):  # a history's result names its scene per output time
             result = dataclasses.replace(result, scene_name=Path(args.scene).stem)  # for titles and result.json
@@ -134,8 +159,11 @@ def run(args: argparse.Namespace) -> int:
         return _history_done(result, scene, args, wall)
     path = None
     # result.json's content and the terminal summary: one dictionary
-    record = None if args.out is None and args.quiet else \
-        result_to_dict(result, scene, method=args.method, h_source="--h" if args.h is not None else None)
+    record = (
+        None
+        if args.out is None and args.quiet
+        else result_to_dict(result, scene, method=args.method, h_source="--h" if args.h is not None else None)
+    )
     if args.out is not None:
         try:
             write_outputs(result, scene, args, record=record)
@@ -158,20 +186,23 @@ def _history_done(result, scene, args, wall: float) -> int:
 
     if args.out is not None:
         try:
-            with staged_directory(args.out, overwrite=getattr(args, "overwrite", False),
-                                  command=f"solve {args.scene}") as tmp:
+            with staged_directory(
+                args.out, overwrite=getattr(args, "overwrite", False), command=f"solve {args.scene}"
+            ) as tmp:
                 write_history_outputs(result, scene, tmp)
         except (OSError, ValueError) as exc:
             print(f"error: writing {args.out}: {exc}", file=sys.stderr)
             return 2
     if not args.quiet:
-        print(f"twoscale solve {args.scene}: history, method {result.method}\n"
-              f"  steps        {len(result.steps)} ({result.rejected} redone), error estimate "
-              f"{result.error_estimate:.2g}\n"
-              f"  output times {len(result.times)}, from {result.times[0]:.4g} to {result.times[-1]:.4g} s\n"
-              f"  last         load {result.total_load[-1]:.6g} N, approach {result.penetration[-1]:.6g} mm, "
-              f"area {result.contact_area[-1]:.6g} mm^2\n"
-              f"  time         {wall:.3g} s" + (f"\n  wrote        {args.out}/" if args.out else ""))
+        print(
+            f"twoscale solve {args.scene}: history, method {result.method}\n"
+            f"  steps        {len(result.steps)} ({result.rejected} redone), error estimate "
+            f"{result.error_estimate:.2g}\n"
+            f"  output times {len(result.times)}, from {result.times[0]:.4g} to {result.times[-1]:.4g} s\n"
+            f"  last         load {result.total_load[-1]:.6g} N, approach {result.penetration[-1]:.6g} mm, "
+            f"area {result.contact_area[-1]:.6g} mm^2\n"
+            f"  time         {wall:.3g} s" + (f"\n  wrote        {args.out}/" if args.out else "")
+        )
     if not result.converged:
         print(f"warning: the history did not converge: {result.message}", file=sys.stderr)
         return 1
@@ -182,10 +213,10 @@ def write_outputs(result, scene, args, *, record: dict | None = None) -> None:
     """Write every file of ``--out`` into a temporary folder renamed to DIR at the end
     (whole or nothing; an earlier output replaced only with ``--overwrite``); ``record``:
     result.json's content when already built."""
-    with staged_directory(args.out, overwrite=getattr(args, "overwrite", False),
-                          command=f"solve {args.scene}") as tmp:
-        write_result(result, scene, tmp, method=args.method, h_source="--h" if args.h is not None else None,
-                     record=record)
+    with staged_directory(args.out, overwrite=getattr(args, "overwrite", False), command=f"solve {args.scene}") as tmp:
+        write_result(
+            result, scene, tmp, method=args.method, h_source="--h" if args.h is not None else None, record=record
+        )
         write_fields_and_figures(result, scene, tmp, source=str(args.scene))
         if getattr(args, "block_field", False):
             write_block_field_file(result, scene, tmp, quiet=args.quiet)
@@ -201,10 +232,16 @@ def write_block_field_file(result, scene, out_dir, *, quiet: bool = False):
 
 
 #: How each iteration count reads in the summary (counts of 0 are left out).
-ITERATION_WORDS = {"macro": "macro-step Newton iterations", "macro_krylov": "Krylov iterations in them",
-                   "micro": "micro-step sweeps", "corrections": "approach corrections",
-                   "sensitivity_sweeps": "sensitivity sweeps", "outer": "active-set passes",
-                   "cg": "conjugate-gradient iterations", "products": "grid products"}
+ITERATION_WORDS = {
+    "macro": "macro-step Newton iterations",
+    "macro_krylov": "Krylov iterations in them",
+    "micro": "micro-step sweeps",
+    "corrections": "approach corrections",
+    "sensitivity_sweeps": "sensitivity sweeps",
+    "outer": "active-set passes",
+    "cg": "conjugate-gradient iterations",
+    "products": "grid products",
+}
 
 
 def iteration_text(iterations: dict) -> str:
@@ -241,8 +278,10 @@ def summary(res: dict, scene_path: str, wall: float, path) -> str:
     touching = sum(a["contact_area"] > 0 for a in res["asperities"])
     area = f"  contact area {res['contact_area']:.5g} mm2 on {touching} of {n} tips"
     if res["contact_area_ratio"] is not None:
-        area += (f", {100 * res['contact_area_ratio']:.3g} % of the nominal {res['nominal_area']:.5g} mm2 "
-                 f"({res['nominal_area_basis']})")
+        area += (
+            f", {100 * res['contact_area_ratio']:.3g} % of the nominal {res['nominal_area']:.5g} mm2 "
+            f"({res['nominal_area_basis']})"
+        )
     lines.append(area)
     lines.append(f"  cell size    h = {res['h']:.6g} mm ({res['h_source']}), {res['n_cells']} cells")
     if res.get("height_map") is not None:
@@ -267,18 +306,27 @@ def _map_lines(m: dict) -> list:
     ny, nx = m["samples"]
     resampled = "" if m.get("measured_spacing_mm") is None else f" (resampled from {m['measured_spacing_mm']:.6g} mm)"
     units = f"{m['units']} ({_UNITS_FROM.get(m['units_from'], m['units_from'])})"
-    out = [f"  height map   {m['file']}: {ny} x {nx} samples at {m['spacing_mm']:.6g} mm{resampled}, heights in {units}"]
+    out = [
+        f"  height map   {m['file']}: {ny} x {nx} samples at {m['spacing_mm']:.6g} mm{resampled}, heights in {units}"
+    ]
     missing = m["missing_samples"]
-    how = ("filled from the nearest measured height" if m["missing_treated_as"] == "nearest"
-           else "left without material (never in contact)")
-    out.append(f"               missing samples: {missing:,} ({100.0 * missing / (nx * ny):.3g} %)"
-               + (f", {how}" if missing else ""))
+    how = (
+        "filled from the nearest measured height"
+        if m["missing_treated_as"] == "nearest"
+        else "left without material (never in contact)"
+    )
+    out.append(
+        f"               missing samples: {missing:,} ({100.0 * missing / (nx * ny):.3g} %)"
+        + (f", {how}" if missing else "")
+    )
     ks = m["edge_asperities"]
     if ks:
         names = ", ".join(str(k) for k in ks[:5]) + (f" and {len(ks) - 5} more" if len(ks) > 5 else "")
         many = len(ks) > 1
-        out.append(f"               edge contacts: {len(ks)} asperit{'ies' if many else 'y'} ({names}) "
-                   f"touch{'' if many else 'es'} the map's edge, where the scan ends in a wall")
+        out.append(
+            f"               edge contacts: {len(ks)} asperit{'ies' if many else 'y'} ({names}) "
+            f"touch{'' if many else 'es'} the map's edge, where the scan ends in a wall"
+        )
     else:
         out.append("               edge contacts: none")
     return out
@@ -292,8 +340,11 @@ def _tip_lines(res: dict, path) -> list[str]:
     few = len(asps) <= MAX_ROWS
     if not few:
         order = sorted(order, key=lambda k: -asps[k]["force"])[:TOP_ROWS]
-    lines = ["  asperity      force N   area mm2  p_max MPa" + ("   macro N" if macro else "")
-             + ("   (numbered from 1, scene order)" if few else f"   (the {TOP_ROWS} most loaded of {len(asps)})")]
+    lines = [
+        "  asperity      force N   area mm2  p_max MPa"
+        + ("   macro N" if macro else "")
+        + ("   (numbered from 1, scene order)" if few else f"   (the {TOP_ROWS} most loaded of {len(asps)})")
+    ]
     for k in order:
         a = asps[k]
         row = f"  {k + 1:8d} {a['force']:11.5g} {a['contact_area']:10.5g} {a['max_pressure']:10.5g}"
@@ -301,8 +352,11 @@ def _tip_lines(res: dict, path) -> list[str]:
             row += f" {a['macro_force']:9.5g}"
         lines.append(row)
     if not few:
-        where = (f"in {Path(path).parent / ASPERITY_CSV_NAME}" if path is not None
-                 else "(--out DIR writes them all to DIR/asperities.csv)")
+        where = (
+            f"in {Path(path).parent / ASPERITY_CSV_NAME}"
+            if path is not None
+            else "(--out DIR writes them all to DIR/asperities.csv)"
+        )
         lines.append(f"  ... {len(asps) - TOP_ROWS} more {where}")
     return lines
 

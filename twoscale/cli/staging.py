@@ -25,6 +25,7 @@ Example
 >>> sorted(p.name for p in (root / "run").iterdir())
 ['.twoscale-manifest.json', 'a.txt']
 """
+
 from __future__ import annotations
 
 import contextlib
@@ -60,7 +61,7 @@ def held_interrupts() -> Iterator[None]:
         return
     caught = []
     held = [signal.SIGINT]
-    if callable(signal.getsignal(signal.SIGTERM)):   # a Python handler: the command line's
+    if callable(signal.getsignal(signal.SIGTERM)):  # a Python handler: the command line's
         held.append(signal.SIGTERM)
     previous = {sig: signal.signal(sig, lambda signum, frame: caught.append(signum)) for sig in held}
     try:
@@ -135,16 +136,22 @@ def check_output_folder(out: str | os.PathLike, *, overwrite: bool = False, opti
         return
     listed = _manifest_files(out)
     if listed is None:
-        raise OutputFolderError(f"{option} {str(out)!r} is not empty and was not written by twoscale "
-                                f"(no {MANIFEST_NAME}): choose another folder")
+        raise OutputFolderError(
+            f"{option} {str(out)!r} is not empty and was not written by twoscale "
+            f"(no {MANIFEST_NAME}): choose another folder"
+        )
     if not overwrite:
-        raise OutputFolderError(f"{option} {str(out)!r} holds the output of an earlier run "
-                                f"({len(listed)} files): add --overwrite to replace it, or choose another folder")
+        raise OutputFolderError(
+            f"{option} {str(out)!r} holds the output of an earlier run "
+            f"({len(listed)} files): add --overwrite to replace it, or choose another folder"
+        )
     foreign = _foreign(out, listed)
     if foreign:
-        raise OutputFolderError(f"{option} {str(out)!r} holds {len(foreign)} entries twoscale did not write "
-                                f"(e.g. {foreign[0]!r}); --overwrite removes only its own files: "
-                                f"move them or choose another folder")
+        raise OutputFolderError(
+            f"{option} {str(out)!r} holds {len(foreign)} entries twoscale did not write "
+            f"(e.g. {foreign[0]!r}); --overwrite removes only its own files: "
+            f"move them or choose another folder"
+        )
 
 
 def _clear(out: Path) -> None:
@@ -161,8 +168,7 @@ def _clear(out: Path) -> None:
 
 def _write_manifest(folder: Path, command: str) -> None:
     files = sorted(_entries(folder)[0])
-    text = json.dumps({"program": "twoscale", "version": __version__, "command": command,
-                       "files": files}, indent=1)
+    text = json.dumps({"program": "twoscale", "version": __version__, "command": command, "files": files}, indent=1)
     (folder / MANIFEST_NAME).write_text(text + "\n", encoding="utf-8")
 
 

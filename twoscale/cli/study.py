@@ -37,6 +37,7 @@ within 20 s; 3 DIR is in use by another live run; 130 interrupted (Ctrl-C); 143 
 (SIGTERM, as batch schedulers send before killing a job): one line, the finished cases
 kept, nothing half-written, the same command resumes.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -57,20 +58,33 @@ MAX_LISTED = 10
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Arguments of ``twoscale study``."""
     parser.add_argument("study", metavar="STUDY.toml", help="study file (TOML; units mm, N, MPa)")
-    parser.add_argument("--out", metavar="DIR", required=True,
-                        help="output folder (created; a rerun resumes in it)")
-    parser.add_argument("--workers", metavar="N", default=None,
-                        help="worker processes of the local Dask cluster (default: the number of CPUs, "
-                             f"here {os.cpu_count()}); 0 solves in this process without Dask")
-    parser.add_argument("--scheduler", metavar="ADDRESS", default=None,
-                        help="address of an existing Dask scheduler (e.g. tcp://host:8786) instead "
-                             "of a local cluster")
-    parser.add_argument("--batch", metavar="B", default="1",
-                        help="cases per Dask task (default 1; more for large clusters: fewer, longer "
-                             "tasks; a batch's cases are written when the whole batch is done)")
-    parser.add_argument("--overwrite", action="store_true",
-                        help="replace another study's tables and figures in DIR (its finished cases are kept "
-                             "and reused where the inputs match); a folder of this study resumes without it")
+    parser.add_argument("--out", metavar="DIR", required=True, help="output folder (created; a rerun resumes in it)")
+    parser.add_argument(
+        "--workers",
+        metavar="N",
+        default=None,
+        help="worker processes of the local Dask cluster (default: the number of CPUs, "
+        f"here {os.cpu_count()}); 0 solves in this process without Dask",
+    )
+    parser.add_argument(
+        "--scheduler",
+        metavar="ADDRESS",
+        default=None,
+        help="address of an existing Dask scheduler (e.g. tcp://host:8786) instead of a local cluster",
+    )
+    parser.add_argument(
+        "--batch",
+        metavar="B",
+        default="1",
+        help="cases per Dask task (default 1; more for large clusters: fewer, longer "
+        "tasks; a batch's cases are written when the whole batch is done)",
+    )
+    parser.add_argument(
+        "--overwrite",
+        action="store_true",
+        help="replace another study's tables and figures in DIR (its finished cases are kept "
+        "and reused where the inputs match); a folder of this study resumes without it",
+    )
     parser.add_argument("--quiet", action="store_true", help="no progress bar or summary")
 
 
@@ -96,8 +110,11 @@ def run(args: argparse.Namespace) -> int:
     """Run ``twoscale study``; returns the exit code (see the module doc)."""
     missing = missing_dependencies()
     if missing:
-        print(f"error: twoscale study needs {' and '.join(missing)}: pip install \".[study]\" in the repository "
-              f"(or pip install {' '.join(repr(m) if '[' in m else m for m in missing)})", file=sys.stderr)
+        print(
+            f'error: twoscale study needs {" and ".join(missing)}: pip install ".[study]" in the repository '
+            f"(or pip install {' '.join(repr(m) if '[' in m else m for m in missing)})",
+            file=sys.stderr,
+        )
         return 2
     from ..studies.folder import check_study_folder
     from ..studies.lock import StudyBusy, study_lock
@@ -115,11 +132,11 @@ def run(args: argparse.Namespace) -> int:
         return 2
     created = not out.exists()
     try:
-        with study_lock(out):   # one run per folder; the kernel frees it when the run dies
+        with study_lock(out):  # one run per folder; the kernel frees it when the run dies
             try:
                 digest = check_study_folder(out, study, overwrite=args.overwrite)
             except ValueError:
-                if created:   # nothing has run: leave no folder behind
+                if created:  # nothing has run: leave no folder behind
                     shutil.rmtree(out, ignore_errors=True)
                 raise
             return _run_locked(args, study, out, digest, created, workers, batch)
@@ -142,7 +159,7 @@ def _run_locked(args, study, out: Path, digest: str, created: bool, workers: int
     from ..studies.rolling_tables import write_rolling_outputs
 
     rolling = isinstance(study, RollingStudy)
-    if rolling:   # road sections x bodies x materials x loads x speeds
+    if rolling:  # road sections x bodies x materials x loads x speeds
         run_study, write_outputs = run_rolling_study, write_rolling_outputs
     mark_study_folder(out, study, digest)
     try:
@@ -162,14 +179,17 @@ def _report(summary: dict, run_info, out: Path, *, quiet: bool, rolling: bool = 
         for item in summary[key][:MAX_LISTED]:
             print(f"warning: {item['case']} {what}: {item['reason']}", file=sys.stderr)
         if len(summary[key]) > MAX_LISTED:
-            print(f"warning: ... and {len(summary[key]) - MAX_LISTED} more (see {out / 'summary.json'})",
-                  file=sys.stderr)
+            print(
+                f"warning: ... and {len(summary[key]) - MAX_LISTED} more (see {out / 'summary.json'})", file=sys.stderr
+            )
     if not quiet:
         from ..studies.report import study_table
         from ..studies.rolling_tables import rolling_table
 
-        print(f"{summary['cases']} cases: {c['converged']} converged, {c['not-converged']} not converged, "
-              f"{c['failed']} failed; this run solved {run_info.ran} ({run_info.where}, "
-              f"{run_info.seconds:.1f} s) and skipped {run_info.skipped} finished")
+        print(
+            f"{summary['cases']} cases: {c['converged']} converged, {c['not-converged']} not converged, "
+            f"{c['failed']} failed; this run solved {run_info.ran} ({run_info.where}, "
+            f"{run_info.seconds:.1f} s) and skipped {run_info.skipped} finished"
+        )
         print(rolling_table(out) if rolling else study_table(out))
     return 0 if c["converged"] == summary["cases"] else 1

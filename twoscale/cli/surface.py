@@ -8,6 +8,7 @@ segmentation.csv-metadata.json and, from 1,000 asperities and with pyarrow, segm
 DIR/surface.json (the map as conditioned, the options, the timings). Exit codes: 0 done; 2 bad input (one
 ``error: ...`` line naming the file or the key; nothing written); 130 interrupted.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -26,10 +27,14 @@ NAMES = ("segmentation.png", "segmentation.csv", "surface.json")
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Arguments of ``twoscale surface``."""
     parser.add_argument("scene", metavar="SCENE.toml", help="scene file with a [surface] table")
-    parser.add_argument("--out", metavar="DIR", required=True,
-                        help="write DIR/segmentation.png, segmentation.csv, surface.json")
-    parser.add_argument("--no-laws", action="store_true",
-                        help="segment only: no single-asperity solves (no law exponents, no sphere error)")
+    parser.add_argument(
+        "--out", metavar="DIR", required=True, help="write DIR/segmentation.png, segmentation.csv, surface.json"
+    )
+    parser.add_argument(
+        "--no-laws",
+        action="store_true",
+        help="segment only: no single-asperity solves (no law exponents, no sphere error)",
+    )
     parser.add_argument("--quiet", action="store_true", help="print nothing but errors")
 
 
@@ -52,15 +57,16 @@ def run(args: argparse.Namespace) -> int:
         if not args.no_laws:
             with StatusLine(quiet=args.quiet) as status:
                 table = surface.book.table(scene.material, progress=status)
-            error = sphere_law_error(table, surface.asperities)   # the table just built
+            error = sphere_law_error(table, surface.asperities)  # the table just built
         t2 = time.perf_counter()
-    except ValueError as exc:   # SceneError, SurfaceError
+    except ValueError as exc:  # SceneError, SurfaceError
         print(f"error: {exc}", file=sys.stderr)
         return 2
     record = scene_to_dict(scene)
     rows = asperity_rows(surface, table, error)
-    summary = surface_summary(surface, record, table=table, sphere_error=error,
-                              seconds={"read_and_segment": t1 - t0, "laws": t2 - t1})
+    summary = surface_summary(
+        surface, record, table=table, sphere_error=error, seconds={"read_and_segment": t1 - t0, "laws": t2 - t1}
+    )
     with staged_directory(args.out) as tmp:
         segmentation_figure(surface, Path(tmp) / NAMES[0], scene=record)
         write_segmentation_table(rows, tmp, record={"scene": record})
@@ -76,17 +82,21 @@ _FROM = {"map": "as the file says", "option": "as surface.units says", "default"
 
 def _text(scene_path: str, s: dict, out) -> str:
     m, seg = s["map"], s["segmentation"]
-    lines = [f"twoscale surface {scene_path}",
-             f"  map          {m['file']}: {m['samples'][0]} x {m['samples'][1]} samples at {m['spacing_mm']:g} mm, "
-             f"{m['missing_samples']} missing ({m['missing_treated_as']}); heights "
-             f"{m['height_range_mm'][0]:.4g} to {m['height_range_mm'][1]:.4g} mm (given in {m['units']}, "
-             f"{_FROM[m['units_from']]})",
-             f"  asperities   {seg['asperities']} (of {seg['candidates']} local maxima; min distance "
-             f"{seg['min_distance_mm']:g} mm, prominence {seg['prominence_mm']:g} mm)"]
+    lines = [
+        f"twoscale surface {scene_path}",
+        f"  map          {m['file']}: {m['samples'][0]} x {m['samples'][1]} samples at {m['spacing_mm']:g} mm, "
+        f"{m['missing_samples']} missing ({m['missing_treated_as']}); heights "
+        f"{m['height_range_mm'][0]:.4g} to {m['height_range_mm'][1]:.4g} mm (given in {m['units']}, "
+        f"{_FROM[m['units_from']]})",
+        f"  asperities   {seg['asperities']} (of {seg['candidates']} local maxima; min distance "
+        f"{seg['min_distance_mm']:g} mm, prominence {seg['prominence_mm']:g} mm)",
+    ]
     if s["laws"] is not None:
         e = s["laws"]["sphere_law_error"]
-        lines.append(f"  laws         tabulated to {s['laws']['depth_mm']:g} mm; equivalent spheres off by "
-                     f"{100 * e['median']:.3g} % (median), {100 * e['largest']:.3g} % (largest)")
+        lines.append(
+            f"  laws         tabulated to {s['laws']['depth_mm']:g} mm; equivalent spheres off by "
+            f"{100 * e['median']:.3g} % (median), {100 * e['largest']:.3g} % (largest)"
+        )
     laws = f", {s['seconds']['laws']:.3g} s laws" if s["laws"] is not None else ""
     lines.append(f"  time         {s['seconds']['read_and_segment']:.3g} s segmentation{laws}")
     names = sorted(p.name for p in Path(out).iterdir() if not p.name.startswith("."))

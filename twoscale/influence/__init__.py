@@ -2,6 +2,7 @@
 
 Every solver takes an :class:`InfluenceProvider` and never knows which body it has.
 """
+
 from .base import InfluenceProvider, GridOperator
 from .halfspace import HalfSpace
 from .points import DensePointOperator, PointOperator

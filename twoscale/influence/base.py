@@ -15,6 +15,7 @@ displacement ``u`` (mm, positive into the body) of the elastic body:
 All three describe the same linear map; providers must keep them consistent
 (tests check ``grid_operator`` against ``grid_matrix`` against ``cell_block``).
 """
+
 from __future__ import annotations
 
 from abc import ABC, abstractmethod
@@ -211,8 +212,9 @@ class InfluenceProvider(ABC):
         """
         return None
 
-    def point_operator(self, targets: np.ndarray, sources: np.ndarray, *, exclude=None,
-                       rtol: float = 1e-6) -> PointOperator:
+    def point_operator(
+        self, targets: np.ndarray, sources: np.ndarray, *, exclude=None, rtol: float = 1e-6
+    ) -> PointOperator:
         """Sum of point-force displacements ``u_i = sum_j G(t_i, s_j) F_j`` without
         keeping the ``(M, N)`` matrix (:mod:`twoscale.influence.points`).
 

@@ -9,6 +9,7 @@ total: an insertion costs O(1) plus the evictions it causes, whatever the number
 (a module-global dict whose size was re-summed at every insertion made a 200-tip scene
 quadratic in its patch pairs).
 """
+
 from __future__ import annotations
 
 from collections import OrderedDict
@@ -41,7 +42,7 @@ class BoundedCache:
             raise ValueError(f"max_bytes must be >= 0 (bytes), got {max_bytes!r}")
         self.max_bytes = float(max_bytes)
         self.name = name
-        self._entries: OrderedDict = OrderedDict()     # key -> (value, nbytes)
+        self._entries: OrderedDict = OrderedDict()  # key -> (value, nbytes)
         self.nbytes = 0
         self.hits = self.misses = self.evictions = 0
 
@@ -52,8 +53,10 @@ class BoundedCache:
         return key in self._entries
 
     def __repr__(self) -> str:
-        return (f"BoundedCache({self.name!r}, {len(self)} entries, {self.nbytes} / "
-                f"{self.max_bytes:.0f} bytes, {self.hits} hits, {self.misses} misses)")
+        return (
+            f"BoundedCache({self.name!r}, {len(self)} entries, {self.nbytes} / "
+            f"{self.max_bytes:.0f} bytes, {self.hits} hits, {self.misses} misses)"
+        )
 
     def get(self, key: Hashable, default: Any = None) -> Any:
         """The value stored under ``key`` (now the most recently used), else ``default``."""
@@ -105,5 +108,12 @@ class BoundedCache:
 
     def stats(self) -> dict:
         """Entries, bytes, bound and counters, for reports."""
-        return {"name": self.name, "entries": len(self), "nbytes": self.nbytes, "max_bytes": self.max_bytes,
-                "hits": self.hits, "misses": self.misses, "evictions": self.evictions}
+        return {
+            "name": self.name,
+            "entries": len(self),
+            "nbytes": self.nbytes,
+            "max_bytes": self.max_bytes,
+            "hits": self.hits,
+            "misses": self.misses,
+            "evictions": self.evictions,
+        }

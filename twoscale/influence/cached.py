@@ -14,6 +14,7 @@ offset, ``h``) and moved to the grids asked for: a scene shifted by whole cells 
 position of a rolling road) finds every pair of patches it had before. Elsewhere pair
 operators are kept under the grids themselves (the same scene solved again).
 """
+
 from __future__ import annotations
 
 from typing import Any
@@ -118,8 +119,10 @@ class CachedBody(InfluenceProvider):
         self.body, self.caches = body, caches
         self._invariant = bool(getattr(body, "translation_invariant", False))
         # the caller-owned tables go to the methods that take them (a subclass may not)
-        self._tables = {name: {"tables": caches.tables} if self._invariant and _takes_tables(body, name) else {}
-                        for name in ("grid_matrix", "grid_operator", "separated_operator")}
+        self._tables = {
+            name: {"tables": caches.tables} if self._invariant and _takes_tables(body, name) else {}
+            for name in ("grid_matrix", "grid_operator", "separated_operator")
+        }
 
     def __getattr__(self, name: str) -> Any:
         # only reached for names this object does not have: the body's attributes
@@ -191,12 +194,14 @@ class CachedBody(InfluenceProvider):
         op = self._kept("separated", key, target, source)
         if op is None:
             # a pair's two directions: the reverse one's operator transposed (no new kernel values)
-            back = self._kept("separated", _pair_key("separated", source, target, rtol),
-                              source, target)
+            back = self._kept("separated", _pair_key("separated", source, target, rtol), source, target)
             op = back.transposed() if back is not None and back is not _TOO_CLOSE else back
         if op is None:
-            op = self._keep("separated", key, self.body.separated_operator(
-                target, source, rtol=rtol, **self._tables["separated_operator"]))
+            op = self._keep(
+                "separated",
+                key,
+                self.body.separated_operator(target, source, rtol=rtol, **self._tables["separated_operator"]),
+            )
         return None if op is _TOO_CLOSE else op
 
     def _kept(self, kind: str, key: tuple, target: Grid, source: Grid):
@@ -217,7 +222,7 @@ class CachedBody(InfluenceProvider):
             self.caches.operators.put(key, (self.caches.solve, _TOO_CLOSE), 0)
             return _TOO_CLOSE
         self.caches.count(kind, kept=False)
-        if hasattr(op, "moved"):   # an operator that cannot follow a translation is not kept
+        if hasattr(op, "moved"):  # an operator that cannot follow a translation is not kept
             self.caches.operators.put(key, (self.caches.solve, op), op.nbytes)
         return op
 

@@ -1,5 +1,6 @@
 """An approximate inverse of a square zero-padded convolution (:class:`CirculantInverse`),
 the preconditioner of the constrained conjugate gradients on the half-space."""
+
 from __future__ import annotations
 
 import numpy as np

@@ -1,4 +1,5 @@
 """The elastic half-space: Boussinesq point compliance, Love cell blocks, FFT products."""
+
 from __future__ import annotations
 
 import copy
@@ -38,11 +39,11 @@ def _folded(a: np.ndarray, start: int, n: int, *, axis: int) -> np.ndarray:
     view = np.moveaxis(a, axis, 0)
     stop = start + n - 1
     if start >= 0:
-        out = view[start:stop + 1]
+        out = view[start : stop + 1]
     elif stop <= 0:
-        out = view[-stop:-start + 1][::-1]
+        out = view[-stop : -start + 1][::-1]
     else:
-        out = np.concatenate([view[1:-start + 1][::-1], view[:stop + 1]])
+        out = np.concatenate([view[1 : -start + 1][::-1], view[: stop + 1]])
     return np.ascontiguousarray(np.moveaxis(out, 0, axis))
 
 
@@ -75,7 +76,7 @@ class HalfSpace(InfluenceProvider):
 
     material: Material
     kind: str = field(default="halfspace", init=False)
-    cheap_grid_matrix = True    # a strided copy of a cached Love table (not a field)
+    cheap_grid_matrix = True  # a strided copy of a cached Love table (not a field)
     translation_invariant = True
 
     @property
@@ -109,8 +110,7 @@ class HalfSpace(InfluenceProvider):
             table = tables.put(key, self._window(h, ox0, oy0, mx, my, tables), 8 * mx * my)
         return table, ox0, oy0
 
-    def _window(self, h: float, ox0: int, oy0: int, mx: int, my: int,
-                tables: BoundedCache | None) -> np.ndarray:
+    def _window(self, h: float, ox0: int, oy0: int, mx: int, my: int, tables: BoundedCache | None) -> np.ndarray:
         """Love's kernel on the offsets ``(oy0 + m, ox0 + n) h`` (read-only): a gather from
         the quadrant of offsets ``(|oy|, |ox|)`` (the kernel is even in both), kept per ``h``
         in the caller's ``tables`` (without them, a quadrant for this window only) and grown
@@ -134,8 +134,9 @@ class HalfSpace(InfluenceProvider):
         table.setflags(write=False)
         return table
 
-    def grid_matrix(self, target: Grid, source: Grid | None = None, *,
-                    tables: BoundedCache | None = None) -> np.ndarray:
+    def grid_matrix(
+        self, target: Grid, source: Grid | None = None, *, tables: BoundedCache | None = None
+    ) -> np.ndarray:
         source = target if source is None else source
         table, _, _ = self._offset_table(target, source, tables)
         # Entry (target (jt, it), source (js, is)) is table[jt - js + nys - 1, it - is + nxs - 1].
@@ -145,14 +146,14 @@ class HalfSpace(InfluenceProvider):
         windows = np.lib.stride_tricks.sliding_window_view(flipped, (source.ny, source.nx))
         return np.ascontiguousarray(windows[::-1, ::-1]).reshape(target.size, source.size)
 
-    def grid_operator(self, target: Grid, source: Grid | None = None, *,
-                      tables: BoundedCache | None = None) -> "ConvolutionOperator":
+    def grid_operator(
+        self, target: Grid, source: Grid | None = None, *, tables: BoundedCache | None = None
+    ) -> "ConvolutionOperator":
         source = target if source is None else source
         table, _, _ = self._offset_table(target, source, tables)
         return ConvolutionOperator(target, source, table)
 
-    def separated_operator(self, target: Grid, source: Grid, *, rtol: float = 1e-8,
-                           tables: BoundedCache | None = None):
+    def separated_operator(self, target: Grid, source: Grid, *, rtol: float = 1e-8, tables: BoundedCache | None = None):
         """Chebyshev low-rank block (:class:`~.separated.SeparatedOperator`) for a
         well-separated pair, with Love's cell kernel by its multipole expansion
         (:func:`~twoscale.analytic.halfspace.love_far_field`); ``None`` when the pair is
@@ -167,8 +168,9 @@ class HalfSpace(InfluenceProvider):
         if sep is None:
             return None
         E_star, h = self.E_star, float(source.h)
-        op = SeparatedOperator(rel_target, rel_source, lambda dx, dy: love_far_field(dx, dy, h, E_star, sep.order),
-                               sep, cache=tables)
+        op = SeparatedOperator(
+            rel_target, rel_source, lambda dx, dy: love_far_field(dx, dy, h, E_star, sep.order), sep, cache=tables
+        )
         return op.moved(target, source)
 
     def point_operator(self, targets, sources, *, exclude=None, rtol: float = 1e-6):
@@ -273,8 +275,8 @@ class ConvolutionOperator(GridOperator):
         """Target displacement from a (sum of) :meth:`multiply` result(s); ``a`` is overwritten."""
         my, mx = self._shape
         sy, sx = self.source.ny - 1, self.source.nx - 1
-        a = sfft.ifft(a, axis=-2, overwrite_x=True)[..., sy:sy + self.target.ny, :]
-        return sfft.irfft(a, n=mx, axis=-1)[..., sx:sx + self.target.nx]
+        a = sfft.ifft(a, axis=-2, overwrite_x=True)[..., sy : sy + self.target.ny, :]
+        return sfft.irfft(a, n=mx, axis=-1)[..., sx : sx + self.target.nx]
 
     @property
     def nbytes(self) -> int:

@@ -28,6 +28,7 @@ weights, FFT size and near pairs, the latter counted on a subsample of the targe
 the padded mesh capped at :data:`MESH_CAP` nodes (a binding cap pushes ``sigma`` up).
 Memory is ``O((N + M) p^2 + P + n_near + nnz(exclude))``: no ``M x N`` array.
 """
+
 from __future__ import annotations
 
 import math
@@ -63,7 +64,7 @@ _LAGRANGE_DELTA = {
 # Cost model, seconds per unit on one core (measured with scipy 1.17: CSR products,
 # scipy.fft, cKDTree and erfc). Builds are weighted as one per _APPLIES_PER_BUILD
 # products: the micro step rebuilds its operator whenever a patch moves.
-_W_APPLY, _W_BUILD = 5e-9, 4e-8          # per spreading / interpolation weight
+_W_APPLY, _W_BUILD = 5e-9, 4e-8  # per spreading / interpolation weight
 _FFT_APPLY, _FFT_BUILD = 1.7e-9, 1.7e-9  # per P log2 P of the padded mesh
 _PAIR_APPLY, _PAIR_BUILD = 5e-9, 1.5e-7  # per near pair
 _APPLIES_PER_BUILD = 10
@@ -149,8 +150,10 @@ def _meshes(boxes, x0: np.ndarray, H: float, p: int):
 
 def _fft_shape(tshape, sshape) -> tuple[int, int]:
     """Padded FFT mesh (y, x) for the linear convolution of the two meshes."""
-    return (sfft.next_fast_len(tshape[0] + sshape[0] - 1, real=False),
-            sfft.next_fast_len(tshape[1] + sshape[1] - 1, real=True))
+    return (
+        sfft.next_fast_len(tshape[0] + sshape[0] - 1, real=False),
+        sfft.next_fast_len(tshape[1] + sshape[1] - 1, real=True),
+    )
 
 
 def choose_parameters(targets: np.ndarray, sources: np.ndarray, rtol: float) -> EwaldParameters:
@@ -188,9 +191,16 @@ def choose_parameters(targets: np.ndarray, sources: np.ndarray, rtol: float) -> 
             build = _W_BUILD * weights + _FFT_BUILD * P * math.log2(P) + _PAIR_BUILD * npair
             cost = apply + build / _APPLIES_PER_BUILD
             if best is None or cost < best[0]:
-                best = (cost, EwaldParameters(sigma=float(sigma), spacing=float(h * sigma), order=p,
-                                              r_cut=float(alpha * sigma),
-                                              error_bound=float(erfc(alpha)) + lagrange_delta(p, h)))
+                best = (
+                    cost,
+                    EwaldParameters(
+                        sigma=float(sigma),
+                        spacing=float(h * sigma),
+                        order=p,
+                        r_cut=float(alpha * sigma),
+                        error_bound=float(erfc(alpha)) + lagrange_delta(p, h),
+                    ),
+                )
     if best is None:  # cannot happen: the largest sigma gives a mesh of a few nodes
         raise RuntimeError("no Ewald mesh fits under MESH_CAP")
     return best[1]
@@ -226,14 +236,15 @@ def _lagrange_weights(x: np.ndarray, p: int) -> tuple[np.ndarray, np.ndarray]:
     return k.astype(np.int64) + int(nodes[0]), W
 
 
-def _interpolation_matrix(points: np.ndarray, x0: np.ndarray, H: float, p: int,
-                          lo: tuple[int, int], shape: tuple[int, int]) -> sp.csr_matrix:
+def _interpolation_matrix(
+    points: np.ndarray, x0: np.ndarray, H: float, p: int, lo: tuple[int, int], shape: tuple[int, int]
+) -> sp.csr_matrix:
     """(len(points), ny * nx) CSR of tensor Lagrange weights on the mesh whose node
     ``(0, 0)`` is lattice index ``lo = (ix, iy)``; nodes in row-major order (x fastest)."""
     ny, nx = shape
     kx, wx = _lagrange_weights((points[:, 0] - x0[0]) / H, p)
     ky, wy = _lagrange_weights((points[:, 1] - x0[1]) / H, p)
-    ix = kx[:, None] - lo[0] + np.arange(p)          # (n, p)
+    ix = kx[:, None] - lo[0] + np.arange(p)  # (n, p)
     iy = ky[:, None] - lo[1] + np.arange(p)
     cols = (iy[:, :, None] * nx + ix[:, None, :]).reshape(len(points), -1)
     vals = (wy[:, :, None] * wx[:, None, :]).reshape(len(points), -1)
@@ -263,8 +274,16 @@ class EwaldPointOperator(PointOperator):
         Padded FFT mesh (ny, nx).
     """
 
-    def __init__(self, E_star: float, targets, sources, *, exclude=None, rtol: float = 1e-6,
-                 params: EwaldParameters | None = None):
+    def __init__(
+        self,
+        E_star: float,
+        targets,
+        sources,
+        *,
+        exclude=None,
+        rtol: float = 1e-6,
+        params: EwaldParameters | None = None,
+    ):
         if not (np.isfinite(rtol) and 0.0 < rtol < 1.0):
             raise ValueError(f"rtol must be in (0, 1), got {rtol!r}")
         if not (np.isfinite(E_star) and E_star > 0):
@@ -328,8 +347,8 @@ class EwaldPointOperator(PointOperator):
         a = sfft.rfft(q, n=mx, axis=1)
         a = sfft.fft(a, n=my, axis=0, overwrite_x=True)
         a *= self._khat
-        a = sfft.ifft(a, axis=0, overwrite_x=True)[nys - 1:nys - 1 + nyt]
-        v = sfft.irfft(a, n=mx, axis=1)[:, nxs - 1:nxs - 1 + nxt]
+        a = sfft.ifft(a, axis=0, overwrite_x=True)[nys - 1 : nys - 1 + nyt]
+        v = sfft.irfft(a, n=mx, axis=1)[:, nxs - 1 : nxs - 1 + nxt]
         return self._gather @ np.ascontiguousarray(v).reshape(nyt * nxt, k)
 
     def apply(self, forces):

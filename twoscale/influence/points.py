@@ -17,6 +17,7 @@ Conventions shared by every implementation:
 * ``apply(F)`` takes ``(N,)`` or ``(N, m)`` forces (N) and returns ``(M,)`` or ``(M, m)``
   displacements (mm).
 """
+
 from __future__ import annotations
 
 from abc import ABC, abstractmethod
@@ -79,8 +80,9 @@ class PointOperator(ABC):
     def _check_forces(self, forces) -> np.ndarray:
         F = np.asarray(forces, dtype=float)
         if F.shape[:1] != (len(self.sources),) or F.ndim > 2:
-            raise ValueError(f"forces must have shape ({len(self.sources)},) or "
-                             f"({len(self.sources)}, m), got {F.shape}")
+            raise ValueError(
+                f"forces must have shape ({len(self.sources)},) or ({len(self.sources)}, m), got {F.shape}"
+            )
         return F
 
 

@@ -10,6 +10,7 @@ stays light and works without scikit-fem. The table below is the declared entry 
 A caller with another body passes its provider object to the solver instead
 (``twoscale.solve(..., provider=...)``); nothing needs registering.
 """
+
 from __future__ import annotations
 
 import importlib
@@ -17,8 +18,7 @@ import importlib
 from ..material import Material
 
 #: Bodies by the scene file's ``influence.kind``: (module, class) of the provider.
-BODIES = {"halfspace": ("twoscale.influence.halfspace", "HalfSpace"),
-          "block": ("fem_influence", "BlockProvider")}
+BODIES = {"halfspace": ("twoscale.influence.halfspace", "HalfSpace"), "block": ("fem_influence", "BlockProvider")}
 
 
 def body_class(kind: str) -> type:

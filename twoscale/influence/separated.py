@@ -27,6 +27,7 @@ Accuracy (relative to the largest displacement of one-signed pressure):
 ``tests/test_separated.py`` checks the bound against the exact (Love, FFT) product over a
 range of separations, sizes and tolerances.
 """
+
 from __future__ import annotations
 
 import copy
@@ -119,15 +120,19 @@ def plan(target: Grid, source: Grid, rtol: float, *, q_max: int = Q_MAX) -> Sepa
     (or the low-rank form would cost more than the dense block or the FFT product)."""
     check_rtol(rtol)
     h = float(source.h)
-    gap = box_gap(target, source) - h / math.sqrt(2.0)     # the source cell's extent
+    gap = box_gap(target, source) - h / math.sqrt(2.0)  # the source cell's extent
     if gap <= 2.0 * h:
         return None
     order = next((o for o, c in FAR_FIELD_BOUND.items() if c * (h / gap) ** (o + 2) <= 0.25 * rtol), None)
     if order is None:
         return None
     qs = []
-    for g, lo, hi, n in ((target, *_box(target)[:2], target.nx), (target, *_box(target)[2:], target.ny),
-                         (source, *_box(source)[:2], source.nx), (source, *_box(source)[2:], source.ny)):
+    for g, lo, hi, n in (
+        (target, *_box(target)[:2], target.nx),
+        (target, *_box(target)[2:], target.ny),
+        (source, *_box(source)[:2], source.nx),
+        (source, *_box(source)[2:], source.ny),
+    ):
         w = 0.5 * (hi - lo)
         if w == 0.0:
             qs.append(1)
@@ -147,8 +152,9 @@ def plan(target: Grid, source: Grid, rtol: float, *, q_max: int = Q_MAX) -> Sepa
     return SeparationPlan(q=(qtx, qty, qsx, qsy), order=order)
 
 
-def _nodes(lo: float, hi: float, q: int, n: int, h: float,
-           cache: BoundedCache | None = None) -> tuple[np.ndarray, np.ndarray]:
+def _nodes(
+    lo: float, hi: float, q: int, n: int, h: float, cache: BoundedCache | None = None
+) -> tuple[np.ndarray, np.ndarray]:
     """Nodes of one coordinate and the interpolation matrix from them to the ``n`` cells
     (read-only; every patch recurs in many pairs, so they are kept in ``cache`` when given)."""
     key = ("chebyshev", lo, hi, q, n, h)
@@ -188,8 +194,7 @@ class SeparatedOperator(GridOperator):
     node sets by value (grid and node counts).
     """
 
-    def __init__(self, target: Grid, source: Grid, kernel, sep: SeparationPlan, *,
-                 cache: BoundedCache | None = None):
+    def __init__(self, target: Grid, source: Grid, kernel, sep: SeparationPlan, *, cache: BoundedCache | None = None):
         self.target, self.source = target, source
         self.plan = sep
         qtx, qty, qsx, qsy = sep.q
@@ -200,8 +205,8 @@ class SeparatedOperator(GridOperator):
         nsx, self._Ssx = _nodes(sx0, sx1, qsx, source.nx, source.h, cache)
         nsy, self._Ssy = _nodes(sy0, sy1, qsy, source.ny, source.h, cache)
         # K[(ty, tx), (sy, sx)] = kernel(tx - sx, ty - sy)
-        dx = ntx[:, None] - nsx[None, :]                      # (qtx, qsx)
-        dy = nty[:, None] - nsy[None, :]                      # (qty, qsy)
+        dx = ntx[:, None] - nsx[None, :]  # (qtx, qsx)
+        dy = nty[:, None] - nsy[None, :]  # (qty, qsy)
         DX, DY = np.broadcast_arrays(dx[None, :, None, :], dy[:, None, :, None])
         self._K = kernel(DX, DY).reshape(len(nty) * len(ntx), len(nsy) * len(nsx))
 

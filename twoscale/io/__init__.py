@@ -2,6 +2,7 @@
 
 ``scene_file``: TOML scene reader/validator; ``result_json``: result.json writer.
 """
+
 from .scene_file import SceneError, read_scene, scene_from_dict, scene_to_dict
 from .result_json import result_to_dict, write_result
 

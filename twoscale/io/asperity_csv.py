@@ -14,6 +14,7 @@ final pressure over the cells the asperity owns (so the forces sum to the total 
 mean pressure is force / contact area (0 without contact); the macro step's force is
 present for methods that have a macro step.
 """
+
 from __future__ import annotations
 
 from pathlib import Path
@@ -25,8 +26,18 @@ from .tables import LONG_TABLE, write_table
 UNITS = {"length": "mm", "force": "N", "area": "mm2", "pressure": "MPa"}
 
 ASPERITY_CSV_NAME = "asperities.csv"
-COLUMNS = ("asperity", "x_mm", "y_mm", "z_mm", "R_mm", "shape", "force_N", "contact_area_mm2",
-           "max_pressure_MPa", "mean_pressure_MPa")
+COLUMNS = (
+    "asperity",
+    "x_mm",
+    "y_mm",
+    "z_mm",
+    "R_mm",
+    "shape",
+    "force_N",
+    "contact_area_mm2",
+    "max_pressure_MPa",
+    "mean_pressure_MPa",
+)
 
 
 def asperity_rows(result, asperities: Sequence) -> list[dict]:
@@ -37,10 +48,18 @@ def asperity_rows(result, asperities: Sequence) -> list[dict]:
     rows = []
     for k, a in enumerate(asperities):
         f, area = float(s.forces[k]), float(s.contact_areas[k])
-        row = {"asperity": k + 1, "x_mm": float(a.x), "y_mm": float(a.y), "z_mm": float(a.z),
-               "R_mm": float(a.R), "shape": a.shape, "force_N": f, "contact_area_mm2": area,
-               "max_pressure_MPa": float(s.max_pressures[k]),
-               "mean_pressure_MPa": f / area if area > 0 else 0.0}
+        row = {
+            "asperity": k + 1,
+            "x_mm": float(a.x),
+            "y_mm": float(a.y),
+            "z_mm": float(a.z),
+            "R_mm": float(a.R),
+            "shape": a.shape,
+            "force_N": f,
+            "contact_area_mm2": area,
+            "max_pressure_MPa": float(s.max_pressures[k]),
+            "mean_pressure_MPa": f / area if area > 0 else 0.0,
+        }
         if macro is not None:
             row["macro_force_N"] = float(macro[k])
         rows.append(row)
@@ -50,9 +69,12 @@ def asperity_rows(result, asperities: Sequence) -> list[dict]:
 #: What each column holds (recorded in the metadata JSON beside the CSV).
 DESCRIPTIONS = {
     "asperity": "tip number, from 1 in scene order (as on the figures and in the owner array)",
-    "x_mm": "tip position x, mm", "y_mm": "tip position y, mm",
-    "z_mm": "tip recess above the lowest tip level, mm", "R_mm": "tip radius, mm",
-    "shape": "sphere or paraboloid", "force_N": "integral of the final pressure over the cells the tip owns, N",
+    "x_mm": "tip position x, mm",
+    "y_mm": "tip position y, mm",
+    "z_mm": "tip recess above the lowest tip level, mm",
+    "R_mm": "tip radius, mm",
+    "shape": "sphere or paraboloid",
+    "force_N": "integral of the final pressure over the cells the tip owns, N",
     "contact_area_mm2": "area of the loaded cells the tip owns, mm2",
     "max_pressure_MPa": "largest cell pressure on the tip, MPa",
     "mean_pressure_MPa": "force / contact area, MPa (0 without contact)",
@@ -60,8 +82,9 @@ DESCRIPTIONS = {
 }
 
 
-def write_asperity_csv(result, asperities: Sequence, path: str | Path, *,
-                       scene: Mapping[str, Any] | None = None, source: str = "") -> list[Path]:
+def write_asperity_csv(
+    result, asperities: Sequence, path: str | Path, *, scene: Mapping[str, Any] | None = None, source: str = ""
+) -> list[Path]:
     """Write the per-asperity table (see module doc) at ``path``, its metadata JSON and,
     with pyarrow, its Parquet copy beside it (:func:`twoscale.io.tables.write_table`).
 
@@ -85,6 +108,13 @@ def write_asperity_csv(result, asperities: Sequence, path: str | Path, *,
     fields = COLUMNS + (("macro_force_N",) if rows and "macro_force_N" in rows[0] else ())
     record = {"source": source, "units": dict(UNITS), "scene": None if scene is None else dict(scene)}
     path = Path(path)
-    return write_table(path.parent, path.name.removesuffix(".csv"), rows, fields, record=record,
-                       title="per-tip forces, contact areas and pressures of a solve",
-                       descriptions=DESCRIPTIONS, parquet=LONG_TABLE)
+    return write_table(
+        path.parent,
+        path.name.removesuffix(".csv"),
+        rows,
+        fields,
+        record=record,
+        title="per-tip forces, contact areas and pressures of a solve",
+        descriptions=DESCRIPTIONS,
+        parquet=LONG_TABLE,
+    )

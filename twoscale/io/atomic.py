@@ -4,6 +4,7 @@ A reader never sees half a file, and a failed write leaves nothing behind. The f
 gets the usual permissions (``0o666`` masked by the umask), not the owner-only mode
 of a raw temporary file.
 """
+
 from __future__ import annotations
 
 import contextlib

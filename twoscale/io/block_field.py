@@ -17,6 +17,7 @@ part) and ``depth_mm``. Metadata (version, units, scene, block, aggregation, tot
 force) as in :mod:`twoscale.io.vtk`: an XML comment and the field array
 ``twoscale_metadata``.
 """
+
 from __future__ import annotations
 
 import json
@@ -58,14 +59,21 @@ def loaded_point_forces(result: ContactResult) -> tuple[np.ndarray, np.ndarray]:
         p = f.pressure.ravel()
         ok = (f.owner.ravel() >= 0) & (p > 0)
         pts.append(f.grid.points().reshape(-1, 2)[ok])
-        forces.append(f.grid.h ** 2 * p[ok])
+        forces.append(f.grid.h**2 * p[ok])
     if not pts:
         return np.zeros((0, 2)), np.zeros(0)
     return np.vstack(pts), np.concatenate(forces)
 
 
-def write_block_field(result: ContactResult, provider, path, *, scene: dict | None = None,
-                      aggregate: float = DEFAULT_AGGREGATE, binary: bool = True) -> Path:
+def write_block_field(
+    result: ContactResult,
+    provider,
+    path,
+    *,
+    scene: dict | None = None,
+    aggregate: float = DEFAULT_AGGREGATE,
+    binary: bool = True,
+) -> Path:
     """Write the block's displacement field for ``result`` to ``path`` (.vtu).
 
     Parameters
@@ -96,19 +104,28 @@ def write_block_field(result: ContactResult, provider, path, *, scene: dict | No
     # z = -depth mirrors the mesh: swap the two quad faces so VTK hexahedra keep a
     # positive volume
     cells = fld.cells[:, HEX_MAPPING[:8]][:, [4, 5, 6, 7, 0, 1, 2, 3]]
-    mesh = meshio.Mesh(points, [("hexahedron", cells)], point_data={
-        "displacement_mm": fld.displacement * up,
-        "displacement_halfspace_mm": fld.halfspace * up,
-        "depth_mm": fld.points[:, 2].copy(),
-    })
+    mesh = meshio.Mesh(
+        points,
+        [("hexahedron", cells)],
+        point_data={
+            "displacement_mm": fld.displacement * up,
+            "displacement_halfspace_mm": fld.halfspace * up,
+            "depth_mm": fld.points[:, 2].copy(),
+        },
+    )
     meta = {
-        "program": "twoscale", "version": __version__, "units": UNITS, "file": "block displacement",
+        "program": "twoscale",
+        "version": __version__,
+        "units": UNITS,
+        "file": "block displacement",
         "frame": "x, y scene frame; z up (top face z = 0); displacement z up",
         "block": {"size": list(provider.size), "base": provider.base, "origin": list(provider.origin)},
         "material": {"E": provider.material.E, "nu": provider.material.nu},
-        "aggregate_mm": fld.aggregate, "n_point_forces": fld.n_forces, "total_force": fld.total_force,
+        "aggregate_mm": fld.aggregate,
+        "n_point_forces": fld.n_forces,
+        "total_force": fld.total_force,
         "approximation": "Boussinesq point forces h^2 p merged into aggregates; poor within a few "
-                         "aggregates of the loaded surface",
+        "aggregates of the loaded surface",
         "scene": scene,
     }
     path = Path(path)
@@ -126,9 +143,13 @@ def read_block_field(path) -> BlockFieldContent:
         raise ValueError(f"{path}: no {_META} field array (not written by twoscale)")
     meta = json.loads(bytes(np.asarray(mesh.field_data[_META], dtype=np.uint8)).decode("utf-8"))
     pd = mesh.point_data
-    return BlockFieldContent(points=np.asarray(mesh.points), displacement=np.asarray(pd["displacement_mm"]),
-                             halfspace=np.asarray(pd["displacement_halfspace_mm"]),
-                             cells=np.asarray(mesh.cells_dict["hexahedron"]), metadata=meta)
+    return BlockFieldContent(
+        points=np.asarray(mesh.points),
+        displacement=np.asarray(pd["displacement_mm"]),
+        halfspace=np.asarray(pd["displacement_halfspace_mm"]),
+        cells=np.asarray(mesh.cells_dict["hexahedron"]),
+        metadata=meta,
+    )
 
 
 def _atomic_write(mesh, path: Path, meta: dict, binary: bool) -> None:
@@ -139,8 +160,10 @@ def _atomic_write(mesh, path: Path, meta: dict, binary: bool) -> None:
 
     text = _metadata_text(meta)
     codes = " ".join(str(b) for b in text.encode("utf-8"))
-    field = (f'<FieldData>\n<DataArray type="UInt8" Name="{_META}" NumberOfTuples="{len(text.encode("utf-8"))}" '
-             f'format="ascii">\n{codes}\n</DataArray>\n</FieldData>\n')
+    field = (
+        f'<FieldData>\n<DataArray type="UInt8" Name="{_META}" NumberOfTuples="{len(text.encode("utf-8"))}" '
+        f'format="ascii">\n{codes}\n</DataArray>\n</FieldData>\n'
+    )
     with atomic_output(path) as tmp:
         meshio.vtu.write(str(tmp), mesh, binary=binary)
         xml = tmp.read_text(encoding="utf-8")

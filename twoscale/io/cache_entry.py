@@ -20,6 +20,7 @@ handled the same way everywhere:
 
 The files stay plain ``.npz`` (``numpy.load`` reads them; no pickle).
 """
+
 from __future__ import annotations
 
 import hashlib
@@ -76,7 +77,7 @@ def read_entry(path: str | os.PathLike) -> dict:
     try:
         if path.stat().st_size == 0:
             raise BadEntry("empty file")
-        with open(path, "rb") as fh, np.load(fh, allow_pickle=False) as data:   # closed on any error
+        with open(path, "rb") as fh, np.load(fh, allow_pickle=False) as data:  # closed on any error
             arrays = {name: data[name] for name in data.files}
     except (FileNotFoundError, BadEntry):
         raise
@@ -119,12 +120,24 @@ class CacheUsage:
 
     def since(self, before: CacheUsage) -> CacheUsage:
         """The usage between ``before`` (an earlier snapshot of the same cache) and this one."""
-        return CacheUsage(self.name, self.folder, self.read - before.read, self.written - before.written,
-                          self.dropped[len(before.dropped):], self.disabled)
+        return CacheUsage(
+            self.name,
+            self.folder,
+            self.read - before.read,
+            self.written - before.written,
+            self.dropped[len(before.dropped) :],
+            self.disabled,
+        )
 
     def as_dict(self) -> dict:
-        return {"name": self.name, "folder": self.folder, "read": self.read, "written": self.written,
-                "dropped": list(self.dropped), "disabled": self.disabled}
+        return {
+            "name": self.name,
+            "folder": self.folder,
+            "read": self.read,
+            "written": self.written,
+            "dropped": list(self.dropped),
+            "disabled": self.disabled,
+        }
 
 
 class EntryFolder:
@@ -176,14 +189,20 @@ class EntryFolder:
         try:
             path.unlink()
         except OSError:
-            pass   # a read-only folder: the entry is rewritten (or skipped) by save
+            pass  # a read-only folder: the entry is rewritten (or skipped) by save
         self.dropped.append(path.name)
         if len(self.dropped) <= MAX_WARNED:
-            warnings.warn(CacheWarning(f"cache entry {path} was damaged ({reason}): dropped and computed again"),
-                          stacklevel=3)
+            warnings.warn(
+                CacheWarning(f"cache entry {path} was damaged ({reason}): dropped and computed again"), stacklevel=3
+            )
         elif len(self.dropped) == MAX_WARNED + 1:
-            warnings.warn(CacheWarning(f"more damaged entries in {self.directory}: dropped and computed again, "
-                                       f"counted in result.json (caches), not listed"), stacklevel=3)
+            warnings.warn(
+                CacheWarning(
+                    f"more damaged entries in {self.directory}: dropped and computed again, "
+                    f"counted in result.json (caches), not listed"
+                ),
+                stacklevel=3,
+            )
 
     def save(self, filename: str, arrays: dict) -> int | None:
         """Store the entry; returns its size in bytes, or None when the folder cannot be
@@ -194,16 +213,20 @@ class EntryFolder:
             size = write_entry(self.path(filename), arrays)
         except OSError as exc:
             self.disabled = f"{type(exc).__name__}: {exc.strerror or exc}"
-            warnings.warn(CacheWarning(f"cache folder {self.directory} cannot be written ({self.disabled}): "
-                                       f"the {self.name} cache is not kept for this run (the results do not "
-                                       f"change, only the time)"), stacklevel=3)
+            warnings.warn(
+                CacheWarning(
+                    f"cache folder {self.directory} cannot be written ({self.disabled}): "
+                    f"the {self.name} cache is not kept for this run (the results do not "
+                    f"change, only the time)"
+                ),
+                stacklevel=3,
+            )
             return None
         self.written += 1
         return size
 
     def usage(self) -> CacheUsage:
-        return CacheUsage(self.name, str(self.directory), self.read, self.written, tuple(self.dropped),
-                          self.disabled)
+        return CacheUsage(self.name, str(self.directory), self.read, self.written, tuple(self.dropped), self.disabled)
 
 
 def usage_since(before: tuple, after: tuple) -> tuple:

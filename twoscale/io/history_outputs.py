@@ -11,6 +11,7 @@
   one grid covering every field, a VTK time series ParaView opens and animates;
 * ``history.png``: :func:`twoscale.plot.history.history_figure`.
 """
+
 from __future__ import annotations
 
 import csv
@@ -29,8 +30,16 @@ HISTORY_CSV_NAME = "history.csv"
 HISTORY_JSON_NAME = "result.json"
 HISTORY_FIELDS_NAME = "fields.pvd"
 HISTORY_FIGURE_NAME = "history.png"
-UNITS = {"time": "s", "length": "mm", "force": "N", "pressure": "MPa", "modulus": "MPa", "area": "mm^2",
-         "compliance": "1/MPa", "angle": "rad"}
+UNITS = {
+    "time": "s",
+    "length": "mm",
+    "force": "N",
+    "pressure": "MPa",
+    "modulus": "MPa",
+    "area": "mm^2",
+    "compliance": "1/MPa",
+    "angle": "rad",
+}
 
 
 def history_columns(n_asperities: int, tilt: bool) -> list[str]:
@@ -70,24 +79,41 @@ def history_to_dict(result, scene: Scene) -> dict:
         "method": result.method,
         "converged": bool(result.converged),
         "message": result.message,
-        "material": {"E_relaxed": m.E, "nu": m.nu, "E_glassy": m.E_glassy,
-                     "prony": [list(b) for b in m.prony],
-                     "retardation_times": J.lambdas.tolist(), "creep_weights": J.c.tolist(),
-                     "J_relaxed": J.J_inf, "J_glassy": J.J0},
-        "history": {"control": result.history.kind, "points": [list(p) for p in result.history.points],
-                    "steps_rule": result.history.steps.describe()},
-        "steps": {"count": len(result.steps), "redone": int(result.rejected),
-                  "error_estimate": result.error_estimate,
-                  "t": [s.t for s in result.steps], "dt": [s.dt for s in result.steps],
-                  "J_eff": [s.J_eff for s in result.steps],
-                  "error": [s.error for s in result.steps],
-                  "iterations": [s.iterations for s in result.steps],
-                  "seconds": [s.seconds for s in result.steps]},
+        "material": {
+            "E_relaxed": m.E,
+            "nu": m.nu,
+            "E_glassy": m.E_glassy,
+            "prony": [list(b) for b in m.prony],
+            "retardation_times": J.lambdas.tolist(),
+            "creep_weights": J.c.tolist(),
+            "J_relaxed": J.J_inf,
+            "J_glassy": J.J0,
+        },
+        "history": {
+            "control": result.history.kind,
+            "points": [list(p) for p in result.history.points],
+            "steps_rule": result.history.steps.describe(),
+        },
+        "steps": {
+            "count": len(result.steps),
+            "redone": int(result.rejected),
+            "error_estimate": result.error_estimate,
+            "t": [s.t for s in result.steps],
+            "dt": [s.dt for s in result.steps],
+            "J_eff": [s.J_eff for s in result.steps],
+            "error": [s.error for s in result.steps],
+            "iterations": [s.iterations for s in result.steps],
+            "seconds": [s.seconds for s in result.steps],
+        },
         "memory": dict(result.memory),
-        "outputs": {"time_s": result.times.tolist(), "penetration_mm": result.penetration.tolist(),
-                    "total_load_N": result.total_load.tolist(), "contact_area_mm2": result.contact_area.tolist(),
-                    "tilt_rad": None if result.tilt is None else result.tilt.tolist(),
-                    "forces_N": result.forces.tolist()},
+        "outputs": {
+            "time_s": result.times.tolist(),
+            "penetration_mm": result.penetration.tolist(),
+            "total_load_N": result.total_load.tolist(),
+            "contact_area_mm2": result.contact_area.tolist(),
+            "tilt_rad": None if result.tilt is None else result.tilt.tolist(),
+            "forces_N": result.forces.tolist(),
+        },
         "timings_s": dict(result.timings_s),
         "scene": scene_to_dict(scene),
     }
@@ -104,8 +130,9 @@ def _covering(results) -> Grid:
     h = results[0].fields[0].grid.h
     anchor = (results[0].fields[0].grid.x0, results[0].fields[0].grid.y0)
     e = 0.25 * h
-    return Grid.covering(boxes[:, 0].min() + e, boxes[:, 1].max() - e, boxes[:, 2].min() + e,
-                         boxes[:, 3].max() - e, h, anchor=anchor)
+    return Grid.covering(
+        boxes[:, 0].min() + e, boxes[:, 1].max() - e, boxes[:, 2].min() + e, boxes[:, 3].max() - e, h, anchor=anchor
+    )
 
 
 def write_history_fields(result, path, *, comment: str | None = None) -> Path:
@@ -126,8 +153,7 @@ def write_history_fields(result, path, *, comment: str | None = None) -> Path:
             gap[rows, cols] = np.where(np.isfinite(f.gap), f.gap, np.nan)
             owner[rows, cols] = np.where(f.owner >= 0, f.owner + 1, owner[rows, cols])
         name = f"t_{k:04d}.vti"
-        write_image(folder / name, grid, {"pressure_MPa": p, "gap_mm": gap, "asperity": owner},
-                    comment=comment)
+        write_image(folder / name, grid, {"pressure_MPa": p, "gap_mm": gap, "asperity": owner}, comment=comment)
         entries.append((float(t), f"{folder.name}/{name}"))
     lines = ['<?xml version="1.0"?>\n']
     if comment:
@@ -143,10 +169,14 @@ def write_history_outputs(result, scene: Scene, out_dir, *, figures: bool = True
     """Every file of a history into ``out_dir`` (module docstring)."""
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
-    written = [write_history_csv(result, out / HISTORY_CSV_NAME), write_history_json(result, scene, out / HISTORY_JSON_NAME)]
+    written = [
+        write_history_csv(result, out / HISTORY_CSV_NAME),
+        write_history_json(result, scene, out / HISTORY_JSON_NAME),
+    ]
     if vtk:
-        written.append(write_history_fields(result, out / HISTORY_FIELDS_NAME,
-                                            comment=f"twoscale {__version__}; units mm, MPa, s"))
+        written.append(
+            write_history_fields(result, out / HISTORY_FIELDS_NAME, comment=f"twoscale {__version__}; units mm, MPa, s")
+        )
     if figures:
         from ..plot.history import history_figure
 

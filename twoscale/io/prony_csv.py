@@ -1,5 +1,6 @@
 """Prony branches from a CSV file: two columns ``E_k`` (MPa) and ``tau_k`` (s), one branch
 a row, an optional header line, ``#`` comments allowed (what a DMA fit exports)."""
+
 from __future__ import annotations
 
 import csv
@@ -32,7 +33,9 @@ def read_prony_csv(path, *, base_dir: str | None = None) -> tuple:
         except ValueError:
             if n == 1 and not out:  # a header line
                 continue
-            raise SceneError(f"material.prony_file {path!r}, row {n}: not two numbers E_k, tau_k, got {row!r}") from None
+            raise SceneError(
+                f"material.prony_file {path!r}, row {n}: not two numbers E_k, tau_k, got {row!r}"
+            ) from None
         if len(values) != 2:
             raise SceneError(f"material.prony_file {path!r}, row {n}: need two numbers E_k, tau_k, got {row!r}")
         out.append(tuple(values))

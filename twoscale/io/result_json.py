@@ -27,6 +27,7 @@ and ``units_from``, ``missing_samples`` and ``missing_treated_as``, ``edge_conta
 
 :func:`read_forces` reads the per-asperity forces back.
 """
+
 from __future__ import annotations
 
 import dataclasses
@@ -104,8 +105,11 @@ def result_to_dict(result, scene: Scene, *, method: str | None = None, h_source:
     summ = result.asperities
     asperities = []
     for k in range(len(summ.forces)):
-        row = {"force": _num(summ.forces[k]), "contact_area": _num(summ.contact_areas[k]),
-               "max_pressure": _num(summ.max_pressures[k])}
+        row = {
+            "force": _num(summ.forces[k]),
+            "contact_area": _num(summ.contact_areas[k]),
+            "max_pressure": _num(summ.max_pressures[k]),
+        }
         if macro is not None:
             row["macro_force"] = _num(macro[k])
         asperities.append(row)
@@ -145,10 +149,18 @@ def result_to_dict(result, scene: Scene, *, method: str | None = None, h_source:
 def _height_map_record(s: SurfaceDetails) -> dict:
     """The ``height_map`` of result.json: the map as conditioned, and the asperities
     (numbered from 1) whose contact reaches its edge."""
-    return {"file": s.source, "samples": list(s.samples), "spacing_mm": _num(s.spacing),
-            "measured_spacing_mm": None if s.measured_spacing is None else _num(s.measured_spacing), "units": s.units,
-            "units_from": s.units_from, "missing_samples": s.missing, "missing_treated_as": s.fill,
-            "edge_contacts": len(s.edge_contacts), "edge_asperities": [k + 1 for k in s.edge_contacts]}
+    return {
+        "file": s.source,
+        "samples": list(s.samples),
+        "spacing_mm": _num(s.spacing),
+        "measured_spacing_mm": None if s.measured_spacing is None else _num(s.measured_spacing),
+        "units": s.units,
+        "units_from": s.units_from,
+        "missing_samples": s.missing,
+        "missing_treated_as": s.fill,
+        "edge_contacts": len(s.edge_contacts),
+        "edge_asperities": [k + 1 for k in s.edge_contacts],
+    }
 
 
 def _h_source(scene: Scene) -> str:
@@ -167,10 +179,14 @@ def _setting_record(result, scene: Scene) -> dict:
 
         result = with_setting(result, scene, _InfluenceOnly(scene.influence))
     ratio = result.contact_ratio
-    return {"contact_area": _num(result.contact_area), "nominal_area": _num(result.nominal_area),
-            "nominal_area_basis": result.nominal_area_basis,
-            "contact_area_ratio": None if ratio is None else _num(ratio),
-            "body": result.body.as_dict(), "scene_name": result.scene_name}
+    return {
+        "contact_area": _num(result.contact_area),
+        "nominal_area": _num(result.nominal_area),
+        "nominal_area_basis": result.nominal_area_basis,
+        "contact_area_ratio": None if ratio is None else _num(ratio),
+        "body": result.body.as_dict(),
+        "scene_name": result.scene_name,
+    }
 
 
 class _InfluenceOnly:
@@ -186,12 +202,19 @@ def _twoscale_record(details: TwoScaleDetails) -> dict:
     choice = micro.choice
     return {
         # how the macro step held the interaction, and the measured error of a fast operator
-        "macro": {"interaction": macro.interaction,
-                  "operator_error": None if macro.operator_error is None else _num(macro.operator_error)},
+        "macro": {
+            "interaction": macro.interaction,
+            "operator_error": None if macro.operator_error is None else _num(macro.operator_error),
+        },
         "micro_iteration": micro.iteration,
         # what the policy chose and why, and every attempt the driver made, in order
-        "micro_choice": {"iteration": choice.iteration, "far_tol": _plain(choice.far_tol), "reason": choice.reason,
-                         "by_caller": bool(choice.by_caller), "estimates": _plain(dict(choice.estimates))},
+        "micro_choice": {
+            "iteration": choice.iteration,
+            "far_tol": _plain(choice.far_tol),
+            "reason": choice.reason,
+            "by_caller": bool(choice.by_caller),
+            "estimates": _plain(dict(choice.estimates)),
+        },
         "micro_attempts": [_plain(dataclasses.asdict(a)) for a in micro.attempts],
         "coupling": _plain(dataclasses.asdict(micro.coupling)),
         # asperities numbered from 1, as in the scene file (0-based in Python)
@@ -199,8 +222,15 @@ def _twoscale_record(details: TwoScaleDetails) -> dict:
     }
 
 
-def write_result(result, scene: Scene, out_dir: str | os.PathLike, *, method: str | None = None,
-                 h_source: str | None = None, record: dict | None = None) -> Path:
+def write_result(
+    result,
+    scene: Scene,
+    out_dir: str | os.PathLike,
+    *,
+    method: str | None = None,
+    h_source: str | None = None,
+    record: dict | None = None,
+) -> Path:
     """Write ``out_dir/result.json`` atomically (temporary file, then ``os.replace``).
 
     The directory is created if needed; call this only once a solve has returned, so a

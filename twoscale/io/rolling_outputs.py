@@ -22,6 +22,7 @@
 under it): the sum over the contact of the pressure times the road's x-slope, times the
 cell area; positive when the road drags the body along (the resistance to rolling).
 """
+
 from __future__ import annotations
 
 import json
@@ -55,18 +56,28 @@ UNITS = {"length": "mm", "force": "N", "pressure": "MPa", "time": "s", "speed": 
 
 def signal_rows(result) -> list[dict]:
     """The rows of ``signals.csv``."""
-    return [dict(zip(SIGNAL_COLUMNS, (float(t), float(s), float(w), float(d), float(a), float(g))))
-            for t, s, w, d, a, g in zip(result.times, result.shifts, result.total_load, result.penetration,
-                                        result.contact_area, result.drag)]
+    return [
+        dict(zip(SIGNAL_COLUMNS, (float(t), float(s), float(w), float(d), float(a), float(g))))
+        for t, s, w, d, a, g in zip(
+            result.times, result.shifts, result.total_load, result.penetration, result.contact_area, result.drag
+        )
+    ]
 
 
 def asperity_rows(result) -> list[dict]:
     """The rows of ``asperity_signals.csv`` (positions in order, stones by number)."""
     a = result.asperities
     order = np.lexsort((a.stone, a.position))
-    return [{"time_s": float(result.times[a.position[k]]), "shift_mm": float(result.shifts[a.position[k]]),
-             "asperity": int(a.stone[k]), "force_N": float(a.force[k]), "contact_area_mm2": float(a.contact_area[k])}
-            for k in order]
+    return [
+        {
+            "time_s": float(result.times[a.position[k]]),
+            "shift_mm": float(result.shifts[a.position[k]]),
+            "asperity": int(a.stone[k]),
+            "force_N": float(a.force[k]),
+            "contact_area_mm2": float(a.contact_area[k]),
+        }
+        for k in order
+    ]
 
 
 def rolling_to_dict(result, scene) -> dict:
@@ -75,21 +86,47 @@ def rolling_to_dict(result, scene) -> dict:
 
     spec = result.spec
     return {
-        "program": "twoscale", "version": __version__, "units": UNITS,
-        "scene": scene_to_dict(scene), "body": result.body,
-        "material": {"E": scene.material.E, "nu": scene.material.nu, "E_star": scene.material.E_star,
-                     "prony": [list(b) for b in scene.material.prony]},
-        "speed_kmh": spec.speed, "speed_mm_s": spec.speed_mm_s, "control": result.control,
+        "program": "twoscale",
+        "version": __version__,
+        "units": UNITS,
+        "scene": scene_to_dict(scene),
+        "body": result.body,
+        "material": {
+            "E": scene.material.E,
+            "nu": scene.material.nu,
+            "E_star": scene.material.E_star,
+            "prony": [list(b) for b in scene.material.prony],
+        },
+        "speed_kmh": spec.speed,
+        "speed_mm_s": spec.speed_mm_s,
+        "control": result.control,
         "held": scene.penetration if result.control == "penetration" else scene.total_load,
-        "method": result.method, "h_mm": result.h,
-        "steps": {"start_mm": spec.start, "end_mm": spec.end, "step_mm": spec.step, "positions": len(result.shifts),
-                  "first_shift_mm": float(result.shifts[0]), "last_shift_mm": float(result.shifts[-1]),
-                  "duration_s": float(result.times[-1])},
-        "converged": result.all_converged, "mean_drag_N": result.mean_drag,
-        "positions": [{"shift_mm": float(s), "converged": bool(c), "micro_sweeps": int(i), "stones": int(n),
-                       "seconds": float(t), "message": m}
-                      for s, c, i, n, t, m in zip(result.shifts, result.converged, result.iterations, result.stones,
-                                                  result.seconds, result.messages)],
+        "method": result.method,
+        "h_mm": result.h,
+        "steps": {
+            "start_mm": spec.start,
+            "end_mm": spec.end,
+            "step_mm": spec.step,
+            "positions": len(result.shifts),
+            "first_shift_mm": float(result.shifts[0]),
+            "last_shift_mm": float(result.shifts[-1]),
+            "duration_s": float(result.times[-1]),
+        },
+        "converged": result.all_converged,
+        "mean_drag_N": result.mean_drag,
+        "positions": [
+            {
+                "shift_mm": float(s),
+                "converged": bool(c),
+                "micro_sweeps": int(i),
+                "stones": int(n),
+                "seconds": float(t),
+                "message": m,
+            }
+            for s, c, i, n, t, m in zip(
+                result.shifts, result.converged, result.iterations, result.stones, result.seconds, result.messages
+            )
+        ],
         "timings_s": {k: float(v) for k, v in result.timings_s.items()},
         **_energy(result),
     }
@@ -99,17 +136,22 @@ def _energy(result) -> dict:
     """A viscoelastic run's energy per position and its balance with the drag's work."""
     if not result.dissipated.size:
         return {}
-    return {"energy_Nmm": {"dissipated": result.dissipated.tolist(), "stored": result.stored.tolist(),
-                           "drag_work": result.drag_work(),
-                           "stored_change_plus_dissipated": float(result.stored[-1] - result.stored[0]
-                                                                  + np.sum(result.dissipated[1:]))}}
+    return {
+        "energy_Nmm": {
+            "dissipated": result.dissipated.tolist(),
+            "stored": result.stored.tolist(),
+            "drag_work": result.drag_work(),
+            "stored_change_plus_dissipated": float(
+                result.stored[-1] - result.stored[0] + np.sum(result.dissipated[1:])
+            ),
+        }
+    }
 
 
 def write_rolling_json(result, scene, path) -> Path:
     path = Path(path)
     with atomic_output(path) as tmp:
-        tmp.write_text(json.dumps(rolling_to_dict(result, scene), indent=1, allow_nan=False) + "\n",
-                       encoding="utf-8")
+        tmp.write_text(json.dumps(rolling_to_dict(result, scene), indent=1, allow_nan=False) + "\n", encoding="utf-8")
     return path
 
 
@@ -117,11 +159,25 @@ def write_rolling_tables(result, scene, out_dir) -> list[Path]:
     """``signals.csv``, ``asperity_signals.csv`` (+ Parquet) and ``rolling.json``."""
     out = Path(out_dir)
     record = {"units": UNITS, "speed_kmh": result.spec.speed, "control": result.control, "body": result.body}
-    written = write_table(out, SIGNALS_NAME, signal_rows(result), SIGNAL_COLUMNS,
-                          title="rolling signals, a row per position", record=record, descriptions=DESCRIPTIONS)
-    written += write_table(out, ASPERITY_SIGNALS_NAME, asperity_rows(result), ASPERITY_SIGNAL_COLUMNS,
-                           title="forces of the stones in contact, a row per stone and position", record=record,
-                           descriptions=DESCRIPTIONS, parquet=0)
+    written = write_table(
+        out,
+        SIGNALS_NAME,
+        signal_rows(result),
+        SIGNAL_COLUMNS,
+        title="rolling signals, a row per position",
+        record=record,
+        descriptions=DESCRIPTIONS,
+    )
+    written += write_table(
+        out,
+        ASPERITY_SIGNALS_NAME,
+        asperity_rows(result),
+        ASPERITY_SIGNAL_COLUMNS,
+        title="forces of the stones in contact, a row per stone and position",
+        record=record,
+        descriptions=DESCRIPTIONS,
+        parquet=0,
+    )
     written.append(write_rolling_json(result, scene, out / ROLLING_JSON_NAME))
     return written
 
@@ -145,7 +201,7 @@ def write_signal_products(result, scene, out_dir, *, figures: bool = True, name:
     from .scene_file import scene_to_dict
 
     out, written = Path(out_dir), []
-    record = scene_to_dict(scene)   # the figures' titles and PNG metadata take the scene's record
+    record = scene_to_dict(scene)  # the figures' titles and PNG metadata take the scene's record
     if _have("twoscale.rolling.bands") and len(result.shifts) >= 2:
         from ..rolling.bands import REF_APPROACH, REF_FORCE, third_octave_levels
 
@@ -155,15 +211,34 @@ def write_signal_products(result, scene, out_dir, *, figures: bool = True, name:
         cols = levels.columns()
         rows = [{"band_Hz": float(f), "level_dB": float(v)} for f, v in zip(cols["band_Hz"], cols["level_dB"])]
         what = "total force, dB re 1 N" if force else "approach, dB re 1 um"
-        written += write_table(out, "bands", rows, ("band_Hz", "level_dB"), title=f"third-octave levels of the {what}",
-                               record={"signal": "total_load_N" if force else "penetration_mm", "reference": ref,
-                                       "resolution_Hz": levels.resolution, "units": UNITS})
+        written += write_table(
+            out,
+            "bands",
+            rows,
+            ("band_Hz", "level_dB"),
+            title=f"third-octave levels of the {what}",
+            record={
+                "signal": "total_load_N" if force else "penetration_mm",
+                "reference": ref,
+                "resolution_Hz": levels.resolution,
+                "units": UNITS,
+            },
+        )
         if figures and _have("twoscale.plot.rolling"):
             from ..plot.rolling import bands_figure
             from ..plot.style import Caption
 
-            written.append(Path(bands_figure(out / "bands.png", cols["band_Hz"], cols["level_dB"],
-                                             level_label=f"level ({what})", caption=Caption(scene=record, name=name))))
+            written.append(
+                Path(
+                    bands_figure(
+                        out / "bands.png",
+                        cols["band_Hz"],
+                        cols["level_dB"],
+                        level_label=f"level ({what})",
+                        caption=Caption(scene=record, name=name),
+                    )
+                )
+            )
     if _have("twoscale.rolling.texture") and scene.surface is not None:
         from ..rolling.texture import road_texture
 
@@ -171,7 +246,7 @@ def write_signal_products(result, scene, out_dir, *, figures: bool = True, name:
 
         try:
             content = road_texture(scene.surface.hmap.heights, scene.surface.h).to_json_dict()
-        except SceneError as exc:   # a strip too short for one MPD segment: the run stands, the texture says why
+        except SceneError as exc:  # a strip too short for one MPD segment: the run stands, the texture says why
             content = {"units": {"length": "mm", "level": "dB re 1 um"}, "not_computed": str(exc)}
         path = out / "texture.json"
         with atomic_output(path) as tmp:
@@ -189,11 +264,20 @@ def _figures(result, out: Path, scene, name: str | None) -> list[Path]:
     caption = Caption(scene=scene, name=name)
     force = result.control == "penetration"
     signal = result.total_load if force else result.penetration
-    paths = [signals_figure(out / "signals.png", result.times, signal, result.contact_area,
-                            signal_label="total load (N)" if force else "approach (mm)", caption=caption)]
+    paths = [
+        signals_figure(
+            out / "signals.png",
+            result.times,
+            signal,
+            result.contact_area,
+            signal_label="total load (N)" if force else "approach (mm)",
+            caption=caption,
+        )
+    ]
     if result.line_x.size:
-        paths.append(space_time_figure(out / "space_time.png", result.shifts, result.line_x, result.line_load,
-                                       caption=caption))
+        paths.append(
+            space_time_figure(out / "space_time.png", result.shifts, result.line_x, result.line_load, caption=caption)
+        )
     return [Path(p) for p in paths]
 
 
@@ -248,5 +332,14 @@ def _overlap(src, dst):
     return ((slice(j0, j1), slice(j0 - dj, j1 - dj)), (slice(i0, i1), slice(i0 - di, i1 - di)))
 
 
-__all__ = ["SIGNAL_COLUMNS", "ASPERITY_SIGNAL_COLUMNS", "FrameWriter", "rolling_to_dict", "signal_rows",
-           "asperity_rows", "write_rolling_json", "write_rolling_tables", "write_signal_products"]
+__all__ = [
+    "SIGNAL_COLUMNS",
+    "ASPERITY_SIGNAL_COLUMNS",
+    "FrameWriter",
+    "rolling_to_dict",
+    "signal_rows",
+    "asperity_rows",
+    "write_rolling_json",
+    "write_rolling_tables",
+    "write_signal_products",
+]

@@ -27,6 +27,7 @@ Every problem raises :class:`SceneError` (a ``ValueError``) with a one-line mess
 naming the field path (``asperity 4: R``; asperities numbered from 1 in file order) and
 the bad value. Unknown keys are errors, never ignored.
 """
+
 from __future__ import annotations
 
 import os
@@ -108,8 +109,9 @@ def scene_from_dict(data: Mapping[str, Any], *, base_dir: str | None = None) -> 
         surface = surface_from_table(table_of("surface", data["surface"]), base_dir=base_dir, h=h)
         asperities = surface.asperities
     else:
-        asperities = tuple(_asperity(f"asperity {k}", t)
-                           for k, t in enumerate(_tables("asperity", data["asperity"]), start=1))
+        asperities = tuple(
+            _asperity(f"asperity {k}", t) for k, t in enumerate(_tables("asperity", data["asperity"]), start=1)
+        )
     load = table_of("load", data["load"])
     check_keys("load", load, LOAD_KEYS)
     grid = table_of("grid", data.get("grid", {}))
@@ -126,11 +128,20 @@ def scene_from_dict(data: Mapping[str, Any], *, base_dir: str | None = None) -> 
         from ..rolling.spec import rolling_from_table
 
         rolling = rolling_from_table(table_of("rolling", data["rolling"]))
-    return Scene(material=material, asperities=asperities, history=history, rolling=rolling,
-                 penetration=load.get("penetration"), total_load=load.get("total"),
-                 tilt=load.get("tilt", False), pivot=load.get("pivot", (0.0, 0.0)),
-                 h=grid.get("h"), influence=dict(influence) or None, load_cases=load.get("cases", ()),
-                 surface=surface)
+    return Scene(
+        material=material,
+        asperities=asperities,
+        history=history,
+        rolling=rolling,
+        penetration=load.get("penetration"),
+        total_load=load.get("total"),
+        tilt=load.get("tilt", False),
+        pivot=load.get("pivot", (0.0, 0.0)),
+        h=grid.get("h"),
+        influence=dict(influence) or None,
+        load_cases=load.get("cases", ()),
+        surface=surface,
+    )
 
 
 def scene_to_dict(scene: Scene) -> dict:
@@ -168,8 +179,9 @@ def scene_to_dict(scene: Scene) -> dict:
 
         out["surface"] = surface_to_table(scene.surface)
         return out
-    out["asperity"] = [{"x": float(a.x), "y": float(a.y), "z": float(a.z), "R": float(a.R), "shape": a.shape}
-                       for a in scene.asperities]
+    out["asperity"] = [
+        {"x": float(a.x), "y": float(a.y), "z": float(a.z), "R": float(a.R), "shape": a.shape} for a in scene.asperities
+    ]
     return out
 
 
@@ -218,8 +230,10 @@ def _history(load: Mapping, time_table: Mapping):
             raise SceneError(f"[time] is only used with a load history ([[t, value], ...]), got {dict(time_table)!r}")
         return None
     if "total" in load and "penetration" in load:
-        raise SceneError(f"give one of load.total and load.penetration, got both "
-                         f"(total = {load['total']!r}, penetration = {load['penetration']!r})")
+        raise SceneError(
+            f"give one of load.total and load.penetration, got both "
+            f"(total = {load['total']!r}, penetration = {load['penetration']!r})"
+        )
     for key in ("cases",):
         if key in load:
             raise SceneError(f"load.{key} cannot go with a load history, got {load[key]!r}")
@@ -236,8 +250,13 @@ def _time_table(history) -> dict:
     if history.output is not None:
         out["output"] = list(history.output)
     s = history.steps
-    for key, name in (("tol", "tol"), ("growth", "growth"), ("count", "steps"), ("size", "dt"),
-                      ("max_steps", "max_steps")):
+    for key, name in (
+        ("tol", "tol"),
+        ("growth", "growth"),
+        ("count", "steps"),
+        ("size", "dt"),
+        ("max_steps", "max_steps"),
+    ):
         v = getattr(s, key)
         if v is not None:
             out[name] = v

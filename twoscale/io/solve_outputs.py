@@ -15,6 +15,7 @@
 
 Each records the program version, the units and the scene.
 """
+
 from __future__ import annotations
 
 from pathlib import Path
@@ -29,8 +30,9 @@ PRESSURE_NAME = "pressure.png"
 FORCES_NAME = "forces.png"
 
 
-def write_fields_and_figures(result: ContactResult, scene: Scene, out_dir, *, vtk: bool = True,
-                             figures: bool = True, source: str = "") -> list[Path]:
+def write_fields_and_figures(
+    result: ContactResult, scene: Scene, out_dir, *, vtk: bool = True, figures: bool = True, source: str = ""
+) -> list[Path]:
     """Write ``fields.vtm``, ``asperities.csv``, ``pressure.png`` and ``forces.png`` into ``out_dir``.
 
     Parameters
@@ -58,16 +60,27 @@ def write_fields_and_figures(result: ContactResult, scene: Scene, out_dir, *, vt
     if vtk:
         from .vtk import write_vtk
 
-        written.append(write_vtk(result, out / FIELDS_NAME, asperities=scene.asperities,
-                                 pivot=scene.pivot, scene=record))
-    written.extend(write_asperity_csv(result, scene.asperities, out / ASPERITY_CSV_NAME, scene=record,
-                                      source=f"solve {source}" if source else "solve"))
+        written.append(
+            write_vtk(result, out / FIELDS_NAME, asperities=scene.asperities, pivot=scene.pivot, scene=record)
+        )
+    written.extend(
+        write_asperity_csv(
+            result,
+            scene.asperities,
+            out / ASPERITY_CSV_NAME,
+            scene=record,
+            source=f"solve {source}" if source else "solve",
+        )
+    )
     if figures:
         from ..plot import Caption, force_bars, pressure_map
 
-        name = Path(source).stem if source else None   # the figures' titles name the scene
+        name = Path(source).stem if source else None  # the figures' titles name the scene
         caption = Caption(scene=record, name=name)
         written.append(pressure_map(result, out / PRESSURE_NAME, tips=scene.asperities, caption=caption))
-        written.append(force_bars(result, out / FORCES_NAME, tips=scene.asperities,
-                                  macro_forces=result.macro_forces, caption=caption))
+        written.append(
+            force_bars(
+                result, out / FORCES_NAME, tips=scene.asperities, macro_forces=result.macro_forces, caption=caption
+            )
+        )
     return written

@@ -2,6 +2,7 @@
 file: unknown or missing keys, a value that must be a table, and the field path a message
 names (``load.total``, ``asperity 4: R``). Every problem is a :class:`SceneError`.
 """
+
 from __future__ import annotations
 
 from typing import Any, Mapping
@@ -27,8 +28,9 @@ def check_keys(path: str, table: Mapping, allowed, *, required=()) -> None:
     """Refuse a key of ``table`` not in ``allowed`` and a missing ``required`` one."""
     for key in table:
         if key not in allowed:
-            raise SceneError(f"unknown key {field_path(path, _shown(key))} = {table[key]!r} "
-                             f"(allowed: {', '.join(allowed)})")
+            raise SceneError(
+                f"unknown key {field_path(path, _shown(key))} = {table[key]!r} (allowed: {', '.join(allowed)})"
+            )
     for key in required:
         if key not in table:
             raise SceneError(f"{field_path(path, key)} is missing (required)")

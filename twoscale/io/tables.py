@@ -17,6 +17,7 @@ way:
   copy, and importing pyarrow costs a solve some 30 MB of memory); written only when
   ``pyarrow`` is importable (the ``study`` extra installs it). The CSV is always written.
 """
+
 from __future__ import annotations
 
 import csv
@@ -71,14 +72,22 @@ def _datatype(values: list) -> str:
         return "boolean"
     if present and all(isinstance(v, (int, np.integer)) and not isinstance(v, (bool, np.bool_)) for v in present):
         return "integer"
-    if present and all(isinstance(v, (int, float, np.integer, np.floating)) and not isinstance(v, (bool, np.bool_))
-                       for v in present):
+    if present and all(
+        isinstance(v, (int, float, np.integer, np.floating)) and not isinstance(v, (bool, np.bool_)) for v in present
+    ):
         return "number"
     return "string"
 
 
-def metadata(name: str, rows: list, columns: Sequence[str], *, title: str, record: Mapping,
-             descriptions: Mapping[str, str] | None = None) -> dict:
+def metadata(
+    name: str,
+    rows: list,
+    columns: Sequence[str],
+    *,
+    title: str,
+    record: Mapping,
+    descriptions: Mapping[str, str] | None = None,
+) -> dict:
     """The ``NAME.csv-metadata.json`` content (see module doc)."""
     descriptions = descriptions or {}
     cols = []
@@ -87,14 +96,27 @@ def metadata(name: str, rows: list, columns: Sequence[str], *, title: str, recor
         if c in descriptions:
             entry["dc:description"] = descriptions[c]
         cols.append(entry)
-    return {"@context": "http://www.w3.org/ns/csvw", "url": f"{name}.csv", "dc:title": title,
-            "dc:creator": f"twoscale {__version__}", "tableSchema": {"columns": cols},
-            "twoscale": {"version": __version__, "rows": len(rows), **dict(record)}}
+    return {
+        "@context": "http://www.w3.org/ns/csvw",
+        "url": f"{name}.csv",
+        "dc:title": title,
+        "dc:creator": f"twoscale {__version__}",
+        "tableSchema": {"columns": cols},
+        "twoscale": {"version": __version__, "rows": len(rows), **dict(record)},
+    }
 
 
-def write_table(out_dir: str | Path, name: str, rows: Iterable[Mapping], columns: Sequence[str], *,
-                title: str, record: Mapping | None = None, descriptions: Mapping[str, str] | None = None,
-                parquet: int | None = None) -> list[Path]:
+def write_table(
+    out_dir: str | Path,
+    name: str,
+    rows: Iterable[Mapping],
+    columns: Sequence[str],
+    *,
+    title: str,
+    record: Mapping | None = None,
+    descriptions: Mapping[str, str] | None = None,
+    parquet: int | None = None,
+) -> list[Path]:
     """Write ``NAME.csv``, ``NAME.csv-metadata.json`` and (long tables, with pyarrow) ``NAME.parquet``.
 
     Parameters

@@ -21,6 +21,7 @@ Example
 >>> image.grid == g, float(image.cell_data["p"][1, 2])
 (True, 5.0)
 """
+
 from __future__ import annotations
 
 import xml.etree.ElementTree as ET
@@ -34,8 +35,13 @@ import numpy as np
 from ..grid import Grid
 
 #: numpy dtype -> VTK type name, for the arrays these files hold.
-VTK_TYPES = {np.dtype("<f8"): "Float64", np.dtype("<f4"): "Float32", np.dtype("<i8"): "Int64",
-             np.dtype("<i4"): "Int32", np.dtype("u1"): "UInt8"}
+VTK_TYPES = {
+    np.dtype("<f8"): "Float64",
+    np.dtype("<f4"): "Float32",
+    np.dtype("<i8"): "Int64",
+    np.dtype("<i4"): "Int32",
+    np.dtype("u1"): "UInt8",
+}
 _NUMPY = {v: k for k, v in VTK_TYPES.items()}
 _HEADER = '<VTKFile type="{kind}" version="1.0" byte_order="LittleEndian" header_type="UInt64">\n'
 
@@ -67,9 +73,15 @@ def _array_xml(name: str, a: np.ndarray, tuples_attr: str, binary: bool, offset:
     return f'{head} format="ascii">\n{text}\n</DataArray>\n'
 
 
-def write_image(path: str | Path, grid: Grid, cell_data: Mapping[str, np.ndarray], *,
-                field_data: Mapping[str, np.ndarray] | None = None, comment: str | None = None,
-                binary: bool = True) -> Path:
+def write_image(
+    path: str | Path,
+    grid: Grid,
+    cell_data: Mapping[str, np.ndarray],
+    *,
+    field_data: Mapping[str, np.ndarray] | None = None,
+    comment: str | None = None,
+    binary: bool = True,
+) -> Path:
     """Write cell arrays on ``grid`` (each ``(ny, nx)``, row = y) as a ``.vti`` file.
 
     Parameters
@@ -93,6 +105,7 @@ def write_image(path: str | Path, grid: Grid, cell_data: Mapping[str, np.ndarray
     """
     path = Path(path)
     arrays, parts, offset = [], [], 0
+
     def add(name, a, tuples_attr):
         nonlocal offset
         a = _le(a)
@@ -102,8 +115,10 @@ def write_image(path: str | Path, grid: Grid, cell_data: Mapping[str, np.ndarray
 
     x_min, _, y_min, _ = grid.bounds
     extent = f"0 {grid.nx} 0 {grid.ny} 0 0"
-    parts.append(f'<ImageData WholeExtent="{extent}" Origin="{x_min!r} {y_min!r} 0.0" '
-                 f'Spacing="{grid.h!r} {grid.h!r} {grid.h!r}">\n')
+    parts.append(
+        f'<ImageData WholeExtent="{extent}" Origin="{x_min!r} {y_min!r} 0.0" '
+        f'Spacing="{grid.h!r} {grid.h!r} {grid.h!r}">\n'
+    )
     if field_data:
         parts.append("<FieldData>\n")
         for name, a in field_data.items():
@@ -140,8 +155,10 @@ def write_multiblock(path: str | Path, blocks: Sequence[tuple[str, str]], *, com
     """Write a ``.vtm`` file listing ``(name, relative file)`` blocks, in order."""
     path = Path(path)
     parts = ["<vtkMultiBlockDataSet>\n"]
-    parts += [f'<DataSet index="{k}" name={quoteattr(name)} file={quoteattr(file)}/>\n'
-              for k, (name, file) in enumerate(blocks)]
+    parts += [
+        f'<DataSet index="{k}" name={quoteattr(name)} file={quoteattr(file)}/>\n'
+        for k, (name, file) in enumerate(blocks)
+    ]
     parts.append("</vtkMultiBlockDataSet>\n")
     _write(path, "vtkMultiBlockDataSet", parts, [], comment)
     return path
@@ -159,8 +176,8 @@ def _header(data: bytes) -> tuple[ET.Element, str, int]:
     comment = ""
     i = text.find("<!--")
     if 0 <= i < text.find("<VTKFile"):
-        comment = text[i + 4:text.index("-->", i)].strip()
-    return ET.fromstring(text[text.index("<VTKFile"):]), comment, start
+        comment = text[i + 4 : text.index("-->", i)].strip()
+    return ET.fromstring(text[text.index("<VTKFile") :]), comment, start
 
 
 def _array(el: ET.Element, data: bytes, start: int) -> np.ndarray:
@@ -189,8 +206,9 @@ def read_image(path: str | Path) -> Image:
     nx, ny = e[1] - e[0], e[3] - e[2]
     grid = Grid(x_min + h / 2, y_min + h / 2, h, nx, ny)
     fields = {el.get("Name"): _array(el, data, start) for el in image.iterfind("FieldData/DataArray")}
-    cells = {el.get("Name"): _array(el, data, start).reshape(grid.shape)
-             for el in image.iterfind("Piece/CellData/DataArray")}
+    cells = {
+        el.get("Name"): _array(el, data, start).reshape(grid.shape) for el in image.iterfind("Piece/CellData/DataArray")
+    }
     return Image(grid, cells, fields, comment)
 
 

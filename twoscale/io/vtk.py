@@ -24,6 +24,7 @@ half a file.
 Neither meshio nor pyvista is needed: the format is written with numpy
 (:mod:`twoscale.io.vti`).
 """
+
 from __future__ import annotations
 
 import json
@@ -75,8 +76,9 @@ def _union_field(fields: Sequence[PressureField]) -> PressureField:
     b = np.array([f.grid.bounds for f in fields])
     anchor = (fields[0].grid.x0, fields[0].grid.y0)
     eps = 1e-9 * h
-    g = Grid.covering(b[:, 0].min() + eps, b[:, 1].max() - eps, b[:, 2].min() + eps,
-                      b[:, 3].max() - eps, h, anchor=anchor)
+    g = Grid.covering(
+        b[:, 0].min() + eps, b[:, 1].max() - eps, b[:, 2].min() + eps, b[:, 3].max() - eps, h, anchor=anchor
+    )
     p = np.zeros(g.shape)
     owner = np.full(g.shape, -1, dtype=np.int64)
     gap = np.full(g.shape, np.inf)
@@ -94,17 +96,22 @@ def _grid_dict(g: Grid) -> dict:
     return {"x0": g.x0, "y0": g.y0, "h": g.h, "nx": g.nx, "ny": g.ny}
 
 
-def _metadata(result, layout: str, grids: Sequence[Grid],
-              scene: Mapping[str, Any] | None, has_height: bool) -> dict:
+def _metadata(result, layout: str, grids: Sequence[Grid], scene: Mapping[str, Any] | None, has_height: bool) -> dict:
     return {
-        "program": "twoscale", "version": __version__, "units": UNITS,
-        "layout": layout, "grids": [_grid_dict(g) for g in grids],
+        "program": "twoscale",
+        "version": __version__,
+        "units": UNITS,
+        "layout": layout,
+        "grids": [_grid_dict(g) for g in grids],
         "has_indenter_height": has_height,
-        "result": {"method": result.method, "converged": bool(result.converged),
-                   "penetration": float(result.penetration),
-                   "tilt": None if result.tilt is None else [float(t) for t in result.tilt],
-                   "total_load": float(result.total_load),
-                   "forces": [float(f) for f in result.forces]},
+        "result": {
+            "method": result.method,
+            "converged": bool(result.converged),
+            "penetration": float(result.penetration),
+            "tilt": None if result.tilt is None else [float(t) for t in result.tilt],
+            "total_load": float(result.total_load),
+            "forces": [float(f) for f in result.forces],
+        },
         "numbering": {"owner": "asperity number from 1 in scene order; 0: none", "patch": "from 1"},
         "scene": None if scene is None else dict(scene),
     }
@@ -161,10 +168,12 @@ def _indenter_height(grid: Grid, asperities: Sequence[Asperity], table, tilt: Ti
 
 def _cell_arrays(f: PressureField, k: int, height: np.ndarray | None) -> dict:
     """A patch's cell arrays as written: NaN for inf, owner and patch numbered from 1."""
-    out = {"pressure_MPa": f.pressure,
-           "gap_mm": np.where(np.isfinite(f.gap), f.gap, np.nan),
-           "owner": (f.owner + 1).astype(np.int32),
-           "patch": np.full(f.grid.shape, k, dtype=np.int32)}
+    out = {
+        "pressure_MPa": f.pressure,
+        "gap_mm": np.where(np.isfinite(f.gap), f.gap, np.nan),
+        "owner": (f.owner + 1).astype(np.int32),
+        "patch": np.full(f.grid.shape, k, dtype=np.int32),
+    }
     if height is not None:
         out["indenter_height_mm"] = np.where(np.isfinite(height), height, np.nan)
     return out
@@ -182,8 +191,10 @@ def _replace_folder(tmp: Path, folder: Path) -> None:
 
 
 def _check_data_folder(folder: Path) -> None:
-    if folder.exists() and (not folder.is_dir() or any(
-            not (p.is_file() and p.name.startswith("patch_") and p.suffix == ".vti") for p in folder.iterdir())):
+    if folder.exists() and (
+        not folder.is_dir()
+        or any(not (p.is_file() and p.name.startswith("patch_") and p.suffix == ".vti") for p in folder.iterdir())
+    ):
         raise ValueError(f"{folder} exists and holds other files than patch_*.vti: not replaced")
 
 
@@ -194,19 +205,37 @@ def _write_images(folder: Path, fields: Sequence[PressureField], asperities, til
     table = None if asperities is None else _tip_table(asperities)
     for k, f in enumerate(fields, start=1):
         names.append(f"patch_{k:0{width}d}.vti")
-        own = {"program": "twoscale", "version": __version__, "units": UNITS, "patch": k,
-               "patches": len(fields), "grid": _grid_dict(f.grid)}
+        own = {
+            "program": "twoscale",
+            "version": __version__,
+            "units": UNITS,
+            "patch": k,
+            "patches": len(fields),
+            "grid": _grid_dict(f.grid),
+        }
         text = _metadata_text(own)
         height = None if asperities is None else _indenter_height(f.grid, asperities, table, tilt)
-        write_image(folder / names[-1], f.grid, _cell_arrays(f, k, height), binary=binary,
-                    field_data={_META: np.frombuffer(text.encode("utf-8"), dtype=np.uint8)},
-                    comment=f"twoscale {__version__} (units mm, N, MPa) {text}")
+        write_image(
+            folder / names[-1],
+            f.grid,
+            _cell_arrays(f, k, height),
+            binary=binary,
+            field_data={_META: np.frombuffer(text.encode("utf-8"), dtype=np.uint8)},
+            comment=f"twoscale {__version__} (units mm, N, MPa) {text}",
+        )
     return names
 
 
-def write_vtk(result, path: str | Path, *, layout: str = "patches",
-              asperities: Sequence[Asperity] | None = None, pivot: tuple[float, float] = (0.0, 0.0),
-              scene: Mapping[str, Any] | None = None, binary: bool = True) -> Path:
+def write_vtk(
+    result,
+    path: str | Path,
+    *,
+    layout: str = "patches",
+    asperities: Sequence[Asperity] | None = None,
+    pivot: tuple[float, float] = (0.0, 0.0),
+    scene: Mapping[str, Any] | None = None,
+    binary: bool = True,
+) -> Path:
     """Write the micro-grid fields of ``result`` as ``path`` (``.vtm``) and its images.
 
     Parameters
@@ -244,8 +273,11 @@ def write_vtk(result, path: str | Path, *, layout: str = "patches",
     folder = path.with_suffix("")
     _check_data_folder(folder)
     fields = list(result.fields) if layout == "patches" else [_union_field(result.fields)]
-    tilt = None if result.tilt is None else Tilt(alpha=float(result.tilt[0]), beta=float(result.tilt[1]),
-                                                 pivot=tuple(pivot))
+    tilt = (
+        None
+        if result.tilt is None
+        else Tilt(alpha=float(result.tilt[0]), beta=float(result.tilt[1]), pivot=tuple(pivot))
+    )
     meta = _metadata(result, layout, [f.grid for f in fields], scene, asperities is not None)
     path.parent.mkdir(parents=True, exist_ok=True)
     tmp = Path(tempfile.mkdtemp(prefix=f".{folder.name}.tmp-", dir=path.parent))
@@ -265,7 +297,7 @@ def write_vtk(result, path: str | Path, *, layout: str = "patches",
 def _meta_from_comment(path, comment: str) -> dict:
     if not comment.startswith("twoscale ") or "{" not in comment:
         raise ValueError(f"{path} was not written by twoscale (no metadata comment)")
-    return json.loads(comment[comment.index("{"):])
+    return json.loads(comment[comment.index("{") :])
 
 
 def read_vtk(path: str | Path) -> VtkContent:
@@ -286,8 +318,9 @@ def read_vtk(path: str | Path) -> VtkContent:
             raise ValueError(f"{file}: {g.ny} x {g.nx} cells, metadata says {gd['ny']} x {gd['nx']}")
         g = Grid(gd["x0"], gd["y0"], gd["h"], gd["nx"], gd["ny"])  # exact values from the JSON
         gap = cd["gap_mm"]
-        fields.append(PressureField(g, cd["pressure_MPa"], cd["owner"].astype(np.int64) - 1,
-                                    np.where(np.isnan(gap), np.inf, gap)))
+        fields.append(
+            PressureField(g, cd["pressure_MPa"], cd["owner"].astype(np.int64) - 1, np.where(np.isnan(gap), np.inf, gap))
+        )
         if "indenter_height_mm" in cd:
             heights.append(np.where(np.isnan(cd["indenter_height_mm"]), np.inf, cd["indenter_height_mm"]))
     return VtkContent(tuple(fields), tuple(heights) if heights else None, meta)

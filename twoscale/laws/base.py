@@ -6,6 +6,7 @@ the body, to the force ``P`` (N) it carries (docs/method.md section 2, the ``f_k
 zero with zero stiffness for ``delta <= 0``, and ``penetration`` is its inverse on
 ``P >= 0``. All methods are vectorised over numpy arrays.
 """
+
 from __future__ import annotations
 
 from abc import ABC, abstractmethod
@@ -44,7 +45,7 @@ class AsperityLaw(ABC):
         """
         P = as_force(P)
         total = np.zeros_like(P)
-        for node, weight in zip(_GL_NODES, _GL_WEIGHTS):   # one call per node keeps P's shape
+        for node, weight in zip(_GL_NODES, _GL_WEIGHTS):  # one call per node keeps P's shape
             t = 0.5 * (node + 1.0)
             total = total + 0.5 * weight * 3.0 * t * t * self.penetration(P * t**3)
         return P * total

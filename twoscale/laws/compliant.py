@@ -8,6 +8,7 @@ bonded layer is stiffer than the half-space); the law then holds while
 ``1 + c dP/ddelta > 0``, i.e. up to the force where the tangent stiffness of the base
 law reaches ``1/|c|``.
 """
+
 from __future__ import annotations
 
 import numpy as np
@@ -99,8 +100,10 @@ class CompliantLaw(AsperityLaw):
             slope = 1.0 + self.c * self.law.stiffness(hi)
             if np.any(need & (slope <= 0)):
                 bad = d[need & (slope <= 0)][0]
-                raise ValueError(f"CompliantLaw with c={self.c!r} mm/N is not monotone up to "
-                                 f"delta={bad!r} mm: the base law is stiffer than 1/|c| there")
+                raise ValueError(
+                    f"CompliantLaw with c={self.c!r} mm/N is not monotone up to "
+                    f"delta={bad!r} mm: the base law is stiffer than 1/|c| there"
+                )
             hi = np.where(need, 2.0 * hi, hi)
         raise ValueError(f"CompliantLaw: no bracket found for delta up to {d.max()!r} mm")
 

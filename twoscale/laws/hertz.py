@@ -4,6 +4,7 @@ Both wrap :mod:`twoscale.analytic.hertz`. Parameters may be arrays (one entry pe
 asperity) for elementwise evaluation; :class:`~twoscale.laws.stack.LawStack` uses
 this to evaluate many asperities in one call.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -58,7 +59,6 @@ class HertzLaw(_ClosedFormLaw):
         """``int_0^P delta = 3/5 P delta(P)`` (N mm)."""
         P = as_force(P)
         return 0.6 * P * hertz.penetration(self.R, P, self.E_star)
-
 
 
 @dataclass(frozen=True, eq=False)

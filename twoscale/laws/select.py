@@ -1,4 +1,5 @@
 """The law of an asperity from its shape."""
+
 from __future__ import annotations
 
 from ..indenters import Asperity

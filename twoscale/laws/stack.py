@@ -4,6 +4,7 @@ Closed-form laws of one type (:class:`HertzLaw`, :class:`SphereLaw`) are merged 
 a single law with array parameters; any other law is evaluated once per distinct
 object on the entries that use it (asperities sharing one tabulated law cost one call).
 """
+
 from __future__ import annotations
 
 from typing import Sequence

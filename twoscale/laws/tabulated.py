@@ -7,6 +7,7 @@ with ``m = delta_n P'(delta_n) / P_n`` the local exponent of the interpolant the
 value and slope match (C1), it stays monotone, and it is exact for power laws such as
 Hertz (``m = 3/2``) up to the accuracy of the end slope.
 """
+
 from __future__ import annotations
 
 import numpy as np
@@ -48,8 +49,10 @@ class TabulatedLaw(AsperityLaw):
         slope = float(self._dinterp(d[-1]))
         self.exponent = d[-1] * slope / p[-1]
         if not self.exponent > 0:
-            raise ValueError(f"tabulated law ends with slope {slope!r} N/mm at delta={d[-1]!r}: "
-                             "no monotone continuation; extend the table")
+            raise ValueError(
+                f"tabulated law ends with slope {slope!r} N/mm at delta={d[-1]!r}: "
+                "no monotone continuation; extend the table"
+            )
 
     def force(self, delta):
         d = as_penetration(delta)
@@ -102,17 +105,21 @@ class TabulatedLaw(AsperityLaw):
 
 def _validate_table(d: np.ndarray, p: np.ndarray) -> None:
     if d.ndim != 1 or p.ndim != 1 or d.shape != p.shape or d.size < 2:
-        raise ValueError(f"tabulated law needs 1-D delta and P of equal length >= 2, "
-                         f"got shapes {d.shape} and {p.shape}")
+        raise ValueError(
+            f"tabulated law needs 1-D delta and P of equal length >= 2, got shapes {d.shape} and {p.shape}"
+        )
     if not (np.all(np.isfinite(d)) and np.all(np.isfinite(p))):
         raise ValueError(f"tabulated law has non-finite entries: delta={d!r}, P={p!r}")
     if d[0] != 0.0 or p[0] != 0.0:
         raise ValueError(f"tabulated law must start at (0, 0), got ({d[0]!r}, {p[0]!r})")
     bad = np.flatnonzero(np.diff(d) <= 0)
     if bad.size:
-        raise ValueError(f"tabulated delta must be strictly increasing, fails at index {bad[0] + 1}: "
-                         f"{d[bad[0]]!r} -> {d[bad[0] + 1]!r}")
+        raise ValueError(
+            f"tabulated delta must be strictly increasing, fails at index {bad[0] + 1}: "
+            f"{d[bad[0]]!r} -> {d[bad[0] + 1]!r}"
+        )
     bad = np.flatnonzero(np.diff(p) <= 0)
     if bad.size:
-        raise ValueError(f"tabulated P must be strictly increasing, fails at index {bad[0] + 1}: "
-                         f"{p[bad[0]]!r} -> {p[bad[0] + 1]!r}")
+        raise ValueError(
+            f"tabulated P must be strictly increasing, fails at index {bad[0] + 1}: {p[bad[0]]!r} -> {p[bad[0] + 1]!r}"
+        )

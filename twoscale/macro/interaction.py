@@ -21,6 +21,7 @@ columns gives the step. The CG tolerance follows the Newton residual (inexact Ne
 ``min(0.1, ||r|| / ||P||)``, never below ``cg_rtol``), the line search of
 :func:`~twoscale.macro.newton.newton` keeps the iteration globalised.
 """
+
 from __future__ import annotations
 
 import numpy as np
@@ -53,8 +54,7 @@ class MatrixFreeInteraction:
         the step; the final residual decides convergence).
     """
 
-    def __init__(self, operator: PointOperator, diag: np.ndarray, *,
-                 cg_rtol: float = 1e-12, cg_max_iter: int = 2000):
+    def __init__(self, operator: PointOperator, diag: np.ndarray, *, cg_rtol: float = 1e-12, cg_max_iter: int = 2000):
         self.operator = operator
         self.diag = np.asarray(diag, dtype=float)
         self.cg_rtol, self.cg_max_iter = float(cg_rtol), int(cg_max_iter)
@@ -94,13 +94,11 @@ class MatrixFreeInteraction:
             full[A] = x
             return (self @ full)[A] + w[:, None] * x
 
-        out = block_cg(matvec, 1.0 / (w + self.diag[A]), rhs,
-                       rtol=max(rtol, self.cg_rtol), max_iter=self.cg_max_iter)
+        out = block_cg(matvec, 1.0 / (w + self.diag[A]), rhs, rtol=max(rtol, self.cg_rtol), max_iter=self.cg_max_iter)
         self.cg_iterations += out.iterations
         return out
 
-    def definite_on(self, A: np.ndarray, w: np.ndarray, *, probes: int = 1, rtol: float = 1e-6,
-                    seed: int = 0) -> bool:
+    def definite_on(self, A: np.ndarray, w: np.ndarray, *, probes: int = 1, rtol: float = 1e-6, seed: int = 0) -> bool:
         """Whether ``diag(w) + T_AA`` is positive definite, as far as CG can tell: CG on
         ``probes`` random right-hand sides (to ``rtol``) meets a direction of non-positive
         curvature once its Krylov space reaches a negative eigenvalue; an eigenvalue at the
@@ -119,7 +117,7 @@ def krylov_newton_step(system, x: np.ndarray, r: np.ndarray) -> np.ndarray:
     rP, rg = r[:n], r[n:]
     s = np.zeros(n + m)
     s[I] = -rP[I]
-    if A.size == 0:     # the rigid-body rows are then singular: no step for them (as the dense lstsq)
+    if A.size == 0:  # the rigid-body rows are then singular: no step for them (as the dense lstsq)
         return s
     coupling = (T @ s[:n])[A] if I.size else np.zeros(A.size)
     DA = D[A]
@@ -139,8 +137,9 @@ def krylov_newton_step(system, x: np.ndarray, r: np.ndarray) -> np.ndarray:
     return s
 
 
-def sampled_operator_error(provider, tips: np.ndarray, interaction: MatrixFreeInteraction,
-                           P: np.ndarray, *, samples: int = 256, seed: int = 0) -> float:
+def sampled_operator_error(
+    provider, tips: np.ndarray, interaction: MatrixFreeInteraction, P: np.ndarray, *, samples: int = 256, seed: int = 0
+) -> float:
     """Measured error of the fast product at the solution: ``max_i |(T P)_i - (T_exact P)_i|
     / max_i |(T_exact P)_i|`` over ``samples`` tips drawn at random (exact rows from
     ``provider.point_compliance``; the diagonal is common to both and left out)."""

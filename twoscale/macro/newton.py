@@ -1,4 +1,5 @@
 """Newton's method globalised by a backtracking line search on the residual norm."""
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -6,8 +7,8 @@ from typing import Callable
 
 import numpy as np
 
-_ARMIJO = 1e-4     # sufficient decrease: ||r(x + t s)|| <= (1 - ARMIJO t) ||r(x)||
-_MIN_STEP = 2.0 ** -40
+_ARMIJO = 1e-4  # sufficient decrease: ||r(x + t s)|| <= (1 - ARMIJO t) ||r(x)||
+_MIN_STEP = 2.0**-40
 
 
 @dataclass(frozen=True)
@@ -22,11 +23,16 @@ class NewtonOutcome:
     residuals: tuple
 
 
-def newton(residual: Callable[[np.ndarray], np.ndarray],
-           step: Callable[[np.ndarray, np.ndarray], np.ndarray],
-           x0: np.ndarray, *, scale: Callable[[np.ndarray], float],
-           tol: float, max_iter: int,
-           project: Callable[[np.ndarray], np.ndarray] = lambda x: x) -> NewtonOutcome:
+def newton(
+    residual: Callable[[np.ndarray], np.ndarray],
+    step: Callable[[np.ndarray, np.ndarray], np.ndarray],
+    x0: np.ndarray,
+    *,
+    scale: Callable[[np.ndarray], float],
+    tol: float,
+    max_iter: int,
+    project: Callable[[np.ndarray], np.ndarray] = lambda x: x,
+) -> NewtonOutcome:
     """Solve ``residual(x) = 0`` by Newton with backtracking.
 
     Parameters
@@ -70,13 +76,14 @@ def newton(residual: Callable[[np.ndarray], np.ndarray],
                 break
             t *= 0.5
             if t < _MIN_STEP:
-                msg = (f"line search failed at Newton step {it + 1}: no decrease of the "
-                       f"residual {norm:.3e} along the Newton direction")
+                msg = (
+                    f"line search failed at Newton step {it + 1}: no decrease of the "
+                    f"residual {norm:.3e} along the Newton direction"
+                )
                 return NewtonOutcome(x, r, False, msg, it, tuple(history))
         x, r, norm = x_new, r_new, norm_new
         history.append(_relative(norm, scale(x)))
-    msg = (f"not converged after max_iter={max_iter} Newton steps: relative residual "
-           f"{history[-1]:.3e} > tol={tol:.1e}")
+    msg = f"not converged after max_iter={max_iter} Newton steps: relative residual {history[-1]:.3e} > tol={tol:.1e}"
     return NewtonOutcome(x, r, False, msg, max_iter, tuple(history))
 
 

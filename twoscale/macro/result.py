@@ -1,4 +1,5 @@
 """The frozen result of the macro step."""
+
 from __future__ import annotations
 
 from dataclasses import dataclass, field

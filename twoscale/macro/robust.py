@@ -18,6 +18,7 @@ saddle of the (then non-convex) potential, whose value overstates the dual and m
 the ascent stall. Limit: the minimiser can still switch branch as ``g`` moves; the dual
 then has a kink, the ascent may stall, and the result says so (``converged=False``).
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -34,7 +35,7 @@ FAST_STEPS = 20
 #: The dual ascent stops at this relative imbalance; the coupled Newton polish, which
 #: converges quadratically from there, brings it to the user's tolerance.
 _DUAL_TOL = 1e-7
-_MIN_DUAL_STEP = 2.0 ** -12
+_MIN_DUAL_STEP = 2.0**-12
 
 
 @dataclass(frozen=True)
@@ -53,26 +54,41 @@ def project(x: np.ndarray, n: int) -> np.ndarray:
     return np.concatenate([np.maximum(x[:n], 0.0), x[n:]])
 
 
-def run_newton(system: MacroSystem, x0: np.ndarray, *, tol: float, max_iter: int,
-               scale_floor: float = 0.0) -> NewtonOutcome:
+def run_newton(
+    system: MacroSystem, x0: np.ndarray, *, tol: float, max_iter: int, scale_floor: float = 0.0
+) -> NewtonOutcome:
     """Projected, backtracking Newton on ``system`` from ``x0``."""
     n = system.n
-    return newton(system.residual, system.newton_step, x0,
-                  scale=lambda x: float(np.linalg.norm(x[:n])) or scale_floor,
-                  tol=tol, max_iter=max_iter, project=lambda x: project(x, n))
+    return newton(
+        system.residual,
+        system.newton_step,
+        x0,
+        scale=lambda x: float(np.linalg.norm(x[:n])) or scale_floor,
+        tol=tol,
+        max_iter=max_iter,
+        project=lambda x: project(x, n),
+    )
 
 
 def minimise_then_polish(system: MacroSystem, starts, *, tol: float, max_iter: int) -> SafeOutcome:
     """Minimise the potential over ``P >= 0`` (L-BFGS-B) from the best of ``starts``,
     then polish with Newton."""
     start = min((np.maximum(P, 0.0) for P in starts), key=system.energy)
-    res = minimize(system.energy, start, jac=system.energy_gradient,
-                   method="L-BFGS-B", bounds=[(0.0, None)] * system.n,
-                   options={"maxiter": 20 * max_iter + 200, "maxcor": 20,
-                            "ftol": 1e-15, "gtol": 1e-12 * max(1.0, float(np.max(np.abs(system.offset))))})
+    res = minimize(
+        system.energy,
+        start,
+        jac=system.energy_gradient,
+        method="L-BFGS-B",
+        bounds=[(0.0, None)] * system.n,
+        options={
+            "maxiter": 20 * max_iter + 200,
+            "maxcor": 20,
+            "ftol": 1e-15,
+            "gtol": 1e-12 * max(1.0, float(np.max(np.abs(system.offset)))),
+        },
+    )
     polish = run_newton(system, res.x, tol=tol, max_iter=max_iter)
-    msg = (f"{polish.message} (safe path: potential minimised in {res.nit} L-BFGS-B steps, "
-           f"then polished)")
+    msg = f"{polish.message} (safe path: potential minimised in {res.nit} L-BFGS-B steps, then polished)"
     return SafeOutcome(polish.x, polish.converged, msg, polish.iterations, int(res.nit))
 
 
@@ -92,7 +108,7 @@ def solve_dual(system: MacroSystem, x0: np.ndarray, *, tol: float, max_iter: int
         if _balanced(system, state.P, max(tol, _DUAL_TOL)):
             converged = True
             break
-        H = G.T @ system.at(g).force_sensitivity(state.P, G)   # -Hessian of Q, PSD
+        H = G.T @ system.at(g).force_sensitivity(state.P, G)  # -Hessian of Q, PSD
         step = _ascent_step(H, grad)
         slope = float(grad @ step)
         t = 1.0
@@ -117,13 +133,17 @@ def solve_dual(system: MacroSystem, x0: np.ndarray, *, tol: float, max_iter: int
         msg = f"{polish.message} (safe path: dual ascent in {it} steps, then polished)"
         return SafeOutcome(polish.x, True, msg, total_newton, total_min)
     if converged:
-        msg = (f"safe path: dual ascent balanced the load to {_DUAL_TOL:.0e} in {it} steps but the "
-               f"polish failed ({polish.message})")
+        msg = (
+            f"safe path: dual ascent balanced the load to {_DUAL_TOL:.0e} in {it} steps but the "
+            f"polish failed ({polish.message})"
+        )
     elif stalled:
-        msg = (f"safe path: dual ascent stalled at step {it + 1} with the load and moments "
-               f"unbalanced by {float(np.linalg.norm(system.E @ state.P - e)):.3e} N (the inner "
-               f"minimum switches between branches: contacts merged beyond what the point-force "
-               f"interaction can represent, or no tilt can balance the load)")
+        msg = (
+            f"safe path: dual ascent stalled at step {it + 1} with the load and moments "
+            f"unbalanced by {float(np.linalg.norm(system.E @ state.P - e)):.3e} N (the inner "
+            f"minimum switches between branches: contacts merged beyond what the point-force "
+            f"interaction can represent, or no tilt can balance the load)"
+        )
     else:
         msg = f"safe path not converged after max_iter={max_iter} dual steps"
     return SafeOutcome(x, False, msg, total_newton, total_min)
@@ -137,8 +157,7 @@ class _DualPoint:
     minimiser_steps: int
 
 
-def _dual_point(system: MacroSystem, g: np.ndarray, P_start: np.ndarray, tol: float,
-                max_iter: int) -> _DualPoint:
+def _dual_point(system: MacroSystem, g: np.ndarray, P_start: np.ndarray, tol: float, max_iter: int) -> _DualPoint:
     inner = system.at(g)
     # minimise first: Newton alone may land on a saddle of the potential (merged
     # contacts), whose value would overstate the dual

@@ -1,4 +1,5 @@
 """``solve_macro``: tip forces with interaction, penetration or load control, tilt."""
+
 from __future__ import annotations
 
 import time
@@ -27,9 +28,18 @@ DENSE_MAX = MacroOptions.dense_max
 #: the macro forces only size the patches and start the micro step.
 SAFE_PATH_MAX_TIPS = 1000
 
-def solve_macro(provider: InfluenceProvider, tips, z, laws, loading: Loading,
-                options: MacroOptions | None = None, *, self_compliance: bool = True,
-                start: MacroStart | None = None) -> MacroResult:
+
+def solve_macro(
+    provider: InfluenceProvider,
+    tips,
+    z,
+    laws,
+    loading: Loading,
+    options: MacroOptions | None = None,
+    *,
+    self_compliance: bool = True,
+    start: MacroStart | None = None,
+) -> MacroResult:
     """Tip forces of N interacting asperities (docs/method.md section 2; paper eqs. 4-5, 11-12).
 
     Solves ``P_k = f_k(delta_k) H(delta_k)`` with ``delta_k = d - z_k - [beta (x_k - px)
@@ -123,14 +133,28 @@ def solve_macro(provider: InfluenceProvider, tips, z, laws, loading: Loading,
         timings["error_check"] = time.perf_counter() - t2
         if T.cg_failures:
             message += f" ({T.cg_failures} Newton steps with an inexact CG solve)"
-        extra = {"interaction": "matrix-free", "operator_rtol": float(operator_rtol),
-                 "operator_error": error, "krylov_iterations": int(T.cg_iterations)}
+        extra = {
+            "interaction": "matrix-free",
+            "operator_rtol": float(operator_rtol),
+            "operator_error": error,
+            "krylov_iterations": int(T.cg_iterations),
+        }
     timings["total"] = time.perf_counter() - t0
     return MacroResult(
-        forces=P, penetration=d, tilt=angles, pivot=(float(pivot[0]), float(pivot[1])),
-        local_penetrations=delta, in_contact=delta > 0, converged=converged,
-        message=message, iterations=steps, residuals=residuals, timings_s=timings, safe_path=safe_path,
-        **extra)
+        forces=P,
+        penetration=d,
+        tilt=angles,
+        pivot=(float(pivot[0]), float(pivot[1])),
+        local_penetrations=delta,
+        in_contact=delta > 0,
+        converged=converged,
+        message=message,
+        iterations=steps,
+        residuals=residuals,
+        timings_s=timings,
+        safe_path=safe_path,
+        **extra,
+    )
 
 
 def _newton_then_safe(system: MacroSystem, x0: np.ndarray, *, tol: float, max_iter: int):
@@ -147,10 +171,19 @@ def _newton_then_safe(system: MacroSystem, x0: np.ndarray, *, tol: float, max_it
         # merged contacts among thousands of tips: the micro step resolves them on the real
         # contact (its patches then reach as far as the indenters can touch, and under load
         # control it corrects the approach); the safe path would cost more than the solve
-        why = ("Newton converged to an unstable equilibrium (merged contacts)" if fast.converged
-               else f"Newton stalled ({fast.message})")
-        return (fast.x, False, f"{why}; with {system.n} asperities the micro step starts from Newton's "
-                f"last iterate", fast.iterations, fast.residuals, True)
+        why = (
+            "Newton converged to an unstable equilibrium (merged contacts)"
+            if fast.converged
+            else f"Newton stalled ({fast.message})"
+        )
+        return (
+            fast.x,
+            False,
+            f"{why}; with {system.n} asperities the micro step starts from Newton's last iterate",
+            fast.iterations,
+            fast.residuals,
+            True,
+        )
     if system.G.shape[1] == 0:
         # a saddle is a stationary point of the potential: the minimiser must not start there
         starts = (x0,) if fast.converged else (x0, fast.x)
@@ -168,8 +201,11 @@ def _newton_then_safe(system: MacroSystem, x0: np.ndarray, *, tol: float, max_it
     norm = float(np.linalg.norm(r))
     final = norm / max(float(np.linalg.norm(P)) or W, norm) if norm > 0 else 0.0
     history = fast.residuals + (final,)
-    why = ("Newton converged to an unstable equilibrium (active compliance indefinite: merged "
-           "contacts)" if fast.converged else f"Newton stalled ({fast.message})")
+    why = (
+        "Newton converged to an unstable equilibrium (active compliance indefinite: merged contacts)"
+        if fast.converged
+        else f"Newton stalled ({fast.message})"
+    )
     message = f"{why}; {safe.message}"
     return x, safe.converged, message, fast.iterations + safe.newton_steps, history, True
 
@@ -225,15 +261,15 @@ def _interaction(provider: InfluenceProvider, tips: np.ndarray, self_compliance:
     T[diag, diag] = 0.0
     if not np.all(np.isfinite(T)):
         k, l = np.argwhere(~np.isfinite(T))[0]
-        raise ValueError(f"tips {k} and {l} coincide or the compliance is not finite: "
-                         f"{tips[k]!r}, {tips[l]!r}")
+        raise ValueError(f"tips {k} and {l} coincide or the compliance is not finite: {tips[k]!r}, {tips[l]!r}")
     if self_compliance:
         T[diag, diag] = np.asarray(provider.smooth_self_compliance(tips), dtype=float)
     return T
 
 
-def _matrix_free_interaction(provider: InfluenceProvider, tips: np.ndarray, self_compliance: bool,
-                             rtol: float) -> MatrixFreeInteraction:
+def _matrix_free_interaction(
+    provider: InfluenceProvider, tips: np.ndarray, self_compliance: bool, rtol: float
+) -> MatrixFreeInteraction:
     """``T`` as the provider's point operator plus the smooth self-compliance."""
     close = cKDTree(tips).query_pairs(1e-12 * (1.0 + float(np.max(np.abs(tips)))), output_type="ndarray")
     if len(close):
@@ -249,14 +285,13 @@ def _matrix_free_interaction(provider: InfluenceProvider, tips: np.ndarray, self
 def _build_system(T, tips, z, stack, penetration, total_load, tilt, pivot) -> MacroSystem:
     n = len(z)
     if total_load is None:
-        return MacroSystem(T, float(penetration) - z, np.zeros((n, 0)), np.zeros((0, n)),
-                           np.zeros(0), stack)
+        return MacroSystem(T, float(penetration) - z, np.zeros((n, 0)), np.zeros((0, n)), np.zeros(0), stack)
     if not tilt:
         return MacroSystem(T, -z, np.ones((n, 1)), np.ones((1, n)), np.array([float(total_load)]), stack)
     X = tips[:, 0] - pivot[0]
     Y = tips[:, 1] - pivot[1]
     L = float(np.sqrt(np.mean(X * X + Y * Y))) or 1.0
-    G = np.column_stack([np.ones(n), -Y, -X])   # unknowns (d, alpha, beta)
+    G = np.column_stack([np.ones(n), -Y, -X])  # unknowns (d, alpha, beta)
     E = np.vstack([np.ones(n), X / L, Y / L])
     return MacroSystem(T, -z, G, E, np.array([float(total_load), 0.0, 0.0]), stack)
 
@@ -327,5 +362,6 @@ def _independent_approach(z: np.ndarray, stack: LawStack, W: float) -> float:
             raise ValueError(f"the laws cannot carry total_load={W!r} N")
     # Brent's method on the bracket: 8-12 law evaluations where bisection to the last bit
     # took about 50 (40 % of a one-sphere solve's CPU time went to this start)
-    return float(brentq(lambda d: float(np.sum(stack.force(d - z))) - W, lo, hi, xtol=1e-300,
-                        rtol=4.0 * np.finfo(float).eps))
+    return float(
+        brentq(lambda d: float(np.sum(stack.force(d - z))) - W, lo, hi, xtol=1e-300, rtol=4.0 * np.finfo(float).eps)
+    )

@@ -7,6 +7,7 @@ not in the previous solve (entering the footprint) start unloaded. The Newton it
 then starts from it instead of the cold start (independent asperities carrying the load);
 the answer is the same to the solver's tolerance (the equations do not change).
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass

@@ -15,6 +15,7 @@ rows in newtons. ``r`` is C1 in ``x`` where the laws start with zero slope (Hert
 semismooth otherwise; the Jacobian used is ``dr/dx`` with ``f_k' = 0`` for
 ``delta_k <= 0``.
 """
+
 from __future__ import annotations
 
 import warnings
@@ -59,7 +60,7 @@ class MacroSystem:
         return self.T.shape[0]
 
     def split(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        return x[: self.n], x[self.n:]
+        return x[: self.n], x[self.n :]
 
     def delta(self, x: np.ndarray) -> np.ndarray:
         """Local penetrations (mm) at unknowns ``x``."""
@@ -75,8 +76,14 @@ class MacroSystem:
     def at(self, g: np.ndarray) -> "MacroSystem":
         """The penetration-control system with the extra unknowns frozen at ``g``."""
         n = self.n
-        return MacroSystem(self.T, self.offset + self.G @ np.asarray(g, float), np.zeros((n, 0)),
-                           np.zeros((0, n)), np.zeros(0), self.laws)
+        return MacroSystem(
+            self.T,
+            self.offset + self.G @ np.asarray(g, float),
+            np.zeros((n, 0)),
+            np.zeros((0, n)),
+            np.zeros(0),
+            self.laws,
+        )
 
     def energy(self, P: np.ndarray) -> float:
         """Potential of the penetration-control problem (N mm), forces ``P >= 0``:

@@ -29,11 +29,25 @@ Read it in this order:
 * patches — :mod:`.patches` (one aligned patch per asperity, merging of close ones) and
   :mod:`.workset` (the patches, blocks and engine as the iterations grow them).
 """
+
 from .driver import Attempt, MicroPlan, run_micro, solve_micro
 from .patches import Patch, build_patches, grow_patch
 from .policy import Choice, choose
 from .problem import BlockSettings, MicroContext, MicroProblem
 from .result import MicroResult
 
-__all__ = ["Attempt", "BlockSettings", "Choice", "MicroContext", "MicroPlan", "MicroProblem", "MicroResult", "Patch",
-           "build_patches", "choose", "grow_patch", "run_micro", "solve_micro"]
+__all__ = [
+    "Attempt",
+    "BlockSettings",
+    "Choice",
+    "MicroContext",
+    "MicroPlan",
+    "MicroProblem",
+    "MicroResult",
+    "Patch",
+    "build_patches",
+    "choose",
+    "grow_patch",
+    "run_micro",
+    "solve_micro",
+]

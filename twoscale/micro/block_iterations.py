@@ -4,6 +4,7 @@ two-level iteration with patch growth. :func:`.setup.block_setup` sets them up (
 blocks, the coupling's engine, the first pressure: a :class:`BlockSetup`); the iteration
 objects of :mod:`.strategies` call one of them.
 """
+
 from __future__ import annotations
 
 import math
@@ -50,9 +51,16 @@ class BlockSetup:
     control: Control
 
 
-def run_block_gauss_seidel(setup: BlockSetup, *, free_tilt: bool, tol: float, max_sweeps: int,
-                           max_growths: int | None, max_corrections: int,
-                           monitor: Callable | None = None) -> MicroResult:
+def run_block_gauss_seidel(
+    setup: BlockSetup,
+    *,
+    free_tilt: bool,
+    tol: float,
+    max_sweeps: int,
+    max_growths: int | None,
+    max_corrections: int,
+    monitor: Callable | None = None,
+) -> MicroResult:
     """The micro step by block Gauss-Seidel (eq. 8-9) with patch growth and, under load
     control, Newton corrections of the approach and tilt from sensitivity sweeps."""
     state, p0, theta, tilt = setup.state, setup.p0, setup.theta, setup.tilt
@@ -67,10 +75,16 @@ def run_block_gauss_seidel(setup: BlockSetup, *, free_tilt: bool, tol: float, ma
     while True:
         z = state.heights(theta, pivot)
         can_grow = growths < _budget(state, max_growths)
-        gs = gauss_seidel(state.blocks, state.coupling, [theta[0] - zk for zk in z], p, tol=tol,
-                          max_sweeps=max(max_sweeps - sweeps, 1),
-                          stop=(lambda q: edges_loaded_any(state, q)) if can_grow else None,
-                          monitor=None if monitor is None else (lambda m, c: monitor(sweeps + m, c)))
+        gs = gauss_seidel(
+            state.blocks,
+            state.coupling,
+            [theta[0] - zk for zk in z],
+            p,
+            tol=tol,
+            max_sweeps=max(max_sweeps - sweeps, 1),
+            stop=(lambda q: edges_loaded_any(state, q)) if can_grow else None,
+            monitor=None if monitor is None else (lambda m, c: monitor(sweeps + m, c)),
+        )
         sweeps += gs.sweeps
         history += gs.history
         p = gs.pressures
@@ -84,9 +98,16 @@ def run_block_gauss_seidel(setup: BlockSetup, *, free_tilt: bool, tol: float, ma
             break
         residual = target - resultants(state.patches, p, pivot, n_unknowns)
         if corrections >= max_corrections:
-            return finish(setup, p, theta, tilt, StopReason.MAX_ITER,
-                           f"load/moment corrections reached {max_corrections} (residual {residual})",
-                           counts(), history)
+            return finish(
+                setup,
+                p,
+                theta,
+                tilt,
+                StopReason.MAX_ITER,
+                f"load/moment corrections reached {max_corrections} (residual {residual})",
+                counts(),
+                history,
+            )
         corrections += 1
         p, theta, done, lin = _correct(state, p, gs.active, theta, residual, pivot, n_unknowns, tol)
         linear_sweeps += lin
@@ -100,8 +121,9 @@ def run_block_gauss_seidel(setup: BlockSetup, *, free_tilt: bool, tol: float, ma
     return finish(setup, p, theta, out_tilt, StopReason.CONVERGED, "", counts(), history)
 
 
-def run_two_level(setup: BlockSetup, *, tol: float, max_sweeps: int, max_growths: int | None,
-                  monitor: Callable | None = None) -> MicroResult:
+def run_two_level(
+    setup: BlockSetup, *, tol: float, max_sweeps: int, max_growths: int | None, monitor: Callable | None = None
+) -> MicroResult:
     """The micro step by two-level block Gauss-Seidel (:mod:`.twolevel`), with patch growth."""
     state, p0, theta, tilt = setup.state, setup.p0, setup.theta, setup.tilt
     pivot, n_unknowns, target = setup.control.pivot, setup.control.n_unknowns, setup.control.target
@@ -111,17 +133,27 @@ def run_two_level(setup: BlockSetup, *, tol: float, max_sweeps: int, max_growths
     tips = state.tips()
 
     def counts():
-        return {"sweeps": sweeps, "corrections": sweeps if n_unknowns else 0, "growths": growths,
-                "linear_sweeps": 0}
+        return {"sweeps": sweeps, "corrections": sweeps if n_unknowns else 0, "growths": growths, "linear_sweeps": 0}
 
     while True:
         can_grow = growths < _budget(state, max_growths)
-        limits = SweepLimits(tol=tol, max_sweeps=max(max_sweeps - sweeps, 1),
-                             stop=(lambda q: edges_loaded_any(state, q)) if can_grow else None,
-                             monitor=None if monitor is None else (lambda m, c: monitor(sweeps + m, c)),
-                             earlier=tuple(history))
-        res = two_level(state.blocks, state.coupling, tips[[pt.asperity for pt in state.patches]],
-                        lambda th: state.heights(th, pivot), p, theta, setup.control, limits)
+        limits = SweepLimits(
+            tol=tol,
+            max_sweeps=max(max_sweeps - sweeps, 1),
+            stop=(lambda q: edges_loaded_any(state, q)) if can_grow else None,
+            monitor=None if monitor is None else (lambda m, c: monitor(sweeps + m, c)),
+            earlier=tuple(history),
+        )
+        res = two_level(
+            state.blocks,
+            state.coupling,
+            tips[[pt.asperity for pt in state.patches]],
+            lambda th: state.heights(th, pivot),
+            p,
+            theta,
+            setup.control,
+            limits,
+        )
         sweeps += res.sweeps
         history += res.history
         p, theta = res.pressures, res.theta
@@ -136,15 +168,30 @@ def run_two_level(setup: BlockSetup, *, tol: float, max_sweeps: int, max_growths
     if n_unknowns:
         residual = np.asarray(target) - np.atleast_1d(resultants(state.patches, p, pivot, n_unknowns))
         if abs(residual[0]) > 10.0 * tol * abs(target[0]):
-            return finish(setup, p, theta, tilt, StopReason.FAILED,
-                           f"two-level iteration stopped with load residual {residual[0]:.3g} N", counts(), history)
+            return finish(
+                setup,
+                p,
+                theta,
+                tilt,
+                StopReason.FAILED,
+                f"two-level iteration stopped with load residual {residual[0]:.3g} N",
+                counts(),
+                history,
+            )
         if n_unknowns == 3:
             # moments against the load times the load-weighted distance from the pivot
             arm = _load_arm(state.patches, p, pivot)
             if np.max(np.abs(residual[1:])) > 10.0 * tol * abs(target[0]) * arm:
-                return finish(setup, p, theta, tilt, StopReason.FAILED,
-                               f"two-level iteration stopped with moment residuals {residual[1]:.3g}, "
-                               f"{residual[2]:.3g} N mm", counts(), history)
+                return finish(
+                    setup,
+                    p,
+                    theta,
+                    tilt,
+                    StopReason.FAILED,
+                    f"two-level iteration stopped with moment residuals {residual[1]:.3g}, {residual[2]:.3g} N mm",
+                    counts(),
+                    history,
+                )
     out_tilt = (float(theta[1]), float(theta[2])) if tilt is not None else None
     return finish(setup, p, theta, out_tilt, StopReason.CONVERGED, "", counts(), history)
 
@@ -168,8 +215,9 @@ def _correct(state: WorkingSet, p, active, theta, residual, pivot, n_unknowns, t
     # times the (small) correction. Reuse the previous ones when the blocks are the same.
     prev = state.sensitivities
     start = prev if prev is not None and [len(v) for v in prev] == [len(r) for r in rhs] else None
-    lin = linear_gauss_seidel(state.blocks, state.coupling, rhs, active,
-                              tol=max(tol, SENSITIVITY_TOL), max_sweeps=500, start=start)
+    lin = linear_gauss_seidel(
+        state.blocks, state.coupling, rhs, active, tol=max(tol, SENSITIVITY_TOL), max_sweeps=500, start=start
+    )
     state.sensitivities = lin.pressures
     K = np.atleast_2d(resultants(state.patches, lin.pressures, pivot, n_unknowns))
     step = newton_step(K, residual)
@@ -215,21 +263,43 @@ def _round_end(setup: BlockSetup, res, p, theta, tilt, tol, can_grow, growths, c
     if not res.converged:
         return 0, finish(setup, p, theta, tilt, res.reason, res.message, counts(), history)
     if edges_loaded_any(state, p):
-        return 0, finish(setup, p, theta, tilt, StopReason.MAX_ITER,
-                         f"pressure still reaches a patch edge after {growths} enlargements", counts(), history)
+        return 0, finish(
+            setup,
+            p,
+            theta,
+            tilt,
+            StopReason.MAX_ITER,
+            f"pressure still reaches a patch edge after {growths} enlargements",
+            counts(),
+            history,
+        )
     return 0, None
 
 
-def finish(setup: BlockSetup, p: list, theta, tilt, reason: StopReason, message: str, counts: dict,
-           history) -> MicroResult:
+def finish(
+    setup: BlockSetup, p: list, theta, tilt, reason: StopReason, message: str, counts: dict, history
+) -> MicroResult:
     """The :class:`MicroResult` of ``setup``'s iteration ending at pressures ``p`` and
     ``theta`` for ``reason`` (``counts``: sweeps, corrections, growths, linear_sweeps)."""
     state, p0, pivot = setup.state, setup.p0, setup.control.pivot
     pressures = [scatter(pt, v) for pt, v in zip(state.patches, p)]
     initial = [scatter(pt, v) for pt, v in zip(state.patches, p0)]
     gaps = state.gaps(p, theta, pivot) if state.patches else []
-    return MicroResult(tuple(state.patches), tuple(pressures), tuple(initial), tuple(gaps),
-                       float(theta[0]), tilt, reason.converged, message, counts["sweeps"], counts["corrections"],
-                       counts["growths"], counts["linear_sweeps"], tuple(history),
-                       state.coupling.route_counts(),
-                       tuple(pt.members for pt in state.patches if len(pt.members) > 1), reason)
+    return MicroResult(
+        tuple(state.patches),
+        tuple(pressures),
+        tuple(initial),
+        tuple(gaps),
+        float(theta[0]),
+        tilt,
+        reason.converged,
+        message,
+        counts["sweeps"],
+        counts["corrections"],
+        counts["growths"],
+        counts["linear_sweeps"],
+        tuple(history),
+        state.coupling.route_counts(),
+        tuple(pt.members for pt in state.patches if len(pt.members) > 1),
+        reason,
+    )

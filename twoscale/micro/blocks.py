@@ -6,6 +6,7 @@ are 1-D arrays over those cells (row-major order of the patch). Every number com
 influence provider (``grid_matrix`` for small blocks, ``grid_operator`` for large ones), so
 the solver never knows which elastic body it works on.
 """
+
 from __future__ import annotations
 
 import math
@@ -84,8 +85,15 @@ class Coupling:
         separated route.
     """
 
-    def __init__(self, provider: InfluenceProvider, patches, *, dense_max_entries: int = 40_000,
-                 cache_bytes: float = 4e8, separated_rtol: float | None = 1e-8):
+    def __init__(
+        self,
+        provider: InfluenceProvider,
+        patches,
+        *,
+        dense_max_entries: int = 40_000,
+        cache_bytes: float = 4e8,
+        separated_rtol: float | None = 1e-8,
+    ):
         check_rtol(separated_rtol, "separated_rtol", allow_none=True)
         self.provider = provider
         self.patches = list(patches)
@@ -94,7 +102,7 @@ class Coupling:
         self.separated_rtol = separated_rtol
         self._base, self._correction = provider.split()
         self.separated_pairs = 0
-        self._ops: dict = {}          # dense blocks (arrays)
+        self._ops: dict = {}  # dense blocks (arrays)
         self._fft: dict = {}
         self._bytes = 0.0
         self._fft_bytes = 0.0
@@ -132,7 +140,7 @@ class Coupling:
         back = self._fft.get((l, k))
         op = None if back is None else back[0].transposed()
         if op is not None:
-            self._fft[(k, l)] = (op, 0.0)           # shares the reverse pair's arrays
+            self._fft[(k, l)] = (op, 0.0)  # shares the reverse pair's arrays
             return op
         gk, gl = self.patches[k].grid, self.patches[l].grid
         if self.separated_rtol is not None and k != l:
@@ -160,8 +168,11 @@ class Coupling:
             return M
         pk, pl = self.patches[k], self.patches[l]
         nk, nl = int(pk.owned.sum()), int(pl.owned.sum())
-        if (nk * nl <= self.dense_max_entries and self._bytes + 8.0 * nk * nl <= self.cache_bytes
-                and self._operator_room(8.0 * nk * nl)):
+        if (
+            nk * nl <= self.dense_max_entries
+            and self._bytes + 8.0 * nk * nl <= self.cache_bytes
+            and self._operator_room(8.0 * nk * nl)
+        ):
             ik = np.flatnonzero(pk.owned.ravel())
             il = np.flatnonzero(pl.owned.ravel())
             if pk.grid.size * pl.grid.size > max(4 * nk * nl, GRID_BLOCK_MAX_ENTRIES):
@@ -274,13 +285,16 @@ class Coupling:
             else:
                 groups[key] = [op, term]
         # spectral targets are enlarged to their size class: the patch is their corner
-        parts = [pick(op.finish(acc)[:pk.grid.ny, :pk.grid.nx])
-                 for groups in staged.values() for op, acc in groups.values()]
+        parts = [
+            pick(op.finish(acc)[: pk.grid.ny, : pk.grid.nx])
+            for groups in staged.values()
+            for op, acc in groups.values()
+        ]
         if self._correction is not None and smooth:
             coeffs = [self._coefficient(l, values[l]) for l in smooth]
             c = np.zeros(max(len(p) for p in coeffs))
             for p in coeffs:
-                c[:len(p)] += p
+                c[: len(p)] += p
             parts.append(pick(self._correction.evaluate(pk.grid, c)))
         for term in parts:
             total = term if total is None else total + term
@@ -302,16 +316,22 @@ class Coupling:
         """``op.spectrum`` of block ``l``'s vector ``v`` on the operator's source grid (the
         patch, or the patch enlarged to its size class: the patch is its corner), shared by
         the operators with the same ``source_key``."""
+
         def compute():
             p = np.zeros(op.source.shape)
             pl = self.patches[l]
-            p[:pl.grid.ny, :pl.grid.nx][pl.owned] = v
+            p[: pl.grid.ny, : pl.grid.nx][pl.owned] = v
             return op.spectrum(p)
+
         return self._per_vector(self._spectra, (l, op.source_key), v, compute)
 
     def _coefficient(self, l: int, v: np.ndarray) -> np.ndarray:
-        return self._per_vector(self._coefficients, (l,), v, lambda: self._correction.coefficients(
-            self.patches[l].grid, scatter(self.patches[l], v)))
+        return self._per_vector(
+            self._coefficients,
+            (l,),
+            v,
+            lambda: self._correction.coefficients(self.patches[l].grid, scatter(self.patches[l], v)),
+        )
 
     def patch_displacement(self, k: int, values: list) -> np.ndarray:
         """Displacement (mm) on the whole patch ``k`` (ny, nx) due to the blocks ``l != k``."""

@@ -30,6 +30,7 @@ changes the speed of the iteration, not its answer. The system is solved densely
 :meth:`~twoscale.influence.base.InfluenceProvider.point_operator` (no ``N x N`` matrix)
 beyond.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -89,8 +90,16 @@ class CoarseSpace:
         Conjugate-gradient iterations allowed.
     """
 
-    def __init__(self, provider: InfluenceProvider, tips: np.ndarray, lower, *, dense_max: int = 2000,
-                 rtol: float = 1e-3, max_iter: int = 200):
+    def __init__(
+        self,
+        provider: InfluenceProvider,
+        tips: np.ndarray,
+        lower,
+        *,
+        dense_max: int = 2000,
+        rtol: float = 1e-3,
+        max_iter: int = 200,
+    ):
         self.provider = provider
         self.tips = np.asarray(tips, dtype=float)
         self.dense_max, self.rtol, self.max_iter = int(dense_max), float(rtol), int(max_iter)
@@ -99,7 +108,7 @@ class CoarseSpace:
         for i in range(lower.shape[0]):
             a, b = lower.indptr[i], lower.indptr[i + 1]
             if b > a:
-                vals[a:b] = provider.point_compliance(self.tips[i:i + 1], self.tips[lower.indices[a:b]])[0]
+                vals[a:b] = provider.point_compliance(self.tips[i : i + 1], self.tips[lower.indices[a:b]])[0]
         self.lower = sp.csr_matrix((vals, lower.indices, lower.indptr), shape=lower.shape)
         self._op = None
         self._shapes: dict = {}
@@ -129,8 +138,9 @@ class CoarseSpace:
         resultants by ``dF`` (N)."""
         return -(self._operator().apply(dF) - self.lower @ dF)
 
-    def correct(self, blocks, patches, pressures: list, active: list, dF: np.ndarray, theta: np.ndarray,
-                control: Control) -> CoarseStep:
+    def correct(
+        self, blocks, patches, pressures: list, active: list, dF: np.ndarray, theta: np.ndarray, control: Control
+    ) -> CoarseStep:
         """One coarse step after a sweep; see the module docstring.
 
         Parameters
@@ -209,4 +219,3 @@ class CoarseSpace:
 
         out = block_cg(matvec, 1.0 / kinv, rhs, rtol=self.rtol, max_iter=self.max_iter)
         return out.x, out.iterations, out.converged
-

@@ -7,6 +7,7 @@ sides) give the exact Jacobian ``K_ij = h^2 sum G_i s_j`` of the resultants
 ``G = (1, y - py, x - px)`` (total load, moment about x, moment about y), so one Newton step
 ``p + s dtheta`` meets the equations to round-off whenever the contact sets hold.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -51,7 +52,7 @@ def rhs_derivatives(patch: Patch, pivot: tuple[float, float], n_unknowns: int) -
 
 def patch_forces(patches, pressures) -> np.ndarray:
     """Resultant force of each block's pressure (N), shape (len(patches),)."""
-    return np.array([pt.grid.h ** 2 * float(np.sum(p)) for pt, p in zip(patches, pressures)])
+    return np.array([pt.grid.h**2 * float(np.sum(p)) for pt, p in zip(patches, pressures)])
 
 
 def member_forces(patches, pressures) -> tuple[np.ndarray, np.ndarray]:
@@ -62,7 +63,7 @@ def member_forces(patches, pressures) -> tuple[np.ndarray, np.ndarray]:
         owner = pt.owner[pt.owned]
         for m in pt.members:
             index.append(m)
-            forces.append(pt.grid.h ** 2 * float(np.sum(p[owner == m])))
+            forces.append(pt.grid.h**2 * float(np.sum(p[owner == m])))
     return np.array(index, dtype=int), np.array(forces, dtype=float)
 
 
@@ -75,7 +76,7 @@ def resultants(patches, pressures, pivot: tuple[float, float], n_unknowns: int) 
     for patch, p in zip(patches, pressures):
         xr, yr = block_coordinates(patch, pivot)
         G = np.column_stack([np.ones_like(xr), yr, xr])[:, :n_unknowns]
-        out = out + patch.grid.h ** 2 * (G.T @ p)
+        out = out + patch.grid.h**2 * (G.T @ p)
     return np.asarray(out)
 
 

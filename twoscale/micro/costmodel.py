@@ -15,6 +15,7 @@ block iteration's; the model's other fields are the structure of the work estima
 and products expected) and the budgets after which the driver gives a block iteration up
 (the two-level iteration's sweeps and its early exit on a stall or a slow rate).
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass, field
@@ -113,8 +114,10 @@ class CostModel:
     def seconds(self, work: dict, *, load_control: bool = False, tilt: bool = False) -> dict:
         """Predicted CPU seconds of each candidate from its work units."""
         blocks = self.tilt_factor if tilt else self.load_factor if load_control else 1.0
-        return {k: self.fixed_seconds[k] + 1e-9 * self.ns_per_unit[k] * float(w) * (1.0 if k == "union-cg" else blocks)
-                for k, w in work.items()}
+        return {
+            k: self.fixed_seconds[k] + 1e-9 * self.ns_per_unit[k] * float(w) * (1.0 if k == "union-cg" else blocks)
+            for k, w in work.items()
+        }
 
 
 #: The fit of ``benchmarks/calibrate_policy.py`` (printed by ``--emit``), pasted here: 144

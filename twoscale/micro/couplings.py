@@ -15,6 +15,7 @@ one solve:
 Every engine answers ``rhs``, ``patch_displacement``, ``append``, ``replace``,
 ``route_counts``; an engine built with ``held=True`` also ``near(k)`` and ``refresh(values)``.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -48,8 +49,9 @@ class Exact:
         """No far field (the attempt's record)."""
         return None
 
-    def build(self, provider, patches, *, held: bool, dense_max_entries: int,
-              separated_rtol: float | None) -> ExactProducts:
+    def build(
+        self, provider, patches, *, held: bool, dense_max_entries: int, separated_rtol: float | None
+    ) -> ExactProducts:
         """The engine for ``patches`` (``held`` changes nothing: no far field; the other
         keywords as :class:`.blocks.Coupling`'s)."""
         return ExactProducts(provider, patches, dense_max_entries=dense_max_entries, separated_rtol=separated_rtol)
@@ -72,14 +74,16 @@ class FarField:
         """The tolerance (the attempt's record)."""
         return float(self.tol)
 
-    def build(self, provider, patches, *, held: bool, dense_max_entries: int,
-              separated_rtol: float | None) -> FarFieldCoupling:
+    def build(
+        self, provider, patches, *, held: bool, dense_max_entries: int, separated_rtol: float | None
+    ) -> FarFieldCoupling:
         """The engine for ``patches``: the far field evaluated per block, or (``held``) for
         every block at once and held until refreshed (the other keywords as
         :class:`.blocks.Coupling`'s)."""
         kind = LaggedFarField if held else FarFieldCoupling
-        return kind(provider, patches, far_tol=self.far_tol, dense_max_entries=dense_max_entries,
-                    separated_rtol=separated_rtol)
+        return kind(
+            provider, patches, far_tol=self.far_tol, dense_max_entries=dense_max_entries, separated_rtol=separated_rtol
+        )
 
 
 def coupling_for(far_tol: float | None) -> Exact | FarField:

@@ -11,6 +11,7 @@ The strategies are objects of :mod:`.strategies`: an iteration (:class:`~.strate
 it accepts (:class:`~.couplings.Exact` or :class:`~.couplings.FarField`; none for the union
 CG). :func:`solve_micro` runs one iteration with one coupling, without the policy.
 """
+
 from __future__ import annotations
 
 import time
@@ -70,8 +71,9 @@ class MicroPlan:
     attempts: tuple
 
 
-def _plan(patches, box, choice_fixed: Choice | None, merged_contacts: bool, load_control: bool,
-          tilt: bool = False) -> Choice:
+def _plan(
+    patches, box, choice_fixed: Choice | None, merged_contacts: bool, load_control: bool, tilt: bool = False
+) -> Choice:
     if choice_fixed is not None:
         return choice_fixed
     return choose(patches, box, merged_contacts=merged_contacts, load_control=load_control, tilt=tilt)
@@ -86,9 +88,16 @@ def fixed_choice(iteration: str, far_tol: float | None, why: str) -> Choice:
     return Choice(iteration, far_tol, why, {}, by_caller=True)
 
 
-def run_micro(provider: InfluenceProvider, asperities: Sequence[Asperity], macro, problem: MicroProblem,
-              options: MicroOptions, *, choice: Choice | None = None,
-              progress: Callable | None = None) -> tuple[MicroResult, MicroPlan]:
+def run_micro(
+    provider: InfluenceProvider,
+    asperities: Sequence[Asperity],
+    macro,
+    problem: MicroProblem,
+    options: MicroOptions,
+    *,
+    choice: Choice | None = None,
+    progress: Callable | None = None,
+) -> tuple[MicroResult, MicroPlan]:
     """Run the micro step after ``macro`` (a :class:`~twoscale.macro.result.MacroResult`).
 
     Parameters
@@ -108,34 +117,56 @@ def run_micro(provider: InfluenceProvider, asperities: Sequence[Asperity], macro
     patches = one_asperity_patches(provider, asperities, problem, options.margin)
     context = MicroContext(provider, asperities, problem, options, BlockSettings(), tuple(patches))
     if not patches:
-        return BlockGaussSeidel().run(context, Exact(), max_sweeps=options.max_sweeps), \
-            MicroPlan(Choice("block-gs", None, "no asperity reaches the body", {}), ())
-    picked = _plan(patches, box_of([pt.grid for pt in patches], problem.h, problem.anchor).size, choice,
-                   merged_contacts=bool(macro.safe_path), load_control=problem.total_load is not None,
-                   tilt=bool(problem.free_tilt))
+        return BlockGaussSeidel().run(context, Exact(), max_sweeps=options.max_sweeps), MicroPlan(
+            Choice("block-gs", None, "no asperity reaches the body", {}), ()
+        )
+    picked = _plan(
+        patches,
+        box_of([pt.grid for pt in patches], problem.h, problem.anchor).size,
+        choice,
+        merged_contacts=bool(macro.safe_path),
+        load_control=problem.total_load is not None,
+        tilt=bool(problem.free_tilt),
+    )
     attempts: list = []
     result = None
     for iteration, coupling, sweeps_cap in _order(picked):
-        stage = f"micro step, {iteration.name}" + (f" ({coupling.name} {coupling.far_tol:g})"
-                                                   if coupling is not None and coupling.far_tol is not None else "")
+        stage = f"micro step, {iteration.name}" + (
+            f" ({coupling.name} {coupling.far_tol:g})" if coupling is not None and coupling.far_tol is not None else ""
+        )
         monitor = None
         if progress is not None:
             progress(stage)
             unit = "CG iteration" if isinstance(iteration, UnionCG) else "sweep"
-            monitor = (lambda k, r, _s=stage, _u=unit: progress(f"{_s}: {_u} {k}, residual {r:.1e}"))
+            monitor = lambda k, r, _s=stage, _u=unit: progress(f"{_s}: {_u} {k}, residual {r:.1e}")
         t = time.perf_counter()
         cap = min(options.max_sweeps, sweeps_cap) if sweeps_cap else options.max_sweeps
         result = iteration.run(context, coupling, max_sweeps=cap, monitor=monitor)
-        attempts.append(Attempt(iteration.name, None if coupling is None else coupling.far_tol,
-                                bool(result.converged), int(result.sweeps), time.perf_counter() - t, result.message))
+        attempts.append(
+            Attempt(
+                iteration.name,
+                None if coupling is None else coupling.far_tol,
+                bool(result.converged),
+                int(result.sweeps),
+                time.perf_counter() - t,
+                result.message,
+            )
+        )
         if result.converged:
             break
     return result, MicroPlan(picked, tuple(attempts))
 
 
-def solve_micro(provider: InfluenceProvider, asperities: Sequence[Asperity], problem: MicroProblem,
-                options: MicroOptions | None = None, *, iteration: str = "block-gs",
-                settings: BlockSettings | None = None, monitor: Callable | None = None) -> MicroResult:
+def solve_micro(
+    provider: InfluenceProvider,
+    asperities: Sequence[Asperity],
+    problem: MicroProblem,
+    options: MicroOptions | None = None,
+    *,
+    iteration: str = "block-gs",
+    settings: BlockSettings | None = None,
+    monitor: Callable | None = None,
+) -> MicroResult:
     """The micro step by one iteration without the policy or fallbacks (docs/method.md
     section 3): ``iteration`` (``"block-gs"``, ``"two-level"`` or ``"union-cg"``) with the
     coupling ``options.far_tol`` names (None exact; the union CG takes none), for at most

@@ -14,6 +14,7 @@ resultants and O(cells) for the interpolation weights; no ``N^2`` table.
 The provider is only asked for ``point_compliance``, so any body works (the finite-block
 provider's correction is smooth, so its far field is as well represented as the half-space's).
 """
+
 from __future__ import annotations
 
 import math
@@ -114,7 +115,7 @@ class FarFieldCoupling(Coupling):
         g = self.patches[k].grid
         xs = g.x0 + 0.5 * (g.nx - 1) * g.h * np.array([0.0, 1.0, 2.0])
         ys = g.y0 + 0.5 * (g.ny - 1) * g.h * np.array([0.0, 1.0, 2.0])
-        X, Y = np.meshgrid(xs, ys)          # (3 y, 3 x)
+        X, Y = np.meshgrid(xs, ys)  # (3 y, 3 x)
         return np.column_stack([X.ravel(), Y.ravel()])
 
     def _interpolation(self, k: int, whole: bool) -> np.ndarray:
@@ -157,7 +158,7 @@ class FarFieldCoupling(Coupling):
             h2 = self.patches[l].grid.h ** 2
             pts = self._owned_points(l)
             F = h2 * v.sum(axis=0)
-            first_moment = h2 * (pts.T @ v)            # (2, m)
+            first_moment = h2 * (pts.T @ v)  # (2, m)
             C = np.repeat(self._centres[l][:, None], m, axis=1)
             # the centre of pressure when it is meaningful (inside the patch), else the centre
             with np.errstate(divide="ignore", invalid="ignore"):
@@ -232,8 +233,7 @@ class LaggedFarField(FarFieldCoupling):
         Accuracy asked of the provider's point operator.
     """
 
-    def __init__(self, provider: InfluenceProvider, patches, *, far_tol: float = 0.2,
-                 rtol: float = 1e-6, **kwargs):
+    def __init__(self, provider: InfluenceProvider, patches, *, far_tol: float = 0.2, rtol: float = 1e-6, **kwargs):
         self._rtol = float(rtol)
         super().__init__(provider, patches, far_tol=far_tol, **kwargs)
 
@@ -268,6 +268,7 @@ class LaggedFarField(FarFieldCoupling):
     def near_pattern(self):
         """Sparse (N, N) pattern of the near pairs (patch indices, ``k`` excluded)."""
         import scipy.sparse as sp
+
         n = len(self.patches)
         cols = [self.near(k) for k in range(n)]
         rows = np.repeat(np.arange(n), [len(c) for c in cols])
@@ -277,6 +278,7 @@ class LaggedFarField(FarFieldCoupling):
     def _point_operator(self):
         if self._op is None:
             import scipy.sparse as sp
+
             n = len(self.patches)
             sources = np.concatenate([source_nodes(pt.grid)[0] for pt in self.patches])
             targets = np.concatenate([self._stencil(k) for k in range(n)])
@@ -291,7 +293,7 @@ class LaggedFarField(FarFieldCoupling):
         n, m = len(self.patches), _columns(values)
         S = np.zeros((n, 9, m))
         for l, v in enumerate(values):
-            if v is not None and v.size:   # a block can own no cell (a neighbour owns its patch)
+            if v is not None and v.size:  # a block can own no cell (a neighbour owns its patch)
                 g = self.patches[l].grid
                 centre, delta = source_frame(g)
                 S[l] = source_strengths(self._owned_points(l), v.reshape(len(v), -1), centre, delta, g.h)

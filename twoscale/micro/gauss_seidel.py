@@ -10,6 +10,7 @@ ratio here is their square root).
 :func:`linear_gauss_seidel` runs the same sweeps on fixed contact sets, for the
 sensitivities of the pressure to the approach and the tilt.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -68,8 +69,17 @@ class Sweep:
     failed: tuple
 
 
-def sweep(blocks: list[LocalBlock], coupling: Coupling, b: list, p: list, active: list, *,
-          local_rtol: float | None = None, levels: list | None = None, stacks=None) -> Sweep:
+def sweep(
+    blocks: list[LocalBlock],
+    coupling: Coupling,
+    b: list,
+    p: list,
+    active: list,
+    *,
+    local_rtol: float | None = None,
+    levels: list | None = None,
+    stacks=None,
+) -> Sweep:
     """One block Gauss-Seidel sweep (eq. 8) over ``k = 1..N`` from pressures ``p``;
     ``local_rtol`` is the conjugate-gradient tolerance of large blocks (default theirs).
 
@@ -90,7 +100,7 @@ def sweep(blocks: list[LocalBlock], coupling: Coupling, b: list, p: list, active
         diff2[k] = float(np.sum((pressure - p[k]) ** 2))
         p[k], active[k] = pressure, now
 
-    for level in ([[k] for k in range(n)] if levels is None else levels):
+    for level in [[k] for k in range(n)] if levels is None else levels:
         rhs = {k: coupled_rhs(coupling, k, p, b[k]) for k in level}
         stacked = [] if stacks is None else [k for k in level if not blocks[k].dense and blocks[k].n]
         if len(stacked) > 1:
@@ -106,8 +116,17 @@ def sweep(blocks: list[LocalBlock], coupling: Coupling, b: list, p: list, active
     return Sweep(p, active, bool(changed.any()), rel, tuple(np.flatnonzero(failed).tolist()))
 
 
-def gauss_seidel(blocks: list[LocalBlock], coupling: Coupling, b: list, start: list, *,
-                 tol: float, max_sweeps: int, stop=None, monitor=None) -> SweepResult:
+def gauss_seidel(
+    blocks: list[LocalBlock],
+    coupling: Coupling,
+    b: list,
+    start: list,
+    *,
+    tol: float,
+    max_sweeps: int,
+    stop=None,
+    monitor=None,
+) -> SweepResult:
     """Contact by block Gauss-Seidel (eq. 8), stopped by eq. 9.
 
     Parameters
@@ -139,36 +158,60 @@ def gauss_seidel(blocks: list[LocalBlock], coupling: Coupling, b: list, start: l
         if monitor is not None:
             monitor(m, sw.change)
         if sw.failed:
-            return SweepResult(p, active, False, m, tuple(history),
-                               f"local active-set solve did not converge on blocks {list(sw.failed)}",
-                               StopReason.FAILED)
+            return SweepResult(
+                p,
+                active,
+                False,
+                m,
+                tuple(history),
+                f"local active-set solve did not converge on blocks {list(sw.failed)}",
+                StopReason.FAILED,
+            )
         if sw.change <= tol and not sw.changed:
             return SweepResult(p, active, True, m, tuple(history), "", StopReason.CONVERGED)
         if stop is not None and stop(p):
             return SweepResult(p, active, False, m, tuple(history), "stopped", StopReason.STOPPED)
-    return SweepResult(p, active, False, max_sweeps, tuple(history),
-                       f"block Gauss-Seidel reached {max_sweeps} sweeps (last change {history[-1]:.3g})",
-                       StopReason.MAX_ITER)
+    return SweepResult(
+        p,
+        active,
+        False,
+        max_sweeps,
+        tuple(history),
+        f"block Gauss-Seidel reached {max_sweeps} sweeps (last change {history[-1]:.3g})",
+        StopReason.MAX_ITER,
+    )
 
 
-def linear_gauss_seidel(blocks: list[LocalBlock], coupling: Coupling, rhs: list, active: list, *,
-                        tol: float, max_sweeps: int, start: list | None = None) -> SweepResult:
+def linear_gauss_seidel(
+    blocks: list[LocalBlock],
+    coupling: Coupling,
+    rhs: list,
+    active: list,
+    *,
+    tol: float,
+    max_sweeps: int,
+    start: list | None = None,
+) -> SweepResult:
     """Solve ``A_SS x = rhs`` on the fixed contact sets ``active`` by block Gauss-Seidel.
 
     ``rhs[k]`` has shape (n_k, m): ``m`` right-hand sides solved together; ``x`` is zero
     off the contact sets. Converges for any SPD influence matrix. ``start`` (same shapes
     as ``rhs``) is a warm start.
     """
-    x = [np.zeros_like(r) for r in rhs] if start is None else [np.where(a[:, None], s, 0.0)
-                                                              for a, s in zip(active, start)]
+    x = (
+        [np.zeros_like(r) for r in rhs]
+        if start is None
+        else [np.where(a[:, None], s, 0.0) for a, s in zip(active, start)]
+    )
     history = []
     for m in range(1, max_sweeps + 1):
         diff2 = 0.0
         for k, blk in enumerate(blocks):
             r = coupled_rhs(coupling, k, x, rhs[k])
             new = np.zeros_like(r)
-            new[active[k]] = blk.solve(active[k], r[active[k]], x[k][active[k]],
-                                       rtol=1e-2 * max(history[-1] if history else 0.1, tol))
+            new[active[k]] = blk.solve(
+                active[k], r[active[k]], x[k][active[k]], rtol=1e-2 * max(history[-1] if history else 0.1, tol)
+            )
             diff2 += float(np.sum((new - x[k]) ** 2))
             x[k] = new
         norm2 = sum(float(np.sum(v * v)) for v in x)
@@ -176,5 +219,12 @@ def linear_gauss_seidel(blocks: list[LocalBlock], coupling: Coupling, rhs: list,
         history.append(rel)
         if rel <= tol:
             return SweepResult(x, active, True, m, tuple(history), "", StopReason.CONVERGED)
-    return SweepResult(x, active, False, max_sweeps, tuple(history),
-                       f"linear block Gauss-Seidel reached {max_sweeps} sweeps", StopReason.MAX_ITER)
+    return SweepResult(
+        x,
+        active,
+        False,
+        max_sweeps,
+        tuple(history),
+        f"linear block Gauss-Seidel reached {max_sweeps} sweeps",
+        StopReason.MAX_ITER,
+    )

@@ -11,6 +11,7 @@ drop the cells with negative pressure, add the cells that penetrate, until neith
 Large blocks use Polonsky and Keer's constrained conjugate gradients with the provider's
 FFT products (:mod:`.pk`), warm-started from the previous pressure.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -57,8 +58,15 @@ def _next_active(active: np.ndarray, p: np.ndarray, seen: set) -> np.ndarray:
     return out
 
 
-def contact_solve(block: LocalBlock, b: np.ndarray, previous: np.ndarray, *, max_iter: int = 200,
-                  gap_rtol: float = 1e-12, rtol: float | None = None) -> LocalSolution:
+def contact_solve(
+    block: LocalBlock,
+    b: np.ndarray,
+    previous: np.ndarray,
+    *,
+    max_iter: int = 200,
+    gap_rtol: float = 1e-12,
+    rtol: float | None = None,
+) -> LocalSolution:
     """Contact on one block with a fixed right-hand side (eq. 8 with clipping done right).
 
     Parameters
@@ -78,8 +86,9 @@ def contact_solve(block: LocalBlock, b: np.ndarray, previous: np.ndarray, *, max
         the sweeps loosen it while they are far from converged.
     """
     if not block.dense:
-        p, ok, it = pk_fixed_approach(block.matvec, b, previous, rtol=block.cg_rtol if rtol is None else rtol,
-                                      max_iter=5 * max_iter)
+        p, ok, it = pk_fixed_approach(
+            block.matvec, b, previous, rtol=block.cg_rtol if rtol is None else rtol, max_iter=5 * max_iter
+        )
         return LocalSolution(p, p > 0.0, float("nan"), False, ok, it)
     start = previous > 0.0
     active = start.copy() if np.any(start) else b > 0.0
@@ -110,8 +119,9 @@ def pk_start(z: np.ndarray, approach: float) -> np.ndarray:
     return np.sqrt(np.maximum(0.5 * max(approach, 0.0) - (z - zmin), 0.0)) + (z == zmin)
 
 
-def initial_pressures(blocks: list, z: list, forces: list, approaches: list, h: float, *, rtol: float,
-                      stacks=None) -> list:
+def initial_pressures(
+    blocks: list, z: list, forces: list, approaches: list, h: float, *, rtol: float, stacks=None
+) -> list:
     """:func:`initial_pressure` (eq. 7) on every block, MPa; with ``stacks``
     (:class:`~.pk_stack.BlockStacks`) the large blocks of one size class are solved together."""
     out = [None] * len(blocks)
@@ -121,13 +131,23 @@ def initial_pressures(blocks: list, z: list, forces: list, approaches: list, h: 
             starts = {k: pk_start(z[k], approaches[k]) for k in ks}
             for k, p in stacks.initial(blocks, ks, z, forces, starts, h, rtol=rtol).items():
                 out[k] = p
-    return [p if p is not None else initial_pressure(blk, zk, P, h, approach=a, rtol=rtol).pressure
-            for p, blk, zk, P, a in zip(out, blocks, z, forces, approaches)]
+    return [
+        p if p is not None else initial_pressure(blk, zk, P, h, approach=a, rtol=rtol).pressure
+        for p, blk, zk, P, a in zip(out, blocks, z, forces, approaches)
+    ]
 
 
-def initial_pressure(block: LocalBlock, z: np.ndarray, force: float, h: float, *,
-                     approach: float, max_iter: int = 200, gap_rtol: float = 1e-12,
-                     rtol: float = 1e-8) -> LocalSolution:
+def initial_pressure(
+    block: LocalBlock,
+    z: np.ndarray,
+    force: float,
+    h: float,
+    *,
+    approach: float,
+    max_iter: int = 200,
+    gap_rtol: float = 1e-12,
+    rtol: float = 1e-8,
+) -> LocalSolution:
     """Initial pressure ``p0_k`` of paper eq. 7.
 
     Solves ``[A_kk 1; 1^T 0] [p; -s] = [-z; P_k / h^2]`` on the active cells, i.e.
@@ -158,8 +178,9 @@ def initial_pressure(block: LocalBlock, z: np.ndarray, force: float, h: float, *
     if not np.any(active):
         active = z == zmin
     if not block.dense:
-        p, s, ok, it = pk_fixed_force(block.matvec, z, force, h, pk_start(z, approach), rtol=rtol,
-                                      max_iter=5 * max_iter)
+        p, s, ok, it = pk_fixed_force(
+            block.matvec, z, force, h, pk_start(z, approach), rtol=rtol, max_iter=5 * max_iter
+        )
         return LocalSolution(p, p > 0.0, s, False, ok, it)
     ones = np.ones(n)
     seen: set = set()

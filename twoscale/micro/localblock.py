@@ -2,6 +2,7 @@
 on active subsets (dense factorisations for small blocks, CG on the provider's operator for
 large ones). Every number comes from the influence provider.
 """
+
 from __future__ import annotations
 
 from collections import OrderedDict
@@ -51,8 +52,16 @@ class LocalBlock:
         10,000 sparse tips for no measured gain).
     """
 
-    def __init__(self, provider: InfluenceProvider, patch: Patch, *, dense_max_cells: int = 400,
-                 cg_rtol: float = 1e-10, cg_max_iter: int = 2000, cache_size: int = 2):
+    def __init__(
+        self,
+        provider: InfluenceProvider,
+        patch: Patch,
+        *,
+        dense_max_cells: int = 400,
+        cg_rtol: float = 1e-10,
+        cg_max_iter: int = 2000,
+        cache_size: int = 2,
+    ):
         self.patch = patch
         self._provider = provider
         self.n = int(patch.owned.sum())
@@ -69,7 +78,7 @@ class LocalBlock:
         if rows.size:
             j0, i0 = int(rows[0]), int(cols[0])
             self.box = patch.grid.subgrid(i0, j0, int(cols[-1]) + 1 - i0, int(rows[-1]) + 1 - j0)
-            self._mask = patch.owned[j0:j0 + self.box.ny, i0:i0 + self.box.nx]
+            self._mask = patch.owned[j0 : j0 + self.box.ny, i0 : i0 + self.box.nx]
         else:
             self.box, self._mask = patch.grid, patch.owned
         self._full = None
@@ -136,12 +145,13 @@ class LocalBlock:
         """The block's cells on a canvas of ``shape`` (>= the box's) whose corner is the
         box's: a block vector ``v`` is ``canvas[mask] = v`` (the same cell order)."""
         out = np.zeros(shape, bool)
-        out[:self.box.ny, :self.box.nx] = self._mask
+        out[: self.box.ny, : self.box.nx] = self._mask
         return out
 
     # ------------------------------------------------------------------ solves
-    def solve(self, active: np.ndarray, rhs: np.ndarray, x0: np.ndarray | None = None,
-              rtol: float | None = None) -> np.ndarray:
+    def solve(
+        self, active: np.ndarray, rhs: np.ndarray, x0: np.ndarray | None = None, rtol: float | None = None
+    ) -> np.ndarray:
         """Solve ``A_SS x = rhs`` on the active cells ``S`` (boolean mask over the block).
 
         ``rhs`` has shape (|S|,) or (|S|, m); returns the same shape. ``x0`` is a CG start
@@ -155,8 +165,7 @@ class LocalBlock:
                 return sla.cho_solve(f, rhs, check_finite=False)
             return sla.lu_solve(f, rhs, check_finite=False)
         if rhs.ndim == 2:
-            cols = [self._cg(active, rhs[:, j], None if x0 is None else x0[:, j], rtol)
-                    for j in range(rhs.shape[1])]
+            cols = [self._cg(active, rhs[:, j], None if x0 is None else x0[:, j], rtol) for j in range(rhs.shape[1])]
             return np.column_stack(cols)
         return self._cg(active, rhs, x0, rtol)
 

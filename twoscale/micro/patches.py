@@ -6,6 +6,7 @@ belongs to the asperity nearest the body (lowest height,
 :func:`twoscale.indenters.surface_on`); a patch's *block* is the set of its cells its own
 asperity owns, so no cell is ever counted twice.
 """
+
 from __future__ import annotations
 
 import math
@@ -85,8 +86,9 @@ class TipTable(Sequence):
     def of(cls, asperities: Sequence[Asperity]) -> "TipTable":
         return asperities if isinstance(asperities, cls) else cls(asperities)
 
-    def reaching(self, bounds: tuple[float, float, float, float], *, index: bool = True,
-                 below: float = math.inf) -> np.ndarray:
+    def reaching(
+        self, bounds: tuple[float, float, float, float], *, index: bool = True, below: float = math.inf
+    ) -> np.ndarray:
         """Sorted indices of the asperities whose material (``r < R``) can reach the box
         ``(xmin, xmax, ymin, ymax)`` (mm), unbounded ones included; with a finite ``below``
         (mm: a height the surface is known not to exceed over the box) not the spheres and
@@ -104,9 +106,13 @@ class TipTable(Sequence):
         if index and n > TREE_MIN and math.isfinite(radius):
             if self._tree is None:
                 from scipy.spatial import cKDTree
+
                 self._tree = cKDTree(np.column_stack([self.x, self.y]))
-            cand = np.sort(np.asarray(self._tree.query_ball_point([0.5 * (xmin + xmax), 0.5 * (ymin + ymax)],
-                                                                  radius), dtype=np.int64))
+            cand = np.sort(
+                np.asarray(
+                    self._tree.query_ball_point([0.5 * (xmin + xmax), 0.5 * (ymin + ymax)], radius), dtype=np.int64
+                )
+            )
         else:
             cand = np.arange(n)
         x, y, R = self.x[cand], self.y[cand], self.R[cand]
@@ -128,11 +134,13 @@ class TipTable(Sequence):
         if self._reach is None:
             simple = self.parabolic | self.spherical
             other = ~simple
-            self._reach = (float(np.max(self.R[other], initial=0.0)),  # inf with an unbounded other
-                           float(np.max(self.R[self.spherical], initial=0.0)),
-                           bool(np.any(self.parabolic)),
-                           float(np.max(self.curvature[simple], initial=0.0)),
-                           float(np.min(self.z[simple], initial=np.inf)))
+            self._reach = (
+                float(np.max(self.R[other], initial=0.0)),  # inf with an unbounded other
+                float(np.max(self.R[self.spherical], initial=0.0)),
+                bool(np.any(self.parabolic)),
+                float(np.max(self.curvature[simple], initial=0.0)),
+                float(np.min(self.z[simple], initial=np.inf)),
+            )
         other, sphere, parabolic, curv, zmin = self._reach
         rho = math.sqrt(2.0 * curv * max(below - zmin, 0.0)) if math.isfinite(below) else math.inf
         return max(other, min(sphere, rho), rho if parabolic else 0.0)
@@ -159,15 +167,17 @@ def make_patch(k: int, grid: Grid, asperities: Sequence[Asperity], members: tupl
     """
     # a table made here is used once: its tree would cost more than the direct test
     table = TipTable.of(asperities)
-    keep = table.reaching(grid.bounds, index=isinstance(asperities, TipTable),
-                          below=_highest(grid, [asperities[m] for m in (members or (k,))])).tolist()
+    keep = table.reaching(
+        grid.bounds,
+        index=isinstance(asperities, TipTable),
+        below=_highest(grid, [asperities[m] for m in (members or (k,))]),
+    ).tolist()
     surf = surface_on(grid, [asperities[l] for l in keep])
     index = np.append(np.asarray(keep, dtype=np.int64), -1)
     return Patch(k, grid, surf.height, index[surf.owner], members)
 
 
-def patch_radius(asperity: Asperity, *, force: float, approach: float, E_star: float,
-                 h: float, margin: float) -> float:
+def patch_radius(asperity: Asperity, *, force: float, approach: float, E_star: float, h: float, margin: float) -> float:
     """Half-width (mm) of the patch of one asperity.
 
     The Hertz-like contact radius ``a = (3 P R / (4 E*))^(1/3)`` from the macro force ``P``
@@ -184,9 +194,17 @@ def patch_radius(asperity: Asperity, *, force: float, approach: float, E_star: f
     return min(reach, margin * a + 2.0 * h)
 
 
-def build_patches(asperities: Sequence[Asperity], *, h: float, forces: np.ndarray,
-                  approaches: np.ndarray, E_star: float, margin: float = 1.3,
-                  anchor: tuple[float, float] = (0.0, 0.0), reuse: Sequence[Patch] = ()) -> list[Patch]:
+def build_patches(
+    asperities: Sequence[Asperity],
+    *,
+    h: float,
+    forces: np.ndarray,
+    approaches: np.ndarray,
+    E_star: float,
+    margin: float = 1.3,
+    anchor: tuple[float, float] = (0.0, 0.0),
+    reuse: Sequence[Patch] = (),
+) -> list[Patch]:
     """One patch per asperity that can touch (``approaches[k] > 0``).
 
     Parameters
@@ -215,8 +233,7 @@ def build_patches(asperities: Sequence[Asperity], *, h: float, forces: np.ndarra
     for k, a in enumerate(asperities):
         if approaches[k] <= 0.0:
             continue
-        r = patch_radius(a, force=float(forces[k]), approach=float(approaches[k]), E_star=E_star,
-                         h=h, margin=margin)
+        r = patch_radius(a, force=float(forces[k]), approach=float(approaches[k]), E_star=E_star, h=h, margin=margin)
         grid = Grid.covering(a.x - r, a.x + r, a.y - r, a.y + r, h, anchor=anchor)
         patches.append(built.get((k, grid)) or make_patch(k, grid, asperities))
     return patches
@@ -228,8 +245,9 @@ def edges_loaded(patch: Patch, pressure: np.ndarray) -> tuple[bool, bool, bool, 
     return (bool(p[:, 0].any()), bool(p[:, -1].any()), bool(p[0, :].any()), bool(p[-1, :].any()))
 
 
-def grow_patch(patch: Patch, sides: tuple[bool, bool, bool, bool], asperities: Sequence[Asperity],
-               *, fraction: float = 0.25) -> Patch:
+def grow_patch(
+    patch: Patch, sides: tuple[bool, bool, bool, bool], asperities: Sequence[Asperity], *, fraction: float = 0.25
+) -> Patch:
     """The patch extended on the flagged (left, right, bottom, top) sides by ``fraction``
     of its size (at least two cells)."""
     g = patch.grid
@@ -241,8 +259,7 @@ def grow_patch(patch: Patch, sides: tuple[bool, bool, bool, bool], asperities: S
     return make_patch(patch.asperity, g.subgrid(i0, j0, nx, ny), asperities, patch.members)
 
 
-def extend_patch(patch: Patch, points: np.ndarray, asperities: Sequence[Asperity], *,
-                 pad: int = 2) -> Patch:
+def extend_patch(patch: Patch, points: np.ndarray, asperities: Sequence[Asperity], *, pad: int = 2) -> Patch:
     """The patch enlarged to cover ``points`` (M, 2) mm plus ``pad`` cells."""
     g = patch.grid
     xmin, xmax, ymin, ymax = g.bounds
@@ -253,20 +270,20 @@ def extend_patch(patch: Patch, points: np.ndarray, asperities: Sequence[Asperity
     j0 = math.floor((ymin - g.y0) / g.h + 0.5)
     i1 = math.ceil((xmax - g.x0) / g.h - 0.5)
     j1 = math.ceil((ymax - g.y0) / g.h - 0.5)
-    return make_patch(patch.asperity, g.subgrid(i0, j0, i1 - i0 + 1, j1 - j0 + 1), asperities,
-                      patch.members)
+    return make_patch(patch.asperity, g.subgrid(i0, j0, i1 - i0 + 1, j1 - j0 + 1), asperities, patch.members)
 
 
 def transfer(old: Patch, new: Patch, pressure: np.ndarray) -> np.ndarray:
     """Copy a patch array (ny, nx) onto an aligned larger patch (zero on new cells)."""
     di, dj = old.grid.offset_in(new.grid)
     out = np.zeros(new.grid.shape)
-    out[dj:dj + old.grid.ny, di:di + old.grid.nx] = pressure
+    out[dj : dj + old.grid.ny, di : di + old.grid.nx] = pressure
     return out
 
 
-def merge_overlapping(patches: Sequence[Patch], asperities: Sequence[Asperity], *,
-                      growth: float = 1.0) -> tuple[list[Patch], list[tuple]]:
+def merge_overlapping(
+    patches: Sequence[Patch], asperities: Sequence[Asperity], *, growth: float = 1.0
+) -> tuple[list[Patch], list[tuple]]:
     """Patches merged where one block over them costs few more cells than they do apart.
 
     Patches become one when the smallest aligned grid covering them has at most ``growth``
@@ -290,8 +307,9 @@ def merge_overlapping(patches: Sequence[Patch], asperities: Sequence[Asperity], 
     x0, y0 = patches[0].grid.x0, patches[0].grid.y0
     # integer lattice boxes [i0, i1) x [j0, j1) of each group, and the cells of its members' grids
     offsets = [pt.grid.offset_in(patches[0].grid) for pt in patches]
-    box = np.array([(di, di + pt.grid.nx, dj, dj + pt.grid.ny) for (di, dj), pt in zip(offsets, patches)],
-                   dtype=np.int64)
+    box = np.array(
+        [(di, di + pt.grid.nx, dj, dj + pt.grid.ny) for (di, dj), pt in zip(offsets, patches)], dtype=np.int64
+    )
     own = (box[:, 1] - box[:, 0]) * (box[:, 3] - box[:, 2])
     groups = [[k] for k in range(len(patches))]
     alive = np.ones(len(patches), dtype=bool)
@@ -307,14 +325,15 @@ def merge_overlapping(patches: Sequence[Patch], asperities: Sequence[Asperity], 
             sel = meet
 
     changed = True
-    while changed:   # until no group qualifies (a grown group may now pair with an earlier one)
+    while changed:  # until no group qualifies (a grown group may now pair with an earlier one)
         changed = False
         for k in np.flatnonzero(alive):
             if not alive[k]:
                 continue
             b = box[k]
-            union = ((np.maximum(box[:, 1], b[1]) - np.minimum(box[:, 0], b[0]))
-                     * (np.maximum(box[:, 3], b[3]) - np.minimum(box[:, 2], b[2])))
+            union = (np.maximum(box[:, 1], b[1]) - np.minimum(box[:, 0], b[0])) * (
+                np.maximum(box[:, 3], b[3]) - np.minimum(box[:, 2], b[2])
+            )
             ratio = union / (own + own[k])
             meets = (box[:, 0] < b[1]) & (box[:, 1] > b[0]) & (box[:, 2] < b[3]) & (box[:, 3] > b[2])
             near = alive & (meets | (ratio <= growth))

@@ -12,6 +12,7 @@ block's pressure in one step is below ``rtol`` and no cell penetrates
 (:class:`~twoscale.pk.kernel.Tolerance` ``change``). :func:`pk_fixed_approach` and
 :func:`pk_fixed_force` are the one-block forms, with the block's own product.
 """
+
 from __future__ import annotations
 
 import numpy as np
@@ -19,8 +20,9 @@ import numpy as np
 from ..pk.kernel import Constraint, Tolerance, pk_solve
 
 
-def fixed_approach(apply, b: np.ndarray, start: np.ndarray, mask: np.ndarray | None, *, rtol: float,
-                   max_iter: int = 1000) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def fixed_approach(
+    apply, b: np.ndarray, start: np.ndarray, mask: np.ndarray | None, *, rtol: float, max_iter: int = 1000
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Contact with given right-hand sides on a stack of blocks.
 
     Parameters
@@ -45,8 +47,16 @@ def fixed_approach(apply, b: np.ndarray, start: np.ndarray, mask: np.ndarray | N
     return out.pressure, out.converged, out.iterations
 
 
-def fixed_force(apply, z: np.ndarray, target: np.ndarray, start: np.ndarray, mask: np.ndarray | None, *,
-                rtol: float, max_iter: int = 1000) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+def fixed_force(
+    apply,
+    z: np.ndarray,
+    target: np.ndarray,
+    start: np.ndarray,
+    mask: np.ndarray | None,
+    *,
+    rtol: float,
+    max_iter: int = 1000,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Pressures carrying given loads on a stack of blocks, rigid shifts unknown (eq. 7).
 
     ``z`` (B, ...) mm the indenter heights, ``target`` (B,) the loads over ``h^2`` (MPa
@@ -56,8 +66,14 @@ def fixed_force(apply, z: np.ndarray, target: np.ndarray, start: np.ndarray, mas
     Returns pressure (B, ...), shift (B,) mm (``A p = s - z`` on the contact), converged
     (B,), iterations (B,)."""
     n = int(np.prod(z.shape[1:]))
-    out = pk_solve(apply, z, start, mask, Tolerance(change=rtol, max_iter=max_iter),
-                   constraint=Constraint(np.ones((n, 1)), np.asarray(target, dtype=float)[:, None]))
+    out = pk_solve(
+        apply,
+        z,
+        start,
+        mask,
+        Tolerance(change=rtol, max_iter=max_iter),
+        constraint=Constraint(np.ones((n, 1)), np.asarray(target, dtype=float)[:, None]),
+    )
     return out.pressure, out.multipliers[:, 0], out.converged, out.iterations
 
 
@@ -65,23 +81,33 @@ def _one_row(matvec):
     return lambda v: matvec(v[0])[None]
 
 
-def pk_fixed_approach(matvec, b: np.ndarray, p_start: np.ndarray, *, rtol: float = 1e-10,
-                      max_iter: int = 1000) -> tuple[np.ndarray, bool, int]:
+def pk_fixed_approach(
+    matvec, b: np.ndarray, p_start: np.ndarray, *, rtol: float = 1e-10, max_iter: int = 1000
+) -> tuple[np.ndarray, bool, int]:
     """:func:`fixed_approach` on one block: ``matvec`` gives ``A v`` (mm) for a block
     vector ``v`` (MPa), ``b`` (n,) mm, ``p_start`` (n,) MPa. Returns pressure (n,),
     converged, iterations."""
     b = np.asarray(b, dtype=float)
-    p, ok, it = fixed_approach(_one_row(matvec), b[None], np.asarray(p_start, dtype=float)[None], None,
-                               rtol=rtol, max_iter=max_iter)
+    p, ok, it = fixed_approach(
+        _one_row(matvec), b[None], np.asarray(p_start, dtype=float)[None], None, rtol=rtol, max_iter=max_iter
+    )
     return p[0], bool(ok[0]), int(it[0])
 
 
-def pk_fixed_force(matvec, z: np.ndarray, force: float, h: float, p_start: np.ndarray, *,
-                   rtol: float = 1e-10, max_iter: int = 1000) -> tuple[np.ndarray, float, bool, int]:
+def pk_fixed_force(
+    matvec, z: np.ndarray, force: float, h: float, p_start: np.ndarray, *, rtol: float = 1e-10, max_iter: int = 1000
+) -> tuple[np.ndarray, float, bool, int]:
     """:func:`fixed_force` on one block: ``force`` N on cells of side ``h`` mm, ``z``
     (n,) mm, ``p_start`` (n,) MPa (> 0 somewhere). Returns pressure (n,), shift s (mm),
     converged, iterations."""
     z = np.asarray(z, dtype=float)
-    p, s, ok, it = fixed_force(_one_row(matvec), z[None], np.array([force / (h * h)]),
-                               np.asarray(p_start, dtype=float)[None], None, rtol=rtol, max_iter=max_iter)
+    p, s, ok, it = fixed_force(
+        _one_row(matvec),
+        z[None],
+        np.array([force / (h * h)]),
+        np.asarray(p_start, dtype=float)[None],
+        None,
+        rtol=rtol,
+        max_iter=max_iter,
+    )
     return p[0], float(s[0]), bool(ok[0]), int(it[0])

@@ -13,6 +13,7 @@ not the arithmetic, and one call per iteration for B blocks replaces B calls.
 Only for a translation-invariant body (the provider's :meth:`split` has no correction):
 the canvas's operator is then every block's, whatever its place.
 """
+
 from __future__ import annotations
 
 import numpy as np
@@ -41,6 +42,7 @@ class BlockStacks:
 
     def _canvas(self, blk):
         from .blocks import size_class
+
         key = (size_class(blk.box.ny), size_class(blk.box.nx))
         op = self._ops.get(key)
         if op is None:
@@ -81,7 +83,9 @@ class BlockStacks:
         """Contact on the blocks ``ks`` (FFT blocks owning cells) with right-hand sides
         ``rhs[k]`` from starts ``previous[k]``: ``{k: (pressure, converged, iterations)}``."""
         out = {}
-        for (key, tol), (op, members) in self._groups(blocks, ks, lambda blk: blk.cg_rtol if rtol is None else rtol).items():
+        for (key, tol), (op, members) in self._groups(
+            blocks, ks, lambda blk: blk.cg_rtol if rtol is None else rtol
+        ).items():
             mask, (b, p0) = self._stack(blocks, members, key, rhs, previous)
             p, ok, it = fixed_approach(op.apply_stack, b, p0, mask, rtol=tol)
             out.update((k, (p[i][mask[i]], bool(ok[i]), int(it[i]))) for i, k in enumerate(members))

@@ -20,6 +20,7 @@ scene-space sweep's measured attempts). The choice, its reason and the estimates
 recorded in the result; a caller may fix the
 iteration or coupling instead (``reason`` then says so).
 """
+
 from __future__ import annotations
 
 import math
@@ -70,8 +71,10 @@ def full_grid_route(cells: int) -> str | None:
     (the default two-scale route's honest choice on the smallest scenes), or None."""
     if cells > FULL_GRID_MAX_CELLS:
         return None
-    return (f"the full grid has {cells:,} cells (at most {FULL_GRID_MAX_CELLS:,}): one constrained CG "
-            "over it is the cheapest solve, the two-scale macro step alone costs as much")
+    return (
+        f"the full grid has {cells:,} cells (at most {FULL_GRID_MAX_CELLS:,}): one constrained CG "
+        "over it is the cheapest solve, the two-scale macro step alone costs as much"
+    )
 
 
 @dataclass(frozen=True)
@@ -108,8 +111,13 @@ def scene_figures(patches: Sequence[Patch], box_cells: int) -> dict:
     """Patch count, carried cells and their share of the box."""
     cells = [int(np.count_nonzero(pt.owned)) for pt in patches]
     carried = int(sum(cells))
-    return {"patches": len(patches), "carried_cells": carried, "box_cells": int(box_cells),
-            "coverage": carried / max(box_cells, 1), "largest_patch": max(cells, default=0)}
+    return {
+        "patches": len(patches),
+        "carried_cells": carried,
+        "box_cells": int(box_cells),
+        "coverage": carried / max(box_cells, 1),
+        "largest_patch": max(cells, default=0),
+    }
 
 
 def near_neighbours(patches: Sequence[Patch], far_tol: float) -> float:
@@ -143,13 +151,21 @@ def estimate_costs(patches: Sequence[Patch], box_cells: int, model: CostModel = 
     exact = model.gs_sweeps * (model.local_products * local + model.pair_products * n * (n - 1) * pair)
     # far field: the near pairs exact, the rest through one point-operator product of 9 n sources
     near_pairs = model.near_pairs * near_neighbours(patches, AUTO_FAR_TOL) / model.near_pairs_calibration
-    near = model.gs_sweeps * (model.local_products * local + model.pair_products * near_pairs * n * pair
-                            + 10.0 * fft_work(9.0 * n))
+    near = model.gs_sweeps * (
+        model.local_products * local + model.pair_products * near_pairs * n * pair + 10.0 * fft_work(9.0 * n)
+    )
     return {"union-cg": union, "block-gs": exact, "two-level": near}
 
 
-def choose(patches: Sequence[Patch], box_cells: int, *, merged_contacts: bool = False,
-           load_control: bool = False, tilt: bool = False, model: CostModel = FITTED) -> Choice:
+def choose(
+    patches: Sequence[Patch],
+    box_cells: int,
+    *,
+    merged_contacts: bool = False,
+    load_control: bool = False,
+    tilt: bool = False,
+    model: CostModel = FITTED,
+) -> Choice:
     """The iteration and coupling for these patches (see the module docstring).
 
     ``merged_contacts``: the macro step met contacts so close that they merge (its safe
@@ -168,9 +184,12 @@ def choose(patches: Sequence[Patch], box_cells: int, *, merged_contacts: bool = 
     figures = scene_figures(patches, box_cells)
     work = estimate_costs(patches, box_cells, model)
     costs = model.seconds(work, load_control=load_control, tilt=tilt)
-    est = {**figures, "merged_contacts": bool(merged_contacts),
-           "work": {k: float(f"{v:.3g}") for k, v in work.items()},
-           "seconds": {k: float(f"{v:.3g}") for k, v in costs.items()}}
+    est = {
+        **figures,
+        "merged_contacts": bool(merged_contacts),
+        "work": {k: float(f"{v:.3g}") for k, v in work.items()},
+        "seconds": {k: float(f"{v:.3g}") for k, v in costs.items()},
+    }
     n = figures["patches"]
     if n <= 1 and tilt:
         return Choice("block-gs", None, "one patch: a single local solve", est)
@@ -193,21 +212,29 @@ def choose(patches: Sequence[Patch], box_cells: int, *, merged_contacts: bool = 
         best = min(rest, key=rest.get)
     cov = figures["coverage"]
     if best == "union-cg":
-        against = (f", the block iterations {min(rest.values()):.2g} s; it is taken up to "
-                   f"{model.union_margin:g}x theirs") if rest else ""
-        reason = (f"{n} patches carry {100 * cov:.0f} % of their bounding box's "
-                  f"{figures['box_cells']} cells: one constrained CG over the box (predicted "
-                  f"{candidates['union-cg']:.2g} s{against})")
+        against = (
+            (f", the block iterations {min(rest.values()):.2g} s; it is taken up to {model.union_margin:g}x theirs")
+            if rest
+            else ""
+        )
+        reason = (
+            f"{n} patches carry {100 * cov:.0f} % of their bounding box's "
+            f"{figures['box_cells']} cells: one constrained CG over the box (predicted "
+            f"{candidates['union-cg']:.2g} s{against})"
+        )
         return Choice("union-cg", None, reason, est)
     if best == "block-gs" and load_control and not merged_contacts:
-        reason = (f"{n} patches, {100 * cov:.0f} % of their box: block iterations with exact coupling "
-                  "are cheapest; under load control the two-level one corrects the approach (block "
-                  "Gauss-Seidel follows if it stalls)")
+        reason = (
+            f"{n} patches, {100 * cov:.0f} % of their box: block iterations with exact coupling "
+            "are cheapest; under load control the two-level one corrects the approach (block "
+            "Gauss-Seidel follows if it stalls)"
+        )
         return Choice("two-level", None, reason, est)
     if best == "block-gs":
-        reason = (f"{n} patches, {100 * cov:.0f} % of their box: block Gauss-Seidel with exact "
-                  "coupling is cheapest")
+        reason = f"{n} patches, {100 * cov:.0f} % of their box: block Gauss-Seidel with exact coupling is cheapest"
         return Choice("block-gs", None, reason, est)
-    reason = (f"{n} scattered patches ({100 * cov:.0f} % of their box): two-level iteration with "
-              f"far-field coupling (far_tol {AUTO_FAR_TOL}) is cheapest")
+    reason = (
+        f"{n} scattered patches ({100 * cov:.0f} % of their box): two-level iteration with "
+        f"far-field coupling (far_tol {AUTO_FAR_TOL}) is cheapest"
+    )
     return Choice("two-level", AUTO_FAR_TOL, reason, est)

@@ -2,6 +2,7 @@
 macro step leaves it), :class:`BlockSettings` (the block iterations' internal limits) and
 :class:`MicroContext` (both, with the user's :class:`~twoscale.options.MicroOptions` and the
 patches the policy saw), passed whole from the driver to the strategies."""
+
 from __future__ import annotations
 
 from dataclasses import dataclass, field
@@ -71,8 +72,17 @@ class MicroProblem:
     start: object = None
 
     @classmethod
-    def from_macro(cls, macro, *, h: float, total_load: float | None, free_tilt: bool, pivot: tuple,
-                   anchor: tuple = (0.0, 0.0), start=None) -> "MicroProblem":
+    def from_macro(
+        cls,
+        macro,
+        *,
+        h: float,
+        total_load: float | None,
+        free_tilt: bool,
+        pivot: tuple,
+        anchor: tuple = (0.0, 0.0),
+        start=None,
+    ) -> "MicroProblem":
         """The problem the macro step ``macro`` (a :class:`~twoscale.macro.result.MacroResult`)
         leaves: its forces, approach and tilt (under load control moved by the correction
         the ``start``'s micro step made to its own macro step), the local penetrations
@@ -81,9 +91,19 @@ class MicroProblem:
         if start is not None and total_load is not None:
             penetration, tilt = start.theta(penetration, tilt)
         local = np.asarray(macro.local_penetrations, dtype=float) if macro.converged else None
-        return cls(h=h, forces=np.asarray(macro.forces, dtype=float), penetration=penetration, tilt=tilt,
-                   pivot=pivot, total_load=total_load, free_tilt=free_tilt, anchor=anchor,
-                   size_from_forces=bool(macro.converged), local_penetrations=local, start=start)
+        return cls(
+            h=h,
+            forces=np.asarray(macro.forces, dtype=float),
+            penetration=penetration,
+            tilt=tilt,
+            pivot=pivot,
+            total_load=total_load,
+            free_tilt=free_tilt,
+            anchor=anchor,
+            size_from_forces=bool(macro.converged),
+            local_penetrations=local,
+            start=start,
+        )
 
     @property
     def theta(self) -> np.ndarray:
@@ -98,7 +118,7 @@ class MicroProblem:
     @property
     def target(self) -> np.ndarray | None:
         """Load (N) and moments (0) to meet, ``(n_unknowns,)``, or None."""
-        return None if self.total_load is None else np.array([self.total_load, 0.0, 0.0])[:self.n_unknowns]
+        return None if self.total_load is None else np.array([self.total_load, 0.0, 0.0])[: self.n_unknowns]
 
 
 @dataclass(frozen=True)

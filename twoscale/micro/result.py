@@ -1,4 +1,5 @@
 """What the micro step returns: :class:`MicroResult`."""
+
 from __future__ import annotations
 
 from dataclasses import dataclass, field

@@ -2,6 +2,7 @@
 blocks and the coupling's engine (:mod:`.workset`, :mod:`.couplings`), the first pressure
 (eq. 7, or a previous solve's, :mod:`.start`), merged blocks. The loops are in
 :mod:`.block_iterations`; the iteration objects of :mod:`.strategies` call both."""
+
 from __future__ import annotations
 
 import numpy as np
@@ -23,13 +24,12 @@ from .workset import WorkingSet, heights, tip_approaches
 P0_RTOL = 1e-5
 
 
-
 def _initial(provider, asperities, patches, blocks, forces, z_blocks, h, rtol: float = P0_RTOL) -> list:
     """Paper eq. 7 on every (one-asperity) block (``rtol``: conjugate gradients of large blocks)."""
     E_star = provider.material.E_star
     P = [float(forces[pt.asperity]) for pt in patches]
     R = np.array([asperities[pt.asperity].R for pt in patches], dtype=float)
-    approaches = [float(d) for d in hertz.penetration(R, P, E_star)]   # each tip alone (Hertz)
+    approaches = [float(d) for d in hertz.penetration(R, P, E_star)]  # each tip alone (Hertz)
     stacks = BlockStacks(provider) if BlockStacks.usable(provider) else None
     return initial_pressures(blocks, z_blocks, P, approaches, h, rtol=rtol, stacks=stacks)
 
@@ -37,15 +37,22 @@ def _initial(provider, asperities, patches, blocks, forces, z_blocks, h, rtol: f
 def _starts(provider, asperities, patches, blocks, forces, z_blocks, h, start) -> list:
     """The first pressure of every (one-asperity) block: ``start``'s where it has one, eq. 7
     elsewhere."""
-    warm = [None] * len(patches) if start is None else \
-        [start.for_patch(pt, asperities, forces) for pt in patches]
+    warm = [None] * len(patches) if start is None else [start.for_patch(pt, asperities, forces) for pt in patches]
     cold = [k for k, w in enumerate(warm) if w is None]
     if cold:
         # p0 is a start: the sweeps correct it, and at 1e-5 its reported distance from the final
         # pressure (the paper's Fig. 6, percent-level) moves by ~1e-4 %; 1e-8 cost 10-20 % of the
         # paper cases' time (two spheres at d/2R = 1: 81 -> 65 ms)
-        eq7 = _initial(provider, asperities, [patches[k] for k in cold], [blocks[k] for k in cold], forces,
-                       [z_blocks[k] for k in cold], h, rtol=P0_RTOL)
+        eq7 = _initial(
+            provider,
+            asperities,
+            [patches[k] for k in cold],
+            [blocks[k] for k in cold],
+            forces,
+            [z_blocks[k] for k in cold],
+            h,
+            rtol=P0_RTOL,
+        )
         for k, v in zip(cold, eq7):
             warm[k] = v
     return warm
@@ -63,7 +70,7 @@ def initial_on_patches(ctx: MicroContext) -> tuple:
     out = np.zeros(grid.shape)
     for pt, pk in zip(patches, p0):
         di, dj = pt.grid.offset_in(grid)
-        out[dj:dj + pt.grid.ny, di:di + pt.grid.nx] += scatter(pt, pk)
+        out[dj : dj + pt.grid.ny, di : di + pt.grid.nx] += scatter(pt, pk)
     return grid, out
 
 
@@ -71,11 +78,16 @@ def one_asperity_patches(provider, asperities, problem, margin: float) -> list:
     """One patch per asperity the problem's approach and tilt reach, sized from the macro
     forces (or the indenters' reach where the macro step did not converge), half-width
     ``margin`` times the Hertz-like contact radius (:func:`~.patches.build_patches`)."""
-    sizing = np.asarray(problem.forces, dtype=float) if problem.size_from_forces else \
-        np.full(len(asperities), np.inf)
-    return build_patches(asperities, h=problem.h, forces=sizing,
-                         approaches=tip_approaches(asperities, problem.theta, problem.pivot),
-                         E_star=provider.material.E_star, margin=margin, anchor=problem.anchor)
+    sizing = np.asarray(problem.forces, dtype=float) if problem.size_from_forces else np.full(len(asperities), np.inf)
+    return build_patches(
+        asperities,
+        h=problem.h,
+        forces=sizing,
+        approaches=tip_approaches(asperities, problem.theta, problem.pivot),
+        E_star=provider.material.E_star,
+        margin=margin,
+        anchor=problem.anchor,
+    )
 
 
 def block_setup(ctx: MicroContext, coupling, *, held: bool, merge: bool, sizing_approaches=None) -> BlockSetup:
@@ -98,23 +110,34 @@ def block_setup(ctx: MicroContext, coupling, *, held: bool, merge: bool, sizing_
         if sizing_approaches is not None:
             sizing_approaches = np.asarray(sizing_approaches, dtype=float)
             if sizing_approaches.shape != approaches.shape or not np.all(np.isfinite(sizing_approaches)):
-                raise ValueError(f"sizing_approaches must be {len(approaches)} finite numbers (mm), "
-                                 f"got shape {sizing_approaches.shape}")
+                raise ValueError(
+                    f"sizing_approaches must be {len(approaches)} finite numbers (mm), "
+                    f"got shape {sizing_approaches.shape}"
+                )
             approaches = np.minimum(approaches, sizing_approaches)
         sizing = np.asarray(pb.forces, dtype=float) if pb.size_from_forces else np.full(len(asperities), np.inf)
-        patches = build_patches(asperities, h=h, forces=sizing, approaches=approaches,
-                                E_star=provider.material.E_star, margin=opts.margin, anchor=pb.anchor,
-                                reuse=patches or ())
+        patches = build_patches(
+            asperities,
+            h=h,
+            forces=sizing,
+            approaches=approaches,
+            E_star=provider.material.E_star,
+            margin=opts.margin,
+            anchor=pb.anchor,
+            reuse=patches or (),
+        )
     blocks = [LocalBlock(provider, pt, dense_max_cells=opts.dense_max_cells) for pt in patches]
     p0 = _starts(provider, asperities, patches, blocks, pb.forces, heights(patches, theta, pivot), h, pb.start)
     if merge:
         merged, covers = merge_overlapping(patches, asperities, growth=settings.merge_growth)
-        p0 = [p0[c[0]] if len(c) == 1 else
-              sum(transfer(patches[i], pt, scatter(patches[i], p0[i])) for i in c)[pt.owned]
-              for pt, c in zip(merged, covers)]
+        p0 = [
+            p0[c[0]] if len(c) == 1 else sum(transfer(patches[i], pt, scatter(patches[i], p0[i])) for i in c)[pt.owned]
+            for pt, c in zip(merged, covers)
+        ]
         blocks = [blocks[c[0]] if len(c) == 1 else None for c in covers]
         patches = merged
-    engine = coupling.build(provider, patches, held=held, dense_max_entries=settings.dense_max_entries,
-                            separated_rtol=opts.separated_rtol)
+    engine = coupling.build(
+        provider, patches, held=held, dense_max_entries=settings.dense_max_entries, separated_rtol=opts.separated_rtol
+    )
     state = WorkingSet(provider, asperities, patches, engine, dense_max_cells=opts.dense_max_cells, blocks=blocks)
     return BlockSetup(state, p0, theta, pb.tilt, Control(pivot, pb.n_unknowns, pb.target))

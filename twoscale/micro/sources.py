@@ -11,6 +11,7 @@ resultant, the centre of pressure and the second moments, whatever the load's sh
 place in the patch. The displacement they cause at a distance ``d`` then differs from the
 patch's by a relative ``O((a / d)^3)``. Units: mm, N, MPa.
 """
+
 from __future__ import annotations
 
 import math
@@ -41,13 +42,15 @@ def source_nodes(grid) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The nine far-field source points of a patch on ``grid``: ``(points (9, 2) mm,
     centre, delta)`` (:func:`source_frame`), row-major over (y, x) like the stencils."""
     centre, delta = source_frame(grid)
-    X, Y = np.meshgrid(centre[0] + delta[0] * np.array([-1.0, 0.0, 1.0]),
-                       centre[1] + delta[1] * np.array([-1.0, 0.0, 1.0]))
+    X, Y = np.meshgrid(
+        centre[0] + delta[0] * np.array([-1.0, 0.0, 1.0]), centre[1] + delta[1] * np.array([-1.0, 0.0, 1.0])
+    )
     return np.column_stack([X.ravel(), Y.ravel()]), centre, delta
 
 
-def source_strengths(points: np.ndarray, values: np.ndarray, centre: np.ndarray, delta: np.ndarray,
-                     h: float) -> np.ndarray:
+def source_strengths(
+    points: np.ndarray, values: np.ndarray, centre: np.ndarray, delta: np.ndarray, h: float
+) -> np.ndarray:
     """Forces (9, m) N at :func:`source_nodes` with the moments ``x^i y^j`` (``i, j <= 2``)
     of the pressure ``values`` (n, m) MPa on the cells centred at ``points`` (n, 2) mm."""
     lx = lagrange3((points[:, 0] - centre[0]) / delta[0])

@@ -10,6 +10,7 @@ of the paper's eq. 7 (which still starts the asperities the previous solve did n
 and the union CG starts from it on its box. The answer is the same to the tolerances: only
 the start changes; a start close to the answer saves the eq. 7 solves and most sweeps.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -66,7 +67,7 @@ class PressureStart:
             di.append(np.rint((X - tips[k, 0]) / h).astype(np.int64))
             dj.append(np.rint((Y - tips[k, 1]) / h).astype(np.int64))
             p.append(f.pressure[mine])
-        cat = (lambda v, t: np.concatenate(v).astype(t) if v else np.zeros(0, t))
+        cat = lambda v, t: np.concatenate(v).astype(t) if v else np.zeros(0, t)
         owner_a, di_a, dj_a, p_a = cat(owner, np.int64), cat(di, np.int64), cat(dj, np.int64), cat(p, float)
         order = np.argsort(owner_a, kind="stable")
         owner_a, di_a, dj_a, p_a = owner_a[order], di_a[order], dj_a[order], p_a[order]

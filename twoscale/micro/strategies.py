@@ -16,6 +16,7 @@ monitor)`` returning a :class:`~.result.MicroResult`; the block iterations set u
 blocks (:func:`.setup.block_setup`) and run their loop (:mod:`.block_iterations`) directly.
 :mod:`.driver` composes them in the order the policy gives.
 """
+
 from __future__ import annotations
 
 import dataclasses
@@ -55,8 +56,16 @@ def _check(iteration, coupling) -> None:
 
 def _no_patch(setup) -> MicroResult:
     """The result when no asperity reaches the body."""
-    return finish(setup, [], setup.theta, setup.tilt, StopReason.CONVERGED, "no asperity reaches the body",
-                  {"sweeps": 0, "corrections": 0, "growths": 0, "linear_sweeps": 0}, ())
+    return finish(
+        setup,
+        [],
+        setup.theta,
+        setup.tilt,
+        StopReason.CONVERGED,
+        "no asperity reaches the body",
+        {"sweeps": 0, "corrections": 0, "growths": 0, "linear_sweeps": 0},
+        (),
+    )
 
 
 @dataclass(frozen=True)
@@ -69,14 +78,25 @@ class BlockGaussSeidel:
 
     def run(self, ctx: MicroContext, coupling, *, max_sweeps: int, monitor: Callable | None = None) -> MicroResult:
         _check(self, coupling)
-        setup = block_setup(ctx, coupling, held=False, merge=ctx.options.merge and isinstance(coupling, Exact),
-                            sizing_approaches=_sizing(ctx, coupling))
+        setup = block_setup(
+            ctx,
+            coupling,
+            held=False,
+            merge=ctx.options.merge and isinstance(coupling, Exact),
+            sizing_approaches=_sizing(ctx, coupling),
+        )
         if not setup.state.patches:
             return _no_patch(setup)
         pb = ctx.problem
-        return run_block_gauss_seidel(setup, free_tilt=pb.free_tilt, tol=ctx.options.tol, max_sweeps=max_sweeps,
-                                      max_growths=ctx.settings.max_growths,
-                                      max_corrections=ctx.settings.max_corrections, monitor=monitor)
+        return run_block_gauss_seidel(
+            setup,
+            free_tilt=pb.free_tilt,
+            tol=ctx.options.tol,
+            max_sweeps=max_sweeps,
+            max_growths=ctx.settings.max_growths,
+            max_corrections=ctx.settings.max_corrections,
+            monitor=monitor,
+        )
 
 
 @dataclass(frozen=True)
@@ -96,8 +116,9 @@ class TwoLevel:
         pb = ctx.problem
         if pb.tilt is not None or pb.free_tilt:
             setup = dataclasses.replace(setup, tilt=pb.tilt if pb.tilt is not None else (0.0, 0.0))
-        return run_two_level(setup, tol=ctx.options.tol, max_sweeps=max_sweeps, max_growths=ctx.settings.max_growths,
-                             monitor=monitor)
+        return run_two_level(
+            setup, tol=ctx.options.tol, max_sweeps=max_sweeps, max_growths=ctx.settings.max_growths, monitor=monitor
+        )
 
 
 @dataclass(frozen=True)
@@ -109,8 +130,7 @@ class UnionCG:
     precision: str = "auto"
     accepts: ClassVar[tuple] = ()
 
-    def run(self, ctx: MicroContext, coupling=None, *, max_sweeps: int,
-            monitor: Callable | None = None) -> MicroResult:
+    def run(self, ctx: MicroContext, coupling=None, *, max_sweeps: int, monitor: Callable | None = None) -> MicroResult:
         _check(self, coupling)
         pb = ctx.problem
         grids = tuple(pt.grid for pt in ctx.patches)
@@ -124,23 +144,46 @@ class UnionCG:
         small = box_of(grids, pb.h, pb.anchor).size <= UNION_SMALL_CELLS
         factor = UNION_SMALL_TOL_FACTOR if small else UNION_TOL_FACTOR
         settings = UnionSettings(tol=factor * ctx.options.tol, precision=self.precision)
-        out = solve_union(ctx.provider, ctx.asperities, grids, pb, settings,
-                          start=None if start is None else (start_grid, start),
-                          approaches=pb.local_penetrations, monitor=monitor)
+        out = solve_union(
+            ctx.provider,
+            ctx.asperities,
+            grids,
+            pb,
+            settings,
+            start=None if start is None else (start_grid, start),
+            approaches=pb.local_penetrations,
+            monitor=monitor,
+        )
         r, field = out.result, out.result.fields[0]
         converged = bool(r.converged) and not out.on_edge
-        message = r.message if not r.converged else (
-            f"pressure still reaches the box's edge after {out.enlargements} enlargements" if out.on_edge else "")
+        message = (
+            r.message
+            if not r.converged
+            else (f"pressure still reaches the box's edge after {out.enlargements} enlargements" if out.on_edge else "")
+        )
         # the CG's own outcome is in its message; an edge still loaded used up the enlargements
         reason = StopReason.CONVERGED if converged else (StopReason.MAX_ITER if r.converged else StopReason.FAILED)
         # eq. 7 pressures only where computed (p0=True): none to report otherwise
         initial = (start_grid.embed_in(start, out.patch.grid),) if start is not None else ()
         tilt = r.tilt if pb.free_tilt else None
-        return MicroResult((out.patch,), (field.pressure,), initial, (field.gap,), float(r.penetration), tilt,
-                           converged, message, int(out.iterations), 0, int(out.enlargements), 0,
-                           tuple(r.residuals.get("gap", ())), {"box": int(out.patch.grid.size),
-                                                              "products": int(out.products)},
-                           (tuple(out.patch.members),) if len(out.patch.members) > 1 else (), reason)
+        return MicroResult(
+            (out.patch,),
+            (field.pressure,),
+            initial,
+            (field.gap,),
+            float(r.penetration),
+            tilt,
+            converged,
+            message,
+            int(out.iterations),
+            0,
+            int(out.enlargements),
+            0,
+            tuple(r.residuals.get("gap", ())),
+            {"box": int(out.patch.grid.size), "products": int(out.products)},
+            (tuple(out.patch.members),) if len(out.patch.members) > 1 else (),
+            reason,
+        )
 
 
 #: The iteration objects by the names the policy and the caller use.

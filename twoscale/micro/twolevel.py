@@ -16,6 +16,7 @@ Gauss-Seidel with the far field by resultants; the coarse step only makes the bu
 deflection shared by thousands of patches converge in a number of iterations that does
 not grow with their count.
 """
+
 from __future__ import annotations
 
 import math
@@ -122,10 +123,13 @@ def too_slow(history: list, tol: float, remaining: int) -> str:
     if needed <= remaining:
         return ""
     if rate >= 1.0:
-        return (f"two-level iteration not converging: change {last:.3g}, up {rate:.2f}x a sweep over the last "
-                f"{RATE_SWEEPS}")
-    return (f"two-level iteration converging too slowly: change {last:.3g} falling by {rate:.2f} a sweep, "
-            f"about {needed:.0f} more sweeps needed, {remaining} left")
+        return (
+            f"two-level iteration not converging: change {last:.3g}, up {rate:.2f}x a sweep over the last {RATE_SWEEPS}"
+        )
+    return (
+        f"two-level iteration converging too slowly: change {last:.3g} falling by {rate:.2f} a sweep, "
+        f"about {needed:.0f} more sweeps needed, {remaining} left"
+    )
 
 
 def lower_near_pattern(coupling) -> sp.csr_matrix:
@@ -159,8 +163,9 @@ def sweep_levels(coupling) -> list:
     return [part.tolist() for part in np.split(order, bounds)] if n else []
 
 
-def two_level(blocks, coupling, tips: np.ndarray, heights, p: list, theta: np.ndarray, control: Control,
-              limits: SweepLimits) -> TwoLevelResult:
+def two_level(
+    blocks, coupling, tips: np.ndarray, heights, p: list, theta: np.ndarray, control: Control, limits: SweepLimits
+) -> TwoLevelResult:
     """Two-level block Gauss-Seidel; see the module docstring.
 
     Parameters
@@ -182,8 +187,13 @@ def two_level(blocks, coupling, tips: np.ndarray, heights, p: list, theta: np.nd
     limits : SweepLimits
         Tolerance, sweeps, the caller's stop test, monitor and the earlier rounds' changes.
     """
-    tol, max_sweeps, stop, monitor, earlier = (limits.tol, limits.max_sweeps, limits.stop, limits.monitor,
-                                               limits.earlier)
+    tol, max_sweeps, stop, monitor, earlier = (
+        limits.tol,
+        limits.max_sweeps,
+        limits.stop,
+        limits.monitor,
+        limits.earlier,
+    )
     patches = coupling.patches
     coarse = CoarseSpace(coupling.provider, tips, lower_near_pattern(coupling), dense_max=COARSE_DENSE_MAX)
     levels = sweep_levels(coupling)
@@ -200,9 +210,17 @@ def two_level(blocks, coupling, tips: np.ndarray, heights, p: list, theta: np.nd
         local_rtol = LOCAL_FACTOR * max(history[-1] if history else 0.1, tol)
         sw = sweep(blocks, coupling, b, p, active, local_rtol=local_rtol, levels=levels, stacks=stacks)
         if sw.failed:
-            return TwoLevelResult(sw.pressures, sw.active, theta, False, m, tuple(history + [sw.change]), cg_iters,
-                                  f"local active-set solve did not converge on blocks {list(sw.failed)}",
-                                  StopReason.FAILED)
+            return TwoLevelResult(
+                sw.pressures,
+                sw.active,
+                theta,
+                False,
+                m,
+                tuple(history + [sw.change]),
+                cg_iters,
+                f"local active-set solve did not converge on blocks {list(sw.failed)}",
+                StopReason.FAILED,
+            )
         dF = patch_forces(patches, sw.pressures) - before
         step = coarse.correct(blocks, patches, sw.pressures, sw.active, dF, theta, control)
         cg_iters += step.iterations
@@ -218,9 +236,18 @@ def two_level(blocks, coupling, tips: np.ndarray, heights, p: list, theta: np.nd
         seen = list(earlier) + history
         if len(seen) > STALL_SWEEPS and min(seen[-STALL_SWEEPS:]) >= min(seen[:-STALL_SWEEPS]):
             # no new smallest change in STALL_SWEEPS sweeps: merged contacts make cells flip
-            return TwoLevelResult(p, active, theta, False, m, tuple(history), cg_iters,
-                                  f"two-level iteration stalled: no smaller change in {STALL_SWEEPS} sweeps "
-                                  f"(last {change:.3g}, best {min(seen):.3g})", StopReason.STAGNATED)
+            return TwoLevelResult(
+                p,
+                active,
+                theta,
+                False,
+                m,
+                tuple(history),
+                cg_iters,
+                f"two-level iteration stalled: no smaller change in {STALL_SWEEPS} sweeps "
+                f"(last {change:.3g}, best {min(seen):.3g})",
+                StopReason.STAGNATED,
+            )
         if change <= tol and not changed:
             return TwoLevelResult(p, active, theta, True, m, tuple(history), cg_iters, "", StopReason.CONVERGED)
         slow = too_slow(seen, tol, max_sweeps - m)
@@ -228,6 +255,14 @@ def two_level(blocks, coupling, tips: np.ndarray, heights, p: list, theta: np.nd
             return TwoLevelResult(p, active, theta, False, m, tuple(history), cg_iters, slow, StopReason.STAGNATED)
         if stop is not None and stop(p):
             return TwoLevelResult(p, active, theta, False, m, tuple(history), cg_iters, "stopped", StopReason.STOPPED)
-    return TwoLevelResult(p, active, theta, False, max_sweeps, tuple(history), cg_iters,
-                          f"two-level block Gauss-Seidel reached {max_sweeps} sweeps (last change {history[-1]:.3g})",
-                          StopReason.MAX_ITER)
+    return TwoLevelResult(
+        p,
+        active,
+        theta,
+        False,
+        max_sweeps,
+        tuple(history),
+        cg_iters,
+        f"two-level block Gauss-Seidel reached {max_sweeps} sweeps (last change {history[-1]:.3g})",
+        StopReason.MAX_ITER,
+    )

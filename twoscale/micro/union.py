@@ -15,6 +15,7 @@ the approach and the tilt are solved by the same iteration, so no sensitivity sw
 needed. If pressure reaches the box's edge, the box grows by half and the solve resumes
 from its pressure.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -90,7 +91,7 @@ def box_surface(grid: Grid, asperities: Sequence[Asperity]) -> Surface:
     :func:`.patches.make_patch`, bounded by the tile's four nearest tips): paraboloids have
     no material radius, and 843 of them sampled on every cell of a union box took about 45 s
     of CPU before the CG's first iteration."""
-    if grid.size <= 4 * SAMPLE_TILE ** 2 or any(getattr(a, "group", None) is not None for a in asperities):
+    if grid.size <= 4 * SAMPLE_TILE**2 or any(getattr(a, "group", None) is not None for a in asperities):
         return surface_on(grid, asperities)
     from scipy.spatial import cKDTree
 
@@ -105,8 +106,7 @@ def box_surface(grid: Grid, asperities: Sequence[Asperity]) -> Surface:
         for i0 in range(0, grid.nx, SAMPLE_TILE):
             tile = grid.subgrid(i0, j0, min(SAMPLE_TILE, grid.nx - i0), min(SAMPLE_TILE, grid.ny - j0))
             b = tile.bounds
-            near = np.atleast_1d(tree.query([0.5 * (b[0] + b[1]), 0.5 * (b[2] + b[3])],
-                                            k=min(4, len(tips)))[1])
+            near = np.atleast_1d(tree.query([0.5 * (b[0] + b[1]), 0.5 * (b[2] + b[3])], k=min(4, len(tips)))[1])
             part = make_patch(int(near[0]), tile, table, members=tuple(int(k) for k in near))
             window = (slice(j0, j0 + tile.ny), slice(i0, i0 + tile.nx))
             height[window], owner[window] = part.height, part.owner
@@ -145,9 +145,17 @@ class UnionSettings:
     precondition: bool = True
 
 
-def solve_union(provider: InfluenceProvider, asperities: Sequence[Asperity], grids: Sequence[Grid], problem,
-                settings: UnionSettings, *, start: tuple | None = None, approaches: np.ndarray | None = None,
-                monitor=None) -> UnionOutcome:
+def solve_union(
+    provider: InfluenceProvider,
+    asperities: Sequence[Asperity],
+    grids: Sequence[Grid],
+    problem,
+    settings: UnionSettings,
+    *,
+    start: tuple | None = None,
+    approaches: np.ndarray | None = None,
+    monitor=None,
+) -> UnionOutcome:
     """Solve the micro step as one problem on the box of the patches' ``grids``.
 
     Parameters
@@ -187,10 +195,20 @@ def solve_union(provider: InfluenceProvider, asperities: Sequence[Asperity], gri
             warm = interference_start(surface, asperities, approaches)
         else:
             warm = None
-        result = solve_cg(provider, surface, penetration=penetration, total_load=problem.total_load,
-                          tilt=problem.free_tilt, pivot=pivot, tol=settings.tol, max_iter=settings.max_iter,
-                          start=warm, precision=_precision(settings.precision, grid.size),
-                          precondition=settings.precondition, monitor=monitor)
+        result = solve_cg(
+            provider,
+            surface,
+            penetration=penetration,
+            total_load=problem.total_load,
+            tilt=problem.free_tilt,
+            pivot=pivot,
+            tol=settings.tol,
+            max_iter=settings.max_iter,
+            start=warm,
+            precision=_precision(settings.precision, grid.size),
+            precondition=settings.precondition,
+            monitor=monitor,
+        )
         iterations += int(result.iterations.get("cg", 0))
         products += int(result.iterations.get("products", 0))
         if not result.converged or not _on_edge(result.fields[0].pressure):
@@ -200,8 +218,7 @@ def solve_union(provider: InfluenceProvider, asperities: Sequence[Asperity], gri
     first = members[0] if members else 0
     patch = Patch(first, grid, surface.height, surface.owner, members or (first,))
     warm = np.zeros(grid.shape) if warm is None else warm
-    return UnionOutcome(result, patch, warm, enlargement, _on_edge(result.fields[0].pressure), iterations,
-                        products)
+    return UnionOutcome(result, patch, warm, enlargement, _on_edge(result.fields[0].pressure), iterations, products)
 
 
 def interference_start(surface, asperities: Sequence[Asperity], approaches: np.ndarray) -> np.ndarray | None:

@@ -5,6 +5,7 @@ pressure reaches an edge or an asperity penetrates outside its block; asperities
 step left out get a patch when the final approach reaches them). The functions here decide
 and make those changes; :mod:`.block_iterations` runs the iterations.
 """
+
 from __future__ import annotations
 
 import numpy as np
@@ -26,8 +27,10 @@ class WorkingSet:
         self.dense_max_cells = dense_max_cells
         self.patches = list(patches)
         blocks = [None] * len(self.patches) if blocks is None else list(blocks)
-        self.blocks = [blk if blk is not None else LocalBlock(provider, pt, dense_max_cells=dense_max_cells)
-                       for pt, blk in zip(self.patches, blocks)]
+        self.blocks = [
+            blk if blk is not None else LocalBlock(provider, pt, dense_max_cells=dense_max_cells)
+            for pt, blk in zip(self.patches, blocks)
+        ]
         # the product engine a coupling object built for these patches (:mod:`.couplings`)
         self.coupling = coupling
         self.sensitivities = None
@@ -108,8 +111,10 @@ class WorkingSet:
 
     def displacement(self, pressures: list) -> list:
         """``A p`` on every block (list of (n_k,) arrays), mm."""
-        return [blk.matvec(pressures[k]) - coupled_rhs(self.coupling, k, pressures, np.zeros(blk.n))
-                for k, blk in enumerate(self.blocks)]
+        return [
+            blk.matvec(pressures[k]) - coupled_rhs(self.coupling, k, pressures, np.zeros(blk.n))
+            for k, blk in enumerate(self.blocks)
+        ]
 
 
 def _same(a: list, b: list) -> bool:
@@ -181,8 +186,9 @@ def grow(state: WorkingSet, p: list, p0: list, theta, pivot, tol: float) -> int:
     if grown:
         return grown
     gap_tol = _gap_tol(state, theta, pivot, tol)
-    return (_cover_penetration(state, p, p0, theta, pivot, gap_tol)
-            or _cover_unpatched(state, p, p0, theta, pivot, gap_tol))
+    return _cover_penetration(state, p, p0, theta, pivot, gap_tol) or _cover_unpatched(
+        state, p, p0, theta, pivot, gap_tol
+    )
 
 
 def _cover_unpatched(state: WorkingSet, p: list, p0: list, theta, pivot, gap_tol: float) -> int:

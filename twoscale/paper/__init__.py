@@ -5,8 +5,18 @@
 * :mod:`.output` — CSV files;
 * :mod:`.figures` — PNG figures (the only module importing matplotlib).
 """
+
 from .cases import PAPER_SPACINGS, PaperCase, paper_case, paper_cases, reference_surface
 from .run import CaseResult, StudyResult, run_case, run_study
 
-__all__ = ["PAPER_SPACINGS", "PaperCase", "paper_case", "paper_cases", "reference_surface",
-           "CaseResult", "StudyResult", "run_case", "run_study"]
+__all__ = [
+    "PAPER_SPACINGS",
+    "PaperCase",
+    "paper_case",
+    "paper_cases",
+    "reference_surface",
+    "CaseResult",
+    "StudyResult",
+    "run_case",
+    "run_study",
+]

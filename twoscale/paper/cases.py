@@ -6,6 +6,7 @@ radius ``d_c`` (one vertex on +y), approach 0.1 R, cells 0.025 R. The indenters 
 spherical caps (the paper's "spherical caps"; ``shape="sphere"``), with the exact-sphere law
 in the macro step; at these approaches it is within 0.5-1 % of Hertz's (paper eq. 10).
 """
+
 from __future__ import annotations
 
 import math
@@ -21,8 +22,8 @@ from ..material import Material
 PAPER_SPACINGS = {"two": (0.1, 0.15, 0.25, 1.0, 5.0), "seven": (0.1, 0.2, 0.3, 0.5, 1.0, 5.0)}
 #: d/2R values whose pressure maps the paper shows (figs. 3 and 4).
 MAP_SPACINGS = {"two": (0.1, 0.25, 1.0), "seven": (0.2, 1.0)}
-_APPROACH = {"two": 0.05, "seven": 0.1}   # d / R
-_CELL = {"two": 0.0125, "seven": 0.025}   # h / R
+_APPROACH = {"two": 0.05, "seven": 0.1}  # d / R
+_CELL = {"two": 0.0125, "seven": 0.025}  # h / R
 
 
 @dataclass(frozen=True)
@@ -53,8 +54,16 @@ class PaperCase:
     upper: int
 
 
-def paper_case(layout: str, spacing: float, *, R: float = 10.0, E: float = 10.0, nu: float = 0.5,
-               cell_factor: float = 1.0, shape: str = "sphere") -> PaperCase:
+def paper_case(
+    layout: str,
+    spacing: float,
+    *,
+    R: float = 10.0,
+    E: float = 10.0,
+    nu: float = 0.5,
+    cell_factor: float = 1.0,
+    shape: str = "sphere",
+) -> PaperCase:
     """The case ``layout`` at d/2R = ``spacing``; ``cell_factor`` scales the paper's cell size
     (2 = twice coarser, for quick runs)."""
     if layout not in PAPER_SPACINGS:
@@ -71,8 +80,9 @@ def paper_case(layout: str, spacing: float, *, R: float = 10.0, E: float = 10.0,
         tips = [(0.0, 0.0)] + [(dc * math.cos(t), dc * math.sin(t)) for t in angles]
     asps = tuple(Asperity(float(x), float(y), 0.0, R, shape) for x, y in tips)
     upper = int(np.argmax([a.y for a in asps]))
-    return PaperCase(layout, float(spacing), asps, _APPROACH[layout] * R, _CELL[layout] * R * cell_factor,
-                     Material(E, nu), R, upper)
+    return PaperCase(
+        layout, float(spacing), asps, _APPROACH[layout] * R, _CELL[layout] * R * cell_factor, Material(E, nu), R, upper
+    )
 
 
 def paper_cases(layout: str, *, spacings=None, **kwargs) -> list[PaperCase]:

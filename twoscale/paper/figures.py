@@ -5,6 +5,7 @@ Each panel is a function that takes ``ax=`` and returns the Figure (:func:`plot_
 case runs on the elastic half-space, as in the paper. The maps keep the paper's dotted
 circles of radius R (the spheres' bases) and its fixed scale 0 to 1.6 p_m.
 """
+
 from __future__ import annotations
 
 import pathlib
@@ -33,7 +34,7 @@ def plot_map(r, *, ax=None, colourbar: bool = True):
     ax.set_ylim(ext[2], ext[3])
     ax.set_aspect("equal")
     ax.set_title(f"d/2R = {r.case.spacing:g}", fontsize=9)
-    ax.xaxis.set_major_locator(MaxNLocator(nbins=2, symmetric=True))   # narrow panels: few ticks
+    ax.xaxis.set_major_locator(MaxNLocator(nbins=2, symmetric=True))  # narrow panels: few ticks
     ax.yaxis.set_major_locator(MaxNLocator(nbins=4))
     ax.set_xlabel("x/R")
     ax.set_ylabel("y/R")
@@ -67,8 +68,9 @@ def plot_errors(study: StudyResult, layout: str, *, ax=None):
     ax.semilogy(s, [max(r.err_p_percent, 1e-12) for r in rs], "s-", label="100 ||p - pr|| / ||pr||")
     ax.axhline(0.1, color="0.5", ls="--", lw=0.8, label="acceptance 0.1 %")
     for r in rs:
-        ax.annotate(f"{r.sweeps}", (r.case.spacing, r.err_p_percent), fontsize=7,
-                    textcoords="offset points", xytext=(3, 3))
+        ax.annotate(
+            f"{r.sweeps}", (r.case.spacing, r.err_p_percent), fontsize=7, textcoords="offset points", xytext=(3, 3)
+        )
     ax.set_xlabel("d/2R")
     ax.set_ylabel("error (%)")
     ax.set_title(f"{layout} spheres on the half-space (labels: sweeps)", fontsize=9)
@@ -83,8 +85,7 @@ def _maps(study: StudyResult, layout: str, path: pathlib.Path, title: str) -> pa
     axes = [fig.add_axes([(0.6 + 4.2 * k) / W, 0.45 / H, 3.6 / W, 3.5 / H]) for k in range(len(chosen))]
     for ax, r in zip(axes, chosen):
         plot_map(r, ax=ax, colourbar=False)
-    fig.colorbar(axes[0].images[0], cax=fig.add_axes([(W - 0.75) / W, 0.45 / H, 0.15 / W, 3.5 / H]),
-                 label="p / p_m")
+    fig.colorbar(axes[0].images[0], cax=fig.add_axes([(W - 0.75) / W, 0.45 / H, 0.15 / W, 3.5 / H]), label="p / p_m")
     fig.suptitle(title, fontsize=10)
     return save_png(fig, path, title=title)
 
@@ -105,8 +106,7 @@ def write_figures(study: StudyResult, out: pathlib.Path) -> list[pathlib.Path]:
     if "two" in study.cases:
         written.append(_maps(study, "two", out / "fig3_two_maps.png", "Two spheres on the half-space, d = 0.05 R"))
     if "seven" in study.cases:
-        written.append(_maps(study, "seven", out / "fig4_seven_maps.png",
-                             "Seven spheres on the half-space, d = 0.1 R"))
+        written.append(_maps(study, "seven", out / "fig4_seven_maps.png", "Seven spheres on the half-space, d = 0.1 R"))
     written.append(_pair(study, plot_profiles, out / "fig5_profiles.png", "pressure profiles (paper fig. 5)"))
     written.append(_pair(study, plot_errors, out / "fig6_errors.png", "two-scale errors (paper fig. 6)"))
     return written

@@ -1,4 +1,5 @@
 """Solve the paper's cases with the two-scale method and the reference solver (fig. 6)."""
+
 from __future__ import annotations
 
 import time
@@ -85,7 +86,7 @@ def assemble(grids, arrays, target: Grid) -> np.ndarray:
         i0, j0 = max(di, 0), max(dj, 0)
         i1, j1 = min(di + g.nx, target.nx), min(dj + g.ny, target.ny)
         if i1 > i0 and j1 > j0:
-            out[j0:j1, i0:i1] += a[j0 - dj:j1 - dj, i0 - di:i1 - di]
+            out[j0:j1, i0:i1] += a[j0 - dj : j1 - dj, i0 - di : i1 - di]
     return out
 
 
@@ -107,8 +108,9 @@ def run_case(case: PaperCase, *, tol: float = 1e-6, reference_method: str = "cg"
     """
     provider = HalfSpace(case.material)
     # the paper's iteration (block Gauss-Seidel from eq. 7), whose p0 the study reports
-    ts = solve_twoscale(provider, case.asperities, h=case.h, penetration=case.penetration, tol=tol,
-                        iteration="block-gs")
+    ts = solve_twoscale(
+        provider, case.asperities, h=case.h, penetration=case.penetration, tol=tol, iteration="block-gs"
+    )
     surf = reference_surface(case)
     t0 = time.perf_counter()
     ref = solve_reference(provider, surf, method=reference_method, penetration=case.penetration)
@@ -117,14 +119,27 @@ def run_case(case: PaperCase, *, tol: float = 1e-6, reference_method: str = "cg"
     p = assemble(grids, [f.pressure for f in ts.fields], surf.grid)
     p0 = assemble(grids, ts.details.micro.p0, surf.grid)
     pr = ref.pressure_on(surf.grid)
-    area = float(np.count_nonzero(p > 0)) * case.h ** 2
-    return CaseResult(case, surf.grid, p, p0, pr, _rel_percent(p0, pr), _rel_percent(p, pr),
-                      ts.total_load / area if area > 0 else float("nan"), ts, ref,
-                      np.isfinite(surf.height), surf.owner, t_ref)
+    area = float(np.count_nonzero(p > 0)) * case.h**2
+    return CaseResult(
+        case,
+        surf.grid,
+        p,
+        p0,
+        pr,
+        _rel_percent(p0, pr),
+        _rel_percent(p, pr),
+        ts.total_load / area if area > 0 else float("nan"),
+        ts,
+        ref,
+        np.isfinite(surf.height),
+        surf.owner,
+        t_ref,
+    )
 
 
-def run_study(*, quick: bool = False, tol: float = 1e-6, reference_method: str = "cg",
-              layouts=("two", "seven"), progress=None) -> StudyResult:
+def run_study(
+    *, quick: bool = False, tol: float = 1e-6, reference_method: str = "cg", layouts=("two", "seven"), progress=None
+) -> StudyResult:
     """Every case of the study.
 
     Parameters
@@ -145,8 +160,10 @@ def run_study(*, quick: bool = False, tol: float = 1e-6, reference_method: str =
             res = run_case(case, tol=tol, reference_method=reference_method)
             out[layout].append(res)
             if progress is not None:
-                progress(f"{layout} d/2R={case.spacing:g}: p0 {res.err_p0_percent:.3f} %, "
-                         f"p {res.err_p_percent:.2e} %, {res.sweeps} sweeps")
+                progress(
+                    f"{layout} d/2R={case.spacing:g}: p0 {res.err_p0_percent:.3f} %, "
+                    f"p {res.err_p_percent:.2e} %, {res.sweeps} sweeps"
+                )
     return StudyResult(out, quick, reference_method)
 
 

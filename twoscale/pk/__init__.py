@@ -7,6 +7,7 @@ stacked blocks of one size class (:mod:`twoscale.micro.pk`).
 * :mod:`.projection` — the constraint pieces: projection of the gap, restoring the load
   and moments, the residuals the stopping rule reads.
 """
+
 from ..stopping import StopReason
 from .kernel import Constraint, PKResult, Tolerance, pk_solve
 

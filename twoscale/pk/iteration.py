@@ -7,6 +7,7 @@ step); the algorithm is described in :mod:`.kernel`. Written for the small block
 where numpy's per-call cost is most of the time: every test that is rarely true is
 guarded by one cheap reduction.
 """
+
 from __future__ import annotations
 
 from typing import Any
@@ -43,33 +44,51 @@ class Iteration:
     tol : Tolerance
     """
 
-    PER_ROW = ("p", "t", "u", "z", "mask", "target", "G_old", "conj", "stale", "scale", "best", "it_best",
-               "gtol", "small", "index", "done", "count", "free")
+    PER_ROW = (
+        "p",
+        "t",
+        "u",
+        "z",
+        "mask",
+        "target",
+        "G_old",
+        "conj",
+        "stale",
+        "scale",
+        "best",
+        "it_best",
+        "gtol",
+        "small",
+        "index",
+        "done",
+        "count",
+        "free",
+    )
 
     def __init__(self, apply, precondition, shape, z, start, mask, basis, target, tol: Tolerance):
         self.apply, self.pc, self.shape, self.basis, self.tol = apply, precondition, shape, basis, tol
-        self.change2 = None if tol.change is None else tol.change ** 2
+        self.change2 = None if tol.change is None else tol.change**2
         rows, self.k = len(z), basis.shape[1]
-        self.masked = mask is not None   # some cells of some row cannot carry pressure
+        self.masked = mask is not None  # some cells of some row cannot carry pressure
         self.mask, self.target = mask, target
-        self.index: Any = None   # original row of each live row, once rows were dropped (else the identity)
+        self.index: Any = None  # original row of each live row, once rows were dropped (else the identity)
         self.z = np.where(mask, z, 0.0) if self.masked else z
         self.p = np.maximum(start, 0.0)
         if self.masked:
             self.p[~mask] = 0.0
         if self.k:
             restore(self.p, basis, target)
-        self.count: Any = None   # loaded cells per row (one constant constraint column)
+        self.count: Any = None  # loaded cells per row (one constant constraint column)
         self.t = np.zeros_like(self.p)
         self.u = self.product(self.p)
         self.products = rows
         self.G_old, self.stale = np.ones(rows), np.zeros(rows, int)
         self.conj, self.small, self.done = np.zeros((3, rows), bool)
-        self.pending = False   # rows finished but not yet dropped
-        self.left = rows       # rows not finished
-        self.free: Any = None   # ~mask, for the residual rule
-        self.g: Any = None      # the gap's buffer
-        self.gtol: Any = None   # the change rule's penetration tolerance per row, when first needed
+        self.pending = False  # rows finished but not yet dropped
+        self.left = rows  # rows not finished
+        self.free: Any = None  # ~mask, for the residual rule
+        self.g: Any = None  # the gap's buffer
+        self.gtol: Any = None  # the change rule's penetration tolerance per row, when first needed
         self.scale: Any = None
         self.best: Any = None
         self.it_best: Any = None
@@ -81,7 +100,7 @@ class Iteration:
                 cells = mask.any(axis=0) if self.masked else slice(None)
                 self.basis_scale = np.max(np.abs(basis[cells]), axis=0)
         self.history: list[float] = []
-        self.out_p: Any = None   # allocated when the first rows finish
+        self.out_p: Any = None  # allocated when the first rows finish
         self.out_u: Any = None
         self.out_m = np.zeros((rows, self.k))
         self.reasons: list = [None] * rows
@@ -113,7 +132,7 @@ class Iteration:
         """Projected gap ``g``, multipliers ``m``, loaded cells ``on`` and ``g`` on them."""
         on = self.p > 0.0
         if self.g is None or self.g.shape != self.u.shape:
-            self.g = np.empty_like(self.u)   # reused: one large allocation less per iteration
+            self.g = np.empty_like(self.u)  # reused: one large allocation less per iteration
         g = np.add(self.u, self.z, out=self.g)
         m = None
         if self.k:
@@ -205,7 +224,7 @@ class Iteration:
         if self.k == 1:
             self.count = np.maximum(on.sum(axis=1), 1)
         if self.k:
-            m = m + project(g, self.basis, on, self.count)   # the projection over the new contact
+            m = m + project(g, self.basis, on, self.count)  # the projection over the new contact
         g_on = np.where(on, g, 0.0)
         gg = row_dot(g_on, g_on)
         g, m, on, g_on, gg, res = self.drop(g, m, on, g_on, gg, res)
@@ -220,11 +239,13 @@ class Iteration:
             return
         at = np.flatnonzero(rows) if self.index is None else self.index[rows]
         if self.out_p is None and count == len(rows) and not copy:
-            self.out_p, self.out_u = self.p, self.u     # every row at once: the arrays themselves
+            self.out_p, self.out_u = self.p, self.u  # every row at once: the arrays themselves
         else:
             if self.out_p is None:
-                self.out_p, self.out_u = np.zeros((len(self.reasons), self.p.shape[1])), np.zeros(
-                    (len(self.reasons), self.p.shape[1]))
+                self.out_p, self.out_u = (
+                    np.zeros((len(self.reasons), self.p.shape[1])),
+                    np.zeros((len(self.reasons), self.p.shape[1])),
+                )
             self.out_p[at], self.out_u[at] = self.p[rows], self.u[rows]
         self.left -= count
         self.done |= rows
@@ -274,7 +295,7 @@ class Iteration:
         if np.count_nonzero(bad):
             self.denominator[np.flatnonzero(bad) if self.index is None else self.index[bad]] = denom[bad]
             self.finish(bad, StopReason.BREAKDOWN, it, m, res, copy=True)
-            denom[bad] = np.inf   # tau = 0: the row keeps its pressure until it is dropped
+            denom[bad] = np.inf  # tau = 0: the row keeps its pressure until it is dropped
         tau = row_dot(g_on, t) / denom
         p_old = self.p.copy() if self.change2 is not None else None
         p = self.p
@@ -321,7 +342,7 @@ class Iteration:
             return arrays
         self.pending = False
         if not self.left:
-            return arrays   # all done: nothing to compact
+            return arrays  # all done: nothing to compact
         keep = ~self.done
         if self.index is None:
             self.index = np.arange(len(keep))
@@ -333,6 +354,16 @@ class Iteration:
 
     def result(self, shape) -> PKResult:
         rows = len(self.out_p)
-        return PKResult(self.out_p.reshape(rows, *shape), self.out_u.reshape(rows, *shape), self.out_m,
-                        tuple(self.reasons), self.iterations, self.residual, self.out_best, self.denominator,
-                        self.products, tuple(self.history), self.tol)
+        return PKResult(
+            self.out_p.reshape(rows, *shape),
+            self.out_u.reshape(rows, *shape),
+            self.out_m,
+            tuple(self.reasons),
+            self.iterations,
+            self.residual,
+            self.out_best,
+            self.denominator,
+            self.products,
+            tuple(self.history),
+            self.tol,
+        )

@@ -24,6 +24,7 @@ on a breakdown ``t.A t <= 0``; the reason is a :class:`~twoscale.stopping.StopRe
 A row leaves the working stack when it stops (the others go on), so the stacked form
 costs what the live rows cost, one operator call per iteration for all of them.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -54,8 +55,17 @@ class Constraint:
     target: np.ndarray
 
 
-def pk_solve(apply: Operator, z: np.ndarray, start: np.ndarray, mask: np.ndarray | None, tolerance: Tolerance, *,
-             constraint: Constraint | None = None, precondition: Operator | None = None, monitor=None) -> PKResult:
+def pk_solve(
+    apply: Operator,
+    z: np.ndarray,
+    start: np.ndarray,
+    mask: np.ndarray | None,
+    tolerance: Tolerance,
+    *,
+    constraint: Constraint | None = None,
+    precondition: Operator | None = None,
+    monitor=None,
+) -> PKResult:
     """Polonsky & Keer's constrained CG on a stack of independent contact problems.
 
     Parameters
@@ -91,8 +101,17 @@ def pk_solve(apply: Operator, z: np.ndarray, start: np.ndarray, mask: np.ndarray
         basis, target = np.zeros((z[0].size, 0)), np.zeros((rows, 0))
     else:
         basis, target = constraint.basis, np.asarray(constraint.target, dtype=float).reshape(rows, -1)
-    stack = Iteration(apply, precondition, shape, z.reshape(rows, -1), start.reshape(rows, -1),
-                      None if mask is None else mask.reshape(rows, -1), basis, target, tolerance)
+    stack = Iteration(
+        apply,
+        precondition,
+        shape,
+        z.reshape(rows, -1),
+        start.reshape(rows, -1),
+        None if mask is None else mask.reshape(rows, -1),
+        basis,
+        target,
+        tolerance,
+    )
     for it in range(tolerance.max_iter + 1):
         live = stack.check(it, monitor)
         if live is None:
@@ -101,4 +120,13 @@ def pk_solve(apply: Operator, z: np.ndarray, start: np.ndarray, mask: np.ndarray
     return stack.result(shape)
 
 
-__all__ = ["Constraint", "GAP_RTOL", "MONITOR_EVERY", "PKResult", "REFRESH_EVERY", "STALL_ITERATIONS", "Tolerance", "pk_solve"]
+__all__ = [
+    "Constraint",
+    "GAP_RTOL",
+    "MONITOR_EVERY",
+    "PKResult",
+    "REFRESH_EVERY",
+    "STALL_ITERATIONS",
+    "Tolerance",
+    "pk_solve",
+]

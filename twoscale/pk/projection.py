@@ -2,6 +2,7 @@
 gap on the constraint basis, restoring the load (and moments) after a step, and the
 residuals the stopping rule reads. Every function works row by row on (B, n) stacks.
 """
+
 from __future__ import annotations
 
 import numpy as np
@@ -76,8 +77,9 @@ def _restore_plane(p: np.ndarray, basis: np.ndarray, target: np.ndarray, sweeps:
         np.maximum(p, 0.0, out=p)
 
 
-def kkt_residual(g: np.ndarray, g_on: np.ndarray, on: np.ndarray, free: np.ndarray | None,
-                 scale: np.ndarray) -> np.ndarray:
+def kkt_residual(
+    g: np.ndarray, g_on: np.ndarray, on: np.ndarray, free: np.ndarray | None, scale: np.ndarray
+) -> np.ndarray:
     """Per row: largest |gap| on loaded cells and largest interpenetration elsewhere
     (cells in ``free``, if given, are not checked), over ``scale``."""
     worst_on = np.maximum(g_on.max(axis=1), -g_on.min(axis=1))

@@ -1,6 +1,7 @@
 """What the Polonsky-Keer kernel is asked (:class:`Tolerance`: when a row stops) and what it
 answers (:class:`PKResult`: pressures, displacements, multipliers and a stop reason per row).
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -91,11 +92,16 @@ class PKResult:
         reason, it, res = self.reasons[row], int(self.iterations[row]), float(self.residual[row])
         tol = self.tolerance
         if reason is StopReason.CONVERGED:
-            return (f"KKT residual {res:.2e} <= tol after {it} iterations" if tol.residual is not None
-                    else f"pressure change <= {tol.change:g} after {it} iterations")
+            return (
+                f"KKT residual {res:.2e} <= tol after {it} iterations"
+                if tol.residual is not None
+                else f"pressure change <= {tol.change:g} after {it} iterations"
+            )
         if reason is StopReason.STAGNATED:
-            return (f"no progress: KKT residual {res:.2e} has not halved in {tol.stall} iterations "
-                    f"(best {float(self.best[row]):.2e}, tol {tol.residual:g})")
+            return (
+                f"no progress: KKT residual {res:.2e} has not halved in {tol.stall} iterations "
+                f"(best {float(self.best[row]):.2e}, tol {tol.residual:g})"
+            )
         if reason is StopReason.BREAKDOWN:
             return f"CG breakdown (t.A t = {float(self.denominator[row]):.3e}) after {it} iterations"
         if tol.residual is not None:

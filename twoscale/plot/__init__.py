@@ -26,6 +26,7 @@ scales end at the 99th percentile of the loaded cells when a single peak would f
 them (:func:`~twoscale.plot.scale.robust_scale`); the peak is given in the title and on
 the colour bar. Titles name the scene and the body (:func:`scene_text`).
 """
+
 from .difference import difference_map
 from .forces import compare_forces, force_bars, plot_forces, plot_parity, plot_tip_values
 from .labels import body_text, scene_text
@@ -33,6 +34,20 @@ from .maps import compare_maps, plot_pressure_map, pressure_map
 from .scale import ColourScale, robust_scale
 from .style import Caption, FigureStyle
 
-__all__ = ["plot_pressure_map", "plot_forces", "plot_tip_values", "plot_parity",
-           "pressure_map", "force_bars", "compare_forces", "compare_maps", "difference_map",
-           "body_text", "scene_text", "Caption", "ColourScale", "FigureStyle", "robust_scale"]
+__all__ = [
+    "plot_pressure_map",
+    "plot_forces",
+    "plot_tip_values",
+    "plot_parity",
+    "pressure_map",
+    "force_bars",
+    "compare_forces",
+    "compare_maps",
+    "difference_map",
+    "body_text",
+    "scene_text",
+    "Caption",
+    "ColourScale",
+    "FigureStyle",
+    "robust_scale",
+]

@@ -1,4 +1,5 @@
 """Figure creation and atomic PNG saving shared by the plotting modules."""
+
 from __future__ import annotations
 
 import json
@@ -29,13 +30,14 @@ def figure_and_axes(ax, size: tuple[float, float], dpi: int, rect=(0.1, 0.1, 0.8
     """``(ax.figure, ax)`` when an Axes is given (a notebook's, say), else a new Figure
     of ``size`` inches (:func:`new_figure`) with one Axes at ``rect`` (figure fractions)."""
     if ax is not None:
-        return getattr(ax.figure, "figure", ax.figure), ax   # the root Figure, also of a SubFigure
+        return getattr(ax.figure, "figure", ax.figure), ax  # the root Figure, also of a SubFigure
     fig = new_figure(size, dpi)
     return fig, fig.add_axes(list(rect))
 
 
-def save_png(fig, path: str | Path, *, title: str, scene: Mapping[str, Any] | None = None,
-             meta: Mapping[str, Any] | None = None) -> Path:
+def save_png(
+    fig, path: str | Path, *, title: str, scene: Mapping[str, Any] | None = None, meta: Mapping[str, Any] | None = None
+) -> Path:
     """Write ``fig`` to ``path`` (PNG) atomically with version, title and scene metadata.
 
     ``meta``: further JSON-ready entries for the ``Description`` chunk, beside ``units``
@@ -44,8 +46,10 @@ def save_png(fig, path: str | Path, *, title: str, scene: Mapping[str, Any] | No
     path = Path(path)
     if path.suffix.lower() != ".png":
         raise ValueError(f"figure path must end in .png, got {str(path)!r}")
-    description = {"units": {"length": "mm", "force": "N", "pressure": "MPa"},
-                   "scene": None if scene is None else dict(scene)}
+    description = {
+        "units": {"length": "mm", "force": "N", "pressure": "MPa"},
+        "scene": None if scene is None else dict(scene),
+    }
     clash = sorted(set(meta or {}) & set(description))
     if clash:
         raise ValueError(f"meta may not replace {clash} of the PNG description")

@@ -1,5 +1,6 @@
 """Where two bodies disagree: a map of the per-tip force difference (e.g. block minus
 half-space), one panel per body against a reference body, on one diverging colour scale."""
+
 from __future__ import annotations
 
 from pathlib import Path
@@ -24,8 +25,15 @@ def difference_text(diff: np.ndarray, ref: np.ndarray, reference: str) -> str:
     return f"largest |dF| {worst:.3g} N at tip {k + 1}{share}"
 
 
-def difference_map(results: Mapping[str, ContactResult], path: str | Path, *, tips, reference: str | None = None,
-                   caption: Caption = NO_CAPTION, style: FigureStyle = PLAIN) -> Path:
+def difference_map(
+    results: Mapping[str, ContactResult],
+    path: str | Path,
+    *,
+    tips,
+    reference: str | None = None,
+    caption: Caption = NO_CAPTION,
+    style: FigureStyle = PLAIN,
+) -> Path:
     """Per-tip force differences ``F_body - F_reference`` (N) at the tips, as PNG.
 
     Each panel (:func:`~twoscale.plot.plot_tip_values`, diverging) colours the tips
@@ -60,8 +68,10 @@ def difference_map(results: Mapping[str, ContactResult], path: str | Path, *, ti
     names = list(results)
     reference = names[0] if reference is None else reference
     if reference not in results or len(names) < 2:
-        raise ValueError(f"difference_map needs a reference among at least two results, got "
-                         f"reference={reference!r} and results {names!r}")
+        raise ValueError(
+            f"difference_map needs a reference among at least two results, got "
+            f"reference={reference!r} and results {names!r}"
+        )
     xy, _ = tip_positions(tips)
     if xy is None:
         raise ValueError("difference_map needs the tip positions (tips=...)")
@@ -81,15 +91,23 @@ def difference_map(results: Mapping[str, ContactResult], path: str | Path, *, ti
     sc = None
     for k, (key, d) in enumerate(diffs.items()):
         ax = fig.add_axes([(0.6 + k * panel_size) / W, 0.55 / H, 0.8 * panel_size / W, (panel_size - 0.4) / H])
-        plot_tip_values(xy[loaded], d[loaded], ax=ax, numbers=np.flatnonzero(loaded) + 1, diverging=True,
-                        label="force difference (N)",
-                        style=FigureStyle(scale=ColourScale(m, m), cmap=cmap, colourbar=False))
+        plot_tip_values(
+            xy[loaded],
+            d[loaded],
+            ax=ax,
+            numbers=np.flatnonzero(loaded) + 1,
+            diverging=True,
+            label="force difference (N)",
+            style=FigureStyle(scale=ColourScale(m, m), cmap=cmap, colourbar=False),
+        )
         sc = ax.collections[0]
         text = difference_text(d, ref, reference).replace(" = ", "\n= ")
         ax.set_title(f"{key} - {reference}: {text}", fontsize=7)
         if k:
             ax.set_ylabel("")
-    cb = fig.colorbar(sc, cax=fig.add_axes([(0.7 + (n - 0.15) * panel_size) / W, 0.55 / H, 0.12 / W, (panel_size - 0.4) / H]))
+    cb = fig.colorbar(
+        sc, cax=fig.add_axes([(0.7 + (n - 0.15) * panel_size) / W, 0.55 / H, 0.12 / W, (panel_size - 0.4) / H])
+    )
     cb.set_label(f"F - F_{reference} (N)")
     title = join_title(caption.name or "", caption.title or "force difference per tip")
     fig.suptitle(title, fontsize=10, y=0.995, va="top")

@@ -8,6 +8,7 @@ force, the most loaded numbered (one result), or beside each body's tip forces a
 the first body's (several). Each panel is a function of its own that takes ``ax=`` and
 returns the Figure: :func:`plot_forces`, :func:`plot_tip_values`, :func:`plot_parity`.
 """
+
 from __future__ import annotations
 
 from pathlib import Path
@@ -42,12 +43,12 @@ def _grouped_bars(ax, series: Mapping[str, np.ndarray]) -> None:
     x = np.arange(1, n + 1)
     for j, (name, v) in enumerate(series.items()):
         ax.bar(x + (j - (m - 1) / 2) * width, v, width=width, label=name)
-    ax.set_xticks(x if n <= 30 else x[::max(1, n // 15)])
+    ax.set_xticks(x if n <= 30 else x[:: max(1, n // 15)])
     ax.set_xlim(0.4, n + 0.6)
     ax.set_xlabel("asperity (number as in the CSV)")
     ax.set_ylabel("force (N)")
     top = max(float(np.max(v)) for v in series.values())
-    ax.set_ylim(0.0, 1.25 * top if top > 0 else 1.0)   # headroom: the legend sits above the bars
+    ax.set_ylim(0.0, 1.25 * top if top > 0 else 1.0)  # headroom: the legend sits above the bars
     if m > 1:
         ax.legend(fontsize=8, ncol=m, loc="upper center", frameon=False)
     ax.grid(axis="y", lw=0.3)
@@ -59,8 +60,7 @@ def _histograms(ax, series: Mapping[str, np.ndarray]) -> None:
     edges = np.histogram_bin_edges(allv, bins=min(60, max(10, int(np.sqrt(allv.size)))))
     for j, (name, v) in enumerate(series.items()):
         counts, _ = np.histogram(v, bins=edges)
-        ax.stairs(counts, edges, label=name, fill=(j == len(series) - 1 and len(series) == 1),
-                  linewidth=1.2)
+        ax.stairs(counts, edges, label=name, fill=(j == len(series) - 1 and len(series) == 1), linewidth=1.2)
     ax.set_xlabel("force per tip (N)")
     ax.set_ylabel("number of tips")
     ax.grid(lw=0.3)
@@ -93,8 +93,17 @@ def plot_forces(forces: Mapping[str, Any], *, ax=None, title: str | None = None,
     return fig
 
 
-def plot_tip_values(tips, values, *, ax=None, numbers=None, label: str = "force (N)", diverging: bool = False,
-                    title: str | None = None, style: FigureStyle = PLAIN):
+def plot_tip_values(
+    tips,
+    values,
+    *,
+    ax=None,
+    numbers=None,
+    label: str = "force (N)",
+    diverging: bool = False,
+    title: str | None = None,
+    style: FigureStyle = PLAIN,
+):
     """Tips as dots coloured by a value, the ``LABELLED`` (10) largest numbered from 1
     (every tip when at most ``FEW_TIPS``). Returns the matplotlib Figure.
 
@@ -123,14 +132,23 @@ def plot_tip_values(tips, values, *, ax=None, numbers=None, label: str = "force 
     xy, _ = tip_positions(tips)
     v = np.asarray(values, dtype=float).ravel()
     if xy is None or len(xy) != v.size:
-        raise ValueError(f"plot_tip_values needs one tip per value, got {0 if xy is None else len(xy)} "
-                         f"tips and {v.size} values")
+        raise ValueError(
+            f"plot_tip_values needs one tip per value, got {0 if xy is None else len(xy)} tips and {v.size} values"
+        )
     top = float(np.max(np.abs(v), initial=0.0)) if style.scale is None else float(style.scale.top)
     top = top if top > 0 else 1.0
     norm = Normalize(-top, top) if diverging else Normalize(0.0, top)
     fig, ax = figure_and_axes(ax, style.pick("size", (5.6, 4.8)), style.pick("dpi", 100), rect=(0.12, 0.1, 0.7, 0.8))
-    sc = tips_coloured(ax, xy, v, norm=norm, cmap=style.pick("cmap", "RdBu_r" if diverging else "viridis"),
-                       label=label, rank=np.abs(v) if diverging else v, numbers=numbers)
+    sc = tips_coloured(
+        ax,
+        xy,
+        v,
+        norm=norm,
+        cmap=style.pick("cmap", "RdBu_r" if diverging else "viridis"),
+        label=label,
+        rank=np.abs(v) if diverging else v,
+        numbers=numbers,
+    )
     if style.colourbar:
         fig.colorbar(sc, ax=ax).set_label(label)
     if title:
@@ -173,8 +191,15 @@ def plot_parity(forces: Mapping[str, Any], *, ax=None, title: str | None = None,
     return fig
 
 
-def force_bars(result: ContactResult, path: str | Path, *, tips=None, macro_forces: Sequence[float] | None = None,
-               caption: Caption = NO_CAPTION, style: FigureStyle = PLAIN) -> Path:
+def force_bars(
+    result: ContactResult,
+    path: str | Path,
+    *,
+    tips=None,
+    macro_forces: Sequence[float] | None = None,
+    caption: Caption = NO_CAPTION,
+    style: FigureStyle = PLAIN,
+) -> Path:
     """Force per asperity (integral of the final pressure over its cells) as PNG.
 
     Parameters
@@ -204,15 +229,15 @@ def force_bars(result: ContactResult, path: str | Path, *, tips=None, macro_forc
     if macro_forces is not None:
         macro = np.asarray(macro_forces, float).ravel()
         if macro.shape != forces.shape:
-            raise ValueError(f"macro_forces has {macro.size} values, expected "
-                             f"{forces.size} (one per asperity)")
+            raise ValueError(f"macro_forces has {macro.size} values, expected {forces.size} (one per asperity)")
         series = {"macro step": macro, **series}
     n, loaded = forces.size, int(np.count_nonzero(forces > 0))
     title, scene, size, dpi = caption.title, caption.scene, style.pick("size", (6.4, 4.0)), style.pick("dpi", 100)
     if title is None:
-        title = join_title(scene_text(scene, caption.name, result=result),
-                           f"force per asperity, total {float(result.total_load):.4g} N "
-                           f"({loaded} of {n} tips loaded)")
+        title = join_title(
+            scene_text(scene, caption.name, result=result),
+            f"force per asperity, total {float(result.total_load):.4g} N ({loaded} of {n} tips loaded)",
+        )
     xy, _ = tip_positions(tips)
     if n <= FEW_TIPS or xy is None:
         fig = plot_forces(series, style=FigureStyle(size=size, dpi=dpi))
@@ -221,15 +246,27 @@ def force_bars(result: ContactResult, path: str | Path, *, tips=None, macro_forc
         plot_forces(series, ax=fig.add_axes([0.08, 0.13, 0.36, 0.72]))
         on = forces > 0
         mx = fig.add_axes([0.52, 0.13, 0.36, 0.72])
-        plot_tip_values(xy[on], forces[on], ax=mx, numbers=np.flatnonzero(on) + 1, style=FigureStyle(colourbar=False),
-                        title=f"loaded tips coloured by force ({min(LABELLED, loaded)} most loaded numbered)")
+        plot_tip_values(
+            xy[on],
+            forces[on],
+            ax=mx,
+            numbers=np.flatnonzero(on) + 1,
+            style=FigureStyle(colourbar=False),
+            title=f"loaded tips coloured by force ({min(LABELLED, loaded)} most loaded numbered)",
+        )
         fig.colorbar(mx.collections[0], cax=fig.add_axes([0.90, 0.13, 0.015, 0.72])).set_label("force (N)")
     fig.suptitle(title, fontsize=9, y=0.995, va="top")
     return save_png(fig, path, title=title, scene=scene)
 
 
-def compare_forces(results: Mapping[str, ContactResult], path: str | Path, *, measured: Sequence[float] | None = None,
-                   caption: Caption = NO_CAPTION, style: FigureStyle = PLAIN) -> Path:
+def compare_forces(
+    results: Mapping[str, ContactResult],
+    path: str | Path,
+    *,
+    measured: Sequence[float] | None = None,
+    caption: Caption = NO_CAPTION,
+    style: FigureStyle = PLAIN,
+) -> Path:
     """Forces per asperity of several results side by side (paper Figs. 10-11), as PNG.
 
     Parameters

@@ -1,5 +1,6 @@
 """``history.png``: load, approach, contact area and the most loaded asperities' forces
 against time (log time axis when the output times span decades)."""
+
 from __future__ import annotations
 
 from pathlib import Path
@@ -28,8 +29,11 @@ def history_figure(result, path, *, scene=None) -> Path:
         t = np.where(t > 0, t, 0.1 * first)
     fig = new_figure((9.0, 6.5), 110)
     axes = fig.subplots(2, 2, sharex=True)
-    panels = [(axes[0, 0], result.total_load, "total load (N)"), (axes[0, 1], result.penetration, "approach (mm)"),
-              (axes[1, 0], result.contact_area, "contact area (mm$^2$)")]
+    panels = [
+        (axes[0, 0], result.total_load, "total load (N)"),
+        (axes[0, 1], result.penetration, "approach (mm)"),
+        (axes[1, 0], result.contact_area, "contact area (mm$^2$)"),
+    ]
     for ax, y, label in panels:
         ax.plot(t, y, ".-", lw=1.2, ms=3)
         ax.set_ylabel(label)

@@ -6,6 +6,7 @@ the scene already says (its ``influence``), so the same words come from a
 :class:`~twoscale.scene.Scene`, its dict record (as written in ``result.json``), or a
 result that carries a body label of its own.
 """
+
 from __future__ import annotations
 
 from typing import Any, Mapping

@@ -6,6 +6,7 @@ scale ends at a high percentile of the loaded cells when a single peak (a punch 
 a map's edge) would otherwise flatten it, and the peak is given in the title and the
 colour bar.
 """
+
 from __future__ import annotations
 
 from pathlib import Path
@@ -97,17 +98,35 @@ def _draw(ax, result: ContactResult, norm, *, tips_xy, sensor, cmap: str):
     image = None
     if sensor is not None:
         P = sensor.average(result)
-        image = ax.imshow(np.ma.masked_less_equal(P, 0), extent=sensor.grid.bounds, origin="lower",
-                          norm=norm, cmap=cmap, interpolation="nearest")
+        image = ax.imshow(
+            np.ma.masked_less_equal(P, 0),
+            extent=sensor.grid.bounds,
+            origin="lower",
+            norm=norm,
+            cmap=cmap,
+            interpolation="nearest",
+        )
     else:
         loaded = [f for f in result.fields if np.any(f.pressure > 0)]
         if len(loaded) > MANY_PATCHES:
             P, extent = _raster(loaded)
-            image = ax.imshow(np.ma.masked_less_equal(P, 0), extent=extent, origin="lower", norm=norm,
-                              cmap=cmap, interpolation="nearest")
+            image = ax.imshow(
+                np.ma.masked_less_equal(P, 0),
+                extent=extent,
+                origin="lower",
+                norm=norm,
+                cmap=cmap,
+                interpolation="nearest",
+            )
         for f in loaded if len(loaded) <= MANY_PATCHES else ():
-            image = ax.imshow(np.ma.masked_less_equal(f.pressure, 0), extent=f.grid.bounds,
-                              origin="lower", norm=norm, cmap=cmap, interpolation="nearest")
+            image = ax.imshow(
+                np.ma.masked_less_equal(f.pressure, 0),
+                extent=f.grid.bounds,
+                origin="lower",
+                norm=norm,
+                cmap=cmap,
+                interpolation="nearest",
+            )
     if tips_xy is not None:
         _draw_tips(ax, result, tips_xy)
     ax.set_aspect("equal")
@@ -127,8 +146,15 @@ def _draw_tips(ax, result: ContactResult, tips_xy) -> None:
     if on.size == 0:
         return
     few = len(on) <= FEW_TIPS
-    ax.scatter(tips_xy[on, 0], tips_xy[on, 1], marker="+", color="red", s=36 if few else marker_size(len(on)) / 4,
-               linewidths=1.0 if few else 0.4, label="loaded tips")
+    ax.scatter(
+        tips_xy[on, 0],
+        tips_xy[on, 1],
+        marker="+",
+        color="red",
+        s=36 if few else marker_size(len(on)) / 4,
+        linewidths=1.0 if few else 0.4,
+        label="loaded tips",
+    )
     number_tips(ax, tips_xy, on[labelled(forces[on])])
 
 
@@ -149,14 +175,17 @@ def pressure_title(result: ContactResult, *, scene=None, name: str | None = None
     area = float(np.sum(result.asperities.contact_areas))
     ratio = getattr(result, "contact_ratio", None)
     share = f" ({100 * ratio:.3g} % of the nominal)" if ratio is not None else ""
-    what = (f"total load {result.total_load:.4g} N, contact area {area:.4g} mm²{share}\n{_peak_text(result, sensor)}, "
-            f"{loaded} of {n} tips loaded" + ("" if result.converged else " (NOT converged)"))
+    what = (
+        f"total load {result.total_load:.4g} N, contact area {area:.4g} mm²{share}\n{_peak_text(result, sensor)}, "
+        f"{loaded} of {n} tips loaded" + ("" if result.converged else " (NOT converged)")
+    )
     head = scene_text(scene, name, result=result)
     return f"{head}\n{what}" if head else what
 
 
-def plot_pressure_map(result: ContactResult, *, ax=None, tips=None, sensor=None, caption: Caption = NO_CAPTION,
-                      style: FigureStyle = PLAIN):
+def plot_pressure_map(
+    result: ContactResult, *, ax=None, tips=None, sensor=None, caption: Caption = NO_CAPTION, style: FigureStyle = PLAIN
+):
     """Map of the contact pressure with the loaded tips; returns the matplotlib Figure.
 
     Parameters
@@ -196,13 +225,22 @@ def plot_pressure_map(result: ContactResult, *, ax=None, tips=None, sensor=None,
     if style.colourbar:
         _colourbar(fig, image, scale, cmap, sensor, cax=fig.add_axes([0.82, 0.1, 0.03, 0.78]) if own else None, ax=ax)
     title = caption.title
-    ax.set_title(title if title is not None else
-                 pressure_title(result, scene=caption.scene, name=caption.name, sensor=sensor), fontsize=9)
+    ax.set_title(
+        title if title is not None else pressure_title(result, scene=caption.scene, name=caption.name, sensor=sensor),
+        fontsize=9,
+    )
     return fig
 
 
-def pressure_map(result: ContactResult, path: str | Path, *, tips=None, sensor=None, caption: Caption = NO_CAPTION,
-                 style: FigureStyle = PLAIN) -> Path:
+def pressure_map(
+    result: ContactResult,
+    path: str | Path,
+    *,
+    tips=None,
+    sensor=None,
+    caption: Caption = NO_CAPTION,
+    style: FigureStyle = PLAIN,
+) -> Path:
     """Write :func:`plot_pressure_map` to ``path`` (PNG; the caption's scene record in its metadata).
 
     Parameters are those of :func:`plot_pressure_map`. Returns the Path written.
@@ -217,8 +255,15 @@ def _panel_body(meta: Mapping | None, name: str) -> str:
     return body_text(body.get("influence")) if isinstance(body, Mapping) and "influence" in body else ""
 
 
-def compare_maps(results: Mapping[str, ContactResult], path: str | Path, *, tips=None, sensor=None,
-                 caption: Caption = NO_CAPTION, style: FigureStyle = PLAIN) -> Path:
+def compare_maps(
+    results: Mapping[str, ContactResult],
+    path: str | Path,
+    *,
+    tips=None,
+    sensor=None,
+    caption: Caption = NO_CAPTION,
+    style: FigureStyle = PLAIN,
+) -> Path:
     """Pressure maps of several results side by side on one colour scale, as PNG.
 
     Each panel is :func:`plot_pressure_map` on the shared scale (:func:`map_scale` of
@@ -263,11 +308,17 @@ def compare_maps(results: Mapping[str, ContactResult], path: str | Path, *, tips
         r = results[key]
         ax = fig.add_axes([(0.6 + k * panel_size) / W, 0.55 / H, 0.82 * panel_size / W, (panel_size - 0.45) / H])
         body = _panel_body(meta, key)
-        same = body.replace("-", "") == key.replace("-", "")   # "halfspace" is the half-space
+        same = body.replace("-", "") == key.replace("-", "")  # "halfspace" is the half-space
         head = f"{key}" + (f" ({body})" if body and not same else "")
         sub = f"{r.total_load:.4g} N, {_peak_text(r, sensor)}" + ("" if r.converged else " (NOT converged)")
-        plot_pressure_map(r, ax=ax, tips=tips, sensor=sensor, caption=Caption(title=f"{head}\n{sub}"),
-                          style=FigureStyle(scale=scale, colourbar=False, cmap=cmap))
+        plot_pressure_map(
+            r,
+            ax=ax,
+            tips=tips,
+            sensor=sensor,
+            caption=Caption(title=f"{head}\n{sub}"),
+            style=FigureStyle(scale=scale, colourbar=False, cmap=cmap),
+        )
         ax.title.set_fontsize(8)
         ax.set_xlim(box[0], box[1])
         ax.set_ylim(box[2], box[3])

@@ -11,6 +11,7 @@ Each takes ``ax=`` (``axes=`` for the two panels) and returns the Figure; the fi
 writers :func:`signals_figure`, :func:`bands_figure`, :func:`space_time_figure` compose
 them into PNG files with the version and scene metadata (:func:`~twoscale.plot._figure.save_png`).
 """
+
 from __future__ import annotations
 
 from pathlib import Path
@@ -35,8 +36,16 @@ def _vector(name: str, values, n: int | None = None) -> np.ndarray:
     return v
 
 
-def plot_signals(time_s, signal, contact_area_mm2, *, signal_label: str = "total load (N)", axes=None,
-                 title: str | None = None, style: FigureStyle = PLAIN):
+def plot_signals(
+    time_s,
+    signal,
+    contact_area_mm2,
+    *,
+    signal_label: str = "total load (N)",
+    axes=None,
+    title: str | None = None,
+    style: FigureStyle = PLAIN,
+):
     """A signal and the contact area against time, on two stacked panels sharing the time axis.
 
     Parameters
@@ -70,9 +79,17 @@ def plot_signals(time_s, signal, contact_area_mm2, *, signal_label: str = "total
     return fig
 
 
-def plot_band_levels(nominal, level_dB, *, ax=None, band_label: str = "third-octave band (Hz)",
-                     level_label: str = "level (dB re 1 N)", highlight: tuple[float, float] | None = None,
-                     title: str | None = None, style: FigureStyle = PLAIN):
+def plot_band_levels(
+    nominal,
+    level_dB,
+    *,
+    ax=None,
+    band_label: str = "third-octave band (Hz)",
+    level_label: str = "level (dB re 1 N)",
+    highlight: tuple[float, float] | None = None,
+    title: str | None = None,
+    style: FigureStyle = PLAIN,
+):
     """Third-octave levels as bars over the bands' nominal labels.
 
     Parameters
@@ -106,8 +123,14 @@ def plot_band_levels(nominal, level_dB, *, ax=None, band_label: str = "third-oct
     if finite.any():
         ax.set_ylim(floor, 5.0 * np.ceil(level[finite].max() / 5.0) + 5.0)
     if not labels.size:
-        ax.text(0.5, 0.5, "no band holds 3 FFT bins: the signal is too short", transform=ax.transAxes,
-                ha="center", va="center")
+        ax.text(
+            0.5,
+            0.5,
+            "no band holds 3 FFT bins: the signal is too short",
+            transform=ax.transAxes,
+            ha="center",
+            va="center",
+        )
     ax.set_xlabel(band_label)
     ax.set_ylabel(level_label)
     ax.grid(axis="y", alpha=0.3, zorder=1)
@@ -121,8 +144,16 @@ def _uniform(v: np.ndarray) -> bool:
     return v.size >= 2 and bool(np.all(step > 0)) and np.allclose(step, step[0], rtol=1e-6)
 
 
-def plot_space_time(shifts_mm, x_mm, pressure, *, ax=None, colour_label: str = LINE_LOAD,
-                    title: str | None = None, style: FigureStyle = PLAIN):
+def plot_space_time(
+    shifts_mm,
+    x_mm,
+    pressure,
+    *,
+    ax=None,
+    colour_label: str = LINE_LOAD,
+    title: str | None = None,
+    style: FigureStyle = PLAIN,
+):
     """The pressure summed across y for every shift (vertical) and body x (horizontal).
 
     Parameters
@@ -150,8 +181,15 @@ def plot_space_time(shifts_mm, x_mm, pressure, *, ax=None, colour_label: str = L
     shown = np.ma.masked_less_equal(p, 0.0)
     if _uniform(s) and _uniform(x):
         hx, hs = 0.5 * (x[1] - x[0]), 0.5 * (s[1] - s[0])
-        image = ax.imshow(shown, extent=(x[0] - hx, x[-1] + hx, s[0] - hs, s[-1] + hs), origin="lower",
-                          aspect="auto", norm=scale.norm(), cmap=cmap, interpolation="nearest")
+        image = ax.imshow(
+            shown,
+            extent=(x[0] - hx, x[-1] + hx, s[0] - hs, s[-1] + hs),
+            origin="lower",
+            aspect="auto",
+            norm=scale.norm(),
+            cmap=cmap,
+            interpolation="nearest",
+        )
     else:
         image = ax.pcolormesh(x, s, shown, shading="nearest", norm=scale.norm(), cmap=cmap, rasterized=True)
     bar = fig.colorbar(image, ax=ax, extend=scale.extend)
@@ -163,32 +201,70 @@ def plot_space_time(shifts_mm, x_mm, pressure, *, ax=None, colour_label: str = L
     return fig
 
 
-def signals_figure(path, time_s, signal, contact_area_mm2, *, signal_label: str = "total load (N)",
-                   caption: Caption = NO_CAPTION, style: FigureStyle = PLAIN) -> Path:
+def signals_figure(
+    path,
+    time_s,
+    signal,
+    contact_area_mm2,
+    *,
+    signal_label: str = "total load (N)",
+    caption: Caption = NO_CAPTION,
+    style: FigureStyle = PLAIN,
+) -> Path:
     """Write :func:`plot_signals` to ``path`` (PNG); the title names the caption's scene and
     body (``style.dpi`` default 110)."""
     title = join_title(scene_text(caption.scene, caption.name), "rolling signals")
-    fig = plot_signals(time_s, signal, contact_area_mm2, signal_label=signal_label, title=title,
-                       style=FigureStyle(dpi=style.pick("dpi", 110)))
+    fig = plot_signals(
+        time_s,
+        signal,
+        contact_area_mm2,
+        signal_label=signal_label,
+        title=title,
+        style=FigureStyle(dpi=style.pick("dpi", 110)),
+    )
     fig.tight_layout(rect=(0, 0.02, 1, 1))
     return save_png(fig, path, title=title, scene=caption.scene)
 
 
-def bands_figure(path, nominal, level_dB, *, level_label: str = "force level (dB re 1 N)",
-                 band_label: str = "third-octave band (Hz)", highlight: tuple[float, float] | None = (315.0, 2000.0),
-                 caption: Caption = NO_CAPTION, style: FigureStyle = PLAIN) -> Path:
+def bands_figure(
+    path,
+    nominal,
+    level_dB,
+    *,
+    level_label: str = "force level (dB re 1 N)",
+    band_label: str = "third-octave band (Hz)",
+    highlight: tuple[float, float] | None = (315.0, 2000.0),
+    caption: Caption = NO_CAPTION,
+    style: FigureStyle = PLAIN,
+) -> Path:
     """Write :func:`plot_band_levels` to ``path`` (PNG), 315-2000 Hz shaded by default
     (``style.dpi`` default 110)."""
     title = join_title(scene_text(caption.scene, caption.name), "third-octave levels")
-    fig = plot_band_levels(nominal, level_dB, band_label=band_label, level_label=level_label,
-                           highlight=highlight, title=title, style=FigureStyle(dpi=style.pick("dpi", 110)))
+    fig = plot_band_levels(
+        nominal,
+        level_dB,
+        band_label=band_label,
+        level_label=level_label,
+        highlight=highlight,
+        title=title,
+        style=FigureStyle(dpi=style.pick("dpi", 110)),
+    )
     return save_png(fig, path, title=title, scene=caption.scene)
 
 
-def space_time_figure(path, shifts_mm, x_mm, pressure, *, colour_label: str = LINE_LOAD,
-                      caption: Caption = NO_CAPTION, style: FigureStyle = PLAIN) -> Path:
+def space_time_figure(
+    path,
+    shifts_mm,
+    x_mm,
+    pressure,
+    *,
+    colour_label: str = LINE_LOAD,
+    caption: Caption = NO_CAPTION,
+    style: FigureStyle = PLAIN,
+) -> Path:
     """Write :func:`plot_space_time` to ``path`` (PNG; ``style.dpi`` default 110)."""
     title = join_title(scene_text(caption.scene, caption.name), "pressure across the footprint")
-    fig = plot_space_time(shifts_mm, x_mm, pressure, colour_label=colour_label, title=title,
-                          style=FigureStyle(dpi=style.pick("dpi", 110)))
+    fig = plot_space_time(
+        shifts_mm, x_mm, pressure, colour_label=colour_label, title=title, style=FigureStyle(dpi=style.pick("dpi", 110))
+    )
     return save_png(fig, path, title=title, scene=caption.scene)

@@ -6,6 +6,7 @@ other contact the same dark colour. :func:`robust_scale` ends the scale at a hig
 percentile of the loaded cells instead, when the peak is far above it, and keeps the
 peak to report it (colour bar label and arrow, figure title).
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass

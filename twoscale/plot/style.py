@@ -1,5 +1,6 @@
 """What a figure says about itself (:class:`Caption`) and how it is drawn (:class:`FigureStyle`),
 passed whole to the plotting functions instead of long keyword lists."""
+
 from __future__ import annotations
 
 from dataclasses import dataclass

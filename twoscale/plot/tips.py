@@ -5,6 +5,7 @@ Tips are numbered from 1 in scene order, as in every table and file. With at mos
 cover the figure, so only the :data:`LABELLED` tips of largest value (the most loaded,
 the largest change) are numbered, and the CSV gives every tip's number and position.
 """
+
 from __future__ import annotations
 
 import numpy as np
@@ -52,8 +53,16 @@ def number_tips(ax, xy: np.ndarray, which=None, numbers=None) -> None:
     for k in idx:
         x, y = xy[k]
         label = int(k) + 1 if numbers is None else int(numbers[k])
-        ax.annotate(str(label), (x, y), xytext=(3, 3), textcoords="offset points", fontsize=7,
-                    color="black", path_effects=outline, clip_on=True)
+        ax.annotate(
+            str(label),
+            (x, y),
+            xytext=(3, 3),
+            textcoords="offset points",
+            fontsize=7,
+            color="black",
+            path_effects=outline,
+            clip_on=True,
+        )
 
 
 def marker_size(n: int) -> float:
@@ -62,12 +71,19 @@ def marker_size(n: int) -> float:
     return float(np.clip((180.0 / np.sqrt(max(n, 1))) ** 2, 1.0, 60.0))
 
 
-def tips_coloured(ax, xy: np.ndarray, values: np.ndarray, *, norm, cmap: str, label: str,
-                  rank=None, numbers=None):
+def tips_coloured(ax, xy: np.ndarray, values: np.ndarray, *, norm, cmap: str, label: str, rank=None, numbers=None):
     """Tips as dots coloured by ``values``; the tips of largest ``rank`` (default
     ``values``) numbered (all when few) with ``numbers`` (default 1..N). Returns the mappable."""
-    sc = ax.scatter(xy[:, 0], xy[:, 1], c=values, norm=norm, cmap=cmap, s=marker_size(len(xy)),
-                    edgecolors="0.2", linewidths=0.3 if len(xy) <= 500 else 0.0)
+    sc = ax.scatter(
+        xy[:, 0],
+        xy[:, 1],
+        c=values,
+        norm=norm,
+        cmap=cmap,
+        s=marker_size(len(xy)),
+        edgecolors="0.2",
+        linewidths=0.3 if len(xy) <= 500 else 0.0,
+    )
     number_tips(ax, xy, labelled(values if rank is None else rank), numbers)
     ax.set_aspect("equal")
     ax.set_xlabel(X_MM)

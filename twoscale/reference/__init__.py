@@ -32,6 +32,7 @@ the same penetration the contact is smaller and the load lower, by the fraction
 ``d / (10 R)`` to first order (0.5 % at d = R/20); they match Segedin's exact law
 (:func:`twoscale.analytic.hertz.sphere_load`), which the tests check instead of Hertz.
 """
+
 from __future__ import annotations
 
 import numpy as np
@@ -51,8 +52,7 @@ AUTO_DENSE_CELLS = 2000
 METHODS = {"dense": solve_dense, "cg": solve_cg}
 
 
-def solve_reference(provider: InfluenceProvider, surface: Surface, *, method: str = "auto",
-                    **kwargs) -> ContactResult:
+def solve_reference(provider: InfluenceProvider, surface: Surface, *, method: str = "auto", **kwargs) -> ContactResult:
     """Solve on the full grid with ``method`` in {"auto", "dense", "cg"}.
 
     ``kwargs`` are those of :func:`solve_dense` / :func:`solve_cg` (penetration,

@@ -21,6 +21,7 @@ With this notation the contact condition is ``A p + z - B m = 0`` on the contact
 the KKT conditions of ``min 1/2 p.A p + z.p`` subject to ``p >= 0`` and the constraints,
 with ``m`` their Lagrange multipliers.
 """
+
 from __future__ import annotations
 
 import math
@@ -89,7 +90,7 @@ class ContactProblem:
         if self.mode == "penetration":
             return np.zeros(0)
         t = np.zeros(1 if self.mode == "load" else 3)
-        t[0] = self.total_load / self.grid.h ** 2
+        t[0] = self.total_load / self.grid.h**2
         return t
 
     def rigid_motion(self, m: np.ndarray) -> tuple[float, tuple[float, float] | None]:
@@ -101,8 +102,9 @@ class ContactProblem:
         return float(m[0]), (float(-m[2]), float(-m[1]))
 
 
-def make_problem(surface: Surface, *, penetration=None, total_load=None, tilt: bool = False,
-                 pivot=(0.0, 0.0)) -> ContactProblem:
+def make_problem(
+    surface: Surface, *, penetration=None, total_load=None, tilt: bool = False, pivot=(0.0, 0.0)
+) -> ContactProblem:
     """Validate the load keywords and return a :class:`ContactProblem`.
 
     Raises
@@ -153,8 +155,9 @@ def _check_pivot_inside(surface: Surface, pivot: tuple[float, float]) -> None:
         tol = 1e-9 * surface.grid.h
         inside = bool(np.all(hull.equations[:, :2] @ np.asarray(pivot) + hull.equations[:, 2] <= tol))
     if not inside:
-        raise ValueError(f"pivot {pivot!r} (mm) lies outside the cells with indenter material: "
-                         "no tilt balances the moments")
+        raise ValueError(
+            f"pivot {pivot!r} (mm) lies outside the cells with indenter material: no tilt balances the moments"
+        )
 
 
 def heights_with_tilt(problem: ContactProblem, tilt) -> np.ndarray:
@@ -179,17 +182,29 @@ def trivial_result(problem: ContactProblem, method: str, timings: dict) -> Conta
     if problem.mode == "penetration":
         if np.any(z[cand] < problem.penetration):
             return None
-        return build_result(problem, method, np.zeros(problem.grid.shape), np.zeros(problem.grid.shape),
-                            problem.penetration, None,
-                            Outcome(True, "no cell reaches the indenter: zero pressure", {"outer": 0}, {}, timings))
+        return build_result(
+            problem,
+            method,
+            np.zeros(problem.grid.shape),
+            np.zeros(problem.grid.shape),
+            problem.penetration,
+            None,
+            Outcome(True, "no cell reaches the indenter: zero pressure", {"outer": 0}, {}, timings),
+        )
     if not np.any(cand):
         raise ValueError("surface has no cell with indenter material: total_load cannot be carried")
     if problem.total_load > 0:
         return None
     tilt = (0.0, 0.0) if problem.mode == "tilt" else None
-    return build_result(problem, method, np.zeros(problem.grid.shape), np.zeros(problem.grid.shape),
-                        float(np.min(z[cand])), tilt, Outcome(True, "total_load = 0: zero pressure",
-                                                              {"outer": 0}, {}, timings))
+    return build_result(
+        problem,
+        method,
+        np.zeros(problem.grid.shape),
+        np.zeros(problem.grid.shape),
+        float(np.min(z[cand])),
+        tilt,
+        Outcome(True, "total_load = 0: zero pressure", {"outer": 0}, {}, timings),
+    )
 
 
 @dataclass(frozen=True)
@@ -205,8 +220,15 @@ class Outcome:
     details: ReferenceDetails | None = None
 
 
-def build_result(problem: ContactProblem, method: str, pressure: np.ndarray, displacement: np.ndarray,
-                 d: float, tilt, outcome: Outcome) -> ContactResult:
+def build_result(
+    problem: ContactProblem,
+    method: str,
+    pressure: np.ndarray,
+    displacement: np.ndarray,
+    d: float,
+    tilt,
+    outcome: Outcome,
+) -> ContactResult:
     """Assemble the :class:`ContactResult` from the pressure and displacement (ny, nx),
     the approach ``d`` (mm) and ``tilt``; ``method`` is the solver that ran ("dense" or
     "cg"), recorded as ``result.solver`` (``result.method`` is "reference")."""
@@ -217,12 +239,22 @@ def build_result(problem: ContactProblem, method: str, pressure: np.ndarray, dis
         gap = heights_with_tilt(problem, tilt) + displacement - d
     gap = np.where(np.isfinite(surface.height), gap, np.inf)
     field = PressureField(problem.grid, pressure, surface.owner, gap)
-    total = float(problem.grid.h ** 2 * pressure.sum())
-    return ContactResult(method="reference", solver=method, fields=(field,), penetration=float(d), tilt=tilt,
-                         total_load=total, asperities=summarise((field,), surface.n_asperities),
-                         converged=bool(converged), message=message, iterations=dict(iterations),
-                         residuals={k: tuple(float(x) for x in v) for k, v in residuals.items()},
-                         timings_s=dict(timings), details=details or ReferenceDetails(method))
+    total = float(problem.grid.h**2 * pressure.sum())
+    return ContactResult(
+        method="reference",
+        solver=method,
+        fields=(field,),
+        penetration=float(d),
+        tilt=tilt,
+        total_load=total,
+        asperities=summarise((field,), surface.n_asperities),
+        converged=bool(converged),
+        message=message,
+        iterations=dict(iterations),
+        residuals={k: tuple(float(x) for x in v) for k, v in residuals.items()},
+        timings_s=dict(timings),
+        details=details or ReferenceDetails(method),
+    )
 
 
 def initial_active_set(problem: ContactProblem, E_star: float) -> np.ndarray:
@@ -247,7 +279,7 @@ def initial_active_set(problem: ContactProblem, E_star: float) -> np.ndarray:
         return first if np.any(first) else cand & (z < problem.penetration)
     zs = np.sort(z[cand])
     delta = zs - zs[0]
-    area = problem.grid.h ** 2 * np.arange(1, zs.size + 1)
+    area = problem.grid.h**2 * np.arange(1, zs.size + 1)
     carried = 2.0 * E_star * np.sqrt(area / np.pi) * delta
     k = int(np.searchsorted(carried, problem.total_load))
     level = zs[min(max(k, 3 if problem.mode == "tilt" else 0), zs.size - 1)]

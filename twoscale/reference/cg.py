@@ -23,6 +23,7 @@ The iteration is the package's one Polonsky-Keer kernel (:func:`twoscale.pk.pk_s
 row, stopped by the KKT residual); this module prepares the problem (start, cropping,
 precision stages) and builds the result.
 """
+
 from __future__ import annotations
 
 import time
@@ -40,8 +41,9 @@ from ..results import ContactResult
 from ._problem import ContactProblem, Outcome, build_result, initial_active_set, make_problem, trivial_result
 
 
-def _initial_pressure(problem: ContactProblem, op, z: np.ndarray, E_star: float,
-                      start: np.ndarray | None = None) -> np.ndarray:
+def _initial_pressure(
+    problem: ContactProblem, op, z: np.ndarray, E_star: float, start: np.ndarray | None = None
+) -> np.ndarray:
     """Start from ``start`` (a warm start, e.g. the two-scale macro forces spread as Hertz
     pressures), else from the geometric interference ``max(level - z, 0)`` (level = d, or the
     first-guess level of load control), scaled by a line search on the energy
@@ -51,15 +53,18 @@ def _initial_pressure(problem: ContactProblem, op, z: np.ndarray, E_star: float,
     if start is not None and np.any(start.ravel()[cand] > 0):
         v = np.where(cand, np.maximum(start.ravel(), 0.0), 0.0)
     else:
-        level = problem.penetration if problem.mode == "penetration" else \
-            float(np.max(z[initial_active_set(problem, E_star).ravel()]))
+        level = (
+            problem.penetration
+            if problem.mode == "penetration"
+            else float(np.max(z[initial_active_set(problem, E_star).ravel()]))
+        )
         v = np.where(cand, np.maximum(level - z, 0.0), 0.0)
     if not np.any(v > 0):
         v = np.where(cand & (z <= np.min(z[cand])), 1.0, 0.0)
     if problem.mode == "penetration":
         Av = op.apply(v.reshape(problem.grid.shape)).ravel()
         return v * max(float(v @ (problem.penetration - z)), 0.0) / float(v @ Av)
-    return v   # the kernel scales it to the load (and moments)
+    return v  # the kernel scales it to the load (and moments)
 
 
 @dataclass(frozen=True)
@@ -74,9 +79,17 @@ class CGSettings:
     monitor: Callable | None = None
 
 
-def solve_cg(provider: InfluenceProvider, surface: Surface, *, penetration: float | None = None,
-             total_load: float | None = None, tilt: bool = False, pivot=(0.0, 0.0),
-             start: np.ndarray | None = None, **settings) -> ContactResult:
+def solve_cg(
+    provider: InfluenceProvider,
+    surface: Surface,
+    *,
+    penetration: float | None = None,
+    total_load: float | None = None,
+    tilt: bool = False,
+    pivot=(0.0, 0.0),
+    start: np.ndarray | None = None,
+    **settings,
+) -> ContactResult:
     """Full-grid contact by Polonsky & Keer's constrained conjugate gradient.
 
     Parameters
@@ -144,8 +157,9 @@ def solve_cg(provider: InfluenceProvider, surface: Surface, *, penetration: floa
     if start is not None:
         start = np.asarray(start, dtype=float)
         if start.shape != problem.grid.shape or not np.all(np.isfinite(start)):
-            raise ValueError(f"start must be a finite array of shape {problem.grid.shape} (MPa), "
-                             f"got shape {start.shape}")
+            raise ValueError(
+                f"start must be a finite array of shape {problem.grid.shape} (MPa), got shape {start.shape}"
+            )
     work = _cropped(problem)
     if start is not None and work is not problem:
         start = start[work.grid.window_in(problem.grid)]
@@ -157,15 +171,29 @@ def solve_cg(provider: InfluenceProvider, surface: Surface, *, penetration: floa
     hist0: list = []
     if precision == "mixed" and tol < SINGLE_TOL:
         single = op.single_precision()
-        p1, _, _, it0, products0, hist0, _, _ = _iterate(work, single, provider.material.E_star, SINGLE_TOL,
-                                                         max_iter, start, stall=SINGLE_STALL, monitor=monitor,
-                                                         pc=single.preconditioner() if precondition else None)
+        p1, _, _, it0, products0, hist0, _, _ = _iterate(
+            work,
+            single,
+            provider.material.E_star,
+            SINGLE_TOL,
+            max_iter,
+            start,
+            stall=SINGLE_STALL,
+            monitor=monitor,
+            pc=single.preconditioner() if precondition else None,
+        )
         start = p1.reshape(work.grid.shape)
     offset = it0 + 1 if it0 or hist0 else 0
     p, u, m, it, n_products, hist, converged, message = _iterate(
-        work, op, provider.material.E_star, tol, max_iter, start,
+        work,
+        op,
+        provider.material.E_star,
+        tol,
+        max_iter,
+        start,
         monitor=None if monitor is None else (lambda k, r: monitor(offset + k, r)),
-        pc=op.preconditioner() if precondition else None)
+        pc=op.preconditioner() if precondition else None,
+    )
     it, n_products, hist = it + it0, n_products + products0, hist0 + hist
     p, u = p.reshape(work.grid.shape), u.reshape(work.grid.shape)
     if work is not problem:
@@ -176,8 +204,15 @@ def solve_cg(provider: InfluenceProvider, surface: Surface, *, penetration: floa
     t_end = time.perf_counter()
     timings = {"operator": t_op - t0, "solve": t_end - t_op, "total": t_end - t0}
     details = ReferenceDetails("cg", working_grid=(work.grid.nx, work.grid.ny), single_precision_iterations=it0)
-    return build_result(problem, "cg", p, u, d, tilt_angles,
-                        Outcome(converged, message, {"cg": it, "products": n_products}, {"gap": hist}, timings, details))
+    return build_result(
+        problem,
+        "cg",
+        p,
+        u,
+        d,
+        tilt_angles,
+        Outcome(converged, message, {"cg": it, "products": n_products}, {"gap": hist}, timings, details),
+    )
 
 
 def _cropped(problem: ContactProblem) -> ContactProblem:
@@ -204,8 +239,18 @@ SINGLE_TOL = 1e-6
 #: The single-precision stage stops when its residual has not halved in this many iterations.
 SINGLE_STALL = 30
 
-def _iterate(problem: ContactProblem, op, E_star: float, tol: float, max_iter: int, start=None,
-             stall: int = STALL_ITERATIONS, monitor=None, pc=None):
+
+def _iterate(
+    problem: ContactProblem,
+    op,
+    E_star: float,
+    tol: float,
+    max_iter: int,
+    start=None,
+    stall: int = STALL_ITERATIONS,
+    monitor=None,
+    pc=None,
+):
     """The Polonsky-Keer kernel (:func:`twoscale.pk.pk_solve`) on the whole grid, one row:
     ``(p, u, multipliers, iterations, products, residual history, converged, message)``."""
     shape = problem.grid.shape
@@ -213,10 +258,23 @@ def _iterate(problem: ContactProblem, op, E_star: float, tol: float, max_iter: i
     z = np.where(cand, problem.surface.height.ravel(), 0.0)
     p = _initial_pressure(problem, op, z, E_star, start)
     level = problem.penetration if problem.mode == "penetration" else 0.0
-    out = pk_solve(lambda v: op.apply(v[0])[None], (z - level).reshape(1, *shape), p.reshape(1, *shape),
-                   None if cand.all() else cand.reshape(1, *shape),
-                   Tolerance(residual=tol, max_iter=max_iter, stall=stall),
-                   constraint=Constraint(problem.basis(), problem.target()[None]),
-                   precondition=None if pc is None else (lambda v: pc.apply(v[0])[None]), monitor=monitor)
-    return (out.pressure[0].ravel(), out.displacement[0].ravel(), out.multipliers[0], int(out.iterations[0]),
-            out.products, list(out.history), bool(out.converged[0]), out.message(0))
+    out = pk_solve(
+        lambda v: op.apply(v[0])[None],
+        (z - level).reshape(1, *shape),
+        p.reshape(1, *shape),
+        None if cand.all() else cand.reshape(1, *shape),
+        Tolerance(residual=tol, max_iter=max_iter, stall=stall),
+        constraint=Constraint(problem.basis(), problem.target()[None]),
+        precondition=None if pc is None else (lambda v: pc.apply(v[0])[None]),
+        monitor=monitor,
+    )
+    return (
+        out.pressure[0].ravel(),
+        out.displacement[0].ravel(),
+        out.multipliers[0],
+        int(out.iterations[0]),
+        out.products,
+        list(out.history),
+        bool(out.converged[0]),
+        out.message(0),
+    )

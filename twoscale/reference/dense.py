@@ -14,6 +14,7 @@ answer then satisfies the KKT conditions exactly (``p >= 0`` on S, gap ``>= -tol
 outside). Memory is ``8 n^2`` bytes and each pass costs ``n_S^3 / 3`` flops (n = cells
 with material, n_S = trial contact cells): about 10^4 cells is the practical limit.
 """
+
 from __future__ import annotations
 
 import time
@@ -41,8 +42,7 @@ def _factor_solve(A: np.ndarray, rhs: np.ndarray) -> np.ndarray:
         return sla.lu_solve(sla.lu_factor(A, check_finite=False), rhs, check_finite=False)
 
 
-def _solve_on_set(A: np.ndarray, z: np.ndarray, B: np.ndarray, target: np.ndarray, S: np.ndarray,
-                  d: float | None):
+def _solve_on_set(A: np.ndarray, z: np.ndarray, B: np.ndarray, target: np.ndarray, S: np.ndarray, d: float | None):
     """Pressure on the trial set S (indices) and the rigid-motion multipliers ``m``."""
     AS = A[np.ix_(S, S)]
     zS, BS = z[S], B[S]
@@ -66,9 +66,16 @@ class DenseSettings:
     max_cells: int = MAX_DENSE_CELLS
 
 
-def solve_dense(provider: InfluenceProvider, surface: Surface, *, penetration: float | None = None,
-                total_load: float | None = None, tilt: bool = False, pivot=(0.0, 0.0),
-                **settings) -> ContactResult:
+def solve_dense(
+    provider: InfluenceProvider,
+    surface: Surface,
+    *,
+    penetration: float | None = None,
+    total_load: float | None = None,
+    tilt: bool = False,
+    pivot=(0.0, 0.0),
+    **settings,
+) -> ContactResult:
     """Full-grid contact by Johnson's active-set matrix inversion.
 
     Parameters
@@ -114,8 +121,7 @@ def solve_dense(provider: InfluenceProvider, surface: Surface, *, penetration: f
     cand = problem.candidates.ravel()
     idx = np.flatnonzero(cand)
     if idx.size > max_cells:
-        raise ValueError(f"dense solver: {idx.size} cells with material exceed max_cells={max_cells}; "
-                         "use solve_cg")
+        raise ValueError(f"dense solver: {idx.size} cells with material exceed max_cells={max_cells}; use solve_cg")
     if problem.grid.size <= max_cells:
         A = provider.grid_matrix(problem.grid)  # fast path on aligned grids
         if idx.size < A.shape[0]:
@@ -211,5 +217,12 @@ def _active_set(problem: ContactProblem, provider, A, idx, tol, max_iter, t0, t_
     disp = provider.grid_operator(problem.grid).apply(pressure.reshape(problem.grid.shape))
     t_end = time.perf_counter()
     timings = {"matrix": t_matrix - t0, "solve": t_end - t_matrix, "total": t_end - t0}
-    return build_result(problem, "dense", pressure.reshape(problem.grid.shape), disp, d, tilt,
-                        Outcome(converged, message, {"outer": it}, {"changes": changes, "active": sizes}, timings))
+    return build_result(
+        problem,
+        "dense",
+        pressure.reshape(problem.grid.shape),
+        disp,
+        d,
+        tilt,
+        Outcome(converged, message, {"outer": it}, {"changes": changes, "active": sizes}, timings),
+    )

@@ -5,6 +5,7 @@
 (:func:`twoscale.reference.solve_reference`, dense or CG) and enlarges the grid while
 pressure reaches its edge. ``twoscale.solve(scene, method="reference")`` calls it.
 """
+
 from __future__ import annotations
 
 import dataclasses
@@ -39,6 +40,7 @@ def approach_bound(scene: Scene) -> float:
     if len(scene.asperities) > 1:
         tips = scene.tips
         from scipy.spatial import cKDTree
+
         r_min = float(cKDTree(tips).query(tips, k=2)[0][:, 1].min())  # nearest other tip
         bound += W / (math.pi * E_star * r_min)
     return float(bound)
@@ -70,8 +72,9 @@ def pressure_on_edge(result: ContactResult) -> bool:
     return False
 
 
-def solve_reference_scene(scene: Scene, provider, h: float, *, solver: str = "auto",
-                          max_enlargements: int = 3, **options) -> ContactResult:
+def solve_reference_scene(
+    scene: Scene, provider, h: float, *, solver: str = "auto", max_enlargements: int = 3, **options
+) -> ContactResult:
     """The full-grid reference solver on ``scene``: one grid of cell ``h`` (mm) covering every
     place contact can reach (:func:`reference_grid`), enlarged by half while
     pressure reaches its edge.
@@ -92,23 +95,42 @@ def solve_reference_scene(scene: Scene, provider, h: float, *, solver: str = "au
     from . import solve_reference
 
     if scene.surface is not None:  # a height map: the full grid is the whole map (beyond it, no surface)
-        return solve_reference(provider, surface_on(scene.surface.hmap.grid, scene.asperities), method=solver,
-                               penetration=scene.penetration, total_load=scene.total_load,
-                               tilt=scene.tilt, pivot=scene.pivot, **options)
+        return solve_reference(
+            provider,
+            surface_on(scene.surface.hmap.grid, scene.asperities),
+            method=solver,
+            penetration=scene.penetration,
+            total_load=scene.total_load,
+            tilt=scene.tilt,
+            pivot=scene.pivot,
+            **options,
+        )
     grow = 1.0
     for attempt in range(max_enlargements + 1):
         grid = reference_grid(scene, h, grow=grow)
-        result = solve_reference(provider, surface_on(grid, scene.asperities), method=solver,
-                                 penetration=scene.penetration, total_load=scene.total_load,
-                                 tilt=scene.tilt, pivot=scene.pivot, **options)
+        result = solve_reference(
+            provider,
+            surface_on(grid, scene.asperities),
+            method=solver,
+            penetration=scene.penetration,
+            total_load=scene.total_load,
+            tilt=scene.tilt,
+            pivot=scene.pivot,
+            **options,
+        )
         if not pressure_on_edge(result):
             return dataclasses.replace(result, details=dataclasses.replace(result.details, grid_enlargements=attempt))
         grow *= 1.5
-    msg = (f"pressure still reaches the edge of the reference grid after {max_enlargements} "
-           f"enlargements (grid {grid.nx} x {grid.ny} cells); the answer may be clipped")
-    return dataclasses.replace(result, converged=False,
-                               message=f"{result.message}; {msg}" if result.message else msg,
-                               details=dataclasses.replace(result.details, grid_enlargements=max_enlargements))
+    msg = (
+        f"pressure still reaches the edge of the reference grid after {max_enlargements} "
+        f"enlargements (grid {grid.nx} x {grid.ny} cells); the answer may be clipped"
+    )
+    return dataclasses.replace(
+        result,
+        converged=False,
+        message=f"{result.message}; {msg}" if result.message else msg,
+        details=dataclasses.replace(result.details, grid_enlargements=max_enlargements),
+    )
 
 
 __all__ = ["approach_bound", "reference_grid", "pressure_on_edge", "solve_reference_scene"]

@@ -10,6 +10,7 @@ forces).
   :mod:`.track`: what the positions share and the checks before a run;
 * :func:`road_strip` (:mod:`.strip`): a seeded chip-seal strip for examples and benchmarks.
 """
+
 from __future__ import annotations
 
 from .result import RollingResult, StoneSignals
@@ -17,5 +18,13 @@ from .run import RollingOptions, roll, solve_position
 from .spec import RollingSpec, rolling_from_table
 from .strip import road_strip
 
-__all__ = ["RollingOptions", "RollingResult", "RollingSpec", "StoneSignals", "road_strip", "roll",
-           "rolling_from_table", "solve_position"]
+__all__ = [
+    "RollingOptions",
+    "RollingResult",
+    "RollingSpec",
+    "StoneSignals",
+    "road_strip",
+    "roll",
+    "rolling_from_table",
+    "solve_position",
+]

@@ -47,6 +47,7 @@ stationary signal (exactly the segment's mean square with the boxcar window). Th
 used. The bands then follow step 3 with :math:`\Delta f = 1/(M \Delta t)`: coarser
 resolution, fewer bands with 3 bins, lower variance.
 """
+
 from __future__ import annotations
 
 import math
@@ -107,7 +108,9 @@ class Welch:
         if not (isinstance(self.overlap, (int, float)) and 0.0 <= self.overlap < 1.0):
             raise SceneError(f"welch overlap must be a fraction in [0, 1), got {self.overlap!r}")
         if self.step < 1:
-            raise SceneError(f"welch overlap {self.overlap!r} leaves no step between segments of {self.segment} samples")
+            raise SceneError(
+                f"welch overlap {self.overlap!r} leaves no step between segments of {self.segment} samples"
+            )
         from scipy.signal import get_window
 
         try:
@@ -199,8 +202,8 @@ def power_rows(rows: np.ndarray) -> np.ndarray:
     (the rows of :func:`one_sided_power`, without its checks)."""
     n = rows.shape[-1]
     spectrum = np.fft.rfft(rows - rows.mean(axis=-1, keepdims=True), axis=-1)
-    power = (spectrum.real ** 2 + spectrum.imag ** 2) / float(n) ** 2
-    power[..., 1:(n + 1) // 2] *= 2.0     # bins with a mirror image; DC and (even n) Nyquist keep 1
+    power = (spectrum.real**2 + spectrum.imag**2) / float(n) ** 2
+    power[..., 1 : (n + 1) // 2] *= 2.0  # bins with a mirror image; DC and (even n) Nyquist keep 1
     return power
 
 
@@ -213,15 +216,24 @@ def welch_power(signal, dt: float, welch: Welch) -> tuple[np.ndarray, np.ndarray
     if welch.segment > x.size:
         raise SceneError(f"welch segment ({welch.segment} samples) is longer than the signal ({x.size} samples)")
     fs = 1.0 / dt
-    f, density = scipy_welch(x - x.mean(), fs=fs, window=welch.window, nperseg=welch.segment,
-                             noverlap=welch.segment - welch.step, detrend="constant",
-                             scaling="density", return_onesided=True, average="mean")
+    f, density = scipy_welch(
+        x - x.mean(),
+        fs=fs,
+        window=welch.window,
+        nperseg=welch.segment,
+        noverlap=welch.segment - welch.step,
+        detrend="constant",
+        scaling="density",
+        return_onesided=True,
+        average="mean",
+    )
     segments = 1 + (x.size - welch.segment) // welch.step
     return f, density * (fs / welch.segment), segments
 
 
-def band_sums(freq: np.ndarray, power: np.ndarray, nyquist: float,
-              f_ref: float = F_REF) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def band_sums(
+    freq: np.ndarray, power: np.ndarray, nyquist: float, f_ref: float = F_REF
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Band numbers, band sums of ``power`` and bin counts of the bands that hold at least
     :data:`MIN_BINS` bins and end at or below ``nyquist`` (half the sampling frequency).
 
@@ -231,9 +243,9 @@ def band_sums(freq: np.ndarray, power: np.ndarray, nyquist: float,
     lowest = math.floor(10.0 * math.log10(df / f_ref)) - 1
     highest = math.ceil(10.0 * math.log10(f_top / f_ref)) + 1
     ks = np.arange(lowest, highest + 1)
-    lo, hi = centre(ks, f_ref) * 10.0 ** -0.05, centre(ks, f_ref) * 10.0 ** 0.05
-    first = np.searchsorted(freq, lo, side="left")     # first bin with f >= lo
-    stop = np.searchsorted(freq, hi, side="left")      # first bin with f >= hi
+    lo, hi = centre(ks, f_ref) * 10.0**-0.05, centre(ks, f_ref) * 10.0**0.05
+    first = np.searchsorted(freq, lo, side="left")  # first bin with f >= lo
+    stop = np.searchsorted(freq, hi, side="left")  # first bin with f >= hi
     count = stop - first
     keep = (count >= MIN_BINS) & (hi <= f_top)
     cumulative = np.concatenate([[0.0], np.cumsum(power)])
@@ -245,16 +257,16 @@ def _levels(freq, power, nyquist, segments, welch, reference: float, f_ref: floa
     ks, sums, count = band_sums(freq, power, nyquist, f_ref)
     c = centre(ks, f_ref)
     with np.errstate(divide="ignore"):
-        level = 10.0 * np.log10(sums / reference ** 2)
-    arrays = [ks, c, nominal(ks, f_ref), c * 10.0 ** -0.05, c * 10.0 ** 0.05, sums, level, count]
+        level = 10.0 * np.log10(sums / reference**2)
+    arrays = [ks, c, nominal(ks, f_ref), c * 10.0**-0.05, c * 10.0**0.05, sums, level, count]
     for a in arrays:
-        a.setflags(write=False)     # a result is a value
-    return BandLevels(*arrays, float(freq[1] - freq[0]), float(reference), float(power.sum()),
-                      int(segments), welch)
+        a.setflags(write=False)  # a result is a value
+    return BandLevels(*arrays, float(freq[1] - freq[0]), float(reference), float(power.sum()), int(segments), welch)
 
 
-def third_octave_levels(signal, dt: float, *, reference: float = REF_FORCE, welch: Welch | None = None,
-                        f_ref: float = F_REF) -> BandLevels:
+def third_octave_levels(
+    signal, dt: float, *, reference: float = REF_FORCE, welch: Welch | None = None, f_ref: float = F_REF
+) -> BandLevels:
     """Third-octave band levels of a uniformly sampled signal (see the module text).
 
     Parameters

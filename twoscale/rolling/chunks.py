@@ -26,6 +26,7 @@ run build almost no strain (``t_a / lambda_j`` small); those of about the run's 
 the warm-up, up to the whole run before the chunk (no speed-up, but the right answer).
 Times, stone numbers and the energies (dissipated per step, stored) are the whole run's.
 """
+
 from __future__ import annotations
 
 import dataclasses
@@ -85,12 +86,20 @@ def plan(track, chunks: int, warmup_tol: float = WARMUP_TOL) -> list[tuple[int, 
     """The chunks of ``track``'s run: ``(i0, i1, w)``, positions ``[i0, i1)`` rolled after a
     warm-up of ``w`` positions (0 on an elastic body)."""
     material = track.scene.material
-    return [(a, b, warmup_positions(material, track.times, a, warmup_tol) if material.viscoelastic else 0)
-            for a, b in chunk_bounds(len(track.shifts), chunks)]
+    return [
+        (a, b, warmup_positions(material, track.times, a, warmup_tol) if material.viscoelastic else 0)
+        for a, b in chunk_bounds(len(track.shifts), chunks)
+    ]
 
 
-def roll_chunks(scene, *, chunks: int = 2, options: RollingOptions | None = None,
-                scheduler="processes", warmup_tol: float = WARMUP_TOL) -> RollingResult:
+def roll_chunks(
+    scene,
+    *,
+    chunks: int = 2,
+    options: RollingOptions | None = None,
+    scheduler="processes",
+    warmup_tol: float = WARMUP_TOL,
+) -> RollingResult:
     """Roll ``scene`` (with ``rolling``) in ``chunks`` chunks of consecutive positions on Dask
     (``dask.compute`` with ``scheduler``: "processes", "threads", "synchronous", or a
     ``distributed.Client``); one :class:`RollingResult` for the whole run. A viscoelastic
@@ -104,8 +113,9 @@ def roll_chunks(scene, *, chunks: int = 2, options: RollingOptions | None = None
     track = prepare(scene, h=options.h)
     shifts = track.shifts
     parts_plan = plan(track, chunks, warmup_tol)
-    jobs = [dask.delayed(_roll_chunk)(_chunk_scene(track.scene, shifts, a - w, b), options, w)
-            for a, b, w in parts_plan]
+    jobs = [
+        dask.delayed(_roll_chunk)(_chunk_scene(track.scene, shifts, a - w, b), options, w) for a, b, w in parts_plan
+    ]
     parts = dask.compute(*jobs, scheduler=scheduler)
     out = join(list(parts), track, time.perf_counter() - t0)
     timings = dict(out.timings_s, warmup_positions=float(sum(w for _, _, w in parts_plan)), warmup_tol=warmup_tol)
@@ -119,36 +129,74 @@ def trim(result: RollingResult, first: int) -> RollingResult:
     keep = slice(first, None)
     a = result.asperities
     rows = a.position >= first
-    per = {name: getattr(result, name)[keep] for name in ("times", "shifts", "total_load", "penetration",
-                                                        "contact_area", "drag", "converged", "seconds", "stones",
-                                                        "iterations")}
+    per = {
+        name: getattr(result, name)[keep]
+        for name in (
+            "times",
+            "shifts",
+            "total_load",
+            "penetration",
+            "contact_area",
+            "drag",
+            "converged",
+            "seconds",
+            "stones",
+            "iterations",
+        )
+    }
     energy = {name: getattr(result, name)[keep] for name in ("dissipated", "stored") if getattr(result, name).size}
     line = result.line_load[keep] if result.line_load.shape[0] else result.line_load
     return dataclasses.replace(
-        result, **per, **energy, messages=result.messages[first:], line_load=line,
-        asperities=StoneSignals(a.position[rows] - first, a.stone[rows], a.force[rows], a.contact_area[rows]))
+        result,
+        **per,
+        **energy,
+        messages=result.messages[first:],
+        line_load=line,
+        asperities=StoneSignals(a.position[rows] - first, a.stone[rows], a.force[rows], a.contact_area[rows]),
+    )
 
 
 def join(parts: list, track, seconds: float) -> RollingResult:
     """The chunks' results as one run (times from the first shift of the whole run)."""
     offsets = np.cumsum([0] + [len(p.shifts) for p in parts])
-    cat = (lambda name: np.concatenate([getattr(p, name) for p in parts]))
-    stones = StoneSignals(np.concatenate([p.asperities.position + o for p, o in zip(parts, offsets)]),
-                          cat_stones(parts, "stone"), cat_stones(parts, "force"), cat_stones(parts, "contact_area"))
+    cat = lambda name: np.concatenate([getattr(p, name) for p in parts])
+    stones = StoneSignals(
+        np.concatenate([p.asperities.position + o for p, o in zip(parts, offsets)]),
+        cat_stones(parts, "stone"),
+        cat_stones(parts, "force"),
+        cat_stones(parts, "contact_area"),
+    )
     shifts = cat("shifts")
     line_x, line = _join_lines(parts, offsets, len(shifts))
     first = parts[0]
     energy = {name: cat(name) for name in ("dissipated", "stored") if all(getattr(p, name).size for p in parts)}
     return RollingResult(
-        spec=track.spec, method=first.method, control=first.control, h=first.h,
-        times=(shifts - shifts[0]) / track.spec.speed_mm_s, shifts=shifts, total_load=cat("total_load"),
-        penetration=cat("penetration"), contact_area=cat("contact_area"), drag=cat("drag"),
-        converged=cat("converged"), seconds=cat("seconds"), stones=cat("stones"), iterations=cat("iterations"),
-        messages=tuple(m for p in parts for m in p.messages), asperities=stones,
-        line_x=line_x, line_load=line, **energy,
-        timings_s={"chunks": len(parts), "total": seconds,
-                   "positions": float(sum(p.timings_s.get("positions", 0.0) for p in parts))},
-        body=first.body)
+        spec=track.spec,
+        method=first.method,
+        control=first.control,
+        h=first.h,
+        times=(shifts - shifts[0]) / track.spec.speed_mm_s,
+        shifts=shifts,
+        total_load=cat("total_load"),
+        penetration=cat("penetration"),
+        contact_area=cat("contact_area"),
+        drag=cat("drag"),
+        converged=cat("converged"),
+        seconds=cat("seconds"),
+        stones=cat("stones"),
+        iterations=cat("iterations"),
+        messages=tuple(m for p in parts for m in p.messages),
+        asperities=stones,
+        line_x=line_x,
+        line_load=line,
+        **energy,
+        timings_s={
+            "chunks": len(parts),
+            "total": seconds,
+            "positions": float(sum(p.timings_s.get("positions", 0.0) for p in parts)),
+        },
+        body=first.body,
+    )
 
 
 def _join_lines(parts: list, offsets: np.ndarray, n: int) -> tuple[np.ndarray, np.ndarray]:
@@ -163,7 +211,7 @@ def _join_lines(parts: list, offsets: np.ndarray, n: int) -> tuple[np.ndarray, n
     for p, o in zip(parts, offsets):
         if p.line_x.size:
             i = int(round(p.line_x[0] / h)) - lo
-            line[o:o + len(p.shifts), i:i + p.line_x.size] = p.line_load
+            line[o : o + len(p.shifts), i : i + p.line_x.size] = p.line_load
     return (lo + np.arange(hi - lo)) * h, line
 
 

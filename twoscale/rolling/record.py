@@ -1,6 +1,7 @@
 """Recording a rolling run position by position into its :class:`RollingResult`: the
 signals' row of each position, the forces of its stones in contact, and its line load
 (pressure summed across y) on one lattice of columns for the space-time picture."""
+
 from __future__ import annotations
 
 from dataclasses import dataclass, field
@@ -32,24 +33,55 @@ class Recorder:
         line_x, line_load = _lines(self.lines, track.h)
         stones = np.concatenate(self.stones) if self.stones else np.zeros((0, 4))
         return RollingResult(
-            spec=track.spec, method=method, control=track.control, h=track.h, times=track.times,
-            shifts=track.shifts, total_load=cols[0], penetration=cols[1], contact_area=cols[2], drag=cols[3],
-            converged=cols[4], seconds=cols[5], stones=cols[6], iterations=cols[7], messages=cols[8],
+            spec=track.spec,
+            method=method,
+            control=track.control,
+            h=track.h,
+            times=track.times,
+            shifts=track.shifts,
+            total_load=cols[0],
+            penetration=cols[1],
+            contact_area=cols[2],
+            drag=cols[3],
+            converged=cols[4],
+            seconds=cols[5],
+            stones=cols[6],
+            iterations=cols[7],
+            messages=cols[8],
             asperities=StoneSignals(stones[:, 0], stones[:, 1], stones[:, 2], stones[:, 3]),
-            line_x=line_x, line_load=line_load, timings_s=timings, body=track.body)
+            line_x=line_x,
+            line_load=line_load,
+            timings_s=timings,
+            body=track.body,
+        )
 
 
 def _row(pos: Position) -> tuple:
     r = pos.result
-    return (r.total_load, r.penetration, r.contact_area, pos.drag, r.converged, pos.seconds,
-            len(pos.selection.stones), int(r.iterations.get("micro", r.iterations.get("cg", 0))), r.message)
+    return (
+        r.total_load,
+        r.penetration,
+        r.contact_area,
+        pos.drag,
+        r.converged,
+        pos.seconds,
+        len(pos.selection.stones),
+        int(r.iterations.get("micro", r.iterations.get("cg", 0))),
+        r.message,
+    )
 
 
 def _stone_rows(pos: Position) -> np.ndarray:
     a = pos.result.asperities
     touching = np.flatnonzero(a.contact_areas > 0)
-    return np.column_stack([np.full(len(touching), pos.index), pos.selection.numbers[touching] + 1,
-                            a.forces[touching], a.contact_areas[touching]])
+    return np.column_stack(
+        [
+            np.full(len(touching), pos.index),
+            pos.selection.numbers[touching] + 1,
+            a.forces[touching],
+            a.contact_areas[touching],
+        ]
+    )
 
 
 def _line_load(result: ContactResult) -> tuple[int, np.ndarray]:
@@ -62,7 +94,7 @@ def _line_load(result: ContactResult) -> tuple[int, np.ndarray]:
     i0 = min(starts)
     out = np.zeros(max(s + f.grid.nx for s, f in zip(starts, result.fields)) - i0)
     for s, f in zip(starts, result.fields):
-        out[s - i0:s - i0 + f.grid.nx] += f.pressure.sum(axis=0) * h
+        out[s - i0 : s - i0 + f.grid.nx] += f.pressure.sum(axis=0) * h
     return i0, out
 
 
@@ -75,5 +107,5 @@ def _lines(lines: list, h: float) -> tuple[np.ndarray, np.ndarray]:
     hi = max(i0 + v.size for i0, v in used)
     out = np.zeros((len(lines), hi - lo))
     for k, (i0, v) in enumerate(lines):
-        out[k, i0 - lo:i0 - lo + v.size] = v
+        out[k, i0 - lo : i0 - lo + v.size] = v
     return (lo + np.arange(hi - lo)) * h, out

@@ -4,6 +4,7 @@ on every cell the stones can reach, and the default two-scale solve from cold.
 Both take the same stones as the run (:meth:`~twoscale.rolling.road.Road.stones_at` at the
 position's bound), so they answer the same contact problem: the road at that shift.
 """
+
 from __future__ import annotations
 
 import math
@@ -26,8 +27,13 @@ def reference_position(track: Track, position: Position, *, tol: float = 1e-8) -
     d = position.result.penetration
     bound = d if track.control == "penetration" else d + 0.5 * max(d - low, track.h)
     grid = reference_grid(track, sel, bound)
-    return solve_reference(track.provider, surface_on(grid, sel.stones), penetration=scene.penetration,
-                           total_load=scene.total_load, tol=tol)
+    return solve_reference(
+        track.provider,
+        surface_on(grid, sel.stones),
+        penetration=scene.penetration,
+        total_load=scene.total_load,
+        tol=tol,
+    )
 
 
 def cold_position(track: Track, position: Position, options: RollingOptions | None = None) -> ContactResult:

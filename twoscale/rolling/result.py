@@ -1,5 +1,6 @@
 """What a rolling run returns: a signal per position, the stones' forces, convergence and
 timings, as a frozen :class:`RollingResult` (arrays read-only)."""
+
 from __future__ import annotations
 
 from collections.abc import Mapping
@@ -10,6 +11,7 @@ import numpy as np
 
 from ..results import FrozenMapping, frozen_array
 from .spec import RollingSpec
+
 
 @dataclass(frozen=True)
 class Position:
@@ -25,8 +27,18 @@ class Position:
 
 
 #: Per-position arrays of a :class:`RollingResult` (one entry per position).
-SIGNALS = ("times", "shifts", "total_load", "penetration", "contact_area", "drag", "converged",
-           "seconds", "stones", "iterations")
+SIGNALS = (
+    "times",
+    "shifts",
+    "total_load",
+    "penetration",
+    "contact_area",
+    "drag",
+    "converged",
+    "seconds",
+    "stones",
+    "iterations",
+)
 
 
 @dataclass(frozen=True)
@@ -164,6 +176,8 @@ class RollingResult:
 
     def __repr__(self) -> str:
         state = "converged" if self.all_converged else f"{int(np.sum(~self.converged))} positions NOT converged"
-        return (f"<RollingResult {len(self.shifts)} positions from {self.shifts[0]:g} to {self.shifts[-1]:g} mm, "
-                f"{self.control} control, load {self.total_load.min():.4g}-{self.total_load.max():.4g} N, "
-                f"mean drag {self.mean_drag:.4g} N, {state}, {self.timings_s.get('total', 0.0):.3g} s>")
+        return (
+            f"<RollingResult {len(self.shifts)} positions from {self.shifts[0]:g} to {self.shifts[-1]:g} mm, "
+            f"{self.control} control, load {self.total_load.min():.4g}-{self.total_load.max():.4g} N, "
+            f"mean drag {self.mean_drag:.4g} N, {state}, {self.timings_s.get('total', 0.0):.3g} s>"
+        )

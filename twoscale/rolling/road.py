@@ -9,6 +9,7 @@ the gap. For the basins of a height map the shifted stones look the map up throu
 :class:`ShiftedBasins` (no copy of the map); their summit, recess and reach are those of
 the basin plus the face, found on the basin's own samples.
 """
+
 from __future__ import annotations
 
 import math
@@ -38,7 +39,7 @@ class Face:
     def height(self, X, Y) -> np.ndarray:
         X, Y = np.asarray(X, dtype=float), np.asarray(Y, dtype=float)
         x0, x1, y0, y1 = self.window
-        e = EDGE_TOL   # a cell centre on the window's edge is inside, however its grid was built
+        e = EDGE_TOL  # a cell centre on the window's edge is inside, however its grid was built
         inside = (X >= x0 - e) & (X <= x1 + e) & (Y >= y0 - e) & (Y <= y1 + e)
         return np.where(inside, self.spec.face(X), np.inf)
 
@@ -58,7 +59,7 @@ class ShiftedBasins:
     the solvers sample (:func:`twoscale.indenters.surface_on`), as a
     :class:`~twoscale.surface.indenter.BasinMap` is."""
 
-    base: object          # BasinMap of the whole strip
+    base: object  # BasinMap of the whole strip
     shift: float
     face: Face
 
@@ -144,8 +145,7 @@ class Road:
         self.cells = basin_cells(self.surface.segmentation)
         X, Y = hmap.grid.centres()
         self.X, self.Y = X.ravel(), Y.ravel()
-        self.box = np.array([[self.X[c].min(), self.X[c].max(), self.Y[c].min(), self.Y[c].max()]
-                             for c in self.cells])
+        self.box = np.array([[self.X[c].min(), self.X[c].max(), self.Y[c].min(), self.Y[c].max()] for c in self.cells])
         recess = self.basins.recess
         self.slope_x = _x_slope(recess, hmap.h)
 
@@ -203,8 +203,16 @@ class Road:
         fall = rec[ok] - zt
         r = np.hypot(x[ok] - xt, y[ok] - yt)
         order = np.argsort(fall, kind="stable")
-        return replace(a, x=xt, y=yt, z=zt, basins=group, extent=float(r.max()),
-                       falls=fall[order], radii=np.maximum.accumulate(r[order]))
+        return replace(
+            a,
+            x=xt,
+            y=yt,
+            z=zt,
+            basins=group,
+            extent=float(r.max()),
+            falls=fall[order],
+            radii=np.maximum.accumulate(r[order]),
+        )
 
     def _tip(self, a: Asperity, shift: float, face: Face) -> ShiftedTip:
         """A sphere or paraboloid at ``shift``: on the face's tilt g its lowest point moves
@@ -248,7 +256,9 @@ def _x_slope(recess: np.ndarray, h: float) -> np.ndarray:
     with np.errstate(invalid="ignore"):
         central = (right - left) / (2.0 * h)
         fwd, back = (right - r) / h, (r - left) / h
-    out = np.where(np.isfinite(central), central, np.where(np.isfinite(fwd), fwd, np.where(np.isfinite(back), back, 0.0)))
+    out = np.where(
+        np.isfinite(central), central, np.where(np.isfinite(fwd), fwd, np.where(np.isfinite(back), back, 0.0))
+    )
     return np.where(np.isfinite(r), out, 0.0)
 
 
@@ -274,6 +284,8 @@ def check_contact(road: Road, bound: float, shift: float) -> None:
     sel = road.stones_at(shift, bound)
     if len(sel.stones) == 0:
         if road.spec.tyre_radius is not None:
-            raise SceneError(f"rolling.tyre_radius = {road.spec.tyre_radius!r} mm leaves no contact at the first "
-                             f"position (shift {shift:g} mm, approach {bound:g} mm below the road's highest point)")
+            raise SceneError(
+                f"rolling.tyre_radius = {road.spec.tyre_radius!r} mm leaves no contact at the first "
+                f"position (shift {shift:g} mm, approach {bound:g} mm below the road's highest point)"
+            )
         raise SceneError(f"load.penetration = {bound!r} mm: nothing touches at the first position (shift {shift:g} mm)")

@@ -15,6 +15,7 @@ A viscoelastic material (Prony branches) runs through
 :func:`twoscale.viscoelastic.moving.solve_moving` instead (its memory carried in the body
 frame): :func:`twoscale.rolling.viscous.roll_viscoelastic`.
 """
+
 from __future__ import annotations
 
 import dataclasses
@@ -90,8 +91,16 @@ def solve_position(track: Track, selection: Selection, *, start=None, options: R
     from ..driver import solve_twoscale
 
     scene = track.scene
-    return solve_twoscale(track.provider, selection.stones, h=track.h, penetration=scene.penetration,
-                          total_load=scene.total_load, tol=options.tol, iteration=options.iteration, start=start)
+    return solve_twoscale(
+        track.provider,
+        selection.stones,
+        h=track.h,
+        penetration=scene.penetration,
+        total_load=scene.total_load,
+        tol=options.tol,
+        iteration=options.iteration,
+        start=start,
+    )
 
 
 def drag_of(track: Track, selection: Selection, result: ContactResult) -> float:
@@ -101,7 +110,7 @@ def drag_of(track: Track, selection: Selection, result: ContactResult) -> float:
     for f in result.fields:
         X, Y = f.grid.centres()
         slope = track.road.road_slope(selection, X, Y, f.owner)
-        total += float(np.sum(f.pressure * slope)) * f.grid.h ** 2
+        total += float(np.sum(f.pressure * slope)) * f.grid.h**2
     return total
 
 
@@ -120,11 +129,13 @@ def _start(previous: Position | None, selection: Selection, options: RollingOpti
     index = np.array([where.get(int(n), -1) for n in selection.numbers], dtype=np.int64)
     tips = np.array([[s.x, s.y] for s in previous.selection.stones], dtype=float)
     moved = selection.shift - previous.selection.shift
-    for m in np.flatnonzero(index >= 0):   # where the road put each kept stone's tip, one step back
+    for m in np.flatnonzero(index >= 0):  # where the road put each kept stone's tip, one step back
         stone = selection.stones[m]
         tips[index[m]] = (stone.x - moved, stone.y)
     h = previous.result.fields[0].grid.h if previous.result.fields else 0.0
-    ws = warm_start(previous.result, tips, len(selection.stones), h or 1.0, index=index, pressure=options.pressure_start)
+    ws = warm_start(
+        previous.result, tips, len(selection.stones), h or 1.0, index=index, pressure=options.pressure_start
+    )
     low_then = min(s.z for s in previous.selection.stones)
     low_now = min(s.z for s in selection.stones)
     macro = MacroStart(ws.macro.forces, previous.result.penetration + (low_now - low_then), ws.macro.tilt)
@@ -147,8 +158,9 @@ def _bound(track: Track, shift: float, previous: Position | None) -> float:
         return float(scene.penetration)
     if previous is not None:
         low = float(np.min(track.road.lowest(shift), initial=np.inf))
-        return max(previous.result.penetration, low + _depth(previous, track.h)) \
-            + BOUND_GROWTH * _depth(previous, track.h)
+        return max(previous.result.penetration, low + _depth(previous, track.h)) + BOUND_GROWTH * _depth(
+            previous, track.h
+        )
     wide = _all_stones(track, shift)
     d = hertz_level(wide.stones, scene.material.E_star, scene.total_load)
     low = min(s.z for s in wide.stones)
@@ -161,20 +173,21 @@ def _all_stones(track: Track, shift: float) -> Selection:
     if not wide.stones:
         from ..errors import SceneError
 
-        raise SceneError(f"rolling: no stone of the road lies under the footprint at shift {shift:g} mm "
-                         f"(check rolling.start, rolling.end and rolling.footprint against the road)")
+        raise SceneError(
+            f"rolling: no stone of the road lies under the footprint at shift {shift:g} mm "
+            f"(check rolling.start, rolling.end and rolling.footprint against the road)"
+        )
     return wide
 
 
-def step(track: Track, index: int, previous: Position | None, options: RollingOptions,
-         state=None) -> Position:
+def step(track: Track, index: int, previous: Position | None, options: RollingOptions, state=None) -> Position:
     """Solve position ``index`` (module docstring); ``state``: a
     :class:`~twoscale.rolling.window.WindowState` to solve it on the kept window instead."""
     t0 = time.perf_counter()
     shift = float(track.shifts[index])
     bound = _bound(track, shift, previous)
     selection = track.road.stones_at(shift, bound)
-    if not selection.stones and track.control == "penetration":   # nothing within reach of the body here
+    if not selection.stones and track.control == "penetration":  # nothing within reach of the body here
         return Position(index, selection, _no_contact(track), 0.0, time.perf_counter() - t0)
     if not selection.stones:
         bound = min(s.z for s in _all_stones(track, shift).stones) + (1 + BOUND_GROWTH) * _depth(previous, track.h)
@@ -185,17 +198,23 @@ def step(track: Track, index: int, previous: Position | None, options: RollingOp
         result = _solve(track, selection, bound, previous, options, state)
         if track.control == "penetration" or result.penetration < bound:
             break
-        bound = result.penetration + BOUND_GROWTH * max(result.penetration - min(s.z for s in selection.stones),
-                                                        track.h)
-    else:   # the approach kept passing the bound: stones left out might touch
-        result = dataclasses.replace(result, converged=False, message=(
-            f"{result.message}; " if result.message else "") + f"the approach {result.penetration:.6g} mm still "
-            f"passes the bound {bound:.6g} mm the stones were taken for after {MAX_REBOUNDS} enlargements")
+        bound = result.penetration + BOUND_GROWTH * max(
+            result.penetration - min(s.z for s in selection.stones), track.h
+        )
+    else:  # the approach kept passing the bound: stones left out might touch
+        result = dataclasses.replace(
+            result,
+            converged=False,
+            message=(f"{result.message}; " if result.message else "")
+            + f"the approach {result.penetration:.6g} mm still "
+            f"passes the bound {bound:.6g} mm the stones were taken for after {MAX_REBOUNDS} enlargements",
+        )
     return Position(index, selection, result, drag_of(track, selection, result), time.perf_counter() - t0)
 
 
-def _solve(track: Track, selection: Selection, bound: float, previous: Position | None, options: RollingOptions,
-           state) -> ContactResult:
+def _solve(
+    track: Track, selection: Selection, bound: float, previous: Position | None, options: RollingOptions, state
+) -> ContactResult:
     """One position's static solve: on the kept window (``state``), else by the two-scale
     solver warm-started from ``previous``; a solve that does not converge is redone by
     the two-scale solver from cold."""
@@ -232,14 +251,28 @@ def _no_contact(track: Track) -> ContactResult:
     """The answer where no stone can touch: no load, nothing to solve."""
     from ..results import summarise
 
-    return ContactResult(method="twoscale", fields=(), penetration=float(track.scene.penetration), tilt=None,
-                         total_load=0.0, asperities=summarise((), 0), converged=True,
-                         message="", timings_s={"total": 0.0})
+    return ContactResult(
+        method="twoscale",
+        fields=(),
+        penetration=float(track.scene.penetration),
+        tilt=None,
+        total_load=0.0,
+        asperities=summarise((), 0),
+        converged=True,
+        message="",
+        timings_s={"total": 0.0},
+    )
 
 
-def roll(scene, *, options: RollingOptions | None = None, provider=None,
-         on_position: Callable[[Position], None] | None = None, progress=None,
-         track: Track | None = None) -> RollingResult:
+def roll(
+    scene,
+    *,
+    options: RollingOptions | None = None,
+    provider=None,
+    on_position: Callable[[Position], None] | None = None,
+    progress=None,
+    track: Track | None = None,
+) -> RollingResult:
     """Roll the road of ``scene`` (a :class:`~twoscale.scene.Scene` with ``rolling``) under its body.
 
     Parameters
@@ -266,7 +299,7 @@ def roll(scene, *, options: RollingOptions | None = None, provider=None,
     options = options or RollingOptions()
     t0 = time.perf_counter()
     track = track if track is not None else prepare(scene, h=options.h, provider=provider)
-    if track.scene.material.viscoelastic:   # the memory in the body: the moving-indenter stepping
+    if track.scene.material.viscoelastic:  # the memory in the body: the moving-indenter stepping
         from .viscous import roll_viscoelastic
 
         return roll_viscoelastic(track, tol=options.tol, progress=progress, on_position=on_position)
@@ -282,5 +315,8 @@ def roll(scene, *, options: RollingOptions | None = None, provider=None,
         record.add(pos)
         previous = pos
     t2 = time.perf_counter()
-    return record.result(track, {"prepare": t1 - t0, "positions": t2 - t1, "total": t2 - t0},
-                         "twoscale" if state is None else "window-cg")
+    return record.result(
+        track,
+        {"prepare": t1 - t0, "positions": t2 - t1, "total": t2 - t0},
+        "twoscale" if state is None else "window-cg",
+    )

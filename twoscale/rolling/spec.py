@@ -8,6 +8,7 @@ coordinates) appears at body x + shift; the shifts run from ``start`` to ``end``
 Every bad value raises :class:`~twoscale.errors.SceneError` naming the field
 (``rolling.step``) and the value.
 """
+
 from __future__ import annotations
 
 import math
@@ -86,12 +87,15 @@ class RollingSpec:
             fp = self.footprint
             if isinstance(fp, (str, bytes)) or not hasattr(fp, "__len__") or len(fp) != 2:
                 raise SceneError(f"rolling.footprint must be [length, width] (mm), got {fp!r}")
-            object.__setattr__(self, "footprint", tuple(_number(f"footprint[{i}]", v, positive=True)
-                                                        for i, v in enumerate(fp)))
+            object.__setattr__(
+                self, "footprint", tuple(_number(f"footprint[{i}]", v, positive=True) for i, v in enumerate(fp))
+            )
         n = self.count
         if n > MAX_POSITIONS:
-            raise SceneError(f"rolling.step = {self.step!r} mm gives {n} positions from {self.start!r} to "
-                             f"{self.end!r} mm, more than {MAX_POSITIONS}: use a larger step")
+            raise SceneError(
+                f"rolling.step = {self.step!r} mm gives {n} positions from {self.start!r} to "
+                f"{self.end!r} mm, more than {MAX_POSITIONS}: use a larger step"
+            )
 
     @property
     def count(self) -> int:

@@ -3,6 +3,7 @@
 metre-long section has no seams. Heights in mm, larger is closer to the body; rows y,
 columns x.
 """
+
 from __future__ import annotations
 
 import math
@@ -10,9 +11,17 @@ import math
 import numpy as np
 
 
-
-def road_strip(length: float, width: float, h: float, *, seed: int = 0, stone_radius=(2.0, 4.0),
-               protrusion=(1.0, 2.5), packing: float = 0.85, rms: float = 0.02) -> np.ndarray:
+def road_strip(
+    length: float,
+    width: float,
+    h: float,
+    *,
+    seed: int = 0,
+    stone_radius=(2.0, 4.0),
+    protrusion=(1.0, 2.5),
+    packing: float = 0.85,
+    rms: float = 0.02,
+) -> np.ndarray:
     """Heights (ny, nx) of a chip-seal strip, mm: stones (half-ellipsoids, larger half-axis
     uniform in ``stone_radius`` mm, tops ``protrusion`` mm above a flat binder) placed by
     random sequential addition at the density of :func:`twoscale.surface.texture.chippings`,
@@ -30,7 +39,7 @@ def road_strip(length: float, width: float, h: float, *, seed: int = 0, stone_ra
     nx, ny = int(round(length / h)), int(round(width / h))
     x, y = (np.arange(nx) + 0.5) * h, (np.arange(ny) + 0.5) * h
     z = np.zeros((ny, nx))
-    attempts = int(20_000 * length * width / 50.0 ** 2)   # the square texture's density of tries
+    attempts = int(20_000 * length * width / 50.0**2)  # the square texture's density of tries
     cells: dict = {}
     cell = 2.0 * stone_radius[1]
     for _ in range(attempts):
@@ -45,8 +54,9 @@ def road_strip(length: float, width: float, h: float, *, seed: int = 0, stone_ra
     return z + (_roughness(ny, nx, h, seed=seed + 1, rms=rms) if rms > 0 else 0.0)
 
 
-def _roughness(ny: int, nx: int, h: float, *, seed: int, rms: float, hurst: float = 0.8,
-               wavelengths=(0.3, 5.0)) -> np.ndarray:
+def _roughness(
+    ny: int, nx: int, h: float, *, seed: int, rms: float, hurst: float = 0.8, wavelengths=(0.3, 5.0)
+) -> np.ndarray:
     """Gaussian self-affine roughness (ny, nx), mm, of rms ``rms``: the spectrum of
     :func:`twoscale.surface.texture.self_affine` on a rectangle."""
     rng = np.random.default_rng(seed)
@@ -62,7 +72,7 @@ def _stamp(z: np.ndarray, x: np.ndarray, y: np.ndarray, c, a: float, rng, protru
     """Raise ``z`` to one half-ellipsoid stone (half-axes a, b in plane, height e)."""
     b = a * rng.uniform(0.6, 1.0)
     top = rng.uniform(*protrusion)
-    e = top + rng.uniform(0.5, 1.5)           # the sunk part lies below the binder
+    e = top + rng.uniform(0.5, 1.5)  # the sunk part lies below the binder
     phi = rng.uniform(0.0, math.pi)
     h = x[1] - x[0]
     i0, i1 = np.searchsorted(x, [c[0] - a - h, c[0] + a + h])

@@ -40,6 +40,7 @@ band mean squares :math:`a_\text{rms}^2` are averaged over the lines (power aver
 :math:`L_\text{tx} = 10\log_{10}(a_\text{rms}^2 / a_\text{ref}^2) = 20\log_{10}(a_\text{rms}
 / 1\,\mu\text{m})` dB.
 """
+
 from __future__ import annotations
 
 import math
@@ -150,25 +151,44 @@ class Texture:
         line = m.line_mpd
         return {
             "units": {"length": "mm", "level": "dB re 1 um"},
-            "strip": {"lines": self.shape[0], "samples_per_line": self.shape[1], "spacing_mm": self.spacing,
-                      "length_mm": self.shape[1] * self.spacing, "missing_samples": self.missing,
-                      "missing_filled": "linear interpolation along x"},
+            "strip": {
+                "lines": self.shape[0],
+                "samples_per_line": self.shape[1],
+                "spacing_mm": self.spacing,
+                "length_mm": self.shape[1] * self.spacing,
+                "missing_samples": self.missing,
+                "missing_filled": "linear interpolation along x",
+            },
             "mean_profile_depth": {
-                "standard": "ISO 13473-1", "mpd_mm": _num(m.mpd), "etd_mm": _num(m.etd),
-                "segment_mm": SEGMENT_MM, "segment_samples": m.segment_samples,
-                "slope_suppression": "least-squares line per segment", "segments_used": m.segments_used,
-                "segments_dropped": m.segments_dropped, "max_dropout": MAX_DROPOUT,
+                "standard": "ISO 13473-1",
+                "mpd_mm": _num(m.mpd),
+                "etd_mm": _num(m.etd),
+                "segment_mm": SEGMENT_MM,
+                "segment_samples": m.segment_samples,
+                "slope_suppression": "least-squares line per segment",
+                "segments_used": m.segments_used,
+                "segments_dropped": m.segments_dropped,
+                "max_dropout": MAX_DROPOUT,
                 "averaged": "mean of the segments' MSD over all lines and segments",
                 "line_mpd_mm": [_num(v) for v in line],
-                "line_mpd_std_mm": _num(np.nanstd(line)) if np.any(np.isfinite(line)) else None},
+                "line_mpd_std_mm": _num(np.nanstd(line)) if np.any(np.isfinite(line)) else None,
+            },
             "texture_spectrum": {
-                "standard": "ISO 13473-4", "reference_um": 1.0, "bands": "third octave, base 10",
-                "detrend": "least-squares line per line", "window": "none",
-                "averaged": "power average (mean square) over the lines", "lines": s.lines,
-                "lines_dropped": s.lines_dropped, "resolution_per_mm": s.resolution,
-                "min_bins": MIN_BINS, "wavelength_mm": s.nominal.tolist(),
-                "wavelength_exact_mm": s.wavelength.tolist(), "level_dB": [_num(v) for v in s.level_dB],
-                "bins": s.bins.tolist()},
+                "standard": "ISO 13473-4",
+                "reference_um": 1.0,
+                "bands": "third octave, base 10",
+                "detrend": "least-squares line per line",
+                "window": "none",
+                "averaged": "power average (mean square) over the lines",
+                "lines": s.lines,
+                "lines_dropped": s.lines_dropped,
+                "resolution_per_mm": s.resolution,
+                "min_bins": MIN_BINS,
+                "wavelength_mm": s.nominal.tolist(),
+                "wavelength_exact_mm": s.wavelength.tolist(),
+                "level_dB": [_num(v) for v in s.level_dB],
+                "bins": s.bins.tolist(),
+            },
         }
 
 
@@ -230,17 +250,21 @@ def mean_profile_depth(heights, spacing: float, *, max_dropout: float = MAX_DROP
     z = _strip(heights, spacing)
     n = int(round(SEGMENT_MM / spacing))
     if n < 2 or z.shape[1] < n:
-        raise SurfaceError(f"texture strip is {z.shape[1] * spacing:g} mm long along x ({z.shape[1]} samples "
-                           f"at {spacing:g} mm), shorter than one {SEGMENT_MM:g} mm segment of the mean profile depth")
+        raise SurfaceError(
+            f"texture strip is {z.shape[1] * spacing:g} mm long along x ({z.shape[1]} samples "
+            f"at {spacing:g} mm), shorter than one {SEGMENT_MM:g} mm segment of the mean profile depth"
+        )
     nseg = z.shape[1] // n
-    missing = np.isnan(z[:, :nseg * n]).reshape(z.shape[0], nseg, n).mean(axis=2)
-    seg = _detrended(filled(z)[:, :nseg * n].reshape(z.shape[0], nseg, n))
+    missing = np.isnan(z[:, : nseg * n]).reshape(z.shape[0], nseg, n).mean(axis=2)
+    seg = _detrended(filled(z)[:, : nseg * n].reshape(z.shape[0], nseg, n))
     half = (n + 1) // 2
     msd = 0.5 * (seg[..., :half].max(axis=2) + seg[..., half:].max(axis=2)) - seg.mean(axis=2)
     msd = np.where(missing <= max_dropout, msd, np.nan)
     if not np.any(np.isfinite(msd)):
-        raise SurfaceError(f"texture strip: every {SEGMENT_MM:g} mm segment has more than "
-                           f"{max_dropout:.0%} missing samples; no mean profile depth")
+        raise SurfaceError(
+            f"texture strip: every {SEGMENT_MM:g} mm segment has more than "
+            f"{max_dropout:.0%} missing samples; no mean profile depth"
+        )
     msd.setflags(write=False)
     return MeanProfileDepth(float(np.nanmean(msd)), msd, n, float(spacing))
 
@@ -257,19 +281,20 @@ def texture_spectrum(heights, spacing: float, *, max_dropout: float = MAX_DROPOU
         raise SurfaceError(f"texture strip has {z.shape[1]} sample along x; a spectrum needs at least 2")
     keep = np.isnan(z).mean(axis=1) <= max_dropout
     if not np.any(keep):
-        raise SurfaceError(f"texture strip: every line has more than {max_dropout:.0%} missing samples; "
-                           "no texture spectrum")
+        raise SurfaceError(
+            f"texture strip: every line has more than {max_dropout:.0%} missing samples; no texture spectrum"
+        )
     lines = filled(z[keep])
     power = np.zeros(z.shape[1] // 2 + 1)
     for start in range(0, lines.shape[0], _ROWS):
-        power += power_rows(_detrended(lines[start:start + _ROWS])).sum(axis=0)
+        power += power_rows(_detrended(lines[start : start + _ROWS])).sum(axis=0)
     power /= lines.shape[0]
     freq = np.fft.rfftfreq(z.shape[1], spacing)
     ks, sums, count = band_sums(freq, power, 0.5 / spacing, f_ref=1.0)
     inside = (ks >= K_RANGE[0]) & (ks <= K_RANGE[1])
     ks, sums, count = ks[inside], sums[inside], count[inside]
     with np.errstate(divide="ignore"):
-        level = 10.0 * np.log10(sums / REF_APPROACH ** 2)
+        level = 10.0 * np.log10(sums / REF_APPROACH**2)
     arrays = [1.0 / centre(ks, 1.0), nominal(-ks, 1.0), sums, level, count]
     for a in arrays:
         a.setflags(write=False)
@@ -280,6 +305,10 @@ def road_texture(heights, spacing: float, *, max_dropout: float = MAX_DROPOUT) -
     """MPD and texture spectrum of a strip ``heights[y, x]`` (mm) at ``spacing`` (mm):
     the contents of ``texture.json`` (:meth:`Texture.to_json_dict`)."""
     z = _strip(heights, spacing)
-    return Texture(mean_profile_depth(z, spacing, max_dropout=max_dropout),
-                   texture_spectrum(z, spacing, max_dropout=max_dropout),
-                   (int(z.shape[0]), int(z.shape[1])), float(spacing), int(np.isnan(z).sum()))
+    return Texture(
+        mean_profile_depth(z, spacing, max_dropout=max_dropout),
+        texture_spectrum(z, spacing, max_dropout=max_dropout),
+        (int(z.shape[0]), int(z.shape[1])),
+        float(spacing),
+        int(np.isnan(z).sum()),
+    )

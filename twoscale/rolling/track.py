@@ -7,6 +7,7 @@ of its spacing) and segmented once; the shifts are put on the map's lattice; the
 must be longer than the footprint plus the run; under penetration control something must
 touch at the first position.
 """
+
 from __future__ import annotations
 
 import dataclasses
@@ -67,8 +68,9 @@ def prepare(scene: Scene, *, h: float | None = None, provider=None) -> Track:
     if scene.surface is not None:
         cell, shifts = lattice(spec, scene.surface.h)
         if not math.isclose(cell, scene.surface.h, rel_tol=1e-9):
-            scene = dataclasses.replace(scene, surface=scene.surface.at(cell, h_name="rolling.step"), h=cell,
-                                        asperities=())
+            scene = dataclasses.replace(
+                scene, surface=scene.surface.at(cell, h_name="rolling.step"), h=cell, asperities=()
+            )
         cell = scene.surface.h
     else:
         cell = float(h) if h is not None else default_h(dataclasses.replace(scene, rolling=None))
@@ -78,11 +80,14 @@ def prepare(scene: Scene, *, h: float | None = None, provider=None) -> Track:
     window = face_window(scene, spec, provider, cell)
     road = Road(scene, window)
     control = "penetration" if scene.penetration is not None else "load"
-    track = Track(scene, spec, provider, road, cell, shifts, (shifts - shifts[0]) / spec.speed_mm_s, control,
-                  body_label(scene))
+    track = Track(
+        scene, spec, provider, road, cell, shifts, (shifts - shifts[0]) / spec.speed_mm_s, control, body_label(scene)
+    )
     if spec.tyre_radius is not None and tyre_contact_length(track) < 2.0 * cell:
-        raise SceneError(f"rolling.tyre_radius = {spec.tyre_radius!r} mm leaves no contact wider than a cell "
-                         f"(footprint about {tyre_contact_length(track):.2g} mm at h = {cell:g} mm)")
+        raise SceneError(
+            f"rolling.tyre_radius = {spec.tyre_radius!r} mm leaves no contact wider than a cell "
+            f"(footprint about {tyre_contact_length(track):.2g} mm at h = {cell:g} mm)"
+        )
     if scene.surface is not None:
         check_length(track)
     if control == "penetration":
@@ -97,8 +102,10 @@ def _viscoelastic_available() -> None:
     import importlib.util
 
     if importlib.util.find_spec("twoscale.viscoelastic.moving") is None:
-        raise SceneError("material.prony with [rolling]: the viscoelastic rolling (twoscale.viscoelastic.moving) "
-                         "is not in this version; give an elastic material (no prony)")
+        raise SceneError(
+            "material.prony with [rolling]: the viscoelastic rolling (twoscale.viscoelastic.moving) "
+            "is not in this version; give an elastic material (no prony)"
+        )
 
 
 def face_window(scene: Scene, spec: RollingSpec, provider, h: float) -> tuple:
@@ -111,8 +118,10 @@ def face_window(scene: Scene, spec: RollingSpec, provider, h: float) -> tuple:
         m = block_margin(scene, h)
         domain = (domain[0] + m, domain[1] - m, domain[2] + m, domain[3] - m)
         if domain[1] <= domain[0] or domain[3] <= domain[2]:
-            raise SceneError(f"influence.size: the block answers for too small a region for the road's stones "
-                             f"(patches up to {m:.3g} mm around a summit)")
+            raise SceneError(
+                f"influence.size: the block answers for too small a region for the road's stones "
+                f"(patches up to {m:.3g} mm around a summit)"
+            )
     if spec.footprint is not None:
         L, W = spec.footprint
         box = (-L / 2, L / 2, -W / 2, W / 2)
@@ -122,8 +131,10 @@ def face_window(scene: Scene, spec: RollingSpec, provider, h: float) -> tuple:
     if domain is not None:
         return tuple(float(v) for v in domain)
     if spec.tyre_radius is None:
-        raise SceneError("rolling.footprint is missing: a flat face on the half-space needs the footprint "
-                         "[length, width] (mm) that touches the road (or give rolling.tyre_radius)")
+        raise SceneError(
+            "rolling.footprint is missing: a flat face on the half-space needs the footprint "
+            "[length, width] (mm) that touches the road (or give rolling.tyre_radius)"
+        )
     return (-math.inf, math.inf, -math.inf, math.inf)
 
 
@@ -173,7 +184,8 @@ def check_length(track: Track) -> None:
             f"surface: the strip is {rx1 - rx0:.6g} mm long along x, shorter than the contact length (about {L:.4g} mm, "
             f"the footprint along x) "
             f"plus the run from rolling.start = {track.spec.start!r} to rolling.end = {track.spec.end!r} mm "
-            f"(a road point at x appears at body x + shift: the strip must cover the footprint at every shift)")
+            f"(a road point at x appears at body x + shift: the strip must cover the footprint at every shift)"
+        )
 
 
 def body_label(scene: Scene) -> str:

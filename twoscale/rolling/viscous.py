@@ -19,6 +19,7 @@ before), as the elastic run's window path; on another body by the two-scale meth
 height map's strip only (its stones are looked up through the shared basins, which carry
 the face).
 """
+
 from __future__ import annotations
 
 import dataclasses
@@ -83,7 +84,7 @@ class RoadIndenter:
         return surf, slope
 
     def face_on(self, grid: Grid) -> np.ndarray:
-        return np.zeros(grid.shape)   # the face is in the stones' heights already
+        return np.zeros(grid.shape)  # the face is in the stones' heights already
 
 
 def run_stones(track: Track) -> np.ndarray:
@@ -121,20 +122,35 @@ def roll_viscoelastic(track: Track, *, tol: float = 1e-6, progress=None, on_posi
     scene = track.scene
     numbers = run_stones(track)
     indenter = RoadIndenter(track.road, numbers)
-    provider = dataclasses.replace(scene, material=scene.material.relaxed(), rolling=None, surface=None,
-                                   asperities=(_stand_in(),)).provider()
+    provider = dataclasses.replace(
+        scene, material=scene.material.relaxed(), rolling=None, surface=None, asperities=(_stand_in(),)
+    ).provider()
     body = KeptBody(provider)
     if body.invariant:
-        options = MovingOptions(method="cg", open_edges=True, solver={
-            "tol": tol * UNION_TOL_FACTOR, "precision": "mixed", "precondition": True})
+        options = MovingOptions(
+            method="cg",
+            open_edges=True,
+            solver={"tol": tol * UNION_TOL_FACTOR, "precision": "mixed", "precondition": True},
+        )
         provider = body
     else:
         options = MovingOptions(method="twoscale", solver={"tol": tol}, open_edges=True)
-    moving = solve_moving(scene.material, provider, indenter, track.shifts, speed=track.spec.speed_mm_s,
-                          grid=memory_grid(track), penetration=scene.penetration, total_load=scene.total_load,
-                          options=options, progress=progress, on_step=_positions(numbers, on_position))
-    return _result(track, numbers, moving, time.perf_counter() - t0,
-                   "window-cg" if options.method == "cg" else "twoscale")
+    moving = solve_moving(
+        scene.material,
+        provider,
+        indenter,
+        track.shifts,
+        speed=track.spec.speed_mm_s,
+        grid=memory_grid(track),
+        penetration=scene.penetration,
+        total_load=scene.total_load,
+        options=options,
+        progress=progress,
+        on_step=_positions(numbers, on_position),
+    )
+    return _result(
+        track, numbers, moving, time.perf_counter() - t0, "window-cg" if options.method == "cg" else "twoscale"
+    )
 
 
 def _stand_in():
@@ -149,6 +165,7 @@ def _positions(numbers: np.ndarray, on_position):
     :class:`~twoscale.rolling.run.Position` (None without it)."""
     if on_position is None:
         return None
+
     def on_step(n: int, shift: float, result, summary=None) -> None:
         on_position(Position(n, Selection((), numbers, shift), result, float("nan"), 0.0))
 
@@ -160,11 +177,24 @@ def _result(track: Track, numbers: np.ndarray, moving, seconds: float, method: s
     pos, k = np.nonzero(areas > 0)
     converged = np.asarray(moving.step_converged, dtype=bool)
     return RollingResult(
-        spec=track.spec, method=method, control=track.control, h=track.h, times=moving.times,
-        shifts=moving.shifts, total_load=moving.total_load, penetration=moving.penetration,
-        contact_area=moving.contact_area, drag=moving.drag, converged=converged, seconds=moving.seconds,
-        stones=np.full(len(track.shifts), len(numbers)), iterations=moving.iterations,
+        spec=track.spec,
+        method=method,
+        control=track.control,
+        h=track.h,
+        times=moving.times,
+        shifts=moving.shifts,
+        total_load=moving.total_load,
+        penetration=moving.penetration,
+        contact_area=moving.contact_area,
+        drag=moving.drag,
+        converged=converged,
+        seconds=moving.seconds,
+        stones=np.full(len(track.shifts), len(numbers)),
+        iterations=moving.iterations,
         messages=tuple("" if c else (moving.message or "did not converge") for c in converged),
         asperities=StoneSignals(pos, numbers[k] + 1, forces[pos, k], areas[pos, k]),
-        dissipated=moving.dissipated, stored=moving.stored,
-        timings_s={"prepare": 0.0, "positions": seconds, "total": seconds}, body=track.body + ", viscoelastic")
+        dissipated=moving.dissipated,
+        stored=moving.stored,
+        timings_s={"prepare": 0.0, "positions": seconds, "total": seconds},
+        body=track.body + ", viscoelastic",
+    )

@@ -27,6 +27,7 @@ the cells left out of the window cannot touch (their height is above the bound),
 start only changes the work. A position that does not converge is solved again by the
 two-scale solver from cold.
 """
+
 from __future__ import annotations
 
 import dataclasses
@@ -69,8 +70,9 @@ class KeptOperator:
             return self.parent.preconditioner()
         if self._pc is None:
             single = self.single_precision().op
-            self._pc = (single.preconditioner() if hasattr(single, "preconditioner") else None) or \
-                self.op.preconditioner()
+            self._pc = (
+                single.preconditioner() if hasattr(single, "preconditioner") else None
+            ) or self.op.preconditioner()
         return self._pc
 
 
@@ -92,7 +94,7 @@ class KeptBody:
         key = target.shape if self.invariant else target
         op = self._ops.get(key)
         if op is None:
-            self._ops.clear()   # one window at a time: the old one is not coming back
+            self._ops.clear()  # one window at a time: the old one is not coming back
             op = self._ops[key] = KeptOperator(self.provider.grid_operator(target))
         return op
 
@@ -216,7 +218,14 @@ def solve_window(track, selection, bound: float, state: WindowState, tol: float)
     grid = state.window(box)
     surface = surface_on(grid, selection.stones)
     scene = track.scene
-    result = solve_cg(state.body, surface, penetration=scene.penetration, total_load=scene.total_load,
-                      tol=tol * UNION_TOL_FACTOR, start=state.start(grid, selection.shift), precision="mixed",
-                      precondition=True)
+    result = solve_cg(
+        state.body,
+        surface,
+        penetration=scene.penetration,
+        total_load=scene.total_load,
+        tol=tol * UNION_TOL_FACTOR,
+        start=state.start(grid, selection.shift),
+        precision="mixed",
+        precondition=True,
+    )
     return dataclasses.replace(result, message="") if result.converged else result

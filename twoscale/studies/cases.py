@@ -13,6 +13,7 @@ sweep does not change the discretisation: ``[solver] h`` when given, else the sc
 lightest load of the case's kind (smallest total load, or smallest penetration), whose
 contacts are the smallest (:func:`case_h`; ``h_source`` in the cases table says which).
 """
+
 from __future__ import annotations
 
 import dataclasses
@@ -61,15 +62,25 @@ class Case:
 
 def case_at(study: Study, scene: int, body: int, load: tuple, position: int) -> Case:
     """The case of ``study`` at these indices (see ``Case.ref``)."""
-    return Case(study.scenes[scene], study.bodies[body], tuple(load), position,
-                tuple(study.positions[position]), (scene, body, tuple(load), position))
+    return Case(
+        study.scenes[scene],
+        study.bodies[body],
+        tuple(load),
+        position,
+        tuple(study.positions[position]),
+        (scene, body, tuple(load), position),
+    )
 
 
 def expand(study: Study) -> list[Case]:
     """Every case of ``study``, scenes outermost, then bodies, loads, positions."""
-    return [case_at(study, i, j, load, k)
-            for i, sc in enumerate(study.scenes) for j in range(len(study.bodies))
-            for load in study.loads_of(sc.scene) for k in range(len(study.positions))]
+    return [
+        case_at(study, i, j, load, k)
+        for i, sc in enumerate(study.scenes)
+        for j in range(len(study.bodies))
+        for load in study.loads_of(sc.scene)
+        for k in range(len(study.positions))
+    ]
 
 
 def kept_tips(case: Case) -> np.ndarray:
@@ -92,11 +103,14 @@ def case_scene(case: Case, study: Study) -> Any:
     scene = case.scene.scene
     keep = kept_tips(case)
     if len(keep) == 0:
-        raise SceneError(f"no tip lies in the footprint of {case.body.name} at shift "
-                         f"({case.shift[0]:g}, {case.shift[1]:g}) mm")
+        raise SceneError(
+            f"no tip lies in the footprint of {case.body.name} at shift ({case.shift[0]:g}, {case.shift[1]:g}) mm"
+        )
     sx, sy = case.shift
-    asperities = tuple(dataclasses.replace(scene.asperities[k], x=scene.asperities[k].x + sx,
-                                           y=scene.asperities[k].y + sy) for k in keep)
+    asperities = tuple(
+        dataclasses.replace(scene.asperities[k], x=scene.asperities[k].x + sx, y=scene.asperities[k].y + sy)
+        for k in keep
+    )
     kind, value = case.load
     if kind == "total":
         tilt = scene.tilt if study.tilt is None else study.tilt
@@ -104,8 +118,9 @@ def case_scene(case: Case, study: Study) -> Any:
     else:  # penetration control has no joint
         load = dict(penetration=value, total_load=None, tilt=False, pivot=(0.0, 0.0))
     h = study.solver.get("h", scene.h)
-    built = dataclasses.replace(scene, asperities=asperities, influence=dict(case.body.influence),
-                                load_cases=(), h=h, **load)
+    built = dataclasses.replace(
+        scene, asperities=asperities, influence=dict(case.body.influence), load_cases=(), h=h, **load
+    )
     light = lightest_load(case, study)
     if light is None or light == case.load:
         return built

@@ -1,6 +1,7 @@
 """Checks shared by the study files' readers (:mod:`.spec`, :mod:`.rolling_spec`): arrays of
 tables and the names of their entries, each failure one :class:`~twoscale.errors.StudyError`
 naming the key and the value."""
+
 from __future__ import annotations
 
 from typing import Any

@@ -10,6 +10,7 @@ each (the solver is Python-heavy, and a block provider is not shared between thr
 
 Imported only when a study runs on Dask: the library imports without ``distributed``.
 """
+
 from __future__ import annotations
 
 import contextlib
@@ -78,7 +79,7 @@ class ProvidersPlugin(WorkerPlugin):
 
     def setup(self, worker) -> None:
         self.cache = ProviderCache(self.max_providers)
-        self.strips = StripCache()   # a rolling study's strips, segmented once per worker
+        self.strips = StripCache()  # a rolling study's strips, segmented once per worker
         try:  # Ctrl-C is the study's (it cancels and closes the cluster), not each worker's
             signal.signal(signal.SIGINT, signal.SIG_IGN)
         except ValueError:  # not the worker process's main thread: leave it
@@ -126,14 +127,15 @@ def dask_client(*, workers: int = 2, scheduler: str | None = None, timeout: floa
 
     # the settings stay while the cluster lives: its nannies are made as its workers start
     with dask.config.set(LOCAL_CONFIG):
-        cluster = LocalCluster(n_workers=0, threads_per_worker=1, processes=True,
-                               dashboard_address=None, silence_logs=logging.CRITICAL)
+        cluster = LocalCluster(
+            n_workers=0, threads_per_worker=1, processes=True, dashboard_address=None, silence_logs=logging.CRITICAL
+        )
         try:
             # by address: a client of the cluster object would wait for its workers, and a
             # plugin registered with workers up waits for their setup (1.2-1.5 s each, measured)
             client = Client(cluster.scheduler_address)
             try:
-                client.register_plugin(ProvidersPlugin(), name=PLUGIN)   # workers get it as they start
+                client.register_plugin(ProvidersPlugin(), name=PLUGIN)  # workers get it as they start
                 cluster.scale(workers)
                 yield client
             finally:
@@ -142,19 +144,22 @@ def dask_client(*, workers: int = 2, scheduler: str | None = None, timeout: floa
             cluster.close()
 
 
-def run_on_dask(client: Client, study, todo: list, labels: dict, on_record: Callable[[CaseRecord], None], *,
-                batch: int = 1) -> None:
+def run_on_dask(
+    client: Client, study, todo: list, labels: dict, on_record: Callable[[CaseRecord], None], *, batch: int = 1
+) -> None:
     """Submit the ``(ref, key)`` of ``todo`` in tasks of ``batch`` consecutive cases (the
     client's workers have the providers plugin: :func:`dask_client`) and hand
     each record to ``on_record`` as its task returns (:func:`run_tasks`)."""
+
     def failed(item, reason):
         return [CaseRecord(item[1], labels[item[1]], "failed", reason, np.zeros(0, dtype=int), None, float("nan"))]
 
     run_tasks(client, study, todo, cases_task, on_record, failed, batch=batch)
 
 
-def run_tasks(client: Client, payload, items: list, task: Callable, on_record: Callable, failed: Callable, *,
-              batch: int = 1) -> None:
+def run_tasks(
+    client: Client, payload, items: list, task: Callable, on_record: Callable, failed: Callable, *, batch: int = 1
+) -> None:
     """Submit ``task(payload, items[i:i + batch])`` for every batch of ``items`` (``payload``,
     the study, is sent to each worker once) and hand each record the tasks return to
     ``on_record`` as they come. A task that dies with its worker gives ``failed(item, reason)``
@@ -162,10 +167,12 @@ def run_tasks(client: Client, payload, items: list, task: Callable, on_record: C
     cancelled (a batch's records arrive when the whole batch is done)."""
     client.wait_for_workers(1, timeout=WORKER_WAIT)
     [shared] = client.scatter([payload], broadcast=True, hash=False)  # later workers fetch it
-    batches = [items[i:i + batch] for i in range(0, len(items), batch)]
+    batches = [items[i : i + batch] for i in range(0, len(items), batch)]
     run = uuid.uuid4().hex[:12]
-    futures = {client.submit(task, shared, b, key=f"twoscale-{task.__name__}-{run}-{i}", pure=False): b
-               for i, b in enumerate(batches)}
+    futures = {
+        client.submit(task, shared, b, key=f"twoscale-{task.__name__}-{run}-{i}", pure=False): b
+        for i, b in enumerate(batches)
+    }
     try:
         for fut in as_completed(futures):
             try:

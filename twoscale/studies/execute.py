@@ -9,6 +9,7 @@ cluster's workers start in the background); compute once what the block bodies n
 Ctrl-C stops the run: the cases already written stay, the others are solved by the next
 run.
 """
+
 from __future__ import annotations
 
 import contextlib
@@ -82,8 +83,16 @@ def _warm(study: Study, todo: list[Case], quiet: bool) -> dict:
     return warm_blocks(scenes, progress=not quiet) if scenes else {}
 
 
-def run_study(study: Study, out: str | Path, *, workers: int = 0, scheduler: str | None = None,
-              batch: int = 1, quiet: bool = False, timeout: float = 20.0) -> StudyRun:
+def run_study(
+    study: Study,
+    out: str | Path,
+    *,
+    workers: int = 0,
+    scheduler: str | None = None,
+    batch: int = 1,
+    quiet: bool = False,
+    timeout: float = 20.0,
+) -> StudyRun:
     """Solve the unfinished cases of ``study`` into ``out/cases``.
 
     Parameters
@@ -148,8 +157,15 @@ def run_study(study: Study, out: str | Path, *, workers: int = 0, scheduler: str
         else:
             from .dask_backend import run_on_dask
 
-            run_on_dask(client, study, [(c.ref, key_of[id(c)]) for c in todo],
-                        {k: c.label for k, c in by_key.items()}, on_record, batch=batch)
+            run_on_dask(
+                client,
+                study,
+                [(c.ref, key_of[id(c)]) for c in todo],
+                {k: c.label for k, c in by_key.items()},
+                on_record,
+                batch=batch,
+            )
             where = scheduler if scheduler is not None else f"local cluster of {workers} workers"
-    return StudyRun(tuple(keys), len(todo), unique - len(todo), where, time.perf_counter() - t1 + startup, warm,
-                    startup)
+    return StudyRun(
+        tuple(keys), len(todo), unique - len(todo), where, time.perf_counter() - t1 + startup, warm, startup
+    )

@@ -14,6 +14,7 @@ writers compose them. Tips keep the CSV's numbers (from 1) and one colour each (
 ten lines, ten distinct colours); legends sit beside the plot, never over a line.
 matplotlib is imported here only. Cases without a result are left out of every figure.
 """
+
 from __future__ import annotations
 
 from collections import defaultdict
@@ -29,8 +30,7 @@ from ..plot.labels import body_text
 MAX_TIPS = 10
 #: Distinct colours of the tips' lines (matplotlib's qualitative "tab10").
 TIP_COLOURS = tuple(f"C{k}" for k in range(10))
-_LEGEND = {"fontsize": 7, "loc": "upper left", "bbox_to_anchor": (1.02, 1.0), "borderaxespad": 0.0,
-           "frameon": False}
+_LEGEND = {"fontsize": 7, "loc": "upper left", "bbox_to_anchor": (1.02, 1.0), "borderaxespad": 0.0, "frameon": False}
 
 
 def _solved(case_rows: list) -> list:
@@ -50,8 +50,9 @@ def _on(body: str, bodies: Mapping | None) -> str:
 def plot_load_approach(case_rows: list, scene: str, *, quantity: str = "load", ax=None):
     """Total load (``quantity="load"``) or contact area (``"area"``) against the
     approach, one line per body (first position). Returns the Figure."""
-    col, label = {"load": ("total_load_N", "total load (N)"),
-                  "area": ("contact_area_mm2", "contact area (mm$^2$)")}[quantity]
+    col, label = {"load": ("total_load_N", "total load (N)"), "area": ("contact_area_mm2", "contact area (mm$^2$)")}[
+        quantity
+    ]
     fig, ax = figure_and_axes(ax, (5.0, 3.8), 110, rect=(0.15, 0.13, 0.6, 0.75))
     lines = defaultdict(list)
     for r in _solved(case_rows):
@@ -105,8 +106,9 @@ def plot_tip_forces(case_rows: list, tip_rows: list, scene: str, body: str, *, a
     return fig
 
 
-def asperity_forces(case_rows: list, tip_rows: list, scene: str, body: str, path: Path, meta: dict,
-                    bodies: Mapping | None = None) -> Path:
+def asperity_forces(
+    case_rows: list, tip_rows: list, scene: str, body: str, path: Path, meta: dict, bodies: Mapping | None = None
+) -> Path:
     fig = plot_tip_forces(case_rows, tip_rows, scene, body)
     tips = {t["asperity"] for t in tip_rows if t["scene"] == scene and t["body"] == body and t["position"] == 0}
     note = f" ({MAX_TIPS} most loaded of {len(tips)} tips)" if len(tips) > MAX_TIPS else ""
@@ -120,8 +122,11 @@ def plot_track(case_rows: list, tip_rows: list, scene: str, body: str, load: tup
     loaded tips' force (left axis; 0 off the footprint) and the total (right axis,
     dashed black). Returns the Figure."""
     fig, ax = figure_and_axes(ax, (6.4, 3.2), 110, rect=(0.1, 0.15, 0.62, 0.72))
-    rows = [r for r in _solved(case_rows) if r["scene"] == scene and r["body"] == body
-            and (r["load_kind"], r["load"]) == tuple(load)]
+    rows = [
+        r
+        for r in _solved(case_rows)
+        if r["scene"] == scene and r["body"] == body and (r["load_kind"], r["load"]) == tuple(load)
+    ]
     s = np.array(sorted({r["distance_mm"] for r in rows}))
     where = {r["key"]: r["distance_mm"] for r in rows}
     tips = [t for t in tip_rows if t["key"] in where]
@@ -143,8 +148,9 @@ def plot_track(case_rows: list, tip_rows: list, scene: str, body: str, load: tup
     return fig
 
 
-def track(case_rows: list, tip_rows: list, scene: str, body: str, path: Path, meta: dict,
-          bodies: Mapping | None = None) -> Path:
+def track(
+    case_rows: list, tip_rows: list, scene: str, body: str, path: Path, meta: dict, bodies: Mapping | None = None
+) -> Path:
     mine = [r for r in _solved(case_rows) if r["scene"] == scene and r["body"] == body]
     loads = sorted({(r["load_kind"], r["load"]) for r in mine}) or [("total", 0.0)]
     H = 2.6 * len(loads) + 0.8
@@ -170,8 +176,13 @@ def plot_indicator(ind_rows: list, scene: str, name: str = "e_M_percent", *, ax=
         x, y = np.array(pts).T
         ax.plot(x, y, ".", alpha=0.4, color=TIP_COLOURS[c % 10])
         xs = np.unique(x)
-        ax.plot(xs, [y[x == v].mean() for v in xs], "o-", color=TIP_COLOURS[c % 10],
-                label=f"{body} vs {rows[0]['reference']}")
+        ax.plot(
+            xs,
+            [y[x == v].mean() for v in xs],
+            "o-",
+            color=TIP_COLOURS[c % 10],
+            label=f"{body} vs {rows[0]['reference']}",
+        )
     ax.set(xlabel=_load_axis(kind), ylabel=name.replace("_percent", " (%)"))
     ax.grid(lw=0.3)
     return fig
@@ -191,8 +202,16 @@ def indicators(ind_rows: list, scene: str, path: Path, meta: dict, bodies: Mappi
     return save_png(fig, path, title=title, meta=meta)
 
 
-def write_figures(out: Path, case_rows: list, tip_rows: list, ind_rows: list, *, track_positions: bool,
-                  meta: dict, bodies: Mapping | None = None) -> list:
+def write_figures(
+    out: Path,
+    case_rows: list,
+    tip_rows: list,
+    ind_rows: list,
+    *,
+    track_positions: bool,
+    meta: dict,
+    bodies: Mapping | None = None,
+) -> list:
     """Every figure of the study into ``out/figures``; returns the paths written.
 
     ``bodies``: body name -> its ``[influence]`` table, to name each body in the titles.
@@ -204,11 +223,15 @@ def write_figures(out: Path, case_rows: list, tip_rows: list, ind_rows: list, *,
         names = list(dict.fromkeys(r["body"] for r in solved if r["scene"] == scene))
         written.append(load_approach(case_rows, scene, folder / f"load_approach_{scene}.png", meta, bodies))
         for body in names:
-            written.append(asperity_forces(case_rows, tip_rows, scene, body,
-                                           folder / f"asperity_forces_{scene}_{body}.png", meta, bodies))
+            written.append(
+                asperity_forces(
+                    case_rows, tip_rows, scene, body, folder / f"asperity_forces_{scene}_{body}.png", meta, bodies
+                )
+            )
             if track_positions:
-                written.append(track(case_rows, tip_rows, scene, body, folder / f"track_{scene}_{body}.png",
-                                     meta, bodies))
+                written.append(
+                    track(case_rows, tip_rows, scene, body, folder / f"track_{scene}_{body}.png", meta, bodies)
+                )
         if any(r["scene"] == scene for r in ind_rows):
             written.append(indicators(ind_rows, scene, folder / f"indicators_{scene}.png", meta, bodies))
     return written

@@ -8,6 +8,7 @@ by its own inputs, so a case shared by both studies is reused, never wrong). A n
 folder without the marker is refused: the program never writes among files it did not
 write.
 """
+
 from __future__ import annotations
 
 import json
@@ -22,9 +23,11 @@ from .lock import LOCK_NAME
 #: The marker file of a study folder.
 MARKER = ".twoscale-study.json"
 #: What a study writes at the top of its folder, besides ``cases/`` and the marker.
-OUTPUTS = tuple(f"{name}.{ext}" for name in ("cases", "asperities", "indicators", "bands")
-                for ext in ("csv", "csv-metadata.json", "parquet")) \
-    + ("summary.json", "figures")
+OUTPUTS = tuple(
+    f"{name}.{ext}"
+    for name in ("cases", "asperities", "indicators", "bands")
+    for ext in ("csv", "csv-metadata.json", "parquet")
+) + ("summary.json", "figures")
 
 
 def study_digest(study) -> str:
@@ -53,18 +56,22 @@ def check_study_folder(out: Path, study, *, overwrite: bool = False) -> str:
         return digest_now
     marker = out / MARKER
     if not marker.is_file():
-        raise ValueError(f"--out {str(out)!r} is not empty and is no twoscale study folder (it holds "
-                         f"{entries[0]!r}): choose a new or empty folder")
+        raise ValueError(
+            f"--out {str(out)!r} is not empty and is no twoscale study folder (it holds "
+            f"{entries[0]!r}): choose a new or empty folder"
+        )
     try:
         record = json.loads(marker.read_text(encoding="utf-8"))
     except (OSError, ValueError):
         record = {}
     if record.get("digest") == digest_now:
-        return digest_now   # this study: resume
+        return digest_now  # this study: resume
     if not overwrite:
-        raise ValueError(f"--out {str(out)!r} holds another study ({record.get('name', '?')!r}): rerun that "
-                         f"study there, choose another folder, or add --overwrite to replace its tables and "
-                         f"figures (finished cases are kept and reused where the inputs match)")
+        raise ValueError(
+            f"--out {str(out)!r} holds another study ({record.get('name', '?')!r}): rerun that "
+            f"study there, choose another folder, or add --overwrite to replace its tables and "
+            f"figures (finished cases are kept and reused where the inputs match)"
+        )
     for name in OUTPUTS:
         path = out / name
         if path.is_dir():
@@ -80,4 +87,6 @@ def mark_study_folder(out: Path, study, digest_now: str | None = None) -> None:
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     with atomic_output(out / MARKER) as tmp:
-        tmp.write_text(json.dumps({"name": study.name, "digest": digest_now or study_digest(study)}) + "\n", encoding="utf-8")
+        tmp.write_text(
+            json.dumps({"name": study.name, "digest": digest_now or study_digest(study)}) + "\n", encoding="utf-8"
+        )

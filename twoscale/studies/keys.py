@@ -8,6 +8,7 @@ inputs. The program version is recorded with each result but is not part of the 
 upgrading does not discard finished cases; bump :data:`KEY_VERSION` when a change makes
 old results wrong.
 """
+
 from __future__ import annotations
 
 import hashlib
@@ -47,13 +48,16 @@ def case_inputs(case: "Case", study: "Study") -> dict:
         "scene": case.scene.digest,
         "influence": {k: (list(v) if isinstance(v, tuple) else v) for k, v in case.body.influence.items()},
         "footprint": {"size": None if fp.size is None else list(fp.size), "centre": list(fp.centre)},
-        "load": {case.load[0]: float(case.load[1]),
-                 "tilt": study.tilt if case.load[0] == "total" else False},
+        "load": {case.load[0]: float(case.load[1]), "tilt": study.tilt if case.load[0] == "total" else False},
         "shift": [float(v) for v in case.shift],
         "method": study.method,
         "solver": dict(sorted(study.solver.items())),
-        "sensor": {"nx": study.sensor.nx, "ny": study.sensor.ny, "cell": float(study.sensor.cell),
-                   "centre": list(study.sensor.centre)},
+        "sensor": {
+            "nx": study.sensor.nx,
+            "ny": study.sensor.ny,
+            "cell": float(study.sensor.cell),
+            "centre": list(study.sensor.centre),
+        },
     }
     light = lightest_load(case, study)
     if light is not None:  # the default cell size is the lightest load's (studies.cases)

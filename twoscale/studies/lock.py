@@ -11,6 +11,7 @@ locker).
 Where the file system has no locks (``ENOLCK``), the run goes on with one warning: two
 runs at once on that folder are then not detected.
 """
+
 from __future__ import annotations
 
 import contextlib
@@ -58,16 +59,21 @@ def study_lock(out: str | os.PathLike) -> Iterator[Path]:
             fcntl.lockf(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
         except OSError as exc:
             if exc.errno in (errno.EACCES, errno.EAGAIN):
-                raise StudyBusy(f"--out {str(out)!r} is in use by another run of twoscale study "
-                                f"({_holder(fd)}): wait for it to end or stop it (a run that died "
-                                f"holds no lock), or choose another folder") from None
+                raise StudyBusy(
+                    f"--out {str(out)!r} is in use by another run of twoscale study "
+                    f"({_holder(fd)}): wait for it to end or stop it (a run that died "
+                    f"holds no lock), or choose another folder"
+                ) from None
             if exc.errno != errno.ENOLCK:
                 raise
-            warnings.warn(f"{path}: the file system has no locks ({exc.strerror}): a second run on this "
-                          f"folder at the same time would not be detected", stacklevel=3)
+            warnings.warn(
+                f"{path}: the file system has no locks ({exc.strerror}): a second run on this "
+                f"folder at the same time would not be detected",
+                stacklevel=3,
+            )
         record = json.dumps({"pid": os.getpid(), "host": socket.gethostname(), "started": time.time()})
         os.ftruncate(fd, 0)
         os.pwrite(fd, record.encode("utf-8"), 0)
         yield path
     finally:
-        os.close(fd)   # releases the lock
+        os.close(fd)  # releases the lock

@@ -1,6 +1,7 @@
 """Everything a study writes beside its case folders, in one call: the tidy tables,
 summary.json and the figures (see :mod:`twoscale.studies.tables` and
 :mod:`twoscale.studies.figures`)."""
+
 from __future__ import annotations
 
 from dataclasses import asdict
@@ -26,7 +27,13 @@ def write_outputs(out: str | Path, study: Study, run: StudyRun | None = None, *,
     if figures:
         from .figures import write_figures
 
-        write_figures(out, case_rows, tip_rows, ind, track_positions=len(study.positions) > 1,
-                      meta={"study": study.name, "version": __version__},
-                      bodies={b.name: b.influence for b in study.bodies})
+        write_figures(
+            out,
+            case_rows,
+            tip_rows,
+            ind,
+            track_positions=len(study.positions) > 1,
+            meta={"study": study.name, "version": __version__},
+            bodies={b.name: b.influence for b in study.bodies},
+        )
     return summary

@@ -18,6 +18,7 @@ never read half-written. Threads of one process must not share a block provider 
 it adds fields (the temporary file name is per process), which is why the studies' Dask
 workers run one thread each.
 """
+
 from __future__ import annotations
 
 from typing import Any, Iterable
@@ -33,8 +34,14 @@ MAX_PROVIDERS = 8
 def provider_key(scene: Any) -> tuple:
     """What a provider depends on: the influence settings and the material."""
     inf = scene.influence
-    return (inf["kind"], tuple(inf.get("size", ())), inf.get("base"), tuple(inf.get("origin", ())),
-            float(scene.material.E), float(scene.material.nu))
+    return (
+        inf["kind"],
+        tuple(inf.get("size", ())),
+        inf.get("base"),
+        tuple(inf.get("origin", ())),
+        float(scene.material.E),
+        float(scene.material.nu),
+    )
 
 
 class ProviderCache:

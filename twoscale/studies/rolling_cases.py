@@ -8,6 +8,7 @@ speed, so the cases that differ only by the speed share one *solve* (:func:`solv
 rolled once and written at every speed (times and third-octave bands follow the speed).
 A viscoelastic material's speeds are solves of their own.
 """
+
 from __future__ import annotations
 
 import dataclasses
@@ -48,26 +49,44 @@ class RollingCase:
 
 def case_at(study: RollingStudy, section: int, body: int, material: int, load: int, speed: int) -> RollingCase:
     """The case of ``study`` at these indices."""
-    return RollingCase(study.sections[section], study.bodies[body], study.materials[material], study.loads[load],
-                       study.speeds[speed], (section, body, material, load, speed))
+    return RollingCase(
+        study.sections[section],
+        study.bodies[body],
+        study.materials[material],
+        study.loads[load],
+        study.speeds[speed],
+        (section, body, material, load, speed),
+    )
 
 
 def expand(study: RollingStudy) -> list[RollingCase]:
     """Every case: sections outermost, then bodies, materials, loads, speeds."""
-    return [case_at(study, i, j, m, k, s) for i in range(len(study.sections)) for j in range(len(study.bodies))
-            for m in range(len(study.materials)) for k in range(len(study.loads)) for s in range(len(study.speeds))]
+    return [
+        case_at(study, i, j, m, k, s)
+        for i in range(len(study.sections))
+        for j in range(len(study.bodies))
+        for m in range(len(study.materials))
+        for k in range(len(study.loads))
+        for s in range(len(study.speeds))
+    ]
 
 
 def case_inputs(case: RollingCase, study: RollingStudy) -> dict:
     """Everything the case's files depend on, as JSON-ready data."""
     mat = case.material.material
-    return {"key_version": ROLLING_KEY_VERSION, "kind": "rolling", "strip": case.section.strip_key,
-            "offset_mm": case.section.offset,
-            "influence": {k: (list(v) if isinstance(v, tuple) else v) for k, v in case.body.influence.items()},
-            "face": {k: (list(v) if isinstance(v, (tuple, list)) else v) for k, v in case.body.face.items()},
-            "material": {"E": mat.E, "nu": mat.nu, "prony": [list(b) for b in mat.prony]},
-            "load": {case.load[0]: case.load[1]}, "track": dict(study.track), "speed_kmh": case.speed,
-            "solver": dict(sorted(study.solver.items()))}
+    return {
+        "key_version": ROLLING_KEY_VERSION,
+        "kind": "rolling",
+        "strip": case.section.strip_key,
+        "offset_mm": case.section.offset,
+        "influence": {k: (list(v) if isinstance(v, tuple) else v) for k, v in case.body.influence.items()},
+        "face": {k: (list(v) if isinstance(v, (tuple, list)) else v) for k, v in case.body.face.items()},
+        "material": {"E": mat.E, "nu": mat.nu, "prony": [list(b) for b in mat.prony]},
+        "load": {case.load[0]: case.load[1]},
+        "track": dict(study.track),
+        "speed_kmh": case.speed,
+        "solver": dict(sorted(study.solver.items())),
+    }
 
 
 def case_key(case: RollingCase, study: RollingStudy) -> str:
@@ -88,8 +107,13 @@ def rolling_spec(case: RollingCase, study: RollingStudy, speed: float | None = N
     from ..rolling.spec import RollingSpec
 
     t, o = study.track, case.section.offset
-    return RollingSpec(start=t["start"] - o, end=t["end"] - o, step=t["step"],
-                       speed=case.speed if speed is None else speed, **case.body.face)
+    return RollingSpec(
+        start=t["start"] - o,
+        end=t["end"] - o,
+        step=t["step"],
+        speed=case.speed if speed is None else speed,
+        **case.body.face,
+    )
 
 
 class StripCache:
@@ -128,8 +152,13 @@ def case_scene(case: RollingCase, study: RollingStudy, strips: StripCache):
 
     kind, value = case.load
     load = {"total_load": value} if kind == "total" else {"penetration": value}
-    return Scene(material=case.material.material, surface=strips.get(case.section),
-                 rolling=rolling_spec(case, study), influence=dict(case.body.influence), **load)
+    return Scene(
+        material=case.material.material,
+        surface=strips.get(case.section),
+        rolling=rolling_spec(case, study),
+        influence=dict(case.body.influence),
+        **load,
+    )
 
 
 def with_speed(scene, speed: float):

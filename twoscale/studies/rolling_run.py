@@ -8,6 +8,7 @@ holds ``case.json`` (inputs, status, reason, the case's summary numbers and thir
 levels, version, seconds) and the rolling run's own files (``signals.csv``,
 ``asperity_signals.csv``, ``bands.csv``, ``texture.json``, ``rolling.json``, figures).
 """
+
 from __future__ import annotations
 
 import contextlib
@@ -42,13 +43,31 @@ def pending(study: RollingStudy, store: CaseStore) -> tuple[list, list, list]:
 
 def record_content(record: RollingRecord, inputs: dict) -> dict:
     """The JSON content of a rolling case's ``case.json``."""
-    return {"key": record.key, "label": record.label, "status": record.status, "reason": record.reason,
-            "seconds": _finite(record.seconds), "cpu_seconds": _finite(record.cpu_seconds), "version": __version__,
-            "units": dict(UNITS), "inputs": inputs, "numbers": record.numbers, "bands": list(record.bands)}
+    return {
+        "key": record.key,
+        "label": record.label,
+        "status": record.status,
+        "reason": record.reason,
+        "seconds": _finite(record.seconds),
+        "cpu_seconds": _finite(record.cpu_seconds),
+        "version": __version__,
+        "units": dict(UNITS),
+        "inputs": inputs,
+        "numbers": record.numbers,
+        "bands": list(record.bands),
+    }
 
 
-def run_rolling_study(study: RollingStudy, out: str | Path, *, workers: int = 0, scheduler: str | None = None,
-                      batch: int = 1, quiet: bool = False, timeout: float = 20.0) -> StudyRun:
+def run_rolling_study(
+    study: RollingStudy,
+    out: str | Path,
+    *,
+    workers: int = 0,
+    scheduler: str | None = None,
+    batch: int = 1,
+    quiet: bool = False,
+    timeout: float = 20.0,
+) -> StudyRun:
     """Solve the unfinished cases of ``study`` into ``out/cases`` (arguments as
     :func:`twoscale.studies.execute.run_study`; ``batch`` counts solves per task)."""
     if isinstance(batch, bool) or not isinstance(batch, int) or batch < 1:
@@ -71,8 +90,7 @@ def run_rolling_study(study: RollingStudy, out: str | Path, *, workers: int = 0,
         bar.update(unique - todo)
 
         def on_record(record: RollingRecord) -> None:
-            store.write_folder(record.key, record_content(record, case_inputs(by_key[record.key], study)),
-                               record.files)
+            store.write_folder(record.key, record_content(record, case_inputs(by_key[record.key], study)), record.files)
             bar.update(note=f"{record.label}: {record.status}")
 
         if not groups:

@@ -7,6 +7,7 @@ a temporary folder there and returned as bytes in the :class:`RollingRecord`, wh
 study's process writes into the case's folder, so the output folder need not be shared
 with the workers. A failure is a record too (``status = "failed"`` and the reason).
 """
+
 from __future__ import annotations
 
 import csv
@@ -59,14 +60,23 @@ def case_numbers(result) -> dict:
     n = len(result.shifts)
     load, d = np.asarray(result.total_load), np.asarray(result.penetration)
     distance = float(result.shifts[-1] - result.shifts[0])
-    out = {"positions": n, "converged_positions": int(np.sum(result.converged)), "h_mm": float(result.h),
-           "distance_mm": distance, "duration_s": float(result.times[-1]),
-           "mean_load_N": float(load.mean()), "load_rms_N": float(load.std()),
-           "mean_approach_mm": float(d.mean()), "approach_rms_mm": float(d.std()),
-           "mean_contact_area_mm2": float(np.mean(result.contact_area)), "mean_drag_N": result.mean_drag,
-           "friction_coefficient": result.mean_drag / float(load.mean()) if load.mean() > 0 else None,
-           "dissipated_per_mm_N": None, "energy_balance": None,
-           "seconds_per_position": float(np.mean(result.seconds))}
+    out = {
+        "positions": n,
+        "converged_positions": int(np.sum(result.converged)),
+        "h_mm": float(result.h),
+        "distance_mm": distance,
+        "duration_s": float(result.times[-1]),
+        "mean_load_N": float(load.mean()),
+        "load_rms_N": float(load.std()),
+        "mean_approach_mm": float(d.mean()),
+        "approach_rms_mm": float(d.std()),
+        "mean_contact_area_mm2": float(np.mean(result.contact_area)),
+        "mean_drag_N": result.mean_drag,
+        "friction_coefficient": result.mean_drag / float(load.mean()) if load.mean() > 0 else None,
+        "dissipated_per_mm_N": None,
+        "energy_balance": None,
+        "seconds_per_position": float(np.mean(result.seconds)),
+    }
     if result.dissipated.size and distance > 0:
         dissipated = float(np.sum(result.dissipated[1:]))
         energy = float(result.stored[-1] - result.stored[0]) + dissipated
@@ -87,8 +97,10 @@ def case_files(result, scene, *, figures: bool, name: str) -> tuple[dict, tuple]
         files = {p.name: p.read_bytes() for p in sorted(out.iterdir()) if p.is_file()}
     bands = ()
     if "bands.csv" in files:
-        bands = tuple({k: float(v) for k, v in row.items()}
-                      for row in csv.DictReader(io.StringIO(files["bands.csv"].decode("utf-8"))))
+        bands = tuple(
+            {k: float(v) for k, v in row.items()}
+            for row in csv.DictReader(io.StringIO(files["bands.csv"].decode("utf-8")))
+        )
     return files, bands
 
 
@@ -107,8 +119,12 @@ def solve_group(study: RollingStudy, group: list, strips: StripCache, providers:
         reason = f"{type(exc).__name__}: {exc}"
         if not isinstance(exc, ValueError):
             reason += " | " + traceback.format_exc(limit=-3).replace("\n", " ")
-        return [RollingRecord(key, case.label, "failed", reason, seconds=time.perf_counter() - t0,
-                              cpu_seconds=time.thread_time() - c0) for case, key in cases]
+        return [
+            RollingRecord(
+                key, case.label, "failed", reason, seconds=time.perf_counter() - t0, cpu_seconds=time.thread_time() - c0
+            )
+            for case, key in cases
+        ]
     seconds, cpu = time.perf_counter() - t0, time.thread_time() - c0
     records = []
     for case, key in cases:

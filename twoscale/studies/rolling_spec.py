@@ -23,6 +23,7 @@ innermost). The format (units mm, N, MPa, km/h)::
 Every problem raises :class:`~twoscale.errors.StudyError` with one line naming the key and
 the value; nothing is solved to find it (the strips are read and segmented by the cases).
 """
+
 from __future__ import annotations
 
 import hashlib
@@ -103,8 +104,9 @@ def is_rolling_study(data: Mapping) -> bool:
     return "rolling" in data
 
 
-def rolling_study_from_dict(data: Mapping, *, base: str | os.PathLike = ".", name: str = "study",
-                            source: str = "") -> RollingStudy:
+def rolling_study_from_dict(
+    data: Mapping, *, base: str | os.PathLike = ".", name: str = "study", source: str = ""
+) -> RollingStudy:
     """Validate a rolling study given as nested dicts (the parsed TOML)."""
     check_keys("", data, TOP_KEYS, required=("section", "body", "material", "rolling", "load"))
     head = table_of("study", data.get("study", {}))
@@ -114,10 +116,17 @@ def rolling_study_from_dict(data: Mapping, *, base: str | os.PathLike = ".", nam
         raise StudyError(f"study.figures must be true or false, got {figures!r}")
     track, speeds = _rolling(table_of("rolling", data["rolling"]))
     study = RollingStudy(
-        name=str(head.get("name", name)), sections=_sections(data["section"], Path(base)),
-        bodies=_bodies(data["body"]), materials=_materials(data["material"], Path(base)),
-        loads=_loads(table_of("load", data["load"])), speeds=speeds, track=track,
-        solver=_solver(table_of("solver", data.get("solver", {}))), figures=figures, source=source)
+        name=str(head.get("name", name)),
+        sections=_sections(data["section"], Path(base)),
+        bodies=_bodies(data["body"]),
+        materials=_materials(data["material"], Path(base)),
+        loads=_loads(table_of("load", data["load"])),
+        speeds=speeds,
+        track=track,
+        solver=_solver(table_of("solver", data.get("solver", {}))),
+        figures=figures,
+        source=source,
+    )
     if study.n_cases > MAX_CASES:
         raise StudyError(f"the study expands to {study.n_cases} cases, more than {MAX_CASES}; split it")
     return study
@@ -136,7 +145,7 @@ def _rolling(t: Mapping) -> tuple[dict, tuple]:
     if len(set(speeds)) != len(speeds):
         raise StudyError(f"rolling.speeds has repeated values, got {given!r}")
     track = {k: t[k] for k in ("start", "end", "step")}
-    RollingSpec(**track, speed=speeds[0])   # the table's own checks, one line naming the field
+    RollingSpec(**track, speed=speeds[0])  # the table's own checks, one line naming the field
     return {k: float(v) for k, v in track.items()}, speeds
 
 
@@ -149,8 +158,10 @@ def _sections(v: Any, base: Path) -> tuple:
         surface = dict(table_of(field_path(path, "surface"), t.get("surface", {})))
         offsets = _numbers(field_path(path, "offsets"), t.get("offsets", [0.0]), unit="mm")
         if ("generate" in t) == ("file" in surface):
-            raise StudyError(f"{path}: give surface.file (a strip file) or generate (a seeded chip seal), "
-                             f"one of them; got {dict(t)!r}")
+            raise StudyError(
+                f"{path}: give surface.file (a strip file) or generate (a seeded chip seal), "
+                f"one of them; got {dict(t)!r}"
+            )
         _check_surface(field_path(path, "surface"), surface, generated="generate" in t)
         if "generate" in t:
             gens = _generated(path, table_of(field_path(path, "generate"), t["generate"]), t.get("seeds"))
@@ -185,8 +196,11 @@ def _generated(path: str, g: Mapping, seeds: Any) -> list[dict]:
     if seeds is not None and "seed" in g:
         raise StudyError(f"{path}: give generate.seed or seeds, not both; got seed = {g['seed']!r}, seeds = {seeds!r}")
     given = seeds if seeds is not None else [g.get("seed", 0)]
-    if not isinstance(given, list) or not given or any(isinstance(s, bool) or not isinstance(s, int) or s < 0
-                                                       for s in given):
+    if (
+        not isinstance(given, list)
+        or not given
+        or any(isinstance(s, bool) or not isinstance(s, int) or s < 0 for s in given)
+    ):
         raise StudyError(f"{field_path(path, 'seeds')} must be a non-empty list of integers >= 0, got {given!r}")
     return [dict(base, seed=int(s)) for s in given]
 

@@ -5,6 +5,7 @@ record of the outcome (a failure is an outcome too).
 :class:`CaseRecord` with ``status = "failed"`` and the reason, so one bad case does not
 stop the others. Ctrl-C (``KeyboardInterrupt``) still goes through.
 """
+
 from __future__ import annotations
 
 import time
@@ -18,6 +19,7 @@ from ..sensor import Sensor
 from .cases import case_at, case_scene, kept_tips
 from .providers import ProviderCache
 from .spec import Study
+
 
 @dataclass(frozen=True)
 class Outcome:
@@ -49,15 +51,20 @@ def read_result(result: Any, sensor: Sensor) -> Outcome:
     s = result.asperities
     micro = getattr(result.details, "micro", None)
     return Outcome(
-        converged=bool(result.converged), message=str(result.message),
-        total_load=float(result.total_load), penetration=float(result.penetration),
+        converged=bool(result.converged),
+        message=str(result.message),
+        total_load=float(result.total_load),
+        penetration=float(result.penetration),
         tilt=None if result.tilt is None else (float(result.tilt[0]), float(result.tilt[1])),
-        forces=np.array(s.forces, dtype=float), contact_areas=np.array(s.contact_areas, dtype=float),
-        max_pressures=np.array(s.max_pressures, dtype=float), sensor_map=sensor.average(result),
+        forces=np.array(s.forces, dtype=float),
+        contact_areas=np.array(s.contact_areas, dtype=float),
+        max_pressures=np.array(s.max_pressures, dtype=float),
+        sensor_map=sensor.average(result),
         h=float(result.fields[0].grid.h) if result.fields else float("nan"),
         strategy=str(micro.strategy if micro is not None else result.solver),
         iterations={k: int(v) for k, v in result.iterations.items()},
-        timings_s={k: float(v) for k, v in result.timings_s.items()})
+        timings_s={k: float(v) for k, v in result.timings_s.items()},
+    )
 
 
 def solve_case(scene: Any, *, method: str, options: dict, providers: ProviderCache, sensor: Sensor) -> Outcome:
@@ -103,8 +110,17 @@ class CaseRecord:
     cpu_seconds: float = float("nan")
 
 
-def run_case(key: str, label: str, make_scene, tips: np.ndarray, *, method: str, options: dict,
-             providers: ProviderCache, sensor: Sensor) -> CaseRecord:
+def run_case(
+    key: str,
+    label: str,
+    make_scene,
+    tips: np.ndarray,
+    *,
+    method: str,
+    options: dict,
+    providers: ProviderCache,
+    sensor: Sensor,
+) -> CaseRecord:
     """Build the case's scene (``make_scene()``), solve it and record the outcome; any
     error but Ctrl-C becomes a failed record with its reason."""
     t0, c0 = time.perf_counter(), time.thread_time()
@@ -114,15 +130,39 @@ def run_case(key: str, label: str, make_scene, tips: np.ndarray, *, method: str,
         reason = f"{type(exc).__name__}: {exc}"
         if not isinstance(exc, ValueError):  # an unexpected error: keep where it came from
             reason += " | " + traceback.format_exc(limit=-3).replace("\n", " ")
-        return CaseRecord(key, label, "failed", reason, np.asarray(tips, dtype=int), None,
-                          time.perf_counter() - t0, time.thread_time() - c0)
+        return CaseRecord(
+            key,
+            label,
+            "failed",
+            reason,
+            np.asarray(tips, dtype=int),
+            None,
+            time.perf_counter() - t0,
+            time.thread_time() - c0,
+        )
     status = "converged" if outcome.converged else "not-converged"
-    return CaseRecord(key, label, status, outcome.message, np.asarray(tips, dtype=int), outcome,
-                      time.perf_counter() - t0, time.thread_time() - c0)
+    return CaseRecord(
+        key,
+        label,
+        status,
+        outcome.message,
+        np.asarray(tips, dtype=int),
+        outcome,
+        time.perf_counter() - t0,
+        time.thread_time() - c0,
+    )
 
 
 def solve_ref(study: Study, ref: tuple, key: str, providers: ProviderCache) -> CaseRecord:
     """Solve the case of ``study`` at ``ref`` (see ``Case.ref``) and record it."""
     case = case_at(study, *ref)
-    return run_case(key, case.label, lambda: case_scene(case, study), kept_tips(case),
-                    method=study.method, options=study.solver, providers=providers, sensor=study.sensor)
+    return run_case(
+        key,
+        case.label,
+        lambda: case_scene(case, study),
+        kept_tips(case),
+        method=study.method,
+        options=study.solver,
+        providers=providers,
+        sensor=study.sensor,
+    )

@@ -27,6 +27,7 @@ one-line message naming the key (``body[1].base``) and the bad value. Scene file
 by the scene loader (:func:`twoscale.io.scene_file.read_scene`); whatever it returns is a
 scene here.
 """
+
 from __future__ import annotations
 
 import math
@@ -156,18 +157,16 @@ def read_study(path: str | os.PathLike) -> Study:
     """
     data = read_toml(path, "study", StudyError)
     try:
-        if "rolling" in data:   # road sections x bodies x materials x loads x speeds
+        if "rolling" in data:  # road sections x bodies x materials x loads x speeds
             from .rolling_spec import rolling_study_from_dict
 
-            return rolling_study_from_dict(data, base=Path(path).parent, name=Path(path).stem,
-                                           source=os.fspath(path))
+            return rolling_study_from_dict(data, base=Path(path).parent, name=Path(path).stem, source=os.fspath(path))
         return study_from_dict(data, base=Path(path).parent, name=Path(path).stem, source=os.fspath(path))
     except SceneError as exc:
         raise StudyError(f"{os.fspath(path)}: {exc}") from None
 
 
-def study_from_dict(data: Mapping, *, base: str | os.PathLike = ".", name: str = "study",
-                    source: str = "") -> Study:
+def study_from_dict(data: Mapping, *, base: str | os.PathLike = ".", name: str = "study", source: str = "") -> Study:
     """Validate a study given as nested dicts (the parsed TOML); scene files are read
     relative to ``base``."""
     _keys("", data, TOP_KEYS, required=("scene", "body"))
@@ -179,18 +178,29 @@ def study_from_dict(data: Mapping, *, base: str | os.PathLike = ".", name: str =
     load = table_of("load", data.get("load", {}))
     loads, tilt = _loads(load)
     positions, track = _positions(table_of("positions", data.get("positions", {})))
-    study = Study(name=str(head.get("name", name)), method=method,
-                  scenes=_scenes(data["scene"], Path(base)), bodies=_bodies(data["body"]),
-                  loads=loads, tilt=tilt, positions=positions, track=track,
-                  solver=_solver(table_of("solver", data.get("solver", {}))),
-                  sensor=_sensor(table_of("sensor", data.get("sensor", {}))), source=source)
+    study = Study(
+        name=str(head.get("name", name)),
+        method=method,
+        scenes=_scenes(data["scene"], Path(base)),
+        bodies=_bodies(data["body"]),
+        loads=loads,
+        tilt=tilt,
+        positions=positions,
+        track=track,
+        solver=_solver(table_of("solver", data.get("solver", {}))),
+        sensor=_sensor(table_of("sensor", data.get("sensor", {}))),
+        source=source,
+    )
     twoscale_only = sorted(set(study.solver) - {"h", "tol"})
     if method == "reference" and twoscale_only:
-        raise StudyError(f"solver.{twoscale_only[0]} is an option of the two-scale solver, not of "
-                         f"study.method = 'reference', got {study.solver[twoscale_only[0]]!r}")
+        raise StudyError(
+            f"solver.{twoscale_only[0]} is an option of the two-scale solver, not of "
+            f"study.method = 'reference', got {study.solver[twoscale_only[0]]!r}"
+        )
     if study.n_cases > MAX_CASES:
-        raise StudyError(f"the study expands to {study.n_cases} cases, more than {MAX_CASES}; "
-                         "split it into several studies")
+        raise StudyError(
+            f"the study expands to {study.n_cases} cases, more than {MAX_CASES}; split it into several studies"
+        )
     return study
 
 
@@ -211,7 +221,7 @@ def _scenes(v: Any, base: Path) -> tuple:
 def _bodies(v: Any) -> tuple:
     out, seen = [], set()
     for k, t in enumerate(_tables("body", v)):
-        path = f"body {k + 1}"   # numbered from 1, as the [[body]] tables are read
+        path = f"body {k + 1}"  # numbered from 1, as the [[body]] tables are read
         kind = t.get("kind")
         if kind not in ("halfspace", "block"):
             raise StudyError(f"{field_path(path, 'kind')} must be one of ('halfspace', 'block'), got {kind!r}")
@@ -221,7 +231,11 @@ def _bodies(v: Any) -> tuple:
         if kind == "halfspace":
             influence = {"kind": "halfspace"}
             centre = check_pair(f"{field_path(path, 'centre')}", t.get("centre", (0.0, 0.0)), unit="mm")
-            window = check_pair(f"{field_path(path, 'window')}", t["window"], positive=True, unit="mm") if "window" in t else None
+            window = (
+                check_pair(f"{field_path(path, 'window')}", t["window"], positive=True, unit="mm")
+                if "window" in t
+                else None
+            )
         else:
             influence, window, centre = _block(path, t)
         out.append(Body(t["name"], influence, Footprint(window, centre)))
@@ -238,13 +252,17 @@ def _block(path: str, t: Mapping) -> tuple:
     if "window" in t:
         window = check_pair(f"{field_path(path, 'window')}", t["window"], positive=True, unit="mm")
         if window[0] > size[0] or window[1] > size[1]:
-            raise StudyError(f"{field_path(path, 'window')} {list(window)!r} is larger than the block's top face "
-                             f"{list(size[:2])!r} mm")
+            raise StudyError(
+                f"{field_path(path, 'window')} {list(window)!r} is larger than the block's top face "
+                f"{list(size[:2])!r} mm"
+            )
     else:
         window = (size[0] - 2 * BLOCK_EDGE, size[1] - 2 * BLOCK_EDGE)
         if min(window) <= 0:
-            raise StudyError(f"{field_path(path, 'size')} {list(size)!r}: the top face leaves no footprint inside "
-                             f"{BLOCK_EDGE} mm of its sides; give {field_path(path, 'window')}")
+            raise StudyError(
+                f"{field_path(path, 'size')} {list(size)!r}: the top face leaves no footprint inside "
+                f"{BLOCK_EDGE} mm of its sides; give {field_path(path, 'window')}"
+            )
     centre = check_pair(f"{field_path(path, 'centre')}", t.get("centre", face), unit="mm")
     return {"kind": "block", "size": size, "base": base, "origin": origin}, window, centre
 
@@ -256,8 +274,10 @@ def _loads(t: Mapping) -> tuple:
         raise StudyError(f"load.tilt must be true or false, got {tilt!r}")
     given = [k for k in ("total", "penetration") if k in t]
     if len(given) > 1:
-        raise StudyError(f"load needs at most one of load.total and load.penetration, got both: "
-                         f"total = {t['total']!r}, penetration = {t['penetration']!r}")
+        raise StudyError(
+            f"load needs at most one of load.total and load.penetration, got both: "
+            f"total = {t['total']!r}, penetration = {t['penetration']!r}"
+        )
     if not given:
         return None, tilt
     kind = given[0]
@@ -265,13 +285,13 @@ def _loads(t: Mapping) -> tuple:
     if not isinstance(values, list) or not values:
         raise StudyError(f"load.{kind} must be a non-empty list of numbers, got {values!r}")
     unit = "N" if kind == "total" else "mm"
-    out = tuple(check_number(f"load.{kind}[{i}]", v, positive=kind == "total", unit=unit)
-                for i, v in enumerate(values))
+    out = tuple(check_number(f"load.{kind}[{i}]", v, positive=kind == "total", unit=unit) for i, v in enumerate(values))
     if len(set(out)) != len(out):
         raise StudyError(f"load.{kind} has repeated values, got {values!r}")
     if kind == "penetration" and tilt:
-        raise StudyError("load.tilt = true needs load.total (the tilt is solved under a given load), "
-                         f"got penetration = {values!r}")
+        raise StudyError(
+            f"load.tilt = true needs load.total (the tilt is solved under a given load), got penetration = {values!r}"
+        )
     return tuple((kind, v) for v in out), tilt
 
 
@@ -333,9 +353,12 @@ def _sensor(t: Mapping) -> Sensor:
         v = t.get(k, getattr(d, k))
         if isinstance(v, bool) or not isinstance(v, int) or v < 1:
             raise StudyError(f"sensor.{k} must be an integer >= 1, got {v!r}")
-    return Sensor(t.get("nx", d.nx), t.get("ny", d.ny),
-                  check_number("sensor.cell", t.get("cell", d.cell), positive=True, unit="mm"),
-                  check_pair("sensor.centre", t.get("centre", d.centre), unit="mm"))
+    return Sensor(
+        t.get("nx", d.nx),
+        t.get("ny", d.ny),
+        check_number("sensor.cell", t.get("cell", d.cell), positive=True, unit="mm"),
+        check_pair("sensor.centre", t.get("centre", d.centre), unit="mm"),
+    )
 
 
 # ---------------------------------------------------------------- helpers

@@ -8,6 +8,7 @@ interrupted write leaves only a ``.<key>.tmp-*`` folder, removed by the next run
 (:meth:`CaseStore.clean`). A case is finished when its folder exists with status
 "converged" or "not-converged"; failed cases are solved again by a rerun.
 """
+
 from __future__ import annotations
 
 import contextlib
@@ -33,17 +34,34 @@ FINISHED = ("converged", "not-converged")
 
 def record_to_dict(record: CaseRecord, inputs: dict) -> dict:
     """The JSON content of ``case.json``."""
-    out = {"key": record.key, "label": record.label, "status": record.status, "reason": record.reason,
-           "seconds": _seconds(record.seconds), "cpu_seconds": _seconds(record.cpu_seconds), "version": __version__, "units": dict(UNITS), "inputs": inputs,
-           "tips": [int(k) for k in record.tips]}
+    out = {
+        "key": record.key,
+        "label": record.label,
+        "status": record.status,
+        "reason": record.reason,
+        "seconds": _seconds(record.seconds),
+        "cpu_seconds": _seconds(record.cpu_seconds),
+        "version": __version__,
+        "units": dict(UNITS),
+        "inputs": inputs,
+        "tips": [int(k) for k in record.tips],
+    }
     o = record.outcome
     if o is not None:
         out["result"] = {
-            "converged": o.converged, "message": o.message, "total_load": o.total_load,
-            "penetration": o.penetration, "tilt": None if o.tilt is None else list(o.tilt), "h": o.h,
-            "strategy": o.strategy, "iterations": o.iterations, "timings_s": o.timings_s,
-            "forces": o.forces.tolist(), "contact_areas": o.contact_areas.tolist(),
-            "max_pressures": o.max_pressures.tolist()}
+            "converged": o.converged,
+            "message": o.message,
+            "total_load": o.total_load,
+            "penetration": o.penetration,
+            "tilt": None if o.tilt is None else list(o.tilt),
+            "h": o.h,
+            "strategy": o.strategy,
+            "iterations": o.iterations,
+            "timings_s": o.timings_s,
+            "forces": o.forces.tolist(),
+            "contact_areas": o.contact_areas.tolist(),
+            "max_pressures": o.max_pressures.tolist(),
+        }
     return out
 
 
@@ -129,4 +147,3 @@ class CaseStore:
                         shutil.rmtree(p)
                         n += 1
         return n
-

@@ -14,6 +14,7 @@ installed, Parquet (:mod:`twoscale.io.tables`):
   of each body against the first body of the study, in percent; a tip outside a body's
   footprint carries no force there.
 """
+
 from __future__ import annotations
 
 import json
@@ -33,21 +34,72 @@ from .keys import scene_record
 from .spec import Study
 from .store import CaseStore
 
-CASE_COLUMNS = ("scene", "body", "load_kind", "load", "position", "shift_x_mm", "shift_y_mm", "distance_mm",
-                "status", "reason", "n_tips", "total_load_N", "approach_mm", "tilt_alpha_rad", "tilt_beta_rad",
-                "contact_area_mm2", "h_mm", "h_source", "strategy", "seconds", "key")
-TIP_COLUMNS = ("scene", "body", "load_kind", "load", "position", "shift_x_mm", "shift_y_mm", "distance_mm",
-               "asperity", "x_mm", "y_mm", "force_N", "contact_area_mm2", "max_pressure_MPa", "key")
-INDICATOR_COLUMNS = ("scene", "load_kind", "load", "position", "distance_mm", "reference", "body",
-                     "e_M_percent", "e_m_percent")
+CASE_COLUMNS = (
+    "scene",
+    "body",
+    "load_kind",
+    "load",
+    "position",
+    "shift_x_mm",
+    "shift_y_mm",
+    "distance_mm",
+    "status",
+    "reason",
+    "n_tips",
+    "total_load_N",
+    "approach_mm",
+    "tilt_alpha_rad",
+    "tilt_beta_rad",
+    "contact_area_mm2",
+    "h_mm",
+    "h_source",
+    "strategy",
+    "seconds",
+    "key",
+)
+TIP_COLUMNS = (
+    "scene",
+    "body",
+    "load_kind",
+    "load",
+    "position",
+    "shift_x_mm",
+    "shift_y_mm",
+    "distance_mm",
+    "asperity",
+    "x_mm",
+    "y_mm",
+    "force_N",
+    "contact_area_mm2",
+    "max_pressure_MPa",
+    "key",
+)
+INDICATOR_COLUMNS = (
+    "scene",
+    "load_kind",
+    "load",
+    "position",
+    "distance_mm",
+    "reference",
+    "body",
+    "e_M_percent",
+    "e_m_percent",
+)
 
 
 def _where(study: Study, case: Case) -> dict:
     sx, sy = case.shift
     x0, y0 = study.positions[0]
-    return {"scene": case.scene.name, "body": case.body.name, "load_kind": case.load[0],
-            "load": float(case.load[1]), "position": case.position, "shift_x_mm": sx, "shift_y_mm": sy,
-            "distance_mm": float(math.hypot(sx - x0, sy - y0))}
+    return {
+        "scene": case.scene.name,
+        "body": case.body.name,
+        "load_kind": case.load[0],
+        "load": float(case.load[1]),
+        "position": case.position,
+        "shift_x_mm": sx,
+        "shift_y_mm": sy,
+        "distance_mm": float(math.hypot(sx - x0, sy - y0)),
+    }
 
 
 def rows(study: Study, cases: list, keys: list, records: dict) -> tuple[list, list]:
@@ -58,21 +110,47 @@ def rows(study: Study, cases: list, keys: list, records: dict) -> tuple[list, li
         rec = records.get(key) or {"status": "missing", "reason": "not solved yet", "tips": []}
         res = rec.get("result")
         where = _where(study, case)
-        row = {**where, "status": rec["status"], "reason": rec.get("reason", ""), "n_tips": len(rec["tips"]),
-               "total_load_N": None, "approach_mm": None, "tilt_alpha_rad": None, "tilt_beta_rad": None,
-               "contact_area_mm2": None, "h_mm": None, "h_source": h_source(case, study), "strategy": None,
-               "seconds": rec.get("seconds"), "key": key}
+        row = {
+            **where,
+            "status": rec["status"],
+            "reason": rec.get("reason", ""),
+            "n_tips": len(rec["tips"]),
+            "total_load_N": None,
+            "approach_mm": None,
+            "tilt_alpha_rad": None,
+            "tilt_beta_rad": None,
+            "contact_area_mm2": None,
+            "h_mm": None,
+            "h_source": h_source(case, study),
+            "strategy": None,
+            "seconds": rec.get("seconds"),
+            "key": key,
+        }
         if res is not None:
             tilt = res["tilt"] or (None, None)
-            row.update(total_load_N=res["total_load"], approach_mm=res["penetration"], tilt_alpha_rad=tilt[0],
-                       tilt_beta_rad=tilt[1], contact_area_mm2=float(np.sum(res["contact_areas"])),
-                       h_mm=res["h"], strategy=res["strategy"])
+            row.update(
+                total_load_N=res["total_load"],
+                approach_mm=res["penetration"],
+                tilt_alpha_rad=tilt[0],
+                tilt_beta_rad=tilt[1],
+                contact_area_mm2=float(np.sum(res["contact_areas"])),
+                h_mm=res["h"],
+                strategy=res["strategy"],
+            )
             asps = case.scene.scene.asperities
             for j, k in enumerate(rec["tips"]):
-                tip_rows.append({**where, "asperity": k + 1, "x_mm": asps[k].x + case.shift[0],
-                                 "y_mm": asps[k].y + case.shift[1], "force_N": res["forces"][j],
-                                 "contact_area_mm2": res["contact_areas"][j],
-                                 "max_pressure_MPa": res["max_pressures"][j], "key": key})
+                tip_rows.append(
+                    {
+                        **where,
+                        "asperity": k + 1,
+                        "x_mm": asps[k].x + case.shift[0],
+                        "y_mm": asps[k].y + case.shift[1],
+                        "force_N": res["forces"][j],
+                        "contact_area_mm2": res["contact_areas"][j],
+                        "max_pressure_MPa": res["max_pressures"][j],
+                        "key": key,
+                    }
+                )
         case_rows.append(row)
     return case_rows, tip_rows
 
@@ -94,11 +172,19 @@ def indicator_rows(study: Study, cases: list, keys: list, records: dict, store: 
         P_ref = _scene_forces(ref, n)
         for case, key, rec in members[1:]:
             p = store.sensor_map(key)
-            out.append({"scene": scene, "load_kind": load[0], "load": float(load[1]), "position": position,
-                        "distance_mm": _where(study, case)["distance_mm"], "reference": ref_case.body.name,
-                        "body": case.body.name,
-                        "e_M_percent": e_M(_scene_forces(rec, n), P_ref) if np.any(P_ref) else None,
-                        "e_m_percent": e_m_or_none(p, ref_map)})
+            out.append(
+                {
+                    "scene": scene,
+                    "load_kind": load[0],
+                    "load": float(load[1]),
+                    "position": position,
+                    "distance_mm": _where(study, case)["distance_mm"],
+                    "reference": ref_case.body.name,
+                    "body": case.body.name,
+                    "e_M_percent": e_M(_scene_forces(rec, n), P_ref) if np.any(P_ref) else None,
+                    "e_m_percent": e_m_or_none(p, ref_map),
+                }
+            )
     return out
 
 
@@ -111,36 +197,73 @@ def _scene_forces(rec: dict, n: int) -> np.ndarray:
 
 def study_record(study: Study) -> dict:
     """The study as JSON-ready data (recorded in summary.json)."""
-    return {"name": study.name, "source": study.source, "method": study.method,
-            "scenes": [{"name": s.name, "file": s.path, "digest": s.digest, "scene": scene_record(s.scene)}
-                       for s in study.scenes],
-            "bodies": [{"name": b.name, "influence": {k: (list(v) if isinstance(v, tuple) else v)
-                                                      for k, v in b.influence.items()},
-                        "footprint": {"window": None if b.footprint.size is None else list(b.footprint.size),
-                                      "centre": list(b.footprint.centre)}} for b in study.bodies],
-            "loads": None if study.loads is None else [{k: v} for k, v in study.loads],
-            "tilt": study.tilt, "positions": [list(p) for p in study.positions], "track": study.track,
-            "solver": dict(study.solver),
-            "sensor": {"nx": study.sensor.nx, "ny": study.sensor.ny, "cell": study.sensor.cell,
-                       "centre": list(study.sensor.centre)}}
+    return {
+        "name": study.name,
+        "source": study.source,
+        "method": study.method,
+        "scenes": [
+            {"name": s.name, "file": s.path, "digest": s.digest, "scene": scene_record(s.scene)} for s in study.scenes
+        ],
+        "bodies": [
+            {
+                "name": b.name,
+                "influence": {k: (list(v) if isinstance(v, tuple) else v) for k, v in b.influence.items()},
+                "footprint": {
+                    "window": None if b.footprint.size is None else list(b.footprint.size),
+                    "centre": list(b.footprint.centre),
+                },
+            }
+            for b in study.bodies
+        ],
+        "loads": None if study.loads is None else [{k: v} for k, v in study.loads],
+        "tilt": study.tilt,
+        "positions": [list(p) for p in study.positions],
+        "track": study.track,
+        "solver": dict(study.solver),
+        "sensor": {
+            "nx": study.sensor.nx,
+            "ny": study.sensor.ny,
+            "cell": study.sensor.cell,
+            "centre": list(study.sensor.centre),
+        },
+    }
 
 
 def summary(study: Study, case_rows: list, indicators: list, run: dict) -> dict:
     """summary.json: counts by status, failures and non-converged cases with their reasons,
     the run, the indicators, the study, the program version and the units."""
     counts = {s: sum(r["status"] == s for r in case_rows) for s in ("converged", "not-converged", "failed", "missing")}
+
     def listed(status):
-        return [{"case": f"{r['scene']} {r['body']} {r['load_kind']}={r['load']:g} p{r['position']}",
-                 "key": r["key"], "reason": r["reason"]} for r in case_rows if r["status"] == status]
-    return {"version": __version__, "units": dict(UNITS), "cases": len(case_rows), "counts": counts,
-            "failed": listed("failed"), "not_converged": listed("not-converged"), "run": run,
-            "indicators_percent": indicators, "study": study_record(study)}
+        return [
+            {
+                "case": f"{r['scene']} {r['body']} {r['load_kind']}={r['load']:g} p{r['position']}",
+                "key": r["key"],
+                "reason": r["reason"],
+            }
+            for r in case_rows
+            if r["status"] == status
+        ]
+
+    return {
+        "version": __version__,
+        "units": dict(UNITS),
+        "cases": len(case_rows),
+        "counts": counts,
+        "failed": listed("failed"),
+        "not_converged": listed("not-converged"),
+        "run": run,
+        "indicators_percent": indicators,
+        "study": study_record(study),
+    }
 
 
 #: One line per table: what it holds (its metadata JSON's title).
-TITLES = {"cases": "one row per case of the study: status, total load, approach, tilt, contact area, cell size",
-          "asperities": "one row per case and tip under the footprint: position, force, contact area, peak pressure",
-          "indicators": "e_M (tip forces) and e_m (sensor cells) of each body against the study's first body, percent"}
+TITLES = {
+    "cases": "one row per case of the study: status, total load, approach, tilt, contact area, cell size",
+    "asperities": "one row per case and tip under the footprint: position, force, contact area, peak pressure",
+    "indicators": "e_M (tip forces) and e_m (sensor cells) of each body against the study's first body, percent",
+}
 
 
 def write_table(out: Path, name: str, table: list, columns: tuple, study: Study | None = None) -> list:

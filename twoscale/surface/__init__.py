@@ -24,6 +24,7 @@ To solve a map given in Python, build the surface and pass it (not its asperitie
     result = twoscale.solve(surface, material=twoscale.Material(10.0, 0.5), total_load=500.0)
     result.details.surface    # missing samples, units, contacts at the map's edge
 """
+
 from .heightmap import HeightMap, SurfaceError
 from .indenter import MapAsperity, map_asperities
 from .lawcache import LawCache
@@ -33,6 +34,21 @@ from .reading import RawMap, read_heightmap
 from .conditioning import condition
 from .segmentation import Segmentation, segment
 
-__all__ = ["HeightMap", "SurfaceError", "MapAsperity", "map_asperities", "LawCache", "LawTable",
-           "sphere_law_error", "MeasuredSurface", "SurfaceOptions", "build_surface",
-           "load_surface", "RawMap", "read_heightmap", "condition", "Segmentation", "segment"]
+__all__ = [
+    "HeightMap",
+    "SurfaceError",
+    "MapAsperity",
+    "map_asperities",
+    "LawCache",
+    "LawTable",
+    "sphere_law_error",
+    "MeasuredSurface",
+    "SurfaceOptions",
+    "build_surface",
+    "load_surface",
+    "RawMap",
+    "read_heightmap",
+    "condition",
+    "Segmentation",
+    "segment",
+]

@@ -6,6 +6,7 @@ origin with a sample exactly at (0, 0): cell centres are on the lattice ``h Z^2`
 one the two-scale solver and the reference grid share, so the height map is used as it
 is when the cell size equals the spacing.
 """
+
 from __future__ import annotations
 
 import math
@@ -102,7 +103,7 @@ def condition(raw: RawMap, *, h: float | None = None, h_name: str = "h", **condi
         z, missing = _crop(src, z, missing, step, crop)
     if units_from == "default":
         _check_relief(src, z, step)
-    _check_size(src, z.shape, step, h, h_name)   # before anything of the resampled size exists
+    _check_size(src, z.shape, step, h, h_name)  # before anything of the resampled size exists
     z = z * factor
     if detrend:
         z = z - _plane(z, missing, step)
@@ -117,9 +118,17 @@ def condition(raw: RawMap, *, h: float | None = None, h_name: str = "h", **condi
     if fill == "mask":
         z = np.where(missing, np.nan, z)
     ny, nx = z.shape
-    return HeightMap(z, step, x0=-(nx // 2) * step, y0=-(ny // 2) * step, source=src,
-                     filled=int(missing.sum()), units=unit, units_from=units_from,
-                     measured_spacing=measured)
+    return HeightMap(
+        z,
+        step,
+        x0=-(nx // 2) * step,
+        y0=-(ny // 2) * step,
+        source=src,
+        filled=int(missing.sum()),
+        units=unit,
+        units_from=units_from,
+        measured_spacing=measured,
+    )
 
 
 def _check_relief(src: str, z: np.ndarray, step: float) -> None:
@@ -131,8 +140,9 @@ def _check_relief(src: str, z: np.ndarray, step: float) -> None:
         raise SurfaceError(
             f"{src}: surface.units is not given and the heights, taken as mm, run from {lo:.4g} to {hi:.4g} "
             f"({hi - lo:.4g} mm of relief on a map {side:.4g} mm wide): they look like another unit; "
-            f"give surface.units (\"um\" if they are micrometres, \"mm\" if they really are mm; in Python "
-            f"SurfaceOptions(units=...) or RawMap(units=...))")
+            f'give surface.units ("um" if they are micrometres, "mm" if they really are mm; in Python '
+            f"SurfaceOptions(units=...) or RawMap(units=...))"
+        )
 
 
 def _resampled_shape(src: str, shape: tuple, step: float, h: float) -> tuple[int, int]:
@@ -151,28 +161,34 @@ def _check_size(src: str, shape: tuple, step: float, h: float | None, h_name: st
     resampled = h is not None and not math.isclose(h, step, rel_tol=1e-9)
     my, mx = _resampled_shape(src, shape, step, h) if resampled else shape
     if mx < MIN_SIDE or my < MIN_SIDE:
-        raise SurfaceError(f"{src}: resampling to {h_name} = {h!r} mm leaves {my} x {mx} samples "
-                           f"(at least {MIN_SIDE} x {MIN_SIDE})")
+        raise SurfaceError(
+            f"{src}: resampling to {h_name} = {h!r} mm leaves {my} x {mx} samples (at least {MIN_SIDE} x {MIN_SIDE})"
+        )
     n = float(mx) * float(my)
     need, limit = BYTES_PER_SAMPLE * n, default_limit()
     if n <= MAX_SAMPLES and need <= limit:
         return
     width, height = (shape[1] - 1) * step, (shape[0] - 1) * step
     origin = f"{h_name} = {h:g} mm" if resampled else f"the map's own spacing ({step:g} mm; no {h_name} given)"
-    over = (f"more than {MAX_SAMPLES:,}" if n > MAX_SAMPLES
-            else f"about {need / 1e9:.3g} GB, over 80 % of the memory available now ({limit / 1e9:.3g} GB)")
-    raise SurfaceError(f"{src}: {origin} gives {my:,} x {mx:,} = {n:.3g} samples on {width:.4g} x {height:.4g} mm, "
-                       f"{over}: crop the map or give {h_name} >= {_fitting_h(shape, step, limit):g} mm")
+    over = (
+        f"more than {MAX_SAMPLES:,}"
+        if n > MAX_SAMPLES
+        else f"about {need / 1e9:.3g} GB, over 80 % of the memory available now ({limit / 1e9:.3g} GB)"
+    )
+    raise SurfaceError(
+        f"{src}: {origin} gives {my:,} x {mx:,} = {n:.3g} samples on {width:.4g} x {height:.4g} mm, "
+        f"{over}: crop the map or give {h_name} >= {_fitting_h(shape, step, limit):g} mm"
+    )
 
 
 def _fitting_h(shape: tuple, step: float, limit: float) -> float:
     """The smallest two-digit cell size (mm) at which the map fits both bounds."""
     cap = min(float(MAX_SAMPLES), limit / BYTES_PER_SAMPLE)
-    if not cap >= MIN_SIDE ** 2:
+    if not cap >= MIN_SIDE**2:
         return math.inf
     area = (shape[1] - 1) * (shape[0] - 1) * step * step
-    h = _round_up(max(math.sqrt(area / cap), step * 1e-6))   # samples go as area / h^2
-    while math.prod(_resampled_shape("", shape, step, h)) > cap:   # the +1 sample per side
+    h = _round_up(max(math.sqrt(area / cap), step * 1e-6))  # samples go as area / h^2
+    while math.prod(_resampled_shape("", shape, step, h)) > cap:  # the +1 sample per side
         h = _round_up(h * 1.01)
     return h
 
@@ -180,7 +196,7 @@ def _fitting_h(shape: tuple, step: float, limit: float) -> float:
 def _round_up(x: float) -> float:
     """``x`` rounded up to two significant digits."""
     e = math.floor(math.log10(x)) - 1
-    return float(f"{math.ceil(x / 10.0 ** e - 1e-9) * 10.0 ** e:.3g}")
+    return float(f"{math.ceil(x / 10.0**e - 1e-9) * 10.0**e:.3g}")
 
 
 def _units(src: str, declared: str | None, given: str | None) -> tuple[float, str, str]:
@@ -218,15 +234,25 @@ def _crop(src, z, missing, step, crop):
     except (TypeError, ValueError):
         raise SurfaceError(f"{src}: crop must be [xmin, xmax, ymin, ymax] (mm), got {crop!r}") from None
     width, height = (z.shape[1] - 1) * step, (z.shape[0] - 1) * step
-    if x0 < -1e-9 * step or y0 < -1e-9 * step or x1 > width * (1 + 1e-9) or y1 > height * (1 + 1e-9) \
-            or x1 <= x0 or y1 <= y0:
-        raise SurfaceError(f"{src}: crop {list(crop)!r} mm must lie within the map, x in [0, {width:g}], "
-                           f"y in [0, {height:g}] mm from the first sample, with xmin < xmax and ymin < ymax")
+    if (
+        x0 < -1e-9 * step
+        or y0 < -1e-9 * step
+        or x1 > width * (1 + 1e-9)
+        or y1 > height * (1 + 1e-9)
+        or x1 <= x0
+        or y1 <= y0
+    ):
+        raise SurfaceError(
+            f"{src}: crop {list(crop)!r} mm must lie within the map, x in [0, {width:g}], "
+            f"y in [0, {height:g}] mm from the first sample, with xmin < xmax and ymin < ymax"
+        )
     i0, i1 = max(0, math.ceil(x0 / step - 1e-9)), min(z.shape[1], math.floor(x1 / step + 1e-9) + 1)
     j0, j1 = max(0, math.ceil(y0 / step - 1e-9)), min(z.shape[0], math.floor(y1 / step + 1e-9) + 1)
     if i1 - i0 < MIN_SIDE or j1 - j0 < MIN_SIDE:
-        raise SurfaceError(f"{src}: crop {list(crop)!r} mm leaves {max(j1 - j0, 0)} x {max(i1 - i0, 0)} samples "
-                           f"(at least {MIN_SIDE} x {MIN_SIDE})")
+        raise SurfaceError(
+            f"{src}: crop {list(crop)!r} mm leaves {max(j1 - j0, 0)} x {max(i1 - i0, 0)} samples "
+            f"(at least {MIN_SIDE} x {MIN_SIDE})"
+        )
     z, missing = z[j0:j1, i0:i1], missing[j0:j1, i0:i1]
     if missing.all():
         raise SurfaceError(f"{src}: every height in crop {list(crop)!r} is missing")

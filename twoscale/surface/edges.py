@@ -6,6 +6,7 @@ road showed 20.8 MPa on such a stone against 5-7 MPa on whole ones). The solver 
 know what lies beyond the scan; it says which asperities are concerned, in a warning and
 in the result's :class:`~twoscale.details.SurfaceDetails` (:func:`surface_details`).
 """
+
 from __future__ import annotations
 
 import warnings
@@ -37,10 +38,17 @@ def surface_details(surface, result) -> SurfaceDetails:
     :class:`~twoscale.surface.MeasuredSurface`) and the asperities of ``result`` whose
     contact reaches its edge."""
     hm = surface.hmap
-    return SurfaceDetails(source=hm.source, samples=hm.shape, spacing=hm.h,
-                          measured_spacing=hm.measured_spacing, units=hm.units,
-                          units_from=hm.units_from, missing=hm.filled, fill=surface.options.fill,
-                          edge_contacts=tuple(edge_contacts(result, hm.grid)))
+    return SurfaceDetails(
+        source=hm.source,
+        samples=hm.shape,
+        spacing=hm.h,
+        measured_spacing=hm.measured_spacing,
+        units=hm.units,
+        units_from=hm.units_from,
+        missing=hm.filled,
+        fill=surface.options.fill,
+        edge_contacts=tuple(edge_contacts(result, hm.grid)),
+    )
 
 
 def warn_edge_contacts(ks, *, show: int = 5) -> None:
@@ -49,7 +57,11 @@ def warn_edge_contacts(ks, *, show: int = 5) -> None:
     punch corner's; nothing when ``ks`` is empty."""
     if ks:
         names = ", ".join(str(k + 1) for k in ks[:show]) + (f" and {len(ks) - show} more" if len(ks) > show else "")
-        warnings.warn(SurfaceWarning(
-            f"the contact of asperit{'y' if len(ks) == 1 else 'ies'} {names} reaches the edge of the height "
-            f"map, where the scan ends in a wall: the pressure there is a punch corner's; crop the "
-            f"map inward or scan a wider area if those stones matter"), stacklevel=3)
+        warnings.warn(
+            SurfaceWarning(
+                f"the contact of asperit{'y' if len(ks) == 1 else 'ies'} {names} reaches the edge of the height "
+                f"map, where the scan ends in a wall: the pressure there is a punch corner's; crop the "
+                f"map inward or scan a wider area if those stones matter"
+            ),
+            stacklevel=3,
+        )

@@ -1,6 +1,7 @@
 """The segmentation drawn over the height map (PNG): heights in grey, basin boundaries
 in orange, summits as red dots, numbered as in the CSV (plotting module: matplotlib is
 imported here only)."""
+
 from __future__ import annotations
 
 from pathlib import Path
@@ -42,12 +43,14 @@ def plot_segmentation(surface, *, ax=None, title: str | None = None, dpi: int = 
     xy = np.array([[a.x, a.y] for a in surface.asperities], dtype=float).reshape(-1, 2)
     z = np.array([a.z for a in surface.asperities], dtype=float)
     ax.plot(xy[:, 0], xy[:, 1], "o", color="tab:red", markersize=2.5)
-    number_tips(ax, xy, labelled(-z))   # z is the recess below the highest summit: smallest first
+    number_tips(ax, xy, labelled(-z))  # z is the recess below the highest summit: smallest first
     ax.set_xlabel(X_MM)
     ax.set_ylabel(Y_MM)
     if title is None:
-        title = (f"{Path(hm.source).name}: {len(seg)} asperities (min distance {seg.min_distance:g} mm, "
-                 f"prominence {seg.min_prominence:g} mm)")
+        title = (
+            f"{Path(hm.source).name}: {len(seg)} asperities (min distance {seg.min_distance:g} mm, "
+            f"prominence {seg.min_prominence:g} mm)"
+        )
     ax.set_title(title, fontsize=8)
     return fig
 

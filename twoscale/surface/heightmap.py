@@ -6,6 +6,7 @@ convention of :class:`twoscale.grid.Grid`). Heights are in mm and *larger is clo
 the body* (the summits touch first); missing samples are NaN until conditioning fills
 them.
 """
+
 from __future__ import annotations
 
 import hashlib

@@ -14,6 +14,7 @@ on the true heights unchanged.
 Heights are looked up at the nearest sample: on a grid whose cell centres are the map's
 samples (the scene's lattice, :mod:`.conditioning`) that is exact.
 """
+
 from __future__ import annotations
 
 import functools
@@ -142,6 +143,9 @@ def map_asperities(hmap: HeightMap, seg: Segmentation, *, cap_depth: float = CAP
         ok = np.isfinite(fall)
         order = np.argsort(fall[ok], kind="stable")
         falls, radii = fall[ok][order], np.maximum.accumulate(r[ok][order])
-        out.append(MapAsperity(x, y, zk, float(fit.R[k]), basins=basins, label=k,
-                               extent=float(r.max()), falls=falls, radii=radii))
+        out.append(
+            MapAsperity(
+                x, y, zk, float(fit.R[k]), basins=basins, label=k, extent=float(r.max()), falls=falls, radii=radii
+            )
+        )
     return tuple(out), fit

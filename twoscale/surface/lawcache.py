@@ -7,6 +7,7 @@ asperity's table is kept in a directory as one small ``.npz`` file, named by its
 (the command line makes one per run; the library makes none by itself), with a bound on
 the directory's size kept by a running total: the oldest tables go first.
 """
+
 from __future__ import annotations
 
 import hashlib
@@ -60,7 +61,7 @@ class LawCache:
         self.directory = Path(directory) if directory is not None else default_law_cache_dir()
         self.max_bytes = float(max_bytes)
         self.hits = self.misses = 0
-        self._files = None   # name -> size, read on first use
+        self._files = None  # name -> size, read on first use
         self.nbytes = 0
         self._folder = EntryFolder(NAME, self.directory)
 
@@ -71,7 +72,7 @@ class LawCache:
                 for p in self.directory.glob("*.npz"):
                     try:
                         st = p.stat()
-                    except OSError:   # removed meanwhile by another run
+                    except OSError:  # removed meanwhile by another run
                         continue
                     files.append((st.st_mtime, p.name, st.st_size))
             self._files = {name: size for _, name, size in sorted(files)}
@@ -92,11 +93,12 @@ class LawCache:
                 try:
                     if str(data["key"]) != key:
                         raise ValueError(f"it holds the key {str(data['key'])[:16]}...")
-                    table = LawTable(data["delta"], data["P"], float(data["E_star"]), float(data["h"]),
-                                     bool(data["converged"]))
-                except (KeyError, ValueError, TypeError) as exc:   # whole, but not this key's law
+                    table = LawTable(
+                        data["delta"], data["P"], float(data["E_star"]), float(data["h"]), bool(data["converged"])
+                    )
+                except (KeyError, ValueError, TypeError) as exc:  # whole, but not this key's law
                     self._folder.reject(name, f"not this law table: {exc}")
-            if table is None:   # gone, or dropped as damaged
+            if table is None:  # gone, or dropped as damaged
                 self.nbytes -= files.pop(name)
         if table is None:
             self.misses += 1
@@ -107,13 +109,22 @@ class LawCache:
     def put(self, key: str, table: LawTable) -> None:
         files = self._index()
         name = f"{key}.npz"
-        size = self._folder.save(name, {"key": np.array(key), "delta": table.delta, "P": table.P,
-                                        "E_star": table.E_star, "h": table.h, "converged": table.converged})
-        if size is None:   # the folder cannot be written: the law stays in memory only
+        size = self._folder.save(
+            name,
+            {
+                "key": np.array(key),
+                "delta": table.delta,
+                "P": table.P,
+                "E_star": table.E_star,
+                "h": table.h,
+                "converged": table.converged,
+            },
+        )
+        if size is None:  # the folder cannot be written: the law stays in memory only
             return
         self.nbytes += size - files.pop(name, 0)
         files[name] = size
-        for old in list(files):   # oldest first
+        for old in list(files):  # oldest first
             if self.nbytes <= self.max_bytes or old == name:
                 break
             (self.directory / old).unlink(missing_ok=True)

@@ -14,6 +14,7 @@ the block's smooth self-compliance at the tip (:class:`twoscale.laws.CompliantLa
 it does for spheres. The laws depend on the surface, ``E*`` and the cell size ``h``;
 :class:`twoscale.surface.lawcache.LawCache` keeps them on disk under that key.
 """
+
 from __future__ import annotations
 
 import math
@@ -70,8 +71,9 @@ class LawTable:
         return np.log(P[:, 1] / P[:, 0]) / np.log(d[:, 1] / d[:, 0])
 
 
-def tabulate_law(asperity, provider, *, h: float, delta_max: float, levels: int = LEVELS,
-                 tol: float = SOLVE_TOL) -> LawTable:
+def tabulate_law(
+    asperity, provider, *, h: float, delta_max: float, levels: int = LEVELS, tol: float = SOLVE_TOL
+) -> LawTable:
     """The law of one map asperity from single-asperity solves on the half-space
     ``provider`` (see the module docstring): a one-row :class:`LawTable`.
 
@@ -112,8 +114,13 @@ def _law_grid(a, d: float, h: float) -> Grid:
 
 def stack_tables(rows) -> LawTable:
     """One :class:`LawTable` of the rows of several (same ``E*`` and ``h``)."""
-    return LawTable(np.concatenate([r.delta for r in rows]), np.concatenate([r.P for r in rows]),
-                    rows[0].E_star, rows[0].h, all(r.converged for r in rows))
+    return LawTable(
+        np.concatenate([r.delta for r in rows]),
+        np.concatenate([r.P for r in rows]),
+        rows[0].E_star,
+        rows[0].h,
+        all(r.converged for r in rows),
+    )
 
 
 def _single_asperity(provider, a, depths: np.ndarray, h: float, tol: float):
@@ -136,8 +143,10 @@ def _check_increasing(delta: np.ndarray, P: np.ndarray) -> None:
     bad = np.flatnonzero(np.any(np.diff(P, axis=1) <= 0, axis=1))
     if bad.size:
         k = int(bad[0])
-        raise ValueError(f"asperity {k}: its single-asperity forces {P[k].tolist()!r} N are not increasing "
-                         f"at penetrations {delta[k].tolist()!r} mm")
+        raise ValueError(
+            f"asperity {k}: its single-asperity forces {P[k].tolist()!r} N are not increasing "
+            f"at penetrations {delta[k].tolist()!r} mm"
+        )
 
 
 @dataclass(frozen=True)

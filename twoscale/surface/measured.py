@@ -8,6 +8,7 @@ when given, a :class:`~twoscale.surface.lawcache.LawCache` on disk. They do not 
 the load: each asperity is tabulated down to ``law_depth`` below its summit and the
 power-law continuation of :class:`~twoscale.laws.TabulatedLaw` goes beyond.
 """
+
 from __future__ import annotations
 
 import dataclasses
@@ -84,14 +85,18 @@ class LawBook:
     def __init__(self, digest: str, h: float, options: SurfaceOptions, cache: LawCache | None = None):
         self.digest, self.h, self.options, self.cache = digest, float(h), options, cache
         self.asperities: tuple = ()
-        self._rows: dict = {}    # (E*, label) -> one-row LawTable
-        self._providers: dict = {}   # E* -> HalfSpace
+        self._rows: dict = {}  # (E*, label) -> one-row LawTable
+        self._providers: dict = {}  # E* -> HalfSpace
         self.tabulated = 0
 
     def _key(self, E_star: float, label: int) -> str:
         opts = self.options
-        return law_key(self.digest, E_star=E_star, h=self.h, delta_max=opts.law_depth, levels=opts.law_levels,
-                       tol=SOLVE_TOL) + f"-{label}"
+        return (
+            law_key(
+                self.digest, E_star=E_star, h=self.h, delta_max=opts.law_depth, levels=opts.law_levels, tol=SOLVE_TOL
+            )
+            + f"-{label}"
+        )
 
     def _provider(self, material) -> HalfSpace:
         """The half-space of the single-asperity solves, one per ``E*`` (its kernel tables
@@ -106,8 +111,13 @@ class LawBook:
         E_star = float(material.E_star)
         table = self._held(E_star, label)
         if table is None:
-            table = tabulate_law(self.asperities[label], self._provider(material), h=self.h,
-                                 delta_max=self.options.law_depth, levels=self.options.law_levels)
+            table = tabulate_law(
+                self.asperities[label],
+                self._provider(material),
+                h=self.h,
+                delta_max=self.options.law_depth,
+                levels=self.options.law_levels,
+            )
             self.tabulated += 1
             if self.cache is not None:
                 self.cache.put(self._key(E_star, label), table)
@@ -167,7 +177,7 @@ class LazyLaw(AsperityLaw):
         self._tabulated: TabulatedLaw | None = None
 
     def _law(self) -> TabulatedLaw:
-        if self._tabulated is None:   # built once: its interpolant costs more than an evaluation
+        if self._tabulated is None:  # built once: its interpolant costs more than an evaluation
             self._tabulated = self.book.row(self.label, self.material).law(0)
         return self._tabulated
 
@@ -235,8 +245,14 @@ class MeasuredSurface:
         return sphere_law_error(self.book.table(material), self.asperities)
 
 
-def build_surface(raw: RawMap, options: SurfaceOptions | None = None, *, h: float | None = None,
-                  cache: LawCache | None = None, h_name: str = "h") -> MeasuredSurface:
+def build_surface(
+    raw: RawMap,
+    options: SurfaceOptions | None = None,
+    *,
+    h: float | None = None,
+    cache: LawCache | None = None,
+    h_name: str = "h",
+) -> MeasuredSurface:
     """Condition, segment and make the asperities of a raw map (resampled to ``h`` mm
     when given): what a scene file's ``[surface]`` table builds.
 
@@ -262,9 +278,17 @@ def build_surface(raw: RawMap, options: SurfaceOptions | None = None, *, h: floa
         Where ``h`` came from, as a size refusal names it.
     """
     options = options or SurfaceOptions()
-    hmap: HeightMap = condition(raw, spacing=options.spacing, units=options.units, fill=options.fill,
-                                detrend=options.detrend, crop=options.crop, h=h, invert=options.invert,
-                                h_name=h_name)
+    hmap: HeightMap = condition(
+        raw,
+        spacing=options.spacing,
+        units=options.units,
+        fill=options.fill,
+        detrend=options.detrend,
+        crop=options.crop,
+        h=h,
+        invert=options.invert,
+        h_name=h_name,
+    )
     seg: Segmentation = segment(hmap, min_distance=options.min_distance, prominence=options.prominence)
     # the laws' key: the map and every option but which law the macro step uses
     digest = hashlib.sha256((hmap.digest() + repr(dataclasses.replace(options, law="tabulated"))).encode())
@@ -275,8 +299,14 @@ def build_surface(raw: RawMap, options: SurfaceOptions | None = None, *, h: floa
     return MeasuredSurface(raw, options, hmap, seg, asperities, fit, book)
 
 
-def load_surface(path: str | os.PathLike, options: SurfaceOptions | None = None, *, h: float | None = None,
-                 cache: LawCache | None = None, h_name: str = "h") -> MeasuredSurface:
+def load_surface(
+    path: str | os.PathLike,
+    options: SurfaceOptions | None = None,
+    *,
+    h: float | None = None,
+    cache: LawCache | None = None,
+    h_name: str = "h",
+) -> MeasuredSurface:
     """Read ``path`` (:func:`twoscale.surface.reading.read_heightmap`) and build the surface
     (:func:`build_surface`)."""
     return build_surface(read_heightmap(path), options, h=h, cache=cache, h_name=h_name)

@@ -11,6 +11,7 @@ Wyko OPD, Sensofar PLU, Zygo DATX, Keyence VK, Gwyddion GWY, ...), the optional 
 A plain array's rows are y and its columns x. Heights are returned in the file's units
 (converted by :mod:`.conditioning`); the point list's x and y share the heights' units.
 """
+
 from __future__ import annotations
 
 import os
@@ -65,7 +66,9 @@ class RawMap:
     def __post_init__(self) -> None:
         object.__setattr__(self, "heights", _checked_heights(self.source, self.heights))
         sp = self.spacing
-        if sp is not None and not (isinstance(sp, (int, float, np.integer, np.floating)) and np.isfinite(sp) and sp > 0):
+        if sp is not None and not (
+            isinstance(sp, (int, float, np.integer, np.floating)) and np.isfinite(sp) and sp > 0
+        ):
             raise SurfaceError(f"{self.source}: the file's spacing must be a number > 0, got {sp!r}")
 
 
@@ -112,8 +115,9 @@ def _checked_heights(source: str, heights) -> np.ndarray:
         raise SurfaceError(f"{source}: heights must be a 2-D numeric grid, got shape {z.shape} of {z.dtype}")
     z = np.array(z, dtype=float)
     if min(z.shape) < MIN_SIDE:
-        raise SurfaceError(f"{source}: height map too small ({z.shape[0]} x {z.shape[1]} samples; "
-                           f"at least {MIN_SIDE} x {MIN_SIDE})")
+        raise SurfaceError(
+            f"{source}: height map too small ({z.shape[0]} x {z.shape[1]} samples; at least {MIN_SIDE} x {MIN_SIDE})"
+        )
     if not np.isfinite(z).any():
         kind = "NaN" if np.all(np.isnan(z)) else "NaN or infinite"
         raise SurfaceError(f"{source}: every height is missing (all {kind})")
@@ -132,7 +136,7 @@ def _read_npz(name: str) -> RawMap:
             raise SurfaceError(f"{name}: no array 'heights' among {keys}")
         try:
             spacing = float(data["spacing"]) if "spacing" in keys else None
-        except (TypeError, ValueError):   # not one number (an array, a string)
+        except (TypeError, ValueError):  # not one number (an array, a string)
             raise SurfaceError(f"{name}: 'spacing' must be one number, got {data['spacing']!r}") from None
         units = str(data["units"]) if "units" in keys else None
     return RawMap(z, spacing, units, None, name)
@@ -153,8 +157,10 @@ def _read_text_grid(name: str) -> np.ndarray:
     if len(widths) > 1:
         first = len(rows[0].split(delimiter))
         k = next(i for i, ln in enumerate(rows) if len(ln.split(delimiter)) != first)
-        raise SurfaceError(f"{name}: a text grid needs the same number of values on every row; data row {k + 1} "
-                           f"has {len(rows[k].split(delimiter))}, the first has {first}")
+        raise SurfaceError(
+            f"{name}: a text grid needs the same number of values on every row; data row {k + 1} "
+            f"has {len(rows[k].split(delimiter))}, the first has {first}"
+        )
     return np.loadtxt(rows, delimiter=delimiter, ndmin=2)
 
 
@@ -188,10 +194,12 @@ def _read_instrument(name: str) -> RawMap:
         from SurfaceTopography import read_topography
         from SurfaceTopography.Exceptions import CannotDetectFileFormat
     except ImportError:
-        raise SurfaceError(f"{name}: not a plain format (.npy, .npz, text grid, .xyz); instrument formats "
-                           f"need the optional extra: pip install \"twoscale[surfaces]\"") from None
+        raise SurfaceError(
+            f"{name}: not a plain format (.npy, .npz, text grid, .xyz); instrument formats "
+            f'need the optional extra: pip install "twoscale[surfaces]"'
+        ) from None
     try:
-        with warnings.catch_warnings():   # its netCDF reader warns about its own memory map
+        with warnings.catch_warnings():  # its netCDF reader warns about its own memory map
             warnings.simplefilter("ignore", RuntimeWarning)
             topo = read_topography(name)
             z = topo.heights()

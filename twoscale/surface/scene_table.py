@@ -25,6 +25,7 @@ Keys (units mm; every one but ``file`` optional):
 A plain array's rows are y and its columns x; the map is centred on the scene's origin
 (with a sample on it) and ``[grid] h``, when given, resamples it.
 """
+
 from __future__ import annotations
 
 import dataclasses
@@ -36,15 +37,28 @@ from ..scene import SceneError, check_number
 from .lawcache import LawCache
 from .measured import MeasuredSurface, SurfaceOptions, load_surface
 
-SURFACE_KEYS = ("file", "spacing", "units", "invert", "fill", "detrend", "crop", "min_distance", "prominence",
-                "cap_depth", "law", "law_depth", "law_levels", "law_cache")
+SURFACE_KEYS = (
+    "file",
+    "spacing",
+    "units",
+    "invert",
+    "fill",
+    "detrend",
+    "crop",
+    "min_distance",
+    "prominence",
+    "cap_depth",
+    "law",
+    "law_depth",
+    "law_levels",
+    "law_cache",
+)
 _NUMBERS = ("spacing", "min_distance", "prominence", "cap_depth", "law_depth")
 _FLAGS = ("invert", "detrend")
 _WORDS = ("units", "fill", "law")
 
 
-def surface_from_table(table: Mapping[str, Any], *, base_dir: str | None = None,
-                       h: Any = None) -> MeasuredSurface:
+def surface_from_table(table: Mapping[str, Any], *, base_dir: str | None = None, h: Any = None) -> MeasuredSurface:
     """Read and build the surface a ``[surface]`` table describes.
 
     Raises
@@ -78,7 +92,7 @@ def surface_from_table(table: Mapping[str, Any], *, base_dir: str | None = None,
     cache = _cache(table.get("law_cache"), base)
     try:
         opts = SurfaceOptions(**options)
-    except TypeError as exc:   # a key of the wrong type reaching a comparison
+    except TypeError as exc:  # a key of the wrong type reaching a comparison
         raise SceneError(f"surface: {exc}") from None
     return load_surface(os.path.join(base, table["file"]), opts, h=h, cache=cache, h_name="grid.h")
 
@@ -100,10 +114,10 @@ def surface_to_table(surface: MeasuredSurface) -> dict:
     raw = surface.raw
     if os.path.isfile(raw.source):
         out: dict = {"file": os.path.abspath(raw.source)}
-    else:   # heights given in Python: what the record can say of them
+    else:  # heights given in Python: what the record can say of them
         ny, nx = raw.heights.shape
         out = {"array": f"{ny} x {nx} heights given in Python"}
-        if raw.spacing is not None and raw.spacing_units is None:   # in mm
+        if raw.spacing is not None and raw.spacing_units is None:  # in mm
             out["spacing"] = raw.spacing
         if raw.units is not None:
             out["units"] = raw.units

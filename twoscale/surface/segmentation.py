@@ -14,6 +14,7 @@ then gave every sample below that pass to one basin (and wrapped around the arra
 Defaults suit road textures (chippings of 4-14 mm, micro-roughness of tens of um): a
 summit per stone, the micro-roughness kept inside its basin (the micro step sees it).
 """
+
 from __future__ import annotations
 
 import math
@@ -33,10 +34,12 @@ _EIGHT = np.ones((3, 3), dtype=bool)
 #: Candidates checked at once against their disc (bounds the work array).
 _CHUNK = 2048
 _ALL = slice(None)
-_NEIGHBOURS = (((_ALL, slice(None, -1)), (_ALL, slice(1, None))),
-               ((slice(None, -1), _ALL), (slice(1, None), _ALL)),
-               ((slice(None, -1), slice(None, -1)), (slice(1, None), slice(1, None))),
-               ((slice(None, -1), slice(1, None)), (slice(1, None), slice(None, -1))))
+_NEIGHBOURS = (
+    ((_ALL, slice(None, -1)), (_ALL, slice(1, None))),
+    ((slice(None, -1), _ALL), (slice(1, None), _ALL)),
+    ((slice(None, -1), slice(None, -1)), (slice(1, None), slice(1, None))),
+    ((slice(None, -1), slice(1, None)), (slice(1, None), slice(None, -1))),
+)
 
 
 @dataclass(frozen=True, eq=False)
@@ -89,8 +92,9 @@ def segment(hmap: HeightMap, *, min_distance: float = MIN_DISTANCE, prominence: 
     """
     for name, v in (("min_distance", min_distance), ("prominence", prominence)):
         if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or v < 0:
-            raise SurfaceError(f"{hmap.source or 'height map'}: segmentation {name} must be a number >= 0 (mm), "
-                               f"got {v!r}")
+            raise SurfaceError(
+                f"{hmap.source or 'height map'}: segmentation {name} must be a number >= 0 (mm), got {v!r}"
+            )
     z = np.where(np.isnan(hmap.heights), np.nanmin(hmap.heights), hmap.heights)
     seeds = _candidates(z, min_distance / hmap.h)
     basins = _watershed(z, seeds)
@@ -100,9 +104,17 @@ def segment(hmap: HeightMap, *, min_distance: float = MIN_DISTANCE, prominence: 
         keep = np.array([int(np.argmax(z[seeds[:, 0], seeds[:, 1]]))])
     order = keep[np.argsort(-z[seeds[keep, 0], seeds[keep, 1]], kind="stable")]
     labels = _watershed(z, seeds[order])
-    areas = np.bincount(labels.ravel(), minlength=order.size) * hmap.h ** 2
-    return Segmentation(labels, seeds[order], z[seeds[order, 0], seeds[order, 1]], prom[order], areas,
-                        int(len(seeds)), float(min_distance), float(prominence))
+    areas = np.bincount(labels.ravel(), minlength=order.size) * hmap.h**2
+    return Segmentation(
+        labels,
+        seeds[order],
+        z[seeds[order, 0], seeds[order, 1]],
+        prom[order],
+        areas,
+        int(len(seeds)),
+        float(min_distance),
+        float(prominence),
+    )
 
 
 def _candidates(z: np.ndarray, radius: float) -> np.ndarray:
@@ -122,15 +134,15 @@ def _candidates(z: np.ndarray, radius: float) -> np.ndarray:
     padded = np.pad(z, r, mode="edge")
     keep = np.zeros(len(cand), dtype=bool)
     for lo in range(0, len(cand), _CHUNK):
-        c = cand[lo:lo + _CHUNK]
+        c = cand[lo : lo + _CHUNK]
         around = padded[c[:, 0, None] + dj[None, :], c[:, 1, None] + di[None, :]]
-        keep[lo:lo + _CHUNK] = z[c[:, 0], c[:, 1]] >= around.max(axis=1)
+        keep[lo : lo + _CHUNK] = z[c[:, 0], c[:, 1]] >= around.max(axis=1)
     return cand[keep]
 
 
 def _disc(radius: float, r: int) -> np.ndarray:
-    J, I = np.mgrid[-r:r + 1, -r:r + 1]
-    return I * I + J * J <= radius ** 2
+    J, I = np.mgrid[-r : r + 1, -r : r + 1]
+    return I * I + J * J <= radius**2
 
 
 def _watershed(z: np.ndarray, seeds: np.ndarray) -> np.ndarray:
@@ -165,7 +177,7 @@ def _prominences(z: np.ndarray, basins: np.ndarray, seeds: np.ndarray) -> np.nda
     top = z[seeds[:, 0], seeds[:, 1]].astype(float)
     prom = top - z.min()
     parent = np.arange(len(seeds))
-    peak = top.copy()   # highest summit of each group (at its root)
+    peak = top.copy()  # highest summit of each group (at its root)
 
     def root(k: int) -> int:
         while parent[k] != k:

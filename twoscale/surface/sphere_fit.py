@@ -8,6 +8,7 @@ the tabulated one when the cheap option is asked for, and the size the micro ste
 patch estimates use. A cap that is flat or hollow (no positive curvature) gets the
 radius of a thousand times its extent (nearly flat), so the estimates stay finite.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -60,14 +61,14 @@ def fit_spheres(hmap: HeightMap, seg: Segmentation, cells, *, depth: float = CAP
         flat, zk = flat[ok], zk[ok]
         fall = top - zk
         cap = fall < depth
-        if cap.sum() < MIN_CAP_SAMPLES:   # the nearest samples below the summit instead
+        if cap.sum() < MIN_CAP_SAMPLES:  # the nearest samples below the summit instead
             cap = np.zeros(flat.size, dtype=bool)
             cap[np.argsort(fall, kind="stable")[:MIN_CAP_SAMPLES]] = True
         x = X.ravel()[flat[cap]] - X[tuple(seg.summits[k])]
         y = Y.ravel()[flat[cap]] - Y[tuple(seg.summits[k])]
         A = np.column_stack([np.ones(x.size), x, y, -(x * x + y * y)])
         coef, *_ = np.linalg.lstsq(A, zk[cap], rcond=None)
-        curvature = 2.0 * coef[3]   # 1 / R
+        curvature = 2.0 * coef[3]  # 1 / R
         extent = float(np.sqrt(np.max(x * x + y * y))) if x.size else hmap.h
         flat_R = FLAT_RADIUS_FACTOR * max(extent, hmap.h)
         R[k] = 1.0 / curvature if curvature > 1.0 / flat_R else flat_R
@@ -81,4 +82,4 @@ def basin_cells(seg: Segmentation) -> list:
     flat = seg.labels.ravel()
     order = np.argsort(flat, kind="stable")
     bounds = np.searchsorted(flat[order], np.arange(len(seg) + 1))
-    return [order[bounds[k]:bounds[k + 1]] for k in range(len(seg))]
+    return [order[bounds[k] : bounds[k + 1]] for k in range(len(seg))]

@@ -8,6 +8,7 @@ binder by a random depth; the micro-roughness is a Gaussian random field with th
 spectrum ``q^-2(1+H)`` between two wavelengths (Hurst exponent ``H``), filtered by FFT.
 Heights in mm, larger is closer to the body (the tyre), rows y, columns x.
 """
+
 from __future__ import annotations
 
 import math
@@ -15,8 +16,16 @@ import math
 import numpy as np
 
 
-def chippings(size: float, h: float, *, seed: int = 0, stone_radius=(2.0, 4.0), protrusion=(1.0, 2.5),
-              packing: float = 0.85, attempts: int = 20_000) -> tuple[np.ndarray, np.ndarray]:
+def chippings(
+    size: float,
+    h: float,
+    *,
+    seed: int = 0,
+    stone_radius=(2.0, 4.0),
+    protrusion=(1.0, 2.5),
+    packing: float = 0.85,
+    attempts: int = 20_000,
+) -> tuple[np.ndarray, np.ndarray]:
     """Heights (n, n) of stones on a flat binder at 0, and the stones ``(x, y, a)``.
 
     Parameters
@@ -56,22 +65,23 @@ def _stamp(z: np.ndarray, x: np.ndarray, c, a: float, rng, protrusion) -> None:
     """Raise ``z`` to one half-ellipsoid stone (half-axes a, b in plane, height e)."""
     b = a * rng.uniform(0.6, 1.0)
     top = rng.uniform(*protrusion)
-    e = top + rng.uniform(0.5, 1.5)           # the sunk part lies below the binder
+    e = top + rng.uniform(0.5, 1.5)  # the sunk part lies below the binder
     phi = rng.uniform(0.0, math.pi)
     h = x[1] - x[0]
     lo = np.searchsorted(x, [c[0] - a - h, c[1] - a - h])
     hi = np.searchsorted(x, [c[0] + a + h, c[1] + a + h])
-    X, Y = np.meshgrid(x[lo[0]:hi[0]] - c[0], x[lo[1]:hi[1]] - c[1])
+    X, Y = np.meshgrid(x[lo[0] : hi[0]] - c[0], x[lo[1] : hi[1]] - c[1])
     u = X * math.cos(phi) + Y * math.sin(phi)
     v = -X * math.sin(phi) + Y * math.cos(phi)
     s = 1.0 - (u / a) ** 2 - (v / b) ** 2
     stone = np.where(s > 0, e * np.sqrt(np.maximum(s, 0.0)) - (e - top), -np.inf)
-    window = z[lo[1]:hi[1], lo[0]:hi[0]]
+    window = z[lo[1] : hi[1], lo[0] : hi[0]]
     np.maximum(window, stone, out=window)
 
 
-def self_affine(n: int, h: float, *, seed: int = 0, rms: float = 0.02, hurst: float = 0.8,
-                wavelengths=(0.3, 5.0)) -> np.ndarray:
+def self_affine(
+    n: int, h: float, *, seed: int = 0, rms: float = 0.02, hurst: float = 0.8, wavelengths=(0.3, 5.0)
+) -> np.ndarray:
     """Gaussian self-affine roughness (n, n), mm, with the given rms height (mm)."""
     rng = np.random.default_rng(seed)
     q = 2.0 * math.pi * np.fft.fftfreq(n, d=h)
@@ -82,8 +92,9 @@ def self_affine(n: int, h: float, *, seed: int = 0, rms: float = 0.02, hurst: fl
     return field * (rms / field.std()) if field.std() > 0 else field
 
 
-def road(size: float = 50.0, h: float = 0.1, *, seed: int = 0, rms: float = 0.02,
-         stone_radius=(2.0, 4.0)) -> np.ndarray:
+def road(
+    size: float = 50.0, h: float = 0.1, *, seed: int = 0, rms: float = 0.02, stone_radius=(2.0, 4.0)
+) -> np.ndarray:
     """A road texture (n, n), mm: :func:`chippings` (stone radii uniform in
     ``stone_radius``, mm) plus :func:`self_affine` roughness."""
     z, _ = chippings(size, h, seed=seed, stone_radius=stone_radius)

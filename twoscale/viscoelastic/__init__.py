@@ -13,6 +13,7 @@
 
 Users guide: docs/viscoelastic.md.
 """
+
 from .history import LoadHistory
 from .prony import CreepCompliance, creep_compliance, relaxation_modulus
 from .stepping import TimeSteps

@@ -25,6 +25,7 @@ Poisson's ratio, the references of the tests.
 Integrals against a Prony kernel ``k0 + sum_k w_k exp(-t / theta_k)`` of a
 piecewise-linear function are exact per segment (:func:`hereditary`).
 """
+
 from __future__ import annotations
 
 import numpy as np
@@ -37,7 +38,7 @@ from .prony import creep_compliance, relaxation_modulus
 def creep_radius(material: Material, R: float, W: float, t) -> np.ndarray:
     """Contact radius (mm) under a step load ``W`` (N) held from t = 0, at times ``t`` (s)."""
     J = creep_compliance(material)
-    return (3.0 * R * W * (1.0 - material.nu ** 2) * J(t) / 4.0) ** (1.0 / 3.0)
+    return (3.0 * R * W * (1.0 - material.nu**2) * J(t) / 4.0) ** (1.0 / 3.0)
 
 
 def creep_approach(material: Material, R: float, W: float, t) -> np.ndarray:
@@ -47,7 +48,7 @@ def creep_approach(material: Material, R: float, W: float, t) -> np.ndarray:
 
 def relaxation_load(material: Material, R: float, d: float, t) -> np.ndarray:
     """Load (N) under a step approach ``d`` (mm) held from t = 0."""
-    return 4.0 * np.sqrt(R) * d ** 1.5 * relaxation_modulus(material, t) / (3.0 * (1.0 - material.nu ** 2))
+    return 4.0 * np.sqrt(R) * d**1.5 * relaxation_modulus(material, t) / (3.0 * (1.0 - material.nu**2))
 
 
 def low_speed_friction(material: Material, R: float, speed: float) -> float:
@@ -95,14 +96,15 @@ def ting_radius(material: Material, R: float, load_points, t, *, n: int = 4000) 
     (E0, Ek, tau), (J0, Jw, lam) = _kernels(material)
     s_w = np.array([p[0] for p in load_points], dtype=float)
     W = np.array([p[1] for p in load_points], dtype=float)
-    c = 3.0 * R * (1.0 - material.nu ** 2) / 4.0
+    c = 3.0 * R * (1.0 - material.nu**2) / 4.0
     end = max(float(np.max(t)), s_w[-1])
-    grid = np.unique(np.concatenate([s_w, np.geomspace(max(s_w[0], 1e-12 * end) + 1e-12 * end, end, n),
-                                     np.linspace(s_w[0], end, n)]))
+    grid = np.unique(
+        np.concatenate([s_w, np.geomspace(max(s_w[0], 1e-12 * end) + 1e-12 * end, end, n), np.linspace(s_w[0], end, n)])
+    )
     A = c * hereditary(J0, Jw, lam, s_w, W, grid)  # a^3 if the contact only grew
     grows = np.diff(A) >= -1e-12 * A.max()
     m = int(np.argmin(grows)) if not grows.all() else grows.size  # last index of the growing phase
-    s_g, A_g = grid[:m + 1], A[:m + 1]
+    s_g, A_g = grid[: m + 1], A[: m + 1]
     out = []
     for tt in np.atleast_1d(np.asarray(t, dtype=float)):
         if tt <= s_g[-1]:
@@ -126,4 +128,3 @@ def ting_radius(material: Material, R: float, load_points, t, *, n: int = 4000) 
         t1 = brentq(F, lo, hi, xtol=1e-14 * max(hi, 1e-300))
         out.append(float(np.interp(t1, s_g, A_g)) ** (1.0 / 3.0))
     return np.array(out)
-

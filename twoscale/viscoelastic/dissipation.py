@@ -24,6 +24,7 @@ the grid. The dashpots of the Prony (Maxwell) branches dissipate at the same rat
 instant (the two forms are realisations of one material, and their free energies agree):
 a test checks it on a stress history through both sets of branches.
 """
+
 from __future__ import annotations
 
 import math
@@ -44,9 +45,9 @@ def step_integrals(lam: np.ndarray, dt: float) -> tuple[np.ndarray, np.ndarray, 
     rs = np.where(small, 1.0, r)  # avoid 0 / 0 in the branch not taken
     ab = lam / rs * (-np.expm1(-rs) + 0.5 * np.expm1(-2.0 * rs))
     f = rs + 2.0 * np.expm1(-rs) - 0.5 * np.expm1(-2.0 * rs)
-    bb = lam * f / rs ** 2
-    ab_s = lam * (0.5 * r - 0.5 * r ** 2 + 7.0 / 24.0 * r ** 3)
-    bb_s = lam * (r / 3.0 - r ** 2 / 4.0 + 7.0 * r ** 3 / 60.0 - r ** 4 / 24.0)
+    bb = lam * f / rs**2
+    ab_s = lam * (0.5 * r - 0.5 * r**2 + 7.0 / 24.0 * r**3)
+    bb_s = lam * (r / 3.0 - r**2 / 4.0 + 7.0 * r**3 / 60.0 - r**4 / 24.0)
     return aa, np.where(small, ab_s, ab), np.where(small, bb_s, bb)
 
 
@@ -69,7 +70,7 @@ class BranchEnergy:
         self.Kp = np.zeros(self.memory.size)
 
     def _dot(self, f: np.ndarray, cells: np.ndarray, g_full: np.ndarray) -> np.ndarray:
-        return self.h ** 2 * (f @ g_full[cells]) if cells.size else np.zeros(f.shape[0])
+        return self.h**2 * (f @ g_full[cells]) if cells.size else np.zeros(f.shape[0])
 
     def step(self, dt: float, p_new: np.ndarray, K_dp: np.ndarray) -> float:
         """The energy dissipated (N mm) over a step ``dt`` (s) to ``p_new`` (flat, MPa), with
@@ -80,9 +81,9 @@ class BranchEnergy:
         p_old = np.zeros(mem.size)
         p_old[mem.cells] = mem.p
         dp = p_new - p_old
-        P = self.h ** 2 * float(dp @ K_dp)
+        P = self.h**2 * float(dp @ K_dp)
         self.Kp = self.Kp + K_dp
-        self.pKp = self.h ** 2 * float(p_new @ self.Kp)
+        self.pKp = self.h**2 * float(p_new @ self.Kp)
         if not math.isfinite(dt):
             self.S[:] = 0.0
             return 0.0

@@ -7,6 +7,7 @@ the last it is held. A first point with a value other than 0 is a step at its ti
 response just after it is the glassy one). Bad data raise ``ValueError`` with one line
 naming the field (``load.total[2]``, ``time.output[0]``) and the value.
 """
+
 from __future__ import annotations
 
 import math
@@ -22,8 +23,11 @@ KINDS = ("total", "penetration")
 
 
 def _number(path: str, v, unit: str) -> float:
-    if isinstance(v, (bool, np.bool_)) or not isinstance(v, (int, float, np.integer, np.floating)) \
-            or not math.isfinite(float(v)):
+    if (
+        isinstance(v, (bool, np.bool_))
+        or not isinstance(v, (int, float, np.integer, np.floating))
+        or not math.isfinite(float(v))
+    ):
         raise ValueError(f"{path} must be a finite number ({unit}), got {v!r}")
     return float(v)
 
@@ -66,8 +70,10 @@ class LoadHistory:
             if t < 0:
                 raise ValueError(f"{path}[{i}] time must be >= 0 (s), got {row[0]!r}")
             if out and not t > out[-1][0]:
-                raise ValueError(f"{path}[{i}] time must be greater than the one before ({out[-1][0]!r} s): "
-                                 f"times must increase, got {row[0]!r}")
+                raise ValueError(
+                    f"{path}[{i}] time must be greater than the one before ({out[-1][0]!r} s): "
+                    f"times must increase, got {row[0]!r}"
+                )
             if self.kind == "total" and v < 0:
                 raise ValueError(f"{path}[{i}] value must be >= 0 (N), got {row[1]!r}")
             out.append((t, v))

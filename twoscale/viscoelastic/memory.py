@@ -23,6 +23,7 @@ A cell is dropped once it carries no pressure and its memory has decayed below
 ``DROP`` times the largest ``J_inf p`` seen; a branch is dropped everywhere once its memory
 has (its instantaneous part stays in ``J_eff``: nothing is lost but a decayed tail).
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass, field

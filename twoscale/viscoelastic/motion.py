@@ -1,6 +1,7 @@
 """What a run of a moving indenter under a viscoelastic body is given: its motion (the
 shifts, the speed, the memory grid and the held control: :class:`Motion`) and how it is
 solved (:class:`MovingOptions`), and the memory grid swept by tips (:func:`sweep_grid`)."""
+
 from __future__ import annotations
 
 import math
@@ -59,8 +60,9 @@ class MovingOptions:
             raise ValueError(f"start must be one of {STARTS}, got {self.start!r}")
 
 
-def sweep_grid(material: Material, asperities, shifts, h: float, *, penetration=None, total_load=None,
-               grow: float = 1.2) -> Grid:
+def sweep_grid(
+    material: Material, asperities, shifts, h: float, *, penetration=None, total_load=None, grow: float = 1.2
+) -> Grid:
     """The memory grid of tips moved over ``shifts`` (mm): the reference grid of the scene at
     its relaxed modulus (every place contact can reach, plus a margin, scaled by ``grow``:
     :func:`twoscale.reference.on_scene.reference_grid`), swept along x from the smallest to
@@ -114,8 +116,9 @@ class Motion:
             raise ValueError(f"shifts must be a non-empty list of finite numbers (mm), got {self.shifts!r}")
         if np.any(np.diff(s) <= 0):
             k = int(np.argmax(np.diff(s) <= 0)) + 1
-            raise ValueError(f"shifts must increase (the indenter moves along +x), got shifts[{k}] = {s[k]!r} "
-                             f"after {s[k - 1]!r}")
+            raise ValueError(
+                f"shifts must increase (the indenter moves along +x), got shifts[{k}] = {s[k]!r} after {s[k - 1]!r}"
+            )
         object.__setattr__(self, "shifts", tuple(s.tolist()))
 
     @property
@@ -136,8 +139,10 @@ def motion_of(motion, legacy: dict) -> Motion:
     shifts ``motion`` and the keywords ``legacy`` describe; refuses a mix or an unknown keyword."""
     if isinstance(motion, Motion):
         if legacy:
-            raise ValueError(f"give the run as a Motion or as shifts with {', '.join(MOTION_KEYWORDS)}, "
-                             f"not both (got {sorted(legacy)!r} with a Motion)")
+            raise ValueError(
+                f"give the run as a Motion or as shifts with {', '.join(MOTION_KEYWORDS)}, "
+                f"not both (got {sorted(legacy)!r} with a Motion)"
+            )
         return motion
     unknown = sorted(set(legacy) - set(MOTION_KEYWORDS))
     if unknown:

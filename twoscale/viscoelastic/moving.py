@@ -27,6 +27,7 @@ integral over the distance is the work put in, so over a steady run the mean dra
 distance is the energy dissipated in the branches, reported per step from their internal
 variables (:mod:`.dissipation`: exact for a pressure linear in time over a step).
 """
+
 from __future__ import annotations
 
 import dataclasses
@@ -46,17 +47,28 @@ from .stepping import local_error
 from .steps import StepProblem, TwoScaleStep, scaled
 from .motion import METHODS, MOTION_KEYWORDS, STARTS, Motion, MovingOptions, motion_of, sweep_grid  # noqa: F401
 
+
 def _check(material, provider) -> None:
     if not isinstance(material, Material):
         raise ValueError(f"material must be a twoscale.material.Material, got {type(material).__name__}")
     if provider.material.relaxed() != material.relaxed():
-        raise ValueError(f"the provider's material {provider.material!r} is not the relaxed "
-                         f"{material.relaxed()!r} (build the body at the relaxed modulus)")
+        raise ValueError(
+            f"the provider's material {provider.material!r} is not the relaxed "
+            f"{material.relaxed()!r} (build the body at the relaxed modulus)"
+        )
 
 
-def solve_moving(material: Material, provider, indenter, motion: Motion, *,
-                 options: MovingOptions | None = None, progress: Callable | None = None,
-                 on_step: Callable | None = None, **legacy) -> MovingResult:
+def solve_moving(
+    material: Material,
+    provider,
+    indenter,
+    motion: Motion,
+    *,
+    options: MovingOptions | None = None,
+    progress: Callable | None = None,
+    on_step: Callable | None = None,
+    **legacy,
+) -> MovingResult:
     """Move ``indenter`` through ``shifts`` under a viscoelastic body, the memory in the body.
 
     Parameters
@@ -98,8 +110,10 @@ def solve_moving(material: Material, provider, indenter, motion: Motion, *,
         dt = times[n] - times[n - 1] if n else _first_step(options.start, times)
         result = roll.step(n, float(shift), float(dt))
         if progress is not None:
-            progress(f"shift {shift:.4g} mm, t = {times[n]:.4g} s: load {result.total_load:.4g} N, approach "
-                     f"{result.penetration:.4g} mm, drag {roll.records[-1].drag:.4g} N")
+            progress(
+                f"shift {shift:.4g} mm, t = {times[n]:.4g} s: load {result.total_load:.4g} N, approach "
+                f"{result.penetration:.4g} mm, drag {roll.records[-1].drag:.4g} N"
+            )
         if on_step is not None:
             on_step(n, float(shift), result, roll.records[-1])
     return roll.result(s, times, float(motion.speed), time.perf_counter() - t0)
@@ -132,11 +146,22 @@ class _Roll:
     def _solve(self, shift: float, factor: float, u_H: np.ndarray) -> tuple:
         o = self.options
         if o.method == "twoscale":
-            step = TwoScaleStep(self.provider, self.indenter.tips(shift), self.grid, h=self.grid.h, kind=self.kind,
-                                tilt=False, pivot=(0.0, 0.0), options=o.solver)
+            step = TwoScaleStep(
+                self.provider,
+                self.indenter.tips(shift),
+                self.grid,
+                h=self.grid.h,
+                kind=self.kind,
+                tilt=False,
+                pivot=(0.0, 0.0),
+                options=o.solver,
+            )
             start = self.last[1] if self.last is not None else None
-            before = None if self.last is None else \
-                np.array([[a.x, a.y] for a in self.indenter.tips(self.last[0])], dtype=float).reshape(-1, 2)
+            before = (
+                None
+                if self.last is None
+                else np.array([[a.x, a.y] for a in self.indenter.tips(self.last[0])], dtype=float).reshape(-1, 2)
+            )
             _, slope = self.indenter.surface(self.grid, shift)
             extra = u_H + self.indenter.face_on(self.grid)
             return step.solve(StepProblem(self.value, factor, extra, start, before)), slope
@@ -166,7 +191,7 @@ class _Roll:
         p = p.reshape(self.grid.shape)
         out = np.zeros_like(p)
         if 0 <= k < p.shape[1]:
-            out[:, k:] = p[:, :p.shape[1] - k]
+            out[:, k:] = p[:, : p.shape[1] - k]
         return out
 
     def step(self, n: int, shift: float, dt: float):
@@ -183,7 +208,7 @@ class _Roll:
         dissipated = self.energy.step(dt, p, K_dp)
         self.memory.advance(dt, p)
         stored = self.energy.stored()
-        h2 = self.grid.h ** 2
+        h2 = self.grid.h**2
         edge = []
         on_grid = h2 * float(p.sum())
         if abs(on_grid - result.total_load) > 1e-9 * max(abs(result.total_load), 1e-300):
@@ -191,15 +216,32 @@ class _Roll:
         if not self.options.open_edges and _on_edge(p.reshape(self.grid.shape)):
             edge.append("pressure reaches the memory grid's edge")
         message = "; ".join(([result.message] if result.message and not result.converged else []) + edge)
-        self.quantities.append((np.array([result.penetration if self.kind == "total" else result.total_load]),
-                                np.asarray(result.forces, dtype=float)))
-        self.records.append(StepSummary(
-            shift=shift, dt=dt, J_eff=J_eff, total_load=float(result.total_load), penetration=float(result.penetration),
-            contact_area=float(result.contact_area), drag=h2 * float(p @ slope.ravel()),
-            forces=np.asarray(result.forces, dtype=float), tip_areas=np.asarray(result.asperities.contact_areas),
-            dissipated=dissipated, stored=stored, error=self._estimate(dt),
-            converged=bool(result.converged) and not edge, message=message, iterations=_iterations(result),
-            seconds=time.perf_counter() - t0))
+        self.quantities.append(
+            (
+                np.array([result.penetration if self.kind == "total" else result.total_load]),
+                np.asarray(result.forces, dtype=float),
+            )
+        )
+        self.records.append(
+            StepSummary(
+                shift=shift,
+                dt=dt,
+                J_eff=J_eff,
+                total_load=float(result.total_load),
+                penetration=float(result.penetration),
+                contact_area=float(result.contact_area),
+                drag=h2 * float(p @ slope.ravel()),
+                forces=np.asarray(result.forces, dtype=float),
+                tip_areas=np.asarray(result.asperities.contact_areas),
+                dissipated=dissipated,
+                stored=stored,
+                error=self._estimate(dt),
+                converged=bool(result.converged) and not edge,
+                message=message,
+                iterations=_iterations(result),
+                seconds=time.perf_counter() - t0,
+            )
+        )
         self.before, self.last = self.last, (shift, result, p)
         if self.options.keep_results:
             self.results.append(result)
@@ -215,13 +257,29 @@ class _Roll:
 
     def result(self, shifts, times, speed: float, seconds: float) -> MovingResult:
         nb = int(self.J.lambdas.size)
-        memory = {"branches": nb, "peak_cells": int(self.memory.peak_cells), "bytes_per_cell": 8 * (2 + nb),
-                  "peak_bytes": int(8 * (2 + nb) * self.memory.peak_cells), "grid_cells": int(self.grid.size),
-                  "grid": dataclasses.asdict(self.grid)}
+        memory = {
+            "branches": nb,
+            "peak_cells": int(self.memory.peak_cells),
+            "bytes_per_cell": 8 * (2 + nb),
+            "peak_bytes": int(8 * (2 + nb) * self.memory.peak_cells),
+            "grid_cells": int(self.grid.size),
+            "grid": dataclasses.asdict(self.grid),
+        }
         return MovingResult.from_steps(
-            self.records, times=times, shifts=shifts, speed=speed, material=self.material, grid=self.grid,
-            control=self.kind, value=self.value, method=self.options.method, start=self.options.start,
-            results=tuple(self.results), memory=memory, seconds=seconds)
+            self.records,
+            times=times,
+            shifts=shifts,
+            speed=speed,
+            material=self.material,
+            grid=self.grid,
+            control=self.kind,
+            value=self.value,
+            method=self.options.method,
+            start=self.options.start,
+            results=tuple(self.results),
+            memory=memory,
+            seconds=seconds,
+        )
 
 
 def _on_edge(p: np.ndarray) -> bool:

@@ -18,6 +18,7 @@ added to the gap but not moved and not part of the slope. ``slope_x`` is the slo
 of the moving surface's recess at the cell centres, central differences (one-sided next to
 cells without material): the drag is ``h^2 sum p slope_x`` (:mod:`.moving`).
 """
+
 from __future__ import annotations
 
 import dataclasses
@@ -150,8 +151,7 @@ class MovingHeights:
         height, owner = self.field(X - shift, Y)
         height = np.where(owner >= 0, np.asarray(height, dtype=float), np.inf)
         slope = slope_x(height, grid.h)
-        surf = Surface(grid, height + _face_on(self.face, grid), np.asarray(owner, dtype=np.int64),
-                       self.n_asperities)
+        surf = Surface(grid, height + _face_on(self.face, grid), np.asarray(owner, dtype=np.int64), self.n_asperities)
         return surf, slope
 
     def face_on(self, grid: Grid) -> np.ndarray:

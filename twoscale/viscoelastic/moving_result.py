@@ -1,5 +1,6 @@
 """The result of a moving run (:func:`twoscale.viscoelastic.moving.solve_moving`): a row per
 position, as arrays."""
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -118,13 +119,26 @@ class MovingResult:
             return _frozen([getattr(s, name) for s in steps], dtype)
 
         bad = [f"shift {s.shift:.6g} mm: {s.message or 'not converged'}" for s in steps if not s.converged]
-        return cls(times=_frozen(times), shifts=_frozen(shifts), total_load=col("total_load"),
-                   penetration=col("penetration"), contact_area=col("contact_area"), drag=col("drag"),
-                   forces=col("forces"), tip_areas=col("tip_areas"), dissipated=col("dissipated"),
-                   stored=col("stored"), errors=col("error"), step_converged=col("converged", bool),
-                   iterations=col("iterations", np.int64), seconds=col("seconds"), converged=not bad,
-                   message="; ".join(bad), timings_s={"total": float(seconds),
-                                                      "steps": float(sum(s.seconds for s in steps))}, **fields)
+        return cls(
+            times=_frozen(times),
+            shifts=_frozen(shifts),
+            total_load=col("total_load"),
+            penetration=col("penetration"),
+            contact_area=col("contact_area"),
+            drag=col("drag"),
+            forces=col("forces"),
+            tip_areas=col("tip_areas"),
+            dissipated=col("dissipated"),
+            stored=col("stored"),
+            errors=col("error"),
+            step_converged=col("converged", bool),
+            iterations=col("iterations", np.int64),
+            seconds=col("seconds"),
+            converged=not bad,
+            message="; ".join(bad),
+            timings_s={"total": float(seconds), "steps": float(sum(s.seconds for s in steps))},
+            **fields,
+        )
 
     @property
     def distance(self) -> float:
@@ -134,8 +148,8 @@ class MovingResult:
     def drag_work(self, first: int = 0, last: int | None = None) -> float:
         """``int drag ds`` from position ``first`` to ``last`` (default the end), N mm
         (trapezoidal rule over the positions)."""
-        s = self.shifts[first:None if last is None else last + 1]
-        d = self.drag[first:None if last is None else last + 1]
+        s = self.shifts[first : None if last is None else last + 1]
+        d = self.drag[first : None if last is None else last + 1]
         return float(np.sum(0.5 * (d[1:] + d[:-1]) * np.diff(s)))
 
     def vertical_work(self, first: int = 0, last: int | None = None) -> float:
@@ -148,7 +162,7 @@ class MovingResult:
 
     def dissipated_between(self, first: int = 0, last: int | None = None) -> float:
         """Energy dissipated from position ``first`` to ``last`` (default the end), N mm."""
-        return float(np.sum(self.dissipated[first + 1:None if last is None else last + 1]))
+        return float(np.sum(self.dissipated[first + 1 : None if last is None else last + 1]))
 
     @property
     def max_error(self) -> float:
@@ -158,9 +172,11 @@ class MovingResult:
 
     def __repr__(self) -> str:
         state = "converged" if self.converged else "NOT converged"
-        return (f"<MovingResult {self.method}: {self.shifts.size} positions over {self.distance:.4g} mm at "
-                f"{self.speed:.4g} mm/s, mean drag {float(np.mean(self.drag)):.4g} N, dissipated "
-                f"{float(np.sum(self.dissipated)):.4g} N mm, {state}, {self.timings_s['total']:.3g} s>")
+        return (
+            f"<MovingResult {self.method}: {self.shifts.size} positions over {self.distance:.4g} mm at "
+            f"{self.speed:.4g} mm/s, mean drag {float(np.mean(self.drag)):.4g} N, dissipated "
+            f"{float(np.sum(self.dissipated)):.4g} N mm, {state}, {self.timings_s['total']:.3g} s>"
+        )
 
     __str__ = __repr__
 

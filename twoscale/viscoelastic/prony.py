@@ -14,6 +14,7 @@ then give
 
 the residues of ``1 / (s F(s))`` at its poles. ``J(0) = 1 / (E_inf + sum E_k)``.
 """
+
 from __future__ import annotations
 
 import math

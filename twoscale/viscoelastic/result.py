@@ -1,5 +1,6 @@
 """The result of a history solve: the histories as arrays and each output time's
 :class:`~twoscale.results.ContactResult`."""
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -95,9 +96,11 @@ class HistoryResult:
 
     def __repr__(self) -> str:
         state = "converged" if self.converged else "NOT converged"
-        return (f"<HistoryResult {self.method}: {len(self.times)} output times over "
-                f"{self.times[-1]:.3g} s, {self.n_steps} steps ({self.rejected} redone), error estimate "
-                f"{self.error_estimate:.2g}, {state}, {self.timings_s.get('total', 0.0):.3g} s>")
+        return (
+            f"<HistoryResult {self.method}: {len(self.times)} output times over "
+            f"{self.times[-1]:.3g} s, {self.n_steps} steps ({self.rejected} redone), error estimate "
+            f"{self.error_estimate:.2g}, {state}, {self.timings_s.get('total', 0.0):.3g} s>"
+        )
 
     __str__ = __repr__
 

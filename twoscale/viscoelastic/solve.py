@@ -8,6 +8,7 @@ can reach), solved by the two-scale method or the full-grid reference
 chosen by :mod:`twoscale.viscoelastic.stepping`. ``twoscale.solve`` calls
 :func:`solve_history` for a scene with a history.
 """
+
 from __future__ import annotations
 
 import dataclasses
@@ -40,8 +41,11 @@ MAX_REFINE = 1.5
 def elastic_scene(scene: Scene) -> Scene:
     """The scene at its relaxed modulus and peak value, without history (grid sizing)."""
     hist = scene.history
-    load = {"penetration": hist.peak, "total_load": None} if hist.kind == "penetration" else \
-        {"total_load": hist.peak, "penetration": None}
+    load = (
+        {"penetration": hist.peak, "total_load": None}
+        if hist.kind == "penetration"
+        else {"total_load": hist.peak, "penetration": None}
+    )
     return dataclasses.replace(scene, material=scene.material.relaxed(), history=None, **load)
 
 
@@ -66,17 +70,33 @@ def _memory_grid(scene: Scene, h: float):
 def _step_solver(scene: Scene, provider, grid, h: float, method: str, options: dict):
     kind = scene.history.kind
     if method == "twoscale":  # a height map's basins too (the history displacement lifts their map)
-        return TwoScaleStep(provider, scene.asperities, grid, h=h, kind=kind, tilt=scene.tilt,
-                            pivot=scene.pivot, options=options)
+        return TwoScaleStep(
+            provider, scene.asperities, grid, h=h, kind=kind, tilt=scene.tilt, pivot=scene.pivot, options=options
+        )
     if method in ("reference", "dense", "cg"):
-        return ReferenceStep(provider, surface_on(grid, scene.asperities), kind=kind, tilt=scene.tilt,
-                             pivot=scene.pivot, solver="auto" if method == "reference" else method, options=options)
+        return ReferenceStep(
+            provider,
+            surface_on(grid, scene.asperities),
+            kind=kind,
+            tilt=scene.tilt,
+            pivot=scene.pivot,
+            solver="auto" if method == "reference" else method,
+            options=options,
+        )
     raise ValueError(f"method must be 'twoscale', 'reference', 'dense' or 'cg' for a history, got {method!r}")
 
 
-def solve_history(scene: Scene, *, method: str = "twoscale", provider=None, h: float | None = None,
-                  steps: TimeSteps | None = None, progress=None, provider_options=None,
-                  **options) -> HistoryResult:
+def solve_history(
+    scene: Scene,
+    *,
+    method: str = "twoscale",
+    provider=None,
+    h: float | None = None,
+    steps: TimeSteps | None = None,
+    progress=None,
+    provider_options=None,
+    **options,
+) -> HistoryResult:
     """Solve the scene's load history (``scene.history``).
 
     Parameters
@@ -112,8 +132,9 @@ def solve_history(scene: Scene, *, method: str = "twoscale", provider=None, h: f
     relaxed = elastic_scene(scene)
     provider = provider if provider is not None else relaxed.provider(**(provider_options or {}))
     if provider.material.relaxed() != relaxed.material:
-        raise ValueError(f"the provider's material {provider.material!r} is not the scene's relaxed "
-                         f"{relaxed.material!r}")
+        raise ValueError(
+            f"the provider's material {provider.material!r} is not the scene's relaxed {relaxed.material!r}"
+        )
     grid = _memory_grid(scene, h)
     run = _Run(scene, provider, grid, _step_solver(scene, provider, grid, h, method, options), steps, progress)
     run.go()
@@ -151,7 +172,12 @@ class _Run:
         time, else :data:`INNER_FRACTION` of the time steps' tolerance if that is looser."""
         own = float(self.solver.options.get("tol", MicroOptions.tol))
         out = self.hist.output
-        if self.solver.name != "twoscale" or INNER_FRACTION is None or out is None or np.any(np.isclose(out, t, rtol=1e-12, atol=1e-300)):
+        if (
+            self.solver.name != "twoscale"
+            or INNER_FRACTION is None
+            or out is None
+            or np.any(np.isclose(out, t, rtol=1e-12, atol=1e-300))
+        ):
             return None
         return max(own, INNER_FRACTION * self.steps.tol)
 
@@ -166,8 +192,9 @@ class _Run:
         if self.hist.output is None or np.any(np.isclose(self.hist.output, t, rtol=1e-12, atol=1e-300)):
             self.outputs.append((float(t), result))
         if self.progress is not None:
-            self.progress(f"t = {t:.4g} s, dt = {dt:.3g} s, load {result.total_load:.4g} N, "
-                          f"approach {result.penetration:.4g} mm")
+            self.progress(
+                f"t = {t:.4g} s, dt = {dt:.3g} s, load {result.total_load:.4g} N, approach {result.penetration:.4g} mm"
+            )
 
     # ------------------------------------------------------------ the march
     def go(self) -> None:
@@ -233,14 +260,30 @@ class _Run:
         tilt = np.array([r.tilt for r in rs]) if self.scene.tilt else None
         errors = [s.error for s in self.records if s.error is not None]
         nb = int(self.J.lambdas.size)
-        memory = {"branches": nb, "peak_cells": int(self.memory.peak_cells), "bytes_per_cell": 8 * (2 + nb),
-                  "peak_bytes": int(8 * (2 + nb) * self.memory.peak_cells), "grid_cells": int(self.grid.size)}
+        memory = {
+            "branches": nb,
+            "peak_cells": int(self.memory.peak_cells),
+            "bytes_per_cell": 8 * (2 + nb),
+            "peak_bytes": int(8 * (2 + nb) * self.memory.peak_cells),
+            "grid_cells": int(self.grid.size),
+        }
         solve_s = float(sum(s.seconds for s in self.records))
         return HistoryResult(
-            times=ts, penetration=np.array([r.penetration for r in rs]),
+            times=ts,
+            penetration=np.array([r.penetration for r in rs]),
             total_load=np.array([r.total_load for r in rs]),
             contact_area=np.array([float(np.sum(r.asperities.contact_areas)) for r in rs]),
-            tilt=tilt, forces=np.array([r.forces for r in rs]), results=rs, steps=tuple(self.records),
-            rejected=int(self.rejected), error_estimate=float(max(errors, default=0.0)), method=method,
-            material=self.scene.material, history=self.hist, memory=memory, converged=bool(self.converged),
-            message="; ".join(self.messages), timings_s={"total": float(seconds), "steps": solve_s})
+            tilt=tilt,
+            forces=np.array([r.forces for r in rs]),
+            results=rs,
+            steps=tuple(self.records),
+            rejected=int(self.rejected),
+            error_estimate=float(max(errors, default=0.0)),
+            method=method,
+            material=self.scene.material,
+            history=self.hist,
+            memory=memory,
+            converged=bool(self.converged),
+            message="; ".join(self.messages),
+            timings_s={"total": float(seconds), "steps": solve_s},
+        )

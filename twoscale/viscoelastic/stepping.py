@@ -16,6 +16,7 @@ times the largest ``|x|``, otherwise redone with half the step; the next step is
 ``dt min(growth, 0.9 sqrt(tol / estimate))`` (the estimate is second order in dt).
 A fixed step count or size replaces all of this (:class:`TimeSteps`).
 """
+
 from __future__ import annotations
 
 import math
@@ -66,15 +67,22 @@ class TimeSteps:
             raise ValueError(f"time.tol must be a number in (0, 1), got {self.tol!r}")
         if not (isinstance(self.growth, (int, float)) and 1.0 < self.growth <= 100.0):
             raise ValueError(f"time.growth must be a number in (1, 100], got {self.growth!r}")
-        if self.count is not None and (isinstance(self.count, bool) or not isinstance(self.count, int)
-                                       or self.count < 1):
+        if self.count is not None and (
+            isinstance(self.count, bool) or not isinstance(self.count, int) or self.count < 1
+        ):
             raise ValueError(f"time.steps must be an integer >= 1, got {self.count!r}")
-        if self.size is not None and not (isinstance(self.size, (int, float)) and not isinstance(self.size, bool)
-                                          and math.isfinite(self.size) and self.size > 0):
+        if self.size is not None and not (
+            isinstance(self.size, (int, float))
+            and not isinstance(self.size, bool)
+            and math.isfinite(self.size)
+            and self.size > 0
+        ):
             raise ValueError(f"time.dt must be a number > 0 (s), got {self.size!r}")
         if sum(v is not None for v in (self.count, self.size, self.at)) > 1:
-            raise ValueError(f"give one of time.steps, time.dt and explicit step ends, got "
-                             f"{self.count!r}, {self.size!r}, {self.at!r}")
+            raise ValueError(
+                f"give one of time.steps, time.dt and explicit step ends, got "
+                f"{self.count!r}, {self.size!r}, {self.at!r}"
+            )
         if self.at is not None:
             at = tuple(float(t) for t in self.at)
             if not at or any(not math.isfinite(t) or t < 0 for t in at):
@@ -175,8 +183,11 @@ class Controller:
         if error is not None and error > self.steps.tol and dt > 1e-12 * self.end:
             self.dt = 0.5 * dt
             return False
-        factor = self.steps.growth if error is None or error == 0 else \
-            min(self.steps.growth, max(0.5, 0.9 * math.sqrt(self.steps.tol / error)))
+        factor = (
+            self.steps.growth
+            if error is None or error == 0
+            else min(self.steps.growth, max(0.5, 0.9 * math.sqrt(self.steps.tol / error)))
+        )
         self.dt = max(dt, self.dt) * factor  # a step cut short by a mark keeps the size it had
         self._since_kink += 1
         return True

@@ -10,6 +10,7 @@ elastic solver of the project runs it unchanged, and the answer is scaled back
 (:func:`scaled`). On a finite block with constant nu the same holds, its compliance being
 proportional to ``1 / E``.
 """
+
 from __future__ import annotations
 
 import dataclasses
@@ -37,8 +38,13 @@ def scaled(result: ContactResult, factor: float) -> ContactResult:
     macro = getattr(details, "macro", None)
     if macro is not None:  # the macro forces too: a start from this result then has one scale
         details = dataclasses.replace(details, macro=dataclasses.replace(macro, forces=macro.forces * factor))
-    return dataclasses.replace(result, fields=fields, total_load=result.total_load * factor,
-                               asperities=summarise(fields, result.n_asperities), details=details)
+    return dataclasses.replace(
+        result,
+        fields=fields,
+        total_load=result.total_load * factor,
+        asperities=summarise(fields, result.n_asperities),
+        details=details,
+    )
 
 
 @dataclass(frozen=True)
@@ -63,8 +69,7 @@ class ReferenceStep:
 
     name = "reference"
 
-    def __init__(self, provider, surface: Surface, *, kind: str, tilt: bool, pivot, solver: str = "auto",
-                 options=None):
+    def __init__(self, provider, surface: Surface, *, kind: str, tilt: bool, pivot, solver: str = "auto", options=None):
         self.provider, self.surface, self.kind = provider, surface, kind
         self.tilt, self.pivot, self.solver = tilt, pivot, solver
         self.options = dict(options or {})
@@ -81,8 +86,7 @@ class ReferenceStep:
         opts = dict(self.options)
         if solver == "cg" and step.start is not None:
             opts["start"] = step.start.pressure_on(s.grid) * step.factor
-        result = solve_reference(self.provider, surf, method=solver, tilt=self.tilt, pivot=self.pivot,
-                                 **load, **opts)
+        result = solve_reference(self.provider, surf, method=solver, tilt=self.tilt, pivot=self.pivot, **load, **opts)
         return scaled(result, 1.0 / step.factor)
 
 
@@ -144,8 +148,7 @@ class TwoScaleStep:
 
     name = "twoscale"
 
-    def __init__(self, provider, asperities, grid: Grid, *, h: float, kind: str, tilt: bool, pivot,
-                 options=None):
+    def __init__(self, provider, asperities, grid: Grid, *, h: float, kind: str, tilt: bool, pivot, options=None):
         # the body through caches kept for every step (tables, operators between patches)
         self.provider, self.asperities, self.grid, self.h = with_caches(provider), tuple(asperities), grid, h
         self.kind, self.tilt, self.pivot = kind, tilt, pivot
@@ -191,8 +194,18 @@ class TwoScaleStep:
         asperities = self._wrapped(step.u_H)
 
         def run(**extra) -> ContactResult:
-            return solve_twoscale(self.provider, asperities, h=self.h, tilt=self.tilt, pivot=self.pivot,
-                                  anchor=(self.grid.x0, self.grid.y0), start=start, **load, **options, **extra)
+            return solve_twoscale(
+                self.provider,
+                asperities,
+                h=self.h,
+                tilt=self.tilt,
+                pivot=self.pivot,
+                anchor=(self.grid.x0, self.grid.y0),
+                start=start,
+                **load,
+                **options,
+                **extra,
+            )
 
         warm = self._warm_choice(start, options)
         result = run(**warm) if warm else run()
@@ -215,8 +228,9 @@ class TwoScaleStep:
         from ..indenters import surface_on
 
         if self._reference is None:
-            self._reference = ReferenceStep(self.provider, surface_on(self.grid, self.asperities), kind=self.kind,
-                                            tilt=self.tilt, pivot=self.pivot)
+            self._reference = ReferenceStep(
+                self.provider, surface_on(self.grid, self.asperities), kind=self.kind, tilt=self.tilt, pivot=self.pivot
+            )
         return self._reference.solve(step)
 
 
