@@ -19,20 +19,10 @@ from twoscale.micro.farfield import FarFieldCoupling
 from twoscale.micro.patches import make_patch
 from twoscale.driver import solve_twoscale
 
+from helpers import spaced_spheres
+
 MAT = Material(10.0, 0.5)
 HS = HalfSpace(MAT)
-
-
-def _scene(n, seed, side, spread=0.06):
-    rng = np.random.default_rng(seed)
-    pts = []
-    while len(pts) < n:
-        c = rng.uniform(0.0, side, 2)
-        if not pts or np.min(np.hypot(*(np.array(pts) - c).T)) >= 1.5:
-            pts.append(c)
-    R = rng.uniform(2.0, 6.0, n)
-    z = rng.uniform(0.0, spread, n)
-    return [Asperity(float(x), float(y), float(zz), float(r)) for (x, y), zz, r in zip(pts, z, R)]
 
 
 def _hertz_block(pt, a=0.4):
@@ -70,7 +60,7 @@ def test_far_pair_error_within_tolerance(far_tol):
 
 
 def test_near_pairs_are_exact():
-    asp = _scene(12, 1, 8.0)
+    asp = spaced_spheres(12, 1, 8.0)
     pts = [
         make_patch(k, Grid.covering(a.x - 0.5, a.x + 0.5, a.y - 0.5, a.y + 0.5, 0.05), asp) for k, a in enumerate(asp)
     ]
@@ -94,7 +84,7 @@ def test_far_tol_validated():
 
 
 def test_patch_sampling_matches_all_asperities():
-    asp = _scene(40, 2, 20.0) + [Asperity(10.0, 10.0, 0.3, 3.0, shape="paraboloid")]
+    asp = spaced_spheres(40, 2, 20.0) + [Asperity(10.0, 10.0, 0.3, 3.0, shape="paraboloid")]
     grid = Grid.covering(8.0, 12.0, 9.0, 11.5, 0.05)
     pt = make_patch(3, grid, asp)
     ref = surface_on(grid, asp)
@@ -106,7 +96,7 @@ def test_patch_sampling_matches_all_asperities():
 def test_far_field_solve_matches_exact(seed):
     # 60 spheres on 24 mm (h = R/40): forces with the far field approximated at
     # far_tol = 0.01 stay within 0.5 % of the exact coupling (measured ~0.01 %)
-    asp = _scene(60, seed, 24.0)
+    asp = spaced_spheres(60, seed, 24.0)
     kw = dict(h=0.1, total_load=3.0, tol=1e-7, max_sweeps=200)
     exact = solve_twoscale(HS, asp, **kw)
     approx = solve_twoscale(HS, asp, far_tol=0.01, coarse=False, **kw)  # block-by-block far field
