@@ -47,6 +47,20 @@ def test_solves_in_a_row_equal_one_shot_solves_and_say_what_they_reused(control)
     assert vars(solver.body) == {"material": solver.body.material}  # the body keeps nothing
 
 
+def test_dense_blocks_factorisations_are_kept_between_solves():
+    # blocks small enough for a dense factorisation: the second solve and the solve moved by
+    # one cell take each active set's factorisation over (on the half-space a block's matrix
+    # depends on its cells' relative positions only) and factorise nothing anew
+    options = SolverOptions(micro=MicroOptions(iteration="block-gs", dense_max_cells=2000))
+    solver = twoscale.ContactSolver(options=options)
+    first = solver.solve(_scene())
+    assert first.reuse.operators_built.get("factor", 0) > 0 and "factor" not in first.reuse.operators_kept
+    for scene in (_scene(), _scene(shift=H)):
+        r = solver.solve(scene)
+        assert r.reuse.operators_kept.get("factor", 0) > 0 and r.reuse.operators_built.get("factor", 0) == 0
+        assert _close(r, twoscale.solve(scene, options=options))
+
+
 def test_a_reset_or_start_none_is_a_cold_start():
     solver = twoscale.ContactSolver()
     first = solver.solve(_scene())

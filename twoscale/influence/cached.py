@@ -17,7 +17,7 @@ operators are kept under the grids themselves (the same scene solved again).
 
 from __future__ import annotations
 
-from typing import Any
+from typing import Any, Callable
 
 import numpy as np
 
@@ -204,6 +204,26 @@ class CachedBody(InfluenceProvider):
             )
         return None if op is _TOO_CLOSE else op
 
+    def factorisation(self, grid: Grid, cells: np.ndarray, make: Callable[[], tuple]) -> tuple:
+        """A dense block's factorisation on ``cells`` (a boolean mask over ``grid``): kept in
+        the solver's caches under the cells' geometry relative to the grid (on a
+        translation-invariant body the same block anywhere has the same matrix), else
+        ``make()`` (a ``(kind, factor)`` pair of arrays), kept for later solves."""
+        if not self._invariant:
+            return make()
+        key = ("factor", float(grid.h), grid.nx, grid.ny, np.packbits(cells).tobytes())
+        hit = self.caches.operators.get(key)
+        if hit is not None:
+            made, f = hit
+            if made < self.caches.solve:
+                self.caches.count("factor", kept=True)
+                self.caches.operators.put(key, (self.caches.solve, f), _factor_bytes(f))
+            return f
+        f = make()
+        self.caches.count("factor", kept=False)
+        self.caches.operators.put(key, (self.caches.solve, f), _factor_bytes(f))
+        return f
+
     def _kept(self, kind: str, key: tuple, target: Grid, source: Grid):
         hit = self.caches.operators.get(key)
         if hit is None:
@@ -225,6 +245,11 @@ class CachedBody(InfluenceProvider):
         if hasattr(op, "moved"):  # an operator that cannot follow a translation is not kept
             self.caches.operators.put(key, (self.caches.solve, op), op.nbytes)
         return op
+
+
+def _factor_bytes(f: tuple) -> int:
+    """Bytes of a ``(kind, factor)`` pair (scipy's Cholesky or LU factor: arrays in a tuple)."""
+    return int(sum(getattr(a, "nbytes", 0) for a in f[1]))
 
 
 def with_caches(body: InfluenceProvider, caches: OperatorCaches | None = None) -> CachedBody:

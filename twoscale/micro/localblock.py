@@ -173,23 +173,32 @@ class LocalBlock:
         key = active.tobytes()
         f = self._cache.get(key)
         if f is None:
-            if self._matrix is not None:
-                sub = self._matrix[np.ix_(active, active)]
+            keep = getattr(self._provider, "factorisation", None)  # a solver object's kept ones
+            if keep is None:
+                f = self._make_factor(active)
             else:
-                cut = self._idx[active]
-                sub = self._provider.grid_matrix(self.box)[np.ix_(cut, cut)]
-            if self._symmetric is None:
-                # a principal sub-block of a symmetric matrix is symmetric, and an unsymmetric
-                # provider matrix (finite elements) has unsymmetric sub-blocks too
-                self._symmetric = _is_symmetric(sub)
-            f = _factorise(sub, self._symmetric)
-            self.factorisations += 1
+                cells = np.zeros(self.box.nx * self.box.ny, dtype=bool)
+                cells[self._idx[active]] = True
+                f = keep(self.box, cells, lambda: self._make_factor(active))
             self._cache[key] = f
             if len(self._cache) > self._cache_size:
                 self._cache.popitem(last=False)
         else:
             self._cache.move_to_end(key)
         return f
+
+    def _make_factor(self, active: np.ndarray) -> tuple:
+        if self._matrix is not None:
+            sub = self._matrix[np.ix_(active, active)]
+        else:
+            cut = self._idx[active]
+            sub = self._provider.grid_matrix(self.box)[np.ix_(cut, cut)]
+        if self._symmetric is None:
+            # a principal sub-block of a symmetric matrix is symmetric, and an unsymmetric
+            # provider matrix (finite elements) has unsymmetric sub-blocks too
+            self._symmetric = _is_symmetric(sub)
+        self.factorisations += 1
+        return _factorise(sub, self._symmetric)
 
     def _cg(self, active: np.ndarray, rhs: np.ndarray, x0: np.ndarray | None, rtol: float | None) -> np.ndarray:
         # Plain CG on the SPD sub-matrix; the product is the FFT operator with the
