@@ -61,6 +61,18 @@ def test_dense_blocks_factorisations_are_kept_between_solves():
         assert _close(r, twoscale.solve(scene, options=options))
 
 
+def test_the_far_field_is_kept_between_solves_of_the_same_patches():
+    # the far field's point operator (tips and moment-matching sources of the same patches)
+    # is taken over by the second solve, which builds no operator at all
+    options = SolverOptions(micro=MicroOptions(iteration="two-level", far_tol=0.05))
+    solver = twoscale.ContactSolver(options=options)
+    first = solver.solve(_scene())
+    again = solver.solve(_scene())
+    assert first.reuse.operators_built.get("points", 0) > 0
+    assert again.reuse.operators_kept.get("points", 0) > 0 and not again.reuse.operators_built
+    assert _close(again, twoscale.solve(_scene(), options=options))
+
+
 def test_a_reset_or_start_none_is_a_cold_start():
     solver = twoscale.ContactSolver()
     first = solver.solve(_scene())

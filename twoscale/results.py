@@ -140,7 +140,8 @@ class Reuse:
     operators_kept : Mapping
         Operators between patches (or of a patch on itself) this solve took over from
         earlier ones, by kind: ``"fft"`` (kernel spectra), ``"separated"`` (low-rank
-        blocks), ``"factor"`` (a dense block's factorisation on an active set); on a half-space a pair translated by whole cells counts (its operator
+        blocks), ``"factor"`` (a dense block's factorisation on an active set), ``"points"`` (the far
+        field's point operator, kept for the same points); on a half-space a pair translated by whole cells counts (its operator
         depends on the pair's relative position only).
     operators_built : Mapping
         The same, built by this solve.

@@ -17,6 +17,7 @@ operators are kept under the grids themselves (the same scene solved again).
 
 from __future__ import annotations
 
+import hashlib
 from typing import Any, Callable
 
 import numpy as np
@@ -153,7 +154,33 @@ class CachedBody(InfluenceProvider):
         return self.body.cell_block(targets, sources, h)
 
     def point_operator(self, targets, sources, *, exclude=None, rtol: float = 1e-6):
-        return self.body.point_operator(targets, sources, exclude=exclude, rtol=rtol)
+        """The body's point operator; on a translation-invariant body kept for later solves
+        under the exact points (the far field of the same patches again)."""
+        if not self._invariant:
+            return self.body.point_operator(targets, sources, exclude=exclude, rtol=rtol)
+        digest = hashlib.sha1()
+        parts = [np.asarray(targets, dtype=float), np.asarray(sources, dtype=float)]
+        if exclude is not None:  # a sparse pattern: its shape and stored positions
+            import scipy.sparse as sp
+
+            ex = sp.csr_matrix(exclude)
+            parts += [np.array(ex.shape), ex.indptr, ex.indices]
+        for arr in parts:
+            arr = np.ascontiguousarray(arr)
+            digest.update(repr((arr.shape, arr.dtype.str)).encode())
+            digest.update(arr.tobytes())
+        key = ("points", digest.hexdigest(), float(rtol))
+        hit = self.caches.operators.get(key)
+        if hit is not None:
+            made, op = hit
+            if made < self.caches.solve:
+                self.caches.count("points", kept=True)
+                self.caches.operators.put(key, (self.caches.solve, op), _held_bytes(op))
+            return op
+        op = self.body.point_operator(targets, sources, exclude=exclude, rtol=rtol)
+        self.caches.count("points", kept=False)
+        self.caches.operators.put(key, (self.caches.solve, op), _held_bytes(op))
+        return op
 
     def smooth_self_compliance(self, points):
         return self.body.smooth_self_compliance(points)
@@ -245,6 +272,17 @@ class CachedBody(InfluenceProvider):
         if hasattr(op, "moved"):  # an operator that cannot follow a translation is not kept
             self.caches.operators.put(key, (self.caches.solve, op), op.nbytes)
         return op
+
+
+def _held_bytes(op: Any) -> int:
+    """Bytes an operator holds in its arrays and sparse matrices (one level of attributes)."""
+    total = 0
+    for v in vars(op).values():
+        if isinstance(v, np.ndarray):
+            total += v.nbytes
+        elif hasattr(v, "data") and hasattr(v, "indices"):  # scipy sparse
+            total += v.data.nbytes + v.indices.nbytes + getattr(v, "indptr", v.indices).nbytes
+    return int(total)
 
 
 def _factor_bytes(f: tuple) -> int:
