@@ -170,17 +170,8 @@ class CachedBody(InfluenceProvider):
             digest.update(repr((arr.shape, arr.dtype.str)).encode())
             digest.update(arr.tobytes())
         key = ("points", digest.hexdigest(), float(rtol))
-        hit = self.caches.operators.get(key)
-        if hit is not None:
-            made, op = hit
-            if made < self.caches.solve:
-                self.caches.count("points", kept=True)
-                self.caches.operators.put(key, (self.caches.solve, op), _held_bytes(op))
-            return op
-        op = self.body.point_operator(targets, sources, exclude=exclude, rtol=rtol)
-        self.caches.count("points", kept=False)
-        self.caches.operators.put(key, (self.caches.solve, op), _held_bytes(op))
-        return op
+        make = lambda: self.body.point_operator(targets, sources, exclude=exclude, rtol=rtol)
+        return self._kept_or_made("points", key, make, _held_bytes)
 
     def smooth_self_compliance(self, points):
         return self.body.smooth_self_compliance(points)
@@ -239,17 +230,22 @@ class CachedBody(InfluenceProvider):
         if not self._invariant:
             return make()
         key = ("factor", float(grid.h), grid.nx, grid.ny, np.packbits(cells).tobytes())
+        return self._kept_or_made("factor", key, make, _factor_bytes)
+
+    def _kept_or_made(self, kind: str, key: tuple, make: Callable[[], Any], size: Callable[[Any], int]) -> Any:
+        """The value kept under ``key`` (counted as taken over when an earlier solve made
+        it), else ``make()``, kept and counted as built."""
         hit = self.caches.operators.get(key)
         if hit is not None:
-            made, f = hit
+            made, value = hit
             if made < self.caches.solve:
-                self.caches.count("factor", kept=True)
-                self.caches.operators.put(key, (self.caches.solve, f), _factor_bytes(f))
-            return f
-        f = make()
-        self.caches.count("factor", kept=False)
-        self.caches.operators.put(key, (self.caches.solve, f), _factor_bytes(f))
-        return f
+                self.caches.count(kind, kept=True)
+                self.caches.operators.put(key, (self.caches.solve, value), size(value))
+            return value
+        value = make()
+        self.caches.count(kind, kept=False)
+        self.caches.operators.put(key, (self.caches.solve, value), size(value))
+        return value
 
     def _kept(self, kind: str, key: tuple, target: Grid, source: Grid):
         hit = self.caches.operators.get(key)
