@@ -61,15 +61,17 @@ def test_dense_blocks_factorisations_are_kept_between_solves():
         assert _close(r, twoscale.solve(scene, options=options))
 
 
-def test_the_far_field_is_kept_between_solves_of_the_same_patches():
+def test_the_far_field_and_coarse_shapes_are_kept_between_solves_of_the_same_patches():
     # the far field's point operator (tips and moment-matching sources of the same patches)
-    # is taken over by the second solve, which builds no operator at all
+    # and the coarse correction's shapes (a local solve per patch and active set) are taken
+    # over by the second solve, which builds no operator at all
     options = SolverOptions(micro=MicroOptions(iteration="two-level", far_tol=0.05))
     solver = twoscale.ContactSolver(options=options)
     first = solver.solve(_scene())
     again = solver.solve(_scene())
     assert first.reuse.operators_built.get("points", 0) > 0
     assert again.reuse.operators_kept.get("points", 0) > 0 and not again.reuse.operators_built
+    assert again.reuse.operators_kept.get("shape", 0) > 0
     assert _close(again, twoscale.solve(_scene(), options=options))
 
 

@@ -141,7 +141,8 @@ class Reuse:
         Operators between patches (or of a patch on itself) this solve took over from
         earlier ones, by kind: ``"fft"`` (kernel spectra), ``"separated"`` (low-rank
         blocks), ``"factor"`` (a dense block's factorisation on an active set), ``"points"`` (the far
-        field's point operator, kept for the same points); on a half-space a pair translated by whole cells counts (its operator
+        field's point operator, kept for the same points), ``"shape"`` (the coarse
+        correction's local solve on a patch's active set); on a half-space a pair translated by whole cells counts (its operator
         depends on the pair's relative position only).
     operators_built : Mapping
         The same, built by this solve.

@@ -232,6 +232,25 @@ class CachedBody(InfluenceProvider):
         key = ("factor", float(grid.h), grid.nx, grid.ny, np.packbits(cells).tobytes())
         return self._kept_or_made("factor", key, make, _factor_bytes)
 
+    def remembered(self, kind: str, key: tuple) -> Any:
+        """A value an earlier solve kept under ``(kind, key)`` with :meth:`remember` (counted as
+        taken over), else None; None also on a body that is not translation-invariant. A
+        value kept by this solve is not returned: within a solve the arithmetic stays that
+        of a one-shot solve."""
+        if not self._invariant:
+            return None
+        hit = self.caches.operators.get((kind, *key))
+        if hit is None or hit[0] >= self.caches.solve:
+            return None
+        self.caches.count(kind, kept=True)
+        return hit[1]
+
+    def remember(self, kind: str, key: tuple, value: np.ndarray) -> None:
+        """Keep the array ``value`` under ``(kind, key)`` for later solves (counted as built)."""
+        if self._invariant:
+            self.caches.count(kind, kept=False)
+            self.caches.operators.put((kind, *key), (self.caches.solve, value), value.nbytes)
+
     def _kept_or_made(self, kind: str, key: tuple, make: Callable[[], Any], size: Callable[[Any], int]) -> Any:
         """The value kept under ``key`` (counted as taken over when an earlier solve made
         it), else ``make()``, kept and counted as built."""

@@ -177,15 +177,20 @@ class LocalBlock:
             if keep is None:
                 f = self._make_factor(active)
             else:
-                cells = np.zeros(self.box.nx * self.box.ny, dtype=bool)
-                cells[self._idx[active]] = True
-                f = keep(self.box, cells, lambda: self._make_factor(active))
+                f = keep(self.box, self.cells_of(active), lambda: self._make_factor(active))
             self._cache[key] = f
             if len(self._cache) > self._cache_size:
                 self._cache.popitem(last=False)
         else:
             self._cache.move_to_end(key)
         return f
+
+    def cells_of(self, active: np.ndarray) -> np.ndarray:
+        """The cells of ``active`` (a mask over the block's owned cells) as a mask over the
+        block's box, row-major: the block's geometry relative to its box."""
+        cells = np.zeros(self.box.nx * self.box.ny, dtype=bool)
+        cells[np.flatnonzero(self._mask.ravel())[active]] = True
+        return cells
 
     def _make_factor(self, active: np.ndarray) -> tuple:
         if self._matrix is not None:
