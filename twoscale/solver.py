@@ -9,8 +9,10 @@ for a body and options, keeps what stays valid from one solve to the next:
 * **its caches** (:class:`~twoscale.influence.cached.OperatorCaches`, bounded by
   ``max_cache_bytes``): the half-space's Love offset tables and interpolation matrices, and
   the operators between patches (kernel spectra of FFT products, separated low-rank
-  blocks) and of a patch on itself, kept by the pair's relative position: the same scene
-  again, or moved by whole cells (a rolling road's next position), finds them built.
+  blocks) and of a patch on itself, dense blocks' factorisations per active set and the
+  coarse correction's local solves, kept by relative position: the same scene again, or
+  moved by whole cells (a rolling road's next position), finds them built; and the far
+  field's point operator, kept for the same points.
   The body itself keeps nothing; the solver passes it to the solves seen through these
   caches (:class:`~twoscale.influence.cached.CachedBody`);
 * **the previous answer** as the next solve's start (:mod:`twoscale.warm_start`): the macro
