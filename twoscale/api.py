@@ -35,7 +35,7 @@ from .control import check_control
 from .errors import ResolutionWarning
 from .material import Material
 from .results import ContactResult
-from .scene import METHODS as SCENE_METHODS
+from .scene import SCENE_METHODS
 from .resolution import check_resolution
 from .scene import Scene, SceneError, default_h, expected_contact_radii, expected_contacts
 from .tips import as_asperities, asperities  # noqa: F401 (twoscale.asperities, twoscale.as_asperities)

@@ -53,7 +53,7 @@ from .memory_costs import (
     ADVICE_SHARE,
 )
 from .micro.policy import UNION_MIN_COVERAGE
-from .scene import METHODS, Scene, SceneError, expected_approaches, expected_contact_radii, round_up
+from .scene import SCENE_METHODS, Scene, SceneError, expected_approaches, expected_contact_radii, round_up
 
 
 @dataclass(frozen=True)
@@ -140,8 +140,8 @@ def estimate_memory(scene: Scene, h: float, method: str = "twoscale", *, iterati
     MemoryEstimate
         Bytes, cells and what dominates, from the scene alone (no grid array built).
     """
-    if method not in METHODS:
-        raise ValueError(f"method must be one of {METHODS}, got {method!r}")
+    if method not in SCENE_METHODS:
+        raise ValueError(f"method must be one of {SCENE_METHODS}, got {method!r}")
     if not (isinstance(h, (int, float)) and math.isfinite(h) and h > 0):
         raise ValueError(f"h must be a finite number > 0 (mm), got {h!r}")
     parts = {"interpreter and libraries": BASE_BYTES}

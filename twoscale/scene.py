@@ -359,7 +359,7 @@ def _check_rolling(scene: Scene) -> None:
 
 #: Methods of the scene-file workflow (``twoscale solve --method``); :func:`twoscale.solve`
 #: also takes the reference solvers by name ("dense", "cg").
-METHODS = ("twoscale", "reference")
+SCENE_METHODS = ("twoscale", "reference")
 
 
 # the cell size a scene needs lives in .resolution; kept importable from here

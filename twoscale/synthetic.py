@@ -38,7 +38,7 @@ from .scene import BLOCK_DEFAULT_SIZE, Scene, _hertz_level
 
 KINDS = ("dense", "sparse")
 CONTROLS = ("load", "penetration")
-BODIES = ("halfspace", "block")
+BODY_KINDS = ("halfspace", "block")
 #: Smallest distance between two tips, mm.
 MIN_SPACING = 1.5
 #: Largest side of the square of tips on the default block, mm (its top face is 140 mm).
@@ -133,7 +133,7 @@ def random_scene(
         ("kind", kind, KINDS),
         ("control", control, CONTROLS),
         ("shape", shape, SHAPES),
-        ("body", body, BODIES),
+        ("body", body, BODY_KINDS),
     ):
         if value not in allowed:
             raise ValueError(f"{name} must be one of {allowed}, got {value!r}")

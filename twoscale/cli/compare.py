@@ -66,7 +66,7 @@ from ..influence.registry import make_body, unavailable
 from ..io.scene_file import read_scene
 from ..progress import Progress
 from ..resources import check_solve_memory
-from ..scene import METHODS, Scene, SceneError, default_h, normalise_influence
+from ..scene import SCENE_METHODS, Scene, SceneError, default_h, normalise_influence
 from ..sensor import Sensor, forces_from_map, read_sensor_map, read_tip_forces
 from .options import DEFAULT_SENSOR, add_sensor_arguments, sensor_from_args
 from .compare_outputs import Comparison, write_outputs
@@ -76,7 +76,11 @@ from .solve import check_out_dir
 from .staging import staged_directory
 
 #: Bodies compared, in table order: name -> (influence kind, block base).
-BODIES = {"halfspace": ("halfspace", None), "block-bonded": ("block", "bonded"), "block-sliding": ("block", "sliding")}
+COMPARED_BODIES = {
+    "halfspace": ("halfspace", None),
+    "block-bonded": ("block", "bonded"),
+    "block-sliding": ("block", "sliding"),
+}
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -92,7 +96,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )
     parser.add_argument("--out", metavar="DIR", default=None, help="output directory (default: <scene name>_compare)")
     parser.add_argument(
-        "--method", choices=METHODS, default="twoscale", help="solver for every body (default twoscale)"
+        "--method", choices=SCENE_METHODS, default="twoscale", help="solver for every body (default twoscale)"
     )
     parser.add_argument("--h", metavar="H", default=None, help="cell size in mm, overriding [grid] h of the scene")
     parser.add_argument("--vtk", action="store_true", help="also write runs/*/fields.vtm")
@@ -200,7 +204,7 @@ def _block_factory():
 
 
 def _influence(scene: Scene, body: str) -> dict:
-    kind, base = BODIES[body]
+    kind, base = COMPARED_BODIES[body]
     if kind == "halfspace":
         return {"kind": "halfspace"}
     # the scene's own block options where it has a block, else the defaults, with this base
@@ -254,7 +258,7 @@ def _providers(scene: Scene, quiet: bool, base: str = "both") -> tuple[dict, lis
     if factory is None:
         notes.append(f"finite block not compared: {why}; half-space only")
         return providers, notes
-    for body in [b for b in ("block-bonded", "block-sliding") if base in ("both", BODIES[b][1])]:
+    for body in [b for b in ("block-bonded", "block-sliding") if base in ("both", COMPARED_BODIES[b][1])]:
         opts = _influence(scene, body)
         try:  # the block draws its own progress line while it is built
             providers[body] = factory(

@@ -36,7 +36,7 @@ from ..progress import StatusLine
 from ..resources import check_solve_memory
 from ..results import ContactResult
 from ..api import solve_scene
-from ..scene import METHODS, SceneError, default_h
+from ..scene import SCENE_METHODS, SceneError, default_h
 from .options import positive_option, with_h_option
 from .staging import check_output_folder, staged_directory
 
@@ -50,7 +50,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("scene", metavar="SCENE.toml", help="scene file (TOML; units mm, N, MPa)")
     parser.add_argument(
         "--method",
-        choices=METHODS,
+        choices=SCENE_METHODS,
         default="twoscale",
         help="two-scale solver (default) or classical reference solver on the full grid",
     )

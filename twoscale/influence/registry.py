@@ -18,7 +18,7 @@ import importlib
 from ..material import Material
 
 #: Bodies by the scene file's ``influence.kind``: (module, class) of the provider.
-BODIES = {"halfspace": ("twoscale.influence.halfspace", "HalfSpace"), "block": ("fem_influence", "BlockProvider")}
+PROVIDERS = {"halfspace": ("twoscale.influence.halfspace", "HalfSpace"), "block": ("fem_influence", "BlockProvider")}
 
 
 def body_class(kind: str) -> type:
@@ -32,9 +32,9 @@ def body_class(kind: str) -> type:
         When the package holding it cannot be imported; the message names the package
         and the reason (e.g. scikit-fem missing).
     """
-    if kind not in BODIES:
-        raise ValueError(f"body kind must be one of {tuple(BODIES)}, got {kind!r}")
-    module, name = BODIES[kind]
+    if kind not in PROVIDERS:
+        raise ValueError(f"body kind must be one of {tuple(PROVIDERS)}, got {kind!r}")
+    module, name = PROVIDERS[kind]
     try:
         return getattr(importlib.import_module(module), name)
     except (ImportError, AttributeError) as exc:

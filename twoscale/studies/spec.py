@@ -41,7 +41,7 @@ import numpy as np
 from ..errors import StudyError
 from ..io.scene_file import check_keys, field_path, read_scene, read_toml, table_of
 from ..micro.policy import ITERATIONS
-from ..scene import BLOCK_BASES, BLOCK_DEFAULT_SIZE, METHODS, SceneError, check_number, check_pair
+from ..scene import BLOCK_BASES, BLOCK_DEFAULT_SIZE, SCENE_METHODS, SceneError, check_number, check_pair
 from ..sensor import Sensor
 from .checks import name as _name, tables as _tables
 from .keys import digest, scene_record
@@ -173,8 +173,8 @@ def study_from_dict(data: Mapping, *, base: str | os.PathLike = ".", name: str =
     head = table_of("study", data.get("study", {}))
     _keys("study", head, ("name", "method"))
     method = head.get("method", "twoscale")
-    if method not in METHODS:
-        raise StudyError(f"study.method must be one of {METHODS}, got {method!r}")
+    if method not in SCENE_METHODS:
+        raise StudyError(f"study.method must be one of {SCENE_METHODS}, got {method!r}")
     load = table_of("load", data.get("load", {}))
     loads, tilt = _loads(load)
     positions, track = _positions(table_of("positions", data.get("positions", {})))

@@ -21,7 +21,7 @@ from .heightmap import HeightMap, SurfaceError
 from .reading import MIN_SIDE, RawMap
 
 #: Height units and their size in mm.
-UNITS = {"mm": 1.0, "um": 1e-3, "nm": 1e-6, "m": 1e3}
+MM_PER_UNIT = {"mm": 1.0, "um": 1e-3, "nm": 1e-6, "m": 1e3}
 #: Most samples a conditioned map may have (a 200 mm square at 0.04 mm), and the memory
 #: one sample costs through conditioning, segmentation and the solvers' look-ups (an
 #: upper estimate, bytes; measured in docs/surfaces.md, "Size and memory").
@@ -203,15 +203,15 @@ def _units(src: str, declared: str | None, given: str | None) -> tuple[float, st
     """Size of the height unit in mm, its name, and where it came from ("map", "option",
     "default")."""
     for name, v in (("units", given), ("the map's units", declared)):
-        if v is not None and v not in UNITS:
-            raise SurfaceError(f"{src}: {name} must be one of {', '.join(UNITS)}, got {v!r}")
+        if v is not None and v not in MM_PER_UNIT:
+            raise SurfaceError(f"{src}: {name} must be one of {', '.join(MM_PER_UNIT)}, got {v!r}")
     if declared is not None and given is not None and declared != given:
         raise SurfaceError(f"{src}: units = {given!r} but the file says its heights are in {declared!r}")
     if declared is not None:
-        return UNITS[declared], declared, "map"
+        return MM_PER_UNIT[declared], declared, "map"
     if given is not None:
-        return UNITS[given], given, "option"
-    return UNITS["mm"], "mm", "default"
+        return MM_PER_UNIT[given], given, "option"
+    return MM_PER_UNIT["mm"], "mm", "default"
 
 
 def _spacing_mm(src: str, raw: RawMap, given: float | None, factor: float) -> float:

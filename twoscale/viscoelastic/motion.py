@@ -15,7 +15,7 @@ from ..control import check_control
 from ..grid import Grid
 from ..material import Material
 
-METHODS = ("twoscale", "reference", "dense", "cg")
+MOVING_METHODS = ("twoscale", "reference", "dense", "cg")
 STARTS = ("ramp", "relaxed")
 
 
@@ -54,8 +54,8 @@ class MovingOptions:
     open_edges: bool = False
 
     def __post_init__(self) -> None:
-        if self.method not in METHODS:
-            raise ValueError(f"method must be one of {METHODS}, got {self.method!r}")
+        if self.method not in MOVING_METHODS:
+            raise ValueError(f"method must be one of {MOVING_METHODS}, got {self.method!r}")
         if self.start not in STARTS:
             raise ValueError(f"start must be one of {STARTS}, got {self.start!r}")
 

@@ -45,7 +45,7 @@ from .moving_result import MovingResult, StepSummary
 from .prony import creep_compliance
 from .stepping import local_error
 from .steps import StepProblem, TwoScaleStep, scaled
-from .motion import METHODS, MOTION_KEYWORDS, STARTS, Motion, MovingOptions, motion_of, sweep_grid  # noqa: F401
+from .motion import MOVING_METHODS, MOTION_KEYWORDS, STARTS, Motion, MovingOptions, motion_of, sweep_grid  # noqa: F401
 
 
 def _check(material, provider) -> None:
@@ -290,4 +290,4 @@ def _iterations(result) -> int:
     return int(sum(v for v in result.iterations.values() if isinstance(v, (int, np.integer))))
 
 
-__all__ = ["METHODS", "MOTION_KEYWORDS", "Motion", "MovingOptions", "solve_moving", "sweep_grid"]
+__all__ = ["MOVING_METHODS", "MOTION_KEYWORDS", "Motion", "MovingOptions", "solve_moving", "sweep_grid"]
