@@ -79,3 +79,47 @@ def test_test_modules_do_not_import_one_another():
                 if n.split(".")[-1].startswith("test_") or n.startswith("tests.test_")
             ]
     assert not found, f"test modules importing other test modules (use tests/helpers.py): {found}"
+
+
+#: Names each module defines for itself in the same role, with its own value: the units,
+#: column descriptions, titles and case columns of the file a module writes, the top-level
+#: keys of the file format it reads, its limits, and its fields file's name.
+SAME_ROLE_NAMES = {
+    "UNITS",
+    "DESCRIPTIONS",
+    "TITLES",
+    "CASE_COLUMNS",
+    "TOP_KEYS",
+    "MAX_ROWS",
+    "MAX_CASES",
+    "FIELDS_NAME",
+}
+
+
+def test_no_constant_name_means_different_things():
+    # a module-level constant defined in several modules holds the same value in each,
+    # unless its name is one of the same-role names above
+    values: dict = {}
+    for p in sorted(PACKAGE.rglob("*.py")):
+        for node in ast.parse(p.read_text()).body:
+            targets = (
+                node.targets
+                if isinstance(node, ast.Assign)
+                else [node.target]
+                if isinstance(node, ast.AnnAssign)
+                else []
+            )
+            for target in targets:
+                if (
+                    isinstance(target, ast.Name)
+                    and target.id.isupper()
+                    and len(target.id) > 1
+                    and node.value is not None
+                ):
+                    values.setdefault(target.id, {})[str(p.relative_to(ROOT))] = ast.dump(node.value)
+    clashes = {
+        name: sorted(where)
+        for name, where in values.items()
+        if name not in SAME_ROLE_NAMES and len(set(where.values())) > 1
+    }
+    assert not clashes, f"constant names holding different things in different modules: {clashes}"

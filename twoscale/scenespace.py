@@ -36,8 +36,8 @@ from .indenters import Asperity
 from .material import Material
 from .scene import BLOCK_DEFAULT_SIZE, Scene, _hertz_level
 
-LAYOUTS = ("uniform", "clustered", "lattice")
-KINDS = ("tips", "road", "road-hole", "road-um")
+POSITION_LAYOUTS = ("uniform", "clustered", "lattice")
+SCENE_KINDS = ("tips", "road", "road-hole", "road-um")
 #: Largest contact radius over R a drawn load may reach (larger loads are capped).
 MAX_A_OVER_R = 0.4
 #: Side of the square the tips may occupy on the default block (its top face is 140 mm,
@@ -145,7 +145,7 @@ def draw(index: int, seed: int = 0, *, max_tips: int = 10_000, maps: float = 0.1
     body = "block" if rng.uniform() < block else "halfspace"
     h_factor = 0.0 if rng.uniform() < 0.7 else float(rng.choice([0.5, 1.5, 3.0]))
     if rng.uniform() < maps:
-        kind = str(rng.choice(KINDS[1:]))
+        kind = str(rng.choice(SCENE_KINDS[1:]))
         size = float(rng.choice([30.0, 50.0, 70.0]))
         pressure = _loguniform(rng, 0.05, 0.5)
         control = "load"
@@ -170,7 +170,7 @@ def draw(index: int, seed: int = 0, *, max_tips: int = 10_000, maps: float = 0.1
             size,
         )
     n = int(round(_loguniform(rng, 1.0, max_tips + 0.49)))
-    layout = str(rng.choice(LAYOUTS, p=[0.6, 0.25, 0.15]))
+    layout = str(rng.choice(POSITION_LAYOUTS, p=[0.6, 0.25, 0.15]))
     radius = _loguniform(rng, 0.5, 20.0)
     radius_spread = float(rng.uniform(0.0, 0.6))
     shape = str(rng.choice(["sphere", "paraboloid"]))
@@ -301,4 +301,4 @@ def sweep(count: int, seed: int = 0, **options) -> list[SceneSpec]:
     return [draw(i, seed, **options) for i in range(count)]
 
 
-__all__ = ["SceneSpec", "draw", "build", "sweep", "LAYOUTS", "KINDS", "BLOCK_DEFAULT_SIZE"]
+__all__ = ["SceneSpec", "draw", "build", "sweep", "POSITION_LAYOUTS", "SCENE_KINDS", "BLOCK_DEFAULT_SIZE"]

@@ -36,7 +36,7 @@ from .material import Material
 from .options import settings_from
 from .scene import BLOCK_DEFAULT_SIZE, Scene, _hertz_level
 
-KINDS = ("dense", "sparse")
+FAMILY_KINDS = ("dense", "sparse")
 CONTROLS = ("load", "penetration")
 BODY_KINDS = ("halfspace", "block")
 #: Smallest distance between two tips, mm.
@@ -130,7 +130,7 @@ def random_scene(
     if isinstance(n_tips, bool) or not isinstance(n_tips, (int, np.integer)) or n_tips < 1:
         raise ValueError(f"n_tips must be an integer >= 1, got {n_tips!r}")
     for name, value, allowed in (
-        ("kind", kind, KINDS),
+        ("kind", kind, FAMILY_KINDS),
         ("control", control, CONTROLS),
         ("shape", shape, SHAPES),
         ("body", body, BODY_KINDS),
@@ -249,7 +249,7 @@ def sparse_recesses(u: np.ndarray, R: np.ndarray, total_load: float, E_star: flo
 def scene_family(
     sizes: Sequence[int] = (50, 200, 1000),
     *,
-    kinds: Sequence[str] = KINDS,
+    kinds: Sequence[str] = FAMILY_KINDS,
     controls: Sequence[str] = CONTROLS,
     shapes: Sequence[str] = SHAPES,
     bodies: Sequence[str] = ("halfspace",),

@@ -45,7 +45,7 @@ from .atomic import current_umask, atomic_output
 from .vti import read_image, read_multiblock, write_image, write_multiblock
 
 UNITS = {"length": "mm", "force": "N", "pressure": "MPa", "angle": "rad"}
-LAYOUTS = ("patches", "union")
+FIELD_LAYOUTS = ("patches", "union")
 _META = "twoscale_metadata"
 
 
@@ -266,8 +266,8 @@ def write_vtk(
     path = Path(path)
     if path.suffix.lower() != ".vtm":
         raise ValueError(f"VTK output path must end in .vtm, got {str(path)!r}")
-    if layout not in LAYOUTS:
-        raise ValueError(f"layout must be one of {LAYOUTS}, got {layout!r}")
+    if layout not in FIELD_LAYOUTS:
+        raise ValueError(f"layout must be one of {FIELD_LAYOUTS}, got {layout!r}")
     if not result.fields:
         raise ValueError("result has no pressure fields to write")
     folder = path.with_suffix("")

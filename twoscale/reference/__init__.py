@@ -49,7 +49,7 @@ from .dense import solve_dense
 #: dense, 0.02 s CG) and is the only option beyond about 10^4 cells.
 AUTO_DENSE_CELLS = 2000
 
-SOLVERS = {"dense": solve_dense, "cg": solve_cg}
+REFERENCE_SOLVERS = {"dense": solve_dense, "cg": solve_cg}
 
 
 def solve_reference(provider: InfluenceProvider, surface: Surface, *, method: str = "auto", **kwargs) -> ContactResult:
@@ -62,9 +62,9 @@ def solve_reference(provider: InfluenceProvider, surface: Surface, *, method: st
     if method == "auto":
         n = int(np.count_nonzero(np.isfinite(surface.height)))
         method = "dense" if n <= AUTO_DENSE_CELLS else "cg"
-    if method not in SOLVERS:
+    if method not in REFERENCE_SOLVERS:
         raise ValueError(f"method must be 'auto', 'dense' or 'cg', got {method!r}")
-    return SOLVERS[method](provider, surface, **kwargs)
+    return REFERENCE_SOLVERS[method](provider, surface, **kwargs)
 
 
 __all__ = ["solve_dense", "solve_cg", "solve_reference", "AUTO_DENSE_CELLS"]

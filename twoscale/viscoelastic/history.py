@@ -19,7 +19,7 @@ import numpy as np
 from .stepping import TimeSteps
 
 #: Control kinds: ``"total"`` (N, load control) or ``"penetration"`` (mm).
-KINDS = ("total", "penetration")
+CONTROL_KINDS = ("total", "penetration")
 
 
 def _number(path: str, v, unit: str) -> float:
@@ -55,8 +55,8 @@ class LoadHistory:
     steps: TimeSteps = field(default_factory=TimeSteps)
 
     def __post_init__(self) -> None:
-        if self.kind not in KINDS:
-            raise ValueError(f"history kind must be one of {KINDS}, got {self.kind!r}")
+        if self.kind not in CONTROL_KINDS:
+            raise ValueError(f"history kind must be one of {CONTROL_KINDS}, got {self.kind!r}")
         path, unit = f"load.{self.kind}", ("N" if self.kind == "total" else "mm")
         pts = self.points
         if isinstance(pts, (str, bytes)) or not hasattr(pts, "__len__") or len(pts) == 0:
@@ -137,4 +137,4 @@ class LoadHistory:
         return self.times
 
 
-__all__ = ["KINDS", "LoadHistory"]
+__all__ = ["CONTROL_KINDS", "LoadHistory"]
