@@ -34,7 +34,7 @@ import time
 
 import numpy as np
 
-from .result import RollingResult, StoneSignals
+from .result import SIGNALS, RollingResult, StoneSignals
 from .run import RollingOptions, roll
 
 #: Default bound on the memory a viscoelastic chunk's start leaves after its warm-up
@@ -129,21 +129,7 @@ def trim(result: RollingResult, first: int) -> RollingResult:
     keep = slice(first, None)
     a = result.asperities
     rows = a.position >= first
-    per = {
-        name: getattr(result, name)[keep]
-        for name in (
-            "times",
-            "shifts",
-            "total_load",
-            "penetration",
-            "contact_area",
-            "drag",
-            "converged",
-            "seconds",
-            "stones",
-            "iterations",
-        )
-    }
+    per = {name: getattr(result, name)[keep] for name in SIGNALS}
     energy = {name: getattr(result, name)[keep] for name in ("dissipated", "stored") if getattr(result, name).size}
     line = result.line_load[keep] if result.line_load.shape[0] else result.line_load
     return dataclasses.replace(

@@ -34,7 +34,8 @@ from .keys import scene_record
 from .spec import Study
 from .store import CaseStore
 
-CASE_COLUMNS = (
+#: The columns that say which case a row belongs to (both tables start with them).
+STATIC_WHERE_COLUMNS = (
     "scene",
     "body",
     "load_kind",
@@ -43,6 +44,9 @@ CASE_COLUMNS = (
     "shift_x_mm",
     "shift_y_mm",
     "distance_mm",
+)
+CASE_COLUMNS = (
+    *STATIC_WHERE_COLUMNS,
     "status",
     "reason",
     "n_tips",
@@ -58,14 +62,7 @@ CASE_COLUMNS = (
     "key",
 )
 TIP_COLUMNS = (
-    "scene",
-    "body",
-    "load_kind",
-    "load",
-    "position",
-    "shift_x_mm",
-    "shift_y_mm",
-    "distance_mm",
+    *STATIC_WHERE_COLUMNS,
     "asperity",
     "x_mm",
     "y_mm",
