@@ -48,6 +48,22 @@ def half_space_as_block(material, *, size, base, origin, source_spacing, progres
     return HalfSpace(material)
 
 
+def small_block(material):
+    """A small bonded finite block (60 x 60 x 10 mm, coarse mesh, no cache) for tests that
+    need a body other than the half-space (fem_influence must be importable)."""
+    from fem_influence import BlockProvider
+
+    return BlockProvider(
+        material=material,
+        size=(60.0, 60.0, 10.0),
+        h_fine=5.0,
+        h_coarse=10.0,
+        fine_half_width=10.0,
+        use_cache=False,
+        progress=False,
+    )
+
+
 def spaced_spheres(n, seed, side, spread=0.06):
     """``n`` spheres (R 2-6 mm, tip heights spread over ``spread`` mm) at random on a
     ``side`` x ``side`` mm square, centres at least 1.5 mm apart (seeded)."""

@@ -15,7 +15,7 @@ from twoscale.reference import solve_cg
 from twoscale.reference.on_scene import reference_grid
 from twoscale.scene import Scene
 
-from helpers import crowded
+from helpers import crowded, small_block
 
 MAT = Material(E=6.0, nu=0.5)
 HS = HalfSpace(MAT)
@@ -75,18 +75,10 @@ def test_no_preconditioner_between_different_grids():
 def test_the_block_takes_its_half_space_part_as_preconditioner():
     """On the finite block (half-space + smooth low-rank correction) the half-space kernel's
     inverse preconditions the same constrained CG: same contact, fewer iterations."""
-    fem = pytest.importorskip("fem_influence")
+    pytest.importorskip("fem_influence")
     from twoscale.indenters import Asperity
 
-    block = fem.BlockProvider(
-        material=MAT,
-        size=(60.0, 60.0, 10.0),
-        h_fine=5.0,
-        h_coarse=10.0,
-        fine_half_width=10.0,
-        use_cache=False,
-        progress=False,
-    )
+    block = small_block(MAT)
     rng = np.random.default_rng(3)
     asps = [
         Asperity(float(x), float(y), float(z), 4.0)

@@ -18,7 +18,7 @@ from twoscale.krylov import block_cg
 from twoscale.micro.coarse import CoarseSpace
 from twoscale.driver import solve_twoscale
 
-from helpers import random_scene, spaced_spheres
+from helpers import random_scene, small_block, spaced_spheres
 
 MAT = Material(10.0, 0.5)
 HS = HalfSpace(MAT)
@@ -176,16 +176,8 @@ def test_two_level_runs_unchanged_on_the_finite_block():
     # the same call on a small bonded block (60 x 60 x 10 mm, coarse mesh):
     # forces within 0.5 % of the exact coupling on the same block, and much nearer to it
     # than to the half-space answer (the block's own interaction is what it used)
-    fem = pytest.importorskip("fem_influence")
-    block = fem.BlockProvider(
-        material=MAT,
-        size=(60.0, 60.0, 10.0),
-        h_fine=5.0,
-        h_coarse=10.0,
-        fine_half_width=10.0,
-        use_cache=False,
-        progress=False,
-    )
+    pytest.importorskip("fem_influence")
+    block = small_block(MAT)
     asp = [a for a in spaced_spheres(30, 5, 18.0)]
     asp = [Asperity(a.x - 9.0, a.y - 9.0, a.z, a.R) for a in asp]
     kw = dict(h=0.1, total_load=2.0, tol=1e-7, max_sweeps=200)
