@@ -92,7 +92,9 @@ def timed(scene, client, chunks: int) -> dict:
     parts = []
     for i0, i1 in chunk_bounds(len(result.shifts), chunks):
         s = np.asarray(result.seconds[i0:i1])
-        parts.append({"sum": float(s.sum()), "first": float(s[0]), "median": float(np.median(s[1:] if s.size > 1 else s))})
+        parts.append(
+            {"sum": float(s.sum()), "first": float(s[0]), "median": float(np.median(s[1:] if s.size > 1 else s))}
+        )
     return {
         "wall": wall,
         "worker_cpu": worker_cpu,
@@ -106,7 +108,9 @@ def timed(scene, client, chunks: int) -> dict:
 
 def report(r: int, w: int, run: dict, reference) -> None:
     diff = float(np.abs(run["result"].total_load - reference.total_load).max())
-    chunks = ", ".join(f"{c['sum']:.1f} s (first {c['first']:.2f} s, median {c['median']:.2f} s)" for c in run["chunks"])
+    chunks = ", ".join(
+        f"{c['sum']:.1f} s (first {c['first']:.2f} s, median {c['median']:.2f} s)" for c in run["chunks"]
+    )
     print(
         f"round {r + 1}, {w} worker{'s' if w > 1 else ' '}: wall {run['wall']:6.2f} s; worker CPU "
         f"{' + '.join(f'{c:.1f}' for c in run['worker_cpu'])} s, this process {run['own_cpu']:.1f} s, "
@@ -132,6 +136,7 @@ def main(argv=None) -> None:
     )
     print("serial parts in this process:", {k: round(v, 3) for k, v in serial_parts(scene, args.chunks).items()})
     walls: dict = {1: [], 2: []}
+    cpus: dict = {1: [], 2: []}
     with dask_client(workers=1) as one, dask_client(workers=2) as two:
         clients = {1: one, 2: two}
         for w, client in clients.items():
@@ -144,12 +149,20 @@ def main(argv=None) -> None:
                 run = timed(scene, clients[w], args.chunks)
                 reference = reference if reference is not None else run["result"]
                 walls[w].append(run["wall"])
+                cpus[w].append(run["worker_cpu"])
                 report(r, w, run, reference)
     ratios = [a / b for a, b in zip(walls[1], walls[2])]
+    # what the workers' CPU seconds say the ratio would be on two free cores: the one worker's
+    # CPU over the busier of the two (the same work split; the other jobs add wall, not CPU)
+    bound = [sum(a) / max(b) for a, b in zip(cpus[1], cpus[2])]
+    split = [sum(b) / sum(a) for a, b in zip(cpus[1], cpus[2])]
     m1, m2 = statistics.median(walls[1]), statistics.median(walls[2])
     print(
         f"per round, 1-worker wall / 2-worker wall: {', '.join(f'{x:.2f}' for x in ratios)}; median "
-        f"{statistics.median(ratios):.2f} (target >= 1.6); median walls {m1:.2f} s and {m2:.2f} s: {m1 / m2:.2f}x"
+        f"{statistics.median(ratios):.2f} (target >= 1.6); median walls {m1:.2f} s and {m2:.2f} s: {m1 / m2:.2f}x\n"
+        f"per round, the 1-worker run's worker CPU over the 2-worker run's busier worker's CPU (the ratio on two "
+        f"free cores): {', '.join(f'{x:.2f}' for x in bound)}, median {statistics.median(bound):.2f}; the two "
+        f"workers' CPU over the one's (the cost of splitting): {', '.join(f'{x:.2f}' for x in split)}"
     )
 
 

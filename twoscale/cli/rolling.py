@@ -124,6 +124,14 @@ def summary(result, scene_path: str, wall: float, out) -> str:
     ]
     if n >= 2:
         lines.insert(-1, _bands_line(result))
+    balance = result.energy_balance()
+    if balance is not None and balance["mismatch"] is not None:
+        lines.insert(
+            -1,
+            f"  energy       drag and load work {balance['drag_work'] + balance['vertical_work']:.4g} N mm against "
+            f"{balance['stored_change'] + balance['dissipated']:.4g} N mm stored and dissipated in the branches "
+            f"({100 * balance['mismatch']:+.1f} %)",
+        )
     if out is not None:
         names = sorted(p.name for p in Path(out).iterdir() if not p.name.startswith("."))
         lines.append(f"  wrote        {out}/: {', '.join(names)}")

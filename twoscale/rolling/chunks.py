@@ -195,6 +195,7 @@ def join(parts: list, track, seconds: float) -> RollingResult:
             "positions": float(sum(p.timings_s.get("positions", 0.0) for p in parts)),
         },
         body=first.body,
+        step_check=track.step_check,
     )
 
 

@@ -77,11 +77,10 @@ def case_numbers(result) -> dict:
         "energy_balance": None,
         "seconds_per_position": float(np.mean(result.seconds)),
     }
-    if result.dissipated.size and distance > 0:
-        dissipated = float(np.sum(result.dissipated[1:]))
-        energy = float(result.stored[-1] - result.stored[0]) + dissipated
-        out["dissipated_per_mm_N"] = dissipated / distance
-        out["energy_balance"] = result.drag_work() / energy - 1.0 if energy > 0 else None
+    balance = result.energy_balance()
+    if balance is not None and distance > 0:
+        out["dissipated_per_mm_N"] = balance["dissipated"] / distance
+        out["energy_balance"] = balance["mismatch"]
     return out
 
 
