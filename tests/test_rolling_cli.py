@@ -195,3 +195,25 @@ def test_fine_step_does_not_warn(strip_file, tmp_path, capsys):
     assert main(["solve", scene, "--out", str(out), "--quiet"]) == 0
     assert "warning" not in capsys.readouterr().err
     assert json.loads((out / "rolling.json").read_text())["step_check"]["coarse"] is False
+
+
+def test_step_error_from_a_run_at_twice_the_step(strip_file, tmp_path, capsys):
+    """``--step-error``: the friction over the run (from signals.csv: the drag's trapezoid
+    mean over the shifts) against the run at twice the step; the extrapolation adds their
+    difference (first order). Refused, exit 2, for an elastic material."""
+    out = tmp_path / "run"
+    scene = _scene(strip_file, prony="prony = [[20.0, 1e-4]]")
+    assert main(["solve", scene, "--out", str(out), "--quiet", "--step-error"]) == 0
+    assert len(capsys.readouterr().err.strip().splitlines()) == 1  # the coarse step's warning, once
+    e = json.loads((out / "rolling.json").read_text())["step_error"]
+    with open(out / "signals.csv", newline="") as fh:
+        rows = list(csv.DictReader(fh))
+    s, g = (np.array([float(r[k]) for r in rows]) for k in ("shift_mm", "drag_N"))
+    assert e["distance_mm"] == pytest.approx(2.0)
+    assert e["friction_N"] == pytest.approx(np.trapezoid(g, s) / 2.0, rel=1e-9)
+    assert e["extrapolated_friction_N"] == pytest.approx(2 * e["friction_N"] - e["friction_at_twice_the_step_N"])
+    assert e["friction_at_twice_the_step_N"] != e["friction_N"]
+    elastic = tmp_path / "elastic"
+    assert main(["solve", _scene(strip_file), "--out", str(elastic), "--step-error"]) == 2
+    err = capsys.readouterr().err
+    assert len(err.strip().splitlines()) == 1 and "--step-error" in err and not elastic.exists()

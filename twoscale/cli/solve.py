@@ -84,6 +84,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "DIR/block_displacement.vtu (displacement inside the block)",
     )
     parser.add_argument(
+        "--step-error",
+        action="store_true",
+        help="[rolling] with a viscoelastic material: roll again at twice the step and report the "
+        "hysteresis friction's step error in rolling.json (costs half the run again)",
+    )
+    parser.add_argument(
         "--quiet",
         action="store_true",
         help="print nothing but errors (no status line or progress bar either; they are "

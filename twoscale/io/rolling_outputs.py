@@ -146,11 +146,21 @@ ENERGY_MEANING = (
 )
 
 
+#: What ``rolling.json``'s ``step_error`` (``twoscale solve --step-error``) means.
+STEP_ERROR_MEANING = (
+    "N: the mean drag (hysteresis friction) over the distance both runs cover, at the step and at twice the step "
+    "(same samples, same first shift); with the friction first order in the step (measured), their difference "
+    "estimates the error of the run at the step, and the extrapolated friction adds it"
+)
+
+
 def _energy(result) -> dict:
     """A viscoelastic run's energy per position and its balance with the drag's work."""
     out: dict = {}
     if result.step_check is not None:
         out["step_check"] = result.step_check.to_dict()
+    if result.step_error is not None:
+        out["step_error"] = {**result.step_error, "meaning": STEP_ERROR_MEANING}
     balance = result.energy_balance()
     if balance is None:
         return out

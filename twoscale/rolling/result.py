@@ -119,6 +119,9 @@ class RollingResult:
     step_check : StepCheck, optional
         The step against the road's samples and the active Prony branches
         (:mod:`twoscale.rolling.stepcheck`; coarse only for a viscoelastic run).
+    step_error : mapping, optional
+        The friction's step error from a run at twice the step
+        (:func:`twoscale.rolling.stepcheck.step_error`), when it was measured.
     """
 
     spec: RollingSpec
@@ -144,6 +147,7 @@ class RollingResult:
     timings_s: Mapping = field(default_factory=dict)
     body: str = ""
     step_check: Any = None
+    step_error: Mapping | None = None
 
     def __post_init__(self) -> None:
         for name in SIGNALS:
@@ -159,6 +163,8 @@ class RollingResult:
         for name in ("dissipated", "stored"):
             object.__setattr__(self, name, frozen_array(getattr(self, name)))
         object.__setattr__(self, "timings_s", FrozenMapping(self.timings_s))
+        if self.step_error is not None:
+            object.__setattr__(self, "step_error", FrozenMapping(self.step_error))
 
     @property
     def all_converged(self) -> bool:
