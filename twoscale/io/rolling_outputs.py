@@ -8,7 +8,8 @@
   contact_area_mm2``, stones numbered from 1 as in the segmentation (the scene's
   asperity order for tips);
 * ``rolling.json``: the scene, the body, the material, the speed, the steps, the
-  convergence of every position (converged, micro sweeps, stones, message), the timings;
+  convergence of every position (converged, iterations: the CG's on the window path, the
+  micro step's sweeps on the two-scale path, as ``method`` says; stones, message), the timings;
   the step against the road's samples and the Prony branches (``step_check``,
   :mod:`twoscale.rolling.stepcheck`) and a viscoelastic run's energy balance
   (``energy_balance``, with its meaning);
@@ -121,7 +122,7 @@ def rolling_to_dict(result, scene) -> dict:
             {
                 "shift_mm": float(s),
                 "converged": bool(c),
-                "micro_sweeps": int(i),
+                "iterations": int(i),
                 "stones": int(n),
                 "seconds": float(t),
                 "message": m,
