@@ -96,3 +96,42 @@ def test_richardson_recovers_a_first_order_error():
     # a fine run one step longer: compared over the distance both cover
     longer = _run(0.25, 10.25, drag)
     assert step_error(longer, coarse)["extrapolated_friction_N"] == pytest.approx(F, abs=2e-3)
+
+
+@pytest.fixture(scope="module")
+def one_branch_runs():
+    """A chip-seal strip at 0.25 mm under a slice of tyre, one branch of 1 ms at 0.9 km/h
+    (v tau = 0.25 mm: the limit is the spacing and the branch at once), rolled 8 mm at steps
+    of 4, 2 and 1 times the limit."""
+    from twoscale.rolling import road_strip, roll
+    from twoscale.scene import Scene
+    from twoscale.surface import RawMap, build_surface
+
+    strip = build_surface(RawMap(road_strip(50.0, 14.0, 0.25, seed=7), spacing=0.25, units="mm"))
+    material = Material(10.0, 0.5, prony=((40.0, 1e-3),))
+    runs = {}
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", StepWarning)
+        for step in (1.0, 0.5, 0.25):
+            spec = RollingSpec(start=-4.0, end=4.0, step=step, speed=0.9, tyre_radius=150.0, footprint=(24.0, 12.0))
+            runs[step] = roll(Scene(material=material, surface=strip, penetration=0.9, rolling=spec))
+    return runs
+
+
+def test_coarse_steps_lose_friction_and_the_limit_keeps_it(one_branch_runs):
+    """The criterion's boundary on a real run: the friction grows as the step shrinks to the
+    limit (measured 4.54, 6.91, 7.88 N; 7.886 N at 0.125 mm on the strip resampled), the
+    energy balance closes at the limit (measured -0.4 %) and not at 4 x (-23 %), and
+    :func:`step_check` flags exactly the coarse steps. The Richardson estimate with the
+    first order is conservative here (the friction converges faster)."""
+    runs = one_branch_runs
+    assert all(r.all_converged for r in runs.values())
+    F = {s: friction(r) for s, r in runs.items()}
+    assert F[1.0] < F[0.5] < F[0.25]
+    assert F[0.25] - F[0.5] < 0.6 * (F[0.5] - F[1.0])
+    assert abs(runs[0.25].energy_balance()["mismatch"]) < 0.02
+    assert runs[1.0].energy_balance()["mismatch"] < -0.1
+    assert [runs[s].step_check.coarse for s in (1.0, 0.5, 0.25)] == [True, True, False]
+    assert runs[0.25].step_check.limit == pytest.approx(0.25)
+    est = step_error(runs[0.5], runs[1.0])
+    assert est["extrapolated_friction_N"] > F[0.25] > est["friction_N"]
