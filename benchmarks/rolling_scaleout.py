@@ -38,12 +38,11 @@ import numpy as np
 import psutil
 
 from twoscale.io.scene_file import read_scene
-from twoscale.rolling.chunks import chunk_bounds, roll_chunks
+from twoscale.rolling.chunks import THREAD_VARIABLES, chunk_bounds, roll_chunks
 from twoscale.rolling.track import prepare
 from twoscale.studies.dask_backend import dask_client
 
 EXAMPLE = Path(__file__).resolve().parents[1] / "examples" / "rolling" / "tyre.toml"
-THREAD_VARIABLES = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS")
 
 
 def section(length: float, step: float):
