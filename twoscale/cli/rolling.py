@@ -81,7 +81,8 @@ def _with_step_error(result, track, args):
         return result
     import dataclasses
 
-    from ..rolling.stepcheck import roll_at_twice_the_step, step_error
+    from ..rolling.run import roll_at_twice_the_step
+    from ..rolling.stepcheck import step_error
 
     return dataclasses.replace(result, step_error=step_error(result, roll_at_twice_the_step(track)))
 

@@ -37,7 +37,8 @@ refused by nothing: the run says so
 (:class:`~twoscale.errors.StepWarning`, ``rolling.json`` ``step_check``).
 
 **The step's error, measured** (:func:`step_error`): the run at the step and at twice the
-step over the same distance, on the same samples; with the friction first order in the
+step over the same distance, on the same samples
+(:func:`twoscale.rolling.run.roll_at_twice_the_step`); with the friction first order in the
 step, ``F(step) - F(2 step)`` estimates the error of ``F(step)`` (Richardson with order 1)
 and ``2 F(step) - F(2 step)`` the friction at a vanishing step; where the friction converges
 faster (the single branch above) the estimate errs on the large side. It costs half the run
@@ -184,19 +185,6 @@ def step_error(fine, coarse) -> dict:
     }
 
 
-def roll_at_twice_the_step(track, *, tol: float = 1e-6):
-    """The run of ``track`` (prepared: :func:`twoscale.rolling.track.prepare`) at twice its
-    step on the same samples and from the same first shift; a RollingResult."""
-    import dataclasses
-
-    from .run import RollingOptions, roll
-
-    spec = dataclasses.replace(track.spec, start=float(track.shifts[0]), step=2.0 * track.spec.step)
-    with warnings.catch_warnings():  # the run at the step said whether it is coarse
-        warnings.simplefilter("ignore", StepWarning)
-        return roll(dataclasses.replace(track.scene, rolling=spec), options=RollingOptions(tol=tol))
-
-
 __all__ = [
     "FRICTION_ORDER",
     "MIN_SHARE",
@@ -204,7 +192,6 @@ __all__ = [
     "active_tau",
     "check_step",
     "friction",
-    "roll_at_twice_the_step",
     "step_error",
     "warn_if_coarse",
 ]
