@@ -217,3 +217,12 @@ def test_step_error_from_a_run_at_twice_the_step(strip_file, tmp_path, capsys):
     assert main(["solve", _scene(strip_file), "--out", str(elastic), "--step-error"]) == 2
     err = capsys.readouterr().err
     assert len(err.strip().splitlines()) == 1 and "--step-error" in err and not elastic.exists()
+
+
+def test_step_error_refused_without_rolling(tmp_path, capsys):
+    scene = tmp_path / "static.toml"
+    scene.write_text("[material]\nE = 10.0\nnu = 0.5\n[load]\ntotal = 5.0\n[[asperity]]\nx = 0.0\ny = 0.0\nR = 5.0\n")
+    out = tmp_path / "run"
+    assert main(["solve", str(scene), "--out", str(out), "--step-error"]) == 2
+    err = capsys.readouterr().err
+    assert len(err.strip().splitlines()) == 1 and "--step-error" in err and not out.exists()

@@ -120,6 +120,8 @@ def run(args: argparse.Namespace) -> int:
             from .rolling import run_rolling
 
             return run_rolling(scene, args)
+        if getattr(args, "step_error", False):
+            raise SceneError("--step-error applies to a [rolling] scene with a viscoelastic material")
         if getattr(args, "block_field", False):
             if scene.influence["kind"] != "block":
                 raise SceneError(
