@@ -135,3 +135,10 @@ def test_coarse_steps_lose_friction_and_the_limit_keeps_it(one_branch_runs):
     assert runs[0.25].step_check.limit == pytest.approx(0.25)
     est = step_error(runs[0.5], runs[1.0])
     assert est["extrapolated_friction_N"] > F[0.25] > est["friction_N"]
+
+
+def test_no_active_branch_no_limit():
+    elastic = check_step(_spec(2.0), Material(5.0, 0.5), 0.25, 200.0)
+    assert math.isinf(elastic.limit) and elastic.to_dict()["limit_mm"] is None
+    glassy = check_step(_spec(2.0), Material(5.0, 0.5, prony=((10.0, 10.0),)), 0.25, 200.0)
+    assert glassy.branch_tau is None and not glassy.coarse

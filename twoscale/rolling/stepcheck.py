@@ -86,13 +86,16 @@ class StepCheck:
 
     @property
     def limit(self) -> float:
-        """The largest step that resolves the friction, mm (``inf`` when nothing limits it)."""
-        return min(v for v in (self.spacing, self.branch_length, math.inf) if v is not None)
+        """The largest step that resolves the friction, mm (``inf`` when there is no active
+        branch: an elastic material has no hysteresis for a step to miss)."""
+        if self.branch_length is None:
+            return math.inf
+        return min(self.branch_length, math.inf if self.spacing is None else self.spacing)
 
     @property
     def coarse(self) -> bool:
         """Whether the step is coarser than :attr:`limit` (the friction comes out low)."""
-        return self.branch_tau is not None and self.step > self.limit * (1 + 1e-9)
+        return self.step > self.limit * (1 + 1e-9)
 
     @property
     def message(self) -> str:
