@@ -72,3 +72,21 @@ def test_viscoelastic_chunks_with_warmup_give_the_sequential_run(scene):
 def test_elastic_chunks_need_no_warmup(scene):
     track = prepare(dataclasses.replace(scene, material=Material(10.0, 0.5)))
     assert [w for _, _, w in plan(track, 3)] == [0, 0, 0]
+
+
+def test_spawned_workers_get_one_blas_thread_each(monkeypatch):
+    """Dask's spawned worker processes read their BLAS/OpenMP threads from the environment:
+    one each while a run on ``scheduler="processes"`` lasts, a caller's own setting kept, the
+    environment as it was afterwards; other schedulers leave it alone."""
+    import os
+
+    from twoscale.rolling.chunks import THREAD_VARIABLES, _one_thread_each
+
+    for k in THREAD_VARIABLES:
+        monkeypatch.delenv(k, raising=False)
+    monkeypatch.setenv("MKL_NUM_THREADS", "3")
+    with _one_thread_each("processes"):
+        assert [os.environ.get(k) for k in THREAD_VARIABLES] == ["1", "1", "3"]
+    assert [os.environ.get(k) for k in THREAD_VARIABLES] == [None, None, "3"]
+    with _one_thread_each("threads"):
+        assert os.environ.get("OMP_NUM_THREADS") is None

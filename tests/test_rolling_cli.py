@@ -161,3 +161,68 @@ def test_rolling_table_round_trip(strip_file):
     again = scene_from_dict(scene_to_dict(scene))
     assert again.rolling == scene.rolling
     assert scene.rolling.footprint == (30.0, 12.0)
+
+
+def test_coarse_viscoelastic_step_warns_and_records_the_balance(strip_file, tmp_path, capsys):
+    """A branch of 0.1 ms at 50 km/h (1.4 mm of road) on a 0.25 mm strip rolled in 1 mm steps:
+    one warning line naming rolling.step, ``step_check`` in rolling.json, and the energy
+    balance there equal to the one recomputed from the files (drag and load over the shifts
+    and approaches, the branches' energy per position)."""
+    out = tmp_path / "run"
+    assert main(["solve", _scene(strip_file, prony="prony = [[20.0, 1e-4]]"), "--out", str(out), "--quiet"]) == 0
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("warning: rolling.step = 1 mm is coarser than 0.25 mm")
+    meta = json.loads((out / "rolling.json").read_text())
+    check = meta["step_check"]
+    assert check["coarse"] and check["limit_mm"] == 0.25 and check["branch_tau_s"] == 1e-4
+    with open(out / "signals.csv", newline="") as fh:
+        rows = list(csv.DictReader(fh))
+    s, W, d, g = (
+        np.array([float(r[k]) for r in rows]) for k in ("shift_mm", "total_load_N", "penetration_mm", "drag_N")
+    )
+    work = np.trapezoid(g, s) + np.trapezoid(W, d)
+    energy = meta["energy_Nmm"]
+    spent = energy["stored"][-1] - energy["stored"][0] + sum(energy["dissipated"][1:])
+    balance = meta["energy_balance"]
+    assert balance["mismatch"] == pytest.approx(work / spent - 1.0, rel=1e-6, abs=1e-9)
+    assert "second order in the step" in balance["meaning"]
+
+
+def test_fine_step_does_not_warn(strip_file, tmp_path, capsys):
+    # the same branch, 0.25 mm steps (one sample): no warning, step_check says so
+    out = tmp_path / "run"
+    scene = _scene(strip_file, prony="prony = [[20.0, 1e-4]]", step="0.25", end="-3.5")
+    assert main(["solve", scene, "--out", str(out), "--quiet"]) == 0
+    assert "warning" not in capsys.readouterr().err
+    assert json.loads((out / "rolling.json").read_text())["step_check"]["coarse"] is False
+
+
+def test_step_error_from_a_run_at_twice_the_step(strip_file, tmp_path, capsys):
+    """``--step-error``: the friction over the run (from signals.csv: the drag's trapezoid
+    mean over the shifts) against the run at twice the step; the extrapolation adds their
+    difference (first order). Refused, exit 2, for an elastic material."""
+    out = tmp_path / "run"
+    scene = _scene(strip_file, prony="prony = [[20.0, 1e-4]]")
+    assert main(["solve", scene, "--out", str(out), "--quiet", "--step-error"]) == 0
+    assert len(capsys.readouterr().err.strip().splitlines()) == 1  # the coarse step's warning, once
+    e = json.loads((out / "rolling.json").read_text())["step_error"]
+    with open(out / "signals.csv", newline="") as fh:
+        rows = list(csv.DictReader(fh))
+    s, g = (np.array([float(r[k]) for r in rows]) for k in ("shift_mm", "drag_N"))
+    assert e["distance_mm"] == pytest.approx(2.0)
+    assert e["friction_N"] == pytest.approx(np.trapezoid(g, s) / 2.0, rel=1e-9)
+    assert e["extrapolated_friction_N"] == pytest.approx(2 * e["friction_N"] - e["friction_at_twice_the_step_N"])
+    assert e["friction_at_twice_the_step_N"] != e["friction_N"]
+    elastic = tmp_path / "elastic"
+    assert main(["solve", _scene(strip_file), "--out", str(elastic), "--step-error"]) == 2
+    err = capsys.readouterr().err
+    assert len(err.strip().splitlines()) == 1 and "--step-error" in err and not elastic.exists()
+
+
+def test_step_error_refused_without_rolling(tmp_path, capsys):
+    scene = tmp_path / "static.toml"
+    scene.write_text("[material]\nE = 10.0\nnu = 0.5\n[load]\ntotal = 5.0\n[[asperity]]\nx = 0.0\ny = 0.0\nR = 5.0\n")
+    out = tmp_path / "run"
+    assert main(["solve", str(scene), "--out", str(out), "--step-error"]) == 2
+    err = capsys.readouterr().err
+    assert len(err.strip().splitlines()) == 1 and "--step-error" in err and not out.exists()

@@ -50,5 +50,10 @@ class CacheWarning(UserWarning):
     """A cache entry was damaged and dropped, or a cache folder cannot be written."""
 
 
+class StepWarning(UserWarning):
+    """A viscoelastic rolling step coarser than the road's samples or the fastest active
+    Prony branch resolves: the hysteresis friction comes out low."""
+
+
 class SurfaceWarning(UserWarning):
     """A height-map solve whose answer needs care (contacts reaching the map's edge)."""

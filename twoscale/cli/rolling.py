@@ -44,15 +44,20 @@ def run_rolling(scene, args: argparse.Namespace) -> int:
                 raise ValueError(f"{name} does not apply to a [rolling] scene (each position is a two-scale solve)")
         options = RollingOptions(iteration=getattr(args, "iteration", "auto"))
         track = prepare(scene)  # every check before anything is solved or written
+        if getattr(args, "step_error", False) and not scene.material.viscoelastic:
+            raise ValueError(
+                "--step-error needs a viscoelastic material (material.prony): an elastic body has no hysteresis"
+            )
         t0 = time.perf_counter()
         with StatusLine(quiet=args.quiet) as status:
             if args.out is None:
                 result = roll(track.scene, options=options, track=track, progress=status)
+                result = _with_step_error(result, track, args)
             else:
                 with staged_directory(
                     args.out, overwrite=getattr(args, "overwrite", False), command=f"solve {args.scene}"
                 ) as tmp:
-                    result = _roll_into(tmp, scene, track, options, status, Path(args.scene).stem)
+                    result = _roll_into(tmp, scene, track, options, status, args)
         wall = time.perf_counter() - t0
     except ValueError as exc:  # SceneError, an output folder that cannot be used
         print(f"error: {exc}", file=sys.stderr)
@@ -69,7 +74,20 @@ def run_rolling(scene, args: argparse.Namespace) -> int:
     return 0
 
 
-def _roll_into(out: Path, scene, track, options, status, name: str | None = None):
+def _with_step_error(result, track, args):
+    """``result`` with the friction's step error (``--step-error``: the run again at twice the
+    step, :func:`twoscale.rolling.stepcheck.step_error`), else as it is."""
+    if not getattr(args, "step_error", False):
+        return result
+    import dataclasses
+
+    from ..rolling.run import roll_at_twice_the_step
+    from ..rolling.stepcheck import step_error
+
+    return dataclasses.replace(result, step_error=step_error(result, roll_at_twice_the_step(track)))
+
+
+def _roll_into(out: Path, scene, track, options, status, args):
     """Roll, writing the VTK frames as the positions come, then the tables."""
     from .._version import __version__
     from ..io.rolling_outputs import FrameWriter, write_rolling_tables, write_signal_products
@@ -84,8 +102,9 @@ def _roll_into(out: Path, scene, track, options, status, name: str | None = None
 
     result = roll(track.scene, options=options, track=track, on_position=on_position, progress=status)
     frames.close()
+    result = _with_step_error(result, track, args)
     write_rolling_tables(result, scene, out)
-    write_signal_products(result, scene, out, name=name)
+    write_signal_products(result, scene, out, name=Path(args.scene).stem)
     return result
 
 
@@ -124,6 +143,21 @@ def summary(result, scene_path: str, wall: float, out) -> str:
     ]
     if n >= 2:
         lines.insert(-1, _bands_line(result))
+    if result.step_error is not None:
+        e = result.step_error
+        lines.insert(
+            -1,
+            f"  step error   friction {e['friction_N']:.4g} N, {e['friction_at_twice_the_step_N']:.4g} N at twice the "
+            f"step: about {e['estimated_error_N']:+.3g} N to add (extrapolated {e['extrapolated_friction_N']:.4g} N)",
+        )
+    balance = result.energy_balance()
+    if balance is not None and balance["mismatch"] is not None:
+        lines.insert(
+            -1,
+            f"  energy       drag and load work {balance['drag_work'] + balance['vertical_work']:.4g} N mm against "
+            f"{balance['stored_change'] + balance['dissipated']:.4g} N mm stored and dissipated in the branches "
+            f"({100 * balance['mismatch']:+.1f} %)",
+        )
     if out is not None:
         names = sorted(p.name for p in Path(out).iterdir() if not p.name.startswith("."))
         lines.append(f"  wrote        {out}/: {', '.join(names)}")

@@ -84,6 +84,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "DIR/block_displacement.vtu (displacement inside the block)",
     )
     parser.add_argument(
+        "--step-error",
+        action="store_true",
+        help="[rolling] with a viscoelastic material: roll again at twice the step and report the "
+        "hysteresis friction's step error in rolling.json (costs half the run again)",
+    )
+    parser.add_argument(
         "--quiet",
         action="store_true",
         help="print nothing but errors (no status line or progress bar either; they are "
@@ -114,6 +120,8 @@ def run(args: argparse.Namespace) -> int:
             from .rolling import run_rolling
 
             return run_rolling(scene, args)
+        if getattr(args, "step_error", False):
+            raise SceneError("--step-error applies to a [rolling] scene with a viscoelastic material")
         if getattr(args, "block_field", False):
             if scene.influence["kind"] != "block":
                 raise SceneError(

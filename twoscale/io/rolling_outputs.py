@@ -8,7 +8,11 @@
   contact_area_mm2``, stones numbered from 1 as in the segmentation (the scene's
   asperity order for tips);
 * ``rolling.json``: the scene, the body, the material, the speed, the steps, the
-  convergence of every position (converged, micro sweeps, stones, message), the timings;
+  convergence of every position (converged, iterations: the CG's on the window path, the
+  micro step's sweeps on the two-scale path, as ``method`` says; stones, message), the timings;
+  the step against the road's samples and the Prony branches (``step_check``,
+  :mod:`twoscale.rolling.stepcheck`) and a viscoelastic run's energy balance
+  (``energy_balance``, with its meaning);
 * ``fields.pvd`` (+ ``fields/s_NNNN.vti``): the pressure at each position on one grid of the
   body (written as the run goes, :class:`FrameWriter`): a series ParaView animates, its
   time the position's time;
@@ -118,7 +122,7 @@ def rolling_to_dict(result, scene) -> dict:
             {
                 "shift_mm": float(s),
                 "converged": bool(c),
-                "micro_sweeps": int(i),
+                "iterations": int(i),
                 "stones": int(n),
                 "seconds": float(t),
                 "message": m,
@@ -132,20 +136,38 @@ def rolling_to_dict(result, scene) -> dict:
     }
 
 
+#: What ``rolling.json``'s ``energy_balance`` means (written beside the numbers).
+ENERGY_MEANING = (
+    "N mm from the first position on: the road's work on the rubber (drag_work: the drag over the shifts; "
+    "vertical_work: the load over the approach's change, 0 under penetration control) against the energy the "
+    "Prony branches stored (stored_change) and dissipated (dissipated); mismatch = work / energy - 1. The "
+    "stepping meets it to second order in the step: more than a few percent says the step is too coarse for "
+    "the texture or the branches (step_check); a small mismatch does not prove the friction converged (the "
+    "mean drag moves at first order in the step: compare a run at twice the step)"
+)
+
+
+#: What ``rolling.json``'s ``step_error`` (``twoscale solve --step-error``) means.
+STEP_ERROR_MEANING = (
+    "N: the mean drag (hysteresis friction) over the distance both runs cover, at the step and at twice the step "
+    "(same samples, same first shift); with the friction first order in the step (measured), their difference "
+    "estimates the error of the run at the step, and the extrapolated friction adds it"
+)
+
+
 def _energy(result) -> dict:
     """A viscoelastic run's energy per position and its balance with the drag's work."""
-    if not result.dissipated.size:
-        return {}
-    return {
-        "energy_Nmm": {
-            "dissipated": result.dissipated.tolist(),
-            "stored": result.stored.tolist(),
-            "drag_work": result.drag_work(),
-            "stored_change_plus_dissipated": float(
-                result.stored[-1] - result.stored[0] + np.sum(result.dissipated[1:])
-            ),
-        }
-    }
+    out: dict = {}
+    if result.step_check is not None:
+        out["step_check"] = result.step_check.to_dict()
+    if result.step_error is not None:
+        out["step_error"] = {**result.step_error, "meaning": STEP_ERROR_MEANING}
+    balance = result.energy_balance()
+    if balance is None:
+        return out
+    out["energy_Nmm"] = {"dissipated": result.dissipated.tolist(), "stored": result.stored.tolist()}
+    out["energy_balance"] = {**balance, "meaning": ENERGY_MEANING}
+    return out
 
 
 def write_rolling_json(result, scene, path) -> Path:

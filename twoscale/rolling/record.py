@@ -53,6 +53,7 @@ class Recorder:
             line_load=line_load,
             timings_s=timings,
             body=track.body,
+            step_check=track.step_check,
         )
 
 

@@ -116,6 +116,12 @@ class RollingResult:
         ``prepare`` (segmentation and the road's tables), ``positions``, ``total``.
     body : str
         What the body is (``"half-space"``, ``"block 150 x 100 x 10 mm, bonded base"``).
+    step_check : StepCheck, optional
+        The step against the road's samples and the active Prony branches
+        (:mod:`twoscale.rolling.stepcheck`; coarse only for a viscoelastic run).
+    step_error : mapping, optional
+        The friction's step error from a run at twice the step
+        (:func:`twoscale.rolling.stepcheck.step_error`), when it was measured.
     """
 
     spec: RollingSpec
@@ -140,6 +146,8 @@ class RollingResult:
     stored: np.ndarray = field(default_factory=lambda: np.zeros(0))
     timings_s: Mapping = field(default_factory=dict)
     body: str = ""
+    step_check: Any = None
+    step_error: Mapping | None = None
 
     def __post_init__(self) -> None:
         for name in SIGNALS:
@@ -155,6 +163,8 @@ class RollingResult:
         for name in ("dissipated", "stored"):
             object.__setattr__(self, name, frozen_array(getattr(self, name)))
         object.__setattr__(self, "timings_s", FrozenMapping(self.timings_s))
+        if self.step_error is not None:
+            object.__setattr__(self, "step_error", FrozenMapping(self.step_error))
 
     @property
     def all_converged(self) -> bool:
@@ -173,6 +183,34 @@ class RollingResult:
         position on, to second order in the step)."""
         d, s = self.drag, self.shifts
         return float(np.sum(0.5 * (d[1:] + d[:-1]) * np.diff(s)))
+
+    def vertical_work(self) -> float:
+        """Work of the load as the approach changes, ``int W dd`` over the run, N mm
+        (trapezoid rule; 0 under penetration control)."""
+        W, d = self.total_load, self.penetration
+        return float(np.sum(0.5 * (W[1:] + W[:-1]) * np.diff(d)))
+
+    def energy_balance(self) -> dict | None:
+        """A viscoelastic run's energy balance from the first position on, N mm: the work the
+        road does on the rubber (``drag_work`` + ``vertical_work``) against the energy the
+        branches store (``stored_change``) and dissipate (``dissipated``); ``mismatch`` =
+        work / energy - 1. The stepping meets it to second order in the step, so a mismatch
+        of more than a few percent says the step is too coarse (:mod:`twoscale.rolling.stepcheck`);
+        a small one does not prove the friction converged (it moves at first order in the
+        step). None for an elastic run."""
+        if not self.dissipated.size:
+            return None
+        work = self.drag_work() + self.vertical_work()
+        dissipated = float(np.sum(self.dissipated[1:]))
+        stored = float(self.stored[-1] - self.stored[0])
+        energy = dissipated + stored
+        return {
+            "drag_work": self.drag_work(),
+            "vertical_work": self.vertical_work(),
+            "stored_change": stored,
+            "dissipated": dissipated,
+            "mismatch": work / energy - 1.0 if energy > 0 else None,
+        }
 
     def __repr__(self) -> str:
         state = "converged" if self.all_converged else f"{int(np.sum(~self.converged))} positions NOT converged"

@@ -320,3 +320,16 @@ def roll(
         {"prepare": t1 - t0, "positions": t2 - t1, "total": t2 - t0},
         "twoscale" if state is None else "window-cg",
     )
+
+
+def roll_at_twice_the_step(track, *, tol: float = 1e-6):
+    """The run of ``track`` (prepared: :func:`twoscale.rolling.track.prepare`) at twice its
+    step on the same samples and from the same first shift; a RollingResult."""
+    import warnings
+
+    from ..errors import StepWarning
+
+    spec = dataclasses.replace(track.spec, start=float(track.shifts[0]), step=2.0 * track.spec.step)
+    with warnings.catch_warnings():  # the run at the step said whether it is coarse
+        warnings.simplefilter("ignore", StepWarning)
+        return roll(dataclasses.replace(track.scene, rolling=spec), options=RollingOptions(tol=tol))

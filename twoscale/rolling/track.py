@@ -21,6 +21,7 @@ from ..influence.cached import with_caches
 from ..scene import Scene
 from .road import Road, check_contact
 from .spec import RollingSpec
+from .stepcheck import check_step, warn_if_coarse
 
 #: Factor on the Hertz line-contact estimate of a tyre's footprint length under load
 #: control (the texture's tips carry the load on less than the whole face, so the real
@@ -41,6 +42,7 @@ class Track:
     times: np.ndarray
     control: str
     body: str
+    step_check: object = None
 
 
 def lattice(spec: RollingSpec, spacing: float) -> tuple[float, np.ndarray]:
@@ -65,6 +67,8 @@ def prepare(scene: Scene, *, h: float | None = None, provider=None) -> Track:
         raise SceneError(f"rolling is missing: the scene has no [rolling] table (got {spec!r})")
     if scene.material.viscoelastic:
         _viscoelastic_available()
+    # the road's own sample spacing, before any resampling to the step's lattice
+    check = _step_check(scene)
     if scene.surface is not None:
         cell, shifts = lattice(spec, scene.surface.h)
         if not math.isclose(cell, scene.surface.h, rel_tol=1e-9):
@@ -80,9 +84,8 @@ def prepare(scene: Scene, *, h: float | None = None, provider=None) -> Track:
     window = face_window(scene, spec, provider, cell)
     road = Road(scene, window)
     control = "penetration" if scene.penetration is not None else "load"
-    track = Track(
-        scene, spec, provider, road, cell, shifts, (shifts - shifts[0]) / spec.speed_mm_s, control, body_label(scene)
-    )
+    times = (shifts - shifts[0]) / spec.speed_mm_s
+    track = Track(scene, spec, provider, road, cell, shifts, times, control, body_label(scene), check)
     if spec.tyre_radius is not None and tyre_contact_length(track) < 2.0 * cell:
         raise SceneError(
             f"rolling.tyre_radius = {spec.tyre_radius!r} mm leaves no contact wider than a cell "
@@ -92,7 +95,17 @@ def prepare(scene: Scene, *, h: float | None = None, provider=None) -> Track:
         check_length(track)
     if control == "penetration":
         check_contact(road, scene.penetration, float(shifts[0]))
+    warn_if_coarse(check)  # after every refusal: a run refused says only why
     return track
+
+
+def _step_check(scene: Scene):
+    """The step of ``scene``'s run against its road's own samples (before any resampling to
+    the step's lattice) and its Prony branches (:mod:`twoscale.rolling.stepcheck`)."""
+    if scene.surface is None:
+        return check_step(scene.rolling, scene.material, None)
+    nx = scene.surface.hmap.heights.shape[1]
+    return check_step(scene.rolling, scene.material, scene.surface.h, nx * scene.surface.h)
 
 
 def _viscoelastic_available() -> None:

@@ -197,4 +197,5 @@ def _result(track: Track, numbers: np.ndarray, moving, seconds: float, method: s
         stored=moving.stored,
         timings_s={"prepare": 0.0, "positions": seconds, "total": seconds},
         body=track.body + ", viscoelastic",
+        step_check=track.step_check,
     )

@@ -10,12 +10,15 @@ with the workers. A failure is a record too (``status = "failed"`` and the reaso
 
 from __future__ import annotations
 
+import contextlib
 import csv
 import dataclasses
 import io
 import tempfile
 import time
 import traceback
+import warnings
+from collections.abc import Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -77,11 +80,10 @@ def case_numbers(result) -> dict:
         "energy_balance": None,
         "seconds_per_position": float(np.mean(result.seconds)),
     }
-    if result.dissipated.size and distance > 0:
-        dissipated = float(np.sum(result.dissipated[1:]))
-        energy = float(result.stored[-1] - result.stored[0]) + dissipated
-        out["dissipated_per_mm_N"] = dissipated / distance
-        out["energy_balance"] = result.drag_work() / energy - 1.0 if energy > 0 else None
+    balance = result.energy_balance()
+    if balance is not None and distance > 0:
+        out["dissipated_per_mm_N"] = balance["dissipated"] / distance
+        out["energy_balance"] = balance["mismatch"]
     return out
 
 
@@ -104,6 +106,17 @@ def case_files(result, scene, *, figures: bool, name: str) -> tuple[dict, tuple]
     return files, bands
 
 
+@contextlib.contextmanager
+def _case_warnings(label: str) -> Iterator[None]:
+    """The warnings of a case's run (a coarse step: :class:`~twoscale.errors.StepWarning`)
+    again, each led by the case's label, so that a study's lines say which case they are about."""
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        yield
+    for w in caught:
+        warnings.warn(f"{label}: {w.message}", w.category, stacklevel=3)
+
+
 def solve_group(study: RollingStudy, group: list, strips: StripCache, providers: ProviderCache) -> list:
     """Roll the cases ``group`` = ``[(ref, key), ...]`` of one solve; their records in order.
     Any error but Ctrl-C becomes failed records with the reason."""
@@ -114,7 +127,8 @@ def solve_group(study: RollingStudy, group: list, strips: StripCache, providers:
     try:
         scene = case_scene(cases[0][0], study, strips)
         provider = None if scene.material.viscoelastic else providers.get(scene)
-        result = roll(scene, options=RollingOptions(**study.solver), provider=provider)
+        with _case_warnings(cases[0][0].label):
+            result = roll(scene, options=RollingOptions(**study.solver), provider=provider)
     except Exception as exc:  # noqa: BLE001 - a failing case is recorded, the study goes on
         reason = f"{type(exc).__name__}: {exc}"
         if not isinstance(exc, ValueError):

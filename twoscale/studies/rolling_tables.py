@@ -63,7 +63,8 @@ DESCRIPTIONS = {
     "mean_drag_N": "mean force of the road on the body along +x, N (hysteresis friction on a viscoelastic body)",
     "friction_coefficient": "mean drag over mean load",
     "dissipated_per_mm_N": "energy dissipated in the Prony branches per mm rolled, N mm / mm",
-    "energy_balance": "drag work over (stored energy change + dissipated) less 1",
+    "energy_balance": "(drag work + vertical work) over (stored energy change + dissipated) less 1: a few "
+    "percent or more says the step is too coarse (rolling.json step_check)",
     "signal": "the signal of the levels: total_load_N (penetration control) or penetration_mm (load control)",
 }
 
