@@ -256,8 +256,13 @@ def _tip_scene(spec: SceneSpec) -> Scene:
     return Scene(material, tips, penetration=float(_hertz_level(loaded)), influence=influence)
 
 
-def _map_scene(spec: SceneSpec, folder: str) -> Scene:
+def map_table(spec: SceneSpec, folder: str) -> dict:
+    """Write the height map of ``spec`` (a map kind) into ``folder`` and return the scene
+    table that reads it (``[grid] h`` included where ``spec`` scales the default h): what a
+    user's scene file holds. Generating the texture is the sweep's work, not the solve's;
+    reading the table (:func:`twoscale.io.scene_file.scene_from_dict`) is the solve's."""
     from .io.scene_file import scene_from_dict
+    from .scene import default_h
     from .surface.texture import road
 
     spacing = 0.1
@@ -271,24 +276,27 @@ def _map_scene(spec: SceneSpec, folder: str) -> Scene:
         np.savez(os.path.join(folder, surface["file"]), heights=z * 1000.0, spacing=spacing, units="um")
     else:
         np.savez(os.path.join(folder, surface["file"]), heights=z, spacing=spacing)
-    table = {
+    table: dict = {
         "material": {"E": spec.E, "nu": spec.nu},
         "load": {"total": spec.load_per_tip * spec.size**2},
         "surface": surface,
     }
     if spec.body == "block":
         table["influence"] = {"kind": "block"}
-    return scene_from_dict(table, base_dir=folder)
+    if spec.h_factor:
+        table["grid"] = {"h": float(f"{spec.h_factor * default_h(scene_from_dict(table, base_dir=folder)):.2g}")}
+    return table
 
 
 def build(spec: SceneSpec, folder: str | None = None) -> Scene:
     """The scene of ``spec`` (maps are written into ``folder``, which must exist)."""
-    if spec.kind == "tips":
-        scene = _tip_scene(spec)
-    else:
+    if spec.kind != "tips":
+        from .io.scene_file import scene_from_dict
+
         if folder is None:
             raise ValueError(f"scene {spec.label} is a height map: give a folder to write it in")
-        scene = _map_scene(spec, folder)
+        return scene_from_dict(map_table(spec, folder), base_dir=folder)
+    scene = _tip_scene(spec)
     if spec.h_factor:
         from .scene import default_h
 
@@ -301,4 +309,4 @@ def sweep(count: int, seed: int = 0, **options) -> list[SceneSpec]:
     return [draw(i, seed, **options) for i in range(count)]
 
 
-__all__ = ["SceneSpec", "draw", "build", "sweep", "POSITION_LAYOUTS", "SCENE_KINDS", "BLOCK_DEFAULT_SIZE"]
+__all__ = ["SceneSpec", "draw", "build", "map_table", "sweep", "POSITION_LAYOUTS", "SCENE_KINDS", "BLOCK_DEFAULT_SIZE"]

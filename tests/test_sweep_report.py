@@ -1,0 +1,48 @@
+"""The sweep's report (benchmarks/sweep_report.py): the share of the reference's box in
+contact and the sparse-contact target (default CPU time at most 0.3x the reference's where
+under 20 % of the box is in contact and the reference takes over 1 s), on made-up records."""
+
+from __future__ import annotations
+
+import pytest
+
+from benchmarks.sweep_report import contact_fraction, sparse_target, summary, table
+from twoscale.scenespace import draw
+
+
+def _record(index: int, area: float, ref_cpu: float, ratio: float) -> dict:
+    # a reference box of 100 x 100 cells of 0.1 mm: 100 mm2, ``area`` mm2 of it in contact
+    spec = draw(index).to_dict()
+    ref = {"forces": [1.0, 2.0], "cells": 10_000, "h": 0.1, "area": area, "cpu_s": ref_cpu, "time_s": ref_cpu}
+    ts = {
+        "forces": [1.0, 2.0],
+        "converged": True,
+        "cpu_s": ratio * ref_cpu,
+        "time_s": ratio * ref_cpu,
+        "peak_mb": 100.0,
+        "estimate_mb": 200.0,
+        "h": 0.1,
+        "choice": "union-cg",
+    }
+    return {"spec": spec, "ts": ts, "ref": ref, "ratio_cpu": ratio, "err": {"tip_pct": 0.0}}
+
+
+def test_the_sparse_target_applies_below_a_fifth_of_the_box_and_over_a_second():
+    assert contact_fraction(_record(1, 19.0, 2.0, 0.5)) == pytest.approx(0.19)
+    assert sparse_target(_record(1, 19.0, 2.0, 0.5)) == "missed"
+    assert sparse_target(_record(2, 19.0, 2.0, 0.3)) == "met"
+    assert sparse_target(_record(3, 21.0, 2.0, 0.9)) is None  # contact over 20 % of the box
+    assert sparse_target(_record(4, 5.0, 0.9, 0.9)) is None  # the reference under 1 s
+    no_ref = _record(5, 5.0, 2.0, 0.9)
+    del no_ref["ref"]
+    assert contact_fraction(no_ref) is None and sparse_target(no_ref) is None
+
+
+def test_the_table_and_summary_name_the_scenes_that_missed_it():
+    records = [_record(7, 10.0, 3.0, 0.62), _record(8, 10.0, 3.0, 0.2), _record(9, 50.0, 3.0, 0.8)]
+    text = summary(records)
+    assert "3 scenes" in text and "0.3x target" in text
+    assert "met 1, missed 1: #7 0.62x" in text
+    rows = table(records).splitlines()
+    assert "contact %" in rows[0] and "0.3x target" in rows[0]
+    assert any("| 10 | missed |" in r for r in rows) and any("| 50 | - |" in r for r in rows)
