@@ -122,9 +122,16 @@ def run_block_gauss_seidel(
 
 
 def run_two_level(
-    setup: BlockSetup, *, tol: float, max_sweeps: int, max_growths: int | None, monitor: Callable | None = None
+    setup: BlockSetup,
+    *,
+    tol: float,
+    max_sweeps: int,
+    max_growths: int | None,
+    monitor: Callable | None = None,
+    trial: int | None = None,
 ) -> MicroResult:
-    """The micro step by two-level block Gauss-Seidel (:mod:`.twolevel`), with patch growth."""
+    """The micro step by two-level block Gauss-Seidel (:mod:`.twolevel`), with patch growth
+    (``trial``: :attr:`~.twolevel.SweepLimits.trial`)."""
     state, p0, theta, tilt = setup.state, setup.p0, setup.theta, setup.tilt
     pivot, n_unknowns, target = setup.control.pivot, setup.control.n_unknowns, setup.control.target
     p = [v.copy() for v in p0]
@@ -143,6 +150,7 @@ def run_two_level(
             stop=(lambda q: edges_loaded_any(state, q)) if can_grow else None,
             monitor=None if monitor is None else (lambda m, c: monitor(sweeps + m, c)),
             earlier=tuple(history),
+            trial=trial,
         )
         res = two_level(
             state.blocks,
