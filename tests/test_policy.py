@@ -187,36 +187,6 @@ def test_the_cost_model_decides_and_its_margin_works_both_ways():
         CostModel(ns_per_unit={"union-cg": 1.0})
 
 
-def test_the_union_margin_is_not_taken_against_the_far_field():
-    import dataclasses
-
-    from twoscale.micro.costmodel import FITTED
-
-    # 150 scattered patches: the far-field two-level iteration is a candidate; with the
-    # union CG predicted 1.3x the cheapest block iteration the margin (measured against
-    # exact block iterations) picks it only when that iteration couples exactly
-    asps = [Asperity(6.0 * i, 6.0 * j, 0.0, 5.0) for i in range(10) for j in range(15)]
-    pts, box = _patches(asps, 1.0, 0.2, 0.1)
-    work = choose(pts, box).estimates["work"]
-
-    def model(block):
-        other = "two-level" if block == "block-gs" else "block-gs"
-        ns = {"union-cg": 1.3 * work[block] / work["union-cg"], block: 1.0, other: 1e3 * work[block] / work[other]}
-        return dataclasses.replace(
-            FITTED,
-            ns_per_unit=ns,
-            fixed_seconds={k: 0.0 for k in ns},
-            union_margin=1.7,
-            union_work_exponent=0.0,
-            union_min_coverage=0.0,
-            exact_max_patches=1000,
-        )
-
-    assert choose(pts, box, model=model("block-gs")).iteration == "union-cg"
-    far = choose(pts, box, model=model("two-level"))
-    assert (far.iteration, far.far_tol) == ("two-level", 0.3)
-
-
 def test_the_union_prediction_grows_faster_than_its_work():
     from twoscale.micro.costmodel import FITTED, UNION_REFERENCE_WORK
 

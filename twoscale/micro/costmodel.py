@@ -10,9 +10,8 @@ block iterations with far-field coupling). The coefficients are fitted to the me
 attempts of the scene-space sweep by ``benchmarks/calibrate_policy.py``, which prints the
 :data:`FITTED` block below (the record of each fit is in docs/records/sweep.md).
 
-The union CG is chosen when its predicted seconds are below ``union_margin`` times the exact
-block iterations' and below the far-field two-level iteration's; the model's other fields
-are the structure of the work estimate (sweeps and products expected) and the budgets after which the driver gives a block iteration up
+The union CG is chosen when its predicted seconds are below ``union_margin`` times the best
+block iteration's; the model's other fields are the structure of the work estimate (sweeps and products expected) and the budgets after which the driver gives a block iteration up
 (the two-level iteration's sweeps and its early exit on a stall or a slow rate).
 """
 
@@ -43,11 +42,10 @@ class CostModel:
         (fitted: their sweeps correct the approach and the angles too; the union CG solves
         them in the same iteration).
     union_margin : float
-        The union CG is chosen where its predicted seconds are below this times the exact
-        block iterations' (1: the cheapest prediction; above 1 the union CG is preferred
+        The union CG is chosen where its predicted seconds are below this times the best
+        block iteration's (1: the cheapest prediction; above 1 the union CG is preferred
         where the predictions are close: few large patches, whose local solves the work
-        estimate undercounts, run faster as one CG); against the far-field two-level
-        iteration the cheaper prediction decides.
+        estimate undercounts, run faster as one CG).
     union_min_coverage : float
         The union CG (chosen, or as the fallback of a stalled block iteration) only where
         the patches carry at least this share of their bounding box: below it the box is
@@ -151,10 +149,10 @@ FITTED = CostModel(
     # and 0.05/0.16, 11 spheres 0.09/0.31, 8 spheres 0.48/0.73, 60 paraboloids 0.61/0.73,
     # 281 paraboloids 9.4 s against a diverged two-level attempt and then the same CG;
     # slower on 23 and 27 paraboloids under load, 1.92/1.31 and 4.86/3.04, both still a
-    # quarter of the reference's time). All but the 281 paraboloids had fewer than 100
-    # patches: exact coupling. Against the far-field two-level iteration the margin is 1
-    # (814 spheres under load, 37 % of a 7.2 M-cell box: union CG over 110 s of CPU, the
-    # two-level iteration 36 s, predicted 73 s and 45 s by this model)
+    # quarter of the reference's time). Not separated by any margin (docs/records/sweep.md,
+    # large scenes): 814 spheres under load, union CG over 110 s of CPU against 40 s for the
+    # two-level iteration, predicted 1.35x; 281 paraboloids, union CG 3.2 s against a
+    # two-level attempt that failed (12 s with the union CG after it), predicted 1.16x
     union_margin=1.7,
     # from 0.25: between 14 and 25 % the prediction decides (road maps of 30 and 50 mm at
     # 15-18 %: union CG 0.34 s and 0.67 s of CPU against 0.68 s and 1.59 s for the two-level

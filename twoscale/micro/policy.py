@@ -180,8 +180,7 @@ def choose(
     stalls; the choice names the two-level iteration with exact coupling. The work of each
     candidate becomes predicted CPU seconds by ``model`` (its block iterations' work costs
     more under load control and with the ``tilt``); the cheapest prediction is chosen, the
-    union CG only below ``model.union_margin`` times the exact block iterations' prediction and
-    below the far-field two-level iteration's."""
+    union CG only below ``model.union_margin`` times the best block iteration's."""
     figures = scene_figures(patches, box_cells)
     work = estimate_costs(patches, box_cells, model)
     costs = model.seconds(work, load_control=load_control, tilt=tilt)
@@ -207,18 +206,14 @@ def choose(
     if figures["coverage"] < model.union_min_coverage and len(candidates) > 1:
         candidates.pop("union-cg")
     rest = {k: v for k, v in candidates.items() if k != "union-cg"}
-    # the margin was measured against exact block iterations (few large patches), not
-    # against the far-field two-level iteration: there the cheaper prediction decides
-    bounds = [model.union_margin * v if k == "block-gs" else v for k, v in rest.items()]
-    if "union-cg" in candidates and (not rest or candidates["union-cg"] <= min(bounds)):
+    if "union-cg" in candidates and (not rest or candidates["union-cg"] <= model.union_margin * min(rest.values())):
         best = "union-cg"
     else:
         best = min(rest, key=rest.get)
     cov = figures["coverage"]
     if best == "union-cg":
         against = (
-            f", the block iterations {min(rest.values()):.2g} s; it is taken up to {model.union_margin:g}x "
-            "the exact ones'"
+            f", the block iterations {min(rest.values()):.2g} s; it is taken up to {model.union_margin:g}x theirs"
             if rest
             else ""
         )
