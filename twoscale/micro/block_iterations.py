@@ -171,9 +171,9 @@ def run_two_level(
         if grown:
             growths += grown
             if res.converged:
-                # a round that converged before its patches grew starts the rules afresh: the
-                # next round's first change (cells the larger patches add) is no divergence
-                # (845 paraboloids: 6e-7 after 14 sweeps, then 0.21, read as a rate of 20x)
+                # a round that converged before its patches grew starts the rules afresh: its
+                # sweeps say nothing of the next round's rate (845 paraboloids: 6e-7 after 14
+                # sweeps, then 0.21, read with them as a rate of 20x after one sweep)
                 counted = len(history)
             continue
         if ended is not None:
