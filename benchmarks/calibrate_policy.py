@@ -39,6 +39,8 @@ sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 
 
 CANDIDATES = ("union-cg", "block-gs", "two-level")
+from twoscale.micro.costmodel import UNION_REFERENCE_WORK  # noqa: E402
+
 #: Largest fixed cost per candidate the fit may give, s.
 MAX_FIXED = 0.3
 
@@ -97,14 +99,15 @@ def fit(rows: list[dict]) -> dict:
     t = np.array([r["seconds"] for r in conv])
     which = np.array([keys.index(r["candidate"]) if r["candidate"] in keys else -1 for r in conv])
     blocks = np.array([r["candidate"] != "union-cg" for r in conv])
+    growth = np.where(blocks, 0.0, np.log(w / UNION_REFERENCE_WORK))
     load = np.array([r["control"] == "load" for r in conv]) & blocks
     tilt = np.array([r["control"] == "tilt" for r in conv]) & blocks
     ok = which >= 0
 
     def predict_(q):
         fixed, ns = np.exp(q[0 : 2 * len(keys) : 2]), np.exp(q[1 : 2 * len(keys) : 2])
-        f_load, f_tilt = np.exp(q[-2]), np.exp(q[-1])
-        factor = np.where(load, f_load, np.where(tilt, f_tilt, 1.0))
+        f_load, f_tilt = np.exp(q[-3]), np.exp(q[-2])
+        factor = np.where(load, f_load, np.where(tilt, f_tilt, 1.0)) * np.exp(q[-1] * growth)
         return fixed[which] + 1e-9 * ns[which] * factor * w
 
     def resid(q):
@@ -117,19 +120,22 @@ def fit(rows: list[dict]) -> dict:
     # a fixed cost of at most MAX_FIXED s: where the data would put more there (the far
     # field's few mid-size attempts, 2-3 s each), it is scatter, not set-up
     q0 = [min(v, math.log(MAX_FIXED) - 1e-6) if i % 2 == 0 else v for i, v in enumerate(q0)]
-    hi = np.array([math.log(MAX_FIXED) if i < 2 * len(keys) and i % 2 == 0 else np.inf for i in range(len(q0) + 2)])
-    q = least_squares(resid, np.array(q0 + [0.0, 0.0]), bounds=(-np.inf, hi)).x
+    hi = np.array([math.log(MAX_FIXED) if i < 2 * len(keys) and i % 2 == 0 else np.inf for i in range(len(q0) + 3)])
+    q = least_squares(resid, np.array(q0 + [0.0, 0.0, 0.0]), bounds=(-np.inf, hi)).x
     out = {
         k: {"fixed": math.exp(q[2 * i]), "ns": math.exp(q[2 * i + 1]), "count": int(np.sum(which == i))}
         for i, k in enumerate(keys)
     }
-    out["factors"] = {"load": math.exp(q[-2]), "tilt": math.exp(q[-1])}
+    out["factors"] = {"load": math.exp(q[-3]), "tilt": math.exp(q[-2]), "union_exponent": float(q[-1])}
     return out
 
 
 def predict(models: dict, row: dict) -> float:
     m = models[row["candidate"]]
-    factor = 1.0 if row["candidate"] == "union-cg" else models["factors"].get(row["control"], 1.0)
+    if row["candidate"] == "union-cg":
+        factor = (row["work"] / UNION_REFERENCE_WORK) ** models["factors"].get("union_exponent", 0.0)
+    else:
+        factor = models["factors"].get(row["control"], 1.0)
     return m["fixed"] + 1e-9 * m["ns"] * factor * row["work"]
 
 
@@ -175,10 +181,15 @@ def main(argv=None) -> int:
             print(f"  {k:10s} {m['count']:4d} attempts: fixed {m['fixed']:.3g} s + {m['ns']:.3g} ns a unit")
     print(
         f"  block iterations' work x {models['factors']['load']:.3g} under load control, "
-        f"x {models['factors']['tilt']:.3g} with the tilt"
+        f"x {models['factors']['tilt']:.3g} with the tilt; the union CG's x (work / "
+        f"{UNION_REFERENCE_WORK:.0e}) ** {models['factors']['union_exponent']:.3g}"
     )
     installed = {k: {"fixed": FITTED.fixed_seconds[k], "ns": FITTED.ns_per_unit[k]} for k in CANDIDATES}
-    installed["factors"] = {"load": FITTED.load_factor, "tilt": FITTED.tilt_factor}
+    installed["factors"] = {
+        "load": FITTED.load_factor,
+        "tilt": FITTED.tilt_factor,
+        "union_exponent": FITTED.union_work_exponent,
+    }
     report(f"installed model ({FITTED.fitted_on})", installed, rows)
     off = report("this fit", models, rows)
     for f, r in sorted(off, key=lambda x: -abs(math.log(x[0]))):
@@ -200,6 +211,7 @@ def main(argv=None) -> int:
             f"    fixed_seconds={{{fx}}},\n"
             f"    load_factor={models['factors']['load']:.3g},\n"
             f"    tilt_factor={models['factors']['tilt']:.3g},\n"
+            f"    union_work_exponent={models['factors']['union_exponent']:.3g},\n"
             f"    union_margin={args.margin:g},\n"
             f'    fitted_on="{len(rows)} attempts of {len(records)} sweep scenes",\n)'
         )

@@ -109,19 +109,16 @@ def test_the_driver_composes_iteration_and_coupling_objects():
         FarField(1.5)
     # the policy's far field: capped, then the union CG where it stalls
     far = _order(Choice("two-level", 0.1, "r", {}))
-    assert [(type(i), c, cap) for i, c, cap in far] == [
-        (TwoLevel, FarField(0.1), TWO_LEVEL_SWEEPS),
-        (UnionCG, None, None),
-    ]
-    # the caller's far field: exactly what was asked, no fallback
+    assert far == [(TwoLevel(trial_sweeps=TWO_LEVEL_SWEEPS), FarField(0.1)), (UnionCG(), None)]
+    # the caller's far field: exactly what was asked, no trial, no fallback
     fixed = _order(Choice("two-level", 0.1, "r", {}, by_caller=True))
-    assert [(type(i), c, cap) for i, c, cap in fixed] == [(TwoLevel, FarField(0.1), None)]
-    # the policy's exact two-level (load control): capped, then the paper's iteration
+    assert fixed == [(TwoLevel(), FarField(0.1))]
+    # the policy's exact two-level (load control): on trial, then the paper's iteration
     exact = _order(Choice("two-level", None, "r", {}))
-    assert [(type(i), c) for i, c, _ in exact] == [(TwoLevel, Exact()), (BlockGaussSeidel, Exact())]
-    assert [(type(i), c) for i, c, _ in _order(Choice("block-gs", None, "r", {}))] == [(BlockGaussSeidel, Exact())]
+    assert exact == [(TwoLevel(trial_sweeps=TWO_LEVEL_SWEEPS), Exact()), (BlockGaussSeidel(), Exact())]
+    assert [(type(i), c) for i, c in _order(Choice("block-gs", None, "r", {}))] == [(BlockGaussSeidel, Exact())]
     # block Gauss-Seidel takes a far-field coupling too (orthogonal choices)
-    assert [(type(i), c) for i, c, _ in _order(Choice("block-gs", 0.2, "r", {}, by_caller=True))] == [
+    assert [(type(i), c) for i, c in _order(Choice("block-gs", 0.2, "r", {}, by_caller=True))] == [
         (BlockGaussSeidel, FarField(0.2))
     ]
 
@@ -171,6 +168,7 @@ def test_the_cost_model_decides_and_its_margin_works_both_ways():
         FITTED,
         ns_per_unit={"union-cg": 1.3 / ratio, "block-gs": 1.0, "two-level": 1.0},
         fixed_seconds={"union-cg": 0.0, "block-gs": 0.0, "two-level": 0.0},
+        union_work_exponent=0.0,
     )
     assert choose(pts, box, model=dataclasses.replace(model, union_margin=1.0)).iteration == "block-gs"
     picked = choose(pts, box, model=dataclasses.replace(model, union_margin=1.7))
@@ -187,3 +185,13 @@ def test_the_cost_model_decides_and_its_margin_works_both_ways():
     )
     with pytest.raises(ValueError, match="ns_per_unit"):
         CostModel(ns_per_unit={"union-cg": 1.0})
+
+
+def test_the_union_prediction_grows_faster_than_its_work():
+    from twoscale.micro.costmodel import FITTED, UNION_REFERENCE_WORK
+
+    small, large = (
+        FITTED.seconds({"union-cg": w})["union-cg"] for w in (UNION_REFERENCE_WORK, 30 * UNION_REFERENCE_WORK)
+    )
+    # a 7 M-cell box (about 28 x the reference work) ran at 3.7 ns a unit, the reference's at 1-1.5
+    assert large / small > 30 * 1.8

@@ -32,7 +32,8 @@ from .strategies import STRATEGIES, BlockGaussSeidel, TwoLevel, UnionCG
 from .union import box_of
 
 #: Sweeps a two-level attempt chosen by the policy gets (it needs 5-10 where it works)
-#: before the next strategy is tried (a field of the cost model, :mod:`.costmodel`).
+#: before the next strategy is tried unless it is converging fast then (its trial:
+#: :attr:`~.twolevel.SweepLimits.trial`; a field of the cost model, :mod:`.costmodel`).
 TWO_LEVEL_SWEEPS = MODEL.two_level_sweeps
 
 
@@ -130,7 +131,7 @@ def run_micro(
     )
     attempts: list = []
     result = None
-    for iteration, coupling, sweeps_cap in _order(picked):
+    for iteration, coupling in _order(picked):
         stage = f"micro step, {iteration.name}" + (
             f" ({coupling.name} {coupling.far_tol:g})" if coupling is not None and coupling.far_tol is not None else ""
         )
@@ -140,8 +141,7 @@ def run_micro(
             unit = "CG iteration" if isinstance(iteration, UnionCG) else "sweep"
             monitor = lambda k, r, _s=stage, _u=unit: progress(f"{_s}: {_u} {k}, residual {r:.1e}")
         t = time.perf_counter()
-        cap = min(options.max_sweeps, sweeps_cap) if sweeps_cap else options.max_sweeps
-        result = iteration.run(context, coupling, max_sweeps=cap, monitor=monitor)
+        result = iteration.run(context, coupling, max_sweeps=options.max_sweeps, monitor=monitor)
         attempts.append(
             Attempt(
                 iteration.name,
@@ -186,21 +186,22 @@ def solve_micro(
 
 
 def _order(choice: Choice) -> list:
-    """Attempts to make, in order: ``(iteration, coupling, sweep cap or None)``. The caller's
-    choice runs alone; the policy's is followed by a fallback where it can stall."""
+    """Attempts to make, in order: ``(iteration, coupling)``. The caller's choice runs alone;
+    the policy's is followed by a fallback where it can stall (its two-level attempt on a
+    trial of ``TWO_LEVEL_SWEEPS``)."""
     coupling = coupling_for(choice.far_tol)
     if choice.iteration == "union-cg":
-        return [(UnionCG(), None, None)]
+        return [(UnionCG(), None)]
     if choice.iteration == "block-gs":
-        return [(BlockGaussSeidel(), coupling, None)]
+        return [(BlockGaussSeidel(), coupling)]
     if choice.by_caller:
-        return [(TwoLevel(), coupling, None)]
+        return [(TwoLevel(), coupling)]
     if isinstance(coupling, Exact):
         # the two-level iteration can stall where contacts merge: the paper's iteration decides
-        return [(TwoLevel(), Exact(), TWO_LEVEL_SWEEPS), (BlockGaussSeidel(), Exact(), None)]
+        return [(TwoLevel(trial_sweeps=TWO_LEVEL_SWEEPS), Exact()), (BlockGaussSeidel(), Exact())]
     # far-field coupling can fail to converge where contacts merge: the union CG decides
     # where the patches crowd their box; elsewhere its box is mostly empty (and may not fit
     # in memory), and block Gauss-Seidel with the same coupling decides
     if choice.estimates.get("coverage", 1.0) >= UNION_MIN_COVERAGE:
-        return [(TwoLevel(), coupling, TWO_LEVEL_SWEEPS), (UnionCG(), None, None)]
-    return [(TwoLevel(), coupling, TWO_LEVEL_SWEEPS), (BlockGaussSeidel(), coupling, None)]
+        return [(TwoLevel(trial_sweeps=TWO_LEVEL_SWEEPS), coupling), (UnionCG(), None)]
+    return [(TwoLevel(trial_sweeps=TWO_LEVEL_SWEEPS), coupling), (BlockGaussSeidel(), coupling)]

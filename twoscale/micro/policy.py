@@ -213,7 +213,7 @@ def choose(
     cov = figures["coverage"]
     if best == "union-cg":
         against = (
-            (f", the block iterations {min(rest.values()):.2g} s; it is taken up to {model.union_margin:g}x theirs")
+            f", the block iterations {min(rest.values()):.2g} s; it is taken up to {model.union_margin:g}x theirs"
             if rest
             else ""
         )

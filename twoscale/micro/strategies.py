@@ -103,9 +103,12 @@ class BlockGaussSeidel:
 class TwoLevel:
     """Block Gauss-Seidel with a coarse correction (:mod:`.twolevel`), which also moves the
     approach and tilt under load control; one block per asperity (the coarse space's
-    unknowns are the tips' resultants)."""
+    unknowns are the tips' resultants). ``trial_sweeps``: after that many sweeps it goes on
+    only while converging fast (:attr:`~.twolevel.SweepLimits.trial`); None: up to
+    ``max_sweeps`` whatever its rate."""
 
     name: str = "two-level"
+    trial_sweeps: int | None = None
     accepts: ClassVar[tuple] = (Exact, FarField)
 
     def run(self, ctx: MicroContext, coupling, *, max_sweeps: int, monitor: Callable | None = None) -> MicroResult:
@@ -117,7 +120,12 @@ class TwoLevel:
         if pb.tilt is not None or pb.free_tilt:
             setup = dataclasses.replace(setup, tilt=pb.tilt if pb.tilt is not None else (0.0, 0.0))
         return run_two_level(
-            setup, tol=ctx.options.tol, max_sweeps=max_sweeps, max_growths=ctx.settings.max_growths, monitor=monitor
+            setup,
+            tol=ctx.options.tol,
+            max_sweeps=max_sweeps,
+            max_growths=ctx.settings.max_growths,
+            monitor=monitor,
+            trial=self.trial_sweeps,
         )
 
 

@@ -64,6 +64,12 @@ class SweepLimits:
         for larger patches): the stall and rate rules count them, so an iteration that
         grows its patches every few sweeps without converging still stops (281 paraboloids
         under penetration control: changes of 0.3-12 for 11 sweeps over four rounds).
+    trial : int or None, default None
+        Sweeps (all rounds together) after which the iteration goes on only while its change
+        falls by less than :data:`SLOW_RATE` a sweep (:func:`converging`); None: no trial.
+        A trial cut at a fixed count threw away an iteration that was converging (859 light
+        clustered spheres: 20 sweeps at 0.7 a sweep to a change of 2.8e-5, then block
+        Gauss-Seidel from the start again, 25 s more).
     """
 
     tol: float
@@ -71,6 +77,7 @@ class SweepLimits:
     stop: Callable | None = None
     monitor: Callable | None = None
     earlier: tuple = ()
+    trial: int | None = None
 
 
 @dataclass(frozen=True)
@@ -130,6 +137,15 @@ def too_slow(history: list, tol: float, remaining: int) -> str:
         f"two-level iteration converging too slowly: change {last:.3g} falling by {rate:.2f} a sweep, "
         f"about {needed:.0f} more sweeps needed, {remaining} left"
     )
+
+
+def converging(history: list) -> bool:
+    """The change fell by less than :data:`SLOW_RATE` a sweep over the last
+    :data:`RATE_SWEEPS` sweeps of ``history``."""
+    if len(history) <= RATE_SWEEPS:
+        return False
+    first, last = history[-1 - RATE_SWEEPS], history[-1]
+    return first > 0.0 and (last / first) ** (1.0 / RATE_SWEEPS) < SLOW_RATE
 
 
 def lower_near_pattern(coupling) -> sp.csr_matrix:
@@ -253,6 +269,19 @@ def two_level(
         slow = too_slow(seen, tol, max_sweeps - m)
         if slow:
             return TwoLevelResult(p, active, theta, False, m, tuple(history), cg_iters, slow, StopReason.STAGNATED)
+        if limits.trial is not None and len(seen) >= limits.trial and not converging(seen):
+            return TwoLevelResult(
+                p,
+                active,
+                theta,
+                False,
+                m,
+                tuple(history),
+                cg_iters,
+                f"two-level block Gauss-Seidel reached its {limits.trial} trial sweeps without converging "
+                f"(last change {change:.3g})",
+                StopReason.MAX_ITER,
+            )
         if stop is not None and stop(p):
             return TwoLevelResult(p, active, theta, False, m, tuple(history), cg_iters, "stopped", StopReason.STOPPED)
     return TwoLevelResult(
