@@ -84,7 +84,8 @@ class Iteration:
             restore(self.p, basis, target)
         self.count: Any = None  # loaded cells per row (one constant constraint column)
         self.t = np.zeros_like(self.p)
-        # rows still on the fast product (until their residual reaches FAST_RESIDUAL)
+        # rows whose refreshes still take the fast product (until their residual reaches
+        # FAST_RESIDUAL; the search directions take it throughout)
         self.fast: Any = np.full(rows, products.fast is not None and tol.residual is not None)
         self.u = self.product(self.p, fast=bool(self.fast.all()))
         self.products = rows
@@ -186,9 +187,10 @@ class Iteration:
         if res is not None and np.count_nonzero(self.fast & (res <= FAST_RESIDUAL)):
             leave = self.fast & (res <= FAST_RESIDUAL)  # from here on the exact product
             self.fast &= ~leave
-            self.conj &= ~leave  # the gradient jumps by the fast product's drift: restart
             exact = leave if exact is None else exact | leave
         if exact is not None and np.count_nonzero(exact):
+            if self.ops.fast is not None:  # the gradient jumps by the fast products' drift: restart
+                self.conj &= ~exact
             # the cheap update drifted by rounding: confirm on an exact product
             self.refresh(exact)
             g, m, on, g_on = self.gap()
@@ -300,7 +302,7 @@ class Iteration:
         t += d
         t *= on
         self.G_old = G
-        r = self.product(t, fast=bool(self.fast.all()))
+        r = self.product(t, fast=True)
         self.products += rows if self.pc is None else 2 * rows
         rp = r
         if self.k:

@@ -22,9 +22,10 @@ import numpy as np
 
 Operator = Callable[[np.ndarray], np.ndarray]
 
-#: A row takes the ``fast`` product while its KKT residual is above this (float32 FFTs
-#: round at ~1e-7 of the largest displacement, and a search direction's product more
-#: than that relative to itself: the directions are rough where the gap is).
+#: A row's refreshes take the ``fast`` product while its KKT residual is above this
+#: (float32 FFTs round at ~1e-7 of the largest displacement: a refresh by them would
+#: leave the gap that far off; below, the refreshes are exact and the fast products'
+#: drift of the cheap updates is of the order of the steps, which shrink with the residual).
 FAST_RESIDUAL = 1e-5
 #: Changed cells per row up to which ``A dp`` is summed from the kernel's columns rather
 #: than taken as a product (a column costs a pass over the row; a padded FFT product of
@@ -42,9 +43,10 @@ class Products:
         ``exact(v)``: ``A v`` for a stack ``v`` (b, ...) of pressures, to the working
         precision (float64).
     fast : callable, optional
-        A cheaper approximation of ``exact`` (rounding far below the tolerance's scale,
-        e.g. float32 FFTs): taken for the search directions and for refreshes while the
-        residual is above :data:`FAST_RESIDUAL`. None: ``exact`` everywhere.
+        A cheaper approximation of ``exact`` (e.g. float32 FFTs): taken for the search
+        directions throughout and for refreshes while the residual is above
+        :data:`FAST_RESIDUAL`; a row stops only on an exact product (its conjugate
+        directions restart there). None: ``exact`` everywhere.
     columns : callable, optional
         ``columns(out, cells, values)`` adds ``A dp`` to ``out`` (one row, flattened) for
         ``dp`` = ``values`` on the flat ``cells`` and 0 elsewhere, exactly (float64).
