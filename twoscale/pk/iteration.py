@@ -95,6 +95,7 @@ class Iteration:
         self.left = rows  # rows not finished
         self.free: Any = None  # ~mask, for the residual rule
         self.g: Any = None  # the gap's buffer
+        self.g_on: Any = None  # the gap on the loaded cells' buffer
         self.gtol: Any = None  # the change rule's penetration tolerance per row, when first needed
         self.scale: Any = None
         self.best: Any = None
@@ -150,7 +151,9 @@ class Iteration:
             if self.k == 1:
                 self.count = np.maximum(on.sum(axis=1), 1)
             m = project(g, self.basis, on, self.count)
-        return g, m, on, np.where(on, g, 0.0)
+        if self.g_on is None or self.g_on.shape != g.shape:
+            self.g_on = np.empty_like(g)
+        return g, m, on, np.multiply(g, on, out=self.g_on)
 
     def residuals(self, g, g_on, on) -> np.ndarray | None:
         if self.tol.residual is None:
@@ -283,9 +286,9 @@ class Iteration:
         if self.pc is None:
             return g_on, gg
         d = self.pc(g_on.reshape(len(g_on), *self.shape)).reshape(len(g_on), -1)
-        d[~on] = 0.0
-        project(d, self.basis, on)
-        d[~on] = 0.0
+        d *= on
+        project(d, self.basis, on, self.count if self.k == 1 else None)
+        d *= on
         G = row_dot(g_on, d)
         good = G > 0.0
         if not good.all():
@@ -304,11 +307,13 @@ class Iteration:
         self.G_old = G
         r = self.product(t, fast=True)
         self.products += rows if self.pc is None else 2 * rows
-        rp = r
-        if self.k:
+        denom = row_dot(r, t)
+        if self.k == 1:  # the projected product: r minus its mean over the loaded cells (t is 0 off them)
+            denom -= np.add.reduce(r, axis=1, where=on) / self.count * t.sum(axis=1)
+        elif self.k:
             rp = r.copy()
             project(rp, self.basis, on, self.count)
-        denom = row_dot(rp, t)
+            denom = row_dot(rp, t)
         bad = ~(denom > 0.0)
         if np.count_nonzero(bad):
             self.denominator[np.flatnonzero(bad) if self.index is None else self.index[bad]] = denom[bad]
@@ -318,7 +323,7 @@ class Iteration:
         p_old = self.p.copy() if self.change2 is not None else None
         p = self.p
         tau_c = column(tau)
-        p -= tau_c * t
+        p -= np.multiply(t, tau_c, out=d if d is not g_on else None)
         clipped, reenter, change = clip_and_enter(p, g, tau, self.mask, self.ops.columns is not None)
         entered = reenter.any(axis=1)
         self.conj = ~entered
@@ -351,7 +356,8 @@ class Iteration:
         if factor is None or count == len(redo):
             self.refresh(np.ones(len(r), bool), fast)
             return
-        self.u -= tau_c * r
+        r *= tau_c
+        self.u -= r
         if self.k:
             self.u *= column(factor)
         if summed is not None and np.count_nonzero(summed):
