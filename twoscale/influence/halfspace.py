@@ -255,6 +255,24 @@ class ConvolutionOperator(GridOperator):
         None for a pair of different grids."""
         return CirculantInverse.of(self, self._khat, np.float64)
 
+    def columns(self):
+        """:meth:`GridOperator.columns`: each source cell's column is a window of the offset
+        table (rebuilt once from the kernel spectrum and kept with the operator), a pass
+        over the target per cell."""
+        if "table" not in self._derived:
+            my, mx = self.target.ny + self.source.ny - 1, self.target.nx + self.source.nx - 1
+            self._derived["table"] = sfft.irfft2(self._khat, s=self._shape)[:my, :mx]
+        table = self._derived["table"]
+        (nyt, nxt), (nys, nxs) = self.target.shape, self.source.shape
+
+        def add(out: np.ndarray, cells: np.ndarray, values: np.ndarray) -> None:
+            o = out.reshape(nyt, nxt)
+            js, i_s = np.divmod(np.asarray(cells), nxs)
+            for j, i, v in zip(js.tolist(), i_s.tolist(), np.asarray(values).tolist()):
+                o += v * table[nys - 1 - j : nys - 1 - j + nyt, nxs - 1 - i : nxs - 1 - i + nxt]
+
+        return add
+
     def multiply(self, spectrum: np.ndarray) -> np.ndarray:
         """Kernel times a source spectrum (a new array)."""
         return self._times_kernel(np.array(spectrum, dtype=np.complex128))

@@ -16,6 +16,7 @@ import numpy as np
 
 from ..stopping import StopReason
 from .projection import column, constraint_residual, kkt_residual, project, restore, row_dot
+from .products import COLUMN_CELLS, FAST_RESIDUAL, CellChange, Products, clip_and_enter
 from .result import PKResult, Tolerance
 
 #: Recompute ``u = A p`` from scratch at least this often (the cheap update
@@ -35,7 +36,9 @@ class Iteration:
 
     Parameters
     ----------
-    apply, precondition : callables on (b, ...) stacks (``precondition`` may be None)
+    products : Products
+        The operator's products (:mod:`.products`).
+    precondition : callable on (b, ...) stacks, or None
     shape : tuple
         Field shape of one row.
     z, start, mask : (B, n) arrays
@@ -63,10 +66,11 @@ class Iteration:
         "done",
         "count",
         "free",
+        "fast",
     )
 
-    def __init__(self, apply, precondition, shape, z, start, mask, basis, target, tol: Tolerance):
-        self.apply, self.pc, self.shape, self.basis, self.tol = apply, precondition, shape, basis, tol
+    def __init__(self, products: Products, precondition, shape, z, start, mask, basis, target, tol: Tolerance):
+        self.ops, self.pc, self.shape, self.basis, self.tol = products, precondition, shape, basis, tol
         self.change2 = None if tol.change is None else tol.change**2
         rows, self.k = len(z), basis.shape[1]
         self.masked = mask is not None  # some cells of some row cannot carry pressure
@@ -80,14 +84,18 @@ class Iteration:
             restore(self.p, basis, target)
         self.count: Any = None  # loaded cells per row (one constant constraint column)
         self.t = np.zeros_like(self.p)
-        self.u = self.product(self.p)
+        # rows whose refreshes still take the fast product (until their residual reaches
+        # FAST_RESIDUAL; the search directions take it throughout)
+        self.fast: Any = np.full(rows, products.fast is not None and tol.residual is not None)
+        self.u = self.product(self.p, fast=bool(self.fast.all()))
         self.products = rows
-        self.G_old, self.stale = np.ones(rows), np.zeros(rows, int)
+        self.G_old, self.stale = np.ones(rows), self.fast.astype(int)
         self.conj, self.small, self.done = np.zeros((3, rows), bool)
         self.pending = False  # rows finished but not yet dropped
         self.left = rows  # rows not finished
         self.free: Any = None  # ~mask, for the residual rule
         self.g: Any = None  # the gap's buffer
+        self.g_on: Any = None  # the gap on the loaded cells' buffer
         self.gtol: Any = None  # the change rule's penetration tolerance per row, when first needed
         self.scale: Any = None
         self.best: Any = None
@@ -113,17 +121,21 @@ class Iteration:
             self.gtol = GAP_RTOL * np.abs(self.z).max(axis=1, initial=0.0)
         return self.gtol
 
-    def product(self, v: np.ndarray) -> np.ndarray:
-        return self.apply(v.reshape(len(v), *self.shape)).reshape(len(v), -1)
+    def product(self, v: np.ndarray, fast: bool = False) -> np.ndarray:
+        """``A v`` on a stack of rows: the ``fast`` product when asked for and given."""
+        apply = self.ops.fast if fast and self.ops.fast is not None else self.ops.exact
+        return apply(v.reshape(len(v), *self.shape)).reshape(len(v), -1)
 
-    def refresh(self, rows: np.ndarray) -> None:
-        """``u = A p`` from scratch on ``rows`` (a bool mask)."""
+    def refresh(self, rows: np.ndarray, fast: bool = False) -> None:
+        """``u = A p`` from scratch on ``rows`` (a bool mask); by the ``fast`` product when
+        asked for (the rows then stay marked stale: confirmed on an exact one)."""
+        fast = fast and self.ops.fast is not None
         if np.count_nonzero(rows) == len(rows):
-            self.u = self.product(self.p)
-            self.stale[:] = 0
+            self.u = self.product(self.p, fast)
+            self.stale[:] = int(fast)
         else:
-            self.u[rows] = self.product(self.p[rows])
-            self.stale[rows] = 0
+            self.u[rows] = self.product(self.p[rows], fast)
+            self.stale[rows] = int(fast)
         if self.scale is not None:
             self.scale[rows] = np.maximum(np.abs(self.u[rows]).max(axis=1), _TINY)
         self.products += int(rows.sum())
@@ -139,7 +151,9 @@ class Iteration:
             if self.k == 1:
                 self.count = np.maximum(on.sum(axis=1), 1)
             m = project(g, self.basis, on, self.count)
-        return g, m, on, np.where(on, g, 0.0)
+        if self.g_on is None or self.g_on.shape != g.shape:
+            self.g_on = np.empty_like(g)
+        return g, m, on, np.multiply(g, on, out=self.g_on)
 
     def residuals(self, g, g_on, on) -> np.ndarray | None:
         if self.tol.residual is None:
@@ -172,9 +186,16 @@ class Iteration:
         g, m, on, g_on = self.gap()
         res = self.residuals(g, g_on, on)
         want = self.converged(g, on, res)
-        if want is not None and np.count_nonzero(want & (self.stale > 0)):
+        exact = None if want is None else want & (self.stale > 0)
+        if res is not None and np.count_nonzero(self.fast & (res <= FAST_RESIDUAL)):
+            leave = self.fast & (res <= FAST_RESIDUAL)  # from here on the exact product
+            self.fast &= ~leave
+            exact = leave if exact is None else exact | leave
+        if exact is not None and np.count_nonzero(exact):
+            if self.ops.fast is not None:  # the gradient jumps by the fast products' drift: restart
+                self.conj &= ~exact
             # the cheap update drifted by rounding: confirm on an exact product
-            self.refresh(want & (self.stale > 0))
+            self.refresh(exact)
             g, m, on, g_on = self.gap()
             res = self.residuals(g, g_on, on)
             want = self.converged(g, on, res)
@@ -265,9 +286,9 @@ class Iteration:
         if self.pc is None:
             return g_on, gg
         d = self.pc(g_on.reshape(len(g_on), *self.shape)).reshape(len(g_on), -1)
-        d[~on] = 0.0
-        project(d, self.basis, on)
-        d[~on] = 0.0
+        d *= on
+        project(d, self.basis, on, self.count if self.k == 1 else None)
+        d *= on
         G = row_dot(g_on, d)
         good = G > 0.0
         if not good.all():
@@ -284,13 +305,15 @@ class Iteration:
         t += d
         t *= on
         self.G_old = G
-        r = self.product(t)
+        r = self.product(t, fast=True)
         self.products += rows if self.pc is None else 2 * rows
-        rp = r
-        if self.k:
+        denom = row_dot(r, t)
+        if self.k == 1:  # the projected product: r minus its mean over the loaded cells (t is 0 off them)
+            denom -= np.add.reduce(r, axis=1, where=on) / self.count * t.sum(axis=1)
+        elif self.k:
             rp = r.copy()
             project(rp, self.basis, on, self.count)
-        denom = row_dot(rp, t)
+            denom = row_dot(rp, t)
         bad = ~(denom > 0.0)
         if np.count_nonzero(bad):
             self.denominator[np.flatnonzero(bad) if self.index is None else self.index[bad]] = denom[bad]
@@ -300,19 +323,15 @@ class Iteration:
         p_old = self.p.copy() if self.change2 is not None else None
         p = self.p
         tau_c = column(tau)
-        p -= tau_c * t
-        clipped = p.min(axis=1) < 0.0
-        np.maximum(p, 0.0, out=p)
-        reenter = (g < 0.0) & (p == 0.0)
-        if self.masked:
-            reenter &= self.mask
+        p -= np.multiply(t, tau_c, out=d if d is not g_on else None)
+        clipped, reenter, change = clip_and_enter(p, g, tau, self.mask, self.ops.columns is not None)
         entered = reenter.any(axis=1)
-        if np.count_nonzero(entered):
-            ri, ci = np.nonzero(reenter)
-            p[ri, ci] -= tau[ri] * g[ri, ci]
         self.conj = ~entered
+        if self.ops.keep_conjugacy and np.count_nonzero(entered):
+            # few cells entered: the directions stay conjugate enough to keep
+            self.conj |= reenter.sum(axis=1) <= self.ops.keep_conjugacy * on.sum(axis=1)
         factor = restore(p, self.basis, self.target) if self.k else 1.0
-        self.update_displacement(r, tau_c, factor, clipped | entered)
+        self.update_displacement(r, tau_c, factor, clipped | entered, change)
         if p_old is not None:
             p_old -= p
             d2, n2 = row_dot(p_old, p_old), row_dot(p, p)
@@ -321,20 +340,31 @@ class Iteration:
                 self.small |= n2 == 0.0
         self.drop()
 
-    def update_displacement(self, r, tau_c, factor, changed) -> None:
+    def update_displacement(self, r, tau_c, factor, changed, change: CellChange | None = None) -> None:
         """``u = A p`` after a step: from ``A t`` where ``p`` changed by ``-tau t`` and a
-        constant factor only, from scratch elsewhere and every :data:`REFRESH_EVERY` steps."""
+        constant factor only, plus the kernel's columns where at most
+        :data:`~.products.COLUMN_CELLS` cells were clipped or entered (``change``), from
+        scratch elsewhere (by the fast product while the row is on it) and every
+        :data:`REFRESH_EVERY` steps."""
+        summed = None
+        if change is not None and factor is not None and np.count_nonzero(changed):
+            summed = changed & (change.per_row(len(r)) <= COLUMN_CELLS) & (self.stale < REFRESH_EVERY)
+            changed = changed & ~summed
         redo = changed | (self.stale >= REFRESH_EVERY)
         count = np.count_nonzero(redo)
+        fast = bool(self.fast[redo].all())
         if factor is None or count == len(redo):
-            self.refresh(np.ones(len(r), bool))
+            self.refresh(np.ones(len(r), bool), fast)
             return
-        self.u -= tau_c * r
+        r *= tau_c
+        self.u -= r
         if self.k:
             self.u *= column(factor)
+        if summed is not None and np.count_nonzero(summed):
+            change.apply(self.u, summed, factor, self.ops.columns)
         self.stale += 1
         if count:
-            self.refresh(redo)
+            self.refresh(redo, fast)
 
     def drop(self, *arrays):
         """Remove the finished rows from the working arrays (and from ``arrays``)."""

@@ -33,6 +33,7 @@ from typing import Callable
 import numpy as np
 
 from .iteration import GAP_RTOL, MONITOR_EVERY, REFRESH_EVERY, Iteration
+from .products import Products
 from .result import STALL_ITERATIONS, PKResult, Tolerance
 
 Operator = Callable[[np.ndarray], np.ndarray]
@@ -56,7 +57,7 @@ class Constraint:
 
 
 def pk_solve(
-    apply: Operator,
+    apply: Operator | Products,
     z: np.ndarray,
     start: np.ndarray,
     mask: np.ndarray | None,
@@ -70,9 +71,11 @@ def pk_solve(
 
     Parameters
     ----------
-    apply : callable
+    apply : callable or Products
         ``apply(v)`` returns ``A v`` (mm) for a stack ``v`` (b, ...) of pressures (MPa) in
-        the field shape of ``z``, for any number b of rows (the live ones).
+        the field shape of ``z``, for any number b of rows (the live ones); or a
+        :class:`~.products.Products` with a cheaper approximate product and the kernel's
+        columns besides.
     z : (B, ...) array, mm
         Gap at zero pressure without the unknown rigid motion: height minus approach
         (penetration control), height (load control), ``-b`` for a block's right-hand side.
@@ -102,7 +105,7 @@ def pk_solve(
     else:
         basis, target = constraint.basis, np.asarray(constraint.target, dtype=float).reshape(rows, -1)
     stack = Iteration(
-        apply,
+        apply if isinstance(apply, Products) else Products(apply),
         precondition,
         shape,
         z.reshape(rows, -1),
@@ -125,6 +128,7 @@ __all__ = [
     "GAP_RTOL",
     "MONITOR_EVERY",
     "PKResult",
+    "Products",
     "REFRESH_EVERY",
     "STALL_ITERATIONS",
     "Tolerance",

@@ -1,0 +1,101 @@
+"""The Polonsky-Keer kernel's cheaper products (twoscale.pk.products): the half-space
+operator's columns against its FFT product, and a solve whose search directions take a
+rough product (float32 FFTs, or a deliberately perturbed one) against the classical
+double-precision CG: the same contact to the tolerance, since the residual the stopping
+rule reads is always the exact product's."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from twoscale import Material
+from twoscale.grid import Grid
+from twoscale.indenters import surface_on
+from twoscale.influence import HalfSpace
+from twoscale.pk import Constraint, Products, Tolerance, pk_solve
+from twoscale.reference import solve_cg
+from twoscale.reference.on_scene import reference_grid
+from twoscale.scene import Scene
+
+from helpers import crowded
+
+MAT = Material(E=6.0, nu=0.5)
+HS = HalfSpace(MAT)
+
+
+@pytest.mark.parametrize("shift", [(0, 0), (3, -2)])
+def test_columns_are_the_product_of_a_pressure_on_a_few_cells(shift):
+    """Each column a window of the offset table: the same displacement as the FFT product
+    of the sparse pressure, on the square operator and on a pair of different grids."""
+    source = Grid(0.0, 0.0, 0.1, 23, 17)
+    target = Grid(shift[0] * 0.1, shift[1] * 0.1, 0.1, 19, 21) if shift != (0, 0) else source
+    op = HS.grid_operator(target, source)
+    rng = np.random.default_rng(2)
+    cells = rng.choice(source.size, 7, replace=False)
+    values = rng.random(7)
+    p = np.zeros(source.size)
+    p[cells] = values
+    out = np.full(target.size, 0.5)  # the columns are added to what is there
+    op.columns()(out, cells, values)
+    expected = op.apply(p.reshape(source.shape)).ravel() + 0.5
+    assert np.max(np.abs(out - expected)) <= 1e-13 * np.max(np.abs(expected))
+
+
+@pytest.mark.parametrize("seed,load", [(4, {"penetration": 0.12}), (5, {"total_load": 30.0})])
+def test_single_precision_directions_find_the_classical_contact(seed, load):
+    asps = crowded(seed, 16)
+    h = 0.08
+    grid = reference_grid(Scene(material=MAT, asperities=asps, h=h, **load), h)
+    surf = surface_on(grid, asps)
+    plain = solve_cg(HS, surf, tol=1e-9, **load)
+    fast = solve_cg(HS, surf, tol=1e-9, precondition=True, precision="single-directions", keep_conjugacy=0.01, **load)
+    assert plain.converged and fast.converged, (plain.message, fast.message)
+    p, pp = fast.fields[0].pressure, plain.fields[0].pressure
+    assert np.linalg.norm(p - pp) <= 1e-6 * np.linalg.norm(pp)
+    assert fast.penetration == pytest.approx(plain.penetration, abs=1e-9)
+    # warm-started from the answer moved by one cell: the few cells that change are
+    # corrected by the kernel's columns, the answer the same
+    start = np.roll(pp, 1, axis=1)
+    warm = solve_cg(HS, surf, tol=1e-9, precondition=True, precision="single-directions", start=start, **load)
+    assert warm.converged and np.linalg.norm(warm.fields[0].pressure - pp) <= 1e-6 * np.linalg.norm(pp)
+
+
+def test_a_rough_direction_product_shapes_the_steps_only():
+    """The search directions multiplied by an operator 1e-3 off (a smoothing of the
+    kernel): the solve still stops at the exact problem's answer, because the
+    displacement is refreshed and confirmed by the exact product before it stops."""
+    g = Grid.covering(-1.0, 1.0, -1.0, 1.0, 0.05)
+    op = HS.grid_operator(g)
+    x, y = g.centres()
+    z = (x**2 + y**2) / 4.0  # a sphere of radius 2 mm
+    z1 = z.reshape(1, -1)
+    basis = np.ones((g.size, 1))
+    target = np.array([[3.0 / g.h**2]])
+
+    def exact(v):
+        return np.stack([op.apply(r) for r in v])
+
+    def rough(v):
+        return 1.001 * exact(v)
+
+    start = np.maximum(0.05 - z1, 0.0)
+    tol = Tolerance(residual=1e-10, max_iter=500)
+    ref = pk_solve(
+        exact, z1.reshape(1, *g.shape), start.reshape(1, *g.shape), None, tol, constraint=Constraint(basis, target)
+    )
+    approx = pk_solve(
+        Products(exact, rough, op.columns()),
+        z1.reshape(1, *g.shape),
+        start.reshape(1, *g.shape),
+        None,
+        Tolerance(residual=1e-10, max_iter=500),
+        constraint=Constraint(basis, target),
+    )
+    assert ref.converged[0] and approx.converged[0]
+    assert np.max(np.abs(approx.pressure - ref.pressure)) <= 1e-7 * np.max(ref.pressure)
+    # the same product everywhere would have solved a problem 0.1 % stiffer
+    wrong = pk_solve(
+        rough, z1.reshape(1, *g.shape), start.reshape(1, *g.shape), None, tol, constraint=Constraint(basis, target)
+    )
+    assert abs(wrong.multipliers[0, 0] - ref.multipliers[0, 0]) > 1e-4 * abs(ref.multipliers[0, 0])

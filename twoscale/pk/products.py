@@ -1,0 +1,122 @@
+"""The operator products the Polonsky-Keer iteration takes (:class:`Products`), and the
+sparse change of the pressure a step makes where cells are clipped or enter
+(:class:`CellChange`), summed from the kernel's columns when it is small.
+
+Every product of the iteration is one of three kinds: the *search direction's* ``A t``,
+which only has to be accurate to well below the residual still to remove (its rounding
+shapes the step, the displacement follows from it with a factor ``tau`` that shrinks as
+the iteration converges); the *refresh* ``u = A p`` after a step that clipped cells or let
+cells enter, which must be exact once the residual approaches the tolerance; and the
+*confirmation* of a converged row on an exact product. A :class:`Products` may give a
+cheaper ``fast`` product (float32 FFTs) for the first kind and for refreshes while the
+residual is far above its rounding, and ``columns`` to add ``A dp`` for a ``dp`` on a few
+cells column by column (each a window of the kernel's table) instead of a product.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Callable
+
+import numpy as np
+
+Operator = Callable[[np.ndarray], np.ndarray]
+
+#: A row's refreshes take the ``fast`` product while its KKT residual is above this
+#: (float32 FFTs round at ~1e-7 of the largest displacement: a refresh by them would
+#: leave the gap that far off; below, the refreshes are exact and the fast products'
+#: drift of the cheap updates is of the order of the steps, which shrink with the residual).
+FAST_RESIDUAL = 1e-5
+#: Changed cells per row up to which ``A dp`` is summed from the kernel's columns rather
+#: than taken as a product (a column costs a pass over the row; a padded FFT product of
+#: the same grid about 35 float32 or 70 float64 such passes on the grids measured).
+COLUMN_CELLS = 32
+
+
+@dataclass(frozen=True)
+class Products:
+    """What the iteration multiplies with.
+
+    Attributes
+    ----------
+    exact : callable
+        ``exact(v)``: ``A v`` for a stack ``v`` (b, ...) of pressures, to the working
+        precision (float64).
+    fast : callable, optional
+        A cheaper approximation of ``exact`` (e.g. float32 FFTs): taken for the search
+        directions throughout and for refreshes while the residual is above
+        :data:`FAST_RESIDUAL`; a row stops only on an exact product (its conjugate
+        directions restart there). None: ``exact`` everywhere.
+    columns : callable, optional
+        ``columns(out, cells, values)`` adds ``A dp`` to ``out`` (one row, flattened) for
+        ``dp`` = ``values`` on the flat ``cells`` and 0 elsewhere, exactly (float64).
+        None: every refresh is a product.
+    keep_conjugacy : float, default 0
+        Keep the conjugate directions after a step where cells entered the contact when
+        they are at most this fraction of the loaded cells (0: Polonsky & Keer's restart
+        after any entry). Fewer steepest-descent restarts while a warm start's contact
+        settles at the stones' edges, at no cost of accuracy (the stopping rule is the
+        same); a few per mille measured best on a rolling tyre's footprint.
+    """
+
+    exact: Operator
+    fast: Operator | None = None
+    columns: Callable[[np.ndarray, np.ndarray, np.ndarray], None] | None = None
+    keep_conjugacy: float = 0.0
+
+
+@dataclass
+class CellChange:
+    """The pressure change of one step beyond ``-tau t`` on each row: the clipped cells
+    (back from their negative value to 0) and the cells that entered (from 0 to
+    ``-tau g``), as flat (row, cell, value) triples."""
+
+    rows: list
+    cells: list
+    values: list
+
+    @classmethod
+    def empty(cls) -> "CellChange":
+        return cls([], [], [])
+
+    def add(self, rows: np.ndarray, cells: np.ndarray, values: np.ndarray) -> None:
+        self.rows.append(rows)
+        self.cells.append(cells)
+        self.values.append(values)
+
+    def per_row(self, n_rows: int) -> np.ndarray:
+        """Changed cells per row (a cell clipped and entered in one step counts twice)."""
+        if not self.rows:
+            return np.zeros(n_rows, int)
+        return np.bincount(np.concatenate(self.rows), minlength=n_rows)
+
+    def apply(self, u: np.ndarray, which: np.ndarray, factor, columns) -> None:
+        """Add ``A dp`` (by ``columns``) to the rows of ``u`` in ``which`` (bool), each
+        scaled by its restoring ``factor`` (per row, or a scalar)."""
+        rows, cells, values = (np.concatenate(a) for a in (self.rows, self.cells, self.values))
+        f = np.broadcast_to(np.asarray(factor, dtype=float), (len(u),))
+        for row in np.flatnonzero(which):
+            at = rows == row
+            columns(u[row], cells[at], values[at] * f[row])
+
+
+def clip_and_enter(p: np.ndarray, g: np.ndarray, tau: np.ndarray, mask, record: bool):
+    """Polonsky & Keer's projection after ``p <- p - tau t`` (in place): negative cells
+    clipped to 0, unloaded cells of ``mask`` (None: all) whose gap ``g`` is negative
+    entering with ``-tau g``. Returns the rows that clipped, the entering cells (bool) and,
+    when ``record``, the :class:`CellChange` beyond ``-tau t`` (else None)."""
+    clipped = p.min(axis=1) < 0.0
+    change = CellChange.empty() if record else None
+    if change is not None and np.count_nonzero(clipped):
+        ri, ci = np.nonzero(p < 0.0)
+        change.add(ri, ci, -p[ri, ci])  # back from below 0 to 0
+    np.maximum(p, 0.0, out=p)
+    reenter = (g < 0.0) & (p == 0.0)
+    if mask is not None:
+        reenter &= mask
+    if np.count_nonzero(reenter):
+        ri, ci = np.nonzero(reenter)
+        p[ri, ci] -= tau[ri] * g[ri, ci]
+        if change is not None:
+            change.add(ri, ci, p[ri, ci])
+    return clipped, reenter, change
