@@ -44,3 +44,29 @@ def test_no_tree_route_agrees():
         grid = Grid.covering(a.x - 0.2, a.x + 0.2, a.y - 0.2, a.y + 0.2, 0.01)
         fast, brute = make_patch(k, grid, TipTable(tips)), surface_on(grid, tips)
         assert np.array_equal(fast.owner, brute.owner) and np.array_equal(fast.height, brute.height)
+
+
+@pytest.mark.parametrize("n, tiled", [(150, False), (600, True)])
+def test_crowded_patches_are_cut_from_one_sampled_box(n, tiled):
+    # patches sized by the indenters' reach (no usable macro force) overlap many times over:
+    # the box covering them is sampled once (tile by tile when large) and each patch is a
+    # window of it; the same heights (the box's cell centres: rounding only) and owners
+    from twoscale.micro.patches import build_patches
+    from twoscale.micro.sampling import SAMPLE_TILE, crowded
+    from twoscale.micro.union import box_of
+
+    tips = _tips(n, 11, ("sphere", "paraboloid"))
+    table = TipTable(tips)
+    h = 0.01 if tiled else 0.02
+    patches = build_patches(
+        table, h=h, forces=np.full(n, np.inf), approaches=np.full(n, 0.03), E_star=1.0, anchor=(0.001, 0.002)
+    )
+    box = box_of([pt.grid for pt in patches], h, (0.001, 0.002))
+    assert crowded([pt.grid for pt in patches], box) and (box.size > 4 * SAMPLE_TILE**2) == tiled
+    for pt in patches[:: max(1, n // 40)]:
+        own = make_patch(pt.asperity, pt.grid, table)
+        assert np.array_equal(pt.owner, own.owner)
+        assert np.array_equal(np.isinf(pt.height), np.isinf(own.height))
+        finite = np.isfinite(own.height)
+        assert np.allclose(pt.height[finite], own.height[finite], rtol=0.0, atol=1e-12)
+        assert not pt.height.flags.writeable

@@ -229,14 +229,21 @@ def build_patches(
     if not (math.isfinite(margin) and margin >= 1.0):
         raise ValueError(f"patch margin must be >= 1, got {margin!r}")
     built = {(pt.asperity, pt.grid): pt for pt in reuse if len(pt.members) == 1}
-    patches = []
+    wanted = []
     for k, a in enumerate(asperities):
         if approaches[k] <= 0.0:
             continue
         r = patch_radius(a, force=float(forces[k]), approach=float(approaches[k]), E_star=E_star, h=h, margin=margin)
-        grid = Grid.covering(a.x - r, a.x + r, a.y - r, a.y + r, h, anchor=anchor)
-        patches.append(built.get((k, grid)) or make_patch(k, grid, asperities))
-    return patches
+        wanted.append((k, Grid.covering(a.x - r, a.x + r, a.y - r, a.y + r, h, anchor=anchor)))
+    new = [(k, grid) for k, grid in wanted if (k, grid) not in built]
+    if new:
+        from .sampling import crowded, patches_cut_from_box
+        from .union import box_of
+
+        box = box_of([grid for _, grid in new], h, anchor)
+        if crowded([grid for _, grid in new], box):  # overlapping patches: the box sampled once
+            built.update(((pt.asperity, pt.grid), pt) for pt in patches_cut_from_box(new, box, asperities))
+    return [built.get((k, grid)) or make_patch(k, grid, asperities) for k, grid in wanted]
 
 
 def edges_loaded(patch: Patch, pressure: np.ndarray) -> tuple[bool, bool, bool, bool]:
