@@ -52,7 +52,7 @@ def test_crowded_patches_are_cut_from_one_sampled_box(n, tiled):
     # the box covering them is sampled once (tile by tile when large) and each patch is a
     # window of it; the same heights (the box's cell centres: rounding only) and owners
     from twoscale.micro.patches import build_patches
-    from twoscale.micro.sampling import SAMPLE_TILE, crowded
+    from twoscale.micro.sampling import SAMPLE_TILE, box_surface, crowded, shared_box
     from twoscale.micro.union import box_of
 
     tips = _tips(n, 11, ("sphere", "paraboloid"))
@@ -70,3 +70,13 @@ def test_crowded_patches_are_cut_from_one_sampled_box(n, tiled):
         finite = np.isfinite(own.height)
         assert np.allclose(pt.height[finite], own.height[finite], rtol=0.0, atol=1e-12)
         assert not pt.height.flags.writeable
+    # the union CG takes the sampled box from the patches instead of sampling it again
+    lent = shared_box(patches, n, (0.001, 0.002))
+    assert lent is not None and lent.grid == box and lent.n_asperities == n
+    again = box_surface(box, table)
+    assert np.array_equal(lent.owner, again.owner) and np.array_equal(lent.height, again.height)
+    assert (
+        shared_box(patches[1:], n, (0.001, 0.002)) is None
+        or box_of([pt.grid for pt in patches[1:]], h, (0.001, 0.002)) == box
+    )
+    assert shared_box([make_patch(pt.asperity, pt.grid, table) for pt in patches[:3]], n, (0.001, 0.002)) is None

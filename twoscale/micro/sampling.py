@@ -72,3 +72,35 @@ def patches_cut_from_box(wanted: Sequence[tuple[int, Grid]], box: Grid, asperiti
         window = (slice(dj, dj + grid.ny), slice(di, di + grid.nx))
         out.append(Patch(k, grid, height[window], owner[window]))
     return out
+
+
+def shared_box(patches: Sequence[Patch], n_asperities: int, anchor: tuple[float, float]) -> Surface | None:
+    """The box surface the ``patches`` were cut from (:func:`patches_cut_from_box`), when
+    every one is a window of the same sampled box at its place on the lattice (``anchor``,
+    mm, a cell centre of it); else None.
+    The union CG runs on that box and need not sample it again."""
+    if not patches:
+        return None
+    base_h, base_o = patches[0].height.base, patches[0].owner.base
+    if not isinstance(base_h, np.ndarray) or not isinstance(base_o, np.ndarray) or base_h.ndim != 2:
+        return None
+    from .union import box_of
+
+    g0 = patches[0].grid
+    box = box_of([pt.grid for pt in patches], g0.h, anchor)
+    if box.shape != base_h.shape or base_o.shape != base_h.shape:
+        return None
+    for pt in patches:
+        window = pt.grid.window_in(box)
+        same = pt.height.base is base_h and pt.owner.base is base_o and pt.height.shape == base_h[window].shape
+        if (
+            not same
+            or _address(pt.height) != _address(base_h[window])
+            or _address(pt.owner) != _address(base_o[window])
+        ):
+            return None
+    return Surface(box, base_h, base_o, n_asperities)
+
+
+def _address(a: np.ndarray) -> int:
+    return int(a.__array_interface__["data"][0])

@@ -28,7 +28,7 @@ from ..indenters import Asperity
 from ..influence.base import InfluenceProvider
 from ..results import ContactResult
 from .patches import Patch
-from .sampling import box_surface
+from .sampling import box_surface, shared_box
 
 #: Enlargements of the box (by half each time) when pressure reaches its edge.
 MAX_ENLARGEMENTS = 3
@@ -119,7 +119,7 @@ class UnionSettings:
 def solve_union(
     provider: InfluenceProvider,
     asperities: Sequence[Asperity],
-    grids: Sequence[Grid],
+    grids: Sequence[Grid] | Sequence[Patch],
     problem,
     settings: UnionSettings,
     *,
@@ -133,8 +133,9 @@ def solve_union(
     ----------
     provider, asperities
         The body and the indenters.
-    grids : sequence of Grid
-        The grids of the macro step's patches (only their extent is used).
+    grids : sequence of Grid, or the patches
+        The grids of the macro step's patches (only their extent is used); patches cut from
+        one sampled box (:func:`.sampling.patches_cut_from_box`) lend it to the first box.
     problem : MicroProblem
         Cell side ``h`` and ``anchor`` (mm), the control (``total_load`` N, else the
         ``penetration`` mm), ``free_tilt`` about ``pivot`` (mm).
@@ -151,13 +152,17 @@ def solve_union(
     from ..reference.cg import solve_cg
 
     h, anchor, pivot = problem.h, problem.anchor, problem.pivot
+    sampled = None
+    if grids and all(isinstance(g, Patch) for g in grids):
+        sampled = shared_box(grids, len(asperities), anchor)
+        grids = [g.grid for g in grids]
     penetration = None if problem.total_load is not None else problem.penetration
     start_grid, start = (None, None) if start is None else start
     grow, iterations, products = 1.0, 0, 0
     previous = None
     for enlargement in range(settings.max_enlargements + 1):
         grid = box_of(grids, h, anchor, grow=grow)
-        surface = box_surface(grid, asperities)
+        surface = sampled if sampled is not None and sampled.grid == grid else box_surface(grid, asperities)
         if previous is not None:
             warm = previous.fields[0].grid.embed_in(previous.fields[0].pressure, grid)
         elif start is not None:
