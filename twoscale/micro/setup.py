@@ -58,6 +58,34 @@ def _starts(provider, asperities, patches, blocks, forces, z_blocks, h, start) -
     return warm
 
 
+def _kept_starts(ctx: MicroContext, patches: list, blocks: list, theta: np.ndarray) -> list:
+    """:func:`_starts` of ``patches``, taken from the context's ``kept_starts`` where an
+    earlier attempt of the same micro step made them (and kept there, read-only)."""
+    pb = ctx.problem
+
+    def key(pt):
+        return (pt.asperity, pt.grid, float(pb.forces[pt.asperity]), tuple(map(float, theta)), tuple(pb.pivot))
+
+    kept = ctx.kept_starts
+    todo = [k for k, pt in enumerate(patches) if key(pt) not in kept]
+    if todo:
+        sub = [patches[k] for k in todo]
+        made = _starts(
+            ctx.provider,
+            ctx.asperities,
+            sub,
+            [blocks[k] for k in todo],
+            pb.forces,
+            heights(sub, theta, pb.pivot),
+            pb.h,
+            pb.start,
+        )
+        for pt, p in zip(sub, made):
+            p.setflags(write=False)
+            kept[key(pt)] = p
+    return [kept[key(pt)] for pt in patches]
+
+
 def initial_on_patches(ctx: MicroContext) -> tuple:
     """Paper eq. 7 on the context's one-asperity patches, summed onto the grid covering
     them: ``(grid, p0 (ny, nx) MPa)``."""
@@ -127,7 +155,7 @@ def block_setup(ctx: MicroContext, coupling, *, held: bool, merge: bool, sizing_
             reuse=patches or (),
         )
     blocks = [LocalBlock(provider, pt, dense_max_cells=opts.dense_max_cells) for pt in patches]
-    p0 = _starts(provider, asperities, patches, blocks, pb.forces, heights(patches, theta, pivot), h, pb.start)
+    p0 = _kept_starts(ctx, patches, blocks, theta)
     if merge:
         merged, covers = merge_overlapping(patches, asperities, growth=settings.merge_growth)
         p0 = [
