@@ -80,3 +80,32 @@ def test_crowded_patches_are_cut_from_one_sampled_box(n, tiled):
         or box_of([pt.grid for pt in patches[1:]], h, (0.001, 0.002)) == box
     )
     assert shared_box([make_patch(pt.asperity, pt.grid, table) for pt in patches[:3]], n, (0.001, 0.002)) is None
+
+
+@pytest.mark.parametrize("tilt", [False, True])
+def test_the_union_cg_on_the_box_its_crowded_patches_lent_matches_the_full_grid(monkeypatch, tilt):
+    # a macro step far from a solution (as if: SIZING_RESIDUAL 0) sizes the patches by
+    # reach: 30 merged spheres under 300 N have patches of 148 K cells over a 67 K-cell
+    # box; the union CG runs on the box they were cut from, and its forces are the full
+    # grid's
+    import twoscale.micro.problem as problem
+    import twoscale.micro.union as union
+    from helpers import crowded
+    from twoscale import Material
+    from twoscale.driver import solve_twoscale
+    from twoscale.influence import HalfSpace
+    from twoscale.reference import solve_cg
+
+    lent = []
+    shared = union.shared_box
+    monkeypatch.setattr(union, "shared_box", lambda *a: lent.append(shared(*a)) or lent[-1])
+    monkeypatch.setattr(problem, "SIZING_RESIDUAL", 0.0)
+    body, asps, h = HalfSpace(Material(10.0, 0.5)), crowded(2, 30), 0.08
+    load = dict(total_load=300.0, tilt=tilt, pivot=(1.0, -0.5))
+    res = solve_twoscale(body, asps, h=h, iteration="union-cg", macro_max_iter=1, **load)
+    assert res.converged and not res.details.macro.converged and lent and lent[0] is not None
+    x, y = [a.x for a in asps], [a.y for a in asps]
+    grid = Grid.covering(min(x) - 4, max(x) + 4, min(y) - 4, max(y) + 4, h)
+    ref = solve_cg(body, surface_on(grid, asps), tol=1e-10, **load)
+    f, r = np.asarray(res.asperities.forces), np.asarray(ref.asperities.forces)
+    assert np.max(np.abs(f - r)) <= 1e-6 * np.max(r)
