@@ -51,7 +51,7 @@ def test_crowded_patches_are_cut_from_one_sampled_box(n, tiled):
     # patches sized by the indenters' reach (no usable macro force) overlap many times over:
     # the box covering them is sampled once (tile by tile when large) and each patch is a
     # window of it; the same heights (the box's cell centres: rounding only) and owners
-    from twoscale.micro.patches import build_patches
+    from twoscale.micro.sampling import build_patches
     from twoscale.micro.sampling import SAMPLE_TILE, box_surface, crowded, shared_box
     from twoscale.micro.union import box_of
 

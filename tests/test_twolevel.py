@@ -122,7 +122,7 @@ def test_two_level_with_exact_coupling_reaches_block_gauss_seidel_answer():
 def test_coarse_step_vanishes_at_a_fixed_point_and_meets_the_load():
     from twoscale.micro.constraints import Control
     from twoscale.micro.localblock import LocalBlock
-    from twoscale.micro.patches import build_patches
+    from twoscale.micro.sampling import build_patches
 
     asp = spaced_spheres(8, 4, 12.0)
     patches = build_patches(

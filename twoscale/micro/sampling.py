@@ -1,5 +1,6 @@
-"""The rigid surface sampled once for many cells: a large union box tile by tile, and
-crowded patches cut from the box that covers them.
+"""The one-asperity patches of a solve and the rigid surface sampled for them: each patch
+sized from the macro forces (:func:`build_patches`), a large union box sampled tile by
+tile, and crowded patches cut from the box that covers them.
 
 A patch's heights and owners are the union of every indenter on its cells
 (:func:`.patches.make_patch` only skips indenters that cannot own a cell), so patches that
@@ -12,16 +13,26 @@ over a box of 0.73 M, and sampling them took 67 of the solve's 83 s of CPU.
 
 from __future__ import annotations
 
+import math
 from typing import Sequence
 
 import numpy as np
 
 from ..grid import Grid
 from ..indenters import Asperity, Surface, surface_on
-from .patches import Patch, TipTable, make_patch
+from .patches import Patch, TipTable, make_patch, patch_radius
 
 #: Side (cells) of the tiles a large union box is sampled by (:func:`box_surface`).
 SAMPLE_TILE = 128
+
+
+def box_of(grids: Sequence[Grid], h: float, anchor: tuple[float, float], *, grow: float = 1.0) -> Grid:
+    """The grid covering every grid of ``grids`` (the patches' grids), its half-sizes
+    scaled by ``grow`` about its centre."""
+    b = np.array([g.bounds for g in grids])
+    xmin, xmax, ymin, ymax = b[:, 0].min(), b[:, 1].max(), b[:, 2].min(), b[:, 3].max()
+    cx, cy, rx, ry = (xmin + xmax) / 2, (ymin + ymax) / 2, (xmax - xmin) / 2, (ymax - ymin) / 2
+    return Grid.covering(cx - grow * rx, cx + grow * rx, cy - grow * ry, cy + grow * ry, h, anchor=anchor)
 
 
 def box_surface(grid: Grid, asperities: Sequence[Asperity]) -> Surface:
@@ -84,8 +95,6 @@ def shared_box(patches: Sequence[Patch], n_asperities: int, anchor: tuple[float,
     base_h, base_o = patches[0].height.base, patches[0].owner.base
     if not isinstance(base_h, np.ndarray) or not isinstance(base_o, np.ndarray) or base_h.ndim != 2:
         return None
-    from .union import box_of
-
     g0 = patches[0].grid
     box = box_of([pt.grid for pt in patches], g0.h, anchor)
     if box.shape != base_h.shape or base_o.shape != base_h.shape:
@@ -104,3 +113,52 @@ def shared_box(patches: Sequence[Patch], n_asperities: int, anchor: tuple[float,
 
 def _address(a: np.ndarray) -> int:
     return int(a.__array_interface__["data"][0])
+
+
+def build_patches(
+    asperities: Sequence[Asperity],
+    *,
+    h: float,
+    forces: np.ndarray,
+    approaches: np.ndarray,
+    E_star: float,
+    margin: float = 1.3,
+    anchor: tuple[float, float] = (0.0, 0.0),
+    reuse: Sequence[Patch] = (),
+) -> list[Patch]:
+    """One patch per asperity that can touch (``approaches[k] > 0``).
+
+    Parameters
+    ----------
+    asperities : sequence of Asperity
+    h : float
+        Cell side, mm.
+    forces : (N,) array
+        Macro forces, N.
+    approaches : (N,) array
+        Geometric approach of each tip ``d - z_k - tilt(x_k, y_k)``, mm.
+    E_star : float
+        Plane-strain modulus, MPa (patch sizing only).
+    margin : float, default 1.3
+        Patch half-width over the Hertz-like contact radius.
+    anchor : (float, float), default (0, 0)
+        A cell centre of the common lattice, mm.
+    reuse : sequence of Patch, default ()
+        Patches built before for the same scene (e.g. for the policy): one with the same
+        asperity and grid is taken as it is (a patch depends on nothing else).
+    """
+    if not (math.isfinite(margin) and margin >= 1.0):
+        raise ValueError(f"patch margin must be >= 1, got {margin!r}")
+    built = {(pt.asperity, pt.grid): pt for pt in reuse if len(pt.members) == 1}
+    wanted = []
+    for k, a in enumerate(asperities):
+        if approaches[k] <= 0.0:
+            continue
+        r = patch_radius(a, force=float(forces[k]), approach=float(approaches[k]), E_star=E_star, h=h, margin=margin)
+        wanted.append((k, Grid.covering(a.x - r, a.x + r, a.y - r, a.y + r, h, anchor=anchor)))
+    new = [(k, grid) for k, grid in wanted if (k, grid) not in built]
+    if new:
+        box = box_of([grid for _, grid in new], h, anchor)
+        if crowded([grid for _, grid in new], box):  # overlapping patches: the box sampled once
+            built.update(((pt.asperity, pt.grid), pt) for pt in patches_cut_from_box(new, box, asperities))
+    return [built.get((k, grid)) or make_patch(k, grid, asperities) for k, grid in wanted]

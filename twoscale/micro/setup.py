@@ -15,7 +15,8 @@ from .constraints import Control
 from .localblock import LocalBlock
 from .local import initial_pressures
 from .pk_stack import BlockStacks
-from .patches import build_patches, merge_overlapping, transfer
+from .patches import merge_overlapping, transfer
+from .sampling import build_patches
 from .problem import MicroContext
 from .workset import WorkingSet, heights, tip_approaches
 
@@ -105,7 +106,7 @@ def initial_on_patches(ctx: MicroContext) -> tuple:
 def one_asperity_patches(provider, asperities, problem, margin: float) -> list:
     """One patch per asperity the problem's approach and tilt reach, sized from the macro
     forces (or the indenters' reach where the macro step did not converge), half-width
-    ``margin`` times the Hertz-like contact radius (:func:`~.patches.build_patches`)."""
+    ``margin`` times the Hertz-like contact radius (:func:`~.sampling.build_patches`)."""
     sizing = np.asarray(problem.forces, dtype=float) if problem.size_from_forces else np.full(len(asperities), np.inf)
     return build_patches(
         asperities,

@@ -28,7 +28,7 @@ from ..indenters import Asperity
 from ..influence.base import InfluenceProvider
 from ..results import ContactResult
 from .patches import Patch
-from .sampling import box_surface, shared_box
+from .sampling import box_of, box_surface, shared_box
 
 #: Enlargements of the box (by half each time) when pressure reaches its edge.
 MAX_ENLARGEMENTS = 3
@@ -73,15 +73,6 @@ class UnionOutcome:
     on_edge: bool
     iterations: int
     products: int
-
-
-def box_of(grids: Sequence[Grid], h: float, anchor: tuple[float, float], *, grow: float = 1.0) -> Grid:
-    """The grid covering every grid of ``grids`` (the patches' grids), its half-sizes
-    scaled by ``grow`` about its centre."""
-    b = np.array([g.bounds for g in grids])
-    xmin, xmax, ymin, ymax = b[:, 0].min(), b[:, 1].max(), b[:, 2].min(), b[:, 3].max()
-    cx, cy, rx, ry = (xmin + xmax) / 2, (ymin + ymax) / 2, (xmax - xmin) / 2, (ymax - ymin) / 2
-    return Grid.covering(cx - grow * rx, cx + grow * rx, cy - grow * ry, cy + grow * ry, h, anchor=anchor)
 
 
 def _on_edge(p: np.ndarray) -> bool:
