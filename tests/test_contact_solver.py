@@ -192,6 +192,7 @@ def test_each_quantity_is_computed_once_per_solve(far_tol):
 
     import twoscale.driver as driver
     import twoscale.micro.patches as patches
+    import twoscale.micro.sampling as sampling
     import twoscale.resolution as resolution
     import twoscale.resources as resources
 
@@ -213,6 +214,7 @@ def test_each_quantity_is_computed_once_per_solve(far_tol):
             mock.patch.object(resolution, "_solve_hertz_level", wraps=resolution._solve_hertz_level) as level,
             mock.patch.object(resources, "check_solve_memory", wraps=resources.check_solve_memory) as memory,
             mock.patch.object(patches, "make_patch", side_effect=make_patch),
+            mock.patch.object(sampling, "make_patch", side_effect=make_patch),  # build_patches' own
             mock.patch.object(driver, "_result", wraps=driver._result) as result,
         ):
             r = solve(scene)

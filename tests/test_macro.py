@@ -444,3 +444,32 @@ def test_matrix_free_input_errors():
         solve_macro(HS, tips[:2], np.zeros(2), law, penetration=0.1, dense_max=0)
     with pytest.raises(ValueError, match="operator_rtol must be a number in \\(0, 1\\), got 2"):
         solve_macro(HS, tips[:2], np.zeros(2), law, penetration=0.1, operator_rtol=2)
+
+
+def test_newton_stops_where_it_stagnates_near_a_solution_and_only_there():
+    # above SAFE_PATH_MAX_TIPS a stagnating Newton is stopped (2,596 spheres: 20 dense
+    # steps, 11 s of CPU, the residual stuck at 3.3e-4 from step 11): a step that removes a
+    # tenth of the residual stagnates; far from a solution (relative residual above
+    # STALL_RESIDUAL) the same slow steps go on, and plain Newton converges as before
+    from twoscale.macro.newton import STALL_RESIDUAL, newton
+
+    def run(x0, factor, stall):
+        return newton(
+            lambda x: x.copy(),
+            lambda x, r: -factor * r,
+            np.array([x0]),
+            scale=lambda x: 1.0,
+            tol=1e-10,
+            max_iter=60,
+            stall=stall,
+        )
+
+    slow = run(0.02, 0.1, 4)
+    assert not slow.converged and "stagnated" in slow.message
+    h = slow.residuals
+    assert h[-5] <= STALL_RESIDUAL < h[-6] and h[-1] > 0.5 * h[-5]
+    assert run(0.02, 0.1, None).iterations == 60  # without the check: to max_iter
+    fast = run(0.02, 1.0, 4)
+    assert fast.converged and fast.iterations == 1
+    halving = run(0.02, 0.2, 4)  # 0.8 a step: halves within 4 steps, never stagnates
+    assert halving.iterations == 60 and "stagnated" not in halving.message

@@ -44,3 +44,68 @@ def test_no_tree_route_agrees():
         grid = Grid.covering(a.x - 0.2, a.x + 0.2, a.y - 0.2, a.y + 0.2, 0.01)
         fast, brute = make_patch(k, grid, TipTable(tips)), surface_on(grid, tips)
         assert np.array_equal(fast.owner, brute.owner) and np.array_equal(fast.height, brute.height)
+
+
+@pytest.mark.parametrize("n, tiled", [(150, False), (600, True)])
+def test_crowded_patches_are_cut_from_one_sampled_box(n, tiled):
+    # patches sized by the indenters' reach (no usable macro force) overlap many times over:
+    # the box covering them is sampled once (tile by tile when large) and each patch is a
+    # window of it; the same heights (the box's cell centres: rounding only) and owners
+    from twoscale.micro.sampling import build_patches
+    from twoscale.micro.sampling import SAMPLE_TILE, box_surface, crowded, shared_box
+    from twoscale.micro.union import box_of
+
+    tips = _tips(n, 11, ("sphere", "paraboloid"))
+    table = TipTable(tips)
+    h = 0.01 if tiled else 0.02
+    patches = build_patches(
+        table, h=h, forces=np.full(n, np.inf), approaches=np.full(n, 0.03), E_star=1.0, anchor=(0.001, 0.002)
+    )
+    box = box_of([pt.grid for pt in patches], h, (0.001, 0.002))
+    assert crowded([pt.grid for pt in patches], box) and (box.size > 4 * SAMPLE_TILE**2) == tiled
+    for pt in patches[:: max(1, n // 40)]:
+        own = make_patch(pt.asperity, pt.grid, table)
+        assert np.array_equal(pt.owner, own.owner)
+        assert np.array_equal(np.isinf(pt.height), np.isinf(own.height))
+        finite = np.isfinite(own.height)
+        assert np.allclose(pt.height[finite], own.height[finite], rtol=0.0, atol=1e-12)
+        assert not pt.height.flags.writeable
+    # the union CG takes the sampled box from the patches instead of sampling it again
+    lent = shared_box(patches, n, (0.001, 0.002))
+    assert lent is not None and lent.grid == box and lent.n_asperities == n
+    again = box_surface(box, table)
+    assert np.array_equal(lent.owner, again.owner) and np.array_equal(lent.height, again.height)
+    assert (
+        shared_box(patches[1:], n, (0.001, 0.002)) is None
+        or box_of([pt.grid for pt in patches[1:]], h, (0.001, 0.002)) == box
+    )
+    assert shared_box([make_patch(pt.asperity, pt.grid, table) for pt in patches[:3]], n, (0.001, 0.002)) is None
+
+
+@pytest.mark.parametrize("tilt", [False, True])
+def test_the_union_cg_on_the_box_its_crowded_patches_lent_matches_the_full_grid(monkeypatch, tilt):
+    # a macro step far from a solution (as if: SIZING_RESIDUAL 0) sizes the patches by
+    # reach: 30 merged spheres under 300 N have patches of 148 K cells over a 67 K-cell
+    # box; the union CG runs on the box they were cut from, and its forces are the full
+    # grid's
+    import twoscale.micro.problem as problem
+    import twoscale.micro.union as union
+    from helpers import crowded
+    from twoscale import Material
+    from twoscale.driver import solve_twoscale
+    from twoscale.influence import HalfSpace
+    from twoscale.reference import solve_cg
+
+    lent = []
+    shared = union.shared_box
+    monkeypatch.setattr(union, "shared_box", lambda *a: lent.append(shared(*a)) or lent[-1])
+    monkeypatch.setattr(problem, "SIZING_RESIDUAL", 0.0)
+    body, asps, h = HalfSpace(Material(10.0, 0.5)), crowded(2, 30), 0.08
+    load = dict(total_load=300.0, tilt=tilt, pivot=(1.0, -0.5))
+    res = solve_twoscale(body, asps, h=h, iteration="union-cg", macro_max_iter=1, **load)
+    assert res.converged and not res.details.macro.converged and lent and lent[0] is not None
+    x, y = [a.x for a in asps], [a.y for a in asps]
+    grid = Grid.covering(min(x) - 4, max(x) + 4, min(y) - 4, max(y) + 4, h)
+    ref = solve_cg(body, surface_on(grid, asps), tol=1e-10, **load)
+    f, r = np.asarray(res.asperities.forces), np.asarray(ref.asperities.forces)
+    assert np.max(np.abs(f - r)) <= 1e-6 * np.max(r)

@@ -156,7 +156,7 @@ def test_block_gauss_seidel_says_why_it_stopped():
     from twoscale.micro.blocks import Coupling
     from twoscale.micro.gauss_seidel import gauss_seidel
     from twoscale.micro.localblock import LocalBlock
-    from twoscale.micro.patches import build_patches
+    from twoscale.micro.sampling import build_patches
 
     d, h = 0.08, 0.07
     tips = [Asperity(0.0, 0.0, 0.0, 2.0, "paraboloid"), Asperity(0.9, 0.0, 0.002, 2.0, "paraboloid")]

@@ -10,7 +10,7 @@ import pytest
 from twoscale import Material
 from twoscale.indenters import Asperity
 from twoscale.influence import HalfSpace
-from twoscale.micro.patches import build_patches
+from twoscale.micro.sampling import build_patches
 from twoscale.micro.policy import AUTO_FAR_TOL, UNION_MIN_COVERAGE, choose, estimate_costs
 from twoscale.micro.union import box_of
 from twoscale.driver import solve_twoscale

@@ -34,3 +34,34 @@ def test_windowed_sampling_equals_sampling_every_cell():
     assert np.array_equal(s.height, height)
     assert np.array_equal(s.owner, owner)
     assert s.n_asperities == len(asps)
+
+
+def test_batched_sampling_equals_one_by_one_with_ties(monkeypatch):
+    """Small grids sample their spheres and paraboloids together (``SAMPLE_BATCH``): the
+    same heights and owners as one asperity at a time, a tie going to the earlier index,
+    batches split anywhere."""
+    import twoscale.indenters as ind
+
+    rng = np.random.default_rng(5)
+    grid = Grid.covering(-1.0, 1.0, -1.0, 1.0, 0.05)
+    asps = [
+        Asperity(float(x), float(y), float(z), float(R), shape)
+        for x, y, z, R, shape in zip(
+            rng.uniform(-2, 2, 40),
+            rng.uniform(-2, 2, 40),
+            rng.uniform(0, 0.1, 40),
+            rng.uniform(0.2, 2.0, 40),
+            ["sphere", "paraboloid"] * 20,
+        )
+    ]
+    asps += [asps[3], asps[6], Asperity(0.0, 0.0, 0.09, 1e9, "paraboloid")]  # exact ties, a flat one
+    batched = surface_on(grid, asps)
+    monkeypatch.setattr(ind, "SAMPLE_BATCH", 7 * grid.size)  # batches of 7: below the minimum
+    one_by_one = surface_on(grid, asps)
+    monkeypatch.setattr(ind, "SAMPLE_BATCH", 9 * grid.size)  # batches of 9, split anywhere
+    split = surface_on(grid, asps)
+    owners = set(np.unique(one_by_one.owner).tolist())
+    assert {3, 6, 42} <= owners and not {40, 41} & owners
+    for other in (batched, split):
+        assert np.array_equal(other.height, one_by_one.height)
+        assert np.array_equal(other.owner, one_by_one.owner)

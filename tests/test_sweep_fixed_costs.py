@@ -73,7 +73,7 @@ def test_a_large_union_box_is_sampled_tile_by_tile_to_the_same_surface(shape):
     from twoscale.grid import Grid
     from twoscale.indenters import Asperity, surface_on
     from twoscale.micro.patches import TipTable
-    from twoscale.micro.union import SAMPLE_TILE, box_surface
+    from twoscale.micro.sampling import SAMPLE_TILE, box_surface
 
     rng = np.random.default_rng(3)
     tips = [

@@ -122,7 +122,7 @@ def test_two_level_with_exact_coupling_reaches_block_gauss_seidel_answer():
 def test_coarse_step_vanishes_at_a_fixed_point_and_meets_the_load():
     from twoscale.micro.constraints import Control
     from twoscale.micro.localblock import LocalBlock
-    from twoscale.micro.patches import build_patches
+    from twoscale.micro.sampling import build_patches
 
     asp = spaced_spheres(8, 4, 12.0)
     patches = build_patches(
@@ -212,3 +212,30 @@ def test_matrix_free_macro_step_gives_the_same_two_scale_answer():
     assert result_to_dict(dense, scene)["micro_iteration"] == "two-level (far-field coupling)"
     rec = result_to_dict(free, scene)["macro"]
     assert rec["interaction"] == "matrix-free" and 0.0 <= rec["operator_error"] <= 1e-12
+
+
+def test_a_fallback_attempt_takes_the_first_pressures_its_context_kept(monkeypatch):
+    # the driver runs a block iteration after a failed two-level attempt on the same
+    # patches: eq. 7 is solved once per patch for both (2,117 clustered spheres: 11 s of
+    # CPU per attempt), and the second attempt starts from the same pressures
+    import twoscale.micro.setup as setup
+    from twoscale.micro import MicroContext, MicroProblem
+    from twoscale.micro.couplings import Exact
+    from twoscale.micro.patches import TipTable
+    from twoscale.micro.setup import block_setup, one_asperity_patches
+    from twoscale.options import MicroOptions
+
+    asp = TipTable(spaced_spheres(6, 1, 7.0))
+    forces = np.array([float(hertz.load(a.R, max(0.06 - a.z, 0.0), MAT.E_star)) for a in asp])
+    problem = MicroProblem(h=0.1, forces=forces, penetration=0.06)
+    patches = tuple(one_asperity_patches(HS, asp, problem, MicroOptions().margin))
+    ctx = MicroContext(HS, asp, problem, patches=patches)
+    solved = []
+    original = setup._initial
+    monkeypatch.setattr(setup, "_initial", lambda *a, **k: solved.append(len(a[2])) or original(*a, **k))
+    first = block_setup(ctx, Exact(), held=True, merge=False)
+    again = block_setup(ctx, Exact(), held=False, merge=False)
+    assert solved == [len(patches)] and len(patches) >= 4
+    assert all(p is q for p, q in zip(first.p0, again.p0))
+    fresh = block_setup(MicroContext(HS, asp, problem, patches=patches), Exact(), held=False, merge=False)
+    assert all(np.array_equal(p, q) for p, q in zip(first.p0, fresh.p0)) and solved == [len(patches)] * 2

@@ -270,3 +270,29 @@ def test_load_control_default_iteration_and_its_fallback(seed, n, merged):
         assert auto.iterations["sensitivity_sweeps"] == 0
     F, Fp = np.asarray(auto.asperities.forces), np.asarray(plain.asperities.forces)
     assert np.max(np.abs(F - Fp)) <= 1e-5 * Fp.max()
+
+
+def test_a_macro_step_stopped_near_a_solution_sizes_the_patches_by_its_forces(monkeypatch):
+    # above SAFE_PATH_MAX_TIPS a stalled Newton hands its last iterate to the micro step;
+    # near a solution its forces size the patches (2,596 spheres stagnating at a residual of
+    # 3.3e-4: 0.59 M cells from the forces, 1.5 M by each sphere's reach), far from one the
+    # reach does
+    import twoscale.macro.solve as macro_solve
+    import twoscale.micro.problem as problem
+    from helpers import spaced_spheres
+    from twoscale.micro.problem import SIZING_RESIDUAL
+
+    asps = spaced_spheres(12, 4, 16.0)
+    h, d = 0.05, 0.06
+    good = solve_twoscale(HS, asps, h=h, penetration=d)
+    monkeypatch.setattr(macro_solve, "SAFE_PATH_MAX_TIPS", 1)
+    monkeypatch.setattr(macro_solve, "FAST_STEPS", 2)
+    near = solve_twoscale(HS, asps, h=h, penetration=d)
+    assert not near.details.macro.converged and near.residuals["macro"][-1] <= SIZING_RESIDUAL
+    monkeypatch.setattr(problem, "SIZING_RESIDUAL", 0.0)  # as if far from a solution: by reach
+    far = solve_twoscale(HS, asps, h=h, penetration=d)
+    cells = [sum(f.grid.size for f in r.fields) for r in (good, near, far)]
+    assert cells[1] <= 1.1 * cells[0] < cells[2]
+    for r in (near, far):
+        assert r.converged, r.message
+        assert np.allclose(r.asperities.forces, good.asperities.forces, rtol=1e-5, atol=1e-9)

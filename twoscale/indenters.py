@@ -130,6 +130,36 @@ def _window(grid: Grid, x: float, y: float, radius: float):
     return (slice(j0, j1), slice(i0, i1))
 
 
+#: Entries (cells times asperities, 8 MB of heights) that :func:`surface_on` samples at once.
+SAMPLE_BATCH = 1 << 20
+#: Fewest asperities per batch for which :func:`surface_on` samples them together: below,
+#: the grid is large and each sphere's own window of cells is cheaper.
+SAMPLE_MIN_BATCH = 8
+
+
+def _sample_batch(X: np.ndarray, Y: np.ndarray, batch: list, height: np.ndarray, owner: np.ndarray) -> None:
+    """Plain spheres and paraboloids ``batch`` (pairs (index, Asperity)) sampled on every
+    cell at once, by the arithmetic of :meth:`Asperity.height`, into ``height`` and
+    ``owner`` where lower (on a tie the earlier index keeps the cell, as one by one):
+    a patch of a few hundred cells that 300 spheres can reach cost 300 calls of
+    ``Asperity.height`` each (1,277 touching spheres: 67 of the solve's 83 s of CPU)."""
+    index = np.array([k for k, _ in batch], dtype=np.int64)
+    x, y, z, R = (np.array([getattr(a, f) for _, a in batch], dtype=float)[:, None] for f in "xyzR")
+    sphere = np.array([a.shape == "sphere" for _, a in batch])[:, None]
+    r2 = (X.ravel()[None, :] - x) ** 2 + (Y.ravel()[None, :] - y) ** 2
+    R2 = R * R
+    inside = r2 < R2
+    with np.errstate(invalid="ignore"):
+        cap = r2 / (R + np.sqrt(np.where(inside, R2 - r2, 0.0)))
+    hk = np.where(sphere, np.where(inside, z + cap, np.inf), z + r2 / (2.0 * R))
+    first = np.argmin(hk, axis=0)
+    low = hk[first, np.arange(hk.shape[1])]
+    flat_h, flat_o = height.reshape(-1), owner.reshape(-1)
+    better = low < flat_h
+    flat_h[better] = low[better]
+    flat_o[better] = index[first[better]]
+
+
 def surface_on(grid: Grid, asperities: Sequence[Asperity], tilt: Tilt | None = None) -> Surface:
     """Sample the union of ``asperities`` (optionally tilted) at the cell centres.
 
@@ -140,11 +170,20 @@ def surface_on(grid: Grid, asperities: Sequence[Asperity], tilt: Tilt | None = N
     height = np.full(grid.shape, np.inf)
     owner = np.full(grid.shape, -1, dtype=np.int64)
     groups: dict = {}
+    singles = []
     for k, a in enumerate(asperities):
         group = getattr(a, "group", None)
         if group is not None:  # sampled together (the basins of one height map: one look-up)
             groups.setdefault(id(group), (group, {}))[1][a.label] = k
-            continue
+        else:
+            singles.append(k)
+    batch = SAMPLE_BATCH // grid.size
+    if batch >= SAMPLE_MIN_BATCH and all(type(asperities[k]) is Asperity for k in singles):
+        for b in range(0, len(singles), batch):
+            _sample_batch(X, Y, [(k, asperities[k]) for k in singles[b : b + batch]], height, owner)
+        singles = []
+    for k in singles:
+        a = asperities[k]
         # an indenter with a material radius (a sphere: R) changes only the cells within it
         win = _window(grid, a.x, a.y, getattr(a, "material_radius", math.inf))
         if win is None:

@@ -9,6 +9,9 @@ import numpy as np
 
 _ARMIJO = 1e-4  # sufficient decrease: ||r(x + t s)|| <= (1 - ARMIJO t) ||r(x)||
 _MIN_STEP = 2.0**-40
+#: A stagnation check (``stall``) applies only once the relative residual is below this:
+#: farther out, Newton's global phase may take several slow steps before it converges.
+STALL_RESIDUAL = 1e-2
 
 
 @dataclass(frozen=True)
@@ -32,6 +35,7 @@ def newton(
     tol: float,
     max_iter: int,
     project: Callable[[np.ndarray], np.ndarray] = lambda x: x,
+    stall: int | None = None,
 ) -> NewtonOutcome:
     """Solve ``residual(x) = 0`` by Newton with backtracking.
 
@@ -49,6 +53,11 @@ def newton(
     project : callable, x -> x, default identity
         Projection onto the admissible set, applied along the search path
         ``project(x + t s)`` (here: forces >= 0).
+    stall : int or None, default None
+        Stop (not converged) when the relative residual, already below
+        ``STALL_RESIDUAL`` ``stall`` steps ago, has not halved since: near a solution
+        Newton converges fast or not at all (a kink of the semismooth residual, an
+        indefinite Jacobian where contacts merge). None: no such stop.
 
     Notes
     -----
@@ -83,8 +92,18 @@ def newton(
                 return NewtonOutcome(x, r, False, msg, it, tuple(history))
         x, r, norm = x_new, r_new, norm_new
         history.append(_relative(norm, scale(x)))
+        if stall is not None and _stagnates(history, stall) and not norm <= tol * scale(x):
+            msg = f"Newton stagnated at step {it + 1}: relative residual {history[-1]:.3e}, not halved in {stall} steps"
+            return NewtonOutcome(x, r, False, msg, it + 1, tuple(history))
     msg = f"not converged after max_iter={max_iter} Newton steps: relative residual {history[-1]:.3e} > tol={tol:.1e}"
     return NewtonOutcome(x, r, False, msg, max_iter, tuple(history))
+
+
+def _stagnates(history: list, window: int) -> bool:
+    if len(history) <= window:
+        return False
+    before = history[-1 - window]
+    return before <= STALL_RESIDUAL and history[-1] > 0.5 * before
 
 
 def _relative(norm: float, scale: float) -> float:

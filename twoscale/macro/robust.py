@@ -55,9 +55,16 @@ def project(x: np.ndarray, n: int) -> np.ndarray:
 
 
 def run_newton(
-    system: MacroSystem, x0: np.ndarray, *, tol: float, max_iter: int, scale_floor: float = 0.0
+    system: MacroSystem,
+    x0: np.ndarray,
+    *,
+    tol: float,
+    max_iter: int,
+    scale_floor: float = 0.0,
+    stall: int | None = None,
 ) -> NewtonOutcome:
-    """Projected, backtracking Newton on ``system`` from ``x0``."""
+    """Projected, backtracking Newton on ``system`` from ``x0`` (``stall``: stop when it
+    stagnates near a solution, :func:`.newton.newton`)."""
     n = system.n
     return newton(
         system.residual,
@@ -67,6 +74,7 @@ def run_newton(
         tol=tol,
         max_iter=max_iter,
         project=lambda x: project(x, n),
+        stall=stall,
     )
 
 

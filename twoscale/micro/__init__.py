@@ -31,7 +31,8 @@ Read it in this order:
 """
 
 from .driver import Attempt, MicroPlan, run_micro, solve_micro
-from .patches import Patch, build_patches, grow_patch
+from .patches import Patch, grow_patch
+from .sampling import build_patches
 from .policy import Choice, choose
 from .problem import BlockSettings, MicroContext, MicroProblem
 from .result import MicroResult

@@ -15,7 +15,8 @@ from .constraints import Control
 from .localblock import LocalBlock
 from .local import initial_pressures
 from .pk_stack import BlockStacks
-from .patches import build_patches, merge_overlapping, transfer
+from .patches import merge_overlapping, transfer
+from .sampling import build_patches
 from .problem import MicroContext
 from .workset import WorkingSet, heights, tip_approaches
 
@@ -58,6 +59,34 @@ def _starts(provider, asperities, patches, blocks, forces, z_blocks, h, start) -
     return warm
 
 
+def _kept_starts(ctx: MicroContext, patches: list, blocks: list, theta: np.ndarray) -> list:
+    """:func:`_starts` of ``patches``, taken from the context's ``kept_starts`` where an
+    earlier attempt of the same micro step made them (and kept there, read-only)."""
+    pb = ctx.problem
+
+    def key(pt):
+        return (pt.asperity, pt.grid, float(pb.forces[pt.asperity]), tuple(map(float, theta)), tuple(pb.pivot))
+
+    kept = ctx.kept_starts
+    todo = [k for k, pt in enumerate(patches) if key(pt) not in kept]
+    if todo:
+        sub = [patches[k] for k in todo]
+        made = _starts(
+            ctx.provider,
+            ctx.asperities,
+            sub,
+            [blocks[k] for k in todo],
+            pb.forces,
+            heights(sub, theta, pb.pivot),
+            pb.h,
+            pb.start,
+        )
+        for pt, p in zip(sub, made):
+            p.setflags(write=False)
+            kept[key(pt)] = p
+    return [kept[key(pt)] for pt in patches]
+
+
 def initial_on_patches(ctx: MicroContext) -> tuple:
     """Paper eq. 7 on the context's one-asperity patches, summed onto the grid covering
     them: ``(grid, p0 (ny, nx) MPa)``."""
@@ -77,7 +106,7 @@ def initial_on_patches(ctx: MicroContext) -> tuple:
 def one_asperity_patches(provider, asperities, problem, margin: float) -> list:
     """One patch per asperity the problem's approach and tilt reach, sized from the macro
     forces (or the indenters' reach where the macro step did not converge), half-width
-    ``margin`` times the Hertz-like contact radius (:func:`~.patches.build_patches`)."""
+    ``margin`` times the Hertz-like contact radius (:func:`~.sampling.build_patches`)."""
     sizing = np.asarray(problem.forces, dtype=float) if problem.size_from_forces else np.full(len(asperities), np.inf)
     return build_patches(
         asperities,
@@ -127,7 +156,7 @@ def block_setup(ctx: MicroContext, coupling, *, held: bool, merge: bool, sizing_
             reuse=patches or (),
         )
     blocks = [LocalBlock(provider, pt, dense_max_cells=opts.dense_max_cells) for pt in patches]
-    p0 = _starts(provider, asperities, patches, blocks, pb.forces, heights(patches, theta, pivot), h, pb.start)
+    p0 = _kept_starts(ctx, patches, blocks, theta)
     if merge:
         merged, covers = merge_overlapping(patches, asperities, growth=settings.merge_growth)
         p0 = [

@@ -155,7 +155,7 @@ class UnionCG:
         out = solve_union(
             ctx.provider,
             ctx.asperities,
-            grids,
+            ctx.patches,
             pb,
             settings,
             start=None if start is None else (start_grid, start),

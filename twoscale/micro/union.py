@@ -24,10 +24,11 @@ from typing import Sequence
 import numpy as np
 
 from ..grid import Grid
-from ..indenters import Asperity, Surface, surface_on
+from ..indenters import Asperity
 from ..influence.base import InfluenceProvider
 from ..results import ContactResult
 from .patches import Patch
+from .sampling import box_of, box_surface, shared_box
 
 #: Enlargements of the box (by half each time) when pressure reaches its edge.
 MAX_ENLARGEMENTS = 3
@@ -40,8 +41,6 @@ MIXED_MIN_CELLS = 10_000
 #: radius. 300 merged tips: 64 CG iterations against 70 from the CG's own start (0.5: 66,
 #: 0.8: 63).
 START_FRACTION = 0.6
-#: Side (cells) of the tiles a large union box is sampled by (:func:`box_surface`).
-SAMPLE_TILE = 128
 
 
 @dataclass(frozen=True)
@@ -74,43 +73,6 @@ class UnionOutcome:
     on_edge: bool
     iterations: int
     products: int
-
-
-def box_of(grids: Sequence[Grid], h: float, anchor: tuple[float, float], *, grow: float = 1.0) -> Grid:
-    """The grid covering every grid of ``grids`` (the patches' grids), its half-sizes
-    scaled by ``grow`` about its centre."""
-    b = np.array([g.bounds for g in grids])
-    xmin, xmax, ymin, ymax = b[:, 0].min(), b[:, 1].max(), b[:, 2].min(), b[:, 3].max()
-    cx, cy, rx, ry = (xmin + xmax) / 2, (ymin + ymax) / 2, (xmax - xmin) / 2, (ymax - ymin) / 2
-    return Grid.covering(cx - grow * rx, cx + grow * rx, cy - grow * ry, cy + grow * ry, h, anchor=anchor)
-
-
-def box_surface(grid: Grid, asperities: Sequence[Asperity]) -> Surface:
-    """``surface_on(grid, asperities)``, sampled tile by tile (``SAMPLE_TILE`` cells a side)
-    with only the asperities that can own a cell of the tile (as a patch is built,
-    :func:`.patches.make_patch`, bounded by the tile's four nearest tips): paraboloids have
-    no material radius, and 843 of them sampled on every cell of a union box took about 45 s
-    of CPU before the CG's first iteration."""
-    if grid.size <= 4 * SAMPLE_TILE**2 or any(getattr(a, "group", None) is not None for a in asperities):
-        return surface_on(grid, asperities)
-    from scipy.spatial import cKDTree
-
-    from .patches import TipTable, make_patch
-
-    table = TipTable.of(asperities)
-    tips = np.column_stack([table.x, table.y])
-    tree = cKDTree(tips)
-    height = np.full(grid.shape, np.inf)
-    owner = np.full(grid.shape, -1, dtype=np.int64)
-    for j0 in range(0, grid.ny, SAMPLE_TILE):
-        for i0 in range(0, grid.nx, SAMPLE_TILE):
-            tile = grid.subgrid(i0, j0, min(SAMPLE_TILE, grid.nx - i0), min(SAMPLE_TILE, grid.ny - j0))
-            b = tile.bounds
-            near = np.atleast_1d(tree.query([0.5 * (b[0] + b[1]), 0.5 * (b[2] + b[3])], k=min(4, len(tips)))[1])
-            part = make_patch(int(near[0]), tile, table, members=tuple(int(k) for k in near))
-            window = (slice(j0, j0 + tile.ny), slice(i0, i0 + tile.nx))
-            height[window], owner[window] = part.height, part.owner
-    return Surface(grid, height, owner, len(asperities))
 
 
 def _on_edge(p: np.ndarray) -> bool:
@@ -148,7 +110,7 @@ class UnionSettings:
 def solve_union(
     provider: InfluenceProvider,
     asperities: Sequence[Asperity],
-    grids: Sequence[Grid],
+    grids: Sequence[Grid] | Sequence[Patch],
     problem,
     settings: UnionSettings,
     *,
@@ -162,8 +124,9 @@ def solve_union(
     ----------
     provider, asperities
         The body and the indenters.
-    grids : sequence of Grid
-        The grids of the macro step's patches (only their extent is used).
+    grids : sequence of Grid, or the patches
+        The grids of the macro step's patches (only their extent is used); patches cut from
+        one sampled box (:func:`.sampling.patches_cut_from_box`) lend it to the first box.
     problem : MicroProblem
         Cell side ``h`` and ``anchor`` (mm), the control (``total_load`` N, else the
         ``penetration`` mm), ``free_tilt`` about ``pivot`` (mm).
@@ -180,13 +143,17 @@ def solve_union(
     from ..reference.cg import solve_cg
 
     h, anchor, pivot = problem.h, problem.anchor, problem.pivot
+    sampled = None
+    if grids and all(isinstance(g, Patch) for g in grids):
+        sampled = shared_box(grids, len(asperities), anchor)
+        grids = [g.grid for g in grids]
     penetration = None if problem.total_load is not None else problem.penetration
     start_grid, start = (None, None) if start is None else start
     grow, iterations, products = 1.0, 0, 0
     previous = None
     for enlargement in range(settings.max_enlargements + 1):
         grid = box_of(grids, h, anchor, grow=grow)
-        surface = box_surface(grid, asperities)
+        surface = sampled if sampled is not None and sampled.grid == grid else box_surface(grid, asperities)
         if previous is not None:
             warm = previous.fields[0].grid.embed_in(previous.fields[0].pressure, grid)
         elif start is not None:
