@@ -15,10 +15,9 @@ import pathlib
 import sys
 import tempfile
 
-import numpy as np
-
 sys.path.insert(0, str(pathlib.Path(__file__).resolve().parent))
 import _common  # noqa: E402
+import numpy as np  # noqa: E402  (after _common: OpenBLAS reads its thread count when loaded)
 
 from twoscale.grid import Grid  # noqa: E402
 from twoscale.indenters import Asperity, surface_on  # noqa: E402

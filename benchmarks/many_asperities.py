@@ -53,10 +53,9 @@ import subprocess
 import sys
 import time
 
-import numpy as np
-
 sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 from benchmarks import _common  # noqa: E402,F401  (single-threaded BLAS/FFT by default)
+import numpy as np  # noqa: E402  (after _common: OpenBLAS reads its thread count when loaded)
 
 from twoscale.grid import Grid  # noqa: E402
 from twoscale.indenters import Asperity, surface_on  # noqa: E402

@@ -23,10 +23,9 @@ import os
 import sys
 import time
 
-import numpy as np
-
 sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 from benchmarks import _common  # noqa: E402  (single-threaded BLAS/FFT by default)
+import numpy as np  # noqa: E402  (after _common: OpenBLAS reads its thread count when loaded)
 
 H = 0.04
 

@@ -47,10 +47,9 @@ import subprocess
 import sys
 import time
 
-import numpy as np
-
 sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 from benchmarks import _common  # noqa: E402  (single-threaded BLAS/FFT by default)
+import numpy as np  # noqa: E402  (after _common: OpenBLAS reads its thread count when loaded)
 
 FALLBACK_H = 0.05  # mm: when default_h raises (dense kind)
 CLIP = 1.0  # mm: heights above this (and inf) sit this far down for ContactMechanics

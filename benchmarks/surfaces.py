@@ -38,10 +38,9 @@ import time
 import warnings
 from pathlib import Path
 
-import numpy as np
-
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 import _common  # noqa: E402,F401  (single-threaded BLAS/FFT before numpy work)
+import numpy as np  # noqa: E402  (after _common: OpenBLAS reads its thread count when loaded)
 
 from twoscale import Material  # noqa: E402
 from twoscale.indenters import surface_on  # noqa: E402

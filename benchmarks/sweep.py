@@ -47,10 +47,9 @@ import tempfile
 import time
 import warnings
 
-import numpy as np
-
 sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 from benchmarks import _common  # noqa: E402,F401  (single-threaded BLAS/FFT by default)
+import numpy as np  # noqa: E402  (after _common: OpenBLAS reads its thread count when loaded)
 from benchmarks.sweep_report import _fmt, _load, contact_fraction, row, summary, table  # noqa: E402
 
 GB = 1e9

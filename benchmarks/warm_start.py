@@ -28,9 +28,8 @@ import time
 from contextlib import contextmanager
 from pathlib import Path
 
-import numpy as np
-
 import _common  # noqa: F401  (single-threaded processes)
+import numpy as np  # noqa: E402  (after _common: OpenBLAS reads its thread count when loaded)
 from study import ROOT, STUDY
 
 sys.path.insert(0, str(ROOT))
