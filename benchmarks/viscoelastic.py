@@ -25,7 +25,8 @@ periodic box twice the memory grid, with the default run's step ends, at the cel
 ``--tamaas-h`` (the two-scale history is run again there with the same steps to compare).
 
 Run: ``cd benchmarks && PYTHONPATH=.. python viscoelastic.py [--tips 50 200] [--road]
-[--histories creep cycle] [--reference] [--halved] [--exact] [--tamaas]``.
+[--histories creep cycle] [--reference] [--halved] [--exact] [--tamaas] [--far-tol 0.3]``
+(``--far-tol``: the two-scale history with far-field coupling, every step).
 """
 
 from __future__ import annotations
@@ -114,7 +115,8 @@ def run_one(name: str, kind: str, args) -> None:
     scene = dataclasses.replace(base, material=material, total_load=None, history=history(kind, base.total_load))
     h = twoscale.viscoelastic.solve.history_h(scene) if args.h is None or name == "road" else args.h
     _el, t_el = cpu(lambda: twoscale.solve(dataclasses.replace(base, h=h)))
-    res, t_ts = cpu(lambda: solve_history(scene, method="twoscale", h=h))
+    far = {} if args.far_tol is None else {"far_tol": args.far_tol}
+    res, t_ts = cpu(lambda: solve_history(scene, method="twoscale", h=h, **far))
     label = f"road {args.road_size:g} mm ({len(base.asperities)} stones)" if name == "road" else f"{name} tips"
     print(
         f"\n{label}, {kind}: h = {h:.4g} mm, {len(res.steps)} steps ({res.rejected} redone), "
@@ -129,7 +131,7 @@ def run_one(name: str, kind: str, args) -> None:
     )
     ends = tuple(s.t for s in res.steps)
     if args.halved:
-        half, t_half = cpu(lambda: solve_history(scene, method="twoscale", h=h, steps=TimeSteps.halved(ends)))
+        half, t_half = cpu(lambda: solve_history(scene, method="twoscale", h=h, steps=TimeSteps.halved(ends), **far))
         d = compare(res, half)
         print(
             f"  halved steps       CPU {t_half:8.2f} s; max difference forces {100 * d['forces']:.3g} %, "
@@ -235,6 +237,9 @@ def main(argv=None) -> int:
     ap.add_argument("--histories", nargs="+", default=["creep", "cycle"], choices=["creep", "cycle"])
     ap.add_argument("--ratio", type=float, default=20.0, help="glassy / relaxed modulus")
     ap.add_argument("--h", type=float, default=None, help="cell size of the tips, mm (default: the history's rule)")
+    ap.add_argument(
+        "--far-tol", type=float, default=None, help="far-field coupling of the two-scale history (default: exact)"
+    )
     ap.add_argument("--reference", action="store_true", help="also the full-grid reference with the same steps")
     ap.add_argument("--reference-max-cells", type=float, default=4e6, help="largest memory grid for --reference")
     ap.add_argument("--halved", action="store_true", help="also a run with every step halved")

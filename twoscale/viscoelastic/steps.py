@@ -26,6 +26,12 @@ from ..warm_start import warm_start
 
 #: The micro iteration of a warm-started two-scale step (None: the policy's, as cold).
 WARM_ITERATION = "two-level"
+#: The far-field coupling of a warm-started two-scale step where the policy chose exact
+#: coupling for the cold solve: from a near start the sweeps are as many either way, and
+#: the far field (patches apart by more than their sizes over sqrt(WARM_FAR_TOL) coupled by
+#: their resultants) makes each one cheaper; tighter than the policy's 0.3 for large scenes,
+#: so that the history stays within the block tests' 1e-5 of the reference.
+WARM_FAR_TOL = 0.1
 #: Options that fix the micro iteration: given by the caller, they are kept.
 WARM_FIXED = frozenset({"iteration", "far_tol", "coarse"})
 
@@ -219,10 +225,12 @@ class TwoScaleStep:
     def _warm_choice(self, start, options) -> dict:
         """The micro iteration of a warm-started step: from a near start the two-level
         iteration needs a few sweeps, where the policy, costing a cold solve, may pick the
-        union CG; it keeps the far-field coupling the policy last chose (none: exact)."""
+        union CG; it keeps the far-field coupling the policy last chose, or takes
+        :data:`WARM_FAR_TOL` (None: exact)."""
         if start is None or not WARM_ITERATION or WARM_FIXED.intersection(options):
             return {}
-        return {"far_tol": self._far_tol} if self._far_tol is not None else {"iteration": WARM_ITERATION}
+        far_tol = self._far_tol if self._far_tol is not None else WARM_FAR_TOL
+        return {"far_tol": far_tol} if far_tol is not None else {"iteration": WARM_ITERATION}
 
     def _trivial(self, step: StepProblem) -> ContactResult:
         from ..indenters import surface_on
