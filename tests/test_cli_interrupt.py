@@ -127,7 +127,16 @@ def test_real_sigint_to_the_command(scene, tmp_path):
         from twoscale.cli.main import main
         sys.exit(main(["solve", {str(scene)!r}, "--out", {str(tmp_path / "out")!r}, "--quiet"]))
     """)
-    proc = subprocess.Popen([sys.executable, "-c", code], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    # SIGINT at its default in the child, as in a terminal: a test run started in the
+    # background (`pytest &` in a script) ignores SIGINT, its children inherit that, and
+    # Python then installs no KeyboardInterrupt handler, so the signal would do nothing
+    proc = subprocess.Popen(
+        [sys.executable, "-c", code],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL),
+    )
     try:
         assert proc.stdout.readline().strip() == "solving"
         proc.send_signal(signal.SIGINT)
