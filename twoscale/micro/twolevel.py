@@ -247,43 +247,33 @@ def two_level(
         changed = sw.changed or any(np.any(a != c) for a, c in zip(new_active, sw.active))
         p, active, theta = step.pressures, new_active, step.theta
         history.append(change)
+
+        def ended(message: str, reason: StopReason, converged: bool = False) -> TwoLevelResult:
+            return TwoLevelResult(p, active, theta, converged, m, tuple(history), cg_iters, message, reason)
+
         if monitor is not None:
             monitor(m, change)
         seen = list(earlier) + history
         if len(seen) > STALL_SWEEPS and min(seen[-STALL_SWEEPS:]) >= min(seen[:-STALL_SWEEPS]):
             # no new smallest change in STALL_SWEEPS sweeps: merged contacts make cells flip
-            return TwoLevelResult(
-                p,
-                active,
-                theta,
-                False,
-                m,
-                tuple(history),
-                cg_iters,
+            return ended(
                 f"two-level iteration stalled: no smaller change in {STALL_SWEEPS} sweeps "
                 f"(last {change:.3g}, best {min(seen):.3g})",
                 StopReason.STAGNATED,
             )
         if change <= tol and not changed:
-            return TwoLevelResult(p, active, theta, True, m, tuple(history), cg_iters, "", StopReason.CONVERGED)
+            return ended("", StopReason.CONVERGED, converged=True)
         slow = too_slow(seen, tol, max_sweeps - m)
         if slow:
-            return TwoLevelResult(p, active, theta, False, m, tuple(history), cg_iters, slow, StopReason.STAGNATED)
+            return ended(slow, StopReason.STAGNATED)
         if limits.trial is not None and len(seen) >= limits.trial and not converging(seen):
-            return TwoLevelResult(
-                p,
-                active,
-                theta,
-                False,
-                m,
-                tuple(history),
-                cg_iters,
+            return ended(
                 f"two-level block Gauss-Seidel reached its {limits.trial} trial sweeps without converging "
                 f"(last change {change:.3g})",
                 StopReason.MAX_ITER,
             )
         if stop is not None and stop(p):
-            return TwoLevelResult(p, active, theta, False, m, tuple(history), cg_iters, "stopped", StopReason.STOPPED)
+            return ended("stopped", StopReason.STOPPED)
     return TwoLevelResult(
         p,
         active,
