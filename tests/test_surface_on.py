@@ -9,19 +9,21 @@ from twoscale.grid import Grid
 from twoscale.indenters import Asperity, surface_on
 
 
+def scattered(rng, n, x, y, z_max, radii, shapes):
+    """``n`` asperities at random in ``x`` by ``y`` (mm, ranges), heights up to ``z_max``,
+    radii in the range ``radii``, shapes in the order given."""
+    return [
+        Asperity(float(a), float(b), float(c), float(R), shape)
+        for a, b, c, R, shape in zip(
+            rng.uniform(*x, n), rng.uniform(*y, n), rng.uniform(0, z_max, n), rng.uniform(*radii, n), shapes
+        )
+    ]
+
+
 def test_windowed_sampling_equals_sampling_every_cell():
     rng = np.random.default_rng(3)
     grid = Grid.covering(-5.0, 5.0, -4.0, 4.0, 0.1)
-    asps = [
-        Asperity(float(x), float(y), float(z), float(R), shape)
-        for x, y, z, R, shape in zip(
-            rng.uniform(-7, 7, 25),
-            rng.uniform(-6, 6, 25),
-            rng.uniform(0, 0.2, 25),
-            rng.uniform(0.3, 3.0, 25),
-            ["sphere"] * 20 + ["paraboloid"] * 5,
-        )
-    ]
+    asps = scattered(rng, 25, (-7, 7), (-6, 6), 0.2, (0.3, 3.0), ["sphere"] * 20 + ["paraboloid"] * 5)
     asps.append(Asperity(20.0, 0.0, 0.0, 1.0))  # a sphere that misses the grid
     X, Y = grid.centres()
     height = np.full(grid.shape, np.inf)
@@ -44,16 +46,7 @@ def test_batched_sampling_equals_one_by_one_with_ties(monkeypatch):
 
     rng = np.random.default_rng(5)
     grid = Grid.covering(-1.0, 1.0, -1.0, 1.0, 0.05)
-    asps = [
-        Asperity(float(x), float(y), float(z), float(R), shape)
-        for x, y, z, R, shape in zip(
-            rng.uniform(-2, 2, 40),
-            rng.uniform(-2, 2, 40),
-            rng.uniform(0, 0.1, 40),
-            rng.uniform(0.2, 2.0, 40),
-            ["sphere", "paraboloid"] * 20,
-        )
-    ]
+    asps = scattered(rng, 40, (-2, 2), (-2, 2), 0.1, (0.2, 2.0), ["sphere", "paraboloid"] * 20)
     asps += [asps[3], asps[6], Asperity(0.0, 0.0, 0.09, 1e9, "paraboloid")]  # exact ties, a flat one
     batched = surface_on(grid, asps)
     monkeypatch.setattr(ind, "SAMPLE_BATCH", 7 * grid.size)  # batches of 7: below the minimum
