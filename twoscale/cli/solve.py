@@ -197,7 +197,7 @@ def _history_done(result, scene, args, wall: float) -> int:
             with staged_directory(
                 args.out, overwrite=getattr(args, "overwrite", False), command=f"solve {args.scene}"
             ) as tmp:
-                write_history_outputs(result, scene, tmp)
+                write_history_outputs(result, scene, tmp, name=Path(args.scene).stem)
         except (OSError, ValueError) as exc:
             print(f"error: writing {args.out}: {exc}", file=sys.stderr)
             return 2

@@ -165,8 +165,11 @@ def write_history_fields(result, path, *, comment: str | None = None) -> Path:
     return path
 
 
-def write_history_outputs(result, scene: Scene, out_dir, *, figures: bool = True, vtk: bool = True) -> list[Path]:
-    """Every file of a history into ``out_dir`` (module docstring)."""
+def write_history_outputs(
+    result, scene: Scene, out_dir, *, figures: bool = True, vtk: bool = True, name: str | None = None
+) -> list[Path]:
+    """Every file of a history into ``out_dir`` (module docstring); ``name`` (the scene
+    file's stem) titles the figure with the body."""
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     written = [
@@ -180,7 +183,7 @@ def write_history_outputs(result, scene: Scene, out_dir, *, figures: bool = True
     if figures:
         from ..plot.history import history_figure
 
-        written.append(history_figure(result, out / HISTORY_FIGURE_NAME))
+        written.append(history_figure(result, out / HISTORY_FIGURE_NAME, scene=scene, name=name))
     return written
 
 

@@ -4,10 +4,12 @@ against time (log time axis when the output times span decades)."""
 from __future__ import annotations
 
 from pathlib import Path
+from typing import Mapping
 
 import numpy as np
 
 from ._figure import new_figure, save_png
+from .labels import join_title, scene_text
 
 #: Asperities whose force is drawn (the most loaded at the last output time).
 MOST_LOADED = 8
@@ -18,10 +20,11 @@ def _log_axis(times: np.ndarray) -> bool:
     return positive.size >= 2 and positive.max() / positive.min() >= 100.0
 
 
-def history_figure(result, path, *, scene=None) -> Path:
+def history_figure(result, path, *, scene=None, name: str | None = None) -> Path:
     """Four panels against time: total load (N), approach (mm), contact area (mm^2), and
     the forces (N) of the :data:`MOST_LOADED` most loaded asperities (numbered from 1).
-    With a log time axis, the instant t = 0 is drawn at the first positive time's tenth."""
+    With a log time axis, the instant t = 0 is drawn at the first positive time's tenth.
+    The title names the scene (``name``, e.g. the scene file's stem) and its body."""
     t = np.asarray(result.times, dtype=float)
     log = _log_axis(t)
     if log:
@@ -50,6 +53,8 @@ def history_figure(result, path, *, scene=None) -> Path:
         a.grid(alpha=0.3)
     for a in axes[1]:
         a.set_xlabel("time (s)" + (" (t = 0 drawn at the left)" if log and result.times[0] == 0 else ""))
-    fig.suptitle(f"history: {result.history.kind} control, {len(result.steps)} steps, {result.method}")
+    what = f"history, {result.history.kind} control, {len(result.steps)} steps, {result.method}"
+    fig.suptitle(join_title(scene_text(scene, name), what))
     fig.tight_layout(rect=(0, 0.02, 1, 0.97))
-    return save_png(fig, path, title="history", scene=scene)
+    record = scene if isinstance(scene, Mapping) else None  # a Scene object names the body only
+    return save_png(fig, path, title="history", scene=record)
