@@ -212,3 +212,27 @@ def test_complementary_energy_integrates_the_inverse_law(name):
     eps = 1e-5
     fd = (law.complementary_energy(P[2:] + eps) - law.complementary_energy(P[2:] - eps)) / (2 * eps)
     assert np.allclose(fd, law.penetration(P[2:]), rtol=1e-7)
+
+
+def test_sphere_law_inverts_near_the_caps_edge():
+    # a cap pressed to a/R = 0.9-0.99999 (the macro step's safe path can ask): Segedin's
+    # closed forms and the law's two inversions agree
+    R, E = 4.0, 3.0
+    e = np.array([0.5, 0.9, 0.95, 0.99, 0.999, 0.99999])
+    d = R * e * np.arctanh(e)
+    P = E * R * R * ((1 + e * e) * np.arctanh(e) - e)
+    law = SphereLaw(R, E)
+    assert np.allclose(law.force(d), P, rtol=1e-9)
+    assert np.allclose(law.penetration(P), d, rtol=1e-9)
+
+
+def test_sphere_energy_by_parts_equals_the_generic_quadrature():
+    # the sphere's own rule (one inversion, integral over the contact radius) against the
+    # generic rule (16 inversions, integral over the load), from Hertz's range to a/R 0.95
+    from twoscale.laws.base import AsperityLaw
+
+    law = SphereLaw(np.full(7, 4.0), np.full(7, 3.0))
+    a = 4.0 * np.array([1e-4, 0.01, 0.2, 0.5, 0.8, 0.89, 0.95])
+    P = 3.0 * (a * a * np.arctanh(a / 4.0) + 16.0 * (np.arctanh(a / 4.0) - a / 4.0))  # Segedin
+    own, generic = law.complementary_energy(P), AsperityLaw.complementary_energy(law, P)
+    assert np.allclose(own, generic, rtol=1e-10, atol=0.0)

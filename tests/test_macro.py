@@ -336,6 +336,9 @@ def test_unbalanceable_tilt_is_reported():
         HS, tips, np.zeros(4), SphereLaw(5.0, E_STAR), total_load=40.0, tilt=True, pivot=(50.0, 5.0), max_iter=30
     )
     assert not res.converged and res.message
+    # no forces at the tips can balance it: the safe path is not tried, Newton's iterate is handed on
+    assert "convex hull" in res.message and res.safe_path
+    assert res.iterations <= 30
 
 
 # --- matrix-free interaction (many asperities): point operator + conjugate gradients ----------

@@ -129,6 +129,22 @@ def test_tilt_meets_load_and_moments_and_matches_the_tilted_reference():
     _forces_agree(res, ref)
 
 
+def test_a_pivot_outside_the_tips_hull_is_balanced_by_the_micro_step():
+    # four large spheres whose tips cannot balance the moments about the pivot (it lies
+    # outside their hull), while their contacts, spread over the caps, can: the macro step
+    # skips its safe path and the micro step's answer is the full grid's
+    from twoscale import Scene, solve
+
+    tips = [(0.231, 0.298, 0.0207, 9.34), (0.140, -0.234, 0.0501, 9.31), (-0.133, -0.330, 0.0287, 9.23)]
+    asps = [Asperity(x, y, z, R, shape="sphere") for x, y, z, R in tips + [(0.492, 0.786, 0.0492, 9.47)]]
+    scene = Scene(Material(16.8, 0.5), asps, total_load=0.8, tilt=True, pivot=(0.341, 0.0509), h=0.015)
+    res, ref = solve(scene), solve(scene, method="reference")
+    assert res.converged and "convex hull" in res.message
+    f, fr = np.asarray(res.asperities.forces), np.asarray(ref.asperities.forces)
+    assert np.max(np.abs(f - fr)) <= 1e-4 * np.max(fr)
+    assert np.all(np.abs(np.asarray(res.tilt) - np.asarray(ref.tilt)) <= 1e-4 * np.max(np.abs(ref.tilt)))
+
+
 # ---------------------------------------------------------------- result and validation
 def test_result_reports_macro_micro_and_p0():
     asps = [Asperity(0.0, 1.0, 0.0, 10.0), Asperity(0.0, -1.0, 0.0, 10.0)]

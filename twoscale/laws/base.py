@@ -45,7 +45,7 @@ class AsperityLaw(ABC):
         """
         P = as_force(P)
         total = np.zeros_like(P)
-        for node, weight in zip(_GL_NODES, _GL_WEIGHTS):  # one call per node keeps P's shape
+        for node, weight in zip(GAUSS_NODES, GAUSS_WEIGHTS):  # one call per node keeps P's shape
             t = 0.5 * (node + 1.0)
             total = total + 0.5 * weight * 3.0 * t * t * self.penetration(P * t**3)
         return P * total
@@ -54,7 +54,8 @@ class AsperityLaw(ABC):
         return self.force(delta)
 
 
-_GL_NODES, _GL_WEIGHTS = np.polynomial.legendre.leggauss(16)
+#: Gauss-Legendre nodes and weights on [-1, 1] of the laws' energy quadratures
+GAUSS_NODES, GAUSS_WEIGHTS = np.polynomial.legendre.leggauss(16)
 
 
 def as_penetration(delta) -> np.ndarray:
