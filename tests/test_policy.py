@@ -195,3 +195,42 @@ def test_the_union_prediction_grows_faster_than_its_work():
     )
     # a 7 M-cell box (about 28 x the reference work) ran at 3.7 ns a unit, the reference's at 1-1.5
     assert large / small > 30 * 1.8
+
+
+def _scattered(n: int, side: float, seed: int) -> list:
+    """``n`` spheres of radius 4 mm at least 5 mm apart on a square of ``2 side`` mm."""
+    rng = np.random.default_rng(seed)
+    xy: list = []
+    while len(xy) < n:
+        c = rng.uniform(-side, side, 2)
+        if not xy or np.min(np.hypot(*(np.array(xy) - c).T)) > 5.0:
+            xy.append(c)
+    return [Asperity(float(x), float(y), float(z), 4.0) for (x, y), z in zip(xy, rng.uniform(0.0, 0.02, n))]
+
+
+def test_tens_of_scattered_patches_take_the_far_field():
+    # 70 patches on a box they cover 11 % of: the union CG is ruled out, and the far field
+    # is considered from model.sparse_far_field_min_patches (45) instead of 100 patches
+    from dataclasses import replace
+
+    from twoscale.micro.costmodel import FITTED
+
+    pts, box = _patches(_scattered(70, 30.0, 1), 1.0, 0.2, 0.1)
+    c = choose(pts, box)
+    assert c.estimates["coverage"] < UNION_MIN_COVERAGE
+    assert c.iteration == "two-level" and c.far_tol == AUTO_FAR_TOL
+    assert choose(pts, box, model=replace(FITTED, sparse_far_field_min_patches=71)).far_tol is None
+    # where the box is crowded the far field still waits for far_field_min_patches
+    crowded = replace(FITTED, union_min_coverage=0.01, union_margin=1e-6)
+    assert choose(pts, box, model=crowded).far_tol is None
+
+
+@pytest.mark.slow
+def test_the_far_field_on_tens_of_scattered_patches_is_the_full_grids_answer():
+    from twoscale import Scene, solve
+
+    scene = Scene(MAT, _scattered(70, 30.0, 1), penetration=0.2, h=0.1)
+    res, ref = solve(scene), solve(scene, method="reference")
+    assert res.details.micro.choice.far_tol == AUTO_FAR_TOL
+    f, fr = np.asarray(res.asperities.forces), np.asarray(ref.asperities.forces)
+    assert np.max(np.abs(f - fr)) <= 1e-3 * np.max(fr)

@@ -72,7 +72,10 @@ class CostModel:
         Near (exactly coupled) pairs per patch under far-field coupling as costed, and the
         near-neighbour count of the scene they were costed on (other scenes scale by theirs).
     far_field_min_patches : int
-        Below this many patches the far field is not used.
+        Below this many patches the far field is not used (but see the next).
+    sparse_far_field_min_patches : int
+        Where the patches cover less than ``union_min_coverage`` of their box (the union
+        CG ruled out: scattered contacts) the far field is considered from this many.
     exact_max_patches : int
         Above this many patches exact pair coupling is not considered (N^2 pairs).
     two_level_sweeps : int
@@ -103,6 +106,7 @@ class CostModel:
     near_pairs: float = 8.0
     near_pairs_calibration: float = 16.4
     far_field_min_patches: int = 100
+    sparse_far_field_min_patches: int = 45
     exact_max_patches: int = 400
     two_level_sweeps: int = 20
     stall_sweeps: int = 10

@@ -173,8 +173,8 @@ def choose(
     out (the union CG over the whole box was the answer once, and ran 300 light spheres on
     a box of 70 M cells, 88 % empty); under load control it keeps the paper's block
     Gauss-Seidel where exact coupling is cheapest. The far field is not used below
-    ``FAR_FIELD_MIN_PATCHES`` patches, nor the union CG where the patches cover less than
-    ``UNION_MIN_COVERAGE`` of their box. ``load_control``: where exact block iterations are
+    ``FAR_FIELD_MIN_PATCHES`` patches (from ``model.sparse_far_field_min_patches`` on a
+    box they cover less than ``UNION_MIN_COVERAGE`` of), nor the union CG there. ``load_control``: where exact block iterations are
     cheapest, their two-level variant runs first (its coarse step corrects the approach
     and tilt instead of sensitivity sweeps: S1-S3 2.7-3x faster), block Gauss-Seidel if it
     stalls; the choice names the two-level iteration with exact coupling. The work of each
@@ -201,7 +201,8 @@ def choose(
     candidates = dict(costs)
     if n > model.exact_max_patches:
         candidates.pop("block-gs")
-    if n < model.far_field_min_patches:
+    sparse = figures["coverage"] < model.union_min_coverage
+    if n < (model.sparse_far_field_min_patches if sparse else model.far_field_min_patches):
         candidates.pop("two-level")
     if figures["coverage"] < model.union_min_coverage and len(candidates) > 1:
         candidates.pop("union-cg")
