@@ -156,7 +156,7 @@ def run_two_level(
         res = two_level(
             state.blocks,
             state.coupling,
-            tips[[pt.asperity for pt in state.patches]],
+            block_tips(tips, state.patches),
             lambda th: state.heights(th, pivot),
             p,
             theta,
@@ -208,6 +208,12 @@ def run_two_level(
                 )
     out_tilt = (float(theta[1]), float(theta[2])) if tilt is not None else None
     return finish(setup, p, theta, out_tilt, StopReason.CONVERGED, "", counts(), history)
+
+
+def block_tips(tips: np.ndarray, patches) -> np.ndarray:
+    """The point that stands for each block in the coarse space, (N, 2) mm: its asperity's
+    tip, the mean of its members' tips for a merged block."""
+    return np.array([tips[list(pt.members)].mean(axis=0) for pt in patches], dtype=float).reshape(-1, 2)
 
 
 def _load_arm(patches, pressures: list, pivot) -> float:
