@@ -90,3 +90,31 @@ def test_one_block_per_asperity_takes_more_than_twice_the_sweeps(monkeypatch):
     monkeypatch.setattr(setup, "touching_groups", lambda patches, p: [[k] for k in range(len(patches))])
     apart = solve_twoscale(HS, asps, **TIGHT).details.micro.attempts[0]
     assert apart.sweeps > 2 * merged.sweeps
+
+
+def test_patches_that_come_to_touch_are_merged_as_the_iteration_goes():
+    # a working set of one block per asperity whose first two contacts touch (a patch
+    # grown or given to a new asperity can meet a neighbour's contact): merged into one
+    # block, the pressure carried over cell by cell, and a new engine for the new patches
+    from twoscale.micro.blocks import scatter
+    from twoscale.micro.couplings import FarField
+    from twoscale.micro.workset import WorkingSet, merge_touching
+
+    asps, patches = _patches([0.0, 0.05, 3.0])
+    engine = lambda pts: FarField(0.3).build(HS, pts, held=True, dense_max_entries=40_000, separated_rtol=None)  # noqa: E731
+    fixed = WorkingSet(HS, asps, patches, engine(patches), dense_max_cells=400)
+    state = WorkingSet(HS, asps, patches, engine(patches), dense_max_cells=400, rebuild=engine)
+    p = [_disc(pt, x, 0.2) for pt, x in zip(patches, [0.0, 0.05, 3.0])]
+    p0 = [v.copy() for v in p]
+    assert merge_touching(fixed, list(p), list(p0)) == 0  # no engine to rebuild: unchanged
+    total = sum(float(v.sum()) for v in p)
+    assert merge_touching(state, p, p0) == 1
+    assert [pt.members for pt in state.patches] == [(0, 1), (2,)]
+    assert len(state.blocks) == len(p) == len(p0) == 2 and len(state.coupling.patches) == 2
+    assert sum(float(v.sum()) for v in p) == total
+    # the merged block holds each member's pressure on the cells it owns
+    merged = scatter(state.patches[0], p[0])
+    for k in (0, 1):
+        win = patches[k].grid.window_in(state.patches[0].grid)
+        np.testing.assert_array_equal(merged[win][patches[k].owned], _disc(patches[k], [0.0, 0.05][k], 0.2))
+    assert merge_touching(state, p, p0) == 0

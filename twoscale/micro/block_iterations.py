@@ -19,7 +19,7 @@ from .constraints import Control, block_coordinates, newton_step, resultants, rh
 from .gauss_seidel import gauss_seidel, linear_gauss_seidel
 from .result import MicroResult
 from .twolevel import SweepLimits, two_level
-from .workset import WorkingSet, edges_loaded_any, grow
+from .workset import WorkingSet, edges_loaded_any, grow, merge_touching
 
 #: Relative change at which the sensitivity sweeps (load and tilt corrections) stop.
 SENSITIVITY_TOL = 1e-3
@@ -170,6 +170,7 @@ def run_two_level(
         grown, ended = _round_end(setup, res, p, theta, tilt, tol, can_grow, growths, counts, history)
         if grown:
             growths += grown
+            merge_touching(state, p, p0)
             if res.converged:
                 # a round that converged before its patches grew starts the rules afresh: its
                 # sweeps say nothing of the next round's rate (845 paraboloids: 6e-7 after 14

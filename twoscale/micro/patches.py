@@ -312,12 +312,12 @@ def merge_groups(
 ) -> tuple[list[Patch], list[tuple]]:
     """One patch per group of ``patches`` (indices; every patch in exactly one group): the
     patch itself for a group of one, else a merged patch on the smallest aligned grid
-    covering the group's grids, whose members are the group's asperities. Returns the
+    covering the group's grids, whose members are the group's patches' members. Returns the
     patches ordered by their first member and, for each, the indices it covers."""
     out, covers = [], []
     for group in groups:
-        members = tuple(sorted(patches[i].asperity for i in group))
-        if len(members) == 1:
+        members = tuple(sorted(m for i in group for m in patches[i].members))
+        if len(group) == 1:
             out.append(patches[group[0]])
         else:
             g0 = patches[group[0]].grid

@@ -176,8 +176,23 @@ def block_setup(
         ]
         blocks = [blocks[c[0]] if len(c) == 1 else None for c in covers]
         patches = merged
-    engine = coupling.build(
-        provider, patches, held=held, dense_max_entries=settings.dense_max_entries, separated_rtol=opts.separated_rtol
+
+    def engine(patches):
+        return coupling.build(
+            provider,
+            patches,
+            held=held,
+            dense_max_entries=settings.dense_max_entries,
+            separated_rtol=opts.separated_rtol,
+        )
+
+    state = WorkingSet(
+        provider,
+        asperities,
+        patches,
+        engine(patches),
+        dense_max_cells=opts.dense_max_cells,
+        blocks=blocks,
+        rebuild=engine if merge_touching and not merge else None,
     )
-    state = WorkingSet(provider, asperities, patches, engine, dense_max_cells=opts.dense_max_cells, blocks=blocks)
     return BlockSetup(state, p0, theta, pb.tilt, Control(pivot, pb.n_unknowns, pb.target))
