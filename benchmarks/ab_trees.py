@@ -17,6 +17,8 @@ Cases (``KIND:ARG``):
 * ``family:KIND-CONTROL-SHAPE-N`` / ``family_ref:...`` — a scene of
   :func:`twoscale.synthetic.scene_family`, default two-scale solve / the reference;
 * ``space:I`` — :func:`twoscale.scenespace.draw` ``(I, seed 0)``, tips only, half-space, at most 300;
+* ``sweep:I`` / ``sweep_ref:I`` — the scene-space sweep's scene ``I`` (``draw(I, 0)``, tips
+  scenes only), default two-scale solve / the reference;
 * ``file:PATH`` / ``file_ref:PATH`` — a scene file (e.g. the paper's ``examples/S1.toml``, the
   road ``examples/road/road.toml``), read and solved with the default options / the reference.
 
@@ -121,6 +123,15 @@ def _space(index: str):
     return lambda: solve_scene(scene)
 
 
+def _sweep(index: str, method: str = "twoscale"):
+    """The scene-space sweep's scene ``index`` as ``benchmarks/sweep.py`` draws it (tips)."""
+    from twoscale import scenespace
+
+    solve_scene = _solve_scene()
+    scene = scenespace.build(scenespace.draw(int(index), 0))
+    return lambda: solve_scene(scene, method=method)
+
+
 def _file(path: str, method: str = "twoscale"):
     from twoscale.io.scene_file import read_scene
 
@@ -135,6 +146,8 @@ CASES = {
     "family": _family,
     "space": _space,
     "file": _file,
+    "sweep": _sweep,
+    "sweep_ref": lambda index: _sweep(index, "reference"),
     "family_ref": lambda name: _family(name, "reference"),
     "file_ref": lambda path: _file(path, "reference"),
 }

@@ -10,8 +10,8 @@ block iterations with far-field coupling). The coefficients are fitted to the me
 attempts of the scene-space sweep by ``benchmarks/calibrate_policy.py``, which prints the
 :data:`FITTED` block below (the record of each fit is in docs/records/sweep.md).
 
-The union CG is chosen when its predicted seconds are below ``union_margin`` times the best
-block iteration's; the model's other fields are the structure of the work estimate (sweeps and products expected) and the budgets after which the driver gives a block iteration up
+The union CG is chosen when its predicted seconds are below ``union_margin`` times the exact
+block iterations' and below the far-field two-level iteration's (:func:`.policy.union_limit`); the model's other fields are the structure of the work estimate (sweeps and products expected) and the budgets after which the driver gives a block iteration up
 (the two-level iteration's sweeps and its early exit on a stall or a slow rate).
 """
 
@@ -42,8 +42,8 @@ class CostModel:
         (fitted: their sweeps correct the approach and the angles too; the union CG solves
         them in the same iteration).
     union_margin : float
-        The union CG is chosen where its predicted seconds are below this times the best
-        block iteration's (1: the cheapest prediction; above 1 the union CG is preferred
+        The union CG is chosen where its predicted seconds are below this times the exact
+        block iterations' (1: the cheapest prediction; above 1 the union CG is preferred
         where the predictions are close: few large patches, whose local solves the work
         estimate undercounts, run faster as one CG).
     union_min_coverage : float
