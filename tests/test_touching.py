@@ -98,7 +98,7 @@ def test_patches_that_come_to_touch_are_merged_as_the_iteration_goes():
     # block, the pressure carried over cell by cell, and a new engine for the new patches
     from twoscale.micro.blocks import scatter
     from twoscale.micro.couplings import FarField
-    from twoscale.micro.workset import WorkingSet, merge_touching
+    from twoscale.micro.workset import WorkingSet, comes_to_touch, merge_touching
 
     asps, patches = _patches([0.0, 0.05, 3.0])
     engine = lambda pts: FarField(0.3).build(HS, pts, held=True, dense_max_entries=40_000, separated_rtol=None)  # noqa: E731
@@ -107,8 +107,10 @@ def test_patches_that_come_to_touch_are_merged_as_the_iteration_goes():
     p = [_disc(pt, x, 0.2) for pt, x in zip(patches, [0.0, 0.05, 3.0])]
     p0 = [v.copy() for v in p]
     assert merge_touching(fixed, list(p), list(p0)) == 0  # no engine to rebuild: unchanged
+    assert not comes_to_touch(fixed, p) and comes_to_touch(state, p)
     total = sum(float(v.sum()) for v in p)
     assert merge_touching(state, p, p0) == 1
+    assert not comes_to_touch(state, p)
     assert [pt.members for pt in state.patches] == [(0, 1), (2,)]
     assert len(state.blocks) == len(p) == len(p0) == 2 and len(state.coupling.patches) == 2
     assert sum(float(v.sum()) for v in p) == total

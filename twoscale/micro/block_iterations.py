@@ -19,7 +19,7 @@ from .constraints import Control, block_coordinates, newton_step, resultants, rh
 from .gauss_seidel import gauss_seidel, linear_gauss_seidel
 from .result import MicroResult
 from .twolevel import SweepLimits, two_level
-from .workset import WorkingSet, edges_loaded_any, grow, merge_touching
+from .workset import WorkingSet, comes_to_touch, edges_loaded_any, grow, merge_touching
 
 #: Relative change at which the sensitivity sweeps (load and tilt corrections) stop.
 SENSITIVITY_TOL = 1e-3
@@ -148,7 +148,7 @@ def run_two_level(
         limits = SweepLimits(
             tol=tol,
             max_sweeps=max(max_sweeps - sweeps, 1),
-            stop=(lambda q: edges_loaded_any(state, q)) if can_grow else None,
+            stop=lambda q: (can_grow and edges_loaded_any(state, q)) or comes_to_touch(state, q),
             monitor=None if monitor is None else (lambda m, c: monitor(sweeps + m, c)),
             earlier=tuple(history[counted:]),
             trial=trial,
@@ -166,6 +166,8 @@ def run_two_level(
         sweeps += res.sweeps
         history += res.history
         p, theta = res.pressures, res.theta
+        if res.reason is StopReason.STOPPED and merge_touching(state, p, p0):
+            continue  # contacts that came to touch are one block now: the next round
         state.coupling.refresh(p)
         grown, ended = _round_end(setup, res, p, theta, tilt, tol, can_grow, growths, counts, history)
         if grown:
