@@ -153,9 +153,9 @@ def test_near_neighbours_follow_the_far_field_rule():
     assert crowded > far
 
 
-def test_the_union_margin_does_not_hedge_the_far_field_iteration():
-    # the margin is on the exact block iterations only: against the far-field two-level
-    # iteration (now converging where contacts merge) the cheaper prediction decides
+def test_the_far_field_iteration_has_a_union_margin_of_its_own():
+    # the margin of 1.7 is on the exact block iterations: against the far-field two-level
+    # iteration (now converging where contacts merge) the union CG has a margin of its own
     import dataclasses
 
     from twoscale.micro.costmodel import FITTED
@@ -168,6 +168,7 @@ def test_the_union_margin_does_not_hedge_the_far_field_iteration():
         fixed_seconds={"union-cg": 0.0, "block-gs": 0.0, "two-level": 0.0},
         union_work_exponent=0.0,
         union_margin=1.7,
+        far_union_margin=1.25,
         far_field_min_patches=2,
         union_min_coverage=0.0,
     )
@@ -183,8 +184,9 @@ def test_the_union_margin_does_not_hedge_the_far_field_iteration():
     # union 1.3 s against exact block iterations' 1.0 s (far field 10 s): the margin keeps the union CG
     picked = choose(pts, box, model=model(1.3, 1.0, 10.0))
     assert picked.iteration == "union-cg" and "far-field" in picked.reason
-    # union 0.9 s: cheapest, taken
+    # union 0.9 s: cheapest, taken; 1.2 s: within the far-field margin
     assert choose(pts, box, model=model(0.9, 10.0, 1.0)).iteration == "union-cg"
+    assert choose(pts, box, model=model(1.2, 10.0, 1.0)).iteration == "union-cg"
 
 
 def test_the_cost_model_decides_and_its_margin_works_both_ways():

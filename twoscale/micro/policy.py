@@ -161,15 +161,14 @@ def union_limit(block_seconds: dict, model: CostModel = FITTED) -> float:
     """Predicted seconds up to which the union CG is taken against the block iterations'
     predictions ``block_seconds``: ``model.union_margin`` times the exact block iterations'
     (measured on scenes of under 100 patches, where their few large patches run faster as
-    one CG than the work estimate says), and the far-field two-level iteration's own
-    prediction. That iteration used to fail where contacts merge, which a margin on it
-    hedged (281 paraboloids, predicted 1.16x: its attempt failed, then the union CG); with
-    touching contacts as one block it converges there (6 sweeps, 4.35 s of CPU against
-    the union CG's 4.19 s), and the margin only sent scenes to a slower union CG (814
-    spheres under load, predicted 1.35x: the union CG over 110 s of CPU, the two-level
-    iteration 40 s)."""
+    one CG than the work estimate says), and ``model.far_union_margin`` times the far-field
+    two-level iteration's. The one margin of 1.7 on both hedged that iteration's failures
+    where contacts merge (281 paraboloids, predicted 1.16x: its attempt failed, then the
+    union CG); with touching contacts as one block it converges there (6 sweeps, 3.9 s of
+    CPU against the union CG's 3.6 s), and the margin of 1.7 sent scenes to a far slower
+    union CG (814 spheres under load, predicted 1.35x: over 110 s of CPU against 40 s)."""
     limits = [model.union_margin * block_seconds["block-gs"]] if "block-gs" in block_seconds else []
-    limits += [block_seconds["two-level"]] if "two-level" in block_seconds else []
+    limits += [model.far_union_margin * block_seconds["two-level"]] if "two-level" in block_seconds else []
     return min(limits, default=math.inf)
 
 
@@ -230,7 +229,8 @@ def choose(
     if best == "union-cg":
         against = (
             f", the block iterations {min(rest.values()):.2g} s; it is taken up to {model.union_margin:g}x the "
-            "exact ones'" + (" and up to the far-field two-level iteration's" if "two-level" in rest else "")
+            "exact ones'"
+            + (f" and {model.far_union_margin:g}x the far-field two-level iteration's" if "two-level" in rest else "")
             if rest
             else ""
         )
