@@ -16,7 +16,7 @@ from twoscale.driver import solve_twoscale
 from twoscale.grid import Grid
 from twoscale.indenters import Asperity
 from twoscale.influence import HalfSpace
-from twoscale.micro import setup
+from twoscale.micro import setup, workset
 from twoscale.micro.patches import make_patch, merge_groups
 from twoscale.micro.touching import touching_groups
 
@@ -87,7 +87,9 @@ def test_far_field_two_level_on_tight_pairs_converges_as_one_block_each():
 def test_one_block_per_asperity_takes_more_than_twice_the_sweeps(monkeypatch):
     asps = random_scene(2, 18)
     merged = solve_twoscale(HS, asps, **TIGHT).details.micro.attempts[0]
-    monkeypatch.setattr(setup, "touching_groups", lambda patches, p: [[k] for k in range(len(patches))])
+    apart_groups = lambda patches, p: [[k] for k in range(len(patches))]  # noqa: E731
+    monkeypatch.setattr(setup, "touching_groups", apart_groups)  # at the start
+    monkeypatch.setattr(workset, "touching_groups", apart_groups)  # after sweeps and growths
     apart = solve_twoscale(HS, asps, **TIGHT).details.micro.attempts[0]
     assert apart.sweeps > 2 * merged.sweeps
 
