@@ -17,7 +17,8 @@ Cases (``KIND:ARG``):
 * ``family:KIND-CONTROL-SHAPE-N`` / ``family_ref:...`` — a scene of
   :func:`twoscale.synthetic.scene_family`, default two-scale solve / the reference;
 * ``space:I`` — :func:`twoscale.scenespace.draw` ``(I, seed 0)``, tips only, half-space, at most 300;
-* ``sweep:I`` — scene ``I`` of the sweep itself (``benchmarks/sweep.py``'s draws: maps and blocks too);
+* ``sweep:I`` / ``sweep_ref:I`` — scene ``I`` of the sweep itself (``benchmarks/sweep.py``'s draws:
+  maps and blocks too), default two-scale solve / the reference;
 * ``file:PATH`` / ``file_ref:PATH`` — a scene file (e.g. the paper's ``examples/S1.toml``, the
   road ``examples/road/road.toml``), read and solved with the default options / the reference.
 
@@ -122,7 +123,7 @@ def _space(index: str):
     return lambda: solve_scene(scene)
 
 
-def _sweep(index: str):
+def _sweep(index: str, method: str = "twoscale"):
     """Scene ``index`` of the sweep itself (``scenespace.sweep(200)``: tips, maps, blocks),
     a map's texture written before the clock starts, as the sweep times it."""
     import tempfile
@@ -134,10 +135,10 @@ def _sweep(index: str):
     (spec,) = [s for s in scenespace.sweep(200, 0) if s.index == int(index)]
     if spec.kind == "tips":
         scene = scenespace.build(spec)
-        return lambda: solve_scene(scene)
+        return lambda: solve_scene(scene, method=method)
     folder = tempfile.mkdtemp()
     table = scenespace.map_table(spec, folder)
-    return lambda: solve_scene(scene_from_dict(table, base_dir=folder))
+    return lambda: solve_scene(scene_from_dict(table, base_dir=folder), method=method)
 
 
 def _file(path: str, method: str = "twoscale"):
@@ -153,8 +154,9 @@ CASES = {
     "stack": _stack,
     "family": _family,
     "space": _space,
-    "sweep": _sweep,
     "file": _file,
+    "sweep": _sweep,
+    "sweep_ref": lambda index: _sweep(index, "reference"),
     "family_ref": lambda name: _family(name, "reference"),
     "file_ref": lambda path: _file(path, "reference"),
 }

@@ -153,6 +153,42 @@ def test_near_neighbours_follow_the_far_field_rule():
     assert crowded > far
 
 
+def test_the_far_field_iteration_has_a_union_margin_of_its_own():
+    # the margin of 1.7 is on the exact block iterations: against the far-field two-level
+    # iteration (now converging where contacts merge) the union CG has a margin of its own
+    import dataclasses
+
+    from twoscale.micro.costmodel import FITTED
+
+    asps = [Asperity(3.0 * i, 3.0 * j, 0.0, 5.0) for i in range(2) for j in range(2)]
+    pts, box = _patches(asps, 3.0, 0.3, 0.05)
+    work = choose(pts, box).estimates["work"]
+    base = dataclasses.replace(
+        FITTED,
+        fixed_seconds={"union-cg": 0.0, "block-gs": 0.0, "two-level": 0.0},
+        union_work_exponent=0.0,
+        union_margin=1.7,
+        far_union_margin=1.25,
+        far_field_min_patches=2,
+        union_min_coverage=0.0,
+    )
+
+    def model(union, exact, far):
+        # ns per unit giving these predicted seconds
+        units = {"union-cg": union, "block-gs": exact, "two-level": far}
+        return dataclasses.replace(base, ns_per_unit={k: 1e9 * v / work[k] for k, v in units.items()})
+
+    # union 1.3 s against the far field's 1.0 s (exact 10 s): the far field
+    picked = choose(pts, box, model=model(1.3, 10.0, 1.0))
+    assert picked.iteration == "two-level" and picked.far_tol is not None
+    # union 1.3 s against exact block iterations' 1.0 s (far field 10 s): the margin keeps the union CG
+    picked = choose(pts, box, model=model(1.3, 1.0, 10.0))
+    assert picked.iteration == "union-cg" and "far-field" in picked.reason
+    # union 0.9 s: cheapest, taken; 1.2 s: within the far-field margin
+    assert choose(pts, box, model=model(0.9, 10.0, 1.0)).iteration == "union-cg"
+    assert choose(pts, box, model=model(1.2, 10.0, 1.0)).iteration == "union-cg"
+
+
 def test_the_cost_model_decides_and_its_margin_works_both_ways():
     import dataclasses
 

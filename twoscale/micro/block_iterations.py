@@ -19,7 +19,7 @@ from .constraints import Control, block_coordinates, newton_step, resultants, rh
 from .gauss_seidel import gauss_seidel, linear_gauss_seidel
 from .result import MicroResult
 from .twolevel import SweepLimits, two_level
-from .workset import WorkingSet, edges_loaded_any, grow
+from .workset import WorkingSet, comes_to_touch, edges_loaded_any, grow, merge_touching
 
 #: Relative change at which the sensitivity sweeps (load and tilt corrections) stop.
 SENSITIVITY_TOL = 1e-3
@@ -148,7 +148,7 @@ def run_two_level(
         limits = SweepLimits(
             tol=tol,
             max_sweeps=max(max_sweeps - sweeps, 1),
-            stop=(lambda q: edges_loaded_any(state, q)) if can_grow else None,
+            stop=lambda q: (can_grow and edges_loaded_any(state, q)) or comes_to_touch(state, q),
             monitor=None if monitor is None else (lambda m, c: monitor(sweeps + m, c)),
             earlier=tuple(history[counted:]),
             trial=trial,
@@ -156,7 +156,7 @@ def run_two_level(
         res = two_level(
             state.blocks,
             state.coupling,
-            tips[[pt.asperity for pt in state.patches]],
+            block_tips(tips, state.patches),
             lambda th: state.heights(th, pivot),
             p,
             theta,
@@ -166,10 +166,13 @@ def run_two_level(
         sweeps += res.sweeps
         history += res.history
         p, theta = res.pressures, res.theta
+        if res.reason is StopReason.STOPPED and merge_touching(state, p, p0):
+            continue  # contacts that came to touch are one block now: the next round
         state.coupling.refresh(p)
         grown, ended = _round_end(setup, res, p, theta, tilt, tol, can_grow, growths, counts, history)
         if grown:
             growths += grown
+            merge_touching(state, p, p0)
             if res.converged:
                 # a round that converged before its patches grew starts the rules afresh: its
                 # sweeps say nothing of the next round's rate (845 paraboloids: 6e-7 after 14
@@ -208,6 +211,12 @@ def run_two_level(
                 )
     out_tilt = (float(theta[1]), float(theta[2])) if tilt is not None else None
     return finish(setup, p, theta, out_tilt, StopReason.CONVERGED, "", counts(), history)
+
+
+def block_tips(tips: np.ndarray, patches) -> np.ndarray:
+    """The point that stands for each block in the coarse space, (N, 2) mm: its asperity's
+    tip, the mean of its members' tips for a merged block."""
+    return np.array([tips[list(pt.members)].mean(axis=0) for pt in patches], dtype=float).reshape(-1, 2)
 
 
 def _load_arm(patches, pressures: list, pivot) -> float:

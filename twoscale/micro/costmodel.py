@@ -10,8 +10,9 @@ block iterations with far-field coupling). The coefficients are fitted to the me
 attempts of the scene-space sweep by ``benchmarks/calibrate_policy.py``, which prints the
 :data:`FITTED` block below (the record of each fit is in docs/records/sweep.md).
 
-The union CG is chosen when its predicted seconds are below ``union_margin`` times the best
-block iteration's; the model's other fields are the structure of the work estimate (sweeps and products expected) and the budgets after which the driver gives a block iteration up
+The union CG is chosen when its predicted seconds are below ``union_margin`` times the exact
+block iterations' and ``far_union_margin`` times the far-field two-level iteration's
+(:func:`.policy.union_limit`); the model's other fields are the structure of the work estimate (sweeps and products expected) and the budgets after which the driver gives a block iteration up
 (the two-level iteration's sweeps and its early exit on a stall or a slow rate).
 """
 
@@ -42,10 +43,14 @@ class CostModel:
         (fitted: their sweeps correct the approach and the angles too; the union CG solves
         them in the same iteration).
     union_margin : float
-        The union CG is chosen where its predicted seconds are below this times the best
-        block iteration's (1: the cheapest prediction; above 1 the union CG is preferred
+        The union CG is chosen where its predicted seconds are below this times the exact
+        block iterations' (1: the cheapest prediction; above 1 the union CG is preferred
         where the predictions are close: few large patches, whose local solves the work
         estimate undercounts, run faster as one CG).
+    far_union_margin : float
+        The union CG is also chosen where its predicted seconds are below this times the
+        far-field two-level iteration's (that iteration's prediction ran about 0.8 of the
+        union CG's measured ratio on the scenes solved both ways).
     union_min_coverage : float
         The union CG (chosen, or as the fallback of a stalled block iteration) only where
         the patches carry at least this share of their bounding box: below it the box is
@@ -96,6 +101,7 @@ class CostModel:
     load_factor: float = 1.0
     tilt_factor: float = 1.0
     union_margin: float = 0.8
+    far_union_margin: float = 1.0
     union_min_coverage: float = 0.25
     union_work_exponent: float = 0.0
     union_products: float = 40.0
@@ -158,6 +164,11 @@ FITTED = CostModel(
     # two-level iteration, predicted 1.35x; 281 paraboloids, union CG 3.2 s against a
     # two-level attempt that failed (12 s with the union CG after it), predicted 1.16x
     union_margin=1.7,
+    # measured CPU s, union CG against the far-field two-level iteration (both converging,
+    # contacts that touch as one block) and their predicted ratio: 200 dense tips under
+    # load 10.5 / 11.6 (predicted 1.01), 281 paraboloids 3.6 / 3.9 (1.16), 814 spheres
+    # under load over 110 / 40 (1.35); 1.25 keeps the first two with the union CG
+    far_union_margin=1.25,
     # from 0.25: between 14 and 25 % the prediction decides (road maps of 30 and 50 mm at
     # 15-18 %: union CG 0.34 s and 0.67 s of CPU against 0.68 s and 1.59 s for the two-level
     # iteration; 96 spheres at 20 %: 1.30 s against 3.14 s; lighter load-control scenes at

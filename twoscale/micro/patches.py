@@ -258,8 +258,6 @@ def merge_overlapping(
         raise ValueError(f"merge growth must be >= 1, got {growth!r}")
     if len(patches) < 2:
         return list(patches), [(k,) for k in range(len(patches))]
-    h = patches[0].grid.h
-    x0, y0 = patches[0].grid.x0, patches[0].grid.y0
     # integer lattice boxes [i0, i1) x [j0, j1) of each group, and the cells of its members' grids
     offsets = [pt.grid.offset_in(patches[0].grid) for pt in patches]
     box = np.array(
@@ -306,15 +304,27 @@ def merge_overlapping(
                     box[k], own[k] = u, own[sel].sum()
                     changed = True
                     break
+    return merge_groups(patches, asperities, [groups[k] for k in np.flatnonzero(alive)])
+
+
+def merge_groups(
+    patches: Sequence[Patch], asperities: Sequence[Asperity], groups: Sequence[Sequence[int]]
+) -> tuple[list[Patch], list[tuple]]:
+    """One patch per group of ``patches`` (indices; every patch in exactly one group): the
+    patch itself for a group of one, else a merged patch on the smallest aligned grid
+    covering the group's grids, whose members are the group's patches' members. Returns the
+    patches ordered by their first member and, for each, the indices it covers."""
     out, covers = [], []
-    for k in np.flatnonzero(alive):
-        members = tuple(sorted(patches[i].asperity for i in groups[k]))
-        if len(members) == 1:
-            out.append(patches[k])
+    for group in groups:
+        members = tuple(sorted(m for i in group for m in patches[i].members))
+        if len(group) == 1:
+            out.append(patches[group[0]])
         else:
-            i0, i1, j0, j1 = (int(v) for v in box[k])
-            grid = Grid(x0 + i0 * h, y0 + j0 * h, h, i1 - i0, j1 - j0)
+            g0 = patches[group[0]].grid
+            b = np.array([(*patches[i].grid.offset_in(g0), patches[i].grid.nx, patches[i].grid.ny) for i in group])
+            i0, j0 = int(b[:, 0].min()), int(b[:, 1].min())
+            grid = g0.subgrid(i0, j0, int((b[:, 0] + b[:, 2]).max()) - i0, int((b[:, 1] + b[:, 3]).max()) - j0)
             out.append(make_patch(members[0], grid, asperities, members))
-        covers.append(tuple(sorted(groups[k], key=lambda i: patches[i].asperity)))
+        covers.append(tuple(sorted(group, key=lambda i: patches[i].asperity)))
     order = np.argsort([pt.asperity for pt in out], kind="stable")
     return [out[i] for i in order], [covers[i] for i in order]

@@ -157,6 +157,21 @@ def estimate_costs(patches: Sequence[Patch], box_cells: int, model: CostModel = 
     return {"union-cg": union, "block-gs": exact, "two-level": near}
 
 
+def union_limit(block_seconds: dict, model: CostModel = FITTED) -> float:
+    """Predicted seconds up to which the union CG is taken against the block iterations'
+    predictions ``block_seconds``: ``model.union_margin`` times the exact block iterations'
+    (measured on scenes of under 100 patches, where their few large patches run faster as
+    one CG than the work estimate says), and ``model.far_union_margin`` times the far-field
+    two-level iteration's. The one margin of 1.7 on both hedged that iteration's failures
+    where contacts merge (281 paraboloids, predicted 1.16x: its attempt failed, then the
+    union CG); with touching contacts as one block it converges there (6 sweeps, 3.9 s of
+    CPU against the union CG's 3.6 s), and the margin of 1.7 sent scenes to a far slower
+    union CG (814 spheres under load, predicted 1.35x: over 110 s of CPU against 40 s)."""
+    limits = [model.union_margin * block_seconds["block-gs"]] if "block-gs" in block_seconds else []
+    limits += [model.far_union_margin * block_seconds["two-level"]] if "two-level" in block_seconds else []
+    return min(limits, default=math.inf)
+
+
 def choose(
     patches: Sequence[Patch],
     box_cells: int,
@@ -180,7 +195,7 @@ def choose(
     stalls; the choice names the two-level iteration with exact coupling. The work of each
     candidate becomes predicted CPU seconds by ``model`` (its block iterations' work costs
     more under load control and with the ``tilt``); the cheapest prediction is chosen, the
-    union CG only below ``model.union_margin`` times the best block iteration's."""
+    union CG up to :func:`union_limit`."""
     figures = scene_figures(patches, box_cells)
     work = estimate_costs(patches, box_cells, model)
     costs = model.seconds(work, load_control=load_control, tilt=tilt)
@@ -207,14 +222,16 @@ def choose(
     if figures["coverage"] < model.union_min_coverage and len(candidates) > 1:
         candidates.pop("union-cg")
     rest = {k: v for k, v in candidates.items() if k != "union-cg"}
-    if "union-cg" in candidates and (not rest or candidates["union-cg"] <= model.union_margin * min(rest.values())):
+    if "union-cg" in candidates and (not rest or candidates["union-cg"] <= union_limit(rest, model)):
         best = "union-cg"
     else:
         best = min(rest, key=rest.get)
     cov = figures["coverage"]
     if best == "union-cg":
         against = (
-            f", the block iterations {min(rest.values()):.2g} s; it is taken up to {model.union_margin:g}x theirs"
+            f", the block iterations {min(rest.values()):.2g} s; it is taken up to {model.union_margin:g}x the "
+            "exact ones'"
+            + (f" and {model.far_union_margin:g}x the far-field two-level iteration's" if "two-level" in rest else "")
             if rest
             else ""
         )

@@ -15,9 +15,10 @@ from .constraints import Control
 from .localblock import LocalBlock
 from .local import initial_pressures
 from .pk_stack import BlockStacks
-from .patches import merge_overlapping, transfer
+from .patches import merge_groups, merge_overlapping, transfer
 from .sampling import build_patches
 from .problem import MicroContext
+from .touching import touching_groups
 from .workset import WorkingSet, heights, tip_approaches
 
 
@@ -119,7 +120,9 @@ def one_asperity_patches(provider, asperities, problem, margin: float) -> list:
     )
 
 
-def block_setup(ctx: MicroContext, coupling, *, held: bool, merge: bool, sizing_approaches=None) -> BlockSetup:
+def block_setup(
+    ctx: MicroContext, coupling, *, held: bool, merge: bool, sizing_approaches=None, merge_touching: bool = False
+) -> BlockSetup:
     """A block iteration ready to run on ``ctx`` with ``coupling`` (an object of
     :mod:`.couplings`, whose engine is built here for the final patches; ``held``: the
     far field held for a sweep, the two-level iteration).
@@ -128,7 +131,9 @@ def block_setup(ctx: MicroContext, coupling, *, held: bool, merge: bool, sizing_
     ``sizing_approaches`` (N,) mm, sized anew from them, reusing the context's); each
     block starts from the problem's ``start`` where it has one, eq. 7 elsewhere; with
     ``merge`` close patches become one block (:func:`~.patches.merge_overlapping`, the
-    block Gauss-Seidel iteration with exact coupling).
+    block Gauss-Seidel iteration with exact coupling); with ``merge_touching`` (and not
+    ``merge``) the patches whose start pressures touch become one block
+    (:func:`~.touching.touching_groups`, the two-level iteration with far-field coupling).
     """
     pb, opts, settings = ctx.problem, ctx.options, ctx.settings
     provider, asperities, h, pivot = ctx.provider, ctx.asperities, pb.h, pb.pivot
@@ -157,16 +162,37 @@ def block_setup(ctx: MicroContext, coupling, *, held: bool, merge: bool, sizing_
         )
     blocks = [LocalBlock(provider, pt, dense_max_cells=opts.dense_max_cells) for pt in patches]
     p0 = _kept_starts(ctx, patches, blocks, theta)
+    covers = None
     if merge:
         merged, covers = merge_overlapping(patches, asperities, growth=settings.merge_growth)
+    elif merge_touching:
+        groups = touching_groups(patches, p0)
+        if len(groups) < len(patches):
+            merged, covers = merge_groups(patches, asperities, groups)
+    if covers is not None:
         p0 = [
             p0[c[0]] if len(c) == 1 else sum(transfer(patches[i], pt, scatter(patches[i], p0[i])) for i in c)[pt.owned]
             for pt, c in zip(merged, covers)
         ]
         blocks = [blocks[c[0]] if len(c) == 1 else None for c in covers]
         patches = merged
-    engine = coupling.build(
-        provider, patches, held=held, dense_max_entries=settings.dense_max_entries, separated_rtol=opts.separated_rtol
+
+    def engine(patches):
+        return coupling.build(
+            provider,
+            patches,
+            held=held,
+            dense_max_entries=settings.dense_max_entries,
+            separated_rtol=opts.separated_rtol,
+        )
+
+    state = WorkingSet(
+        provider,
+        asperities,
+        patches,
+        engine(patches),
+        dense_max_cells=opts.dense_max_cells,
+        blocks=blocks,
+        rebuild=engine if merge_touching and not merge else None,
     )
-    state = WorkingSet(provider, asperities, patches, engine, dense_max_cells=opts.dense_max_cells, blocks=blocks)
     return BlockSetup(state, p0, theta, pb.tilt, Control(pivot, pb.n_unknowns, pb.target))

@@ -103,7 +103,8 @@ class BlockGaussSeidel:
 class TwoLevel:
     """Block Gauss-Seidel with a coarse correction (:mod:`.twolevel`), which also moves the
     approach and tilt under load control; one block per asperity (the coarse space's
-    unknowns are the tips' resultants). ``trial_sweeps``: after that many sweeps it goes on
+    unknowns are the blocks' resultants), but with far-field coupling one block over the
+    asperities whose contacts touch (:mod:`.touching`). ``trial_sweeps``: after that many sweeps it goes on
     only while converging fast (:attr:`~.twolevel.SweepLimits.trial`); None: up to
     ``max_sweeps`` whatever its rate."""
 
@@ -113,7 +114,14 @@ class TwoLevel:
 
     def run(self, ctx: MicroContext, coupling, *, max_sweeps: int, monitor: Callable | None = None) -> MicroResult:
         _check(self, coupling)
-        setup = block_setup(ctx, coupling, held=True, merge=False, sizing_approaches=_sizing(ctx, coupling))
+        setup = block_setup(
+            ctx,
+            coupling,
+            held=True,
+            merge=False,
+            sizing_approaches=_sizing(ctx, coupling),
+            merge_touching=isinstance(coupling, FarField),
+        )
         if not setup.state.patches:
             return _no_patch(setup)
         pb = ctx.problem
