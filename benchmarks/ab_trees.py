@@ -17,6 +17,8 @@ Cases (``KIND:ARG``):
 * ``family:KIND-CONTROL-SHAPE-N`` / ``family_ref:...`` — a scene of
   :func:`twoscale.synthetic.scene_family`, default two-scale solve / the reference;
 * ``space:I`` — :func:`twoscale.scenespace.draw` ``(I, seed 0)``, tips only, half-space, at most 300;
+* ``sweep:I`` — the sweep's scene I as ``benchmarks/sweep.py`` draws it (every tip, maps, the
+  block), default options;
 * ``file:PATH`` / ``file_ref:PATH`` — a scene file (e.g. the paper's ``examples/S1.toml``, the
   road ``examples/road/road.toml``), read and solved with the default options / the reference.
 
@@ -121,6 +123,17 @@ def _space(index: str):
     return lambda: solve_scene(scene)
 
 
+def _sweep(index: str):
+    import tempfile
+
+    from twoscale import scenespace
+
+    solve_scene = _solve_scene()
+    folder = tempfile.TemporaryDirectory()  # a map scene's files, kept while the case runs
+    scene = scenespace.build(scenespace.draw(int(index), 0), folder.name)
+    return lambda: (folder, solve_scene(scene))[1]
+
+
 def _file(path: str, method: str = "twoscale"):
     from twoscale.io.scene_file import read_scene
 
@@ -134,6 +147,7 @@ CASES = {
     "stack": _stack,
     "family": _family,
     "space": _space,
+    "sweep": _sweep,
     "file": _file,
     "family_ref": lambda name: _family(name, "reference"),
     "file_ref": lambda path: _file(path, "reference"),

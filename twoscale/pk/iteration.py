@@ -15,7 +15,7 @@ from typing import Any
 import numpy as np
 
 from ..stopping import StopReason
-from .projection import column, constraint_residual, kkt_residual, project, restore, row_dot
+from .projection import column, constraint_residual, fit, kkt_residual, masked_sum, project, restore, row_dot
 from .products import COLUMN_CELLS, FAST_RESIDUAL, CellChange, Products, clip_and_enter
 from .result import PKResult, Tolerance
 
@@ -309,11 +309,9 @@ class Iteration:
         self.products += rows if self.pc is None else 2 * rows
         denom = row_dot(r, t)
         if self.k == 1:  # the projected product: r minus its mean over the loaded cells (t is 0 off them)
-            denom -= np.add.reduce(r, axis=1, where=on) / self.count * t.sum(axis=1)
-        elif self.k:
-            rp = r.copy()
-            project(rp, self.basis, on, self.count)
-            denom = row_dot(rp, t)
+            denom -= masked_sum(r, on) / self.count * t.sum(axis=1)
+        elif self.k:  # (r - B c).t with c the fit of r over the loaded cells
+            denom -= np.einsum("bk,bk->b", fit(r, self.basis, on), t @ self.basis)
         bad = ~(denom > 0.0)
         if np.count_nonzero(bad):
             self.denominator[np.flatnonzero(bad) if self.index is None else self.index[bad]] = denom[bad]
