@@ -33,7 +33,7 @@ def _plane_basis(nx: int, ny: int, pivot=(0.3, -0.2)) -> np.ndarray:
     return np.column_stack([np.ones(nx * ny), X.ravel() - pivot[0], Y.ravel() - pivot[1]])
 
 
-@pytest.mark.parametrize("n", [60, 3000])  # below and above the short rows' reduction
+@pytest.mark.parametrize("n", [60, 6000])  # short rows (lstsq) and long ones (normal equations)
 def test_constraint_fit_equals_least_squares_on_the_loaded_cells(n):
     rng = np.random.default_rng(1)
     basis = _plane_basis(n // 20, 20)
@@ -51,10 +51,10 @@ def test_constraint_fit_equals_least_squares_on_the_loaded_cells(n):
 
 
 def test_constraint_fit_on_cells_in_a_line_falls_back_to_least_squares():
-    basis = _plane_basis(30, 10)
+    basis = _plane_basis(300, 20)  # a long row: the normal equations' branch
     v = np.random.default_rng(2).normal(size=(1, basis.shape[0]))
     on = np.zeros_like(v, dtype=bool)
-    on[0, 5 * 30 : 6 * 30] = True  # one row of the grid: y constant, the normal equations singular
+    on[0, 5 * 300 : 6 * 300] = True  # one row of the grid: y constant, the normal equations singular
     c = fit(v, basis, on)
     ref = np.linalg.lstsq(basis[on[0]], v[0, on[0]], rcond=1e-13)[0]
     assert np.allclose(c[0], ref, rtol=1e-10, atol=1e-12)
