@@ -114,8 +114,8 @@ class HalfSpace(InfluenceProvider):
         """Love's kernel on the offsets ``(oy0 + m, ox0 + n) h`` (read-only): a gather from
         the quadrant of offsets ``(|oy|, |ox|)`` (the kernel is even in both), kept per ``h``
         in the caller's ``tables`` (without them, a quadrant for this window only) and grown
-        when a window reaches beyond it; computed directly when the quadrant would exceed
-        ``QUADRANT_MAX_ENTRIES``. Near pairs of patches each have their own
+        when a window reaches beyond it; a window whose quadrant would exceed
+        ``QUADRANT_MAX_ENTRIES`` is gathered from a quadrant of its own, not kept. Near pairs of patches each have their own
         window: the gather costs a copy where new Love values cost ~50x more."""
         ax = max(abs(ox0), abs(ox0 + mx - 1)) + 1
         ay = max(abs(oy0), abs(oy0 + my - 1)) + 1
@@ -125,10 +125,14 @@ class HalfSpace(InfluenceProvider):
             if quadrant is not None:
                 ax = max(ax, min(int(QUADRANT_GROWTH * quadrant.shape[1]), QUADRANT_MAX_ENTRIES // ay))
                 ay = max(ay, min(int(QUADRANT_GROWTH * quadrant.shape[0]), QUADRANT_MAX_ENTRIES // ax))
-            if ax * ay > QUADRANT_MAX_ENTRIES:
-                return _love_table(self.E_star, h, ox0, oy0, mx, my)
+            keep = ax * ay <= QUADRANT_MAX_ENTRIES
+            if not keep:  # this window's own quadrant, not kept (a quarter of a self table's values)
+                ax = max(abs(ox0), abs(ox0 + mx - 1)) + 1
+                ay = max(abs(oy0), abs(oy0 + my - 1)) + 1
+                if ax * ay >= mx * my:
+                    return _love_table(self.E_star, h, ox0, oy0, mx, my)
             quadrant = _love_table(self.E_star, h, 0, 0, ax, ay)
-            if tables is not None:
+            if tables is not None and keep:
                 tables.put(key, quadrant, 8 * ax * ay)
         table = _folded(_folded(quadrant, oy0, my, axis=0), ox0, mx, axis=1)
         table.setflags(write=False)

@@ -15,7 +15,7 @@ from typing import Any
 import numpy as np
 
 from ..stopping import StopReason
-from .projection import column, constraint_residual, kkt_residual, project, restore, row_dot
+from .projection import column, constraint_residual, fit, kkt_residual, masked_sum, project, restore, row_dot
 from .products import COLUMN_CELLS, FAST_RESIDUAL, CellChange, Products, clip_and_enter
 from .result import PKResult, Tolerance
 
@@ -71,6 +71,8 @@ class Iteration:
 
     def __init__(self, products: Products, precondition, shape, z, start, mask, basis, target, tol: Tolerance):
         self.ops, self.pc, self.shape, self.basis, self.tol = products, precondition, shape, basis, tol
+        # the basis transposed, contiguous, for the moments' fits and plane (None: at most a load)
+        self.basis_t = np.ascontiguousarray(basis.T) if basis.shape[1] > 1 else None
         self.change2 = None if tol.change is None else tol.change**2
         rows, self.k = len(z), basis.shape[1]
         self.masked = mask is not None  # some cells of some row cannot carry pressure
@@ -81,7 +83,7 @@ class Iteration:
         if self.masked:
             self.p[~mask] = 0.0
         if self.k:
-            restore(self.p, basis, target)
+            restore(self.p, basis, target, basis_t=self.basis_t)
         self.count: Any = None  # loaded cells per row (one constant constraint column)
         self.t = np.zeros_like(self.p)
         # rows whose refreshes still take the fast product (until their residual reaches
@@ -150,7 +152,7 @@ class Iteration:
         if self.k:
             if self.k == 1:
                 self.count = np.maximum(on.sum(axis=1), 1)
-            m = project(g, self.basis, on, self.count)
+            m = project(g, self.basis, on, self.count, self.basis_t)
         if self.g_on is None or self.g_on.shape != g.shape:
             self.g_on = np.empty_like(g)
         return g, m, on, np.multiply(g, on, out=self.g_on)
@@ -245,7 +247,7 @@ class Iteration:
         if self.k == 1:
             self.count = np.maximum(on.sum(axis=1), 1)
         if self.k:
-            m = m + project(g, self.basis, on, self.count)  # the projection over the new contact
+            m = m + project(g, self.basis, on, self.count, self.basis_t)  # the projection over the new contact
         g_on = np.where(on, g, 0.0)
         gg = row_dot(g_on, g_on)
         g, m, on, g_on, gg, res = self.drop(g, m, on, g_on, gg, res)
@@ -287,7 +289,7 @@ class Iteration:
             return g_on, gg
         d = self.pc(g_on.reshape(len(g_on), *self.shape)).reshape(len(g_on), -1)
         d *= on
-        project(d, self.basis, on, self.count if self.k == 1 else None)
+        project(d, self.basis, on, self.count if self.k == 1 else None, self.basis_t)
         d *= on
         G = row_dot(g_on, d)
         good = G > 0.0
@@ -309,11 +311,9 @@ class Iteration:
         self.products += rows if self.pc is None else 2 * rows
         denom = row_dot(r, t)
         if self.k == 1:  # the projected product: r minus its mean over the loaded cells (t is 0 off them)
-            denom -= np.add.reduce(r, axis=1, where=on) / self.count * t.sum(axis=1)
-        elif self.k:
-            rp = r.copy()
-            project(rp, self.basis, on, self.count)
-            denom = row_dot(rp, t)
+            denom -= masked_sum(r, on) / self.count * t.sum(axis=1)
+        elif self.k:  # (r - B c).t with c the fit of r over the loaded cells
+            denom -= np.einsum("bk,bk->b", fit(r, self.basis, on, self.basis_t), t @ self.basis_t.T)
         bad = ~(denom > 0.0)
         if np.count_nonzero(bad):
             self.denominator[np.flatnonzero(bad) if self.index is None else self.index[bad]] = denom[bad]
@@ -330,7 +330,7 @@ class Iteration:
         if self.ops.keep_conjugacy and np.count_nonzero(entered):
             # few cells entered: the directions stay conjugate enough to keep
             self.conj |= reenter.sum(axis=1) <= self.ops.keep_conjugacy * on.sum(axis=1)
-        factor = restore(p, self.basis, self.target) if self.k else 1.0
+        factor = restore(p, self.basis, self.target, basis_t=self.basis_t) if self.k else 1.0
         self.update_displacement(r, tau_c, factor, clipped | entered, change)
         if p_old is not None:
             p_old -= p

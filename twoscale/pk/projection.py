@@ -12,6 +12,9 @@ import numpy as np
 #: ones ``np.einsum`` (several times faster than ``vecdot`` on a million cells).
 SHORT_ROW = 4096
 _vecdot = getattr(np, "vecdot", None)
+#: Normal equations of a constraint fit (:func:`fit`) up to this condition number are
+#: solved (with one refinement step: about the rounding of ``lstsq``); beyond, ``lstsq``.
+FIT_MAX_CONDITION = 1e10
 
 
 def column(v: np.ndarray):
@@ -27,27 +30,64 @@ def row_dot(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     return np.einsum("bi,bi->b", a, b)
 
 
-def project(v: np.ndarray, basis: np.ndarray, on: np.ndarray, count: np.ndarray | None = None) -> np.ndarray:
+def project(
+    v: np.ndarray, basis: np.ndarray, on: np.ndarray, count: np.ndarray | None = None, basis_t: np.ndarray | None = None
+) -> np.ndarray:
     """Remove from each row of ``v`` (in place) its least-squares fit by the columns of
     ``basis`` over the row's cells ``on``; return the coefficients (B, k). One column is
     taken to be constant: the fit is the mean over ``on`` (0 where ``on`` is empty;
-    ``count``, if given, is ``max(on.sum(axis=1), 1)``)."""
+    ``count``, if given, is ``max(on.sum(axis=1), 1)``). ``basis_t``: ``basis.T``
+    contiguous, if the caller keeps it (:func:`fit`)."""
     rows, k = v.shape[0], basis.shape[1]
     if k == 0:
         return np.zeros((rows, 0))
     if k == 1:
         count = np.maximum(on.sum(axis=1), 1) if count is None else count
-        c = np.add.reduce(v, axis=1, where=on) / count
+        c = masked_sum(v, on) / count
         v -= column(c)
         return c[:, None]
-    c = np.zeros((rows, k))
+    basis_t = np.ascontiguousarray(basis.T) if basis_t is None else basis_t
+    c = fit(v, basis, on, basis_t)
     for i in range(rows):
-        c[i] = np.linalg.lstsq(basis[on[i]], v[i, on[i]], rcond=1e-13)[0]
-        v[i] -= basis @ c[i]
+        v[i] -= c[i] @ basis_t
     return c
 
 
-def restore(p: np.ndarray, basis: np.ndarray, target: np.ndarray, sweeps: int = 4) -> np.ndarray | None:
+def masked_sum(v: np.ndarray, on: np.ndarray) -> np.ndarray:
+    """Per row, the sum of ``v`` over the cells ``on`` (a product and a sum: four times
+    faster than ``np.add.reduce(..., where=on)`` on a million cells)."""
+    if v.shape[1] <= SHORT_ROW:
+        return np.add.reduce(v, axis=1, where=on)
+    return np.einsum("bi->b", v * on)
+
+
+def fit(v: np.ndarray, basis: np.ndarray, on: np.ndarray, basis_t: np.ndarray | None = None) -> np.ndarray:
+    """Per row, the least-squares coefficients (B, k) of ``v`` by the columns of ``basis``
+    over the cells ``on`` (``v`` unchanged). On long rows by the k x k normal equations and
+    one step of iterative refinement, through ``basis_t`` (``basis.T`` contiguous; made
+    here if not given): passes over the row instead of ``lstsq`` on a copy of the loaded
+    cells' rows of ``basis`` (5 M cells: 130 against 190 ms, and 20 against 47 ms to
+    subtract the fit); by ``lstsq`` on short rows and where the equations are
+    ill-conditioned (fewer loaded cells than columns, or cells on a line)."""
+    rows, k = v.shape[0], basis.shape[1]
+    c = np.zeros((rows, k))
+    for i in range(rows):
+        w = on[i]
+        if v.shape[1] > SHORT_ROW and np.count_nonzero(w) >= k:
+            bt = np.ascontiguousarray(basis.T) if basis_t is None else basis_t
+            masked = bt * w  # (k, n): the basis on the loaded cells, 0 elsewhere
+            gram = masked @ bt.T
+            if np.linalg.cond(gram) <= FIT_MAX_CONDITION:
+                c[i] = np.linalg.solve(gram, masked @ v[i])
+                c[i] += np.linalg.solve(gram, masked @ (v[i] - c[i] @ bt))  # the rounding's residual fitted again
+                continue
+        c[i] = np.linalg.lstsq(basis[w], v[i, w], rcond=1e-13)[0]
+    return c
+
+
+def restore(
+    p: np.ndarray, basis: np.ndarray, target: np.ndarray, sweeps: int = 4, basis_t: np.ndarray | None = None
+) -> np.ndarray | None:
     """Make ``B^T p = target`` on every row by ``p <- p * (B c)`` (in place), keeping
     ``p >= 0``. Returns the per-row factors when the correction was a constant (so ``A p``
     scales by them too), None when it was not (moments)."""
@@ -60,19 +100,18 @@ def restore(p: np.ndarray, basis: np.ndarray, target: np.ndarray, sweeps: int = 
         p *= column(f)
         return f
     for i in range(rows):
-        _restore_plane(p[i], basis, target[i], sweeps)
+        _restore_plane(p[i], np.ascontiguousarray(basis.T) if basis_t is None else basis_t, target[i], sweeps)
     return None
 
 
-def _restore_plane(p: np.ndarray, basis: np.ndarray, target: np.ndarray, sweeps: int) -> None:
-    """:func:`restore` on one row with a plane ``c0 + c1 x + c2 y`` as factor."""
+def _restore_plane(p: np.ndarray, bt: np.ndarray, target: np.ndarray, sweeps: int) -> None:
+    """:func:`restore` on one row with a plane ``c0 + c1 x + c2 y`` as factor, ``bt`` the
+    basis transposed (``p`` is 0 off the loaded cells, so the weighted sums run over the
+    whole row: 5 M cells, 135 against 220 ms with a copy of the loaded cells' rows)."""
     for _ in range(sweeps):
-        on = p > 0
-        Bp = basis[on]
-        M = Bp.T @ (Bp * p[on, None])
-        lam = Bp @ np.linalg.lstsq(M, target, rcond=1e-13)[0]
-        p[on] *= lam
-        if np.all(lam >= 0):
+        M = (bt * p) @ bt.T
+        p *= np.linalg.lstsq(M, target, rcond=1e-13)[0] @ bt
+        if p.min() >= 0.0:
             return
         np.maximum(p, 0.0, out=p)
 

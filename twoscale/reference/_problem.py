@@ -144,9 +144,14 @@ def _check_pivot_inside(surface: Surface, pivot: tuple[float, float]) -> None:
     the cells with material (a positive pressure's centre lies inside its support)."""
     from scipy.spatial import ConvexHull, QhullError
 
-    X, Y = surface.grid.centres()
     cand = np.isfinite(surface.height)
-    pts = np.column_stack([X[cand], Y[cand]])
+    # the hull of a grid's cells is the hull of each row's first and last cell with
+    # material (a million cells: 2,000 points instead of a million)
+    rows = np.flatnonzero(cand.any(axis=1))
+    first = np.argmax(cand[rows], axis=1)
+    last = cand.shape[1] - 1 - np.argmax(cand[rows, ::-1], axis=1)
+    x, y = surface.grid.x, surface.grid.y
+    pts = np.column_stack([x[np.concatenate([first, last])], np.concatenate([y[rows], y[rows]])])
     try:
         hull = ConvexHull(pts)
     except (QhullError, ValueError):  # fewer than 3 cells or all on one line

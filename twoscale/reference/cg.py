@@ -151,8 +151,8 @@ def solve_cg(
         ``monitor(iteration, residual)`` every :data:`twoscale.pk.kernel.MONITOR_EVERY` iterations (progress display).
     keep_conjugacy : float, default 0
         Keep the conjugate directions after a step where at most this fraction of the
-        loaded cells entered (:class:`~twoscale.pk.products.Products`); 0: restart after
-        any entry (Polonsky & Keer).
+        loaded cells entered (:class:`~twoscale.pk.products.Products`), in both stages of
+        ``"mixed"``; 0: restart after any entry (Polonsky & Keer).
 
     Returns
     -------
@@ -198,6 +198,7 @@ def solve_cg(
             stall=SINGLE_STALL,
             monitor=monitor,
             pc=single.preconditioner() if precondition else None,
+            keep_conjugacy=cg.keep_conjugacy,
         )
         start = p1.reshape(work.grid.shape)
     offset = it0 + 1 if it0 or hist0 else 0
