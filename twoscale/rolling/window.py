@@ -270,12 +270,27 @@ def contact_box(track, selection, bound: float) -> Grid | None:
     ones that can touch when the approach is at most ``bound``), on the run's lattice;
     None when no cell is that low."""
     reach = reference_grid(track, selection, bound)
-    s = surface_on(reach, selection.stones)
-    low = np.isfinite(s.height) & (s.height < bound)
-    rows, cols = np.flatnonzero(low.any(axis=1)), np.flatnonzero(low.any(axis=0))
-    if not rows.size:
+    return _low_box(surface_on(reach, selection.stones), bound)
+
+
+def _low_box(surface, bound: float) -> Grid | None:
+    low = np.isfinite(surface.height) & (surface.height < bound)
+    return _loaded_box(surface.grid, low)
+
+
+def _window_surface(track, selection, bound: float, state: WindowState):
+    """The kept window (grown if need be) and the stones' surface on it, or None when no
+    cell can touch: the surface is sampled once, on the kept window, when the stones'
+    reach lies inside it (the box of their low cells then does too)."""
+    g = state.grid
+    if g is not None and _covers(g, reference_grid(track, selection, bound)):
+        surface = surface_on(g, selection.stones)
+        return None if _low_box(surface, bound) is None else (g, surface)
+    box = contact_box(track, selection, bound)
+    if box is None:
         return None
-    return reach.subgrid(int(cols[0]), int(rows[0]), int(cols[-1] - cols[0] + 1), int(rows[-1] - rows[0] + 1))
+    grid = state.window(box)
+    return grid, surface_on(grid, selection.stones)
 
 
 def solve_window(track, selection, bound: float, state: WindowState, tol: float):
@@ -285,11 +300,10 @@ def solve_window(track, selection, bound: float, state: WindowState, tol: float)
     from ..micro.strategies import UNION_TOL_FACTOR
     from ..reference.cg import solve_cg
 
-    box = contact_box(track, selection, bound)
-    if box is None:
+    found = _window_surface(track, selection, bound, state)
+    if found is None:
         return None
-    grid = state.window(box)
-    surface = surface_on(grid, selection.stones)
+    grid, surface = found
     scene = track.scene
     cut = state.cut_in(grid)
     start = state.start(cut, selection.shift)
