@@ -352,10 +352,12 @@ def _touching_outside(body: KeptBody, surface, result, tol: float) -> Grid | Non
     p = f.grid.embed_in(f.pressure, window)
     outside = np.isfinite(surface.height)
     outside[f.grid.window_in(window)] = False
+    level = surface.height - result.penetration
+    if not np.any(outside & (level < 0.0)):
+        return None  # no cell outside lies below the approach (the pressure only lifts them)
     op = body.grid_operator(window)
     u = op.single_precision().apply(p)
     scale = max(float(np.abs(u[f.grid.window_in(window)]).max()), np.finfo(float).tiny)
-    level = surface.height - result.penetration
     gap = np.where(outside, u + level, np.inf)
     if float(gap.min()) > SCREEN_GAP * scale:
         return None
