@@ -285,8 +285,10 @@ class ConvolutionOperator(GridOperator):
         def add(out: np.ndarray, cells: np.ndarray, values: np.ndarray) -> None:
             o = out.reshape(nyt, nxt)
             js, i_s = np.divmod(np.asarray(cells), nxs)
+            term = np.empty_like(o)  # one buffer for every column (a new array each was a page-faulting allocation)
             for j, i, v in zip(js.tolist(), i_s.tolist(), np.asarray(values).tolist()):
-                o += v * table[nys - 1 - j : nys - 1 - j + nyt, nxs - 1 - i : nxs - 1 - i + nxt]
+                np.multiply(table[nys - 1 - j : nys - 1 - j + nyt, nxs - 1 - i : nxs - 1 - i + nxt], v, out=term)
+                o += term
 
         return add
 
