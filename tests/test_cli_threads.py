@@ -8,7 +8,7 @@ from threadpoolctl import threadpool_info, threadpool_limits
 
 import twoscale.cli.solve as solve_command
 from twoscale.cli.main import main
-from twoscale.cli.threads import THREAD_VARIABLES, command_threads
+from twoscale.cli.threads import USER_THREAD_SETTINGS, command_threads
 
 
 def _counts() -> list:
@@ -19,7 +19,7 @@ def _counts() -> list:
 def two_threads(monkeypatch):
     """No count in the environment, and every pool allowed two threads meanwhile (as
     OpenBLAS's default gives on two cores), restored afterwards."""
-    for name in THREAD_VARIABLES:
+    for name in USER_THREAD_SETTINGS:
         monkeypatch.delenv(name, raising=False)
     if not threadpool_info():
         pytest.skip("no BLAS or OpenMP library loaded")
@@ -35,7 +35,7 @@ def test_a_command_runs_single_threaded(two_threads, monkeypatch):
     assert _counts() == before  # restored after the command
 
 
-@pytest.mark.parametrize("name", THREAD_VARIABLES)
+@pytest.mark.parametrize("name", USER_THREAD_SETTINGS)
 def test_a_count_the_user_set_is_left_alone(two_threads, name):
     with command_threads({name: "2"}):
         assert max(_counts()) == 2

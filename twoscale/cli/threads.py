@@ -9,7 +9,7 @@ rolling example (``examples/rolling/tyre.toml``) 8.0-8.1 s against 3.8-3.9 s bef
 long dot product left BLAS, the paper's S2 scene 2.6-2.8 s against 1.95 s (wall 6.5-7.4 s
 against 5.2 s). The limit is set at run time (:mod:`threadpoolctl`: the libraries are
 loaded before the command line parses its arguments); a count the user set in the
-environment (:data:`THREAD_VARIABLES`) is left alone.
+environment (:data:`USER_THREAD_SETTINGS`) is left alone.
 """
 
 from __future__ import annotations
@@ -19,13 +19,13 @@ import os
 from typing import Mapping
 
 #: Any of these in the environment: the user chose the thread counts, and they are kept.
-THREAD_VARIABLES = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "BLIS_NUM_THREADS")
+USER_THREAD_SETTINGS = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "BLIS_NUM_THREADS")
 
 
 def command_threads(environ: Mapping[str, str] = os.environ):
     """A context in which the BLAS and OpenMP libraries run one thread each, unless one of
-    :data:`THREAD_VARIABLES` is set in ``environ`` (then nothing changes)."""
-    if any(name in environ for name in THREAD_VARIABLES):
+    :data:`USER_THREAD_SETTINGS` is set in ``environ`` (then nothing changes)."""
+    if any(name in environ for name in USER_THREAD_SETTINGS):
         return contextlib.nullcontext()
     from threadpoolctl import threadpool_limits
 

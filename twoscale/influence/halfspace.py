@@ -57,13 +57,10 @@ def _love_table(E_star: float, h: float, ox0: int, oy0: int, mx: int, my: int) -
 
 
 def _transform(a: np.ndarray, shape: tuple[int, int]) -> np.ndarray:
-    """The zero-padded 2-D transform of ``a`` (its last two axes, padded to ``shape``) in
-    the layout every spectrum of a :class:`ConvolutionOperator` has: real along y (axis
-    -2, half of it kept: ``shape[0] // 2 + 1`` rows), then complex along x. Same as
-    ``rfft2`` with the axes swapped; y first because the complex transform then runs
-    along the contiguous axis (a float32 product on a 625 x 384 window: 4.7-5.0 ms against
-    5.2-5.5 ms the other way round), and the zero rows are padded once, not transformed
-    twice."""
+    """The zero-padded transform of ``a``'s last two axes to ``shape`` in the layout of every
+    :class:`ConvolutionOperator` spectrum: real along y (``shape[0] // 2 + 1`` rows kept),
+    then complex along the contiguous x (a float32 product on 625 x 384 cells: 4.7-5.0 ms
+    against 5.2-5.5 ms with ``rfft2``'s order)."""
     my, mx = shape
     ny = a.shape[-2]
     padded = np.zeros((*a.shape[:-2], my, a.shape[-1]), dtype=np.result_type(a.dtype, np.float32))
