@@ -306,6 +306,8 @@ def solve_window(track, selection, bound: float, state: WindowState, tol: float)
     grid, surface = found
     scene = track.scene
     cut = state.cut_in(grid)
+    if not np.isfinite(_restricted(surface, cut).height).any():
+        cut = grid  # no stone's material in the cut (cannot carry a load): the whole window
     start = state.start(cut, selection.shift)
     while True:
         result = solve_cg(
@@ -321,6 +323,9 @@ def solve_window(track, selection, bound: float, state: WindowState, tol: float)
         )
         if cut == grid or not result.converged:
             break
+        if not result.fields:  # nothing reached the approach in the cut: solve the whole window
+            cut, start = grid, None
+            continue
         wrong = _touching_outside(state.body, surface, result, tol * UNION_TOL_FACTOR)
         if wrong is None:
             break
