@@ -169,3 +169,16 @@ def test_stones_mapped_from_kept_samples_equal_a_fresh_roads(strip):
         for s, t in zip(a.stones, b.stones):
             assert (s.x, s.y, s.z, s.extent) == (t.x, t.y, t.z, t.extent)
             assert np.array_equal(s.falls, t.falls) and np.array_equal(s.radii, t.radii)
+
+
+def test_a_cut_grown_to_the_whole_window_shrinks_back_around_the_contact():
+    g = fast_grid(Grid(-20.0, -10.0, 0.25, 160, 80))
+    p = np.zeros(g.shape)
+    p[30:50, 60:90] = 1.0  # the last contact: 20 x 30 cells
+    state = WindowState(body=None, grid=g, cut=g)
+    state.past = [(g, p, 0.0)]
+    cut = state.cut_in(g)
+    assert cut.size < 0.5 * g.size
+    rows, cols = cut.window_in(g)
+    assert p[rows, cols].sum() == p.sum()  # the contact inside, with a margin
+    assert state.cut_in(g) == cut  # kept while the contact stays

@@ -58,6 +58,10 @@ from .track import Track
 MARGIN_CELLS = 8
 #: Cells added on every side of the previous contact's box when the cut window is built.
 CUT_MARGIN_CELLS = 8
+#: The kept cut is rebuilt around the last contact when that would leave at most this
+#: fraction of its cells (a new operator costs a few products; a cut grown for one
+#: position, or to the whole window, would otherwise stay).
+CUT_SHRINK = 0.9
 #: Operators :class:`KeptBody` keeps (the window's, the cut window's, one cut before).
 KEPT_OPERATORS = 3
 #: The cut's check screens the cells around it with a float32 product: a cell whose gap is
@@ -162,8 +166,11 @@ class WindowState:
         box = self._last_contact()
         if box is None:
             return window
-        if self.cut is not None and _covers(window, self.cut) and _covers(self.cut, _grown(box, 1)):
-            return self.cut
+        kept = self.cut
+        if kept is not None and _covers(window, kept) and _covers(kept, _grown(box, 1)):
+            fresh = fast_grid(_grown(box, CUT_MARGIN_CELLS))
+            if fresh.size >= CUT_SHRINK * kept.size or not _covers(window, fresh):
+                return kept  # (a cut grown for one position shrinks back when the contact allows)
         return self.grow_cut(window, box)
 
     def grow_cut(self, window: Grid, need: Grid) -> Grid:
