@@ -63,10 +63,10 @@ def test_the_operator_is_built_once_for_the_run(strip):
 @pytest.mark.parametrize("load", [{"total_load": 60.0}, {"penetration": 0.9}])
 def test_every_window_position_is_the_classical_static_solve(strip, load):
     """Each warm-started position (float32 search directions, column corrections, kept
-    conjugate directions) against Polonsky & Keer's classical CG from cold, in double
-    precision, on the same grid and stones: the same pressure to the tolerance's scale."""
-    from twoscale.indenters import surface_on
-    from twoscale.reference import solve_cg
+    conjugate directions, solved on a cut of the window and checked on all of it) against
+    Polonsky & Keer's classical CG from cold, in double precision, on the whole window
+    (every cell the stones can touch) and the same stones: the same pressure to the
+    tolerance's scale."""
     from twoscale.rolling.run import step, window_state
     from twoscale.rolling.track import prepare
 
@@ -74,19 +74,56 @@ def test_every_window_position_is_the_classical_static_solve(strip, load):
     track = prepare(Scene(material=MAT, surface=strip, rolling=spec, **load))
     options = RollingOptions(solver="window")
     state, previous = window_state(track, options), None
+    cut = []
     for k in range(len(track.shifts)):
         pos = step(track, k, previous, options, state)
-        assert pos.result.converged, pos.result.message
-        grid = pos.result.fields[0].grid
-        ref = solve_cg(track.provider, surface_on(grid, pos.selection.stones), tol=1e-10, **load)
-        p, pr = pos.result.fields[0].pressure, ref.fields[0].pressure
-        # the run stops at a KKT residual of 1e-8 (pressure within ~2e-7 of the exact
-        # discrete answer, measured 3e-9 - 1.5e-8 here); a run that stopped on float32
-        # products (rounding ~1e-7 of the largest displacement) is 5e-7 off
-        assert np.linalg.norm(p - pr) <= 1e-7 * np.linalg.norm(pr), k
-        assert pos.result.penetration == pytest.approx(ref.penetration, abs=2e-9)
-        assert pos.result.total_load == pytest.approx(ref.total_load, rel=1e-7)
+        _assert_classical(track, pos, state.grid, load, k)
+        cut.append(pos.result.fields[0].grid.size < state.grid.size)
         previous = pos
+    assert any(cut)  # the later positions were solved on a cut
+
+
+def _assert_classical(track, pos, window, load, k):
+    from twoscale.indenters import surface_on
+    from twoscale.reference import solve_cg
+
+    assert pos.result.converged, pos.result.message
+    ref = solve_cg(track.provider, surface_on(window, pos.selection.stones), tol=1e-10, **load)
+    f = pos.result.fields[0]
+    p, pr = f.grid.embed_in(f.pressure, window), ref.fields[0].pressure
+    # the run stops at a KKT residual of 1e-8 (pressure within ~2e-7 of the exact
+    # discrete answer, measured 3e-9 - 1.5e-8 here); a run that stopped on float32
+    # products (rounding ~1e-7 of the largest displacement) is 5e-7 off
+    assert np.linalg.norm(p - pr) <= 1e-7 * np.linalg.norm(pr), k
+    assert pos.result.penetration == pytest.approx(ref.penetration, abs=2e-9)
+    assert pos.result.total_load == pytest.approx(ref.total_load, rel=1e-7)
+
+
+def test_a_cut_too_small_is_found_by_the_check_and_grown(strip):
+    """The cut is built around the last contact; when it leaves out cells that touch, the
+    check on the whole window finds them and the position is solved again on a cut that
+    takes them in: here the last contact is made a single cell, so the first cut misses
+    almost all of the contact, and the answer is still the classical static solve."""
+    from twoscale.rolling.run import step, window_state
+    from twoscale.rolling.track import prepare
+
+    spec = RollingSpec(start=-6.0, end=-5.0, step=1.0, speed=30.0, tyre_radius=150.0, footprint=(30.0, 16.0))
+    load = {"total_load": 60.0}
+    track = prepare(Scene(material=MAT, surface=strip, rolling=spec, **load))
+    options = RollingOptions(solver="window")
+    state = window_state(track, options)
+    first = step(track, 0, None, options, state)
+    f = first.result.fields[0]
+    one = np.zeros(f.grid.shape)
+    rows, cols = np.nonzero(f.pressure)
+    middle = np.argmin(np.hypot(rows - f.grid.ny / 2, cols - f.grid.nx / 2))  # the loaded cell nearest the middle
+    one[rows[middle], cols[middle]] = f.pressure.sum()
+    state.past, state.cut = [(f.grid, one, float(track.shifts[0]))], None
+    small = state.cut_in(state.grid)
+    assert small.size < 0.25 * state.grid.size
+    pos = step(track, 1, first, options, state)
+    assert pos.result.fields[0].grid.size > small.size
+    _assert_classical(track, pos, state.grid, load, 1)
 
 
 def test_start_is_the_pressure_moved_by_whole_cells():
@@ -115,3 +152,33 @@ def test_window_sides_are_fft_friendly():
 def test_unknown_solver_is_refused():
     with pytest.raises(ValueError, match="solver"):
         RollingOptions(solver="fast")
+
+
+def test_stones_mapped_from_kept_samples_equal_a_fresh_roads(strip):
+    """The road keeps each stone's samples while it is within reach: stones picked at
+    shifts visited in any order (the kept samples dropped and gathered again) are those a
+    road prepared afresh picks, summit, recess and reach table alike."""
+    from twoscale.rolling.track import prepare
+
+    spec = RollingSpec(start=-6.0, end=6.0, step=1.0, speed=30.0, tyre_radius=150.0, footprint=(30.0, 16.0))
+    scene = Scene(material=MAT, surface=strip, rolling=spec, total_load=60.0)
+    kept = prepare(scene).road
+    for shift in (-6.0, -5.0, 6.0, -6.0, 0.5):
+        a, b = kept.stones_at(shift, 1.0), prepare(scene).road.stones_at(shift, 1.0)
+        assert a.stones and np.array_equal(a.numbers, b.numbers)
+        for s, t in zip(a.stones, b.stones):
+            assert (s.x, s.y, s.z, s.extent) == (t.x, t.y, t.z, t.extent)
+            assert np.array_equal(s.falls, t.falls) and np.array_equal(s.radii, t.radii)
+
+
+def test_a_cut_grown_to_the_whole_window_shrinks_back_around_the_contact():
+    g = fast_grid(Grid(-20.0, -10.0, 0.25, 160, 80))
+    p = np.zeros(g.shape)
+    p[30:50, 60:90] = 1.0  # the last contact: 20 x 30 cells
+    state = WindowState(body=None, grid=g, cut=g)
+    state.past = [(g, p, 0.0)]
+    cut = state.cut_in(g)
+    assert cut.size < 0.5 * g.size
+    rows, cols = cut.window_in(g)
+    assert p[rows, cols].sum() == p.sum()  # the contact inside, with a margin
+    assert state.cut_in(g) == cut  # kept while the contact stays

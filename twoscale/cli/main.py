@@ -12,6 +12,9 @@ line on stderr, nothing written);
 through a temporary folder renamed at the end, so no partial output is left); 143
 terminated by SIGTERM (what batch schedulers and ``kill`` send): handled like Ctrl-C, with
 the line ``terminated`` (a second SIGTERM during the clean-up is ignored).
+
+Every command runs BLAS and OpenMP single-threaded unless the environment sets a thread
+count (:mod:`twoscale.cli.threads`).
 """
 
 from __future__ import annotations
@@ -28,6 +31,7 @@ from typing import Sequence
 
 from .._version import __version__
 from .staging import OutputFolderError, Terminated
+from .threads import command_threads
 
 #: Exit code after Ctrl-C (KeyboardInterrupt): 128 + SIGINT, as shells report it.
 EXIT_INTERRUPTED = 130
@@ -117,7 +121,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     main_thread = threading.current_thread() is threading.main_thread()
     previous = signal.signal(signal.SIGTERM, _on_sigterm) if main_thread else None
     try:
-        with warnings.catch_warnings():
+        with warnings.catch_warnings(), command_threads():
             warnings.showwarning = _warning_line
             return int(args._run(args))
     except Terminated:  # like Ctrl-C: outputs are staged, finished study cases kept

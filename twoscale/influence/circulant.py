@@ -3,6 +3,8 @@ the preconditioner of the constrained conjugate gradients on the half-space."""
 
 from __future__ import annotations
 
+from typing import Callable
+
 import numpy as np
 import scipy.fft as sfft
 
@@ -45,10 +47,10 @@ def torus_shape(g: Grid) -> tuple[int, int]:
     return side(g.ny), side(g.nx)
 
 
-def _multiplier(g: Grid, khat: np.ndarray, fft_shape: tuple[int, int], dtype) -> np.ndarray | None:
-    """The inverse spectrum of the kernel of the padded half-spectrum ``khat`` wrapped onto the
-    torus of :func:`torus_shape` (in ``dtype``), None when that spectrum is not positive."""
-    table = sfft.irfft2(khat, s=fft_shape)
+def _multiplier(g: Grid, table: np.ndarray, dtype) -> np.ndarray | None:
+    """The inverse spectrum of the kernel of the padded ``table`` (entry 0 the offset
+    ``-(n - 1)`` per axis) wrapped onto the torus of :func:`torus_shape` (in ``dtype``),
+    None when that spectrum is not positive."""
     ly, lx = torus_shape(g)
     jy, jx = np.arange(ly), np.arange(lx)
     jy = np.where(jy <= (ly - 1) // 2, jy, jy - ly) + g.ny - 1
@@ -77,17 +79,17 @@ class CirculantInverse(GridOperator):
         self._m = multiplier
 
     @classmethod
-    def of(cls, op: GridOperator, khat: np.ndarray, dtype) -> "CirculantInverse | None":
-        """For ``op`` (source == target, half-spectrum ``khat`` of its padded table, whose
-        entry 0 is the offset ``-(n - 1)``), or None when the wrapped kernel's spectrum is
-        not positive. The multiplier is kept in ``op._derived`` when ``op`` has one (an
-        operator kept between solves: built once for all of them)."""
+    def of(cls, op: GridOperator, table: Callable[[], np.ndarray], dtype) -> "CirculantInverse | None":
+        """For ``op`` (source == target; ``table()`` its padded kernel table, whose entry 0
+        is the offset ``-(n - 1)``), or None when the wrapped kernel's spectrum is not
+        positive. The multiplier is kept in ``op._derived`` when ``op`` has one (an
+        operator kept between solves: built once for all of them, ``table`` called once)."""
         if op.source != op.target:
             return None
         derived = getattr(op, "_derived", {})
         key = ("inverse", np.dtype(dtype).str)
         if key not in derived:
-            derived[key] = _multiplier(op.source, khat, op.fft_shape, dtype)
+            derived[key] = _multiplier(op.source, table(), dtype)
         m = derived[key]
         return None if m is None else cls(op.source, m)
 

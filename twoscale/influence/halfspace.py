@@ -56,6 +56,24 @@ def _love_table(E_star: float, h: float, ox0: int, oy0: int, mx: int, my: int) -
     return table
 
 
+def _transform(a: np.ndarray, shape: tuple[int, int]) -> np.ndarray:
+    """The zero-padded transform of ``a``'s last two axes to ``shape`` in the layout of every
+    :class:`ConvolutionOperator` spectrum: real along y (``shape[0] // 2 + 1`` rows kept),
+    then complex along the contiguous x (a float32 product on 625 x 384 cells: 4.7-5.0 ms
+    against 5.2-5.5 ms with ``rfft2``'s order)."""
+    my, mx = shape
+    ny = a.shape[-2]
+    padded = np.zeros((*a.shape[:-2], my, a.shape[-1]), dtype=np.result_type(a.dtype, np.float32))
+    padded[..., :ny, :] = a
+    out = sfft.rfft(padded, axis=-2, overwrite_x=True)
+    return sfft.fft(out, n=mx, axis=-1, overwrite_x=True)
+
+
+def _inverse(spectrum: np.ndarray, shape: tuple[int, int]) -> np.ndarray:
+    """The real array of ``shape`` whose :func:`_transform` is ``spectrum``."""
+    return sfft.irfft(sfft.ifft(spectrum, axis=-1), n=shape[0], axis=-2)
+
+
 @dataclass(frozen=True)
 class HalfSpace(InfluenceProvider):
     """Homogeneous isotropic elastic half-space (Boussinesq, Love).
@@ -202,7 +220,7 @@ class ConvolutionOperator(GridOperator):
         self.target, self.source = target, source
         my, mx = table.shape
         self._shape = (sfft.next_fast_len(my, real=True), sfft.next_fast_len(mx, real=True))
-        self._khat = sfft.rfft2(table, s=self._shape)
+        self._khat = _transform(table, self._shape)
         # transforms derived from the kernel (the preconditioner's, the float32 spectrum),
         # made on first use and shared with the moved copies of this operator
         self._derived: dict = {}
@@ -242,12 +260,8 @@ class ConvolutionOperator(GridOperator):
 
     def spectrum(self, p: np.ndarray) -> np.ndarray:
         """Half-spectrum of the zero-padded source pressure (``source.shape``, or a stack of
-        them along a leading axis), in the pressure's precision."""
-        my, mx = self._shape
-        # Same as rfft2(p, s), axis by axis so that the rows of zero padding are never
-        # transformed (and, in finish, only the target rows come back).
-        a = sfft.rfft(p, n=mx, axis=-1)
-        return sfft.fft(a, n=my, axis=-2, overwrite_x=True)
+        them along a leading axis), in the pressure's precision (:func:`_transform`)."""
+        return _transform(p, self._shape)
 
     def single_precision(self) -> "_SingleConvolution":
         """float32 FFTs with the same kernel (about 2.5x cheaper on large grids; ~1e-7
@@ -257,7 +271,7 @@ class ConvolutionOperator(GridOperator):
     def preconditioner(self) -> "CirculantInverse | None":
         """An approximate inverse of this (square) operator (:class:`CirculantInverse`);
         None for a pair of different grids."""
-        return CirculantInverse.of(self, self._khat, np.float64)
+        return CirculantInverse.of(self, self.padded_table, np.float64)
 
     def columns(self):
         """:meth:`GridOperator.columns`: each source cell's column is a window of the offset
@@ -265,15 +279,17 @@ class ConvolutionOperator(GridOperator):
         over the target per cell."""
         if "table" not in self._derived:
             my, mx = self.target.ny + self.source.ny - 1, self.target.nx + self.source.nx - 1
-            self._derived["table"] = sfft.irfft2(self._khat, s=self._shape)[:my, :mx]
+            self._derived["table"] = self.padded_table()[:my, :mx]
         table = self._derived["table"]
         (nyt, nxt), (nys, nxs) = self.target.shape, self.source.shape
 
         def add(out: np.ndarray, cells: np.ndarray, values: np.ndarray) -> None:
             o = out.reshape(nyt, nxt)
             js, i_s = np.divmod(np.asarray(cells), nxs)
+            term = np.empty_like(o)  # one buffer for every column (a new array each was a page-faulting allocation)
             for j, i, v in zip(js.tolist(), i_s.tolist(), np.asarray(values).tolist()):
-                o += v * table[nys - 1 - j : nys - 1 - j + nyt, nxs - 1 - i : nxs - 1 - i + nxt]
+                np.multiply(table[nys - 1 - j : nys - 1 - j + nyt, nxs - 1 - i : nxs - 1 - i + nxt], v, out=term)
+                o += term
 
         return add
 
@@ -294,11 +310,18 @@ class ConvolutionOperator(GridOperator):
         return out
 
     def finish(self, a: np.ndarray) -> np.ndarray:
-        """Target displacement from a (sum of) :meth:`multiply` result(s); ``a`` is overwritten."""
-        my, mx = self._shape
+        """Target displacement from a (sum of) :meth:`multiply` result(s); ``a`` is overwritten.
+        The inverse of :func:`_transform` axis by axis: only the target's columns go through
+        the real transform back along y, and only its rows are kept."""
+        my = self._shape[0]
         sy, sx = self.source.ny - 1, self.source.nx - 1
-        a = sfft.ifft(a, axis=-2, overwrite_x=True)[..., sy : sy + self.target.ny, :]
-        return sfft.irfft(a, n=mx, axis=-1)[..., sx : sx + self.target.nx]
+        a = sfft.ifft(a, axis=-1, overwrite_x=True)[..., sx : sx + self.target.nx]
+        return sfft.irfft(a, n=my, axis=-2)[..., sy : sy + self.target.ny, :]
+
+    def padded_table(self) -> np.ndarray:
+        """The kernel on the padded transform's whole lattice (``fft_shape``; entry 0 the
+        offset table's first offset), back from the kernel spectrum."""
+        return _inverse(self._khat, self._shape)
 
     @property
     def nbytes(self) -> int:
@@ -333,7 +356,7 @@ class _SingleConvolution(GridOperator):
 
     def preconditioner(self) -> "CirculantInverse | None":
         """The parent's :meth:`ConvolutionOperator.preconditioner`, applied in float32."""
-        return CirculantInverse.of(self._parent, self._parent._khat, np.float32)
+        return CirculantInverse.of(self._parent, self._parent.padded_table, np.float32)
 
 
 class _TransposedConvolution(ConvolutionOperator):
@@ -350,8 +373,8 @@ class _TransposedConvolution(ConvolutionOperator):
         self._parent = parent._khat
         ny, nx = self._shape
         my, mx = parent.target.ny + parent.source.ny - 1, parent.target.nx + parent.source.nx - 1
-        self._py = np.exp(-2j * np.pi * ((my - 1) * np.arange(ny) % ny) / ny)[:, None]
-        self._px = np.exp(-2j * np.pi * ((mx - 1) * np.arange(nx // 2 + 1) % nx) / nx)[None, :]
+        self._py = np.exp(-2j * np.pi * ((my - 1) * np.arange(ny // 2 + 1) % ny) / ny)[:, None]
+        self._px = np.exp(-2j * np.pi * ((mx - 1) * np.arange(nx) % nx) / nx)[None, :]
 
     @property
     def _khat(self) -> np.ndarray:

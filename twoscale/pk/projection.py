@@ -95,7 +95,9 @@ def restore(
     if k == 0:
         return np.ones(rows)
     if k == 1:
-        s = p @ basis[:, 0]
+        # long rows without BLAS: OpenBLAS threads a long dot product, and its idle threads
+        # then spin beside the FFTs (a rolling run took twice the CPU with its default threads)
+        s = p @ basis[:, 0] if p.shape[1] <= SHORT_ROW else np.einsum("bi,i->b", p, basis[:, 0])
         f = target[:, 0] / s if (s > 0).all() else np.where(s > 0, target[:, 0] / np.where(s > 0, s, 1.0), 1.0)
         p *= column(f)
         return f

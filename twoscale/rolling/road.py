@@ -148,6 +148,7 @@ class Road:
         self.box = np.array([[self.X[c].min(), self.X[c].max(), self.Y[c].min(), self.Y[c].max()] for c in self.cells])
         recess = self.basins.recess
         self.slope_x = _x_slope(recess, hmap.h)
+        self._stone_samples: dict = {}
 
     @property
     def extent_x(self) -> tuple:
@@ -176,7 +177,11 @@ class Road:
         out, numbers = [], []
         if self.surface is not None:
             group = ShiftedBasins(self.basins, shift, face)
-            for k in self.candidates(shift, bound):
+            candidates = self.candidates(shift, bound)
+            # the samples of the stones still within reach (those behind the footprint go)
+            near = set(candidates.tolist())
+            self._stone_samples = {k: v for k, v in self._stone_samples.items() if k in near}
+            for k in candidates:
                 stone = self._map_stone(int(k), shift, face, group)
                 if stone is not None and stone.z < bound:
                     out.append(stone)
@@ -189,22 +194,32 @@ class Road:
                     numbers.append(int(k))
         return Selection(tuple(out), np.array(numbers, dtype=np.int64), float(shift))
 
+    def _samples(self, k: int) -> tuple:
+        """Basin ``k``'s samples (x, y, recess), gathered from the map once while the stone
+        is within reach (:meth:`stones_at` drops the others)."""
+        got = self._stone_samples.get(k)
+        if got is None:
+            cells = self.cells[k]
+            got = self._stone_samples[k] = (self.X[cells], self.Y[cells], self.basins.recess.ravel()[cells])
+        return got
+
     def _map_stone(self, k: int, shift: float, face: Face, group: ShiftedBasins):
         """Basin ``k`` at ``shift``: summit, recess and reach table of recess + face."""
-        a = self.tips[k]
-        cells = self.cells[k]
-        x, y = self.X[cells] + shift, self.Y[cells]
-        rec = self.basins.recess.ravel()[cells] + face.height(x, y)
+        x0, y, rec0 = self._samples(k)
+        x = x0 + shift
+        rec = rec0 + face.height(x, y)
         ok = np.isfinite(rec)
-        if not np.any(ok):
-            return None
-        top = int(np.argmin(np.where(ok, rec, np.inf)))
+        if not ok.all():
+            if not ok.any():
+                return None
+            x, y, rec = x[ok], y[ok], rec[ok]
+        top = int(np.argmin(rec))
         xt, yt, zt = float(x[top]), float(y[top]), float(rec[top])
-        fall = rec[ok] - zt
-        r = np.hypot(x[ok] - xt, y[ok] - yt)
+        fall = rec - zt
+        r = np.hypot(x - xt, y - yt)
         order = np.argsort(fall, kind="stable")
         return replace(
-            a,
+            self.tips[k],
             x=xt,
             y=yt,
             z=zt,

@@ -27,9 +27,18 @@ its preconditioner at every position. Here the position is that CG directly:
   conjugate directions kept while at most :data:`KEEP_CONJUGACY` of the loaded cells
   enter (the start's contact settles at the stones' edges a few cells at a time).
 
+* the **cut**: the CG runs on a part of the window, the box of the last position's
+  contact (fixed in the body: the footprint) with :data:`CUT_MARGIN_CELLS` to spare (on
+  the tyre's footprint 320 of the window's 384 cells along x: the footprint's rim lies
+  below the approach bound but the tyre's elastic lift keeps it off), and its answer is
+  checked a posteriori on the whole window (:func:`_touching_outside`: the displacement
+  the pressure makes there, one float32 product, exact only near contact); cells outside
+  the cut that would touch make the cut grow to take them in and the position is solved
+  again from its answer.
+
 The answer is the static contact of the road at that shift to the solver's tolerance:
-the cells left out of the window cannot touch (their height is above the bound), and the
-start only changes the work. A position that does not converge is solved again by the
+the cells left out of the window cannot touch (their height is above the bound), the
+cells left out of the cut were checked not to, and the start only changes the work. A position that does not converge is solved again by the
 two-scale solver from cold.
 """
 
@@ -47,6 +56,22 @@ from .track import Track
 
 #: Cells added on every side when the window is built or grows.
 MARGIN_CELLS = 8
+#: Most CG iterations of a position (17-30 measured over a 1 m run): a solve that has not
+#: converged by then goes to the two-scale solver from cold (one position of the 1 m run
+#: stalled at a KKT residual of 5e-4 for 2,000 iterations, 27 s, before it did).
+WINDOW_MAX_ITER = 100
+#: Cells added on every side of the previous contact's box when the cut window is built.
+CUT_MARGIN_CELLS = 8
+#: The kept cut is rebuilt around the last contact when that would leave at most this
+#: fraction of its cells (a new operator costs a few products; a cut grown for one
+#: position, or to the whole window, would otherwise stay).
+CUT_SHRINK = 0.9
+#: Operators :class:`KeptBody` keeps (the window's, the cut window's, one cut before).
+KEPT_OPERATORS = 3
+#: The cut's check screens the cells around it with a float32 product: a cell whose gap is
+#: above this fraction of the largest displacement stays off whatever the product's
+#: rounding (measured ~1e-7 of it); the others are checked on an exact product.
+SCREEN_GAP = 1e-5
 #: The CG keeps its conjugate directions when at most this fraction of the loaded cells
 #: enters in a step (a warm start's contact settles at the stones' edges a few cells at a
 #: time: 23 -> 18 iterations a position on the tyre's footprint; 0.2 % and 1 % took more).
@@ -104,10 +129,12 @@ class KeptBody:
         if source is not None and source != target:
             return self.provider.grid_operator(target, source)
         key = target.shape if self.invariant else target
-        op = self._ops.get(key)
+        op = self._ops.pop(key, None)
         if op is None:
-            self._ops.clear()  # one window at a time: the old one is not coming back
-            op = self._ops[key] = KeptOperator(self.provider.grid_operator(target))
+            op = KeptOperator(self.provider.grid_operator(target))
+            while len(self._ops) >= KEPT_OPERATORS:  # the least recently used goes
+                self._ops.pop(next(iter(self._ops)))
+        self._ops[key] = op
         return op
 
 
@@ -119,6 +146,7 @@ class WindowState:
     body: KeptBody
     grid: Grid | None = None
     past: list = field(default_factory=list)
+    cut: Grid | None = None
 
     def window(self, need: Grid) -> Grid:
         """The kept window if it covers ``need`` (same lattice), else one that covers both
@@ -133,6 +161,37 @@ class WindowState:
             lo_x, hi_x, lo_y, hi_y = min(lo_x, b[0]), max(hi_x, b[1]), min(lo_y, b[2]), max(hi_y, b[3])
         self.grid = fast_grid(Grid.covering(lo_x - m, hi_x + m, lo_y - m, hi_y + m, need.h, anchor=(need.x0, need.y0)))
         return self.grid
+
+    def cut_in(self, window: Grid) -> Grid:
+        """The grid the position is solved on: the kept cut if it lies in ``window`` and
+        covers the last contact's box (fixed in the body) with a cell to spare, else one
+        built around that box with :data:`CUT_MARGIN_CELLS` on every side; ``window``
+        itself when there is no last contact or the cut would not be smaller."""
+        box = self._last_contact()
+        if box is None:
+            return window
+        kept = self.cut
+        if kept is not None and _covers(window, kept) and _covers(kept, _grown(box, 1)):
+            fresh = fast_grid(_grown(box, CUT_MARGIN_CELLS))
+            if fresh.size >= CUT_SHRINK * kept.size or not _covers(window, fresh):
+                return kept  # (a cut grown for one position shrinks back when the contact allows)
+        return self.grow_cut(window, box)
+
+    def grow_cut(self, window: Grid, need: Grid) -> Grid:
+        """A cut covering ``need`` with :data:`CUT_MARGIN_CELLS` more on every side (5-smooth
+        sides), kept; ``window`` itself when that is not inside it."""
+        cut = fast_grid(_grown(need, CUT_MARGIN_CELLS))
+        if not _covers(window, cut) or cut.size >= window.size:
+            cut = window
+        self.cut = cut
+        return cut
+
+    def _last_contact(self) -> Grid | None:
+        """The box of the last position's loaded cells (a sub-grid of its grid)."""
+        if not self.past:
+            return None
+        grid, p, _ = self.past[-1]
+        return _loaded_box(grid, p)
 
     def start(self, grid: Grid, shift: float) -> np.ndarray | None:
         """The last pressure moved with the road to ``shift`` on ``grid``, extrapolated
@@ -161,6 +220,18 @@ def fast_grid(grid: Grid) -> Grid:
 
     nx, ny = next_fast_len(grid.nx, real=True), next_fast_len(grid.ny, real=True)
     return Grid(grid.x0 - ((nx - grid.nx) // 2) * grid.h, grid.y0 - ((ny - grid.ny) // 2) * grid.h, grid.h, nx, ny)
+
+
+def _grown(g: Grid, cells: int) -> Grid:
+    return Grid(g.x0 - cells * g.h, g.y0 - cells * g.h, g.h, g.nx + 2 * cells, g.ny + 2 * cells)
+
+
+def _loaded_box(grid: Grid, p: np.ndarray) -> Grid | None:
+    on = p > 0.0
+    rows, cols = np.flatnonzero(on.any(axis=1)), np.flatnonzero(on.any(axis=0))
+    if not rows.size:
+        return None
+    return grid.subgrid(int(cols[0]), int(rows[0]), int(cols[-1] - cols[0] + 1), int(rows[-1] - rows[0] + 1))
 
 
 def _covers(outer: Grid, inner: Grid) -> bool:
@@ -210,35 +281,109 @@ def contact_box(track, selection, bound: float) -> Grid | None:
     ones that can touch when the approach is at most ``bound``), on the run's lattice;
     None when no cell is that low."""
     reach = reference_grid(track, selection, bound)
-    s = surface_on(reach, selection.stones)
-    low = np.isfinite(s.height) & (s.height < bound)
-    rows, cols = np.flatnonzero(low.any(axis=1)), np.flatnonzero(low.any(axis=0))
-    if not rows.size:
-        return None
-    return reach.subgrid(int(cols[0]), int(rows[0]), int(cols[-1] - cols[0] + 1), int(rows[-1] - rows[0] + 1))
+    return _low_box(surface_on(reach, selection.stones), bound)
 
 
-def solve_window(track, selection, bound: float, state: WindowState, tol: float):
-    """The static solve of the road at ``selection.shift`` (its stones) by one constrained
-    CG over the kept window (module docstring); None when no cell can touch."""
-    from ..micro.strategies import UNION_TOL_FACTOR
-    from ..reference.cg import solve_cg
+def _low_box(surface, bound: float) -> Grid | None:
+    low = np.isfinite(surface.height) & (surface.height < bound)
+    return _loaded_box(surface.grid, low)
 
+
+def _window_surface(track, selection, bound: float, state: WindowState):
+    """The kept window (grown if need be) and the stones' surface on it, or None when no
+    cell can touch: the surface is sampled once, on the kept window, when the stones'
+    reach lies inside it (the box of their low cells then does too)."""
+    g = state.grid
+    if g is not None and _covers(g, reference_grid(track, selection, bound)):
+        surface = surface_on(g, selection.stones)
+        return None if _low_box(surface, bound) is None else (g, surface)
     box = contact_box(track, selection, bound)
     if box is None:
         return None
     grid = state.window(box)
-    surface = surface_on(grid, selection.stones)
+    return grid, surface_on(grid, selection.stones)
+
+
+def solve_window(track, selection, bound: float, state: WindowState, tol: float):
+    """The static solve of the road at ``selection.shift`` (its stones) by one constrained
+    CG over the cut of the kept window (module docstring), checked on the whole window;
+    None when no cell can touch."""
+    from ..micro.strategies import UNION_TOL_FACTOR
+    from ..reference.cg import solve_cg
+
+    found = _window_surface(track, selection, bound, state)
+    if found is None:
+        return None
+    grid, surface = found
     scene = track.scene
-    result = solve_cg(
-        state.body,
-        surface,
-        penetration=scene.penetration,
-        total_load=scene.total_load,
-        tol=tol * UNION_TOL_FACTOR,
-        start=state.start(grid, selection.shift),
-        precision="single-directions",
-        precondition=True,
-        keep_conjugacy=KEEP_CONJUGACY,
-    )
+    cut = state.cut_in(grid)
+    if not np.isfinite(_restricted(surface, cut).height).any():
+        cut = grid  # no stone's material in the cut (cannot carry a load): the whole window
+    start = state.start(cut, selection.shift)
+    while True:
+        result = solve_cg(
+            state.body,
+            _restricted(surface, cut),
+            penetration=scene.penetration,
+            total_load=scene.total_load,
+            tol=tol * UNION_TOL_FACTOR,
+            start=start,
+            precision="single-directions",
+            precondition=True,
+            keep_conjugacy=KEEP_CONJUGACY,
+            max_iter=WINDOW_MAX_ITER,
+        )
+        if cut == grid or not result.converged:
+            break
+        if not result.fields:  # nothing reached the approach in the cut: solve the whole window
+            cut, start = grid, None
+            continue
+        wrong = _touching_outside(state.body, surface, result, tol * UNION_TOL_FACTOR)
+        if wrong is None:
+            break
+        # cells around the cut would touch: solve again on a cut that takes them in
+        f = result.fields[0]
+        cut = state.grow_cut(grid, _union(f.grid, wrong))
+        start = _moved(f.grid, f.pressure, 0.0, cut, 0.0)
     return dataclasses.replace(result, message="") if result.converged else result
+
+
+def _restricted(surface, cut: Grid):
+    """``surface`` on the aligned sub-grid ``cut``."""
+    from ..indenters import Surface
+
+    if cut == surface.grid:
+        return surface
+    rows, cols = cut.window_in(surface.grid)
+    return Surface(cut, surface.height[rows, cols], surface.owner[rows, cols], surface.n_asperities)
+
+
+def _touching_outside(body: KeptBody, surface, result, tol: float) -> Grid | None:
+    """The a posteriori check of a solve on a cut: the displacement its pressure makes on
+    the whole window (``surface.grid``), and the box of the cells outside the cut whose
+    gap is below ``-tol`` times the cut's largest displacement (the stopping rule's
+    interpenetration test), None when there are none. Screened by a float32 product first
+    (:data:`SCREEN_GAP`); only a window with a cell near contact takes the exact one."""
+    f = result.fields[0]
+    window = surface.grid
+    p = f.grid.embed_in(f.pressure, window)
+    outside = np.isfinite(surface.height)
+    outside[f.grid.window_in(window)] = False
+    level = surface.height - result.penetration
+    if not np.any(outside & (level < 0.0)):
+        return None  # no cell outside lies below the approach (the pressure only lifts them)
+    op = body.grid_operator(window)
+    u = op.single_precision().apply(p)
+    scale = max(float(np.abs(u[f.grid.window_in(window)]).max()), np.finfo(float).tiny)
+    gap = np.where(outside, u + level, np.inf)
+    if float(gap.min()) > SCREEN_GAP * scale:
+        return None
+    gap = np.where(outside, op.apply(p) + level, np.inf)
+    return _loaded_box(window, gap < -tol * scale)
+
+
+def _union(a: Grid, b: Grid) -> Grid:
+    """The aligned box covering both grids."""
+    i, j = b.offset_in(a)
+    i0, j0 = min(i, 0), min(j, 0)
+    return a.subgrid(i0, j0, max(a.nx, i + b.nx) - i0, max(a.ny, j + b.ny) - j0)

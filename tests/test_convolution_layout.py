@@ -1,0 +1,99 @@
+"""The half-space's zero-padded FFT operator (``ConvolutionOperator``) keeps its kernel as a
+spectrum in one layout (real transform along y, complex along x) that every user shares:
+the product and the stacked product, the staged ``spectrum``/``multiply``/``finish``, the
+float32 twin, the transposed pair, the kernel's columns and the circulant preconditioner.
+Each is checked here against a construction that does not go through that spectrum: the
+Love cell kernel summed densely, and the circulant of the wrapped kernel built entry by
+entry. The grids include an odd padded length along y (the axis whose half is kept)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from twoscale import Material
+from twoscale.grid import Grid
+from twoscale.influence import HalfSpace
+
+HS = HalfSpace(Material(E=10.0, nu=0.5))
+H = 0.1
+
+
+def _dense(target: Grid, source: Grid) -> np.ndarray:
+    return HS.cell_block(target.points(), source.points(), H)
+
+
+# (target, source): self pairs with an even and an odd padded y length (8 rows: 15), and
+# a pair of unequal grids that overlap
+PAIRS = [
+    (Grid(0.0, 0.0, H, 9, 8), None),
+    (Grid(0.0, 0.0, H, 12, 10), None),
+    (Grid(-0.3, 0.5, H, 7, 13), Grid(0.0, 0.0, H, 15, 8)),
+]
+
+
+@pytest.mark.parametrize("target,source", PAIRS)
+def test_products_equal_the_dense_kernel_in_every_form(target, source):
+    source = target if source is None else source
+    op = HS.grid_operator(target, None if source is target else source)
+    rng = np.random.default_rng(3)
+    P = rng.uniform(size=(3, *source.shape))
+    M = _dense(target, source)
+    want = np.stack([(M @ p.ravel()).reshape(target.shape) for p in P])
+    scale = np.abs(want).max()
+    assert np.abs(op.apply(P[0]) - want[0]).max() <= 1e-13 * scale
+    assert np.abs(op.apply_stack(P) - want).max() <= 1e-13 * scale
+    # the staged form: two sources' spectra multiplied and summed before one finish
+    staged = op.finish(op.multiply(op.spectrum(P[0])) + op.multiply(op.spectrum(P[1])))
+    assert np.abs(staged - (want[0] + want[1])).max() <= 1e-13 * scale
+    # float32 transforms with the same spectrum: float32 rounding only
+    assert np.abs(op.single_precision().apply(P[0]) - want[0]).max() <= 1e-6 * scale
+    # the transposed pair: the dense transpose
+    back = op.transposed()
+    q = rng.uniform(size=target.shape)
+    assert np.abs(back.apply(q) - (M.T @ q.ravel()).reshape(source.shape)).max() <= 1e-13 * scale
+
+
+@pytest.mark.parametrize("target,source", PAIRS)
+def test_the_padded_table_and_the_columns_are_the_kernel_itself(target, source):
+    source = target if source is None else source
+    op = HS.grid_operator(target, None if source is target else source)
+    my, mx = target.ny + source.ny - 1, target.nx + source.nx - 1
+    table = op.padded_table()
+    assert table.shape == op.fft_shape
+    # entry (m, n): the kernel at lattice offset (target's first cell - source's last) + (m, n)
+    ti, tj = target.offset_in(source)
+    oy, ox = tj - (source.ny - 1), ti - (source.nx - 1)
+    dy, dx = np.meshgrid((oy + np.arange(my)) * H, (ox + np.arange(mx)) * H, indexing="ij")
+    love = HS.cell_block(np.c_[dx.ravel(), dy.ravel()], np.zeros((1, 2)), H).reshape(my, mx)
+    assert np.abs(table[:my, :mx] - love).max() <= 1e-13 * love.max()
+    rest = table.copy()
+    rest[:my, :mx] = 0.0
+    assert np.abs(rest).max() <= 1e-13 * love.max()  # the padding carries nothing
+    add = op.columns()
+    out = np.zeros(target.size)
+    cells, values = np.array([0, source.size - 1, source.size // 2]), np.array([1.5, -0.5, 2.0])
+    add(out, cells, values)
+    assert np.abs(out - _dense(target, source)[:, cells] @ values).max() <= 1e-13 * love.max()
+
+
+@pytest.mark.parametrize("shape", [(8, 9), (10, 12)])
+def test_the_preconditioner_inverts_the_wrapped_kernels_circulant(shape):
+    """The preconditioner is the inverse of the circulant whose first column is the kernel
+    wrapped onto the grid's torus (offsets -(n // 2) .. (n - 1) // 2 per axis): built here
+    entry by entry from Love's kernel, its product undone by the preconditioner."""
+    ny, nx = shape
+    g = Grid(0.0, 0.0, H, nx, ny)
+    op = HS.grid_operator(g)
+    oy = np.where(np.arange(ny) <= (ny - 1) // 2, np.arange(ny), np.arange(ny) - ny)
+    ox = np.where(np.arange(nx) <= (nx - 1) // 2, np.arange(nx), np.arange(nx) - nx)
+    dy, dx = np.meshgrid(oy * H, ox * H, indexing="ij")
+    wrapped = HS.cell_block(np.c_[dx.ravel(), dy.ravel()], np.zeros((1, 2)), H).reshape(ny, nx)
+    jy, jx = np.meshgrid(np.arange(ny), np.arange(nx), indexing="ij")
+    C = np.empty((g.size, g.size))
+    for k, (a, b) in enumerate(zip(jy.ravel(), jx.ravel())):
+        C[:, k] = wrapped[(jy - a) % ny, (jx - b) % nx].ravel()
+    v = np.random.default_rng(5).standard_normal(g.size)
+    for pc, rtol in ((op.preconditioner(), 1e-12), (op.single_precision().preconditioner(), 1e-5)):
+        back = pc.apply((C @ v).reshape(g.shape)).ravel()
+        assert np.abs(back - v).max() <= rtol * np.abs(v).max()
