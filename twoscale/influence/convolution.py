@@ -1,0 +1,226 @@
+"""Zero-padded FFT products with a translation-invariant kernel: the operator the half-space
+(and every body that adds a correction to it) gives for a pair of grids, its float32 and
+transposed forms, and the spectrum layout they and the circulant preconditioner share."""
+
+from __future__ import annotations
+
+import copy
+
+import numpy as np
+import scipy.fft as sfft
+
+from ..grid import Grid
+from .base import GridOperator
+from .circulant import CirculantInverse
+
+
+def _transform(a: np.ndarray, shape: tuple[int, int]) -> np.ndarray:
+    """The zero-padded transform of ``a``'s last two axes to ``shape`` in the layout of every
+    :class:`ConvolutionOperator` spectrum: real along y (``shape[0] // 2 + 1`` rows kept),
+    then complex along the contiguous x (a float32 product on 625 x 384 cells: 4.7-5.0 ms
+    against 5.2-5.5 ms with ``rfft2``'s order)."""
+    my, mx = shape
+    ny = a.shape[-2]
+    padded = np.zeros((*a.shape[:-2], my, a.shape[-1]), dtype=np.result_type(a.dtype, np.float32))
+    padded[..., :ny, :] = a
+    out = sfft.rfft(padded, axis=-2, overwrite_x=True)
+    return sfft.fft(out, n=mx, axis=-1, overwrite_x=True)
+
+
+def _inverse(spectrum: np.ndarray, shape: tuple[int, int]) -> np.ndarray:
+    """The real array of ``shape`` whose :func:`_transform` is ``spectrum``."""
+    return sfft.irfft(sfft.ifft(spectrum, axis=-1), n=shape[0], axis=-2)
+
+
+class ConvolutionOperator(GridOperator):
+    """Zero-padded (non-periodic) FFT convolution with a translation-invariant kernel.
+
+    ``table[m, n]`` is the kernel at lattice offset ``(oy0 + m, ox0 + n)`` between a
+    target and a source cell, covering every offset that occurs; the product is then
+    exactly the linear convolution, computed in ``O(n log n)``.
+    """
+
+    def __init__(self, target: Grid, source: Grid, table: np.ndarray):
+        self.target, self.source = target, source
+        my, mx = table.shape
+        self._shape = (sfft.next_fast_len(my, real=True), sfft.next_fast_len(mx, real=True))
+        self._khat = _transform(table, self._shape)
+        # transforms derived from the kernel (the preconditioner's, the float32 spectrum),
+        # made on first use and shared with the moved copies of this operator
+        self._derived: dict = {}
+
+    def apply(self, p: np.ndarray) -> np.ndarray:
+        p = np.asarray(p, dtype=float)
+        if p.shape != self.source.shape:
+            raise ValueError(f"pressure has shape {p.shape}, expected {self.source.shape}")
+        return self.finish(self._times_kernel(self.spectrum(p)))
+
+    def apply_stack(self, P: np.ndarray) -> np.ndarray:
+        """:meth:`apply` on a stack (B, ny, nx): the same transforms along the last two axes,
+        one call each for the whole stack."""
+        return self.finish(self._times_kernel(self.spectrum(np.asarray(P, dtype=float))))
+
+    def _times_kernel(self, a: np.ndarray) -> np.ndarray:
+        """``a`` (a source spectrum) times the kernel spectrum, in place."""
+        a *= self._khat
+        return a
+
+    # The three stages of apply (GridOperator), for callers that sum the products of many
+    # sources onto one target: operators with the same ``fft_shape`` and source shape accept
+    # each other's spectra, and sums of ``multiply`` results go through one ``finish``.
+    @property
+    def fft_shape(self) -> tuple[int, int]:
+        """Shape of the zero-padded transform."""
+        return self._shape
+
+    @property
+    def source_key(self) -> tuple:
+        return ("fft", self._shape, self.source.shape)
+
+    @property
+    def target_key(self) -> tuple:
+        # finish keeps the window of the target behind source-shaped padding
+        return ("fft", self._shape, self.source.shape, self.target)
+
+    def spectrum(self, p: np.ndarray) -> np.ndarray:
+        """Half-spectrum of the zero-padded source pressure (``source.shape``, or a stack of
+        them along a leading axis), in the pressure's precision (:func:`_transform`)."""
+        return _transform(p, self._shape)
+
+    def single_precision(self) -> "_SingleConvolution":
+        """float32 FFTs with the same kernel (about 2.5x cheaper on large grids; ~1e-7
+        relative rounding)."""
+        return _SingleConvolution(self)
+
+    def preconditioner(self) -> "CirculantInverse | None":
+        """An approximate inverse of this (square) operator (:class:`CirculantInverse`);
+        None for a pair of different grids."""
+        return CirculantInverse.of(self, self.padded_table, np.float64)
+
+    def columns(self):
+        """:meth:`GridOperator.columns`: each source cell's column is a window of the offset
+        table (rebuilt once from the kernel spectrum and kept with the operator), a pass
+        over the target per cell."""
+        if "table" not in self._derived:
+            my, mx = self.target.ny + self.source.ny - 1, self.target.nx + self.source.nx - 1
+            self._derived["table"] = self.padded_table()[:my, :mx]
+        table = self._derived["table"]
+        (nyt, nxt), (nys, nxs) = self.target.shape, self.source.shape
+
+        def add(out: np.ndarray, cells: np.ndarray, values: np.ndarray) -> None:
+            o = out.reshape(nyt, nxt)
+            js, i_s = np.divmod(np.asarray(cells), nxs)
+            term = np.empty_like(o)  # one buffer for every column (a new array each was a page-faulting allocation)
+            for j, i, v in zip(js.tolist(), i_s.tolist(), np.asarray(values).tolist()):
+                np.multiply(table[nys - 1 - j : nys - 1 - j + nyt, nxs - 1 - i : nxs - 1 - i + nxt], v, out=term)
+                o += term
+
+        return add
+
+    def multiply(self, spectrum: np.ndarray) -> np.ndarray:
+        """Kernel times a source spectrum (a new array)."""
+        return self._times_kernel(np.array(spectrum, dtype=np.complex128))
+
+    def transposed(self) -> "_TransposedConvolution":
+        """The reverse pair's operator (``target`` and ``source`` swapped), sharing this
+        one's kernel spectrum."""
+        return _TransposedConvolution(self)
+
+    def moved(self, target: Grid, source: Grid) -> "ConvolutionOperator":
+        """This operator for ``target`` and ``source`` translated together by whole cells
+        from its own pair (the same kernel spectrum: it depends on the offsets only)."""
+        out = copy.copy(self)
+        out.target, out.source = target, source
+        return out
+
+    def finish(self, a: np.ndarray) -> np.ndarray:
+        """Target displacement from a (sum of) :meth:`multiply` result(s); ``a`` is overwritten.
+        The inverse of :func:`_transform` axis by axis: only the target's columns go through
+        the real transform back along y, and only its rows are kept."""
+        my = self._shape[0]
+        sy, sx = self.source.ny - 1, self.source.nx - 1
+        a = sfft.ifft(a, axis=-1, overwrite_x=True)[..., sx : sx + self.target.nx]
+        return sfft.irfft(a, n=my, axis=-2)[..., sy : sy + self.target.ny, :]
+
+    def padded_table(self) -> np.ndarray:
+        """The kernel on the padded transform's whole lattice (``fft_shape``; entry 0 the
+        offset table's first offset), back from the kernel spectrum."""
+        return _inverse(self._khat, self._shape)
+
+    @property
+    def nbytes(self) -> int:
+        return self._khat.nbytes
+
+    @property
+    def flops_estimate(self) -> float:
+        n = self._shape[0] * self._shape[1]
+        return 5.0 * n * np.log2(max(n, 2))
+
+
+class _SingleConvolution(GridOperator):
+    """A :class:`ConvolutionOperator` computed with float32 FFTs (float64 in and out)."""
+
+    def __init__(self, parent: "ConvolutionOperator"):
+        self.target, self.source = parent.target, parent.source
+        self._shape = parent.fft_shape
+        derived = parent._derived
+        if "complex64" not in derived:
+            derived["complex64"] = parent._khat.astype(np.complex64)
+        self._khat = derived["complex64"]
+        self._parent = parent
+
+    @property
+    def fft_shape(self) -> tuple[int, int]:
+        return self._shape
+
+    def apply(self, p: np.ndarray) -> np.ndarray:
+        a = self._parent.spectrum(np.asarray(p, dtype=np.float32))
+        a *= self._khat
+        return self._parent.finish(a).astype(np.float64, copy=False)
+
+    def preconditioner(self) -> "CirculantInverse | None":
+        """The parent's :meth:`ConvolutionOperator.preconditioner`, applied in float32."""
+        return CirculantInverse.of(self._parent, self._parent.padded_table, np.float32)
+
+
+class _TransposedConvolution(ConvolutionOperator):
+    """The transpose of a :class:`ConvolutionOperator`, holding only a reference to its
+    kernel spectrum. The reverse pair's offset table is the parent's reversed along both
+    axes (Love's kernel is even), and the zero-padded transform of a reversed real table
+    of length ``m`` is the conjugate transform times ``exp(-2 pi i (m - 1) k / N)`` per
+    axis: a phase vector per axis instead of a second spectrum."""
+
+    def __init__(self, parent: ConvolutionOperator):
+        self.target, self.source = parent.source, parent.target
+        self._shape = parent.fft_shape
+        self._derived = {}
+        self._parent = parent._khat
+        ny, nx = self._shape
+        my, mx = parent.target.ny + parent.source.ny - 1, parent.target.nx + parent.source.nx - 1
+        self._py = np.exp(-2j * np.pi * ((my - 1) * np.arange(ny // 2 + 1) % ny) / ny)[:, None]
+        self._px = np.exp(-2j * np.pi * ((mx - 1) * np.arange(nx) % nx) / nx)[None, :]
+
+    @property
+    def _khat(self) -> np.ndarray:
+        """The kernel spectrum itself (built when asked for, e.g. for a float32 copy; the
+        products use :meth:`_times_kernel`, which never builds it)."""
+        out = np.conj(self._parent)
+        out *= self._py
+        out *= self._px
+        return out
+
+    def _times_kernel(self, a: np.ndarray) -> np.ndarray:
+        # a conj(K) py px = conj(conj(a) K) py px: in place, no spectrum-sized temporary
+        np.conj(a, out=a)
+        a *= self._parent
+        np.conj(a, out=a)
+        a *= self._py
+        a *= self._px
+        return a
+
+    def transposed(self) -> None:
+        return None
+
+    @property
+    def nbytes(self) -> int:
+        return self._py.nbytes + self._px.nbytes
