@@ -110,6 +110,17 @@ def crowded(seed: int, n: int) -> list:
     return out
 
 
+def crowded_surface(material, seed: int, load: dict):
+    """The surface of :func:`crowded` ``(seed, 16)`` on the reference grid (h 0.08 mm) of its
+    scene under ``load`` (``penetration``/``total_load``, ``tilt``) on ``material``."""
+    from twoscale.indenters import surface_on
+    from twoscale.reference.on_scene import reference_grid
+    from twoscale.scene import Scene
+
+    asps = crowded(seed, 16)
+    return surface_on(reference_grid(Scene(material=material, asperities=asps, h=0.08, **load), 0.08), asps)
+
+
 def paraboloid_scene(xs, zs=None) -> str:
     """A scene file's text: paraboloids of R = 10 mm at (x, 0), recesses ``zs`` (mm), on a
     half-space E = 10 MPa, nu = 0.5, h = 0.1 mm."""

@@ -15,7 +15,7 @@ from twoscale.reference import solve_cg
 from twoscale.reference.on_scene import reference_grid
 from twoscale.scene import Scene
 
-from helpers import crowded, small_block
+from helpers import crowded, crowded_surface, small_block
 
 MAT = Material(E=6.0, nu=0.5)
 HS = HalfSpace(MAT)
@@ -25,10 +25,7 @@ HS = HalfSpace(MAT)
     "seed,load", [(4, {"penetration": 0.12}), (5, {"total_load": 30.0}), (6, {"total_load": 30.0, "tilt": True})]
 )
 def test_preconditioned_cg_finds_the_same_contact_in_fewer_iterations(seed, load):
-    asps = crowded(seed, 16)
-    h = 0.08
-    grid = reference_grid(Scene(material=MAT, asperities=asps, h=h, **load), h)
-    surf = surface_on(grid, asps)
+    surf = crowded_surface(MAT, seed, load)
     plain = solve_cg(HS, surf, tol=1e-9, **load)
     pre = solve_cg(HS, surf, tol=1e-9, precondition=True, **load)
     assert plain.converged and pre.converged, (plain.message, pre.message)

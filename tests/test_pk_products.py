@@ -11,14 +11,11 @@ import pytest
 
 from twoscale import Material
 from twoscale.grid import Grid
-from twoscale.indenters import surface_on
 from twoscale.influence import HalfSpace
 from twoscale.pk import Constraint, Products, Tolerance, pk_solve
 from twoscale.reference import solve_cg
-from twoscale.reference.on_scene import reference_grid
-from twoscale.scene import Scene
 
-from helpers import crowded
+from helpers import crowded_surface
 
 MAT = Material(E=6.0, nu=0.5)
 HS = HalfSpace(MAT)
@@ -44,10 +41,7 @@ def test_columns_are_the_product_of_a_pressure_on_a_few_cells(shift):
 
 @pytest.mark.parametrize("seed,load", [(4, {"penetration": 0.12}), (5, {"total_load": 30.0})])
 def test_single_precision_directions_find_the_classical_contact(seed, load):
-    asps = crowded(seed, 16)
-    h = 0.08
-    grid = reference_grid(Scene(material=MAT, asperities=asps, h=h, **load), h)
-    surf = surface_on(grid, asps)
+    surf = crowded_surface(MAT, seed, load)
     plain = solve_cg(HS, surf, tol=1e-9, **load)
     fast = solve_cg(HS, surf, tol=1e-9, precondition=True, precision="single-directions", keep_conjugacy=0.01, **load)
     assert plain.converged and fast.converged, (plain.message, fast.message)
