@@ -21,25 +21,14 @@ from __future__ import annotations
 from typing import Sequence
 
 import numpy as np
+from scipy import ndimage, sparse
+from scipy.sparse import csgraph
 
 from .patches import Patch
 
 #: Loaded cells of two patches at most this many cells apart (along each axis) make their
 #: contacts touch: 1 is adjacent cells, including diagonally.
 TOUCH_REACH = 1
-
-
-def _dilated(mask: np.ndarray, reach: int) -> np.ndarray:
-    """``mask`` grown by ``reach`` cells along each axis (a square neighbourhood)."""
-    out = mask.copy()
-    ny, nx = mask.shape
-    for dj in range(-reach, reach + 1):
-        for di in range(-reach, reach + 1):
-            if di or dj:
-                out[max(dj, 0) : ny + min(dj, 0), max(di, 0) : nx + min(di, 0)] |= mask[
-                    max(-dj, 0) : ny + min(-dj, 0), max(-di, 0) : nx + min(-di, 0)
-                ]
-    return out
 
 
 def touching_groups(
@@ -52,28 +41,20 @@ def touching_groups(
     gave the pair's force to one tip). Every patch in exactly one group, groups in the
     order of their first patch."""
     n = len(patches)
-    parent = np.arange(n)
-
-    def root(k: int) -> int:
-        while parent[k] != k:
-            parent[k] = parent[parent[k]]
-            k = parent[k]
-        return k
-
+    square = np.ones((2 * reach + 1, 2 * reach + 1), dtype=bool)
     index = {m: k for k, pt in enumerate(patches) for m in pt.members}
+    pairs: list[tuple[int, int]] = []
     for k, (pt, p) in enumerate(zip(patches, pressures)):
         loaded = np.zeros(pt.grid.shape, dtype=bool)
         loaded[pt.owned] = np.asarray(p) > 0.0
         if not loaded.any():
             continue
-        near = _dilated(loaded, reach) & ~pt.owned & (pt.owner >= 0)
-        for m in np.unique(pt.owner[near]).tolist():
-            other = index.get(int(m))
-            if other is not None and other != k:
-                ra, rb = root(k), root(other)
-                if ra != rb:
-                    parent[max(ra, rb)] = min(ra, rb)
+        near = ndimage.binary_dilation(loaded, structure=square) & ~pt.owned & (pt.owner >= 0)
+        pairs += [(k, index[m]) for m in np.unique(pt.owner[near]).tolist() if index.get(m, k) != k]
+    rows, cols = np.array(pairs, dtype=int).reshape(-1, 2).T
+    links = sparse.coo_matrix((np.ones(len(rows)), (rows, cols)), shape=(n, n))
+    _, label = csgraph.connected_components(links, directed=False)
     groups: dict = {}
     for k in range(n):
-        groups.setdefault(root(k), []).append(k)
-    return [groups[r] for r in sorted(groups)]
+        groups.setdefault(int(label[k]), []).append(k)
+    return sorted(groups.values(), key=lambda g: g[0])
