@@ -42,3 +42,23 @@ class LatticeState:
     def column_of(self, nodes: np.ndarray) -> np.ndarray:
         get = self.index.get
         return np.array([get((i, j), -1) for i, j in nodes.tolist()], dtype=np.int64)
+
+    def mirror_permutations(self, mesh):
+        """Top-node permutations for x -> -x and y -> -y of ``mesh``, or None if it is not
+        mirror-symmetric (kept: the mesh of one provider does not change)."""
+        if self.mirror is None:
+            p = np.round(mesh.p.T, 9)
+            pts = {tuple(q) for q in p.tolist()}
+            sym = all((-x, y, z) in pts and (x, -y, z) in pts for x, y, z in p.tolist())
+            if not sym:
+                self.mirror = False
+            else:
+                if self.fields.top_xy is None:
+                    self.mirror = None
+                    return "pending"
+                xy = np.round(self.fields.top_xy, 9)
+                where = {tuple(q): k for k, q in enumerate(xy.tolist())}
+                px = np.array([where[(-x, y)] for x, y in xy.tolist()])
+                py = np.array([where[(x, -y)] for x, y in xy.tolist()])
+                self.mirror = (px, py)
+        return self.mirror or None

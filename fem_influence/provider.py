@@ -30,6 +30,7 @@ import scipy.sparse as sp
 from twoscale.grid import Grid
 from twoscale.influence.base import GridOperator, InfluenceProvider
 from twoscale.influence.halfspace import HalfSpace
+from twoscale.influence.points import KEEP_ENTRIES, check_points
 from twoscale.material import Material
 from twoscale.progress import Progress
 
@@ -37,7 +38,15 @@ from .assembly import INTORDER
 from .cache import FieldCache, cache_key, default_cache_dir
 from .layer import BASES
 from .lattice_state import LatticeState
-from .operators import BlockCorrection, BlockGridOperator, lagrange_1d
+from .operators import BlockCorrection, BlockGridOperator, TargetFactor, block_point_operator, lagrange_1d
+
+
+#: Grids whose correction factors (source weights, target interpolation) a provider keeps
+#: (two entries a patch; beyond, all are dropped and rebuilt on use).
+MEMO_GRIDS = 20_000
+#: Factors up to this many entries are kept dense (8 bytes each), larger ones sparse or
+#: factored.
+DENSE_FACTOR_ENTRIES = 2_000_000
 
 
 @dataclass(frozen=True, eq=False)
@@ -204,7 +213,7 @@ class BlockProvider(InfluenceProvider):
         from .correction import CorrectionSolver
         import time
 
-        perms = self._mirror_permutations() if self.use_symmetry else None
+        perms = self._state.mirror_permutations(self.mesh) if self.use_symmetry else None
         # with a mirror-symmetric mesh, only sources with i, j >= 0 are solved; the
         # others are the same fields read at mirrored nodes
         solve = np.unique(np.abs(missing), axis=0) if perms is not None else missing
@@ -227,7 +236,7 @@ class BlockProvider(InfluenceProvider):
         if perms is not None:
             mirrored = [ij for ij in missing.tolist() if tuple(ij) not in st.fields.fields]
             if mirrored:
-                px, py = self._mirror_permutations()
+                px, py = self._state.mirror_permutations(self.mesh)
                 out = []
                 for i, j in mirrored:
                     f = st.fields.fields[(abs(i), abs(j))]
@@ -239,26 +248,6 @@ class BlockProvider(InfluenceProvider):
         pr.close()
         st.refresh()
         return st.column_of(nodes)
-
-    def _mirror_permutations(self):
-        """Top-node permutations for x -> -x and y -> -y, or None if the mesh is not symmetric."""
-        st = self._state
-        if st.mirror is None:
-            p = np.round(self.mesh.p.T, 9)
-            pts = {tuple(q) for q in p.tolist()}
-            sym = all((-x, y, z) in pts and (x, -y, z) in pts for x, y, z in p.tolist())
-            if not sym:
-                st.mirror = False
-            else:
-                if st.fields.top_xy is None:
-                    st.mirror = None
-                    return "pending"
-                xy = np.round(st.fields.top_xy, 9)
-                where = {tuple(q): k for k, q in enumerate(xy.tolist())}
-                px = np.array([where[(-x, y)] for x, y in xy.tolist()])
-                py = np.array([where[(x, -y)] for x, y in xy.tolist()])
-                st.mirror = (px, py)
-        return st.mirror or None
 
     def _top_values(self, targets: np.ndarray, nodes: np.ndarray) -> np.ndarray:
         """Correction at ``targets`` (scene frame) from each lattice node, (M, K), mm/N."""
@@ -347,6 +336,14 @@ class BlockProvider(InfluenceProvider):
         low-rank correction ``h^2 U (W p)``."""
         return self._halfspace, BlockCorrection(self)
 
+    def point_operator(self, targets, sources, *, exclude=None, rtol: float = 1e-6):
+        """As the contract's; above ``KEEP_ENTRIES`` pairs the half-space's fast operator plus
+        the low-rank correction (:func:`~.operators.block_point_operator`)."""
+        t, s = check_points(targets, "targets"), check_points(sources, "sources")
+        if len(t) * len(s) <= KEEP_ENTRIES:
+            return super().point_operator(t, s, exclude=exclude, rtol=rtol)
+        return block_point_operator(self, t, s, exclude, rtol)
+
     def separated_operator(self, target: Grid, source: Grid, *, rtol: float = 1e-8):
         """The half-space's Chebyshev block for a well-separated pair plus the same low-rank
         correction as :meth:`grid_operator` (which is exact); ``None`` when the half-space
@@ -355,38 +352,45 @@ class BlockProvider(InfluenceProvider):
         return None if hs is None else self._with_correction(hs, target, source)
 
     def _source_weights(self, source: Grid):
-        """(columns in the field table, weights (columns x cells)) of a source grid, kept per grid."""
+        """(columns in the field table, weights (columns x cells)) of a source grid, kept per
+        grid (dense up to :data:`DENSE_FACTOR_ENTRIES` entries, else sparse: 16 a cell)."""
         st = self._state
-        if len(st.grid_memo) > 4096:
+        if len(st.grid_memo) > MEMO_GRIDS:
             st.grid_memo.clear()
         key_w = ("W", source)
         if key_w not in st.grid_memo:
             nodes, W = self._weights(source.points())
             cols = self._ensure(nodes)
-            W = W.toarray() if W.shape[0] * W.shape[1] <= 4_000_000 else W.tocsr()
+            W = W.toarray() if W.shape[0] * W.shape[1] <= DENSE_FACTOR_ENTRIES else W.tocsr()
             st.grid_memo[key_w] = (cols, W)
         return st.grid_memo[key_w]
 
-    def _target_values(self, target: Grid, cols: np.ndarray | None = None) -> np.ndarray:
-        """Correction at the target cells from the lattice nodes of the table columns ``cols``
-        (default all), (cells x columns), mm/N; kept per grid for rectilinear meshes."""
+    def _target_factor(self, target: Grid, cols: np.ndarray | None = None) -> TargetFactor:
+        """Correction at the target cells from the lattice nodes of the table columns
+        ``cols`` (default all), mm/N (:class:`TargetFactor`): factored, with the
+        interpolation matrix kept per grid (rectilinear meshes), or dense for a few
+        columns (up to :data:`DENSE_FACTOR_ENTRIES` entries: a patch's own operator)."""
         st = self._state
         if not st.interpolator.rectilinear:
             cols = np.arange(st.table.shape[1]) if cols is None else cols
-            return self._top_values(target.points(), self._nodes_of(cols))
-        key_u = ("U", target)
-        full = st.grid_memo.get(key_u)
-        if full is None or full.shape[1] != st.table.shape[1]:
-            full = st.interpolator(target.points() + np.asarray(self.origin), st.table) / self.material.E
-            st.grid_memo[key_u] = full
-        return full if cols is None else full[:, cols]
+            return TargetFactor(None, self._top_values(target.points(), self._nodes_of(cols)))
+        M = st.grid_memo.get(("M", target))
+        if M is None:
+            M = st.grid_memo[("M", target)] = st.interpolator.matrix(target.points() + np.asarray(self.origin))
+        T = st.grid_memo.get(("T",))
+        if T is None or T.shape != st.table.shape:  # the table grows as lattice nodes are solved
+            T = st.grid_memo[("T",)] = st.table / self.material.E
+        if cols is None:
+            return TargetFactor(M, T)
+        if target.size * len(cols) <= DENSE_FACTOR_ENTRIES:
+            return TargetFactor(None, np.asarray(M @ T[:, cols]))
+        return TargetFactor(M, T[:, cols])
 
     def _with_correction(self, halfspace_op: GridOperator, target: Grid, source: Grid) -> "BlockGridOperator":
         # the micro step asks for every pair of patches: the target factor U and the
         # source weights W depend on one grid each, so they are kept per grid
         cols, W = self._source_weights(source)
-        U = self._target_values(target, cols)
-        return BlockGridOperator(halfspace_op, U, W, target.h**2)
+        return BlockGridOperator(halfspace_op, self._target_factor(target, cols), W, target.h**2)
 
     def _nodes_of(self, cols: np.ndarray) -> np.ndarray:
         keys = list(self._state.index)
