@@ -103,6 +103,9 @@ class BlockProvider(InfluenceProvider):
     progress: bool = True
     use_symmetry: bool = True
     kind: str = field(default="block", init=False)
+    #: The local solves may cut a block again per active set instead of storing it: Love's
+    #: strided copy plus the low-rank correction (4,753 tips stored 3 GB of blocks).
+    cheap_grid_matrix = True
 
     def __post_init__(self) -> None:
         from meshes import block_mesh, read_block_mesh
@@ -322,14 +325,17 @@ class BlockProvider(InfluenceProvider):
         return self._halfspace.cell_block(targets, sources, h) + h * h * self.correction(targets, sources)
 
     def grid_matrix(self, target: Grid, source: Grid | None = None) -> np.ndarray:
+        """Love's block plus ``h^2 U W`` from the factors kept per grid (a rank of ~16-36
+        lattice nodes: cheap next to factorising the block, see ``cheap_grid_matrix``)."""
         source = target if source is None else source
-        return self._halfspace.grid_matrix(target, source) + target.h**2 * self.correction(
-            target.points(), source.points()
-        )
+        cols, W = self._source_weights(source)
+        C = self._target_factor(target, cols) @ (W.toarray() if sp.issparse(W) else W)
+        return self._halfspace.grid_matrix(target, source, tables=self._state.love_tables) + target.h**2 * C
 
     def grid_operator(self, target: Grid, source: Grid | None = None) -> "BlockGridOperator":
         source = target if source is None else source
-        return self._with_correction(self._halfspace.grid_operator(target, source), target, source)
+        hs = self._halfspace.grid_operator(target, source, tables=self._state.love_tables)
+        return self._with_correction(hs, target, source)
 
     def split(self):
         """(half-space, :class:`BlockCorrection`): the block's cell blocks are Love's plus the
@@ -353,7 +359,8 @@ class BlockProvider(InfluenceProvider):
 
     def _source_weights(self, source: Grid):
         """(columns in the field table, weights (columns x cells)) of a source grid, kept per
-        grid (dense up to :data:`DENSE_FACTOR_ENTRIES` entries, else sparse: 16 a cell)."""
+        grid: sparse (16 a cell) unless it has few columns (a patch inside one lattice
+        square: 16)."""
         st = self._state
         if len(st.grid_memo) > MEMO_GRIDS:
             st.grid_memo.clear()
@@ -361,7 +368,7 @@ class BlockProvider(InfluenceProvider):
         if key_w not in st.grid_memo:
             nodes, W = self._weights(source.points())
             cols = self._ensure(nodes)
-            W = W.toarray() if W.shape[0] * W.shape[1] <= DENSE_FACTOR_ENTRIES else W.tocsr()
+            W = W.toarray() if W.shape[0] <= 24 else W.tocsr()
             st.grid_memo[key_w] = (cols, W)
         return st.grid_memo[key_w]
 
@@ -373,7 +380,7 @@ class BlockProvider(InfluenceProvider):
         st = self._state
         if not st.interpolator.rectilinear:
             cols = np.arange(st.table.shape[1]) if cols is None else cols
-            return TargetFactor(None, self._top_values(target.points(), self._nodes_of(cols)))
+            return TargetFactor(None, self._top_values(target.points(), st.nodes_of(cols)))
         M = st.grid_memo.get(("M", target))
         if M is None:
             M = st.grid_memo[("M", target)] = st.interpolator.matrix(target.points() + np.asarray(self.origin))
@@ -391,7 +398,3 @@ class BlockProvider(InfluenceProvider):
         # source weights W depend on one grid each, so they are kept per grid
         cols, W = self._source_weights(source)
         return BlockGridOperator(halfspace_op, self._target_factor(target, cols), W, target.h**2)
-
-    def _nodes_of(self, cols: np.ndarray) -> np.ndarray:
-        keys = list(self._state.index)
-        return np.array([keys[c] for c in cols], dtype=np.int64).reshape(-1, 2)

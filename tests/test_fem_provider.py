@@ -210,3 +210,41 @@ def test_tilt_on_the_block_matches_the_reference(block):
     assert Fr[1] > 0.01 * W and Fr[2] > 0.01 * W
     assert np.max(np.abs(np.asarray(res.asperities.forces) - Fr)) <= 1e-5 * W
     assert np.allclose(res.tilt, ref.tilt, rtol=1e-4)
+
+
+def test_point_operator_is_the_dense_sum_with_exclusions_and_coincident_points(block):
+    # above the dense operator's size the block's point sums are the half-space's Ewald
+    # operator plus the low-rank correction less the pairs left out; the default operator
+    # (every pair's compliance, exact) is the independent answer
+    import scipy.sparse as sp
+
+    from fem_influence.operators import BlockPointOperator
+    from twoscale.influence.points import KEEP_ENTRIES, DensePointOperator
+
+    rng = np.random.default_rng(4)
+    s = rng.uniform(-22.0, 22.0, (2000, 2))
+    t = np.concatenate([rng.uniform(-22.0, 22.0, (1800, 2)), s[:300]])  # 300 targets on sources
+    assert len(t) * len(s) > KEEP_ENTRIES
+    exclude = sp.random(len(t), len(s), density=0.003, random_state=5, format="csr")
+    F = rng.uniform(0.1, 1.0, (len(s), 2))
+    fast = block.point_operator(t, s, exclude=exclude, rtol=1e-10)
+    assert isinstance(fast, BlockPointOperator)
+    exact = DensePointOperator(block.point_compliance, t, s, exclude).apply(F)
+    assert np.max(np.abs(fast.apply(F) - exact)) <= 1e-8 * np.max(np.abs(exact))
+    # (the correction of the pairs left out, were it kept, moves the sum by 1.4 % of its largest)
+
+
+def test_correction_factors_are_not_kept_dense_per_grid(block):
+    # the correction on a grid from all lattice nodes stays factored (sparse interpolation
+    # times the shared table), and gives the dense evaluation
+    from twoscale.influence.base import LowRankCorrection
+
+    g = Grid(-3.0, -2.0, 0.25, 40, 36)
+    _, corr = block.split()
+    assert isinstance(corr, LowRankCorrection)
+    p = np.random.default_rng(2).random(g.shape)
+    c = corr.coefficients(g, p)
+    u = corr.evaluate(g, c)
+    np.testing.assert_allclose(u.ravel(), g.h**2 * block.correction(g.points(), g.points()) @ p.ravel(), rtol=1e-10)
+    factor = block._target_factor(g)  # 9 interpolation weights a cell, the table shared
+    assert factor.M.nnz <= 9 * g.size and factor.T.shape == block._state.table.shape

@@ -110,3 +110,29 @@ def test_two_level_by_levels_and_stacks_matches_the_plain_order(monkeypatch):
     fs, fp = np.asarray(stacked.asperities.forces), np.asarray(plain.asperities.forces)
     assert np.mean(fp > 0) >= 0.3
     assert np.max(np.abs(fs - fp)) <= 1e-9 * fp.max()
+
+
+def test_two_level_stacks_on_the_block_lag_only_its_self_correction(monkeypatch):
+    # on the finite block the stacked local solves take the half-space part on a shared
+    # canvas and each block's correction of itself at its previous pressure: the same
+    # fixed point as one solve per block with the block's own operator
+    pytest.importorskip("fem_influence")
+    from helpers import small_block, spaced_spheres
+    from twoscale.indenters import Asperity
+    from twoscale.micro import pk_stack, twolevel
+    from twoscale.driver import solve_twoscale
+
+    block = small_block(Material(10.0, 0.5))
+    asp = [Asperity(a.x - 10.0, a.y - 10.0, a.z, a.R) for a in spaced_spheres(40, 4, 20.0)]
+    kw = dict(h=0.05, total_load=2.0, tol=1e-8, max_sweeps=200, far_tol=0.05, coarse=True, dense_max_cells=60)
+    assert pk_stack.BlockStacks.usable(block)
+    stacked = solve_twoscale(block, asp, **kw)
+    monkeypatch.setattr(twolevel, "sweep_levels", lambda coupling: None)
+    monkeypatch.setattr(pk_stack.BlockStacks, "usable", staticmethod(lambda provider: False))
+    plain = solve_twoscale(block, asp, **kw)
+    assert stacked.converged and plain.converged
+    fs, fp = np.asarray(stacked.asperities.forces), np.asarray(plain.asperities.forces)
+    assert np.mean(fp > 0) >= 0.3
+    assert np.max(np.abs(fs - fp)) <= 1e-6 * fp.max()
+    half = solve_twoscale(HS, asp, **kw)  # the correction matters here: far more than that
+    assert np.max(np.abs(np.asarray(half.asperities.forces) - fp)) > 1e-2 * fp.max()

@@ -10,8 +10,14 @@ leave the loop when their own test says so; the others go on. With many small pa
 (10,000 sparse tips: ~10^5 local solves of ~500 cells a run) the cost is in the calls,
 not the arithmetic, and one call per iteration for B blocks replaces B calls.
 
-Only for a translation-invariant body (the provider's :meth:`split` has no correction):
-the canvas's operator is then every block's, whatever its place.
+The canvas's operator is the translation-invariant part of the provider's kernel
+(:meth:`~twoscale.influence.base.InfluenceProvider.split`), every block's whatever its
+place. A body with a smooth low-rank correction (the finite block) has each block's
+correction of itself taken at the block's previous pressure into its right-hand side
+(lagged, as the far field of the two-level iteration: the fixed point is the same, and
+the correction of a patch of a millimetre on itself is nearly a rigid shift, a few
+percent of its half-space displacement). Eq. 7's start on such a body is the half-space's.
+2,799 spheres on the block: the local solves one by one took 55 of 134 s.
 """
 
 from __future__ import annotations
@@ -28,17 +34,30 @@ class BlockStacks:
     Parameters
     ----------
     provider : InfluenceProvider
-        Must be translation-invariant (``provider.split()`` without correction).
+        Its :meth:`split` base must be translation-invariant.
     """
 
     def __init__(self, provider):
         self.provider = provider
+        self._base, self._correction = provider.split()
         self._ops: dict = {}
 
     @staticmethod
     def usable(provider) -> bool:
-        """Whether ``provider``'s cell kernel depends on cell offsets only."""
-        return provider.split()[1] is None
+        """Whether the base of ``provider``'s kernel (its :meth:`split`) depends on cell
+        offsets only."""
+        return bool(getattr(provider.split()[0], "translation_invariant", False))
+
+    def _lagged(self, blocks, k: int, rhs: np.ndarray, previous: np.ndarray) -> np.ndarray:
+        """Block ``k``'s right-hand side less its correction of itself at ``previous``."""
+        if self._correction is None or not np.any(previous):
+            return rhs
+        blk = blocks[k]
+        mask = blk.canvas_mask(blk.box.shape)
+        p = np.zeros(blk.box.shape)
+        p[mask] = previous
+        c = self._correction.coefficients(blk.box, p)
+        return rhs - self._correction.evaluate(blk.box, c)[mask]
 
     def _canvas(self, blk):
         from .blocks import size_class
@@ -46,7 +65,7 @@ class BlockStacks:
         key = (size_class(blk.box.ny), size_class(blk.box.nx))
         op = self._ops.get(key)
         if op is None:
-            op = self._ops[key] = self.provider.grid_operator(blk.box.subgrid(0, 0, key[1], key[0]))
+            op = self._ops[key] = self._base.grid_operator(blk.box.subgrid(0, 0, key[1], key[0]))
         return key, op
 
     def _groups(self, blocks, ks, tol_of) -> dict:
@@ -83,6 +102,7 @@ class BlockStacks:
         """Contact on the blocks ``ks`` (FFT blocks owning cells) with right-hand sides
         ``rhs[k]`` from starts ``previous[k]``: ``{k: (pressure, converged, iterations)}``."""
         out = {}
+        rhs = {k: self._lagged(blocks, k, rhs[k], previous[k]) for k in ks}
         for (key, tol), (op, members) in self._groups(
             blocks, ks, lambda blk: blk.cg_rtol if rtol is None else rtol
         ).items():
