@@ -93,22 +93,30 @@ def test_stacked_fixed_force_matches_one_block_solves():
         assert abs(H**2 * p[i].sum() - forces[i]) <= 1e-12 * forces[i]
 
 
-def test_two_level_by_levels_and_stacks_matches_the_plain_order(monkeypatch):
-    # 40 spheres, small dense limit so that most blocks are FFT blocks solved in stacks;
-    # the same solve with the plain sweep order and one solve per block (no stacks)
-    from helpers import spaced_spheres
+#: 40 spheres at a small dense limit, so that most blocks are FFT blocks solved in stacks.
+STACKED = dict(h=0.05, total_load=2.0, tol=1e-8, max_sweeps=200, far_tol=0.05, coarse=True, dense_max_cells=60)
+
+
+def _stacked_and_plain(provider, asp, monkeypatch):
+    """Forces of the two-level solve by levels and stacks, and of the same solve in the
+    plain sweep order with one solve per block (no stacks)."""
     from twoscale.micro import pk_stack, twolevel
     from twoscale.driver import solve_twoscale
 
-    asp = spaced_spheres(40, 4, 20.0)
-    kw = dict(h=0.05, total_load=2.0, tol=1e-8, max_sweeps=200, far_tol=0.05, coarse=True, dense_max_cells=60)
-    stacked = solve_twoscale(HS, asp, **kw)
+    stacked = solve_twoscale(provider, asp, **STACKED)
     monkeypatch.setattr(twolevel, "sweep_levels", lambda coupling: None)
     monkeypatch.setattr(pk_stack.BlockStacks, "usable", staticmethod(lambda provider: False))
-    plain = solve_twoscale(HS, asp, **kw)
+    plain = solve_twoscale(provider, asp, **STACKED)
     assert stacked.converged and plain.converged
     fs, fp = np.asarray(stacked.asperities.forces), np.asarray(plain.asperities.forces)
     assert np.mean(fp > 0) >= 0.3
+    return fs, fp
+
+
+def test_two_level_by_levels_and_stacks_matches_the_plain_order(monkeypatch):
+    from helpers import spaced_spheres
+
+    fs, fp = _stacked_and_plain(HS, spaced_spheres(40, 4, 20.0), monkeypatch)
     assert np.max(np.abs(fs - fp)) <= 1e-9 * fp.max()
 
 
@@ -119,20 +127,13 @@ def test_two_level_stacks_on_the_block_lag_only_its_self_correction(monkeypatch)
     pytest.importorskip("fem_influence")
     from helpers import small_block, spaced_spheres
     from twoscale.indenters import Asperity
-    from twoscale.micro import pk_stack, twolevel
+    from twoscale.micro import pk_stack
     from twoscale.driver import solve_twoscale
 
     block = small_block(Material(10.0, 0.5))
     asp = [Asperity(a.x - 10.0, a.y - 10.0, a.z, a.R) for a in spaced_spheres(40, 4, 20.0)]
-    kw = dict(h=0.05, total_load=2.0, tol=1e-8, max_sweeps=200, far_tol=0.05, coarse=True, dense_max_cells=60)
     assert pk_stack.BlockStacks.usable(block)
-    stacked = solve_twoscale(block, asp, **kw)
-    monkeypatch.setattr(twolevel, "sweep_levels", lambda coupling: None)
-    monkeypatch.setattr(pk_stack.BlockStacks, "usable", staticmethod(lambda provider: False))
-    plain = solve_twoscale(block, asp, **kw)
-    assert stacked.converged and plain.converged
-    fs, fp = np.asarray(stacked.asperities.forces), np.asarray(plain.asperities.forces)
-    assert np.mean(fp > 0) >= 0.3
+    fs, fp = _stacked_and_plain(block, asp, monkeypatch)
     assert np.max(np.abs(fs - fp)) <= 1e-6 * fp.max()
-    half = solve_twoscale(HS, asp, **kw)  # the correction matters here: far more than that
+    half = solve_twoscale(HS, asp, **STACKED)  # the correction matters here: far more than that
     assert np.max(np.abs(np.asarray(half.asperities.forces) - fp)) > 1e-2 * fp.max()
