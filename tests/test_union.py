@@ -85,3 +85,23 @@ def test_block_gauss_seidel_merges_close_patches_under_load_control():
     F, Fr = res.asperities.forces, ref.asperities.forces
     assert np.max(np.abs(F - Fr)) <= 1e-5 * Fr.max()
     assert res.penetration == pytest.approx(ref.penetration, abs=1e-7)
+
+
+def test_the_union_cg_takes_single_precision_directions_unless_tilted():
+    # one stage with float32 search directions (no restart at 1e-6); with a free tilt the
+    # two stages of "mixed" (4 tilted spheres: 1,019 iterations one-stage against 54)
+    from twoscale.micro.union import MIXED_MIN_CELLS, union_precision
+
+    assert union_precision("auto", MIXED_MIN_CELLS, False) == "single-directions"
+    assert union_precision("auto", MIXED_MIN_CELLS, True) == "mixed"
+    assert union_precision("auto", MIXED_MIN_CELLS - 1, False) == "double"
+    assert union_precision("mixed", 10 * MIXED_MIN_CELLS, False) == "mixed"
+    # on a box above the threshold the answer is the full grid's (double precision)
+    asps = crowded(4, 16)
+    h = 0.05
+    for load in ({"penetration": 0.15}, {"total_load": 30.0}):
+        res = solve_twoscale(HS, asps, h=h, iteration="union-cg", tol=1e-8, **load)
+        assert res.converged, res.message
+        ref = solve_scene(Scene(material=MAT, asperities=asps, h=h, **load), method="reference", tol=1e-10)
+        F, Fr = res.asperities.forces, ref.asperities.forces
+        assert np.max(np.abs(F - Fr)) <= 1e-6 * Fr.max()
