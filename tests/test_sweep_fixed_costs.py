@@ -73,7 +73,7 @@ def test_a_large_union_box_is_sampled_tile_by_tile_to_the_same_surface(shape):
     from twoscale.grid import Grid
     from twoscale.indenters import Asperity, surface_on
     from twoscale.micro.patches import TipTable
-    from twoscale.micro.sampling import SAMPLE_TILE, box_surface
+    from twoscale.micro.sampling import SAMPLE_WHOLE_CELLS, box_surface
 
     rng = np.random.default_rng(3)
     tips = [
@@ -83,7 +83,7 @@ def test_a_large_union_box_is_sampled_tile_by_tile_to_the_same_surface(shape):
         )
     ]
     grid = Grid.covering(-6.5, 6.5, -6.2, 6.2, 0.04)
-    assert grid.size > 4 * SAMPLE_TILE**2
+    assert grid.size > SAMPLE_WHOLE_CELLS
     tiled, whole = box_surface(grid, TipTable.of(tips)), surface_on(grid, tips)
     assert np.array_equal(tiled.owner, whole.owner)
     # the tiles' cell centres are x0 + i0 h + i h, the box's x0 + (i0 + i) h: rounding only
