@@ -20,7 +20,7 @@ import numpy as np
 
 from ..grid import Grid
 from ..indenters import Asperity, Surface, surface_on
-from .patches import Patch, TipTable, make_patch, patch_radius
+from .patches import Patch, TipTable, make_patch, patch_candidates, patch_radius
 
 #: Side (cells) of the tiles a large union box is sampled by (:func:`box_surface`): a
 #: tile's candidates are the asperities that can be lower than the highest of its four
@@ -32,6 +32,14 @@ from .patches import Patch, TipTable, make_patch, patch_radius
 SAMPLE_TILE = 64
 #: Boxes of at most this many cells are sampled whole.
 SAMPLE_WHOLE_CELLS = 65_536
+#: A tile is split in four while its cells times its candidate asperities exceed this
+#: (a height costs ~25 ns, a tile's set-up ~0.3 ms), down to ``SAMPLE_MIN_TILE`` cells a
+#: side. CPU s of the union box, never split / split from 50,000 / 150,000 / 400,000: 761
+#: dense paraboloids (361 x 355 cells) 0.31-0.44 / 0.14 / 0.12-0.14 / 0.15-0.16; 281
+#: paraboloids 0.23 / 0.26 / 0.21-0.22 / 0.21-0.22; 39 clustered spheres, 174 touching
+#: spheres and 272 paraboloids within 0.01 s either way.
+SAMPLE_SPLIT_ENTRIES = 150_000
+SAMPLE_MIN_TILE = 16
 
 
 def box_of(grids: Sequence[Grid], h: float, anchor: tuple[float, float], *, grow: float = 1.0) -> Grid:
@@ -54,18 +62,29 @@ def box_surface(grid: Grid, asperities: Sequence[Asperity]) -> Surface:
     from scipy.spatial import cKDTree
 
     table = TipTable.of(asperities)
-    tips = np.column_stack([table.x, table.y])
-    tree = cKDTree(tips)
+    tree = cKDTree(np.column_stack([table.x, table.y]))
     height = np.full(grid.shape, np.inf)
     owner = np.full(grid.shape, -1, dtype=np.int64)
-    for j0 in range(0, grid.ny, SAMPLE_TILE):
-        for i0 in range(0, grid.nx, SAMPLE_TILE):
-            tile = grid.subgrid(i0, j0, min(SAMPLE_TILE, grid.nx - i0), min(SAMPLE_TILE, grid.ny - j0))
-            b = tile.bounds
-            near = np.atleast_1d(tree.query([0.5 * (b[0] + b[1]), 0.5 * (b[2] + b[3])], k=min(4, len(tips)))[1])
-            part = make_patch(int(near[0]), tile, table, members=tuple(int(k) for k in near))
-            window = (slice(j0, j0 + tile.ny), slice(i0, i0 + tile.nx))
-            height[window], owner[window] = part.height, part.owner
+    tiles = [
+        (i0, j0, min(SAMPLE_TILE, grid.nx - i0), min(SAMPLE_TILE, grid.ny - j0))
+        for j0 in range(0, grid.ny, SAMPLE_TILE)
+        for i0 in range(0, grid.nx, SAMPLE_TILE)
+    ]
+    while tiles:
+        i0, j0, nx, ny = tiles.pop()
+        tile = grid.subgrid(i0, j0, nx, ny)
+        b = tile.bounds
+        near = np.atleast_1d(tree.query([0.5 * (b[0] + b[1]), 0.5 * (b[2] + b[3])], k=min(4, len(table)))[1])
+        members = tuple(int(k) for k in near)
+        keep = patch_candidates(tile, table, members)
+        if len(keep) * tile.size > SAMPLE_SPLIT_ENTRIES and min(nx, ny) >= 2 * SAMPLE_MIN_TILE:
+            hx, hy = nx // 2, ny // 2
+            tiles += [(i0, j0, hx, hy), (i0 + hx, j0, nx - hx, hy), (i0, j0 + hy, hx, ny - hy)]
+            tiles.append((i0 + hx, j0 + hy, nx - hx, ny - hy))
+            continue
+        part = make_patch(members[0], tile, table, members=members, keep=keep)
+        window = (slice(j0, j0 + ny), slice(i0, i0 + nx))
+        height[window], owner[window] = part.height, part.owner
     return Surface(grid, height, owner, len(asperities))
 
 
