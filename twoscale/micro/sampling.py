@@ -52,9 +52,10 @@ def box_of(grids: Sequence[Grid], h: float, anchor: tuple[float, float], *, grow
 
 
 def box_surface(grid: Grid, asperities: Sequence[Asperity]) -> Surface:
-    """``surface_on(grid, asperities)``, sampled tile by tile (``SAMPLE_TILE`` cells a side)
-    with only the asperities that can own a cell of the tile (as a patch is built,
-    :func:`.patches.make_patch`, bounded by the tile's four nearest tips): paraboloids have
+    """``surface_on(grid, asperities)``, sampled tile by tile (``SAMPLE_TILE`` cells a
+    side, split while ``SAMPLE_SPLIT_ENTRIES`` says so) with only the asperities that can
+    own a cell of the tile (as a patch is built, :func:`.patches.make_patch`, bounded by
+    the tile's four nearest tips): paraboloids have
     no material radius, and 843 of them sampled on every cell of a union box took about 45 s
     of CPU before the CG's first iteration."""
     if grid.size <= SAMPLE_WHOLE_CELLS or any(getattr(a, "group", None) is not None for a in asperities):
