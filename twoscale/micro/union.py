@@ -101,8 +101,8 @@ class UnionSettings:
         Of the CG's products (:func:`twoscale.reference.cg.solve_cg`): ``"mixed"``
         single-precision iterations to 1e-6 first, then double precision to ``tol``;
         ``"single-directions"`` one stage, the search directions' products in single
-        precision; ``"auto"``: from ``MIXED_MIN_CELLS`` cells single-directions, mixed with
-        a free tilt (:func:`union_precision`), double below.
+        precision; ``"auto"``: single-directions from ``MIXED_MIN_CELLS`` cells
+        (:func:`union_precision`), double below.
     precondition : bool, default True
         Precondition the CG by the operator's approximate inverse (``solve_cg``'s
         ``precondition``): half the iterations on merged contacts.
@@ -185,7 +185,7 @@ def solve_union(
             tol=settings.tol,
             max_iter=settings.max_iter,
             start=warm,
-            precision=union_precision(settings.precision, grid.size, problem.free_tilt),
+            precision=union_precision(settings.precision, grid.size),
             precondition=settings.precondition,
             keep_conjugacy=settings.keep_conjugacy,
             monitor=monitor,
@@ -215,18 +215,16 @@ def interference_start(surface, asperities: Sequence[Asperity], approaches: np.n
     return start if np.any(start > 0) else None
 
 
-def union_precision(asked: str, cells: int, tilt: bool) -> str:
+def union_precision(asked: str, cells: int) -> str:
     """The CG's ``precision`` on a box of ``cells`` cells for the setting ``asked``.
 
     ``"auto"``: double below ``MIXED_MIN_CELLS``; above, ``"single-directions"`` (one
     stage: no restart at 1e-6, a few clipped cells corrected by the kernel's columns
     instead of a product; CPU s of the default solve against ``"mixed"``, same forces to
-    1.4e-8 of the largest: 174 touching spheres 0.98-1.13 / 1.14-1.54, 281 paraboloids
+    3.2e-8 of the largest: 174 touching spheres 0.98-1.13 / 1.14-1.54, 281 paraboloids
     2.5 / 2.9-3.2, 114 paraboloids under load 2.44 / 3.96-4.2, 304 spheres under load
-    1.08 / 1.21-1.46), but ``"mixed"`` with a free ``tilt`` (4 tilted spheres: 1,019
-    iterations against 54, 1,913 tilted paraboloids 1,028 against 36)."""
+    1.08 / 1.21-1.46; with a free tilt, 4 spheres 0.91 / 2.12 (21 / 54 iterations), 1,913
+    paraboloids 2.72 / 2.84)."""
     if asked == "auto":
-        if cells < MIXED_MIN_CELLS:
-            return "double"
-        return "mixed" if tilt else "single-directions"
+        return "double" if cells < MIXED_MIN_CELLS else "single-directions"
     return asked

@@ -352,10 +352,12 @@ class Iteration:
             changed = changed & ~summed
         redo = changed | (self.stale >= REFRESH_EVERY)
         count = np.count_nonzero(redo)
-        fast = bool(self.fast[redo].all())
         if factor is None or count == len(redo):
-            self.refresh(np.ones(len(r), bool), fast)
+            # every row from scratch (a moment restore is not a factor): fast only where
+            # every row still is (not ``self.fast[redo]``, true when no row changed)
+            self.refresh(np.ones(len(r), bool), bool(self.fast.all()))
             return
+        fast = bool(self.fast[redo].all())
         r *= tau_c
         self.u -= r
         if self.k:
