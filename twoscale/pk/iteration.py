@@ -353,8 +353,7 @@ class Iteration:
         redo = changed | (self.stale >= REFRESH_EVERY)
         count = np.count_nonzero(redo)
         if factor is None or count == len(redo):
-            # every row from scratch (a moment restore is not a factor): fast only where
-            # every row still is (not ``self.fast[redo]``, true when no row changed)
+            # every row from scratch: fast only if all still are (``redo`` may be empty)
             self.refresh(np.ones(len(r), bool), bool(self.fast.all()))
             return
         fast = bool(self.fast[redo].all())
