@@ -211,6 +211,8 @@ def main(argv=None) -> int:
             f"    fixed_seconds={{{fx}}},\n"
             f"    load_factor={models['factors']['load']:.3g},\n"
             f"    tilt_factor={models['factors']['tilt']:.3g},\n"
+            # not fitted here (the records do not say which scenes had merged contacts): kept
+            f"    sensitivity_factor={FITTED.sensitivity_factor:g},\n"
             f"    union_work_exponent={models['factors']['union_exponent']:.3g},\n"
             f"    union_margin={args.margin:g},\n"
             f'    fitted_on="{len(rows)} attempts of {len(records)} sweep scenes",\n)'

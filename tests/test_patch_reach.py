@@ -52,7 +52,7 @@ def test_crowded_patches_are_cut_from_one_sampled_box(n, tiled):
     # the box covering them is sampled once (tile by tile when large) and each patch is a
     # window of it; the same heights (the box's cell centres: rounding only) and owners
     from twoscale.micro.sampling import build_patches
-    from twoscale.micro.sampling import SAMPLE_TILE, box_surface, crowded, shared_box
+    from twoscale.micro.sampling import SAMPLE_WHOLE_CELLS, box_surface, crowded, shared_box
     from twoscale.micro.union import box_of
 
     tips = _tips(n, 11, ("sphere", "paraboloid"))
@@ -62,7 +62,7 @@ def test_crowded_patches_are_cut_from_one_sampled_box(n, tiled):
         table, h=h, forces=np.full(n, np.inf), approaches=np.full(n, 0.03), E_star=1.0, anchor=(0.001, 0.002)
     )
     box = box_of([pt.grid for pt in patches], h, (0.001, 0.002))
-    assert crowded([pt.grid for pt in patches], box) and (box.size > 4 * SAMPLE_TILE**2) == tiled
+    assert crowded([pt.grid for pt in patches], box) and (box.size > SAMPLE_WHOLE_CELLS) == tiled
     for pt in patches[:: max(1, n // 40)]:
         own = make_patch(pt.asperity, pt.grid, table)
         assert np.array_equal(pt.owner, own.owner)

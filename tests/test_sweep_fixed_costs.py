@@ -66,14 +66,15 @@ def test_a_larger_full_grid_keeps_the_two_scale_route():
     assert res.method == "twoscale" and res.converged
 
 
+@pytest.mark.parametrize("split", [0, None, 10**12])
 @pytest.mark.parametrize("shape", ["paraboloid", "sphere"])
-def test_a_large_union_box_is_sampled_tile_by_tile_to_the_same_surface(shape):
+def test_a_large_union_box_is_sampled_tile_by_tile_to_the_same_surface(shape, split, monkeypatch):
     # 843 paraboloids sampled on every cell of their union box took about 45 s of CPU
     # before the CG's first iteration; a tile only needs the tips that can own a cell of it
     from twoscale.grid import Grid
     from twoscale.indenters import Asperity, surface_on
     from twoscale.micro.patches import TipTable
-    from twoscale.micro.sampling import SAMPLE_TILE, box_surface
+    from twoscale.micro.sampling import SAMPLE_WHOLE_CELLS, box_surface
 
     rng = np.random.default_rng(3)
     tips = [
@@ -83,7 +84,9 @@ def test_a_large_union_box_is_sampled_tile_by_tile_to_the_same_surface(shape):
         )
     ]
     grid = Grid.covering(-6.5, 6.5, -6.2, 6.2, 0.04)
-    assert grid.size > 4 * SAMPLE_TILE**2
+    assert grid.size > SAMPLE_WHOLE_CELLS
+    if split is not None:  # tiles split down to the smallest (0), or never
+        monkeypatch.setattr("twoscale.micro.sampling.SAMPLE_SPLIT_ENTRIES", split)
     tiled, whole = box_surface(grid, TipTable.of(tips)), surface_on(grid, tips)
     assert np.array_equal(tiled.owner, whole.owner)
     # the tiles' cell centres are x0 + i0 h + i h, the box's x0 + (i0 + i) h: rounding only

@@ -158,20 +158,29 @@ def _highest(grid: Grid, owners: Sequence[Asperity]) -> float:
     return float(np.max(surface_on(grid, owners).height))
 
 
-def make_patch(k: int, grid: Grid, asperities: Sequence[Asperity], members: tuple = ()) -> Patch:
+def patch_candidates(grid: Grid, asperities: Sequence[Asperity], members: tuple) -> list:
+    """Sorted indices of the asperities that can own a cell of ``grid``: those whose
+    material reaches it and that can be lower there than the highest of the ``members``'
+    surface over it (:meth:`TipTable.reaching`)."""
+    # a table made here is used once: its tree would cost more than the direct test
+    table = TipTable.of(asperities)
+    return table.reaching(
+        grid.bounds, index=isinstance(asperities, TipTable), below=_highest(grid, [asperities[m] for m in members])
+    ).tolist()
+
+
+def make_patch(
+    k: int, grid: Grid, asperities: Sequence[Asperity], members: tuple = (), keep: list | None = None
+) -> Patch:
     """Patch ``k`` (of ``members``, default ``(k,)``) on ``grid``, with heights and owners
     from every asperity.
 
     Spheres whose material (``r < R``) cannot reach the grid are skipped (their height is
-    ``inf`` there), so building a patch costs its cells times the nearby asperities only.
+    ``inf`` there), so building a patch costs its cells times the nearby asperities only;
+    ``keep``: those asperities (:func:`patch_candidates`) when known.
     """
-    # a table made here is used once: its tree would cost more than the direct test
-    table = TipTable.of(asperities)
-    keep = table.reaching(
-        grid.bounds,
-        index=isinstance(asperities, TipTable),
-        below=_highest(grid, [asperities[m] for m in (members or (k,))]),
-    ).tolist()
+    if keep is None:
+        keep = patch_candidates(grid, asperities, members or (k,))
     surf = surface_on(grid, [asperities[l] for l in keep])
     index = np.append(np.asarray(keep, dtype=np.int64), -1)
     return Patch(k, grid, surf.height, index[surf.owner], members)

@@ -352,10 +352,11 @@ class Iteration:
             changed = changed & ~summed
         redo = changed | (self.stale >= REFRESH_EVERY)
         count = np.count_nonzero(redo)
-        fast = bool(self.fast[redo].all())
         if factor is None or count == len(redo):
-            self.refresh(np.ones(len(r), bool), fast)
+            # every row from scratch: fast only if all still are (``redo`` may be empty)
+            self.refresh(np.ones(len(r), bool), bool(self.fast.all()))
             return
+        fast = bool(self.fast[redo].all())
         r *= tau_c
         self.u -= r
         if self.k:
