@@ -7,11 +7,15 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from helpers import crowded
 from twoscale import Material
 from twoscale.driver import solve_twoscale
 from twoscale.indenters import surface_on
 from twoscale.influence import HalfSpace
+from twoscale.influence.convolution import ConvolutionOperator
 from twoscale.reference import solve_cg
+from twoscale.reference.on_scene import reference_grid
+from twoscale.scene import Scene
 from twoscale.surface import RawMap, SurfaceOptions, build_surface
 from twoscale.surface.texture import road
 
@@ -37,3 +41,44 @@ def test_union_box_of_a_road_stays_on_the_map_and_gives_the_references_forces(si
     assert np.max(np.abs(F - Fr)) <= 1e-7 * Fr.max()
     p, pr = res.pressure_on(grid), ref.pressure_on(grid)
     assert np.linalg.norm(p - pr) <= 1e-6 * np.linalg.norm(pr)
+
+
+@pytest.mark.parametrize("load", [{"total_load": 20.0}, {"penetration": 0.12}, {"total_load": 20.0, "tilt": True}])
+def test_mixed_second_stage_takes_one_double_product_and_meets_the_tolerance_on_exact_products(load, monkeypatch):
+    asps = crowded(3, 10)
+    grid = reference_grid(Scene(material=MAT, asperities=asps, h=0.08, **load), 0.08)
+    surf = surface_on(grid, asps)
+    double = solve_cg(HS, surf, tol=1e-9, **load)
+    calls = {"double": 0}
+    apply = ConvolutionOperator.apply
+
+    def counted(self, p):
+        calls["double"] += self.target == self.source  # not the cropped grid's final product
+        return apply(self, p)
+
+    monkeypatch.setattr(ConvolutionOperator, "apply", counted)
+    mixed = solve_cg(HS, surf, tol=1e-9, precision="mixed", precondition=True, **load)
+    monkeypatch.undo()
+    assert double.converged and mixed.converged
+    second = mixed.iterations["cg"] - mixed.details.single_precision_iterations
+    assert second > 0
+    # one float64 product: the anchor of the second stage (its refreshes are float32)
+    assert calls["double"] == 1
+    p = mixed.fields[0].pressure
+    assert np.linalg.norm(p - double.fields[0].pressure) <= 1e-6 * np.linalg.norm(double.fields[0].pressure)
+    # the KKT conditions on an exact product of the answer: the float32 rounding did not
+    # stay in the displacement the CG stopped on
+    work = mixed.fields[0].grid
+    u = HS.grid_operator(work).apply(p)
+    gap = u + surf.height[work.window_in(grid)]
+    on = p > 0
+    if load.get("tilt"):  # the rigid motion is a plane: fitted on the loaded cells
+        y, x = np.meshgrid(work.y, work.x, indexing="ij")
+        B = np.column_stack([np.ones(on.sum()), x[on], y[on]])
+        c = np.linalg.lstsq(B, gap[on], rcond=None)[0]
+        gap -= c[0] + c[1] * x + c[2] * y
+    else:
+        gap -= mixed.penetration
+    scale = np.abs(u).max()
+    assert np.abs(gap[on]).max() <= 1e-8 * scale
+    assert gap[np.isfinite(gap) & ~on].min() >= -1e-8 * scale

@@ -354,7 +354,9 @@ class Iteration:
         count = np.count_nonzero(redo)
         fast = bool(self.fast[redo].all())
         if factor is None or count == len(redo):
-            self.refresh(np.ones(len(r), bool), fast)
+            # every row: the fast product only if every row is still on it (``fast`` above
+            # is True for an empty ``redo``, after a plane restore with nothing changed)
+            self.refresh(np.ones(len(r), bool), bool(self.fast.all()))
             return
         r *= tau_c
         self.u -= r

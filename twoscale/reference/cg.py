@@ -201,6 +201,9 @@ def solve_cg(
             keep_conjugacy=cg.keep_conjugacy,
         )
         start = p1.reshape(work.grid.shape)
+        if single is not op:  # the double-precision stage in float32 products about an exact anchor
+            op, fast = _Anchored(op, single, start), single
+            products0 += 1
     offset = it0 + 1 if it0 or hist0 else 0
     p, u, m, it, n_products, hist, converged, message = _iterate(
         work,
@@ -233,6 +236,26 @@ def solve_cg(
         tilt_angles,
         Outcome(converged, message, {"cg": it, "products": n_products}, {"gap": hist}, timings, details),
     )
+
+
+class _Anchored:
+    """``A v`` for pressures ``v`` near an anchor ``p1``: ``A p1`` once in double precision
+    plus the single-precision product of ``v - p1``. The second stage of ``"mixed"`` starts
+    at ``p1`` (KKT residual about ``SINGLE_TOL``) and moves the pressure by a small fraction
+    of it, so the float32 rounding (~1e-7 of the product) falls on that fraction only and
+    the displacement stays exact to far below ``tol``: the stage's refreshes cost a float32
+    product instead of a float64 one, and its search directions take the float32 products
+    as ``fast`` (linear; their rounding only shapes the step)."""
+
+    def __init__(self, op, single, anchor: np.ndarray):
+        self.op, self.single, self.anchor = op, single, anchor
+        self.at = op.apply(anchor)
+
+    def apply(self, v: np.ndarray) -> np.ndarray:
+        return self.at + self.single.apply(v - self.anchor)
+
+    def columns(self):
+        return self.op.columns()
 
 
 def _cropped(problem: ContactProblem) -> ContactProblem:
