@@ -82,3 +82,27 @@ def test_mixed_second_stage_takes_one_double_product_and_meets_the_tolerance_on_
     scale = np.abs(u).max()
     assert np.abs(gap[on]).max() <= 1e-8 * scale
     assert gap[np.isfinite(gap) & ~on].min() >= -1e-8 * scale
+
+
+def test_a_map_sampled_on_its_lattice_by_windows_is_its_per_point_look_up():
+    # a grid reaching past the map (as a union box does), a subset of the basins, and a
+    # grid off the lattice, which keeps the look-up per point
+    from twoscale.grid import Grid
+
+    surface = build_surface(RawMap(road(12.0, 0.1, seed=4), 0.1, "mm", None, "road"), SurfaceOptions())
+    basins, g = surface.asperities[0].basins, surface.hmap.grid
+    index = {a.label: k for k, a in enumerate(surface.asperities) if k % 2 == 0}
+    box = Grid(g.x0 - 7 * g.h, g.y0 + 5 * g.h, g.h, g.nx + 3, g.ny - 2)
+    fast = basins.union_on_grid(box, index)
+    assert fast is not None
+    X, Y = box.centres()
+    height, owner = basins.union_on(X, Y, index)
+    assert np.array_equal(fast[1], owner) and np.array_equal(fast[0], height)
+    assert np.any(owner >= 0) and np.any(owner < 0) and np.isinf(fast[0][:, :7]).all()
+    off = Grid(g.x0 + 0.3 * g.h, g.y0, g.h, 20, 20)
+    assert basins.union_on_grid(off, index) is None
+    sampled = surface_on(off, surface.asperities)
+    X, Y = off.centres()
+    assert np.array_equal(
+        sampled.owner, basins.union_on(X, Y, {a.label: k for k, a in enumerate(surface.asperities)})[1]
+    )

@@ -127,8 +127,10 @@ def solve_cg(
         (:meth:`~twoscale.influence.base.GridOperator.single_precision`; on the half-space
         float32 FFTs, about 2.5x cheaper) to ``SINGLE_TOL`` (or ``tol`` if looser), then
         finish in double precision from that pressure (about 20 more iterations to 1e-8
-        instead of 70-100 from scratch). The answer meets ``tol`` in double precision
-        either way. ``"single-directions"``: one stage, the pressure, the displacement
+        instead of 70-100 from scratch): the displacement is one double-precision product
+        of that pressure plus single-precision products of the change since (exact to
+        the change's rounding, far below ``tol``). The answer meets ``tol`` in double
+        precision either way. ``"single-directions"``: one stage, the pressure, the displacement
         and the residual in double precision, the search directions' products in single
         precision while the KKT residual is above
         :data:`~twoscale.pk.products.FAST_RESIDUAL` (and double below), and the
