@@ -353,9 +353,7 @@ class Iteration:
         redo = changed | (self.stale >= REFRESH_EVERY)
         count = np.count_nonzero(redo)
         fast = bool(self.fast[redo].all())
-        if factor is None or count == len(redo):
-            # every row: the fast product only if every row is still on it (``fast`` above
-            # is True for an empty ``redo``, after a plane restore with nothing changed)
+        if factor is None or count == len(redo):  # every row: fast only while all are (not redo's)
             self.refresh(np.ones(len(r), bool), bool(self.fast.all()))
             return
         r *= tau_c
