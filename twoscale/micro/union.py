@@ -99,7 +99,7 @@ class UnionSettings:
         Box enlargements when pressure reaches its edge.
     precision : {"auto", "mixed", "double"}, default "auto"
         Of the CG's products (:func:`twoscale.reference.cg.solve_cg`): ``"mixed"``
-        single-precision iterations to 1e-6 first, then double precision to ``tol``;
+        single-precision iterations to 3e-6 first (``SINGLE_TOL``), then double precision to ``tol``;
         ``"auto"``: mixed from ``MIXED_MIN_CELLS`` cells, double below.
     precondition : bool, default True
         Precondition the CG by the operator's approximate inverse (``solve_cg``'s
