@@ -168,9 +168,9 @@ def solve_union(
         surface = material_box(surface)
         grid = surface.grid
         if previous is not None:
-            warm = previous.fields[0].grid.embed_in(previous.fields[0].pressure, box)[grid.window_in(box)]
+            warm = carried(previous.fields[0].pressure, previous.fields[0].grid, grid)
         elif start is not None:
-            warm = start_grid.embed_in(start, box)[grid.window_in(box)]
+            warm = carried(start, start_grid, grid)
         elif approaches is not None:
             warm = interference_start(surface, asperities, approaches)
         else:
@@ -217,6 +217,18 @@ def material_box(surface: Surface) -> Surface:
         return surface
     sub = surface.grid.subgrid(i0, j0, i1 - i0, j1 - j0)
     return Surface(sub, surface.height[j0:j1, i0:i1], surface.owner[j0:j1, i0:i1], surface.n_asperities)
+
+
+def carried(values: np.ndarray, source: Grid, target: Grid) -> np.ndarray:
+    """``values`` on ``source`` placed on the aligned ``target`` where the two overlap,
+    zero elsewhere (a start on the uncut box carried to the box cut to the material)."""
+    out = np.zeros(target.shape)
+    di, dj = source.offset_in(target)
+    j0, j1 = max(dj, 0), min(dj + source.ny, target.ny)
+    i0, i1 = max(di, 0), min(di + source.nx, target.nx)
+    if j1 > j0 and i1 > i0:
+        out[j0:j1, i0:i1] = values[j0 - dj : j1 - dj, i0 - di : i1 - di]
+    return out
 
 
 def interference_start(surface, asperities: Sequence[Asperity], approaches: np.ndarray) -> np.ndarray | None:
