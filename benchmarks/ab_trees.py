@@ -19,6 +19,8 @@ Cases (``KIND:ARG``):
 * ``space:I`` — :func:`twoscale.scenespace.draw` ``(I, seed 0)``, tips only, half-space, at most 300;
 * ``sweep:I`` / ``sweep_ref:I`` — scene ``I`` of the sweep itself (``benchmarks/sweep.py``'s draws:
   maps and blocks too), default two-scale solve / the reference;
+* ``road:SIZE-H-RMIN-RMAX`` — the synthetic road of ``benchmarks/surfaces.py`` (e.g.
+  ``road:100-0.1-3-6``, its 161 stones), segmentation and default solve;
 * ``file:PATH`` / ``file_ref:PATH`` — a scene file (e.g. the paper's ``examples/S1.toml``, the
   road ``examples/road/road.toml``), read and solved with the default options / the reference.
 
@@ -141,6 +143,25 @@ def _sweep(index: str, method: str = "twoscale"):
     return lambda: solve_scene(scene_from_dict(table, base_dir=folder), method=method)
 
 
+def _road(spec: str):
+    """``SIZE-H-RMIN-RMAX``: the synthetic road of ``benchmarks/surfaces.py`` (seed 1, 0.2 MPa
+    nominal), timed as it times the default: the map's segmentation, then the solve."""
+    from twoscale import Material
+    from twoscale.influence import HalfSpace
+    from twoscale.surface import RawMap, SurfaceOptions, build_surface
+    from twoscale.surface.texture import road
+
+    solve_twoscale = _solve_twoscale()
+    size, h, rmin, rmax = (float(v) for v in spec.split("-"))
+    z = road(size, h, seed=1, stone_radius=(rmin, rmax))
+
+    def run():
+        surface = build_surface(RawMap(z, h, "mm", None, "synthetic road"), SurfaceOptions())
+        return solve_twoscale(HalfSpace(Material(10.0, 0.5)), surface.asperities, h=h, total_load=0.2 * size**2)
+
+    return run
+
+
 def _file(path: str, method: str = "twoscale"):
     from twoscale.io.scene_file import read_scene
 
@@ -155,6 +176,7 @@ CASES = {
     "family": _family,
     "space": _space,
     "file": _file,
+    "road": _road,
     "sweep": _sweep,
     "sweep_ref": lambda index: _sweep(index, "reference"),
     "family_ref": lambda name: _family(name, "reference"),

@@ -193,7 +193,9 @@ def surface_on(grid: Grid, asperities: Sequence[Asperity], tilt: Tilt | None = N
         height[win][better] = hk[better]
         owner[win][better] = k
     for group, index in groups.values():
-        hk, ok = group.union_on(X, Y, index)
+        on_grid = getattr(group, "union_on_grid", None)
+        sampled = None if on_grid is None else on_grid(grid, index)
+        hk, ok = group.union_on(X, Y, index) if sampled is None else sampled
         better = hk < height
         height[better] = hk[better]
         owner[better] = ok[better]

@@ -31,7 +31,7 @@ from .couplings import Exact, FarField
 from .problem import MicroContext
 from .result import MicroResult
 from .setup import block_setup, initial_on_patches
-from .union import UnionSettings, box_of, solve_union
+from .union import UnionSettings, box_of, carried, solve_union
 
 #: The union CG's KKT residual over the block iterations' tolerance (a relative change of the
 #: pressure between sweeps): at the default 1e-6 the CG stops at the reference solver's 1e-8.
@@ -180,7 +180,7 @@ class UnionCG:
         # the CG's own outcome is in its message; an edge still loaded used up the enlargements
         reason = StopReason.CONVERGED if converged else (StopReason.MAX_ITER if r.converged else StopReason.FAILED)
         # eq. 7 pressures only where computed (p0=True): none to report otherwise
-        initial = (start_grid.embed_in(start, out.patch.grid),) if start is not None else ()
+        initial = (carried(start, start_grid, out.patch.grid),) if start is not None else ()
         tilt = r.tilt if pb.free_tilt else None
         return MicroResult(
             (out.patch,),

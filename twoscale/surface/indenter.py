@@ -61,14 +61,40 @@ class BasinMap:
         """Basins on the map (labels run from 0), found once, not on every look-up."""
         return int(self.labels.max()) + 1
 
+    def _owners(self, index: dict) -> np.ndarray:
+        table = np.full(self.n_labels, -1, dtype=np.int64)
+        table[np.fromiter(index.keys(), dtype=np.int64)] = np.fromiter(index.values(), dtype=np.int64)
+        return table
+
     def union_on(self, X, Y, index: dict):
         """Recess (mm; ``inf`` off the map or in basins not in ``index``) and owner (the
         value ``index[label]`` of the sample's basin, -1 there) at points (X, Y)."""
         jc, ic, inside = self._nearest(X, Y)
-        table = np.full(self.n_labels, -1, dtype=np.int64)
-        table[np.fromiter(index.keys(), dtype=np.int64)] = np.fromiter(index.values(), dtype=np.int64)
-        owner = np.where(inside, table[self.labels[jc, ic]], -1)
+        owner = np.where(inside, self._owners(index)[self.labels[jc, ic]], -1)
         return np.where(owner >= 0, self.recess[jc, ic], np.inf), owner
+
+    def union_on_grid(self, grid: Grid, index: dict):
+        """:meth:`union_on` at the cell centres of ``grid`` when they are samples of the
+        map's lattice (its spacing, a whole number of cells away): windows of the map
+        instead of a look-up per point (a union box of 10^6 cells: 0.2 s of CPU).
+        None for any other grid."""
+        g = self.grid
+        if not math.isclose(grid.h, g.h, rel_tol=1e-12):
+            return None
+        di, dj = (grid.x0 - g.x0) / g.h, (grid.y0 - g.y0) / g.h
+        i0, j0 = round(di), round(dj)
+        if abs(di - i0) > 1e-9 or abs(dj - j0) > 1e-9:
+            return None
+        height = np.full(grid.shape, np.inf)
+        owner = np.full(grid.shape, -1, dtype=np.int64)
+        a0, a1 = max(j0, 0), min(j0 + grid.ny, g.ny)
+        b0, b1 = max(i0, 0), min(i0 + grid.nx, g.nx)
+        if a1 > a0 and b1 > b0:
+            window = (slice(a0 - j0, a1 - j0), slice(b0 - i0, b1 - i0))
+            mine = self._owners(index)[self.labels[a0:a1, b0:b1]]
+            owner[window] = mine
+            height[window] = np.where(mine >= 0, self.recess[a0:a1, b0:b1], np.inf)
+        return height, owner
 
 
 @dataclass(frozen=True, eq=False)

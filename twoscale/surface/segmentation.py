@@ -3,11 +3,13 @@
 Summits are local maxima with a minimum distance between them (the maximum over a disc
 of that radius) and a minimum *prominence*: the height a summit rises above the highest
 pass (saddle) that leads to a higher summit. Prominences are computed on the watershed
-basins of every candidate maximum: passes between adjacent basins are taken from the
+basins of every candidate maximum (scikit-image's priority flood,
+:func:`skimage.segmentation.watershed`): passes between adjacent basins are taken from the
 basin boundaries and merged from the highest down (Kruskal's order with a union-find);
-when two groups of basins meet, the group with the lower top gets its prominence. The
-summits kept seed the final watershed (scikit-image's priority flood,
-:func:`skimage.segmentation.watershed`), so every sample belongs to exactly one asperity.
+when two groups of basins meet, the group with the lower top gets its prominence. A
+summit dropped for its prominence gives its basin to the one across that highest pass
+(as a flooding from the kept summits enters it), so every sample belongs to exactly one
+asperity.
 scipy's ``watershed_ift`` is not used: its max-arc costs tie below the lowest pass, and it
 then gave every sample below that pass to one basin (and wrapped around the array's edges).
 
@@ -98,12 +100,14 @@ def segment(hmap: HeightMap, *, min_distance: float = MIN_DISTANCE, prominence: 
     z = np.where(np.isnan(hmap.heights), np.nanmin(hmap.heights), hmap.heights)
     seeds = _candidates(z, min_distance / hmap.h)
     basins = _watershed(z, seeds)
-    prom = _prominences(z, basins, seeds)
+    prom, across = _prominences(z, basins, seeds)
     keep = np.flatnonzero(prom >= prominence)
     if keep.size == 0:  # the highest summit always qualifies (its prominence is the map's relief)
         keep = np.array([int(np.argmax(z[seeds[:, 0], seeds[:, 1]]))])
     order = keep[np.argsort(-z[seeds[keep, 0], seeds[keep, 1]], kind="stable")]
-    labels = _watershed(z, seeds[order])
+    labels = _merged(basins, order, across)
+    if labels.min() < 0:  # a chain ended at an unkept top (summits of equal height): flood again
+        labels = _watershed(z, seeds[order])
     areas = np.bincount(labels.ravel(), minlength=order.size) * hmap.h**2
     return Segmentation(
         labels,
@@ -172,11 +176,14 @@ def _passes(z: np.ndarray, basins: np.ndarray):
     return pairs[start, 0], pairs[start, 1], np.maximum.reduceat(levels, start)
 
 
-def _prominences(z: np.ndarray, basins: np.ndarray, seeds: np.ndarray) -> np.ndarray:
-    """Prominence of each seed's summit (Kruskal over the passes, highest first)."""
+def _prominences(z: np.ndarray, basins: np.ndarray, seeds: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Prominence of each seed's summit (Kruskal over the passes, highest first), and for
+    each the basin across the pass where its group joined a higher one (itself for the
+    highest summit)."""
     top = z[seeds[:, 0], seeds[:, 1]].astype(float)
     prom = top - z.min()
     parent = np.arange(len(seeds))
+    across = np.arange(len(seeds))
     peak = top.copy()  # highest summit of each group (at its root)
 
     def root(k: int) -> int:
@@ -193,5 +200,25 @@ def _prominences(z: np.ndarray, basins: np.ndarray, seeds: np.ndarray) -> np.nda
         low, high = (ra, rb) if peak[ra] < peak[rb] else (rb, ra)
         prom[low] = peak[low] - level[k]
         parent[low] = high
+        across[low] = b[k] if ra == low else a[k]
     # a group's root is the seed of its highest summit, so prom[low] is that seed's prominence
-    return prom
+    return prom, across
+
+
+def _merged(basins: np.ndarray, order: np.ndarray, across: np.ndarray) -> np.ndarray:
+    """Labels 0 .. len(order)-1 of the kept seeds ``order`` from the candidates' ``basins``:
+    a dropped summit's basin goes to the basin across its highest pass to a higher summit,
+    and on from there until a kept one, which is where a flooding from the kept seeds
+    alone enters it (the second watershed this replaces, 0.28 s on 10^6 samples: the same
+    label on all but 19 samples of the 100 mm road, at the foot of a dropped basin where
+    a lower pass to another stone is reached by both floods at one level). Every dropped
+    summit lies below the kept one its basin joins (its group joined a higher one at its
+    pass, with less than the prominence), so each basin still tops at its own summit."""
+    label = np.full(len(across), -1)
+    label[order] = np.arange(len(order))
+    for s in range(len(across)):
+        t = s
+        while label[t] < 0 and across[t] != t:
+            t = int(across[t])
+        label[s] = label[t]
+    return label[basins]
