@@ -16,7 +16,7 @@ import numpy as np
 
 from ..stopping import StopReason
 from .projection import column, constraint_residual, fit, kkt_residual, masked_sum, project, restore, row_dot
-from .products import COLUMN_CELLS, FAST_RESIDUAL, CellChange, Products, clip_and_enter
+from .products import COLUMN_CELLS, FAST_RESIDUAL, KEPT_GROWTH, CellChange, Products, clip_and_enter
 from .result import PKResult, Tolerance
 
 #: Recompute ``u = A p`` from scratch at least this often (the cheap update
@@ -56,6 +56,7 @@ class Iteration:
         "target",
         "G_old",
         "conj",
+        "kept",
         "stale",
         "scale",
         "best",
@@ -92,7 +93,7 @@ class Iteration:
         self.u = self.product(self.p, fast=bool(self.fast.all()))
         self.products = rows
         self.G_old, self.stale = np.ones(rows), self.fast.astype(int)
-        self.conj, self.small, self.done = np.zeros((3, rows), bool)
+        self.conj, self.small, self.done, self.kept = np.zeros((4, rows), bool)
         self.pending = False  # rows finished but not yet dropped
         self.left = rows  # rows not finished
         self.free: Any = None  # ~mask, for the residual rule
@@ -302,6 +303,7 @@ class Iteration:
         rows = len(g)
         d, G = self.direction(g_on, on, gg)
         beta = (G / self.G_old) * self.conj
+        beta[self.kept & (G > KEPT_GROWTH * self.G_old)] = 0.0  # kept over an entry that made the gradient jump
         t = self.t
         t *= column(beta)
         t += d
@@ -326,10 +328,9 @@ class Iteration:
         p -= np.multiply(t, tau_c, out=d if d is not g_on else None)
         clipped, reenter, change = clip_and_enter(p, g, tau, self.mask, self.ops.columns is not None)
         entered = reenter.any(axis=1)
-        self.conj = ~entered
-        if self.ops.keep_conjugacy and np.count_nonzero(entered):
-            # few cells entered: the directions stay conjugate enough to keep
-            self.conj |= reenter.sum(axis=1) <= self.ops.keep_conjugacy * on.sum(axis=1)
+        # few cells entered: the directions stay conjugate enough to keep
+        self.kept = entered & (reenter.sum(axis=1) <= self.ops.keep_conjugacy * on.sum(axis=1))
+        self.conj = ~entered | self.kept
         factor = restore(p, self.basis, self.target, basis_t=self.basis_t) if self.k else 1.0
         self.update_displacement(r, tau_c, factor, clipped | entered, change)
         if p_old is not None:
