@@ -288,7 +288,7 @@ class Iteration:
         in turn (rows where rounding makes that product non-positive keep the gap)."""
         if self.pc is None:
             return g_on, gg
-        d = self.pc(g_on.reshape(len(g_on), *self.shape)).reshape(len(g_on), -1)
+        d = self.pc(g_on.reshape(len(g_on), *self.shape), on.reshape(len(on), *self.shape)).reshape(len(on), -1)
         d *= on
         project(d, self.basis, on, self.count if self.k == 1 else None, self.basis_t)
         d *= on

@@ -20,7 +20,8 @@ its preconditioner at every position. Here the position is that CG directly:
   (:meth:`WindowState.keep`): a cell whose gap is closing starts loaded;
 * the **solve** is :func:`twoscale.reference.cg.solve_cg` on the surface of the
   position's stones (:func:`twoscale.indenters.surface_on`, the heights every static
-  solve sees), preconditioned, to the KKT residual the two-scale solver's union CG stops
+  solve sees), preconditioned by the stones' blocks and their coupling (:mod:`.blocks`;
+  a body without them: the circulant inverse), to the KKT residual the union CG stops
   at (``tol x`` :data:`~twoscale.micro.strategies.UNION_TOL_FACTOR`), in one stage
   (``precision="single-directions"``): the search directions' products in float32, the
   pressure, displacement and residual in double precision, the few cells a step clips
@@ -52,6 +53,7 @@ import numpy as np
 
 from ..grid import Grid
 from ..indenters import surface_on
+from .blocks import StoneBlocks
 from .road import Selection
 from .track import Track
 
@@ -88,8 +90,7 @@ class KeptOperator:
     def __init__(self, op, single: bool = False, parent=None):
         self.op, self.single, self.parent = op, single, parent
         self.target, self.source = op.target, op.source
-        self._twin = None
-        self._pc = None
+        self._twin = self._pc = None
 
     def apply(self, p):
         return self.op.apply(p)
@@ -103,16 +104,13 @@ class KeptOperator:
         return self._twin
 
     def preconditioner(self):
-        """The float32 circulant inverse for both stages: an approximate inverse only
-        shapes the search directions (the residual is the double-precision product's), and
-        float32 costs half."""
+        """The float32 circulant inverse for both stages (it only shapes the search
+        directions; float32 costs half)."""
         if self.parent is not None:
             return self.parent.preconditioner()
         if self._pc is None:
             single = self.single_precision().op
-            self._pc = (
-                single.preconditioner() if hasattr(single, "preconditioner") else None
-            ) or self.op.preconditioner()
+            self._pc = getattr(single, "preconditioner", lambda: None)() or self.op.preconditioner()
         return self._pc
 
 
@@ -152,6 +150,7 @@ class WindowState:
     grid: Grid | None = None
     past: list = field(default_factory=list)
     cut: Grid | None = None
+    blocks: StoneBlocks | None = None
 
     def window(self, need: Grid) -> Grid:
         """The kept window if it covers ``need`` (same lattice), else one that covers both
@@ -341,6 +340,7 @@ def solve_window(track, selection, bound: float, state: WindowState, tol: float)
             start=start,
             precision="single-directions",
             precondition=True,
+            preconditioner=state.blocks,
             keep_conjugacy=KEEP_CONJUGACY,
             max_iter=WINDOW_MAX_ITER,
         )
