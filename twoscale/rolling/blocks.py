@@ -29,6 +29,7 @@ few cells a position) and dropped when a position did not use them.
 from __future__ import annotations
 
 import numpy as np
+from scipy.linalg import blas, lapack
 
 from ..indenters import Surface
 
@@ -83,11 +84,25 @@ class StoneBlocks:
         self._used.add(key)
         found = self._inverses.get(key)
         if found is None:
-            block = table[centre[0] + rows[:, None] - rows[None, :], centre[1] + cols[:, None] - cols[None, :]]
-            inv = np.linalg.inv(block)
-            found = self._inverses[key] = (inv, inv.sum(axis=1))
+            width = table.shape[1]
+            flat = rows * width + cols
+            block = table.ravel()[(centre[0] * width + centre[1]) + flat[:, None] - flat[None, :]]
+            inv = _spd_inverse(block)
+            found = self._inverses[key] = (inv, blas.dsymv(1.0, inv, np.ones(len(rows))))
             self.built += 1
         return found
+
+
+def _spd_inverse(block: np.ndarray) -> np.ndarray:
+    """The inverse of a symmetric positive definite ``block`` by Cholesky (LAPACK potrf and
+    potri: half the time of numpy's LU inverse on the tyre's blocks), valid in its upper
+    triangle only (read by BLAS ``symv``)."""
+    factor, info = lapack.dpotrf(block, lower=False, overwrite_a=True)
+    if info == 0:
+        inv, info = lapack.dpotri(factor, lower=False, overwrite_c=True)
+        if info == 0:
+            return inv
+    raise np.linalg.LinAlgError(f"a stone's block is not positive definite (LAPACK info {info})")
 
 
 class BlockInverse:
@@ -121,7 +136,7 @@ class BlockInverse:
         r = gap.ravel()[self.cells]
         y = np.empty_like(r)
         for (a, b), inv in zip(self.slices, self.inverses):
-            y[a:b] = inv @ r[a:b]
+            y[a:b] = blas.dsymv(1.0, inv, r[a:b])
         y -= self.v * (self.coupling @ np.add.reduceat(y, self.starts))[self.stone]
         out[self.cells] = y
         return out.reshape(self.grid.shape)
