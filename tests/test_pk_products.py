@@ -11,6 +11,7 @@ import pytest
 
 from twoscale import Material
 from twoscale.grid import Grid
+from twoscale.indenters import Surface
 from twoscale.influence import HalfSpace
 from twoscale.pk import Constraint, Products, Tolerance, pk_solve
 from twoscale.reference import solve_cg
@@ -93,3 +94,28 @@ def test_a_rough_direction_product_shapes_the_steps_only():
         rough, z1.reshape(1, *g.shape), start.reshape(1, *g.shape), None, tol, constraint=Constraint(basis, target)
     )
     assert abs(wrong.multipliers[0, 0] - ref.multipliers[0, 0]) > 1e-4 * abs(ref.multipliers[0, 0])
+
+
+def test_directions_kept_over_an_entry_do_not_stall_a_converged_start():
+    """A sphere's contact solved on a grid that leaves out the contact's last column, then
+    given the whole grid from that answer: the residual is the few cells outside that
+    penetrate, the contact's own gap is ~0. The first step lets them in; keeping the
+    conjugate directions over that entry (few cells) made Fletcher-Reeves' beta jump by
+    ~1e12 and the steps vanish (the residual stayed at 7e-3 for every iteration to the cap);
+    the directions are dropped when the gradient jumps, and it converges to the
+    whole grid's answer."""
+    g = Grid(-4.8, -4.8, 0.1, 96, 96)
+    x, y = g.centres()
+    z = (x**2 + y**2) / 20.0  # a sphere of radius 10 mm
+    kw = dict(total_load=20.0, tol=1e-8, precision="single-directions", precondition=True, keep_conjugacy=0.05)
+    whole = solve_cg(HS, Surface(g, z, np.zeros(g.shape, int), 1), **kw)
+    cols = np.flatnonzero(whole.fields[0].pressure.any(axis=0))
+    cut = g.subgrid(0, 0, int(cols[-1]), g.ny)  # the contact's last column left out
+    part = solve_cg(HS, Surface(cut, z[:, : cut.nx], np.zeros(cut.shape, int), 1), **kw)
+    assert part.converged and whole.converged
+    start = cut.embed_in(part.fields[0].pressure, g)
+    again = solve_cg(HS, Surface(g, z, np.zeros(g.shape, int), 1), start=start, max_iter=60, **kw)
+    assert again.converged, again.message
+    assert again.residuals["gap"][0] > 1e-3  # the start is off by the cells left out
+    p, pw = again.fields[0].pressure, whole.fields[0].pressure
+    assert np.abs(p - pw).max() <= 1e-6 * pw.max()

@@ -143,6 +143,32 @@ def test_start_is_the_pressure_moved_by_whole_cells():
     assert ahead[2, 10] == pytest.approx(5.0) and ahead.sum() == pytest.approx(5.0)
 
 
+def test_a_cell_whose_gap_closes_starts_loaded():
+    """Two answers kept one step (3 cells) apart: a road cell off the contact whose gap fell
+    from 3 to 1 um is extrapolated to -1 um, a pressure of 1 um times GAP_STIFFNESS over a
+    cell's self-compliance; one whose gap stays or opens starts unloaded, a loaded cell
+    keeps the pressures' extrapolation."""
+    from types import SimpleNamespace
+
+    from twoscale.rolling.window import GAP_STIFFNESS, KeptBody
+
+    g = Grid(-2.0, -1.0, 0.5, 12, 5)
+    state = WindowState(body=KeptBody(HalfSpace(MAT)), grid=g)
+    for shift, gap, p in ((0.0, (3e-3, 2e-3, 0.0), 2.0), (1.5, (1e-3, 2e-3, 0.0), 3.0)):
+        gaps, pressure = np.full(g.shape, 5e-3), np.zeros(g.shape)
+        at = 2 + int(shift / 0.5)  # the road's cells 2, 3 and 4 of the first answer, moved
+        gaps[1, at], gaps[2, at] = gap[:2]
+        pressure[3, at + 2] = p  # a loaded cell
+        gaps[3, at + 2] = 0.0
+        field = SimpleNamespace(grid=g, pressure=pressure, gap=gaps)
+        state.keep(SimpleNamespace(fields=[field]), shift)
+    start = state.start(g, 3.0)
+    a00 = HalfSpace(MAT).self_compliance(g.h)
+    assert start[1, 8] == pytest.approx(1e-3 * GAP_STIFFNESS / a00)
+    assert start[2, 8] == 0.0 and start[3, 10] == pytest.approx(4.0)
+    assert np.count_nonzero(start) == 2
+
+
 def test_window_sides_are_fft_friendly():
     g = fast_grid(Grid(0.0, 0.0, 0.25, 383, 617))
     assert (g.nx, g.ny) == (384, 625)

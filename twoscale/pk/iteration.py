@@ -3,9 +3,8 @@
 The live rows' arrays are (b, n) (fields flattened), compacted as rows stop; the outputs
 are indexed by the original row. One pass of the loop is :meth:`Iteration.check` (the
 stopping rule, then the contact sets) and :meth:`Iteration.step` (one conjugate-gradient
-step); the algorithm is described in :mod:`.kernel`. Written for the small blocks too,
-where numpy's per-call cost is most of the time: every test that is rarely true is
-guarded by one cheap reduction.
+step); the algorithm is described in :mod:`.kernel`. Written for the small blocks too (numpy's
+per-call cost is most of their time): a rarely true test is guarded by one cheap reduction.
 """
 
 from __future__ import annotations
@@ -16,7 +15,7 @@ import numpy as np
 
 from ..stopping import StopReason
 from .projection import column, constraint_residual, fit, kkt_residual, masked_sum, project, restore, row_dot
-from .products import COLUMN_CELLS, FAST_RESIDUAL, CellChange, Products, clip_and_enter
+from .products import COLUMN_CELLS, FAST_RESIDUAL, KEPT_GROWTH, CellChange, Products, clip_and_enter
 from .result import PKResult, Tolerance
 
 #: Recompute ``u = A p`` from scratch at least this often (the cheap update
@@ -56,6 +55,7 @@ class Iteration:
         "target",
         "G_old",
         "conj",
+        "kept",
         "stale",
         "scale",
         "best",
@@ -92,7 +92,7 @@ class Iteration:
         self.u = self.product(self.p, fast=bool(self.fast.all()))
         self.products = rows
         self.G_old, self.stale = np.ones(rows), self.fast.astype(int)
-        self.conj, self.small, self.done = np.zeros((3, rows), bool)
+        self.conj, self.small, self.done, self.kept = np.zeros((4, rows), bool)
         self.pending = False  # rows finished but not yet dropped
         self.left = rows  # rows not finished
         self.free: Any = None  # ~mask, for the residual rule
@@ -287,7 +287,7 @@ class Iteration:
         in turn (rows where rounding makes that product non-positive keep the gap)."""
         if self.pc is None:
             return g_on, gg
-        d = self.pc(g_on.reshape(len(g_on), *self.shape)).reshape(len(g_on), -1)
+        d = self.pc(g_on.reshape(len(g_on), *self.shape), on.reshape(len(on), *self.shape)).reshape(len(on), -1)
         d *= on
         project(d, self.basis, on, self.count if self.k == 1 else None, self.basis_t)
         d *= on
@@ -302,6 +302,7 @@ class Iteration:
         rows = len(g)
         d, G = self.direction(g_on, on, gg)
         beta = (G / self.G_old) * self.conj
+        beta[self.kept & (G > KEPT_GROWTH * self.G_old)] = 0.0  # kept over an entry that made the gradient jump
         t = self.t
         t *= column(beta)
         t += d
@@ -326,10 +327,9 @@ class Iteration:
         p -= np.multiply(t, tau_c, out=d if d is not g_on else None)
         clipped, reenter, change = clip_and_enter(p, g, tau, self.mask, self.ops.columns is not None)
         entered = reenter.any(axis=1)
-        self.conj = ~entered
-        if self.ops.keep_conjugacy and np.count_nonzero(entered):
-            # few cells entered: the directions stay conjugate enough to keep
-            self.conj |= reenter.sum(axis=1) <= self.ops.keep_conjugacy * on.sum(axis=1)
+        # few cells entered: the directions stay conjugate enough to keep
+        self.kept = entered & (reenter.sum(axis=1) <= self.ops.keep_conjugacy * on.sum(axis=1))
+        self.conj = ~entered | self.kept
         factor = restore(p, self.basis, self.target, basis_t=self.basis_t) if self.k else 1.0
         self.update_displacement(r, tau_c, factor, clipped | entered, change)
         if p_old is not None:

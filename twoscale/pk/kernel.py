@@ -64,7 +64,7 @@ def pk_solve(
     tolerance: Tolerance,
     *,
     constraint: Constraint | None = None,
-    precondition: Operator | None = None,
+    precondition: Callable[[np.ndarray, np.ndarray], np.ndarray] | None = None,
     monitor=None,
 ) -> PKResult:
     """Polonsky & Keer's constrained CG on a stack of independent contact problems.
@@ -89,8 +89,9 @@ def pk_solve(
     constraint : Constraint, optional
         Load (and moments) to carry, the rigid shifts unknown; None: the gap is given.
     precondition : callable, optional
-        Approximate inverse of ``A`` on a stack, applied to the projected gap to make
-        the search direction.
+        ``precondition(v, on)``: an approximate inverse of ``A`` on a stack, applied to the
+        projected gap ``v`` to make the search direction (``on``: the rows' loaded cells,
+        bool, in the field shape; the result is taken on them).
     monitor : callable, optional
         ``monitor(iteration, residual)`` every :data:`MONITOR_EVERY` iterations.
 

@@ -78,6 +78,7 @@ class CGSettings:
     precondition: bool = False
     monitor: Callable | None = None
     keep_conjugacy: float = 0.0
+    preconditioner: Callable | None = None
 
 
 def solve_cg(
@@ -155,6 +156,12 @@ def solve_cg(
         Keep the conjugate directions after a step where at most this fraction of the
         loaded cells entered (:class:`~twoscale.pk.products.Products`), in both stages of
         ``"mixed"``; 0: restart after any entry (Polonsky & Keer).
+    preconditioner : callable, optional
+        With ``precondition``: ``preconditioner(surface)`` for the surface the CG runs on
+        (the given one, or its crop under penetration control) returns an object whose
+        ``apply(gap, on)`` (``(ny, nx)`` arrays: the projected gap, mm, and the loaded cells)
+        is an approximate inverse on the loaded cells, used instead of the operator's
+        (e.g. :class:`twoscale.rolling.blocks.StoneBlocks`).
 
     Returns
     -------
@@ -165,7 +172,7 @@ def solve_cg(
     """
     t0 = time.perf_counter()
     cg = settings_from(CGSettings, settings, "solve_cg")
-    tol, max_iter, precision, precondition, monitor = cg.tol, cg.max_iter, cg.precision, cg.precondition, cg.monitor
+    tol, max_iter, precision, monitor = cg.tol, cg.max_iter, cg.precision, cg.monitor
     problem = make_problem(surface, penetration=penetration, total_load=total_load, tilt=tilt, pivot=pivot)
     trivial = trivial_result(problem, "cg", {"total": time.perf_counter() - t0})
     if trivial is not None:
@@ -199,7 +206,7 @@ def solve_cg(
             start,
             stall=SINGLE_STALL,
             monitor=monitor,
-            pc=single.preconditioner() if precondition else None,
+            pc=_preconditioner(cg, work, single),
             keep_conjugacy=cg.keep_conjugacy,
         )
         start = p1.reshape(work.grid.shape)
@@ -215,7 +222,7 @@ def solve_cg(
         max_iter,
         start,
         monitor=None if monitor is None else (lambda k, r: monitor(offset + k, r)),
-        pc=(fast or op).preconditioner() if precondition else None,
+        pc=_preconditioner(cg, work, fast or op),
         fast=fast,
         keep_conjugacy=cg.keep_conjugacy,
     )
@@ -258,6 +265,18 @@ class _Anchored:
 
     def columns(self):
         return self.op.columns()
+
+
+def _preconditioner(cg: CGSettings, work: ContactProblem, op):
+    """``precondition(v, on)`` for the kernel: the caller's (``cg.preconditioner``) or the
+    operator's approximate inverse, or None."""
+    if not cg.precondition:
+        return None
+    if cg.preconditioner is not None:
+        pc = cg.preconditioner(work.surface)
+        return lambda v, on: pc.apply(v[0], on[0])[None]
+    inverse = op.preconditioner()
+    return None if inverse is None else (lambda v, on: inverse.apply(v[0])[None])
 
 
 def _cropped(problem: ContactProblem) -> ContactProblem:
@@ -321,7 +340,7 @@ def _iterate(
         None if cand.all() else cand.reshape(1, *shape),
         Tolerance(residual=tol, max_iter=max_iter, stall=stall),
         constraint=Constraint(problem.basis(), problem.target()[None]),
-        precondition=None if pc is None else (lambda v: pc.apply(v[0])[None]),
+        precondition=pc,
         monitor=monitor,
     )
     return (

@@ -237,6 +237,7 @@ def _solve(
 def window_state(track: Track, options: RollingOptions):
     """The :class:`~twoscale.rolling.window.WindowState` of a run on the window path
     (:class:`RollingOptions` ``solver``), or None."""
+    from .blocks import StoneBlocks
     from .window import KeptBody, WindowState
 
     if options.solver == "twoscale" or (options.solver == "auto" and options.iteration != "auto"):
@@ -244,7 +245,7 @@ def window_state(track: Track, options: RollingOptions):
     body = KeptBody(track.provider)
     if options.solver == "auto" and not body.invariant:
         return None
-    return WindowState(body)
+    return WindowState(body, blocks=StoneBlocks(body) if body.invariant else None)
 
 
 def _no_contact(track: Track) -> ContactResult:

@@ -16,10 +16,12 @@ its preconditioner at every position. Here the position is that CG directly:
 * the **start** is the previous pressure moved with the road by exactly the step (the
   step is a whole number of cells on a height map), extrapolated linearly from the two
   previous positions (a stone's pressure changes smoothly as it rolls through the
-  footprint: the start's error is about half the plain shift's);
+  footprint), the pressure and, off the contact, minus the gap as one signed field
+  (:meth:`WindowState.keep`): a cell whose gap is closing starts loaded;
 * the **solve** is :func:`twoscale.reference.cg.solve_cg` on the surface of the
   position's stones (:func:`twoscale.indenters.surface_on`, the heights every static
-  solve sees), preconditioned, to the KKT residual the two-scale solver's union CG stops
+  solve sees), preconditioned by the stones' blocks and their coupling (:mod:`.blocks`;
+  a body without them: the circulant inverse), to the KKT residual the union CG stops
   at (``tol x`` :data:`~twoscale.micro.strategies.UNION_TOL_FACTOR`), in one stage
   (``precision="single-directions"``): the search directions' products in float32, the
   pressure, displacement and residual in double precision, the few cells a step clips
@@ -51,14 +53,14 @@ import numpy as np
 
 from ..grid import Grid
 from ..indenters import surface_on
+from .blocks import StoneBlocks
 from .road import Selection
 from .track import Track
 
 #: Cells added on every side when the window is built or grows.
 MARGIN_CELLS = 8
-#: Most CG iterations of a position (17-30 measured over a 1 m run): a solve that has not
-#: converged by then goes to the two-scale solver from cold (one position of the 1 m run
-#: stalled at a KKT residual of 5e-4 for 2,000 iterations, 27 s, before it did).
+#: Most CG iterations of a position (17-30 measured over a 1 m run), then the two-scale
+#: solver from cold (a safety net: :data:`twoscale.pk.products.KEPT_GROWTH`).
 WINDOW_MAX_ITER = 100
 #: Cells added on every side of the previous contact's box when the cut window is built.
 CUT_MARGIN_CELLS = 8
@@ -66,6 +68,9 @@ CUT_MARGIN_CELLS = 8
 #: fraction of its cells (a new operator costs a few products; a cut grown for one
 #: position, or to the whole window, would otherwise stay).
 CUT_SHRINK = 0.9
+#: The start extrapolates ``-GAP_STIFFNESS gap / a00`` off the contact (``a00``: a cell's
+#: self-compliance; the tyre's positions replayed: 18.8 CG iterations at 0, 16.7 at 0.3).
+GAP_STIFFNESS = 0.3
 #: Operators :class:`KeptBody` keeps (the window's, the cut window's, one cut before).
 KEPT_OPERATORS = 3
 #: The cut's check screens the cells around it with a float32 product: a cell whose gap is
@@ -85,8 +90,7 @@ class KeptOperator:
     def __init__(self, op, single: bool = False, parent=None):
         self.op, self.single, self.parent = op, single, parent
         self.target, self.source = op.target, op.source
-        self._twin = None
-        self._pc = None
+        self._twin = self._pc = None
 
     def apply(self, p):
         return self.op.apply(p)
@@ -100,16 +104,13 @@ class KeptOperator:
         return self._twin
 
     def preconditioner(self):
-        """The float32 circulant inverse for both stages: an approximate inverse only
-        shapes the search directions (the residual is the double-precision product's), and
-        float32 costs half."""
+        """The float32 circulant inverse for both stages (it only shapes the search
+        directions; float32 costs half)."""
         if self.parent is not None:
             return self.parent.preconditioner()
         if self._pc is None:
             single = self.single_precision().op
-            self._pc = (
-                single.preconditioner() if hasattr(single, "preconditioner") else None
-            ) or self.op.preconditioner()
+            self._pc = getattr(single, "preconditioner", lambda: None)() or self.op.preconditioner()
         return self._pc
 
 
@@ -141,12 +142,15 @@ class KeptBody:
 @dataclass
 class WindowState:
     """What the positions of one run share on this path: the body with its kept operator,
-    the window, and the last two pressures (grid, pressure, shift) for the start."""
+    the window, and the last two answers (grid, signed field, shift) for the start: the
+    pressure where it is positive, minus the gap scaled to a pressure elsewhere
+    (:meth:`keep`; a field without negative entries is a plain pressure)."""
 
     body: KeptBody
     grid: Grid | None = None
     past: list = field(default_factory=list)
     cut: Grid | None = None
+    blocks: StoneBlocks | None = None
 
     def window(self, need: Grid) -> Grid:
         """The kept window if it covers ``need`` (same lattice), else one that covers both
@@ -195,21 +199,27 @@ class WindowState:
 
     def start(self, grid: Grid, shift: float) -> np.ndarray | None:
         """The last pressure moved with the road to ``shift`` on ``grid``, extrapolated
-        linearly from the two last positions when both are there (clipped at 0)."""
+        linearly from the two last positions when both are there (the signed fields of
+        :meth:`keep`, clipped at 0; 0 where the last one is not known or has no material)."""
         if not self.past:
             return None
         one = _moved(*self.past[-1], grid, shift)
         if len(self.past) < 2:
-            return one
+            return np.maximum(one, 0.0)
         two = _moved(*self.past[-2], grid, shift)
-        return np.maximum(2.0 * one - two, 0.0)
+        return np.where(one != 0.0, np.maximum(2.0 * one - two, 0.0), 0.0)
 
     def keep(self, result, shift: float) -> None:
+        """Keep ``result``'s pressure, and off the contact minus its gap times
+        :data:`GAP_STIFFNESS` over a cell's self-compliance, for the next starts."""
         f = result.fields[0] if result.fields else None
         if f is None or abs(f.grid.h - (self.grid.h if self.grid else f.grid.h)) > 1e-12:
             self.past.clear()
             return
-        self.past = (self.past + [(f.grid, f.pressure, shift)])[-2:]
+        stiffness = GAP_STIFFNESS / self.body.provider.self_compliance(f.grid.h)
+        gap = np.where(np.isfinite(f.gap), np.maximum(f.gap, 0.0), 0.0)
+        signed = np.where(f.pressure > 0.0, f.pressure, -stiffness * gap)
+        self.past = (self.past + [(f.grid, signed, shift)])[-2:]
 
 
 def fast_grid(grid: Grid) -> Grid:
@@ -330,6 +340,7 @@ def solve_window(track, selection, bound: float, state: WindowState, tol: float)
             start=start,
             precision="single-directions",
             precondition=True,
+            preconditioner=state.blocks,
             keep_conjugacy=KEEP_CONJUGACY,
             max_iter=WINDOW_MAX_ITER,
         )
