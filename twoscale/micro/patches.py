@@ -152,7 +152,7 @@ class TipTable(Sequence):
         return self.asperities[k]
 
 
-def _highest(grid: Grid, owners: Sequence[Asperity]) -> float:
+def highest_over(grid: Grid, owners: Sequence[Asperity]) -> float:
     """The highest the rigid surface can be on ``grid`` (mm): the largest, over its cells,
     of the lowest of ``owners`` (an asperity owning no cell of its own patch gives inf)."""
     return float(np.max(surface_on(grid, owners).height))
@@ -170,7 +170,7 @@ def make_patch(k: int, grid: Grid, asperities: Sequence[Asperity], members: tupl
     keep = table.reaching(
         grid.bounds,
         index=isinstance(asperities, TipTable),
-        below=_highest(grid, [asperities[m] for m in (members or (k,))]),
+        below=highest_over(grid, [asperities[m] for m in (members or (k,))]),
     ).tolist()
     surf = surface_on(grid, [asperities[l] for l in keep])
     index = np.append(np.asarray(keep, dtype=np.int64), -1)
