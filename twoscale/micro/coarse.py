@@ -135,8 +135,8 @@ class CoarseSpace:
         self._op = None
 
     def _shape(self, blk, active: np.ndarray) -> np.ndarray:
-        """``s_k = A_SS^{-1} 1`` on block ``k``'s active cells, reused while the block stays
-        the same and its active set differs from the one ``s_k`` was solved on in at most
+        """``s_k = A_SS^{-1} 1`` on the active cells of block ``blk``, kept with the block and
+        reused while its active set differs from the one ``s_k`` was solved on in at most
         ``SHAPE_REUSE`` of its cells (zero on the cells that entered); large blocks
         warm-start the conjugate gradients from the previous one and stop at
         ``SHAPE_RTOL`` (the load and moments after the step hold exactly for any ``s_k``,
