@@ -142,10 +142,9 @@ class CoarseSpace:
         ``SHAPE_RTOL`` (the load and moments after the step hold exactly for any ``s_k``,
         which only sets how fast the iteration goes)."""
         old = blk.coarse_shape  # kept with the block through the rounds of the solve
-        if old is not None:
-            moved = int(np.count_nonzero(active != old[0]))
-            if moved <= SHAPE_REUSE * int(np.count_nonzero(active)):
-                return old[1] if moved == 0 else np.where(active, old[1], 0.0)
+        moved = -1 if old is None else int(np.count_nonzero(active != old[0]))
+        if moved == 0:
+            return old[1]
         s = np.zeros(blk.n)
         remembered = getattr(self.provider, "remembered", None)  # a solver object's kept shapes
         where = None
@@ -157,11 +156,14 @@ class CoarseSpace:
                 s[active] = kept
                 blk.coarse_shape = (active.copy(), s)
                 return s
-        x0 = None if old is None else old[1][active]
-        s[active] = blk.solve(active, np.ones(int(active.sum())), x0, rtol=SHAPE_RTOL)
-        if where is not None:
+        if 0 < moved <= SHAPE_REUSE * int(np.count_nonzero(active)):
+            s = np.where(active, old[1], 0.0)  # the solved one's, kept as the reference
+        else:
+            x0 = None if old is None else old[1][active]
+            s[active] = blk.solve(active, np.ones(int(active.sum())), x0, rtol=SHAPE_RTOL)
+            blk.coarse_shape = (active.copy(), s)
+        if where is not None:  # a later solve of the same patches finds it for this active set
             self.provider.remember("shape", where, s[active].copy())
-        blk.coarse_shape = (active.copy(), s)
         return s
 
     def _operator(self):
