@@ -92,3 +92,27 @@ def test_far_field_beats_a_resultant_at_the_centre(seed):
     resultant = H * H * v1.sum() / (np.pi * HS.material.E_star * r)  # Boussinesq, nu-free form
     old = np.abs(resultant - exact).max() / np.abs(exact).max()
     assert err < old / 5.0, (err, old)
+
+
+def test_the_held_far_field_follows_a_patch_that_changed():
+    # the refresh keeps each patch's source weights; a patch that grows (``replace``) gets
+    # new ones: the held field equals a new coupling's on the new patches, and the exact
+    # product within its (r / d)^3 error
+    n, d = 21, 8.0
+    v = [_off_centre_pressure(n, 4), _off_centre_pressure(n, 5)]
+    patches = [_patch(0, 0.0, 0.0, n), _patch(1, d, 0.3 * d, n)]
+    held = LaggedFarField(HS, patches, far_tol=0.99)
+    held.refresh(v)
+    bigger = _patch(1, d - 5 * H, 0.3 * d - 5 * H, n + 10)
+    big_v = np.zeros((n + 10, n + 10))
+    big_v[5:-5, 5:-5] = v[1].reshape(n, n)
+    big_v[5:-5, 5:-5] *= 1.5
+    held.replace(1, bigger)
+    new = [v[0], big_v.ravel()]
+    held.refresh(new)
+    fresh = LaggedFarField(HS, [patches[0], bigger], far_tol=0.99)
+    fresh.refresh(new)
+    assert np.allclose(held.patch_displacement(0, new), fresh.patch_displacement(0, new), rtol=1e-12, atol=0.0)
+    exact = Coupling(HS, [patches[0], bigger]).patch_displacement(0, new)
+    r = 0.5 * np.hypot(30 * H, 30 * H)
+    assert np.abs(held.patch_displacement(0, new) - exact).max() < (r / d) ** 3 * np.abs(exact).max()

@@ -330,5 +330,11 @@ def test_two_level_says_when_one_patch_must_carry_the_moment():
     # its patches are sized from the macro local penetrations, see the block test).
     res = _from_the_lone_tip_answer(10.0, h=0.1, far_tol=1e-4, iteration="two-level", max_sweeps=60)
     assert not res.converged
-    # it stops at its budget, or sooner when its rate cannot reach the tolerance within it
-    assert "60 sweeps" in res.message or ("too slowly" in res.message and "left" in res.message)
+    # it stops at its budget, or sooner when its rate cannot reach the tolerance within it,
+    # or its sweeps settle with the load unmet (the coarse step keeps a block's shape while
+    # its contact moves little) and the final load check says by how much
+    assert (
+        "60 sweeps" in res.message
+        or ("too slowly" in res.message and "left" in res.message)
+        or "stopped with load residual" in res.message
+    )

@@ -109,3 +109,29 @@ def test_the_union_cg_on_the_box_its_crowded_patches_lent_matches_the_full_grid(
     ref = solve_cg(body, surface_on(grid, asps), tol=1e-10, **load)
     f, r = np.asarray(res.asperities.forces), np.asarray(ref.asperities.forces)
     assert np.max(np.abs(f - r)) <= 1e-6 * np.max(r)
+
+
+@pytest.mark.parametrize("h, shared", [(0.012, True), (0.004, False)])
+def test_small_patches_of_many_tips_are_cut_from_their_box(h, shared):
+    # patches that do not crowd their box but are small against it per tip (a light load on
+    # 600 tips on 4 x 4 mm: building each costs more than sampling its share of the box)
+    # are cut from the box sampled once, cell for cell as built one by one; at a finer h the
+    # box has more than BOX_CELLS_PER_PATCH cells a tip and each patch is built on its own
+    from twoscale.micro.sampling import BOX_CELLS_PER_PATCH, build_patches, crowded, shared_box
+    from twoscale.micro.union import box_of
+
+    n, anchor = 600, (0.001, 0.002)
+    table = TipTable(_tips(n, 13, ("sphere", "paraboloid")))
+    patches = build_patches(
+        table, h=h, forces=np.full(n, 1e-3), approaches=np.full(n, 0.03), E_star=100.0, anchor=anchor
+    )
+    box = box_of([pt.grid for pt in patches], h, anchor)
+    assert not crowded([pt.grid for pt in patches], box)
+    assert (box.size <= BOX_CELLS_PER_PATCH * n) == shared
+    assert (shared_box(patches, n, anchor) is not None) == shared
+    for pt in patches[::37]:
+        own = make_patch(pt.asperity, pt.grid, table)
+        assert np.array_equal(pt.owner, own.owner)
+        finite = np.isfinite(own.height)
+        assert np.array_equal(np.isfinite(pt.height), finite)
+        assert np.allclose(pt.height[finite], own.height[finite], rtol=0.0, atol=1e-12)

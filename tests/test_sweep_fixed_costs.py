@@ -93,3 +93,32 @@ def test_a_large_union_box_is_sampled_tile_by_tile_to_the_same_surface(shape, sp
     assert np.array_equal(np.isinf(tiled.height), np.isinf(whole.height))
     finite = np.isfinite(whole.height)
     assert np.allclose(tiled.height[finite], whole.height[finite], rtol=0.0, atol=1e-12)
+
+
+def test_a_box_of_dense_paraboloids_is_sampled_in_split_tiles_to_the_same_surface(monkeypatch):
+    # a lattice of paraboloids 0.4 mm apart: a 128-cell tile's height bound (from the tips
+    # nearest its centre) lets in hundreds of tips; the tiles are split until few can own
+    # a cell, and the surface is still the union of every tip on every cell
+    from twoscale.grid import Grid
+    from twoscale.indenters import Asperity, surface_on
+    from twoscale.micro import sampling
+    from twoscale.micro.patches import TipTable
+
+    rng = np.random.default_rng(5)
+    xs = np.arange(-4.0, 4.0, 0.4)
+    tips = [
+        Asperity(float(x), float(y), float(rng.uniform(0, 0.01)), float(rng.uniform(0.4, 1.0)), "paraboloid")
+        for x in xs
+        for y in xs
+    ]
+    grid = Grid.covering(-4.0, 4.0, -4.0, 4.0, 0.03)
+    assert grid.size > sampling.SAMPLE_WHOLE_CELLS
+    tiles = []
+    candidates = sampling.patch_candidates
+    monkeypatch.setattr(sampling, "patch_candidates", lambda t, *a: (tiles.append(t), candidates(t, *a))[1])
+    tiled, whole = sampling.box_surface(grid, TipTable.of(tips)), surface_on(grid, tips)
+    assert min(t.nx for t in tiles) < sampling.SAMPLE_TILE  # split
+    assert np.array_equal(tiled.owner, whole.owner)
+    finite = np.isfinite(whole.height)
+    assert np.array_equal(np.isinf(tiled.height), ~finite)
+    assert np.allclose(tiled.height[finite], whole.height[finite], rtol=0.0, atol=1e-12)

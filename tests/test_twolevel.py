@@ -156,6 +156,50 @@ def test_coarse_step_vanishes_at_a_fixed_point_and_meets_the_load():
     assert step.theta[0] > theta[0]
 
 
+def test_the_coarse_shape_is_kept_with_its_block_while_the_contact_moves_little(monkeypatch):
+    # s_k = A_SS^-1 1 is solved once per block and kept through the rounds of a solve (each
+    # round builds a new coarse space) while the active set differs in at most SHAPE_REUSE of
+    # its cells; the step still meets the load exactly (any s_k does), and a block whose
+    # contact moved more solves again
+    import scipy.sparse as sp
+    from twoscale.micro import coarse as coarse_mod
+    from twoscale.micro.constraints import Control
+    from twoscale.micro.localblock import LocalBlock
+    from twoscale.micro.sampling import build_patches
+
+    asp = spaced_spheres(8, 4, 12.0)
+    patches = build_patches(
+        asp, h=0.1, forces=np.full(8, np.inf), approaches=np.full(8, 0.06), E_star=MAT.E_star, anchor=(0.0, 0.0)
+    )
+    blocks = [LocalBlock(HS, pt) for pt in patches]
+    solved, orig = [], LocalBlock.solve
+    monkeypatch.setattr(LocalBlock, "solve", lambda self, *a, **k: (solved.append(self), orig(self, *a, **k))[1])
+    # a cap of interference on each patch (a contact of a few cells across, s_k > 0 on it)
+    p = [np.maximum(asp[pt.asperity].z + 0.02 - pt.height[pt.owned], 0.0) for pt in patches]
+    tips = np.array([[asp[pt.asperity].x, asp[pt.asperity].y] for pt in patches])
+
+    def step(q):
+        W = sum(0.01 * v.sum() for v in q) * 1.01  # more load: no pressure clipped
+        load = Control((0.0, 0.0), 1, np.array([W]))
+        space = CoarseSpace(HS, tips, sp.csr_matrix((len(patches), len(patches))))  # a new round
+        out = space.correct(blocks, patches, q, [v > 0 for v in q], np.zeros(len(patches)), np.zeros(3), load)
+        assert sum(0.01 * v.sum() for v in out.pressures) == pytest.approx(W, rel=1e-12)
+        return out
+
+    step(p)
+    assert {id(b) for b in solved} == {id(b) for b, v in zip(blocks, p) if np.any(v > 0)}
+    solved.clear()
+    q = [v.copy() for v in p]
+    k = int(np.argmax([b.n for b in blocks]))
+    ring = np.argsort(patches[k].height[patches[k].owned])  # cells from the tip outwards
+    q[k][ring[np.count_nonzero(p[k])]] = 1e-3  # the next cell enters: within SHAPE_REUSE
+    step(q)
+    assert solved == []
+    q[k][ring[: int((1.0 + coarse_mod.SHAPE_REUSE) * np.count_nonzero(p[k])) + 2]] += 1e-3
+    step(q)
+    assert [id(b) for b in solved] == [id(blocks[k])]
+
+
 def test_block_cg_solves_spd_systems_column_by_column():
     rng = np.random.default_rng(1)
     B = rng.random((40, 40))

@@ -68,6 +68,9 @@ class LocalBlock:
         self.dense = self.n <= dense_max_cells
         self.cg_rtol, self.cg_max_iter = cg_rtol, cg_max_iter
         self._cache: OrderedDict = OrderedDict()
+        # the coarse step's ``s_k`` and the active set it was solved on (:mod:`.coarse`),
+        # kept with the block through the rounds of a solve (a round rebuilds the coarse space)
+        self.coarse_shape: tuple | None = None
         self._cache_size = cache_size
         self.cg_iterations = 0
         self.factorisations = 0

@@ -152,7 +152,7 @@ class TipTable(Sequence):
         return self.asperities[k]
 
 
-def _highest(grid: Grid, owners: Sequence[Asperity]) -> float:
+def highest_over(grid: Grid, owners: Sequence[Asperity]) -> float:
     """The highest the rigid surface can be on ``grid`` (mm): the largest, over its cells,
     of the lowest of ``owners`` (an asperity owning no cell of its own patch gives inf)."""
     return float(np.max(surface_on(grid, owners).height))
@@ -165,7 +165,7 @@ def patch_candidates(grid: Grid, asperities: Sequence[Asperity], members: tuple)
     # a table made here is used once: its tree would cost more than the direct test
     table = TipTable.of(asperities)
     return table.reaching(
-        grid.bounds, index=isinstance(asperities, TipTable), below=_highest(grid, [asperities[m] for m in members])
+        grid.bounds, index=isinstance(asperities, TipTable), below=highest_over(grid, [asperities[m] for m in members])
     ).tolist()
 
 

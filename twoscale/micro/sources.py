@@ -53,6 +53,13 @@ def source_strengths(
 ) -> np.ndarray:
     """Forces (9, m) N at :func:`source_nodes` with the moments ``x^i y^j`` (``i, j <= 2``)
     of the pressure ``values`` (n, m) MPa on the cells centred at ``points`` (n, 2) mm."""
+    return source_weights(points, centre, delta, h) @ values
+
+
+def source_weights(points: np.ndarray, centre: np.ndarray, delta: np.ndarray, h: float) -> np.ndarray:
+    """The (9, n) matrix taking a pressure (n,) MPa on the cells centred at ``points``
+    (n, 2) mm to the forces N at :func:`source_nodes` (:func:`source_strengths`): it depends
+    on the patch only, so a far field refreshed every sweep keeps it."""
     lx = lagrange3((points[:, 0] - centre[0]) / delta[0])
     ly = lagrange3((points[:, 1] - centre[1]) / delta[1])
-    return (h * h) * np.einsum("nb,na,nm->bam", ly, lx, values).reshape(9, -1)
+    return (h * h) * (ly[:, :, None] * lx[:, None, :]).reshape(len(points), 9).T
