@@ -96,6 +96,8 @@ def test_scene_file_round_trip_and_csv(tmp_path):
     [
         ({"material": {"E": 2.0, "nu": 0.5, "prony": [[8.0, -1.0]]}}, "material.prony[0]: tau_k must be > 0"),
         ({"load": {"total": [[0, 5.0], [0, 6.0]]}}, "load.total[1] time must be greater"),
+        # a TOML array of tables ([[load.penetration]]): rows of two keys, not pairs
+        ({"load": {"penetration": [{"x": 0, "y": 0}]}}, "load.penetration[0] must be a pair [t, value]"),
         ({"load": {"total": [[0, 5.0]], "penetration": [[0, 0.1]]}}, "give one of load.total and load.penetration"),
         ({"time": {"output": [11.0]}}, "time.output[0] = 11.0 s is outside the history"),
         ({"load": {"total": 5.0}, "time": {}}, "material.prony needs a load history"),

@@ -63,7 +63,7 @@ class LoadHistory:
             raise ValueError(f"{path} must be a number or a list of [t, value] pairs (s, {unit}), got {pts!r}")
         out = []
         for i, row in enumerate(pts):
-            if isinstance(row, (str, bytes)) or not hasattr(row, "__len__") or len(row) != 2:
+            if isinstance(row, (str, bytes, dict)) or not hasattr(row, "__len__") or len(row) != 2:
                 raise ValueError(f"{path}[{i}] must be a pair [t, value] (s, {unit}), got {row!r}")
             t = _number(f"{path}[{i}] time", row[0], "s")
             v = _number(f"{path}[{i}] value", row[1], unit)
