@@ -156,27 +156,19 @@ def test_near_neighbours_follow_the_far_field_rule():
 def test_the_far_field_iteration_has_a_union_margin_of_its_own():
     # the margin of 1.7 is on the exact block iterations: against the far-field two-level
     # iteration (now converging where contacts merge) the union CG has a margin of its own
-    import dataclasses
-
-    from twoscale.micro.costmodel import FITTED
-
     asps = [Asperity(3.0 * i, 3.0 * j, 0.0, 5.0) for i in range(2) for j in range(2)]
     pts, box = _patches(asps, 3.0, 0.3, 0.05)
     work = choose(pts, box).estimates["work"]
-    base = dataclasses.replace(
-        FITTED,
-        fixed_seconds={"union-cg": 0.0, "block-gs": 0.0, "two-level": 0.0},
-        union_work_exponent=0.0,
-        union_margin=1.7,
-        far_union_margin=1.25,
-        far_field_min_patches=2,
-        union_min_coverage=0.0,
-    )
 
     def model(union, exact, far):
-        # ns per unit giving these predicted seconds
-        units = {"union-cg": union, "block-gs": exact, "two-level": far}
-        return dataclasses.replace(base, ns_per_unit={k: 1e9 * v / work[k] for k, v in units.items()})
+        return _model_predicting(
+            work,
+            {"union-cg": union, "block-gs": exact, "two-level": far},
+            union_margin=1.7,
+            far_union_margin=1.25,
+            far_field_min_patches=2,
+            union_min_coverage=0.0,
+        )
 
     # union 1.3 s against the far field's 1.0 s (exact 10 s): the far field
     picked = choose(pts, box, model=model(1.3, 10.0, 1.0))
@@ -233,6 +225,22 @@ def test_the_union_prediction_grows_faster_than_its_work():
     assert large / small > 30 * 1.8
 
 
+def _model_predicting(work: dict, seconds: dict, **fields):
+    """The fitted cost model with no fixed costs and a linear union CG, its nanoseconds per
+    unit set so that it predicts ``seconds`` for the candidates' ``work``; ``fields`` on top."""
+    import dataclasses
+
+    from twoscale.micro.costmodel import FITTED
+
+    return dataclasses.replace(
+        FITTED,
+        fixed_seconds={"union-cg": 0.0, "block-gs": 0.0, "two-level": 0.0},
+        union_work_exponent=0.0,
+        ns_per_unit={k: 1e9 * v / work[k] for k, v in seconds.items()},
+        **fields,
+    )
+
+
 def _scattered(n: int, side: float, seed: int) -> list:
     """``n`` spheres of radius 4 mm at least 5 mm apart on a square of ``2 side`` mm."""
     rng = np.random.default_rng(seed)
@@ -282,17 +290,9 @@ def test_few_merged_patches_under_load_weigh_the_union_cg_against_sensitivity_sw
 
     pts, box = _patches(_scattered(12, 12.0, 2), 1.0, 0.2, 0.05)
     work = choose(pts, box).estimates["work"]
-    base = dataclasses.replace(
-        FITTED,
-        fixed_seconds={"union-cg": 0.0, "block-gs": 0.0, "two-level": 0.0},
-        union_work_exponent=0.0,
-        load_factor=1.0,
-        union_margin=1.7,
-        sensitivity_factor=1.9,
-    )
     # the union CG predicted 2.5x the exact block iterations (far field 10x)
     secs = {"union-cg": 2.5, "block-gs": 1.0, "two-level": 10.0}
-    model = dataclasses.replace(base, ns_per_unit={k: 1e9 * v / work[k] for k, v in secs.items()})
+    model = _model_predicting(work, secs, load_factor=1.0, union_margin=1.7, sensitivity_factor=1.9)
     merged = choose(pts, box, load_control=True, merged_contacts=True, model=model)
     assert merged.estimates["coverage"] < UNION_MIN_COVERAGE and len(pts) < FITTED.sparse_far_field_min_patches
     assert merged.iteration == "union-cg"
