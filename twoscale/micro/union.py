@@ -212,7 +212,7 @@ def material_box(surface: Surface) -> Surface:
     box is 1000 x 1000 cells of map). The surface itself when nothing can be cut."""
     finite = np.isfinite(surface.height)
     rows, cols = np.flatnonzero(finite.any(axis=1)), np.flatnonzero(finite.any(axis=0))
-    if not rows.size or (rows.size, cols.size) == surface.grid.shape:
+    if not rows.size:
         return surface
     j0, j1, i0, i1 = int(rows[0]), int(rows[-1]) + 1, int(cols[0]), int(cols[-1]) + 1
     if (j1 - j0, i1 - i0) == surface.grid.shape:

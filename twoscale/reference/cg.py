@@ -189,6 +189,7 @@ def solve_cg(
     if precision not in PRECISIONS:
         raise ValueError(f"precision must be one of {PRECISIONS}, got {precision!r}")
     op = provider.grid_operator(work.grid)
+    custom = cg.preconditioner(work.surface) if cg.precondition and cg.preconditioner is not None else None
     t_op = time.perf_counter()
     it0 = products0 = 0
     hist0: list = []
@@ -206,7 +207,7 @@ def solve_cg(
             start,
             stall=SINGLE_STALL,
             monitor=monitor,
-            pc=_preconditioner(cg, work, single),
+            pc=_preconditioner(cg, custom, single),
             keep_conjugacy=cg.keep_conjugacy,
         )
         start = p1.reshape(work.grid.shape)
@@ -222,7 +223,7 @@ def solve_cg(
         max_iter,
         start,
         monitor=None if monitor is None else (lambda k, r: monitor(offset + k, r)),
-        pc=_preconditioner(cg, work, fast or op),
+        pc=_preconditioner(cg, custom, fast or op),
         fast=fast,
         keep_conjugacy=cg.keep_conjugacy,
     )
@@ -267,14 +268,13 @@ class _Anchored:
         return self.op.columns()
 
 
-def _preconditioner(cg: CGSettings, work: ContactProblem, op):
-    """``precondition(v, on)`` for the kernel: the caller's (``cg.preconditioner``) or the
-    operator's approximate inverse, or None."""
+def _preconditioner(cg: CGSettings, custom, op):
+    """``precondition(v, on)`` for the kernel: the caller's (``custom``, made once from
+    ``cg.preconditioner`` for both stages) or the operator's approximate inverse, or None."""
     if not cg.precondition:
         return None
-    if cg.preconditioner is not None:
-        pc = cg.preconditioner(work.surface)
-        return lambda v, on: pc.apply(v[0], on[0])[None]
+    if custom is not None:
+        return lambda v, on: custom.apply(v[0], on[0])[None]
     inverse = op.preconditioner()
     return None if inverse is None else (lambda v, on: inverse.apply(v[0])[None])
 
