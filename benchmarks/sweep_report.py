@@ -140,7 +140,32 @@ def summary(records: list[dict]) -> str:
         parts.append(f"refusals: {len(refused)}, slowest {max(refused):.2f} s")
     if free:
         parts.append(f"without a reference: {len(free)} scenes solved, slowest default {max(free):.1f} s of CPU")
+    cm = _against_cm(records)
+    if cm:
+        parts.append(cm)
     return "\n".join(parts)
+
+
+def _against_cm(records: list[dict]) -> str:
+    """ContactMechanics in the same run: its CPU time against the default's, and its forces
+    against the reference's where it says it converged (a run that stops at its iteration cap
+    is counted apart: its forces are not an answer)."""
+    ran = [r for r in records if "forces" in r.get("cm", {}) and "cpu_s" in r["ts"]]
+    if not ran:
+        return ""
+    done = [r for r in ran if r["cm"].get("converged", True)]
+    stalled = sorted(r["spec"]["index"] for r in ran if r not in done)
+    ratio = [r["ts"]["cpu_s"] / r["cm"]["cpu_s"] for r in done if r["cm"].get("cpu_s")]
+    # ContactMechanics has no tilt: it solves a tilted scene untilted, so only the time counts there
+    err = [r["cm_err"]["tip_pct"] for r in done if "cm_err" in r and not r["spec"].get("tilt")]
+    text = f"against ContactMechanics: {len(ran)} scenes, converged on {len(done)}"
+    if stalled:
+        text += " (not converged: " + ", ".join(f"#{i}" for i in stalled) + ")"
+    if ratio:
+        text += f"; CPU default/ContactMechanics median {np.median(ratio):.3f}, worst {max(ratio):.3f}"
+    if err:
+        text += f"; its forces against the reference's (untilted scenes): worst {max(err):.2g} % of the largest tip's"
+    return text
 
 
 def _load(path: str) -> list[dict]:

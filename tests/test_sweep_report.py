@@ -46,3 +46,23 @@ def test_the_table_and_summary_name_the_scenes_that_missed_it():
     rows = table(records).splitlines()
     assert "contact %" in rows[0] and "0.3x target" in rows[0]
     assert any("| 10 | missed |" in r for r in rows) and any("| 50 | - |" in r for r in rows)
+
+
+def _with_cm(rec: dict, cpu: float, converged: bool, tip_pct: float, tilt: bool = False) -> dict:
+    rec["spec"]["tilt"] = tilt
+    rec["cm"] = {"forces": [1.0, 2.0], "cpu_s": cpu, "converged": converged}
+    rec["cm_err"] = {"tip_pct": tip_pct}
+    return rec
+
+
+def test_contactmechanics_counts_only_where_it_converged_and_its_forces_only_untilted():
+    records = [
+        _with_cm(_record(11, 10.0, 3.0, 0.2), cpu=6.0, converged=True, tip_pct=1e-5),  # default 0.6 s: 0.1x
+        _with_cm(_record(12, 10.0, 3.0, 0.2), cpu=2.0, converged=True, tip_pct=1e-4),  # 0.3x
+        _with_cm(_record(13, 10.0, 3.0, 0.2), cpu=0.1, converged=False, tip_pct=70.0),  # stopped at its cap
+        _with_cm(_record(14, 10.0, 3.0, 0.2), cpu=6.0, converged=True, tip_pct=40.0, tilt=True),  # no tilt there
+    ]
+    line = next(x for x in summary(records).splitlines() if x.startswith("against ContactMechanics"))
+    assert "4 scenes, converged on 3 (not converged: #13)" in line
+    assert "median 0.100, worst 0.300" in line
+    assert "worst 0.0001 %" in line
