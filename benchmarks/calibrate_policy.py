@@ -139,6 +139,64 @@ def predict(models: dict, row: dict) -> float:
     return m["fixed"] + 1e-9 * m["ns"] * factor * row["work"]
 
 
+def _model_from(models: dict):
+    """The installed cost model with this fit's coefficients (margins and budgets kept)."""
+    import dataclasses
+
+    from twoscale.micro.costmodel import FITTED
+
+    return dataclasses.replace(
+        FITTED,
+        ns_per_unit={k: models[k]["ns"] if k in models else FITTED.ns_per_unit[k] for k in CANDIDATES},
+        fixed_seconds={k: models[k]["fixed"] if k in models else FITTED.fixed_seconds[k] for k in CANDIDATES},
+        load_factor=models["factors"]["load"],
+        tilt_factor=models["factors"]["tilt"],
+        union_work_exponent=models["factors"]["union_exponent"],
+    )
+
+
+def _figures(ts: dict) -> dict | None:
+    """The patches' figures a record keeps (older records: the patch count from the
+    choice's reason, which always starts with it)."""
+    n = ts.get("patches")
+    if n is None:
+        head = (ts.get("reason") or "").split(" ")[0]
+        n = int(head) if head.isdigit() else None
+    if n is None or ts.get("coverage") is None:
+        return None
+    return {"patches": n, "coverage": ts["coverage"], "box_cells": 0, "carried_cells": 0, "largest_patch": 0}
+
+
+def replay(records: list[dict], model) -> None:
+    """Choose each record's micro iteration again (:func:`twoscale.micro.policy.decide`)
+    under the installed model and under ``model``; print the scenes whose choice changes.
+    Where the installed model's replay does not give the recorded choice (older records
+    do not keep whether contacts merged), the scene is listed as not replayed."""
+    from twoscale.micro.policy import decide
+    from twoscale.scenespace import SceneSpec
+
+    changed, unknown = [], []
+    for rec in records:
+        ts, spec = rec.get("ts", {}), rec["spec"]
+        figures = _figures(ts)
+        if not ts.get("work") or figures is None:
+            continue
+        kw = {"load_control": spec.get("control") == "load", "tilt": bool(spec.get("tilt"))}
+        kw["merged_contacts"] = bool(ts.get("merged_contacts", False))
+        before = decide(figures, ts["work"], **kw).iteration
+        after = decide(figures, ts["work"], model=model, **kw).iteration
+        label = SceneSpec(**spec).label
+        if before != ts.get("choice"):
+            unknown.append(f"  {label}: recorded {ts.get('choice')}, replayed {before}")
+        elif after != before:
+            changed.append(f"  {label}: {before} -> {after} ({ts.get('cpu_s', 0):.2f} s of CPU now)")
+    print(f"replayed under the fit: {len(changed)} choices change")
+    print("\n".join(changed))
+    if unknown:
+        print(f"{len(unknown)} not replayed (the installed model's replay differs from the record):")
+        print("\n".join(unknown))
+
+
 def report(name: str, models: dict, rows: list[dict]) -> list[dict]:
     conv = [r for r in rows if r["converged"] and r["candidate"] in models]
     factors = [predict(models, r) / r["seconds"] for r in conv]
@@ -153,6 +211,9 @@ def main(argv=None) -> int:
     p.add_argument("files", nargs="+")
     p.add_argument("--emit", action="store_true", help="print the FITTED block for twoscale/micro/costmodel.py")
     p.add_argument("--margin", type=float, default=1.0, help="union_margin to emit")
+    p.add_argument(
+        "--replay", action="store_true", help="list the scenes whose micro iteration the fit would choose differently"
+    )
     p.add_argument(
         "--min-seconds",
         type=float,
@@ -202,6 +263,8 @@ def main(argv=None) -> int:
         print(f"{len(wasted)} attempts did not converge ({sum(r['seconds'] for r in wasted):.1f} s before a fallback):")
         for r in sorted(wasted, key=lambda r: -r["seconds"]):
             print(f"  {r['iteration']:10s} {r['seconds']:7.2f} s  {r['sweeps']} sweeps  {r['scene']}")
+    if args.replay:
+        replay(list(records.values()), _model_from(models))
     if args.emit and all(k in models for k in CANDIDATES):
         ns = ", ".join(f'"{k}": {models[k]["ns"]:.3g}' for k in CANDIDATES)
         fx = ", ".join(f'"{k}": {models[k]["fixed"]:.3g}' for k in CANDIDATES)

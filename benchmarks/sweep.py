@@ -101,6 +101,8 @@ def _figures(res) -> dict:
         out["reason"] = micro.choice.reason
         out["work"] = micro.choice.estimates.get("work")
         out["coverage"] = micro.choice.estimates.get("coverage")
+        out["patches"] = micro.choice.estimates.get("patches")
+        out["merged_contacts"] = micro.choice.estimates.get("merged_contacts")
         out["attempts"] = [[a.iteration, a.far_tol, a.converged, a.sweeps, round(a.seconds, 3)] for a in micro.attempts]
     return out
 

@@ -11,7 +11,7 @@ from twoscale import Material
 from twoscale.indenters import Asperity
 from twoscale.influence import HalfSpace
 from twoscale.micro.sampling import build_patches
-from twoscale.micro.policy import AUTO_FAR_TOL, UNION_MIN_COVERAGE, choose, estimate_costs
+from twoscale.micro.policy import AUTO_FAR_TOL, UNION_MIN_COVERAGE, choose, decide, estimate_costs
 from twoscale.micro.union import box_of
 from twoscale.driver import solve_twoscale
 
@@ -319,3 +319,41 @@ def test_sweep_scene_of_15_merged_paraboloids_under_load_is_the_full_grids_answe
     assert res.details.micro.choice.iteration == "union-cg"
     f, fr = np.asarray(res.asperities.forces), np.asarray(ref.asperities.forces)
     assert np.max(np.abs(f - fr)) <= 1e-5 * np.max(fr)
+
+
+@pytest.mark.parametrize("merged, load", [(False, False), (True, True), (False, True)])
+def test_a_choice_is_made_again_from_what_its_estimates_keep(merged, load):
+    # what a sweep record keeps (the figures and each candidate's work) gives the same
+    # choice without the patches, so a refitted cost model can be replayed on old runs
+    asps = [Asperity(2.5 * i, 2.5 * j, 0.0, 5.0) for i in range(6) for j in range(6)]
+    asps += [Asperity(60.0 + 9.0 * i, 0.0, 0.0, 5.0) for i in range(8)]
+    pts, box = _patches(asps, 3.0, 0.3, 0.05)
+    c = choose(pts, box, merged_contacts=merged, load_control=load)
+    again = decide(c.estimates, c.estimates["work"], merged_contacts=merged, load_control=load)
+    assert (again.iteration, again.far_tol, again.reason) == (c.iteration, c.far_tol, c.reason)
+    # and a model that makes the union CG dear moves it away from it
+    dear = _model_predicting(c.estimates["work"], {"union-cg": 100.0, "block-gs": 1.0, "two-level": 2.0})
+    assert (
+        decide(c.estimates, c.estimates["work"], merged_contacts=merged, load_control=load, model=dear).iteration
+        != "union-cg"
+    )
+
+
+def test_the_calibration_replays_recorded_choices_under_a_new_model(capsys):
+    from benchmarks.calibrate_policy import replay
+    from twoscale.scenespace import draw
+
+    asps = [Asperity(2.5 * i, 2.5 * j, 0.0, 5.0) for i in range(6) for j in range(6)]
+    pts, box = _patches(asps, 3.0, 0.3, 0.05)
+    c = choose(pts, box)
+    spec = {**draw(3).to_dict(), "control": "penetration", "tilt": False}
+    ts = {"work": c.estimates["work"], "coverage": c.estimates["coverage"], "reason": c.reason, "choice": c.iteration}
+    from twoscale.micro.costmodel import FITTED
+
+    replay([{"spec": spec, "ts": ts}], FITTED)
+    assert "0 choices change" in capsys.readouterr().out
+    others = {k: 1.0 for k in c.estimates["work"]}
+    dear = _model_predicting(c.estimates["work"], {**others, c.iteration: 100.0})
+    replay([{"spec": spec, "ts": ts}], dear)
+    out = capsys.readouterr().out
+    assert "1 choices change" in out and f"{c.iteration} -> " in out

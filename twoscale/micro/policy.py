@@ -198,8 +198,28 @@ def choose(
     candidate becomes predicted CPU seconds by ``model`` (its block iterations' work costs
     more under load control and with the ``tilt``); the cheapest prediction is chosen, the
     union CG up to :func:`union_limit`."""
-    figures = scene_figures(patches, box_cells)
-    work = estimate_costs(patches, box_cells, model)
+    return decide(
+        scene_figures(patches, box_cells),
+        estimate_costs(patches, box_cells, model),
+        merged_contacts=merged_contacts,
+        load_control=load_control,
+        tilt=tilt,
+        model=model,
+    )
+
+
+def decide(
+    figures: dict,
+    work: dict,
+    *,
+    merged_contacts: bool = False,
+    load_control: bool = False,
+    tilt: bool = False,
+    model: CostModel = FITTED,
+) -> Choice:
+    """:func:`choose` from the patches' figures (:func:`scene_figures`) and each
+    candidate's work (:func:`estimate_costs`), what a solve's details keep: a choice can be
+    made again under another cost model without the patches."""
     costs = model.seconds(work, load_control=load_control, tilt=tilt)
     # merged contacts under load control: the exact block iterations are block Gauss-Seidel
     # with sensitivity sweeps (below), dearer than the two-level variant the fit saw most
