@@ -44,6 +44,12 @@ REBUILD_FRACTION = 0.2
 #: footprint the largest contact is ~250 cells, the stones ~250).
 MAX_BLOCK_CELLS = 600
 MAX_STONES = 1500
+#: Most memory the stacked inverses of one contact may take (bytes; the tyre's: ~8 MB).
+MAX_BLOCK_BYTES = 400e6
+#: Block sizes the inverses are padded to and applied by, a batched product per size
+#: (:func:`_stacked`): steps of 8 cells, ~1.3x apart past 64 (the padding costs at most
+#: ~1.7x the products' work; a product per stone cost ~6 us of Python each, 250 stones).
+SIZE_CLASSES = np.array([8, 16, 24, 32, 40, 48, 56, 64, 80, 96, 112, 128, 160, 192, 224, 256, 320, 384, 448, 512, 600])
 
 
 class StoneBlocks:
@@ -133,10 +139,11 @@ class BlockInverse:
             out[new] = gap.ravel()[new] / self.table[self.centre]
         if not self.cells.size:
             return out.reshape(self.grid.shape)
-        r = gap.ravel()[self.cells]
+        r = np.append(gap.ravel()[self.cells], 0.0)  # (the padding's slot, last)
         y = np.empty_like(r)
-        for (a, b), inv in zip(self.slices, self.inverses):
-            y[a:b] = blas.dsymv(1.0, inv, r[a:b])
+        for inv, pos in self.classes:
+            y[pos] = np.matmul(inv, r[pos][:, :, None])[:, :, 0]
+        y = y[:-1]
         y -= self.v * (self.coupling @ np.add.reduceat(y, self.starts))[self.stone]
         out[self.cells] = y
         return out.reshape(self.grid.shape)
@@ -151,15 +158,17 @@ class BlockInverse:
         _, starts, counts = np.unique(stone[order], return_index=True, return_counts=True)
         if len(counts) > MAX_STONES or counts.max(initial=0) > MAX_BLOCK_CELLS:
             return False
+        if 8 * np.sum(_size_class(counts).astype(float) ** 2) > MAX_BLOCK_BYTES:
+            return False
         self._on, self.cells, self.starts = on.copy(), idx[order], starts
         rows, cols = np.divmod(self.cells, self.grid.nx)
         ends = self.starts + counts
-        self.slices = list(zip(self.starts.tolist(), ends.tolist()))
-        self.inverses, sums = [], []
-        for a, b in self.slices:
+        inverses, sums = [], []
+        for a, b in zip(self.starts.tolist(), ends.tolist()):
             inv, s = self.blocks.inverse(rows[a:b], cols[a:b], self.table, self.centre)
-            self.inverses.append(inv)
+            inverses.append(inv)
             sums.append(s)
+        self.classes = _stacked(inverses, self.starts, counts)
         self.v = np.concatenate(sums) if sums else np.zeros(0)
         self.stone = np.repeat(np.arange(len(counts)), counts)
         w = np.add.reduceat(self.v, self.starts) if len(counts) else np.zeros(0)
@@ -175,3 +184,28 @@ class BlockInverse:
         np.fill_diagonal(k, 0.0)
         self.coupling = np.linalg.solve(np.eye(len(w)) + k * w[None, :], k)
         return True
+
+
+def _size_class(counts: np.ndarray) -> np.ndarray:
+    """The padded size (:data:`SIZE_CLASSES`) of blocks of ``counts`` cells."""
+    return SIZE_CLASSES[np.searchsorted(SIZE_CLASSES, counts)]
+
+
+def _stacked(inverses: list, starts: np.ndarray, counts: np.ndarray) -> list:
+    """The stones' inverses (upper triangles) stacked by size class, each a full symmetric
+    ``(k, c, c)`` array zero-padded, with the ``(k, c)`` places of its cells in the
+    contact's cell order (the padding at place ``sum(counts)``, a slot holding 0)."""
+    size = _size_class(counts)
+    total = int(counts.sum())
+    out = []
+    for c in np.unique(size).tolist():
+        members = np.flatnonzero(size == c)
+        stack = np.zeros((len(members), c, c))
+        for i, m in enumerate(members.tolist()):
+            n = counts[m]
+            stack[i, :n, :n] = inverses[m]
+        stack = np.triu(stack) + np.triu(stack, 1).transpose(0, 2, 1)
+        j = np.arange(c)
+        pos = np.where(j[None, :] < counts[members][:, None], starts[members][:, None] + j[None, :], total)
+        out.append((stack, pos))
+    return out

@@ -58,8 +58,7 @@ class RoadIndenter:
         face = Face(road.spec, road.window)
         group = ShiftedBasins(road.basins, shift, face)
         out = []
-        for k in self.numbers:
-            stone = road._map_stone(int(k), shift, face, group)
+        for k, stone in zip(self.numbers, road.map_stones(self.numbers, shift, face, group)):
             if stone is None:
                 a = road.tips[int(k)]
                 stone = dataclasses.replace(a, x=a.x + shift, z=FAR, basins=group)
