@@ -84,8 +84,9 @@ class StoneBlocks:
         return self._tables[grid.shape]
 
     def inverse(self, rows: np.ndarray, cols: np.ndarray, table: np.ndarray, centre: tuple[int, int]):
-        """The inverse of the operator on the cells ``(rows, cols)`` (one stone's) and its
-        row sums, kept by the cells' offsets."""
+        """The inverse of the operator on the cells ``(rows, cols)`` (one stone's), full and
+        zero-padded to its size class (:data:`SIZE_CLASSES`), and its row sums, kept by the
+        cells' offsets."""
         key = (rows - rows[0]).tobytes() + b"|" + (cols - cols[0]).tobytes()
         self._used.add(key)
         found = self._inverses.get(key)
@@ -93,8 +94,12 @@ class StoneBlocks:
             width = table.shape[1]
             flat = rows * width + cols
             block = table.ravel()[(centre[0] * width + centre[1]) + flat[:, None] - flat[None, :]]
+            n = len(rows)
             inv = _spd_inverse(block)
-            found = self._inverses[key] = (inv, blas.dsymv(1.0, inv, np.ones(len(rows))))
+            padded = np.zeros((int(_size_class(n)),) * 2)
+            padded[:n, :n] = np.triu(inv)
+            padded[:n, :n] += np.triu(inv, 1).T
+            found = self._inverses[key] = (padded, blas.dsymv(1.0, inv, np.ones(n)))
             self.built += 1
         return found
 
@@ -186,25 +191,21 @@ class BlockInverse:
         return True
 
 
-def _size_class(counts: np.ndarray) -> np.ndarray:
+def _size_class(counts):
     """The padded size (:data:`SIZE_CLASSES`) of blocks of ``counts`` cells."""
     return SIZE_CLASSES[np.searchsorted(SIZE_CLASSES, counts)]
 
 
 def _stacked(inverses: list, starts: np.ndarray, counts: np.ndarray) -> list:
-    """The stones' inverses (upper triangles) stacked by size class, each a full symmetric
-    ``(k, c, c)`` array zero-padded, with the ``(k, c)`` places of its cells in the
-    contact's cell order (the padding at place ``sum(counts)``, a slot holding 0)."""
-    size = _size_class(counts)
+    """The stones' padded inverses (:meth:`StoneBlocks.inverse`) stacked by size class, each
+    ``(k, c, c)`` with the ``(k, c)`` places of its cells in the contact's cell order (the
+    padding at place ``sum(counts)``, a slot holding 0)."""
+    size = np.array([len(inv) for inv in inverses], dtype=np.int64)
     total = int(counts.sum())
     out = []
     for c in np.unique(size).tolist():
         members = np.flatnonzero(size == c)
-        stack = np.zeros((len(members), c, c))
-        for i, m in enumerate(members.tolist()):
-            n = counts[m]
-            stack[i, :n, :n] = inverses[m]
-        stack = np.triu(stack) + np.triu(stack, 1).transpose(0, 2, 1)
+        stack = np.stack([inverses[m] for m in members.tolist()])
         j = np.arange(c)
         pos = np.where(j[None, :] < counts[members][:, None], starts[members][:, None] + j[None, :], total)
         out.append((stack, pos))
