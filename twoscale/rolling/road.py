@@ -12,6 +12,7 @@ the basin plus the face, found on the basin's own samples.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass, field
 
@@ -36,6 +37,17 @@ class Face:
 
     spec: RollingSpec
     window: tuple  # (x0, x1, y0, y1)
+    _kept: dict = field(default_factory=dict, compare=False, repr=False)  # the last grid's heights
+
+    def on_grid(self, grid) -> np.ndarray:
+        """:meth:`height` at the cell centres of ``grid``, kept for the last grid asked for
+        (the window path samples the same window, fixed in the body, at every position)."""
+        found = self._kept.get(grid)
+        if found is None:
+            self._kept.clear()
+            found = self._kept[grid] = self.height(*grid.centres())
+            found.setflags(write=False)
+        return found
 
     def height(self, X, Y) -> np.ndarray:
         X, Y = np.asarray(X, dtype=float), np.asarray(Y, dtype=float)
@@ -87,6 +99,17 @@ class ShiftedBasins:
         hk, owner = self.base.union_on(np.asarray(X) - self.shift, Y, index)
         hk = hk + self.face.height(X, Y)
         return hk, np.where(np.isfinite(hk), owner, -1)
+
+    def union_on_grid(self, grid, index: dict):
+        """:meth:`union_on` at the cell centres of ``grid`` when, shifted back by the shift,
+        they are samples of the map's lattice: windows of the map (a window of 200,000
+        cells: ~10 -> 2 ms), else None."""
+        moved = dataclasses.replace(grid, x0=grid.x0 - self.shift)
+        found = self.base.union_on_grid(moved, index)
+        if found is None:
+            return None
+        hk = found[0] + self.face.on_grid(grid)
+        return hk, np.where(np.isfinite(hk), found[1], -1)
 
 
 @dataclass(frozen=True)
@@ -148,6 +171,7 @@ class Road:
         self.tips = tuple(scene.asperities)
         self.spec: RollingSpec = scene.rolling
         self.window = face_window
+        self.face = Face(self.spec, face_window)
         self.surface = scene.surface
         z = np.array([a.z for a in self.tips], dtype=float)
         self.z = z
@@ -194,7 +218,7 @@ class Road:
         """The stones that can touch at ``shift`` when the approach is at most ``bound``
         (mm, below the strip's highest point): none left out can touch, since the body's
         surface only moves away from the road under pressure."""
-        face = Face(self.spec, self.window)
+        face = self.face
         out, numbers = [], []
         if self.surface is not None:
             group = ShiftedBasins(self.basins, shift, face)
