@@ -188,12 +188,18 @@ class Road:
         hmap = self.surface.hmap
         self.basins = self.tips[0].basins
         self.cells = basin_cells(self.surface.segmentation)
-        X, Y = hmap.grid.centres()
-        self.X, self.Y = X.ravel(), Y.ravel()
-        self.box = np.array([[self.X[c].min(), self.X[c].max(), self.Y[c].min(), self.Y[c].max()] for c in self.cells])
+        X, Y = (c.ravel() for c in hmap.grid.centres())
+        self.box = np.array([[X[c].min(), X[c].max(), Y[c].min(), Y[c].max()] for c in self.cells])
         recess = self.basins.recess
         self.slope_x = _x_slope(recess, hmap.h)
-        self._stone_samples: dict = {}
+        # the basins' samples (x, y, recess) stone after stone in the order of their boxes'
+        # left edges: the stones within reach of a position are then one slab of them
+        self.by_x = np.argsort(self.box[:, 0], kind="stable")
+        self.rank = np.empty_like(self.by_x)
+        self.rank[self.by_x] = np.arange(len(self.by_x))
+        flat = np.concatenate([self.cells[k] for k in self.by_x.tolist()])
+        self.sample_start = np.concatenate([[0], np.cumsum([len(self.cells[k]) for k in self.by_x.tolist()])])
+        self.samples = (X[flat], Y[flat], recess.ravel()[flat])
 
     @property
     def extent_x(self) -> tuple:
@@ -222,14 +228,17 @@ class Road:
         out, numbers = [], []
         if self.surface is not None:
             group = ShiftedBasins(self.basins, shift, face)
-            candidates = self.candidates(shift, bound)
-            # the samples of the stones still within reach (those behind the footprint go)
-            near = set(candidates.tolist())
-            self._stone_samples = {k: v for k, v in self._stone_samples.items() if k in near}
-            for k, stone in zip(candidates.tolist(), self.map_stones(candidates, shift, face, group, bound)):
-                if stone is not None:
-                    out.append(stone)
-                    numbers.append(k)
+            rank = self.rank[self.candidates(shift, bound)]
+            if rank.size:  # the slab of stones from the first candidate to the last
+                lo, hi = int(rank.min()), int(rank.max()) + 1
+                ks = self.by_x[lo:hi]
+                a, b = self.sample_start[lo], self.sample_start[hi]
+                counts = np.diff(self.sample_start[lo : hi + 1])
+                slab = self._mapped(ks, [v[a:b] for v in self.samples], counts, shift, group, bound)
+                for i in np.argsort(ks, kind="stable").tolist():  # the road's order
+                    if slab[i] is not None:
+                        out.append(slab[i])
+                        numbers.append(int(ks[i]))
         else:
             for k in self.candidates(shift, bound):
                 stone = self._tip(self.tips[k], shift, face)
@@ -238,48 +247,53 @@ class Road:
                     numbers.append(int(k))
         return Selection(tuple(out), np.array(numbers, dtype=np.int64), float(shift))
 
-    def _samples(self, k: int) -> tuple:
-        """Basin ``k``'s samples (x, y, recess), gathered from the map once while the stone
-        is within reach (:meth:`stones_at` drops the others)."""
-        got = self._stone_samples.get(k)
-        if got is None:
-            cells = self.cells[k]
-            got = self._stone_samples[k] = (self.X[cells], self.Y[cells], self.basins.recess.ravel()[cells])
-        return got
+    def map_stones(self, ks, shift: float, group: ShiftedBasins) -> list:
+        """Basins ``ks`` at ``shift`` (:meth:`_mapped`)."""
+        ks = np.asarray(ks, dtype=np.int64)
+        r = self.rank[ks]
+        parts = [np.arange(self.sample_start[i], self.sample_start[i + 1]) for i in r.tolist()]
+        flat = np.concatenate(parts) if parts else np.zeros(0, dtype=np.int64)
+        counts = self.sample_start[r + 1] - self.sample_start[r]
+        return self._mapped(ks, [v[flat] for v in self.samples], counts, shift, group, np.inf)
 
-    def map_stones(self, ks, shift: float, face: Face, group: ShiftedBasins, bound: float = np.inf) -> list:
-        """Basins ``ks`` at ``shift`` (:class:`RolledStone`: summit, recess and the samples
-        of recess + face for the reach), None for one with no sample in the face's window
-        or whose summit is not below ``bound``. All the basins' samples in one pass (a
-        loop over the ~500 stones within reach of a tyre cost ~20 ms a position)."""
-        ks = [int(k) for k in ks]
-        if not ks:
+    def _mapped(self, ks, samples: list, counts: np.ndarray, shift: float, group: ShiftedBasins, bound: float) -> list:
+        """Basins ``ks`` (their ``samples`` x, y, recess one after the other, ``counts`` each)
+        at ``shift`` (:class:`RolledStone`: summit, recess and the samples of recess + face
+        for the reach), None for one with no sample in the face's window or whose summit
+        is not below ``bound``. All the basins' samples in one pass (a loop over the ~500
+        stones within reach of a tyre cost ~20 ms a position)."""
+        if not len(ks):
             return []
-        parts = [self._samples(k) for k in ks]
-        counts = np.array([len(p[0]) for p in parts])
         starts = np.concatenate([[0], np.cumsum(counts)[:-1]])
-        x = np.concatenate([p[0] for p in parts]) + shift
-        y = np.concatenate([p[1] for p in parts])
-        rec = np.concatenate([p[2] for p in parts]) + face.height(x, y)
-        seg = np.repeat(np.arange(len(ks)), counts)
+        x = samples[0] + shift
+        y = samples[1]
+        rec = samples[2] + self.face.height(x, y)
         low = np.minimum.reduceat(rec, starts)
+        keep = (low < bound) & np.isfinite(low)
+        if not keep.all():  # only the stones that can touch (the slab holds a few more)
+            mask = np.repeat(keep, counts)
+            ks, low, counts = np.asarray(ks)[keep], low[keep], counts[keep]
+            x, y, rec = x[mask], y[mask], rec[mask]
+            starts = np.concatenate([[0], np.cumsum(counts)[:-1]]).astype(np.int64)
+        if not len(ks):
+            return [None] * len(keep)
+        lows = np.repeat(low, counts)
+        fall = rec - lows
         # each basin's first sample at its lowest recess (np.argmin's choice on the basin)
-        first = np.flatnonzero(rec == low[seg])
-        top = first[np.unique(seg[first], return_index=True)[1]]
+        first = np.flatnonzero(fall == 0.0)
+        top = first[np.unique(np.searchsorted(starts, first, side="right"), return_index=True)[1]]
         xt, yt = x[top], y[top]
-        with np.errstate(invalid="ignore"):  # (a basin wholly outside the window: inf - inf)
-            fall = rec - low[seg]
-        r = np.hypot(x - xt[seg], y - yt[seg])
+        r = np.hypot(x - np.repeat(xt, counts), y - np.repeat(yt, counts))
         extent = np.maximum.reduceat(np.where(np.isfinite(rec), r, -np.inf), starts)
         ends = (starts + counts).tolist()
-        out: list = []
-        for n, (k, z, a, b) in enumerate(zip(ks, low.tolist(), starts.tolist(), ends)):
-            if not z < bound or not math.isfinite(z):
-                out.append(None)
-                continue
+        made = []
+        for n, (k, z, a, b) in enumerate(zip(np.asarray(ks).tolist(), low.tolist(), starts.tolist(), ends)):
             base = self.tips[k]
             fields = (float(xt[n]), float(yt[n]), z, base.R, "map", group, base.label, float(extent[n]))
-            out.append(RolledStone(*fields, None, None, fall[a:b], r[a:b]))
+            made.append(RolledStone(*fields, None, None, fall[a:b], r[a:b]))
+        out: list = [None] * len(keep)
+        for i, stone in zip(np.flatnonzero(keep).tolist(), made):
+            out[i] = stone
         return out
 
     def _tip(self, a: Asperity, shift: float, face: Face) -> ShiftedTip:

@@ -58,7 +58,7 @@ class RoadIndenter:
         face = road.face
         group = ShiftedBasins(road.basins, shift, face)
         out = []
-        for k, stone in zip(self.numbers, road.map_stones(self.numbers, shift, face, group)):
+        for k, stone in zip(self.numbers, road.map_stones(self.numbers, shift, group)):
             if stone is None:
                 a = road.tips[int(k)]
                 stone = dataclasses.replace(a, x=a.x + shift, z=FAR, basins=group)

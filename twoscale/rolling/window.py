@@ -340,7 +340,9 @@ def solve_window(track, selection, bound: float, state: WindowState, tol: float)
             start=start,
             precision="single-directions",
             precondition=True,
-            preconditioner=state.blocks,
+            preconditioner=None
+            if state.blocks is None
+            else state.blocks.at(selection.numbers, selection.shift, grid.h),
             keep_conjugacy=KEEP_CONJUGACY,
             max_iter=WINDOW_MAX_ITER,
         )
