@@ -18,12 +18,15 @@ diagonal: a monopole for every pair of stones). ``Ã`` is a block diagonal plus 
 
     Ã^-1 r = D^-1 r - V (I + K W)^-1 K Z^T D^-1 r,   V = D^-1 Z,  W = Z^T D^-1 Z (diagonal)
 
-one small dense product per stone and an ``m x m`` product per application. Replayed
-positions of the tyre: 8 CG iterations to the KKT residual 1e-8 against 16 with the
-circulant inverse (13 with the blocks alone, no coupling). The blocks' inverses depend on
-the loaded cells' offsets only (a translation-invariant body), so they are kept by that
-pattern between the iterations and the positions of a run (a stone's contact changes by a
-few cells a position) and dropped when a position did not use them.
+one small dense product per stone (the blocks padded to a few sizes and applied by one
+batched product per size) and an ``m x m`` product per application. Replayed positions of
+the tyre: 8 CG iterations to the KKT residual 1e-8 against 16 with the circulant inverse
+(13 with the blocks alone, no coupling). The blocks' inverses depend on the loaded cells'
+offsets only (a translation-invariant body). Each stone's is kept between the iterations
+and the positions of a run, known by the stone's number on the road and its cells'
+places on the road (a stone's contact changes by a few cells a position): the same cells
+reuse it, a large stone's few cells gained or lost update it (:func:`_updated`), another
+stone's block of the same offsets is reused, and what a position did not use is dropped.
 """
 
 from __future__ import annotations
