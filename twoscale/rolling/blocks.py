@@ -162,7 +162,8 @@ def _updated(
     lost taken out by the Schur complement of the inverse (``B_KK - B_KL B_LL^-1 B_LK``), the
     cells gained bordered in (``S = A_NN - A_NK B A_KN``, the inverse ``[[B + X S^-1 X^T,
     -X S^-1], [-S^-1 X^T, S^-1]]`` with ``X = B A_KN``): ``O(n^2)`` per cell against
-    ``O(n^3)`` afresh (``entries[centre + flat_i - flat_j]``: the operator's entries). None when the change is too large or the blocks too small to gain."""
+    ``O(n^3)`` afresh (``entries[centre + flat_i - flat_j]``: the operator's entries).
+    None when the change is too large or the blocks too small to gain."""
     n_old, n = old.size, keys.size
     if min(n_old, n) < UPDATE_MIN_CELLS:
         return None
