@@ -208,3 +208,32 @@ def test_a_cut_grown_to_the_whole_window_shrinks_back_around_the_contact():
     rows, cols = cut.window_in(g)
     assert p[rows, cols].sum() == p.sum()  # the contact inside, with a margin
     assert state.cut_in(g) == cut  # kept while the contact stays
+
+
+def test_the_stones_of_a_flat_face_keep_their_reach_and_the_window_their_heights(strip):
+    """A flat face (no tyre) wider than the strip, the road moved by 12 cells: every stone
+    wholly inside the face's window is its segmented basin moved by the shift, so its
+    summit is the basin's moved, and its reach at any depth is the basin's (``MapAsperity.reach``, the sorted
+    table) although found on the unsorted samples; the stones' heights sampled on a grid
+    of the map's lattice as windows of the map equal the look-up point by point."""
+    from twoscale.indenters import surface_on
+    from twoscale.rolling.track import prepare
+
+    spec = RollingSpec(start=3.0, end=4.0, step=1.0, speed=30.0, footprint=(40.0, 30.0))
+    track = prepare(Scene(material=MAT, surface=strip, rolling=spec, penetration=0.5))
+    road, shift = track.road, 3.0
+    selection = road.stones_at(shift, 2.0)
+    inside = (road.box[:, 0] + shift > -19.0) & (road.box[:, 1] + shift < 19.0)
+    assert np.count_nonzero(inside[selection.numbers]) > 20
+    for k, stone in zip(selection.numbers, selection.stones):
+        if not inside[k]:
+            continue
+        tip = road.tips[k]
+        assert (stone.x, stone.y, stone.z) == (tip.x + shift, tip.y, tip.z)
+        for depth in (1e-3, 0.05, 0.3, 1.0, np.inf):
+            assert stone.reach(depth) == tip.reach(depth)
+    grid = Grid(-20.0, -8.0, 0.25, 120, 64)
+    fast = surface_on(grid, selection.stones)
+    index = {s.label: n for n, s in enumerate(selection.stones)}
+    height, owner = selection.stones[0].basins.union_on(*grid.centres(), index)
+    assert np.array_equal(fast.height, height) and np.array_equal(fast.owner, owner)

@@ -18,15 +18,20 @@ diagonal: a monopole for every pair of stones). ``Ã`` is a block diagonal plus 
 
     Ã^-1 r = D^-1 r - V (I + K W)^-1 K Z^T D^-1 r,   V = D^-1 Z,  W = Z^T D^-1 Z (diagonal)
 
-one small dense product per stone and an ``m x m`` product per application. Replayed
-positions of the tyre: 8 CG iterations to the KKT residual 1e-8 against 16 with the
-circulant inverse (13 with the blocks alone, no coupling). The blocks' inverses depend on
-the loaded cells' offsets only (a translation-invariant body), so they are kept by that
-pattern between the iterations and the positions of a run (a stone's contact changes by a
-few cells a position) and dropped when a position did not use them.
+one small dense product per stone (the blocks padded to a few sizes and applied by one
+batched product per size) and an ``m x m`` product per application. Replayed positions of
+the tyre: 8 CG iterations to the KKT residual 1e-8 against 16 with the circulant inverse
+(13 with the blocks alone, no coupling). The blocks' inverses depend on the loaded cells'
+offsets only (a translation-invariant body). Each stone's is kept between the iterations
+and the positions of a run, known by the stone's number on the road and its cells'
+places on the road (a stone's contact changes by a few cells a position): the same cells
+reuse it, a large stone's few cells gained or lost update it (:func:`_updated`), another
+stone's block of the same offsets is reused, and what a position did not use is dropped.
 """
 
 from __future__ import annotations
+
+from types import MappingProxyType
 
 import numpy as np
 from scipy.linalg import blas, lapack
@@ -44,6 +49,19 @@ REBUILD_FRACTION = 0.2
 #: footprint the largest contact is ~250 cells, the stones ~250).
 MAX_BLOCK_CELLS = 600
 MAX_STONES = 1500
+#: A stone's kept inverse is updated (:func:`_updated`) when the cells it gained and lost
+#: are at most this fraction of its cells and it has at least :data:`UPDATE_MIN_CELLS`
+#: (smaller blocks cost less afresh than the update's steps), at most
+#: :data:`MAX_UPDATES` times in a row (then afresh: rounding does not pile up).
+UPDATE_CELLS = 0.25
+UPDATE_MIN_CELLS = 96
+MAX_UPDATES = 20
+#: Most memory the stacked inverses of one contact may take (bytes; the tyre's: ~8 MB).
+MAX_BLOCK_BYTES = 400e6
+#: Block sizes the inverses are padded to and applied by, a batched product per size
+#: (:func:`_stacked`): steps of 8 cells, ~1.3x apart past 64 (the padding costs at most
+#: ~1.7x the products' work; a product per stone cost ~6 us of Python each, 250 stones).
+SIZE_CLASSES = np.array([8, 16, 24, 32, 40, 48, 56, 64, 80, 96, 112, 128, 160, 192, 224, 256, 320, 384, 448, 512, 600])
 
 
 class StoneBlocks:
@@ -58,17 +76,33 @@ class StoneBlocks:
 
     def __init__(self, body):
         self.body = body
-        self._inverses: dict = {}  # cell offsets -> (inverse, its row sums)
+        self._kept: dict = {}  # stone -> (its cells' keys, sorted; padded inverse; row sums; updates)
+        self._patterns: dict = {}  # cells' offsets -> (padded inverse, row sums)
         self._used: set = set()
+        self._used_patterns: set = set()
         self._tables: dict = {}  # grid shape -> the kernel's padded table
-        self.built = 0  # inverses computed (the others were found kept)
+        self.built = 0  # inverses computed afresh
+        self.updated = 0  # inverses updated from a kept one (cells gained or lost)
 
-    def __call__(self, surface: Surface) -> "BlockInverse":
+    def __call__(self, surface: Surface, stones: np.ndarray | None = None, shift_cells: int = 0) -> "BlockInverse":
         """The preconditioner of a solve on ``surface`` (its grid and the cells' stones);
-        the inverses the last solve did not use are dropped."""
-        self._inverses = {k: v for k, v in self._inverses.items() if k in self._used}
-        self._used = set()
-        return BlockInverse(self, surface)
+        the inverses the last solve did not use are dropped. A stone is known across
+        solves by ``stones[owner]`` (the road's numbers; the owner itself without them) and
+        its cells by their place on the road, ``shift_cells`` columns behind the body's."""
+        self._kept = {k: v for k, v in self._kept.items() if k in self._used}
+        self._patterns = {k: v for k, v in self._patterns.items() if k in self._used_patterns}
+        self._used, self._used_patterns = set(), set()
+        return BlockInverse(self, surface, stones, shift_cells)
+
+    def at(self, stones: np.ndarray, shift: float, h: float):
+        """The preconditioner factory of a position (``solve_cg(preconditioner=...)``): its
+        stones' road numbers and the road's shift (mm) on cells of ``h`` mm; a shift that
+        is not a whole number of cells forgets the kept inverses (the cells moved off the
+        lattice)."""
+        cells = round(shift / h)
+        if abs(shift / h - cells) > 1e-6:
+            self._kept.clear()  # (the patterns stay: offsets do not move)
+        return lambda surface: self(surface, stones, cells)
 
     def table(self, grid) -> np.ndarray:
         """The kernel's padded table on ``grid`` (entry ``(ny - 1, nx - 1)`` the offset 0), kept by
@@ -77,20 +111,89 @@ class StoneBlocks:
             self._tables = {grid.shape: self.body.grid_operator(grid).op.padded_table()}
         return self._tables[grid.shape]
 
-    def inverse(self, rows: np.ndarray, cols: np.ndarray, table: np.ndarray, centre: tuple[int, int]):
-        """The inverse of the operator on the cells ``(rows, cols)`` (one stone's) and its
-        row sums, kept by the cells' offsets."""
-        key = (rows - rows[0]).tobytes() + b"|" + (cols - cols[0]).tobytes()
-        self._used.add(key)
-        found = self._inverses.get(key)
-        if found is None:
-            width = table.shape[1]
-            flat = rows * width + cols
-            block = table.ravel()[(centre[0] * width + centre[1]) + flat[:, None] - flat[None, :]]
-            inv = _spd_inverse(block)
-            found = self._inverses[key] = (inv, blas.dsymv(1.0, inv, np.ones(len(rows))))
+    def inverse(self, stone: int, keys: np.ndarray, flat: np.ndarray, table: np.ndarray, centre: int):
+        """The inverse of the operator on one stone's cells (``keys``: their places on the
+        road, sorted; ``flat``: their places in ``table``'s rows, ``table.ravel()[centre +
+        flat_i - flat_j]`` the operator's entry), full and zero-padded to its size class
+        (:data:`SIZE_CLASSES`), and its row sums: the stone's kept one when its cells are the
+        same, another's of the same cell offsets, the stone's updated when its cells
+        changed by a few (:func:`_updated`), else computed afresh."""
+        self._used.add(stone)
+        found = self._kept.get(stone)
+        if found is not None and found[0].size == keys.size and np.array_equal(found[0], keys):
+            return found[1], found[2]
+        pattern = (keys - keys[0]).tobytes()  # the cells' offsets: the same block elsewhere
+        self._used_patterns.add(pattern)
+        same = self._patterns.get(pattern)
+        if same is not None:
+            self._kept[stone] = (keys, *same, 0)
+            return same
+        update = None
+        if found is not None and found[3] < MAX_UPDATES and min(found[0].size, keys.size) >= UPDATE_MIN_CELLS:
+            update = _updated(found[0], found[1], keys, flat, table.ravel(), centre)
+        if update is not None:
+            self._kept[stone] = (keys, *update, found[3] + 1)
+            self.updated += 1
+        else:
+            update = _fresh(table.ravel()[centre + flat[:, None] - flat[None, :]])
+            self._kept[stone] = (keys, *update, 0)
             self.built += 1
-        return found
+        self._patterns[pattern] = update
+        return update
+
+
+def _fresh(block: np.ndarray) -> tuple:
+    """The inverse of a stone's ``block`` (:func:`_spd_inverse`), full and zero-padded to its
+    size class, and its row sums."""
+    n = len(block)
+    inv = _spd_inverse(block)
+    c = int(_size_class(n))
+    padded = np.zeros((c, c))
+    np.copyto(padded[:n, :n], inv.T, where=_LOWER[c][:n, :n])  # the upper triangle mirrored
+    np.copyto(padded[:n, :n], inv, where=~_LOWER[c][:n, :n])
+    return padded, blas.dsymv(1.0, inv, np.ones(n))
+
+
+def _updated(
+    old: np.ndarray, inverse: np.ndarray, keys: np.ndarray, flat: np.ndarray, entries: np.ndarray, centre: int
+):
+    """The inverse on the cells ``keys`` from ``inverse`` (padded) on the cells ``old`` (both
+    sorted road places) when they differ by few cells (:data:`UPDATE_CELLS`): the cells
+    lost taken out by the Schur complement of the inverse (``B_KK - B_KL B_LL^-1 B_LK``), the
+    cells gained bordered in (``S = A_NN - A_NK B A_KN``, the inverse ``[[B + X S^-1 X^T,
+    -X S^-1], [-S^-1 X^T, S^-1]]`` with ``X = B A_KN``): ``O(n^2)`` per cell against
+    ``O(n^3)`` afresh (``entries[centre + flat_i - flat_j]``: the operator's entries).
+    None when the change is too large or the blocks too small to gain."""
+    n_old, n = old.size, keys.size
+    if min(n_old, n) < UPDATE_MIN_CELLS:
+        return None
+    kept = keys[np.minimum(np.searchsorted(keys, old), n - 1)] == old
+    new = old[np.minimum(np.searchsorted(old, keys), n_old - 1)] != keys
+    if (n_old - np.count_nonzero(kept)) + np.count_nonzero(new) > UPDATE_CELLS * n_old:
+        return None
+    K, L, N = np.flatnonzero(kept), np.flatnonzero(~kept), np.flatnonzero(new)
+    b = inverse[:n_old, :n_old]
+    if L.size:  # (rows and columns taken out as blocks: a 2-d fancy index costs ~3x)
+        b_kl = np.delete(b[:, L], L, axis=0)
+        b = np.delete(np.delete(b, L, axis=0), L, axis=1)
+        b -= b_kl @ np.linalg.solve(inverse[np.ix_(L, L)], b_kl.T)
+    out = np.zeros((int(_size_class(n)),) * 2)
+    if N.size:
+        place = np.searchsorted(keys, old[K])  # the kept cells' places among ``keys``
+        a_kn = entries[centre + flat[place][:, None] - flat[N][None, :]]
+        a_nn = entries[centre + flat[N][:, None] - flat[N][None, :]]
+        x = b @ a_kn
+        s_inv = np.linalg.inv(a_nn - a_kn.T @ x)
+        xs = x @ s_inv
+        at = N - np.arange(N.size)  # where the gained cells go among the kept ones
+        rows = np.insert(b + xs @ x.T, at, -xs.T, axis=0)
+        out[:n, :n] = np.insert(rows, at, np.insert(-xs, at, s_inv, axis=0), axis=1)
+    else:  # (the kept cells are all the cells, in their order)
+        out[:n, :n] = b
+    full = out[:n, :n]
+    full += full.T
+    full *= 0.5  # (symmetric to rounding)
+    return out, full.sum(axis=1)
 
 
 def _spd_inverse(block: np.ndarray) -> np.ndarray:
@@ -109,9 +212,10 @@ class BlockInverse:
     """``Ã^-1`` (module docstring) on the loaded cells of one solve, rebuilt when they
     change; :meth:`apply` is the kernel's preconditioner (``solve_cg(preconditioner=...)``)."""
 
-    def __init__(self, blocks: StoneBlocks, surface: Surface):
+    def __init__(self, blocks: StoneBlocks, surface: Surface, stones: np.ndarray | None, shift_cells: int):
         self.blocks, self.grid = blocks, surface.grid
         self.owner = surface.owner.ravel()
+        self.stones, self.shift_cells = stones, shift_cells
         self.table = blocks.table(surface.grid)
         self.centre = (self.grid.ny - 1, self.grid.nx - 1)  # the table's entry of offset 0
         self._on: np.ndarray | None = None
@@ -133,16 +237,24 @@ class BlockInverse:
             out[new] = gap.ravel()[new] / self.table[self.centre]
         if not self.cells.size:
             return out.reshape(self.grid.shape)
-        r = gap.ravel()[self.cells]
+        r = np.append(gap.ravel()[self.cells], 0.0)  # (the padding's slot, last)
         y = np.empty_like(r)
-        for (a, b), inv in zip(self.slices, self.inverses):
-            y[a:b] = blas.dsymv(1.0, inv, r[a:b])
+        for inv, pos in self.classes:
+            y[pos] = np.matmul(inv, r[pos][:, :, None])[:, :, 0]
+        y = y[:-1]
         y -= self.v * (self.coupling @ np.add.reduceat(y, self.starts))[self.stone]
         out[self.cells] = y
         return out.reshape(self.grid.shape)
 
+    def _road_keys(self, rows: np.ndarray, cols: np.ndarray) -> np.ndarray:
+        """The cells' places on the road (the body's lattice moved back by the shift), one
+        integer each, in the order of the cells' flat indices."""
+        g = self.grid
+        row0, col0 = round(g.y0 / g.h), round(g.x0 / g.h) - self.shift_cells
+        return (rows + row0).astype(np.int64) * (1 << 32) + (cols + col0 + (1 << 31))
+
     def _build(self, on: np.ndarray) -> bool:
-        """The blocks of the stones' loaded cells (kept ones found by their offsets), and
+        """The blocks of the stones' loaded cells (kept or updated ones found by their stones), and
         the coupling ``(I + K W)^-1 K``; False when a contact or the stones are too many
         cells for it (:data:`MAX_BLOCK_CELLS`, :data:`MAX_STONES`)."""
         idx = np.flatnonzero(on)
@@ -151,15 +263,23 @@ class BlockInverse:
         _, starts, counts = np.unique(stone[order], return_index=True, return_counts=True)
         if len(counts) > MAX_STONES or counts.max(initial=0) > MAX_BLOCK_CELLS:
             return False
+        if 8 * np.sum(_size_class(counts).astype(float) ** 2) > MAX_BLOCK_BYTES:
+            return False
         self._on, self.cells, self.starts = on.copy(), idx[order], starts
         rows, cols = np.divmod(self.cells, self.grid.nx)
         ends = self.starts + counts
-        self.slices = list(zip(self.starts.tolist(), ends.tolist()))
-        self.inverses, sums = [], []
-        for a, b in self.slices:
-            inv, s = self.blocks.inverse(rows[a:b], cols[a:b], self.table, self.centre)
-            self.inverses.append(inv)
+        width = self.table.shape[1]
+        flat = rows * width + cols
+        keys = self._road_keys(rows, cols)
+        owners = self.owner[self.cells[self.starts]]
+        idents = (owners if self.stones is None else self.stones[owners]).tolist()
+        inverses, sums = [], []
+        centre = self.centre[0] * width + self.centre[1]
+        for n, a, b in zip(idents, self.starts.tolist(), ends.tolist()):
+            inv, s = self.blocks.inverse(n, keys[a:b], flat[a:b], self.table, centre)
+            inverses.append(inv)
             sums.append(s)
+        self.classes = _stacked(inverses, self.starts, counts)
         self.v = np.concatenate(sums) if sums else np.zeros(0)
         self.stone = np.repeat(np.arange(len(counts)), counts)
         w = np.add.reduceat(self.v, self.starts) if len(counts) else np.zeros(0)
@@ -175,3 +295,28 @@ class BlockInverse:
         np.fill_diagonal(k, 0.0)
         self.coupling = np.linalg.solve(np.eye(len(w)) + k * w[None, :], k)
         return True
+
+
+#: The strictly lower triangle of each size class (where an inverse's upper one is mirrored).
+_LOWER = MappingProxyType({int(c): np.tri(int(c), k=-1, dtype=bool) for c in SIZE_CLASSES})
+
+
+def _size_class(counts):
+    """The padded size (:data:`SIZE_CLASSES`) of blocks of ``counts`` cells."""
+    return SIZE_CLASSES[np.searchsorted(SIZE_CLASSES, counts)]
+
+
+def _stacked(inverses: list, starts: np.ndarray, counts: np.ndarray) -> list:
+    """The stones' padded inverses (:meth:`StoneBlocks.inverse`) stacked by size class, each
+    ``(k, c, c)`` with the ``(k, c)`` places of its cells in the contact's cell order (the
+    padding at place ``sum(counts)``, a slot holding 0)."""
+    size = np.array([len(inv) for inv in inverses], dtype=np.int64)
+    total = int(counts.sum())
+    out = []
+    for c in np.unique(size).tolist():
+        members = np.flatnonzero(size == c)
+        stack = np.stack([inverses[m] for m in members.tolist()])
+        j = np.arange(c)
+        pos = np.where(j[None, :] < counts[members][:, None], starts[members][:, None] + j[None, :], total)
+        out.append((stack, pos))
+    return out

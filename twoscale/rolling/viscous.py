@@ -32,7 +32,7 @@ import numpy as np
 from ..errors import SceneError
 from ..grid import Grid
 from .result import Position, RollingResult, StoneSignals
-from .road import Face, Road, Selection, ShiftedBasins
+from .road import Road, Selection, ShiftedBasins
 from .track import Track, footprint_length
 
 #: Recess (mm) of a stone that has no sample inside the window at a shift: out of reach.
@@ -55,11 +55,10 @@ class RoadIndenter:
         if self._last[0] == shift:
             return self._last[1]
         road = self.road
-        face = Face(road.spec, road.window)
+        face = road.face
         group = ShiftedBasins(road.basins, shift, face)
         out = []
-        for k in self.numbers:
-            stone = road._map_stone(int(k), shift, face, group)
+        for k, stone in zip(self.numbers, road.map_stones(self.numbers, shift, group)):
             if stone is None:
                 a = road.tips[int(k)]
                 stone = dataclasses.replace(a, x=a.x + shift, z=FAR, basins=group)
@@ -76,7 +75,7 @@ class RoadIndenter:
         road = self.road
         near = np.intersect1d(road.candidates(shift, np.inf), self.numbers)
         place = np.searchsorted(self.numbers, near)
-        group = ShiftedBasins(road.basins, shift, Face(road.spec, road.window))
+        group = ShiftedBasins(road.basins, shift, road.face)
         X, Y = grid.centres()
         height, owner = group.union_on(X, Y, {int(road.tips[k].label): int(m) for k, m in zip(near, place)})
         surf = Surface(grid, height, owner, len(self.numbers))

@@ -28,7 +28,6 @@ its preconditioner at every position. Here the position is that CG directly:
   or lets in corrected by the kernel's columns instead of a fresh product, and the
   conjugate directions kept while at most :data:`KEEP_CONJUGACY` of the loaded cells
   enter (the start's contact settles at the stones' edges a few cells at a time).
-
 * the **cut**: the CG runs on a part of the window, the box of the last position's
   contact (fixed in the body: the footprint) with :data:`CUT_MARGIN_CELLS` to spare (on
   the tyre's footprint 320 of the window's 384 cells along x: the footprint's rim lies
@@ -40,8 +39,8 @@ its preconditioner at every position. Here the position is that CG directly:
 
 The answer is the static contact of the road at that shift to the solver's tolerance:
 the cells left out of the window cannot touch (their height is above the bound), the
-cells left out of the cut were checked not to, and the start only changes the work. A position that does not converge is solved again by the
-two-scale solver from cold.
+cells left out of the cut were checked not to, and the start only changes the work. A
+position that does not converge is solved again by the two-scale solver from cold.
 """
 
 from __future__ import annotations
@@ -330,6 +329,7 @@ def solve_window(track, selection, bound: float, state: WindowState, tol: float)
     if not np.isfinite(_restricted(surface, cut).height).any():
         cut = grid  # no stone's material in the cut (cannot carry a load): the whole window
     start = state.start(cut, selection.shift)
+    blocks = None if state.blocks is None else state.blocks.at(selection.numbers, selection.shift, grid.h)
     while True:
         result = solve_cg(
             state.body,
@@ -340,7 +340,7 @@ def solve_window(track, selection, bound: float, state: WindowState, tol: float)
             start=start,
             precision="single-directions",
             precondition=True,
-            preconditioner=state.blocks,
+            preconditioner=blocks,
             keep_conjugacy=KEEP_CONJUGACY,
             max_iter=WINDOW_MAX_ITER,
         )
