@@ -120,7 +120,7 @@ def test_a_box_of_prime_sides_wraps_onto_a_fast_torus_and_keeps_its_iterations()
 
 def test_a_longer_torus_keeps_a_maps_opposite_edges_apart(monkeypatch):
     # the box of a height map has stones in contact at opposite edges; on the box's own
-    # torus the wrapped inverse coupled them as neighbours: 27 iterations against 18
+    # torus the wrapped inverse coupled them as neighbours: 30 iterations against 19
     from twoscale.influence import circulant
     from twoscale.surface import RawMap, SurfaceOptions, build_surface
     from twoscale.surface.texture import road
