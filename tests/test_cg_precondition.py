@@ -116,3 +116,30 @@ def test_a_box_of_prime_sides_wraps_onto_a_fast_torus_and_keeps_its_iterations()
     # on the grid's own torus the crowded tips take 19-22 iterations against 45-59 plain
     assert pre.iterations["cg"] < 0.5 * plain.iterations["cg"], (pre.iterations, plain.iterations)
     assert np.max(np.abs(pre.asperities.forces - plain.asperities.forces)) <= 1e-7 * plain.asperities.forces.max()
+
+
+def test_a_longer_torus_keeps_a_maps_opposite_edges_apart(monkeypatch):
+    # the box of a height map has stones in contact at opposite edges; on the box's own
+    # torus the wrapped inverse coupled them as neighbours: 30 iterations against 19
+    from twoscale.influence import circulant
+    from twoscale.surface import RawMap, SurfaceOptions, build_surface
+    from twoscale.surface.texture import road
+
+    size = 16.0
+    surface = build_surface(RawMap(road(size, 0.1, seed=3), 0.1, "mm", None, "road"), SurfaceOptions())
+    grid = surface.hmap.grid
+    assert grid.nx >= circulant.LONGER_TORUS_MIN_SIDE
+    ly, lx = circulant.torus_shape(grid)
+    assert ly >= circulant.TORUS_MARGIN * grid.ny and lx >= circulant.TORUS_MARGIN * grid.nx
+    assert max(circulant._largest_prime_factor(ly), circulant._largest_prime_factor(lx)) <= circulant.FAST_PRIME
+    surf = surface_on(grid, surface.asperities)
+    load = 0.45 * size**2
+    plain = solve_cg(HS, surf, total_load=load, tol=1e-9)
+    longer = solve_cg(HS, surf, total_load=load, tol=1e-9, precondition=True)
+    monkeypatch.setattr(circulant, "TORUS_MARGIN", 1.0)
+    own = solve_cg(HS, surf, total_load=load, tol=1e-9, precondition=True)
+    assert circulant.torus_shape(grid) == grid.shape  # 160 cells: already a fast length
+    assert plain.converged and longer.converged and own.converged
+    assert longer.iterations["cg"] < 0.85 * own.iterations["cg"], (longer.iterations, own.iterations)
+    F, Fp = longer.asperities.forces, plain.asperities.forces
+    assert np.max(np.abs(F - Fp)) <= 1e-7 * Fp.max()

@@ -139,6 +139,19 @@ def test_tabulated_rejects_invalid_tables(delta, P, shown):
         TabulatedLaw(delta, P)
 
 
+@pytest.mark.parametrize("law", [HertzLaw, SphereLaw])
+@pytest.mark.parametrize("bad", [0.0, -1.0, math.inf, math.nan])
+def test_closed_form_laws_refuse_a_radius_or_modulus_that_is_not_a_positive_number(law, bad):
+    # a float takes a check of its own (no array per tip): the same refusals as arrays
+    with pytest.raises(ValueError, match="R \\(mm\\) must be finite and > 0"):
+        law(bad, E_STAR)
+    with pytest.raises(ValueError, match="E_star \\(MPa\\) must be finite and > 0"):
+        law(R, bad)
+    with pytest.raises(ValueError, match="R \\(mm\\) must be finite and > 0"):
+        law(np.array([R, bad]), E_STAR)
+    assert law(R, E_STAR).R == R and law(2, E_STAR).R == 2  # an int too
+
+
 def test_compliant_law_is_the_law_in_series_with_c():
     base = SphereLaw(R, E_STAR)
     P = np.array([0.0, 0.5, 5.0, 50.0])

@@ -153,6 +153,27 @@ def test_near_neighbours_follow_the_far_field_rule():
     assert crowded > far
 
 
+@pytest.mark.parametrize("far_tol", [0.01, AUTO_FAR_TOL, 0.9])
+def test_near_neighbours_count_the_far_field_couplings_near_lists(far_tol):
+    # the policy counts the pairs at once; the two-level iteration lists them patch by
+    # patch: the same pairs, on patches of unequal sizes scattered at random
+    from twoscale.micro.farfield import near_lists, patch_frames
+    from twoscale.micro.policy import near_neighbours
+
+    rng = np.random.default_rng(11)
+    asps = [
+        Asperity(float(x), float(y), float(z), float(R))
+        for x, y, z, R in zip(
+            rng.uniform(0, 60, 300), rng.uniform(0, 60, 300), rng.uniform(0, 0.05, 300), rng.uniform(1, 9, 300)
+        )
+    ]
+    pts, _ = _patches(asps, 1.0, 0.2, 0.1)
+    radii = patch_frames(pts)[1]
+    assert radii.max() > 1.5 * radii.min()
+    lists = near_lists(*patch_frames(pts), far_tol)
+    assert near_neighbours(pts, far_tol) == pytest.approx(sum(len(c) for c in lists) / len(pts), rel=1e-15)
+
+
 def test_the_far_field_iteration_has_a_union_margin_of_its_own():
     # the margin of 1.7 is on the exact block iterations: against the far-field two-level
     # iteration (now converging where contacts merge) the union CG has a margin of its own

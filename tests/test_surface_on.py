@@ -4,6 +4,7 @@ within their radius; the result must equal evaluating every indenter on every ce
 from __future__ import annotations
 
 import numpy as np
+import pytest
 
 from twoscale.grid import Grid
 from twoscale.indenters import Asperity, surface_on
@@ -58,3 +59,36 @@ def test_batched_sampling_equals_one_by_one_with_ties(monkeypatch):
     for other in (batched, split):
         assert np.array_equal(other.height, one_by_one.height)
         assert np.array_equal(other.owner, one_by_one.owner)
+
+
+@pytest.mark.parametrize("shapes", [("sphere",), ("paraboloid",), ("sphere", "paraboloid")])
+def test_a_large_box_sampled_tile_by_tile_from_the_tip_arrays_equals_every_tip_on_every_cell(shapes):
+    """A union box of plain tips is sampled tile by tile from the table's arrays
+    (``TipTable.sample``, one formula a shape, squared distances per axis): the owners of
+    every asperity evaluated on every cell (a tie going to the earlier index), and their
+    heights to rounding."""
+    from twoscale.micro.patches import TipTable
+    from twoscale.micro.sampling import SAMPLE_WHOLE_CELLS, box_surface
+
+    rng = np.random.default_rng(7)
+    grid = Grid.covering(-3.0, 3.0, -3.0, 3.0, 0.02)
+    assert grid.size > SAMPLE_WHOLE_CELLS
+    n = 60
+    asps = scattered(rng, n, (-3.5, 3.5), (-3.5, 3.5), 0.05, (0.3, 2.0), [shapes[k % len(shapes)] for k in range(n)])
+    asps.append(asps[5])  # an exact tie: the earlier index keeps the cells
+    X, Y = grid.centres()
+    height = np.full(grid.shape, np.inf)
+    owner = np.full(grid.shape, -1)
+    for k, a in enumerate(asps):
+        hk = a.height(X, Y)
+        better = hk < height
+        height[better], owner[better] = hk[better], k
+    table = TipTable(asps)
+    assert table.plain
+    s = box_surface(grid, table)
+    assert np.array_equal(s.owner, owner)
+    # the tiles' own cell centres: the heights to rounding
+    assert np.array_equal(np.isinf(s.height), np.isinf(height))
+    finite = np.isfinite(height)
+    assert np.allclose(s.height[finite], height[finite], rtol=0.0, atol=1e-12)
+    assert 5 in owner and n not in owner

@@ -114,8 +114,8 @@ def test_a_box_of_dense_paraboloids_is_sampled_in_split_tiles_to_the_same_surfac
     grid = Grid.covering(-4.0, 4.0, -4.0, 4.0, 0.03)
     assert grid.size > sampling.SAMPLE_WHOLE_CELLS
     tiles = []
-    candidates = sampling.patch_candidates
-    monkeypatch.setattr(sampling, "patch_candidates", lambda t, *a: (tiles.append(t), candidates(t, *a))[1])
+    sample = TipTable.sample  # plain tips: each tile sampled from the table's arrays
+    monkeypatch.setattr(TipTable, "sample", lambda self, t, keep: (tiles.append(t), sample(self, t, keep))[1])
     tiled, whole = sampling.box_surface(grid, TipTable.of(tips)), surface_on(grid, tips)
     assert min(t.nx for t in tiles) < sampling.SAMPLE_TILE  # split
     assert np.array_equal(tiled.owner, whole.owner)

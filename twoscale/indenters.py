@@ -139,25 +139,63 @@ SAMPLE_MIN_BATCH = 8
 
 def _sample_batch(X: np.ndarray, Y: np.ndarray, batch: list, height: np.ndarray, owner: np.ndarray) -> None:
     """Plain spheres and paraboloids ``batch`` (pairs (index, Asperity)) sampled on every
-    cell at once, by the arithmetic of :meth:`Asperity.height`, into ``height`` and
-    ``owner`` where lower (on a tie the earlier index keeps the cell, as one by one):
-    a patch of a few hundred cells that 300 spheres can reach cost 300 calls of
-    ``Asperity.height`` each (1,277 touching spheres: 67 of the solve's 83 s of CPU)."""
+    cell at once (:func:`sample_tips`), into ``height`` and ``owner`` where lower (on a tie
+    the earlier index keeps the cell, as one by one): a patch of a few hundred cells that
+    300 spheres can reach cost 300 calls of ``Asperity.height`` each (1,277 touching
+    spheres: 67 of the solve's 83 s of CPU)."""
     index = np.array([k for k, _ in batch], dtype=np.int64)
-    x, y, z, R = (np.array([getattr(a, f) for _, a in batch], dtype=float)[:, None] for f in "xyzR")
-    sphere = np.array([a.shape == "sphere" for _, a in batch])[:, None]
-    r2 = (X.ravel()[None, :] - x) ** 2 + (Y.ravel()[None, :] - y) ** 2
-    R2 = R * R
-    inside = r2 < R2
-    with np.errstate(invalid="ignore"):
-        cap = r2 / (R + np.sqrt(np.where(inside, R2 - r2, 0.0)))
-    hk = np.where(sphere, np.where(inside, z + cap, np.inf), z + r2 / (2.0 * R))
+    x, y, z, R = (np.array([getattr(a, f) for _, a in batch], dtype=float) for f in "xyzR")
+    sphere = np.array([a.shape == "sphere" for _, a in batch])
+    sample_tips(X[0], Y[:, 0], TipArrays(index, x, y, z, R, sphere), height, owner)
+
+
+@dataclass(frozen=True)
+class TipArrays:
+    """Plain spheres and paraboloids as arrays (N,): their ``index`` in the scene, tip
+    ``x``, ``y``, ``z`` and curvature radius ``R`` (mm), and which are spheres."""
+
+    index: np.ndarray
+    x: np.ndarray
+    y: np.ndarray
+    z: np.ndarray
+    R: np.ndarray
+    sphere: np.ndarray
+
+
+def sample_tips(xs: np.ndarray, ys: np.ndarray, tips: TipArrays, height: np.ndarray, owner: np.ndarray) -> None:
+    """``tips`` sampled at once at the cell centres of a grid (axes ``xs`` (nx,) and ``ys``
+    (ny,), mm), by the arithmetic of :meth:`Asperity.height`, into ``height`` (mm) and
+    ``owner`` (the tips' ``index``), both (ny, nx), where lower; on a tie the earlier tip
+    keeps the cell, and ``height`` keeps it from a tip before this call. The squared
+    distances are sums of per-axis squares (a pass less over the tips times the cells),
+    and a batch of one shape skips the other's formula (the 560 K cells of 6,933
+    spheres' union box: 0.96 against 1.4 s)."""
+    x, y, z, R = (v[:, None] for v in (tips.x, tips.y, tips.z, tips.R))
+    n = len(tips.index)
+    r2 = ((ys[None, :] - y) ** 2)[:, :, None] + ((xs[None, :] - x) ** 2)[:, None, :]
+    r2 = r2.reshape(n, -1)
+    spheres = int(np.count_nonzero(tips.sphere))
+    hk = None
+    if spheres:
+        R2 = R * R
+        outside = r2 >= R2
+        hk = R2 - r2
+        hk[outside] = 0.0
+        np.sqrt(hk, out=hk)
+        hk += R  # R - sqrt(R^2 - r^2) written as r^2 / (R + sqrt(R^2 - r^2)): no cancellation
+        np.divide(r2, hk, out=hk)
+        hk += z
+        hk[outside] = np.inf
+    if spheres < n:
+        par = np.divide(r2, 2.0 * R, out=r2)
+        par += z
+        hk = par if hk is None else np.where(tips.sphere[:, None], hk, par)
     first = np.argmin(hk, axis=0)
     low = hk[first, np.arange(hk.shape[1])]
     flat_h, flat_o = height.reshape(-1), owner.reshape(-1)
     better = low < flat_h
     flat_h[better] = low[better]
-    flat_o[better] = index[first[better]]
+    flat_o[better] = tips.index[first[better]]
 
 
 def surface_on(grid: Grid, asperities: Sequence[Asperity], tilt: Tilt | None = None) -> Surface:

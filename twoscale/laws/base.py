@@ -11,6 +11,8 @@ from __future__ import annotations
 
 from abc import ABC, abstractmethod
 
+import math
+
 import numpy as np
 
 
@@ -76,6 +78,8 @@ def as_force(P) -> np.ndarray:
 
 def check_positive(name: str, value) -> None:
     """Raise ValueError unless ``value`` (scalar or array) is finite and > 0."""
+    if type(value) is float and 0.0 < value < math.inf:  # a tip's law is made per tip: no array for a float
+        return
     v = np.asarray(value, dtype=float)
     if v.size == 0 or not np.all(np.isfinite(v)) or np.any(v <= 0):
         raise ValueError(f"{name} must be finite and > 0, got {value!r}")

