@@ -97,8 +97,9 @@ class WorkingSet:
             self.blocks[c[0]] if len(c) == 1 else LocalBlock(self.provider, pt, dense_max_cells=self.dense_max_cells)
             for pt, c in zip(merged, covers)
         ]
-        self.patches = merged
+        old, self.patches = self.coupling, merged
         self.coupling = self.rebuild(merged)
+        self.coupling.keep_pairs(old, {c[0]: k for k, c in enumerate(covers) if len(c) == 1})
         self.sensitivities = None
 
     def full_displacement(self, pressures: list) -> list:
