@@ -135,3 +135,21 @@ def test_the_far_fields_lattices_in_one_pass_are_the_per_patch_ones():
     engine = FarFieldCoupling(HS, patches)
     assert np.array_equal(all_stencils(patches), np.concatenate([engine._stencil(k) for k in range(len(patches))]))
     assert np.array_equal(all_source_nodes(patches), np.concatenate([source_nodes(pt.grid)[0] for pt in patches]))
+
+
+def test_a_reverse_pairs_dense_block_is_the_direct_block_and_takes_no_memory():
+    from twoscale.micro.blocks import Coupling
+
+    a, b = _patch(0, 0.0, 0.0, 9, 7, cut=2), _patch(1, 0.1, 0.04, 8, 10, cut=3)
+    engine = Coupling(HS, [a, b])
+    forward = engine._dense(0, 1)
+    used = engine._bytes
+    reverse = engine._dense(1, 0)
+    assert engine._bytes == used  # a view of the forward block
+    ia, ib = np.flatnonzero(a.owned.ravel()), np.flatnonzero(b.owned.ravel())
+    direct = HS.grid_matrix(b.grid, a.grid)[np.ix_(ib, ia)]
+    assert np.allclose(reverse, direct, rtol=1e-13, atol=0.0)
+    assert np.allclose(forward, HS.grid_matrix(a.grid, b.grid)[np.ix_(ia, ib)], rtol=1e-13, atol=0.0)
+    # a patch that changes drops both, and the memory they held
+    engine.replace(1, _patch(1, 0.1, 0.04, 9, 10, cut=3))
+    assert engine._bytes == 0.0 and not engine._ops
