@@ -8,6 +8,8 @@ sides) for the far-field coupling's one-vector product; the per-patch stencils a
 source nodes for the far field's lattices made in one pass.
 """
 
+from types import SimpleNamespace
+
 import numpy as np
 import pytest
 
@@ -18,7 +20,7 @@ from twoscale.micro import localblock
 from twoscale.micro.coarse import CoarseSpace
 from twoscale.micro.farfield import FarFieldCoupling, LaggedFarField, all_source_nodes, all_stencils
 from twoscale.micro.local import contact_solve
-from twoscale.micro.localblock import LocalBlock
+from twoscale.micro.localblock import LocalBlock, whole_patch
 from twoscale.micro.patches import Patch
 from twoscale.micro.sources import source_nodes
 
@@ -153,3 +155,30 @@ def test_a_reverse_pairs_dense_block_is_the_direct_block_and_takes_no_memory():
     # a patch that changes drops both, and the memory they held
     engine.replace(1, _patch(1, 0.1, 0.04, 9, 10, cut=3))
     assert engine._bytes == 0.0 and not engine._ops
+
+
+@pytest.mark.parametrize("cut", [0, 3])
+def test_whole_patch_displacements_by_kept_blocks_are_the_fft_ones(cut):
+    # the growth check's displacement on whole patches (their cells a neighbour owns
+    # included): a block's own pressure and its near pairs', against the FFT operators
+    patches = [_patch(k, H * (7 * k), H * (3 * k), 10, 9, cut=cut) for k in range(4)]
+    engine = LaggedFarField(HS, patches, far_tol=0.3)
+    rng = np.random.default_rng(6)
+    values = [np.where(rng.random(int(pt.owned.sum())) < 0.5, rng.random(int(pt.owned.sum())), 0.0) for pt in patches]
+    for k in range(len(patches)):
+        engine.rhs(k, values, np.zeros(len(values[k])))  # makes the near pairs' dense blocks
+        assert len(engine.near(k)) and all((k, int(l)) in engine._ops for l in engine.near(k))
+        routed = engine._sum(k, [int(l) for l in engine.near(k)], values, whole=True)
+        far = engine._far(k, values, whole=True)[:, 0].reshape(patches[k].grid.shape)
+        u = engine.patch_displacement(k, values)
+        assert np.allclose(u, routed + far, rtol=0.0, atol=1e-12 * np.abs(u).max())
+        blk = LocalBlock(HS, patches[k])
+        whole = np.zeros(patches[k].grid.shape)
+        whole[patches[k].owned] = values[k]
+        fft = blk.full_operator().apply(whole)
+        assert np.allclose(blk.patch_product(values[k]), fft, rtol=0.0, atol=1e-12 * np.abs(fft).max())
+        # a provider whose matrix is not cheap: the loaded cells' cell block
+        by_cells = whole_patch(
+            SimpleNamespace(cell_block=HS.cell_block), patches[k], fft[patches[k].owned], patches[k], values[k]
+        )
+        assert np.allclose(by_cells, fft, rtol=0.0, atol=1e-12 * np.abs(fft).max())

@@ -23,6 +23,7 @@ import numpy as np
 
 from ..influence.base import InfluenceProvider
 from .blocks import Coupling
+from .localblock import whole_patch
 from .sources import SOURCE_NODE, lagrange3, source_frame, source_weights
 
 
@@ -256,10 +257,26 @@ class FarFieldCoupling(Coupling):
         return out
 
     def patch_displacement(self, k: int, values: list) -> np.ndarray:
-        """Displacement (mm) on the whole patch ``k`` from the other blocks (near exact)."""
-        shape = self.patches[k].grid.shape
-        u = self._sum(k, [int(l) for l in self.near(k)], values, whole=True)
-        u = np.zeros(shape) if u is None else u
+        """Displacement (mm) on the whole patch ``k`` from the other blocks (near exact):
+        a near pair whose dense block is kept by it on the patch's own cells and by
+        :func:`~.localblock.whole_patch` on the cells neighbours own, not by an FFT operator
+        made for this one product (2,370 of them on 939 scattered patches, the growth
+        check's 0.4 s); the other pairs by their routes."""
+        pt = self.patches[k]
+        shape = pt.grid.shape
+        u, rest = np.zeros(shape), []
+        for l in self.near(k):
+            v = values[int(l)]
+            if v is None or not v.any():
+                continue
+            M = self._ops.get((k, int(l)))
+            if M is None:
+                rest.append(int(l))
+            else:
+                u += whole_patch(self.provider, pt, M @ v, self.patches[int(l)], v)
+        routed = self._sum(k, rest, values, whole=True) if rest else None
+        if routed is not None:
+            u += routed
         return u + self._far(k, values, whole=True)[:, 0].reshape(shape)
 
 

@@ -38,6 +38,32 @@ def _factorise(M: np.ndarray, symmetric: bool):
     return "lu", sla.lu_factor(M, check_finite=False)
 
 
+def whole_patch(provider, patch: Patch, owned_rows: np.ndarray, source: Patch, v: np.ndarray) -> np.ndarray:
+    """Displacement (ny, nx) mm on the whole ``patch`` from the block vector ``v`` (MPa) of
+    the patch ``source`` (``patch`` itself for its own pressure), given its values
+    ``owned_rows`` (n,) on the patch's own cells: the cells a neighbour owns (where patches
+    overlap) from the loaded cells by the provider's matrix of the two grids where it is
+    cheap (a strided copy of a kept table), else by its cell block."""
+    out = np.zeros(patch.grid.shape)
+    out[patch.owned] = owned_rows
+    other = ~patch.owned
+    loaded = v != 0.0
+    if other.any() and loaded.any():
+        cols = np.flatnonzero(source.owned.ravel())[loaded]
+        if getattr(provider, "cheap_grid_matrix", False):
+            block = provider.grid_matrix(patch.grid, source.grid)[np.ix_(np.flatnonzero(other.ravel()), cols)]
+        else:
+            X, Y = patch.grid.centres()
+            S, T = source.grid.centres()
+            block = provider.cell_block(
+                np.column_stack([X[other], Y[other]]),
+                np.column_stack([S.ravel()[cols], T.ravel()[cols]]),
+                patch.grid.h,
+            )
+        out[other] = block @ v[loaded]
+    return out
+
+
 class LocalBlock:
     """``A_kk`` on the owned cells of one patch, with linear solves on active subsets.
 
@@ -166,6 +192,18 @@ class LocalBlock:
                 return self.matvec(v)
             self._columns = (key, self._provider.grid_matrix(self.box)[np.ix_(self._idx, self._idx[active])])
         return self._columns[1] @ v[active]
+
+    def patch_product(self, v: np.ndarray) -> np.ndarray:
+        """``A v`` (ny, nx) mm on the whole patch for a block vector ``v`` (n,) MPa: on a
+        dense block whose matrix is not stored its own cells by :meth:`product_on` (the last
+        solve's kept columns) and the cells a neighbour owns by :func:`whole_patch`, not an
+        FFT of the whole patch made for this one product; else by that FFT."""
+        if not self.dense or self._matrix is not None:
+            out = np.zeros(self.patch.grid.shape)
+            out[self.patch.owned] = v
+            return self.full_operator().apply(out)
+        rows = self.product_on(v > 0.0, v) if np.all(v >= 0.0) else self.matvec(v)
+        return whole_patch(self._provider, self.patch, rows, self.patch, v)
 
     def canvas_mask(self, shape: tuple[int, int]) -> np.ndarray:
         """The block's cells on a canvas of ``shape`` (>= the box's) whose corner is the

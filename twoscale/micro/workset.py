@@ -108,7 +108,7 @@ class WorkingSet:
         for k, pt in enumerate(self.patches):
             u = self.coupling.patch_displacement(k, pressures)
             if np.any(pressures[k]):
-                u += self.blocks[k].full_operator().apply(scatter(pt, pressures[k]))
+                u += self.blocks[k].patch_product(pressures[k])
             out.append(u)
         return out
 
