@@ -43,14 +43,18 @@ def whole_patch(provider, patch: Patch, owned_rows: np.ndarray, source: Patch, v
     the patch ``source`` (``patch`` itself for its own pressure), given its values
     ``owned_rows`` (n,) on the patch's own cells: the cells a neighbour owns (where patches
     overlap) from the loaded cells by the provider's matrix of the two grids where it is
-    cheap (a strided copy of a kept table), else by its cell block."""
+    cheap (a strided copy of a kept table) and not much larger than the entries wanted,
+    else by its cell block."""
     out = np.zeros(patch.grid.shape)
     out[patch.owned] = owned_rows
     other = ~patch.owned
     loaded = v != 0.0
     if other.any() and loaded.any():
         cols = np.flatnonzero(source.owned.ravel())[loaded]
-        if getattr(provider, "cheap_grid_matrix", False):
+        # a strided copy costs ~1/50 of a Love value: the grids' whole matrix only when it is
+        # not much larger than the entries wanted
+        wanted = int(np.count_nonzero(other)) * len(cols)
+        if getattr(provider, "cheap_grid_matrix", False) and patch.grid.size * source.grid.size <= 50 * wanted:
             block = provider.grid_matrix(patch.grid, source.grid)[np.ix_(np.flatnonzero(other.ravel()), cols)]
         else:
             X, Y = patch.grid.centres()
