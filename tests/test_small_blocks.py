@@ -182,3 +182,20 @@ def test_whole_patch_displacements_by_kept_blocks_are_the_fft_ones(cut):
             SimpleNamespace(cell_block=HS.cell_block), patches[k], fft[patches[k].owned], patches[k], values[k]
         )
         assert np.allclose(by_cells, fft, rtol=0.0, atol=1e-12 * np.abs(fft).max())
+
+
+def test_a_new_engine_takes_over_the_blocks_of_the_patches_that_did_not_change():
+    from twoscale.micro.blocks import Coupling
+
+    a, b, c = (_patch(k, H * 6 * k, 0.0, 8, 8) for k in range(3))
+    old = Coupling(HS, [a, b, c])
+    kept = old._dense(1, 2)
+    old._dense(2, 1)  # a view of it
+    old._dense(0, 1)
+    d = _patch(3, H * 3, H * 5, 9, 9)
+    new = Coupling(HS, [b, c, d])  # a merged away: b and c are patches 0 and 1 now
+    new.keep_pairs(old, {1: 0, 2: 1})
+    assert new._ops[(0, 1)] is kept and (1, 0) in new._ops and len(new._ops) == 2
+    assert new._bytes == kept.nbytes  # the view holds no memory of its own
+    ib, ic = np.flatnonzero(b.owned.ravel()), np.flatnonzero(c.owned.ravel())
+    assert np.allclose(new._dense(1, 0), HS.grid_matrix(c.grid, b.grid)[np.ix_(ic, ib)], rtol=1e-13, atol=0.0)
