@@ -39,7 +39,7 @@ sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 
 
 CANDIDATES = ("union-cg", "block-gs", "two-level")
-from twoscale.micro.costmodel import PATCH_REFERENCE_WORK, UNION_REFERENCE_WORK  # noqa: E402
+from twoscale.micro.costmodel import UNION_REFERENCE_WORK  # noqa: E402
 
 #: Largest fixed cost per candidate the fit may give, s.
 MAX_FIXED = 0.3
@@ -65,7 +65,6 @@ def samples(records: list[dict]) -> list[dict]:
             continue
         scale = min(ts["cpu_s"] / ts["time_s"], 1.0)  # the solve's share of a core while it ran
         control = "tilt" if spec.get("tilt") else spec.get("control", "load")
-        figures = _figures(ts)
         for iteration, far_tol, converged, sweeps, seconds in attempts:
             key = candidate(iteration, far_tol)
             if not work.get(key):
@@ -76,7 +75,6 @@ def samples(records: list[dict]) -> list[dict]:
                     "iteration": iteration,
                     "work": float(work[key]),
                     "control": control,
-                    "patches": figures["patches"] if figures else 0,
                     "seconds": max(seconds * scale, 1e-3),
                     "converged": bool(converged),
                     "sweeps": sweeps,
@@ -102,16 +100,14 @@ def fit(rows: list[dict]) -> dict:
     which = np.array([keys.index(r["candidate"]) if r["candidate"] in keys else -1 for r in conv])
     blocks = np.array([r["candidate"] != "union-cg" for r in conv])
     growth = np.where(blocks, 0.0, np.log(w / UNION_REFERENCE_WORK))
-    per_patch = np.array([r["work"] / r["patches"] if r["patches"] else PATCH_REFERENCE_WORK for r in conv])
-    size = np.where(blocks, np.log(np.maximum(per_patch, 1.0) / PATCH_REFERENCE_WORK), 0.0)
     load = np.array([r["control"] == "load" for r in conv]) & blocks
     tilt = np.array([r["control"] == "tilt" for r in conv]) & blocks
     ok = which >= 0
 
     def predict_(q):
         fixed, ns = np.exp(q[0 : 2 * len(keys) : 2]), np.exp(q[1 : 2 * len(keys) : 2])
-        f_load, f_tilt = np.exp(q[-4]), np.exp(q[-3])
-        factor = np.where(load, f_load, np.where(tilt, f_tilt, 1.0)) * np.exp(q[-2] * growth + q[-1] * size)
+        f_load, f_tilt = np.exp(q[-3]), np.exp(q[-2])
+        factor = np.where(load, f_load, np.where(tilt, f_tilt, 1.0)) * np.exp(q[-1] * growth)
         return fixed[which] + 1e-9 * ns[which] * factor * w
 
     def resid(q):
@@ -124,18 +120,13 @@ def fit(rows: list[dict]) -> dict:
     # a fixed cost of at most MAX_FIXED s: where the data would put more there (the far
     # field's few mid-size attempts, 2-3 s each), it is scatter, not set-up
     q0 = [min(v, math.log(MAX_FIXED) - 1e-6) if i % 2 == 0 else v for i, v in enumerate(q0)]
-    hi = np.array([math.log(MAX_FIXED) if i < 2 * len(keys) and i % 2 == 0 else np.inf for i in range(len(q0) + 4)])
-    q = least_squares(resid, np.array(q0 + [0.0, 0.0, 0.0, 0.0]), bounds=(-np.inf, hi)).x
+    hi = np.array([math.log(MAX_FIXED) if i < 2 * len(keys) and i % 2 == 0 else np.inf for i in range(len(q0) + 3)])
+    q = least_squares(resid, np.array(q0 + [0.0, 0.0, 0.0]), bounds=(-np.inf, hi)).x
     out = {
         k: {"fixed": math.exp(q[2 * i]), "ns": math.exp(q[2 * i + 1]), "count": int(np.sum(which == i))}
         for i, k in enumerate(keys)
     }
-    out["factors"] = {
-        "load": math.exp(q[-4]),
-        "tilt": math.exp(q[-3]),
-        "union_exponent": float(q[-2]),
-        "patch_exponent": float(q[-1]),
-    }
+    out["factors"] = {"load": math.exp(q[-3]), "tilt": math.exp(q[-2]), "union_exponent": float(q[-1])}
     return out
 
 
@@ -145,9 +136,6 @@ def predict(models: dict, row: dict) -> float:
         factor = (row["work"] / UNION_REFERENCE_WORK) ** models["factors"].get("union_exponent", 0.0)
     else:
         factor = models["factors"].get(row["control"], 1.0)
-        if row.get("patches"):
-            per_patch = max(row["work"] / row["patches"], 1.0) / PATCH_REFERENCE_WORK
-            factor *= per_patch ** models["factors"].get("patch_exponent", 0.0)
     return m["fixed"] + 1e-9 * m["ns"] * factor * row["work"]
 
 
@@ -164,7 +152,6 @@ def _model_from(models: dict):
         load_factor=models["factors"]["load"],
         tilt_factor=models["factors"]["tilt"],
         union_work_exponent=models["factors"]["union_exponent"],
-        patch_work_exponent=models["factors"]["patch_exponent"],
     )
 
 
@@ -256,15 +243,13 @@ def main(argv=None) -> int:
     print(
         f"  block iterations' work x {models['factors']['load']:.3g} under load control, "
         f"x {models['factors']['tilt']:.3g} with the tilt; the union CG's x (work / "
-        f"{UNION_REFERENCE_WORK:.0e}) ** {models['factors']['union_exponent']:.3g}; the block iterations' x (work "
-        f"a patch / {PATCH_REFERENCE_WORK:.0e}) ** {models['factors']['patch_exponent']:.3g}"
+        f"{UNION_REFERENCE_WORK:.0e}) ** {models['factors']['union_exponent']:.3g}"
     )
     installed = {k: {"fixed": FITTED.fixed_seconds[k], "ns": FITTED.ns_per_unit[k]} for k in CANDIDATES}
     installed["factors"] = {
         "load": FITTED.load_factor,
         "tilt": FITTED.tilt_factor,
         "union_exponent": FITTED.union_work_exponent,
-        "patch_exponent": FITTED.patch_work_exponent,
     }
     report(f"installed model ({FITTED.fitted_on})", installed, rows)
     off = report("this fit", models, rows)
@@ -292,7 +277,6 @@ def main(argv=None) -> int:
             # not fitted here (the records do not say which scenes had merged contacts): kept
             f"    sensitivity_factor={FITTED.sensitivity_factor:g},\n"
             f"    union_work_exponent={models['factors']['union_exponent']:.3g},\n"
-            f"    patch_work_exponent={models['factors']['patch_exponent']:.3g},\n"
             f"    union_margin={args.margin:g},\n"
             f'    fitted_on="{len(rows)} attempts of {len(records)} sweep scenes",\n)'
         )

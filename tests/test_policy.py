@@ -218,7 +218,6 @@ def test_the_cost_model_decides_and_its_margin_works_both_ways():
         ns_per_unit={"union-cg": 1.3 / ratio, "block-gs": 1.0, "two-level": 1.0},
         fixed_seconds={"union-cg": 0.0, "block-gs": 0.0, "two-level": 0.0},
         union_work_exponent=0.0,
-        patch_work_exponent=0.0,
     )
     assert choose(pts, box, model=dataclasses.replace(model, union_margin=1.0)).iteration == "block-gs"
     picked = choose(pts, box, model=dataclasses.replace(model, union_margin=1.7))
@@ -248,7 +247,7 @@ def test_the_union_prediction_grows_faster_than_its_work():
 
 
 def _model_predicting(work: dict, seconds: dict, **fields):
-    """The fitted cost model with no fixed costs and linear in the work, its nanoseconds per
+    """The fitted cost model with no fixed costs and a linear union CG, its nanoseconds per
     unit set so that it predicts ``seconds`` for the candidates' ``work``; ``fields`` on top."""
     import dataclasses
 
@@ -258,7 +257,6 @@ def _model_predicting(work: dict, seconds: dict, **fields):
         FITTED,
         fixed_seconds={"union-cg": 0.0, "block-gs": 0.0, "two-level": 0.0},
         union_work_exponent=0.0,
-        patch_work_exponent=0.0,
         ns_per_unit={k: 1e9 * v / work[k] for k, v in seconds.items()},
         **fields,
     )
@@ -380,25 +378,3 @@ def test_the_calibration_replays_recorded_choices_under_a_new_model(capsys):
     replay([{"spec": spec, "ts": ts}], dear)
     out = capsys.readouterr().out
     assert "1 choices change" in out and f"{c.iteration} -> " in out
-
-
-def test_large_patches_make_the_block_iterations_dearer_per_unit():
-    # the same work shared by fewer, larger patches is predicted to cost more (the sweep: the
-    # two-level iteration at 2-4x its linear prediction on 100-200 large patches, at 0.3-0.5x
-    # on thousands of small ones), and not at all for the union CG
-    import dataclasses
-
-    from twoscale.micro.costmodel import FITTED, PATCH_REFERENCE_WORK
-
-    model = dataclasses.replace(FITTED, patch_work_exponent=0.25)
-    work = {"union-cg": 1e9, "block-gs": 1e9, "two-level": 1e9}
-    few = model.seconds(work, patches=10)  # 1e8 units a patch: 10x the reference
-    many = model.seconds(work, patches=1000)  # 1e6 a patch: a tenth of it
-    flat = model.seconds(work)
-    for k in ("block-gs", "two-level"):
-        linear = flat[k] - model.fixed_seconds[k]
-        assert few[k] - model.fixed_seconds[k] == pytest.approx(linear * 10**0.25, rel=1e-12)
-        assert many[k] - model.fixed_seconds[k] == pytest.approx(linear * 0.1**0.25, rel=1e-12)
-    assert few["union-cg"] == many["union-cg"] == flat["union-cg"]
-    at_reference = model.seconds(work, patches=int(1e9 / PATCH_REFERENCE_WORK))
-    assert at_reference["two-level"] == pytest.approx(flat["two-level"], rel=1e-12)

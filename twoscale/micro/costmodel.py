@@ -26,9 +26,6 @@ CANDIDATES = ("union-cg", "block-gs", "two-level")
 #: Work (units) at which the union CG costs ``ns_per_unit["union-cg"]`` a unit (a box of
 #: about 0.3 M cells); see ``CostModel.union_work_exponent``.
 UNION_REFERENCE_WORK = 1e9
-#: Work per patch (units) at which the block iterations cost ``ns_per_unit`` a unit (a
-#: patch of a few thousand cells); see ``CostModel.patch_work_exponent``.
-PATCH_REFERENCE_WORK = 1e7
 
 
 @dataclass(frozen=True)
@@ -70,12 +67,6 @@ class CostModel:
         (``ns_per_unit`` is its cost per unit at that work): on large boxes it takes more
         iterations (more cells across each contact and between them: 60-160 on boxes of
         2-7 M cells against 20-40 below 0.5 M) and its products leave the caches (fitted).
-    patch_work_exponent : float
-        The block iterations' seconds grow as ``work x (work per patch /
-        PATCH_REFERENCE_WORK) ** exponent``: large patches take more local CG iterations and
-        more sweeps than their work counts (the seventh sweep run: the two-level iteration
-        at 0.3-0.5 of its prediction on thousands of patches of ~3e6 units each, at 2-4x on
-        100-200 patches of 1.5-4.4e7) (fitted).
     union_products : float
         Effective double-precision products of one union CG solve (mixed precision and
         the FFT preconditioner: 60 x 1.25 x 63 / 121 ~ 40 on 300 dense tips).
@@ -119,7 +110,6 @@ class CostModel:
     far_union_margin: float = 1.0
     union_min_coverage: float = 0.25
     union_work_exponent: float = 0.0
-    patch_work_exponent: float = 0.0
     union_products: float = 40.0
     gs_sweeps: float = 10.0
     local_products: float = 6.0
@@ -145,15 +135,13 @@ class CostModel:
         if not 0.0 < self.union_margin <= 10.0:
             raise ValueError(f"cost model union_margin must be in (0, 10], got {self.union_margin!r}")
 
-    def seconds(self, work: dict, *, load_control: bool = False, tilt: bool = False, patches: int = 0) -> dict:
-        """Predicted CPU seconds of each candidate from its work units (and, for the block
-        iterations, the number of ``patches`` they share it among; 0: not counted)."""
-        control = self.tilt_factor if tilt else self.load_factor if load_control else 1.0
+    def seconds(self, work: dict, *, load_control: bool = False, tilt: bool = False) -> dict:
+        """Predicted CPU seconds of each candidate from its work units."""
+        blocks = self.tilt_factor if tilt else self.load_factor if load_control else 1.0
         union = lambda w: (max(w, 1.0) / UNION_REFERENCE_WORK) ** self.union_work_exponent
-        size = lambda w: (max(w / patches, 1.0) / PATCH_REFERENCE_WORK) ** self.patch_work_exponent if patches else 1.0
         return {
             k: self.fixed_seconds[k]
-            + 1e-9 * self.ns_per_unit[k] * float(w) * (union(float(w)) if k == "union-cg" else control * size(float(w)))
+            + 1e-9 * self.ns_per_unit[k] * float(w) * (union(float(w)) if k == "union-cg" else blocks)
             for k, w in work.items()
         }
 
@@ -162,24 +150,19 @@ class CostModel:
 #: attempts of the seventh run of the scene-space sweep (seed 0, all 200 scenes on one
 #: code), where the model before it was off by more than 2x on 62 of them (median factor
 #: 1.69; the union CG and the two-level iteration had become faster than predicted) and this
-#: one on 16 (median 1.33). Its new term, the block iterations' growth with the work a patch
-#: (``patch_work_exponent``), takes the two-level prediction of #198 (102 large spheres) from
-#: a quarter of its measured time to within 2x. Replayed on the run's records (``--replay``)
-#: it changes two choices, both measured (CPU s, in-process, twice each): #198 two-level ->
-#: union CG (10.3-11.3 -> 5.1-5.2 s; 0.27x the reference), #89 union CG -> two-level (23.1-23.7
-#: -> 21.8-23.0 s). The margins, the coverage bound and the sensitivity factor are not fitted
+#: one on 20 (median 1.35). Replayed on the run's records (``--replay``) it changes no
+#: scene's choice. The margins, the coverage bound and the sensitivity factor are not fitted
 #: by it: each keeps the measurements written beside it; docs/records/sweep.md.
 FITTED = CostModel(
-    ns_per_unit={"union-cg": 0.76, "block-gs": 0.651, "two-level": 1.28},
-    fixed_seconds={"union-cg": 0.0233, "block-gs": 0.0649, "two-level": 0.3},
-    load_factor=1.32,
-    tilt_factor=1.13,
+    ns_per_unit={"union-cg": 0.76, "block-gs": 1.02, "two-level": 1.17},
+    fixed_seconds={"union-cg": 0.0233, "block-gs": 0.0307, "two-level": 0.3},
+    load_factor=1.46,
+    tilt_factor=1.26,
     # 15 paraboloids under load with merged contacts (12 % of the box): block Gauss-Seidel
     # with 11 sweeps, 2 corrections and 11 sensitivity sweeps took 2.0-2.6 s of CPU against
     # the 1.18 s predicted (0.38-0.45 of it: the largest block-gs miss of the sweep)
     sensitivity_factor=1.9,
     union_work_exponent=0.198,
-    patch_work_exponent=0.254,
     # the union CG against its own prediction being up to 1.7x the best exact block
     # iteration's: in that band it ran faster on 8 of the 10 sweep scenes solved both ways (CPU s, union
     # against the policy's choice: 4 spheres 0.31/1.98 and 0.14/0.59, 2 spheres 0.05/0.15

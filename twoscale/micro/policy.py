@@ -227,7 +227,7 @@ def decide(
     """:func:`choose` from the patches' figures (:func:`scene_figures`) and each
     candidate's work (:func:`estimate_costs`), what a solve's details keep: a choice can be
     made again under another cost model without the patches."""
-    costs = model.seconds(work, load_control=load_control, tilt=tilt, patches=figures["patches"])
+    costs = model.seconds(work, load_control=load_control, tilt=tilt)
     # merged contacts under load control: the exact block iterations are block Gauss-Seidel
     # with sensitivity sweeps (below), dearer than the two-level variant the fit saw most
     sensitivity = load_control and merged_contacts
