@@ -46,28 +46,9 @@ class Iteration:
     tol : Tolerance
     """
 
-    PER_ROW = (
-        "p",
-        "t",
-        "u",
-        "z",
-        "mask",
-        "target",
-        "G_old",
-        "conj",
-        "kept",
-        "stale",
-        "scale",
-        "best",
-        "it_best",
-        "gtol",
-        "small",
-        "index",
-        "done",
-        "count",
-        "free",
-        "fast",
-    )
+    PER_ROW = tuple(
+        "p t u z mask target G_old conj kept stale scale best it_best gtol small index done count free fast".split()
+    )  # the arrays with a row per live row
 
     def __init__(self, products: Products, precondition, shape, z, start, mask, basis, target, tol: Tolerance):
         self.ops, self.pc, self.shape, self.basis, self.tol = products, precondition, shape, basis, tol
