@@ -44,7 +44,9 @@ def test_the_blocks_invert_the_stones_exactly_and_couple_them_by_their_centroids
     same = stone[:, None] == stone[None, :]
     approx = np.where(same, a, k[stone[:, None], stone[None, :]])
     want = np.linalg.solve(approx, gap.ravel()[cells])
-    assert np.allclose(got.ravel()[cells], want, rtol=1e-9, atol=1e-9 * np.abs(want).max())
+    # the blocks are applied in float32: to its rounding times the operator's condition
+    tol = np.linalg.cond(approx) * np.finfo(np.float32).eps * np.abs(want).max()
+    assert np.abs(got.ravel()[cells] - want).max() <= tol
     assert np.count_nonzero(got.ravel()[~on.ravel()]) == 0
 
 
@@ -66,11 +68,18 @@ def test_a_stone_kept_across_positions_is_updated_to_its_new_cells():
     blocks(surface, np.array([7]), 0).apply(gap, first)
     got = blocks(surface, np.array([7]), 3).apply(gap, second)
     assert blocks.updated == 1 and blocks.built == 1
-    fresh = StoneBlocks(KeptBody(HS))(surface).apply(gap, second)
+    afresh = StoneBlocks(KeptBody(HS))
+    fresh = afresh(surface).apply(gap, second)
     cells = np.flatnonzero(second.ravel())
-    want = np.linalg.solve(HS.grid_matrix(g)[np.ix_(cells, cells)], gap.ravel()[cells])
-    assert np.allclose(fresh.ravel()[cells], want, rtol=1e-9, atol=1e-10 * np.abs(want).max())
-    assert np.abs(got - fresh).max() <= 1e-10 * np.abs(fresh).max()
+    a = HS.grid_matrix(g)[np.ix_(cells, cells)]
+    want = np.linalg.solve(a, gap.ravel()[cells])
+    # applied in float32: to its rounding times the block's condition
+    tol = np.linalg.cond(a) * np.finfo(np.float32).eps
+    assert np.abs(fresh.ravel()[cells] - want).max() <= tol * np.abs(want).max()
+    assert np.abs(got - fresh).max() <= tol * np.abs(fresh).max()
+    # the kept inverses themselves (float64): the update is exact to rounding
+    updated, made = blocks._kept[7][1], afresh._kept[0][1]
+    assert np.abs(updated - made).max() <= 1e-10 * np.abs(made).max()
 
 
 @pytest.mark.parametrize("load", [{"total_load": 150.0}, {"penetration": 1.2}])

@@ -46,28 +46,9 @@ class Iteration:
     tol : Tolerance
     """
 
-    PER_ROW = (
-        "p",
-        "t",
-        "u",
-        "z",
-        "mask",
-        "target",
-        "G_old",
-        "conj",
-        "kept",
-        "stale",
-        "scale",
-        "best",
-        "it_best",
-        "gtol",
-        "small",
-        "index",
-        "done",
-        "count",
-        "free",
-        "fast",
-    )
+    PER_ROW = tuple(
+        "p t u z mask target G_old conj kept stale scale best it_best gtol small index done count free fast".split()
+    )  # the arrays with a row per live row
 
     def __init__(self, products: Products, precondition, shape, z, start, mask, basis, target, tol: Tolerance):
         self.ops, self.pc, self.shape, self.basis, self.tol = products, precondition, shape, basis, tol
@@ -98,6 +79,8 @@ class Iteration:
         self.free: Any = None  # ~mask, for the residual rule
         self.g: Any = None  # the gap's buffer
         self.g_on: Any = None  # the gap on the loaded cells' buffer
+        self.zeros: Any = None  # zeros shaped like the gap (the residual's)
+        self.on: Any = None  # the loaded cells' buffer
         self.gtol: Any = None  # the change rule's penetration tolerance per row, when first needed
         self.scale: Any = None
         self.best: Any = None
@@ -144,7 +127,9 @@ class Iteration:
 
     def gap(self):
         """Projected gap ``g``, multipliers ``m``, loaded cells ``on`` and ``g`` on them."""
-        on = self.p > 0.0
+        if self.on is None or self.on.shape != self.p.shape:
+            self.on = np.empty(self.p.shape, bool)
+        on = np.greater(self.p, 0.0, out=self.on)  # (reused: a fresh array each iteration page-faults)
         if self.g is None or self.g.shape != self.u.shape:
             self.g = np.empty_like(self.u)  # reused: one large allocation less per iteration
         g = np.add(self.u, self.z, out=self.g)
@@ -162,7 +147,9 @@ class Iteration:
             return None
         if self.masked and self.free is None:
             self.free = ~self.mask
-        res = kkt_residual(g, g_on, on, self.free, self.scale)
+        if self.zeros is None or self.zeros.shape != g.shape:
+            self.zeros = np.zeros_like(g)  # kept: read-only zeros for the residual
+        res = kkt_residual(g, g_on, on, self.free, self.scale, self.zeros)
         if self.basis_scale is not None:
             res = np.maximum(res, constraint_residual(self.p, self.basis, self.target, self.basis_scale))
         return res

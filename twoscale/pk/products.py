@@ -116,15 +116,22 @@ def clip_and_enter(p: np.ndarray, g: np.ndarray, tau: np.ndarray, mask, record: 
     clipped = p.min(axis=1) < 0.0
     change = CellChange.empty() if record else None
     if change is not None and np.count_nonzero(clipped):
-        ri, ci = np.nonzero(p < 0.0)
+        ri, ci = _nonzero(p < 0.0)
         change.add(ri, ci, -p[ri, ci])  # back from below 0 to 0
     np.maximum(p, 0.0, out=p)
     reenter = (g < 0.0) & (p == 0.0)
     if mask is not None:
         reenter &= mask
     if np.count_nonzero(reenter):
-        ri, ci = np.nonzero(reenter)
+        ri, ci = _nonzero(reenter)
         p[ri, ci] -= tau[ri] * g[ri, ci]
         if change is not None:
             change.add(ri, ci, p[ri, ci])
     return clipped, reenter, change
+
+
+def _nonzero(on: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``np.nonzero`` of a (B, n) bool array, the same (row, cell) pairs in the same order, by
+    the flat indices (``np.nonzero`` on two axes: 1.3 ms on a row of 190,000 cells with 30
+    true, the flat indices 0.1 ms)."""
+    return np.divmod(np.flatnonzero(on), on.shape[1])

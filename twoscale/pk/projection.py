@@ -119,12 +119,20 @@ def _restore_plane(p: np.ndarray, bt: np.ndarray, target: np.ndarray, sweeps: in
 
 
 def kkt_residual(
-    g: np.ndarray, g_on: np.ndarray, on: np.ndarray, free: np.ndarray | None, scale: np.ndarray
+    g: np.ndarray,
+    g_on: np.ndarray,
+    on: np.ndarray,
+    free: np.ndarray | None,
+    scale: np.ndarray,
+    zeros: np.ndarray | None = None,
 ) -> np.ndarray:
     """Per row: largest |gap| on loaded cells and largest interpenetration elsewhere
-    (cells in ``free``, if given, are not checked), over ``scale``."""
+    (cells in ``free``, if given, are not checked), over ``scale``. ``zeros``: an array of
+    zeros shaped like ``g``, if the caller keeps one (``np.where`` with a scalar 0 costs
+    four times more on a row of 190,000 cells)."""
     worst_on = np.maximum(g_on.max(axis=1), -g_on.min(axis=1))
-    worst_off = -np.where(on if free is None else on | free, 0.0, g).min(axis=1)
+    zero = 0.0 if zeros is None else zeros
+    worst_off = -np.where(on if free is None else on | free, zero, g).min(axis=1)
     return np.maximum(np.maximum(worst_on, worst_off), 0.0) / scale
 
 

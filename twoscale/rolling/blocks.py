@@ -237,11 +237,13 @@ class BlockInverse:
             out[new] = gap.ravel()[new] / self.table[self.centre]
         if not self.cells.size:
             return out.reshape(self.grid.shape)
-        r = np.append(gap.ravel()[self.cells], 0.0)  # (the padding's slot, last)
-        y = np.empty_like(r)
+        # in float32 (the stacked inverses' precision): the products read the ~10 MB of the
+        # tyre's inverses at every application, half of it so
+        r = np.append(gap.ravel()[self.cells], 0.0).astype(np.float32)  # (the padding's slot, last)
+        y32 = np.empty_like(r)
         for inv, pos in self.classes:
-            y[pos] = np.matmul(inv, r[pos][:, :, None])[:, :, 0]
-        y = y[:-1]
+            y32[pos] = np.matmul(inv, r[pos][:, :, None])[:, :, 0]
+        y = y32[:-1].astype(np.float64)
         y -= self.v * (self.coupling @ np.add.reduceat(y, self.starts))[self.stone]
         out[self.cells] = y
         return out.reshape(self.grid.shape)
@@ -307,15 +309,15 @@ def _size_class(counts):
 
 
 def _stacked(inverses: list, starts: np.ndarray, counts: np.ndarray) -> list:
-    """The stones' padded inverses (:meth:`StoneBlocks.inverse`) stacked by size class, each
-    ``(k, c, c)`` with the ``(k, c)`` places of its cells in the contact's cell order (the
+    """The stones' padded inverses (:meth:`StoneBlocks.inverse`) stacked by size class in
+    float32 (a preconditioner: it shapes the search directions only), each ``(k, c, c)`` with the ``(k, c)`` places of its cells in the contact's cell order (the
     padding at place ``sum(counts)``, a slot holding 0)."""
     size = np.array([len(inv) for inv in inverses], dtype=np.int64)
     total = int(counts.sum())
     out = []
     for c in np.unique(size).tolist():
         members = np.flatnonzero(size == c)
-        stack = np.stack([inverses[m] for m in members.tolist()])
+        stack = np.stack([inverses[m] for m in members.tolist()], dtype=np.float32)
         j = np.arange(c)
         pos = np.where(j[None, :] < counts[members][:, None], starts[members][:, None] + j[None, :], total)
         out.append((stack, pos))
