@@ -21,11 +21,8 @@ def scattered(rng, n, x, y, z_max, radii, shapes):
     ]
 
 
-def test_windowed_sampling_equals_sampling_every_cell():
-    rng = np.random.default_rng(3)
-    grid = Grid.covering(-5.0, 5.0, -4.0, 4.0, 0.1)
-    asps = scattered(rng, 25, (-7, 7), (-6, 6), 0.2, (0.3, 3.0), ["sphere"] * 20 + ["paraboloid"] * 5)
-    asps.append(Asperity(20.0, 0.0, 0.0, 1.0))  # a sphere that misses the grid
+def _every_tip_on_every_cell(grid, asps):
+    """Heights and owners by every asperity evaluated on every cell (a tie to the earlier index)."""
     X, Y = grid.centres()
     height = np.full(grid.shape, np.inf)
     owner = np.full(grid.shape, -1)
@@ -33,6 +30,15 @@ def test_windowed_sampling_equals_sampling_every_cell():
         hk = a.height(X, Y)
         better = hk < height
         height[better], owner[better] = hk[better], k
+    return height, owner
+
+
+def test_windowed_sampling_equals_sampling_every_cell():
+    rng = np.random.default_rng(3)
+    grid = Grid.covering(-5.0, 5.0, -4.0, 4.0, 0.1)
+    asps = scattered(rng, 25, (-7, 7), (-6, 6), 0.2, (0.3, 3.0), ["sphere"] * 20 + ["paraboloid"] * 5)
+    asps.append(Asperity(20.0, 0.0, 0.0, 1.0))  # a sphere that misses the grid
+    height, owner = _every_tip_on_every_cell(grid, asps)
     s = surface_on(grid, asps)
     assert np.array_equal(s.height, height)
     assert np.array_equal(s.owner, owner)
@@ -76,13 +82,7 @@ def test_a_large_box_sampled_tile_by_tile_from_the_tip_arrays_equals_every_tip_o
     n = 60
     asps = scattered(rng, n, (-3.5, 3.5), (-3.5, 3.5), 0.05, (0.3, 2.0), [shapes[k % len(shapes)] for k in range(n)])
     asps.append(asps[5])  # an exact tie: the earlier index keeps the cells
-    X, Y = grid.centres()
-    height = np.full(grid.shape, np.inf)
-    owner = np.full(grid.shape, -1)
-    for k, a in enumerate(asps):
-        hk = a.height(X, Y)
-        better = hk < height
-        height[better], owner[better] = hk[better], k
+    height, owner = _every_tip_on_every_cell(grid, asps)
     table = TipTable(asps)
     assert table.plain
     s = box_surface(grid, table)
