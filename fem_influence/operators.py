@@ -1,13 +1,14 @@
 """Grid-level pieces of the finite-block provider (:mod:`fem_influence.provider`).
 
 * :func:`lagrange_1d`: the cubic Lagrange stencil that interpolates the correction in
-  the source point from its lattice;
+  the source point from its lattice, and :func:`point_weights` its weights for points;
 * :class:`BlockCorrection`: the correction in factored form (forces on the lattice
   nodes), for solvers that keep it apart from the half-space part;
 * :class:`TargetFactor`: the correction at a grid's cells from lattice nodes, kept as
   the sparse top-face interpolation times the field table (not the dense ``U``);
 * :class:`BlockGridOperator`: a grid product, half-space FFT convolution plus the
-  low-rank correction ``h^2 U (W p)``;
+  low-rank correction ``h^2 U (W p)`` (on large grids ``U`` and ``W`` separable,
+  :mod:`fem_influence.grid_factors`), and its float32 form;
 * :class:`BlockPointOperator`: sums of point forces, the half-space's fast operator plus
   the same low-rank correction.
 """
@@ -40,6 +41,26 @@ def lagrange_1d(x: np.ndarray, d: float, lo: int, hi: int) -> tuple[np.ndarray, 
             if k != m:
                 w[:, m] *= (x - nodes[:, k]) / (nodes[:, m] - nodes[:, k])
     return idx, w
+
+
+def point_weights(provider: "BlockProvider", sources: np.ndarray):
+    """The lattice nodes ``(i, j)`` (K, 2) around ``sources`` (scene frame, (N, 2)) and
+    the sparse source-interpolation weights (K, N) onto them, tensor cubic Lagrange
+    (the points checked to lie in the answered region first)."""
+    provider.check_answered(sources)
+    d = provider.source_spacing
+    S = np.asarray(sources, dtype=float).reshape(-1, 2) + np.asarray(provider.origin)
+    x0, x1, y0, y1 = provider._lattice_bounds()
+    ix, wx = lagrange_1d(S[:, 0], d, x0, x1)
+    iy, wy = lagrange_1d(S[:, 1], d, y0, y1)
+    nx = x1 - x0 + 1
+    lin = ((iy[:, None, :] - y0) * nx + (ix[:, :, None] - x0)).reshape(len(S), -1)  # (N, 16)
+    Wt = (wx[:, :, None] * wy[:, None, :]).reshape(len(S), -1)
+    used, inv = np.unique(lin, return_inverse=True)
+    cols = np.repeat(np.arange(len(S)), lin.shape[1])
+    W = sp.csr_matrix((Wt.ravel(), (inv.ravel(), cols)), shape=(len(used), len(S)))
+    nodes = np.column_stack([used % nx + x0, used // nx + y0])
+    return nodes, W
 
 
 class BlockCorrection(LowRankCorrection):
@@ -98,9 +119,14 @@ class TargetFactor:
 
 
 class BlockGridOperator(GridOperator):
-    """Half-space FFT convolution plus the low-rank correction ``h^2 U (W p)``."""
+    """Half-space FFT convolution plus the low-rank correction ``h^2 U (W p)``.
 
-    def __init__(self, halfspace_op: GridOperator, U: TargetFactor, W, area: float):
+    Its float32 form (:meth:`single_precision`) is the half-space part's float32 FFTs with
+    the same correction in float64 (a few per cent of a product); its :meth:`columns` the
+    half-space's columns plus the correction of the changed cells, one pass over the target.
+    """
+
+    def __init__(self, halfspace_op: GridOperator, U, W, area: float):
         self.target, self.source = halfspace_op.target, halfspace_op.source
         self._hs, self._U, self._W, self._area = halfspace_op, U, W, area
 
@@ -108,6 +134,24 @@ class BlockGridOperator(GridOperator):
         u = self._hs.apply(p)
         corr = self._U @ (self._W @ np.asarray(p, dtype=float).ravel())
         return u + self._area * corr.reshape(self.target.shape)
+
+    def single_precision(self) -> "BlockGridOperator":
+        single = self._hs.single_precision()
+        return self if single is self._hs else BlockGridOperator(single, self._U, self._W, self._area)
+
+    def columns(self):
+        """:meth:`GridOperator.columns`: the half-space part's, plus ``h^2 U (W[:, cells] v)``."""
+        add_hs = self._hs.columns()
+        if add_hs is None:
+            return None
+
+        def add(out: np.ndarray, cells: np.ndarray, values: np.ndarray) -> None:
+            add_hs(out, cells, values)
+            W = self._W
+            c = W.times_cells(cells, values) if hasattr(W, "times_cells") else W[:, cells] @ values
+            out += self._area * (self._U @ np.asarray(c).ravel()).ravel()
+
+        return add
 
     def preconditioner(self):
         """The half-space part's preconditioner: the correction is smooth and of low rank,
@@ -117,13 +161,15 @@ class BlockGridOperator(GridOperator):
 
     @property
     def nbytes(self) -> int:
-        w = self._W.data.nbytes if sp.issparse(self._W) else self._W.nbytes
+        W = self._W
+        w = W.data.nbytes if sp.issparse(W) else W.nbytes
         return int(self._hs.nbytes) + self._U.nbytes + w
 
     @property
     def flops_estimate(self) -> float:
-        nnz = self._W.nnz if sp.issparse(self._W) else self._W.size
-        return self._hs.flops_estimate + self._U.flops + 2.0 * nnz
+        W = self._W
+        w = getattr(W, "flops", None) or 2.0 * (W.nnz if sp.issparse(W) else W.size)
+        return self._hs.flops_estimate + self._U.flops + w
 
 
 class BlockPointOperator(PointOperator):

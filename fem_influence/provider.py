@@ -25,7 +25,6 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
-import scipy.sparse as sp
 
 from twoscale.grid import Grid
 from twoscale.influence.base import GridOperator, InfluenceProvider
@@ -36,9 +35,10 @@ from twoscale.progress import Progress
 
 from .assembly import INTORDER
 from .cache import FieldCache, cache_key, default_cache_dir
+from .grid_factors import grid_target, grid_weights
 from .layer import BASES
 from .lattice_state import LatticeState
-from .operators import BlockCorrection, BlockGridOperator, TargetFactor, block_point_operator, lagrange_1d
+from .operators import BlockCorrection, BlockGridOperator, TargetFactor, block_point_operator, point_weights
 
 
 #: Grids whose correction factors (source weights, target interpolation) a provider keeps
@@ -177,10 +177,10 @@ class BlockProvider(InfluenceProvider):
         ox, oy = self.origin
         return (x0 * d - ox, x1 * d - ox, y0 * d - oy, y1 * d - oy)
 
-    def _weights(self, sources: np.ndarray):
-        """Sparse source-interpolation weights (lattice nodes used) x (sources), and the nodes."""
+    def check_answered(self, points: np.ndarray) -> None:
+        """Refuse loaded points (scene frame, (N, 2)) outside :meth:`domain`."""
         d = self.source_spacing
-        S = np.asarray(sources, dtype=float).reshape(-1, 2) + np.asarray(self.origin)
+        S = np.asarray(points, dtype=float).reshape(-1, 2) + np.asarray(self.origin)
         x0, x1, y0, y1 = self._lattice_bounds()
         tol = 1e-9 * d
         out = (S[:, 0] < x0 * d - tol) | (S[:, 0] > x1 * d + tol) | (S[:, 1] < y0 * d - tol) | (S[:, 1] > y1 * d + tol)
@@ -195,16 +195,10 @@ class BlockProvider(InfluenceProvider):
                 f"[{y_lo:.4g}, {y_hi:.4g}] mm (one source_spacing = {d} mm inside the "
                 f"sides); move the indenters inward or lower source_spacing"
             )
-        ix, wx = lagrange_1d(S[:, 0], d, x0, x1)
-        iy, wy = lagrange_1d(S[:, 1], d, y0, y1)
-        nx = x1 - x0 + 1
-        lin = ((iy[:, None, :] - y0) * nx + (ix[:, :, None] - x0)).reshape(len(S), -1)  # (N, 16)
-        Wt = (wx[:, :, None] * wy[:, None, :]).reshape(len(S), -1)
-        used, inv = np.unique(lin, return_inverse=True)
-        cols = np.repeat(np.arange(len(S)), lin.shape[1])
-        W = sp.csr_matrix((Wt.ravel(), (inv.ravel(), cols)), shape=(len(used), len(S)))
-        nodes = np.column_stack([used % nx + x0, used // nx + y0])
-        return nodes, W
+
+    def _weights(self, sources: np.ndarray):
+        """Sparse source-interpolation weights (lattice nodes used) x (sources), and the nodes."""
+        return point_weights(self, sources)
 
     def _ensure(self, nodes: np.ndarray) -> np.ndarray:
         """Solve the lattice nodes not yet known; return their columns in the field table."""
@@ -329,7 +323,7 @@ class BlockProvider(InfluenceProvider):
         lattice nodes: cheap next to factorising the block, see ``cheap_grid_matrix``)."""
         source = target if source is None else source
         cols, W = self._source_weights(source)
-        C = self._target_factor(target, cols) @ (W.toarray() if sp.issparse(W) else W)
+        C = self._target_factor(target, cols) @ (W.toarray() if hasattr(W, "toarray") else W)
         return self._halfspace.grid_matrix(target, source, tables=self._state.love_tables) + target.h**2 * C
 
     def grid_operator(self, target: Grid, source: Grid | None = None) -> "BlockGridOperator":
@@ -366,32 +360,30 @@ class BlockProvider(InfluenceProvider):
             st.grid_memo.clear()
         key_w = ("W", source)
         if key_w not in st.grid_memo:
-            nodes, W = self._weights(source.points())
+            nodes, W = grid_weights(self, source)
             cols = self._ensure(nodes)
-            W = W.toarray() if W.shape[0] <= 24 else W.tocsr()
-            st.grid_memo[key_w] = (cols, W)
+            st.grid_memo[key_w] = (cols, W.toarray() if W.shape[0] <= 24 else W)
         return st.grid_memo[key_w]
 
-    def _target_factor(self, target: Grid, cols: np.ndarray | None = None) -> TargetFactor:
+    def _target_factor(self, target: Grid, cols: np.ndarray | None = None):
         """Correction at the target cells from the lattice nodes of the table columns
         ``cols`` (default all), mm/N (:class:`TargetFactor`): factored, with the
-        interpolation matrix kept per grid (rectilinear meshes), or dense for a few
-        columns (up to :data:`DENSE_FACTOR_ENTRIES` entries: a patch's own operator)."""
+        interpolation matrix kept per grid (rectilinear meshes), dense for a few columns
+        (up to :data:`DENSE_FACTOR_ENTRIES` entries: a patch's own operator), or separable
+        above (:class:`~fem_influence.grid_factors.GridTarget`: a union box's)."""
         st = self._state
         if not st.interpolator.rectilinear:
             cols = np.arange(st.table.shape[1]) if cols is None else cols
             return TargetFactor(None, self._top_values(target.points(), st.nodes_of(cols)))
-        M = st.grid_memo.get(("M", target))
-        if M is None:
-            M = st.grid_memo[("M", target)] = st.interpolator.matrix(target.points() + np.asarray(self.origin))
         T = st.grid_memo.get(("T",))
         if T is None or T.shape != st.table.shape:  # the table grows as lattice nodes are solved
             T = st.grid_memo[("T",)] = st.table / self.material.E
-        if cols is None:
-            return TargetFactor(M, T)
-        if target.size * len(cols) <= DENSE_FACTOR_ENTRIES:
-            return TargetFactor(None, np.asarray(M @ T[:, cols]))
-        return TargetFactor(M, T[:, cols])
+        if cols is not None and target.size * len(cols) > DENSE_FACTOR_ENTRIES:
+            return grid_target(st.interpolator, target, self.origin, T[:, cols])
+        M = st.grid_memo.get(("M", target))
+        if M is None:
+            M = st.grid_memo[("M", target)] = st.interpolator.matrix(target.points() + np.asarray(self.origin))
+        return TargetFactor(M, T) if cols is None else TargetFactor(None, np.asarray(M @ T[:, cols]))
 
     def _with_correction(self, halfspace_op: GridOperator, target: Grid, source: Grid) -> "BlockGridOperator":
         # the micro step asks for every pair of patches: the target factor U and the
