@@ -181,6 +181,7 @@ def replay(records: list[dict], model) -> None:
         figures = _figures(ts)
         if not ts.get("work") or figures is None:
             continue
+        figures["height_map"] = ts.get("height_map", spec.get("kind", "tips") != "tips")  # older records: the kind
         kw = {"load_control": spec.get("control") == "load", "tilt": bool(spec.get("tilt"))}
         kw["merged_contacts"] = bool(ts.get("merged_contacts", False))
         before = decide(figures, ts["work"], **kw).iteration

@@ -103,6 +103,7 @@ def _figures(res) -> dict:
         out["coverage"] = micro.choice.estimates.get("coverage")
         out["patches"] = micro.choice.estimates.get("patches")
         out["merged_contacts"] = micro.choice.estimates.get("merged_contacts")
+        out["height_map"] = micro.choice.estimates.get("height_map")
         out["attempts"] = [[a.iteration, a.far_tol, a.converged, a.sweeps, round(a.seconds, 3)] for a in micro.attempts]
     return out
 

@@ -133,7 +133,8 @@ def estimate_memory(scene: Scene, h: float, method: str = "twoscale", *, iterati
     iteration : str, default "auto"
         The two-scale micro iteration asked for (``solve_twoscale``'s ``iteration``):
         ``"union-cg"`` always counts the box of the patches; any other value counts it
-        where the patches cover at least :data:`UNION_MIN_COVERAGE` of it.
+        where the patches cover at least :data:`UNION_MIN_COVERAGE` of it, and always on a
+        height map's stones (the policy weighs the union CG there at any coverage).
 
     Returns
     -------
@@ -212,7 +213,9 @@ def _twoscale_parts(scene: Scene, h: float, *, union: bool = False) -> tuple[int
     else:
         parts["macro interaction matrix"] = 2000.0 * n  # matrix-free point operator
     box = _patch_box(scene, r, h) if int(on.sum()) else None  # one patch: the union CG on it
-    if box is not None and (union or cells >= UNION_MIN_COVERAGE * box.size):
+    # a height map's stones may take the union CG at any coverage (micro.policy.decide)
+    on_map = all(a.shape == "map" for a in scene.asperities)
+    if box is not None and (union or on_map or cells >= UNION_MIN_COVERAGE * box.size):
         # the union CG runs after the patches are built (and after a block iteration that
         # did not converge): both are held at its peak
         parts.update(_grid_parts(scene, box, "union box"))

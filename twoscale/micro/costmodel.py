@@ -61,7 +61,8 @@ class CostModel:
         the patches carry at least this share of their bounding box: below it the box is
         mostly empty and its memory grows with the box, not with the contacts (300 light
         spheres scattered on 60 x 60 mm, 12 % of the box: a union CG of 9.6 s against 3.0 s
-        for the two-level iteration, and at a fine h a box of 70 M cells).
+        for the two-level iteration, and at a fine h a box of 70 M cells). Not applied to
+        a height map's stones, whose box is at most the map's grid (:func:`.policy.decide`).
     union_work_exponent : float
         The union CG's seconds grow as ``work x (work / UNION_REFERENCE_WORK) ** exponent``
         (``ns_per_unit`` is its cost per unit at that work): on large boxes it takes more

@@ -72,12 +72,17 @@ class MicroPlan:
     attempts: tuple
 
 
-def _plan(
-    patches, box, choice_fixed: Choice | None, merged_contacts: bool, load_control: bool, tilt: bool = False
-) -> Choice:
+def _plan(patches, box, choice_fixed: Choice | None, asperities, problem: MicroProblem, merged: bool) -> Choice:
     if choice_fixed is not None:
         return choice_fixed
-    return choose(patches, box, merged_contacts=merged_contacts, load_control=load_control, tilt=tilt)
+    return choose(
+        patches,
+        box,
+        merged_contacts=merged,
+        load_control=problem.total_load is not None,
+        tilt=bool(problem.free_tilt),
+        height_map=all(a.shape == "map" for a in asperities.asperities),
+    )
 
 
 def fixed_choice(iteration: str, far_tol: float | None, why: str) -> Choice:
@@ -121,14 +126,8 @@ def run_micro(
         return BlockGaussSeidel().run(context, Exact(), max_sweeps=options.max_sweeps), MicroPlan(
             Choice("block-gs", None, "no asperity reaches the body", {}), ()
         )
-    picked = _plan(
-        patches,
-        box_of([pt.grid for pt in patches], problem.h, problem.anchor).size,
-        choice,
-        merged_contacts=bool(macro.safe_path),
-        load_control=problem.total_load is not None,
-        tilt=bool(problem.free_tilt),
-    )
+    box = box_of([pt.grid for pt in patches], problem.h, problem.anchor).size
+    picked = _plan(patches, box, choice, asperities, problem, bool(macro.safe_path))
     attempts: list = []
     result = None
     for iteration, coupling in _order(picked):

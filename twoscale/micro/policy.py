@@ -186,6 +186,7 @@ def choose(
     merged_contacts: bool = False,
     load_control: bool = False,
     tilt: bool = False,
+    height_map: bool = False,
     model: CostModel = FITTED,
 ) -> Choice:
     """The iteration and coupling for these patches (see the module docstring).
@@ -204,9 +205,10 @@ def choose(
     stalls; the choice names the two-level iteration with exact coupling. The work of each
     candidate becomes predicted CPU seconds by ``model`` (its block iterations' work costs
     more under load control and with the ``tilt``); the cheapest prediction is chosen, the
-    union CG up to :func:`union_limit`."""
+    union CG up to :func:`union_limit`. ``height_map``: the patches are a height map's
+    stones (:func:`decide`)."""
     return decide(
-        scene_figures(patches, box_cells),
+        {**scene_figures(patches, box_cells), "height_map": bool(height_map)},
         estimate_costs(patches, box_cells, model),
         merged_contacts=merged_contacts,
         load_control=load_control,
@@ -226,7 +228,11 @@ def decide(
 ) -> Choice:
     """:func:`choose` from the patches' figures (:func:`scene_figures`) and each
     candidate's work (:func:`estimate_costs`), what a solve's details keep: a choice can be
-    made again under another cost model without the patches."""
+    made again under another cost model without the patches. On a height map
+    (``figures["height_map"]``) the union CG stays a candidate below
+    ``model.union_min_coverage``: its box is at most the map's own grid, and on the sweep's
+    maps at 8-9 % of their box it ran 0.68-0.73 of the exact two-level iteration's CPU time
+    (where scattered tips at 10-14 % ran it 1.9-2.0x slower than the far field)."""
     costs = model.seconds(work, load_control=load_control, tilt=tilt)
     # merged contacts under load control: the exact block iterations are block Gauss-Seidel
     # with sensitivity sweeps (below), dearer than the two-level variant the fit saw most
@@ -253,7 +259,8 @@ def decide(
     sparse = figures["coverage"] < model.union_min_coverage
     if n < (model.sparse_far_field_min_patches if sparse else model.far_field_min_patches):
         candidates.pop("two-level")
-    if sparse and len(candidates) > 1 and not (sensitivity and "two-level" not in candidates):
+    crowded_out = not figures.get("height_map", False) and not (sensitivity and "two-level" not in candidates)
+    if sparse and len(candidates) > 1 and crowded_out:
         # a mostly empty box; but against block Gauss-Seidel with sensitivity sweeps alone
         # (few merged patches under load) the prediction decides: 15 paraboloids on 12 %
         # of a 0.5 M-cell box, union CG 1.1-1.2 s of CPU against 2.0-2.6 s

@@ -1,0 +1,56 @@
+"""The policy on a height map's stones: the union CG stays a candidate on a box the stones
+cover sparsely (its box is at most the map's grid), against the full-grid reference; tips
+on the same figures keep the block iterations."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from twoscale import Material
+from twoscale.driver import solve_twoscale
+from twoscale.indenters import surface_on
+from twoscale.influence import HalfSpace
+from twoscale.micro.costmodel import FITTED
+from twoscale.micro.policy import decide
+from twoscale.reference import solve_cg
+from twoscale.surface import RawMap, SurfaceOptions, build_surface
+from twoscale.surface.texture import road
+
+HS = HalfSpace(Material(E=10.0, nu=0.5))
+
+
+def test_a_sparsely_loaded_road_takes_the_union_cg_and_gives_the_references_forces():
+    size = 16.0
+    surface = build_surface(RawMap(road(size, 0.1, seed=3), 0.1, "mm", None, "road"), SurfaceOptions())
+    load = 0.05 * size**2
+    res = solve_twoscale(HS, surface.asperities, h=0.1, total_load=load)
+    choice = res.details.micro.choice
+    assert choice.estimates["coverage"] < FITTED.union_min_coverage and choice.estimates["height_map"]
+    assert choice.iteration == "union-cg", choice.reason
+    ref = solve_cg(HS, surface_on(surface.hmap.grid, surface.asperities), total_load=load, tol=1e-10)
+    F, Fr = np.asarray(res.asperities.forces), np.asarray(ref.asperities.forces)
+    assert np.max(np.abs(F - Fr)) <= 1e-7 * Fr.max()
+
+
+def test_tips_on_the_same_figures_keep_the_block_iterations():
+    # the figures and work of a 43-stone road in um at 9 % of its box (sweep scene 158):
+    # on a map the union CG is weighed (its prediction within the margin of the exact
+    # block iterations'), scattered tips at that coverage never take it
+    figures = {"patches": 43, "coverage": 0.086, "box_cells": 0, "carried_cells": 0, "largest_patch": 0}
+    work = {"union-cg": 8.16e8, "block-gs": 3.91e8, "two-level": 1.94e8}
+    on_map = decide({**figures, "height_map": True}, work, load_control=True)
+    tips = decide({**figures, "height_map": False}, work, load_control=True)
+    assert on_map.iteration == "union-cg"
+    assert tips.iteration == "two-level" and tips.far_tol is None
+
+
+def test_the_memory_estimate_of_a_sparsely_loaded_map_counts_the_union_box():
+    from twoscale.resources import estimate_memory
+    from twoscale.scene import Scene
+
+    surface = build_surface(RawMap(road(16.0, 0.1, seed=3), 0.1, "mm", None, "road"), SurfaceOptions())
+    scene = Scene(material=HS.material, surface=surface, total_load=0.05 * 16.0**2, h=0.1)
+    est = estimate_memory(scene, 0.1)
+    box = [name for name, _ in est.parts if "union box" in name]
+    assert box, est.parts
+    assert est.cells >= 0.9 * surface.hmap.grid.size * 0.3  # the box, not the few patches' cells
