@@ -21,11 +21,15 @@ Usage::
 
     python benchmarks/rolling.py [--length 1000] [--step 1] [--h 0.25] [--load 3000] [--radius 300]
                                  [--width 150] [--samples 3] [--seed 1] [--every 50] [--no-cm]
-                                 [--macro-start] [--visco] [--scale-out] [--solver auto|window|twoscale]
+                                 [--macro-start] [--visco] [--scale-out] [--system-heap] [--solver auto|window|twoscale]
                                  [--out FILE.json]
 
 ``--visco`` rolls the section elastic and with a ten-branch Prony tread (tau from 1e-6 to
 1e3 s, glassy modulus five times the relaxed) instead, and prints the CPU ratio.
+
+glibc's heap keeps the arrays a position frees, as ``twoscale solve`` has it for a rolling
+run (:mod:`twoscale.cli.heap`; for the reference and the cold solve too: the same process);
+``--system-heap`` leaves its defaults.
 
 ``--scale-out`` runs the section in one and in two chunks on Dask worker processes
 (:func:`twoscale.rolling.chunks.roll_chunks`) instead, and prints the speed-up.
@@ -48,6 +52,7 @@ import _common  # noqa: E402,F401,I001
 import numpy as np  # noqa: E402
 
 from twoscale import Material  # noqa: E402
+from twoscale.cli.heap import keep_heap  # noqa: E402
 from twoscale.indenters import surface_on  # noqa: E402
 from twoscale.rolling import RollingOptions, RollingSpec, road_strip  # noqa: E402
 from twoscale.rolling.reference import cold_position, reference_grid, reference_position  # noqa: E402
@@ -305,8 +310,16 @@ def main(argv=None) -> int:
         choices=("auto", "window", "twoscale"),
         help="the positions' solver (RollingOptions.solver)",
     )
+    p.add_argument(
+        "--system-heap",
+        action="store_true",
+        help="leave glibc's heap thresholds at their defaults (else raised as "
+        "'twoscale solve' raises them for a rolling run: twoscale.cli.heap), for comparison",
+    )
     p.add_argument("--out", default=None, help="write the figures as JSON")
     args = p.parse_args(argv)
+    if not args.system_heap:
+        keep_heap()
     out = scale_out(args) if args.scale_out else visco(args) if args.visco else run(args)
     if args.out:
         Path(args.out).write_text(json.dumps(out, indent=1, default=float) + "\n")

@@ -20,6 +20,7 @@ from pathlib import Path
 import numpy as np
 
 from ..progress import StatusLine
+from .heap import keep_heap
 from .staging import staged_directory
 
 #: VTK frames written at most (every k-th position beyond that: a metre of road at fine
@@ -48,6 +49,7 @@ def run_rolling(scene, args: argparse.Namespace) -> int:
             raise ValueError(
                 "--step-error needs a viscoelastic material (material.prony): an elastic body has no hysteresis"
             )
+        keep_heap()  # (a position's arrays reused, not faulted in again: .heap)
         t0 = time.perf_counter()
         with StatusLine(quiet=args.quiet) as status:
             if args.out is None:

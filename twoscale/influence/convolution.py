@@ -101,10 +101,7 @@ class ConvolutionOperator(GridOperator):
         """:meth:`GridOperator.columns`: each source cell's column is a window of the offset
         table (rebuilt once from the kernel spectrum and kept with the operator), a pass
         over the target per cell."""
-        if "table" not in self._derived:
-            my, mx = self.target.ny + self.source.ny - 1, self.target.nx + self.source.nx - 1
-            self._derived["table"] = self.padded_table()[:my, :mx]
-        table = self._derived["table"]
+        table = self.offset_table()
         (nyt, nxt), (nys, nxs) = self.target.shape, self.source.shape
 
         def add(out: np.ndarray, cells: np.ndarray, values: np.ndarray) -> None:
@@ -116,6 +113,18 @@ class ConvolutionOperator(GridOperator):
                 o += term
 
         return add
+
+    def offset_table(self) -> np.ndarray:
+        """The kernel at every offset between a target and a source cell (entry ``(m, n)``
+        the offset ``(m - source.ny + 1, n - source.nx + 1)``), rebuilt once from the kernel
+        spectrum and kept with the operator (read-only: :meth:`columns` and the rolling
+        path's block preconditioner share it; an inverse transform of the padded grid each)."""
+        if "table" not in self._derived:
+            my, mx = self.target.ny + self.source.ny - 1, self.target.nx + self.source.nx - 1
+            table = np.ascontiguousarray(self.padded_table()[:my, :mx])
+            table.setflags(write=False)
+            self._derived["table"] = table
+        return self._derived["table"]
 
     def multiply(self, spectrum: np.ndarray) -> np.ndarray:
         """Kernel times a source spectrum (a new array)."""

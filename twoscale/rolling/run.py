@@ -105,12 +105,14 @@ def solve_position(track: Track, selection: Selection, *, start=None, options: R
 
 def drag_of(track: Track, selection: Selection, result: ContactResult) -> float:
     """Force the road exerts on the body along +x, N: the sum over the pressure fields'
-    cells of pressure x the road's x-slope x the cell area."""
+    cells of pressure x the road's x-slope x the cell area (the slope sampled on the loaded
+    cells only: ~7 % of a tyre's window)."""
     total = 0.0
     for f in result.fields:
         X, Y = f.grid.centres()
-        slope = track.road.road_slope(selection, X, Y, f.owner)
-        total += float(np.sum(f.pressure * slope)) * f.grid.h**2
+        on = f.pressure != 0.0
+        slope = track.road.road_slope(selection, X[on], Y[on], f.owner[on])
+        total += float(np.sum(f.pressure[on] * slope)) * f.grid.h**2
     return total
 
 
