@@ -476,3 +476,22 @@ def test_newton_stops_where_it_stagnates_near_a_solution_and_only_there():
     assert fast.converged and fast.iterations == 1
     halving = run(0.02, 0.2, 4)  # 0.8 a step: halves within 4 steps, never stagnates
     assert halving.iterations == 60 and "stagnated" not in halving.message
+
+
+def test_two_thousand_tips_go_matrix_free_by_default_with_the_dense_forces():
+    """From 2,001 tips the default macro step is matrix-free (the dense step's
+    factorisations of the active block cost seconds there): the same forces as the dense
+    interaction to its operator's accuracy (1e-6), and those meet the equations."""
+    rng = np.random.default_rng(5)
+    side = 45  # 2,025 tips on a jittered 6 mm lattice
+    lattice = 6.0 * np.stack(np.meshgrid(np.arange(side), np.arange(side)), -1).reshape(-1, 2)
+    tips = lattice + rng.uniform(-1.0, 1.0, lattice.shape)
+    z = rng.uniform(0.0, 0.05, len(tips))
+    laws = [SphereLaw(5.0, E_STAR)] * len(tips)
+    free = solve_macro(HS, tips, z, laws, penetration=0.1)
+    dense = solve_macro(HS, tips, z, laws, penetration=0.1, dense_max=3000)
+    assert free.interaction == "matrix-free" and dense.interaction == "dense"
+    assert free.converged and dense.converged, (free.message, dense.message)
+    assert np.max(np.abs(free.forces - dense.forces)) <= 1e-6 * dense.forces.max()
+    assert free.krylov_iterations > 0 and np.count_nonzero(dense.forces) > 1000
+    check_equations(dense, tips, z, laws, boussinesq_interaction(tips))

@@ -119,3 +119,26 @@ def test_directions_kept_over_an_entry_do_not_stall_a_converged_start():
     assert again.residuals["gap"][0] > 1e-3  # the start is off by the cells left out
     p, pw = again.fields[0].pressure, whole.fields[0].pressure
     assert np.abs(p - pw).max() <= 1e-6 * pw.max()
+
+
+@pytest.mark.parametrize("seed,load", [(4, {"penetration": 0.12}), (5, {"total_load": 30.0})])
+def test_single_precision_directions_take_one_double_product_and_the_classical_contact(seed, load, monkeypatch):
+    """With float32 search directions the kernel asks for an exact product only once its
+    residual is below ``FAST_RESIDUAL``: the first is taken in double precision and every
+    later one (the confirmation at the tolerance) in float32 about it. One float64 product
+    of the kernel's (besides the start's line search under penetration control, and the
+    cropped grid's product back on the whole grid), and the classical double-precision
+    CG's contact to 1e-7 of the largest force."""
+    from twoscale.influence.convolution import ConvolutionOperator
+
+    surf = crowded_surface(MAT, seed, load)
+    plain = solve_cg(HS, surf, tol=1e-9, **load)
+    calls = []
+    double = ConvolutionOperator.apply
+    monkeypatch.setattr(ConvolutionOperator, "apply", lambda self, p: calls.append(1) or double(self, p))
+    fast = solve_cg(HS, surf, tol=1e-9, precondition=True, precision="single-directions", **load)
+    assert plain.converged and fast.converged, (plain.message, fast.message)
+    assert len(fast.residuals["gap"]) > 3  # not converged at the start
+    assert len(calls) == 1 + 2 * ("penetration" in load)
+    f, fp = fast.asperities.forces, plain.asperities.forces
+    assert np.max(np.abs(f - fp)) <= 1e-7 * np.max(fp)

@@ -30,7 +30,7 @@ MARGIN = 1.3
 MERGE_GROWTH = 2.0
 #: Largest number of asperities whose macro step holds the dense N x N matrix
 #: (``twoscale.macro.solve.DENSE_MAX``).
-MACRO_DENSE_MAX = 3000
+MACRO_DENSE_MAX = 2000
 #: The reference solver's dense branch: at most this many cells with material
 #: (``twoscale.reference.AUTO_DENSE_CELLS``), the whole grid's matrix up to
 #: ``MAX_DENSE_CELLS`` cells (``twoscale.reference.dense``).

@@ -18,7 +18,7 @@ from .start import MacroStart
 from .robust import FAST_STEPS, minimise_then_polish, run_newton, solve_dual
 from .system import MacroSystem
 
-#: Default largest N solved with a dense interaction matrix (72 MB at 3,000).
+#: Default largest N solved with a dense interaction matrix (32 MB at 2,000).
 DENSE_MAX = MacroOptions.dense_max
 
 

@@ -255,13 +255,23 @@ class _Anchored:
     of it, so the float32 rounding (~1e-7 of the product) falls on that fraction only and
     the displacement stays exact to far below ``tol``: the stage's refreshes cost a float32
     product instead of a float64 one, and its search directions take the float32 products
-    as ``fast`` (linear; their rounding only shapes the step)."""
+    as ``fast`` (linear; their rounding only shapes the step).
 
-    def __init__(self, op, single, anchor: np.ndarray):
+    Without an anchor (``"single-directions"``) the first product is exact and becomes the
+    anchor: the kernel asks for an exact product only once the residual is below
+    :data:`~twoscale.pk.products.FAST_RESIDUAL` (the refreshes above take the float32
+    product), so every later exact product (the confirmation at the tolerance, the
+    refreshes after cells changed) is of a pressure a small step from that one (a float32
+    product instead of a float64 one: 5 against 16 ms on 500 x 500 cells)."""
+
+    def __init__(self, op, single, anchor: np.ndarray | None = None):
         self.op, self.single, self.anchor = op, single, anchor
-        self.at = op.apply(anchor)
+        self.at = None if anchor is None else op.apply(anchor)
 
     def apply(self, v: np.ndarray) -> np.ndarray:
+        if self.anchor is None:
+            self.anchor, self.at = np.array(v, dtype=float), self.op.apply(v)
+            return self.at.copy()
         return self.at + self.single.apply(v - self.anchor)
 
     def columns(self):
@@ -327,6 +337,8 @@ def _iterate(
     z = np.where(cand, problem.surface.height.ravel(), 0.0)
     p = _initial_pressure(problem, op, z, E_star, start)
     level = problem.penetration if problem.mode == "penetration" else 0.0
+    if fast is not None and fast is not op and not isinstance(op, _Anchored):
+        op = _Anchored(op, fast)  # the exact products after the first in float32 about it
     products = Products(
         lambda v: op.apply(v[0])[None],
         None if fast is None else (lambda v: fast.apply(v[0])[None]),
