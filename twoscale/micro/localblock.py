@@ -9,9 +9,18 @@ from collections import OrderedDict
 
 import numpy as np
 import scipy.linalg as sla
+from scipy.linalg.lapack import dpotrs
+
 
 from ..influence.base import InfluenceProvider
 from .patches import Patch
+
+#: A dense block whose matrix is not stored keeps the columns ``A[:, S]`` of its last
+#: active set ``S`` when they hold at most this many entries (32 KB): the active-set
+#: loops' penetration check ``A p`` (``p`` zero off ``S``) is then one small product, not
+#: an FFT of the block's box (939 blocks of 41-266 cells: 3,756 local solves a two-level
+#: iteration, a third of their CPU in those FFTs).
+COLUMNS_MAX_ENTRIES = 4096
 
 
 def _is_symmetric(M: np.ndarray) -> bool:
@@ -27,6 +36,36 @@ def _factorise(M: np.ndarray, symmetric: bool):
         except np.linalg.LinAlgError:
             pass
     return "lu", sla.lu_factor(M, check_finite=False)
+
+
+def whole_patch(provider, patch: Patch, owned_rows: np.ndarray, source: Patch, v: np.ndarray) -> np.ndarray:
+    """Displacement (ny, nx) mm on the whole ``patch`` from the block vector ``v`` (MPa) of
+    the patch ``source`` (``patch`` itself for its own pressure), given its values
+    ``owned_rows`` (n,) on the patch's own cells: the cells a neighbour owns (where patches
+    overlap) from the loaded cells by the provider's matrix of the two grids where it is
+    cheap (a strided copy of a kept table) and not much larger than the entries wanted,
+    else by its cell block."""
+    out = np.zeros(patch.grid.shape)
+    out[patch.owned] = owned_rows
+    other = ~patch.owned
+    loaded = v != 0.0
+    if other.any() and loaded.any():
+        cols = np.flatnonzero(source.owned.ravel())[loaded]
+        # a strided copy costs ~1/50 of a Love value: the grids' whole matrix only when it is
+        # not much larger than the entries wanted
+        wanted = int(np.count_nonzero(other)) * len(cols)
+        if getattr(provider, "cheap_grid_matrix", False) and patch.grid.size * source.grid.size <= 50 * wanted:
+            block = provider.grid_matrix(patch.grid, source.grid)[np.ix_(np.flatnonzero(other.ravel()), cols)]
+        else:
+            X, Y = patch.grid.centres()
+            S, T = source.grid.centres()
+            block = provider.cell_block(
+                np.column_stack([X[other], Y[other]]),
+                np.column_stack([S.ravel()[cols], T.ravel()[cols]]),
+                patch.grid.h,
+            )
+        out[other] = block @ v[loaded]
+    return out
 
 
 class LocalBlock:
@@ -85,6 +124,7 @@ class LocalBlock:
         else:
             self.box, self._mask = patch.grid, patch.owned
         self._full = None
+        self._columns: tuple | None = None  # (active set's bytes, A[:, S]): product_on
         self._idx = np.flatnonzero(self._mask.ravel()) if self.dense else None
         self._matrix = self._symmetric = None
         if self.dense and not getattr(provider, "cheap_grid_matrix", False):
@@ -144,6 +184,31 @@ class LocalBlock:
             return self._op.apply(a)[self._mask]
         return np.column_stack([self.matvec(v[:, j]) for j in range(v.shape[1])])
 
+    def product_on(self, active: np.ndarray, v: np.ndarray) -> np.ndarray:
+        """``A_kk v`` (n,) for a block vector ``v`` (n,) that is zero off ``active``: by the
+        kept columns ``A[:, S]`` (:data:`COLUMNS_MAX_ENTRIES`) where the block has them or
+        they are small, else as :meth:`matvec`."""
+        if self._matrix is not None or not self.dense:
+            return self.matvec(v)
+        key = active.tobytes()
+        if self._columns is None or self._columns[0] != key:
+            if self.n * int(np.count_nonzero(active)) > COLUMNS_MAX_ENTRIES:
+                return self.matvec(v)
+            self._columns = (key, self._provider.grid_matrix(self.box)[np.ix_(self._idx, self._idx[active])])
+        return self._columns[1] @ v[active]
+
+    def patch_product(self, v: np.ndarray) -> np.ndarray:
+        """``A v`` (ny, nx) mm on the whole patch for a block vector ``v`` (n,) MPa: on a
+        dense block whose matrix is not stored its own cells by :meth:`product_on` (the last
+        solve's kept columns) and the cells a neighbour owns by :func:`whole_patch`, not an
+        FFT of the whole patch made for this one product; else by that FFT."""
+        if not self.dense or self._matrix is not None:
+            out = np.zeros(self.patch.grid.shape)
+            out[self.patch.owned] = v
+            return self.full_operator().apply(out)
+        rows = self.product_on(v > 0.0, v) if np.all(v >= 0.0) else self.matvec(v)
+        return whole_patch(self._provider, self.patch, rows, self.patch, v)
+
     def canvas_mask(self, shape: tuple[int, int]) -> np.ndarray:
         """The block's cells on a canvas of ``shape`` (>= the box's) whose corner is the
         box's: a block vector ``v`` is ``canvas[mask] = v`` (the same cell order)."""
@@ -165,7 +230,9 @@ class LocalBlock:
         if self.dense:
             kind, f = self._factor(active)
             if kind == "cholesky":
-                return sla.cho_solve(f, rhs, check_finite=False)
+                # LAPACK's potrs itself: cho_solve's checks cost 7x the solve on small blocks
+                x, info = dpotrs(f[0], rhs, lower=f[1])
+                return x if info == 0 else sla.cho_solve(f, rhs, check_finite=False)
             return sla.lu_solve(f, rhs, check_finite=False)
         if rhs.ndim == 2:
             cols = [self._cg(active, rhs[:, j], None if x0 is None else x0[:, j], rtol) for j in range(rhs.shape[1])]
@@ -198,6 +265,11 @@ class LocalBlock:
     def _make_factor(self, active: np.ndarray) -> tuple:
         if self._matrix is not None:
             sub = self._matrix[np.ix_(active, active)]
+        elif self.n * int(np.count_nonzero(active)) <= COLUMNS_MAX_ENTRIES:
+            # the columns of the active set, kept for product_on; the factor's block is theirs
+            cols = self._provider.grid_matrix(self.box)[np.ix_(self._idx, self._idx[active])]
+            self._columns = (active.tobytes(), cols)
+            sub = cols[active]
         else:
             cut = self._idx[active]
             sub = self._provider.grid_matrix(self.box)[np.ix_(cut, cut)]
