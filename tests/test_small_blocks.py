@@ -199,3 +199,44 @@ def test_a_new_engine_takes_over_the_blocks_of_the_patches_that_did_not_change()
     assert new._bytes == kept.nbytes  # the view holds no memory of its own
     ib, ic = np.flatnonzero(b.owned.ravel()), np.flatnonzero(c.owned.ravel())
     assert np.allclose(new._dense(1, 0), HS.grid_matrix(c.grid, b.grid)[np.ix_(ic, ib)], rtol=1e-13, atol=0.0)
+
+
+def _spread_patch(n=70):
+    """A patch whose few owned cells (two 3 x 3 corners) span its whole n x n grid: a box
+    whose matrix (8 n^4 bytes) is far larger than the block's."""
+    g = Grid(0.0, 0.0, H, n, n)
+    owner = np.full(g.shape, 1)
+    owner[:3, :3] = owner[-3:, -3:] = 0
+    return Patch(0, g, np.zeros(g.shape), owner)
+
+
+def test_a_block_spread_over_a_large_box_never_makes_the_box_matrix():
+    import tracemalloc
+
+    pt = _spread_patch()
+    blk = LocalBlock(HS, pt)
+    assert blk.dense and blk.box.size == pt.grid.size and blk.n == 18
+    X, Y = pt.grid.centres()
+    xy = np.column_stack([X[pt.owned], Y[pt.owned]])
+    A = HS.cell_block(xy, xy, H)  # Love's cell values: the independent answer
+    rng = np.random.default_rng(1)
+    active = np.zeros(blk.n, dtype=bool)
+    active[[0, 4, 11, 17]] = True
+    v = np.where(active, rng.random(blk.n), 0.0)
+    box_bytes = 8.0 * blk.box.size**2  # 192 MB: what the columns were once cut from
+    bound = 8.0 * (20 * blk.box.size + 50 * blk.n**2)  # centres and a few n x n arrays
+    tracemalloc.start()
+    try:
+        none = blk.product_on(np.zeros(blk.n, dtype=bool), np.zeros(blk.n))
+        Av = blk.product_on(active, v)
+        x = blk.solve(active, np.ones(int(active.sum())))
+        M = blk.matrix
+        peak = tracemalloc.get_traced_memory()[1]
+    finally:
+        tracemalloc.stop()
+    assert bound < box_bytes / 100
+    assert peak < bound, (peak, bound)
+    assert not none.any()
+    assert np.allclose(Av, A @ v, rtol=1e-12, atol=0.0)
+    assert np.allclose(A[np.ix_(active, active)] @ x, 1.0, rtol=1e-10)
+    assert np.allclose(M, A, rtol=1e-12, atol=0.0)

@@ -21,6 +21,10 @@ from .patches import Patch
 #: an FFT of the block's box (939 blocks of 41-266 cells: 3,756 local solves a two-level
 #: iteration, a third of their CPU in those FFTs).
 COLUMNS_MAX_ENTRIES = 4096
+#: The largest grid matrix (entries, 32 MB) :func:`grid_entries` cuts entries from ...
+GRID_MATRIX_MAX_ENTRIES = 4_000_000
+#: ... and one it cuts from however few entries are wanted (2 MB: a small box's matrix).
+GRID_MATRIX_SMALL_ENTRIES = 250_000
 
 
 def _is_symmetric(M: np.ndarray) -> bool:
@@ -38,32 +42,44 @@ def _factorise(M: np.ndarray, symmetric: bool):
     return "lu", sla.lu_factor(M, check_finite=False)
 
 
+def grid_entries(provider, target, source, rows: np.ndarray, cols: np.ndarray) -> np.ndarray:
+    """``provider.grid_matrix(target, source)[np.ix_(rows, cols)]`` (flat cell indices of
+    the two grids), without the grids' whole matrix where it would be large: it is cut
+    from that matrix (a strided copy of a kept table, ~1/50 of a Love value an entry) only
+    when the provider says it is cheap, it holds at most :data:`GRID_MATRIX_MAX_ENTRIES`
+    and not much more than 50 times the entries wanted; else the entries come from the
+    provider's cell block. A block whose owned cells are few but spread over a large box
+    (a tilted sphere's patch, 17,700 box cells) cut a few columns from its box's whole
+    matrix: 2.5 GB for a 735 MB scene."""
+    rows, cols = np.asarray(rows), np.asarray(cols)
+    if not (rows.size and cols.size):
+        return np.zeros((rows.size, cols.size))
+    full = target.size * source.size
+    if getattr(provider, "cheap_grid_matrix", False) and full <= min(
+        GRID_MATRIX_MAX_ENTRIES, max(50 * rows.size * cols.size, GRID_MATRIX_SMALL_ENTRIES)
+    ):
+        return provider.grid_matrix(target, source)[np.ix_(rows, cols)]
+    X, Y = target.centres()
+    S, T = source.centres()
+    return provider.cell_block(
+        np.column_stack([X.ravel()[rows], Y.ravel()[rows]]),
+        np.column_stack([S.ravel()[cols], T.ravel()[cols]]),
+        source.h,
+    )
+
+
 def whole_patch(provider, patch: Patch, owned_rows: np.ndarray, source: Patch, v: np.ndarray) -> np.ndarray:
     """Displacement (ny, nx) mm on the whole ``patch`` from the block vector ``v`` (MPa) of
     the patch ``source`` (``patch`` itself for its own pressure), given its values
     ``owned_rows`` (n,) on the patch's own cells: the cells a neighbour owns (where patches
-    overlap) from the loaded cells by the provider's matrix of the two grids where it is
-    cheap (a strided copy of a kept table) and not much larger than the entries wanted,
-    else by its cell block."""
+    overlap) from the loaded cells by :func:`grid_entries`."""
     out = np.zeros(patch.grid.shape)
     out[patch.owned] = owned_rows
     other = ~patch.owned
     loaded = v != 0.0
     if other.any() and loaded.any():
         cols = np.flatnonzero(source.owned.ravel())[loaded]
-        # a strided copy costs ~1/50 of a Love value: the grids' whole matrix only when it is
-        # not much larger than the entries wanted
-        wanted = int(np.count_nonzero(other)) * len(cols)
-        if getattr(provider, "cheap_grid_matrix", False) and patch.grid.size * source.grid.size <= 50 * wanted:
-            block = provider.grid_matrix(patch.grid, source.grid)[np.ix_(np.flatnonzero(other.ravel()), cols)]
-        else:
-            X, Y = patch.grid.centres()
-            S, T = source.grid.centres()
-            block = provider.cell_block(
-                np.column_stack([X[other], Y[other]]),
-                np.column_stack([S.ravel()[cols], T.ravel()[cols]]),
-                patch.grid.h,
-            )
+        block = grid_entries(provider, patch.grid, source.grid, np.flatnonzero(other.ravel()), cols)
         out[other] = block @ v[loaded]
     return out
 
@@ -149,7 +165,7 @@ class LocalBlock:
             return None
         if self._matrix is not None:
             return self._matrix
-        return self._provider.grid_matrix(self.box)[np.ix_(self._idx, self._idx)]
+        return grid_entries(self._provider, self.box, self.box, self._idx, self._idx)
 
     @matrix.setter
     def matrix(self, value: np.ndarray) -> None:
@@ -190,11 +206,13 @@ class LocalBlock:
         they are small, else as :meth:`matvec`."""
         if self._matrix is not None or not self.dense:
             return self.matvec(v)
+        if not active.any():
+            return np.zeros(self.n)
         key = active.tobytes()
         if self._columns is None or self._columns[0] != key:
             if self.n * int(np.count_nonzero(active)) > COLUMNS_MAX_ENTRIES:
                 return self.matvec(v)
-            self._columns = (key, self._provider.grid_matrix(self.box)[np.ix_(self._idx, self._idx[active])])
+            self._columns = (key, grid_entries(self._provider, self.box, self.box, self._idx, self._idx[active]))
         return self._columns[1] @ v[active]
 
     def patch_product(self, v: np.ndarray) -> np.ndarray:
@@ -267,12 +285,12 @@ class LocalBlock:
             sub = self._matrix[np.ix_(active, active)]
         elif self.n * int(np.count_nonzero(active)) <= COLUMNS_MAX_ENTRIES:
             # the columns of the active set, kept for product_on; the factor's block is theirs
-            cols = self._provider.grid_matrix(self.box)[np.ix_(self._idx, self._idx[active])]
+            cols = grid_entries(self._provider, self.box, self.box, self._idx, self._idx[active])
             self._columns = (active.tobytes(), cols)
             sub = cols[active]
         else:
             cut = self._idx[active]
-            sub = self._provider.grid_matrix(self.box)[np.ix_(cut, cut)]
+            sub = grid_entries(self._provider, self.box, self.box, cut, cut)
         if self._symmetric is None:
             # a principal sub-block of a symmetric matrix is symmetric, and an unsymmetric
             # provider matrix (finite elements) has unsymmetric sub-blocks too
