@@ -103,6 +103,10 @@ class Coupling:
         self._base, self._correction = provider.split()
         self.separated_pairs = 0
         self._ops: dict = {}  # dense blocks (arrays)
+        # a reciprocal kernel (translation-invariant, no correction: the half-space, whose
+        # Love kernel is even) gives A_lk = A_kl^T: the reverse pair's block is its view
+        self._reciprocal = self._correction is None and bool(getattr(self._base, "translation_invariant", False))
+        self._mirrors: set = set()  # keys of _ops that are such views (no bytes of their own)
         self._fft: dict = {}
         self._bytes = 0.0
         self._fft_bytes = 0.0
@@ -125,9 +129,29 @@ class Coupling:
         for key in [key for key in self._routes if k in key]:
             self._route_bytes -= self._routes.pop(key)[2]
         for key in [key for key in self._ops if k in key]:
-            self._bytes -= self._ops.pop(key).nbytes
+            M = self._ops.pop(key)
+            self._bytes -= 0.0 if key in self._mirrors else M.nbytes
+            self._mirrors.discard(key)
         for key in [key for key in self._fft if k in key]:
             self._fft_bytes -= self._fft.pop(key)[1]
+
+    def keep_pairs(self, old: "Coupling", index: dict) -> None:
+        """Take over ``old``'s dense pair blocks between patches both engines hold
+        (``index``: a patch's index in ``old`` -> its index here, for the very same patch
+        objects), within this engine's budget. Where a few contacts come to touch and
+        their patches merge, the other pairs' blocks stay what they were (1,485 clustered
+        spheres: one merge after the first sweep made all 2,466 near pairs' blocks again)."""
+        for (k, l), M in old._ops.items():
+            key = (index.get(k), index.get(l))
+            if None in key or key in self._ops:
+                continue
+            own = 0.0 if (k, l) in old._mirrors else M.nbytes
+            if self._bytes + own > self.cache_bytes:
+                break
+            self._ops[key] = M
+            self._bytes += own
+            if not own:
+                self._mirrors.add(key)
 
     def full_operator(self, k: int, l: int):
         """Operator from the whole patch ``l`` to the whole patch ``k``: the provider's
@@ -166,6 +190,13 @@ class Coupling:
         M = self._ops.get((k, l))
         if M is not None:
             return M
+        back = self._ops.get((l, k)) if self._reciprocal else None
+        if back is not None:
+            # reciprocity: the reverse pair's block transposed, no new memory (half the
+            # near pairs' blocks to make: 2,370 of 0.2 ms each on 939 scattered patches)
+            self._ops[(k, l)] = back.T
+            self._mirrors.add((k, l))
+            return back.T
         pk, pl = self.patches[k], self.patches[l]
         nk, nl = int(pk.owned.sum()), int(pl.owned.sum())
         if (

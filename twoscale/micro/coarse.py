@@ -133,6 +133,7 @@ class CoarseSpace:
         self._dist = np.hypot(*(self.tips[coo.row] - self.tips[coo.col]).T)
         self._E_star = float(provider.material.E_star)
         self._op = None
+        self._compliance = None
 
     def _shape(self, blk, active: np.ndarray) -> np.ndarray:
         """``s_k = A_SS^{-1} 1`` on the active cells of block ``blk``, kept with the block and
@@ -171,6 +172,18 @@ class CoarseSpace:
             self._op = self.provider.point_operator(self.tips, self.tips)
         return self._op
 
+    def compliance(self) -> np.ndarray | None:
+        """The tips' point compliance (N, N) mm/N, made once for the coarse space's steps
+        where ``N <= dense_max`` (else None: the steps use the point operator); coincident
+        tips, the diagonal included, contribute nothing (0), as in the point operator. Made again at
+        every step, with the point operator built for the approach errors, it was half of
+        the coarse step on 1,485 clustered spheres (0.35 of 0.86 s of CPU in 4 steps)."""
+        if self._compliance is None and len(self.tips) <= self.dense_max:
+            T = np.array(self.provider.point_compliance(self.tips, self.tips), dtype=float)
+            T[~np.isfinite(T)] = 0.0
+            self._compliance = T
+        return self._compliance
+
     def near_correction(self, kappa: np.ndarray) -> sp.csr_matrix:
         """The smeared compliance minus the point compliance on the near pairs ``(k, l)``,
         ``l < k`` (sparse lower triangle, mm/N), for patch stiffnesses ``kappa`` (N/mm, 0 for
@@ -190,7 +203,9 @@ class CoarseSpace:
         """``rho`` (mm): approach error of each patch after a sweep that changed the
         resultants by ``dF`` (N); ``near``: :meth:`near_correction` (the pairs not seen
         during the sweep, ``l > k``, then act through the smeared compliance)."""
-        rho = -(self._operator().apply(dF) - self.lower @ dF)
+        T = self.compliance()
+        far = self._operator().apply(dF) if T is None else T @ dF
+        rho = -(far - self.lower @ dF)
         if near is not None:
             rho -= near.T @ dF
         return rho
@@ -262,8 +277,8 @@ class CoarseSpace:
         """Solve ``(diag(kinv) + T_AA + near) x = rhs`` for the columns of ``rhs`` (``near``:
         the near pairs' correction on ``A``, sparse symmetric)."""
         if A.size <= self.dense_max:
-            tA = self.tips[A]
-            M = np.array(self.provider.point_compliance(tA, tA), dtype=float)
+            T = self.compliance()
+            M = T[np.ix_(A, A)] if T is not None else np.array(self.provider.point_compliance(*(2 * [self.tips[A]])))
             M[np.arange(A.size), np.arange(A.size)] = kinv
             M += near.toarray()
             try:

@@ -104,7 +104,7 @@ def contact_solve(
             removed = True
             active = _next_active(active, p, seen)
             continue
-        gap = block.matvec(p) - b
+        gap = block.product_on(active, p) - b
         pen = ~active & (gap < -tol)
         if not np.any(pen):
             return LocalSolution(p, active, float("nan"), removed, True, it)
@@ -196,7 +196,7 @@ def initial_pressure(
             removed = True
             active = _next_active(active, p, seen)
             continue
-        gap = block.matvec(p) + z - s
+        gap = block.product_on(active, p) + z - s
         tol = gap_rtol * max(abs(s - zmin), 1e-300)
         pen = ~active & (gap < -tol)
         if not np.any(pen):

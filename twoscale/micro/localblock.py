@@ -9,9 +9,22 @@ from collections import OrderedDict
 
 import numpy as np
 import scipy.linalg as sla
+from scipy.linalg.lapack import dpotrs
+
 
 from ..influence.base import InfluenceProvider
 from .patches import Patch
+
+#: A dense block whose matrix is not stored keeps the columns ``A[:, S]`` of its last
+#: active set ``S`` when they hold at most this many entries (32 KB): the active-set
+#: loops' penetration check ``A p`` (``p`` zero off ``S``) is then one small product, not
+#: an FFT of the block's box (939 blocks of 41-266 cells: 3,756 local solves a two-level
+#: iteration, a third of their CPU in those FFTs).
+COLUMNS_MAX_ENTRIES = 4096
+#: The largest grid matrix (entries, 32 MB) :func:`grid_entries` cuts entries from ...
+GRID_MATRIX_MAX_ENTRIES = 4_000_000
+#: ... and one it cuts from however few entries are wanted (2 MB: a small box's matrix).
+GRID_MATRIX_SMALL_ENTRIES = 250_000
 
 
 def _is_symmetric(M: np.ndarray) -> bool:
@@ -27,6 +40,48 @@ def _factorise(M: np.ndarray, symmetric: bool):
         except np.linalg.LinAlgError:
             pass
     return "lu", sla.lu_factor(M, check_finite=False)
+
+
+def grid_entries(provider, target, source, rows: np.ndarray, cols: np.ndarray) -> np.ndarray:
+    """``provider.grid_matrix(target, source)[np.ix_(rows, cols)]`` (flat cell indices of
+    the two grids), without the grids' whole matrix where it would be large: it is cut
+    from that matrix (a strided copy of a kept table, ~1/50 of a Love value an entry) only
+    when the provider says it is cheap, it holds at most :data:`GRID_MATRIX_MAX_ENTRIES`
+    and not much more than 50 times the entries wanted; else the entries come from the
+    provider's cell block. A block whose owned cells are few but spread over a large box
+    (a tilted sphere's patch, 17,700 box cells) cut a few columns from its box's whole
+    matrix: 2.5 GB for a 735 MB scene."""
+    rows, cols = np.asarray(rows), np.asarray(cols)
+    if not (rows.size and cols.size):
+        return np.zeros((rows.size, cols.size))
+    full = target.size * source.size
+    if getattr(provider, "cheap_grid_matrix", False) and full <= min(
+        GRID_MATRIX_MAX_ENTRIES, max(50 * rows.size * cols.size, GRID_MATRIX_SMALL_ENTRIES)
+    ):
+        return provider.grid_matrix(target, source)[np.ix_(rows, cols)]
+    X, Y = target.centres()
+    S, T = source.centres()
+    return provider.cell_block(
+        np.column_stack([X.ravel()[rows], Y.ravel()[rows]]),
+        np.column_stack([S.ravel()[cols], T.ravel()[cols]]),
+        source.h,
+    )
+
+
+def whole_patch(provider, patch: Patch, owned_rows: np.ndarray, source: Patch, v: np.ndarray) -> np.ndarray:
+    """Displacement (ny, nx) mm on the whole ``patch`` from the block vector ``v`` (MPa) of
+    the patch ``source`` (``patch`` itself for its own pressure), given its values
+    ``owned_rows`` (n,) on the patch's own cells: the cells a neighbour owns (where patches
+    overlap) from the loaded cells by :func:`grid_entries`."""
+    out = np.zeros(patch.grid.shape)
+    out[patch.owned] = owned_rows
+    other = ~patch.owned
+    loaded = v != 0.0
+    if other.any() and loaded.any():
+        cols = np.flatnonzero(source.owned.ravel())[loaded]
+        block = grid_entries(provider, patch.grid, source.grid, np.flatnonzero(other.ravel()), cols)
+        out[other] = block @ v[loaded]
+    return out
 
 
 class LocalBlock:
@@ -85,6 +140,7 @@ class LocalBlock:
         else:
             self.box, self._mask = patch.grid, patch.owned
         self._full = None
+        self._columns: tuple | None = None  # (active set's bytes, A[:, S]): product_on
         self._idx = np.flatnonzero(self._mask.ravel()) if self.dense else None
         self._matrix = self._symmetric = None
         if self.dense and not getattr(provider, "cheap_grid_matrix", False):
@@ -109,7 +165,7 @@ class LocalBlock:
             return None
         if self._matrix is not None:
             return self._matrix
-        return self._provider.grid_matrix(self.box)[np.ix_(self._idx, self._idx)]
+        return grid_entries(self._provider, self.box, self.box, self._idx, self._idx)
 
     @matrix.setter
     def matrix(self, value: np.ndarray) -> None:
@@ -144,6 +200,33 @@ class LocalBlock:
             return self._op.apply(a)[self._mask]
         return np.column_stack([self.matvec(v[:, j]) for j in range(v.shape[1])])
 
+    def product_on(self, active: np.ndarray, v: np.ndarray) -> np.ndarray:
+        """``A_kk v`` (n,) for a block vector ``v`` (n,) that is zero off ``active``: by the
+        kept columns ``A[:, S]`` (:data:`COLUMNS_MAX_ENTRIES`) where the block has them or
+        they are small, else as :meth:`matvec`."""
+        if self._matrix is not None or not self.dense:
+            return self.matvec(v)
+        if not active.any():
+            return np.zeros(self.n)
+        key = active.tobytes()
+        if self._columns is None or self._columns[0] != key:
+            if self.n * int(np.count_nonzero(active)) > COLUMNS_MAX_ENTRIES:
+                return self.matvec(v)
+            self._columns = (key, grid_entries(self._provider, self.box, self.box, self._idx, self._idx[active]))
+        return self._columns[1] @ v[active]
+
+    def patch_product(self, v: np.ndarray) -> np.ndarray:
+        """``A v`` (ny, nx) mm on the whole patch for a block vector ``v`` (n,) MPa: on a
+        dense block whose matrix is not stored its own cells by :meth:`product_on` (the last
+        solve's kept columns) and the cells a neighbour owns by :func:`whole_patch`, not an
+        FFT of the whole patch made for this one product; else by that FFT."""
+        if not self.dense or self._matrix is not None:
+            out = np.zeros(self.patch.grid.shape)
+            out[self.patch.owned] = v
+            return self.full_operator().apply(out)
+        rows = self.product_on(v > 0.0, v) if np.all(v >= 0.0) else self.matvec(v)
+        return whole_patch(self._provider, self.patch, rows, self.patch, v)
+
     def canvas_mask(self, shape: tuple[int, int]) -> np.ndarray:
         """The block's cells on a canvas of ``shape`` (>= the box's) whose corner is the
         box's: a block vector ``v`` is ``canvas[mask] = v`` (the same cell order)."""
@@ -165,7 +248,9 @@ class LocalBlock:
         if self.dense:
             kind, f = self._factor(active)
             if kind == "cholesky":
-                return sla.cho_solve(f, rhs, check_finite=False)
+                # LAPACK's potrs itself: cho_solve's checks cost 7x the solve on small blocks
+                x, info = dpotrs(f[0], rhs, lower=f[1])
+                return x if info == 0 else sla.cho_solve(f, rhs, check_finite=False)
             return sla.lu_solve(f, rhs, check_finite=False)
         if rhs.ndim == 2:
             cols = [self._cg(active, rhs[:, j], None if x0 is None else x0[:, j], rtol) for j in range(rhs.shape[1])]
@@ -198,9 +283,14 @@ class LocalBlock:
     def _make_factor(self, active: np.ndarray) -> tuple:
         if self._matrix is not None:
             sub = self._matrix[np.ix_(active, active)]
+        elif self.n * int(np.count_nonzero(active)) <= COLUMNS_MAX_ENTRIES:
+            # the columns of the active set, kept for product_on; the factor's block is theirs
+            cols = grid_entries(self._provider, self.box, self.box, self._idx, self._idx[active])
+            self._columns = (active.tobytes(), cols)
+            sub = cols[active]
         else:
             cut = self._idx[active]
-            sub = self._provider.grid_matrix(self.box)[np.ix_(cut, cut)]
+            sub = grid_entries(self._provider, self.box, self.box, cut, cut)
         if self._symmetric is None:
             # a principal sub-block of a symmetric matrix is symmetric, and an unsymmetric
             # provider matrix (finite elements) has unsymmetric sub-blocks too

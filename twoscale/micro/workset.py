@@ -97,8 +97,9 @@ class WorkingSet:
             self.blocks[c[0]] if len(c) == 1 else LocalBlock(self.provider, pt, dense_max_cells=self.dense_max_cells)
             for pt, c in zip(merged, covers)
         ]
-        self.patches = merged
+        old, self.patches = self.coupling, merged
         self.coupling = self.rebuild(merged)
+        self.coupling.keep_pairs(old, {c[0]: k for k, c in enumerate(covers) if len(c) == 1})
         self.sensitivities = None
 
     def full_displacement(self, pressures: list) -> list:
@@ -107,7 +108,7 @@ class WorkingSet:
         for k, pt in enumerate(self.patches):
             u = self.coupling.patch_displacement(k, pressures)
             if np.any(pressures[k]):
-                u += self.blocks[k].full_operator().apply(scatter(pt, pressures[k]))
+                u += self.blocks[k].patch_product(pressures[k])
             out.append(u)
         return out
 
