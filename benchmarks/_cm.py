@@ -67,7 +67,7 @@ def contact_mechanics(
     ``total_load``."""
     if (penetration is None) == (total_load is None):
         raise ValueError("give exactly one of penetration and total_load")
-    _modules()  # imported before the clock starts: their first import costs ~1 s of CPU
+    modules()  # imported before the clock starts: their first import costs ~1 s of CPU
     t0, c0 = time.perf_counter(), time.process_time()
     top = -np.minimum(gap, clip)
     size = (gap.shape[0] * h, gap.shape[1] * h)
@@ -84,7 +84,7 @@ def contact_mechanics(
     )
 
 
-def _modules():
+def modules():
     """ContactMechanics' half-space and contact system, SurfaceTopography's topography."""
     from ContactMechanics import FreeFFTElasticHalfSpace
     from ContactMechanics.Systems import NonSmoothContactSystem
@@ -96,7 +96,7 @@ def _modules():
 def _minimize(top, size, E_star, penetration, total_load, maxiter, tol, *, lift: bool):
     """One ``minimize_proxy``; with ``lift`` the surface's highest point is put at zero and
     the offset lowered by as much."""
-    FreeFFTElasticHalfSpace, NonSmoothContactSystem, Topography = _modules()
+    FreeFFTElasticHalfSpace, NonSmoothContactSystem, Topography = modules()
 
     up = float(top.max()) if lift else 0.0
     substrate = FreeFFTElasticHalfSpace(top.shape, E_star, size)
