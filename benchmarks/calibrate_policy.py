@@ -279,6 +279,10 @@ def main(argv=None) -> int:
             f"    sensitivity_factor={FITTED.sensitivity_factor:g},\n"
             f"    union_work_exponent={models['factors']['union_exponent']:.3g},\n"
             f"    union_margin={args.margin:g},\n"
+            # the bounds and the far field's margin are measured, not fitted: kept
+            f"    far_union_margin={FITTED.far_union_margin:g},\n"
+            f"    union_min_coverage={FITTED.union_min_coverage:g},\n"
+            f"    union_margin_min_coverage={FITTED.union_margin_min_coverage:g},\n"
             f'    fitted_on="{len(rows)} attempts of {len(records)} sweep scenes",\n)'
         )
     return 0

@@ -236,6 +236,44 @@ def test_the_cost_model_decides_and_its_margin_works_both_ways():
         CostModel(ns_per_unit={"union-cg": 1.0})
 
 
+def test_the_union_margins_hold_only_where_the_patches_fill_their_box():
+    work = {"union-cg": 1e9, "block-gs": 1e9, "two-level": 1e9}
+    flat = {"load_factor": 1.0, "sensitivity_factor": 1.0, "union_margin": 1.7, "union_margin_min_coverage": 0.17}
+    model = _model_predicting(work, {"union-cg": 1.3, "block-gs": 1.0, "two-level": 1.0}, **flat)
+
+    def figures(coverage: float, **extra) -> dict:
+        box = 1_000_000
+        return {"patches": 27, "carried_cells": int(coverage * box), "box_cells": box, "coverage": coverage, **extra}
+
+    # 27 patches at 15 % of their box, the union CG predicted 1.3x: the exact block iterations
+    # (the sweep's 27 paraboloids: union CG 3.9 s and 487 MB against 3.0 s and 166 MB)
+    low = decide(figures(0.15), work, model=model)
+    assert low.iteration == "block-gs" and "x the exact" not in low.reason
+    # from the bound up the margin takes the union CG
+    assert decide(figures(0.17), work, model=model).iteration == "union-cg"
+    assert "1.7x" in decide(figures(0.25), work, model=model).reason
+    # a map's stones and merged contacts under load keep the margin below it
+    assert decide(figures(0.15, height_map=True), work, model=model).iteration == "union-cg"
+    merged = decide(figures(0.15), work, load_control=True, merged_contacts=True, model=model)
+    assert merged.iteration == "union-cg"
+    # predicted the cheapest, the union CG is taken at 15 % too
+    cheap = _model_predicting(work, {"union-cg": 0.9, "block-gs": 1.0, "two-level": 1.0}, **flat)
+    assert decide(figures(0.15), work, model=cheap).iteration == "union-cg"
+    # without the bound (0) the margin holds everywhere, as before it
+    assert (
+        decide(
+            figures(0.15),
+            work,
+            model=_model_predicting(
+                work, {"union-cg": 1.3, "block-gs": 1.0, "two-level": 1.0}, **{**flat, "union_margin_min_coverage": 0.0}
+            ),
+        ).iteration
+        == "union-cg"
+    )
+    with pytest.raises(ValueError, match="union_margin_min_coverage"):
+        _model_predicting(work, {"union-cg": 1.0, "block-gs": 1.0, "two-level": 1.0}, union_margin_min_coverage=1.5)
+
+
 def test_the_union_prediction_grows_faster_than_its_work():
     from twoscale.micro.costmodel import FITTED, UNION_REFERENCE_WORK
 

@@ -266,16 +266,26 @@ def decide(
         # of a 0.5 M-cell box, union CG 1.1-1.2 s of CPU against 2.0-2.6 s
         candidates.pop("union-cg")
     rest = {k: v for k, v in candidates.items() if k != "union-cg"}
-    if "union-cg" in candidates and (not rest or candidates["union-cg"] <= union_limit(rest, model)):
+    margins = figures["coverage"] >= model.union_margin_min_coverage or figures.get("height_map", False) or sensitivity
+    limit = (union_limit(rest, model) if margins else min(rest.values())) if rest else math.inf
+    if "union-cg" in candidates and candidates["union-cg"] <= limit:
         best = "union-cg"
     else:
         best = min(rest, key=rest.get)
     cov = figures["coverage"]
     if best == "union-cg":
         against = (
-            f", the block iterations {min(rest.values()):.2g} s; it is taken up to {model.union_margin:g}x the "
-            "exact ones'"
-            + (f" and {model.far_union_margin:g}x the far-field two-level iteration's" if "two-level" in rest else "")
+            (
+                f", the block iterations {min(rest.values()):.2g} s; it is taken up to {model.union_margin:g}x the "
+                "exact ones'"
+                + (
+                    f" and {model.far_union_margin:g}x the far-field two-level iteration's"
+                    if "two-level" in rest
+                    else ""
+                )
+                if margins
+                else f", the block iterations {min(rest.values()):.2g} s"
+            )
             if rest
             else ""
         )
