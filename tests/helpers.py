@@ -78,6 +78,14 @@ def spaced_spheres(n, seed, side, spread=0.06):
     return [Asperity(float(x), float(y), float(zz), float(r)) for (x, y), zz, r in zip(pts, z, R)]
 
 
+def random_spheres(seed: int, n: int, half: float, R: float) -> list:
+    """``n`` spheres of radius ``R`` at random on ``[-half, half]^2`` (x, then y drawn),
+    tips 0-0.02 mm deep (seeded; they may overlap)."""
+    rng = np.random.default_rng(seed)
+    x, y, z = rng.uniform(-half, half, n), rng.uniform(-half, half, n), rng.uniform(0, 0.02, n)
+    return [Asperity(float(a), float(b), float(c), R) for a, b, c in zip(x, y, z)]
+
+
 def png_info(path):
     """Width, height and tEXt chunks of a PNG, read straight from its bytes."""
     data = path.read_bytes()

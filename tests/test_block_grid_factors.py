@@ -9,7 +9,7 @@ import pytest
 from twoscale import Material
 from twoscale.grid import Grid
 
-from helpers import small_block
+from helpers import random_spheres, small_block
 
 pytest.importorskip("fem_influence")
 
@@ -74,14 +74,10 @@ def test_the_float32_product_and_the_columns(block):
 
 
 def test_the_cg_with_float32_directions_on_the_block_gives_the_float64_forces(block):
-    from twoscale.indenters import Asperity, surface_on
+    from twoscale.indenters import surface_on
     from twoscale.reference import solve_cg
 
-    rng = np.random.default_rng(3)
-    asps = [
-        Asperity(float(x), float(y), float(z), 3.0)
-        for x, y, z in zip(rng.uniform(-5, 5, 12), rng.uniform(-5, 5, 12), rng.uniform(0, 0.02, 12))
-    ]
+    asps = random_spheres(3, 12, 5.0, 3.0)
     g = Grid.covering(-6.5, 6.5, -6.5, 6.5, 0.05)
     surf = surface_on(g, asps)
     f64 = solve_cg(block, surf, total_load=8.0, precondition=True, precision="double")

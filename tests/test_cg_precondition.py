@@ -15,7 +15,7 @@ from twoscale.reference import solve_cg
 from twoscale.reference.on_scene import reference_grid
 from twoscale.scene import Scene
 
-from helpers import crowded, crowded_surface, small_block
+from helpers import crowded, crowded_surface, random_spheres, small_block
 
 MAT = Material(E=6.0, nu=0.5)
 HS = HalfSpace(MAT)
@@ -73,14 +73,9 @@ def test_the_block_takes_its_half_space_part_as_preconditioner():
     """On the finite block (half-space + smooth low-rank correction) the half-space kernel's
     inverse preconditions the same constrained CG: same contact, fewer iterations."""
     pytest.importorskip("fem_influence")
-    from twoscale.indenters import Asperity
 
     block = small_block(MAT)
-    rng = np.random.default_rng(3)
-    asps = [
-        Asperity(float(x), float(y), float(z), 4.0)
-        for x, y, z in zip(rng.uniform(-4, 4, 10), rng.uniform(-4, 4, 10), rng.uniform(0, 0.02, 10))
-    ]
+    asps = random_spheres(3, 10, 4.0, 4.0)
     grid = Grid.covering(-6.0, 6.0, -6.0, 6.0, 0.1)
     surf = surface_on(grid, asps)
     plain = solve_cg(block, surf, total_load=5.0, tol=1e-9)
