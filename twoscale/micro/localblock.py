@@ -11,7 +11,6 @@ import numpy as np
 import scipy.linalg as sla
 from scipy.linalg.lapack import dpotrs
 
-
 from ..influence.base import InfluenceProvider
 from .patches import Patch
 

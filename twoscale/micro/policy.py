@@ -217,6 +217,19 @@ def choose(
     )
 
 
+def _against(rest: dict, margins: bool, model: CostModel) -> str:
+    """The union CG's reason, its comparison: the best block iteration's prediction and,
+    where the margins hold, how far the union CG is taken past it."""
+    if not rest:
+        return ""
+    text = f", the block iterations {min(rest.values()):.2g} s"
+    if margins:
+        text += f"; it is taken up to {model.union_margin:g}x the exact ones'"
+        if "two-level" in rest:
+            text += f" and {model.far_union_margin:g}x the far-field two-level iteration's"
+    return text
+
+
 def decide(
     figures: dict,
     work: dict,
@@ -274,21 +287,7 @@ def decide(
         best = min(rest, key=rest.get)
     cov = figures["coverage"]
     if best == "union-cg":
-        against = (
-            (
-                f", the block iterations {min(rest.values()):.2g} s; it is taken up to {model.union_margin:g}x the "
-                "exact ones'"
-                + (
-                    f" and {model.far_union_margin:g}x the far-field two-level iteration's"
-                    if "two-level" in rest
-                    else ""
-                )
-                if margins
-                else f", the block iterations {min(rest.values()):.2g} s"
-            )
-            if rest
-            else ""
-        )
+        against = _against(rest, margins, model)
         reason = (
             f"{n} patches carry {100 * cov:.0f} % of their bounding box's "
             f"{figures['box_cells']} cells: one constrained CG over the box (predicted "
