@@ -137,3 +137,91 @@ def test_two_level_stacks_on_the_block_lag_only_its_self_correction(monkeypatch)
     assert np.max(np.abs(fs - fp)) <= 1e-6 * fp.max()
     half = solve_twoscale(HS, asp, **STACKED)  # the correction matters here: far more than that
     assert np.max(np.abs(np.asarray(half.asperities.forces) - fp)) > 1e-2 * fp.max()
+
+
+def _sphere_blocks(radii, n: int):
+    """One-asperity FFT blocks of ``n`` x ``n`` cells (every cell owned), a sphere of each
+    radius with its tip off the cells' centres; their heights as block vectors."""
+    from twoscale.micro.localblock import LocalBlock
+    from twoscale.micro.patches import Patch
+
+    blocks, z = [], []
+    for k, R in enumerate(radii):
+        g = Grid(20.0 * k, 0.0, H, n, n)
+        X, Y = g.centres()
+        height = ((X - 20.0 * k - 0.5 * n * H - 0.013) ** 2 + (Y - 0.5 * n * H + 0.007) ** 2) / (2.0 * R)
+        blk = LocalBlock(HS, Patch(k, g, height, np.full(g.shape, k)))
+        assert not blk.dense
+        blocks.append(blk)
+        z.append(height[blk.canvas_mask(g.shape)])
+    return blocks, z
+
+
+def _counting(monkeypatch, name):
+    """Wrap ``pk_stack``'s ``name`` (fixed_force or fixed_approach) to record the rows'
+    iteration counts."""
+    from twoscale.micro import pk_stack
+
+    seen: list = []
+    inner = getattr(pk_stack, name)
+
+    def wrapped(*args, **kwargs):
+        out = inner(*args, **kwargs)
+        seen.extend(out[-1].tolist())
+        return out
+
+    monkeypatch.setattr(pk_stack, name, wrapped)
+    return seen
+
+
+def test_stacked_eq7_on_large_blocks_is_the_plain_iteration_in_fewer_steps(monkeypatch):
+    # the stacks precondition by the canvas's circulant inverse and take float32 search
+    # directions: the same solution as one plain float64 Polonsky-Keer solve per block
+    # (contacts of 25-45 cells across: the plain iteration takes 28-38 steps to 1e-8, these 10)
+    from twoscale.analytic import hertz
+    from twoscale.micro.local import pk_start
+    from twoscale.micro.pk_stack import BlockStacks
+
+    radii, forces = [8.0, 5.0, 12.0], [0.6, 0.4, 0.9]
+    blocks, z = _sphere_blocks(radii, 48)
+    approaches = hertz.penetration(np.array(radii), np.array(forces), HS.material.E_star)
+    starts = {k: pk_start(z[k], float(approaches[k])) for k in range(3)}
+    seen = _counting(monkeypatch, "fixed_force")
+    out = BlockStacks(HS).initial(blocks, [0, 1, 2], z, forces, starts, H, rtol=1e-8)
+    for k, blk in enumerate(blocks):
+        ref, _, ok, plain = pk_fixed_force(blk.matvec, z[k], forces[k], H, starts[k], rtol=1e-8)
+        assert ok and plain >= 25
+        assert np.max(np.abs(out[k] - ref)) <= 1e-6 * ref.max()
+        assert abs(H**2 * out[k].sum() - forces[k]) <= 1e-12 * forces[k]
+        assert seen[k] <= plain / 2
+
+
+def test_stacked_local_solves_on_large_blocks_are_the_plain_iteration_in_fewer_steps(monkeypatch):
+    from twoscale.micro.pk_stack import BlockStacks
+
+    blocks, z = _sphere_blocks([8.0, 5.0, 12.0], 48)
+    rhs = {k: d - z[k] for k, d in enumerate([0.012, 0.02, 0.008])}
+    previous = [np.zeros(blk.n) for blk in blocks]
+    seen = _counting(monkeypatch, "fixed_approach")
+    out = BlockStacks(HS).solve(blocks, [0, 1, 2], rhs, previous, 1e-9)
+    for k, blk in enumerate(blocks):
+        ref, ok, plain = pk_fixed_approach(blk.matvec, rhs[k], previous[k], rtol=1e-9)
+        assert ok and out[k][1] and plain >= 35
+        assert np.max(np.abs(out[k][0] - ref)) <= 1e-6 * ref.max()
+        assert seen[k] <= plain / 2
+
+
+def test_stack_products_in_float32_and_the_circulant_inverse_on_a_stack():
+    # the stacked forms against the one-row forms they batch: the float32 product within
+    # its rounding of the float64 one, the circulant inverse to rounding (a grid below and
+    # one above the side from which the torus is longer than the grid)
+    rng = np.random.default_rng(5)
+    for n in (30, 140):
+        op = HS.grid_operator(Grid(0.0, 0.0, H, n, n - 3))
+        P = rng.uniform(0.0, 1.0, (3, n - 3, n))
+        exact = np.stack([op.apply(p) for p in P])
+        single = op.single_precision().apply_stack(P)
+        assert single.dtype == np.float64 and np.max(np.abs(single - exact)) <= 1e-6 * np.abs(exact).max()
+        inverse = op.preconditioner()
+        rows = np.stack([inverse.apply(u) for u in exact])
+        assert np.allclose(inverse.apply_stack(exact), rows, rtol=0.0, atol=1e-12 * np.abs(rows).max())

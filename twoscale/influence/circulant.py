@@ -108,6 +108,15 @@ class CirculantInverse(GridOperator):
         ny, nx = self.source.shape
         return np.ascontiguousarray(sfft.irfft2(a, s=shape)[:ny, :nx], dtype=np.float64)
 
+    def apply_stack(self, V: np.ndarray) -> np.ndarray:
+        """:meth:`apply` on a stack (B, ny, nx): the same transforms along the last two axes,
+        one call each for the whole stack (the micro step's blocks of one size class)."""
+        shape = torus_shape(self.source)
+        a = sfft.rfft2(np.asarray(V, dtype=self._m.dtype), s=shape)
+        a *= self._m
+        ny, nx = self.source.shape
+        return np.ascontiguousarray(sfft.irfft2(a, s=shape)[..., :ny, :nx], dtype=np.float64)
+
     @property
     def nbytes(self) -> int:
         return self._m.nbytes

@@ -187,6 +187,11 @@ class _SingleConvolution(GridOperator):
         a *= self._khat
         return self._parent.finish(a).astype(np.float64, copy=False)
 
+    def apply_stack(self, P: np.ndarray) -> np.ndarray:
+        """:meth:`apply` on a stack (B, ny, nx): the transforms take the leading axis as
+        they come (one call each for the whole stack)."""
+        return self.apply(P)
+
     def preconditioner(self) -> "CirculantInverse | None":
         """The parent's :meth:`ConvolutionOperator.preconditioner`, applied in float32."""
         return CirculantInverse.of(self._parent, self._parent.padded_table, np.float32)

@@ -21,14 +21,23 @@ from ..pk.kernel import Constraint, Tolerance, pk_solve
 
 
 def fixed_approach(
-    apply, b: np.ndarray, start: np.ndarray, mask: np.ndarray | None, *, rtol: float, max_iter: int = 1000
+    apply,
+    b: np.ndarray,
+    start: np.ndarray,
+    mask: np.ndarray | None,
+    *,
+    rtol: float,
+    max_iter: int = 1000,
+    precondition=None,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Contact with given right-hand sides on a stack of blocks.
 
     Parameters
     ----------
-    apply : callable
-        ``A v`` (mm) for a stack ``v`` (b, ...) of block pressures (MPa), any number b of rows.
+    apply : callable or Products
+        ``A v`` (mm) for a stack ``v`` (b, ...) of block pressures (MPa), any number b of rows
+        (or a :class:`~twoscale.pk.products.Products` with a float32 product for the search
+        directions).
     b : (B, ...) array, mm
         Right-hand side of each block (zero off its mask).
     start : (B, ...) array, MPa
@@ -38,12 +47,15 @@ def fixed_approach(
     rtol : float
         Relative change of a block's pressure at which it stops.
     max_iter : int, default 1000
+    precondition : callable, optional
+        ``precondition(v, on)``: an approximate inverse of ``A`` on a stack
+        (:func:`~twoscale.pk.kernel.pk_solve`); None: Polonsky-Keer's plain directions.
 
     Returns
     -------
     pressure (B, ...), converged (B,) bool, iterations (B,) int
     """
-    out = pk_solve(apply, -b, start, mask, Tolerance(change=rtol, max_iter=max_iter))
+    out = pk_solve(apply, -b, start, mask, Tolerance(change=rtol, max_iter=max_iter), precondition=precondition)
     return out.pressure, out.converged, out.iterations
 
 
@@ -56,12 +68,13 @@ def fixed_force(
     *,
     rtol: float,
     max_iter: int = 1000,
+    precondition=None,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Pressures carrying given loads on a stack of blocks, rigid shifts unknown (eq. 7).
 
     ``z`` (B, ...) mm the indenter heights, ``target`` (B,) the loads over ``h^2`` (MPa
-    cells), ``start`` (> 0 somewhere on each mask); ``apply``, ``mask``, ``rtol`` and
-    ``max_iter`` as in :func:`fixed_approach`.
+    cells), ``start`` (> 0 somewhere on each mask); ``apply``, ``mask``, ``rtol``,
+    ``max_iter`` and ``precondition`` as in :func:`fixed_approach`.
 
     Returns pressure (B, ...), shift (B,) mm (``A p = s - z`` on the contact), converged
     (B,), iterations (B,)."""
@@ -73,6 +86,7 @@ def fixed_force(
         mask,
         Tolerance(change=rtol, max_iter=max_iter),
         constraint=Constraint(np.ones((n, 1)), np.asarray(target, dtype=float)[:, None]),
+        precondition=precondition,
     )
     return out.pressure, out.multipliers[:, 0], out.converged, out.iterations
 

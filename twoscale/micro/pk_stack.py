@@ -18,13 +18,35 @@ correction of itself taken at the block's previous pressure into its right-hand 
 the correction of a patch of a millimetre on itself is nearly a rigid shift, a few
 percent of its half-space displacement). Eq. 7's start on such a body is the half-space's.
 2,799 spheres on the block: the local solves one by one took 55 of 134 s.
+
+The canvas's iterations are preconditioned by the canvas operator's approximate inverse
+(:class:`~twoscale.influence.circulant.CirculantInverse`, an unpadded FFT pair of the
+canvas, about a quarter of a product) and take float32 products for their search
+directions (:class:`~twoscale.pk.products.Products`; refreshes and the confirmation of a
+converged row stay exact). On 102 spheres of R 8.3 mm (blocks of 2,000-23,000 cells) eq. 7's
+stacked solves from Hertz's shape took 25-114 iterations to 1e-5, and 2.7 s of a 10.9 s
+solve; preconditioned 0.5 s; the sweeps' local solves 5.9 -> 3.3 iterations on average
+(12 instead of 16 sweeps, the more exact local solves), the whole solve 6.0 s.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
+from ..pk.products import Products
 from .pk import fixed_approach, fixed_force
+
+
+class _Canvas:
+    """One size class's canvas: its self-operator's products (float32 search directions
+    where the operator has a cheaper single-precision form) and the preconditioner of its
+    iterations (None where the operator has none)."""
+
+    def __init__(self, op):
+        single = op.single_precision()
+        self.products = Products(op.apply_stack, fast=None if single is op else single.apply_stack)
+        inverse = op.preconditioner()
+        self.precondition = None if inverse is None else (lambda v, on: inverse.apply_stack(v))
 
 
 class BlockStacks:
@@ -63,10 +85,10 @@ class BlockStacks:
         from .blocks import size_class
 
         key = (size_class(blk.box.ny), size_class(blk.box.nx))
-        op = self._ops.get(key)
-        if op is None:
-            op = self._ops[key] = self._base.grid_operator(blk.box.subgrid(0, 0, key[1], key[0]))
-        return key, op
+        canvas = self._ops.get(key)
+        if canvas is None:
+            canvas = self._ops[key] = _Canvas(self._base.grid_operator(blk.box.subgrid(0, 0, key[1], key[0])))
+        return key, canvas
 
     def _groups(self, blocks, ks, tol_of) -> dict:
         groups: dict = {}
@@ -94,7 +116,7 @@ class BlockStacks:
         for (key, tol), (op, members) in self._groups(blocks, ks, lambda blk: rtol).items():
             mask, (zs, p0) = self._stack(blocks, members, key, z, starts)
             target = np.array([forces[k] / (h * h) for k in members])
-            p, _, _, _ = fixed_force(op.apply_stack, zs, target, p0, mask, rtol=tol)
+            p, _, _, _ = fixed_force(op.products, zs, target, p0, mask, rtol=tol, precondition=op.precondition)
             out.update((k, p[i][mask[i]]) for i, k in enumerate(members))
         return out
 
@@ -107,6 +129,6 @@ class BlockStacks:
             blocks, ks, lambda blk: blk.cg_rtol if rtol is None else rtol
         ).items():
             mask, (b, p0) = self._stack(blocks, members, key, rhs, previous)
-            p, ok, it = fixed_approach(op.apply_stack, b, p0, mask, rtol=tol)
+            p, ok, it = fixed_approach(op.products, b, p0, mask, rtol=tol, precondition=op.precondition)
             out.update((k, (p[i][mask[i]], bool(ok[i]), int(it[i]))) for i, k in enumerate(members))
         return out
