@@ -52,7 +52,7 @@ from typing import Callable
 import numpy as np
 
 from ..grid import Grid
-from ..indenters import surface_on
+from ..indenters import Surface, surface_on
 from .blocks import StoneBlocks
 from .road import Selection
 from .track import Track
@@ -196,16 +196,17 @@ class WindowState:
         grid, p, _ = self.past[-1]
         return _loaded_box(grid, p)
 
-    def start(self, grid: Grid, shift: float) -> np.ndarray | None:
+    def start(self, grid: Grid, shift: float, pc: Callable | None = None) -> np.ndarray | None:
         """The last pressure moved with the road to ``shift`` on ``grid``, extrapolated
         linearly from the two last positions when both are there, else advanced by
-        ``ahead`` if given (the signed fields of :meth:`keep`, clipped at 0; 0 where the
-        last one is not known or has no material)."""
+        ``ahead`` if given (preconditioned by ``pc``; the signed fields of :meth:`keep`,
+        clipped at 0; 0 where the last one is not known or has no material)."""
         if not self.past:
             return None
         one = _moved(*self.past[-1], grid, shift)
         if len(self.past) < 2:
-            return np.maximum(one if self.ahead is None else one + self.ahead(one, grid, shift - self.past[-1][2]), 0.0)
+            ahead = 0.0 if self.ahead is None else self.ahead(one, grid, shift - self.past[-1][2], pc)
+            return np.maximum(one + ahead, 0.0)
         two = _moved(*self.past[-2], grid, shift)
         return np.where(one != 0.0, np.maximum(2.0 * one - two, 0.0), 0.0)
 
@@ -328,8 +329,9 @@ def solve_window(track, selection, bound: float, state: WindowState, tol: float)
     cut = state.cut_in(grid)
     if not np.isfinite(_restricted(surface, cut).height).any():
         cut = grid  # no stone's material in the cut (cannot carry a load): the whole window
-    start = state.start(cut, selection.shift)
     blocks = None if state.blocks is None else state.blocks.at(selection.numbers, selection.shift, grid.h)
+    pc = None if blocks is None or len(state.past) != 1 else blocks(_restricted(surface, cut)).apply
+    start = state.start(cut, selection.shift, pc)  # (pc: for the second position's ahead)
     while True:
         result = solve_cg(
             state.body,
@@ -361,8 +363,6 @@ def solve_window(track, selection, bound: float, state: WindowState, tol: float)
 
 def _restricted(surface, cut: Grid):
     """``surface`` on the aligned sub-grid ``cut``."""
-    from ..indenters import Surface
-
     if cut == surface.grid:
         return surface
     rows, cols = cut.window_in(surface.grid)
