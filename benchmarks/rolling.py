@@ -8,7 +8,7 @@ stones of 4-8 mm) at ``--h`` mm (0.25), long enough for the footprint plus the r
 (``OMP_NUM_THREADS=1``).
 
 Printed: the strip and its segmentation time, the time of every position (``--every`` of
-them; mean, median, largest), the whole run; at ``--samples`` positions spread over the
+them; mean, median, largest, the first and the second), the whole run; at ``--samples`` positions spread over the
 run, the same position solved by the full-grid reference on every cell the stones can
 reach (:func:`twoscale.rolling.reference.reference_position`), by the default two-scale
 solve from cold (:func:`~twoscale.rolling.reference.cold_position`) and by
@@ -214,6 +214,8 @@ def run(args) -> dict:
         "mean_cpu_s": float(c.mean()),
         "median_cpu_s": float(np.median(c)),
         "max_cpu_s": float(c.max()),
+        "first_cpu_s": float(c[0]),
+        "second_cpu_s": float(c[1]) if len(c) > 1 else float("nan"),
         "estimate_1m_cpu_s": float(c.mean()) * 1000.0 / args.step,
         "iterations_mean": float(np.mean(iterations)),
         "iterations_max": int(np.max(iterations)),
@@ -221,7 +223,8 @@ def run(args) -> dict:
     print(
         f"run: {wall:.1f} s wall (with the samples' comparisons), {summary['run_cpu_s']:.1f} s CPU in the "
         f"{len(t)} positions; per position CPU mean {summary['mean_cpu_s']:.3f} s, median "
-        f"{summary['median_cpu_s']:.3f} s, largest {summary['max_cpu_s']:.3f} s (wall mean {summary['mean_s']:.3f} s); "
+        f"{summary['median_cpu_s']:.3f} s, largest {summary['max_cpu_s']:.3f} s (wall mean {summary['mean_s']:.3f} s), "
+        f"the first {summary['first_cpu_s']:.3f} s, the second {summary['second_cpu_s']:.3f} s; "
         f"1 m at this CPU rate: {summary['estimate_1m_cpu_s']:.0f} s; CG iterations (micro sweeps) mean "
         f"{summary['iterations_mean']:.1f}, largest {summary['iterations_max']} ({info['solver']})"
     )

@@ -240,14 +240,17 @@ def window_state(track: Track, options: RollingOptions):
     """The :class:`~twoscale.rolling.window.WindowState` of a run on the window path
     (:class:`RollingOptions` ``solver``), or None."""
     from .blocks import StoneBlocks
-    from .window import KeptBody, WindowState
+    from .shiftstep import ShiftStep
+    from .window import GAP_STIFFNESS, KeptBody, WindowState
 
     if options.solver == "twoscale" or (options.solver == "auto" and options.iteration != "auto"):
         return None
     body = KeptBody(track.provider)
     if options.solver == "auto" and not body.invariant:
         return None
-    return WindowState(body, blocks=StoneBlocks(body) if body.invariant else None)
+    stiffness = GAP_STIFFNESS / track.provider.self_compliance(track.h)
+    ahead = ShiftStep(body, track.spec.face, track.control != "penetration", stiffness)
+    return WindowState(body, blocks=StoneBlocks(body) if body.invariant else None, ahead=ahead)
 
 
 def _no_contact(track: Track) -> ContactResult:

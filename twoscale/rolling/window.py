@@ -13,11 +13,11 @@ its preconditioner at every position. Here the position is that CG directly:
   preconditioner are built once (:class:`KeptBody`) under load control (under penetration
   control the CG crops the window to the box of the cells below the held approach, and the
   operator is rebuilt when that box changes size);
-* the **start** is the previous pressure moved with the road by exactly the step (the
-  step is a whole number of cells on a height map), extrapolated linearly from the two
-  previous positions (a stone's pressure changes smoothly as it rolls through the
-  footprint), the pressure and, off the contact, minus the gap as one signed field
-  (:meth:`WindowState.keep`): a cell whose gap is closing starts loaded;
+* the **start** is the previous pressure moved with the road by exactly the step (a
+  whole number of cells on a height map), extrapolated linearly from the two previous
+  positions (a stone's pressure changes smoothly in the footprint; the second position's
+  by the face's motion: :mod:`.shiftstep`), the pressure and, off the contact, minus the
+  gap as one signed field (:meth:`WindowState.keep`): a cell whose gap closes starts loaded;
 * the **solve** is :func:`twoscale.reference.cg.solve_cg` on the surface of the
   position's stones (:func:`twoscale.indenters.surface_on`, the heights every static
   solve sees), preconditioned by the stones' blocks and their coupling (:mod:`.blocks`;
@@ -47,11 +47,12 @@ from __future__ import annotations
 
 import dataclasses
 from dataclasses import dataclass, field
+from typing import Callable
 
 import numpy as np
 
 from ..grid import Grid
-from ..indenters import surface_on
+from ..indenters import Surface, surface_on
 from .blocks import StoneBlocks
 from .road import Selection
 from .track import Track
@@ -119,10 +120,8 @@ class KeptBody:
     correction) by the grid's shape, any other by the grid itself."""
 
     def __init__(self, provider):
-        self.provider = provider
-        self.material = provider.material
-        base, correction = provider.split()
-        self.invariant = correction is None
+        self.provider, self.material = provider, provider.material
+        self.invariant = provider.split()[1] is None  # no correction: translation-invariant
         self._ops: dict = {}
 
     def grid_operator(self, target: Grid, source: Grid | None = None):
@@ -150,6 +149,7 @@ class WindowState:
     past: list = field(default_factory=list)
     cut: Grid | None = None
     blocks: StoneBlocks | None = None
+    ahead: Callable | None = None  # the second position's linearised step (:mod:`.shiftstep`)
 
     def window(self, need: Grid) -> Grid:
         """The kept window if it covers ``need`` (same lattice), else one that covers both
@@ -196,15 +196,17 @@ class WindowState:
         grid, p, _ = self.past[-1]
         return _loaded_box(grid, p)
 
-    def start(self, grid: Grid, shift: float) -> np.ndarray | None:
+    def start(self, grid: Grid, shift: float, pc: Callable | None = None) -> np.ndarray | None:
         """The last pressure moved with the road to ``shift`` on ``grid``, extrapolated
-        linearly from the two last positions when both are there (the signed fields of
-        :meth:`keep`, clipped at 0; 0 where the last one is not known or has no material)."""
+        linearly from the two last positions when both are there, else advanced by
+        ``ahead`` if given (preconditioned by ``pc``; the signed fields of :meth:`keep`,
+        clipped at 0; 0 where the last one is not known or has no material)."""
         if not self.past:
             return None
         one = _moved(*self.past[-1], grid, shift)
         if len(self.past) < 2:
-            return np.maximum(one, 0.0)
+            ahead = 0.0 if self.ahead is None else self.ahead(one, grid, shift - self.past[-1][2], pc)
+            return np.maximum(one + ahead, 0.0)
         two = _moved(*self.past[-2], grid, shift)
         return np.where(one != 0.0, np.maximum(2.0 * one - two, 0.0), 0.0)
 
@@ -244,8 +246,7 @@ def _loaded_box(grid: Grid, p: np.ndarray) -> Grid | None:
 
 
 def _covers(outer: Grid, inner: Grid) -> bool:
-    a, b = outer.bounds, inner.bounds
-    eps = 1e-9 * inner.h
+    a, b, eps = outer.bounds, inner.bounds, 1e-9 * inner.h
     return a[0] <= b[0] + eps and a[1] >= b[1] - eps and a[2] <= b[2] + eps and a[3] >= b[3] - eps
 
 
@@ -328,8 +329,9 @@ def solve_window(track, selection, bound: float, state: WindowState, tol: float)
     cut = state.cut_in(grid)
     if not np.isfinite(_restricted(surface, cut).height).any():
         cut = grid  # no stone's material in the cut (cannot carry a load): the whole window
-    start = state.start(cut, selection.shift)
     blocks = None if state.blocks is None else state.blocks.at(selection.numbers, selection.shift, grid.h)
+    pc = None if blocks is None or len(state.past) != 1 else blocks(_restricted(surface, cut)).apply
+    start = state.start(cut, selection.shift, pc)  # (pc: for the second position's ahead)
     while True:
         result = solve_cg(
             state.body,
@@ -361,8 +363,6 @@ def solve_window(track, selection, bound: float, state: WindowState, tol: float)
 
 def _restricted(surface, cut: Grid):
     """``surface`` on the aligned sub-grid ``cut``."""
-    from ..indenters import Surface
-
     if cut == surface.grid:
         return surface
     rows, cols = cut.window_in(surface.grid)
