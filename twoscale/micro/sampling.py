@@ -103,6 +103,16 @@ def box_surface(grid: Grid, asperities: Sequence[Asperity]) -> Surface:
     return Surface(grid, height, owner, len(asperities))
 
 
+def one_map(asperities: Sequence[Asperity]) -> bool:
+    """Whether every asperity is a basin of one height map (one ``group``): its box is then
+    a window of the map, as cheap as one patch, and each patch a window of the box, the
+    same cells and owners as :func:`.patches.make_patch` gives (every basin with a sample
+    on a grid reaches it). A 70 mm road's 174 patches cost 0.03 s of CPU one by one, and
+    the union CG sampled their box again."""
+    group = getattr(asperities[0], "group", None) if len(asperities) else None
+    return group is not None and all(getattr(a, "group", None) is group for a in asperities)
+
+
 def crowded(grids: Sequence[Grid], box: Grid) -> bool:
     """Whether the ``grids`` together have at least as many cells as their covering ``box``
     (then sampling the box once costs less than sampling each grid)."""
@@ -200,7 +210,8 @@ def build_patches(
         wanted.append((k, Grid.covering(a.x - r, a.x + r, a.y - r, a.y + r, h, anchor=anchor)))
     new = [(k, grid) for k, grid in wanted if (k, grid) not in built]
     if new:
-        box = box_of([grid for _, grid in new], h, anchor)
-        if crowded([grid for _, grid in new], box) or box.size <= BOX_CELLS_PER_PATCH * len(new):  # sampled once
+        grids = [grid for _, grid in new]
+        box = box_of(grids, h, anchor)
+        if crowded(grids, box) or box.size <= BOX_CELLS_PER_PATCH * len(new) or one_map(asperities):  # sampled once
             built.update(((pt.asperity, pt.grid), pt) for pt in patches_cut_from_box(new, box, asperities))
     return [built.get((k, grid)) or make_patch(k, grid, asperities) for k, grid in wanted]
