@@ -131,8 +131,9 @@ def _candidates(z: np.ndarray, radius: float) -> np.ndarray:
     peak = z >= ndimage.maximum_filter(z, size=2 * half + 1, mode="nearest")
     plateaus, n = ndimage.label(peak, structure=_EIGHT)
     flat = plateaus.ravel()
-    _, first = np.unique(flat, return_index=True)
-    first = first[flat[first] > 0]
+    on = np.flatnonzero(flat)  # the plateaus' samples: a few of the map's (np.unique sorted all)
+    _, first = np.unique(flat[on], return_index=True)
+    first = on[first]
     cand = np.column_stack(np.unravel_index(first, z.shape)).astype(np.int64)
     dj, di = np.nonzero(_disc(max(radius, 1.0), r))
     padded = np.pad(z, r, mode="edge")
