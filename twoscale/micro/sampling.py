@@ -8,7 +8,9 @@ overlap sample the same cells again and again. Where the patches' cells together
 outnumber their bounding box's (touching contacts; or a macro step that did not converge,
 whose patches reach as far as each indenter can touch), the box is sampled once and each
 patch is a read-only window of it: 1,277 touching spheres had patches of 34 M cells in all
-over a box of 0.73 M, and sampling them took 67 of the solve's 83 s of CPU.
+over a box of 0.73 M, and sampling them took 67 of the solve's 83 s of CPU. A height
+map's patches are cut from their box whatever their number (:func:`one_map`): the box is
+a window of the map, which the union CG then takes as sampled.
 """
 
 from __future__ import annotations
