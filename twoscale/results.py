@@ -85,7 +85,9 @@ def summarise(fields: Sequence[PressureField], n_asperities: int) -> AsperitySum
     for f in fields:
         own = f.owner.ravel()
         p = f.pressure.ravel()
-        ok = own >= 0
+        # the owned cells that carry pressure: an unloaded cell adds exactly nothing (a road's
+        # 10^6-cell box is 17 % loaded; ``maximum.at`` over every owned cell took 25 ms)
+        ok = (own >= 0) & (p != 0.0)
         h2 = f.grid.h**2
         forces += h2 * np.bincount(own[ok], weights=p[ok], minlength=n_asperities)
         areas += h2 * np.bincount(own[ok], weights=(p[ok] > 0).astype(float), minlength=n_asperities)

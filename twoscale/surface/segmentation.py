@@ -131,8 +131,9 @@ def _candidates(z: np.ndarray, radius: float) -> np.ndarray:
     peak = z >= ndimage.maximum_filter(z, size=2 * half + 1, mode="nearest")
     plateaus, n = ndimage.label(peak, structure=_EIGHT)
     flat = plateaus.ravel()
-    _, first = np.unique(flat, return_index=True)
-    first = first[flat[first] > 0]
+    on = np.flatnonzero(flat)  # the plateaus' samples: a few of the map's (np.unique sorted all)
+    _, first = np.unique(flat[on], return_index=True)
+    first = on[first]
     cand = np.column_stack(np.unravel_index(first, z.shape)).astype(np.int64)
     dj, di = np.nonzero(_disc(max(radius, 1.0), r))
     padded = np.pad(z, r, mode="edge")
@@ -159,21 +160,23 @@ def _watershed(z: np.ndarray, seeds: np.ndarray) -> np.ndarray:
 
 def _passes(z: np.ndarray, basins: np.ndarray):
     """Highest pass between every pair of adjacent basins: ``(a, b, height)`` arrays."""
-    pairs, levels = [], []
+    low, high, levels = [], [], []
     # each sample against its right, upper, upper-right and upper-left neighbour (8-connectivity)
     for sa, sb in _NEIGHBOURS:
-        a, b, za, zb = basins[sa], basins[sb], z[sa], z[sb]
+        a, b = basins[sa], basins[sb]
         cross = a != b
-        pairs.append(np.column_stack([np.minimum(a[cross], b[cross]), np.maximum(a[cross], b[cross])]))
-        levels.append(np.minimum(za[cross], zb[cross]))
-    pairs, levels = np.concatenate(pairs), np.concatenate(levels)
-    if len(pairs) == 0:
+        ac, bc = a[cross], b[cross]  # each masked once (the crossings are few; the map is not)
+        low.append(np.minimum(ac, bc))
+        high.append(np.maximum(ac, bc))
+        levels.append(np.minimum(z[sa][cross], z[sb][cross]))
+    lo, hi, level = np.concatenate(low), np.concatenate(high), np.concatenate(levels)
+    if len(lo) == 0:
         return np.zeros(0, int), np.zeros(0, int), np.zeros(0)
-    key = pairs[:, 0] * (basins.max() + 1) + pairs[:, 1]
+    key = lo * (basins.max() + 1) + hi
     order = np.argsort(key, kind="stable")
-    key, levels, pairs = key[order], levels[order], pairs[order]
+    key, level, lo, hi = key[order], level[order], lo[order], hi[order]
     start = np.flatnonzero(np.r_[True, key[1:] != key[:-1]])
-    return pairs[start, 0], pairs[start, 1], np.maximum.reduceat(levels, start)
+    return lo[start], hi[start], np.maximum.reduceat(level, start)
 
 
 def _prominences(z: np.ndarray, basins: np.ndarray, seeds: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
