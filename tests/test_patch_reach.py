@@ -111,23 +111,25 @@ def test_the_union_cg_on_the_box_its_crowded_patches_lent_matches_the_full_grid(
     assert np.max(np.abs(f - r)) <= 1e-6 * np.max(r)
 
 
-@pytest.mark.parametrize("h, shared", [(0.012, True), (0.004, False)])
-def test_small_patches_of_many_tips_are_cut_from_their_box(h, shared):
+@pytest.mark.parametrize("h, force, shared", [(0.012, 1e-3, True), (0.004, 1e-3, True), (0.004, 1e-4, False)])
+def test_small_patches_of_many_tips_are_cut_from_their_box(h, force, shared):
     # patches that do not crowd their box but are small against it per tip (a light load on
-    # 600 tips on 4 x 4 mm: building each costs more than sampling its share of the box)
-    # are cut from the box sampled once, cell for cell as built one by one; at a finer h the
-    # box has more than BOX_CELLS_PER_PATCH cells a tip and each patch is built on its own
-    from twoscale.micro.sampling import BOX_CELLS_PER_PATCH, build_patches, crowded, shared_box
+    # 600 tips on 4 x 4 mm: building each costs more than sampling its share of the box),
+    # or that together cover at least BOX_MIN_PATCH_SHARE of it (where the union CG may run
+    # on that box), are cut from the box sampled once, cell for cell as built one by one; at
+    # a finer h and a lighter load neither holds and each patch is built on its own
+    from twoscale.micro.sampling import BOX_CELLS_PER_PATCH, BOX_MIN_PATCH_SHARE, build_patches, crowded, shared_box
     from twoscale.micro.union import box_of
 
     n, anchor = 600, (0.001, 0.002)
     table = TipTable(_tips(n, 13, ("sphere", "paraboloid")))
     patches = build_patches(
-        table, h=h, forces=np.full(n, 1e-3), approaches=np.full(n, 0.03), E_star=100.0, anchor=anchor
+        table, h=h, forces=np.full(n, force), approaches=np.full(n, 0.03), E_star=100.0, anchor=anchor
     )
-    box = box_of([pt.grid for pt in patches], h, anchor)
-    assert not crowded([pt.grid for pt in patches], box)
-    assert (box.size <= BOX_CELLS_PER_PATCH * n) == shared
+    grids = [pt.grid for pt in patches]
+    box = box_of(grids, h, anchor)
+    assert not crowded(grids, box)
+    assert (box.size <= BOX_CELLS_PER_PATCH * n or crowded(grids, box, BOX_MIN_PATCH_SHARE)) == shared
     assert (shared_box(patches, n, anchor) is not None) == shared
     for pt in patches[::37]:
         own = make_patch(pt.asperity, pt.grid, table)
