@@ -209,8 +209,8 @@ def build_patches(
         wanted.append((k, Grid.covering(a.x - r, a.x + r, a.y - r, a.y + r, h, anchor=anchor)))
     new = [(k, grid) for k, grid in wanted if (k, grid) not in built]
     if new:
-        box = box_of([grid for _, grid in new], h, anchor)
         grids = [grid for _, grid in new]
+        box = box_of(grids, h, anchor)
         if crowded(grids, box, BOX_MIN_PATCH_SHARE) or box.size <= BOX_CELLS_PER_PATCH * len(new):  # sampled once
             built.update(((pt.asperity, pt.grid), pt) for pt in patches_cut_from_box(new, box, asperities))
     return [built.get((k, grid)) or make_patch(k, grid, asperities) for k, grid in wanted]
