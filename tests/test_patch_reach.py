@@ -111,23 +111,25 @@ def test_the_union_cg_on_the_box_its_crowded_patches_lent_matches_the_full_grid(
     assert np.max(np.abs(f - r)) <= 1e-6 * np.max(r)
 
 
-@pytest.mark.parametrize("h, shared", [(0.012, True), (0.004, False)])
-def test_small_patches_of_many_tips_are_cut_from_their_box(h, shared):
+@pytest.mark.parametrize("h, force, shared", [(0.012, 1e-3, True), (0.004, 1e-3, True), (0.004, 1e-4, False)])
+def test_small_patches_of_many_tips_are_cut_from_their_box(h, force, shared):
     # patches that do not crowd their box but are small against it per tip (a light load on
-    # 600 tips on 4 x 4 mm: building each costs more than sampling its share of the box)
-    # are cut from the box sampled once, cell for cell as built one by one; at a finer h the
-    # box has more than BOX_CELLS_PER_PATCH cells a tip and each patch is built on its own
-    from twoscale.micro.sampling import BOX_CELLS_PER_PATCH, build_patches, crowded, shared_box
+    # 600 tips on 4 x 4 mm: building each costs more than sampling its share of the box),
+    # or that together cover at least BOX_MIN_PATCH_SHARE of it (where the union CG may run
+    # on that box), are cut from the box sampled once, cell for cell as built one by one; at
+    # a finer h and a lighter load neither holds and each patch is built on its own
+    from twoscale.micro.sampling import BOX_CELLS_PER_PATCH, BOX_MIN_PATCH_SHARE, build_patches, crowded, shared_box
     from twoscale.micro.union import box_of
 
     n, anchor = 600, (0.001, 0.002)
     table = TipTable(_tips(n, 13, ("sphere", "paraboloid")))
     patches = build_patches(
-        table, h=h, forces=np.full(n, 1e-3), approaches=np.full(n, 0.03), E_star=100.0, anchor=anchor
+        table, h=h, forces=np.full(n, force), approaches=np.full(n, 0.03), E_star=100.0, anchor=anchor
     )
-    box = box_of([pt.grid for pt in patches], h, anchor)
-    assert not crowded([pt.grid for pt in patches], box)
-    assert (box.size <= BOX_CELLS_PER_PATCH * n) == shared
+    grids = [pt.grid for pt in patches]
+    box = box_of(grids, h, anchor)
+    assert not crowded(grids, box)
+    assert (box.size <= BOX_CELLS_PER_PATCH * n or crowded(grids, box, BOX_MIN_PATCH_SHARE)) == shared
     assert (shared_box(patches, n, anchor) is not None) == shared
     for pt in patches[::37]:
         own = make_patch(pt.asperity, pt.grid, table)
@@ -135,3 +137,33 @@ def test_small_patches_of_many_tips_are_cut_from_their_box(h, shared):
         finite = np.isfinite(own.height)
         assert np.array_equal(np.isfinite(pt.height), finite)
         assert np.allclose(pt.height[finite], own.height[finite], rtol=0.0, atol=1e-12)
+
+
+def test_patches_covering_a_share_of_their_box_lend_it_to_the_union_cg_sampled_once(monkeypatch):
+    # nine spheres on a 1 mm lattice at a light penetration: their patches cover about half
+    # of their box (not crowded) and the box has over BOX_CELLS_PER_PATCH cells a patch, but
+    # the share is over BOX_MIN_PATCH_SHARE: the patches are cut from the box sampled once,
+    # the union CG runs on it without sampling it again, and its forces are the full grid's
+    import twoscale.micro.sampling as sampling
+    import twoscale.micro.union as union
+    from twoscale import Material
+    from twoscale.driver import solve_twoscale
+    from twoscale.influence import HalfSpace
+    from twoscale.reference import solve_cg
+
+    sampled, lent = [], []
+    box_surface, shared = sampling.box_surface, union.shared_box
+    counted = lambda grid, asps: sampled.append(grid.size) or box_surface(grid, asps)  # noqa: E731
+    monkeypatch.setattr(sampling, "box_surface", counted)
+    monkeypatch.setattr(union, "box_surface", counted)
+    monkeypatch.setattr(union, "shared_box", lambda *a: lent.append(shared(*a)) or lent[-1])
+    body, h = HalfSpace(Material(10.0, 0.5)), 0.02
+    asps = [Asperity(float(i), float(j), 0.002 * ((i + 2 * j) % 3), 5.0) for i in range(3) for j in range(3)]
+    res = solve_twoscale(body, asps, h=h, iteration="union-cg", penetration=0.012)
+    assert res.converged and len(sampled) == 1 and lent and lent[0] is not None
+    box = union.box_of([Grid.covering(a.x - 0.5, a.x + 0.5, a.y - 0.5, a.y + 0.5, h) for a in asps], h, (0.0, 0.0))
+    assert sampled[0] > sampling.BOX_CELLS_PER_PATCH * len(asps) and sampled[0] < box.size
+    grid = Grid.covering(-1.0, 3.0, -1.0, 3.0, h)
+    ref = solve_cg(body, surface_on(grid, asps), tol=1e-10, penetration=0.012)
+    f, r = np.asarray(res.asperities.forces), np.asarray(ref.asperities.forces)
+    assert np.max(np.abs(f - r)) <= 1e-6 * np.max(r)

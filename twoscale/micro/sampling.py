@@ -22,6 +22,7 @@ import numpy as np
 
 from ..grid import Grid
 from ..indenters import Asperity, Surface, surface_on
+from .costmodel import FITTED
 from .patches import Patch, TipTable, make_patch, patch_candidates, patch_radius
 
 #: Side (cells) of the tiles a large union box is sampled by (:func:`box_surface`): a
@@ -48,6 +49,14 @@ SAMPLE_MIN_TILE = 16
 #: as sampled (7,028 lattice paraboloids, patches of 59 cells a tip covering 86 % of a
 #: 477 K-cell box: 1.46 s for the patches, then the box again for the union CG).
 BOX_CELLS_PER_PATCH = 250
+#: Patches are cut from their box sampled once also where their cells together are at least
+#: this share of the box: the policy may then choose the union CG
+#: (:attr:`~.costmodel.CostModel.union_min_coverage`, the owned cells' share, at most the
+#: patches'), which runs on that box, and the memory estimate counts the box from that
+#: share (:func:`twoscale.resources.estimate_memory`). Sampled once, the box is not
+#: sampled again after 6,823 spheres' patches were built one by one (1.3 s, then 1.2 s for
+#: the box of 3.4 M cells; 2,875 spheres 0.59 s, then 0.58 s).
+BOX_MIN_PATCH_SHARE = FITTED.union_min_coverage
 
 
 def box_of(grids: Sequence[Grid], h: float, anchor: tuple[float, float], *, grow: float = 1.0) -> Grid:
@@ -115,10 +124,10 @@ def one_map(asperities: Sequence[Asperity]) -> bool:
     return group is not None and all(getattr(a, "group", None) is group for a in asperities)
 
 
-def crowded(grids: Sequence[Grid], box: Grid) -> bool:
-    """Whether the ``grids`` together have at least as many cells as their covering ``box``
-    (then sampling the box once costs less than sampling each grid)."""
-    return len(grids) > 1 and sum(g.size for g in grids) >= box.size
+def crowded(grids: Sequence[Grid], box: Grid, share: float = 1.0) -> bool:
+    """Whether the ``grids`` together have at least ``share`` times as many cells as their
+    covering ``box`` (at 1, sampling the box once costs less than sampling each grid)."""
+    return len(grids) > 1 and sum(g.size for g in grids) >= share * box.size
 
 
 def patches_cut_from_box(wanted: Sequence[tuple[int, Grid]], box: Grid, asperities: Sequence[Asperity]) -> list:
@@ -214,6 +223,10 @@ def build_patches(
     if new:
         grids = [grid for _, grid in new]
         box = box_of(grids, h, anchor)
-        if crowded(grids, box) or box.size <= BOX_CELLS_PER_PATCH * len(new) or one_map(asperities):  # sampled once
+        if (
+            crowded(grids, box, BOX_MIN_PATCH_SHARE)
+            or box.size <= BOX_CELLS_PER_PATCH * len(new)
+            or one_map(asperities)
+        ):  # sampled once
             built.update(((pt.asperity, pt.grid), pt) for pt in patches_cut_from_box(new, box, asperities))
     return [built.get((k, grid)) or make_patch(k, grid, asperities) for k, grid in wanted]
