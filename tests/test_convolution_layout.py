@@ -97,3 +97,22 @@ def test_the_preconditioner_inverts_the_wrapped_kernels_circulant(shape):
     for pc, rtol in ((op.preconditioner(), 1e-12), (op.single_precision().preconditioner(), 1e-5)):
         back = pc.apply((C @ v).reshape(g.shape)).ravel()
         assert np.abs(back - v).max() <= rtol * np.abs(v).max()
+
+
+def test_a_smaller_grid_restricted_from_the_kept_table_is_the_kernel_on_it():
+    """The operator of a window's cut made from the window's offset table (no kernel
+    evaluated) multiplies like the dense Love kernel on the cut, and its own offset table
+    is that window of the larger one; before the table is made, or for a larger grid or
+    another spacing, there is none."""
+    big, cut = Grid(0.0, 0.0, H, 12, 10), Grid(0.4, -0.2, H, 7, 9)
+    op = HS.grid_operator(big)
+    assert op.restricted(cut) is None  # (no offset table yet)
+    op.offset_table()
+    small = op.restricted(cut)
+    p = np.random.default_rng(3).random(cut.shape)
+    dense = _dense(cut, cut) @ p.ravel()
+    assert np.abs(small.apply(p).ravel() - dense).max() <= 1e-13 * np.abs(dense).max()
+    own = HS.grid_operator(cut).offset_table()
+    assert np.abs(small.offset_table() - own).max() <= 1e-13 * own.max()
+    assert op.restricted(Grid(0.0, 0.0, H, 13, 10)) is None
+    assert op.restricted(Grid(0.0, 0.0, 2 * H, 6, 5)) is None

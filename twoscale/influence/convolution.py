@@ -129,6 +129,21 @@ class ConvolutionOperator(GridOperator):
             self._derived["table"] = table
         return self._derived["table"]
 
+    def restricted(self, grid: Grid) -> "ConvolutionOperator | None":
+        """This square operator's kernel on a ``grid`` of the same spacing and no larger (a
+        window's cut) from the kept :meth:`offset_table`, a window of it (no kernel
+        evaluated, and the new operator's own table); None before the table is made, for a
+        pair of different grids or a larger or other ``grid``."""
+        table = self._derived.get("table")
+        (ny, nx), (my, mx) = grid.shape, self.source.shape
+        if table is None or self.target != self.source or grid.h != self.source.h or ny > my or nx > mx:
+            return None
+        sub = np.ascontiguousarray(table[my - ny : my + ny - 1, mx - nx : mx + nx - 1])
+        sub.setflags(write=False)
+        out = ConvolutionOperator(grid, grid, sub)
+        out._derived["table"] = sub
+        return out
+
     def multiply(self, spectrum: np.ndarray) -> np.ndarray:
         """Kernel times a source spectrum (a new array)."""
         return self._times_kernel(np.array(spectrum, dtype=np.complex128))

@@ -34,13 +34,12 @@ its preconditioner at every position. Here the position is that CG directly:
   below the approach bound but the tyre's elastic lift keeps it off), and its answer is
   checked a posteriori on the whole window (:func:`_touching_outside`: the displacement
   the pressure makes there, one float32 product, exact only near contact); cells outside
-  the cut that would touch make the cut grow to take them in and the position is solved
-  again from its answer.
+  the cut that would touch make it grow to take them in, solved again from its answer.
 
-The answer is the static contact of the road at that shift to the solver's tolerance:
-the cells left out of the window cannot touch (their height is above the bound), the
-cells left out of the cut were checked not to, and the start only changes the work. A
-position that does not converge is solved again by the two-scale solver from cold.
+The answer is the static contact of the road at that shift to the solver's tolerance: the
+cells left out of the window cannot touch (their height is above the bound), those out of
+the cut were checked not to, the start only changes the work; a position that does not
+converge is solved again by the two-scale solver from cold.
 """
 
 from __future__ import annotations
@@ -116,8 +115,8 @@ class KeptOperator:
 
 class KeptBody:
     """The body as :func:`~twoscale.reference.cg.solve_cg` asks for it, with the operator of
-    each square grid kept: a translation-invariant body (the half-space: ``split()`` has no
-    correction) by the grid's shape, any other by the grid itself."""
+    each square grid kept: a translation-invariant body (``split()`` has no correction) by
+    the grid's shape (a smaller grid's from a kept offset table), any other by the grid."""
 
     def __init__(self, provider):
         self.provider, self.material = provider, provider.material
@@ -130,7 +129,10 @@ class KeptBody:
         key = target.shape if self.invariant else target
         op = self._ops.pop(key, None)
         if op is None:
-            op = KeptOperator(self.provider.grid_operator(target))
+            cuts = [k.op.restricted for k in self._ops.values() if self.invariant and hasattr(k.op, "restricted")]
+            op = KeptOperator(
+                next(filter(None, (r(target) for r in cuts)), None) or self.provider.grid_operator(target)
+            )
             while len(self._ops) >= KEPT_OPERATORS:  # the least recently used goes
                 self._ops.pop(next(iter(self._ops)))
         self._ops[key] = op
@@ -191,10 +193,7 @@ class WindowState:
 
     def _last_contact(self) -> Grid | None:
         """The box of the last position's loaded cells (a sub-grid of its grid)."""
-        if not self.past:
-            return None
-        grid, p, _ = self.past[-1]
-        return _loaded_box(grid, p)
+        return _loaded_box(*self.past[-1][:2]) if self.past else None
 
     def start(self, grid: Grid, shift: float, pc: Callable | None = None) -> np.ndarray | None:
         """The last pressure moved with the road to ``shift`` on ``grid``, extrapolated
