@@ -102,20 +102,17 @@ class CirculantInverse(GridOperator):
         return None if m is None else cls(op.source, m)
 
     def apply(self, v: np.ndarray) -> np.ndarray:
+        """The approximate inverse on ``v`` (ny, nx), or on a stack (B, ny, nx): the
+        transforms run along the last two axes, one call each for the whole stack."""
         shape = torus_shape(self.source)
         a = sfft.rfft2(np.asarray(v, dtype=self._m.dtype), s=shape)
         a *= self._m
         ny, nx = self.source.shape
-        return np.ascontiguousarray(sfft.irfft2(a, s=shape)[:ny, :nx], dtype=np.float64)
+        return np.ascontiguousarray(sfft.irfft2(a, s=shape)[..., :ny, :nx], dtype=np.float64)
 
     def apply_stack(self, V: np.ndarray) -> np.ndarray:
-        """:meth:`apply` on a stack (B, ny, nx): the same transforms along the last two axes,
-        one call each for the whole stack (the micro step's blocks of one size class)."""
-        shape = torus_shape(self.source)
-        a = sfft.rfft2(np.asarray(V, dtype=self._m.dtype), s=shape)
-        a *= self._m
-        ny, nx = self.source.shape
-        return np.ascontiguousarray(sfft.irfft2(a, s=shape)[..., :ny, :nx], dtype=np.float64)
+        """:meth:`apply` on a stack (B, ny, nx) (the micro step's blocks of one size class)."""
+        return self.apply(V)
 
     @property
     def nbytes(self) -> int:

@@ -277,8 +277,8 @@ class CoarseSpace:
         """Solve ``(diag(kinv) + T_AA + near) x = rhs`` for the columns of ``rhs`` (``near``:
         the near pairs' correction on ``A``, sparse symmetric)."""
         if A.size <= self.dense_max:
-            T = self.compliance()
-            M = T[np.ix_(A, A)] if T is not None else np.array(self.provider.point_compliance(*(2 * [self.tips[A]])))
+            T, tA = self.compliance(), self.tips[A]
+            M = T[np.ix_(A, A)] if T is not None else np.array(self.provider.point_compliance(tA, tA), dtype=float)
             M[np.arange(A.size), np.arange(A.size)] = kinv
             M += near.toarray()
             try:

@@ -40,10 +40,10 @@ def _grid_arrays(patches) -> tuple:
     return tuple(np.array([getattr(x, a) for x in g], dtype=float) for a in ("x0", "y0", "nx", "ny", "h"))
 
 
-def _lattices(cx: np.ndarray, cy: np.ndarray, dx: np.ndarray, dy: np.ndarray) -> np.ndarray:
-    """The 3 x 3 lattices ``(cx + dx i, cy + dy j)``, ``i, j`` in -1, 0, 1, of N patches,
+def _lattices(cx: np.ndarray, cy: np.ndarray, dx: np.ndarray, dy: np.ndarray, steps=(-1.0, 0.0, 1.0)) -> np.ndarray:
+    """The 3 x 3 lattices ``(cx + dx i, cy + dy j)``, ``i, j`` in ``steps``, of N patches,
     (9 N, 2) mm, each row-major over (y, x)."""
-    u = np.array([-1.0, 0.0, 1.0])
+    u = np.array(steps)
     X = np.broadcast_to((cx[:, None] + dx[:, None] * u)[:, None, :], (len(cx), 3, 3))
     Y = np.broadcast_to((cy[:, None] + dy[:, None] * u)[:, :, None], (len(cx), 3, 3))
     return np.column_stack([X.ravel(), Y.ravel()])
@@ -53,10 +53,7 @@ def all_stencils(patches) -> np.ndarray:
     """:meth:`FarFieldCoupling._stencil` of every patch, (9 N, 2) mm, in one pass (per patch
     it was half of the far field's set-up on 1,485 patches)."""
     x0, y0, nx, ny, h = _grid_arrays(patches)
-    u = np.array([0.0, 1.0, 2.0])
-    X = np.broadcast_to((x0[:, None] + (0.5 * (nx - 1) * h)[:, None] * u)[:, None, :], (len(x0), 3, 3))
-    Y = np.broadcast_to((y0[:, None] + (0.5 * (ny - 1) * h)[:, None] * u)[:, :, None], (len(x0), 3, 3))
-    return np.column_stack([X.ravel(), Y.ravel()])
+    return _lattices(x0, y0, 0.5 * (nx - 1) * h, 0.5 * (ny - 1) * h, steps=(0.0, 1.0, 2.0))
 
 
 def all_source_nodes(patches) -> np.ndarray:

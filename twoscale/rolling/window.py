@@ -129,10 +129,9 @@ class KeptBody:
         key = target.shape if self.invariant else target
         op = self._ops.pop(key, None)
         if op is None:
-            cuts = [k.op.restricted for k in self._ops.values() if self.invariant and hasattr(k.op, "restricted")]
-            op = KeptOperator(
-                next(filter(None, (r(target) for r in cuts)), None) or self.provider.grid_operator(target)
-            )
+            kept = [k.op for k in self._ops.values() if self.invariant and hasattr(k.op, "restricted")]
+            cut = (k.restricted(target) for k in kept)  # a kept table cut to a smaller grid
+            op = KeptOperator(next(filter(None, cut), None) or self.provider.grid_operator(target))
             while len(self._ops) >= KEPT_OPERATORS:  # the least recently used goes
                 self._ops.pop(next(iter(self._ops)))
         self._ops[key] = op
