@@ -188,18 +188,7 @@ def solve(
         material=material, penetration=penetration, total_load=total_load, tilt=call["tilt"], pivot=call["pivot"]
     )
     scene = _scene_of(problem, provider, h, call["shape"], given)
-    if not (callable(method) or method in METHODS):
-        raise ValueError(f"method must be one of {METHODS} or a callable, got {method!r}")
-    if provider is not None and provider_options:
-        raise ValueError(
-            f"provider_options apply to a provider built here, not to the one passed (got {sorted(provider_options)!r})"
-        )
-    if getattr(scene, "rolling", None) is not None:
-        raise ValueError(
-            "this scene has a [rolling] table: run it with twoscale.rolling.roll(scene) (or "
-            "'twoscale solve SCENE --out DIR'); twoscale.solve answers one static position "
-            "(dataclasses.replace(scene, rolling=None) for the road at rest)"
-        )
+    _check_call(scene, method, provider, provider_options)
     if scene.history is not None:  # a load history in time (viscoelastic or elastic): a HistoryResult
         from .viscoelastic.solve import solve_history
 
@@ -213,23 +202,7 @@ def solve(
     h_given = h is not None
     h = default_h(scene)
     if not callable(method) and (memory_limit is None or memory_limit < math.inf):
-        from .resources import check_solve_memory
-
-        base = options.get("options")
-        iteration = (
-            options.get("iteration", base.micro.iteration if base is not None else "auto")
-            if method == "twoscale"
-            else "auto"
-        )
-        check_solve_memory(
-            scene,
-            h,
-            "twoscale" if method == "twoscale" else "reference",
-            iteration=iteration,
-            limit_bytes=memory_limit,
-            option="h" if h_given else "grid.h",
-            h_given=h_given,
-        )
+        _check_memory(scene, h, method, options, memory_limit, h_given)
     from .io.cache_entry import solve_caches, usage_since
 
     caches_before = () if provider is None else solve_caches(provider, scene)
@@ -244,17 +217,64 @@ def solve(
 
     if callable(method):  # the body and the nominal area recorded in the result, whatever the method
         return with_setting(method(provider, scene, h=h, **options), scene, provider)
+    result = _with_surface_report(scene, _run_method(scene, provider, h, method, options))
+    result = with_setting(result, scene, provider)
+    # what came from the on-disk caches (block corrections, surface laws), for result.json
+    return dataclasses.replace(result, caches=usage_since(caches_before, solve_caches(provider, scene)))
+
+
+def _check_call(scene: Scene, method: Any, provider: Any, provider_options: Any) -> None:
+    """Refuse a call :func:`solve` cannot answer, naming what is wrong."""
+    if not (callable(method) or method in METHODS):
+        raise ValueError(f"method must be one of {METHODS} or a callable, got {method!r}")
+    if provider is not None and provider_options:
+        raise ValueError(
+            f"provider_options apply to a provider built here, not to the one passed (got {sorted(provider_options)!r})"
+        )
+    if getattr(scene, "rolling", None) is not None:
+        raise ValueError(
+            "this scene has a [rolling] table: run it with twoscale.rolling.roll(scene) (or "
+            "'twoscale solve SCENE --out DIR'); twoscale.solve answers one static position "
+            "(dataclasses.replace(scene, rolling=None) for the road at rest)"
+        )
+
+
+def _check_memory(scene: Scene, h: float, method: str, options: dict, memory_limit: Any, h_given: bool) -> None:
+    """Refuse before anything large is allocated when the solve that will run needs more
+    memory than ``memory_limit`` (:func:`twoscale.resources.check_solve_memory`)."""
+    from .resources import check_solve_memory
+
+    base = options.get("options")
+    iteration = (
+        options.get("iteration", base.micro.iteration if base is not None else "auto")
+        if method == "twoscale"
+        else "auto"
+    )
+    check_solve_memory(
+        scene,
+        h,
+        "twoscale" if method == "twoscale" else "reference",
+        iteration=iteration,
+        limit_bytes=memory_limit,
+        option="h" if h_given else "grid.h",
+        h_given=h_given,
+    )
+
+
+def _run_method(scene: Scene, provider: InfluenceProvider, h: float, method: str, options: dict) -> ContactResult:
+    """The named solver on ``scene``: the two-scale method (or, called without options on a
+    scene of a few tips, its full grid's one CG, said in the result) or a reference."""
     # any option asks for the two-scale solver itself (the command line passes its progress display)
     route = _full_grid_route(scene, h) if method == "twoscale" and not options else None
     if route is not None:  # the smallest scenes: their full grid's one CG, said in the result
         from .reference.on_scene import solve_reference_scene
 
         result = solve_reference_scene(scene, provider, h, solver="auto")
-        result = dataclasses.replace(result, message=f"default route: {route}; {result.message}".rstrip("; "))
-    elif method == "twoscale":
+        return dataclasses.replace(result, message=f"default route: {route}; {result.message}".rstrip("; "))
+    if method == "twoscale":
         from .driver import solve_twoscale
 
-        result = solve_twoscale(
+        return solve_twoscale(
             provider,
             scene.asperities,
             h=h,
@@ -264,22 +284,23 @@ def solve(
             pivot=scene.pivot,
             **options,
         )
-    else:
-        from .reference.on_scene import solve_reference_scene
+    from .reference.on_scene import solve_reference_scene
 
-        result = solve_reference_scene(
-            scene, provider, h, solver="auto" if method == "reference" else method, **options
-        )
-    if scene.surface is not None:
-        from .surface.edges import surface_details, warn_edge_contacts
+    return solve_reference_scene(scene, provider, h, solver="auto" if method == "reference" else method, **options)
 
-        report = surface_details(scene.surface, result)
-        warn_edge_contacts(report.edge_contacts)
-        if result.details is not None and hasattr(result.details, "surface"):
-            result = dataclasses.replace(result, details=dataclasses.replace(result.details, surface=report))
-    result = with_setting(result, scene, provider)
-    # what came from the on-disk caches (block corrections, surface laws), for result.json
-    return dataclasses.replace(result, caches=usage_since(caches_before, solve_caches(provider, scene)))
+
+def _with_surface_report(scene: Scene, result: ContactResult) -> ContactResult:
+    """On a height map: the map's report (filled samples, units, contacts at its edge) in
+    ``result.details.surface``, and a warning when contacts reach the map's edge."""
+    if scene.surface is None:
+        return result
+    from .surface.edges import surface_details, warn_edge_contacts
+
+    report = surface_details(scene.surface, result)
+    warn_edge_contacts(report.edge_contacts)
+    if result.details is not None and hasattr(result.details, "surface"):
+        result = dataclasses.replace(result, details=dataclasses.replace(result.details, surface=report))
+    return result
 
 
 def _full_grid_route(scene: Scene, h: float) -> str | None:
