@@ -120,31 +120,7 @@ def run(args: argparse.Namespace) -> int:
             from .rolling import run_rolling
 
             return run_rolling(scene, args)
-        if getattr(args, "step_error", False):
-            raise SceneError("--step-error applies to a [rolling] scene with a viscoelastic material")
-        if getattr(args, "block_field", False):
-            if scene.influence["kind"] != "block":
-                raise SceneError(
-                    f'--block-field needs [influence] kind = "block", got kind = {scene.influence["kind"]!r}'
-                )
-            if args.out is None:
-                raise SceneError("--block-field needs --out DIR")
-        check_out_dir(args.out, overwrite=getattr(args, "overwrite", False))
-        options = {}
-        far_tol = positive_option(getattr(args, "far_tol", None), "--far-tol", unit="dimensionless")
-        if far_tol is not None:
-            if not far_tol < 1.0:
-                raise SceneError(f"--far-tol must be < 1, got {args.far_tol!r}")
-            if args.method != "twoscale":
-                raise SceneError(f"--far-tol is an option of --method twoscale, got --method {args.method}")
-            options["far_tol"] = far_tol
-        iteration = getattr(args, "iteration", "auto")
-        if iteration != "auto":
-            if args.method != "twoscale":
-                raise SceneError(f"--iteration is an option of --method twoscale, got --method {args.method}")
-            if far_tol is not None and iteration == "union-cg":
-                raise SceneError("--far-tol applies to the block iterations, not to --iteration union-cg")
-            options["iteration"] = iteration
+        options, iteration = _solver_options(scene, args)
         # before anything large is allocated: refuse a solve the machine cannot hold
         check_solve_memory(
             scene, default_h(scene), args.method, iteration=iteration, option="--h", h_given=args.h is not None
@@ -165,6 +141,41 @@ def run(args: argparse.Namespace) -> int:
         return 2
     if scene.history is not None:
         return _history_done(result, scene, args, wall)
+    return _static_done(result, scene, args, wall)
+
+
+def _solver_options(scene, args: argparse.Namespace) -> tuple[dict, str]:
+    """The command line's options for the solver (``far_tol``, ``iteration``) and the
+    iteration asked for, checked against the method and the scene (SceneError naming the
+    option); the output folder checked too, all before anything is solved."""
+    if getattr(args, "step_error", False):
+        raise SceneError("--step-error applies to a [rolling] scene with a viscoelastic material")
+    if getattr(args, "block_field", False):
+        if scene.influence["kind"] != "block":
+            raise SceneError(f'--block-field needs [influence] kind = "block", got kind = {scene.influence["kind"]!r}')
+        if args.out is None:
+            raise SceneError("--block-field needs --out DIR")
+    check_out_dir(args.out, overwrite=getattr(args, "overwrite", False))
+    options = {}
+    far_tol = positive_option(getattr(args, "far_tol", None), "--far-tol", unit="dimensionless")
+    if far_tol is not None:
+        if not far_tol < 1.0:
+            raise SceneError(f"--far-tol must be < 1, got {args.far_tol!r}")
+        if args.method != "twoscale":
+            raise SceneError(f"--far-tol is an option of --method twoscale, got --method {args.method}")
+        options["far_tol"] = far_tol
+    iteration = getattr(args, "iteration", "auto")
+    if iteration != "auto":
+        if args.method != "twoscale":
+            raise SceneError(f"--iteration is an option of --method twoscale, got --method {args.method}")
+        if far_tol is not None and iteration == "union-cg":
+            raise SceneError("--far-tol applies to the block iterations, not to --iteration union-cg")
+        options["iteration"] = iteration
+    return options, iteration
+
+
+def _static_done(result: ContactResult, scene, args: argparse.Namespace, wall: float) -> int:
+    """Write and report one static solve (``DIR/result.json`` and the rest); the exit code."""
     path = None
     # result.json's content and the terminal summary: one dictionary
     record = (
