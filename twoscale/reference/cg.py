@@ -177,15 +177,8 @@ def solve_cg(
     trivial = trivial_result(problem, "cg", {"total": time.perf_counter() - t0})
     if trivial is not None:
         return trivial
-    if start is not None:
-        start = np.asarray(start, dtype=float)
-        if start.shape != problem.grid.shape or not np.all(np.isfinite(start)):
-            raise ValueError(
-                f"start must be a finite array of shape {problem.grid.shape} (MPa), got shape {start.shape}"
-            )
     work = _cropped(problem)
-    if start is not None and work is not problem:
-        start = start[work.grid.window_in(problem.grid)]
+    start = _start_on(start, problem, work)
     if precision not in PRECISIONS:
         raise ValueError(f"precision must be one of {PRECISIONS}, got {precision!r}")
     op = provider.grid_operator(work.grid)
@@ -197,23 +190,7 @@ def solve_cg(
     if precision == "single-directions":
         fast = op.single_precision()
     elif precision == "mixed" and tol < SINGLE_TOL:
-        single = op.single_precision()
-        p1, _, _, it0, products0, hist0, _, _ = _iterate(
-            work,
-            single,
-            provider.material.E_star,
-            SINGLE_TOL,
-            max_iter,
-            start,
-            stall=SINGLE_STALL,
-            monitor=monitor,
-            pc=_preconditioner(cg, custom, single),
-            keep_conjugacy=cg.keep_conjugacy,
-        )
-        start = p1.reshape(work.grid.shape)
-        if single is not op:  # the double-precision stage in float32 products about an exact anchor
-            op, fast = _Anchored(op, single, start), single
-            products0 += 1
+        start, op, fast, (it0, products0, hist0) = _single_stage(work, op, provider.material.E_star, start, cg, custom)
     offset = it0 + 1 if it0 or hist0 else 0
     p, u, m, it, n_products, hist, converged, message = _iterate(
         work,
@@ -246,6 +223,42 @@ def solve_cg(
         tilt_angles,
         Outcome(converged, message, {"cg": it, "products": n_products}, {"gap": hist}, timings, details),
     )
+
+
+def _start_on(start: np.ndarray | None, problem, work) -> np.ndarray | None:
+    """The warm start checked (finite, on the problem's grid) and cut to the working grid."""
+    if start is None:
+        return None
+    start = np.asarray(start, dtype=float)
+    if start.shape != problem.grid.shape or not np.all(np.isfinite(start)):
+        raise ValueError(f"start must be a finite array of shape {problem.grid.shape} (MPa), got shape {start.shape}")
+    return start if work is problem else start[work.grid.window_in(problem.grid)]
+
+
+def _single_stage(work, op, e_star: float, start, cg: CGSettings, custom):
+    """``"mixed"``'s first stage: the CG in single-precision products to ``SINGLE_TOL``.
+    Returns the pressure it reached (the second stage's start), the second stage's
+    operator (exact products about that pressure) and fast operator, and the stage's
+    iterations, products and residual history."""
+    single = op.single_precision()
+    p1, _, _, it0, products0, hist0, _, _ = _iterate(
+        work,
+        single,
+        e_star,
+        SINGLE_TOL,
+        cg.max_iter,
+        start,
+        stall=SINGLE_STALL,
+        monitor=cg.monitor,
+        pc=_preconditioner(cg, custom, single),
+        keep_conjugacy=cg.keep_conjugacy,
+    )
+    start = p1.reshape(work.grid.shape)
+    fast = None
+    if single is not op:  # the double-precision stage in float32 products about an exact anchor
+        op, fast = _Anchored(op, single, start), single
+        products0 += 1
+    return start, op, fast, (it0, products0, hist0)
 
 
 class _Anchored:
