@@ -173,28 +173,10 @@ def _active_set(problem: ContactProblem, provider, A, idx, tol, max_iter, t0, t_
         qS, m_trial = _solve_on_set(A, z, B, target, S, d_given)
         sizes.append(S.size)
         if np.any(qS < 0):
-            if feasible:
-                pS = p[S]
-                neg = qS < 0
-                step = float(np.min(pS[neg] / (pS[neg] - qS[neg])))
-                p[S] = pS + step * (qS - pS)
-                m = m + step * (m_trial - m)
-                hit = S[(p[S] <= 0.0) | (np.arange(S.size) == np.argmin(np.where(neg, p[S], np.inf)))]
-                p[hit] = 0.0
-                active[hit] = False
-                changes.append(hit.size)
+            if feasible:  # phase 2: towards the trial solution until a pressure reaches zero
+                m = _step_back(p, m, S, qS, m_trial, active, changes)
                 continue
-            q = np.zeros(idx.size)
-            q[S] = qS
-            drop = S[[np.argmin(qS)]] if cycling else S[qS < 0]
-            active[drop] = False
-            add = np.zeros(0, dtype=int)
-            if not cycling:
-                _, gap = _gap(A, z, B, m_trial, d_given, q)
-                scale = max(float(np.max(np.abs(gap))), np.finfo(float).tiny)
-                add = np.flatnonzero(~active & (gap < -tol * scale) & (q == 0))
-                active[add] = True
-            changes.append(drop.size + add.size)
+            changes.append(_johnson_move(A, z, B, d_given, S, qS, m_trial, active, cycling, tol))
             continue
         p[:] = 0.0
         p[S] = qS
@@ -226,3 +208,38 @@ def _active_set(problem: ContactProblem, provider, A, idx, tol, max_iter, t0, t_
         tilt,
         Outcome(converged, message, {"outer": it}, {"changes": changes, "active": sizes}, timings),
     )
+
+
+def _johnson_move(A, z, B, d_given, S, qS, m_trial, active, cycling: bool, tol: float) -> int:
+    """Phase 1's move (Johnson): drop the cells of ``S`` whose trial pressure ``qS`` is
+    negative (the most negative alone on a repeated set) and add every cell that
+    interpenetrates under the trial solution (none on a repeated set). Updates ``active``
+    in place; returns how many cells moved."""
+    q = np.zeros(active.size)
+    q[S] = qS
+    drop = S[[np.argmin(qS)]] if cycling else S[qS < 0]
+    active[drop] = False
+    add = np.zeros(0, dtype=int)
+    if not cycling:
+        _, gap = _gap(A, z, B, m_trial, d_given, q)
+        scale = max(float(np.max(np.abs(gap))), np.finfo(float).tiny)
+        add = np.flatnonzero(~active & (gap < -tol * scale) & (q == 0))
+        active[add] = True
+    return drop.size + add.size
+
+
+def _step_back(p, m, S, qS, m_trial, active, changes: list) -> np.ndarray:
+    """Phase 2's move (Lawson & Hanson): from the feasible pressure ``p`` towards the trial
+    solution ``qS`` on the set ``S`` until the first pressure reaches zero; those cells
+    leave the set. Updates ``p``, ``active`` and ``changes`` in place; returns the rigid
+    motion moved by the same step."""
+    pS = p[S]
+    neg = qS < 0
+    step = float(np.min(pS[neg] / (pS[neg] - qS[neg])))
+    p[S] = pS + step * (qS - pS)
+    m = m + step * (m_trial - m)
+    hit = S[(p[S] <= 0.0) | (np.arange(S.size) == np.argmin(np.where(neg, p[S], np.inf)))]
+    p[hit] = 0.0
+    active[hit] = False
+    changes.append(hit.size)
+    return m
