@@ -54,7 +54,7 @@ class SceneSpec:
     Attributes
     ----------
     index : int
-        Its number in the draw (the seed of its own generator is ``seed * 100003 + index``).
+        Its number in the draw (its own generator is seeded by the pair ``(seed, index)``).
     seed : int
         The sweep's seed.
     kind : {"tips", "road", "road-hole", "road-um"}
@@ -144,31 +144,39 @@ def draw(index: int, seed: int = 0, *, max_tips: int = 10_000, maps: float = 0.1
     nu = float(rng.choice([0.5, 0.5, 0.45, 0.3]))
     body = "block" if rng.uniform() < block else "halfspace"
     h_factor = 0.0 if rng.uniform() < 0.7 else float(rng.choice([0.5, 1.5, 3.0]))
+    common = dict(index=index, seed=seed, h_factor=h_factor)
     if rng.uniform() < maps:
-        kind = str(rng.choice(SCENE_KINDS[1:]))
-        size = float(rng.choice([30.0, 50.0, 70.0]))
-        pressure = _loguniform(rng, 0.05, 0.5)
-        control = "load"
-        return SceneSpec(
-            index,
-            seed,
-            kind,
-            0,
-            "uniform",
-            0.0,
-            pressure,
-            control,
-            False,
-            0.0,
-            0.0,
-            0.0,
-            "sphere",
-            body if size <= BLOCK_SIDE else "halfspace",
-            10.0,
-            0.5,
-            h_factor,
-            size,
-        )
+        return _map_spec(rng, body, **common)
+    return _tips_spec(rng, body, E, nu, max_tips, **common)
+
+
+def _map_spec(rng: np.random.Generator, body: str, **common) -> SceneSpec:
+    """A height map's scene (a synthetic road, with a hole or in um) under a nominal pressure."""
+    kind = str(rng.choice(SCENE_KINDS[1:]))
+    size = float(rng.choice([30.0, 50.0, 70.0]))
+    pressure = _loguniform(rng, 0.05, 0.5)
+    return SceneSpec(
+        kind=kind,
+        n=0,
+        layout="uniform",
+        spacing=0.0,
+        load_per_tip=pressure,
+        control="load",
+        tilt=False,
+        radius=0.0,
+        radius_spread=0.0,
+        height_spread=0.0,
+        shape="sphere",
+        body=body if size <= BLOCK_SIDE else "halfspace",
+        E=10.0,
+        nu=0.5,
+        size=size,
+        **common,
+    )
+
+
+def _tips_spec(rng: np.random.Generator, body: str, E: float, nu: float, max_tips: int, **common) -> SceneSpec:
+    """A scene of tips: their number, layout, radii, load, control, tilt and spread drawn."""
     n = int(round(_loguniform(rng, 1.0, max_tips + 0.49)))
     layout = str(rng.choice(POSITION_LAYOUTS, p=[0.6, 0.25, 0.15]))
     radius = _loguniform(rng, 0.5, 20.0)
@@ -183,28 +191,24 @@ def draw(index: int, seed: int = 0, *, max_tips: int = 10_000, maps: float = 0.1
     side = max(spacing * 2.0 * a * math.sqrt(n), 4.0 * a)
     if body == "block" and side > BLOCK_SIDE:
         body = "halfspace"
-    size = min(side, HALFSPACE_SIDE)
     delta = a * a / radius
-    height_spread = float(rng.choice([0.0, 0.3, 1.0, 3.0]))
     return SceneSpec(
-        index,
-        seed,
-        "tips",
-        n,
-        layout,
-        spacing,
-        load,
-        control,
-        tilt,
-        radius,
-        radius_spread,
-        height_spread,
-        shape,
-        body,
-        E,
-        nu,
-        h_factor,
-        size if delta > 0 else side,
+        kind="tips",
+        n=n,
+        layout=layout,
+        spacing=spacing,
+        load_per_tip=load,
+        control=control,
+        tilt=tilt,
+        radius=radius,
+        radius_spread=radius_spread,
+        height_spread=float(rng.choice([0.0, 0.3, 1.0, 3.0])),
+        shape=shape,
+        body=body,
+        E=E,
+        nu=nu,
+        size=min(side, HALFSPACE_SIDE) if delta > 0 else side,
+        **common,
     )
 
 
