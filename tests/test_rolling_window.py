@@ -100,6 +100,31 @@ def _assert_classical(track, pos, window, load, k):
     assert pos.result.total_load == pytest.approx(ref.total_load, rel=1e-7)
 
 
+def test_the_first_position_is_solved_on_the_cut_over_the_estimated_footprint(strip):
+    """With no last contact, the first position is solved on the window's columns over the
+    tyre's estimated footprint (with a margin), not on the whole window (its operator is
+    then the second position's when the contact fills it), checked on the window: the
+    classical static solve all the same. Without the estimate, the whole window."""
+    from twoscale.rolling.run import step, window_state
+    from twoscale.rolling.track import prepare, tyre_contact_length
+
+    spec = RollingSpec(start=-6.0, end=-5.0, step=1.0, speed=30.0, tyre_radius=150.0, footprint=(30.0, 16.0))
+    load = {"total_load": 60.0}
+    track = prepare(Scene(material=MAT, surface=strip, rolling=spec, **load))
+    options = RollingOptions(solver="window")
+    state = window_state(track, options)
+    half = 0.5 * tyre_contact_length(track)
+    assert state.footprint == pytest.approx((-half, half))
+    first = step(track, 0, None, options, state)
+    g = first.result.fields[0].grid
+    assert g.ny == state.grid.ny and g.nx < state.grid.nx
+    assert g.x0 <= -half and g.x0 + g.nx * g.h >= half
+    _assert_classical(track, first, state.grid, load, 0)
+    whole = window_state(track, options)
+    whole.footprint = None
+    assert step(track, 0, None, options, whole).result.fields[0].grid == whole.grid
+
+
 def test_a_cut_too_small_is_found_by_the_check_and_grown(strip):
     """The cut is built around the last contact; when it leaves out cells that touch, the
     check on the whole window finds them and the position is solved again on a cut that

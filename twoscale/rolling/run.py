@@ -30,7 +30,7 @@ from ..results import ContactResult
 from .record import Recorder
 from .result import Position, RollingResult
 from .road import Selection, hertz_level
-from .track import Track, prepare
+from .track import Track, prepare, tyre_contact_length
 
 #: Load control: the stones are taken below ``d_prev + BOUND_GROWTH (d_prev - z_low)``.
 BOUND_GROWTH = 0.5
@@ -250,7 +250,13 @@ def window_state(track: Track, options: RollingOptions):
         return None
     stiffness = GAP_STIFFNESS / track.provider.self_compliance(track.h)
     ahead = ShiftStep(body, track.spec.face, track.control != "penetration", stiffness)
-    return WindowState(body, blocks=StoneBlocks(body) if body.invariant else None, ahead=ahead)
+    half = 0.5 * tyre_contact_length(track) if track.spec.tyre_radius is not None else None
+    return WindowState(
+        body,
+        blocks=StoneBlocks(body) if body.invariant else None,
+        ahead=ahead,
+        footprint=None if half is None else (-half, half),
+    )
 
 
 def _no_contact(track: Track) -> ContactResult:

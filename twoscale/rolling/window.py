@@ -31,7 +31,8 @@ its preconditioner at every position. Here the position is that CG directly:
 * the **cut**: the CG runs on a part of the window, the box of the last position's
   contact (fixed in the body: the footprint) with :data:`CUT_MARGIN_CELLS` to spare (on
   the tyre's footprint 320 of the window's 384 cells along x: the footprint's rim lies
-  below the approach bound but the tyre's elastic lift keeps it off), and its answer is
+  below the approach bound but the tyre's elastic lift keeps it off; the first position's:
+  the columns over the tyre's estimated footprint, :attr:`WindowState.footprint`), and its answer is
   checked a posteriori on the whole window (:func:`_touching_outside`: the displacement
   the pressure makes there, one float32 product, exact only near contact); cells outside
   the cut that would touch make it grow to take them in, solved again from its answer.
@@ -53,6 +54,7 @@ import numpy as np
 from ..grid import Grid
 from ..indenters import Surface, surface_on
 from .blocks import StoneBlocks
+from .boxes import covers, grown, loaded_box, moved, union
 from .road import Selection
 from .track import Track
 
@@ -132,8 +134,9 @@ class KeptBody:
             kept = [k.op for k in self._ops.values() if self.invariant and hasattr(k.op, "restricted")]
             cut = (k.restricted(target) for k in kept)  # a kept table cut to a smaller grid
             op = KeptOperator(next(filter(None, cut), None) or self.provider.grid_operator(target))
-            while len(self._ops) >= KEPT_OPERATORS:  # the least recently used goes
-                self._ops.pop(next(iter(self._ops)))
+            largest = max(self._ops, key=lambda k: self._ops[k].target.size, default=None)
+            while len(self._ops) >= KEPT_OPERATORS:  # the least recently used goes, not the cuts' table
+                self._ops.pop(next(k for k in self._ops if k != largest))
         self._ops[key] = op
         return op
 
@@ -151,12 +154,13 @@ class WindowState:
     cut: Grid | None = None
     blocks: StoneBlocks | None = None
     ahead: Callable | None = None  # the second position's linearised step (:mod:`.shiftstep`)
+    footprint: tuple | None = None  # body x-interval of the expected contact, mm (the first cut)
 
     def window(self, need: Grid) -> Grid:
         """The kept window if it covers ``need`` (same lattice), else one that covers both
         with :data:`MARGIN_CELLS` more on every side."""
         g = self.grid
-        if g is not None and _covers(g, need):
+        if g is not None and covers(g, need):
             return g
         m = MARGIN_CELLS * need.h
         lo_x, hi_x, lo_y, hi_y = need.bounds
@@ -169,30 +173,46 @@ class WindowState:
     def cut_in(self, window: Grid) -> Grid:
         """The grid the position is solved on: the kept cut if it lies in ``window`` and
         covers the last contact's box (fixed in the body) with a cell to spare, else one
-        built around that box with :data:`CUT_MARGIN_CELLS` on every side; ``window``
-        itself when there is no last contact or the cut would not be smaller."""
+        built around that box with :data:`CUT_MARGIN_CELLS` on every side; with no last
+        contact, the window's columns over :attr:`footprint` with as many to spare (the first
+        position solved on a cut too: its operator is the second's); ``window`` itself when
+        there is neither or the cut would not be smaller."""
         box = self._last_contact()
         if box is None:
-            return window
+            return window if self.footprint is None else self._first_cut(window)
         kept = self.cut
-        if kept is not None and _covers(window, kept) and _covers(kept, _grown(box, 1)):
-            fresh = fast_grid(_grown(box, CUT_MARGIN_CELLS))
-            if fresh.size >= CUT_SHRINK * kept.size or not _covers(window, fresh):
+        if kept is not None and covers(window, kept) and covers(kept, grown(box, 1)):
+            fresh = fast_grid(grown(box, CUT_MARGIN_CELLS))
+            if fresh.size >= CUT_SHRINK * kept.size or not covers(window, fresh):
                 return kept  # (a cut grown for one position shrinks back when the contact allows)
         return self.grow_cut(window, box)
 
     def grow_cut(self, window: Grid, need: Grid) -> Grid:
         """A cut covering ``need`` with :data:`CUT_MARGIN_CELLS` more on every side (5-smooth
         sides), kept; ``window`` itself when that is not inside it."""
-        cut = fast_grid(_grown(need, CUT_MARGIN_CELLS))
-        if not _covers(window, cut) or cut.size >= window.size:
+        cut = fast_grid(grown(need, CUT_MARGIN_CELLS))
+        if not covers(window, cut) or cut.size >= window.size:
             cut = window
         self.cut = cut
         return cut
 
+    def _first_cut(self, window: Grid) -> Grid:
+        """The window's columns over :attr:`footprint`, :data:`CUT_MARGIN_CELLS` more on each
+        side (5-smooth; the window itself when that is not smaller), kept."""
+        lo, hi = (round((x - window.x0) / window.h) for x in self.footprint)
+        i0, i1 = max(lo - CUT_MARGIN_CELLS, 0), min(hi + CUT_MARGIN_CELLS, window.nx)
+        cut = fast_grid(window.subgrid(i0, 0, max(i1 - i0, 1), window.ny))
+        if not covers(window, cut) or cut.size >= window.size:
+            return window  # (no cut kept: the next is built around the contact)
+        self.cut = cut
+        table = getattr(self.body.grid_operator(window).op, "offset_table", None)
+        if self.body.invariant and table is not None:
+            table()  # the window's operator and table first: the cut's is a window of it
+        return cut
+
     def _last_contact(self) -> Grid | None:
         """The box of the last position's loaded cells (a sub-grid of its grid)."""
-        return _loaded_box(*self.past[-1][:2]) if self.past else None
+        return loaded_box(*self.past[-1][:2]) if self.past else None
 
     def start(self, grid: Grid, shift: float, pc: Callable | None = None) -> np.ndarray | None:
         """The last pressure moved with the road to ``shift`` on ``grid``, extrapolated
@@ -201,11 +221,11 @@ class WindowState:
         clipped at 0; 0 where the last one is not known or has no material)."""
         if not self.past:
             return None
-        one = _moved(*self.past[-1], grid, shift)
+        one = moved(*self.past[-1], grid, shift)
         if len(self.past) < 2:
             ahead = 0.0 if self.ahead is None else self.ahead(one, grid, shift - self.past[-1][2], pc)
             return np.maximum(one + ahead, 0.0)
-        two = _moved(*self.past[-2], grid, shift)
+        two = moved(*self.past[-2], grid, shift)
         return np.where(one != 0.0, np.maximum(2.0 * one - two, 0.0), 0.0)
 
     def keep(self, result, shift: float) -> None:
@@ -229,44 +249,6 @@ def fast_grid(grid: Grid) -> Grid:
 
     nx, ny = next_fast_len(grid.nx, real=True), next_fast_len(grid.ny, real=True)
     return Grid(grid.x0 - ((nx - grid.nx) // 2) * grid.h, grid.y0 - ((ny - grid.ny) // 2) * grid.h, grid.h, nx, ny)
-
-
-def _grown(g: Grid, cells: int) -> Grid:
-    return Grid(g.x0 - cells * g.h, g.y0 - cells * g.h, g.h, g.nx + 2 * cells, g.ny + 2 * cells)
-
-
-def _loaded_box(grid: Grid, p: np.ndarray) -> Grid | None:
-    on = p > 0.0
-    rows, cols = np.flatnonzero(on.any(axis=1)), np.flatnonzero(on.any(axis=0))
-    if not rows.size:
-        return None
-    return grid.subgrid(int(cols[0]), int(rows[0]), int(cols[-1] - cols[0] + 1), int(rows[-1] - rows[0] + 1))
-
-
-def _covers(outer: Grid, inner: Grid) -> bool:
-    a, b, eps = outer.bounds, inner.bounds, 1e-9 * inner.h
-    return a[0] <= b[0] + eps and a[1] >= b[1] - eps and a[2] <= b[2] + eps and a[3] >= b[3] - eps
-
-
-def _moved(grid: Grid, pressure: np.ndarray, shift: float, target: Grid, to: float) -> np.ndarray:
-    """``pressure`` on ``grid`` at ``shift`` moved with the road to shift ``to`` (to the
-    nearest cell: exact when the step is a multiple of the cell) and cut to ``target``."""
-    h = target.h
-    i0 = int(round((grid.x0 + (to - shift) - target.x0) / h))
-    j0 = int(round((grid.y0 - target.y0) / h))
-    out = np.zeros(target.shape)
-    ys, yd = _overlap(j0, grid.ny, target.ny)
-    xs, xd = _overlap(i0, grid.nx, target.nx)
-    if ys is not None and xs is not None:
-        out[yd, xd] = pressure[ys, xs]
-    return out
-
-
-def _overlap(offset: int, n_src: int, n_dst: int):
-    lo, hi = max(0, -offset), min(n_src, n_dst - offset)
-    if hi <= lo:
-        return None, None
-    return slice(lo, hi), slice(lo + offset, hi + offset)
 
 
 def reference_grid(track: Track, selection: Selection, bound: float) -> Grid:
@@ -294,7 +276,7 @@ def contact_box(track, selection, bound: float) -> Grid | None:
 
 def _low_box(surface, bound: float) -> Grid | None:
     low = np.isfinite(surface.height) & (surface.height < bound)
-    return _loaded_box(surface.grid, low)
+    return loaded_box(surface.grid, low)
 
 
 def _window_surface(track, selection, bound: float, state: WindowState):
@@ -302,7 +284,7 @@ def _window_surface(track, selection, bound: float, state: WindowState):
     cell can touch: the surface is sampled once, on the kept window, when the stones'
     reach lies inside it (the box of their low cells then does too)."""
     g = state.grid
-    if g is not None and _covers(g, reference_grid(track, selection, bound)):
+    if g is not None and covers(g, reference_grid(track, selection, bound)):
         surface = surface_on(g, selection.stones)
         return None if _low_box(surface, bound) is None else (g, surface)
     box = contact_box(track, selection, bound)
@@ -328,8 +310,10 @@ def solve_window(track, selection, bound: float, state: WindowState, tol: float)
     if not np.isfinite(_restricted(surface, cut).height).any():
         cut = grid  # no stone's material in the cut (cannot carry a load): the whole window
     blocks = None if state.blocks is None else state.blocks.at(selection.numbers, selection.shift, grid.h)
-    pc = None if blocks is None or len(state.past) != 1 else blocks(_restricted(surface, cut)).apply
-    start = state.start(cut, selection.shift, pc)  # (pc: for the second position's ahead)
+    # the second position's linearised step by its stone blocks, let go before the CG builds
+    # its own (held through it, the heap grew by their ~6 MB: 2,100 more page faults)
+    step_pc = None if blocks is None or len(state.past) != 1 else blocks(_restricted(surface, cut)).apply
+    start, step_pc = state.start(cut, selection.shift, step_pc), None
     while True:
         result = solve_cg(
             state.body,
@@ -354,8 +338,8 @@ def solve_window(track, selection, bound: float, state: WindowState, tol: float)
             break
         # cells around the cut would touch: solve again on a cut that takes them in
         f = result.fields[0]
-        cut = state.grow_cut(grid, _union(f.grid, wrong))
-        start = _moved(f.grid, f.pressure, 0.0, cut, 0.0)
+        cut = state.grow_cut(grid, union(f.grid, wrong))
+        start = moved(f.grid, f.pressure, 0.0, cut, 0.0)
     return dataclasses.replace(result, message="") if result.converged else result
 
 
@@ -388,11 +372,4 @@ def _touching_outside(body: KeptBody, surface, result, tol: float) -> Grid | Non
     if float(gap.min()) > SCREEN_GAP * scale:
         return None
     gap = np.where(outside, op.apply(p) + level, np.inf)
-    return _loaded_box(window, gap < -tol * scale)
-
-
-def _union(a: Grid, b: Grid) -> Grid:
-    """The aligned box covering both grids."""
-    i, j = b.offset_in(a)
-    i0, j0 = min(i, 0), min(j, 0)
-    return a.subgrid(i0, j0, max(a.nx, i + b.nx) - i0, max(a.ny, j + b.ny) - j0)
+    return loaded_box(window, gap < -tol * scale)
