@@ -74,6 +74,11 @@ def test_the_parts_products_are_the_grids_on_its_cells():
     unit = np.zeros(g.size)
     unit[cells[4]] = 2.0
     np.testing.assert_allclose(out[0], op.apply(unit.reshape(g.shape)).ravel()[cells], rtol=1e-9, atol=1e-15)
+    # and so are the operator's columns on the part's cells as targets, a gather each
+    on_part = np.zeros(cells.size)
+    op.columns(cells)(on_part, cells[[4, 17]], np.array([2.0, -1.0]))
+    unit[cells[17]] = -1.0
+    np.testing.assert_allclose(on_part, op.apply(unit.reshape(g.shape)).ravel()[cells], rtol=1e-9, atol=1e-15)
     # a candidate off the part below the tolerance is touching; one above it is not
     gap = np.ones((1, g.size))
     off = np.setdiff1d(np.arange(g.size), cells)[0]

@@ -92,6 +92,15 @@ class Part:
 
         return on_part
 
+    def sources(self, columns: Callable) -> Callable:
+        """Columns on the part's cells as targets (``columns(out, grid cells, values)``) taking
+        the part's cells as sources too."""
+
+        def on_part(out: np.ndarray, cells: np.ndarray, values: np.ndarray) -> None:
+            columns(out, self.cells[cells], values)
+
+        return on_part
+
     def displacement(self, p: np.ndarray, apply: Callable) -> np.ndarray:
         """The grid displacement (b, n) of the part's pressure ``p`` (b, m): the last exact
         product's when it was of ``p`` (a converged row stops on one), else ``apply``'s."""
@@ -99,14 +108,16 @@ class Part:
             return self.last[1].reshape(len(p), -1)
         return apply(self.field(p)).reshape(len(p), -1)
 
-    def inputs(self, z, p, candidates, basis, products: Products, pc):
+    def inputs(self, z, p, candidates, basis, products: Products, pc, columns: Callable | None = None):
         """The kernel's inputs on the grid (``z``, start, candidates, basis: flat rows or
-        columns of it; the products and the preconditioner on grid rows) on the part."""
+        columns of it; the products and the preconditioner on grid rows) on the part;
+        ``columns``: the operator's columns on the part's cells as targets, if it has them
+        (else the grid's columns, summed on the grid)."""
         cells = self.cells
         products = Products(
             self.product(products.exact, exact=True),
             None if products.fast is None else self.product(products.fast),
-            self.columns(products.columns),
+            self.columns(products.columns) if columns is None else self.sources(columns),
             products.keep_conjugacy,
         )
         return z[cells], p[cells], candidates[cells], basis[cells], products, self.precondition(pc)

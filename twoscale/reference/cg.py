@@ -289,8 +289,8 @@ class _Anchored:
             return self.at.copy()
         return self.at + self.single.apply(v - self.anchor)
 
-    def columns(self):
-        return self.op.columns()
+    def columns(self, targets=None):
+        return self.op.columns(targets)
 
 
 def _preconditioner(cg: CGSettings, custom, op):
@@ -370,7 +370,7 @@ def _iterate(
         part = None  # (the part is every candidate, or carries none of the start)
     run, dims = (z, p, cand, problem.basis(), products, pc), shape
     if part is not None:
-        run, dims = part.inputs(*run), (part.cells.size,)
+        run, dims = part.inputs(*run, None if fast is None else op.columns(part.cells)), (part.cells.size,)
     out = pk_solve(
         run[4],
         run[0].reshape(1, *dims),

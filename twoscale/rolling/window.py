@@ -102,8 +102,8 @@ class KeptOperator:
     def apply(self, p):
         return self.op.apply(p)
 
-    def columns(self):
-        return self.op.columns() if hasattr(self.op, "columns") else None
+    def columns(self, targets=None):
+        return self.op.columns(targets) if hasattr(self.op, "columns") else None
 
     def single_precision(self) -> "KeptOperator":
         if self._twin is None:
