@@ -85,12 +85,12 @@ class GridOperator(ABC):
         takes and returns float64 arrays. Default: ``self`` (no cheaper variant)."""
         return self
 
-    def columns(self):
+    def columns(self, targets: np.ndarray | None = None):
         """A callable ``add(out, cells, values)`` that adds to ``out`` (the target's cells,
-        flattened, mm) the displacement of the pressures ``values`` (MPa) on the flat
-        source ``cells`` alone, exactly and at a cost per cell, for an iteration that
-        changes a few cells between products; None (default) when the operator has no
-        such cheap form."""
+        flattened, mm; with ``targets``, flat target cells, only those, in that order) the
+        displacement of the pressures ``values`` (MPa) on the flat source ``cells`` alone,
+        exactly and at a cost per cell, for an iteration that changes a few cells between
+        products; None (default) when the operator has no such cheap form."""
         return None
 
     def preconditioner(self) -> "GridOperator | None":

@@ -100,12 +100,14 @@ class ConvolutionOperator(GridOperator):
         (a box of 1975 x 1968 cells: 0.45 s)."""
         return CirculantInverse.of(self, self.offset_table, np.float64)
 
-    def columns(self):
+    def columns(self, targets: np.ndarray | None = None):
         """:meth:`GridOperator.columns`: each source cell's column is a window of the offset
         table (rebuilt once from the kernel spectrum and kept with the operator), a pass
-        over the target per cell."""
+        over the target per cell (with ``targets``, a gather of the table at their offsets)."""
         table = self.offset_table()
         (nyt, nxt), (nys, nxs) = self.target.shape, self.source.shape
+        if targets is not None:
+            return _TargetColumns(table, (nys, nxs), np.asarray(targets), nxt)
 
         def add(out: np.ndarray, cells: np.ndarray, values: np.ndarray) -> None:
             o = out.reshape(nyt, nxt)
@@ -182,6 +184,27 @@ class ConvolutionOperator(GridOperator):
     def flops_estimate(self) -> float:
         n = self._shape[0] * self._shape[1]
         return 5.0 * n * np.log2(max(n, 2))
+
+
+class _TargetColumns:
+    """:meth:`ConvolutionOperator.columns` on the flat target cells ``targets`` only: a
+    source cell's column there is the offset table (flat) at the targets' offsets moved by
+    the cell's, one gather (a part of the grid: :mod:`twoscale.pk.compact`)."""
+
+    def __init__(self, table: np.ndarray, source_shape: tuple, targets: np.ndarray, nxt: int):
+        self.flat, self.source_shape, self.width = table.ravel(), source_shape, table.shape[1]
+        jt, it = np.divmod(targets, nxt)
+        self.offsets = (jt * self.width + it).astype(np.intp)
+
+    def __call__(self, out: np.ndarray, cells: np.ndarray, values: np.ndarray) -> None:
+        nys, nxs = self.source_shape
+        js, i_s = np.divmod(np.asarray(cells), nxs)
+        at = np.empty_like(self.offsets)
+        for j, i, v in zip(js.tolist(), i_s.tolist(), np.asarray(values).tolist()):
+            np.add(self.offsets, (nys - 1 - j) * self.width + nxs - 1 - i, out=at)
+            term = self.flat[at]
+            term *= v
+            out += term
 
 
 class _SingleConvolution(GridOperator):

@@ -35,6 +35,7 @@ import numpy as np
 from ..indenters import Surface
 from ..influence.base import InfluenceProvider
 from ..details import ReferenceDetails
+from ..pk.compact import Part
 from ..pk.kernel import STALL_ITERATIONS, Constraint, Products, Tolerance, pk_solve
 from ..options import settings_from
 from ..results import ContactResult
@@ -79,6 +80,7 @@ class CGSettings:
     monitor: Callable | None = None
     keep_conjugacy: float = 0.0
     preconditioner: Callable | None = None
+    reach: np.ndarray | None = None
 
 
 def solve_cg(
@@ -162,6 +164,13 @@ def solve_cg(
         ``apply(gap, on)`` (``(ny, nx)`` arrays: the projected gap, mm, and the loaded cells)
         is an approximate inverse on the loaded cells, used instead of the operator's
         (e.g. :class:`twoscale.rolling.blocks.StoneBlocks`).
+    reach : (ny, nx) bool array, optional
+        The cells the iteration runs on (:class:`twoscale.pk.compact.Part`), for a caller
+        that knows where the contact can be (a rolling position: the cells near the last
+        one's contact); the others stay unloaded and are checked on the answer's
+        displacement, and the whole grid is solved from the answer when one would touch.
+        The answer meets ``tol`` on the whole grid either way. None (the reference): every
+        cell.
 
     Returns
     -------
@@ -177,8 +186,13 @@ def solve_cg(
     trivial = trivial_result(problem, "cg", {"total": time.perf_counter() - t0})
     if trivial is not None:
         return trivial
+    reach = cg.reach
+    if reach is not None and np.shape(reach) != problem.grid.shape:
+        raise ValueError(f"reach must be a bool array of shape {problem.grid.shape}, got shape {np.shape(reach)}")
     work = _cropped(problem)
     start = _start_on(start, problem, work)
+    if reach is not None and work is not problem:
+        reach = reach[work.grid.window_in(problem.grid)]
     if precision not in PRECISIONS:
         raise ValueError(f"precision must be one of {PRECISIONS}, got {precision!r}")
     op = provider.grid_operator(work.grid)
@@ -190,7 +204,9 @@ def solve_cg(
     if precision == "single-directions":
         fast = op.single_precision()
     elif precision == "mixed" and tol < SINGLE_TOL:
-        start, op, fast, (it0, products0, hist0) = _single_stage(work, op, provider.material.E_star, start, cg, custom)
+        start, op, fast, (it0, products0, hist0) = _single_stage(
+            work, op, provider.material.E_star, start, cg, custom, reach
+        )
     offset = it0 + 1 if it0 or hist0 else 0
     p, u, m, it, n_products, hist, converged, message = _iterate(
         work,
@@ -203,6 +219,7 @@ def solve_cg(
         pc=_preconditioner(cg, custom, fast or op),
         fast=fast,
         keep_conjugacy=cg.keep_conjugacy,
+        reach=reach,
     )
     it, n_products, hist = it + it0, n_products + products0, hist0 + hist
     p, u = p.reshape(work.grid.shape), u.reshape(work.grid.shape)
@@ -235,7 +252,7 @@ def _start_on(start: np.ndarray | None, problem, work) -> np.ndarray | None:
     return start if work is problem else start[work.grid.window_in(problem.grid)]
 
 
-def _single_stage(work, op, e_star: float, start, cg: CGSettings, custom):
+def _single_stage(work, op, e_star: float, start, cg: CGSettings, custom, reach):
     """``"mixed"``'s first stage: the CG in single-precision products to ``SINGLE_TOL``.
     Returns the pressure it reached (the second stage's start), the second stage's
     operator (exact products about that pressure) and fast operator, and the stage's
@@ -252,6 +269,7 @@ def _single_stage(work, op, e_star: float, start, cg: CGSettings, custom):
         monitor=cg.monitor,
         pc=_preconditioner(cg, custom, single),
         keep_conjugacy=cg.keep_conjugacy,
+        reach=reach,
     )
     start = p1.reshape(work.grid.shape)
     fast = None
@@ -287,8 +305,8 @@ class _Anchored:
             return self.at.copy()
         return self.at + self.single.apply(v - self.anchor)
 
-    def columns(self):
-        return self.op.columns()
+    def columns(self, targets=None):
+        return self.op.columns(targets)
 
 
 def _preconditioner(cg: CGSettings, custom, op):
@@ -342,39 +360,50 @@ def _iterate(
     pc=None,
     fast=None,
     keep_conjugacy: float = 0.0,
+    reach: np.ndarray | None = None,
 ):
-    """The Polonsky-Keer kernel (:func:`twoscale.pk.pk_solve`) on the whole grid, one row:
+    """The Polonsky-Keer kernel (:func:`twoscale.pk.pk_solve`) on the whole grid, one row, or
+    on the candidates in ``reach`` (then checked on the whole grid, and solved on it from
+    the answer when a cell off them would touch):
     ``(p, u, multipliers, iterations, products, residual history, converged, message)``."""
     shape = problem.grid.shape
     cand = problem.candidates.ravel()
     z = np.where(cand, problem.surface.height.ravel(), 0.0)
     p = _initial_pressure(problem, op, z, E_star, start)
-    level = problem.penetration if problem.mode == "penetration" else 0.0
+    z -= problem.penetration if problem.mode == "penetration" else 0.0
+    given = op  # (the whole grid's solve after a part's: an anchor of its own)
     if fast is not None and fast is not op and not isinstance(op, _Anchored):
         op = _Anchored(op, fast)  # the exact products after the first in float32 about it
+    exact = lambda v: op.apply(v[0])[None]  # noqa: E731
     products = Products(
-        lambda v: op.apply(v[0])[None],
+        exact,
         None if fast is None else (lambda v: fast.apply(v[0])[None]),
         None if fast is None else op.columns(),
         keep_conjugacy,
     )
+    part = None if reach is None else Part(np.flatnonzero(reach.ravel() & cand), shape)
+    if part is not None and (part.cells.size == cand.sum() or not np.any(p[part.cells] > 0)):
+        part = None  # (the part is every candidate, or carries none of the start)
+    run, dims = (z, p, cand, problem.basis(), products, pc), shape
+    if part is not None:
+        run, dims = part.inputs(*run, None if fast is None else op.columns(part.cells)), (part.cells.size,)
     out = pk_solve(
-        products,
-        (z - level).reshape(1, *shape),
-        p.reshape(1, *shape),
-        None if cand.all() else cand.reshape(1, *shape),
+        run[4],
+        run[0].reshape(1, *dims),
+        run[1].reshape(1, *dims),
+        None if run[2].all() else run[2].reshape(1, *dims),
         Tolerance(residual=tol, max_iter=max_iter, stall=stall),
-        constraint=Constraint(problem.basis(), problem.target()[None]),
-        precondition=pc,
+        constraint=Constraint(run[3], problem.target()[None]),
+        precondition=run[5],
         monitor=monitor,
     )
-    return (
-        out.pressure[0].ravel(),
-        out.displacement[0].ravel(),
-        out.multipliers[0],
-        int(out.iterations[0]),
-        out.products,
-        list(out.history),
-        bool(out.converged[0]),
-        out.message(0),
-    )
+    p, u = out.pressure[0].ravel(), out.displacement[0].ravel()
+    counts = (int(out.iterations[0]), out.products, list(out.history))
+    if part is not None:
+        p, u, touching = part.answer(out, exact, z, cand, problem.basis(), tol)
+        if touching:  # a cell off the part would touch: the whole grid from this answer
+            whole = _iterate(
+                problem, given, E_star, tol, max_iter, p.reshape(shape), stall, monitor, pc, fast, keep_conjugacy
+            )
+            return (*whole[:3], whole[3] + counts[0], whole[4] + counts[1], counts[2] + whole[5], *whole[6:])
+    return (p, u, out.multipliers[0], *counts, bool(out.converged[0]), out.message(0))
