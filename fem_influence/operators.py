@@ -139,17 +139,19 @@ class BlockGridOperator(GridOperator):
         single = self._hs.single_precision()
         return self if single is self._hs else BlockGridOperator(single, self._U, self._W, self._area)
 
-    def columns(self):
-        """:meth:`GridOperator.columns`: the half-space part's, plus ``h^2 U (W[:, cells] v)``."""
-        add_hs = self._hs.columns()
+    def columns(self, targets: np.ndarray | None = None):
+        """:meth:`GridOperator.columns`: the half-space part's, plus ``h^2 U (W[:, cells] v)``
+        (with ``targets``, on those flat target cells only)."""
+        add_hs = self._hs.columns(targets)
         if add_hs is None:
             return None
+        U = self._U if targets is None else self._U[targets]
 
         def add(out: np.ndarray, cells: np.ndarray, values: np.ndarray) -> None:
             add_hs(out, cells, values)
             W = self._W
             c = W.times_cells(cells, values) if hasattr(W, "times_cells") else W[:, cells] @ values
-            out += self._area * (self._U @ np.asarray(c).ravel()).ravel()
+            out += self._area * (U @ np.asarray(c).ravel()).ravel()
 
         return add
 
