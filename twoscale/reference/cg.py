@@ -36,6 +36,7 @@ from ..indenters import Surface
 from ..influence.base import InfluenceProvider
 from ..details import ReferenceDetails
 from ..pk.compact import Part
+from ..pk.products import Anchored
 from ..pk.kernel import STALL_ITERATIONS, Constraint, Products, Tolerance, pk_solve
 from ..options import settings_from
 from ..results import ContactResult
@@ -274,39 +275,9 @@ def _single_stage(work, op, e_star: float, start, cg: CGSettings, custom, reach)
     start = p1.reshape(work.grid.shape)
     fast = None
     if single is not op:  # the double-precision stage in float32 products about an exact anchor
-        op, fast = _Anchored(op, single, start), single
+        op, fast = Anchored(op, single, start), single
         products0 += 1
     return start, op, fast, (it0, products0, hist0)
-
-
-class _Anchored:
-    """``A v`` for pressures ``v`` near an anchor ``p1``: ``A p1`` once in double precision
-    plus the single-precision product of ``v - p1``. The second stage of ``"mixed"`` starts
-    at ``p1`` (KKT residual about ``SINGLE_TOL``) and moves the pressure by a small fraction
-    of it, so the float32 rounding (~1e-7 of the product) falls on that fraction only and
-    the displacement stays exact to far below ``tol``: the stage's refreshes cost a float32
-    product instead of a float64 one, and its search directions take the float32 products
-    as ``fast`` (linear; their rounding only shapes the step).
-
-    Without an anchor (``"single-directions"``) the first product is exact and becomes the
-    anchor: the kernel asks for an exact product only once the residual is below
-    :data:`~twoscale.pk.products.FAST_RESIDUAL` (the refreshes above take the float32
-    product), so every later exact product (the confirmation at the tolerance, the
-    refreshes after cells changed) is of a pressure a small step from that one (a float32
-    product instead of a float64 one: 5 against 16 ms on 500 x 500 cells)."""
-
-    def __init__(self, op, single, anchor: np.ndarray | None = None):
-        self.op, self.single, self.anchor = op, single, anchor
-        self.at = None if anchor is None else op.apply(anchor)
-
-    def apply(self, v: np.ndarray) -> np.ndarray:
-        if self.anchor is None:
-            self.anchor, self.at = np.array(v, dtype=float), self.op.apply(v)
-            return self.at.copy()
-        return self.at + self.single.apply(v - self.anchor)
-
-    def columns(self, targets=None):
-        return self.op.columns(targets)
 
 
 def _preconditioner(cg: CGSettings, custom, op):
@@ -372,8 +343,8 @@ def _iterate(
     p = _initial_pressure(problem, op, z, E_star, start)
     z -= problem.penetration if problem.mode == "penetration" else 0.0
     given = op  # (the whole grid's solve after a part's: an anchor of its own)
-    if fast is not None and fast is not op and not isinstance(op, _Anchored):
-        op = _Anchored(op, fast)  # the exact products after the first in float32 about it
+    if fast is not None and fast is not op and not isinstance(op, Anchored):
+        op = Anchored(op, fast)  # the exact products after the first in float32 about it
     exact = lambda v: op.apply(v[0])[None]  # noqa: E731
     products = Products(
         exact,
