@@ -207,6 +207,25 @@ def make_patch(
     return Patch(k, grid, surf.height, index[surf.owner], members)
 
 
+def crop_patch(patch: Patch, grid: Grid) -> Patch | None:
+    """``patch`` (one asperity's) cut down to ``grid``, an aligned grid inside its own, or
+    None where ``grid`` is not inside. A cell's height and owner are the lowest asperity
+    there (those :func:`make_patch` leaves out cannot be lower), so they do not depend on
+    the grid they are sampled on: the cut windows (read-only views) are the patch
+    :func:`make_patch` would build on ``grid``, the cells' heights as sampled at the
+    larger grid's centres."""
+    if len(patch.members) != 1 or not math.isclose(grid.h, patch.grid.h, rel_tol=1e-12):
+        return None
+    di, dj = grid.offset_in(patch.grid)
+    if di < 0 or dj < 0 or di + grid.nx > patch.grid.nx or dj + grid.ny > patch.grid.ny:
+        return None
+    window = (slice(dj, dj + grid.ny), slice(di, di + grid.nx))
+    height, owner = patch.height[window], patch.owner[window]
+    height.setflags(write=False)
+    owner.setflags(write=False)
+    return Patch(patch.asperity, grid, height, owner)
+
+
 def patch_radius(asperity: Asperity, *, force: float, approach: float, E_star: float, h: float, margin: float) -> float:
     """Half-width (mm) of the patch of one asperity.
 
