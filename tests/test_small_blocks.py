@@ -251,9 +251,10 @@ def test_grid_entries_are_the_grid_matrix_entries_without_the_whole_matrix():
     rng = np.random.default_rng(5)
     target, source = Grid(0.0, 0.0, 0.05, 7, 5), Grid(0.35, -0.1, 0.05, 4, 9)
     cached = CachedBody(HS, OperatorCaches())
-    for t, s in [(target, source), (source, target), (target, target)]:
-        rows = rng.choice(t.size, 10, replace=False)
-        cols = rng.choice(s.size, 6, replace=False)
+    pairs = [(target, source), (source, target), (target, target)]
+    for (t, s), (nr, nc) in zip(pairs * 2, [(10, 6)] * 3 + [(30, 25)] * 3):  # gathered, cut
+        rows = rng.choice(t.size, nr, replace=False)
+        cols = rng.choice(s.size, nc, replace=False)
         whole = HS.grid_matrix(t, s)[np.ix_(rows, cols)]
         assert np.array_equal(HS.grid_entries(t, s, rows, cols), whole)
         assert np.array_equal(cached.grid_entries(t, s, rows, cols), whole)
