@@ -338,3 +338,24 @@ def test_two_level_says_when_one_patch_must_carry_the_moment():
         or ("too slowly" in res.message and "left" in res.message)
         or "stopped with load residual" in res.message
     )
+
+
+def test_eq7_starts_from_hertz_contact():
+    # eq. 7 on a dense sphere block starts from Hertz's contact (z - min z < approach / 2):
+    # at most two active-set passes (from the geometric overlap, approach, it took six
+    # here), and the pressure satisfies the contact conditions and carries the force
+    a = Asperity(0.0, 0.0, 0.0, 5.0)
+    g = Grid.covering(-0.3, 0.3, -0.3, 0.3, 0.02)
+    pt = make_patch(0, g, [a])
+    X, Y = g.centres()
+    z = a.height(X, Y)[pt.owned]
+    P = 0.05  # contact radius 0.24 mm, 12 cells
+    d = float(hertz.penetration(a.R, P, ES))
+    block = LocalBlock(HS, pt, dense_max_cells=10_000)
+    out = initial_pressure(block, z, P, g.h, approach=d)
+    assert out.converged and out.iterations <= 2
+    assert abs(out.pressure.sum() * g.h**2 - P) < 1e-10 * P
+    gap = block.matvec(out.pressure) + z - out.shift
+    assert np.all(out.pressure >= 0.0)
+    assert np.all(gap[out.pressure == 0.0] >= -1e-10 * abs(out.shift))
+    assert np.abs(gap[out.pressure > 0.0]).max() < 1e-10 * abs(out.shift)

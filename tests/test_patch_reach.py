@@ -167,3 +167,22 @@ def test_patches_covering_a_share_of_their_box_lend_it_to_the_union_cg_sampled_o
     ref = solve_cg(body, surface_on(grid, asps), tol=1e-10, penetration=0.012)
     f, r = np.asarray(res.asperities.forces), np.asarray(ref.asperities.forces)
     assert np.max(np.abs(f - r)) <= 1e-6 * np.max(r)
+
+
+def test_highest_over_one_tip_is_the_whole_grid_sampled():
+    # one plain sphere or paraboloid is sampled at the cell farthest from its tip only:
+    # the same number as the largest height of the grid sampled whole (inf beyond a sphere)
+    from twoscale.micro.patches import highest_over
+
+    rng = np.random.default_rng(0)
+    infinite = 0
+    for i in range(600):
+        a = Asperity(
+            *rng.uniform(-1, 1, 2), rng.uniform(0, 0.01), rng.uniform(0.2, 5), shape=("sphere", "paraboloid")[i % 2]
+        )
+        h, r = rng.uniform(0.005, 0.05), rng.uniform(0.01, 1.0)
+        g = Grid.covering(a.x - r + rng.uniform(-0.1, 0.1), a.x + r, a.y - r, a.y + r * rng.uniform(0.5, 1.5), h)
+        whole = float(np.max(surface_on(g, [a]).height))
+        assert highest_over(g, [a]) == whole
+        infinite += np.isinf(whole)
+    assert 0 < infinite < 600

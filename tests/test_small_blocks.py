@@ -240,3 +240,23 @@ def test_a_block_spread_over_a_large_box_never_makes_the_box_matrix():
     assert np.allclose(Av, A @ v, rtol=1e-12, atol=0.0)
     assert np.allclose(A[np.ix_(active, active)] @ x, 1.0, rtol=1e-10)
     assert np.allclose(M, A, rtol=1e-12, atol=0.0)
+
+
+def test_grid_entries_are_the_grid_matrix_entries_without_the_whole_matrix():
+    # the half-space's gather from its offset table, directly and through a solver's caches
+    # (which keep the table), against the whole grid matrix cut by np.ix_ and against Love's
+    # cell values (the provider's cell_block) at the cells' centres
+    from twoscale.influence.cached import CachedBody, OperatorCaches
+
+    rng = np.random.default_rng(5)
+    target, source = Grid(0.0, 0.0, 0.05, 7, 5), Grid(0.35, -0.1, 0.05, 4, 9)
+    cached = CachedBody(HS, OperatorCaches())
+    pairs = [(target, source), (source, target), (target, target)]
+    for (t, s), (nr, nc) in zip(pairs * 2, [(10, 6)] * 3 + [(30, 25)] * 3):  # gathered, cut
+        rows = rng.choice(t.size, nr, replace=False)
+        cols = rng.choice(s.size, nc, replace=False)
+        whole = HS.grid_matrix(t, s)[np.ix_(rows, cols)]
+        assert np.array_equal(HS.grid_entries(t, s, rows, cols), whole)
+        assert np.array_equal(cached.grid_entries(t, s, rows, cols), whole)
+        love = HS.cell_block(t.points()[rows], s.points()[cols], t.h)
+        assert np.allclose(whole, love, rtol=1e-10, atol=0.0)

@@ -95,7 +95,7 @@ def _takes_tables(body: InfluenceProvider, method: str) -> bool:
 
     try:
         return "tables" in inspect.signature(getattr(body, method)).parameters
-    except (TypeError, ValueError):
+    except (TypeError, ValueError, AttributeError):
         return False
 
 
@@ -122,7 +122,7 @@ class CachedBody(InfluenceProvider):
         # the caller-owned tables go to the methods that take them (a subclass may not)
         self._tables = {
             name: {"tables": caches.tables} if self._invariant and _takes_tables(body, name) else {}
-            for name in ("grid_matrix", "grid_operator", "separated_operator")
+            for name in ("grid_matrix", "grid_entries", "grid_operator", "separated_operator")
         }
 
     def __getattr__(self, name: str) -> Any:
@@ -194,6 +194,14 @@ class CachedBody(InfluenceProvider):
     # ------------------------------------------------------------------ through the caches
     def grid_matrix(self, target: Grid, source: Grid | None = None) -> np.ndarray:
         return self.body.grid_matrix(target, source, **self._tables["grid_matrix"])
+
+    def grid_entries(self, target: Grid, source: Grid, rows: np.ndarray, cols: np.ndarray) -> np.ndarray:
+        """``grid_matrix(target, source)[np.ix_(rows, cols)]``: the body's own gather where
+        it has one."""
+        entries = getattr(self.body, "grid_entries", None)
+        if entries is None:
+            return self.grid_matrix(target, source)[np.ix_(rows, cols)]
+        return entries(target, source, rows, cols, **self._tables["grid_entries"])
 
     def grid_operator(self, target: Grid, source: Grid | None = None) -> GridOperator:
         source = target if source is None else source

@@ -148,6 +148,23 @@ class HalfSpace(InfluenceProvider):
         windows = np.lib.stride_tricks.sliding_window_view(flipped, (source.ny, source.nx))
         return np.ascontiguousarray(windows[::-1, ::-1]).reshape(target.size, source.size)
 
+    def grid_entries(
+        self, target: Grid, source: Grid, rows: np.ndarray, cols: np.ndarray, *, tables: BoundedCache | None = None
+    ) -> np.ndarray:
+        """``grid_matrix(target, source)[np.ix_(rows, cols)]`` (flat cell indices of the two
+        grids), the same numbers gathered from the offset table without the grids' whole
+        matrix (a dense block's active columns, a near pair's owned cells: a few percent
+        of it). Where the entries wanted are more than a quarter of the matrix, they are
+        cut from it (a strided copy then costs less than a gather: 350 against 700 us for
+        200 x 200 entries of two 16 x 16 grids; 360 against 90 us for 200 x 50)."""
+        rows, cols = np.asarray(rows), np.asarray(cols)
+        if 4 * rows.size * cols.size >= target.size * source.size:
+            return self.grid_matrix(target, source, tables=tables)[np.ix_(rows, cols)]
+        table, _, _ = self._offset_table(target, source, tables)
+        jt, it = np.divmod(np.asarray(rows, dtype=np.int64), target.nx)
+        js, is_ = np.divmod(np.asarray(cols, dtype=np.int64), source.nx)
+        return table[(jt[:, None] - js) + (source.ny - 1), (it[:, None] - is_) + (source.nx - 1)]
+
     def grid_operator(
         self, target: Grid, source: Grid | None = None, *, tables: BoundedCache | None = None
     ) -> "ConvolutionOperator":

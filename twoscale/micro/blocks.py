@@ -211,6 +211,8 @@ class Coupling:
                 # block of the owned cells alone, not the grids' block cut down (22 clustered
                 # spheres: 0.9 s and up to 4 GB a pair for blocks of at most 40,000 entries)
                 M = self.provider.cell_block(pk.grid.points()[ik], pl.grid.points()[il], pk.grid.h)
+            elif hasattr(self.provider, "grid_entries"):  # the same numbers, without the whole matrix
+                M = self.provider.grid_entries(pk.grid, pl.grid, ik, il)
             else:
                 M = self.provider.grid_matrix(pk.grid, pl.grid)[np.ix_(ik, il)]
             self._bytes += M.nbytes

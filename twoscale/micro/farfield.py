@@ -23,6 +23,7 @@ import numpy as np
 
 from ..influence.base import InfluenceProvider
 from .blocks import Coupling
+from .kept_points import kept_operator
 from .localblock import whole_patch
 from .sources import SOURCE_NODE, lagrange3, source_frame, source_weights
 
@@ -50,8 +51,7 @@ def _lattices(cx: np.ndarray, cy: np.ndarray, dx: np.ndarray, dy: np.ndarray, st
 
 
 def all_stencils(patches) -> np.ndarray:
-    """:meth:`FarFieldCoupling._stencil` of every patch, (9 N, 2) mm, in one pass (per patch
-    it was half of the far field's set-up on 1,485 patches)."""
+    """:meth:`FarFieldCoupling._stencil` of every patch, (9 N, 2) mm, in one pass."""
     x0, y0, nx, ny, h = _grid_arrays(patches)
     return _lattices(x0, y0, 0.5 * (nx - 1) * h, 0.5 * (ny - 1) * h, steps=(0.0, 1.0, 2.0))
 
@@ -313,6 +313,7 @@ class LaggedFarField(FarFieldCoupling):
     def _reset(self) -> None:
         super()._reset()
         self._op = None
+        self._kept: tuple | None = None  # (an operator built, the patches it was built for)
         self._table = None
         self._sources: dict = {}
 
@@ -350,6 +351,13 @@ class LaggedFarField(FarFieldCoupling):
         cols = np.concatenate(cols) if n else np.zeros(0, np.int64)
         return sp.csr_matrix((np.ones(len(rows)), (rows, cols)), shape=(n, n))
 
+    def keep_pairs(self, old, index: dict) -> None:
+        """As :meth:`~.blocks.Coupling.keep_pairs`, and ``old``'s point operator kept for
+        the patches both hold (:func:`~.kept_points.kept_operator`)."""
+        super().keep_pairs(old, index)
+        if isinstance(old, LaggedFarField) and old.provider is self.provider and old.far_tol == self.far_tol:
+            self._kept = old._kept if old._rtol == self._rtol else None
+
     def _point_operator(self):
         if self._op is None:
             import scipy.sparse as sp
@@ -357,9 +365,12 @@ class LaggedFarField(FarFieldCoupling):
             n = len(self.patches)
             sources, targets = all_source_nodes(self.patches), all_stencils(self.patches)
             near = self.near_pattern() + sp.identity(n, format="csr")
-            # stencil row 9k + i excludes the nine sources of the patches near k and of k
-            exclude = sp.kron(near, np.ones((9, 9)), format="csr")
-            self._op = self.provider.point_operator(targets, sources, exclude=exclude, rtol=self._rtol)
+            self._op = kept_operator(self.provider, self._kept, self.patches, targets, sources, near)
+            if self._op is None:
+                # stencil row 9k + i excludes the nine sources of the patches near k and of k
+                exclude = sp.kron(near, np.ones((9, 9)), format="csr")
+                self._op = self.provider.point_operator(targets, sources, exclude=exclude, rtol=self._rtol)
+                self._kept = (self._op, tuple(self.patches))
         return self._op
 
     def refresh(self, values: list) -> None:

@@ -57,6 +57,9 @@ def grid_entries(provider, target, source, rows: np.ndarray, cols: np.ndarray) -
     if getattr(provider, "cheap_grid_matrix", False) and full <= min(
         GRID_MATRIX_MAX_ENTRIES, max(50 * rows.size * cols.size, GRID_MATRIX_SMALL_ENTRIES)
     ):
+        entries = getattr(provider, "grid_entries", None)  # the same numbers, without the whole matrix
+        if entries is not None:
+            return entries(target, source, rows, cols)
         return provider.grid_matrix(target, source)[np.ix_(rows, cols)]
     X, Y = target.centres()
     S, T = source.centres()

@@ -16,7 +16,7 @@ from collections.abc import Sequence
 import numpy as np
 
 from ..grid import Grid
-from ..indenters import SAMPLE_BATCH, Asperity, TipArrays, sample_tips, surface_on
+from ..indenters import SAMPLE_BATCH, SAMPLE_MIN_BATCH, Asperity, TipArrays, sample_tips, surface_on
 
 
 @dataclass(frozen=True)
@@ -175,7 +175,20 @@ class TipTable(Sequence):
 
 def highest_over(grid: Grid, owners: Sequence[Asperity]) -> float:
     """The highest the rigid surface can be on ``grid`` (mm): the largest, over its cells,
-    of the lowest of ``owners`` (an asperity owning no cell of its own patch gives inf)."""
+    of the lowest of ``owners`` (an asperity owning no cell of its own patch gives inf).
+    One plain sphere or paraboloid is highest at the cell centre farthest from its tip:
+    that cell alone is sampled, by the arithmetic :func:`surface_on` uses on such a grid
+    (sampling the whole grid was half of building a patch)."""
+    if len(owners) == 1 and type(owners[0]) is Asperity and grid.size <= SAMPLE_BATCH // SAMPLE_MIN_BATCH:
+        a = owners[0]
+        xs, ys = grid.x[[0, -1]], grid.y[[0, -1]]
+        dx2, dy2 = (xs - a.x) ** 2, (ys - a.y) ** 2
+        far_x, far_y = xs[[int(np.argmax(dx2))]], ys[[int(np.argmax(dy2))]]
+        height, owner = np.full((1, 1), np.inf), np.full((1, 1), -1, dtype=np.int64)
+        x, y, z, R = (np.array([v], dtype=float) for v in (a.x, a.y, a.z, a.R))
+        tip = TipArrays(np.zeros(1, dtype=np.int64), x, y, z, R, np.array([a.shape == "sphere"]))
+        sample_tips(far_x, far_y, tip, height, owner)
+        return float(height[0, 0])
     return float(np.max(surface_on(grid, owners).height))
 
 
@@ -205,6 +218,25 @@ def make_patch(
     surf = surface_on(grid, [asperities[l] for l in keep])
     index = np.append(np.asarray(keep, dtype=np.int64), -1)
     return Patch(k, grid, surf.height, index[surf.owner], members)
+
+
+def crop_patch(patch: Patch, grid: Grid) -> Patch | None:
+    """``patch`` (one asperity's) cut down to ``grid``, an aligned grid inside its own, or
+    None where ``grid`` is not inside. A cell's height and owner are the lowest asperity
+    there (those :func:`make_patch` leaves out cannot be lower), so they do not depend on
+    the grid they are sampled on: the cut windows (read-only views) are the patch
+    :func:`make_patch` would build on ``grid``, the cells' heights as sampled at the
+    larger grid's centres."""
+    if len(patch.members) != 1 or not math.isclose(grid.h, patch.grid.h, rel_tol=1e-12):
+        return None
+    di, dj = grid.offset_in(patch.grid)
+    if di < 0 or dj < 0 or di + grid.nx > patch.grid.nx or dj + grid.ny > patch.grid.ny:
+        return None
+    window = (slice(dj, dj + grid.ny), slice(di, di + grid.nx))
+    height, owner = patch.height[window], patch.owner[window]
+    height.setflags(write=False)
+    owner.setflags(write=False)
+    return Patch(patch.asperity, grid, height, owner)
 
 
 def patch_radius(asperity: Asperity, *, force: float, approach: float, E_star: float, h: float, margin: float) -> float:

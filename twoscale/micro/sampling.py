@@ -23,7 +23,7 @@ import numpy as np
 from ..grid import Grid
 from ..indenters import Asperity, Surface, surface_on
 from .costmodel import FITTED
-from .patches import Patch, TipTable, make_patch, patch_candidates, patch_radius
+from .patches import Patch, TipTable, crop_patch, make_patch, patch_candidates, patch_radius
 
 #: Side (cells) of the tiles a large union box is sampled by (:func:`box_surface`): a
 #: tile's candidates are the asperities that can be lower than the highest of its four
@@ -208,7 +208,11 @@ def build_patches(
         A cell centre of the common lattice, mm.
     reuse : sequence of Patch, default ()
         Patches built before for the same scene (e.g. for the policy): one with the same
-        asperity and grid is taken as it is (a patch depends on nothing else).
+        asperity and grid is taken as it is (a patch depends on nothing else), one of the
+        same asperity on a grid holding the wanted one is cut down to it
+        (:func:`~.patches.crop_patch`: the far field's patches, sized from smaller
+        approaches than the policy's, were sampled a second time, 0.3-0.5 s on 1,000-1,500
+        spheres).
     """
     if not (math.isfinite(margin) and margin >= 1.0):
         raise ValueError(f"patch margin must be >= 1, got {margin!r}")
@@ -219,6 +223,12 @@ def build_patches(
             continue
         r = patch_radius(a, force=float(forces[k]), approach=float(approaches[k]), E_star=E_star, h=h, margin=margin)
         wanted.append((k, Grid.covering(a.x - r, a.x + r, a.y - r, a.y + r, h, anchor=anchor)))
+    larger = {pt.asperity: pt for pt in reuse if len(pt.members) == 1}
+    for k, grid in wanted:
+        if (k, grid) not in built and k in larger:
+            cut = crop_patch(larger[k], grid)
+            if cut is not None:
+                built[(k, grid)] = cut
     new = [(k, grid) for k, grid in wanted if (k, grid) not in built]
     if new:
         grids = [grid for _, grid in new]

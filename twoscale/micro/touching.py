@@ -21,7 +21,7 @@ from __future__ import annotations
 from typing import Sequence
 
 import numpy as np
-from scipy import ndimage, sparse
+from scipy import sparse
 from scipy.sparse import csgraph
 
 from .patches import Patch
@@ -41,7 +41,6 @@ def touching_groups(
     gave the pair's force to one tip). Every patch in exactly one group, groups in the
     order of their first patch."""
     n = len(patches)
-    square = np.ones((2 * reach + 1, 2 * reach + 1), dtype=bool)
     index = {m: k for k, pt in enumerate(patches) for m in pt.members}
     pairs: list[tuple[int, int]] = []
     for k, (pt, p) in enumerate(zip(patches, pressures)):
@@ -49,7 +48,7 @@ def touching_groups(
         loaded[pt.owned] = np.asarray(p) > 0.0
         if not loaded.any():
             continue
-        near = ndimage.binary_dilation(loaded, structure=square) & ~pt.owned & (pt.owner >= 0)
+        near = _dilated(loaded, reach) & ~pt.owned & (pt.owner >= 0)
         pairs += [(k, index[m]) for m in np.unique(pt.owner[near]).tolist() if index.get(m, k) != k]
     rows, cols = np.array(pairs, dtype=int).reshape(-1, 2).T
     links = sparse.coo_matrix((np.ones(len(rows)), (rows, cols)), shape=(n, n))
@@ -58,3 +57,20 @@ def touching_groups(
     for k in range(n):
         groups.setdefault(int(label[k]), []).append(k)
     return sorted(groups.values(), key=lambda g: g[0])
+
+
+def _dilated(mask: np.ndarray, reach: int) -> np.ndarray:
+    """``mask`` dilated by the square of ``2 reach + 1`` cells (cells outside count as
+    unset), as ``scipy.ndimage.binary_dilation`` with that structure gives it, by shifted
+    slices along each axis (its call cost 0.1-0.2 ms on patches of a few hundred cells,
+    4,000 of them on 1,013 spheres)."""
+    out = mask.copy()
+    for axis in (0, 1):
+        step = out.copy()
+        for d in range(1, reach + 1):
+            lo, hi = [slice(None)] * 2, [slice(None)] * 2
+            lo[axis], hi[axis] = slice(d, None), slice(None, -d)
+            step[tuple(lo)] |= out[tuple(hi)]
+            step[tuple(hi)] |= out[tuple(lo)]
+        out = step
+    return out
