@@ -222,29 +222,30 @@ class WindowState:
         """The box of the last position's loaded cells (a sub-grid of its grid)."""
         return loaded_box(*self.past[-1][:2]) if self.past else None
 
-    def start(self, grid: Grid, shift: float, pc: Callable | None = None) -> np.ndarray | None:
+    def start(self, grid: Grid, shift: float, pc: Callable | None = None, one=None) -> np.ndarray | None:
         """The last pressure moved with the road to ``shift`` on ``grid``, extrapolated
         linearly from the two last positions when both are there, else advanced by
         ``ahead`` if given (preconditioned by ``pc``; the signed fields of :meth:`keep`,
-        clipped at 0; 0 where the last one is not known or has no material)."""
+        clipped at 0; 0 where the last one is not known or has no material). ``one``: the
+        last signed field already moved to ``grid`` (:meth:`last_moved`)."""
         if not self.past:
             return None
-        one = moved(*self.past[-1], grid, shift)
+        one = self.last_moved(grid, shift) if one is None else one
         if len(self.past) < 2:
             ahead = 0.0 if self.ahead is None else self.ahead(one, grid, shift - self.past[-1][2], pc)
             return np.maximum(one + ahead, 0.0)
         two = moved(*self.past[-2], grid, shift)
         return np.where(one != 0.0, np.maximum(2.0 * one - two, 0.0), 0.0)
 
-    def near(self, grid: Grid, shift: float) -> np.ndarray | None:
+    def last_moved(self, grid: Grid, shift: float) -> np.ndarray | None:
+        """The last signed field (:meth:`keep`) moved with the road to ``shift`` on ``grid``."""
+        return moved(*self.past[-1], grid, shift) if self.past else None
+
+    def near(self, grid: Grid, one: np.ndarray | None) -> np.ndarray | None:
         """The cells of ``grid`` within :data:`NEAR_GAP` of the road at the last position
-        (moved with the road to ``shift``; the cells it did not cover too), None without a
-        last gap."""
-        if not self.past:
-            return None
-        one = moved(*self.past[-1], grid, shift)
-        if not np.any(one < 0.0):
-            return None  # a plain pressure: the gap is not known
+        (``one``: :meth:`last_moved`; the cells it did not cover too), None without a gap."""
+        if one is None or not np.any(one < 0.0):
+            return None  # no last position, or a plain pressure: the gap is not known
         return one > -NEAR_GAP * GAP_STIFFNESS / self.body.provider.self_compliance(grid.h)
 
     def keep(self, result, shift: float) -> None:
@@ -332,8 +333,9 @@ def solve_window(track, selection, bound: float, state: WindowState, tol: float)
     # the second position's linearised step by its stone blocks, let go before the CG builds
     # its own (held through it, the heap grew by their ~6 MB: 2,100 more page faults)
     step_pc = None if blocks is None or len(state.past) != 1 else blocks(_restricted(surface, cut)).apply
-    start, step_pc = state.start(cut, selection.shift, step_pc), None
-    near = state.near(cut, selection.shift)
+    one = state.last_moved(cut, selection.shift)  # moved once, for the start and the CG's cells
+    start, step_pc = state.start(cut, selection.shift, step_pc, one), None
+    near = state.near(cut, one)
     reach = None if near is None or start is None else near | (start > 0.0)
     while True:
         result = solve_cg(
