@@ -252,7 +252,7 @@ def test_grid_entries_are_the_grid_matrix_entries_without_the_whole_matrix():
     target, source = Grid(0.0, 0.0, 0.05, 7, 5), Grid(0.35, -0.1, 0.05, 4, 9)
     cached = CachedBody(HS, OperatorCaches())
     pairs = [(target, source), (source, target), (target, target)]
-    for (t, s), (nr, nc) in zip(pairs * 2, [(10, 6)] * 3 + [(30, 25)] * 3):  # gathered, cut
+    for (t, s), (nr, nc) in zip(pairs * 2, [(10, 6)] * 3 + [(30, 25)] * 3):  # few and many entries
         rows = rng.choice(t.size, nr, replace=False)
         cols = rng.choice(s.size, nc, replace=False)
         whole = HS.grid_matrix(t, s)[np.ix_(rows, cols)]

@@ -153,17 +153,17 @@ class HalfSpace(InfluenceProvider):
     ) -> np.ndarray:
         """``grid_matrix(target, source)[np.ix_(rows, cols)]`` (flat cell indices of the two
         grids), the same numbers gathered from the offset table without the grids' whole
-        matrix (a dense block's active columns, a near pair's owned cells: a few percent
-        of it). Where the entries wanted are more than a quarter of the matrix, they are
-        cut from it (a strided copy then costs less than a gather: 350 against 700 us for
-        200 x 200 entries of two 16 x 16 grids; 360 against 90 us for 200 x 50)."""
-        rows, cols = np.asarray(rows), np.asarray(cols)
-        if 4 * rows.size * cols.size >= target.size * source.size:
-            return self.grid_matrix(target, source, tables=tables)[np.ix_(rows, cols)]
+        matrix (a dense block's active columns, a near pair's owned cells). The table is
+        C-contiguous, so entry ``(jt - js + nys - 1, it - is + nxs - 1)`` is its flat element
+        ``r(jt, it) - c(js, is)``: one ``np.take`` of an outer difference. That is 2-4x
+        faster than a two-index gather or a cut from the whole matrix (16 x 16 grids,
+        200 x 200 entries: 100 against 400 us; 100 x 100: 40 against 80 us)."""
         table, _, _ = self._offset_table(target, source, tables)
+        mx = table.shape[1]
         jt, it = np.divmod(np.asarray(rows, dtype=np.int64), target.nx)
         js, is_ = np.divmod(np.asarray(cols, dtype=np.int64), source.nx)
-        return table[(jt[:, None] - js) + (source.ny - 1), (it[:, None] - is_) + (source.nx - 1)]
+        r = jt * mx + it + ((source.ny - 1) * mx + source.nx - 1)
+        return np.take(np.ascontiguousarray(table).ravel(), r[:, None] - (js * mx + is_))
 
     def grid_operator(
         self, target: Grid, source: Grid | None = None, *, tables: BoundedCache | None = None
