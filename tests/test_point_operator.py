@@ -156,3 +156,28 @@ def test_bad_exclude_and_forces_raise():
         op.apply(np.ones(6))
     with pytest.raises(ValueError, match="forces"):
         op.apply(np.ones((4, 2, 2)))
+
+
+def test_choice_from_the_small_cut_offs_is_the_choice_from_all():
+    # choose_parameters counts the near pairs of the large cut-offs only when a bound on
+    # their cost does not rule them out; its choice must be the one every count gives
+    from scipy.special import erfcinv
+
+    from twoscale.influence import halfspace_points as hp
+
+    rng = np.random.default_rng(11)
+    sets = [clustered(n, rng, size=s) for n, s in [(9000, 300.0), (3000, 40.0), (200, 5.0), (40, 300.0)]]
+    sets += [rng.uniform(0.0, 44.0, (8000, 2)), rng.uniform(0.0, 1.0, (30, 2)) * [50.0, 0.5]]
+    for k, pts in enumerate(sets):
+        rtol = [1e-6, 1e-4, 1e-9][k % 3]
+        alpha = float(erfcinv(0.25 * rtol))
+        boxes = hp._boxes(pts, pts)
+        x0 = boxes[0][0]
+        diag = float(np.hypot(*(boxes[0][1] - x0)))
+        sigmas = diag / alpha * 2.0 ** (-np.arange(0, 60) / 3.0)
+        sample = pts[:: max(1, len(pts) // hp._SAMPLE)]
+        counts = cKDTree(sample).count_neighbors(cKDTree(pts), alpha * sigmas)
+        full, _ = hp._cheapest(
+            boxes, x0, sigmas, counts * (len(pts) / len(sample)), 2 * len(pts), rtol, alpha, floor=0.0
+        )
+        assert hp.choose_parameters(pts, pts, rtol) == full[1]

@@ -163,6 +163,10 @@ def choose_parameters(targets: np.ndarray, sources: np.ndarray, rtol: float) -> 
     ``p^2 (N + M)``, the FFT work ``P log2 P`` and the near pairs within ``r_cut``
     (counted with a k-d tree on at most ``_SAMPLE`` targets), over ``sigma`` on a
     geometric grid from the bounding-box diagonal down to where the mesh cap binds.
+    The pairs are counted first within the cut-offs under a tenth of the diagonal; the
+    larger ones (three quarters of the counting's time: 0.10 of 0.14 s on 8,451 points)
+    only when a bound on their cost does not rule them out: a cut-off's pairs are at least
+    the largest counted one's, so the choice is the one all counts give.
     """
     from scipy.spatial import cKDTree
 
@@ -172,38 +176,48 @@ def choose_parameters(targets: np.ndarray, sources: np.ndarray, rtol: float) -> 
     x0 = np.minimum(boxes[0][0], boxes[1][0])
     diag = float(np.hypot(*(np.maximum(boxes[0][1], boxes[1][1]) - x0))) or 1.0
     sigmas = diag / alpha * 2.0 ** (-np.arange(0, 60) / 3.0)
-    # near pairs counted once for every candidate cut-off
+    # near pairs counted once for every candidate cut-off (sigmas descend, radii ascend)
     step = max(1, m // _SAMPLE)
     sample = targets[::step]
-    radii = alpha * sigmas[::-1]  # ascending
-    counts = cKDTree(sample).count_neighbors(cKDTree(sources), radii)[::-1] * (m / len(sample))
-    best = None
+    radii = alpha * sigmas[::-1]
+    trees = cKDTree(sample), cKDTree(sources)
+    small = max(1, int(np.searchsorted(radii, 0.1 * diag)))
+    counts = np.full(len(sigmas), np.nan)
+    counts[len(sigmas) - small :] = trees[0].count_neighbors(trees[1], radii[:small])[::-1] * (m / len(sample))
+    best, bound = _cheapest(boxes, x0, sigmas, counts, m + n, rtol, alpha, floor=counts[len(sigmas) - small])
+    if best is None or bound <= best[0]:  # a larger cut-off might be cheaper: count all
+        counts = trees[0].count_neighbors(trees[1], radii)[::-1] * (m / len(sample))
+        best, _ = _cheapest(boxes, x0, sigmas, counts, m + n, rtol, alpha, floor=0.0)
+    if best is None:  # cannot happen: the largest sigma gives a mesh of a few nodes
+        raise RuntimeError("no Ewald mesh fits under MESH_CAP")
+    return best[1]
+
+
+def _cheapest(boxes, x0, sigmas, counts, points: int, rtol: float, alpha: float, *, floor: float):
+    """``((cost, parameters) or None, bound)``: the first cheapest candidate whose near
+    pairs are counted (``counts``; NaN where not), and the least cost the others can have
+    (their pairs at least ``floor``; ``inf`` if none)."""
+    best, bound = None, math.inf
     for p in ORDERS:
         h = lagrange_spacing(p, 0.5 * rtol)
-        weights = p * p * (n + m)
+        weights = p * p * points
         for sigma, npair in zip(sigmas, counts):
             (_, tshape), (_, sshape) = _meshes(boxes, x0, h * sigma, p)
             shape = _fft_shape(tshape, sshape)
             P = float(shape[0] * shape[1])
             if P > MESH_CAP:
                 break  # sigmas decrease: every later mesh is larger
-            apply = _W_APPLY * weights + _FFT_APPLY * P * math.log2(P) + _PAIR_APPLY * npair
-            build = _W_BUILD * weights + _FFT_BUILD * P * math.log2(P) + _PAIR_BUILD * npair
+            pairs = floor if np.isnan(npair) else npair
+            apply = _W_APPLY * weights + _FFT_APPLY * P * math.log2(P) + _PAIR_APPLY * pairs
+            build = _W_BUILD * weights + _FFT_BUILD * P * math.log2(P) + _PAIR_BUILD * pairs
             cost = apply + build / _APPLIES_PER_BUILD
-            if best is None or cost < best[0]:
-                best = (
-                    cost,
-                    EwaldParameters(
-                        sigma=float(sigma),
-                        spacing=float(h * sigma),
-                        order=p,
-                        r_cut=float(alpha * sigma),
-                        error_bound=float(erfc(alpha)) + lagrange_delta(p, h),
-                    ),
-                )
-    if best is None:  # cannot happen: the largest sigma gives a mesh of a few nodes
-        raise RuntimeError("no Ewald mesh fits under MESH_CAP")
-    return best[1]
+            if np.isnan(npair):
+                bound = min(bound, cost)
+            elif best is None or cost < best[0]:
+                error = float(erfc(alpha)) + lagrange_delta(p, h)
+                params = EwaldParameters(float(sigma), float(h * sigma), p, float(alpha * sigma), error)
+                best = (cost, params)
+    return best, bound
 
 
 def _long(r: np.ndarray, sigma: float) -> np.ndarray:
