@@ -300,7 +300,7 @@ class Coupling:
         smooth = []
         for l in sources:
             v = values[l]
-            if v is None or not np.any(v):
+            if v is None or not v.any():
                 continue
             kind, op, _ = self._route(k, l) if v.ndim == 1 else ("plain", None, 0.0)
             if kind == "plain":

@@ -234,7 +234,7 @@ class CoarseSpace:
         kappa = np.zeros(n)
         cent = np.zeros((n, 2))
         for k, (blk, pt) in enumerate(zip(blocks, patches)):
-            if not np.any(active[k]):
+            if not active[k].any():
                 continue
             s = self._shape(blk, active[k])
             kap = h2 * float(s.sum())

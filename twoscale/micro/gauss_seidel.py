@@ -95,7 +95,7 @@ def sweep(
     failed = np.zeros(n, bool)
 
     def take(k, pressure, now, ok):
-        changed[k] = bool(np.any(now != active[k]))
+        changed[k] = bool((now != active[k]).any())
         failed[k] = not ok
         diff2[k] = float(np.sum((pressure - p[k]) ** 2))
         p[k], active[k] = pressure, now

@@ -91,22 +91,22 @@ def contact_solve(
         )
         return LocalSolution(p, p > 0.0, float("nan"), False, ok, it)
     start = previous > 0.0
-    active = start.copy() if np.any(start) else b > 0.0
+    active = start.copy() if start.any() else b > 0.0
     seen: set = set()
     removed = False
-    tol = gap_rtol * float(np.max(np.abs(b), initial=0.0))
+    tol = gap_rtol * float(np.abs(b).max(initial=0.0))
     p = np.zeros(block.n)
     for it in range(1, max_iter + 1):
         seen.add(active.tobytes())
         p = np.zeros(block.n)
         p[active] = block.solve(active, b[active])
-        if np.any(p < 0.0):
+        if (p < 0.0).any():
             removed = True
             active = _next_active(active, p, seen)
             continue
         gap = block.product_on(active, p) - b
         pen = ~active & (gap < -tol)
-        if not np.any(pen):
+        if not pen.any():
             return LocalSolution(p, active, float("nan"), removed, True, it)
         active = active | pen
     return LocalSolution(np.maximum(p, 0.0), p > 0.0, float("nan"), removed, False, max_iter)
@@ -177,7 +177,7 @@ def initial_pressure(
         return LocalSolution(np.zeros(n), np.zeros(n, bool), float("nan"), False, True, 0)
     zmin = float(z.min())
     active = (z - zmin) < 0.5 * max(approach, 0.0)
-    if not np.any(active):
+    if not active.any():
         active = z == zmin
     if not block.dense:
         p, s, ok, it = pk_fixed_force(
@@ -194,14 +194,14 @@ def initial_pressure(
         s = (target + x[:, 1].sum()) / x[:, 0].sum()
         p = np.zeros(n)
         p[active] = s * x[:, 0] - x[:, 1]
-        if np.any(p < 0.0):
+        if (p < 0.0).any():
             removed = True
             active = _next_active(active, p, seen)
             continue
         gap = block.product_on(active, p) + z - s
         tol = gap_rtol * max(abs(s - zmin), 1e-300)
         pen = ~active & (gap < -tol)
-        if not np.any(pen):
+        if not pen.any():
             return LocalSolution(p, active, s, removed, True, it)
         active = active | pen
     return LocalSolution(np.maximum(p, 0.0), p > 0.0, s, removed, False, max_iter)

@@ -245,7 +245,7 @@ class LocalBlock:
         ``rhs`` has shape (|S|,) or (|S|, m); returns the same shape. ``x0`` is a CG start
         and ``rtol`` its relative residual (default ``cg_rtol``).
         """
-        if not np.any(active):
+        if not active.any():
             return np.zeros_like(rhs)
         if self.dense:
             kind, f = self._factor(active)
