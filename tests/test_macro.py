@@ -495,3 +495,28 @@ def test_two_thousand_tips_go_matrix_free_by_default_with_the_dense_forces():
     assert np.max(np.abs(free.forces - dense.forces)) <= 1e-6 * dense.forces.max()
     assert free.krylov_iterations > 0 and np.count_nonzero(dense.forces) > 1000
     check_equations(dense, tips, z, laws, boussinesq_interaction(tips))
+
+
+def test_newton_steps_refined_single_precision_solve_is_a_double_precision_solve():
+    # the Newton step's linear solve: a single-precision LU refined in double precision
+    # must give the double-precision solution (a plain single-precision solve is ~1e-6 off)
+    # on the macro Jacobian I + D T of close tips, where diag(1/D) + T is indefinite; and
+    # the least-squares step where the matrix is singular
+    from twoscale.macro.system import _refined_solve
+
+    rng = np.random.default_rng(3)
+    n = 400
+    pts = rng.uniform(0.0, 6.0, (n, 2))
+    r = np.hypot(*(pts[:, None, :] - pts[None, :, :]).transpose(2, 0, 1))
+    T = np.where(r > 0, 1.0 / (math.pi * 10.0 * np.where(r > 0, r, 1.0)), 0.0)
+    D = rng.uniform(0.5, 20.0, n)
+    K = np.eye(n) + D[:, None] * T
+    assert np.linalg.eigvalsh(np.diag(1.0 / D) + T)[0] < 0.0
+    b = rng.normal(size=n)
+    x = _refined_solve(K, b)
+    exact = np.linalg.solve(K, b)
+    assert np.max(np.abs(x - exact)) <= 1e-11 * np.max(np.abs(exact))
+    single = np.linalg.solve(K.astype(np.float32), b.astype(np.float32))
+    assert np.max(np.abs(single - exact)) > 1e-9 * np.max(np.abs(exact))  # the refinement is needed
+    S = np.array([[1.0, 1.0], [1.0, 1.0]])
+    assert np.allclose(_refined_solve(S, np.array([2.0, 0.0])), [0.5, 0.5])
