@@ -158,9 +158,12 @@ class FarFieldCoupling(Coupling):
         w = self._weights.get(key)
         if w is None:
             g = self.patches[k].grid
-            xi = (np.arange(g.nx) - 0.5 * (g.nx - 1)) / max(0.5 * (g.nx - 1), 1e-300)
-            eta = (np.arange(g.ny) - 0.5 * (g.ny - 1)) / max(0.5 * (g.ny - 1), 1e-300)
-            W = np.einsum("ja,ib->jiab", lagrange3(eta), lagrange3(xi)).reshape(g.ny * g.nx, 9)
+            W = self._weights.get(("shape", g.nx, g.ny))  # the whole patch's: its shape's only
+            if W is None:
+                xi = (np.arange(g.nx) - 0.5 * (g.nx - 1)) / max(0.5 * (g.nx - 1), 1e-300)
+                eta = (np.arange(g.ny) - 0.5 * (g.ny - 1)) / max(0.5 * (g.ny - 1), 1e-300)
+                W = np.einsum("ja,ib->jiab", lagrange3(eta), lagrange3(xi)).reshape(g.ny * g.nx, 9)
+                self._weights[("shape", g.nx, g.ny)] = W
             w = W if whole else W[self.patches[k].owned.ravel()]
             self._weights[key] = w
         return w
