@@ -215,6 +215,11 @@ def make_patch(
     """
     if keep is None:
         keep = patch_candidates(grid, asperities, members or (k,))
+    if isinstance(asperities, TipTable) and SAMPLE_BATCH // grid.size >= SAMPLE_MIN_BATCH and asperities.plain:
+        # the batches surface_on samples, from the table's arrays: no asperity objects and
+        # no cell-centre meshes (1,572 patches of 1,485 clustered spheres: half their CPU)
+        height, owner = asperities.sample(grid, np.asarray(keep, dtype=np.int64))
+        return Patch(k, grid, height, owner, members)
     surf = surface_on(grid, [asperities[l] for l in keep])
     index = np.append(np.asarray(keep, dtype=np.int64), -1)
     return Patch(k, grid, surf.height, index[surf.owner], members)
