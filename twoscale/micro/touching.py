@@ -44,11 +44,14 @@ def touching_groups(
     index = {m: k for k, pt in enumerate(patches) for m in pt.members}
     pairs: list[tuple[int, int]] = []
     for k, (pt, p) in enumerate(zip(patches, pressures)):
+        others = ~pt.owned & (pt.owner >= 0)  # cells another asperity owns
+        if not others.any():  # a patch apart from the others (most of scattered tips')
+            continue
         loaded = np.zeros(pt.grid.shape, dtype=bool)
         loaded[pt.owned] = np.asarray(p) > 0.0
         if not loaded.any():
             continue
-        near = _dilated(loaded, reach) & ~pt.owned & (pt.owner >= 0)
+        near = _dilated(loaded, reach) & others
         pairs += [(k, index[m]) for m in np.unique(pt.owner[near]).tolist() if index.get(m, k) != k]
     rows, cols = np.array(pairs, dtype=int).reshape(-1, 2).T
     links = sparse.coo_matrix((np.ones(len(rows)), (rows, cols)), shape=(n, n))
