@@ -53,6 +53,7 @@ import scipy.sparse as sp
 
 from ..influence.base import InfluenceProvider
 from ..krylov import block_cg
+from ..mixed_precision import refined_solve
 from .constraints import Control, block_coordinates, resultants
 
 
@@ -282,8 +283,12 @@ class CoarseSpace:
             M[np.arange(A.size), np.arange(A.size)] = kinv
             M += near.toarray()
             # a compliance plus the patches' own: positive definite, so Cholesky (1,383
-            # tips: LDL's pivoting cost 1.5-2x); LDL where rounding or an odd near
-            # correction leave it indefinite
+            # tips: LDL's pivoting cost 1.5-2x), in single precision refined in double
+            # (half the factor's cost); LDL where rounding or an odd near correction leave
+            # it indefinite
+            x = refined_solve(M, rhs, definite=True)
+            if x is not None:
+                return x, 0, True
             for kind in ("pos", "sym"):
                 try:
                     return sla.solve(M, rhs, assume_a=kind, check_finite=False), 0, True
