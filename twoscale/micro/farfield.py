@@ -25,7 +25,7 @@ from ..influence.base import InfluenceProvider
 from .blocks import Coupling
 from .kept_points import kept_operator
 from .localblock import whole_patch
-from .sources import SOURCE_NODE, lagrange3, source_frame, source_weights
+from .sources import SOURCE_NODE, grid_interpolation, source_frame, source_weights
 
 
 def patch_frames(patches) -> tuple[np.ndarray, np.ndarray]:
@@ -160,10 +160,7 @@ class FarFieldCoupling(Coupling):
             g = self.patches[k].grid
             W = self._weights.get(("shape", g.nx, g.ny))  # the whole patch's: its shape's only
             if W is None:
-                xi = (np.arange(g.nx) - 0.5 * (g.nx - 1)) / max(0.5 * (g.nx - 1), 1e-300)
-                eta = (np.arange(g.ny) - 0.5 * (g.ny - 1)) / max(0.5 * (g.ny - 1), 1e-300)
-                W = np.einsum("ja,ib->jiab", lagrange3(eta), lagrange3(xi)).reshape(g.ny * g.nx, 9)
-                self._weights[("shape", g.nx, g.ny)] = W
+                W = self._weights[("shape", g.nx, g.ny)] = grid_interpolation(g.ny, g.nx)
             w = W if whole else W[self.patches[k].owned.ravel()]
             self._weights[key] = w
         return w

@@ -24,6 +24,15 @@ def lagrange3(xi: np.ndarray) -> np.ndarray:
     return np.column_stack([0.5 * xi * (xi - 1.0), 1.0 - xi * xi, 0.5 * xi * (xi + 1.0)])
 
 
+def grid_interpolation(ny: int, nx: int) -> np.ndarray:
+    """The (ny nx, 9) weights taking values at the nine nodes over a patch grid of ``ny x nx``
+    cells (outer nodes on the outer cell centres) to the cells, row-major like the stencils:
+    they depend on the grid's shape only."""
+    xi = (np.arange(nx) - 0.5 * (nx - 1)) / max(0.5 * (nx - 1), 1e-300)
+    eta = (np.arange(ny) - 0.5 * (ny - 1)) / max(0.5 * (ny - 1), 1e-300)
+    return np.einsum("ja,ib->jiab", lagrange3(eta), lagrange3(xi)).reshape(ny * nx, 9)
+
+
 #: Position of the outer source nodes, in half-widths of the patch: the zeros of the
 #: third Chebyshev polynomial, which minimise the largest interpolation error over it.
 SOURCE_NODE = math.sqrt(3.0) / 2.0
