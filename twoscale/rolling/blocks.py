@@ -45,8 +45,9 @@ from ..indenters import Surface
 REBUILD_FRACTION = 0.2
 #: Largest stone contact (cells) inverted as one dense block, and most stones coupled: a
 #: contact with more (a sphere's, a flat face's) or more stones take the circulant inverse
-#: instead (a block costs its cells squared in memory and cubed in time; on the tyre's
-#: footprint the largest contact is ~250 cells, the stones ~250).
+#: instead, until it settles smaller (:data:`RETRY_SETTLED`; a block costs its cells
+#: squared in memory and cubed in time; on the tyre's footprint the largest contact is ~250
+#: cells, the stones ~250).
 MAX_BLOCK_CELLS = 600
 MAX_STONES = 1500
 #: A solve on the circulant inverse (its contact too large for blocks) tries the blocks again
