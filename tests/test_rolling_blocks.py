@@ -129,3 +129,29 @@ def test_a_contact_too_large_for_a_block_takes_the_circulant_inverse(monkeypatch
     pc = StoneBlocks(body)
     fallback = solve_cg(body, surf, total_load=5.0, precondition=True, preconditioner=pc)
     assert fallback.converged and fallback.iterations == circ.iterations
+
+
+def test_a_contact_settled_small_enough_takes_the_blocks_again(monkeypatch):
+    """A contact too large for the blocks at first (a first position's geometric start) runs
+    on the circulant inverse while it shrinks, and on the blocks once it has settled below
+    the cells they may have: then as a fresh solve's blocks on that contact."""
+    import twoscale.rolling.blocks as blocks
+
+    monkeypatch.setattr(blocks, "MAX_BLOCK_CELLS", 60)
+    g = Grid(-1.0, -0.8, 0.1, 20, 16)
+    owner = np.zeros(g.shape, int)
+    owner[:, 10:] = 1
+    surface = Surface(g, np.zeros(g.shape), owner, 2)
+    x, y = g.centres()
+    wide, small = (x**2 + y**2 < 0.7**2), (x + 0.5) ** 2 + y**2 < 0.35**2
+    small |= (x - 0.5) ** 2 + y**2 < 0.3**2
+    assert np.count_nonzero(wide & (owner == 0)) > 60 and np.count_nonzero(small & (owner == 0)) <= 60
+    gap = np.random.default_rng(5).standard_normal(g.shape)
+    body = KeptBody(HS)
+    pc = StoneBlocks(body)(surface)
+    circulant = body.grid_operator(g).preconditioner().apply
+    assert np.array_equal(pc.apply(gap * wide, wide), circulant(gap * wide))  # too large: circulant
+    assert np.array_equal(pc.apply(gap * small, small), circulant(gap * small))  # still shrinking
+    fresh = StoneBlocks(KeptBody(HS))(surface).apply(gap * small, small)
+    assert pc.circulant is not None and np.array_equal(pc.apply(gap * small, small), fresh)  # settled
+    assert pc.circulant is None and not np.array_equal(fresh, circulant(gap * small))

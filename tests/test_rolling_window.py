@@ -263,3 +263,24 @@ def test_the_stones_of_a_flat_face_keep_their_reach_and_the_window_their_heights
     index = {s.label: n for n, s in enumerate(selection.stones)}
     height, owner = selection.stones[0].basins.union_on(*grid.centres(), index)
     assert np.array_equal(fast.height, height) and np.array_equal(fast.owner, owner)
+
+
+def test_the_stones_reaches_at_once_are_each_stones(strip):
+    """:func:`~twoscale.rolling.road.reaches` (all the basins' samples in one pass) gives each
+    stone's own ``reach`` at its own depth, none (0) at a depth of 0 or below, and takes
+    other indenters one by one."""
+    from twoscale.indenters import Asperity
+    from twoscale.rolling.road import reaches
+    from twoscale.rolling.track import prepare
+
+    spec = RollingSpec(start=-6.0, end=6.0, step=1.0, speed=30.0, tyre_radius=150.0, footprint=(30.0, 16.0))
+    road = prepare(Scene(material=MAT, surface=strip, rolling=spec, total_load=60.0)).road
+    stones = road.stones_at(0.5, 1.0).stones
+    assert len(stones) > 10
+    rng = np.random.default_rng(0)
+    for depths in (rng.uniform(-0.1, 1.0, len(stones)), np.full(len(stones), np.inf), np.zeros(len(stones))):
+        own = [s.reach(d) for s, d in zip(stones, depths)]
+        assert reaches(stones, depths).tolist() == own
+    assert not any(own) and max(reaches(stones, np.full(len(stones), 0.2))) > 0.5  # (depth 0: none)
+    tips = [Asperity(0.0, 0.0, 0.0, 5.0), Asperity(2.0, 1.0, 0.1, 3.0)]
+    assert reaches(tips, np.array([0.05, 0.2])).tolist() == [tips[0].reach(0.05), tips[1].reach(0.2)]

@@ -152,6 +152,24 @@ class RolledStone(MapAsperity):
         return float(self.dist[within].max()) if within.any() else 0.0
 
 
+def reaches(stones, depths: np.ndarray) -> np.ndarray:
+    """Each stone's ``reach(depth)`` (mm) for its ``depths`` (mm): the basins' (:class:`RolledStone`)
+    on all their samples at once (one loop over ~500 stones a position cost ~4 ms), the
+    others' one by one."""
+    depths = np.asarray(depths, dtype=float)
+    if not stones or not all(type(s) is RolledStone for s in stones):
+        return np.array([s.reach(float(d)) for s, d in zip(stones, depths.tolist())], dtype=float)
+    counts = np.array([s.fall.size for s in stones])
+    fall = np.concatenate([s.fall for s in stones])
+    dist = np.concatenate([s.dist for s in stones])
+    within = fall < np.repeat(depths, counts)  # (a fall is >= 0: a depth <= 0 takes no sample)
+    starts = np.concatenate([[0], np.cumsum(counts)[:-1]])
+    out = np.zeros(len(stones))
+    some = counts > 0
+    out[some] = np.maximum.reduceat(np.where(within, dist, 0.0), starts[some])
+    return out
+
+
 @dataclass(frozen=True)
 class Selection:
     """The stones of one position: the indenters (body frame) and their numbers in the

@@ -57,7 +57,7 @@ from ..grid import Grid
 from ..indenters import Surface, surface_on
 from .blocks import StoneBlocks
 from .boxes import covers, grown, loaded_box, moved, union
-from .road import Selection
+from .road import Selection, reaches
 from .track import Track
 
 #: Cells added on every side when the window is built or grows.
@@ -275,14 +275,11 @@ def reference_grid(track: Track, selection: Selection, bound: float) -> Grid:
     """Cells of size ``track.h`` (on the lattice h Z^2) covering every place a stone of
     ``selection`` can touch when the approach is at most ``bound``, within the face window."""
     h = track.h
-    boxes = []
-    for s in selection.stones:
-        r = s.reach(max(bound - s.z, 0.0)) * 1.05 + 3.0 * h
-        boxes.append((s.x - r, s.x + r, s.y - r, s.y + r))
-    b = np.array(boxes)
+    x, y, z = np.array([(s.x, s.y, s.z) for s in selection.stones]).T
+    r = reaches(selection.stones, np.maximum(bound - z, 0.0)) * 1.05 + 3.0 * h
     x0, x1, y0, y1 = track.road.window
-    lo_x, hi_x = max(b[:, 0].min(), x0 - h), min(b[:, 1].max(), x1 + h)
-    lo_y, hi_y = max(b[:, 2].min(), y0 - h), min(b[:, 3].max(), y1 + h)
+    lo_x, hi_x = max((x - r).min(), x0 - h), min((x + r).max(), x1 + h)
+    lo_y, hi_y = max((y - r).min(), y0 - h), min((y + r).max(), y1 + h)
     return Grid.covering(lo_x, hi_x, lo_y, hi_y, h)
 
 
