@@ -495,3 +495,19 @@ def test_two_thousand_tips_go_matrix_free_by_default_with_the_dense_forces():
     assert np.max(np.abs(free.forces - dense.forces)) <= 1e-6 * dense.forces.max()
     assert free.krylov_iterations > 0 and np.count_nonzero(dense.forces) > 1000
     check_equations(dense, tips, z, laws, boussinesq_interaction(tips))
+
+
+def test_sampled_operator_error_is_the_error_of_the_sampled_rows_written_out():
+    # the exact rows made a few at a time (300 rows: the last chunk short) give the error
+    # written out with the dense Boussinesq rows, the diagonal left out
+    from twoscale.macro.interaction import MatrixFreeInteraction, sampled_operator_error
+
+    tips, _, _ = lattice_scene(2100, seed=4)
+    P = np.where(np.arange(len(tips)) % 3 == 0, 1.0 + 0.01 * np.arange(len(tips)), 0.0)
+    T = MatrixFreeInteraction(HS.point_operator(tips, tips, rtol=1e-4), np.zeros(len(tips)))
+    got = sampled_operator_error(HS, tips, T, P, samples=300, seed=1)
+    rows = np.sort(np.random.default_rng(1).choice(len(tips), size=300, replace=False))
+    G = boussinesq_interaction(tips)[rows]
+    exact = G @ P
+    want = np.max(np.abs(T.operator.apply(P)[rows] - exact)) / np.max(np.abs(exact))
+    assert 1e-9 < want and got == pytest.approx(want, rel=1e-9)
