@@ -14,13 +14,6 @@ from twoscale.micro.problem import SIZING_RESIDUAL
 HS = HalfSpace(Material(E=10.0, nu=0.5))
 
 
-@pytest.fixture
-def staged(monkeypatch):
-    import twoscale.driver as driver
-
-    monkeypatch.setattr(driver, "STAGED_MIN_TIPS", 1)  # these 20 spheres count as many
-
-
 @pytest.mark.parametrize("load", [{"penetration": 0.06}, {"total_load": 3.0}])
 def test_the_union_cg_starts_from_the_first_stage_and_gives_the_same_forces(monkeypatch, load):
     import twoscale.driver as driver
@@ -41,9 +34,20 @@ def test_the_union_cg_starts_from_the_first_stage_and_gives_the_same_forces(monk
 
 
 @pytest.mark.parametrize("iteration", ["block-gs", "two-level"])
-def test_the_block_iterations_get_the_macro_step_to_its_tolerance(staged, iteration):
+def test_the_block_iterations_get_the_macro_step_to_its_tolerance(monkeypatch, iteration):
+    import twoscale.driver as driver
+
     asps = spaced_spheres(20, 4, 10.0)
+    whole = solve_twoscale(HS, asps, h=0.05, penetration=0.06, iteration=iteration)
+    monkeypatch.setattr(driver, "STAGED_MIN_TIPS", 1)
     res = solve_twoscale(HS, asps, h=0.05, penetration=0.06, iteration=iteration)
     assert res.details.macro.converged and res.residuals["macro"][-1] <= 1e-10
     assert res.converged, res.message
     assert "macro step" not in res.message
+    # the second stage goes on from the first: both stages' steps counted, the same path
+    history = res.residuals["macro"]
+    assert history[0] > SIZING_RESIDUAL and len(history) == res.iterations["macro"] + 1
+    assert res.iterations["macro"] == whole.iterations["macro"]
+    assert np.allclose(history, whole.residuals["macro"], rtol=1e-6, atol=1e-14)
+    F, Fw = np.asarray(res.asperities.forces), np.asarray(whole.asperities.forces)
+    assert np.max(np.abs(F - Fw)) <= 1e-5 * Fw.max()  # patches sized by the first stage: the micro tolerance

@@ -217,7 +217,7 @@ def run_twoscale(
 
         def refine():
             again = MacroStart(macro.forces, macro.penetration, macro.tilt)
-            full = solve_macro(provider, tips, z, laws, loading, macro_options, start=again)
+            full = _continued(macro, solve_macro(provider, tips, z, laws, loading, macro_options, start=again))
             return full, _micro_problem(full, h, loading, run.anchor, micro_start)
 
     micro, plan = run_micro(
@@ -225,7 +225,7 @@ def run_twoscale(
     )
     t2 = time.perf_counter()
     if plan.macro is not macro:  # refined inside the micro step: its time counts as the macro step's
-        t1 += float(plan.macro.timings_s["total"])
+        t1 += float(plan.macro.timings_s["total"]) - float(macro.timings_s["total"])
         macro = plan.macro
     elif refine is not None:
         macro = _first_stage_kept(macro)
@@ -260,6 +260,19 @@ def _first_stage_kept(macro):
         f"Newton steps: the union CG solves every contact on the box from it"
     )
     return replace(macro, converged=False, message=why)
+
+
+def _continued(first, full):
+    """The macro step ``full`` (started from the first stage's answer ``first``) with the
+    first stage's steps, residuals, Krylov iterations and time counted in."""
+    timings = {k: float(first.timings_s.get(k, 0.0)) + float(v) for k, v in full.timings_s.items()}
+    return replace(
+        full,
+        iterations=first.iterations + full.iterations,
+        residuals=tuple(first.residuals) + tuple(full.residuals[1:]),
+        krylov_iterations=first.krylov_iterations + full.krylov_iterations,
+        timings_s=timings,
+    )
 
 
 def _micro_problem(macro, h: float, loading: Loading, anchor: tuple, start) -> MicroProblem:
