@@ -70,6 +70,8 @@ _PAIR_APPLY, _PAIR_BUILD = 5e-9, 1.5e-7  # per near pair
 _APPLIES_PER_BUILD = 10
 #: Targets used to count near pairs when choosing sigma.
 _SAMPLE = 2000
+#: Cut-offs whose near pairs are counted at once when choosing sigma.
+_COUNT_BATCH = 6
 
 
 def lagrange_delta(order: int, h: float) -> float:
@@ -162,7 +164,12 @@ def choose_parameters(targets: np.ndarray, sources: np.ndarray, rtol: float) -> 
     The cost model (``_*_APPLY``, ``_*_BUILD``) adds the spreading weights
     ``p^2 (N + M)``, the FFT work ``P log2 P`` and the near pairs within ``r_cut``
     (counted with a k-d tree on at most ``_SAMPLE`` targets), over ``sigma`` on a
-    geometric grid from the bounding-box diagonal down to where the mesh cap binds.
+    geometric grid from the bounding-box diagonal down to where the mesh cap binds; the
+    least cost wins (the first of equals, orders then ``sigma`` from the largest).
+    The pairs are counted from the smallest cut-off up, ``_COUNT_BATCH`` cut-offs at a
+    time, and no longer once their cost alone exceeds the least found: every larger
+    cut-off has at least as many pairs (counting all 60 at once reached every pair of the
+    sample: 0.1-0.5 s of CPU for 6,933 tips, more than the rest of the choice).
     """
     from scipy.spatial import cKDTree
 
@@ -172,38 +179,59 @@ def choose_parameters(targets: np.ndarray, sources: np.ndarray, rtol: float) -> 
     x0 = np.minimum(boxes[0][0], boxes[1][0])
     diag = float(np.hypot(*(np.maximum(boxes[0][1], boxes[1][1]) - x0))) or 1.0
     sigmas = diag / alpha * 2.0 ** (-np.arange(0, 60) / 3.0)
-    # near pairs counted once for every candidate cut-off
+    meshes = _feasible_meshes(boxes, x0, sigmas, rtol)  # per order: the mesh sizes P, largest sigma first
     step = max(1, m // _SAMPLE)
-    sample = targets[::step]
-    radii = alpha * sigmas[::-1]  # ascending
-    counts = cKDTree(sample).count_neighbors(cKDTree(sources), radii)[::-1] * (m / len(sample))
-    best = None
+    sample, near = cKDTree(targets[::step]), cKDTree(sources)
+    scale = m / len(targets[::step])
+    pair_cost = _PAIR_APPLY + _PAIR_BUILD / _APPLIES_PER_BUILD
+    best = None  # (cost, order index, sigma index)
+    top = max(len(P) for P in meshes.values())
+    for start in range(top - 1, -1, -_COUNT_BATCH):  # sigma indices from the smallest sigma up
+        idx = np.arange(start, max(start - _COUNT_BATCH, -1), -1)
+        counts = sample.count_neighbors(near, alpha * sigmas[idx]) * scale
+        for i, npair in zip(idx, counts):
+            if best is not None and pair_cost * npair > best[0]:
+                break
+            for o, p in enumerate(ORDERS):
+                if i < len(meshes[p]):
+                    weights = p * p * (n + m)
+                    P = meshes[p][i]
+                    apply = _W_APPLY * weights + _FFT_APPLY * P * math.log2(P) + _PAIR_APPLY * npair
+                    build = _W_BUILD * weights + _FFT_BUILD * P * math.log2(P) + _PAIR_BUILD * npair
+                    key = (apply + build / _APPLIES_PER_BUILD, o, int(i))
+                    best = key if best is None or key < best else best
+        else:
+            continue
+        break
+    if best is None:  # cannot happen: the largest sigma gives a mesh of a few nodes
+        raise RuntimeError("no Ewald mesh fits under MESH_CAP")
+    p, sigma = ORDERS[best[1]], float(sigmas[best[2]])
+    h = lagrange_spacing(p, 0.5 * rtol)
+    return EwaldParameters(
+        sigma=sigma,
+        spacing=float(h * sigma),
+        order=p,
+        r_cut=float(alpha * sigma),
+        error_bound=float(erfc(alpha)) + lagrange_delta(p, h),
+    )
+
+
+def _feasible_meshes(boxes, x0: np.ndarray, sigmas: np.ndarray, rtol: float) -> dict:
+    """Per order ``p``: the padded FFT mesh sizes (nodes) for ``sigmas`` from the largest
+    down to the first whose mesh exceeds ``MESH_CAP`` (left out: every later one is larger)."""
+    out = {}
     for p in ORDERS:
         h = lagrange_spacing(p, 0.5 * rtol)
-        weights = p * p * (n + m)
-        for sigma, npair in zip(sigmas, counts):
+        sizes = []
+        for sigma in sigmas:
             (_, tshape), (_, sshape) = _meshes(boxes, x0, h * sigma, p)
             shape = _fft_shape(tshape, sshape)
             P = float(shape[0] * shape[1])
             if P > MESH_CAP:
-                break  # sigmas decrease: every later mesh is larger
-            apply = _W_APPLY * weights + _FFT_APPLY * P * math.log2(P) + _PAIR_APPLY * npair
-            build = _W_BUILD * weights + _FFT_BUILD * P * math.log2(P) + _PAIR_BUILD * npair
-            cost = apply + build / _APPLIES_PER_BUILD
-            if best is None or cost < best[0]:
-                best = (
-                    cost,
-                    EwaldParameters(
-                        sigma=float(sigma),
-                        spacing=float(h * sigma),
-                        order=p,
-                        r_cut=float(alpha * sigma),
-                        error_bound=float(erfc(alpha)) + lagrange_delta(p, h),
-                    ),
-                )
-    if best is None:  # cannot happen: the largest sigma gives a mesh of a few nodes
-        raise RuntimeError("no Ewald mesh fits under MESH_CAP")
-    return best[1]
+                break
+            sizes.append(P)
+        out[p] = sizes
+    return out
 
 
 def _long(r: np.ndarray, sigma: float) -> np.ndarray:
