@@ -520,3 +520,19 @@ def test_newton_steps_refined_single_precision_solve_is_a_double_precision_solve
     assert np.max(np.abs(single - exact)) > 1e-9 * np.max(np.abs(exact))  # the refinement is needed
     S = np.array([[1.0, 1.0], [1.0, 1.0]])
     assert np.allclose(_refined_solve(S, np.array([2.0, 0.0])), [0.5, 0.5])
+
+
+def test_sampled_operator_error_is_the_error_of_the_sampled_rows_written_out():
+    # the exact rows made a few at a time (300 rows: the last chunk short) give the error
+    # written out with the dense Boussinesq rows, the diagonal left out
+    from twoscale.macro.interaction import MatrixFreeInteraction, sampled_operator_error
+
+    tips, _, _ = lattice_scene(2100, seed=4)
+    P = np.where(np.arange(len(tips)) % 3 == 0, 1.0 + 0.01 * np.arange(len(tips)), 0.0)
+    T = MatrixFreeInteraction(HS.point_operator(tips, tips, rtol=1e-4), np.zeros(len(tips)))
+    got = sampled_operator_error(HS, tips, T, P, samples=300, seed=1)
+    rows = np.sort(np.random.default_rng(1).choice(len(tips), size=300, replace=False))
+    G = boussinesq_interaction(tips)[rows]
+    exact = G @ P
+    want = np.max(np.abs(T.operator.apply(P)[rows] - exact)) / np.max(np.abs(exact))
+    assert 1e-9 < want and got == pytest.approx(want, rel=1e-9)

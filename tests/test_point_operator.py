@@ -181,3 +181,35 @@ def test_choice_from_the_small_cut_offs_is_the_choice_from_all():
             boxes, x0, sigmas, counts * (len(pts) / len(sample)), 2 * len(pts), rtol, alpha, floor=0.0
         )
         assert hp.choose_parameters(pts, pts, rtol) == full[1]
+
+
+def test_the_parameters_are_those_of_every_cut_off_counted():
+    # the pairs counted from the smallest cut-off up, stopping where their cost alone
+    # exceeds the least found, choose what counting every cut-off (as written out here) does
+    from twoscale.influence import halfspace_points as hp
+
+    rng = np.random.default_rng(3)
+    for n, side, rtol in ((6000, 120.0, 1e-6), (3000, 8.0, 1e-4), (9000, 40.0, 1e-8)):
+        pts = rng.uniform(0.0, side, (n, 2)) * [1.0, 0.4]
+        alpha = float(hp.erfcinv(0.25 * rtol))
+        boxes = hp._boxes(pts, pts)
+        x0 = boxes[0][0]
+        sigmas = float(np.hypot(*(boxes[0][1] - x0))) / alpha * 2.0 ** (-np.arange(0, 60) / 3.0)
+        sample = pts[:: max(1, n // hp._SAMPLE)]
+        counts = cKDTree(sample).count_neighbors(cKDTree(pts), alpha * sigmas) * (n / len(sample))
+        best = None
+        for p in hp.ORDERS:
+            h = hp.lagrange_spacing(p, 0.5 * rtol)
+            for sigma, npair in zip(sigmas, counts):
+                (_, ts), (_, ss) = hp._meshes(boxes, x0, h * sigma, p)
+                P = float(np.prod(hp._fft_shape(ts, ss)))
+                if P > hp.MESH_CAP:
+                    break
+                fft = P * math.log2(P)
+                apply = hp._W_APPLY * p * p * 2 * n + hp._FFT_APPLY * fft + hp._PAIR_APPLY * npair
+                build = hp._W_BUILD * p * p * 2 * n + hp._FFT_BUILD * fft + hp._PAIR_BUILD * npair
+                cost = apply + build / hp._APPLIES_PER_BUILD
+                if best is None or cost < best[0]:
+                    best = (cost, p, float(sigma))
+        got = hp.choose_parameters(pts, pts, rtol)
+        assert (got.order, got.sigma) == (best[1], best[2])

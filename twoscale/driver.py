@@ -15,7 +15,7 @@ from __future__ import annotations
 import difflib
 import math
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Callable, Sequence
 
 import numpy as np
@@ -30,8 +30,8 @@ from .macro import solve_macro
 from .macro.start import MacroStart
 from .influence.separated import check_rtol
 from .micro.driver import fixed_choice, run_micro
-from .micro.problem import MicroProblem
-from .options import KEYWORDS, SolverOptions
+from .micro.problem import SIZING_RESIDUAL, MicroProblem
+from .options import KEYWORDS, MacroOptions, SolverOptions
 from .results import ContactResult, PressureField, summarise
 from .warm_start import WarmStart
 
@@ -206,21 +206,85 @@ def run_twoscale(
     z = np.array([a.z for a in asperities], dtype=float)
     if progress is not None:
         progress(f"macro step, {len(asperities)} asperities")
-    macro = solve_macro(provider, tips, z, laws, loading, macro_options, start=_macro_start(start, len(asperities)))
+    first = _first_stage(macro_options, len(asperities))
+    macro = solve_macro(provider, tips, z, laws, loading, first, start=_macro_start(start, len(asperities)))
     t1 = time.perf_counter()
     choice = _caller_choice(micro_options.iteration, micro_options.far_tol, run.coarse)
-    problem = MicroProblem.from_macro(
+    micro_start = start.micro if isinstance(start, WarmStart) else None
+    problem = _micro_problem(macro, h, loading, run.anchor, micro_start)
+    refine = None
+    if first is not macro_options:
+
+        def refine():
+            again = MacroStart(macro.forces, macro.penetration, macro.tilt)
+            full = _continued(macro, solve_macro(provider, tips, z, laws, loading, macro_options, start=again))
+            return full, _micro_problem(full, h, loading, run.anchor, micro_start)
+
+    micro, plan = run_micro(
+        provider, asperities, macro, problem, micro_options, choice=choice, progress=progress, refine=refine
+    )
+    t2 = time.perf_counter()
+    if plan.macro is not macro:  # refined inside the micro step: its time counts as the macro step's
+        t1 += float(plan.macro.timings_s["total"]) - float(macro.timings_s["total"])
+        macro = plan.macro
+    elif refine is not None:
+        macro = _first_stage_kept(macro)
+    return _result(asperities, macro, micro, plan, h, {"macro": t1 - t0, "micro": t2 - t1, "total": t2 - t0})
+
+
+#: Above this many asperities the macro step is staged: Newton stops first at the relative
+#: residual ``SIZING_RESIDUAL`` (the micro step's "near a solution"), and goes on to the
+#: macro tolerance only when the iteration chosen is not the union CG (``run_micro``'s
+#: ``refine``). The union CG solves every contact on the box and takes the macro forces as
+#: its patches and start only: 6,933 crowded spheres (merged contacts), Newton stopped at
+#: 9.6e-3 after 5 steps instead of stalling at 8.1e-3 after 9, gave it 39 iterations
+#: against 41, and the macro step 0.7-0.9 s of CPU against 1.35 s.
+STAGED_MIN_TIPS = 1000
+
+
+def _first_stage(options: MacroOptions, n: int) -> MacroOptions:
+    """The macro options of the first stage (``STAGED_MIN_TIPS``), or ``options`` itself."""
+    if n <= STAGED_MIN_TIPS or options.tol >= SIZING_RESIDUAL:
+        return options
+    return replace(options, tol=SIZING_RESIDUAL)
+
+
+def _first_stage_kept(macro):
+    """The first stage's macro result as the answer's macro step: not converged to the
+    macro tolerance, and saying so (a stall or an unstable equilibrium says so already)."""
+    if not macro.converged:
+        return macro
+    last = macro.residuals[-1] if len(macro.residuals) else 0.0
+    why = (
+        f"stopped at relative residual {last:.1e} (at most {SIZING_RESIDUAL:g}) after {macro.iterations} "
+        f"Newton steps: the union CG solves every contact on the box from it"
+    )
+    return replace(macro, converged=False, message=why)
+
+
+def _continued(first, full):
+    """The macro step ``full`` (started from the first stage's answer ``first``) with the
+    first stage's steps, residuals, Krylov iterations and time counted in."""
+    timings = {k: float(first.timings_s.get(k, 0.0)) + float(v) for k, v in full.timings_s.items()}
+    return replace(
+        full,
+        iterations=first.iterations + full.iterations,
+        residuals=tuple(first.residuals) + tuple(full.residuals[1:]),
+        krylov_iterations=first.krylov_iterations + full.krylov_iterations,
+        timings_s=timings,
+    )
+
+
+def _micro_problem(macro, h: float, loading: Loading, anchor: tuple, start) -> MicroProblem:
+    return MicroProblem.from_macro(
         macro,
         h=h,
         total_load=loading.total_load,
         free_tilt=loading.tilt,
         pivot=loading.pivot,
-        anchor=run.anchor,
-        start=start.micro if isinstance(start, WarmStart) else None,
+        anchor=anchor,
+        start=start,
     )
-    micro, plan = run_micro(provider, asperities, macro, problem, micro_options, choice=choice, progress=progress)
-    t2 = time.perf_counter()
-    return _result(asperities, macro, micro, plan, h, {"macro": t1 - t0, "micro": t2 - t1, "total": t2 - t0})
 
 
 def _macro_start(start, n: int):

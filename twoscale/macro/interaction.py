@@ -137,19 +137,29 @@ def krylov_newton_step(system, x: np.ndarray, r: np.ndarray) -> np.ndarray:
     return s
 
 
+#: Exact rows of the operator error check made at a time: 16 rows of 6,933 tips stay in
+#: the cache through the few passes that make them (the 256 rows at once: 0.10-0.12 s of
+#: CPU, by 16: 0.05 s, the same values).
+_ERROR_ROWS = 16
+
+
 def sampled_operator_error(
     provider, tips: np.ndarray, interaction: MatrixFreeInteraction, P: np.ndarray, *, samples: int = 256, seed: int = 0
 ) -> float:
     """Measured error of the fast product at the solution: ``max_i |(T P)_i - (T_exact P)_i|
     / max_i |(T_exact P)_i|`` over ``samples`` tips drawn at random (exact rows from
-    ``provider.point_compliance``; the diagonal is common to both and left out)."""
+    ``provider.point_compliance``, ``_ERROR_ROWS`` at a time; the diagonal is common to
+    both and left out)."""
     n = len(tips)
     rng = np.random.default_rng(seed)
     rows = np.sort(rng.choice(n, size=min(samples, n), replace=False))
-    G = np.array(provider.point_compliance(tips[rows], tips), dtype=float)
-    G[np.arange(len(rows)), rows] = 0.0
-    G[~np.isfinite(G)] = 0.0
-    exact = G @ P
+    exact = np.empty(len(rows))
+    for a in range(0, len(rows), _ERROR_ROWS):
+        part = rows[a : a + _ERROR_ROWS]
+        G = np.array(provider.point_compliance(tips[part], tips), dtype=float)
+        G[np.arange(len(part)), part] = 0.0
+        G[~np.isfinite(G)] = 0.0
+        exact[a : a + len(part)] = G @ P
     fast = interaction.operator.apply(P)[rows]
     scale = float(np.max(np.abs(exact)))
     return float(np.max(np.abs(fast - exact))) / scale if scale > 0 else 0.0

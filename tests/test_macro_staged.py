@@ -1,0 +1,53 @@
+"""The staged macro step of many asperities (``twoscale.driver.STAGED_MIN_TIPS``): Newton
+stops at the sizing residual, and goes on to the macro tolerance only when the micro step
+is not the union CG."""
+
+import numpy as np
+import pytest
+
+from helpers import spaced_spheres
+from twoscale import Material
+from twoscale.driver import solve_twoscale
+from twoscale.influence import HalfSpace
+from twoscale.micro.problem import SIZING_RESIDUAL
+
+HS = HalfSpace(Material(E=10.0, nu=0.5))
+
+
+@pytest.mark.parametrize("load", [{"penetration": 0.06}, {"total_load": 3.0}])
+def test_the_union_cg_starts_from_the_first_stage_and_gives_the_same_forces(monkeypatch, load):
+    import twoscale.driver as driver
+
+    asps = spaced_spheres(20, 4, 10.0)
+    whole = solve_twoscale(HS, asps, h=0.05, iteration="union-cg", tol=1e-9, **load)
+    monkeypatch.setattr(driver, "STAGED_MIN_TIPS", 1)
+    staged = solve_twoscale(HS, asps, h=0.05, iteration="union-cg", tol=1e-9, **load)
+    full, first = whole.residuals["macro"], staged.residuals["macro"]
+    # the first stage stopped at the sizing residual, short of the macro tolerance, and says so
+    assert whole.details.macro.converged and full[-1] <= 1e-10
+    assert first[-1] <= SIZING_RESIDUAL < first[-2] and len(first) < len(full)
+    assert not staged.details.macro.converged
+    assert "stopped at relative residual" in staged.message
+    assert staged.converged, staged.message
+    F, Fw = np.asarray(staged.asperities.forces), np.asarray(whole.asperities.forces)
+    assert np.max(np.abs(F - Fw)) <= 1e-6 * Fw.max()
+
+
+@pytest.mark.parametrize("iteration", ["block-gs", "two-level"])
+def test_the_block_iterations_get_the_macro_step_to_its_tolerance(monkeypatch, iteration):
+    import twoscale.driver as driver
+
+    asps = spaced_spheres(20, 4, 10.0)
+    whole = solve_twoscale(HS, asps, h=0.05, penetration=0.06, iteration=iteration)
+    monkeypatch.setattr(driver, "STAGED_MIN_TIPS", 1)
+    res = solve_twoscale(HS, asps, h=0.05, penetration=0.06, iteration=iteration)
+    assert res.details.macro.converged and res.residuals["macro"][-1] <= 1e-10
+    assert res.converged, res.message
+    assert "macro step" not in res.message
+    # the second stage goes on from the first: both stages' steps counted, the same path
+    history = res.residuals["macro"]
+    assert history[0] > SIZING_RESIDUAL and len(history) == res.iterations["macro"] + 1
+    assert res.iterations["macro"] == whole.iterations["macro"]
+    assert np.allclose(history, whole.residuals["macro"], rtol=1e-6, atol=1e-14)
+    F, Fw = np.asarray(res.asperities.forces), np.asarray(whole.asperities.forces)
+    assert np.max(np.abs(F - Fw)) <= 1e-5 * Fw.max()  # patches sized by the first stage: the micro tolerance
