@@ -137,6 +137,13 @@ SAMPLE_BATCH = 1 << 20
 SAMPLE_MIN_BATCH = 8
 
 
+def sampled_in_batches(grid: Grid) -> bool:
+    """Whether :func:`surface_on` samples plain asperities on ``grid`` together, in batches
+    of ``SAMPLE_BATCH // grid.size`` (at least :data:`SAMPLE_MIN_BATCH`), rather than each on
+    its own window."""
+    return SAMPLE_BATCH // grid.size >= SAMPLE_MIN_BATCH
+
+
 def _sample_batch(X: np.ndarray, Y: np.ndarray, batch: list, height: np.ndarray, owner: np.ndarray) -> None:
     """Plain spheres and paraboloids ``batch`` (pairs (index, Asperity)) sampled on every
     cell at once (:func:`sample_tips`), into ``height`` and ``owner`` where lower (on a tie
@@ -216,7 +223,7 @@ def surface_on(grid: Grid, asperities: Sequence[Asperity], tilt: Tilt | None = N
         else:
             singles.append(k)
     batch = SAMPLE_BATCH // grid.size
-    if batch >= SAMPLE_MIN_BATCH and all(type(asperities[k]) is Asperity for k in singles):
+    if sampled_in_batches(grid) and all(type(asperities[k]) is Asperity for k in singles):
         for b in range(0, len(singles), batch):
             _sample_batch(X, Y, [(k, asperities[k]) for k in singles[b : b + batch]], height, owner)
         singles = []

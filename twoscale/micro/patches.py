@@ -16,7 +16,7 @@ from collections.abc import Sequence
 import numpy as np
 
 from ..grid import Grid
-from ..indenters import SAMPLE_BATCH, SAMPLE_MIN_BATCH, Asperity, TipArrays, sample_tips, surface_on
+from ..indenters import SAMPLE_BATCH, Asperity, TipArrays, sample_tips, sampled_in_batches, surface_on
 
 
 @dataclass(frozen=True)
@@ -179,7 +179,7 @@ def highest_over(grid: Grid, owners: Sequence[Asperity]) -> float:
     One plain sphere or paraboloid is highest at the cell centre farthest from its tip:
     that cell alone is sampled, by the arithmetic :func:`surface_on` uses on such a grid
     (sampling the whole grid was half of building a patch)."""
-    if len(owners) == 1 and type(owners[0]) is Asperity and grid.size <= SAMPLE_BATCH // SAMPLE_MIN_BATCH:
+    if len(owners) == 1 and type(owners[0]) is Asperity and sampled_in_batches(grid):
         a = owners[0]
         xs, ys = grid.x[[0, -1]], grid.y[[0, -1]]
         dx2, dy2 = (xs - a.x) ** 2, (ys - a.y) ** 2
@@ -215,7 +215,7 @@ def make_patch(
     """
     if keep is None:
         keep = patch_candidates(grid, asperities, members or (k,))
-    if isinstance(asperities, TipTable) and SAMPLE_BATCH // grid.size >= SAMPLE_MIN_BATCH and asperities.plain:
+    if isinstance(asperities, TipTable) and sampled_in_batches(grid) and asperities.plain:
         # the batches surface_on samples, from the table's arrays: no asperity objects and
         # no cell-centre meshes (1,572 patches of 1,485 clustered spheres: half their CPU)
         height, owner = asperities.sample(grid, np.asarray(keep, dtype=np.int64))
