@@ -28,6 +28,7 @@ class WorkingSet:
         # ``rebuild(patches)``: a new product engine, where patches may be merged as they go
         self.rebuild = rebuild
         self.dense_max_cells = dense_max_cells
+        self._owned_cells: dict = {}  # id(patch) -> (patch, owned heights, X, Y): :meth:`heights`
         self.patches = list(patches)
         blocks = [None] * len(self.patches) if blocks is None else list(blocks)
         self.blocks = [
@@ -43,8 +44,22 @@ class WorkingSet:
         return np.array([[a.x, a.y] for a in self.asperities], dtype=float).reshape(-1, 2)
 
     def heights(self, theta, pivot):
-        """Indenter height with tilt on every block (list of (n_k,) arrays), mm."""
-        return heights(self.patches, theta, pivot)
+        """Indenter height with tilt on every block (list of (n_k,) arrays), mm: the
+        module's :func:`heights` with each patch's owned heights and cell centres kept
+        while the patch is the same object (asked at every sweep: 4,548 patches' centres
+        made again each time were 0.3 s a call)."""
+        tilt = Tilt(theta[1], theta[2], pivot)
+        kept = self._owned_cells
+        out, now = [], {}
+        for pt in self.patches:
+            hit = kept.get(id(pt))
+            if hit is None or hit[0] is not pt:
+                X, Y = pt.grid.centres()
+                hit = (pt, pt.height[pt.owned], X[pt.owned], Y[pt.owned])
+            now[id(pt)] = hit
+            out.append(hit[1] + tilt.height(hit[2], hit[3]))
+        self._owned_cells = now
+        return out
 
     def patch_of(self) -> dict:
         """Index of the patch holding each asperity that has one."""
