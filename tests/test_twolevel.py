@@ -283,3 +283,41 @@ def test_a_fallback_attempt_takes_the_first_pressures_its_context_kept(monkeypat
     assert all(p is q for p, q in zip(first.p0, again.p0))
     fresh = block_setup(MicroContext(HS, asp, problem, patches=patches), Exact(), held=False, merge=False)
     assert all(np.array_equal(p, q) for p, q in zip(first.p0, fresh.p0)) and solved == [len(patches)] * 2
+
+
+def test_a_grown_block_keeps_its_coarse_shape_on_the_same_contact(monkeypatch):
+    # s_k = A_SS^-1 1 depends on the active cells only: a patch grown around the same
+    # contact carries its block's shape over (zero on the new cells), the next coarse
+    # step solves nothing for it, and the carried shape solves the grown block's system
+    import scipy.sparse as sp
+    from twoscale.micro.blocks import scatter
+    from twoscale.micro.couplings import FarField
+    from twoscale.micro.localblock import LocalBlock
+    from twoscale.micro.sampling import build_patches
+    from twoscale.micro.workset import WorkingSet
+
+    asp = spaced_spheres(2, 2, 12.0)
+    patches = build_patches(
+        asp, h=0.05, forces=np.full(2, np.inf), approaches=np.full(2, 0.06), E_star=MAT.E_star, anchor=(0.0, 0.0)
+    )
+    engine = FarField(0.3).build(HS, patches, held=True, dense_max_entries=40_000, separated_rtol=None)
+    state = WorkingSet(HS, asp, patches, engine, dense_max_cells=10)  # FFT blocks: shapes by CG
+    p = [np.maximum(asp[pt.asperity].z + 0.02 - pt.height[pt.owned], 0.0) for pt in patches]
+    tips = np.array([[asp[pt.asperity].x, asp[pt.asperity].y] for pt in patches])
+    space = CoarseSpace(HS, tips, sp.csr_matrix((2, 2)))
+    before = space._shape(state.blocks[0], p[0] > 0)
+    old = state.patches[0]
+    state.grow(0, (True, True, True, True), [p])
+    blk, new = state.blocks[0], state.patches[0]
+    assert blk.n > len(before) and not blk.dense
+    assert scatter(new, blk.coarse_shape[1]).sum() == pytest.approx(before.sum(), rel=1e-12)
+    np.testing.assert_array_equal(blk.coarse_shape[0], p[0] > 0)
+    calls = []
+    monkeypatch.setattr(LocalBlock, "solve", lambda self, *a, **k: calls.append(self))
+    s = CoarseSpace(HS, tips, sp.csr_matrix((2, 2)))._shape(blk, p[0] > 0)
+    assert calls == [] and s is blk.coarse_shape[1]
+    monkeypatch.undo()
+    active = p[0] > 0
+    fresh = blk.solve(active, np.ones(int(active.sum())), rtol=1e-10)
+    assert np.max(np.abs(s[active] - fresh)) <= 1e-3 * np.max(fresh)
+    assert old.grid.size < new.grid.size  # grown on all four sides

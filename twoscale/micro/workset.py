@@ -92,7 +92,14 @@ class WorkingSet:
         for vec in vectors:
             vec[k] = transfer(old, new, scatter(old, vec[k]))[new.owned]
         self.patches[k] = new
-        self.blocks[k] = LocalBlock(self.provider, new, dense_max_cells=self.dense_max_cells)
+        blk = LocalBlock(self.provider, new, dense_max_cells=self.dense_max_cells)
+        kept = self.blocks[k].coarse_shape
+        if kept is not None:
+            # the coarse step's shape A_SS^-1 1 depends on the active cells, not on the patch
+            # around them: carried over, it is solved again only where the set moves
+            active, shape = (transfer(old, new, scatter(old, v.astype(float)))[new.owned] for v in kept)
+            blk.coarse_shape = (active > 0.0, shape)
+        self.blocks[k] = blk
         self.coupling.replace(k, new)
 
     def regroup(self, groups: list, vectors: list) -> None:
