@@ -12,6 +12,9 @@ _MIN_STEP = 2.0**-40
 #: A stagnation check (``stall``) applies only once the relative residual is below this:
 #: farther out, Newton's global phase may take several slow steps before it converges.
 STALL_RESIDUAL = 1e-2
+#: A plateau (``plateau``): the relative residual fell by less than this fraction over the
+#: window, at any level (8 spheres with merged contacts: 18 steps within 1e-4 of 1.14e-2).
+PLATEAU_DROP = 1e-2
 
 
 @dataclass(frozen=True)
@@ -36,6 +39,7 @@ def newton(
     max_iter: int,
     project: Callable[[np.ndarray], np.ndarray] = lambda x: x,
     stall: int | None = None,
+    plateau: int | None = None,
 ) -> NewtonOutcome:
     """Solve ``residual(x) = 0`` by Newton with backtracking.
 
@@ -58,6 +62,11 @@ def newton(
         ``STALL_RESIDUAL`` ``stall`` steps ago, has not halved since: near a solution
         Newton converges fast or not at all (a kink of the semismooth residual, an
         indefinite Jacobian where contacts merge). None: no such stop.
+    plateau : int or None, default None
+        Stop (not converged) when the relative residual has not fallen by ``PLATEAU_DROP``
+        of itself in ``plateau`` steps, at any level: Newton sits at a stationary point of
+        the residual's norm that is no solution (merged contacts), where each further step
+        costs a line search. None: no such stop.
 
     Notes
     -----
@@ -95,6 +104,9 @@ def newton(
         if stall is not None and _stagnates(history, stall) and not norm <= tol * scale(x):
             msg = f"Newton stagnated at step {it + 1}: relative residual {history[-1]:.3e}, not halved in {stall} steps"
             return NewtonOutcome(x, r, False, msg, it + 1, tuple(history))
+        if plateau is not None and _flat(history, plateau) and not norm <= tol * scale(x):
+            msg = f"Newton stagnated at step {it + 1}: relative residual {history[-1]:.3e}, down by under {PLATEAU_DROP:.0%} in {plateau} steps"
+            return NewtonOutcome(x, r, False, msg, it + 1, tuple(history))
     msg = f"not converged after max_iter={max_iter} Newton steps: relative residual {history[-1]:.3e} > tol={tol:.1e}"
     return NewtonOutcome(x, r, False, msg, max_iter, tuple(history))
 
@@ -104,6 +116,10 @@ def _stagnates(history: list, window: int) -> bool:
         return False
     before = history[-1 - window]
     return before <= STALL_RESIDUAL and history[-1] > 0.5 * before
+
+
+def _flat(history: list, window: int) -> bool:
+    return len(history) > window and history[-1] > (1.0 - PLATEAU_DROP) * history[-1 - window]
 
 
 def _relative(norm: float, scale: float) -> float:
