@@ -12,8 +12,12 @@ _MIN_STEP = 2.0**-40
 #: A stagnation check (``stall``) applies only once the relative residual is below this:
 #: farther out, Newton's global phase may take several slow steps before it converges.
 STALL_RESIDUAL = 1e-2
-#: A plateau (``plateau``): the relative residual fell by less than this fraction over the
-#: window, at any level (8 spheres with merged contacts: 18 steps within 1e-4 of 1.14e-2).
+#: A plateau (``plateau``): the relative residual, at most ``PLATEAU_RESIDUAL`` at the
+#: window's start, fell by less than ``PLATEAU_DROP`` of itself over the window (8 spheres
+#: with merged contacts: 18 steps within 1e-4 of 1.14e-2). Above that level the residual
+#: of a cold start under penetration control sits at its cap of 1 for several steps
+#: before Newton converges (39 spheres: 1.0, 0.9997, 1.0, 0.96, 1.0, 0.60, ..., 13 steps).
+PLATEAU_RESIDUAL = 0.1
 PLATEAU_DROP = 1e-2
 
 
@@ -63,10 +67,11 @@ def newton(
         Newton converges fast or not at all (a kink of the semismooth residual, an
         indefinite Jacobian where contacts merge). None: no such stop.
     plateau : int or None, default None
-        Stop (not converged) when the relative residual has not fallen by ``PLATEAU_DROP``
-        of itself in ``plateau`` steps, at any level: Newton sits at a stationary point of
-        the residual's norm that is no solution (merged contacts), where each further step
-        costs a line search. None: no such stop.
+        Stop (not converged) when the relative residual, at most ``PLATEAU_RESIDUAL``
+        ``plateau`` steps ago, has not fallen by ``PLATEAU_DROP`` of itself since (above
+        ``STALL_RESIDUAL`` too): Newton sits at a stationary point of the residual's norm
+        that is no solution (merged contacts), where each further step costs a line
+        search. None: no such stop.
 
     Notes
     -----
@@ -119,7 +124,10 @@ def _stagnates(history: list, window: int) -> bool:
 
 
 def _flat(history: list, window: int) -> bool:
-    return len(history) > window and history[-1] > (1.0 - PLATEAU_DROP) * history[-1 - window]
+    if len(history) <= window:
+        return False
+    before = history[-1 - window]
+    return before <= PLATEAU_RESIDUAL and history[-1] > (1.0 - PLATEAU_DROP) * before
 
 
 def _relative(norm: float, scale: float) -> float:
