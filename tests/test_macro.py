@@ -454,7 +454,7 @@ def test_newton_stops_where_it_stagnates_near_a_solution_and_only_there():
     # steps, 11 s of CPU, the residual stuck at 3.3e-4 from step 11): a step that removes a
     # tenth of the residual stagnates; far from a solution (relative residual above
     # STALL_RESIDUAL) the same slow steps go on, and plain Newton converges as before
-    from twoscale.macro.newton import STALL_RESIDUAL, newton
+    from twoscale.macro.newton import STALL_RESIDUAL, Stops, newton
 
     def run(x0, factor, stall):
         return newton(
@@ -464,7 +464,7 @@ def test_newton_stops_where_it_stagnates_near_a_solution_and_only_there():
             scale=lambda x: 1.0,
             tol=1e-10,
             max_iter=60,
-            stall=stall,
+            stops=Stops(stall=stall),
         )
 
     slow = run(0.02, 0.1, 4)
@@ -485,7 +485,7 @@ def test_newton_hands_over_on_a_plateau_above_the_stall_level():
     # stops after 4 steps; 5 % a step (19 % in 4) goes on to max_iter; above
     # PLATEAU_RESIDUAL (a cold start's residual at its cap of 1) the slow steps go on too;
     # plain Newton converges as before
-    from twoscale.macro.newton import PLATEAU_DROP, PLATEAU_RESIDUAL, STALL_RESIDUAL, newton
+    from twoscale.macro.newton import PLATEAU_DROP, PLATEAU_RESIDUAL, STALL_RESIDUAL, Stops, newton
 
     def run(factor, plateau, x0=0.05):
         return newton(
@@ -495,7 +495,7 @@ def test_newton_hands_over_on_a_plateau_above_the_stall_level():
             scale=lambda x: 1.0,
             tol=1e-10,
             max_iter=30,
-            plateau=plateau,
+            stops=Stops(plateau=plateau),
         )
 
     flat = run(0.002, 4)

@@ -22,6 +22,28 @@ PLATEAU_DROP = 1e-2
 
 
 @dataclass(frozen=True)
+class Stops:
+    """When Newton stops short of the tolerance (:func:`newton`'s ``stops``).
+
+    Attributes
+    ----------
+    stall : int or None
+        Stop when the relative residual, already below ``STALL_RESIDUAL`` ``stall`` steps
+        ago, has not halved since: near a solution Newton converges fast or not at all (a
+        kink of the semismooth residual, an indefinite Jacobian where contacts merge).
+    plateau : int or None
+        Stop when the relative residual, at most ``PLATEAU_RESIDUAL`` ``plateau`` steps
+        ago, has not fallen by ``PLATEAU_DROP`` of itself since (above ``STALL_RESIDUAL``
+        too): Newton sits at a stationary point of the residual's norm that is no solution
+        (merged contacts), where each further step costs a line search.
+    None: no such stop.
+    """
+
+    stall: int | None = None
+    plateau: int | None = None
+
+
+@dataclass(frozen=True)
 class NewtonOutcome:
     """Where the iteration stopped: unknowns, residual, and how it got there."""
 
@@ -42,8 +64,7 @@ def newton(
     tol: float,
     max_iter: int,
     project: Callable[[np.ndarray], np.ndarray] = lambda x: x,
-    stall: int | None = None,
-    plateau: int | None = None,
+    stops: Stops = Stops(),
 ) -> NewtonOutcome:
     """Solve ``residual(x) = 0`` by Newton with backtracking.
 
@@ -61,17 +82,8 @@ def newton(
     project : callable, x -> x, default identity
         Projection onto the admissible set, applied along the search path
         ``project(x + t s)`` (here: forces >= 0).
-    stall : int or None, default None
-        Stop (not converged) when the relative residual, already below
-        ``STALL_RESIDUAL`` ``stall`` steps ago, has not halved since: near a solution
-        Newton converges fast or not at all (a kink of the semismooth residual, an
-        indefinite Jacobian where contacts merge). None: no such stop.
-    plateau : int or None, default None
-        Stop (not converged) when the relative residual, at most ``PLATEAU_RESIDUAL``
-        ``plateau`` steps ago, has not fallen by ``PLATEAU_DROP`` of itself since (above
-        ``STALL_RESIDUAL`` too): Newton sits at a stationary point of the residual's norm
-        that is no solution (merged contacts), where each further step costs a line
-        search. None: no such stop.
+    stops : Stops, default none
+        Stops short of ``tol`` where Newton stagnates (:class:`Stops`).
 
     Notes
     -----
@@ -106,6 +118,7 @@ def newton(
                 return NewtonOutcome(x, r, False, msg, it, tuple(history))
         x, r, norm = x_new, r_new, norm_new
         history.append(_relative(norm, scale(x)))
+        stall, plateau = stops.stall, stops.plateau
         if stall is not None and _stagnates(history, stall) and not norm <= tol * scale(x):
             msg = f"Newton stagnated at step {it + 1}: relative residual {history[-1]:.3e}, not halved in {stall} steps"
             return NewtonOutcome(x, r, False, msg, it + 1, tuple(history))

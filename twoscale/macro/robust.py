@@ -26,7 +26,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.optimize import minimize
 
-from .newton import NewtonOutcome, newton
+from .newton import NewtonOutcome, Stops, newton
 from .system import MacroSystem
 
 _ARMIJO = 1e-4
@@ -75,8 +75,7 @@ def run_newton(
         tol=tol,
         max_iter=max_iter,
         project=lambda x: project(x, n),
-        stall=stall,
-        plateau=plateau,
+        stops=Stops(stall, plateau),
     )
 
 
