@@ -249,3 +249,21 @@ def test_sphere_energy_by_parts_equals_the_generic_quadrature():
     P = 3.0 * (a * a * np.arctanh(a / 4.0) + 16.0 * (np.arctanh(a / 4.0) - a / 4.0))  # Segedin
     own, generic = law.complementary_energy(P), AsperityLaw.complementary_energy(law, P)
     assert np.allclose(own, generic, rtol=1e-10, atol=0.0)
+
+
+def test_sphere_law_keeps_its_last_inversion_from_the_load_exactly():
+    # the safe path asks for the energy and then the penetration at the same forces: the
+    # second reuses the first's contact radii, with the values of a fresh law, and a
+    # change of any force (or a caller writing into a result) does not reach the kept ones
+    R, E = np.array([0.7, 0.9, 1.1]), 2.0
+    law = SphereLaw(R, E)
+    P = np.array([0.01, 0.05, 0.2])
+    law.complementary_energy(P)
+    first = law.penetration(P)
+    assert np.array_equal(first, SphereLaw(R, E).penetration(P))
+    first[:] = -1.0
+    assert np.array_equal(law.penetration(P), SphereLaw(R, E).penetration(P))
+    Q = P.copy()
+    Q[1] *= 2.0
+    assert np.array_equal(law.penetration(Q), SphereLaw(R, E).penetration(Q))
+    assert law.penetration(Q)[1] > law.penetration(P)[1]

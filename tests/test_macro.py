@@ -454,7 +454,7 @@ def test_newton_stops_where_it_stagnates_near_a_solution_and_only_there():
     # steps, 11 s of CPU, the residual stuck at 3.3e-4 from step 11): a step that removes a
     # tenth of the residual stagnates; far from a solution (relative residual above
     # STALL_RESIDUAL) the same slow steps go on, and plain Newton converges as before
-    from twoscale.macro.newton import STALL_RESIDUAL, newton
+    from twoscale.macro.newton import STALL_RESIDUAL, Stops, newton
 
     def run(x0, factor, stall):
         return newton(
@@ -464,7 +464,7 @@ def test_newton_stops_where_it_stagnates_near_a_solution_and_only_there():
             scale=lambda x: 1.0,
             tol=1e-10,
             max_iter=60,
-            stall=stall,
+            stops=Stops(stall=stall),
         )
 
     slow = run(0.02, 0.1, 4)
@@ -476,6 +476,38 @@ def test_newton_stops_where_it_stagnates_near_a_solution_and_only_there():
     assert fast.converged and fast.iterations == 1
     halving = run(0.02, 0.2, 4)  # 0.8 a step: halves within 4 steps, never stagnates
     assert halving.iterations == 60 and "stagnated" not in halving.message
+
+
+def test_newton_hands_over_on_a_plateau_above_the_stall_level():
+    # up to SAFE_PATH_MAX_TIPS a Newton whose residual, at most PLATEAU_RESIDUAL, falls by
+    # under PLATEAU_DROP in ``plateau`` steps stops, above STALL_RESIDUAL too (8 spheres with
+    # merged contacts sat at 1.14e-2 for 18 steps before the safe path): 0.2 % a step
+    # stops after 4 steps; 5 % a step (19 % in 4) goes on to max_iter; above
+    # PLATEAU_RESIDUAL (a cold start's residual at its cap of 1) the slow steps go on too;
+    # plain Newton converges as before
+    from twoscale.macro.newton import PLATEAU_DROP, PLATEAU_RESIDUAL, STALL_RESIDUAL, Stops, newton
+
+    def run(factor, plateau, x0=0.05):
+        return newton(
+            lambda x: x.copy(),
+            lambda x, r: -factor * r,
+            np.array([x0]),
+            scale=lambda x: 1.0,
+            tol=1e-10,
+            max_iter=30,
+            stops=Stops(plateau=plateau),
+        )
+
+    flat = run(0.002, 4)
+    assert not flat.converged and "stagnated" in flat.message and flat.iterations == 4
+    h = flat.residuals
+    assert STALL_RESIDUAL < h[-1] <= PLATEAU_RESIDUAL and h[-1] > (1.0 - PLATEAU_DROP) * h[0]
+    assert run(0.002, None).iterations == 30  # without the check: to max_iter
+    assert run(0.05, 4).iterations == 30 and "stagnated" not in run(0.05, 4).message
+    high = run(0.002, 4, x0=2.0 * PLATEAU_RESIDUAL)
+    assert high.iterations == 30 and "stagnated" not in high.message
+    fast = run(1.0, 4)
+    assert fast.converged and fast.iterations == 1
 
 
 def test_two_thousand_tips_go_matrix_free_by_default_with_the_dense_forces():

@@ -120,3 +120,21 @@ def test_single_precision_directions_converge_with_the_tilt():
     assert one.iterations["cg"] <= mixed.iterations["cg"] + 10
     p, pm = one.pressure_on(grid), mixed.pressure_on(grid)
     assert np.linalg.norm(p - pm) <= 1e-6 * np.linalg.norm(pm)
+
+
+def test_union_box_grows_only_on_the_sides_the_pressure_reaches():
+    # seven tilted spheres passed one side of their box by 4 cells: grown about its centre
+    # the box had 2.25x the cells; grown on that side alone, 1.25x
+    from twoscale.grid import Grid
+    from twoscale.micro.union import grown_box
+
+    box = Grid(1.0, -2.0, 0.5, 40, 20)
+    p = np.zeros(box.shape)
+    p[5:9, -1] = 1.0  # the right edge only
+    right = grown_box(box, p)
+    assert (right.ny, right.nx) == (20, 50) and (right.x0, right.y0) == (box.x0, box.y0)
+    assert box.window_in(right) == (slice(0, 20), slice(0, 40))
+    p[0, 3] = p[-1, 3] = p[7, 0] = 1.0  # every side
+    every = grown_box(box, p)
+    assert (every.ny, every.nx) == (30, 60) and every.x0 == box.x0 - 10 * 0.5 and every.y0 == box.y0 - 5 * 0.5
+    assert box.offset_in(every) == (10, 5)

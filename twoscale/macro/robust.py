@@ -26,7 +26,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.optimize import minimize
 
-from .newton import NewtonOutcome, newton
+from .newton import NewtonOutcome, Stops, newton
 from .system import MacroSystem
 
 _ARMIJO = 1e-4
@@ -62,9 +62,10 @@ def run_newton(
     max_iter: int,
     scale_floor: float = 0.0,
     stall: int | None = None,
+    plateau: int | None = None,
 ) -> NewtonOutcome:
     """Projected, backtracking Newton on ``system`` from ``x0`` (``stall``: stop when it
-    stagnates near a solution, :func:`.newton.newton`)."""
+    stagnates near a solution, ``plateau``: anywhere, :func:`.newton.newton`)."""
     n = system.n
     return newton(
         system.residual,
@@ -74,7 +75,7 @@ def run_newton(
         tol=tol,
         max_iter=max_iter,
         project=lambda x: project(x, n),
-        stall=stall,
+        stops=Stops(stall, plateau),
     )
 
 

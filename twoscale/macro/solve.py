@@ -35,6 +35,12 @@ SAFE_PATH_MAX_TIPS = 1000
 #: forces near a solution to size the patches).
 STALL_STEPS = 4
 
+#: Up to ``SAFE_PATH_MAX_TIPS`` Newton hands over to the safe path when its residual has
+#: not fallen by 1 % in this many steps (:func:`.newton.newton`'s ``plateau``), at any
+#: level: 8 spheres with merged contacts sat at 1.14e-2 from step 2 to step 20, 0.33 s of
+#: a 0.41 s macro step, the safe path then converging from the cold start as before.
+PLATEAU_STEPS = 4
+
 
 def solve_macro(
     provider: InfluenceProvider,
@@ -170,7 +176,9 @@ def _newton_then_safe(system: MacroSystem, x0: np.ndarray, *, tol: float, max_it
     whether the safe path was taken)."""
     W = float(system.e[0]) if system.e.size else 0.0
     stall = STALL_STEPS if system.n > SAFE_PATH_MAX_TIPS else None
-    fast = run_newton(system, x0, tol=tol, max_iter=min(max_iter, FAST_STEPS), scale_floor=W, stall=stall)
+    plateau = PLATEAU_STEPS if system.n <= SAFE_PATH_MAX_TIPS else None
+    steps = min(max_iter, FAST_STEPS)
+    fast = run_newton(system, x0, tol=tol, max_iter=steps, scale_floor=W, stall=stall, plateau=plateau)
     if fast.converged and system.stable(fast.x):
         return fast.x, True, fast.message, fast.iterations, fast.residuals, False
     if not fast.converged and fast.iterations >= max_iter:
