@@ -50,6 +50,32 @@ def test_the_blocks_invert_the_stones_exactly_and_couple_them_by_their_centroids
     assert np.count_nonzero(got.ravel()[~on.ravel()]) == 0
 
 
+def test_the_blocks_on_a_part_of_the_grid_apply_as_on_the_grid():
+    """``on_part(cells)`` (the CG's part: rows of those cells in and out) gives the grid's
+    answer on the part, for a first build and for cells entering since it (the kernel's
+    diagonal on those), and after the grid's application (rebuilt for the other rows)."""
+    g = Grid(-1.0, -0.8, 0.1, 20, 16)
+    owner = np.zeros(g.shape, int)
+    owner[:, 10:] = 1
+    rng = np.random.default_rng(5)
+    part = np.flatnonzero(rng.random(g.size) < 0.6)
+    on = np.zeros(g.size, bool)
+    on[part[rng.random(part.size) < 0.5]] = True
+    more = on.copy()
+    more[part[~on[part]][:3]] = True  # three cells enter: no rebuild
+    gap = rng.standard_normal(g.size)
+    surface = Surface(g, np.zeros(g.shape), owner, 2)
+    grid, rows = StoneBlocks(KeptBody(HS))(surface), StoneBlocks(KeptBody(HS))(surface).on_part(part)
+    for loaded in (on, more):
+        want = grid.apply((gap * loaded).reshape(g.shape), loaded.reshape(g.shape)).ravel()
+        got = rows(gap[part] * loaded[part], loaded[part])
+        assert np.count_nonzero(want) == np.count_nonzero(loaded)
+        assert np.array_equal(got, want[part])
+    mixed = StoneBlocks(KeptBody(HS))(surface)
+    mixed.apply((gap * on).reshape(g.shape), on.reshape(g.shape))
+    assert np.array_equal(mixed.on_part(part)(gap[part] * on[part], on[part]), rows(gap[part] * on[part], on[part]))
+
+
 def test_a_stone_kept_across_positions_is_updated_to_its_new_cells():
     """A stone of ~200 loaded cells (a disc) rolled by 3 cells between two solves, gaining
     two cells and losing two: its kept inverse updated by the Schur complements applies

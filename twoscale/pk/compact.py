@@ -75,9 +75,15 @@ class Part:
         return on_part
 
     def precondition(self, pc: Callable | None) -> Callable | None:
-        """The preconditioner ``pc(v, on)`` (grid rows) on the part's rows."""
+        """The preconditioner ``pc(v, on)`` (grid rows) on the part's rows: its own
+        ``pc.on_part(cells)`` when it has one (rows of the part's cells in and out, no grid
+        pass), else scattered to the grid and gathered back."""
         if pc is None:
             return None
+        own = getattr(pc, "on_part", None)
+        direct = None if own is None else own(self.cells)
+        if direct is not None:
+            return direct
 
         def on_part(v: np.ndarray, on: np.ndarray) -> np.ndarray:
             b = len(v)

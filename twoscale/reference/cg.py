@@ -286,9 +286,28 @@ def _preconditioner(cg: CGSettings, custom, op):
     if not cg.precondition:
         return None
     if custom is not None:
-        return lambda v, on: custom.apply(v[0], on[0])[None]
+        return _Custom(custom)
     inverse = op.preconditioner()
     return None if inverse is None else (lambda v, on: inverse.apply(v[0])[None])
+
+
+class _Custom:
+    """``precondition(v, on)`` by a caller's preconditioner (one row), and on a part of the
+    grid by the preconditioner's own ``on_part(cells)`` if it has one
+    (:meth:`twoscale.pk.compact.Part.precondition`)."""
+
+    def __init__(self, custom):
+        self.custom = custom
+
+    def __call__(self, v: np.ndarray, on: np.ndarray) -> np.ndarray:
+        return self.custom.apply(v[0], on[0])[None]
+
+    def on_part(self, cells: np.ndarray) -> Callable | None:
+        own = getattr(self.custom, "on_part", None)
+        if own is None:
+            return None
+        apply = own(cells)
+        return lambda v, on: apply(v[0], on[0])[None]
 
 
 def _cropped(problem: ContactProblem) -> ContactProblem:

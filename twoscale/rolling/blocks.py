@@ -32,6 +32,7 @@ stone's block of the same offsets is reused, and what a position did not use is 
 from __future__ import annotations
 
 from types import MappingProxyType
+from typing import Callable
 
 import numpy as np
 from scipy.linalg import blas, lapack, lu_factor, lu_solve
@@ -230,41 +231,62 @@ class BlockInverse:
         self.stones, self.shift_cells = stones, shift_cells
         self.table = blocks.table(surface.grid)
         self.centre = (self.grid.ny - 1, self.grid.nx - 1)  # the table's entry of offset 0
-        self._on: np.ndarray | None = None
+        self._on: np.ndarray | None = None  # the loaded cells at the build (rows of ``_part``)
+        self._part: np.ndarray | None = None  # the cells the rows are of (None: the grid)
         self.circulant = None  # the operator's inverse, while the contact is too large for blocks
         self._last = self._failed = 0  # loaded cells at the last application, at the last failed build
 
     def apply(self, gap: np.ndarray, on: np.ndarray) -> np.ndarray:
         """The pressure ``Ã^-1 gap`` on the loaded cells ``on`` (both ``(ny, nx)``), 0 elsewhere."""
+        return self._apply(gap.ravel(), on.ravel(), None).reshape(self.grid.shape)
+
+    def on_part(self, cells: np.ndarray) -> Callable:
+        """:meth:`apply` on the grid's flat ``cells`` (increasing) only: ``(gap, on)`` and the
+        answer are rows of those cells (the CG's part, :mod:`twoscale.pk.compact`: no
+        grid-sized pass an application; the loaded cells must lie among ``cells``)."""
+        return lambda gap, on: self._apply(gap, on, cells)
+
+    def _apply(self, gap: np.ndarray, on: np.ndarray, part: np.ndarray | None) -> np.ndarray:
+        """:meth:`apply` on flat rows of the grid (``part`` None) or of its cells ``part``."""
         count, last = np.count_nonzero(on), self._last
         self._last = count
         if self.circulant is not None:
             if count < (1.0 - RETRY_SETTLED) * last or count > RETRY_SHRINK * self._failed:
-                return self.circulant.apply(gap)
+                return self._circulant(gap, part)
             self.circulant, self._on = None, None  # settled smaller (:data:`RETRY_SETTLED`): blocks again
-        on = on.ravel()
-        new = None if self._on is None else on & ~self._on
+        new = None if self._on is None or self._part is not part else on & ~self._on
         if new is None or np.count_nonzero(new) > REBUILD_FRACTION * self.cells.size:
-            if not self._build(on):
+            idx = np.flatnonzero(on)
+            if not self._build(idx if part is None else part[idx]):
                 self._failed = count
                 self.circulant = self.blocks.body.grid_operator(self.grid).preconditioner()
-                return self.circulant.apply(gap)
+                return self._circulant(gap, part)
+            self._on, self._part = on.copy(), part
+            self._at = self.cells if part is None else np.searchsorted(part, self.cells)
             new = None
-        out = np.zeros(self.grid.size)
+        out = np.zeros(gap.size)
         if new is not None:  # cells that entered since the build: the kernel's diagonal
-            out[new] = gap.ravel()[new] / self.table[self.centre]
+            out[new] = gap[new] / self.table[self.centre]
         if not self.cells.size:
-            return out.reshape(self.grid.shape)
+            return out
         # in float32 (the stacked inverses' precision): the products read the ~10 MB of the
         # tyre's inverses at every application, half of it so
-        r = np.append(gap.ravel()[self.cells], 0.0).astype(np.float32)  # (the padding's slot, last)
+        r = np.append(gap[self._at], 0.0).astype(np.float32)  # (the padding's slot, last)
         y32 = np.empty_like(r)
         for inv, pos in self.classes:
             y32[pos] = np.matmul(inv, r[pos][:, :, None])[:, :, 0]
         y = y32[:-1].astype(np.float64)
         y -= self.v * lu_solve(self.coupling, self.k @ np.add.reduceat(y, self.starts), check_finite=False)[self.stone]
-        out[self.cells] = y
-        return out.reshape(self.grid.shape)
+        out[self._at] = y
+        return out
+
+    def _circulant(self, gap: np.ndarray, part: np.ndarray | None) -> np.ndarray:
+        """The circulant inverse's answer on the flat rows ``gap`` (of the cells ``part``)."""
+        if part is None:
+            return self.circulant.apply(gap.reshape(self.grid.shape)).ravel()
+        full = np.zeros(self.grid.size)
+        full[part] = gap
+        return self.circulant.apply(full.reshape(self.grid.shape)).ravel()[part]
 
     def _road_keys(self, rows: np.ndarray, cols: np.ndarray) -> np.ndarray:
         """The cells' places on the road (the body's lattice moved back by the shift), one
@@ -273,11 +295,11 @@ class BlockInverse:
         row0, col0 = round(g.y0 / g.h), round(g.x0 / g.h) - self.shift_cells
         return (rows + row0).astype(np.int64) * (1 << 32) + (cols + col0 + (1 << 31))
 
-    def _build(self, on: np.ndarray) -> bool:
-        """The blocks of the stones' loaded cells (kept or updated ones found by their stones), and
-        the coupling ``(I + K W)^-1 K``; False when a contact or the stones are too many
-        cells for it (:data:`MAX_BLOCK_CELLS`, :data:`MAX_STONES`)."""
-        idx = np.flatnonzero(on)
+    def _build(self, idx: np.ndarray) -> bool:
+        """The blocks of the stones' loaded cells ``idx`` (flat, increasing; kept or updated
+        inverses found by their stones), and the coupling ``(I + K W)^-1 K``; False when a
+        contact or the stones are too many cells for it (:data:`MAX_BLOCK_CELLS`,
+        :data:`MAX_STONES`)."""
         stone = self.owner[idx]
         order = np.argsort(stone, kind="stable")
         _, starts, counts = np.unique(stone[order], return_index=True, return_counts=True)
@@ -285,7 +307,7 @@ class BlockInverse:
             return False
         if 8 * np.sum(_size_class(counts).astype(float) ** 2) > MAX_BLOCK_BYTES:
             return False
-        self._on, self.cells, self.starts = on.copy(), idx[order], starts
+        self.cells, self.starts = idx[order], starts
         rows, cols = np.divmod(self.cells, self.grid.nx)
         ends = self.starts + counts
         width = self.table.shape[1]

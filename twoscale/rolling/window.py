@@ -35,9 +35,10 @@ its preconditioner at every position. Here the position is that CG directly:
   the tyre's footprint 320 of the window's 384 cells along x: the footprint's rim lies
   below the approach bound but the tyre's elastic lift keeps it off; the first position's:
   the columns over the tyre's estimated footprint, :attr:`WindowState.footprint`), and its answer is
-  checked a posteriori on the whole window (:func:`_touching_outside`: the displacement
-  the pressure makes there, one float32 product, exact only near contact); cells outside
-  the cut that would touch make it grow to take them in, solved again from its answer.
+  checked a posteriori on the whole window (:func:`_touching_outside`: on a half-space a
+  lower bound of the lift its pressure makes there, :mod:`.lift`; else the displacement, one
+  float32 product, exact only near contact); cells outside the cut that would touch make
+  it grow to take them in, solved again from its answer.
 
 The answer is the static contact of the road at that shift to the solver's tolerance: the
 cells left out of the window cannot touch (their height is above the bound), those out of
@@ -57,6 +58,7 @@ from ..grid import Grid
 from ..indenters import Surface, surface_on
 from .blocks import StoneBlocks
 from .boxes import covers, grown, loaded_box, moved, union
+from .lift import half_space_modulus, kept_off
 from .road import Selection, reaches
 from .track import Track
 
@@ -376,17 +378,24 @@ def _touching_outside(body: KeptBody, surface, result, tol: float) -> Grid | Non
     """The a posteriori check of a solve on a cut: the displacement its pressure makes on
     the whole window (``surface.grid``), and the box of the cells outside the cut whose
     gap is below ``-tol`` times the cut's largest displacement (the stopping rule's
-    interpenetration test), None when there are none. Screened by a float32 product first
-    (:data:`SCREEN_GAP`); only a window with a cell near contact takes the exact one."""
+    interpenetration test), None when there are none. Tried first on a lower bound of the
+    lift (:mod:`.lift`), then screened by a float32 product (:data:`SCREEN_GAP`); only a
+    window with a cell near contact takes the exact one."""
     f = result.fields[0]
     window = surface.grid
-    p = f.grid.embed_in(f.pressure, window)
     outside = np.isfinite(surface.height)
     outside[f.grid.window_in(window)] = False
     level = surface.height - result.penetration
-    if not np.any(outside & (level < 0.0)):
+    low = outside & (level < 0.0)
+    if not np.any(low):
         return None  # no cell outside lies below the approach (the pressure only lifts them)
-    op = body.grid_operator(window)
+    e_star = half_space_modulus(body.provider)
+    if e_star is not None:  # kept off by a lower bound of the lift (:mod:`.lift`)?
+        rows, cols = np.nonzero(low)
+        x, y = window.x0 + cols * window.h, window.y0 + rows * window.h
+        if kept_off(f.pressure, f.grid, x, y, level[rows, cols], e_star):
+            return None
+    op, p = body.grid_operator(window), f.grid.embed_in(f.pressure, window)
     u = op.single_precision().apply(p)
     scale = max(float(np.abs(u[f.grid.window_in(window)]).max()), np.finfo(float).tiny)
     gap = np.where(outside, u + level, np.inf)
