@@ -79,3 +79,18 @@ def test_the_cg_with_plane_sums_gives_the_general_answer():
     p, q = general.pressure_on(grid), sums.pressure_on(grid)
     assert np.linalg.norm(p - q) <= 1e-7 * np.linalg.norm(p)
     assert np.allclose(sums.tilt, general.tilt, atol=1e-9)
+
+
+def test_a_fit_over_loaded_cells_changed_in_place_is_their_own():
+    # the Gram matrix is kept between fits over the same cells: an array changed in place
+    # (the iteration's loaded cells are one buffer) must not reuse it
+    rng = np.random.default_rng(6)
+    x, y, basis = _grid()
+    plane = PlaneBasis(x, y)
+    v = rng.normal(size=len(basis))
+    on = rng.random(len(basis)) < 0.4
+    for _ in range(3):
+        c = plane.fit(v, on)
+        assert c is not None
+        assert np.allclose(c, np.linalg.lstsq(basis[on], v[on], rcond=None)[0], rtol=1e-9, atol=1e-12)
+        on[rng.integers(0, len(on), 40)] ^= True

@@ -39,6 +39,9 @@ class PlaneBasis:
         # b = bc @ L (bc the centred basis [1, xc, yc]): the map of coefficients c = L^-1 cc
         self.L = np.array([[1.0, self.x0, self.y0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]])
         self._buffer: np.ndarray | None = None
+        # the loaded cells of the last fit and their Gram matrix: an iteration fits the gap,
+        # the preconditioned direction and its product over the same cells
+        self._last: tuple[np.ndarray, np.ndarray] | None = None
 
     def matches(self, basis: np.ndarray) -> bool:
         """Whether ``basis`` (n, 3) is this one (checked on the corners and the centre)."""
@@ -67,11 +70,15 @@ class PlaneBasis:
         cells ``on`` (bool, n); None when the normal equations are ill-conditioned (the
         caller's general fit then decides)."""
         w = self._buf()
-        np.copyto(w, on.reshape(self.shape))
-        gram = self._moments(w)
+        if self._last is not None and np.array_equal(self._last[0], on):
+            gram = self._last[1]
+        else:
+            np.copyto(w, on.reshape(self.shape))
+            gram = self._moments(w)
+            self._last = (on.copy(), gram)
         if not np.linalg.cond(gram) <= FIT_MAX_CONDITION:
             return None
-        np.multiply(v.reshape(self.shape), w, out=w)
+        np.multiply(v.reshape(self.shape), on.reshape(self.shape), out=w)
         q = w @ self.columns[:, :2]
         rhs = np.array([q[:, 0].sum(), q[:, 1].sum(), self.yc @ q[:, 0]])
         return np.linalg.solve(self.L, np.linalg.solve(gram, rhs))
