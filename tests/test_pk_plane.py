@@ -94,3 +94,10 @@ def test_a_fit_over_loaded_cells_changed_in_place_is_their_own():
         assert c is not None
         assert np.allclose(c, np.linalg.lstsq(basis[on], v[on], rcond=None)[0], rtol=1e-9, atol=1e-12)
         on[rng.integers(0, len(on), 40)] ^= True
+
+
+def test_the_load_and_moments_held_are_the_basis_sums():
+    rng = np.random.default_rng(7)
+    x, y, basis = _grid()
+    p = np.where(rng.random(len(basis)) < 0.3, rng.random(len(basis)), 0.0)
+    assert np.allclose(PlaneBasis(x, y).moments(p), basis.T @ p, rtol=1e-12)

@@ -156,7 +156,7 @@ class Iteration:
             self.zeros = np.zeros_like(g)  # kept: read-only zeros for the residual
         res = kkt_residual(g, g_on, on, self.free, self.scale, self.zeros)
         if self.basis_scale is not None:
-            res = np.maximum(res, constraint_residual(self.p, self.basis, self.target, self.basis_scale))
+            res = np.maximum(res, constraint_residual(self.p, self.basis, self.target, self.basis_scale, self.plane))
         return res
 
     def converged(self, g, on, res) -> np.ndarray | None:

@@ -83,6 +83,11 @@ class PlaneBasis:
         rhs = np.array([q[:, 0].sum(), q[:, 1].sum(), self.yc @ q[:, 0]])
         return np.linalg.solve(self.L, np.linalg.solve(gram, rhs))
 
+    def moments(self, p: np.ndarray) -> np.ndarray:
+        """``B^T p`` of one row ``p`` (n,): the load and both moments (one pass)."""
+        q = p.reshape(self.shape) @ self.columns[:, :2]
+        return self.L.T @ np.array([q[:, 0].sum(), q[:, 1].sum(), self.yc @ q[:, 0]])
+
     def subtract(self, v: np.ndarray, c: np.ndarray) -> None:
         """``v -= B c`` on one row (n,), in place (two passes, no temporary)."""
         cc = self.L @ c

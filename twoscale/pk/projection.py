@@ -169,10 +169,13 @@ def kkt_residual(
     return np.maximum(np.maximum(worst_on, worst_off), 0.0) / scale
 
 
-def constraint_residual(p: np.ndarray, basis: np.ndarray, target: np.ndarray, basis_scale: np.ndarray) -> np.ndarray:
+def constraint_residual(
+    p: np.ndarray, basis: np.ndarray, target: np.ndarray, basis_scale: np.ndarray, plane: PlaneBasis | None = None
+) -> np.ndarray:
     """Per row: relative violation of the load and moment constraints (0 with fewer than
-    two constraints or no load: restored exactly)."""
+    two constraints or no load: restored exactly); ``B^T p`` by ``plane``'s sums if given."""
     if basis.shape[1] < 2:
         return np.zeros(len(p))
-    viol = np.abs(p @ basis - target) / (np.maximum(target[:, :1], 1e-300) * np.maximum(basis_scale, 1e-300))
+    held = p @ basis if plane is None else np.array([plane.moments(row) for row in p])
+    viol = np.abs(held - target) / (np.maximum(target[:, :1], 1e-300) * np.maximum(basis_scale, 1e-300))
     return np.where(target[:, 0] > 0, viol.max(axis=1), 0.0)
