@@ -43,6 +43,12 @@ class PlaneBasis:
         # the preconditioned direction and its product over the same cells
         self._last: tuple[np.ndarray, np.ndarray] | None = None
 
+    @classmethod
+    def on(cls, grid, pivot) -> "PlaneBasis":
+        """The basis ``[1, x - px, y - py]`` of ``grid``'s cell centres about ``pivot`` (mm)."""
+        X, Y = grid.centres()
+        return cls(X[0] - pivot[0], Y[:, 0] - pivot[1])
+
     def matches(self, basis: np.ndarray) -> bool:
         """Whether ``basis`` (n, 3) is this one (checked on the corners and the centre)."""
         ny, nx = self.shape

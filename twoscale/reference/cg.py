@@ -376,7 +376,13 @@ def _iterate(
         run[1].reshape(1, *dims),
         None if run[2].all() else run[2].reshape(1, *dims),
         Tolerance(residual=tol, max_iter=max_iter, stall=stall),
-        constraint=Constraint(run[3], problem.target()[None], _plane(problem) if plane_sums and part is None else None),
+        constraint=Constraint(
+            run[3],
+            problem.target()[None],
+            PlaneBasis.on(problem.grid, problem.pivot)
+            if plane_sums and problem.mode == "tilt" and part is None
+            else None,
+        ),
         precondition=run[5],
         monitor=monitor,
     )
@@ -401,11 +407,3 @@ def _iterate(
             )
             return (*whole[:3], whole[3] + counts[0], whole[4] + counts[1], counts[2] + whole[5], *whole[6:])
     return (p, u, out.multipliers[0], *counts, bool(out.converged[0]), out.message(0))
-
-
-def _plane(problem: ContactProblem) -> PlaneBasis | None:
-    """The tilt's basis in its separable form (:class:`~twoscale.pk.plane.PlaneBasis`)."""
-    if problem.mode != "tilt":
-        return None
-    X, Y = problem.grid.centres()
-    return PlaneBasis(X[0] - problem.pivot[0], Y[:, 0] - problem.pivot[1])
