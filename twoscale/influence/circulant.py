@@ -85,6 +85,7 @@ class CirculantInverse(GridOperator):
     def __init__(self, grid: Grid, multiplier: np.ndarray):
         self.target = self.source = grid
         self._m = multiplier
+        self._padded: np.ndarray | None = None  # one field on the torus, zero off the grid (kept)
 
     @classmethod
     def of(cls, op: GridOperator, table: Callable[[], np.ndarray], dtype) -> "CirculantInverse | None":
@@ -105,7 +106,14 @@ class CirculantInverse(GridOperator):
         """The approximate inverse on ``v`` (ny, nx), or on a stack (B, ny, nx): the
         transforms run along the last two axes, one call each for the whole stack."""
         shape = torus_shape(self.source)
-        a = sfft.rfft2(np.asarray(v, dtype=self._m.dtype), s=shape)
+        v = np.asarray(v)
+        if v.ndim == 2 and shape != v.shape:  # one field: the torus's padding kept, not made again
+            if self._padded is None:
+                self._padded = np.zeros(shape, self._m.dtype)
+            self._padded[: v.shape[0], : v.shape[1]] = v
+            a = sfft.rfft2(self._padded)
+        else:
+            a = sfft.rfft2(np.asarray(v, dtype=self._m.dtype), s=shape)
         a *= self._m
         ny, nx = self.source.shape
         return np.ascontiguousarray(sfft.irfft2(a, s=shape)[..., :ny, :nx], dtype=np.float64)

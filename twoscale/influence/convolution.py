@@ -218,15 +218,35 @@ class _SingleConvolution(GridOperator):
             derived["complex64"] = parent._khat.astype(np.complex64)
         self._khat = derived["complex64"]
         self._parent = parent
+        self._buffers: tuple[np.ndarray, np.ndarray] | None = None  # (:meth:`_spectrum_in_place`)
 
     @property
     def fft_shape(self) -> tuple[int, int]:
         return self._shape
 
     def apply(self, p: np.ndarray) -> np.ndarray:
-        a = self._parent.spectrum(np.asarray(p, dtype=np.float32))
+        p = np.asarray(p)
+        if p.ndim != 2:
+            a = self._parent.spectrum(np.asarray(p, dtype=np.float32))
+        else:
+            a = self._spectrum_in_place(p)
         a *= self._khat
         return self._parent.finish(a).astype(np.float64, copy=False)
+
+    def _spectrum_in_place(self, p: np.ndarray) -> np.ndarray:
+        """:func:`_transform` of one field through two buffers kept with this operator (the
+        padded field and the padded spectrum, their padding zero): the padding is not
+        allocated again for every product (fresh pages the kernel zeroes: on 5.26 M cells
+        0.16 against 0.24 s a transform) and the transform along x runs in place. The
+        returned spectrum is the buffer itself, overwritten by the next product."""
+        (ny, nx), (my, mx) = p.shape, self._shape
+        if self._buffers is None:
+            self._buffers = (np.zeros((my, nx), np.float32), np.zeros((my // 2 + 1, mx), np.complex64))
+        padded, spectrum = self._buffers
+        padded[:ny] = p
+        spectrum[:, :nx] = sfft.rfft(padded, axis=-2)
+        spectrum[:, nx:] = 0.0
+        return sfft.fft(spectrum, axis=-1, overwrite_x=True)
 
     def apply_stack(self, P: np.ndarray) -> np.ndarray:
         """:meth:`apply` on a stack (B, ny, nx): the transforms take the leading axis as

@@ -208,6 +208,7 @@ def solve_union(
             precondition=settings.precondition,
             keep_conjugacy=settings.keep_conjugacy,
             monitor=monitor,
+            plane_sums=True,
         )
         iterations += int(result.iterations.get("cg", 0))
         products += int(result.iterations.get("products", 0))

@@ -44,14 +44,19 @@ class Iteration:
     basis : (n, k) array
     target : (B, k) array
     tol : Tolerance
+    plane : PlaneBasis, optional
+        The basis's separable form (:mod:`.plane`), for its fits and restoring.
     """
 
     PER_ROW = tuple(
         "p t u z mask target G_old conj kept stale scale best it_best gtol small index done count free fast".split()
     )  # the arrays with a row per live row
 
-    def __init__(self, products: Products, precondition, shape, z, start, mask, basis, target, tol: Tolerance):
+    def __init__(
+        self, products: Products, precondition, shape, z, start, mask, basis, target, tol: Tolerance, plane=None
+    ):
         self.ops, self.pc, self.shape, self.basis, self.tol = products, precondition, shape, basis, tol
+        self.plane = plane
         # the basis transposed, contiguous, for the moments' fits and plane (None: at most a load)
         self.basis_t = np.ascontiguousarray(basis.T) if basis.shape[1] > 1 else None
         self.change2 = None if tol.change is None else tol.change**2
@@ -64,7 +69,7 @@ class Iteration:
         if self.masked:
             self.p[~mask] = 0.0
         if self.k:
-            restore(self.p, basis, target, basis_t=self.basis_t)
+            restore(self.p, basis, target, basis_t=self.basis_t, plane=plane)
         self.count: Any = None  # loaded cells per row (one constant constraint column)
         self.t = np.zeros_like(self.p)
         # rows whose refreshes still take the fast product (until their residual reaches
@@ -137,7 +142,7 @@ class Iteration:
         if self.k:
             if self.k == 1:
                 self.count = np.maximum(on.sum(axis=1), 1)
-            m = project(g, self.basis, on, self.count, self.basis_t)
+            m = project(g, self.basis, on, self.count, self.basis_t, self.plane)
         if self.g_on is None or self.g_on.shape != g.shape:
             self.g_on = np.empty_like(g)
         return g, m, on, np.multiply(g, on, out=self.g_on)
@@ -151,7 +156,7 @@ class Iteration:
             self.zeros = np.zeros_like(g)  # kept: read-only zeros for the residual
         res = kkt_residual(g, g_on, on, self.free, self.scale, self.zeros)
         if self.basis_scale is not None:
-            res = np.maximum(res, constraint_residual(self.p, self.basis, self.target, self.basis_scale))
+            res = np.maximum(res, constraint_residual(self.p, self.basis, self.target, self.basis_scale, self.plane))
         return res
 
     def converged(self, g, on, res) -> np.ndarray | None:
@@ -234,7 +239,9 @@ class Iteration:
         if self.k == 1:
             self.count = np.maximum(on.sum(axis=1), 1)
         if self.k:
-            m = m + project(g, self.basis, on, self.count, self.basis_t)  # the projection over the new contact
+            m = m + project(
+                g, self.basis, on, self.count, self.basis_t, self.plane
+            )  # the projection over the new contact
         g_on = np.where(on, g, 0.0)
         gg = row_dot(g_on, g_on)
         g, m, on, g_on, gg, res = self.drop(g, m, on, g_on, gg, res)
@@ -276,7 +283,7 @@ class Iteration:
             return g_on, gg
         d = self.pc(g_on.reshape(len(g_on), *self.shape), on.reshape(len(on), *self.shape)).reshape(len(on), -1)
         d *= on
-        project(d, self.basis, on, self.count if self.k == 1 else None, self.basis_t)
+        project(d, self.basis, on, self.count if self.k == 1 else None, self.basis_t, self.plane)
         d *= on
         G = row_dot(g_on, d)
         good = G > 0.0
@@ -301,7 +308,7 @@ class Iteration:
         if self.k == 1:  # the projected product: r minus its mean over the loaded cells (t is 0 off them)
             denom -= masked_sum(r, on) / self.count * t.sum(axis=1)
         elif self.k:  # (r - B c).t with c the fit of r over the loaded cells
-            denom -= np.einsum("bk,bk->b", fit(r, self.basis, on, self.basis_t), t @ self.basis_t.T)
+            denom -= np.einsum("bk,bk->b", fit(r, self.basis, on, self.basis_t, self.plane), t @ self.basis_t.T)
         bad = ~(denom > 0.0)
         if np.count_nonzero(bad):
             self.denominator[np.flatnonzero(bad) if self.index is None else self.index[bad]] = denom[bad]
@@ -317,7 +324,7 @@ class Iteration:
         # few cells entered: the directions stay conjugate enough to keep
         self.kept = entered & (reenter.sum(axis=1) <= self.ops.keep_conjugacy * on.sum(axis=1))
         self.conj = ~entered | self.kept
-        factor = restore(p, self.basis, self.target, basis_t=self.basis_t) if self.k else 1.0
+        factor = restore(p, self.basis, self.target, basis_t=self.basis_t, plane=self.plane) if self.k else 1.0
         self.update_displacement(r, tau_c, factor, clipped | entered, change)
         if p_old is not None:
             p_old -= p

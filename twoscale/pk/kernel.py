@@ -32,6 +32,7 @@ from typing import Callable
 
 import numpy as np
 
+from .plane import PlaneBasis
 from .iteration import GAP_RTOL, MONITOR_EVERY, REFRESH_EVERY, Iteration
 from .products import Products
 from .result import STALL_ITERATIONS, PKResult, Tolerance
@@ -50,10 +51,15 @@ class Constraint:
         column (load), or more (load and moments).
     target : (B, k) array
         ``basis^T p`` to hold, per row (the load over ``h^2``).
+    plane : PlaneBasis, optional
+        The basis ``[1, x - px, y - py]`` in its separable form on the rows' grid
+        (:class:`~.plane.PlaneBasis`): the fits and the restoring by sums along the
+        grid's rows instead of passes over the (n, 3) basis. None: the general algebra.
     """
 
     basis: np.ndarray
     target: np.ndarray
+    plane: PlaneBasis | None = None
 
 
 def pk_solve(
@@ -101,10 +107,12 @@ def pk_solve(
     """
     shape = z.shape[1:]
     rows = len(z)
+    plane = None
     if constraint is None:
         basis, target = np.zeros((z[0].size, 0)), np.zeros((rows, 0))
     else:
         basis, target = constraint.basis, np.asarray(constraint.target, dtype=float).reshape(rows, -1)
+        plane = constraint.plane
     stack = Iteration(
         apply if isinstance(apply, Products) else Products(apply),
         precondition,
@@ -115,6 +123,7 @@ def pk_solve(
         basis,
         target,
         tolerance,
+        plane,
     )
     for it in range(tolerance.max_iter + 1):
         live = stack.check(it, monitor)

@@ -5,7 +5,12 @@ residuals the stopping rule reads. Every function works row by row on (B, n) sta
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import numpy as np
+
+if TYPE_CHECKING:
+    from .plane import PlaneBasis
 
 
 #: Rows up to this many cells take ``np.vecdot`` (numpy >= 2: least call overhead), longer
@@ -31,13 +36,19 @@ def row_dot(a: np.ndarray, b: np.ndarray) -> np.ndarray:
 
 
 def project(
-    v: np.ndarray, basis: np.ndarray, on: np.ndarray, count: np.ndarray | None = None, basis_t: np.ndarray | None = None
+    v: np.ndarray,
+    basis: np.ndarray,
+    on: np.ndarray,
+    count: np.ndarray | None = None,
+    basis_t: np.ndarray | None = None,
+    plane: PlaneBasis | None = None,
 ) -> np.ndarray:
     """Remove from each row of ``v`` (in place) its least-squares fit by the columns of
     ``basis`` over the row's cells ``on``; return the coefficients (B, k). One column is
     taken to be constant: the fit is the mean over ``on`` (0 where ``on`` is empty;
     ``count``, if given, is ``max(on.sum(axis=1), 1)``). ``basis_t``: ``basis.T``
-    contiguous, if the caller keeps it (:func:`fit`)."""
+    contiguous, if the caller keeps it (:func:`fit`); ``plane``: the basis's separable
+    form, if the caller gives it (:class:`~.plane.PlaneBasis`)."""
     rows, k = v.shape[0], basis.shape[1]
     if k == 0:
         return np.zeros((rows, 0))
@@ -47,9 +58,12 @@ def project(
         v -= column(c)
         return c[:, None]
     basis_t = np.ascontiguousarray(basis.T) if basis_t is None else basis_t
-    c = fit(v, basis, on, basis_t)
+    c = fit(v, basis, on, basis_t, plane)
     for i in range(rows):
-        v[i] -= c[i] @ basis_t
+        if plane is not None:
+            plane.subtract(v[i], c[i])
+        else:
+            v[i] -= c[i] @ basis_t
     return c
 
 
@@ -61,18 +75,29 @@ def masked_sum(v: np.ndarray, on: np.ndarray) -> np.ndarray:
     return np.einsum("bi->b", v * on)
 
 
-def fit(v: np.ndarray, basis: np.ndarray, on: np.ndarray, basis_t: np.ndarray | None = None) -> np.ndarray:
+def fit(
+    v: np.ndarray,
+    basis: np.ndarray,
+    on: np.ndarray,
+    basis_t: np.ndarray | None = None,
+    plane: PlaneBasis | None = None,
+) -> np.ndarray:
     """Per row, the least-squares coefficients (B, k) of ``v`` by the columns of ``basis``
     over the cells ``on`` (``v`` unchanged). On long rows by the k x k normal equations and
     one step of iterative refinement, through ``basis_t`` (``basis.T`` contiguous; made
     here if not given): passes over the row instead of ``lstsq`` on a copy of the loaded
     cells' rows of ``basis`` (5 M cells: 130 against 190 ms, and 20 against 47 ms to
     subtract the fit); by ``lstsq`` on short rows and where the equations are
-    ill-conditioned (fewer loaded cells than columns, or cells on a line)."""
+    ill-conditioned (fewer loaded cells than columns, or cells on a line). With ``plane``
+    (:class:`~.plane.PlaneBasis`) by its sums along the grid's rows where well-conditioned."""
     rows, k = v.shape[0], basis.shape[1]
     c = np.zeros((rows, k))
     for i in range(rows):
         w = on[i]
+        fitted = None if plane is None else plane.fit(v[i], w)
+        if fitted is not None:
+            c[i] = fitted
+            continue
         if v.shape[1] > SHORT_ROW and np.count_nonzero(w) >= k:
             bt = np.ascontiguousarray(basis.T) if basis_t is None else basis_t
             masked = bt * w  # (k, n): the basis on the loaded cells, 0 elsewhere
@@ -86,11 +111,16 @@ def fit(v: np.ndarray, basis: np.ndarray, on: np.ndarray, basis_t: np.ndarray | 
 
 
 def restore(
-    p: np.ndarray, basis: np.ndarray, target: np.ndarray, sweeps: int = 4, basis_t: np.ndarray | None = None
+    p: np.ndarray,
+    basis: np.ndarray,
+    target: np.ndarray,
+    sweeps: int = 4,
+    basis_t: np.ndarray | None = None,
+    plane: PlaneBasis | None = None,
 ) -> np.ndarray | None:
     """Make ``B^T p = target`` on every row by ``p <- p * (B c)`` (in place), keeping
     ``p >= 0``. Returns the per-row factors when the correction was a constant (so ``A p``
-    scales by them too), None when it was not (moments)."""
+    scales by them too), None when it was not (moments; by ``plane``'s sums if given)."""
     rows, k = p.shape[0], basis.shape[1]
     if k == 0:
         return np.ones(rows)
@@ -102,7 +132,10 @@ def restore(
         p *= column(f)
         return f
     for i in range(rows):
-        _restore_plane(p[i], np.ascontiguousarray(basis.T) if basis_t is None else basis_t, target[i], sweeps)
+        if plane is not None:
+            plane.restore(p[i], target[i], sweeps)
+        else:
+            _restore_plane(p[i], np.ascontiguousarray(basis.T) if basis_t is None else basis_t, target[i], sweeps)
     return None
 
 
@@ -136,10 +169,13 @@ def kkt_residual(
     return np.maximum(np.maximum(worst_on, worst_off), 0.0) / scale
 
 
-def constraint_residual(p: np.ndarray, basis: np.ndarray, target: np.ndarray, basis_scale: np.ndarray) -> np.ndarray:
+def constraint_residual(
+    p: np.ndarray, basis: np.ndarray, target: np.ndarray, basis_scale: np.ndarray, plane: PlaneBasis | None = None
+) -> np.ndarray:
     """Per row: relative violation of the load and moment constraints (0 with fewer than
-    two constraints or no load: restored exactly)."""
+    two constraints or no load: restored exactly); ``B^T p`` by ``plane``'s sums if given."""
     if basis.shape[1] < 2:
         return np.zeros(len(p))
-    viol = np.abs(p @ basis - target) / (np.maximum(target[:, :1], 1e-300) * np.maximum(basis_scale, 1e-300))
+    held = p @ basis if plane is None else np.array([plane.moments(row) for row in p])
+    viol = np.abs(held - target) / (np.maximum(target[:, :1], 1e-300) * np.maximum(basis_scale, 1e-300))
     return np.where(target[:, 0] > 0, viol.max(axis=1), 0.0)
