@@ -41,33 +41,8 @@ from ..pk.products import Anchored
 from ..pk.kernel import STALL_ITERATIONS, Constraint, Products, Tolerance, pk_solve
 from ..options import settings_from
 from ..results import ContactResult
-from ._problem import ContactProblem, Outcome, build_result, initial_active_set, make_problem, trivial_result
-
-
-def _initial_pressure(
-    problem: ContactProblem, op, z: np.ndarray, E_star: float, start: np.ndarray | None = None
-) -> np.ndarray:
-    """Start from ``start`` (a warm start, e.g. the two-scale macro forces spread as Hertz
-    pressures), else from the geometric interference ``max(level - z, 0)`` (level = d, or the
-    first-guess level of load control), scaled by a line search on the energy
-    (penetration control) or to the load. Cells without material start unloaded.
-    (A Hertz-like square-root start was tried: no fewer iterations.)"""
-    cand = problem.candidates.ravel()
-    if start is not None and np.any(start.ravel()[cand] > 0):
-        v = np.where(cand, np.maximum(start.ravel(), 0.0), 0.0)
-    else:
-        level = (
-            problem.penetration
-            if problem.mode == "penetration"
-            else float(np.max(z[initial_active_set(problem, E_star).ravel()]))
-        )
-        v = np.where(cand, np.maximum(level - z, 0.0), 0.0)
-    if not np.any(v > 0):
-        v = np.where(cand & (z <= np.min(z[cand])), 1.0, 0.0)
-    if problem.mode == "penetration":
-        Av = op.apply(v.reshape(problem.grid.shape)).ravel()
-        return v * max(float(v @ (problem.penetration - z)), 0.0) / float(v @ Av)
-    return v  # the kernel scales it to the load (and moments)
+from ._problem import ContactProblem, Outcome, build_result, make_problem, trivial_result
+from ._start import cropped, initial_pressure, start_on
 
 
 @dataclass(frozen=True)
@@ -197,8 +172,8 @@ def solve_cg(
     reach = cg.reach
     if reach is not None and np.shape(reach) != problem.grid.shape:
         raise ValueError(f"reach must be a bool array of shape {problem.grid.shape}, got shape {np.shape(reach)}")
-    work = _cropped(problem)
-    start = _start_on(start, problem, work)
+    work = cropped(problem)
+    start = start_on(start, problem, work)
     if reach is not None and work is not problem:
         reach = reach[work.grid.window_in(problem.grid)]
     if precision not in PRECISIONS:
@@ -249,16 +224,6 @@ def solve_cg(
         tilt_angles,
         Outcome(converged, message, {"cg": it, "products": n_products}, {"gap": hist}, timings, details),
     )
-
-
-def _start_on(start: np.ndarray | None, problem, work) -> np.ndarray | None:
-    """The warm start checked (finite, on the problem's grid) and cut to the working grid."""
-    if start is None:
-        return None
-    start = np.asarray(start, dtype=float)
-    if start.shape != problem.grid.shape or not np.all(np.isfinite(start)):
-        raise ValueError(f"start must be a finite array of shape {problem.grid.shape} (MPa), got shape {start.shape}")
-    return start if work is problem else start[work.grid.window_in(problem.grid)]
 
 
 def _single_stage(work, op, e_star: float, start, cg: CGSettings, custom, reach):
@@ -319,23 +284,6 @@ class _Custom:
         return lambda v, on: apply(v[0], on[0])[None]
 
 
-def _cropped(problem: ContactProblem) -> ContactProblem:
-    """Penetration control: the same problem on the bounding box of the cells with
-    ``z < d`` (no other cell can touch, since ``A p >= 0``), which makes every FFT
-    smaller. Load control has no such a-priori bound: unchanged."""
-    if problem.mode != "penetration":
-        return problem
-    reach = np.isfinite(problem.surface.height) & (problem.surface.height < problem.penetration)
-    rows, cols = np.flatnonzero(reach.any(axis=1)), np.flatnonzero(reach.any(axis=0))
-    j0, j1, i0, i1 = rows[0], rows[-1] + 1, cols[0], cols[-1] + 1
-    if (j1 - j0, i1 - i0) == problem.grid.shape:
-        return problem
-    sub = problem.grid.subgrid(int(i0), int(j0), int(i1 - i0), int(j1 - j0))
-    s = problem.surface
-    surface = Surface(sub, s.height[j0:j1, i0:i1], s.owner[j0:j1, i0:i1], s.n_asperities)
-    return ContactProblem(surface, problem.mode, problem.penetration, problem.total_load, problem.pivot)
-
-
 PRECISIONS = ("double", "mixed", "single-directions")
 #: KKT residual at which the single-precision stage of ``precision="mixed"`` hands over
 #: (float32 products carry ~1e-7 relative rounding: near 1e-6 its steps stall). The second
@@ -371,7 +319,7 @@ def _iterate(
     z = np.where(cand, problem.surface.height.ravel(), 0.0)
     # the start's line search (penetration control) by the fast product when there is one:
     # it only scales the start, and a float64 product on 3.4 M cells costs 1 s against 0.24
-    p = _initial_pressure(problem, fast or op, z, E_star, start)
+    p = initial_pressure(problem, fast or op, z, E_star, start)
     z -= problem.penetration if problem.mode == "penetration" else 0.0
     given = op  # (the whole grid's solve after a part's: an anchor of its own)
     if fast is not None and fast is not op and not isinstance(op, Anchored):

@@ -1,6 +1,6 @@
 """A lower bound of the displacement a pressure makes on a half-space, away from it: the
-window's a posteriori check (:func:`twoscale.rolling.window._touching_outside`) keeps the
-cells outside the cut off by it, without the window's product, when it suffices.
+window's a posteriori check of a solve on a cut (:func:`touching_outside`) keeps the cells
+outside the cut off by it, without the window's product, when it suffices.
 
 Love's displacement of a uniformly loaded cell is the mean over the cell of Boussinesq's
 ``1 / (pi E* r)`` times its force, so a tile of cells (any set of them, in a box) pushes a
@@ -19,10 +19,15 @@ import numpy as np
 from ..grid import Grid
 from ..influence import HalfSpace
 from ..influence.cached import CachedBody
+from .boxes import loaded_box
 
 #: Tile sides (cells) tried in turn: the coarse tiles' bound for every cell, the finer
 #: ones' for the cells it left (the cost is the cells times the tiles).
 TILE_CELLS = (64, 16)
+#: The cut's check screens the cells around it with a float32 product: a cell whose gap is
+#: above this fraction of the largest displacement stays off whatever the product's
+#: rounding (measured ~1e-7 of it); the others are checked on an exact product.
+SCREEN_GAP = 1e-5
 
 
 def half_space_modulus(provider) -> float | None:
@@ -59,3 +64,35 @@ def kept_off(pressure: np.ndarray, grid: Grid, x: np.ndarray, y: np.ndarray, lev
         if not left.size:
             return True
     return False
+
+
+def touching_outside(body, surface, result, tol: float) -> Grid | None:
+    """The a posteriori check of a solve on a cut (``body`` the window's
+    :class:`~twoscale.rolling.window.KeptBody`): the displacement its pressure makes on
+    the whole window (``surface.grid``), and the box of the cells outside the cut whose
+    gap is below ``-tol`` times the cut's largest displacement (the stopping rule's
+    interpenetration test), None when there are none. Tried first on a lower bound of the
+    lift (:func:`kept_off`), then screened by a float32 product (:data:`SCREEN_GAP`); only a
+    window with a cell near contact takes the exact one."""
+    f = result.fields[0]
+    window = surface.grid
+    outside = np.isfinite(surface.height)
+    outside[f.grid.window_in(window)] = False
+    level = surface.height - result.penetration
+    low = outside & (level < 0.0)
+    if not np.any(low):
+        return None  # no cell outside lies below the approach (the pressure only lifts them)
+    e_star = half_space_modulus(body.provider)
+    if e_star is not None:  # kept off by a lower bound of the lift?
+        rows, cols = np.nonzero(low)
+        x, y = window.x0 + cols * window.h, window.y0 + rows * window.h
+        if kept_off(f.pressure, f.grid, x, y, level[rows, cols], e_star):
+            return None
+    op, p = body.grid_operator(window), f.grid.embed_in(f.pressure, window)
+    u = op.single_precision().apply(p)
+    scale = max(float(np.abs(u[f.grid.window_in(window)]).max()), np.finfo(float).tiny)
+    gap = np.where(outside, u + level, np.inf)
+    if float(gap.min()) > SCREEN_GAP * scale:
+        return None
+    gap = np.where(outside, op.apply(p) + level, np.inf)
+    return loaded_box(window, gap < -tol * scale)

@@ -35,7 +35,7 @@ its preconditioner at every position. Here the position is that CG directly:
   the tyre's footprint 320 of the window's 384 cells along x: the footprint's rim lies
   below the approach bound but the tyre's elastic lift keeps it off; the first position's:
   the columns over the tyre's estimated footprint, :attr:`WindowState.footprint`), and its answer is
-  checked a posteriori on the whole window (:func:`_touching_outside`: on a half-space a
+  checked a posteriori on the whole window (:func:`.lift.touching_outside`: on a half-space a
   lower bound of the lift its pressure makes there, :mod:`.lift`; else the displacement, one
   float32 product, exact only near contact); cells outside the cut that would touch make
   it grow to take them in, solved again from its answer.
@@ -58,7 +58,7 @@ from ..grid import Grid
 from ..indenters import Surface, surface_on
 from .blocks import StoneBlocks
 from .boxes import covers, grown, loaded_box, moved, union
-from .lift import half_space_modulus, kept_off
+from .lift import touching_outside
 from .road import Selection, reaches
 from .track import Track
 
@@ -84,10 +84,6 @@ GAP_STIFFNESS = 0.3
 NEAR_GAP = 0.2
 #: Operators :class:`KeptBody` keeps (the window's, the cut window's, one cut before).
 KEPT_OPERATORS = 3
-#: The cut's check screens the cells around it with a float32 product: a cell whose gap is
-#: above this fraction of the largest displacement stays off whatever the product's
-#: rounding (measured ~1e-7 of it); the others are checked on an exact product.
-SCREEN_GAP = 1e-5
 #: The CG keeps its conjugate directions when at most this fraction of the loaded cells
 #: enters in a step (a warm start's contact settles at the stones' edges a few cells at a
 #: time: 23 -> 18 iterations a position on the tyre's footprint; 0.2 % and 1 % took more).
@@ -356,7 +352,7 @@ def solve_window(track, selection, bound: float, state: WindowState, tol: float)
         if not result.fields:  # nothing reached the approach in the cut: solve the whole window
             cut, start, reach = grid, None, None
             continue
-        wrong = _touching_outside(state.body, surface, result, tol * UNION_TOL_FACTOR)
+        wrong = touching_outside(state.body, surface, result, tol * UNION_TOL_FACTOR)
         if wrong is None:
             break
         # cells around the cut would touch: solve again on a cut that takes them in
@@ -372,34 +368,3 @@ def _restricted(surface, cut: Grid):
         return surface
     rows, cols = cut.window_in(surface.grid)
     return Surface(cut, surface.height[rows, cols], surface.owner[rows, cols], surface.n_asperities)
-
-
-def _touching_outside(body: KeptBody, surface, result, tol: float) -> Grid | None:
-    """The a posteriori check of a solve on a cut: the displacement its pressure makes on
-    the whole window (``surface.grid``), and the box of the cells outside the cut whose
-    gap is below ``-tol`` times the cut's largest displacement (the stopping rule's
-    interpenetration test), None when there are none. Tried first on a lower bound of the
-    lift (:mod:`.lift`), then screened by a float32 product (:data:`SCREEN_GAP`); only a
-    window with a cell near contact takes the exact one."""
-    f = result.fields[0]
-    window = surface.grid
-    outside = np.isfinite(surface.height)
-    outside[f.grid.window_in(window)] = False
-    level = surface.height - result.penetration
-    low = outside & (level < 0.0)
-    if not np.any(low):
-        return None  # no cell outside lies below the approach (the pressure only lifts them)
-    e_star = half_space_modulus(body.provider)
-    if e_star is not None:  # kept off by a lower bound of the lift (:mod:`.lift`)?
-        rows, cols = np.nonzero(low)
-        x, y = window.x0 + cols * window.h, window.y0 + rows * window.h
-        if kept_off(f.pressure, f.grid, x, y, level[rows, cols], e_star):
-            return None
-    op, p = body.grid_operator(window), f.grid.embed_in(f.pressure, window)
-    u = op.single_precision().apply(p)
-    scale = max(float(np.abs(u[f.grid.window_in(window)]).max()), np.finfo(float).tiny)
-    gap = np.where(outside, u + level, np.inf)
-    if float(gap.min()) > SCREEN_GAP * scale:
-        return None
-    gap = np.where(outside, op.apply(p) + level, np.inf)
-    return loaded_box(window, gap < -tol * scale)
