@@ -126,9 +126,9 @@ def test_single_precision_directions_take_one_double_product_and_the_classical_c
     """With float32 search directions the kernel asks for an exact product only once its
     residual is below ``FAST_RESIDUAL``: the first is taken in double precision and every
     later one (the confirmation at the tolerance) in float32 about it. One float64 product
-    of the kernel's (besides the cropped grid's product back on the whole grid under
-    penetration control: the start's line search takes the float32 product), and the
-    classical double-precision CG's contact to 1e-7 of the largest force."""
+    of the kernel's (besides the start's line search under penetration control, and the
+    cropped grid's product back on the whole grid), and the classical double-precision
+    CG's contact to 1e-7 of the largest force."""
     from twoscale.influence.convolution import ConvolutionOperator
 
     surf = crowded_surface(MAT, seed, load)
@@ -139,6 +139,11 @@ def test_single_precision_directions_take_one_double_product_and_the_classical_c
     fast = solve_cg(HS, surf, tol=1e-9, precondition=True, precision="single-directions", **load)
     assert plain.converged and fast.converged, (plain.message, fast.message)
     assert len(fast.residuals["gap"]) > 3  # not converged at the start
-    assert len(calls) == 1 + ("penetration" in load)
+    assert len(calls) == 1 + 2 * ("penetration" in load)
     f, fp = fast.asperities.forces, plain.asperities.forces
     assert np.max(np.abs(f - fp)) <= 1e-7 * np.max(fp)
+    # a rough start (CGSettings.rough_start) scales itself by the float32 product instead
+    calls.clear()
+    rough = solve_cg(HS, surf, tol=1e-9, precondition=True, precision="single-directions", rough_start=True, **load)
+    assert rough.converged and len(calls) == 1 + ("penetration" in load)
+    assert np.max(np.abs(rough.asperities.forces - fp)) <= 1e-7 * np.max(fp)

@@ -186,14 +186,13 @@ def solve_union(
         surface = sampled if sampled is not None and sampled.grid == box else box_surface(box, asperities)
         surface = material_box(surface)
         grid = surface.grid
+        rough = previous is None and start is None and approaches is not None
         if previous is not None:
             warm = carried(previous.fields[0].pressure, previous.fields[0].grid, grid)
         elif start is not None:
             warm = carried(start, start_grid, grid)
-        elif approaches is not None:
-            warm = interference_start(surface, asperities, approaches)
         else:
-            warm = None
+            warm = interference_start(surface, asperities, approaches) if rough else None
         result = solve_cg(
             provider,
             surface,
@@ -209,6 +208,7 @@ def solve_union(
             keep_conjugacy=settings.keep_conjugacy,
             monitor=monitor,
             plane_sums=True,
+            rough_start=rough,
         )
         iterations += int(result.iterations.get("cg", 0))
         products += int(result.iterations.get("products", 0))
