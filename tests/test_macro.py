@@ -457,15 +457,7 @@ def test_newton_stops_where_it_stagnates_near_a_solution_and_only_there():
     from twoscale.macro.newton import STALL_RESIDUAL, Stops, newton
 
     def run(x0, factor, stall):
-        return newton(
-            lambda x: x.copy(),
-            lambda x, r: -factor * r,
-            np.array([x0]),
-            scale=lambda x: 1.0,
-            tol=1e-10,
-            max_iter=60,
-            stops=Stops(stall=stall),
-        )
+        return _newton_on_a_line(newton, x0, factor, 60, Stops(stall=stall))
 
     slow = run(0.02, 0.1, 4)
     assert not slow.converged and "stagnated" in slow.message
@@ -488,15 +480,7 @@ def test_newton_hands_over_on_a_plateau_above_the_stall_level():
     from twoscale.macro.newton import PLATEAU_DROP, PLATEAU_RESIDUAL, STALL_RESIDUAL, Stops, newton
 
     def run(factor, plateau, x0=0.05):
-        return newton(
-            lambda x: x.copy(),
-            lambda x, r: -factor * r,
-            np.array([x0]),
-            scale=lambda x: 1.0,
-            tol=1e-10,
-            max_iter=30,
-            stops=Stops(plateau=plateau),
-        )
+        return _newton_on_a_line(newton, x0, factor, 30, Stops(plateau=plateau))
 
     flat = run(0.002, 4)
     assert not flat.converged and "stagnated" in flat.message and flat.iterations == 4
@@ -568,3 +552,17 @@ def test_sampled_operator_error_is_the_error_of_the_sampled_rows_written_out():
     exact = G @ P
     want = np.max(np.abs(T.operator.apply(P)[rows] - exact)) / np.max(np.abs(exact))
     assert 1e-9 < want and got == pytest.approx(want, rel=1e-9)
+
+
+def _newton_on_a_line(newton, x0: float, factor: float, max_iter: int, stops):
+    """Newton on the residual r(x) = x whose step is ``-factor r``: the residual falls by
+    ``1 - factor`` a step (1: one exact step)."""
+    return newton(
+        lambda x: x.copy(),
+        lambda x, r: -factor * r,
+        np.array([x0]),
+        scale=lambda x: 1.0,
+        tol=1e-10,
+        max_iter=max_iter,
+        stops=stops,
+    )

@@ -112,12 +112,15 @@ class SphereLaw(_ClosedFormLaw):
     def _radius_from_penetration(self, delta: np.ndarray) -> np.ndarray:
         # Newton's method asks for the force and then the stiffness at the same penetrations:
         # the last inversion is kept (one entry; the law is otherwise immutable)
-        d = np.maximum(delta, 0.0)
-        last = self.__dict__.get("_last_radius")
-        if last is not None and np.array_equal(last[0], d):
+        return self._kept("_last_radius", np.maximum(delta, 0.0), self._invert_penetration)
+
+    def _kept(self, name: str, x: np.ndarray, invert) -> np.ndarray:
+        """``invert(x)``, kept for the next call with the same ``x`` (one entry under ``name``)."""
+        last = self.__dict__.get(name)
+        if last is not None and np.array_equal(last[0], x):
             return last[1].copy()
-        a = self._invert_penetration(d)
-        object.__setattr__(self, "_last_radius", (np.array(d, copy=True), np.array(a, copy=True)))
+        a = invert(x)
+        object.__setattr__(self, name, (np.array(x, copy=True), np.array(a, copy=True)))
         return a
 
     def _invert_penetration(self, d: np.ndarray) -> np.ndarray:
@@ -140,12 +143,7 @@ class SphereLaw(_ClosedFormLaw):
     def _radius_from_load(self, P: np.ndarray) -> np.ndarray:
         # the macro step's safe path asks for the energy and then its gradient (the
         # penetration) at the same forces: the last inversion is kept, as by penetration
-        last = self.__dict__.get("_last_load_radius")
-        if last is not None and np.array_equal(last[0], P):
-            return last[1].copy()
-        a = self._invert_load(P)
-        object.__setattr__(self, "_last_load_radius", (np.array(P, copy=True), np.array(a, copy=True)))
-        return a
+        return self._kept("_last_load_radius", P, self._invert_load)
 
     def _invert_load(self, P: np.ndarray) -> np.ndarray:
         # P(a) is convex and above Hertz's 4 E* a^3 / (3R): Newton from Hertz's radius
