@@ -66,3 +66,28 @@ def test_contactmechanics_counts_only_where_it_converged_and_its_forces_only_unt
     assert "4 scenes, converged on 3 (not converged: #13)" in line
     assert "median 0.100, worst 0.300" in line
     assert "worst 0.0001 %" in line
+
+
+def test_short_scenes_are_timed_again_in_alternation_and_keep_the_medians(monkeypatch):
+    import argparse
+
+    from benchmarks import sweep
+
+    calls = []
+    times = {"twoscale": iter([0.9, 0.3]), "reference": iter([2.0, 1.1])}
+
+    def fake_child(method, spec, h, timeout, wall_factor):
+        calls.append(method)
+        return {"cpu_s": next(times[method]), "forces": [1.0]}
+
+    monkeypatch.setattr(sweep, "_child", fake_child)
+    args = argparse.Namespace(repeats=3, repeat_below=3.0, timeout=90.0, ref_timeout=150.0, wall_factor=20.0)
+    rec = {"ts": {"cpu_s": 0.4, "forces": [1.0]}, "ref": {"cpu_s": 1.0, "forces": [1.0]}}
+    sweep._repeat_short(rec, {}, 0.1, args)
+    assert calls == ["twoscale", "reference", "twoscale", "reference"]
+    assert rec["ts"]["cpu_runs"] == [0.4, 0.9, 0.3] and rec["ts"]["cpu_s"] == pytest.approx(0.4)
+    assert rec["ref"]["cpu_s"] == pytest.approx(1.1)
+    # a reference over the threshold is timed once
+    rec = {"ts": {"cpu_s": 1.0, "forces": [1.0]}, "ref": {"cpu_s": 3.5, "forces": [1.0]}}
+    sweep._repeat_short(rec, {}, 0.1, args)
+    assert "cpu_runs" not in rec["ts"] and len(calls) == 4
