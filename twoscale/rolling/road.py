@@ -301,7 +301,8 @@ class Road:
         first = np.flatnonzero(fall == 0.0)
         top = first[np.unique(np.searchsorted(starts, first, side="right"), return_index=True)[1]]
         xt, yt = x[top], y[top]
-        r = np.hypot(x - np.repeat(xt, counts), y - np.repeat(yt, counts))
+        dx, dy = x - np.repeat(xt, counts), y - np.repeat(yt, counts)
+        r = np.sqrt(dx * dx + dy * dy)  # (np.hypot: ~40 ns a sample, 10 of the pass's 25 ms)
         extent = np.maximum.reduceat(np.where(np.isfinite(rec), r, -np.inf), starts)
         ends = (starts + counts).tolist()
         made = []
