@@ -181,3 +181,35 @@ def test_a_contact_settled_small_enough_takes_the_blocks_again(monkeypatch):
     fresh = StoneBlocks(KeptBody(HS))(surface).apply(gap * small, small)
     assert pc.circulant is not None and np.array_equal(pc.apply(gap * small, small), fresh)  # settled
     assert pc.circulant is None and not np.array_equal(fresh, circulant(gap * small))
+
+
+def test_blocks_built_while_the_contact_settles_are_built_once_more_when_it_has(monkeypatch):
+    """Blocks taken up again on a contact still settling (above) take the cells it gains by
+    the kernel's diagonal while it moves, are built once more on its cells when it has
+    settled (the same count twice), as a fresh solve's, and not again after that."""
+    import twoscale.rolling.blocks as blocks
+
+    monkeypatch.setattr(blocks, "MAX_BLOCK_CELLS", 60)
+    g = Grid(-1.0, -0.8, 0.1, 20, 16)
+    owner = np.zeros(g.shape, int)
+    owner[:, 10:] = 1
+    surface = Surface(g, np.zeros(g.shape), owner, 2)
+    x, y = g.centres()
+    wide, small = (x**2 + y**2 < 0.7**2), (x + 0.5) ** 2 + y**2 < 0.35**2
+    small |= (x - 0.5) ** 2 + y**2 < 0.3**2
+    grown = small | ((x + 0.5) ** 2 + y**2 < 0.42**2) & (y > 0.0)  # a few cells more
+    moved = grown.copy()
+    moved[np.unravel_index(np.flatnonzero((grown & (x < 0.0)).ravel())[0], g.shape)] = False
+    moved[np.unravel_index(np.flatnonzero((~grown & (x < 0.0) & (y > 0.5)).ravel())[0], g.shape)] = True
+    assert np.count_nonzero(grown) > np.count_nonzero(small) and np.count_nonzero(moved) == np.count_nonzero(grown)
+    gap = np.random.default_rng(5).standard_normal(g.shape)
+
+    def fresh(on):
+        return StoneBlocks(KeptBody(HS))(surface).apply(gap * on, on)
+
+    pc = StoneBlocks(KeptBody(HS))(surface)
+    for on in (wide, small, small):  # the circulant inverse, then the blocks on ``small``
+        pc.apply(gap * on, on)
+    assert not np.array_equal(pc.apply(gap * grown, grown), fresh(grown))  # still moving: the diagonal
+    assert np.array_equal(pc.apply(gap * grown, grown), fresh(grown))  # settled: built once more
+    assert not np.array_equal(pc.apply(gap * moved, moved), fresh(moved))  # not again

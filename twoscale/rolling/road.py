@@ -217,7 +217,13 @@ class Road:
         self.rank[self.by_x] = np.arange(len(self.by_x))
         flat = np.concatenate([self.cells[k] for k in self.by_x.tolist()])
         self.sample_start = np.concatenate([[0], np.cumsum([len(self.cells[k]) for k in self.by_x.tolist()])])
-        self.samples = (X[flat], Y[flat], recess.ravel()[flat])
+        x0, x1, y0, y1 = self.window
+        x, y = X[flat], Y[flat]
+        # (the face's height at a sample, ``inf`` outside its window, at every position: of
+        # the strip's few columns (``columns[column]`` is x), and only inside across y)
+        self.columns, column = np.unique(x, return_inverse=True)
+        across = (y >= y0 - EDGE_TOL) & (y <= y1 + EDGE_TOL)
+        self.samples = (x, y, recess.ravel()[flat], np.where(across, column, len(self.columns)))
 
     @property
     def extent_x(self) -> tuple:
@@ -285,7 +291,7 @@ class Road:
         starts = np.concatenate([[0], np.cumsum(counts)[:-1]])
         x = samples[0] + shift
         y = samples[1]
-        rec = samples[2] + self.face.height(x, y)
+        rec = samples[2] + self._face_at(shift)[samples[3]]
         low = np.minimum.reduceat(rec, starts)
         keep = (low < bound) & np.isfinite(low)
         if not keep.all():  # only the stones that can touch (the slab holds a few more)
@@ -301,7 +307,8 @@ class Road:
         first = np.flatnonzero(fall == 0.0)
         top = first[np.unique(np.searchsorted(starts, first, side="right"), return_index=True)[1]]
         xt, yt = x[top], y[top]
-        r = np.hypot(x - np.repeat(xt, counts), y - np.repeat(yt, counts))
+        dx, dy = x - np.repeat(xt, counts), y - np.repeat(yt, counts)
+        r = np.sqrt(dx * dx + dy * dy)  # (np.hypot: ~40 ns a sample, 10 of the pass's 25 ms)
         extent = np.maximum.reduceat(np.where(np.isfinite(rec), r, -np.inf), starts)
         ends = (starts + counts).tolist()
         made = []
@@ -312,6 +319,14 @@ class Road:
         out: list = [None] * len(keep)
         for i, stone in zip(np.flatnonzero(keep).tolist(), made):
             out[i] = stone
+        return out
+
+    def _face_at(self, shift: float) -> np.ndarray:
+        """:meth:`Face.height` of the strip's sample columns at ``shift`` and ``inf`` last
+        (the samples outside the window across y): a look-up instead of ten passes over the
+        ~250,000 samples of a tyre's stones (the same values: the same arithmetic on x)."""
+        out = np.full(len(self.columns) + 1, np.inf)
+        out[:-1] = self.face.height(self.columns + shift, self.window[2])
         return out
 
     def _tip(self, a: Asperity, shift: float, face: Face) -> ShiftedTip:

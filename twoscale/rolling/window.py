@@ -220,7 +220,7 @@ class WindowState:
         """The box of the last position's loaded cells (a sub-grid of its grid)."""
         return loaded_box(*self.past[-1][:2]) if self.past else None
 
-    def start(self, grid: Grid, shift: float, pc: Callable | None = None, one=None) -> np.ndarray | None:
+    def start(self, grid: Grid, shift: float, pc=None, one=None) -> np.ndarray | None:
         """The last pressure moved with the road to ``shift`` on ``grid``, extrapolated
         linearly from the two last positions when both are there, else advanced by
         ``ahead`` if given (preconditioned by ``pc``; the signed fields of :meth:`keep`,
@@ -327,7 +327,7 @@ def solve_window(track, selection, bound: float, state: WindowState, tol: float)
     blocks = None if state.blocks is None else state.blocks.at(selection.numbers, selection.shift, grid.h)
     # the second position's linearised step by its stone blocks, let go before the CG builds
     # its own (held through it, the heap grew by their ~6 MB: 2,100 more page faults)
-    step_pc = None if blocks is None or len(state.past) != 1 else blocks(_restricted(surface, cut)).apply
+    step_pc = None if blocks is None or len(state.past) != 1 else blocks(_restricted(surface, cut))
     one = state.last_moved(cut, selection.shift)  # moved once, for the start and the CG's cells
     start, step_pc = state.start(cut, selection.shift, step_pc, one), None
     near = state.near(cut, one)
