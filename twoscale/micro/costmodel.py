@@ -92,7 +92,14 @@ class CostModel:
         Below this many patches the far field is not used (but see the next).
     sparse_far_field_min_patches : int
         Where the patches cover less than ``union_min_coverage`` of their box (the union
-        CG ruled out: scattered contacts) the far field is considered from this many.
+        CG ruled out: scattered contacts) the far field is considered from this many (2:
+        wherever there is a pair; forced on the sweep's scenes of 7-40 such patches it ran
+        0.46-0.9x the exact block iterations' CPU time, none slower beyond the noise:
+        docs/records/sweep.md).
+    sparse_tilt_far_field_min_patches : int
+        The same with the tilt: 43 tilted spheres under load at 14 % of their box took over
+        20 s with the far field against 10.9 s exact (20 tilted ones at 5 %: 1.0 s against
+        2.3 s), so the tilt keeps the bound measured before (45).
     exact_max_patches : int
         Above this many patches exact pair coupling is not considered (N^2 pairs).
     two_level_sweeps : int
@@ -126,7 +133,8 @@ class CostModel:
     near_pairs: float = 8.0
     near_pairs_calibration: float = 16.4
     far_field_min_patches: int = 100
-    sparse_far_field_min_patches: int = 45
+    sparse_far_field_min_patches: int = 2
+    sparse_tilt_far_field_min_patches: int = 45
     exact_max_patches: int = 400
     two_level_sweeps: int = 20
     stall_sweeps: int = 10
