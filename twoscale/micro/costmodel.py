@@ -93,9 +93,9 @@ class CostModel:
     sparse_far_field_min_patches : int
         Where the patches cover less than ``union_min_coverage`` of their box (the union
         CG ruled out: scattered contacts) the far field is considered from this many (2:
-        wherever there is a pair; forced on the sweep's scenes of 7-40 such patches it ran
-        0.46-0.9x the exact block iterations' CPU time, none slower beyond the noise:
-        docs/records/sweep.md).
+        wherever there is a pair; forced on the sweep's scenes of 2-40 such patches it ran
+        0.45-0.9x the exact block iterations' CPU time, or the same on three of them,
+        none slower beyond the noise: docs/records/sweep.md).
     sparse_tilt_far_field_min_patches : int
         The same with the tilt: 43 tilted spheres under load at 14 % of their box took over
         20 s with the far field against 10.9 s exact (20 tilted ones at 5 %: 1.0 s against
