@@ -20,9 +20,14 @@ CPU / wall ratio (the machine is shared). The script prints:
 Only attempts that converged and took at least ``--min-seconds`` count (a stalled
 attempt's time is the price of its fallback, reported apart).
 
+``--forced FILE.jsonl`` adds the rows of ``benchmarks/force_strategies.py`` (each strategy
+forced on sweep scenes, the micro step's CPU seconds): the candidates the policy did not
+pick are measured there too, on the same scenes (the sweep's records hold the chosen
+attempt only).
+
 Usage::
 
-    python benchmarks/calibrate_policy.py sweep_a.jsonl [sweep_b.jsonl ...] [--emit]
+    python benchmarks/calibrate_policy.py sweep_a.jsonl [sweep_b.jsonl ...] [--forced forced.jsonl] [--emit]
 """
 
 from __future__ import annotations
@@ -81,6 +86,37 @@ def samples(records: list[dict]) -> list[dict]:
                     "scene": SceneSpec(**rec["spec"]).label,
                 }
             )
+    return out
+
+
+#: The candidate a forced variant of ``benchmarks/force_strategies.py`` is charged to.
+FORCED = {"union-cg": "union-cg", "block-gs": "block-gs", "two-level": "block-gs", "far": "two-level"}
+
+
+def forced_samples(rows: list[dict], count: int = 200, seed: int = 0) -> list[dict]:
+    """One sample per forced variant's row (``benchmarks/force_strategies.py``): its median
+    micro-step CPU seconds against the work the policy estimated on that scene."""
+    from twoscale.scenespace import sweep
+
+    specs = {s.index: s for s in sweep(count, seed)}
+    out = []
+    for r in rows:
+        key = FORCED.get(r["variant"])
+        if key is None or not r.get("work") or not r.get("work", {}).get(key) or "micro_s" not in r:
+            continue
+        spec = specs[r["scene"]]
+        out.append(
+            {
+                "candidate": key,
+                "iteration": r["variant"],
+                "work": float(r["work"][key]),
+                "control": "tilt" if spec.tilt else spec.control,
+                "seconds": max(float(r["micro_s"]), 1e-3),
+                "converged": bool(r.get("converged")),
+                "sweeps": (r.get("attempts") or [[None, None, None, None]])[-1][3],
+                "scene": spec.label + " (forced)",
+            }
+        )
     return out
 
 
@@ -210,6 +246,7 @@ def report(name: str, models: dict, rows: list[dict]) -> list[dict]:
 def main(argv=None) -> int:
     p = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     p.add_argument("files", nargs="+")
+    p.add_argument("--forced", nargs="*", default=[], help="rows of benchmarks/force_strategies.py")
     p.add_argument("--emit", action="store_true", help="print the FITTED block for twoscale/micro/costmodel.py")
     p.add_argument("--margin", type=float, default=1.0, help="union_margin to emit")
     p.add_argument(
@@ -231,7 +268,11 @@ def main(argv=None) -> int:
                 if line.strip():
                     r = json.loads(line)
                     records[r["spec"]["index"]] = r
-    rows = [r for r in samples(list(records.values())) if r["seconds"] >= args.min_seconds]
+    forced: list = []
+    for f in args.forced:
+        with open(f, encoding="utf-8") as fh:
+            forced += [json.loads(line) for line in fh if line.strip()]
+    rows = [r for r in samples(list(records.values())) + forced_samples(forced) if r["seconds"] >= args.min_seconds]
     if not rows:
         print("no timed attempt")
         return 1

@@ -313,7 +313,7 @@ def _scattered(n: int, side: float, seed: int) -> list:
 
 def test_tens_of_scattered_patches_take_the_far_field():
     # 70 patches on a box they cover 11 % of: the union CG is ruled out, and the far field
-    # is considered from model.sparse_far_field_min_patches (45) instead of 100 patches
+    # is considered from model.sparse_far_field_min_patches (2) instead of 100 patches
     from dataclasses import replace
 
     from twoscale.micro.costmodel import FITTED
@@ -342,18 +342,19 @@ def test_the_far_field_on_tens_of_scattered_patches_is_the_full_grids_answer():
 def test_few_merged_patches_under_load_weigh_the_union_cg_against_sensitivity_sweeps():
     # merged contacts under load control run block Gauss-Seidel with sensitivity sweeps
     # (dearer than its prediction by model.sensitivity_factor); with no far field in the
-    # running (few patches) the union CG is weighed against it even on a mostly empty box
+    # running (a bound on the patches above theirs) the union CG is weighed against it even
+    # on a mostly empty box
     import dataclasses
-
-    from twoscale.micro.costmodel import FITTED
 
     pts, box = _patches(_scattered(12, 12.0, 2), 1.0, 0.2, 0.05)
     work = choose(pts, box).estimates["work"]
     # the union CG predicted 2.5x the exact block iterations (far field 10x)
     secs = {"union-cg": 2.5, "block-gs": 1.0, "two-level": 10.0}
-    model = _model_predicting(work, secs, load_factor=1.0, union_margin=1.7, sensitivity_factor=1.9)
+    model = _model_predicting(
+        work, secs, load_factor=1.0, union_margin=1.7, sensitivity_factor=1.9, sparse_far_field_min_patches=45
+    )
     merged = choose(pts, box, load_control=True, merged_contacts=True, model=model)
-    assert merged.estimates["coverage"] < UNION_MIN_COVERAGE and len(pts) < FITTED.sparse_far_field_min_patches
+    assert merged.estimates["coverage"] < UNION_MIN_COVERAGE and len(pts) < model.sparse_far_field_min_patches
     assert merged.iteration == "union-cg"
     assert merged.estimates["seconds"]["block-gs"] == pytest.approx(1.9, rel=0.01)
     # not merged: the two-level variant of the exact iteration (no sensitivity sweeps), the
@@ -369,15 +370,17 @@ def test_few_merged_patches_under_load_weigh_the_union_cg_against_sensitivity_sw
 @pytest.mark.slow
 def test_sweep_scene_of_15_merged_paraboloids_under_load_is_the_full_grids_answer():
     # the sweep's #51: 15 paraboloids under load, merged contacts on 12 % of their box;
-    # the union CG (1.1-1.2 s of CPU) instead of block Gauss-Seidel with sensitivity sweeps (2.0-2.6 s)
+    # block Gauss-Seidel with sensitivity sweeps took 2.0-2.6 s of CPU, the union CG
+    # 1.1-2.2 s, the far-field two-level iteration 1.0 s (forced, interleaved with the union CG)
     from twoscale import scenespace, solve
 
     (spec,) = [s for s in scenespace.sweep(200, 0) if s.index == 51]
     scene = scenespace.build(spec)
     res, ref = solve(scene), solve(scene, method="reference")
-    assert res.details.micro.choice.iteration == "union-cg"
+    assert res.details.micro.choice.iteration == "two-level" and res.details.micro.choice.far_tol == AUTO_FAR_TOL
     f, fr = np.asarray(res.asperities.forces), np.asarray(ref.asperities.forces)
-    assert np.max(np.abs(f - fr)) <= 1e-5 * np.max(fr)
+    # the far field's approximation (of order (r / d)^3): 3.3e-5 of the largest force from the union CG's
+    assert np.max(np.abs(f - fr)) <= 2e-4 * np.max(fr)
 
 
 @pytest.mark.parametrize("merged, load", [(False, False), (True, True), (False, True)])
