@@ -33,6 +33,11 @@ TABLE_CACHE_BYTES = 64e6
 OPERATOR_CACHE_BYTES = 192e6
 #: What is kept for a pair too close for a separated operator (the answer ``None``).
 _TOO_CLOSE = "too close"
+#: Point sets from this size to :data:`KEPT_COMPLIANCE_POINTS` have their compliance among
+#: themselves kept (:meth:`CachedBody.point_compliance`).
+KEPT_COMPLIANCE_FROM = 64
+#: Largest point set whose compliance among itself is kept (2,048^2 values, 34 MB).
+KEPT_COMPLIANCE_POINTS = 2048
 
 
 class OperatorCaches:
@@ -148,7 +153,28 @@ class CachedBody(InfluenceProvider):
 
     # ------------------------------------------------------------------ the body's answers
     def point_compliance(self, targets, sources):
-        return self.body.point_compliance(targets, sources)
+        """The body's. On a translation-invariant body (a function of each pair's offset)
+        the compliance among one set of points (the targets are the sources) is kept, the
+        last set only, and a later request among those points or some of them is cut from
+        it, the same values: the macro step's interaction among the tips, made again when
+        the step is refined, and the coarse space's among the patches' tips (1,013 tips:
+        three sets of 1e6 Boussinesq values, 0.05-0.1 s each, against 5 ms a cut)."""
+        n = len(targets)
+        if not (self._invariant and KEPT_COMPLIANCE_FROM <= n <= KEPT_COMPLIANCE_POINTS and len(sources) == n):
+            return self.body.point_compliance(targets, sources)
+        points = np.asarray(targets, dtype=float)
+        if not (sources is targets or np.array_equal(points, np.asarray(sources, dtype=float))):
+            return self.body.point_compliance(targets, sources)
+        kept = self.caches.operators.get(("compliance",))
+        if kept is not None:
+            where = [kept[0].get(p) for p in map(tuple, points.tolist())]
+            if None not in where:
+                idx = np.array(where, dtype=np.intp)
+                return kept[1][np.ix_(idx, idx)]
+        T = np.array(self.body.point_compliance(targets, sources), dtype=float)
+        index = {p: k for k, p in enumerate(map(tuple, points.tolist()))}
+        self.caches.operators.put(("compliance",), (index, T.copy()), T.nbytes)
+        return T
 
     def cell_block(self, targets, sources, h):
         return self.body.cell_block(targets, sources, h)
