@@ -193,8 +193,13 @@ def test_the_compliance_among_points_is_kept_and_cut_for_a_subset(monkeypatch):
     assert made == [(200, 200)]
     np.testing.assert_array_equal(again, body_compliance(hs, tips, tips))
     np.testing.assert_array_equal(cut, body_compliance(hs, tips[some], tips[some]))
-    # points not among the kept ones, or targets other than the sources: the body's
-    other = np.vstack([tips[:100], [[20.0, 20.0]]])
+    # most points kept, two not (merged blocks' mean tips): their rows and columns by the body
+    merged = np.vstack([tips[some], 0.5 * (tips[:2] + tips[2:4])])
+    mixed = cached.point_compliance(merged, merged)
+    np.testing.assert_array_equal(mixed, body_compliance(hs, merged, merged))
+    assert made[1:] == [(2, len(merged)), (len(merged) - 2, 2)]
+    # most points not kept, or targets other than the sources: the body's
+    other = np.vstack([tips[:10], tips[:60] + 20.0])
     cached.point_compliance(other, other)
     cached.point_compliance(tips[:100], tips[100:])
-    assert made == [(200, 200), (101, 101), (100, 100)]
+    assert made[3:] == [(70, 70), (100, 100)]
