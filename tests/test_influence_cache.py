@@ -169,3 +169,37 @@ def test_offset_tables_cut_from_the_quadrant_equal_love_values():
         want = love_rectangle(ox[None, :], oy[:, None], h / 2, h / 2, hs.E_star)
         assert got.shape == want.shape
         assert np.allclose(got, want, rtol=1e-9, atol=1e-12 * want.max())
+
+
+def test_the_compliance_among_points_is_kept_and_cut_for_a_subset(monkeypatch):
+    # the macro step's interaction among the tips, then the coarse space's among the tips
+    # that have patches (a subset, in another order): the body makes it once, the same values
+    hs = HalfSpace(MAT)
+    tips = np.random.default_rng(4).random((200, 2)) * 10.0
+    made = []
+    body_compliance = HalfSpace.point_compliance
+
+    def counted(self, targets, sources):
+        made.append((len(targets), len(sources)))
+        return body_compliance(self, targets, sources)
+
+    monkeypatch.setattr(HalfSpace, "point_compliance", counted)
+    cached = CachedBody(hs, OperatorCaches())
+    first = cached.point_compliance(tips, tips)
+    first[0, 1] = -1.0  # the caller's copy: changing it does not change what is kept
+    again = cached.point_compliance(tips, tips.copy())
+    some = np.array([150, 3, 77, 4, 199, 0] + list(range(20, 90)))
+    cut = cached.point_compliance(tips[some], tips[some])
+    assert made == [(200, 200)]
+    np.testing.assert_array_equal(again, body_compliance(hs, tips, tips))
+    np.testing.assert_array_equal(cut, body_compliance(hs, tips[some], tips[some]))
+    # most points kept, two not (merged blocks' mean tips): their rows and columns by the body
+    merged = np.vstack([tips[some], 0.5 * (tips[:2] + tips[2:4])])
+    mixed = cached.point_compliance(merged, merged)
+    np.testing.assert_array_equal(mixed, body_compliance(hs, merged, merged))
+    assert made[1:] == [(2, len(merged)), (len(merged) - 2, 2)]
+    # most points not kept, or targets other than the sources: the body's
+    other = np.vstack([tips[:10], tips[:60] + 20.0])
+    cached.point_compliance(other, other)
+    cached.point_compliance(tips[:100], tips[100:])
+    assert made[3:] == [(70, 70), (100, 100)]

@@ -186,3 +186,27 @@ def test_highest_over_one_tip_is_the_whole_grid_sampled():
         assert highest_over(g, [a]) == whole
         infinite += np.isinf(whole)
     assert 0 < infinite < 600
+
+
+@pytest.mark.parametrize("shapes", [("sphere",), ("paraboloid",), ("sphere", "paraboloid")])
+def test_the_candidates_of_all_patches_at_once_are_each_patchs(shapes):
+    # one query of the tips' tree for every patch (the same arithmetic on arrays): the
+    # candidates patch_candidates gives one patch at a time, patches of every size, some
+    # whose farthest cell is beyond their sphere's material (nothing skipped by height)
+    from twoscale.micro.candidates import candidates_of
+    from twoscale.micro.patches import patch_candidates
+
+    tips = _tips(150, 5, shapes)
+    table = TipTable(tips)
+    wanted = [
+        (k, Grid.covering(tips[k].x - w, tips[k].x + w + 0.013, tips[k].y - w, tips[k].y + w, 0.01, anchor=(0.003, 0)))
+        for k, w in zip(range(0, 150, 2), np.resize([0.02, 0.07, 0.2, 0.45, 0.9], 75))
+    ]
+    together = candidates_of(table, wanted)
+    assert together is not None and len(together) == len(wanted)
+    sizes = set()
+    for (k, grid), got in zip(wanted, together):
+        np.testing.assert_array_equal(got, patch_candidates(grid, table, (k,)))
+        sizes.add(len(got))
+    assert len(sizes) > 5  # patches with few and with many candidates
+    assert candidates_of(TipTable(tips[:40]), wanted[:3]) is None  # few tips: no tree, one by one

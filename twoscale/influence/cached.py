@@ -33,6 +33,11 @@ TABLE_CACHE_BYTES = 64e6
 OPERATOR_CACHE_BYTES = 192e6
 #: What is kept for a pair too close for a separated operator (the answer ``None``).
 _TOO_CLOSE = "too close"
+#: Point sets from this size to :data:`KEPT_COMPLIANCE_POINTS` have their compliance among
+#: themselves kept (:meth:`CachedBody.point_compliance`).
+KEPT_COMPLIANCE_FROM = 64
+#: Largest point set whose compliance among itself is kept (2,048^2 values, 34 MB).
+KEPT_COMPLIANCE_POINTS = 2048
 
 
 class OperatorCaches:
@@ -148,7 +153,29 @@ class CachedBody(InfluenceProvider):
 
     # ------------------------------------------------------------------ the body's answers
     def point_compliance(self, targets, sources):
-        return self.body.point_compliance(targets, sources)
+        """The body's. On a translation-invariant body (a function of each pair's offset)
+        the compliance among one set of points (the targets are the sources) is kept, the
+        last set only, and a later request among points most of which are kept is cut from
+        it, the rows and columns of the others made by the body: the same values. The
+        macro step's interaction among the tips is made again when the step is refined,
+        and the coarse space's among the blocks' points are the tips but for merged blocks
+        (their members' mean): 1,013 tips, three sets of 1e6 Boussinesq values, 0.05-0.1 s
+        each, against 5 ms a cut."""
+        n = len(targets)
+        if not (self._invariant and KEPT_COMPLIANCE_FROM <= n <= KEPT_COMPLIANCE_POINTS and len(sources) == n):
+            return self.body.point_compliance(targets, sources)
+        points = np.asarray(targets, dtype=float)
+        if not (sources is targets or np.array_equal(points, np.asarray(sources, dtype=float))):
+            return self.body.point_compliance(targets, sources)
+        kept = self.caches.operators.get(("compliance",))
+        if kept is not None:
+            where = np.array([kept[0].get(p, -1) for p in map(tuple, points.tolist())], dtype=np.intp)
+            if 2 * np.count_nonzero(where >= 0) >= n:
+                return _cut(kept[1], where, lambda t, s: self.body.point_compliance(points[t], points[s]))
+        T = np.array(self.body.point_compliance(targets, sources), dtype=float)
+        index = {p: k for k, p in enumerate(map(tuple, points.tolist()))}
+        self.caches.operators.put(("compliance",), (index, T.copy()), T.nbytes)
+        return T
 
     def cell_block(self, targets, sources, h):
         return self.body.cell_block(targets, sources, h)
@@ -295,6 +322,20 @@ class CachedBody(InfluenceProvider):
         if hasattr(op, "moved"):  # an operator that cannot follow a translation is not kept
             self.caches.operators.put(key, (self.caches.solve, op), op.nbytes)
         return op
+
+
+def _cut(kept: np.ndarray, where: np.ndarray, make: Callable) -> np.ndarray:
+    """The compliance among points whose rows in ``kept`` are ``where`` (-1: not kept),
+    those of the others by ``make(target_rows, source_rows)``."""
+    n = len(where)
+    have, miss = np.flatnonzero(where >= 0), np.flatnonzero(where < 0)
+    if not miss.size:
+        return kept[np.ix_(where, where)]
+    out = np.empty((n, n))
+    out[np.ix_(have, have)] = kept[np.ix_(where[have], where[have])]
+    out[miss, :] = make(miss, np.arange(n))
+    out[np.ix_(have, miss)] = make(have, miss)
+    return out
 
 
 def _held_bytes(op: Any) -> int:

@@ -5,6 +5,7 @@ from __future__ import annotations
 import time
 
 import numpy as np
+from scipy.linalg import cho_solve
 from scipy.optimize import brentq, linprog
 from scipy.spatial import cKDTree
 
@@ -337,9 +338,7 @@ def _initial_guess(system: MacroSystem, z, stack: LawStack, penetration, total_l
     if total_load is None:
         return _secant_forces(system, stack)
     d0 = _independent_approach(z, stack, float(total_load))
-    P0 = np.zeros(n)
-    extra = [d0, 0.0, 0.0] if tilt else [d0]
-    return np.concatenate([P0, extra])
+    return np.concatenate([np.zeros(n), [d0, 0.0, 0.0] if tilt else [d0]])  # no force
 
 
 def _rigid_start(z, stack: LawStack, total_load, tilt, start: MacroStart) -> np.ndarray:
@@ -376,7 +375,7 @@ def _secant_forces(system: MacroSystem, stack: LawStack) -> np.ndarray:
         L = np.linalg.cholesky(K)
     except np.linalg.LinAlgError:
         return P
-    P[A] = np.maximum(np.linalg.solve(L.T, np.linalg.solve(L, o[A])), 0.0)
+    P[A] = np.maximum(cho_solve((L, True), o[A], check_finite=False), 0.0)  # not two LU solves
     return P
 
 

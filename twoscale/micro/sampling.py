@@ -22,6 +22,7 @@ import numpy as np
 
 from ..grid import Grid
 from ..indenters import Asperity, Surface, surface_on
+from .candidates import candidates_of
 from .costmodel import FITTED
 from .patches import Patch, TipTable, crop_patch, make_patch, patch_candidates, patch_radius
 
@@ -239,4 +240,8 @@ def build_patches(
             or one_map(asperities)
         ):  # sampled once
             built.update(((pt.asperity, pt.grid), pt) for pt in patches_cut_from_box(new, box, asperities))
+    rest = [(k, grid) for k, grid in wanted if (k, grid) not in built]
+    keeps = candidates_of(asperities, rest) if isinstance(asperities, TipTable) else None
+    if keeps is not None:  # the candidates of all at once, each patch's as it finds them
+        built.update(((k, grid), make_patch(k, grid, asperities, keep=c)) for (k, grid), c in zip(rest, keeps))
     return [built.get((k, grid)) or make_patch(k, grid, asperities) for k, grid in wanted]

@@ -126,51 +126,41 @@ class WorkingSet:
 
     def full_displacement(self, pressures: list) -> list:
         """Displacement on every whole patch (list of (ny, nx) arrays), mm."""
-        out = []
-        for k, pt in enumerate(self.patches):
-            u = self.coupling.patch_displacement(k, pressures)
-            if np.any(pressures[k]):
-                u += self.blocks[k].patch_product(pressures[k])
-            out.append(u)
-        return out
+        return [self._patch_displacement(k, pressures) for k in range(len(self.patches))]
+
+    def _patch_displacement(self, k: int, pressures: list) -> np.ndarray:
+        u = self.coupling.patch_displacement(k, pressures)
+        if np.any(pressures[k]):
+            u += self.blocks[k].patch_product(pressures[k])
+        return u
 
     def gaps(self, pressures: list, theta, pivot) -> list:
-        """``z + tilt + u - d`` on every whole patch, mm (``inf`` where no indenter); the last
-        answer again while the patches, the block vectors (replaced, never modified, when
-        they change) and the approach and tilt are the same (the growth check at a round's
-        end and the result ask for the same gaps)."""
+        """``z + tilt + u - d`` on every whole patch, mm (``inf`` where no indenter): the
+        :meth:`gaps_of` all patches."""
+        return list(self.gaps_of(range(len(self.patches)), pressures, theta, pivot).values())
+
+    def gaps_of(self, which, pressures: list, theta, pivot) -> dict:
+        """:meth:`gaps` on the patches ``which`` only (``{k: (ny, nx) array}``; each patch's
+        gap is the same whichever others are asked for). A patch's gap is kept while the
+        patches, the block vectors (replaced, never modified, when they change) and the
+        approach and tilt are the same: the growth check at a round's end asks for the
+        patches with cells another asperity owns and the result for all of them, at the
+        same pressures (made twice, 303 of 1,013 spheres' 939 patches were 5 % of the solve)."""
         key = (tuple(float(v) for v in theta), tuple(pivot))
         last = getattr(self, "_gaps", None)
-        if last is not None and last[0] == key and _same(last[1], pressures) and _same(last[2], self.patches):
-            return last[3]
-        out = self._gaps_now(pressures, theta, pivot)
-        self._gaps = (key, list(pressures), list(self.patches), out)
-        return out
-
-    def _gaps_now(self, pressures: list, theta, pivot) -> list:
-        return [self._gap(k, u, theta, pivot) for k, u in enumerate(self.full_displacement(pressures))]
+        if last is None or last[0] != key or not _same(last[1], pressures) or not _same(last[2], self.patches):
+            last = self._gaps = (key, list(pressures), list(self.patches), {})
+        kept = last[3]
+        for k in which:
+            if k not in kept:
+                kept[k] = self._gap(k, self._patch_displacement(k, pressures), theta, pivot)
+        return {k: kept[k] for k in which}
 
     def _gap(self, k: int, u: np.ndarray, theta, pivot) -> np.ndarray:
         pt = self.patches[k]
         X, Y = pt.grid.centres()
         with np.errstate(invalid="ignore"):
             return pt.height + Tilt(theta[1], theta[2], pivot).height(X, Y) + u - theta[0]
-
-    def gaps_of(self, which, pressures: list, theta, pivot) -> dict:
-        """:meth:`gaps` on the patches ``which`` only (``{k: (ny, nx) array}``; the kept
-        answer's where :meth:`gaps` has one for these pressures): each patch's gap is the
-        same whichever others are asked for."""
-        key = (tuple(float(v) for v in theta), tuple(pivot))
-        last = getattr(self, "_gaps", None)
-        if last is not None and last[0] == key and _same(last[1], pressures) and _same(last[2], self.patches):
-            return {k: last[3][k] for k in which}
-        out = {}
-        for k in which:
-            u = self.coupling.patch_displacement(k, pressures)
-            if np.any(pressures[k]):
-                u += self.blocks[k].patch_product(pressures[k])
-            out[k] = self._gap(k, u, theta, pivot)
-        return out
 
     def displacement(self, pressures: list) -> list:
         """``A p`` on every block (list of (n_k,) arrays), mm."""
