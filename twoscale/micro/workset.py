@@ -38,6 +38,7 @@ class WorkingSet:
         # the product engine a coupling object built for these patches (:mod:`.couplings`)
         self.coupling = coupling
         self.sensitivities = None
+        self._penetrating: tuple | None = None  # the last :func:`_penetrations` and its key
 
     def tips(self) -> np.ndarray:
         """Tip of every asperity of the scene, (N, 2) mm."""
@@ -214,6 +215,20 @@ def _grow_loaded(state: WorkingSet, p: list, p0: list) -> int:
 def _cover_penetration(state: WorkingSet, p: list, p0: list, theta, pivot, gap_tol: float) -> int:
     """Extend the patch of every asperity that penetrates on cells outside its own block
     (a neighbour can push its contact away from its tip); returns how many were extended."""
+    wanted = _penetrations(state, p, theta, pivot, gap_tol)
+    for k, pts in wanted.items():
+        state.extend(k, pts, [p, p0])
+    return len(wanted)
+
+
+def _penetrations(state: WorkingSet, p: list, theta, pivot, gap_tol: float) -> dict:
+    """The points (M, 2) mm outside its patch where each asperity penetrates on cells
+    another owns, by asperity; the last answer again for the same state, pressures (the
+    same objects) and approach (a round's early look and its end's growth ask alike)."""
+    key = (tuple(float(v) for v in theta), tuple(pivot), float(gap_tol))
+    last = state._penetrating
+    if last is not None and last[0] == key and _same(last[1], p) and _same(last[2], state.patches + [state.coupling]):
+        return last[3]
     wanted: dict = {}
     # only cells owned by another asperity can be reported: the patches without any are
     # not evaluated (the whole gaps of 4,548 paraboloids' patches cost what a sweep does)
@@ -229,7 +244,7 @@ def _cover_penetration(state: WorkingSet, p: list, p0: list, theta, pivot, gap_t
             sel = bad & (pt.owner == k)
             wanted.setdefault(int(k), []).append(np.column_stack([X[sel], Y[sel]]))
     index = state.patch_of()
-    extended = 0
+    out = {}
     for k, pts in wanted.items():
         pts = np.concatenate(pts)
         if k in index:
@@ -237,9 +252,17 @@ def _cover_penetration(state: WorkingSet, p: list, p0: list, theta, pivot, gap_t
             inside = (pts[:, 0] > xmin) & (pts[:, 0] < xmax) & (pts[:, 1] > ymin) & (pts[:, 1] < ymax)
             pts = pts[~inside]
         if len(pts):
-            state.extend(k, pts, [p, p0])
-            extended += 1
-    return extended
+            out[k] = pts
+    state._penetrating = (key, list(p), state.patches + [state.coupling], out)
+    return out
+
+
+def penetrates(state: WorkingSet, p: list, theta, pivot, tol: float) -> bool:
+    """Some asperity penetrates outside its block at the pressures ``p`` (the far field
+    refreshed to them): what :func:`grow` covers when no patch edge is loaded, asked
+    before a round converges so that it ends then and its last sweeps are not redone."""
+    state.coupling.refresh(p)
+    return bool(_penetrations(state, p, theta, pivot, _gap_tol(state, theta, pivot, tol)))
 
 
 def edges_loaded_any(state: WorkingSet, p: list) -> bool:
