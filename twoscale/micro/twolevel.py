@@ -249,7 +249,7 @@ def two_level(
                 StopReason.FAILED,
             )
         dF = patch_forces(patches, sw.pressures) - before
-        step = coarse.correct(blocks, patches, sw.pressures, sw.active, dF, theta, control)
+        step = coarse.correct(blocks, patches, sw.pressures, sw.active, dF, theta, control, stacks)
         cg_iters += step.iterations
         new_active = [v > 0.0 for v in step.pressures]
         diff2 = sum(float(np.sum((a - c) ** 2)) for a, c in zip(step.pressures, p))
