@@ -422,3 +422,31 @@ def test_the_coarse_shapes_of_fft_blocks_are_solved_together_per_size_class(monk
         residual = blk.product_on(a, s)[a] - 1.0
         assert np.linalg.norm(residual) <= 1e-4 * np.sqrt(a.sum())
         assert np.max(np.abs(s[a] - exact)) <= 1e-3 * np.max(exact)
+
+
+def test_the_result_gaps_take_the_growth_checks_patches_at_the_same_state():
+    from twoscale.micro.couplings import FarField
+    from twoscale.micro.sampling import build_patches
+    from twoscale.micro.workset import WorkingSet
+
+    asp = spaced_spheres(8, 5, 8.0)
+    patches = build_patches(
+        asp, h=0.05, forces=np.full(8, np.inf), approaches=np.full(8, 0.05), E_star=MAT.E_star, anchor=(0.0, 0.0)
+    )
+
+    def state():
+        engine = FarField(0.3).build(HS, patches, held=True, dense_max_entries=40_000, separated_rtol=None)
+        return WorkingSet(HS, asp, patches, engine, dense_max_cells=10)
+
+    p = [np.maximum(asp[pt.asperity].z + 0.02 - pt.height[pt.owned], 0.0) for pt in patches]
+    theta, pivot = (0.03, 0.0, 0.0), (0.0, 0.0)
+    a, b = state(), state()
+    a.coupling.refresh(p)
+    b.coupling.refresh(p)
+    some = a.gaps_of([1, 6], p, theta, pivot)
+    got, fresh = a.gaps(p, theta, pivot), b.gaps(p, theta, pivot)
+    assert got[1] is some[1] and got[6] is some[6] and got[0] is not fresh[0]
+    for g, f in zip(got, fresh):
+        np.testing.assert_array_equal(g, f)
+    q = [v.copy() for v in p]  # other vectors: nothing taken over
+    assert a.gaps(q, theta, pivot)[1] is not some[1]

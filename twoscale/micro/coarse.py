@@ -202,7 +202,9 @@ class CoarseSpace:
                 on[i][m] = active[k]
                 if blk.coarse_shape is not None:
                     x[i][m] = np.where(active[k], blk.coarse_shape[1], 0.0)
-            x = masked_cg(canvas.products.exact, canvas.precondition, on, x, SHAPE_RTOL, blocks[members[0]].cg_max_iter)
+            # float32 products where the canvas has them: ~1e-7 of rounding against SHAPE_RTOL
+            product = canvas.products.fast or canvas.products.exact
+            x = masked_cg(product, canvas.precondition, on, x, SHAPE_RTOL, blocks[members[0]].cg_max_iter)
             for i, k in enumerate(members):
                 s = np.where(active[k], x[i][blocks[k].canvas_mask(key)], 0.0)
                 blocks[k].coarse_shape = (active[k].copy(), s)

@@ -127,29 +127,38 @@ class WorkingSet:
 
     def full_displacement(self, pressures: list) -> list:
         """Displacement on every whole patch (list of (ny, nx) arrays), mm."""
-        out = []
-        for k, pt in enumerate(self.patches):
-            u = self.coupling.patch_displacement(k, pressures)
-            if np.any(pressures[k]):
-                u += self.blocks[k].patch_product(pressures[k])
-            out.append(u)
-        return out
+        return [self._displacement(k, pressures) for k in range(len(self.patches))]
 
     def gaps(self, pressures: list, theta, pivot) -> list:
         """``z + tilt + u - d`` on every whole patch, mm (``inf`` where no indenter); the last
         answer again while the patches, the block vectors (replaced, never modified, when
         they change) and the approach and tilt are the same (the growth check at a round's
-        end and the result ask for the same gaps)."""
+        end and the result ask for the same gaps), and the patches the check evaluated alone
+        (:meth:`gaps_of`) taken from it (4,548 paraboloids: 1.2 of the result's 3.7 s)."""
         key = (tuple(float(v) for v in theta), tuple(pivot))
         last = getattr(self, "_gaps", None)
         if last is not None and last[0] == key and _same(last[1], pressures) and _same(last[2], self.patches):
             return last[3]
-        out = self._gaps_now(pressures, theta, pivot)
+        some = getattr(self, "_gaps_of", None)  # the growth check's patches, at the same state
+        if some is None or some[0] != key or not _same(some[1], pressures) or not _same(some[2], self._held()):
+            some = (None, None, None, {})
+        out = [
+            some[3][k] if k in some[3] else self._gap(k, self._displacement(k, pressures), theta, pivot)
+            for k in range(len(self.patches))
+        ]
         self._gaps = (key, list(pressures), list(self.patches), out)
         return out
 
-    def _gaps_now(self, pressures: list, theta, pivot) -> list:
-        return [self._gap(k, u, theta, pivot) for k, u in enumerate(self.full_displacement(pressures))]
+    def _held(self) -> list:
+        """The patches and the coupling (whose held far field the gaps take)."""
+        return self.patches + [self.coupling]
+
+    def _displacement(self, k: int, pressures: list) -> np.ndarray:
+        """Displacement on the whole patch ``k`` (ny, nx), mm."""
+        u = self.coupling.patch_displacement(k, pressures)
+        if np.any(pressures[k]):
+            u += self.blocks[k].patch_product(pressures[k])
+        return u
 
     def _gap(self, k: int, u: np.ndarray, theta, pivot) -> np.ndarray:
         pt = self.patches[k]
@@ -165,12 +174,8 @@ class WorkingSet:
         last = getattr(self, "_gaps", None)
         if last is not None and last[0] == key and _same(last[1], pressures) and _same(last[2], self.patches):
             return {k: last[3][k] for k in which}
-        out = {}
-        for k in which:
-            u = self.coupling.patch_displacement(k, pressures)
-            if np.any(pressures[k]):
-                u += self.blocks[k].patch_product(pressures[k])
-            out[k] = self._gap(k, u, theta, pivot)
+        out = {k: self._gap(k, self._displacement(k, pressures), theta, pivot) for k in which}
+        self._gaps_of = (key, list(pressures), self._held(), out)
         return out
 
     def displacement(self, pressures: list) -> list:
