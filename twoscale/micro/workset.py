@@ -50,6 +50,7 @@ class WorkingSet:
         while the patch is the same object (asked at every sweep: 4,548 patches' centres
         made again each time were 0.3 s a call)."""
         tilt = Tilt(theta[1], theta[2], pivot)
+        level = theta[1] == 0.0 and theta[2] == 0.0  # the kept heights themselves (read-only)
         kept = self._owned_cells
         out, now = [], {}
         for pt in self.patches:
@@ -57,8 +58,9 @@ class WorkingSet:
             if hit is None or hit[0] is not pt:
                 X, Y = pt.grid.centres()
                 hit = (pt, pt.height[pt.owned], X[pt.owned], Y[pt.owned])
+                hit[1].setflags(write=False)
             now[id(pt)] = hit
-            out.append(hit[1] + tilt.height(hit[2], hit[3]))
+            out.append(hit[1] if level else hit[1] + tilt.height(hit[2], hit[3]))
         self._owned_cells = now
         return out
 
