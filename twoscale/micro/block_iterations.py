@@ -152,7 +152,10 @@ def run_two_level(
             monitor=None if monitor is None else (lambda m, c: monitor(sweeps + m, c)),
             earlier=tuple(history[counted:]),
             trial=trial,
-            check=(lambda q, th: penetrates(state, q, th, pivot, tol)) if can_grow else None,
+            # the first round only: a round's end looks for penetrations when it grows the
+            # patches, and a look that finds nothing costs a sweep's share (1,485 clustered
+            # spheres: 0.3 s against sweeps of 0.37 s)
+            check=(lambda q, th: penetrates(state, q, th, pivot, tol)) if can_grow and not history else None,
         )
         res = two_level(
             state.blocks,
