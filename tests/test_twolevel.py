@@ -323,50 +323,6 @@ def test_a_grown_block_keeps_its_coarse_shape_on_the_same_contact(monkeypatch):
     assert old.grid.size < new.grid.size  # grown on all four sides
 
 
-def _two_level_round(check):
-    """One two-level round on 12 spheres under penetration control, with ``check``."""
-    from twoscale.micro.block_iterations import block_tips
-    from twoscale.micro.constraints import Control
-    from twoscale.micro.couplings import FarField
-    from twoscale.micro.sampling import build_patches
-    from twoscale.micro.twolevel import SweepLimits, two_level
-    from twoscale.micro.workset import WorkingSet
-
-    asp = spaced_spheres(12, 3, 10.0)
-    d = 0.05
-    patches = build_patches(
-        asp, h=0.05, forces=np.full(12, np.inf), approaches=np.full(12, d), E_star=MAT.E_star, anchor=(0.0, 0.0)
-    )
-    engine = FarField(0.3).build(HS, patches, held=True, dense_max_entries=40_000, separated_rtol=None)
-    state = WorkingSet(HS, asp, patches, engine, dense_max_cells=400)
-    theta = np.array([d, 0.0, 0.0])
-    p = [np.zeros(blk.n) for blk in state.blocks]  # a cold start: changes of ~1 first
-    limits = SweepLimits(tol=1e-8, max_sweeps=60, check=check)
-    heights = lambda th: state.heights(th, (0.0, 0.0))  # noqa: E731
-    return two_level(state.blocks, engine, block_tips(state.tips(), patches), heights, p, theta, Control(), limits)
-
-
-def test_a_round_ends_at_its_early_check_else_runs_on_unchanged():
-    # the check is asked once, after the first sweep whose change is at most CHECK_CHANGE:
-    # True ends the round there (stopped, not converged); False leaves the round as without it
-    from twoscale.micro.twolevel import CHECK_CHANGE
-    from twoscale.stopping import StopReason
-
-    plain = _two_level_round(None)
-    assert plain.converged and plain.history[0] > CHECK_CHANGE
-    first = next(m for m, c in enumerate(plain.history, 1) if c <= CHECK_CHANGE)
-    assert 1 < first < plain.sweeps
-    asked = []
-    ended = _two_level_round(lambda q, th: asked.append(len(q)) or True)
-    assert asked == [12] and ended.reason is StopReason.STOPPED and not ended.converged
-    assert ended.sweeps == first and ended.history == plain.history[:first]
-    asked.clear()
-    on = _two_level_round(lambda q, th: asked.append(len(q)) and False)
-    assert asked == [12] and on.converged and on.sweeps == plain.sweeps
-    for a, b in zip(on.pressures, plain.pressures):
-        np.testing.assert_array_equal(a, b)
-
-
 def test_the_held_far_field_is_refreshed_only_when_a_block_vector_is_replaced():
     from twoscale.micro.couplings import FarField
     from twoscale.micro.sampling import build_patches

@@ -42,8 +42,6 @@ STALL_SWEEPS = FITTED.stall_sweeps
 #: (both fields of the cost model, :mod:`.costmodel`).
 RATE_SWEEPS = FITTED.rate_sweeps
 SLOW_RATE = FITTED.slow_rate
-#: A round asks :attr:`SweepLimits.check` after its first sweep whose change is at most this.
-CHECK_CHANGE = 1e-2
 #: Coarse systems up to this many patches in contact are solved densely.
 COARSE_DENSE_MAX = 2000
 
@@ -66,13 +64,6 @@ class SweepLimits:
         for larger patches): the stall and rate rules count them, so an iteration that
         grows its patches every few sweeps without converging still stops (281 paraboloids
         under penetration control: changes of 0.3-12 for 11 sweeps over four rounds).
-    check : callable, optional
-        ``check(pressures, theta) -> bool`` once in a round, after its first sweep whose
-        change is at most :data:`CHECK_CHANGE`: whether the round would grow its patches when
-        it converged (an asperity penetrating outside its block); True ends the round then,
-        as ``stop`` does, and its remaining sweeps are not made on patches about to change
-        (4,548 paraboloids: three more sweeps to converge, then three patches extended and
-        four sweeps again).
     trial : int or None, default None
         Sweeps (all rounds together) after which the iteration goes on only while its change
         falls by less than :data:`SLOW_RATE` a sweep (:func:`converging`); None: no trial.
@@ -87,7 +78,6 @@ class SweepLimits:
     monitor: Callable | None = None
     earlier: tuple = ()
     trial: int | None = None
-    check: Callable | None = None
 
 
 @dataclass(frozen=True)
@@ -229,7 +219,6 @@ def two_level(
     active = [v > 0.0 for v in p]
     history: list = []
     cg_iters = 0
-    checked = False
     for m in range(1, max_sweeps + 1):
         coupling.refresh(p)
         b = [theta[0] - z for z in heights(theta)]
@@ -285,10 +274,6 @@ def two_level(
             )
         if stop is not None and stop(p):
             return ended("stopped", StopReason.STOPPED)
-        if limits.check is not None and not checked and change <= CHECK_CHANGE:
-            checked = True
-            if limits.check(p, theta):
-                return ended("stopped", StopReason.STOPPED)
     return TwoLevelResult(
         p,
         active,

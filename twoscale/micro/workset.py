@@ -231,7 +231,7 @@ def _cover_penetration(state: WorkingSet, p: list, p0: list, theta, pivot, gap_t
 def _penetrations(state: WorkingSet, p: list, theta, pivot, gap_tol: float) -> dict:
     """The points (M, 2) mm outside its patch where each asperity penetrates on cells
     another owns, by asperity; the last answer again for the same state, pressures (the
-    same objects) and approach (a round's early look and its end's growth ask alike)."""
+    same objects) and approach."""
     key = (tuple(float(v) for v in theta), tuple(pivot), float(gap_tol))
     last = state._penetrating
     if last is not None and last[0] == key and _same(last[1], p) and _same(last[2], state.patches + [state.coupling]):
@@ -262,14 +262,6 @@ def _penetrations(state: WorkingSet, p: list, theta, pivot, gap_tol: float) -> d
             out[k] = pts
     state._penetrating = (key, list(p), state.patches + [state.coupling], out)
     return out
-
-
-def penetrates(state: WorkingSet, p: list, theta, pivot, tol: float) -> bool:
-    """Some asperity penetrates outside its block at the pressures ``p`` (the far field
-    refreshed to them): what :func:`grow` covers when no patch edge is loaded, asked
-    before a round converges so that it ends then and its last sweeps are not redone."""
-    state.coupling.refresh(p)
-    return bool(_penetrations(state, p, theta, pivot, _gap_tol(state, theta, pivot, tol)))
 
 
 def edges_loaded_any(state: WorkingSet, p: list) -> bool:
