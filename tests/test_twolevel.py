@@ -321,3 +321,88 @@ def test_a_grown_block_keeps_its_coarse_shape_on_the_same_contact(monkeypatch):
     fresh = blk.solve(active, np.ones(int(active.sum())), rtol=1e-10)
     assert np.max(np.abs(s[active] - fresh)) <= 1e-3 * np.max(fresh)
     assert old.grid.size < new.grid.size  # grown on all four sides
+
+
+def test_the_held_far_field_is_refreshed_only_when_a_block_vector_is_replaced():
+    from twoscale.micro.couplings import FarField
+    from twoscale.micro.sampling import build_patches
+
+    asp = spaced_spheres(12, 3, 10.0)
+    patches = build_patches(
+        asp, h=0.05, forces=np.full(12, np.inf), approaches=np.full(12, 0.05), E_star=MAT.E_star, anchor=(0.0, 0.0)
+    )
+    engine = FarField(0.3).build(HS, patches, held=True, dense_max_entries=40_000, separated_rtol=None)
+    p = [np.full(int(pt.owned.sum()), 0.1) for pt in patches]
+    engine.refresh(p)
+    table, count = engine._table, engine.far_products
+    engine.refresh(list(p))  # the same vectors in another list: kept
+    assert engine._table is table and engine.far_products == count
+    q = list(p)
+    q[5] = 2.0 * p[5]
+    engine.refresh(q)
+    assert engine.far_products == count + 1 and not np.array_equal(engine._table, table)
+    fresh = FarField(0.3).build(HS, patches, held=True, dense_max_entries=40_000, separated_rtol=None)
+    fresh.refresh(q)
+    np.testing.assert_array_equal(engine._table, fresh._table)
+
+
+def test_the_coarse_shapes_of_fft_blocks_are_solved_together_per_size_class(monkeypatch):
+    # s_k = A_SS^-1 1 by one conjugate-gradient run per canvas size class (no solve one
+    # block at a time), each within its tolerance of a tight solve of the block's own system
+    import scipy.sparse as sp
+    from twoscale.micro.couplings import FarField
+    from twoscale.micro.localblock import LocalBlock
+    from twoscale.micro.pk_stack import BlockStacks
+    from twoscale.micro.sampling import build_patches
+    from twoscale.micro.workset import WorkingSet
+
+    asp = spaced_spheres(6, 4, 10.0)
+    patches = build_patches(
+        asp, h=0.05, forces=np.full(6, np.inf), approaches=np.full(6, 0.06), E_star=MAT.E_star, anchor=(0.0, 0.0)
+    )
+    engine = FarField(0.3).build(HS, patches, held=True, dense_max_entries=40_000, separated_rtol=None)
+    state = WorkingSet(HS, asp, patches, engine, dense_max_cells=10)  # FFT blocks: shapes by CG
+    active = [asp[pt.asperity].z + 0.03 - pt.height[pt.owned] > 0.0 for pt in patches]
+    assert all(a.sum() > 20 for a in active) and not any(blk.dense for blk in state.blocks)
+    space = CoarseSpace(HS, state.tips(), sp.csr_matrix((6, 6)))
+    calls = []
+    monkeypatch.setattr(LocalBlock, "solve", lambda self, *a, **k: calls.append(self))
+    space._solve_shapes(BlockStacks(HS), state.blocks, list(range(6)), active)
+    assert calls == []
+    monkeypatch.undo()
+    for blk, a in zip(state.blocks, active):
+        kept_active, s = blk.coarse_shape
+        np.testing.assert_array_equal(kept_active, a)
+        assert np.all(s[~a] == 0.0)
+        exact = blk.solve(a, np.ones(int(a.sum())), rtol=1e-12)
+        residual = blk.product_on(a, s)[a] - 1.0
+        assert np.linalg.norm(residual) <= 1e-4 * np.sqrt(a.sum())
+        assert np.max(np.abs(s[a] - exact)) <= 1e-3 * np.max(exact)
+
+
+def test_the_result_gaps_take_the_growth_checks_patches_at_the_same_state():
+    from twoscale.micro.couplings import FarField
+    from twoscale.micro.sampling import build_patches
+    from twoscale.micro.workset import WorkingSet
+
+    asp = spaced_spheres(8, 5, 8.0)
+    patches = build_patches(
+        asp, h=0.05, forces=np.full(8, np.inf), approaches=np.full(8, 0.05), E_star=MAT.E_star, anchor=(0.0, 0.0)
+    )
+
+    def state():
+        engine = FarField(0.3).build(HS, patches, held=True, dense_max_entries=40_000, separated_rtol=None)
+        return WorkingSet(HS, asp, patches, engine, dense_max_cells=10)
+
+    p = [np.maximum(asp[pt.asperity].z + 0.02 - pt.height[pt.owned], 0.0) for pt in patches]
+    theta, pivot = (0.03, 0.0, 0.0), (0.0, 0.0)
+    a, b = state(), state()
+    a.coupling.refresh(p)
+    b.coupling.refresh(p)
+    some = a.gaps_of([1, 6], p, theta, pivot)
+    got, fresh = a.gaps(p, theta, pivot), b.gaps(p, theta, pivot)
+    assert got[1] is some[1] and got[6] is some[6] and got[0] is not fresh[0]
+    for g, f in zip(got, fresh):
+        np.testing.assert_array_equal(g, f)
+    q = [v.copy() for v in p]  # other vectors: nothing taken over
+    assert a.gaps(q, theta, pivot)[1] is not some[1]

@@ -86,3 +86,34 @@ def block_cg(
         d = z + np.divide(rz_new, rz, out=np.zeros_like(rz), where=rz != 0.0) * d
         rz = rz_new
     return CGOutcome(x, max_iter, False, breakdown)
+
+
+def masked_cg(apply, precondition, on: np.ndarray, x: np.ndarray, rtol: float, max_iter: int) -> np.ndarray:
+    """Conjugate gradients for ``A_SS x = 1`` on a stack of fields, each row on its own
+    cells ``S`` = ``on`` (B, ...): ``apply`` the product with ``A`` on a stack,
+    ``precondition(v, on)`` an approximate inverse of ``A`` on a stack (taken on ``on``;
+    None: none), from ``x`` (changed in place, zero off ``on``); a row leaves when its
+    residual is at most ``rtol`` of its right-hand side's, or after ``max_iter``."""
+    axes = tuple(range(1, on.ndim))
+    b = on.astype(float)
+    r = b - on * apply(x) if x.any() else b.copy()
+    bnorm = np.sqrt(b.sum(axis=axes))
+    live = np.arange(len(on))
+    z = on * precondition(r, on) if precondition is not None else r.copy()
+    d, rz = z, np.sum(r * z, axis=axes)
+    for _ in range(max_iter):
+        keep = np.sqrt(np.sum(r * r, axis=axes)) > rtol * bnorm[live]
+        if not keep.all():
+            live, r, d, rz = live[keep], r[keep], d[keep], rz[keep]
+        if not live.size:
+            break
+        m = on[live]
+        Ad = m * apply(d)
+        step = (rz / np.sum(d * Ad, axis=axes)).reshape((-1,) + (1,) * len(axes))
+        x[live] += step * d
+        r = r - step * Ad
+        z = m * precondition(r, m) if precondition is not None else r
+        rz_new = np.sum(r * z, axis=axes)
+        d = z + (rz_new / rz).reshape(step.shape) * d
+        rz = rz_new
+    return x

@@ -52,7 +52,7 @@ import scipy.linalg as sla
 import scipy.sparse as sp
 
 from ..influence.base import InfluenceProvider
-from ..krylov import block_cg
+from ..krylov import block_cg, masked_cg
 from ..mixed_precision import refined_solve
 from .constraints import Control, block_coordinates
 
@@ -149,16 +149,11 @@ class CoarseSpace:
         if moved == 0:
             return old[1]
         s = np.zeros(blk.n)
-        remembered = getattr(self.provider, "remembered", None)  # a solver object's kept shapes
-        where = None
-        if remembered is not None:
-            cells = blk.cells_of(active)
-            where = (float(blk.box.h), blk.box.nx, blk.box.ny, np.packbits(cells).tobytes(), SHAPE_RTOL)
-            kept = remembered("shape", where)
-            if kept is not None:
-                s[active] = kept
-                blk.coarse_shape = (active.copy(), s)
-                return s
+        where, kept = self._remembered(blk, active)
+        if kept is not None:
+            s[active] = kept
+            blk.coarse_shape = (active.copy(), s)
+            return s
         if 0 < moved <= SHAPE_REUSE * int(np.count_nonzero(active)):
             s = np.where(active, old[1], 0.0)  # the solved one's, kept as the reference
         else:
@@ -168,6 +163,54 @@ class CoarseSpace:
         if where is not None:  # a later solve of the same patches finds it for this active set
             self.provider.remember("shape", where, s[active].copy())
         return s
+
+    def _remembered(self, blk, active: np.ndarray) -> tuple:
+        """``(key, s_k on the active cells)`` a solver object kept for this block's geometry
+        and active set (``(key, None)``: none yet; ``(None, None)``: no solver object)."""
+        remembered = getattr(self.provider, "remembered", None)  # a solver object's kept shapes
+        if remembered is None:
+            return None, None
+        key = (float(blk.box.h), blk.box.nx, blk.box.ny, np.packbits(blk.cells_of(active)).tobytes(), SHAPE_RTOL)
+        return key, remembered("shape", key)
+
+    def _stale(self, blk, active: np.ndarray) -> bool:
+        """:meth:`_shape` would solve ``s_k`` again for ``blk`` by conjugate gradients."""
+        old = blk.coarse_shape
+        if blk.dense or not active.any():
+            return False
+        if old is None:
+            return True
+        return int(np.count_nonzero(active != old[0])) > SHAPE_REUSE * int(np.count_nonzero(active))
+
+    def _solve_shapes(self, stacks, blocks, todo: list, active: list) -> None:
+        """``s_k`` of the FFT blocks ``todo`` by preconditioned conjugate gradients run
+        together per size class (:class:`~.pk_stack.BlockStacks`' canvases: one stacked
+        product and one circulant inverse an iteration for the class, not a product per
+        block and iteration), warm from the kept ``s_k``; each kept with its block as
+        :meth:`_shape` keeps it (4,548 paraboloids: 4,376 solves one by one, 41,059
+        products, 10 % of the solve)."""
+        groups: dict = {}
+        for k in todo:
+            if self._remembered(blocks[k], active[k])[1] is None:  # else :meth:`_shape` takes it
+                key, canvas = stacks.canvas(blocks[k])
+                groups.setdefault(key, (canvas, []))[1].append(k)
+        for key, (canvas, members) in groups.items():
+            on = np.zeros((len(members), *key), bool)
+            x = np.zeros(on.shape)
+            for i, k in enumerate(members):
+                blk, m = blocks[k], blocks[k].canvas_mask(key)
+                on[i][m] = active[k]
+                if blk.coarse_shape is not None:
+                    x[i][m] = np.where(active[k], blk.coarse_shape[1], 0.0)
+            # float32 products where the canvas has them: ~1e-7 of rounding against SHAPE_RTOL
+            product = canvas.products.fast or canvas.products.exact
+            x = masked_cg(product, canvas.precondition, on, x, SHAPE_RTOL, blocks[members[0]].cg_max_iter)
+            for i, k in enumerate(members):
+                s = np.where(active[k], x[i][blocks[k].canvas_mask(key)], 0.0)
+                blocks[k].coarse_shape = (active[k].copy(), s)
+                where = self._remembered(blocks[k], active[k])[0]
+                if where is not None:
+                    self.provider.remember("shape", where, s[active[k]].copy())
 
     def _operator(self):
         if self._op is None:
@@ -213,7 +256,15 @@ class CoarseSpace:
         return rho
 
     def correct(
-        self, blocks, patches, pressures: list, active: list, dF: np.ndarray, theta: np.ndarray, control: Control
+        self,
+        blocks,
+        patches,
+        pressures: list,
+        active: list,
+        dF: np.ndarray,
+        theta: np.ndarray,
+        control: Control,
+        stacks=None,
     ) -> CoarseStep:
         """One coarse step after a sweep; see the module docstring.
 
@@ -228,9 +279,15 @@ class CoarseSpace:
         control : Control
             Pivot (mm), rigid-body unknowns corrected (0 penetration control, 1 load, 3 load
             and tilt) and their target: total load (N) and moments (0).
+        stacks : BlockStacks, optional
+            The FFT blocks' ``s_k`` solved together on its canvases (:meth:`_solve_shapes`).
         """
         pivot, n_unknowns, target = control.pivot, control.n_unknowns, control.target
         n = len(patches)
+        if stacks is not None and stacks.whole_kernel:
+            todo = [k for k, blk in enumerate(blocks) if self._stale(blk, active[k])]
+            if todo:
+                self._solve_shapes(stacks, blocks, todo, active)
         h2 = patches[0].grid.h ** 2 if n else 1.0
         shapes = [None] * n
         kappa = np.zeros(n)

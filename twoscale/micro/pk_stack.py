@@ -70,6 +70,15 @@ class BlockStacks:
         offsets only."""
         return bool(getattr(provider.split()[0], "translation_invariant", False))
 
+    @property
+    def whole_kernel(self) -> bool:
+        """The canvases' operator is the provider's whole kernel (no correction split off)."""
+        return self._correction is None
+
+    def canvas(self, blk) -> tuple:
+        """Block ``blk``'s size class ``(ny, nx)`` and its canvas (``products``, ``precondition``)."""
+        return self._canvas(blk)
+
     def _lagged(self, blocks, k: int, rhs: np.ndarray, previous: np.ndarray) -> np.ndarray:
         """Block ``k``'s right-hand side less its correction of itself at ``previous``."""
         if self._correction is None or not np.any(previous):

@@ -215,7 +215,7 @@ def two_level(
     levels = sweep_levels(coupling)
     stacks = BlockStacks(coupling.provider) if BlockStacks.usable(coupling.provider) else None
     theta = np.array(theta, dtype=float)
-    p = [np.array(v, dtype=float) for v in p]
+    p = [np.asarray(v, dtype=float) for v in p]  # replaced, never modified
     active = [v > 0.0 for v in p]
     history: list = []
     cg_iters = 0
@@ -238,7 +238,7 @@ def two_level(
                 StopReason.FAILED,
             )
         dF = patch_forces(patches, sw.pressures) - before
-        step = coarse.correct(blocks, patches, sw.pressures, sw.active, dF, theta, control)
+        step = coarse.correct(blocks, patches, sw.pressures, sw.active, dF, theta, control, stacks)
         cg_iters += step.iterations
         new_active = [v > 0.0 for v in step.pressures]
         diff2 = sum(float(np.sum((a - c) ** 2)) for a, c in zip(step.pressures, p))
