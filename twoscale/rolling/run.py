@@ -29,7 +29,8 @@ from ..macro.start import MacroStart
 from ..results import ContactResult
 from .record import Recorder
 from .result import Position, RollingResult
-from .road import Selection, hertz_level
+from .first_contact import hertz_level
+from .road import Selection
 from .track import Track, prepare, tyre_contact_length
 
 #: Load control: the stones are taken below ``d_prev + BOUND_GROWTH (d_prev - z_low)``.

@@ -19,7 +19,8 @@ import numpy as np
 from ..errors import SceneError
 from ..influence.cached import with_caches
 from ..scene import Scene
-from .road import Road, check_contact
+from .first_contact import check_contact
+from .road import Road
 from .spec import RollingSpec
 from .stepcheck import check_step, warn_if_coarse
 
