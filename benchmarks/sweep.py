@@ -295,6 +295,12 @@ def main(argv=None) -> int:
         help="scenes with fewer tips first (maps count as 100 tips): one lane covers the most scenes soonest",
     )
     p.add_argument(
+        "--largest-first",
+        action="store_true",
+        help="the order of --smallest-first reversed: a process from the other end meets a smallest-first lane "
+        "(give each the other's --out as --read)",
+    )
+    p.add_argument(
         "--record", action="store_true", help="with --only: append the reruns to --out (the last record counts)"
     )
     p.add_argument("--out", default="sweep.jsonl")
@@ -343,6 +349,8 @@ def main(argv=None) -> int:
         specs = specs[::-1]
     if args.smallest_first:
         specs = sorted(specs, key=lambda s: s.n if s.kind == "tips" else 100)
+    if args.largest_first:
+        specs = sorted(specs, key=lambda s: s.n if s.kind == "tips" else 100, reverse=True)
     for spec in specs:
         done = {r["spec"]["index"] for f in [args.out, *args.read] for r in _load(f)} if not args.only else set()
         if args.only and args.record:
