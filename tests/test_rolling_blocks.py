@@ -157,13 +157,9 @@ def test_a_contact_too_large_for_a_block_takes_the_circulant_inverse(monkeypatch
     assert fallback.converged and fallback.iterations == circ.iterations
 
 
-def test_a_contact_settled_small_enough_takes_the_blocks_again(monkeypatch):
-    """A contact too large for the blocks at first (a first position's geometric start) runs
-    on the circulant inverse while it shrinks, and on the blocks once it has settled below
-    the cells they may have: then as a fresh solve's blocks on that contact."""
-    import twoscale.rolling.blocks as blocks
-
-    monkeypatch.setattr(blocks, "MAX_BLOCK_CELLS", 60)
+def _two_stones_settling():
+    """Two stones on a 20 x 16 grid, a wide contact over 60 cells of the first and a small
+    one under it on both: ``(grid, surface, x, y, wide, small)``."""
     g = Grid(-1.0, -0.8, 0.1, 20, 16)
     owner = np.zeros(g.shape, int)
     owner[:, 10:] = 1
@@ -171,7 +167,18 @@ def test_a_contact_settled_small_enough_takes_the_blocks_again(monkeypatch):
     x, y = g.centres()
     wide, small = (x**2 + y**2 < 0.7**2), (x + 0.5) ** 2 + y**2 < 0.35**2
     small |= (x - 0.5) ** 2 + y**2 < 0.3**2
-    assert np.count_nonzero(wide & (owner == 0)) > 60 and np.count_nonzero(small & (owner == 0)) <= 60
+    return g, surface, x, y, wide, small
+
+
+def test_a_contact_settled_small_enough_takes_the_blocks_again(monkeypatch):
+    """A contact too large for the blocks at first (a first position's geometric start) runs
+    on the circulant inverse while it shrinks, and on the blocks once it has settled below
+    the cells they may have: then as a fresh solve's blocks on that contact."""
+    import twoscale.rolling.blocks as blocks
+
+    monkeypatch.setattr(blocks, "MAX_BLOCK_CELLS", 60)
+    g, surface, x, y, wide, small = _two_stones_settling()
+    assert np.count_nonzero(wide & (surface.owner == 0)) > 60 and np.count_nonzero(small & (surface.owner == 0)) <= 60
     gap = np.random.default_rng(5).standard_normal(g.shape)
     body = KeptBody(HS)
     pc = StoneBlocks(body)(surface)
@@ -190,13 +197,7 @@ def test_blocks_built_while_the_contact_settles_are_built_once_more_when_it_has(
     import twoscale.rolling.blocks as blocks
 
     monkeypatch.setattr(blocks, "MAX_BLOCK_CELLS", 60)
-    g = Grid(-1.0, -0.8, 0.1, 20, 16)
-    owner = np.zeros(g.shape, int)
-    owner[:, 10:] = 1
-    surface = Surface(g, np.zeros(g.shape), owner, 2)
-    x, y = g.centres()
-    wide, small = (x**2 + y**2 < 0.7**2), (x + 0.5) ** 2 + y**2 < 0.35**2
-    small |= (x - 0.5) ** 2 + y**2 < 0.3**2
+    g, surface, x, y, wide, small = _two_stones_settling()
     grown = small | ((x + 0.5) ** 2 + y**2 < 0.42**2) & (y > 0.0)  # a few cells more
     moved = grown.copy()
     moved[np.unravel_index(np.flatnonzero((grown & (x < 0.0)).ravel())[0], g.shape)] = False
