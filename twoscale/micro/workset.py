@@ -38,7 +38,6 @@ class WorkingSet:
         # the product engine a coupling object built for these patches (:mod:`.couplings`)
         self.coupling = coupling
         self.sensitivities = None
-        self._penetrating: tuple | None = None  # the last :func:`_penetrations` and its key
 
     def tips(self) -> np.ndarray:
         """Tip of every asperity of the scene, (N, 2) mm."""
@@ -230,12 +229,7 @@ def _cover_penetration(state: WorkingSet, p: list, p0: list, theta, pivot, gap_t
 
 def _penetrations(state: WorkingSet, p: list, theta, pivot, gap_tol: float) -> dict:
     """The points (M, 2) mm outside its patch where each asperity penetrates on cells
-    another owns, by asperity; the last answer again for the same state, pressures (the
-    same objects) and approach."""
-    key = (tuple(float(v) for v in theta), tuple(pivot), float(gap_tol))
-    last = state._penetrating
-    if last is not None and last[0] == key and _same(last[1], p) and _same(last[2], state.patches + [state.coupling]):
-        return last[3]
+    another owns, by asperity."""
     wanted: dict = {}
     # only cells owned by another asperity can be reported: the patches without any are
     # not evaluated (the whole gaps of 4,548 paraboloids' patches cost what a sweep does)
@@ -260,7 +254,6 @@ def _penetrations(state: WorkingSet, p: list, theta, pivot, gap_tol: float) -> d
             pts = pts[~inside]
         if len(pts):
             out[k] = pts
-    state._penetrating = (key, list(p), state.patches + [state.coupling], out)
     return out
 
 
