@@ -49,6 +49,14 @@ def test_the_smallest_scenes_take_their_full_grid_and_say_so():
     assert res.method == "reference" and res.converged
     assert res.message.startswith("default route: the full grid has 2,491 cells")
     assert np.array_equal(res.asperities.forces, ref.asperities.forces)
+    # the memory estimate follows the route: the reference grid's (a default solve made
+    # the patches' surface for it before, ~1 ms of a 20 ms solve)
+    from twoscale.resources import estimate_memory
+
+    est = estimate_memory(scene, h, "twoscale")
+    assert est.cells == reference_grid(scene, h).size
+    assert est.bytes == estimate_memory(scene, h, "reference").bytes
+    assert estimate_memory(scene, h, "twoscale", iteration="block-gs").cells != est.cells
     # any option asks for the two-scale solver itself
     res = twoscale.solve(scene, tol=1e-6)
     assert res.method == "twoscale" and res.details.micro.attempts[-1].converged

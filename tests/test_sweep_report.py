@@ -91,3 +91,10 @@ def test_short_scenes_are_timed_again_in_alternation_and_keep_the_medians(monkey
     rec = {"ts": {"cpu_s": 1.0, "forces": [1.0]}, "ref": {"cpu_s": 3.5, "forces": [1.0]}}
     sweep._repeat_short(rec, {}, 0.1, args)
     assert "cpu_runs" not in rec["ts"] and len(calls) == 4
+    # a reference of tens of ms: seven runs each
+    args.tiny_below = 0.3
+    times = {"twoscale": iter([0.05] * 6), "reference": iter([0.03] * 6)}
+    rec = {"ts": {"cpu_s": 0.04, "forces": [1.0]}, "ref": {"cpu_s": 0.02, "forces": [1.0]}}
+    sweep._repeat_short(rec, {}, 0.1, args)
+    assert len(rec["ts"]["cpu_runs"]) == 7 and len(rec["ref"]["cpu_runs"]) == 7
+    assert rec["ts"]["cpu_s"] == pytest.approx(0.05) and rec["ref"]["cpu_s"] == pytest.approx(0.03)

@@ -264,8 +264,10 @@ def _check_memory(scene: Scene, h: float, method: str, options: dict, memory_lim
 def _run_method(scene: Scene, provider: InfluenceProvider, h: float, method: str, options: dict) -> ContactResult:
     """The named solver on ``scene``: the two-scale method (or, called without options on a
     scene of a few tips, its full grid's one CG, said in the result) or a reference."""
+    from .resources import full_grid_route
+
     # any option asks for the two-scale solver itself (the command line passes its progress display)
-    route = _full_grid_route(scene, h) if method == "twoscale" and not options else None
+    route = full_grid_route(scene, h) if method == "twoscale" and not options else None
     if route is not None:  # the smallest scenes: their full grid's one CG, said in the result
         from .reference.on_scene import solve_reference_scene
 
@@ -301,18 +303,6 @@ def _with_surface_report(scene: Scene, result: ContactResult) -> ContactResult:
     if result.details is not None and hasattr(result.details, "surface"):
         result = dataclasses.replace(result, details=dataclasses.replace(result.details, surface=report))
     return result
-
-
-def _full_grid_route(scene: Scene, h: float) -> str | None:
-    """Why a default two-scale solve of ``scene`` runs as its full grid's one CG
-    (:func:`twoscale.micro.policy.full_grid_route`), or None (tips only, a few of them)."""
-    from .micro.policy import FULL_GRID_MAX_TIPS, full_grid_route
-
-    if scene.surface is not None or len(scene.asperities) > FULL_GRID_MAX_TIPS:
-        return None
-    from .reference.on_scene import reference_grid
-
-    return full_grid_route(int(reference_grid(scene, h).size))
 
 
 def solve_scene(

@@ -52,7 +52,8 @@ from .memory_costs import (
     DEFAULT_FRACTION,
     ADVICE_SHARE,
 )
-from .micro.policy import UNION_MIN_COVERAGE
+from .micro.policy import FULL_GRID_MAX_TIPS, UNION_MIN_COVERAGE
+from .micro.policy import full_grid_route as policy_full_grid_route
 from .scene import SCENE_METHODS, Scene, SceneError, expected_approaches, expected_contact_radii, round_up
 
 
@@ -147,7 +148,7 @@ def estimate_memory(scene: Scene, h: float, method: str = "twoscale", *, iterati
         raise ValueError(f"h must be a finite number > 0 (mm), got {h!r}")
     parts = {"interpreter and libraries": BASE_BYTES}
     try:
-        if method == "reference":
+        if method == "reference" or (iteration == "auto" and full_grid_route(scene, h) is not None):
             from .reference.on_scene import reference_grid
 
             grid = reference_grid(scene, h)
@@ -221,6 +222,17 @@ def _twoscale_parts(scene: Scene, h: float, *, union: bool = False) -> tuple[int
         parts.update(_grid_parts(scene, box, "union box"))
         cells = max(cells, int(box.size))
     return cells, parts
+
+
+def full_grid_route(scene: Scene, h: float) -> str | None:
+    """Why a default two-scale solve of ``scene`` at ``h`` runs as its full grid's one CG
+    (:func:`twoscale.micro.policy.full_grid_route`), or None: a scene of a few tips only
+    (no height map), whose full grid is small. Its memory is then the reference grid's."""
+    if scene.surface is not None or len(scene.asperities) > FULL_GRID_MAX_TIPS:
+        return None
+    from .reference.on_scene import reference_grid
+
+    return policy_full_grid_route(int(reference_grid(scene, h).size))
 
 
 def _pair_bytes(across: np.ndarray) -> float:
