@@ -272,8 +272,11 @@ def decide(
     if n > model.exact_max_patches:
         candidates.pop("block-gs")
     sparse = figures["coverage"] < model.union_min_coverage
+    # the far field from few patches where they are scattered: on a mostly empty box, or
+    # up to the far field's own bound where no contacts merge (it stalls where they crowd)
+    scattered = sparse or (figures["coverage"] < model.far_field_coverage and not merged_contacts)
     few = model.sparse_tilt_far_field_min_patches if tilt else model.sparse_far_field_min_patches
-    if n < (few if sparse else model.far_field_min_patches):
+    if n < (few if scattered else model.far_field_min_patches):
         candidates.pop("two-level")
     crowded_out = not figures.get("height_map", False) and not (sensitivity and "two-level" not in candidates)
     if sparse and len(candidates) > 1 and crowded_out:
