@@ -250,15 +250,10 @@ def _first_stage(options: MacroOptions, n: int) -> MacroOptions:
 
 
 def _refinable(macro) -> bool:
-    """Whether the staged macro step's first stage ``macro`` is worth taking to the macro
-    tolerance. Not where it ended on the safe path's skip (Newton at an unstable
-    equilibrium of merged contacts, or stalled, among more tips than the safe path is tried
-    on): Newton from there stalled too, on every such scene measured. 1,013 spheres under
-    penetration control: from 1.9e-3 five more steps (five LU factorisations of 1,014
-    unknowns) to a stall at 5.7e-4; 1,485 spheres: one step and a failed line search at
-    7.4e-3. The micro step starts from the first stage's iterate either way and resolves the
-    merged contacts on the real contact; its answer moved by 2.6e-5 of the largest force on
-    the first, within the far field's error."""
+    """Whether the staged first stage ``macro`` is worth taking to the macro tolerance: not
+    after the safe path's skip (an unstable equilibrium of merged contacts, or a stall),
+    where Newton stalled again (1,013 spheres: five more LU steps, 1.9e-3 to 5.7e-4; 1,485:
+    one, a failed line search); the micro step resolves the merged contacts either way."""
     return not macro.safe_path
 
 

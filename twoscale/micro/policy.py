@@ -199,9 +199,10 @@ def choose(
     ``model.sensitivity_factor``, and the union CG is weighed against it even on a mostly
     empty box where the far field is not a candidate. The far field is not used below
     ``FAR_FIELD_MIN_PATCHES`` patches (from ``model.sparse_far_field_min_patches`` on a
-    box they cover less than ``UNION_MIN_COVERAGE`` of, from
+    box they cover less than ``UNION_MIN_COVERAGE`` of, or less than
+    ``model.far_field_coverage`` of without merged contacts; from
     ``model.sparse_tilt_far_field_min_patches`` there with the ``tilt``), nor the union CG
-    there. ``load_control``: where exact block iterations are
+    below ``UNION_MIN_COVERAGE``. ``load_control``: where exact block iterations are
     cheapest, their two-level variant runs first (its coarse step corrects the approach
     and tilt instead of sensitivity sweeps: S1-S3 2.7-3x faster), block Gauss-Seidel if it
     stalls; the choice names the two-level iteration with exact coupling. The work of each
