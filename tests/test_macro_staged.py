@@ -51,3 +51,28 @@ def test_the_block_iterations_get_the_macro_step_to_its_tolerance(monkeypatch, i
     assert np.allclose(history, whole.residuals["macro"], rtol=1e-6, atol=1e-14)
     F, Fw = np.asarray(res.asperities.forces), np.asarray(whole.asperities.forces)
     assert np.max(np.abs(F - Fw)) <= 1e-5 * Fw.max()  # patches sized by the first stage: the micro tolerance
+
+
+def test_a_first_stage_ended_on_the_safe_paths_skip_is_not_refined(monkeypatch):
+    # among more tips than the safe path is tried on, a first stage that stalled (or met an
+    # unstable equilibrium of merged contacts) hands its iterate to the micro step as it is:
+    # Newton from there stalled again on the sweep's 1,013 and 1,485 spheres (five steps and
+    # one), so the block iterations are not given a second stage
+    import twoscale.driver as driver
+    import twoscale.macro.solve as macro_solve
+
+    asps = spaced_spheres(20, 4, 10.0)
+    whole = solve_twoscale(HS, asps, h=0.05, penetration=0.06, iteration="two-level")
+    monkeypatch.setattr(driver, "STAGED_MIN_TIPS", 1)
+    monkeypatch.setattr(macro_solve, "SAFE_PATH_MAX_TIPS", 1)
+    # the first stage (to 1e-3 here) stops short after one step, 2.4e-3: a stall
+    monkeypatch.setattr(driver, "SIZING_RESIDUAL", 1e-3)
+    monkeypatch.setattr(macro_solve, "FAST_STEPS", 1)
+    res = solve_twoscale(HS, asps, h=0.05, penetration=0.06, iteration="two-level")
+    macro = res.details.macro
+    assert not macro.converged and "micro step starts from Newton's last iterate" in res.message
+    # the first stage's one step only (refined, one more, to 5e-7)
+    assert res.iterations["macro"] == 1 and len(res.residuals["macro"]) == 2
+    assert res.converged, res.message
+    F, Fw = np.asarray(res.asperities.forces), np.asarray(whole.asperities.forces)
+    assert np.max(np.abs(F - Fw)) <= 1e-5 * Fw.max()

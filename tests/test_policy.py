@@ -323,9 +323,13 @@ def test_tens_of_scattered_patches_take_the_far_field():
     assert c.estimates["coverage"] < UNION_MIN_COVERAGE
     assert c.iteration == "two-level" and c.far_tol == AUTO_FAR_TOL
     assert choose(pts, box, model=replace(FITTED, sparse_far_field_min_patches=71)).far_tol is None
-    # where the box is crowded the far field still waits for far_field_min_patches
+    # where the box is crowded the far field still waits for far_field_min_patches (the
+    # far field's own bound, far_field_sparse_coverage, crowded too)
     crowded = replace(FITTED, union_min_coverage=0.01, union_margin=1e-6)
-    assert choose(pts, box, model=crowded).far_tol is None
+    assert choose(pts, box, model=crowded).far_tol == AUTO_FAR_TOL
+    assert choose(pts, box, model=replace(crowded, far_field_sparse_coverage=0.01)).far_tol is None
+    # above the union CG's bound, merged contacts keep it waiting too
+    assert choose(pts, box, model=crowded, merged_contacts=True).far_tol is None
 
 
 @pytest.mark.slow

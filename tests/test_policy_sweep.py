@@ -30,6 +30,16 @@ RECORDED = {
     13: (40, 0.014, False, False, (2.65e10, 1.43e9, 4.38e8)),
     18: (43, 0.139, False, True, (1.23e10, 7.64e9, 2.04e9)),
     101: (20, 0.053, False, True, (3.62e9, 5.17e8, 2.49e8)),
+    # the fourteenth run: few patches at 14-20 % of their box, no merged contacts: 61
+    # spheres under load at 14.3 %, 74 paraboloids at 19.3 %, 23 spheres under load at
+    # 15.6 %, 10 paraboloids at 14.3 %; 44 spheres with merged contacts at 16.8 %, 96
+    # paraboloids at 20.4 %
+    94: (61, 0.143, False, True, (3.73e9, 3.08e9, 7.23e8)),
+    35: (74, 0.193, False, False, (1.91e9, 2.54e9, 5.99e8)),
+    49: (23, 0.156, False, True, (2.1e9, 9.93e8, 4.32e8)),
+    109: (10, 0.143, False, False, (4.81e8, 1.53e8, 1.06e8)),
+    120: (44, 0.168, True, False, (7.77e8, 6.68e8, 2.69e8)),
+    36: (96, 0.204, False, False, (1.23e9, 2.19e9, 5.81e8)),
 }
 
 
@@ -80,3 +90,22 @@ def test_few_tilted_patches_keep_the_exact_block_iterations():
         choice = _decide(scene, tilt=True)
         assert choice.iteration == "two-level" and choice.far_tol is None
     assert _decide(18).far_tol == AUTO_FAR_TOL  # untilted, the same figures take it
+
+
+@pytest.mark.parametrize("scene", [94, 35, 49, 109])
+def test_few_patches_without_merged_contacts_under_a_fifth_of_their_box_take_the_far_field(scene):
+    # interleaved against the choice before (the union CG on #94 and #35, the exact block
+    # iterations on #49 and #109): 0.74x, 0.85x, 0.78x and 0.99x of its CPU time, the
+    # forces within 3.9e-4 of the largest
+    choice = _decide(scene)
+    assert choice.iteration == "two-level" and choice.far_tol == AUTO_FAR_TOL
+    # with the union CG's coverage bound as the far field's (before) they did not
+    before = dataclasses.replace(FITTED, far_field_sparse_coverage=None)
+    assert _decide(scene, model=before).far_tol is None
+
+
+@pytest.mark.parametrize("scene", [120, 36])
+def test_merged_or_crowded_patches_above_the_union_bound_keep_the_union_cg(scene):
+    # #120 (merged contacts at 16.8 %) ran 1.14x slower with the far field; #36 at 20.4 %
+    # 2.30 s against the union CG's 1.61 s
+    assert _decide(scene).iteration == "union-cg"

@@ -96,6 +96,12 @@ class CostModel:
         wherever there is a pair; forced on the sweep's scenes of 2-40 such patches it ran
         0.45-0.9x the exact block iterations' CPU time, or the same on three of them,
         none slower beyond the noise: docs/records/sweep.md).
+    far_field_sparse_coverage : float or None
+        The share of their box under which patches whose contacts do not merge count as
+        scattered for the far field (``sparse_far_field_min_patches``; below
+        ``union_min_coverage`` they do, merged or not); None: ``union_min_coverage``. The
+        far field stalls where contacts crowd (28 patches at 55 %: over 5 s against 0.66 s
+        for the union CG), not where a few patches cover 14-20 % of their box.
     sparse_tilt_far_field_min_patches : int
         The same with the tilt: 43 tilted spheres under load at 14 % of their box took over
         20 s with the far field against 10.9 s exact (20 tilted ones at 5 %: 1.0 s against
@@ -134,6 +140,7 @@ class CostModel:
     near_pairs_calibration: float = 16.4
     far_field_min_patches: int = 100
     sparse_far_field_min_patches: int = 2
+    far_field_sparse_coverage: float | None = None
     sparse_tilt_far_field_min_patches: int = 45
     exact_max_patches: int = 400
     two_level_sweeps: int = 20
@@ -154,6 +161,14 @@ class CostModel:
             )
         if not 0.0 < self.union_margin <= 10.0:
             raise ValueError(f"cost model union_margin must be in (0, 10], got {self.union_margin!r}")
+
+    @property
+    def far_field_coverage(self) -> float:
+        """The share of their box under which patches count as scattered for the far field
+        (:attr:`far_field_sparse_coverage`, else :attr:`union_min_coverage`)."""
+        if self.far_field_sparse_coverage is None:
+            return self.union_min_coverage
+        return self.far_field_sparse_coverage
 
     def seconds(self, work: dict, *, load_control: bool = False, tilt: bool = False) -> dict:
         """Predicted CPU seconds of each candidate from its work units."""
@@ -229,5 +244,12 @@ FITTED = CostModel(
     # reference) and 1,735 at 58 % (28 s, 0.20x); merged contacts under load and maps keep
     # them. The bound lies between 16 and 19.5 %
     union_margin_min_coverage=0.17,
+    # the sweep's scenes of 9-74 patches at 14-19.3 % of their box, none merged, the far
+    # field against the choice before it (union CG or exact block iterations; interleaved
+    # CPU s, two pairs, imports in): 61 spheres under load 4.12 / 3.01 s, 23 under load
+    # 3.05 / 2.36, 27 under load 4.55 / 3.75, 74 paraboloids 3.07 / 2.60, 10 paraboloids
+    # 0.87 / 0.86, 9 spheres under load 1.93 / 1.88; 44 with merged contacts at 16.8 %
+    # 1.15 / 1.30 s (kept on the union CG); 96 at 20.4 %: union CG 1.61 s, far field 2.30
+    far_field_sparse_coverage=0.2,
     fitted_on="250 attempts: 190 of the thirteenth sweep run, 60 forced on its scenes",
 )

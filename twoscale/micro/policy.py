@@ -199,9 +199,10 @@ def choose(
     ``model.sensitivity_factor``, and the union CG is weighed against it even on a mostly
     empty box where the far field is not a candidate. The far field is not used below
     ``FAR_FIELD_MIN_PATCHES`` patches (from ``model.sparse_far_field_min_patches`` on a
-    box they cover less than ``UNION_MIN_COVERAGE`` of, from
+    box they cover less than ``UNION_MIN_COVERAGE`` of, or less than
+    ``model.far_field_coverage`` of without merged contacts; from
     ``model.sparse_tilt_far_field_min_patches`` there with the ``tilt``), nor the union CG
-    there. ``load_control``: where exact block iterations are
+    below ``UNION_MIN_COVERAGE``. ``load_control``: where exact block iterations are
     cheapest, their two-level variant runs first (its coarse step corrects the approach
     and tilt instead of sensitivity sweeps: S1-S3 2.7-3x faster), block Gauss-Seidel if it
     stalls; the choice names the two-level iteration with exact coupling. The work of each
@@ -272,8 +273,11 @@ def decide(
     if n > model.exact_max_patches:
         candidates.pop("block-gs")
     sparse = figures["coverage"] < model.union_min_coverage
+    # the far field from few patches where they are scattered: on a mostly empty box, or
+    # up to the far field's own bound where no contacts merge (it stalls where they crowd)
+    scattered = sparse or (figures["coverage"] < model.far_field_coverage and not merged_contacts)
     few = model.sparse_tilt_far_field_min_patches if tilt else model.sparse_far_field_min_patches
-    if n < (few if sparse else model.far_field_min_patches):
+    if n < (few if scattered else model.far_field_min_patches):
         candidates.pop("two-level")
     crowded_out = not figures.get("height_map", False) and not (sensitivity and "two-level" not in candidates)
     if sparse and len(candidates) > 1 and crowded_out:
