@@ -213,7 +213,11 @@ def run_twoscale(
     micro_start = start.micro if isinstance(start, WarmStart) else None
     problem = _micro_problem(macro, h, loading, run.anchor, micro_start)
     refine = None
-    if first is not macro_options and _refinable(macro):
+    # the staged first stage is taken to the macro tolerance, but not after the safe path's
+    # skip (an unstable equilibrium of merged contacts, or a stall), where Newton stalled
+    # again (1,013 spheres: five more LU steps, 1.9e-3 to 5.7e-4; 1,485: one, a failed line
+    # search); the micro step resolves the merged contacts either way
+    if first is not macro_options and not macro.safe_path:
 
         def refine():
             again = MacroStart(macro.forces, macro.penetration, macro.tilt)
@@ -247,14 +251,6 @@ def _first_stage(options: MacroOptions, n: int) -> MacroOptions:
     if n <= STAGED_MIN_TIPS or options.tol >= SIZING_RESIDUAL:
         return options
     return replace(options, tol=SIZING_RESIDUAL)
-
-
-def _refinable(macro) -> bool:
-    """Whether the staged first stage ``macro`` is worth taking to the macro tolerance: not
-    after the safe path's skip (an unstable equilibrium of merged contacts, or a stall),
-    where Newton stalled again (1,013 spheres: five more LU steps, 1.9e-3 to 5.7e-4; 1,485:
-    one, a failed line search); the micro step resolves the merged contacts either way."""
-    return not macro.safe_path
 
 
 def _first_stage_kept(macro):
