@@ -72,3 +72,28 @@ def test_the_point_operator_is_kept_through_a_merge():
     again.keep_pairs(far, {k: k - (k > 4) for k in range(len(patches)) if k not in (3, 4)})
     _check(again, 2)
     assert again._point_operator().base is built
+
+
+def test_the_kept_weights_take_the_bytes_the_estimate_counts_per_owned_cell():
+    # patches whose asperity owns part of their cells (a neighbour the rest): after a
+    # refresh and a sweep's far-field products the far field keeps, per patch, the source
+    # weights, the owned rows of the interpolation and the owned cells' centres; their
+    # bytes are KEPT_BYTES_PER_OWNED_CELL per owned cell, what the memory estimate counts
+    from twoscale.micro.sources import KEPT_BYTES_PER_OWNED_CELL
+
+    rng = np.random.default_rng(5)
+    patches = []
+    for k, pt in enumerate(_scattered(60)):
+        owner = np.where(rng.random(pt.grid.shape) < 0.7, k, -1)
+        owner[2, 2] = k
+        patches.append(Patch(k, pt.grid, pt.height, owner))
+    far = LaggedFarField(HS, patches, far_tol=0.3)
+    values = [rng.random(int(pt.owned.sum())) for pt in patches]
+    far.refresh(values)
+    for k in range(len(patches)):
+        far._far(k, values, whole=False)
+    owned = sum(int(pt.owned.sum()) for pt in patches)
+    assert owned < sum(pt.grid.size for pt in patches)
+    kept = [far._sources, {k: w for k, w in far._weights.items() if k[0] != "shape"}, far._cells]
+    assert [len(d) for d in kept] == [len(patches)] * 3
+    assert sum(a.nbytes for d in kept for a in d.values()) == KEPT_BYTES_PER_OWNED_CELL * owned

@@ -80,6 +80,26 @@ def test_union_cg_asked_for_counts_the_box_of_the_patches():
     assert union.bytes > 2 * auto.bytes and "union box" in union.dominant
 
 
+def test_the_far_fields_kept_weights_are_counted_where_it_may_be_taken():
+    # scattered patches (the far field is a candidate): the weights it keeps, bytes per
+    # owned cell (every patch cell counted); two crowded patches (it is not): none
+    from twoscale.micro.sources import KEPT_BYTES_PER_OWNED_CELL
+
+    def parts(gap):
+        scene = Scene(
+            material=Material(E=10.0, nu=0.5),
+            penetration=0.5,
+            asperities=[Asperity(0.0, 0.0, 0.0, 10.0), Asperity(gap, gap, 0.0, 10.0)],
+        )
+        est = estimate_memory(scene, 0.05, "twoscale")
+        return est, dict(est.parts)
+
+    est, scattered = parts(40.0)
+    assert scattered["far field's kept weights"] == KEPT_BYTES_PER_OWNED_CELL * est.cells == 160 * est.cells
+    est, crowded = parts(2.0)
+    assert "far field's kept weights" not in crowded and "union box" in est.dominant
+
+
 def test_cells_grow_as_one_over_h_squared():
     coarse = estimate_memory(HERTZ, 0.04, "reference")
     fine = estimate_memory(HERTZ, 0.01, "reference")

@@ -122,3 +122,27 @@ def test_patches_that_come_to_touch_are_merged_as_the_iteration_goes():
         win = patches[k].grid.window_in(state.patches[0].grid)
         np.testing.assert_array_equal(merged[win][patches[k].owned], _disc(patches[k], [0.0, 0.05][k], 0.2))
     assert merge_touching(state, p, p0) == 0
+
+
+def test_a_replaced_engine_and_its_far_field_weights_are_released():
+    # the growth check's gaps (gaps_of) hold the engine they were taken from; a merge
+    # replaces the engine, whose far field keeps per-patch weights (source weights,
+    # interpolation rows): the old engine must not outlive the merge
+    import gc
+    import weakref
+
+    from twoscale.micro.couplings import FarField
+    from twoscale.micro.workset import WorkingSet, merge_touching
+
+    asps, patches = _patches([0.0, 0.05, 3.0])
+    engine = lambda pts: FarField(0.3).build(HS, pts, held=True, dense_max_entries=40_000, separated_rtol=None)  # noqa: E731
+    state = WorkingSet(HS, asps, patches, engine(patches), dense_max_cells=400, rebuild=engine)
+    p = [_disc(pt, x, 0.2) for pt, x in zip(patches, [0.0, 0.05, 3.0])]
+    p0 = [v.copy() for v in p]
+    state.coupling.refresh(p)
+    state.gaps_of([0, 1, 2], p, (0.01, 0.0, 0.0), (0.0, 0.0))
+    assert state.coupling._sources, "the far field kept no source weights"
+    old = weakref.ref(state.coupling)
+    assert merge_touching(state, p, p0) == 1
+    gc.collect()
+    assert old() is None, f"the replaced engine is still held by {[type(r) for r in gc.get_referrers(old())]}"

@@ -16,9 +16,11 @@ What the two methods carry:
   (``a_k`` the contact radius alone at the expected approach,
   :func:`twoscale.scene.expected_contact_radii`, which ignores interaction and so
   overestimates it), each with its FFT operator; the cached cross-patch operators
-  (bounded by the coupling's cache budget); the dense macro matrix; and, where patches
-  crowd their bounding box, the micro step may solve on that box as one grid
-  (``union-cg``, :mod:`twoscale.micro.policy`), which costs like the reference grid.
+  (bounded by the coupling's cache budget); where the far field may be taken, the
+  weights it keeps per owned cell (:data:`twoscale.micro.sources.KEPT_BYTES_PER_OWNED_CELL`);
+  the dense macro matrix; and, where patches crowd their bounding box, the micro step may
+  solve on that box as one grid (``union-cg``, :mod:`twoscale.micro.policy`), which costs
+  like the reference grid.
 * the finite block (``[influence] kind = "block"``) adds its provider's build.
 
 Measured peaks against the estimate: :data:`~twoscale.memory_costs.CALIBRATION`. Not counted: the reference
@@ -52,8 +54,9 @@ from .memory_costs import (
     DEFAULT_FRACTION,
     ADVICE_SHARE,
 )
-from .micro.policy import FULL_GRID_MAX_TIPS, UNION_MIN_COVERAGE
+from .micro.policy import FAR_FIELD_MIN_PATCHES, FULL_GRID_MAX_TIPS, UNION_MIN_COVERAGE
 from .micro.policy import full_grid_route as policy_full_grid_route
+from .micro.sources import KEPT_BYTES_PER_OWNED_CELL
 from .scene import SCENE_METHODS, Scene, SceneError, expected_approaches, expected_contact_radii, round_up
 
 
@@ -214,9 +217,15 @@ def _twoscale_parts(scene: Scene, h: float, *, union: bool = False) -> tuple[int
     else:
         parts["macro interaction matrix"] = 2000.0 * n  # matrix-free point operator
     box = _patch_box(scene, r, h) if int(on.sum()) else None  # one patch: the union CG on it
+    crowded = box is not None and cells >= UNION_MIN_COVERAGE * box.size
+    if int(on.sum()) > 1 and (not crowded or int(on.sum()) >= FAR_FIELD_MIN_PATCHES):
+        # where the policy may take the far field (micro.policy.decide): its per-patch
+        # weights, every patch cell counted as owned (4,548 paraboloids: 4.5 M owned cells,
+        # 326 MB of source weights and 326 MB of interpolation rows measured)
+        parts["far field's kept weights"] = KEPT_BYTES_PER_OWNED_CELL * cells
     # a height map's stones may take the union CG at any coverage (micro.policy.decide)
     on_map = all(a.shape == "map" for a in scene.asperities)
-    if box is not None and (union or on_map or cells >= UNION_MIN_COVERAGE * box.size):
+    if box is not None and (union or on_map or crowded):
         # the union CG runs after the patches are built (and after a block iteration that
         # did not converge): both are held at its peak
         parts.update(_grid_parts(scene, box, "union box"))

@@ -37,6 +37,12 @@ def grid_interpolation(ny: int, nx: int) -> np.ndarray:
 #: third Chebyshev polynomial, which minimise the largest interpolation error over it.
 SOURCE_NODE = math.sqrt(3.0) / 2.0
 
+#: Bytes a far field keeps for every owned cell of a patch while the patch stays (float64):
+#: the cell's column of :func:`source_weights` (9 numbers), its row of
+#: :func:`grid_interpolation` (9) and its centre (2, mm). One engine's at a time: an engine
+#: a merge replaces is released with it.
+KEPT_BYTES_PER_OWNED_CELL = np.dtype(np.float64).itemsize * (9 + 9 + 2)
+
 
 def source_frame(grid) -> tuple[np.ndarray, np.ndarray]:
     """Centre (2,) mm of a patch on ``grid`` and the offset (2,) mm of its outer source

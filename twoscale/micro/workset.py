@@ -38,6 +38,10 @@ class WorkingSet:
         # the product engine a coupling object built for these patches (:mod:`.couplings`)
         self.coupling = coupling
         self.sensitivities = None
+        # the last gaps (:meth:`gaps`) and the growth check's (:meth:`gaps_of`): dropped when
+        # a patch or the engine changes (:meth:`_forget_gaps`)
+        self._gaps: tuple | None = None
+        self._gaps_of: tuple | None = None
 
     def tips(self) -> np.ndarray:
         """Tip of every asperity of the scene, (N, 2) mm."""
@@ -103,6 +107,7 @@ class WorkingSet:
             blk.coarse_shape = (active > 0.0, shape)
         self.blocks[k] = blk
         self.coupling.replace(k, new)
+        self._forget_gaps()
 
     def regroup(self, groups: list, vectors: list) -> None:
         """Each group of patch indices becomes one patch (:func:`~.patches.merge_groups`);
@@ -125,6 +130,13 @@ class WorkingSet:
         self.coupling = self.rebuild(merged)
         self.coupling.keep_pairs(old, {c[0]: k for k, c in enumerate(covers) if len(c) == 1})
         self.sensitivities = None
+        self._forget_gaps()
+
+    def _forget_gaps(self) -> None:
+        """Drop the kept gaps: they no longer match the patches, and the growth check's
+        hold the engine they were taken from, whose far field keeps per-patch weights
+        (4,548 paraboloids: a replaced engine held 700 MB until the next round's check)."""
+        self._gaps = self._gaps_of = None
 
     def full_displacement(self, pressures: list) -> list:
         """Displacement on every whole patch (list of (ny, nx) arrays), mm."""
@@ -137,10 +149,10 @@ class WorkingSet:
         end and the result ask for the same gaps), and the patches the check evaluated alone
         (:meth:`gaps_of`) taken from it (4,548 paraboloids: 1.2 of the result's 3.7 s)."""
         key = (tuple(float(v) for v in theta), tuple(pivot))
-        last = getattr(self, "_gaps", None)
+        last = self._gaps
         if last is not None and last[0] == key and _same(last[1], pressures) and _same(last[2], self.patches):
             return last[3]
-        some = getattr(self, "_gaps_of", None)  # the growth check's patches, at the same state
+        some = self._gaps_of  # the growth check's patches, at the same state
         if some is None or some[0] != key or not _same(some[1], pressures) or not _same(some[2], self._held()):
             some = (None, None, None, {})
         out = [
@@ -172,7 +184,7 @@ class WorkingSet:
         answer's where :meth:`gaps` has one for these pressures): each patch's gap is the
         same whichever others are asked for."""
         key = (tuple(float(v) for v in theta), tuple(pivot))
-        last = getattr(self, "_gaps", None)
+        last = self._gaps
         if last is not None and last[0] == key and _same(last[1], pressures) and _same(last[2], self.patches):
             return {k: last[3][k] for k in which}
         out = {k: self._gap(k, self._displacement(k, pressures), theta, pivot) for k in which}
