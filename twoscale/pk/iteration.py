@@ -84,7 +84,7 @@ class Iteration:
         self.free: Any = None  # ~mask, for the residual rule
         self.g: Any = None  # the gap's buffer
         self.g_on: Any = None  # the gap on the loaded cells' buffer
-        self.zeros: Any = None  # zeros shaped like the gap (the residual's)
+        self.scratch: Any = None  # shaped like the gap (the residual's)
         self.on: Any = None  # the loaded cells' buffer
         self.gtol: Any = None  # the change rule's penetration tolerance per row, when first needed
         self.scale: Any = None
@@ -152,9 +152,9 @@ class Iteration:
             return None
         if self.masked and self.free is None:
             self.free = ~self.mask
-        if self.zeros is None or self.zeros.shape != g.shape:
-            self.zeros = np.zeros_like(g)  # kept: read-only zeros for the residual
-        res = kkt_residual(g, g_on, on, self.free, self.scale, self.zeros)
+        if self.scratch is None or self.scratch.shape != g.shape:
+            self.scratch = np.empty_like(g)  # kept: one large allocation less per check
+        res = kkt_residual(g, g_on, on, self.free, self.scale, self.scratch)
         if self.basis_scale is not None:
             res = np.maximum(res, constraint_residual(self.p, self.basis, self.target, self.basis_scale, self.plane))
         return res
@@ -283,7 +283,7 @@ class Iteration:
             return g_on, gg
         d = self.pc(g_on.reshape(len(g_on), *self.shape), on.reshape(len(on), *self.shape)).reshape(len(on), -1)
         d *= on
-        project(d, self.basis, on, self.count if self.k == 1 else None, self.basis_t, self.plane)
+        project(d, self.basis, on, self.count if self.k == 1 else None, self.basis_t, self.plane, loaded_only=True)
         d *= on
         G = row_dot(g_on, d)
         good = G > 0.0
@@ -321,8 +321,10 @@ class Iteration:
         p -= np.multiply(t, tau_c, out=d if d is not g_on else None)
         clipped, reenter, change = clip_and_enter(p, g, tau, self.mask, self.ops.columns is not None)
         entered = reenter.any(axis=1)
-        # few cells entered: the directions stay conjugate enough to keep
-        self.kept = entered & (reenter.sum(axis=1) <= self.ops.keep_conjugacy * on.sum(axis=1))
+        # few cells entered: the directions stay conjugate enough to keep (counted only then)
+        self.kept = entered
+        if np.count_nonzero(entered):
+            self.kept = entered & (reenter.sum(axis=1) <= self.ops.keep_conjugacy * on.sum(axis=1))
         self.conj = ~entered | self.kept
         factor = restore(p, self.basis, self.target, basis_t=self.basis_t, plane=self.plane) if self.k else 1.0
         self.update_displacement(r, tau_c, factor, clipped | entered, change)
