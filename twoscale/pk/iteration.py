@@ -30,6 +30,11 @@ GAP_RTOL = 1e-12
 _TINY = np.finfo(float).tiny
 
 
+def _largest(u: np.ndarray) -> np.ndarray:
+    """Per row the largest ``|u|`` (at least ``_TINY``), without ``np.abs``'s (B, n) copy."""
+    return np.maximum(np.maximum(u.max(axis=1), -u.min(axis=1)), _TINY)
+
+
 class Iteration:
     """Live rows of :func:`~.kernel.pk_solve` and the outputs.
 
@@ -92,7 +97,7 @@ class Iteration:
         self.it_best: Any = None
         self.basis_scale: Any = None
         if tol.residual is not None:
-            self.scale = np.maximum(np.abs(self.u).max(axis=1), _TINY)
+            self.scale = _largest(self.u)
             self.best, self.it_best = np.full(rows, np.inf), np.zeros(rows, int)
             if self.k > 1:
                 cells = mask.any(axis=0) if self.masked else slice(None)
@@ -127,7 +132,7 @@ class Iteration:
             self.u[rows] = self.product(self.p[rows], fast)
             self.stale[rows] = int(fast)
         if self.scale is not None:
-            self.scale[rows] = np.maximum(np.abs(self.u[rows]).max(axis=1), _TINY)
+            self.scale[rows] = _largest(self.u if np.count_nonzero(rows) == len(rows) else self.u[rows])
         self.products += int(rows.sum())
 
     def gap(self):
