@@ -11,13 +11,29 @@ from __future__ import annotations
 import numpy as np
 import scipy.fft as sfft
 
-try:  # scipy's private binding of pocketfft (scipy >= 1.4: c2c, r2c, c2r with ``out``)
-    from scipy.fft._pocketfft import pypocketfft as _pocketfft
-except ImportError:  # pragma: no cover - the public functions below
-    _pocketfft = None
-
 #: pocketfft's ``inorm``: no normalization, or divided by the transform's length.
 _NONE, _BY_N = 0, 2
+
+
+def _binding():
+    """scipy's private binding of pocketfft (``c2c``, ``r2c``, ``c2r`` with ``out``, since
+    scipy 1.4) if it is there and transforms a small field as ``scipy.fft`` does, else None."""
+    try:
+        from scipy.fft._pocketfft import pypocketfft as binding
+
+        a = np.arange(12.0).reshape(3, 4)
+        out = np.empty((3, 3), complex)
+        binding.r2c(a, (1,), True, _NONE, out, 1)
+        back = np.empty((3, 4))
+        binding.c2r(binding.c2c(out, (0,), True, _NONE, None, 1), (0, 1), 4, False, _BY_N, back, 1)
+        if np.allclose(out, sfft.rfft(a, axis=1)) and np.allclose(back, a):
+            return binding
+    except Exception:  # pragma: no cover - a scipy without it, or with another signature
+        pass
+    return None  # pragma: no cover
+
+
+_pocketfft = _binding()
 
 
 def rfft_into(a: np.ndarray, axis: int, out: np.ndarray) -> np.ndarray:
