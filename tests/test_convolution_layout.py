@@ -116,3 +116,47 @@ def test_a_smaller_grid_restricted_from_the_kept_table_is_the_kernel_on_it():
     assert np.abs(small.offset_table() - own).max() <= 1e-13 * own.max()
     assert op.restricted(Grid(0.0, 0.0, H, 13, 10)) is None
     assert op.restricted(Grid(0.0, 0.0, 2 * H, 6, 5)) is None
+
+
+def test_the_kept_buffers_carry_nothing_from_one_product_to_the_next():
+    """The float32 product and the circulant inverse of one field run through buffers kept
+    with the operator (the inverse's transforms along x pruned to the field's rows on a
+    torus longer than the grid): a second field's result is its own, the float32 product
+    within float32 rounding of the float64 one and the inverse equal to the unpruned
+    transform of a stack of one field."""
+    g = Grid(0.0, 0.0, H, 131, 140)  # sides from 128 cells: a torus longer than the grid
+    op = HS.grid_operator(g)
+    single = op.single_precision()
+    inverse = single.preconditioner()
+    assert inverse is not None
+    rng = np.random.default_rng(7)
+    for _ in range(2):
+        p = rng.uniform(size=g.shape) * (rng.uniform(size=g.shape) < 0.3)
+        want = op.apply(p)
+        assert np.abs(single.apply(p) - want).max() <= 1e-6 * np.abs(want).max()
+        stacked = inverse.apply(p[None])[0]  # (the unpruned transforms)
+        assert np.abs(inverse.apply(p) - stacked).max() <= 1e-6 * np.abs(stacked).max()
+
+
+@pytest.mark.parametrize("dropped", [False, True])
+def test_the_offset_table_is_gathered_again_from_the_kept_kernel_values(monkeypatch, dropped):
+    """With the caller's cache of Love values the operator's offset table is gathered from
+    it again (no inverse transform of the spectrum); when the values have left the cache,
+    it comes back from the spectrum. Either way it is Love's kernel on the offsets."""
+    from twoscale.influence import convolution
+    from twoscale.influence.cache import BoundedCache
+
+    grid = Grid(0.0, 0.0, H, 23, 17)
+    my, mx = 2 * grid.ny - 1, 2 * grid.nx - 1
+    dy, dx = np.meshgrid((np.arange(my) - grid.ny + 1) * H, (np.arange(mx) - grid.nx + 1) * H, indexing="ij")
+    love = HS.cell_block(np.c_[dx.ravel(), dy.ravel()], np.zeros((1, 2)), H).reshape(my, mx)
+    tables = BoundedCache(1e8)
+    op = HS.grid_operator(grid, tables=tables)
+    if dropped:
+        tables.pop(("love-quadrant", H))
+    inverses = []
+    inverse = convolution._inverse
+    monkeypatch.setattr(convolution, "_inverse", lambda *a: inverses.append(1) or inverse(*a))
+    table = op.offset_table()
+    assert len(inverses) == int(dropped)
+    assert table.shape == (my, mx) and np.abs(table - love).max() <= 1e-13 * love.max()

@@ -11,6 +11,7 @@ import scipy.fft as sfft
 
 from ..grid import Grid
 from .base import GridOperator
+from .transforms import fft_in_place, irfft_into, rfft_into
 
 
 #: Sides from this many cells wrap the kernel onto a torus at least ``TORUS_MARGIN`` times
@@ -85,7 +86,7 @@ class CirculantInverse(GridOperator):
     def __init__(self, grid: Grid, multiplier: np.ndarray):
         self.target = self.source = grid
         self._m = multiplier
-        self._padded: np.ndarray | None = None  # one field on the torus, zero off the grid (kept)
+        self._padded: tuple[np.ndarray, ...] | None = None  # (:meth:`_apply_pruned`)
 
     @classmethod
     def of(cls, op: GridOperator, table: Callable[[], np.ndarray], dtype) -> "CirculantInverse | None":
@@ -107,16 +108,36 @@ class CirculantInverse(GridOperator):
         transforms run along the last two axes, one call each for the whole stack."""
         shape = torus_shape(self.source)
         v = np.asarray(v)
-        if v.ndim == 2 and shape != v.shape:  # one field: the torus's padding kept, not made again
-            if self._padded is None:
-                self._padded = np.zeros(shape, self._m.dtype)
-            self._padded[: v.shape[0], : v.shape[1]] = v
-            a = sfft.rfft2(self._padded)
-        else:
-            a = sfft.rfft2(np.asarray(v, dtype=self._m.dtype), s=shape)
+        if v.ndim == 2 and shape != v.shape:
+            return self._apply_pruned(v)
+        a = sfft.rfft2(np.asarray(v, dtype=self._m.dtype), s=shape)
         a *= self._m
         ny, nx = self.source.shape
         return np.ascontiguousarray(sfft.irfft2(a, s=shape)[..., :ny, :nx], dtype=np.float64)
+
+    def _apply_pruned(self, v: np.ndarray) -> np.ndarray:
+        """:meth:`apply` on one field (ny, nx) smaller than the torus, through buffers kept
+        with this object (:mod:`.transforms`): the transforms along x run on the field's
+        ``ny`` rows only, forward (the torus's other rows are zero) and back (only the
+        field's rows are kept), the ones along y in place (467 x 467 cells on a 540 x 540
+        torus: 2.1-2.6 against 2.2-3.9 ms, minimum and median of 150 calls on a loaded
+        machine; the same values to 1e-7 of the largest, float32 rounding)."""
+        (ly, lx), (ny, nx) = torus_shape(self.source), v.shape
+        if self._padded is None:
+            self._padded = (
+                np.zeros((ny, lx), self._m.dtype),
+                np.zeros((ly, lx // 2 + 1), np.result_type(self._m.dtype, np.complex64)),
+                np.empty((ny, lx), self._m.dtype),
+            )
+        rows, spectrum, back = self._padded
+        rows[:, :nx] = v
+        rfft_into(rows, 1, spectrum[:ny])
+        spectrum[ny:] = 0.0  # (the torus's rows off the field)
+        fft_in_place(spectrum, 0, forward=True)
+        spectrum *= self._m
+        fft_in_place(spectrum, 0, forward=False)
+        irfft_into(spectrum[:ny], 1, lx, back)
+        return back[:, :nx].astype(np.float64)
 
     def apply_stack(self, V: np.ndarray) -> np.ndarray:
         """:meth:`apply` on a stack (B, ny, nx) (the micro step's blocks of one size class)."""

@@ -5,6 +5,7 @@ transposed forms, and the spectrum layout they and the circulant preconditioner 
 from __future__ import annotations
 
 import copy
+from typing import Callable
 
 import numpy as np
 import scipy.fft as sfft
@@ -12,6 +13,7 @@ import scipy.fft as sfft
 from ..grid import Grid
 from .base import GridOperator
 from .circulant import CirculantInverse
+from .transforms import fft_in_place, irfft_into, rfft_into
 
 
 def _transform(a: np.ndarray, shape: tuple[int, int]) -> np.ndarray:
@@ -37,11 +39,17 @@ class ConvolutionOperator(GridOperator):
 
     ``table[m, n]`` is the kernel at lattice offset ``(oy0 + m, ox0 + n)`` between a
     target and a source cell, covering every offset that occurs; the product is then
-    exactly the linear convolution, computed in ``O(n log n)``.
+    exactly the linear convolution, computed in ``O(n log n)``. ``again``, if given,
+    returns that same table when it is cheap to have again (e.g. gathered from a cache of
+    kernel values the caller keeps), else None: :meth:`offset_table` then takes it instead
+    of an inverse transform, and the operator does not hold the table meanwhile.
     """
 
-    def __init__(self, target: Grid, source: Grid, table: np.ndarray):
+    def __init__(
+        self, target: Grid, source: Grid, table: np.ndarray, again: Callable[[], np.ndarray | None] | None = None
+    ):
         self.target, self.source = target, source
+        self._again = again
         my, mx = table.shape
         self._shape = (sfft.next_fast_len(my, real=True), sfft.next_fast_len(mx, real=True))
         self._khat = _transform(table, self._shape)
@@ -123,10 +131,14 @@ class ConvolutionOperator(GridOperator):
         """The kernel at every offset between a target and a source cell (entry ``(m, n)``
         the offset ``(m - source.ny + 1, n - source.nx + 1)``), rebuilt once from the kernel
         spectrum and kept with the operator (read-only: :meth:`columns` and the rolling
-        path's block preconditioner share it; an inverse transform of the padded grid each)."""
+        path's block preconditioner share it; an inverse transform of the padded grid each,
+        or the table given again by ``again``: a gather where the transform costs a
+        complex float64 FFT pair of the padded grid, e.g. 30 against ~3 ms on 467 x 467 cells)."""
         if "table" not in self._derived:
             my, mx = self.target.ny + self.source.ny - 1, self.target.nx + self.source.nx - 1
-            table = np.ascontiguousarray(self.padded_table()[:my, :mx])
+            table = None if self._again is None else self._again()
+            if table is None:
+                table = np.ascontiguousarray(self.padded_table()[:my, :mx])
             table.setflags(write=False)
             self._derived["table"] = table
         return self._derived["table"]
@@ -218,7 +230,7 @@ class _SingleConvolution(GridOperator):
             derived["complex64"] = parent._khat.astype(np.complex64)
         self._khat = derived["complex64"]
         self._parent = parent
-        self._buffers: tuple[np.ndarray, np.ndarray] | None = None  # (:meth:`_spectrum_in_place`)
+        self._buffers: tuple[np.ndarray, ...] | None = None  # (:meth:`_spectrum_in_place`)
 
     @property
     def fft_shape(self) -> tuple[int, int]:
@@ -228,25 +240,43 @@ class _SingleConvolution(GridOperator):
         p = np.asarray(p)
         if p.ndim != 2:
             a = self._parent.spectrum(np.asarray(p, dtype=np.float32))
-        else:
-            a = self._spectrum_in_place(p)
+            a *= self._khat
+            return self._parent.finish(a).astype(np.float64, copy=False)
+        a = self._spectrum_in_place(p)
         a *= self._khat
-        return self._parent.finish(a).astype(np.float64, copy=False)
+        return self._finish_in_place(a)
 
     def _spectrum_in_place(self, p: np.ndarray) -> np.ndarray:
-        """:func:`_transform` of one field through two buffers kept with this operator (the
+        """:func:`_transform` of one field through buffers kept with this operator (the
         padded field and the padded spectrum, their padding zero): the padding is not
         allocated again for every product (fresh pages the kernel zeroes: on 5.26 M cells
-        0.16 against 0.24 s a transform) and the transform along x runs in place. The
-        returned spectrum is the buffer itself, overwritten by the next product."""
+        0.16 against 0.24 s a transform), the transform along y is written into the
+        spectrum and the one along x runs in place (:mod:`.transforms`). The returned
+        spectrum is the buffer itself, overwritten by the next product."""
         (ny, nx), (my, mx) = p.shape, self._shape
         if self._buffers is None:
-            self._buffers = (np.zeros((my, nx), np.float32), np.zeros((my // 2 + 1, mx), np.complex64))
-        padded, spectrum = self._buffers
+            self._buffers = (
+                np.zeros((my, nx), np.float32),
+                np.zeros((my // 2 + 1, mx), np.complex64),
+                np.empty((my, self.target.nx), np.float32),
+            )
+        padded, spectrum, _ = self._buffers
         padded[:ny] = p
-        spectrum[:, :nx] = sfft.rfft(padded, axis=-2)
+        rfft_into(padded, 0, spectrum[:, :nx])
         spectrum[:, nx:] = 0.0
-        return sfft.fft(spectrum, axis=-1, overwrite_x=True)
+        return fft_in_place(spectrum, 1, forward=True)
+
+    def _finish_in_place(self, a: np.ndarray) -> np.ndarray:
+        """:meth:`ConvolutionOperator.finish` of the kept spectrum ``a`` (overwritten),
+        the real transform back along y written into the kept buffer; the target's
+        displacement as a new float64 array."""
+        assert self._buffers is not None
+        my = self._shape[0]
+        sy, sx = self.source.ny - 1, self.source.nx - 1
+        back = self._buffers[2]
+        fft_in_place(a, 1, forward=False)
+        irfft_into(a[:, sx : sx + self.target.nx], 0, my, back)
+        return back[sy : sy + self.target.ny].astype(np.float64)
 
     def apply_stack(self, P: np.ndarray) -> np.ndarray:
         """:meth:`apply` on a stack (B, ny, nx): the transforms take the leading axis as
@@ -268,7 +298,7 @@ class _TransposedConvolution(ConvolutionOperator):
     def __init__(self, parent: ConvolutionOperator):
         self.target, self.source = parent.source, parent.target
         self._shape = parent.fft_shape
-        self._derived = {}
+        self._derived, self._again = {}, None
         self._parent = parent._khat
         ny, nx = self._shape
         my, mx = parent.target.ny + parent.source.ny - 1, parent.target.nx + parent.source.nx - 1

@@ -169,8 +169,21 @@ class HalfSpace(InfluenceProvider):
         self, target: Grid, source: Grid | None = None, *, tables: BoundedCache | None = None
     ) -> "ConvolutionOperator":
         source = target if source is None else source
-        table, _, _ = self._offset_table(target, source, tables)
-        return ConvolutionOperator(target, source, table)
+        table, ox0, oy0 = self._offset_table(target, source, tables)
+        if tables is None:
+            return ConvolutionOperator(target, source, table)
+        (my, mx), h = table.shape, float(source.h)
+        return ConvolutionOperator(target, source, table, lambda: self._kept_window(h, ox0, oy0, mx, my, tables))
+
+    def _kept_window(self, h: float, ox0: int, oy0: int, mx: int, my: int, tables: BoundedCache) -> np.ndarray | None:
+        """:meth:`_window`'s table when the quadrant it gathers from is still in ``tables``
+        (a copy's cost), else None (the operator then transforms its spectrum back)."""
+        quadrant = tables.get(("love-quadrant", h))
+        ax = max(abs(ox0), abs(ox0 + mx - 1)) + 1
+        ay = max(abs(oy0), abs(oy0 + my - 1)) + 1
+        if quadrant is None or quadrant.shape[0] < ay or quadrant.shape[1] < ax:
+            return None
+        return self._window(h, ox0, oy0, mx, my, tables)
 
     def separated_operator(self, target: Grid, source: Grid, *, rtol: float = 1e-8, tables: BoundedCache | None = None):
         """Chebyshev low-rank block (:class:`~.separated.SeparatedOperator`) for a

@@ -30,6 +30,11 @@ GAP_RTOL = 1e-12
 _TINY = np.finfo(float).tiny
 
 
+def _largest(u: np.ndarray) -> np.ndarray:
+    """Per row the largest ``|u|`` (at least ``_TINY``), without ``np.abs``'s (B, n) copy."""
+    return np.maximum(np.maximum(u.max(axis=1), -u.min(axis=1)), _TINY)
+
+
 class Iteration:
     """Live rows of :func:`~.kernel.pk_solve` and the outputs.
 
@@ -84,7 +89,7 @@ class Iteration:
         self.free: Any = None  # ~mask, for the residual rule
         self.g: Any = None  # the gap's buffer
         self.g_on: Any = None  # the gap on the loaded cells' buffer
-        self.zeros: Any = None  # zeros shaped like the gap (the residual's)
+        self.scratch: Any = None  # shaped like the gap (the residual's)
         self.on: Any = None  # the loaded cells' buffer
         self.gtol: Any = None  # the change rule's penetration tolerance per row, when first needed
         self.scale: Any = None
@@ -92,7 +97,7 @@ class Iteration:
         self.it_best: Any = None
         self.basis_scale: Any = None
         if tol.residual is not None:
-            self.scale = np.maximum(np.abs(self.u).max(axis=1), _TINY)
+            self.scale = _largest(self.u)
             self.best, self.it_best = np.full(rows, np.inf), np.zeros(rows, int)
             if self.k > 1:
                 cells = mask.any(axis=0) if self.masked else slice(None)
@@ -127,7 +132,7 @@ class Iteration:
             self.u[rows] = self.product(self.p[rows], fast)
             self.stale[rows] = int(fast)
         if self.scale is not None:
-            self.scale[rows] = np.maximum(np.abs(self.u[rows]).max(axis=1), _TINY)
+            self.scale[rows] = _largest(self.u if np.count_nonzero(rows) == len(rows) else self.u[rows])
         self.products += int(rows.sum())
 
     def gap(self):
@@ -152,9 +157,9 @@ class Iteration:
             return None
         if self.masked and self.free is None:
             self.free = ~self.mask
-        if self.zeros is None or self.zeros.shape != g.shape:
-            self.zeros = np.zeros_like(g)  # kept: read-only zeros for the residual
-        res = kkt_residual(g, g_on, on, self.free, self.scale, self.zeros)
+        if self.scratch is None or self.scratch.shape != g.shape:
+            self.scratch = np.empty_like(g)  # kept: one large allocation less per check
+        res = kkt_residual(g, g_on, on, self.free, self.scale, self.scratch)
         if self.basis_scale is not None:
             res = np.maximum(res, constraint_residual(self.p, self.basis, self.target, self.basis_scale, self.plane))
         return res
@@ -283,7 +288,7 @@ class Iteration:
             return g_on, gg
         d = self.pc(g_on.reshape(len(g_on), *self.shape), on.reshape(len(on), *self.shape)).reshape(len(on), -1)
         d *= on
-        project(d, self.basis, on, self.count if self.k == 1 else None, self.basis_t, self.plane)
+        project(d, self.basis, on, self.count if self.k == 1 else None, self.basis_t, self.plane, loaded_only=True)
         d *= on
         G = row_dot(g_on, d)
         good = G > 0.0
@@ -321,8 +326,9 @@ class Iteration:
         p -= np.multiply(t, tau_c, out=d if d is not g_on else None)
         clipped, reenter, change = clip_and_enter(p, g, tau, self.mask, self.ops.columns is not None)
         entered = reenter.any(axis=1)
-        # few cells entered: the directions stay conjugate enough to keep
-        self.kept = entered & (reenter.sum(axis=1) <= self.ops.keep_conjugacy * on.sum(axis=1))
+        # few cells entered: the directions stay conjugate enough to keep (counted only then)
+        few = reenter.sum(axis=1) <= self.ops.keep_conjugacy * on.sum(axis=1) if entered.any() else True
+        self.kept = entered & few
         self.conj = ~entered | self.kept
         factor = restore(p, self.basis, self.target, basis_t=self.basis_t, plane=self.plane) if self.k else 1.0
         self.update_displacement(r, tau_c, factor, clipped | entered, change)

@@ -115,10 +115,11 @@ def clip_and_enter(p: np.ndarray, g: np.ndarray, tau: np.ndarray, mask, record: 
     when ``record``, the :class:`CellChange` beyond ``-tau t`` (else None)."""
     clipped = p.min(axis=1) < 0.0
     change = CellChange.empty() if record else None
-    if change is not None and np.count_nonzero(clipped):
-        ri, ci = _nonzero(p < 0.0)
-        change.add(ri, ci, -p[ri, ci])  # back from below 0 to 0
-    np.maximum(p, 0.0, out=p)
+    if np.count_nonzero(clipped):  # (else no pass: the linear steps clip nothing)
+        if change is not None:
+            ri, ci = _nonzero(p < 0.0)
+            change.add(ri, ci, -p[ri, ci])  # back from below 0 to 0
+        np.maximum(p, 0.0, out=p)
     reenter = (g < 0.0) & (p == 0.0)
     if mask is not None:
         reenter &= mask

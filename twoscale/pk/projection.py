@@ -42,19 +42,23 @@ def project(
     count: np.ndarray | None = None,
     basis_t: np.ndarray | None = None,
     plane: PlaneBasis | None = None,
+    loaded_only: bool = False,
 ) -> np.ndarray:
     """Remove from each row of ``v`` (in place) its least-squares fit by the columns of
     ``basis`` over the row's cells ``on``; return the coefficients (B, k). One column is
     taken to be constant: the fit is the mean over ``on`` (0 where ``on`` is empty;
     ``count``, if given, is ``max(on.sum(axis=1), 1)``). ``basis_t``: ``basis.T``
     contiguous, if the caller keeps it (:func:`fit`); ``plane``: the basis's separable
-    form, if the caller gives it (:class:`~.plane.PlaneBasis`)."""
+    form, if the caller gives it (:class:`~.plane.PlaneBasis`). ``loaded_only``: ``v`` is
+    0 off ``on``, so on long rows its mean over ``on`` is its sum over ``count`` (the same
+    sum, without :func:`masked_sum`'s masked copy)."""
     rows, k = v.shape[0], basis.shape[1]
     if k == 0:
         return np.zeros((rows, 0))
     if k == 1:
         count = np.maximum(on.sum(axis=1), 1) if count is None else count
-        c = masked_sum(v, on) / count
+        long_row = loaded_only and v.shape[1] > SHORT_ROW
+        c = (np.einsum("bi->b", v) if long_row else masked_sum(v, on)) / count
         v -= column(c)
         return c[:, None]
     basis_t = np.ascontiguousarray(basis.T) if basis_t is None else basis_t
@@ -157,15 +161,19 @@ def kkt_residual(
     on: np.ndarray,
     free: np.ndarray | None,
     scale: np.ndarray,
-    zeros: np.ndarray | None = None,
+    scratch: np.ndarray | None = None,
 ) -> np.ndarray:
     """Per row: largest |gap| on loaded cells and largest interpenetration elsewhere
-    (cells in ``free``, if given, are not checked), over ``scale``. ``zeros``: an array of
-    zeros shaped like ``g``, if the caller keeps one (``np.where`` with a scalar 0 costs
-    four times more on a row of 190,000 cells)."""
+    (cells in ``free``, if given, are not checked), over ``scale``. ``g_on`` is ``g`` on
+    the loaded cells and 0 elsewhere, so ``g - g_on`` is the gap off them and 0 on them,
+    one pass (``np.where(on, 0, g)``, with an ``on | free`` pass before it when cells are
+    free: 0.34 against 0.13 ms on a row of 218,000 cells). ``scratch``: an array shaped
+    like ``g`` the caller keeps for it (overwritten), else one is made."""
     worst_on = np.maximum(g_on.max(axis=1), -g_on.min(axis=1))
-    zero = 0.0 if zeros is None else zeros
-    worst_off = -np.where(on if free is None else on | free, zero, g).min(axis=1)
+    off = np.subtract(g, g_on, out=scratch)
+    if free is not None:
+        np.putmask(off, free, 0.0)
+    worst_off = -off.min(axis=1)
     return np.maximum(np.maximum(worst_on, worst_off), 0.0) / scale
 
 
