@@ -31,7 +31,6 @@ stone's block of the same offsets is reused, and what a position did not use is 
 
 from __future__ import annotations
 
-from types import MappingProxyType
 from typing import Callable
 
 import numpy as np
@@ -130,47 +129,87 @@ class StoneBlocks:
             self._tables = {grid.shape: self.body.grid_operator(grid).op.offset_table()}
         return self._tables[grid.shape]
 
-    def inverse(self, stone: int, keys: np.ndarray, flat: np.ndarray, table: np.ndarray, centre: int):
-        """The inverse of the operator on one stone's cells (``keys``: their places on the
-        road, sorted; ``flat``: their places in ``table``'s rows, ``table.ravel()[centre +
-        flat_i - flat_j]`` the operator's entry), full and zero-padded to its size class
-        (:data:`SIZE_CLASSES`), and its row sums: the stone's kept one when its cells are the
-        same, another's of the same cell offsets, the stone's updated when its cells
-        changed by a few (:func:`_updated`), else computed afresh."""
+    def inverses(self, idents: list, keys: np.ndarray, flat: np.ndarray, bounds: list, table: np.ndarray, centre: int):
+        """The inverse of the operator on each stone's cells (stone ``idents[i]``, its cells
+        ``keys[a:b]``: their places on the road, sorted, and ``flat[a:b]``: their places in
+        ``table``'s rows, ``table.ravel()[centre + flat_i - flat_j]`` the operator's entry, for
+        ``(a, b) = bounds[i]``), full and zero-padded to its size class (:data:`SIZE_CLASSES`),
+        and its row sums: the stone's kept one when its cells are the same, another's of the
+        same cell offsets, the stone's updated when its cells changed by a few
+        (:func:`_updated`), else computed afresh, those together (:func:`_fresh_blocks`)."""
+        entries = table.ravel()
+        out: list = [None] * len(idents)
+        fresh: dict = {}  # pattern -> the stones (their places in ``out``) to invert afresh
+        for i, (stone, (a, b)) in enumerate(zip(idents, bounds)):
+            found, pattern = self._known(stone, keys[a:b], flat[a:b], entries, centre, fresh)
+            if found is None:
+                fresh.setdefault(pattern, []).append(i)
+            out[i] = found
+        made = _fresh_blocks(entries, centre, [flat[slice(*bounds[i[0]])] for i in fresh.values()])
+        for (pattern, places), inverse in zip(fresh.items(), made):
+            self._patterns[pattern] = inverse
+            for i in places:
+                a, b = bounds[i]
+                self._kept[idents[i]] = (keys[a:b], *inverse, 0)
+                out[i] = inverse
+            self.built += 1
+        return out
+
+    def _known(self, stone: int, keys: np.ndarray, flat: np.ndarray, entries: np.ndarray, centre: int, fresh: dict):
+        """One stone's inverse as :meth:`inverses` finds it without computing it afresh, and
+        its cells' offsets (the pattern); None for the inverse when it must be (or when a
+        stone before it of the same offsets will be: ``fresh``)."""
         self._used.add(stone)
         found = self._kept.get(stone)
         if found is not None and found[0].size == keys.size and np.array_equal(found[0], keys):
-            return found[1], found[2]
+            return (found[1], found[2]), None
         pattern = (keys - keys[0]).tobytes()  # the cells' offsets: the same block elsewhere
         self._used_patterns.add(pattern)
         same = self._patterns.get(pattern)
         if same is not None:
             self._kept[stone] = (keys, *same, 0)
-            return same
-        update = None
-        if found is not None and found[3] < MAX_UPDATES and min(found[0].size, keys.size) >= UPDATE_MIN_CELLS:
-            update = _updated(found[0], found[1], keys, flat, table.ravel(), centre)
-        if update is not None:
-            self._kept[stone] = (keys, *update, found[3] + 1)
-            self.updated += 1
-        else:
-            update = _fresh(table.ravel()[centre + flat[:, None] - flat[None, :]])
-            self._kept[stone] = (keys, *update, 0)
-            self.built += 1
+            return same, pattern
+        if (
+            pattern in fresh
+            or found is None
+            or found[3] >= MAX_UPDATES
+            or min(found[0].size, keys.size) < UPDATE_MIN_CELLS
+        ):
+            return None, pattern
+        update = _updated(found[0], found[1], keys, flat, entries, centre)
+        if update is None:
+            return None, pattern
+        self._kept[stone] = (keys, *update, found[3] + 1)
         self._patterns[pattern] = update
-        return update
+        self.updated += 1
+        return update, pattern
 
 
-def _fresh(block: np.ndarray) -> tuple:
-    """The inverse of a stone's ``block`` (:func:`_spd_inverse`), full and zero-padded to its
-    size class, and its row sums."""
-    n = len(block)
-    inv = _spd_inverse(block)
-    c = int(_size_class(n))
-    padded = np.zeros((c, c))
-    np.copyto(padded[:n, :n], inv.T, where=_LOWER[c][:n, :n])  # the upper triangle mirrored
-    np.copyto(padded[:n, :n], inv, where=~_LOWER[c][:n, :n])
-    return padded, blas.dsymv(1.0, inv, np.ones(n))
+def _fresh_blocks(entries: np.ndarray, centre: int, flats: list) -> list:
+    """The inverses (:func:`_spd_inverse`) of the blocks of cells ``flats`` (the operator's
+    entries ``entries[centre + flat_i - flat_j]``), full and zero-padded to their size class,
+    and their row sums: the entries gathered and the inverses mirrored by size class, one
+    pass each (a block at a time cost about as much again as its LAPACK calls)."""
+    sizes = np.array([f.size for f in flats], dtype=np.int64)
+    classes = _size_class(sizes)
+    out: list = [None] * len(flats)
+    for c in np.unique(classes).tolist():
+        members = np.flatnonzero(classes == c)
+        cells = np.zeros((members.size, c), dtype=np.int64)  # (the padding: cell 0, an entry in range)
+        cells[np.arange(c)[None, :] < sizes[members][:, None]] = np.concatenate([flats[m] for m in members.tolist()])
+        blocks = entries[centre + cells[:, :, None] - cells[:, None, :]]
+        padded = np.zeros_like(blocks)
+        sums = []
+        for k, n in enumerate(sizes[members].tolist()):
+            inv = _spd_inverse(blocks[k, :n, :n])
+            padded[k, :n, :n] = inv
+            sums.append(blas.dsymv(1.0, inv, np.ones(n)))
+        upper = np.triu(padded, 1)  # (the upper triangle mirrored: potri's lower one is not the inverse's)
+        padded = np.triu(padded)
+        padded += upper.transpose(0, 2, 1)
+        for k, m in enumerate(members.tolist()):
+            out[m] = (padded[k], sums[k])
+    return out
 
 
 def _updated(
@@ -326,12 +365,11 @@ class BlockInverse:
         keys = self._road_keys(rows, cols)
         owners = self.owner[self.cells[self.starts]]
         idents = (owners if self.stones is None else self.stones[owners]).tolist()
-        inverses, sums = [], []
         centre = self.centre[0] * width + self.centre[1]
-        for n, a, b in zip(idents, self.starts.tolist(), ends.tolist()):
-            inv, s = self.blocks.inverse(n, keys[a:b], flat[a:b], self.table, centre)
-            inverses.append(inv)
-            sums.append(s)
+        bounds = list(zip(self.starts.tolist(), ends.tolist()))
+        inverses, sums = (
+            zip(*self.blocks.inverses(idents, keys, flat, bounds, self.table, centre)) if idents else ((), ())
+        )
         self.classes = _stacked(inverses, self.starts, counts)
         self.v = np.concatenate(sums) if sums else np.zeros(0)
         self.stone = np.repeat(np.arange(len(counts)), counts)
@@ -352,17 +390,13 @@ class BlockInverse:
         return True
 
 
-#: The strictly lower triangle of each size class (where an inverse's upper one is mirrored).
-_LOWER = MappingProxyType({int(c): np.tri(int(c), k=-1, dtype=bool) for c in SIZE_CLASSES})
-
-
 def _size_class(counts):
     """The padded size (:data:`SIZE_CLASSES`) of blocks of ``counts`` cells."""
     return SIZE_CLASSES[np.searchsorted(SIZE_CLASSES, counts)]
 
 
 def _stacked(inverses: list, starts: np.ndarray, counts: np.ndarray) -> list:
-    """The stones' padded inverses (:meth:`StoneBlocks.inverse`) stacked by size class in
+    """The stones' padded inverses (:meth:`StoneBlocks.inverses`) stacked by size class in
     float32 (a preconditioner: it shapes the search directions only), each ``(k, c, c)`` with the ``(k, c)`` places of its cells in the contact's cell order (the
     padding at place ``sum(counts)``, a slot holding 0)."""
     size = np.array([len(inv) for inv in inverses], dtype=np.int64)
