@@ -217,7 +217,8 @@ def _updated(
 ):
     """The inverse on the cells ``keys`` from ``inverse`` (padded) on the cells ``old`` (both
     sorted road places) when they differ by few cells (:data:`UPDATE_CELLS`): the cells
-    lost taken out by the Schur complement of the inverse (``B_KK - B_KL B_LL^-1 B_LK``), the
+    lost taken out by the Schur complement of the inverse (``B_KK - B_KL B_LL^-1 B_LK``, as
+    ``B_KK - Y Y^T`` with ``Y = B_KL C``, ``C C^T = B_LL^-1``: symmetric as it is made), the
     cells gained bordered in (``S = A_NN - A_NK B A_KN``, the inverse ``[[B + X S^-1 X^T,
     -X S^-1], [-S^-1 X^T, S^-1]]`` with ``X = B A_KN``): ``O(n^2)`` per cell against
     ``O(n^3)`` afresh (``entries[centre + flat_i - flat_j]``: the operator's entries).
@@ -233,8 +234,12 @@ def _updated(
     b = inverse[:n_old, :n_old]
     if L.size:  # (rows and columns taken out as blocks: a 2-d fancy index costs ~3x)
         b_kl = np.delete(b[:, L], L, axis=0)
+        if L.size == 1:  # (one cell, the common case: B_LL a number)
+            b_kl /= np.sqrt(b[L[0], L[0]])
+        else:
+            b_kl = b_kl @ np.linalg.cholesky(np.linalg.inv(inverse[np.ix_(L, L)]))
         b = np.delete(np.delete(b, L, axis=0), L, axis=1)
-        b -= b_kl @ np.linalg.solve(inverse[np.ix_(L, L)], b_kl.T)
+        b -= b_kl @ b_kl.T
     out = np.zeros((int(_size_class(n)),) * 2)
     if N.size:
         place = np.searchsorted(keys, old[K])  # the kept cells' places among ``keys``
@@ -243,15 +248,19 @@ def _updated(
         x = b @ a_kn
         s_inv = np.linalg.inv(a_nn - a_kn.T @ x)
         xs = x @ s_inv
-        at = N - np.arange(N.size)  # where the gained cells go among the kept ones
-        rows = np.insert(b + xs @ x.T, at, -xs.T, axis=0)
-        out[:n, :n] = np.insert(rows, at, np.insert(-xs, at, s_inv, axis=0), axis=1)
+        # the kept cells first, the gained ones after, then put in the cells' order by one
+        # permutation (np.insert of rows and columns copied the whole inverse three times)
+        whole = np.empty((n, n))
+        k = K.size
+        np.matmul(xs, x.T, out=whole[:k, :k])
+        whole[:k, :k] += b
+        whole[:k, k:], whole[k:, :k], whole[k:, k:] = -xs, -xs.T, s_inv
+        order = np.empty(n, dtype=np.int64)
+        order[place], order[N] = np.arange(k), np.arange(k, n)
+        out[:n, :n] = whole[order][:, order]
     else:  # (the kept cells are all the cells, in their order)
         out[:n, :n] = b
-    full = out[:n, :n]
-    full += full.T
-    full *= 0.5  # (symmetric to rounding)
-    return out, full.sum(axis=1)
+    return out, out[:n, :n].sum(axis=1)
 
 
 def _spd_inverse(block: np.ndarray) -> np.ndarray:
