@@ -161,7 +161,8 @@ class StoneBlocks:
         stone before it of the same offsets will be: ``fresh``)."""
         self._used.add(stone)
         found = self._kept.get(stone)
-        if found is not None and found[0].size == keys.size and np.array_equal(found[0], keys):
+        # (the same int64 keys: their bytes compared, ~10x cheaper than np.array_equal)
+        if found is not None and found[0].size == keys.size and found[0].tobytes() == keys.tobytes():
             return (found[1], found[2]), None
         pattern = (keys - keys[0]).tobytes()  # the cells' offsets: the same block elsewhere
         self._used_patterns.add(pattern)
