@@ -284,3 +284,24 @@ def test_the_stones_reaches_at_once_are_each_stones(strip):
     assert not any(own) and max(reaches(stones, np.full(len(stones), 0.2))) > 0.5  # (depth 0: none)
     tips = [Asperity(0.0, 0.0, 0.0, 5.0), Asperity(2.0, 1.0, 0.1, 3.0)]
     assert reaches(tips, np.array([0.05, 0.2])).tolist() == [tips[0].reach(0.05), tips[1].reach(0.2)]
+
+
+def test_a_window_covering_the_stones_extents_covers_their_reach_at_any_bound(strip):
+    """The window's cover checked first on the basins' extents (:func:`_covers_extents`): an
+    extent is never less than the stone's reach at any depth, so a grid that covers the
+    extents' box covers :func:`reference_grid` at every bound; a grid a few cells short of
+    that box fails the check (the reach at the bound then decides)."""
+    from twoscale.rolling.boxes import covers
+    from twoscale.rolling.track import prepare
+    from twoscale.rolling.window import _covers_extents, _reach_grid, reference_grid
+
+    spec = RollingSpec(start=-6.0, end=6.0, step=1.0, speed=30.0, tyre_radius=150.0, footprint=(30.0, 16.0))
+    track = prepare(Scene(material=MAT, surface=strip, rolling=spec, total_load=60.0))
+    selection = track.road.stones_at(0.5, 1.0)
+    assert all(s.reach(np.inf) <= s.extent for s in selection.stones)
+    grid = _reach_grid(track, selection, np.array([s.extent for s in selection.stones]))
+    assert _covers_extents(grid, track, selection)
+    for bound in (0.0, 0.3, 1.0, 10.0):
+        assert covers(grid, reference_grid(track, selection, bound))
+    short = Grid(grid.x0 + 2 * grid.h, grid.y0, grid.h, grid.nx - 2, grid.ny)
+    assert not _covers_extents(short, track, selection)

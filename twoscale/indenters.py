@@ -241,9 +241,9 @@ def surface_on(grid: Grid, asperities: Sequence[Asperity], tilt: Tilt | None = N
         on_grid = getattr(group, "union_on_grid", None)
         sampled = None if on_grid is None else on_grid(grid, index)
         hk, ok = group.union_on(X, Y, index) if sampled is None else sampled
-        better = hk < height
-        height[better] = hk[better]
-        owner[better] = ok[better]
+        better = hk < height  # (copied where better: masked assignments cost ~3x on 240,000 cells)
+        np.copyto(height, hk, where=better, casting="unsafe")  # (as an assignment casts)
+        np.copyto(owner, ok, where=better, casting="unsafe")
     if tilt is not None:
         height = height + tilt.height(X, Y)
     return Surface(grid, height, owner, len(asperities))

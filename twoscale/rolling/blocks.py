@@ -25,19 +25,19 @@ the tyre: 8 CG iterations to the KKT residual 1e-8 against 16 with the circulant
 offsets only (a translation-invariant body). Each stone's is kept between the iterations
 and the positions of a run, known by the stone's number on the road and its cells'
 places on the road (a stone's contact changes by a few cells a position): the same cells
-reuse it, a large stone's few cells gained or lost update it (:func:`_updated`), another
+reuse it, a large stone's few cells gained or lost update it (:func:`~.inverses.updated`), another
 stone's block of the same offsets is reused, and what a position did not use is dropped.
 """
 
 from __future__ import annotations
 
-from types import MappingProxyType
 from typing import Callable
 
 import numpy as np
-from scipy.linalg import blas, lapack, lu_factor, lu_solve
+from scipy.linalg import lu_factor, lu_solve
 
 from ..indenters import Surface
+from .inverses import UPDATE_MIN_CELLS, fresh_blocks, size_class, stacked, updated
 
 #: The blocks are rebuilt when the cells that entered the contact since they were built
 #: are more than this fraction of the cells they cover (fewer: each its diagonal alone;
@@ -66,19 +66,12 @@ RETRY_SHRINK = 0.9
 #: 13,083 with ~110 cells gained or lost over ~70 stones, which the second position's
 #: linearised step then inverted afresh).
 SETTLED_AGAIN = 0.001
-#: A stone's kept inverse is updated (:func:`_updated`) when the cells it gained and lost
-#: are at most this fraction of its cells and it has at least :data:`UPDATE_MIN_CELLS`
-#: (smaller blocks cost less afresh than the update's steps), at most
-#: :data:`MAX_UPDATES` times in a row (then afresh: rounding does not pile up).
-UPDATE_CELLS = 0.25
-UPDATE_MIN_CELLS = 96
+#: A stone's kept inverse is updated (:func:`~.inverses.updated`, when its cells changed by
+#: few: :data:`~.inverses.UPDATE_CELLS`) at most :data:`MAX_UPDATES` times in a row (then
+#: afresh: rounding does not pile up).
 MAX_UPDATES = 20
 #: Most memory the stacked inverses of one contact may take (bytes; the tyre's: ~8 MB).
 MAX_BLOCK_BYTES = 400e6
-#: Block sizes the inverses are padded to and applied by, a batched product per size
-#: (:func:`_stacked`): steps of 8 cells, ~1.3x apart past 64 (the padding costs at most
-#: ~1.7x the products' work; a product per stone cost ~6 us of Python each, 250 stones).
-SIZE_CLASSES = np.array([8, 16, 24, 32, 40, 48, 56, 64, 80, 96, 112, 128, 160, 192, 224, 256, 320, 384, 448, 512, 600])
 
 
 class StoneBlocks:
@@ -130,101 +123,62 @@ class StoneBlocks:
             self._tables = {grid.shape: self.body.grid_operator(grid).op.offset_table()}
         return self._tables[grid.shape]
 
-    def inverse(self, stone: int, keys: np.ndarray, flat: np.ndarray, table: np.ndarray, centre: int):
-        """The inverse of the operator on one stone's cells (``keys``: their places on the
-        road, sorted; ``flat``: their places in ``table``'s rows, ``table.ravel()[centre +
-        flat_i - flat_j]`` the operator's entry), full and zero-padded to its size class
-        (:data:`SIZE_CLASSES`), and its row sums: the stone's kept one when its cells are the
-        same, another's of the same cell offsets, the stone's updated when its cells
-        changed by a few (:func:`_updated`), else computed afresh."""
+    def inverses(self, idents: list, keys: np.ndarray, flat: np.ndarray, bounds: list, table: np.ndarray, centre: int):
+        """The inverse of the operator on each stone's cells (stone ``idents[i]``, its cells
+        ``keys[a:b]``: their places on the road, sorted, and ``flat[a:b]``: their places in
+        ``table``'s rows, ``table.ravel()[centre + flat_i - flat_j]`` the operator's entry, for
+        ``(a, b) = bounds[i]``), full and zero-padded to its size class (:data:`~.inverses.SIZE_CLASSES`),
+        and its row sums: the stone's kept one when its cells are the same, another's of the
+        same cell offsets, the stone's updated when its cells changed by a few
+        (:func:`~.inverses.updated`), else computed afresh, those together
+        (:func:`~.inverses.fresh_blocks`)."""
+        entries = table.ravel()
+        out: list = [None] * len(idents)
+        fresh: dict = {}  # pattern -> the stones (their places in ``out``) to invert afresh
+        for i, (stone, (a, b)) in enumerate(zip(idents, bounds)):
+            found, pattern = self._known(stone, keys[a:b], flat[a:b], entries, centre, fresh)
+            if found is None:
+                fresh.setdefault(pattern, []).append(i)
+            out[i] = found
+        made = fresh_blocks(entries, centre, [flat[slice(*bounds[i[0]])] for i in fresh.values()])
+        for (pattern, places), inverse in zip(fresh.items(), made):
+            self._patterns[pattern] = inverse
+            for i in places:
+                a, b = bounds[i]
+                self._kept[idents[i]] = (keys[a:b], *inverse, 0)
+                out[i] = inverse
+            self.built += 1
+        return out
+
+    def _known(self, stone: int, keys: np.ndarray, flat: np.ndarray, entries: np.ndarray, centre: int, fresh: dict):
+        """One stone's inverse as :meth:`inverses` finds it without computing it afresh, and
+        its cells' offsets (the pattern); None for the inverse when it must be (or when a
+        stone before it of the same offsets will be: ``fresh``)."""
         self._used.add(stone)
         found = self._kept.get(stone)
-        if found is not None and found[0].size == keys.size and np.array_equal(found[0], keys):
-            return found[1], found[2]
+        # (the same int64 keys: their bytes compared, ~10x cheaper than np.array_equal)
+        if found is not None and found[0].size == keys.size and found[0].tobytes() == keys.tobytes():
+            return (found[1], found[2]), None
         pattern = (keys - keys[0]).tobytes()  # the cells' offsets: the same block elsewhere
         self._used_patterns.add(pattern)
         same = self._patterns.get(pattern)
         if same is not None:
             self._kept[stone] = (keys, *same, 0)
-            return same
-        update = None
-        if found is not None and found[3] < MAX_UPDATES and min(found[0].size, keys.size) >= UPDATE_MIN_CELLS:
-            update = _updated(found[0], found[1], keys, flat, table.ravel(), centre)
-        if update is not None:
-            self._kept[stone] = (keys, *update, found[3] + 1)
-            self.updated += 1
-        else:
-            update = _fresh(table.ravel()[centre + flat[:, None] - flat[None, :]])
-            self._kept[stone] = (keys, *update, 0)
-            self.built += 1
+            return same, pattern
+        if (
+            pattern in fresh
+            or found is None
+            or found[3] >= MAX_UPDATES
+            or min(found[0].size, keys.size) < UPDATE_MIN_CELLS
+        ):
+            return None, pattern
+        update = updated(found[0], found[1], keys, flat, entries, centre)
+        if update is None:
+            return None, pattern
+        self._kept[stone] = (keys, *update, found[3] + 1)
         self._patterns[pattern] = update
-        return update
-
-
-def _fresh(block: np.ndarray) -> tuple:
-    """The inverse of a stone's ``block`` (:func:`_spd_inverse`), full and zero-padded to its
-    size class, and its row sums."""
-    n = len(block)
-    inv = _spd_inverse(block)
-    c = int(_size_class(n))
-    padded = np.zeros((c, c))
-    np.copyto(padded[:n, :n], inv.T, where=_LOWER[c][:n, :n])  # the upper triangle mirrored
-    np.copyto(padded[:n, :n], inv, where=~_LOWER[c][:n, :n])
-    return padded, blas.dsymv(1.0, inv, np.ones(n))
-
-
-def _updated(
-    old: np.ndarray, inverse: np.ndarray, keys: np.ndarray, flat: np.ndarray, entries: np.ndarray, centre: int
-):
-    """The inverse on the cells ``keys`` from ``inverse`` (padded) on the cells ``old`` (both
-    sorted road places) when they differ by few cells (:data:`UPDATE_CELLS`): the cells
-    lost taken out by the Schur complement of the inverse (``B_KK - B_KL B_LL^-1 B_LK``), the
-    cells gained bordered in (``S = A_NN - A_NK B A_KN``, the inverse ``[[B + X S^-1 X^T,
-    -X S^-1], [-S^-1 X^T, S^-1]]`` with ``X = B A_KN``): ``O(n^2)`` per cell against
-    ``O(n^3)`` afresh (``entries[centre + flat_i - flat_j]``: the operator's entries).
-    None when the change is too large or the blocks too small to gain."""
-    n_old, n = old.size, keys.size
-    if min(n_old, n) < UPDATE_MIN_CELLS:
-        return None
-    kept = keys[np.minimum(np.searchsorted(keys, old), n - 1)] == old
-    new = old[np.minimum(np.searchsorted(old, keys), n_old - 1)] != keys
-    if (n_old - np.count_nonzero(kept)) + np.count_nonzero(new) > UPDATE_CELLS * n_old:
-        return None
-    K, L, N = np.flatnonzero(kept), np.flatnonzero(~kept), np.flatnonzero(new)
-    b = inverse[:n_old, :n_old]
-    if L.size:  # (rows and columns taken out as blocks: a 2-d fancy index costs ~3x)
-        b_kl = np.delete(b[:, L], L, axis=0)
-        b = np.delete(np.delete(b, L, axis=0), L, axis=1)
-        b -= b_kl @ np.linalg.solve(inverse[np.ix_(L, L)], b_kl.T)
-    out = np.zeros((int(_size_class(n)),) * 2)
-    if N.size:
-        place = np.searchsorted(keys, old[K])  # the kept cells' places among ``keys``
-        a_kn = entries[centre + flat[place][:, None] - flat[N][None, :]]
-        a_nn = entries[centre + flat[N][:, None] - flat[N][None, :]]
-        x = b @ a_kn
-        s_inv = np.linalg.inv(a_nn - a_kn.T @ x)
-        xs = x @ s_inv
-        at = N - np.arange(N.size)  # where the gained cells go among the kept ones
-        rows = np.insert(b + xs @ x.T, at, -xs.T, axis=0)
-        out[:n, :n] = np.insert(rows, at, np.insert(-xs, at, s_inv, axis=0), axis=1)
-    else:  # (the kept cells are all the cells, in their order)
-        out[:n, :n] = b
-    full = out[:n, :n]
-    full += full.T
-    full *= 0.5  # (symmetric to rounding)
-    return out, full.sum(axis=1)
-
-
-def _spd_inverse(block: np.ndarray) -> np.ndarray:
-    """The inverse of a symmetric positive definite ``block`` by Cholesky (LAPACK potrf and
-    potri: half the time of numpy's LU inverse on the tyre's blocks), valid in its upper
-    triangle only (read by BLAS ``symv``)."""
-    factor, info = lapack.dpotrf(block, lower=False, overwrite_a=True)
-    if info == 0:
-        inv, info = lapack.dpotri(factor, lower=False, overwrite_c=True)
-        if info == 0:
-            return inv
-    raise np.linalg.LinAlgError(f"a stone's block is not positive definite (LAPACK info {info})")
+        self.updated += 1
+        return update, pattern
 
 
 class BlockInverse:
@@ -316,7 +270,7 @@ class BlockInverse:
         _, starts, counts = np.unique(stone[order], return_index=True, return_counts=True)
         if len(counts) > MAX_STONES or counts.max(initial=0) > MAX_BLOCK_CELLS:
             return False
-        if 8 * np.sum(_size_class(counts).astype(float) ** 2) > MAX_BLOCK_BYTES:
+        if 8 * np.sum(size_class(counts).astype(float) ** 2) > MAX_BLOCK_BYTES:
             return False
         self.cells, self.starts = idx[order], starts
         rows, cols = np.divmod(self.cells, self.grid.nx)
@@ -326,13 +280,12 @@ class BlockInverse:
         keys = self._road_keys(rows, cols)
         owners = self.owner[self.cells[self.starts]]
         idents = (owners if self.stones is None else self.stones[owners]).tolist()
-        inverses, sums = [], []
         centre = self.centre[0] * width + self.centre[1]
-        for n, a, b in zip(idents, self.starts.tolist(), ends.tolist()):
-            inv, s = self.blocks.inverse(n, keys[a:b], flat[a:b], self.table, centre)
-            inverses.append(inv)
-            sums.append(s)
-        self.classes = _stacked(inverses, self.starts, counts)
+        bounds = list(zip(self.starts.tolist(), ends.tolist()))
+        inverses, sums = (
+            zip(*self.blocks.inverses(idents, keys, flat, bounds, self.table, centre)) if idents else ((), ())
+        )
+        self.classes = stacked(inverses, self.starts, counts)
         self.v = np.concatenate(sums) if sums else np.zeros(0)
         self.stone = np.repeat(np.arange(len(counts)), counts)
         w = np.add.reduceat(self.v, self.starts) if len(counts) else np.zeros(0)
@@ -350,28 +303,3 @@ class BlockInverse:
         # once cost ~4x the factor (m right-hand sides), and it is applied ~10 times only
         self.k, self.coupling = k, lu_factor(np.eye(len(w)) + k * w[None, :], check_finite=False)
         return True
-
-
-#: The strictly lower triangle of each size class (where an inverse's upper one is mirrored).
-_LOWER = MappingProxyType({int(c): np.tri(int(c), k=-1, dtype=bool) for c in SIZE_CLASSES})
-
-
-def _size_class(counts):
-    """The padded size (:data:`SIZE_CLASSES`) of blocks of ``counts`` cells."""
-    return SIZE_CLASSES[np.searchsorted(SIZE_CLASSES, counts)]
-
-
-def _stacked(inverses: list, starts: np.ndarray, counts: np.ndarray) -> list:
-    """The stones' padded inverses (:meth:`StoneBlocks.inverse`) stacked by size class in
-    float32 (a preconditioner: it shapes the search directions only), each ``(k, c, c)`` with the ``(k, c)`` places of its cells in the contact's cell order (the
-    padding at place ``sum(counts)``, a slot holding 0)."""
-    size = np.array([len(inv) for inv in inverses], dtype=np.int64)
-    total = int(counts.sum())
-    out = []
-    for c in np.unique(size).tolist():
-        members = np.flatnonzero(size == c)
-        stack = np.stack([inverses[m] for m in members.tolist()], dtype=np.float32)
-        j = np.arange(c)
-        pos = np.where(j[None, :] < counts[members][:, None], starts[members][:, None] + j[None, :], total)
-        out.append((stack, pos))
-    return out

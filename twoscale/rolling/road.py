@@ -292,22 +292,21 @@ class Road:
         rec = samples[2] + self._face_at(shift)[samples[3]]
         low = np.minimum.reduceat(rec, starts)
         keep = (low < bound) & np.isfinite(low)
-        if not keep.all():  # only the stones that can touch (the slab holds a few more)
-            mask = np.repeat(keep, counts)
-            ks, low, counts = np.asarray(ks)[keep], low[keep], counts[keep]
-            x, y, rec = x[mask], y[mask], rec[mask]
-            starts = np.concatenate([[0], np.cumsum(counts)[:-1]]).astype(np.int64)
-        if not len(ks):
+        if not keep.any():
             return [None] * len(keep)
-        lows = np.repeat(low, counts)
-        fall = rec - lows
+        # the passes over every stone of the slab, the few that cannot touch with no summit
+        # (their fall nan): cheaper than taking the others' samples out (~1.8 ms)
+        fall = rec - np.repeat(np.where(keep, low, np.nan), counts)
         # each basin's first sample at its lowest recess (np.argmin's choice on the basin)
         first = np.flatnonzero(fall == 0.0)
         top = first[np.unique(np.searchsorted(starts, first, side="right"), return_index=True)[1]]
-        xt, yt = x[top], y[top]
+        xt, yt = np.zeros((2, len(keep)))
+        xt[keep], yt[keep] = x[top], y[top]
         dx, dy = x - np.repeat(xt, counts), y - np.repeat(yt, counts)
         r = np.sqrt(dx * dx + dy * dy)  # (np.hypot: ~40 ns a sample, 10 of the pass's 25 ms)
         extent = np.maximum.reduceat(np.where(np.isfinite(rec), r, -np.inf), starts)
+        ks, low, counts, starts = np.asarray(ks)[keep], low[keep], counts[keep], starts[keep]
+        xt, yt, extent = xt[keep], yt[keep], extent[keep]
         ends = (starts + counts).tolist()
         made = []
         for n, (k, z, a, b) in enumerate(zip(np.asarray(ks).tolist(), low.tolist(), starts.tolist(), ends)):

@@ -59,7 +59,7 @@ from ..indenters import Surface, surface_on
 from .blocks import StoneBlocks
 from .boxes import covers, grown, loaded_box, moved, union
 from .lift import touching_outside
-from .road import Selection, reaches
+from .road import RolledStone, Selection, reaches
 from .track import Track
 
 #: Cells added on every side when the window is built or grows.
@@ -272,9 +272,15 @@ def fast_grid(grid: Grid) -> Grid:
 def reference_grid(track: Track, selection: Selection, bound: float) -> Grid:
     """Cells of size ``track.h`` (on the lattice h Z^2) covering every place a stone of
     ``selection`` can touch when the approach is at most ``bound``, within the face window."""
+    z = np.array([s.z for s in selection.stones])
+    return _reach_grid(track, selection, reaches(selection.stones, np.maximum(bound - z, 0.0)))
+
+
+def _reach_grid(track: Track, selection: Selection, reach: np.ndarray) -> Grid:
+    """:func:`reference_grid` for the stones' ``reach`` (mm) instead of their reach at the bound."""
     h = track.h
-    x, y, z = np.array([(s.x, s.y, s.z) for s in selection.stones]).T
-    r = reaches(selection.stones, np.maximum(bound - z, 0.0)) * 1.05 + 3.0 * h
+    x, y = np.array([(s.x, s.y) for s in selection.stones]).T
+    r = reach * 1.05 + 3.0 * h
     x0, x1, y0, y1 = track.road.window
     lo_x, hi_x = max((x - r).min(), x0 - h), min((x + r).max(), x1 + h)
     lo_y, hi_y = max((y - r).min(), y0 - h), min((y + r).max(), y1 + h)
@@ -299,7 +305,7 @@ def _window_surface(track, selection, bound: float, state: WindowState):
     cell can touch: the surface is sampled once, on the kept window, when the stones'
     reach lies inside it (the box of their low cells then does too)."""
     g = state.grid
-    if g is not None and covers(g, reference_grid(track, selection, bound)):
+    if g is not None and (_covers_extents(g, track, selection) or covers(g, reference_grid(track, selection, bound))):
         surface = surface_on(g, selection.stones)
         return None if _low_box(surface, bound) is None else (g, surface)
     box = contact_box(track, selection, bound)
@@ -307,6 +313,15 @@ def _window_surface(track, selection, bound: float, state: WindowState):
         return None
     grid = state.window(box)
     return grid, surface_on(grid, selection.stones)
+
+
+def _covers_extents(grid: Grid, track: Track, selection: Selection) -> bool:
+    """Whether ``grid`` covers :func:`reference_grid` at any bound: its box with each basin's
+    extent (its farthest sample from the summit, never less than its reach) for the reach
+    (no pass over the basins' ~250,000 samples); False for stones other than basins."""
+    if not selection.stones or not all(type(s) is RolledStone for s in selection.stones):
+        return False
+    return covers(grid, _reach_grid(track, selection, np.array([s.extent for s in selection.stones])))
 
 
 def solve_window(track, selection, bound: float, state: WindowState, tol: float):
