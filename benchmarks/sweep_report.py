@@ -109,6 +109,13 @@ def table(records: list[dict]) -> str:
     return "\n".join(lines) + "\n"
 
 
+def _route(record: dict) -> str:
+    """What the default ran: a default route's full grid is the reference's own CG (its
+    ratio to the reference is the host's noise plus the route's decision)."""
+    choice = record["ts"].get("choice")
+    return "the reference's own CG" if choice == "full-grid" else str(choice)
+
+
 def summary(records: list[dict]) -> str:
     from collections import Counter
 
@@ -124,6 +131,10 @@ def summary(records: list[dict]) -> str:
             f"CPU ratio default/reference: median {np.median(rat):.3f}, worst {max(rat):.3f} "
             f"({len(rat)} scenes with a reference)"
         )
+    above = sorted((r for r in records if r.get("ratio_cpu", 0.0) > 1.0), key=lambda r: -r["ratio_cpu"])
+    if rat:
+        named = ", ".join(f"#{r['spec']['index']} {r['ratio_cpu']:.2f}x ({_route(r)})" for r in above)
+        parts.append(f"above 1.0x: {len(above)}" + (f": {named}" if named else ""))
     sparse = [(r["spec"]["index"], r["ratio_cpu"]) for r in records if sparse_target(r) is not None]
     if sparse:
         missed = sorted((x for x in sparse if x[1] > SPARSE_RATIO), key=lambda x: -x[1])
