@@ -113,8 +113,9 @@ def size_class(counts):
 
 def stacked(inverses: list, starts: np.ndarray, counts: np.ndarray) -> list:
     """The stones' padded inverses (:meth:`StoneBlocks.inverses`) stacked by size class in
-    float32 (a preconditioner: it shapes the search directions only), each ``(k, c, c)`` with the ``(k, c)`` places of its cells in the contact's cell order (the
-    padding at place ``sum(counts)``, a slot holding 0)."""
+    float32 (a preconditioner: it shapes the search directions only), each ``(k, c, c)``
+    with the ``(k, c)`` places of its cells in the contact's cell order (the padding at
+    place ``sum(counts)``, a slot holding 0)."""
     size = np.array([len(inv) for inv in inverses], dtype=np.int64)
     total = int(counts.sum())
     out = []
