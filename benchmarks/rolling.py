@@ -43,6 +43,7 @@ run (:mod:`twoscale.cli.heap`; for the reference and the cold solve too: the sam
 from __future__ import annotations
 
 import argparse
+import importlib
 import json
 import sys
 import time
@@ -59,37 +60,53 @@ import numpy as np  # noqa: E402
 from twoscale import Material  # noqa: E402
 from twoscale.cli.heap import keep_heap  # noqa: E402
 from twoscale.indenters import surface_on  # noqa: E402
-from twoscale.rolling import RollingOptions, RollingSpec, road_strip  # noqa: E402
+from twoscale.rolling import RollingOptions  # noqa: E402
 from twoscale.rolling.reference import cold_position, reference_grid, reference_position  # noqa: E402
 from twoscale.rolling.run import step, window_state  # noqa: E402
 from twoscale.rolling.track import prepare, tyre_contact_length  # noqa: E402
-from twoscale.scene import Scene  # noqa: E402
-from twoscale.surface import RawMap, build_surface  # noqa: E402
 
 MAT = Material(10.0, 0.5)
 
 
 def build(args) -> tuple:
     """The scene: the strip (footprint + run + margins long) segmented once, and the tyre."""
-    t0 = time.perf_counter()
-    half = 0.5 * 2.0 * 1.5 * np.sqrt(4 * args.load * args.radius / (np.pi * MAT.E_star * args.width)) + 10.0
-    length = args.length + 2 * half
-    z = road_strip(length, args.width + 10.0, args.h, seed=args.seed)
-    t1 = time.perf_counter()
-    surface = build_surface(RawMap(z, spacing=args.h, units="mm"))
-    t2 = time.perf_counter()
-    # the strip is centred: at shift s it covers body x in [-length/2 + s, length/2 + s]
-    spec = RollingSpec(
-        start=-args.length / 2,
-        end=args.length / 2,
+    import twoscale
+
+    return tyre_scene(
+        twoscale,
+        args.length,
         step=args.step,
-        speed=50.0,
-        tyre_radius=args.radius,
-        footprint=(2 * half, args.width),
+        load=args.load,
+        radius=args.radius,
+        width=args.width,
+        h=args.h,
+        seed=args.seed,
     )
-    scene = Scene(material=MAT, surface=surface, total_load=args.load, rolling=spec)
+
+
+def tyre_scene(package, length: float, *, step=1.0, load=3000.0, radius=300.0, width=150.0, h=0.25, seed=1) -> tuple:
+    """:func:`build`'s scene made by ``package`` (``twoscale``, or another tree's copy
+    imported under another name: ``rolling_paired.py``) for ``length`` mm of run, and the
+    strip's figures."""
+
+    def module(name: str):
+        return importlib.import_module(f"{package.__name__}.{name}")
+
+    t0 = time.perf_counter()
+    mat = package.Material(MAT.E, MAT.nu)
+    half = 0.5 * 2.0 * 1.5 * np.sqrt(4 * load * radius / (np.pi * mat.E_star * width)) + 10.0
+    strip = length + 2 * half
+    z = module("rolling").road_strip(strip, width + 10.0, h, seed=seed)
+    t1 = time.perf_counter()
+    surface = module("surface").build_surface(module("surface").RawMap(z, spacing=h, units="mm"))
+    t2 = time.perf_counter()
+    # the strip is centred: at shift s it covers body x in [-strip/2 + s, strip/2 + s]
+    spec = module("rolling").RollingSpec(
+        start=-length / 2, end=length / 2, step=step, speed=50.0, tyre_radius=radius, footprint=(2 * half, width)
+    )
+    scene = module("scene").Scene(material=mat, surface=surface, total_load=load, rolling=spec)
     info = {
-        "strip_mm": [length, args.width + 10.0],
+        "strip_mm": [strip, width + 10.0],
         "samples": list(z.shape),
         "stones": len(surface.asperities),
         "strip_s": t1 - t0,

@@ -38,6 +38,7 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 import _common  # noqa: E402,F401,I001
+import rolling as rolling_benchmark  # noqa: E402
 
 import numpy as np  # noqa: E402
 
@@ -57,21 +58,10 @@ def copy_renamed(tree: Path, into: Path) -> None:
 
 def section(name: str, length: float) -> dict:
     """The run state of package ``name`` on the benchmark's scene (``length`` mm of run)."""
-    pkg = importlib.import_module(name)
-    rolling = importlib.import_module(name + ".rolling")
-    surf = importlib.import_module(name + ".surface")
-    load, radius, width, h = 3000.0, 300.0, 150.0, 0.25
-    mat = pkg.Material(10.0, 0.5)
-    half = 0.5 * 2.0 * 1.5 * np.sqrt(4 * load * radius / (np.pi * mat.E_star * width)) + 10.0
-    z = rolling.road_strip(length + 2 * half, width + 10.0, h, seed=1)
-    surface = surf.build_surface(surf.RawMap(z, spacing=h, units="mm"))
-    spec = rolling.RollingSpec(
-        start=-length / 2, end=length / 2, step=1.0, speed=50.0, tyre_radius=radius, footprint=(2 * half, width)
-    )
-    scene = importlib.import_module(name + ".scene").Scene(material=mat, surface=surface, total_load=load, rolling=spec)
+    scene, _ = rolling_benchmark.tyre_scene(importlib.import_module(name), length)
     run = importlib.import_module(name + ".rolling.run")
     track = importlib.import_module(name + ".rolling.track").prepare(scene)
-    options = rolling.RollingOptions()
+    options = importlib.import_module(name + ".rolling").RollingOptions()
     return {"run": run, "track": track, "options": options, "state": run.window_state(track, options), "last": None}
 
 

@@ -248,7 +248,7 @@ def _repeat_short(rec: dict, spec: dict, h: float, args) -> None:
         return
     runs = {"ts": [rec["ts"]["cpu_s"]], "ref": [rec["ref"]["cpu_s"]]}
     # a solve of tens of ms in a fresh process moves by a third between runs: more of them
-    repeats = 2 * args.repeats + 1 if rec["ref"]["cpu_s"] < getattr(args, "tiny_below", 0.0) else args.repeats
+    repeats = 2 * args.repeats + 1 if rec["ref"]["cpu_s"] < args.tiny_below else args.repeats
     for _ in range(repeats - 1):
         for key, method, limit in (("ts", "twoscale", args.timeout), ("ref", "reference", args.ref_timeout)):
             again = _child(method, spec, None if key == "ts" else h, limit, args.wall_factor)

@@ -86,7 +86,9 @@ def test_short_scenes_are_timed_again_in_alternation_and_keep_the_medians(monkey
         return {"cpu_s": next(times[method]), "forces": [1.0]}
 
     monkeypatch.setattr(sweep, "_child", fake_child)
-    args = argparse.Namespace(repeats=3, repeat_below=3.0, timeout=90.0, ref_timeout=150.0, wall_factor=20.0)
+    args = argparse.Namespace(
+        repeats=3, repeat_below=3.0, tiny_below=0.0, timeout=90.0, ref_timeout=150.0, wall_factor=20.0
+    )
     rec = {"ts": {"cpu_s": 0.4, "forces": [1.0]}, "ref": {"cpu_s": 1.0, "forces": [1.0]}}
     sweep._repeat_short(rec, {}, 0.1, args)
     assert calls == ["twoscale", "reference", "twoscale", "reference"]
@@ -96,7 +98,7 @@ def test_short_scenes_are_timed_again_in_alternation_and_keep_the_medians(monkey
     rec = {"ts": {"cpu_s": 1.0, "forces": [1.0]}, "ref": {"cpu_s": 3.5, "forces": [1.0]}}
     sweep._repeat_short(rec, {}, 0.1, args)
     assert "cpu_runs" not in rec["ts"] and len(calls) == 4
-    # a reference of tens of ms: seven runs each
+    # a reference of tens of ms: seven runs each (under --tiny-below)
     args.tiny_below = 0.3
     times = {"twoscale": iter([0.05] * 6), "reference": iter([0.03] * 6)}
     rec = {"ts": {"cpu_s": 0.04, "forces": [1.0]}, "ref": {"cpu_s": 0.02, "forces": [1.0]}}
