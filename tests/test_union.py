@@ -138,3 +138,42 @@ def test_union_box_grows_only_on_the_sides_the_pressure_reaches():
     every = grown_box(box, p)
     assert (every.ny, every.nx) == (30, 60) and every.x0 == box.x0 - 10 * 0.5 and every.y0 == box.y0 - 5 * 0.5
     assert box.offset_in(every) == (10, 5)
+
+
+def test_under_a_free_tilt_the_union_box_is_wide_enough_at_once():
+    # the sweep's seven tilted spheres under load: the macro tilt (0.146 against 0.089) and
+    # forces (0.035 against 0.055 N) sized two patches short, and the box grew once (40 CG
+    # iterations on two boxes); the first box now covers patches of the tilt's margin
+    from twoscale.grid import Grid
+    from twoscale.micro.patches import patch_radius
+    from twoscale.micro.sampling import box_of
+    from twoscale.micro.union import TILT_MARGIN
+    from twoscale.micro.workset import tip_approaches
+    from twoscale.scenespace import build, sweep
+
+    (spec,) = [s for s in sweep(200, 0) if s.index == 132]
+    scene = build(spec)
+    result = solve_scene(scene)
+    micro, macro, field = result.details.micro, result.details.macro, result.fields[0]
+    assert micro.strategy == "union-cg" and micro.growths == 0 and result.converged
+    # the box of the patches the micro step's margin gives (written out from the macro step)
+    # does not hold the contact, and the box of the tilt's margin is the field's
+    h, anchor = field.grid.h, (0.0, 0.0)  # the default lattice
+    theta = (macro.penetration, *macro.tilt)
+    approach = tip_approaches(scene.asperities, theta, scene.pivot)
+    E_star = scene.material.E_star
+
+    def box(margin):
+        grids = []
+        for k, a in enumerate(scene.asperities):
+            if approach[k] > 0:
+                r = patch_radius(a, force=macro.forces[k], approach=approach[k], E_star=E_star, h=h, margin=margin)
+                grids.append(Grid.covering(a.x - r, a.x + r, a.y - r, a.y + r, h, anchor=anchor))
+        return box_of(grids, h, anchor)
+
+    narrow, wide = box(1.3), box(TILT_MARGIN)
+    inside = np.zeros(field.grid.shape, dtype=bool)
+    di, dj = narrow.offset_in(field.grid)
+    inside[max(dj, 0) : dj + narrow.ny, max(di, 0) : di + narrow.nx] = True
+    assert np.any(field.pressure[~inside] > 0)
+    assert field.grid.shape == wide.shape and wide.offset_in(field.grid) == (0, 0)

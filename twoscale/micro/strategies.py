@@ -31,7 +31,7 @@ from .couplings import Exact, FarField
 from .problem import MicroContext
 from .result import MicroResult
 from .setup import block_setup, initial_on_patches
-from .union import UnionSettings, box_of, carried, solve_union
+from .union import UnionSettings, box_of, carried, solve_union, tilted_box_grids
 
 #: The union CG's KKT residual over the block iterations' tolerance (a relative change of the
 #: pressure between sweeps): at the default 1e-6 the CG stops at the reference solver's 1e-8.
@@ -165,10 +165,16 @@ class UnionCG:
         small = box_of(grids, pb.h, pb.anchor).size <= UNION_SMALL_CELLS
         factor = UNION_SMALL_TOL_FACTOR if small else UNION_TOL_FACTOR
         settings = UnionSettings(tol=max(factor * ctx.options.tol, UNION_MIN_TOL), precision=self.precision)
+        # under a free tilt the macro step's tilt and forces size the patches short: a wider box
+        boxed = (
+            tilted_box_grids(ctx.patches, ctx.asperities, pb, ctx.provider.material.E_star)
+            if pb.free_tilt
+            else ctx.patches
+        )
         out = solve_union(
             ctx.provider,
             ctx.asperities,
-            ctx.patches,
+            boxed,
             pb,
             settings,
             start=None if start is None else (start_grid, start),
