@@ -494,6 +494,32 @@ def test_newton_hands_over_on_a_plateau_above_the_stall_level():
     assert fast.converged and fast.iterations == 1
 
 
+def test_merged_spheres_under_load_hand_over_after_two_flat_steps(monkeypatch):
+    # the sweep's eight spheres under load, two of them 0.127 mm apart (merged contacts):
+    # Newton sits at 1.14e-2 from its second step; it hands over to the safe path after two
+    # flat steps instead of four, and the safe path gives the same forces
+    import twoscale.macro.solve as macro_solve
+    from twoscale.laws import law_for
+    from twoscale.scenespace import build, sweep
+
+    (spec,) = [s for s in sweep(200, 0) if s.index == 31]
+    scene = build(spec)
+    tips = np.array([[a.x, a.y] for a in scene.asperities])
+    z = np.array([a.z for a in scene.asperities])
+    provider = scene.provider()
+
+    def solve():
+        laws = [law_for(a, provider.material) for a in scene.asperities]
+        return _solve_macro(provider, tips, z, laws, Loading(None, scene.total_load))
+
+    quick = solve()
+    monkeypatch.setattr(macro_solve, "PLATEAU_STEPS", 4)
+    slow = solve()
+    assert quick.converged and quick.safe_path and "down by under 1% in 2 steps" in quick.message
+    assert slow.converged and quick.iterations == slow.iterations - 2
+    assert np.max(np.abs(quick.forces - slow.forces)) <= 1e-12 * slow.forces.max()
+
+
 def test_two_thousand_tips_go_matrix_free_by_default_with_the_dense_forces():
     """From 2,001 tips the default macro step is matrix-free (the dense step's
     factorisations of the active block cost seconds there): the same forces as the dense
