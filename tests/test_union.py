@@ -177,3 +177,36 @@ def test_under_a_free_tilt_the_union_box_is_wide_enough_at_once():
     inside[max(dj, 0) : dj + narrow.ny, max(di, 0) : di + narrow.nx] = True
     assert np.any(field.pressure[~inside] > 0)
     assert field.grid.shape == wide.shape and wide.offset_in(field.grid) == (0, 0)
+
+
+@pytest.mark.parametrize("n", [20, 150])
+def test_a_widened_box_keeps_the_cells_it_had_and_samples_the_rest(n):
+    # the union box widened under a free tilt, or grown, samples only the strips around the
+    # box it had (among more than TREE_MIN asperities tile by tile)
+    from twoscale.grid import Grid
+    from twoscale.indenters import Asperity, Surface
+    from twoscale.micro.union import widened_surface
+
+    rng = np.random.default_rng(n)
+    shapes = ["sphere", "paraboloid"]
+    asps = [
+        Asperity(x, y, z, R, shape=shapes[k % 2])
+        for k, (x, y, z, R) in enumerate(
+            zip(rng.uniform(-2, 2, n), rng.uniform(-2, 2, n), rng.uniform(0, 0.05, n), rng.uniform(0.5, 2.0, n))
+        )
+    ]
+    box = Grid.covering(-2.0, 2.0, -1.5, 2.5, 0.02)
+    inner = box.subgrid(7, 11, box.nx - 20, box.ny - 15)
+    whole = surface_on(box, asps)
+    part = surface_on(inner, asps)
+    marked = Surface(inner, part.height + 1.0, part.owner, n)  # kept cells are not sampled again
+    out = widened_surface(marked, box, asps)
+    rows, cols = inner.window_in(box)
+    keep = np.zeros(box.shape, dtype=bool)
+    keep[rows, cols] = True
+    assert out.grid == box and np.array_equal(out.height[keep], marked.height.ravel())
+    assert np.array_equal(out.owner[~keep], whole.owner[~keep])
+    finite = np.isfinite(whole.height) & ~keep
+    assert np.array_equal(np.isfinite(out.height) & ~keep, finite)
+    assert np.allclose(out.height[finite], whole.height[finite], rtol=0, atol=1e-12)
+    assert widened_surface(whole, box, asps) is whole

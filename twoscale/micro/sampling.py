@@ -69,14 +69,15 @@ def box_of(grids: Sequence[Grid], h: float, anchor: tuple[float, float], *, grow
     return Grid.covering(cx - grow * rx, cx + grow * rx, cy - grow * ry, cy + grow * ry, h, anchor=anchor)
 
 
-def box_surface(grid: Grid, asperities: Sequence[Asperity]) -> Surface:
+def box_surface(grid: Grid, asperities: Sequence[Asperity], *, whole_cells: int = SAMPLE_WHOLE_CELLS) -> Surface:
     """``surface_on(grid, asperities)``, sampled tile by tile (``SAMPLE_TILE`` cells a
     side, split while ``SAMPLE_SPLIT_ENTRIES`` says so) with only the asperities that can
     own a cell of the tile (as a patch is built, :func:`.patches.make_patch`, bounded by
     the tile's four nearest tips): paraboloids have
     no material radius, and 843 of them sampled on every cell of a union box took about 45 s
-    of CPU before the CG's first iteration."""
-    if grid.size <= SAMPLE_WHOLE_CELLS or any(getattr(a, "group", None) is not None for a in asperities):
+    of CPU before the CG's first iteration. Grids up to ``whole_cells`` cells are sampled
+    whole, every asperity on every cell."""
+    if grid.size <= whole_cells or any(getattr(a, "group", None) is not None for a in asperities):
         return surface_on(grid, asperities)
     from scipy.spatial import cKDTree
 

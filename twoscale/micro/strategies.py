@@ -166,20 +166,21 @@ class UnionCG:
         factor = UNION_SMALL_TOL_FACTOR if small else UNION_TOL_FACTOR
         settings = UnionSettings(tol=max(factor * ctx.options.tol, UNION_MIN_TOL), precision=self.precision)
         # under a free tilt the macro step's tilt and forces size the patches short: a wider box
-        boxed = (
-            tilted_box_grids(ctx.patches, ctx.asperities, pb, ctx.provider.material.E_star)
-            if pb.free_tilt
-            else ctx.patches
-        )
+        wide = None
+        if pb.free_tilt:
+            wide = box_of(
+                tilted_box_grids(ctx.patches, ctx.asperities, pb, ctx.provider.material.E_star), pb.h, pb.anchor
+            )
         out = solve_union(
             ctx.provider,
             ctx.asperities,
-            boxed,
+            ctx.patches,
             pb,
             settings,
             start=None if start is None else (start_grid, start),
             approaches=pb.local_penetrations,
             monitor=monitor,
+            first_box=wide,
         )
         r, field = out.result, out.result.fields[0]
         converged = bool(r.converged) and not out.on_edge
