@@ -12,8 +12,10 @@ contact: the CG's active set shrinks onto the contact in a few large steps, wher
 cell by cell; the macro forces spread as Hertz pressures were tried as a start: twice the
 iterations, since the active set then has to grow into merged contacts). The load,
 the approach and the tilt are solved by the same iteration, so no sensitivity sweeps are
-needed. If pressure reaches the box's edge, the box grows on the sides it reaches and the
-solve resumes from its pressure.
+needed. Under a free tilt the first box covers wider patches (``TILT_MARGIN``: the macro
+step's tilt is least sure there). If pressure reaches the box's edge, the box grows on the
+sides it reaches and the solve resumes from its pressure; a wider box keeps the cells it
+had sampled (:func:`widened_surface`).
 """
 
 from __future__ import annotations
