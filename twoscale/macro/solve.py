@@ -37,12 +37,10 @@ SAFE_PATH_MAX_TIPS = 1000
 STALL_STEPS = 4
 
 #: Up to ``SAFE_PATH_MAX_TIPS`` Newton hands over to the safe path when its residual has
-#: not fallen by 1 % in this many steps (:func:`.newton.newton`'s ``plateau``), at any
-#: level: 8 spheres with merged contacts sat at 1.14e-2 from step 2 to step 20, 0.33 s of
-#: a 0.41 s macro step, the safe path then converging from the cold start as before. Two
-#: steps, not four: on the sweep's 133 tip scenes up to 1,000 tips the same 13 take the
-#: safe path, 2-6 Newton steps sooner, forces within 1.4e-11 (761 paraboloids: 0.156 ->
-#: 0.108 s of CPU; 8 spheres 0.084 -> 0.069 s); none converged by Newton is handed over.
+#: not fallen by 1 % in this many steps (:func:`.newton.newton`'s ``plateau``): 8 merged
+#: spheres sat at 1.14e-2 from step 2 to 20 (0.33 s of 0.41). Two steps, not four: of 133
+#: tip scenes up to 1,000 tips the same 13 take the safe path, 2-6 steps sooner (761
+#: paraboloids: 0.156 -> 0.108 s); none converged by Newton is handed over.
 PLATEAU_STEPS = 2
 
 

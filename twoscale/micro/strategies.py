@@ -152,6 +152,9 @@ class UnionCG:
     accepts: ClassVar[tuple] = ()
 
     def run(self, ctx: MicroContext, coupling=None, *, max_sweeps: int, monitor: Callable | None = None) -> MicroResult:
+        """One constrained CG over the patches' box (wider under a free tilt), from a
+        previous solve's pressure or eq. 7's when asked; the box grows where pressure
+        reaches its edge."""
         _check(self, coupling)
         pb = ctx.problem
         grids = tuple(pt.grid for pt in ctx.patches)
@@ -164,13 +167,14 @@ class UnionCG:
             start_grid, start = initial_on_patches(ctx)
         small = box_of(grids, pb.h, pb.anchor).size <= UNION_SMALL_CELLS
         factor = UNION_SMALL_TOL_FACTOR if small else UNION_TOL_FACTOR
-        settings = UnionSettings(tol=max(factor * ctx.options.tol, UNION_MIN_TOL), precision=self.precision)
         # under a free tilt the macro step's tilt and forces size the patches short: a wider box
         wide = None
         if pb.free_tilt:
             wide = box_of(
                 tilted_box_grids(ctx.patches, ctx.asperities, pb, ctx.provider.material.E_star), pb.h, pb.anchor
             )
+        tol = max(factor * ctx.options.tol, UNION_MIN_TOL)
+        settings = UnionSettings(tol=tol, precision=self.precision, first_box=wide)
         out = solve_union(
             ctx.provider,
             ctx.asperities,
@@ -180,7 +184,6 @@ class UnionCG:
             start=None if start is None else (start_grid, start),
             approaches=pb.local_penetrations,
             monitor=monitor,
-            first_box=wide,
         )
         r, field = out.result, out.result.fields[0]
         converged = bool(r.converged) and not out.on_edge

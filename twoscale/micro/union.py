@@ -137,6 +137,9 @@ class UnionSettings:
         ``solve_cg``'s ``keep_conjugacy``: the fraction of the loaded cells that may enter
         in a step without a restart of the conjugate directions (0: Polonsky & Keer's
         restart after any entry).
+    first_box : Grid or None, default None
+        The first box, when not the box of the patches' grids (it must contain it; a free
+        tilt's, :func:`tilted_box_grids`); the patches' sampled box is reused inside it.
     """
 
     tol: float
@@ -145,6 +148,7 @@ class UnionSettings:
     precision: str = "auto"
     precondition: bool = True
     keep_conjugacy: float = KEEP_CONJUGACY
+    first_box: Grid | None = None
 
 
 def solve_union(
@@ -157,7 +161,6 @@ def solve_union(
     start: tuple | None = None,
     approaches: np.ndarray | None = None,
     monitor=None,
-    first_box: Grid | None = None,
 ) -> UnionOutcome:
     """Solve the micro step as one problem on the box of the patches' ``grids``.
 
@@ -172,7 +175,7 @@ def solve_union(
         Cell side ``h`` and ``anchor`` (mm), the control (``total_load`` N, else the
         ``penetration`` mm), ``free_tilt`` about ``pivot`` (mm).
     settings : UnionSettings
-        Tolerance, iterations, enlargements, precision, preconditioner.
+        Tolerance, iterations, enlargements, precision, preconditioner, first box.
     start : (Grid, (ny, nx) array) or None
         Warm start on its grid (e.g. eq. 7 pressures), MPa; default: from
         ``approaches``, else the CG's own.
@@ -180,9 +183,6 @@ def solve_union(
         The macro step's local approach of each asperity, mm (:func:`interference_start`).
     monitor : callable, optional
         ``monitor(iteration, residual)``, passed to the CG (progress display).
-    first_box : Grid or None
-        The first box, when not the box of ``grids`` (it must contain it; a free tilt's,
-        :func:`tilted_box_grids`); the patches' sampled box is reused inside it.
     """
     from ..reference.cg import solve_cg
 
@@ -195,7 +195,7 @@ def solve_union(
     start_grid, start = (None, None) if start is None else start
     iterations, products = 0, 0
     previous = None
-    box = box_of(grids, h, anchor) if first_box is None else first_box
+    box = box_of(grids, h, anchor) if settings.first_box is None else settings.first_box
     for enlargement in range(settings.max_enlargements + 1):
         sampled = widened_surface(sampled, box, asperities)  # the last box's cells kept
         surface = material_box(sampled)
