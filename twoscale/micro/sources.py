@@ -92,7 +92,11 @@ def source_weights(points: np.ndarray, centre: np.ndarray, delta: np.ndarray, h:
     L[:, 2] *= 0.5
     np.multiply(xi, xi, out=L[:, 1])
     np.subtract(1.0, L[:, 1], out=L[:, 1])
-    out = np.empty((9, n))
-    np.multiply(L[1][:, None, :], L[0][None, :, :], out=out.reshape(3, 3, n))
+    # the transpose of a (n, 9) array, as it was made before: the far field's products with
+    # it are the same BLAS calls, summed in the same order
+    out = np.empty((n, 9)).T
+    for a in range(3):
+        for b in range(3):
+            np.multiply(L[1, a], L[0, b], out=out[3 * a + b])
     out *= h * h
     return out
