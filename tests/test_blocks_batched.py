@@ -73,3 +73,43 @@ def test_a_coupling_with_prepared_pairs_gives_the_same_sums_as_one_made_pair_by_
         rhs = rng.random(len(values[k]))
         assert np.allclose(ready.rhs(k, values, rhs), lazy.rhs(k, values, rhs), rtol=1e-13, atol=1e-16)
     assert len(ready._ops) == len(patches) * (len(patches) - 1)  # the reverse pairs as views
+
+
+def test_a_box_window_gives_the_providers_entries_of_the_box_bit_for_bit():
+    from twoscale.micro.pair_entries import BoxWindow
+
+    body = CachedBody(HalfSpace(MAT), OperatorCaches())
+    rng = np.random.default_rng(5)
+    for nx, ny in [(1, 1), (7, 3), (12, 17)]:
+        box = Grid(0.3 + 3 * H, -0.1, H, nx, ny)
+        win = BoxWindow.of(body, box)
+        rows = rng.choice(box.size, min(box.size, 9), replace=False)
+        cols = rng.choice(box.size, min(box.size, 5), replace=False)
+        assert np.array_equal(win.entries(rows, cols), body.grid_entries(box, box, rows, cols))
+        X, Y = (c.ravel() for c in box.centres())
+        want = love_rectangle(X[rows][:, None] - X[cols], Y[rows][:, None] - Y[cols], 0.5 * H, 0.5 * H, MAT.E_star)
+        assert np.allclose(win.entries(rows, cols), want, rtol=1e-10, atol=0.0)
+    assert BoxWindow.of(body, Grid(0.0, 0.0, H, 40, 40)) is None  # larger than a block keeps
+    assert BoxWindow.of(MAT, Grid(0.0, 0.0, H, 4, 4)) is None  # no translation-invariant kernel
+
+
+def test_dense_local_solves_with_the_box_window_are_those_without(monkeypatch):
+    from twoscale.micro import localblock
+    from twoscale.micro.local import contact_solve
+
+    patches = _patches(6, 4)
+    rng = np.random.default_rng(7)
+    rhs = [1e-3 * (rng.random(int(pt.owned.sum())) - 0.4) for pt in patches]
+
+    def solves():
+        body = CachedBody(HalfSpace(MAT), OperatorCaches())
+        blocks = [localblock.LocalBlock(body, pt) for pt in patches]
+        return blocks, [contact_solve(blk, b, np.zeros(blk.n)) for blk, b in zip(blocks, rhs)]
+
+    windowed, one = solves()
+    monkeypatch.setattr(localblock.BoxWindow, "of", staticmethod(lambda provider, box: None))
+    plain, two = solves()
+    for a, b, blk, other in zip(one, two, windowed, plain):
+        assert a.active.any() and np.array_equal(a.active, b.active)
+        assert np.array_equal(a.pressure, b.pressure)
+        assert blk._window is not None and other._window is None

@@ -12,6 +12,7 @@ import scipy.linalg as sla
 from scipy.linalg.lapack import dpotrs
 
 from ..influence.base import InfluenceProvider
+from .pair_entries import BoxWindow
 from .patches import Patch
 
 #: A dense block whose matrix is not stored keeps the columns ``A[:, S]`` of its last
@@ -145,6 +146,8 @@ class LocalBlock:
         self._columns: tuple | None = None  # (active set's bytes, A[:, S]): product_on
         self._idx = np.flatnonzero(self._mask.ravel()) if self.dense else None
         self._matrix = self._symmetric = None
+        self._window: BoxWindow | None = None  # made on first use (:meth:`_entries`)
+        self._windowless = False
         if self.dense and not getattr(provider, "cheap_grid_matrix", False):
             self._matrix = provider.grid_matrix(self.box)[np.ix_(self._idx, self._idx)]
             self._symmetric = _is_symmetric(self._matrix)
@@ -159,6 +162,21 @@ class LocalBlock:
         if not self.dense:
             self._symmetric = True
 
+    def _entries(self, rows: np.ndarray, cols: np.ndarray) -> np.ndarray:
+        """``A`` on the box's cells ``rows`` x ``cols`` by :func:`grid_entries`; from the box's
+        kept :class:`~.pair_entries.BoxWindow` where that would cut them from the provider's
+        offset table (the same numbers)."""
+        full = self.box.size * self.box.size
+        table = getattr(self._provider, "cheap_grid_matrix", False) and full <= min(
+            GRID_MATRIX_MAX_ENTRIES, max(50 * rows.size * cols.size, GRID_MATRIX_SMALL_ENTRIES)
+        )
+        if table and self._window is None and not self._windowless:
+            self._window = BoxWindow.of(self._provider, self.box)
+            self._windowless = self._window is None
+        if not (table and self._window is not None and rows.size and cols.size):
+            return grid_entries(self._provider, self.box, self.box, rows, cols)
+        return self._window.entries(rows, cols)
+
     @property
     def matrix(self) -> np.ndarray | None:
         """``A_kk`` on the owned cells (n, n), mm/MPa, for dense blocks (stored, or cut from the
@@ -167,7 +185,7 @@ class LocalBlock:
             return None
         if self._matrix is not None:
             return self._matrix
-        return grid_entries(self._provider, self.box, self.box, self._idx, self._idx)
+        return self._entries(self._idx, self._idx)
 
     @matrix.setter
     def matrix(self, value: np.ndarray) -> None:
@@ -214,7 +232,7 @@ class LocalBlock:
         if self._columns is None or self._columns[0] != key:
             if self.n * int(np.count_nonzero(active)) > COLUMNS_MAX_ENTRIES:
                 return self.matvec(v)
-            self._columns = (key, grid_entries(self._provider, self.box, self.box, self._idx, self._idx[active]))
+            self._columns = (key, self._entries(self._idx, self._idx[active]))
         return self._columns[1] @ v[active]
 
     def patch_product(self, v: np.ndarray) -> np.ndarray:
@@ -287,12 +305,12 @@ class LocalBlock:
             sub = self._matrix[np.ix_(active, active)]
         elif self.n * int(np.count_nonzero(active)) <= COLUMNS_MAX_ENTRIES:
             # the columns of the active set, kept for product_on; the factor's block is theirs
-            cols = grid_entries(self._provider, self.box, self.box, self._idx, self._idx[active])
+            cols = self._entries(self._idx, self._idx[active])
             self._columns = (active.tobytes(), cols)
             sub = cols[active]
         else:
             cut = self._idx[active]
-            sub = grid_entries(self._provider, self.box, self.box, cut, cut)
+            sub = self._entries(cut, cut)
         if self._symmetric is None:
             # a principal sub-block of a symmetric matrix is symmetric, and an unsymmetric
             # provider matrix (finite elements) has unsymmetric sub-blocks too
