@@ -20,23 +20,10 @@ from ..grid import Grid
 WINDOW_MAX_ENTRIES = 1_000_000
 
 
-def _lattice(grid: Grid, origin: Grid, owned: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Lattice rows and columns (relative to ``origin``'s first cell) of the owned cells."""
-    di, dj = grid.offset_in(origin)
+def _lattice(grid: Grid, corner: tuple, owned: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Lattice rows and columns of the owned cells, the grid's first cell at ``corner`` (i, j)."""
     j, i = np.divmod(np.flatnonzero(owned.ravel()), grid.nx)
-    return j + dj, i + di
-
-
-def _reach(gk: Grid, gl: Grid, origin: Grid) -> int:
-    """The largest ``|dy|`` or ``|dx|`` between a cell of ``gk`` and one of ``gl``."""
-    ik, jk = gk.offset_in(origin)
-    il, jl = gl.offset_in(origin)
-    return max(
-        abs(ik - (il + gl.nx - 1)),
-        abs(ik + gk.nx - 1 - il),
-        abs(jk - (jl + gl.ny - 1)),
-        abs(jk + gk.ny - 1 - jl),
-    )
+    return j + corner[1], i + corner[0]
 
 
 def pair_blocks(provider, patches, pairs: list) -> dict:
@@ -48,12 +35,20 @@ def pair_blocks(provider, patches, pairs: list) -> dict:
     if not pairs:
         return {}
     origin = patches[pairs[0][0]].grid
-    reach = {pair: _reach(patches[pair[0]].grid, patches[pair[1]].grid, origin) for pair in pairs}
+    k_, l_ = (np.array(c, dtype=np.int64) for c in zip(*pairs))
+    # per patch: its first cell's lattice column and row (from the origin's), nx, ny
+    geo = np.zeros((len(patches), 4), dtype=np.int64)
+    for k in np.union1d(k_, l_).tolist():
+        g = patches[k].grid
+        geo[k] = (*g.offset_in(origin), g.nx, g.ny)
+    (ik, jk, nxk, nyk), (il, jl, nxl, nyl) = geo[k_].T, geo[l_].T
+    # each pair's reach: the largest |dy| or |dx| between a cell of k and one of l
+    reach = np.abs([ik - (il + nxl - 1), ik + nxk - 1 - il, jk - (jl + nyl - 1), jk + nyk - 1 - jl]).max(axis=0)
     limit = (int(np.sqrt(WINDOW_MAX_ENTRIES)) - 1) // 2
-    todo = [pair for pair in pairs if reach[pair] <= limit]
+    todo = [pair for pair, r in zip(pairs, reach.tolist()) if r <= limit]
     if not todo:
         return {}
-    D = max(reach[pair] for pair in todo)
+    D = int(reach[reach <= limit].max())
     w = 2 * D + 1
     # the kernel at the offsets (dy, dx), |dy|, |dx| <= D: target cells of a (w x w) grid
     # centred on one source cell, row-major (the provider's numbers for that pair of grids)
@@ -66,7 +61,7 @@ def pair_blocks(provider, patches, pairs: list) -> dict:
         # the cell's flat index in the window's lattice (the window's first cell at -D, -D)
         hit = cells.get(k)
         if hit is None:
-            j, i = _lattice(patches[k].grid, origin, patches[k].owned)
+            j, i = _lattice(patches[k].grid, geo[k, :2], patches[k].owned)
             hit = cells[k] = j * w + i
         return hit
 
