@@ -113,3 +113,23 @@ def test_dense_local_solves_with_the_box_window_are_those_without(monkeypatch):
         assert a.active.any() and np.array_equal(a.active, b.active)
         assert np.array_equal(a.pressure, b.pressure)
         assert blk._window is not None and other._window is None
+
+
+def test_active_columns_beyond_the_kept_size_are_gathered_not_transformed(monkeypatch):
+    from twoscale.micro import localblock
+
+    g = Grid(0.0, 0.0, H, 14, 12)
+    pt = Patch(0, g, np.zeros(g.shape), np.zeros(g.shape, dtype=int))
+    blk = localblock.LocalBlock(CachedBody(HalfSpace(MAT), OperatorCaches()), pt)
+    active = np.random.default_rng(8).random(blk.n) < 0.3
+    assert localblock.COLUMNS_MAX_ENTRIES < blk.n * active.sum() <= localblock.COLUMNS_GATHER_MAX_ENTRIES
+    v = np.where(active, np.random.default_rng(9).random(blk.n), 0.0)
+    want = blk.matvec(v)  # the box's FFT product
+
+    def no_fft(*args):
+        raise AssertionError("the box's FFT product was taken")
+
+    monkeypatch.setattr(blk, "matvec", no_fft)
+    got = blk.product_on(active, v)
+    assert np.allclose(got, want, rtol=1e-12, atol=1e-15 * np.abs(want).max())
+    assert blk._columns is None  # gathered for the product, not kept

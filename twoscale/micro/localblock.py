@@ -21,6 +21,11 @@ from .patches import Patch
 #: an FFT of the block's box (939 blocks of 41-266 cells: 3,756 local solves a two-level
 #: iteration, a third of their CPU in those FFTs).
 COLUMNS_MAX_ENTRIES = 4096
+#: Above that, the active columns are gathered for one product and not kept, up to this
+#: many entries (512 KB), where the block keeps its box's offsets (:meth:`LocalBlock._entries`):
+#: a gather of 10,000 entries costs a tenth of an FFT of the box (#151: 75 of 939 blocks a
+#: sweep, a sixth of the local solves' CPU in those FFTs).
+COLUMNS_GATHER_MAX_ENTRIES = 65536
 #: The largest grid matrix (entries, 32 MB) :func:`grid_entries` cuts entries from ...
 GRID_MATRIX_MAX_ENTRIES = 4_000_000
 #: ... and one it cuts from however few entries are wanted (2 MB: a small box's matrix).
@@ -170,12 +175,16 @@ class LocalBlock:
         table = getattr(self._provider, "cheap_grid_matrix", False) and full <= min(
             GRID_MATRIX_MAX_ENTRIES, max(50 * rows.size * cols.size, GRID_MATRIX_SMALL_ENTRIES)
         )
-        if table and self._window is None and not self._windowless:
-            self._window = BoxWindow.of(self._provider, self.box)
-            self._windowless = self._window is None
-        if not (table and self._window is not None and rows.size and cols.size):
+        if not (table and self._box_window() is not None and rows.size and cols.size):
             return grid_entries(self._provider, self.box, self.box, rows, cols)
         return self._window.entries(rows, cols)
+
+    def _box_window(self) -> BoxWindow | None:
+        """The box's kept :class:`~.pair_entries.BoxWindow` (made on first use), or None."""
+        if self._window is None and not self._windowless:
+            self._window = BoxWindow.of(self._provider, self.box)
+            self._windowless = self._window is None
+        return self._window
 
     @property
     def matrix(self) -> np.ndarray | None:
@@ -230,8 +239,12 @@ class LocalBlock:
             return np.zeros(self.n)
         key = active.tobytes()
         if self._columns is None or self._columns[0] != key:
-            if self.n * int(np.count_nonzero(active)) > COLUMNS_MAX_ENTRIES:
-                return self.matvec(v)
+            entries = self.n * int(np.count_nonzero(active))
+            if entries > COLUMNS_MAX_ENTRIES:
+                if entries > COLUMNS_GATHER_MAX_ENTRIES or self._box_window() is None:
+                    return self.matvec(v)
+                # gathered for this product and not kept: cheaper than the box's FFT
+                return self._entries(self._idx, self._idx[active]) @ v[active]
             self._columns = (key, self._entries(self._idx, self._idx[active]))
         return self._columns[1] @ v[active]
 
