@@ -133,3 +133,39 @@ def test_active_columns_beyond_the_kept_size_are_gathered_not_transformed(monkey
     got = blk.product_on(active, v)
     assert np.allclose(got, want, rtol=1e-12, atol=1e-15 * np.abs(want).max())
     assert blk._columns is None  # gathered for the product, not kept
+
+
+def test_eq7_first_passes_in_stacks_give_the_one_block_pressures():
+    from twoscale.micro import local_batch
+    from twoscale.micro.local import initial_pressure, initial_pressures
+    from twoscale.micro.localblock import LocalBlock
+
+    rng = np.random.default_rng(10)
+    patches, z, forces, approaches = [], [], [], []
+    for k in range(24):
+        n = int(rng.integers(5, 16))
+        g = Grid(rng.uniform(-1, 1), rng.uniform(-1, 1), H, n, n)
+        patches.append(Patch(k, g, np.zeros(g.shape), np.full(g.shape, k)))
+        X, Y = g.centres()
+        c = np.array([g.x0, g.y0]) + rng.uniform(0.2, 0.8, 2) * (n - 1) * H
+        R = rng.uniform(2.0, 8.0)
+        z.append((((X - c[0]) ** 2 + (Y - c[1]) ** 2) / (2 * R)).ravel())
+        a = rng.uniform(0.15, 0.3) * n * H  # Hertz's contact radius within the patch
+        forces.append(4.0 * MAT.E_star * a**3 / (3.0 * R))
+        approaches.append(float(rng.uniform(0.5, 1.5) * a * a / R))  # its contact at d / 2
+
+    def blocks():
+        body = CachedBody(HalfSpace(MAT), OperatorCaches())
+        return [LocalBlock(body, pt) for pt in patches]
+
+    batched = blocks()
+    assert all(local_batch.batchable(b) for b in batched)
+    passes = local_batch.first_passes(batched, z, forces, approaches, H)
+    kinds = {res[0] for res in passes.values()}
+    assert len(passes) == len(patches) and kinds == {"done", "next"}  # both ways taken
+    got = initial_pressures(blocks(), z, forces, approaches, H, rtol=1e-8)
+    for blk, zk, P, a, p in zip(blocks(), z, forces, approaches, got):
+        one = initial_pressure(blk, zk, P, H, approach=a)
+        assert one.converged and np.array_equal(p > 0.0, one.pressure > 0.0)
+        assert np.allclose(p, one.pressure, rtol=1e-9, atol=1e-12 * one.pressure.max())
+        assert np.isclose(H * H * p.sum(), P, rtol=1e-12) and p.min() >= 0.0

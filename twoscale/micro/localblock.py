@@ -306,6 +306,24 @@ class LocalBlock:
             self._cache.move_to_end(key)
         return f
 
+    def adopt_factor(self, active: np.ndarray, factor: tuple, columns: np.ndarray | None = None) -> None:
+        """Keep ``factor`` (``(kind, factor)``, made elsewhere: a stack of blocks) as this
+        block's factorisation on ``active``, where :meth:`_factor` keeps its own, and
+        ``columns`` ``A[:, S]`` for :meth:`product_on`. Only for a block whose entries are
+        exactly symmetric (a Cholesky factor)."""
+        key = active.tobytes()
+        keep = getattr(self._provider, "factorisation", None)
+        if keep is not None:
+            factor = keep(self.box, self.cells_of(active), lambda: factor)
+        self._cache[key] = factor
+        if len(self._cache) > self._cache_size:
+            self._cache.popitem(last=False)
+        if columns is not None:
+            self._columns = (key, columns)
+        if self._symmetric is None:
+            self._symmetric = True
+        self.factorisations += 1
+
     def cells_of(self, active: np.ndarray) -> np.ndarray:
         """The cells of ``active`` (a mask over the block's owned cells) as a mask over the
         block's box, row-major: the block's geometry relative to its box."""
