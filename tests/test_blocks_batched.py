@@ -169,3 +169,44 @@ def test_eq7_first_passes_in_stacks_give_the_one_block_pressures():
         assert one.converged and np.array_equal(p > 0.0, one.pressure > 0.0)
         assert np.allclose(p, one.pressure, rtol=1e-9, atol=1e-12 * one.pressure.max())
         assert np.isclose(H * H * p.sum(), P, rtol=1e-12) and p.min() >= 0.0
+
+
+def test_contact_first_passes_in_stacks_give_the_one_block_local_solves():
+    from twoscale.micro import local_batch
+    from twoscale.micro.local import contact_passes, contact_solve
+    from twoscale.micro.localblock import LocalBlock
+
+    rng = np.random.default_rng(11)
+    patches, b, previous = [], [], []
+    for k in range(30):
+        n = int(rng.integers(4, 15))
+        g = Grid(rng.uniform(-1, 1), rng.uniform(-1, 1), H, n, n)
+        patches.append(Patch(k, g, np.zeros(g.shape), np.full(g.shape, k)))
+        X, Y = g.centres()
+        c = np.array([g.x0, g.y0]) + rng.uniform(0.3, 0.7, 2) * (n - 1) * H
+        r2 = ((X - c[0]) ** 2 + (Y - c[1]) ** 2).ravel()
+        a2 = (rng.uniform(0.2, 0.35) * n * H) ** 2
+        b.append(1e-3 * (a2 - r2) / a2)  # an approach minus a sphere's height, mm
+        scale = rng.uniform(0.7, 1.3)  # the previous contact a little smaller or larger
+        previous.append(np.where(r2 < scale * a2, 1.0, 0.0) if k else np.zeros(n * n))
+
+    def blocks():
+        body = CachedBody(HalfSpace(MAT), OperatorCaches())
+        return [LocalBlock(body, pt) for pt in patches]
+
+    batched = blocks()
+    passes = local_batch.contact_first_passes(batched, b, previous)
+    assert 0 not in passes and len(passes) == len(patches) - 1  # no previous contact: left out
+    assert {res[0] for res in passes.values()} == {"done", "next"}
+    for i, (blk, res) in enumerate(zip(blocks(), [passes.get(i) for i in range(len(patches))])):
+        one = contact_solve(blk, b[i], previous[i])
+        if res is None:
+            continue
+        if res[0] == "done":
+            p, active = res[1], res[2]
+        else:
+            sol = contact_passes(batched[i], b[i], res[1], 2, 200, res[2])
+            assert sol.converged
+            p, active = sol.pressure, sol.active
+        assert one.converged and np.array_equal(active, one.active)
+        assert np.allclose(p, one.pressure, rtol=1e-9, atol=1e-12 * one.pressure.max())

@@ -99,6 +99,70 @@ def _class_pass(blocks, z, forces, h, actives, which: list, m: int, gap_rtol: fl
     return out
 
 
+def contact_first_passes(blocks, b: list, previous: list, *, gap_rtol: float = 1e-12) -> dict:
+    """:func:`.local.contact_solve`'s first pass on ``blocks`` (all :func:`batchable`) from
+    the previous pressures' contacts (those with one): ``{i: ("done", pressure, active)}``
+    where it is final, ``{i: ("next", (active, removed, seen), tol)}`` where the one-block
+    loop goes on; blocks without a previous contact are left out."""
+    actives = {i: v > 0.0 for i, v in enumerate(previous)}
+    actives = {i: a for i, a in actives.items() if a.any()}
+    sizes = {i: int(a.sum()) for i, a in actives.items()}
+    out: dict = {}
+    for c, m in enumerate(CLASSES):
+        which = [i for i, s in sizes.items() if (CLASSES[c - 1] if c else 0) < s <= m]
+        if which:
+            out.update(_contact_class(blocks, b, actives, which, m, gap_rtol))
+    return out
+
+
+def _contact_class(blocks, b, actives, which: list, m: int, gap_rtol: float) -> dict:
+    """:func:`contact_first_passes` on the blocks ``which``, whose contacts hold at most ``m`` cells."""
+    A, R, sizes, columns = _stack(blocks, actives, which, m, lambda i, S: b[i][S][:, None])
+    try:
+        X = np.linalg.solve(A, R)[:, :, 0]
+    except np.linalg.LinAlgError:
+        return {}
+    negative = (X < 0.0).any(axis=1)
+    out: dict = {}
+    for j, i in enumerate(which):
+        blk, S, s = blocks[i], actives[i], int(sizes[j])
+        p = np.zeros(blk.n)
+        p[S] = X[j, :s]
+        seen = {S.tobytes()}
+        tol = gap_rtol * float(np.abs(b[i]).max(initial=0.0))
+        if negative[j]:
+            out[i] = ("next", (_next_active(S, p, seen), True, seen), tol)
+            continue
+        pen = ~S & (columns[j] @ X[j, :s] - b[i] < -tol)
+        out[i] = ("next", (S | pen, False, seen), tol) if pen.any() else ("done", p, S)
+    return out
+
+
+def _stack(blocks, actives, which: list, m: int, rhs) -> tuple:
+    """The padded systems ``A_SS`` (B, m, m) (the identity on the padding), right-hand sides
+    ``rhs(i, S)`` (B, m, r), contact sizes and columns ``A[:, S]`` of the blocks ``which``."""
+    B = len(which)
+    A = np.zeros((B, m, m))
+    sizes = np.zeros(B, dtype=np.int64)
+    columns, rows = [], []
+    for j, i in enumerate(which):
+        blk, S = blocks[i], actives[i]
+        C = blk.kept_columns(S)
+        if C is None:
+            C = blk._entries(blk._idx, blk._idx[S])  # A[:, S]: its rows S are A_SS
+        s = C.shape[1]
+        A[j, :s, :s] = C[S]
+        sizes[j] = s
+        columns.append(C)
+        rows.append(rhs(i, S))
+    R = np.zeros((B, m, rows[0].shape[1]))
+    for j, r in enumerate(rows):
+        R[j, : len(r)] = r
+    pad = np.arange(m)[None, :] >= sizes[:, None]
+    A[:, np.arange(m), np.arange(m)] += pad  # the identity on the padding
+    return A, R, sizes, columns
+
+
 def _next_active(active: np.ndarray, p: np.ndarray, seen: set) -> np.ndarray:
     from .local import _next_active as rule
 
