@@ -20,8 +20,7 @@ import numpy as np
 from ..stopping import StopReason
 from .blocks import Coupling
 from .localblock import LocalBlock
-from .local import contact_passes, contact_solve
-from .local_batch import batchable, contact_first_passes
+from .local import contact_solve
 
 #: Local solves stop at this fraction of the last sweep's relative change (never below it of tol).
 LOCAL_FACTOR = 1e-2
@@ -109,32 +108,12 @@ def sweep(
                 take(k, pressure, pressure > 0.0, ok)
             done = set(stacked)
             level = [k for k in level if k not in done]
-        if levels is not None and len(level) > 1:
-            level = _first_passes(blocks, level, rhs, p, take)
         for k in level:
             sol = contact_solve(blocks[k], rhs[k], p[k], rtol=local_rtol)
             take(k, sol.pressure, sol.active, sol.converged)
     norm2 = sum(float(np.sum(v * v)) for v in p)
     rel = float(np.sqrt(sum(float(d) for d in diff2) / norm2)) if norm2 > 0 else 0.0
     return Sweep(p, active, bool(changed.any()), rel, tuple(np.flatnonzero(failed).tolist()))
-
-
-def _first_passes(blocks, level: list, rhs: dict, p: list, take) -> list:
-    """A level's dense blocks' first active-set pass in stacks (:mod:`.local_batch`), each
-    finished by the one-block loop where it is not final; the blocks left, in order."""
-    dense = [k for k in level if batchable(blocks[k])]
-    if len(dense) < 2:
-        return level
-    passes = contact_first_passes([blocks[k] for k in dense], [rhs[k] for k in dense], [p[k] for k in dense])
-    for i, res in passes.items():
-        k = dense[i]
-        if res[0] == "done":
-            take(k, res[1], res[2], True)
-        else:
-            sol = contact_passes(blocks[k], rhs[k], res[1], 2, 200, res[2])
-            take(k, sol.pressure, sol.active, sol.converged)
-    done = {dense[i] for i in passes}
-    return [k for k in level if k not in done]
 
 
 def gauss_seidel(

@@ -92,17 +92,12 @@ def contact_solve(
         )
         return LocalSolution(p, p > 0.0, float("nan"), False, ok, it)
     start = previous > 0.0
-    state = (start if start.any() else b > 0.0, False, set())
-    return contact_passes(block, b, state, 1, max_iter, gap_rtol * float(np.abs(b).max(initial=0.0)))
-
-
-def contact_passes(block: LocalBlock, b: np.ndarray, state: tuple, first: int, max_iter: int, tol: float):
-    """:func:`contact_solve`'s active-set loop on a dense block from pass ``first`` and
-    ``state`` = ``(active, removed, seen)``, penetration below ``tol`` (mm) accepted: from
-    the start, or after a first pass made in a stack (:func:`.local_batch.contact_first_passes`)."""
-    active, removed, seen = state
+    active = start.copy() if start.any() else b > 0.0
+    seen: set = set()
+    removed = False
+    tol = gap_rtol * float(np.abs(b).max(initial=0.0))
     p = np.zeros(block.n)
-    for it in range(first, max_iter + 1):
+    for it in range(1, max_iter + 1):
         seen.add(active.tobytes())
         p = np.zeros(block.n)
         p[active] = block.solve(active, b[active])

@@ -306,12 +306,6 @@ class LocalBlock:
             self._cache.move_to_end(key)
         return f
 
-    def kept_columns(self, active: np.ndarray) -> np.ndarray | None:
-        """The kept columns ``A[:, S]`` of the active set ``active``, or None."""
-        if self._columns is not None and self._columns[0] == active.tobytes():
-            return self._columns[1]
-        return None
-
     def adopt_factor(self, active: np.ndarray, factor: tuple, columns: np.ndarray | None = None) -> None:
         """Keep ``factor`` (``(kind, factor)``, made elsewhere: a stack of blocks) as this
         block's factorisation on ``active``, where :meth:`_factor` keeps its own, and
