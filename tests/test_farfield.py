@@ -16,7 +16,7 @@ from twoscale.grid import Grid
 from twoscale.influence import HalfSpace
 from twoscale.micro.blocks import Coupling
 from twoscale.micro.farfield import LaggedFarField
-from twoscale.micro.sources import source_nodes, source_strengths
+from twoscale.micro.sources import source_frame, source_nodes, source_strengths, source_weights
 from twoscale.micro.patches import Patch
 
 HS = HalfSpace(Material(10.0, 0.5))
@@ -64,6 +64,45 @@ def test_sources_carry_the_moments_up_to_second_order():
         for j in range(3):
             m_cells = np.sum(g.h**2 * p * pts[:, 0] ** i * pts[:, 1] ** j)
             assert np.isclose(S @ (nodes[:, 0] ** i * nodes[:, 1] ** j), m_cells, rtol=1e-12)
+
+
+def test_source_weights_are_the_nodes_lagrange_products_cell_by_cell():
+    # row 3 j + i is node (y_j, x_i): h^2 L_j(eta) L_i(xi) of each cell, the quadratic
+    # Lagrange functions of the nodes -1, 0, 1 written out one cell at a time
+    rng = np.random.default_rng(4)
+    pts = rng.uniform(-1.0, 3.0, (57, 2))
+    centre, delta, h = np.array([0.7, 1.1]), np.array([0.9, 0.4]), 0.03
+
+    def L(t):
+        return [t * (t - 1.0) / 2.0, (1.0 - t) * (1.0 + t), t * (t + 1.0) / 2.0]
+
+    W = source_weights(pts, centre, delta, h)
+    assert W.shape == (9, 57)
+    for c, (x, y) in enumerate(pts):
+        lx, ly = L((x - centre[0]) / delta[0]), L((y - centre[1]) / delta[1])
+        want = [h * h * ly[j] * lx[i] for j in range(3) for i in range(3)]
+        assert np.allclose(W[:, c], want, rtol=1e-13, atol=1e-17)
+    assert source_weights(pts[:0], centre, delta, h).shape == (9, 0)
+
+
+def test_patch_source_weights_over_many_patches_are_each_patchs_own(monkeypatch):
+    from twoscale.micro import sources
+
+    rng = np.random.default_rng(6)
+    patches = []
+    for k in range(9):
+        g = Grid(rng.uniform(-1, 1), rng.uniform(-1, 1), H, int(rng.integers(1, 15)), int(rng.integers(1, 15)))
+        owner = np.where(rng.random(g.shape) < 0.6, k, -1)
+        patches.append(Patch(k, g, np.zeros(g.shape), owner))
+    monkeypatch.setattr(sources, "WEIGHTS_CHUNK_CELLS", 40)  # several passes, some of one patch
+    got = sources.patch_source_weights(patches)
+    assert len(got) == len(patches)
+    for pt, W in zip(patches, got):
+        X, Y = pt.grid.centres()
+        centre, delta = source_frame(pt.grid)
+        want = source_weights(np.column_stack([X[pt.owned], Y[pt.owned]]), centre, delta, pt.grid.h)
+        assert W.shape == want.shape == (9, int(pt.owned.sum()))
+        assert np.array_equal(W, want) and W.strides == want.strides
 
 
 def test_far_patch_error_falls_as_the_cube_of_size_over_distance():

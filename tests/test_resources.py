@@ -95,7 +95,7 @@ def test_the_far_fields_kept_weights_are_counted_where_it_may_be_taken():
         return est, dict(est.parts)
 
     est, scattered = parts(40.0)
-    assert scattered["far field's kept weights"] == KEPT_BYTES_PER_OWNED_CELL * est.cells == 160 * est.cells
+    assert scattered["far field's kept weights"] == KEPT_BYTES_PER_OWNED_CELL * est.cells == 144 * est.cells
     est, crowded = parts(2.0)
     assert "far field's kept weights" not in crowded and "union box" in est.dominant
 

@@ -15,6 +15,7 @@ import numpy as np
 
 from ..influence.base import InfluenceProvider
 from ..influence.separated import check_rtol
+from .pair_entries import pair_blocks
 from .patches import Patch
 
 
@@ -219,6 +220,28 @@ class Coupling:
             self._ops[(k, l)] = M
             return M
         return None
+
+    def prepare_dense(self, pairs) -> None:
+        """Make the dense blocks of ``pairs`` ``(k, l)`` that :meth:`_dense` would make, in one
+        pass where the kernel is translation-invariant (:func:`.pair_entries.pair_blocks`:
+        the same numbers); the reverse pairs are their views as before."""
+        if not (self._reciprocal and hasattr(self.provider, "grid_entries")):
+            return
+        owned = [int(pt.owned.sum()) for pt in self.patches]
+        todo, planned = [], 0.0
+        for k, l in pairs:
+            nk, nl = owned[k], owned[l]
+            size = 8.0 * nk * nl
+            if (k, l) in self._ops or (l, k) in self._ops or nk * nl > self.dense_max_entries:
+                continue
+            if self._bytes + planned + size > self.cache_bytes or not self._operator_room(planned + size):
+                break
+            if self.patches[k].grid.size * self.patches[l].grid.size <= max(4 * nk * nl, GRID_BLOCK_MAX_ENTRIES):
+                todo.append((k, l))  # else :meth:`_dense` takes the owned cells' own block
+                planned += size
+        for key, M in pair_blocks(self.provider, self.patches, todo).items():
+            self._ops[key] = M
+            self._bytes += M.nbytes
 
     def apply(self, k: int, l: int, v: np.ndarray) -> np.ndarray:
         """``A_kl v`` for a block-``l`` vector (n_l,) or (n_l, m); returns block-``k`` values (mm)."""

@@ -27,7 +27,7 @@ from ..influence.base import InfluenceProvider
 from .blocks import Coupling
 from .kept_points import kept_operator
 from .localblock import whole_patch
-from .sources import SOURCE_NODE, grid_interpolation, source_frame, source_weights
+from .sources import SOURCE_NODE, grid_interpolation, patch_source_weights
 
 
 def patch_frames(patches) -> tuple[np.ndarray, np.ndarray]:
@@ -386,10 +386,10 @@ class LaggedFarField(FarFieldCoupling):
         """Block ``l``'s (9, n) :func:`.sources.source_weights`, kept until its patch changes
         (4,548 patches: made again at every refresh, half of the refresh's CPU)."""
         w = self._sources.get(l)
-        if w is None:
-            g = self.patches[l].grid
-            centre, delta = source_frame(g)
-            w = self._sources[l] = source_weights(self._owned_points(l), centre, delta, g.h)
+        if w is None:  # every patch's that is missing, in passes over many (:func:`.sources.patch_source_weights`)
+            todo = [k for k in range(len(self.patches)) if k not in self._sources]
+            self._sources.update(zip(todo, patch_source_weights([self.patches[k] for k in todo])))
+            w = self._sources[l]
         return w
 
     def _far(self, k: int, values: list, whole: bool) -> np.ndarray:

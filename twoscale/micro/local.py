@@ -18,6 +18,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .local_batch import batchable, first_passes, hertz_contact
 from .localblock import LocalBlock
 from .pk import pk_fixed_approach, pk_fixed_force
 
@@ -131,6 +132,19 @@ def initial_pressures(
             starts = {k: pk_start(z[k], approaches[k]) for k in ks}
             for k, p in stacks.initial(blocks, ks, z, forces, starts, h, rtol=rtol).items():
                 out[k] = p
+    # the dense blocks' first active-set pass in stacks (:mod:`.local_batch`)
+    ks = [k for k, blk in enumerate(blocks) if out[k] is None and forces[k] > 0.0 and batchable(blk)]
+    resume: dict = {}
+    if len(ks) > 1:
+        for i, res in first_passes(
+            [blocks[k] for k in ks], [z[k] for k in ks], [forces[k] for k in ks], [approaches[k] for k in ks], h
+        ).items():
+            if res[0] == "done":
+                out[ks[i]] = res[1]
+            else:
+                resume[ks[i]] = res[1:]
+    for k, state in resume.items():
+        out[k] = _dense_passes(blocks[k], z[k], forces[k] / (h * h), state, 2, 200, 1e-12).pressure
     return [
         p if p is not None else initial_pressure(blk, zk, P, h, approach=a, rtol=rtol).pressure
         for p, blk, zk, P, a in zip(out, blocks, z, forces, approaches)
@@ -175,20 +189,24 @@ def initial_pressure(
     n = block.n
     if force <= 0.0 or n == 0:
         return LocalSolution(np.zeros(n), np.zeros(n, bool), float("nan"), False, True, 0)
-    zmin = float(z.min())
-    active = (z - zmin) < 0.5 * max(approach, 0.0)
-    if not active.any():
-        active = z == zmin
     if not block.dense:
         p, s, ok, it = pk_fixed_force(
             block.matvec, z, force, h, pk_start(z, approach), rtol=rtol, max_iter=5 * max_iter
         )
         return LocalSolution(p, p > 0.0, s, False, ok, it)
+    return _dense_passes(block, z, force / (h * h), (hertz_contact(z, approach), False, set()), 1, max_iter, gap_rtol)
+
+
+def _dense_passes(
+    block: LocalBlock, z: np.ndarray, target: float, state: tuple, first: int, max_iter: int, gap_rtol: float
+) -> LocalSolution:
+    """:func:`initial_pressure`'s active-set loop on a dense block from pass ``first`` and
+    ``state`` = ``(active, removed, seen)`` (``target`` = P / h^2): from the start, or after
+    a first pass made in a stack (:func:`.local_batch.first_passes`)."""
+    n, zmin = block.n, float(z.min())
+    active, removed, seen = state
     ones = np.ones(n)
-    seen: set = set()
-    removed = False
-    target = force / (h * h)
-    for it in range(1, max_iter + 1):
+    for it in range(first, max_iter + 1):
         seen.add(active.tobytes())
         x = block.solve(active, np.column_stack([ones[active], z[active]]))
         s = (target + x[:, 1].sum()) / x[:, 0].sum()

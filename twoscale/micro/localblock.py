@@ -12,6 +12,7 @@ import scipy.linalg as sla
 from scipy.linalg.lapack import dpotrs
 
 from ..influence.base import InfluenceProvider
+from .pair_entries import BoxWindow
 from .patches import Patch
 
 #: A dense block whose matrix is not stored keeps the columns ``A[:, S]`` of its last
@@ -20,6 +21,11 @@ from .patches import Patch
 #: an FFT of the block's box (939 blocks of 41-266 cells: 3,756 local solves a two-level
 #: iteration, a third of their CPU in those FFTs).
 COLUMNS_MAX_ENTRIES = 4096
+#: Above that, the active columns are gathered for one product and not kept, up to this
+#: many entries (512 KB), where the block keeps its box's offsets (:meth:`LocalBlock._entries`):
+#: a gather of 10,000 entries costs a tenth of an FFT of the box (#151: 75 of 939 blocks a
+#: sweep, a sixth of the local solves' CPU in those FFTs).
+COLUMNS_GATHER_MAX_ENTRIES = 65536
 #: The largest grid matrix (entries, 32 MB) :func:`grid_entries` cuts entries from ...
 GRID_MATRIX_MAX_ENTRIES = 4_000_000
 #: ... and one it cuts from however few entries are wanted (2 MB: a small box's matrix).
@@ -145,6 +151,8 @@ class LocalBlock:
         self._columns: tuple | None = None  # (active set's bytes, A[:, S]): product_on
         self._idx = np.flatnonzero(self._mask.ravel()) if self.dense else None
         self._matrix = self._symmetric = None
+        self._window: BoxWindow | None = None  # made on first use (:meth:`_entries`)
+        self._windowless = False
         if self.dense and not getattr(provider, "cheap_grid_matrix", False):
             self._matrix = provider.grid_matrix(self.box)[np.ix_(self._idx, self._idx)]
             self._symmetric = _is_symmetric(self._matrix)
@@ -159,6 +167,25 @@ class LocalBlock:
         if not self.dense:
             self._symmetric = True
 
+    def _entries(self, rows: np.ndarray, cols: np.ndarray) -> np.ndarray:
+        """``A`` on the box's cells ``rows`` x ``cols`` by :func:`grid_entries`; from the box's
+        kept :class:`~.pair_entries.BoxWindow` where that would cut them from the provider's
+        offset table (the same numbers)."""
+        full = self.box.size * self.box.size
+        table = getattr(self._provider, "cheap_grid_matrix", False) and full <= min(
+            GRID_MATRIX_MAX_ENTRIES, max(50 * rows.size * cols.size, GRID_MATRIX_SMALL_ENTRIES)
+        )
+        if not (table and self._box_window() is not None and rows.size and cols.size):
+            return grid_entries(self._provider, self.box, self.box, rows, cols)
+        return self._window.entries(rows, cols)
+
+    def _box_window(self) -> BoxWindow | None:
+        """The box's kept :class:`~.pair_entries.BoxWindow` (made on first use), or None."""
+        if self._window is None and not self._windowless:
+            self._window = BoxWindow.of(self._provider, self.box)
+            self._windowless = self._window is None
+        return self._window
+
     @property
     def matrix(self) -> np.ndarray | None:
         """``A_kk`` on the owned cells (n, n), mm/MPa, for dense blocks (stored, or cut from the
@@ -167,7 +194,7 @@ class LocalBlock:
             return None
         if self._matrix is not None:
             return self._matrix
-        return grid_entries(self._provider, self.box, self.box, self._idx, self._idx)
+        return self._entries(self._idx, self._idx)
 
     @matrix.setter
     def matrix(self, value: np.ndarray) -> None:
@@ -212,9 +239,13 @@ class LocalBlock:
             return np.zeros(self.n)
         key = active.tobytes()
         if self._columns is None or self._columns[0] != key:
-            if self.n * int(np.count_nonzero(active)) > COLUMNS_MAX_ENTRIES:
-                return self.matvec(v)
-            self._columns = (key, grid_entries(self._provider, self.box, self.box, self._idx, self._idx[active]))
+            entries = self.n * int(np.count_nonzero(active))
+            if entries > COLUMNS_MAX_ENTRIES:
+                if entries > COLUMNS_GATHER_MAX_ENTRIES or self._box_window() is None:
+                    return self.matvec(v)
+                # gathered for this product and not kept: cheaper than the box's FFT
+                return self._entries(self._idx, self._idx[active]) @ v[active]
+            self._columns = (key, self._entries(self._idx, self._idx[active]))
         return self._columns[1] @ v[active]
 
     def patch_product(self, v: np.ndarray) -> np.ndarray:
@@ -275,6 +306,24 @@ class LocalBlock:
             self._cache.move_to_end(key)
         return f
 
+    def adopt_factor(self, active: np.ndarray, factor: tuple, columns: np.ndarray | None = None) -> None:
+        """Keep ``factor`` (``(kind, factor)``, made elsewhere: a stack of blocks) as this
+        block's factorisation on ``active``, where :meth:`_factor` keeps its own, and
+        ``columns`` ``A[:, S]`` for :meth:`product_on`. Only for a block whose entries are
+        exactly symmetric (a Cholesky factor)."""
+        key = active.tobytes()
+        keep = getattr(self._provider, "factorisation", None)
+        if keep is not None:
+            factor = keep(self.box, self.cells_of(active), lambda: factor)
+        self._cache[key] = factor
+        if len(self._cache) > self._cache_size:
+            self._cache.popitem(last=False)
+        if columns is not None:
+            self._columns = (key, columns)
+        if self._symmetric is None:
+            self._symmetric = True
+        self.factorisations += 1
+
     def cells_of(self, active: np.ndarray) -> np.ndarray:
         """The cells of ``active`` (a mask over the block's owned cells) as a mask over the
         block's box, row-major: the block's geometry relative to its box."""
@@ -287,12 +336,12 @@ class LocalBlock:
             sub = self._matrix[np.ix_(active, active)]
         elif self.n * int(np.count_nonzero(active)) <= COLUMNS_MAX_ENTRIES:
             # the columns of the active set, kept for product_on; the factor's block is theirs
-            cols = grid_entries(self._provider, self.box, self.box, self._idx, self._idx[active])
+            cols = self._entries(self._idx, self._idx[active])
             self._columns = (active.tobytes(), cols)
             sub = cols[active]
         else:
             cut = self._idx[active]
-            sub = grid_entries(self._provider, self.box, self.box, cut, cut)
+            sub = self._entries(cut, cut)
         if self._symmetric is None:
             # a principal sub-block of a symmetric matrix is symmetric, and an unsymmetric
             # provider matrix (finite elements) has unsymmetric sub-blocks too

@@ -211,7 +211,11 @@ def two_level(
         limits.earlier,
     )
     patches = coupling.patches
-    coarse = CoarseSpace(coupling.provider, tips, lower_near_pattern(coupling), dense_max=COARSE_DENSE_MAX)
+    lower = lower_near_pattern(coupling)
+    prepare = getattr(coupling, "prepare_dense", None)
+    if prepare is not None:
+        prepare(list(zip(*lower.nonzero())))  # the near pairs' dense blocks made together
+    coarse = CoarseSpace(coupling.provider, tips, lower, dense_max=COARSE_DENSE_MAX)
     levels = sweep_levels(coupling)
     stacks = BlockStacks(coupling.provider) if BlockStacks.usable(coupling.provider) else None
     theta = np.array(theta, dtype=float)
