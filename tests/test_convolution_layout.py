@@ -48,6 +48,8 @@ def test_products_equal_the_dense_kernel_in_every_form(target, source):
     assert np.abs(staged - (want[0] + want[1])).max() <= 1e-13 * scale
     # float32 transforms with the same spectrum: float32 rounding only
     assert np.abs(op.single_precision().apply(P[0]) - want[0]).max() <= 1e-6 * scale
+    # its float64 product through buffers of its own: the operator's product to the bit
+    assert np.array_equal(op.single_precision().exact(P[0]), op.apply(P[0]))
     # the transposed pair: the dense transpose
     back = op.transposed()
     q = rng.uniform(size=target.shape)
