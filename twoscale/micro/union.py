@@ -54,9 +54,9 @@ KEEP_CONJUGACY = 0.005
 #: The first box's CG runs on the cells below the level ``L + REACH_MARGIN (L - z_min)``
 #: (:func:`contact_reach`), ``L`` the highest level a tip's macro approach reaches. The
 #: macro approaches are poor stone by stone (stones it leaves out carry force), but their
-#: highest level was within 3 % of the heights' span of the final contact's lowest loaded
-#: cell on the sweep's seven roads on the union CG (above it on six, 0.035 mm under it on
-#: one); 0.1 kept every final contact inside the part there.
+#: highest level was above the largest height of the final contact's loaded cells on six of
+#: the sweep's seven roads on the union CG and 0.035 mm (2.8 % of the heights' span) under
+#: it on one; 0.1 kept every final contact inside the part there.
 REACH_MARGIN = 0.1
 #: A part of more than this fraction of the box's cells is not worth its gathers: the CG
 #: runs on the whole box (a road's part of 39 % of its cells: 7 % less CPU for the solve,
