@@ -145,7 +145,7 @@ class BlockGridOperator(GridOperator):
         add_hs = self._hs.columns(targets)
         if add_hs is None:
             return None
-        U = self._U if targets is None else self._U[targets]
+        U = self._U if targets is None else _rows(self._U, np.asarray(targets))
 
         def add(out: np.ndarray, cells: np.ndarray, values: np.ndarray) -> None:
             add_hs(out, cells, values)
@@ -247,3 +247,21 @@ def block_point_operator(provider: "BlockProvider", targets: np.ndarray, sources
     same = sp.csr_matrix((np.ones(len(rows)), (rows, np.concatenate(near + [[]]).astype(np.int64))), hs.shape)
     left_out = same if exclude is None else same + check_exclude(exclude, *hs.shape)
     return BlockPointOperator(hs, U, W, left_out)
+
+
+class _GatheredRows:
+    """The rows ``targets`` of a target factor that cannot be indexed (a
+    :class:`~fem_influence.grid_factors.GridTarget`: separable interpolation): its product
+    with coefficients on the whole grid, then those rows (the kernel's columns on a part
+    of the grid, a few changed cells at a time)."""
+
+    def __init__(self, factor, targets: np.ndarray):
+        self.factor, self.targets = factor, targets
+
+    def __matmul__(self, c: np.ndarray) -> np.ndarray:
+        return (self.factor @ c)[self.targets]
+
+
+def _rows(factor, targets: np.ndarray):
+    """``factor[targets]`` (a dense or sparse factor's rows), or :class:`_GatheredRows`."""
+    return factor[targets] if hasattr(factor, "__getitem__") else _GatheredRows(factor, targets)

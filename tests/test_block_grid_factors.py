@@ -73,6 +73,20 @@ def test_the_float32_product_and_the_columns(block):
     np.testing.assert_allclose(out, ref, rtol=1e-9, atol=1e-12 * np.abs(ref).max())
 
 
+def test_the_columns_on_given_targets_of_a_separable_factor(block):
+    # the factor's rows cannot be indexed: the correction on the whole grid, then the targets
+    g = Grid(-6.0, -5.5, 0.04, 300, 288)
+    op = block.grid_operator(g)
+    cells, values = np.array([7, 4_000, 51_234]), np.array([0.5, -1.0, 2.0])
+    dp = np.zeros(g.size)
+    dp[cells] = values
+    ref = op.apply(dp.reshape(g.shape)).ravel()
+    targets = np.array([0, 3, 4_001, 51_234, g.size - 1])
+    out = np.zeros(targets.size)
+    op.columns(targets)(out, cells, values)
+    np.testing.assert_allclose(out, ref[targets], rtol=1e-9, atol=1e-12 * np.abs(ref).max())
+
+
 def test_the_cg_with_float32_directions_on_the_block_gives_the_float64_forces(block):
     from twoscale.indenters import surface_on
     from twoscale.reference import solve_cg

@@ -48,6 +48,8 @@ def test_products_equal_the_dense_kernel_in_every_form(target, source):
     assert np.abs(staged - (want[0] + want[1])).max() <= 1e-13 * scale
     # float32 transforms with the same spectrum: float32 rounding only
     assert np.abs(op.single_precision().apply(P[0]) - want[0]).max() <= 1e-6 * scale
+    # its float64 product through buffers of its own: the operator's product to the bit
+    assert np.array_equal(op.single_precision().exact(P[0]), op.apply(P[0]))
     # the transposed pair: the dense transpose
     back = op.transposed()
     q = rng.uniform(size=target.shape)
@@ -160,3 +162,26 @@ def test_the_offset_table_is_gathered_again_from_the_kept_kernel_values(monkeypa
     table = op.offset_table()
     assert len(inverses) == int(dropped)
     assert table.shape == (my, mx) and np.abs(table - love).max() <= 1e-13 * love.max()
+
+
+def test_the_products_on_a_set_of_cells_are_the_grids_products_there():
+    """The float32 product and the circulant inverse on the flat cells of a part of the grid
+    (``on_cells``: the part's values straight into padded fields of their own) give the
+    grid's products on those cells to the bit, product after product, beside products of
+    whole fields through the same kept buffers."""
+    g = Grid(0.0, 0.0, H, 131, 140)
+    single = HS.grid_operator(g).single_precision()
+    inverse = single.preconditioner()
+    assert inverse is not None
+    rng = np.random.default_rng(11)
+    cells = np.flatnonzero(rng.uniform(size=g.size) < 0.2)
+    product, inverted = single.on_cells(cells), inverse.on_cells(cells)
+    assert product is not None and inverted is not None
+    for _ in range(2):
+        p = np.zeros(g.size)
+        p[cells] = rng.uniform(size=cells.size)
+        whole = rng.uniform(size=g.shape)  # a whole field between the part's products
+        single.apply(whole), inverse.apply(whole)
+        field = p.reshape(g.shape)
+        assert np.array_equal(product(p[cells]), single.apply(field).ravel()[cells])
+        assert np.array_equal(inverted(p[cells]), inverse.apply(field).ravel()[cells])

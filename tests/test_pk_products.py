@@ -129,13 +129,14 @@ def test_single_precision_directions_take_one_double_product_and_the_classical_c
     of the kernel's (besides the start's line search under penetration control, and the
     cropped grid's product back on the whole grid), and the classical double-precision
     CG's contact to 1e-7 of the largest force."""
-    from twoscale.influence.convolution import ConvolutionOperator
+    from twoscale.influence.convolution import ConvolutionOperator, _SingleConvolution
 
     surf = crowded_surface(MAT, seed, load)
     plain = solve_cg(HS, surf, tol=1e-9, **load)
     calls = []
-    double = ConvolutionOperator.apply
+    double, anchor = ConvolutionOperator.apply, _SingleConvolution.exact
     monkeypatch.setattr(ConvolutionOperator, "apply", lambda self, p: calls.append(1) or double(self, p))
+    monkeypatch.setattr(_SingleConvolution, "exact", lambda self, p: calls.append(1) or anchor(self, p))
     fast = solve_cg(HS, surf, tol=1e-9, precondition=True, precision="single-directions", **load)
     assert plain.converged and fast.converged, (plain.message, fast.message)
     assert len(fast.residuals["gap"]) > 3  # not converged at the start

@@ -12,7 +12,7 @@ from twoscale import Material
 from twoscale.driver import solve_twoscale
 from twoscale.indenters import surface_on
 from twoscale.influence import HalfSpace
-from twoscale.influence.convolution import ConvolutionOperator
+from twoscale.influence.convolution import ConvolutionOperator, _SingleConvolution
 from twoscale.reference import solve_cg
 from twoscale.reference.on_scene import reference_grid
 from twoscale.scene import Scene
@@ -57,7 +57,14 @@ def test_mixed_second_stage_takes_one_double_product_and_meets_the_tolerance_on_
         calls["double"] += self.target == self.source  # not the cropped grid's final product
         return apply(self, p)
 
+    anchor = _SingleConvolution.exact
+
+    def counted_anchor(self, p):  # the float32 operator's float64 product (the anchor's)
+        calls["double"] += 1
+        return anchor(self, p)
+
     monkeypatch.setattr(ConvolutionOperator, "apply", counted)
+    monkeypatch.setattr(_SingleConvolution, "exact", counted_anchor)
     mixed = solve_cg(HS, surf, tol=1e-9, precision="mixed", precondition=True, **load)
     monkeypatch.undo()
     assert double.converged and mixed.converged

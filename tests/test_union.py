@@ -210,3 +210,48 @@ def test_a_widened_box_keeps_the_cells_it_had_and_samples_the_rest(n):
     assert np.array_equal(np.isfinite(out.height) & ~keep, finite)
     assert np.allclose(out.height[finite], whole.height[finite], rtol=0, atol=1e-12)
     assert widened_surface(whole, box, asps) is whole
+
+
+def test_the_reach_holds_the_cells_below_the_highest_macro_level():
+    from twoscale.grid import Grid
+    from twoscale.indenters import Asperity, Surface
+    from twoscale.micro.union import REACH_MARGIN, contact_reach
+
+    g = Grid(0.0, 0.0, 0.1, 10, 10)
+    height = np.tile(np.linspace(0.0, 0.9, 10), (10, 1))  # 0.0 ... 0.9 along x
+    height[0, 0] = np.inf  # no material
+    owner = np.zeros((10, 10), int)
+    tips = [Asperity(0.0, 0.0, 0.0, 5.0), Asperity(0.5, 0.5, 0.2, 5.0)]
+    surf = Surface(g, height, owner, 2)
+    reach = contact_reach(surf, tips, np.array([0.1, 0.15]))  # highest level 0.35
+    level = 0.35 + REACH_MARGIN * 0.35
+    assert np.array_equal(reach, np.isfinite(height) & (height < level))
+    assert reach.sum() == 4 * 10 - 1
+    assert contact_reach(surf, tips, np.array([0.1, 0.5])) is None  # 0.77 mm: most of the box
+
+
+@pytest.mark.parametrize("margin", [0.1, -0.9])
+def test_the_union_cg_on_its_reach_gives_the_whole_box_answer(margin, monkeypatch):
+    # -0.9: a part that misses contact cells, so the answer is solved on the whole box from it
+    import twoscale.micro.union as union
+    from twoscale.pk import compact
+
+    asps = crowded(4, 12)
+    kw = dict(h=0.1, iteration="union-cg", tol=1e-8, total_load=24.0)
+    whole = solve_twoscale(HS, asps, **kw)
+    monkeypatch.setattr(union, "REACH_MAX_FRACTION", 1.0)
+    monkeypatch.setattr(union, "REACH_MARGIN", margin)
+    touched = []
+    answer = compact.Part.answer
+
+    def recorded(self, *args):
+        out = answer(self, *args)
+        touched.append(out[2])
+        return out
+
+    monkeypatch.setattr(compact.Part, "answer", recorded)
+    part = solve_twoscale(HS, asps, **kw)
+    assert whole.converged and part.converged
+    assert touched == [margin < 0]
+    F, Fw = part.asperities.forces, whole.asperities.forces
+    assert np.max(np.abs(F - Fw)) <= 1e-7 * Fw.max()

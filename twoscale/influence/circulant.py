@@ -122,22 +122,54 @@ class CirculantInverse(GridOperator):
         field's rows are kept), the ones along y in place (467 x 467 cells on a 540 x 540
         torus: 2.1-2.6 against 2.2-3.9 ms, minimum and median of 150 calls on a loaded
         machine; the same values to 1e-7 of the largest, float32 rounding)."""
-        (ly, lx), (ny, nx) = torus_shape(self.source), v.shape
+        nx = v.shape[1]
         if self._padded is None:
-            self._padded = (
-                np.zeros((ny, lx), self._m.dtype),
-                np.zeros((ly, lx // 2 + 1), np.result_type(self._m.dtype, np.complex64)),
-                np.empty((ny, lx), self._m.dtype),
-            )
-        rows, spectrum, back = self._padded
+            self._padded = self._buffers()
+        rows = self._padded[0]
         rows[:, :nx] = v
+        return self._pruned(rows)[:, :nx].astype(np.float64)
+
+    def _buffers(self) -> tuple[np.ndarray, ...]:
+        """The field's rows on the torus (0 beyond the field), the spectrum, the rows back."""
+        (ly, lx), ny = torus_shape(self.source), self.source.ny
+        return (
+            np.zeros((ny, lx), self._m.dtype),
+            np.zeros((ly, lx // 2 + 1), np.result_type(self._m.dtype, np.complex64)),
+            np.empty((ny, lx), self._m.dtype),
+        )
+
+    def _pruned(self, rows: np.ndarray) -> np.ndarray:
+        """The transforms of :meth:`_apply_pruned` from the field's ``rows`` on the torus
+        (``ny`` rows, 0 beyond the field) into the kept rows back (returned)."""
+        if self._padded is None:
+            self._padded = self._buffers()
+        _, spectrum, back = self._padded
+        ny, lx = rows.shape
         rfft_into(rows, 1, spectrum[:ny])
         spectrum[ny:] = 0.0  # (the torus's rows off the field)
         fft_in_place(spectrum, 0, forward=True)
         spectrum *= self._m
         fft_in_place(spectrum, 0, forward=False)
-        irfft_into(spectrum[:ny], 1, lx, back)
-        return back[:, :nx].astype(np.float64)
+        return irfft_into(spectrum[:ny], 1, lx, back)
+
+    def on_cells(self, cells: np.ndarray) -> Callable[[np.ndarray], np.ndarray] | None:
+        """:meth:`apply` on the flat ``cells`` of the grid: ``f(values)`` takes the field's
+        values on those cells (0 elsewhere) and gives the result there, both (m,) float64,
+        the values straight into rows of their own (the other cells stay 0) and back from
+        the kept ones (no grid-sized float64 copies); None where :meth:`apply` does not
+        prune (the torus is the grid)."""
+        (ly, lx), (ny, nx) = torus_shape(self.source), self.source.shape
+        if (ly, lx) == (ny, nx):
+            return None
+        j, i = np.divmod(np.asarray(cells, dtype=np.intp), nx)
+        at = j * lx + i
+        rows = np.zeros((ny, lx), self._m.dtype)
+
+        def inverse(values: np.ndarray) -> np.ndarray:
+            rows.ravel()[at] = values
+            return self._pruned(rows).ravel()[at].astype(np.float64)
+
+        return inverse
 
     def apply_stack(self, V: np.ndarray) -> np.ndarray:
         """:meth:`apply` on a stack (B, ny, nx) (the micro step's blocks of one size class)."""

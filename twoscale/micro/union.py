@@ -61,6 +61,17 @@ START_FRACTION = 0.6
 #: made the iteration a steepest descent again (6,215 tilted paraboloids on 2.9 M cells:
 #: 47 iterations against 97).
 KEEP_CONJUGACY = 0.005
+#: The first box's CG runs on the cells below the level ``L + REACH_MARGIN (L - z_min)``
+#: (:func:`contact_reach`), ``L`` the highest level a tip's macro approach reaches. The
+#: macro approaches are poor stone by stone (stones it leaves out carry force), but their
+#: highest level was above the largest height of the final contact's loaded cells on six of
+#: the sweep's seven roads on the union CG and 0.035 mm (2.8 % of the heights' span) under
+#: it on one; 0.1 kept every final contact inside the part there.
+REACH_MARGIN = 0.1
+#: A part of more than this fraction of the box's cells is not worth its gathers: the CG
+#: runs on the whole box (a road's part of 39 % of its cells: 7 % less CPU for the solve,
+#: one of 6 %: 22 % less).
+REACH_MAX_FRACTION = 0.5
 
 
 @dataclass(frozen=True)
@@ -207,6 +218,8 @@ def solve_union(
             warm = carried(start, start_grid, grid)
         else:
             warm = interference_start(surface, asperities, approaches) if rough else None
+        first = previous is None and approaches is not None and not problem.free_tilt
+        reach = contact_reach(surface, asperities, approaches) if first else None
         result = solve_cg(
             provider,
             surface,
@@ -223,6 +236,7 @@ def solve_union(
             monitor=monitor,
             plane_sums=True,
             rough_start=rough,
+            reach=reach,
         )
         iterations += int(result.iterations.get("cg", 0))
         products += int(result.iterations.get("products", 0))
@@ -340,6 +354,27 @@ def interference_start(surface, asperities: Sequence[Asperity], approaches: np.n
     mine = own >= 0
     start[mine] = np.maximum(level[own[mine]] - surface.height[mine], 0.0)
     return start if np.any(start > 0) else None
+
+
+def contact_reach(surface, asperities: Sequence[Asperity], approaches: np.ndarray) -> np.ndarray | None:
+    """The cells the union CG iterates on (``solve_cg``'s ``reach``): those with material
+    whose height is below ``L + REACH_MARGIN (L - z_min)``, ``L`` the highest level
+    ``z_k + delta_k`` a tip reaches at its macro local approach (mm) and ``z_min`` the
+    lowest height of the box. The CG's array passes then run over these cells only (a
+    road's contact loads 2-10 % of its box, its part holds 6-40 %); the answer is checked
+    on the whole box and solved there from it when a cell off the part would touch. None
+    when the part would hold more than ``REACH_MAX_FRACTION`` of the box's cells."""
+    material = np.isfinite(surface.height)
+    if not material.any() or not len(asperities):
+        return None
+    tips = np.array([a.z for a in asperities], dtype=float)
+    level = float(np.max(tips + np.asarray(approaches, dtype=float)))
+    lowest = float(surface.height[material].min())
+    if not level > lowest:
+        return None
+    level += REACH_MARGIN * (level - lowest)
+    reach = material & (surface.height < level)
+    return reach if np.count_nonzero(reach) <= REACH_MAX_FRACTION * reach.size else None
 
 
 def union_precision(asked: str, cells: int) -> str:

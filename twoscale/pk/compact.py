@@ -64,7 +64,13 @@ class Part:
 
     def product(self, apply: Callable, exact: bool = False) -> Callable:
         """``apply`` (on (b, *shape) grid rows) on the part's rows; ``exact``: keep the last
-        product's grid displacement (:meth:`displacement`)."""
+        product's grid displacement (:meth:`displacement`). Else ``apply``'s own
+        ``on_part(cells)`` where it gives one (e.g. :class:`~.products.OneRow`: the part's
+        values in and out, no grid-sized field)."""
+        own = None if exact else getattr(apply, "on_part", None)
+        direct = None if own is None else own(self.cells)
+        if direct is not None:
+            return direct
 
         def on_part(v: np.ndarray) -> np.ndarray:
             u = apply(self.field(v.reshape(len(v), -1)))

@@ -37,7 +37,7 @@ from ..influence.base import InfluenceProvider
 from ..details import ReferenceDetails
 from ..pk.compact import Part
 from ..pk.plane import PlaneBasis
-from ..pk.products import Anchored
+from ..pk.products import Anchored, OneRow, OneRowInverse
 from ..pk.kernel import STALL_ITERATIONS, Constraint, Products, Tolerance, pk_solve
 from ..options import settings_from
 from ..results import ContactResult
@@ -271,7 +271,7 @@ def _preconditioner(cg: CGSettings, custom, op):
     if custom is not None:
         return _Custom(custom)
     inverse = op.preconditioner()
-    return None if inverse is None else (lambda v, on: inverse.apply(v[0])[None])
+    return None if inverse is None else OneRowInverse(inverse)
 
 
 class _Custom:
@@ -336,7 +336,7 @@ def _iterate(
     exact = lambda v: op.apply(v[0])[None]  # noqa: E731
     products = Products(
         exact,
-        None if fast is None else (lambda v: fast.apply(v[0])[None]),
+        None if fast is None else OneRow(fast),
         None if fast is None else op.columns(),
         keep_conjugacy,
     )
