@@ -18,7 +18,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .local_batch import batchable, first_passes, hertz_contact
+from .local_batch import batchable, first_passes, hertz_contact, next_active
 from .localblock import LocalBlock
 from .pk import pk_fixed_approach, pk_fixed_force
 
@@ -46,17 +46,6 @@ class LocalSolution:
     negatives_removed: bool
     converged: bool
     iterations: int
-
-
-def _next_active(active: np.ndarray, p: np.ndarray, seen: set) -> np.ndarray:
-    # Johnson: drop every negative cell; if that set was already visited (cycling),
-    # drop only the most negative one.
-    neg = p < 0.0
-    out = active & ~neg
-    if out.tobytes() in seen:
-        out = active.copy()
-        out[np.argmin(p)] = False
-    return out
 
 
 def contact_solve(
@@ -103,7 +92,7 @@ def contact_solve(
         p[active] = block.solve(active, b[active])
         if (p < 0.0).any():
             removed = True
-            active = _next_active(active, p, seen)
+            active = next_active(active, p, seen)
             continue
         gap = block.product_on(active, p) - b
         pen = ~active & (gap < -tol)
@@ -214,7 +203,7 @@ def _dense_passes(
         p[active] = s * x[:, 0] - x[:, 1]
         if (p < 0.0).any():
             removed = True
-            active = _next_active(active, p, seen)
+            active = next_active(active, p, seen)
             continue
         gap = block.product_on(active, p) + z - s
         tol = gap_rtol * max(abs(s - zmin), 1e-300)

@@ -89,7 +89,7 @@ def _class_pass(blocks, z, forces, h, actives, which: list, m: int, gap_rtol: fl
         p = np.zeros(blk.n)
         p[S] = P[i, :s]
         if negative[i]:
-            out[k] = ("next", _next_active(S, p, seen), True, seen)
+            out[k] = ("next", next_active(S, p, seen), True, seen)
             continue
         zk = z[k]
         gap = columns[i] @ P[i, :s] + zk - shift[i]
@@ -99,7 +99,12 @@ def _class_pass(blocks, z, forces, h, actives, which: list, m: int, gap_rtol: fl
     return out
 
 
-def _next_active(active: np.ndarray, p: np.ndarray, seen: set) -> np.ndarray:
-    from .local import _next_active as rule
-
-    return rule(active, p, seen)
+def next_active(active: np.ndarray, p: np.ndarray, seen: set) -> np.ndarray:
+    """Johnson's active-set step: drop every negative cell; if that set was already
+    visited (cycling), drop only the most negative one."""
+    neg = p < 0.0
+    out = active & ~neg
+    if out.tobytes() in seen:
+        out = active.copy()
+        out[np.argmin(p)] = False
+    return out
