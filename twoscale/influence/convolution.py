@@ -13,6 +13,7 @@ import scipy.fft as sfft
 from ..grid import Grid
 from .base import GridOperator
 from .circulant import CirculantInverse
+from .stacked import KeptStackProduct
 from .transforms import fft_in_place, irfft_into, rfft_into
 
 
@@ -67,6 +68,11 @@ class ConvolutionOperator(GridOperator):
         """:meth:`apply` on a stack (B, ny, nx): the same transforms along the last two axes,
         one call each for the whole stack."""
         return self.finish(self._times_kernel(self.spectrum(np.asarray(P, dtype=float))))
+
+    def kept_stack(self) -> KeptStackProduct:
+        """:meth:`apply_stack` through buffers the returned callable keeps (:mod:`.stacked`;
+        the same values to the bit)."""
+        return KeptStackProduct(self._shape, self.source.shape, self.target.shape, self._times_kernel, np.float64)
 
     def _times_kernel(self, a: np.ndarray) -> np.ndarray:
         """``a`` (a source spectrum) times the kernel spectrum, in place."""
@@ -330,6 +336,14 @@ class _SingleConvolution(GridOperator):
         """:meth:`apply` on a stack (B, ny, nx): the transforms take the leading axis as
         they come (one call each for the whole stack)."""
         return self.apply(P)
+
+    def kept_stack(self) -> KeptStackProduct:
+        """:meth:`apply_stack` through buffers the returned callable keeps (:mod:`.stacked`)."""
+        return KeptStackProduct(self._shape, self.source.shape, self.target.shape, self._times_kernel, np.float32)
+
+    def _times_kernel(self, a: np.ndarray) -> np.ndarray:
+        a *= self._khat
+        return a
 
     def preconditioner(self) -> "CirculantInverse | None":
         """The parent's :meth:`ConvolutionOperator.preconditioner`, applied in float32."""

@@ -61,3 +61,22 @@ def irfft_into(a: np.ndarray, axis: int, n: int, out: np.ndarray) -> np.ndarray:
         out[...] = sfft.irfft(a, n=n, axis=axis)
         return out
     return _pocketfft.c2r(a, (axis % a.ndim,), n, False, _BY_N, out, 1)
+
+
+def rfftn_into(a: np.ndarray, out: np.ndarray) -> np.ndarray:
+    """The real forward transform of ``a`` along its last two axes written into ``out``
+    (``scipy.fft.rfft2``: real along the last axis, then complex along the other)."""
+    if _pocketfft is None:  # pragma: no cover
+        out[...] = sfft.rfft2(a)
+        return out
+    return _pocketfft.r2c(a, (a.ndim - 2, a.ndim - 1), True, _NONE, out, 1)
+
+
+def irfftn_into(a: np.ndarray, n: int, out: np.ndarray) -> np.ndarray:
+    """The backward real transform of ``a`` along its last two axes (the last to length
+    ``n``) written into ``out``, divided by the product of the lengths
+    (``scipy.fft.irfft2``)."""
+    if _pocketfft is None:  # pragma: no cover
+        out[...] = sfft.irfft2(a, s=out.shape[-2:])
+        return out
+    return _pocketfft.c2r(a, (a.ndim - 2, a.ndim - 1), n, False, _BY_N, out, 1)

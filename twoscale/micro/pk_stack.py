@@ -44,9 +44,10 @@ class _Canvas:
 
     def __init__(self, op):
         single = op.single_precision()
-        self.products = Products(op.apply_stack, fast=None if single is op else single.apply_stack)
+        self.products = Products(op.kept_stack(), fast=None if single is op else single.kept_stack())
         inverse = op.preconditioner()
-        self.precondition = None if inverse is None else (lambda v, on: inverse.apply_stack(v))
+        kept = None if inverse is None else inverse.kept_stack()
+        self.precondition = None if kept is None else (lambda v, on: kept(v))
 
 
 class BlockStacks:
