@@ -65,10 +65,11 @@ class GridOperator(ABC):
         (many small blocks of one size solved together: one call instead of B)."""
         return np.stack([self.apply(p) for p in P]) if len(P) else np.zeros((0, *self.target.shape))
 
-    def kept_stack(self) -> Callable[[np.ndarray], np.ndarray]:
-        """:meth:`apply_stack` as a callable that may keep buffers from one call to the next,
-        for a caller that applies this operator to many stacks of one shape through a solve
-        (it keeps the callable as long, no longer). Default: :meth:`apply_stack` itself."""
+    def kept_stack(self, workspace=None) -> Callable[[np.ndarray], np.ndarray]:
+        """:meth:`apply_stack` as a callable that may take its arrays from ``workspace`` (a
+        :class:`~twoscale.influence.stacked.Workspace` the caller keeps for a solve and
+        shares among its stacked products; None: one of the callable's own), for a caller
+        that applies this operator to many stacks of one shape. Default: :meth:`apply_stack`."""
         return self.apply_stack
 
     def spectrum(self, p: np.ndarray) -> np.ndarray:

@@ -11,7 +11,7 @@ import scipy.fft as sfft
 
 from ..grid import Grid
 from .base import GridOperator
-from .stacked import KeptStackInverse
+from .stacked import KeptStackInverse, Workspace
 from .transforms import fft_in_place, irfft_into, rfft_into
 
 
@@ -176,10 +176,9 @@ class CirculantInverse(GridOperator):
         """:meth:`apply` on a stack (B, ny, nx) (the micro step's blocks of one size class)."""
         return self.apply(V)
 
-    def kept_stack(self) -> KeptStackInverse:
-        """:meth:`apply_stack` through buffers the returned callable keeps (:mod:`.stacked`;
-        the same values to the bit)."""
-        return KeptStackInverse(torus_shape(self.source), self.source.shape, self._m)
+    def kept_stack(self, workspace: Workspace | None = None) -> KeptStackInverse:
+        """:meth:`apply_stack` through ``workspace``'s buffers (:mod:`.stacked`; bit for bit)."""
+        return KeptStackInverse(torus_shape(self.source), self.source.shape, self._m, workspace)
 
     @property
     def nbytes(self) -> int:

@@ -80,3 +80,27 @@ def irfftn_into(a: np.ndarray, n: int, out: np.ndarray) -> np.ndarray:
         out[...] = sfft.irfft2(a, s=out.shape[-2:])
         return out
     return _pocketfft.c2r(a, (a.ndim - 2, a.ndim - 1), n, False, _BY_N, out, 1)
+
+
+def padded_spectrum(a: np.ndarray, shape: tuple[int, int]) -> np.ndarray:
+    """The zero-padded transform of ``a``'s last two axes to ``shape``, real along y and
+    then complex along x (the layout of every ``ConvolutionOperator`` spectrum), in ``a``'s
+    precision (float32 at least), as a new array: one padded field and the spectrum are
+    made, the transform along y is written into the spectrum's first columns and the one
+    along x runs in place (``scipy.fft.fft(..., n=)`` pads a copy of the spectrum)."""
+    (my, mx), (ny, nx) = shape, a.shape[-2:]
+    padded = np.zeros((*a.shape[:-2], my, nx), np.result_type(a.dtype, np.float32))
+    padded[..., :ny, :] = a
+    out = np.empty((*a.shape[:-2], my // 2 + 1, mx), np.result_type(padded.dtype, np.complex64))
+    rfft_into(padded, -2, out[..., :nx])
+    out[..., nx:] = 0.0
+    return fft_in_place(out, -1, forward=True)
+
+
+def padded_back(a: np.ndarray, my: int, start: int, n: int) -> np.ndarray:
+    """The real field (..., ``my``, ``n``) back from a :func:`padded_spectrum` ``a``'s columns
+    ``start .. start + n`` (after the transform back along x, run in place: ``a`` is
+    overwritten), as a new array."""
+    fft_in_place(a, -1, forward=False)
+    out = np.empty((*a.shape[:-2], my, n), np.finfo(a.dtype).dtype)
+    return irfft_into(a[..., start : start + n], -2, my, out)

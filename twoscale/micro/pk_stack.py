@@ -33,6 +33,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..influence.stacked import Workspace
 from ..pk.products import Products
 from .pk import fixed_approach, fixed_force
 
@@ -42,11 +43,12 @@ class _Canvas:
     where the operator has a cheaper single-precision form) and the preconditioner of its
     iterations (None where the operator has none)."""
 
-    def __init__(self, op):
+    def __init__(self, op, workspace: Workspace):
         single = op.single_precision()
-        self.products = Products(op.kept_stack(), fast=None if single is op else single.kept_stack())
+        fast = None if single is op else single.kept_stack(workspace)
+        self.products = Products(op.kept_stack(workspace), fast=fast)
         inverse = op.preconditioner()
-        kept = None if inverse is None else inverse.kept_stack()
+        kept = None if inverse is None else inverse.kept_stack(workspace)
         self.precondition = None if kept is None else (lambda v, on: kept(v))
 
 
@@ -64,6 +66,8 @@ class BlockStacks:
         self.provider = provider
         self._base, self._correction = provider.split()
         self._ops: dict = {}
+        # the canvases' stacked products' arrays (:mod:`twoscale.influence.stacked`), freed with this object
+        self._workspace = Workspace()
 
     @staticmethod
     def usable(provider) -> bool:
@@ -97,7 +101,9 @@ class BlockStacks:
         key = (size_class(blk.box.ny), size_class(blk.box.nx))
         canvas = self._ops.get(key)
         if canvas is None:
-            canvas = self._ops[key] = _Canvas(self._base.grid_operator(blk.box.subgrid(0, 0, key[1], key[0])))
+            canvas = self._ops[key] = _Canvas(
+                self._base.grid_operator(blk.box.subgrid(0, 0, key[1], key[0])), self._workspace
+            )
         return key, canvas
 
     def _groups(self, blocks, ks, tol_of) -> dict:
