@@ -5,7 +5,8 @@ independent blocks whose owned cells fit one canvas shape (a size class,
 :func:`~.blocks.size_class`): the blocks' vectors are stacked as (B, ny, nx) arrays (zero
 and held out of contact off each block's mask) and every product is one
 :meth:`~twoscale.influence.base.GridOperator.apply_stack` call with the canvas's
-self-operator. The iteration is the one kernel (:func:`twoscale.pk.pk_solve`), whose rows
+self-operator (its ``kept_stack``: the transforms' arrays from one workspace this object
+keeps for the solve, at most 4 MB, :mod:`twoscale.influence.stacked`). The iteration is the one kernel (:func:`twoscale.pk.pk_solve`), whose rows
 leave the loop when their own test says so; the others go on. With many small patches
 (10,000 sparse tips: ~10^5 local solves of ~500 cells a run) the cost is in the calls,
 not the arithmetic, and one call per iteration for B blocks replaces B calls.
