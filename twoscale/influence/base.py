@@ -19,6 +19,7 @@ All three describe the same linear map; providers must keep them consistent
 from __future__ import annotations
 
 from abc import ABC, abstractmethod
+from typing import Callable
 
 import numpy as np
 
@@ -63,6 +64,13 @@ class GridOperator(ABC):
         Default: one :meth:`apply` per pressure; FFT operators transform the stack at once
         (many small blocks of one size solved together: one call instead of B)."""
         return np.stack([self.apply(p) for p in P]) if len(P) else np.zeros((0, *self.target.shape))
+
+    def kept_stack(self, workspace=None) -> Callable[[np.ndarray], np.ndarray]:
+        """:meth:`apply_stack` as a callable that may take its arrays from ``workspace`` (a
+        :class:`~twoscale.influence.stacked.Workspace` the caller keeps for a solve and
+        shares among its stacked products; None: one of the callable's own), for a caller
+        that applies this operator to many stacks of one shape. Default: :meth:`apply_stack`."""
+        return self.apply_stack
 
     def spectrum(self, p: np.ndarray) -> np.ndarray:
         """Source-side transform of the pressure ``p`` (``source.shape``, MPa); default ``p``."""

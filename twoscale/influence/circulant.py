@@ -11,6 +11,7 @@ import scipy.fft as sfft
 
 from ..grid import Grid
 from .base import GridOperator
+from .stacked import KeptStackInverse, Workspace
 from .transforms import fft_in_place, irfft_into, rfft_into
 
 
@@ -174,6 +175,10 @@ class CirculantInverse(GridOperator):
     def apply_stack(self, V: np.ndarray) -> np.ndarray:
         """:meth:`apply` on a stack (B, ny, nx) (the micro step's blocks of one size class)."""
         return self.apply(V)
+
+    def kept_stack(self, workspace: Workspace | None = None) -> KeptStackInverse:
+        """:meth:`apply_stack` through ``workspace``'s buffers (:mod:`.stacked`; bit for bit)."""
+        return KeptStackInverse(torus_shape(self.source), self.source.shape, self._m, workspace)
 
     @property
     def nbytes(self) -> int:

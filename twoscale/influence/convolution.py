@@ -13,7 +13,8 @@ import scipy.fft as sfft
 from ..grid import Grid
 from .base import GridOperator
 from .circulant import CirculantInverse
-from .transforms import fft_in_place, irfft_into, rfft_into
+from .stacked import KeptStackProduct, Workspace
+from .transforms import fft_in_place, irfft_into, padded_back, padded_spectrum, rfft_into
 
 
 def _transform(a: np.ndarray, shape: tuple[int, int]) -> np.ndarray:
@@ -61,12 +62,16 @@ class ConvolutionOperator(GridOperator):
         p = np.asarray(p, dtype=float)
         if p.shape != self.source.shape:
             raise ValueError(f"pressure has shape {p.shape}, expected {self.source.shape}")
-        return self.finish(self._times_kernel(self.spectrum(p)))
+        return self._finish(self._times_kernel(_transform(p, self._shape)))
 
     def apply_stack(self, P: np.ndarray) -> np.ndarray:
         """:meth:`apply` on a stack (B, ny, nx): the same transforms along the last two axes,
         one call each for the whole stack."""
         return self.finish(self._times_kernel(self.spectrum(np.asarray(P, dtype=float))))
+
+    def kept_stack(self, workspace: Workspace | None = None) -> KeptStackProduct:
+        """:meth:`apply_stack` through ``workspace``'s buffers (:mod:`.stacked`; bit for bit)."""
+        return KeptStackProduct(self, self._times_kernel, np.float64, workspace)
 
     def _times_kernel(self, a: np.ndarray) -> np.ndarray:
         """``a`` (a source spectrum) times the kernel spectrum, in place."""
@@ -92,8 +97,9 @@ class ConvolutionOperator(GridOperator):
 
     def spectrum(self, p: np.ndarray) -> np.ndarray:
         """Half-spectrum of the zero-padded source pressure (``source.shape``, or a stack of
-        them along a leading axis), in the pressure's precision (:func:`_transform`)."""
-        return _transform(p, self._shape)
+        them along a leading axis), in the pressure's precision: :func:`_transform`'s
+        values, without its spectrum-sized copies (:func:`.transforms.padded_spectrum`)."""
+        return padded_spectrum(p, self._shape)
 
     def single_precision(self) -> "_SingleConvolution":
         """float32 FFTs with the same kernel (about 2.5x cheaper on large grids; ~1e-7
@@ -176,8 +182,13 @@ class ConvolutionOperator(GridOperator):
 
     def finish(self, a: np.ndarray) -> np.ndarray:
         """Target displacement from a (sum of) :meth:`multiply` result(s); ``a`` is overwritten.
-        The inverse of :func:`_transform` axis by axis: only the target's columns go through
-        the real transform back along y, and only its rows are kept."""
+        The inverse of :func:`_transform` axis by axis, the target's columns and rows only
+        (:meth:`_finish`'s values by pocketfft's own calls: :func:`.transforms.padded_back`)."""
+        sy, sx = self.source.ny - 1, self.source.nx - 1
+        return padded_back(a, self._shape[0], sx, self.target.nx)[..., sy : sy + self.target.ny, :]
+
+    def _finish(self, a: np.ndarray) -> np.ndarray:
+        """:meth:`finish` through ``scipy.fft`` (:meth:`apply`'s)."""
         my = self._shape[0]
         sy, sx = self.source.ny - 1, self.source.nx - 1
         a = sfft.ifft(a, axis=-1, overwrite_x=True)[..., sx : sx + self.target.nx]
@@ -330,6 +341,14 @@ class _SingleConvolution(GridOperator):
         """:meth:`apply` on a stack (B, ny, nx): the transforms take the leading axis as
         they come (one call each for the whole stack)."""
         return self.apply(P)
+
+    def kept_stack(self, workspace: Workspace | None = None) -> KeptStackProduct:
+        """:meth:`apply_stack` through ``workspace``'s buffers (:mod:`.stacked`)."""
+        return KeptStackProduct(self, self._times_kernel, np.float32, workspace)
+
+    def _times_kernel(self, a: np.ndarray) -> np.ndarray:
+        a *= self._khat
+        return a
 
     def preconditioner(self) -> "CirculantInverse | None":
         """The parent's :meth:`ConvolutionOperator.preconditioner`, applied in float32."""

@@ -61,3 +61,46 @@ def irfft_into(a: np.ndarray, axis: int, n: int, out: np.ndarray) -> np.ndarray:
         out[...] = sfft.irfft(a, n=n, axis=axis)
         return out
     return _pocketfft.c2r(a, (axis % a.ndim,), n, False, _BY_N, out, 1)
+
+
+def rfftn_into(a: np.ndarray, out: np.ndarray) -> np.ndarray:
+    """The real forward transform of ``a`` along its last two axes written into ``out``
+    (``scipy.fft.rfft2``: real along the last axis, then complex along the other)."""
+    if _pocketfft is None:  # pragma: no cover
+        out[...] = sfft.rfft2(a)
+        return out
+    return _pocketfft.r2c(a, (a.ndim - 2, a.ndim - 1), True, _NONE, out, 1)
+
+
+def irfftn_into(a: np.ndarray, n: int, out: np.ndarray) -> np.ndarray:
+    """The backward real transform of ``a`` along its last two axes (the last to length
+    ``n``) written into ``out``, divided by the product of the lengths
+    (``scipy.fft.irfft2``)."""
+    if _pocketfft is None:  # pragma: no cover
+        out[...] = sfft.irfft2(a, s=out.shape[-2:])
+        return out
+    return _pocketfft.c2r(a, (a.ndim - 2, a.ndim - 1), n, False, _BY_N, out, 1)
+
+
+def padded_spectrum(a: np.ndarray, shape: tuple[int, int]) -> np.ndarray:
+    """The zero-padded transform of ``a``'s last two axes to ``shape``, real along y and
+    then complex along x (the layout of every ``ConvolutionOperator`` spectrum), in ``a``'s
+    precision (float32 at least), as a new array: one padded field and the spectrum are
+    made, the transform along y is written into the spectrum's first columns and the one
+    along x runs in place (``scipy.fft.fft(..., n=)`` pads a copy of the spectrum)."""
+    (my, mx), (ny, nx) = shape, a.shape[-2:]
+    padded = np.zeros((*a.shape[:-2], my, nx), np.result_type(a.dtype, np.float32))
+    padded[..., :ny, :] = a
+    out = np.empty((*a.shape[:-2], my // 2 + 1, mx), np.result_type(padded.dtype, np.complex64))
+    rfft_into(padded, -2, out[..., :nx])
+    out[..., nx:] = 0.0
+    return fft_in_place(out, -1, forward=True)
+
+
+def padded_back(a: np.ndarray, my: int, start: int, n: int) -> np.ndarray:
+    """The real field (..., ``my``, ``n``) back from a :func:`padded_spectrum` ``a``'s columns
+    ``start .. start + n`` (after the transform back along x, run in place: ``a`` is
+    overwritten), as a new array."""
+    fft_in_place(a, -1, forward=False)
+    out = np.empty((*a.shape[:-2], my, n), np.finfo(a.dtype).dtype)
+    return irfft_into(a[..., start : start + n], -2, my, out)

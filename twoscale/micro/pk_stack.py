@@ -5,7 +5,8 @@ independent blocks whose owned cells fit one canvas shape (a size class,
 :func:`~.blocks.size_class`): the blocks' vectors are stacked as (B, ny, nx) arrays (zero
 and held out of contact off each block's mask) and every product is one
 :meth:`~twoscale.influence.base.GridOperator.apply_stack` call with the canvas's
-self-operator. The iteration is the one kernel (:func:`twoscale.pk.pk_solve`), whose rows
+self-operator (its ``kept_stack``: the transforms' arrays from one workspace this object
+keeps for the solve, at most 4 MB, :mod:`twoscale.influence.stacked`). The iteration is the one kernel (:func:`twoscale.pk.pk_solve`), whose rows
 leave the loop when their own test says so; the others go on. With many small patches
 (10,000 sparse tips: ~10^5 local solves of ~500 cells a run) the cost is in the calls,
 not the arithmetic, and one call per iteration for B blocks replaces B calls.
@@ -33,6 +34,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..influence.stacked import Workspace
 from ..pk.products import Products
 from .pk import fixed_approach, fixed_force
 
@@ -42,11 +44,13 @@ class _Canvas:
     where the operator has a cheaper single-precision form) and the preconditioner of its
     iterations (None where the operator has none)."""
 
-    def __init__(self, op):
+    def __init__(self, op, workspace: Workspace):
         single = op.single_precision()
-        self.products = Products(op.apply_stack, fast=None if single is op else single.apply_stack)
+        fast = None if single is op else single.kept_stack(workspace)
+        self.products = Products(op.kept_stack(workspace), fast=fast)
         inverse = op.preconditioner()
-        self.precondition = None if inverse is None else (lambda v, on: inverse.apply_stack(v))
+        kept = None if inverse is None else inverse.kept_stack(workspace)
+        self.precondition = None if kept is None else (lambda v, on: kept(v))
 
 
 class BlockStacks:
@@ -63,6 +67,8 @@ class BlockStacks:
         self.provider = provider
         self._base, self._correction = provider.split()
         self._ops: dict = {}
+        # the canvases' stacked products' arrays (:mod:`twoscale.influence.stacked`), freed with this object
+        self._workspace = Workspace()
 
     @staticmethod
     def usable(provider) -> bool:
@@ -96,7 +102,9 @@ class BlockStacks:
         key = (size_class(blk.box.ny), size_class(blk.box.nx))
         canvas = self._ops.get(key)
         if canvas is None:
-            canvas = self._ops[key] = _Canvas(self._base.grid_operator(blk.box.subgrid(0, 0, key[1], key[0])))
+            canvas = self._ops[key] = _Canvas(
+                self._base.grid_operator(blk.box.subgrid(0, 0, key[1], key[0])), self._workspace
+            )
         return key, canvas
 
     def _groups(self, blocks, ks, tol_of) -> dict:
