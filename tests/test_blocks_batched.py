@@ -135,7 +135,7 @@ def test_active_columns_beyond_the_kept_size_are_gathered_not_transformed(monkey
     assert blk._columns is None  # gathered for the product, not kept
 
 
-def test_eq7_first_passes_in_stacks_give_the_one_block_pressures():
+def test_eq7_first_passes_in_stacks_give_the_one_block_pressures(monkeypatch):
     from twoscale.micro import local_batch
     from twoscale.micro.local import initial_pressure, initial_pressures
     from twoscale.micro.localblock import LocalBlock
@@ -163,6 +163,14 @@ def test_eq7_first_passes_in_stacks_give_the_one_block_pressures():
     passes = local_batch.first_passes(batched, z, forces, approaches, H)
     kinds = {res[0] for res in passes.values()}
     assert len(passes) == len(patches) and kinds == {"done", "next"}  # both ways taken
+    # stacks bounded in bytes (one or two blocks a stack here) give the same first passes
+    monkeypatch.setattr(local_batch, "STACK_BYTES", 20_000)
+    assert len(local_batch._stacks(list(range(24)), [8 * (3 * 16 * 16 + 225 * 16)] * 24)) == 24
+    small = local_batch.first_passes(blocks(), z, forces, approaches, H)
+    assert small.keys() == passes.keys()
+    for k, res in passes.items():
+        assert small[k][0] == res[0] and np.allclose(small[k][1], res[1], rtol=1e-12, atol=0)
+    monkeypatch.undo()
     got = initial_pressures(blocks(), z, forces, approaches, H, rtol=1e-8)
     for blk, zk, P, a, p in zip(blocks(), z, forces, approaches, got):
         one = initial_pressure(blk, zk, P, H, approach=a)

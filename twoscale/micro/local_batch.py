@@ -20,6 +20,10 @@ from .localblock import COLUMNS_MAX_ENTRIES
 
 #: Stack classes: a block's contact size is padded to the first of these at or above it.
 CLASSES = (8, 16, 32, 64, 128, 256, 512)
+#: Bytes of one stack's arrays (its systems, factors and solutions, ``3 m^2`` numbers a
+#: block, and the blocks' active columns, ``n m``): a class of more blocks goes in several
+#: stacks. Unbounded, 4,128 blocks of one class held ~0.8 GB at once.
+STACK_BYTES = 32 << 20
 
 
 def hertz_contact(z: np.ndarray, approach: float) -> np.ndarray:
@@ -48,8 +52,24 @@ def first_passes(blocks, z: list, forces: list, approaches: list, h: float, *, g
         which = np.flatnonzero(cls == c).tolist()
         if c >= len(CLASSES):
             continue  # left to the one-block loop
-        out.update(_class_pass(blocks, z, forces, h, actives, which, CLASSES[c], gap_rtol))
+        m = CLASSES[c]
+        for part in _stacks(which, [8 * (3 * m * m + blocks[k].n * m) for k in which]):
+            out.update(_class_pass(blocks, z, forces, h, actives, part, m, gap_rtol))
     return out
+
+
+def _stacks(which: list, nbytes: list) -> list:
+    """``which`` cut in runs whose ``nbytes`` add up to at most ``STACK_BYTES`` (one
+    block at least a run)."""
+    runs: list = [[]]
+    total = 0
+    for k, b in zip(which, nbytes):
+        if runs[-1] and total + b > STACK_BYTES:
+            runs.append([])
+            total = 0
+        runs[-1].append(k)
+        total += b
+    return runs
 
 
 def _class_pass(blocks, z, forces, h, actives, which: list, m: int, gap_rtol: float) -> dict:
