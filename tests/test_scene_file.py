@@ -392,3 +392,19 @@ def test_reference_grid_covers_every_reachable_point():
         assert ymin <= a.y - r - 3 * h and a.y + r + 3 * h <= ymax
     # aligned with the lattice h Z^2: the tip at the origin sits on a cell centre
     assert grid.x0 / h == pytest.approx(round(grid.x0 / h), abs=1e-9)
+
+
+def test_an_unknown_influence_key_with_a_line_break_is_named_on_one_line():
+    from twoscale.io.scene_file import scene_from_dict
+    from twoscale.scene import SceneError
+
+    table = {
+        "material": {"E": 10.0, "nu": 0.5},
+        "load": {"total": 5.0},
+        "asperity": [{"x": 0.0, "y": 0.0, "R": 10.0}],
+        "influence": {"kind": "block", "size": [60.0, 60.0, 10.0], "base": "bonded", "\x85": 0},
+    }
+    with pytest.raises(SceneError) as err:
+        scene_from_dict(table)
+    message = str(err.value)
+    assert len(message.splitlines()) == 1 and "'\\x85'" in message

@@ -97,7 +97,7 @@ def normalise_influence(influence: Mapping | None) -> Influence:
     for key in influence:
         if key not in allowed:
             raise SceneError(
-                f"influence.{key} is not a known key for kind = {kind!r} "
+                f"influence.{key if str(key).isprintable() else repr(key)} is not a known key for kind = {kind!r} "
                 f"(allowed: {sorted(allowed)}), got {influence[key]!r}"
             )
     if kind == "halfspace":
