@@ -72,6 +72,11 @@ def _in_parts(f: Callable, P: np.ndarray, out: np.ndarray, workspace: Workspace,
     return out
 
 
+def _field_bytes(shapes: tuple, dtypes: tuple) -> int:
+    """Bytes one field takes in a workspace: its arrays of ``shapes`` and ``dtypes``, aligned."""
+    return sum(_aligned(math.prod(s) * np.dtype(d).itemsize) for s, d in zip(shapes, dtypes))
+
+
 class KeptStackProduct:
     """A zero-padded FFT convolution's ``apply_stack`` (:class:`.convolution.ConvolutionOperator`
     and its float32 form) through a :class:`Workspace`: the stack's fields go into the padded
@@ -98,7 +103,7 @@ class KeptStackProduct:
         self.workspace = Workspace() if workspace is None else workspace
         self._shapes = ((my, self.nx), (my // 2 + 1, mx), (my, self.tnx))
         self._dtypes = (dtype, np.result_type(dtype, np.complex64), dtype)
-        self._per_field = sum(_aligned(math.prod(s) * np.dtype(d).itemsize) for s, d in zip(self._shapes, self._dtypes))
+        self._per_field = _field_bytes(self._shapes, self._dtypes)
 
     def __call__(self, P: np.ndarray) -> np.ndarray:
         out = np.empty((len(P), self.tny, self.tnx))
@@ -132,7 +137,7 @@ class KeptStackInverse:
         self.workspace = Workspace() if workspace is None else workspace
         self._shapes = ((ly, lx), (ly, lx // 2 + 1), (ly, lx))
         self._dtypes = (multiplier.dtype, np.result_type(multiplier.dtype, np.complex64), multiplier.dtype)
-        self._per_field = sum(_aligned(math.prod(s) * np.dtype(d).itemsize) for s, d in zip(self._shapes, self._dtypes))
+        self._per_field = _field_bytes(self._shapes, self._dtypes)
 
     def __call__(self, V: np.ndarray) -> np.ndarray:
         out = np.empty((len(V), self.ny, self.nx))
