@@ -37,6 +37,7 @@ import numpy as np
 from scipy.linalg import lu_factor, lu_solve
 
 from ..indenters import Surface
+from ..influence.cached import CachedBody
 from .inverses import UPDATE_MIN_CELLS, fresh_blocks, size_class, stacked, updated
 
 #: The blocks are rebuilt when the cells that entered the contact since they were built
@@ -266,7 +267,9 @@ class BlockInverse:
         contact or the stones are too many cells for it (:data:`MAX_BLOCK_CELLS`,
         :data:`MAX_STONES`)."""
         stone = self.owner[idx]
-        order = np.argsort(stone, kind="stable")
+        # (the stones' indices as 16-bit keys where they fit: numpy's stable sort is then a
+        # radix sort, the same order; on the tyre's ~13,000 cells 0.08 against 1.3 ms)
+        order = np.argsort(stone.astype(np.int16) if stone.size and stone.max() < 2**15 else stone, kind="stable")
         _, starts, counts = np.unique(stone[order], return_index=True, return_counts=True)
         if len(counts) > MAX_STONES or counts.max(initial=0) > MAX_BLOCK_CELLS:
             return False
@@ -296,10 +299,18 @@ class BlockInverse:
                 self.grid.y0 + h * np.add.reduceat(rows, self.starts) / counts,
             ]
         )
-        k = self.blocks.body.provider.point_compliance(centroids, centroids) * h**2
+        k = _point_compliance(self.blocks.body.provider, centroids) * h**2
         k[~np.isfinite(k)] = 0.0
         np.fill_diagonal(k, 0.0)
         # (I + K W)^-1 K applied as a factor and a solve: the m x m product's inverse formed
         # once cost ~4x the factor (m right-hand sides), and it is applied ~10 times only
         self.k, self.coupling = k, lu_factor(np.eye(len(w)) + k * w[None, :], check_finite=False)
         return True
+
+
+def _point_compliance(provider, points: np.ndarray) -> np.ndarray:
+    """The compliance among ``points`` by the body itself: a solver's caching wrapper
+    (:class:`~twoscale.influence.cached.CachedBody`) keeps the last set of points, which a
+    position's stones' centroids never repeat (its look-up and copy cost ~1 of ~4 ms)."""
+    body = provider.body if isinstance(provider, CachedBody) else provider
+    return np.asarray(body.point_compliance(points, points), dtype=float)

@@ -84,7 +84,7 @@ def touching_outside(body, surface, result, tol: float) -> Grid | None:
         return None  # no cell outside lies below the approach (the pressure only lifts them)
     e_star = half_space_modulus(body.provider)
     if e_star is not None:  # kept off by a lower bound of the lift?
-        rows, cols = np.nonzero(low)
+        rows, cols = np.divmod(np.flatnonzero(low), window.nx)  # (np.nonzero on two axes: ~8x the time)
         x, y = window.x0 + cols * window.h, window.y0 + rows * window.h
         if kept_off(f.pressure, f.grid, x, y, level[rows, cols], e_star):
             return None
