@@ -12,6 +12,7 @@ from twoscale import Material
 from twoscale.grid import Grid
 from twoscale.indenters import Surface
 from twoscale.influence import HalfSpace
+from twoscale.influence.cached import with_caches
 from twoscale.reference import solve_cg
 from twoscale.rolling.blocks import StoneBlocks
 from twoscale.rolling.window import KeptBody
@@ -48,6 +49,27 @@ def test_the_blocks_invert_the_stones_exactly_and_couple_them_by_their_centroids
     tol = np.linalg.cond(approx) * np.finfo(np.float32).eps * np.abs(want).max()
     assert np.abs(got.ravel()[cells] - want).max() <= tol
     assert np.count_nonzero(got.ravel()[~on.ravel()]) == 0
+
+
+def test_the_blocks_are_the_same_through_a_caching_body_and_for_any_stone_numbers():
+    """Eighty stones of 4 x 4 cells: the application through a solver's caching wrapper of
+    the half-space equals the bare half-space's (to rounding: the wrapper's kernel table is
+    its own), and the wrapper keeps no
+    compliance among the centroids (they never repeat: the blocks ask the body itself); the
+    stones numbered past 2^15 (no 16-bit sort keys) give the same application too."""
+    g = Grid(0.0, 0.0, 0.1, 40, 32)
+    owner = (np.arange(g.ny)[:, None] // 4) * 10 + np.arange(g.nx)[None, :] // 4
+    rng = np.random.default_rng(5)
+    on = rng.random(g.shape) < 0.5
+    gap = rng.standard_normal(g.shape) * on
+    bare = StoneBlocks(KeptBody(HS))(Surface(g, np.zeros(g.shape), owner, 80)).apply(gap, on)
+    cached = with_caches(HS)
+    through = StoneBlocks(KeptBody(cached))(Surface(g, np.zeros(g.shape), owner, 80)).apply(gap, on)
+    assert np.allclose(through, bare, rtol=1e-9, atol=1e-9 * np.abs(bare).max())
+    assert cached.caches.operators.get(("compliance",)) is None
+    far = StoneBlocks(KeptBody(HS))(Surface(g, np.zeros(g.shape), owner + 40_000, 40_080)).apply(gap, on)
+    assert np.array_equal(far, bare)
+    assert np.count_nonzero(bare) == np.count_nonzero(on & (gap != 0))
 
 
 def test_the_blocks_on_a_part_of_the_grid_apply_as_on_the_grid():
