@@ -45,16 +45,17 @@ def initial_pressure(
     return v  # the kernel scales it to the load (and moments)
 
 
-def cropped(problem: ContactProblem) -> ContactProblem:
+def cropped(problem: ContactProblem, below: float = 1.0) -> ContactProblem:
     """Penetration control: the same problem on the bounding box of the cells with
     ``z < d`` (no other cell can touch, since ``A p >= 0``), which makes every FFT
-    smaller. Load control has no such a-priori bound: unchanged."""
+    smaller, when that box has fewer than ``below`` times the grid's cells (1: whenever it
+    cuts a cell). Load control has no such a-priori bound: unchanged."""
     if problem.mode != "penetration":
         return problem
     reach = np.isfinite(problem.surface.height) & (problem.surface.height < problem.penetration)
     rows, cols = np.flatnonzero(reach.any(axis=1)), np.flatnonzero(reach.any(axis=0))
     j0, j1, i0, i1 = rows[0], rows[-1] + 1, cols[0], cols[-1] + 1
-    if (j1 - j0, i1 - i0) == problem.grid.shape:
+    if (j1 - j0) * (i1 - i0) >= below * problem.grid.size:
         return problem
     sub = problem.grid.subgrid(int(i0), int(j0), int(i1 - i0), int(j1 - j0))
     s = problem.surface

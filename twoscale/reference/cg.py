@@ -60,6 +60,7 @@ class CGSettings:
     reach: np.ndarray | None = None
     plane_sums: bool = False
     rough_start: bool = False
+    crop_below: float = 1.0
 
 
 def solve_cg(
@@ -161,6 +162,10 @@ def solve_cg(
         the guess; a float64 product on 3.4 M cells costs 1 s against 0.24). A start near
         the answer (a neighbouring solve's) keeps the exact line search: a float32 scale
         would leave it ~1e-7 off, an iteration more than the answer's own.
+    crop_below : float, default 1
+        Penetration control crops the grid to the cells that can touch when that keeps
+        fewer than this fraction of its cells (:func:`~._start.cropped`; the crop costs a
+        second operator and a float64 product for the displacement on the whole grid).
 
     Returns
     -------
@@ -179,7 +184,7 @@ def solve_cg(
     reach = cg.reach
     if reach is not None and np.shape(reach) != problem.grid.shape:
         raise ValueError(f"reach must be a bool array of shape {problem.grid.shape}, got shape {np.shape(reach)}")
-    work = cropped(problem)
+    work = cropped(problem, cg.crop_below)
     start = start_on(start, problem, work)
     if reach is not None and work is not problem:
         reach = reach[work.grid.window_in(problem.grid)]
