@@ -190,6 +190,7 @@ def build_patches(
     margin: float = 1.3,
     anchor: tuple[float, float] = (0.0, 0.0),
     reuse: Sequence[Patch] = (),
+    box_share: float = BOX_MIN_PATCH_SHARE,
 ) -> list[Patch]:
     """One patch per asperity that can touch (``approaches[k] > 0``).
 
@@ -215,6 +216,10 @@ def build_patches(
         (:func:`~.patches.crop_patch`: the far field's patches, sized from smaller
         approaches than the policy's, were sampled a second time, 0.3-0.5 s on 1,000-1,500
         spheres).
+    box_share : float, default ``BOX_MIN_PATCH_SHARE``
+        The patches' share of their box from which the box is sampled once and the patches
+        cut from it (:func:`crowded`): the share from which the policy can choose the union
+        CG, which runs on that box.
     """
     if not (math.isfinite(margin) and margin >= 1.0):
         raise ValueError(f"patch margin must be >= 1, got {margin!r}")
@@ -236,9 +241,7 @@ def build_patches(
         grids = [grid for _, grid in new]
         box = box_of(grids, h, anchor)
         if (
-            crowded(grids, box, BOX_MIN_PATCH_SHARE)
-            or box.size <= BOX_CELLS_PER_PATCH * len(new)
-            or one_map(asperities)
+            crowded(grids, box, box_share) or box.size <= BOX_CELLS_PER_PATCH * len(new) or one_map(asperities)
         ):  # sampled once
             built.update(((pt.asperity, pt.grid), pt) for pt in patches_cut_from_box(new, box, asperities))
     rest = [(k, grid) for k, grid in wanted if (k, grid) not in built]
