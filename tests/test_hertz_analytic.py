@@ -9,6 +9,7 @@ Expected figures are derived here, not copied from the code:
   sphere carrying less (0.5 % at d = R/20).
 """
 
+import decimal
 import math
 
 import numpy as np
@@ -95,3 +96,25 @@ def test_sphere_load_derivative_is_2_E_a(d):
     a = float(hertz.sphere_contact_radius(R, d))
     assert fd == pytest.approx(2 * E_STAR * a, rel=1e-7)
     assert hertz.sphere_load_derivative(R, d, E_STAR) == pytest.approx(fd, rel=1e-7)
+
+
+def _sphere_load_40_digits(a: float) -> float:
+    """``E* R^2 [e^2 atanh(e) + atanh(e) - e]``, ``e = a/R``, in 40-digit decimals
+    (``atanh(e) = ln((1 + e) / (1 - e)) / 2``)."""
+    with decimal.localcontext() as ctx:
+        ctx.prec = 40
+        e = decimal.Decimal(a) / decimal.Decimal(R)
+        atanh = ((1 + e) / (1 - e)).ln() / 2
+        return float(decimal.Decimal(E_STAR) * decimal.Decimal(R) ** 2 * (e * e * atanh + atanh - e))
+
+
+def test_sphere_load_is_exact_to_rounding_for_small_and_large_contacts():
+    """Segedin's load against 40 digits: the series for ``atanh(e) - e`` below e = 0.1 and
+    the direct difference above, in arrays that mix both, in a 2-D array and as a scalar."""
+    e = np.array([[0.0, 1e-7, 3e-4, 0.02], [0.0999, 0.1, 0.35, 0.95]])
+    a = e * R
+    got = hertz.sphere_load_from_radius(R, a, E_STAR)
+    assert got.shape == e.shape
+    for i, j in np.ndindex(e.shape):
+        assert got[i, j] == pytest.approx(_sphere_load_40_digits(float(a[i, j])), rel=1e-14, abs=0.0)
+    assert float(hertz.sphere_load_from_radius(R, 0.5, E_STAR)) == pytest.approx(_sphere_load_40_digits(0.5), rel=1e-14)

@@ -210,3 +210,33 @@ def test_the_candidates_of_all_patches_at_once_are_each_patchs(shapes):
         sizes.add(len(got))
     assert len(sizes) > 5  # patches with few and with many candidates
     assert candidates_of(TipTable(tips[:40]), wanted[:3]) is None  # few tips: no tree, one by one
+
+
+def test_scattered_patches_the_far_field_can_take_are_not_cut_from_a_sampled_box(monkeypatch):
+    # the sweep's ten paraboloids (#109) on 14.3 % of their 155 K-cell box, no merged
+    # contacts: over the union CG's least coverage, but the far field can take them (it
+    # does), so the box is not sampled for them; the patches built one by one are the same
+    # cells, and the answer is the one from patches cut from the box
+    import twoscale
+    import twoscale.micro.driver as micro_driver
+    import twoscale.micro.sampling as sampling
+    from twoscale.scenespace import build, sweep
+
+    (spec,) = [s for s in sweep(200, 0) if s.index == 109]
+    scene = build(spec)
+    boxes = []
+    cut = sampling.patches_cut_from_box
+    monkeypatch.setattr(sampling, "patches_cut_from_box", lambda *a: boxes.append(a[1].size) or cut(*a))
+    alone = twoscale.solve(scene)
+    estimates = alone.details.micro.choice.estimates
+    assert sampling.BOX_MIN_PATCH_SHARE <= estimates["coverage"] < 0.2 and not estimates["merged_contacts"]
+    assert alone.details.micro.choice.iteration == "two-level" and alone.details.micro.choice.far_tol is not None
+    assert boxes == []
+    monkeypatch.setattr(micro_driver, "_box_share", lambda merged: sampling.BOX_MIN_PATCH_SHARE)
+    from_box = twoscale.solve(scene)
+    assert boxes == [estimates["box_cells"]]
+    assert from_box.details.micro.choice == alone.details.micro.choice
+    # heights sampled on a patch or on the box's tiles differ in their last bits
+    f, g = np.asarray(alone.asperities.forces), np.asarray(from_box.asperities.forces)
+    assert np.max(np.abs(f - g)) <= 1e-9 * np.max(g)
+    assert alone.iterations == from_box.iterations

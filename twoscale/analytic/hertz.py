@@ -54,16 +54,30 @@ def contact_area(R: float, d):
 
 
 # ---------------------------------------------------------------- exact sphere (Segedin)
-def _atanh_minus_identity(e):
-    # atanh(e) - e, summed as a series for small e, where the direct difference cancels
+#: ``2n + 1`` for the series' terms ``n = 1..13`` (e < 0.1: the first omitted term is below
+#: 1e-16 of the sum)
+_SERIES_ODD = 2.0 * np.arange(1, 14) + 1.0
+
+
+def _atanh_minus_identity(e, atanh=None):
+    """``atanh(e) - e``, summed as a series for small ``e``, where the direct difference
+    cancels; ``atanh``: ``atanh(e)`` if the caller has it. The series' terms are made by
+    one running product and summed by one running sum, in the order of the plain loop over
+    them (the same bits): the macro step's safe path evaluates the sphere law thousands of
+    times on a few tips, where each array operation's fixed cost is the time (39 of them
+    for the loop, 8 tips: 64 us a call)."""
     e = np.asarray(e, dtype=float)
+    direct = (np.arctanh(np.minimum(e, 1.0 - 1e-16)) if atanh is None else atanh) - e
+    small = e < 0.1
+    if not np.any(small):
+        return direct
     e2 = e * e
-    series = np.zeros_like(e)
-    term = e * e2
-    for n in range(1, 14):  # e < 0.1: the first omitted term is below 1e-16 of the sum
-        series = series + term / (2 * n + 1)
-        term = term * e2
-    return np.where(e < 0.1, series, np.arctanh(np.minimum(e, 1.0 - 1e-16)) - e)
+    terms = np.empty(e.shape + (len(_SERIES_ODD),))
+    terms[..., 0] = e * e2
+    terms[..., 1:] = e2[..., None]
+    np.cumprod(terms, axis=-1, out=terms)  # e^3, e^5, ... as term = term * e2
+    terms /= _SERIES_ODD
+    return np.where(small, np.cumsum(terms, axis=-1)[..., -1], direct)
 
 
 def sphere_penetration_from_radius(R: float, a):
@@ -80,7 +94,8 @@ def sphere_load_from_radius(R: float, a, E_star: float):
     to cancellation (1e-6 relative at d/R = 2e-7)."""
     a = np.asarray(a, dtype=float)
     e = a / R
-    return E_star * (a * a * np.arctanh(np.minimum(e, 1.0 - 1e-16)) + R * R * _atanh_minus_identity(e))
+    atanh = np.arctanh(np.minimum(e, 1.0 - 1e-16))
+    return E_star * (a * a * atanh + R * R * _atanh_minus_identity(e, atanh))
 
 
 def sphere_contact_radius(R: float | np.ndarray, d):

@@ -15,7 +15,9 @@ symmetric ``T``, the optimality conditions of a potential that is bounded below 
 
 Each dual evaluation minimises first and polishes after: Newton alone can land on a
 saddle of the (then non-convex) potential, whose value overstates the dual and made
-the ascent stall. Limit: the minimiser can still switch branch as ``g`` moves; the dual
+the ascent stall. After the first, up to ``NEAR_MAX_TIPS`` tips, a dual point tries
+Newton first from the last minimum moved along its force sensitivity, and keeps its
+answer only where it is a minimum below that start (stable, forces >= 0). Limit: the minimiser can still switch branch as ``g`` moves; the dual
 then has a kink, the ascent may stall, and the result says so (``converged=False``).
 """
 
@@ -117,12 +119,14 @@ def solve_dual(system: MacroSystem, x0: np.ndarray, *, tol: float, max_iter: int
         if _balanced(system, state.P, max(tol, _DUAL_TOL)):
             converged = True
             break
-        H = G.T @ system.at(g).force_sensitivity(state.P, G)  # -Hessian of Q, PSD
+        S = system.at(g).force_sensitivity(state.P, G)  # dP/dg on the contact set
+        H = G.T @ S  # -Hessian of Q, PSD
         step = _ascent_step(H, grad)
         slope = float(grad @ step)
         t = 1.0
         while True:
-            trial = _dual_point(system, g + t * step, state.P, tol, max_iter)
+            predicted = np.maximum(state.P + S @ (t * step), 0.0) if n <= NEAR_MAX_TIPS else None
+            trial = _dual_point(system, g + t * step, state.P, tol, max_iter, predicted=predicted)
             total_newton += trial.newton_steps
             total_min += trial.minimiser_steps
             # Armijo, with room for rounding in Q (~1e-16 |Q|) once the ascent is done
@@ -166,14 +170,52 @@ class _DualPoint:
     minimiser_steps: int
 
 
-def _dual_point(system: MacroSystem, g: np.ndarray, P_start: np.ndarray, tol: float, max_iter: int) -> _DualPoint:
+#: Newton steps a dual point tries from the predicted minimum before the minimiser runs
+#: (:func:`_newton_near`; it stops sooner on a plateau of its residual, as the macro step's).
+_NEAR_STEPS = 6
+_NEAR_PLATEAU = 2
+#: Up to this many tips: above, each Newton step's LU (``n^3``) costs what the minimiser's
+#: steps cost, and its Newton attempts that end on a saddle more (814-859 tips, the macro
+#: step alone: 3.23 s with them against 3.24 s without, on five scenes).
+NEAR_MAX_TIPS = 500
+
+
+def _dual_point(
+    system: MacroSystem, g: np.ndarray, P_start: np.ndarray, tol: float, max_iter: int, *, predicted=None
+) -> _DualPoint:
+    """The inner minimum at ``g``: by Newton from ``predicted`` (the last point's minimum
+    moved along its force sensitivity) where that ends at a minimum (:func:`_newton_near`),
+    else minimised from ``P_start``."""
     inner = system.at(g)
+    if predicted is not None:
+        near = _newton_near(inner, predicted, tol)
+        if near is not None:
+            return _DualPoint(near.x, inner.energy(near.x) + float(g @ system.e), near.iterations, 0)
     # minimise first: Newton alone may land on a saddle of the potential (merged
     # contacts), whose value would overstate the dual
     out = minimise_then_polish(inner, (P_start,), tol=tol, max_iter=max_iter)
     P = np.maximum(out.x, 0.0)
     Q = inner.energy(P) + float(g @ system.e)
     return _DualPoint(P, Q, out.newton_steps, out.minimiser_steps)
+
+
+def _newton_near(inner: MacroSystem, P_start: np.ndarray, tol: float) -> NewtonOutcome | None:
+    """Newton from ``P_start`` (the last dual point's minimum moved along its force
+    sensitivity), kept where it ends at a minimum of the potential not above the start's
+    value: converged, forces ``>= 0`` (its zero residual then holds the bound's
+    conditions), stable (a strict local minimum on the contact set,
+    :meth:`~.system.MacroSystem.stable`, not a saddle). Else None, and the minimiser runs
+    (from the last minimum, as before). Eight merged spheres under load: the three ascent
+    steps' minimisations (15 L-BFGS-B steps each) replaced by 5, 2 and 1 Newton steps on
+    the same path to the same forces, the macro step 0.091 -> 0.043 s."""
+    out = run_newton(inner, P_start, tol=tol, max_iter=_NEAR_STEPS, plateau=_NEAR_PLATEAU)
+    if not out.converged or np.any(out.x < 0.0) or not inner.stable(out.x):
+        return None
+    start = inner.energy(P_start)
+    # rounding: the start can be the minimum itself (Newton converged in 0-1 steps)
+    if inner.energy(out.x) > start + 1e-13 * abs(start):
+        return None
+    return out
 
 
 def _balanced(system: MacroSystem, P: np.ndarray, tol: float) -> bool:

@@ -88,6 +88,16 @@ def _plan(patches, box, choice_fixed: Choice | None, asperities, problem: MicroP
     )
 
 
+def _box_share(merged: bool) -> float:
+    """The patches' share of their box from which it is sampled once for them
+    (:func:`~.sampling.build_patches`' ``box_share``): where the policy can choose the union
+    CG, which runs on that box, before the far field could take them (scattered patches
+    without merged contacts, up to ``MODEL.far_field_coverage``). There the union CG samples
+    its box itself, after patches that cost a fraction of it: 10 paraboloids on 14 % of a
+    155 K-cell box, 0.020-0.024 s for the box, 0.002-0.003 s for the patches one by one."""
+    return UNION_MIN_COVERAGE if merged else max(UNION_MIN_COVERAGE, MODEL.far_field_coverage)
+
+
 def fixed_choice(iteration: str, far_tol: float | None, why: str) -> Choice:
     """A choice made by the caller, not the policy."""
     if iteration not in ITERATIONS:
@@ -132,7 +142,8 @@ def run_micro(
         again.
     """
     asperities = TipTable.of(asperities)  # tip arrays once for every patch built
-    patches = tuple(one_asperity_patches(provider, asperities, problem, options.margin))
+    share = _box_share(bool(macro.safe_path)) if choice is None else UNION_MIN_COVERAGE
+    patches = tuple(one_asperity_patches(provider, asperities, problem, options.margin, share))
     if not patches:
         context = MicroContext(provider, asperities, problem, options, BlockSettings(), patches)
         return BlockGaussSeidel().run(context, Exact(), max_sweeps=options.max_sweeps), MicroPlan(

@@ -191,7 +191,8 @@ def build_patches(
     anchor: tuple[float, float] = (0.0, 0.0),
     reuse: Sequence[Patch] = (),
 ) -> list[Patch]:
-    """One patch per asperity that can touch (``approaches[k] > 0``).
+    """One patch per asperity that can touch (``approaches[k] > 0``): their grids
+    (:func:`patch_grids`) sampled (:func:`sampled_patches`).
 
     Parameters
     ----------
@@ -216,15 +217,49 @@ def build_patches(
         approaches than the policy's, were sampled a second time, 0.3-0.5 s on 1,000-1,500
         spheres).
     """
+    wanted = patch_grids(
+        asperities, h=h, forces=forces, approaches=approaches, E_star=E_star, margin=margin, anchor=anchor
+    )
+    return sampled_patches(asperities, wanted, h=h, anchor=anchor, reuse=reuse)
+
+
+def patch_grids(
+    asperities: Sequence[Asperity],
+    *,
+    h: float,
+    forces: np.ndarray,
+    approaches: np.ndarray,
+    E_star: float,
+    margin: float = 1.3,
+    anchor: tuple[float, float] = (0.0, 0.0),
+) -> list[tuple[int, Grid]]:
+    """``(k, grid)`` of the patch of each asperity that can touch (:func:`build_patches`'
+    parameters)."""
     if not (math.isfinite(margin) and margin >= 1.0):
         raise ValueError(f"patch margin must be >= 1, got {margin!r}")
-    built = {(pt.asperity, pt.grid): pt for pt in reuse if len(pt.members) == 1}
     wanted = []
     for k, a in enumerate(asperities):
         if approaches[k] <= 0.0:
             continue
         r = patch_radius(a, force=float(forces[k]), approach=float(approaches[k]), E_star=E_star, h=h, margin=margin)
         wanted.append((k, Grid.covering(a.x - r, a.x + r, a.y - r, a.y + r, h, anchor=anchor)))
+    return wanted
+
+
+def sampled_patches(
+    asperities: Sequence[Asperity],
+    wanted: Sequence[tuple[int, Grid]],
+    *,
+    h: float,
+    anchor: tuple[float, float] = (0.0, 0.0),
+    reuse: Sequence[Patch] = (),
+    box_share: float = BOX_MIN_PATCH_SHARE,
+) -> list[Patch]:
+    """The patches on the ``wanted`` grids (:func:`patch_grids`), ``reuse`` as in
+    :func:`build_patches`. ``box_share``: the patches' share of their box from which the box
+    is sampled once and they are cut from it (:func:`crowded`), the share from which the
+    policy can choose the union CG, which runs on that box."""
+    built = {(pt.asperity, pt.grid): pt for pt in reuse if len(pt.members) == 1}
     larger = {pt.asperity: pt for pt in reuse if len(pt.members) == 1}
     for k, grid in wanted:
         if (k, grid) not in built and k in larger:
@@ -236,9 +271,7 @@ def build_patches(
         grids = [grid for _, grid in new]
         box = box_of(grids, h, anchor)
         if (
-            crowded(grids, box, BOX_MIN_PATCH_SHARE)
-            or box.size <= BOX_CELLS_PER_PATCH * len(new)
-            or one_map(asperities)
+            crowded(grids, box, box_share) or box.size <= BOX_CELLS_PER_PATCH * len(new) or one_map(asperities)
         ):  # sampled once
             built.update(((pt.asperity, pt.grid), pt) for pt in patches_cut_from_box(new, box, asperities))
     rest = [(k, grid) for k, grid in wanted if (k, grid) not in built]

@@ -16,7 +16,7 @@ from .localblock import LocalBlock
 from .local import initial_pressures
 from .pk_stack import BlockStacks
 from .patches import merge_groups, merge_overlapping, transfer
-from .sampling import build_patches
+from .sampling import BOX_MIN_PATCH_SHARE, build_patches, patch_grids, sampled_patches
 from .problem import MicroContext
 from .touching import touching_groups
 from .workset import WorkingSet, heights, tip_approaches
@@ -104,12 +104,13 @@ def initial_on_patches(ctx: MicroContext) -> tuple:
     return grid, out
 
 
-def one_asperity_patches(provider, asperities, problem, margin: float) -> list:
+def one_asperity_patches(provider, asperities, problem, margin: float, box_share: float = BOX_MIN_PATCH_SHARE) -> list:
     """One patch per asperity the problem's approach and tilt reach, sized from the macro
     forces (or the indenters' reach where the macro step did not converge), half-width
-    ``margin`` times the Hertz-like contact radius (:func:`~.sampling.build_patches`)."""
+    ``margin`` times the Hertz-like contact radius (:func:`~.sampling.build_patches`), cut
+    from their box sampled once from ``box_share`` of it (:func:`~.sampling.sampled_patches`)."""
     sizing = np.asarray(problem.forces, dtype=float) if problem.size_from_forces else np.full(len(asperities), np.inf)
-    return build_patches(
+    wanted = patch_grids(
         asperities,
         h=problem.h,
         forces=sizing,
@@ -118,6 +119,7 @@ def one_asperity_patches(provider, asperities, problem, margin: float) -> list:
         margin=margin,
         anchor=problem.anchor,
     )
+    return sampled_patches(asperities, wanted, h=problem.h, anchor=problem.anchor, box_share=box_share)
 
 
 def block_setup(
