@@ -79,6 +79,7 @@ def sweep(
     local_rtol: float | None = None,
     levels: list | None = None,
     stacks=None,
+    flat=None,
 ) -> Sweep:
     """One block Gauss-Seidel sweep (eq. 8) over ``k = 1..N`` from pressures ``p``;
     ``local_rtol`` is the conjugate-gradient tolerance of large blocks (default theirs).
@@ -87,7 +88,9 @@ def sweep(
     other's new pressures (with a held far field: no near pair within a level, and every
     near pair ``l < k`` in an earlier level than ``k``'s): each block then sees exactly
     what it sees in the plain order, and ``stacks`` (:class:`~.pk_stack.BlockStacks`)
-    solves a level's large blocks of one size class together."""
+    solves a level's large blocks of one size class together; ``flat``
+    (:class:`~.local_levels.LevelSolves`) runs the first active-set pass of its dense
+    blocks together, the blocks whose pass is not final going on one by one."""
     p, active = list(p), list(active)
     n = len(blocks)
     diff2 = np.zeros(n)
@@ -108,6 +111,11 @@ def sweep(
                 take(k, pressure, pressure > 0.0, ok)
             done = set(stacked)
             level = [k for k in level if k not in done]
+        if flat is not None:
+            solved = flat.solve(level, rhs, p)
+            for k, (pressure, now) in solved.items():
+                take(k, pressure, now, True)
+            level = [k for k in level if k not in solved]
         for k in level:
             sol = contact_solve(blocks[k], rhs[k], p[k], rtol=local_rtol)
             take(k, sol.pressure, sol.active, sol.converged)

@@ -31,6 +31,7 @@ from .coarse import CoarseSpace
 from .constraints import Control, patch_forces
 from .costmodel import FITTED
 from .gauss_seidel import LOCAL_FACTOR, sweep
+from .local_levels import LevelSolves
 from .pk_stack import BlockStacks
 
 #: The iteration stops (not converged) when no sweep in this many has made the relative
@@ -218,6 +219,7 @@ def two_level(
     coarse = CoarseSpace(coupling.provider, tips, lower, dense_max=COARSE_DENSE_MAX)
     levels = sweep_levels(coupling)
     stacks = BlockStacks(coupling.provider) if BlockStacks.usable(coupling.provider) else None
+    flat = LevelSolves(blocks)
     theta = np.array(theta, dtype=float)
     p = [np.asarray(v, dtype=float) for v in p]  # replaced, never modified
     active = [v > 0.0 for v in p]
@@ -228,7 +230,7 @@ def two_level(
         b = [theta[0] - z for z in heights(theta)]
         before = patch_forces(patches, p)
         local_rtol = LOCAL_FACTOR * max(history[-1] if history else 0.1, tol)
-        sw = sweep(blocks, coupling, b, p, active, local_rtol=local_rtol, levels=levels, stacks=stacks)
+        sw = sweep(blocks, coupling, b, p, active, local_rtol=local_rtol, levels=levels, stacks=stacks, flat=flat)
         if sw.failed:
             return TwoLevelResult(
                 sw.pressures,
