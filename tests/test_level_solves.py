@@ -1,11 +1,13 @@
-"""A sweep level's dense first passes together (:class:`twoscale.micro.local_levels.LevelSolves`)
-and the near pairs' products by their loaded columns
-(:class:`twoscale.micro.pair_columns.ActiveColumns`), against the one-block route.
+"""A sweep level's dense first passes together (:class:`twoscale.micro.local_levels.LevelSolves`),
+its right-hand sides over flat arrays (:class:`twoscale.micro.level_rhs.LevelRhs`) and the
+near pairs' products by their loaded columns (:class:`twoscale.micro.pair_columns.ActiveColumns`),
+against the one-block route.
 
 Independent checks: each block's result against :func:`twoscale.micro.local.contact_solve`
 on the same block and right-hand side (its whole active-set loop), and the products against
 the dense block times the whole vector; a two-level solve with the level's passes taken
-against the same solve with every local solve one by one.
+against the same solve with every local solve and right-hand side one by one; the flat
+right-hand sides against the coupling's own, block by block.
 """
 
 import numpy as np
@@ -16,7 +18,7 @@ from twoscale.driver import solve_twoscale
 from twoscale.grid import Grid
 from twoscale.influence import HalfSpace
 from twoscale.influence.cached import CachedBody, OperatorCaches
-from twoscale.micro import local_levels
+from twoscale.micro import local_levels, twolevel
 from twoscale.micro.local import contact_solve
 from twoscale.micro.local_levels import LevelSolves
 from twoscale.micro.localblock import LocalBlock
@@ -110,13 +112,50 @@ def test_a_pairs_product_by_its_loaded_columns_is_the_whole_product():
     assert np.allclose(tight.product(0, 1, M, v), M @ v) and tight.nbytes == 0
 
 
-def test_two_level_with_the_levels_passes_is_the_one_block_solve(monkeypatch):
+def test_two_level_with_the_levels_passes_and_flat_rhs_is_the_one_block_solve(monkeypatch):
     asp = spaced_spheres(60, 0, 24.0)
     kw = dict(h=0.1, total_load=3.0, tol=1e-7, max_sweeps=200, far_tol=0.01, coarse=True)
     flat = solve_twoscale(HalfSpace(MAT), asp, **kw)
     monkeypatch.setattr(LevelSolves, "solve", lambda self, level, rhs, p: {})
+    monkeypatch.setattr(twolevel, "LevelRhs", lambda coupling, levels: None)  # the coupling's rhs
     one = solve_twoscale(HalfSpace(MAT), asp, **kw)
     assert flat.converged and one.converged
     assert flat.iterations == one.iterations
     f1, f2 = np.asarray(flat.asperities.forces), np.asarray(one.asperities.forces)
     assert np.max(np.abs(f1 - f2)) <= 1e-9 * f2.max()
+
+
+def test_a_levels_flat_right_hand_sides_are_the_couplings():
+    from twoscale.micro.couplings import FarField
+    from twoscale.micro.level_rhs import LevelRhs
+    from twoscale.micro.sampling import build_patches
+    from twoscale.micro.twolevel import sweep_levels
+
+    asp = spaced_spheres(20, 3, 8.0)
+    patches = build_patches(
+        asp, h=0.05, forces=np.full(20, np.inf), approaches=np.full(20, 0.05), E_star=MAT.E_star, anchor=(0.0, 0.0)
+    )
+    engine = FarField(0.3).build(HalfSpace(MAT), patches, held=True, dense_max_entries=40_000, separated_rtol=None)
+    assert sum(len(engine.near(k)) for k in range(len(patches))) >= 10
+    rng = np.random.default_rng(4)
+
+    def pressures(share):  # loaded on a random part of each block
+        return [np.where(rng.random(int(pt.owned.sum())) < share, rng.uniform(0.1, 1.0), 0.0) for pt in patches]
+
+    p, b = pressures(0.3), [rng.normal(size=int(pt.owned.sum())) for pt in patches]
+    levels = sweep_levels(engine)
+    assert len(levels) > 1
+    flat = LevelRhs(engine, levels)
+    for sweep in range(2):
+        engine.refresh(p)
+        flat.start(p, b)
+        for i, level in enumerate(levels):
+            got = flat.rhs(i, level, p, b)
+            assert sorted(got) == sorted(level)
+            for k in level:
+                want = engine.rhs(k, p, b[k])
+                assert np.allclose(got[k], want, rtol=1e-12, atol=1e-12 * np.abs(want).max())
+            new = pressures(0.6)  # new loaded cells: the kept columns grow
+            for k in level:
+                p[k] = new[k]
+            flat.update(level, p)

@@ -10,9 +10,8 @@ edge midpoints and centre of patch ``k`` and interpolated biquadratically on its
 Error of one far pair, relative to that pair's displacement: the resultant at the centre of
 pressure drops the quadrupole, of order ``(r_l / dist)^2 <= far_tol``; the interpolation
 error is of order ``(r_k / dist)^3``. Memory: the near operators, O(N) numbers for the
-resultants, O(cells) for the interpolation weights; no ``N^2`` table. The provider is only
-asked for ``point_compliance``, so any body works (the finite-block provider's correction is
-smooth, so its far field is as well represented as the half-space's).
+resultants, O(cells) for the interpolation weights. Only ``point_compliance`` is asked of
+the provider: any body works (the finite block's correction is smooth too).
 """
 
 from __future__ import annotations

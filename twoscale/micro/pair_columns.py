@@ -45,7 +45,7 @@ class ActiveColumns:
             size = 8 * M.shape[0] * cells.size
             if self.nbytes - old + size > self.budget:
                 return M @ v
-            kept = (M, key, np.take(M, cells, axis=1))
+            kept = (M, key, M[:, cells])  # not np.take: it copies a transposed view whole first
             self._pairs[(k, l)] = kept
             self.nbytes += size - old
         return kept[2] @ loaded
