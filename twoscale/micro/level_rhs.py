@@ -14,8 +14,8 @@ each). Here, with every block's cells numbered in one flat vector:
   rows are concatenated into one CSR matrix, kept until a near source loads a new cell,
   that multiplies the flat pressure.
 
-A block with a near pair that has no dense block (a spectral or separated route) takes the
-coupling's own :meth:`rhs`. The sums are those of :meth:`rhs` in another order of addition.
+A block with a near pair that has no dense block (a spectral or separated route), and a
+level whose matrix would go beyond :data:`ROWS_BYTES`, take the coupling's own :meth:`rhs`. The sums are those of :meth:`rhs` in another order of addition.
 """
 
 from __future__ import annotations
@@ -24,6 +24,10 @@ import operator
 
 import numpy as np
 import scipy.sparse as sp
+
+#: Bytes of kept rows and level matrices (12 an entry, each entry twice); a level whose
+#: matrix would go beyond them takes the coupling's right-hand sides block by block.
+ROWS_BYTES = 128 << 20
 
 
 class LevelRhs:
@@ -54,6 +58,7 @@ class LevelRhs:
         self._rows: dict = {}  # target k -> (sources' columns, data, flat columns, row length, pairs)
         self._matrices: dict = {}  # level index -> (its blocks, CSR, their cells, bounds, pairs)
         self._flat = self._base = None
+        self.nbytes = 0
 
     def _dense_pairs(self, k: int) -> list | None:
         """``[(l, A_kl)]`` over the near blocks of ``k``, or None if one has no dense block."""
@@ -99,7 +104,8 @@ class LevelRhs:
         for l in np.unique(self._owner[new]).tolist():
             self._columns[l] = None
             for k in self.coupling.near(l).tolist():
-                self._matrices.pop(self._level_of[k], None)
+                gone = self._matrices.pop(self._level_of[k], None)
+                self.nbytes -= 0 if gone is None else 12 * gone[1].nnz
 
     def _source(self, l: int) -> np.ndarray:
         """Block ``l``'s kept columns: the cells it has loaded in this iteration."""
@@ -120,6 +126,7 @@ class LevelRhs:
         width = sum(c.size for c in cols)
         data = np.hstack(blocks).ravel() if blocks else np.zeros(0)
         flat = np.tile(np.concatenate(cols).astype(np.int32), n) if cols else np.zeros(0, np.int32)
+        self.nbytes += 12 * (data.size - (0 if hit is None else hit[1].size))
         hit = self._rows[k] = (cells, data, flat, width, len(blocks))
         return hit
 
@@ -130,10 +137,12 @@ class LevelRhs:
         kept = self._matrices.get(index)
         if kept is None:
             flat = [k for k in level if self._pairs[k] is not None]
-            if not flat:
+            sizes = self.offsets[np.array(flat, np.int64) + 1] - self.offsets[np.array(flat, np.int64)]
+            widths = [sum(self._source(l).size for l, _ in self._pairs[k]) for k in flat]
+            if not flat or self.nbytes + 24 * int(np.dot(sizes, widths)) > ROWS_BYTES:
+                out.update((k, c.rhs(k, p, b[k])) for k in flat)
                 return out
             rows = [self._target(k) for k in flat]
-            sizes = self.offsets[np.array(flat) + 1] - self.offsets[np.array(flat)]
             lengths = np.repeat([r[3] for r in rows], sizes)
             indptr = np.concatenate([[0], np.cumsum(lengths)]).astype(np.int32)
             data = np.concatenate([r[1] for r in rows])
@@ -142,6 +151,7 @@ class LevelRhs:
             cells = np.concatenate([np.arange(self.offsets[k], self.offsets[k + 1]) for k in flat])
             kept = (flat, matrix, cells, np.cumsum(sizes)[:-1], sum(r[4] for r in rows))
             self._matrices[index] = kept
+            self.nbytes += 12 * matrix.nnz
         flat, matrix, cells, bounds, pairs = kept
         c.near_products += pairs
         out.update(zip(flat, np.split(self._base[cells] - matrix @ self._flat, bounds)))

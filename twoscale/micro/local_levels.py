@@ -11,7 +11,7 @@ the columns ``A[:, S]`` as flat arrays (a *piece*); a level's pieces are concate
 index arrays (rows, columns, owning block) made once per set of pieces, and the products,
 the sign checks and the penetration checks of all its blocks are a few array calls. A block
 whose first pass is not final (or that has no piece: an empty contact, an unsymmetric or
-non-window block, columns above :data:`~.localblock.COLUMNS_GATHER_MAX_ENTRIES`) is left to
+non-window block, columns above :data:`PIECE_MAX_ENTRIES`, or beyond :data:`STACKS_BYTES`) is left to
 :func:`.local.contact_solve`, which runs its whole loop as before.
 
 The blocks solved here give what :func:`.local.contact_solve` gives, up to rounding:
@@ -27,7 +27,11 @@ import numpy as np
 from scipy.linalg.lapack import dpotrs
 
 from .local_batch import CLASSES, batchable
-from .localblock import COLUMNS_GATHER_MAX_ENTRIES
+
+#: A block's piece holds its columns ``A[:, S]`` up to this many entries (128 KB) ...
+PIECE_MAX_ENTRIES = 16384
+#: ... and all pieces and levels' stacks at most these bytes (beyond: one block at a time).
+STACKS_BYTES = 96 << 20
 
 
 @dataclass(frozen=True)
@@ -111,6 +115,7 @@ class LevelSolves:
         self._eligible = [batchable(blk) for blk in blocks]
         self._pieces: dict = {}
         self._levels: dict = {}
+        self.nbytes = 0
 
     def piece(self, k: int, contact: np.ndarray) -> Piece | None:
         """Block ``k``'s piece on ``contact`` (kept while the contact is the same), or None."""
@@ -121,7 +126,9 @@ class LevelSolves:
         blk = self.blocks[k]
         s = int(np.count_nonzero(contact))
         out = None
-        if s and blk.n * s <= COLUMNS_GATHER_MAX_ENTRIES:
+        size = 8 * (s * s + blk.n * s)
+        old = 0 if hit is None or hit[1] is None else 8 * (hit[1].inverse.size + hit[1].columns.size)
+        if s and blk.n * s <= PIECE_MAX_ENTRIES and self.nbytes - old + size <= STACKS_BYTES:
             kind, f = blk._factor(contact)
             if kind == "cholesky":
                 inverse, info = dpotrs(f[0], np.eye(s), lower=f[1])
@@ -129,20 +136,30 @@ class LevelSolves:
                 cols = kept[1] if kept is not None and kept[0] == key else blk._entries(blk._idx, blk._idx[contact])
                 if info == 0:
                     out = Piece(key, np.flatnonzero(contact), inverse, cols, blk.n)
+        self.nbytes += (0 if out is None else size) - old
         self._pieces[k] = (key, out)
         return out
 
-    def _level(self, ks: tuple, pieces: tuple) -> _Level:
-        hit = self._levels.get(ks)
+    def _level(self, ks: tuple, pieces: tuple) -> _Level | None:
+        """The level's stacks (kept while its pieces are), or None beyond :data:`STACKS_BYTES`."""
+        hit = self._levels.pop(ks, None)
         if hit is not None and all(map(operator.is_, hit.pieces, pieces)):
+            self._levels[ks] = hit
             return hit
+        self.nbytes -= 0 if hit is None else sum(g.inverse.nbytes + g.columns.nbytes for g in hit.groups)
         n_off = np.concatenate([[0], np.cumsum([pc.n for pc in pieces])])
-        classes = np.searchsorted(CLASSES, [pc.cells.size for pc in pieces])
-        groups = []
-        for c in np.unique(classes).tolist():
-            which = np.flatnonzero(classes == c)
-            m = CLASSES[c] if c < len(CLASSES) else max(pieces[i].cells.size for i in which)
-            groups.append(_group(pieces, which, n_off, m))
+        # by the classes of the contact's size and the block's (padding at most ~2x each way)
+        s_class = np.searchsorted(CLASSES, [pc.cells.size for pc in pieces])
+        n_class = np.searchsorted(CLASSES, [pc.n for pc in pieces])
+        classes = s_class * (len(CLASSES) + 1) + n_class
+        found = [np.flatnonzero(classes == c) for c in np.unique(classes).tolist()]
+        sizes = [CLASSES[min(s_class[w[0]], len(CLASSES) - 1)] for w in found]
+        sizes = [max(m, max(pieces[i].cells.size for i in w)) for m, w in zip(sizes, found)]
+        size = sum(8 * len(w) * (m * m + m * max(pieces[i].n for i in w)) for m, w in zip(sizes, found))
+        if self.nbytes + size > STACKS_BYTES:
+            return None
+        self.nbytes += size
+        groups = [_group(pieces, which, n_off, m) for m, which in zip(sizes, found)]
         active = np.zeros(int(n_off[-1]) + 1, bool)
         for grp in groups:
             active[grp.contact] = True
@@ -165,6 +182,8 @@ class LevelSolves:
         if not ks:
             return {}
         lv = self._level(tuple(ks), tuple(pieces))
+        if lv is None:
+            return {}
         b = np.concatenate([rhs[k] for k in ks] + [np.zeros(1)])
         pressure = np.zeros(b.size)
         final = np.zeros(len(ks), bool)
