@@ -9,9 +9,10 @@ edge midpoints and centre of patch ``k`` and interpolated biquadratically on its
 
 Error of one far pair, relative to that pair's displacement: the resultant at the centre of
 pressure drops the quadrupole, of order ``(r_l / dist)^2 <= far_tol``; the interpolation
-error is of order ``(r_k / dist)^3``. Memory: the near operators, O(N) numbers for the
-resultants, O(cells) for the interpolation weights. Only ``point_compliance`` is asked of
-the provider: any body works (the finite block's correction is smooth too).
+error is of order ``(r_k / dist)^3``. Memory: the near operators plus O(N) numbers for the
+resultants and O(cells) for the interpolation weights; no ``N^2`` table.
+The provider is only asked for ``point_compliance``, so any body works (the finite-block
+provider's correction is smooth, so its far field is as well represented as the half-space's).
 """
 
 from __future__ import annotations
@@ -26,7 +27,6 @@ from ..influence.base import InfluenceProvider
 from .blocks import Coupling
 from .kept_points import kept_operator
 from .localblock import whole_patch
-from .pair_columns import ActiveColumns
 from .sources import SOURCE_NODE, grid_interpolation, patch_source_weights
 
 
@@ -131,7 +131,6 @@ class FarFieldCoupling(Coupling):
         self._cells: dict = {}
         self._seen: list = [None] * n
         self._F = None
-        self._pair_columns = ActiveColumns()
 
     def append(self, patch) -> None:
         super().append(patch)
@@ -233,8 +232,9 @@ class FarFieldCoupling(Coupling):
 
     def _rhs_1d(self, k: int, values: list, rhs: np.ndarray) -> np.ndarray:
         """:meth:`rhs` for one right-hand side: the near pairs whose dense block is kept
-        multiplied here (by their loaded columns, :mod:`.pair_columns`), the others by their
-        routes (939 blocks with 2.5 near pairs each: 0.19 ms a call through the routes)."""
+        multiplied here, the others by their routes. A sweep's blocks call it thousands of
+        times (939 blocks of 41-266 cells with 2.5 near pairs each: 0.19 ms a call through
+        the routes, 40 % of the sweeps' CPU), so the common case skips their bookkeeping."""
         out = rhs - self._far(k, values, whole=False)[:, 0]
         rest = []
         for l in self.near(k):
@@ -246,16 +246,17 @@ class FarFieldCoupling(Coupling):
             if M is None:
                 rest.append(int(l))
             else:
-                out -= self._pair_columns.product(k, int(l), M, v)
+                out -= M @ v
         if rest:
             self._subtract(k, rest, values, out)
         return out
 
     def patch_displacement(self, k: int, values: list) -> np.ndarray:
-        """Displacement (mm) on the whole patch ``k`` from the other blocks (near exact): a
-        near pair whose dense block is kept by it on the patch's own cells and by
-        :func:`~.localblock.whole_patch` on the cells neighbours own (not an FFT operator
-        made for one product: 2,370 on 939 patches, 0.4 s); the others by their routes."""
+        """Displacement (mm) on the whole patch ``k`` from the other blocks (near exact):
+        a near pair whose dense block is kept by it on the patch's own cells and by
+        :func:`~.localblock.whole_patch` on the cells neighbours own, not by an FFT operator
+        made for this one product (2,370 of them on 939 scattered patches, the growth
+        check's 0.4 s); the other pairs by their routes."""
         pt = self.patches[k]
         shape = pt.grid.shape
         u, rest = np.zeros(shape), []
@@ -267,8 +268,7 @@ class FarFieldCoupling(Coupling):
             if M is None:
                 rest.append(int(l))
             else:
-                rows = self._pair_columns.product(k, int(l), M, v)
-                u += whole_patch(self.provider, pt, rows, self.patches[int(l)], v)
+                u += whole_patch(self.provider, pt, M @ v, self.patches[int(l)], v)
         routed = self._sum(k, rest, values, whole=True) if rest else None
         if routed is not None:
             u += routed
@@ -324,7 +324,6 @@ class LaggedFarField(FarFieldCoupling):
         for key in [(k, False), (k, True)]:
             self._weights.pop(key, None)
         self._cells.pop(k, None)
-        self._pair_columns.drop(k)
         self._sources.pop(k, None)
         self._op = None
         self._table = None

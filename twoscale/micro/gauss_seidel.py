@@ -69,19 +69,6 @@ class Sweep:
     failed: tuple
 
 
-@dataclass(frozen=True)
-class LevelTools:
-    """What works on a sweep's levels together, each optional: ``stacks``
-    (:class:`~.pk_stack.BlockStacks`) solves a level's large blocks of one size class
-    together; ``solves`` (:class:`~.local_levels.LevelSolves`) runs the first active-set
-    pass of its dense blocks together, the blocks whose pass is not final going on one by
-    one; ``rhs`` (:class:`~.level_rhs.LevelRhs`) makes its right-hand sides together."""
-
-    stacks: object = None
-    solves: object = None
-    rhs: object = None
-
-
 def sweep(
     blocks: list[LocalBlock],
     coupling: Coupling,
@@ -91,7 +78,7 @@ def sweep(
     *,
     local_rtol: float | None = None,
     levels: list | None = None,
-    tools: LevelTools | None = None,
+    stacks=None,
 ) -> Sweep:
     """One block Gauss-Seidel sweep (eq. 8) over ``k = 1..N`` from pressures ``p``;
     ``local_rtol`` is the conjugate-gradient tolerance of large blocks (default theirs).
@@ -99,9 +86,8 @@ def sweep(
     ``levels`` (ascending lists of block indices) may group blocks that see none of each
     other's new pressures (with a held far field: no near pair within a level, and every
     near pair ``l < k`` in an earlier level than ``k``'s): each block then sees exactly
-    what it sees in the plain order, and ``tools`` (:class:`LevelTools`) work on a level's
-    blocks together."""
-    stacks, flat, level_rhs = (None, None, None) if tools is None else (tools.stacks, tools.solves, tools.rhs)
+    what it sees in the plain order, and ``stacks`` (:class:`~.pk_stack.BlockStacks`)
+    solves a level's large blocks of one size class together."""
     p, active = list(p), list(active)
     n = len(blocks)
     diff2 = np.zeros(n)
@@ -114,30 +100,17 @@ def sweep(
         diff2[k] = float(np.sum((pressure - p[k]) ** 2))
         p[k], active[k] = pressure, now
 
-    if level_rhs is not None:
-        level_rhs.start(p, b)
-    for index, level in enumerate([[k] for k in range(n)] if levels is None else levels):
-        if level_rhs is not None:
-            rhs = level_rhs.rhs(index, level, p, b)
-        else:
-            rhs = {k: coupled_rhs(coupling, k, p, b[k]) for k in level}
-        whole = level
+    for level in [[k] for k in range(n)] if levels is None else levels:
+        rhs = {k: coupled_rhs(coupling, k, p, b[k]) for k in level}
         stacked = [] if stacks is None else [k for k in level if not blocks[k].dense and blocks[k].n]
         if len(stacked) > 1:
             for k, (pressure, ok, _) in stacks.solve(blocks, stacked, rhs, p, local_rtol).items():
                 take(k, pressure, pressure > 0.0, ok)
             done = set(stacked)
             level = [k for k in level if k not in done]
-        if flat is not None:
-            solved = flat.solve(level, rhs, p)
-            for k, (pressure, now) in solved.items():
-                take(k, pressure, now, True)
-            level = [k for k in level if k not in solved]
         for k in level:
             sol = contact_solve(blocks[k], rhs[k], p[k], rtol=local_rtol)
             take(k, sol.pressure, sol.active, sol.converged)
-        if level_rhs is not None:
-            level_rhs.update(whole, p)
     norm2 = sum(float(np.sum(v * v)) for v in p)
     rel = float(np.sqrt(sum(float(d) for d in diff2) / norm2)) if norm2 > 0 else 0.0
     return Sweep(p, active, bool(changed.any()), rel, tuple(np.flatnonzero(failed).tolist()))

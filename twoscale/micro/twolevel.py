@@ -30,9 +30,7 @@ from ..stopping import StopReason
 from .coarse import CoarseSpace
 from .constraints import Control, patch_forces
 from .costmodel import FITTED
-from .gauss_seidel import LOCAL_FACTOR, LevelTools, sweep
-from .level_rhs import LevelRhs
-from .local_levels import LevelSolves
+from .gauss_seidel import LOCAL_FACTOR, sweep
 from .pk_stack import BlockStacks
 
 #: The iteration stops (not converged) when no sweep in this many has made the relative
@@ -220,8 +218,6 @@ def two_level(
     coarse = CoarseSpace(coupling.provider, tips, lower, dense_max=COARSE_DENSE_MAX)
     levels = sweep_levels(coupling)
     stacks = BlockStacks(coupling.provider) if BlockStacks.usable(coupling.provider) else None
-    held = hasattr(coupling, "refresh") and hasattr(coupling, "_table")  # a held far field
-    tools = LevelTools(stacks, LevelSolves(blocks), LevelRhs(coupling, levels) if held else None)
     theta = np.array(theta, dtype=float)
     p = [np.asarray(v, dtype=float) for v in p]  # replaced, never modified
     active = [v > 0.0 for v in p]
@@ -232,7 +228,7 @@ def two_level(
         b = [theta[0] - z for z in heights(theta)]
         before = patch_forces(patches, p)
         local_rtol = LOCAL_FACTOR * max(history[-1] if history else 0.1, tol)
-        sw = sweep(blocks, coupling, b, p, active, local_rtol=local_rtol, levels=levels, tools=tools)
+        sw = sweep(blocks, coupling, b, p, active, local_rtol=local_rtol, levels=levels, stacks=stacks)
         if sw.failed:
             return TwoLevelResult(
                 sw.pressures,
