@@ -39,6 +39,11 @@ from .track import Track, footprint_length
 
 #: Recess (mm) of a stone that has no sample inside the window at a shift: out of reach.
 FAR = 1e3
+#: The step CG's cells: those within this gap (mm) of the road at the last position
+#: (``MovingOptions.near_gap``), as the elastic window's
+#: (:data:`~twoscale.rolling.window.NEAR_GAP`): on the 20 mm section the same 1,128 CG iterations,
+#: 10.1-10.5 against 12.0-13.2 s of CPU in one process, approaches within 2e-12 relative.
+NEAR_GAP = 0.2
 #: A step's CG settings on a translation-invariant body (``solve_cg``'s, beside the
 #: tolerance): the elastic window's one stage, the search directions' products in float32
 #: and the conjugate directions kept over a few entering cells
@@ -48,11 +53,6 @@ FAR = 1e3
 #: approaches within 3e-10 relative, the drags 2e-8 of the largest. The stones' blocks
 #: (:mod:`.blocks`) as the preconditioner took more iterations here (1,308; 1,576 with
 #: ``"mixed"``): the circulant inverse stays.
-#: The step CG's cells: those within this gap (mm) of the road at the last position
-#: (``MovingOptions.near_gap``), as the elastic window's (:data:`~twoscale.rolling.window.NEAR_GAP`):
-#: on the 20 mm section the same 1,128 CG iterations, 10.1-10.5 against 12.0-13.2 s of CPU
-#: alternated in one process, approaches within 2e-12 relative.
-NEAR_GAP = 0.2
 STEP_CG = MappingProxyType({"precision": "single-directions", "precondition": True, "keep_conjugacy": 0.005})
 
 
