@@ -441,3 +441,27 @@ def test_each_position_is_reported_as_it_is_solved():
     np.testing.assert_array_equal([x[2] for x in seen], r.total_load)
     np.testing.assert_array_equal([x[3] for x in seen], r.drag)
     assert r.results == () and r.times.tolist() == [0.0, 0.1, 0.2]
+
+
+@pytest.mark.parametrize("near_gap", [0.05, 1e-6])
+def test_a_cg_on_the_cells_near_the_last_contact_keeps_the_answer(near_gap):
+    # near_gap 1e-6 leaves out cells that touch at the next position: the CG must see
+    # them on its check and solve the whole grid, with the same answer
+    m = Material(2.0, 0.5, prony=((8.0, 0.5),))
+    shifts = np.arange(6) * 0.2
+    grid = sweep_grid(m, THREE, shifts, 0.1, total_load=1.5)
+    runs = [
+        solve_moving(
+            m,
+            HalfSpace(m.relaxed()),
+            MovingAsperities(THREE),
+            Motion(shifts, 1.0, grid, total_load=1.5),
+            options=MovingOptions(method="cg", solver={"tol": 1e-9}, near_gap=gap),
+        )
+        for gap in (None, near_gap)
+    ]
+    assert all(r.converged for r in runs)
+    whole, near = runs
+    assert np.abs(near.penetration - whole.penetration).max() < 1e-7 * np.abs(whole.penetration).max()
+    assert np.abs(near.forces - whole.forces).max() < 1e-6 * np.abs(whole.forces).max()
+    assert np.abs(near.drag - whole.drag).max() < 1e-6 * np.abs(whole.drag).max()

@@ -13,7 +13,8 @@ of 5-smooth lengths (:func:`twoscale.rolling.window.fast_grid`); the body is the
 the relaxed modulus; each position is one time step, ``dt = step / speed``. On a
 translation-invariant body (the half-space) each step is one constrained CG over the memory
 grid (its operator kept for the run, :class:`~twoscale.rolling.window.KeptBody`;
-preconditioned, mixed precision, to the KKT residual of the two-scale solver's union CG;
+preconditioned, the search directions' products in float32 (:data:`STEP_CG`), to the KKT
+residual of the two-scale solver's union CG;
 started from the previous pressure moved with the road, extrapolated from the one
 before), as the elastic run's window path; on another body by the two-scale method. A
 height map's strip only (its stones are looked up through the shared basins, which carry
@@ -26,6 +27,7 @@ import dataclasses
 import math
 import time
 from dataclasses import dataclass, field
+from types import MappingProxyType
 
 import numpy as np
 
@@ -37,6 +39,21 @@ from .track import Track, footprint_length
 
 #: Recess (mm) of a stone that has no sample inside the window at a shift: out of reach.
 FAR = 1e3
+#: The step CG's cells: those within this gap (mm) of the road at the last position
+#: (``MovingOptions.near_gap``), as the elastic window's
+#: (:data:`~twoscale.rolling.window.NEAR_GAP`): on the 20 mm section the same 1,128 CG iterations,
+#: 10.1-10.5 against 12.0-13.2 s of CPU in one process, approaches within 2e-12 relative.
+NEAR_GAP = 0.2
+#: A step's CG settings on a translation-invariant body (``solve_cg``'s, beside the
+#: tolerance): the elastic window's one stage, the search directions' products in float32
+#: and the conjugate directions kept over a few entering cells
+#: (:data:`~twoscale.rolling.window.KEEP_CONJUGACY`). On the benchmark's 20 mm section
+#: (ten branches, 21 positions) 1,128 CG iterations against 1,322 with ``"mixed"``'s two
+#: stages, 11.5-12.4 against 13.2-14.6 s of CPU alternated in one process (load ~5); the
+#: approaches within 3e-10 relative, the drags 2e-8 of the largest. The stones' blocks
+#: (:mod:`.blocks`) as the preconditioner took more iterations here (1,308; 1,576 with
+#: ``"mixed"``): the circulant inverse stays.
+STEP_CG = MappingProxyType({"precision": "single-directions", "precondition": True, "keep_conjugacy": 0.005})
 
 
 @dataclass(eq=False)
@@ -129,7 +146,8 @@ def roll_viscoelastic(track: Track, *, tol: float = 1e-6, progress=None, on_posi
         options = MovingOptions(
             method="cg",
             open_edges=True,
-            solver={"tol": tol * UNION_TOL_FACTOR, "precision": "mixed", "precondition": True},
+            solver={"tol": tol * UNION_TOL_FACTOR, **STEP_CG},
+            near_gap=NEAR_GAP,
         )
         provider = body
     else:

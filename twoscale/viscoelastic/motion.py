@@ -45,6 +45,11 @@ class MovingOptions:
         The memory grid is the body's footprint (a tread block's face, a window of the
         half-space under a road): contact may reach its edge. Otherwise pressure on the
         grid's edge means the grid is too small: the position is reported not converged.
+    near_gap : float, optional
+        With ``method="cg"``: a step's CG runs on the cells within this gap (mm) of the
+        indenter at the last position, moved with it, and those loaded at the start
+        (``solve_cg(reach=...)``: the other cells checked on the answer, the whole grid
+        solved from it if one would touch). None: the whole grid.
     """
 
     method: str = "reference"
@@ -52,6 +57,7 @@ class MovingOptions:
     keep_results: bool = False
     solver: Mapping = field(default_factory=dict)
     open_edges: bool = False
+    near_gap: float | None = None
 
     def __post_init__(self) -> None:
         if self.method not in MOVING_METHODS:

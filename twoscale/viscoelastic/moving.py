@@ -175,6 +175,10 @@ class _Roll:
         opts = dict(o.solver)
         if solver == "cg" and self.last is not None:
             opts.setdefault("start", self._moved_start(shift) * factor)
+            if o.near_gap is not None and self.last[1].fields:
+                gap = self.last[1].fields[0].gap
+                near = self._moved(np.where(np.isfinite(gap), gap, np.inf), shift - self.last[0], np.inf)
+                opts.setdefault("reach", (near < o.near_gap) | (opts["start"] > 0.0))
         load = {"penetration": self.value} if self.kind == "penetration" else {"total_load": self.value * factor}
         return scaled(solve_reference(self.provider, moved, method=solver, **load, **opts), 1.0 / factor), slope
 
@@ -186,10 +190,10 @@ class _Roll:
             return last
         return np.maximum(2.0 * last - self._moved(self.before[2], shift - self.before[0]), 0.0)
 
-    def _moved(self, p: np.ndarray, by: float) -> np.ndarray:
+    def _moved(self, p: np.ndarray, by: float, fill: float = 0.0) -> np.ndarray:
         k = int(round(by / self.grid.h))
         p = p.reshape(self.grid.shape)
-        out = np.zeros_like(p)
+        out = np.full_like(p, fill)
         if 0 <= k < p.shape[1]:
             out[:, k:] = p[:, : p.shape[1] - k]
         return out
