@@ -236,3 +236,4 @@ def test_contacts_reaching_the_map_edge_are_named(tmp_path):
         else:  # the stone centred on the map's lower edge, numbered from 1 in scene order
             k = int(np.argmin([abs(a.y - (-6.0)) for a in s.asperities]))
             assert len(edge) == 1 and f"asperity {k + 1} reaches the edge" in str(edge[0].message)
+            assert edge[0].filename == __file__  # points at the caller's line, not into the package
