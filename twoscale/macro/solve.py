@@ -94,7 +94,7 @@ def solve_macro(
         distance from the pivot), all in N.
     options.max_iter : int, default 100
         Maximum Newton steps; reaching it gives ``converged=False``.
-    options.dense_max : int, default 3000
+    options.dense_max : int, default 2000
         Largest N solved with the dense ``N x N`` interaction matrix (LU per Newton step).
         Above it the interaction is matrix-free (:mod:`twoscale.macro.interaction`):
         products by ``provider.point_operator(tips, tips, rtol=operator_rtol)``, Newton
