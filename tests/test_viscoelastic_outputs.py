@@ -82,6 +82,15 @@ def test_solve_writes_the_history_files(tmp_path, tilt):
     assert (out / "history.png").stat().st_size > 0
 
 
+def test_the_summary_names_the_files_written(tmp_path, capsys):
+    """As a static solve's summary: the folder and every file in it, by name."""
+    out = tmp_path / "out"
+    assert main(["solve", str(_write(tmp_path, SCENE.format(tilt=""))), "--out", str(out)]) == 0
+    wrote = [line for line in capsys.readouterr().out.splitlines() if line.strip().startswith("wrote")]
+    names = sorted(p.name for p in out.iterdir() if not p.name.startswith("."))
+    assert "history.csv" in names and wrote == [f"  wrote        {out}/: {', '.join(names)}"]
+
+
 @pytest.mark.parametrize(
     "change, text",
     [

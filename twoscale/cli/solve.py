@@ -220,7 +220,7 @@ def _history_done(result, scene, args, wall: float) -> int:
             f"  output times {len(result.times)}, from {result.times[0]:.4g} to {result.times[-1]:.4g} s\n"
             f"  last         load {result.total_load[-1]:.6g} N, approach {result.penetration[-1]:.6g} mm, "
             f"area {result.contact_area[-1]:.6g} mm^2\n"
-            f"  time         {wall:.3g} s" + (f"\n  wrote        {args.out}/" if args.out else "")
+            f"  time         {wall:.3g} s" + (f"\n{_wrote_line(Path(args.out))}" if args.out else "")
         )
     if not result.converged:
         print(f"warning: the history did not converge: {result.message}", file=sys.stderr)
@@ -310,10 +310,14 @@ def summary(res: dict, scene_path: str, wall: float, path) -> str:
     lines.extend(_tip_lines(res, path))
     lines.append(f"  time         {wall:.3g} s")
     if path is not None:
-        folder = Path(path).parent
-        names = sorted(p.name for p in folder.iterdir() if not p.name.startswith("."))
-        lines.append(f"  wrote        {folder}/: {', '.join(names)}")
+        lines.append(_wrote_line(Path(path).parent))
     return "\n".join(lines)
+
+
+def _wrote_line(folder: Path) -> str:
+    """The summary's line naming the output folder and every file in it."""
+    names = sorted(p.name for p in folder.iterdir() if not p.name.startswith("."))
+    return f"  wrote        {folder}/: {', '.join(names)}"
 
 
 #: How result.json's ``units_from`` reads in the summary.
