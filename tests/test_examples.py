@@ -190,3 +190,12 @@ def test_S3_solves(tmp_path):
     assert res["converged"] and res["total_load"] == pytest.approx(200.0, rel=1e-9)
     F = np.array([a["force"] for a in res["asperities"]])
     assert np.all(F > 0)  # every sphere touches at 200 N
+
+
+def test_every_shipped_scene_is_in_the_table_of_shipped_scenes():
+    """docs/outputs.md's "Shipped scenes" table names every TOML file under examples/."""
+    text = (EXAMPLES.parent / "docs" / "outputs.md").read_text(encoding="utf-8")
+    table = text[text.index("## Shipped scenes") :].split("\n\n")[0]
+    named = set(re.findall(r"`([\w/]+\.toml)`", table))
+    shipped = {p.relative_to(EXAMPLES).as_posix() for p in EXAMPLES.rglob("*.toml")}
+    assert shipped - named == set() and named - shipped == set()
