@@ -116,6 +116,23 @@ def test_tyre_that_leaves_no_contact_under_penetration_control(strip_file, tmp_p
     assert not out.exists()
 
 
+@pytest.mark.parametrize(
+    "option, named",
+    [
+        (["--method", "reference"], "--method reference"),
+        (["--far-tol", "0.3"], "--far-tol 0.3"),
+        (["--block-field"], "--block-field"),
+    ],
+)
+def test_a_static_solves_option_is_refused_naming_its_value(strip_file, tmp_path, capsys, option, named):
+    out = tmp_path / "run"
+    code = main(["solve", _scene(strip_file), "--out", str(out), *option])
+    err = capsys.readouterr().err
+    assert code == 2 and len(err.strip().splitlines()) == 1
+    assert err.startswith(f"error: {named} does not apply to a [rolling] scene")
+    assert not out.exists()
+
+
 def test_viscoelastic_rolling_through_the_cli(strip_file, tmp_path):
     out = tmp_path / "run"
     assert main(["solve", _scene(strip_file, prony="prony = [[20.0, 0.01]]"), "--out", str(out), "--quiet"]) == 0

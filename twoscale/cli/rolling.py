@@ -41,8 +41,13 @@ def run_rolling(scene, args: argparse.Namespace) -> int:
 
     try:
         for key, default, name in _NOT_ROLLING:
-            if getattr(args, key, default) != default:
-                raise ValueError(f"{name} does not apply to a [rolling] scene (each position is a two-scale solve)")
+            value = getattr(args, key, default)
+            if value != default:
+                given = name if isinstance(value, bool) else f"{name} {value}"
+                raise ValueError(
+                    f"{given} does not apply to a [rolling] scene (its positions are solved by the rolling's "
+                    f"own solver, chosen by the body: RollingOptions.solver)"
+                )
         options = RollingOptions(iteration=getattr(args, "iteration", "auto"))
         track = prepare(scene)  # every check before anything is solved or written
         if getattr(args, "step_error", False) and not scene.material.viscoelastic:
