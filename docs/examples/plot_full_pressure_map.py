@@ -18,7 +18,9 @@ import twoscale
 from twoscale.grid import Grid
 from twoscale.io import read_scene
 
-ROOT = Path(twoscale.__file__).resolve().parents[1]
+# the repository's examples/ folder: run from the repository (or a folder in it, as the
+# documentation build does); an installed twoscale does not ship the examples
+ROOT = next(p for p in (Path.cwd(), *Path.cwd().parents) if (p / "examples" / "road" / "road.toml").is_file())
 scene = read_scene(ROOT / "examples" / "road" / "road.toml")
 with warnings.catch_warnings():  # stones cut by the map's edge: a warning the CLI prints
     warnings.simplefilter("ignore")

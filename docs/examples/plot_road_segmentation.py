@@ -11,11 +11,12 @@ from pathlib import Path
 
 import matplotlib.pyplot as plt
 
-import twoscale
 from twoscale.io import read_scene
 from twoscale.surface.figure import plot_segmentation
 
-ROOT = Path(twoscale.__file__).resolve().parents[1]
+# the repository's examples/ folder: run from the repository (or a folder in it, as the
+# documentation build does); an installed twoscale does not ship the examples
+ROOT = next(p for p in (Path.cwd(), *Path.cwd().parents) if (p / "examples" / "road" / "road.toml").is_file())
 scene = read_scene(ROOT / "examples" / "road" / "road.toml")
 fig, ax = plt.subplots(figsize=(7, 6), layout="constrained")
 plot_segmentation(scene.surface, ax=ax)

@@ -14,7 +14,9 @@ import twoscale
 from twoscale.io import read_scene
 from twoscale.plot import Caption, plot_forces, plot_pressure_map
 
-ROOT = Path(twoscale.__file__).resolve().parents[1]
+# the repository's examples/ folder: run from the repository (or a folder in it, as the
+# documentation build does); an installed twoscale does not ship the examples
+ROOT = next(p for p in (Path.cwd(), *Path.cwd().parents) if (p / "examples" / "paper_seven_spheres.toml").is_file())
 scene = read_scene(ROOT / "examples" / "paper_seven_spheres.toml")
 result = twoscale.solve(scene)
 print(result)
