@@ -204,6 +204,8 @@ def test_height_map_mistakes_are_one_line(tmp_path):
     raw = RawMap(np.zeros((31, 31)), 1.0, "mm", None, "flat")
     with pytest.raises(SurfaceError, match=r"crop \[0, 40, 0, 40\] mm must lie within the map"):
         condition(raw, crop=(0, 40, 0, 40))
+    with pytest.raises(SurfaceError, match=r"^array: RawMap spacing must be a number > 0 \(mm\), got -1$"):
+        RawMap(np.zeros((31, 31)), spacing=-1)  # heights given in Python: no file to blame
 
 
 def test_contacts_reaching_the_map_edge_are_named(tmp_path):

@@ -69,7 +69,9 @@ class RawMap:
         if sp is not None and not (
             isinstance(sp, (int, float, np.integer, np.floating)) and np.isfinite(sp) and sp > 0
         ):
-            raise SurfaceError(f"{self.source}: the file's spacing must be a number > 0, got {sp!r}")
+            what = "RawMap spacing" if self.source == "array" else "the file's spacing"
+            unit = " (mm)" if self.source == "array" and self.spacing_units is None else ""
+            raise SurfaceError(f"{self.source}: {what} must be a number > 0{unit}, got {sp!r}")
 
 
 def read_heightmap(path: str | os.PathLike) -> RawMap:
