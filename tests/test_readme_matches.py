@@ -46,3 +46,13 @@ def test_the_readme_names_the_macro_steps_dense_limit_of_the_options():
     row = next(line for line in readme.splitlines() if line.startswith("| `macro` |"))
     limit = int(re.search(r"up to ([\d,]+) asperities", row).group(1).replace(",", ""))
     assert limit == MacroOptions().dense_max
+
+
+def test_the_set_up_lines_run_where_only_python3_is_on_the_path():
+    """The README's set-up lines make the virtual environment with ``python3`` (many
+    systems have no ``python`` outside one), and the CI script runs the second verbatim."""
+    readme = (ROOT / "README.md").read_text(encoding="utf-8")
+    setup = readme[readme.index("## Set-up") : readme.index("## Five-minute tour")]
+    lines = [block.strip() for block in re.findall(r"```\n(.*?)```", setup, flags=re.S)]
+    assert len(lines) == 2 and all(line.startswith("python3 -m venv .venv && ") for line in lines)
+    assert lines[1] in (ROOT / ".ci" / "run").read_text(encoding="utf-8").splitlines()
