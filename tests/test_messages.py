@@ -239,3 +239,40 @@ def test_contacts_reaching_the_map_edge_are_named(tmp_path):
             k = int(np.argmin([abs(a.y - (-6.0)) for a in s.asperities]))
             assert len(edge) == 1 and f"asperity {k + 1} reaches the edge" in str(edge[0].message)
             assert edge[0].filename == __file__  # points at the caller's line, not into the package
+
+
+SOFT_SCENE = """
+[material]
+E = 1e-12
+nu = 0.5
+[load]
+total = 5.0
+[grid]
+h = 0.1
+[[asperity]]
+x = -3.0
+y = 0.0
+R = 10.0
+[[asperity]]
+x = 3.0
+y = 0.0
+z = 0.01
+R = 10.0
+shape = "paraboloid"
+[influence]
+kind = "block"
+size = [60.0, 60.0, 10.0]
+"""
+
+
+def test_a_memory_refusal_under_load_names_the_modulus_that_makes_the_contact_large(write_scene, tmp_path, capsys):
+    """Under load control a contact grows as (F R / E)^(1/3): at E = 1e-12 MPa the expected
+    contact is kilometres wide (R 10 mm, 5 N: 2 (3 F R / (4 E*))^(1/3) ~ 5e4 mm), and the
+    refusal names the modulus beside the load, the two fields that make it."""
+    out = tmp_path / "out"
+    path = write_scene(SOFT_SCENE)
+    assert main(["solve", str(path), "--out", str(out)]) == 2
+    err = capsys.readouterr().err.strip()
+    assert "\n" not in err and err.startswith("error: ")
+    assert "load.total = 5 N" in err and "material.E = 1e-12 MPa" in err
+    assert not out.exists()

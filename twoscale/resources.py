@@ -299,13 +299,14 @@ def check_solve_memory(
 
 
 def _largest_contact(scene: Scene) -> str:
-    """The largest expected contact and the load that makes it, in words."""
+    """The largest expected contact and what makes it, in words: the approach, or the load
+    and the modulus (under load control a contact grows as ``(F R / E)^(1/3)``)."""
     a = expected_contact_radii(scene)
     k = int(np.argmax(a))
     load = (
         f"load.penetration = {scene.penetration:g} mm"
         if scene.penetration is not None
-        else f"load.total = {scene.total_load:g} N"
+        else f"load.total = {scene.total_load:g} N and material.E = {scene.material.E:g} MPa"
     )
     return f"the largest expected contact, asperity {k + 1}'s, is about {2 * a[k]:.3g} mm across at {load}"
 
