@@ -499,14 +499,10 @@ def test_merged_spheres_under_load_hand_over_after_two_flat_steps(monkeypatch):
     # Newton sits at 1.14e-2 from its second step; it hands over to the safe path after two
     # flat steps instead of four, and the safe path gives the same forces
     import twoscale.macro.solve as macro_solve
+    from helpers import sweep_macro_inputs
     from twoscale.laws import law_for
-    from twoscale.scenespace import build, sweep
 
-    (spec,) = [s for s in sweep(200, 0) if s.index == 31]
-    scene = build(spec)
-    tips = np.array([[a.x, a.y] for a in scene.asperities])
-    z = np.array([a.z for a in scene.asperities])
-    provider = scene.provider()
+    scene, tips, z, provider = sweep_macro_inputs(31)
 
     def solve():
         laws = [law_for(a, provider.material) for a in scene.asperities]

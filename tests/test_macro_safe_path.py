@@ -8,21 +8,17 @@ import numpy as np
 import pytest
 
 import twoscale.macro.robust as robust
+from helpers import sweep_macro_inputs
 from twoscale.control import Loading
 from twoscale.laws import law_for
 from twoscale.macro import solve_macro
-from twoscale.scenespace import build, sweep
 
 
 @pytest.fixture(scope="module")
 def merged_eight():
     """The sweep's eight spheres under load, two contacts merged (#31): Newton stalls and
     the dual ascent takes three steps from the cold start."""
-    (spec,) = [s for s in sweep(200, 0) if s.index == 31]
-    scene = build(spec)
-    tips = np.array([[a.x, a.y] for a in scene.asperities])
-    z = np.array([a.z for a in scene.asperities])
-    provider = scene.provider()
+    scene, tips, z, provider = sweep_macro_inputs(31)
 
     def solve():
         laws = [law_for(a, provider.material) for a in scene.asperities]
