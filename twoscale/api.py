@@ -34,6 +34,7 @@ import numpy as np
 from .control import check_control
 from .errors import ResolutionWarning
 from .material import Material
+from .pivot import check_pivot_reach, pivot_route
 from .results import ContactResult
 from .scene import SCENE_METHODS
 from .resolution import check_resolution
@@ -201,6 +202,7 @@ def solve(
         check_keywords(options)
     h_given = h is not None
     h = default_h(scene)
+    check_pivot_reach(scene, h)
     if not callable(method) and (memory_limit is None or memory_limit < math.inf):
         _check_memory(scene, h, method, options, memory_limit, h_given)
     from .io.cache_entry import solve_caches, usage_since
@@ -266,8 +268,12 @@ def _run_method(scene: Scene, provider: InfluenceProvider, h: float, method: str
     scene of a few tips, its full grid's one CG, said in the result) or a reference."""
     from .resources import full_grid_route
 
-    # any option asks for the two-scale solver itself (the command line passes its progress display)
-    route = full_grid_route(scene, h) if method == "twoscale" and not options else None
+    # any option asks for the two-scale solver itself (the command line passes its progress
+    # display: it keeps the two-scale route, macro step shown), but no patch holds the
+    # contact of a tilt about a pivot outside the tips, whatever the entry
+    route = None
+    if method == "twoscale" and not set(options) - {"progress"}:
+        route = full_grid_route(scene, h) if not options else pivot_route(scene)
     if route is not None:  # the smallest scenes: their full grid's one CG, said in the result
         from .reference.on_scene import solve_reference_scene
 

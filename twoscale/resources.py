@@ -39,24 +39,13 @@ from dataclasses import dataclass
 import numpy as np
 
 from .grid import Grid
-from .memory_costs import (
-    BASE_BYTES,
-    GRID_BYTES_PER_CELL,
-    PATCH_BYTES_PER_CELL,
-    FFT_WORK_BYTES_PER_CELL,
-    COUPLING_CACHE_BYTES,
-    MARGIN,
-    MERGE_GROWTH,
-    MACRO_DENSE_MAX,
-    DENSE_CELLS,
-    DENSE_GRID_CELLS,
-    BLOCK_PROVIDER_BYTES,
-    DEFAULT_FRACTION,
-    ADVICE_SHARE,
-)
+from .memory_costs import BASE_BYTES, GRID_BYTES_PER_CELL, PATCH_BYTES_PER_CELL, FFT_WORK_BYTES_PER_CELL
+from .memory_costs import COUPLING_CACHE_BYTES, MARGIN, MERGE_GROWTH, MACRO_DENSE_MAX, DENSE_CELLS
+from .memory_costs import DENSE_GRID_CELLS, BLOCK_PROVIDER_BYTES, DEFAULT_FRACTION, ADVICE_SHARE
 from .micro.policy import FAR_FIELD_MIN_PATCHES, FULL_GRID_MAX_TIPS, UNION_MIN_COVERAGE
 from .micro.policy import full_grid_route as policy_full_grid_route
 from .micro.sources import KEPT_BYTES_PER_OWNED_CELL
+from .pivot import pivot_route
 from .scene import SCENE_METHODS, Scene, SceneError, expected_approaches, expected_contact_radii, round_up
 
 
@@ -235,13 +224,18 @@ def _twoscale_parts(scene: Scene, h: float, *, union: bool = False) -> tuple[int
 
 def full_grid_route(scene: Scene, h: float) -> str | None:
     """Why a default two-scale solve of ``scene`` at ``h`` runs as its full grid's one CG
-    (:func:`twoscale.micro.policy.full_grid_route`), or None: a scene of a few tips only
-    (no height map), whose full grid is small. Its memory is then the reference grid's."""
-    if scene.surface is not None or len(scene.asperities) > FULL_GRID_MAX_TIPS:
-        return None
+    (:func:`twoscale.micro.policy.full_grid_route`), or None: a few tips (no height map) on
+    a small grid, or a tilt about a pivot off the tips (:func:`twoscale.pivot.pivot_route`).
+    Its memory is then the reference grid's."""
+    if (route := pivot_route(scene)) is not None or scene.surface is not None:
+        return route
     from .reference.on_scene import reference_grid
 
-    return policy_full_grid_route(int(reference_grid(scene, h).size))
+    return (
+        None
+        if len(scene.asperities) > FULL_GRID_MAX_TIPS
+        else policy_full_grid_route(int(reference_grid(scene, h).size))
+    )
 
 
 def _pair_bytes(across: np.ndarray) -> float:

@@ -32,6 +32,7 @@ import numpy as np
 from ..control import check_control
 from ..indenters import Surface
 from ..details import ReferenceDetails
+from ..errors import SceneError
 from ..results import ContactResult, PressureField, summarise
 
 
@@ -160,7 +161,7 @@ def _check_pivot_inside(surface: Surface, pivot: tuple[float, float]) -> None:
         tol = 1e-9 * surface.grid.h
         inside = bool(np.all(hull.equations[:, :2] @ np.asarray(pivot) + hull.equations[:, 2] <= tol))
     if not inside:
-        raise ValueError(
+        raise SceneError(
             f"pivot {pivot!r} (mm) lies outside the cells with indenter material: no tilt balances the moments"
         )
 

@@ -1,0 +1,92 @@
+"""A free tilt about a pivot off the tips: refused where no tilt balances the moments, solved
+on the full grid where the contact leaves the apexes' patches."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+import twoscale
+from twoscale import Asperity, Material
+from twoscale.cli.main import main
+from twoscale.pivot import hull_distance, pivot_route
+from twoscale.scene import Scene, SceneError
+
+# three paraboloids, a thin triangle: a pivot a little to the right of its long edge
+TIPS = (
+    Asperity(-1.509, -5.681, 0.0038, 9.2, "paraboloid"),
+    Asperity(-3.89, -6.74, 0.0064, 8.27, "paraboloid"),
+    Asperity(-0.58, -10.43, 0.0034, 8.19, "paraboloid"),
+)
+MATERIAL = Material(9.4, 0.5)
+LOAD = 0.162
+H = 0.04
+
+
+def _off_edge(distance: float) -> tuple[float, float]:
+    """The point ``distance`` mm outside the triangle's edge from tip 1 to tip 3, at its middle."""
+    a, b = np.array([TIPS[0].x, TIPS[0].y]), np.array([TIPS[2].x, TIPS[2].y])
+    t = (b - a) / np.linalg.norm(b - a)
+    n = np.array([-t[1], t[0]])
+    n = n if n[0] > 0 else -n  # away from tip 2
+    p = 0.5 * (a + b) + distance * n
+    return float(p[0]), float(p[1])
+
+
+@pytest.mark.parametrize(
+    ("points", "p", "expected"),
+    [
+        ([(0, 0), (1, 0), (1, 1), (0, 1)], (3.0, 0.5), 2.0),  # beside a side
+        ([(0, 0), (1, 0), (1, 1), (0, 1)], (4.0, 5.0), 5.0),  # off a corner: 3-4-5
+        ([(0, 0), (1, 0), (1, 1), (0, 1)], (0.3, 0.6), 0.0),  # inside
+        ([(0, 0), (2, 2), (1, 1)], (2.0, 0.0), math.sqrt(2.0)),  # collinear: a segment
+        ([(1, 1)], (4.0, 5.0), 5.0),  # one point
+    ],
+)
+def test_hull_distance_against_plane_geometry(points, p, expected):
+    assert hull_distance(np.array(points, dtype=float), p) == pytest.approx(expected, abs=1e-6)
+
+
+def test_pivot_outside_all_material_is_refused_before_solving(tmp_path):
+    with pytest.raises(SceneError, match=r"load\.pivot = \[.*outside every place the tips have material"):
+        twoscale.solve(TIPS, total_load=LOAD, tilt=True, pivot=_off_edge(5.0), material=MATERIAL, h=H)
+
+
+def test_pivot_outside_is_exit_2_one_line_and_nothing_written(write_scene, tmp_path, capsys):
+    px, py = _off_edge(5.0)
+    tips = "".join(f"[[asperity]]\nx = {a.x}\ny = {a.y}\nz = {a.z}\nR = {a.R}\nshape = 'paraboloid'\n" for a in TIPS)
+    text = f"[material]\nE = 9.4\nnu = 0.5\n[load]\ntotal = {LOAD}\ntilt = true\npivot = [{px}, {py}]\n{tips}"
+    out = tmp_path / "out"
+    assert main(["solve", str(write_scene(text)), "--out", str(out)]) == 2
+    err = capsys.readouterr().err.strip()
+    assert "\n" not in err and "load.pivot" in err
+    assert not out.exists()
+
+
+def test_pivot_inside_the_tips_keeps_the_two_scale_route():
+    scene = Scene(material=MATERIAL, asperities=TIPS, total_load=LOAD, tilt=True, pivot=_off_edge(-0.3))
+    assert pivot_route(scene) is None
+
+
+@pytest.mark.parametrize("distance", [0.3, 0.9])
+def test_pivot_off_the_tips_is_solved_on_the_full_grid_and_balances_the_moments(distance):
+    """Off the tips' hull the contact sits on the flanks: the default answers with the full
+    grid, says so, and the pressure's centre lies on the pivot (both moments vanish)."""
+    pivot = _off_edge(distance)
+    scene = Scene(material=MATERIAL, asperities=TIPS, total_load=LOAD, tilt=True, pivot=pivot)
+    assert "outside the tips' convex hull" in pivot_route(scene)
+    res = twoscale.solve(TIPS, total_load=LOAD, tilt=True, pivot=pivot, material=MATERIAL, h=H)
+    assert res.converged
+    assert "default route: the pivot lies" in res.message
+    assert res.total_load == pytest.approx(LOAD, rel=1e-6)
+    (field,) = res.fields
+    X, Y = field.grid.centres()
+    force = field.pressure.sum() * field.grid.h**2
+    centre = (
+        float((field.pressure * X).sum() * field.grid.h**2 / force),
+        float((field.pressure * Y).sum() * field.grid.h**2 / force),
+    )
+    # the moment arm left is below a cell: the pressure's centre on the pivot
+    assert math.dist(centre, pivot) < 0.5 * H
