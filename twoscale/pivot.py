@@ -9,8 +9,8 @@ off the apexes. Two consequences, both decided before any solve:
 
 * :func:`check_pivot_reach` refuses a pivot outside the material of the grid the full-grid
   reference would use (no solver can answer it);
-* :func:`pivot_route` sends a pivot outside the tips' hull to the full grid: the two-scale
-  patches are centred on the apexes, where that contact is not.
+* :func:`pivot_route` sends a pivot farther outside the tips' hull than a contact radius to
+  the full grid: the two-scale patches are centred on the apexes, where that contact is not.
 """
 
 from __future__ import annotations
@@ -88,13 +88,17 @@ def check_pivot_reach(scene, h: float) -> None:
 
 
 def pivot_route(scene) -> str | None:
-    """Why a tilted tip scene runs on its full grid (the pivot outside the tips' hull), or None."""
+    """Why a tilted tip scene runs on its full grid, or None: the pivot lies farther outside
+    the tips' hull than the widest expected contact radius (each tip alone at its expected
+    approach), so the contacts must move along the flanks beyond their apexes' patches."""
     if not scene.tilt or scene.surface is not None:
         return None
+    from .resolution import expected_contact_radii
+
     outside = hull_distance(scene.tips, scene.pivot)
-    if outside <= 1e-9 * max(float(np.ptp(scene.tips)), 1.0):
+    if outside <= float(np.max(expected_contact_radii(scene))):
         return None
     return (
-        f"the pivot lies {outside:.3g} mm outside the tips' convex hull: the tilt moves the contact "
-        "onto the tips' flanks, away from the patches around the apexes"
+        f"the pivot lies {outside:.3g} mm outside the tips' convex hull, beyond their contact "
+        "radii: the tilt moves the contact onto the tips' flanks, away from the patches around the apexes"
     )
