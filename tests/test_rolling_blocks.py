@@ -130,6 +130,44 @@ def test_a_stone_kept_across_positions_is_updated_to_its_new_cells():
     assert np.abs(updated - made).max() <= 1e-10 * np.abs(made).max()
 
 
+def _operator_entries(width: int = 41):
+    """The half-space's offset table on a 41 x 41 grid of 0.1 mm cells (flat) and its
+    centre's place: ``entries[centre + flat_i - flat_j]`` the operator's entry."""
+    g = Grid(0.0, 0.0, 0.1, width, width)
+    table = KeptBody(HS).grid_operator(g).op.offset_table()
+    return table.ravel(), (width - 1) * table.shape[1] + (width - 1), table.shape[1]
+
+
+@pytest.mark.parametrize(
+    "lost, gained",
+    [((0,), ()), ((0, 1, 57, 136), ()), ((), (0,)), ((), (0, 60, 143)), ((5, 136), (0, 61)), ((58,), (60,))],
+)
+def test_an_updated_inverse_is_the_inverse_of_the_new_cells(lost, gained):
+    """:func:`~twoscale.rolling.inverses.updated`, cells lost (the first, the last, a run)
+    and gained (before the first, between, after the last) alone or together: the
+    inverse of the operator on the new cells, full (both triangles) and zero-padded to its
+    size class, and its row sums, as :func:`~twoscale.rolling.inverses.fresh_blocks` makes
+    it afresh (and numpy's dense inverse)."""
+    from twoscale.rolling.inverses import fresh_blocks, size_class, updated
+
+    entries, centre, width = _operator_entries()
+    rows, cols = np.divmod(np.arange(144), 12)
+    every = rows * width + cols  # a 12 x 12 patch's places in the table's rows, sorted
+    old = np.delete(every[1:140], [59, 60])  # 137 cells: every[0], [60], [61], [140:] free
+    new = np.union1d(np.delete(old, list(lost)), every[list(gained)])
+    ((inverse, _),) = fresh_blocks(entries, centre, [old])
+    got = updated(old, inverse, new, new, entries, centre)
+    ((want, sums),) = fresh_blocks(entries, centre, [new])
+    n = new.size
+    assert got is not None and got[0].shape == (size_class(n),) * 2
+    assert np.abs(got[0] - want).max() <= 1e-9 * np.abs(want).max()
+    assert not np.any(got[0][n:]) and not np.any(got[0][:, n:])
+    np.testing.assert_allclose(got[1], sums, rtol=0, atol=1e-9 * np.abs(sums).max())
+    dense = np.linalg.inv(entries[centre + new[:, None] - new[None, :]])
+    np.testing.assert_allclose(want[:n, :n], dense, rtol=0, atol=1e-9 * np.abs(dense).max())
+    np.testing.assert_allclose(sums, dense.sum(axis=1), rtol=0, atol=1e-9 * np.abs(sums).max())
+
+
 @pytest.mark.parametrize("load", [{"total_load": 150.0}, {"penetration": 1.2}])
 def test_rolled_positions_are_the_same_with_fewer_iterations(load):
     """A tyre rolled over a chip-seal strip (stones well apart, ~50 cells of contact each):
