@@ -307,14 +307,14 @@ def test_a_window_covering_the_stones_extents_covers_their_reach_at_any_bound(st
     assert not _covers_extents(short, track, selection)
 
 
-def test_the_stones_surface_on_the_maps_lattice_is_surface_ons(strip):
-    """The window's surface of the basins of one shifted map (:func:`_stones_surface`: the
+def test_thestones_surface_on_the_maps_lattice_is_surface_ons(strip):
+    """The window's surface of the basins of one shifted map (:func:`stones_surface`: the
     map's windows themselves) is :func:`~twoscale.indenters.surface_on`'s, heights and
     owners alike, on the map's lattice (a grid partly off the strip too) and off it (the
     general sampling)."""
     from twoscale.indenters import surface_on
     from twoscale.rolling.track import prepare
-    from twoscale.rolling.window import _stones_surface
+    from twoscale.rolling.road import stones_surface
 
     spec = RollingSpec(start=-6.0, end=6.0, step=1.0, speed=30.0, tyre_radius=150.0, footprint=(30.0, 16.0))
     road = prepare(Scene(material=MAT, surface=strip, rolling=spec, total_load=60.0)).road
@@ -326,7 +326,7 @@ def test_the_stones_surface_on_the_maps_lattice_is_surface_ons(strip):
             Grid(-40.0, -14.0, 0.25, 200, 120),
             Grid(-20.1, -8.0, 0.25, 60, 32),
         ):
-            mine, theirs = _stones_surface(grid, stones), surface_on(grid, stones)
+            mine, theirs = stones_surface(grid, stones), surface_on(grid, stones)
             assert np.isfinite(mine.height).any() and mine.n_asperities == theirs.n_asperities
             assert np.array_equal(mine.height, theirs.height) and np.array_equal(mine.owner, theirs.owner)
             assert mine.owner.dtype == theirs.owner.dtype

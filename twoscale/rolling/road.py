@@ -18,7 +18,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..indenters import Asperity
+from ..grid import Grid
+from ..indenters import Asperity, Surface, surface_on
 from ..scene import Scene
 from ..surface.indenter import MapAsperity
 from .spec import RollingSpec
@@ -372,3 +373,16 @@ def _x_slope(recess: np.ndarray, h: float) -> np.ndarray:
         np.isfinite(central), central, np.where(np.isfinite(fwd), fwd, np.where(np.isfinite(back), back, 0.0))
     )
     return np.where(np.isfinite(r), out, 0.0)
+
+
+def stones_surface(grid: Grid, stones) -> Surface:
+    """:func:`~twoscale.indenters.surface_on` of ``stones`` on ``grid``: when they are all
+    basins of one shifted height map on its lattice, the map's windows themselves (the
+    union of a single group is its own sampling: the same arrays without the grid-sized
+    fill, comparison and two masked copies, ~2 of ~4 ms on the tyre's window)."""
+    group = getattr(stones[0], "group", None) if stones else None
+    if group is not None and all(type(s) is RolledStone and s.group is group for s in stones):
+        found = group.union_on_grid(grid, {s.label: k for k, s in enumerate(stones)})
+        if found is not None:
+            return Surface(grid, found[0], found[1], len(stones))
+    return surface_on(grid, stones)

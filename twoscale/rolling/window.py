@@ -59,7 +59,7 @@ from ..indenters import Surface, surface_on
 from .blocks import StoneBlocks
 from .boxes import covers, grown, loaded_box, moved, union
 from .lift import touching_outside
-from .road import RolledStone, Selection, reaches
+from .road import RolledStone, Selection, reaches, stones_surface
 from .track import Track
 
 #: Cells added on every side when the window is built or grows.
@@ -318,26 +318,13 @@ def _window_surface(track, selection, bound: float, state: WindowState):
     reach lies inside it (the box of their low cells then does too)."""
     g = state.grid
     if g is not None and (_covers_extents(g, track, selection) or covers(g, reference_grid(track, selection, bound))):
-        surface = _stones_surface(g, selection.stones)
+        surface = stones_surface(g, selection.stones)
         return None if _low_box(surface, bound) is None else (g, surface)
     box = contact_box(track, selection, bound)
     if box is None:
         return None
     grid = state.window(box)
-    return grid, _stones_surface(grid, selection.stones)
-
-
-def _stones_surface(grid: Grid, stones) -> Surface:
-    """:func:`~twoscale.indenters.surface_on` of ``stones`` on ``grid``: when they are all
-    basins of one shifted height map on its lattice, the map's windows themselves (the
-    union of a single group is its own sampling: the same arrays without the grid-sized
-    fill, comparison and two masked copies, ~2 of ~4 ms on the tyre's window)."""
-    group = getattr(stones[0], "group", None) if stones else None
-    if group is not None and all(type(s) is RolledStone and s.group is group for s in stones):
-        found = group.union_on_grid(grid, {s.label: k for k, s in enumerate(stones)})
-        if found is not None:
-            return Surface(grid, found[0], found[1], len(stones))
-    return surface_on(grid, stones)
+    return grid, stones_surface(grid, selection.stones)
 
 
 def _covers_extents(grid: Grid, track: Track, selection: Selection) -> bool:
