@@ -168,9 +168,9 @@ def solve_cg(
         fewer than this fraction of its cells (:func:`~._start.cropped`; the crop costs a
         second operator and a float64 product for the displacement on the whole grid).
     half_products : bool, default False
-        With ``reach``: the search directions' fast products in two halves where the part
-        has them (:class:`~twoscale.influence.on_cells.CellProduct`): the step length by
-        Parseval, the transforms back only where the step uses ``A t``. The reference: off.
+        The search directions' fast products (on the part, or every cell) in two halves where
+        they have them (:class:`~twoscale.influence.on_cells.CellProduct`): the step length
+        by Parseval, the transforms back only where the step uses ``A t``. The reference: off.
 
     Returns
     -------
@@ -358,8 +358,9 @@ def _iterate(
     run, dims = (z, p, cand, problem.basis(), products, pc), shape
     if part is not None:
         run, dims = part.inputs(*run, None if fast is None else op.columns(part.cells)), (part.cells.size,)
-        if halves:  # (the part's fast product in two halves, where it has them)
-            run = (*run[:4], replace(run[4], halves=getattr(run[4].fast, "halves", None)), run[5])
+    if halves and fast is not None:  # the fast product in two halves where it has them (the part's, or every cell's)
+        rows = run[4].fast if part is not None else OneRow(fast).on_part(np.arange(cand.size))
+        run = (*run[:4], replace(run[4], halves=getattr(rows, "halves", None)), run[5])
     out = pk_solve(
         run[4],
         run[0].reshape(1, *dims),
