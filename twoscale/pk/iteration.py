@@ -307,7 +307,7 @@ class Iteration:
         t += d
         t *= on
         self.G_old = G
-        r = halved(self.ops, t, self.k, beta) or self.product(t, fast=True)  # (halves: finished where A t is used)
+        r = halved(self.ops, t, self.k, beta, self.stale) or self.product(t, fast=True)  # (halves: update_displacement)
         self.products += rows if self.pc is None else 2 * rows
         if isinstance(r, Halves):
             denom = r.energy()

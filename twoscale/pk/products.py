@@ -197,17 +197,19 @@ class Halves:
         return self.product.finish()[None]
 
 
-def halved(ops: Products, t: np.ndarray, k: int, beta: np.ndarray) -> Halves | None:
+def halved(ops: Products, t: np.ndarray, k: int, beta: np.ndarray, stale: np.ndarray) -> Halves | None:
     """The search direction ``t``'s fast product begun, when ``ops.halves`` takes it: one row
-    under at most one constraint whose direction restarted (``beta`` 0: after a step where
-    cells entered, in the steps while the contact settles) and sums to 0 under load control
-    (the step's denominator is then ``t.A t`` alone: its other term is
-    ``mean_S(A t) sum(t)``); else None. Such a step mostly clips or lets in more cells than
-    the columns take, and refreshes the displacement: ``A t`` then only gives the step
-    length, and its transforms back are never run (half a product). On the roads 5-6
-    steps of 17-21 are such, and 1 of them does not refresh (its ``A t`` is finished:
-    the Parseval sum, 1 ms, is lost there)."""
-    if ops.halves is None or len(t) != 1 or k > 1 or beta[0] != 0.0:
+    under at most one constraint, in a step that will likely refresh the displacement, and
+    whose denominator is ``t.A t`` alone; else None. Such a step clips or lets in more
+    cells than the columns take: ``A t`` then only gives the step length, and its
+    transforms back are never run (half a product). Likely: the direction restarted
+    (``beta`` 0, after a step where cells entered), or without a constraint the last step
+    refreshed (``stale`` at most 1), both while the contact settles. ``t.A t`` alone:
+    without a constraint, or under load control where a restarted direction sums to 0
+    (the other term is ``mean_S(A t) sum(t)``). A step that then does not refresh finishes
+    ``A t`` (the Parseval sum, about 1 ms, lost): #158 6 begun, 1 finished; #80
+    (penetration control) 18 begun, 3 finished."""
+    if ops.halves is None or len(t) != 1 or k > 1 or (beta[0] != 0.0 and (k or stale[0] > 1)):
         return None
     if k == 1 and abs(float(t.sum())) > HALVES_SUM * float(np.abs(t).sum()):
         return None
