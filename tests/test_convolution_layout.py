@@ -210,3 +210,18 @@ def test_a_part_product_in_two_halves_is_the_product_and_its_energy_the_inner_pr
         assert energy == pytest.approx(exact, rel=1e-6)
     with pytest.raises(RuntimeError, match="forward"):
         product.finish()
+
+
+def test_the_product_on_every_cell_in_halves_is_the_grids_product():
+    """``on_cells(None)``: every cell through the operator's own padded field (no index
+    arrays), the grid's float32 product to the bit, begun and finished or in one call, and
+    the same Parseval sum as the product on the flat indices of every cell."""
+    g = Grid(0.0, 0.0, H, 57, 44)
+    single = HS.grid_operator(g).single_precision()
+    every, indexed = single.on_cells(None), single.on_cells(np.arange(g.size))
+    assert every is not None and indexed is not None
+    p = np.random.default_rng(5).standard_normal(g.shape)
+    energy = every.forward(p.ravel()).energy()
+    assert np.array_equal(every.finish(), single.apply(p).ravel())
+    assert np.array_equal(every(p.ravel()), indexed(p.ravel()))
+    assert energy == indexed.forward(p.ravel()).energy()

@@ -259,8 +259,8 @@ class _SingleConvolution(GridOperator):
         a *= self._khat
         return self._finish_in_place(a, buffers)
 
-    def on_cells(self, cells: np.ndarray) -> CellProduct | None:
-        """:meth:`apply` on the flat ``cells`` of a square operator's grid
+    def on_cells(self, cells: np.ndarray | None) -> CellProduct | None:
+        """:meth:`apply` on the flat ``cells`` of a square operator's grid (None: every cell)
         (:class:`~.on_cells.CellProduct`: the pressures on those cells in, the displacement
         there out, both (m,) float64, without grid-sized float64 copies; also in its two
         halves); None for a pair of different grids."""

@@ -45,18 +45,22 @@ class CellProduct:
     grid (``op``: the float32 operator, whose kept transform buffers it shares): the values
     go straight into a padded float32 field of their own (the other cells stay 0) and the
     displacement comes back at those cells from the kept field back, both (m,) float64.
+    ``cells`` None: every cell, through ``op``'s own padded field (no index arrays).
 
     Call it for the product, or :meth:`forward` and then :meth:`energy` and/or
     :meth:`finish`: between them no other product of ``op`` may run (they share its
     spectrum buffer)."""
 
-    def __init__(self, op, cells: np.ndarray):
+    def __init__(self, op, cells: np.ndarray | None):
         (ny, nx), (my, _) = op.source.shape, op.fft_shape
         self.op = op
+        self.spectrum: np.ndarray | None = None  # the forward half's, until finished
+        if cells is None:
+            self.at = self.back_at = self.padded = None
+            return
         self.at = np.asarray(cells, dtype=np.intp)
         self.back_at = self.at + (ny - 1) * nx  # the target's rows of the field back start at row ny - 1
         self.padded = np.zeros((my, nx), np.float32)
-        self.spectrum: np.ndarray | None = None  # the forward half's, until finished
 
     def __call__(self, values: np.ndarray) -> np.ndarray:
         return self.forward(values).finish()
@@ -64,6 +68,9 @@ class CellProduct:
     def forward(self, values: np.ndarray) -> "CellProduct":
         """The forward transforms of ``values`` (m,) into ``op``'s kept spectrum buffer."""
         op = self.op
+        if self.padded is None:  # every cell: the operator's own padded field
+            self.spectrum = op._spectrum_in_place(values.reshape(op.source.shape), op.buffers())
+            return self
         self.padded.ravel()[self.at] = values
         self.spectrum = op._spectrum_in_place(None, (self.padded, *op.buffers()[1:]))
         return self
@@ -91,4 +98,7 @@ class CellProduct:
         self.spectrum = None
         a *= op._khat
         back = op._back_in_place(a, op.buffers())
+        if self.back_at is None:
+            ny = op.source.ny
+            return back[ny - 1 : 2 * ny - 1].ravel().astype(np.float64)
         return back.ravel()[self.back_at].astype(np.float64)

@@ -160,8 +160,8 @@ class OneRow:
     def __call__(self, v: np.ndarray) -> np.ndarray:
         return self.op.apply(v[0])[None]
 
-    def on_part(self, cells: np.ndarray) -> Callable | None:
-        own = getattr(self.op, "on_cells", None)
+    def on_part(self, cells: np.ndarray | None) -> Callable | None:
+        own = getattr(self.op, "on_cells", None)  # (cells None: every cell)
         apply = None if own is None else own(cells)
         if apply is None:
             return None

@@ -359,7 +359,7 @@ def _iterate(
     if part is not None:
         run, dims = part.inputs(*run, None if fast is None else op.columns(part.cells)), (part.cells.size,)
     if halves and fast is not None:  # the fast product in two halves where it has them (the part's, or every cell's)
-        rows = run[4].fast if part is not None else OneRow(fast).on_part(np.arange(cand.size))
+        rows = run[4].fast if part is not None else OneRow(fast).on_part(None)
         run = (*run[:4], replace(run[4], halves=getattr(rows, "halves", None)), run[5])
     out = pk_solve(
         run[4],
