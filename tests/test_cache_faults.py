@@ -338,3 +338,27 @@ def test_two_processes_tabulating_the_same_laws_both_succeed(tmp_path):
     )
     np.testing.assert_array_equal(s.book.table(Material(10.0, 0.5)).P, P0)
     assert s.book.tabulated == 0 and s.book.cache.usage().read == n
+
+
+def test_law_cache_finds_an_entry_by_its_name_and_counts_its_bytes_once_listed(tmp_path):
+    """A fresh cache looks an entry up by its file (the folder is listed only when a law is
+    put): it finds a table another run wrote, misses an absent one, and its running total of
+    bytes after a put holds every entry, the one read before the listing too."""
+    import numpy as np
+
+    from twoscale.surface.lawcache import LawCache
+    from twoscale.surface.laws import LawTable
+
+    def table(scale: float) -> LawTable:
+        delta = np.linspace(0.0, 0.01, 5)[None]
+        return LawTable(delta, scale * delta**1.5, 10.0, 0.1, True)
+
+    LawCache(tmp_path).put("a" * 64, table(1.0))
+    fresh = LawCache(tmp_path)
+    found = fresh.get("a" * 64)
+    assert found is not None and np.array_equal(found.P, table(1.0).P)
+    assert fresh.get("b" * 64) is None
+    assert (fresh.hits, fresh.misses) == (1, 1)
+    fresh.put("c" * 64, table(2.0))
+    sizes = sum(p.stat().st_size for p in tmp_path.glob("*.npz"))
+    assert len(list(tmp_path.glob("*.npz"))) == 2 and fresh.nbytes == sizes

@@ -185,3 +185,43 @@ def test_the_products_on_a_set_of_cells_are_the_grids_products_there():
         field = p.reshape(g.shape)
         assert np.array_equal(product(p[cells]), single.apply(field).ravel()[cells])
         assert np.array_equal(inverted(p[cells]), inverse.apply(field).ravel()[cells])
+
+
+@pytest.mark.parametrize("shape", [(131, 140), (38, 37)])
+def test_a_part_product_in_two_halves_is_the_product_and_its_energy_the_inner_product(shape):
+    """The float32 product on a part's cells begun and finished is the whole call to the bit,
+    and the Parseval sum of its forward transforms is ``v.A v`` (the float64 product's) to
+    the float32 spectrum's rounding, on padded lengths even and odd."""
+    g = Grid(0.0, 0.0, H, *shape[::-1])
+    op = HS.grid_operator(g)
+    single = op.single_precision()
+    rng = np.random.default_rng(3)
+    cells = np.flatnonzero(rng.uniform(size=g.size) < 0.3)
+    product = single.on_cells(cells)
+    assert product is not None
+    for _ in range(2):
+        v = rng.standard_normal(cells.size)
+        whole = product(v)
+        energy = product.forward(v).energy()
+        assert np.array_equal(product.finish(), whole)
+        p = np.zeros(g.size)
+        p[cells] = v
+        exact = float(p @ op.apply(p.reshape(g.shape)).ravel())
+        assert energy == pytest.approx(exact, rel=1e-6)
+    with pytest.raises(RuntimeError, match="forward"):
+        product.finish()
+
+
+def test_the_product_on_every_cell_in_halves_is_the_grids_product():
+    """``on_cells(None)``: every cell through the operator's own padded field (no index
+    arrays), the grid's float32 product to the bit, begun and finished or in one call, and
+    the same Parseval sum as the product on the flat indices of every cell."""
+    g = Grid(0.0, 0.0, H, 57, 44)
+    single = HS.grid_operator(g).single_precision()
+    every, indexed = single.on_cells(None), single.on_cells(np.arange(g.size))
+    assert every is not None and indexed is not None
+    p = np.random.default_rng(5).standard_normal(g.shape)
+    energy = every.forward(p.ravel()).energy()
+    assert np.array_equal(every.finish(), single.apply(p).ravel())
+    assert np.array_equal(every(p.ravel()), indexed(p.ravel()))
+    assert energy == indexed.forward(p.ravel()).energy()

@@ -88,3 +88,38 @@ def test_the_parts_products_are_the_grids_on_its_cells():
     assert not part.touching(gap, cand, np.array([1e-2]))[0]
     cand[0, off] = False
     assert not part.touching(gap, cand, np.array([1e-4]))[0]
+
+
+@pytest.mark.parametrize("on_part", [True, False])
+@pytest.mark.parametrize("load", [{"total_load": 30.0}, {"penetration": 0.12}])
+def test_search_directions_in_halves_give_the_whole_products_answer(load, on_part, monkeypatch):
+    """``half_products``: where a direction restarted, its product (on a part, or on every
+    cell) is begun only (the step length by Parseval) and finished where the step uses
+    ``A t``; the contact is the one of whole products, and some products never ran their
+    transforms back."""
+    from twoscale.influence.on_cells import CellProduct
+
+    surf = crowded_surface(MAT, 5, load)
+    whole = solve_cg(HS, surf, **load, **SETTINGS)
+    near = (whole.fields[0].pressure > 0) | (whole.fields[0].gap < 0.02) if on_part else None
+    counts = {"forward": 0, "finish": 0}
+    forward, finish = CellProduct.forward, CellProduct.finish
+
+    def counted(name, method):
+        def run(self, *args):
+            counts[name] += 1
+            return method(self, *args)
+
+        return run
+
+    monkeypatch.setattr(CellProduct, "forward", counted("forward", forward))
+    monkeypatch.setattr(CellProduct, "finish", counted("finish", finish))
+    plain = solve_cg(HS, surf, reach=near, **load, **SETTINGS)
+    assert counts["forward"] == counts["finish"]
+    assert (counts["finish"] > 0) == on_part  # (on every cell the whole products are the grid's)
+    counts.update(forward=0, finish=0)
+    halves = solve_cg(HS, surf, reach=near, half_products=True, **load, **SETTINGS)
+    assert counts["forward"] > counts["finish"]
+    _same(halves, whole)
+    _same(halves, plain)
+    assert halves.iterations["cg"] <= plain.iterations["cg"] + 1

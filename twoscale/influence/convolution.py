@@ -13,6 +13,7 @@ import scipy.fft as sfft
 from ..grid import Grid
 from .base import GridOperator
 from .circulant import CirculantInverse
+from .on_cells import CellProduct, energy_weights
 from .stacked import KeptStackProduct, Workspace
 from .transforms import fft_in_place, irfft_into, padded_back, padded_spectrum, rfft_into
 
@@ -253,36 +254,31 @@ class _SingleConvolution(GridOperator):
             a = self._parent.spectrum(np.asarray(p, dtype=np.float32))
             a *= self._khat
             return self._parent.finish(a).astype(np.float64, copy=False)
+        buffers = self.buffers()
+        a = self._spectrum_in_place(p, buffers)
+        a *= self._khat
+        return self._finish_in_place(a, buffers)
+
+    def on_cells(self, cells: np.ndarray | None) -> CellProduct | None:
+        """:meth:`apply` on the flat ``cells`` of a square operator's grid (None: every cell)
+        (:class:`~.on_cells.CellProduct`: the pressures on those cells in, the displacement
+        there out, both (m,) float64, without grid-sized float64 copies; also in its two
+        halves); None for a pair of different grids."""
+        return CellProduct(self, cells) if self.source == self.target else None
+
+    def buffers(self) -> tuple[np.ndarray, ...]:
+        """The float32 products' kept buffers (:meth:`_new_buffers`), made on first use."""
         if self._buffers is None:
             self._buffers = self._new_buffers(np.float32)
-        a = self._spectrum_in_place(p, self._buffers)
-        a *= self._khat
-        return self._finish_in_place(a, self._buffers)
+        return self._buffers
 
-    def on_cells(self, cells: np.ndarray) -> Callable[[np.ndarray], np.ndarray] | None:
-        """:meth:`apply` on the flat ``cells`` of a square operator's grid: ``f(values)``
-        takes the pressures on those cells (0 elsewhere) and gives the displacement there,
-        both (m,) float64. The values go straight into a padded float32 field of its own
-        (the other cells stay 0) and come back from the kept field (no grid-sized float64
-        copies either way, two of a product's passes over the grid); None for a pair of
-        different grids."""
-        if self.source != self.target:
-            return None
-        (ny, nx), (my, _) = self.source.shape, self._shape
-        at = np.asarray(cells, dtype=np.intp)
-        back_at = at + (ny - 1) * nx  # the target's rows of the field back start at row ny - 1
-        padded = np.zeros((my, nx), np.float32)
-
-        def product(values: np.ndarray) -> np.ndarray:
-            if self._buffers is None:
-                self._buffers = self._new_buffers(np.float32)
-            padded.ravel()[at] = values
-            a = self._spectrum_in_place(None, (padded, *self._buffers[1:]))
-            a *= self._khat
-            back = self._back_in_place(a, self._buffers)
-            return back.ravel()[back_at].astype(np.float64)
-
-        return product
+    def energy_weights(self) -> np.ndarray:
+        """The kernel's Parseval weights (:func:`~.on_cells.energy_weights`), made once from
+        the float32 spectrum and kept with the parent operator."""
+        derived = self._parent._derived
+        if "energy" not in derived:
+            derived["energy"] = energy_weights(self._khat, self.source.shape, self._shape)
+        return derived["energy"]
 
     def exact(self, p: np.ndarray) -> np.ndarray:
         """The parent's float64 product of one field (``ConvolutionOperator.apply``: the

@@ -46,9 +46,8 @@ GROW = 1.5
 #: 1.50-1.58 contact radii from their tips, past their patches, and the box grew once: 40
 #: CG iterations on two boxes against 18 on one box of 1.12x the first's cells).
 TILT_MARGIN = 1.6
-#: Boxes from this many cells run the CG with float32 products (``"auto"``): below, a
-#: product is overhead-bound and float32 gains nothing (1,600 cells: 0.13 ms float32
-#: against 0.06 ms float64; 10,000 cells and up: 3-4x faster).
+#: Boxes from this many cells run the CG with float32 products (``"auto"``): below, one is
+#: overhead-bound (1,600 cells: 0.13 ms float32, 0.06 float64; 10,000 cells on: 3-4x faster).
 MIXED_MIN_CELLS = 10_000
 #: The start's cap around tip k reaches the level ``z_k + START_FRACTION delta_k``
 #: (``delta_k`` its macro local approach): radius sqrt(2 x 0.6) = 1.1 times Hertz's contact
@@ -245,6 +244,7 @@ def solve_union(
             rough_start=rough,
             reach=reach,
             crop_below=CROP_BELOW,
+            half_products=True,
         )
         iterations += int(result.iterations.get("cg", 0))
         products += int(result.iterations.get("products", 0))

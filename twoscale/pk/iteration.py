@@ -14,8 +14,8 @@ from typing import Any
 import numpy as np
 
 from ..stopping import StopReason
-from .projection import column, constraint_residual, fit, kkt_residual, masked_sum, project, restore, row_dot
-from .products import COLUMN_CELLS, FAST_RESIDUAL, KEPT_GROWTH, CellChange, Products, clip_and_enter
+from .projection import column, constraint_residual, denominator, kkt_residual, project, restore, row_dot
+from .products import COLUMN_CELLS, FAST_RESIDUAL, KEPT_GROWTH, CellChange, Halves, Products, clip_and_enter, halved
 from .result import PKResult, Tolerance
 
 #: Recompute ``u = A p`` from scratch at least this often (the cheap update
@@ -307,13 +307,12 @@ class Iteration:
         t += d
         t *= on
         self.G_old = G
-        r = self.product(t, fast=True)
+        r = halved(self.ops, t, self.k, beta, self.stale) or self.product(t, fast=True)  # (halves: update_displacement)
         self.products += rows if self.pc is None else 2 * rows
-        denom = row_dot(r, t)
-        if self.k == 1:  # the projected product: r minus its mean over the loaded cells (t is 0 off them)
-            denom -= masked_sum(r, on) / self.count * t.sum(axis=1)
-        elif self.k:  # (r - B c).t with c the fit of r over the loaded cells
-            denom -= np.einsum("bk,bk->b", fit(r, self.basis, on, self.basis_t, self.plane), t @ self.basis_t.T)
+        if isinstance(r, Halves):
+            denom = r.energy()
+        else:
+            denom = denominator(r, t, on, self.k, self.count, self.basis, self.basis_t, self.plane)
         bad = ~(denom > 0.0)
         if np.count_nonzero(bad):
             self.denominator[np.flatnonzero(bad) if self.index is None else self.index[bad]] = denom[bad]
@@ -348,15 +347,16 @@ class Iteration:
         :data:`REFRESH_EVERY` steps."""
         summed = None
         if change is not None and factor is not None and np.count_nonzero(changed):
-            summed = changed & (change.per_row(len(r)) <= COLUMN_CELLS) & (self.stale < REFRESH_EVERY)
+            summed = changed & (change.per_row(len(changed)) <= COLUMN_CELLS) & (self.stale < REFRESH_EVERY)
             changed = changed & ~summed
         redo = changed | (self.stale >= REFRESH_EVERY)
         count = np.count_nonzero(redo)
         if factor is None or count == len(redo):
             # every row from scratch: fast only if all still are (``redo`` may be empty)
-            self.refresh(np.ones(len(r), bool), bool(self.fast.all()))
+            self.refresh(np.ones(len(changed), bool), bool(self.fast.all()))
             return
         fast = bool(self.fast[redo].all())
+        r = r.finish() if isinstance(r, Halves) else r
         r *= tau_c
         self.u -= r
         if self.k:

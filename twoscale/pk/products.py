@@ -32,6 +32,11 @@ FAST_RESIDUAL = 1e-5
 #: the same grid about 35 float32 or 70 float64 such passes on the grids measured).
 COLUMN_CELLS = 32
 
+#: A search direction's sum under load control below this fraction of its absolute sum is
+#: its rounding (a direction projected on the loaded cells: 1e-17 to 1e-16 of it on the
+#: roads; kept directions whose cells left the contact: 1e-3 to 1e-1).
+HALVES_SUM = 1e-12
+
 #: Directions kept over an entry (``Products.keep_conjugacy``) are dropped at the next step
 #: when the preconditioned gradient's norm ``G`` grew by more than this factor: the cells
 #: that entered carry most of the gradient, and Fletcher-Reeves' ``beta = G / G_old`` would
@@ -59,6 +64,10 @@ class Products:
         ``columns(out, cells, values)`` adds ``A dp`` to ``out`` (one row, flattened) for
         ``dp`` = ``values`` on the flat ``cells`` and 0 elsewhere, exactly (float64).
         None: every refresh is a product.
+    halves : callable, optional
+        ``halves(t)``: ``fast``'s product of a search direction (one row) begun
+        (:class:`Halves`): the step's denominator by Parseval, and the transforms back only
+        where ``A t`` is used (:func:`halved`). None: the whole product.
     keep_conjugacy : float, default 0
         Keep the conjugate directions after a step where cells entered the contact when
         they are at most this fraction of the loaded cells (0: Polonsky & Keer's restart
@@ -71,6 +80,7 @@ class Products:
     fast: Operator | None = None
     columns: Callable[[np.ndarray, np.ndarray, np.ndarray], None] | None = None
     keep_conjugacy: float = 0.0
+    halves: Callable[[np.ndarray], "Halves"] | None = None
 
 
 @dataclass
@@ -150,10 +160,60 @@ class OneRow:
     def __call__(self, v: np.ndarray) -> np.ndarray:
         return self.op.apply(v[0])[None]
 
-    def on_part(self, cells: np.ndarray) -> Callable | None:
-        own = getattr(self.op, "on_cells", None)
+    def on_part(self, cells: np.ndarray | None) -> Callable | None:
+        own = getattr(self.op, "on_cells", None)  # (cells None: every cell)
         apply = None if own is None else own(cells)
-        return None if apply is None else (lambda v: apply(v[0])[None])
+        if apply is None:
+            return None
+        return _PartRow(apply) if hasattr(apply, "forward") else (lambda v: apply(v[0])[None])
+
+
+class _PartRow:
+    """:class:`OneRow`'s product on a part's cells by a product that also runs in two halves
+    (:class:`~twoscale.influence.on_cells.CellProduct`): :meth:`halves` for the kernel's
+    search directions (:func:`halved`)."""
+
+    def __init__(self, apply):
+        self.apply = apply
+
+    def __call__(self, v: np.ndarray) -> np.ndarray:
+        return self.apply(v[0])[None]
+
+    def halves(self, v: np.ndarray) -> "Halves":
+        return Halves(self.apply.forward(v[0]))
+
+
+class Halves:
+    """The search direction's product of one row begun (its forward transform): ``energy()``
+    gives ``t.A t`` per row, ``finish()`` the product ``A t`` (1, m)."""
+
+    def __init__(self, product):
+        self.product = product
+
+    def energy(self) -> np.ndarray:
+        return np.array([self.product.energy()])
+
+    def finish(self) -> np.ndarray:
+        return self.product.finish()[None]
+
+
+def halved(ops: Products, t: np.ndarray, k: int, beta: np.ndarray, stale: np.ndarray) -> Halves | None:
+    """The search direction ``t``'s fast product begun, when ``ops.halves`` takes it: one row
+    under at most one constraint, in a step that will likely refresh the displacement, and
+    whose denominator is ``t.A t`` alone; else None. Such a step clips or lets in more
+    cells than the columns take: ``A t`` then only gives the step length, and its
+    transforms back are never run (half a product). Likely: the direction restarted
+    (``beta`` 0, after a step where cells entered), or without a constraint the last step
+    refreshed (``stale`` at most 1), both while the contact settles. ``t.A t`` alone:
+    without a constraint, or under load control where a restarted direction sums to 0
+    (the other term is ``mean_S(A t) sum(t)``). A step that then does not refresh finishes
+    ``A t`` (the Parseval sum, about 1 ms, lost): #158 6 begun, 1 finished; #80
+    (penetration control) 18 begun, 3 finished."""
+    if ops.halves is None or len(t) != 1 or k > 1 or (beta[0] != 0.0 and (k or stale[0] > 1)):
+        return None
+    if k == 1 and abs(float(t.sum())) > HALVES_SUM * float(np.abs(t).sum()):
+        return None
+    return ops.halves(t)
 
 
 class OneRowInverse(OneRow):

@@ -79,6 +79,17 @@ def masked_sum(v: np.ndarray, on: np.ndarray) -> np.ndarray:
     return np.einsum("bi->b", v * on)
 
 
+def denominator(r: np.ndarray, t: np.ndarray, on: np.ndarray, k: int, count, basis, basis_t, plane) -> np.ndarray:
+    """Per row, a step's ``t.A t`` projected on the ``k`` constraints, from ``r = A t`` (``t``
+    0 off the loaded cells ``on``; ``count`` their number per row under load control)."""
+    denom = row_dot(r, t)
+    if k == 1:  # the projected product: r minus its mean over the loaded cells
+        denom -= masked_sum(r, on) / count * t.sum(axis=1)
+    elif k:  # (r - B c).t with c the fit of r over the loaded cells
+        denom -= np.einsum("bk,bk->b", fit(r, basis, on, basis_t, plane), t @ basis_t.T)
+    return denom
+
+
 def fit(
     v: np.ndarray,
     basis: np.ndarray,

@@ -27,7 +27,7 @@ precision stages) and builds the result.
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Callable
 
 import numpy as np
@@ -61,6 +61,7 @@ class CGSettings:
     plane_sums: bool = False
     rough_start: bool = False
     crop_below: float = 1.0
+    half_products: bool = False
 
 
 def solve_cg(
@@ -166,6 +167,10 @@ def solve_cg(
         Penetration control crops the grid to the cells that can touch when that keeps
         fewer than this fraction of its cells (:func:`~._start.cropped`; the crop costs a
         second operator and a float64 product for the displacement on the whole grid).
+    half_products : bool, default False
+        The search directions' fast products (on the part, or every cell) in two halves where
+        they have them (:class:`~twoscale.influence.on_cells.CellProduct`): the step length
+        by Parseval, the transforms back only where the step uses ``A t``. The reference: off.
 
     Returns
     -------
@@ -217,6 +222,7 @@ def solve_cg(
         reach=reach,
         plane_sums=cg.plane_sums,
         rough_start=cg.rough_start and not (it0 or hist0),
+        halves=cg.half_products,
     )
     it, n_products, hist = it + it0, n_products + products0, hist0 + hist
     p, u = p.reshape(work.grid.shape), u.reshape(work.grid.shape)
@@ -324,6 +330,7 @@ def _iterate(
     reach: np.ndarray | None = None,
     plane_sums: bool = False,
     rough_start: bool = False,
+    halves: bool = False,
 ):
     """The Polonsky-Keer kernel (:func:`twoscale.pk.pk_solve`) on the whole grid, one row, or
     on the candidates in ``reach`` (then checked on the whole grid, and solved on it from
@@ -351,6 +358,9 @@ def _iterate(
     run, dims = (z, p, cand, problem.basis(), products, pc), shape
     if part is not None:
         run, dims = part.inputs(*run, None if fast is None else op.columns(part.cells)), (part.cells.size,)
+    if halves and fast is not None:  # the fast product in two halves where it has them (the part's, or every cell's)
+        rows = run[4].fast if part is not None else OneRow(fast).on_part(None)
+        run = (*run[:4], replace(run[4], halves=getattr(rows, "halves", None)), run[5])
     out = pk_solve(
         run[4],
         run[0].reshape(1, *dims),

@@ -59,6 +59,7 @@ class LawCache:
 
     def __init__(self, directory: str | os.PathLike | None = None, *, max_bytes: float = MAX_BYTES):
         self.directory = Path(directory) if directory is not None else default_law_cache_dir()
+        self._dirname = os.fspath(self.directory)  # (``os.path``'s look-up: pathlib's costs 10x as much)
         self.max_bytes = float(max_bytes)
         self.hits = self.misses = 0
         self._files = None  # name -> size, read on first use
@@ -84,10 +85,14 @@ class LawCache:
         return self._folder.usage()
 
     def get(self, key: str) -> LawTable | None:
+        """The table of ``key``, or None. Before a law is put, the folder is not listed: the
+        entry's file is looked up by its name (the listing stats every entry, and a map's
+        laws are looked up stone by stone when a solve starts: 100 entries 8 ms against
+        a look-up each of 178 stones' 1 ms)."""
         name = f"{key}.npz"
-        files = self._index()
+        files = self._files
         table = None
-        if name in files:
+        if (name in files) if files is not None else os.path.isfile(os.path.join(self._dirname, name)):
             data = self._folder.load(name)
             if data is not None:
                 try:
@@ -98,7 +103,7 @@ class LawCache:
                     )
                 except (KeyError, ValueError, TypeError) as exc:  # whole, but not this key's law
                     self._folder.reject(name, f"not this law table: {exc}")
-            if table is None:  # gone, or dropped as damaged
+            if table is None and files is not None:  # gone, or dropped as damaged
                 self.nbytes -= files.pop(name)
         if table is None:
             self.misses += 1
