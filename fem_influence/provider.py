@@ -34,6 +34,7 @@ from twoscale.material import Material
 from twoscale.progress import Progress
 
 from .assembly import INTORDER
+from .box_entries import BoxEntries, box_entries
 from .cache import FieldCache, cache_key, default_cache_dir
 from .grid_factors import grid_target, grid_weights
 from .layer import BASES
@@ -325,6 +326,12 @@ class BlockProvider(InfluenceProvider):
         cols, W = self._source_weights(source)
         C = self._target_factor(target, cols) @ (W.toarray() if hasattr(W, "toarray") else W)
         return self._halfspace.grid_matrix(target, source, tables=self._state.love_tables) + target.h**2 * C
+
+    def box_window(self, box: Grid) -> BoxEntries | None:
+        """``grid_matrix(box)[np.ix_(rows, cols)]`` by :meth:`BoxEntries.entries` from factors
+        kept for ``box`` (a dense local block's own entries on each new active set, without
+        the box's whole matrix or its FFT); None for boxes too large for them."""
+        return box_entries(self, box)
 
     def grid_operator(self, target: Grid, source: Grid | None = None) -> "BlockGridOperator":
         source = target if source is None else source

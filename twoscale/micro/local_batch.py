@@ -37,7 +37,10 @@ def hertz_contact(z: np.ndarray, approach: float) -> np.ndarray:
 def batchable(block) -> bool:
     """A dense block whose own entries come from its box window (a translation-invariant
     kernel, exactly symmetric) and whose matrix is not stored."""
-    return bool(block.dense and block.n and block._matrix is None and block._box_window() is not None)
+    if not (block.dense and block.n and block._matrix is None):
+        return False
+    window = block._box_window()
+    return window is not None and window.symmetric
 
 
 def first_passes(blocks, z: list, forces: list, approaches: list, h: float, *, gap_rtol: float = 1e-12) -> dict:
