@@ -63,6 +63,12 @@ class BoxEntries:
         love = np.take(self._window, (self._flat[rows] + self._zero)[:, None] - self._flat[cols][None, :])
         return love + self._area * (self._L[rows] @ self._R[:, cols])
 
+    def product(self, rows: np.ndarray, cols: np.ndarray, v: np.ndarray) -> np.ndarray:
+        """``entries(rows, cols) @ v``, the correction by its rank form (``L[rows] (R[:, cols]
+        v)``, not the ``rows x cols`` product of the factors)."""
+        love = np.take(self._window, (self._flat[rows] + self._zero)[:, None] - self._flat[cols][None, :])
+        return love @ v + self._area * (self._L[rows] @ (self._R[:, cols] @ v))
+
     @property
     def nbytes(self) -> int:
         return self._window.nbytes + self._L.nbytes + self._R.nbytes + self._flat.nbytes
@@ -71,20 +77,27 @@ class BoxEntries:
 def box_entries(provider: "BlockProvider", box: Grid) -> BoxEntries | None:
     """The :class:`BoxEntries` of ``box`` (scene frame), or None where the window would be
     large or the top face is not rectilinear (the provider's whole matrix then serves)."""
-    from .grid_factors import grid_target, grid_weights
+    from .grid_factors import _axis_weights, grid_weights, kron
+    from .interpolate import _quadratic_weights
 
     if (2 * box.nx - 1) * (2 * box.ny - 1) > WINDOW_MAX_ENTRIES:
         return None
     nodes, W = grid_weights(provider, box)
     cols = provider._ensure(nodes)  # the first fields solved also make the interpolator
     st = provider._state
-    if not st.interpolator.rectilinear:
+    top = st.interpolator
+    if not top.rectilinear:
         return None
-    target = grid_target(st.interpolator, box, provider.origin, st.table[:, cols] / provider.material.E)
-    if target.T.shape[0] > RANK_MAX:
+    # the top-face interpolation at the cells, one axis at a time (as ``grid_target``), and
+    # the table's rows of those nodes only (not the whole table's columns, 1,681 x 16)
+    ox, oy = provider.origin
+    x_nodes, mx = _axis_weights(box.x, *_quadratic_weights(box.x + ox, top._xs))
+    y_nodes, my = _axis_weights(box.y, *_quadratic_weights(box.y + oy, top._ys))
+    if len(x_nodes) * len(y_nodes) > RANK_MAX:
         return None
-    L = np.kron(target.my, target.mx)  # (cells, r): cell j * nx + i, node a * rx + b
-    R = target.T @ W.toarray()
+    T = st.table[np.ix_(top._node[np.ix_(y_nodes, x_nodes)].ravel(), cols)] / provider.material.E
+    L = kron(my.T, mx.T)  # (cells, r): cell j * nx + i, node a * rx + b
+    R = T @ W.toarray()
     # Love's kernel at the offsets (dy, dx), |dy| < ny, |dx| < nx: the cells of a grid of
     # (2 ny - 1) x (2 nx - 1) around one source cell, row-major
     around = Grid(box.x0 - (box.nx - 1) * box.h, box.y0 - (box.ny - 1) * box.h, box.h, 2 * box.nx - 1, 2 * box.ny - 1)

@@ -248,7 +248,11 @@ class LocalBlock:
             if entries > COLUMNS_MAX_ENTRIES:
                 if entries > COLUMNS_GATHER_MAX_ENTRIES or self._box_window() is None:
                     return self.matvec(v)
-                # gathered for this product and not kept: cheaper than the box's FFT
+                # gathered for this product and not kept: cheaper than the box's FFT (a
+                # window's own product where it has one: the finite block's low-rank part)
+                product = getattr(self._window, "product", None)
+                if product is not None:
+                    return product(self._idx, self._idx[active], v[active])
                 return self._entries(self._idx, self._idx[active]) @ v[active]
             self._columns = (key, self._entries(self._idx, self._idx[active]))
         return self._columns[1] @ v[active]
