@@ -30,8 +30,13 @@ def _axis_weights(x: np.ndarray, idx: np.ndarray, w: np.ndarray) -> tuple[np.nda
     and the dense weights (len(used), n) of each point on them."""
     used, inv = np.unique(idx, return_inverse=True)
     out = np.zeros((len(used), len(x)))
-    np.add.at(out, (inv.reshape(idx.shape), np.arange(len(x))[:, None]), w)
+    out[inv.reshape(idx.shape), np.arange(len(x))[:, None]] = w  # a point's stencil nodes are distinct
     return used, out
+
+
+def kron(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """``np.kron`` of two matrices (the same products), without its general-shape overhead."""
+    return (a[:, None, :, None] * b[None, :, None, :]).reshape(a.shape[0] * b.shape[0], a.shape[1] * b.shape[1])
 
 
 class GridWeights:
@@ -51,7 +56,7 @@ class GridWeights:
         return ((self.wy @ P) @ self.wx.T).ravel()
 
     def toarray(self) -> np.ndarray:
-        return np.kron(self.wy, self.wx)
+        return kron(self.wy, self.wx)
 
     def times_cells(self, cells: np.ndarray, values: np.ndarray) -> np.ndarray:
         """``W[:, cells] @ values`` for a few flat ``cells``."""
@@ -130,3 +135,26 @@ def grid_target(interpolator, grid: Grid, origin, T: np.ndarray) -> GridTarget:
     cols, mx = _axis_weights(grid.x, *_quadratic_weights(grid.x + origin[0], interpolator._xs))
     rows, my = _axis_weights(grid.y, *_quadratic_weights(grid.y + origin[1], interpolator._ys))
     return GridTarget(my.T.copy(), mx.T.copy(), interpolator._node[np.ix_(rows, cols)], T)
+
+
+#: Most top-face nodes around a grid whose interpolation :func:`grid_interpolation` keeps
+#: dense (a patch across two elements each way has 25).
+DENSE_NODES = 25
+
+
+def grid_interpolation(interpolator, grid: Grid, origin) -> tuple:
+    """The top-face interpolation at a grid's cells on the nodes it uses, and those nodes:
+    ``(M, nodes)`` with ``M @ values[nodes]`` the values at the cells. From one axis at a
+    time, dense ``kron(My, Mx)`` (the same products as the pointwise sparse matrix's) where
+    the grid touches at most :data:`DENSE_NODES` nodes (a patch: a few elements' worth of
+    Python a grid, not one stencil a cell); else the pointwise matrix, compressed
+    (:meth:`~fem_influence.interpolate.TopInterpolator.compressed`)."""
+    from .interpolate import _quadratic_weights
+
+    ox, oy = origin
+    interpolator._check(np.array([[grid.x[0], grid.y[0]], [grid.x[-1], grid.y[-1]]]) + np.asarray(origin))
+    cols, mx = _axis_weights(grid.x, *_quadratic_weights(grid.x + ox, interpolator._xs))
+    rows, my = _axis_weights(grid.y, *_quadratic_weights(grid.y + oy, interpolator._ys))
+    if len(rows) * len(cols) > DENSE_NODES:
+        return interpolator.compressed(grid.points() + np.asarray(origin))
+    return kron(my.T, mx.T), interpolator._node[np.ix_(rows, cols)].ravel()

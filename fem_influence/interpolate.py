@@ -18,14 +18,10 @@ import scipy.sparse as sp
 def _quadratic_weights(x: np.ndarray, nodes: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     edges = nodes[::2]
     e = np.clip(np.searchsorted(edges, x, side="right") - 1, 0, len(edges) - 2)
+    from .operators import lagrange_weights
+
     idx = 2 * e[:, None] + np.arange(3)[None, :]
-    xn = nodes[idx]
-    w = np.ones_like(xn)
-    for m in range(3):
-        for k in range(3):
-            if k != m:
-                w[:, m] *= (x - xn[:, k]) / (xn[:, m] - xn[:, k])
-    return idx, w
+    return idx, lagrange_weights(np.asarray(x, dtype=float), nodes[idx])
 
 
 class TopInterpolator:
@@ -61,8 +57,21 @@ class TopInterpolator:
         iy, wy = _quadratic_weights(P[:, 1], self._ys)
         cols = self._node[iy[:, :, None], ix[:, None, :]].reshape(len(P), 9)
         vals = (wy[:, :, None] * wx[:, None, :]).reshape(len(P), 9)
-        rows = np.repeat(np.arange(len(P)), 9)
-        return sp.csr_matrix((vals.ravel(), (rows, cols.ravel())), shape=(len(P), len(self.top_xy)))
+        # each row's nine nodes are distinct: the CSR arrays directly, each row's columns
+        # sorted as the coordinate format's conversion leaves them (no sums, the same matrix)
+        order = np.argsort(cols, axis=1, kind="stable")
+        indptr = np.arange(0, 9 * len(P) + 1, 9)
+        data, indices = np.take_along_axis(vals, order, 1).ravel(), np.take_along_axis(cols, order, 1).ravel()
+        return sp.csr_matrix((data, indices, indptr), shape=(len(P), len(self.top_xy)))
+
+    def compressed(self, points: np.ndarray) -> tuple[sp.csr_matrix, np.ndarray]:
+        """:meth:`matrix` on the nodes it uses only: ``(M', nodes)`` with ``M' @ values[nodes]``
+        equal to ``matrix(points) @ values`` (each row's entries in the same order), so a
+        product reads the rows of those nodes, not every top-face node's."""
+        M = self.matrix(points)
+        nodes = np.unique(M.indices)
+        indices = np.searchsorted(nodes, M.indices)
+        return sp.csr_matrix((M.data, indices, M.indptr), shape=(M.shape[0], len(nodes))), nodes
 
     def __call__(self, points: np.ndarray, values: np.ndarray) -> np.ndarray:
         """Values (n, K) at ``points`` (M, 2) -> (M, K)."""

@@ -34,13 +34,22 @@ def lagrange_1d(x: np.ndarray, d: float, lo: int, hi: int) -> tuple[np.ndarray, 
     i0 = np.floor(x / d).astype(int) - (n // 2 - 1)
     i0 = np.clip(i0, lo, hi - n + 1)
     idx = i0[:, None] + np.arange(n)[None, :]
-    nodes = idx * d
+    return idx, lagrange_weights(np.asarray(x, dtype=float), idx * d)
+
+
+def lagrange_weights(x: np.ndarray, nodes: np.ndarray) -> np.ndarray:
+    """Lagrange weights (N, n) of the points ``x`` (N,) on their stencils ``nodes`` (N, n):
+    ``w[:, m]`` the product over ``k != m`` of ``(x - nodes[:, k]) / (nodes[:, m] - nodes[:, k])``
+    in ascending ``k``, all ``m`` at once for each ``k`` (the factor for ``k == m`` is
+    exactly 1: the same numbers as the product made column by column)."""
+    n = nodes.shape[1]
     w = np.ones_like(nodes, dtype=float)
-    for m in range(n):
-        for k in range(n):
-            if k != m:
-                w[:, m] *= (x - nodes[:, k]) / (nodes[:, m] - nodes[:, k])
-    return idx, w
+    for k in range(n):
+        num = np.repeat((x - nodes[:, k])[:, None], n, axis=1)
+        den = nodes - nodes[:, k : k + 1]
+        num[:, k] = den[:, k] = 1.0
+        w *= num / den
+    return w
 
 
 def point_weights(provider: "BlockProvider", sources: np.ndarray):
@@ -109,13 +118,22 @@ class TargetFactor:
 
     @property
     def nbytes(self) -> int:
-        m = 0 if self.M is None else self.M.data.nbytes + self.M.indices.nbytes + self.M.indptr.nbytes
+        M = self.M
+        m = (
+            0
+            if M is None
+            else M.nbytes
+            if isinstance(M, np.ndarray)
+            else M.data.nbytes + M.indices.nbytes + M.indptr.nbytes
+        )
         return m + self.T.nbytes
 
     @property
     def flops(self) -> float:
         """Multiply-adds of one product with one vector, doubled."""
-        return 2.0 * (self.T.size + (0 if self.M is None else self.M.nnz))
+        return 2.0 * (
+            self.T.size + (0 if self.M is None else self.M.size if isinstance(self.M, np.ndarray) else self.M.nnz)
+        )
 
 
 class BlockGridOperator(GridOperator):

@@ -34,8 +34,9 @@ from twoscale.material import Material
 from twoscale.progress import Progress
 
 from .assembly import INTORDER
+from .box_entries import BoxEntries, box_entries
 from .cache import FieldCache, cache_key, default_cache_dir
-from .grid_factors import grid_target, grid_weights
+from .grid_factors import grid_interpolation, grid_target, grid_weights
 from .layer import BASES
 from .lattice_state import LatticeState
 from .operators import BlockCorrection, BlockGridOperator, TargetFactor, block_point_operator, point_weights
@@ -196,9 +197,8 @@ class BlockProvider(InfluenceProvider):
                 f"sides); move the indenters inward or lower source_spacing"
             )
 
-    def _weights(self, sources: np.ndarray):
-        """Sparse source-interpolation weights (lattice nodes used) x (sources), and the nodes."""
-        return point_weights(self, sources)
+    #: Sparse source-interpolation weights (lattice nodes used) x (sources), and the nodes.
+    _weights = point_weights
 
     def _ensure(self, nodes: np.ndarray) -> np.ndarray:
         """Solve the lattice nodes not yet known; return their columns in the field table."""
@@ -251,7 +251,10 @@ class BlockProvider(InfluenceProvider):
         cols = self._ensure(nodes)
         st = self._state
         T = np.asarray(targets, dtype=float).reshape(-1, 2) + np.asarray(self.origin)
-        return st.interpolator(T, st.table[:, cols]) / self.material.E
+        if not st.interpolator.rectilinear:
+            return st.interpolator(T, st.table[:, cols]) / self.material.E
+        M, rows = st.interpolator.compressed(T)  # the table's rows of the nodes used only
+        return M @ st.table[np.ix_(rows, cols)] / self.material.E
 
     def correction(self, targets: np.ndarray, sources: np.ndarray) -> np.ndarray:
         """Smooth part ``C(x, x')`` of the point compliance, (M, N), mm/N (scene frame)."""
@@ -312,8 +315,10 @@ class BlockProvider(InfluenceProvider):
         return self._halfspace.point_compliance(targets, sources) + self.correction(targets, sources)
 
     def smooth_self_compliance(self, points):
+        # the diagonal of ``correction(p, p)`` alone (4,753 tips: not its 22.6 M values)
         p = np.asarray(points, dtype=float).reshape(-1, 2)
-        return np.diag(self.correction(p, p)).copy()
+        nodes, W = self._weights(p)
+        return np.asarray(W.multiply(self._top_values(p, nodes).T).sum(axis=0)).ravel()
 
     def cell_block(self, targets, sources, h):
         return self._halfspace.cell_block(targets, sources, h) + h * h * self.correction(targets, sources)
@@ -325,6 +330,10 @@ class BlockProvider(InfluenceProvider):
         cols, W = self._source_weights(source)
         C = self._target_factor(target, cols) @ (W.toarray() if hasattr(W, "toarray") else W)
         return self._halfspace.grid_matrix(target, source, tables=self._state.love_tables) + target.h**2 * C
+
+    def box_window(self, box: Grid) -> BoxEntries | None:
+        """A dense local block's own entries from factors kept for ``box`` (:func:`box_entries`)."""
+        return box_entries(self, box)
 
     def grid_operator(self, target: Grid, source: Grid | None = None) -> "BlockGridOperator":
         source = target if source is None else source
@@ -366,11 +375,10 @@ class BlockProvider(InfluenceProvider):
         return st.grid_memo[key_w]
 
     def _target_factor(self, target: Grid, cols: np.ndarray | None = None):
-        """Correction at the target cells from the lattice nodes of the table columns
-        ``cols`` (default all), mm/N (:class:`TargetFactor`): factored, with the
-        interpolation matrix kept per grid (rectilinear meshes), dense for a few columns
-        (up to :data:`DENSE_FACTOR_ENTRIES` entries: a patch's own operator), or separable
-        above (:class:`~fem_influence.grid_factors.GridTarget`: a union box's)."""
+        """Correction at the target cells from the lattice nodes of the table columns ``cols``
+        (default all), mm/N (:class:`TargetFactor`): factored, the interpolation on the nodes
+        the grid uses kept per grid (rectilinear meshes), dense for a few columns (up to
+        :data:`DENSE_FACTOR_ENTRIES` entries), or separable above (a union box's)."""
         st = self._state
         if not st.interpolator.rectilinear:
             cols = np.arange(st.table.shape[1]) if cols is None else cols
@@ -380,13 +388,13 @@ class BlockProvider(InfluenceProvider):
             T = st.grid_memo[("T",)] = st.table / self.material.E
         if cols is not None and target.size * len(cols) > DENSE_FACTOR_ENTRIES:
             return grid_target(st.interpolator, target, self.origin, T[:, cols])
-        M = st.grid_memo.get(("M", target))
-        if M is None:
-            M = st.grid_memo[("M", target)] = st.interpolator.matrix(target.points() + np.asarray(self.origin))
+        kept = st.grid_memo.get(("M", target))
+        if kept is None:
+            kept = st.grid_memo[("M", target)] = grid_interpolation(st.interpolator, target, self.origin)
+        M, T = kept[0], T[kept[1]]
         return TargetFactor(M, T) if cols is None else TargetFactor(None, np.asarray(M @ T[:, cols]))
 
     def _with_correction(self, halfspace_op: GridOperator, target: Grid, source: Grid) -> "BlockGridOperator":
-        # the micro step asks for every pair of patches: the target factor U and the
-        # source weights W depend on one grid each, so they are kept per grid
+        # U and W depend on one grid each (the micro step asks for every pair): kept per grid
         cols, W = self._source_weights(source)
         return BlockGridOperator(halfspace_op, self._target_factor(target, cols), W, target.h**2)

@@ -246,5 +246,7 @@ def test_correction_factors_are_not_kept_dense_per_grid(block):
     c = corr.coefficients(g, p)
     u = corr.evaluate(g, c)
     np.testing.assert_allclose(u.ravel(), g.h**2 * block.correction(g.points(), g.points()) @ p.ravel(), rtol=1e-10)
-    factor = block._target_factor(g)  # 9 interpolation weights a cell, the table shared
-    assert factor.M.nnz <= 9 * g.size and factor.T.shape == block._state.table.shape
+    factor = block._target_factor(g)  # 9 interpolation weights a cell, the table's rows of the nodes used
+    table = block._state.table
+    assert factor.M.nnz <= 9 * g.size and factor.M.shape == (g.size, factor.T.shape[0])
+    assert factor.T.shape[1] == table.shape[1] and factor.T.shape[0] < table.shape[0] < g.size

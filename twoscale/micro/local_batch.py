@@ -36,7 +36,7 @@ def hertz_contact(z: np.ndarray, approach: float) -> np.ndarray:
 
 def batchable(block) -> bool:
     """A dense block whose own entries come from its box window (a translation-invariant
-    kernel, exactly symmetric) and whose matrix is not stored."""
+    kernel, or the finite block's kept factors) and whose matrix is not stored."""
     return bool(block.dense and block.n and block._matrix is None and block._box_window() is not None)
 
 
@@ -90,11 +90,14 @@ def _class_pass(blocks, z, forces, h, actives, which: list, m: int, gap_rtol: fl
         columns.append(C)
     pad = np.arange(m)[None, :] >= sizes[:, None]
     A[:, np.arange(m), np.arange(m)] += pad  # the identity on the padding
+    # exactly symmetric entries: each block keeps its Cholesky factor; else (the finite
+    # block's) the solves alone, and a block factorises its final set itself
+    exact = all(blocks[k]._box_window().symmetric for k in which)
     try:
-        L = np.linalg.cholesky(A)
+        L = np.linalg.cholesky(A) if exact else None
+        X = np.linalg.solve(A, R)
     except np.linalg.LinAlgError:
         return {}  # a block not positive definite: the one-block loop decides
-    X = np.linalg.solve(A, R)
     target = np.array([forces[k] for k in which]) / (h * h)
     shift = (target + X[:, :, 1].sum(axis=1)) / X[:, :, 0].sum(axis=1)
     P = shift[:, None] * X[:, :, 0] - X[:, :, 1]
@@ -102,9 +105,12 @@ def _class_pass(blocks, z, forces, h, actives, which: list, m: int, gap_rtol: fl
     out: dict = {}
     for i, k in enumerate(which):
         blk, S, s = blocks[k], actives[k], int(sizes[i])
-        blk.adopt_factor(
-            S, ("cholesky", (np.array(L[i, :s, :s]), True)), columns[i] if blk.n * s <= COLUMNS_MAX_ENTRIES else None
-        )
+        if L is not None:
+            blk.adopt_factor(
+                S,
+                ("cholesky", (np.array(L[i, :s, :s]), True)),
+                columns[i] if blk.n * s <= COLUMNS_MAX_ENTRIES else None,
+            )
         seen = {S.tobytes()}
         p = np.zeros(blk.n)
         p[S] = P[i, :s]

@@ -156,14 +156,11 @@ class LocalBlock:
         if self.dense and not getattr(provider, "cheap_grid_matrix", False):
             self._matrix = provider.grid_matrix(self.box)[np.ix_(self._idx, self._idx)]
             self._symmetric = _is_symmetric(self._matrix)
-        if self.dense and self._matrix is not None:
-            self._op = None
-        else:
-            # products by FFT; a dense block with a cheap provider matrix is not stored
-            # (8 n^2 bytes: 2 GB on 10,000 sparse tips) but cut again for each new active set
-            self._op = provider.grid_operator(self.box)
-            if self.box == patch.grid:
-                self._full = self._op
+        # products by FFT (:meth:`_operator`, made on first use: a dense block whose entries
+        # come from its box window may never need it); a dense block with a cheap provider
+        # matrix is not stored (8 n^2 bytes: 2 GB on 10,000 sparse tips) but cut again for
+        # each new active set
+        self._op = None
         if not self.dense:
             self._symmetric = True
 
@@ -216,8 +213,16 @@ class LocalBlock:
     def full_operator(self):
         """FFT operator of the whole patch on itself (built on first use)."""
         if self._full is None:
-            self._full = self._provider.grid_operator(self.patch.grid)
+            self._full = (
+                self._operator() if self.box == self.patch.grid else self._provider.grid_operator(self.patch.grid)
+            )
         return self._full
+
+    def _operator(self):
+        """FFT operator of the box on itself (built on first use)."""
+        if self._op is None:
+            self._op = self._provider.grid_operator(self.box)
+        return self._op
 
     def matvec(self, v: np.ndarray) -> np.ndarray:
         """``A_kk v`` for a block vector (n,) or (n, m): displacement (mm) from pressure (MPa)."""
@@ -226,7 +231,7 @@ class LocalBlock:
         if v.ndim == 1:
             a = np.zeros(self.box.shape)
             a[self._mask] = v
-            return self._op.apply(a)[self._mask]
+            return self._operator().apply(a)[self._mask]
         return np.column_stack([self.matvec(v[:, j]) for j in range(v.shape[1])])
 
     def product_on(self, active: np.ndarray, v: np.ndarray) -> np.ndarray:
@@ -243,7 +248,11 @@ class LocalBlock:
             if entries > COLUMNS_MAX_ENTRIES:
                 if entries > COLUMNS_GATHER_MAX_ENTRIES or self._box_window() is None:
                     return self.matvec(v)
-                # gathered for this product and not kept: cheaper than the box's FFT
+                # gathered for this product and not kept: cheaper than the box's FFT (a
+                # window's own product where it has one: the finite block's low-rank part)
+                product = getattr(self._window, "product", None)
+                if product is not None:
+                    return product(self._idx, self._idx[active], v[active])
                 return self._entries(self._idx, self._idx[active]) @ v[active]
             self._columns = (key, self._entries(self._idx, self._idx[active]))
         return self._columns[1] @ v[active]

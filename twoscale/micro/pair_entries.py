@@ -86,6 +86,9 @@ class BoxWindow:
     calls on 939 blocks of 41-266 cells, ~60 us each). Only for a translation-invariant
     provider with ``grid_entries`` (:meth:`of`)."""
 
+    #: The kernel is even: the box's entries are exactly symmetric.
+    symmetric = True
+
     def __init__(self, provider, box: Grid):
         dx, dy = box.nx - 1, box.ny - 1
         wx = 2 * dx + 1
@@ -99,7 +102,12 @@ class BoxWindow:
 
     @staticmethod
     def of(provider, box: Grid) -> "BoxWindow | None":
-        """The window of ``box``, or None where it does not apply or would be large."""
+        """The window of ``box``, or None where it does not apply or would be large; a
+        provider's own ``box_window`` where it has one (the finite block: not
+        translation-invariant, its entries from factors kept per box)."""
+        own = getattr(provider, "box_window", None)
+        if own is not None:
+            return own(box)
         if not (getattr(provider, "translation_invariant", False) and hasattr(provider, "grid_entries")):
             return None
         if (2 * box.nx - 1) * (2 * box.ny - 1) > BOX_WINDOW_MAX_ENTRIES:
