@@ -358,7 +358,8 @@ class CoarseSpace:
             T, tA = self.compliance(), self.tips[A]
             M = T[np.ix_(A, A)] if T is not None else np.array(self.provider.point_compliance(tA, tA), dtype=float)
             M[np.arange(A.size), np.arange(A.size)] = kinv
-            M += near.toarray()
+            pairs = near.tocoo()  # its few entries added where they are, not a dense copy of it
+            M[pairs.row, pairs.col] += pairs.data
             # a compliance plus the patches' own: positive definite, so Cholesky (1,383
             # tips: LDL's pivoting cost 1.5-2x), in single precision refined in double
             # (half the factor's cost); LDL where rounding or an odd near correction leave
