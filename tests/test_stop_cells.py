@@ -3,7 +3,8 @@
 Checks: on patches of tips in a row (some contacts touching, some apart, one asperity
 without a patch, a merged patch) and on random pressures, the kept cells answer what
 :func:`~twoscale.micro.patches.edges_loaded` and :func:`~twoscale.micro.touching.touching_groups`
-answer on the whole patches; the kept cells follow a replaced patch.
+answer on the whole patches (which patches reach an edge; the same groups from the patches
+the kept cells name); the kept cells follow a replaced patch.
 """
 
 import numpy as np
@@ -50,6 +51,10 @@ def test_the_kept_cells_answer_as_the_whole_patches():
             edge = any(any(edges_loaded(pt, scatter(pt, v))) for pt, v in zip(pts, p))
             assert stop.may_touch(pts, p) == touch
             assert stop.any_edge(pts, p) == edge
+            # only the patches loaded near another's cells link: the same groups from them
+            assert touching_groups(pts, p, only=stop.loaded_touch(pts, p)) == touching_groups(pts, p)
+            loaded = [k for k, (pt, v) in enumerate(zip(pts, p)) if any(edges_loaded(pt, scatter(pt, v)))]
+            assert stop.loaded_edges(pts, p) == loaded
             for pt, v in zip(pts, p):
                 assert StopCells.sides(pt, v) == edges_loaded(pt, scatter(pt, v))
             seen["touch"].add(touch)

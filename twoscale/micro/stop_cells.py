@@ -57,6 +57,14 @@ def touch_cells(pt: Patch, k: int, patch_of: np.ndarray, reach: int = TOUCH_REAC
     return np.flatnonzero(_dilated(others, reach)[pt.owned])
 
 
+def _joined(parts: list) -> tuple[np.ndarray, np.ndarray]:
+    """The positions of every patch's ``parts`` in one array, and each one's patch."""
+    if not parts:
+        return np.zeros(0, dtype=np.intp), np.zeros(0, dtype=np.intp)
+    owner = np.repeat(np.arange(len(parts)), [len(c) for c in parts])
+    return np.concatenate(parts), owner
+
+
 class StopCells:
     """:func:`edge_cells` and :func:`touch_cells` of a working set's patches, as positions
     in the block vectors laid end to end, kept while the patches are the same objects:
@@ -65,7 +73,7 @@ class StopCells:
     def __init__(self, count: int) -> None:
         self._count = int(count)  # asperities in the scene (the owners' range)
         self._patches: tuple = ()
-        self._edge = self._touch = np.zeros(0, dtype=np.intp)
+        self._edge = self._touch = self._edge_patch = self._touch_patch = np.zeros(0, dtype=np.intp)
 
     def _cells(self, patches: list) -> None:
         if len(patches) == len(self._patches) and all(map(operator.is_, patches, self._patches)):
@@ -79,8 +87,8 @@ class StopCells:
             touch.append(start + touch_cells(pt, k, patch_of))
             start += int(np.count_nonzero(pt.owned))
         self._patches = tuple(patches)
-        self._edge = np.concatenate(edge) if edge else np.zeros(0, dtype=np.intp)
-        self._touch = np.concatenate(touch) if touch else np.zeros(0, dtype=np.intp)
+        self._edge, self._edge_patch = _joined(edge)
+        self._touch, self._touch_patch = _joined(touch)
 
     @staticmethod
     def sides(pt: Patch, v: np.ndarray) -> tuple:
@@ -91,6 +99,19 @@ class StopCells:
         """Pressure ``p`` (block vectors) reaches an edge of some patch."""
         self._cells(patches)
         return bool(self._edge.size) and bool(np.any(np.concatenate(p)[self._edge] > 0.0))
+
+    def loaded_edges(self, patches: list, p: list) -> list:
+        """The patches (indices, ascending) whose pressure ``p`` reaches one of their edges."""
+        self._cells(patches)
+        hit = np.concatenate(p)[self._edge] > 0.0 if self._edge.size else np.zeros(0, bool)
+        return np.unique(self._edge_patch[hit]).tolist()
+
+    def loaded_touch(self, patches: list, p: list) -> list:
+        """The patches (indices, ascending) loaded on a cell within reach of another
+        patched asperity's: the only ones :func:`~.touching.touching_groups` links."""
+        self._cells(patches)
+        hit = np.concatenate(p)[self._touch] > 0.0 if self._touch.size else np.zeros(0, bool)
+        return np.unique(self._touch_patch[hit]).tolist()
 
     def may_touch(self, patches: list, p: list) -> bool:
         """Some patch is loaded on a cell within reach of another patched asperity's cell:

@@ -230,7 +230,8 @@ def tip_approaches(asperities, theta, pivot) -> np.ndarray:
 
 def _grow_loaded(state: WorkingSet, p: list, p0: list) -> int:
     grown = 0
-    for k, pt in enumerate(state.patches):
+    for k in state.stop_cells.loaded_edges(state.patches, p):  # no other patch's edge is loaded
+        pt = state.patches[k]
         sides = state.stop_cells.sides(pt, p[k])
         if any(sides):
             state.grow(k, sides, [p, p0])
@@ -303,7 +304,8 @@ def comes_to_touch(state: WorkingSet, p: list) -> bool:
     spheres, apart at the start, then passed their force back and forth at 0.8 a sweep)."""
     if state.rebuild is None or not state.stop_cells.may_touch(state.patches, p):
         return False  # no loaded cell within reach of another patch's: all apart
-    return len(touching_groups(state.patches, p)) < len(state.patches)
+    only = state.stop_cells.loaded_touch(state.patches, p)
+    return len(touching_groups(state.patches, p, only=only)) < len(state.patches)
 
 
 def merge_touching(state: WorkingSet, p: list, p0: list) -> int:
@@ -314,7 +316,7 @@ def merge_touching(state: WorkingSet, p: list, p0: list) -> int:
     forth for five sweeps); returns how many patches were merged away."""
     if state.rebuild is None or len(state.patches) < 2:
         return 0
-    groups = touching_groups(state.patches, p)
+    groups = touching_groups(state.patches, p, only=state.stop_cells.loaded_touch(state.patches, p))
     if len(groups) == len(state.patches):
         return 0
     before = len(state.patches)
