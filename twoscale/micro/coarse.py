@@ -127,8 +127,10 @@ class CoarseSpace:
         self._op = None
         self._compliance = None
         self._frames: dict = {}
-        T = self.compliance()  # made for the steps anyway: the pairs' values from it (1,485
-        # blocks: a point_compliance call a row, 0.02-0.05 s of CPU)
+        # on a translation-invariant body (the same values for any subset of points) the
+        # pairs' values from the tip compliance the steps make anyway (1,485 blocks: a
+        # point_compliance call a row, 0.02-0.05 s of CPU)
+        T = self.compliance() if getattr(provider, "translation_invariant", False) else None
         if T is not None:
             vals = T[np.repeat(np.arange(lower.shape[0]), np.diff(lower.indptr)), lower.indices]
         else:
