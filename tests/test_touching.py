@@ -87,7 +87,7 @@ def test_far_field_two_level_on_tight_pairs_converges_as_one_block_each():
 def test_one_block_per_asperity_takes_more_than_twice_the_sweeps(monkeypatch):
     asps = random_scene(2, 18)
     merged = solve_twoscale(HS, asps, **TIGHT).details.micro.attempts[0]
-    apart_groups = lambda patches, p: [[k] for k in range(len(patches))]  # noqa: E731
+    apart_groups = lambda patches, p, **kw: [[k] for k in range(len(patches))]  # noqa: E731
     monkeypatch.setattr(setup, "touching_groups", apart_groups)  # at the start
     monkeypatch.setattr(workset, "touching_groups", apart_groups)  # after sweeps and growths
     apart = solve_twoscale(HS, asps, **TIGHT).details.micro.attempts[0]

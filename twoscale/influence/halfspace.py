@@ -33,8 +33,10 @@ QUADRANT_GROWTH = 1.5
 
 def _folded(a: np.ndarray, start: int, n: int, *, axis: int) -> np.ndarray:
     """Rows (``axis=0``) or columns of ``a`` at the indices ``|start|, ..., |start + n - 1|``
-    (two strided copies instead of a fancy-indexed gather)."""
-    view = np.moveaxis(a, axis, 0)
+    (two strided copies instead of a fancy-indexed gather); ``a`` is 2-D, so the axis is
+    moved by a transpose (``np.moveaxis``'s argument checks were three quarters of an
+    80 x 80 quadrant's table: 40 against 10 us)."""
+    view = a if axis == 0 else a.T
     stop = start + n - 1
     if start >= 0:
         out = view[start : stop + 1]
@@ -42,7 +44,7 @@ def _folded(a: np.ndarray, start: int, n: int, *, axis: int) -> np.ndarray:
         out = view[-stop : -start + 1][::-1]
     else:
         out = np.concatenate([view[1 : -start + 1][::-1], view[: stop + 1]])
-    return np.ascontiguousarray(np.moveaxis(out, 0, axis))
+    return np.ascontiguousarray(out if axis == 0 else out.T)
 
 
 def _love_table(E_star: float, h: float, ox0: int, oy0: int, mx: int, my: int) -> np.ndarray:

@@ -17,6 +17,7 @@ provider's correction is smooth, so its far field is as well represented as the 
 
 from __future__ import annotations
 
+import itertools
 import math
 import operator
 
@@ -72,20 +73,20 @@ def all_source_nodes(patches) -> np.ndarray:
 def near_lists(centres: np.ndarray, radii: np.ndarray, far_tol: float) -> list:
     """For each patch, the sorted indices of the others coupled exactly: centres closer
     than ``(r_k + r_l) / sqrt(far_tol)`` (candidates from a k-d tree within
-    ``(r_k + r_max) / sqrt(far_tol)``)."""
+    ``(r_k + r_max) / sqrt(far_tol)``, all patches' in one array)."""
     from scipy.spatial import cKDTree
 
-    if len(centres) == 0:
+    n = len(centres)
+    if n == 0:
         return []
-    tree = cKDTree(centres)
-    cands = tree.query_ball_point(centres, (radii + float(radii.max())) / math.sqrt(far_tol))
-    out = []
-    for k, cand in enumerate(cands):
-        cand = np.asarray(cand, dtype=np.int64)
-        dist = np.hypot(*(centres[cand] - centres[k]).T)
-        keep = (dist * math.sqrt(far_tol) < radii[cand] + radii[k]) & (cand != k)
-        out.append(np.sort(cand[keep]))
-    return out
+    cands = cKDTree(centres).query_ball_point(centres, (radii + float(radii.max())) / math.sqrt(far_tol))
+    counts = np.fromiter(map(len, cands), dtype=np.int64, count=n)
+    cand = np.fromiter(itertools.chain.from_iterable(cands), dtype=np.int64, count=int(counts.sum()))
+    k = np.repeat(np.arange(n, dtype=np.int64), counts)
+    dist = np.hypot(*(centres[cand] - centres[k]).T)
+    keep = (dist * math.sqrt(far_tol) < radii[cand] + radii[k]) & (cand != k)
+    cand, k = cand[keep], k[keep]
+    return np.split(cand[np.lexsort((cand, k))], np.cumsum(np.bincount(k, minlength=n))[:-1])
 
 
 def _columns(values: list) -> int:

@@ -134,6 +134,7 @@ class LocalBlock:
         # the coarse step's ``s_k`` and the active set it was solved on (:mod:`.coarse`),
         # kept with the block through the rounds of a solve (a round rebuilds the coarse space)
         self.coarse_shape: tuple | None = None
+        self.coarse_frame: tuple | None = None  # its coordinates for the coarse step (:mod:`.coarse`)
         self._cache_size = cache_size
         self.cg_iterations = 0
         self.factorisations = 0

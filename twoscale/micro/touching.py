@@ -32,18 +32,20 @@ TOUCH_REACH = 1
 
 
 def touching_groups(
-    patches: Sequence[Patch], pressures: Sequence[np.ndarray], reach: int = TOUCH_REACH
+    patches: Sequence[Patch], pressures: Sequence[np.ndarray], reach: int = TOUCH_REACH, only=None
 ) -> list[list[int]]:
     """Groups of patch indices whose contacts touch, directly or through others: a patch
     whose loaded cells (``pressures`` > 0 on its owned cells) lie within ``reach`` cells of
     a cell another patch's asperity owns (that asperity is nearer the body there, so the
     contact goes on into its cells; its own start may even be empty, where the macro step
     gave the pair's force to one tip). Every patch in exactly one group, groups in the
-    order of their first patch."""
+    order of their first patch. ``only``: the patches that can link to another (the others
+    are not examined; :meth:`~.stop_cells.StopCells.loaded_touch`)."""
     n = len(patches)
     index = {m: k for k, pt in enumerate(patches) for m in pt.members}
     pairs: list[tuple[int, int]] = []
-    for k, (pt, p) in enumerate(zip(patches, pressures)):
+    for k in range(n) if only is None else only:
+        pt, p = patches[k], pressures[k]
         others = ~pt.owned & (pt.owner >= 0)  # cells another asperity owns
         if not others.any():  # a patch apart from the others (most of scattered tips')
             continue

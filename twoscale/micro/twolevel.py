@@ -151,14 +151,11 @@ def converging(history: list) -> bool:
 def lower_near_pattern(coupling) -> sp.csr_matrix:
     """Pairs ``(k, l)``, ``l < k``, that block ``k`` sees exactly and up to date in a sweep."""
     n = len(coupling.patches)
-    rows, cols = [], []
-    for k in range(n):
-        near = coupling.near(k)
-        near = near[near < k]
-        rows.append(np.full(len(near), k))
-        cols.append(near)
-    rows = np.concatenate(rows) if n else np.zeros(0, int)
-    cols = np.concatenate(cols) if n else np.zeros(0, int)
+    near = [coupling.near(k) for k in range(n)]
+    cols = np.concatenate(near) if n else np.zeros(0, int)
+    rows = np.repeat(np.arange(n), [len(c) for c in near])
+    lower = cols < rows
+    rows, cols = rows[lower], cols[lower]
     return sp.csr_matrix((np.ones(len(rows)), (rows, cols)), shape=(n, n))
 
 
