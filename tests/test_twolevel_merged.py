@@ -78,7 +78,7 @@ def test_a_slow_two_level_trial_ends_at_its_trial(monkeypatch):
     # before they were merged: about 30 sweeps at 0.6)
     from twoscale.micro import setup, twolevel, workset
 
-    apart = lambda patches, p: [[k] for k in range(len(patches))]  # noqa: E731
+    apart = lambda patches, p, only=None: [[k] for k in range(len(patches))]  # noqa: E731
     monkeypatch.setattr(setup, "touching_groups", apart)
     monkeypatch.setattr(workset, "touching_groups", apart)
 
