@@ -173,3 +173,43 @@ def sweep_macro_inputs(index: int):
     tips = np.array([[a.x, a.y] for a in scene.asperities])
     z = np.array([a.z for a in scene.asperities])
     return scene, tips, z, scene.provider()
+
+
+def paraboloid_patch_problems(rng, count: int, sizes: tuple, spread: float, h: float, E_star: float):
+    """``count`` square patches of ``sizes`` (low, high) cells across at random places within
+    +-``spread`` mm, each with a paraboloid's heights centred inside it, the Hertz force of a
+    contact radius 0.15-0.3 of the patch and an approach putting it at 0.5-1.5 a^2 / R:
+    ``(patches, heights, forces, approaches)`` for the micro step's first passes."""
+    from twoscale.grid import Grid
+    from twoscale.micro.patches import Patch
+
+    patches, z, forces, approaches = [], [], [], []
+    for k in range(count):
+        n = int(rng.integers(*sizes))
+        g = Grid(rng.uniform(-spread, spread), rng.uniform(-spread, spread), h, n, n)
+        patches.append(Patch(k, g, np.zeros(g.shape), np.full(g.shape, k)))
+        X, Y = g.centres()
+        c = np.array([g.x0, g.y0]) + rng.uniform(0.2, 0.8, 2) * (n - 1) * h
+        R = rng.uniform(2.0, 8.0)
+        z.append((((X - c[0]) ** 2 + (Y - c[1]) ** 2) / (2 * R)).ravel())
+        a = rng.uniform(0.15, 0.3) * n * h  # Hertz's contact radius within the patch
+        forces.append(4.0 * E_star * a**3 / (3.0 * R))
+        approaches.append(float(rng.uniform(0.5, 1.5) * a * a / R))  # its contact at d / 2
+    return patches, z, forces, approaches
+
+
+def patches_on_x(tips, h: float, half_x: float, y_range: tuple):
+    """Spheres (R 5 mm) at ``(x, 0)`` for x in ``tips`` and their patches, ``half_x`` mm
+    either side and ``y_range`` across: ``(asperities, patches)``."""
+    from twoscale.grid import Grid
+    from twoscale.micro.patches import make_patch
+
+    asps = [Asperity(x, 0.0, 0.0, 5.0) for x in tips]
+    grids = [Grid.covering(x - half_x, x + half_x, y_range[0], y_range[1], h) for x in tips]
+    return asps, [make_patch(k, g, asps) for k, g in enumerate(grids)]
+
+
+def disc_on_patch(pt, centre: float, radius: float) -> np.ndarray:
+    """Pressure 1 on the patch's owned cells within ``radius`` of ``(centre, 0)``."""
+    X, Y = pt.grid.centres()
+    return np.where(np.hypot(X - centre, Y) <= radius, 1.0, 0.0)[pt.owned]

@@ -7,6 +7,7 @@ import pytest
 from fem_influence import BlockProvider
 from twoscale.grid import Grid
 from twoscale.material import Material
+from helpers import paraboloid_patch_problems
 
 MAT = Material(E=2.0, nu=0.5)
 SMALL = dict(size=(60.0, 60.0, 10.0), h_fine=5.0, h_coarse=10.0, fine_half_width=10.0)
@@ -84,22 +85,10 @@ def test_eq7_first_passes_in_stacks_on_the_block_give_the_one_block_pressures(bl
     from twoscale.micro import local_batch
     from twoscale.micro.local import initial_pressure, initial_pressures
     from twoscale.micro.localblock import LocalBlock
-    from twoscale.micro.patches import Patch
 
     h, E_star = 0.02, MAT.E / (1 - MAT.nu**2)
     rng = np.random.default_rng(10)
-    patches, z, forces, approaches = [], [], [], []
-    for k in range(12):
-        n = int(rng.integers(6, 16))
-        g = Grid(rng.uniform(-8, 8), rng.uniform(-8, 8), h, n, n)
-        patches.append(Patch(k, g, np.zeros(g.shape), np.full(g.shape, k)))
-        X, Y = g.centres()
-        c = np.array([g.x0, g.y0]) + rng.uniform(0.2, 0.8, 2) * (n - 1) * h
-        R = rng.uniform(2.0, 8.0)
-        z.append((((X - c[0]) ** 2 + (Y - c[1]) ** 2) / (2 * R)).ravel())
-        a = rng.uniform(0.15, 0.3) * n * h
-        forces.append(4.0 * E_star * a**3 / (3.0 * R))
-        approaches.append(float(rng.uniform(0.5, 1.5) * a * a / R))
+    patches, z, forces, approaches = paraboloid_patch_problems(rng, 12, (6, 16), 8.0, h, E_star)
     adopted = []
     monkeypatch.setattr(LocalBlock, "adopt_factor", lambda self, *a, **k: adopted.append(a))
     stacked = [LocalBlock(block, pt) for pt in patches]

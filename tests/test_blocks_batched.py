@@ -16,6 +16,7 @@ from twoscale.micro import pair_entries
 from twoscale.micro.blocks import Coupling
 from twoscale.micro.pair_entries import pair_blocks
 from twoscale.micro.patches import Patch
+from helpers import paraboloid_patch_problems
 
 MAT = Material(10.0, 0.5)
 H = 0.02
@@ -141,18 +142,7 @@ def test_eq7_first_passes_in_stacks_give_the_one_block_pressures(monkeypatch):
     from twoscale.micro.localblock import LocalBlock
 
     rng = np.random.default_rng(10)
-    patches, z, forces, approaches = [], [], [], []
-    for k in range(24):
-        n = int(rng.integers(5, 16))
-        g = Grid(rng.uniform(-1, 1), rng.uniform(-1, 1), H, n, n)
-        patches.append(Patch(k, g, np.zeros(g.shape), np.full(g.shape, k)))
-        X, Y = g.centres()
-        c = np.array([g.x0, g.y0]) + rng.uniform(0.2, 0.8, 2) * (n - 1) * H
-        R = rng.uniform(2.0, 8.0)
-        z.append((((X - c[0]) ** 2 + (Y - c[1]) ** 2) / (2 * R)).ravel())
-        a = rng.uniform(0.15, 0.3) * n * H  # Hertz's contact radius within the patch
-        forces.append(4.0 * MAT.E_star * a**3 / (3.0 * R))
-        approaches.append(float(rng.uniform(0.5, 1.5) * a * a / R))  # its contact at d / 2
+    patches, z, forces, approaches = paraboloid_patch_problems(rng, 24, (5, 16), 1.0, H, MAT.E_star)
 
     def blocks():
         body = CachedBody(HalfSpace(MAT), OperatorCaches())

@@ -10,24 +10,17 @@ the kept cells name); the kept cells follow a replaced patch.
 import numpy as np
 
 from twoscale.grid import Grid
-from twoscale.indenters import Asperity
 from twoscale.micro.blocks import scatter
 from twoscale.micro.patches import edges_loaded, make_patch, merge_groups
 from twoscale.micro.stop_cells import StopCells
 from twoscale.micro.touching import touching_groups
+from helpers import disc_on_patch, patches_on_x
 
 H = 0.02
 
 
 def _scene(tips):
-    asps = [Asperity(x, 0.0, 0.0, 5.0) for x in tips]
-    grids = [Grid.covering(x - 0.3, x + 0.3, -0.2, 0.25, H) for x in tips]
-    return asps, [make_patch(k, g, asps) for k, g in enumerate(grids)]
-
-
-def _disc(pt, centre, radius):
-    X, Y = pt.grid.centres()
-    return np.where(np.hypot(X - centre, Y) <= radius, 1.0, 0.0)[pt.owned]
+    return patches_on_x(tips, H, 0.3, (-0.2, 0.25))
 
 
 def test_the_kept_cells_answer_as_the_whole_patches():
@@ -44,7 +37,7 @@ def test_the_kept_cells_answer_as_the_whole_patches():
             p = []
             for pt in pts:
                 centre = asps[pt.members[0]].x + rng.uniform(-0.05, 0.05)
-                v = _disc(pt, centre, radius) * rng.uniform(0.0, 2.0, int(pt.owned.sum()))
+                v = disc_on_patch(pt, centre, radius) * rng.uniform(0.0, 2.0, int(pt.owned.sum()))
                 v[rng.random(v.size) < 0.2] = 0.0
                 p.append(v if trial % 5 else -v)  # all pressures below zero now and then
             touch = len(touching_groups(pts, p)) < len(pts)
@@ -65,10 +58,10 @@ def test_the_kept_cells_answer_as_the_whole_patches():
 def test_the_kept_cells_follow_a_replaced_patch():
     asps, patches = _scene([0.0, 1.0])
     stop = StopCells(len(asps))
-    p = [_disc(pt, x, 0.1) for pt, x in zip(patches, [0.0, 1.0])]
+    p = [disc_on_patch(pt, x, 0.1) for pt, x in zip(patches, [0.0, 1.0])]
     assert not stop.any_edge(patches, p)
     # the second patch cut to a grid whose right edge runs through its contact
     small = make_patch(1, Grid.covering(0.9, 1.0, -0.2, 0.25, H), asps)
-    q = [p[0], _disc(small, 1.0, 0.1)]
+    q = [p[0], disc_on_patch(small, 1.0, 0.1)]
     assert stop.any_edge([patches[0], small], q)
     assert stop.any_edge([patches[0], small], q) == any(edges_loaded(small, scatter(small, q[1])))

@@ -13,14 +13,12 @@ import pytest
 import twoscale
 from twoscale import Material
 from twoscale.driver import solve_twoscale
-from twoscale.grid import Grid
-from twoscale.indenters import Asperity
 from twoscale.influence import HalfSpace
 from twoscale.micro import setup, workset
-from twoscale.micro.patches import make_patch, merge_groups
+from twoscale.micro.patches import merge_groups
 from twoscale.micro.touching import touching_groups
 
-from helpers import random_scene
+from helpers import random_scene, disc_on_patch, patches_on_x
 
 MAT = Material(10.0, 0.5)
 HS = HalfSpace(MAT)
@@ -28,15 +26,7 @@ H = 0.02
 
 
 def _patches(tips):
-    asps = [Asperity(x, 0.0, 0.0, 5.0) for x in tips]
-    grids = [Grid.covering(x - 0.5, x + 0.5, -0.5, 0.5, H) for x in tips]
-    return asps, [make_patch(k, g, asps) for k, g in enumerate(grids)]
-
-
-def _disc(pt, centre, radius):
-    """Pressure 1 on the patch's owned cells within ``radius`` of ``centre`` (x, 0)."""
-    X, Y = pt.grid.centres()
-    return np.where(np.hypot(X - centre, Y) <= radius, 1.0, 0.0)[pt.owned]
+    return patches_on_x(tips, H, 0.5, (-0.5, 0.5))
 
 
 def test_loaded_cells_next_to_a_neighbours_cells_join_the_two():
@@ -45,14 +35,14 @@ def test_loaded_cells_next_to_a_neighbours_cells_join_the_two():
     asps, patches = _patches([0.0, 0.05, 3.0])
     empty = np.zeros(int(patches[1].owned.sum()))
     # the nearer tip's start is empty (the macro step gave the pair's force to one tip)
-    starts = [_disc(patches[0], 0.0, 0.2), empty, _disc(patches[2], 3.0, 0.2)]
+    starts = [disc_on_patch(patches[0], 0.0, 0.2), empty, disc_on_patch(patches[2], 3.0, 0.2)]
     assert touching_groups(patches, starts) == [[0, 1], [2]]
     # a contact of one cell at the first tip is two cells from the crossing line: apart
-    starts[0] = _disc(patches[0], 0.0, 0.01)
+    starts[0] = disc_on_patch(patches[0], 0.0, 0.01)
     assert touching_groups(patches, starts) == [[0], [1], [2]]
     # reached through a third patch: all three join
     asps, patches = _patches([0.0, 0.3, 0.6])
-    starts = [_disc(pt, 0.3 * k, 0.2) for k, pt in enumerate(patches)]
+    starts = [disc_on_patch(pt, 0.3 * k, 0.2) for k, pt in enumerate(patches)]
     assert touching_groups(patches, starts) == [[0, 1, 2]]
 
 
@@ -106,7 +96,7 @@ def test_patches_that_come_to_touch_are_merged_as_the_iteration_goes():
     engine = lambda pts: FarField(0.3).build(HS, pts, held=True, dense_max_entries=40_000, separated_rtol=None)  # noqa: E731
     fixed = WorkingSet(HS, asps, patches, engine(patches), dense_max_cells=400)
     state = WorkingSet(HS, asps, patches, engine(patches), dense_max_cells=400, rebuild=engine)
-    p = [_disc(pt, x, 0.2) for pt, x in zip(patches, [0.0, 0.05, 3.0])]
+    p = [disc_on_patch(pt, x, 0.2) for pt, x in zip(patches, [0.0, 0.05, 3.0])]
     p0 = [v.copy() for v in p]
     assert merge_touching(fixed, list(p), list(p0)) == 0  # no engine to rebuild: unchanged
     assert not comes_to_touch(fixed, p) and comes_to_touch(state, p)
@@ -120,7 +110,7 @@ def test_patches_that_come_to_touch_are_merged_as_the_iteration_goes():
     merged = scatter(state.patches[0], p[0])
     for k in (0, 1):
         win = patches[k].grid.window_in(state.patches[0].grid)
-        np.testing.assert_array_equal(merged[win][patches[k].owned], _disc(patches[k], [0.0, 0.05][k], 0.2))
+        np.testing.assert_array_equal(merged[win][patches[k].owned], disc_on_patch(patches[k], [0.0, 0.05][k], 0.2))
     assert merge_touching(state, p, p0) == 0
 
 
@@ -137,7 +127,7 @@ def test_a_replaced_engine_and_its_far_field_weights_are_released():
     asps, patches = _patches([0.0, 0.05, 3.0])
     engine = lambda pts: FarField(0.3).build(HS, pts, held=True, dense_max_entries=40_000, separated_rtol=None)  # noqa: E731
     state = WorkingSet(HS, asps, patches, engine(patches), dense_max_cells=400, rebuild=engine)
-    p = [_disc(pt, x, 0.2) for pt, x in zip(patches, [0.0, 0.05, 3.0])]
+    p = [disc_on_patch(pt, x, 0.2) for pt, x in zip(patches, [0.0, 0.05, 3.0])]
     p0 = [v.copy() for v in p]
     state.coupling.refresh(p)
     state.gaps_of([0, 1, 2], p, (0.01, 0.0, 0.0), (0.0, 0.0))
