@@ -18,7 +18,8 @@ Cases (``KIND:ARG``):
   :func:`twoscale.synthetic.scene_family`, default two-scale solve / the reference;
 * ``space:I`` — :func:`twoscale.scenespace.draw` ``(I, seed 0)``, tips only, half-space, at most 300;
 * ``sweep:I`` / ``sweep_ref:I`` — scene ``I`` of the sweep itself (``benchmarks/sweep.py``'s draws:
-  maps and blocks too), default two-scale solve / the reference;
+  maps and blocks too), default two-scale solve / the reference; ``sweep1:I`` / ``sweep1_ref:I``
+  the same with the held-out draws (``--seed 1``);
 * ``road:SIZE-H-RMIN-RMAX`` — the synthetic road of ``benchmarks/surfaces.py`` (e.g.
   ``road:100-0.1-3-6``, its 161 stones), segmentation and default solve;
 * ``file:PATH`` / ``file_ref:PATH`` — a scene file (e.g. the paper's ``examples/S1.toml``, the
@@ -125,8 +126,8 @@ def _space(index: str):
     return lambda: solve_scene(scene)
 
 
-def _sweep(index: str, method: str = "twoscale"):
-    """Scene ``index`` of the sweep itself (``scenespace.sweep(200)``: tips, maps, blocks),
+def _sweep(index: str, method: str = "twoscale", seed: int = 0):
+    """Scene ``index`` of the sweep itself (``scenespace.sweep(200, seed)``: tips, maps, blocks),
     a map's texture written before the clock starts, as the sweep times it."""
     import tempfile
 
@@ -134,7 +135,7 @@ def _sweep(index: str, method: str = "twoscale"):
     from twoscale.io.scene_file import scene_from_dict
 
     solve_scene = _solve_scene()
-    (spec,) = [s for s in scenespace.sweep(200, 0) if s.index == int(index)]
+    (spec,) = [s for s in scenespace.sweep(200, seed) if s.index == int(index)]
     if spec.kind == "tips":
         scene = scenespace.build(spec)
         return lambda: solve_scene(scene, method=method)
@@ -179,6 +180,8 @@ CASES = {
     "road": _road,
     "sweep": _sweep,
     "sweep_ref": lambda index: _sweep(index, "reference"),
+    "sweep1": lambda index: _sweep(index, seed=1),
+    "sweep1_ref": lambda index: _sweep(index, "reference", seed=1),
     "family_ref": lambda name: _family(name, "reference"),
     "file_ref": lambda path: _file(path, "reference"),
 }
