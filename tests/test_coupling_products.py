@@ -224,3 +224,30 @@ def test_transposed_operators_equal_the_reverse_pair(far):
     assert back.source == a and back.target == b
     assert np.allclose(back.apply(p), want, rtol=1e-7 if far else 1e-12, atol=0.0)
     assert np.allclose(back.finish(back.multiply(back.spectrum(p))), want, rtol=1e-7 if far else 1e-12)
+
+
+def test_a_kept_pair_too_large_for_a_whole_patch_block_goes_by_its_route(monkeypatch):
+    # patches 0-2 overlap (cells a neighbour owns): the whole patch's displacement from a
+    # kept dense pair takes those cells from a block, or past the cap from the FFT route
+    from twoscale.micro import farfield, localblock
+    from twoscale.micro.farfield import FarFieldCoupling
+
+    asps, patches = _scene()
+    rng = np.random.default_rng(5)
+    values = [rng.random(int(p.owned.sum())) for p in patches]
+    calls = []
+    monkeypatch.setattr(farfield, "whole_patch", lambda *a: calls.append(1) or localblock.whole_patch(*a))
+    for cap, blocks in ((10**9, True), (0, False)):
+        monkeypatch.setattr(localblock, "WHOLE_PATCH_MAX_ENTRIES", cap)
+        near = FarFieldCoupling(HS, patches, far_tol=1e-6, dense_max_entries=10**6)
+        for l in (1, 2):
+            near.apply(0, l, values[l])  # makes and keeps the dense pair
+        assert (0, 1) in near._ops and (0, 2) in near._ops
+        calls.clear()
+        ref = np.zeros(patches[0].grid.shape)
+        for l, v in enumerate(values[1:], start=1):
+            il = np.flatnonzero(patches[l].owned.ravel())
+            ref += (HS.grid_matrix(patches[0].grid, patches[l].grid)[:, il] @ v).reshape(ref.shape)
+        got = near.patch_displacement(0, values)
+        np.testing.assert_allclose(got, ref, atol=1e-9 * np.abs(ref).max())
+        assert bool(calls) is blocks

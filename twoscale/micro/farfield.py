@@ -27,7 +27,7 @@ import scipy.sparse as sp
 from ..influence.base import InfluenceProvider
 from .blocks import Coupling
 from .kept_points import kept_operator
-from .localblock import whole_patch
+from .localblock import whole_patch, whole_patch_is_large
 from .sources import SOURCE_NODE, grid_interpolation, patch_source_weights
 
 
@@ -257,7 +257,7 @@ class FarFieldCoupling(Coupling):
         a near pair whose dense block is kept by it on the patch's own cells and by
         :func:`~.localblock.whole_patch` on the cells neighbours own, not by an FFT operator
         made for this one product (2,370 of them on 939 scattered patches, the growth
-        check's 0.4 s); the other pairs by their routes."""
+        check's 0.4 s); the other pairs (and kept ones too large for it) by their routes."""
         pt = self.patches[k]
         shape = pt.grid.shape
         u, rest = np.zeros(shape), []
@@ -266,7 +266,7 @@ class FarFieldCoupling(Coupling):
             if v is None or not v.any():
                 continue
             M = self._ops.get((k, int(l)))
-            if M is None:
+            if M is None or whole_patch_is_large(pt, v):
                 rest.append(int(l))
             else:
                 u += whole_patch(self.provider, pt, M @ v, self.patches[int(l)], v)

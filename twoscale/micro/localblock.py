@@ -30,6 +30,10 @@ COLUMNS_GATHER_MAX_ENTRIES = 65536
 GRID_MATRIX_MAX_ENTRIES = 4_000_000
 #: ... and one it cuts from however few entries are wanted (2 MB: a small box's matrix).
 GRID_MATRIX_SMALL_ENTRIES = 250_000
+#: The largest block :func:`whole_patch` makes for the cells a neighbour owns (entries,
+#: 32 MB), else an FFT of the pair's boxes (large merged paraboloids' patches asked for
+#: 39 M entries of Love values: 4.5 GB of peak against an estimate of 1.6 GB).
+WHOLE_PATCH_MAX_ENTRIES = 4_000_000
 
 
 def _is_symmetric(M: np.ndarray) -> bool:
@@ -74,6 +78,13 @@ def grid_entries(provider, target, source, rows: np.ndarray, cols: np.ndarray) -
         np.column_stack([S.ravel()[cols], T.ravel()[cols]]),
         source.h,
     )
+
+
+def whole_patch_is_large(patch: Patch, v: np.ndarray) -> bool:
+    """Whether :func:`whole_patch` on ``patch`` from a source vector ``v`` would make a
+    block over :data:`WHOLE_PATCH_MAX_ENTRIES` (the cells a neighbour owns x ``v``'s
+    loaded cells): the caller then takes the FFT route."""
+    return int((~patch.owned).sum()) * int(np.count_nonzero(v)) > WHOLE_PATCH_MAX_ENTRIES
 
 
 def whole_patch(provider, patch: Patch, owned_rows: np.ndarray, source: Patch, v: np.ndarray) -> np.ndarray:
@@ -262,8 +273,9 @@ class LocalBlock:
         """``A v`` (ny, nx) mm on the whole patch for a block vector ``v`` (n,) MPa: on a
         dense block whose matrix is not stored its own cells by :meth:`product_on` (the last
         solve's kept columns) and the cells a neighbour owns by :func:`whole_patch`, not an
-        FFT of the whole patch made for this one product; else by that FFT."""
-        if not self.dense or self._matrix is not None:
+        FFT of the whole patch made for this one product; else (or when that block would be
+        large) by that FFT."""
+        if not self.dense or self._matrix is not None or whole_patch_is_large(self.patch, v):
             out = np.zeros(self.patch.grid.shape)
             out[self.patch.owned] = v
             return self.full_operator().apply(out)
