@@ -255,6 +255,8 @@ def decide(
     sensitivity = load_control and merged_contacts
     if sensitivity:
         costs["block-gs"] *= model.sensitivity_factor
+    if figures.get("height_map", False) and "two-level" in costs:
+        costs["two-level"] *= model.map_far_field_factor
     est = {
         **figures,
         "merged_contacts": bool(merged_contacts),
