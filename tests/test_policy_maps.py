@@ -65,8 +65,9 @@ def test_the_memory_estimate_of_a_sparsely_loaded_map_counts_the_union_box():
     "work, coverage, patches, faster",
     [
         # the policy's figures recorded by the sweep on the four maps where it chose the far
-        # field, and the strategy that ran faster when both were timed (CPU s of the whole
-        # solve, interleaved: 2.3 / 1.0, 2.0 / 0.87, 2.2 / 1.3, then 1.9 / 2.4 for the far field)
+        # field, and the strategy that ran no slower when both were timed (the union CG over
+        # the far field in fresh processes, interleaved: 0.74, 0.83, 1.00; on the last, the
+        # far field 1.9 s against 2.4 s of CPU in one process)
         ({"union-cg": 1.33e9, "block-gs": 8.75e8, "two-level": 3.33e8}, 0.163, 34, "union-cg"),
         ({"union-cg": 1.75e9, "block-gs": 1.96e9, "two-level": 5.06e8}, 0.121, 105, "union-cg"),
         ({"union-cg": 1.71e9, "block-gs": 1.21e9, "two-level": 3.93e8}, 0.085, 89, "union-cg"),
