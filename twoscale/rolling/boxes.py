@@ -83,7 +83,9 @@ def cut_grid(need: Grid) -> Grid:
     is that of the side needed: the margin the transform's length leaves costs nothing,
     and a 5-smooth side ``n`` pads to ``2 n``, up to twice the rows' step of a fast length
     (the tyre's 605 rows needed: 625 and 1250, against 608 and 1215, a float32 product
-    8 % cheaper)."""
+    8 % cheaper). The side itself need not be 5-smooth then (608 = 2^5 19): the CG's
+    products are the padded ones, and only the circulant inverse the stones' blocks fall
+    back on transforms the cut itself."""
     from scipy.fft import next_fast_len
 
     nx = next_fast_len(need.nx + 2 * CUT_MARGIN_CELLS, real=True)
