@@ -265,6 +265,27 @@ def test_stones_mapped_from_kept_samples_equal_a_fresh_roads(strip):
             assert np.array_equal(s.falls, t.falls) and np.array_equal(s.radii, t.radii)
 
 
+def test_a_rolled_stone_made_at_once_is_the_constructors(strip):
+    """``RolledStone.of`` (the fields written at once) gives the stone the constructor
+    gives: every field the same object, the same type, the same reach."""
+    import dataclasses
+
+    from twoscale.rolling.road import RolledStone
+    from twoscale.rolling.track import prepare
+
+    spec = RollingSpec(start=-6.0, end=-5.0, step=1.0, speed=30.0, tyre_radius=150.0, footprint=(30.0, 16.0))
+    stone = (
+        prepare(Scene(material=MAT, surface=strip, rolling=spec, total_load=60.0)).road.stones_at(-6.0, 1.0).stones[0]
+    )
+    values = [getattr(stone, f.name) for f in dataclasses.fields(RolledStone)]
+    made, built = RolledStone.of(*values), RolledStone(*values)
+    assert type(made) is RolledStone and vars(made).keys() == vars(built).keys()
+    assert all(getattr(made, f.name) is getattr(built, f.name) for f in dataclasses.fields(RolledStone))
+    assert made.reach(0.05) == built.reach(0.05) > 0.0
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        made.x = 0.0
+
+
 def test_a_cut_grown_to_the_whole_window_shrinks_back_around_the_contact():
     g = fast_grid(Grid(-20.0, -10.0, 0.25, 160, 80))
     p = np.zeros(g.shape)
