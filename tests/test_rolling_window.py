@@ -11,6 +11,7 @@ from twoscale import Material
 from twoscale.grid import Grid
 from twoscale.influence import HalfSpace
 from twoscale.rolling import RollingOptions, RollingSpec, road_strip, roll
+from twoscale.rolling.boxes import CUT_MARGIN_CELLS, CUT_SIDE_MARGIN_CELLS, cut_grid
 from twoscale.rolling.window import WindowState, fast_grid
 from twoscale.scene import Scene
 from twoscale.surface import RawMap, build_surface
@@ -102,9 +103,10 @@ def _assert_classical(track, pos, window, load, k):
 
 def test_the_first_position_is_solved_on_the_cut_over_the_estimated_footprint(strip):
     """With no last contact, the first position is solved on the window's columns over the
-    tyre's estimated footprint (with a margin), not on the whole window (its operator is
-    then the second position's when the contact fills it), checked on the window: the
-    classical static solve all the same. Without the estimate, the whole window."""
+    tyre's estimated footprint (with a margin) and the rows of the cells that can touch
+    (with the side's margin), not on the whole window (its operator is then the second
+    position's when the contact fills it), checked on the window: the classical static
+    solve all the same. Without the estimate, the whole window."""
     from twoscale.rolling.run import step, window_state
     from twoscale.rolling.track import prepare, tyre_contact_length
 
@@ -117,7 +119,9 @@ def test_the_first_position_is_solved_on_the_cut_over_the_estimated_footprint(st
     assert state.footprint == pytest.approx((-half, half))
     first = step(track, 0, None, options, state)
     g = first.result.fields[0].grid
-    assert g.ny == state.grid.ny and g.nx < state.grid.nx
+    assert g.ny <= state.grid.ny and g.nx < state.grid.nx
+    rows = np.flatnonzero((first.result.fields[0].pressure > 0.0).any(axis=1))
+    assert rows[0] >= CUT_SIDE_MARGIN_CELLS and rows[-1] < g.ny - CUT_SIDE_MARGIN_CELLS
     assert g.x0 <= -half and g.x0 + g.nx * g.h >= half
     _assert_classical(track, first, state.grid, load, 0)
     whole = window_state(track, options)
@@ -201,6 +205,44 @@ def test_window_sides_are_fft_friendly():
     assert g.x0 <= 0.0 and g.x0 + (g.nx - 1) * g.h >= 382 * 0.25
 
 
+def test_a_cut_across_the_rolling_direction_is_as_wide_as_its_transform_allows():
+    """The cut around a contact's box: along x the margin and a 5-smooth side; along y at
+    least the side's margin, then the largest side with the same zero-padded transform
+    length (the tyre's 601 loaded rows: 608 rows, a transform of 1215; 5-smooth, 625 and
+    1250), centred on the box."""
+    from scipy.fft import next_fast_len
+
+    box = Grid(1.0, -75.0, 0.25, 285, 601)
+    cut = cut_grid(box)
+    assert (cut.nx, cut.ny) == (320, 608)
+    assert next_fast_len(2 * cut.ny - 1, real=True) == 1215 < next_fast_len(2 * 625 - 1, real=True)
+    assert next_fast_len(2 * cut.ny + 1, real=True) > 1215  # a row more: a longer transform
+    rows, cols = box.window_in(cut)
+    assert rows.start >= CUT_SIDE_MARGIN_CELLS and cut.ny - rows.stop >= CUT_SIDE_MARGIN_CELLS
+    assert abs(rows.start - (cut.ny - rows.stop)) <= 1 and cols.start >= CUT_MARGIN_CELLS
+    small = cut_grid(Grid(0.0, 0.0, 0.25, 20, 30))
+    assert small.ny >= 30 + 2 * CUT_SIDE_MARGIN_CELLS and small.nx >= 20 + 2 * CUT_MARGIN_CELLS
+
+
+def test_the_kept_operator_gives_the_cg_its_float32_operators_own_routes():
+    """The window's kept float32 operator passes on the anchor's float64 product through
+    its buffers (``exact``: the double-precision product to the bit) and the product on a
+    part of the grid (``on_cells``: the grid's product at those cells, also in halves)."""
+    from twoscale.rolling.window import KeptBody
+
+    g = Grid(0.0, 0.0, 0.25, 40, 36)
+    op = KeptBody(HalfSpace(MAT)).grid_operator(g)
+    single = op.single_precision()
+    p = np.random.default_rng(3).random(g.shape)
+    assert single.exact is not None and np.array_equal(single.exact(p), op.apply(p))
+    cells = np.flatnonzero(p.ravel() > 0.6)
+    on = single.on_cells(cells)
+    part = np.where(p > 0.6, p, 0.0)
+    assert np.array_equal(on(p.ravel()[cells]), single.apply(part).ravel()[cells])
+    halves = on.forward(p.ravel()[cells])
+    assert halves.energy() == pytest.approx(float(part.ravel() @ op.apply(part).ravel()), rel=1e-6)
+
+
 def test_unknown_solver_is_refused():
     with pytest.raises(ValueError, match="solver"):
         RollingOptions(solver="fast")
@@ -221,6 +263,27 @@ def test_stones_mapped_from_kept_samples_equal_a_fresh_roads(strip):
         for s, t in zip(a.stones, b.stones):
             assert (s.x, s.y, s.z, s.extent) == (t.x, t.y, t.z, t.extent)
             assert np.array_equal(s.falls, t.falls) and np.array_equal(s.radii, t.radii)
+
+
+def test_a_rolled_stone_made_at_once_is_the_constructors(strip):
+    """``RolledStone.of`` (the fields written at once) gives the stone the constructor
+    gives: every field the same object, the same type, the same reach."""
+    import dataclasses
+
+    from twoscale.rolling.road import RolledStone
+    from twoscale.rolling.track import prepare
+
+    spec = RollingSpec(start=-6.0, end=-5.0, step=1.0, speed=30.0, tyre_radius=150.0, footprint=(30.0, 16.0))
+    stone = (
+        prepare(Scene(material=MAT, surface=strip, rolling=spec, total_load=60.0)).road.stones_at(-6.0, 1.0).stones[0]
+    )
+    values = [getattr(stone, f.name) for f in dataclasses.fields(RolledStone)]
+    made, built = RolledStone.of(*values), RolledStone(*values)
+    assert type(made) is RolledStone and vars(made).keys() == vars(built).keys()
+    assert all(getattr(made, f.name) is getattr(built, f.name) for f in dataclasses.fields(RolledStone))
+    assert made.reach(0.05) == built.reach(0.05) > 0.0
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        made.x = 0.0
 
 
 def test_a_cut_grown_to_the_whole_window_shrinks_back_around_the_contact():

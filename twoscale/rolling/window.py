@@ -31,10 +31,12 @@ its preconditioner at every position. Here the position is that CG directly:
   its array passes on the cells within :data:`NEAR_GAP` of the road at the last position
   (:meth:`WindowState.near`; the others checked on the answer, by ``solve_cg``).
 * the **cut**: the CG runs on a part of the window, the box of the last position's
-  contact (fixed in the body: the footprint) with :data:`CUT_MARGIN_CELLS` to spare (on
-  the tyre's footprint 320 of the window's 384 cells along x: the footprint's rim lies
-  below the approach bound but the tyre's elastic lift keeps it off; the first position's:
-  the columns over the tyre's estimated footprint, :attr:`WindowState.footprint`), and its answer is
+  contact (fixed in the body: the footprint) with :data:`CUT_MARGIN_CELLS` to spare along
+  the rolling direction and what the transform's length leaves beside it (:func:`cut_grid`;
+  on the tyre's footprint 320 of the window's 384 cells along x and 608 of its 625 rows:
+  the footprint's rim lies below the approach bound but the tyre's elastic lift keeps it
+  off; the first position's: the columns over the tyre's estimated footprint,
+  :attr:`WindowState.footprint`, and the rows of the cells that can touch), and its answer is
   checked a posteriori on the whole window (:func:`.lift.touching_outside`: on a half-space a
   lower bound of the lift its pressure makes there, :mod:`.lift`; else the displacement, one
   float32 product, exact only near contact); cells outside the cut that would touch make
@@ -57,7 +59,7 @@ import numpy as np
 from ..grid import Grid
 from ..indenters import Surface, surface_on
 from .blocks import StoneBlocks
-from .boxes import covers, grown, loaded_box, moved, union
+from .boxes import CUT_MARGIN_CELLS, covers, cut_grid, fast_grid, grown, loaded_box, moved, union
 from .lift import touching_outside
 from .road import RolledStone, Selection, reaches, stones_surface
 from .track import Track
@@ -67,8 +69,6 @@ MARGIN_CELLS = 8
 #: Most CG iterations of a position (17-30 measured over a 1 m run), then the two-scale
 #: solver from cold (a safety net: :data:`twoscale.pk.products.KEPT_GROWTH`).
 WINDOW_MAX_ITER = 100
-#: Cells added on every side of the previous contact's box when the cut window is built.
-CUT_MARGIN_CELLS = 8
 #: The kept cut is rebuilt around the last contact when that would leave at most this
 #: fraction of its cells (a new operator costs a few products; a cut grown for one
 #: position, or to the whole window, would otherwise stay).
@@ -96,12 +96,17 @@ KEEP_CONJUGACY = 0.005
 
 class KeptOperator:
     """A grid operator with its single-precision twin and preconditioner built once
-    (``solve_cg`` asks for them at every solve)."""
+    (``solve_cg`` asks for them at every solve), and the wrapped operator's own routes
+    where it has them: ``exact`` (the float32 operator's float64 product through buffers,
+    the CG's anchor) and ``on_cells`` (the product on the CG's part of the grid, no
+    grid-sized float64 field either way, also in two halves); None where it has not."""
 
     def __init__(self, op, single: bool = False, parent=None):
         self.op, self.single, self.parent = op, single, parent
         self.target, self.source = op.target, op.source
         self._twin = self._pc = None
+        self.exact = getattr(op, "exact", None)
+        self.on_cells = getattr(op, "on_cells", None)
 
     def apply(self, p):
         return self.op.apply(p)
@@ -188,38 +193,46 @@ class WindowState:
         self.grid = fast_grid(Grid.covering(lo_x - m, hi_x + m, lo_y - m, hi_y + m, need.h, anchor=(need.x0, need.y0)))
         return self.grid
 
-    def cut_in(self, window: Grid) -> Grid:
+    def cut_in(self, window: Grid, low: Callable[[], Grid | None] | None = None) -> Grid:
         """The grid the position is solved on: the kept cut if it lies in ``window`` and
         covers the last contact's box (fixed in the body) with a cell to spare, else one
-        built around that box with :data:`CUT_MARGIN_CELLS` on every side; with no last
-        contact, the window's columns over :attr:`footprint` with as many to spare (the first
-        position solved on a cut too: its operator is the second's); ``window`` itself when
-        there is neither or the cut would not be smaller."""
+        built around that box (:func:`cut_grid`); with no last contact, the window's columns
+        over :attr:`footprint` with :data:`CUT_MARGIN_CELLS` to spare and the rows of ``low()``
+        (the box of the cells that can touch) with the side's margin (the first position
+        solved on a cut too: its operator is the second's); ``window`` itself when there is
+        neither or the cut would not be smaller."""
         box = self._last_contact()
         if box is None:
-            return window if self.footprint is None else self._first_cut(window)
+            return window if self.footprint is None else self._first_cut(window, None if low is None else low())
         kept = self.cut
         if kept is not None and covers(window, kept) and covers(kept, grown(box, 1)):
-            fresh = fast_grid(grown(box, CUT_MARGIN_CELLS))
+            fresh = cut_grid(box)
             if fresh.size >= CUT_SHRINK * kept.size or not covers(window, fresh):
                 return kept  # (a cut grown for one position shrinks back when the contact allows)
         return self.grow_cut(window, box)
 
     def grow_cut(self, window: Grid, need: Grid) -> Grid:
-        """A cut covering ``need`` with :data:`CUT_MARGIN_CELLS` more on every side (5-smooth
-        sides), kept; ``window`` itself when that is not inside it."""
-        cut = fast_grid(grown(need, CUT_MARGIN_CELLS))
+        """A cut covering ``need`` with margins to spare (:func:`cut_grid`), kept; ``window``
+        itself when that is not inside it."""
+        cut = cut_grid(need)
         if not covers(window, cut) or cut.size >= window.size:
             cut = window
         self.cut = cut
         return cut
 
-    def _first_cut(self, window: Grid) -> Grid:
-        """The window's columns over :attr:`footprint`, :data:`CUT_MARGIN_CELLS` more on each
-        side (5-smooth; the window itself when that is not smaller), kept."""
+    def _first_cut(self, window: Grid, low: Grid | None) -> Grid:
+        """The window's columns over :attr:`footprint` and the rows of ``low`` with margins to
+        spare (:func:`cut_grid`), or where that does not fit in the window, or without
+        ``low``, its columns with :data:`CUT_MARGIN_CELLS` more on each side (5-smooth) and
+        all its rows; kept; the window itself when that is not smaller."""
         lo, hi = (round((x - window.x0) / window.h) for x in self.footprint)
-        i0, i1 = max(lo - CUT_MARGIN_CELLS, 0), min(hi + CUT_MARGIN_CELLS, window.nx)
-        cut = fast_grid(window.subgrid(i0, 0, max(i1 - i0, 1), window.ny))
+        cut = None
+        if low is not None:
+            j0 = low.offset_in(window)[1]
+            cut = cut_grid(window.subgrid(lo, j0, max(hi - lo, 1), low.ny))
+        if cut is None or not covers(window, cut):
+            i0, i1 = max(lo - CUT_MARGIN_CELLS, 0), min(hi + CUT_MARGIN_CELLS, window.nx)
+            cut = fast_grid(window.subgrid(i0, 0, max(i1 - i0, 1), window.ny))
         if not covers(window, cut) or cut.size >= window.size:
             return window  # (no cut kept: the next is built around the contact)
         self.cut = cut
@@ -269,16 +282,6 @@ class WindowState:
         gap = np.where(np.isfinite(f.gap), np.maximum(f.gap, 0.0), 0.0)
         signed = np.where(f.pressure > 0.0, f.pressure, -stiffness * gap)
         self.past = (self.past + [(f.grid, signed, shift)])[-2:]
-
-
-def fast_grid(grid: Grid) -> Grid:
-    """``grid`` grown (about its centre) to sides of 5-smooth lengths: the preconditioner
-    transforms the grid itself, and a prime side (Bluestein's FFT) costs as much as the
-    zero-padded product."""
-    from scipy.fft import next_fast_len
-
-    nx, ny = next_fast_len(grid.nx, real=True), next_fast_len(grid.ny, real=True)
-    return Grid(grid.x0 - ((nx - grid.nx) // 2) * grid.h, grid.y0 - ((ny - grid.ny) // 2) * grid.h, grid.h, nx, ny)
 
 
 def reference_grid(track: Track, selection: Selection, bound: float) -> Grid:
@@ -348,7 +351,7 @@ def solve_window(track, selection, bound: float, state: WindowState, tol: float)
         return None
     grid, surface = found
     scene = track.scene
-    cut = state.cut_in(grid)
+    cut = state.cut_in(grid, lambda: _low_box(surface, bound))
     if not np.isfinite(_restricted(surface, cut).height).any():
         cut = grid  # no stone's material in the cut (cannot carry a load): the whole window
     blocks = None if state.blocks is None else state.blocks.at(selection.numbers, selection.shift, grid.h)
@@ -373,6 +376,7 @@ def solve_window(track, selection, bound: float, state: WindowState, tol: float)
             keep_conjugacy=KEEP_CONJUGACY,
             max_iter=WINDOW_MAX_ITER,
             reach=reach,
+            half_products=True,
         )
         if cut == grid or not result.converged:
             break
