@@ -97,9 +97,8 @@ KEEP_CONJUGACY = 0.005
 class KeptOperator:
     """A grid operator with its single-precision twin and preconditioner built once
     (``solve_cg`` asks for them at every solve), and the wrapped operator's own routes
-    where it has them: ``exact`` (the float32 operator's float64 product through buffers,
-    the CG's anchor) and ``on_cells`` (the product on the CG's part of the grid, no
-    grid-sized float64 field either way, also in two halves); None where it has not."""
+    where it has them: ``exact`` (the float32 operator's float64 product, the CG's anchor)
+    and ``on_cells`` (on the CG's part of the grid, also in two halves), else None."""
 
     def __init__(self, op, single: bool = False, parent=None):
         self.op, self.single, self.parent = op, single, parent
