@@ -8,7 +8,11 @@ from typing import Callable
 import numpy as np
 
 _ARMIJO = 1e-4  # sufficient decrease: ||r(x + t s)|| <= (1 - ARMIJO t) ||r(x)||
-_MIN_STEP = 2.0**-40
+#: The line search gives up below this step. No step under 2^-21 was accepted on the sweeps'
+#: 245 tip scenes of up to 300 tips (seeds 0 and 1; 10 under 2^-12), while each of their 24
+#: failures evaluated the residual 40 times from 2^-40 (49 merged spheres: 40 of the macro
+#: step's 87 residuals, each one law inversion per tip).
+_MIN_STEP = 2.0**-24
 #: A stagnation check (``stall``) applies only once the relative residual is below this:
 #: farther out, Newton's global phase may take several slow steps before it converges.
 STALL_RESIDUAL = 1e-2
@@ -88,7 +92,7 @@ def newton(
     Notes
     -----
     Each step is halved until the residual norm decreases by the Armijo factor. If no
-    step down to ``2^-40`` decreases it, the iteration stops with ``converged=False``.
+    step down to ``2^-24`` decreases it, the iteration stops with ``converged=False``.
     """
     x = np.array(x0, dtype=float)
     r = residual(x)
