@@ -56,3 +56,28 @@ def test_another_iteration_runs_the_deferred_safe_path_on_the_patches_its_forces
     assert [f.grid for f in refined.fields] == [f.grid for f in taken.fields]
     assert np.array_equal(refined.details.macro.forces, taken.details.macro.forces)
     assert _largest_difference(refined, taken) <= 1e-12
+
+
+def test_the_deferral_counts_the_cells_of_every_tips_reach(monkeypatch):
+    # the box of each tip's Asperity.reach at the approach (a sphere's cap at most R wide), in
+    # cells of side h: deferred up to DEFER_SAFE_PATH_MAX_CELLS, not one cell more
+    from twoscale.indenters import Asperity
+
+    rng = np.random.default_rng(3)
+    tips = [
+        Asperity(float(x), float(y), float(z), float(r), shape=shape)
+        for shape in ("sphere", "paraboloid")
+        for x, y, z, r in rng.uniform([-3, -3, 0, 0.5], [3, 3, 1, 2], (20, 4))
+    ]
+    h = 0.01
+    assert policy.safe_path_deferral(tips, h, 0.5, True) is None  # a free tilt sizes its box by the macro tilt
+    for d in (0.3, 1.2, 3.0):  # the last beyond every sphere's radius
+        reach = np.array([a.reach(d - a.z) for a in tips])
+        on = reach > 0
+        x, y = np.array([a.x for a in tips])[on], np.array([a.y for a in tips])[on]
+        r = reach[on]
+        cells = ((np.max(x + r) - np.min(x - r)) / h + 1) * ((np.max(y + r) - np.min(y - r)) / h + 1)
+        for limit, expected in ((0.999 * cells, False), (1.001 * cells, True)):
+            monkeypatch.setattr(policy, "DEFER_SAFE_PATH_MAX_CELLS", limit)
+            assert policy.safe_path_deferral(tips, h, d, False)(np.zeros(0)) is expected
+            assert policy.safe_path_deferral(tips, h, None, False)(np.array([d])) is expected  # load control

@@ -41,10 +41,13 @@ class Stops:
         too): Newton sits at a stationary point of the residual's norm that is no solution
         (merged contacts), where each further step costs a line search.
     None: no such stop.
+    drop : float, default ``PLATEAU_DROP``
+        The plateau's fall (a fraction of the residual at the window's start).
     """
 
     stall: int | None = None
     plateau: int | None = None
+    drop: float = PLATEAU_DROP
 
 
 @dataclass(frozen=True)
@@ -126,8 +129,8 @@ def newton(
         if stall is not None and _stagnates(history, stall) and not norm <= tol * scale(x):
             msg = f"Newton stagnated at step {it + 1}: relative residual {history[-1]:.3e}, not halved in {stall} steps"
             return NewtonOutcome(x, r, False, msg, it + 1, tuple(history))
-        if plateau is not None and _flat(history, plateau) and not norm <= tol * scale(x):
-            msg = f"Newton stagnated at step {it + 1}: relative residual {history[-1]:.3e}, down by under {PLATEAU_DROP:.0%} in {plateau} steps"
+        if plateau is not None and _flat(history, plateau, stops.drop) and not norm <= tol * scale(x):
+            msg = f"Newton stagnated at step {it + 1}: relative residual {history[-1]:.3e}, down by under {stops.drop:.0%} in {plateau} steps"
             return NewtonOutcome(x, r, False, msg, it + 1, tuple(history))
     msg = f"not converged after max_iter={max_iter} Newton steps: relative residual {history[-1]:.3e} > tol={tol:.1e}"
     return NewtonOutcome(x, r, False, msg, max_iter, tuple(history))
@@ -140,11 +143,11 @@ def _stagnates(history: list, window: int) -> bool:
     return before <= STALL_RESIDUAL and history[-1] > 0.5 * before
 
 
-def _flat(history: list, window: int) -> bool:
+def _flat(history: list, window: int, drop: float) -> bool:
     if len(history) <= window:
         return False
     before = history[-1 - window]
-    return before <= PLATEAU_RESIDUAL and history[-1] > (1.0 - PLATEAU_DROP) * before
+    return before <= PLATEAU_RESIDUAL and history[-1] > (1.0 - drop) * before
 
 
 def _relative(norm: float, scale: float) -> float:

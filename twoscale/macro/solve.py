@@ -19,6 +19,7 @@ from .checks import check_load as _check_load, check_scene as _check_scene
 from .interaction import MatrixFreeInteraction, sampled_operator_error
 from .result import MacroResult
 from .start import MacroStart
+from .newton import PLATEAU_DROP
 from .robust import FAST_STEPS, minimise_then_polish, run_newton, solve_dual
 from .system import MacroSystem
 
@@ -45,6 +46,12 @@ STALL_STEPS = 4
 #: tip scenes up to 1,000 tips the same 13 take the safe path, 2-6 steps sooner (761
 #: paraboloids: 0.156 -> 0.108 s); none converged by Newton is handed over.
 PLATEAU_STEPS = 2
+
+#: Where the caller would defer the safe path at the cold start's approach (``defer_safe_path``),
+#: the plateau is a fall of under this fraction in those steps: the stalled iterate only starts
+#: the union CG there (49 merged spheres: 8 Newton steps at 6.8e-2 instead of 11 at 6.3e-2, the
+#: CG's iterations 26 against 27).
+DEFERRED_PLATEAU_DROP = 0.1
 
 
 def solve_macro(
@@ -200,7 +207,8 @@ def _newton_then_safe(system: MacroSystem, x0: np.ndarray, tol: float, max_iter:
     stall = STALL_STEPS if system.n > SAFE_PATH_MAX_TIPS else None
     plateau = PLATEAU_STEPS if system.n <= SAFE_PATH_MAX_TIPS else None
     steps = min(max_iter, FAST_STEPS)
-    fast = run_newton(system, x0, tol=tol, max_iter=steps, scale_floor=W, stall=stall, plateau=plateau)
+    drop = DEFERRED_PLATEAU_DROP if plateau and defer is not None and defer(x0[system.n :]) else PLATEAU_DROP
+    fast = run_newton(system, x0, tol=tol, max_iter=steps, scale_floor=W, stall=stall, plateau=plateau, drop=drop)
     if fast.converged and system.stable(fast.x):
         return fast.x, True, fast.message, fast.iterations, fast.residuals, ""
     if not fast.converged and fast.iterations >= max_iter:

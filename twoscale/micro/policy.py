@@ -95,15 +95,19 @@ def safe_path_deferral(asperities: Sequence, h: float, penetration: float | None
     whose union CG sizes its box by the macro step's tilt and forces, and on a height map."""
     if tilt or any(a.shape == "map" for a in asperities):
         return None
+    x, y, z, R = np.array([(a.x, a.y, a.z, a.R) for a in asperities], dtype=float).T
+    sphere = np.array([a.shape != "paraboloid" for a in asperities])
 
     def defer(rigid: np.ndarray) -> bool:
-        d = float(rigid[0]) if len(rigid) else float(penetration)
-        boxes = [(a.x, a.y, a.reach(d - a.z)) for a in asperities]
-        on = np.array([b for b in boxes if b[2] > 0.0])
-        if not on.size or not np.all(np.isfinite(on)):
+        depth = (float(rigid[0]) if len(rigid) else float(penetration)) - z
+        # Asperity.reach for every tip at once: a paraboloid's sqrt(2 R depth), a sphere's cap
+        cap = np.minimum(depth, R)
+        r = np.sqrt(np.maximum(np.where(sphere, cap * (2.0 * R - cap), 2.0 * R * depth), 0.0))
+        on = depth > 0.0
+        if not np.any(on) or not np.all(np.isfinite(r[on])):
             return False
-        nx = (np.max(on[:, 0] + on[:, 2]) - np.min(on[:, 0] - on[:, 2])) / h + 1.0
-        ny = (np.max(on[:, 1] + on[:, 2]) - np.min(on[:, 1] - on[:, 2])) / h + 1.0
+        nx = (np.max(x[on] + r[on]) - np.min(x[on] - r[on])) / h + 1.0
+        ny = (np.max(y[on] + r[on]) - np.min(y[on] - r[on])) / h + 1.0
         return bool(nx * ny <= DEFER_SAFE_PATH_MAX_CELLS)
 
     return defer
