@@ -26,10 +26,11 @@ from .indenters import Asperity
 from .influence.base import InfluenceProvider
 from .influence.cached import with_caches
 from .laws import law_for
-from .macro import solve_macro
+from .macro.solve import MacroHandover, macro_step, solve_macro
 from .macro.start import MacroStart
 from .influence.separated import check_rtol
 from .micro.driver import fixed_choice, run_micro
+from .micro.policy import safe_path_deferral
 from .micro.problem import SIZING_RESIDUAL, MicroProblem
 from .options import KEYWORDS, MacroOptions, SolverOptions
 from .results import ContactResult, PressureField, summarise
@@ -207,20 +208,22 @@ def run_twoscale(
     if progress is not None:
         progress(f"macro step, {len(asperities)} asperities")
     first = _first_stage(macro_options, len(asperities))
-    macro = solve_macro(provider, tips, z, laws, loading, first, start=_macro_start(start, len(asperities)))
-    t1 = time.perf_counter()
     choice = _caller_choice(micro_options.iteration, micro_options.far_tol, run.coarse)
+    begin = _macro_start(start, len(asperities))
+    defer = None if choice is not None else safe_path_deferral(asperities, h, loading.penetration, loading.tilt)
+    macro = macro_step(provider, tips, z, laws, loading, first, MacroHandover(start=begin, defer_safe_path=defer))
+    t1 = time.perf_counter()
     micro_start = start.micro if isinstance(start, WarmStart) else None
     problem = _micro_problem(macro, h, loading, run.anchor, micro_start)
     refine = None
-    # the staged first stage is taken to the macro tolerance, but not after the safe path's
-    # skip (an unstable equilibrium of merged contacts, or a stall), where Newton stalled
-    # again (1,013 spheres: five more LU steps, 1.9e-3 to 5.7e-4; 1,485: one, a failed line
-    # search); the micro step resolves the merged contacts either way
-    if first is not macro_options and not macro.safe_path:
+    # the staged first stage is taken to the macro tolerance, but not after the safe path's skip
+    # (an unstable equilibrium of merged contacts, or a stall), where Newton stalled again (1,013
+    # spheres: five more LU steps, 1.9e-3 to 5.7e-4; 1,485: one, a failed line search); the micro
+    # step resolves the merged contacts either way. A deferred safe path: the macro step again.
+    if (first is not macro_options and not macro.safe_path) or macro.safe_path_deferred:
 
         def refine():
-            again = MacroStart(macro.forces, macro.penetration, macro.tilt)
+            again = begin if macro.safe_path_deferred else MacroStart(macro.forces, macro.penetration, macro.tilt)
             full = _continued(macro, solve_macro(provider, tips, z, laws, loading, macro_options, start=again))
             return full, _micro_problem(full, h, loading, run.anchor, micro_start)
 

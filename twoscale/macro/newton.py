@@ -8,7 +8,11 @@ from typing import Callable
 import numpy as np
 
 _ARMIJO = 1e-4  # sufficient decrease: ||r(x + t s)|| <= (1 - ARMIJO t) ||r(x)||
-_MIN_STEP = 2.0**-40
+#: The line search gives up below this step. No step under 2^-21 was accepted on the sweeps'
+#: 245 tip scenes of up to 300 tips (seeds 0 and 1; 10 under 2^-12), while each of their 24
+#: failures evaluated the residual 40 times from 2^-40 (49 merged spheres: 40 of the macro
+#: step's 87 residuals, each one law inversion per tip).
+_MIN_STEP = 2.0**-24
 #: A stagnation check (``stall``) applies only once the relative residual is below this:
 #: farther out, Newton's global phase may take several slow steps before it converges.
 STALL_RESIDUAL = 1e-2
@@ -37,10 +41,13 @@ class Stops:
         too): Newton sits at a stationary point of the residual's norm that is no solution
         (merged contacts), where each further step costs a line search.
     None: no such stop.
+    drop : float, default ``PLATEAU_DROP``
+        The plateau's fall (a fraction of the residual at the window's start).
     """
 
     stall: int | None = None
     plateau: int | None = None
+    drop: float = PLATEAU_DROP
 
 
 @dataclass(frozen=True)
@@ -88,7 +95,7 @@ def newton(
     Notes
     -----
     Each step is halved until the residual norm decreases by the Armijo factor. If no
-    step down to ``2^-40`` decreases it, the iteration stops with ``converged=False``.
+    step down to ``2^-24`` decreases it, the iteration stops with ``converged=False``.
     """
     x = np.array(x0, dtype=float)
     r = residual(x)
@@ -122,8 +129,8 @@ def newton(
         if stall is not None and _stagnates(history, stall) and not norm <= tol * scale(x):
             msg = f"Newton stagnated at step {it + 1}: relative residual {history[-1]:.3e}, not halved in {stall} steps"
             return NewtonOutcome(x, r, False, msg, it + 1, tuple(history))
-        if plateau is not None and _flat(history, plateau) and not norm <= tol * scale(x):
-            msg = f"Newton stagnated at step {it + 1}: relative residual {history[-1]:.3e}, down by under {PLATEAU_DROP:.0%} in {plateau} steps"
+        if plateau is not None and _flat(history, plateau, stops.drop) and not norm <= tol * scale(x):
+            msg = f"Newton stagnated at step {it + 1}: relative residual {history[-1]:.3e}, down by under {stops.drop:.0%} in {plateau} steps"
             return NewtonOutcome(x, r, False, msg, it + 1, tuple(history))
     msg = f"not converged after max_iter={max_iter} Newton steps: relative residual {history[-1]:.3e} > tol={tol:.1e}"
     return NewtonOutcome(x, r, False, msg, max_iter, tuple(history))
@@ -136,11 +143,11 @@ def _stagnates(history: list, window: int) -> bool:
     return before <= STALL_RESIDUAL and history[-1] > 0.5 * before
 
 
-def _flat(history: list, window: int) -> bool:
+def _flat(history: list, window: int, drop: float) -> bool:
     if len(history) <= window:
         return False
     before = history[-1 - window]
-    return before <= PLATEAU_RESIDUAL and history[-1] > (1.0 - PLATEAU_DROP) * before
+    return before <= PLATEAU_RESIDUAL and history[-1] > (1.0 - drop) * before
 
 
 def _relative(norm: float, scale: float) -> float:

@@ -53,7 +53,11 @@ class MacroResult:
         Matrix-free: conjugate-gradient iterations over all Newton steps.
     safe_path : bool
         Plain Newton stalled or reached an unstable equilibrium and the safe path
-        (:mod:`twoscale.macro.robust`) gave the answer: a sign of merged contacts.
+        (:mod:`twoscale.macro.robust`) gave the answer: a sign of merged contacts; or
+        it was skipped (thousands of tips) or deferred (``safe_path_deferred``).
+    safe_path_deferred : bool
+        Newton stalled and its last iterate was handed on: the caller asked not to take
+        the safe path yet (``solve_macro``'s ``defer_safe_path``).
     """
 
     forces: np.ndarray
@@ -72,6 +76,7 @@ class MacroResult:
     operator_error: float | None = None
     krylov_iterations: int = 0
     safe_path: bool = False
+    safe_path_deferred: bool = False
 
     def __post_init__(self) -> None:
         for name, dtype in (("forces", float), ("local_penetrations", float), ("in_contact", bool)):

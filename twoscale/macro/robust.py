@@ -28,7 +28,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.optimize import minimize
 
-from .newton import NewtonOutcome, Stops, newton
+from .newton import PLATEAU_DROP, NewtonOutcome, Stops, newton
 from .system import MacroSystem
 
 _ARMIJO = 1e-4
@@ -65,9 +65,11 @@ def run_newton(
     scale_floor: float = 0.0,
     stall: int | None = None,
     plateau: int | None = None,
+    drop: float = PLATEAU_DROP,
 ) -> NewtonOutcome:
     """Projected, backtracking Newton on ``system`` from ``x0`` (``stall``: stop when it
-    stagnates near a solution, ``plateau``: anywhere, :func:`.newton.newton`)."""
+    stagnates near a solution, ``plateau``: anywhere, by under ``drop`` of its residual,
+    :func:`.newton.newton`)."""
     n = system.n
     return newton(
         system.residual,
@@ -77,7 +79,7 @@ def run_newton(
         tol=tol,
         max_iter=max_iter,
         project=lambda x: project(x, n),
-        stops=Stops(stall, plateau),
+        stops=Stops(stall, plateau, drop),
     )
 
 

@@ -3,19 +3,23 @@
 from __future__ import annotations
 
 import time
+from dataclasses import dataclass
+from typing import Callable
 
 import numpy as np
 from scipy.linalg import cho_solve
 from scipy.optimize import brentq, linprog
 from scipy.spatial import cKDTree
 
-from ..control import Loading, check_control
+from ..control import Loading
 from ..influence.base import InfluenceProvider
-from ..laws import AsperityLaw, LawStack
+from ..laws import LawStack
 from ..options import MacroOptions
+from .checks import check_load as _check_load, check_scene as _check_scene
 from .interaction import MatrixFreeInteraction, sampled_operator_error
 from .result import MacroResult
 from .start import MacroStart
+from .newton import PLATEAU_DROP
 from .robust import FAST_STEPS, minimise_then_polish, run_newton, solve_dual
 from .system import MacroSystem
 
@@ -42,6 +46,12 @@ STALL_STEPS = 4
 #: tip scenes up to 1,000 tips the same 13 take the safe path, 2-6 steps sooner (761
 #: paraboloids: 0.156 -> 0.108 s); none converged by Newton is handed over.
 PLATEAU_STEPS = 2
+
+#: Where the caller would defer the safe path at the cold start's approach (``defer_safe_path``),
+#: the plateau is a fall of under this fraction in those steps: the stalled iterate only starts
+#: the union CG there (49 merged spheres: 8 Newton steps at 6.8e-2 instead of 11 at 6.3e-2, the
+#: CG's iterations 26 against 27).
+DEFERRED_PLATEAU_DROP = 0.1
 
 
 def solve_macro(
@@ -89,21 +99,19 @@ def solve_macro(
         Add ``c_k`` (zero on the half-space). Set False when the laws already contain
         the body's own compliance (e.g. tabulated from single-asperity solves on it).
     options.tol : float, default 1e-10
-        Relative residual: ``||r||_2 <= tol * ||P||_2``, with ``r`` the force residuals
-        ``P_k - f_k(delta_k)`` and the equilibrium rows (moments divided by the RMS tip
-        distance from the pivot), all in N.
+        Relative residual: ``||r||_2 <= tol * ||P||_2``, with ``r`` the force residuals ``P_k -
+        f_k(delta_k)`` and the equilibrium rows (moments over the RMS tip distance from the pivot), N.
     options.max_iter : int, default 100
         Maximum Newton steps; reaching it gives ``converged=False``.
     options.dense_max : int, default 2000
-        Largest N solved with the dense ``N x N`` interaction matrix (LU per Newton step).
-        Above it the interaction is matrix-free (:mod:`twoscale.macro.interaction`):
-        products by ``provider.point_operator(tips, tips, rtol=operator_rtol)``, Newton
-        steps by conjugate gradients, memory ``O(N)``; the operator's error at the
-        solution is measured on a sample of tips and reported (``operator_error``).
+        Largest N solved with the dense ``N x N`` interaction matrix (LU per Newton step). Above
+        it the interaction is matrix-free (:mod:`twoscale.macro.interaction`): products by
+        ``provider.point_operator(tips, tips, rtol=operator_rtol)``, Newton steps by conjugate
+        gradients, memory ``O(N)``; the operator's error at the solution, measured on a sample
+        of tips, is reported (``operator_error``).
     options.operator_rtol : float, default 1e-6
-        Accuracy asked of the point operator in the matrix-free mode (relative to
-        ``max |u|``); the forces then solve the macro equations with ``T`` perturbed by
-        about that much.
+        Accuracy asked of the matrix-free point operator (relative to ``max |u|``); the forces
+        then solve the macro equations with ``T`` perturbed by about that much.
     start : MacroStart, optional
         Warm start (:mod:`twoscale.macro.start`): initial forces (N, this solve's tip
         order), approach (mm) and tilt (rad), e.g. a neighbouring position's solution.
@@ -115,6 +123,24 @@ def solve_macro(
     -------
     MacroResult
     """
+    return macro_step(provider, tips, z, laws, loading, options, MacroHandover(self_compliance, start))
+
+
+@dataclass(frozen=True)
+class MacroHandover:
+    """How :func:`macro_step` starts and hands over (:func:`solve_macro`'s keywords, and
+    ``defer_safe_path``: asked with Newton's last rigid-body unknowns, ``[d]`` under load
+    control, else empty, when it stalls; True hands that iterate on without the safe path,
+    ``safe_path_deferred`` in the result)."""
+
+    self_compliance: bool = True
+    start: MacroStart | None = None
+    defer_safe_path: Callable[[np.ndarray], bool] | None = None
+
+
+def macro_step(provider, tips, z, laws, loading: Loading, options, how: MacroHandover) -> MacroResult:
+    """:func:`solve_macro` with its keywords as a :class:`MacroHandover`."""
+    self_compliance, start = how.self_compliance, how.start
     t0 = time.perf_counter()
     options = MacroOptions() if options is None else options
     tol, max_iter, dense_max, operator_rtol = options.tol, options.max_iter, options.dense_max, options.operator_rtol
@@ -135,7 +161,7 @@ def solve_macro(
         x0 = _initial_guess(system, z, stack, penetration, total_load, tilt)
     else:  # the cold start's forces are not needed, nor its approach when the start has one
         x0 = start.unknowns(len(z), _rigid_start(z, stack, total_load, tilt, start))
-    x, converged, message, steps, residuals, safe_path = _newton_then_safe(system, x0, tol=tol, max_iter=max_iter)
+    x, converged, message, steps, residuals, path = _newton_then_safe(system, x0, tol, max_iter, how.defer_safe_path)
     t2 = time.perf_counter()
     P, g = system.split(x)
     delta = system.delta(x)
@@ -167,49 +193,49 @@ def solve_macro(
         iterations=steps,
         residuals=residuals,
         timings_s=timings,
-        safe_path=safe_path,
+        safe_path=bool(path),
+        safe_path_deferred=path == "deferred",
         **extra,
     )
 
 
-def _newton_then_safe(system: MacroSystem, x0: np.ndarray, *, tol: float, max_iter: int):
+def _newton_then_safe(system: MacroSystem, x0: np.ndarray, tol: float, max_iter: int, defer=None):
     """Projected Newton with backtracking from the cold start; if it stalls, the safe
     path (:mod:`.robust`). Returns (x, converged, message, Newton steps, residual history,
-    whether the safe path was taken)."""
+    the safe path: "" not needed, "taken", "skipped" or "deferred" by ``defer``)."""
     W = float(system.e[0]) if system.e.size else 0.0
     stall = STALL_STEPS if system.n > SAFE_PATH_MAX_TIPS else None
     plateau = PLATEAU_STEPS if system.n <= SAFE_PATH_MAX_TIPS else None
     steps = min(max_iter, FAST_STEPS)
-    fast = run_newton(system, x0, tol=tol, max_iter=steps, scale_floor=W, stall=stall, plateau=plateau)
+    drop = DEFERRED_PLATEAU_DROP if plateau and defer is not None and defer(x0[system.n :]) else PLATEAU_DROP
+    fast = run_newton(system, x0, tol=tol, max_iter=steps, scale_floor=W, stall=stall, plateau=plateau, drop=drop)
     if fast.converged and system.stable(fast.x):
-        return fast.x, True, fast.message, fast.iterations, fast.residuals, False
+        return fast.x, True, fast.message, fast.iterations, fast.residuals, ""
     if not fast.converged and fast.iterations >= max_iter:
-        return fast.x, False, fast.message, fast.iterations, fast.residuals, False
-    skip = None
+        return fast.x, False, fast.message, fast.iterations, fast.residuals, ""
+    skip, path = None, "skipped"
     if system.n > SAFE_PATH_MAX_TIPS:
-        # merged contacts among thousands of tips: the micro step resolves them on the real
-        # contact (its patches then reach as far as the indenters can touch, and under load
-        # control it corrects the approach); the safe path would cost more than the solve
+        # merged contacts among thousands of tips: the micro step resolves them on the real contact
+        # (its patches reach as far as the indenters can touch; under load control it corrects the
+        # approach); the safe path would cost more than the solve
         skip = f"with {system.n} asperities"
     elif not _balance_feasible(system):
         # the safe path's dual ascent cannot end (four tilted spheres: 15 inner minimisations,
         # 2.2 s of a 3.3 s solve, then Newton's iterate handed on all the same); the real
         # contacts, spread over the spheres, can balance what the tips cannot
         skip = "no forces at the tips balance the moments about the pivot (outside their convex hull):"
+    elif defer is not None and not fast.converged and defer(fast.x[system.n :]):
+        # a stall only: an unstable equilibrium's forces size the box short (16 merged
+        # paraboloids: the union CG's box grew once, 44 iterations against 22 after the safe path)
+        skip, path = "the safe path deferred (the union CG on a small box needs none):", "deferred"
     if skip is not None:
         why = (
             "Newton converged to an unstable equilibrium (merged contacts)"
             if fast.converged
             else f"Newton stalled ({fast.message})"
         )
-        return (
-            fast.x,
-            False,
-            f"{why}; {skip} the micro step starts from Newton's last iterate",
-            fast.iterations,
-            fast.residuals,
-            True,
-        )
+        message = f"{why}; {skip} the micro step starts from Newton's last iterate"
+        return fast.x, False, message, fast.iterations, fast.residuals, path
     if system.G.shape[1] == 0:
         # a saddle is a stationary point of the potential: the minimiser must not start there
         starts = (x0,) if fast.converged else (x0, fast.x)
@@ -233,7 +259,7 @@ def _newton_then_safe(system: MacroSystem, x0: np.ndarray, *, tol: float, max_it
         else f"Newton stalled ({fast.message})"
     )
     message = f"{why}; {safe.message}"
-    return x, safe.converged, message, fast.iterations + safe.newton_steps, history, True
+    return x, safe.converged, message, fast.iterations + safe.newton_steps, history, "taken"
 
 
 def _balance_feasible(system: MacroSystem) -> bool:
@@ -248,42 +274,6 @@ def _balance_feasible(system: MacroSystem) -> bool:
 def _residual_norm(system: MacroSystem, x: np.ndarray) -> float:
     r = system.residual(x)
     return float(np.linalg.norm(r)) if np.all(np.isfinite(r)) else np.inf
-
-
-def _check_scene(tips, z, laws) -> tuple[np.ndarray, np.ndarray, LawStack]:
-    tips = np.asarray(tips, dtype=float)
-    z = np.asarray(z, dtype=float)
-    if tips.ndim != 2 or tips.shape[1] != 2 or tips.shape[0] == 0:
-        raise ValueError(f"tips must have shape (N, 2) with N >= 1, got {tips.shape}")
-    if z.shape != (tips.shape[0],):
-        raise ValueError(f"z must have shape ({tips.shape[0]},), got {z.shape}")
-    if not np.all(np.isfinite(tips)):
-        raise ValueError(f"tips must be finite (mm), got {tips!r}")
-    if not np.all(np.isfinite(z)):
-        raise ValueError(f"z must be finite (mm), got {z!r}")
-    if isinstance(laws, AsperityLaw):
-        laws = [laws] * len(z)
-    laws = list(laws)
-    if len(laws) != len(z):
-        raise ValueError(f"need one law per asperity: {len(z)} asperities, {len(laws)} laws")
-    return tips, z, LawStack(laws)
-
-
-def _check_load(penetration, total_load, tilt, pivot, tol, max_iter) -> str:
-    check_control(penetration, total_load)
-    if penetration is not None and not np.isfinite(penetration):
-        raise ValueError(f"penetration must be finite (mm), got {penetration!r}")
-    if total_load is not None and not (np.isfinite(total_load) and total_load > 0):
-        raise ValueError(f"total_load must be finite and > 0 (N), got {total_load!r}")
-    if tilt and total_load is None:
-        raise ValueError("tilt=True needs total_load (the joint balances a given load)")
-    if len(pivot) != 2 or not np.all(np.isfinite(np.asarray(pivot, dtype=float))):
-        raise ValueError(f"pivot must be two finite numbers (mm), got {pivot!r}")
-    if not (np.isfinite(tol) and tol > 0):
-        raise ValueError(f"tol must be > 0, got {tol!r}")
-    if isinstance(max_iter, bool) or not isinstance(max_iter, (int, np.integer)) or max_iter < 1:
-        raise ValueError(f"max_iter must be an integer >= 1, got {max_iter!r}")
-    return "penetration" if total_load is None else ("tilt" if tilt else "load")
 
 
 def _interaction(provider: InfluenceProvider, tips: np.ndarray, self_compliance: bool) -> np.ndarray:

@@ -138,8 +138,9 @@ def run_micro(
         tolerance. Called when the iteration chosen is not the union CG, which solves every
         contact on the box and takes the macro forces only as its patches and start; the
         block iterations start patch by patch from them. The patches stay (building them
-        again cost 5,096 scattered spheres more than the macro step); the choice is made
-        again.
+        again cost 5,096 scattered spheres more than the macro step) unless they were sized
+        by each tip's reach (a deferred safe path's stall far from a solution); the choice is
+        made again.
     """
     asperities = TipTable.of(asperities)  # tip arrays once for every patch built
     share = _box_share(bool(macro.safe_path)) if choice is None else UNION_MIN_COVERAGE
@@ -152,7 +153,11 @@ def run_micro(
     box = box_of([pt.grid for pt in patches], problem.h, problem.anchor).size
     picked = _plan(patches, box, choice, asperities, problem, bool(macro.safe_path))
     if refine is not None and picked.iteration != "union-cg":
-        macro, problem = refine()
+        macro, refined = refine()
+        if refined.size_from_forces != problem.size_from_forces:  # a deferred safe path's forces size them
+            patches = tuple(one_asperity_patches(provider, asperities, refined, options.margin, share))
+            box = box_of([pt.grid for pt in patches], refined.h, refined.anchor).size
+        problem = refined
         picked = _plan(patches, box, choice, asperities, problem, bool(macro.safe_path))
     context = MicroContext(provider, asperities, problem, options, BlockSettings(), patches)
     attempts: list = []

@@ -61,7 +61,7 @@ class MicroProblem:
         outside every block are still given a patch by the growth step.
     local_penetrations : (N,) array or None, default None
         The macro step's local approach of each tip, mm, where it converged or came near
-        (the union CG's start, the far-field patch sizes).
+        (the union CG's start, the far-field patch sizes), or deferred its safe path.
     start : MicroStart or None, default None
         A previous solve's pressure (:mod:`.start`): the iterations start from it on the
         patches of the asperities it loaded, from eq. 7 elsewhere.
@@ -95,12 +95,17 @@ class MicroProblem:
         """The problem the macro step ``macro`` (a :class:`~twoscale.macro.result.MacroResult`)
         leaves: its forces, approach and tilt (under load control moved by the correction
         the ``start``'s micro step made to its own macro step), the local penetrations
-        where it converged or ended near a solution (``SIZING_RESIDUAL``)."""
+        where it converged or ended near a solution (``SIZING_RESIDUAL``), or deferred its
+        safe path: the union CG, the one iteration run after that without it, then starts from
+        them while the patches reach as far as each tip can touch (10 merged spheres on the
+        block, Newton stalled at 1.9e-2: 22 CG iterations against 36 from the CG's own start;
+        49 spheres 27 against 31)."""
         penetration, tilt = macro.penetration, macro.tilt
         if start is not None and total_load is not None:
             penetration, tilt = start.theta(penetration, tilt)
         near = bool(macro.converged) or _near_solution(macro)
-        local = np.asarray(macro.local_penetrations, dtype=float) if near else None
+        starts = near or (bool(getattr(macro, "safe_path_deferred", False)) and _finite(macro))
+        local = np.asarray(macro.local_penetrations, dtype=float) if starts else None
         return cls(
             h=h,
             forces=np.asarray(macro.forces, dtype=float),
@@ -135,8 +140,11 @@ def _near_solution(macro) -> bool:
     """Whether a macro step that did not converge ended near a solution: its last relative
     residual at most ``SIZING_RESIDUAL``, finite forces and local approaches."""
     last = macro.residuals[-1] if len(macro.residuals) else np.inf
-    finite = np.all(np.isfinite(macro.forces)) and np.all(np.isfinite(macro.local_penetrations))
-    return bool(np.isfinite(last) and last <= SIZING_RESIDUAL and finite)
+    return bool(np.isfinite(last) and last <= SIZING_RESIDUAL and _finite(macro))
+
+
+def _finite(macro) -> bool:
+    return bool(np.all(np.isfinite(macro.forces)) and np.all(np.isfinite(macro.local_penetrations)))
 
 
 @dataclass(frozen=True)
