@@ -85,3 +85,22 @@ def test_a_pair_too_large_to_gather_is_left_to_the_other_route():
     small = make_patch(0, Grid.covering(0.0, 0.5, 0.0, 0.5, 0.02), [Asperity(0.2, 0.2, 0.0, 1.0)])
     window = NearWindow(HS)
     assert window.product(0, small, 1, off_lattice, np.ones(int(off_lattice.owned.sum()))) is None
+
+
+def test_one_gather_of_several_sources_is_the_sum_of_their_products():
+    patches = _patches(7)
+    rng = np.random.default_rng(8)
+    window = NearWindow(HS)
+    values = [_loaded(rng, int(p.owned.sum())) for p in patches]
+    k = next(k for k, p in enumerate(patches) if p.owned.any())
+    sources = [(l, patches[l], values[l]) for l in range(len(patches)) if l != k and patches[l].owned.any()]
+    assert len(sources) > 2
+    ik = np.flatnonzero(patches[k].owned.ravel())
+    expected = sum(
+        HS.grid_matrix(patches[k].grid, pl.grid)[np.ix_(ik, np.flatnonzero(pl.owned.ravel()))] @ v
+        for _, pl, v in sources
+    )
+    assert window.total(k, patches[k], sources) is None  # no window made yet: its reach is unknown
+    for l, pl, v in sources:
+        window.product(k, patches[k], l, pl, v)
+    np.testing.assert_allclose(window.total(k, patches[k], sources), expected, rtol=1e-12, atol=1e-15)

@@ -246,6 +246,7 @@ class Coupling:
         pk, pl = self.patches[k], self.patches[l]
         u = None if self._window is None else self._window.product(k, pk, l, pl, v)
         if u is not None:
+            self._window.pairs.add((k, l))
             return u
         op = self.full_operator(k, l)
         if v.ndim == 1:
@@ -327,7 +328,7 @@ class Coupling:
         smooth = []
         for l in sources:
             v = values[l]
-            if v is None or not v.any():
+            if v is None or not np.count_nonzero(v):
                 continue
             kind, op, _ = self._route(k, l) if v.ndim == 1 else ("plain", None, 0.0)
             if kind == "plain":

@@ -40,6 +40,8 @@ class NearWindow:
         # per patch index: [patch, its corner (i, j) on the lattice, its owned cells, the
         # window's width, its cells' and its owned cells' flat indices on the window's lattice]
         self._cells: dict = {}
+        #: The pairs ``(k, l)`` its coupling took it for, until a patch changes (:meth:`forget`).
+        self.pairs: set = set()
 
     @staticmethod
     def usable(provider) -> bool:
@@ -51,8 +53,10 @@ class NearWindow:
         return 0 if self._window is None else int(self._window.nbytes)
 
     def forget(self, k: int) -> None:
-        """Patch ``k`` was replaced: its indices go (the old patch is not kept alive)."""
+        """Patch ``k`` was replaced: its indices go (the old patch is not kept alive), and
+        the pairs taken (made again at their next product)."""
         self._cells.pop(k, None)
+        self.pairs.clear()
 
     def _grow(self, reach: int) -> bool:
         """Make the window cover ``reach``; False when it would pass its largest size."""
@@ -99,15 +103,38 @@ class NearWindow:
             ek, el = self._entry(k, pk), self._entry(l, pl)
         except ValueError:  # off the window's lattice or another cell size
             return None
-        (ik, jk), (il, jl), gk, gl = ek[1], el[1], pk.grid, pl.grid
-        reach = max(
-            abs(ik - il - gl.nx + 1), abs(ik + gk.nx - 1 - il), abs(jk - jl - gl.ny + 1), abs(jk + gk.ny - 1 - jl)
-        )
-        loaded = np.flatnonzero(v if v.ndim == 1 else v.any(axis=1))
-        rows = gk.size if whole else ek[2]
+        reach = _reach(ek[1], el[1], pk.grid, pl.grid)
+        loaded = (v if v.ndim == 1 else v.any(axis=1)).nonzero()[0]
+        rows = pk.grid.size if whole else ek[2]
         if rows * len(loaded) > GATHER_MAX_ENTRIES or not self._grow(reach):
             return None
         target = self._flat(ek)[4 if whole else 5] + self.reach * (2 * self.reach + 2)
         cols = self._flat(el)[5][loaded]
         out = np.take(self._window, target[:, None] - cols[None, :]) @ v[loaded]
-        return out.reshape(gk.shape) if whole else out
+        return out.reshape(pk.grid.shape) if whole else out
+
+    def total(self, k: int, pk, sources: list) -> np.ndarray | None:
+        """``sum_l A_kl v_l`` on ``pk``'s owned cells for ``sources`` ``[(l, pl, v_l)]`` (1-D
+        vectors) by one gather of all their loaded columns; None when a pair reaches past the
+        window or the gather would pass :data:`GATHER_MAX_ENTRIES`."""
+        ek = self._entry(k, pk)
+        cols, vals = [], []
+        for l, pl, v in sources:
+            el = self._entry(l, pl)
+            if _reach(ek[1], el[1], pk.grid, pl.grid) > self.reach:
+                return None
+            loaded = v.nonzero()[0]
+            cols.append(self._flat(el)[5][loaded])
+            vals.append(v[loaded])
+        col = np.concatenate(cols)
+        if ek[2] * len(col) > GATHER_MAX_ENTRIES:
+            return None
+        target = self._flat(ek)[5] + self.reach * (2 * self.reach + 2)
+        return np.take(self._window, target[:, None] - col[None, :]) @ np.concatenate(vals)
+
+
+def _reach(corner_k: tuple, corner_l: tuple, gk: Grid, gl: Grid) -> int:
+    """The largest ``|dy|`` or ``|dx|`` between a cell of grid ``gk`` and one of ``gl``
+    (corners: their first cells on the window's lattice)."""
+    (ik, jk), (il, jl) = corner_k, corner_l
+    return max(abs(ik - il - gl.nx + 1), abs(ik + gk.nx - 1 - il), abs(jk - jl - gl.ny + 1), abs(jk + gk.ny - 1 - jl))
