@@ -104,18 +104,3 @@ def test_one_gather_of_several_sources_is_the_sum_of_their_products():
     for l, pl, v in sources:
         window.product(k, patches[k], l, pl, v)
     np.testing.assert_allclose(window.total(k, patches[k], sources), expected, rtol=1e-12, atol=1e-15)
-
-
-def test_a_pair_past_the_dense_size_but_within_the_gather_takes_no_operator():
-    asps = [Asperity(x=0.0, y=0.0, z=0.0, R=3.0), Asperity(x=1.1, y=0.2, z=0.0, R=3.0)]
-    patches = [
-        make_patch(k, Grid.covering(a.x - 0.6, a.x + 0.6, a.y - 0.6, a.y + 0.6, H), asps) for k, a in enumerate(asps)
-    ]
-    rng = np.random.default_rng(3)
-    values = [_loaded(rng, int(p.owned.sum())) for p in patches]
-    coupling = Coupling(HS, patches, dense_max_entries=0)  # every pair past the dense blocks' size
-    b = rng.random(int(patches[0].owned.sum()))
-    i0, i1 = (np.flatnonzero(p.owned.ravel()) for p in patches)
-    expected = b - HS.grid_matrix(patches[0].grid, patches[1].grid)[np.ix_(i0, i1)] @ values[1]
-    np.testing.assert_allclose(coupling.rhs(0, values, b), expected, rtol=1e-12, atol=1e-14)
-    assert coupling._routes[(0, 1)][0] == "plain" and not coupling._fft and not coupling._ops

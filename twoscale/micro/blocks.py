@@ -15,7 +15,7 @@ import numpy as np
 
 from ..influence.base import InfluenceProvider
 from ..influence.separated import check_rtol
-from .near_window import NearWindow, gathers
+from .near_window import NearWindow
 from .pair_entries import affordable_pairs, pair_blocks
 from .patches import Patch
 
@@ -293,7 +293,7 @@ class Coupling:
             # the reverse pair's operator transposed (reciprocity): no new memory
             self.separated_pairs += back[0] == "separated"
             route = (back[0], mirror, 0.0)
-        elif (n := int(pk.owned.sum()) * int(pl.owned.sum())) > self.dense_max_entries and not gathers(self._window, n):
+        elif int(pk.owned.sum()) * int(pl.owned.sum()) > self.dense_max_entries:
             op, kind = None, "separated"
             if self.separated_rtol is not None:
                 op = self._base.separated_operator(pk.grid, pl.grid, rtol=self.separated_rtol)

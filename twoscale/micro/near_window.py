@@ -25,17 +25,6 @@ from .pair_entries import WINDOW_MAX_ENTRIES
 #: (its transient gather: 16 bytes an entry, 4 MB at this size).
 GATHER_MAX_ENTRIES = 250_000
 
-#: A pair past the dense blocks' size (``dense_max_entries``) up to this many entries is
-#: gathered too, not given a separated or spectral operator: on #181's 9,204 patches of
-#: 150-270 cells its product costs about what the spectral route's does (60-160 us against
-#: 80-120), and the operator's build (0.7-0.9 ms a pair, made again when a patch grows) is saved.
-ROUTE_MAX_ENTRIES = 80_000
-
-
-def gathers(window: "NearWindow | None", entries: int) -> bool:
-    """A pair of ``entries`` owned-cell entries takes the ``window``'s gather, not an operator."""
-    return window is not None and entries <= ROUTE_MAX_ENTRIES
-
 
 class NearWindow:
     """The kernel at the lattice offsets within a reach ``D`` of one cell, grown (up to
