@@ -15,7 +15,8 @@ import numpy as np
 
 from ..influence.base import InfluenceProvider
 from ..influence.separated import check_rtol
-from .pair_entries import pair_blocks
+from .near_window import NearWindow
+from .pair_entries import affordable_pairs, pair_blocks
 from .patches import Patch
 
 
@@ -108,6 +109,8 @@ class Coupling:
         # Love kernel is even) gives A_lk = A_kl^T: the reverse pair's block is its view
         self._reciprocal = self._correction is None and bool(getattr(self._base, "translation_invariant", False))
         self._mirrors: set = set()  # keys of _ops that are such views (no bytes of their own)
+        # the pairs past the dense blocks' budget gathered from one kernel window (:mod:`.near_window`)
+        self._window = NearWindow(provider) if self._reciprocal and NearWindow.usable(provider) else None
         self._fft: dict = {}
         self._bytes = 0.0
         self._fft_bytes = 0.0
@@ -125,6 +128,8 @@ class Coupling:
     def replace(self, k: int, patch: Patch) -> None:
         """Swap patch ``k`` (after growth) and drop every operator that involves it."""
         self.patches[k] = patch
+        if self._window is not None:
+            self._window.forget(k)
         self._spectra = {key: val for key, val in self._spectra.items() if key[0] != k}
         self._coefficients = {key: val for key, val in self._coefficients.items() if key[0] != k}
         for key in [key for key in self._routes if k in key]:
@@ -227,18 +232,8 @@ class Coupling:
         the same numbers); the reverse pairs are their views as before."""
         if not (self._reciprocal and hasattr(self.provider, "grid_entries")):
             return
-        owned = [int(pt.owned.sum()) for pt in self.patches]
-        todo, planned = [], 0.0
-        for k, l in pairs:
-            nk, nl = owned[k], owned[l]
-            size = 8.0 * nk * nl
-            if (k, l) in self._ops or (l, k) in self._ops or nk * nl > self.dense_max_entries:
-                continue
-            if self._bytes + planned + size > self.cache_bytes or not self._operator_room(planned + size):
-                break
-            if self.patches[k].grid.size * self.patches[l].grid.size <= max(4 * nk * nl, GRID_BLOCK_MAX_ENTRIES):
-                todo.append((k, l))  # else :meth:`_dense` takes the owned cells' own block
-                planned += size
+        fits = lambda size: self._bytes + size <= self.cache_bytes and self._operator_room(size)  # noqa: E731
+        todo = affordable_pairs(self.patches, pairs, self._ops, self.dense_max_entries, fits, GRID_BLOCK_MAX_ENTRIES)
         for key, M in pair_blocks(self.provider, self.patches, todo).items():
             self._ops[key] = M
             self._bytes += M.nbytes
@@ -248,11 +243,21 @@ class Coupling:
         M = self._dense(k, l)
         if M is not None:
             return M @ v
-        op = self.full_operator(k, l)
         pk, pl = self.patches[k], self.patches[l]
+        u = None if self._window is None else self._window.product(k, pk, l, pl, v)
+        if u is not None:
+            self._window.pairs.add((k, l))
+            return u
+        op = self.full_operator(k, l)
         if v.ndim == 1:
             return op.apply(scatter(pl, v))[pk.owned]
         return np.column_stack([op.apply(scatter(pl, v[:, j]))[pk.owned] for j in range(v.shape[1])])
+
+    def _whole(self, k: int, l: int, v: np.ndarray) -> np.ndarray:
+        """``A_kl v`` on the whole patch ``k`` (ny, nx), for a 1-D block vector."""
+        pk, pl = self.patches[k], self.patches[l]
+        u = None if self._window is None else self._window.product(k, pk, l, pl, v, whole=True)
+        return self.full_operator(k, l).apply(scatter(pl, v)) if u is None else u
 
     def rhs(self, k: int, values: list, rhs: np.ndarray) -> np.ndarray:
         """``rhs - sum_{l != k} A_kl v_l`` with the block vectors ``values`` (mm)."""
@@ -323,12 +328,12 @@ class Coupling:
         smooth = []
         for l in sources:
             v = values[l]
-            if v is None or not v.any():
+            if v is None or not np.count_nonzero(v):
                 continue
             kind, op, _ = self._route(k, l) if v.ndim == 1 else ("plain", None, 0.0)
             if kind == "plain":
                 if whole:
-                    term = self.full_operator(k, l).apply(scatter(self.patches[l], v))
+                    term = self._whole(k, l, v)
                 else:
                     term = self.apply(k, l, v)
                 total = term if total is None else total + term

@@ -300,7 +300,7 @@ class CoarseSpace:
         kappa = np.zeros(n)
         cent = np.zeros((n, 2))
         for k, (blk, pt) in enumerate(zip(blocks, patches)):
-            if not active[k].any():
+            if not np.count_nonzero(active[k]):
                 continue
             s = self._shape(blk, active[k])
             kap = h2 * float(s.sum())

@@ -81,7 +81,7 @@ def contact_solve(
         )
         return LocalSolution(p, p > 0.0, float("nan"), False, ok, it)
     start = previous > 0.0
-    active = start.copy() if start.any() else b > 0.0
+    active = start.copy() if np.count_nonzero(start) else b > 0.0
     seen: set = set()
     removed = False
     tol = gap_rtol * float(np.abs(b).max(initial=0.0))
@@ -90,13 +90,13 @@ def contact_solve(
         seen.add(active.tobytes())
         p = np.zeros(block.n)
         p[active] = block.solve(active, b[active])
-        if (p < 0.0).any():
+        if np.count_nonzero(p < 0.0):
             removed = True
             active = next_active(active, p, seen)
             continue
         gap = block.product_on(active, p) - b
         pen = ~active & (gap < -tol)
-        if not pen.any():
+        if not np.count_nonzero(pen):
             return LocalSolution(p, active, float("nan"), removed, True, it)
         active = active | pen
     return LocalSolution(np.maximum(p, 0.0), p > 0.0, float("nan"), removed, False, max_iter)
@@ -201,14 +201,14 @@ def _dense_passes(
         s = (target + x[:, 1].sum()) / x[:, 0].sum()
         p = np.zeros(n)
         p[active] = s * x[:, 0] - x[:, 1]
-        if (p < 0.0).any():
+        if np.count_nonzero(p < 0.0):
             removed = True
             active = next_active(active, p, seen)
             continue
         gap = block.product_on(active, p) + z - s
         tol = gap_rtol * max(abs(s - zmin), 1e-300)
         pen = ~active & (gap < -tol)
-        if not pen.any():
+        if not np.count_nonzero(pen):
             return LocalSolution(p, active, s, removed, True, it)
         active = active | pen
     return LocalSolution(np.maximum(p, 0.0), p > 0.0, s, removed, False, max_iter)

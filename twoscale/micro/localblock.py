@@ -252,7 +252,7 @@ class LocalBlock:
         they are small, else as :meth:`matvec`."""
         if self._matrix is not None or not self.dense:
             return self.matvec(v)
-        if not active.any():
+        if not np.count_nonzero(active):
             return np.zeros(self.n)
         key = active.tobytes()
         if self._columns is None or self._columns[0] != key:
@@ -298,7 +298,7 @@ class LocalBlock:
         ``rhs`` has shape (|S|,) or (|S|, m); returns the same shape. ``x0`` is a CG start
         and ``rtol`` its relative residual (default ``cg_rtol``).
         """
-        if not active.any():
+        if not np.count_nonzero(active):
             return np.zeros_like(rhs)
         if self.dense:
             kind, f = self._factor(active)

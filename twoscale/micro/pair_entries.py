@@ -26,6 +26,27 @@ def _lattice(grid: Grid, corner: tuple, owned: np.ndarray) -> tuple[np.ndarray, 
     return j + corner[1], i + corner[0]
 
 
+def affordable_pairs(patches, pairs, kept: dict, max_entries: int, fits, grid_block_max: int) -> list:
+    """The ``pairs`` ``(k, l)`` whose dense blocks a coupling would make one by one, in
+    order until the budget is spent (``fits(bytes)``: the planned blocks' bytes within it):
+    neither it nor its reverse ``kept``, at most ``max_entries`` owned-cell entries, and
+    grids small enough to cut the block from (``grid_block_max`` entries, or four times
+    the owned cells' block; else the coupling makes the owned cells' own block)."""
+    owned = [int(pt.owned.sum()) for pt in patches]
+    todo, planned = [], 0.0
+    for k, l in pairs:
+        nk, nl = owned[k], owned[l]
+        size = 8.0 * nk * nl
+        if (k, l) in kept or (l, k) in kept or nk * nl > max_entries:
+            continue
+        if not fits(planned + size):
+            break
+        if patches[k].grid.size * patches[l].grid.size <= max(4 * nk * nl, grid_block_max):
+            todo.append((k, l))
+            planned += size
+    return todo
+
+
 def pair_blocks(provider, patches, pairs: list) -> dict:
     """``{(k, l): A_kl}`` on the owned cells of ``patches[k]`` (rows) and ``patches[l]``
     (columns) for the ``pairs`` whose offsets fit one window of at most

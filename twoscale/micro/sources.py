@@ -154,3 +154,35 @@ def _chunk(patches, counts: list) -> list:
     rows *= per_cell([pt.grid.h * pt.grid.h for pt in patches])
     bounds = np.cumsum([0] + counts)
     return [rows[:, a:b] for a, b in zip(bounds[:-1], bounds[1:])]
+
+
+def _grid_arrays(patches) -> tuple:
+    """``x0, y0, nx, ny, h`` of every patch's grid, as arrays (N,)."""
+    g = [pt.grid for pt in patches]
+    return tuple(np.array([getattr(x, a) for x in g], dtype=float) for a in ("x0", "y0", "nx", "ny", "h"))
+
+
+def _lattices(cx: np.ndarray, cy: np.ndarray, dx: np.ndarray, dy: np.ndarray, steps=(-1.0, 0.0, 1.0)) -> np.ndarray:
+    """The 3 x 3 lattices ``(cx + dx i, cy + dy j)``, ``i, j`` in ``steps``, of N patches,
+    (9 N, 2) mm, each row-major over (y, x)."""
+    u = np.array(steps)
+    X = np.broadcast_to((cx[:, None] + dx[:, None] * u)[:, None, :], (len(cx), 3, 3))
+    Y = np.broadcast_to((cy[:, None] + dy[:, None] * u)[:, :, None], (len(cx), 3, 3))
+    return np.column_stack([X.ravel(), Y.ravel()])
+
+
+def all_stencils(patches) -> np.ndarray:
+    """:meth:`.farfield.FarFieldCoupling._stencil` of every patch, (9 N, 2) mm, in one pass."""
+    x0, y0, nx, ny, h = _grid_arrays(patches)
+    return _lattices(x0, y0, 0.5 * (nx - 1) * h, 0.5 * (ny - 1) * h, steps=(0.0, 1.0, 2.0))
+
+
+def all_source_nodes(patches) -> np.ndarray:
+    """:func:`source_nodes` of every patch, (9 N, 2) mm, in one pass."""
+    x0, y0, nx, ny, h = _grid_arrays(patches)
+    hh = 0.5 * h
+    cx = 0.5 * ((x0 - hh) + (x0 + (nx - 1) * h + hh))
+    cy = 0.5 * ((y0 - hh) + (y0 + (ny - 1) * h + hh))
+    dx = np.maximum(SOURCE_NODE * (0.5 * h * (nx - 1)), 0.5 * h)
+    dy = np.maximum(SOURCE_NODE * (0.5 * h * (ny - 1)), 0.5 * h)
+    return _lattices(cx, cy, dx, dy)
