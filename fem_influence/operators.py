@@ -92,6 +92,14 @@ class BlockCorrection(LowRankCorrection):
         if len(c) < n:
             c = np.concatenate([c, np.zeros(n - len(c))])
         if self._p._state.interpolator.rectilinear:
+            nz = np.flatnonzero(c)
+            if 2 * len(nz) < len(c):
+                # a few near sources' nodes: the table's rows around the grid on their
+                # columns only (the same sums as the factor's own sparse product)
+                st = self._p._state
+                M, rows = st.interpolation(target, self._p.origin)
+                T = st.scaled_table(self._p.material.E)
+                return (M @ (T[np.ix_(rows, nz)] @ c[nz])).reshape(target.shape)
             return (self._p._target_factor(target) @ c).reshape(target.shape)
         nz = np.flatnonzero(c)
         return (self._p._target_factor(target, nz) @ c[nz]).reshape(target.shape)

@@ -36,7 +36,7 @@ from twoscale.progress import Progress
 from .assembly import INTORDER
 from .box_entries import BoxEntries, box_entries
 from .cache import FieldCache, cache_key, default_cache_dir
-from .grid_factors import grid_interpolation, grid_target, grid_weights
+from .grid_factors import grid_target, grid_weights
 from .layer import BASES
 from .lattice_state import LatticeState
 from .operators import BlockCorrection, BlockGridOperator, TargetFactor, block_point_operator, point_weights
@@ -383,16 +383,12 @@ class BlockProvider(InfluenceProvider):
         if not st.interpolator.rectilinear:
             cols = np.arange(st.table.shape[1]) if cols is None else cols
             return TargetFactor(None, self._top_values(target.points(), st.nodes_of(cols)))
-        T = st.grid_memo.get(("T",))
-        if T is None or T.shape != st.table.shape:  # the table grows as lattice nodes are solved
-            T = st.grid_memo[("T",)] = st.table / self.material.E
+        T = st.scaled_table(self.material.E)
         if cols is not None and target.size * len(cols) > DENSE_FACTOR_ENTRIES:
             return grid_target(st.interpolator, target, self.origin, T[:, cols])
-        kept = st.grid_memo.get(("M", target))
-        if kept is None:
-            kept = st.grid_memo[("M", target)] = grid_interpolation(st.interpolator, target, self.origin)
-        M, T = kept[0], T[kept[1]]
-        return TargetFactor(M, T) if cols is None else TargetFactor(None, np.asarray(M @ T[:, cols]))
+        M, rows = st.interpolation(target, self.origin)
+        # the table's rows and columns the grid uses only (not its rows across every column)
+        return TargetFactor(M, T[rows]) if cols is None else TargetFactor(None, np.asarray(M @ T[np.ix_(rows, cols)]))
 
     def _with_correction(self, halfspace_op: GridOperator, target: Grid, source: Grid) -> "BlockGridOperator":
         # U and W depend on one grid each (the micro step asks for every pair): kept per grid
