@@ -1,0 +1,69 @@
+"""The coarse step of the two-level iteration on the finite block: the FFT blocks' ``s_k``
+solved on the canvases' half-space kernel, with each tip's smooth compliance on itself
+added to ``1 / kappa_k`` (:meth:`twoscale.micro.coarse.CoarseSpace.smooth_self`)."""
+
+import numpy as np
+import pytest
+import scipy.sparse as sp
+
+from twoscale.grid import Grid
+from twoscale.material import Material
+from helpers import small_block
+
+MAT = Material(E=2.0, nu=0.5)
+H = 0.02
+
+
+@pytest.fixture(scope="module")
+def two_patches():
+    from twoscale.micro.localblock import LocalBlock
+    from twoscale.micro.patches import Patch
+
+    block = small_block(MAT)
+    tips = np.array([[-3.0, 0.5], [3.0, -0.5]])
+    blocks, patches = [], []
+    for k, (x, y) in enumerate(tips):
+        grid = Grid(x - 0.3, y - 0.3, H, 30, 30)
+        X, Y = grid.centres()
+        r2 = (X - x) ** 2 + (Y - y) ** 2
+        owned = r2 < 0.29**2
+        patches.append(Patch(k, grid, np.where(owned, r2, np.inf), np.where(owned, k, -1)))
+        blocks.append(LocalBlock(block, patches[-1]))
+    return block, tips, blocks, patches
+
+
+def _step(block, tips, blocks, patches, stacks):
+    from twoscale.micro.coarse import CoarseSpace
+    from twoscale.micro.constraints import Control
+
+    for blk in blocks:
+        blk.coarse_shape = None
+    coarse = CoarseSpace(block, tips, sp.csr_matrix((2, 2)))
+    active = [np.ones(blk.n, bool) for blk in blocks]
+    pressures = [np.zeros(blk.n) for blk in blocks]
+    return coarse.correct(blocks, patches, pressures, active, np.array([0.0, 1e-2]), np.zeros(3), Control(), stacks)
+
+
+def test_the_coarse_step_on_the_block_is_the_whole_kernels(two_patches):
+    from twoscale.micro.pk_stack import BlockStacks
+
+    block, tips, blocks, patches = two_patches
+    assert not any(blk.dense for blk in blocks)
+    stacks = BlockStacks(block)
+    assert not stacks.whole_kernel
+    got = _step(block, tips, blocks, patches, stacks).forces
+    # the step from each block's s_k on the whole kernel (its own solve, the correction in)
+    ones = [np.ones(blk.n, bool) for blk in blocks]
+    kappa = np.array([H * H * blk.solve(a, np.ones(blk.n), rtol=1e-10).sum() for blk, a in zip(blocks, ones)])
+    T = np.array(block.point_compliance(tips, tips))
+    T[np.diag_indices(2)] = 0.0
+    dF = np.array([0.0, 1e-2])
+    want = np.linalg.solve(T + np.diag(1.0 / kappa), -(T @ dF))
+    np.testing.assert_allclose(got, want, rtol=2e-3)
+    # the half-space's s_k alone (no correction of the tips on themselves) is visibly off
+    love = np.array([H * H * blk.coarse_shape[1].sum() for blk in blocks])
+    off = np.linalg.solve(T + np.diag(1.0 / love), -(T @ dF))
+    assert np.abs(off - want).max() > 1e-2 * np.abs(want).max()
+    # and the step of the blocks' own solves (no stacks) agrees with it
+    alone = _step(block, tips, blocks, patches, None).forces
+    np.testing.assert_allclose(alone, want, rtol=2e-3)
