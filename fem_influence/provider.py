@@ -21,6 +21,7 @@ half-space FFT convolution plus the low-rank product ``h^2 U (W p)`` with
 
 from __future__ import annotations
 
+import time
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -197,8 +198,7 @@ class BlockProvider(InfluenceProvider):
                 f"sides); move the indenters inward or lower source_spacing"
             )
 
-    #: Sparse source-interpolation weights (lattice nodes used) x (sources), and the nodes.
-    _weights = point_weights
+    _weights = point_weights  # sparse source weights (lattice nodes used) x (sources), and the nodes
 
     def _ensure(self, nodes: np.ndarray) -> np.ndarray:
         """Solve the lattice nodes not yet known; return their columns in the field table."""
@@ -208,7 +208,6 @@ class BlockProvider(InfluenceProvider):
             return cols
         missing = nodes[cols < 0]
         from .correction import CorrectionSolver
-        import time
 
         perms = self._state.mirror_permutations(self.mesh) if self.use_symmetry else None
         # with a mirror-symmetric mesh, only sources with i, j >= 0 are solved; the
@@ -314,6 +313,12 @@ class BlockProvider(InfluenceProvider):
     def point_compliance(self, targets, sources):
         return self._halfspace.point_compliance(targets, sources) + self.correction(targets, sources)
 
+    def pair_compliance(self, points, i, j):
+        """``point_compliance(points, points)[i, j]`` of the pairs ``(i, j)`` alone (mm/N)."""
+        from .operators import pair_compliance
+
+        return pair_compliance(self, points, i, j)
+
     def smooth_self_compliance(self, points):
         # the diagonal of ``correction(p, p)`` alone (4,753 tips: not its 22.6 M values)
         p = np.asarray(points, dtype=float).reshape(-1, 2)
@@ -341,8 +346,7 @@ class BlockProvider(InfluenceProvider):
         return self._with_correction(hs, target, source)
 
     def split(self):
-        """(half-space, :class:`BlockCorrection`): the block's cell blocks are Love's plus the
-        low-rank correction ``h^2 U (W p)``."""
+        """(half-space, :class:`BlockCorrection`): Love's cell blocks plus ``h^2 U (W p)``."""
         return self._halfspace, BlockCorrection(self)
 
     def point_operator(self, targets, sources, *, exclude=None, rtol: float = 1e-6):

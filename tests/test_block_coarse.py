@@ -67,3 +67,18 @@ def test_the_coarse_step_on_the_block_is_the_whole_kernels(two_patches):
     # and the step of the blocks' own solves (no stacks) agrees with it
     alone = _step(block, tips, blocks, patches, None).forces
     np.testing.assert_allclose(alone, want, rtol=2e-3)
+
+
+def test_the_blocks_pair_compliance_is_its_point_compliance_at_the_pairs():
+    block = small_block(MAT)
+    rng = np.random.default_rng(5)
+    P = rng.uniform(-20.0, 20.0, (40, 2))
+    i, j = rng.integers(0, 40, 300), rng.integers(0, 40, 300)  # rows in no order
+    keep = i != j
+    i, j = i[keep], j[keep]
+    want = np.asarray(block.point_compliance(P, P))[i, j]
+    got = block.pair_compliance(P, i, j)
+    np.testing.assert_allclose(got, want, rtol=1e-12)
+    # not Boussinesq's alone
+    love = np.asarray(block._halfspace.point_compliance(P, P))[i, j]
+    assert np.abs(got - love).max() > 1e-3 * np.abs(love).max()
