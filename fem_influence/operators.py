@@ -79,6 +79,17 @@ class BlockCorrection(LowRankCorrection):
 
     def __init__(self, provider: "BlockProvider"):
         self._p = provider
+        self._own: dict = {}  # per grid: its correction of itself (None: by the two calls)
+
+    def on_itself(self, grid: Grid, p: np.ndarray) -> np.ndarray:
+        """``evaluate(grid, coefficients(grid, p))`` (``grid.shape``, mm) from factors kept
+        per grid (:mod:`fem_influence.own_correction`)."""
+        from .own_correction import own_correction
+
+        if grid not in self._own:
+            self._own[grid] = own_correction(self._p, grid)
+        own = self._own[grid]
+        return self.evaluate(grid, self.coefficients(grid, p)) if own is None else own(p)
 
     def coefficients(self, source: Grid, p: np.ndarray) -> np.ndarray:
         cols, W = self._p._source_weights(source)

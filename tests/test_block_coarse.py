@@ -82,3 +82,19 @@ def test_the_blocks_pair_compliance_is_its_point_compliance_at_the_pairs():
     # not Boussinesq's alone
     love = np.asarray(block._halfspace.point_compliance(P, P))[i, j]
     assert np.abs(got - love).max() > 1e-3 * np.abs(love).max()
+
+
+@pytest.mark.parametrize(
+    "grid", [Grid(1.1, 0.3, 0.05, 23, 17), Grid(4.3, -5.4, 0.1, 11, 17), Grid(0.0, 0.0, 0.02, 1, 1)]
+)
+def test_a_grids_correction_of_itself_is_the_correction_in_two_calls(grid):
+    block = small_block(MAT)
+    halfspace, correction = block.split()
+    p = np.random.default_rng(7).random(grid.shape)
+    want = correction.evaluate(grid, correction.coefficients(grid, p))
+    got = correction.on_itself(grid, p)
+    np.testing.assert_allclose(got, want, rtol=1e-12, atol=1e-14 * np.abs(want).max())
+    # the whole kernel's product less the half-space's
+    whole = (block.grid_matrix(grid) - halfspace.grid_matrix(grid)) @ p.ravel()
+    np.testing.assert_allclose(got.ravel(), whole, rtol=1e-10, atol=1e-12 * np.abs(whole).max())
+    assert np.abs(got).max() > 0.0
