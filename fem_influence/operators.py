@@ -79,17 +79,24 @@ class BlockCorrection(LowRankCorrection):
 
     def __init__(self, provider: "BlockProvider"):
         self._p = provider
-        self._own: dict = {}  # per grid: its correction of itself (None: by the two calls)
+        self._own: dict = {}  # per grid: the table's rows and columns of its own correction
 
     def on_itself(self, grid: Grid, p: np.ndarray) -> np.ndarray:
-        """``evaluate(grid, coefficients(grid, p))`` (``grid.shape``, mm) from factors kept
-        per grid (:mod:`fem_influence.own_correction`)."""
-        from .own_correction import own_correction
-
-        if grid not in self._own:
-            self._own[grid] = own_correction(self._p, grid)
-        own = self._own[grid]
-        return self.evaluate(grid, self.coefficients(grid, p)) if own is None else own(p)
+        """``evaluate(grid, coefficients(grid, p))`` (``grid.shape``, mm): a local solve's
+        lagged correction of its own box at every solve of every sweep (5,930 spheres: 62,782
+        calls, a tenth of the solve profiled), as ``h^2 M (T_g (W p))`` with the grid's kept
+        source weights ``W`` and interpolation ``M`` and the table's rows and columns they
+        use ``T_g``, kept here per grid (a few hundred bytes): no vector over every lattice
+        node scattered, searched and cut again at each call."""
+        st, (cols, W) = self._p._state, self._p._source_weights(grid)  # the fields solved first
+        if not st.interpolator.rectilinear:
+            return self.evaluate(grid, self.coefficients(grid, p))
+        M, rows = st.interpolation(grid, self._p.origin)
+        T = self._own.get(grid)
+        if T is None:
+            T = self._own[grid] = st.scaled_table(self._p.material.E)[np.ix_(rows, cols)]
+        c = grid.h**2 * (W @ np.asarray(p, dtype=float).ravel())
+        return (M @ (T @ c)).reshape(grid.shape)
 
     def coefficients(self, source: Grid, p: np.ndarray) -> np.ndarray:
         cols, W = self._p._source_weights(source)
