@@ -117,7 +117,7 @@ class BlockCorrection(LowRankCorrection):
                 st = self._p._state
                 M, rows = st.interpolation(target, self._p.origin)
                 T = st.scaled_table(self._p.material.E)
-                return (M @ (T[np.ix_(rows, nz)] @ c[nz])).reshape(target.shape)
+                return (M @ (T[rows[:, None], nz] @ c[nz])).reshape(target.shape)
             return (self._p._target_factor(target) @ c).reshape(target.shape)
         nz = np.flatnonzero(c)
         return (self._p._target_factor(target, nz) @ c[nz]).reshape(target.shape)
