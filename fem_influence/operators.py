@@ -259,19 +259,40 @@ def _sampled_product(U: TargetFactor, W, pattern, rows: int = 2048):
 def _sampled_values(U: TargetFactor, W, i: np.ndarray, j: np.ndarray, rows: int = 2048) -> np.ndarray:
     """``(U W)[i, j]`` for the entries ``(i, j)`` (``i`` ascending, ``W`` CSC), as
     :func:`_sampled_product`."""
-    counts = np.diff(W.indptr)[j]
+    per = np.diff(W.indptr)
+    m = int(i[-1]) + 1 if len(i) else 0
+    if len(per) and (per == per[0]).all():
+        return _uniform_values(U, W, i, j, int(per[0]), m, rows)
+    counts = per[j]
     entry = np.repeat(np.arange(len(i)), counts)
     offset = np.arange(len(entry)) - np.repeat(np.cumsum(counts) - counts, counts)
     pos = np.repeat(W.indptr[j], counts) + offset
     node, weight, row = W.indices[pos], W.data[pos], i[entry]  # rows ascending (CSR order)
     vals = np.zeros(len(entry))
-    m = int(i[-1]) + 1 if len(i) else 0
     cuts = np.searchsorted(row, np.arange(0, m + rows, rows))
     for r0, a, b in zip(range(0, m, rows), cuts[:-1], cuts[1:]):
         if b > a:
             block = U.T[r0 : r0 + rows] if U.M is None else np.asarray(U.M[r0 : r0 + rows] @ U.T)
             vals[a:b] = block[row[a:b] - r0, node[a:b]] * weight[a:b]
     return np.bincount(entry, weights=vals, minlength=len(i))
+
+
+def _uniform_values(U: TargetFactor, W, i: np.ndarray, j: np.ndarray, s: int, m: int, rows: int) -> np.ndarray:
+    """:func:`_sampled_values` where every source has ``s`` stencil nodes (16 inside the
+    lattice): the entries' nodes as an (n, s) table, not repeated index arrays, summed in
+    the stencil's order (the same sums as the bincount's)."""
+    pos = W.indptr[j][:, None] + np.arange(s)
+    node, weight = W.indices[pos], W.data[pos]
+    out = np.zeros(len(i))
+    cuts = np.searchsorted(i, np.arange(0, m + rows, rows))
+    for r0, a, b in zip(range(0, m, rows), cuts[:-1], cuts[1:]):
+        if b > a:
+            block = U.T[r0 : r0 + rows] if U.M is None else np.asarray(U.M[r0 : r0 + rows] @ U.T)
+            v = block[(i[a:b] - r0)[:, None], node[a:b]] * weight[a:b]
+            acc = out[a:b]
+            for q in range(s):
+                acc += v[:, q]
+    return out
 
 
 def pair_compliance(provider: "BlockProvider", points: np.ndarray, i: np.ndarray, j: np.ndarray) -> np.ndarray:
