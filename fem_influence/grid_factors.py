@@ -28,7 +28,11 @@ from twoscale.grid import Grid
 def _axis_weights(x: np.ndarray, idx: np.ndarray, w: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """The distinct nodes ``used`` of one axis' stencils ``idx`` (n, s) with weights ``w``,
     and the dense weights (len(used), n) of each point on them."""
-    used, inv = np.unique(idx, return_inverse=True)
+    lo, hi = int(idx.min()), int(idx.max())
+    if hi - lo < 4 * idx.size and np.bincount(idx.ravel() - lo, minlength=hi - lo + 1).all():
+        used, inv = np.arange(lo, hi + 1), idx - lo  # the stencils of ascending points: every node between
+    else:
+        used, inv = np.unique(idx, return_inverse=True)
     out = np.zeros((len(used), len(x)))
     out[inv.reshape(idx.shape), np.arange(len(x))[:, None]] = w  # a point's stencil nodes are distinct
     return used, out

@@ -47,6 +47,23 @@ class LatticeState:
         if self.interpolator is None and self.fields.top_xy is not None:
             self.interpolator = TopInterpolator(self.fields.top_xy)
 
+    def scaled_table(self, E: float) -> np.ndarray:
+        """``table / E`` (mm/N), kept in ``grid_memo`` (made again as lattice nodes are solved)."""
+        T = self.grid_memo.get(("T",))
+        if T is None or T.shape != self.table.shape:
+            T = self.grid_memo[("T",)] = self.table / E
+        return T
+
+    def interpolation(self, target, origin) -> tuple:
+        """``(M, rows)`` of :func:`~.grid_factors.grid_interpolation` for the grid ``target``
+        (scene frame; ``origin`` the provider's), kept per grid in ``grid_memo``."""
+        kept = self.grid_memo.get(("M", target))
+        if kept is None:
+            from .grid_factors import grid_interpolation
+
+            kept = self.grid_memo[("M", target)] = grid_interpolation(self.interpolator, target, origin)
+        return kept
+
     def column_of(self, nodes: np.ndarray) -> np.ndarray:
         get = self.index.get
         return np.array([get((i, j), -1) for i, j in nodes.tolist()], dtype=np.int64)

@@ -21,6 +21,7 @@ half-space FFT convolution plus the low-rank product ``h^2 U (W p)`` with
 
 from __future__ import annotations
 
+import time
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -36,7 +37,7 @@ from twoscale.progress import Progress
 from .assembly import INTORDER
 from .box_entries import BoxEntries, box_entries
 from .cache import FieldCache, cache_key, default_cache_dir
-from .grid_factors import grid_interpolation, grid_target, grid_weights
+from .grid_factors import grid_target, grid_weights
 from .layer import BASES
 from .lattice_state import LatticeState
 from .operators import BlockCorrection, BlockGridOperator, TargetFactor, block_point_operator, point_weights
@@ -197,8 +198,7 @@ class BlockProvider(InfluenceProvider):
                 f"sides); move the indenters inward or lower source_spacing"
             )
 
-    #: Sparse source-interpolation weights (lattice nodes used) x (sources), and the nodes.
-    _weights = point_weights
+    _weights = point_weights  # sparse source weights (lattice nodes used) x (sources), and the nodes
 
     def _ensure(self, nodes: np.ndarray) -> np.ndarray:
         """Solve the lattice nodes not yet known; return their columns in the field table."""
@@ -208,7 +208,6 @@ class BlockProvider(InfluenceProvider):
             return cols
         missing = nodes[cols < 0]
         from .correction import CorrectionSolver
-        import time
 
         perms = self._state.mirror_permutations(self.mesh) if self.use_symmetry else None
         # with a mirror-symmetric mesh, only sources with i, j >= 0 are solved; the
@@ -314,6 +313,12 @@ class BlockProvider(InfluenceProvider):
     def point_compliance(self, targets, sources):
         return self._halfspace.point_compliance(targets, sources) + self.correction(targets, sources)
 
+    def pair_compliance(self, points, i, j):
+        """``point_compliance(points, points)[i, j]`` of the pairs ``(i, j)`` alone (mm/N)."""
+        from .operators import pair_compliance
+
+        return pair_compliance(self, points, i, j)
+
     def smooth_self_compliance(self, points):
         # the diagonal of ``correction(p, p)`` alone (4,753 tips: not its 22.6 M values)
         p = np.asarray(points, dtype=float).reshape(-1, 2)
@@ -341,8 +346,7 @@ class BlockProvider(InfluenceProvider):
         return self._with_correction(hs, target, source)
 
     def split(self):
-        """(half-space, :class:`BlockCorrection`): the block's cell blocks are Love's plus the
-        low-rank correction ``h^2 U (W p)``."""
+        """(half-space, :class:`BlockCorrection`): Love's cell blocks plus ``h^2 U (W p)``."""
         return self._halfspace, BlockCorrection(self)
 
     def point_operator(self, targets, sources, *, exclude=None, rtol: float = 1e-6):
@@ -383,16 +387,12 @@ class BlockProvider(InfluenceProvider):
         if not st.interpolator.rectilinear:
             cols = np.arange(st.table.shape[1]) if cols is None else cols
             return TargetFactor(None, self._top_values(target.points(), st.nodes_of(cols)))
-        T = st.grid_memo.get(("T",))
-        if T is None or T.shape != st.table.shape:  # the table grows as lattice nodes are solved
-            T = st.grid_memo[("T",)] = st.table / self.material.E
+        T = st.scaled_table(self.material.E)
         if cols is not None and target.size * len(cols) > DENSE_FACTOR_ENTRIES:
             return grid_target(st.interpolator, target, self.origin, T[:, cols])
-        kept = st.grid_memo.get(("M", target))
-        if kept is None:
-            kept = st.grid_memo[("M", target)] = grid_interpolation(st.interpolator, target, self.origin)
-        M, T = kept[0], T[kept[1]]
-        return TargetFactor(M, T) if cols is None else TargetFactor(None, np.asarray(M @ T[:, cols]))
+        M, rows = st.interpolation(target, self.origin)
+        # the table's rows and columns the grid uses only (not its rows across every column)
+        return TargetFactor(M, T[rows]) if cols is None else TargetFactor(None, np.asarray(M @ T[np.ix_(rows, cols)]))
 
     def _with_correction(self, halfspace_op: GridOperator, target: Grid, source: Grid) -> "BlockGridOperator":
         # U and W depend on one grid each (the micro step asks for every pair): kept per grid

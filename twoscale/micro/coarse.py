@@ -36,10 +36,8 @@ patches and the sweeps undo it (859 light clustered spheres: the change went 0.1
 ``T_kl r / sqrt(r^2 + sigma_k^2 + sigma_l^2)`` with ``sigma_k = kappa_k / (sqrt 2 pi E*)``
 (the self term of that kernel is ``1 / kappa_k``, the diagonal), which is the point
 compliance where the pair is far compared with its contacts and stays below the diagonal
-where the tips meet. The system is solved densely up to
-``dense_max`` patches in contact, and by conjugate gradients with the provider's
-:meth:`~twoscale.influence.base.InfluenceProvider.point_operator` (no ``N x N`` matrix)
-beyond.
+where the tips meet. The system is solved densely up to ``dense_max`` patches in contact,
+and by conjugate gradients with the provider's ``point_operator`` beyond.
 """
 
 from __future__ import annotations
@@ -69,19 +67,11 @@ SHAPE_REUSE = 0.1
 
 @dataclass(frozen=True)
 class CoarseStep:
-    """Outcome of one coarse correction.
-
-    Attributes
-    ----------
-    pressures : list of (n_k,) arrays, MPa (clipped at zero).
-    theta : (3,) array: approach d (mm), alpha, beta (radians).
-    forces : (N,) array, N: the force change ``dP`` given to each patch.
-    iterations : int
-        Conjugate-gradient iterations (0 for a dense solve).
-    converged : bool
-        False when the iterative solve did not reach its tolerance (the step is still
-        applied: it only accelerates).
-    """
+    """Outcome of one coarse correction: ``pressures`` per block (MPa, clipped at zero),
+    ``theta`` (approach d mm, alpha, beta radians), ``forces`` the change ``dP`` given to
+    each patch (N), ``iterations`` of the conjugate gradients (0 for a dense solve),
+    ``converged`` False when they did not reach their tolerance (the step is still applied:
+    it only accelerates)."""
 
     pressures: list
     theta: np.ndarray
@@ -125,14 +115,15 @@ class CoarseSpace:
         lower = sp.csr_matrix(lower)
         self._E_star = float(provider.material.E_star)
         self._op = None
-        self._compliance = None
+        self._compliance = self._smooth = None
         self._frames: dict = {}
-        # on a translation-invariant body (the same values for any subset of points) the
-        # pairs' values from the tip compliance the steps make anyway (1,485 blocks: a
-        # point_compliance call a row, 0.02-0.05 s of CPU)
+        # the pairs' values from the tips' compliance on a translation-invariant body, or the
+        # pairs alone (the finite block's), not a point_compliance call a row (5,930 tips: 16 s)
         T = self.compliance() if getattr(provider, "translation_invariant", False) else None
-        if T is not None:
-            vals = T[np.repeat(np.arange(lower.shape[0]), np.diff(lower.indptr)), lower.indices]
+        rows = np.repeat(np.arange(lower.shape[0]), np.diff(lower.indptr))
+        pairs = getattr(provider, "pair_compliance", None)
+        if T is not None or pairs is not None:
+            vals = T[rows, lower.indices] if T is not None else pairs(self.tips, rows, lower.indices)
         else:
             vals = np.zeros(lower.nnz)
             for i in range(lower.shape[0]):
@@ -219,6 +210,13 @@ class CoarseSpace:
                 if where is not None:
                     self.provider.remember("shape", where, s[active[k]].copy())
 
+    def smooth_self(self) -> np.ndarray:
+        """Each tip's smooth compliance on itself ``c_k`` (mm/N), made once. ``A_SS = B_SS +
+        C_SS``, ``C`` nearly ``c_k`` on a patch: ``A_SS^{-1} 1`` is ``B_SS^{-1} 1`` scaled, ``1 /
+        kappa_k = 1 / kappa_k(B) + c_k``, and the step uses ``s_k / kappa_k`` only."""
+        self._smooth = self._smooth if self._smooth is not None else self.provider.smooth_self_compliance(self.tips)
+        return self._smooth
+
     def _operator(self):
         if self._op is None:
             self._op = self.provider.point_operator(self.tips, self.tips)
@@ -291,10 +289,12 @@ class CoarseSpace:
         """
         pivot, n_unknowns, target = control.pivot, control.n_unknowns, control.target
         n = len(patches)
-        if stacks is not None and stacks.whole_kernel:
+        if stacks is not None:
             todo = [k for k, blk in enumerate(blocks) if self._stale(blk, active[k])]
             if todo:
                 self._solve_shapes(stacks, blocks, todo, active)
+        # FFT blocks' s_k on a base kernel (the finite block's): the tip's own correction added
+        smooth = None if stacks is None or stacks.whole_kernel else self.smooth_self()
         h2 = patches[0].grid.h ** 2 if n else 1.0
         shapes = [None] * n
         kappa = np.zeros(n)
@@ -304,6 +304,8 @@ class CoarseSpace:
                 continue
             s = self._shape(blk, active[k])
             kap = h2 * float(s.sum())
+            if smooth is not None and not blk.dense and kap > 0.0 and 1.0 / kap + smooth[k] > 0.0:
+                kap = 1.0 / (1.0 / kap + smooth[k])
             if not kap > 0.0:
                 continue
             xr, yr, _ = self._frame(k, pt, pivot, blk)

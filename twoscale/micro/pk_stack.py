@@ -93,6 +93,9 @@ class BlockStacks:
         mask = blk.canvas_mask(blk.box.shape)
         p = np.zeros(blk.box.shape)
         p[mask] = previous
+        own = getattr(self._correction, "on_itself", None)  # the block's, from kept factors
+        if own is not None:
+            return rhs - own(blk.box, p)[mask]
         c = self._correction.coefficients(blk.box, p)
         return rhs - self._correction.evaluate(blk.box, c)[mask]
 
