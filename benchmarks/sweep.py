@@ -353,6 +353,8 @@ def main(argv=None) -> int:
     from twoscale.scenespace import sweep
 
     specs = sweep(args.count, args.seed, max_tips=args.max_tips)
+    if args.only and not args.record:
+        print(f"--only without --record: the scenes' records are printed, not written to {args.out}", file=sys.stderr)
     if args.only:
         specs = [s for s in specs if s.index in args.only]
     k, n = (int(v) for v in args.part.split("/"))
