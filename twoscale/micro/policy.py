@@ -30,7 +30,7 @@ from typing import Sequence
 import numpy as np
 
 from .costmodel import FITTED, CostModel
-from .patches import Patch
+from .patches import Patch, TipTable
 
 ITERATIONS = ("union-cg", "block-gs", "two-level")
 
@@ -95,10 +95,13 @@ def safe_path_deferral(asperities: Sequence, h: float, penetration: float | None
     whose union CG sizes its box by the macro step's tilt and forces, and on a height map."""
     if tilt or any(a.shape == "map" for a in asperities):
         return None
-    x, y, z, R = np.array([(a.x, a.y, a.z, a.R) for a in asperities], dtype=float).T
-    sphere = np.array([a.shape != "paraboloid" for a in asperities])
+    tips: list = []  # the tip arrays, made at the first call (only few-tip macro steps call)
 
     def defer(rigid: np.ndarray) -> bool:
+        if not tips:
+            tips.append((TipTable.of(asperities), np.array([a.shape != "paraboloid" for a in asperities])))
+        t, sphere = tips[0]
+        x, y, z, R = t.x, t.y, t.z, t.curvature
         depth = (float(rigid[0]) if len(rigid) else float(penetration)) - z
         # Asperity.reach for every tip at once: a paraboloid's sqrt(2 R depth), a sphere's cap
         cap = np.minimum(depth, R)
