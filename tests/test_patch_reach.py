@@ -236,7 +236,10 @@ def test_scattered_patches_the_far_field_can_take_are_not_cut_from_a_sampled_box
     from_box = twoscale.solve(scene)
     assert boxes == [estimates["box_cells"]]
     assert from_box.details.micro.choice == alone.details.micro.choice
-    # heights sampled on a patch or on the box's tiles differ in their last bits
+    # heights sampled on a patch or on the box's tiles differ in their last bits; far patches
+    # act through low-rank operators accurate to separated_rtol, so the two answers are held
+    # to that accuracy, not to rounding (1.1e-9 of the largest on one host, under 1e-9 on
+    # another)
     f, g = np.asarray(alone.asperities.forces), np.asarray(from_box.asperities.forces)
-    assert np.max(np.abs(f - g)) <= 1e-9 * np.max(g)
+    assert np.max(np.abs(f - g)) <= twoscale.MicroOptions().separated_rtol * np.max(g)
     assert alone.iterations == from_box.iterations
