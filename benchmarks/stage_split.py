@@ -48,6 +48,9 @@ STAGES = (
     ("twoscale.pk.iteration", "Iteration.refresh"),
     ("twoscale.influence.on_cells", "CellProduct.forward"),
     ("twoscale.influence.on_cells", "CellProduct.finish"),
+    ("twoscale.influence.on_cells", "CellProduct.energy"),
+    ("twoscale.pk.products", "_Modelled.energy"),
+    ("twoscale.influence.circulant", "CirculantInverse.energy_on_cells"),
     ("twoscale.influence.convolution", "ConvolutionOperator.apply"),
     ("twoscale.influence.convolution", "_SingleConvolution.exact"),
 )
