@@ -1,7 +1,8 @@
 """Before/after on one machine in one run: the same solves with two source trees, interleaved.
 
 Each case runs ``--repeat`` times with each tree, alternating which goes first, each solve in
-a fresh process (``PYTHONPATH`` = the tree), single-threaded. Printed per case (one JSON line):
+a fresh process (``PYTHONPATH`` = the tree), single-threaded, the solvers' modules imported
+before the clock starts (as the sweep does). Printed per case (one JSON line):
 median CPU time of each tree and the median of the per-pair CPU-time ratios after/before
 (CPU time, and pairs run back to back, because the machine is shared and noisy), whether the
 pressure fields are bit-identical, the largest per-tip force difference over the largest
@@ -187,8 +188,25 @@ CASES = {
 }
 
 
+def _solver_imports() -> None:
+    """The solvers' own modules imported before the clock starts, as ``benchmarks/sweep.py``
+    times a solve: without a bytecode cache (``PYTHONDONTWRITEBYTECODE``) their compilation
+    in the timed call added 0.2-0.35 s of CPU to a road's default and reference alike,
+    which pulled their ratio towards 1 (0.43 against the sweep's 0.36 on seed 1's #193)."""
+    import importlib
+
+    for name in ("twoscale", "twoscale.micro.driver", "twoscale.reference.on_scene", "twoscale.driver"):
+        try:
+            importlib.import_module(name)
+        except ImportError:  # a tree that keeps them elsewhere
+            pass
+    import scipy.interpolate  # noqa: F401
+    import scipy.optimize  # noqa: F401
+
+
 def child(kind: str, arg: str) -> None:
     """Run one case with the twoscale on ``sys.path``; print one JSON line."""
+    _solver_imports()
     run = CASES[kind](arg)
     t0 = time.process_time()
     res = run()

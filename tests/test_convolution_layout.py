@@ -225,3 +225,32 @@ def test_the_product_on_every_cell_in_halves_is_the_grids_product():
     assert np.array_equal(every.finish(), single.apply(p).ravel())
     assert np.array_equal(every(p.ravel()), indexed(p.ravel()))
     assert energy == indexed.forward(p.ravel()).energy()
+
+
+@pytest.mark.parametrize("shape", [(131, 140), (38, 37)])
+def test_the_preconditioners_energy_is_the_wrapped_kernels_inner_product(shape):
+    """``energy_on_cells``: ``v.C v`` for ``C`` the kernel wrapped on the preconditioner's
+    torus (a longer one from 128 cells a side, the grid's own below), built here from Love's
+    kernel at the wrapped offsets and applied by numpy's float64 transforms; on a part's
+    cells and on every cell, to the float32 transforms' rounding."""
+    from twoscale.influence.circulant import torus_shape
+
+    g = Grid(0.0, 0.0, H, *shape[::-1])
+    inverse = HS.grid_operator(g).single_precision().preconditioner()
+    ly, lx = torus_shape(g)
+    assert (ly, lx) != g.shape if min(shape) >= 128 else (ly, lx) == g.shape
+    oy = np.where(np.arange(ly) <= (ly - 1) // 2, np.arange(ly), np.arange(ly) - ly)
+    ox = np.where(np.arange(lx) <= (lx - 1) // 2, np.arange(lx), np.arange(lx) - lx)
+    dy, dx = np.meshgrid(oy * H, ox * H, indexing="ij")
+    wrapped = HS.cell_block(np.c_[dx.ravel(), dy.ravel()], np.zeros((1, 2)), H).reshape(ly, lx)
+    rng = np.random.default_rng(7)
+    cells = np.flatnonzero(rng.uniform(size=g.size) < 0.2)
+    for at in (cells, None):
+        v = rng.standard_normal(g.size if at is None else at.size)
+        field = np.zeros((ly, lx))
+        flat = np.zeros(g.size)
+        flat[slice(None) if at is None else at] = v
+        field[: g.ny, : g.nx] = flat.reshape(g.shape)
+        Cv = np.fft.irfft2(np.fft.rfft2(field) * np.fft.rfft2(wrapped), s=(ly, lx))
+        exact = float(np.sum(field * Cv))
+        assert inverse.energy_on_cells(at)(v) == pytest.approx(exact, rel=1e-5)

@@ -123,3 +123,36 @@ def test_search_directions_in_halves_give_the_whole_products_answer(load, on_par
     _same(halves, whole)
     _same(halves, plain)
     assert halves.iterations["cg"] <= plain.iterations["cg"] + 1
+
+
+@pytest.mark.parametrize("load", [{"total_load": 30.0}, {"penetration": 0.12}])
+def test_restarted_directions_stepped_by_the_preconditioners_model_give_the_same_answer(load, monkeypatch):
+    """``step_model``: a restarted direction's step length from the preconditioner's torus
+    (no transform of the padded grid unless the step then uses ``A t``): under load control
+    the contact of the whole products, with fewer padded forward transforms than Parseval's
+    halves take; under penetration control (directions that do not sum to 0) the halves'
+    own run."""
+    from twoscale.influence.on_cells import CellProduct
+
+    surf = crowded_surface(MAT, 5, load)
+    whole = solve_cg(HS, surf, **load, **SETTINGS)
+    near = (whole.fields[0].pressure > 0) | (whole.fields[0].gap < 0.02)
+    counts = {"forward": 0}
+    forward = CellProduct.forward
+
+    def counted(self, *args):
+        counts["forward"] += 1
+        return forward(self, *args)
+
+    monkeypatch.setattr(CellProduct, "forward", counted)
+    halves = solve_cg(HS, surf, reach=near, half_products=True, **load, **SETTINGS)
+    begun, counts["forward"] = counts["forward"], 0
+    modelled = solve_cg(HS, surf, reach=near, half_products=True, step_model=True, **load, **SETTINGS)
+    _same(modelled, whole)
+    _same(modelled, halves)
+    assert modelled.iterations["cg"] <= halves.iterations["cg"] + 1
+    if "total_load" in load:
+        assert counts["forward"] < begun
+    else:
+        assert counts["forward"] == begun
+        assert np.array_equal(modelled.fields[0].pressure, halves.fields[0].pressure)

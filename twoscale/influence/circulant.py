@@ -11,6 +11,7 @@ import scipy.fft as sfft
 
 from ..grid import Grid
 from .base import GridOperator
+from .on_cells import parseval_sum
 from .stacked import KeptStackInverse, Workspace
 from .transforms import fft_in_place, irfft_into, rfft_into
 
@@ -171,6 +172,39 @@ class CirculantInverse(GridOperator):
             return self._pruned(rows).ravel()[at].astype(np.float64)
 
         return inverse
+
+    def energy_on_cells(self, cells: np.ndarray | None) -> Callable[[np.ndarray], float]:
+        """``f(values) = v.C v`` for a field ``v`` given by its values on the flat ``cells`` of
+        the grid (None: every cell), ``C`` the kernel wrapped on this torus (the operator this
+        object inverts: its spectrum is ``1 / multiplier``), by Parseval from the forward
+        transforms of :meth:`_pruned` alone (float32, summed in float64). A search
+        direction's step length by this model of ``A`` costs a quarter of the padded
+        product's forward transforms: within 0.02-8 % of ``t.A t`` for the roads' restarted
+        directions (sums 0, at the stones' cells), whose steps then refresh ``A p``."""
+        (ly, lx), (ny, nx) = torus_shape(self.source), self.source.shape
+        if self._padded is None:
+            self._padded = self._buffers()
+        rows = np.zeros((ny, lx), self._m.dtype)
+        at = None
+        if cells is not None:
+            j, i = np.divmod(np.asarray(cells, dtype=np.intp), nx)
+            at = j * lx + i
+        half = np.full(lx // 2 + 1, 2.0)  # the columns whose mirror the real transform leaves out
+        half[0] = 1.0
+        half[-1] = 1.0 if lx % 2 == 0 else 2.0
+        weights = (half / (ly * lx) / self._m).astype(np.float32)
+
+        def energy(values: np.ndarray) -> float:
+            if at is None:
+                rows[:, :nx] = values.reshape(ny, nx)
+            else:
+                rows.ravel()[at] = values
+            spectrum = self._padded[1]
+            rfft_into(rows, 1, spectrum[:ny])
+            spectrum[ny:] = 0.0
+            return parseval_sum(fft_in_place(spectrum, 0, forward=True), weights)
+
+        return energy
 
     def apply_stack(self, V: np.ndarray) -> np.ndarray:
         """:meth:`apply` on a stack (B, ny, nx) (the micro step's blocks of one size class)."""

@@ -15,6 +15,8 @@ along y (real transform first): its inner rows count twice.
 
 from __future__ import annotations
 
+from typing import Callable
+
 import numpy as np
 
 #: The Parseval sum runs over blocks of the half-spectrum's rows of about this many entries
@@ -40,6 +42,19 @@ def energy_weights(khat: np.ndarray, source_shape: tuple[int, int], fft_shape: t
     return w
 
 
+def parseval_sum(a: np.ndarray, w: np.ndarray) -> float:
+    """``sum(w |a|^2)`` of a complex64 half-spectrum ``a`` with float32 weights ``w`` of its
+    shape, in blocks of about ``ENERGY_CHUNK`` entries (float32 terms summed in float64:
+    2e-10 relative)."""
+    total, step = 0.0, max(1, ENERGY_CHUNK // a.shape[1])
+    for j in range(0, len(a), step):
+        terms = np.square(a[j : j + step].real)
+        terms += np.square(a[j : j + step].imag)
+        terms *= w[j : j + step]
+        total += float(terms.sum(dtype=np.float64))
+    return total
+
+
 class CellProduct:
     """``A v`` for pressures ``v`` on the flat ``cells`` of a square float32 convolution's
     grid (``op``: the float32 operator, whose kept transform buffers it shares): the values
@@ -55,6 +70,8 @@ class CellProduct:
         (ny, nx), (my, _) = op.source.shape, op.fft_shape
         self.op = op
         self.spectrum: np.ndarray | None = None  # the forward half's, until finished
+        self._model: Callable[[np.ndarray], float] | None = None  # (model_energy, made on first call)
+        self._model_made = False
         if cells is None:
             self.at = self.back_at = self.padded = None
             return
@@ -78,17 +95,19 @@ class CellProduct:
     def energy(self) -> float:
         """``v.A v`` of the values :meth:`forward` took, by Parseval from their spectrum (a
         pass over the half-spectrum; the float32 spectrum's rounding, no transform back)."""
-        a = self.spectrum
-        if a is None:
+        if self.spectrum is None:
             raise RuntimeError("energy() needs forward() first")
-        w, total = self.op.energy_weights(), 0.0
-        step = max(1, ENERGY_CHUNK // a.shape[1])
-        for j in range(0, len(a), step):  # (float32 terms summed in float64: 2e-10 relative)
-            terms = np.square(a[j : j + step].real)
-            terms += np.square(a[j : j + step].imag)
-            terms *= w[j : j + step]
-            total += float(terms.sum(dtype=np.float64))
-        return total
+        return parseval_sum(self.spectrum, self.op.energy_weights())
+
+    def model_energy(self):
+        """``v -> v.C v`` for values on these cells, ``C`` the kernel wrapped on the torus of
+        the operator's preconditioner (``CirculantInverse.energy_on_cells``: its forward
+        transforms alone), made on first call; None where the operator has none."""
+        if not self._model_made:
+            inverse = self.op.preconditioner() if hasattr(self.op, "preconditioner") else None
+            self._model = None if inverse is None else inverse.energy_on_cells(self.at)
+            self._model_made = True
+        return self._model
 
     def finish(self) -> np.ndarray:
         """``A v`` at the cells (m,) float64, from the spectrum :meth:`forward` left."""

@@ -62,6 +62,7 @@ class CGSettings:
     rough_start: bool = False
     crop_below: float = 1.0
     half_products: bool = False
+    step_model: bool = False
 
 
 def solve_cg(
@@ -121,24 +122,21 @@ def solve_cg(
         displacement after a step that clipped or let in a few cells corrected by the
         kernel's columns (:meth:`~twoscale.influence.base.GridOperator.columns`) instead
         of a product: no restart between the stages, fewer products (warm-started
-        rolling positions replayed, with ``keep_conjugacy=0.005``: 0.30 s against
-        0.49 s with ``"mixed"``). The reference keeps ``"double"``: it is the
-        classical yardstick.
+        rolling positions replayed, with ``keep_conjugacy=0.005``: 0.30 s against 0.49 s
+        with ``"mixed"``). The reference keeps ``"double"``: the classical yardstick.
     precondition : bool, default False
         Precondition the search directions with the operator's approximate inverse
         (:meth:`~twoscale.influence.base.GridOperator.preconditioner`, on the half-space the
         inverse of the kernel wrapped on the grid's torus, restricted to the loaded cells
         and projected on the constraints): about half the iterations for one unpadded FFT
         pair more each (300 merged tips on 0.92 M cells: 61 against 117 iterations to 1e-8
-        in double precision). Operators without
-        a preconditioner run unpreconditioned. The reference keeps it off (the classical
-        Polonsky-Keer iteration).
+        in double precision). Operators without a preconditioner run unpreconditioned. The
+        reference keeps it off (the classical Polonsky-Keer iteration).
     monitor : callable, optional
         ``monitor(iteration, residual)`` every :data:`twoscale.pk.kernel.MONITOR_EVERY` iterations (progress display).
     keep_conjugacy : float, default 0
-        Keep the conjugate directions after a step where at most this fraction of the
-        loaded cells entered (:class:`~twoscale.pk.products.Products`), in both stages of
-        ``"mixed"``; 0: restart after any entry (Polonsky & Keer).
+        Keep the conjugate directions after a step where at most this fraction of the loaded
+        cells entered (:class:`~twoscale.pk.products.Products`), in both stages of ``"mixed"``.
     preconditioner : callable, optional
         With ``precondition``: ``preconditioner(surface)`` for the surface the CG runs on
         (the given one, or its crop under penetration control) returns an object whose
@@ -150,8 +148,7 @@ def solve_cg(
         that knows where the contact can be (a rolling position: the cells near the last
         one's contact); the others stay unloaded and are checked on the answer's
         displacement, and the whole grid is solved from the answer when one would touch.
-        The answer meets ``tol`` on the whole grid either way. None (the reference): every
-        cell.
+        The answer meets ``tol`` on the whole grid either way. None (the reference): all.
     plane_sums : bool, default False
         With ``tilt``: the constraints' fits and restoring by the basis's separable form
         (:class:`~twoscale.pk.plane.PlaneBasis`: sums along the grid's rows, no (3, n)
@@ -171,6 +168,9 @@ def solve_cg(
         The search directions' fast products (on the part, or every cell) in two halves where
         they have them (:class:`~twoscale.influence.on_cells.CellProduct`): the step length
         by Parseval, the transforms back only where the step uses ``A t``. The reference: off.
+    step_model : bool, default False
+        With ``half_products``: those directions' step length by the preconditioner's torus
+        (``CellProduct.model_energy``), the product only where the step uses ``A t``.
 
     Returns
     -------
@@ -222,7 +222,7 @@ def solve_cg(
         reach=reach,
         plane_sums=cg.plane_sums,
         rough_start=cg.rough_start and not (it0 or hist0),
-        halves=cg.half_products,
+        halves=("modelled" if cg.step_model else "halves") if cg.half_products else None,
     )
     it, n_products, hist = it + it0, n_products + products0, hist0 + hist
     p, u = p.reshape(work.grid.shape), u.reshape(work.grid.shape)
@@ -330,7 +330,7 @@ def _iterate(
     reach: np.ndarray | None = None,
     plane_sums: bool = False,
     rough_start: bool = False,
-    halves: bool = False,
+    halves: str | None = None,
 ):
     """The Polonsky-Keer kernel (:func:`twoscale.pk.pk_solve`) on the whole grid, one row, or
     on the candidates in ``reach`` (then checked on the whole grid, and solved on it from
@@ -360,7 +360,7 @@ def _iterate(
         run, dims = part.inputs(*run, None if fast is None else op.columns(part.cells)), (part.cells.size,)
     if halves and fast is not None:  # the fast product in two halves where it has them (the part's, or every cell's)
         rows = run[4].fast if part is not None else OneRow(fast).on_part(None)
-        run = (*run[:4], replace(run[4], halves=getattr(rows, "halves", None)), run[5])
+        run = (*run[:4], replace(run[4], halves=getattr(rows, halves, None)), run[5])
     out = pk_solve(
         run[4],
         run[0].reshape(1, *dims),
