@@ -20,6 +20,8 @@ from .interpolate import TopInterpolator
 #: quadrant of Love values per cell size, 16 MB, and patch-sized tables): a dense block or
 #: an operator is then a gather, not new Love values (4,753 tips: 17 s of 126 s).
 LOVE_TABLE_BYTES = 64e6
+#: Bytes of the half-space part's self-operators kept per grid shape (:meth:`LatticeState.halfspace_operator`).
+SELF_OPERATOR_BYTES = 32e6
 
 
 @dataclass
@@ -39,6 +41,23 @@ class LatticeState:
     grid_memo: dict = field(default_factory=dict)
     love_tables: BoundedCache = field(default_factory=lambda: BoundedCache(LOVE_TABLE_BYTES, name="block love tables"))
     mirror: object = None
+    self_operators: BoundedCache = field(
+        default_factory=lambda: BoundedCache(SELF_OPERATOR_BYTES, name="block half-space self-operators")
+    )
+
+    def halfspace_operator(self, halfspace, target, source):
+        """The half-space part's grid operator of a pair: a grid on itself as the kept one of
+        its shape moved there (Love's kernel depends on the cells' offsets only: the same
+        spectrum), so that every patch's own product at the result's gaps (5,930 spheres:
+        5,713 patches of a few hundred shapes) does not transform its kernel again."""
+        if target != source:
+            return halfspace.grid_operator(target, source, tables=self.love_tables)
+        key = (float(target.h), target.nx, target.ny)
+        op = self.self_operators.get(key)
+        if op is None:
+            op = halfspace.grid_operator(target, target, tables=self.love_tables)
+            self.self_operators.put(key, op, op.nbytes)
+        return op.moved(target, target)
 
     def refresh(self) -> None:
         keys = list(self.fields.fields)

@@ -342,7 +342,7 @@ class BlockProvider(InfluenceProvider):
 
     def grid_operator(self, target: Grid, source: Grid | None = None) -> "BlockGridOperator":
         source = target if source is None else source
-        hs = self._halfspace.grid_operator(target, source, tables=self._state.love_tables)
+        hs = self._state.halfspace_operator(self._halfspace, target, source)
         return self._with_correction(hs, target, source)
 
     def split(self):

@@ -69,6 +69,7 @@ class BlockStacks:
         self._ops: dict = {}
         # the canvases' stacked products' arrays (:mod:`twoscale.influence.stacked`), freed with this object
         self._workspace = Workspace()
+        self._masks: dict = {}  # per size class and members: the blocks and their canvas masks
 
     @staticmethod
     def usable(provider) -> bool:
@@ -117,16 +118,20 @@ class BlockStacks:
             groups.setdefault((key, tol_of(blocks[k])), (op, []))[1].append(k)
         return groups
 
-    @staticmethod
-    def _stack(blocks, members, key, *vectors):
-        """The members' canvas masks (B, ny, nx) and each of ``vectors`` (dicts or lists of
-        block vectors) placed on the canvases, zero elsewhere."""
-        mask = np.zeros((len(members), *key), bool)
-        out = [np.zeros(mask.shape) for _ in vectors]
-        for i, k in enumerate(members):
-            mask[i] = m = blocks[k].canvas_mask(key)
-            for a, v in zip(out, vectors):
-                a[i][m] = v[k]
+    def _stack(self, blocks, members, key, *vectors):
+        """The members' canvas masks (B, ny, nx), kept while the same blocks come in the
+        same stack (a sweep's levels, every sweep of the round), and each of ``vectors``
+        (dicts or lists of block vectors) placed on the canvases, zero elsewhere."""
+        kept = self._masks.get((key, tuple(members)))
+        if kept is None or any(a is not b for a, b in zip(kept[0], (blocks[k] for k in members))):
+            mask = np.zeros((len(members), *key), bool)
+            for i, k in enumerate(members):
+                mask[i] = blocks[k].canvas_mask(key)
+            mask.setflags(write=False)
+            kept = self._masks[(key, tuple(members))] = ([blocks[k] for k in members], mask)
+        mask, out = kept[1], [np.zeros((len(members), *key)) for _ in vectors]
+        for a, v in zip(out, vectors):
+            a[mask] = np.concatenate([v[k] for k in members])  # row-major: member by member
         return mask, out
 
     def initial(self, blocks, ks, z: list, forces: list, starts: dict, h: float, *, rtol: float) -> dict:
