@@ -228,7 +228,8 @@ def _sizing(ctx: MicroContext, coupling):
     pb = ctx.problem
     if pb.sizing_approaches is not None:
         return pb.sizing_approaches
-    if not isinstance(coupling, FarField) or pb.local_penetrations is None:
+    local = pb.local_penetrations if pb.local_penetrations is not None else pb.sizing_penetrations
+    if not isinstance(coupling, FarField) or local is None:
         return None
-    delta = np.asarray(pb.local_penetrations, dtype=float)
+    delta = np.asarray(local, dtype=float)
     return delta + 0.2 * max(float(delta.max()), 0.0)
