@@ -62,6 +62,11 @@ class MicroProblem:
     local_penetrations : (N,) array or None, default None
         The macro step's local approach of each tip, mm, where it converged or came near
         (the union CG's start, the far-field patch sizes), or deferred its safe path.
+    sizing_penetrations : (N,) array or None, default None
+        The macro step's local approach of each tip, mm, wherever they are finite, near a
+        solution or not: with far-field coupling they size the patches where
+        ``local_penetrations`` is None (a fifth of the largest added, never beyond the
+        geometric reach; :func:`~.strategies._sizing`).
     start : MicroStart or None, default None
         A previous solve's pressure (:mod:`.start`): the iterations start from it on the
         patches of the asperities it loaded, from eq. 7 elsewhere.
@@ -78,6 +83,7 @@ class MicroProblem:
     size_from_forces: bool = True
     sizing_approaches: np.ndarray | None = None
     local_penetrations: np.ndarray | None = None
+    sizing_penetrations: np.ndarray | None = None
     start: object = None
 
     @classmethod
@@ -117,6 +123,7 @@ class MicroProblem:
             anchor=anchor,
             size_from_forces=near,
             local_penetrations=local,
+            sizing_penetrations=np.asarray(macro.local_penetrations, dtype=float) if _finite(macro) else None,
             start=start,
         )
 

@@ -224,11 +224,15 @@ STRATEGIES = {"union-cg": UnionCG, "block-gs": BlockGaussSeidel, "two-level": Tw
 def _sizing(ctx: MicroContext, coupling):
     """Approaches sizing the patches: the problem's, else with far-field coupling the macro
     local penetrations plus a fifth of the largest (with thousands of asperities the bulk
-    deflection makes d - z_k > 0 for all), else None (the geometric approaches)."""
+    deflection makes d - z_k > 0 for all), also those of a macro step stalled far from a
+    solution (3,869 clustered spheres: contacts of 6.8 cells from the tip against a reach
+    of 22.7 at the geometric approach, 11.5 by this rule), else None (the geometric
+    approaches)."""
     pb = ctx.problem
     if pb.sizing_approaches is not None:
         return pb.sizing_approaches
-    if not isinstance(coupling, FarField) or pb.local_penetrations is None:
+    local = pb.local_penetrations if pb.local_penetrations is not None else pb.sizing_penetrations
+    if not isinstance(coupling, FarField) or local is None:
         return None
-    delta = np.asarray(pb.local_penetrations, dtype=float)
+    delta = np.asarray(local, dtype=float)
     return delta + 0.2 * max(float(delta.max()), 0.0)
