@@ -10,7 +10,7 @@ from twoscale import Material
 from twoscale.indenters import surface_on
 from twoscale.influence import HalfSpace
 from twoscale.pk.plane import PlaneBasis
-from twoscale.pk.projection import fit, project, restore
+from twoscale.pk.projection import SHORT_ROW, denominator, fit, project, restore
 from twoscale.reference import solve_cg
 from twoscale.reference.on_scene import reference_grid
 from twoscale.scene import Scene
@@ -101,3 +101,25 @@ def test_the_load_and_moments_held_are_the_basis_sums():
     x, y, basis = _grid()
     p = np.where(rng.random(len(basis)) < 0.3, rng.random(len(basis)), 0.0)
     assert np.allclose(PlaneBasis(x, y).moments(p), basis.T @ p, rtol=1e-12)
+
+
+def test_long_rows_sum_without_the_matrix_product_to_the_same_values():
+    # above SHORT_ROW cells the rows' sums are passes of their own (no BLAS threads): the
+    # fit, the moments, the restoring and a step's denominator against the written-out algebra
+    rng = np.random.default_rng(8)
+    x, y, basis = _grid(ny=71, nx=90)
+    assert len(basis) > SHORT_ROW
+    plane = PlaneBasis(x, y)
+    on = rng.random((1, len(basis))) < 0.3
+    v = rng.normal(size=(1, len(basis))) + basis @ np.array([0.3, -2e-3, 5e-3])
+    c = fit(v, basis, on, plane=plane)
+    assert np.allclose(c[0], np.linalg.lstsq(basis[on[0]], v[0, on[0]], rcond=None)[0], rtol=1e-9, atol=1e-12)
+    p = np.where(on, rng.random(on.shape), 0.0)
+    assert np.allclose(plane.moments(p[0]), basis.T @ p[0], rtol=1e-12)
+    target = (p @ basis) * np.array([1.3, 1.29, 1.31])
+    restore(p, basis, target, plane=plane)
+    assert p.min() >= 0.0 and np.allclose(p @ basis, target, rtol=1e-12)
+    t, r = np.where(on, rng.normal(size=on.shape), 0.0), rng.normal(size=on.shape)
+    written = r[0] @ t[0] - np.linalg.lstsq(basis[on[0]], r[0, on[0]], rcond=None)[0] @ (basis.T @ t[0])
+    bt = np.ascontiguousarray(basis.T)
+    assert np.isclose(denominator(r, t, on, 3, None, basis, bt, plane)[0], written, rtol=1e-9)

@@ -3,6 +3,8 @@ within their radius; the result must equal evaluating every indenter on every ce
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 import pytest
 
@@ -68,13 +70,16 @@ def test_batched_sampling_equals_one_by_one_with_ties(monkeypatch):
 
 
 @pytest.mark.parametrize("shapes", [("sphere",), ("paraboloid",), ("sphere", "paraboloid")])
-def test_a_large_box_sampled_tile_by_tile_from_the_tip_arrays_equals_every_tip_on_every_cell(shapes):
+def test_a_large_box_sampled_tile_by_tile_from_the_tip_arrays_equals_every_tip_on_every_cell(shapes, monkeypatch):
     """A union box of plain tips is sampled tile by tile from the table's arrays
     (``TipTable.sample``, one formula a shape, squared distances per axis): the owners of
     every asperity evaluated on every cell (a tie going to the earlier index), and their
     heights to rounding."""
+    from twoscale.micro import sampling
     from twoscale.micro.patches import TipTable
     from twoscale.micro.sampling import SAMPLE_WHOLE_CELLS, box_surface
+
+    monkeypatch.setattr(sampling, "WINDOW_SETUP", math.inf)  # never sphere by sphere
 
     rng = np.random.default_rng(7)
     grid = Grid.covering(-3.0, 3.0, -3.0, 3.0, 0.02)
@@ -92,3 +97,27 @@ def test_a_large_box_sampled_tile_by_tile_from_the_tip_arrays_equals_every_tip_o
     finite = np.isfinite(height)
     assert np.allclose(s.height[finite], height[finite], rtol=0.0, atol=1e-12)
     assert 5 in owner and n not in owner
+
+
+def test_a_large_box_of_small_spheres_is_sampled_sphere_by_sphere_as_every_tip_on_every_cell(monkeypatch):
+    """Spheres whose windows together are small against the box are sampled one by one on
+    them (``WINDOW_SETUP``), on the box's own cell centres: the owners and the heights of
+    every sphere evaluated on every cell, a tie going to the earlier index."""
+    import twoscale.indenters as ind
+    from twoscale.micro import sampling
+    from twoscale.micro.patches import TipTable
+
+    rng = np.random.default_rng(9)
+    grid = Grid.covering(-3.0, 3.0, -3.0, 3.0, 0.02)
+    asps = scattered(rng, 300, (-3.2, 3.2), (-3.2, 3.2), 0.02, (0.05, 0.3), ["sphere"] * 300)
+    asps.append(asps[7])  # an exact tie: the earlier index keeps the cells
+    table = TipTable(asps)
+    cost = sampling.WINDOW_SETUP * len(asps) + sampling.WINDOW_SHARE * ind.window_cells(grid, table)
+    assert grid.size > sampling.SAMPLE_WHOLE_CELLS and cost < grid.size
+    calls = []
+    monkeypatch.setattr(sampling, "surface_by_windows", lambda g, a: calls.append(g) or ind.surface_by_windows(g, a))
+    s = sampling.box_surface(grid, table)
+    height, owner = _every_tip_on_every_cell(grid, asps)
+    assert calls == [grid]
+    assert np.array_equal(s.owner, owner) and np.array_equal(s.height, height)
+    assert 7 in owner and len(asps) - 1 not in owner

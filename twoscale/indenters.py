@@ -205,6 +205,40 @@ def sample_tips(xs: np.ndarray, ys: np.ndarray, tips: TipArrays, height: np.ndar
     flat_o[better] = tips.index[first[better]]
 
 
+def _sample_windows(grid: Grid, X, Y, asperities: Sequence, indices, height: np.ndarray, owner: np.ndarray) -> None:
+    """The asperities ``indices`` one by one into ``height`` and ``owner`` where lower (the
+    earlier keeps a tie), each on the window of its material radius (a sphere: R; the
+    whole grid without one); ``X``, ``Y`` the grid's cell centres."""
+    for k in indices:
+        a = asperities[k]
+        win = _window(grid, a.x, a.y, getattr(a, "material_radius", math.inf))
+        if win is None:
+            continue
+        hk = a.height(X[win], Y[win])
+        better = hk < height[win]
+        height[win][better] = hk[better]
+        owner[win][better] = k
+
+
+def window_cells(grid: Grid, asperities: Sequence) -> float:
+    """The cells :func:`surface_by_windows` evaluates: each asperity's window of its
+    material radius (inf when one has none)."""
+    r = np.array([getattr(a, "material_radius", math.inf) for a in asperities], dtype=float)
+    side = np.minimum(2.0 * r / grid.h + 2.0, float(max(grid.nx, grid.ny)))
+    return float(np.sum(side * side))
+
+
+def surface_by_windows(grid: Grid, asperities: Sequence) -> Surface:
+    """:func:`surface_on` of plain asperities sampled one by one, each on the window of its
+    material radius only, whatever the grid's size (:func:`surface_on` samples them all on
+    every cell of a small grid)."""
+    X, Y = grid.centres()
+    height = np.full(grid.shape, np.inf)
+    owner = np.full(grid.shape, -1, dtype=np.int64)
+    _sample_windows(grid, X, Y, asperities, range(len(asperities)), height, owner)
+    return Surface(grid, height, owner, len(asperities))
+
+
 def surface_on(grid: Grid, asperities: Sequence[Asperity], tilt: Tilt | None = None) -> Surface:
     """Sample the union of ``asperities`` (optionally tilted) at the cell centres.
 
@@ -227,16 +261,7 @@ def surface_on(grid: Grid, asperities: Sequence[Asperity], tilt: Tilt | None = N
         for b in range(0, len(singles), batch):
             _sample_batch(X, Y, [(k, asperities[k]) for k in singles[b : b + batch]], height, owner)
         singles = []
-    for k in singles:
-        a = asperities[k]
-        # an indenter with a material radius (a sphere: R) changes only the cells within it
-        win = _window(grid, a.x, a.y, getattr(a, "material_radius", math.inf))
-        if win is None:
-            continue
-        hk = a.height(X[win], Y[win])
-        better = hk < height[win]
-        height[win][better] = hk[better]
-        owner[win][better] = k
+    _sample_windows(grid, X, Y, asperities, singles, height, owner)
     for group, index in groups.values():
         on_grid = getattr(group, "union_on_grid", None)
         sampled = None if on_grid is None else on_grid(grid, index)

@@ -85,8 +85,9 @@ def denominator(r: np.ndarray, t: np.ndarray, on: np.ndarray, k: int, count, bas
     denom = row_dot(r, t)
     if k == 1:  # the projected product: r minus its mean over the loaded cells
         denom -= masked_sum(r, on) / count * t.sum(axis=1)
-    elif k:  # (r - B c).t with c the fit of r over the loaded cells
-        denom -= np.einsum("bk,bk->b", fit(r, basis, on, basis_t, plane), t @ basis_t.T)
+    elif k:  # (r - B c).t with c the fit of r over the loaded cells; B^T t by the plane's sums on long rows
+        held = t @ basis_t.T if plane is None or t.shape[1] <= SHORT_ROW else np.array([plane.moments(v) for v in t])
+        denom -= np.einsum("bk,bk->b", fit(r, basis, on, basis_t, plane), held)
     return denom
 
 
