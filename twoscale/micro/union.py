@@ -11,10 +11,10 @@ they were computed, else from each tip's geometric interference at a fraction
 contact: the CG's active set shrinks onto the contact in a few large steps, where it grows
 cell by cell; the macro forces spread as Hertz pressures were tried as a start: twice the
 iterations, since the active set then has to grow into merged contacts). The load, the
-approach and the tilt are solved by the same iteration (no sensitivity sweeps). Under a free tilt the first box covers wider patches (``TILT_MARGIN``: the macro
-step's tilt is least sure there). If pressure reaches the box's edge, the box grows on the
-sides it reaches and the solve resumes from its pressure; a wider box keeps the cells it
-had sampled (:func:`widened_surface`).
+approach and the tilt are solved by the same iteration (no sensitivity sweeps). Under a
+free tilt the first box covers wider patches (``TILT_MARGIN``: the macro step's tilt is
+least sure there). If pressure reaches the box's edge, the box grows on the sides it
+reaches and resumes from its pressure, keeping the cells it had (:func:`widened_surface`).
 """
 
 from __future__ import annotations
