@@ -176,6 +176,55 @@ def sweep_levels(coupling) -> list:
     return [part.tolist() for part in np.split(order, bounds)] if n else []
 
 
+def _prepared(coupling, tips: np.ndarray):
+    """What every sweep of :func:`two_level` reuses: the near pattern (its dense blocks made
+    together where the coupling can), the coarse space, the sweep's levels and the stacked
+    local solves where the provider allows them."""
+    lower = lower_near_pattern(coupling)
+    prepare = getattr(coupling, "prepare_dense", None)
+    if prepare is not None:
+        prepare(list(zip(*lower.nonzero())))  # the near pairs' dense blocks made together
+    coarse = CoarseSpace(coupling.provider, tips, lower, dense_max=COARSE_DENSE_MAX)
+    stacks = BlockStacks(coupling.provider) if BlockStacks.usable(coupling.provider) else None
+    return coarse, sweep_levels(coupling), stacks
+
+
+def relative_change(new: list, old: list) -> float:
+    """``||new - old|| / ||new||`` over all blocks' pressures (0 where ``new`` is 0)."""
+    diff2 = sum(float(np.sum((a - c) ** 2)) for a, c in zip(new, old))
+    norm2 = sum(float(np.sum(v * v)) for v in new)
+    return float(np.sqrt(diff2 / norm2)) if norm2 > 0 else 0.0
+
+
+def verdict(seen: list, changed: bool, limits: SweepLimits, sweeps: int, p: list):
+    """Whether the iteration ends after ``sweeps`` sweeps, ``seen`` the changes of all its
+    rounds: ``(message, reason, converged)``, or None to go on. In order: a stall (no new
+    smallest change in :data:`STALL_SWEEPS` sweeps: merged contacts make cells flip),
+    convergence (eq. 9), a rate too slow for the budget, the trial sweeps without
+    converging, the caller's ``stop``."""
+    change = seen[-1]
+    if len(seen) > STALL_SWEEPS and min(seen[-STALL_SWEEPS:]) >= min(seen[:-STALL_SWEEPS]):
+        message = (
+            f"two-level iteration stalled: no smaller change in {STALL_SWEEPS} sweeps "
+            f"(last {change:.3g}, best {min(seen):.3g})"
+        )
+        return message, StopReason.STAGNATED, False
+    if change <= limits.tol and not changed:
+        return "", StopReason.CONVERGED, True
+    slow = too_slow(seen, limits.tol, limits.max_sweeps - sweeps)
+    if slow:
+        return slow, StopReason.STAGNATED, False
+    if limits.trial is not None and len(seen) >= limits.trial and not converging(seen):
+        message = (
+            f"two-level block Gauss-Seidel reached its {limits.trial} trial sweeps without converging "
+            f"(last change {change:.3g})"
+        )
+        return message, StopReason.MAX_ITER, False
+    if limits.stop is not None and limits.stop(p):
+        return "stopped", StopReason.STOPPED, False
+    return None
+
+
 def two_level(
     blocks, coupling, tips: np.ndarray, heights, p: list, theta: np.ndarray, control: Control, limits: SweepLimits
 ) -> TwoLevelResult:
@@ -200,89 +249,40 @@ def two_level(
     limits : SweepLimits
         Tolerance, sweeps, the caller's stop test, monitor and the earlier rounds' changes.
     """
-    tol, max_sweeps, stop, monitor, earlier = (
-        limits.tol,
-        limits.max_sweeps,
-        limits.stop,
-        limits.monitor,
-        limits.earlier,
-    )
     patches = coupling.patches
-    lower = lower_near_pattern(coupling)
-    prepare = getattr(coupling, "prepare_dense", None)
-    if prepare is not None:
-        prepare(list(zip(*lower.nonzero())))  # the near pairs' dense blocks made together
-    coarse = CoarseSpace(coupling.provider, tips, lower, dense_max=COARSE_DENSE_MAX)
-    levels = sweep_levels(coupling)
-    stacks = BlockStacks(coupling.provider) if BlockStacks.usable(coupling.provider) else None
+    coarse, levels, stacks = _prepared(coupling, tips)
     theta = np.array(theta, dtype=float)
     p = [np.asarray(v, dtype=float) for v in p]  # replaced, never modified
     active = [v > 0.0 for v in p]
     history: list = []
     cg_iters = 0
-    for m in range(1, max_sweeps + 1):
+    for m in range(1, limits.max_sweeps + 1):
         coupling.refresh(p)
         b = [theta[0] - z for z in heights(theta)]
         before = patch_forces(patches, p)
-        local_rtol = LOCAL_FACTOR * max(history[-1] if history else 0.1, tol)
+        local_rtol = LOCAL_FACTOR * max(history[-1] if history else 0.1, limits.tol)
         sw = sweep(blocks, coupling, b, p, active, local_rtol=local_rtol, levels=levels, stacks=stacks)
         if sw.failed:
+            message = f"local active-set solve did not converge on blocks {list(sw.failed)}"
+            history.append(sw.change)
             return TwoLevelResult(
-                sw.pressures,
-                sw.active,
-                theta,
-                False,
-                m,
-                tuple(history + [sw.change]),
-                cg_iters,
-                f"local active-set solve did not converge on blocks {list(sw.failed)}",
-                StopReason.FAILED,
+                sw.pressures, sw.active, theta, False, m, tuple(history), cg_iters, message, StopReason.FAILED
             )
         dF = patch_forces(patches, sw.pressures) - before
         step = coarse.correct(blocks, patches, sw.pressures, sw.active, dF, theta, control, stacks)
         cg_iters += step.iterations
         new_active = [v > 0.0 for v in step.pressures]
-        diff2 = sum(float(np.sum((a - c) ** 2)) for a, c in zip(step.pressures, p))
-        norm2 = sum(float(np.sum(v * v)) for v in step.pressures)
-        change = float(np.sqrt(diff2 / norm2)) if norm2 > 0 else 0.0
+        change = relative_change(step.pressures, p)
         changed = sw.changed or any(np.any(a != c) for a, c in zip(new_active, sw.active))
         p, active, theta = step.pressures, new_active, step.theta
         history.append(change)
-
-        def ended(message: str, reason: StopReason, converged: bool = False) -> TwoLevelResult:
+        if limits.monitor is not None:
+            limits.monitor(m, change)
+        ends = verdict(list(limits.earlier) + history, changed, limits, m, p)
+        if ends is not None:
+            message, reason, converged = ends
             return TwoLevelResult(p, active, theta, converged, m, tuple(history), cg_iters, message, reason)
-
-        if monitor is not None:
-            monitor(m, change)
-        seen = list(earlier) + history
-        if len(seen) > STALL_SWEEPS and min(seen[-STALL_SWEEPS:]) >= min(seen[:-STALL_SWEEPS]):
-            # no new smallest change in STALL_SWEEPS sweeps: merged contacts make cells flip
-            return ended(
-                f"two-level iteration stalled: no smaller change in {STALL_SWEEPS} sweeps "
-                f"(last {change:.3g}, best {min(seen):.3g})",
-                StopReason.STAGNATED,
-            )
-        if change <= tol and not changed:
-            return ended("", StopReason.CONVERGED, converged=True)
-        slow = too_slow(seen, tol, max_sweeps - m)
-        if slow:
-            return ended(slow, StopReason.STAGNATED)
-        if limits.trial is not None and len(seen) >= limits.trial and not converging(seen):
-            return ended(
-                f"two-level block Gauss-Seidel reached its {limits.trial} trial sweeps without converging "
-                f"(last change {change:.3g})",
-                StopReason.MAX_ITER,
-            )
-        if stop is not None and stop(p):
-            return ended("stopped", StopReason.STOPPED)
+    message = f"two-level block Gauss-Seidel reached {limits.max_sweeps} sweeps (last change {history[-1]:.3g})"
     return TwoLevelResult(
-        p,
-        active,
-        theta,
-        False,
-        max_sweeps,
-        tuple(history),
-        cg_iters,
-        f"two-level block Gauss-Seidel reached {max_sweeps} sweeps (last change {history[-1]:.3g})",
-        StopReason.MAX_ITER,
+        p, active, theta, False, limits.max_sweeps, tuple(history), cg_iters, message, StopReason.MAX_ITER
     )
