@@ -90,6 +90,47 @@ def _cell_halfspace_displacement(points: np.ndarray, material: Material, h_cell:
     return u
 
 
+def _fixed_dofs(X: np.ndarray, ns: int, boundary: str, material: Material, size, h_cell: float, tol: float):
+    """The quarter block's prescribed unknowns and their values: zero normal displacement on
+    the two symmetry planes, then the base and sides by ``boundary`` (the half-space's own
+    displacement under the cell on base and sides, a bonded base, or a base sliding on its
+    plane); where two conditions meet on an edge the symmetry zero wins."""
+    Lx, Ly, t = size
+    on = lambda cond: np.flatnonzero(cond)
+    fixed_list = [on(np.abs(X[0]) < tol) + 0 * ns, on(np.abs(X[1]) < tol) + 1 * ns]  # symmetry planes
+    values = [np.zeros(len(fixed_list[0])), np.zeros(len(fixed_list[1]))]
+    base = on(np.abs(X[2] - t) < tol)
+    sides = on((np.abs(X[0] - Lx / 2) < tol) | (np.abs(X[1] - Ly / 2) < tol))
+    if boundary == "halfspace":
+        outer = np.unique(np.concatenate([base, sides]))
+        uh = _cell_halfspace_displacement(X[:, outer].T, material, h_cell)
+        for a in range(3):
+            fixed_list.append(outer + a * ns)
+            values.append(uh[:, a])
+    elif boundary == "bonded":
+        for a in range(3):
+            fixed_list.append(base + a * ns)
+            values.append(np.zeros(len(base)))
+    else:
+        fixed_list.append(base + 2 * ns)
+        values.append(np.zeros(len(base)))
+    dofs, first = np.unique(np.concatenate(fixed_list), return_index=True)
+    return dofs, np.concatenate(values)[first]
+
+
+def _cell_load(mesh, ns: int, n: int, h_cell: float, tol: float) -> np.ndarray:
+    """The load vector of unit pressure (+1 MPa along depth) on the loaded quarter cell."""
+    from skfem import ElementHex2, FacetBasis
+
+    loaded = mesh.facets_satisfying(
+        lambda x: (np.abs(x[2]) < tol) & (x[0] < h_cell / 2) & (x[1] < h_cell / 2), boundaries_only=True
+    )
+    fb = FacetBasis(mesh, ElementHex2(), facets=loaded, intorder=INTORDER)
+    phi = np.stack([np.asarray(fb.basis[i][0]) for i in range(fb.Nbfun)])
+    fz = np.einsum("ifq,fq->if", phi, fb.dx)
+    return np.bincount((fb.element_dofs + 2 * ns).ravel(), fz.ravel(), minlength=n).astype(float)
+
+
 def solve_cell_load(
     material: Material,
     *,
@@ -129,7 +170,7 @@ def solve_cell_load(
     -------
     DirectResult
     """
-    from skfem import ElementHex2, FacetBasis, MeshHex
+    from skfem import MeshHex
 
     if boundary not in BOUNDARIES:
         raise ValueError(f"boundary must be one of {BOUNDARIES}, got {boundary!r}")
@@ -146,37 +187,8 @@ def solve_cell_load(
     ns, n = system.n_scalar, system.size
     X = system.doflocs
     tol = 1e-9 * max(Lx, Ly, t)
-    on = lambda cond: np.where(cond)[0]
-    fixed_list = [on(np.abs(X[0]) < tol) + 0 * ns, on(np.abs(X[1]) < tol) + 1 * ns]  # symmetry planes
-    values = [np.zeros(len(fixed_list[0])), np.zeros(len(fixed_list[1]))]
-    base = on(np.abs(X[2] - t) < tol)
-    sides = on((np.abs(X[0] - Lx / 2) < tol) | (np.abs(X[1] - Ly / 2) < tol))
-    if boundary == "halfspace":
-        outer = np.unique(np.concatenate([base, sides]))
-        uh = _cell_halfspace_displacement(X[:, outer].T, material, h_cell)
-        for a in range(3):
-            fixed_list.append(outer + a * ns)
-            values.append(uh[:, a])
-    elif boundary == "bonded":
-        for a in range(3):
-            fixed_list.append(base + a * ns)
-            values.append(np.zeros(len(base)))
-    else:
-        fixed_list.append(base + 2 * ns)
-        values.append(np.zeros(len(base)))
-    dofs = np.concatenate(fixed_list)
-    vals = np.concatenate(values)
-    dofs, first = np.unique(dofs, return_index=True)  # symmetry zeros win on shared edges
-    vals = vals[first]
-    # unit pressure on the loaded quarter cell: traction +1 MPa along depth on top facets
-    loaded = mesh.facets_satisfying(
-        lambda x: (np.abs(x[2]) < tol) & (x[0] < h_cell / 2) & (x[1] < h_cell / 2), boundaries_only=True
-    )
-    fb = FacetBasis(mesh, ElementHex2(), facets=loaded, intorder=INTORDER)
-    phi = np.stack([np.asarray(fb.basis[i][0]) for i in range(fb.Nbfun)])
-    fz = np.einsum("ifq,fq->if", phi, fb.dx)
-    f = np.zeros(n)
-    f += np.bincount((fb.element_dofs + 2 * ns).ravel(), fz.ravel(), minlength=n)
+    dofs, vals = _fixed_dofs(X, ns, boundary, material, (Lx, Ly, t), h_cell, tol)
+    f = _cell_load(mesh, ns, n, h_cell, tol)
     free = np.setdiff1d(np.arange(n), dofs)
     A = system.matrix
     t1 = time.perf_counter()
@@ -188,7 +200,7 @@ def solve_cell_load(
     t2 = time.perf_counter()
     u = np.zeros(n)
     u[free], u[dofs] = x, vals
-    top = on(np.abs(X[2]) < tol)
+    top = np.flatnonzero(np.abs(X[2]) < tol)
     r = np.linspace(0.0, 40.0, 9) if r is None else np.asarray(r, dtype=float)
     interp = TopInterpolator(X[:2, top].T)
     uz = interp(np.column_stack([r, np.zeros_like(r)]), u[2 * ns + top][:, None])[:, 0]
