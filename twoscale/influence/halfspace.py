@@ -6,7 +6,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..analytic.halfspace import boussinesq_point, love_far_field, love_rectangle
+from ..analytic.halfspace import boussinesq_point, love_far_field, love_on_lattice, love_rectangle
 from ..grid import Grid
 from ..material import Material
 from .base import InfluenceProvider
@@ -51,7 +51,7 @@ def _love_table(E_star: float, h: float, ox0: int, oy0: int, mx: int, my: int) -
     """Love's kernel on the lattice offsets ``(oy0 + m, ox0 + n) h``, shape (my, mx), mm/MPa."""
     ox = (ox0 + np.arange(mx)) * h
     oy = (oy0 + np.arange(my)) * h
-    table = love_rectangle(ox[None, :], oy[:, None], 0.5 * h, 0.5 * h, E_star)
+    table = love_on_lattice(ox, oy, 0.5 * h, 0.5 * h, E_star)
     table.setflags(write=False)
     return table
 
