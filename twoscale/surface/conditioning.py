@@ -104,7 +104,8 @@ def condition(raw: RawMap, *, h: float | None = None, h_name: str = "h", **condi
     if units_from == "default":
         _check_relief(src, z, step)
     _check_size(src, z.shape, step, h, h_name)  # before anything of the resampled size exists
-    z = z * factor
+    if factor != 1.0:  # (mm: the map's own array; HeightMap copies it)
+        z = z * factor
     if detrend:
         z = z - _plane(z, missing, step)
     if missing.any():

@@ -156,7 +156,7 @@ def map_asperities(hmap: HeightMap, seg: Segmentation, *, cap_depth: float = CAP
     ``(asperities, sphere_fit)``."""
     top = float(seg.heights.max())
     recess = top - hmap.heights
-    recess = np.where(np.isnan(recess), np.inf, recess)
+    recess[np.isnan(recess)] = np.inf
     recess.setflags(write=False)
     basins = BasinMap(hmap.grid, recess, seg.labels, book)
     fit = fit_spheres(hmap, seg, depth=cap_depth)
