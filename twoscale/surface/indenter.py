@@ -85,10 +85,13 @@ class BasinMap:
         i0, j0 = round(di), round(dj)
         if abs(di - i0) > 1e-9 or abs(dj - j0) > 1e-9:
             return None
-        height = np.full(grid.shape, np.inf)
-        owner = np.full(grid.shape, -1, dtype=np.int64)
         a0, a1 = max(j0, 0), min(j0 + grid.ny, g.ny)
         b0, b1 = max(i0, 0), min(i0 + grid.nx, g.nx)
+        if (a1 - a0, b1 - b0) == grid.shape:  # the grid within the map: its window alone
+            owner = self._owners(index)[self.labels[a0:a1, b0:b1]]
+            return np.where(owner >= 0, self.recess[a0:a1, b0:b1], np.inf), owner
+        height = np.full(grid.shape, np.inf)
+        owner = np.full(grid.shape, -1, dtype=np.int64)
         if a1 > a0 and b1 > b0:
             window = (slice(a0 - j0, a1 - j0), slice(b0 - i0, b1 - i0))
             mine = self._owners(index)[self.labels[a0:a1, b0:b1]]
