@@ -165,19 +165,25 @@ def map_asperities(hmap: HeightMap, seg: Segmentation, *, cap_depth: float = CAP
     fit = fit_spheres(hmap, seg, depth=cap_depth)
     X, Y = hmap.grid.centres()
     order, bounds = basin_order(seg)
-    # every basin's samples at once: depth below the summit and distance from it
-    counts, (j, i) = np.diff(bounds), seg.summits.T
-    x, y, zk = X[j, i], Y[j, i], top - seg.heights
-    fall = recess.ravel()[order] - np.repeat(zk, counts)
-    dist = np.hypot(X.ravel()[order] - np.repeat(x, counts), Y.ravel()[order] - np.repeat(y, counts))
+    # every basin's samples at once: depth below the summit and distance from it (each
+    # basin's run of the gathered arrays moved by its summit in place: no repeated copies)
+    (j, i), zk = seg.summits.T, top - seg.heights
+    x, y = X[j, i], Y[j, i]
+    fall, dx, dy = recess.ravel()[order], X.ravel()[order], Y.ravel()[order]
+    for k, (a, b) in enumerate(zip(bounds[:-1].tolist(), bounds[1:].tolist())):
+        fall[a:b] -= zk[k]
+        dx[a:b] -= x[k]
+        dy[a:b] -= y[k]
+    dist = np.hypot(dx, dy, out=dx)
     extent = np.maximum.reduceat(dist, bounds[:-1]) if len(order) else np.zeros(0)
     ok = np.isfinite(fall)
-    ends = np.cumsum(ok)[bounds[1:] - 1].tolist() if len(order) else []
-    fall, dist = fall[ok], dist[ok]
+    if not ok.all():  # (masked samples: not in the reach)
+        bounds = np.r_[0, np.cumsum(ok)[bounds[1:] - 1]]
+        fall, dist = fall[ok], dist[ok]
     fall.setflags(write=False)
     dist.setflags(write=False)
     out = []
-    for k, (a, b) in enumerate(zip([0] + ends[:-1], ends)):
+    for k, (a, b) in enumerate(zip(bounds[:-1].tolist(), bounds[1:].tolist())):
         out.append(
             MapAsperity(
                 float(x[k]),

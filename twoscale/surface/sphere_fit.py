@@ -55,7 +55,8 @@ def fit_spheres(hmap: HeightMap, seg: Segmentation, *, depth: float = CAP_DEPTH)
     X, Y = hmap.grid.centres()
     labels = seg.labels.ravel()
     # (a NaN height is in no cap: the comparison is False there)
-    flat = np.flatnonzero(seg.heights[labels] - z.ravel() < depth)
+    fall = seg.heights[labels]
+    flat = np.flatnonzero(np.subtract(fall, z.ravel(), out=fall) < depth)
     lab = labels[flat]
     sort = np.argsort(lab.astype(np.int16) if len(seg) <= np.iinfo(np.int16).max else lab, kind="stable")
     flat, lab = flat[sort], lab[sort]
