@@ -19,7 +19,7 @@ import pytest
 from scipy import integrate
 
 from twoscale import Grid, Material
-from twoscale.analytic.halfspace import boussinesq_point, love_rectangle
+from twoscale.analytic.halfspace import boussinesq_point, love_on_lattice, love_rectangle
 from twoscale.influence import HalfSpace
 
 E_STAR = Material(10.0, 0.5).E_star
@@ -158,3 +158,21 @@ def test_fft_operator_rejects_wrong_shape():
     g = Grid(0.0, 0.0, 0.1, 5, 4)
     with pytest.raises(ValueError, match="shape"):
         HS.grid_operator(g).apply(np.ones((5, 4)))
+
+
+@pytest.mark.parametrize(
+    "ox0, oy0, mx, my, h, b",
+    [
+        (0, 0, 700, 700, 0.1, 0.05),
+        (-350, -20, 701, 50, 0.1, 0.05),
+        (-400, 300, 50, 800, 0.1, 0.03),
+        (0, 0, 20000, 3, 0.1, 0.05),
+    ],
+)
+def test_love_on_a_lattice_is_the_pointwise_closed_form_to_the_bit(ox0, oy0, mx, my, h, b):
+    """Block by block, the entries within 600 half-sides by the closed form and the rest
+    by the multipole, as ``love_rectangle`` takes them point by point (each lattice
+    crosses that switch)."""
+    x, y = (ox0 + np.arange(mx)) * h, (oy0 + np.arange(my)) * h
+    lattice = love_on_lattice(x, y, 0.5 * h, b, 10.0)
+    assert np.array_equal(lattice, love_rectangle(x[None, :], y[:, None], 0.5 * h, b, 10.0))

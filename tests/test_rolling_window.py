@@ -262,7 +262,7 @@ def test_stones_mapped_from_kept_samples_equal_a_fresh_roads(strip):
         assert a.stones and np.array_equal(a.numbers, b.numbers)
         for s, t in zip(a.stones, b.stones):
             assert (s.x, s.y, s.z, s.extent) == (t.x, t.y, t.z, t.extent)
-            assert np.array_equal(s.falls, t.falls) and np.array_equal(s.radii, t.radii)
+            assert np.array_equal(s.fall, t.fall) and np.array_equal(s.dist, t.dist)
 
 
 def test_a_rolled_stone_made_at_once_is_the_constructors(strip):

@@ -23,3 +23,19 @@ def test_dropped_basins_go_where_a_flood_from_the_kept_summits_takes_them(promin
     assert np.count_nonzero(flooded != seg.labels) <= 1e-4 * z.size
     for k, (j, i) in enumerate(seg.summits):  # each basin tops at its own summit
         assert z[j, i] == z[seg.labels == k].max()
+
+
+@pytest.mark.parametrize("quantum", [0.0, 0.05])
+def test_the_basins_flood_is_scikit_images_watershed_label_for_label(quantum):
+    """The flood called with the arrays made once (``_watershed``) labels every sample as
+    the public ``watershed`` does, plateaus (heights rounded to ``quantum`` mm, ties the
+    flood's order settles) and a non-square map included."""
+    from twoscale.surface.segmentation import _candidates, _watershed
+
+    z = road(30.0, 0.1, seed=2)[:, :257]
+    if quantum:
+        z = np.round(z / quantum) * quantum
+    seeds = _candidates(z, 20.0)
+    markers = np.zeros(z.shape, dtype=np.int64)
+    markers[seeds[:, 0], seeds[:, 1]] = np.arange(1, len(seeds) + 1)
+    assert np.array_equal(_watershed(z, seeds), watershed(-z, markers, connectivity=2) - 1)

@@ -157,3 +157,20 @@ def test_a_map_too_large_is_refused_before_segmentation(monkeypatch):
     with pytest.raises(SurfaceError, match="crop the map or give h >= 0.2 mm"):
         condition(_raw(np.zeros((20, 20))))
     assert condition(_raw(np.zeros((20, 20))), h=0.2).shape == (10, 10)  # resampled: fits
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_missing_samples_take_the_nearest_measured_height_of_the_whole_map(seed):
+    """The fill runs the feature transform on a window around the holes: every filled
+    height is the one the transform of the whole map picks, ties (square holes, heights
+    repeated) and holes deeper than the first margin or at the map's edge included."""
+    from twoscale.surface.conditioning import _fill_nearest
+
+    rng = np.random.default_rng(seed)
+    z = np.round(rng.random((90, 130)), 1)
+    missing = np.zeros(z.shape, dtype=bool)
+    for _ in range(3):
+        (j, i), (h, w) = rng.integers(0, 90, 2), rng.integers(1, 45, 2)
+        missing[j : j + h, i : i + w] = True
+    index = ndimage.distance_transform_edt(missing, return_distances=False, return_indices=True)
+    assert np.array_equal(_fill_nearest(z, missing), z[tuple(index)])

@@ -245,9 +245,6 @@ def surface_on(grid: Grid, asperities: Sequence[Asperity], tilt: Tilt | None = N
     Asperities with a ``group`` attribute (e.g. the basins of one height map) are sampled
     together by ``group.union_on(X, Y, {label: index})``, which returns the height and the
     owning index of each point; ``label`` is the asperity's ``label`` attribute."""
-    X, Y = grid.centres()
-    height = np.full(grid.shape, np.inf)
-    owner = np.full(grid.shape, -1, dtype=np.int64)
     groups: dict = {}
     singles = []
     for k, a in enumerate(asperities):
@@ -256,6 +253,13 @@ def surface_on(grid: Grid, asperities: Sequence[Asperity], tilt: Tilt | None = N
             groups.setdefault(id(group), (group, {}))[1][a.label] = k
         else:
             singles.append(k)
+    if tilt is None and not singles and len(groups) == 1:
+        alone = _one_group_on_grid(grid, *next(iter(groups.values())))
+        if alone is not None:
+            return Surface(grid, *alone, len(asperities))
+    X, Y = grid.centres()
+    height = np.full(grid.shape, np.inf)
+    owner = np.full(grid.shape, -1, dtype=np.int64)
     batch = SAMPLE_BATCH // grid.size
     if sampled_in_batches(grid) and all(type(asperities[k]) is Asperity for k in singles):
         for b in range(0, len(singles), batch):
@@ -272,3 +276,21 @@ def surface_on(grid: Grid, asperities: Sequence[Asperity], tilt: Tilt | None = N
     if tilt is not None:
         height = height + tilt.height(X, Y)
     return Surface(grid, height, owner, len(asperities))
+
+
+def _one_group_on_grid(grid: Grid, group, index: dict):
+    """The height and owner :func:`surface_on` gives for one group alone, taken as they
+    come from its ``union_on_grid`` (None where it has none, or for another grid): no
+    grid-sized arrays to merge them into, nor the cell centres (a height map's union box
+    of 700 x 700 cells: four such arrays, ~16 ms of fresh pages in a new process)."""
+    on_grid = getattr(group, "union_on_grid", None)
+    sampled = None if on_grid is None else on_grid(grid, index)
+    if sampled is None:
+        return None
+    height, owner = sampled
+    if height.dtype != np.float64 or owner.dtype != np.int64:
+        return None
+    outside = ~(height < np.inf)  # as merged into inf: no material, no owner
+    height[outside] = np.inf
+    owner[outside] = -1
+    return height, owner

@@ -54,7 +54,9 @@ class ConvolutionOperator(GridOperator):
         self._again = again
         my, mx = table.shape
         self._shape = (sfft.next_fast_len(my, real=True), sfft.next_fast_len(mx, real=True))
-        self._khat = _transform(table, self._shape)
+        # (:func:`_transform`'s values without its spectrum-sized copy: 700 x 700 cells'
+        # table, 24 against 19 ms)
+        self._khat = padded_spectrum(table, self._shape)
         # transforms derived from the kernel (the preconditioner's, the float32 spectrum),
         # made on first use and shared with the moved copies of this operator
         self._derived: dict = {}

@@ -6,7 +6,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..analytic.halfspace import boussinesq_point, love_far_field, love_rectangle
+from ..analytic.halfspace import boussinesq_point, love_far_field, love_on_lattice, love_rectangle
 from ..grid import Grid
 from ..material import Material
 from .base import InfluenceProvider
@@ -31,27 +31,35 @@ QUADRANT_MAX_ENTRIES = 2_000_000
 QUADRANT_GROWTH = 1.5
 
 
-def _folded(a: np.ndarray, start: int, n: int, *, axis: int) -> np.ndarray:
-    """Rows (``axis=0``) or columns of ``a`` at the indices ``|start|, ..., |start + n - 1|``
-    (two strided copies instead of a fancy-indexed gather); ``a`` is 2-D, so the axis is
-    moved by a transpose (``np.moveaxis``'s argument checks were three quarters of an
-    80 x 80 quadrant's table: 40 against 10 us)."""
-    view = a if axis == 0 else a.T
-    stop = start + n - 1
-    if start >= 0:
-        out = view[start : stop + 1]
-    elif stop <= 0:
-        out = view[-stop : -start + 1][::-1]
-    else:
-        out = np.concatenate([view[1 : -start + 1][::-1], view[: stop + 1]])
-    return np.ascontiguousarray(out if axis == 0 else out.T)
+def _spans(start: int, n: int) -> list:
+    """The indices ``|start|, ..., |start + n - 1|`` as (slice of the ``n``, slice of the
+    quadrant) pairs: the negative offsets a reversed run, then the others a forward one."""
+    stop, spans = start + n - 1, []
+    if start < 0:
+        last = min(stop, -1)
+        spans.append((slice(0, last - start + 1), slice(-start, -last - 1, -1)))
+    if stop >= 0:
+        first = max(start, 0)
+        spans.append((slice(first - start, n), slice(first, stop + 1)))
+    return spans
+
+
+def _unfolded(quadrant: np.ndarray, oy0: int, my: int, ox0: int, mx: int) -> np.ndarray:
+    """The quadrant's values at rows ``|oy0 + m|`` and columns ``|ox0 + n|``, (my, mx):
+    at most four block copies into the new table (a fold per axis with a transposed copy
+    between them cost 28 ms on a 700 x 700 box's table, 1399 x 1399 entries)."""
+    out = np.empty((my, mx), dtype=quadrant.dtype)
+    for rows, qrows in _spans(oy0, my):
+        for cols, qcols in _spans(ox0, mx):
+            out[rows, cols] = quadrant[qrows, qcols]
+    return out
 
 
 def _love_table(E_star: float, h: float, ox0: int, oy0: int, mx: int, my: int) -> np.ndarray:
     """Love's kernel on the lattice offsets ``(oy0 + m, ox0 + n) h``, shape (my, mx), mm/MPa."""
     ox = (ox0 + np.arange(mx)) * h
     oy = (oy0 + np.arange(my)) * h
-    table = love_rectangle(ox[None, :], oy[:, None], 0.5 * h, 0.5 * h, E_star)
+    table = love_on_lattice(ox, oy, 0.5 * h, 0.5 * h, E_star)
     table.setflags(write=False)
     return table
 
@@ -134,7 +142,7 @@ class HalfSpace(InfluenceProvider):
             quadrant = _love_table(self.E_star, h, 0, 0, ax, ay)
             if tables is not None and keep:
                 tables.put(key, quadrant, 8 * ax * ay)
-        table = _folded(_folded(quadrant, oy0, my, axis=0), ox0, mx, axis=1)
+        table = _unfolded(quadrant, oy0, my, ox0, mx)
         table.setflags(write=False)
         return table
 

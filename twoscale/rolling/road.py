@@ -134,12 +134,8 @@ class ShiftedTip(Asperity):
 @dataclass(frozen=True, eq=False)
 class RolledStone(MapAsperity):
     """A basin of the road at one position: a :class:`~twoscale.surface.indenter.MapAsperity`
-    whose reach is found on its samples' depths below the summit (``fall``, recess + face;
-    ``inf`` outside the face's window) and distances from it (``dist``), unsorted: the
-    sorted table would be made for every stone at every position and read once or twice."""
-
-    fall: np.ndarray | None = field(default=None, repr=False)
-    dist: np.ndarray | None = field(default=None, repr=False)
+    whose samples' depths below the summit ``fall`` are recess + face (``inf`` outside the
+    face's window), ``dist`` their distances from its summit there."""
 
     def __post_init__(self) -> None:
         pass  # made by :meth:`Road.map_stones` from a checked basin: finite by construction
@@ -147,17 +143,11 @@ class RolledStone(MapAsperity):
     @classmethod
     def of(cls, *values) -> "RolledStone":
         """The stone of the fields' ``values`` in their order, as the constructor makes it,
-        its fields written at once (the frozen ``__init__`` sets its 12 one by one through
+        its fields written at once (the frozen ``__init__`` sets its 10 one by one through
         ``object.__setattr__``: ~4 us a stone against ~1, ~560 stones a tyre's position)."""
         stone = object.__new__(cls)
         stone.__dict__.update(zip(_ROLLED_FIELDS, values))
         return stone
-
-    def reach(self, depth: float) -> float:
-        if depth <= 0:
-            return 0.0
-        within = self.fall < depth
-        return float(self.dist[within].max()) if within.any() else 0.0
 
 
 _ROLLED_FIELDS = tuple(f.name for f in dataclasses.fields(RolledStone))
@@ -325,7 +315,7 @@ class Road:
         for n, (k, z, a, b) in enumerate(zip(np.asarray(ks).tolist(), low.tolist(), starts.tolist(), ends)):
             base = self.tips[k]
             fields = (float(xt[n]), float(yt[n]), z, base.R, "map", group, base.label, float(extent[n]))
-            made.append(RolledStone.of(*fields, None, None, fall[a:b], r[a:b]))
+            made.append(RolledStone.of(*fields, fall[a:b], r[a:b]))
         out: list = [None] * len(keep)
         for i, stone in zip(np.flatnonzero(keep).tolist(), made):
             out[i] = stone

@@ -104,7 +104,8 @@ def condition(raw: RawMap, *, h: float | None = None, h_name: str = "h", **condi
     if units_from == "default":
         _check_relief(src, z, step)
     _check_size(src, z.shape, step, h, h_name)  # before anything of the resampled size exists
-    z = z * factor
+    if factor != 1.0:  # (mm: the map's own array; HeightMap copies it)
+        z = z * factor
     if detrend:
         z = z - _plane(z, missing, step)
     if missing.any():
@@ -269,8 +270,29 @@ def _plane(z, missing, step) -> np.ndarray:
 
 
 def _fill_nearest(z, missing) -> np.ndarray:
-    index = ndimage.distance_transform_edt(missing, return_distances=False, return_indices=True)
-    return z[tuple(index)]
+    """``z`` with each missing sample set to its nearest measured one (the Euclidean
+    feature transform's choice), the transform run on the window of the missing samples
+    grown by a margin beyond the farthest of them from a measured one (then every sample
+    as near is in the window; at most the whole map): a road's holes, 1,600 samples of
+    490,000, 13-30 against 1-2 ms."""
+    rows, cols = np.flatnonzero(missing.any(axis=1)), np.flatnonzero(missing.any(axis=0))
+    ny, nx = missing.shape
+    margin = 8
+    while True:
+        j0, j1 = max(rows[0] - margin, 0), min(rows[-1] + margin + 1, ny)
+        i0, i1 = max(cols[0] - margin, 0), min(cols[-1] + margin + 1, nx)
+        whole = (j0, j1, i0, i1) == (0, ny, 0, nx)
+        window = missing[j0:j1, i0:i1]
+        if not window.all() or whole:
+            far, (jj, ii) = ndimage.distance_transform_edt(window, return_indices=True)
+            if whole or far.max() + 2 <= margin:
+                break
+            margin = int(far.max()) + 3
+        else:
+            margin *= 2
+    out = z.copy()
+    out[j0:j1, i0:i1][window] = z[j0:j1, i0:i1][jj[window], ii[window]]
+    return out
 
 
 def _resample(z, missing, step, h):

@@ -83,5 +83,5 @@ class HeightMap:
         """Hex digest of the heights and the lattice (a cache key ingredient)."""
         d = hashlib.sha256()
         d.update(f"{self.h!r}|{self.x0!r}|{self.y0!r}|{self.shape}".encode())
-        d.update(np.ascontiguousarray(self.heights).tobytes())
+        d.update(memoryview(np.ascontiguousarray(self.heights)).cast("B"))  # (its bytes, not a copy)
         return d.hexdigest()

@@ -292,7 +292,7 @@ def build_surface(
     seg: Segmentation = segment(hmap, min_distance=options.min_distance, prominence=options.prominence)
     # the laws' key: the map and every option but which law the macro step uses
     digest = hashlib.sha256((hmap.digest() + repr(dataclasses.replace(options, law="tabulated"))).encode())
-    digest.update(seg.labels.tobytes())
+    digest.update(memoryview(np.ascontiguousarray(seg.labels)).cast("B"))
     book = LawBook(digest.hexdigest(), hmap.h, options, cache)
     asperities, fit = map_asperities(hmap, seg, cap_depth=options.cap_depth, book=book)
     book.asperities = asperities
