@@ -21,7 +21,7 @@ import numpy as np
 
 #: The Parseval sum and its weights run over blocks of the half-spectrum's rows of about this
 #: many entries (their temporaries stay small beside the kept buffers on boxes of millions of
-#: cells: the weights of a 2700 x 2700 torus, made whole, took a 29 MB complex temporary,
+#: cells: the weights of a 2700 x 2700 padded grid, made whole, took a 29 MB complex temporary,
 #: fresh pages, 65-75 ms in the solve; in blocks 15-20 ms).
 ENERGY_CHUNK = 1 << 18
 
