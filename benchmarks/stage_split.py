@@ -28,7 +28,8 @@ import sys
 import time
 import warnings
 
-#: (module, attribute) of the calls timed; ``Class.method`` for methods.
+#: (module, attribute[, label]) of the calls timed; ``Class.method`` for methods; a label sums
+#: several calls under one name.
 STAGES = (
     ("twoscale.io.scene_file", "scene_from_dict"),
     ("twoscale.surface.measured", "condition"),
@@ -53,11 +54,24 @@ STAGES = (
     ("twoscale.influence.circulant", "CirculantInverse.energy_on_cells"),
     ("twoscale.influence.convolution", "ConvolutionOperator.apply"),
     ("twoscale.influence.convolution", "_SingleConvolution.exact"),
+    ("twoscale.influence.convolution", "_SingleConvolution._spectrum_in_place"),
+    ("twoscale.influence.convolution", "_SingleConvolution._back_in_place"),
+    ("twoscale.influence.circulant", "CirculantInverse._pruned"),
+    ("twoscale.influence.on_cells", "parseval_sum"),
+    # pocketfft's calls alone, by the module that makes them (the kernel's time outside
+    # them is ``pk_solve`` less these, where the CG runs on the float32 operator)
+    ("twoscale.influence.convolution", "rfft_into", "padded FFTs"),
+    ("twoscale.influence.convolution", "fft_in_place", "padded FFTs"),
+    ("twoscale.influence.convolution", "irfft_into", "padded FFTs"),
+    ("twoscale.influence.circulant", "rfft_into", "torus FFTs"),
+    ("twoscale.influence.circulant", "fft_in_place", "torus FFTs"),
+    ("twoscale.influence.circulant", "irfft_into", "torus FFTs"),
 )
 
 
-def _wrap(totals: dict, module: str, attribute: str) -> None:
-    """Time ``module.attribute`` into ``totals[attribute]`` = [calls, CPU s] (absent: skipped)."""
+def _wrap(totals: dict, module: str, attribute: str, label: str | None = None) -> None:
+    """Time ``module.attribute`` into ``totals[label or attribute]`` = [calls, CPU s] (absent:
+    skipped; calls wrapped under one label add up)."""
     try:
         owner = importlib.import_module(module)
     except ImportError:
@@ -75,7 +89,7 @@ def _wrap(totals: dict, module: str, attribute: str) -> None:
         try:
             return call(*args, **kwargs)
         finally:
-            entry = totals.setdefault(attribute, [0, 0.0])
+            entry = totals.setdefault(label or attribute, [0, 0.0])
             entry[0] += 1
             entry[1] += time.process_time() - t0
 
@@ -89,8 +103,8 @@ def child(case: str) -> dict:
 
     ab_trees._solver_imports()
     totals: dict = {}
-    for module, attribute in STAGES:
-        _wrap(totals, module, attribute)
+    for stage in STAGES:
+        _wrap(totals, *stage)
     kind, arg = case.split(":", 1)
     run = ab_trees.CASES[kind](os.path.abspath(arg) if kind.startswith("file") else arg)
     with warnings.catch_warnings():

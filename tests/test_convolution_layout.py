@@ -212,6 +212,34 @@ def test_a_part_product_in_two_halves_is_the_product_and_its_energy_the_inner_pr
         product.finish()
 
 
+@pytest.mark.parametrize("chunk", [1, 700, 1 << 18])
+def test_the_energy_weights_made_in_blocks_give_the_inner_product(monkeypatch, chunk):
+    """The Parseval weights made block by block of the half-spectrum's rows (one row, a few
+    rows, all at once) are the whole spectrum's phase-shifted real part, and the step's
+    ``v.A v`` from them is the float64 product's to the float32 spectrum's rounding."""
+    from twoscale.influence import on_cells
+
+    monkeypatch.setattr(on_cells, "ENERGY_CHUNK", chunk)
+    g = Grid(0.0, 0.0, H, 71, 53)
+    op = HS.grid_operator(g)
+    single = op.single_precision()
+    (ny, nx), (my, mx) = g.shape, single.fft_shape
+    khat = single._khat
+    w = on_cells.energy_weights(khat, g.shape, (my, mx))
+    ky, kx = np.meshgrid(np.arange(my // 2 + 1), np.arange(mx), indexing="ij")
+    phase = np.exp(2j * np.pi * (ky * (ny - 1) / my + kx * (nx - 1) / mx))
+    whole = (khat.astype(complex) * phase).real * np.where((ky >= 1) & (ky < (my + 1) // 2), 2.0, 1.0) / (my * mx)
+    assert np.allclose(w, whole, rtol=0.0, atol=1e-6 * np.abs(whole).max())
+    rng = np.random.default_rng(8)
+    cells = np.flatnonzero(rng.uniform(size=g.size) < 0.4)
+    v = rng.standard_normal(cells.size)
+    p = np.zeros(g.size)
+    p[cells] = v
+    exact = float(p @ op.apply(p.reshape(g.shape)).ravel())
+    spectrum = single.on_cells(cells).forward(v).spectrum
+    assert on_cells.parseval_sum(spectrum, w) == pytest.approx(exact, rel=1e-6)
+
+
 def test_the_product_on_every_cell_in_halves_is_the_grids_product():
     """``on_cells(None)``: every cell through the operator's own padded field (no index
     arrays), the grid's float32 product to the bit, begun and finished or in one call, and
