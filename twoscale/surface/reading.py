@@ -16,6 +16,8 @@ from __future__ import annotations
 
 import os
 import warnings
+import zipfile
+import zlib
 from dataclasses import dataclass
 
 import numpy as np
@@ -26,6 +28,10 @@ TEXT_SUFFIXES = (".txt", ".csv", ".asc", ".dat")
 POINT_SUFFIXES = (".xyz",)
 #: Smallest map accepted, samples per side (a summit and its basin need a few cells).
 MIN_SIDE = 3
+#: What numpy's readers raise on a damaged file: a truncated ``.npz`` is no zip archive
+#: (``BadZipFile``) or a member fails its checksum or decompression, an empty ``.npy``
+#: ends before its header (``EOFError``).
+DAMAGED_FILE_ERRORS = (OSError, ValueError, EOFError, zipfile.BadZipFile, zlib.error)
 
 
 @dataclass(frozen=True, eq=False)
@@ -100,7 +106,7 @@ def read_heightmap(path: str | os.PathLike) -> RawMap:
             raw = _read_instrument(name)
     except SurfaceError:
         raise
-    except (OSError, ValueError) as exc:
+    except DAMAGED_FILE_ERRORS as exc:
         raise SurfaceError(f"{name}: cannot read the height map ({_first_line(exc)})") from None
     return raw
 
