@@ -6,7 +6,7 @@ the only array; optional scalars ``spacing`` in mm and ``units``), text grids (`
 x-y-z point lists (``.xyz``: one point a line on a regular lattice, any order).
 Everything else goes to SurfaceTopography's readers (ISO 25178 X3P, Digital Surf SUR,
 Wyko OPD, Sensofar PLU, Zygo DATX, Keyence VK, Gwyddion GWY, ...), the optional extra
-``pip install "twoscale[surfaces]"``; no instrument format is parsed by hand here.
+``pip install ".[surfaces]"`` in the repository; no instrument format is parsed by hand here.
 
 A plain array's rows are y and its columns x. Heights are returned in the file's units
 (converted by :mod:`.conditioning`); the point list's x and y share the heights' units.
@@ -204,7 +204,7 @@ def _read_instrument(name: str) -> RawMap:
     except ImportError:
         raise SurfaceError(
             f"{name}: not a plain format (.npy, .npz, text grid, .xyz); instrument formats "
-            f'need the optional extra: pip install "twoscale[surfaces]"'
+            f'need the optional extra: pip install ".[surfaces]" in the repository'
         ) from None
     try:
         with warnings.catch_warnings():  # its netCDF reader warns about its own memory map
