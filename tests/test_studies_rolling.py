@@ -246,3 +246,21 @@ def test_strip_file_sections_are_keyed_by_the_files_content(tmp_path):
     assert not set(keys) & {case_key(c, read_study(path)) for c in expand(read_study(path))}
     example = read_study(Path(__file__).resolve().parents[1] / "examples" / "rolling" / "study.toml")
     assert example.n_cases == 8 and [s.name for s in example.sections] == ["example@0mm", "example@30mm"]
+
+
+def test_a_local_workers_warnings_are_one_line_each(study_file, tmp_path):
+    """The slow tread's coarse step warns in the worker that rolls it: on the local cluster
+    that line reads as the command's own (``warning: ...``), not Python's default with the
+    library's source file, line number and code."""
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    root = Path(__file__).resolve().parents[1]
+    env = {**os.environ, "PYTHONPATH": str(root)}
+    command = [sys.executable, "-m", "twoscale", "study", str(study_file), "--out", str(tmp_path / "out")]
+    proc = subprocess.run(command + ["--workers", "1", "--quiet"], capture_output=True, text=True, env=env, timeout=600)
+    assert proc.returncode == 0, proc.stderr
+    lines = proc.stderr.splitlines()
+    assert any("coarser than" in line for line in lines), proc.stderr
+    assert all(line.startswith("warning: ") for line in lines), proc.stderr
