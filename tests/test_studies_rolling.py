@@ -264,3 +264,17 @@ def test_a_local_workers_warnings_are_one_line_each(study_file, tmp_path):
     lines = proc.stderr.splitlines()
     assert any("coarser than" in line for line in lines), proc.stderr
     assert all(line.startswith("warning: ") for line in lines), proc.stderr
+
+
+def test_an_empty_bands_table_is_explained(study_file, tmp_path, capsys):
+    """Runs of 2 mm resolve no third-octave band (3 bins, 1 / duration apart): bands.csv has
+    its header only, and the summary says why rather than leaving an empty table unexplained."""
+    import pandas as pd
+
+    text = study_file.read_text().replace("prony = [[40.0, 2e-3]]", "")  # elastic only: one quick roll
+    study_file.write_text(text.replace('name = "tread"', 'name = "tread2"'), encoding="utf-8")
+    out = tmp_path / "out"
+    assert main(["study", str(study_file), "--out", str(out), "--workers", "0"]) == 0
+    assert len(pd.read_csv(out / "bands.csv")) == 0
+    said = [line for line in capsys.readouterr().out.splitlines() if line.startswith("bands.csv has no rows")]
+    assert len(said) == 1 and "longest run 2 mm" in said[0]
