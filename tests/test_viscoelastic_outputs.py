@@ -124,3 +124,18 @@ def test_the_history_table_has_its_metadata_as_every_table(tmp_path):
     assert [c["name"] for c in meta["tableSchema"]["columns"]] == columns
     assert all(c.get("dc:description") for c in meta["tableSchema"]["columns"])
     assert meta["twoscale"]["units"]["force"] == "N" and meta["twoscale"]["scene"]["material"]["prony"] == [[8.0, 1.0]]
+
+
+def test_a_penetration_history_from_zero_writes_every_file(tmp_path):
+    """The README's ``penetration = [[0, 0.0], [1, 0.3]]``: at t = 0 nothing touches (no
+    pressure field), which the time series must take as a frame of zero pressure, not fail on."""
+    text = SCENE.format(tilt="").replace("total = [[0, 2.0], [2, 2.0], [3, 0.5]]", "penetration = [[0, 0.0], [3, 0.1]]")
+    out = tmp_path / "out"
+    assert main(["solve", str(_write(tmp_path, text)), "--out", str(out), "--quiet"]) == 0
+    sets = ET.parse(out / "fields.pvd").getroot().findall("./Collection/DataSet")
+    assert [float(s.get("timestep")) for s in sets] == [0, 0.5, 2, 2.5, 3]
+    first, last = (read_image(out / sets[k].get("file")).cell_data["pressure_MPa"] for k in (0, -1))
+    assert not first.any() and last.max() > 0
+    with open(out / "history.csv", newline="") as fh:
+        rows = list(csv.DictReader(fh))
+    assert float(rows[0]["total_load_N"]) == 0.0 and float(rows[-1]["total_load_N"]) > 0.0

@@ -147,24 +147,32 @@ def write_history_json(result, scene: Scene, path) -> Path:
     return path
 
 
-def _covering(results) -> Grid:
-    boxes = np.array([f.grid.bounds for r in results for f in r.fields])
-    h = results[0].fields[0].grid.h
-    anchor = (results[0].fields[0].grid.x0, results[0].fields[0].grid.y0)
+def _covering(results) -> Grid | None:
+    """One grid over every output time's fields (None when no time has any: no contact at
+    all). A time without contact (a history starting at zero) has no fields."""
+    fields = [f for r in results for f in r.fields]
+    if not fields:
+        return None
+    boxes = np.array([f.grid.bounds for f in fields])
+    h = fields[0].grid.h
+    anchor = (fields[0].grid.x0, fields[0].grid.y0)
     e = 0.25 * h
     return Grid.covering(
         boxes[:, 0].min() + e, boxes[:, 1].max() - e, boxes[:, 2].min() + e, boxes[:, 3].max() - e, h, anchor=anchor
     )
 
 
-def write_history_fields(result, path, *, comment: str | None = None) -> Path:
-    """Write ``fields.pvd`` and ``fields/t_NNNN.vti`` (pressure MPa, gap mm, owner from 1)."""
+def write_history_fields(result, path, *, comment: str | None = None) -> Path | None:
+    """Write ``fields.pvd`` and ``fields/t_NNNN.vti`` (pressure MPa, gap mm, owner from 1);
+    nothing (None) when no output time has a contact."""
     from .vti import write_image
 
     path = Path(path)
+    grid = _covering(result.results)
+    if grid is None:
+        return None
     folder = path.parent / path.stem
     folder.mkdir(parents=True, exist_ok=True)
-    grid = _covering(result.results)
     entries = []
     for k, (t, res) in enumerate(zip(result.times, result.results)):
         p = res.pressure_on(grid)
@@ -199,9 +207,10 @@ def write_history_outputs(
         write_history_json(result, scene, out / HISTORY_JSON_NAME),
     ]
     if vtk:
-        written.append(
-            write_history_fields(result, out / HISTORY_FIELDS_NAME, comment=f"twoscale {__version__}; units mm, MPa, s")
+        fields = write_history_fields(
+            result, out / HISTORY_FIELDS_NAME, comment=f"twoscale {__version__}; units mm, MPa, s"
         )
+        written += [fields] if fields is not None else []
     if figures:
         from ..plot.history import history_figure
 
