@@ -100,3 +100,40 @@ def test_the_design_layout_names_every_module_and_package():
         p.name for p in package.iterdir() if p.is_dir() and (p / "__init__.py").exists()
     }
     assert have <= named, f"missing from docs/DESIGN.md's layout: {sorted(have - named)}"
+
+
+# the files a guide tells the reader to write themselves, and placeholders (SCENE.toml)
+_OWN_FILES = {"scene.toml"}
+
+
+def _doc_commands() -> list[tuple[str, str]]:
+    """``(file, command)`` for every ``twoscale`` / ``pip install`` line the README and the
+    guides show, inline in backticks or on a line of a code block."""
+    found = []
+    for path in [ROOT / "README.md", *sorted(DOCS.glob("*.md"))]:
+        for line in path.read_text().splitlines():
+            inline = re.findall(r"`((?:twoscale|pip install) [^`]+)`", line)
+            block = [line.strip()] if re.match(r"\s*(twoscale|pip install) ", line) else []
+            found += [(path.name, c) for c in inline + block]
+    return found
+
+
+def test_every_command_the_docs_show_names_files_of_the_repository():
+    """A command copied from a guide runs from a clone: the scene or study file it names
+    exists (relative to the repository), and an extra is installed from the repository
+    (``pip install ".[study]"``), not asked of the package index by name."""
+    missing, indexed = [], []
+    for name, command in _doc_commands():
+        words = command.split()
+        if words[0] == "pip":
+            indexed += [(name, command) for w in words[2:] if w.strip("\"'").startswith("twoscale")]
+            continue
+        if len(words) < 3 or words[1] not in ("solve", "compare", "surface", "study"):
+            continue
+        arg = words[2]
+        if not arg.endswith(".toml") or arg in _OWN_FILES or re.fullmatch(r"[A-Z_]+", Path(arg).stem):
+            continue
+        if not (ROOT / arg).is_file():
+            missing.append((name, command))
+    assert not missing, f"commands naming files the repository does not have: {missing}"
+    assert not indexed, f"extras asked of the package index instead of the repository: {indexed}"

@@ -102,3 +102,24 @@ def test_space_time_draws_the_array_it_is_given(tmp_path):
     )
     assert json.loads(png_info(path)[1]["Description"])["scene"] == {"name": "demo"}
     assert "clipped" in plot_space_time(shifts, x, spiked).axes[1].get_ylabel()
+
+
+@pytest.mark.parametrize("which", ["signals", "bands", "space_time"])
+def test_a_study_cases_long_title_stays_inside_the_figure(which):
+    """A study case's title (section, body, material, load, speed, body, what is drawn) is
+    wider than one line of the axes: it is broken into lines that the figure holds."""
+    title = "example@0mm slick visco W=300N 50km/h on the half-space: pressure across the footprint"
+    if which == "signals":
+        fig = plot_signals(T, FORCE, AREA, title=title)
+        ax = fig.axes[0]
+    elif which == "bands":
+        fig = plot_band_levels([400.0, 500.0], [40.0, 42.0], title=title)
+        ax = fig.axes[0]
+    else:
+        x, s = np.linspace(-10, 10, 21), np.linspace(0, 5, 6)
+        fig = plot_space_time(s, x, np.ones((6, 21)), title=title)
+        ax = fig.axes[0]
+    renderer = fig.canvas.get_renderer()
+    box = ax.title.get_window_extent(renderer)
+    assert box.x0 >= 0 and box.x1 <= fig.bbox.x1 and box.y1 <= fig.bbox.y1
+    assert ax.get_title().replace("\n", " ") == title

@@ -187,6 +187,9 @@ def test_read_tip_forces_both_layouts(tmp_path):
     c.write_text("asperity,force\n0,3.0\n1,4.0\n")
     with pytest.raises(ValueError, match="asperity must be the integers 1..2"):
         read_tip_forces(c)
+    c.write_text("asperity,force\n1,5.0\n99,3.0\n")  # two of a scene's seven tips
+    with pytest.raises(ValueError, match="2 forces for a scene of 7 asperities"):
+        read_tip_forces(c, n_asperities=7)
 
 
 @pytest.mark.parametrize(

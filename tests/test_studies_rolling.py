@@ -246,3 +246,35 @@ def test_strip_file_sections_are_keyed_by_the_files_content(tmp_path):
     assert not set(keys) & {case_key(c, read_study(path)) for c in expand(read_study(path))}
     example = read_study(Path(__file__).resolve().parents[1] / "examples" / "rolling" / "study.toml")
     assert example.n_cases == 8 and [s.name for s in example.sections] == ["example@0mm", "example@30mm"]
+
+
+def test_a_local_workers_warnings_are_one_line_each(study_file, tmp_path):
+    """The slow tread's coarse step warns in the worker that rolls it: on the local cluster
+    that line reads as the command's own (``warning: ...``), not Python's default with the
+    library's source file, line number and code."""
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    root = Path(__file__).resolve().parents[1]
+    env = {**os.environ, "PYTHONPATH": str(root)}
+    command = [sys.executable, "-m", "twoscale", "study", str(study_file), "--out", str(tmp_path / "out")]
+    proc = subprocess.run(command + ["--workers", "1", "--quiet"], capture_output=True, text=True, env=env, timeout=600)
+    assert proc.returncode == 0, proc.stderr
+    lines = proc.stderr.splitlines()
+    assert any("coarser than" in line for line in lines), proc.stderr
+    assert all(line.startswith("warning: ") for line in lines), proc.stderr
+
+
+def test_an_empty_bands_table_is_explained(study_file, tmp_path, capsys):
+    """Runs of 2 mm resolve no third-octave band (3 bins, 1 / duration apart): bands.csv has
+    its header only, and the summary says why rather than leaving an empty table unexplained."""
+    import pandas as pd
+
+    text = study_file.read_text().replace("prony = [[40.0, 2e-3]]", "")  # elastic only: one quick roll
+    study_file.write_text(text.replace('name = "tread"', 'name = "tread2"'), encoding="utf-8")
+    out = tmp_path / "out"
+    assert main(["study", str(study_file), "--out", str(out), "--workers", "0"]) == 0
+    assert len(pd.read_csv(out / "bands.csv")) == 0
+    said = [line for line in capsys.readouterr().out.splitlines() if line.startswith("bands.csv has no rows")]
+    assert len(said) == 1 and "longest run 2 mm" in said[0]

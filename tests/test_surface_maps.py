@@ -76,6 +76,34 @@ def test_bad_files_name_the_file(tmp_path, content, name, message):
     assert name in str(err.value) and "\n" not in str(err.value)
 
 
+@pytest.mark.parametrize("name, keep", [("road.npz", 0.5), ("road.npy", 0.0), ("road.npz", 0.0)])
+def test_damaged_files_are_one_line_errors(tmp_path, name, keep):
+    """A half-copied .npz (no zip directory) or an empty .npy is a SurfaceError naming the
+    file, as any other unreadable map, not numpy's own exception."""
+    whole = tmp_path / ("whole" + name[-4:])
+    z = np.arange(100.0).reshape(10, 10)
+    np.savez(whole, heights=z, spacing=0.1) if name.endswith(".npz") else np.save(whole, z)
+    data = whole.read_bytes()
+    (tmp_path / name).write_bytes(data[: int(len(data) * keep)])
+    with pytest.raises(SurfaceError, match="cannot read the height map") as err:
+        read_heightmap(tmp_path / name)
+    assert name in str(err.value) and "\n" not in str(err.value)
+
+
+def test_a_map_from_python_is_told_where_its_spacing_and_its_class_go():
+    """Heights given in Python without a spacing are told the Python spelling (RawMap or
+    SurfaceOptions), not the scene file's; a height map passed where tips are expected is
+    told its class."""
+    import twoscale
+
+    z = np.random.default_rng(3).random((20, 30))
+    with pytest.raises(SurfaceError, match=r"RawMap\(heights, spacing=\.\.\.\)") as err:
+        twoscale.build_surface(RawMap(z, units="mm"))
+    assert "[surface]" not in str(err.value)
+    with pytest.raises(ValueError, match=r"twoscale\.RawMap\(heights, spacing="):
+        twoscale.solve(z, material=twoscale.Material(10.0, 0.5), total_load=10.0)
+
+
 def test_all_nan_too_small_and_no_spacing(tmp_path):
     np.save(tmp_path / "nan.npy", np.full((5, 5), np.nan))
     with pytest.raises(SurfaceError, match="all NaN"):

@@ -107,3 +107,35 @@ def test_bad_input_exits_2_and_writes_nothing(tmp_path, capsys, change, text):
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and err[0].startswith("error: ")
     assert not out.exists()
+
+
+def test_the_history_table_has_its_metadata_as_every_table(tmp_path):
+    """history.csv opens in pandas with the documented columns, and its metadata JSON
+    (version, units, scene, a description per column) lies beside it as for every table."""
+    import pandas as pd
+
+    out = tmp_path / "out"
+    assert main(["solve", str(_write(tmp_path, SCENE.format(tilt=""))), "--out", str(out), "--quiet"]) == 0
+    table = pd.read_csv(out / "history.csv")
+    columns = ["time_s", "penetration_mm", "total_load_N", "contact_area_mm2", "force_1", "force_2", "force_3"]
+    assert list(table.columns) == columns
+    np.testing.assert_allclose(table[columns[4:]].sum(axis=1), table.total_load_N, rtol=1e-6)
+    meta = json.loads((out / "history.csv-metadata.json").read_text())
+    assert [c["name"] for c in meta["tableSchema"]["columns"]] == columns
+    assert all(c.get("dc:description") for c in meta["tableSchema"]["columns"])
+    assert meta["twoscale"]["units"]["force"] == "N" and meta["twoscale"]["scene"]["material"]["prony"] == [[8.0, 1.0]]
+
+
+def test_a_penetration_history_from_zero_writes_every_file(tmp_path):
+    """The README's ``penetration = [[0, 0.0], [1, 0.3]]``: at t = 0 nothing touches (no
+    pressure field), which the time series must take as a frame of zero pressure, not fail on."""
+    text = SCENE.format(tilt="").replace("total = [[0, 2.0], [2, 2.0], [3, 0.5]]", "penetration = [[0, 0.0], [3, 0.1]]")
+    out = tmp_path / "out"
+    assert main(["solve", str(_write(tmp_path, text)), "--out", str(out), "--quiet"]) == 0
+    sets = ET.parse(out / "fields.pvd").getroot().findall("./Collection/DataSet")
+    assert [float(s.get("timestep")) for s in sets] == [0, 0.5, 2, 2.5, 3]
+    first, last = (read_image(out / sets[k].get("file")).cell_data["pressure_MPa"] for k in (0, -1))
+    assert not first.any() and last.max() > 0
+    with open(out / "history.csv", newline="") as fh:
+        rows = list(csv.DictReader(fh))
+    assert float(rows[0]["total_load_N"]) == 0.0 and float(rows[-1]["total_load_N"]) > 0.0

@@ -207,3 +207,16 @@ def test_indenter_height_of_many_mixed_tips_is_the_rigid_surface(tmp_path):
     back = read_vtk(write_vtk(res, tmp_path / "m.vtm", asperities=asp))
     for g, z in zip(grids, back.indenter_height):
         np.testing.assert_array_equal(z, surface_on(g, asp).height)
+
+
+@pytest.mark.parametrize("which, keep", [("image", 0.02), ("image", 0.6), ("multiblock", 0.5)])
+def test_damaged_file_is_a_value_error_naming_it(tmp_path, which, keep):
+    """A file cut short (an interrupted copy) is one ValueError naming the file, which the
+    command line turns into its one ``error:`` line, not a parser's traceback."""
+    write_vtk(_two_patch_result(), tmp_path / "f.vtm")
+    victim = sorted((tmp_path / "f").glob("*.vti"))[0] if which == "image" else tmp_path / "f.vtm"
+    data = victim.read_bytes()
+    victim.write_bytes(data[: int(len(data) * keep)])
+    with pytest.raises(ValueError, match="damaged") as err:
+        read_vtk(tmp_path / "f.vtm")
+    assert str(victim) in str(err.value) and "\n" not in str(err.value)

@@ -347,6 +347,8 @@ def read_tip_forces(path: str | Path, *, n_asperities: int | None = None) -> Mea
         if vals[-1][-1] < 0:
             raise ValueError(f"{path}:{lineno}: force must be >= 0 (N), got {cells[-1]!r}")
     a = np.array(vals)
+    if n_asperities is not None and len(a) != n_asperities:  # before the numbering, which counts the rows
+        raise ValueError(f"{path}: {len(a)} forces for a scene of {n_asperities} asperities")
     if cols[0] in ("asperity", "index"):
         first = 1 if cols[0] == "asperity" else 0
         idx = a[:, 0] - first
@@ -360,8 +362,6 @@ def read_tip_forces(path: str | Path, *, n_asperities: int | None = None) -> Mea
         tips = None
     else:
         force, tips = a[:, 2].copy(), a[:, :2].copy()
-    if n_asperities is not None and len(force) != n_asperities:
-        raise ValueError(f"{path}: {len(force)} forces for a scene of {n_asperities} asperities")
     return MeasuredForces(force, tips)
 
 

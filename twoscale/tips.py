@@ -91,7 +91,14 @@ def as_asperities(tips: Any, *, shape: str = "sphere") -> tuple[Asperity, ...]:
     if isinstance(tips, np.ndarray) or (isinstance(tips, Sequence) and tips and not isinstance(tips[0], Asperity)):
         a = np.asarray(tips, dtype=float)
         if a.ndim != 2 or a.shape[1] not in (3, 4):
-            raise ValueError(f"tips as an array must have shape (n, 3) [x, y, R] or (n, 4) [x, y, R, z], got {a.shape}")
+            hint = (
+                "; a height map (rows y, columns x) is twoscale.RawMap(heights, spacing=..., units=...)"
+                if a.ndim == 2 and min(a.shape) >= 3
+                else ""
+            )
+            raise ValueError(
+                f"tips as an array must have shape (n, 3) [x, y, R] or (n, 4) [x, y, R, z], got {a.shape}{hint}"
+            )
         return asperities(a[:, 0], a[:, 1], a[:, 2], a[:, 3] if a.shape[1] == 4 else 0.0, shape=shape)
     if isinstance(tips, Sequence) and all(isinstance(t, Asperity) for t in tips):
         return tuple(tips)

@@ -3,7 +3,8 @@
 * ``history.csv``: a row per output time; columns exactly ``time_s, penetration_mm,
   total_load_N, contact_area_mm2`` (then ``tilt_x_rad, tilt_y_rad`` under tilt), then
   ``force_1, ..., force_N`` (N; asperities numbered from 1 in scene order); header on the
-  first line, no comment lines (the record is in ``result.json``);
+  first line, no comment lines; ``history.csv-metadata.json`` beside it, as for every
+  table (:mod:`.tables`: version, units, scene, what each column holds);
 * ``result.json``: the material (branches, retardation times), the history, the steps
   taken (times, lengths, effective compliances, error estimates), the largest error
   estimate, the memory held, the histories as lists, the version and the scene;
@@ -14,7 +15,6 @@
 
 from __future__ import annotations
 
-import csv
 import json
 from pathlib import Path
 from xml.sax.saxutils import quoteattr
@@ -25,6 +25,7 @@ from .._version import __version__
 from ..grid import Grid
 from ..scene import Scene
 from .scene_file import scene_to_dict
+from .tables import write_table
 
 HISTORY_CSV_NAME = "history.csv"
 HISTORY_JSON_NAME = "result.json"
@@ -50,20 +51,41 @@ def history_columns(n_asperities: int, tilt: bool) -> list[str]:
     return cols + [f"force_{k}" for k in range(1, n_asperities + 1)]
 
 
-def write_history_csv(result, path) -> Path:
-    """Write ``history.csv`` (module docstring); numbers with 17 significant digits."""
+def write_history_csv(result, path, *, scene: Scene | None = None) -> list[Path]:
+    """Write ``history.csv`` (module docstring) and its ``history.csv-metadata.json``, as
+    every table (:func:`twoscale.io.tables.write_table`); the paths written, the CSV first."""
     path = Path(path)
     tilt = result.tilt is not None
-    with open(path, "w", newline="") as fh:
-        w = csv.writer(fh)
-        w.writerow(history_columns(result.forces.shape[1], tilt))
-        for k in range(len(result.times)):
-            row = [result.times[k], result.penetration[k], result.total_load[k], result.contact_area[k]]
-            if tilt:
-                row += list(result.tilt[k])
-            row += list(result.forces[k])
-            w.writerow([repr(float(v)) for v in row])
-    return path
+    columns = history_columns(result.forces.shape[1], tilt)
+    rows = []
+    for k in range(len(result.times)):
+        row = [result.times[k], result.penetration[k], result.total_load[k], result.contact_area[k]]
+        if tilt:
+            row += list(result.tilt[k])
+        rows.append(dict(zip(columns, [float(v) for v in row + list(result.forces[k])])))
+    descriptions = {
+        "time_s": "output time, s",
+        "penetration_mm": "rigid approach, mm",
+        "total_load_N": "total normal load, N",
+        "contact_area_mm2": "contact area, mm2",
+        "tilt_x_rad": "tilt about x, rad",
+        "tilt_y_rad": "tilt about y, rad",
+        **{
+            c: f"force of asperity {c[6:]} (numbered from 1 in scene order), N"
+            for c in columns[4:]
+            if c[:6] == "force_"
+        },
+    }
+    record = {"units": dict(UNITS), "scene": None if scene is None else scene_to_dict(scene)}
+    return write_table(
+        path.parent,
+        path.name.removesuffix(".csv"),
+        rows,
+        columns,
+        title="a load history's answers, a row per output time",
+        record=record,
+        descriptions=descriptions,
+    )
 
 
 def history_to_dict(result, scene: Scene) -> dict:
@@ -125,24 +147,32 @@ def write_history_json(result, scene: Scene, path) -> Path:
     return path
 
 
-def _covering(results) -> Grid:
-    boxes = np.array([f.grid.bounds for r in results for f in r.fields])
-    h = results[0].fields[0].grid.h
-    anchor = (results[0].fields[0].grid.x0, results[0].fields[0].grid.y0)
+def _covering(results) -> Grid | None:
+    """One grid over every output time's fields (None when no time has any: no contact at
+    all). A time without contact (a history starting at zero) has no fields."""
+    fields = [f for r in results for f in r.fields]
+    if not fields:
+        return None
+    boxes = np.array([f.grid.bounds for f in fields])
+    h = fields[0].grid.h
+    anchor = (fields[0].grid.x0, fields[0].grid.y0)
     e = 0.25 * h
     return Grid.covering(
         boxes[:, 0].min() + e, boxes[:, 1].max() - e, boxes[:, 2].min() + e, boxes[:, 3].max() - e, h, anchor=anchor
     )
 
 
-def write_history_fields(result, path, *, comment: str | None = None) -> Path:
-    """Write ``fields.pvd`` and ``fields/t_NNNN.vti`` (pressure MPa, gap mm, owner from 1)."""
+def write_history_fields(result, path, *, comment: str | None = None) -> Path | None:
+    """Write ``fields.pvd`` and ``fields/t_NNNN.vti`` (pressure MPa, gap mm, owner from 1);
+    nothing (None) when no output time has a contact."""
     from .vti import write_image
 
     path = Path(path)
+    grid = _covering(result.results)
+    if grid is None:
+        return None
     folder = path.parent / path.stem
     folder.mkdir(parents=True, exist_ok=True)
-    grid = _covering(result.results)
     entries = []
     for k, (t, res) in enumerate(zip(result.times, result.results)):
         p = res.pressure_on(grid)
@@ -173,13 +203,14 @@ def write_history_outputs(
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     written = [
-        write_history_csv(result, out / HISTORY_CSV_NAME),
+        *write_history_csv(result, out / HISTORY_CSV_NAME, scene=scene),
         write_history_json(result, scene, out / HISTORY_JSON_NAME),
     ]
     if vtk:
-        written.append(
-            write_history_fields(result, out / HISTORY_FIELDS_NAME, comment=f"twoscale {__version__}; units mm, MPa, s")
+        fields = write_history_fields(
+            result, out / HISTORY_FIELDS_NAME, comment=f"twoscale {__version__}; units mm, MPa, s"
         )
+        written += [fields] if fields is not None else []
     if figures:
         from ..plot.history import history_figure
 

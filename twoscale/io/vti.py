@@ -24,10 +24,11 @@ Example
 
 from __future__ import annotations
 
+import contextlib
 import xml.etree.ElementTree as ET
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Mapping, Sequence
+from typing import Iterator, Mapping, Sequence
 from xml.sax.saxutils import quoteattr
 
 import numpy as np
@@ -164,6 +165,20 @@ def write_multiblock(path: str | Path, blocks: Sequence[tuple[str, str]], *, com
     return path
 
 
+@contextlib.contextmanager
+def _damaged_is_value_error(path: str | Path) -> Iterator[None]:
+    """What parsing a damaged file raises (XML cut short, arrays shorter than their byte
+    counts, attributes missing) as one ``ValueError`` that names the file."""
+    try:
+        yield
+    except (ValueError, ET.ParseError, IndexError, KeyError, TypeError, AttributeError) as exc:
+        text = str(exc).strip().splitlines()
+        reason = text[0] if text else type(exc).__name__
+        if reason.startswith(str(path)):
+            raise
+        raise ValueError(f"{path}: damaged or not a VTK file written by twoscale ({reason})") from None
+
+
 def _header(data: bytes) -> tuple[ET.Element, str, int]:
     """The XML tree (appended data cut off), the first comment, and where raw data start."""
     cut = data.find(b"<AppendedData")
@@ -194,8 +209,13 @@ def _array(el: ET.Element, data: bytes, start: int) -> np.ndarray:
 
 
 def read_image(path: str | Path) -> Image:
-    """Read a ``.vti`` file written by :func:`write_image` (raw appended or ASCII arrays)."""
-    data = Path(path).read_bytes()
+    """Read a ``.vti`` file written by :func:`write_image` (raw appended or ASCII arrays).
+    A damaged file (cut short, overwritten) is a ``ValueError`` naming it."""
+    with _damaged_is_value_error(path):
+        return _read_image(path, Path(path).read_bytes())
+
+
+def _read_image(path: str | Path, data: bytes) -> Image:
     root, comment, start = _header(data)
     image = root.find("ImageData")
     if root.get("type") != "ImageData" or image is None:
@@ -215,7 +235,8 @@ def read_image(path: str | Path) -> Image:
 def read_multiblock(path: str | Path) -> tuple[list[tuple[str, Path]], str]:
     """The ``(name, path)`` blocks of a ``.vtm`` file (paths resolved beside it) and its comment."""
     path = Path(path)
-    root, comment, _ = _header(path.read_bytes())
+    with _damaged_is_value_error(path):
+        root, comment, _ = _header(path.read_bytes())
     mb = root.find("vtkMultiBlockDataSet")
     if root.get("type") != "vtkMultiBlockDataSet" or mb is None:
         raise ValueError(f"{path} is not a VTK multiblock file")

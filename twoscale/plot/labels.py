@@ -72,3 +72,23 @@ def scene_text(scene=None, name: str | None = None, *, result=None) -> str:
 def join_title(*parts: str) -> str:
     """Non-empty parts joined by ": " (the scene first, then what is drawn)."""
     return ": ".join(p for p in parts if p)
+
+
+def set_fitted_title(ax, title: str) -> None:
+    """``ax.set_title(title)`` within the axes' width (a study case's label names section,
+    body, material, load and speed: on one line at the default size it ran off the
+    figure's edge): a smaller font down to 8 pt, then lines broken at spaces. Characters
+    are taken as 0.6 of the font size wide."""
+    import textwrap
+
+    from matplotlib import rcParams
+    from matplotlib.font_manager import FontProperties
+
+    points = FontProperties(size=rcParams["axes.titlesize"]).get_size_in_points()
+    width_pt = ax.get_position().width * ax.figure.get_figwidth() * 72.0
+    if len(title) * 0.6 * points <= width_pt:
+        ax.set_title(title)
+        return
+    size = max(8.0, width_pt / (0.6 * len(title)))
+    chars = max(20, int(width_pt / (0.6 * size)))
+    ax.set_title(textwrap.fill(title, chars, break_long_words=False, break_on_hyphens=False), fontsize=size)

@@ -18,7 +18,7 @@ from pathlib import Path
 import numpy as np
 
 from ._figure import figure_and_axes, new_figure, save_png
-from .labels import X_MM, join_title, scene_text
+from .labels import X_MM, join_title, scene_text, set_fitted_title
 from .scale import robust_scale
 from .style import NO_CAPTION, PLAIN, Caption, FigureStyle
 
@@ -75,7 +75,7 @@ def plot_signals(
         ax.grid(alpha=0.3)
     axes[1].set_xlabel(TIME_S)
     if title:
-        axes[0].set_title(title)
+        set_fitted_title(axes[0], title)
     return fig
 
 
@@ -135,7 +135,7 @@ def plot_band_levels(
     ax.set_ylabel(level_label)
     ax.grid(axis="y", alpha=0.3, zorder=1)
     if title:
-        ax.set_title(title)
+        set_fitted_title(ax, title)
     return fig
 
 
@@ -197,7 +197,7 @@ def plot_space_time(
     ax.set_xlabel(f"body {X_MM}")
     ax.set_ylabel(SHIFT_MM)
     if title:
-        ax.set_title(title)
+        set_fitted_title(ax, title)
     return fig
 
 

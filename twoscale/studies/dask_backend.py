@@ -17,7 +17,9 @@ import contextlib
 import importlib
 import logging
 import signal
+import sys
 import uuid
+import warnings
 from typing import Callable, Iterator
 
 import numpy as np
@@ -67,19 +69,31 @@ LOCAL_CONFIG = {
 }
 
 
+def warning_line(message, category, filename, lineno, file=None, line=None) -> None:
+    """A library warning as one ``warning:`` line on stderr, as the command prints its own
+    (Python's default adds the warning's source file, line and code)."""
+    print(f"warning: {message}", file=sys.stderr)
+
+
 class ProvidersPlugin(WorkerPlugin):
-    """Gives each worker a :class:`ProviderCache` (owned by the worker, dropped with it)."""
+    """Gives each worker a :class:`ProviderCache` (owned by the worker, dropped with it).
+    ``warning_lines``: the worker prints warnings (a case's coarse step or cell size) as
+    one ``warning:`` line each; set for the local cluster's workers, which share the
+    command's terminal, not for an existing cluster's."""
 
     name = PLUGIN
 
-    def __init__(self, max_providers: int = MAX_PROVIDERS):
+    def __init__(self, max_providers: int = MAX_PROVIDERS, *, warning_lines: bool = False):
         self.max_providers = max_providers
+        self.warning_lines = warning_lines
         self.cache = None
         self.strips = None
 
     def setup(self, worker) -> None:
         self.cache = ProviderCache(self.max_providers)
         self.strips = StripCache()  # a rolling study's strips, segmented once per worker
+        if self.warning_lines:  # the worker process is the study's own
+            warnings.showwarning = warning_line
         try:  # Ctrl-C is the study's (it cancels and closes the cluster), not each worker's
             signal.signal(signal.SIGINT, signal.SIG_IGN)
         except ValueError:  # not the worker process's main thread: leave it
@@ -135,7 +149,8 @@ def dask_client(*, workers: int = 2, scheduler: str | None = None, timeout: floa
             # plugin registered with workers up waits for their setup (1.2-1.5 s each, measured)
             client = Client(cluster.scheduler_address)
             try:
-                client.register_plugin(ProvidersPlugin(), name=PLUGIN)  # workers get it as they start
+                # workers get it as they start
+                client.register_plugin(ProvidersPlugin(warning_lines=True), name=PLUGIN)
                 cluster.scale(workers)
                 yield client
             finally:

@@ -234,4 +234,19 @@ def rolling_table(out: str | Path, max_rows: int = 40) -> str:
         f"tables: {out}/cases.csv, bands.csv (each with .csv-metadata.json); summary: {out}/summary.json; "
         f"each case's files: {out}/cases/<key>/"
     )
+    lines += _no_bands_line(out, cases)
     return "\n".join(lines)
+
+
+def _no_bands_line(out: Path, cases: list[dict]) -> list[str]:
+    """A line saying why ``bands.csv`` has no rows, when it has none: every run too short
+    for a band's 3 frequency bins (1 / duration apart) below the step's Nyquist frequency."""
+    with open(out / "bands.csv", newline="", encoding="utf-8") as fh:
+        if sum(1 for _ in csv.reader(fh)) > 1:
+            return []
+    runs = [float(r["distance_mm"]) for r in cases if r.get("distance_mm") not in ("", None)]
+    longest = f" (the longest run {max(runs):g} mm of road)" if runs else ""
+    return [
+        f"bands.csv has no rows: no case's run resolves a third-octave band{longest}; a band needs 3 frequency "
+        f"bins, 1 / duration apart, below the step's Nyquist frequency: roll a longer run (docs/rolling.md)"
+    ]

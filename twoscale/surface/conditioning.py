@@ -225,6 +225,10 @@ def _spacing_mm(src: str, raw: RawMap, given: float | None, factor: float) -> fl
         raise SurfaceError(f"{src}: spacing = {given!r} mm but the file's spacing is {own!r} mm")
     step = own if own is not None else given
     if step is None:
+        if raw.source == "array":  # heights given in Python
+            raise SurfaceError(
+                f"{src}: no spacing: give RawMap(heights, spacing=...) or SurfaceOptions(spacing=...) (mm)"
+            )
         raise SurfaceError(f"{src}: no spacing: the file does not carry one, give [surface] spacing (mm)")
     return float(step)
 

@@ -6,7 +6,7 @@ the only array; optional scalars ``spacing`` in mm and ``units``), text grids (`
 x-y-z point lists (``.xyz``: one point a line on a regular lattice, any order).
 Everything else goes to SurfaceTopography's readers (ISO 25178 X3P, Digital Surf SUR,
 Wyko OPD, Sensofar PLU, Zygo DATX, Keyence VK, Gwyddion GWY, ...), the optional extra
-``pip install "twoscale[surfaces]"``; no instrument format is parsed by hand here.
+``pip install ".[surfaces]"`` in the repository; no instrument format is parsed by hand here.
 
 A plain array's rows are y and its columns x. Heights are returned in the file's units
 (converted by :mod:`.conditioning`); the point list's x and y share the heights' units.
@@ -16,6 +16,8 @@ from __future__ import annotations
 
 import os
 import warnings
+import zipfile
+import zlib
 from dataclasses import dataclass
 
 import numpy as np
@@ -26,6 +28,10 @@ TEXT_SUFFIXES = (".txt", ".csv", ".asc", ".dat")
 POINT_SUFFIXES = (".xyz",)
 #: Smallest map accepted, samples per side (a summit and its basin need a few cells).
 MIN_SIDE = 3
+#: What numpy's readers raise on a damaged file: a truncated ``.npz`` is no zip archive
+#: (``BadZipFile``) or a member fails its checksum or decompression, an empty ``.npy``
+#: ends before its header (``EOFError``).
+DAMAGED_FILE_ERRORS = (OSError, ValueError, EOFError, zipfile.BadZipFile, zlib.error)
 
 
 @dataclass(frozen=True, eq=False)
@@ -100,7 +106,7 @@ def read_heightmap(path: str | os.PathLike) -> RawMap:
             raw = _read_instrument(name)
     except SurfaceError:
         raise
-    except (OSError, ValueError) as exc:
+    except DAMAGED_FILE_ERRORS as exc:
         raise SurfaceError(f"{name}: cannot read the height map ({_first_line(exc)})") from None
     return raw
 
@@ -198,7 +204,7 @@ def _read_instrument(name: str) -> RawMap:
     except ImportError:
         raise SurfaceError(
             f"{name}: not a plain format (.npy, .npz, text grid, .xyz); instrument formats "
-            f'need the optional extra: pip install "twoscale[surfaces]"'
+            f'need the optional extra: pip install ".[surfaces]" in the repository'
         ) from None
     try:
         with warnings.catch_warnings():  # its netCDF reader warns about its own memory map
