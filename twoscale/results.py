@@ -83,16 +83,20 @@ def summarise(fields: Sequence[PressureField], n_asperities: int) -> AsperitySum
     areas = np.zeros(n_asperities)
     pmax = np.zeros(n_asperities)
     for f in fields:
-        own = f.owner.ravel()
-        p = f.pressure.ravel()
         # the owned cells that carry pressure: an unloaded cell adds exactly nothing (a road's
-        # 10^6-cell box is 17 % loaded; ``maximum.at`` over every owned cell took 25 ms)
-        ok = (own >= 0) & (p != 0.0)
+        # 10^6-cell box is 17 % loaded; ``maximum.at`` over every owned cell took 25 ms),
+        # found once as flat indices (a mask gathered six times: 608 x 320 cells 7 % loaded,
+        # 0.73 against 1.7 ms; the same cells in the same order)
+        at = np.flatnonzero(f.pressure)
+        own = f.owner.ravel()[at]
+        if np.count_nonzero(own < 0):
+            at, own = at[own >= 0], own[own >= 0]
+        p = f.pressure.ravel()[at]
         h2 = f.grid.h**2
-        forces += h2 * np.bincount(own[ok], weights=p[ok], minlength=n_asperities)
-        areas += h2 * np.bincount(own[ok], weights=(p[ok] > 0).astype(float), minlength=n_asperities)
-        if np.any(ok):
-            np.maximum.at(pmax, own[ok], p[ok])
+        forces += h2 * np.bincount(own, weights=p, minlength=n_asperities)
+        areas += h2 * np.bincount(own, weights=(p > 0).astype(float), minlength=n_asperities)
+        if at.size:
+            np.maximum.at(pmax, own, p)
     return AsperitySummary(frozen_array(forces), frozen_array(areas), frozen_array(pmax))
 
 

@@ -312,9 +312,10 @@ class Road:
         xt, yt, extent = xt[keep], yt[keep], extent[keep]
         ends = (starts + counts).tolist()
         made = []
-        for n, (k, z, a, b) in enumerate(zip(np.asarray(ks).tolist(), low.tolist(), starts.tolist(), ends)):
+        columns = zip(np.asarray(ks).tolist(), xt.tolist(), yt.tolist(), low.tolist(), extent.tolist())
+        for (k, x0, y0, z, reach), a, b in zip(columns, starts.tolist(), ends):
             base = self.tips[k]
-            fields = (float(xt[n]), float(yt[n]), z, base.R, "map", group, base.label, float(extent[n]))
+            fields = (x0, y0, z, base.R, "map", group, base.label, reach)
             made.append(RolledStone.of(*fields, fall[a:b], r[a:b]))
         out: list = [None] * len(keep)
         for i, stone in zip(np.flatnonzero(keep).tolist(), made):
@@ -323,8 +324,7 @@ class Road:
 
     def _face_at(self, shift: float) -> np.ndarray:
         """:meth:`Face.height` of the strip's sample columns at ``shift`` and ``inf`` last
-        (the samples outside the window across y): a look-up instead of ten passes over the
-        ~250,000 samples of a tyre's stones (the same values: the same arithmetic on x)."""
+        (samples outside the window across y): a look-up, not ten passes over the samples."""
         out = np.full(len(self.columns) + 1, np.inf)
         out[:-1] = self.face.height(self.columns + shift, self.window[2])
         return out

@@ -111,9 +111,9 @@ def drag_of(track: Track, selection: Selection, result: ContactResult) -> float:
     total = 0.0
     for f in result.fields:
         X, Y = f.grid.centres()
-        on = f.pressure != 0.0
-        slope = track.road.road_slope(selection, X[on], Y[on], f.owner[on])
-        total += float(np.sum(f.pressure[on] * slope)) * f.grid.h**2
+        on = np.flatnonzero(f.pressure)  # (flat indices once: the same cells in the same order)
+        slope = track.road.road_slope(selection, X.ravel()[on], Y.ravel()[on], f.owner.ravel()[on])
+        total += float(np.sum(f.pressure.ravel()[on] * slope)) * f.grid.h**2
     return total
 
 

@@ -119,8 +119,7 @@ class KeptOperator:
         return self._twin
 
     def preconditioner(self):
-        """The float32 circulant inverse for both stages (it only shapes the search
-        directions; float32 costs half)."""
+        """The float32 circulant inverse for both stages (it shapes the directions only)."""
         if self.parent is not None:
             return self.parent.preconditioner()
         if self._pc is None:
@@ -141,8 +140,7 @@ class KeptBody:
         self._self: dict = {}  # cell size -> a cell's self-compliance
 
     def self_compliance(self, h: float) -> float:
-        """The provider's self-compliance of a cell of ``h`` mm, kept by ``h`` (the start and
-        the CG's cells ask for it at every position: ~0.3 ms a call on the half-space)."""
+        """The provider's self-compliance of a cell of ``h`` mm, kept (~0.3 ms a call)."""
         if h not in self._self:
             self._self[h] = self.provider.self_compliance(h)
         return self._self[h]
@@ -278,14 +276,16 @@ class WindowState:
             self.past.clear()
             return
         stiffness = GAP_STIFFNESS / self.body.self_compliance(f.grid.h)
-        gap = np.where(np.isfinite(f.gap), np.maximum(f.gap, 0.0), 0.0)
-        signed = np.where(f.pressure > 0.0, f.pressure, -stiffness * gap)
+        signed = np.maximum(f.gap, 0.0)  # (in place: -stiffness max(gap, 0), -0 off material)
+        signed *= -stiffness
+        signed[~np.isfinite(signed)] = -0.0
+        np.copyto(signed, f.pressure, where=f.pressure > 0.0)
         self.past = (self.past + [(f.grid, signed, shift)])[-2:]
 
 
 def reference_grid(track: Track, selection: Selection, bound: float) -> Grid:
-    """Cells of size ``track.h`` (on the lattice h Z^2) covering every place a stone of
-    ``selection`` can touch when the approach is at most ``bound``, within the face window."""
+    """Cells of ``track.h`` (lattice h Z^2) covering where ``selection``'s stones can touch
+    at approaches up to ``bound``, within the face window."""
     z = np.array([s.z for s in selection.stones])
     return _reach_grid(track, selection, reaches(selection.stones, np.maximum(bound - z, 0.0)))
 
