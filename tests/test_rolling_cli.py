@@ -205,6 +205,14 @@ def test_coarse_viscoelastic_step_warns_and_records_the_balance(strip_file, tmp_
     assert "second order in the step" in balance["meaning"]
 
 
+def test_footprint_wider_than_the_strip_warns_naming_it(strip_file, tmp_path, capsys):
+    # the strip is 16 mm wide: a 24 mm footprint's outer 4 mm on each side meet no road
+    out = tmp_path / "run"
+    assert main(["solve", _scene(strip_file, footprint="[30.0, 24.0]"), "--out", str(out), "--quiet"]) == 0
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("warning: rolling.footprint = [30, 24] mm is wider than the strip")
+
+
 def test_fine_step_does_not_warn(strip_file, tmp_path, capsys):
     # the same branch, 0.25 mm steps (one sample): no warning, step_check says so
     out = tmp_path / "run"

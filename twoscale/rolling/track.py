@@ -12,11 +12,12 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import warnings
 from dataclasses import dataclass
 
 import numpy as np
 
-from ..errors import SceneError
+from ..errors import SceneError, SurfaceWarning
 from ..influence.cached import with_caches
 from ..scene import Scene
 from .first_contact import check_contact
@@ -97,6 +98,8 @@ def prepare(scene: Scene, *, h: float | None = None, provider=None) -> Track:
     if control == "penetration":
         check_contact(road, scene.penetration, float(shifts[0]))
     warn_if_coarse(check)  # after every refusal: a run refused says only why
+    if scene.surface is not None:
+        warn_if_wider(track)
     return track
 
 
@@ -199,6 +202,22 @@ def check_length(track: Track) -> None:
             f"the footprint along x) "
             f"plus the run from rolling.start = {track.spec.start!r} to rolling.end = {track.spec.end!r} mm "
             f"(a road point at x appears at body x + shift: the strip must cover the footprint at every shift)"
+        )
+
+
+def warn_if_wider(track: Track) -> None:
+    """Warn where a footprint window reaches across y beyond the strip by more than a cell:
+    the face there meets no road, so the load is carried by the strip's width alone."""
+    if track.spec.footprint is None:
+        return
+    L, W = track.spec.footprint
+    y0, y1 = float(track.road.box[:, 2].min()), float(track.road.box[:, 3].max())
+    if -W / 2 < y0 - track.h or W / 2 > y1 + track.h:
+        warnings.warn(
+            f"rolling.footprint = [{L:g}, {W:g}] mm is wider than the strip ({y1 - y0:.4g} mm across y, "
+            f"from {y0:.4g} to {y1:.4g} mm): the face beyond it touches no road",
+            SurfaceWarning,
+            stacklevel=2,
         )
 
 
