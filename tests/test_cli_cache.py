@@ -56,3 +56,14 @@ def test_unknown_cache_name_is_one_line_exit_2(cache_root, capsys):
     assert main(["cache", "clear", "everything"]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "everything" in err[0]
+
+
+@pytest.mark.parametrize("action", [[], ["clear"]])
+def test_cache_root_that_is_a_file_is_one_line_exit_2(tmp_path, monkeypatch, capsys, action):
+    root = tmp_path / "cache-file"
+    root.write_text("not a folder")
+    monkeypatch.setenv("TWOSCALE_CACHE_DIR", str(root))
+    assert main(["cache", *action]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("error: block-corrections: ") and str(root) in err[0]
+    assert root.read_text() == "not a folder"

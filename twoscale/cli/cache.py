@@ -16,8 +16,9 @@ or cleared (one ``error: ...`` line).
 from __future__ import annotations
 
 import argparse
+import sys
 
-from ..caches import caches
+from ..caches import ENV_VAR, caches
 
 #: Actions of ``twoscale cache``.
 ACTIONS = ("list", "clear")
@@ -50,8 +51,22 @@ def human_size(n: int) -> str:
     return f"{n} B"
 
 
+def not_a_folder(folder) -> str:
+    """Where ``folder`` (or the nearest of its parents that exists) is not a folder: that
+    path, else "" (a folder not made yet is an empty cache)."""
+    p = folder
+    while not p.exists() and p != p.parent:
+        p = p.parent
+    return "" if p.is_dir() else str(p)
+
+
 def run(args: argparse.Namespace) -> int:
     """Run ``twoscale cache``; returns the exit code (see the module doc)."""
+    for c in caches():
+        blocked = not_a_folder(c.folder)
+        if blocked and (args.name is None or c.name == args.name):
+            print(f"error: {c.name}: {blocked} is a file, not a folder (check ${ENV_VAR})", file=sys.stderr)
+            return 2
     if args.action == "list":
         if args.name is not None:
             chosen = [c for c in caches() if c.name == args.name]
