@@ -63,8 +63,8 @@ def not_a_folder(folder) -> str:
 def run(args: argparse.Namespace) -> int:
     """Run ``twoscale cache``; returns the exit code (see the module doc)."""
     for c in caches():
-        blocked = not_a_folder(c.folder)
-        if blocked and (args.name is None or c.name == args.name):
+        blocked = not_a_folder(c.folder) if args.name in (None, c.name) else ""
+        if blocked:
             print(f"error: {c.name}: {blocked} is a file, not a folder (check ${ENV_VAR})", file=sys.stderr)
             return 2
     if args.action == "list":
