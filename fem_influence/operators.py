@@ -24,6 +24,8 @@ from twoscale.grid import Grid
 from twoscale.influence.base import GridOperator, LowRankCorrection
 from twoscale.influence.points import PointOperator
 
+from .cell_product import BlockCellProduct
+
 if TYPE_CHECKING:
     from .provider import BlockProvider
 
@@ -182,6 +184,16 @@ class BlockGridOperator(GridOperator):
     def single_precision(self) -> "BlockGridOperator":
         single = self._hs.single_precision()
         return self if single is self._hs else BlockGridOperator(single, self._U, self._W, self._area)
+
+    def on_cells(self, cells: np.ndarray | None):
+        """:meth:`apply` on the flat ``cells`` (None: every cell) and in two halves
+        (:class:`~fem_influence.cell_product.BlockCellProduct`) where the half-space part has
+        such a product (its float32 form); else None."""
+        own = getattr(self._hs, "on_cells", None)
+        halfspace = None if own is None else own(cells)
+        if halfspace is None or not hasattr(halfspace, "forward"):
+            return None
+        return BlockCellProduct(halfspace, self._U, self._W, self._area, cells, self.target.shape)
 
     def columns(self, targets: np.ndarray | None = None):
         """:meth:`GridOperator.columns`: the half-space part's, plus ``h^2 U (W[:, cells] v)``
