@@ -38,7 +38,8 @@ class BlockCellProduct:
     def __init__(self, halfspace, U, W, area: float, cells: np.ndarray | None, shape: tuple[int, int]):
         self.halfspace, self._U, self._W, self._area = halfspace, U, W, float(area)
         self.cells = None if cells is None else np.asarray(cells, dtype=np.intp)
-        self._grid = np.zeros(int(np.prod(shape)))  # the values on the whole grid (0 off the cells)
+        # the values on the whole grid (0 off the cells); every cell: the values themselves
+        self._grid = None if cells is None else np.zeros(int(np.prod(shape)))
         self._correction: np.ndarray | None = None  # of the values forward() took
         self._values: np.ndarray | None = None
 
