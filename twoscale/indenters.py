@@ -205,11 +205,18 @@ def sample_tips(xs: np.ndarray, ys: np.ndarray, tips: TipArrays, height: np.ndar
     flat_o[better] = tips.index[first[better]]
 
 
+#: Mean window (cells) up to which :func:`_sample_windows` takes plain spheres all at once:
+#: there Python's cost per sphere dominates (held-out #185: 8,772 windows of about 123 cells,
+#: 0.20-0.26 s one by one, 0.09-0.11 s at once); larger windows cost more at once than one
+#: by one (#35: 2,847 windows of about 1,900 cells, 0.15 against 1.3-1.6 s).
+WINDOWS_AT_ONCE_CELLS = 256
+
+
 def _sample_windows(grid: Grid, X, Y, asperities: Sequence, indices, height: np.ndarray, owner: np.ndarray) -> None:
     """The asperities ``indices`` one by one into ``height`` and ``owner`` where lower (the
     earlier keeps a tie), each on the window of its material radius (a sphere: R; the
-    whole grid without one); ``X``, ``Y`` the grid's cell centres. Plain spheres all at
-    once (:func:`_sphere_windows`)."""
+    whole grid without one); ``X``, ``Y`` the grid's cell centres. Plain spheres with small
+    windows all at once (:func:`_sphere_windows`, :data:`WINDOWS_AT_ONCE_CELLS`)."""
     indices = list(indices)
     if (
         len(indices) > 1
@@ -217,10 +224,11 @@ def _sample_windows(grid: Grid, X, Y, asperities: Sequence, indices, height: np.
         and owner.flags.c_contiguous
         and all(type(asperities[k]) is Asperity and asperities[k].shape == "sphere" for k in indices)
     ):
-        index = np.array(indices, dtype=np.int64)
         x, y, z, R = (np.array([getattr(asperities[k], f) for k in indices], dtype=float) for f in "xyzR")
-        _sphere_windows(grid, X, Y, TipArrays(index, x, y, z, R, np.ones(len(index), bool)), height, owner)
-        return
+        if float(np.mean((2.0 * R / grid.h + 2.0) ** 2)) <= WINDOWS_AT_ONCE_CELLS:
+            index = np.array(indices, dtype=np.int64)
+            _sphere_windows(grid, X, Y, TipArrays(index, x, y, z, R, np.ones(len(index), bool)), height, owner)
+            return
     for k in indices:
         a = asperities[k]
         win = _window(grid, a.x, a.y, getattr(a, "material_radius", math.inf))
