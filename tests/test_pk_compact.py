@@ -40,6 +40,36 @@ def test_a_part_holding_the_contact_gives_the_whole_grids_answer(load):
     _same(part, whole)
 
 
+def test_a_rough_start_scaled_on_the_part_gives_the_whole_grids_answer(monkeypatch):
+    """Penetration control, a rough start and a part: the start's line search by the part's
+    float32 product, which is then the kernel's first (one product fewer than a line search
+    on the whole grid followed by the kernel's own)."""
+    from twoscale.influence.convolution import ConvolutionOperator, _SingleConvolution
+    from twoscale.influence.on_cells import CellProduct
+
+    load = {"penetration": 0.12}
+    surf = crowded_surface(MAT, 5, load)
+    whole = solve_cg(HS, surf, **load, **SETTINGS)
+    near = (whole.fields[0].pressure > 0) | (whole.fields[0].gap < 0.02)
+    guess = np.where(near & np.isfinite(surf.height), np.maximum(0.12 - surf.height, 0.0), 0.0)
+    calls = []
+    for kind, name in ((CellProduct, "__call__"), (ConvolutionOperator, "apply"), (_SingleConvolution, "apply")):
+        made = getattr(kind, name)
+        monkeypatch.setattr(kind, name, lambda self, v, made=made, kind=kind: calls.append(kind) or made(self, v))
+    rough = solve_cg(HS, surf, reach=near, start=guess, rough_start=True, **load, **SETTINGS)
+    made_rough = list(calls)
+    calls.clear()
+    scaled = solve_cg(HS, surf, reach=near, start=guess, **load, **SETTINGS)  # exact line search, whole grid
+    _same(rough, whole)
+    _same(scaled, whole)
+    # the exact line search is a whole-grid float64 product; the rough one is on the part
+    # (no whole-grid product of either precision more than the other solve's)
+    assert made_rough.count(ConvolutionOperator) == calls.count(ConvolutionOperator) - 1
+    assert made_rough.count(_SingleConvolution) == calls.count(_SingleConvolution)
+    if rough.iterations["cg"] == scaled.iterations["cg"]:  # (19 and 19)
+        assert len(made_rough) == len(calls) - 1  # the line search's product is the kernel's first
+
+
 def test_a_part_missing_contact_is_solved_on_the_whole_grid_from_its_answer():
     load = {"total_load": 30.0}
     surf = crowded_surface(MAT, 5, load)

@@ -17,6 +17,7 @@ from twoscale import Grid, Material
 from twoscale.analytic import hertz
 from twoscale.influence import HalfSpace
 from twoscale.pk import Constraint, StopReason, Tolerance, pk_solve
+from twoscale.pk.kernel import Start
 
 MAT = Material(10.0, 0.5)
 HS = HalfSpace(MAT)
@@ -171,3 +172,22 @@ def test_block_gauss_seidel_says_why_it_stopped():
     assert capped.reason is StopReason.MAX_ITER and "2 sweeps" in capped.message
     done = gauss_seidel(blocks, coupling, b, start, tol=1e-8, max_sweeps=200)
     assert done.reason is StopReason.CONVERGED and done.converged and done.message == ""
+
+
+def test_a_start_product_given_replaces_the_first_product_and_changes_nothing_else():
+    grid, r, z, op = _hertz_problem(32)
+    start = 0.5 * np.maximum(D - z, 0.0)[None]
+    calls = []
+
+    def apply(v):
+        calls.append(len(v))
+        return op.apply_stack(v)
+
+    args = ((z - D)[None], start, np.ones((1, *z.shape), bool), Tolerance(residual=1e-10, max_iter=500))
+    plain = pk_solve(apply, *args)
+    n_plain = len(calls)
+    calls.clear()
+    given = pk_solve(apply, args[0], Start(start, op.apply_stack(start)), *args[2:])
+    assert len(calls) == n_plain - 1  # the kernel's first product not made
+    assert np.array_equal(given.pressure, plain.pressure)  # the same product: the same iterates
+    assert given.converged.all()

@@ -121,3 +121,35 @@ def test_a_large_box_of_small_spheres_is_sampled_sphere_by_sphere_as_every_tip_o
     assert calls == [grid]
     assert np.array_equal(s.owner, owner) and np.array_equal(s.height, height)
     assert 7 in owner and len(asps) - 1 not in owner
+
+
+def test_spheres_sampled_at_once_on_their_windows_equal_every_sphere_on_every_cell_over_a_prior_surface(monkeypatch):
+    """Plain spheres on their windows all at once (``_sphere_windows``): spheres over the
+    grid's edges, one missing it, exact ties among them and with a surface already there
+    (its cells kept on a tie), in a non-increasing order of indices: the heights and owners
+    of every sphere evaluated on every cell in that order."""
+    import twoscale.indenters as ind
+
+    at_once = ind._sphere_windows
+    rng = np.random.default_rng(11)
+    grid = Grid.covering(-2.0, 2.0, -1.5, 1.5, 0.05)
+    asps = scattered(rng, 80, (-2.3, 2.3), (-1.8, 1.8), 0.05, (0.05, 0.4), ["sphere"] * 80)
+    asps += [asps[4], Asperity(9.0, 0.0, 0.0, 0.3)]
+    X, Y = grid.centres()
+    prior = np.where(X > 0.5, 0.02, np.inf)  # another indenter's heights on part of the grid
+    prior[np.isfinite(asps[10].height(X, Y))] = asps[10].height(X, Y)[np.isfinite(asps[10].height(X, Y))]
+    order = list(range(len(asps)))[::-1]
+    height, owner = prior.copy(), np.full(grid.shape, -1)
+    for k in order:
+        hk = asps[k].height(X, Y)
+        better = hk < height
+        height[better], owner[better] = hk[better], k
+    got_h, got_o = prior.copy(), np.full(grid.shape, -1)
+    calls = []
+    monkeypatch.setattr(ind, "_sphere_windows", lambda *a: calls.append(1) or at_once(*a))
+    ind._sample_windows(grid, X, Y, asps, order, got_h, got_o)
+    assert calls == [1]  # (windows of about 100 cells: at once)
+    assert np.array_equal(got_h, height) and np.array_equal(got_o, owner)
+    # asps[80] is asps[4], earlier in this order: it keeps their cells; asps[81] misses the grid
+    assert 80 in owner and 4 not in owner and 81 not in owner and len(np.unique(owner)) > 40
+    assert np.any((owner == -1) & np.isfinite(prior))  # the prior surface kept where lower or tied

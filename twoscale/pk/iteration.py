@@ -3,9 +3,8 @@
 The live rows' arrays are (b, n) (fields flattened), compacted as rows stop; the outputs
 are indexed by the original row. One pass of the loop is :meth:`Iteration.check` (the
 stopping rule, then the contact sets) and :meth:`Iteration.step` (one conjugate-gradient
-step); the algorithm is described in :mod:`.kernel`. Written for the small blocks too (numpy's
-per-call cost is most of their time): a rarely true test is guarded by one cheap reduction.
-"""
+step); the algorithm is in :mod:`.kernel`. A rarely true test is guarded by one cheap
+reduction (numpy's per-call cost is most of a small block's time)."""
 
 from __future__ import annotations
 
@@ -16,7 +15,7 @@ import numpy as np
 from ..stopping import StopReason
 from .projection import column, constraint_residual, denominator, kkt_residual, project, restore, row_dot
 from .products import COLUMN_CELLS, FAST_RESIDUAL, KEPT_GROWTH, CellChange, Halves, Products, clip_and_enter, halved
-from .result import PKResult, Tolerance
+from .result import PKResult
 
 #: Recompute ``u = A p`` from scratch at least this often (the cheap update
 #: ``u <- s (u - tau A t)`` accumulates rounding).
@@ -51,14 +50,15 @@ class Iteration:
     tol : Tolerance
     plane : PlaneBasis, optional
         The basis's separable form (:mod:`.plane`), for its fits and restoring.
-    """
+    u0 : (B, n) array, optional
+        ``A start`` if known (:class:`~.kernel.Start`)."""
 
     PER_ROW = tuple(
         "p t u z mask target G_old conj kept stale scale best it_best gtol small index done count free fast".split()
     )  # the arrays with a row per live row
 
     def __init__(
-        self, products: Products, precondition, shape, z, start, mask, basis, target, tol: Tolerance, plane=None
+        self, products: Products, precondition, shape, z, start, mask, basis, target, tol, plane=None, u0=None
     ):
         self.ops, self.pc, self.shape, self.basis, self.tol = products, precondition, shape, basis, tol
         self.plane = plane
@@ -80,7 +80,7 @@ class Iteration:
         # rows whose refreshes still take the fast product (until their residual reaches
         # FAST_RESIDUAL; the search directions take it throughout)
         self.fast: Any = np.full(rows, products.fast is not None and tol.residual is not None)
-        self.u = self.product(self.p, fast=bool(self.fast.all()))
+        self.u = self.product(self.p, fast=bool(self.fast.all())) if u0 is None else np.array(u0, dtype=float)
         self.products = rows
         self.G_old, self.stale = np.ones(rows), self.fast.astype(int)
         self.conj, self.small, self.done, self.kept = np.zeros((4, rows), bool)

@@ -62,10 +62,27 @@ class Constraint:
     plane: PlaneBasis | None = None
 
 
+@dataclass(frozen=True)
+class Start:
+    """Initial pressures with their product ``A pressure``, when the caller made it (e.g. for
+    the start's own line search): the kernel's first product saved. The product is the fast
+    one where the rows start on it (else exact), for pressures the kernel keeps as they are
+    (non-negative, 0 off the mask, no constraint to restore).
+
+    Attributes
+    ----------
+    pressure : (B, ...) array, MPa
+    product : (B, ...) array, mm
+    """
+
+    pressure: np.ndarray
+    product: np.ndarray
+
+
 def pk_solve(
     apply: Operator | Products,
     z: np.ndarray,
-    start: np.ndarray,
+    start: "np.ndarray | Start",
     mask: np.ndarray | None,
     tolerance: Tolerance,
     *,
@@ -85,9 +102,10 @@ def pk_solve(
     z : (B, ...) array, mm
         Gap at zero pressure without the unknown rigid motion: height minus approach
         (penetration control), height (load control), ``-b`` for a block's right-hand side.
-    start : (B, ...) array, MPa
+    start : (B, ...) array, MPa, or Start
         Initial pressures (negative entries and cells off ``mask`` are set to zero; with a
-        constraint each row must be positive somewhere).
+        constraint each row must be positive somewhere), or with their product
+        (:class:`Start`).
     mask : (B, ...) bool array or None
         Cells that may carry pressure (others are neither loaded nor checked); None: all.
     tolerance : Tolerance
@@ -107,6 +125,7 @@ def pk_solve(
     """
     shape = z.shape[1:]
     rows = len(z)
+    start, u0 = (start.pressure, start.product.reshape(rows, -1)) if isinstance(start, Start) else (start, None)
     plane = None
     if constraint is None:
         basis, target = np.zeros((z[0].size, 0)), np.zeros((rows, 0))
@@ -124,6 +143,7 @@ def pk_solve(
         target,
         tolerance,
         plane,
+        u0,
     )
     for it in range(tolerance.max_iter + 1):
         live = stack.check(it, monitor)
@@ -141,6 +161,7 @@ __all__ = [
     "Products",
     "REFRESH_EVERY",
     "STALL_ITERATIONS",
+    "Start",
     "Tolerance",
     "pk_solve",
 ]

@@ -20,12 +20,13 @@ def start_on(start: np.ndarray | None, problem, work) -> np.ndarray | None:
 
 
 def initial_pressure(
-    problem: ContactProblem, op, z: np.ndarray, E_star: float, start: np.ndarray | None = None
+    problem: ContactProblem, op, z: np.ndarray, E_star: float, start: np.ndarray | None = None, scaled: bool = True
 ) -> np.ndarray:
     """Start from ``start`` (a warm start, e.g. the two-scale macro forces spread as Hertz
     pressures), else from the geometric interference ``max(level - z, 0)`` (level = d, or the
     first-guess level of load control), scaled by a line search on the energy
-    (penetration control) or to the load. Cells without material start unloaded.
+    (penetration control; not ``scaled``: the guess itself, :func:`line_search` later) or
+    to the load. Cells without material start unloaded.
     (A Hertz-like square-root start was tried: no fewer iterations.)"""
     cand = problem.candidates.ravel()
     if start is not None and np.any(start.ravel()[cand] > 0):
@@ -39,10 +40,18 @@ def initial_pressure(
         v = np.where(cand, np.maximum(level - z, 0.0), 0.0)
     if not np.any(v > 0):
         v = np.where(cand & (z <= np.min(z[cand])), 1.0, 0.0)
-    if problem.mode == "penetration":
+    if problem.mode == "penetration" and scaled:
         Av = op.apply(v.reshape(problem.grid.shape)).ravel()
-        return v * max(float(v @ (problem.penetration - z)), 0.0) / float(v @ Av)
+        num, den = line_search(v, Av, z - problem.penetration)
+        return v * num / den
     return v  # the kernel scales it to the load (and moments)
+
+
+def line_search(v: np.ndarray, Av: np.ndarray, gap: np.ndarray) -> tuple[float, float]:
+    """The factor ``s >= 0`` minimising the energy ``1/2 s^2 v.A v + s v.gap`` of the
+    pressure ``s v`` as the fraction ``(numerator, denominator)`` (``gap``: the gap at zero
+    pressure, height less penetration, mm)."""
+    return max(float(v @ -gap), 0.0), float(v @ Av)
 
 
 def cropped(problem: ContactProblem, below: float = 1.0) -> ContactProblem:
@@ -61,3 +70,9 @@ def cropped(problem: ContactProblem, below: float = 1.0) -> ContactProblem:
     s = problem.surface
     surface = Surface(sub, s.height[j0:j1, i0:i1], s.owner[j0:j1, i0:i1], s.n_asperities)
     return ContactProblem(surface, problem.mode, problem.penetration, problem.total_load, problem.pivot)
+
+
+def scaled_start(v: np.ndarray, Av: np.ndarray, gap: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The guess ``v`` and its product ``Av`` scaled by :func:`line_search`."""
+    num, den = line_search(v, Av, gap)
+    return v * num / den, Av * num / den

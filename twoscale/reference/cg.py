@@ -12,17 +12,14 @@ with a constant (load control: Polonsky & Keer's rescaling) or, with tilt, with 
 Every product ``A p`` goes through ``provider.grid_operator(grid)``: for the
 half-space a zero-padded real FFT convolution of size ``next_fast_len(2 ny - 1) x
 next_fast_len(2 nx - 1)``. The cost is one product per iteration while the contact set
-is unchanged (``A p`` then follows from ``A t`` without a product) and two when it
-changes; the number of iterations grows slowly with the cells across the contact (Hertz
-at tol 1e-8: about 60 for 2a/h = 64 and 128). So time ~ iterations x FFT size x log:
-keep the grid tight around the cells that can touch. With penetration control the solver
-crops the grid itself to the box of cells with ``z < d`` (no other cell can touch);
-cells with ``inf`` height inside the box are free but still pay for the FFT.
+is unchanged (``A p`` then follows from ``A t``) and two when it changes; the iterations
+grow slowly with the cells across the contact (Hertz at tol 1e-8: about 60 for 2a/h = 64
+and 128): keep the grid tight. With penetration control the solver crops the grid itself
+to the box of cells with ``z < d`` (no other cell can touch); cells with ``inf`` height
+inside the box are free but still pay for the FFT.
 
-The iteration is the package's one Polonsky-Keer kernel (:func:`twoscale.pk.pk_solve`, one
-row, stopped by the KKT residual); this module prepares the problem (start, cropping,
-precision stages) and builds the result.
-"""
+The iteration is :func:`twoscale.pk.pk_solve` (one row, stopped by the KKT residual); this
+module prepares the problem (start, cropping, precision stages) and builds the result."""
 
 from __future__ import annotations
 
@@ -38,11 +35,11 @@ from ..details import ReferenceDetails
 from ..pk.compact import Part
 from ..pk.plane import PlaneBasis
 from ..pk.products import Anchored, OneRow, OneRowInverse
-from ..pk.kernel import STALL_ITERATIONS, Constraint, Products, Tolerance, pk_solve
+from ..pk.kernel import STALL_ITERATIONS, Constraint, Products, Start, Tolerance, pk_solve
 from ..options import settings_from
 from ..results import ContactResult
 from ._problem import ContactProblem, Outcome, build_result, make_problem, trivial_result
-from ._start import cropped, initial_pressure, start_on
+from ._start import cropped, initial_pressure, line_search, scaled_start, start_on
 
 
 @dataclass(frozen=True)
@@ -106,34 +103,31 @@ def solve_cg(
         within about 2e-7 relative of the exact discrete solution; each factor 10
         costs about 10 more iterations).
     max_iter : int, default 20000
-        Most CG iterations (two grid products each).
+        Most CG iterations.
     precision : {"double", "mixed", "single-directions"}, default "double"
         ``"mixed"``: iterate first with the operator's single-precision products
         (:meth:`~twoscale.influence.base.GridOperator.single_precision`; on the half-space
         float32 FFTs, about 2.5x cheaper) to ``SINGLE_TOL`` (or ``tol`` if looser), then
         finish in double precision from that pressure (about 20 more iterations to 1e-8
         instead of 70-100 from scratch): the displacement is one double-precision product
-        of that pressure plus single-precision products of the change since (exact to
-        the change's rounding, far below ``tol``). The answer meets ``tol`` in double
-        precision either way. ``"single-directions"``: one stage, the pressure, the displacement
-        and the residual in double precision, the search directions' products in single
-        precision while the KKT residual is above
-        :data:`~twoscale.pk.products.FAST_RESIDUAL` (and double below), and the
-        displacement after a step that clipped or let in a few cells corrected by the
-        kernel's columns (:meth:`~twoscale.influence.base.GridOperator.columns`) instead
-        of a product: no restart between the stages, fewer products (warm-started
-        rolling positions replayed, with ``keep_conjugacy=0.005``: 0.30 s against 0.49 s
-        with ``"mixed"``). The reference keeps ``"double"``: the classical yardstick.
+        of that pressure plus single-precision products of the change since. The answer
+        meets ``tol`` in double precision either way. ``"single-directions"``: one stage,
+        the pressure, displacement and residual in double precision, the search
+        directions' products in single precision while the KKT residual is above
+        :data:`~twoscale.pk.products.FAST_RESIDUAL`, and the displacement after a step
+        that clipped or let in a few cells corrected by the kernel's columns instead of
+        a product: no restart between the stages, fewer products (warm-started
+        rolling positions replayed, ``keep_conjugacy=0.005``: 0.30 against 0.49 s with
+        ``"mixed"``). The reference keeps ``"double"``.
     precondition : bool, default False
         Precondition the search directions with the operator's approximate inverse
         (:meth:`~twoscale.influence.base.GridOperator.preconditioner`, on the half-space the
         inverse of the kernel wrapped on the grid's torus, restricted to the loaded cells
         and projected on the constraints): about half the iterations for one unpadded FFT
         pair more each (300 merged tips on 0.92 M cells: 61 against 117 iterations to 1e-8
-        in double precision). Operators without a preconditioner run unpreconditioned. The
-        reference keeps it off (the classical Polonsky-Keer iteration).
+        in double precision). Operators without one run unpreconditioned; the reference: off.
     monitor : callable, optional
-        ``monitor(iteration, residual)`` every :data:`twoscale.pk.kernel.MONITOR_EVERY` iterations (progress display).
+        ``monitor(iteration, residual)`` every :data:`~twoscale.pk.kernel.MONITOR_EVERY` iterations.
     keep_conjugacy : float, default 0
         Keep the conjugate directions after a step where at most this fraction of the loaded
         cells entered (:class:`~twoscale.pk.products.Products`), in both stages of ``"mixed"``.
@@ -152,25 +146,23 @@ def solve_cg(
     plane_sums : bool, default False
         With ``tilt``: the constraints' fits and restoring by the basis's separable form
         (:class:`~twoscale.pk.plane.PlaneBasis`: sums along the grid's rows, no (3, n)
-        temporaries; on 5.26 M cells a fit 0.24 s against a few passes). The reference
-        keeps the general algebra.
+        temporaries). The reference keeps the general algebra.
     rough_start : bool, default False
         ``start`` is a rough guess (e.g. the macro step's interference): under penetration
-        control its line search takes the fast product when there is one (it only scales
-        the guess; a float64 product on 3.4 M cells costs 1 s against 0.24). A start near
-        the answer (a neighbouring solve's) keeps the exact line search: a float32 scale
-        would leave it ~1e-7 off, an iteration more than the answer's own.
+        control its line search takes the fast product if any, on the ``reach`` part when
+        given (that product then the kernel's first). A start near the answer keeps the
+        exact line search (a float32 scale: an iteration more).
     crop_below : float, default 1
         Penetration control crops the grid to the cells that can touch when that keeps
-        fewer than this fraction of its cells (:func:`~._start.cropped`; the crop costs a
-        second operator and a float64 product for the displacement on the whole grid).
+        fewer than this fraction of its cells (:func:`~._start.cropped`: a second operator
+        and a float64 product of the whole grid).
     half_products : bool, default False
         The search directions' fast products (on the part, or every cell) in two halves where
         they have them (:class:`~twoscale.influence.on_cells.CellProduct`): the step length
         by Parseval, the transforms back only where the step uses ``A t``. The reference: off.
     step_model : bool, default False
-        With ``half_products``: those directions' step length by the preconditioner's torus
-        (``CellProduct.model_energy``), the product only where the step uses ``A t``.
+        With ``half_products``: their step length by the preconditioner's torus where valid
+        (``_PartRow.modelled``), the product only where the step uses ``A t``.
 
     Returns
     -------
@@ -339,8 +331,9 @@ def _iterate(
     shape = problem.grid.shape
     cand = problem.candidates.ravel()
     z = np.where(cand, problem.surface.height.ravel(), 0.0)
-    # a rough start's line search (penetration control) by the fast product (CGSettings)
-    p = initial_pressure(problem, (fast or op) if rough_start else op, z, E_star, start)
+    # a rough start's line search by the fast product, on the part if any (CGSettings)
+    later = rough_start and fast is not None and reach is not None and problem.mode == "penetration"
+    p = initial_pressure(problem, (fast or op) if rough_start else op, z, E_star, start, scaled=not later)
     z -= problem.penetration if problem.mode == "penetration" else 0.0
     given = op  # (the whole grid's solve after a part's: an anchor of its own)
     if fast is not None and fast is not op and not isinstance(op, Anchored):
@@ -355,16 +348,22 @@ def _iterate(
     part = None if reach is None else Part(np.flatnonzero(reach.ravel() & cand), shape)
     if part is not None and (part.cells.size == cand.sum() or not np.any(p[part.cells] > 0)):
         part = None  # (the part is every candidate, or carries none of the start)
-    run, dims = (z, p, cand, problem.basis(), products, pc), shape
+    if later and part is None:
+        num, den = line_search(p, fast.apply(p.reshape(shape)).ravel(), z)
+        p = p * num / den
+    run, dims, u0 = (z, p, cand, problem.basis(), products, pc), shape, None
     if part is not None:
         run, dims = part.inputs(*run, None if fast is None else op.columns(part.cells)), (part.cells.size,)
+        if later:
+            p_part, u0 = scaled_start(run[1], run[4].fast(run[1][None])[0], run[0])
+            run = (run[0], p_part, *run[2:])
     if halves and fast is not None:  # the fast product in two halves where it has them (the part's, or every cell's)
         rows = run[4].fast if part is not None else OneRow(fast).on_part(None)
         run = (*run[:4], replace(run[4], halves=getattr(rows, halves, None)), run[5])
     out = pk_solve(
         run[4],
         run[0].reshape(1, *dims),
-        run[1].reshape(1, *dims),
+        run[1].reshape(1, *dims) if u0 is None else Start(run[1].reshape(1, *dims), u0.reshape(1, *dims)),
         None if run[2].all() else run[2].reshape(1, *dims),
         Tolerance(residual=tol, max_iter=max_iter, stall=stall),
         constraint=Constraint(
