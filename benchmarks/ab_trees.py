@@ -48,6 +48,8 @@ import time
 
 import numpy as np
 
+from _common import BODY_MODULES, import_solver_modules  # noqa: F401  (BODY_MODULES: the sweep's list, shared)
+
 
 def _hertz(mode: str):
     from twoscale import Material
@@ -189,26 +191,11 @@ CASES = {
 
 
 def _solver_imports() -> None:
-    """The solvers' own modules imported before the clock starts, as ``benchmarks/sweep.py``
-    times a solve: without a bytecode cache (``PYTHONDONTWRITEBYTECODE``) their compilation
-    in the timed call added 0.2-0.35 s of CPU to a road's default and reference alike,
-    which pulled their ratio towards 1 (0.43 against the sweep's 0.36 on seed 1's #193).
-    The block's provider and mesh modules (``BODY_MODULES``) likewise."""
-    import importlib
-
-    for name in ("twoscale", "twoscale.micro.driver", "twoscale.reference.on_scene", "twoscale.driver", *BODY_MODULES):
-        try:
-            importlib.import_module(name)
-        except ImportError:  # a tree that keeps them elsewhere, or no scikit-fem
-            pass
-    import scipy.interpolate  # noqa: F401
-    import scipy.optimize  # noqa: F401
-
-
-#: The finite block's modules, which both solvers import on their first block scene (the
-#: provider by ``twoscale.influence.registry``, its mesh's scikit-fem): 143 modules compiled
-#: in the timed call, 0.07-0.08 s of CPU of seed 0's #45 on each side.
-BODY_MODULES = ("twoscale.influence.registry", "fem_influence", "meshes.block", "skfem")
+    """The solvers' own modules and the block's imported before the clock starts, as
+    ``benchmarks/sweep.py`` times a solve (:func:`_common.import_solver_modules`): their
+    compilation in the timed call pulled a road's ratio towards 1 (0.43 against the
+    sweep's 0.36 on seed 1's #193)."""
+    import_solver_modules()
 
 
 def child(kind: str, arg: str) -> None:

@@ -42,7 +42,6 @@ already there (delete the file to start again).
 from __future__ import annotations
 
 import argparse
-import importlib
 import json
 import math
 import os
@@ -60,10 +59,7 @@ import numpy as np  # noqa: E402  (after _common: OpenBLAS reads its thread coun
 from benchmarks.sweep_report import _fmt, _load, contact_fraction, row, summary, table  # noqa: E402
 
 GB = 1e9
-#: The finite block's modules, imported by both solvers on a block scene's first solve
-#: (the provider through ``twoscale.influence.registry``, scikit-fem for its mesh): outside
-#: the timed call, as the solvers' own modules are.
-BODY_MODULES = ("twoscale.influence.registry", "fem_influence", "meshes.block", "skfem")
+BODY_MODULES = _common.BODY_MODULES  # outside the timed call, as the solvers' own modules
 
 
 def _rss_mb() -> float:
@@ -122,16 +118,8 @@ def _figures(res) -> dict:
 def run_one(method: str, spec_dict: dict, h: float | None) -> dict:
     """One solve in this process: ``method`` "twoscale" (default options) or "reference"."""
     import twoscale
-    import twoscale.micro.driver  # noqa: F401  (the solvers' own imports outside the timed call,
-    import twoscale.reference.on_scene  # noqa: F401  as for every code compared: the two-scale
-    import twoscale.driver  # noqa: F401  path's macro step and laws, the reference's
-    import scipy.interpolate, scipy.optimize  # noqa: F401,E401  optimiser; 40-50 ms on one tip)
 
-    for name in BODY_MODULES:  # the finite block's provider and mesh: 0.07-0.08 s on each side
-        try:
-            importlib.import_module(name)
-        except ImportError:  # no scikit-fem: block scenes are refused anyway
-            pass
+    _common.import_solver_modules()  # the solvers' and the block's, outside the timed call
     from twoscale.resources import estimate_memory
     from twoscale.scene import SceneError, default_h
 
