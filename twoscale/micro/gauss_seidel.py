@@ -88,16 +88,13 @@ def sweep(
     near pair ``l < k`` in an earlier level than ``k``'s): each block then sees exactly
     what it sees in the plain order, and ``stacks`` (:class:`~.pk_stack.BlockStacks`)
     solves a level's large blocks of one size class together."""
+    before, was = list(p), list(active)
     p, active = list(p), list(active)
     n = len(blocks)
-    diff2 = np.zeros(n)
-    changed = np.zeros(n, bool)
     failed = np.zeros(n, bool)
 
     def take(k, pressure, now, ok):
-        changed[k] = bool((now != active[k]).any())
         failed[k] = not ok
-        diff2[k] = float(np.sum((pressure - p[k]) ** 2))
         p[k], active[k] = pressure, now
 
     for level in [[k] for k in range(n)] if levels is None else levels:
@@ -111,9 +108,14 @@ def sweep(
         for k in level:
             sol = contact_solve(blocks[k], rhs[k], p[k], rtol=local_rtol)
             take(k, sol.pressure, sol.active, sol.converged)
-    norm2 = sum(float(np.sum(v * v)) for v in p)
-    rel = float(np.sqrt(sum(float(d) for d in diff2) / norm2)) if norm2 > 0 else 0.0
-    return Sweep(p, active, bool(changed.any()), rel, tuple(np.flatnonzero(failed).tolist()))
+    # the change and the contact sets over all blocks laid end to end, not block by block
+    # (3,756 local solves a two-level iteration on 939 blocks: 15 us each in these sums)
+    changed = bool(n) and bool(np.any(np.concatenate(active) != np.concatenate(was)))
+    new = np.concatenate(p) if n else np.zeros(0)
+    diff = new - (np.concatenate(before) if n else new)
+    norm2 = float(new @ new)
+    rel = float(np.sqrt(float(diff @ diff) / norm2)) if norm2 > 0 else 0.0
+    return Sweep(p, active, changed, rel, tuple(np.flatnonzero(failed).tolist()))
 
 
 def gauss_seidel(

@@ -28,7 +28,7 @@ import scipy.sparse as sp
 
 from ..stopping import StopReason
 from .coarse import CoarseSpace
-from .constraints import Control, patch_forces
+from .constraints import Control
 from .costmodel import FITTED
 from .gauss_seidel import LOCAL_FACTOR, sweep
 from .pk_stack import BlockStacks
@@ -189,11 +189,28 @@ def _prepared(coupling, tips: np.ndarray):
     return coarse, sweep_levels(coupling), stacks
 
 
-def relative_change(new: list, old: list) -> float:
-    """``||new - old|| / ||new||`` over all blocks' pressures (0 where ``new`` is 0)."""
-    diff2 = sum(float(np.sum((a - c) ** 2)) for a, c in zip(new, old))
-    norm2 = sum(float(np.sum(v * v)) for v in new)
-    return float(np.sqrt(diff2 / norm2)) if norm2 > 0 else 0.0
+def relative_change(new: np.ndarray, old: np.ndarray) -> float:
+    """``||new - old|| / ||new||`` over all blocks' pressures, laid end to end (0 where
+    ``new`` is 0)."""
+    diff = new - old
+    norm2 = float(new @ new)
+    return float(np.sqrt(float(diff @ diff) / norm2)) if norm2 > 0 else 0.0
+
+
+def _flat(values: list) -> np.ndarray:
+    """The block vectors laid end to end."""
+    return np.concatenate(values) if values else np.zeros(0)
+
+
+def _block_forces(flat: np.ndarray, starts: np.ndarray, h2: np.ndarray) -> np.ndarray:
+    """Resultant force (N) of each block from its pressures laid end to end (``starts``: the
+    first index of each block's, ``len(flat)`` past the last; ``h2`` the cells' areas):
+    one segmented sum, not a sum a block (939 blocks: 3 ms against 0.3)."""
+    sums = np.zeros(len(starts) - 1)
+    filled = np.flatnonzero(np.diff(starts))
+    if filled.size:
+        sums[filled] = np.add.reduceat(flat, starts[filled])
+    return h2 * sums
 
 
 def verdict(seen: list, changed: bool, limits: SweepLimits, sweeps: int, p: list):
@@ -256,10 +273,14 @@ def two_level(
     active = [v > 0.0 for v in p]
     history: list = []
     cg_iters = 0
+    # the per-block sums of every sweep (forces, change, contact sets) over the blocks laid end to end
+    starts = np.concatenate([[0], np.cumsum([len(v) for v in p])]).astype(np.int64)
+    h2 = np.array([pt.grid.h**2 for pt in patches], dtype=float)
+    flat = _flat(p)
     for m in range(1, limits.max_sweeps + 1):
         coupling.refresh(p)
         b = [theta[0] - z for z in heights(theta)]
-        before = patch_forces(patches, p)
+        before = _block_forces(flat, starts, h2)
         local_rtol = LOCAL_FACTOR * max(history[-1] if history else 0.1, limits.tol)
         sw = sweep(blocks, coupling, b, p, active, local_rtol=local_rtol, levels=levels, stacks=stacks)
         if sw.failed:
@@ -268,13 +289,14 @@ def two_level(
             return TwoLevelResult(
                 sw.pressures, sw.active, theta, False, m, tuple(history), cg_iters, message, StopReason.FAILED
             )
-        dF = patch_forces(patches, sw.pressures) - before
+        dF = _block_forces(_flat(sw.pressures), starts, h2) - before
         step = coarse.correct(blocks, patches, sw.pressures, sw.active, dF, theta, control, stacks)
         cg_iters += step.iterations
         new_active = [v > 0.0 for v in step.pressures]
-        change = relative_change(step.pressures, p)
-        changed = sw.changed or any(np.any(a != c) for a, c in zip(new_active, sw.active))
-        p, active, theta = step.pressures, new_active, step.theta
+        new = _flat(step.pressures)
+        change = relative_change(new, flat)
+        changed = sw.changed or bool(np.any((new > 0.0) != _flat(sw.active)))
+        p, active, theta, flat = step.pressures, new_active, step.theta, new
         history.append(change)
         if limits.monitor is not None:
             limits.monitor(m, change)
