@@ -43,6 +43,7 @@ and by conjugate gradients with the provider's ``point_operator`` beyond.
 from __future__ import annotations
 
 import math
+import operator
 from dataclasses import dataclass
 
 import numpy as np
@@ -50,19 +51,11 @@ import scipy.linalg as sla
 import scipy.sparse as sp
 
 from ..influence.base import InfluenceProvider
-from ..krylov import block_cg, masked_cg
+from ..krylov import block_cg
 from ..mixed_precision import refined_solve
 from .constraints import Control, block_coordinates
-
-
-#: Relative residual of the conjugate-gradient solves for ``s_k`` on large blocks.
-SHAPE_RTOL = 1e-4
-#: A block whose active set differs from the one its ``s_k`` was solved on in at most this
-#: fraction of its active cells keeps that ``s_k`` (zero on the cells that entered): the
-#: contact edges move by a cell or two in most sweeps, and solving ``s_k`` again for every
-#: block each sweep was a third of the two-level iteration's CPU on 4,548 scattered
-#: paraboloids under load control (43,690 solves in 10 sweeps).
-SHAPE_REUSE = 0.1
+from .coarse_shapes import SHAPE_REUSE, SHAPE_RTOL, block_shapes, shape, solve_shapes, stale  # noqa: F401
+from .segments import laid_end_to_end, segment_sums, starts_of
 
 
 @dataclass(frozen=True)
@@ -117,6 +110,7 @@ class CoarseSpace:
         self._op = None
         self._compliance = self._smooth = None
         self._frames: dict = {}
+        self._flat = None  # the frames laid end to end (:meth:`_flat_frames`)
         # the pairs' values from the tips' compliance on a translation-invariant body, or the
         # pairs alone (the finite block's), not a point_compliance call a row (5,930 tips: 16 s)
         T = self.compliance() if getattr(provider, "translation_invariant", False) else None
@@ -136,79 +130,12 @@ class CoarseSpace:
         self._dist = np.hypot(*(self.tips[coo.row] - self.tips[coo.col]).T)
 
     def _shape(self, blk, active: np.ndarray) -> np.ndarray:
-        """``s_k = A_SS^{-1} 1`` on the active cells of block ``blk``, kept with the block and
-        reused while its active set differs from the one ``s_k`` was solved on in at most
-        ``SHAPE_REUSE`` of its cells (zero on the cells that entered); large blocks
-        warm-start the conjugate gradients from the previous one and stop at
-        ``SHAPE_RTOL`` (the load and moments after the step hold exactly for any ``s_k``,
-        which only sets how fast the iteration goes)."""
-        old = blk.coarse_shape  # kept with the block through the rounds of the solve
-        moved = -1 if old is None else int(np.count_nonzero(active != old[0]))
-        if moved == 0:
-            return old[1]
-        s = np.zeros(blk.n)
-        where, kept = self._remembered(blk, active)
-        if kept is not None:
-            s[active] = kept
-            blk.coarse_shape = (active.copy(), s)
-            return s
-        if 0 < moved <= SHAPE_REUSE * int(np.count_nonzero(active)):
-            s = np.where(active, old[1], 0.0)  # the solved one's, kept as the reference
-        else:
-            x0 = None if old is None else old[1][active]
-            s[active] = blk.solve(active, np.ones(int(active.sum())), x0, rtol=SHAPE_RTOL)
-            blk.coarse_shape = (active.copy(), s)
-        if where is not None:  # a later solve of the same patches finds it for this active set
-            self.provider.remember("shape", where, s[active].copy())
-        return s
-
-    def _remembered(self, blk, active: np.ndarray) -> tuple:
-        """``(key, s_k on the active cells)`` a solver object kept for this block's geometry
-        and active set (``(key, None)``: none yet; ``(None, None)``: no solver object)."""
-        remembered = getattr(self.provider, "remembered", None)  # a solver object's kept shapes
-        if remembered is None:
-            return None, None
-        key = (float(blk.box.h), blk.box.nx, blk.box.ny, np.packbits(blk.cells_of(active)).tobytes(), SHAPE_RTOL)
-        return key, remembered("shape", key)
-
-    def _stale(self, blk, active: np.ndarray) -> bool:
-        """:meth:`_shape` would solve ``s_k`` again for ``blk`` by conjugate gradients."""
-        old = blk.coarse_shape
-        if blk.dense or not active.any():
-            return False
-        if old is None:
-            return True
-        return int(np.count_nonzero(active != old[0])) > SHAPE_REUSE * int(np.count_nonzero(active))
+        """:func:`.coarse_shapes.shape` of block ``blk``."""
+        return shape(self.provider, blk, active)
 
     def _solve_shapes(self, stacks, blocks, todo: list, active: list) -> None:
-        """``s_k`` of the FFT blocks ``todo`` by preconditioned conjugate gradients run
-        together per size class (:class:`~.pk_stack.BlockStacks`' canvases: one stacked
-        product and one circulant inverse an iteration for the class, not a product per
-        block and iteration), warm from the kept ``s_k``; each kept with its block as
-        :meth:`_shape` keeps it (4,548 paraboloids: 4,376 solves one by one, 41,059
-        products, 10 % of the solve)."""
-        groups: dict = {}
-        for k in todo:
-            if self._remembered(blocks[k], active[k])[1] is None:  # else :meth:`_shape` takes it
-                key, canvas = stacks.canvas(blocks[k])
-                groups.setdefault(key, (canvas, []))[1].append(k)
-        for key, (canvas, members) in groups.items():
-            on = np.zeros((len(members), *key), bool)
-            x = np.zeros(on.shape)
-            for i, k in enumerate(members):
-                blk, m = blocks[k], blocks[k].canvas_mask(key)
-                on[i][m] = active[k]
-                if blk.coarse_shape is not None:
-                    x[i][m] = np.where(active[k], blk.coarse_shape[1], 0.0)
-            # float32 products where the canvas has them: ~1e-7 of rounding against SHAPE_RTOL
-            product = canvas.products.fast or canvas.products.exact
-            x = masked_cg(product, canvas.precondition, on, x, SHAPE_RTOL, blocks[members[0]].cg_max_iter)
-            for i, k in enumerate(members):
-                s = np.where(active[k], x[i][blocks[k].canvas_mask(key)], 0.0)
-                blocks[k].coarse_shape = (active[k].copy(), s)
-                where = self._remembered(blocks[k], active[k])[0]
-                if where is not None:
-                    self.provider.remember("shape", where, s[active[k]].copy())
+        """:func:`.coarse_shapes.solve_shapes` of the FFT blocks ``todo``."""
+        solve_shapes(self.provider, stacks, blocks, todo, active)
 
     def smooth_self(self) -> np.ndarray:
         """Each tip's smooth compliance on itself ``c_k`` (mm/N), made once. ``A_SS = B_SS +
@@ -290,28 +217,27 @@ class CoarseSpace:
         pivot, n_unknowns, target = control.pivot, control.n_unknowns, control.target
         n = len(patches)
         if stacks is not None:
-            todo = [k for k, blk in enumerate(blocks) if self._stale(blk, active[k])]
+            todo = [k for k, blk in enumerate(blocks) if stale(blk, active[k])]
             if todo:
                 self._solve_shapes(stacks, blocks, todo, active)
         # FFT blocks' s_k on a base kernel (the finite block's): the tip's own correction added
         smooth = None if stacks is None or stacks.whole_kernel else self.smooth_self()
         h2 = patches[0].grid.h ** 2 if n else 1.0
-        shapes = [None] * n
-        kappa = np.zeros(n)
-        cent = np.zeros((n, 2))
-        for k, (blk, pt) in enumerate(zip(blocks, patches)):
-            if not np.count_nonzero(active[k]):
-                continue
-            s = self._shape(blk, active[k])
-            kap = h2 * float(s.sum())
-            if smooth is not None and not blk.dense and kap > 0.0 and 1.0 / kap + smooth[k] > 0.0:
-                kap = 1.0 / (1.0 / kap + smooth[k])
-            if not kap > 0.0:
-                continue
-            xr, yr, _ = self._frame(k, pt, pivot, blk)
-            shapes[k], kappa[k] = s, kap
-            cent[k] = h2 * float(xr @ s) / kap, h2 * float(yr @ s) / kap
+        # the blocks' sums over their cells laid end to end (:mod:`.segments`)
+        starts = starts_of(active)
+        shapes = block_shapes(self.provider, blocks, active, starts)
+        flat = laid_end_to_end([np.zeros(blk.n) if v is None else v for blk, v in zip(blocks, shapes)])
+        kappa = h2 * segment_sums(flat, starts)
+        if smooth is not None:
+            with np.errstate(divide="ignore"):
+                soft = np.array([not blk.dense for blk in blocks], bool) & (kappa > 0.0) & (1.0 / kappa + smooth > 0.0)
+                kappa[soft] = 1.0 / (1.0 / kappa[soft] + smooth[soft])
+        kappa = np.where(kappa > 0.0, kappa, 0.0)
         A = np.flatnonzero(kappa > 0.0)
+        xr, yr = self._flat_frames(patches, blocks, pivot)
+        cent = np.zeros((n, 2))
+        cent[A, 0] = h2 * segment_sums(xr * flat, starts)[A] / kappa[A]
+        cent[A, 1] = h2 * segment_sums(yr * flat, starts)[A] / kappa[A]
         theta = np.array(theta, dtype=float)
         if A.size == 0:
             return CoarseStep(list(pressures), theta, np.zeros(n), 0, True)
@@ -336,10 +262,28 @@ class CoarseSpace:
             dP_A = sol[:, 0] + sol[:, 1:] @ dtheta[:m]
         dP = np.zeros(n)
         dP[A] = dP_A
-        out = list(pressures)
-        for k, dp in zip(A, dP_A):
-            out[k] = np.maximum(pressures[k] + (dp / kappa[k]) * shapes[k], 0.0)
+        scale = np.zeros(n)
+        scale[A] = dP_A / kappa[A]
+        moved = np.maximum(laid_end_to_end(pressures) + np.repeat(scale, np.diff(starts)) * flat, 0.0)
+        out = list(pressures)  # the others' the very objects (unchanged)
+        for k in A.tolist():
+            out[k] = moved[starts[k] : starts[k + 1]]
         return CoarseStep(out, theta + dtheta, dP, iters, ok)
+
+    def _flat_frames(self, patches, blocks, pivot) -> tuple:
+        """The blocks' :meth:`_frame` coordinates ``(xr, yr)`` laid end to end, kept while the
+        patches are the same objects."""
+        hit = self._flat
+        if (
+            hit is None
+            or hit[0] != tuple(pivot)
+            or len(hit[1]) != len(patches)
+            or any(map(operator.is_not, hit[1], patches))
+        ):
+            frames = [self._frame(k, pt, pivot, blk) for k, (pt, blk) in enumerate(zip(patches, blocks))]
+            hit = (tuple(pivot), list(patches), *(laid_end_to_end([f[i] for f in frames]) for i in (0, 1)))
+            self._flat = hit
+        return hit[2], hit[3]
 
     def _frame(self, k: int, pt, pivot, blk=None) -> tuple:
         """Block ``k``'s :func:`block_coordinates` and the columns ``(1, y, x)`` of

@@ -21,6 +21,7 @@ from ..stopping import StopReason
 from .blocks import Coupling
 from .localblock import LocalBlock
 from .local import contact_solve
+from .segments import laid_end_to_end
 
 #: Local solves stop at this fraction of the last sweep's relative change (never below it of tol).
 LOCAL_FACTOR = 1e-2
@@ -110,9 +111,9 @@ def sweep(
             take(k, sol.pressure, sol.active, sol.converged)
     # the change and the contact sets over all blocks laid end to end, not block by block
     # (3,756 local solves a two-level iteration on 939 blocks: 15 us each in these sums)
-    changed = bool(n) and bool(np.any(np.concatenate(active) != np.concatenate(was)))
-    new = np.concatenate(p) if n else np.zeros(0)
-    diff = new - (np.concatenate(before) if n else new)
+    changed = bool(np.any(laid_end_to_end(active, bool) != laid_end_to_end(was, bool)))
+    new = laid_end_to_end(p)
+    diff = new - laid_end_to_end(before)
     norm2 = float(new @ new)
     rel = float(np.sqrt(float(diff @ diff) / norm2)) if norm2 > 0 else 0.0
     return Sweep(p, active, changed, rel, tuple(np.flatnonzero(failed).tolist()))
