@@ -21,7 +21,7 @@ from .result import MacroResult
 from .start import MacroStart
 from .newton import PLATEAU_DROP
 from .robust import FAST_STEPS, minimise_then_polish, run_newton, solve_dual
-from .system import MacroSystem
+from .system import MacroSystem, symmetric_part
 
 #: Default largest N solved with a dense interaction matrix (32 MB at 2,000).
 DENSE_MAX = MacroOptions.dense_max
@@ -359,8 +359,8 @@ def _secant_forces(system: MacroSystem, stack: LawStack) -> np.ndarray:
     f = np.asarray(stack.force(o), dtype=float)[A]
     if not np.all(np.isfinite(f) & (f > 0)):
         return P
-    K = system.T[np.ix_(A, A)]
-    K = 0.5 * (K + K.T)
+    K = symmetric_part(system.T if A.size == system.n else system.T[np.ix_(A, A)])
+    K = K.copy() if K is system.T else K  # its diagonal is changed below
     K[np.arange(A.size), np.arange(A.size)] += o[A] / f
     try:
         L = np.linalg.cholesky(K)

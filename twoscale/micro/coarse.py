@@ -315,7 +315,10 @@ class CoarseSpace:
         the near pairs' correction on ``A``, sparse symmetric)."""
         if A.size <= self.dense_max:
             T, tA = self.compliance(), self.tips[A]
-            M = T[np.ix_(A, A)] if T is not None else np.array(self.provider.point_compliance(tA, tA), dtype=float)
+            if T is not None:  # every patch in contact: a copy of T, not a gather (1 against 7 ms)
+                M = T.copy() if A.size == len(T) else T[np.ix_(A, A)]
+            else:
+                M = np.array(self.provider.point_compliance(tA, tA), dtype=float)
             M[np.arange(A.size), np.arange(A.size)] = kinv
             pairs = near.tocoo()  # its few entries added where they are, not a dense copy of it
             M[pairs.row, pairs.col] += pairs.data
