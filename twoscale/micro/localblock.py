@@ -15,24 +15,20 @@ from ..influence.base import InfluenceProvider
 from .pair_entries import BoxWindow
 from .patches import Patch
 
-#: A dense block whose matrix is not stored keeps the columns ``A[:, S]`` of its last
-#: active set ``S`` when they hold at most this many entries (32 KB): the active-set
-#: loops' penetration check ``A p`` (``p`` zero off ``S``) is then one small product, not
-#: an FFT of the block's box (939 blocks of 41-266 cells: 3,756 local solves a two-level
-#: iteration, a third of their CPU in those FFTs).
+#: A dense block whose matrix is not stored keeps the columns ``A[:, S]`` of its last active
+#: set ``S`` up to this many entries (32 KB): the active-set loops' check ``A p`` is then one
+#: small product, not an FFT of its box (939 blocks: a third of the local solves' CPU).
 COLUMNS_MAX_ENTRIES = 4096
 #: Above that, the active columns are gathered for one product and not kept, up to this
 #: many entries (512 KB), where the block keeps its box's offsets (:meth:`LocalBlock._entries`):
-#: a gather of 10,000 entries costs a tenth of an FFT of the box (#151: 75 of 939 blocks a
-#: sweep, a sixth of the local solves' CPU in those FFTs).
+#: a gather of 10,000 entries costs a tenth of an FFT of the box.
 COLUMNS_GATHER_MAX_ENTRIES = 65536
 #: The largest grid matrix (entries, 32 MB) :func:`grid_entries` cuts entries from ...
 GRID_MATRIX_MAX_ENTRIES = 4_000_000
 #: ... and one it cuts from however few entries are wanted (2 MB: a small box's matrix).
 GRID_MATRIX_SMALL_ENTRIES = 250_000
 #: The largest block :func:`whole_patch` makes for the cells a neighbour owns (entries,
-#: 32 MB), else an FFT of the pair's boxes (large merged paraboloids' patches asked for
-#: 39 M entries of Love values: 4.5 GB of peak against an estimate of 1.6 GB).
+#: 32 MB), else an FFT of the pair's boxes (large merged paraboloids: 4.5 GB of peak).
 WHOLE_PATCH_MAX_ENTRIES = 4_000_000
 
 
@@ -53,13 +49,10 @@ def _factorise(M: np.ndarray, symmetric: bool):
 
 def grid_entries(provider, target, source, rows: np.ndarray, cols: np.ndarray) -> np.ndarray:
     """``provider.grid_matrix(target, source)[np.ix_(rows, cols)]`` (flat cell indices of
-    the two grids), without the grids' whole matrix where it would be large: it is cut
-    from that matrix (a strided copy of a kept table, ~1/50 of a Love value an entry) only
-    when the provider says it is cheap, it holds at most :data:`GRID_MATRIX_MAX_ENTRIES`
-    and not much more than 50 times the entries wanted; else the entries come from the
-    provider's cell block. A block whose owned cells are few but spread over a large box
-    (a tilted sphere's patch, 17,700 box cells) cut a few columns from its box's whole
-    matrix: 2.5 GB for a 735 MB scene."""
+    the two grids), cut from that matrix (~1/50 of a Love value an entry) only when the
+    provider says it is cheap, it holds at most :data:`GRID_MATRIX_MAX_ENTRIES` and not much
+    more than 50 times the entries wanted; else from the provider's cell block (a tilted
+    sphere's few owned cells on a box of 17,700 cut from its whole matrix: 2.5 GB)."""
     rows, cols = np.asarray(rows), np.asarray(cols)
     if not (rows.size and cols.size):
         return np.zeros((rows.size, cols.size))
@@ -111,12 +104,10 @@ class LocalBlock:
     provider : InfluenceProvider
     patch : Patch
     dense_max_cells : int, default 400
-        Blocks with at most this many owned cells solve by Cholesky (LU when the provider's
-        matrix is not symmetric positive definite; factorisations cached per active set);
-        they store ``A_kk`` unless the provider's ``cheap_grid_matrix`` says it is cheaper
-        to cut it again for each new active set (their products then go by FFT). Larger
-        blocks use the provider's FFT operator and conjugate gradients (which assume a
-        symmetric positive definite operator).
+        Blocks with at most this many owned cells solve by Cholesky (LU where the provider's
+        matrix is not symmetric positive definite; factorisations cached per active set),
+        storing ``A_kk`` unless the provider's ``cheap_grid_matrix`` says to cut it again for
+        each new active set; larger blocks by CG on the provider's FFT operator.
     cg_rtol : float, default 1e-10
         Relative residual at which the CG solves stop.
     cg_max_iter : int, default 2000
@@ -124,6 +115,9 @@ class LocalBlock:
         Number of Cholesky factorisations (active sets) kept: the last one and the one
         before, for a contact set that flips between two (4 kept 454 MB of factors at
         10,000 sparse tips for no measured gain).
+    windows : dict, optional
+        The box windows (:class:`~.pair_entries.BoxWindow`) shared by the blocks of one
+        solve, by box shape and cell size, all a window depends on (1,013 blocks: 1,013 made).
     """
 
     def __init__(
@@ -135,17 +129,19 @@ class LocalBlock:
         cg_rtol: float = 1e-10,
         cg_max_iter: int = 2000,
         cache_size: int = 2,
+        windows: dict | None = None,
     ):
         self.patch = patch
+        self._windows = windows
         self._provider = provider
         self.n = int(patch.owned.sum())
         self.dense = self.n <= dense_max_cells
         self.cg_rtol, self.cg_max_iter = cg_rtol, cg_max_iter
         self._cache: OrderedDict = OrderedDict()
-        # the coarse step's ``s_k`` and the active set it was solved on (:mod:`.coarse`),
+        # the coarse step's ``s_k`` with its active set, and its coordinates (:mod:`.coarse`),
         # kept with the block through the rounds of a solve (a round rebuilds the coarse space)
         self.coarse_shape: tuple | None = None
-        self.coarse_frame: tuple | None = None  # its coordinates for the coarse step (:mod:`.coarse`)
+        self.coarse_frame: tuple | None = None
         self._cache_size = cache_size
         self.cg_iterations = 0
         self.factorisations = 0
@@ -191,7 +187,11 @@ class LocalBlock:
     def _box_window(self) -> BoxWindow | None:
         """The box's kept :class:`~.pair_entries.BoxWindow` (made on first use), or None."""
         if self._window is None and not self._windowless:
-            self._window = BoxWindow.of(self._provider, self.box)
+            shared = {} if self._windows is None or hasattr(self._provider, "box_window") else self._windows
+            key = (float(self.box.h), self.box.nx, self.box.ny)
+            self._window = shared.get(key) or BoxWindow.of(self._provider, self.box)
+            if self._window is not None:
+                shared[key] = self._window
             self._windowless = self._window is None
         return self._window
 

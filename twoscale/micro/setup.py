@@ -162,7 +162,8 @@ def block_setup(
             anchor=pb.anchor,
             reuse=patches or (),
         )
-    blocks = [LocalBlock(provider, pt, dense_max_cells=opts.dense_max_cells) for pt in patches]
+    windows: dict = {}  # the blocks' box windows, shared by shape (:class:`.localblock.LocalBlock`)
+    blocks = [LocalBlock(provider, pt, dense_max_cells=opts.dense_max_cells, windows=windows) for pt in patches]
     p0 = _kept_starts(ctx, patches, blocks, theta)
     covers = None
     if merge:
