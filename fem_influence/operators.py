@@ -100,6 +100,28 @@ class BlockCorrection(LowRankCorrection):
         c = grid.h**2 * (W @ np.asarray(p, dtype=float).ravel())
         return (M @ (T @ c)).reshape(grid.shape)
 
+    def own_stack(self, grids: list, shape: tuple[int, int]):
+        """:meth:`on_itself` of every grid of ``grids`` at once, for pressures on canvases of
+        ``shape`` whose corner is each grid's (:class:`~.stacked_correction.StackedCorrection`),
+        or None where a grid's factors are not separable (a top face not rectilinear, a
+        grid across many elements)."""
+        from .grid_factors import GridWeights, KronMatrix
+        from .stacked_correction import StackedCorrection
+
+        st, factors = self._p._state, []
+        for grid in grids:
+            cols, W = self._p._source_weights(grid)
+            if not (st.interpolator.rectilinear and isinstance(W, GridWeights)):
+                return None
+            M, rows = st.interpolation(grid, self._p.origin)
+            if not isinstance(M, KronMatrix):
+                return None
+            T = self._own.get(grid)
+            if T is None:
+                T = self._own[grid] = st.scaled_table(self._p.material.E)[np.ix_(rows, cols)]
+            factors.append((W.wy, W.wx, T, M.my, M.mx, grid.h**2))
+        return StackedCorrection(factors, shape) if factors else None
+
     def coefficients(self, source: Grid, p: np.ndarray) -> np.ndarray:
         cols, W = self._p._source_weights(source)
         c = np.zeros(self._p._state.table.shape[1])
@@ -147,13 +169,7 @@ class TargetFactor:
     @property
     def nbytes(self) -> int:
         M = self.M
-        m = (
-            0
-            if M is None
-            else M.nbytes
-            if isinstance(M, np.ndarray)
-            else M.data.nbytes + M.indices.nbytes + M.indptr.nbytes
-        )
+        m = 0 if M is None else M.data.nbytes + M.indices.nbytes + M.indptr.nbytes if sp.issparse(M) else M.nbytes
         return m + self.T.nbytes
 
     @property

@@ -366,8 +366,8 @@ class BlockProvider(InfluenceProvider):
 
     def _source_weights(self, source: Grid):
         """(columns in the field table, weights (columns x cells)) of a source grid, kept per
-        grid: sparse (16 a cell) unless it has few columns (a patch inside one lattice
-        square: 16)."""
+        grid as its separable factors (:class:`~.grid_factors.GridWeights`: a patch's dense
+        16 x 812 weights were 104 kB, 0.6 GB on 5,930 spheres)."""
         st = self._state
         if len(st.grid_memo) > MEMO_GRIDS:
             st.grid_memo.clear()
@@ -375,7 +375,7 @@ class BlockProvider(InfluenceProvider):
         if key_w not in st.grid_memo:
             nodes, W = grid_weights(self, source)
             cols = self._ensure(nodes)
-            st.grid_memo[key_w] = (cols, W.toarray() if W.shape[0] <= 24 else W)
+            st.grid_memo[key_w] = (cols, W)
         return st.grid_memo[key_w]
 
     def _target_factor(self, target: Grid, cols: np.ndarray | None = None):
