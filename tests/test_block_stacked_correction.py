@@ -76,3 +76,21 @@ def test_stacked_solves_lag_the_same_correction_as_block_by_block(block, monkeyp
     assert max(np.max(np.abs(bare[k][0] - single[k][0])) for k in ks) > 1e-6 * max(
         np.max(np.abs(single[k][0])) for k in ks
     )
+
+
+def test_near_sums_compact_coefficients_are_the_pointwise_correction(block):
+    _, corr = block.split()
+    target = Grid(-1.0, 0.4, H, 17, 13)
+    sources = [Grid(-0.6, 0.35, H, 12, 15), Grid(-1.3, 0.1, H, 20, 9)]
+    rng = np.random.default_rng(6)
+    ps = [rng.random(g.shape) for g in sources]
+    got = corr.near_sum(target, [(g, corr.compact(g, p)) for g, p in zip(sources, ps)])
+    t = target.points()
+    ref = sum(g.h**2 * block.correction(t, g.points()) @ p.ravel() for g, p in zip(sources, ps)).reshape(target.shape)
+    assert np.max(np.abs(ref)) > 0 and np.max(np.abs(got - ref)) < 1e-12 * np.max(np.abs(ref))
+    # the contract's route: one vector over every node, summed
+    c = sum(corr.coefficients(g, p) for g, p in zip(sources, ps))
+    assert np.max(np.abs(corr.evaluate(target, c) - ref)) < 1e-12 * np.max(np.abs(ref))
+    # a second call takes the kept cuts of the pairs: the same numbers
+    again = corr.near_sum(target, [(g, corr.compact(g, p)) for g, p in zip(sources, ps)])
+    assert np.array_equal(again, got)
