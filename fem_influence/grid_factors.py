@@ -159,7 +159,7 @@ class KronMatrix:
             return ((self.my @ v.reshape(ry, rx)) @ self.mx.T).ravel()
         m = v.shape[1]
         A = (self.my @ v.reshape(ry, rx * m)).reshape(ny, rx, m)
-        return np.einsum("jb,ibm->ijm", self.mx, A).reshape(-1, m)
+        return np.matmul(self.mx, A).reshape(-1, m)  # one (nx, rx) @ (rx, m) a row (einsum: 8x slower)
 
     def toarray(self) -> np.ndarray:
         return kron(self.my, self.mx)

@@ -94,3 +94,16 @@ def test_near_sums_compact_coefficients_are_the_pointwise_correction(block):
     # a second call takes the kept cuts of the pairs: the same numbers
     again = corr.near_sum(target, [(g, corr.compact(g, p)) for g, p in zip(sources, ps)])
     assert np.array_equal(again, got)
+
+
+def test_a_grids_interpolation_kept_as_axis_factors_is_numpys_kron():
+    from fem_influence.grid_factors import KronMatrix
+
+    rng = np.random.default_rng(7)
+    for ny, ry, nx, rx, m in [(29, 3, 28, 3, 16), (5, 5, 7, 3, 2), (1, 3, 4, 5, 1)]:
+        my, mx = rng.random((ny, ry)), rng.random((nx, rx))
+        K, D = KronMatrix(my, mx), np.kron(my, mx)
+        V = rng.random((ry * rx, m))
+        assert K.shape == D.shape
+        assert np.max(np.abs(K @ V - D @ V)) < 1e-14 * np.max(np.abs(D @ V))
+        assert np.max(np.abs(K @ V[:, 0] - D @ V[:, 0])) < 1e-14 * np.max(np.abs(D @ V[:, 0]))
