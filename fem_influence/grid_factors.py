@@ -141,6 +141,40 @@ def grid_target(interpolator, grid: Grid, origin, T: np.ndarray) -> GridTarget:
     return GridTarget(my.T.copy(), mx.T.copy(), interpolator._node[np.ix_(rows, cols)], T)
 
 
+class KronMatrix:
+    """``kron(my, mx)`` (cells x top-face nodes, x fastest both ways) kept as its two axis
+    factors ``my`` (ny, ry) and ``mx`` (nx, rx): a grid's interpolation from the nodes
+    around it, ``@`` a flat node vector (ry * rx,) or (ry * rx, m) columns, as the dense
+    matrix's products (summed along y, then x). A patch's dense form is 58 kB (812 cells,
+    9 nodes; 5,930 spheres kept 0.3 GB of them), its factors under 1 kB."""
+
+    def __init__(self, my: np.ndarray, mx: np.ndarray):
+        self.my, self.mx = my, mx
+        self.shape = (my.shape[0] * mx.shape[0], my.shape[1] * mx.shape[1])
+
+    def __matmul__(self, v):
+        v = np.asarray(v, dtype=float)
+        (ny, ry), rx = self.my.shape, self.mx.shape[1]
+        if v.ndim == 1:
+            return ((self.my @ v.reshape(ry, rx)) @ self.mx.T).ravel()
+        m = v.shape[1]
+        A = (self.my @ v.reshape(ry, rx * m)).reshape(ny, rx, m)
+        return np.matmul(self.mx, A).reshape(-1, m)  # one (nx, rx) @ (rx, m) a row (einsum: 8x slower)
+
+    def toarray(self) -> np.ndarray:
+        return kron(self.my, self.mx)
+
+    @property
+    def nbytes(self) -> int:
+        return self.my.nbytes + self.mx.nbytes
+
+    @property
+    def nnz(self) -> int:
+        """Multiply-adds of one product with one vector (as a sparse matrix's entries)."""
+        (ny, ry), (nx, rx) = self.my.shape, self.mx.shape
+        return ny * ry * rx + ny * nx * rx
+
+
 #: Most top-face nodes around a grid whose interpolation :func:`grid_interpolation` keeps
 #: dense (a patch across two elements each way has 25).
 DENSE_NODES = 25
@@ -149,7 +183,7 @@ DENSE_NODES = 25
 def grid_interpolation(interpolator, grid: Grid, origin) -> tuple:
     """The top-face interpolation at a grid's cells on the nodes it uses, and those nodes:
     ``(M, nodes)`` with ``M @ values[nodes]`` the values at the cells. From one axis at a
-    time, dense ``kron(My, Mx)`` (the same products as the pointwise sparse matrix's) where
+    time, ``kron(My, Mx)`` kept as its factors (:class:`KronMatrix`) where
     the grid touches at most :data:`DENSE_NODES` nodes (a patch: a few elements' worth of
     Python a grid, not one stencil a cell); else the pointwise matrix, compressed
     (:meth:`~fem_influence.interpolate.TopInterpolator.compressed`)."""
@@ -161,4 +195,4 @@ def grid_interpolation(interpolator, grid: Grid, origin) -> tuple:
     rows, my = _axis_weights(grid.y, *_quadratic_weights(grid.y + oy, interpolator._ys))
     if len(rows) * len(cols) > DENSE_NODES:
         return interpolator.compressed(grid.points() + np.asarray(origin))
-    return kron(my.T, mx.T), interpolator._node[np.ix_(rows, cols)].ravel()
+    return KronMatrix(my.T.copy(), mx.T.copy()), interpolator._node[np.ix_(rows, cols)].ravel()

@@ -2,8 +2,6 @@
 
 * :func:`lagrange_1d`: the cubic Lagrange stencil that interpolates the correction in
   the source point from its lattice, and :func:`point_weights` its weights for points;
-* :class:`BlockCorrection`: the correction in factored form (forces on the lattice
-  nodes), for solvers that keep it apart from the half-space part;
 * :class:`TargetFactor`: the correction at a grid's cells from lattice nodes, kept as
   the sparse top-face interpolation times the field table (not the dense ``U``);
 * :class:`BlockGridOperator`: a grid product, half-space FFT convolution plus the
@@ -20,8 +18,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 import scipy.sparse as sp
 
-from twoscale.grid import Grid
-from twoscale.influence.base import GridOperator, LowRankCorrection
+from twoscale.influence.base import GridOperator
 from twoscale.influence.points import PointOperator
 
 from .cell_product import BlockCellProduct
@@ -74,57 +71,6 @@ def point_weights(provider: "BlockProvider", sources: np.ndarray):
     return nodes, W
 
 
-class BlockCorrection(LowRankCorrection):
-    """The block's correction in factored form (:meth:`BlockProvider.split`): coefficients are
-    forces (N, for E = 1 fields scaled by 1/E at evaluation) on the correction lattice
-    nodes, indexed like the provider's field table."""
-
-    def __init__(self, provider: "BlockProvider"):
-        self._p = provider
-        self._own: dict = {}  # per grid: the table's rows and columns of its own correction
-
-    def on_itself(self, grid: Grid, p: np.ndarray) -> np.ndarray:
-        """``evaluate(grid, coefficients(grid, p))`` (``grid.shape``, mm): a local solve's
-        lagged correction of its own box at every solve of every sweep (5,930 spheres: 62,782
-        calls, a tenth of the solve profiled), as ``h^2 M (T_g (W p))`` with the grid's kept
-        source weights ``W`` and interpolation ``M`` and the table's rows and columns they
-        use ``T_g``, kept here per grid (a few hundred bytes): no vector over every lattice
-        node scattered, searched and cut again at each call."""
-        st, (cols, W) = self._p._state, self._p._source_weights(grid)  # the fields solved first
-        if not st.interpolator.rectilinear:
-            return self.evaluate(grid, self.coefficients(grid, p))
-        M, rows = st.interpolation(grid, self._p.origin)
-        T = self._own.get(grid)
-        if T is None:
-            T = self._own[grid] = st.scaled_table(self._p.material.E)[np.ix_(rows, cols)]
-        c = grid.h**2 * (W @ np.asarray(p, dtype=float).ravel())
-        return (M @ (T @ c)).reshape(grid.shape)
-
-    def coefficients(self, source: Grid, p: np.ndarray) -> np.ndarray:
-        cols, W = self._p._source_weights(source)
-        c = np.zeros(self._p._state.table.shape[1])
-        c[cols] = source.h**2 * (W @ np.asarray(p, dtype=float).ravel())  # columns are distinct nodes
-        return c
-
-    def evaluate(self, target: Grid, c: np.ndarray) -> np.ndarray:
-        n = self._p._state.table.shape[1]
-        c = np.asarray(c, dtype=float)
-        if len(c) < n:
-            c = np.concatenate([c, np.zeros(n - len(c))])
-        if self._p._state.interpolator.rectilinear:
-            nz = np.flatnonzero(c)
-            if 2 * len(nz) < len(c):
-                # a few near sources' nodes: the table's rows around the grid on their
-                # columns only (the same sums as the factor's own sparse product)
-                st = self._p._state
-                M, rows = st.interpolation(target, self._p.origin)
-                T = st.scaled_table(self._p.material.E)
-                return (M @ (T[rows[:, None], nz] @ c[nz])).reshape(target.shape)
-            return (self._p._target_factor(target) @ c).reshape(target.shape)
-        nz = np.flatnonzero(c)
-        return (self._p._target_factor(target, nz) @ c[nz]).reshape(target.shape)
-
-
 class TargetFactor:
     """``U = M T``: the correction (mm/N) at ``M``'s points from the lattice nodes of the
     columns of ``T`` (top-face node values, already divided by E), ``M`` the sparse
@@ -147,13 +93,7 @@ class TargetFactor:
     @property
     def nbytes(self) -> int:
         M = self.M
-        m = (
-            0
-            if M is None
-            else M.nbytes
-            if isinstance(M, np.ndarray)
-            else M.data.nbytes + M.indices.nbytes + M.indptr.nbytes
-        )
+        m = 0 if M is None else M.data.nbytes + M.indices.nbytes + M.indptr.nbytes if sp.issparse(M) else M.nbytes
         return m + self.T.nbytes
 
     @property

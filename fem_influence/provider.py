@@ -40,7 +40,8 @@ from .cache import FieldCache, cache_key, default_cache_dir
 from .grid_factors import grid_target, grid_weights
 from .layer import BASES
 from .lattice_state import LatticeState
-from .operators import BlockCorrection, BlockGridOperator, TargetFactor, block_point_operator, point_weights
+from .factored_correction import BlockCorrection
+from .operators import BlockGridOperator, TargetFactor, block_point_operator, point_weights
 
 
 #: Grids whose correction factors (source weights, target interpolation) a provider keeps
@@ -366,8 +367,7 @@ class BlockProvider(InfluenceProvider):
 
     def _source_weights(self, source: Grid):
         """(columns in the field table, weights (columns x cells)) of a source grid, kept per
-        grid: sparse (16 a cell) unless it has few columns (a patch inside one lattice
-        square: 16)."""
+        grid as its axis factors (:class:`~.grid_factors.GridWeights`; dense: 104 kB a patch)."""
         st = self._state
         if len(st.grid_memo) > MEMO_GRIDS:
             st.grid_memo.clear()
@@ -375,7 +375,7 @@ class BlockProvider(InfluenceProvider):
         if key_w not in st.grid_memo:
             nodes, W = grid_weights(self, source)
             cols = self._ensure(nodes)
-            st.grid_memo[key_w] = (cols, W.toarray() if W.shape[0] <= 24 else W)
+            st.grid_memo[key_w] = (cols, W)
         return st.grid_memo[key_w]
 
     def _target_factor(self, target: Grid, cols: np.ndarray | None = None):

@@ -16,7 +16,7 @@ import numpy as np
 from ..influence.base import InfluenceProvider
 from ..influence.separated import check_rtol
 from .near_window import NearWindow
-from .pair_entries import affordable_pairs, pair_blocks
+from .pair_entries import affordable_pairs, near_correction, pair_blocks
 from .patches import Patch
 
 
@@ -352,11 +352,7 @@ class Coupling:
             for op, acc in groups.values()
         ]
         if self._correction is not None and smooth:
-            coeffs = [self._coefficient(l, values[l]) for l in smooth]
-            c = np.zeros(max(len(p) for p in coeffs))
-            for p in coeffs:
-                c[: len(p)] += p
-            parts.append(pick(self._correction.evaluate(pk.grid, c)))
+            parts.append(pick(near_correction(self, pk.grid, smooth, values)))
         for term in parts:
             total = term if total is None else total + term
         return total
@@ -385,14 +381,6 @@ class Coupling:
             return op.spectrum(p)
 
         return self._per_vector(self._spectra, (l, op.source_key), v, compute)
-
-    def _coefficient(self, l: int, v: np.ndarray) -> np.ndarray:
-        return self._per_vector(
-            self._coefficients,
-            (l,),
-            v,
-            lambda: self._correction.coefficients(self.patches[l].grid, scatter(self.patches[l], v)),
-        )
 
     def patch_displacement(self, k: int, values: list) -> np.ndarray:
         """Displacement (mm) on the whole patch ``k`` (ny, nx) due to the blocks ``l != k``."""

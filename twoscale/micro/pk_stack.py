@@ -70,6 +70,7 @@ class BlockStacks:
         # the canvases' stacked products' arrays (:mod:`twoscale.influence.stacked`), freed with this object
         self._workspace = Workspace()
         self._masks: dict = {}  # per size class and members: the blocks and their canvas masks
+        self._own: dict = {}  # the same: the blocks and the correction's lagged term on them
 
     @staticmethod
     def usable(provider) -> bool:
@@ -99,6 +100,18 @@ class BlockStacks:
             return rhs - own(blk.box, p)[mask]
         c = self._correction.coefficients(blk.box, p)
         return rhs - self._correction.evaluate(blk.box, c)[mask]
+
+    def _own_stack(self, blocks, members, key):
+        """The correction's lagged term of the members on their canvases in one pass (the
+        block's ``own_stack``), kept while the same blocks come in the same stack; None
+        where the correction has none."""
+        if self._correction is None or not hasattr(self._correction, "own_stack"):
+            return None
+        kept = self._own.get((key, tuple(members)))
+        if kept is None or any(a is not b for a, b in zip(kept[0], (blocks[k] for k in members))):
+            made = self._correction.own_stack([blocks[k].box for k in members], key)
+            kept = self._own[(key, tuple(members))] = ([blocks[k] for k in members], made)
+        return kept[1]
 
     def _canvas(self, blk):
         from .blocks import size_class
@@ -148,12 +161,16 @@ class BlockStacks:
     def solve(self, blocks, ks, rhs: dict, previous: list, rtol: float | None) -> dict:
         """Contact on the blocks ``ks`` (FFT blocks owning cells) with right-hand sides
         ``rhs[k]`` from starts ``previous[k]``: ``{k: (pressure, converged, iterations)}``."""
-        out = {}
-        rhs = {k: self._lagged(blocks, k, rhs[k], previous[k]) for k in ks}
+        out, rhs = {}, dict(rhs)
         for (key, tol), (op, members) in self._groups(
             blocks, ks, lambda blk: blk.cg_rtol if rtol is None else rtol
         ).items():
+            own = self._own_stack(blocks, members, key)
+            if own is None:
+                rhs.update((k, self._lagged(blocks, k, rhs[k], previous[k])) for k in members)
             mask, (b, p0) = self._stack(blocks, members, key, rhs, previous)
+            if own is not None:
+                b[mask] -= own.apply(p0)[mask]  # the members' corrections of themselves, lagged
             p, ok, it = fixed_approach(op.products, b, p0, mask, rtol=tol, precondition=op.precondition)
             out.update((k, (p[i][mask[i]], bool(ok[i]), int(it[i]))) for i, k in enumerate(members))
         return out
