@@ -293,9 +293,12 @@ class Iteration:
         beta = (G / self.G_old) * self.conj
         beta[self.kept & (G > KEPT_GROWTH * self.G_old)] = 0.0  # kept over an entry that made the gradient jump
         t = self.t
-        t *= column(beta)
-        t += d
-        t *= self.weight
+        if np.count_nonzero(beta):
+            t *= column(beta)
+            t += d
+            t *= self.weight
+        else:  # restarted: d itself (0 off the loaded cells already; the same values, one pass for three)
+            np.copyto(t, d)
         self.G_old = G
         r = halved(self.ops, t, self.k, beta, self.stale) or self.product(t, fast=True)  # (halves: update_displacement)
         self.products += rows if self.pc is None else 2 * rows
