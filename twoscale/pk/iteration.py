@@ -13,7 +13,8 @@ from typing import Any
 import numpy as np
 
 from ..stopping import StopReason
-from .projection import column, constraint_residual, denominator, kkt_residual, project, restore, row_dot
+from .gap import GapBuffers
+from .projection import column, constraint_residual, denominator, kkt_residual, project, restore, row_count, row_dot
 from .products import COLUMN_CELLS, FAST_RESIDUAL, KEPT_GROWTH, CellChange, Halves, Products, clip_and_enter, halved
 from .result import PKResult
 
@@ -54,7 +55,7 @@ class Iteration:
         ``A start`` if known (:class:`~.kernel.Start`)."""
 
     PER_ROW = tuple(
-        "p t u z mask target G_old conj kept stale scale best it_best gtol small index done count free fast".split()
+        "p t u z mask target G_old conj kept stale scale best it_best gtol small index done count free fast weight".split()
     )  # the arrays with a row per live row
 
     def __init__(
@@ -87,10 +88,8 @@ class Iteration:
         self.pending = False  # rows finished but not yet dropped
         self.left = rows  # rows not finished
         self.free: Any = None  # ~mask, for the residual rule
-        self.g: Any = None  # the gap's buffer
-        self.g_on: Any = None  # the gap on the loaded cells' buffer
-        self.scratch: Any = None  # shaped like the gap (the residual's)
-        self.on: Any = None  # the loaded cells' buffer
+        self.buffers = GapBuffers()
+        self.weight: Any = None  # the loaded cells, the masks' factor (:meth:`.gap.GapBuffers.weigh`)
         self.gtol: Any = None  # the change rule's penetration tolerance per row, when first needed
         self.scale: Any = None
         self.best: Any = None
@@ -137,29 +136,18 @@ class Iteration:
 
     def gap(self):
         """Projected gap ``g``, multipliers ``m``, loaded cells ``on`` and ``g`` on them."""
-        if self.on is None or self.on.shape != self.p.shape:
-            self.on = np.empty(self.p.shape, bool)
-        on = np.greater(self.p, 0.0, out=self.on)  # (reused: a fresh array each iteration page-faults)
-        if self.g is None or self.g.shape != self.u.shape:
-            self.g = np.empty_like(self.u)  # reused: one large allocation less per iteration
-        g = np.add(self.u, self.z, out=self.g)
-        m = None
-        if self.k:
-            if self.k == 1:
-                self.count = np.maximum(on.sum(axis=1), 1)
-            m = project(g, self.basis, on, self.count, self.basis_t, self.plane)
-        if self.g_on is None or self.g_on.shape != g.shape:
-            self.g_on = np.empty_like(g)
-        return g, m, on, np.multiply(g, on, out=self.g_on)
+        g, m, on, g_on, count, self.weight = self.buffers.gap(
+            self.p, self.u, self.z, self.k, self.basis, self.basis_t, self.plane
+        )
+        self.count = count if self.k == 1 else self.count
+        return g, m, on, g_on
 
     def residuals(self, g, g_on, on) -> np.ndarray | None:
         if self.tol.residual is None:
             return None
         if self.masked and self.free is None:
             self.free = ~self.mask
-        if self.scratch is None or self.scratch.shape != g.shape:
-            self.scratch = np.empty_like(g)  # kept: one large allocation less per check
-        res = kkt_residual(g, g_on, on, self.free, self.scale, self.scratch)
+        res = kkt_residual(g, g_on, on, self.free, self.scale, self.buffers.scratch(g) if self.masked else None)
         if self.basis_scale is not None:
             res = np.maximum(res, constraint_residual(self.p, self.basis, self.target, self.basis_scale, self.plane))
         return res
@@ -230,6 +218,7 @@ class Iteration:
                 on[empty] = g[empty] < 0.0
                 if self.masked:
                     on[empty] &= self.mask[empty]
+                self.weight = self.buffers.weigh(on)
                 g_on = np.where(on, g, 0.0)
                 gg = row_dot(g_on, g_on)
                 if np.count_nonzero(gg) == len(gg):
@@ -240,9 +229,10 @@ class Iteration:
             entering &= self.mask
         self.finish(flat & ~entering.any(axis=1), StopReason.CONVERGED, it, m, res)
         on |= entering
+        self.weight = self.buffers.weigh(on)
         self.conj &= ~flat
         if self.k == 1:
-            self.count = np.maximum(on.sum(axis=1), 1)
+            self.count = np.maximum(row_count(on), 1)
         if self.k:
             m = m + project(
                 g, self.basis, on, self.count, self.basis_t, self.plane
@@ -287,9 +277,9 @@ class Iteration:
         if self.pc is None:
             return g_on, gg
         d = self.pc(g_on.reshape(len(g_on), *self.shape), on.reshape(len(on), *self.shape)).reshape(len(on), -1)
-        d *= on
+        d *= self.weight
         project(d, self.basis, on, self.count if self.k == 1 else None, self.basis_t, self.plane, loaded_only=True)
-        d *= on
+        d *= self.weight
         G = row_dot(g_on, d)
         good = G > 0.0
         if not good.all():
@@ -303,16 +293,20 @@ class Iteration:
         beta = (G / self.G_old) * self.conj
         beta[self.kept & (G > KEPT_GROWTH * self.G_old)] = 0.0  # kept over an entry that made the gradient jump
         t = self.t
-        t *= column(beta)
-        t += d
-        t *= on
+        if np.count_nonzero(beta):
+            t *= column(beta)
+            t += d
+            t *= self.weight
+        else:  # restarted: d itself (0 off the loaded cells already; the same values, one pass for three)
+            np.copyto(t, d)
         self.G_old = G
         r = halved(self.ops, t, self.k, beta, self.stale) or self.product(t, fast=True)  # (halves: update_displacement)
         self.products += rows if self.pc is None else 2 * rows
         if isinstance(r, Halves):
             denom = r.energy()
         else:
-            denom = denominator(r, t, on, self.k, self.count, self.basis, self.basis_t, self.plane)
+            w = self.weight if self.k == 1 else on  # (a fit of the moments takes the bools)
+            denom = denominator(r, t, w, self.k, self.count, self.basis, self.basis_t, self.plane)
         bad = ~(denom > 0.0)
         if np.count_nonzero(bad):
             self.denominator[np.flatnonzero(bad) if self.index is None else self.index[bad]] = denom[bad]
@@ -326,7 +320,7 @@ class Iteration:
         clipped, reenter, change = clip_and_enter(p, g, tau, self.mask, self.ops.columns is not None)
         entered = reenter.any(axis=1)
         # few cells entered: the directions stay conjugate enough to keep (counted only then)
-        few = reenter.sum(axis=1) <= self.ops.keep_conjugacy * on.sum(axis=1) if entered.any() else True
+        few = row_count(reenter) <= self.ops.keep_conjugacy * row_count(on) if entered.any() else True
         self.kept = entered & few
         self.conj = ~entered | self.kept
         factor = restore(p, self.basis, self.target, basis_t=self.basis_t, plane=self.plane) if self.k else 1.0

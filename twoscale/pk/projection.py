@@ -73,15 +73,25 @@ def project(
 
 def masked_sum(v: np.ndarray, on: np.ndarray) -> np.ndarray:
     """Per row, the sum of ``v`` over the cells ``on`` (a product and a sum: four times
-    faster than ``np.add.reduce(..., where=on)`` on a million cells)."""
+    faster than ``np.add.reduce(..., where=on)`` on a million cells). On long rows ``on``
+    may be the cells as 0/1 floats (the same product, twice as fast as by the bools)."""
     if v.shape[1] <= SHORT_ROW:
         return np.add.reduce(v, axis=1, where=on)
     return np.einsum("bi->b", v * on)
 
 
+def row_count(on: np.ndarray) -> np.ndarray:
+    """Per row, the number of true cells of a (B, n) bool array (``np.count_nonzero`` on
+    each row: 2 against 10 us for ``on.sum(axis=1)`` on a row of 28,000 cells)."""
+    if len(on) <= 4:
+        return np.array([np.count_nonzero(row) for row in on], dtype=np.int64)
+    return on.sum(axis=1)
+
+
 def denominator(r: np.ndarray, t: np.ndarray, on: np.ndarray, k: int, count, basis, basis_t, plane) -> np.ndarray:
     """Per row, a step's ``t.A t`` projected on the ``k`` constraints, from ``r = A t`` (``t``
-    0 off the loaded cells ``on``; ``count`` their number per row under load control)."""
+    0 off the loaded cells ``on``; ``count`` their number per row under load control, and
+    then ``on`` may be :func:`masked_sum`'s 0/1 floats)."""
     denom = row_dot(r, t)
     if k == 1:  # the projected product: r minus its mean over the loaded cells
         denom -= masked_sum(r, on) / count * t.sum(axis=1)
@@ -177,16 +187,19 @@ def kkt_residual(
 ) -> np.ndarray:
     """Per row: largest |gap| on loaded cells and largest interpenetration elsewhere
     (cells in ``free``, if given, are not checked), over ``scale``. ``g_on`` is ``g`` on
-    the loaded cells and 0 elsewhere, so ``g - g_on`` is the gap off them and 0 on them,
-    one pass (``np.where(on, 0, g)``, with an ``on | free`` pass before it when cells are
-    free: 0.34 against 0.13 ms on a row of 218,000 cells). ``scratch``: an array shaped
-    like ``g`` the caller keeps for it (overwritten), else one is made."""
+    the loaded cells and 0 elsewhere. Without ``free``, the largest of the two is that of
+    ``max g_on``, ``-min g`` over the whole row and 0: ``-min g_on`` is at most the larger
+    of ``-min g`` and 0 (on the loaded cells the gap counts either way), the same number
+    by two reductions instead of three and a pass. With ``free``, ``g - g_on`` is the gap
+    off the loaded cells and 0 on them, one pass (``np.where(on, 0, g)`` with an ``on |
+    free`` pass before it: 0.34 against 0.13 ms on a row of 218,000 cells). ``scratch``:
+    an array shaped like ``g`` the caller keeps for it, else one is made."""
+    if free is None:
+        return np.maximum(np.maximum(g_on.max(axis=1), -g.min(axis=1)), 0.0) / scale
     worst_on = np.maximum(g_on.max(axis=1), -g_on.min(axis=1))
     off = np.subtract(g, g_on, out=scratch)
-    if free is not None:
-        np.putmask(off, free, 0.0)
-    worst_off = -off.min(axis=1)
-    return np.maximum(np.maximum(worst_on, worst_off), 0.0) / scale
+    np.putmask(off, free, 0.0)
+    return np.maximum(np.maximum(worst_on, -off.min(axis=1)), 0.0) / scale
 
 
 def constraint_residual(
