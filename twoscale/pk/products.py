@@ -64,6 +64,12 @@ class Products:
         ``columns(out, cells, values)`` adds ``A dp`` to ``out`` (one row, flattened) for
         ``dp`` = ``values`` on the flat ``cells`` and 0 elsewhere, exactly (float64).
         None: every refresh is a product.
+    cheap : callable, optional
+        An approximation of ``exact`` to a relative error of about ``cheap_error`` (e.g. a
+        precorrected FFT, :mod:`twoscale.influence.precorrected`) for the search directions,
+        re-anchored by :class:`Cheap`'s rule. None: the search directions take ``fast``.
+    cheap_error : float
+        ``cheap``'s relative error (L2) on the iteration's vectors.
     halves : callable, optional
         ``halves(t)``: ``fast``'s product of a search direction (one row) begun
         (:class:`Halves`): the step's denominator by Parseval (or by a model of ``A``:
@@ -82,6 +88,87 @@ class Products:
     columns: Callable[[np.ndarray, np.ndarray, np.ndarray], None] | None = None
     keep_conjugacy: float = 0.0
     halves: Callable[[np.ndarray], "Halves"] | None = None
+    cheap: Operator | None = None
+    cheap_error: float = 0.0
+
+    def cheap_rows(self, rows: int, tol) -> "Cheap | None":
+        """The kernel's state for ``cheap`` on ``rows`` rows (:meth:`Cheap.start`)."""
+        return Cheap.start(self, rows, tol)
+
+
+#: A row's search directions take the ``cheap`` product until its KKT residual has fallen to
+#: this multiple of the product's error times the residual at its last product from scratch:
+#: the displacement, updated by ``-tau A t`` since, has drifted by about the product's error
+#: times the gap removed since (#185: the residual falls 2-3-fold an iteration).
+REANCHOR = 4.0
+#: A displacement made from scratch while the row's residual is above this multiple of the
+#: ``cheap`` product's error is made by ``cheap`` (the early steps clip and let in many cells).
+CHEAP_REFRESH = 2 * REANCHOR
+#: A re-anchoring within this factor of :data:`FAST_RESIDUAL` is exact.
+EXACT_NEAR = 3.0
+
+
+class Cheap:
+    """:class:`Products`' ``cheap`` product in the kernel's iteration (``it``, an
+    :class:`~.iteration.Iteration`), with the live rows' state (compacted with them: ``[keep]``).
+
+    Each row keeps its KKT residual at its last product from scratch (its anchor; 1 for a
+    product by ``cheap`` itself, whose error is relative to the whole displacement), whether
+    a cheap product moved its displacement since (``drifting``), and its residual at the last
+    check. Once the residual has fallen to :data:`REANCHOR` x ``cheap_error`` x the anchor's,
+    the step's displacement is made from scratch (a new anchor) and the conjugate directions
+    restart (the gradient jumps by the drift). A row still stops only on an exact product:
+    the answer meets the same test as without ``cheap``."""
+
+    def __init__(self, error: float, anchor: np.ndarray, drifting: np.ndarray, res: np.ndarray):
+        self.error, self.anchor, self.drifting, self.res = error, anchor, drifting, res
+
+    @classmethod
+    def start(cls, products: Products, rows: int, tol) -> "Cheap | None":
+        """The rows' state (the start's product may be ``cheap``'s); None without ``cheap`` or
+        without the residual rule."""
+        if products.cheap is None or tol.residual is None:
+            return None
+        return cls(products.cheap_error, np.ones(rows), np.ones(rows, bool), np.full(rows, np.inf))
+
+    def __getitem__(self, keep: np.ndarray) -> "Cheap":
+        return Cheap(self.error, self.anchor[keep], self.drifting[keep], self.res[keep])
+
+    def product(self, it, t: np.ndarray, res: np.ndarray) -> np.ndarray:
+        """The search directions' ``A t`` by ``cheap`` (every live row drifts), given the rows'
+        residuals ``res`` at this step's check (the new anchors' residuals)."""
+        self.res = np.array(res)
+        fresh = np.isnan(self.anchor)
+        self.anchor[fresh] = self.res[fresh]
+        self.drifting[:] = True
+        return it.ops.cheap(t)
+
+    def due(self, it) -> np.ndarray:
+        """The rows whose displacement is to be made from scratch after this step (their
+        residual at its check fell to their bound); their directions restart, and those
+        within :data:`EXACT_NEAR` x :data:`FAST_RESIDUAL` leave ``fast`` (no second refresh
+        when they cross it)."""
+        due = self.drifting & (self.res <= REANCHOR * self.error * self.anchor)
+        if np.count_nonzero(due):
+            it.conj &= ~due
+            it.fast &= ~(due & (self.res <= EXACT_NEAR * FAST_RESIDUAL))
+        return due
+
+    def refresh(self, it, rows: np.ndarray, fast: bool) -> bool:
+        """Before ``u = A p`` on ``rows`` (bool): by ``cheap`` (returns True) when ``fast`` and
+        the rows' residuals are all above :data:`CHEAP_REFRESH` x ``cheap_error`` (the early
+        steps clip and let in many cells); else marks them anchored (False: the caller's
+        product follows)."""
+        if not (fast and np.all(self.res[rows] > CHEAP_REFRESH * self.error)):
+            self.anchor[rows], self.drifting[rows] = np.nan, False
+            return False
+        it.u[rows] = it.ops.cheap(it.p[rows])
+        it.stale[rows] = 1
+        if it.scale is not None:
+            it.scale[rows] = np.maximum(np.abs(it.u[rows]).max(axis=1), np.finfo(float).tiny)
+        self.anchor[rows], self.drifting[rows] = 1.0, True
+        it.products += int(rows.sum())
+        return True
 
 
 @dataclass
