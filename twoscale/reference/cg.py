@@ -174,7 +174,8 @@ def solve_cg(
     Returns
     -------
     ContactResult
-        ``method="reference"``, ``solver="cg"``; ``iterations={"cg": n, "products": grid products}``;
+        ``method="reference"``, ``solver="cg"``; ``iterations={"cg": n, "products": grid products}``
+        (and ``"precorrected"``: the precorrected products, when taken);
         ``residuals={"gap": history}`` (relative KKT residual per iteration); ``details`` a
         :class:`~twoscale.details.ReferenceDetails` (working grid, single-precision iterations).
     """
@@ -207,7 +208,7 @@ def solve_cg(
             work, op, provider.material.E_star, start, cg, custom, reach
         )
     offset = it0 + 1 if it0 or hist0 else 0
-    p, u, m, it, n_products, hist, converged, message = _iterate(
+    p, u, m, it, n_products, hist, converged, message, cheap = _iterate(
         work,
         op,
         provider.material.E_star,
@@ -241,7 +242,7 @@ def solve_cg(
         u,
         d,
         tilt_angles,
-        Outcome(converged, message, {"cg": it, "products": n_products}, {"gap": hist}, timings, details),
+        Outcome(converged, message, {"cg": it, "products": n_products, **cheap}, {"gap": hist}, timings, details),
     )
 
 
@@ -251,7 +252,7 @@ def _single_stage(work, op, e_star: float, start, cg: CGSettings, custom, reach)
     operator (exact products about that pressure) and fast operator, and the stage's
     iterations, products and residual history."""
     single = op.single_precision()
-    p1, _, _, it0, products0, hist0, _, _ = _iterate(
+    p1, _, _, it0, products0, hist0, _, _, _ = _iterate(
         work,
         single,
         e_star,
@@ -305,8 +306,8 @@ def _iterate(
 ):
     """The Polonsky-Keer kernel (:func:`twoscale.pk.pk_solve`) on the whole grid, one row, or
     on the candidates in ``reach`` (then checked on the whole grid, and solved on it from
-    the answer when a cell off them would touch):
-    ``(p, u, multipliers, iterations, products, residual history, converged, message)``."""
+    the answer when a cell off them would touch): ``(p, u, multipliers, iterations, products,
+    residual history, converged, message, {"precorrected": its products} or {})``."""
     shape = problem.grid.shape
     cand = problem.candidates.ravel()
     z = np.where(cand, problem.surface.height.ravel(), 0.0)
@@ -358,6 +359,8 @@ def _iterate(
     )
     p, u = out.pressure[0].ravel(), out.displacement[0].ravel()
     counts = (int(out.iterations[0]), out.products, list(out.history))
+    cheap = getattr(run[4].cheap, "__self__", None)  # (the precorrected product, if taken: its count)
+    cheap = {} if cheap is None else {"precorrected": cheap.products}
     if part is not None:
         p, u, touching = part.answer(out, exact, z, cand, problem.basis(), tol)
         if touching:  # a cell off the part would touch: the whole grid from this answer
@@ -375,5 +378,5 @@ def _iterate(
                 keep_conjugacy,
                 plane_sums=plane_sums,
             )
-            return (*whole[:3], whole[3] + counts[0], whole[4] + counts[1], counts[2] + whole[5], *whole[6:])
-    return (p, u, out.multipliers[0], *counts, bool(out.converged[0]), out.message(0))
+            return (*whole[:3], whole[3] + counts[0], whole[4] + counts[1], counts[2] + whole[5], *whole[6:8], cheap)
+    return (p, u, out.multipliers[0], *counts, bool(out.converged[0]), out.message(0), cheap)
