@@ -162,3 +162,25 @@ def test_a_solve_with_the_precorrected_directions_meets_the_same_test_as_the_exa
     p, q = cheap.fields[0].pressure, exact.fields[0].pressure
     assert np.linalg.norm(p - q) <= 1e-6 * np.linalg.norm(q)
     assert cheap.total_load == pytest.approx(exact.total_load, rel=1e-7)
+
+
+def test_the_torus_inverses_kernel_cut_at_the_near_radius_is_its_impulse_response_and_positive_definite():
+    """The inverse's kernel at the offsets within r is its product with a unit impulse (its
+    own pruned transforms), and on a sparse part the cut kernel is an M-matrix (off-diagonal
+    entries not positive, rows summing above 0): symmetric positive definite on any cells."""
+    ny = nx = 300
+    op, rng = _operator(ny, nx), np.random.default_rng(6)
+    inverse = op.single_precision().preconditioner()
+    r = 12
+    window = inverse.offsets(r)
+    impulse = np.zeros((ny, nx))
+    impulse[150, 140] = 1.0
+    response = inverse.apply(impulse)[150 - r : 151 + r, 140 - r : 141 + r]
+    assert np.allclose(window, response, rtol=0, atol=1e-6 * np.abs(window).max())
+    cells = _clustered(ny, nx, 14, 1.0, rng)
+    pc = Precorrected(op.offset_table(), (ny, nx), cells, radius=r)
+    m = pc.on_near_pairs(window).toarray()
+    assert np.allclose(m, m.T)
+    off = m - np.diag(np.diag(m))
+    assert off.max() <= 0.0 and m.sum(axis=1).min() > 0.0
+    assert np.linalg.eigvalsh(m).min() > 0.0

@@ -173,6 +173,14 @@ class CirculantInverse(GridOperator):
         fft_in_place(spectrum, 0, forward=False)
         return irfft_into(spectrum[:ny], 1, lx, back)
 
+    def offsets(self, radius: int) -> np.ndarray:
+        """The approximate inverse's kernel (real space, float64) at the offsets ``-radius ..
+        radius`` per axis, ``(2 radius + 1)^2``: one inverse transform of its multiplier."""
+        ly, lx = torus_shape(self.source)
+        full = sfft.irfft2(self._m.astype(np.float64), s=(ly, lx))
+        d = np.arange(-radius, radius + 1)
+        return full[np.ix_(d % ly, d % lx)]
+
     def on_cells(self, cells: np.ndarray) -> Callable[[np.ndarray], np.ndarray] | None:
         """:meth:`apply` on the flat ``cells`` of the grid: ``f(values)`` takes the field's
         values on those cells (0 elsewhere) and gives the result there, both (m,) float64,

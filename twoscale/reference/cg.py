@@ -334,7 +334,7 @@ def _iterate(
     run, dims, u0 = (z, p, cand, problem.basis(), products, pc), shape, None
     if part is not None:
         run, dims = part.inputs(*run, None if fast is None else op.columns(part.cells)), (part.cells.size,)
-        run = (*run[:4], cheap_products(run[4], given, part), run[5]) if precorrected and fast else run
+        run = (*run[:4], *cheap_products(run[4], given, part, pc, run[5])) if precorrected and fast else run
         if later:  # (the start's product by the cheapest: the kernel counts it as one of them)
             p_part, u0 = scaled_start(run[1], (run[4].cheap or run[4].fast)(run[1][None])[0], run[0])
             run = (run[0], p_part, *run[2:])
