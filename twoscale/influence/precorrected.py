@@ -122,44 +122,33 @@ class Precorrected:
         return exact[:, :, None, None] - approx
 
     def _near(self, table: np.ndarray, y: np.ndarray, x: np.ndarray) -> sparse.csr_matrix:
-        """The near pairs' corrections as a sparse (m, m) matrix: cells hashed by blocks of
-        ``r`` cells, each cell's neighbours from the 3 x 3 blocks around its own (one block
-        offset at a time: small temporaries)."""
+        """The near pairs' corrections as a sparse (m, m) matrix. The cells are increasing flat
+        indices, so a cell's neighbours in one grid row are a run of them, its ends read from
+        the count of part cells before each flat index: each cell's ``2r + 1`` runs in turn
+        give the matrix's rows in order (no search, no sort)."""
         r, c, m = self.r, self.c, self.m
-        corr = self.correction_table(table).ravel()
-        y, x = y.astype(np.int32), x.astype(np.int32)
-        b = max(r, 1)
-        by, bx = y // b, x // b
-        nby, nbx = int(by.max()) + 1, int(bx.max()) + 1
-        order = np.argsort(by * nbx + bx, kind="stable").astype(np.int32)
-        count = np.bincount(by * nbx + bx, minlength=nby * nbx)
-        first = np.concatenate([[0], np.cumsum(count)[:-1]])
-        own = ((y % c) * c + x % c).astype(np.int32)  # the target's position modulo c
-        rows, cols, at = [], [], []
-        for oy in (-1, 0, 1):
-            for ox in (-1, 0, 1):
-                qy, qx = by + oy, bx + ox
-                ok = (qy >= 0) & (qy < nby) & (qx >= 0) & (qx < nbx)
-                q = np.where(ok, qy * nbx + qx, 0)
-                length = np.where(ok, count[q], 0)
-                ends = np.cumsum(length)
-                total = int(ends[-1]) if m else 0
-                i = np.repeat(np.arange(m, dtype=np.int32), length)
-                j = order[
-                    np.arange(total, dtype=np.int32) + np.repeat((first[q] - ends + length).astype(np.int32), length)
-                ]
-                dy, dx = y[i] - y[j], x[i] - x[j]
-                keep = (np.abs(dy) <= r) & (np.abs(dx) <= r)
-                i, j = i[keep], j[keep]
-                rows.append(i)
-                cols.append(j)
-                at.append(((dy[keep] + r) * (2 * r + 1) + dx[keep] + r) * (c * c) + own[i])
-        rows, cols, at = (np.concatenate(a) for a in (rows, cols, at))
-        order = np.argsort(rows, kind="stable")  # (nine runs, each by rows already)
-        cols, at = cols[order], at[order]
-        indptr = np.concatenate([[0], np.cumsum(np.bincount(rows, minlength=m))])
-        self._pairs = (cols, indptr, at // (c * c))  # the CSR structure, each entry's offset
-        return sparse.csr_matrix((corr[at], cols, indptr), shape=(m, m))
+        (ny, nx), corr = self.shape, self.correction_table(table).ravel()
+        before = np.zeros(ny * nx + 1, np.int32)
+        before[y * nx + x + 1] = 1
+        np.cumsum(before, out=before)  # part cells before each flat index
+        d = np.arange(-r, r + 1, dtype=np.int32)
+        rows = y.astype(np.int32)[:, None] + d[None, :]  # (m, 2r + 1): the runs' grid rows
+        inside = (rows >= 0) & (rows < ny)
+        flat = np.where(inside, rows, 0) * nx
+        lo = before[flat + np.maximum(x - r, 0).astype(np.int32)[:, None]]
+        hi = before[flat + (np.minimum(x + r, nx - 1) + 1).astype(np.int32)[:, None]]
+        length = np.where(inside, hi - lo, 0).ravel()
+        ends = np.cumsum(length)
+        cols = np.arange(int(ends[-1]) if m else 0, dtype=np.int32)
+        cols += np.repeat((lo.ravel() - ends + length).astype(np.int32), length)
+        per_row = length.reshape(m, -1).sum(axis=1)
+        i = np.repeat(np.arange(m, dtype=np.int32), per_row)
+        dy = np.repeat(np.broadcast_to(d, (m, len(d))).ravel(), length)
+        own = ((y % c) * c + x % c).astype(np.int32)
+        offset = (r - dy) * (2 * r + 1) + (x[i] - x[cols]).astype(np.int32) + r  # (target less source)
+        indptr = np.concatenate([[0], np.cumsum(per_row)])
+        self._pairs = (cols, indptr, offset)  # the CSR structure, each entry's offset
+        return sparse.csr_matrix((corr[offset * (c * c) + own[i]], cols, indptr), shape=(m, m))
 
     def on_near_pairs(self, window: np.ndarray) -> sparse.csr_matrix:
         """The (m, m) matrix of a kernel given at the offsets ``-r .. r`` per axis (``window``,
