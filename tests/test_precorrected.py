@@ -184,3 +184,45 @@ def test_the_torus_inverses_kernel_cut_at_the_near_radius_is_its_impulse_respons
     off = m - np.diag(np.diag(m))
     assert off.max() <= 0.0 and m.sum(axis=1).min() > 0.0
     assert np.linalg.eigvalsh(m).min() > 0.0
+
+
+def _hertz_kernel_inputs():
+    """Penetration control on a Hertz paraboloid (R 10 mm, d 0.1 mm, 48 cells across the
+    contact): the kernel's inputs and the exact and float32 products."""
+    from twoscale.pk.products import OneRow
+
+    a, h = 1.0, 2.0 / 48
+    grid = Grid.covering(-1.2 * a, 1.2 * a, -1.2 * a, 1.2 * a, h, anchor=(0.5 * h, 0.5 * h))
+    X, Y = grid.centres()
+    z = (X**2 + Y**2) / 20.0
+    op = HS.grid_operator(grid)
+    return op, (z - 0.1)[None], np.maximum(0.1 - z, 0.0)[None], OneRow(op), OneRow(op.single_precision())
+
+
+@pytest.mark.parametrize("noise", [3e-4, 3e-2])
+def test_the_kernel_with_a_cheap_product_meets_the_exact_test_and_leaves_a_cheap_product_worse_than_said(noise):
+    """A ``cheap`` product of relative error ``noise`` (the exact one plus a fixed random
+    operator's share), said to be within 5e-4: the kernel converges to the exact route's
+    pressure under the same tolerance either way; the product worse than said is left after
+    its residual stops halving (a stall of the whole solve otherwise)."""
+    from twoscale.pk import Tolerance, pk_solve
+    from twoscale.pk.products import Products
+
+    op, z, start, exact, fast = _hertz_kernel_inputs()
+    rng = np.random.default_rng(7)
+    mix = rng.standard_normal((z.size, z.size)) / np.sqrt(z.size)
+    calls = []
+
+    def cheap(v):
+        calls.append(1)
+        u = exact(v)
+        return u + noise * float(np.linalg.norm(u)) * (mix @ v.ravel() / np.linalg.norm(v)).reshape(u.shape)
+
+    tol = Tolerance(residual=1e-9, max_iter=500)
+    plain = pk_solve(Products(exact, fast), z, start, None, tol)
+    out = pk_solve(Products(exact, fast, cheap=cheap, cheap_error=5e-4), z, start, None, tol)
+    assert plain.converged.all() and out.converged.all(), out.message(0)
+    assert out.residual[0] <= 1e-9 and len(calls) > 0
+    p, q = out.pressure[0], plain.pressure[0]
+    assert np.linalg.norm(p - q) <= 1e-6 * np.linalg.norm(q)
+    assert out.iterations[0] <= 2 * plain.iterations[0] + 10

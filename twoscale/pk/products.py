@@ -105,6 +105,10 @@ REANCHOR = 4.0
 #: A displacement made from scratch while the row's residual is above this multiple of the
 #: ``cheap`` product's error is made by ``cheap`` (the early steps clip and let in many cells).
 CHEAP_REFRESH = 2 * REANCHOR
+#: A row leaves the ``cheap`` product when its residual has not halved in this many steps (the
+#: product is worse than its ``cheap_error``: #185 with a coarse grid 10 and near radius 14
+#: stalled at 2e-2 for 1,000 steps; its residual halves every one or two steps otherwise).
+CHEAP_STALL = 6
 #: A re-anchoring within this factor of :data:`FAST_RESIDUAL` is exact.
 EXACT_NEAR = 3.0
 
@@ -121,8 +125,12 @@ class Cheap:
     restart (the gradient jumps by the drift). A row still stops only on an exact product:
     the answer meets the same test as without ``cheap``."""
 
-    def __init__(self, error: float, anchor: np.ndarray, drifting: np.ndarray, res: np.ndarray):
+    def __init__(self, error: float, anchor, drifting, res, best=None, since=None, off=None):
         self.error, self.anchor, self.drifting, self.res = error, anchor, drifting, res
+        n = len(anchor)
+        self.best = np.full(n, np.inf) if best is None else best  # (the stall rule: CHEAP_STALL)
+        self.since = np.zeros(n, int) if since is None else since
+        self.off = np.zeros(n, bool) if off is None else off
 
     @classmethod
     def start(cls, products: Products, rows: int, tol) -> "Cheap | None":
@@ -133,23 +141,31 @@ class Cheap:
         return cls(products.cheap_error, np.ones(rows), np.ones(rows, bool), np.full(rows, np.inf))
 
     def __getitem__(self, keep: np.ndarray) -> "Cheap":
-        return Cheap(self.error, self.anchor[keep], self.drifting[keep], self.res[keep])
+        kept = (self.anchor, self.drifting, self.res, self.best, self.since, self.off)
+        return Cheap(self.error, *(a[keep] for a in kept))
 
-    def product(self, it, t: np.ndarray, res: np.ndarray) -> np.ndarray:
+    def product(self, it, t: np.ndarray, res: np.ndarray) -> np.ndarray | None:
         """The search directions' ``A t`` by ``cheap`` (every live row drifts), given the rows'
-        residuals ``res`` at this step's check (the new anchors' residuals)."""
+        residuals ``res`` at this step's check (the new anchors' residuals); None (the caller's
+        products) once a row's residual has not halved in :data:`CHEAP_STALL` steps (``cheap``
+        worse than ``cheap_error``: that row leaves it, re-anchored after this step)."""
         self.res = np.array(res)
         fresh = np.isnan(self.anchor)
         self.anchor[fresh] = self.res[fresh]
+        better = self.res < 0.5 * self.best
+        self.best, self.since = np.where(better, self.res, self.best), np.where(better, 0, self.since + 1)
+        self.off |= self.since > CHEAP_STALL
+        if np.count_nonzero(self.off):
+            return None
         self.drifting[:] = True
-        return it.ops.cheap(t)
+        return it.ops.cheap(t.reshape(len(t), *it.shape)).reshape(len(t), -1)
 
     def due(self, it) -> np.ndarray:
         """The rows whose displacement is to be made from scratch after this step (their
         residual at its check fell to their bound); their directions restart, and those
         within :data:`EXACT_NEAR` x :data:`FAST_RESIDUAL` leave ``fast`` (no second refresh
         when they cross it)."""
-        due = self.drifting & (self.res <= REANCHOR * self.error * self.anchor)
+        due = self.drifting & ((self.res <= REANCHOR * self.error * self.anchor) | self.off)
         if np.count_nonzero(due):
             it.conj &= ~due
             it.fast &= ~(due & (self.res <= EXACT_NEAR * FAST_RESIDUAL))
@@ -160,10 +176,11 @@ class Cheap:
         the rows' residuals are all above :data:`CHEAP_REFRESH` x ``cheap_error`` (the early
         steps clip and let in many cells); else marks them anchored (False: the caller's
         product follows)."""
-        if not (fast and np.all(self.res[rows] > CHEAP_REFRESH * self.error)):
+        if not (fast and np.all(self.res[rows] > CHEAP_REFRESH * self.error) and not self.off[rows].any()):
             self.anchor[rows], self.drifting[rows] = np.nan, False
             return False
-        it.u[rows] = it.ops.cheap(it.p[rows])
+        p = it.p[rows]
+        it.u[rows] = it.ops.cheap(p.reshape(len(p), *it.shape)).reshape(len(p), -1)
         it.stale[rows] = 1
         if it.scale is not None:
             it.scale[rows] = np.maximum(np.abs(it.u[rows]).max(axis=1), np.finfo(float).tiny)
