@@ -66,7 +66,9 @@ class Coupling:
 
     ``dense`` (dense block), ``fft`` (plain FFT product), ``separated`` (low-rank separated
     operator, accurate to ``separated_rtol``), ``spectral`` (the kernel's
-    translation-invariant part); all zero when no two patches were coupled.
+    translation-invariant part); all zero when no two patches were coupled. ``precorrected``:
+    the union CG's products by a precorrected FFT on a sparse part of its box
+    (:mod:`twoscale.influence.precorrected`), 0 where it took none.
     """
 
     dense: int = 0
@@ -74,11 +76,18 @@ class Coupling:
     separated: int = 0
     spectral: int = 0
     separated_rtol: float | None = None
+    precorrected: int = 0
 
     @classmethod
     def of(cls, routes: Mapping) -> "Coupling":
         """From the micro step's route counts (:meth:`twoscale.micro.blocks.Coupling.route_counts`)."""
-        return cls(**{k: routes[k] for k in ("dense", "fft", "separated", "spectral", "separated_rtol") if k in routes})
+        return cls(
+            **{
+                k: routes[k]
+                for k in ("dense", "fft", "separated", "spectral", "separated_rtol", "precorrected")
+                if k in routes
+            }
+        )
 
 
 @dataclass(frozen=True)

@@ -211,7 +211,11 @@ class UnionCG:
             int(out.enlargements),
             0,
             tuple(r.residuals.get("gap", ())),
-            {"box": int(out.patch.grid.size), "products": int(out.products)},
+            {
+                "box": int(out.patch.grid.size),
+                "products": int(out.products),
+                **{k: int(v) for k, v in r.iterations.items() if k == "precorrected"},
+            },
             (tuple(out.patch.members),) if len(out.patch.members) > 1 else (),
             reason,
         )

@@ -85,8 +85,7 @@ class UnionOutcome:
 
     Attributes
     ----------
-    result : ContactResult
-        The CG result on the final box (one field).
+    result : ContactResult (the CG's on the final box, one field)
     patch : Patch
         The box as one patch whose members are every asperity owning a cell of it.
     start : (ny, nx) array
@@ -245,6 +244,7 @@ def solve_union(
             crop_below=CROP_BELOW,
             half_products=True,
             step_model=True,
+            precorrected=True,
         )
         iterations += int(result.iterations.get("cg", 0))
         products += int(result.iterations.get("products", 0))

@@ -40,23 +40,19 @@ class Iteration:
 
     Parameters
     ----------
-    products : Products
-        The operator's products (:mod:`.products`).
+    products : Products (:mod:`.products`)
     precondition : callable on (b, ...) stacks, or None
-    shape : tuple
-        Field shape of one row.
+    shape : tuple (one row's field)
     z, start, mask : (B, n) arrays
-    basis : (n, k) array
-    target : (B, k) array
+    basis, target : (n, k) and (B, k) arrays
     tol : Tolerance
     plane : PlaneBasis, optional
         The basis's separable form (:mod:`.plane`), for its fits and restoring.
-    u0 : (B, n) array, optional
-        ``A start`` if known (:class:`~.kernel.Start`)."""
+    u0 : (B, n) array, optional: ``A start`` if known (:class:`~.kernel.Start`)."""
 
     PER_ROW = tuple(
         "p t u z mask target G_old conj kept stale scale best it_best gtol small index done count free fast weight".split()
-    )  # the arrays with a row per live row
+    ) + ("cheap",)  # the arrays (and the cheap product's state) with a row per live row
 
     def __init__(
         self, products: Products, precondition, shape, z, start, mask, basis, target, tol, plane=None, u0=None
@@ -102,6 +98,7 @@ class Iteration:
                 cells = mask.any(axis=0) if self.masked else slice(None)
                 self.basis_scale = np.max(np.abs(basis[cells]), axis=0)
         self.history: list[float] = []
+        self.cheap = products.cheap_rows(rows, tol)  # (the ``cheap`` product's state, if any)
         self.out_p: Any = None  # allocated when the first rows finish
         self.out_u: Any = None
         self.out_m = np.zeros((rows, self.k))
@@ -124,6 +121,8 @@ class Iteration:
         """``u = A p`` from scratch on ``rows`` (a bool mask); by the ``fast`` product when
         asked for (the rows then stay marked stale: confirmed on an exact one)."""
         fast = fast and self.ops.fast is not None
+        if self.cheap is not None and self.cheap.refresh(self, rows, fast):
+            return
         if np.count_nonzero(rows) == len(rows):
             self.u = self.product(self.p, fast)
             self.stale[:] = int(fast)
@@ -300,7 +299,8 @@ class Iteration:
         else:  # restarted: d itself (0 off the loaded cells already; the same values, one pass for three)
             np.copyto(t, d)
         self.G_old = G
-        r = halved(self.ops, t, self.k, beta, self.stale) or self.product(t, fast=True)  # (halves: update_displacement)
+        r = None if self.cheap is None else self.cheap.product(self, t, res)
+        r = halved(self.ops, t, self.k, beta, self.stale) or self.product(t, fast=True) if r is None else r
         self.products += rows if self.pc is None else 2 * rows
         if isinstance(r, Halves):
             denom = r.energy()
@@ -343,7 +343,7 @@ class Iteration:
         if change is not None and factor is not None and np.count_nonzero(changed):
             summed = changed & (change.per_row(len(changed)) <= COLUMN_CELLS) & (self.stale < REFRESH_EVERY)
             changed = changed & ~summed
-        redo = changed | (self.stale >= REFRESH_EVERY)
+        redo = changed | (self.stale >= REFRESH_EVERY) | (False if self.cheap is None else self.cheap.due(self))
         count = np.count_nonzero(redo)
         if factor is None or count == len(redo):
             # every row from scratch: fast only if all still are (``redo`` may be empty)

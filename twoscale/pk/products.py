@@ -64,6 +64,12 @@ class Products:
         ``columns(out, cells, values)`` adds ``A dp`` to ``out`` (one row, flattened) for
         ``dp`` = ``values`` on the flat ``cells`` and 0 elsewhere, exactly (float64).
         None: every refresh is a product.
+    cheap : callable, optional
+        An approximation of ``exact`` to a relative error of about ``cheap_error`` (e.g. a
+        precorrected FFT, :mod:`twoscale.influence.precorrected`) for the search directions,
+        re-anchored by :class:`Cheap`'s rule. None: the search directions take ``fast``.
+    cheap_error : float
+        ``cheap``'s relative error (L2) on the iteration's vectors.
     halves : callable, optional
         ``halves(t)``: ``fast``'s product of a search direction (one row) begun
         (:class:`Halves`): the step's denominator by Parseval (or by a model of ``A``:
@@ -82,6 +88,105 @@ class Products:
     columns: Callable[[np.ndarray, np.ndarray, np.ndarray], None] | None = None
     keep_conjugacy: float = 0.0
     halves: Callable[[np.ndarray], "Halves"] | None = None
+    cheap: Operator | None = None
+    cheap_error: float = 0.0
+
+    def cheap_rows(self, rows: int, tol) -> "Cheap | None":
+        """The kernel's state for ``cheap`` on ``rows`` rows (:meth:`Cheap.start`)."""
+        return Cheap.start(self, rows, tol)
+
+
+#: A row's displacement is made from scratch once its KKT residual has fallen to this multiple
+#: of the ``cheap`` product's error times the residual at its last product from scratch: the
+#: displacement, updated by ``-tau A t`` since, has drifted by about the product's error times
+#: the gap removed since. #185 (lattice, error 4e-4): 2, 4, 10 and 20 all took 20 iterations
+#: (the exact products 2, 2, 3 and 3); 4 keeps a factor 2 from the least that worked.
+REANCHOR = 4.0
+#: A displacement made from scratch while the row's residual is above this multiple of the
+#: ``cheap`` product's error is made by ``cheap`` (the early steps clip and let in many cells).
+CHEAP_REFRESH = 2 * REANCHOR
+#: A row leaves the ``cheap`` product when its residual has not halved in this many steps (the
+#: product is worse than its ``cheap_error``: #185 with a coarse grid 10 and near radius 14
+#: stalled at 2e-2 for 1,000 steps; its residual halves every one or two steps otherwise).
+CHEAP_STALL = 6
+#: A re-anchoring within this factor of :data:`FAST_RESIDUAL` is exact.
+EXACT_NEAR = 3.0
+
+
+class Cheap:
+    """:class:`Products`' ``cheap`` product in the kernel's iteration (``it``, an
+    :class:`~.iteration.Iteration`), with the live rows' state (compacted with them: ``[keep]``).
+
+    Each row keeps its KKT residual at its last product from scratch (its anchor; 1 for a
+    product by ``cheap`` itself, whose error is relative to the whole displacement), whether
+    a cheap product moved its displacement since (``drifting``), and its residual at the last
+    check. Once the residual has fallen to :data:`REANCHOR` x ``cheap_error`` x the anchor's,
+    the step's displacement is made from scratch (a new anchor) and the conjugate directions
+    restart (the gradient jumps by the drift). A row still stops only on an exact product:
+    the answer meets the same test as without ``cheap``."""
+
+    def __init__(self, error: float, anchor, drifting, res, best=None, since=None, off=None):
+        self.error, self.anchor, self.drifting, self.res = error, anchor, drifting, res
+        n = len(anchor)
+        self.best = np.full(n, np.inf) if best is None else best  # (the stall rule: CHEAP_STALL)
+        self.since = np.zeros(n, int) if since is None else since
+        self.off = np.zeros(n, bool) if off is None else off
+
+    @classmethod
+    def start(cls, products: Products, rows: int, tol) -> "Cheap | None":
+        """The rows' state (the start's product may be ``cheap``'s); None without ``cheap`` or
+        without the residual rule."""
+        if products.cheap is None or tol.residual is None:
+            return None
+        return cls(products.cheap_error, np.ones(rows), np.ones(rows, bool), np.full(rows, np.inf))
+
+    def __getitem__(self, keep: np.ndarray) -> "Cheap":
+        kept = (self.anchor, self.drifting, self.res, self.best, self.since, self.off)
+        return Cheap(self.error, *(a[keep] for a in kept))
+
+    def product(self, it, t: np.ndarray, res: np.ndarray) -> np.ndarray | None:
+        """The search directions' ``A t`` by ``cheap`` (every live row drifts), given the rows'
+        residuals ``res`` at this step's check (the new anchors' residuals); None (the caller's
+        products) once a row's residual has not halved in :data:`CHEAP_STALL` steps (``cheap``
+        worse than ``cheap_error``: that row leaves it, re-anchored after this step)."""
+        self.res = np.array(res)
+        fresh = np.isnan(self.anchor)
+        self.anchor[fresh] = self.res[fresh]
+        better = self.res < 0.5 * self.best
+        self.best, self.since = np.where(better, self.res, self.best), np.where(better, 0, self.since + 1)
+        self.off |= self.since > CHEAP_STALL
+        if np.count_nonzero(self.off):
+            return None
+        self.drifting[:] = True
+        return it.ops.cheap(t.reshape(len(t), *it.shape)).reshape(len(t), -1)
+
+    def due(self, it) -> np.ndarray:
+        """The rows whose displacement is to be made from scratch after this step (their
+        residual at its check fell to their bound); their directions restart, and those
+        within :data:`EXACT_NEAR` x :data:`FAST_RESIDUAL` leave ``fast`` (no second refresh
+        when they cross it)."""
+        due = self.drifting & ((self.res <= REANCHOR * self.error * self.anchor) | self.off)
+        if np.count_nonzero(due):
+            it.conj &= ~due
+            it.fast &= ~(due & (self.res <= EXACT_NEAR * FAST_RESIDUAL))
+        return due
+
+    def refresh(self, it, rows: np.ndarray, fast: bool) -> bool:
+        """Before ``u = A p`` on ``rows`` (bool): by ``cheap`` (returns True) when ``fast`` and
+        the rows' residuals are all above :data:`CHEAP_REFRESH` x ``cheap_error`` (the early
+        steps clip and let in many cells); else marks them anchored (False: the caller's
+        product follows)."""
+        if not (fast and np.all(self.res[rows] > CHEAP_REFRESH * self.error) and not self.off[rows].any()):
+            self.anchor[rows], self.drifting[rows] = np.nan, False
+            return False
+        p = it.p[rows]
+        it.u[rows] = it.ops.cheap(p.reshape(len(p), *it.shape)).reshape(len(p), -1)
+        it.stale[rows] = 1
+        if it.scale is not None:
+            it.scale[rows] = np.maximum(np.abs(it.u[rows]).max(axis=1), np.finfo(float).tiny)
+        self.anchor[rows], self.drifting[rows] = 1.0, True
+        it.products += int(rows.sum())
+        return True
 
 
 @dataclass

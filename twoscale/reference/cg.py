@@ -31,14 +31,16 @@ import numpy as np
 
 from ..indenters import Surface
 from ..influence.base import InfluenceProvider
+from ..influence.precorrected import cheap_products
 from ..details import ReferenceDetails
 from ..pk.compact import Part
 from ..pk.plane import PlaneBasis
-from ..pk.products import Anchored, OneRow, OneRowInverse
+from ..pk.products import Anchored, OneRow
 from ..pk.kernel import STALL_ITERATIONS, Constraint, Products, Start, Tolerance, pk_solve
 from ..options import settings_from
 from ..results import ContactResult
 from ._problem import ContactProblem, Outcome, build_result, make_problem, trivial_result
+from ._precondition import _preconditioner
 from ._start import cropped, initial_pressure, line_search, scaled_start, start_on
 
 
@@ -60,6 +62,7 @@ class CGSettings:
     crop_below: float = 1.0
     half_products: bool = False
     step_model: bool = False
+    precorrected: bool = False
 
 
 def solve_cg(
@@ -163,11 +166,16 @@ def solve_cg(
     step_model : bool, default False
         With ``half_products``: their step length by the preconditioner's torus where valid
         (``_PartRow.modelled``), the product only where the step uses ``A t``.
+    precorrected : bool, default False
+        On a small ``reach`` part, the search directions' products by a precorrected FFT
+        (:func:`~twoscale.influence.precorrected.cheap_products`), re-anchored by exact
+        products (:class:`~twoscale.pk.products.Cheap`). The reference: off.
 
     Returns
     -------
     ContactResult
-        ``method="reference"``, ``solver="cg"``; ``iterations={"cg": n, "products": grid products}``;
+        ``method="reference"``, ``solver="cg"``; ``iterations={"cg": n, "products": grid products}``
+        (and ``"precorrected"``: the precorrected products, when taken);
         ``residuals={"gap": history}`` (relative KKT residual per iteration); ``details`` a
         :class:`~twoscale.details.ReferenceDetails` (working grid, single-precision iterations).
     """
@@ -200,7 +208,7 @@ def solve_cg(
             work, op, provider.material.E_star, start, cg, custom, reach
         )
     offset = it0 + 1 if it0 or hist0 else 0
-    p, u, m, it, n_products, hist, converged, message = _iterate(
+    p, u, m, it, n_products, hist, converged, message, cheap = _iterate(
         work,
         op,
         provider.material.E_star,
@@ -215,6 +223,7 @@ def solve_cg(
         plane_sums=cg.plane_sums,
         rough_start=cg.rough_start and not (it0 or hist0),
         halves=("modelled" if cg.step_model else "halves") if cg.half_products else None,
+        precorrected=cg.precorrected,
     )
     it, n_products, hist = it + it0, n_products + products0, hist0 + hist
     p, u = p.reshape(work.grid.shape), u.reshape(work.grid.shape)
@@ -233,7 +242,7 @@ def solve_cg(
         u,
         d,
         tilt_angles,
-        Outcome(converged, message, {"cg": it, "products": n_products}, {"gap": hist}, timings, details),
+        Outcome(converged, message, {"cg": it, "products": n_products, **cheap}, {"gap": hist}, timings, details),
     )
 
 
@@ -243,7 +252,7 @@ def _single_stage(work, op, e_star: float, start, cg: CGSettings, custom, reach)
     operator (exact products about that pressure) and fast operator, and the stage's
     iterations, products and residual history."""
     single = op.single_precision()
-    p1, _, _, it0, products0, hist0, _, _ = _iterate(
+    p1, _, _, it0, products0, hist0, _, _, _ = _iterate(
         work,
         single,
         e_star,
@@ -264,36 +273,6 @@ def _single_stage(work, op, e_star: float, start, cg: CGSettings, custom, reach)
         op, fast = Anchored(op, single, start), single
         products0 += 1
     return start, op, fast, (it0, products0, hist0)
-
-
-def _preconditioner(cg: CGSettings, custom, op):
-    """``precondition(v, on)`` for the kernel: the caller's (``custom``, made once from
-    ``cg.preconditioner`` for both stages) or the operator's approximate inverse, or None."""
-    if not cg.precondition:
-        return None
-    if custom is not None:
-        return _Custom(custom)
-    inverse = op.preconditioner()
-    return None if inverse is None else OneRowInverse(inverse)
-
-
-class _Custom:
-    """``precondition(v, on)`` by a caller's preconditioner (one row), and on a part of the
-    grid by the preconditioner's own ``on_part(cells)`` if it has one
-    (:meth:`twoscale.pk.compact.Part.precondition`)."""
-
-    def __init__(self, custom):
-        self.custom = custom
-
-    def __call__(self, v: np.ndarray, on: np.ndarray) -> np.ndarray:
-        return self.custom.apply(v[0], on[0])[None]
-
-    def on_part(self, cells: np.ndarray) -> Callable | None:
-        own = getattr(self.custom, "on_part", None)
-        if own is None:
-            return None
-        apply = own(cells)
-        return lambda v, on: apply(v[0], on[0])[None]
 
 
 PRECISIONS = ("double", "mixed", "single-directions")
@@ -323,11 +302,12 @@ def _iterate(
     plane_sums: bool = False,
     rough_start: bool = False,
     halves: str | None = None,
+    precorrected: bool = False,
 ):
     """The Polonsky-Keer kernel (:func:`twoscale.pk.pk_solve`) on the whole grid, one row, or
     on the candidates in ``reach`` (then checked on the whole grid, and solved on it from
-    the answer when a cell off them would touch):
-    ``(p, u, multipliers, iterations, products, residual history, converged, message)``."""
+    the answer when a cell off them would touch): ``(p, u, multipliers, iterations, products,
+    residual history, converged, message, {"precorrected": its products} or {})``."""
     shape = problem.grid.shape
     cand = problem.candidates.ravel()
     z = np.where(cand, problem.surface.height.ravel(), 0.0)
@@ -354,8 +334,9 @@ def _iterate(
     run, dims, u0 = (z, p, cand, problem.basis(), products, pc), shape, None
     if part is not None:
         run, dims = part.inputs(*run, None if fast is None else op.columns(part.cells)), (part.cells.size,)
-        if later:
-            p_part, u0 = scaled_start(run[1], run[4].fast(run[1][None])[0], run[0])
+        run = (*run[:4], *cheap_products(run[4], given, part, pc, run[5])) if precorrected and fast else run
+        if later:  # (the start's product by the cheapest: the kernel counts it as one of them)
+            p_part, u0 = scaled_start(run[1], (run[4].cheap or run[4].fast)(run[1][None])[0], run[0])
             run = (run[0], p_part, *run[2:])
     if halves and fast is not None:  # the fast product in two halves where it has them (the part's, or every cell's)
         rows = run[4].fast if part is not None else OneRow(fast).on_part(None)
@@ -378,6 +359,8 @@ def _iterate(
     )
     p, u = out.pressure[0].ravel(), out.displacement[0].ravel()
     counts = (int(out.iterations[0]), out.products, list(out.history))
+    cheap = getattr(run[4].cheap, "__self__", None)  # (the precorrected product, if taken: its count)
+    cheap = {} if cheap is None else {"precorrected": cheap.products}
     if part is not None:
         p, u, touching = part.answer(out, exact, z, cand, problem.basis(), tol)
         if touching:  # a cell off the part would touch: the whole grid from this answer
@@ -395,5 +378,5 @@ def _iterate(
                 keep_conjugacy,
                 plane_sums=plane_sums,
             )
-            return (*whole[:3], whole[3] + counts[0], whole[4] + counts[1], counts[2] + whole[5], *whole[6:])
-    return (p, u, out.multipliers[0], *counts, bool(out.converged[0]), out.message(0))
+            return (*whole[:3], whole[3] + counts[0], whole[4] + counts[1], counts[2] + whole[5], *whole[6:8], cheap)
+    return (p, u, out.multipliers[0], *counts, bool(out.converged[0]), out.message(0), cheap)
