@@ -128,3 +128,32 @@ class Grid:
     def subgrid(self, i0: int, j0: int, nx: int, ny: int) -> "Grid":
         """The aligned sub-grid starting at cell ``(j0, i0)`` of this grid."""
         return Grid(self.x0 + i0 * self.h, self.y0 + j0 * self.h, self.h, nx, ny)
+
+
+def offsets_in(grids, parent: Grid) -> tuple[np.ndarray, np.ndarray]:
+    """:meth:`Grid.offset_in` of many ``grids`` at once, by the same arithmetic: the integer
+    offsets ``(di, dj)`` (two int64 arrays) of their cells (0, 0) in an aligned ``parent``."""
+    x0 = np.array([g.x0 for g in grids], dtype=float)
+    y0 = np.array([g.y0 for g in grids], dtype=float)
+    h = np.array([g.h for g in grids], dtype=float)
+    if np.any(np.abs(h - parent.h) > 1e-12 * np.maximum(np.abs(h), abs(parent.h))):
+        raise ValueError(f"grids have cell sizes other than {parent.h}")
+    di, dj = (x0 - parent.x0) / h, (y0 - parent.y0) / h
+    ri, rj = np.rint(di), np.rint(dj)
+    if np.any(np.abs(di - ri) > 1e-6) or np.any(np.abs(dj - rj) > 1e-6):
+        raise ValueError("grids are not aligned on the same lattice")
+    return ri.astype(np.int64), rj.astype(np.int64)
+
+
+def covering_grids(xmin, xmax, ymin, ymax, h: float, *, anchor: tuple[float, float] = (0.0, 0.0)) -> list[Grid]:
+    """:meth:`Grid.covering` of many boxes at once (arrays of their edges, mm), by the same
+    arithmetic."""
+    ax, ay = anchor
+    if not all(np.all(np.isfinite(v)) for v in (xmin, xmax, ymin, ymax)):
+        raise ValueError("a box to cover has an edge that is not finite")
+    i0 = np.floor((np.asarray(xmin, dtype=float) - ax) / h + 0.5)
+    i1 = np.maximum(np.ceil((np.asarray(xmax, dtype=float) - ax) / h - 0.5), i0)
+    j0 = np.floor((np.asarray(ymin, dtype=float) - ay) / h + 0.5)
+    j1 = np.maximum(np.ceil((np.asarray(ymax, dtype=float) - ay) / h - 0.5), j0)
+    columns = (ax + i0 * h, ay + j0 * h, (i1 - i0 + 1).astype(np.int64), (j1 - j0 + 1).astype(np.int64))
+    return [Grid(x0, y0, h, nx, ny) for x0, y0, nx, ny in zip(*(c.tolist() for c in columns))]

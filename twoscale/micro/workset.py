@@ -225,7 +225,8 @@ def heights(patches, theta, pivot) -> list:
 def tip_approaches(asperities, theta, pivot) -> np.ndarray:
     """Geometric approach ``d - z_k - tilt(x_k, y_k)`` of every tip, mm."""
     tilt = Tilt(theta[1], theta[2], pivot)
-    return np.array([theta[0] - a.z - float(tilt.height(a.x, a.y)) for a in asperities])
+    x, y, z = (np.array([getattr(a, f) for a in asperities], dtype=float) for f in "xyz")
+    return theta[0] - z - tilt.height(x, y)
 
 
 def _grow_loaded(state: WorkingSet, p: list, p0: list) -> int:
