@@ -111,6 +111,7 @@ def _figures(res) -> dict:
         out["patches"] = micro.choice.estimates.get("patches")
         out["merged_contacts"] = micro.choice.estimates.get("merged_contacts")
         out["height_map"] = micro.choice.estimates.get("height_map")
+        out["precorrected"] = int(micro.coupling.precorrected)  # the sparse part's cheap products
         out["attempts"] = [[a.iteration, a.far_tol, a.converged, a.sweeps, round(a.seconds, 3)] for a in micro.attempts]
     return out
 
