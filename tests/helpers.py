@@ -213,3 +213,19 @@ def disc_on_patch(pt, centre: float, radius: float) -> np.ndarray:
     """Pressure 1 on the patch's owned cells within ``radius`` of ``(centre, 0)``."""
     X, Y = pt.grid.centres()
     return np.where(np.hypot(X - centre, Y) <= radius, 1.0, 0.0)[pt.owned]
+
+
+def disc_patches(tips, h, n=24, radius=0.2) -> list:
+    """A patch of ``n`` x ``n`` cells of side ``h`` about each ``(x, y)`` of ``tips``, its
+    cells within ``radius`` owned (height ``r^2``), the others empty."""
+    from twoscale.grid import Grid
+    from twoscale.micro.patches import Patch
+
+    out = []
+    for k, (x, y) in enumerate(tips):
+        grid = Grid(round((x - n * h / 2) / h) * h, round((y - n * h / 2) / h) * h, h, n, n)
+        X, Y = grid.centres()
+        r2 = (X - x) ** 2 + (Y - y) ** 2
+        owned = r2 < radius**2
+        out.append(Patch(k, grid, np.where(owned, r2, np.inf), np.where(owned, k, -1)))
+    return out

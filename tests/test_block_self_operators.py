@@ -6,7 +6,7 @@ import pytest
 
 from twoscale.grid import Grid
 from twoscale.material import Material
-from helpers import small_block
+from helpers import disc_patches, small_block
 
 MAT = Material(E=2.0, nu=0.5)
 H = 0.02
@@ -19,17 +19,8 @@ def block():
     return small_block(MAT)
 
 
-def _patches(n=24, tips=TIPS, radius=0.2):
-    from twoscale.micro.patches import Patch
-
-    out = []
-    for k, (x, y) in enumerate(tips):
-        grid = Grid(round((x - n * H / 2) / H) * H, round((y - n * H / 2) / H) * H, H, n, n)
-        X, Y = grid.centres()
-        r2 = (X - x) ** 2 + (Y - y) ** 2
-        owned = r2 < radius**2
-        out.append(Patch(k, grid, np.where(owned, r2, np.inf), np.where(owned, k, -1)))
-    return out
+def _patches(tips=TIPS):
+    return disc_patches(tips, H)
 
 
 def test_a_kept_self_operator_moved_is_the_grids_own(block):

@@ -7,7 +7,7 @@ import pytest
 
 from twoscale.grid import Grid
 from twoscale.material import Material
-from helpers import small_block
+from helpers import disc_patches, small_block
 
 MAT = Material(E=2.0, nu=0.5)
 H = 0.02
@@ -39,18 +39,9 @@ def test_a_stack_of_grids_on_themselves_is_each_grids_pointwise_correction(block
         assert np.max(np.abs(U[b, : g.ny, : g.nx] - same)) < 1e-13 * np.max(np.abs(ref))
 
 
-def _patches(n=24, radius=0.2):
-    """Five patches of ``n`` x ``n`` cells, a few near each other, one alone."""
-    from twoscale.micro.patches import Patch
-
-    out = []
-    for k, (x, y) in enumerate([(-0.9, 0.0), (-0.4, 0.1), (0.1, -0.05), (0.55, 0.2), (3.0, 3.0)]):
-        grid = Grid(round((x - n * H / 2) / H) * H, round((y - n * H / 2) / H) * H, H, n, n)
-        X, Y = grid.centres()
-        r2 = (X - x) ** 2 + (Y - y) ** 2
-        owned = r2 < radius**2
-        out.append(Patch(k, grid, np.where(owned, r2, np.inf), np.where(owned, k, -1)))
-    return out
+def _patches():
+    """Five patches, a few near each other, one alone."""
+    return disc_patches([(-0.9, 0.0), (-0.4, 0.1), (0.1, -0.05), (0.55, 0.2), (3.0, 3.0)], H)
 
 
 def test_stacked_solves_lag_the_same_correction_as_block_by_block(block, monkeypatch):
