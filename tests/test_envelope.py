@@ -24,11 +24,14 @@ def _scene(rng, n, shapes):
     return tips
 
 
-@pytest.mark.parametrize("tile", [5, 16])
+@pytest.mark.parametrize("tile, group", [(5, 7), (16, 4096)])
 @pytest.mark.parametrize("shapes", [("sphere",), ("paraboloid",), ("sphere", "paraboloid")])
-def test_the_envelope_is_every_tip_on_every_cell(shapes, tile):
+def test_the_envelope_is_every_tip_on_every_cell(shapes, tile, group, monkeypatch):
     # a grid whose sides are no multiple of the tile (edge tiles repeat the last cell),
-    # spheres leaving cells without material (inf, owner -1)
+    # spheres leaving cells without material (inf, owner -1); tiles in groups of 7 too
+    from twoscale.micro import envelope
+
+    monkeypatch.setattr(envelope, "ENVELOPE_GROUP", group)
     rng = np.random.default_rng(11)
     tips = _scene(rng, 60, shapes)
     grid = Grid.covering(-3.0, 3.1, -2.9, 3.0, 0.023)

@@ -17,8 +17,10 @@ earlier index).
 CPU s on the union boxes of sweep scenes (the tiles of 64 cells split while their cells
 times candidates exceeded 150,000, one Python pass each, against this): 9,110 clustered
 spheres, 552 K cells, 0.66-0.72 / 0.16-0.21; 8,492 spheres, 1.04 M cells, 0.67 /
-0.25-0.28; 7,881 spheres, 2.9 M cells, 1.1-1.3 / 0.39-0.43. Owners equal, heights within
-8e-13 mm (the tiles took their own cell centres, ``x0 + i0 h + i h``).
+0.25-0.28; 7,881 spheres, 2.9 M cells, 1.1-1.3 / 0.39-0.43; 3,869 clustered spheres,
+32 M cells, 3.7-3.9 / 2.9-3.3 (peak 647 against 601 MB, 512 MB of them the surface).
+Owners equal, heights within 8e-13 mm (the tiles took their own cell centres,
+``x0 + i0 h + i h``).
 """
 
 from __future__ import annotations
@@ -35,6 +37,9 @@ ENVELOPE_TILE = 16
 NEAR_TIPS = 4
 #: Entries (cells times asperities) evaluated at once: about 17 bytes each in flight.
 ENVELOPE_CHUNK = 1 << 20
+#: Tiles whose candidates are found at once (4,096 tiles of 16 cells: 1 M cells). On the
+#: 32 M cells above, all at once: peak 710 MB; by 16,384: 706; by 4,096: 647.
+ENVELOPE_GROUP = 4096
 
 
 def _heights(xs: np.ndarray, ys: np.ndarray, tx, ty, tz, tR, sphere) -> np.ndarray:
@@ -64,18 +69,17 @@ def _heights(xs: np.ndarray, ys: np.ndarray, tx, ty, tz, tR, sphere) -> np.ndarr
     return hk
 
 
-def _tiles(grid: Grid, T: int):
-    """Tiles of ``T`` x ``T`` cells, row-major: the column and row of each (cells past the
-    grid's edge repeat its last cell), their cell centres ``xs``, ``ys`` (t, T), mm, and
-    their cells' outer edges ``(xmin, xmax, ymin, ymax)``."""
-    nbx, nby = -(-grid.nx // T), -(-grid.ny // T)
-    ix = np.minimum(np.arange(nbx * T), grid.nx - 1).reshape(nbx, T)
-    iy = np.minimum(np.arange(nby * T), grid.ny - 1).reshape(nby, T)
-    bx, by = (b.ravel() for b in np.meshgrid(np.arange(nbx), np.arange(nby)))
-    xs, ys = grid.x[ix[bx]], grid.y[iy[by]]
+def _tiles(grid: Grid, T: int, ids: np.ndarray):
+    """Tiles ``ids`` of ``T`` x ``T`` cells, numbered row-major: the columns and rows of
+    their cells (t, T) (cells past the grid's edge repeat its last cell), their cell centres
+    ``xs``, ``ys`` (t, T), mm, and their cells' outer edges ``(xmin, xmax, ymin, ymax)``."""
+    nbx = -(-grid.nx // T)
+    ix = np.minimum((ids % nbx)[:, None] * T + np.arange(T), grid.nx - 1)
+    iy = np.minimum((ids // nbx)[:, None] * T + np.arange(T), grid.ny - 1)
+    xs, ys = grid.x[ix], grid.y[iy]
     hh = 0.5 * grid.h
     edges = (xs[:, 0] - hh, xs[:, -1] + hh, ys[:, 0] - hh, ys[:, -1] + hh)
-    return ix[bx], iy[by], xs, ys, edges
+    return ix, iy, xs, ys, edges
 
 
 def _bounds(table, xs, ys, near: np.ndarray) -> np.ndarray:
@@ -118,33 +122,21 @@ def _candidates(table, tree, edges, below: np.ndarray) -> tuple[np.ndarray, np.n
     return t[keep][order], k[keep][order]
 
 
-def envelope_on(grid: Grid, table, *, tile: int = ENVELOPE_TILE) -> Surface:
-    """The surface of a :class:`~.patches.TipTable` of plain spheres and paraboloids on
-    ``grid`` (mm), by small tiles evaluated all at once (module docstring)."""
-    from scipy.spatial import cKDTree
-
-    n = len(table)
-    ix, iy, xs, ys, edges = _tiles(grid, tile)
-    tree = cKDTree(np.column_stack([table.x, table.y]))
-    centres = np.column_stack([0.5 * (edges[0] + edges[1]), 0.5 * (edges[2] + edges[3])])
-    near = np.sort(tree.query(centres, k=min(NEAR_TIPS, n))[1].reshape(len(centres), -1), axis=1)
-    t, k = _candidates(table, tree, edges, _bounds(table, xs, ys, near))
-    count = np.bincount(t, minlength=len(centres))
+def _evaluate(table, xs, ys, cells, t, k, flat_h, flat_o) -> None:
+    """Each tile's candidates (``(t, k)`` pairs, sorted) on its cells (``cells`` (t, T, T),
+    flat indices), the lowest into ``flat_h`` and its index into ``flat_o``; tiles of like
+    counts together, padded with no tip (height inf)."""
+    tile = xs.shape[1]
+    count = np.bincount(t, minlength=len(xs))
     first = np.cumsum(count) - count
-    height = np.full(grid.shape, np.inf)  # owning their memory: patches are windows of them
-    owner = np.full(grid.shape, -1, dtype=np.int64)
-    flat_h, flat_o = height.reshape(-1), owner.reshape(-1)
     tiles = np.argsort(count, kind="stable")
     tiles = tiles[count[tiles] > 0]
     a = 0
-    while a < len(tiles):  # tiles of like counts together, padded with no tip (height inf)
-        m = max(1, ENVELOPE_CHUNK // (tile * tile * int(count[tiles[a]])))
-        ts = tiles[a : a + m]
-        m = max(1, ENVELOPE_CHUNK // (tile * tile * int(count[ts[-1]])))
-        ts = tiles[a : a + m]
+    while a < len(tiles):
+        ts = tiles[a : a + max(1, ENVELOPE_CHUNK // (tile * tile * int(count[tiles[a]])))]
+        ts = ts[: max(1, ENVELOPE_CHUNK // (tile * tile * int(count[ts[-1]])))]
         a += len(ts)
-        kmax = int(count[ts[-1]])
-        slot = np.arange(kmax)
+        slot = np.arange(int(count[ts[-1]]))
         valid = slot[None, :] < count[ts][:, None]
         idx = k[np.minimum(first[ts][:, None] + slot, len(k) - 1)]
         x, y, z, R, sphere = _arrays(table, idx)
@@ -153,6 +145,25 @@ def envelope_on(grid: Grid, table, *, tile: int = ENVELOPE_TILE) -> Surface:
         low = np.take_along_axis(hk, best[:, None], axis=1)[:, 0]
         own = np.take_along_axis(idx, best.reshape(len(ts), -1), axis=1).reshape(best.shape)
         own[~(low < np.inf)] = -1
-        cells = (iy[ts][:, :, None] * grid.nx + ix[ts][:, None, :]).ravel()
-        flat_h[cells], flat_o[cells] = low.ravel(), own.ravel()  # a repeated edge cell: equal values
+        at = cells[ts].ravel()
+        flat_h[at], flat_o[at] = low.ravel(), own.ravel()  # a repeated edge cell: equal values
+
+
+def envelope_on(grid: Grid, table, *, tile: int = ENVELOPE_TILE) -> Surface:
+    """The surface of a :class:`~.patches.TipTable` of plain spheres and paraboloids on
+    ``grid`` (mm), by small tiles evaluated all at once (module docstring)."""
+    from scipy.spatial import cKDTree
+
+    n = len(table)
+    tree = cKDTree(np.column_stack([table.x, table.y]))
+    height = np.full(grid.shape, np.inf)  # owning their memory: patches are windows of them
+    owner = np.full(grid.shape, -1, dtype=np.int64)
+    flat_h, flat_o = height.reshape(-1), owner.reshape(-1)
+    tiles = -(-grid.nx // tile) * -(-grid.ny // tile)
+    for g in range(0, tiles, ENVELOPE_GROUP):  # memory bounded by a group's tiles and pairs
+        ix, iy, xs, ys, edges = _tiles(grid, tile, np.arange(g, min(g + ENVELOPE_GROUP, tiles)))
+        centres = np.column_stack([0.5 * (edges[0] + edges[1]), 0.5 * (edges[2] + edges[3])])
+        near = np.sort(tree.query(centres, k=min(NEAR_TIPS, n))[1].reshape(len(centres), -1), axis=1)
+        t, k = _candidates(table, tree, edges, _bounds(table, xs, ys, near))
+        _evaluate(table, xs, ys, iy[:, :, None] * grid.nx + ix[:, None, :], t, k, flat_h, flat_o)
     return Surface(grid, height, owner, n)
