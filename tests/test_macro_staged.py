@@ -76,3 +76,35 @@ def test_a_first_stage_ended_on_the_safe_paths_skip_is_not_refined(monkeypatch):
     assert res.converged, res.message
     F, Fw = np.asarray(res.asperities.forces), np.asarray(whole.asperities.forces)
     assert np.max(np.abs(F - Fw)) <= 1e-5 * Fw.max()
+
+
+@pytest.mark.parametrize("iteration", ["union-cg", "block-gs"])
+def test_the_first_stage_holds_its_matrix_free_operator_to_a_looser_error(monkeypatch, iteration):
+    # the first stage only sizes the patches and starts the micro step: its Ewald operator
+    # is built to FIRST_STAGE_OPERATOR_RTOL; a second stage (the block iterations) builds
+    # one to the macro options' operator_rtol; the forces are the unstaged solve's
+    import twoscale.driver as driver
+    import twoscale.influence.halfspace_points as hp
+
+    monkeypatch.setattr(hp, "FAST_ENTRIES", 0)  # the Ewald operator for 80 tips
+    asked = []
+
+    class Spy(hp.EwaldPointOperator):
+        def __init__(self, *args, rtol, **kw):
+            asked.append(rtol)
+            super().__init__(*args, rtol=rtol, **kw)
+
+    monkeypatch.setattr(hp, "EwaldPointOperator", Spy)
+    asps = spaced_spheres(20, 4, 10.0)
+    kw = dict(h=0.05, penetration=0.06, iteration=iteration, macro_dense_max=1, tol=1e-9)
+    whole = solve_twoscale(HS, asps, **kw)
+    assert asked == [1e-6] and whole.details.macro.converged
+    monkeypatch.setattr(driver, "STAGED_MIN_TIPS", 1)
+    asked.clear()
+    staged = solve_twoscale(HS, asps, **kw)
+    assert asked == ([driver.FIRST_STAGE_OPERATOR_RTOL] + ([1e-6] if iteration == "block-gs" else []))
+    assert driver.FIRST_STAGE_OPERATOR_RTOL > 1e-6
+    assert staged.converged, staged.message
+    assert staged.details.macro.converged == (iteration == "block-gs")
+    F, Fw = np.asarray(staged.asperities.forces), np.asarray(whole.asperities.forces)
+    assert np.max(np.abs(F - Fw)) <= (1e-6 if iteration == "union-cg" else 1e-5) * Fw.max()

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -88,3 +88,16 @@ class MacroResult:
     def total_load(self) -> float:
         """Sum of the tip forces, N."""
         return float(np.sum(self.forces))
+
+
+def continued(first: MacroResult, full: MacroResult) -> MacroResult:
+    """The macro step ``full`` (started from the first stage's answer ``first``) with the
+    first stage's steps, residuals, Krylov iterations and time counted in."""
+    timings = {k: float(first.timings_s.get(k, 0.0)) + float(v) for k, v in full.timings_s.items()}
+    return replace(
+        full,
+        iterations=first.iterations + full.iterations,
+        residuals=tuple(first.residuals) + tuple(full.residuals[1:]),
+        krylov_iterations=first.krylov_iterations + full.krylov_iterations,
+        timings_s=timings,
+    )
