@@ -236,6 +236,29 @@ def usage_since(before: tuple, after: tuple) -> tuple:
     return tuple(u.since(earlier[(u.name, u.folder)]) if (u.name, u.folder) in earlier else u for u in after)
 
 
+def with_construction(usage: tuple, built: tuple) -> tuple:
+    """``usage`` (a solve's) with ``built`` (what the body's caches did while the body was
+    built, before its first solve: a block reads, or drops, its corrections then) added to
+    the entries of the same cache; a cache only ``built`` touched is appended."""
+    extra = {(u.name, u.folder): u for u in built}
+    out = []
+    for u in usage:
+        e = extra.pop((u.name, u.folder), None)
+        out.append(
+            u
+            if e is None
+            else CacheUsage(
+                u.name,
+                u.folder,
+                u.read + e.read,
+                u.written + e.written,
+                e.dropped + u.dropped,
+                u.disabled or e.disabled,
+            )
+        )
+    return tuple(out) + tuple(extra.values())
+
+
 def solve_caches(provider, scene) -> tuple:
     """The usage so far of the caches a solve of ``scene`` on ``provider`` can use: the
     body's (:meth:`~twoscale.influence.base.InfluenceProvider.cache_usage`) and the law
