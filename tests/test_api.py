@@ -242,3 +242,10 @@ def test_results_and_scenes_pickle_and_stay_read_only():
         res.details.micro.choice.estimates["patches"] = 0
     with pytest.raises(ValueError):
         res.forces[0] = 0.0
+
+
+def test_dense_on_too_many_cells_names_the_methods_of_solve():
+    """A caller of ``solve(method="dense")`` is pointed at the methods of ``solve``, not at a
+    lower-level function name."""
+    with pytest.raises(ValueError, match=r"exceed max_cells=.*use method='cg'"):
+        twoscale.solve([[0.0, 0.0, 10.0]], material=MAT, penetration=0.5, h=0.02, method="dense")
