@@ -191,6 +191,11 @@ def test_the_terminal_table_numbers_tips_from_1(tmp_path, capsys):
             lambda: twoscale.solve((np.zeros(3), np.arange(3.0), np.full(3, 5.0)), material=MAT, penetration=0.1),
             "ambiguous",
         ),
+        # the same as plain lists: four tips' columns read as three rows with z, solved silently
+        (
+            lambda: twoscale.solve(([0.0, 6.0, 12.0, 18.0], [1.0] * 4, [5.0] * 4), material=MAT, penetration=0.1),
+            "ambiguous",
+        ),
         (lambda: twoscale.solve([[0, 0, 5.0]], material=MAT, penetration=0.1, method="lu"), "method must be"),
         (
             lambda: twoscale.solve(
