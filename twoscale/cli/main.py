@@ -63,7 +63,7 @@ SUBCOMMANDS = (
 
 
 #: Subcommands that write an output folder: they take ``--overwrite`` (see ``cli.staging``).
-OUTPUT_COMMANDS = ("solve", "compare", "paper")
+OUTPUT_COMMANDS = ("solve", "compare", "paper", "surface")
 
 
 def _available_subcommands():
