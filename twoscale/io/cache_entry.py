@@ -38,6 +38,8 @@ __all__ = ["BadEntry", "CacheUsage", "CacheWarning", "EntryFolder", "read_entry"
 
 #: Name of the checksum array inside an entry.
 CHECKSUM = "_sha256"
+#: The first bytes of every npz (a zip archive).
+ZIP_MAGIC = b"PK\x03\x04"
 #: Bad entries named one line each per folder object; the others are counted in its usage.
 MAX_WARNED = 5
 
@@ -77,6 +79,9 @@ def read_entry(path: str | os.PathLike) -> dict:
     try:
         if path.stat().st_size == 0:
             raise BadEntry("empty file")
+        with open(path, "rb") as fh:
+            if fh.read(len(ZIP_MAGIC)) != ZIP_MAGIC:  # numpy would try it as a pickle and say so
+                raise BadEntry("not an npz file (no zip header)")
         with open(path, "rb") as fh, np.load(fh, allow_pickle=False) as data:  # closed on any error
             arrays = {name: data[name] for name in data.files}
     except (FileNotFoundError, BadEntry):
