@@ -191,6 +191,11 @@ def test_the_terminal_table_numbers_tips_from_1(tmp_path, capsys):
             lambda: twoscale.solve((np.zeros(3), np.arange(3.0), np.full(3, 5.0)), material=MAT, penetration=0.1),
             "ambiguous",
         ),
+        # the same as plain lists: four tips' columns read as three rows with z, solved silently
+        (
+            lambda: twoscale.solve(([0.0, 6.0, 12.0, 18.0], [1.0] * 4, [5.0] * 4), material=MAT, penetration=0.1),
+            "ambiguous",
+        ),
         (lambda: twoscale.solve([[0, 0, 5.0]], material=MAT, penetration=0.1, method="lu"), "method must be"),
         (
             lambda: twoscale.solve(
@@ -242,3 +247,10 @@ def test_results_and_scenes_pickle_and_stay_read_only():
         res.details.micro.choice.estimates["patches"] = 0
     with pytest.raises(ValueError):
         res.forces[0] = 0.0
+
+
+def test_dense_on_too_many_cells_names_the_methods_of_solve():
+    """A caller of ``solve(method="dense")`` is pointed at the methods of ``solve``, not at a
+    lower-level function name."""
+    with pytest.raises(ValueError, match=r"exceed max_cells=.*use method='cg'"):
+        twoscale.solve([[0.0, 0.0, 10.0]], material=MAT, penetration=0.5, h=0.02, method="dense")

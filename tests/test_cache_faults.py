@@ -65,11 +65,18 @@ def test_entry_round_trip_and_every_kind_of_damage(tmp_path):
         p, a=np.zeros((2, 3)), key=np.array("abc"), flag=np.array(True), _sha256=read_entry_checksum(p)
     )
     cases["no checksum"] = lambda p: np.savez(p, **arrays)
+    cases["text"] = lambda p: p.write_bytes(b"junk\n")
     for damage in cases.values():
         write_entry(path, arrays)
         damage(path)
         with pytest.raises(BadEntry):
             read_entry(path)
+    # a file that is no zip at all is named so, not as "pickled data" (numpy's guess)
+    for junk in (b"junk\n", b"\x00" * 100):
+        path.write_bytes(junk)
+        with pytest.raises(BadEntry, match="not an npz") as exc:
+            read_entry(path)
+        assert "pickle" not in str(exc.value)
 
 
 def read_entry_checksum(path: Path) -> np.ndarray:

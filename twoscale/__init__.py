@@ -17,7 +17,11 @@
 * a height map (a road scan) as the indenter: :class:`RawMap` (heights, spacing in mm,
   units), :func:`build_surface` with :class:`SurfaceOptions` (:mod:`twoscale.surface`),
   then ``solve(surface, material=..., total_load=...)``: the same scene, and the same
-  answer, as a scene file's ``[surface]`` table.
+  answer, as a scene file's ``[surface]`` table;
+* many solves on one body (a load history, a track, a study): :class:`ContactSolver`
+  (``ContactSolver(body, SolverOptions(...))``, then ``solver.solve(scene)``) keeps the
+  body, bounded caches and its last answer as the next start (``result.reuse`` says what
+  was reused); options are frozen :class:`SolverOptions`, listed by :func:`list_options`.
 
 Indices are 0-based in Python (numpy); files and tables written for people number tips
 from 1. Light on import: the solvers, scipy and the finite block (scikit-fem) are imported

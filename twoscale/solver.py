@@ -35,6 +35,7 @@ from typing import Any
 import numpy as np
 
 from .influence.base import InfluenceProvider
+from .io.cache_entry import with_construction
 from .influence.cached import OPERATOR_CACHE_BYTES, TABLE_CACHE_BYTES, CachedBody, OperatorCaches
 from .options import SolverOptions
 from .results import ContactResult, Reuse
@@ -115,6 +116,7 @@ class ContactSolver:
         self._body_given = body is not None
         self._previous: _Previous | None = None
         self._solves = 0
+        self._built: tuple = ()
 
     @property
     def body(self) -> InfluenceProvider | None:
@@ -177,6 +179,9 @@ class ContactSolver:
             **keywords,
         )
         self._solves += 1
+        if isinstance(result, ContactResult) and self._built:
+            result = dataclasses.replace(result, caches=with_construction(result.caches, self._built))
+        self._built = ()
         if not isinstance(result, ContactResult):  # a load history: its own steps warm-start each other
             return result
         self._remember(scene, h, result)
@@ -203,6 +208,7 @@ class ContactSolver:
     def _bind_body(self, scene: Scene) -> InfluenceProvider:
         if self._body is None:
             self._body = scene.provider()
+            self._built = self._body.cache_usage()  # recorded by the first solve on it
         elif not self._body_given and self._previous is not None and scene.influence != self._previous.influence:
             raise ValueError(
                 f"this solver's body was built for influence {self._previous.influence!r}; "

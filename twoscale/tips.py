@@ -64,6 +64,15 @@ def asperities(
     return tuple(out)
 
 
+def _tuple_of_columns(tips: Any) -> bool:
+    """A tuple of 3 or 4 plain sequences of 3 or 4 items each: ``(x, y, R[, z])`` columns of
+    3 or 4 tips read as rows of as many tips just as well (an outer list is rows, documented)."""
+    if not isinstance(tips, tuple) or len(tips) not in (3, 4):
+        return False
+    items = [t for t in tips if isinstance(t, (list, tuple))]
+    return len(items) == len(tips) and len({len(t) for t in items}) == 1 and len(items[0]) in (3, 4)
+
+
 def as_asperities(tips: Any, *, shape: str = "sphere") -> tuple[Asperity, ...]:
     """Tips in any accepted form as a tuple of Asperity.
 
@@ -71,8 +80,8 @@ def as_asperities(tips: Any, *, shape: str = "sphere") -> tuple[Asperity, ...]:
     ``x, y, R`` or an ``(n, 4)`` array of ``x, y, R, z`` (mm; ``R`` is always the third
     column), or the same as a list of rows of numbers; or a mapping with arrays ``"x"``,
     ``"y"``, ``"R"`` and optionally ``"z"`` and ``"shape"``. ``shape`` applies to the
-    array forms. A sequence of numpy arrays is refused: ``(x, y, R)`` columns and three
-    rows look alike.
+    array forms. A sequence of numpy arrays, or a tuple of 3 or 4 lists of 3 or 4 numbers,
+    is refused: ``(x, y, R)`` columns and three rows look alike.
     """
     if isinstance(tips, Mapping):
         missing = [k for k in ("x", "y", "R") if k not in tips]
@@ -87,6 +96,11 @@ def as_asperities(tips: Any, *, shape: str = "sphere") -> tuple[Asperity, ...]:
         raise ValueError(
             "tips as a sequence of numpy arrays are ambiguous (rows or columns?): give "
             "np.column_stack([x, y, R]), {'x': x, 'y': y, 'R': R} or twoscale.asperities(x, y, R, z)"
+        )
+    if _tuple_of_columns(tips):
+        raise ValueError(
+            f"tips as a tuple of {len(tips)} sequences of {len(tips[0])} numbers are ambiguous ((x, y, R) columns or "
+            "rows?): give rows as a list [[x, y, R], ...], np.column_stack([x, y, R]) or twoscale.asperities(x, y, R, z)"
         )
     if isinstance(tips, np.ndarray) or (isinstance(tips, Sequence) and tips and not isinstance(tips[0], Asperity)):
         a = np.asarray(tips, dtype=float)

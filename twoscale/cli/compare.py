@@ -63,6 +63,7 @@ from pathlib import Path
 from ..api import solve
 from ..comparison import Measured, Run, centre_pivot, indicators, load_label, tip_changes, sensor_notes
 from ..influence.registry import make_body, unavailable
+from ..io.cache_entry import with_construction
 from ..io.scene_file import read_scene
 from ..progress import Progress
 from ..resources import check_solve_memory
@@ -228,12 +229,16 @@ def _solve_all(scenes, bodies, method, quiet, name: str = "") -> list[Run]:
     with Progress(len(scenes) * len(bodies), label="compare", quiet=quiet) as bar:
         for body in list(bodies):
             provider = bodies.pop(body)
+            built = provider.cache_usage()  # what its caches did while it was built
             for sc in scenes:
                 sc = dataclasses.replace(sc, influence=_influence(sc, body))
                 t0 = time.perf_counter()
                 # the provider built once per body (the block is costly); memory checked before
                 res = solve(sc, method=method, provider=provider, memory_limit=math.inf)
-                res = dataclasses.replace(res, scene_name=name)  # for the figures' titles
+                # for the figures' titles; the first solve records the corrections read
+                # (or dropped) when the block was built, as a solve that builds it does
+                res = dataclasses.replace(res, scene_name=name, caches=with_construction(res.caches, built))
+                built = ()
                 runs.append(Run(load_label(sc), body, sc, res, time.perf_counter() - t0))
                 bar.update(note=f"{body} {runs[-1].load}")
             del provider

@@ -11,7 +11,9 @@ line on stderr, nothing written);
 130 interrupted by Ctrl-C (one line ``interrupted`` on stderr; the subcommands write
 through a temporary folder renamed at the end, so no partial output is left); 143
 terminated by SIGTERM (what batch schedulers and ``kill`` send): handled like Ctrl-C, with
-the line ``terminated`` (a second SIGTERM during the clean-up is ignored).
+the line ``terminated`` (a second SIGTERM during the clean-up is ignored); 141 the reader of
+stdout stopped reading (``twoscale ... | head``): nothing more is printed, no error line, as
+a tool killed by SIGPIPE.
 
 Every command runs BLAS and OpenMP single-threaded unless the environment sets a thread
 count (:mod:`twoscale.cli.threads`).
@@ -22,6 +24,8 @@ from __future__ import annotations
 import argparse
 import importlib
 import importlib.util
+import io
+import os
 import signal
 import re
 import sys
@@ -37,6 +41,8 @@ from .threads import command_threads
 EXIT_INTERRUPTED = 130
 #: Exit code after SIGTERM: 128 + SIGTERM, as shells report it.
 EXIT_TERMINATED = 143
+#: Exit code when stdout's reader has gone: 128 + SIGPIPE, as shells report a tool it killed.
+EXIT_BROKEN_PIPE = 141
 
 
 def _on_sigterm(signum, frame) -> None:
@@ -57,7 +63,7 @@ SUBCOMMANDS = (
 
 
 #: Subcommands that write an output folder: they take ``--overwrite`` (see ``cli.staging``).
-OUTPUT_COMMANDS = ("solve", "compare", "paper")
+OUTPUT_COMMANDS = ("solve", "compare", "paper", "surface")
 
 
 def _available_subcommands():
@@ -111,6 +117,17 @@ def _warning_line(message, category, filename, lineno, file=None, line=None) -> 
     print(f"warning: {message}", file=sys.stderr)
 
 
+def _silence_stdout() -> None:
+    """Point stdout at the null device, so that the interpreter's last flush of what is still
+    buffered for the gone reader does not fail again at exit."""
+    try:
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())
+        os.close(devnull)
+    except (OSError, ValueError, AttributeError, io.UnsupportedOperation):
+        pass  # stdout is not a file (a test's capture): nothing is flushed to a pipe at exit
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     """Run the command line with ``argv`` (default ``sys.argv[1:]``); return the exit code."""
     parser = build_parser()
@@ -130,6 +147,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     except KeyboardInterrupt:  # Ctrl-C: outputs are staged, so nothing half-written remains
         print("interrupted", file=sys.stderr)
         return EXIT_INTERRUPTED
+    except BrokenPipeError:  # `| head` stopped reading: not bad input, and no error line
+        _silence_stdout()
+        return EXIT_BROKEN_PIPE
     except (OSError, OutputFolderError) as exc:  # a full disk, no write permission, an output folder
         # changed during the solve: one line, not a traceback
         print(f"error: {exc}", file=sys.stderr)

@@ -151,12 +151,7 @@ def summary(result, scene_path: str, wall: float, out) -> str:
     if n >= 2:
         lines.insert(-1, _bands_line(result))
     if result.step_error is not None:
-        e = result.step_error
-        lines.insert(
-            -1,
-            f"  step error   friction {e['friction_N']:.4g} N, {e['friction_at_twice_the_step_N']:.4g} N at twice the "
-            f"step: about {e['estimated_error_N']:+.3g} N to add (extrapolated {e['extrapolated_friction_N']:.4g} N)",
-        )
+        lines.insert(-1, step_error_line(result.step_error, result.step_check))
     balance = result.energy_balance()
     if balance is not None and balance["mismatch"] is not None:
         lines.insert(
@@ -169,6 +164,25 @@ def summary(result, scene_path: str, wall: float, out) -> str:
         names = sorted(p.name for p in Path(out).iterdir() if not p.name.startswith("."))
         lines.append(f"  wrote        {out}/: {', '.join(names)}")
     return "\n".join(lines)
+
+
+def step_error_line(e, check=None) -> str:
+    """The summary line of ``--step-error``. The correction assumes the friction's error first
+    order in the step; where the two runs differ in sign or by more than half the friction,
+    the steps are too coarse for that, and the line says so instead of offering the
+    extrapolation as the answer."""
+    fine, coarse = e["friction_N"], e["friction_at_twice_the_step_N"]
+    line = (
+        f"  step error   friction {fine:.4g} N, {coarse:.4g} N at twice the step: about "
+        f"{e['estimated_error_N']:+.3g} N to add (extrapolated {e['extrapolated_friction_N']:.4g} N)"
+    )
+    if fine * coarse > 0 and abs(fine - coarse) <= 0.5 * abs(fine):
+        return line
+    finer = f" (step <= {check.limit:.3g} mm)" if check is not None and check.coarse else ""
+    return (
+        f"{line}; the two runs differ by more than half the friction, too far apart for the first-order "
+        f"correction to hold: the extrapolation is not an answer, roll at a finer step{finer}"
+    )
 
 
 def _bands_line(result) -> str:

@@ -1,6 +1,6 @@
 """Segment the height map of a scene's [surface] and tabulate its asperity laws, without solving.
 
-``twoscale surface SCENE.toml --out DIR [--no-laws] [--quiet]`` writes DIR/segmentation.png
+``twoscale surface SCENE.toml --out DIR [--overwrite] [--no-laws] [--quiet]`` writes DIR/segmentation.png
 (basins and summits over the height map), DIR/segmentation.csv (per asperity: summit
 position and height, recess, prominence, basin area, equivalent-sphere radius, law
 exponent, the sphere law's error against the tabulated one; with its
@@ -47,7 +47,7 @@ def run(args: argparse.Namespace) -> int:
 
     t0 = time.perf_counter()
     try:
-        check_out_dir(args.out)
+        check_out_dir(args.out, overwrite=getattr(args, "overwrite", False))
         scene = read_scene(args.scene)
         if scene.surface is None:
             raise SceneError(f"{args.scene}: no [surface] table (twoscale surface segments a height map)")
@@ -67,7 +67,9 @@ def run(args: argparse.Namespace) -> int:
     summary = surface_summary(
         surface, record, table=table, sphere_error=error, seconds={"read_and_segment": t1 - t0, "laws": t2 - t1}
     )
-    with staged_directory(args.out) as tmp:
+    with staged_directory(
+        args.out, overwrite=getattr(args, "overwrite", False), command=f"surface {args.scene}"
+    ) as tmp:
         segmentation_figure(surface, Path(tmp) / NAMES[0], scene=record)
         write_segmentation_table(rows, tmp, record={"scene": record})
         write_json(summary, Path(tmp) / NAMES[2])

@@ -38,6 +38,8 @@ __all__ = ["BadEntry", "CacheUsage", "CacheWarning", "EntryFolder", "read_entry"
 
 #: Name of the checksum array inside an entry.
 CHECKSUM = "_sha256"
+#: The first bytes of every npz (a zip archive).
+ZIP_MAGIC = b"PK\x03\x04"
 #: Bad entries named one line each per folder object; the others are counted in its usage.
 MAX_WARNED = 5
 
@@ -77,6 +79,9 @@ def read_entry(path: str | os.PathLike) -> dict:
     try:
         if path.stat().st_size == 0:
             raise BadEntry("empty file")
+        with open(path, "rb") as fh:
+            if fh.read(len(ZIP_MAGIC)) != ZIP_MAGIC:  # numpy would try it as a pickle and say so
+                raise BadEntry("not an npz file (no zip header)")
         with open(path, "rb") as fh, np.load(fh, allow_pickle=False) as data:  # closed on any error
             arrays = {name: data[name] for name in data.files}
     except (FileNotFoundError, BadEntry):
@@ -234,6 +239,29 @@ def usage_since(before: tuple, after: tuple) -> tuple:
     absent from ``before``: all of it)."""
     earlier = {(u.name, u.folder): u for u in before}
     return tuple(u.since(earlier[(u.name, u.folder)]) if (u.name, u.folder) in earlier else u for u in after)
+
+
+def with_construction(usage: tuple, built: tuple) -> tuple:
+    """``usage`` (a solve's) with ``built`` (what the body's caches did while the body was
+    built, before its first solve: a block reads, or drops, its corrections then) added to
+    the entries of the same cache; a cache only ``built`` touched is appended."""
+    extra = {(u.name, u.folder): u for u in built}
+    out = []
+    for u in usage:
+        e = extra.pop((u.name, u.folder), None)
+        out.append(
+            u
+            if e is None
+            else CacheUsage(
+                u.name,
+                u.folder,
+                u.read + e.read,
+                u.written + e.written,
+                e.dropped + u.dropped,
+                u.disabled or e.disabled,
+            )
+        )
+    return tuple(out) + tuple(extra.values())
 
 
 def solve_caches(provider, scene) -> tuple:

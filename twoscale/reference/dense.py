@@ -121,7 +121,10 @@ def solve_dense(
     cand = problem.candidates.ravel()
     idx = np.flatnonzero(cand)
     if idx.size > max_cells:
-        raise ValueError(f"dense solver: {idx.size} cells with material exceed max_cells={max_cells}; use solve_cg")
+        raise ValueError(
+            f"dense solver: {idx.size} cells with material exceed max_cells={max_cells}; "
+            f"use method='cg' (or 'reference', which picks), or a coarser h"
+        )
     if problem.grid.size <= max_cells:
         A = provider.grid_matrix(problem.grid)  # fast path on aligned grids
         if idx.size < A.shape[0]:

@@ -31,7 +31,7 @@ from .record import Recorder
 from .result import Position, RollingResult
 from .first_contact import hertz_level
 from .road import Selection
-from .track import Track, prepare, tyre_contact_length
+from .track import Track, prepare, tyre_contact_length, warn_if_cut
 
 #: Load control: the stones are taken below ``d_prev + BOUND_GROWTH (d_prev - z_low)``.
 BOUND_GROWTH = 0.5
@@ -315,7 +315,9 @@ def roll(
     if track.scene.material.viscoelastic:  # the memory in the body: the moving-indenter stepping
         from .viscous import roll_viscoelastic
 
-        return roll_viscoelastic(track, tol=options.tol, progress=progress, on_position=on_position)
+        result = roll_viscoelastic(track, tol=options.tol, progress=progress, on_position=on_position)
+        warn_if_cut(track, result)
+        return result
     t1 = time.perf_counter()
     record, previous = Recorder(), None
     state = window_state(track, options)
@@ -328,11 +330,13 @@ def roll(
         record.add(pos)
         previous = pos
     t2 = time.perf_counter()
-    return record.result(
+    result = record.result(
         track,
         {"prepare": t1 - t0, "positions": t2 - t1, "total": t2 - t0},
         "twoscale" if state is None else "window-cg",
     )
+    warn_if_cut(track, result)
+    return result
 
 
 def roll_at_twice_the_step(track, *, tol: float = 1e-6):

@@ -89,8 +89,13 @@ def prepare(scene: Scene, *, h: float | None = None, provider=None) -> Track:
     times = (shifts - shifts[0]) / spec.speed_mm_s
     track = Track(scene, spec, provider, road, cell, shifts, times, control, body_label(scene), check)
     if spec.tyre_radius is not None and tyre_contact_length(track) < 2.0 * cell:
+        held = (
+            f"load.penetration = {scene.penetration!r} mm"
+            if control == "penetration"
+            else f"load.total = {scene.total_load!r} N"
+        )
         raise SceneError(
-            f"rolling.tyre_radius = {spec.tyre_radius!r} mm leaves no contact wider than a cell "
+            f"rolling.tyre_radius = {spec.tyre_radius!r} mm with {held} leaves no contact wider than a cell "
             f"(footprint about {tyre_contact_length(track):.2g} mm at h = {cell:g} mm)"
         )
     if scene.surface is not None:
@@ -219,6 +224,40 @@ def warn_if_wider(track: Track) -> None:
             SurfaceWarning,
             stacklevel=2,
         )
+
+
+def cut_positions(track: Track, result) -> np.ndarray:
+    """Indices of the positions at which a tyre's contact reaches the face window's ends
+    along x (load on the window's first or last cell column): the window, not the tyre,
+    ends the contact there. Empty without a tyre (a flat face is the window itself), for an
+    unbounded window, or where the run kept no line loads."""
+    x0, x1, _, _ = track.road.window
+    lx, load = result.line_x, result.line_load
+    if track.spec.tyre_radius is None or not (math.isfinite(x0) and math.isfinite(x1)) or not lx.size:
+        return np.zeros(0, dtype=int)
+    ends = (lx <= x0 + 0.5 * track.h) | (lx >= x1 - 0.5 * track.h)
+    return np.flatnonzero((load[:, ends] > 0).any(axis=1))
+
+
+def warn_if_cut(track: Track, result) -> None:
+    """Warn, naming the field that set the window, where the tyre's contact reaches its ends
+    (:func:`cut_positions`): the approach and the pressure there are a shorter face's."""
+    cut = cut_positions(track, result)
+    if not cut.size:
+        return
+    x0, x1, _, _ = track.road.window
+    field = (
+        f"rolling.footprint = [{track.spec.footprint[0]:g}, {track.spec.footprint[1]:g}] mm"
+        if track.spec.footprint is not None
+        else "influence.size (the block's face)"
+    )
+    warnings.warn(
+        f"{field}: the tyre's contact reaches the window's ends (x = {x0:.4g} and {x1:.4g} mm) at "
+        f"{cut.size} of {len(result.shifts)} positions, so the window, not the tyre, ends it there "
+        f"(the approach and the pressure are a shorter face's): give a window longer than the contact",
+        SurfaceWarning,
+        stacklevel=3,
+    )
 
 
 def body_label(scene: Scene) -> str:

@@ -18,7 +18,7 @@ from scipy import ndimage
 from ..errors import SurfaceWarning  # noqa: F401  (documented here; raised by surface.edges)
 from ..options import settings_from
 from .heightmap import HeightMap, SurfaceError
-from .reading import MIN_SIDE, RawMap
+from .reading import MIN_SIDE, POINT_SUFFIXES, RawMap
 
 #: Height units and their size in mm.
 MM_PER_UNIT = {"mm": 1.0, "um": 1e-3, "nm": 1e-6, "m": 1e3}
@@ -103,6 +103,8 @@ def condition(raw: RawMap, *, h: float | None = None, h_name: str = "h", **condi
         z, missing = _crop(src, z, missing, step, crop)
     if units_from == "default":
         _check_relief(src, z, step)
+    elif unit != "mm" and str(src).lower().endswith(POINT_SUFFIXES):  # x, y scaled with the heights
+        _check_shared_unit(src, z * factor, step, unit)
     _check_size(src, z.shape, step, h, h_name)  # before anything of the resampled size exists
     if factor != 1.0:  # (mm: the map's own array; HeightMap copies it)
         z = z * factor
@@ -143,6 +145,19 @@ def _check_relief(src: str, z: np.ndarray, step: float) -> None:
             f"({hi - lo:.4g} mm of relief on a map {side:.4g} mm wide): they look like another unit; "
             f'give surface.units ("um" if they are micrometres, "mm" if they really are mm; in Python '
             f"SurfaceOptions(units=...) or RawMap(units=...))"
+        )
+
+
+def _check_shared_unit(src: str, z_mm: np.ndarray, step: float, unit: str) -> None:
+    """Refuse a point list read in ``unit`` (not mm: its x, y are scaled with the heights)
+    whose relief exceeds :data:`MAX_RELIEF_RATIO` times its smaller side: the ratio does not
+    depend on the shared unit, so x, y and the heights were written in different ones."""
+    relief, side = float(np.nanmax(z_mm) - np.nanmin(z_mm)), step * (min(z_mm.shape) - 1)
+    if relief > MAX_RELIEF_RATIO * side:
+        raise SurfaceError(
+            f"{src}: the heights span {relief:.4g} mm on a map {side:.4g} mm wide, with x, y read in the heights' "
+            f"unit ({unit}; a point list's three columns share one unit): x, y and the heights look like different "
+            f"units; write x and y in the heights' unit"
         )
 
 

@@ -120,7 +120,10 @@ def _candidates(z: np.ndarray, radius: float) -> np.ndarray:
     """``(j, i)`` of the samples highest over the disc of ``radius`` cells around them,
     one per plateau. A maximum over the disc is one over the square inscribed in it, so
     a fast (separable) square filter gives the candidates and the disc is checked on
-    those only."""
+    those only. A disc wider than the map's diagonal covers all of it from any sample: the
+    radius is capped there (a ``min_distance`` larger than the map, e.g. a point list whose
+    x, y are in micrometres, once asked for a 40,001-cell square disc: 23.8 GiB)."""
+    radius = min(radius, math.hypot(*z.shape))
     r = max(int(math.floor(radius)), 1)
     half = max(int(math.floor(radius / math.sqrt(2.0))), 1)
     peak = z >= ndimage.maximum_filter(z, size=2 * half + 1, mode="nearest")
