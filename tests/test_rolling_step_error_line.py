@@ -37,3 +37,21 @@ def test_a_correction_larger_than_half_the_friction_is_not_offered():
 def test_close_runs_keep_the_extrapolation():
     line = step_error_line(_error(2.17, 1.65))
     assert "not an answer" not in line and "extrapolated 2.69 N" in line
+
+
+def test_rolling_json_says_whether_the_correction_holds():
+    """``step_error`` (what ``rolling.json`` keeps) carries the same verdict as the line."""
+    from types import SimpleNamespace
+
+    import numpy as np
+
+    from twoscale.rolling.stepcheck import step_error
+
+    def run(drag, step):
+        shifts = np.arange(len(drag)) * step
+        return SimpleNamespace(shifts=shifts, drag=np.asarray(drag, dtype=float))
+
+    far = step_error(run([3.412] * 9, 0.5), run([-1.286] * 5, 1.0))
+    close = step_error(run([2.17] * 9, 0.5), run([1.65] * 5, 1.0))
+    assert far["first_order"] is False and close["first_order"] is True
+    assert "not an answer" in step_error_line(far) and "not an answer" not in step_error_line(close)

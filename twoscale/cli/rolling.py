@@ -171,12 +171,14 @@ def step_error_line(e, check=None) -> str:
     order in the step; where the two runs differ in sign or by more than half the friction,
     the steps are too coarse for that, and the line says so instead of offering the
     extrapolation as the answer."""
+    from ..rolling.stepcheck import first_order_holds
+
     fine, coarse = e["friction_N"], e["friction_at_twice_the_step_N"]
     line = (
         f"  step error   friction {fine:.4g} N, {coarse:.4g} N at twice the step: about "
         f"{e['estimated_error_N']:+.3g} N to add (extrapolated {e['extrapolated_friction_N']:.4g} N)"
     )
-    if fine * coarse > 0 and abs(fine - coarse) <= 0.5 * abs(fine):
+    if first_order_holds(fine, coarse):
         return line
     finer = f" (step <= {check.limit:.3g} mm)" if check is not None and check.coarse else ""
     return (
