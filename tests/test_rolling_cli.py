@@ -99,10 +99,12 @@ def test_outputs_have_exactly_their_columns(strip_file, tmp_path):
 )
 def test_bad_input_exit_2_nothing_written(strip_file, tmp_path, capsys, change, field):
     out = tmp_path / "run"
-    code = main(["solve", _scene(strip_file, **change), "--out", str(out)])
+    scene = _scene(strip_file, **change)
+    code = main(["solve", scene, "--out", str(out)])
     err = capsys.readouterr().err
     assert code == 2
-    assert len(err.strip().splitlines()) == 1 and err.startswith("error: ")
+    # the file first, whether the reader or the rolling's own checks refused it
+    assert len(err.strip().splitlines()) == 1 and err.startswith(f"error: {scene}: ")
     assert field in err
     assert not out.exists()
 
@@ -110,9 +112,11 @@ def test_bad_input_exit_2_nothing_written(strip_file, tmp_path, capsys, change, 
 def test_tyre_that_leaves_no_contact_under_penetration_control(strip_file, tmp_path, capsys):
     # held 0.01 mm below the strip's highest point on a small tyre: no stone reaches it at the start
     out = tmp_path / "run"
-    code = main(["solve", _scene(strip_file, load="penetration = 0.001", tyre_radius="5.0"), "--out", str(out)])
+    scene = _scene(strip_file, load="penetration = 0.001", tyre_radius="5.0")
+    code = main(["solve", scene, "--out", str(out)])
     err = capsys.readouterr().err
     assert code == 2 and "rolling.tyre_radius" in err and len(err.strip().splitlines()) == 1
+    assert err.startswith(f"error: {scene}: rolling.tyre_radius")
     assert not out.exists()
 
 

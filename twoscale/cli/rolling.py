@@ -37,7 +37,6 @@ _NOT_ROLLING = (
 def run_rolling(scene, args: argparse.Namespace) -> int:
     """Run the rolling scene ``scene`` (read from ``args.scene``); the exit code."""
     from ..rolling.run import RollingOptions, roll
-    from ..rolling.track import prepare
 
     try:
         for key, default, name in _NOT_ROLLING:
@@ -49,7 +48,7 @@ def run_rolling(scene, args: argparse.Namespace) -> int:
                     f"own solver, chosen by the body: RollingOptions.solver)"
                 )
         options = RollingOptions(iteration=getattr(args, "iteration", "auto"))
-        track = prepare(scene)  # every check before anything is solved or written
+        track = _prepared(scene, args.scene)  # every check before anything is solved or written
         if getattr(args, "step_error", False) and not scene.material.viscoelastic:
             raise ValueError(
                 "--step-error needs a viscoelastic material (material.prony): an elastic body has no hysteresis"
@@ -79,6 +78,18 @@ def run_rolling(scene, args: argparse.Namespace) -> int:
         )
         return 1
     return 0
+
+
+def _prepared(scene, path):
+    """``prepare(scene)``, its refusals naming the scene file first as the reader's do
+    (``tyre.toml: rolling.tyre_radius = ...``)."""
+    from ..rolling.track import prepare
+    from ..scene import SceneError
+
+    try:
+        return prepare(scene)
+    except SceneError as exc:
+        raise SceneError(f"{path}: {exc}") from None
 
 
 def _with_step_error(result, track, args):
