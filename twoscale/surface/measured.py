@@ -22,7 +22,7 @@ import numpy as np
 from ..influence import HalfSpace
 from ..laws import HertzLaw, TabulatedLaw
 from ..laws.base import AsperityLaw, as_force, as_penetration
-from .conditioning import condition
+from .conditioning import FILL_MODES, MM_PER_UNIT, condition
 from .heightmap import HeightMap, SurfaceError
 from .indenter import map_asperities
 from .lawcache import LawCache, law_key
@@ -59,6 +59,7 @@ class SurfaceOptions:
     law_levels: int = LEVELS
 
     def __post_init__(self) -> None:
+        self._check_conditioning()
         if self.law not in LAW_KINDS:
             raise SurfaceError(f"surface.law must be one of {', '.join(LAW_KINDS)}, got {self.law!r}")
         for name in ("cap_depth", "law_depth"):
@@ -67,6 +68,27 @@ class SurfaceOptions:
                 raise SurfaceError(f"surface.{name} must be a number > 0 (mm), got {v!r}")
         if isinstance(self.law_levels, bool) or not isinstance(self.law_levels, int) or self.law_levels < 2:
             raise SurfaceError(f"surface.law_levels must be an integer >= 2, got {self.law_levels!r}")
+
+    def _check_conditioning(self) -> None:
+        """The map's conditioning and segmentation options, checked when the options are
+        made (as the build checks them): ``detrend="yes"`` was taken as true, a bad ``fill``
+        or ``units`` met only when a surface was built."""
+        if self.fill not in FILL_MODES:
+            raise SurfaceError(f"surface.fill must be one of {', '.join(FILL_MODES)}, got {self.fill!r}")
+        if self.units is not None and self.units not in MM_PER_UNIT:
+            raise SurfaceError(f"surface.units must be one of {', '.join(MM_PER_UNIT)}, got {self.units!r}")
+        for name in ("detrend", "invert"):
+            if not isinstance(getattr(self, name), (bool, np.bool_)):
+                raise SurfaceError(f"surface.{name} must be true or false, got {getattr(self, name)!r}")
+        for name, low in (("spacing", 0.0), ("min_distance", None), ("prominence", None)):
+            v = getattr(self, name)
+            if v is None and name == "spacing":
+                continue
+            ok = not isinstance(v, (bool, np.bool_)) and isinstance(v, (int, float, np.integer, np.floating))
+            ok = ok and math.isfinite(v)
+            if not ok or (v <= low if low is not None else v < 0):
+                bound = "> 0" if low is not None else ">= 0"
+                raise SurfaceError(f"surface.{name} must be a number {bound} (mm), got {v!r}")
 
 
 class LawBook:
