@@ -2,7 +2,7 @@
 
 import numpy as np
 
-from twoscale.macro.newton import _line_search, newton
+from twoscale.macro.newton import Stops, _line_search, newton
 
 # Three tips with the macro equations' form r = P - f(offset - T P), f(d) = max(d, 0)^1.5,
 # started with tip 1 at zero force while the Newton direction takes it below zero: clipping
@@ -35,7 +35,11 @@ def test_the_projected_path_alone_finds_no_decrease():
 
 
 def test_newton_steps_past_the_blocked_projection_to_an_admissible_root():
-    out = newton(_residual, _step, P0, scale=lambda P: 1.0, tol=1e-12, max_iter=50, project=_clip)
+    kept = newton(_residual, _step, P0, scale=lambda P: 1.0, tol=1e-12, max_iter=50, project=_clip)
+    assert not kept.converged and "line search failed" in kept.message
+    out = newton(
+        _residual, _step, P0, scale=lambda P: 1.0, tol=1e-12, max_iter=50, project=_clip, stops=Stops(unprojected=True)
+    )
     assert out.converged, out.message
     assert np.all(out.x >= 0.0)
     # a root of the equations as written here, forces equal to the law at their penetration

@@ -43,11 +43,15 @@ class Stops:
     None: no such stop.
     drop : float, default ``PLATEAU_DROP``
         The plateau's fall (a fraction of the residual at the window's start).
+    unprojected : bool, default False
+        Where the projected path has no decrease, search the unprojected one too instead
+        of stopping with a failed line search.
     """
 
     stall: int | None = None
     plateau: int | None = None
     drop: float = PLATEAU_DROP
+    unprojected: bool = False
 
 
 @dataclass(frozen=True)
@@ -97,8 +101,8 @@ def newton(
     Each step is halved until the residual norm decreases by the Armijo factor along the
     projected path ``project(x + t s)``. Where the projection blocks every decrease (forces
     at zero that the direction takes below zero: 8,897 light tips under load stopped at a
-    relative residual of 0.15 this way), the unprojected path is searched too; a converged
-    answer is projected (kept only within the tolerance). If no step down to ``2^-24``
+    relative residual of 0.15 this way), ``stops.unprojected`` searches the unprojected path
+    too; a converged answer is projected (kept only within the tolerance). If no step down to ``2^-24``
     decreases the residual, the iteration stops with ``converged=False``.
     """
     x = np.array(x0, dtype=float)
@@ -117,7 +121,7 @@ def newton(
             break
         s = step(x, r)
         found = _line_search(residual, x, s, norm, project)
-        if found is None:
+        if found is None and stops.unprojected:
             found = _line_search(residual, x, s, norm, lambda y: y)
         if found is None:
             msg = (
