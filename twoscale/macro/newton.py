@@ -43,11 +43,15 @@ class Stops:
     None: no such stop.
     drop : float, default ``PLATEAU_DROP``
         The plateau's fall (a fraction of the residual at the window's start).
+    unprojected : bool, default False
+        Where the projected path has no decrease, search the unprojected one too instead
+        of stopping with a failed line search.
     """
 
     stall: int | None = None
     plateau: int | None = None
     drop: float = PLATEAU_DROP
+    unprojected: bool = False
 
 
 @dataclass(frozen=True)
@@ -94,8 +98,12 @@ def newton(
 
     Notes
     -----
-    Each step is halved until the residual norm decreases by the Armijo factor. If no
-    step down to ``2^-24`` decreases it, the iteration stops with ``converged=False``.
+    Each step is halved until the residual norm decreases by the Armijo factor along the
+    projected path ``project(x + t s)``. Where the projection blocks every decrease (forces
+    at zero that the direction takes below zero: 8,897 light tips under load stopped at a
+    relative residual of 0.15 this way), ``stops.unprojected`` searches the unprojected path
+    too; a converged answer is projected (kept only within the tolerance). If no step down to ``2^-24``
+    decreases the residual, the iteration stops with ``converged=False``.
     """
     x = np.array(x0, dtype=float)
     r = residual(x)
@@ -103,26 +111,25 @@ def newton(
     history = [_relative(norm, scale(x))]
     for it in range(max_iter + 1):
         if norm <= tol * scale(x) or norm == 0.0:
-            return NewtonOutcome(x, r, True, f"converged in {it} Newton steps", it, tuple(history))
+            admissible = _admissible(residual, project, x, r, norm, tol * scale(x))
+            if admissible is not None:
+                x, r = admissible
+                return NewtonOutcome(x, r, True, f"converged in {it} Newton steps", it, tuple(history))
         if not np.isfinite(norm):
             return NewtonOutcome(x, r, False, f"residual not finite at step {it}", it, tuple(history))
         if it == max_iter:
             break
         s = step(x, r)
-        t = 1.0
-        while True:
-            x_new = project(x + t * s)
-            r_new = residual(x_new)
-            norm_new = float(np.linalg.norm(r_new))
-            if norm_new <= (1.0 - _ARMIJO * t) * norm:
-                break
-            t *= 0.5
-            if t < _MIN_STEP:
-                msg = (
-                    f"line search failed at Newton step {it + 1}: no decrease of the "
-                    f"residual {norm:.3e} along the Newton direction"
-                )
-                return NewtonOutcome(x, r, False, msg, it, tuple(history))
+        found = _line_search(residual, x, s, norm, project)
+        if found is None and stops.unprojected:
+            found = _line_search(residual, x, s, norm, lambda y: y)
+        if found is None:
+            msg = (
+                f"line search failed at Newton step {it + 1}: no decrease of the "
+                f"residual {norm:.3e} along the Newton direction"
+            )
+            return NewtonOutcome(x, r, False, msg, it, tuple(history))
+        x_new, r_new, norm_new = found
         x, r, norm = x_new, r_new, norm_new
         history.append(_relative(norm, scale(x)))
         stall, plateau = stops.stall, stops.plateau
@@ -134,6 +141,30 @@ def newton(
             return NewtonOutcome(x, r, False, msg, it + 1, tuple(history))
     msg = f"not converged after max_iter={max_iter} Newton steps: relative residual {history[-1]:.3e} > tol={tol:.1e}"
     return NewtonOutcome(x, r, False, msg, max_iter, tuple(history))
+
+
+def _admissible(residual, project, x, r, norm, bound):
+    """``(x, r)`` projected, if the projection keeps the residual within ``bound`` (after
+    an unprojected step, forces may sit below zero by up to the residual), else None."""
+    xp = project(x)
+    if xp is x or np.array_equal(xp, x):
+        return x, r
+    rp = residual(xp)
+    return (xp, rp) if float(np.linalg.norm(rp)) <= bound else None
+
+
+def _line_search(residual, x, s, norm, project):
+    """``(x_new, r_new, norm_new)`` at the longest step ``t = 2^-j`` with an Armijo decrease
+    along ``project(x + t s)``, or None below ``_MIN_STEP``."""
+    t = 1.0
+    while t >= _MIN_STEP:
+        x_new = project(x + t * s)
+        r_new = residual(x_new)
+        norm_new = float(np.linalg.norm(r_new))
+        if norm_new <= (1.0 - _ARMIJO * t) * norm:
+            return x_new, r_new, norm_new
+        t *= 0.5
+    return None
 
 
 def _stagnates(history: list, window: int) -> bool:
