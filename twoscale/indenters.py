@@ -169,6 +169,30 @@ class TipArrays:
     sphere: np.ndarray
 
 
+def tip_heights(r2: np.ndarray, z: np.ndarray, R: np.ndarray, sphere: np.ndarray) -> np.ndarray:
+    """Heights (mm) of plain tips at squared distances ``r2`` from them (overwritten), by
+    :meth:`Asperity.height`'s arithmetic: ``z`` plus a sphere's cap ``r^2 / (R + sqrt(R^2 -
+    r^2))`` (inf outside it; no cancellation) or a paraboloid's ``r^2 / (2 R)``. ``z``,
+    ``R`` and ``sphere`` (bool) broadcast against ``r2``; a batch of one shape skips the
+    other's formula."""
+    hk = None
+    if sphere.any():
+        R2 = R * R
+        outside = r2 >= R2
+        hk = R2 - r2
+        hk[outside] = 0.0
+        np.sqrt(hk, out=hk)
+        hk += R
+        np.divide(r2, hk, out=hk)
+        hk += z
+        hk[outside] = np.inf
+    if not sphere.all():
+        par = np.divide(r2, 2.0 * R, out=r2)
+        par += z
+        hk = par if hk is None else np.where(sphere, hk, par)
+    return hk
+
+
 def sample_tips(xs: np.ndarray, ys: np.ndarray, tips: TipArrays, height: np.ndarray, owner: np.ndarray) -> None:
     """``tips`` sampled at once at the cell centres of a grid (axes ``xs`` (nx,) and ``ys``
     (ny,), mm), by the arithmetic of :meth:`Asperity.height`, into ``height`` (mm) and
@@ -180,23 +204,7 @@ def sample_tips(xs: np.ndarray, ys: np.ndarray, tips: TipArrays, height: np.ndar
     x, y, z, R = (v[:, None] for v in (tips.x, tips.y, tips.z, tips.R))
     n = len(tips.index)
     r2 = ((ys[None, :] - y) ** 2)[:, :, None] + ((xs[None, :] - x) ** 2)[:, None, :]
-    r2 = r2.reshape(n, -1)
-    spheres = int(np.count_nonzero(tips.sphere))
-    hk = None
-    if spheres:
-        R2 = R * R
-        outside = r2 >= R2
-        hk = R2 - r2
-        hk[outside] = 0.0
-        np.sqrt(hk, out=hk)
-        hk += R  # R - sqrt(R^2 - r^2) written as r^2 / (R + sqrt(R^2 - r^2)): no cancellation
-        np.divide(r2, hk, out=hk)
-        hk += z
-        hk[outside] = np.inf
-    if spheres < n:
-        par = np.divide(r2, 2.0 * R, out=r2)
-        par += z
-        hk = par if hk is None else np.where(tips.sphere[:, None], hk, par)
+    hk = tip_heights(r2.reshape(n, -1), z, R, tips.sphere[:, None])
     first = np.argmin(hk, axis=0)
     low = hk[first, np.arange(hk.shape[1])]
     flat_h, flat_o = height.reshape(-1), owner.reshape(-1)

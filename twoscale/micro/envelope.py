@@ -28,7 +28,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..grid import Grid
-from ..indenters import Surface
+from ..indenters import Surface, tip_heights
 
 #: Side of the tiles, cells (8 / 16 / 32 on the three boxes above: 0.16 / 0.21 / 0.41,
 #: 0.22-0.28 / 0.25-0.26 / 0.62, 0.47-0.61 / 0.39-0.43 / 0.65 s).
@@ -44,29 +44,12 @@ ENVELOPE_GROUP = 4096
 
 def _heights(xs: np.ndarray, ys: np.ndarray, tx, ty, tz, tR, sphere) -> np.ndarray:
     """Heights (t, K, T, T), mm, of the tips (t, K) (``sphere`` (t, K) bool) over the
-    tiles' cell centres ``xs``, ``ys`` (t, T) by :func:`~twoscale.indenters.sample_tips`'
-    arithmetic: squared distances as the y square plus the x square, a sphere's cap as
-    ``r^2 / (R + sqrt(R^2 - r^2))``, inf outside it."""
+    tiles' cell centres ``xs``, ``ys`` (t, T) by :func:`~twoscale.indenters.tip_heights`
+    (squared distances as the y square plus the x square, as ``sample_tips``)."""
     r2 = ((ys[:, None, :] - ty[:, :, None]) ** 2)[:, :, :, None] + ((xs[:, None, :] - tx[:, :, None]) ** 2)[
         :, :, None, :
     ]
-    R, z = tR[:, :, None, None], tz[:, :, None, None]
-    hk = None
-    if sphere.any():
-        R2 = R * R
-        outside = r2 >= R2
-        hk = R2 - r2
-        hk[outside] = 0.0
-        np.sqrt(hk, out=hk)
-        hk += R
-        np.divide(r2, hk, out=hk)
-        hk += z
-        hk[outside] = np.inf
-    if not sphere.all():
-        par = np.divide(r2, 2.0 * R, out=r2)
-        par += z
-        hk = par if hk is None else np.where(sphere[:, :, None, None], hk, par)
-    return hk
+    return tip_heights(r2, tz[:, :, None, None], tR[:, :, None, None], sphere[:, :, None, None])
 
 
 def _tiles(grid: Grid, T: int, ids: np.ndarray):
