@@ -79,11 +79,12 @@ def read_entry(path: str | os.PathLike) -> dict:
     try:
         if path.stat().st_size == 0:
             raise BadEntry("empty file")
-        with open(path, "rb") as fh:
+        with open(path, "rb") as fh:  # closed on any error
             if fh.read(len(ZIP_MAGIC)) != ZIP_MAGIC:  # numpy would try it as a pickle and say so
                 raise BadEntry("not an npz file (no zip header)")
-        with open(path, "rb") as fh, np.load(fh, allow_pickle=False) as data:  # closed on any error
-            arrays = {name: data[name] for name in data.files}
+            fh.seek(0)
+            with np.load(fh, allow_pickle=False) as data:
+                arrays = {name: data[name] for name in data.files}
     except (FileNotFoundError, BadEntry):
         raise
     except Exception as exc:  # noqa: BLE001 - numpy and zipfile raise many kinds for a damaged file
