@@ -20,7 +20,8 @@ Cases (``KIND:ARG``):
 * ``space:I`` — :func:`twoscale.scenespace.draw` ``(I, seed 0)``, tips only, half-space, at most 300;
 * ``sweep:I`` / ``sweep_ref:I`` — scene ``I`` of the sweep itself (``benchmarks/sweep.py``'s draws:
   maps and blocks too), default two-scale solve / the reference; ``sweep1:I`` / ``sweep1_ref:I``
-  the same with the held-out draws (``--seed 1``), ``sweep2:I`` / ``sweep2_ref:I`` with ``--seed 2``;
+  the same with the held-out draws (``--seed 1``), ``sweep2:I`` / ``sweep2_ref:I`` with ``--seed 2``
+  and ``sweep3:I`` / ``sweep3_ref:I`` with ``--seed 3``;
 * ``road:SIZE-H-RMIN-RMAX`` — the synthetic road of ``benchmarks/surfaces.py`` (e.g.
   ``road:100-0.1-3-6``, its 161 stones), segmentation and default solve;
 * ``file:PATH`` / ``file_ref:PATH`` — a scene file (e.g. the paper's ``examples/S1.toml``, the
@@ -187,6 +188,8 @@ CASES = {
     "sweep1_ref": lambda index: _sweep(index, "reference", seed=1),
     "sweep2": lambda index: _sweep(index, seed=2),
     "sweep2_ref": lambda index: _sweep(index, "reference", seed=2),
+    "sweep3": lambda index: _sweep(index, seed=3),
+    "sweep3_ref": lambda index: _sweep(index, "reference", seed=3),
     "family_ref": lambda name: _family(name, "reference"),
     "file_ref": lambda path: _file(path, "reference"),
 }
