@@ -588,3 +588,18 @@ def _newton_on_a_line(newton, x0: float, factor: float, max_iter: int, stops):
         max_iter=max_iter,
         stops=stops,
     )
+
+
+@pytest.mark.parametrize("slope", [0.01, 0.05])
+def test_a_face_set_askew_is_levelled(slope):
+    """Four equal spheres on a square, heights rising by ``slope`` along x, pivot at the
+    centre: by symmetry each carries W/4 and the face turns by ``beta = -slope`` (from no
+    tilt only the low pair touched and the macro step stalled)."""
+    tips = np.array([(x, y) for x in (-10.0, 10.0) for y in (-10.0, 10.0)])
+    z = slope * tips[:, 0]
+    law = SphereLaw(5.0, E_STAR)
+    res = solve_macro(HS, tips, z, law, total_load=4.0, tilt=True)
+    assert res.converged, res.message
+    assert np.allclose(res.forces, 1.0, rtol=1e-10)
+    assert abs(res.tilt[1] + slope) < 1e-12 and abs(res.tilt[0]) < 1e-12
+    check_equations(res, tips, z, [law] * 4, boussinesq_interaction(tips))

@@ -89,3 +89,36 @@ def test_pivot_off_the_tips_balances_the_moments(distance, route):
         force, moment_x, moment_y = force + w.sum(), moment_x + (w * X).sum(), moment_y + (w * Y).sum()
     # the moment arm left is below half a cell: the pressure's centre on the pivot
     assert math.dist((moment_x / force, moment_y / force), pivot) < 0.5 * H
+
+
+def _square_slope(slope: float) -> tuple:
+    """Four equal spheres on a 20 mm square whose heights rise by ``slope`` along x: the face
+    balances them by turning ``beta = -slope`` (``delta_k = d - z_k - beta x_k - alpha y_k``
+    with equal forces, by symmetry), ``alpha = 0``."""
+    return tuple(Asperity(x, y, slope * x, 5.0) for x in (-10.0, 10.0) for y in (-10.0, 10.0))
+
+
+@pytest.mark.parametrize("slope, warned", [(0.02, False), (0.2, True)])
+def test_a_face_set_askew_tilts_level_and_large_tilts_are_warned(slope, warned):
+    """From no tilt only the two low tips touch, on one side of the pivot: the macro step
+    stalled and the solve was refused. The levelled start balances it; the forces are the
+    full-grid reference's, and only the angle beyond small angles is warned about."""
+    import warnings
+
+    from twoscale.errors import TiltWarning
+
+    tips, material = _square_slope(slope), Material(10.0, 0.5)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        res = twoscale.solve(tips, material=material, total_load=4.0, tilt=True, h=0.05)
+    alpha, beta = res.tilt
+    assert res.converged, res.message
+    assert abs(beta + slope) < 0.05 * slope and abs(alpha) < 0.05 * slope
+    tilt_warnings = [w for w in caught if issubclass(w.category, TiltWarning)]
+    assert len(tilt_warnings) == int(warned)
+    if warned:
+        assert f"beta {beta:.3g}" in str(tilt_warnings[0].message) and "load.pivot" in str(tilt_warnings[0].message)
+    else:
+        ref = twoscale.solve(tips, material=material, total_load=4.0, tilt=True, h=0.05, method="reference")
+        assert np.allclose(res.forces, ref.forces, rtol=0.005, atol=0)
+        assert abs(res.tilt[1] - ref.tilt[1]) < 0.005 * slope

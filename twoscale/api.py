@@ -34,7 +34,7 @@ import numpy as np
 from .control import check_control
 from .errors import ResolutionWarning
 from .material import Material
-from .pivot import check_pivot_reach, pivot_route
+from .pivot import check_pivot_reach, pivot_route, warn_large_tilt
 from .results import ContactResult
 from .scene import SCENE_METHODS
 from .resolution import check_resolution
@@ -220,6 +220,7 @@ def solve(
     if callable(method):  # the body and the nominal area recorded in the result, whatever the method
         return with_setting(method(provider, scene, h=h, **options), scene, provider)
     result = _with_surface_report(scene, _run_method(scene, provider, h, method, options))
+    warn_large_tilt(result.tilt)
     result = with_setting(result, scene, provider)
     # what came from the on-disk caches (block corrections, surface laws), for result.json
     return dataclasses.replace(result, caches=usage_since(caches_before, solve_caches(provider, scene)))

@@ -55,5 +55,9 @@ class StepWarning(UserWarning):
     Prony branch resolves: the hysteresis friction comes out low."""
 
 
+class TiltWarning(UserWarning):
+    """A solved tilt beyond the small angles the linear ball-and-socket model assumes."""
+
+
 class SurfaceWarning(UserWarning):
     """A height-map solve whose answer needs care (contacts reaching the map's edge)."""

@@ -21,6 +21,13 @@ import numpy as np
 
 from .errors import SceneError
 
+#: Largest tilt angle (rad) the linear tilt is trusted at. The model turns the face by
+#: adding ``beta x + alpha y`` to its heights; a rigid turn also moves each point sideways by
+#: its lever times ``angle^2 / 2`` and turns the pressure off the vertical by the angle:
+#: terms of relative size ``angle^2 / 2``, 0.5 % at 0.1 rad (the force tolerance the
+#: solvers are checked to against their reference).
+SMALL_ANGLE = 0.1
+
 #: Corners of the polygon circumscribing a sphere's material disc in the hull of the material.
 DISC_CORNERS = 32
 
@@ -85,6 +92,30 @@ def check_pivot_reach(scene, h: float) -> None:
             f"load.pivot = {list(scene.pivot)!r} mm lies {outside:.3g} mm outside every place the "
             "tips have material: no tilt balances the moments; put the pivot among the tips"
         )
+
+
+def warn_large_tilt(tilt) -> None:
+    """Warn (:class:`~twoscale.errors.TiltWarning`) when a solved tilt ``(alpha, beta)``
+    (rad) exceeds :data:`SMALL_ANGLE`: the answer is that of the linear model, whose
+    dropped terms are then over 0.5 % of the forces and levers."""
+    if tilt is None:
+        return
+    worst = max(abs(float(a)) for a in tilt)
+    if worst <= SMALL_ANGLE:
+        return
+    import warnings
+
+    from .errors import TiltWarning
+
+    warnings.warn(
+        TiltWarning(
+            f"tilt (alpha {tilt[0]:.3g}, beta {tilt[1]:.3g}) rad exceeds the small angles the "
+            f"linear tilt assumes (|angle| <= {SMALL_ANGLE:g} rad): the terms it drops are "
+            f"about {100 * worst**2 / 2:.2g} % of the forces and levers; check the tips' heights "
+            "and the pivot (load.pivot)"
+        ),
+        stacklevel=3,
+    )
 
 
 def pivot_route(scene) -> str | None:

@@ -26,7 +26,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.optimize import minimize
+from scipy.optimize import linprog, minimize
 
 from .newton import PLATEAU_DROP, NewtonOutcome, Stops, newton
 from .system import MacroSystem
@@ -232,3 +232,25 @@ def _ascent_step(H: np.ndarray, grad: np.ndarray) -> np.ndarray:
     # unknown: regularise slightly (Levenberg) so the step stays an ascent direction.
     mu = 1e-10 * max(float(np.trace(H)), 1e-300)
     return np.linalg.solve(H + mu * np.eye(len(grad)), grad)
+
+
+def levelled_retry(system: MacroSystem, x1: np.ndarray | None, **newton_options) -> NewtonOutcome | None:
+    """Newton again from ``x1``, the cold start with the face turned along the tips' plane
+    (:func:`.start.levelling_tilt`; None: their heights lie on no plane): its outcome when it
+    converges to a stable root, else None. From no tilt a face set askew reaches only the
+    tips on one side of the pivot and Newton stalls. The caller tries the plain start first,
+    so a converging scene's path is unchanged, and only where some forces balance the
+    moments (a pivot outside the tips' hull, where no start converges, is not retried)."""
+    if x1 is None:
+        return None
+    again = run_newton(system, x1, **newton_options)
+    return again if again.converged and system.stable(again.x) else None
+
+
+def balance_feasible(system: MacroSystem) -> bool:
+    """Whether some forces ``P >= 0`` at the tips satisfy the equilibrium rows ``E P = e``
+    (under tilt: whether the pivot lies in the tips' convex hull), by a linear program."""
+    if system.E.shape[0] < 2:
+        return True
+    out = linprog(np.zeros(system.n), A_eq=system.E, b_eq=system.e, bounds=(0.0, None), method="highs")
+    return out.status != 2  # 2: infeasible; anything else is no proof that it is

@@ -8,7 +8,7 @@ from typing import Callable
 
 import numpy as np
 from scipy.linalg import cho_solve
-from scipy.optimize import brentq, linprog
+from scipy.optimize import brentq
 from scipy.spatial import cKDTree
 
 from ..control import Loading
@@ -18,9 +18,9 @@ from ..options import MacroOptions
 from .checks import check_load as _check_load, check_scene as _check_scene
 from .interaction import MatrixFreeInteraction, sampled_operator_error
 from .result import MacroResult
-from .start import MacroStart
+from .start import MacroStart, levelling_tilt
 from .newton import PLATEAU_DROP
-from .robust import FAST_STEPS, minimise_then_polish, run_newton, solve_dual
+from .robust import FAST_STEPS, balance_feasible, levelled_retry, minimise_then_polish, run_newton, solve_dual
 from .system import MacroSystem, symmetric_part
 
 #: Default largest N solved with a dense interaction matrix (32 MB at 2,000).
@@ -161,7 +161,10 @@ def macro_step(provider, tips, z, laws, loading: Loading, options, how: MacroHan
         x0 = _initial_guess(system, z, stack, penetration, total_load, tilt)
     else:  # the cold start's forces are not needed, nor its approach when the start has one
         x0 = start.unknowns(len(z), _rigid_start(z, stack, total_load, tilt, start))
-    x, converged, message, steps, residuals, path = _newton_then_safe(system, x0, tol, max_iter, how.defer_safe_path)
+    levelled = (lambda: _levelled_start(system, z, stack, total_load)) if tilt and start is None else None
+    x, converged, message, steps, residuals, path = _newton_then_safe(
+        system, x0, tol, max_iter, how.defer_safe_path, levelled
+    )
     t2 = time.perf_counter()
     P, g = system.split(x)
     delta = system.delta(x)
@@ -199,10 +202,11 @@ def macro_step(provider, tips, z, laws, loading: Loading, options, how: MacroHan
     )
 
 
-def _newton_then_safe(system: MacroSystem, x0: np.ndarray, tol: float, max_iter: int, defer=None):
-    """Projected Newton with backtracking from the cold start; if it stalls, the safe
-    path (:mod:`.robust`). Returns (x, converged, message, Newton steps, residual history,
-    the safe path: "" not needed, "taken", "skipped" or "deferred" by ``defer``)."""
+def _newton_then_safe(system: MacroSystem, x0: np.ndarray, tol: float, max_iter: int, defer=None, levelled=None):
+    """Projected Newton with backtracking from the cold start; if it fails, again from
+    ``levelled()`` (a tilted cold start, :func:`.robust.levelled_retry`); if that fails too, the
+    safe path (:mod:`.robust`). Returns (x, converged, message, Newton steps, residual
+    history, the safe path: "" not needed, "taken", "skipped" or "deferred" by ``defer``)."""
     W = float(system.e[0]) if system.e.size else 0.0
     stall = STALL_STEPS if system.n > SAFE_PATH_MAX_TIPS else None
     plateau = PLATEAU_STEPS if system.n <= SAFE_PATH_MAX_TIPS else None
@@ -211,6 +215,12 @@ def _newton_then_safe(system: MacroSystem, x0: np.ndarray, tol: float, max_iter:
     fast = run_newton(system, x0, tol=tol, max_iter=steps, scale_floor=W, stall=stall, plateau=plateau, drop=drop)
     if fast.converged and system.stable(fast.x):
         return fast.x, True, fast.message, fast.iterations, fast.residuals, ""
+    again = None
+    if levelled is not None and system.n <= SAFE_PATH_MAX_TIPS and balance_feasible(system):
+        again = levelled_retry(system, levelled(), tol=tol, max_iter=steps, scale_floor=W, plateau=PLATEAU_STEPS)
+    if again is not None:
+        message = f"{again.message} from the face turned along the tips' plane"
+        return again.x, True, message, fast.iterations + again.iterations, fast.residuals + again.residuals, ""
     if not fast.converged and fast.iterations >= max_iter:
         return fast.x, False, fast.message, fast.iterations, fast.residuals, ""
     skip, path = None, "skipped"
@@ -219,7 +229,7 @@ def _newton_then_safe(system: MacroSystem, x0: np.ndarray, tol: float, max_iter:
         # (its patches reach as far as the indenters can touch; under load control it corrects the
         # approach); the safe path would cost more than the solve
         skip = f"with {system.n} asperities"
-    elif not _balance_feasible(system):
+    elif not balance_feasible(system):
         # the safe path's dual ascent cannot end (four tilted spheres: 15 inner minimisations,
         # 2.2 s of a 3.3 s solve, then Newton's iterate handed on all the same); the real
         # contacts, spread over the spheres, can balance what the tips cannot
@@ -260,15 +270,6 @@ def _newton_then_safe(system: MacroSystem, x0: np.ndarray, tol: float, max_iter:
     )
     message = f"{why}; {safe.message}"
     return x, safe.converged, message, fast.iterations + safe.newton_steps, history, "taken"
-
-
-def _balance_feasible(system: MacroSystem) -> bool:
-    """Whether some forces ``P >= 0`` at the tips satisfy the equilibrium rows ``E P = e``
-    (under tilt: whether the pivot lies in the tips' convex hull), by a linear program."""
-    if system.E.shape[0] < 2:
-        return True
-    out = linprog(np.zeros(system.n), A_eq=system.E, b_eq=system.e, bounds=(0.0, None), method="highs")
-    return out.status != 2  # 2: infeasible; anything else is no proof that it is
 
 
 def _residual_norm(system: MacroSystem, x: np.ndarray) -> float:
@@ -330,6 +331,15 @@ def _initial_guess(system: MacroSystem, z, stack: LawStack, penetration, total_l
         return _secant_forces(system, stack)
     d0 = _independent_approach(z, stack, float(total_load))
     return np.concatenate([np.zeros(n), [d0, 0.0, 0.0] if tilt else [d0]])  # no force
+
+
+def _levelled_start(system: MacroSystem, z, stack: LawStack, total_load) -> np.ndarray | None:
+    """The cold start with the face along the tips' plane (:func:`.start.levelling_tilt`) or None."""
+    alpha, beta = levelling_tilt(system.G, z)
+    if alpha == 0.0 and beta == 0.0:
+        return None
+    level = z - system.G[:, 1:] @ np.array([alpha, beta])  # the heights under that tilt
+    return np.concatenate([np.zeros(system.n), [_independent_approach(level, stack, float(total_load)), alpha, beta]])
 
 
 def _rigid_start(z, stack: LawStack, total_load, tilt, start: MacroStart) -> np.ndarray:

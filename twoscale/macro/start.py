@@ -6,6 +6,9 @@ little. :class:`MacroStart` carries such a start in this solve's tip order; tips
 not in the previous solve (entering the footprint) start unloaded. The Newton iteration
 then starts from it instead of the cold start (independent asperities carrying the load);
 the answer is the same to the solver's tolerance (the equations do not change).
+
+A cold start under a free tilt turns the face along the tips' plane where their heights lie
+on one (:func:`levelling_tilt`).
 """
 
 from __future__ import annotations
@@ -88,3 +91,26 @@ def mapped(values: np.ndarray, index) -> np.ndarray:
     if index.ndim != 1 or np.any(index >= len(values)) or np.any(index < -1):
         raise ValueError(f"index must be 1-D with entries in [-1, {len(values) - 1}], got {index!r}")
     return np.where(index >= 0, values[np.maximum(index, 0)], 0.0)
+
+
+#: A tilt's cold start turns the face to the tips' least-squares plane when that plane
+#: explains at least this share of the heights' variance (a face set askew); otherwise none.
+LEVELLING_SHARE = 0.5
+
+
+def levelling_tilt(G: np.ndarray, z: np.ndarray) -> tuple[float, float]:
+    """The tilt ``(alpha, beta)`` that lays the face along the tips' least-squares plane
+    ``z ~ c - alpha Y - beta X`` (``G = [1, -Y, -X]``, positions from the pivot) where that
+    plane explains at least :data:`LEVELLING_SHARE` of the heights' variance, else ``(0, 0)``.
+
+    From no tilt, Newton sees only the tips the untilted face reaches: where the face is set
+    askew (four spheres on a 20 mm square, heights rising 0.4 mm across it, 1 N each) those
+    lie on one side of the pivot, no step balances the moments and the safe path stalls. The
+    levelled start reaches them all."""
+    spread = float(np.sum((z - z.mean()) ** 2))
+    if spread == 0.0:
+        return 0.0, 0.0
+    g, _, rank, _ = np.linalg.lstsq(G, z, rcond=None)
+    if rank < 3 or float(np.sum((z - G @ g) ** 2)) > (1.0 - LEVELLING_SHARE) * spread:
+        return 0.0, 0.0
+    return float(g[1]), float(g[2])

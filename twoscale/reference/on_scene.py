@@ -52,9 +52,11 @@ def reference_grid(scene: Scene, h: float, *, grow: float = 1.0) -> Grid:
     solve finds pressure on the grid edge). Cell centres lie on the lattice h Z^2
     (a tip at the origin sits on a cell centre)."""
     bound = approach_bound(scene)
+    # a free tilt can bring any tip down to the lowest one's level: every tip is reached
+    lowest = min(a.z for a in scene.asperities) if scene.tilt else None
     boxes = []
     for a in scene.asperities:
-        reach = a.reach(bound - a.z)
+        reach = a.reach(bound - (a.z if lowest is None else lowest))
         if reach <= 0:
             continue
         r = grow * (1.05 * reach + 3.0 * h)
