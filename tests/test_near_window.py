@@ -11,6 +11,7 @@ from twoscale.influence.halfspace import HalfSpace
 from twoscale.material import Material
 from twoscale.micro.blocks import Coupling, scatter
 from twoscale.micro.near_window import GATHER_MAX_ENTRIES, NearWindow
+from twoscale.micro.pair_entries import WINDOW_MAX_ENTRIES
 from twoscale.micro.patches import make_patch
 
 HS = HalfSpace(Material(E=10.0, nu=0.3))
@@ -104,3 +105,19 @@ def test_one_gather_of_several_sources_is_the_sum_of_their_products():
     for l, pl, v in sources:
         window.product(k, patches[k], l, pl, v)
     np.testing.assert_allclose(window.total(k, patches[k], sources), expected, rtol=1e-12, atol=1e-15)
+
+
+def test_a_pair_past_the_largest_window_is_left_to_the_other_route_after_a_near_one():
+    """A window made for a near pair, then a pair farther apart than the largest window
+    reaches (500 cells): the window grew to its largest size and gathered out of its
+    bounds (an IndexError in a tilted 16-tip solve); now the far pair gets None."""
+    largest = (int(np.sqrt(WINDOW_MAX_ENTRIES)) - 1) // 2
+    tips = [Asperity(0.0, 0.0, 0.0, 3.0), Asperity(1.5, 0.0, 0.0, 3.0), Asperity((largest + 20) * H, 0.0, 0.0, 3.0)]
+    patches = [make_patch(k, Grid.covering(a.x - 0.5, a.x + 0.5, -0.5, 0.5, H), tips) for k, a in enumerate(tips)]
+    window = NearWindow(HS)
+    ik, il = np.flatnonzero(patches[0].owned.ravel()), np.flatnonzero(patches[1].owned.ravel())
+    v = np.ones(len(il))
+    near = window.product(0, patches[0], 1, patches[1], v)
+    np.testing.assert_allclose(near, HS.grid_matrix(patches[0].grid, patches[1].grid)[np.ix_(ik, il)] @ v, rtol=1e-12)
+    assert window.product(0, patches[0], 2, patches[2], np.ones(int(patches[2].owned.sum()))) is None
+    assert window.reach < largest  # the near pair's window kept

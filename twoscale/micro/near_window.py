@@ -62,11 +62,10 @@ class NearWindow:
         """Make the window cover ``reach``; False when it would pass its largest size."""
         if reach <= self.reach:
             return True
-        reach = max(reach, int(1.25 * self.reach))  # a few larger windows at most
-        if (2 * reach + 1) ** 2 > WINDOW_MAX_ENTRIES:
-            reach = (int(np.sqrt(WINDOW_MAX_ENTRIES)) - 1) // 2
-            if reach <= self.reach:
-                return False
+        largest = (int(np.sqrt(WINDOW_MAX_ENTRIES)) - 1) // 2
+        if reach > largest:  # the pair itself reaches past the largest window
+            return False
+        reach = min(max(reach, int(1.25 * self.reach)), largest)  # a few larger windows at most
         o, w = self._origin, 2 * reach + 1
         assert o is not None
         around = Grid(o.x0 - reach * o.h, o.y0 - reach * o.h, o.h, w, w)
