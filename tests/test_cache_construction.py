@@ -65,3 +65,28 @@ def test_a_body_given_to_the_solver_keeps_its_construction_to_its_builder():
     body = _BodyReadAtConstruction(twoscale.Material(10.0, 0.5))
     res = twoscale.ContactSolver(body).solve(_scene(20.0))
     assert [(u.read, u.dropped) for u in res.caches] == [(0, ())]
+
+
+def _history_scene() -> twoscale.Scene:
+    from twoscale.viscoelastic.history import LoadHistory
+
+    tips = twoscale.asperities([0.0, 8.0], [0.0, 0.0], 5.0)
+    material = twoscale.Material(10.0, 0.5, prony=((0.5, 0.1),))
+    history = LoadHistory("total", ((0.0, 20.0), (0.2, 20.0)), output=(0.0, 0.2))
+    return twoscale.Scene(material, tips, h=0.1, history=history)
+
+
+def test_a_load_history_records_its_body_build_and_writes_it_to_result_json(monkeypatch):
+    """A history scene's body is built inside its solve: ``twoscale.solve`` and a
+    ContactSolver carry what its cache did then, and ``result.json`` lists it."""
+    from twoscale.io.history_outputs import history_to_dict
+
+    monkeypatch.setattr(twoscale.Scene, "provider", lambda self, **_: _BodyReadAtConstruction(self.material))
+    scene = _history_scene()
+    once = twoscale.solve(scene)
+    assert [u.as_dict() for u in once.caches] == [u.as_dict() for u in BUILT]
+    assert history_to_dict(once, scene)["caches"] == [u.as_dict() for u in BUILT]
+    solver = twoscale.ContactSolver()
+    first, again = solver.solve(scene), solver.solve(scene)
+    assert [u.as_dict() for u in first.caches] == [u.as_dict() for u in BUILT]
+    assert [(u.read, u.dropped) for u in again.caches] == [(0, ())]

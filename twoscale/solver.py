@@ -179,7 +179,7 @@ class ContactSolver:
             **keywords,
         )
         self._solves += 1
-        if isinstance(result, ContactResult) and self._built:
+        if self._built:  # a load history's result records them too
             result = dataclasses.replace(result, caches=with_construction(result.caches, self._built))
         self._built = ()
         if not isinstance(result, ContactResult):  # a load history: its own steps warm-start each other

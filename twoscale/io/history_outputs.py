@@ -7,7 +7,8 @@
   table (:mod:`.tables`: version, units, scene, what each column holds);
 * ``result.json``: the material (branches, retardation times), the history, the steps
   taken (times, lengths, effective compliances, error estimates), the largest error
-  estimate, the memory held, the histories as lists, the version and the scene;
+  estimate, the memory held, what the on-disk caches gave and took (``caches``), the
+  histories as lists, the version and the scene;
 * ``fields.pvd`` (+ ``fields/t_NNNN.vti``): the pressure and the gap at each output time on
   one grid covering every field, a VTK time series ParaView opens and animates;
 * ``history.png``: :func:`twoscale.plot.history.history_figure`.
@@ -137,6 +138,8 @@ def history_to_dict(result, scene: Scene) -> dict:
             "forces_N": result.forces.tolist(),
         },
         "timings_s": dict(result.timings_s),
+        # what came from the on-disk caches and what was written or dropped there
+        "caches": [u.as_dict() for u in result.caches],
         "scene": scene_to_dict(scene),
     }
 

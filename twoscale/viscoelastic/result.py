@@ -62,6 +62,9 @@ class HistoryResult:
         Every step's solve converged.
     message : str
     timings_s : dict
+    caches : tuple of CacheUsage
+        What the on-disk caches (the block's corrections) gave and took, the body's build
+        included (:class:`twoscale.io.cache_entry.CacheUsage`); empty when none was used.
     """
 
     times: np.ndarray
@@ -81,6 +84,7 @@ class HistoryResult:
     converged: bool
     message: str
     timings_s: dict
+    caches: tuple = ()
 
     def __post_init__(self) -> None:
         for name in ("times", "penetration", "total_load", "contact_area", "forces", "tilt"):

@@ -130,6 +130,9 @@ def solve_history(
     steps = steps or hist.steps
     h = float(h) if h is not None else history_h(scene)
     relaxed = elastic_scene(scene)
+    from ..io.cache_entry import solve_caches, usage_since
+
+    caches_before = () if provider is None else solve_caches(provider, relaxed)
     provider = provider if provider is not None else relaxed.provider(**(provider_options or {}))
     if provider.material.relaxed() != relaxed.material:
         raise ValueError(
@@ -138,7 +141,9 @@ def solve_history(
     grid = _memory_grid(scene, h)
     run = _Run(scene, provider, grid, _step_solver(scene, provider, grid, h, method, options), steps, progress)
     run.go()
-    return run.result(method, time.perf_counter() - t_start)
+    result = run.result(method, time.perf_counter() - t_start)
+    # what the body's caches gave and took, its build here included (for result.json)
+    return dataclasses.replace(result, caches=usage_since(caches_before, solve_caches(provider, relaxed)))
 
 
 class _Run:
