@@ -16,10 +16,11 @@ off the apexes. Two consequences, both decided before any solve:
 from __future__ import annotations
 
 import math
+import warnings
 
 import numpy as np
 
-from .errors import SceneError
+from .errors import SceneError, TiltWarning
 
 #: Largest tilt angle (rad) the linear tilt is trusted at. The model turns the face by
 #: adding ``beta x + alpha y`` to its heights; a rigid turn also moves each point sideways by
@@ -103,10 +104,6 @@ def warn_large_tilt(tilt) -> None:
     worst = max(abs(float(a)) for a in tilt)
     if worst <= SMALL_ANGLE:
         return
-    import warnings
-
-    from .errors import TiltWarning
-
     warnings.warn(
         TiltWarning(
             f"tilt (alpha {tilt[0]:.3g}, beta {tilt[1]:.3g}) rad exceeds the small angles the "
