@@ -97,3 +97,35 @@ def test_the_kept_weights_take_the_bytes_the_estimate_counts_per_owned_cell():
     kept = [far._sources, {k: w for k, w in far._weights.items() if k[0] != "shape"}]
     assert [len(d) for d in kept] == [len(patches)] * 2 and not far._cells
     assert sum(a.nbytes for d in kept for a in d.values()) == KEPT_BYTES_PER_OWNED_CELL * owned
+
+
+def test_an_operator_built_anew_does_not_hold_the_earlier_one_through_its_build():
+    # every patch replaced: too many changed for the kept operator, so it is built again,
+    # and the earlier one is let go before (not held alongside the new one's build)
+    import gc
+    import weakref
+
+    patches = _scattered()
+    far = LaggedFarField(HS, patches, far_tol=0.3)
+    earlier = weakref.ref(far._point_operator())
+    gc.collect()
+    for k, pt in enumerate(patches):
+        far.replace(k, Patch(k, pt.grid, pt.height.copy(), pt.owner.copy()))
+    seen = []
+    build = HS.point_operator
+
+    class Watching:
+        def __getattr__(self, name):
+            return getattr(HS, name)
+
+        def point_operator(self, *args, **kwargs):
+            gc.collect()
+            seen.append(earlier() is None)
+            return build(*args, **kwargs)
+
+    far.provider = Watching()
+    op = far._point_operator()
+    assert seen == [True] and not isinstance(op, KeptPointOperator)
+    forces = np.random.default_rng(4).random((9 * len(far.patches), 1))
+    exact = _exact(far, forces)
+    assert np.abs(op.apply(forces) - exact).max() < 2e-6 * np.abs(exact).max()

@@ -18,6 +18,7 @@ from twoscale import Material
 from twoscale.cli.main import main
 from twoscale.indenters import Asperity
 from twoscale.io.scene_file import read_scene
+from twoscale.memory_costs import FAR_OPERATOR_BYTES_PER_PATCH
 from twoscale.resources import MemoryEstimate, available_memory, check_memory, default_limit, estimate_memory
 from twoscale.api import solve_scene
 from twoscale.scene import Scene, SceneError, default_h
@@ -96,8 +97,38 @@ def test_the_far_fields_kept_weights_are_counted_where_it_may_be_taken():
 
     est, scattered = parts(40.0)
     assert scattered["far field's kept weights"] == KEPT_BYTES_PER_OWNED_CELL * est.cells == 144 * est.cells
+    assert scattered["far field's point operator"] == 2 * FAR_OPERATOR_BYTES_PER_PATCH  # two patches
     est, crowded = parts(2.0)
     assert "far field's kept weights" not in crowded and "union box" in est.dominant
+    assert "far field's point operator" not in crowded
+
+
+def test_the_far_fields_point_operator_holds_what_the_estimate_counts_per_patch():
+    # the operator the far field builds among 1,000 scattered patches (nine stencil points
+    # and nine source nodes each): its arrays, against the bytes per patch the estimate
+    # counts (an upper estimate, not wildly above)
+    import scipy.sparse as sp
+
+    from twoscale.grid import Grid
+    from twoscale.influence import HalfSpace
+    from twoscale.micro.farfield import LaggedFarField
+    from twoscale.micro.patches import Patch
+
+    def patch(k, x, y, n=5, h=0.05):
+        g = Grid.covering(x - 0.5 * n * h, x + 0.5 * n * h, y - 0.5 * n * h, y + 0.5 * n * h, h)
+        return Patch(k, g, np.zeros(g.shape), np.full(g.shape, k))
+
+    rng = np.random.default_rng(1)
+    xy = 0.6 * np.argwhere(np.ones((32, 32)))[:1000] + rng.uniform(-0.1, 0.1, (1000, 2))
+    far = LaggedFarField(HalfSpace(Material(10.0, 0.5)), [patch(k, x, y) for k, (x, y) in enumerate(xy)], far_tol=0.3)
+    op = far._point_operator()
+    held = 0
+    for v in vars(op).values():
+        if isinstance(v, np.ndarray):
+            held += v.nbytes
+        elif sp.issparse(v):
+            held += v.data.nbytes + v.indices.nbytes + v.indptr.nbytes
+    assert 0.5 * FAR_OPERATOR_BYTES_PER_PATCH < held / 1000 <= FAR_OPERATOR_BYTES_PER_PATCH
 
 
 def test_cells_grow_as_one_over_h_squared():

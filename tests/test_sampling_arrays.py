@@ -110,3 +110,28 @@ def test_shared_box_refuses_a_window_of_the_box_at_another_place():
     assert shared_box([cut(g) for g in grids[:2]] + [cut(grids[2], 1)], 1, (0.0, 0.0)) is None
     strided = Patch(0, grids[0], height[:10:2, :6], owner[:5, :6])
     assert shared_box([strided] + [cut(g) for g in grids[1:]], 1, (0.0, 0.0)) is None
+
+
+def test_detached_patches_own_their_cells_and_let_the_sampled_box_go():
+    import gc
+    import weakref
+
+    from twoscale.micro.sampling import detached, patches_cut_from_box
+
+    h = 0.125
+    tips = [Asperity(0.3, 0.3, 0.0, 1.0), Asperity(2.2, 1.0, 0.01, 1.5, shape="paraboloid")]
+    box = Grid.covering(0.0, 2.5, 0.0, 1.25, h)
+    grids = [box.subgrid(0, 0, 6, 5), box.subgrid(12, 3, 8, 6)]
+    cut = patches_cut_from_box(list(zip([0, 1], grids)), box, tips)
+    sampled = weakref.ref(cut[0].height.base)
+    assert cut[1].height.base is sampled() and sampled().shape == box.shape  # windows of one box
+    own = detached(cut)
+    for a, b in zip(cut, own):
+        assert (b.asperity, b.grid, b.members) == (a.asperity, a.grid, a.members)
+        assert np.array_equal(b.height, a.height) and np.array_equal(b.owner, a.owner)
+        assert np.array_equal(b.owned, a.owned)
+        assert b.height.base is None and b.owner.base is None and not b.height.flags.writeable
+    del cut, a  # the last window seen
+    gc.collect()
+    assert sampled() is None  # nothing of the detached patches holds the box
+    assert detached(own)[0] is own[0]  # already their own: the same patches

@@ -23,6 +23,13 @@ FFT_WORK_BYTES_PER_CELL = 256.0
 #: Budget of the cached cross-patch operators (dense pairs, and FFT / separated pairs:
 #: ``twoscale.micro.blocks.Coupling``'s two caches of 4e8 bytes).
 COUPLING_CACHE_BYTES = 8e8
+#: The far field's point operator among the patches' nine stencil points and nine source
+#: nodes each (the half-space's Ewald operator: near pairs, interpolation to and from its
+#: mesh, the mesh's kernel spectrum), bytes per patch, held once (an earlier one is let go
+#: before one is built anew). Measured 31 kB on 8,232 and 8,376 patches of the sweep's
+#: scenes (8,897 spheres, 9,792 clustered paraboloids) and 27-36 kB on lattices of 300-9,000
+#: patches; its build's own work adds about half of it for a moment.
+FAR_OPERATOR_BYTES_PER_PATCH = 40e3
 #: Patch half-width over the contact radius (``solve_twoscale``'s ``margin``).
 MARGIN = 1.3
 #: Cells a merged block may have over its members (``twoscale.micro.problem.MERGE_GROWTH``):

@@ -17,7 +17,8 @@ What the two methods carry:
   :func:`twoscale.scene.expected_contact_radii`, which ignores interaction and so
   overestimates it), each with its FFT operator; the cached cross-patch operators
   (bounded by the coupling's cache budget); where the far field may be taken, the
-  weights it keeps per owned cell (:data:`twoscale.micro.sources.KEPT_BYTES_PER_OWNED_CELL`);
+  weights it keeps per owned cell (:data:`twoscale.micro.sources.KEPT_BYTES_PER_OWNED_CELL`)
+  and its point operator among the patches;
   the dense macro matrix; and, where patches crowd their bounding box, the micro step may
   solve on that box as one grid (``union-cg``, :mod:`twoscale.micro.policy`), which costs
   like the reference grid.
@@ -41,6 +42,7 @@ import numpy as np
 from .grid import Grid
 from .memory_costs import BASE_BYTES, GRID_BYTES_PER_CELL, PATCH_BYTES_PER_CELL, FFT_WORK_BYTES_PER_CELL
 from .memory_costs import COUPLING_CACHE_BYTES, MARGIN, MERGE_GROWTH, MACRO_DENSE_MAX, DENSE_CELLS
+from .memory_costs import FAR_OPERATOR_BYTES_PER_PATCH
 from .memory_costs import DENSE_GRID_CELLS, BLOCK_PROVIDER_BYTES, DEFAULT_FRACTION, ADVICE_SHARE
 from .micro.policy import FAR_FIELD_MIN_PATCHES, FULL_GRID_MAX_TIPS, UNION_MIN_COVERAGE
 from .micro.policy import full_grid_route as policy_full_grid_route
@@ -212,6 +214,8 @@ def _twoscale_parts(scene: Scene, h: float, *, union: bool = False) -> tuple[int
         # weights, every patch cell counted as owned (4,548 paraboloids: 4.5 M owned cells,
         # 326 MB of source weights and 326 MB of interpolation rows measured)
         parts["far field's kept weights"] = KEPT_BYTES_PER_OWNED_CELL * cells
+        # and its point operator among the patches (8,376 patches of paraboloids: 260 MB)
+        parts["far field's point operator"] = FAR_OPERATOR_BYTES_PER_PATCH * float(on.sum())
     # a height map's stones may take the union CG at any coverage (micro.policy.decide)
     on_map = all(a.shape == "map" for a in scene.asperities)
     if box is not None and (union or on_map or crowded):

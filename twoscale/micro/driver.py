@@ -27,6 +27,7 @@ from .patches import TipTable
 from .policy import ITERATIONS, MODEL, UNION_MIN_COVERAGE, Choice, choose
 from .problem import BlockSettings, MicroContext, MicroProblem
 from .result import MicroResult
+from .sampling import detached
 from .setup import one_asperity_patches
 from .strategies import STRATEGIES, BlockGaussSeidel, TwoLevel, UnionCG
 from .union import box_of
@@ -159,10 +160,13 @@ def run_micro(
             box = box_of([pt.grid for pt in patches], refined.h, refined.anchor).size
         problem = refined
         picked = _plan(patches, box, choice, asperities, problem, bool(macro.safe_path))
+    order = _order(picked)
+    if not any(isinstance(iteration, UnionCG) for iteration, _ in order):
+        patches = tuple(detached(patches))  # no union CG: the sampled box they were cut from is let go
     context = MicroContext(provider, asperities, problem, options, BlockSettings(), patches)
     attempts: list = []
     result = None
-    for iteration, coupling in _order(picked):
+    for iteration, coupling in order:
         stage = f"micro step, {iteration.name}" + (
             f" ({coupling.name} {coupling.far_tol:g})" if coupling is not None and coupling.far_tol is not None else ""
         )

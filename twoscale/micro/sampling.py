@@ -161,6 +161,28 @@ def patches_cut_from_box(wanted: Sequence[tuple[int, Grid]], box: Grid, asperiti
     return out
 
 
+def detached(patches: Sequence[Patch]) -> list[Patch]:
+    """The ``patches`` with each window of a sampled box (:func:`patches_cut_from_box`)
+    copied into arrays of its own, so that the box is freed once no union CG is to run on
+    it: 9,792 clustered paraboloids held a 11.3 M-cell box (181 MB of heights and owners)
+    for 1.1 M patch cells through the whole solve."""
+    out = []
+    for pt in patches:
+        if not (_in_larger(pt.height) or _in_larger(pt.owner)):
+            out.append(pt)
+            continue
+        height, owner = pt.height.copy(), pt.owner.copy()
+        height.setflags(write=False)
+        owner.setflags(write=False)
+        out.append(Patch(pt.asperity, pt.grid, height, owner, pt.members))
+    return out
+
+
+def _in_larger(a: np.ndarray) -> bool:
+    """Whether ``a`` is a window of a larger array (whose memory it keeps alive)."""
+    return isinstance(a.base, np.ndarray) and a.base.nbytes > a.nbytes
+
+
 def shared_box(patches: Sequence[Patch], n_asperities: int, anchor: tuple[float, float]) -> Surface | None:
     """The box surface the ``patches`` were cut from (:func:`patches_cut_from_box`), when
     every one is a window of the same sampled box at its place on the lattice (``anchor``,
