@@ -248,7 +248,7 @@ FITTED = CostModel(
     # ran the union CG in 9.6 s against 3.0 s, on a box 8x their contacts
     union_min_coverage=0.14,
     # forced on 31 sweep scenes (seeds 0-3) of 2-20 patches under 14 % of a box of under
-    # 0.2 M cells (CPU s of the whole solve, fresh processes): the union CG ran 0.8-15x
+    # 0.2 M cells (CPU s of the whole solve, fresh processes): the union CG ran 1.16-17x
     # slower than the choice where predicted dearer, faster where predicted cheaper (5
     # paraboloids on 20 K cells 0.047 against 0.073, 6 tilted spheres under load on 33 K
     # 0.100 against 0.126) and on 3 tilted paraboloids under load (policy.decide); a box of
