@@ -247,12 +247,12 @@ FITTED = CostModel(
     # 15 % stay with the block iterations, as predicted); below, 300 light spheres at 12 %
     # ran the union CG in 9.6 s against 3.0 s, on a box 8x their contacts
     union_min_coverage=0.14,
-    # forced on 31 sweep scenes (seeds 0-3) of 2-20 patches under 14 % of a box of under
+    # forced on 33 sweep scenes (seeds 0-3) of 2-20 patches under 14 % of a box of under
     # 0.2 M cells (CPU s of the whole solve, fresh processes): the union CG ran 1.16-17x
-    # slower than the choice where predicted dearer, faster where predicted cheaper (5
-    # paraboloids on 20 K cells 0.047 against 0.073, 6 tilted spheres under load on 33 K
-    # 0.100 against 0.126) and on 3 tilted paraboloids under load (policy.decide); a box of
-    # 0.1 M cells holds about 50 MB of its arrays
+    # slower than the route taken where predicted dearer, faster where predicted cheaper (5
+    # paraboloids on 20 K cells 0.047 against 0.062, 6 tilted spheres under load on 33 K
+    # 0.100 against 0.139) and on 3 tilted paraboloids under load (policy.decide); a box of
+    # 0.1 M cells holds about 50 MB of its arrays (docs/records/sweep.md)
     union_small_box_cells=100_000,
     # the margins' evidence at low coverage (ninth run, in-process CPU s, union CG against
     # the two-level iteration with exact coupling): 23 paraboloids under load at 16 % of
