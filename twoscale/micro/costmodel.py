@@ -62,7 +62,13 @@ class CostModel:
         mostly empty and its memory grows with the box, not with the contacts (300 light
         spheres scattered on 60 x 60 mm, 12 % of the box: a union CG of 9.6 s against 3.0 s
         for the two-level iteration, and at a fine h a box of 70 M cells). Not applied to
-        a height map's stones, whose box is at most the map's grid (:func:`.policy.decide`).
+        a height map's stones, whose box is at most the map's grid (:func:`.policy.decide`),
+        nor on a box of at most ``union_small_box_cells``.
+    union_small_box_cells : int
+        On a box of at most this many cells the union CG stays a candidate below
+        ``union_min_coverage`` (its arrays, about 0.5 kB a cell, then stay within the
+        memory estimate's base): the prediction decides, and under load control with the
+        tilt on at most three patches the margins hold too (:func:`.policy.decide`). 0: never.
     union_margin_min_coverage : float
         The margins apply only where the patches cover at least this share of their box
         (or on a height map, or for merged contacts under load control); below it the
@@ -134,6 +140,7 @@ class CostModel:
     far_union_margin: float = 1.0
     union_margin_min_coverage: float = 0.0
     union_min_coverage: float = 0.25
+    union_small_box_cells: int = 0
     union_work_exponent: float = 0.0
     union_products: float = 40.0
     gs_sweeps: float = 10.0
@@ -240,6 +247,13 @@ FITTED = CostModel(
     # 15 % stay with the block iterations, as predicted); below, 300 light spheres at 12 %
     # ran the union CG in 9.6 s against 3.0 s, on a box 8x their contacts
     union_min_coverage=0.14,
+    # forced on 33 sweep scenes (seeds 0-3) of 2-20 patches under 14 % of a box of under
+    # 0.2 M cells (CPU s of the whole solve, fresh processes): the union CG ran 1.16-17x
+    # slower than the route taken where predicted dearer, faster where predicted cheaper (5
+    # paraboloids on 20 K cells 0.047 against 0.062, 6 tilted spheres under load on 33 K
+    # 0.100 against 0.139) and on 3 tilted paraboloids under load (policy.decide); a box of
+    # 0.1 M cells holds about 50 MB of its arrays (docs/records/sweep.md)
+    union_small_box_cells=100_000,
     # the margins' evidence at low coverage (ninth run, in-process CPU s, union CG against
     # the two-level iteration with exact coupling): 23 paraboloids under load at 16 % of
     # the box 1.84 / 1.56, 27 paraboloids under load at 15 % 3.90 / 3.02 (peak 487 / 166 MB,

@@ -33,6 +33,8 @@ from .costmodel import FITTED, CostModel
 from .patches import Patch, TipTable
 
 ITERATIONS = ("union-cg", "block-gs", "two-level")
+#: Rigid-body unknowns under load control with the tilt: the approach and two angles.
+RIGID_UNKNOWNS = 3
 
 #: The cost model (:mod:`.costmodel`): fitted coefficients, margin and budgets in one
 #: object; the names below are its fields, kept for the modules that read them.
@@ -287,7 +289,9 @@ def decide(
     (``figures["height_map"]``) the union CG stays a candidate below
     ``model.union_min_coverage``: its box is at most the map's own grid, and on the sweep's
     maps at 8-9 % of their box it ran 0.68-0.73 of the exact two-level iteration's CPU time
-    (where scattered tips at 10-14 % ran it 1.9-2.0x slower than the far field)."""
+    (where scattered tips at 10-14 % ran it 1.9-2.0x slower than the far field). So it does
+    on a box of at most ``model.union_small_box_cells`` cells (``figures["box_cells"]``),
+    with the margins under load control with the ``tilt`` on at most ``RIGID_UNKNOWNS`` patches."""
     costs = model.seconds(work, load_control=load_control, tilt=tilt)
     # merged contacts under load control: the exact block iterations are block Gauss-Seidel
     # with sensitivity sweeps (below), dearer than the two-level variant the fit saw most
@@ -320,14 +324,27 @@ def decide(
     few = model.sparse_tilt_far_field_min_patches if tilt else model.sparse_far_field_min_patches
     if n < (few if scattered else model.far_field_min_patches):
         candidates.pop("two-level")
-    crowded_out = not figures.get("height_map", False) and not (sensitivity and "two-level" not in candidates)
-    if sparse and len(candidates) > 1 and crowded_out:
-        # a mostly empty box; but against block Gauss-Seidel with sensitivity sweeps alone
-        # (few merged patches under load) the prediction decides: 15 paraboloids on 12 %
-        # of a 0.5 M-cell box, union CG 1.1-1.2 s of CPU against 2.0-2.6 s
+    small = 0 < figures.get("box_cells", 0) <= model.union_small_box_cells
+    kept = figures.get("height_map", False) or small or (sensitivity and "two-level" not in candidates)
+    if sparse and len(candidates) > 1 and not kept:
+        # a mostly empty box; but on a small one (model.union_small_box_cells), or against
+        # block Gauss-Seidel with sensitivity sweeps alone (few merged patches under load),
+        # the prediction decides: 15 paraboloids on 12 % of a 0.5 M-cell box, union CG
+        # 1.1-1.2 s of CPU against 2.0-2.6 s
         candidates.pop("union-cg")
     rest = {k: v for k, v in candidates.items() if k != "union-cg"}
-    margins = figures["coverage"] >= model.union_margin_min_coverage or figures.get("height_map", False) or sensitivity
+    # on a small box under load with the tilt, as many patches as rigid-body unknowns
+    # (approach, two angles: their forces are the statics' alone) keep the margins: 3
+    # paraboloids on 56 K cells, the two-level trial stopped slow after 11 sweeps, block
+    # Gauss-Seidel ran 1.8x its prediction, the union CG 0.17 s of CPU against 0.49 s;
+    # 5 tilted spheres (42 K cells, 1.14x predicted) ran it 1.23x slower than the two-level one
+    tilted = small and tilt and load_control and n <= RIGID_UNKNOWNS
+    margins = (
+        figures["coverage"] >= model.union_margin_min_coverage
+        or figures.get("height_map", False)
+        or sensitivity
+        or tilted
+    )
     limit = (union_limit(rest, model) if margins else min(rest.values())) if rest else math.inf
     if "union-cg" in candidates and candidates["union-cg"] <= limit:
         best = "union-cg"
