@@ -46,3 +46,30 @@ def test_newton_steps_past_the_blocked_projection_to_an_admissible_root():
     d = OFFSET - T @ out.x
     np.testing.assert_allclose(out.x, np.maximum(d, 0.0) ** 1.5, rtol=0, atol=1e-10)
     assert np.linalg.norm(_residual(out.x)) <= 1e-12
+
+
+# One unknown, r(x) = 1 + exp(x) from x = 0, a short direction -0.1 (as at a kink, where
+# the direction is poor): clipping at zero undoes every step below zero, the unclipped path
+# creeps towards r = 1, with an Armijo decrease for 60 steps, and never reaches a root.
+def _creeping(x):
+    return 1.0 + np.exp(x)
+
+
+def _creeping_step(x, r):
+    return np.full_like(x, -0.1)
+
+
+def test_newton_stops_where_the_unprojected_search_goes_on_without_gain(monkeypatch):
+    import twoscale.macro.newton as newton_module
+
+    args = dict(scale=lambda x: 10.0, tol=1e-8, max_iter=50, project=_clip, stops=Stops(unprojected=True))
+    out = newton(_creeping, _creeping_step, np.array([0.0]), **args)
+    assert not out.converged and "unprojected" in out.message
+    # clipped at zero from the start: every step unprojected, stopped at the window's end
+    assert out.iterations == newton_module.UNPROJECTED_STEPS
+    assert out.residuals[-1] > 0.5 * out.residuals[0]
+    # without the stop the same iteration creeps on to max_iter
+    monkeypatch.setattr(newton_module, "UNPROJECTED_STEPS", 10**6)
+    longer = newton(_creeping, _creeping_step, np.array([0.0]), **args)
+    assert not longer.converged and longer.iterations == 50
+    assert longer.residuals[-1] > 0.1

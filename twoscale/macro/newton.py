@@ -23,6 +23,12 @@ STALL_RESIDUAL = 1e-2
 #: before Newton converges (39 spheres: 1.0, 0.9997, 1.0, 0.96, 1.0, 0.60, ..., 13 steps).
 PLATEAU_RESIDUAL = 0.1
 PLATEAU_DROP = 1e-2
+#: The unprojected search (``Stops.unprojected``) stops Newton once this many steps in a
+#: row took it without halving the relative residual. 8,897 light tips took it once at a
+#: time, the next projected step then fell 6.5x and 31x; 1,494 tips on a block took it on
+#: every step from the 6th (about 90 forces below zero, 14 steps from 0.997 to 0.56). Three
+#: tips took it three times in a row (norm 1.15 to 1.02), then converged in five steps.
+UNPROJECTED_STEPS = 4
 
 
 @dataclass(frozen=True)
@@ -45,7 +51,8 @@ class Stops:
         The plateau's fall (a fraction of the residual at the window's start).
     unprojected : bool, default False
         Where the projected path has no decrease, search the unprojected one too instead
-        of stopping with a failed line search.
+        of stopping with a failed line search; stop after ``UNPROJECTED_STEPS`` such steps
+        in a row that did not halve the relative residual.
     """
 
     stall: int | None = None
@@ -109,6 +116,7 @@ def newton(
     r = residual(x)
     norm = float(np.linalg.norm(r))
     history = [_relative(norm, scale(x))]
+    streak = 0  # steps in a row along the unprojected path
     for it in range(max_iter + 1):
         if norm <= tol * scale(x) or norm == 0.0:
             admissible = _admissible(residual, project, x, r, norm, tol * scale(x))
@@ -121,6 +129,7 @@ def newton(
             break
         s = step(x, r)
         found = _line_search(residual, x, s, norm, project)
+        streak = 0 if found is not None else streak + 1
         if found is None and stops.unprojected:
             found = _line_search(residual, x, s, norm, lambda y: y)
         if found is None:
@@ -138,6 +147,13 @@ def newton(
             return NewtonOutcome(x, r, False, msg, it + 1, tuple(history))
         if plateau is not None and _flat(history, plateau, stops.drop) and not norm <= tol * scale(x):
             msg = f"Newton stagnated at step {it + 1}: relative residual {history[-1]:.3e}, down by under {stops.drop:.0%} in {plateau} steps"
+            return NewtonOutcome(x, r, False, msg, it + 1, tuple(history))
+        if (
+            streak >= UNPROJECTED_STEPS
+            and history[-1] > 0.5 * history[-1 - UNPROJECTED_STEPS]
+            and not norm <= tol * scale(x)
+        ):
+            msg = f"Newton stagnated at step {it + 1}: relative residual {history[-1]:.3e}, not halved in {UNPROJECTED_STEPS} unprojected steps"
             return NewtonOutcome(x, r, False, msg, it + 1, tuple(history))
     msg = f"not converged after max_iter={max_iter} Newton steps: relative residual {history[-1]:.3e} > tol={tol:.1e}"
     return NewtonOutcome(x, r, False, msg, max_iter, tuple(history))
