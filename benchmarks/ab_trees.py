@@ -20,7 +20,7 @@ Cases (``KIND:ARG``):
 * ``space:I`` — :func:`twoscale.scenespace.draw` ``(I, seed 0)``, tips only, half-space, at most 300;
 * ``sweep:I`` / ``sweep_ref:I`` — scene ``I`` of the sweep itself (``benchmarks/sweep.py``'s draws:
   maps and blocks too), default two-scale solve / the reference; ``sweep1:I`` / ``sweep1_ref:I``
-  the same with the held-out draws (``--seed 1``), ``sweep2:I`` / ``sweep2_ref:I`` with ``--seed 2``
+  the same with the held-out draws (``--seed 1``), ``sweep2:I`` / ``sweep2_ref:I`` with ``--seed 2``,
   ``sweep3:I`` / ``sweep3_ref:I`` with ``--seed 3`` and ``sweep4:I`` / ``sweep4_ref:I`` with
   ``--seed 4``;
 * ``road:SIZE-H-RMIN-RMAX`` — the synthetic road of ``benchmarks/surfaces.py`` (e.g.
