@@ -1,0 +1,50 @@
+"""A grid crowded with untilted tips (few cells a tip) is solved by default as the full
+grid's one CG, said in the result: there the macro step and the patches cost more than the
+whole full-grid CG. A tilt, or tips with more cells each, keep the two-scale route."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+import twoscale
+from twoscale import Material, Scene
+from twoscale.indenters import Asperity
+from twoscale.micro.policy import FULL_GRID_CELLS_PER_TIP, FULL_GRID_MAX_CELLS
+from twoscale.reference.on_scene import reference_grid
+from twoscale.resources import full_grid_route
+
+# the lattice is on a coarse grid on purpose (a few cells a tip): its resolution warning is expected
+pytestmark = pytest.mark.filterwarnings("ignore:cell size h")
+
+
+def _lattice(side, spacing, **load):
+    """``side`` x ``side`` spheres R 2 mm, ``spacing`` mm apart, heights spread by 2 um."""
+    rng = np.random.default_rng(7)
+    tips = tuple(
+        Asperity(spacing * i, spacing * j, float(z), 2.0)
+        for (i, j), z in zip(np.ndindex(side, side), rng.uniform(0.0, 0.002, side * side))
+    )
+    return Scene(material=Material(E=5.0, nu=0.5), asperities=tips, **load)
+
+
+def test_an_untilted_crowded_grid_takes_its_full_grid_and_says_so():
+    scene = _lattice(20, 1.0, penetration=0.06)
+    h = 0.25
+    cells = reference_grid(scene, h).size
+    assert FULL_GRID_MAX_CELLS < cells <= FULL_GRID_CELLS_PER_TIP * 400
+    res = twoscale.solve(scene, h=h)
+    ref = twoscale.solve(scene, h=h, method="reference")
+    assert res.method == "reference" and res.converged
+    assert "cells a tip" in res.message
+    assert np.array_equal(res.asperities.forces, ref.asperities.forces)
+
+
+def test_a_tilt_or_more_cells_a_tip_keep_the_two_scale_route():
+    tilted = _lattice(20, 1.0, total_load=2.0, tilt=True, pivot=(9.5, 9.5))
+    assert full_grid_route(tilted, 0.25) is None
+    sparse = _lattice(20, 1.0, penetration=0.06)
+    h = 0.1  # (1.0 / 0.1)^2 = 100 cells a tip
+    assert reference_grid(sparse, h).size > FULL_GRID_CELLS_PER_TIP * 400
+    assert full_grid_route(sparse, h) is None
+    assert full_grid_route(sparse, 0.25) is not None
