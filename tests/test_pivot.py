@@ -54,6 +54,15 @@ def test_pivot_outside_all_material_is_refused_before_solving(tmp_path):
         twoscale.solve(TIPS, total_load=LOAD, tilt=True, pivot=_off_edge(5.0), material=MATERIAL, h=H)
 
 
+def test_a_pivot_inside_the_spheres_discs_but_beyond_the_loads_reach_is_refused_saying_so():
+    # the spheres' material reaches y = -15 mm, so a pivot at y = -14.5 is among it; the
+    # contacts this load can make end near y = -13: the refusal must say it is the reach,
+    # not the material, that the pivot lies outside (it said "every place the tips have material")
+    tips = twoscale.asperities([-10.0, 10.0, 0.0], [-10.0, -10.0, 10.0], 5.0)
+    with pytest.raises(SceneError, match="outside every place the tips have material within the reach of the load"):
+        twoscale.solve(tips, material=Material(6.0, 0.5), total_load=20.0, tilt=True, pivot=(0.0, -14.5))
+
+
 def test_pivot_outside_is_exit_2_one_line_and_nothing_written(write_scene, tmp_path, capsys):
     px, py = _off_edge(5.0)
     tips = "".join(f"[[asperity]]\nx = {a.x}\ny = {a.y}\nz = {a.z}\nR = {a.R}\nshape = 'paraboloid'\n" for a in TIPS)
