@@ -131,3 +131,23 @@ def test_a_face_set_askew_tilts_level_and_large_tilts_are_warned(slope, warned):
         ref = twoscale.solve(tips, material=material, total_load=4.0, tilt=True, h=0.05, method="reference")
         assert np.allclose(res.forces, ref.forces, rtol=0.005, atol=0)
         assert abs(res.tilt[1] - ref.tilt[1]) < 0.005 * slope
+
+
+@pytest.mark.parametrize("slope, warned", [(0.02, False), (0.2, True)])
+def test_a_load_history_warns_of_a_large_tilt_as_one_load_does(slope, warned):
+    """A load history's tilt was never checked against the small angles. Elastic here (a
+    sequence of elastic solves): by symmetry the face turns by beta = -slope at every load.
+    The full-grid reference: the two-scale steps of the 0.2 slope end in NaN (not solved here)."""
+    import warnings
+
+    from twoscale.errors import TiltWarning
+
+    steps = twoscale.TimeSteps(count=2)
+    history = twoscale.LoadHistory("total", ((0.0, 0.0), (1.0, 4.0)), output=(0.5, 1.0), steps=steps)
+    scene = Scene(material=Material(10.0, 0.5), asperities=_square_slope(slope), tilt=True, h=0.1, history=history)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        res = twoscale.solve(scene, method="reference")
+    assert res.converged, res.message
+    assert np.all(np.abs(res.tilt[:, 1] + slope) < 0.05 * slope)
+    assert sum(issubclass(w.category, TiltWarning) for w in caught) == int(warned)

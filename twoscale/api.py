@@ -198,7 +198,12 @@ def solve(
             raise ValueError("a scene with a load history runs with method 'twoscale' or 'reference', not a callable")
         if check_memory:  # as for one load: before the history's grids are allocated
             _check_memory(scene, history_h(scene), method, options, memory_limit, h is not None)
-        return solve_history(scene, method=method, provider=provider, h=h, provider_options=provider_options, **options)
+        history = solve_history(
+            scene, method=method, provider=provider, h=h, provider_options=provider_options, **options
+        )
+        if history.tilt is not None and len(history.tilt):  # the largest tilt of the reported times
+            warn_large_tilt(history.tilt[int(np.argmax(np.abs(history.tilt).max(axis=1)))])
+        return history
     if method == "twoscale":  # a misspelt keyword is refused before the body is built
         from .driver import check_keywords
 
