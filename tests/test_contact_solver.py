@@ -85,6 +85,16 @@ def test_a_reset_or_start_none_is_a_cold_start():
     assert solver.solve(_scene()).reuse.pressure_start == 0
 
 
+def test_the_solver_prints_its_state_in_one_line():
+    solver = twoscale.ContactSolver(max_cache_bytes=5e6)
+    assert repr(solver) == "<ContactSolver twoscale: no body yet, 0 solves, caches 0.0 of 5 MB, no start kept>"
+    second = [solver.solve(_scene()) for _ in range(2)][-1]
+    text = repr(solver)
+    # the figures of the last solve's own record, and the body as the results name it
+    assert text.startswith(f"<ContactSolver twoscale: {second.body.label}, 2 solves, caches ")
+    assert f"{second.reuse.cache_bytes / 1e6:.1f} of 5 MB, a start kept>" in text and "\n" not in text
+
+
 def test_tips_entering_are_matched_by_index_and_unmatched_tips_start_cold():
     solver = twoscale.ContactSolver()
     full = _scene()

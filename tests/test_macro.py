@@ -86,6 +86,22 @@ def test_single_asperity_equals_its_law():
     assert res.converged and res.forces[0] == 0.0 and not res.in_contact[0]
 
 
+@pytest.mark.parametrize("W", [1e-100, 1e-200])
+def test_a_load_far_below_the_first_bracket_step_is_found(W):
+    # the start's root lies ~60-130 decades below the bracket's first step: Brent's method
+    # bisects once per halving there, past scipy's default of 100 iterations (a traceback)
+    law = HertzLaw(5.0, E_STAR)
+    res = solve_macro(HS, np.array([[0.0, 0.0]]), np.zeros(1), law, total_load=W)
+    d_hertz = (3.0 * W / (4.0 * E_STAR * math.sqrt(5.0))) ** (2.0 / 3.0)  # closed form
+    assert res.converged and res.penetration == pytest.approx(d_hertz, rel=1e-9)
+
+
+def test_a_load_no_finite_approach_carries_is_refused_naming_it():
+    with pytest.raises(ValueError, match=r"load.total = 1e\+300 N") as info:
+        solve_macro(HS, np.array([[0.0, 0.0]]), np.zeros(1), SphereLaw(5.0, E_STAR), total_load=1e300)
+    assert "\n" not in str(info.value)
+
+
 @pytest.mark.parametrize("s", [1.5, 3.0, 10.0])
 @pytest.mark.parametrize("law", [HertzLaw(5.0, E_STAR), SphereLaw(4.0, E_STAR)], ids=["hertz", "sphere"])
 def test_two_identical_asperities_solve_the_scalar_equation(s, law):

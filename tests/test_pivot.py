@@ -54,6 +54,15 @@ def test_pivot_outside_all_material_is_refused_before_solving(tmp_path):
         twoscale.solve(TIPS, total_load=LOAD, tilt=True, pivot=_off_edge(5.0), material=MATERIAL, h=H)
 
 
+def test_a_pivot_inside_the_spheres_discs_but_beyond_the_loads_reach_is_refused_saying_so():
+    # the spheres' material reaches y = -15 mm, so a pivot at y = -14.5 is among it; the
+    # contacts this load can make end near y = -13: the refusal must say it is the reach,
+    # not the material, that the pivot lies outside (it said "every place the tips have material")
+    tips = twoscale.asperities([-10.0, 10.0, 0.0], [-10.0, -10.0, 10.0], 5.0)
+    with pytest.raises(SceneError, match="outside every place the tips have material within the reach of the load"):
+        twoscale.solve(tips, material=Material(6.0, 0.5), total_load=20.0, tilt=True, pivot=(0.0, -14.5))
+
+
 def test_pivot_outside_is_exit_2_one_line_and_nothing_written(write_scene, tmp_path, capsys):
     px, py = _off_edge(5.0)
     tips = "".join(f"[[asperity]]\nx = {a.x}\ny = {a.y}\nz = {a.z}\nR = {a.R}\nshape = 'paraboloid'\n" for a in TIPS)
@@ -122,3 +131,23 @@ def test_a_face_set_askew_tilts_level_and_large_tilts_are_warned(slope, warned):
         ref = twoscale.solve(tips, material=material, total_load=4.0, tilt=True, h=0.05, method="reference")
         assert np.allclose(res.forces, ref.forces, rtol=0.005, atol=0)
         assert abs(res.tilt[1] - ref.tilt[1]) < 0.005 * slope
+
+
+@pytest.mark.parametrize("slope, warned", [(0.02, False), (0.2, True)])
+def test_a_load_history_warns_of_a_large_tilt_as_one_load_does(slope, warned):
+    """A load history's tilt was never checked against the small angles. Elastic here (a
+    sequence of elastic solves): by symmetry the face turns by beta = -slope at every load.
+    The full-grid reference: the two-scale steps of the 0.2 slope end in NaN (not solved here)."""
+    import warnings
+
+    from twoscale.errors import TiltWarning
+
+    steps = twoscale.TimeSteps(count=2)
+    history = twoscale.LoadHistory("total", ((0.0, 0.0), (1.0, 4.0)), output=(0.5, 1.0), steps=steps)
+    scene = Scene(material=Material(10.0, 0.5), asperities=_square_slope(slope), tilt=True, h=0.1, history=history)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        res = twoscale.solve(scene, method="reference")
+    assert res.converged, res.message
+    assert np.all(np.abs(res.tilt[:, 1] + slope) < 0.05 * slope)
+    assert sum(issubclass(w.category, TiltWarning) for w in caught) == int(warned)

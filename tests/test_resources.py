@@ -177,6 +177,22 @@ def test_solve_scene_refuses_before_allocating_and_can_be_told_not_to_check():
     assert res.converged
 
 
+def test_solve_refuses_a_nan_memory_limit_instead_of_skipping_the_check():
+    # NaN < inf is false: a NaN limit used to turn the check off without a word
+    with pytest.raises(ValueError, match="memory limit must be > 0"):
+        solve_scene(HERTZ, method="reference", memory_limit=float("nan"))
+
+
+def test_a_load_history_is_checked_against_the_memory_limit_before_it_runs():
+    # the history's grids used to be allocated whatever the limit (a MemoryError, or the
+    # machine's memory, at a fine h); now the limit refuses it as it does a single load
+    scene = read_scene(EXAMPLES / "creep" / "seven_spheres.toml")
+    with pytest.raises(SceneError, match="over the limit of 0.001 GB"):
+        solve_scene(scene, memory_limit=1e6)
+    with pytest.raises(ValueError, match="memory limit must be > 0"):
+        solve_scene(scene, memory_limit=float("nan"))
+
+
 def test_cli_refuses_fifty_tips_at_h_1e_4(tmp_path, capsys):
     scene = tmp_path / "fifty.toml"
     scene.write_text(fifty_tips_toml(), encoding="utf-8")

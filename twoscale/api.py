@@ -192,12 +192,20 @@ def solve(
     )
     scene = _scene_of(problem, provider, h, call["shape"], given)
     _check_call(scene, method, provider, provider_options)
+    check_memory = memory_limit is None or memory_limit != math.inf  # a NaN limit is refused there
     if scene.history is not None:  # a load history in time (viscoelastic or elastic): a HistoryResult
-        from .viscoelastic.solve import solve_history
+        from .viscoelastic.solve import history_h, solve_history
 
         if callable(method):
             raise ValueError("a scene with a load history runs with method 'twoscale' or 'reference', not a callable")
-        return solve_history(scene, method=method, provider=provider, h=h, provider_options=provider_options, **options)
+        if check_memory:  # as for one load: before the history's grids are allocated
+            _check_memory(scene, history_h(scene), method, options, memory_limit, h is not None)
+        history = solve_history(
+            scene, method=method, provider=provider, h=h, provider_options=provider_options, **options
+        )
+        if history.tilt is not None and len(history.tilt):  # the largest tilt of the reported times
+            warn_large_tilt(history.tilt[int(np.argmax(np.abs(history.tilt).max(axis=1)))])
+        return history
     if method == "twoscale":  # a misspelt keyword is refused before the body is built
         from .driver import check_keywords
 
@@ -205,7 +213,7 @@ def solve(
     h_given = h is not None
     h = default_h(scene)
     check_pivot_reach(scene, h)
-    if not callable(method) and (memory_limit is None or memory_limit < math.inf):
+    if not callable(method) and check_memory:
         _check_memory(scene, h, method, options, memory_limit, h_given)
     from .io.cache_entry import solve_caches, usage_since
 

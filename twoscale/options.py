@@ -87,7 +87,8 @@ class MicroOptions:
         "auto": the policy picks from the patches by a cost estimate and says why.
     far_tol : float or None, default None
         None: patches coupled exactly; a number in (0, 1): pairs farther apart than
-        ``(r_k + r_l) / sqrt(far_tol)`` act through their resultants (two-level).
+        ``(r_k + r_l) / sqrt(far_tol)`` act through nine point forces per patch that carry
+        its load's resultant and first and second moments (two-level).
     margin : float, default 1.3
         Patch half-width over the Hertz-like contact radius of the macro force.
     dense_max_cells : int, default 400

@@ -91,7 +91,8 @@ def check_pivot_reach(scene, h: float) -> None:
     if outside > h:
         raise SceneError(
             f"load.pivot = {list(scene.pivot)!r} mm lies {outside:.3g} mm outside every place the "
-            "tips have material: no tilt balances the moments; put the pivot among the tips"
+            "tips have material within the reach of the load (the grid contact can reach): no tilt "
+            "balances the moments; put the pivot among the tips"
         )
 
 

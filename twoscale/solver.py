@@ -128,6 +128,18 @@ class ContactSolver:
         """Solves made so far."""
         return self._solves
 
+    def __repr__(self) -> str:
+        """One line: method, body, solves made, the caches' bytes against their bound, and
+        whether a start is kept (no arrays)."""
+        from .setting import Body
+
+        body = "no body yet" if self._body is None else Body.of(self._body).label
+        start = "a start kept" if self._previous is not None else "no start kept"
+        return (
+            f"<ContactSolver {self.method}: {body}, {self._solves} solves, caches "
+            f"{self.caches.nbytes / 1e6:.1f} of {self.caches.max_bytes / 1e6:.0f} MB, {start}>"
+        )
+
     def reset(self) -> None:
         """Forget the previous answer (the next solve starts cold); the body and the caches
         (valid for any scene on the body) are kept."""

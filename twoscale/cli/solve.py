@@ -74,8 +74,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         metavar="F",
         default=None,
         help="far-field coupling tolerance of the block iterations (experts; 0 < F < 1): "
-        "patches farther apart than (r_k + r_l)/sqrt(F) interact through their "
-        "resultant forces; alone it selects the two-level iteration",
+        "patches farther apart than (r_k + r_l)/sqrt(F) interact through nine point "
+        "forces per patch that carry its load's resultant and first and second moments; "
+        "alone it selects the two-level iteration",
     )
     parser.add_argument(
         "--block-field",

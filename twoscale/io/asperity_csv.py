@@ -8,7 +8,8 @@ in ``asperities.parquet`` for a long table (1,000 tips or more) when pyarrow is 
 ``asperity, x_mm, y_mm, z_mm, R_mm, shape, force_N, contact_area_mm2,
 max_pressure_MPa, mean_pressure_MPa[, macro_force_N]``
 
-``z_mm`` is the tip recess (how far the tip sits above the lowest tip level); R and
+``z_mm`` is the tip recess as given (its height above z = 0, where the approach d is
+measured: the local approach is d - z); R and
 shape are the indenter's; force, contact area and peak pressure are integrals of the
 final pressure over the cells the asperity owns (so the forces sum to the total load);
 mean pressure is force / contact area (0 without contact); the macro step's force is
@@ -71,7 +72,7 @@ DESCRIPTIONS = {
     "asperity": "tip number, from 1 in scene order (as on the figures and in the owner array)",
     "x_mm": "tip position x, mm",
     "y_mm": "tip position y, mm",
-    "z_mm": "tip recess above the lowest tip level, mm",
+    "z_mm": "tip recess z as given, mm: height above z = 0, where the approach d is measured (local approach d - z)",
     "R_mm": "tip radius, mm",
     "shape": "sphere or paraboloid",
     "force_N": "integral of the final pressure over the cells the tip owns, N",

@@ -389,12 +389,12 @@ def _independent_approach(z: np.ndarray, stack: LawStack, W: float) -> float:
     lo = float(np.min(z))
     step = max(float(np.ptp(z)) / 64.0, 1e-3 * max(abs(lo), 1.0) / 64.0, 1e-6)
     hi = lo + step
-    while np.sum(stack.force(hi - z)) < W:
-        lo, hi = hi, hi + 0.5 * (hi - float(np.min(z)))
-        if not np.isfinite(hi):
-            raise ValueError(f"the laws cannot carry total_load={W!r} N")
+    with np.errstate(over="ignore", invalid="ignore"):  # a load beyond floating point: refused below
+        while np.sum(stack.force(hi - z)) < W:
+            lo, hi = hi, hi + 0.5 * (hi - float(np.min(z)))
+            if not np.isfinite(hi):
+                raise ValueError(f"load.total = {W!r} N: the asperities' laws cannot carry it at any finite approach")
     # Brent's method on the bracket: 8-12 law evaluations where bisection to the last bit
-    # took about 50 (40 % of a one-sphere solve's CPU time went to this start)
-    return float(
-        brentq(lambda d: float(np.sum(stack.force(d - z))) - W, lo, hi, xtol=1e-300, rtol=4.0 * np.finfo(float).eps)
-    )
+    # took about 50 (40 % of a one-sphere solve's CPU time went to this start); 1e-100 N takes ~200
+    excess = lambda d: float(np.sum(stack.force(d - z))) - W
+    return float(brentq(excess, lo, hi, xtol=1e-300, rtol=4.0 * np.finfo(float).eps, maxiter=2000))
