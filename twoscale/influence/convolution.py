@@ -221,14 +221,18 @@ class _TargetColumns:
         self.flat, self.source_shape, self.width = table.ravel(), source_shape, table.shape[1]
         jt, it = np.divmod(targets, nxt)
         self.offsets = (jt * self.width + it).astype(np.intp)
+        # the offsets and the column, kept (fresh ones each column page-faulted: 4 M targets, 0.7 s)
+        self._at = self._term = None
 
     def __call__(self, out: np.ndarray, cells: np.ndarray, values: np.ndarray) -> None:
         nys, nxs = self.source_shape
         js, i_s = np.divmod(np.asarray(cells), nxs)
-        at = np.empty_like(self.offsets)
+        if self._at is None:
+            self._at, self._term = np.empty_like(self.offsets), np.empty(len(self.offsets), self.flat.dtype)
+        at, term = self._at, self._term
         for j, i, v in zip(js.tolist(), i_s.tolist(), np.asarray(values).tolist()):
             np.add(self.offsets, (nys - 1 - j) * self.width + nxs - 1 - i, out=at)
-            term = self.flat[at]
+            np.take(self.flat, at, out=term, mode="clip")  # (in the table; "raise" buffers a copy)
             term *= v
             out += term
 

@@ -66,8 +66,9 @@ class CellProduct:
     """``A v`` for pressures ``v`` on the flat ``cells`` of a square float32 convolution's
     grid (``op``: the float32 operator, whose kept transform buffers it shares): the values
     go straight into a padded float32 field of their own (the other cells stay 0) and the
-    displacement comes back at those cells from the kept field back, both (m,) float64.
-    ``cells`` None: every cell, through ``op``'s own padded field (no index arrays).
+    displacement comes back at those cells from the kept field back, both (m,) float64, the
+    displacement in an array kept with this object (overwritten by the next product).
+    ``cells`` None: every cell, through ``op``'s own padded field (no index arrays; a new array).
 
     Call it for the product, or :meth:`forward` and then :meth:`energy` and/or
     :meth:`finish`: between them no other product of ``op`` may run (they share its
@@ -85,6 +86,8 @@ class CellProduct:
         self.at = np.asarray(cells, dtype=np.intp)
         self.back_at = self.at + (ny - 1) * nx  # the target's rows of the field back start at row ny - 1
         self.padded = np.zeros((my, nx), np.float32)
+        self.gathered = np.empty(len(self.at), np.float32)  # the field back at the cells, kept
+        self.out = np.empty(len(self.at))  # the product, kept (a fresh array each page-faulted)
 
     def __call__(self, values: np.ndarray) -> np.ndarray:
         return self.forward(values).finish()
@@ -127,4 +130,6 @@ class CellProduct:
         if self.back_at is None:
             ny = op.source.ny
             return back[ny - 1 : 2 * ny - 1].ravel().astype(np.float64)
-        return back.ravel()[self.back_at].astype(np.float64)
+        # (into the kept values: fresh arrays each product page-faulted; "raise" buffers a copy)
+        np.copyto(self.out, np.take(back.ravel(), self.back_at, out=self.gathered, mode="clip"))
+        return self.out
