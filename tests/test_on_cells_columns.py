@@ -42,3 +42,12 @@ def test_the_product_on_a_few_bands_is_the_whole_grids(nx, ny):
         assert np.array_equal(product.finish(), whole)
         single.apply(rng.random(grid.shape))  # another product through the shared buffers
     assert energy == pytest.approx(float(v @ whole), rel=1e-5)
+
+
+def test_the_product_on_every_cell_is_the_whole_grids():
+    grid = Grid(0.0, 0.0, 0.05, 97, 64)
+    single = HS.grid_operator(grid).single_precision()
+    p = np.random.default_rng(0).random(grid.size)
+    product = single.on_cells(None)
+    assert product.runs is None
+    assert np.array_equal(product.forward(p).finish(), single.apply(p.reshape(grid.shape)).ravel())

@@ -102,7 +102,7 @@ class CellProduct:
         self._model: Callable[[np.ndarray], float] | None = None  # (model_energy, made on first call)
         self._model_made = False
         if cells is None:
-            self.at = self.back_at = self.padded = None
+            self.at = self.back_at = self.padded = self.runs = None
             return
         self.at = np.asarray(cells, dtype=np.intp)
         self.back_at = self.at + (ny - 1) * nx  # the target's rows of the field back start at row ny - 1
