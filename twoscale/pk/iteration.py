@@ -307,7 +307,7 @@ class Iteration:
         else:
             w = self.weight if self.k == 1 else on  # (a fit of the moments takes the bools)
             scratch = self.buffers.scratch(r) if self.k == 1 and w is not on else None  # (no fresh row-sized product)
-            denom = denominator(r, t, w, self.k, self.count, self.basis, self.basis_t, self.plane, scratch)
+            denom = denominator(r, t, w, self.count, self.basis, self.basis_t, self.plane, scratch)
         bad = ~(denom > 0.0)
         if np.count_nonzero(bad):
             self.denominator[np.flatnonzero(bad) if self.index is None else self.index[bad]] = denom[bad]

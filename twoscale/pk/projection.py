@@ -89,12 +89,12 @@ def row_count(on: np.ndarray) -> np.ndarray:
     return on.sum(axis=1)
 
 
-def denominator(
-    r: np.ndarray, t: np.ndarray, on: np.ndarray, k: int, count, basis, basis_t, plane, scratch=None
-) -> np.ndarray:
-    """Per row, a step's ``t.A t`` projected on the ``k`` constraints, from ``r = A t`` (``t``
-    0 off the loaded cells ``on``; ``count`` their number per row under load control, and
-    then ``on`` may be :func:`masked_sum`'s 0/1 floats, its product into ``scratch``)."""
+def denominator(r: np.ndarray, t: np.ndarray, on: np.ndarray, count, basis, basis_t, plane, scratch=None) -> np.ndarray:
+    """Per row, a step's ``t.A t`` projected on the constraints (the columns of ``basis``),
+    from ``r = A t`` (``t`` 0 off the loaded cells ``on``; ``count`` their number per row
+    under load control, and then ``on`` may be :func:`masked_sum`'s 0/1 floats, its
+    product into ``scratch``)."""
+    k = basis.shape[1]
     denom = row_dot(r, t)
     if k == 1:  # the projected product: r minus its mean over the loaded cells
         denom -= masked_sum(r, on, scratch) / count * t.sum(axis=1)
