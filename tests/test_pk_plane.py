@@ -122,4 +122,4 @@ def test_long_rows_sum_without_the_matrix_product_to_the_same_values():
     t, r = np.where(on, rng.normal(size=on.shape), 0.0), rng.normal(size=on.shape)
     written = r[0] @ t[0] - np.linalg.lstsq(basis[on[0]], r[0, on[0]], rcond=None)[0] @ (basis.T @ t[0])
     bt = np.ascontiguousarray(basis.T)
-    assert np.isclose(denominator(r, t, on, 3, None, basis, bt, plane)[0], written, rtol=1e-9)
+    assert np.isclose(denominator(r, t, on, None, basis, bt, plane)[0], written, rtol=1e-9)

@@ -189,18 +189,22 @@ class CirculantInverse(GridOperator):
         """:meth:`apply` on the flat ``cells`` of the grid: ``f(values)`` takes the field's
         values on those cells (0 elsewhere) and gives the result there, both (m,) float64,
         the values straight into rows of their own (the other cells stay 0) and back from
-        the kept ones (no grid-sized float64 copies); None where :meth:`apply` does not
-        prune (the torus is the grid)."""
+        the kept ones (no grid-sized float64 copies), the result in an array kept with
+        ``f`` (overwritten by its next call); None where :meth:`apply` does not prune (the
+        torus is the grid)."""
         (ly, lx), (ny, nx) = torus_shape(self.source), self.source.shape
         if (ly, lx) == (ny, nx):
             return None
         j, i = np.divmod(np.asarray(cells, dtype=np.intp), nx)
         at = j * lx + i
         rows = np.zeros((ny, lx), self._m.dtype)
+        # the result at the cells, in both precisions, kept (fresh arrays each call page-faulted)
+        gathered, out = np.empty(len(at), self._m.dtype), np.empty(len(at))
 
         def inverse(values: np.ndarray) -> np.ndarray:
             rows.ravel()[at] = values
-            return self._pruned(rows).ravel()[at].astype(np.float64)
+            np.copyto(out, np.take(self._pruned(rows).ravel(), at, out=gathered, mode="clip"))
+            return out
 
         return inverse
 

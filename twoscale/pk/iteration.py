@@ -77,7 +77,7 @@ class Iteration:
         # rows whose refreshes still take the fast product (until their residual reaches
         # FAST_RESIDUAL; the search directions take it throughout)
         self.fast: Any = np.full(rows, products.fast is not None and tol.residual is not None)
-        self.u = self.product(self.p, fast=bool(self.fast.all())) if u0 is None else np.array(u0, dtype=float)
+        self.u = np.array(self.product(self.p, fast=bool(self.fast.all())) if u0 is None else u0, dtype=float)
         self.products = rows
         self.G_old, self.stale = np.ones(rows), self.fast.astype(int)
         self.conj, self.small, self.done, self.kept = np.zeros((4, rows), bool)
@@ -124,7 +124,7 @@ class Iteration:
         if self.cheap is not None and self.cheap.refresh(self, rows, fast):
             return
         if np.count_nonzero(rows) == len(rows):
-            self.u = self.product(self.p, fast)
+            np.copyto(self.u, self.product(self.p, fast))  # (a product may return a buffer it keeps)
             self.stale[:] = int(fast)
         else:
             self.u[rows] = self.product(self.p[rows], fast)
@@ -306,7 +306,8 @@ class Iteration:
             denom = r.energy()
         else:
             w = self.weight if self.k == 1 else on  # (a fit of the moments takes the bools)
-            denom = denominator(r, t, w, self.k, self.count, self.basis, self.basis_t, self.plane)
+            scratch = self.buffers.scratch(r) if self.k == 1 and w is not on else None  # (no fresh row-sized product)
+            denom = denominator(r, t, w, self.count, self.basis, self.basis_t, self.plane, scratch)
         bad = ~(denom > 0.0)
         if np.count_nonzero(bad):
             self.denominator[np.flatnonzero(bad) if self.index is None else self.index[bad]] = denom[bad]

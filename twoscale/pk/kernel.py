@@ -115,7 +115,8 @@ def pk_solve(
     precondition : callable, optional
         ``precondition(v, on)``: an approximate inverse of ``A`` on a stack, applied to the
         projected gap ``v`` to make the search direction (``on``: the rows' loaded cells,
-        bool, in the field shape; the result is taken on them).
+        bool, in the field shape; the result is taken on them, and may be a buffer it
+        keeps: the step uses it before the next call).
     monitor : callable, optional
         ``monitor(iteration, residual)`` every :data:`MONITOR_EVERY` iterations.
 

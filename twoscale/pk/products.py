@@ -56,7 +56,8 @@ class Products:
         ``exact(v)``: ``A v`` for a stack ``v`` (b, ...) of pressures, to the working
         precision (float64).
     fast : callable, optional
-        A cheaper approximation of ``exact`` (e.g. float32 FFTs): taken for the search
+        A cheaper approximation of ``exact`` (e.g. float32 FFTs; its result may be a buffer
+        it keeps, overwritten by its next call: the kernel copies what it keeps): taken for the search
         directions throughout and for refreshes while the residual is above
         :data:`FAST_RESIDUAL`; a row stops only on an exact product (its conjugate
         directions restart there). None: ``exact`` everywhere.
@@ -382,12 +383,15 @@ class Anchored:
         # cells: 12-15 against 20-39 ms, fresh arrays page-faulting), else ``op``'s
         self.exact = getattr(single, "exact", None) or op.apply
         self.at = None if anchor is None else self.exact(anchor)
+        self._change: np.ndarray | None = None  # ``v - anchor``, kept (a fresh field each product page-faulted)
 
     def apply(self, v: np.ndarray) -> np.ndarray:
         if self.anchor is None:
             self.anchor, self.at = np.array(v, dtype=float), self.exact(v)
             return self.at.copy()
-        return self.at + self.single.apply(v - self.anchor)
+        if self._change is None or self._change.shape != np.shape(v):
+            self._change = np.empty(np.shape(v))
+        return self.at + self.single.apply(np.subtract(v, self.anchor, out=self._change))
 
     def columns(self, targets=None):
         return self.op.columns(targets)
