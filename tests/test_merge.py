@@ -143,3 +143,33 @@ def test_result_json_names_the_merged_asperities_from_one():
     # the merged block still reports one force per asperity, the pair's equal by symmetry
     f = res.asperities.forces
     assert f[0] == pytest.approx(f[1], rel=1e-6) and f[2] > f[0]
+
+
+def test_patches_marked_as_carrying_nothing_stay_alone():
+    asps, patches = _ring(6.0, 3.75, 3.0)
+    carries = [True] * 7
+    carries[3] = False
+    merged, covers = merge_overlapping(patches, asps, growth=2.0, carries=carries)
+    assert (3,) in covers and merged[covers.index((3,))] is patches[3]
+    assert all(3 not in c for c in covers if len(c) > 1)
+    assert sorted(i for c in covers for i in c) == list(range(7))
+
+
+@pytest.mark.parametrize(
+    "third",
+    [
+        Asperity(-0.25, 0.05, 0.1, 5.0),  # inside tip 0's patch, owning no cell
+        Asperity(0.05, 1.5, 0.15, 5.0),  # beside the pair, shielded: no eq. 7 pressure
+    ],
+)
+def test_a_tip_carrying_nothing_is_not_merged_and_the_answer_is_unchanged(third):
+    # a merged pair and a third tip whose patch meets theirs but carries nothing
+    asps = [Asperity(-0.25, 0.0, 0.0, 5.0), Asperity(0.35, 0.0, 0.0, 5.0), third]
+    kw = dict(h=0.1, penetration=0.2, tol=1e-9, iteration="block-gs")
+    merged = solve_twoscale(HS, asps, **kw)
+    alone = solve_twoscale(HS, asps, merge=False, **kw)
+    assert merged.converged and alone.converged
+    assert merged.details.micro.merged_patches == ((0, 1),)
+    f, g = merged.asperities.forces, alone.asperities.forces
+    assert f[2] == 0.0 and g[2] == 0.0
+    np.testing.assert_allclose(f, g, rtol=1e-7, atol=1e-7 * g.max())

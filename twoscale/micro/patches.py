@@ -304,7 +304,7 @@ def transfer(old: Patch, new: Patch, pressure: np.ndarray) -> np.ndarray:
 
 
 def merge_overlapping(
-    patches: Sequence[Patch], asperities: Sequence[Asperity], *, growth: float = 1.0
+    patches: Sequence[Patch], asperities: Sequence[Asperity], *, growth: float = 1.0, carries=None
 ) -> tuple[list[Patch], list[tuple]]:
     """Patches merged where one block over them costs few more cells than they do apart.
 
@@ -316,7 +316,8 @@ def merge_overlapping(
     the union of the members' owned cells (each cell still owned by the asperity nearest
     the body), so block Gauss-Seidel solves strongly coupled asperities together instead of
     passing their interaction back and forth over many sweeps; far patches stay one per
-    asperity.
+    asperity, and so do those ``carries`` (a bool per patch) marks False (no start pressure
+    or no owned cell: a block over them only adds empty cells).
 
     Returns the patches (merged ones with several ``members``, ordered by their first
     member) and, for each, the indices of the input patches it covers.
@@ -332,7 +333,8 @@ def merge_overlapping(
     )
     own = (box[:, 1] - box[:, 0]) * (box[:, 3] - box[:, 2])
     groups = [[k] for k in range(len(patches))]
-    alive = np.ones(len(patches), dtype=bool)
+    alive = np.ones(len(patches), dtype=bool) if carries is None else np.asarray(carries, dtype=bool).copy()
+    keep = ~alive  # left out: one group each
 
     def closure(sel):
         # every group whose box meets the union box joins, until none is added
@@ -371,7 +373,7 @@ def merge_overlapping(
                     box[k], own[k] = u, own[sel].sum()
                     changed = True
                     break
-    return merge_groups(patches, asperities, [groups[k] for k in np.flatnonzero(alive)])
+    return merge_groups(patches, asperities, [groups[k] for k in np.flatnonzero(alive | keep)])
 
 
 def merge_groups(

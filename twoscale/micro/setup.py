@@ -167,7 +167,8 @@ def block_setup(
     p0 = _kept_starts(ctx, patches, blocks, theta)
     covers = None
     if merge:
-        merged, covers = merge_overlapping(patches, asperities, growth=settings.merge_growth)
+        carries = [bool(pt.owned.any()) and bool(np.any(q > 0)) for pt, q in zip(patches, p0)]
+        merged, covers = merge_overlapping(patches, asperities, growth=settings.merge_growth, carries=carries)
     elif merge_touching:
         groups = touching_groups(patches, p0)
         if len(groups) < len(patches):
