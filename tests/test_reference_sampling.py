@@ -5,6 +5,7 @@ evaluated on every cell, bit for bit, so its answers are those of the plain samp
 from __future__ import annotations
 
 import numpy as np
+from helpers import every_tip_on_every_cell
 import pytest
 
 from twoscale import Material, Scene
@@ -14,18 +15,6 @@ from twoscale.influence import HalfSpace
 from twoscale.micro import sampling
 from twoscale.reference import solve_reference
 from twoscale.reference.on_scene import reference_grid, solve_reference_scene
-
-
-def _every_tip_on_every_cell(grid, asps):
-    """Heights and owners by every asperity on every cell (a tie to the earlier index)."""
-    X, Y = grid.centres()
-    height = np.full(grid.shape, np.inf)
-    owner = np.full(grid.shape, -1)
-    for k, a in enumerate(asps):
-        hk = a.height(X, Y)
-        better = hk < height
-        height[better], owner[better] = hk[better], k
-    return height, owner
 
 
 def _crowd(n, seed=2):
@@ -40,7 +29,7 @@ def _crowd(n, seed=2):
     ]
 
 
-def test_a_small_grid_crowded_with_tips_is_sampled_by_tiles_as_every_tip_on_every_cell(monkeypatch):
+def test_a_small_grid_crowded_with_tips_is_sampled_by_tiles_asevery_tip_on_every_cell(monkeypatch):
     asps = _crowd(400)
     grid = Grid.covering(-0.2, 6.2, -0.2, 6.2, 0.02)  # 102,400 cells
     monkeypatch.setattr(sampling, "SAMPLE_WHOLE_CELLS", 200_000)
@@ -50,7 +39,7 @@ def test_a_small_grid_crowded_with_tips_is_sampled_by_tiles_as_every_tip_on_ever
     monkeypatch.setattr(sampling, "surface_on", lambda *a, **k: calls.append(1))
     s = sampling.box_surface(grid, asps, whole_cells=sampling.SAMPLE_WHOLE_CELLS)
     assert not calls
-    height, owner = _every_tip_on_every_cell(grid, asps)
+    height, owner = every_tip_on_every_cell(grid, asps)
     assert np.array_equal(s.owner, owner)
     assert np.array_equal(s.height, height)
 
@@ -65,7 +54,7 @@ def test_the_reference_on_a_crowded_scene_equals_its_solve_on_every_tip_sampled_
     h = 0.02
     got = solve_reference_scene(scene, provider, h)
     grid = reference_grid(scene, h)
-    height, owner = _every_tip_on_every_cell(grid, asps)
+    height, owner = every_tip_on_every_cell(grid, asps)
     from twoscale.indenters import Surface
 
     want = solve_reference(provider, Surface(grid, height, owner, len(asps)), **load)

@@ -6,6 +6,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
+from helpers import every_tip_on_every_cell
 import pytest
 
 from twoscale.grid import Grid
@@ -23,24 +24,12 @@ def scattered(rng, n, x, y, z_max, radii, shapes):
     ]
 
 
-def _every_tip_on_every_cell(grid, asps):
-    """Heights and owners by every asperity evaluated on every cell (a tie to the earlier index)."""
-    X, Y = grid.centres()
-    height = np.full(grid.shape, np.inf)
-    owner = np.full(grid.shape, -1)
-    for k, a in enumerate(asps):
-        hk = a.height(X, Y)
-        better = hk < height
-        height[better], owner[better] = hk[better], k
-    return height, owner
-
-
 def test_windowed_sampling_equals_sampling_every_cell():
     rng = np.random.default_rng(3)
     grid = Grid.covering(-5.0, 5.0, -4.0, 4.0, 0.1)
     asps = scattered(rng, 25, (-7, 7), (-6, 6), 0.2, (0.3, 3.0), ["sphere"] * 20 + ["paraboloid"] * 5)
     asps.append(Asperity(20.0, 0.0, 0.0, 1.0))  # a sphere that misses the grid
-    height, owner = _every_tip_on_every_cell(grid, asps)
+    height, owner = every_tip_on_every_cell(grid, asps)
     s = surface_on(grid, asps)
     assert np.array_equal(s.height, height)
     assert np.array_equal(s.owner, owner)
@@ -70,7 +59,7 @@ def test_batched_sampling_equals_one_by_one_with_ties(monkeypatch):
 
 
 @pytest.mark.parametrize("shapes", [("sphere",), ("paraboloid",), ("sphere", "paraboloid")])
-def test_a_large_box_sampled_tile_by_tile_from_the_tip_arrays_equals_every_tip_on_every_cell(shapes, monkeypatch):
+def test_a_large_box_sampled_tile_by_tile_from_the_tip_arrays_equalsevery_tip_on_every_cell(shapes, monkeypatch):
     """A union box of plain tips is sampled tile by tile from the table's arrays
     (``TipTable.sample``, one formula a shape, squared distances per axis): the owners of
     every asperity evaluated on every cell (a tie going to the earlier index), and their
@@ -87,7 +76,7 @@ def test_a_large_box_sampled_tile_by_tile_from_the_tip_arrays_equals_every_tip_o
     n = 60
     asps = scattered(rng, n, (-3.5, 3.5), (-3.5, 3.5), 0.05, (0.3, 2.0), [shapes[k % len(shapes)] for k in range(n)])
     asps.append(asps[5])  # an exact tie: the earlier index keeps the cells
-    height, owner = _every_tip_on_every_cell(grid, asps)
+    height, owner = every_tip_on_every_cell(grid, asps)
     table = TipTable(asps)
     assert table.plain
     s = box_surface(grid, table)
@@ -99,7 +88,7 @@ def test_a_large_box_sampled_tile_by_tile_from_the_tip_arrays_equals_every_tip_o
     assert 5 in owner and n not in owner
 
 
-def test_a_large_box_of_small_spheres_is_sampled_sphere_by_sphere_as_every_tip_on_every_cell(monkeypatch):
+def test_a_large_box_of_small_spheres_is_sampled_sphere_by_sphere_asevery_tip_on_every_cell(monkeypatch):
     """Spheres whose windows together are small against the box are sampled one by one on
     them (``WINDOW_SETUP``), on the box's own cell centres: the owners and the heights of
     every sphere evaluated on every cell, a tie going to the earlier index."""
@@ -117,7 +106,7 @@ def test_a_large_box_of_small_spheres_is_sampled_sphere_by_sphere_as_every_tip_o
     calls = []
     monkeypatch.setattr(sampling, "surface_by_windows", lambda g, a: calls.append(g) or ind.surface_by_windows(g, a))
     s = sampling.box_surface(grid, table)
-    height, owner = _every_tip_on_every_cell(grid, asps)
+    height, owner = every_tip_on_every_cell(grid, asps)
     assert calls == [grid]
     assert np.array_equal(s.owner, owner) and np.array_equal(s.height, height)
     assert 7 in owner and len(asps) - 1 not in owner
