@@ -1,0 +1,91 @@
+"""The warnings a run raised, kept for its output files (the ``warnings`` list of
+``result.json``, a history's ``result.json`` and ``rolling.json``).
+
+:class:`WarningLog` is a context manager around a run. Every warning raised inside it is
+counted under its category's name and its message on one line, in the order first raised;
+a repeat (the same category and message, e.g. at every step of a history) adds to the
+count. Each warning is still shown, or not, exactly as without the log: the filters and the
+``warnings.showwarning`` in force when the log was entered decide, with one registry for the
+log's lifetime, so a warning the ``"default"`` action prints once is printed once, an
+``"error"`` filter still raises and an ``"ignore"`` filter still hides it (the file records
+it all the same: it says what caveats the answer came with).
+
+The solver knows nothing of the log: warnings stay the library's channel for caveats, and
+the files record what that channel carried during the run, whichever module raised it.
+"""
+
+from __future__ import annotations
+
+import sys
+import warnings
+
+__all__ = ["WarningLog", "one_line", "entries_of"]
+
+
+def one_line(message) -> str:
+    """A warning's message on one line (runs of white space, new lines too, as one space)."""
+    return " ".join(str(message).split())
+
+
+def entries_of(caught) -> list[dict]:
+    """The entries (:meth:`WarningLog.entries`) of the list ``warnings.catch_warnings(record=True)``
+    gives, for a caller that records warnings its own way."""
+    counts: dict[tuple[str, str], int] = {}
+    for w in caught:
+        key = (w.category.__name__, one_line(w.message))
+        counts[key] = counts.get(key, 0) + 1
+    return _entries(counts)
+
+
+def _entries(counts: dict) -> list[dict]:
+    return [{"category": c, "message": m, "count": n} for (c, m), n in counts.items()]
+
+
+class WarningLog:
+    """Count the warnings raised inside ``with WarningLog() as log:`` (module docstring);
+    :meth:`entries` gives them as the files record them."""
+
+    def __init__(self) -> None:
+        self._counts: dict[tuple[str, str], int] = {}
+        self._registry: dict = {}  # the "default" action's memory of what was shown
+        self._outer = None
+        self._context = None
+
+    def __enter__(self) -> WarningLog:
+        self._outer = (warnings.filters, warnings.showwarning)  # catch_warnings copies, never edits, them
+        self._context = warnings.catch_warnings()
+        self._context.__enter__()
+        warnings.simplefilter("always")  # every raise reaches _show, to be counted
+        warnings.showwarning = self._show
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self._context.__exit__(*exc)
+        self._context = None
+
+    def _show(self, message, category, filename, lineno, file=None, line=None) -> None:
+        """Count the warning, then let the outer filters decide whether and how it shows."""
+        key = (category.__name__, one_line(message))
+        self._counts[key] = self._counts.get(key, 0) + 1
+        inner = warnings.filters, warnings.showwarning
+        warnings.filters, warnings.showwarning = self._outer
+        try:
+            warnings.warn_explicit(
+                message, category, filename, lineno, module=_module_name(filename), registry=self._registry
+            )
+        finally:
+            warnings.filters, warnings.showwarning = inner
+
+    def entries(self) -> list[dict]:
+        """``[{"category": "TiltWarning", "message": "...", "count": 1}, ...]`` in the order
+        first raised; empty when nothing was raised."""
+        return _entries(self._counts)
+
+
+def _module_name(filename: str) -> str | None:
+    """The name of the loaded module whose file is ``filename`` (what the filters match a
+    warning's module against), or None (then the file's name without ``.py``)."""
+    for name, module in list(sys.modules.items()):
+        if getattr(module, "__file__", None) == filename:
+            return name
+    return None
