@@ -141,3 +141,60 @@ def test_the_log_leaves_the_filters_in_force():
         warnings.simplefilter("error", TiltWarning)
         with pytest.raises(TiltWarning), WarningLog():
             warnings.warn("tilt", TiltWarning)
+
+
+STUDY = """
+[study]
+name = "warned"
+[[scene]]
+file = "tilt.toml"
+name = "tilted"
+[[scene]]
+file = "one.toml"
+name = "one"
+[[body]]
+name = "halfspace"
+kind = "halfspace"
+[load]
+total = [4.0]
+"""
+
+
+def test_a_studys_case_json_lists_its_cases_warnings(tmp_path, capsys):
+    """The tilted scene's case lists its TiltWarning (the angle its own result records), the
+    one-sphere case none; stderr shows the warning once, as before."""
+    _tilted_scene(tmp_path / "tilt.toml", load="total = 1.0", h=0.1)
+    (tmp_path / "one.toml").write_text(
+        "[material]\nE = 10.0\nnu = 0.5\n[load]\ntotal = 1.0\n[[asperity]]\nx = 0.0\ny = 0.0\nR = 5.0\n",
+        encoding="utf-8",
+    )
+    (tmp_path / "study.toml").write_text(STUDY, encoding="utf-8")
+    out = tmp_path / "out"
+    assert main(["study", str(tmp_path / "study.toml"), "--out", str(out), "--workers", "0", "--quiet"]) == 0
+    cases = {c["label"].split()[0]: c for c in (json.loads(p.read_text()) for p in out.glob("cases/*/case.json"))}
+    assert cases["one"]["warnings"] == []
+    (entry,) = cases["tilted"]["warnings"]
+    beta = cases["tilted"]["result"]["tilt"][1]
+    assert entry["category"] == "TiltWarning" and entry["count"] == 1 and f"beta {beta:.3g}" in entry["message"]
+    assert _stderr_warnings(capsys.readouterr().err) == [f"warning: {entry['message']}"]
+
+
+def test_compares_runs_keep_their_own_warnings(tmp_path):
+    """``twoscale compare`` solves every load on every body under one log: each run keeps the
+    warnings of its own solve (for its ``runs/<body>_<load>/result.json``): the tilted load's
+    TiltWarning, none for the single sphere solved after it."""
+    import twoscale
+    from twoscale.cli.compare import _solve_all
+    from twoscale.io.scene_file import read_scene
+
+    (tmp_path / "one.toml").write_text(
+        "[material]\nE = 10.0\nnu = 0.5\n[load]\ntotal = 1.0\n[[asperity]]\nx = 0.0\ny = 0.0\nR = 5.0\n",
+        encoding="utf-8",
+    )
+    scenes = [read_scene(_tilted_scene(tmp_path / "tilt.toml", h=0.1)), read_scene(tmp_path / "one.toml")]
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # shown or not, the runs record them
+        tilted, single = _solve_all(scenes, {"halfspace": twoscale.HalfSpace(scenes[0].material)}, "twoscale", True)
+    (entry,) = tilted.warnings
+    assert entry["category"] == "TiltWarning" and f"beta {tilted.result.tilt[1]:.3g}" in entry["message"]
+    assert single.warnings == ()

@@ -30,14 +30,13 @@ def one_line(message) -> str:
 def entries_of(caught) -> list[dict]:
     """The entries (:meth:`WarningLog.entries`) of the list ``warnings.catch_warnings(record=True)``
     gives, for a caller that records warnings its own way."""
+    return _entries([(w.category.__name__, one_line(w.message)) for w in caught])
+
+
+def _entries(raised: list) -> list[dict]:
     counts: dict[tuple[str, str], int] = {}
-    for w in caught:
-        key = (w.category.__name__, one_line(w.message))
+    for key in raised:
         counts[key] = counts.get(key, 0) + 1
-    return _entries(counts)
-
-
-def _entries(counts: dict) -> list[dict]:
     return [{"category": c, "message": m, "count": n} for (c, m), n in counts.items()]
 
 
@@ -46,7 +45,7 @@ class WarningLog:
     :meth:`entries` gives them as the files record them."""
 
     def __init__(self) -> None:
-        self._counts: dict[tuple[str, str], int] = {}
+        self._raised: list[tuple[str, str]] = []  # (category, message), every raise in order
         self._registry: dict = {}  # the "default" action's memory of what was shown
         self._outer = None
         self._context = None
@@ -65,8 +64,7 @@ class WarningLog:
 
     def _show(self, message, category, filename, lineno, file=None, line=None) -> None:
         """Count the warning, then let the outer filters decide whether and how it shows."""
-        key = (category.__name__, one_line(message))
-        self._counts[key] = self._counts.get(key, 0) + 1
+        self._raised.append((category.__name__, one_line(message)))
         inner = warnings.filters, warnings.showwarning
         warnings.filters, warnings.showwarning = self._outer
         try:
@@ -76,10 +74,15 @@ class WarningLog:
         finally:
             warnings.filters, warnings.showwarning = inner
 
-    def entries(self) -> list[dict]:
+    def __len__(self) -> int:
+        """How many warnings were raised so far (repeats too): a mark for :meth:`entries`."""
+        return len(self._raised)
+
+    def entries(self, since: int = 0) -> list[dict]:
         """``[{"category": "TiltWarning", "message": "...", "count": 1}, ...]`` in the order
-        first raised; empty when nothing was raised."""
-        return _entries(self._counts)
+        first raised; empty when nothing was raised. ``since``: only the warnings after that
+        mark (``len(log)`` taken before one of several solves under one log)."""
+        return _entries(self._raised[since:])
 
 
 def _module_name(filename: str) -> str | None:
