@@ -233,7 +233,7 @@ def _solve_all(scenes, bodies, method, quiet, name: str = "") -> list[Run]:
             built = provider.cache_usage()  # what its caches did while it was built
             for sc in scenes:
                 sc = dataclasses.replace(sc, influence=_influence(sc, body))
-                t0, mark = time.perf_counter(), len(log)
+                t0, mark = time.perf_counter(), log.mark()
                 # the provider built once per body (the block is costly); memory checked before
                 res = solve(sc, method=method, provider=provider, memory_limit=math.inf)
                 # for the figures' titles; the first solve records the corrections read

@@ -30,13 +30,17 @@ def one_line(message) -> str:
 def entries_of(caught) -> list[dict]:
     """The entries (:meth:`WarningLog.entries`) of the list ``warnings.catch_warnings(record=True)``
     gives, for a caller that records warnings its own way."""
-    return _entries([(w.category.__name__, one_line(w.message)) for w in caught])
-
-
-def _entries(raised: list) -> list[dict]:
     counts: dict[tuple[str, str], int] = {}
-    for key in raised:
-        counts[key] = counts.get(key, 0) + 1
+    for w in caught:
+        _add(counts, (w.category.__name__, one_line(w.message)))
+    return _entries(counts)
+
+
+def _add(counts: dict, key: tuple[str, str]) -> None:
+    counts[key] = counts.get(key, 0) + 1
+
+
+def _entries(counts: dict) -> list[dict]:
     return [{"category": c, "message": m, "count": n} for (c, m), n in counts.items()]
 
 
@@ -45,8 +49,11 @@ class WarningLog:
     :meth:`entries` gives them as the files record them."""
 
     def __init__(self) -> None:
-        self._raised: list[tuple[str, str]] = []  # (category, message), every raise in order
+        # (category, message) -> times raised, in the order first raised: one entry per
+        # distinct warning, however often it repeats
+        self._counts: dict[tuple[str, str], int] = {}
         self._registry: dict = {}  # the "default" action's memory of what was shown
+        self._modules: dict[str, str | None] = {}  # file -> module name, looked up once
         self._outer = None
         self._context = None
 
@@ -64,25 +71,32 @@ class WarningLog:
 
     def _show(self, message, category, filename, lineno, file=None, line=None) -> None:
         """Count the warning, then let the outer filters decide whether and how it shows."""
-        self._raised.append((category.__name__, one_line(message)))
+        _add(self._counts, (category.__name__, one_line(message)))
         inner = warnings.filters, warnings.showwarning
         warnings.filters, warnings.showwarning = self._outer
         try:
             warnings.warn_explicit(
-                message, category, filename, lineno, module=_module_name(filename), registry=self._registry
+                message, category, filename, lineno, module=self._module(filename), registry=self._registry
             )
         finally:
             warnings.filters, warnings.showwarning = inner
 
-    def __len__(self) -> int:
-        """How many warnings were raised so far (repeats too): a mark for :meth:`entries`."""
-        return len(self._raised)
+    def _module(self, filename: str) -> str | None:
+        if filename not in self._modules:
+            self._modules[filename] = _module_name(filename)
+        return self._modules[filename]
 
-    def entries(self, since: int = 0) -> list[dict]:
+    def mark(self) -> dict:
+        """The counts so far: :meth:`entries` ``(since=mark)`` gives what was raised after it
+        (one of several solves under one log)."""
+        return dict(self._counts)
+
+    def entries(self, since: dict | None = None) -> list[dict]:
         """``[{"category": "TiltWarning", "message": "...", "count": 1}, ...]`` in the order
-        first raised; empty when nothing was raised. ``since``: only the warnings after that
-        mark (``len(log)`` taken before one of several solves under one log)."""
-        return _entries(self._raised[since:])
+        first raised; empty when nothing was raised. ``since``: a :meth:`mark`, to count only
+        the raises after it."""
+        before = since or {}
+        return _entries({k: n - before.get(k, 0) for k, n in self._counts.items() if n > before.get(k, 0)})
 
 
 def _module_name(filename: str) -> str | None:
