@@ -141,6 +141,12 @@ def test_the_log_leaves_the_filters_in_force():
         warnings.simplefilter("error", TiltWarning)
         with pytest.raises(TiltWarning), WarningLog():
             warnings.warn("tilt", TiltWarning)
+    # a warning from code of no loaded module (``python -c``, a notebook cell) still shows
+    with warnings.catch_warnings(record=True) as shown:
+        warnings.simplefilter("default")
+        with WarningLog() as log:
+            warnings.warn_explicit("cell", TiltWarning, "<string>", 3)
+    assert [(str(w.message), w.filename) for w in shown] == [("cell", "<string>")]
 
 
 STUDY = """

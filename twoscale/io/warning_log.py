@@ -53,7 +53,7 @@ class WarningLog:
         # distinct warning, however often it repeats
         self._counts: dict[tuple[str, str], int] = {}
         self._registry: dict = {}  # the "default" action's memory of what was shown
-        self._modules: dict[str, str | None] = {}  # file -> module name, looked up once
+        self._modules: dict[str, str] = {}  # file -> module name, looked up once
         self._outer = None
         self._context = None
 
@@ -81,7 +81,7 @@ class WarningLog:
         finally:
             warnings.filters, warnings.showwarning = inner
 
-    def _module(self, filename: str) -> str | None:
+    def _module(self, filename: str) -> str:
         if filename not in self._modules:
             self._modules[filename] = _module_name(filename)
         return self._modules[filename]
@@ -99,10 +99,13 @@ class WarningLog:
         return _entries({k: n - before.get(k, 0) for k, n in self._counts.items() if n > before.get(k, 0)})
 
 
-def _module_name(filename: str) -> str | None:
+def _module_name(filename: str) -> str:
     """The name of the loaded module whose file is ``filename`` (what the filters match a
-    warning's module against), or None (then the file's name without ``.py``)."""
+    warning's module against), else the file's name without ``.py``, as Python names a
+    warning's module when it is not given (``"<string>"`` for ``python -c``)."""
     for name, module in list(sys.modules.items()):
         if getattr(module, "__file__", None) == filename:
             return name
-    return None
+    if not filename:
+        return "<unknown>"
+    return filename[:-3] if filename.endswith(".py") else filename
