@@ -147,6 +147,19 @@ def test_viscoelastic_rolling_through_the_cli(strip_file, tmp_path):
     assert rows[0][-1] == "drag_N" and len(rows) == 4
 
 
+def test_rolling_json_lists_the_runs_warnings(strip_file, tmp_path, capsys):
+    """A step of 1 mm over samples 0.25 mm apart on a viscoelastic body is coarse: the
+    StepWarning printed on stderr is listed in rolling.json too; an elastic run lists none."""
+    out = tmp_path / "coarse"  # the branch is 1.4 mm long at 50 km/h: active on the 50 mm strip
+    assert main(["solve", _scene(strip_file, prony="prony = [[20.0, 1e-4]]"), "--out", str(out), "--quiet"]) == 0
+    err = [line for line in capsys.readouterr().err.splitlines() if line.startswith("warning:")]
+    (entry,) = json.loads((out / "rolling.json").read_text())["warnings"]
+    assert entry["category"] == "StepWarning" and entry["count"] == 1
+    assert entry["message"].startswith("rolling.step = 1 mm") and err == [f"warning: {entry['message']}"]
+    assert main(["solve", _scene(strip_file), "--out", str(tmp_path / "elastic"), "--quiet"]) == 0
+    assert json.loads((tmp_path / "elastic" / "rolling.json").read_text())["warnings"] == []
+
+
 def test_viscoelastic_rolling_of_tips_refused(tmp_path, capsys):
     scene = tmp_path / "tips.toml"
     scene.write_text(

@@ -278,3 +278,25 @@ def test_an_empty_bands_table_is_explained(study_file, tmp_path, capsys):
     assert len(pd.read_csv(out / "bands.csv")) == 0
     said = [line for line in capsys.readouterr().out.splitlines() if line.startswith("bands.csv has no rows")]
     assert len(said) == 1 and "longest run 2 mm" in said[0]
+
+
+def test_case_json_and_rolling_json_list_the_cases_warnings(study_file, tmp_path):
+    """A case rolled with a coarse step (its ``step_check`` says so) lists the StepWarning
+    with that message, without the case's label the stderr line leads with, in ``case.json``
+    and in its ``rolling.json``; a case whose step is fine lists no StepWarning."""
+    study = read_study(study_file)
+    out = tmp_path / "out"
+    run = run_rolling_study(study, out, quiet=True)
+    store = CaseStore(out)
+    coarse = 0
+    for key in run.keys:
+        check = json.loads((store.path(key) / "rolling.json").read_text()).get("step_check") or {}
+        listed = store.read(key)["warnings"]
+        assert json.loads((store.path(key) / "rolling.json").read_text())["warnings"] == listed
+        steps = [w for w in listed if w["category"] == "StepWarning"]
+        if check.get("coarse"):
+            coarse += 1
+            assert steps == [{"category": "StepWarning", "message": check["message"], "count": 1}]
+        else:
+            assert steps == []
+    assert coarse >= 1

@@ -54,13 +54,15 @@ RANKED_FORCE_FRACTION = 0.01
 @dataclasses.dataclass(frozen=True)
 class Run:
     """One solve: the load label (``"50N"`` or ``"d0.5mm"``), the body, the scene solved,
-    its result (ContactResult) and the wall time, s."""
+    its result (ContactResult), the wall time, s, and the warnings the solve raised
+    (:meth:`twoscale.io.warning_log.WarningLog.entries`, for its ``result.json``)."""
 
     load: str
     body: str
     scene: Scene
     result: object
     seconds: float
+    warnings: tuple = ()
 
 
 @dataclasses.dataclass(frozen=True)

@@ -65,6 +65,7 @@ from ..comparison import Measured, Run, centre_pivot, indicators, load_label, ti
 from ..influence.registry import make_body, unavailable
 from ..io.cache_entry import with_construction
 from ..io.scene_file import read_scene
+from ..io.warning_log import WarningLog
 from ..progress import Progress
 from ..resources import check_solve_memory
 from ..scene import SCENE_METHODS, Scene, SceneError, default_h, normalise_influence
@@ -226,20 +227,20 @@ def _solve_all(scenes, bodies, method, quiet, name: str = "") -> list[Run]:
     body's provider is dropped once its solves are done, so two finite blocks (each
     holding a factorised FEM model, ~1 GB) are never held at once."""
     runs = []
-    with Progress(len(scenes) * len(bodies), label="compare", quiet=quiet) as bar:
+    with Progress(len(scenes) * len(bodies), label="compare", quiet=quiet) as bar, WarningLog() as log:
         for body in list(bodies):
             provider = bodies.pop(body)
             built = provider.cache_usage()  # what its caches did while it was built
             for sc in scenes:
                 sc = dataclasses.replace(sc, influence=_influence(sc, body))
-                t0 = time.perf_counter()
+                t0, mark = time.perf_counter(), log.mark()
                 # the provider built once per body (the block is costly); memory checked before
                 res = solve(sc, method=method, provider=provider, memory_limit=math.inf)
                 # for the figures' titles; the first solve records the corrections read
                 # (or dropped) when the block was built, as a solve that builds it does
                 res = dataclasses.replace(res, scene_name=name, caches=with_construction(res.caches, built))
                 built = ()
-                runs.append(Run(load_label(sc), body, sc, res, time.perf_counter() - t0))
+                runs.append(Run(load_label(sc), body, sc, res, time.perf_counter() - t0, tuple(log.entries(mark))))
                 bar.update(note=f"{body} {runs[-1].load}")
             del provider
     return runs

@@ -174,7 +174,7 @@ def _write_runs(out: Path, args, runs: list[Run]) -> None:
 
     for r in runs:
         d = out / "runs" / f"{r.body}_{r.load}"
-        write_result(r.result, r.scene, d, method=args.method)
+        write_result(r.result, r.scene, d, method=args.method, warnings=r.warnings)
         if args.vtk:
             write_vtk(
                 r.result,

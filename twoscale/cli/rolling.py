@@ -34,8 +34,9 @@ _NOT_ROLLING = (
 )
 
 
-def run_rolling(scene, args: argparse.Namespace) -> int:
-    """Run the rolling scene ``scene`` (read from ``args.scene``); the exit code."""
+def run_rolling(scene, args: argparse.Namespace, log=None) -> int:
+    """Run the rolling scene ``scene`` (read from ``args.scene``); the exit code. ``log``: the
+    :class:`~twoscale.io.warning_log.WarningLog` whose warnings ``rolling.json`` lists."""
     from ..rolling.run import RollingOptions, roll
 
     try:
@@ -63,7 +64,7 @@ def run_rolling(scene, args: argparse.Namespace) -> int:
                 with staged_directory(
                     args.out, overwrite=getattr(args, "overwrite", False), command=f"solve {args.scene}"
                 ) as tmp:
-                    result = _roll_into(tmp, scene, track, options, status, args)
+                    result = _roll_into(tmp, scene, track, options, status, args, log)
         wall = time.perf_counter() - t0
     except ValueError as exc:  # SceneError, an output folder that cannot be used
         print(f"error: {exc}", file=sys.stderr)
@@ -105,7 +106,7 @@ def _with_step_error(result, track, args):
     return dataclasses.replace(result, step_error=step_error(result, roll_at_twice_the_step(track)))
 
 
-def _roll_into(out: Path, scene, track, options, status, args):
+def _roll_into(out: Path, scene, track, options, status, args, log=None):
     """Roll, writing the VTK frames as the positions come, then the tables."""
     from .._version import __version__
     from ..io.rolling_outputs import FrameWriter, write_rolling_tables, write_signal_products
@@ -121,7 +122,7 @@ def _roll_into(out: Path, scene, track, options, status, args):
     result = roll(track.scene, options=options, track=track, on_position=on_position, progress=status)
     frames.close()
     result = _with_step_error(result, track, args)
-    write_rolling_tables(result, scene, out)
+    write_rolling_tables(result, scene, out, warnings=() if log is None else log.entries())
     write_signal_products(result, scene, out, name=Path(args.scene).stem)
     return result
 

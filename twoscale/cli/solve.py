@@ -31,6 +31,7 @@ from ..io.asperity_csv import ASPERITY_CSV_NAME
 from ..io.result_json import RESULT_NAME, result_to_dict, write_result
 from ..io.scene_file import read_scene
 from ..io.solve_outputs import write_fields_and_figures
+from ..io.warning_log import WarningLog
 from ..micro.policy import ITERATIONS
 from ..progress import StatusLine
 from ..resources import check_solve_memory
@@ -99,28 +100,29 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def check_out_dir(out, *, overwrite: bool = False) -> None:
-    """Refuse, before any solve, an output folder that cannot be written: ``out`` names an
-    existing file, or a non-empty folder (unless ``overwrite`` and it holds only an earlier
-    twoscale output; see :mod:`twoscale.cli.staging`). ``None`` passes.
-
-    Raises
-    ------
-    OutputFolderError
-        A ValueError naming ``--out``, the path and the reason.
-    """
+    """Refuse, before any solve, an output folder that cannot be written (an existing file, a
+    non-empty folder unless ``overwrite`` and it holds only an earlier twoscale output:
+    :mod:`twoscale.cli.staging`) with an OutputFolderError (a ValueError naming ``--out``,
+    the path and why); ``None`` passes."""
     if out is not None:
         check_output_folder(out, overwrite=overwrite)
 
 
 def run(args: argparse.Namespace) -> int:
-    """Run ``twoscale solve``; returns the exit code (0, 1 or 2, see module doc)."""
+    """Run ``twoscale solve``; the exit code (module doc). Warnings print as ever and are
+    listed in the files written (``warnings``: :mod:`twoscale.io.warning_log`)."""
+    with WarningLog() as log:
+        return _run(args, log)
+
+
+def _run(args: argparse.Namespace, log: WarningLog) -> int:
     try:
         scene = read_scene(args.scene)
         scene = with_h_option(scene, args.h)
         if scene.rolling is not None:  # the road rolls under the body: twoscale.cli.rolling
             from .rolling import run_rolling
 
-            return run_rolling(scene, args)
+            return run_rolling(scene, args, log)
         options, iteration = _solver_options(scene, args)
         # before anything large is allocated: refuse a solve the machine cannot hold
         check_solve_memory(
@@ -141,8 +143,8 @@ def run(args: argparse.Namespace) -> int:
         print(f"error: {exc}", file=sys.stderr)
         return 2
     if scene.history is not None:
-        return _history_done(result, scene, args, wall)
-    return _static_done(result, scene, args, wall)
+        return _history_done(result, scene, args, wall, log)
+    return _static_done(result, scene, args, wall, log)
 
 
 def _solver_options(scene, args: argparse.Namespace) -> tuple[dict, str]:
@@ -175,14 +177,16 @@ def _solver_options(scene, args: argparse.Namespace) -> tuple[dict, str]:
     return options, iteration
 
 
-def _static_done(result: ContactResult, scene, args: argparse.Namespace, wall: float) -> int:
+def _static_done(result: ContactResult, scene, args: argparse.Namespace, wall: float, log: WarningLog) -> int:
     """Write and report one static solve (``DIR/result.json`` and the rest); the exit code."""
     path = None
     # result.json's content and the terminal summary: one dictionary
     record = (
         None
         if args.out is None and args.quiet
-        else result_to_dict(result, scene, method=args.method, h_source="--h" if args.h is not None else None)
+        else result_to_dict(
+            result, scene, method=args.method, h_source="--h" if args.h is not None else None, warnings=log.entries()
+        )
     )
     if args.out is not None:
         try:
@@ -199,9 +203,8 @@ def _static_done(result: ContactResult, scene, args: argparse.Namespace, wall: f
     return 0
 
 
-def _history_done(result, scene, args, wall: float) -> int:
-    """Write and report a history (``DIR/history.csv``, ``history.png``, ``fields.pvd``,
-    ``result.json``: :mod:`twoscale.io.history_outputs`); the exit code."""
+def _history_done(result, scene, args, wall: float, log: WarningLog) -> int:
+    """Write and report a history (:mod:`twoscale.io.history_outputs`); the exit code."""
     from ..io.history_outputs import write_history_outputs
 
     if args.out is not None:
@@ -209,7 +212,7 @@ def _history_done(result, scene, args, wall: float) -> int:
             with staged_directory(
                 args.out, overwrite=getattr(args, "overwrite", False), command=f"solve {args.scene}"
             ) as tmp:
-                write_history_outputs(result, scene, tmp, name=Path(args.scene).stem)
+                write_history_outputs(result, scene, tmp, name=Path(args.scene).stem, warnings=log.entries())
         except (OSError, ValueError) as exc:
             print(f"error: writing {args.out}: {exc}", file=sys.stderr)
             return 2

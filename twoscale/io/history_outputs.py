@@ -8,7 +8,8 @@
 * ``result.json``: the material (branches, retardation times), the history, the steps
   taken (times, lengths, effective compliances, error estimates), the largest error
   estimate, the memory held, what the on-disk caches gave and took (``caches``), the
-  histories as lists, the version and the scene;
+  histories as lists, the version and the scene, and ``warnings`` (as a static solve's
+  ``result.json``: category, one-line message and count, a warning raised at every step once);
 * ``fields.pvd`` (+ ``fields/t_NNNN.vti``): the pressure and the gap at each output time on
   one grid covering every field, a VTK time series ParaView opens and animates;
 * ``history.png``: :func:`twoscale.plot.history.history_figure`.
@@ -89,8 +90,9 @@ def write_history_csv(result, path, *, scene: Scene | None = None) -> list[Path]
     )
 
 
-def history_to_dict(result, scene: Scene) -> dict:
-    """The record of ``result.json`` for a history."""
+def history_to_dict(result, scene: Scene, *, warnings=()) -> dict:
+    """The record of ``result.json`` for a history; ``warnings``: the run's
+    (:meth:`twoscale.io.warning_log.WarningLog.entries`)."""
     from ..viscoelastic.prony import creep_compliance
 
     J = creep_compliance(result.material)
@@ -141,12 +143,13 @@ def history_to_dict(result, scene: Scene) -> dict:
         # what came from the on-disk caches and what was written or dropped there
         "caches": [u.as_dict() for u in result.caches],
         "scene": scene_to_dict(scene),
+        "warnings": [dict(w) for w in warnings],
     }
 
 
-def write_history_json(result, scene: Scene, path) -> Path:
+def write_history_json(result, scene: Scene, path, *, warnings=()) -> Path:
     path = Path(path)
-    path.write_text(json.dumps(history_to_dict(result, scene), indent=1))
+    path.write_text(json.dumps(history_to_dict(result, scene, warnings=warnings), indent=1))
     return path
 
 
@@ -199,15 +202,22 @@ def write_history_fields(result, path, *, comment: str | None = None) -> Path | 
 
 
 def write_history_outputs(
-    result, scene: Scene, out_dir, *, figures: bool = True, vtk: bool = True, name: str | None = None
+    result,
+    scene: Scene,
+    out_dir,
+    *,
+    figures: bool = True,
+    vtk: bool = True,
+    name: str | None = None,
+    warnings=(),
 ) -> list[Path]:
     """Every file of a history into ``out_dir`` (module docstring); ``name`` (the scene
-    file's stem) titles the figure with the body."""
+    file's stem) titles the figure with the body; ``warnings``: the run's, for ``result.json``."""
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     written = [
         *write_history_csv(result, out / HISTORY_CSV_NAME, scene=scene),
-        write_history_json(result, scene, out / HISTORY_JSON_NAME),
+        write_history_json(result, scene, out / HISTORY_JSON_NAME, warnings=warnings),
     ]
     if vtk:
         fields = write_history_fields(

@@ -22,7 +22,8 @@ method adds ``macro``, ``micro_iteration``, ``micro_choice``, ``micro_attempts``
 ``height_map`` (the map as conditioned: ``file``, ``samples``, ``spacing_mm`` and
 ``measured_spacing_mm`` when resampled, ``units``
 and ``units_from``, ``missing_samples`` and ``missing_treated_as``, ``edge_contacts`` and
-``edge_asperities`` numbered from 1). Everything is written from the typed
+``edge_asperities`` numbered from 1); ``warnings`` (always: the warnings the run raised, each
+``category``, one-line ``message`` and ``count``, in the order first raised; empty when none). Everything is written from the typed
 :attr:`ContactResult.details`, never from string-keyed extras.
 
 :func:`read_forces` reads the per-asperity forces back.
@@ -81,7 +82,9 @@ def _residual_summary(history: Any) -> dict:
     return {"count": len(h), "first": _num(h[0]), "last": _num(h[-1]), "min": _num(min(h))}
 
 
-def result_to_dict(result, scene: Scene, *, method: str | None = None, h_source: str | None = None) -> dict:
+def result_to_dict(
+    result, scene: Scene, *, method: str | None = None, h_source: str | None = None, warnings: Any = ()
+) -> dict:
     """The result.json content of a solve.
 
     Parameters
@@ -93,6 +96,9 @@ def result_to_dict(result, scene: Scene, *, method: str | None = None, h_source:
     method : str, optional
         Method name to record; default ``result.method`` ("twoscale" or "reference";
         the solver that ran is ``"solver"``).
+    warnings : list of dict, optional
+        The warnings the run raised (``"warnings"``: :meth:`twoscale.io.warning_log.WarningLog.entries`);
+        default none.
 
     Returns
     -------
@@ -134,6 +140,7 @@ def result_to_dict(result, scene: Scene, *, method: str | None = None, h_source:
         "scene": scene_to_dict(scene),
         # what came from the on-disk caches and what was written or dropped there
         "caches": [u.as_dict() for u in result.caches],
+        "warnings": [dict(w) for w in warnings],  # category, one-line message, count
     }
     out.update(_setting_record(result, scene))
     if isinstance(details, TwoScaleDetails):
@@ -230,15 +237,16 @@ def write_result(
     method: str | None = None,
     h_source: str | None = None,
     record: dict | None = None,
+    warnings: Any = (),
 ) -> Path:
     """Write ``out_dir/result.json`` atomically (temporary file, then ``os.replace``).
 
     The directory is created if needed; call this only once a solve has returned, so a
     failed run leaves nothing behind. ``record``: :func:`result_to_dict`'s answer for the
-    same arguments when the caller has it already. Returns the path written.
+    same arguments when the caller has it already; ``warnings``: as there. Returns the path written.
     """
     if record is None:
-        record = result_to_dict(result, scene, method=method, h_source=h_source)
+        record = result_to_dict(result, scene, method=method, h_source=h_source, warnings=warnings)
     text = json.dumps(record, indent=2, allow_nan=False) + "\n"
     target = Path(out_dir) / RESULT_NAME
     with atomic_output(target) as tmp:

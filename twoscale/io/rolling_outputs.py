@@ -12,7 +12,8 @@
   micro step's sweeps on the two-scale path, as ``method`` says; stones, message), the timings;
   the step against the road's samples and the Prony branches (``step_check``,
   :mod:`twoscale.rolling.stepcheck`) and a viscoelastic run's energy balance
-  (``energy_balance``, with its meaning);
+  (``energy_balance``, with its meaning); ``warnings``: what the run warned of (as in
+  ``result.json``: category, one-line message, count);
 * ``fields.pvd`` (+ ``fields/s_NNNN.vti``): the pressure at each position on one grid of the
   body (written as the run goes, :class:`FrameWriter`): a series ParaView animates, its
   time the position's time;
@@ -84,8 +85,8 @@ def asperity_rows(result) -> list[dict]:
     ]
 
 
-def rolling_to_dict(result, scene) -> dict:
-    """The content of ``rolling.json``."""
+def rolling_to_dict(result, scene, *, warnings=()) -> dict:
+    """The content of ``rolling.json``; ``warnings``: :meth:`twoscale.io.warning_log.WarningLog.entries`."""
     from .scene_file import scene_to_dict
 
     spec = result.spec
@@ -133,6 +134,7 @@ def rolling_to_dict(result, scene) -> dict:
         ],
         "timings_s": {k: float(v) for k, v in result.timings_s.items()},
         **_energy(result),
+        "warnings": [dict(w) for w in warnings],
     }
 
 
@@ -170,15 +172,16 @@ def _energy(result) -> dict:
     return out
 
 
-def write_rolling_json(result, scene, path) -> Path:
+def write_rolling_json(result, scene, path, *, warnings=()) -> Path:
     path = Path(path)
+    content = rolling_to_dict(result, scene, warnings=warnings)
     with atomic_output(path) as tmp:
-        tmp.write_text(json.dumps(rolling_to_dict(result, scene), indent=1, allow_nan=False) + "\n", encoding="utf-8")
+        tmp.write_text(json.dumps(content, indent=1, allow_nan=False) + "\n", encoding="utf-8")
     return path
 
 
-def write_rolling_tables(result, scene, out_dir) -> list[Path]:
-    """``signals.csv``, ``asperity_signals.csv`` (+ Parquet) and ``rolling.json``."""
+def write_rolling_tables(result, scene, out_dir, *, warnings=()) -> list[Path]:
+    """``signals.csv``, ``asperity_signals.csv`` (+ Parquet) and ``rolling.json`` (``warnings``: the run's)."""
     out = Path(out_dir)
     record = {"units": UNITS, "speed_kmh": result.spec.speed, "control": result.control, "body": result.body}
     written = write_table(
@@ -200,7 +203,7 @@ def write_rolling_tables(result, scene, out_dir) -> list[Path]:
         descriptions=DESCRIPTIONS,
         parquet=0,
     )
-    written.append(write_rolling_json(result, scene, out / ROLLING_JSON_NAME))
+    written.append(write_rolling_json(result, scene, out / ROLLING_JSON_NAME, warnings=warnings))
     return written
 
 

@@ -5,7 +5,7 @@ As for the other studies (:mod:`twoscale.studies.execute`): a rerun skips the ca
 folder says ``converged`` or ``not-converged`` (a failed case is solved again), leftover
 temporary folders are removed first, and Ctrl-C keeps what was written. A case folder
 holds ``case.json`` (inputs, status, reason, the case's summary numbers and third-octave
-levels, version, seconds) and the rolling run's own files (``signals.csv``,
+levels, version, seconds, the warnings the run raised) and the rolling run's own files (``signals.csv``,
 ``asperity_signals.csv``, ``bands.csv``, ``texture.json``, ``rolling.json``, figures).
 """
 
@@ -55,6 +55,7 @@ def record_content(record: RollingRecord, inputs: dict) -> dict:
         "inputs": inputs,
         "numbers": record.numbers,
         "bands": list(record.bands),
+        "warnings": [dict(w) for w in record.warnings],  # category, one-line message, count
     }
 
 

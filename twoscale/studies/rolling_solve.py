@@ -24,6 +24,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..io.warning_log import entries_of
 from .providers import ProviderCache
 from .rolling_cases import StripCache, case_at, case_scene, with_speed
 from .rolling_spec import RollingStudy
@@ -36,7 +37,8 @@ class RollingRecord:
     ``files`` maps each file of the run (``signals.csv``, ``bands.csv``, ...) to its bytes;
     ``numbers`` the case's summary (:func:`case_numbers`); ``bands`` the rows of
     ``bands.csv``; ``seconds`` and ``cpu_seconds`` the solve's (shared by the cases of one
-    solve) and the writing."""
+    solve) and the writing; ``warnings`` the run's (:func:`twoscale.io.warning_log.entries_of`,
+    also in its ``rolling.json``)."""
 
     key: str
     label: str
@@ -47,6 +49,7 @@ class RollingRecord:
     bands: tuple = ()
     seconds: float = float("nan")
     cpu_seconds: float = float("nan")
+    warnings: tuple = ()
 
 
 def retimed(result, speed: float):
@@ -87,14 +90,14 @@ def case_numbers(result) -> dict:
     return out
 
 
-def case_files(result, scene, *, figures: bool, name: str) -> tuple[dict, tuple]:
+def case_files(result, scene, *, figures: bool, name: str, warnings=()) -> tuple[dict, tuple]:
     """The files a rolling run writes (``twoscale solve``'s, less the VTK series), as
-    ``{name: bytes}``, and the rows of ``bands.csv``."""
+    ``{name: bytes}``, and the rows of ``bands.csv``; ``warnings``: the run's, for ``rolling.json``."""
     from ..io.rolling_outputs import write_rolling_tables, write_signal_products
 
     with tempfile.TemporaryDirectory(prefix="twoscale-rolling-case-") as tmp:
         out = Path(tmp)
-        write_rolling_tables(result, scene, out)
+        write_rolling_tables(result, scene, out, warnings=warnings)
         write_signal_products(result, scene, out, figures=figures, name=name)
         files = {p.name: p.read_bytes() for p in sorted(out.iterdir()) if p.is_file()}
     bands = ()
@@ -107,12 +110,15 @@ def case_files(result, scene, *, figures: bool, name: str) -> tuple[dict, tuple]
 
 
 @contextlib.contextmanager
-def _case_warnings(label: str) -> Iterator[None]:
+def _case_warnings(label: str) -> Iterator[list]:
     """The warnings of a case's run (a coarse step: :class:`~twoscale.errors.StepWarning`)
-    again, each led by the case's label, so that a study's lines say which case they are about."""
+    again, each led by the case's label, so that a study's lines say which case they are
+    about; the list it gives is filled with their entries (without the label) for the files."""
+    kept: list = []
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
-        yield
+        yield kept
+    kept.extend(entries_of(caught))
     for w in caught:
         warnings.warn(f"{label}: {w.message}", w.category, stacklevel=3)
 
@@ -127,7 +133,7 @@ def solve_group(study: RollingStudy, group: list, strips: StripCache, providers:
     try:
         scene = case_scene(cases[0][0], study, strips)
         provider = None if scene.material.viscoelastic else providers.get(scene)
-        with _case_warnings(cases[0][0].label):
+        with _case_warnings(cases[0][0].label) as raised:
             result = roll(scene, options=RollingOptions(**study.solver), provider=provider)
     except Exception as exc:  # noqa: BLE001 - a failing case is recorded, the study goes on
         reason = f"{type(exc).__name__}: {exc}"
@@ -143,9 +149,14 @@ def solve_group(study: RollingStudy, group: list, strips: StripCache, providers:
     records = []
     for case, key in cases:
         mine = result if case.speed == result.spec.speed else retimed(result, case.speed)
-        files, bands = case_files(mine, with_speed(scene, case.speed), figures=study.figures, name=case.label)
+        files, bands = case_files(
+            mine, with_speed(scene, case.speed), figures=study.figures, name=case.label, warnings=raised
+        )
         bad = int(np.sum(~mine.converged))
         status = "converged" if bad == 0 else "not-converged"
         reason = "" if bad == 0 else f"{bad} of {len(mine.shifts)} positions did not converge (rolling.json lists them)"
-        records.append(RollingRecord(key, case.label, status, reason, files, case_numbers(mine), bands, seconds, cpu))
+        numbers = case_numbers(mine)
+        records.append(
+            RollingRecord(key, case.label, status, reason, files, numbers, bands, seconds, cpu, tuple(raised))
+        )
     return records

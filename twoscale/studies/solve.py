@@ -15,6 +15,7 @@ from typing import Any
 
 import numpy as np
 
+from ..io.warning_log import WarningLog
 from ..sensor import Sensor
 from .cases import case_at, case_scene, kept_tips
 from .providers import ProviderCache
@@ -98,6 +99,9 @@ class CaseRecord:
         CPU time of the thread that ran the case, s (on a shared machine the wall time
         also counts the waits for a core; this does not, as long as the case's own
         numerical libraries run in that thread: one BLAS thread).
+    warnings : tuple of dict
+        The warnings the case raised (:meth:`twoscale.io.warning_log.WarningLog.entries`),
+        also when it failed.
     """
 
     key: str
@@ -108,6 +112,7 @@ class CaseRecord:
     outcome: Outcome | None
     seconds: float
     cpu_seconds: float = float("nan")
+    warnings: tuple = ()
 
 
 def run_case(
@@ -124,8 +129,10 @@ def run_case(
     """Build the case's scene (``make_scene()``), solve it and record the outcome; any
     error but Ctrl-C becomes a failed record with its reason."""
     t0, c0 = time.perf_counter(), time.thread_time()
+    log = WarningLog()
     try:
-        outcome = solve_case(make_scene(), method=method, options=options, providers=providers, sensor=sensor)
+        with log:  # shown as ever, and kept for case.json
+            outcome = solve_case(make_scene(), method=method, options=options, providers=providers, sensor=sensor)
     except Exception as exc:  # noqa: BLE001 - a failing case is recorded, the study goes on
         reason = f"{type(exc).__name__}: {exc}"
         if not isinstance(exc, ValueError):  # an unexpected error: keep where it came from
@@ -139,6 +146,7 @@ def run_case(
             None,
             time.perf_counter() - t0,
             time.thread_time() - c0,
+            tuple(log.entries()),
         )
     status = "converged" if outcome.converged else "not-converged"
     return CaseRecord(
@@ -150,6 +158,7 @@ def run_case(
         outcome,
         time.perf_counter() - t0,
         time.thread_time() - c0,
+        tuple(log.entries()),
     )
 
 

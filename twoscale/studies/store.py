@@ -1,7 +1,7 @@
 """Per-case result folders, written atomically under the case's key.
 
 ``OUT/cases/<key>/`` holds ``case.json`` (inputs, status, reason, numbers, per-tip
-figures, program version, units) and ``sensor.npy`` (the sensor map, MPa; absent for a
+figures, program version, units, the warnings the case raised) and ``sensor.npy`` (the sensor map, MPa; absent for a
 failed case). A folder is written under a hidden temporary name in the same directory
 and renamed to its key when complete, so a folder named by a key is always whole: an
 interrupted write leaves only a ``.<key>.tmp-*`` folder, removed by the next run
@@ -45,6 +45,7 @@ def record_to_dict(record: CaseRecord, inputs: dict) -> dict:
         "units": dict(UNITS),
         "inputs": inputs,
         "tips": [int(k) for k in record.tips],
+        "warnings": [dict(w) for w in record.warnings],  # category, one-line message, count
     }
     o = record.outcome
     if o is not None:
