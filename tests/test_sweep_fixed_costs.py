@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from twoscale.laws import HertzLaw, LawStack, SphereLaw
-from twoscale.macro.solve import _independent_approach
+from twoscale.macro.start import independent_approach
 
 
 class _Counting(LawStack):
@@ -26,7 +26,7 @@ def test_the_load_control_start_carries_the_load_in_few_law_evaluations(law, z):
     stack = _Counting([law] * len(z))
     _Counting.calls = 0
     W = 0.0019
-    d = _independent_approach(z, stack, W)
+    d = independent_approach(z, stack, W)
     carried = float(np.sum(LawStack([law] * len(z)).force(d - z)))
     assert carried == pytest.approx(W, rel=1e-12)
     assert _Counting.calls <= 35

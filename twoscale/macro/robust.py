@@ -117,7 +117,7 @@ def solve_dual(system: MacroSystem, x0: np.ndarray, *, tol: float, max_iter: int
     state = _dual_point(system, g, P, tol, max_iter)
     total_newton += state.newton_steps
     total_min += state.minimiser_steps
-    converged = stalled = False
+    converged = stalled = untouched = False
     for it in range(max_iter):
         grad = e - G.T @ state.P
         if _balanced(system, state.P, max(tol, _DUAL_TOL)):
@@ -126,6 +126,9 @@ def solve_dual(system: MacroSystem, x0: np.ndarray, *, tol: float, max_iter: int
         S = system.at(g).force_sensitivity(state.P, G)  # dP/dg on the contact set
         H = G.T @ S  # -Hessian of Q, PSD
         step = _ascent_step(H, grad)
+        if not np.all(np.isfinite(step)):  # no tip in contact at g: the dual is linear there
+            stalled = untouched = True
+            break
         slope = float(grad @ step)
         t = 1.0
         while True:
@@ -154,6 +157,8 @@ def solve_dual(system: MacroSystem, x0: np.ndarray, *, tol: float, max_iter: int
             f"safe path: dual ascent balanced the load to {_DUAL_TOL:.0e} in {it} steps but the "
             f"polish failed ({polish.message})"
         )
+    elif untouched:
+        msg = f"safe path: no tip touches at the dual ascent's step {it + 1}, so it has no finite step"
     elif stalled:
         msg = (
             f"safe path: dual ascent stalled at step {it + 1} with the load and moments "

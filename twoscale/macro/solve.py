@@ -8,7 +8,6 @@ from typing import Callable
 
 import numpy as np
 from scipy.linalg import cho_solve
-from scipy.optimize import brentq
 from scipy.spatial import cKDTree
 
 from ..control import Loading
@@ -18,7 +17,7 @@ from ..options import MacroOptions
 from .checks import check_load as _check_load, check_scene as _check_scene
 from .interaction import MatrixFreeInteraction, sampled_operator_error
 from .result import MacroResult
-from .start import MacroStart, levelling_tilt
+from .start import MacroStart, independent_approach, levelling_tilt
 from .newton import PLATEAU_DROP
 from .robust import FAST_STEPS, balance_feasible, levelled_retry, minimise_then_polish, run_newton, solve_dual
 from .system import MacroSystem, symmetric_part
@@ -157,14 +156,15 @@ def macro_step(provider, tips, z, laws, loading: Loading, options, how: MacroHan
         T = _matrix_free_interaction(provider, tips, self_compliance, operator_rtol)
     t1 = time.perf_counter()
     system = _build_system(T, tips, z, stack, penetration, total_load, tilt, pivot)
+    cold = lambda: _initial_guess(system, z, stack, penetration, total_load, tilt)  # noqa: E731
+    levelled = (lambda: _levelled_start(system, z, stack, total_load)) if tilt else None
     if start is None:
-        x0 = _initial_guess(system, z, stack, penetration, total_load, tilt)
+        x, converged, message, steps, residuals, path = _newton_then_safe(
+            system, cold(), tol, max_iter, how.defer_safe_path, levelled
+        )
     else:  # the cold start's forces are not needed, nor its approach when the start has one
         x0 = start.unknowns(len(z), _rigid_start(z, stack, total_load, tilt, start))
-    levelled = (lambda: _levelled_start(system, z, stack, total_load)) if tilt and start is None else None
-    x, converged, message, steps, residuals, path = _newton_then_safe(
-        system, x0, tol, max_iter, how.defer_safe_path, levelled
-    )
+        x, converged, message, steps, residuals, path = _warm_then_cold(system, x0, cold, levelled, tol, max_iter, how)
     t2 = time.perf_counter()
     P, g = system.split(x)
     delta = system.delta(x)
@@ -200,6 +200,20 @@ def macro_step(provider, tips, z, laws, loading: Loading, options, how: MacroHan
         safe_path_deferred=path == "deferred",
         **extra,
     )
+
+
+def _warm_then_cold(system: MacroSystem, x0: np.ndarray, cold, levelled, tol: float, max_iter: int, how):
+    """Newton from the warm start ``x0``, or the cold solve (``cold()``, with the levelled
+    retry) where ``x0`` leaves every tip off the body: Newton's Jacobian then has no contact
+    rows and the safe path's dual ascent no finite step (a load history askew by 0.2 rad
+    warm-started at the micro step's approach, 0.1 mm below the tips' one). Returns what
+    :func:`_newton_then_safe` returns."""
+    if system.n == 0 or np.any(system.delta(x0) > 0):
+        return _newton_then_safe(system, x0, tol, max_iter, how.defer_safe_path)
+    x, converged, message, steps, residuals, path = _newton_then_safe(
+        system, cold(), tol, max_iter, how.defer_safe_path, levelled
+    )
+    return x, converged, f"{message} (from the cold start: the warm one touched no tip)", steps, residuals, path
 
 
 def _newton_then_safe(system: MacroSystem, x0: np.ndarray, tol: float, max_iter: int, defer=None, levelled=None):
@@ -329,7 +343,7 @@ def _initial_guess(system: MacroSystem, z, stack: LawStack, penetration, total_l
     n = len(z)
     if total_load is None:
         return _secant_forces(system, stack)
-    d0 = _independent_approach(z, stack, float(total_load))
+    d0 = independent_approach(z, stack, float(total_load))
     return np.concatenate([np.zeros(n), [d0, 0.0, 0.0] if tilt else [d0]])  # no force
 
 
@@ -339,7 +353,7 @@ def _levelled_start(system: MacroSystem, z, stack: LawStack, total_load) -> np.n
     if alpha == 0.0 and beta == 0.0:
         return None
     level = z - system.G[:, 1:] @ np.array([alpha, beta])  # the heights under that tilt
-    return np.concatenate([np.zeros(system.n), [_independent_approach(level, stack, float(total_load)), alpha, beta]])
+    return np.concatenate([np.zeros(system.n), [independent_approach(level, stack, float(total_load)), alpha, beta]])
 
 
 def _rigid_start(z, stack: LawStack, total_load, tilt, start: MacroStart) -> np.ndarray:
@@ -347,7 +361,7 @@ def _rigid_start(z, stack: LawStack, total_load, tilt, start: MacroStart) -> np.
     does not replace: the approach ``d0`` only when the start has none, zero tilts."""
     if total_load is None:
         return np.zeros(0)
-    d0 = start.penetration if start.penetration is not None else _independent_approach(z, stack, float(total_load))
+    d0 = start.penetration if start.penetration is not None else independent_approach(z, stack, float(total_load))
     return np.array([d0, 0.0, 0.0] if tilt else [d0], dtype=float)
 
 
@@ -378,23 +392,3 @@ def _secant_forces(system: MacroSystem, stack: LawStack) -> np.ndarray:
         return P
     P[A] = np.maximum(cho_solve((L, True), o[A], check_finite=False), 0.0)  # not two LU solves
     return P
-
-
-def _independent_approach(z: np.ndarray, stack: LawStack, W: float) -> float:
-    """``d`` with ``sum_k f_k(d - z_k) = W`` (no interaction), by bracketing and Brent's method.
-
-    The bracket grows from a small step by half each time, so the laws are asked only for
-    tips within about 1.5 times the final approach: a tabulated law built on first use
-    (a height map's stones) is never built for a stone far below the load's reach."""
-    lo = float(np.min(z))
-    step = max(float(np.ptp(z)) / 64.0, 1e-3 * max(abs(lo), 1.0) / 64.0, 1e-6)
-    hi = lo + step
-    with np.errstate(over="ignore", invalid="ignore"):  # a load beyond floating point: refused below
-        while np.sum(stack.force(hi - z)) < W:
-            lo, hi = hi, hi + 0.5 * (hi - float(np.min(z)))
-            if not np.isfinite(hi):
-                raise ValueError(f"load.total = {W!r} N: the asperities' laws cannot carry it at any finite approach")
-    # Brent's method on the bracket: 8-12 law evaluations where bisection to the last bit
-    # took about 50 (40 % of a one-sphere solve's CPU time went to this start); 1e-100 N takes ~200
-    excess = lambda d: float(np.sum(stack.force(d - z))) - W
-    return float(brentq(excess, lo, hi, xtol=1e-300, rtol=4.0 * np.finfo(float).eps, maxiter=2000))

@@ -231,6 +231,10 @@ class _Run:
             err = self._estimate(dt, res) if since_kink >= 2 else None
             if not ctl.accept(dt, err):
                 self.rejected += 1
+                if ctl.stuck is not None:
+                    self.converged = False
+                    self.messages.append(f"stopped at t = {t:.6g} s: {ctl.stuck}")
+                    return
                 continue
             self._commit(t_new, dt, res, J_eff, err, sec)
             t, since_kink = t_new, since_kink + 1

@@ -28,6 +28,10 @@ import numpy as np
 FIRST_FRACTION = 0.05
 #: A mark (history or output time) at most this many steps away is reached in one step.
 STRETCH = 1.25
+#: The shortest automatic step, as a fraction of the history's end: a step whose estimate
+#: stays above the tolerance at this size stops the history with a message (halving on
+#: would not end: a solve that does not converge gives no error that shrinks with dt).
+MIN_STEP_FRACTION = 1e-12
 
 
 @dataclass(frozen=True)
@@ -154,6 +158,8 @@ class Controller:
     end: float
     dt: float = 0.0
     _since_kink: int = 0
+    #: Why the steps cannot go on (a rejected step already at the shortest), else None.
+    stuck: str | None = None
 
     def restart(self, t: float) -> None:
         """A kink at ``t``: the next step is a first step."""
@@ -179,9 +185,16 @@ class Controller:
 
     def accept(self, dt: float, error: float | None) -> bool:
         """Record a solved step of length ``dt`` with its estimate (None: none yet);
-        return False when it must be redone with a shorter step."""
-        if error is not None and error > self.steps.tol and dt > 1e-12 * self.end:
-            self.dt = 0.5 * dt
+        return False when it must be redone with a shorter step, or, with :attr:`stuck` set,
+        when it is rejected at the shortest step (:data:`MIN_STEP_FRACTION`)."""
+        if error is not None and not error <= self.steps.tol:  # NaN: rejected too
+            if dt > MIN_STEP_FRACTION * self.end:
+                self.dt = 0.5 * dt
+            else:
+                self.stuck = (
+                    f"the step's error estimate {error:.3g} stayed above time.tol = {self.steps.tol:g} "
+                    f"down to dt = {dt:.3g} s, the shortest step ({MIN_STEP_FRACTION:g} of the history)"
+                )
             return False
         factor = (
             self.steps.growth
@@ -193,4 +206,13 @@ class Controller:
         return True
 
 
-__all__ = ["FIRST_FRACTION", "STRETCH", "Controller", "TimeSteps", "first_step", "fixed_times", "local_error"]
+__all__ = [
+    "FIRST_FRACTION",
+    "MIN_STEP_FRACTION",
+    "STRETCH",
+    "Controller",
+    "TimeSteps",
+    "first_step",
+    "fixed_times",
+    "local_error",
+]
