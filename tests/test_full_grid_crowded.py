@@ -10,7 +10,12 @@ import pytest
 import twoscale
 from twoscale import Material, Scene
 from twoscale.indenters import Asperity
-from twoscale.micro.policy import FULL_GRID_CELLS_PER_TIP, FULL_GRID_MAX_CELLS
+from twoscale.micro.policy import (
+    FULL_GRID_CELLS_PER_TIP,
+    FULL_GRID_MAX_CELLS,
+    FULL_GRID_SMALL_CELLS,
+    FULL_GRID_SMALL_CELLS_PER_TIP,
+)
 from twoscale.reference.on_scene import reference_grid
 from twoscale.resources import full_grid_route
 
@@ -48,3 +53,19 @@ def test_a_tilt_or_more_cells_a_tip_keep_the_two_scale_route():
     assert reference_grid(sparse, h).size > FULL_GRID_CELLS_PER_TIP * 400
     assert full_grid_route(sparse, h) is None
     assert full_grid_route(sparse, 0.25) is not None
+
+
+def test_a_small_grid_of_many_tips_takes_its_full_grid_below_its_cells_a_tip():
+    # 81 spheres 1 mm apart: at h 0.08 the grid has about 175 cells a tip (under 20,000 cells)
+    # and the union CG's box would be nearly all of it; at h 0.07 about 230 a tip keep the
+    # two-scale route
+    scene = _lattice(9, 1.0, penetration=0.06)
+    h = 0.08
+    cells = reference_grid(scene, h).size
+    assert FULL_GRID_CELLS_PER_TIP * 81 < cells <= FULL_GRID_SMALL_CELLS
+    res = twoscale.solve(scene, h=h)
+    ref = twoscale.solve(scene, h=h, method="reference")
+    assert res.method == "reference" and "cells a tip" in res.message
+    assert np.array_equal(res.asperities.forces, ref.asperities.forces)
+    assert reference_grid(scene, 0.07).size > FULL_GRID_SMALL_CELLS_PER_TIP * 81
+    assert full_grid_route(scene, 0.07) is None

@@ -44,7 +44,7 @@ from .memory_costs import BASE_BYTES, GRID_BYTES_PER_CELL, PATCH_BYTES_PER_CELL,
 from .memory_costs import COUPLING_CACHE_BYTES, MARGIN, MERGE_GROWTH, MACRO_DENSE_MAX, DENSE_CELLS
 from .memory_costs import FAR_OPERATOR_BYTES_PER_PATCH
 from .memory_costs import DENSE_GRID_CELLS, BLOCK_PROVIDER_BYTES, DEFAULT_FRACTION, ADVICE_SHARE
-from .micro.policy import FAR_FIELD_MIN_PATCHES, FULL_GRID_CELLS_PER_TIP, FULL_GRID_MAX_TIPS, UNION_MIN_COVERAGE
+from .micro.policy import FAR_FIELD_MIN_PATCHES, FULL_GRID_MAX_TIPS, UNION_MIN_COVERAGE, full_grid_max_cells
 from .micro.policy import full_grid_route as policy_full_grid_route
 from .micro.sources import KEPT_BYTES_PER_OWNED_CELL
 from .pivot import pivot_route
@@ -236,11 +236,11 @@ def full_grid_route(scene: Scene, h: float) -> str | None:
     from .reference.on_scene import reference_grid
 
     n = len(scene.asperities)
-    if n <= FULL_GRID_MAX_TIPS:
-        return policy_full_grid_route(int(reference_grid(scene, h).size))
     tips = 0 if scene.tilt else n
+    if n <= FULL_GRID_MAX_TIPS:
+        return policy_full_grid_route(int(reference_grid(scene, h).size), tips)
     x, y = (np.array([getattr(a, f) for a in scene.asperities]) for f in "xy")
-    if (np.ptp(x) / h + 1.0) * (np.ptp(y) / h + 1.0) > FULL_GRID_CELLS_PER_TIP * tips:
+    if (np.ptp(x) / h + 1.0) * (np.ptp(y) / h + 1.0) > full_grid_max_cells(tips):
         return None  # the tips' own box already has more cells a tip
     return policy_full_grid_route(int(reference_grid(scene, h).size), tips)
 

@@ -63,8 +63,7 @@ AUTO_FAR_TOL = 0.3
 #: merged spheres 0.17 against 0.03 (the macro step's safe path alone 0.11 s); from 8,700
 #: cells the two-scale solve ran at 0.5-1.1x (median 0.7).
 FULL_GRID_MAX_CELLS = 5_000
-#: Scenes with more tips than this are not tried for that route by its cell count alone
-#: (their full grid is larger, and sizing it costs a loop over the tips).
+#: More tips than this: not tried for that route by cell count alone (sizing costs a loop).
 FULL_GRID_MAX_TIPS = 64
 #: An untilted tip scene whose full grid has at most this many cells a tip is that grid's
 #: one CG too: the macro step and the patches cost 50-150 us a tip, the full grid's CG about
@@ -73,6 +72,16 @@ FULL_GRID_MAX_TIPS = 64
 #: 7,610 paraboloids on 154,449 (20.3) 1.24 against 0.78; 9,129 on 346,921 (38) 1.19
 #: against 1.82; 9,872 spheres under load and a free tilt on 291,060 (29.5) 5.0 against 24.
 FULL_GRID_CELLS_PER_TIP = 25
+#: On a grid of at most ``FULL_GRID_SMALL_CELLS`` the union CG's box is about the grid from more cells a
+#: tip, with the macro step and patches (0.2-0.3 ms a tip) on top. Seeds 0-4, CPU against the full grid:
+#: 79 spheres on 12,769 cells (162 a tip, box 93 %) 1.12x; 49 on 11,880 (242) 0.89x, 20 on 6,450 0.92x.
+FULL_GRID_SMALL_CELLS = 20_000
+FULL_GRID_SMALL_CELLS_PER_TIP = 200
+
+
+def full_grid_max_cells(tips: int) -> int:
+    """The largest full grid solved as its one CG by the cells-a-tip rules for ``tips`` tips."""
+    return max(FULL_GRID_CELLS_PER_TIP * tips, min(FULL_GRID_SMALL_CELLS_PER_TIP * tips, FULL_GRID_SMALL_CELLS))
 
 
 def full_grid_route(cells: int, tips: int = 0) -> str | None:
@@ -84,10 +93,10 @@ def full_grid_route(cells: int, tips: int = 0) -> str | None:
             f"the full grid has {cells:,} cells (at most {FULL_GRID_MAX_CELLS:,}): one constrained CG "
             "over it is the cheapest solve, the two-scale macro step alone costs as much"
         )
-    if cells > FULL_GRID_CELLS_PER_TIP * tips:
+    if cells > full_grid_max_cells(tips):
         return None
     return (
-        f"the full grid has {cells / tips:.3g} cells a tip (at most {FULL_GRID_CELLS_PER_TIP}): "
+        f"the full grid has {cells / tips:.3g} cells a tip (at most {full_grid_max_cells(tips) / tips:.3g}): "
         "one constrained CG over it costs less than the macro step and the patches of its tips"
     )
 
@@ -141,7 +150,6 @@ class Choice:
     far_tol : float or None
         Far-field coupling tolerance; None = every pair of patches exact.
     reason : str
-        One sentence a user can read.
     estimates : dict
         Scene figures and cost estimates (grid-product work units) behind the choice.
     by_caller : bool
@@ -223,11 +231,9 @@ def union_limit(block_seconds: dict, model: CostModel = FITTED) -> float:
     predictions ``block_seconds``: ``model.union_margin`` times the exact block iterations'
     (measured on scenes of under 100 patches, where their few large patches run faster as
     one CG than the work estimate says), and ``model.far_union_margin`` times the far-field
-    two-level iteration's. The one margin of 1.7 on both hedged that iteration's failures
-    where contacts merge (281 paraboloids, predicted 1.16x: its attempt failed, then the
-    union CG); with touching contacts as one block it converges there (6 sweeps, 3.9 s of
-    CPU against the union CG's 3.6 s), and the margin of 1.7 sent scenes to a far slower
-    union CG (814 spheres under load, predicted 1.35x: over 110 s of CPU against 40 s)."""
+    two-level iteration's. A margin of 1.7 on both had sent scenes to a far slower union CG
+    (814 spheres under load, predicted 1.35x: over 110 s of CPU against 40 s); the far-field
+    iteration now converges where contacts merge (281 paraboloids: 3.9 s against 3.6 s)."""
     limits = [model.union_margin * block_seconds["block-gs"]] if "block-gs" in block_seconds else []
     limits += [model.far_union_margin * block_seconds["two-level"]] if "two-level" in block_seconds else []
     return min(limits, default=math.inf)
