@@ -72,9 +72,8 @@ FULL_GRID_MAX_TIPS = 64
 #: 7,610 paraboloids on 154,449 (20.3) 1.24 against 0.78; 9,129 on 346,921 (38) 1.19
 #: against 1.82; 9,872 spheres under load and a free tilt on 291,060 (29.5) 5.0 against 24.
 FULL_GRID_CELLS_PER_TIP = 25
-#: On a grid of at most ``FULL_GRID_SMALL_CELLS`` the union CG's box is about the grid from more cells a
-#: tip, with the macro step and patches (0.2-0.3 ms a tip) on top. Seeds 0-4, CPU against the full grid:
-#: 79 spheres on 12,769 cells (162 a tip, box 93 %) 1.12x; 49 on 11,880 (242) 0.89x, 20 on 6,450 0.92x.
+#: Small grids: the union CG's box is about the grid, plus 0.2-0.3 ms a tip of macro step and patches.
+#: CPU against the full grid: 79 spheres on 12,769 cells (162 a tip) 1.12x; 242 a tip 0.89x, 322 0.92x.
 FULL_GRID_SMALL_CELLS = 20_000
 FULL_GRID_SMALL_CELLS_PER_TIP = 200
 
@@ -150,6 +149,7 @@ class Choice:
     far_tol : float or None
         Far-field coupling tolerance; None = every pair of patches exact.
     reason : str
+        One sentence a user can read.
     estimates : dict
         Scene figures and cost estimates (grid-product work units) behind the choice.
     by_caller : bool
