@@ -23,6 +23,7 @@ SOLVER_MODULES = (
     "twoscale",
     "twoscale.micro.driver",
     "twoscale.reference.on_scene",
+    "twoscale.full_grid",
     "twoscale.driver",
     "scipy.interpolate",
     "scipy.optimize",

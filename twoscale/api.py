@@ -286,10 +286,9 @@ def _run_method(scene: Scene, provider: InfluenceProvider, h: float, method: str
     if method == "twoscale" and not set(options) - {"progress"}:
         route = full_grid_route(scene, h) if not options else pivot_route(scene)
     if route is not None:  # the smallest scenes: their full grid's one CG, said in the result
-        from .reference.on_scene import solve_reference_scene
+        from .full_grid import solve_full_grid
 
-        result = solve_reference_scene(scene, provider, h, solver="auto")
-        return dataclasses.replace(result, message=f"default route: {route}; {result.message}".rstrip("; "))
+        return solve_full_grid(scene, provider, h, route)
     if method == "twoscale":
         from .driver import solve_twoscale
 
