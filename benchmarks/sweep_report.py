@@ -110,10 +110,14 @@ def table(records: list[dict]) -> str:
 
 
 def _route(record: dict) -> str:
-    """What the default ran: a default route's full grid is the reference's own CG (its
-    ratio to the reference is the host's noise plus the route's decision)."""
+    """What the default ran: a default route's full grid is the reference's own solver on
+    the smallest grids (its ratio to the reference is the host's noise) and otherwise the
+    reference's grid with a preconditioned or float32 CG (the message says which)."""
     choice = record["ts"].get("choice")
-    return "the reference's own CG" if choice == "full-grid" else str(choice)
+    if choice != "full-grid":
+        return str(choice)
+    own = "the reference's own solver" in str(record["ts"].get("message", ""))
+    return "the reference's own solver" if own else "the full grid's CG"
 
 
 def summary(records: list[dict]) -> str:

@@ -46,8 +46,14 @@ def test_the_table_and_summary_name_the_scenes_that_missed_it():
     assert "above 1.0x: 0" in text
     slow, route = _record(10, 10.0, 0.05, 1.2), _record(11, 10.0, 0.05, 1.1)
     route["ts"]["choice"] = "full-grid"
-    text = summary([*records, route, slow])
-    assert "above 1.0x: 2: #10 1.20x (union-cg), #11 1.10x (the reference's own CG)" in text
+    route["ts"]["message"] = "default route: the full grid has 900 cells; the reference's own solver; stable"
+    cg = _record(12, 10.0, 0.05, 1.05)
+    cg["ts"].update(choice="full-grid", message="default route: the full grid has 2,000 cells; preconditioned CG")
+    text = summary([*records, route, slow, cg])
+    assert (
+        "above 1.0x: 3: #10 1.20x (union-cg), #11 1.10x (the reference's own solver), "
+        "#12 1.05x (the full grid's CG)" in text
+    )
     rows = table(records).splitlines()
     assert "contact %" in rows[0] and "0.3x target" in rows[0]
     assert any("| 10 | missed |" in r for r in rows) and any("| 50 | - |" in r for r in rows)
