@@ -282,3 +282,14 @@ def test_step_error_refused_without_rolling(tmp_path, capsys):
     assert main(["solve", str(scene), "--out", str(out), "--step-error"]) == 2
     err = capsys.readouterr().err
     assert len(err.strip().splitlines()) == 1 and "--step-error" in err and not out.exists()
+
+
+def test_a_single_position_writes_the_bands_header_only(strip_file, tmp_path):
+    """start = end: one position, no spectrum; bands.csv is still there, header only, as a run
+    too short for any band writes it."""
+    out = tmp_path / "run"
+    assert main(["solve", _scene(strip_file, end="-4.0"), "--out", str(out), "--quiet"]) == 0
+    with open(out / "bands.csv", newline="") as fh:
+        assert list(csv.reader(fh)) == [["band_Hz", "level_dB"]]
+    with open(out / "signals.csv", newline="") as fh:
+        assert len(list(csv.reader(fh))) == 2
