@@ -137,6 +137,22 @@ def test_a_scene_for_another_body_is_refused():
         solver.solve(block)
 
 
+@pytest.mark.parametrize("forget", ["reset", "start_none"])
+def test_another_body_is_refused_after_the_start_is_forgotten(forget):
+    """The body is kept whatever the start: after reset() (or a cold start), a block scene
+    or another modulus is refused, not solved on the kept half-space."""
+    solver = twoscale.ContactSolver()
+    solver.solve(_scene())
+    if forget == "reset":
+        solver.reset()
+    start = {"start": None} if forget == "start_none" else {}
+    block = dataclasses.replace(_scene(), influence=twoscale.scene.Influence(kind="block", size=(60, 60, 10)))
+    softer = dataclasses.replace(_scene(), material=twoscale.Material(_scene().material.E / 2, 0.5))
+    for other in (block, softer):
+        with pytest.raises(ValueError, match="make another ContactSolver"):
+            solver.solve(other, **start)
+
+
 @pytest.mark.parametrize(
     "bad, match",
     [

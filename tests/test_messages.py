@@ -276,3 +276,33 @@ def test_a_memory_refusal_under_load_names_the_modulus_that_makes_the_contact_la
     assert "\n" not in err and err.startswith("error: ")
     assert "load.total = 5 N" in err and "material.E = 1e-12 MPa" in err
     assert not out.exists()
+
+
+def test_a_load_history_on_too_coarse_a_grid_is_warned_of():
+    """A step load's first answer is the glassy body's, whose contacts are the history's
+    smallest: a cell size that leaves them under 4 cells across is warned of as for one
+    load (at the glassy modulus a 10 N sphere of R 10 mm touches over about 1 mm: Hertz),
+    one coarser than them all too (a warning: the relaxed answers may be resolved), and a
+    history's default cell size is silent."""
+    import warnings
+
+    import twoscale
+    from twoscale.api import ResolutionWarning
+    from twoscale.scene import Scene
+    from twoscale.indenters import Asperity
+    from twoscale.viscoelastic import LoadHistory
+
+    tip = (Asperity(0.0, 0.0, 0.0, 10.0),)
+    mat = Material(5.0, 0.5, prony=((45.0, 1e-2),))  # glassy 50 MPa
+    hist = LoadHistory("total", ((0.0, 10.0), (0.05, 10.0)), output=(0.0, 0.05))
+    a_glassy = (3 * 10.0 * 10.0 * (1 - 0.25) / (4 * 50.0)) ** (1 / 3)  # mm, Hertz radius
+    for h, says in ((0.5 * a_glassy, "cells across"), (3.0 * a_glassy, "coarser than every")):
+        scene = Scene(material=mat, history=hist, asperities=tip, h=h)
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            twoscale.solve(scene)
+        messages = [str(w.message) for w in caught if issubclass(w.category, ResolutionWarning)]
+        assert len(messages) == 1 and "glassy" in messages[0] and says in messages[0]
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", ResolutionWarning)
+        twoscale.solve(Scene(material=mat, history=hist, asperities=tip))

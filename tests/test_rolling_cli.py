@@ -145,6 +145,20 @@ def test_viscoelastic_rolling_through_the_cli(strip_file, tmp_path):
     with open(out / "signals.csv", newline="") as fh:
         rows = list(csv.reader(fh))
     assert rows[0][-1] == "drag_N" and len(rows) == 4
+    if __import__("importlib").util.find_spec("matplotlib"):  # the elastic run's figures, all three
+        assert all((out / f"{name}.png").is_file() for name in ("signals", "bands", "space_time"))
+
+
+@pytest.mark.parametrize(
+    "option, words",
+    [((), "one CG over the kept window"), (("--iteration", "block-gs"), "each position a two-scale solve")],
+)
+def test_the_summary_says_how_the_positions_were_solved(strip_file, capsys, option, words):
+    """--iteration other than auto runs every position as a two-scale solve (far slower on a
+    tyre): the first line says which path ran, as rolling.json's method."""
+    assert main(["solve", _scene(strip_file), *option]) == 0
+    first = capsys.readouterr().out.splitlines()[0]
+    assert first.endswith(words)
 
 
 def test_rolling_json_lists_the_runs_warnings(strip_file, tmp_path, capsys):
@@ -268,3 +282,14 @@ def test_step_error_refused_without_rolling(tmp_path, capsys):
     assert main(["solve", str(scene), "--out", str(out), "--step-error"]) == 2
     err = capsys.readouterr().err
     assert len(err.strip().splitlines()) == 1 and "--step-error" in err and not out.exists()
+
+
+def test_a_single_position_writes_the_bands_header_only(strip_file, tmp_path):
+    """start = end: one position, no spectrum; bands.csv is still there, header only, as a run
+    too short for any band writes it."""
+    out = tmp_path / "run"
+    assert main(["solve", _scene(strip_file, end="-4.0"), "--out", str(out), "--quiet"]) == 0
+    with open(out / "bands.csv", newline="") as fh:
+        assert list(csv.reader(fh)) == [["band_Hz", "level_dB"]]
+    with open(out / "signals.csv", newline="") as fh:
+        assert len(list(csv.reader(fh))) == 2

@@ -200,3 +200,27 @@ def test_step_not_a_multiple_of_the_spacing_resamples_the_road(strip):
         ref, _ = _static_on_map(fine, float(run.shifts[k]), spec, total_load=60.0)
         assert run.penetration[k] == pytest.approx(ref.penetration, abs=1e-6)
         assert run.contact_area[k] == pytest.approx(ref.contact_area, abs=2 * 0.2**2)
+
+
+def test_tips_whose_centre_leaves_the_window_do_not_touch():
+    """Tips on the half-space under a flat footprint: a tip whose box overlaps the window
+    but whose centre lies outside it (x = 13 mm against the window's end at 10 mm) stays out,
+    as a static study's tips outside the footprint; each position is then the static
+    twoscale.solve of the tips whose centre is inside, moved by the shift."""
+    import dataclasses
+
+    import twoscale
+
+    tips = (
+        Asperity(0.0, 0.0, 0.0, 3.0, "paraboloid"),
+        Asperity(-5.0, 2.0, 0.05, 3.0, "paraboloid"),
+        Asperity(13.0, 0.0, 0.0, 3.0, "paraboloid"),
+    )
+    spec = RollingSpec(start=-2.0, end=2.0, step=1.0, speed=20.0, footprint=(20.0, 10.0))
+    run = roll(Scene(material=MAT, asperities=tips, penetration=0.3, rolling=spec, h=0.1))
+    assert run.all_converged and len(run.shifts) == 5
+    assert 3 not in set(run.asperities.stone.tolist())  # numbered from 1: the third tip
+    for k, s in enumerate(run.shifts):
+        inside = tuple(dataclasses.replace(a, x=a.x + s) for a in tips[:2])
+        static = twoscale.solve(Scene(material=MAT, asperities=inside, penetration=0.3, h=0.1))
+        assert run.total_load[k] == pytest.approx(static.total_load, rel=1e-5)

@@ -75,3 +75,20 @@ def test_drag_work_is_the_energy_stored_and_dissipated(strip):
         energy = run.stored[-1] - run.stored[0] + float(np.sum(run.dissipated[1:]))
         assert run.all_converged and energy > 0
         assert abs(run.drag_work() / energy - 1.0) < 0.02
+
+
+def test_viscoelastic_run_records_the_line_load(strip):
+    """The space-time picture's line load (pressure summed across y) of a viscoelastic run:
+    far slower than every branch it is the relaxed elastic run's, column by column on the
+    lattice of cell h, and over x it sums to the run's total load at every position."""
+    slow = roll(_scene(strip, 1e-6, Material(10.0, 0.5, prony=PRONY)))
+    elastic = roll(_scene(strip, 1e-6, Material(10.0, 0.5)))
+    assert slow.line_load.shape == (len(slow.shifts), slow.line_x.size) and slow.line_x.size > 0
+    assert np.allclose(slow.line_load.sum(axis=1) * slow.h, slow.total_load, rtol=1e-9)
+    lo = int(round(min(slow.line_x[0], elastic.line_x[0]) / slow.h))
+    hi = int(round(max(slow.line_x[-1], elastic.line_x[-1]) / slow.h)) + 1
+    on = np.zeros((2, len(slow.shifts), hi - lo))
+    for k, run in enumerate((slow, elastic)):
+        i = int(round(run.line_x[0] / run.h)) - lo
+        on[k, :, i : i + run.line_x.size] = run.line_load
+    assert np.allclose(on[0], on[1], atol=5e-3 * float(on[1].max()))

@@ -196,6 +196,9 @@ def test_cli_runs_on_two_workers_and_lists_bands(study_file, tmp_path, capsys):
         ),
         (("seed = 7 }", "seed = 7 }\nseeds = [1, 2]"), "generate.seed or seeds"),
         (("E = 10.0\nnu = 0.5\nprony", "E = -1.0\nnu = 0.5\nprony"), "material 2: material.E must be"),
+        (("speeds = [1.8, 50.0]", "speed = [1.8, 50.0]"), "a list goes in rolling.speeds"),
+        (("[load]", '[[scene]]\nfile = "S2.toml"\n\n[load]'), "scene is a static study's table"),
+        (("[rolling]\nstart = -3.0\nend = -1.0\nstep = 1.0\nspeeds = [1.8, 50.0]\n", ""), "no [rolling] table"),
     ],
 )
 def test_bad_input_is_one_line_and_nothing_written(study_file, tmp_path, capsys, change, words):

@@ -139,3 +139,16 @@ def test_a_penetration_history_from_zero_writes_every_file(tmp_path):
     with open(out / "history.csv", newline="") as fh:
         rows = list(csv.DictReader(fh))
     assert float(rows[0]["total_load_N"]) == 0.0 and float(rows[-1]["total_load_N"]) > 0.0
+
+
+@pytest.mark.parametrize(
+    "load, given",
+    [("cases = [0.5, 2.0]", "got load cases [0.5, 2.0]"), ("total = 2.0", "got a single value 2.0")],
+)
+def test_prony_without_a_history_names_what_was_given(tmp_path, capsys, load, given):
+    """Load cases or one load on a Prony material: the one line says which it got."""
+    text = SCENE.format(tilt="").replace("total = [[0, 2.0], [2, 2.0], [3, 0.5]]", load)
+    text = text.replace("[time]\noutput = [0, 0.5, 2, 2.5, 3]\n", "")
+    assert main(["solve", str(_write(tmp_path, text)), "--quiet"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "material.prony needs a load history" in err[0] and err[0].endswith(given)

@@ -200,6 +200,7 @@ def solve(
             raise ValueError("a scene with a load history runs with method 'twoscale' or 'reference', not a callable")
         if check_memory:  # as for one load: before the history's grids are allocated
             _check_memory(scene, history_h(scene), method, options, memory_limit, h is not None)
+        _check_history_resolution(scene, history_h(scene) if h is None else float(h))
         history = solve_history(
             scene, method=method, provider=provider, h=h, provider_options=provider_options, **options
         )
@@ -234,6 +235,17 @@ def solve(
     result = with_setting(result, scene, provider)
     # what came from the on-disk caches (block corrections, surface laws), for result.json
     return dataclasses.replace(result, caches=usage_since(caches_before, solve_caches(provider, scene)))
+
+
+def _check_history_resolution(scene: Scene, h: float) -> None:
+    """Warn as for one load (:func:`check_resolution`) when ``h`` leaves a history's contacts
+    few cells across: they are smallest at the glassy modulus (the answer just after a step),
+    checked at the history's peak value. Only a warning: the later answers may be resolved."""
+    from .viscoelastic.solve import elastic_scene, history_h
+
+    glassy = dataclasses.replace(elastic_scene(scene), material=scene.material.at_modulus(scene.material.E_glassy))
+    rule = f"a history's default rule gives h = {history_h(dataclasses.replace(scene, h=None)):.3g} mm"
+    check_resolution(glassy, h, context="at the glassy modulus and the history's peak, ", advice=rule)
 
 
 def _check_call(scene: Scene, method: Any, provider: Any, provider_options: Any) -> None:

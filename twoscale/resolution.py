@@ -214,12 +214,20 @@ MIN_CELLS_ACROSS = 4
 
 
 def check_resolution(
-    scene: Scene, h: float, *, forces: np.ndarray | None = None, radii: np.ndarray | None = None
+    scene: Scene,
+    h: float,
+    *,
+    forces: np.ndarray | None = None,
+    radii: np.ndarray | None = None,
+    context: str = "",
+    advice: str | None = None,
 ) -> None:
     """Refuse a cell size coarser than every expected contact, and warn when a contact
     that matters (expected force >= 1 % of the largest) gets fewer than
     :data:`MIN_CELLS_ACROSS` cells across; both name the default rule's ``h``.
-    ``forces``, ``radii``: :func:`~twoscale.scene.expected_contacts`, when already known."""
+    ``forces``, ``radii``: :func:`~twoscale.scene.expected_contacts`, when already known.
+    ``context`` (e.g. "at the glassy modulus, "): only warn, the message starting with it;
+    ``advice``: the cell size to suggest in place of the default rule's."""
     import warnings
 
     force, a = expected_contacts(scene) if forces is None or radii is None else (forces, radii)
@@ -227,19 +235,23 @@ def check_resolution(
         return
     across = 2.0 * a / h
     if across.max() < 1.0:
-        raise SceneError(
-            f"cell size h = {h:g} mm is coarser than every expected contact (the largest "
-            f"about {2 * a.max():.2g} mm across): use a smaller h (the default rule gives "
-            f"{default_h(dataclasses.replace(scene, h=None)):g} mm)"
+        rule = advice or f"the default rule gives {default_h(dataclasses.replace(scene, h=None)):g} mm"
+        message = (
+            f"{context}cell size h = {h:g} mm is coarser than every expected contact (the largest "
+            f"about {2 * a.max():.2g} mm across): use a smaller h ({rule})"
         )
+        if not context:
+            raise SceneError(message)
+        warnings.warn(ResolutionWarning(message), stacklevel=3)
+        return
     matters = force >= MIN_FORCE_FRACTION * force.max()
     k = int(np.argmin(np.where(matters, across, np.inf)))
     if across[k] < MIN_CELLS_ACROSS:
         warnings.warn(
             ResolutionWarning(
-                f"cell size h = {h:g} mm gives asperity {k + 1}'s expected contact (about {2 * a[k]:.2g} mm "
-                f"across) only {across[k]:.1f} cells across: its force may be off by 10 % or more "
-                f"({_default_rule_text(scene)})"
+                f"{context}cell size h = {h:g} mm gives asperity {k + 1}'s expected contact (about {2 * a[k]:.2g} "
+                f"mm across) only {across[k]:.1f} cells across: its force may be off by 10 % or more "
+                f"({advice or _default_rule_text(scene)})"
             ),
             stacklevel=3,
         )

@@ -246,10 +246,14 @@ class Scene:
             _check_rolling(self)
         if hist is None:
             if self.material.viscoelastic and self.rolling is None:
+                given = (
+                    f"load cases {list(self.load_cases)!r}"
+                    if len(self.load_cases)
+                    else f"a single value {self.total_load if self.total_load is not None else self.penetration!r}"
+                )
                 raise SceneError(
                     "material.prony needs a load history: write load.total (or load.penetration) "
-                    f"as [[t, value], ...] (s; N or mm), got a single value "
-                    f"{self.total_load if self.total_load is not None else self.penetration!r}"
+                    f"as [[t, value], ...] (s; N or mm), got {given}"
                 )
             return
         if not isinstance(hist, LoadHistory):

@@ -50,12 +50,11 @@ MAX_CACHE_BYTES = TABLE_CACHE_BYTES + OPERATOR_CACHE_BYTES
 
 @dataclasses.dataclass(frozen=True)
 class _Previous:
-    """What the last solve leaves for the next: its tips, cell size, result and body kind."""
+    """What the last solve leaves for the next: its tips, cell size and result."""
 
     tips: np.ndarray
     h: float
     result: ContactResult
-    influence: Any
 
 
 class ContactSolver:
@@ -114,6 +113,7 @@ class ContactSolver:
         self.caches = OperatorCaches(share * max_cache_bytes, (1.0 - share) * max_cache_bytes)
         self._body = body
         self._body_given = body is not None
+        self._influence: Any = None  # the scene's influence the body was built from
         self._previous: _Previous | None = None
         self._solves = 0
         self._built: tuple = ()
@@ -218,14 +218,20 @@ class ContactSolver:
 
     # ------------------------------------------------------------------ state
     def _bind_body(self, scene: Scene) -> InfluenceProvider:
+        """The kept body; built from the first scene, whose influence and modulus every later
+        scene must share (checked whatever was kept: after :meth:`reset` and load histories too)."""
         if self._body is None:
             self._body = scene.provider()
+            self._influence = scene.influence
             self._built = self._body.cache_usage()  # recorded by the first solve on it
-        elif not self._body_given and self._previous is not None and scene.influence != self._previous.influence:
-            raise ValueError(
-                f"this solver's body was built for influence {self._previous.influence!r}; "
-                f"the scene asks for {scene.influence!r}: make another ContactSolver"
-            )
+        elif not self._body_given:
+            built, asked = self._body.material, scene.material
+            if scene.influence != self._influence or (built.E, built.nu) != (asked.E, asked.nu):
+                raise ValueError(
+                    f"this solver's body was built for influence {self._influence!r} and "
+                    f"{built.relaxed()!r}; the scene asks for {scene.influence!r} and "
+                    f"{asked.relaxed()!r}: make another ContactSolver"
+                )
         return self._body
 
     def _start(self, scene: Scene, h: float, start: Any, index) -> WarmStart | None:
@@ -248,7 +254,7 @@ class ContactSolver:
         tips = np.array([[a.x, a.y] for a in scene.asperities], dtype=float).reshape(-1, 2)
         if _fields_bytes(result) > self.max_start_bytes:
             result = dataclasses.replace(result, fields=())  # the macro start only
-        self._previous = _Previous(tips, float(h), result, scene.influence)
+        self._previous = _Previous(tips, float(h), result)
 
     def _kept_bytes(self) -> int:
         prev = self._previous

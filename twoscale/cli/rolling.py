@@ -143,12 +143,20 @@ def frame_grid(track):
     return Grid.covering(x0, x1, y0, y1, h)
 
 
+#: How the positions were solved, as the summary's first line says it (``rolling.json`` ``method``).
+_METHOD_WORDS = {
+    "window-cg": "each position one CG over the kept window",
+    "twoscale": "each position a two-scale solve",
+}
+
+
 def summary(result, scene_path: str, wall: float, out) -> str:
     """What a user reads after a rolling run."""
     n = len(result.shifts)
     bad = int(np.sum(~result.converged))
     lines = [
-        f"twoscale solve {scene_path}: rolling, {result.body}, {result.control} control",
+        f"twoscale solve {scene_path}: rolling, {result.body}, {result.control} control, "
+        f"{_METHOD_WORDS.get(result.method, result.method)}",
         f"  positions    {n}, shift {result.shifts[0]:g} to {result.shifts[-1]:g} mm by {result.spec.step:g} mm at "
         f"{result.spec.speed:g} km/h ({result.times[-1]:.4g} s); cell size {result.h:g} mm",
         f"  converged    {'all' if bad == 0 else f'{n - bad} of {n}'}",

@@ -227,13 +227,15 @@ def write_signal_products(result, scene, out_dir, *, figures: bool = True, name:
 
     out, written = Path(out_dir), []
     record = scene_to_dict(scene)  # the figures' titles and PNG metadata take the scene's record
-    if _have("twoscale.rolling.bands") and len(result.shifts) >= 2:
+    if _have("twoscale.rolling.bands"):
         from ..rolling.bands import REF_APPROACH, REF_FORCE, third_octave_levels
 
         force = result.control == "penetration"
         ref = REF_FORCE if force else REF_APPROACH
-        levels = third_octave_levels(band_signal(result), result.spec.step / result.spec.speed_mm_s, reference=ref)
-        cols = levels.columns()
+        cols, resolution = {"band_Hz": [], "level_dB": []}, None  # one position: no spectrum, the header only
+        if len(result.shifts) >= 2:
+            levels = third_octave_levels(band_signal(result), result.spec.step / result.spec.speed_mm_s, reference=ref)
+            cols, resolution = levels.columns(), levels.resolution
         rows = [{"band_Hz": float(f), "level_dB": float(v)} for f, v in zip(cols["band_Hz"], cols["level_dB"])]
         what = "total force, dB re 1 N" if force else "approach, dB re 1 um"
         written += write_table(
@@ -245,7 +247,7 @@ def write_signal_products(result, scene, out_dir, *, figures: bool = True, name:
             record={
                 "signal": "total_load_N" if force else "penetration_mm",
                 "reference": ref,
-                "resolution_Hz": levels.resolution,
+                "resolution_Hz": resolution,
                 "units": UNITS,
             },
         )

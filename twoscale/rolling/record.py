@@ -25,12 +25,12 @@ class Recorder:
         """Record one solved position."""
         self.rows.append(_row(pos))
         self.stones.append(_stone_rows(pos))
-        self.lines.append(_line_load(pos.result))
+        self.lines.append(line_load_of(pos.result))
 
     def result(self, track: Track, timings: dict, method: str) -> RollingResult:
         """The run's result: every recorded position, the timings (s) and the solver used."""
         cols = list(zip(*self.rows))
-        line_x, line_load = _lines(self.lines, track.h)
+        line_x, line_load = lines_on_lattice(self.lines, track.h)
         stones = np.concatenate(self.stones) if self.stones else np.zeros((0, 4))
         return RollingResult(
             spec=track.spec,
@@ -85,7 +85,7 @@ def _stone_rows(pos: Position) -> np.ndarray:
     )
 
 
-def _line_load(result: ContactResult) -> tuple[int, np.ndarray]:
+def line_load_of(result: ContactResult) -> tuple[int, np.ndarray]:
     """Pressure summed across y (x the cell size), N/mm, per cell column: (first column's
     lattice index round(x / h), values)."""
     if not result.fields:
@@ -99,7 +99,7 @@ def _line_load(result: ContactResult) -> tuple[int, np.ndarray]:
     return i0, out
 
 
-def _lines(lines: list, h: float) -> tuple[np.ndarray, np.ndarray]:
+def lines_on_lattice(lines: list, h: float) -> tuple[np.ndarray, np.ndarray]:
     """The line loads of every position on one lattice of columns."""
     used = [(i0, v) for i0, v in lines if v.size]
     if not used:

@@ -267,7 +267,7 @@ class Road:
         else:
             for k in self.candidates(shift, bound):
                 stone = self._tip(self.tips[k], shift, face)
-                if stone.z < bound:
+                if stone is not None and stone.z < bound:
                     out.append(stone)
                     numbers.append(int(k))
         return Selection(tuple(out), np.array(numbers, dtype=np.int64), float(shift))
@@ -329,13 +329,17 @@ class Road:
         out[:-1] = self.face.height(self.columns + shift, self.window[2])
         return out
 
-    def _tip(self, a: Asperity, shift: float, face: Face) -> ShiftedTip:
+    def _tip(self, a: Asperity, shift: float, face: Face) -> ShiftedTip | None:
         """A sphere or paraboloid at ``shift``: on the face's tilt g its lowest point moves
-        by -g R along x and sinks by g^2 R / 2 (first order in g)."""
+        by -g R along x and sinks by g^2 R / 2 (first order in g). None when its centre is
+        outside the face's window: such a tip does not touch (as a static study's tips
+        outside the footprint), though its box may overlap the window."""
         xb = a.x + shift
         g = face.slope(xb)
         dx = -g * a.R if abs(g) < 0.5 else 0.0
         z = a.z + float(face.height(np.array(xb), np.array(a.y))) - 0.5 * g * g * a.R * (abs(g) < 0.5)
+        if not math.isfinite(z):
+            return None
         return ShiftedTip(xb + dx, a.y, z, a.R, a.shape, base=a, shift=shift, face=face)
 
     def road_slope(self, selection: Selection, X, Y, owner) -> np.ndarray:

@@ -33,6 +33,7 @@ import numpy as np
 
 from ..errors import SceneError
 from ..grid import Grid
+from .record import line_load_of, lines_on_lattice
 from .result import Position, RollingResult, StoneSignals
 from .road import Road, Selection, ShiftedBasins
 from .track import Track, footprint_length
@@ -138,6 +139,7 @@ def roll_viscoelastic(track: Track, *, tol: float = 1e-6, progress=None, on_posi
     scene = track.scene
     numbers = run_stones(track)
     indenter = RoadIndenter(track.road, numbers)
+    lines: list = []  # each position's line load, for the space-time picture
     provider = dataclasses.replace(
         scene, material=scene.material.relaxed(), rolling=None, surface=None, asperities=(_stand_in(),)
     ).provider()
@@ -163,10 +165,15 @@ def roll_viscoelastic(track: Track, *, tol: float = 1e-6, progress=None, on_posi
         total_load=scene.total_load,
         options=options,
         progress=progress,
-        on_step=_positions(numbers, on_position),
+        on_step=_positions(numbers, on_position, lines),
     )
     return _result(
-        track, numbers, moving, time.perf_counter() - t0, "window-cg" if options.method == "cg" else "twoscale"
+        track,
+        numbers,
+        moving,
+        time.perf_counter() - t0,
+        "window-cg" if options.method == "cg" else "twoscale",
+        lines_on_lattice(lines, track.h),
     )
 
 
@@ -177,19 +184,20 @@ def _stand_in():
     return Asperity(0.0, 0.0, 0.0, 1.0)
 
 
-def _positions(numbers: np.ndarray, on_position):
-    """``solve_moving``'s ``on_step`` calling ``on_position`` with a
-    :class:`~twoscale.rolling.run.Position` (None without it)."""
-    if on_position is None:
-        return None
+def _positions(numbers: np.ndarray, on_position, lines: list):
+    """``solve_moving``'s ``on_step``: appends each position's line load (pressure summed
+    across y) to ``lines`` and calls ``on_position`` with a
+    :class:`~twoscale.rolling.run.Position` when given."""
 
     def on_step(n: int, shift: float, result, summary=None) -> None:
-        on_position(Position(n, Selection((), numbers, shift), result, float("nan"), 0.0))
+        lines.append(line_load_of(result))
+        if on_position is not None:
+            on_position(Position(n, Selection((), numbers, shift), result, float("nan"), 0.0))
 
     return on_step
 
 
-def _result(track: Track, numbers: np.ndarray, moving, seconds: float, method: str) -> RollingResult:
+def _result(track: Track, numbers: np.ndarray, moving, seconds: float, method: str, lines) -> RollingResult:
     forces, areas = np.asarray(moving.forces), np.asarray(moving.tip_areas)
     pos, k = np.nonzero(areas > 0)
     converged = np.asarray(moving.step_converged, dtype=bool)
@@ -210,6 +218,8 @@ def _result(track: Track, numbers: np.ndarray, moving, seconds: float, method: s
         iterations=moving.iterations,
         messages=tuple("" if c else (moving.message or "did not converge") for c in converged),
         asperities=StoneSignals(pos, numbers[k] + 1, forces[pos, k], areas[pos, k]),
+        line_x=lines[0],
+        line_load=lines[1],
         dissipated=moving.dissipated,
         stored=moving.stored,
         timings_s={"prepare": 0.0, "positions": seconds, "total": seconds},

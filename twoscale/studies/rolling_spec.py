@@ -108,6 +108,13 @@ def rolling_study_from_dict(
     data: Mapping, *, base: str | os.PathLike = ".", name: str = "study", source: str = ""
 ) -> RollingStudy:
     """Validate a rolling study given as nested dicts (the parsed TOML)."""
+    static = [k for k in ("scene", "positions", "sensor") if k in data]
+    if static:
+        raise StudyError(
+            f"{static[0]} is a static study's table, and this study has a [rolling] table: a study "
+            f"either rolls road sections ([[section]], [rolling]) or solves scenes at positions "
+            f"([[scene]], [positions]); put each kind in its own study file (docs/studies.md)"
+        )
     check_keys("", data, TOP_KEYS, required=("section", "body", "material", "rolling", "load"))
     head = table_of("study", data.get("study", {}))
     check_keys("study", head, ("name", "figures"))
@@ -138,6 +145,8 @@ def _rolling(t: Mapping) -> tuple[dict, tuple]:
     check_keys("rolling", t, ("start", "end", "step", "speed", "speeds"), required=("start", "end", "step"))
     if ("speed" in t) == ("speeds" in t):
         raise StudyError(f"rolling needs one of rolling.speeds (a list, km/h) and rolling.speed, got {dict(t)!r}")
+    if isinstance(t.get("speed"), list):
+        raise StudyError(f"rolling.speed must be one speed (km/h); a list goes in rolling.speeds, got {t['speed']!r}")
     given = t["speeds"] if "speeds" in t else [t["speed"]]
     if not isinstance(given, list) or not given:
         raise StudyError(f"rolling.speeds must be a non-empty list of speeds (km/h), got {given!r}")

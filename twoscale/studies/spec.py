@@ -169,6 +169,13 @@ def read_study(path: str | os.PathLike) -> Study:
 def study_from_dict(data: Mapping, *, base: str | os.PathLike = ".", name: str = "study", source: str = "") -> Study:
     """Validate a study given as nested dicts (the parsed TOML); scene files are read
     relative to ``base``."""
+    rolling = [k for k in ("section", "material") if k in data]
+    if rolling:
+        raise StudyError(
+            f"{rolling[0]} is a rolling study's table, and this study has no [rolling] table: give "
+            f"[rolling] (start, end, step, speeds) to roll the sections, or [[scene]] tables to solve "
+            f"scenes at positions (docs/studies.md)"
+        )
     _keys("", data, TOP_KEYS, required=("scene", "body"))
     head = table_of("study", data.get("study", {}))
     _keys("study", head, ("name", "method"))
