@@ -43,7 +43,7 @@ from .dissipation import BranchEnergy
 from .memory import Memory, effective_compliance
 from .moving_result import MovingResult, StepSummary
 from .prony import creep_compliance
-from .stepping import local_error
+from .stepping import largest_values, local_error
 from .steps import StepProblem, TwoScaleStep, scaled
 from .motion import MOVING_METHODS, MOTION_KEYWORDS, STARTS, Motion, MovingOptions, motion_of, sweep_grid  # noqa: F401
 
@@ -142,6 +142,7 @@ class _Roll:
         self.results: list = []
         self.last = self.before = None  # (shift, ContactResult, pressure on the grid)
         self.quantities: list = []
+        self.largest: list = []  # the largest |x| of each stepped quantity so far
 
     def _solve(self, shift: float, factor: float, u_H: np.ndarray) -> tuple:
         o = self.options
@@ -226,6 +227,7 @@ class _Roll:
                 np.asarray(result.forces, dtype=float),
             )
         )
+        self.largest = largest_values(self.largest, self.quantities[-1])
         self.records.append(
             StepSummary(
                 shift=shift,
@@ -257,7 +259,7 @@ class _Roll:
         if len(self.quantities) < 3 or not math.isfinite(self.records[-1].dt) or self.records[-1].dt <= 0:
             return math.nan
         x = self.quantities[-3:]
-        return max(local_error(a, b, c, self.records[-1].dt, dt) for a, b, c in zip(*x))
+        return max(local_error(a, b, c, self.records[-1].dt, dt, m) for a, b, c, m in zip(*x, self.largest))
 
     def result(self, shifts, times, speed: float, seconds: float) -> MovingResult:
         nb = int(self.J.lambdas.size)

@@ -24,7 +24,7 @@ from .history import LoadHistory
 from .memory import Memory, effective_compliance
 from .prony import creep_compliance
 from .result import HistoryResult, StepRecord
-from .stepping import Controller, TimeSteps, fixed_times, local_error
+from .stepping import Controller, TimeSteps, fixed_times, largest_values, local_error
 from .steps import ReferenceStep, StepProblem, TwoScaleStep
 
 #: A step that is not reported solves its micro step to this fraction of the time steps'
@@ -160,6 +160,7 @@ class _Run:
         self.outputs: list = []  # (t, ContactResult)
         self.rejected = 0
         self.last = self.prev = None
+        self.largest: list = []  # the largest |x| of each stepped quantity so far
         self.converged, self.messages = True, []
 
     # ------------------------------------------------------------ one step
@@ -189,6 +190,7 @@ class _Run:
     def _commit(self, t, dt, result, J_eff, error, seconds) -> None:
         self.memory.advance(dt, result.pressure_on(self.grid).ravel())
         self.prev, self.last = self.last, result
+        self.largest = largest_values(self.largest, self._quantities(result))
         if not result.converged:
             self.converged = False
             self.messages.append(f"t = {t:.6g} s: {result.message or 'not converged'}")
@@ -255,7 +257,7 @@ class _Run:
         if np.any((self.hist.times > t_prev) & (self.hist.times <= t_now)):
             return None
         x = [self._quantities(r) for r in (self.prev, self.last, res)]
-        return max(local_error(a, b, c, self.records[-1].dt, dt) for a, b, c in zip(*x))
+        return max(local_error(a, b, c, self.records[-1].dt, dt, m) for a, b, c, m in zip(*x, self.largest))
 
     def _quantities(self, res) -> tuple:
         """The approach (load control) or total load (penetration control), and the forces."""

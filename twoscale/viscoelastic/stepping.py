@@ -24,6 +24,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
+#: The error of a quantity is relative to its value, but never to less than this fraction of
+#: its largest value so far: an approach drawn back to zero, or a contact that opens, made the
+#: scale 1e-300 and the estimate 1e285 (the history stopped at the shortest step).
+SCALE_FLOOR = 0.01
 #: First step after a step or kink, as a fraction of the shortest relaxation time.
 FIRST_FRACTION = 0.05
 #: A mark (history or output time) at most this many steps away is reached in one step.
@@ -136,13 +140,23 @@ def first_step(shortest: float, segment: float) -> float:
     return min(FIRST_FRACTION * shortest, 0.1 * segment) if math.isfinite(shortest) else segment
 
 
-def local_error(x_prev, x_now, x_new, dt_prev: float, dt: float) -> float:
+def local_error(x_prev, x_now, x_new, dt_prev: float, dt: float, largest: float = 0.0) -> float:
     """Relative local error estimate of a step from the values of one quantity (array) at
-    the three last step ends (module docstring)."""
+    the three last step ends (module docstring), relative to the largest ``|x|`` of the
+    last two, but at least :data:`SCALE_FLOOR` times ``largest`` (the largest so far): a
+    quantity back to zero (a contact that opened) is measured against what it was, not zero."""
     x_prev, x_now, x_new = (np.asarray(v, dtype=float) for v in (x_prev, x_now, x_new))
     pred = x_now + (dt / dt_prev) * (x_now - x_prev)
-    scale = max(float(np.max(np.abs(x_new))), float(np.max(np.abs(x_now))), 1e-300)
+    local = max(float(np.max(np.abs(x_new), initial=0.0)), float(np.max(np.abs(x_now), initial=0.0)))
+    scale = max(local, SCALE_FLOOR * largest, 1e-300)
     return float(np.max(np.abs(x_new - pred))) * dt / (4.0 * (dt + dt_prev)) / scale
+
+
+def largest_values(largest: list, quantities) -> list:
+    """``largest`` (one float per quantity, or empty) raised to the largest ``|x|`` of each of
+    ``quantities`` (arrays): the running scale of :func:`local_error`."""
+    now = [float(np.max(np.abs(np.asarray(q, dtype=float)), initial=0.0)) for q in quantities]
+    return [max(a, b) for a, b in zip(largest, now)] if largest else now
 
 
 @dataclass
