@@ -108,6 +108,11 @@ class CostModel:
         ``union_min_coverage`` they do, merged or not); None: ``union_min_coverage``. The
         far field stalls where contacts crowd (28 patches at 55 %: over 5 s against 0.66 s
         for the union CG), not where a few patches cover 14-20 % of their box.
+    far_field_box_cells : int
+        On a box of at least this many cells the patches count as scattered for the far
+        field too (``sparse_far_field_min_patches``), merged or not: the union CG runs
+        every product on the whole box, the far field's blocks are the clusters of touching
+        patches on boxes of their own. 0: never.
     sparse_tilt_far_field_min_patches : int
         The same with the tilt: 43 tilted spheres under load at 14 % of their box took over
         20 s with the far field against 10.9 s exact (20 tilted ones at 5 %: 1.0 s against
@@ -152,6 +157,7 @@ class CostModel:
     far_field_min_patches: int = 100
     sparse_far_field_min_patches: int = 2
     far_field_sparse_coverage: float | None = None
+    far_field_box_cells: int = 0
     sparse_tilt_far_field_min_patches: int = 45
     map_far_field_factor: float = 1.0
     exact_max_patches: int = 400
@@ -270,6 +276,14 @@ FITTED = CostModel(
     # 0.87 / 0.86, 9 spheres under load 1.93 / 1.88; 44 with merged contacts at 16.8 %
     # 1.15 / 1.30 s (kept on the union CG); 96 at 20.4 %: union CG 1.61 s, far field 2.30
     far_field_sparse_coverage=0.2,
+    # the only two sweep scenes (seeds 0-4) of under 100 patches on a box of over 10 M cells,
+    # both on the union CG before (interleaved CPU s, fresh processes, loaded host): seed 3's
+    # #11, 93 spheres with merged contacts at 23 % of 17.5 M cells, 70.2 / 70.3 against 56.2 /
+    # 53.2 for the far field (peak 5.2 against 4.7 GB); seed 2's #120, 95 paraboloids at 25 %
+    # of 12 M, 43.7 against 16.2 / 18.0 (3.5 against 1.2 GB); forces within 3.6e-4 and 2.1e-5
+    # of the largest. Their 93 and 95 patches lie in 11 and 95 clusters of touching patch
+    # boxes, whose boxes hold 49 % and 26 % of the union box
+    far_field_box_cells=10_000_000,
     # the four maps of the sweep's two seeds on which the far field was chosen (seed 1's
     # #193, #45, #106; seed 0's #94): the union CG's prediction over the far field's is
     # 1.9-2.3 on the first three, 3.4 on #94. Moved to the union CG by this factor, the

@@ -17,8 +17,7 @@ the cheapest that is expected to converge:
 
 Work units become predicted CPU seconds by the cost model (:mod:`.costmodel`, fitted to the
 scene-space sweep's measured attempts). The choice, its reason and the estimates are
-recorded in the result; a caller may fix the
-iteration or coupling instead (``reason`` then says so).
+recorded in the result; a caller may fix the iteration or coupling instead (``reason`` says so).
 """
 
 from __future__ import annotations
@@ -231,9 +230,8 @@ def union_limit(block_seconds: dict, model: CostModel = FITTED) -> float:
     predictions ``block_seconds``: ``model.union_margin`` times the exact block iterations'
     (measured on scenes of under 100 patches, where their few large patches run faster as
     one CG than the work estimate says), and ``model.far_union_margin`` times the far-field
-    two-level iteration's. A margin of 1.7 on both had sent scenes to a far slower union CG
-    (814 spheres under load, predicted 1.35x: over 110 s of CPU against 40 s); the far-field
-    iteration now converges where contacts merge (281 paraboloids: 3.9 s against 3.6 s)."""
+    two-level iteration's. A margin of 1.7 on both had sent 814 spheres under load (predicted
+    1.35x) to a union CG of over 110 s of CPU against 40 s."""
     limits = [model.union_margin * block_seconds["block-gs"]] if "block-gs" in block_seconds else []
     limits += [model.far_union_margin * block_seconds["two-level"]] if "two-level" in block_seconds else []
     return min(limits, default=math.inf)
@@ -260,8 +258,9 @@ def choose(
     empty box where the far field is not a candidate. The far field is not used below
     ``FAR_FIELD_MIN_PATCHES`` patches (from ``model.sparse_far_field_min_patches`` on a
     box they cover less than ``UNION_MIN_COVERAGE`` of, or less than
-    ``model.far_field_coverage`` of without merged contacts; from
-    ``model.sparse_tilt_far_field_min_patches`` there with the ``tilt``), nor the union CG
+    ``model.far_field_coverage`` of without merged contacts or on a box of at least
+    ``model.far_field_box_cells`` cells; from ``model.sparse_tilt_far_field_min_patches``
+    there with the ``tilt``), nor the union CG
     below ``UNION_MIN_COVERAGE``. ``load_control``: where exact block iterations are
     cheapest, their two-level variant runs first (its coarse step corrects the approach
     and tilt instead of sensitivity sweeps: S1-S3 2.7-3x faster), block Gauss-Seidel if it
@@ -337,9 +336,10 @@ def decide(
     if n > model.exact_max_patches:
         candidates.pop("block-gs")
     sparse = figures["coverage"] < model.union_min_coverage
-    # the far field from few patches where they are scattered: on a mostly empty box, or
-    # up to the far field's own bound where no contacts merge (it stalls where they crowd)
-    scattered = sparse or (figures["coverage"] < model.far_field_coverage and not merged_contacts)
+    # the far field from few patches where they are scattered: on a mostly empty box, up to its own
+    # bound where no contacts merge (it stalls where they crowd), or on a box of many cells
+    large = 0 < model.far_field_box_cells <= figures.get("box_cells", 0)
+    scattered = sparse or large or (figures["coverage"] < model.far_field_coverage and not merged_contacts)
     few = model.sparse_tilt_far_field_min_patches if tilt else model.sparse_far_field_min_patches
     if n < (few if scattered else model.far_field_min_patches):
         candidates.pop("two-level")
