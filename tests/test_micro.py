@@ -359,3 +359,16 @@ def test_eq7_starts_from_hertz_contact():
     assert np.all(out.pressure >= 0.0)
     assert np.all(gap[out.pressure == 0.0] >= -1e-10 * abs(out.shift))
     assert np.abs(gap[out.pressure > 0.0]).max() < 1e-10 * abs(out.shift)
+
+
+@pytest.mark.parametrize("iteration", ["auto", "block-gs", "two-level", "union-cg"])
+def test_no_tip_within_reach_is_no_answer_under_load_control(iteration):
+    # the micro step started from an approach 0.05 mm short of both tips: under penetration
+    # control no contact and no load is the answer; under load control the 2 N asked are
+    # not carried, and the result must say so (it read "converged" with no load)
+    tips = [Asperity(0.0, 0.0, 0.0, 10.0), Asperity(5.0, 0.0, 0.01, 10.0)]
+    pb = MicroProblem(h=0.05, forces=np.array([1.0, 1.0]), penetration=-0.05, total_load=2.0)
+    res = solve_micro(HS, tips, pb, MicroOptions(iteration=iteration))
+    assert not res.converged and "2 N asked is not carried" in res.message
+    free = solve_micro(HS, tips, MicroProblem(h=0.05, forces=np.zeros(2), penetration=-0.05), MicroOptions())
+    assert free.converged and free.message == "no asperity reaches the body"

@@ -60,17 +60,16 @@ def _check(iteration, coupling) -> None:
 
 
 def _no_patch(setup) -> MicroResult:
-    """The result when no asperity reaches the body."""
-    return finish(
-        setup,
-        [],
-        setup.theta,
-        setup.tilt,
-        StopReason.CONVERGED,
-        "no asperity reaches the body",
-        {"sweeps": 0, "corrections": 0, "growths": 0, "linear_sweeps": 0},
-        (),
-    )
+    """The result when no asperity reaches the body: the answer under penetration control
+    (no contact, no load), a failure under load control (the load asked is not carried)."""
+    target = setup.control.target
+    load = float(target[0]) if setup.control.n_unknowns and target is not None else 0.0
+    reason, message = StopReason.CONVERGED, "no asperity reaches the body"
+    if load > 0.0:
+        reason = StopReason.FAILED
+        message += f" at the approach it started from: the load of {load:.6g} N asked is not carried"
+    counts = {"sweeps": 0, "corrections": 0, "growths": 0, "linear_sweeps": 0}
+    return finish(setup, [], setup.theta, setup.tilt, reason, message, counts, ())
 
 
 @dataclass(frozen=True)
