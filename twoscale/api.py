@@ -198,9 +198,10 @@ def solve(
 
         if callable(method):
             raise ValueError("a scene with a load history runs with method 'twoscale' or 'reference', not a callable")
+        cell = history_h(scene)  # the given h: the scene carries it
         if check_memory:  # as for one load: before the history's grids are allocated
-            _check_memory(scene, history_h(scene), method, options, memory_limit, h is not None)
-        _check_history_resolution(scene, history_h(scene) if h is None else float(h))
+            _check_memory(scene, cell, method, options, memory_limit, h is not None)
+        _check_history_resolution(scene, cell)
         history = solve_history(
             scene, method=method, provider=provider, h=h, provider_options=provider_options, **options
         )
