@@ -129,16 +129,34 @@ def test_subprocess_python_m_twoscale(examples_dir, tmp_path):
     assert os.stat(out / "result.json").st_mode & 0o777 == 0o666 & ~mask
 
 
-def test_solve_twoscale_default_method_records_macro_force(examples_dir, tmp_path):
+def test_solve_twoscale_records_macro_force(examples_dir, tmp_path):
     _needs("twoscale.driver")
     out = tmp_path / "ts"
-    assert main(["solve", str(examples_dir / "hertz_sphere.toml"), "--out", str(out), "--quiet"]) == 0
+    argv = ["solve", str(examples_dir / "hertz_sphere.toml"), "--iteration", "union-cg", "--out", str(out), "--quiet"]
+    assert main(argv) == 0
     res = _read(out)
     _check_fixed_fields(res, method="twoscale", n_asperities=1)
     exact = float(hertz.sphere_load(10.0, 0.5, E_STAR))
     assert res["total_load"] == pytest.approx(exact, rel=0.01)
     # a lone sphere's macro force is its exact law at the full approach
     assert res["asperities"][0]["macro_force"] == pytest.approx(exact, rel=1e-6)
+
+
+def test_command_line_takes_the_python_default_route(examples_dir, tmp_path):
+    """A lone sphere on a small grid: the command line (which passes its status line to the
+    solver) runs the same default route as ``twoscale.solve`` without options, the full
+    grid's one CG, and says so; the answer is Hertz's to the grid's accuracy."""
+    _needs("twoscale.driver")
+    import twoscale
+    from twoscale.io.scene_file import read_scene
+
+    out = tmp_path / "route"
+    assert main(["solve", str(examples_dir / "hertz_sphere.toml"), "--out", str(out), "--quiet"]) == 0
+    res = _read(out)
+    py = twoscale.solve(read_scene(examples_dir / "hertz_sphere.toml"))
+    assert res["message"].startswith("default route: the full grid") and res["message"] == py.message
+    assert res["total_load"] == pytest.approx(py.total_load, rel=1e-12)
+    assert res["total_load"] == pytest.approx(float(hertz.sphere_load(10.0, 0.5, E_STAR)), rel=0.01)
 
 
 def test_h_option_overrides_scene(examples_dir, tmp_path):

@@ -36,7 +36,7 @@ import numpy as np
 from .control import check_control
 from .errors import ResolutionWarning
 from .material import Material
-from .pivot import check_pivot_reach, pivot_route, warn_large_tilt
+from .pivot import check_pivot_reach, warn_large_tilt
 from .results import ContactResult
 from .scene import SCENE_METHODS
 from .resolution import check_resolution
@@ -292,16 +292,15 @@ def _run_method(scene: Scene, provider: InfluenceProvider, h: float, method: str
     scene of a few tips, its full grid's one CG, said in the result) or a reference."""
     from .resources import full_grid_route
 
-    # any option asks for the two-scale solver itself (the command line passes its progress
-    # display: it keeps the two-scale route, macro step shown), but no patch holds the
-    # contact of a tilt about a pivot outside the tips, whatever the entry
+    # any solver option asks for the two-scale solver itself; a progress display alone (the
+    # command line's) does not: the command line and Python take the same route
     route = None
     if method == "twoscale" and not set(options) - {"progress"}:
-        route = full_grid_route(scene, h) if not options else pivot_route(scene)
+        route = full_grid_route(scene, h)
     if route is not None:  # the smallest scenes: their full grid's one CG, said in the result
         from .full_grid import solve_full_grid
 
-        return solve_full_grid(scene, provider, h, route)
+        return solve_full_grid(scene, provider, h, route, progress=options.get("progress"))
     if method == "twoscale":
         from .driver import solve_twoscale
 

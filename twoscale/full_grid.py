@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import dataclasses
 from dataclasses import dataclass
+from typing import Callable
 
 from .influence.base import InfluenceProvider
 from .micro.policy import FULL_GRID_CELLS_PER_TIP
@@ -73,12 +74,19 @@ def full_grid_settings(cells: int, tips: int) -> FullGridSettings:
     return FullGridSettings("cg", not crowded, union_precision("auto", cells))
 
 
-def solve_full_grid(scene: Scene, provider: InfluenceProvider, h: float, route: str) -> ContactResult:
+def solve_full_grid(
+    scene: Scene, provider: InfluenceProvider, h: float, route: str, *, progress: Callable[[str], None] | None = None
+) -> ContactResult:
     """``scene`` at cell size ``h`` (mm) solved on the reference's full grid with
-    :func:`full_grid_settings`; the result's message names the route and the settings."""
+    :func:`full_grid_settings`; the result's message names the route and the settings.
+    ``progress`` (a status line's callable, as the two-scale driver's) is told the grid
+    and the solver before the solve starts."""
     from .reference.on_scene import reference_grid, solve_reference_scene
 
-    settings = full_grid_settings(int(reference_grid(scene, h).size), len(scene.asperities))
+    cells = int(reference_grid(scene, h).size)
+    settings = full_grid_settings(cells, len(scene.asperities))
+    if progress is not None:
+        progress(f"full grid, {cells:,} cells: {settings.describe()}")
     result = solve_reference_scene(scene, provider, h, **settings.options())
     message = f"default route: {route}; {settings.describe()}; {result.message}"
     return dataclasses.replace(result, message=message.rstrip("; "))
