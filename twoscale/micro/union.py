@@ -6,11 +6,12 @@ product on the box itself. Then the micro step is best solved as one problem: th
 Polonsky-Keer constrained conjugate gradient (:func:`twoscale.reference.cg.solve_cg`) on
 the box of all patches (the macro forces say where contact is, so the box is much tighter
 than the reference solver's a-priori reach), started from the paper's eq. 7 pressures when
-they were computed, else from each tip's geometric interference at a fraction
-``START_FRACTION`` of its macro local approach (a cap a little wider than the Hertz
-contact: the CG's active set shrinks onto the contact in a few large steps, where it grows
-cell by cell; the macro forces spread as Hertz pressures were tried as a start: twice the
-iterations, since the active set then has to grow into merged contacts). The load, the
+they were computed, else from each tip's geometric interference at a fraction of its
+macro local approach, scaled to the tip's macro force where the macro step came near a
+solution (:mod:`.union_start`: the CG's active set shrinks onto the contact in a few large
+steps, where it grows cell by cell; the macro forces spread as Hertz pressures were tried
+as a start: twice the iterations, since the active set then has to grow into merged
+contacts). The load, the
 approach and the tilt are solved by the same iteration (no sensitivity sweeps). Under a
 free tilt the first box covers wider patches (``TILT_MARGIN``: the macro step's tilt is
 least sure there). If pressure reaches the box's edge, the box grows on the sides it
@@ -31,6 +32,7 @@ from ..influence.base import InfluenceProvider
 from ..results import ContactResult
 from .patches import TREE_MIN, Patch, patch_radius
 from .sampling import SAMPLE_WHOLE_CELLS, box_of, box_surface, shared_box
+from .union_start import interference_start
 
 #: Enlargements of the box when pressure reaches its edge (:func:`grown_box`).
 MAX_ENLARGEMENTS = 3
@@ -48,11 +50,6 @@ TILT_MARGIN = 1.6
 #: Boxes from this many cells run the CG with float32 products (``"auto"``): below, one is
 #: overhead-bound (1,600 cells: 0.13 ms float32, 0.06 float64; 10,000 cells on: 3-4x faster).
 MIXED_MIN_CELLS = 10_000
-#: The start's cap around tip k reaches the level ``z_k + START_FRACTION delta_k``
-#: (``delta_k`` its macro local approach): radius sqrt(2 x 0.6) = 1.1 times Hertz's contact
-#: radius. 300 merged tips: 64 CG iterations against 70 from the CG's own start (0.5: 66,
-#: 0.8: 63).
-START_FRACTION = 0.6
 #: The CG keeps its conjugate directions after a step where at most this fraction of the
 #: loaded cells entered (``solve_cg``'s ``keep_conjugacy``): on boxes of thousands of
 #: contacts a few hundred cells enter at the edges in nearly every step, and each restart
@@ -90,7 +87,7 @@ class UnionOutcome:
         The box as one patch whose members are every asperity owning a cell of it.
     start : (ny, nx) array
         The warm start on the final box before the CG's rescaling: eq. 7 pressures (MPa),
-        the interference start (mm), or zeros (the CG's own geometric start).
+        the interference start (mm, or MPa scaled to the macro forces), or zeros (the CG's own geometric start).
     enlargements : int
         How often the box grew because pressure reached its edge.
     on_edge : bool
@@ -221,7 +218,8 @@ def solve_union(
         elif start is not None:
             warm = carried(start, start_grid, grid)
         else:
-            warm = interference_start(surface, asperities, approaches) if rough else None
+            forces = problem.forces if problem.size_from_forces else None  # (near a solution: each cap to its force)
+            warm = interference_start(surface, asperities, approaches, forces) if rough else None
         first = previous is None and approaches is not None and not problem.free_tilt
         reach = contact_reach(surface, asperities, approaches) if first else None
         result = solve_cg(
@@ -349,19 +347,6 @@ def carried(values: np.ndarray, source: Grid, target: Grid) -> np.ndarray:
     if j1 > j0 and i1 > i0:
         out[j0:j1, i0:i1] = values[j0 - dj : j1 - dj, i0 - di : i1 - di]
     return out
-
-
-def interference_start(surface, asperities: Sequence[Asperity], approaches: np.ndarray) -> np.ndarray | None:
-    """A start for the CG on ``surface`` (MPa up to a factor: the CG rescales it): on each
-    cell owned by tip k, ``max(z_k + START_FRACTION delta_k - z, 0)``, ``delta_k`` the
-    macro local approach (mm); None when no cell gets pressure."""
-    tips = np.array([a.z for a in asperities], dtype=float)
-    level = tips + START_FRACTION * np.maximum(np.asarray(approaches, dtype=float), 0.0)
-    own = surface.owner
-    start = np.zeros(surface.grid.shape)
-    mine = own >= 0
-    start[mine] = np.maximum(level[own[mine]] - surface.height[mine], 0.0)
-    return start if np.any(start > 0) else None
 
 
 def contact_reach(surface, asperities: Sequence[Asperity], approaches: np.ndarray) -> np.ndarray | None:

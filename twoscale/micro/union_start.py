@@ -1,0 +1,62 @@
+"""The union CG's start from the macro step (:func:`interference_start`).
+
+On the cells each tip owns, its interference cap at a fraction ``START_FRACTION`` of its
+macro local approach: a cap a little wider than the Hertz contact, so that the CG's active
+set shrinks onto the contact in a few large steps (where it grows cell by cell). Where the
+macro step came near a solution each tip's cap is scaled to carry that tip's macro force:
+the CG rescales its start by one factor (to the load, or by a line search on the energy),
+and the caps' depths alone weigh a tip's start by its approach, not by its force. Thousands
+of separated tips under penetration control (the union CG's iterations / products, the cap
+alone against the caps scaled): 1,684 paraboloids 22 / 56 against 20 / 49, 5,782 spheres 31
+/ 81 against 27 / 68. On the height-map roads the macro forces are poor stone by stone and
+the scaling changed nothing beyond the noise (18-21 iterations either way).
+"""
+
+from __future__ import annotations
+
+from typing import Sequence
+
+import numpy as np
+
+from ..indenters import Asperity
+
+#: The start's cap around tip k reaches the level ``z_k + START_FRACTION delta_k``
+#: (``delta_k`` its macro local approach): radius sqrt(2 x 0.6) = 1.1 times Hertz's contact
+#: radius. 300 merged tips: 64 CG iterations against 70 from the CG's own start (0.5: 66,
+#: 0.8: 63).
+START_FRACTION = 0.6
+
+
+def interference_start(
+    surface, asperities: Sequence[Asperity], approaches: np.ndarray, forces: np.ndarray | None = None
+) -> np.ndarray | None:
+    """A start for the CG on ``surface`` (MPa up to a factor: the CG rescales it): on each
+    cell owned by tip k, ``max(z_k + START_FRACTION delta_k - z, 0)``, ``delta_k`` the
+    macro local approach (mm). With ``forces`` (N, the macro step's, one a tip) each tip's
+    cap is scaled to carry its force (MPa; a cap whose tip has no force is dropped), unless
+    a force is not finite or no cap would keep pressure. None when no cell gets pressure."""
+    tips = np.array([a.z for a in asperities], dtype=float)
+    level = tips + START_FRACTION * np.maximum(np.asarray(approaches, dtype=float), 0.0)
+    own = surface.owner
+    start = np.zeros(surface.grid.shape)
+    mine = own >= 0
+    owners = own[mine]
+    cap = np.maximum(level[owners] - surface.height[mine], 0.0)
+    if forces is not None:
+        cap = _scaled(cap, owners, np.asarray(forces, dtype=float), surface.grid.h)
+    start[mine] = cap
+    return start if np.any(start > 0) else None
+
+
+def _scaled(cap: np.ndarray, owners: np.ndarray, forces: np.ndarray, h: float) -> np.ndarray:
+    """The caps (mm, on cells owned by ``owners``) scaled tip by tip to carry ``forces``
+    (N) on cells of side ``h`` (mm): pressures, MPa; the caps unchanged where that is not
+    possible (a force not finite, or no tip with both a cap and a force)."""
+    if len(forces) == 0 or not np.all(np.isfinite(forces)):
+        return cap
+    volume = np.bincount(owners, weights=cap, minlength=len(forces)) * (h * h)  # mm^3 a tip
+    carried = (volume > 0.0) & (forces > 0.0)
+    if not np.any(carried):
+        return cap
+    factor = np.where(carried, np.maximum(forces, 0.0) / np.where(carried, volume, 1.0), 0.0)
+    return cap * factor[owners]
