@@ -92,3 +92,21 @@ def test_viscoelastic_run_records_the_line_load(strip):
         i = int(round(run.line_x[0] / run.h)) - lo
         on[k, :, i : i + run.line_x.size] = run.line_load
     assert np.allclose(on[0], on[1], atol=5e-3 * float(on[1].max()))
+
+
+def test_slow_roll_on_a_tread_block_is_the_relaxed_elastic_roll(strip, tmp_path, monkeypatch):
+    """A flat tread block (bonded base) over a strip longer than its face: the stones beyond
+    the face at a shift sit out of reach, yet the block is asked only for points on it; far
+    slower than every branch the run answers as the relaxed elastic block's at every position."""
+    monkeypatch.setenv("TWOSCALE_CACHE_DIR", str(tmp_path))
+    spec = RollingSpec(start=-14.0, end=14.0, step=4.0, speed=1e-6)
+    block = {"kind": "block", "size": (44.0, 40.0, 8.0), "base": "bonded", "source_spacing": 4.0}
+
+    def run(material: Material):
+        return roll(Scene(material=material, surface=strip, penetration=0.9, rolling=spec, influence=block))
+
+    visco, elastic = run(Material(10.0, 0.5, prony=PRONY)), run(Material(10.0, 0.5))
+    assert visco.all_converged and elastic.all_converged
+    assert visco.body.startswith("block 44 x 40 x 8") and visco.body.endswith("viscoelastic")
+    assert np.allclose(visco.total_load, elastic.total_load, rtol=2e-3)
+    assert np.allclose(visco.contact_area, elastic.contact_area, atol=4 * 0.25**2)

@@ -79,7 +79,8 @@ class RoadIndenter:
         for k, stone in zip(self.numbers, road.map_stones(self.numbers, shift, group)):
             if stone is None:
                 a = road.tips[int(k)]
-                stone = dataclasses.replace(a, x=a.x + shift, z=FAR, basins=group)
+                x, y = _inside(road.window, a.x + shift, a.y)
+                stone = dataclasses.replace(a, x=x, y=y, z=FAR, basins=group)
             out.append(stone)
         self._last = (shift, tuple(out))
         return self._last[1]
@@ -102,6 +103,18 @@ class RoadIndenter:
 
     def face_on(self, grid: Grid) -> np.ndarray:
         return np.zeros(grid.shape)  # the face is in the stones' heights already
+
+
+def _inside(window: tuple, x: float, y: float) -> tuple:
+    """(x, y) wrapped into the finite sides of ``window``: a stone out of reach still sits on
+    the face, since a block answers only for points there and asks it of every tip, loaded
+    or not; wrapped, not clamped, so that no two stones meet."""
+    x0, x1, y0, y1 = window
+    if math.isfinite(x1 - x0) and not x0 <= x <= x1:
+        x = x0 + math.fmod(x - x0, x1 - x0) % (x1 - x0)
+    if math.isfinite(y1 - y0) and not y0 <= y <= y1:
+        y = y0 + math.fmod(y - y0, y1 - y0) % (y1 - y0)
+    return x, y
 
 
 def run_stones(track: Track) -> np.ndarray:
