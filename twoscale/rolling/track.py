@@ -196,17 +196,33 @@ def tyre_contact_length(track: Track) -> float:
     return 2.0 * FOOTPRINT_MARGIN * a
 
 
+class StripTooShort(SceneError):
+    """The strip does not cover the footprint at every shift of the run (:func:`check_length`);
+    ``strip`` its x range and ``contact`` the footprint's length along x, mm, so that a
+    caller that moved the run (a study's section offset) can say which shifts would fit."""
+
+    def __init__(self, message: str, strip: tuple, contact: float):
+        super().__init__(message)
+        self.strip, self.contact = strip, contact
+
+    def shifts_that_fit(self) -> tuple:
+        """The first and last shift (mm) between which the strip covers the footprint."""
+        return self.contact / 2 - self.strip[1], -self.contact / 2 - self.strip[0]
+
+
 def check_length(track: Track) -> None:
-    """Refuse a strip shorter than the footprint plus the run."""
+    """Refuse a strip shorter than the footprint plus the run (:class:`StripTooShort`)."""
     rx0, rx1 = track.road.extent_x
     L = footprint_length(track)
     s0, s1 = float(track.shifts[0]), float(track.shifts[-1])
     if rx0 + s1 > -L / 2 or rx1 + s0 < L / 2:
-        raise SceneError(
+        raise StripTooShort(
             f"surface: the strip is {rx1 - rx0:.6g} mm long along x, shorter than the contact length (about {L:.4g} mm, "
             f"the footprint along x) "
             f"plus the run from rolling.start = {track.spec.start!r} to rolling.end = {track.spec.end!r} mm "
-            f"(a road point at x appears at body x + shift: the strip must cover the footprint at every shift)"
+            f"(a road point at x appears at body x + shift: the strip must cover the footprint at every shift)",
+            (rx0, rx1),
+            L,
         )
 
 
