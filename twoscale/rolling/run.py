@@ -19,6 +19,7 @@ frame): :func:`twoscale.rolling.viscous.roll_viscoelastic`.
 from __future__ import annotations
 
 import dataclasses
+import math
 import time
 from dataclasses import dataclass
 from typing import Callable
@@ -188,7 +189,9 @@ def step(track: Track, index: int, previous: Position | None, options: RollingOp
     :class:`~twoscale.rolling.window.WindowState` to solve it on the kept window instead."""
     t0 = time.perf_counter()
     shift = float(track.shifts[index])
-    bound = _bound(track, shift, previous)
+    # where the surface can rise (a block), an approach bound does not bound the stones that
+    # touch: the two-scale solver takes them all (its macro step sees the rise)
+    bound = math.inf if track.rises and state is None else _bound(track, shift, previous)
     selection = track.road.stones_at(shift, bound)
     if not selection.stones and track.control == "penetration":  # nothing within reach of the body here
         return Position(index, selection, _no_contact(track), 0.0, time.perf_counter() - t0)

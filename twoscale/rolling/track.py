@@ -45,6 +45,11 @@ class Track:
     control: str
     body: str
     step_check: object = None
+    #: Whether the body's surface can rise beside a contact (a finite block: bonded, nearly
+    #: incompressible rubber bulges), so that a stone whose summit lies below the road's
+    #: reach can touch all the same (:func:`twoscale.rolling.run.step` then hands every
+    #: stone under the face to the solver).
+    rises: bool = False
 
 
 def lattice(spec: RollingSpec, spacing: float) -> tuple[float, np.ndarray]:
@@ -87,7 +92,8 @@ def prepare(scene: Scene, *, h: float | None = None, provider=None) -> Track:
     road = Road(scene, window)
     control = "penetration" if scene.penetration is not None else "load"
     times = (shifts - shifts[0]) / spec.speed_mm_s
-    track = Track(scene, spec, provider, road, cell, shifts, times, control, body_label(scene), check)
+    rises = provider.domain() is not None
+    track = Track(scene, spec, provider, road, cell, shifts, times, control, body_label(scene), check, rises)
     if spec.tyre_radius is not None and tyre_contact_length(track) < 2.0 * cell:
         held = (
             f"load.penetration = {scene.penetration!r} mm"
