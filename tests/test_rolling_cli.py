@@ -244,6 +244,21 @@ def test_footprint_wider_than_the_strip_warns_naming_it(strip_file, tmp_path, ca
     assert len(err) == 1 and err[0].startswith("warning: rolling.footprint = [30, 24] mm is wider than the strip")
 
 
+def test_block_face_wider_than_the_strip_warns_naming_it(strip_file, tmp_path, capsys, monkeypatch):
+    # a flat tread block without a footprint: its face, 60 mm across less its margins, is
+    # wider than the 16 mm strip, and the rubber beyond the strip meets no road
+    monkeypatch.setenv("TWOSCALE_CACHE_DIR", str(tmp_path / "cache"))
+    path = _scene(strip_file, tyre_radius=None, footprint=None)
+    with open(path, "a", encoding="utf-8") as fh:
+        fh.write('[influence]\nkind = "block"\nsize = [44.0, 60.0, 8.0]\nbase = "bonded"\nsource_spacing = 4.0\n')
+    assert main(["solve", path, "--out", str(tmp_path / "run"), "--quiet"]) == 0
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith(
+        "warning: influence.size = [44, 60, ...] mm (the part of the block's face"
+    )
+    assert "mm across y) is wider than the strip (15.75 mm across y" in err[0]
+
+
 def test_fine_step_does_not_warn(strip_file, tmp_path, capsys):
     # the same branch, 0.25 mm steps (one sample): no warning, step_check says so
     out = tmp_path / "run"

@@ -233,15 +233,22 @@ def check_length(track: Track) -> None:
 
 
 def warn_if_wider(track: Track) -> None:
-    """Warn where a footprint window reaches across y beyond the strip by more than a cell:
-    the face there meets no road, so the load is carried by the strip's width alone."""
-    if track.spec.footprint is None:
+    """Warn where the face window (a footprint, or a block's face without one) reaches across
+    y beyond the strip by more than a cell: the face there meets no road, so the load is
+    carried by the strip's width alone."""
+    _, _, w0, w1 = track.road.window
+    if track.spec.footprint is not None:
+        L, W = track.spec.footprint
+        field = f"rolling.footprint = [{L:g}, {W:g}] mm"
+    elif math.isfinite(w1 - w0):
+        Lx, Ly, _ = track.scene.influence["size"]
+        field = f"influence.size = [{Lx:g}, {Ly:g}, ...] mm (the part of the block's face the road may touch, {w1 - w0:.4g} mm across y)"
+    else:
         return
-    L, W = track.spec.footprint
     y0, y1 = float(track.road.box[:, 2].min()), float(track.road.box[:, 3].max())
-    if -W / 2 < y0 - track.h or W / 2 > y1 + track.h:
+    if w0 < y0 - track.h or w1 > y1 + track.h:
         warnings.warn(
-            f"rolling.footprint = [{L:g}, {W:g}] mm is wider than the strip ({y1 - y0:.4g} mm across y, "
+            f"{field} is wider than the strip ({y1 - y0:.4g} mm across y, "
             f"from {y0:.4g} to {y1:.4g} mm): the face beyond it touches no road",
             SurfaceWarning,
             stacklevel=2,
