@@ -257,6 +257,14 @@ def test_block_face_wider_than_the_strip_warns_naming_it(strip_file, tmp_path, c
         "warning: influence.size = [44, 60, ...] mm (the part of the block's face"
     )
     assert "mm across y) is wider than the strip (15.75 mm across y" in err[0]
+    # a run longer than the strip leaves beyond the face: refused, naming what sets the length
+    text = open(path, encoding="utf-8").read().replace("end = -2.0", "end = 30.0")
+    with open(path, "w", encoding="utf-8") as fh:
+        fh.write(text)
+    assert main(["solve", path, "--out", str(tmp_path / "long")]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "rolling.end = 30.0" in err[0] and "block's face" in err[0] and "influence.size" in err[0]
+    assert not (tmp_path / "long").exists()
 
 
 def test_fine_step_does_not_warn(strip_file, tmp_path, capsys):

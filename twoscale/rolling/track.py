@@ -224,12 +224,22 @@ def check_length(track: Track) -> None:
     if rx0 + s1 > -L / 2 or rx1 + s0 < L / 2:
         raise StripTooShort(
             f"surface: the strip is {rx1 - rx0:.6g} mm long along x, shorter than the contact length (about {L:.4g} mm, "
-            f"the footprint along x) "
+            f"{_length_source(track, L)}) "
             f"plus the run from rolling.start = {track.spec.start!r} to rolling.end = {track.spec.end!r} mm "
             f"(a road point at x appears at body x + shift: the strip must cover the footprint at every shift)",
             (rx0, rx1),
             L,
         )
+
+
+def _length_source(track: Track, length: float) -> str:
+    """What sets the contact length ``length`` (mm) of :func:`footprint_length`, in words."""
+    x0, x1, _, _ = track.road.window
+    if track.spec.tyre_radius is not None and length < x1 - x0:
+        return "the tyre's estimated contact along x"
+    if track.spec.footprint is not None:
+        return "the footprint along x"
+    return "the part of the block's face the road may touch, set by influence.size"
 
 
 def warn_if_wider(track: Track) -> None:
