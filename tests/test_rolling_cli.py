@@ -276,6 +276,18 @@ def test_fine_step_does_not_warn(strip_file, tmp_path, capsys):
     assert json.loads((out / "rolling.json").read_text())["step_check"]["coarse"] is False
 
 
+def test_step_error_warns_of_the_road_once(strip_file, tmp_path, capsys):
+    """The run at twice the step rolls the same road under the same face: a footprint wider
+    than the strip is warned of once, on stderr and in ``rolling.json``, not once per run."""
+    out = tmp_path / "run"
+    scene = _scene(strip_file, prony="prony = [[20.0, 1e-4]]", footprint="[30.0, 24.0]")
+    assert main(["solve", scene, "--out", str(out), "--quiet", "--step-error"]) == 0
+    err = capsys.readouterr().err.strip().splitlines()
+    assert sum("rolling.footprint" in line for line in err) == 1
+    listed = json.loads((out / "rolling.json").read_text())["warnings"]
+    assert [w["count"] for w in listed if w["category"] == "SurfaceWarning"] == [1]
+
+
 def test_step_error_from_a_run_at_twice_the_step(strip_file, tmp_path, capsys):
     """``--step-error``: the friction over the run (from signals.csv: the drag's trapezoid
     mean over the shifts) against the run at twice the step; the extrapolation adds their

@@ -347,9 +347,12 @@ def roll_at_twice_the_step(track, *, tol: float = 1e-6):
     step on the same samples and from the same first shift; a RollingResult."""
     import warnings
 
-    from ..errors import StepWarning
+    from ..errors import StepWarning, SurfaceWarning
 
     spec = dataclasses.replace(track.spec, start=float(track.shifts[0]), step=2.0 * track.spec.step)
-    with warnings.catch_warnings():  # the run at the step said whether it is coarse
+    # the run at the step said whether it is coarse, and what the road and the face give
+    # to warn of (the same road under the same face over the same distance)
+    with warnings.catch_warnings():
         warnings.simplefilter("ignore", StepWarning)
+        warnings.simplefilter("ignore", SurfaceWarning)
         return roll(dataclasses.replace(track.scene, rolling=spec), options=RollingOptions(tol=tol))
