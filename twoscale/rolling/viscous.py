@@ -56,6 +56,14 @@ NEAR_GAP = 0.2
 #: ``"mixed"``): the circulant inverse stays.
 STEP_CG = MappingProxyType({"precision": "single-directions", "precondition": True, "keep_conjugacy": 0.005})
 
+#: A step's micro iteration on another body (a tread block): the two-scale policy's at
+#: every step (it takes the union CG where the stones crowd their box), not the two-level
+#: iteration with far-field coupling a load history's warm steps take. On the example strip
+#: under a 150 x 100 x 10 mm block (21 positions, four branches, 50 km/h): 0.14 against
+#: 0.78 s of CPU a position, the loads within 1e-10 of the full-grid reference stepping
+#: against 1.3e-6 (the drag 2e-4) with the far field.
+ANY_ITERATION = MappingProxyType({"iteration": "auto"})
+
 
 @dataclass(eq=False)
 class RoadIndenter:
@@ -165,8 +173,8 @@ def roll_viscoelastic(track: Track, *, tol: float = 1e-6, progress=None, on_posi
             near_gap=NEAR_GAP,
         )
         provider = body
-    else:
-        options = MovingOptions(method="twoscale", solver={"tol": tol}, open_edges=True)
+    else:  # the policy's iteration at every step, as the elastic rolling's: see ANY_ITERATION
+        options = MovingOptions(method="twoscale", solver={"tol": tol, **ANY_ITERATION}, open_edges=True)
     moving = solve_moving(
         scene.material,
         provider,
