@@ -226,12 +226,14 @@ def test_tips_whose_centre_leaves_the_window_do_not_touch():
         assert run.total_load[k] == pytest.approx(static.total_load, rel=1e-5)
 
 
-def test_block_positions_take_the_stones_the_bulge_lifts(strip, tmp_path, monkeypatch):
+@pytest.mark.parametrize("solver", ["auto", "window"])
+def test_block_positions_take_the_stones_the_bulge_lifts(strip, tmp_path, monkeypatch, solver):
     """A bonded, incompressible tread block bulges beside its contacts: stones whose summits
     lie a little below the held approach touch all the same. Each position equals the
     full-grid reference of the whole strip moved by the shift on the same block (built from
     the height array alone, no material outside the face), whose contact reaches such a
-    stone (measured: two at the first position, their summits 6 and 20 um beyond the approach)."""
+    stone (measured: two at the first position, their summits 6 and 20 um beyond the approach).
+    The same on the kept window's CG (``solver="window"``, not the block's default)."""
     from twoscale.rolling.track import prepare
 
     monkeypatch.setenv("TWOSCALE_CACHE_DIR", str(tmp_path))
@@ -239,7 +241,8 @@ def test_block_positions_take_the_stones_the_bulge_lifts(strip, tmp_path, monkey
     block = {"kind": "block", "size": (60.0, 50.0, 8.0), "base": "bonded", "source_spacing": 4.0}
     scene = Scene(material=MAT, surface=strip, penetration=0.8, rolling=spec, influence=block)
     provider = scene.provider(progress=False)
-    run = roll(scene, options=RollingOptions(tol=1e-8), provider=provider)
+    run = roll(scene, options=RollingOptions(tol=1e-8, solver=solver), provider=provider)
+    assert run.method == ("twoscale" if solver == "auto" else "window-cg")
     x0, x1, y0, y1 = prepare(scene, provider=provider).road.window
     hm = strip.hmap
     g = hm.grid

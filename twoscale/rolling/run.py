@@ -190,8 +190,9 @@ def step(track: Track, index: int, previous: Position | None, options: RollingOp
     t0 = time.perf_counter()
     shift = float(track.shifts[index])
     # where the surface can rise (a block), an approach bound does not bound the stones that
-    # touch: the two-scale solver takes them all (its macro step sees the rise)
-    bound = math.inf if track.rises and state is None else _bound(track, shift, previous)
+    # touch: the solver takes them all (the two-scale macro step, or the window's CG, sees
+    # the rise)
+    bound = math.inf if track.rises else _bound(track, shift, previous)
     selection = track.road.stones_at(shift, bound)
     if not selection.stones and track.control == "penetration":  # nothing within reach of the body here
         return Position(index, selection, _no_contact(track), 0.0, time.perf_counter() - t0)
