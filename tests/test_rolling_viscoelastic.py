@@ -151,3 +151,17 @@ def test_roll_on_a_tread_block_is_the_reference_stepping(strip, tmp_path, monkey
     W = float(np.max(ref.total_load))
     assert np.allclose(run.total_load, ref.total_load, rtol=0, atol=1e-7 * W)
     assert np.allclose(run.drag, ref.drag, rtol=0, atol=1e-7 * W)
+
+
+@pytest.mark.parametrize("prony", [(), PRONY])
+def test_timings_count_the_prepared_track(strip, prony):
+    """A run handed a prepared track (as the command line does, its checks first) reports the
+    preparation's seconds, not the ~1e-5 s between its start and its first position; the
+    total is the preparation and the positions."""
+    from twoscale.rolling.track import prepare
+
+    track = prepare(_scene(strip, 50.0, Material(10.0, 0.5, prony=prony)))
+    run = roll(track.scene, track=track)
+    t = run.timings_s
+    assert t["prepare"] == track.seconds > 0.0
+    assert t["total"] == pytest.approx(t["prepare"] + t["positions"])

@@ -314,7 +314,6 @@ def roll(
     RollingResult
     """
     options = options or RollingOptions()
-    t0 = time.perf_counter()
     track = track if track is not None else prepare(scene, h=options.h, provider=provider)
     if track.scene.material.viscoelastic:  # the memory in the body: the moving-indenter stepping
         from .viscous import roll_viscoelastic
@@ -336,7 +335,7 @@ def roll(
     t2 = time.perf_counter()
     result = record.result(
         track,
-        {"prepare": t1 - t0, "positions": t2 - t1, "total": t2 - t0},
+        {"prepare": track.seconds, "positions": t2 - t1, "total": track.seconds + t2 - t1},
         "twoscale" if state is None else "window-cg",
     )
     warn_if_cut(track, result)

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import time
 import warnings
 from dataclasses import dataclass
 
@@ -50,6 +51,8 @@ class Track:
     #: reach can touch all the same (:func:`twoscale.rolling.run.step` then hands every
     #: stone under the face to the solver).
     rises: bool = False
+    #: Seconds (wall) :func:`prepare` took: the checks, the body and the segmented road's boxes.
+    seconds: float = 0.0
 
 
 def lattice(spec: RollingSpec, spacing: float) -> tuple[float, np.ndarray]:
@@ -69,6 +72,7 @@ def prepare(scene: Scene, *, h: float | None = None, provider=None) -> Track:
     ignored on a height map (its spacing, made a divisor of the step)."""
     from ..resolution import default_h
 
+    t0 = time.perf_counter()
     spec = scene.rolling
     if not isinstance(spec, RollingSpec):
         raise SceneError(f"rolling is missing: the scene has no [rolling] table (got {spec!r})")
@@ -111,7 +115,7 @@ def prepare(scene: Scene, *, h: float | None = None, provider=None) -> Track:
     warn_if_coarse(check)  # after every refusal: a run refused says only why
     if scene.surface is not None:
         warn_if_wider(track)
-    return track
+    return dataclasses.replace(track, seconds=time.perf_counter() - t0)
 
 
 def _step_check(scene: Scene):
