@@ -63,8 +63,11 @@ class RollingOptions:
         ``"window"``: each position one constrained CG over a window kept in the body, its
         FFT operator built once, started from the previous pressures moved with the road
         (:mod:`twoscale.rolling.window`); ``"twoscale"``: the two-scale solver per
-        position (:func:`solve_position`); ``"auto"``: the window on a translation-invariant
-        body (the half-space) with ``iteration="auto"``, else the two-scale solver.
+        position (:func:`solve_position`); ``"auto"``: the window with ``iteration="auto"``
+        (but for tips on a block), else the two-scale solver. On a block too: its CG over the face's window finds every
+        contact the bulge makes, where the two-scale patches may miss one (a tyre at 150 N
+        on a bonded 8 mm block: the approach 6.3e-4 mm off the full-grid reference), at the
+        same CPU a position (0.89-1.05 of the two-scale path's, four scenes).
     """
 
     tol: float = 1e-6
@@ -251,8 +254,8 @@ def window_state(track: Track, options: RollingOptions):
     if options.solver == "twoscale" or (options.solver == "auto" and options.iteration != "auto"):
         return None
     body = KeptBody(track.provider)
-    if options.solver == "auto" and not body.invariant:
-        return None
+    if options.solver == "auto" and not body.invariant and track.scene.surface is None:
+        return None  # tips on a block: the two-scale solver checks their patches against its face
     stiffness = GAP_STIFFNESS / track.provider.self_compliance(track.h)
     ahead = ShiftStep(body, track.spec.face, track.control != "penetration", stiffness)
     half = 0.5 * tyre_contact_length(track) if track.spec.tyre_radius is not None else None
