@@ -1,5 +1,5 @@
-"""The rolling path of a half-space: one constrained conjugate gradient per position over a
-window fixed in the body, its FFT operator built once for the run.
+"""The rolling path (the half-space; a block's face under a strip): one constrained CG per
+position over a window fixed in the body, its operator built once for the run.
 
 Under a tyre the stones crowd the footprint (about half of those within reach touch at
 once), so the two-scale solver's patches cover most of their box and its micro step runs
