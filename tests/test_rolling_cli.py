@@ -244,6 +244,29 @@ def test_footprint_wider_than_the_strip_warns_naming_it(strip_file, tmp_path, ca
     assert len(err) == 1 and err[0].startswith("warning: rolling.footprint = [30, 24] mm is wider than the strip")
 
 
+def test_block_face_wider_than_the_strip_warns_naming_it(strip_file, tmp_path, capsys, monkeypatch):
+    # a flat tread block without a footprint: its face, 60 mm across less its margins, is
+    # wider than the 16 mm strip, and the rubber beyond the strip meets no road
+    monkeypatch.setenv("TWOSCALE_CACHE_DIR", str(tmp_path / "cache"))
+    path = _scene(strip_file, tyre_radius=None, footprint=None)
+    with open(path, "a", encoding="utf-8") as fh:
+        fh.write('[influence]\nkind = "block"\nsize = [44.0, 60.0, 8.0]\nbase = "bonded"\nsource_spacing = 4.0\n')
+    assert main(["solve", path, "--out", str(tmp_path / "run"), "--quiet"]) == 0
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith(
+        "warning: influence.size = [44, 60, ...] mm (the part of the block's face"
+    )
+    assert "mm across y) is wider than the strip (15.75 mm across y" in err[0]
+    # a run longer than the strip leaves beyond the face: refused, naming what sets the length
+    text = open(path, encoding="utf-8").read().replace("end = -2.0", "end = 30.0")
+    with open(path, "w", encoding="utf-8") as fh:
+        fh.write(text)
+    assert main(["solve", path, "--out", str(tmp_path / "long")]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "rolling.end = 30.0" in err[0] and "block's face" in err[0] and "influence.size" in err[0]
+    assert not (tmp_path / "long").exists()
+
+
 def test_fine_step_does_not_warn(strip_file, tmp_path, capsys):
     # the same branch, 0.25 mm steps (one sample): no warning, step_check says so
     out = tmp_path / "run"
@@ -251,6 +274,18 @@ def test_fine_step_does_not_warn(strip_file, tmp_path, capsys):
     assert main(["solve", scene, "--out", str(out), "--quiet"]) == 0
     assert "warning" not in capsys.readouterr().err
     assert json.loads((out / "rolling.json").read_text())["step_check"]["coarse"] is False
+
+
+def test_step_error_warns_of_the_road_once(strip_file, tmp_path, capsys):
+    """The run at twice the step rolls the same road under the same face: a footprint wider
+    than the strip is warned of once, on stderr and in ``rolling.json``, not once per run."""
+    out = tmp_path / "run"
+    scene = _scene(strip_file, prony="prony = [[20.0, 1e-4]]", footprint="[30.0, 24.0]")
+    assert main(["solve", scene, "--out", str(out), "--quiet", "--step-error"]) == 0
+    err = capsys.readouterr().err.strip().splitlines()
+    assert sum("rolling.footprint" in line for line in err) == 1
+    listed = json.loads((out / "rolling.json").read_text())["warnings"]
+    assert [w["count"] for w in listed if w["category"] == "SurfaceWarning"] == [1]
 
 
 def test_step_error_from_a_run_at_twice_the_step(strip_file, tmp_path, capsys):

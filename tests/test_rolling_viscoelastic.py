@@ -92,3 +92,76 @@ def test_viscoelastic_run_records_the_line_load(strip):
         i = int(round(run.line_x[0] / run.h)) - lo
         on[k, :, i : i + run.line_x.size] = run.line_load
     assert np.allclose(on[0], on[1], atol=5e-3 * float(on[1].max()))
+
+
+def test_slow_roll_on_a_tread_block_is_the_relaxed_elastic_roll(strip, tmp_path, monkeypatch):
+    """A flat tread block (bonded base) over a strip longer than its face: the stones beyond
+    the face at a shift sit out of reach, yet the block is asked only for points on it; far
+    slower than every branch the run answers as the relaxed elastic block's at every position."""
+    monkeypatch.setenv("TWOSCALE_CACHE_DIR", str(tmp_path))
+    spec = RollingSpec(start=-14.0, end=14.0, step=4.0, speed=1e-6)
+    block = {"kind": "block", "size": (44.0, 40.0, 8.0), "base": "bonded", "source_spacing": 4.0}
+
+    def run(material: Material):
+        return roll(Scene(material=material, surface=strip, penetration=0.9, rolling=spec, influence=block))
+
+    visco, elastic = run(Material(10.0, 0.5, prony=PRONY)), run(Material(10.0, 0.5))
+    assert visco.all_converged and elastic.all_converged
+    assert visco.body.startswith("block 44 x 40 x 8") and visco.body.endswith("viscoelastic")
+    assert np.allclose(visco.total_load, elastic.total_load, rtol=2e-3)
+    assert np.allclose(visco.contact_area, elastic.contact_area, atol=4 * 0.25**2)
+
+
+def test_roll_on_a_tread_block_is_the_reference_stepping(strip, tmp_path, monkeypatch):
+    """A viscoelastic roll on a bonded tread block (a flat face, a step time of about the
+    branches' relaxation times): every position equals the full-grid reference's step of the
+    same moving road (``solve_moving`` with ``method="reference"``) to the solvers' tolerance
+    (measured: loads 2.8e-11, drags 6e-12 of the largest load; 1e-5 with the far-field
+    two-level iteration of a history's warm steps)."""
+    import dataclasses
+
+    from twoscale.rolling.track import prepare
+    from twoscale.rolling.viscous import RoadIndenter, memory_grid, run_stones
+    from twoscale.viscoelastic.moving import MovingOptions, solve_moving
+
+    monkeypatch.setenv("TWOSCALE_CACHE_DIR", str(tmp_path))
+    spec = RollingSpec(start=-6.0, end=6.0, step=1.0, speed=3.0)
+    block = {"kind": "block", "size": (60.0, 50.0, 8.0), "base": "bonded", "source_spacing": 4.0}
+    material = Material(10.0, 0.5, prony=PRONY)
+    scene = Scene(material=material, surface=strip, penetration=0.9, rolling=spec, influence=block)
+    track = prepare(scene)
+    run = roll(scene, track=track)
+    from twoscale.indenters import Asperity
+
+    tip = (Asperity(0.0, 0.0, 0.0, 1.0),)
+    bare = dataclasses.replace(scene, material=material.relaxed(), rolling=None, surface=None, asperities=tip)
+    body = bare.provider()
+    numbers = run_stones(track)
+    ref = solve_moving(
+        material,
+        body,
+        RoadIndenter(track.road, numbers),
+        track.shifts,
+        speed=spec.speed_mm_s,
+        grid=memory_grid(track),
+        penetration=0.9,
+        options=MovingOptions(method="reference", open_edges=True, solver={"tol": 1e-10}),
+    )
+    assert run.all_converged and len(run.shifts) == 13
+    W = float(np.max(ref.total_load))
+    assert np.allclose(run.total_load, ref.total_load, rtol=0, atol=1e-7 * W)
+    assert np.allclose(run.drag, ref.drag, rtol=0, atol=1e-7 * W)
+
+
+@pytest.mark.parametrize("prony", [(), PRONY])
+def test_timings_count_the_prepared_track(strip, prony):
+    """A run handed a prepared track (as the command line does, its checks first) reports the
+    preparation's seconds, not the ~1e-5 s between its start and its first position; the
+    total is the preparation and the positions."""
+    from twoscale.rolling.track import prepare
+
+    track = prepare(_scene(strip, 50.0, Material(10.0, 0.5, prony=prony)))
+    run = roll(track.scene, track=track)
+    t = run.timings_s
+    assert t["prepare"] == track.seconds > 0.0
+    assert t["total"] == pytest.approx(t["prepare"] + t["positions"])

@@ -303,3 +303,30 @@ def test_case_json_and_rolling_json_list_the_cases_warnings(study_file, tmp_path
         else:
             assert steps == []
     assert coarse >= 1
+
+
+def test_an_offset_off_the_strip_names_the_offset_and_the_offsets_that_fit(study_file, tmp_path):
+    """A section offset that moves the run off the strip fails its case with a reason naming
+    the offset and its value (not the moved ``rolling.start``, which the user never wrote),
+    and the offsets that fit: one just inside that range rolls, one just beyond fails."""
+    import re
+
+    text = study_file.read_text().replace("prony = [[40.0, 2e-3]]", "").replace('name = "tread"', 'name = "tread2"')
+    text = text.replace("speeds = [1.8, 50.0]", "speeds = [50.0]")
+
+    def outcome(offset: float) -> tuple:
+        path = tmp_path / f"s{offset:g}.toml"
+        path.write_text(text.replace(", seed = 7 }", f", seed = 7 }}\noffsets = [{offset!r}]"), encoding="utf-8")
+        study = read_study(path)
+        out = tmp_path / f"out{offset:g}"
+        run = run_rolling_study(study, out, quiet=True)
+        record = CaseStore(out).read(run.keys[0])
+        return record["status"], record["reason"]
+
+    status, reason = outcome(40.0)
+    assert status == "failed" and reason.count("\n") == 0
+    assert "section chip@40mm: offsets value 40 mm" in reason and "rolling.start" not in reason
+    lo, hi = (float(v) for v in re.search(r"offsets from (\S+) to (\S+) mm fit", reason).groups())
+    assert lo < 0.0 < hi < 40.0
+    assert outcome(hi - 0.5)[0] == "converged"
+    assert outcome(hi + 0.5)[0] == "failed"

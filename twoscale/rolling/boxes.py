@@ -3,6 +3,8 @@ them: the rolling window's bookkeeping (:mod:`.window`)."""
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from ..grid import Grid
@@ -92,3 +94,19 @@ def cut_grid(need: Grid) -> Grid:
     ny = (next_fast_len(2 * (need.ny + 2 * CUT_SIDE_MARGIN_CELLS) - 1, real=True) + 1) // 2
     h = need.h
     return Grid(need.x0 - ((nx - need.nx) // 2) * h, need.y0 - ((ny - need.ny) // 2) * h, h, nx, ny)
+
+
+def clipped(grid: Grid, domain: tuple | None) -> Grid:
+    """The cells of ``grid`` whose centres lie in ``domain`` (x0, x1, y0, y1), mm: a block
+    answers only there (the stones' cells lie inside it by the face window's margin);
+    ``grid`` itself for no domain (the half-space)."""
+    if domain is None:
+        return grid
+    x0, x1, y0, y1 = domain
+    e = 1e-9 * grid.h
+    i0, j0 = max(math.ceil((x0 - grid.x0) / grid.h - e), 0), max(math.ceil((y0 - grid.y0) / grid.h - e), 0)
+    i1 = min(math.floor((x1 - grid.x0) / grid.h + e) + 1, grid.nx)
+    j1 = min(math.floor((y1 - grid.y0) / grid.h + e) + 1, grid.ny)
+    if (i0, j0, i1, j1) == (0, 0, grid.nx, grid.ny):
+        return grid
+    return Grid(grid.x0 + i0 * grid.h, grid.y0 + j0 * grid.h, grid.h, i1 - i0, j1 - j0)

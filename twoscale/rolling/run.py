@@ -19,6 +19,7 @@ frame): :func:`twoscale.rolling.viscous.roll_viscoelastic`.
 from __future__ import annotations
 
 import dataclasses
+import math
 import time
 from dataclasses import dataclass
 from typing import Callable
@@ -62,8 +63,11 @@ class RollingOptions:
         ``"window"``: each position one constrained CG over a window kept in the body, its
         FFT operator built once, started from the previous pressures moved with the road
         (:mod:`twoscale.rolling.window`); ``"twoscale"``: the two-scale solver per
-        position (:func:`solve_position`); ``"auto"``: the window on a translation-invariant
-        body (the half-space) with ``iteration="auto"``, else the two-scale solver.
+        position (:func:`solve_position`); ``"auto"``: the window with ``iteration="auto"``
+        (but for tips on a block), else the two-scale solver. On a block too: its CG over the face's window finds every
+        contact the bulge makes, where the two-scale patches may miss one (a tyre at 150 N
+        on a bonded 8 mm block: the approach 6.3e-4 mm off the full-grid reference), at the
+        same CPU a position (0.89-1.05 of the two-scale path's, four scenes).
     """
 
     tol: float = 1e-6
@@ -188,7 +192,10 @@ def step(track: Track, index: int, previous: Position | None, options: RollingOp
     :class:`~twoscale.rolling.window.WindowState` to solve it on the kept window instead."""
     t0 = time.perf_counter()
     shift = float(track.shifts[index])
-    bound = _bound(track, shift, previous)
+    # where the surface can rise (a block), an approach bound does not bound the stones that
+    # touch: the solver takes them all (the two-scale macro step, or the window's CG, sees
+    # the rise)
+    bound = math.inf if track.rises else _bound(track, shift, previous)
     selection = track.road.stones_at(shift, bound)
     if not selection.stones and track.control == "penetration":  # nothing within reach of the body here
         return Position(index, selection, _no_contact(track), 0.0, time.perf_counter() - t0)
@@ -247,8 +254,8 @@ def window_state(track: Track, options: RollingOptions):
     if options.solver == "twoscale" or (options.solver == "auto" and options.iteration != "auto"):
         return None
     body = KeptBody(track.provider)
-    if options.solver == "auto" and not body.invariant:
-        return None
+    if options.solver == "auto" and not body.invariant and track.scene.surface is None:
+        return None  # tips on a block: the two-scale solver checks their patches against its face
     stiffness = GAP_STIFFNESS / track.provider.self_compliance(track.h)
     ahead = ShiftStep(body, track.spec.face, track.control != "penetration", stiffness)
     half = 0.5 * tyre_contact_length(track) if track.spec.tyre_radius is not None else None
@@ -310,7 +317,6 @@ def roll(
     RollingResult
     """
     options = options or RollingOptions()
-    t0 = time.perf_counter()
     track = track if track is not None else prepare(scene, h=options.h, provider=provider)
     if track.scene.material.viscoelastic:  # the memory in the body: the moving-indenter stepping
         from .viscous import roll_viscoelastic
@@ -332,7 +338,7 @@ def roll(
     t2 = time.perf_counter()
     result = record.result(
         track,
-        {"prepare": t1 - t0, "positions": t2 - t1, "total": t2 - t0},
+        {"prepare": track.seconds, "positions": t2 - t1, "total": track.seconds + t2 - t1},
         "twoscale" if state is None else "window-cg",
     )
     warn_if_cut(track, result)
@@ -344,9 +350,12 @@ def roll_at_twice_the_step(track, *, tol: float = 1e-6):
     step on the same samples and from the same first shift; a RollingResult."""
     import warnings
 
-    from ..errors import StepWarning
+    from ..errors import StepWarning, SurfaceWarning
 
     spec = dataclasses.replace(track.spec, start=float(track.shifts[0]), step=2.0 * track.spec.step)
-    with warnings.catch_warnings():  # the run at the step said whether it is coarse
+    # the run at the step said whether it is coarse, and what the road and the face give
+    # to warn of (the same road under the same face over the same distance)
+    with warnings.catch_warnings():
         warnings.simplefilter("ignore", StepWarning)
+        warnings.simplefilter("ignore", SurfaceWarning)
         return roll(dataclasses.replace(track.scene, rolling=spec), options=RollingOptions(tol=tol))

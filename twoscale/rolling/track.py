@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import time
 import warnings
 from dataclasses import dataclass
 
@@ -45,6 +46,13 @@ class Track:
     control: str
     body: str
     step_check: object = None
+    #: Whether the body's surface can rise beside a contact (a finite block: bonded, nearly
+    #: incompressible rubber bulges), so that a stone whose summit lies below the road's
+    #: reach can touch all the same (:func:`twoscale.rolling.run.step` then hands every
+    #: stone under the face to the solver).
+    rises: bool = False
+    #: Seconds (wall) :func:`prepare` took: the checks, the body and the segmented road's boxes.
+    seconds: float = 0.0
 
 
 def lattice(spec: RollingSpec, spacing: float) -> tuple[float, np.ndarray]:
@@ -64,6 +72,7 @@ def prepare(scene: Scene, *, h: float | None = None, provider=None) -> Track:
     ignored on a height map (its spacing, made a divisor of the step)."""
     from ..resolution import default_h
 
+    t0 = time.perf_counter()
     spec = scene.rolling
     if not isinstance(spec, RollingSpec):
         raise SceneError(f"rolling is missing: the scene has no [rolling] table (got {spec!r})")
@@ -87,7 +96,8 @@ def prepare(scene: Scene, *, h: float | None = None, provider=None) -> Track:
     road = Road(scene, window)
     control = "penetration" if scene.penetration is not None else "load"
     times = (shifts - shifts[0]) / spec.speed_mm_s
-    track = Track(scene, spec, provider, road, cell, shifts, times, control, body_label(scene), check)
+    rises = provider.domain() is not None
+    track = Track(scene, spec, provider, road, cell, shifts, times, control, body_label(scene), check, rises)
     if spec.tyre_radius is not None and tyre_contact_length(track) < 2.0 * cell:
         held = (
             f"load.penetration = {scene.penetration!r} mm"
@@ -105,7 +115,7 @@ def prepare(scene: Scene, *, h: float | None = None, provider=None) -> Track:
     warn_if_coarse(check)  # after every refusal: a run refused says only why
     if scene.surface is not None:
         warn_if_wider(track)
-    return track
+    return dataclasses.replace(track, seconds=time.perf_counter() - t0)
 
 
 def _step_check(scene: Scene):
@@ -196,30 +206,63 @@ def tyre_contact_length(track: Track) -> float:
     return 2.0 * FOOTPRINT_MARGIN * a
 
 
+class StripTooShort(SceneError):
+    """The strip does not cover the footprint at every shift of the run (:func:`check_length`);
+    ``strip`` its x range and ``contact`` the footprint's length along x, mm, so that a
+    caller that moved the run (a study's section offset) can say which shifts would fit."""
+
+    def __init__(self, message: str, strip: tuple, contact: float):
+        super().__init__(message)
+        self.strip, self.contact = strip, contact
+
+    def shifts_that_fit(self) -> tuple:
+        """The first and last shift (mm) between which the strip covers the footprint."""
+        return self.contact / 2 - self.strip[1], -self.contact / 2 - self.strip[0]
+
+
 def check_length(track: Track) -> None:
-    """Refuse a strip shorter than the footprint plus the run."""
+    """Refuse a strip shorter than the footprint plus the run (:class:`StripTooShort`)."""
     rx0, rx1 = track.road.extent_x
     L = footprint_length(track)
     s0, s1 = float(track.shifts[0]), float(track.shifts[-1])
     if rx0 + s1 > -L / 2 or rx1 + s0 < L / 2:
-        raise SceneError(
+        raise StripTooShort(
             f"surface: the strip is {rx1 - rx0:.6g} mm long along x, shorter than the contact length (about {L:.4g} mm, "
-            f"the footprint along x) "
+            f"{_length_source(track, L)}) "
             f"plus the run from rolling.start = {track.spec.start!r} to rolling.end = {track.spec.end!r} mm "
-            f"(a road point at x appears at body x + shift: the strip must cover the footprint at every shift)"
+            f"(a road point at x appears at body x + shift: the strip must cover the footprint at every shift)",
+            (rx0, rx1),
+            L,
         )
 
 
+def _length_source(track: Track, length: float) -> str:
+    """What sets the contact length ``length`` (mm) of :func:`footprint_length`, in words."""
+    x0, x1, _, _ = track.road.window
+    if track.spec.tyre_radius is not None and length < x1 - x0:
+        return "the tyre's estimated contact along x"
+    if track.spec.footprint is not None:
+        return "the footprint along x"
+    return "the part of the block's face the road may touch, set by influence.size"
+
+
 def warn_if_wider(track: Track) -> None:
-    """Warn where a footprint window reaches across y beyond the strip by more than a cell:
-    the face there meets no road, so the load is carried by the strip's width alone."""
-    if track.spec.footprint is None:
+    """Warn where the face window (a footprint, or a block's face without one) reaches across
+    y beyond the strip by more than a cell: the face there meets no road, so the load is
+    carried by the strip's width alone."""
+    _, _, w0, w1 = track.road.window
+    if track.spec.footprint is not None:
+        L, W = track.spec.footprint
+        field = f"rolling.footprint = [{L:g}, {W:g}] mm"
+    elif math.isfinite(w1 - w0):
+        Lx, Ly, _ = track.scene.influence["size"]
+        field = f"influence.size = [{Lx:g}, {Ly:g}, ...] mm (the part of the block's face the road may touch, {w1 - w0:.4g} mm across y)"
+    else:
         return
-    L, W = track.spec.footprint
     y0, y1 = float(track.road.box[:, 2].min()), float(track.road.box[:, 3].max())
-    if -W / 2 < y0 - track.h or W / 2 > y1 + track.h:
+    if w0 < y0 - track.h or w1 > y1 + track.h:
         warnings.warn(
-            f"rolling.footprint = [{L:g}, {W:g}] mm is wider than the strip ({y1 - y0:.4g} mm across y, "
+            f"{field} is wider than the strip ({y1 - y0:.4g} mm across y, "
             f"from {y0:.4g} to {y1:.4g} mm): the face beyond it touches no road",
             SurfaceWarning,
             stacklevel=2,

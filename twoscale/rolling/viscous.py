@@ -56,6 +56,14 @@ NEAR_GAP = 0.2
 #: ``"mixed"``): the circulant inverse stays.
 STEP_CG = MappingProxyType({"precision": "single-directions", "precondition": True, "keep_conjugacy": 0.005})
 
+#: A step's micro iteration on another body (a tread block): the two-scale policy's at
+#: every step (it takes the union CG where the stones crowd their box), not the two-level
+#: iteration with far-field coupling a load history's warm steps take. On the example strip
+#: under a 150 x 100 x 10 mm block (21 positions, four branches, 50 km/h): 0.14 against
+#: 0.78 s of CPU a position, the loads within 1e-10 of the full-grid reference stepping
+#: against 1.3e-6 (the drag 2e-4) with the far field.
+ANY_ITERATION = MappingProxyType({"iteration": "auto"})
+
 
 @dataclass(eq=False)
 class RoadIndenter:
@@ -79,7 +87,8 @@ class RoadIndenter:
         for k, stone in zip(self.numbers, road.map_stones(self.numbers, shift, group)):
             if stone is None:
                 a = road.tips[int(k)]
-                stone = dataclasses.replace(a, x=a.x + shift, z=FAR, basins=group)
+                x, y = _inside(road.window, a.x + shift, a.y)
+                stone = dataclasses.replace(a, x=x, y=y, z=FAR, basins=group)
             out.append(stone)
         self._last = (shift, tuple(out))
         return self._last[1]
@@ -102,6 +111,18 @@ class RoadIndenter:
 
     def face_on(self, grid: Grid) -> np.ndarray:
         return np.zeros(grid.shape)  # the face is in the stones' heights already
+
+
+def _inside(window: tuple, x: float, y: float) -> tuple:
+    """(x, y) wrapped into the finite sides of ``window``: a stone out of reach still sits on
+    the face, since a block answers only for points there and asks it of every tip, loaded
+    or not; wrapped, not clamped, so that no two stones meet."""
+    x0, x1, y0, y1 = window
+    if math.isfinite(x1 - x0) and not x0 <= x <= x1:
+        x = x0 + math.fmod(x - x0, x1 - x0) % (x1 - x0)
+    if math.isfinite(y1 - y0) and not y0 <= y <= y1:
+        y = y0 + math.fmod(y - y0, y1 - y0) % (y1 - y0)
+    return x, y
 
 
 def run_stones(track: Track) -> np.ndarray:
@@ -152,8 +173,8 @@ def roll_viscoelastic(track: Track, *, tol: float = 1e-6, progress=None, on_posi
             near_gap=NEAR_GAP,
         )
         provider = body
-    else:
-        options = MovingOptions(method="twoscale", solver={"tol": tol}, open_edges=True)
+    else:  # the policy's iteration at every step, as the elastic rolling's: see ANY_ITERATION
+        options = MovingOptions(method="twoscale", solver={"tol": tol, **ANY_ITERATION}, open_edges=True)
     moving = solve_moving(
         scene.material,
         provider,
@@ -222,7 +243,7 @@ def _result(track: Track, numbers: np.ndarray, moving, seconds: float, method: s
         line_load=lines[1],
         dissipated=moving.dissipated,
         stored=moving.stored,
-        timings_s={"prepare": 0.0, "positions": seconds, "total": seconds},
+        timings_s={"prepare": track.seconds, "positions": seconds, "total": track.seconds + seconds},
         body=track.body + ", viscoelastic",
         step_check=track.step_check,
     )

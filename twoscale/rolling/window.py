@@ -1,5 +1,5 @@
-"""The rolling path of a half-space: one constrained conjugate gradient per position over a
-window fixed in the body, its FFT operator built once for the run.
+"""The rolling path (the half-space; a block's face under a strip): one constrained CG per
+position over a window fixed in the body, its operator built once for the run.
 
 Under a tyre the stones crowd the footprint (about half of those within reach touch at
 once), so the two-scale solver's patches cover most of their box and its micro step runs
@@ -59,7 +59,7 @@ import numpy as np
 from ..grid import Grid
 from ..indenters import Surface, surface_on
 from .blocks import StoneBlocks
-from .boxes import CUT_MARGIN_CELLS, covers, cut_grid, fast_grid, grown, loaded_box, moved, union
+from .boxes import CUT_MARGIN_CELLS, clipped, covers, cut_grid, fast_grid, grown, loaded_box, moved, union
 from .lift import touching_outside
 from .road import RolledStone, Selection, reaches, stones_surface
 from .track import Track
@@ -178,16 +178,15 @@ class WindowState:
 
     def window(self, need: Grid) -> Grid:
         """The kept window if it covers ``need`` (same lattice), else one that covers both
-        with :data:`MARGIN_CELLS` more on every side."""
-        g = self.grid
+        with :data:`MARGIN_CELLS` more on every side, within the body's domain (a block's)."""
+        g, m, (lo_x, hi_x, lo_y, hi_y) = self.grid, MARGIN_CELLS * need.h, need.bounds
         if g is not None and covers(g, need):
             return g
-        m = MARGIN_CELLS * need.h
-        lo_x, hi_x, lo_y, hi_y = need.bounds
         if g is not None:
             b = g.bounds
             lo_x, hi_x, lo_y, hi_y = min(lo_x, b[0]), max(hi_x, b[1]), min(lo_y, b[2]), max(hi_y, b[3])
-        self.grid = fast_grid(Grid.covering(lo_x - m, hi_x + m, lo_y - m, hi_y + m, need.h, anchor=(need.x0, need.y0)))
+        grid = fast_grid(Grid.covering(lo_x - m, hi_x + m, lo_y - m, hi_y + m, need.h, anchor=(need.x0, need.y0)))
+        self.grid = clipped(grid, self.body.provider.domain())
         return self.grid
 
     def cut_in(self, window: Grid, low: Callable[[], Grid | None] | None = None) -> Grid:

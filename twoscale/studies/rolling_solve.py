@@ -123,6 +123,26 @@ def _case_warnings(label: str) -> Iterator[list]:
         warnings.warn(f"{label}: {w.message}", w.category, stacklevel=3)
 
 
+def offset_reason(exc: Exception, case, study: RollingStudy) -> str:
+    """Where the strip does not cover the run that a section's offset moved
+    (:class:`~twoscale.rolling.track.StripTooShort`), the reason naming the offset, its
+    value and the offsets that fit; else ``""``."""
+    from ..rolling.track import StripTooShort
+
+    o = case.section.offset
+    if not isinstance(exc, StripTooShort) or o == 0:
+        return ""
+    lo, hi = exc.shifts_that_fit()
+    t = study.track
+    fits = t["end"] - hi, t["start"] - lo  # shift = rolling.start (end) - offset
+    allowed = f"offsets from {fits[0]:.4g} to {fits[1]:.4g} mm fit" if fits[0] <= fits[1] else "no offset fits"
+    return (
+        f"section {case.section.name}: offsets value {o:g} mm moves the run to shifts {t['start'] - o:g} ... "
+        f"{t['end'] - o:g} mm, off the strip ({exc.strip[0]:.4g} to {exc.strip[1]:.4g} mm along x, the footprint "
+        f"about {exc.contact:.4g} mm long on it at every shift): {allowed}"
+    )
+
+
 def solve_group(study: RollingStudy, group: list, strips: StripCache, providers: ProviderCache) -> list:
     """Roll the cases ``group`` = ``[(ref, key), ...]`` of one solve; their records in order.
     Any error but Ctrl-C becomes failed records with the reason."""
@@ -136,7 +156,7 @@ def solve_group(study: RollingStudy, group: list, strips: StripCache, providers:
         with _case_warnings(cases[0][0].label) as raised:
             result = roll(scene, options=RollingOptions(**study.solver), provider=provider)
     except Exception as exc:  # noqa: BLE001 - a failing case is recorded, the study goes on
-        reason = f"{type(exc).__name__}: {exc}"
+        reason = f"{type(exc).__name__}: {offset_reason(exc, cases[0][0], study) or exc}"
         if not isinstance(exc, ValueError):
             reason += " | " + traceback.format_exc(limit=-3).replace("\n", " ")
         return [
