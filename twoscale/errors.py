@@ -61,3 +61,8 @@ class TiltWarning(UserWarning):
 
 class SurfaceWarning(UserWarning):
     """A height-map solve whose answer needs care (contacts reaching the map's edge)."""
+
+
+class BulgeWarning(UserWarning):
+    """Tips above the approach that a finite body's rising surface touches were left out of
+    the solve (:mod:`twoscale.bulge`)."""

@@ -166,6 +166,10 @@ class InfluenceProvider(ABC):
     #: half-space's is a strided copy from cached kernel values): solvers may then rebuild a
     #: block when they need it instead of storing it.
     cheap_grid_matrix: bool = False
+    #: Whether a pressure that is nowhere negative can raise the surface somewhere (a bonded,
+    #: nearly incompressible block bulges beside its contacts); False: the surface only
+    #: sinks (the half-space), so no tip above the approach can touch.
+    surface_rises: bool = False
 
     @abstractmethod
     def point_compliance(self, targets: np.ndarray, sources: np.ndarray) -> np.ndarray:

@@ -151,6 +151,10 @@ class CachedBody(InfluenceProvider):
     def cheap_grid_matrix(self) -> bool:  # type: ignore[override]
         return bool(getattr(self.body, "cheap_grid_matrix", False))
 
+    @property
+    def surface_rises(self) -> bool:  # type: ignore[override]
+        return bool(getattr(self.body, "surface_rises", False))
+
     # ------------------------------------------------------------------ the body's answers
     def point_compliance(self, targets, sources):
         """The body's. On a translation-invariant body (a function of each pair's offset)

@@ -1,0 +1,80 @@
+"""Tips above the approach that a bonded block's rising surface touches (twoscale.bulge).
+
+A sphere pressed 0.5 mm into a bonded, incompressible 5 mm layer raises the surface about
+20 um some 6 mm away. A second sphere there, its apex 10 um above the approach, is outside
+every tip's reach, so the solvers leave it out. The solve must say so. The apex's gap is
+checked independently: the solved pressure spread on a grid that covers both tips, its
+displacement by the body's grid operator (FFT and correction, not the cell blocks the
+check uses). With the apex 40 um above, or on the half-space (whose surface only sinks),
+the gap stays open and nothing is said."""
+
+from __future__ import annotations
+
+import warnings
+
+import numpy as np
+import pytest
+
+import twoscale
+from twoscale import Material
+from twoscale.errors import BulgeWarning
+from twoscale.grid import Grid
+from twoscale.indenters import Asperity
+from twoscale.scene import Scene
+
+MAT = Material(E=10.0, nu=0.5)
+BLOCK = {"kind": "block", "size": (40.0, 40.0, 5.0), "base": "bonded", "source_spacing": 2.0}
+D = 0.5
+
+
+def _scene(rise: float, influence=None) -> Scene:
+    tips = (Asperity(x=0.0, y=0.0, z=0.0, R=10.0), Asperity(x=6.0, y=0.0, z=D + rise, R=10.0))
+    return Scene(material=MAT, asperities=tips, penetration=D, influence=influence or BLOCK, h=0.1)
+
+
+def _apex_gap(scene: Scene, result) -> float:
+    """``z + u - d`` at the second tip's apex, ``u`` by the body's grid operator from the
+    result's pressure placed on a grid covering both tips."""
+    grid = Grid.covering(-3.0, 8.0, -3.0, 3.0, result.fields[0].grid.h)
+    X, Y = grid.centres()
+    p = np.zeros(grid.shape)
+    for f in result.fields:
+        fx, fy = f.grid.centres()
+        cols = np.rint((fx[0] - X[0, 0]) / grid.h).astype(int)
+        rows = np.rint((fy[:, 0] - Y[0, 0]) / grid.h).astype(int)
+        keep_r, keep_c = (rows >= 0) & (rows < grid.ny), (cols >= 0) & (cols < grid.nx)
+        p[np.ix_(rows[keep_r], cols[keep_c])] += f.pressure[np.ix_(keep_r, keep_c)]
+    provider = scene.provider(progress=False) if scene.influence["kind"] == "block" else scene.provider()
+    u = provider.grid_operator(grid).apply(p)
+    i, j = int(np.argmin(np.abs(Y[:, 0]))), int(np.argmin(np.abs(X[0] - 6.0)))
+    return float(scene.asperities[1].z + u[i, j] - result.penetration)
+
+
+def _warned(scene: Scene, method: str):
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        opts = {"progress": False} if scene.influence["kind"] == "block" else None
+        result = twoscale.solve(scene, method=method, provider_options=opts)
+    return result, [w for w in caught if issubclass(w.category, BulgeWarning)]
+
+
+@pytest.fixture(autouse=True)
+def _cache(tmp_path, monkeypatch):
+    monkeypatch.setenv("TWOSCALE_CACHE_DIR", str(tmp_path))
+
+
+@pytest.mark.parametrize("method", ["twoscale", "reference"])
+def test_a_tip_the_bulge_lifts_is_named(method):
+    scene = _scene(0.010)
+    result, found = _warned(scene, method)
+    assert result.forces[1] == 0.0 and _apex_gap(scene, result) < -0.005  # left out, yet 5+ um in
+    assert len(found) == 1 and "tip 2 at (6, 0) mm" in str(found[0].message)
+
+
+def test_a_tip_beyond_the_bulge_or_on_the_half_space_is_not():
+    high = _scene(0.040)
+    result, found = _warned(high, "twoscale")
+    assert _apex_gap(high, result) > 0.005 and found == []
+    flat = _scene(0.010, influence={"kind": "halfspace"})
+    result, found = _warned(flat, "twoscale")
+    assert _apex_gap(flat, result) > 0.005 and found == []
