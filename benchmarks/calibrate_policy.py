@@ -18,7 +18,9 @@ CPU / wall ratio (the machine is shared). The script prints:
   ``twoscale/micro/costmodel.py``.
 
 Only attempts that converged and took at least ``--min-seconds`` count (a stalled
-attempt's time is the price of its fallback, reported apart).
+attempt's time is the price of its fallback, reported apart); with ``--max-sweeps`` the
+block iterations' attempts of more sweeps are reported but left out of the fit (the form
+costs a fixed sweep count, ``CostModel.gs_sweeps``, and cannot follow them).
 
 ``--forced FILE.jsonl`` adds the rows of ``benchmarks/force_strategies.py`` (each strategy
 forced on sweep scenes, the micro step's CPU seconds): the candidates the policy did not
@@ -139,6 +141,13 @@ def forced_samples(rows: list[dict], count: int = 200) -> list[dict]:
             }
         )
     return out
+
+
+def fitted(rows: list[dict], min_seconds: float, max_sweeps: int | None = None) -> list[dict]:
+    """The samples a fit reads: at least ``min_seconds`` long, and of at most
+    ``max_sweeps`` sweeps where they are block iterations (None: any)."""
+    many = lambda r: max_sweeps is not None and r["candidate"] != "union-cg" and (r["sweeps"] or 0) > max_sweeps  # noqa: E731
+    return [r for r in rows if r["seconds"] >= min_seconds and not many(r)]
 
 
 def fit(rows: list[dict]) -> dict:
@@ -269,6 +278,20 @@ def report(name: str, models: dict, rows: list[dict]) -> list[dict]:
     return off
 
 
+def rescale(installed: dict, rows: list[dict]) -> None:
+    """The installed model's seconds scaled by one factor (the median of measured over
+    predicted), and by one per candidate: the scale alone keeps every choice."""
+    conv = [r for r in rows if r["converged"]]
+    logs = np.array([math.log(r["seconds"] / predict(installed, r)) for r in conv])
+    if not len(logs):
+        return
+    scale = float(np.exp(np.median(logs)))
+    scaled = {k: {n: v * scale for n, v in m.items()} for k, m in installed.items() if k != "factors"}
+    report(f"the installed model x {scale:.3g}", {**scaled, "factors": installed["factors"]}, conv)
+    each = {k: np.exp(np.median([g for g, r in zip(logs, conv) if r["candidate"] == k])) for k in CANDIDATES}
+    print("  one scale per candidate: " + ", ".join(f"{k} x {v:.3g}" for k, v in each.items() if np.isfinite(v)))
+
+
 def main(argv=None) -> int:
     p = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     p.add_argument("files", nargs="*", help="records of benchmarks/sweep.py")
@@ -284,6 +307,7 @@ def main(argv=None) -> int:
         default=0.02,
         help="attempts shorter than this are left out (their time is the clock's resolution and Python)",
     )
+    p.add_argument("--max-sweeps", type=int, help="block attempts of more sweeps are left out of the fit")
     args = p.parse_args(argv)
     from twoscale.micro.costmodel import FITTED
 
@@ -302,7 +326,11 @@ def main(argv=None) -> int:
     if not rows:
         print("no timed attempt")
         return 1
-    models = fit(rows)
+    models = fit(fitted(rows, args.min_seconds, args.max_sweeps))
+    if args.max_sweeps is not None:
+        print(
+            f"{len(rows) - len(fitted(rows, 0.0, args.max_sweeps))} attempts of over {args.max_sweeps} sweeps not fitted"
+        )
     scenes = len(records) + len({r["scene"] for r in rows if r["scene"].endswith("(forced)")})
     print(f"{len(rows)} attempts from {scenes} scenes ({sum(r['converged'] for r in rows)} converged)")
     for k in CANDIDATES:
@@ -321,6 +349,7 @@ def main(argv=None) -> int:
         "union_exponent": FITTED.union_work_exponent,
     }
     report(f"installed model ({FITTED.fitted_on})", installed, rows)
+    rescale(installed, fitted(rows, args.min_seconds, args.max_sweeps))
     off = report("this fit", models, rows)
     for f, r in sorted(off, key=lambda x: -abs(math.log(x[0]))):
         print(

@@ -11,8 +11,9 @@ fastest (the micro step's CPU seconds of the variant the policy runs for it:
 finishing). Printed: per scene the three picks and the measured seconds; how often each
 model picks the fastest or one within ``--within`` (or within ``SLACK`` seconds), and the
 fit's picks when each scene is left out of its own fit; the scenes where the fit's pick is over
-``--worse`` times slower than the installed model's; and, with ``--margins``, the same count
-for a range of each margin, so the margins can be chosen from the measured costs.
+``--worse`` times slower than the installed model's; the picks' measured seconds summed
+over the fastest's (1: always the fastest); and, with ``--margins``, the same for a range of
+each margin, so the margins can be chosen from the measured costs.
 
 Usage::
 
@@ -30,7 +31,7 @@ import sys
 
 sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 
-from benchmarks.calibrate_policy import _model_from, fit, forced_samples, policy_runs  # noqa: E402
+from benchmarks.calibrate_policy import _model_from, fit, fitted, forced_samples, policy_runs  # noqa: E402
 
 
 def scenes(rows: list[dict]) -> list[dict]:
@@ -78,10 +79,11 @@ def right(measured: dict, candidate: str, within: float) -> bool:
     return measured[candidate] <= max(within * best, best + SLACK)
 
 
-def score(found: list[dict], model, within: float) -> tuple[int, int, list]:
+def score(found: list[dict], model, within: float) -> tuple[int, int, list, float]:
     """Scenes where ``model`` (or per scene ``model(scene)``) picks the measured fastest or
-    one within ``within`` of it, scenes counted (the pick measured), and each scene's pick."""
-    hits, counted, picks = 0, 0, []
+    one within ``within`` of it, scenes counted (the pick measured), each scene's pick, and
+    the picks' measured seconds over the fastest's, summed over the scenes counted."""
+    hits, counted, picks, spent, best = 0, 0, [], 0.0, 0.0
     for sc in found:
         p = pick(sc, model(sc) if callable(model) else model)
         picks.append(p)
@@ -90,17 +92,16 @@ def score(found: list[dict], model, within: float) -> tuple[int, int, list]:
             continue
         counted += 1
         hits += right(sc["measured"], p, within)
-    return hits, counted, picks
+        spent, best = spent + got, best + min(sc["measured"].values())
+    return hits, counted, picks, spent / max(best, 1e-300)
 
 
-def left_out(rows: list[dict], min_seconds: float, kept: dict):
+def left_out(rows: list[dict], bounds: tuple, kept: dict):
     """Per scene, the fit on the other scenes' rows (a cross-validated pick)."""
 
     def model(sc: dict):
         others = [r for r in rows if (int(r.get("seed", 0)), r["scene"]) != (sc["seed"], sc["scene"])]
-        return dataclasses.replace(
-            _model_from(fit([r for r in forced_samples(others) if r["seconds"] >= min_seconds])), **kept
-        )
+        return dataclasses.replace(_model_from(fit(fitted(forced_samples(others), *bounds))), **kept)
 
     return model
 
@@ -110,8 +111,8 @@ def margins(found: list[dict], model, within: float) -> None:
     for name in ("union_margin", "far_union_margin"):
         row = []
         for m in (0.5, 0.7, 0.85, 1.0, 1.2, 1.4, 1.7, 2.0, 2.5, 3.0):
-            hits, counted, _ = score(found, dataclasses.replace(model, **{name: m}), within)
-            row.append(f"{m:g}: {hits}/{counted}")
+            hits, counted, _, spent = score(found, dataclasses.replace(model, **{name: m}), within)
+            row.append(f"{m:g}: {hits}/{counted} ({spent:.3f})")
         print(f"  {name} (now {getattr(model, name):g}): " + ", ".join(row))
 
 
@@ -119,6 +120,7 @@ def main(argv=None) -> int:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("forced", nargs="+", help="rows of benchmarks/force_strategies.py")
     p.add_argument("--min-seconds", type=float, default=0.02, help="shorter samples are left out of the fit")
+    p.add_argument("--max-sweeps", type=int, help="block attempts of more sweeps are left out of the fit")
     p.add_argument("--within", type=float, default=1.1, help="a pick this close to the fastest counts as right")
     p.add_argument("--worse", type=float, default=1.5, help="the fit's pick against the installed one's")
     p.add_argument("--union-margin", type=float, help="the fit's union_margin (default: the installed one)")
@@ -131,13 +133,14 @@ def main(argv=None) -> int:
     for f in args.forced:
         with open(f, encoding="utf-8") as fh:
             rows += [json.loads(line) for line in fh if line.strip()]
-    refit = _model_from(fit([r for r in forced_samples(rows) if r["seconds"] >= args.min_seconds]))
+    bounds = (args.min_seconds, args.max_sweeps)
+    refit = _model_from(fit(fitted(forced_samples(rows), *bounds)))
     kept = {"union_margin": args.union_margin, "far_union_margin": args.far_union_margin}
     kept = {k: v for k, v in kept.items() if v is not None}
     refit = dataclasses.replace(refit, **kept)
     found = scenes(rows)
-    h0, n0, before = score(found, FITTED, args.within)
-    h1, n1, after = score(found, refit, args.within)
+    h0, n0, before, s0 = score(found, FITTED, args.within)
+    h1, n1, after, s1 = score(found, refit, args.within)
     print("| seed | scene | patches | control | installed | refit | fastest | measured micro s (union / exact / far) |")
     print("|---|---|---|---|---|---|---|---|")
     worse = []
@@ -151,10 +154,12 @@ def main(argv=None) -> int:
         )
         if a in m and b in m and m[a] > max(args.worse * m[b], m[b] + SLACK):
             worse.append(f"  seed {sc['seed']} #{sc['scene']}: {a} {m[a]:.3g} s against {b} {m[b]:.3g} s")
-    print(f"installed model: the fastest (or within {args.within:g}x) on {h0} of {n0} scenes")
-    print(f"refit: on {h1} of {n1}; {sum(a != b for a, b in zip(before, after))} picks change")
-    h2, n2, _ = score(found, left_out(rows, args.min_seconds, kept), args.within)
-    print(f"refit on the other scenes' rows only (each scene left out of its own fit): on {h2} of {n2}")
+    print(
+        f"installed model: the fastest (or within {args.within:g}x) on {h0} of {n0} scenes; picks' s / fastest {s0:.3f}"
+    )
+    print(f"refit: on {h1} of {n1} ({s1:.3f}); {sum(a != b for a, b in zip(before, after))} picks change")
+    h2, n2, _, s2 = score(found, left_out(rows, bounds, kept), args.within)
+    print(f"refit on the other scenes' rows only (each scene left out of its own fit): on {h2} of {n2} ({s2:.3f})")
     print(f"refit's pick over {args.worse:g}x slower than the installed one's: {len(worse)}")
     print("\n".join(worse))
     if args.margins:
