@@ -24,7 +24,8 @@ A scene's map texture is written before the clock starts, as the sweep times it.
 
 Variants that cannot finish are not run: the exact ones (``block-gs``, ``two-level``) on
 more patches than the policy couples exactly (``exact_max_patches``, N^2 pairs), the union
-CG on a box of over ``--max-union-cells`` cells (about 0.5 kB a cell: the machine's memory).
+CG on a box of over ``--max-union-cells`` cells (about 0.5 kB a cell: the machine's memory),
+and with ``--max-ratio`` a candidate predicted over that many times the policy's choice.
 
 Usage::
 
