@@ -18,7 +18,9 @@ CPU / wall ratio (the machine is shared). The script prints:
   ``twoscale/micro/costmodel.py``.
 
 Only attempts that converged and took at least ``--min-seconds`` count (a stalled
-attempt's time is the price of its fallback, reported apart).
+attempt's time is the price of its fallback, reported apart); with ``--max-sweeps`` the
+block iterations' attempts of more sweeps are reported but left out of the fit (the form
+costs a fixed sweep count, ``CostModel.gs_sweeps``, and cannot follow them).
 
 ``--forced FILE.jsonl`` adds the rows of ``benchmarks/force_strategies.py`` (each strategy
 forced on sweep scenes, the micro step's CPU seconds): the candidates the policy did not
@@ -93,18 +95,39 @@ def samples(records: list[dict]) -> list[dict]:
 FORCED = {"union-cg": "union-cg", "block-gs": "block-gs", "two-level": "block-gs", "far": "two-level"}
 
 
-def forced_samples(rows: list[dict], count: int = 200, seed: int = 0) -> list[dict]:
-    """One sample per forced variant's row (``benchmarks/force_strategies.py``): its median
-    micro-step CPU seconds against the work the policy estimated on that scene."""
+def policy_runs(row: dict) -> dict:
+    """The forced variant the policy runs for each candidate on a forced row's scene: its
+    exact block iterations are the two-level one under load control without merged
+    contacts (:func:`twoscale.micro.policy.decide`), block Gauss-Seidel otherwise."""
+    merged = bool((row.get("figures") or {}).get("merged_contacts"))
+    exact = "two-level" if row.get("control") == "load" and not merged else "block-gs"
+    return {"union-cg": "union-cg", "block-gs": exact, "two-level": "far"}
+
+
+def forced_samples(rows: list[dict], count: int = 200) -> list[dict]:
+    """One sample per forced variant's row (``benchmarks/force_strategies.py``, each of its
+    row's ``seed``, 0 where it has none): its median micro-step CPU seconds against the work
+    the policy estimated on that scene. Of the exact variants only the one the policy runs
+    (:func:`policy_runs`) counts, and not block Gauss-Seidel with sensitivity sweeps (merged
+    contacts under load control), which the model costs with a factor this fit leaves."""
     from twoscale.scenespace import sweep
 
-    specs = {s.index: s for s in sweep(count, seed)}
+    specs: dict = {}
     out = []
     for r in rows:
         key = FORCED.get(r["variant"])
         if key is None or not r.get("work") or not r.get("work", {}).get(key) or "micro_s" not in r:
             continue
-        spec = specs[r["scene"]]
+        seed = int(r.get("seed", 0))
+        if seed not in specs:
+            specs[seed] = {s.index: s for s in sweep(count, seed)}
+        spec = specs[seed][r["scene"]]
+        r = {"control": spec.control, **r}
+        merged = bool((r.get("figures") or {}).get("merged_contacts"))
+        if "figures" in r and (
+            policy_runs(r)[key] != r["variant"] or (key == "block-gs" and merged and spec.control == "load")
+        ):
+            continue
         out.append(
             {
                 "candidate": key,
@@ -114,10 +137,17 @@ def forced_samples(rows: list[dict], count: int = 200, seed: int = 0) -> list[di
                 "seconds": max(float(r["micro_s"]), 1e-3),
                 "converged": bool(r.get("converged")),
                 "sweeps": (r.get("attempts") or [[None, None, None, None]])[-1][3],
-                "scene": spec.label + " (forced)",
+                "scene": f"seed {seed} " + spec.label + " (forced)",
             }
         )
     return out
+
+
+def fitted(rows: list[dict], min_seconds: float, max_sweeps: int | None = None) -> list[dict]:
+    """The samples a fit reads: at least ``min_seconds`` long, and of at most
+    ``max_sweeps`` sweeps where they are block iterations (None: any)."""
+    many = lambda r: max_sweeps is not None and r["candidate"] != "union-cg" and (r["sweeps"] or 0) > max_sweeps  # noqa: E731
+    return [r for r in rows if r["seconds"] >= min_seconds and not many(r)]
 
 
 def fit(rows: list[dict]) -> dict:
@@ -240,15 +270,34 @@ def report(name: str, models: dict, rows: list[dict]) -> list[dict]:
     off = [(f, r) for f, r in zip(factors, conv) if not 0.5 <= f <= 2.0]
     med = float(np.exp(np.median(np.abs(np.log(factors))))) if factors else float("nan")
     print(f"{name}: median factor {med:.2f}, {len(off)} of {len(conv)} attempts off by more than 2x")
+    for k in CANDIDATES:
+        got = [f for f, r in zip(factors, conv) if r["candidate"] == k]
+        if got:
+            mk = float(np.exp(np.median(np.abs(np.log(got)))))
+            print(f"  {k:10s} median factor {mk:.2f}, {sum(not 0.5 <= f <= 2.0 for f in got)} of {len(got)} off by >2x")
     return off
+
+
+def rescale(installed: dict, rows: list[dict]) -> None:
+    """The installed model's seconds scaled by one factor (the median of measured over
+    predicted), and by one per candidate: the scale alone keeps every choice."""
+    conv = [r for r in rows if r["converged"]]
+    logs = np.array([math.log(r["seconds"] / predict(installed, r)) for r in conv])
+    if not len(logs):
+        return
+    scale = float(np.exp(np.median(logs)))
+    scaled = {k: {n: v * scale for n, v in m.items()} for k, m in installed.items() if k != "factors"}
+    report(f"the installed model x {scale:.3g}", {**scaled, "factors": installed["factors"]}, conv)
+    each = {k: np.exp(np.median([g for g, r in zip(logs, conv) if r["candidate"] == k])) for k in CANDIDATES}
+    print("  one scale per candidate: " + ", ".join(f"{k} x {v:.3g}" for k, v in each.items() if np.isfinite(v)))
 
 
 def main(argv=None) -> int:
     p = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    p.add_argument("files", nargs="+")
+    p.add_argument("files", nargs="*", help="records of benchmarks/sweep.py")
     p.add_argument("--forced", nargs="*", default=[], help="rows of benchmarks/force_strategies.py")
     p.add_argument("--emit", action="store_true", help="print the FITTED block for twoscale/micro/costmodel.py")
-    p.add_argument("--margin", type=float, default=1.0, help="union_margin to emit")
+    p.add_argument("--margin", type=float, help="union_margin to emit (default: the installed one)")
     p.add_argument(
         "--replay", action="store_true", help="list the scenes whose micro iteration the fit would choose differently"
     )
@@ -258,6 +307,7 @@ def main(argv=None) -> int:
         default=0.02,
         help="attempts shorter than this are left out (their time is the clock's resolution and Python)",
     )
+    p.add_argument("--max-sweeps", type=int, help="block attempts of more sweeps are left out of the fit")
     args = p.parse_args(argv)
     from twoscale.micro.costmodel import FITTED
 
@@ -276,8 +326,13 @@ def main(argv=None) -> int:
     if not rows:
         print("no timed attempt")
         return 1
-    models = fit(rows)
-    print(f"{len(rows)} attempts from {len(records)} scenes ({sum(r['converged'] for r in rows)} converged)")
+    models = fit(fitted(rows, args.min_seconds, args.max_sweeps))
+    if args.max_sweeps is not None:
+        print(
+            f"{len(rows) - len(fitted(rows, 0.0, args.max_sweeps))} attempts of over {args.max_sweeps} sweeps not fitted"
+        )
+    scenes = len(records) + len({r["scene"] for r in rows if r["scene"].endswith("(forced)")})
+    print(f"{len(rows)} attempts from {scenes} scenes ({sum(r['converged'] for r in rows)} converged)")
     for k in CANDIDATES:
         if k in models:
             m = models[k]
@@ -294,6 +349,7 @@ def main(argv=None) -> int:
         "union_exponent": FITTED.union_work_exponent,
     }
     report(f"installed model ({FITTED.fitted_on})", installed, rows)
+    rescale(installed, fitted(rows, args.min_seconds, args.max_sweeps))
     off = report("this fit", models, rows)
     for f, r in sorted(off, key=lambda x: -abs(math.log(x[0]))):
         print(
@@ -319,13 +375,13 @@ def main(argv=None) -> int:
             # not fitted here (the records do not say which scenes had merged contacts): kept
             f"    sensitivity_factor={FITTED.sensitivity_factor:g},\n"
             f"    union_work_exponent={models['factors']['union_exponent']:.3g},\n"
-            f"    union_margin={args.margin:g},\n"
+            f"    union_margin={args.margin if args.margin is not None else FITTED.union_margin:g},\n"
             # the bounds and the far field's margin are measured, not fitted: kept
             f"    far_union_margin={FITTED.far_union_margin:g},\n"
             f"    union_min_coverage={FITTED.union_min_coverage:g},\n"
             f"    union_margin_min_coverage={FITTED.union_margin_min_coverage:g},\n"
             f"    union_small_box_cells={FITTED.union_small_box_cells:_},\n"
-            f'    fitted_on="{len(rows)} attempts of {len(records)} sweep scenes",\n)'
+            f'    fitted_on="{len(rows)} attempts of {scenes} sweep scenes",\n)'
         )
     return 0
 
