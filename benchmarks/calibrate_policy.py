@@ -380,6 +380,8 @@ def main(argv=None) -> int:
             f"    far_union_margin={FITTED.far_union_margin:g},\n"
             f"    union_min_coverage={FITTED.union_min_coverage:g},\n"
             f"    union_margin_min_coverage={FITTED.union_margin_min_coverage:g},\n"
+            f"    union_penetration_min_coverage={FITTED.union_penetration_min_coverage!r},\n"
+            f"    union_penetration_min_patches={FITTED.union_penetration_min_patches:_},\n"
             f"    union_small_box_cells={FITTED.union_small_box_cells:_},\n"
             f'    fitted_on="{len(rows)} attempts of {scenes} sweep scenes",\n)'
         )

@@ -44,7 +44,7 @@ from .memory_costs import BASE_BYTES, GRID_BYTES_PER_CELL, PATCH_BYTES_PER_CELL,
 from .memory_costs import COUPLING_CACHE_BYTES, MARGIN, MERGE_GROWTH, MACRO_DENSE_MAX, DENSE_CELLS
 from .memory_costs import FAR_OPERATOR_BYTES_PER_PATCH
 from .memory_costs import DENSE_GRID_CELLS, BLOCK_PROVIDER_BYTES, DEFAULT_FRACTION, ADVICE_SHARE
-from .micro.policy import FAR_FIELD_MIN_PATCHES, FULL_GRID_MAX_TIPS, UNION_MIN_COVERAGE, full_grid_max_cells
+from .micro.policy import FAR_FIELD_MIN_PATCHES, FULL_GRID_MAX_TIPS, MODEL, UNION_MIN_COVERAGE, full_grid_max_cells
 from .micro.policy import full_grid_route as policy_full_grid_route
 from .micro.sources import KEPT_BYTES_PER_OWNED_CELL
 from .pivot import pivot_route
@@ -128,8 +128,8 @@ def estimate_memory(scene: Scene, h: float, method: str = "twoscale", *, iterati
     iteration : str, default "auto"
         The two-scale micro iteration asked for (``solve_twoscale``'s ``iteration``):
         ``"union-cg"`` always counts the box of the patches; any other value counts it
-        where the patches cover at least :data:`UNION_MIN_COVERAGE` of it, and always on a
-        height map's stones (the policy weighs the union CG there at any coverage).
+        where the patches cover at least :data:`UNION_MIN_COVERAGE` of it (under penetration
+        control ``MODEL.union_coverage``), and always on a height map's stones.
 
     Returns
     -------
@@ -216,9 +216,9 @@ def _twoscale_parts(scene: Scene, h: float, *, union: bool = False) -> tuple[int
         parts["far field's kept weights"] = KEPT_BYTES_PER_OWNED_CELL * cells
         # and its point operator among the patches (8,376 patches of paraboloids: 260 MB)
         parts["far field's point operator"] = FAR_OPERATOR_BYTES_PER_PATCH * float(on.sum())
-    # a height map's stones may take the union CG at any coverage (micro.policy.decide)
+    # a height map's stones may take the union CG at any coverage, penetration from a lower share (policy.decide)
     on_map = all(a.shape == "map" for a in scene.asperities)
-    if box is not None and (union or on_map or crowded):
+    if box is not None and (union or on_map or cells >= MODEL.union_coverage(scene.penetration is None, n) * box.size):
         # the union CG runs after the patches are built (and after a block iteration that
         # did not converge): both are held at its peak
         parts.update(_grid_parts(scene, box, "union box"))

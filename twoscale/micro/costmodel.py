@@ -64,6 +64,13 @@ class CostModel:
         for the two-level iteration, and at a fine h a box of 70 M cells). Not applied to
         a height map's stones, whose box is at most the map's grid (:func:`.policy.decide`),
         nor on a box of at most ``union_small_box_cells``.
+    union_penetration_min_coverage : float or None
+        Under penetration control, on at least ``union_penetration_min_patches`` patches,
+        the union CG stays a candidate below ``union_min_coverage`` down to this share of
+        the box (the prediction decides, no margins: :meth:`union_coverage`); None:
+        ``union_min_coverage``. There its prediction ordered the union CG and the far field
+        as measured, where under load it did not (docs/records/sweep.md).
+    union_penetration_min_patches : int
     union_small_box_cells : int
         On a box of at most this many cells the union CG stays a candidate below
         ``union_min_coverage`` (its arrays, about 0.5 kB a cell, then stay within the
@@ -145,6 +152,8 @@ class CostModel:
     far_union_margin: float = 1.0
     union_margin_min_coverage: float = 0.0
     union_min_coverage: float = 0.25
+    union_penetration_min_coverage: float | None = None
+    union_penetration_min_patches: int = 0
     union_small_box_cells: int = 0
     union_work_exponent: float = 0.0
     union_products: float = 40.0
@@ -177,6 +186,9 @@ class CostModel:
             raise ValueError(
                 f"cost model union_margin_min_coverage must be in [0, 1], got {self.union_margin_min_coverage!r}"
             )
+        lower = self.union_penetration_min_coverage
+        if lower is not None and not 0.0 <= lower <= 1.0:
+            raise ValueError(f"cost model union_penetration_min_coverage must be in [0, 1], got {lower!r}")
         if not 0.0 < self.union_margin <= 10.0:
             raise ValueError(f"cost model union_margin must be in (0, 10], got {self.union_margin!r}")
 
@@ -187,6 +199,16 @@ class CostModel:
         if self.far_field_sparse_coverage is None:
             return self.union_min_coverage
         return self.far_field_sparse_coverage
+
+    def union_coverage(self, load_control: bool, patches: int) -> float:
+        """The share of their box under which ``patches`` patches rule the union CG out (but
+        see :func:`.policy.decide`): :attr:`union_penetration_min_coverage` under penetration
+        control on at least :attr:`union_penetration_min_patches` patches where it is lower,
+        else :attr:`union_min_coverage`."""
+        lower = self.union_penetration_min_coverage
+        if load_control or lower is None or patches < self.union_penetration_min_patches:
+            return self.union_min_coverage
+        return min(lower, self.union_min_coverage)
 
     def seconds(self, work: dict, *, load_control: bool = False, tilt: bool = False) -> dict:
         """Predicted CPU seconds of each candidate from its work units."""
@@ -264,6 +286,15 @@ FITTED = CostModel(
     # 15 % stay with the block iterations, as predicted); below, 300 light spheres at 12 %
     # ran the union CG in 9.6 s against 3.0 s, on a box 8x their contacts
     union_min_coverage=0.14,
+    # under penetration control, forced both ways on seed 5's scenes of 2,103-9,580 patches at
+    # 8.4-12.7 % of their box (CPU s of the whole solve, fresh processes, union CG against the
+    # far-field two-level iteration, its prediction's ratio in brackets): #49 4.37 / 8.35
+    # (0.59), #165 2.08 / 2.49 (0.52), #170 8.11 / 8.41 (1.40), #109 16.0 / 3.28 (4.1): the
+    # prediction ordered them (#170 a tie); under load with the tilt it did not (#5, 7,567
+    # spheres at 11.3 %: 14.9 / 10.6, predicted 0.63), so the bound is for penetration alone
+    # (the measured scenes' fewest patches bound their count)
+    union_penetration_min_coverage=0.08,
+    union_penetration_min_patches=2000,
     # forced on 33 sweep scenes (seeds 0-3) of 2-20 patches under 14 % of a box of under
     # 0.2 M cells (CPU s of the whole solve, fresh processes): the union CG ran 1.16-17x
     # slower than the route taken where predicted dearer, faster where predicted cheaper (5

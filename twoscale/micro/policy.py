@@ -260,8 +260,8 @@ def choose(
     box they cover less than ``UNION_MIN_COVERAGE`` of, or less than
     ``model.far_field_coverage`` of without merged contacts or on a box of at least
     ``model.far_field_box_cells`` cells; from ``model.sparse_tilt_far_field_min_patches``
-    there with the ``tilt``), nor the union CG
-    below ``UNION_MIN_COVERAGE``. ``load_control``: where exact block iterations are
+    there with the ``tilt``), nor the union CG below ``UNION_MIN_COVERAGE`` (under penetration
+    control below ``model.union_coverage``). ``load_control``: where exact block iterations are
     cheapest, their two-level variant runs first (its coarse step corrects the approach
     and tilt instead of sensitivity sweeps: S1-S3 2.7-3x faster), block Gauss-Seidel if it
     stalls; the choice names the two-level iteration with exact coupling. The work of each
@@ -345,10 +345,10 @@ def decide(
         candidates.pop("two-level")
     small = 0 < figures.get("box_cells", 0) <= model.union_small_box_cells
     kept = figures.get("height_map", False) or small or (sensitivity and "two-level" not in candidates)
-    if sparse and len(candidates) > 1 and not kept:
-        # a mostly empty box; but on a small one (model.union_small_box_cells), or against
-        # block Gauss-Seidel with sensitivity sweeps alone (few merged patches under load),
-        # the prediction decides: 15 paraboloids on 12 % of a 0.5 M-cell box, union CG
+    if figures["coverage"] < model.union_coverage(load_control, n) and len(candidates) > 1 and not kept:
+        # a mostly empty box (under penetration control a lower bound); but on a small one, or
+        # against block Gauss-Seidel with sensitivity sweeps alone (few merged patches under
+        # load), the prediction decides: 15 paraboloids on 12 % of a 0.5 M-cell box, union CG
         # 1.1-1.2 s of CPU against 2.0-2.6 s
         candidates.pop("union-cg")
     rest = {k: v for k, v in candidates.items() if k != "union-cg"}
