@@ -36,7 +36,6 @@ import numpy as np
 from .control import check_control
 from .errors import ResolutionWarning
 from .material import Material
-from .bulge import warn_lifted_tips
 from .pivot import check_pivot_reach, warn_large_tilt
 from .results import ContactResult
 from .scene import SCENE_METHODS
@@ -234,6 +233,8 @@ def solve(
         return with_setting(method(provider, scene, h=h, **options), scene, provider)
     result = _with_surface_report(scene, _run_method(scene, provider, h, method, options))
     warn_large_tilt(result.tilt)
+    from .bulge import warn_lifted_tips  # (its body's modules: not at import)
+
     warn_lifted_tips(scene, provider, result)
     result = with_setting(result, scene, provider)
     # what came from the on-disk caches (block corrections, surface laws), for result.json

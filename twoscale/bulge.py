@@ -19,12 +19,15 @@ from __future__ import annotations
 
 import warnings
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 
+if TYPE_CHECKING:
+    from .influence.base import InfluenceProvider
+    from .results import ContactResult
+
 from .errors import BulgeWarning
-from .influence.base import InfluenceProvider
-from .results import ContactResult
 
 #: Contact radii (the largest tip's) within which a tip's pressure acts cell by cell on an
 #: apex; beyond, as its resultant at its centre.
