@@ -367,7 +367,9 @@ def test_reference_grid_too_small_is_enlarged(monkeypatch):
     full = solve_scene(_paraboloid_scene(), method="reference")
     assert full.details.grid_enlargements == 0
     real = scene_mod.reference_grid
-    monkeypatch.setattr(scene_mod, "reference_grid", lambda s, h, grow=1.0: real(s, h, grow=0.5 * grow))
+    monkeypatch.setattr(
+        scene_mod, "reference_grid", lambda s, h, grow=1.0, rise=0.0: real(s, h, grow=0.5 * grow, rise=rise)
+    )
     again = solve_scene(_paraboloid_scene(), method="reference")
     assert again.details.grid_enlargements >= 1 and again.converged
     assert again.total_load == pytest.approx(full.total_load, rel=1e-6)
@@ -378,7 +380,7 @@ def test_reference_grid_never_large_enough_is_not_converged(monkeypatch):
     import twoscale.reference.on_scene as scene_mod
 
     real = scene_mod.reference_grid
-    monkeypatch.setattr(scene_mod, "reference_grid", lambda s, h, grow=1.0: real(s, h, grow=0.3))
+    monkeypatch.setattr(scene_mod, "reference_grid", lambda s, h, grow=1.0, rise=0.0: real(s, h, grow=0.3, rise=rise))
     result = solve_scene(_paraboloid_scene(), method="reference")
     assert not result.converged and "edge of the reference grid" in result.message
 

@@ -7,7 +7,9 @@ A bonded, nearly incompressible block breaks that rule: its surface rises beside
 contact (about 20 um, 6 mm from a sphere pressed 0.5 mm into a 5 mm layer), and a tip whose
 apex lies a little above the approach can touch there. :func:`lifted_tips` checks each
 unreached tip's apex against the solved pressure's displacement, so that a solve which
-left such a contact out says so (:func:`warn_lifted_tips`) instead of answering without it.
+left such a contact out says so (:func:`warn_lifted_tips`) instead of answering without it;
+the full-grid reference is solved again on a grid that covers them
+(:func:`settle_reference`), so that it holds their contacts.
 
 Only bodies whose surface may rise (``InfluenceProvider.surface_rises``) are checked, and
 only without a free tilt (the tilt moves every apex's approach). The displacement at the
@@ -37,10 +39,12 @@ NEAR = 6.0
 @dataclass(frozen=True)
 class LiftedTips:
     """Unreached tips whose apex the solved surface reaches: ``tips`` (0-based scene
-    indices) and ``gaps`` (mm, ``z + u - d`` at each apex, negative), deepest first."""
+    indices), ``gaps`` (mm, ``z + u - d`` at each apex, negative), deepest first, and
+    ``rise`` (mm): the most the surface rises (``-u``) at their apexes."""
 
     tips: np.ndarray
     gaps: np.ndarray
+    rise: float
 
 
 def _loads(result: ContactResult):
@@ -92,13 +96,36 @@ def lifted_tips(scene, provider: InfluenceProvider, result: ContactResult) -> Li
     if out.size == 0:
         return None
     apexes = scene.tips[out]
-    gap = z[out] + _apex_displacement(provider, result, apexes) - result.penetration
+    u = _apex_displacement(provider, result, apexes)
+    gap = z[out] + u - result.penetration
     tol = 1e-6 * max(abs(result.penetration), float(result.fields[0].grid.h))
     hit = gap < -tol
     if not np.any(hit):
         return None
     order = np.argsort(gap[hit])
-    return LiftedTips(out[hit][order], gap[hit][order])
+    return LiftedTips(out[hit][order], gap[hit][order], float(np.max(-u[hit])))
+
+
+#: Reference solves on a grid grown by the surface's rise before the lifted tips are left to
+#: the warning.
+SETTLE_ROUNDS = 3
+
+
+def settle_reference(scene, provider: InfluenceProvider, h: float, solver: str, options: dict, result: ContactResult):
+    """A full-grid reference ``result`` solved again, on a grid whose approach bound is
+    raised by twice the surface's rise at the tips it lifted (:func:`lifted_tips`), until
+    none is left out (at most :data:`SETTLE_ROUNDS` rounds): the reference then holds the
+    contacts the bulge makes. Returns the last result."""
+    from .reference.on_scene import solve_reference_scene
+
+    rise = 0.0
+    for _ in range(SETTLE_ROUNDS):
+        lifted = lifted_tips(scene, provider, result)
+        if lifted is None:
+            break
+        rise = max(2.0 * rise, 2.0 * lifted.rise)
+        result = solve_reference_scene(scene, provider, h, solver=solver, rise=rise, **options)
+    return result
 
 
 def warn_lifted_tips(scene, provider: InfluenceProvider, result: ContactResult) -> LiftedTips | None:
@@ -118,4 +145,4 @@ def warn_lifted_tips(scene, provider: InfluenceProvider, result: ContactResult) 
     return lifted
 
 
-__all__ = ["LiftedTips", "NEAR", "lifted_tips", "warn_lifted_tips"]
+__all__ = ["LiftedTips", "NEAR", "SETTLE_ROUNDS", "lifted_tips", "settle_reference", "warn_lifted_tips"]

@@ -56,7 +56,8 @@ def line_search(v: np.ndarray, Av: np.ndarray, gap: np.ndarray) -> tuple[float, 
 
 def cropped(problem: ContactProblem, below: float = 1.0) -> ContactProblem:
     """Penetration control: the same problem on the bounding box of the cells with
-    ``z < d`` (no other cell can touch, since ``A p >= 0``), which makes every FFT
+    ``z < d`` (no other cell can touch where ``A p >= 0``: not on a body whose surface
+    rises, which :func:`twoscale.reference.solve_cg` then does not crop), which makes every FFT
     smaller, when that box has fewer than ``below`` times the grid's cells (1: whenever it
     cuts a cell). Load control has no such a-priori bound: unchanged."""
     if problem.mode != "penetration":

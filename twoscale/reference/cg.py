@@ -189,7 +189,9 @@ def solve_cg(
     reach = cg.reach
     if reach is not None and np.shape(reach) != problem.grid.shape:
         raise ValueError(f"reach must be a bool array of shape {problem.grid.shape}, got shape {np.shape(reach)}")
-    work = cropped(problem, cg.crop_below)
+    # the box of the cells below the approach bounds the contact only where no pressure lifts
+    # the surface (a bonded block's bulge can reach beyond it)
+    work = problem if getattr(provider, "surface_rises", False) else cropped(problem, cg.crop_below)
     start = start_on(start, problem, work)
     if reach is not None and work is not problem:
         reach = reach[work.grid.window_in(problem.grid)]

@@ -50,12 +50,14 @@ def approach_bound(scene: Scene) -> float:
     return float(bound)
 
 
-def reference_grid(scene: Scene, h: float, *, grow: float = 1.0) -> Grid:
+def reference_grid(scene: Scene, h: float, *, grow: float = 1.0, rise: float = 0.0) -> Grid:
     """Grid of cell size ``h`` covering every place contact can reach, plus a margin
     of ``3 h + 5 %`` of each reach; ``grow`` scales the reach and margin (used when a
     solve finds pressure on the grid edge). Cell centres lie on the lattice h Z^2
-    (a tip at the origin sits on a cell centre)."""
-    bound = approach_bound(scene)
+    (a tip at the origin sits on a cell centre). ``rise`` (mm) raises the approach bound
+    by how far the body's surface may rise beside its contacts (a bonded block's bulge,
+    :mod:`twoscale.bulge`), so that the tips it lifts are covered."""
+    bound = approach_bound(scene) + rise
     # a free tilt can bring any tip down to the lowest one's level: every tip is reached
     lowest = min(a.z for a in scene.asperities) if scene.tilt else None
     boxes = []
@@ -79,7 +81,7 @@ def pressure_on_edge(result: ContactResult) -> bool:
 
 
 def solve_reference_scene(
-    scene: Scene, provider, h: float, *, solver: str = "auto", max_enlargements: int = 3, **options
+    scene: Scene, provider, h: float, *, solver: str = "auto", max_enlargements: int = 3, rise: float = 0.0, **options
 ) -> ContactResult:
     """The full-grid reference solver on ``scene``: one grid of cell ``h`` (mm) covering every
     place contact can reach (:func:`reference_grid`), enlarged by half while
@@ -92,6 +94,9 @@ def solve_reference_scene(
     max_enlargements : int, default 3
         After that many, the result is returned with ``converged=False`` and a message
         saying the answer may be clipped.
+    rise : float, default 0
+        How far (mm) the body's surface may rise beside its contacts: the grid covers the
+        tips it lifts (:func:`reference_grid`).
 
     Returns
     -------
@@ -113,7 +118,7 @@ def solve_reference_scene(
         )
     grow = 1.0
     for attempt in range(max_enlargements + 1):
-        grid = reference_grid(scene, h, grow=grow)
+        grid = reference_grid(scene, h, grow=grow, rise=rise)
         result = solve_reference(
             provider,
             box_surface(grid, scene.asperities),
