@@ -70,7 +70,7 @@ def _apex_displacement(provider: InfluenceProvider, result: ContactResult, apexe
     cells, p, own, h = _loads(result)
     if p.size == 0:
         return np.zeros(len(apexes))
-    tips, first = np.unique(own, return_index=True)
+    _, first = np.unique(own, return_index=True)
     bounds = np.append(first, own.size)
     w = p * h * h
     force = np.add.reduceat(w, first)
