@@ -231,12 +231,9 @@ def solve(
 
     if callable(method):  # the body and the nominal area recorded in the result, whatever the method
         return with_setting(method(provider, scene, h=h, **options), scene, provider)
-    from .bulge import settle_reference, warn_lifted_tips  # (its body's modules: not at import)
+    from .bulge import warn_lifted_tips  # (its body's modules: not at import)
 
-    result = _run_method(scene, provider, h, method, options)
-    if method != "twoscale" and getattr(provider, "surface_rises", False):  # tips a bulge lifts
-        result = settle_reference(scene, provider, h, "auto" if method == "reference" else method, options, result)
-    result = _with_surface_report(scene, result)
+    result = _with_surface_report(scene, _run_method(scene, provider, h, method, options))
     warn_large_tilt(result.tilt)
     warn_lifted_tips(scene, provider, result)
     result = with_setting(result, scene, provider)

@@ -9,7 +9,7 @@ apex lies a little above the approach can touch there. :func:`lifted_tips` check
 unreached tip's apex against the solved pressure's displacement, so that a solve which
 left such a contact out says so (:func:`warn_lifted_tips`) instead of answering without it;
 the full-grid reference is solved again on a grid that covers them
-(:func:`settle_reference`), so that it holds their contacts.
+(:func:`twoscale.reference.on_scene.solve_reference_scene`), so that it holds their contacts.
 
 Only bodies whose surface may rise (``InfluenceProvider.surface_rises``) are checked, and
 only without a free tilt (the tilt moves every apex's approach). The displacement at the
@@ -107,25 +107,8 @@ def lifted_tips(scene, provider: InfluenceProvider, result: ContactResult) -> Li
 
 
 #: Reference solves on a grid grown by the surface's rise before the lifted tips are left to
-#: the warning.
+#: the warning (:func:`twoscale.reference.on_scene.solve_reference_scene`).
 SETTLE_ROUNDS = 3
-
-
-def settle_reference(scene, provider: InfluenceProvider, h: float, solver: str, options: dict, result: ContactResult):
-    """A full-grid reference ``result`` solved again, on a grid whose approach bound is
-    raised by twice the surface's rise at the tips it lifted (:func:`lifted_tips`), until
-    none is left out (at most :data:`SETTLE_ROUNDS` rounds): the reference then holds the
-    contacts the bulge makes. Returns the last result."""
-    from .reference.on_scene import solve_reference_scene
-
-    rise = 0.0
-    for _ in range(SETTLE_ROUNDS):
-        lifted = lifted_tips(scene, provider, result)
-        if lifted is None:
-            break
-        rise = max(2.0 * rise, 2.0 * lifted.rise)
-        result = solve_reference_scene(scene, provider, h, solver=solver, rise=rise, **options)
-    return result
 
 
 def warn_lifted_tips(scene, provider: InfluenceProvider, result: ContactResult) -> LiftedTips | None:
@@ -145,4 +128,4 @@ def warn_lifted_tips(scene, provider: InfluenceProvider, result: ContactResult) 
     return lifted
 
 
-__all__ = ["LiftedTips", "NEAR", "SETTLE_ROUNDS", "lifted_tips", "settle_reference", "warn_lifted_tips"]
+__all__ = ["LiftedTips", "NEAR", "SETTLE_ROUNDS", "lifted_tips", "warn_lifted_tips"]

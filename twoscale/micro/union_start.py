@@ -58,5 +58,6 @@ def _scaled(cap: np.ndarray, owners: np.ndarray, forces: np.ndarray, h: float) -
     carried = (volume > 0.0) & (forces > 0.0)
     if not np.any(carried):
         return cap
-    factor = np.where(carried, np.maximum(forces, 0.0) / np.where(carried, volume, 1.0), 0.0)
+    factor = np.zeros(len(forces))
+    factor[carried] = forces[carried] / volume[carried]
     return cap * factor[owners]

@@ -96,7 +96,9 @@ def solve_reference_scene(
         saying the answer may be clipped.
     rise : float, default 0
         How far (mm) the body's surface may rise beside its contacts: the grid covers the
-        tips it lifts (:func:`reference_grid`).
+        tips it lifts (:func:`reference_grid`). On a body whose surface rises, tips the
+        solved surface reaches beyond the grid (:func:`twoscale.bulge.lifted_tips`) are
+        covered by solving again with twice their rise, up to ``SETTLE_ROUNDS`` times.
 
     Returns
     -------
@@ -116,6 +118,25 @@ def solve_reference_scene(
             pivot=scene.pivot,
             **options,
         )
+    result = _on_growing_grid(scene, provider, h, solver, max_enlargements, rise, options)
+    if not getattr(provider, "surface_rises", False):
+        return result
+    from ..bulge import SETTLE_ROUNDS, lifted_tips
+
+    for _ in range(SETTLE_ROUNDS):  # a block's bulge may lift tips beyond the grid: cover them
+        lifted = lifted_tips(scene, provider, result)
+        if lifted is None:
+            break
+        rise = max(2.0 * rise, 2.0 * lifted.rise)
+        result = _on_growing_grid(scene, provider, h, solver, max_enlargements, rise, options)
+    return result
+
+
+def _on_growing_grid(scene: Scene, provider, h: float, solver: str, max_enlargements: int, rise: float, options: dict):
+    """The tips' reference solve on :func:`reference_grid`, enlarged by half while pressure
+    reaches its edge (at most ``max_enlargements`` times)."""
+    from . import solve_reference
+
     grow = 1.0
     for attempt in range(max_enlargements + 1):
         grid = reference_grid(scene, h, grow=grow, rise=rise)
