@@ -33,22 +33,35 @@ from ._problem import ContactProblem, Outcome, build_result, initial_active_set,
 MAX_DENSE_CELLS = 12_000
 
 
-def _factor_solve(A: np.ndarray, rhs: np.ndarray) -> np.ndarray:
-    """Solve ``A x = rhs`` for a symmetric positive definite A (Cholesky), falling back
-    to LU for providers whose matrix is not exactly symmetric."""
-    try:
-        return sla.cho_solve(sla.cho_factor(A, lower=False, check_finite=False), rhs, check_finite=False)
-    except np.linalg.LinAlgError:
-        return sla.lu_solve(sla.lu_factor(A, check_finite=False), rhs, check_finite=False)
+def is_symmetric(A: np.ndarray) -> bool:
+    """Whether ``A`` equals its transpose to within ~1e-9 (relative), by one pair of
+    products: ``y.A x = x.A y`` for random ``x, y`` (two matrix-vector products, not a pass
+    over the transpose). A finite block's cell matrix is not symmetric: its sources sit on
+    the mesh and its receivers are interpolated, so it is reciprocal to ~1e-3 only."""
+    x, y = np.random.default_rng(0).standard_normal((2, A.shape[0]))
+    Ax = A @ x
+    return abs(float(y @ Ax) - float(x @ (A @ y))) <= 1e-9 * float(np.linalg.norm(y) * np.linalg.norm(Ax))
 
 
-def _solve_on_set(A: np.ndarray, z: np.ndarray, B: np.ndarray, target: np.ndarray, S: np.ndarray, d: float | None):
+def _factor_solve(A: np.ndarray, rhs: np.ndarray, symmetric: bool) -> np.ndarray:
+    """Solve ``A x = rhs``: Cholesky for a symmetric positive definite A, LU otherwise
+    (Cholesky reads one triangle only, so on a matrix that is not symmetric it would solve
+    another system without a word)."""
+    if symmetric:
+        try:
+            return sla.cho_solve(sla.cho_factor(A, lower=False, check_finite=False), rhs, check_finite=False)
+        except np.linalg.LinAlgError:
+            pass
+    return sla.lu_solve(sla.lu_factor(A, check_finite=False), rhs, check_finite=False)
+
+
+def _solve_on_set(A, z, B, target, S, d: float | None, symmetric: bool):
     """Pressure on the trial set S (indices) and the rigid-motion multipliers ``m``."""
     AS = A[np.ix_(S, S)]
     zS, BS = z[S], B[S]
     if BS.shape[1] == 0:
-        return _factor_solve(AS, d - zS), np.zeros(0)
-    sol = _factor_solve(AS, np.column_stack([zS, BS]))
+        return _factor_solve(AS, d - zS, symmetric), np.zeros(0)
+    sol = _factor_solve(AS, np.column_stack([zS, BS]), symmetric)
     Az, AB = sol[:, 0], sol[:, 1:]
     # h^2 B^T (A^-1 (-z + B m)) = target  ->  (B^T A^-1 B) m = target + B^T A^-1 z
     schur = BS.T @ AB
@@ -151,30 +164,38 @@ def _active_set(problem: ContactProblem, provider, A, idx, tol, max_iter, t0, t_
     Phase 2: from the last feasible pressure step towards the new trial solution only
     until the first pressure reaches zero and drop those cells (as in Lawson & Hanson's
     NNLS), so the energy decreases and trial sets cannot cycle; add every interpenetrating
-    cell at once. A repeated set switches to one-cell moves.
+    cell at once. A repeated set switches to one-cell moves: in phase 2, where the
+    energy argument needs a symmetric matrix that a block's is only to ~1e-3, Murty's
+    least-index rule (:func:`_least_index_move`), finite for every P-matrix.
     """
     z = problem.surface.height.ravel()[idx]
     B = problem.basis()[idx]
     target = problem.target()
     d_given = problem.penetration
     active = initial_active_set(problem, provider.material.E_star).ravel()[idx]
+    symmetric = is_symmetric(A)
     seen: set[bytes] = set()
     changes, sizes = [], []
     converged, message = False, f"active set not stable after max_iter={max_iter} passes"
     p = np.zeros(idx.size)  # last feasible pressure (support inside the trial set)
     feasible = False
     m = np.zeros(B.shape[1])
+    least_index = False
     for it in range(1, max_iter + 1):
         key = np.packbits(active).tobytes()
         cycling = key in seen
+        least_index = least_index or (cycling and feasible)
         seen.add(key)
         S = np.flatnonzero(active)
         if S.size == 0:  # penetration control only: nothing touches
             p[:] = 0.0
             converged, message = True, "all trial pressures negative: zero pressure"
             break
-        qS, m_trial = _solve_on_set(A, z, B, target, S, d_given)
+        qS, m_trial = _solve_on_set(A, z, B, target, S, d_given, symmetric)
         sizes.append(S.size)
+        if least_index and _least_index_move(A, z, B, d_given, S, qS, m_trial, active, tol):
+            changes.append(1)
+            continue
         if np.any(qS < 0):
             if feasible:  # phase 2: towards the trial solution until a pressure reaches zero
                 m = _step_back(p, m, S, qS, m_trial, active, changes)
@@ -231,13 +252,38 @@ def _johnson_move(A, z, B, d_given, S, qS, m_trial, active, cycling: bool, tol: 
     return drop.size + add.size
 
 
+def _least_index_move(A, z, B, d_given, S, qS, m_trial, active, tol: float) -> bool:
+    """Murty's move: of the cells that break the conditions under the trial solution (a
+    negative pressure in ``S``, an interpenetration outside it), the one of least index
+    changes side. Updates ``active`` in place; returns whether a cell moved (none: the
+    trial solution is the answer)."""
+    q = np.zeros(active.size)
+    q[S] = qS
+    u, gap = _gap(A, z, B, m_trial, d_given, q)
+    scale = max(float(np.max(np.abs(u))), np.finfo(float).tiny)
+    wrong = np.flatnonzero((active & (q < 0)) | (~active & (gap < -tol * scale)))
+    if wrong.size:
+        active[wrong[0]] = not active[wrong[0]]
+    return bool(wrong.size)
+
+
 def _step_back(p, m, S, qS, m_trial, active, changes: list) -> np.ndarray:
     """Phase 2's move (Lawson & Hanson): from the feasible pressure ``p`` towards the trial
     solution ``qS`` on the set ``S`` until the first pressure reaches zero; those cells
     leave the set. Updates ``p``, ``active`` and ``changes`` in place; returns the rigid
-    motion moved by the same step."""
+    motion moved by the same step.
+
+    Cells just added (``p`` zero there) whose trial pressure is negative would stop the step
+    at zero length and, with it, drop every new cell: only they leave, without a step, so
+    that the new cells that do carry stay (a bonded block's bulge adds hundreds of cells at
+    once, of which Lawson & Hanson's rule would keep one a pass)."""
     pS = p[S]
     neg = qS < 0
+    new = neg & (pS <= 0.0)
+    if np.any(new):
+        active[S[new]] = False
+        changes.append(int(np.count_nonzero(new)))
+        return m
     step = float(np.min(pS[neg] / (pS[neg] - qS[neg])))
     p[S] = pS + step * (qS - pS)
     m = m + step * (m_trial - m)
