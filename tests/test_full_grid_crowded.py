@@ -10,9 +10,10 @@ import pytest
 import twoscale
 from twoscale import Material, Scene
 from twoscale.indenters import Asperity
-from twoscale.micro.policy import (
+from twoscale.micro.full_grid_rule import (
     FULL_GRID_CELLS_PER_TIP,
     FULL_GRID_MAX_CELLS,
+    FULL_GRID_MAX_CELLS_PENETRATION,
     FULL_GRID_SMALL_CELLS,
     FULL_GRID_SMALL_CELLS_PER_TIP,
 )
@@ -76,3 +77,24 @@ def test_a_small_grid_of_many_tips_takes_its_full_grid_below_its_cells_a_tip():
     assert res.iterations["cg"] < ref.iterations["cg"]
     assert reference_grid(scene, 0.07).size > FULL_GRID_SMALL_CELLS_PER_TIP * 81
     assert full_grid_route(scene, 0.07) is None
+
+
+def test_a_few_tips_under_penetration_on_a_larger_grid_take_it_under_load_not():
+    """Two paraboloids whose union box is most of their 5,913-cell grid (the sweep's seed 6
+    #185, the two-scale solve 1.25-1.28x the reference's CPU) are that grid's one CG under
+    penetration control, with the reference's forces; two tips under load on 6,237 cells
+    (#117) keep the two-scale route, which ran there at 0.93x the reference against 0.80x."""
+    from twoscale import scenespace
+    from twoscale.scene import default_h
+
+    specs = {s.index: s for s in scenespace.sweep(200, 6) if s.index in (117, 185)}
+    pressed, loaded = scenespace.build(specs[185]), scenespace.build(specs[117])
+    assert pressed.penetration is not None and loaded.total_load is not None
+    cells = reference_grid(pressed, default_h(pressed)).size
+    assert FULL_GRID_MAX_CELLS < cells <= FULL_GRID_MAX_CELLS_PENETRATION
+    res = twoscale.solve(pressed)
+    ref = twoscale.solve(pressed, method="reference")
+    assert res.method == "reference" and "at most 14,000" in res.message
+    np.testing.assert_allclose(res.asperities.forces, ref.asperities.forces, rtol=1e-6)
+    assert FULL_GRID_MAX_CELLS < reference_grid(loaded, default_h(loaded)).size
+    assert twoscale.solve(loaded).method == "twoscale"

@@ -36,7 +36,7 @@ def test_the_smallest_scenes_take_their_full_grid_and_say_so():
     # 12 merged spheres under penetration control on a full grid of 2,491 cells: the macro
     # step's safe path alone (0.11 s of CPU) cost three times the whole full-grid CG
     import twoscale
-    from twoscale.micro.policy import FULL_GRID_MAX_CELLS
+    from twoscale.micro.full_grid_rule import FULL_GRID_MAX_CELLS
     from twoscale.reference.on_scene import reference_grid
     from twoscale.scene import default_h
     from twoscale.scenespace import build, draw

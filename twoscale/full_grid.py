@@ -16,7 +16,7 @@ from dataclasses import dataclass
 from typing import Callable
 
 from .influence.base import InfluenceProvider
-from .micro.policy import FULL_GRID_CELLS_PER_TIP
+from .micro.full_grid_rule import FULL_GRID_CELLS_PER_TIP
 from .micro.union import union_precision
 from .results import ContactResult
 from .scene import Scene

@@ -44,8 +44,8 @@ from .memory_costs import BASE_BYTES, GRID_BYTES_PER_CELL, PATCH_BYTES_PER_CELL,
 from .memory_costs import COUPLING_CACHE_BYTES, MARGIN, MERGE_GROWTH, MACRO_DENSE_MAX, DENSE_CELLS
 from .memory_costs import FAR_OPERATOR_BYTES_PER_PATCH
 from .memory_costs import DENSE_GRID_CELLS, BLOCK_PROVIDER_BYTES, DEFAULT_FRACTION, ADVICE_SHARE
-from .micro.policy import FAR_FIELD_MIN_PATCHES, FULL_GRID_MAX_TIPS, MODEL, UNION_MIN_COVERAGE, full_grid_max_cells
-from .micro.policy import full_grid_route as policy_full_grid_route
+from .micro.full_grid_rule import FULL_GRID_MAX_TIPS, full_grid_max_cells, full_grid_route as policy_full_grid_route
+from .micro.policy import FAR_FIELD_MIN_PATCHES, MODEL, UNION_MIN_COVERAGE
 from .micro.sources import KEPT_BYTES_PER_OWNED_CELL
 from .pivot import pivot_route
 from .scene import SCENE_METHODS, Scene, SceneError, expected_approaches, expected_contact_radii, round_up
@@ -228,7 +228,7 @@ def _twoscale_parts(scene: Scene, h: float, *, union: bool = False) -> tuple[int
 
 def full_grid_route(scene: Scene, h: float) -> str | None:
     """Why a default two-scale solve of ``scene`` at ``h`` runs as its full grid's one CG
-    (:func:`twoscale.micro.policy.full_grid_route`), or None: a few tips (no height map) on
+    (:func:`twoscale.micro.full_grid_rule.full_grid_route`), or None: a few tips (no height map) on
     a small grid, untilted tips crowding their grid, or a tilt about a pivot off the tips
     (:func:`twoscale.pivot.pivot_route`). Its memory is then the reference grid's."""
     if (route := pivot_route(scene)) is not None or scene.surface is not None:
@@ -238,11 +238,11 @@ def full_grid_route(scene: Scene, h: float) -> str | None:
     n = len(scene.asperities)
     tips = 0 if scene.tilt else n
     if n <= FULL_GRID_MAX_TIPS:
-        return policy_full_grid_route(int(reference_grid(scene, h).size), tips)
+        return policy_full_grid_route(int(reference_grid(scene, h).size), tips, scene.penetration is not None)
     x, y = (np.array([getattr(a, f) for a in scene.asperities]) for f in "xy")
     if (np.ptp(x) / h + 1.0) * (np.ptp(y) / h + 1.0) > full_grid_max_cells(tips):
         return None  # the tips' own box already has more cells a tip
-    return policy_full_grid_route(int(reference_grid(scene, h).size), tips)
+    return policy_full_grid_route(int(reference_grid(scene, h).size), tips, scene.penetration is not None)
 
 
 def _pair_bytes(across: np.ndarray) -> float:

@@ -54,51 +54,6 @@ EXACT_MAX_PATCHES = MODEL.exact_max_patches
 AUTO_FAR_TOL = 0.3
 
 
-#: A default solve whose full grid (the reference solver's, :func:`twoscale.reference.on_scene.
-#: reference_grid`) has at most this many cells is that grid's one constrained CG: the
-#: macro step, the patches and the policy then cost as much as the whole solve. Measured
-#: on the scene-space sweep (CPU s, fresh processes, two-scale against the full grid):
-#: grids of 2,500-3,100 cells 0.032-0.040 against 0.032-0.036 (1-2 tips, 0.9-1.2x) and 12
-#: merged spheres 0.17 against 0.03 (the macro step's safe path alone 0.11 s); from 8,700
-#: cells the two-scale solve ran at 0.5-1.1x (median 0.7).
-FULL_GRID_MAX_CELLS = 5_000
-#: More tips than this: not tried for that route by cell count alone (sizing costs a loop).
-FULL_GRID_MAX_TIPS = 64
-#: An untilted tip scene whose full grid has at most this many cells a tip is that grid's
-#: one CG too: the macro step and the patches cost 50-150 us a tip, the full grid's CG about
-#: 5-9 us a cell. CPU s, two-scale against the full grid (fresh processes, penetration
-#: control): 5,220 touching spheres on 55,696 cells (10.7 a tip) 0.68-0.83 against 0.51;
-#: 7,610 paraboloids on 154,449 (20.3) 1.24 against 0.78; 9,129 on 346,921 (38) 1.19
-#: against 1.82; 9,872 spheres under load and a free tilt on 291,060 (29.5) 5.0 against 24.
-FULL_GRID_CELLS_PER_TIP = 25
-#: Small grids: the union CG's box is about the grid, plus 0.2-0.3 ms a tip of macro step and patches.
-#: CPU against the full grid: 79 spheres on 12,769 cells (162 a tip) 1.12x; 242 a tip 0.89x, 322 0.92x.
-FULL_GRID_SMALL_CELLS = 20_000
-FULL_GRID_SMALL_CELLS_PER_TIP = 200
-
-
-def full_grid_max_cells(tips: int) -> int:
-    """The largest full grid solved as its one CG by the cells-a-tip rules for ``tips`` tips."""
-    return max(FULL_GRID_CELLS_PER_TIP * tips, min(FULL_GRID_SMALL_CELLS_PER_TIP * tips, FULL_GRID_SMALL_CELLS))
-
-
-def full_grid_route(cells: int, tips: int = 0) -> str | None:
-    """The reason to solve a scene of ``tips`` untilted tips (0: not counted) whose full grid
-    has ``cells`` cells as one CG over it (the default two-scale route's honest choice on
-    the smallest scenes and on grids crowded with tips), or None."""
-    if cells <= FULL_GRID_MAX_CELLS:
-        return (
-            f"the full grid has {cells:,} cells (at most {FULL_GRID_MAX_CELLS:,}): one constrained CG "
-            "over it is the cheapest solve, the two-scale macro step alone costs as much"
-        )
-    if cells > full_grid_max_cells(tips):
-        return None
-    return (
-        f"the full grid has {cells / tips:.3g} cells a tip (at most {full_grid_max_cells(tips) / tips:.3g}): "
-        "one constrained CG over it costs less than the macro step and the patches of its tips"
-    )
-
-
 #: A stalled macro Newton (merged contacts) under penetration or load control, no free tilt,
 #: defers its safe path where every tip's reach at Newton's last approach fits a box of at most
 #: this many cells: the union CG, which the policy picks on such crowded boxes, solves every
