@@ -1,23 +1,32 @@
-"""Tips above the approach that a bonded block's rising surface touches (twoscale.bulge).
+"""Tips above the approach that a bonded block's rising surface touches (twoscale.bulge,
+twoscale.bulge_rounds).
 
 A sphere pressed 0.5 mm into a bonded, incompressible 5 mm layer raises the surface about
 20 um some 6 mm away. A second sphere there, its apex 10 um above the approach, is outside
-every tip's reach, so the two-scale solve leaves it out and must say so; the reference
-grows its grid by the rise and takes it in. The apex's gap is
+every tip's reach. Both solvers take it in and agree with the constrained CG on a grid
+that covers both tips (the whole problem at once, nothing left out): the reference grows
+its grid by the rise; the two-scale solve gives it a patch, from the macro step's local
+approach (its point compliance is negative where the surface rises) or, where that misses
+it, from the answer's check and a second micro step. The apex's gap is
 checked independently: the solved pressure spread on a grid that covers both tips, its
 displacement by the body's grid operator (FFT and correction, not the cell blocks the
 check uses). With the apex 40 um above, or on the half-space (whose surface only sinks),
-the gap stays open and nothing is said."""
+the gap stays open, nothing is said, and the solve is the one made without the check."""
 
 from __future__ import annotations
 
+import copy
 import warnings
+from unittest import mock
 
 import numpy as np
 import pytest
 
 import twoscale
+import twoscale.bulge_rounds as rounds
+import twoscale.driver as driver
 from twoscale import Material
+from twoscale.details import BulgeDetails
 from twoscale.errors import BulgeWarning
 from twoscale.grid import Grid
 from twoscale.indenters import Asperity, surface_on
@@ -52,12 +61,38 @@ def _apex_gap(scene: Scene, result) -> float:
     return float(scene.asperities[1].z + u[i, j] - result.penetration)
 
 
-def _warned(scene: Scene, method: str):
+def _warned(scene: Scene, method: str, provider=None, **options):
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
-        opts = {"progress": False} if scene.influence["kind"] == "block" else None
-        result = twoscale.solve(scene, method=method, provider_options=opts)
+        opts = {"progress": False} if scene.influence["kind"] == "block" and provider is None else None
+        result = twoscale.solve(scene, method=method, provider=provider, provider_options=opts, **options)
     return result, [w for w in caught if issubclass(w.category, BulgeWarning)]
+
+
+def _covering(scene: Scene):
+    """The constrained CG on a grid covering both tips (the whole problem at once)."""
+    return solve_reference(
+        scene.provider(progress=False),
+        surface_on(Grid.covering(-3.0, 8.0, -3.0, 3.0, 0.1), scene.asperities),
+        penetration=D,
+        method="cg",
+        tol=1e-10,
+    )
+
+
+def _blind(provider):
+    """``provider`` whose point compliance (the macro step's; the check takes the loaded
+    cells near an apex cell by cell) is never negative: a macro step blind to the rise,
+    which leaves the lifted tip out."""
+    base = type(provider)
+
+    class Blind(base):
+        def point_compliance(self, targets, sources):
+            return np.maximum(base.point_compliance(self, targets, sources), 0.0)
+
+    blind = copy.copy(provider)
+    object.__setattr__(blind, "__class__", Blind)
+    return blind
 
 
 @pytest.fixture(autouse=True)
@@ -65,10 +100,45 @@ def _cache(tmp_path, monkeypatch):
     monkeypatch.setenv("TWOSCALE_CACHE_DIR", str(tmp_path))
 
 
-def test_a_tip_the_bulge_lifts_is_named_by_the_two_scale_solve():
+@pytest.mark.parametrize("iteration", ["auto", "block-gs", "two-level"])
+def test_the_two_scale_solve_takes_the_lifted_tip_in(iteration):
+    """The macro step's local approach lifts the second tip into contact (its point
+    compliance is negative 6 mm away): it gets a patch, and every micro iteration gives
+    both tips the covering grid's forces, with no second micro step and no warning. The
+    same lattice: only the iterations' tolerances part them."""
     scene = _scene(0.010)
-    result, found = _warned(scene, "twoscale")
+    result, found = _warned(scene, "twoscale", iteration=iteration)
+    covering = _covering(scene)
+    assert covering.forces[1] > 1e-3 * covering.forces[0]  # it touches
+    assert result.forces[1] == pytest.approx(covering.forces[1], rel=1e-4)
+    assert result.forces[0] == pytest.approx(covering.forces[0], rel=1e-6)
+    assert result.details.bulge == BulgeDetails(rounds=0, taken=(1,))
+    assert found == [] and abs(_apex_gap(scene, result)) < 1e-6
+
+
+@pytest.mark.parametrize("iteration", ["auto", "block-gs", "two-level"])
+def test_a_tip_the_macro_step_misses_is_taken_in_by_a_second_micro_step(iteration):
+    """With a macro step blind to the rise the first micro step leaves the second tip out;
+    the answer's check finds its apex in the solved surface, and the micro step solved again
+    with its patch gives the covering grid's forces."""
+    scene = _scene(0.010)
+    result, found = _warned(scene, "twoscale", provider=_blind(scene.provider(progress=False)), iteration=iteration)
+    assert result.details.macro.forces[1] == 0.0  # the macro step left it out
+    covering = _covering(scene)
+    assert result.forces[1] == pytest.approx(covering.forces[1], rel=1e-4)
+    assert result.forces[0] == pytest.approx(covering.forces[0], rel=1e-6)
+    assert result.details.bulge == BulgeDetails(rounds=1, taken=(1,))
+    assert found == [] and abs(_apex_gap(scene, result)) < 1e-6
+
+
+def test_a_tip_still_lifted_after_the_rounds_is_named():
+    """No round allowed: the blind macro step's answer lacks the second tip's contact, and
+    the warning names it from the solve's own check."""
+    scene = _scene(0.010)
+    with mock.patch.object(rounds, "SETTLE_ROUNDS", 0):
+        result, found = _warned(scene, "twoscale", provider=_blind(scene.provider(progress=False)))
     assert result.forces[1] == 0.0 and _apex_gap(scene, result) < -0.005  # left out, yet 5+ um in
+    assert result.details.bulge.left == (1,) and result.details.bulge.rounds == 0
     assert len(found) == 1 and "tip 2 at (6, 0) mm" in str(found[0].message)
 
 
@@ -78,13 +148,7 @@ def test_the_reference_takes_the_lifted_tip_in():
     once), and its apex's gap is closed."""
     scene = _scene(0.010)
     result, found = _warned(scene, "reference")
-    covering = solve_reference(
-        scene.provider(progress=False),
-        surface_on(Grid.covering(-3.0, 8.0, -3.0, 3.0, 0.1), scene.asperities),
-        penetration=D,
-        method="cg",
-        tol=1e-10,
-    )
+    covering = _covering(scene)
     assert covering.forces[1] > 1e-3 * covering.forces[0]  # it touches
     assert result.forces[1] == pytest.approx(covering.forces[1], rel=1e-5)
     assert result.forces[0] == pytest.approx(covering.forces[0], rel=1e-8)
@@ -165,3 +229,30 @@ def test_least_index_moves_reach_the_complementary_solution():
         if not _least_index_move(A, z, B, d, S, solve(S)[S], np.zeros(0), active, 1e-12):
             break
     np.testing.assert_allclose(solve(np.flatnonzero(active)), exact[0], atol=1e-12)
+
+
+def test_a_block_scene_where_nothing_is_lifted_is_solved_as_without_the_check():
+    """The apex 40 um above: the macro step lifts no tip and the check finds none, so the
+    micro step runs once and the answer is, bit for bit, the solve made without either."""
+    scene = _scene(0.040)
+    provider = scene.provider(progress=False)
+    with mock.patch.object(driver, "run_micro", wraps=driver.run_micro) as micro:
+        result, found = _warned(scene, "twoscale", provider=provider)
+    assert micro.call_count == 1 and found == []
+    assert result.details.bulge == BulgeDetails()
+    with mock.patch.object(driver, "rises", return_value=False):
+        plain = twoscale.solve(scene, provider=provider)
+    assert plain.details.bulge is None
+    assert np.array_equal(result.forces, plain.forces) and result.penetration == plain.penetration
+    for f, g in zip(result.fields, plain.fields, strict=True):
+        assert f.grid == g.grid and np.array_equal(f.pressure, g.pressure)
+
+
+def test_the_half_space_never_runs_the_check():
+    scene = _scene(0.010, influence={"kind": "halfspace"})
+    with (
+        mock.patch.object(rounds, "lifted_among", side_effect=AssertionError("checked")),
+        mock.patch.object(driver, "run_micro", wraps=driver.run_micro) as micro,
+    ):
+        result = twoscale.solve(scene, iteration="auto")  # an option: the two-scale solver itself
+    assert micro.call_count == 1 and result.details.bulge is None and result.forces[1] == 0.0

@@ -8,8 +8,8 @@ and returns a :class:`~twoscale.results.ContactResult`. ``method`` picks the sol
 
 * ``"twoscale"`` (default): the two-scale method (:func:`twoscale.driver.solve_twoscale`);
   called without options on a scene of a few tips whose full grid has at most
-  :data:`twoscale.micro.full_grid_rule.FULL_GRID_MAX_CELLS` cells (``FULL_GRID_MAX_CELLS_PENETRATION``
-  under penetration control), or of untilted tips with at most
+  :data:`twoscale.micro.full_grid_rule.FULL_GRID_MAX_CELLS` cells (``FULL_GRID_MAX_CELLS_PENETRATION`` on
+  the half-space under penetration control), or of untilted tips with at most
   :data:`twoscale.micro.full_grid_rule.FULL_GRID_CELLS_PER_TIP` cells each, that grid's one CG
   instead (the cheapest solve there; ``result.method == "reference"`` and
   ``result.message`` says why);

@@ -6,10 +6,11 @@ negative the half-space's surface only sinks, so a tip above the approach never 
 A bonded, nearly incompressible block breaks that rule: its surface rises beside a
 contact (about 20 um, 6 mm from a sphere pressed 0.5 mm into a 5 mm layer), and a tip whose
 apex lies a little above the approach can touch there. :func:`lifted_tips` checks each
-unreached tip's apex against the solved pressure's displacement, so that a solve which
-left such a contact out says so (:func:`warn_lifted_tips`) instead of answering without it;
-the full-grid reference is solved again on a grid that covers them
-(:func:`twoscale.reference.on_scene.solve_reference_scene`), so that it holds their contacts.
+unreached tip's apex against the solved pressure's displacement. Both solvers then take
+such tips in: the full-grid reference is solved again on a grid that covers them
+(:func:`twoscale.reference.on_scene.solve_reference_scene`), the two-scale solve's micro
+step again with patches for them (:mod:`twoscale.bulge_rounds`); a contact still left out
+after their rounds is named (:func:`warn_lifted_tips`) instead of answered without.
 
 Only bodies whose surface may rise (``InfluenceProvider.surface_rises``) are checked, and
 only without a free tilt (the tilt moves every apex's approach). The displacement at the
@@ -89,13 +90,20 @@ def _apex_displacement(provider: InfluenceProvider, result: ContactResult, apexe
 def lifted_tips(scene, provider: InfluenceProvider, result: ContactResult) -> LiftedTips | None:
     """The tips ``result`` left out whose apex its surface reaches, or None (none, a body
     whose surface only sinks, a free tilt, or a result without fields)."""
-    if not getattr(provider, "surface_rises", False) or scene.tilt or not result.fields:
+    if scene.tilt:
         return None
-    z = np.array([a.z for a in scene.asperities])
+    return lifted_among(scene.asperities, provider, result)
+
+
+def lifted_among(asperities, provider: InfluenceProvider, result: ContactResult) -> LiftedTips | None:
+    """:func:`lifted_tips` of the tips ``asperities`` solved without a free tilt."""
+    if not getattr(provider, "surface_rises", False) or not result.fields:
+        return None
+    z = np.array([a.z for a in asperities], dtype=float)
     out = np.flatnonzero((z > result.penetration) & (result.forces == 0.0))
     if out.size == 0:
         return None
-    apexes = scene.tips[out]
+    apexes = np.array([[asperities[k].x, asperities[k].y] for k in out], dtype=float)
     u = _apex_displacement(provider, result, apexes)
     gap = z[out] + u - result.penetration
     tol = 1e-6 * max(abs(result.penetration), float(result.fields[0].grid.h))
@@ -106,14 +114,23 @@ def lifted_tips(scene, provider: InfluenceProvider, result: ContactResult) -> Li
     return LiftedTips(out[hit][order], gap[hit][order], float(np.max(-u[hit])))
 
 
-#: Reference solves on a grid grown by the surface's rise before the lifted tips are left to
-#: the warning (:func:`twoscale.reference.on_scene.solve_reference_scene`).
+#: Solves again before the lifted tips are left to the warning: the reference's on a grid
+#: grown by the surface's rise (:func:`twoscale.reference.on_scene.solve_reference_scene`),
+#: the two-scale micro step's with patches for them (:func:`twoscale.bulge_rounds.settle`).
 SETTLE_ROUNDS = 3
 
 
 def warn_lifted_tips(scene, provider: InfluenceProvider, result: ContactResult) -> LiftedTips | None:
-    """:func:`lifted_tips`, and a :class:`~twoscale.errors.BulgeWarning` naming them."""
-    lifted = lifted_tips(scene, provider, result)
+    """:func:`lifted_tips`, and a :class:`~twoscale.errors.BulgeWarning` naming them; of a
+    two-scale result that checked itself (``details.bulge``,
+    :func:`twoscale.bulge_rounds.settle`), the tips it left."""
+    checked = getattr(result.details, "bulge", None)
+    if checked is not None:
+        lifted = (
+            LiftedTips(np.array(checked.left, dtype=int), np.array(checked.left_gaps), 0.0) if checked.left else None
+        )
+    else:
+        lifted = lifted_tips(scene, provider, result)
     if lifted is not None:
         k, g = int(lifted.tips[0]), float(lifted.gaps[0])
         a = scene.asperities[k]
@@ -128,4 +145,4 @@ def warn_lifted_tips(scene, provider: InfluenceProvider, result: ContactResult) 
     return lifted
 
 
-__all__ = ["LiftedTips", "NEAR", "SETTLE_ROUNDS", "lifted_tips", "warn_lifted_tips"]
+__all__ = ["LiftedTips", "NEAR", "SETTLE_ROUNDS", "lifted_among", "lifted_tips", "warn_lifted_tips"]

@@ -4,6 +4,8 @@
   tip forces, local approaches, how the interaction was held) and the micro step
   (:class:`MicroDetails`: the policy's choice, every attempt, the cross-patch coupling
   routes, merged patches, the paper's eq. 7 start ``p0``);
+* :class:`BulgeDetails` (``method="twoscale"`` on a body whose surface may rise): the tips
+  above the approach its rise lifted into contact, taken in or left;
 * :class:`ReferenceDetails` (``method="reference"``): which full-grid solver ran and on
   what grid;
 * :class:`SurfaceDetails` (either method, on a height map): what conditioning did to the
@@ -185,13 +187,44 @@ class SurfaceDetails:
 
 
 @dataclass(frozen=True)
+class BulgeDetails:
+    """Tips above the approach that a body's rising surface lifts into contact
+    (:mod:`twoscale.bulge_rounds`), on a body whose surface may rise, without a free tilt.
+
+    Attributes
+    ----------
+    rounds : int
+        Micro steps run again to take in the tips the solved surface reached (0: none).
+    taken : tuple of int
+        Tips above the approach given a patch for the surface's rise (0-based).
+    left : tuple of int
+        Tips still lifted after the rounds, deepest first (0-based): the answer lacks their
+        contact (a :class:`~twoscale.errors.BulgeWarning` names them).
+    left_gaps : tuple of float
+        Their apexes' gaps to the solved surface, mm (negative: into it).
+    """
+
+    rounds: int = 0
+    taken: tuple = ()
+    left: tuple = ()
+    left_gaps: tuple = ()
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "taken", tuple(int(k) for k in self.taken))
+        object.__setattr__(self, "left", tuple(int(k) for k in self.left))
+        object.__setattr__(self, "left_gaps", tuple(float(g) for g in self.left_gaps))
+
+
+@dataclass(frozen=True)
 class TwoScaleDetails:
     """The two-scale method's own report: its macro step and its micro step (and, on a
-    height map, :class:`SurfaceDetails`)."""
+    height map, :class:`SurfaceDetails`; on a body whose surface may rise, without a free
+    tilt, :class:`BulgeDetails`)."""
 
     macro: MacroDetails
     micro: MicroDetails
     surface: SurfaceDetails | None = None
+    bulge: BulgeDetails | None = None
 
 
 @dataclass(frozen=True)

@@ -20,8 +20,8 @@ from typing import Callable, Sequence
 
 import numpy as np
 
+from .bulge_rounds import rises, settle, with_macro_lift
 from .control import Loading, check_control
-from .details import Coupling, MacroDetails, MicroDetails, TwoScaleDetails
 from .indenters import Asperity
 from .influence.base import InfluenceProvider
 from .influence.cached import with_caches
@@ -34,8 +34,9 @@ from .micro.driver import fixed_choice, run_micro
 from .micro.policy import safe_path_deferral
 from .micro.problem import SIZING_RESIDUAL, MicroProblem
 from .options import KEYWORDS, MacroOptions, SolverOptions
-from .results import ContactResult, PressureField, summarise
-from .warm_start import WarmStart
+from .results import ContactResult
+from .twoscale_result import twoscale_result as _result
+from .warm_start import WarmStart, warm_start
 
 
 def _check(asperities, h, loading: Loading) -> None:
@@ -215,7 +216,11 @@ def run_twoscale(
     macro = macro_step(provider, tips, z, laws, loading, first, MacroHandover(start=begin, defer_safe_path=defer))
     t1 = time.perf_counter()
     micro_start = start.micro if isinstance(start, WarmStart) else None
-    problem = _micro_problem(macro, h, loading, run.anchor, micro_start)
+
+    def micro_problem(macro, start):  # a tip the macro step's rise lifts into contact gets a patch
+        return with_macro_lift(provider, asperities, _micro_problem(macro, h, loading, run.anchor, start))
+
+    problem = micro_problem(macro, micro_start)
     refine = None
     # the staged first stage is taken to the macro tolerance, but not after the safe path's skip
     # (an unstable equilibrium of merged contacts, or a stall), where Newton stalled again (1,013
@@ -226,7 +231,7 @@ def run_twoscale(
         def refine():
             again = begin if macro.safe_path_deferred else MacroStart(macro.forces, macro.penetration, macro.tilt)
             full = continued(macro, solve_macro(provider, tips, z, laws, loading, macro_options, start=again))
-            return full, _micro_problem(full, h, loading, run.anchor, micro_start)
+            return full, micro_problem(full, micro_start)
 
     micro, plan = run_micro(
         provider, asperities, macro, problem, micro_options, choice=choice, progress=progress, refine=refine
@@ -237,7 +242,22 @@ def run_twoscale(
         macro = plan.macro
     elif refine is not None:
         macro = _first_stage_kept(macro)
-    return _result(asperities, macro, micro, plan, h, {"macro": t1 - t0, "micro": t2 - t1, "total": t2 - t0})
+    result = _result(asperities, macro, micro, plan, h, {"macro": t1 - t0, "micro": t2 - t1, "total": t2 - t0})
+    if not rises(provider) or loading.tilt:  # a free tilt moves every apex's approach: not checked
+        return result
+
+    def again(lift, previous):  # the micro step with the lifted tips' patches, from the answer's pressure
+        t = time.perf_counter()
+        warm = warm_start(previous, tips, len(asperities), h).micro
+        retry = replace(_micro_problem(macro, h, loading, run.anchor, warm), lift=lift)
+        micro, again_plan = run_micro(
+            provider, asperities, macro, retry, micro_options, choice=choice, progress=progress
+        )
+        spent = time.perf_counter() - t
+        took = {k: previous.timings_s[k] + (spent if k != "macro" else 0.0) for k in ("macro", "micro", "total")}
+        return _result(asperities, macro, micro, again_plan, h, took)
+
+    return settle(result, asperities, provider, micro_problem(macro, micro_start).lift, again)
 
 
 #: Above this many asperities the macro step is staged: Newton stops first at the relative
@@ -317,78 +337,3 @@ def _caller_choice(iteration, far_tol, coarse):
             return None
         return fixed_choice("two-level", far_tol, f"far_tol = {far_tol} given: two-level with far-field coupling")
     return fixed_choice(iteration, far_tol, f"iteration fixed by the caller: {iteration}")
-
-
-def _result(asperities, macro, micro, plan, h, timings) -> ContactResult:
-    fields = tuple(
-        PressureField(pt.grid, p, pt.owner, g) for pt, p, g in zip(micro.patches, micro.pressures, micro.gaps)
-    )
-    p = np.concatenate([v.ravel() for v in micro.pressures]) if fields else np.zeros(0)
-    change = None
-    if micro.initial:
-        p0 = np.concatenate([v.ravel() for v in micro.initial])
-        norm = float(np.linalg.norm(p))
-        change = 100.0 * float(np.linalg.norm(p0 - p)) / norm if norm > 0 else 0.0
-    messages = [m for m in (("macro step: " + macro.message) if not macro.converged else "", micro.message) if m]
-    details = TwoScaleDetails(
-        macro=MacroDetails(
-            forces=macro.forces,
-            local_penetrations=macro.local_penetrations,
-            converged=bool(macro.converged),
-            interaction=macro.interaction,
-            operator_error=macro.operator_error,
-            seconds=timings["macro"],
-            penetration=float(macro.penetration),
-            tilt=None if macro.tilt is None else tuple(float(t) for t in macro.tilt),
-        ),
-        micro=MicroDetails(
-            iteration=_iteration_text(plan),
-            strategy=plan.attempts[-1].iteration if plan.attempts else plan.choice.iteration,
-            choice=plan.choice,
-            attempts=plan.attempts,
-            coupling=Coupling.of(micro.coupling),
-            merged_patches=micro.merged,
-            growths=int(micro.growths),
-            p0=tuple(micro.initial) if micro.initial else None,
-            p0_change_percent=change,
-            seconds=timings["micro"],
-        ),
-    )
-    return ContactResult(
-        method="twoscale",
-        fields=fields,
-        penetration=micro.penetration,
-        tilt=micro.tilt,
-        total_load=float(h * h * p.sum()),
-        asperities=summarise(fields, len(asperities)),
-        converged=bool(micro.converged),
-        message="; ".join(messages),
-        iterations={
-            "macro": int(macro.iterations),
-            "macro_krylov": int(macro.krylov_iterations),
-            "micro": int(micro.sweeps),
-            "corrections": int(micro.corrections),
-            "sensitivity_sweeps": int(micro.linear_sweeps),
-        },
-        residuals={"macro": tuple(macro.residuals), "micro": tuple(micro.history)},
-        timings_s=timings,
-        details=details,
-    )
-
-
-def _iteration_text(plan) -> str:
-    """What produced the answer, with the attempts before it (result.json ``micro_iteration``)."""
-    names = {"union-cg": "union CG", "block-gs": "block Gauss-Seidel", "two-level": "two-level"}
-    if not plan.attempts:
-        return names[plan.choice.iteration]
-    last = plan.attempts[-1]
-    text = names[last.iteration]
-    if last.iteration == "two-level":
-        text += " (far-field coupling)" if last.far_tol is not None else " (exact coupling)"
-    if len(plan.attempts) > 1:
-        text += (
-            " ("
-            + "; ".join(f"{names[a.iteration]} did not converge in {a.sweeps} sweeps" for a in plan.attempts[:-1])
-            + ")"
-        )
-    return text

@@ -235,14 +235,14 @@ def full_grid_route(scene: Scene, h: float) -> str | None:
         return route
     from .reference.on_scene import reference_grid
 
-    n = len(scene.asperities)
+    n, pressed = len(scene.asperities), scene.penetration is not None and scene.influence["kind"] == "halfspace"
     tips = 0 if scene.tilt else n
     if n <= FULL_GRID_MAX_TIPS:
-        return policy_full_grid_route(int(reference_grid(scene, h).size), tips, scene.penetration is not None)
+        return policy_full_grid_route(int(reference_grid(scene, h).size), tips, pressed)
     x, y = (np.array([getattr(a, f) for a in scene.asperities]) for f in "xy")
     if (np.ptp(x) / h + 1.0) * (np.ptp(y) / h + 1.0) > full_grid_max_cells(tips):
         return None  # the tips' own box already has more cells a tip
-    return policy_full_grid_route(int(reference_grid(scene, h).size), tips, scene.penetration is not None)
+    return policy_full_grid_route(int(reference_grid(scene, h).size), tips, pressed)
 
 
 def _pair_bytes(across: np.ndarray) -> float:

@@ -13,7 +13,7 @@ from __future__ import annotations
 #: merged spheres 0.17 against 0.03 (the macro step's safe path alone 0.11 s); from 8,700
 #: cells the two-scale solve ran at 0.5-1.1x (median 0.7).
 FULL_GRID_MAX_CELLS = 5_000
-#: The same under penetration control. On the 47 sweep scenes of seeds 0-6 with at most 64
+#: The same on the half-space under penetration control. On the 47 sweep scenes of seeds 0-6 with at most 64
 #: untilted tips on 5,000-14,000 cells (one interleaved run, load 5-7, each against its
 #: reference's CPU): under penetration (29 scenes) the two-scale solve ran at 0.47-1.37x
 #: the reference (8 above 1.0x: the macro step and the patches of tips whose union box is
@@ -45,7 +45,7 @@ def full_grid_route(cells: int, tips: int = 0, penetration: bool = False) -> str
     """The reason to solve a scene of ``tips`` untilted tips (0: not counted) whose full grid
     has ``cells`` cells as one CG over it (the default two-scale route's honest choice on
     the smallest scenes and on grids crowded with tips), or None. ``penetration``: the
-    scene is under penetration control (a larger grid of at most ``FULL_GRID_MAX_TIPS`` tips
+    scene is a half-space under penetration control (a larger grid of at most ``FULL_GRID_MAX_TIPS`` tips
     still pays, above)."""
     largest = FULL_GRID_MAX_CELLS_PENETRATION if penetration and tips <= FULL_GRID_MAX_TIPS else FULL_GRID_MAX_CELLS
     if cells <= largest:

@@ -70,6 +70,10 @@ class MicroProblem:
     start : MicroStart or None, default None
         A previous solve's pressure (:mod:`.start`): the iterations start from it on the
         patches of the asperities it loaded, from eq. 7 elsewhere.
+    lift : (N,) array or None, default None
+        How far a body's surface rising beside its contacts lifts each tip's approach, mm
+        (:mod:`twoscale.bulge_rounds`): added to the geometric approach where the patches
+        are sized, so that a tip above the approach gets one.
     """
 
     h: float
@@ -85,6 +89,7 @@ class MicroProblem:
     local_penetrations: np.ndarray | None = None
     sizing_penetrations: np.ndarray | None = None
     start: object = None
+    lift: np.ndarray | None = None
 
     @classmethod
     def from_macro(

@@ -104,6 +104,13 @@ def initial_on_patches(ctx: MicroContext) -> tuple:
     return grid, out
 
 
+def reach_approaches(asperities, problem) -> np.ndarray:
+    """Each tip's approach that sizes its patch, mm (<= 0: none): the geometric one at the
+    problem's approach and tilt, raised by the problem's ``lift`` (a rising surface's)."""
+    approaches = tip_approaches(asperities, problem.theta, problem.pivot)
+    return approaches if problem.lift is None else approaches + problem.lift
+
+
 def one_asperity_patches(provider, asperities, problem, margin: float, box_share: float = BOX_MIN_PATCH_SHARE) -> list:
     """One patch per asperity the problem's approach and tilt reach, sized from the macro
     forces (or the indenters' reach where the macro step did not converge), half-width
@@ -114,7 +121,7 @@ def one_asperity_patches(provider, asperities, problem, margin: float, box_share
         asperities,
         h=problem.h,
         forces=sizing,
-        approaches=tip_approaches(asperities, problem.theta, problem.pivot),
+        approaches=reach_approaches(asperities, problem),
         E_star=provider.material.E_star,
         margin=margin,
         anchor=problem.anchor,
@@ -142,7 +149,7 @@ def block_setup(
     theta = pb.theta
     patches = None if ctx.patches is None else list(ctx.patches)
     if patches is None or sizing_approaches is not None:
-        approaches = tip_approaches(asperities, theta, pivot)
+        approaches = reach_approaches(asperities, pb)
         if sizing_approaches is not None:
             sizing_approaches = np.asarray(sizing_approaches, dtype=float)
             if sizing_approaches.shape != approaches.shape or not np.all(np.isfinite(sizing_approaches)):
