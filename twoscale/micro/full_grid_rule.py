@@ -17,8 +17,8 @@ FULL_GRID_MAX_CELLS = 5_000
 #: untilted tips on 5,000-14,000 cells (one interleaved run, load 5-7, each against its
 #: reference's CPU): under penetration (29 scenes) the two-scale solve ran at 0.47-1.37x
 #: the reference (8 above 1.0x: the macro step and the patches of tips whose union box is
-#: most of the grid), the full grid's CG at 0.46-1.07x (median 0.73); under load (18)
-#: the two-scale solve at 0.43-0.93x, the full grid at 0.51-1.04x, so that rule stays.
+#: most of the grid), the full grid's CG at 0.46-1.07x (median 0.71); under load (18)
+#: the two-scale solve at 0.43-0.92x, the full grid at 0.51-1.04x, so that rule stays.
 #: From 16,500 cells the two-scale solve ran at 0.34-0.37x (seed 6's #75, #136).
 FULL_GRID_MAX_CELLS_PENETRATION = 14_000
 #: More tips than this: not tried for that route by cell count alone (sizing costs a loop).
