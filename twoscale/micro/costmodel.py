@@ -293,7 +293,7 @@ FITTED = CostModel(
     fixed_seconds={"union-cg": 0.047 * SPEEDUP, "block-gs": 0.00859, "two-level": 0.0135},
     sweeps={
         # the far field took 3-15 sweeps (the count's median factor 1.13), the exact block
-        # iterations 3-34 (1.35)
+        # iterations 3-40 (1.35)
         "block-gs": SweepCount(5.6, 2.39, 1.98, 3.22),
         "two-level": SweepCount(4.22, 1.99, 1.3, 0.667),
     },
@@ -314,15 +314,16 @@ FITTED = CostModel(
     # two-level attempt that failed (12 s with the union CG after it), predicted 1.16x
     union_margin=1.7,
     # chosen from the forced runs' measured costs with the sweep counts (benchmarks/
-    # forced_choices.py --sweeps, 69 scenes of seeds 0-5, 55 of them with the union CG and
-    # the far field both run, micro-step CPU s): the measured fastest or within 10 % on 59
-    # scenes at 0.9-1.1, the picks' seconds 1.136x the fastest's at 1.05-1.1 (1.15 at
-    # 0.9-1.0), none over 1.5x the fixed count's pick at 1.85 (52 scenes, 1.30); 1.07 lies
-    # in the middle of the predicted ratios where no pick changes (1.02-1.12). Gained: seed
-    # 5's #115, 8,049 tilted spheres, union CG 37.3 s against 17.6, #164 15.2 against 12.0,
-    # maps of 43-94 stones. Still misordered (the far field's seconds a sweep, not its
-    # sweeps): seed 0's #87 and #141 (1,735 and 5,995 patches under penetration, the union
-    # CG 2.8-3.3x slower, predicted 0.66 and 0.83); docs/records/sweep.md
+    # forced_choices.py --sweeps, 76 scenes of seeds 0-5, micro-step CPU s): the measured
+    # fastest or within 10 % on 65-67 scenes at 0.9-1.1, the picks' seconds 1.135x the
+    # fastest's at 1.05-1.07 (1.15 at 0.9-1.0), none over 1.5x the pick of the fixed count
+    # at 1.85 (56 of 75 scenes, 1.30); 1.07 lies in the gap of the predicted ratios where no
+    # pick changes (1.01-1.09). Gained: seed 5's #115, 8,049 tilted spheres, union CG
+    # 37.3 s against 17.6, #164 15.2 against 12.0, maps of 34-105 stones. Still misordered
+    # (the far field's seconds a sweep, not its sweeps): seed 0's #87 and #141 (1,735 and
+    # 5,995 patches under penetration, the union CG 2.8-3.3x slower, predicted 0.67 and
+    # 0.84), and #198 taken by the far field at a predicted 1.14 (a tie in the forced runs,
+    # 1.2-1.36x slower in ab_trees); docs/records/sweep.md
     far_union_margin=1.07,
     # from 0.25: between 14 and 25 % the prediction decides (road maps of 30 and 50 mm at
     # 15-18 %: union CG 0.34 s and 0.67 s of CPU against 0.68 s and 1.59 s for the two-level
