@@ -138,6 +138,8 @@ def forced_samples(rows: list[dict], count: int = 200) -> list[dict]:
                 "converged": bool(r.get("converged")),
                 "sweeps": (r.get("attempts") or [[None, None, None, None]])[-1][3],
                 "scene": f"seed {seed} " + spec.label + " (forced)",
+                "seed": seed,
+                "coverage": (r.get("figures") or {}).get("coverage", r.get("coverage")),
             }
         )
     return out
@@ -348,7 +350,8 @@ def main(argv=None) -> int:
         "tilt": FITTED.tilt_factor,
         "union_exponent": FITTED.union_work_exponent,
     }
-    report(f"installed model ({FITTED.fitted_on})", installed, rows)
+    # the installed block iterations' sweep counts are reported by benchmarks/sweep_counts.py
+    report(f"installed model at {FITTED.gs_sweeps:g} sweeps ({FITTED.fitted_on})", installed, rows)
     rescale(installed, fitted(rows, args.min_seconds, args.max_sweeps))
     off = report("this fit", models, rows)
     for f, r in sorted(off, key=lambda x: -abs(math.log(x[0]))):

@@ -1,13 +1,19 @@
 """The forced runs' tools: rows of any seed, the variant the policy runs for each candidate,
-the choices made again against the measured costs, and the cost model's common scale."""
+the choices made again against the measured costs, and the block iterations' expected sweep
+counts: their closed form, the installed model's use of them, and their fit."""
 
 from __future__ import annotations
 
 import dataclasses
+import math
+
+import pytest
 
 from benchmarks.calibrate_policy import forced_samples, policy_runs
+from benchmarks.sweep_counts import fit_counts, fit_model
 from benchmarks.forced_choices import pick, right, score
-from twoscale.micro.costmodel import CANDIDATES, FITTED, SPEEDUP
+from twoscale.micro.costmodel import FITTED
+from twoscale.micro.sweepcount import SweepCount
 from twoscale.micro.policy import decide
 from twoscale.scenespace import sweep
 
@@ -64,33 +70,55 @@ def test_choices_are_scored_against_the_measured_fastest():
     assert right({"a": 0.015, "b": 0.008}, "a", 1.1)
 
 
-def _choices(model) -> list:
-    """The choices on a grid of figures and work around the recorded scene's: patch counts,
-    coverages, sizes, the union CG's work against the block iterations', both controls."""
-    out = []
-    for patches in (2, 5, 20, 102, 500):
-        for coverage in (0.05, 0.15, 0.36, 0.8):
-            for scale in (1e-3, 1e-2, 0.1, 1.0, 10.0):
-                for union in (0.3, 0.6, 1.0, 1.5, 2.2, 4.0):
-                    figures = {**FIGURES, "patches": patches, "coverage": coverage}
-                    work = {k: v * scale * (union if k == "union-cg" else 1.0) for k, v in WORK.items()}
-                    for load in (False, True):
-                        kw = {"load_control": load, "merged_contacts": coverage > 0.3}
-                        choice = decide(figures, work, model=model, **kw)
-                        out.append((choice.iteration, choice.far_tol))
-    return out
+def test_a_sweep_count_is_its_closed_form():
+    # rho = sqrt(coverage): at a quarter of the box rho = 1/2 and log(1 / (1 - rho)) = log 2
+    count = SweepCount(4.0, 2.0, 1.0, 3.0)
+    assert count(0.0) == pytest.approx(4.0)
+    assert count(0.25) == pytest.approx(4.0 + 2.0 * math.log(2.0))
+    # the load's sweeps under load control, the tilt's instead of them with the tilt
+    assert count(0.25, load_control=True) == pytest.approx(count(0.25) + 1.0)
+    assert count(0.25, load_control=True, tilt=True) == pytest.approx(count(0.25) + 3.0)
+    # more sweeps as the patches crowd their box, bounded where they fill it
+    got = [count(c) for c in (0.01, 0.1, 0.3, 0.6, 0.9)]
+    assert got == sorted(got) and count(1.0) == count(0.9) < 20.0
 
 
-def test_the_installed_scale_keeps_every_choice_of_the_model_it_scales():
-    # one factor on every coefficient's seconds: the same choice everywhere
-    unscaled = lambda per: dataclasses.replace(  # noqa: E731
-        FITTED,
-        ns_per_unit={k: FITTED.ns_per_unit[k] / per[k] for k in CANDIDATES},
-        fixed_seconds={k: FITTED.fixed_seconds[k] / per[k] for k in CANDIDATES},
-    )
-    now = _choices(FITTED)
-    assert len(set(now)) == 4  # the union CG, block Gauss-Seidel, both two-level iterations
-    assert _choices(unscaled(dict.fromkeys(CANDIDATES, SPEEDUP))) == now
-    # a factor per candidate (as measured: 0.49, 0.41, 0.45) would move some
-    moved = _choices(unscaled({"union-cg": 0.49, "block-gs": 0.41, "two-level": 0.45}))
-    assert moved != now
+def test_the_installed_model_charges_the_block_iterations_their_expected_sweeps():
+    # a candidate's seconds over its fixed part scale with its count: the far field's
+    # prediction on crowded patches against sparse ones is the ratio of their counts
+    work = {"union-cg": 1e9, "block-gs": 1e9, "two-level": 1e9}
+    for key in ("block-gs", "two-level"):
+        count = FITTED.sweeps[key]
+        for load, tilt in ((False, False), (True, False), (True, True)):
+            at = lambda c: FITTED.seconds(work, load_control=load, tilt=tilt, coverage=c)[key]  # noqa: E731
+            fixed = FITTED.fixed_seconds[key]
+            want = count(0.6, load_control=load, tilt=tilt) / count(0.02, load_control=load, tilt=tilt)
+            assert (at(0.6) - fixed) / (at(0.02) - fixed) == pytest.approx(want)
+    # without a coverage (no figures) the fixed count of the work estimate
+    plain = FITTED.seconds(work)["two-level"]
+    assert plain == pytest.approx(FITTED.fixed_seconds["two-level"] + FITTED.ns_per_unit["two-level"])
+
+
+def _sample(key: str, coverage: float, control: str, seconds: float, sweeps: float) -> dict:
+    row = {"candidate": key, "iteration": key, "work": 1e9, "control": control, "seconds": seconds}
+    return row | {"converged": True, "sweeps": sweeps, "scene": "s", "seed": 0, "coverage": coverage}
+
+
+def test_the_fit_recovers_a_known_sweep_law_and_its_cost():
+    # sweeps and seconds made by a known law: the fit finds its coefficients again
+    law = {"block-gs": SweepCount(6.0, 3.0, 2.0, 4.0), "two-level": SweepCount(4.0, 2.0, 1.0, 0.5)}
+    ns, fixed = {"block-gs": 1.2, "two-level": 1.8}, {"block-gs": 0.01, "two-level": 0.02}
+    rows = []
+    for key, count in law.items():
+        for coverage in (0.01, 0.05, 0.15, 0.3, 0.5, 0.7, 0.85):
+            for control in ("penetration", "load", "tilt"):
+                n = count(coverage, load_control=control != "penetration", tilt=control == "tilt")
+                rows.append(_sample(key, coverage, control, fixed[key] + ns[key] * n / FITTED.gs_sweeps, n))
+    assert {k: dataclasses.astuple(c) for k, c in fit_counts(rows).items()} == {
+        k: pytest.approx(dataclasses.astuple(c), rel=1e-3) for k, c in law.items()
+    }
+    model = fit_model(rows)
+    for key in law:
+        assert model.ns_per_unit[key] == pytest.approx(ns[key], rel=1e-2)
+        assert model.fixed_seconds[key] == pytest.approx(fixed[key], rel=1e-2)
+    assert model.ns_per_unit["union-cg"] == FITTED.ns_per_unit["union-cg"]  # the union CG's kept
