@@ -282,3 +282,24 @@ def test_the_preconditioners_energy_is_the_wrapped_kernels_inner_product(shape):
         Cv = np.fft.irfft2(np.fft.rfft2(field) * np.fft.rfft2(wrapped), s=(ly, lx))
         exact = float(np.sum(field * Cv))
         assert inverse.energy_on_cells(at)(v) == pytest.approx(exact, rel=1e-5)
+
+
+@pytest.mark.parametrize("shape", [(10, 12), (31, 40)])
+def test_the_even_kernels_spectrum_from_its_quadrant_is_the_padded_tables_dft(shape):
+    """A self pair's spectrum by the quadrant's cosine transforms against the padded table's
+    discrete Fourier sum written out (real along y, complex along x): the same to rounding.
+    An odd padded length has no such form (None: the transforms of the whole table)."""
+    from twoscale.influence.transforms import even_spectrum
+
+    ny, nx = shape
+    offsets = Grid(-(nx - 1) * H, -(ny - 1) * H, H, 2 * nx - 1, 2 * ny - 1)
+    table = HS.cell_block(offsets.points(), np.zeros((1, 2)), H).reshape(offsets.shape)  # Love's kernel
+    (ty, tx) = table.shape
+    my, mx = HS.grid_operator(Grid(0.0, 0.0, H, nx, ny)).fft_shape
+    assert my % 2 == 0 and mx % 2 == 0
+    wy = np.exp(-2j * np.pi * np.outer(np.arange(my // 2 + 1), np.arange(ty)) / my)
+    wx = np.exp(-2j * np.pi * np.outer(np.arange(tx), np.arange(mx)) / mx)
+    dft = wy @ table @ wx
+    scale = np.abs(dft).max()
+    assert np.abs(even_spectrum(table, (my, mx)) - dft).max() < 1e-13 * scale
+    assert even_spectrum(table, (my + 1, mx)) is None

@@ -15,7 +15,7 @@ from .base import GridOperator
 from .circulant import CirculantInverse
 from .on_cells import CellProduct, energy_weights
 from .stacked import KeptStackProduct, Workspace
-from .transforms import fft_in_place, irfft_into, padded_back, padded_spectrum, rfft_into
+from .transforms import even_spectrum, fft_in_place, irfft_into, padded_back, padded_spectrum, rfft_into
 
 
 def _transform(a: np.ndarray, shape: tuple[int, int]) -> np.ndarray:
@@ -47,19 +47,19 @@ class ConvolutionOperator(GridOperator):
     exactly the linear convolution, computed in ``O(n log n)``. ``again``, if given,
     returns that same table when it is cheap to have again (e.g. gathered from a cache of
     kernel values the caller keeps), else None: :meth:`offset_table` then takes it instead
-    of an inverse transform, and the operator does not hold the table meanwhile.
+    of an inverse transform, and the operator does not hold the table meanwhile. ``even``:
+    the kernel is even in both offsets (a self pair's spectrum by :func:`.even_spectrum`).
     """
 
-    def __init__(
-        self, target: Grid, source: Grid, table: np.ndarray, again: Callable[[], np.ndarray | None] | None = None
-    ):
+    def __init__(self, target: Grid, source: Grid, table: np.ndarray, again: Callable | None = None, even=False):
         self.target, self.source = target, source
         self._again = again
         my, mx = table.shape
         self._shape = (sfft.next_fast_len(my, real=True), sfft.next_fast_len(mx, real=True))
         # (:func:`_transform`'s values without its spectrum-sized copy: 700 x 700 cells'
         # table, 24 against 19 ms)
-        self._khat = padded_spectrum(table, self._shape)
+        self._khat = even_spectrum(table, self._shape) if even and source == target else None
+        self._khat = padded_spectrum(table, self._shape) if self._khat is None else self._khat
         # transforms derived from the kernel (the preconditioner's, the float32 spectrum),
         # made on first use and shared with the moved copies of this operator
         self._derived: dict = {}

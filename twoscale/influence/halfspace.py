@@ -180,10 +180,12 @@ class HalfSpace(InfluenceProvider):
     ) -> "ConvolutionOperator":
         source = target if source is None else source
         table, ox0, oy0 = self._offset_table(target, source, tables)
+        even = target == source  # (Love's kernel is even in both offsets)
         if tables is None:
-            return ConvolutionOperator(target, source, table)
+            return ConvolutionOperator(target, source, table, even=even)
         (my, mx), h = table.shape, float(source.h)
-        return ConvolutionOperator(target, source, table, lambda: self._kept_window(h, ox0, oy0, mx, my, tables))
+        again = lambda: self._kept_window(h, ox0, oy0, mx, my, tables)  # noqa: E731
+        return ConvolutionOperator(target, source, table, again, even=even)
 
     def _kept_window(self, h: float, ox0: int, oy0: int, mx: int, my: int, tables: BoundedCache) -> np.ndarray | None:
         """:meth:`_window`'s table when the quadrant it gathers from is still in ``tables``
