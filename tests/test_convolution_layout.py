@@ -285,11 +285,12 @@ def test_the_preconditioners_energy_is_the_wrapped_kernels_inner_product(shape):
 
 
 @pytest.mark.parametrize("shape", [(10, 12), (31, 40)])
-def test_the_even_kernels_spectrum_from_its_quadrant_is_the_padded_tables_dft(shape):
+def test_the_even_kernels_spectrum_from_its_quadrant_is_the_padded_tables_dft_and_back(shape):
     """A self pair's spectrum by the quadrant's cosine transforms against the padded table's
-    discrete Fourier sum written out (real along y, complex along x): the same to rounding.
-    An odd padded length has no such form (None: the transforms of the whole table)."""
-    from twoscale.influence.transforms import even_spectrum
+    discrete Fourier sum written out (real along y, complex along x): the same to rounding,
+    and the table back from it Love's kernel. An odd padded length has no such form (None:
+    the transforms of the whole table)."""
+    from twoscale.influence.even_kernel import even_spectrum
 
     ny, nx = shape
     offsets = Grid(-(nx - 1) * H, -(ny - 1) * H, H, 2 * nx - 1, 2 * ny - 1)
@@ -303,3 +304,10 @@ def test_the_even_kernels_spectrum_from_its_quadrant_is_the_padded_tables_dft(sh
     scale = np.abs(dft).max()
     assert np.abs(even_spectrum(table, (my, mx)) - dft).max() < 1e-13 * scale
     assert even_spectrum(table, (my + 1, mx)) is None
+    # and back: the operator's offset table (by the inverse cosine transforms) is Love's
+    # kernel, its whole padded lattice the table with zeros beyond it
+    op = HS.grid_operator(Grid(0.0, 0.0, H, nx, ny))
+    assert np.abs(op.offset_table() - table).max() <= 1e-13 * table.max()
+    lattice = np.zeros((my, mx))
+    lattice[:ty, :tx] = table
+    assert np.abs(op.padded_table() - lattice).max() <= 1e-13 * table.max()

@@ -106,30 +106,14 @@ def padded_back(a: np.ndarray, my: int, start: int, n: int) -> np.ndarray:
     return irfft_into(a[..., start : start + n], -2, my, out)
 
 
-def even_spectrum(table: np.ndarray, shape: tuple[int, int]) -> np.ndarray | None:
-    """:func:`padded_spectrum` of a grid's self ``table`` (offsets ``-(n - 1) .. n - 1`` an
-    axis) whose kernel is even in both offsets, from its quadrant (offsets ``0 .. n - 1``),
-    or None when a padded length is odd. The table's transform is then a cosine sum of the
-    quadrant per axis times the phase of the table's first offset ``-(n - 1)``: a type-I DCT
-    of the quadrant zero-padded to ``N / 2 + 1`` entries an axis (``N`` the padded length)
-    instead of the transforms of the whole padded table (997 x 997 cells: 0.028 against
-    0.125 s; 1933 x 1933: 0.12 against 0.42 s; within 2e-16 of the largest)."""
-    quadrant = table[table.shape[0] // 2 :, table.shape[1] // 2 :]
-    (my, mx), (ny, nx) = shape, quadrant.shape
-    if my % 2 or mx % 2 or my < 2 * ny or mx < 2 * nx:
-        return None
-    cos = np.zeros((my // 2 + 1, nx))
-    cos[:ny] = quadrant
-    cos = sfft.dct(cos, type=1, axis=0, overwrite_x=True)
-    padded = np.zeros((my // 2 + 1, mx // 2 + 1))
-    padded[:, :nx] = cos
-    cos = sfft.dct(padded, type=1, axis=1, overwrite_x=True)
-    ky, kx = np.arange(my // 2 + 1), np.arange(mx)
-    phase_y = np.exp(-2j * np.pi * (ky * (ny - 1) % my) / my)
-    phase_x = np.exp(-2j * np.pi * (kx * (nx - 1) % mx) / mx)
-    out = np.empty((my // 2 + 1, mx), complex)
-    out[:, : mx // 2 + 1] = cos
-    out[:, mx // 2 + 1 :] = cos[:, mx // 2 - 1 : 0 : -1]  # (the sum is even in kx: entry mx - kx)
-    out *= phase_y[:, None]
-    out *= phase_x[None, :]
-    return out
+def padded_transform(a: np.ndarray, shape: tuple[int, int]) -> np.ndarray:
+    """The zero-padded transform of ``a``'s last two axes to ``shape`` in the layout of every
+    :class:`~.convolution.ConvolutionOperator` spectrum: real along y (``shape[0] // 2 + 1`` rows kept),
+    then complex along the contiguous x (a float32 product on 625 x 384 cells: 4.7-5.0 ms
+    against 5.2-5.5 ms with ``rfft2``'s order)."""
+    my, mx = shape
+    ny = a.shape[-2]
+    padded = np.zeros((*a.shape[:-2], my, a.shape[-1]), dtype=np.result_type(a.dtype, np.float32))
+    padded[..., :ny, :] = a
+    out = sfft.rfft(padded, axis=-2, overwrite_x=True)
+    return sfft.fft(out, n=mx, axis=-1, overwrite_x=True)
