@@ -15,7 +15,7 @@ from .base import GridOperator
 from .circulant import CirculantInverse
 from .on_cells import CellProduct, energy_weights
 from .stacked import KeptStackProduct, Workspace
-from .even_kernel import even_lattice, even_spectrum
+from .even_kernel import even_lattice, even_spectrum, unfolded
 from .transforms import fft_in_place, irfft_into, padded_back, padded_spectrum, padded_transform, rfft_into
 
 
@@ -41,19 +41,21 @@ class ConvolutionOperator(GridOperator):
     returns that same table when it is cheap to have again (e.g. gathered from a cache of
     kernel values the caller keeps), else None: :meth:`offset_table` then takes it instead
     of an inverse transform, and the operator does not hold the table meanwhile. ``even``:
-    the kernel is even in both offsets (a self pair's spectrum by :func:`.even_spectrum`).
+    a self pair whose kernel is even in both offsets, ``table`` its quadrant (:mod:`.even_kernel`).
     """
 
     def __init__(self, target: Grid, source: Grid, table: np.ndarray, again: Callable | None = None, even=False):
         self.target, self.source = target, source
         self._again = again
-        my, mx = table.shape
+        my, mx = (2 * source.ny - 1, 2 * source.nx - 1) if even else table.shape
         self._shape = (sfft.next_fast_len(my, real=True), sfft.next_fast_len(mx, real=True))
         # (:func:`.transforms.padded_transform`'s values without its spectrum-sized copy: 700 x 700 cells'
         # table, 24 against 19 ms)
-        self._even = source.shape if even and source == target else None  # (:mod:`.even_kernel`)
+        self._even = source.shape if even else None
         self._khat = None if self._even is None else even_spectrum(table, self._shape)
-        self._khat = padded_spectrum(table, self._shape) if self._khat is None else self._khat
+        if self._khat is None:  # (an odd padded length: the whole table's transforms)
+            table = unfolded(table, 1 - source.ny, my, 1 - source.nx, mx) if even else table
+            self._khat = padded_spectrum(table, self._shape)
         # transforms derived from the kernel (the preconditioner's, the float32 spectrum),
         # made on first use and shared with the moved copies of this operator
         self._derived: dict = {}

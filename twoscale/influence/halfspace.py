@@ -12,7 +12,7 @@ from ..material import Material
 from .base import InfluenceProvider
 from .cache import BoundedCache
 from .convolution import ConvolutionOperator
-from .even_kernel import unfolded
+from .even_kernel import EVEN_MIN_CELLS, unfolded
 from .separated import relative_frames
 
 
@@ -156,13 +156,16 @@ class HalfSpace(InfluenceProvider):
         self, target: Grid, source: Grid | None = None, *, tables: BoundedCache | None = None
     ) -> "ConvolutionOperator":
         source = target if source is None else source
+        if target == source and target.size >= EVEN_MIN_CELLS:  # Love's kernel is even: its quadrant is enough
+            h, (ny, nx) = float(source.h), source.shape
+            quadrant = self._window(h, 0, 0, nx, ny, tables)
+            kept = lambda: self._kept_window(h, 1 - nx, 1 - ny, 2 * nx - 1, 2 * ny - 1, tables)  # noqa: E731
+            return ConvolutionOperator(target, source, quadrant, None if tables is None else kept, even=True)
         table, ox0, oy0 = self._offset_table(target, source, tables)
-        even = target == source  # (Love's kernel is even in both offsets)
         if tables is None:
-            return ConvolutionOperator(target, source, table, even=even)
+            return ConvolutionOperator(target, source, table)
         (my, mx), h = table.shape, float(source.h)
-        again = lambda: self._kept_window(h, ox0, oy0, mx, my, tables)  # noqa: E731
-        return ConvolutionOperator(target, source, table, again, even=even)
+        return ConvolutionOperator(target, source, table, lambda: self._kept_window(h, ox0, oy0, mx, my, tables))
 
     def _kept_window(self, h: float, ox0: int, oy0: int, mx: int, my: int, tables: BoundedCache) -> np.ndarray | None:
         """:meth:`_window`'s table when the quadrant it gathers from is still in ``tables``
