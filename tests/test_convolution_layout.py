@@ -309,6 +309,7 @@ def test_the_even_kernels_spectrum_from_its_quadrant_is_the_padded_tables_dft_an
     assert even_spectrum(quadrant, (my + 1, mx)) is None
     if ny * nx >= EVEN_MIN_CELLS:
         assert np.abs(op.offset_table() - table).max() <= 1e-13 * table.max()
+        assert np.abs(op.transposed().offset_table() - table).max() <= 1e-13 * table.max()
         lattice = np.zeros((my, mx))
         lattice[:ty, :tx] = table
         assert np.abs(op.padded_table() - lattice).max() <= 1e-13 * table.max()

@@ -44,6 +44,8 @@ class ConvolutionOperator(GridOperator):
     a self pair whose kernel is even in both offsets, ``table`` its quadrant (:mod:`.even_kernel`).
     """
 
+    _even: tuple | None = None  # (the self grid's shape when ``even``; a transposed pair: None)
+
     def __init__(self, target: Grid, source: Grid, table: np.ndarray, again: Callable | None = None, even=False):
         self.target, self.source = target, source
         self._again = again
