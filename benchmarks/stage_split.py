@@ -43,6 +43,7 @@ STAGES = (
     ("twoscale.reference", "solve_reference"),
     ("twoscale.reference.cg", "solve_cg"),
     ("twoscale.influence.halfspace", "HalfSpace.grid_operator"),
+    ("twoscale.influence.convolution", "ConvolutionOperator.offset_table"),
     ("twoscale.reference.cg", "pk_solve"),
     ("twoscale.pk.iteration", "Iteration.check"),
     ("twoscale.pk.iteration", "Iteration.direction"),

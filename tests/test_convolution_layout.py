@@ -282,3 +282,34 @@ def test_the_preconditioners_energy_is_the_wrapped_kernels_inner_product(shape):
         Cv = np.fft.irfft2(np.fft.rfft2(field) * np.fft.rfft2(wrapped), s=(ly, lx))
         exact = float(np.sum(field * Cv))
         assert inverse.energy_on_cells(at)(v) == pytest.approx(exact, rel=1e-5)
+
+
+@pytest.mark.parametrize("shape", [(10, 12), (128, 130)])
+def test_the_even_kernels_spectrum_from_its_quadrant_is_the_padded_tables_dft_and_back(shape):
+    """A self pair's spectrum by the quadrant's cosine transforms against the padded table's
+    discrete Fourier sum written out (real along y, complex along x): the same to rounding;
+    an odd padded length has no such form (None: the transforms of the whole table). On a
+    grid large enough for the operator to take that route, its offset table back from the
+    spectrum is Love's kernel, its whole padded lattice the table with zeros beyond it."""
+    from twoscale.influence.even_kernel import EVEN_MIN_CELLS, even_spectrum
+
+    ny, nx = shape
+    offsets = Grid(-(nx - 1) * H, -(ny - 1) * H, H, 2 * nx - 1, 2 * ny - 1)
+    table = HS.cell_block(offsets.points(), np.zeros((1, 2)), H).reshape(offsets.shape)  # Love's kernel
+    (ty, tx) = table.shape
+    op = HS.grid_operator(Grid(0.0, 0.0, H, nx, ny))
+    my, mx = op.fft_shape
+    assert my % 2 == 0 and mx % 2 == 0
+    wy = np.exp(-2j * np.pi * np.outer(np.arange(my // 2 + 1), np.arange(ty)) / my)
+    wx = np.exp(-2j * np.pi * np.outer(np.arange(tx), np.arange(mx)) / mx)
+    dft = wy @ table @ wx
+    quadrant = table[ny - 1 :, nx - 1 :]
+    scale = np.abs(dft).max()
+    assert np.abs(even_spectrum(quadrant, (my, mx)) - dft).max() < 1e-13 * scale
+    assert even_spectrum(quadrant, (my + 1, mx)) is None
+    if ny * nx >= EVEN_MIN_CELLS:
+        assert np.abs(op.offset_table() - table).max() <= 1e-13 * table.max()
+        assert np.abs(op.transposed().offset_table() - table).max() <= 1e-13 * table.max()
+        lattice = np.zeros((my, mx))
+        lattice[:ty, :tx] = table
+        assert np.abs(op.padded_table() - lattice).max() <= 1e-13 * table.max()

@@ -15,24 +15,17 @@ from .base import GridOperator
 from .circulant import CirculantInverse
 from .on_cells import CellProduct, energy_weights
 from .stacked import KeptStackProduct, Workspace
-from .transforms import fft_in_place, irfft_into, padded_back, padded_spectrum, rfft_into
+from .even_kernel import even_lattice, even_spectrum, unfolded
+from .transforms import fft_in_place, irfft_into, padded_back, padded_spectrum, padded_transform, rfft_into
 
 
-def _transform(a: np.ndarray, shape: tuple[int, int]) -> np.ndarray:
-    """The zero-padded transform of ``a``'s last two axes to ``shape`` in the layout of every
-    :class:`ConvolutionOperator` spectrum: real along y (``shape[0] // 2 + 1`` rows kept),
-    then complex along the contiguous x (a float32 product on 625 x 384 cells: 4.7-5.0 ms
-    against 5.2-5.5 ms with ``rfft2``'s order)."""
-    my, mx = shape
-    ny = a.shape[-2]
-    padded = np.zeros((*a.shape[:-2], my, a.shape[-1]), dtype=np.result_type(a.dtype, np.float32))
-    padded[..., :ny, :] = a
-    out = sfft.rfft(padded, axis=-2, overwrite_x=True)
-    return sfft.fft(out, n=mx, axis=-1, overwrite_x=True)
-
-
-def _inverse(spectrum: np.ndarray, shape: tuple[int, int], columns: int | None = None) -> np.ndarray:
-    """The real array of ``shape`` whose :func:`_transform` is ``spectrum`` (its first ``columns`` only)."""
+def _inverse(spectrum: np.ndarray, shape: tuple[int, int], columns: int | None = None, even=None) -> np.ndarray:
+    """The real array of ``shape`` whose :func:`.transforms.padded_transform` is ``spectrum``
+    (its first ``columns`` only); ``even``: the grid shape of a self table whose kernel is
+    even in both offsets (by its quadrant: :func:`.even_kernel.even_lattice`)."""
+    out = None if even is None else even_lattice(spectrum, shape, even, columns)
+    if out is not None:
+        return out
     a = sfft.ifft(spectrum, axis=-1)
     if columns is None:
         return sfft.irfft(a, n=shape[0], axis=-2)
@@ -47,19 +40,24 @@ class ConvolutionOperator(GridOperator):
     exactly the linear convolution, computed in ``O(n log n)``. ``again``, if given,
     returns that same table when it is cheap to have again (e.g. gathered from a cache of
     kernel values the caller keeps), else None: :meth:`offset_table` then takes it instead
-    of an inverse transform, and the operator does not hold the table meanwhile.
+    of an inverse transform, and the operator does not hold the table meanwhile. ``even``:
+    a self pair whose kernel is even in both offsets, ``table`` its quadrant (:mod:`.even_kernel`).
     """
 
-    def __init__(
-        self, target: Grid, source: Grid, table: np.ndarray, again: Callable[[], np.ndarray | None] | None = None
-    ):
+    _even: tuple | None = None  # (the self grid's shape when ``even``; a transposed pair: None)
+
+    def __init__(self, target: Grid, source: Grid, table: np.ndarray, again: Callable | None = None, even=False):
         self.target, self.source = target, source
         self._again = again
-        my, mx = table.shape
+        my, mx = (2 * source.ny - 1, 2 * source.nx - 1) if even else table.shape
         self._shape = (sfft.next_fast_len(my, real=True), sfft.next_fast_len(mx, real=True))
-        # (:func:`_transform`'s values without its spectrum-sized copy: 700 x 700 cells'
+        # (:func:`.transforms.padded_transform`'s values without its spectrum-sized copy: 700 x 700 cells'
         # table, 24 against 19 ms)
-        self._khat = padded_spectrum(table, self._shape)
+        self._even = source.shape if even else None
+        self._khat = None if self._even is None else even_spectrum(table, self._shape)
+        if self._khat is None:  # (an odd padded length: the whole table's transforms)
+            table = unfolded(table, 1 - source.ny, my, 1 - source.nx, mx) if even else table
+            self._khat = padded_spectrum(table, self._shape)
         # transforms derived from the kernel (the preconditioner's, the float32 spectrum),
         # made on first use and shared with the moved copies of this operator
         self._derived: dict = {}
@@ -68,7 +66,7 @@ class ConvolutionOperator(GridOperator):
         p = np.asarray(p, dtype=float)
         if p.shape != self.source.shape:
             raise ValueError(f"pressure has shape {p.shape}, expected {self.source.shape}")
-        return self._finish(self._times_kernel(_transform(p, self._shape)))
+        return self._finish(self._times_kernel(padded_transform(p, self._shape)))
 
     def apply_stack(self, P: np.ndarray) -> np.ndarray:
         """:meth:`apply` on a stack (B, ny, nx): the same transforms along the last two axes,
@@ -102,7 +100,7 @@ class ConvolutionOperator(GridOperator):
 
     def spectrum(self, p: np.ndarray) -> np.ndarray:
         """Half-spectrum of the zero-padded source pressure (``source.shape``, or a stack of
-        them along a leading axis), in the pressure's precision: :func:`_transform`'s
+        them along a leading axis), in the pressure's precision: :func:`.transforms.padded_transform`'s
         values, without its spectrum-sized copies (:func:`.transforms.padded_spectrum`)."""
         return padded_spectrum(p, self._shape)
 
@@ -148,7 +146,7 @@ class ConvolutionOperator(GridOperator):
             my, mx = self.target.ny + self.source.ny - 1, self.target.nx + self.source.nx - 1
             table = None if self._again is None else self._again()
             if table is None:  # (:meth:`padded_table`'s values, without its padded copy)
-                table = _inverse(self._khat, self._shape, mx)[:my]
+                table = _inverse(self._khat, self._shape, mx, self._even)[:my]
             table.setflags(write=False)
             self._derived["table"] = table
         return self._derived["table"]
@@ -185,7 +183,7 @@ class ConvolutionOperator(GridOperator):
 
     def finish(self, a: np.ndarray) -> np.ndarray:
         """Target displacement from a (sum of) :meth:`multiply` result(s); ``a`` is overwritten.
-        The inverse of :func:`_transform` axis by axis, the target's columns and rows only
+        The inverse of :func:`.transforms.padded_transform` axis by axis, the target's columns and rows only
         (:meth:`_finish`'s values by pocketfft's own calls: :func:`.transforms.padded_back`)."""
         sy, sx = self.source.ny - 1, self.source.nx - 1
         return padded_back(a, self._shape[0], sx, self.target.nx)[..., sy : sy + self.target.ny, :]
@@ -200,7 +198,7 @@ class ConvolutionOperator(GridOperator):
     def padded_table(self) -> np.ndarray:
         """The kernel on the padded transform's whole lattice (``fft_shape``; entry 0 the
         offset table's first offset), back from the kernel spectrum."""
-        return _inverse(self._khat, self._shape)
+        return _inverse(self._khat, self._shape, even=self._even)
 
     @property
     def nbytes(self) -> int:
@@ -311,7 +309,7 @@ class _SingleConvolution(GridOperator):
         )
 
     def _spectrum_in_place(self, p: np.ndarray | None, buffers: tuple[np.ndarray, ...]) -> np.ndarray:
-        """:func:`_transform` of one field through ``buffers`` (:meth:`_new_buffers`; the
+        """:func:`.transforms.padded_transform` of one field through ``buffers`` (:meth:`_new_buffers`; the
         float32 ones kept with this operator): the padding is not allocated again for
         every product (fresh pages the kernel zeroes: on 5.26 M cells 0.16 against 0.24 s
         a transform), the transform along y is written into the spectrum and the one along

@@ -12,6 +12,7 @@ from ..material import Material
 from .base import InfluenceProvider
 from .cache import BoundedCache
 from .convolution import ConvolutionOperator
+from .even_kernel import EVEN_MIN_CELLS, unfolded
 from .separated import relative_frames
 
 
@@ -29,30 +30,6 @@ TABLE_CACHE_ENTRIES = 40_000
 QUADRANT_MAX_ENTRIES = 2_000_000
 #: A quadrant that must grow grows to at least this factor of its old extent per axis.
 QUADRANT_GROWTH = 1.5
-
-
-def _spans(start: int, n: int) -> list:
-    """The indices ``|start|, ..., |start + n - 1|`` as (slice of the ``n``, slice of the
-    quadrant) pairs: the negative offsets a reversed run, then the others a forward one."""
-    stop, spans = start + n - 1, []
-    if start < 0:
-        last = min(stop, -1)
-        spans.append((slice(0, last - start + 1), slice(-start, -last - 1, -1)))
-    if stop >= 0:
-        first = max(start, 0)
-        spans.append((slice(first - start, n), slice(first, stop + 1)))
-    return spans
-
-
-def _unfolded(quadrant: np.ndarray, oy0: int, my: int, ox0: int, mx: int) -> np.ndarray:
-    """The quadrant's values at rows ``|oy0 + m|`` and columns ``|ox0 + n|``, (my, mx):
-    at most four block copies into the new table (a fold per axis with a transposed copy
-    between them cost 28 ms on a 700 x 700 box's table, 1399 x 1399 entries)."""
-    out = np.empty((my, mx), dtype=quadrant.dtype)
-    for rows, qrows in _spans(oy0, my):
-        for cols, qcols in _spans(ox0, mx):
-            out[rows, cols] = quadrant[qrows, qcols]
-    return out
 
 
 def _love_table(E_star: float, h: float, ox0: int, oy0: int, mx: int, my: int) -> np.ndarray:
@@ -142,7 +119,7 @@ class HalfSpace(InfluenceProvider):
             quadrant = _love_table(self.E_star, h, 0, 0, ax, ay)
             if tables is not None and keep:
                 tables.put(key, quadrant, 8 * ax * ay)
-        table = _unfolded(quadrant, oy0, my, ox0, mx)
+        table = unfolded(quadrant, oy0, my, ox0, mx)
         table.setflags(write=False)
         return table
 
@@ -179,6 +156,11 @@ class HalfSpace(InfluenceProvider):
         self, target: Grid, source: Grid | None = None, *, tables: BoundedCache | None = None
     ) -> "ConvolutionOperator":
         source = target if source is None else source
+        if target == source and target.size >= EVEN_MIN_CELLS:  # Love's kernel is even: its quadrant is enough
+            h, (ny, nx) = float(source.h), source.shape
+            quadrant = self._window(h, 0, 0, nx, ny, tables)
+            kept = lambda: self._kept_window(h, 1 - nx, 1 - ny, 2 * nx - 1, 2 * ny - 1, tables)  # noqa: E731
+            return ConvolutionOperator(target, source, quadrant, None if tables is None else kept, even=True)
         table, ox0, oy0 = self._offset_table(target, source, tables)
         if tables is None:
             return ConvolutionOperator(target, source, table)

@@ -104,3 +104,16 @@ def padded_back(a: np.ndarray, my: int, start: int, n: int) -> np.ndarray:
     fft_in_place(a, -1, forward=False)
     out = np.empty((*a.shape[:-2], my, n), np.finfo(a.dtype).dtype)
     return irfft_into(a[..., start : start + n], -2, my, out)
+
+
+def padded_transform(a: np.ndarray, shape: tuple[int, int]) -> np.ndarray:
+    """The zero-padded transform of ``a``'s last two axes to ``shape`` in the layout of every
+    :class:`~.convolution.ConvolutionOperator` spectrum: real along y (``shape[0] // 2 + 1`` rows kept),
+    then complex along the contiguous x (a float32 product on 625 x 384 cells: 4.7-5.0 ms
+    against 5.2-5.5 ms with ``rfft2``'s order)."""
+    my, mx = shape
+    ny = a.shape[-2]
+    padded = np.zeros((*a.shape[:-2], my, a.shape[-1]), dtype=np.result_type(a.dtype, np.float32))
+    padded[..., :ny, :] = a
+    out = sfft.rfft(padded, axis=-2, overwrite_x=True)
+    return sfft.fft(out, n=mx, axis=-1, overwrite_x=True)
