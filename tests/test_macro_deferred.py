@@ -15,6 +15,11 @@ from twoscale.micro.policy import Choice
 from twoscale.scenespace import build, sweep
 
 
+#: An iteration named, so that the two-scale solver itself runs (49 spheres on #53's 11,880
+#: cells would by default be their full grid's one CG); "auto" leaves the choice to the policy.
+TWO_SCALE = {"iteration": "auto"}
+
+
 def _scene(index: int):
     """The held-out sweep's scene ``index`` (seed 1)."""
     (spec,) = [s for s in sweep(200, 1) if s.index == index]
@@ -29,11 +34,11 @@ def _largest_difference(a, b) -> float:
 @pytest.mark.parametrize("index", [53, 159])  # 49 merged spheres, penetration; 34 under load
 def test_the_union_cg_solves_a_stalled_macro_step_without_its_safe_path(monkeypatch, index):
     scene = _scene(index)
-    deferred = twoscale.solve(scene)
+    deferred = twoscale.solve(scene, **TWO_SCALE)
     assert deferred.converged and "safe path deferred" in deferred.message
     assert deferred.details.micro.strategy == "union-cg"
     monkeypatch.setattr(policy, "DEFER_SAFE_PATH_MAX_CELLS", 0)
-    taken = twoscale.solve(scene)
+    taken = twoscale.solve(scene, **TWO_SCALE)
     assert taken.converged and "deferred" not in taken.message
     assert taken.details.micro.strategy == "union-cg"
     assert _largest_difference(deferred, taken) <= 1e-7
@@ -53,12 +58,12 @@ def test_another_iteration_runs_the_deferred_safe_path_on_the_patches_its_forces
     scene = _scene(53)
     picked = Choice("block-gs", None, "block Gauss-Seidel (picked by the test)", {})
     monkeypatch.setattr(micro_driver, "choose", lambda *args, **kw: picked)
-    refined = twoscale.solve(scene)
+    refined = twoscale.solve(scene, **TWO_SCALE)
     assert refined.converged and "deferred" not in refined.message
     assert refined.details.micro.strategy == "block-gs"
     assert refined.details.macro.converged  # the safe path ran: Newton alone stalls at 6e-2
     monkeypatch.setattr(policy, "DEFER_SAFE_PATH_MAX_CELLS", 0)
-    taken = twoscale.solve(scene)
+    taken = twoscale.solve(scene, **TWO_SCALE)
     assert [f.grid for f in refined.fields] == [f.grid for f in taken.fields]
     assert np.array_equal(refined.details.macro.forces, taken.details.macro.forces)
     assert _largest_difference(refined, taken) <= 1e-12
