@@ -393,36 +393,3 @@ def test_thestones_surface_on_the_maps_lattice_is_surface_ons(strip):
             assert np.isfinite(mine.height).any() and mine.n_asperities == theirs.n_asperities
             assert np.array_equal(mine.height, theirs.height) and np.array_equal(mine.owner, theirs.owner)
             assert mine.owner.dtype == theirs.owner.dtype
-
-
-def test_restarted_directions_take_the_torus_step_length_and_the_positions_stay_exact(strip, monkeypatch):
-    """Under load control the window's restarted search directions take their step length
-    from the preconditioner's torus (``solve_cg(step_model=True)``) and most of them never
-    run their padded product (a refresh follows); each position is still the classical
-    static solve."""
-    from twoscale.pk import products
-    from twoscale.rolling.run import step, window_state
-    from twoscale.rolling.track import prepare
-
-    counts = {"modelled": 0, "finished": 0}
-    energy, finish = products._Modelled.energy, products._Modelled.finish
-
-    def counted_energy(self):
-        counts["modelled"] += 1
-        return energy(self)
-
-    def counted_finish(self):
-        counts["finished"] += 1
-        return finish(self)
-
-    monkeypatch.setattr(products._Modelled, "energy", counted_energy)
-    monkeypatch.setattr(products._Modelled, "finish", counted_finish)
-    spec = RollingSpec(start=-6.0, end=-3.0, step=1.0, speed=30.0, tyre_radius=150.0, footprint=(30.0, 16.0))
-    load = {"total_load": 60.0}
-    track = prepare(Scene(material=MAT, surface=strip, rolling=spec, **load))
-    options = RollingOptions(solver="window")
-    state, previous = window_state(track, options), None
-    for k in range(len(track.shifts)):
-        previous = step(track, k, previous, options, state)
-        _assert_classical(track, previous, state.grid, load, k)
-    assert counts["modelled"] > counts["finished"]

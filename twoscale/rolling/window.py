@@ -27,9 +27,8 @@ its preconditioner at every position. Here the position is that CG directly:
   pressure, displacement and residual in double precision, the few cells a step clips
   or lets in corrected by the kernel's columns instead of a fresh product, and the
   conjugate directions kept while at most :data:`KEEP_CONJUGACY` of the loaded cells
-  enter (the start's contact settles at the stones' edges a few cells at a time), a
-  restarted direction's step length by the preconditioner's torus (``step_model``), its
-  array passes on the cells within :data:`NEAR_GAP` of the road at the last position
+  enter (the start's contact settles at the stones' edges a few cells at a time), and
+  its array passes on the cells within :data:`NEAR_GAP` of the road at the last position
   (:meth:`WindowState.near`; the others checked on the answer, by ``solve_cg``).
 * the **cut**: the CG runs on a part of the window, the box of the last position's
   contact (fixed in the body: the footprint) with :data:`CUT_MARGIN_CELLS` to spare along
@@ -89,8 +88,9 @@ GAP_STIFFNESS = 0.6
 NEAR_GAP = 0.2
 #: Operators :class:`KeptBody` keeps (the window's, the cut window's, one cut before).
 KEPT_OPERATORS = 3
-#: The CG keeps its conjugate directions when at most this fraction of the loaded cells enters
-#: in a step (23 -> 18 iterations a position on the tyre's footprint; 0.2 % and 1 % took more).
+#: The CG keeps its conjugate directions when at most this fraction of the loaded cells
+#: enters in a step (a warm start's contact settles at the stones' edges a few cells at a
+#: time: 23 -> 18 iterations a position on the tyre's footprint; 0.2 % and 1 % took more).
 KEEP_CONJUGACY = 0.005
 
 
@@ -375,7 +375,6 @@ def solve_window(track, selection, bound: float, state: WindowState, tol: float)
             max_iter=WINDOW_MAX_ITER,
             reach=reach,
             half_products=True,
-            step_model=True,
         )
         if cut == grid or not result.converged:
             break
