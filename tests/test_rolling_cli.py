@@ -328,3 +328,25 @@ def test_a_single_position_writes_the_bands_header_only(strip_file, tmp_path):
         assert list(csv.reader(fh)) == [["band_Hz", "level_dB"]]
     with open(out / "signals.csv", newline="") as fh:
         assert len(list(csv.reader(fh))) == 2
+
+
+def test_rolling_json_times_the_strips_segmentation(strip_file, tmp_path, monkeypatch):
+    """The strip is segmented when the scene is read, before the run's clock: its seconds are
+    ``rolling.json`` ``timings_s.segment`` (a segmentation made to last 0.3 s more is
+    there)."""
+    import time
+
+    import twoscale.surface.measured as measured
+
+    real = measured.segment
+
+    def slow(*args, **kwargs):
+        time.sleep(0.3)
+        return real(*args, **kwargs)
+
+    monkeypatch.setattr(measured, "segment", slow)
+    out = tmp_path / "run"
+    assert main(["solve", _scene(strip_file), "--out", str(out), "--quiet"]) == 0
+    t = json.loads((out / "rolling.json").read_text())["timings_s"]
+    assert t["segment"] >= 0.3
+    assert t["total"] == pytest.approx(t["prepare"] + t["positions"])

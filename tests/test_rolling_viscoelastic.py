@@ -165,3 +165,14 @@ def test_timings_count_the_prepared_track(strip, prony):
     t = run.timings_s
     assert t["prepare"] == track.seconds > 0.0
     assert t["total"] == pytest.approx(t["prepare"] + t["positions"])
+
+
+@pytest.mark.parametrize("prony", [(), PRONY])
+def test_timings_name_the_strips_segmentation(strip, prony):
+    """``timings_s["segment"]`` is the rolled strip's own segmentation time, elastic and
+    viscoelastic alike."""
+    from twoscale.rolling.track import prepare
+
+    track = prepare(_scene(strip, 50.0, Material(10.0, 0.5, prony=prony)))
+    run = roll(track.scene, track=track)
+    assert run.timings_s["segment"] == track.scene.surface.segment_seconds > 0.0

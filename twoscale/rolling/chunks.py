@@ -219,6 +219,7 @@ def join(parts: list, track, seconds: float) -> RollingResult:
         **energy,
         timings_s={
             "chunks": len(parts),
+            "segment": track.segment_seconds,
             "total": seconds,
             "positions": float(sum(p.timings_s.get("positions", 0.0) for p in parts)),
         },

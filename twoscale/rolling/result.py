@@ -113,7 +113,10 @@ class RollingResult:
         (the first: over the ramp-in) and stored in the body at each position; empty for an
         elastic run (nothing dissipated; the stored energy is not computed).
     timings_s : mapping
-        ``prepare`` (segmentation and the road's tables), ``positions``, ``total``.
+        Wall seconds: ``segment`` (the strip's segmentation, when the scene was read or, for
+        a strip resampled to the step's lattice, within ``prepare``; 0 for tips), ``prepare``
+        (the checks, the body, the road's tables), ``positions``, ``total`` (``prepare`` and
+        ``positions``).
     body : str
         What the body is (``"half-space"``, ``"block 150 x 100 x 10 mm, bonded base"``).
     step_check : StepCheck, optional

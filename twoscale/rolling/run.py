@@ -339,7 +339,7 @@ def roll(
     t2 = time.perf_counter()
     result = record.result(
         track,
-        {"prepare": track.seconds, "positions": t2 - t1, "total": track.seconds + t2 - t1},
+        track.timings(t2 - t1),
         "twoscale" if state is None else "window-cg",
     )
     warn_if_cut(track, result)

@@ -54,6 +54,25 @@ class Track:
     #: Seconds (wall) :func:`prepare` took: the checks, the body and the segmented road's boxes.
     seconds: float = 0.0
 
+    @property
+    def segment_seconds(self) -> float:
+        """Wall seconds the strip's segmentation took (0 for tips: nothing segmented): done
+        when the scene was read, before :func:`prepare`, or within it when the strip was
+        resampled to the step's lattice."""
+        surface = self.scene.surface
+        return float(getattr(surface, "segment_seconds", 0.0)) if surface is not None else 0.0
+
+    def timings(self, positions: float) -> dict:
+        """A run's ``timings_s`` (wall seconds): ``segment`` (:attr:`segment_seconds`),
+        ``prepare`` (:attr:`seconds`), ``positions`` (given) and ``total`` (prepare and
+        positions: the run's own clock)."""
+        return {
+            "segment": self.segment_seconds,
+            "prepare": self.seconds,
+            "positions": positions,
+            "total": self.seconds + positions,
+        }
+
 
 def lattice(spec: RollingSpec, spacing: float) -> tuple[float, np.ndarray]:
     """The spacing (mm) the road is sampled at, at most ``spacing``, of which the step is a

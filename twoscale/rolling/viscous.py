@@ -243,7 +243,7 @@ def _result(track: Track, numbers: np.ndarray, moving, seconds: float, method: s
         line_load=lines[1],
         dissipated=moving.dissipated,
         stored=moving.stored,
-        timings_s={"prepare": track.seconds, "positions": seconds, "total": track.seconds + seconds},
+        timings_s=track.timings(seconds),
         body=track.body + ", viscoelastic",
         step_check=track.step_check,
     )

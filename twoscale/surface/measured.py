@@ -15,6 +15,7 @@ import dataclasses
 import hashlib
 import math
 import os
+import time
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -238,6 +239,9 @@ class MeasuredSurface:
     spheres : SphereFit
         The equivalent spheres of the summit caps.
     book : LawBook
+    segment_seconds : float
+        Wall seconds :func:`build_surface` took to segment the map (a rolling run reports
+        its strip's: ``RollingResult.timings_s["segment"]``).
     """
 
     raw: RawMap
@@ -247,6 +251,7 @@ class MeasuredSurface:
     asperities: tuple
     spheres: SphereFit
     book: LawBook = field(repr=False)
+    segment_seconds: float = 0.0
 
     @property
     def h(self) -> float:
@@ -311,14 +316,16 @@ def build_surface(
         invert=options.invert,
         h_name=h_name,
     )
+    t0 = time.perf_counter()
     seg: Segmentation = segment(hmap, min_distance=options.min_distance, prominence=options.prominence)
+    seconds = time.perf_counter() - t0
     # the laws' key: the map and every option but which law the macro step uses
     digest = hashlib.sha256((hmap.digest() + repr(dataclasses.replace(options, law="tabulated"))).encode())
     digest.update(memoryview(np.ascontiguousarray(seg.labels)).cast("B"))
     book = LawBook(digest.hexdigest(), hmap.h, options, cache)
     asperities, fit = map_asperities(hmap, seg, cap_depth=options.cap_depth, book=book)
     book.asperities = asperities
-    return MeasuredSurface(raw, options, hmap, seg, asperities, fit, book)
+    return MeasuredSurface(raw, options, hmap, seg, asperities, fit, book, seconds)
 
 
 def load_surface(
