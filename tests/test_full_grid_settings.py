@@ -80,3 +80,14 @@ def test_the_smallest_grid_keeps_the_dense_solver():
     ref = twoscale.solve(scene, h=h, method="reference")
     assert "the reference's own solver" in res.message
     assert np.array_equal(res.asperities.forces, ref.asperities.forces)
+
+
+def test_the_message_names_the_solver_that_ran():
+    # the route's sentence must not promise a CG where the dense solver ran, nor the reverse
+    scene = Scene(material=MATERIAL, asperities=(Asperity(0.0, 0.0, 0.0, 10.0, "paraboloid"),), penetration=0.01)
+    for h, ran in ((0.08, "dense"), (0.02, "cg")):
+        res = twoscale.solve(scene, h=h)
+        assert res.message.startswith("default route:")
+        assert res.solver == ran
+        assert ("dense" in res.message) == (ran == "dense")
+        assert ("CG" in res.message) == (ran == "cg")
