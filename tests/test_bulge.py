@@ -256,3 +256,22 @@ def test_the_half_space_never_runs_the_check():
     ):
         result = twoscale.solve(scene, iteration="auto")  # an option: the two-scale solver itself
     assert micro.call_count == 1 and result.details.bulge is None and result.forces[1] == 0.0
+
+
+def test_result_json_names_the_tips_the_bulge_lifted():
+    # a tip 1 um above the approach, 12 mm from a deep contact on a bonded 10 mm block: only
+    # the rising surface can load it; result.json must say so, numbered from 1
+    from helpers import small_block
+
+    from twoscale.io.result_json import result_to_dict
+
+    d = 0.8
+    scene = Scene(
+        material=MAT, asperities=(Asperity(0.0, 0.0, 0.0, 10.0), Asperity(12.0, 0.0, d + 0.001, 10.0)), penetration=d
+    )
+    res = twoscale.solve(scene, provider=small_block(MAT), h=0.1)
+    lifted = [k + 1 for k, a in enumerate(scene.asperities) if a.z > d and res.asperities.forces[k] > 0]
+    record = result_to_dict(res, scene)["bulge"]
+    assert lifted == [2] and record["taken"] == lifted and record["left"] == []
+    on_half_space = twoscale.solve(scene, h=0.1)
+    assert "bulge" not in result_to_dict(on_half_space, scene)

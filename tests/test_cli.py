@@ -463,3 +463,14 @@ def test_summary_numbers_asperities_from_one(examples_dir, capsys):
     head = next(i for i, ln in enumerate(lines) if ln.strip().startswith("asperity"))
     assert "numbered from 1" in lines[head]
     assert [ln.split()[0] for ln in lines[head + 1 : head + 3]] == ["1", "2"]
+
+
+def test_summary_names_the_default_routes_full_grid(examples_dir, capsys):
+    # the one-sphere example is small enough for the default route's full grid: the summary
+    # must say so and why, not "two-scale" over a reference solver's iterations
+    assert main(["solve", str(examples_dir / "hertz_sphere.toml")]) == 0
+    lines = capsys.readouterr().out.splitlines()
+    method = next(ln for ln in lines if ln.strip().startswith("method"))
+    assert "default route" in method and "full grid" in method
+    route = next(ln for ln in lines if ln.strip().startswith("route"))
+    assert "cells" in route

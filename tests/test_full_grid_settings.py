@@ -14,6 +14,7 @@ from twoscale import Material, Scene
 from twoscale.analytic import hertz
 from twoscale.full_grid import FULL_GRID_DENSE_CELLS, full_grid_settings
 from twoscale.indenters import Asperity
+from twoscale.micro.full_grid_rule import FULL_GRID_MAX_CELLS, FULL_GRID_MAX_CELLS_PENETRATION
 from twoscale.reference.on_scene import reference_grid
 from twoscale.resources import full_grid_route
 
@@ -80,3 +81,28 @@ def test_the_smallest_grid_keeps_the_dense_solver():
     ref = twoscale.solve(scene, h=h, method="reference")
     assert "the reference's own solver" in res.message
     assert np.array_equal(res.asperities.forces, ref.asperities.forces)
+
+
+def test_the_message_names_the_solver_that_ran():
+    # the route's sentence must not promise a CG where the dense solver ran, nor the reverse
+    scene = Scene(material=MATERIAL, asperities=(Asperity(0.0, 0.0, 0.0, 10.0, "paraboloid"),), penetration=0.01)
+    for h, ran in ((0.08, "dense"), (0.02, "cg")):
+        res = twoscale.solve(scene, h=h)
+        assert res.message.startswith("default route:")
+        assert res.solver == ran
+        assert ("dense" in res.message) == (ran == "dense")
+        assert ("CG" in res.message) == (ran == "cg")
+
+
+def test_a_block_passed_as_provider_takes_the_block_scenes_route():
+    # the full grid's larger bound under penetration was measured on the half-space: a
+    # block given as ``provider=`` (the scene saying nothing of it) must not take it
+    from helpers import small_block
+
+    tips = (Asperity(-3.0, 0.0, 0.0, 5.0, "sphere"), Asperity(3.0, 0.0, 0.0, 5.0, "sphere"))
+    scene = Scene(material=MATERIAL, asperities=tips, penetration=0.1)
+    h = 0.05
+    assert FULL_GRID_MAX_CELLS < reference_grid(scene, h).size <= FULL_GRID_MAX_CELLS_PENETRATION
+    assert full_grid_route(scene, h) is not None  # the half-space's route
+    res = twoscale.solve(scene, provider=small_block(MATERIAL), h=h)
+    assert res.solver == "twoscale" and not res.message.startswith("default route")

@@ -300,7 +300,7 @@ def _run_method(scene: Scene, provider: InfluenceProvider, h: float, method: str
     # command line's) does not: the command line and Python take the same route
     route = None
     if method == "twoscale" and not set(options) - {"progress"}:
-        route = full_grid_route(scene, h)
+        route = full_grid_route(scene, h, provider.kind)
     if route is not None:  # the smallest scenes: their full grid's one CG, said in the result
         from .full_grid import solve_full_grid
 

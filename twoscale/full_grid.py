@@ -29,6 +29,12 @@ from .scene import Scene
 #: 2,304 23.6 / 5.0.
 FULL_GRID_DENSE_CELLS = 1_300
 
+#: The prefix of the result's message on this route (the command line's summary reads it).
+DEFAULT_ROUTE = "default route: "
+
+#: How the result's message names the reference's own choice.
+_SOLVERS = {"dense": "dense active-set solve", "cg": "CG"}
+
 
 @dataclass(frozen=True)
 class FullGridSettings:
@@ -45,10 +51,11 @@ class FullGridSettings:
             return {"solver": self.solver}
         return {"solver": "cg", "precondition": self.precondition, "precision": self.precision}
 
-    def describe(self) -> str:
-        """One line for the result's message."""
+    def describe(self, ran: str | None = None) -> str:
+        """One line for the result's message; ``ran``: the solver the reference chose
+        ("dense" or "cg"), named after the solve."""
         if self.solver != "cg":
-            return "the reference's own solver"
+            return "the reference's own solver" + (f" ({_SOLVERS.get(ran, ran)})" if ran else "")
         kind = "preconditioned CG" if self.precondition else "CG"
         return kind + ("" if self.precision == "double" else f" ({self.precision} precision)")
 
@@ -88,8 +95,8 @@ def solve_full_grid(
     if progress is not None:
         progress(f"full grid, {cells:,} cells: {settings.describe()}")
     result = solve_reference_scene(scene, provider, h, **settings.options())
-    message = f"default route: {route}; {settings.describe()}; {result.message}"
+    message = f"{DEFAULT_ROUTE}{route}; {settings.describe(result.solver)}; {result.message}"
     return dataclasses.replace(result, message=message.rstrip("; "))
 
 
-__all__ = ["FULL_GRID_DENSE_CELLS", "FullGridSettings", "full_grid_settings", "solve_full_grid"]
+__all__ = ["DEFAULT_ROUTE", "FULL_GRID_DENSE_CELLS", "FullGridSettings", "full_grid_settings", "solve_full_grid"]

@@ -226,16 +226,16 @@ def _twoscale_parts(scene: Scene, h: float, *, union: bool = False) -> tuple[int
     return cells, parts
 
 
-def full_grid_route(scene: Scene, h: float) -> str | None:
-    """Why a default two-scale solve of ``scene`` at ``h`` runs as its full grid's one CG
-    (:func:`twoscale.micro.full_grid_rule.full_grid_route`), or None: a few tips (no height map) on
-    a small grid, untilted tips crowding their grid, or a tilt about a pivot off the tips
-    (:func:`twoscale.pivot.pivot_route`). Its memory is then the reference grid's."""
+def full_grid_route(scene: Scene, h: float, body: str | None = None) -> str | None:
+    """Why a default solve of ``scene`` at ``h`` on a ``body`` (a provider's ``kind``, default the
+    scene's) runs as its full grid's one CG (:func:`twoscale.micro.full_grid_rule.full_grid_route`;
+    a tilt about a pivot off the tips: :func:`twoscale.pivot.pivot_route`), or None."""
     if (route := pivot_route(scene)) is not None or scene.surface is not None:
         return route
     from .reference.on_scene import reference_grid
 
-    n, pressed = len(scene.asperities), scene.penetration is not None and scene.influence["kind"] == "halfspace"
+    pressed = scene.penetration is not None and (body or scene.influence["kind"]) == "halfspace"
+    n = len(scene.asperities)
     tips = 0 if scene.tilt else n
     if n <= FULL_GRID_MAX_TIPS:
         return policy_full_grid_route(int(reference_grid(scene, h).size), tips, pressed)

@@ -35,6 +35,7 @@ from ..io.warning_log import WarningLog
 from ..micro.policy import ITERATIONS
 from ..progress import StatusLine
 from ..resources import check_solve_memory
+from .route_text import method_lines
 from ..results import ContactResult
 from ..api import solve_scene
 from ..scene import SCENE_METHODS, SceneError, default_h
@@ -281,14 +282,13 @@ def near_zero(values, scale: float, rtol: float = 1e-6) -> list[str]:
 def summary(res: dict, scene_path: str, wall: float, path) -> str:
     """A short human-readable summary of a result.json dict: what was solved, the numbers
     a reader looks for first, then the tips."""
-    method = "two-scale" if res["method"] == "twoscale" else f"{res['method']} ({res['solver']} solver)"
     n = len(res["asperities"])
     material = res["scene"]["material"]
     lines = [
         f"twoscale solve {scene_path}",
         f"  body         {res['body']['label']} (E = {material['E']:g} MPa, nu = {material['nu']:g}); "
         f"{n} tip{'s' if n != 1 else ''}",
-        f"  method       {method}",
+        *method_lines(res),
         f"  converged    {'yes' if res['converged'] else 'NO: ' + res['message']} ({iteration_text(res['iterations'])})",
         f"  total load   {res['total_load']:.6g} N",
         f"  approach     {res['penetration']:.6g} mm",

@@ -42,7 +42,7 @@ import numpy as np
 
 from .._version import __version__
 from .atomic import atomic_output
-from ..details import ReferenceDetails, SurfaceDetails, TwoScaleDetails
+from ..details import BulgeDetails, ReferenceDetails, SurfaceDetails, TwoScaleDetails
 from ..scene import Scene
 from .scene_file import scene_to_dict
 
@@ -226,6 +226,18 @@ def _twoscale_record(details: TwoScaleDetails) -> dict:
         "coupling": _plain(dataclasses.asdict(micro.coupling)),
         # asperities numbered from 1, as in the scene file (0-based in Python)
         "merged_patches": [[k + 1 for k in m] for m in micro.merged_patches],
+        **({} if details.bulge is None else {"bulge": _bulge_record(details.bulge)}),
+    }
+
+
+def _bulge_record(b: BulgeDetails) -> dict:
+    """The ``bulge`` of result.json: the tips above the approach the body's rising surface
+    lifted into contact (``taken``) and those still lifted (``left``), numbered from 1."""
+    return {
+        "rounds": int(b.rounds),
+        "taken": [k + 1 for k in b.taken],
+        "left": [k + 1 for k in b.left],
+        "left_gaps_mm": [_num(g) for g in b.left_gaps],
     }
 
 

@@ -46,19 +46,21 @@ def full_grid_max_cells(tips: int) -> int:
 
 def full_grid_route(cells: int, tips: int = 0, penetration: bool = False) -> str | None:
     """The reason to solve a scene of ``tips`` untilted tips (0: not counted) whose full grid
-    has ``cells`` cells as one CG over it (the default two-scale route's honest choice on
-    the smallest scenes and on grids crowded with tips), or None. ``penetration``: the
+    has ``cells`` cells whole (the default two-scale route's honest choice on the smallest
+    scenes and on grids crowded with tips), or None. The sentence names no solver:
+    :func:`twoscale.full_grid.full_grid_settings` picks the dense solve or the CG, and the
+    result's message names the one that ran. ``penetration``: the
     scene is a half-space under penetration control (a larger grid of at most ``FULL_GRID_MAX_TIPS`` tips
     still pays, above)."""
     largest = FULL_GRID_MAX_CELLS_PENETRATION if penetration and tips <= FULL_GRID_MAX_TIPS else FULL_GRID_MAX_CELLS
     if cells <= largest:
         return (
-            f"the full grid has {cells:,} cells (at most {largest:,}): one constrained CG "
-            "over it is the cheapest solve, the two-scale macro step alone costs as much"
+            f"the full grid has {cells:,} cells (at most {largest:,}): solving it whole "
+            "is the cheapest, the two-scale macro step alone costs as much"
         )
     if cells > full_grid_max_cells(tips):
         return None
     return (
         f"the full grid has {cells / tips:.3g} cells a tip (at most {full_grid_max_cells(tips) / tips:.3g}): "
-        "one constrained CG over it costs less than the macro step and the patches of its tips"
+        "solving it whole costs less than the macro step and the patches of its tips"
     )
