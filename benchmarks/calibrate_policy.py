@@ -294,6 +294,15 @@ def rescale(installed: dict, rows: list[dict]) -> None:
     print("  one scale per candidate: " + ", ".join(f"{k} x {v:.3g}" for k, v in each.items() if np.isfinite(v)))
 
 
+def forced_rows(paths) -> list[dict]:
+    """Every row of ``benchmarks/force_strategies.py``'s result files ``paths``, in order."""
+    rows: list = []
+    for path in paths:
+        with open(path, encoding="utf-8") as fh:
+            rows += [json.loads(line) for line in fh if line.strip()]
+    return rows
+
+
 def main(argv=None) -> int:
     p = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     p.add_argument("files", nargs="*", help="records of benchmarks/sweep.py")
@@ -320,10 +329,7 @@ def main(argv=None) -> int:
                 if line.strip():
                     r = json.loads(line)
                     records[r["spec"]["index"]] = r
-    forced: list = []
-    for f in args.forced:
-        with open(f, encoding="utf-8") as fh:
-            forced += [json.loads(line) for line in fh if line.strip()]
+    forced = forced_rows(args.forced)
     rows = [r for r in samples(list(records.values())) + forced_samples(forced) if r["seconds"] >= args.min_seconds]
     if not rows:
         print("no timed attempt")

@@ -24,14 +24,13 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
-import json
 import math
 import os
 import sys
 
 sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 
-from benchmarks.calibrate_policy import _model_from, fit, fitted, forced_samples, policy_runs  # noqa: E402
+from benchmarks.calibrate_policy import _model_from, fit, fitted, forced_rows, forced_samples, policy_runs  # noqa: E402
 
 
 def scenes(rows: list[dict]) -> list[dict]:
@@ -141,10 +140,7 @@ def main(argv=None) -> int:
     args = p.parse_args(argv)
     from twoscale.micro.costmodel import FITTED
 
-    rows: list = []
-    for f in args.forced:
-        with open(f, encoding="utf-8") as fh:
-            rows += [json.loads(line) for line in fh if line.strip()]
+    rows = forced_rows(args.forced)
     bounds = (args.min_seconds, args.max_sweeps)
     refit = refitted(rows, bounds, args.sweeps)
     kept = {"union_margin": args.union_margin, "far_union_margin": args.far_union_margin}

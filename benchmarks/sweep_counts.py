@@ -23,7 +23,6 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
-import json
 import math
 import os
 import sys
@@ -32,7 +31,7 @@ import numpy as np
 
 sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 
-from benchmarks.calibrate_policy import MAX_FIXED, fitted, forced_samples  # noqa: E402
+from benchmarks.calibrate_policy import MAX_FIXED, fitted, forced_rows, forced_samples  # noqa: E402
 
 #: The block candidates whose sweeps are counted.
 BLOCKS = ("block-gs", "two-level")
@@ -160,10 +159,7 @@ def main(argv=None) -> int:
     args = p.parse_args(argv)
     from twoscale.micro.costmodel import FITTED
 
-    rows: list = []
-    for f in args.forced:
-        with open(f, encoding="utf-8") as fh:
-            rows += [json.loads(line) for line in fh if line.strip()]
+    rows = forced_rows(args.forced)
     samples = fitted([s for s in forced_samples(rows) if s["seconds"] >= args.min_seconds], 0.0, args.max_sweeps)
     model = fit_model(samples)
     print(f"{len(samples)} forced attempts of {len({s['scene'] for s in samples})} scenes")
