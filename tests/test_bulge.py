@@ -275,3 +275,14 @@ def test_result_json_names_the_tips_the_bulge_lifted():
     assert lifted == [2] and record["taken"] == lifted and record["left"] == []
     on_half_space = twoscale.solve(scene, h=0.1)
     assert "bulge" not in result_to_dict(on_half_space, scene)
+
+
+def test_the_reference_names_a_tip_still_lifted_after_its_rounds(monkeypatch):
+    """Without a round to grow its grid, the reference's scene solve leaves the lifted tip out
+    and says so itself, once (the one-shot solve does not check its answer again)."""
+    import twoscale.bulge as bulge
+
+    monkeypatch.setattr(bulge, "SETTLE_ROUNDS", 0)
+    result, found = _warned(_scene(0.010), "reference")
+    assert result.forces[1] == 0.0
+    assert len(found) == 1 and "tip 2 at (6, 0) mm" in str(found[0].message)

@@ -121,9 +121,12 @@ SETTLE_ROUNDS = 3
 
 
 def warn_lifted_tips(scene, provider: InfluenceProvider, result: ContactResult) -> LiftedTips | None:
-    """:func:`lifted_tips`, and a :class:`~twoscale.errors.BulgeWarning` naming them; of a
-    two-scale result that checked itself (``details.bulge``,
-    :func:`twoscale.bulge_rounds.settle`), the tips it left."""
+    """:func:`lifted_tips`, and a :class:`~twoscale.errors.BulgeWarning` naming them. A
+    result that checked itself is not checked again: a two-scale result's ``details.bulge``
+    (:func:`twoscale.bulge_rounds.settle`) names the tips it left; the reference's scene
+    solve warns of its own (:func:`twoscale.reference.on_scene.solve_reference_scene`)."""
+    if result.method == "reference":
+        return None
     checked = getattr(result.details, "bulge", None)
     if checked is not None:
         lifted = (
@@ -132,17 +135,22 @@ def warn_lifted_tips(scene, provider: InfluenceProvider, result: ContactResult) 
     else:
         lifted = lifted_tips(scene, provider, result)
     if lifted is not None:
-        k, g = int(lifted.tips[0]), float(lifted.gaps[0])
-        a = scene.asperities[k]
-        warnings.warn(
-            f"{lifted.tips.size} tip(s) above the approach touch the body's rising surface but were "
-            f"left out of the solve (the deepest: tip {k + 1} at ({a.x:.4g}, {a.y:.4g}) mm, its apex "
-            f"{-g * 1e3:.3g} um into the solved surface): the answer lacks their contact; a finite "
-            "block bulges beside its contacts",
-            BulgeWarning,
-            stacklevel=3,
-        )
+        warn_of(scene.asperities, lifted)
     return lifted
 
 
-__all__ = ["LiftedTips", "NEAR", "SETTLE_ROUNDS", "lifted_among", "lifted_tips", "warn_lifted_tips"]
+def warn_of(asperities, lifted: LiftedTips) -> None:
+    """A :class:`~twoscale.errors.BulgeWarning` naming the ``lifted`` tips of ``asperities``."""
+    k, g = int(lifted.tips[0]), float(lifted.gaps[0])
+    a = asperities[k]
+    warnings.warn(
+        f"{lifted.tips.size} tip(s) above the approach touch the body's rising surface but were "
+        f"left out of the solve (the deepest: tip {k + 1} at ({a.x:.4g}, {a.y:.4g}) mm, its apex "
+        f"{-g * 1e3:.3g} um into the solved surface): the answer lacks their contact; a finite "
+        "block bulges beside its contacts",
+        BulgeWarning,
+        stacklevel=4,
+    )
+
+
+__all__ = ["LiftedTips", "NEAR", "SETTLE_ROUNDS", "lifted_among", "lifted_tips", "warn_lifted_tips", "warn_of"]

@@ -121,14 +121,16 @@ def solve_reference_scene(
     result = _on_growing_grid(scene, provider, h, solver, max_enlargements, rise, options)
     if not getattr(provider, "surface_rises", False):
         return result
-    from ..bulge import SETTLE_ROUNDS, lifted_tips
+    from ..bulge import SETTLE_ROUNDS, lifted_tips, warn_of
 
     for _ in range(SETTLE_ROUNDS):  # a block's bulge may lift tips beyond the grid: cover them
         lifted = lifted_tips(scene, provider, result)
         if lifted is None:
-            break
+            return result
         rise = max(2.0 * rise, 2.0 * lifted.rise)
         result = _on_growing_grid(scene, provider, h, solver, max_enlargements, rise, options)
+    if (lifted := lifted_tips(scene, provider, result)) is not None:  # still lifted after the rounds
+        warn_of(scene.asperities, lifted)
     return result
 
 
