@@ -42,6 +42,7 @@ from .results import ContactResult
 from .scene import SCENE_METHODS
 from .resolution import check_resolution
 from .scene import Scene, SceneError, default_h, expected_contact_radii, expected_contacts
+from .threads import single_threads
 from .tips import as_asperities, asperities  # noqa: F401 (twoscale.asperities, twoscale.as_asperities)
 
 if TYPE_CHECKING:
@@ -186,11 +187,17 @@ def solve(
     ValueError
         Invalid input (:class:`~twoscale.scene.SceneError` for scene data), naming the bad value.
     """
+    with single_threads():  # the BLAS and OpenMP libraries one thread each (twoscale.threads)
+        fields = dict(material=material, penetration=penetration, total_load=total_load)
+        return _solve(problem, method, provider, h, **fields, **options)
+
+
+def _solve(problem: Any, method: Any, provider: Any, h: Any, **options: Any) -> Any:
+    """:func:`solve` with the thread counts as they are (a solver object sets its own)."""
     call = {k: options.pop(k, default) for k, default in CALL_KEYWORDS.items()}
     provider_options, memory_limit = call["provider_options"], call["memory_limit"]
-    given = dict(
-        material=material, penetration=penetration, total_load=total_load, tilt=call["tilt"], pivot=call["pivot"]
-    )
+    given = {k: options.pop(k, None) for k in ("material", "penetration", "total_load")}
+    given.update(tilt=call["tilt"], pivot=call["pivot"])
     scene = _scene_of(problem, provider, h, call["shape"], given)
     _check_call(scene, method, provider, provider_options)
     check_memory = memory_limit is None or memory_limit != math.inf  # a NaN limit is refused there

@@ -40,6 +40,7 @@ from .influence.cached import OPERATOR_CACHE_BYTES, TABLE_CACHE_BYTES, CachedBod
 from .options import SolverOptions
 from .results import ContactResult, Reuse
 from .scene import Scene, default_h
+from .threads import single_threads, thread_controller
 from .warm_start import WarmStart, warm_start
 
 #: Bytes of pressure a solver object keeps from its last solve as the next one's start.
@@ -117,6 +118,7 @@ class ContactSolver:
         self._previous: _Previous | None = None
         self._solves = 0
         self._built: tuple = ()
+        self._threads: Any = None  # a threadpoolctl controller, kept from the first solve
 
     @property
     def body(self) -> InfluenceProvider | None:
@@ -163,7 +165,7 @@ class ContactSolver:
             ``material``, ``penetration``, ``total_load``, ``tilt``, ``pivot``, ``shape``
             when ``problem`` is tips (as :func:`twoscale.solve`).
         """
-        from .api import _scene_of, solve as solve_once
+        from .api import _scene_of, _solve as solve_once
 
         given = {k: scene_keywords.pop(k, None) for k in ("material", "penetration", "total_load", "tilt", "pivot")}
         given["tilt"] = bool(given["tilt"])
@@ -182,14 +184,13 @@ class ContactSolver:
         self.caches.start_solve()
         # h=None when the scene chose it: the solve then works on this very scene object and
         # finds what choosing h estimated (the Hertz level) already solved
-        result = solve_once(
-            scene,
-            method=self.method,
-            provider=CachedBody(body, self.caches),
-            h=res.h if scene.history is None else h,
-            memory_limit=res.memory_limit,
-            **keywords,
-        )
+        if self._threads is None:  # the libraries loaded now, looked up once (twoscale.threads)
+            self._threads = thread_controller()
+        with single_threads(controller=self._threads):
+            cell = res.h if scene.history is None else h
+            result = solve_once(
+                scene, self.method, CachedBody(body, self.caches), cell, memory_limit=res.memory_limit, **keywords
+            )
         self._solves += 1
         if self._built:  # a load history's result records them too
             result = dataclasses.replace(result, caches=with_construction(result.caches, self._built))

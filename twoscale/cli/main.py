@@ -16,7 +16,7 @@ stdout stopped reading (``twoscale ... | head``): nothing more is printed, no er
 a tool killed by SIGPIPE.
 
 Every command runs BLAS and OpenMP single-threaded unless the environment sets a thread
-count (:mod:`twoscale.cli.threads`).
+count (:mod:`twoscale.threads`).
 """
 
 from __future__ import annotations
@@ -35,7 +35,7 @@ from typing import Sequence
 
 from .._version import __version__
 from .staging import OutputFolderError, Terminated
-from .threads import command_threads
+from ..threads import single_threads
 
 #: Exit code after Ctrl-C (KeyboardInterrupt): 128 + SIGINT, as shells report it.
 EXIT_INTERRUPTED = 130
@@ -138,7 +138,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     main_thread = threading.current_thread() is threading.main_thread()
     previous = signal.signal(signal.SIGTERM, _on_sigterm) if main_thread else None
     try:
-        with warnings.catch_warnings(), command_threads():
+        with warnings.catch_warnings(), single_threads():
             warnings.showwarning = _warning_line
             return int(args._run(args))
     except Terminated:  # like Ctrl-C: outputs are staged, finished study cases kept
