@@ -122,3 +122,83 @@ def test_the_fit_recovers_a_known_sweep_law_and_its_cost():
         assert model.ns_per_unit[key] == pytest.approx(ns[key], rel=1e-2)
         assert model.fixed_seconds[key] == pytest.approx(fixed[key], rel=1e-2)
     assert model.ns_per_unit["union-cg"] == FITTED.ns_per_unit["union-cg"]  # the union CG's kept
+
+
+def test_the_far_fields_seconds_a_patch_replace_its_products_overhead():
+    # work made as estimate_costs makes it: transforms plus one overhead a local product,
+    # gs_sweeps sweeps; with far_patch_seconds the overhead is out and s a patch and sweep in
+    model = dataclasses.replace(FITTED, far_patch_seconds=2e-4)
+    n, transforms, coverage = 3000, 4e9, 0.2
+    overhead = FITTED.gs_sweeps * FITTED.local_products * FITTED.product_overhead * n
+    work = {"two-level": transforms + overhead}
+    factor = FITTED.block_factor("two-level", coverage, False, False, n)
+    want = FITTED.fixed_seconds["two-level"] + factor * (
+        1e-9 * FITTED.ns_per_unit["two-level"] * transforms + FITTED.gs_sweeps * 2e-4 * n
+    )
+    got = model.seconds(work, coverage=coverage, patches=n)["two-level"]
+    assert got == pytest.approx(want, rel=1e-12)
+    # the product overhead's size no longer matters; without it (None) the overhead is charged
+    other = dataclasses.replace(model, product_overhead=2 * FITTED.product_overhead)
+    moved = {"two-level": transforms + 2 * overhead}
+    assert other.seconds(moved, coverage=coverage, patches=n)["two-level"] == pytest.approx(got, rel=1e-12)
+    plain = FITTED.seconds(work, coverage=coverage, patches=n)["two-level"]
+    assert plain == pytest.approx(
+        FITTED.fixed_seconds["two-level"] + factor * 1e-9 * FITTED.ns_per_unit["two-level"] * work["two-level"]
+    )
+    # the exact block iterations keep their overhead
+    exact = {"block-gs": transforms + overhead}
+    assert model.seconds(exact, coverage=coverage, patches=n) == FITTED.seconds(exact, coverage=coverage, patches=n)
+
+
+def test_the_loads_sweeps_grow_with_the_patches_under_load_alone():
+    count = SweepCount(4.0, 2.0, 1.0, 3.0, 0.5)
+    # e^2 patches: 2 e-folds, one sweep more under load control
+    assert count(0.25, load_control=True, patches=round(math.exp(2.0))) == pytest.approx(
+        count(0.25, load_control=True) + 0.5 * math.log(round(math.exp(2.0)))
+    )
+    assert count(0.25, patches=5000) == count(0.25)
+    assert count(0.25, load_control=True, tilt=True, patches=5000) == count(0.25, load_control=True, tilt=True)
+
+
+def test_the_far_fit_recovers_a_known_sweep_law_cost_a_unit_and_a_patch():
+    from benchmarks.sweep_counts import fit_far
+
+    count = SweepCount(4.0, 2.0, 0.0, 0.7, 0.4)
+    ns = {**FITTED.ns_per_unit, "two-level": 2.2}
+    model = dataclasses.replace(
+        FITTED, far_patch_seconds=1.5e-4, ns_per_unit=ns, sweeps={**FITTED.sweeps, "two-level": count}
+    )
+    rows = []
+    for n in (3, 30, 300, 3000):
+        for transforms in (1e7, 1e9, 3e10):
+            work = transforms + FITTED.gs_sweeps * FITTED.local_products * FITTED.product_overhead * n
+            for coverage, control in ((0.05, "penetration"), (0.3, "load"), (0.6, "tilt"), (0.7, "load")):
+                load, tilt = control != "penetration", control == "tilt"
+                t = model.seconds({"two-level": work}, load_control=load, tilt=tilt, coverage=coverage, patches=n)
+                sweeps = count(coverage, load_control=load, tilt=tilt, patches=n)
+                rows.append(
+                    _sample("two-level", coverage, control, t["two-level"], sweeps) | {"work": work, "patches": n}
+                )
+    got = fit_far(rows)
+    assert got.ns_per_unit["two-level"] == pytest.approx(2.2, rel=1e-2)
+    assert got.far_patch_seconds == pytest.approx(1.5e-4, rel=1e-2)
+    assert dataclasses.astuple(got.sweeps["two-level"]) == pytest.approx(dataclasses.astuple(count), rel=1e-2, abs=1e-3)
+    # the far field's fixed seconds, and the other candidates, kept
+    assert got.fixed_seconds == FITTED.fixed_seconds and got.sweeps["block-gs"] == FITTED.sweeps["block-gs"]
+    assert {k: v for k, v in got.ns_per_unit.items() if k != "two-level"} == {
+        k: v for k, v in FITTED.ns_per_unit.items() if k != "two-level"
+    }
+
+
+def test_the_count_fit_recovers_the_loads_sweeps_a_patch_e_fold():
+    law = SweepCount(4.0, 2.0, 1.0, 0.5, 0.4)
+    rows = []
+    for n in (5, 50, 500, 5000):
+        for coverage in (0.02, 0.2, 0.5, 0.8):
+            for control in ("penetration", "load", "tilt"):
+                load, tilt = control != "penetration", control == "tilt"
+                sweeps = law(coverage, load_control=load, tilt=tilt, patches=n)
+                rows.append(_sample("two-level", coverage, control, 1.0, sweeps) | {"patches": n})
+    got = fit_counts(rows, patches=True)["two-level"]
+    assert dataclasses.astuple(got) == pytest.approx(dataclasses.astuple(law), rel=1e-2, abs=1e-3)
+    assert fit_counts(rows)["two-level"].load_patches == 0.0  # the term only where asked for
