@@ -98,8 +98,8 @@ def score(found: list[dict], model, within: float) -> tuple[int, int, list, floa
 def refitted(rows: list[dict], bounds: tuple, sweeps: bool = False, far_patch: bool = False):
     """The fit on ``rows``: ``benchmarks/calibrate_policy.py``'s, or with ``sweeps`` the
     block iterations' expected sweep counts (``benchmarks/sweep_counts.py``), or with
-    ``far_patch`` the installed model with the far field's sweeps, seconds a unit and seconds
-    a patch refitted (``sweep_counts.fit_far``)."""
+    ``far_patch`` the installed model with the far field's seconds a unit and seconds a
+    patch refitted (``sweep_counts.fit_far``)."""
     if not (sweeps or far_patch):
         return _model_from(fit(fitted(forced_samples(rows), *bounds)))
     from benchmarks.sweep_counts import fit_far, fit_model
@@ -139,7 +139,7 @@ def main(argv=None) -> int:
     p.add_argument("--far-union-margin", type=float, help="the fit's far_union_margin (default: installed)")
     p.add_argument("--margins", action="store_true", help="the hits for a range of each margin")
     p.add_argument("--sweeps", action="store_true", help="refit with sweep counts (benchmarks/sweep_counts.py)")
-    p.add_argument("--far-patch", action="store_true", help="refit the far field's sweeps, seconds a unit and a patch")
+    p.add_argument("--far-patch", action="store_true", help="refit the far field's seconds a unit and a patch")
     args = p.parse_args(argv)
     from twoscale.micro.costmodel import FITTED
 

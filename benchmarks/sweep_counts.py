@@ -42,10 +42,9 @@ def _controls(rows: list[dict]) -> tuple[np.ndarray, np.ndarray]:
     return np.array([r["control"] == "load" for r in rows]) & ~tilt, tilt
 
 
-def fit_counts(rows: list[dict], patches: bool = False):
+def fit_counts(rows: list[dict]):
     """Per block candidate, the :class:`SweepCount` whose counts best match the sweeps its
-    converged attempts took (relative error: least squares on the logarithm); with
-    ``patches`` the load's sweeps per e-fold of the patches too (``load_patches``)."""
+    converged attempts took (relative error: least squares on the logarithm)."""
     from scipy.optimize import least_squares
 
     from twoscale.micro.costmodel import SweepCount
@@ -56,18 +55,16 @@ def fit_counts(rows: list[dict], patches: bool = False):
         if len(got) < 4:
             continue
         sweeps = np.array([r["sweeps"] for r in got], dtype=float)
-        cov, n = [r["coverage"] for r in got], [r.get("patches") for r in got]
+        cov = [r["coverage"] for r in got]
         load, tilt = _controls(got)
-        on = 1.0 if patches else 0.0
 
         def resid(q):
-            count = SweepCount(*q[:4], on * q[4])
-            pred = [count(c, load_control=bool(lo), tilt=bool(t), patches=k) for c, lo, t, k in zip(cov, load, tilt, n)]
+            count = SweepCount(*q)
+            pred = [count(c, load_control=bool(lo), tilt=bool(t)) for c, lo, t in zip(cov, load, tilt)]
             return np.log(pred) - np.log(sweeps)
 
-        q = least_squares(resid, [float(np.median(sweeps)), 1.0, 1.0, 1.0, 0.0], bounds=(0.0, np.inf)).x
-        q = [float(f"{v:.3g}") if v > 1e-6 else 0.0 for v in (*q[:4], on * q[4])]  # a bound's zero is 0
-        out[key] = SweepCount(*q)
+        q = least_squares(resid, [float(np.median(sweeps)), 1.0, 1.0, 1.0], bounds=(0.0, np.inf)).x
+        out[key] = SweepCount(*(float(f"{v:.3g}") for v in q))
     return out
 
 
@@ -132,18 +129,16 @@ def fit_model(rows: list[dict], factors: bool = False, far_patch: bool = False):
 
 
 def fit_far(rows: list[dict], model=None):
-    """``model`` (default: the installed one) with the far field refitted on its converged
-    attempts in ``rows``: its sweep count with the load's sweeps per e-fold of the patches
-    (:func:`fit_counts`), then its seconds a unit and its seconds a patch and sweep
-    (``CostModel.far_patch_seconds``, in place of its products' overhead; least squares on
-    the logarithm); its fixed seconds, and every other candidate's coefficients, kept."""
+    """``model`` (default: the installed one) with the far field's seconds a unit and its
+    seconds a patch and sweep (``CostModel.far_patch_seconds``, in place of its products'
+    overhead) fitted to its converged attempts in ``rows`` (least squares on the
+    logarithm); its fixed seconds and sweep count, and every other candidate's
+    coefficients, kept."""
     from scipy.optimize import least_squares
 
     from twoscale.micro.costmodel import FITTED
 
     model = FITTED if model is None else model
-    count = fit_counts(rows, patches=True).get("two-level", (model.sweeps or {}).get("two-level"))
-    model = dataclasses.replace(model, sweeps={**(model.sweeps or {}), "two-level": count})
     got = [r for r in rows if r["candidate"] == "two-level" and r["converged"] and r.get("patches")]
     t = np.array([r["seconds"] for r in got])
     zero = dict.fromkeys(model.ns_per_unit, 0.0)
@@ -183,12 +178,7 @@ def count_factors(model, rows: list[dict]) -> dict:
         got = [r for r in rows if r["candidate"] == key and r["converged"] and r["sweeps"]]
         f = np.array(
             [
-                count(
-                    r["coverage"],
-                    load_control=r["control"] in ("load", "tilt"),
-                    tilt=r["control"] == "tilt",
-                    patches=r.get("patches"),
-                )
+                count(r["coverage"], load_control=r["control"] in ("load", "tilt"), tilt=r["control"] == "tilt")
                 / r["sweeps"]
                 for r in got
             ]
@@ -221,12 +211,11 @@ def main(argv=None) -> int:
     print(_line("installed", factors(FITTED, samples)))
     print(_line("with the sweep counts", factors(model, samples)))
     far = fit_far(samples)
-    print(_line("far field's sweeps, unit, patch", factors(far, samples)))
-    print(f"    far field: {far.sweeps['two-level']}; {far.ns_per_unit['two-level']:.3g} ns a unit + ")
-    print(f"    {1e6 * far.far_patch_seconds:.3g} us a patch and sweep (fixed {far.fixed_seconds['two-level']:.3g} s)")
+    print(_line("far field's seconds a patch", factors(far, samples)))
+    print(f"    far field: {far.ns_per_unit['two-level']:.3g} ns a unit + {1e6 * far.far_patch_seconds:.3g} us a patch")
+    print(f"    and sweep (fixed {far.fixed_seconds['two-level']:.3g} s, sweeps {far.sweeps['two-level']})")
     print("expected against measured sweeps: median factor, off by more than 1.5x")
     print(_line("with the sweep counts", count_factors(model, samples)))
-    print(_line("far field's sweeps, unit, patch", count_factors(far, samples)))
     low = [s for s in samples if s["seed"] <= args.split]
     high = [s for s in samples if s["seed"] > args.split]
     for name, train, test in ((f"seeds <= {args.split}", low, high), (f"seeds > {args.split}", high, low)):
@@ -235,7 +224,7 @@ def main(argv=None) -> int:
         held = fit_model(train)
         print(_line("with the sweep counts", factors(held, test)))
         print(_line("their sweeps", count_factors(held, test)))
-        print(_line("far field's sweeps, unit, patch", factors(fit_far(train), test)))
+        print(_line("far field's seconds a patch", factors(fit_far(train), test)))
     if args.emit:
         print("\n    sweeps={")
         for key, c in model.sweeps.items():

@@ -237,15 +237,13 @@ class CostModel:
             return self.union_min_coverage
         return min(lower, self.union_min_coverage)
 
-    def block_factor(
-        self, candidate: str, coverage: float | None, load_control: bool, tilt: bool, patches: int | None = None
-    ) -> float:
+    def block_factor(self, candidate: str, coverage: float | None, load_control: bool, tilt: bool) -> float:
         """The factor on a block candidate's work: the load's or the tilt's factor, times its
         expected sweeps over ``gs_sweeps`` (:attr:`sweeps`, where the ``coverage`` is known)."""
         factor = self.tilt_factor if tilt else self.load_factor if load_control else 1.0
         count = (self.sweeps or {}).get(candidate)
         if count is not None and coverage is not None:
-            return factor * count(coverage, load_control=load_control, tilt=tilt, patches=patches) / self.gs_sweeps
+            return factor * count(coverage, load_control=load_control, tilt=tilt) / self.gs_sweeps
         return factor
 
     def seconds(
@@ -274,7 +272,7 @@ class CostModel:
                 overhead = self.gs_sweeps * self.local_products * self.product_overhead * patches
                 at_gs_sweeps = 1e-9 * self.ns_per_unit[k] * max(w - overhead, 0.0)
                 at_gs_sweeps += self.gs_sweeps * self.far_patch_seconds * patches
-            out[k] = self.fixed_seconds[k] + at_gs_sweeps * self.block_factor(k, coverage, load_control, tilt, patches)
+            out[k] = self.fixed_seconds[k] + at_gs_sweeps * self.block_factor(k, coverage, load_control, tilt)
         return out
 
 

@@ -32,25 +32,15 @@ class SweepCount:
     ----------
     base, interaction, load, tilt : float
         Sweeps (fitted).
-    load_patches : float
-        Sweeps under load control (not with the tilt) per e-fold of the ``patches``, where
-        they are known: the approach is corrected from the force changes of all of them
-        (far field, seeds 0 and 5: 10-12 sweeps on 1,586-2,875 patches against 7-9 on
-        264-843; under penetration and with the tilt no growth; fitted).
     """
 
     base: float
     interaction: float = 0.0
     load: float = 0.0
     tilt: float = 0.0
-    load_patches: float = 0.0
 
-    def __call__(
-        self, coverage: float, *, load_control: bool = False, tilt: bool = False, patches: int | None = None
-    ) -> float:
+    def __call__(self, coverage: float, *, load_control: bool = False, tilt: bool = False) -> float:
         rho = math.sqrt(min(max(float(coverage), 0.0), COVERAGE_MAX))
         sweeps = self.base + self.interaction * math.log(1.0 / (1.0 - rho))
         sweeps += self.tilt if tilt else self.load if load_control else 0.0
-        if load_control and not tilt and patches:
-            sweeps += self.load_patches * math.log(max(int(patches), 1))
         return max(sweeps, 1.0)
