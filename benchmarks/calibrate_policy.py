@@ -140,6 +140,7 @@ def forced_samples(rows: list[dict], count: int = 200) -> list[dict]:
                 "scene": f"seed {seed} " + spec.label + " (forced)",
                 "seed": seed,
                 "coverage": (r.get("figures") or {}).get("coverage", r.get("coverage")),
+                "patches": (r.get("figures") or {}).get("patches", r.get("patches")),
             }
         )
     return out

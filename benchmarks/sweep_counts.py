@@ -71,49 +71,91 @@ def fit_counts(rows: list[dict]):
 def predicted(model, row: dict) -> float:
     """The seconds ``model`` predicts for a sample's candidate on its scene."""
     load, tilt = row["control"] in ("load", "tilt"), row["control"] == "tilt"
-    return model.seconds({row["candidate"]: row["work"]}, load_control=load, tilt=tilt, coverage=row["coverage"])[
+    got = {row["candidate"]: row["work"]}
+    return model.seconds(got, load_control=load, tilt=tilt, coverage=row["coverage"], patches=row.get("patches"))[
         row["candidate"]
     ]
 
 
-def fit_model(rows: list[dict], factors: bool = False):
+def fit_model(rows: list[dict], factors: bool = False, far_patch: bool = False):
     """The installed model with each block candidate's sweeps (:func:`fit_counts`) and, with
     them, its fixed seconds and seconds a unit refitted on ``rows`` (the union CG's kept);
     with ``factors`` also the factors of load control and of the tilt on the block
-    iterations' seconds a sweep (shared by both; else 1)."""
+    iterations' seconds a sweep (shared by both; else 1); with ``far_patch`` the far
+    field's seconds a patch and sweep in place of its products' overhead
+    (``CostModel.far_patch_seconds``; else None)."""
     from scipy.optimize import least_squares
 
     from twoscale.micro.costmodel import FITTED
 
     counts = fit_counts(rows)
     keys = list(counts)
-    model = dataclasses.replace(FITTED, sweeps=counts, load_factor=1.0, tilt_factor=1.0)
+    model = dataclasses.replace(
+        FITTED, sweeps=counts, load_factor=1.0, tilt_factor=1.0, far_patch_seconds=0.0 if far_patch else None
+    )
     ns, fixed = dict(FITTED.ns_per_unit), dict(FITTED.fixed_seconds)
     got = [r for r in rows if r["candidate"] in counts and r["converged"]]
     t = np.array([r["seconds"] for r in got])
     which = np.array([keys.index(r["candidate"]) for r in got])
-    # seconds at one ns a unit, without the fixed part, the count in
-    bare = dataclasses.replace(model, fixed_seconds=dict.fromkeys(fixed, 0.0), ns_per_unit=dict.fromkeys(ns, 1.0))
+    # seconds at one ns a unit, without the fixed part, the count in; and at one second a
+    # patch and sweep of the far field
+    zero = dict.fromkeys(fixed, 0.0)
+    bare = dataclasses.replace(model, fixed_seconds=zero, ns_per_unit=dict.fromkeys(ns, 1.0))
     unit = np.array([predicted(bare, r) for r in got])
+    per = dataclasses.replace(model, fixed_seconds=zero, ns_per_unit=zero, far_patch_seconds=1.0)
+    patch = np.array([predicted(per, r) for r in got]) if far_patch else np.zeros(len(got))
     load, tilt = _controls(got)
     on = [1.0 if factors else 0.0] * 2
 
     def resid(q):
-        f = np.exp(on[0] * q[-2] * load + on[1] * q[-1] * tilt)
-        return np.log(
-            np.exp(q[0 : 2 * len(keys) : 2][which]) + np.exp(q[1 : 2 * len(keys) : 2][which]) * unit * f
-        ) - np.log(t)
+        f = np.exp(on[0] * q[-3] * load + on[1] * q[-2] * tilt)
+        fixed_, ns_ = np.exp(q[0 : 2 * len(keys) : 2][which]), np.exp(q[1 : 2 * len(keys) : 2][which])
+        return np.log(fixed_ + (ns_ * unit + np.exp(q[-1]) * patch) * f) - np.log(t)
 
     q0 = []
     for i in range(len(keys)):
         sel = which == i
         q0 += [math.log(min(float(np.min(t[sel])) / 2, MAX_FIXED / 2)), math.log(float(np.median(t[sel] / unit[sel])))]
-    hi = [math.log(MAX_FIXED) if i % 2 == 0 else np.inf for i in range(len(q0))] + [np.inf, np.inf]
-    q = least_squares(resid, q0 + [0.0, 0.0], bounds=(-np.inf, hi)).x
+    q0 += [0.0, 0.0, math.log(1e-4)]
+    hi = [math.log(MAX_FIXED) if i % 2 == 0 else np.inf for i in range(2 * len(keys))] + [np.inf] * 3
+    q = least_squares(resid, q0, bounds=(-np.inf, hi)).x
     for i, key in enumerate(keys):
         fixed[key], ns[key] = float(f"{math.exp(q[2 * i]):.3g}"), float(f"{math.exp(q[2 * i + 1]):.3g}")
-    lf, tf = (float(f"{math.exp(v):.3g}") if factors else 1.0 for v in q[-2:])
-    return dataclasses.replace(model, ns_per_unit=ns, fixed_seconds=fixed, load_factor=lf, tilt_factor=tf)
+    lf, tf = (float(f"{math.exp(v):.3g}") if factors else 1.0 for v in q[-3:-1])
+    patch_s = float(f"{math.exp(q[-1]):.3g}") if far_patch else None
+    return dataclasses.replace(
+        model, ns_per_unit=ns, fixed_seconds=fixed, load_factor=lf, tilt_factor=tf, far_patch_seconds=patch_s
+    )
+
+
+def fit_far(rows: list[dict], model=None):
+    """``model`` (default: the installed one) with the far field's seconds a unit and its
+    seconds a patch and sweep (``CostModel.far_patch_seconds``, in place of its products'
+    overhead) fitted to its converged attempts in ``rows`` (least squares on the
+    logarithm); its fixed seconds and sweep count, and every other candidate's
+    coefficients, kept."""
+    from scipy.optimize import least_squares
+
+    from twoscale.micro.costmodel import FITTED
+
+    model = FITTED if model is None else model
+    got = [r for r in rows if r["candidate"] == "two-level" and r["converged"] and r.get("patches")]
+    t = np.array([r["seconds"] for r in got])
+    zero = dict.fromkeys(model.ns_per_unit, 0.0)
+    at_unit = dataclasses.replace(
+        model, ns_per_unit=dict.fromkeys(zero, 1.0), fixed_seconds=zero, far_patch_seconds=0.0
+    )
+    at_patch = dataclasses.replace(model, ns_per_unit=zero, fixed_seconds=zero, far_patch_seconds=1.0)
+    unit = np.array([predicted(at_unit, r) for r in got])
+    patch = np.array([predicted(at_patch, r) for r in got])
+    fixed = model.fixed_seconds["two-level"]
+
+    def resid(q):
+        return np.log(fixed + np.exp(q[0]) * unit + np.exp(q[1]) * patch) - np.log(t)
+
+    q = least_squares(resid, [math.log(float(np.median(t / unit))), math.log(1e-4)]).x
+    ns = {**model.ns_per_unit, "two-level": float(f"{math.exp(q[0]):.3g}")}
+    return dataclasses.replace(model, ns_per_unit=ns, far_patch_seconds=float(f"{math.exp(q[1]):.3g}"))
 
 
 def factors(model, rows: list[dict]) -> dict:
@@ -168,6 +210,10 @@ def main(argv=None) -> int:
     print("predicted against measured seconds: median factor, off by more than 2x")
     print(_line("installed", factors(FITTED, samples)))
     print(_line("with the sweep counts", factors(model, samples)))
+    far = fit_far(samples)
+    print(_line("far field's seconds a patch", factors(far, samples)))
+    print(f"    far field: {far.ns_per_unit['two-level']:.3g} ns a unit + {1e6 * far.far_patch_seconds:.3g} us a patch")
+    print(f"    and sweep (fixed {far.fixed_seconds['two-level']:.3g} s, sweeps {far.sweeps['two-level']})")
     print("expected against measured sweeps: median factor, off by more than 1.5x")
     print(_line("with the sweep counts", count_factors(model, samples)))
     low = [s for s in samples if s["seed"] <= args.split]
@@ -178,6 +224,7 @@ def main(argv=None) -> int:
         held = fit_model(train)
         print(_line("with the sweep counts", factors(held, test)))
         print(_line("their sweeps", count_factors(held, test)))
+        print(_line("far field's seconds a patch", factors(fit_far(train), test)))
     if args.emit:
         print("\n    sweeps={")
         for key, c in model.sweeps.items():

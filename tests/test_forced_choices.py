@@ -122,3 +122,52 @@ def test_the_fit_recovers_a_known_sweep_law_and_its_cost():
         assert model.ns_per_unit[key] == pytest.approx(ns[key], rel=1e-2)
         assert model.fixed_seconds[key] == pytest.approx(fixed[key], rel=1e-2)
     assert model.ns_per_unit["union-cg"] == FITTED.ns_per_unit["union-cg"]  # the union CG's kept
+
+
+def test_the_far_fields_seconds_a_patch_replace_its_products_overhead():
+    # work made as estimate_costs makes it: transforms plus one overhead a local product,
+    # gs_sweeps sweeps; with far_patch_seconds the overhead is out and s a patch and sweep in
+    model = dataclasses.replace(FITTED, far_patch_seconds=2e-4)
+    n, transforms, coverage = 3000, 4e9, 0.2
+    overhead = FITTED.gs_sweeps * FITTED.local_products * FITTED.product_overhead * n
+    work = {"two-level": transforms + overhead}
+    factor = FITTED.block_factor("two-level", coverage, False, False)
+    want = FITTED.fixed_seconds["two-level"] + factor * (
+        1e-9 * FITTED.ns_per_unit["two-level"] * transforms + FITTED.gs_sweeps * 2e-4 * n
+    )
+    got = model.seconds(work, coverage=coverage, patches=n)["two-level"]
+    assert got == pytest.approx(want, rel=1e-12)
+    # the product overhead's size no longer matters; without it (None) the overhead is charged
+    other = dataclasses.replace(model, product_overhead=2 * FITTED.product_overhead)
+    moved = {"two-level": transforms + 2 * overhead}
+    assert other.seconds(moved, coverage=coverage, patches=n)["two-level"] == pytest.approx(got, rel=1e-12)
+    plain = FITTED.seconds(work, coverage=coverage, patches=n)["two-level"]
+    assert plain == pytest.approx(
+        FITTED.fixed_seconds["two-level"] + factor * 1e-9 * FITTED.ns_per_unit["two-level"] * work["two-level"]
+    )
+    # the exact block iterations keep their overhead
+    exact = {"block-gs": transforms + overhead}
+    assert model.seconds(exact, coverage=coverage, patches=n) == FITTED.seconds(exact, coverage=coverage, patches=n)
+
+
+def test_the_far_fit_recovers_a_known_cost_a_unit_and_a_patch():
+    from benchmarks.sweep_counts import fit_far
+
+    ns = {**FITTED.ns_per_unit, "two-level": 2.2}
+    model = dataclasses.replace(FITTED, far_patch_seconds=1.5e-4, ns_per_unit=ns)
+    rows = []
+    for n in (3, 30, 300, 3000):
+        for transforms in (1e7, 1e9, 3e10):
+            work = transforms + FITTED.gs_sweeps * FITTED.local_products * FITTED.product_overhead * n
+            for coverage, control in ((0.05, "penetration"), (0.3, "load"), (0.6, "tilt")):
+                load, tilt = control != "penetration", control == "tilt"
+                t = model.seconds({"two-level": work}, load_control=load, tilt=tilt, coverage=coverage, patches=n)
+                rows.append(_sample("two-level", coverage, control, t["two-level"], 6) | {"work": work, "patches": n})
+    got = fit_far(rows)
+    assert got.ns_per_unit["two-level"] == pytest.approx(2.2, rel=1e-2)
+    assert got.far_patch_seconds == pytest.approx(1.5e-4, rel=1e-2)
+    # the far field's fixed seconds and sweeps, and the other candidates, kept
+    assert got.fixed_seconds == FITTED.fixed_seconds and got.sweeps == FITTED.sweeps
+    assert {k: v for k, v in got.ns_per_unit.items() if k != "two-level"} == {
+        k: v for k, v in FITTED.ns_per_unit.items() if k != "two-level"
+    }

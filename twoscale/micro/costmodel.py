@@ -110,6 +110,13 @@ class CostModel:
         Patch-sized products per exactly coupled pair of patches and sweep.
     product_overhead : float
         Fixed cost of one product, work units.
+    far_patch_seconds : float or None
+        CPU seconds a patch costs the far-field two-level iteration a sweep besides its
+        transforms (its local solve's and near sums' Python, its far sources), charged
+        instead of the ``local_products`` products' ``product_overhead`` its work counts: its
+        blocks' local solves run stacked, one batched transform a class of equal boxes, so
+        on thousands of small patches the overhead of one product each is not spent
+        (:meth:`seconds`; fitted). None: the overhead in the work.
     near_pairs, near_pairs_calibration : float
         Near (exactly coupled) pairs per patch under far-field coupling as costed, and the
         near-neighbour count of the scene they were costed on (other scenes scale by theirs).
@@ -174,6 +181,7 @@ class CostModel:
     local_products: float = 6.0
     pair_products: float = 0.5
     product_overhead: float = 5e4
+    far_patch_seconds: float | None = None
     near_pairs: float = 8.0
     near_pairs_calibration: float = 16.4
     far_field_min_patches: int = 100
@@ -239,54 +247,45 @@ class CostModel:
         return factor
 
     def seconds(
-        self, work: dict, *, load_control: bool = False, tilt: bool = False, coverage: float | None = None
+        self,
+        work: dict,
+        *,
+        load_control: bool = False,
+        tilt: bool = False,
+        coverage: float | None = None,
+        patches: int | None = None,
     ) -> dict:
         """Predicted CPU seconds of each candidate from its work units (``coverage``: the
-        patches' share of their box, which sets the block iterations' expected sweeps)."""
+        patches' share of their box, which sets the block iterations' expected sweeps;
+        ``patches``: their count, which the far field's per-patch seconds are charged on)."""
         union = lambda w: (max(w, 1.0) / UNION_REFERENCE_WORK) ** self.union_work_exponent
-        return {
-            k: self.fixed_seconds[k]
-            + 1e-9
-            * self.ns_per_unit[k]
-            * float(w)
-            * (union(float(w)) if k == "union-cg" else self.block_factor(k, coverage, load_control, tilt))
-            for k, w in work.items()
-        }
+        out = {}
+        for k, w in work.items():
+            w = float(w)
+            if k == "union-cg":
+                out[k] = self.fixed_seconds[k] + 1e-9 * self.ns_per_unit[k] * w * union(w)
+                continue
+            at_gs_sweeps = 1e-9 * self.ns_per_unit[k] * w
+            if k == "two-level" and self.far_patch_seconds is not None and patches is not None:
+                # the work's overhead of one product a local solve (gs_sweeps sweeps) out,
+                # the per-patch seconds in
+                overhead = self.gs_sweeps * self.local_products * self.product_overhead * patches
+                at_gs_sweeps = 1e-9 * self.ns_per_unit[k] * max(w - overhead, 0.0)
+                at_gs_sweeps += self.gs_sweeps * self.far_patch_seconds * patches
+            out[k] = self.fixed_seconds[k] + at_gs_sweeps * self.block_factor(k, coverage, load_control, tilt)
+        return out
 
 
-#: The fit of ``benchmarks/calibrate_policy.py`` (printed by ``--emit``), pasted here: the
-#: thirteenth run of the scene-space sweep (seed 0, commit bf6d6b6, 190 attempts) and 60
-#: forced ones (``benchmarks/force_strategies.py``: the candidates the policy did not pick,
-#: on its scenes, the micro step's CPU seconds). The model before it (fitted on the
-#: seventh run) was off by more than 2x on about 50 of them (median factor 1.43): block
-#: Gauss-Seidel on a few patches ran 2-3x its prediction (20 paraboloids: 0.43-0.51 s
-#: against 0.16 s), the far-field two-level iteration's fixed 0.3 s was 4x too much on 2
-#: patches (0.07 s); this one on 26 (median 1.29), the rest the two-level iteration's
-#: sweeps (102 spheres, 12 sweeps: 12.8 s against 3.7 s predicted) and the smallest
-#: scenes' fixed costs. Left out of it: the block iterations forced on #132 (7 tilted
-#: spheres at 58 % of their box, where the union CG runs: 21 and 58 sweeps, 3.5-5.9 s
-#: against 0.19 s), which the form's fixed sweep count cannot follow; with them the tilt's
-#: factor came out 2.11 instead of 1.25 and sent the paper's S1 (tilted, under load) to
-#: the union CG, 1.19x slower than its two-level iteration. Replayed on the run's records
-#: (``--replay``) it changes one choice with the margins below, #198's. The margins, the
-#: coverage bound and the sensitivity factor are not fitted by it: each keeps the
-#: measurements written beside it; docs/records/sweep.md.
-#: The code has grown faster since that fit, about alike for every candidate: forced runs
-#: of all three on 54 sweep scenes of seeds 0-5 (``benchmarks/force_strategies.py``, 2026-11-29,
-#: 132 converged attempts of 0.02-47 s) put its seconds at a median 2.25x the measured ones
-#: (81 attempts off by more than 2x), and one factor on every coefficient's seconds, the
-#: median of measured over predicted (``benchmarks/calibrate_policy.py``), at 1.42 (21 off).
-#: A factor per candidate would be 0.49, 0.41 and 0.45 (union CG, exact block iterations,
-#: far field), and a free fit of every coefficient reaches 1.38 (19 off) but picks the
-#: measured fastest candidate no more often on those scenes (``benchmarks/forced_choices.py``:
-#: 46 of 54 at best, as this model) and moves choices the records measured the other way;
-#: so the factor alone, which keeps every choice (docs/records/sweep.md).
-#: The block iterations' sweeps then came from the scene (``benchmarks/sweep_counts.py
-#: --min-seconds 0.01`` on the forced runs of seeds 0-5 on the code of this fit, 76 scenes,
-#: 179 attempts, block attempts of over 40 sweeps left out): expected sweeps from the
-#: coverage, the control and the tilt (:class:`~.sweepcount.SweepCount`, fitted to the
-#: sweeps taken), then each block candidate's seconds a unit and fixed seconds with them;
-#: the union CG's kept (docs/records/sweep.md).
+#: The fit, in steps (each measured in docs/records/sweep.md): ``benchmarks/calibrate_policy.py``
+#: on the thirteenth run of the scene-space sweep (seed 0, 190 attempts) and 60 forced ones
+#: (``benchmarks/force_strategies.py``, the micro step's CPU seconds), the block iterations
+#: forced on 7 tilted spheres at 58 % of their box (21 and 58 sweeps) left out; then, the
+#: code grown faster about alike for every candidate, its seconds x ``SPEEDUP`` (the median
+#: of measured over predicted on 132 forced attempts of 54 scenes of seeds 0-5: a factor
+#: per candidate or a free fit picked the measured fastest no more often); then the block
+#: iterations' expected sweeps from the scene (``benchmarks/sweep_counts.py``, 179 forced
+#: attempts on 76 scenes: :class:`~.sweepcount.SweepCount` fitted to the sweeps taken) and
+#: each block candidate's seconds a unit and fixed seconds with them, the union CG's kept.
 SPEEDUP = 0.459
 FITTED = CostModel(
     ns_per_unit={"union-cg": 1.04 * SPEEDUP, "block-gs": 1.29, "two-level": 1.8},

@@ -265,7 +265,9 @@ def decide(
     (where scattered tips at 10-14 % ran it 1.9-2.0x slower than the far field). So it does
     on a box of at most ``model.union_small_box_cells`` cells (``figures["box_cells"]``),
     with the margins under load control with the ``tilt`` on at most ``RIGID_UNKNOWNS`` patches."""
-    costs = model.seconds(work, load_control=load_control, tilt=tilt, coverage=figures["coverage"])
+    costs = model.seconds(
+        work, load_control=load_control, tilt=tilt, coverage=figures["coverage"], patches=figures["patches"]
+    )
     # merged contacts under load control: the exact block iterations are block Gauss-Seidel
     # with sensitivity sweeps (below), dearer than the two-level variant the fit saw most
     sensitivity = load_control and merged_contacts
