@@ -3,8 +3,10 @@
 Each case (``benchmarks/ab_trees.py``'s: ``sweep1:193``, ``sweep1_ref:193``, ``road:...``,
 ``file:...``) runs ``--repeat`` times, each in a fresh single-threaded process whose solvers'
 modules are imported before the clock starts (as the sweep times a solve). Named calls are
-wrapped by process-time timers (``STAGES``: the map's reading and segmentation, the macro
-step, the patches, the union CG and its kernel, the operator and its transforms); one JSON
+wrapped by process-time timers (``STAGES``: the map's reading and segmentation, the body's
+build, the macro step (its matrix-free interaction, stability check and operator error
+check), the patches (their box's sampling), the bulge check, the union CG and its kernel,
+the operator and its transforms); one JSON
 line per run gives the case, the solve's CPU seconds, its iterations and, per stage, the
 calls and their CPU seconds (a stage's time includes the stages it calls).
 
@@ -36,13 +38,22 @@ STAGES = (
     ("twoscale.surface.measured", "segment"),
     ("twoscale.surface.segmentation", "_watershed"),
     ("twoscale.surface.measured", "map_asperities"),
+    ("twoscale.scene", "Scene.provider"),
     ("twoscale.driver", "macro_step"),
+    ("twoscale.macro.solve", "_matrix_free_interaction"),
+    ("twoscale.macro.system", "MacroSystem.stable"),
+    ("twoscale.macro.solve", "sampled_operator_error"),
     ("twoscale.driver", "run_micro"),
     ("twoscale.micro.driver", "one_asperity_patches"),
+    ("twoscale.micro.sampling", "box_surface"),
+    ("twoscale.micro.sampling", "patch_grids"),
+    ("twoscale.bulge_rounds", "lifted_among", "bulge check"),
+    ("twoscale.bulge", "lifted_tips", "bulge check"),
     ("twoscale.micro.strategies", "solve_union"),
     ("twoscale.reference", "solve_reference"),
     ("twoscale.reference.cg", "solve_cg"),
     ("twoscale.influence.halfspace", "HalfSpace.grid_operator"),
+    ("fem_influence.provider", "BlockProvider.grid_operator"),
     ("twoscale.influence.convolution", "ConvolutionOperator.offset_table"),
     ("twoscale.reference.cg", "pk_solve"),
     ("twoscale.pk.iteration", "Iteration.check"),

@@ -99,6 +99,15 @@ class BlockCorrection(LowRankCorrection):
         nz = np.flatnonzero(c)
         return (self._p._target_factor(target, nz) @ c[nz]).reshape(target.shape)
 
+    def at_points(self, targets: np.ndarray, c: np.ndarray) -> np.ndarray:
+        """The correction at ``targets`` (scene frame, (M, 2), mm) from the coefficients ``c``:
+        the top-face interpolation of the field table's columns of the nodes ``c`` loads."""
+        nz = np.flatnonzero(np.asarray(c, dtype=float))
+        if nz.size == 0:
+            return np.zeros(len(targets))
+        nodes = self._p._state.nodes_of(nz)
+        return self._p._top_values(targets, nodes) @ np.asarray(c, dtype=float)[nz]
+
     def compact(self, source: Grid, p: np.ndarray) -> tuple:
         """:meth:`coefficients` on the source grid's own lattice nodes: ``(columns, values)``,
         not a vector over every node (a near pair's source: 16 of ~620)."""

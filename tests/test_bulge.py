@@ -286,3 +286,36 @@ def test_the_reference_names_a_tip_still_lifted_after_its_rounds(monkeypatch):
     result, found = _warned(_scene(0.010), "reference")
     assert result.forces[1] == 0.0
     assert len(found) == 1 and "tip 2 at (6, 0) mm" in str(found[0].message)
+
+
+@pytest.mark.parametrize("route", ["split", "whole"])
+def test_the_apex_displacement_is_the_body_grid_operators(route, monkeypatch):
+    """The check's displacement at points the solved pressure does not load, against the
+    body's grid operator on a grid covering both tips (FFT and the correction's grid
+    factors). ``split``: the half-space's cell blocks near the points in one call, the
+    block's smooth part from every loaded cell at once; ``whole``: the provider's own cell
+    blocks point by point (a body without a low-rank part). Every point lies within the
+    check's reach of the loaded tip, so no resultant stands in for its cells: the same
+    sums, to rounding."""
+    import twoscale.bulge as bulge
+
+    scene = _scene(0.040)
+    provider = scene.provider(progress=False)
+    result = twoscale.solve(scene, provider=provider)
+    grid = Grid.covering(-4.0, 8.0, -4.0, 4.0, result.fields[0].grid.h)
+    X, Y = grid.centres()
+    p = np.zeros(grid.shape)
+    for f in result.fields:
+        fx, fy = f.grid.centres()
+        cols = np.rint((fx[0] - X[0, 0]) / grid.h).astype(int)
+        rows = np.rint((fy[:, 0] - Y[0, 0]) / grid.h).astype(int)
+        p[np.ix_(rows, cols)] += f.pressure
+    u = provider.grid_operator(grid).apply(p)
+    picks = [(i, j) for i in (3, 40, 77) for j in (5, 70, 100) if p[i, j] == 0.0]
+    apexes = np.array([[X[i, j], Y[i, j]] for i, j in picks])
+    if route == "whole":
+        monkeypatch.setattr(type(provider), "split", lambda self: (self, None))
+    got = bulge._apex_displacement(provider, result, apexes)
+    want = np.array([u[i, j] for i, j in picks])
+    assert len(picks) >= 6 and np.max(np.abs(want)) > 1e-3
+    np.testing.assert_allclose(got, want, rtol=0, atol=1e-9 * np.max(np.abs(u)))

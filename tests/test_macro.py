@@ -532,6 +532,33 @@ def test_merged_spheres_under_load_hand_over_after_two_flat_steps(monkeypatch):
     assert np.max(np.abs(quick.forces - slow.forces)) <= 1e-12 * slow.forces.max()
 
 
+def test_a_stall_near_a_solution_hands_over_to_the_safe_path_sooner(monkeypatch):
+    # the sweep's 340 spheres under load (seed 0's #77), merged pairs: below STALL_RESIDUAL
+    # Newton's residual falls by a few per cent a step, over the plateau's 1 % in two steps;
+    # the stall stop hands over once four steps have not halved it, and the safe path gives
+    # the forces it gives after a later hand-over (without the stall stop)
+    import twoscale.macro.solve as macro_solve
+    from helpers import sweep_macro_inputs
+    from twoscale.laws import law_for
+    from twoscale.macro.newton import STALL_RESIDUAL
+
+    scene, tips, z, provider = sweep_macro_inputs(77)
+
+    def solve():
+        laws = [law_for(a, provider.material) for a in scene.asperities]
+        return _solve_macro(provider, tips, z, laws, Loading(scene.penetration, scene.total_load))
+
+    quick = solve()
+    monkeypatch.setattr(macro_solve, "STALL_STEPS", None)
+    slow = solve()
+    assert quick.converged and quick.safe_path and "not halved in 4 steps" in quick.message
+    h = quick.residuals[:-1]  # Newton's, then the safe path's final one
+    assert h[-5] <= STALL_RESIDUAL and h[-1] > 0.5 * h[-5]
+    assert slow.converged and slow.safe_path and "not halved in 4 steps" not in slow.message
+    assert quick.iterations <= slow.iterations - 4
+    assert np.max(np.abs(quick.forces - slow.forces)) <= 1e-10 * slow.forces.max()
+
+
 def test_two_thousand_tips_go_matrix_free_by_default_with_the_dense_forces():
     """From 2,001 tips the default macro step is matrix-free (the dense step's
     factorisations of the active block cost seconds there): the same forces as the dense

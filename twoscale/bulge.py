@@ -15,7 +15,9 @@ after their rounds is named (:func:`warn_lifted_tips`) instead of answered witho
 Only bodies whose surface may rise (``InfluenceProvider.surface_rises``) are checked, and
 only without a free tilt (the tilt moves every apex's approach). The displacement at the
 apexes is the solved pressure's: the loaded cells of the tips near an apex act as uniform
-squares (``InfluenceProvider.cell_block``), the others by their resultants.
+squares (``InfluenceProvider.cell_block``), the others by their resultants; a body's smooth
+low-rank part (the block's correction, ``InfluenceProvider.split``) is summed from every
+loaded cell at once (one evaluation at all the apexes, not one an apex).
 """
 
 from __future__ import annotations
@@ -65,26 +67,83 @@ def _apex_displacement(provider: InfluenceProvider, result: ContactResult, apexe
     """Displacement (mm) at ``apexes`` (M, 2) of the result's pressure: a tip's loaded cells
     as uniform squares within :data:`NEAR` contact radii (plus two cells) of an apex, its
     resultant at its pressure's centre beyond (a point force: relative error about
-    ``(a / r)^2 / 8``, under 1 % there)."""
+    ``(a / r)^2 / 8``, under 1 % there). A body with a smooth low-rank part
+    (:meth:`~twoscale.influence.base.InfluenceProvider.split`) has that part summed from
+    every loaded cell at once, and only its base kernel taken near and far as above."""
     from scipy.spatial import cKDTree
 
     cells, p, own, h = _loads(result)
     if p.size == 0:
         return np.zeros(len(apexes))
+    base, smooth = _smooth_part(provider, result, apexes)
     _, first = np.unique(own, return_index=True)
     bounds = np.append(first, own.size)
     w = p * h * h
     force = np.add.reduceat(w, first)
     centres = np.column_stack([np.add.reduceat(w * cells[:, i], first) for i in (0, 1)]) / force[:, None]
     reach = NEAR * float(np.sqrt(np.max(result.asperities.contact_areas) / np.pi)) + 2.0 * h
-    far = provider.point_compliance(apexes, centres) * force
+    close = cKDTree(centres).query_ball_point(apexes, reach)
+    near = _near_sums(base, apexes, close, bounds, cells, p, h)
+    return smooth + near + _far_sums(base, apexes, close, centres, force)
+
+
+def _smooth_part(provider: InfluenceProvider, result: ContactResult, apexes: np.ndarray):
+    """``(base, u)``: the body's base kernel and its low-rank part's displacement (mm) at
+    ``apexes`` from every field's pressure; ``(provider, 0)`` for a body without one, or
+    whose part has no value at points (``LowRankCorrection.at_points``)."""
+    base, correction = provider.split()
+    if correction is None:
+        return provider, 0.0
+    parts = [correction.coefficients(f.grid, f.pressure) for f in result.fields]
+    c = np.zeros(max(len(q) for q in parts))
+    for q in parts:  # a later field's vector may be longer (the node space grew)
+        c[: len(q)] += q
+    u = correction.at_points(apexes, c)
+    return (provider, 0.0) if u is None else (base, u)
+
+
+def _near_sums(base, apexes: np.ndarray, close: list, bounds: np.ndarray, cells, p, h: float) -> np.ndarray:
+    """Each apex's displacement from the loaded cells of the tips ``close`` to it, as uniform
+    squares (``base.cell_block``): on a body whose kernel depends on offsets only, one call
+    for every (apex, cell) pair (from the origin to ``cell - apex``), else one an apex."""
+    rows = [np.concatenate([np.arange(bounds[j], bounds[j + 1]) for j in near]) if near else [] for near in close]
     u = np.zeros(len(apexes))
-    for k, close in enumerate(cKDTree(centres).query_ball_point(apexes, reach)):
-        if close:
-            far[k, close] = 0.0
-            rows = np.concatenate([np.arange(bounds[j], bounds[j + 1]) for j in close])
-            u[k] = provider.cell_block(apexes[k : k + 1], cells[rows], h)[0] @ p[rows]
-    return u + far.sum(axis=1)
+    if not getattr(base, "translation_invariant", False):
+        for k, r in enumerate(rows):
+            if len(r):
+                u[k] = base.cell_block(apexes[k : k + 1], cells[r], h)[0] @ p[r]
+        return u
+    ends = np.cumsum([len(r) for r in rows])
+    lo = 0
+    while lo < len(apexes):  # blocks of apexes with at most NEAR_PAIRS pairs (or one apex)
+        start = int(ends[lo - 1]) if lo else 0
+        hi = max(lo + 1, int(np.searchsorted(ends, start + NEAR_PAIRS, side="right")))
+        if ends[hi - 1] > start:
+            r = np.concatenate([np.asarray(q, dtype=np.intp) for q in rows[lo:hi]])
+            apex = np.repeat(np.arange(lo, hi), np.diff(ends[lo:hi], prepend=start))
+            kernel = base.cell_block(np.zeros((1, 2)), cells[r] - apexes[apex], h)[0]
+            u += np.bincount(apex, weights=kernel * p[r], minlength=len(apexes))
+        lo = hi
+    return u
+
+
+#: Largest number of (apex, cell) pairs whose cell blocks are made at once.
+NEAR_PAIRS = 2_000_000
+#: Largest apexes x tips block of point compliances made at once (8 bytes each).
+FAR_BLOCK = 4_000_000
+
+
+def _far_sums(base, apexes: np.ndarray, close: list, centres: np.ndarray, force: np.ndarray) -> np.ndarray:
+    """Each apex's displacement from the resultants of the tips not ``close`` to it (point
+    forces at their centres), in blocks of at most :data:`FAR_BLOCK` pairs."""
+    u = np.zeros(len(apexes))
+    step = max(1, FAR_BLOCK // max(1, len(centres)))
+    for lo in range(0, len(apexes), step):
+        far = base.point_compliance(apexes[lo : lo + step], centres) * force
+        for k, near in enumerate(close[lo : lo + step]):
+            far[k, near] = 0.0
+        u[lo : lo + step] = far.sum(axis=1)
+    return u
 
 
 def lifted_tips(scene, provider: InfluenceProvider, result: ContactResult) -> LiftedTips | None:

@@ -154,6 +154,12 @@ class LowRankCorrection(ABC):
     def evaluate(self, target: Grid, c: np.ndarray) -> np.ndarray:
         """Displacement (mm) on ``target`` (``target.shape``) from node coefficients ``c``."""
 
+    def at_points(self, targets: np.ndarray, c: np.ndarray) -> np.ndarray | None:
+        """Displacement (mm) at the surface points ``targets`` ((M, 2), mm) from node
+        coefficients ``c``, (M,); None where the correction has no value at points (callers
+        then take the provider's whole kernel)."""
+        return None
+
 
 class InfluenceProvider(ABC):
     """Compliance of an elastic body's surface; see the module docstring."""

@@ -148,18 +148,22 @@ def sampled_operator_error(
 ) -> float:
     """Measured error of the fast product at the solution: ``max_i |(T P)_i - (T_exact P)_i|
     / max_i |(T_exact P)_i|`` over ``samples`` tips drawn at random (exact rows from
-    ``provider.point_compliance``, ``_ERROR_ROWS`` at a time; the diagonal is common to
-    both and left out)."""
+    ``provider.point_compliance``, ``_ERROR_ROWS`` at a time, on the columns of the tips
+    that carry a force only: 3,088 of 8,807 tips, 2,253 of 9,545 on a block, whose
+    compliance each call makes anew; the diagonal is common to both and left out)."""
     n = len(tips)
     rng = np.random.default_rng(seed)
     rows = np.sort(rng.choice(n, size=min(samples, n), replace=False))
-    exact = np.empty(len(rows))
-    for a in range(0, len(rows), _ERROR_ROWS):
+    loaded = np.flatnonzero(P)
+    exact = np.zeros(len(rows))
+    for a in range(0, len(rows) if loaded.size else 0, _ERROR_ROWS):
         part = rows[a : a + _ERROR_ROWS]
-        G = np.array(provider.point_compliance(tips[part], tips), dtype=float)
-        G[np.arange(len(part)), part] = 0.0
+        G = np.array(provider.point_compliance(tips[part], tips[loaded]), dtype=float)
+        own = np.searchsorted(loaded, part)
+        hit = (own < loaded.size) & (loaded[np.minimum(own, loaded.size - 1)] == part)
+        G[np.flatnonzero(hit), own[hit]] = 0.0
         G[~np.isfinite(G)] = 0.0
-        exact[a : a + len(part)] = G @ P
+        exact[a : a + len(part)] = G @ P[loaded]
     fast = interaction.operator.apply(P)[rows]
     scale = float(np.max(np.abs(exact)))
     return float(np.max(np.abs(fast - exact))) / scale if scale > 0 else 0.0
