@@ -276,6 +276,9 @@ class Iteration:
         if self.pc is None:
             return g_on, gg
         d = self.pc(g_on.reshape(len(g_on), *self.shape), on.reshape(len(on), *self.shape)).reshape(len(on), -1)
+        restart = getattr(self.pc, "restart", None)
+        if restart is not None and restart():  # a new preconditioner: the old directions are not conjugate in it
+            self.conj[:] = False
         d *= self.weight
         project(d, self.basis, on, self.count if self.k == 1 else None, self.basis_t, self.plane, loaded_only=True)
         d *= self.weight

@@ -7,18 +7,26 @@ from typing import Callable
 
 import numpy as np
 
+from ..influence.circulant import CirculantInverse
+from ..pk.coarse import SquaresCorrection
 from ..pk.products import OneRowInverse
 
 
-def _preconditioner(cg, custom, op):
+def _preconditioner(cg, custom, op, table: Callable[[], np.ndarray] | None = None):
     """``precondition(v, on)`` for the kernel: the caller's (``custom``, made once from
-    ``cg.preconditioner`` for both stages) or the operator's approximate inverse, or None."""
+    ``cg.preconditioner`` for both stages) or the operator's approximate inverse, or None;
+    with ``table`` (the operator's offset table, made on call) the inverse with its coarse
+    correction (:class:`~twoscale.pk.coarse.SquaresCorrection`)."""
     if not cg.precondition:
         return None
     if custom is not None:
         return _Custom(custom)
     inverse = op.preconditioner()
-    return None if inverse is None else OneRowInverse(inverse)
+    if inverse is None:
+        return None
+    if table is not None and isinstance(inverse, CirculantInverse):
+        return SquaresCorrection(inverse, table(), inverse.source.shape)
+    return OneRowInverse(inverse)
 
 
 class _Custom:

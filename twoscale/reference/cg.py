@@ -63,6 +63,7 @@ class CGSettings:
     half_products: bool = False
     step_model: bool = False
     precorrected: bool = False
+    coarse: bool = False
 
 
 def solve_cg(
@@ -170,6 +171,11 @@ def solve_cg(
         On a small ``reach`` part, the search directions' products by a precorrected FFT
         (:func:`~twoscale.influence.precorrected.cheap_products`), re-anchored by exact
         products (:class:`~twoscale.pk.products.Cheap`). The reference: off.
+    coarse : bool, default False
+        With ``precondition`` (the operator's torus inverse): its coarse correction over
+        squares of the grid once the contact has nearly settled
+        (:class:`~twoscale.pk.coarse.SquaresCorrection`), on operators with an offset table
+        (the half-space's; a block keeps the torus alone). The reference: off.
 
     Returns
     -------
@@ -218,7 +224,7 @@ def solve_cg(
         max_iter,
         start,
         monitor=None if monitor is None else (lambda k, r: monitor(offset + k, r)),
-        pc=_preconditioner(cg, custom, fast or op),
+        pc=_preconditioner(cg, custom, fast or op, getattr(op, "offset_table", None) if cg.coarse else None),
         fast=fast,
         keep_conjugacy=cg.keep_conjugacy,
         reach=reach,

@@ -1,0 +1,113 @@
+"""The union CG's coarse correction over squares (:mod:`twoscale.pk.coarse`): its coarse
+matrix against the kernel's pair sums written out, the preconditioner symmetric positive
+definite, and the constrained CG with it against the classical Polonsky-Keer CG."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from twoscale import Material
+from twoscale.grid import Grid
+from twoscale.indenters import Asperity, surface_on
+from twoscale.influence import HalfSpace
+from twoscale.pk import coarse
+from twoscale.pk.coarse import CoarseSpace, SquaresCorrection, coarse_matrix, near_sums
+from twoscale.reference import solve_cg
+
+MAT = Material(E=6.0, nu=0.5)
+HS = HalfSpace(MAT)
+
+
+def _loaded(shape, fraction, seed):
+    rng = np.random.default_rng(seed)
+    at = np.flatnonzero(rng.random(shape[0] * shape[1]) < fraction)
+    return at, np.divmod(at, shape[1])
+
+
+def _exact(table, shape, y, x, index, k):
+    """``Z^T A Z`` from every pair of loaded cells (the kernel's table, entry by entry)."""
+    ny, nx = shape
+    a = table[np.abs(y[:, None] - y[None, :]) + ny - 1, np.abs(x[:, None] - x[None, :]) + nx - 1]
+    z = np.zeros((len(y), k))
+    z[np.arange(len(y)), index] = 1.0
+    return z.T @ a @ z
+
+
+@pytest.mark.parametrize("side,shape", [(7, (47, 53)), (6, (30, 31))])
+def test_near_sums_are_the_pair_sums_written_out(side, shape):
+    g = Grid(0.0, 0.0, 0.01, shape[1], shape[0])
+    table = HS.grid_operator(g).offset_table()
+    _, (y, x) = _loaded(shape, 0.2, side)
+    columns = -(-shape[1] // side)
+    keys, index = np.unique((y // side) * columns + x // side, return_inverse=True)
+    exact = _exact(table, shape, y, x, index, len(keys))
+    a, b, values = near_sums(table, shape, side, keys, index, y, x)
+    # squares at most one apart in both directions, each pair once (the mirror's too: 5 of 9)
+    ky, kx = np.divmod(keys, columns)
+    assert np.all((np.abs(ky[a] - ky[b]) <= 1) & (np.abs(kx[a] - kx[b]) <= 1))
+    # complex64 spectra: sums to about 1e-7 of the largest
+    assert np.max(np.abs(values - exact[a, b])) <= 1e-6 * np.abs(exact).max()
+    # the squares farther apart as point loads: the whole matrix within 1 %, positive definite
+    energy = coarse_matrix(table, shape, side, keys, index, y, x)
+    assert np.linalg.norm(energy - exact) <= 0.01 * np.linalg.norm(exact)
+    assert np.linalg.eigvalsh(energy).min() > 0.0
+
+
+def test_the_corrected_preconditioner_is_symmetric_positive_definite(monkeypatch):
+    """``P = Q^T C Q + Z E^-1 Z^T`` on the loaded cells, some loaded cells off the squares of
+    the set it was built on (cells that entered since) and some of those left."""
+    monkeypatch.setattr(coarse, "MIN_CELLS", 0)  # (a grid small enough for P written out)
+    shape = (40, 44)
+    g = Grid(0.0, 0.0, 0.01, shape[1], shape[0])
+    op = HS.grid_operator(g)
+    inverse = op.preconditioner()
+    owner = SquaresCorrection(inverse, op.offset_table(), shape, side=8)
+    cells = np.arange(g.size)
+    built, _ = _loaded(shape, 0.08, 3)
+    loaded = np.zeros(g.size, bool)
+    loaded[built] = True
+    space = CoarseSpace.build(owner, cells, loaded)
+    assert space is not None and space.k > 10
+    now = loaded.copy()
+    now[built[::7]] = False
+    now[_loaded(shape, 0.02, 4)[0]] = True
+    torus = lambda v: inverse.apply(v.reshape(shape)).ravel()  # noqa: E731
+    on = np.flatnonzero(now)
+    columns = []
+    for i in on:
+        e = np.zeros(g.size)
+        e[i] = 1.0
+        columns.append(space.direction(e, now, torus)[on])
+    p = np.array(columns).T
+    assert np.max(np.abs(p - p.T)) <= 1e-9 * np.abs(p).max()
+    assert np.linalg.eigvalsh(0.5 * (p + p.T)).min() > 0.0
+
+
+def _many_tips(n_side: int, spacing: float, radius: float, seed: int):
+    rng = np.random.default_rng(seed)
+    c = (np.arange(n_side) - 0.5 * (n_side - 1)) * spacing
+    X, Y = np.meshgrid(c, c)
+    z = rng.uniform(0.0, 0.004, X.size)
+    return [Asperity(float(x), float(y), float(zz), radius) for x, y, zz in zip(X.ravel(), Y.ravel(), z)]
+
+
+@pytest.mark.parametrize("load", [{"penetration": 0.012}, {"total_load": 1.5}])
+def test_the_coarse_correction_keeps_the_answer_in_fewer_iterations(load, monkeypatch):
+    """400 separated spheres on 261 x 261 cells (4-7 % of them loaded): the preconditioned
+    CG with the correction against the classical CG (no preconditioner) and fewer iterations
+    than with the torus alone (built on a grid this small only when allowed)."""
+    asps = _many_tips(20, 0.6, 2.0, 1)
+    g = Grid.covering(-6.5, 6.5, -6.5, 6.5, 0.05)
+    surf = surface_on(g, asps)
+    plain = solve_cg(HS, surf, tol=1e-9, **load)
+    torus = solve_cg(HS, surf, tol=1e-9, precondition=True, **load)
+    kept = solve_cg(HS, surf, tol=1e-9, precondition=True, coarse=True, **load)
+    assert kept.iterations == torus.iterations  # (below MIN_CELLS: no correction)
+    monkeypatch.setattr(coarse, "MIN_CELLS", 0)
+    corrected = solve_cg(HS, surf, tol=1e-9, precondition=True, coarse=True, **load)
+    assert plain.converged and torus.converged and corrected.converged
+    assert corrected.iterations["cg"] < torus.iterations["cg"], (corrected.iterations, torus.iterations)
+    F, Fp = corrected.asperities.forces, plain.asperities.forces
+    assert np.max(np.abs(F - Fp)) <= 1e-6 * Fp.max()
+    assert corrected.penetration == pytest.approx(plain.penetration, abs=1e-9)
