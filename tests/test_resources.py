@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import json
 import math
+import re
 import subprocess
 import sys
 import textwrap
@@ -167,7 +168,7 @@ def test_available_memory_is_read():
 
 
 def test_solve_scene_refuses_before_allocating_and_can_be_told_not_to_check():
-    with pytest.raises(SceneError, match="grid.h"):
+    with pytest.raises(SceneError, match="too little memory available for any h;"):
         solve_scene(HERTZ, method="reference", memory_limit=1e6)
     res = solve_scene(
         Scene(material=HERTZ.material, asperities=HERTZ.asperities, penetration=0.5, h=0.25),
@@ -175,6 +176,21 @@ def test_solve_scene_refuses_before_allocating_and_can_be_told_not_to_check():
         memory_limit=math.inf,
     )
     assert res.converged
+
+
+def test_a_python_refusal_suggests_the_h_keyword_and_that_h_is_accepted(tmp_path):
+    # solve() takes h=, not the scene file's grid.h: a refusal of the default h used to say
+    # "try grid.h = ..." to a Python caller; the h it suggests must pass the same check
+    path = tmp_path / "fifty.toml"
+    path.write_text(fifty_tips_toml(), encoding="utf-8")
+    scene = read_scene(path)
+    limit = 0.8 * estimate_memory(scene, default_h(scene), "twoscale").bytes
+    with pytest.raises(SceneError, match=r"\(the default, chosen from the scene\)") as refused:
+        solve_scene(scene, memory_limit=limit)
+    advice = re.search(r"; try (\S+) = ([0-9.e+-]+) mm or larger;", str(refused.value))
+    assert advice is not None and advice.group(1) == "h", str(refused.value)
+    h = float(advice.group(2))
+    assert estimate_memory(scene, h, "twoscale").bytes <= limit
 
 
 def test_solve_refuses_a_nan_memory_limit_instead_of_skipping_the_check():
