@@ -82,6 +82,47 @@ def test_union_cg_asked_for_counts_the_box_of_the_patches():
     assert union.bytes > 2 * auto.bytes and "union box" in union.dominant
 
 
+def _crowded_tips(n: int = 12) -> Scene:
+    """Paraboloids 3 mm apart on a row under load: patches crowd their box (union CG and
+    the far field both candidates of the policy)."""
+    tips = [Asperity(3.0 * k, 0.0, 0.0, 5.0, shape="paraboloid") for k in range(n)]
+    return Scene(material=Material(E=10.0, nu=0.5), total_load=2.0 * n, asperities=tips)
+
+
+def test_an_iteration_asked_for_counts_only_what_it_builds(monkeypatch):
+    # the union CG builds no cross-patch operator and no far field; a block iteration asked
+    # for runs alone (no union CG after it): the estimate used to count the union box and
+    # every block operator whatever was asked (1,000 paraboloids: 3.6 GB against 1.4 GB)
+    from twoscale.micro import blocks
+
+    built = []
+    init = blocks.Coupling.__init__
+    monkeypatch.setattr(blocks.Coupling, "__init__", lambda self, *a, **k: (built.append(1), init(self, *a, **k))[1])
+    scene = _crowded_tips()
+    h = 0.05
+    res = solve_scene(scene, h=h, iteration="union-cg")
+    assert res.converged and not built  # no pair operators were made
+    union = dict(estimate_memory(scene, h, "twoscale", iteration="union-cg").parts)
+    assert any("union box" in k for k in union) and "cached cross-patch operators" not in union
+    assert not any("far field" in k for k in union)
+    res = solve_scene(scene, h=h, iteration="two-level")
+    assert res.converged and built
+    assert [a.iteration for a in res.details.micro.attempts] == ["two-level"]  # alone: no union CG
+    two_level = dict(estimate_memory(scene, h, "twoscale", iteration="two-level").parts)
+    assert not any("union box" in k for k in two_level) and "cached cross-patch operators" in two_level
+
+
+def test_auto_counts_the_larger_of_the_block_operators_and_the_union_box():
+    # they are not held together: a block attempt lets its operators go before the union CG
+    scene = _crowded_tips()
+    est = estimate_memory(scene, 0.05, "twoscale")
+    union = estimate_memory(scene, 0.05, "twoscale", iteration="union-cg").bytes
+    blocks = estimate_memory(scene, 0.05, "twoscale", iteration="two-level").bytes
+    assert est.bytes == pytest.approx(max(union, blocks)) and est.bytes == pytest.approx(sum(b for _, b in est.parts))
+    names = [k for k, _ in est.parts]
+    assert not (any("union box" in k for k in names) and "cached cross-patch operators" in names)
+
+
 def test_the_far_fields_kept_weights_are_counted_where_it_may_be_taken():
     # scattered patches (the far field is a candidate): the weights it keeps, bytes per
     # owned cell (every patch cell counted); two crowded patches (it is not): none

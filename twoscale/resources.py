@@ -21,7 +21,9 @@ What the two methods carry:
   and its point operator among the patches;
   the dense macro matrix; and, where patches crowd their bounding box, the micro step may
   solve on that box as one grid (``union-cg``, :mod:`twoscale.micro.policy`), which costs
-  like the reference grid.
+  like the reference grid. The block iterations' operators and the union box are not held
+  together (a block attempt that did not converge lets its operators go before the union
+  CG runs): the larger of the two is counted.
 * the finite block (``[influence] kind = "block"``) adds its provider's build.
 
 Measured peaks against the estimate: :data:`~twoscale.memory_costs.CALIBRATION`. Not counted: the reference
@@ -127,9 +129,12 @@ def estimate_memory(scene: Scene, h: float, method: str = "twoscale", *, iterati
     method : {"twoscale", "reference"}, default "twoscale"
     iteration : str, default "auto"
         The two-scale micro iteration asked for (``solve_twoscale``'s ``iteration``):
-        ``"union-cg"`` always counts the box of the patches; any other value counts it
-        where the patches cover at least :data:`UNION_MIN_COVERAGE` of it (under penetration
-        control ``MODEL.union_coverage``), and always on a height map's stones.
+        ``"union-cg"`` counts the box of the patches and no block operators;
+        ``"block-gs"`` and ``"two-level"`` the block operators and no box (an iteration
+        asked for runs alone); ``"auto"`` the larger of the two where the patches cover at
+        least ``MODEL.union_coverage`` of their box (:data:`UNION_MIN_COVERAGE`; under
+        penetration control a lower share) and on a height map's stones, the block
+        operators elsewhere.
 
     Returns
     -------
@@ -149,7 +154,7 @@ def estimate_memory(scene: Scene, h: float, method: str = "twoscale", *, iterati
             cells = int(grid.size)
             parts.update(_grid_parts(scene, grid, "reference grid"))
         else:
-            cells, extra = _twoscale_parts(scene, h, union=iteration == "union-cg")
+            cells, extra = _twoscale_parts(scene, h, iteration=iteration)
             parts.update(extra)
     except OverflowError:  # cells past any float (h = 1e-320 mm): no count to report
         raise SceneError(
@@ -187,43 +192,57 @@ def _material_cells(scene: Scene, grid: Grid) -> float:
     return float(min(grid.size, discs))
 
 
-def _twoscale_parts(scene: Scene, h: float, *, union: bool = False) -> tuple[int, dict]:
+def _twoscale_parts(scene: Scene, h: float, *, iteration: str = "auto") -> tuple[int, dict]:
+    """Cells carried and the parts of a two-scale solve's peak: the patches and the macro
+    matrix, then the larger of the block iterations' operators and the union CG's box where
+    both may run (they do not run together: a block attempt that did not converge lets its
+    operators go before the union CG starts; the patches stay for both). An ``iteration``
+    asked for runs alone (:func:`twoscale.micro.driver.run_micro`): only its own parts."""
     r = patch_half_widths(scene, h)
     on = r > 0
     across = _cells_across(r[on], h)
     patch_cells = across**2
     cells = int(patch_cells.sum())
     n = len(scene.asperities)
-    # a merged block (overlapping patches solved together) may have up to MERGE_GROWTH
-    # times its members' cells: its FFT work, not the patches' arrays, grows with it
-    growth = MERGE_GROWTH if int(on.sum()) > 1 else 1.0
-    parts = {
-        f"{int(on.sum())} patches": PATCH_BYTES_PER_CELL * cells,
-        "FFT work on the largest patch": FFT_WORK_BYTES_PER_CELL * growth * float(patch_cells.max(initial=0)),
-    }
-    if int(on.sum()) > 1:
-        parts["cached cross-patch operators"] = min(COUPLING_CACHE_BYTES, _pair_bytes(across))
+    parts = {f"{int(on.sum())} patches": PATCH_BYTES_PER_CELL * cells}
     if n <= MACRO_DENSE_MAX:
         parts["macro interaction matrix"] = 3.0 * 8.0 * n * n  # matrix, its LU, a work copy
     else:
         parts["macro interaction matrix"] = 2000.0 * n  # matrix-free point operator
     box = _patch_box(scene, r, h) if int(on.sum()) else None  # one patch: the union CG on it
+    blocks = {} if iteration == "union-cg" else _block_parts(across, box, cells)
+    # a height map's stones may take the union CG at any coverage, penetration from a lower share (policy.decide)
+    on_map = all(a.shape == "map" for a in scene.asperities)
+    crowded = box is not None and cells >= MODEL.union_coverage(scene.penetration is None, n) * box.size
+    union = {}
+    if box is not None and iteration in ("auto", "union-cg") and (iteration == "union-cg" or on_map or crowded):
+        union = _grid_parts(scene, box, "union box")
+        cells = max(cells, int(box.size))
+    parts.update(blocks if sum(blocks.values()) >= sum(union.values()) else union)
+    return cells, parts
+
+
+def _block_parts(across: np.ndarray, box: Grid | None, cells: int) -> dict:
+    """What the block iterations hold beyond the patches: the largest block's FFT work, the
+    cached cross-patch operators and, where the policy may take the far field, its weights
+    and point operator (``across``: cells across each patch that can touch)."""
+    patch_cells = across**2
+    count = len(across)
+    # a merged block (overlapping patches solved together) may have up to MERGE_GROWTH
+    # times its members' cells: its FFT work, not the patches' arrays, grows with it
+    growth = MERGE_GROWTH if count > 1 else 1.0
+    parts = {"FFT work on the largest patch": FFT_WORK_BYTES_PER_CELL * growth * float(patch_cells.max(initial=0))}
+    if count > 1:
+        parts["cached cross-patch operators"] = min(COUPLING_CACHE_BYTES, _pair_bytes(across))
     crowded = box is not None and cells >= UNION_MIN_COVERAGE * box.size
-    if int(on.sum()) > 1 and (not crowded or int(on.sum()) >= FAR_FIELD_MIN_PATCHES):
+    if count > 1 and (not crowded or count >= FAR_FIELD_MIN_PATCHES):
         # where the policy may take the far field (micro.policy.decide): its per-patch
         # weights, every patch cell counted as owned (4,548 paraboloids: 4.5 M owned cells,
         # 326 MB of source weights and 326 MB of interpolation rows measured)
         parts["far field's kept weights"] = KEPT_BYTES_PER_OWNED_CELL * cells
         # and its point operator among the patches (8,376 patches of paraboloids: 260 MB)
-        parts["far field's point operator"] = FAR_OPERATOR_BYTES_PER_PATCH * float(on.sum())
-    # a height map's stones may take the union CG at any coverage, penetration from a lower share (policy.decide)
-    on_map = all(a.shape == "map" for a in scene.asperities)
-    if box is not None and (union or on_map or cells >= MODEL.union_coverage(scene.penetration is None, n) * box.size):
-        # the union CG runs after the patches are built (and after a block iteration that
-        # did not converge): both are held at its peak
-        parts.update(_grid_parts(scene, box, "union box"))
-        cells = max(cells, int(box.size))
-    return cells, parts
+        parts["far field's point operator"] = FAR_OPERATOR_BYTES_PER_PATCH * float(count)
+    return parts
 
 
 def full_grid_route(scene: Scene, h: float, body: str | None = None) -> str | None:
