@@ -112,15 +112,14 @@ def test_an_iteration_asked_for_counts_only_what_it_builds(monkeypatch):
     assert not any("union box" in k for k in two_level) and "cached cross-patch operators" in two_level
 
 
-def test_auto_counts_the_larger_of_the_block_operators_and_the_union_box():
-    # they are not held together: a block attempt lets its operators go before the union CG
+def test_auto_counts_both_where_the_union_cg_may_follow_a_block_attempt():
+    # a union CG after a block attempt that did not converge runs beside what that attempt
+    # took (measured: 1,000 paraboloids, 2.27 GB against 1.30 GB and 1.38 GB alone)
     scene = _crowded_tips()
     est = estimate_memory(scene, 0.05, "twoscale")
     union = estimate_memory(scene, 0.05, "twoscale", iteration="union-cg").bytes
     blocks = estimate_memory(scene, 0.05, "twoscale", iteration="two-level").bytes
-    assert est.bytes == pytest.approx(max(union, blocks)) and est.bytes == pytest.approx(sum(b for _, b in est.parts))
-    names = [k for k, _ in est.parts]
-    assert not (any("union box" in k for k in names) and "cached cross-patch operators" in names)
+    assert max(union, blocks) < est.bytes < union + blocks
 
 
 def test_the_far_fields_kept_weights_are_counted_where_it_may_be_taken():

@@ -21,9 +21,7 @@ What the two methods carry:
   and its point operator among the patches;
   the dense macro matrix; and, where patches crowd their bounding box, the micro step may
   solve on that box as one grid (``union-cg``, :mod:`twoscale.micro.policy`), which costs
-  like the reference grid. The block iterations' operators and the union box are not held
-  together (a block attempt that did not converge lets its operators go before the union
-  CG runs): the larger of the two is counted.
+  like the reference grid. An iteration asked for runs alone and is counted alone.
 * the finite block (``[influence] kind = "block"``) adds its provider's build.
 
 Measured peaks against the estimate: :data:`~twoscale.memory_costs.CALIBRATION`. Not counted: the reference
@@ -103,10 +101,9 @@ def estimate_memory(scene: Scene, h: float, method: str = "twoscale", *, iterati
         The two-scale micro iteration asked for (``solve_twoscale``'s ``iteration``):
         ``"union-cg"`` counts the box of the patches and no block operators;
         ``"block-gs"`` and ``"two-level"`` the block operators and no box (an iteration
-        asked for runs alone); ``"auto"`` the larger of the two where the patches cover at
-        least ``MODEL.union_coverage`` of their box (:data:`UNION_MIN_COVERAGE`; under
-        penetration control a lower share) and on a height map's stones, the block
-        operators elsewhere.
+        asked for runs alone); ``"auto"`` the block operators, and the box too where the
+        patches cover at least ``MODEL.union_coverage`` of it (under penetration control a
+        lower share) and on a height map's stones (a union CG after a block attempt).
 
     Returns
     -------
