@@ -53,8 +53,8 @@ class MemoryEstimate:
     Attributes
     ----------
     bytes : float
-        Estimated peak resident memory, bytes (an upper estimate: within a factor of
-        about 2 of the measured peak, not below it).
+        Estimated peak resident memory, bytes (an upper estimate, not below the measured
+        peak: 1.2-2.5 times it on the runs measured, docs/records/scenes.md).
     cells : int
         Cells the solver will carry: the reference grid, or the patches (the union box
         when the micro step is expected to solve on it and it is larger).
