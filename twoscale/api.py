@@ -293,7 +293,7 @@ def _check_memory(scene: Scene, h: float, method: str, options: dict, memory_lim
         "twoscale" if method == "twoscale" else "reference",
         iteration=iteration,
         limit_bytes=memory_limit,
-        option="h" if h_given else "grid.h",
+        option="h",  # solve(..., h=) or Scene(h=): the keyword a Python caller gives
         h_given=h_given,
     )
 

@@ -21,7 +21,7 @@ What the two methods carry:
   and its point operator among the patches;
   the dense macro matrix; and, where patches crowd their bounding box, the micro step may
   solve on that box as one grid (``union-cg``, :mod:`twoscale.micro.policy`), which costs
-  like the reference grid.
+  like the reference grid. An iteration asked for runs alone and is counted alone.
 * the finite block (``[influence] kind = "block"``) adds its provider's build.
 
 Measured peaks against the estimate: :data:`~twoscale.memory_costs.CALIBRATION`. Not counted: the reference
@@ -39,16 +39,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .grid import Grid
-from .memory_costs import BASE_BYTES, GRID_BYTES_PER_CELL, PATCH_BYTES_PER_CELL, FFT_WORK_BYTES_PER_CELL
-from .memory_costs import COUPLING_CACHE_BYTES, MARGIN, MERGE_GROWTH, MACRO_DENSE_MAX, DENSE_CELLS
-from .memory_costs import FAR_OPERATOR_BYTES_PER_PATCH
-from .memory_costs import DENSE_GRID_CELLS, BLOCK_PROVIDER_BYTES, DEFAULT_FRACTION, ADVICE_SHARE
+from .memory_costs import BASE_BYTES, BLOCK_PROVIDER_BYTES, DEFAULT_FRACTION, ADVICE_SHARE
+from .memory_parts import grid_parts, twoscale_parts
 from .micro.full_grid_rule import FULL_GRID_MAX_TIPS, full_grid_max_cells, full_grid_route as policy_full_grid_route
-from .micro.policy import FAR_FIELD_MIN_PATCHES, MODEL, UNION_MIN_COVERAGE
-from .micro.sources import KEPT_BYTES_PER_OWNED_CELL
 from .pivot import pivot_route
-from .scene import SCENE_METHODS, Scene, SceneError, expected_approaches, expected_contact_radii, round_up
+from .scene import SCENE_METHODS, Scene, SceneError, expected_contact_radii, round_up
 
 
 @dataclass(frozen=True)
@@ -58,8 +53,8 @@ class MemoryEstimate:
     Attributes
     ----------
     bytes : float
-        Estimated peak resident memory, bytes (an upper estimate: within a factor of
-        about 2 of the measured peak, not below it).
+        Estimated peak resident memory, bytes (an upper estimate, not below the measured
+        peak: 1.2-2.5 times it on the runs measured, docs/records/scenes.md).
     cells : int
         Cells the solver will carry: the reference grid, or the patches (the union box
         when the micro step is expected to solve on it and it is larger).
@@ -92,29 +87,6 @@ class MemoryEstimate:
         return self.text
 
 
-# ---------------------------------------------------------------- geometry
-def patch_half_widths(scene: Scene, h: float, *, margin: float = MARGIN) -> np.ndarray:
-    """Estimated half-width (mm) of each asperity's patch, 0 for one that cannot touch:
-    ``min(margin a_k + 2 h, reach_k + h)`` as :func:`twoscale.micro.patches.patch_radius`,
-    with ``a_k`` the contact radius alone at the expected approach."""
-    delta = expected_approaches(scene)
-    a = expected_contact_radii(scene)
-    out = np.zeros(len(scene.asperities))
-    for k, asp in enumerate(scene.asperities):
-        if delta[k] > 0:
-            out[k] = min(asp.reach(float(delta[k])) + h, margin * float(a[k]) + 2.0 * h)
-    return out
-
-
-def _cells_across(r: np.ndarray, h: float) -> np.ndarray:
-    return np.floor(2.0 * r / h) + 1.0
-
-
-def _padded(cells: float) -> float:
-    """Points of the zero-padded FFT of a grid of ``cells`` cells (about 2 x 2 times)."""
-    return 4.0 * cells
-
-
 # ---------------------------------------------------------------- the estimate
 def estimate_memory(scene: Scene, h: float, method: str = "twoscale", *, iteration: str = "auto") -> MemoryEstimate:
     """Peak memory of solving ``scene`` at cell size ``h`` with ``method``.
@@ -127,9 +99,11 @@ def estimate_memory(scene: Scene, h: float, method: str = "twoscale", *, iterati
     method : {"twoscale", "reference"}, default "twoscale"
     iteration : str, default "auto"
         The two-scale micro iteration asked for (``solve_twoscale``'s ``iteration``):
-        ``"union-cg"`` always counts the box of the patches; any other value counts it
-        where the patches cover at least :data:`UNION_MIN_COVERAGE` of it (under penetration
-        control ``MODEL.union_coverage``), and always on a height map's stones.
+        ``"union-cg"`` counts the box of the patches and no block operators;
+        ``"block-gs"`` and ``"two-level"`` the block operators and no box (an iteration
+        asked for runs alone); ``"auto"`` the block operators, and the box too where the
+        patches cover at least ``MODEL.union_coverage`` of it (under penetration control a
+        lower share) and on a height map's stones (a union CG after a block attempt).
 
     Returns
     -------
@@ -147,9 +121,9 @@ def estimate_memory(scene: Scene, h: float, method: str = "twoscale", *, iterati
 
             grid = reference_grid(scene, h)
             cells = int(grid.size)
-            parts.update(_grid_parts(scene, grid, "reference grid"))
+            parts.update(grid_parts(scene, grid, "reference grid"))
         else:
-            cells, extra = _twoscale_parts(scene, h, union=iteration == "union-cg")
+            cells, extra = twoscale_parts(scene, h, iteration=iteration)
             parts.update(extra)
     except OverflowError:  # cells past any float (h = 1e-320 mm): no count to report
         raise SceneError(
@@ -162,68 +136,6 @@ def estimate_memory(scene: Scene, h: float, method: str = "twoscale", *, iterati
         (k for k in parts if k != "interpreter and libraries"), key=parts.get, default="interpreter and libraries"
     )
     return MemoryEstimate(total, cells, dominant, method, float(h), tuple((k, float(v)) for k, v in parts.items()))
-
-
-def _grid_parts(scene: Scene, grid: Grid, name: str) -> dict:
-    n = float(grid.size)
-    parts = {
-        f"the {name} ({grid.ny} x {grid.nx} cells) and its FFT work": (GRID_BYTES_PER_CELL + FFT_WORK_BYTES_PER_CELL)
-        * n
-    }
-    if name == "reference grid":
-        material = _material_cells(scene, grid)
-        if material <= DENSE_CELLS:  # the dense solver: its matrix, a sub-matrix, a factor
-            whole = n if n <= DENSE_GRID_CELLS else 0.0
-            parts["dense influence matrix"] = 8.0 * (whole**2 + 2.0 * material**2)
-    return parts
-
-
-def _material_cells(scene: Scene, grid: Grid) -> float:
-    """Cells of ``grid`` under indenter material (an upper estimate): the whole grid for
-    paraboloids, the discs ``r < R`` of the spheres otherwise."""
-    if any(a.shape != "sphere" for a in scene.asperities):
-        return float(grid.size)
-    discs = sum(math.pi * (a.R + grid.h) ** 2 for a in scene.asperities) / grid.h**2
-    return float(min(grid.size, discs))
-
-
-def _twoscale_parts(scene: Scene, h: float, *, union: bool = False) -> tuple[int, dict]:
-    r = patch_half_widths(scene, h)
-    on = r > 0
-    across = _cells_across(r[on], h)
-    patch_cells = across**2
-    cells = int(patch_cells.sum())
-    n = len(scene.asperities)
-    # a merged block (overlapping patches solved together) may have up to MERGE_GROWTH
-    # times its members' cells: its FFT work, not the patches' arrays, grows with it
-    growth = MERGE_GROWTH if int(on.sum()) > 1 else 1.0
-    parts = {
-        f"{int(on.sum())} patches": PATCH_BYTES_PER_CELL * cells,
-        "FFT work on the largest patch": FFT_WORK_BYTES_PER_CELL * growth * float(patch_cells.max(initial=0)),
-    }
-    if int(on.sum()) > 1:
-        parts["cached cross-patch operators"] = min(COUPLING_CACHE_BYTES, _pair_bytes(across))
-    if n <= MACRO_DENSE_MAX:
-        parts["macro interaction matrix"] = 3.0 * 8.0 * n * n  # matrix, its LU, a work copy
-    else:
-        parts["macro interaction matrix"] = 2000.0 * n  # matrix-free point operator
-    box = _patch_box(scene, r, h) if int(on.sum()) else None  # one patch: the union CG on it
-    crowded = box is not None and cells >= UNION_MIN_COVERAGE * box.size
-    if int(on.sum()) > 1 and (not crowded or int(on.sum()) >= FAR_FIELD_MIN_PATCHES):
-        # where the policy may take the far field (micro.policy.decide): its per-patch
-        # weights, every patch cell counted as owned (4,548 paraboloids: 4.5 M owned cells,
-        # 326 MB of source weights and 326 MB of interpolation rows measured)
-        parts["far field's kept weights"] = KEPT_BYTES_PER_OWNED_CELL * cells
-        # and its point operator among the patches (8,376 patches of paraboloids: 260 MB)
-        parts["far field's point operator"] = FAR_OPERATOR_BYTES_PER_PATCH * float(on.sum())
-    # a height map's stones may take the union CG at any coverage, penetration from a lower share (policy.decide)
-    on_map = all(a.shape == "map" for a in scene.asperities)
-    if box is not None and (union or on_map or cells >= MODEL.union_coverage(scene.penetration is None, n) * box.size):
-        # the union CG runs after the patches are built (and after a block iteration that
-        # did not converge): both are held at its peak
-        parts.update(_grid_parts(scene, box, "union box"))
-        cells = max(cells, int(box.size))
-    return cells, parts
 
 
 def full_grid_route(scene: Scene, h: float, body: str | None = None) -> str | None:
@@ -243,29 +155,6 @@ def full_grid_route(scene: Scene, h: float, body: str | None = None) -> str | No
     if (np.ptp(x) / h + 1.0) * (np.ptp(y) / h + 1.0) > full_grid_max_cells(tips):
         return None  # the tips' own box already has more cells a tip
     return policy_full_grid_route(int(reference_grid(scene, h).size), tips, pressed)
-
-
-def _pair_bytes(across: np.ndarray) -> float:
-    """Bytes of every cross-patch FFT operator, ``sum_{k != l} 8 (n_k + n_l)^2`` with
-    ``n`` cells across (``Coupling.full_operator``'s size of a half-spectrum)."""
-    s = float(across.sum())
-    sq = float((across**2).sum())
-    return 8.0 * (2.0 * (len(across) - 1) * sq + 2.0 * (s * s - sq))
-
-
-def _patch_box(scene: Scene, r: np.ndarray, h: float) -> Grid | None:
-    on = r > 0
-    if not np.any(on):
-        return None
-    tips = scene.tips[on]
-    rr = r[on]
-    return Grid.covering(
-        float((tips[:, 0] - rr).min()),
-        float((tips[:, 0] + rr).max()),
-        float((tips[:, 1] - rr).min()),
-        float((tips[:, 1] + rr).max()),
-        h,
-    )
 
 
 # ---------------------------------------------------------------- the check
