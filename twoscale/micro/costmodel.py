@@ -328,8 +328,9 @@ FITTED = CostModel(
     sensitivity_factor=1.9,
     union_work_exponent=0.216,
     # the union CG took 12-43 iterations on the forced runs (median factor 1.20 against this
-    # count; the load and the tilt fitted to no iteration): 14-22 on boxes its patches
-    # cover 2-20 % of, where the 40 products counted before over-predicted it 1.4-2.2x
+    # count, the load fitted to none): 14-22 on boxes its patches cover 2-20 %, where the 40
+    # products before over-predicted it 1.4-2.2x; the tilt's 12.4 are its plane's products
+    # (fitted on the time: 1.25-2.1 ns a unit an iteration against 0.6-1.2 without the tilt)
     union_iterations=SweepCount(16.1, 6.48, tilt=12.4),
     # the union CG up to 1.7x the best exact block iteration's prediction: faster on 8 of 10
     # sweep scenes solved both ways, slower on 23 and 27 paraboloids under load (1.92/1.31,
