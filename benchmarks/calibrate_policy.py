@@ -209,7 +209,8 @@ def predict(models: dict, row: dict) -> float:
 
 
 def _model_from(models: dict):
-    """The installed cost model with this fit's coefficients (margins and budgets kept)."""
+    """The installed cost model with this fit's coefficients (margins and budgets kept); its
+    union CG at the fixed ``union_products`` this fit's work counted (no iteration count)."""
     import dataclasses
 
     from twoscale.micro.costmodel import FITTED
@@ -221,6 +222,7 @@ def _model_from(models: dict):
         load_factor=models["factors"]["load"],
         tilt_factor=models["factors"]["tilt"],
         union_work_exponent=models["factors"]["union_exponent"],
+        union_iterations=None,
     )
 
 

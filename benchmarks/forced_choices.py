@@ -95,25 +95,30 @@ def score(found: list[dict], model, within: float) -> tuple[int, int, list, floa
     return hits, counted, picks, spent / max(best, 1e-300)
 
 
-def refitted(rows: list[dict], bounds: tuple, sweeps: bool = False, far_patch: bool = False):
+def refitted(rows: list[dict], bounds: tuple, sweeps: bool = False, far_patch: bool = False, union: bool = False):
     """The fit on ``rows``: ``benchmarks/calibrate_policy.py``'s, or with ``sweeps`` the
     block iterations' expected sweep counts (``benchmarks/sweep_counts.py``), or with
     ``far_patch`` the installed model with the far field's seconds a unit and seconds a
-    patch refitted (``sweep_counts.fit_far``)."""
-    if not (sweeps or far_patch):
+    patch refitted (``sweep_counts.fit_far``), or with ``union`` the union CG's expected
+    iterations and seconds (``sweep_counts.fit_union``; with ``far_patch`` both)."""
+    if not (sweeps or far_patch or union):
         return _model_from(fit(fitted(forced_samples(rows), *bounds)))
-    from benchmarks.sweep_counts import fit_far, fit_model
+    from benchmarks.sweep_counts import fit_far, fit_model, fit_union
 
     samples = fitted([s for s in forced_samples(rows) if s["seconds"] >= bounds[0]], 0.0, bounds[1])
+    if union:
+        base = fit_union(samples)
+        return fit_far(samples, base) if far_patch else base
     return fit_far(samples) if far_patch else fit_model(samples)
 
 
-def left_out(rows: list[dict], bounds: tuple, kept: dict, sweeps: bool = False, far_patch: bool = False):
-    """Per scene, the fit on the other scenes' rows (a cross-validated pick)."""
+def left_out(rows: list[dict], bounds: tuple, kept: dict, *flags: bool):
+    """Per scene, the fit on the other scenes' rows (a cross-validated pick; ``flags`` as
+    :func:`refitted`'s)."""
 
     def model(sc: dict):
         others = [r for r in rows if (int(r.get("seed", 0)), r["scene"]) != (sc["seed"], sc["scene"])]
-        return dataclasses.replace(refitted(others, bounds, sweeps, far_patch), **kept)
+        return dataclasses.replace(refitted(others, bounds, *flags), **kept)
 
     return model
 
@@ -140,12 +145,14 @@ def main(argv=None) -> int:
     p.add_argument("--margins", action="store_true", help="the hits for a range of each margin")
     p.add_argument("--sweeps", action="store_true", help="refit with sweep counts (benchmarks/sweep_counts.py)")
     p.add_argument("--far-patch", action="store_true", help="refit the far field's seconds a unit and a patch")
+    p.add_argument("--union", action="store_true", help="refit the union CG's iterations and seconds")
     args = p.parse_args(argv)
     from twoscale.micro.costmodel import FITTED
 
     rows = forced_rows(args.forced)
     bounds = (args.min_seconds, args.max_sweeps)
-    refit = refitted(rows, bounds, args.sweeps, args.far_patch)
+    flags = (args.sweeps, args.far_patch, args.union)
+    refit = refitted(rows, bounds, *flags)
     kept = {"union_margin": args.union_margin, "far_union_margin": args.far_union_margin}
     kept = {k: v for k, v in kept.items() if v is not None}
     refit = dataclasses.replace(refit, **kept)
@@ -169,7 +176,7 @@ def main(argv=None) -> int:
         f"installed model: the fastest (or within {args.within:g}x) on {h0} of {n0} scenes; picks' s / fastest {s0:.3f}"
     )
     print(f"refit: on {h1} of {n1} ({s1:.3f}); {sum(a != b for a, b in zip(before, after))} picks change")
-    h2, n2, _, s2 = score(found, left_out(rows, bounds, kept, args.sweeps, args.far_patch), args.within)
+    h2, n2, _, s2 = score(found, left_out(rows, bounds, kept, *flags), args.within)
     print(f"refit on the other scenes' rows only (each scene left out of its own fit): on {h2} of {n2} ({s2:.3f})")
     print(f"refit's pick over {args.worse:g}x slower than the installed one's: {len(worse)}")
     print("\n".join(worse))

@@ -158,6 +158,47 @@ def fit_far(rows: list[dict], model=None):
     return dataclasses.replace(model, ns_per_unit=ns, far_patch_seconds=float(f"{math.exp(q[1]):.3g}"))
 
 
+def fit_union(rows: list[dict], model=None):
+    """``model`` (default: the installed one) with the union CG's expected iterations
+    (``CostModel.union_iterations``: its ``base`` and ``interaction`` fitted to the CG
+    iterations its converged attempts in ``rows`` took, least squares on their logarithm)
+    and, with them, its fixed seconds, seconds a unit, growth exponent and the tilt's
+    iterations' worth of products (the count's ``tilt``: with the tilt free an iteration
+    also fits and restores the plane; least squares on the logarithm of the time); every
+    other candidate's coefficients kept."""
+    from scipy.optimize import least_squares
+
+    from twoscale.micro.costmodel import FITTED, SweepCount
+    from twoscale.micro.costmodel import UNION_REFERENCE_WORK as REF
+
+    model = FITTED if model is None else model
+    got = [r for r in rows if r["candidate"] == "union-cg" and r["converged"] and r["sweeps"]]
+    its = np.array([r["sweeps"] for r in got], dtype=float)
+    t, w = np.array([r["seconds"] for r in got]), np.array([r["work"] for r in got])
+    cov = [r["coverage"] for r in got]
+    _, tilt = _controls(got)
+
+    def counted(base, interaction, tilted=0.0):
+        count = SweepCount(base, interaction, tilt=tilted)
+        return np.array([count(c, tilt=bool(ti)) for c, ti in zip(cov, tilt)])
+
+    q = least_squares(lambda q: np.log(counted(*q)) - np.log(its), [float(np.median(its)), 1.0], bounds=(0.0, np.inf)).x
+    q = [float(f"{v:.3g}") for v in q]
+
+    def resid(p):
+        unit = w * counted(*q, p[3]) / model.union_products
+        return np.log(np.exp(p[0]) + 1e-9 * np.exp(p[1]) * unit * (w / REF) ** p[2]) - np.log(t)
+
+    lo, hi = [-np.inf, -np.inf, -1.0, 0.0], [math.log(MAX_FIXED), np.inf, 1.0, np.inf]
+    p = least_squares(resid, [math.log(0.02), 0.0, 0.2, 1.0], bounds=(lo, hi)).x
+    fixed = {**model.fixed_seconds, "union-cg": float(f"{math.exp(p[0]):.3g}")}
+    ns = {**model.ns_per_unit, "union-cg": float(f"{math.exp(p[1]):.3g}")}
+    count = SweepCount(*q, tilt=float(f"{p[3]:.3g}"))
+    return dataclasses.replace(
+        model, union_iterations=count, fixed_seconds=fixed, ns_per_unit=ns, union_work_exponent=float(f"{p[2]:.3g}")
+    )
+
+
 def factors(model, rows: list[dict]) -> dict:
     """Per candidate (and ``all``): the median factor between predicted and measured seconds
     and the converged attempts off by more than 2x, as ``(median, off, count)``."""
@@ -214,6 +255,13 @@ def main(argv=None) -> int:
     print(_line("far field's seconds a patch", factors(far, samples)))
     print(f"    far field: {far.ns_per_unit['two-level']:.3g} ns a unit + {1e6 * far.far_patch_seconds:.3g} us a patch")
     print(f"    and sweep (fixed {far.fixed_seconds['two-level']:.3g} s, sweeps {far.sweeps['two-level']})")
+    union = fit_union(samples)
+    print(_line("union CG's iterations", factors(union, samples)))
+    u = union.union_iterations
+    print(f"    union CG: {u}; {union.fixed_seconds['union-cg']:.3g} s + {union.ns_per_unit['union-cg']:.3g} ns a unit")
+    print(f"    of a box product an iteration, growth exponent {union.union_work_exponent:g}")
+    both = fit_far(samples, union)
+    print(_line("both", factors(both, samples)))
     print("expected against measured sweeps: median factor, off by more than 1.5x")
     print(_line("with the sweep counts", count_factors(model, samples)))
     low = [s for s in samples if s["seed"] <= args.split]
@@ -225,6 +273,8 @@ def main(argv=None) -> int:
         print(_line("with the sweep counts", factors(held, test)))
         print(_line("their sweeps", count_factors(held, test)))
         print(_line("far field's seconds a patch", factors(fit_far(train), test)))
+        print(_line("union CG's iterations", factors(fit_union(train), test)))
+        print(_line("both", factors(fit_far(train, fit_union(train)), test)))
     if args.emit:
         print("\n    sweeps={")
         for key, c in model.sweeps.items():

@@ -171,3 +171,59 @@ def test_the_far_fit_recovers_a_known_cost_a_unit_and_a_patch():
     assert {k: v for k, v in got.ns_per_unit.items() if k != "two-level"} == {
         k: v for k, v in FITTED.ns_per_unit.items() if k != "two-level"
     }
+
+
+def test_the_union_cgs_seconds_follow_its_expected_iterations():
+    from twoscale.micro.costmodel import UNION_REFERENCE_WORK
+
+    count = SweepCount(16.0, 6.0, tilt=12.0)
+    model = dataclasses.replace(FITTED, union_iterations=count, union_work_exponent=0.25)
+    work = 4e9
+    for coverage, load, tilt in ((0.04, False, False), (0.36, True, False), (0.64, True, True)):
+        rho = math.sqrt(coverage)
+        iterations = 16.0 + 6.0 * math.log(1.0 / (1.0 - rho)) + (12.0 if tilt else 0.0)
+        expected = (
+            model.fixed_seconds["union-cg"]
+            + 1e-9
+            * model.ns_per_unit["union-cg"]
+            * work
+            * (work / UNION_REFERENCE_WORK) ** 0.25
+            * iterations
+            / model.union_products
+        )
+        got = model.seconds({"union-cg": work}, load_control=load, tilt=tilt, coverage=coverage)["union-cg"]
+        assert got == pytest.approx(expected, rel=1e-12)
+    # a box the patches cover sparsely costs fewer iterations than a crowded one
+    sparse, crowded = (model.seconds({"union-cg": work}, coverage=c)["union-cg"] for c in (0.05, 0.6))
+    assert sparse < crowded
+    # without a count, or without the coverage, the fixed products
+    fixed = dataclasses.replace(model, union_iterations=None).seconds({"union-cg": work}, coverage=0.3)
+    assert model.seconds({"union-cg": work})["union-cg"] == pytest.approx(fixed["union-cg"], rel=1e-12)
+
+
+def test_the_union_fit_recovers_a_known_iteration_count_and_cost():
+    from benchmarks.sweep_counts import fit_union
+
+    count = SweepCount(15.0, 7.0, tilt=10.0)
+    fixed = {**FITTED.fixed_seconds, "union-cg": 0.03}
+    ns = {**FITTED.ns_per_unit, "union-cg": 0.9}
+    model = dataclasses.replace(FITTED, union_iterations=count, fixed_seconds=fixed, ns_per_unit=ns)
+    model = dataclasses.replace(model, union_work_exponent=0.2)
+    rows = []
+    for work in (1e8, 1e9, 1e10, 4e10):
+        for coverage in (0.02, 0.1, 0.3, 0.6, 0.85):
+            for control in ("penetration", "load", "tilt"):
+                load, tilt = control != "penetration", control == "tilt"
+                t = model.seconds({"union-cg": work}, load_control=load, tilt=tilt, coverage=coverage)["union-cg"]
+                # the iterations taken: the count without the tilt's products
+                its = count(coverage, load_control=load)
+                rows.append(_sample("union-cg", coverage, control, t, its) | {"work": work})
+    got = fit_union(rows)
+    assert got.union_iterations.base == pytest.approx(15.0, rel=1e-2)
+    assert got.union_iterations.interaction == pytest.approx(7.0, rel=1e-2)
+    assert got.union_iterations.tilt == pytest.approx(10.0, rel=2e-2)
+    assert got.ns_per_unit["union-cg"] == pytest.approx(0.9, rel=2e-2)
+    assert got.fixed_seconds["union-cg"] == pytest.approx(0.03, rel=2e-2)
+    assert got.union_work_exponent == pytest.approx(0.2, abs=5e-3)
+    # the block candidates kept
+    assert got.sweeps == FITTED.sweeps and got.ns_per_unit["two-level"] == FITTED.ns_per_unit["two-level"]

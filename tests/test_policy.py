@@ -222,13 +222,15 @@ def test_the_cost_model_decides_and_its_margin_works_both_ways():
     pts, box = _patches(asps, 3.0, 0.3, 0.05)
     work = choose(pts, box).estimates["work"]
     ratio = work["union-cg"] / work["block-gs"]
-    # a model where the union CG is predicted 1.3x the block iterations (their sweeps fixed)
+    # a model where the union CG is predicted 1.3x the block iterations (their sweeps and its
+    # iterations fixed)
     model = dataclasses.replace(
         FITTED,
         ns_per_unit={"union-cg": 1.3 / ratio, "block-gs": 1.0, "two-level": 1.0},
         fixed_seconds={"union-cg": 0.0, "block-gs": 0.0, "two-level": 0.0},
         union_work_exponent=0.0,
         sweeps=None,
+        union_iterations=None,
     )
     assert choose(pts, box, model=dataclasses.replace(model, union_margin=1.0)).iteration == "block-gs"
     picked = choose(pts, box, model=dataclasses.replace(model, union_margin=1.7))
@@ -297,8 +299,8 @@ def test_the_union_prediction_grows_faster_than_its_work():
 
 
 def _model_predicting(work: dict, seconds: dict, **fields):
-    """The fitted cost model with no fixed costs, a linear union CG and the block
-    iterations' sweeps fixed, its nanoseconds per unit set so that it predicts ``seconds``
+    """The fitted cost model with no fixed costs, a linear union CG of fixed iterations and
+    the block iterations' sweeps fixed, its nanoseconds per unit set so that it predicts ``seconds``
     for the candidates' ``work``; ``fields`` on top."""
     import dataclasses
 
@@ -309,7 +311,7 @@ def _model_predicting(work: dict, seconds: dict, **fields):
         fixed_seconds={"union-cg": 0.0, "block-gs": 0.0, "two-level": 0.0},
         union_work_exponent=0.0,
         ns_per_unit={k: 1e9 * v / work[k] for k, v in seconds.items()},
-        **{"sweeps": None, **fields},
+        **{"sweeps": None, "union_iterations": None, **fields},
     )
 
 

@@ -97,6 +97,12 @@ class CostModel:
     union_products : float
         Effective double-precision products of one union CG solve (mixed precision and
         the FFT preconditioner: 60 x 1.25 x 63 / 121 ~ 40 on 300 dense tips).
+    union_iterations : SweepCount or None
+        The CG iterations the union CG is expected to take, from the patches' coverage of
+        their box and the control (:class:`SweepCount`, its ``rho`` the same measure of
+        their interaction): its work times ``iterations / union_products`` (``ns_per_unit``
+        then prices one box product an iteration). On sparse boxes it takes few (14-22 at
+        2-20 % of the box, 25-43 above 30 %). None: the fixed count.
     gs_sweeps : float
         Block sweeps the work estimate counts (:func:`.policy.estimate_costs`).
     sweeps : dict or None
@@ -145,8 +151,8 @@ class CostModel:
         2.3 s), so the tilt keeps the bound measured before (45).
     map_far_field_factor : float
         A factor on the far-field two-level iteration's predicted seconds on a height
-        map's stones (the fit saw tips; on maps the union CG ran 0.74-1.0x the far field
-        where its prediction was 1.9-2.3x).
+        map's stones: the union CG's products there run on the part of the box the
+        contact can reach, which its work does not count (fitted on maps).
     exact_max_patches : int
         Above this many patches exact pair coupling is not considered (N^2 pairs).
     two_level_sweeps : int
@@ -176,6 +182,7 @@ class CostModel:
     union_small_box_cells: int = 0
     union_work_exponent: float = 0.0
     union_products: float = 40.0
+    union_iterations: SweepCount | None = None
     gs_sweeps: float = 10.0
     sweeps: dict | None = None
     local_products: float = 6.0
@@ -209,6 +216,8 @@ class CostModel:
             ):
                 raise ValueError(f"cost model sweeps maps {CANDIDATES[1:]} to SweepCount, got {self.sweeps!r}")
             object.__setattr__(self, "sweeps", MappingProxyType(dict(self.sweeps)))
+        if self.union_iterations is not None and not isinstance(self.union_iterations, SweepCount):
+            raise ValueError(f"cost model union_iterations must be a SweepCount, got {self.union_iterations!r}")
         if not 0.0 <= self.union_margin_min_coverage <= 1.0:
             raise ValueError(
                 f"cost model union_margin_min_coverage must be in [0, 1], got {self.union_margin_min_coverage!r}"
@@ -246,6 +255,13 @@ class CostModel:
             return factor * count(coverage, load_control=load_control, tilt=tilt) / self.gs_sweeps
         return factor
 
+    def union_factor(self, coverage: float | None, load_control: bool, tilt: bool) -> float:
+        """The factor on the union CG's work: its expected iterations over ``union_products``
+        (:attr:`union_iterations`, where the ``coverage`` is known), else 1."""
+        if self.union_iterations is None or coverage is None:
+            return 1.0
+        return self.union_iterations(coverage, load_control=load_control, tilt=tilt) / self.union_products
+
     def seconds(
         self,
         work: dict,
@@ -263,7 +279,9 @@ class CostModel:
         for k, w in work.items():
             w = float(w)
             if k == "union-cg":
-                out[k] = self.fixed_seconds[k] + 1e-9 * self.ns_per_unit[k] * w * union(w)
+                out[k] = self.fixed_seconds[k] + 1e-9 * self.ns_per_unit[k] * w * union(w) * self.union_factor(
+                    coverage, load_control, tilt
+                )
                 continue
             at_gs_sweeps = 1e-9 * self.ns_per_unit[k] * w
             if k == "two-level" and self.far_patch_seconds is not None and patches is not None:
@@ -288,13 +306,16 @@ class CostModel:
 #: each block candidate's seconds a unit and fixed seconds with them, the union CG's kept.
 SPEEDUP = 0.459
 FITTED = CostModel(
-    ns_per_unit={"union-cg": 1.04 * SPEEDUP, "block-gs": 1.29, "two-level": 1.8},
+    # the union CG's: its seconds a unit of one box product an iteration, with its expected
+    # iterations from the coverage (union_iterations) and its growth exponent, fitted on its
+    # 64 forced attempts of the 76 scenes below (benchmarks/sweep_counts.py fit_union)
+    ns_per_unit={"union-cg": 0.806, "block-gs": 1.29, "two-level": 1.8},
     # fixed seconds refitted on the sweep's 24 smallest two-scale scenes (seeds 0-5, micro
     # steps of 0.01-0.15 s, every candidate forced): 0.047 x SPEEDUP, 0.0086 and 0.0135 before,
     # fitted on larger scenes, had block Gauss-Seidel on 5 paraboloids at 9 % of a 20 K-cell
     # box 1.2x slower than the union CG; the measured fastest (within 10 %) on 23 of 24 scenes,
     # 21 before; of the other forced scenes none moved its pick (docs/records/sweep.md)
-    fixed_seconds={"union-cg": 0.025, "block-gs": 0.021, "two-level": 0.023},
+    fixed_seconds={"union-cg": 0.0236, "block-gs": 0.021, "two-level": 0.023},
     sweeps={
         # the far field took 3-15 sweeps (the count's median factor 1.13), the exact block
         # iterations 3-40 (1.35)
@@ -305,30 +326,26 @@ FITTED = CostModel(
     # with 11 sweeps, 2 corrections and 11 sensitivity sweeps took 2.0-2.6 s of CPU against
     # the 1.18 s predicted (0.38-0.45 of it: the largest block-gs miss of the sweep)
     sensitivity_factor=1.9,
-    union_work_exponent=0.233,
-    # the union CG against its own prediction being up to 1.7x the best exact block
-    # iteration's: in that band it ran faster on 8 of the 10 sweep scenes solved both ways (CPU s, union
-    # against the policy's choice: 4 spheres 0.31/1.98 and 0.14/0.59, 2 spheres 0.05/0.15
-    # and 0.05/0.16, 11 spheres 0.09/0.31, 8 spheres 0.48/0.73, 60 paraboloids 0.61/0.73,
-    # 281 paraboloids 9.4 s against a diverged two-level attempt and then the same CG;
-    # slower on 23 and 27 paraboloids under load, 1.92/1.31 and 4.86/3.04, both still a
-    # quarter of the reference's time). Not separated by any margin (docs/records/sweep.md,
-    # large scenes): 814 spheres under load, union CG over 110 s of CPU against 40 s for the
-    # two-level iteration, predicted 1.35x; 281 paraboloids, union CG 3.2 s against a
-    # two-level attempt that failed (12 s with the union CG after it), predicted 1.16x
+    union_work_exponent=0.216,
+    # the union CG took 12-43 iterations on the forced runs (median factor 1.20 against this
+    # count, the load fitted to none): 14-22 on boxes its patches cover 2-20 %, where the 40
+    # products before over-predicted it 1.4-2.2x; the tilt's 12.4 are its plane's products
+    # (fitted on the time: 1.25-2.1 ns a unit an iteration against 0.6-1.2 without the tilt)
+    union_iterations=SweepCount(16.1, 6.48, tilt=12.4),
+    # the union CG up to 1.7x the best exact block iteration's prediction: faster on 8 of 10
+    # sweep scenes solved both ways, slower on 23 and 27 paraboloids under load (1.92/1.31,
+    # 4.86/3.04 s); with the iteration count, 69 of the 76 forced scenes at 1.7-3, 67-68 at
+    # 1.0-1.4 (forced_choices.py --union --margins; docs/records/sweep.md)
     union_margin=1.7,
-    # chosen from the forced runs' measured costs with the sweep counts (benchmarks/
-    # forced_choices.py --sweeps, 76 scenes of seeds 0-5, micro-step CPU s): the measured
-    # fastest or within 10 % on 65-67 scenes at 0.9-1.1, the picks' seconds 1.135x the
-    # fastest's at 1.05-1.07 (1.15 at 0.9-1.0), none over 1.5x the pick of the fixed count
-    # at 1.85 (56 of 75 scenes, 1.30); 1.07 lies in the gap of the predicted ratios where no
-    # pick changes (1.01-1.09). Gained: seed 5's #115, 8,049 tilted spheres, union CG
-    # 37.3 s against 17.6, #164 15.2 against 12.0, maps of 34-105 stones. Still misordered
-    # (the far field's seconds a sweep, not its sweeps): seed 0's #87 and #141 (1,735 and
-    # 5,995 patches under penetration, the union CG 2.8-3.3x slower, predicted 0.67 and
-    # 0.84), and #198 taken by the far field at a predicted 1.14 (a tie in the forced runs,
-    # 1.2-1.36x slower in ab_trees); docs/records/sweep.md
-    far_union_margin=1.07,
+    # chosen from the forced runs' measured costs with the union CG's iteration count
+    # (benchmarks/forced_choices.py, 76 scenes of seeds 0-5, micro-step CPU s): the measured
+    # fastest or within 10 % on 69 scenes at 0.82-0.88 (66 at 1.07 before), the picks'
+    # seconds 1.133x the fastest's, none over 1.5x the pick of the model before; 0.7: seed
+    # 0's #115 (2,416 paraboloids under load) on the far field at 25.7 s against 14.7;
+    # 0.9-1.0: seed 4's #80 (5 spheres under load) on the union CG, 0.109 s against 0.081.
+    # Still misordered: seed 0's #87 and #141 (1,735 and 5,995 patches under penetration,
+    # union CG 3.3 and 2.8x slower, predicted 0.72x: the far field's seconds a sweep)
+    far_union_margin=0.87,
     # from 0.25: between 14 and 25 % the prediction decides (road maps of 30 and 50 mm at
     # 15-18 %: union CG 0.34 s and 0.67 s of CPU against 0.68 s and 1.59 s for the two-level
     # iteration; 96 spheres at 20 %: 1.30 s against 3.14 s; lighter load-control scenes at
@@ -351,14 +368,10 @@ FITTED = CostModel(
     # 0.100 against 0.139) and on 3 tilted paraboloids under load (policy.decide); a box of
     # 0.1 M cells holds about 50 MB of its arrays (docs/records/sweep.md)
     union_small_box_cells=100_000,
-    # the margins' evidence at low coverage (ninth run, in-process CPU s, union CG against
-    # the two-level iteration with exact coupling): 23 paraboloids under load at 16 % of
-    # the box 1.84 / 1.56, 27 paraboloids under load at 15 % 3.90 / 3.02 (peak 487 / 166 MB,
-    # the union box 1.52x the memory estimate, which had predicted 13.8 % and not counted
-    # it); where the margins won, 2,875 spheres under load at 19.5 % (19.1 s against 27.9 s
-    # for the far-field two-level iteration), 281 paraboloids at 27 % (2.8 s, 0.29x the
-    # reference) and 1,735 at 58 % (28 s, 0.20x); merged contacts under load and maps keep
-    # them. The bound lies between 16 and 19.5 %
+    # the margins' evidence at low coverage (ninth run, CPU s, union CG against the exact
+    # two-level iteration): 23 and 27 paraboloids under load at 16 and 15 % of the box 1.84 /
+    # 1.56 and 3.90 / 3.02; the margins won on 2,875 spheres under load at 19.5 % (19.1 s
+    # against 27.9 for the far field). The bound lies between 16 and 19.5 %
     union_margin_min_coverage=0.17,
     # the sweep's scenes of 9-74 patches at 14-19.3 % of their box, none merged, the far
     # field against the choice before it (union CG or exact block iterations; interleaved
@@ -367,28 +380,21 @@ FITTED = CostModel(
     # 0.87 / 0.86, 9 spheres under load 1.93 / 1.88; 44 with merged contacts at 16.8 %
     # 1.15 / 1.30 s (kept on the union CG); 96 at 20.4 %: union CG 1.61 s, far field 2.30
     far_field_sparse_coverage=0.2,
-    # the only two sweep scenes (seeds 0-4) of under 100 patches on a box of over 10 M cells,
-    # both on the union CG before (interleaved CPU s, fresh processes, loaded host): seed 3's
-    # #11, 93 spheres with merged contacts at 23 % of 17.5 M cells, 70.2 / 70.3 against 56.2 /
-    # 53.2 for the far field (peak 5.2 against 4.7 GB); seed 2's #120, 95 paraboloids at 25 %
-    # of 12 M, 43.7 against 16.2 / 18.0 (3.5 against 1.2 GB); forces within 3.6e-4 and 2.1e-5
-    # of the largest. Their 93 and 95 patches lie in 11 and 95 clusters of touching patch
-    # boxes, whose boxes hold 49 % and 26 % of the union box
+    # the only two sweep scenes (seeds 0-4) of under 100 patches on a box of over 10 M cells
+    # (interleaved CPU s, fresh processes): seed 3's #11, 93 merged spheres at 23 % of 17.5 M
+    # cells, union CG 70.2 / 70.3 against 56.2 / 53.2 for the far field; seed 2's #120, 95
+    # paraboloids at 25 % of 12 M, 43.7 against 16.2 / 18.0 s (docs/records/sweep.md)
     far_field_box_cells=10_000_000,
-    # the four maps of the sweep's two seeds on which the far field was chosen (seed 1's
-    # #193, #45, #106; seed 0's #94): the union CG's prediction over the far field's is
-    # 1.9-2.3 on the first three, 3.4 on #94. Moved to the union CG by this factor, the
-    # first three ran 0.74, 0.83 and 1.00x their far-field CPU time (the sweep's clock:
-    # fresh processes, the map's segmentation in, interleaved pairs, load 6), with tip
-    # errors against the reference of 5e-7 % instead of 0.002-0.003 %. The union CG is
-    # taken where predicted under 1.85x the far field's: those three need a factor over
-    # 1.22, #94 keeps the far field below 1.83. Replayed on the 41 maps of both seeds'
-    # records it moves those three choices only (a dearer far field moves a choice only
-    # away from it)
-    map_far_field_factor=1.5,
+    # 1.5 while the union CG was over-predicted 1.9-2.3x on maps at 8-16 % of their box,
+    # 1.0-1.7x with its iteration count (its products on the map's part are not counted);
+    # the forced scenes' picks the same from 1.0 to 1.3 at far_union_margin 0.86-0.88. On
+    # seed 6's roads (held out) at 1.0, #9 and #30 went to the far field 1.5x slower (ratios
+    # 0.89 and 1.0 without the factor); #100 (1.24) runs it 0.88x: 1.15-1.43 orders all three
+    map_far_field_factor=1.3,
     fitted_on=(
         "250 attempts: 190 of the thirteenth sweep run, 60 forced on its scenes; its seconds x 0.459 "
         "from 132 forced on 54 scenes of seeds 0-5; the block iterations' sweep counts and seconds "
-        "from 179 forced on 76 scenes of seeds 0-5; the fixed seconds from 24 small scenes forced"
+        "from 179 forced on 76 scenes of seeds 0-5; the fixed seconds from 24 small scenes forced; "
+        "the union CG's iterations and seconds from its 64 forced attempts of those 76 scenes"
     ),
 )
