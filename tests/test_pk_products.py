@@ -148,3 +148,21 @@ def test_single_precision_directions_take_one_double_product_and_the_classical_c
     rough = solve_cg(HS, surf, tol=1e-9, precondition=True, precision="single-directions", rough_start=True, **load)
     assert rough.converged and len(calls) == 1 + ("penetration" in load)
     assert np.max(np.abs(rough.asperities.forces - fp)) <= 1e-7 * np.max(fp)
+
+
+def test_a_direction_restarted_right_after_an_exact_product_takes_the_whole_product():
+    """The halves (the step length by Parseval, the transforms back only if the step uses
+    ``A t``) pay where the step likely refreshes the displacement: a direction restarted
+    after a step whose displacement came from the fast product (cells entered, the
+    contact settling). Right after an exact product (the anchor, a confirmation: ``stale``
+    0) the residual is small and the step changes a few cells: ``A t`` is used, so the
+    whole product is taken at once."""
+    from twoscale.pk.products import halved
+
+    begun = object()
+    ops = Products(exact=lambda v: v, halves=lambda t: begun)
+    t = np.array([[1.0, -1.0, 0.0]])  # (a restarted direction under load control sums to 0)
+    restarted = np.zeros(1)
+    assert halved(ops, t, 1, restarted, np.array([1])) is begun
+    assert halved(ops, t, 1, restarted, np.array([0])) is None
+    assert halved(ops, t, 1, np.ones(1), np.array([1])) is None  # (kept directions: whole)

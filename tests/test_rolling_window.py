@@ -235,6 +235,8 @@ def test_the_kept_operator_gives_the_cg_its_float32_operators_own_routes():
     single = op.single_precision()
     p = np.random.default_rng(3).random(g.shape)
     assert single.exact is not None and np.array_equal(single.exact(p), op.apply(p))
+    q = np.where(p > 0.5, 1.0 - p, 0.0)  # (the buffers kept from the first: still the product to the bit)
+    assert np.array_equal(single.exact(q), op.apply(q))
     cells = np.flatnonzero(p.ravel() > 0.6)
     on = single.on_cells(cells)
     part = np.where(p > 0.6, p, 0.0)

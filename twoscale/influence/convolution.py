@@ -247,6 +247,7 @@ class _SingleConvolution(GridOperator):
         self._khat = derived["complex64"]
         self._parent = parent
         self._buffers: tuple[np.ndarray, ...] | None = None  # the float32 products' (:meth:`_new_buffers`)
+        self._exact_buffers: tuple[np.ndarray, ...] | None = None  # :meth:`exact`'s, when kept
 
     @property
     def fft_shape(self) -> tuple[int, int]:
@@ -284,16 +285,17 @@ class _SingleConvolution(GridOperator):
             derived["energy"] = energy_weights(self._khat, self.source.shape, self._shape)
         return derived["energy"]
 
-    def exact(self, p: np.ndarray) -> np.ndarray:
+    def exact(self, p: np.ndarray, keep: bool = False) -> np.ndarray:
         """The parent's float64 product of one field (``ConvolutionOperator.apply``: the
-        same transforms in the same order, the same values to the bit), the transforms
-        into buffers of their own (made for the call: the exact product of a CG that
-        takes this operator's float32 ones is its anchor, one call) instead of
-        ``scipy.fft``'s outputs and padded copies: 500 x 498 cells, 11-13 against 20-30 ms."""
+        same transforms in the same order, the same values to the bit), into buffers made
+        for the call (``keep``: kept for the next, ~1 ms of zeroed pages a call on a rolling
+        tyre's cut) instead of ``scipy.fft``'s outputs and padded copies: 500 x 498 cells,
+        11-13 against 20-30 ms."""
         p = np.asarray(p, dtype=float)
         if p.shape != self.source.shape:
             return self._parent.apply(p)
-        buffers = self._new_buffers(np.float64)
+        buffers = (keep and self._exact_buffers) or self._new_buffers(np.float64)
+        self._exact_buffers = buffers if keep else self._exact_buffers
         a = self._spectrum_in_place(p, buffers)
         a *= self._parent._khat
         return self._finish_in_place(a, buffers)

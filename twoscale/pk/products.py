@@ -336,12 +336,14 @@ def halved(ops: Products, t: np.ndarray, k: int, beta: np.ndarray, stale: np.nda
     cells than the columns take: ``A t`` then only gives the step length, and its
     transforms back are never run (half a product). Likely: the direction restarted
     (``beta`` 0, after a step where cells entered), or without a constraint the last step
-    refreshed (``stale`` at most 1), both while the contact settles. ``t.A t`` alone:
+    refreshed (``stale`` at most 1), both while the contact settles; not a direction
+    restarted right after an exact product (``stale`` 0: the anchor, a confirmation), whose
+    step changes few cells and uses ``A t`` (the Parseval sum would be lost). ``t.A t`` alone:
     without a constraint, or under load control where a restarted direction sums to 0
     (the other term is ``mean_S(A t) sum(t)``). A step that then does not refresh finishes
     ``A t`` (the Parseval sum, about 1 ms, lost): #158 6 begun, 1 finished; #80
     (penetration control) 18 begun, 3 finished."""
-    if ops.halves is None or len(t) != 1 or k > 1 or (beta[0] != 0.0 and (k or stale[0] > 1)):
+    if ops.halves is None or len(t) != 1 or k > 1 or ((k or stale[0] > 1) if beta[0] != 0.0 else stale[0] == 0):
         return None
     if k == 1 and abs(float(t.sum())) > HALVES_SUM * float(np.abs(t).sum()):
         return None

@@ -104,7 +104,8 @@ class KeptOperator:
         self.op, self.single, self.parent = op, single, parent
         self.target, self.source = op.target, op.source
         self._twin = self._pc = None
-        self.exact = getattr(op, "exact", None)
+        exact = getattr(op, "exact", None)  # (its float64 buffers kept: every position's anchor)
+        self.exact = None if exact is None else (lambda p: exact(p, keep=True))
         self.on_cells = getattr(op, "on_cells", None)
 
     def apply(self, p):
