@@ -87,3 +87,13 @@ def test_a_solver_object_limits_its_solves_and_looks_the_libraries_up_once(two_t
     assert len(seen_in_solve) == 2 and all(max(counts) == 1 for counts in seen_in_solve)
     assert len(made) == 1
     assert _counts() == before
+
+
+def test_a_python_rolling_run_runs_single_threaded(two_threads, monkeypatch):
+    import twoscale.rolling.run as rolling_run
+
+    seen, before = [], _counts()
+    monkeypatch.setattr(rolling_run, "_roll", lambda *args: seen.append(_counts()))
+    twoscale.rolling.roll(object())
+    assert seen and max(seen[0]) == 1
+    assert _counts() == before

@@ -14,7 +14,7 @@ on 841 cells (load 3.7, median of 5): 0.163 s of CPU and 0.285 s of wall against
 and 0.0102 s.
 
 So the command line and the Python entry points (:func:`twoscale.solve`,
-:meth:`twoscale.ContactSolver.solve`) run their work with one thread each, and give the
+:meth:`twoscale.ContactSolver.solve`, :func:`twoscale.rolling.roll`) run their work with one thread each, and give the
 user's counts back when they return. A count the user set in the environment
 (:data:`USER_THREAD_SETTINGS`) leaves every count alone: to run a solve on more threads, set
 one (e.g. ``OPENBLAS_NUM_THREADS=2``, before or after numpy is imported) and choose the counts

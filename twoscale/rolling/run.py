@@ -33,6 +33,7 @@ from .result import Position, RollingResult
 from .first_contact import hertz_level
 from .road import Selection
 from .track import Track, prepare, tyre_contact_length, warn_if_cut
+from ..threads import single_threads
 
 #: Load control: the stones are taken below ``d_prev + BOUND_GROWTH (d_prev - z_low)``.
 BOUND_GROWTH = 0.5
@@ -317,6 +318,12 @@ def roll(
     -------
     RollingResult
     """
+    with single_threads():  # the BLAS and OpenMP libraries one thread each (twoscale.threads)
+        return _roll(scene, options, provider, on_position, progress, track)
+
+
+def _roll(scene, options, provider, on_position, progress, track) -> RollingResult:
+    """:func:`roll` with the thread counts as they are."""
     options = options or RollingOptions()
     track = track if track is not None else prepare(scene, h=options.h, provider=provider)
     if track.scene.material.viscoelastic:  # the memory in the body: the moving-indenter stepping
