@@ -157,6 +157,12 @@ class BlockGridOperator(GridOperator):
         CG needs (the preconditioned CG stays exact: only its iteration count changes)."""
         return self._hs.preconditioner()
 
+    def coarse_table(self):
+        """The half-space part's offset table (``GridOperator.coarse_table``): a coarse space's
+        matrix and products from it leave the balancing preconditioner symmetric positive
+        definite; the correction only changes how close it is to this operator."""
+        return self._hs.coarse_table()
+
     @property
     def nbytes(self) -> int:
         W = self._W

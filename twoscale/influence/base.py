@@ -108,6 +108,14 @@ class GridOperator(ABC):
         Default: None (the solver then runs unpreconditioned)."""
         return None
 
+    def coarse_table(self) -> np.ndarray | None:
+        """The offset table (mm/MPa; as :meth:`~.convolution.ConvolutionOperator.offset_table`)
+        of a translation-invariant kernel close to this square operator's, for a
+        preconditioner's coarse space (:class:`~twoscale.pk.coarse.SquaresCorrection`), or
+        None. Default: the operator's own ``offset_table()`` where it has one (a convolution)."""
+        own = getattr(self, "offset_table", None)
+        return None if own is None else own()
+
     def transposed(self) -> "GridOperator | None":
         """The operator from ``target`` to ``source`` sharing this one's arrays, or None
         (default) when it has no such cheap form. Cell influence is reciprocal on every

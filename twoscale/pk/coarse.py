@@ -64,8 +64,10 @@ NEAR_OFFSETS = ((0, 0), (0, 1), (1, -1), (1, 0), (1, 1))
 class SquaresCorrection:
     """The kernel's preconditioner ``precondition(v, on)``: the torus ``inverse`` with the
     squares' coarse correction, on the grid of ``shape`` whose kernel is given at every
-    offset by ``table`` (``ConvolutionOperator.offset_table``: entry ``(m, n)`` the offset
-    ``(m - ny + 1, n - nx + 1)``, mm/MPa). :meth:`on_part` gives it on a part's cells;
+    offset by ``table`` (``GridOperator.coarse_table``: entry ``(m, n)`` the offset
+    ``(m - ny + 1, n - nx + 1)``, mm/MPa; on a bonded block the half-space's, whose ``E`` and
+    ``A Z c`` only approximate the block's: the balancing form stays symmetric positive
+    definite, the CG exact). :meth:`on_part` gives it on a part's cells;
     ``op`` is the torus inverse (the precorrected route's sparse torus replaces it whole)."""
 
     def __init__(self, inverse, table: np.ndarray, shape: tuple, side: int = SIDE, start: float = START):

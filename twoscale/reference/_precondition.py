@@ -15,7 +15,7 @@ from ..pk.products import OneRowInverse
 def _preconditioner(cg, custom, op, table: Callable[[], np.ndarray] | None = None):
     """``precondition(v, on)`` for the kernel: the caller's (``custom``, made once from
     ``cg.preconditioner`` for both stages) or the operator's approximate inverse, or None;
-    with ``table`` (the operator's offset table, made on call) the inverse with its coarse
+    with ``table`` (the operator's ``coarse_table``, made on call; None: none) the inverse with its coarse
     correction (:class:`~twoscale.pk.coarse.SquaresCorrection`)."""
     if not cg.precondition:
         return None
@@ -24,8 +24,9 @@ def _preconditioner(cg, custom, op, table: Callable[[], np.ndarray] | None = Non
     inverse = op.preconditioner()
     if inverse is None:
         return None
-    if table is not None and isinstance(inverse, CirculantInverse):
-        return SquaresCorrection(inverse, table(), inverse.source.shape)
+    values = table() if table is not None and isinstance(inverse, CirculantInverse) else None
+    if values is not None:
+        return SquaresCorrection(inverse, values, inverse.source.shape)
     return OneRowInverse(inverse)
 
 

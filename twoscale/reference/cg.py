@@ -174,8 +174,9 @@ def solve_cg(
     coarse : bool, default False
         With ``precondition`` (the operator's torus inverse): its coarse correction over
         squares of the grid once the contact has nearly settled
-        (:class:`~twoscale.pk.coarse.SquaresCorrection`), on operators with an offset table
-        (the half-space's; a block keeps the torus alone). The reference: off.
+        (:class:`~twoscale.pk.coarse.SquaresCorrection`), on operators with a
+        ``coarse_table`` (the half-space's offset table, also the bonded block's coarse
+        kernel). The reference: off.
 
     Returns
     -------
@@ -224,7 +225,7 @@ def solve_cg(
         max_iter,
         start,
         monitor=None if monitor is None else (lambda k, r: monitor(offset + k, r)),
-        pc=_preconditioner(cg, custom, fast or op, getattr(op, "offset_table", None) if cg.coarse else None),
+        pc=_preconditioner(cg, custom, fast or op, getattr(op, "coarse_table", None) if cg.coarse else None),
         fast=fast,
         keep_conjugacy=cg.keep_conjugacy,
         reach=reach,
