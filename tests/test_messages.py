@@ -140,6 +140,13 @@ def test_python_solve_warns_and_refuses_the_same_way():
         warnings.simplefilter("always")
         twoscale.solve([[0.0, 0.0, 5.0]], material=mat, penetration=0.1, h=0.5)
     assert [type(w.message) for w in caught] == [ResolutionWarning]
+    assert caught[0].filename == __file__  # the caller's line, not a line of the package
+    with warnings.catch_warnings(record=True) as caught:  # through the solver object too
+        warnings.simplefilter("always")
+        twoscale.ContactSolver(options=twoscale.SolverOptions.from_mapping({"resolution": {"h": 0.5}})).solve(
+            [[0.0, 0.0, 5.0]], material=mat, penetration=0.1
+        )
+    assert [(type(w.message), w.filename) for w in caught] == [(ResolutionWarning, __file__)]
     with warnings.catch_warnings():
         warnings.simplefilter("error")
         twoscale.solve([[0.0, 0.0, 5.0]], material=mat, penetration=0.1)  # the default h: silent

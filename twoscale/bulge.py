@@ -32,7 +32,7 @@ if TYPE_CHECKING:
     from .influence.base import InfluenceProvider
     from .results import ContactResult
 
-from .errors import BulgeWarning
+from .errors import BulgeWarning, user_stacklevel
 
 #: Contact radii (the largest tip's) within which a tip's pressure acts cell by cell on an
 #: apex; beyond, as its resultant at its centre.
@@ -208,7 +208,7 @@ def warn_of(asperities, lifted: LiftedTips) -> None:
         f"{-g * 1e3:.3g} um into the solved surface): the answer lacks their contact; a finite "
         "block bulges beside its contacts",
         BulgeWarning,
-        stacklevel=4,
+        stacklevel=user_stacklevel(),
     )
 
 

@@ -11,6 +11,24 @@ bad value; the command line turns it into exit status 2.
 
 from __future__ import annotations
 
+import os
+import sys
+
+#: The package's folder: a warning points at the first line outside it.
+_PACKAGE = os.path.dirname(os.path.abspath(__file__)) + os.sep
+
+
+def user_stacklevel() -> int:
+    """``warnings.warn``'s ``stacklevel`` for a warning raised by the caller of this function
+    that points at the first line outside the package (the user's call of
+    ``twoscale.solve``, ``ContactSolver.solve``, ...), however deep in the package it is
+    raised and by whichever entry point it was reached."""
+    frame = sys._getframe(1)  # the function that warns
+    level = 1
+    while frame.f_back is not None and os.path.abspath(frame.f_code.co_filename).startswith(_PACKAGE):
+        frame, level = frame.f_back, level + 1
+    return level
+
 
 class SceneError(ValueError):
     """Invalid scene data; the message names the field path and the bad value."""

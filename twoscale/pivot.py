@@ -20,7 +20,7 @@ import warnings
 
 import numpy as np
 
-from .errors import SceneError, TiltWarning
+from .errors import SceneError, TiltWarning, user_stacklevel
 
 #: Largest tilt angle (rad) the linear tilt is trusted at. The model turns the face by
 #: adding ``beta x + alpha y`` to its heights; a rigid turn also moves each point sideways by
@@ -112,7 +112,7 @@ def warn_large_tilt(tilt) -> None:
             f"about {100 * worst**2 / 2:.2g} % of the forces and levers; check the tips' heights "
             "and the pivot (load.pivot)"
         ),
-        stacklevel=3,
+        stacklevel=user_stacklevel(),
     )
 
 

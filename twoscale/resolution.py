@@ -16,7 +16,7 @@ from typing import TYPE_CHECKING, Sequence
 import numpy as np
 
 from .analytic import hertz
-from .errors import ResolutionWarning, SceneError
+from .errors import ResolutionWarning, SceneError, user_stacklevel
 from .indenters import Asperity
 
 if TYPE_CHECKING:
@@ -242,7 +242,7 @@ def check_resolution(
         )
         if not context:
             raise SceneError(message)
-        warnings.warn(ResolutionWarning(message), stacklevel=3)
+        warnings.warn(ResolutionWarning(message), stacklevel=user_stacklevel())
         return
     matters = force >= MIN_FORCE_FRACTION * force.max()
     k = int(np.argmin(np.where(matters, across, np.inf)))
@@ -253,7 +253,7 @@ def check_resolution(
                 f"mm across) only {across[k]:.1f} cells across: its force may be off by 10 % or more "
                 f"({advice or _default_rule_text(scene)})"
             ),
-            stacklevel=3,
+            stacklevel=user_stacklevel(),
         )
 
 

@@ -14,6 +14,7 @@ import warnings
 import numpy as np
 
 from ..details import SurfaceDetails
+from ..errors import user_stacklevel
 from ..grid import Grid
 from .conditioning import SurfaceWarning
 
@@ -63,5 +64,5 @@ def warn_edge_contacts(ks, *, show: int = 5) -> None:
                 f"map, where the scan ends in a wall: the pressure there is a punch corner's; crop the "
                 f"map inward or scan a wider area if those stones matter"
             ),
-            stacklevel=4,  # the caller of twoscale.solve (via api._with_surface_report)
+            stacklevel=user_stacklevel(),
         )
