@@ -43,10 +43,8 @@ def _scene(rise: float, influence=None) -> Scene:
     return Scene(material=MAT, asperities=tips, penetration=D, influence=influence or BLOCK, h=0.1)
 
 
-def _apex_gap(scene: Scene, result) -> float:
-    """``z + u - d`` at the second tip's apex, ``u`` by the body's grid operator from the
-    result's pressure placed on a grid covering both tips."""
-    grid = Grid.covering(-3.0, 8.0, -3.0, 3.0, result.fields[0].grid.h)
+def _pressure_on(grid: Grid, result) -> np.ndarray:
+    """The result's pressure fields placed on ``grid`` (same cell size; cells outside it dropped)."""
     X, Y = grid.centres()
     p = np.zeros(grid.shape)
     for f in result.fields:
@@ -55,6 +53,15 @@ def _apex_gap(scene: Scene, result) -> float:
         rows = np.rint((fy[:, 0] - Y[0, 0]) / grid.h).astype(int)
         keep_r, keep_c = (rows >= 0) & (rows < grid.ny), (cols >= 0) & (cols < grid.nx)
         p[np.ix_(rows[keep_r], cols[keep_c])] += f.pressure[np.ix_(keep_r, keep_c)]
+    return p
+
+
+def _apex_gap(scene: Scene, result) -> float:
+    """``z + u - d`` at the second tip's apex, ``u`` by the body's grid operator from the
+    result's pressure placed on a grid covering both tips."""
+    grid = Grid.covering(-3.0, 8.0, -3.0, 3.0, result.fields[0].grid.h)
+    X, Y = grid.centres()
+    p = _pressure_on(grid, result)
     provider = scene.provider(progress=False) if scene.influence["kind"] == "block" else scene.provider()
     u = provider.grid_operator(grid).apply(p)
     i, j = int(np.argmin(np.abs(Y[:, 0]))), int(np.argmin(np.abs(X[0] - 6.0)))
@@ -304,12 +311,7 @@ def test_the_apex_displacement_is_the_body_grid_operators(route, monkeypatch):
     result = twoscale.solve(scene, provider=provider)
     grid = Grid.covering(-4.0, 8.0, -4.0, 4.0, result.fields[0].grid.h)
     X, Y = grid.centres()
-    p = np.zeros(grid.shape)
-    for f in result.fields:
-        fx, fy = f.grid.centres()
-        cols = np.rint((fx[0] - X[0, 0]) / grid.h).astype(int)
-        rows = np.rint((fy[:, 0] - Y[0, 0]) / grid.h).astype(int)
-        p[np.ix_(rows, cols)] += f.pressure
+    p = _pressure_on(grid, result)
     u = provider.grid_operator(grid).apply(p)
     picks = [(i, j) for i in (3, 40, 77) for j in (5, 70, 100) if p[i, j] == 0.0]
     apexes = np.array([[X[i, j], Y[i, j]] for i, j in picks])

@@ -226,11 +226,10 @@ def _newton_then_safe(system: MacroSystem, x0: np.ndarray, tol: float, max_iter:
     safe path (:mod:`.robust`). Returns (x, converged, message, Newton steps, residual
     history, the safe path: "" not needed, "taken", "skipped" or "deferred" by ``defer``)."""
     W = float(system.e[0]) if system.e.size else 0.0
-    stall = STALL_STEPS
     plateau = PLATEAU_STEPS if system.n <= SAFE_PATH_MAX_TIPS else None
     steps = min(max_iter, FAST_STEPS)
     drop = DEFERRED_PLATEAU_DROP if plateau and defer is not None and defer(x0[system.n :]) else PLATEAU_DROP
-    fast = run_newton(system, x0, tol=tol, max_iter=steps, scale_floor=W, stall=stall, plateau=plateau, drop=drop)
+    fast = run_newton(system, x0, tol=tol, max_iter=steps, scale_floor=W, stall=STALL_STEPS, plateau=plateau, drop=drop)
     if fast.converged and system.stable(fast.x):
         return fast.x, True, fast.message, fast.iterations, fast.residuals, ""
     again = None

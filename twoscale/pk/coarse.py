@@ -76,11 +76,9 @@ class SquaresCorrection:
         self._whole: Corrected | None = None
 
     def on_part(self, cells: np.ndarray | None) -> "Corrected | None":
-        apply = self.op.on_cells(np.arange(self.shape[0] * self.shape[1]) if cells is None else cells)
-        if apply is None:
-            return None
         cells = np.arange(self.shape[0] * self.shape[1]) if cells is None else np.asarray(cells, dtype=np.intp)
-        return Corrected(apply, self, cells)
+        apply = self.op.on_cells(cells)
+        return None if apply is None else Corrected(apply, self, cells)
 
     def restart(self) -> bool:
         """:meth:`Corrected.restart` of the whole grid's rows."""
