@@ -297,13 +297,18 @@ def rescale(installed: dict, rows: list[dict]) -> None:
     print("  one scale per candidate: " + ", ".join(f"{k} x {v:.3g}" for k, v in each.items() if np.isfinite(v)))
 
 
-def forced_rows(paths) -> list[dict]:
-    """Every row of ``benchmarks/force_strategies.py``'s result files ``paths``, in order."""
+def forced_rows(paths, latest: bool = False) -> list[dict]:
+    """Every row of ``benchmarks/force_strategies.py``'s result files ``paths``, in order;
+    with ``latest`` one row per seed, scene and variant, the last one read (a variant run
+    again on newer code replaces its earlier measurement)."""
     rows: list = []
     for path in paths:
         with open(path, encoding="utf-8") as fh:
             rows += [json.loads(line) for line in fh if line.strip()]
-    return rows
+    if not latest:
+        return rows
+    last = {(int(r.get("seed", 0)), r["scene"], r["variant"]): i for i, r in enumerate(rows)}
+    return [rows[i] for i in sorted(last.values())]
 
 
 def main(argv=None) -> int:

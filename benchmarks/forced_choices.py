@@ -17,7 +17,7 @@ each margin, so the margins can be chosen from the measured costs.
 
 Usage::
 
-    python benchmarks/forced_choices.py forced.jsonl [more.jsonl] [--margins]
+    python benchmarks/forced_choices.py forced.jsonl [more.jsonl] [--latest] [--margins]
 """
 
 from __future__ import annotations
@@ -146,10 +146,11 @@ def main(argv=None) -> int:
     p.add_argument("--sweeps", action="store_true", help="refit with sweep counts (benchmarks/sweep_counts.py)")
     p.add_argument("--far-patch", action="store_true", help="refit the far field's seconds a unit and a patch")
     p.add_argument("--union", action="store_true", help="refit the union CG's iterations and seconds")
+    p.add_argument("--latest", action="store_true", help="a variant's last row per scene (re-runs replace)")
     args = p.parse_args(argv)
     from twoscale.micro.costmodel import FITTED
 
-    rows = forced_rows(args.forced)
+    rows = forced_rows(args.forced, args.latest)
     bounds = (args.min_seconds, args.max_sweeps)
     flags = (args.sweeps, args.far_patch, args.union)
     refit = refitted(rows, bounds, *flags)

@@ -16,7 +16,7 @@ paste into ``twoscale/micro/costmodel.py``.
 
 Usage::
 
-    python benchmarks/sweep_counts.py forced.jsonl [more.jsonl] [--max-sweeps 40] [--emit]
+    python benchmarks/sweep_counts.py forced.jsonl [more.jsonl] [--max-sweeps 40] [--latest] [--emit]
 """
 
 from __future__ import annotations
@@ -239,10 +239,11 @@ def main(argv=None) -> int:
     p.add_argument("--max-sweeps", type=int, default=40, help="block attempts of more sweeps are left out")
     p.add_argument("--split", type=int, default=3, help="cross-validation: seeds up to this one against the rest")
     p.add_argument("--emit", action="store_true", help="print the fields for twoscale/micro/costmodel.py")
+    p.add_argument("--latest", action="store_true", help="a variant's last row per scene (re-runs replace)")
     args = p.parse_args(argv)
     from twoscale.micro.costmodel import FITTED
 
-    rows = forced_rows(args.forced)
+    rows = forced_rows(args.forced, args.latest)
     samples = fitted([s for s in forced_samples(rows) if s["seconds"] >= args.min_seconds], 0.0, args.max_sweeps)
     model = fit_model(samples)
     print(f"{len(samples)} forced attempts of {len({s['scene'] for s in samples})} scenes")

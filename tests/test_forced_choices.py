@@ -43,6 +43,25 @@ def test_forced_rows_build_their_own_seeds_spec():
         assert sample["control"] == ("tilt" if spec.tilt else spec.control)
 
 
+def test_a_variant_run_again_replaces_its_earlier_row_when_asked(tmp_path):
+    import json
+
+    from benchmarks.calibrate_policy import forced_rows
+
+    first, again = tmp_path / "first.jsonl", tmp_path / "again.jsonl"
+    old = [_row(0, 198, "union-cg", 4.0), _row(0, 198, "far", 2.0), _row(5, 198, "union-cg", 1.0)]
+    first.write_text("".join(json.dumps(r) + "\n" for r in old))
+    again.write_text(json.dumps(_row(0, 198, "union-cg", 3.0)) + "\n")
+    # by default every row counts; with latest one a seed, scene and variant, the last read
+    assert [r["micro_s"] for r in forced_rows([first, again])] == [4.0, 2.0, 1.0, 3.0]
+    got = forced_rows([first, again], latest=True)
+    assert sorted((r["seed"], r["variant"], r["micro_s"]) for r in got) == [
+        (0, "far", 2.0),
+        (0, "union-cg", 3.0),
+        (5, "union-cg", 1.0),
+    ]
+
+
 def test_the_exact_candidate_is_charged_to_the_variant_the_policy_runs():
     # decide sends the exact candidate under load control without merged contacts to the
     # exact two-level iteration, otherwise to block Gauss-Seidel
