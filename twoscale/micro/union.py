@@ -17,7 +17,7 @@ free tilt the first box covers wider patches (``TILT_MARGIN``: the macro step's 
 least sure there). If pressure reaches the box's edge, the box grows on the sides it
 reaches and resumes from its pressure, keeping the cells it had (:func:`widened_surface`);
 the CG on a box that may still grow stops as soon as pressure has settled on its edge
-(:class:`~.union_edge.EdgeWatch`).
+(:class:`~.union_edge.EdgeWatch`), and the first box stopped so grows by ``GROW_EARLY``.
 """
 
 from __future__ import annotations
@@ -34,7 +34,7 @@ from ..influence.base import InfluenceProvider
 from ..results import ContactResult
 from .patches import TREE_MIN, Patch, patch_radius
 from .sampling import SAMPLE_WHOLE_CELLS, box_of, box_surface, shared_box
-from .union_edge import EdgeWatch
+from .union_edge import GROW_EARLY, EdgeWatch
 from .union_start import interference_start
 
 #: Enlargements of the box when pressure reaches its edge (:func:`grown_box`).
@@ -264,7 +264,7 @@ def solve_union(
         grow = watch is not None and watch.fired
         if not grow and (not result.converged or not _on_edge(on_box)):
             break
-        previous, box = result, grown_box(box, on_box)
+        previous, box = result, grown_box(box, on_box, GROW_EARLY if grow and not enlargement else GROW)
     # the owners present, counted instead of sorted (np.unique: 0.022 s on a 10^6-cell box)
     members = tuple(int(k) for k in np.flatnonzero(np.bincount(surface.owner[surface.owner >= 0])))
     first = members[0] if members else 0
