@@ -15,7 +15,9 @@ contacts). The load, the
 approach and the tilt are solved by the same iteration (no sensitivity sweeps). Under a
 free tilt the first box covers wider patches (``TILT_MARGIN``: the macro step's tilt is
 least sure there). If pressure reaches the box's edge, the box grows on the sides it
-reaches and resumes from its pressure, keeping the cells it had (:func:`widened_surface`).
+reaches and resumes from its pressure, keeping the cells it had (:func:`widened_surface`);
+the CG on a box that may still grow stops as soon as pressure has settled on its edge
+(:class:`~.union_edge.EdgeWatch`), and the first box stopped so grows by ``GROW_EARLY``.
 """
 
 from __future__ import annotations
@@ -32,6 +34,7 @@ from ..influence.base import InfluenceProvider
 from ..results import ContactResult
 from .patches import TREE_MIN, Patch, patch_radius
 from .sampling import SAMPLE_WHOLE_CELLS, box_of, box_surface, shared_box
+from .union_edge import GROW_EARLY, EdgeWatch
 from .union_start import interference_start
 
 #: Enlargements of the box when pressure reaches its edge (:func:`grown_box`).
@@ -229,6 +232,8 @@ def solve_union(
             warm = interference_start(surface, asperities, approaches, forces) if rough else None
         first = previous is None and approaches is not None and not problem.free_tilt
         reach = contact_reach(surface, asperities, approaches) if first else None
+        # a box that may still grow stops once pressure has settled on its edge
+        watch = EdgeWatch(grid, box) if enlargement < settings.max_enlargements else None
         result = solve_cg(
             provider,
             surface,
@@ -251,13 +256,15 @@ def solve_union(
             half_products=True,
             step_model=True,
             precorrected=True,
+            stop=watch,
         )
         iterations += int(result.iterations.get("cg", 0))
         products += int(result.iterations.get("products", 0))
         on_box = grid.embed_in(result.fields[0].pressure, box)
-        if not result.converged or not _on_edge(on_box):
+        grow = watch is not None and watch.fired
+        if not grow and (not result.converged or not _on_edge(on_box)):
             break
-        previous, box = result, grown_box(box, on_box)
+        previous, box = result, grown_box(box, on_box, GROW_EARLY if grow and not enlargement else GROW)
     # the owners present, counted instead of sorted (np.unique: 0.022 s on a 10^6-cell box)
     members = tuple(int(k) for k in np.flatnonzero(np.bincount(surface.owner[surface.owner >= 0])))
     first = members[0] if members else 0

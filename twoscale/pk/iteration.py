@@ -191,6 +191,8 @@ class Iteration:
                 monitor(it, float(res.max()))
         if want is not None:
             self.finish(want, StopReason.CONVERGED, it, m, res)
+        if self.tol.caller_stops(it, res, self.p, self.done):
+            self.finish(np.ones(1, bool), StopReason.STOPPED, it, m, res)
         if res is not None:
             better = res < 0.5 * self.best
             self.best, self.it_best = np.where(better, res, self.best), np.where(better, it, self.it_best)

@@ -5,6 +5,7 @@ answers (:class:`PKResult`: pressures, displacements, multipliers and a stop rea
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Callable
 
 import numpy as np
 
@@ -31,18 +32,30 @@ class Tolerance:
         Most steps.
     stall : int
         With ``residual``: give up when the residual has not halved in this many steps.
+    stop : callable, optional
+        The caller's own test on a one-row stack, before each step after the stopping
+        rule: ``stop(iteration, residual, pressure)`` (the row's flat pressure, MPa, which
+        it must not keep or change) returning True ends the row (``STOPPED``), e.g. to
+        enlarge the grid its pressure reached the edge of.
     """
 
     residual: float | None = None
     change: float | None = None
     max_iter: int = 1000
     stall: int = STALL_ITERATIONS
+    stop: Callable[[int, float, np.ndarray], bool] | None = None
 
     def __post_init__(self):
         if self.residual is None and self.change is None:
             raise ValueError("Tolerance needs residual or change (or both), got neither")
         if self.max_iter < 0:
             raise ValueError(f"Tolerance.max_iter must be >= 0, got {self.max_iter}")
+
+    def caller_stops(self, it: int, res: np.ndarray | None, p: np.ndarray, done: np.ndarray) -> bool:
+        """Whether ``stop`` ends a one-row stack not yet finished (``res``, ``p``, ``done``:
+        its residuals, pressures and finished flags, per live row)."""
+        one = self.stop is not None and res is not None and len(res) == 1 and not done[0]
+        return one and bool(self.stop(it, float(res[0]), p[0]))
 
 
 @dataclass(frozen=True)
@@ -102,6 +115,8 @@ class PKResult:
                 f"no progress: KKT residual {res:.2e} has not halved in {tol.stall} iterations "
                 f"(best {float(self.best[row]):.2e}, tol {tol.residual:g})"
             )
+        if reason is StopReason.STOPPED:
+            return f"stopped by the caller's test after {it} iterations (KKT residual {res:.2e})"
         if reason is StopReason.BREAKDOWN:
             return f"CG breakdown (t.A t = {float(self.denominator[row]):.3e}) after {it} iterations"
         if tol.residual is not None:

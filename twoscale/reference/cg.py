@@ -41,6 +41,7 @@ from ..options import settings_from
 from ..results import ContactResult
 from ._problem import ContactProblem, Outcome, build_result, make_problem, trivial_result
 from ._precondition import _preconditioner
+from ._stop import on_window, row_stop
 from ._start import cropped, initial_pressure, line_search, scaled_start, start_on
 
 
@@ -64,6 +65,7 @@ class CGSettings:
     step_model: bool = False
     precorrected: bool = False
     coarse: bool = False
+    stop: Callable | None = None
 
 
 def solve_cg(
@@ -177,6 +179,9 @@ def solve_cg(
         (:class:`~twoscale.pk.coarse.SquaresCorrection`), on operators with a
         ``coarse_table`` (the half-space's offset table, also the bonded block's coarse
         kernel). The reference: off.
+    stop : callable with ``cells``, optional
+        The caller's own test before each step, True ends the CG unconverged (e.g. to
+        enlarge the grid): :class:`~._stop.CellsStop`. The reference: none.
 
     Returns
     -------
@@ -217,6 +222,7 @@ def solve_cg(
             work, op, provider.material.E_star, start, cg, custom, reach
         )
     offset = it0 + 1 if it0 or hist0 else 0
+    stop = on_window(cg.stop, work.grid.window_in(problem.grid)) if work is not problem else cg.stop
     p, u, m, it, n_products, hist, converged, message, cheap = _iterate(
         work,
         op,
@@ -233,6 +239,7 @@ def solve_cg(
         rough_start=cg.rough_start and not (it0 or hist0),
         halves=("modelled" if cg.step_model else "halves") if cg.half_products else None,
         precorrected=cg.precorrected,
+        stop=stop,
     )
     it, n_products, hist = it + it0, n_products + products0, hist0 + hist
     p, u = p.reshape(work.grid.shape), u.reshape(work.grid.shape)
@@ -312,6 +319,7 @@ def _iterate(
     rough_start: bool = False,
     halves: str | None = None,
     precorrected: bool = False,
+    stop: Callable | None = None,
 ):
     """The Polonsky-Keer kernel (:func:`twoscale.pk.pk_solve`) on the whole grid, one row, or
     on the candidates in ``reach`` (then checked on the whole grid, and solved on it from
@@ -355,7 +363,7 @@ def _iterate(
         run[0].reshape(1, *dims),
         run[1].reshape(1, *dims) if u0 is None else Start(run[1].reshape(1, *dims), u0.reshape(1, *dims)),
         None if run[2].all() else run[2].reshape(1, *dims),
-        Tolerance(residual=tol, max_iter=max_iter, stall=stall),
+        Tolerance(residual=tol, max_iter=max_iter, stall=stall, stop=None if stop is None else row_stop(stop, part)),
         constraint=Constraint(
             run[3],
             problem.target()[None],
@@ -386,6 +394,7 @@ def _iterate(
                 fast,
                 keep_conjugacy,
                 plane_sums=plane_sums,
+                stop=stop,
             )
             return (*whole[:3], whole[3] + counts[0], whole[4] + counts[1], counts[2] + whole[5], *whole[6:8], cheap)
     return (p, u, out.multipliers[0], *counts, bool(out.converged[0]), out.message(0), cheap)
