@@ -138,3 +138,40 @@ def test_the_coarse_correction_on_a_bonded_block_keeps_the_answer():
         patch.setattr(coarse, "MIN_CELLS", 0)
         corrected = solve_cg(block, surf, tol=1e-9, precondition=True, coarse=True, **load)
     _assert_the_answer_in_fewer_iterations(corrected, torus, plain)
+
+
+def test_full_squares_take_the_padded_product_and_keep_the_answer(monkeypatch):
+    """400 spheres pressed in far enough that their squares are over ``MAX_FILL`` full: the
+    correction's ``A Z c`` by the CG's padded float32 product (where the precorrected one's
+    near pairs grow with the fill), the forces those of the classical CG in fewer iterations
+    than with the torus alone."""
+    monkeypatch.setattr(coarse, "MIN_CELLS", 0)
+    monkeypatch.setattr(coarse, "PADDED_MIN_SQUARES", 0)
+    asps = _many_tips(20, 0.6, 2.0, 1)
+    g = Grid.covering(-6.5, 6.5, -6.5, 6.5, 0.05)
+    surf = surface_on(g, asps)
+    load = {"penetration": 0.1}
+    plain = solve_cg(HS, surf, tol=1e-9, **load)
+    fast = {"precision": "single-directions", "precondition": True}
+    torus = solve_cg(HS, surf, tol=1e-9, **fast, **load)
+    built = []
+    monkeypatch.setattr(CoarseSpace, "build", _recorded(CoarseSpace.build, built))
+    corrected = solve_cg(HS, surf, tol=1e-9, coarse=True, **fast, **load)
+    (space,) = built
+    loaded = np.count_nonzero(space.square >= 0)
+    counts = np.bincount(space.square[space.square >= 0])
+    assert float(counts @ counts) > coarse.MAX_FILL * coarse.SIDE**2 * loaded  # (the squares are full)
+    assert not isinstance(space.product, coarse.Precorrected)
+    _assert_the_answer_in_fewer_iterations(corrected, torus, plain)
+
+
+def _recorded(build, into: list):
+    """``CoarseSpace.build`` that keeps each space it builds in ``into``."""
+
+    def recorded(owner, cells, loaded):
+        space = build(owner, cells, loaded)
+        if space is not None:
+            into.append(space)
+        return space
+
+    return recorded
