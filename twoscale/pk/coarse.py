@@ -23,9 +23,7 @@ loaded cells by small FFTs of the squares and Parseval against the kernel's offs
 pairs farther apart as point loads at their loaded cells' centroids (the kernel interpolated
 in its table). ``A Z c`` by a precorrected FFT on the loaded cells
 (:class:`~twoscale.influence.precorrected.Precorrected`, about 1e-3 relative: a
-preconditioner's product), a few ms instead of a padded FFT product; where the loaded
-squares are full (``MAX_FILL``) and many, by the CG's padded float32 product on them (the
-precorrected product's near pairs grow with the fill).
+preconditioner's product), a few ms instead of a padded FFT product.
 """
 
 from __future__ import annotations
@@ -56,15 +54,7 @@ MIN_CELLS = 250_000
 #: that near pairs a loaded cell, and contacts of a few large patches gain few iterations.
 #: Thousands of tips (seeds 1's #101, 5's #20, 6's #147 and #1, 0's #12): 0.036-0.093; the
 #: roads (seed 5's #130, the 100 mm road: 23 -> 20 iterations for twice the CPU): 0.31-0.51.
-#: Fuller squares take ``A Z c`` by the CG's own padded float32 product (``padded``), where
-#: at least ``PADDED_MIN_SQUARES`` are loaded.
 MAX_FILL = 0.2
-#: Loaded squares over ``MAX_FILL`` full from which the correction is built with the padded
-#: product (two a corrected step): seed 7's #120 (1,162 paraboloids, 4.1 M cells, 2,291
-#: squares 0.36 full) 44 -> 29 iterations, its union CG 0.78x the CPU (the precorrected
-#: product's set-up alone took 7.5 s there); the 100 mm road (504 squares 0.51 full) 23 ->
-#: 20 iterations for 1.34x the CPU.
-PADDED_MIN_SQUARES = 1000
 #: The precorrected product's coarse spacing and near radius (cells) for ``A Z c``.
 PRODUCT_COARSE, PRODUCT_RADIUS = 7, 10
 #: The near offsets (in squares) whose pairs are summed exactly (with their mirror images).
@@ -78,14 +68,11 @@ class SquaresCorrection:
     ``(m - ny + 1, n - nx + 1)``, mm/MPa; on a bonded block the half-space's, whose ``E`` and
     ``A Z c`` only approximate the block's: the balancing form stays symmetric positive
     definite, the CG exact). :meth:`on_part` gives it on a part's cells;
-    ``op`` is the torus inverse (the precorrected route's sparse torus replaces it whole);
-    ``padded`` the CG's operator whose ``on_cells`` gives ``A Z c`` where the squares are
-    full (``MAX_FILL``; None: no correction there)."""
+    ``op`` is the torus inverse (the precorrected route's sparse torus replaces it whole)."""
 
-    def __init__(self, inverse, table: np.ndarray, shape: tuple, side: int = SIDE, start: float = START, padded=None):
+    def __init__(self, inverse, table: np.ndarray, shape: tuple, side: int = SIDE, start: float = START):
         self.op, self.table, self.shape = inverse, table, (int(shape[0]), int(shape[1]))
         self.side, self.start = int(side), float(start)
-        self.padded = padded
         self._whole: Corrected | None = None
 
     def on_part(self, cells: np.ndarray | None) -> "Corrected | None":
@@ -164,9 +151,7 @@ class CoarseSpace:
         columns = -(-nx // s)
         keys, index = np.unique((y // s) * columns + x // s, return_inverse=True)
         count = np.bincount(index).astype(float)
-        full = float(count @ count) > MAX_FILL * s * s * len(at)
-        padded = getattr(owner.padded, "on_cells", None) if full and len(keys) >= PADDED_MIN_SQUARES else None
-        if len(keys) > MAX_SQUARES or (full and padded is None):
+        if len(keys) > MAX_SQUARES or float(count @ count) > MAX_FILL * s * s * len(at):
             return None
         energy = coarse_matrix(owner.table, (ny, nx), s, keys, index, y, x)
         try:
@@ -175,12 +160,8 @@ class CoarseSpace:
             return None
         square = np.full(len(cells), -1, dtype=np.intp)
         square[at] = index
-        product = (
-            padded(cells[at])
-            if full
-            else Precorrected(owner.table, (ny, nx), cells[at], PRODUCT_COARSE, PRODUCT_RADIUS)
-        )
-        return None if product is None else cls(square, factor, product, at)
+        product = Precorrected(owner.table, (ny, nx), cells[at], PRODUCT_COARSE, PRODUCT_RADIUS)
+        return cls(square, factor, product, at)
 
     def direction(self, v: np.ndarray, loaded: np.ndarray, torus) -> np.ndarray:
         """``P v = Q^T C Q v + Z E^-1 Z^T v``, ``Q = I - A Z E^-1 Z^T``, on the cells loaded now

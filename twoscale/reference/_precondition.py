@@ -26,7 +26,7 @@ def _preconditioner(cg, custom, op, table: Callable[[], np.ndarray] | None = Non
         return None
     values = table() if table is not None and isinstance(inverse, CirculantInverse) else None
     if values is not None:
-        return SquaresCorrection(inverse, values, inverse.source.shape, padded=op)
+        return SquaresCorrection(inverse, values, inverse.source.shape)
     return OneRowInverse(inverse)
 
 
