@@ -94,6 +94,34 @@ def test_boussinesq_point_force():
     assert np.isinf(boussinesq_point(0.0, E_STAR))
 
 
+def test_boussinesq_point_force_in_place():
+    """``out``: the same values written into the given array (here the distances themselves)."""
+    r = np.array([[0.0, 0.5], [1.0, 7.0]])
+    expected = np.array(
+        [[np.inf, 1.0 / (math.pi * E_STAR * 0.5)], [1.0 / (math.pi * E_STAR), 1.0 / (math.pi * E_STAR * 7.0)]]
+    )
+    out = boussinesq_point(r, E_STAR, out=r)
+    assert out is r
+    assert np.isinf(out[0, 0])
+    assert np.allclose(out.ravel()[1:], expected.ravel()[1:], rtol=1e-15, atol=0.0)
+
+
+def test_point_compliance_closed_form():
+    """The half-space's compliance between two different point sets: ``1 / (pi E* |t - s|)``
+    pair by pair, ``inf`` where two coincide."""
+    rng = np.random.default_rng(3)
+    targets, sources = rng.uniform(-5.0, 5.0, (7, 2)), rng.uniform(-5.0, 5.0, (4, 2))
+    sources[2] = targets[5]
+    T = HalfSpace(Material(10.0, 0.5)).point_compliance(targets, sources)
+    assert T.shape == (7, 4)
+    for i, t in enumerate(targets):
+        for j, s in enumerate(sources):
+            if (i, j) == (5, 2):
+                assert np.isinf(T[i, j])
+            else:
+                assert T[i, j] == pytest.approx(1.0 / (math.pi * E_STAR * math.dist(t, s)), rel=1e-14)
+
+
 # ------------------------------------------------------------------ provider views
 HS = HalfSpace(Material(10.0, 0.5))
 

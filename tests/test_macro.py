@@ -646,3 +646,24 @@ def test_a_face_set_askew_is_levelled(slope):
     assert np.allclose(res.forces, 1.0, rtol=1e-10)
     assert abs(res.tilt[1] + slope) < 1e-12 and abs(res.tilt[0]) < 1e-12
     check_equations(res, tips, z, [law] * 4, boussinesq_interaction(tips))
+
+
+def test_cholesky_in_place_solves_and_refuses_an_indefinite_matrix():
+    """The in-place factor solves ``K x = b`` as a dense solve does and overwrites ``K``; an
+    indefinite ``K`` (two tips closer than their laws' compliance: the stability test's
+    case) gives None."""
+    from scipy.linalg import cho_solve
+
+    from twoscale.macro.system import cholesky_in_place
+
+    rng = np.random.default_rng(5)
+    tips = rng.uniform(0.0, 20.0, (40, 2))
+    T = boussinesq_interaction(tips)
+    K = T + np.diag(np.full(40, 1.0))
+    b = rng.uniform(0.0, 1.0, 40)
+    want = np.linalg.solve(K, b)
+    factor = cholesky_in_place(K)
+    assert factor is not None and np.shares_memory(factor[0], K)  # (overwritten: no copy)
+    assert np.allclose(cho_solve(factor, b), want, rtol=1e-12, atol=0.0)
+    close = np.array([[1.0, 2.0], [2.0, 1.0]])  # eigenvalues 3 and -1
+    assert cholesky_in_place(close) is None

@@ -138,3 +138,20 @@ def test_the_coarse_correction_on_a_bonded_block_keeps_the_answer():
         patch.setattr(coarse, "MIN_CELLS", 0)
         corrected = solve_cg(block, surf, tol=1e-9, precondition=True, coarse=True, **load)
     _assert_the_answer_in_fewer_iterations(corrected, torus, plain)
+
+
+@pytest.mark.parametrize("shape,built", [((505, 517), False), ((612, 613), True)])
+def test_the_correction_is_built_from_its_least_grid(shape, built):
+    """The same contact (sparse squares, 4 % of the cells loaded) on a box of seed 7's #55
+    (261 K cells, where the correction cost more than the iterations it saved) gets none,
+    on one of #177's (375 K cells, where it saved CPU) it does."""
+    ny, nx = shape
+    cells = np.arange(ny * nx)
+    loaded = np.zeros(ny * nx, bool)
+    y, x = np.meshgrid(np.arange(5, ny - 5, 25), np.arange(5, nx - 5, 25), indexing="ij")
+    for dy in range(5):
+        for dx in range(5):
+            loaded[(y + dy).ravel() * nx + (x + dx).ravel()] = True
+    table = HS.grid_operator(Grid(0.0, 0.0, 0.01, nx, ny)).offset_table()
+    owner = SquaresCorrection(None, table, shape)
+    assert (CoarseSpace.build(owner, cells, loaded) is not None) == built

@@ -13,14 +13,19 @@ import numpy as np
 _FAR = 600.0
 
 
-def boussinesq_point(r, E_star: float):
+def boussinesq_point(r, E_star: float, out: np.ndarray | None = None):
     """Surface displacement at distance ``r`` (mm) from a unit normal point force (N).
 
-    ``u = 1 / (pi E* r)`` (Boussinesq 1885). Returns ``inf`` at ``r = 0``.
+    ``u = 1 / (pi E* r)`` (Boussinesq 1885). Returns ``inf`` at ``r = 0``. ``out``: a float
+    array of ``r``'s shape to write into (it may be ``r`` itself): no temporary of that size
+    (a tips' interaction of millions of pairs, in a fresh process, pays each one's pages).
     """
     r = np.asarray(r, dtype=float)
     with np.errstate(divide="ignore"):
-        return 1.0 / (np.pi * E_star * r)
+        if out is None:
+            return 1.0 / (np.pi * E_star * r)
+        np.multiply(r, np.pi * E_star, out=out)
+        return np.divide(1.0, out, out=out)
 
 
 def _F(X, Y):

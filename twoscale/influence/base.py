@@ -196,8 +196,9 @@ class InfluenceProvider(ABC):
 
         Returns
         -------
-        (M, N) array, mm/N. Coincident points give ``inf`` (the point-force
-        displacement is singular); callers use the off-diagonal part only.
+        (M, N) array, mm/N, a new one the caller owns (it may write into it). Coincident
+        points give ``inf`` (the point-force displacement is singular); callers use the
+        off-diagonal part only.
         """
 
     @abstractmethod

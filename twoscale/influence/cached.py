@@ -176,7 +176,7 @@ class CachedBody(InfluenceProvider):
             where = np.array([kept[0].get(p, -1) for p in map(tuple, points.tolist())], dtype=np.intp)
             if 2 * np.count_nonzero(where >= 0) >= n:
                 return _cut(kept[1], where, lambda t, s: self.body.point_compliance(points[t], points[s]))
-        T = np.array(self.body.point_compliance(targets, sources), dtype=float)
+        T = np.asarray(self.body.point_compliance(targets, sources), dtype=float)  # (the body's: a new array)
         index = {p: k for k, p in enumerate(map(tuple, points.tolist()))}
         self.caches.operators.put(("compliance",), (index, T.copy()), T.nbytes)
         return T

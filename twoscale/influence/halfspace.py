@@ -5,6 +5,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import numpy as np
+from scipy.spatial.distance import cdist
 
 from ..analytic.halfspace import boussinesq_point, love_far_field, love_on_lattice, love_rectangle
 from ..grid import Grid
@@ -69,8 +70,13 @@ class HalfSpace(InfluenceProvider):
         return self.material.E_star
 
     def point_compliance(self, targets, sources):
-        dx, dy = _pairwise(targets, sources)
-        return boussinesq_point(np.hypot(dx, dy), self.E_star)
+        # the distances in one array, turned into the compliance in place (by hypot of the
+        # offsets: four temporaries of its size, which in a fresh process cost 5-15x the
+        # values themselves: 1,652 tips, 0.08-0.29 against 0.016 s)
+        t = np.asarray(targets, dtype=float).reshape(-1, 2)
+        s = np.asarray(sources, dtype=float).reshape(-1, 2)
+        r = cdist(t, s)
+        return boussinesq_point(r, self.E_star, out=r)
 
     def cell_block(self, targets, sources, h):
         dx, dy = _pairwise(targets, sources)

@@ -20,7 +20,7 @@ from .result import MacroResult
 from .start import MacroStart, independent_approach, levelling_tilt
 from .newton import PLATEAU_DROP
 from .robust import FAST_STEPS, balance_feasible, levelled_retry, minimise_then_polish, run_newton, solve_dual
-from .system import MacroSystem, symmetric_part
+from .system import MacroSystem, cholesky_in_place, symmetric_part
 
 #: Default largest N solved with a dense interaction matrix (32 MB at 2,000).
 DENSE_MAX = MacroOptions.dense_max
@@ -296,7 +296,7 @@ def _residual_norm(system: MacroSystem, x: np.ndarray) -> float:
 
 def _interaction(provider: InfluenceProvider, tips: np.ndarray, self_compliance: bool) -> np.ndarray:
     """``T`` (mm/N): point compliance off the diagonal, smooth self-compliance on it."""
-    T = np.array(provider.point_compliance(tips, tips), dtype=float)
+    T = np.asarray(provider.point_compliance(tips, tips), dtype=float)  # (a new array: the caller's)
     n = len(tips)
     if T.shape != (n, n):
         raise ValueError(f"provider.point_compliance returned shape {T.shape}, expected {(n, n)}")
@@ -389,9 +389,8 @@ def _secant_forces(system: MacroSystem, stack: LawStack) -> np.ndarray:
     K = symmetric_part(system.T if A.size == system.n else system.T[np.ix_(A, A)])
     K = K.copy() if K is system.T else K  # its diagonal is changed below
     K[np.arange(A.size), np.arange(A.size)] += o[A] / f
-    try:
-        L = np.linalg.cholesky(K)
-    except np.linalg.LinAlgError:
+    factor = cholesky_in_place(K)
+    if factor is None:
         return P
-    P[A] = np.maximum(cho_solve((L, True), o[A], check_finite=False), 0.0)  # not two LU solves
+    P[A] = np.maximum(cho_solve(factor, o[A], check_finite=False), 0.0)  # not two LU solves
     return P

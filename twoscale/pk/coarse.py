@@ -46,9 +46,12 @@ START = 0.01
 #: beyond, no correction.
 MAX_SQUARES = 2500
 #: The correction is built only on grids of at least this many cells (on smaller ones an
-#: iteration costs less than the build: 400 spheres on 261 x 261 cells, 26 -> 20 iterations
-#: for the same CPU) ...
-MIN_CELLS = 250_000
+#: iteration costs less than the build and the corrected steps' extra: 400 spheres on 261 x
+#: 261 cells, 26 -> 20 iterations for the same CPU; seed 7's #3 and seed 6's #46, 179-191 K
+#: cells, 20 -> 13 and 25 -> 15 for the same CPU; seed 7's #55, 505 x 517 cells, 24 -> 14
+#: for 1.13x the CPU in 8 replayed pairs, where seed 7's #177, 612 x 613, takes 32 -> 20 for
+#: 0.91x and every box of the earlier gains has at least 389 K cells) ...
+MIN_CELLS = 300_000
 #: ... and where the loaded squares are at most this full, weighted by their loaded cells
 #: (``sum n_i^2 / (side^2 sum n_i)``): the precorrected product has about ``(2 r + 1)^2`` x
 #: that near pairs a loaded cell, and contacts of a few large patches gain few iterations.
