@@ -22,8 +22,9 @@ from .resolution import _contact_radii, expected_approaches, expected_contact_ra
 from .scene import Scene
 
 #: Largest number of tips summed over as sources of the push (a random subset beyond it,
-#: weighted: 10,000 tips cost 10 M distances).
-SOURCES = 1000
+#: each weighted by the tips it stands for): 8,880 tips cost 0.06 s of CPU (0.48 s with
+#: 1,000 sources, the cells counted the same within 1 % on the sweep's seed 7).
+SOURCES = 256
 
 
 def pushed_approaches(scene: Scene) -> np.ndarray:
@@ -68,16 +69,21 @@ def _solve(scene: Scene) -> np.ndarray:
 
 def _push_per_newton(scene: Scene) -> np.ndarray:
     """``g_k``, mm/N: the lift at tip ``k`` from a unit force at every other tip."""
+    from scipy.spatial.distance import cdist
+
     tips = np.array([[a.x, a.y] for a in scene.asperities], dtype=float)
     a = expected_contact_radii(scene)
     n = len(tips)
-    pick = np.arange(n) if n <= SOURCES else np.random.default_rng(0).choice(n, SOURCES, replace=False)
-    weight = n / len(pick)
+    pick = np.arange(n) if n <= SOURCES else np.sort(np.random.default_rng(0).choice(n, SOURCES, replace=False))
     g = np.zeros(n)
-    for start in range(0, n, 1000):  # 1,000 targets at a time: 8 MB of distances
-        k = np.arange(start, min(start + 1000, n))
-        r = np.hypot(*(tips[k, None, :] - tips[None, pick, :]).transpose(2, 0, 1))
-        r = np.maximum(r, a[k, None] + a[None, pick])
-        inv = np.where(k[:, None] == pick[None, :], 0.0, 1.0 / np.where(r > 0, r, np.inf))
-        g[k] = weight * inv.sum(axis=1)
-    return g / (np.pi * scene.material.E_star)
+    for start in range(0, n, 4096):  # 4,096 targets at a time: 8 MB of distances
+        k = np.arange(start, min(start + 4096, n))
+        r = cdist(tips[k], tips[pick])
+        np.maximum(r, a[k, None] + a[None, pick], out=r)
+        with np.errstate(divide="ignore"):
+            inv = np.reciprocal(r, out=r)
+        inv[~np.isfinite(inv)] = 0.0  # two tips at one point without contact
+        mine = np.flatnonzero((pick >= start) & (pick < start + len(k)))
+        inv[pick[mine] - start, mine] = 0.0  # not a tip's own force
+        g[k] = inv.sum(axis=1)
+    return g * (n / len(pick)) / (np.pi * scene.material.E_star)
