@@ -69,8 +69,6 @@ def _solve(scene: Scene) -> np.ndarray:
 
 def _push_per_newton(scene: Scene) -> np.ndarray:
     """``g_k``, mm/N: the lift at tip ``k`` from a unit force at every other tip."""
-    from scipy.spatial.distance import cdist
-
     tips = np.array([[a.x, a.y] for a in scene.asperities], dtype=float)
     a = expected_contact_radii(scene)
     n = len(tips)
@@ -78,7 +76,7 @@ def _push_per_newton(scene: Scene) -> np.ndarray:
     g = np.zeros(n)
     for start in range(0, n, 4096):  # 4,096 targets at a time: 8 MB of distances
         k = np.arange(start, min(start + 4096, n))
-        r = cdist(tips[k], tips[pick])
+        r = np.hypot(np.subtract.outer(tips[k, 0], tips[pick, 0]), np.subtract.outer(tips[k, 1], tips[pick, 1]))
         np.maximum(r, a[k, None] + a[None, pick], out=r)
         with np.errstate(divide="ignore"):
             inv = np.reciprocal(r, out=r)

@@ -89,7 +89,9 @@ class MemoryEstimate:
 
 
 # ---------------------------------------------------------------- the estimate
-def estimate_memory(scene: Scene, h: float, method: str = "twoscale", *, iteration: str = "auto") -> MemoryEstimate:
+def estimate_memory(
+    scene: Scene, h: float, method: str = "twoscale", *, iteration: str = "auto", provider=None
+) -> MemoryEstimate:
     """Peak memory of solving ``scene`` at cell size ``h`` with ``method``.
 
     Parameters
@@ -105,6 +107,9 @@ def estimate_memory(scene: Scene, h: float, method: str = "twoscale", *, iterati
         asked for runs alone); ``"auto"`` the block operators, and the box too where the
         patches cover at least ``MODEL.union_coverage`` of it (under penetration control a
         lower share) and on a height map's stones (a union CG after a block attempt).
+    provider : InfluenceProvider, optional
+        The body the solve will use, asked what its first answers build
+        (:func:`body_build_bytes`); None: the scene's, built here.
 
     Returns
     -------
@@ -130,7 +135,7 @@ def estimate_memory(scene: Scene, h: float, method: str = "twoscale", *, iterati
         raise SceneError(
             f"cell size h = {h!r} mm is too small: the scene's cells cannot even be counted (over 1e308 of them)"
         ) from None
-    if (build := body_build_bytes(scene)) > 0:
+    if (build := body_build_bytes(scene, provider)) > 0:
         parts["finite-block factorisation (a field not in its cache)"] = build
     total = float(sum(parts.values()))
     dominant = max(
@@ -139,26 +144,28 @@ def estimate_memory(scene: Scene, h: float, method: str = "twoscale", *, iterati
     return MemoryEstimate(total, cells, dominant, method, float(h), tuple((k, float(v)) for k, v in parts.items()))
 
 
-def body_build_bytes(scene: Scene) -> float:
+def body_build_bytes(scene: Scene, provider=None) -> float:
     """What the scene's body will build on its first answers, bytes
     (:meth:`~twoscale.influence.base.InfluenceProvider.build_bytes`: the finite block's
     factorisation where its on-disk cache lacks a field the tips' region needs, 0 where it
     holds them all, as after a first solve of the same block; always 0 on the half-space).
     The region: the tips' box widened by their largest reach at the expected approach, which
-    every grid a solve builds stays within. Asked once per scene (kept with it)."""
-    if scene.influence["kind"] == "halfspace":
+    every grid a solve builds stays within. ``provider``: the body the solve will use; None:
+    the scene's, built here once per scene (the answer kept with it)."""
+    if provider is None and scene.influence["kind"] == "halfspace":
         return 0.0
-    kept = scene.__dict__.get("_build_bytes")
+    kept = None if provider is not None else scene.__dict__.get("_build_bytes")
     if kept is None:
         delta = expected_approaches(scene)
         reach = max((a.reach(float(d)) for a, d in zip(scene.asperities, delta)), default=0.0)
         x, y = scene.tips[:, 0], scene.tips[:, 1]
         rect = (float(x.min()) - reach, float(x.max()) + reach, float(y.min()) - reach, float(y.max()) + reach)
         try:
-            kept = float(scene.provider(progress=False).build_bytes(rect))
+            kept = float((provider or scene.provider(progress=False)).build_bytes(rect))
         except (SceneError, ValueError):  # a body the solve will refuse: nothing is built
             kept = 0.0
-        scene.__dict__["_build_bytes"] = kept  # not a field: equality, hash and repr ignore it
+        if provider is None:
+            scene.__dict__["_build_bytes"] = kept  # not a field: equality, hash and repr ignore it
     return kept
 
 
@@ -191,10 +198,11 @@ def check_solve_memory(
     limit_bytes: float | None = None,
     option: str = "--h",
     h_given: bool = False,
+    provider=None,
 ) -> None:
     """:func:`check_memory` for solving ``scene`` at ``h``: the refusal names where h came
     from (``option``, the scene's ``grid.h``, or the default rule) and suggests an h whose
-    estimate was checked to fit."""
+    estimate was checked to fit; ``provider``: the body the solve will use (None: the scene's)."""
     if h_given:
         source = f"given as {option}"
     elif scene.h is not None:
@@ -204,7 +212,7 @@ def check_solve_memory(
     family = "twoscale" if method == "twoscale" else "reference"
 
     def refit(hh: float) -> MemoryEstimate:
-        return estimate_memory(scene, hh, family, iteration=iteration)
+        return estimate_memory(scene, hh, family, iteration=iteration, provider=provider)
 
     try:
         check_memory(refit(h), limit_bytes, option=option, source=source, refit=refit)
