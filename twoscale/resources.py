@@ -161,7 +161,8 @@ def body_build_bytes(scene: Scene, provider=None) -> float:
         x, y = scene.tips[:, 0], scene.tips[:, 1]
         rect = (float(x.min()) - reach, float(x.max()) + reach, float(y.min()) - reach, float(y.max()) + reach)
         try:
-            kept = float((provider or scene.provider(progress=False)).build_bytes(rect))
+            build = getattr(provider or scene.provider(progress=False), "build_bytes", None)
+            kept = 0.0 if build is None else float(build(rect))  # a body of the caller's may not say
         except (SceneError, ValueError):  # a body the solve will refuse: nothing is built
             kept = 0.0
         if provider is None:
