@@ -82,3 +82,51 @@ def test_a_first_box_too_small_grows_early_with_the_reference_forces(monkeypatch
     assert late.converged and late.details.micro.growths == micro.growths
     assert micro.attempts[-1].sweeps < late.details.micro.attempts[-1].sweeps
     assert np.max(np.abs(late.asperities.forces - F)) <= 1e-6 * Fr.max()
+
+
+def _tilted_four():
+    """Four small paraboloids under load, tilted about a pivot outside them (the sweep's
+    seed 8, #80): the macro step's tilt leaves the fourth tip, 0.3 mm past the others,
+    without force and outside the union CG's first box; the full grid gives it 0.5 % of the
+    load at the answer's tilt."""
+    (spec,) = [s for s in sweep(200, 8) if s.index == 80]
+    return build(spec)
+
+
+def test_a_tip_the_answers_tilt_reaches_outside_the_box_is_taken_in():
+    scene = _tilted_four()
+    default = solve_scene(scene)
+    reference = solve_scene(scene, method="reference")
+    assert default.converged and reference.converged
+    assert reference.forces[3] > 1e-3 * reference.forces.max()  # it touches: the case is the one meant
+    # the default's per-tip forces equal the full grid's (1.05 % off on the fourth without
+    # the check: it had no cell)
+    np.testing.assert_allclose(default.forces, reference.forces, rtol=0, atol=1e-6 * reference.forces.max())
+    assert default.tilt == pytest.approx(reference.tilt, rel=1e-6)
+
+
+def test_reached_outside_covers_the_reached_tip_and_nothing_else():
+    from types import SimpleNamespace
+
+    from twoscale.micro.union_edge import reached_outside
+
+    material = Material(E=1.0, nu=0.5)
+    tips = [Asperity(0.0, 0.0, 0.0, 1.0), Asperity(2.0, 0.0, 0.0, 1.0), Asperity(-3.0, 0.0, 0.5, 1.0)]
+    box = Grid(-0.3, -0.3, 0.05, 13, 13)  # around the first tip only
+    field = SimpleNamespace(grid=box, pressure=np.zeros(box.shape), owner=np.zeros(box.shape, dtype=np.int64))
+    answer = SimpleNamespace(penetration=0.01, tilt=None, fields=[field])
+    hs = HalfSpace(material)
+    grown = reached_outside(box, tips, answer, hs, (0.0, 0.0))  # no pressure: the second tip (z 0) is reached
+    assert grown is not None
+    xmin, xmax, ymin, ymax = grown.bounds
+    assert xmax >= 2.0 + tips[1].reach(0.02) and xmin == pytest.approx(box.bounds[0])  # the third (z 0.5) is not
+    assert (ymin, ymax) == pytest.approx(box.bounds[2:])
+    # a tilt about the first tip that lifts the second by 0.02 mm (beta x): nothing to cover
+    tilted = SimpleNamespace(penetration=0.01, tilt=(0.0, 0.01), fields=[field])
+    assert reached_outside(box, tips, tilted, hs, (0.0, 0.0)) is None
+    # the first tip's force sinks the surface at the second by F / (pi E* r): 0.02 N at 2 mm
+    # sinks it 0.0024 mm (E* 4/3 MPa), short of its approach 0.01: still reached
+    field.pressure[6, 6] = 0.02 / box.h**2
+    assert reached_outside(box, tips, answer, hs, (0.0, 0.0)) is not None
+    field.pressure[6, 6] = 0.1 / box.h**2  # 0.1 N sinks it 0.012 mm: past its approach, not reached
+    assert reached_outside(box, tips, answer, hs, (0.0, 0.0)) is None

@@ -17,6 +17,8 @@ final box is still solved to convergence and checked on its edge
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from ..grid import Grid
@@ -72,3 +74,41 @@ def box_edge_cells(grid: Grid, box: Grid) -> np.ndarray:
     if dj + grid.ny == box.ny:
         cells[-1, :] = True
     return cells
+
+
+def reached_outside(box: Grid, asperities, result, provider, pivot) -> Grid | None:
+    """``box`` grown to cover the tips outside it that the answer's approach and tilt bring
+    into contact, or None where there is none. The first box covers the tips the macro
+    step's approach and tilt reach; the CG solves its own, and a tip beyond the box that the
+    final ones reach would be left out without a word (four paraboloids tilted about a pivot
+    outside them: the answer's tilt reached a tip 0.3 mm past the box, the full grid gave it
+    0.5 % of the load and moved the others' forces by 1 %). A tip counts as reached where
+    its geometric approach at the answer's approach and tilt, less the sinking there under
+    the box's tips' forces as point forces, is positive; its side of the box is moved out
+    to its reach at twice that approach plus two cells."""
+    from .workset import tip_approaches
+
+    xmin, xmax, ymin, ymax = box.bounds
+    tips = np.array([[a.x, a.y] for a in asperities], dtype=float)
+    out = np.flatnonzero((tips[:, 0] < xmin) | (tips[:, 0] > xmax) | (tips[:, 1] < ymin) | (tips[:, 1] > ymax))
+    theta = (result.penetration, *(result.tilt or (0.0, 0.0)))
+    if out.size:
+        out = out[tip_approaches([asperities[k] for k in out], theta, pivot) > 0.0]
+    if out.size == 0:
+        return None
+    field = result.fields[0]
+    on = field.pressure > 0.0
+    force = np.bincount(field.owner[on], weights=field.pressure[on], minlength=len(asperities)) * field.grid.h**2
+    src = np.flatnonzero(force > 0.0)
+    sink = provider.point_operator(tips[out], tips[src]).apply(force[src]) if src.size else 0.0
+    local = tip_approaches([asperities[k] for k in out], theta, pivot) - sink
+    reached, local = out[local > 0.0], local[local > 0.0]
+    if reached.size == 0:
+        return None
+    r = np.array([asperities[k].reach(2.0 * d) for k, d in zip(reached, local)]) + 2.0 * box.h
+    h = box.h
+    left = max(0, math.ceil((xmin - float(np.min(tips[reached, 0] - r))) / h))
+    right = max(0, math.ceil((float(np.max(tips[reached, 0] + r)) - xmax) / h))
+    low = max(0, math.ceil((ymin - float(np.min(tips[reached, 1] - r))) / h))
+    high = max(0, math.ceil((float(np.max(tips[reached, 1] + r)) - ymax) / h))
+    return Grid(box.x0 - left * h, box.y0 - low * h, h, box.nx + left + right, box.ny + low + high)
