@@ -1,7 +1,7 @@
 """The scene-space sweep: every plausible scene, default options, against the references.
 
 Scenes come from :mod:`twoscale.scenespace` (seeded: ``--seed``, ``--count``). For each,
-in fresh subprocesses (peak RSS = the child's ``ru_maxrss``, the interpreter included),
+in fresh subprocesses (peak RSS = the child's own ``VmHWM``, the interpreter included),
 interleaved scene by scene so that the machine's load hits both alike:
 
 * ``ts``: ``twoscale.solve(scene)`` with the default options, as a user's
@@ -75,6 +75,17 @@ INSIDE_MAX = 40
 
 
 def _rss_mb() -> float:
+    """This process's peak resident memory, MB: ``VmHWM`` of /proc/self/status, the high-water
+    mark of its own address space. ``ru_maxrss`` would do elsewhere, but on Linux it keeps the
+    forking parent's resident size across ``exec`` (the sweep's parent grows to 300 MB and
+    more as it builds scenes: small solves then read that instead of their own ~110 MB)."""
+    try:
+        with open("/proc/self/status", encoding="ascii") as fh:
+            for line in fh:
+                if line.startswith("VmHWM:"):
+                    return float(line.split()[1]) / 1024.0  # kB
+    except OSError:
+        pass
     return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
 
 
