@@ -84,6 +84,18 @@ def build(args) -> tuple:
     )
 
 
+def tyre_window(length: float) -> tuple:
+    """The benchmark's tyre over ``length`` mm with this checkout's ``twoscale``, ready to roll
+    position by position (``step(track, k, last, options, state)``): ``(track, options,
+    state)``, the default options and a fresh window state (the stage-level benchmarks'
+    set-up)."""
+    import twoscale
+
+    track = prepare(tyre_scene(twoscale, length)[0])
+    options = RollingOptions()
+    return track, options, window_state(track, options)
+
+
 def tyre_scene(package, length: float, *, step=1.0, load=3000.0, radius=300.0, width=150.0, h=0.25, seed=1) -> tuple:
     """:func:`build`'s scene made by ``package`` (``twoscale``, or another tree's copy
     imported under another name: ``rolling_paired.py``) for ``length`` mm of run, and the

@@ -35,12 +35,10 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 import _common  # noqa: E402,F401,I001
 import rolling as rolling_benchmark  # noqa: E402
 
-import twoscale  # noqa: E402
 from twoscale.cli.heap import keep_heap  # noqa: E402
 from twoscale.influence import convolution, on_cells  # noqa: E402
 from twoscale.reference import cg  # noqa: E402
-from twoscale.rolling import RollingOptions, blocks, road, run, window  # noqa: E402
-from twoscale.rolling.track import prepare  # noqa: E402
+from twoscale.rolling import blocks, road, run, window  # noqa: E402
 
 #: (module or class, function name, stage label), wrapped in this order.
 STAGES = (
@@ -108,10 +106,7 @@ def main() -> None:
     budget = Budget()
     for owner, name, label in STAGES:
         budget.wrap(owner, name, label)
-    scene, _ = rolling_benchmark.tyre_scene(twoscale, args.length)
-    track = prepare(scene)
-    options = RollingOptions()
-    state = run.window_state(track, options)
+    track, options, state = rolling_benchmark.tyre_window(args.length)
     last, cpu = None, []
     for k in range(len(track.shifts)):
         budget.on = k >= args.skip

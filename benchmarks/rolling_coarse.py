@@ -32,12 +32,10 @@ import rolling as rolling_benchmark  # noqa: E402
 
 import numpy as np  # noqa: E402
 
-import twoscale  # noqa: E402
 from twoscale.cli.heap import keep_heap  # noqa: E402
 from twoscale.pk import coarse  # noqa: E402
 from twoscale.reference import _precondition  # noqa: E402
-from twoscale.rolling import RollingOptions, blocks, run  # noqa: E402
-from twoscale.rolling.track import prepare  # noqa: E402
+from twoscale.rolling import blocks, run  # noqa: E402
 
 
 class Corrected:
@@ -95,10 +93,7 @@ def main() -> None:
     keep_heap()
     if not args.off:
         compose(args.side, args.start)
-    scene, _ = rolling_benchmark.tyre_scene(twoscale, args.length)
-    track = prepare(scene)
-    options = RollingOptions()
-    state = run.window_state(track, options)
+    track, options, state = rolling_benchmark.tyre_window(args.length)
     last, iterations, cpu, window = None, [], [], True
     for k in range(len(track.shifts)):
         c0 = time.process_time()

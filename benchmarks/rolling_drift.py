@@ -32,11 +32,9 @@ import rolling as rolling_benchmark  # noqa: E402
 
 import numpy as np  # noqa: E402
 
-import twoscale  # noqa: E402
 from twoscale.cli.heap import keep_heap  # noqa: E402
-from twoscale.rolling import RollingOptions, run  # noqa: E402
+from twoscale.rolling import run  # noqa: E402
 from twoscale.rolling.boxes import moved  # noqa: E402
-from twoscale.rolling.track import prepare  # noqa: E402
 
 
 def errors(op, p: np.ndarray, q: np.ndarray) -> tuple[float, float]:
@@ -53,10 +51,7 @@ def main() -> None:
     parser.add_argument("--length", type=float, default=12.0, help="run length, mm")
     args = parser.parse_args()
     keep_heap()
-    scene, _ = rolling_benchmark.tyre_scene(twoscale, args.length)
-    track = prepare(scene)
-    options = RollingOptions()
-    state = run.window_state(track, options)
+    track, options, state = rolling_benchmark.tyre_window(args.length)
     last, rows = None, []
     for k in range(len(track.shifts)):
         shift = float(track.shifts[k])

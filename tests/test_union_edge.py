@@ -113,20 +113,22 @@ def test_reached_outside_covers_the_reached_tip_and_nothing_else():
     material = Material(E=1.0, nu=0.5)
     tips = [Asperity(0.0, 0.0, 0.0, 1.0), Asperity(2.0, 0.0, 0.0, 1.0), Asperity(-3.0, 0.0, 0.5, 1.0)]
     box = Grid(-0.3, -0.3, 0.05, 13, 13)  # around the first tip only
-    field = SimpleNamespace(grid=box, pressure=np.zeros(box.shape), owner=np.zeros(box.shape, dtype=np.int64))
-    answer = SimpleNamespace(penetration=0.01, tilt=None, fields=[field])
+
+    def answer(force: float = 0.0, tilt=None):  # the first tip carrying ``force`` N, the others none
+        return SimpleNamespace(
+            penetration=0.01, tilt=tilt, asperities=SimpleNamespace(forces=np.array([force, 0.0, 0.0]))
+        )
+
     hs = HalfSpace(material)
-    grown = reached_outside(box, tips, answer, hs, (0.0, 0.0))  # no pressure: the second tip (z 0) is reached
+    grown = reached_outside(box, tips, answer(), hs, (0.0, 0.0))  # no pressure: the second tip (z 0) is reached
     assert grown is not None
     xmin, xmax, ymin, ymax = grown.bounds
     assert xmax >= 2.0 + tips[1].reach(0.02) and xmin == pytest.approx(box.bounds[0])  # the third (z 0.5) is not
     assert (ymin, ymax) == pytest.approx(box.bounds[2:])
     # a tilt about the first tip that lifts the second by 0.02 mm (beta x): nothing to cover
-    tilted = SimpleNamespace(penetration=0.01, tilt=(0.0, 0.01), fields=[field])
-    assert reached_outside(box, tips, tilted, hs, (0.0, 0.0)) is None
+    assert reached_outside(box, tips, answer(tilt=(0.0, 0.01)), hs, (0.0, 0.0)) is None
     # the first tip's force sinks the surface at the second by F / (pi E* r): 0.02 N at 2 mm
     # sinks it 0.0024 mm (E* 4/3 MPa), short of its approach 0.01: still reached
-    field.pressure[6, 6] = 0.02 / box.h**2
-    assert reached_outside(box, tips, answer, hs, (0.0, 0.0)) is not None
-    field.pressure[6, 6] = 0.1 / box.h**2  # 0.1 N sinks it 0.012 mm: past its approach, not reached
-    assert reached_outside(box, tips, answer, hs, (0.0, 0.0)) is None
+    assert reached_outside(box, tips, answer(0.02), hs, (0.0, 0.0)) is not None
+    # 0.1 N sinks it 0.012 mm: past its approach, not reached
+    assert reached_outside(box, tips, answer(0.1), hs, (0.0, 0.0)) is None

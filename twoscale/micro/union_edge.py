@@ -92,16 +92,14 @@ def reached_outside(box: Grid, asperities, result, provider, pivot) -> Grid | No
     tips = np.array([[a.x, a.y] for a in asperities], dtype=float)
     out = np.flatnonzero((tips[:, 0] < xmin) | (tips[:, 0] > xmax) | (tips[:, 1] < ymin) | (tips[:, 1] > ymax))
     theta = (result.penetration, *(result.tilt or (0.0, 0.0)))
-    if out.size:
-        out = out[tip_approaches([asperities[k] for k in out], theta, pivot) > 0.0]
+    local = tip_approaches([asperities[k] for k in out], theta, pivot)
+    out, local = out[local > 0.0], local[local > 0.0]
     if out.size == 0:
         return None
-    field = result.fields[0]
-    on = field.pressure > 0.0
-    force = np.bincount(field.owner[on], weights=field.pressure[on], minlength=len(asperities)) * field.grid.h**2
+    force = result.asperities.forces
     src = np.flatnonzero(force > 0.0)
-    sink = provider.point_operator(tips[out], tips[src]).apply(force[src]) if src.size else 0.0
-    local = tip_approaches([asperities[k] for k in out], theta, pivot) - sink
+    if src.size:
+        local = local - provider.point_operator(tips[out], tips[src]).apply(force[src])
     reached, local = out[local > 0.0], local[local > 0.0]
     if reached.size == 0:
         return None
