@@ -1,9 +1,9 @@
-"""What the macro step no longer does twice: the penetrations kept between Newton's residual
-and its step, the secant start's single-precision factor.
+"""What the macro step no longer does twice: the stall's one-step stop, the penetrations kept
+between Newton's residual and its step, the secant start's single-precision factor.
 
-The answers are checked against closed forms written out here (the local penetrations
-``offset - T P``, the secant start's linear problem solved in double precision) and against
-the same solve from another start.
+The answers are checked against closed forms written out here (a Newton iteration on a line,
+the local penetrations ``offset - T P``, the secant start's linear problem solved in double
+precision) and against the same solve without the shortcut.
 """
 
 import math
@@ -14,9 +14,37 @@ from twoscale import Material
 from twoscale.control import Loading
 from twoscale.laws import HertzLaw, LawStack
 from twoscale.macro import solve_macro
+from twoscale.macro.newton import STALL_RESIDUAL, STALL_STEP_DROP, Stops, newton
 from twoscale.macro.system import MacroSystem
 
 MAT = Material(10.0, 0.5)
+
+
+def _line(x0: float, factor: float, max_iter: int, stall):
+    """Newton on r(x) = x whose step is ``-factor r``: the residual falls by ``factor`` a step."""
+    return newton(
+        lambda x: x.copy(),
+        lambda x, r: -factor * r,
+        np.array([x0]),
+        scale=lambda x: 1.0,
+        tol=1e-10,
+        max_iter=max_iter,
+        stops=Stops(stall=stall),
+    )
+
+
+def test_a_step_that_removes_almost_nothing_near_a_solution_stops_newton_at_once():
+    # below STALL_RESIDUAL a step taking off 0.05 % of the residual stops after that step
+    # (the four-step window alone stopped after four); 0.2 % a step is left to the window;
+    # above STALL_RESIDUAL the same 0.05 % steps go on to max_iter
+    tiny = 0.5 * STALL_STEP_DROP
+    once = _line(0.5 * STALL_RESIDUAL, tiny, 40, 4)
+    assert not once.converged and once.iterations == 1
+    assert "down by under 0.1% in one step" in once.message
+    slow = _line(0.5 * STALL_RESIDUAL, 2.0 * STALL_STEP_DROP, 40, 4)
+    assert slow.iterations == 4 and "not halved in 4 steps" in slow.message
+    far = _line(5.0 * STALL_RESIDUAL, tiny, 40, 4)
+    assert far.iterations == 40 and "stagnated" not in far.message
 
 
 class _Counted:
@@ -91,3 +119,27 @@ def test_the_secant_start_solves_its_linear_problem_to_single_precision():
     zero = solve_macro(provider, tips, z, laws, Loading(d, None), start=MacroStart(np.zeros(60)))
     assert cold.converged and zero.converged
     assert np.max(np.abs(cold.forces - zero.forces)) <= 1e-9 * zero.forces.max()
+
+
+def test_a_merged_pair_hands_over_to_the_safe_path_a_step_sooner(monkeypatch):
+    # the sweep's 761 paraboloids under penetration (seed 0's #67), merged pairs: Newton's
+    # eleventh step takes off under 0.1 % of its residual, below STALL_RESIDUAL; it hands
+    # over there instead of after the four-step window, and the safe path gives the forces
+    # it gives after the later hand-over
+    import twoscale.macro.newton as macro_newton
+    from helpers import sweep_macro_inputs
+    from twoscale.laws import law_for
+
+    scene, tips, z, provider = sweep_macro_inputs(67)
+
+    def solve():
+        laws = [law_for(a, provider.material) for a in scene.asperities]
+        return solve_macro(provider, tips, z, laws, Loading(scene.penetration, scene.total_load))
+
+    quick = solve()
+    monkeypatch.setattr(macro_newton, "STALL_STEP_DROP", 0.0)
+    slow = solve()
+    assert quick.converged and quick.safe_path and "down by under 0.1% in one step" in quick.message
+    assert slow.converged and slow.safe_path and "not halved in 4 steps" in slow.message
+    assert quick.iterations < slow.iterations
+    assert np.max(np.abs(quick.forces - slow.forces)) <= 1e-10 * slow.forces.max()
