@@ -163,12 +163,12 @@ def random_scene(seed: int, n: int):
     return asps
 
 
-def sweep_macro_inputs(index: int):
-    """The sweep's scene ``index`` (seed 0) as the macro step takes it: ``(scene, tips, z,
-    provider)``, the tips' ``(x, y)`` and heights."""
+def sweep_macro_inputs(index: int, seed: int = 0):
+    """The sweep's scene ``index`` (of ``seed``'s draws) as the macro step takes it: ``(scene,
+    tips, z, provider)``, the tips' ``(x, y)`` and heights."""
     from twoscale.scenespace import build, sweep
 
-    (spec,) = [s for s in sweep(200, 0) if s.index == index]
+    (spec,) = [s for s in sweep(200, seed) if s.index == index]
     scene = build(spec)
     tips = np.array([[a.x, a.y] for a in scene.asperities])
     z = np.array([a.z for a in scene.asperities])

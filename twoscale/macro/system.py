@@ -19,7 +19,7 @@ semismooth otherwise; the Jacobian used is ``dr/dx`` with ``f_k' = 0`` for
 from __future__ import annotations
 
 import warnings
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 import scipy.linalg as sla
@@ -47,6 +47,8 @@ class MacroSystem:
     e : (m,) array, N
         Their right-hand sides (W, 0, 0).
     laws : LawStack
+    last_delta : LastDelta
+        The local penetrations at the last unknowns asked for (:meth:`delta`).
     """
 
     T: np.ndarray
@@ -55,6 +57,7 @@ class MacroSystem:
     E: np.ndarray
     e: np.ndarray
     laws: LawStack
+    last_delta: "LastDelta" = field(default_factory=lambda: LastDelta(), repr=False, compare=False)
 
     @property
     def n(self) -> int:
@@ -64,9 +67,15 @@ class MacroSystem:
         return x[: self.n], x[self.n :]
 
     def delta(self, x: np.ndarray) -> np.ndarray:
-        """Local penetrations (mm) at unknowns ``x``."""
+        """Local penetrations (mm) at unknowns ``x`` (a new array). Newton asks for them at
+        the same ``x`` twice a step (its residual, then its step's stiffnesses) and once more
+        at the end (the stability check): the last answer is kept (:class:`LastDelta`), so
+        each costs one product with ``T`` (1,652 tips: 1 ms dense; 4,437 matrix-free: 1.6 ms)."""
+        kept = self.last_delta.at(x)
+        if kept is not None:
+            return kept
         P, g = self.split(x)
-        return self.offset + self.G @ g - self.T @ P
+        return self.last_delta.keep(x, self.offset + self.G @ g - self.T @ P)
 
     def residual(self, x: np.ndarray) -> np.ndarray:
         """``[r_P, r_g]`` in N; see the module docstring."""
@@ -167,6 +176,26 @@ class MacroSystem:
         s[A] = sol[:na]
         s[n:] = sol[na:]
         return s
+
+
+class LastDelta:
+    """One entry: the unknowns ``x`` last asked for and their local penetrations, held by
+    copies (a caller may change its arrays after). Owned by one :class:`MacroSystem`."""
+
+    def __init__(self) -> None:
+        self._x: np.ndarray | None = None
+        self._delta: np.ndarray | None = None
+
+    def at(self, x: np.ndarray) -> np.ndarray | None:
+        """A copy of the penetrations kept for unknowns equal to ``x``, else None."""
+        if self._x is None or self._x.shape != np.shape(x) or not np.array_equal(self._x, x):
+            return None
+        return self._delta.copy()
+
+    def keep(self, x: np.ndarray, delta: np.ndarray) -> np.ndarray:
+        """Keep ``delta`` for ``x``; returns ``delta``."""
+        self._x, self._delta = np.array(x, dtype=float, copy=True), np.array(delta, copy=True)
+        return delta
 
 
 def cholesky_in_place(K: np.ndarray):
