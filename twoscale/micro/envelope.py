@@ -33,6 +33,8 @@ heights and owners to the bit).
 
 from __future__ import annotations
 
+import itertools
+
 import numpy as np
 
 from ..grid import Grid
@@ -106,9 +108,9 @@ def _candidates(table, tree, edges, below: np.ndarray) -> tuple[np.ndarray, np.n
         rho = np.where(np.isfinite(below), np.sqrt(2.0 * curv * np.maximum(below - zmin, 0.0)), np.inf)
     reach = np.maximum(np.minimum(sphere_R, rho), rho if np.any(table.parabolic) else 0.0)
     centres = np.column_stack([0.5 * (xmin + xmax), 0.5 * (ymin + ymax)])
-    lists = tree.query_ball_point(centres, reach + 0.5 * np.hypot(xmax - xmin, ymax - ymin))
+    lists = tree.query_ball_point(centres, reach + 0.5 * np.hypot(xmax - xmin, ymax - ymin), return_sorted=True)
     counts = np.fromiter((len(c) for c in lists), dtype=np.int64, count=len(lists))
-    k = np.fromiter((i for c in lists for i in c), dtype=np.int64, count=int(counts.sum()))
+    k = np.fromiter(itertools.chain.from_iterable(lists), dtype=np.int64, count=int(counts.sum()))
     t = np.repeat(np.arange(len(lists)), counts)
     x, y, R, c = table.x[k], table.y[k], table.R[k], table.curvature[k]
     dx = np.maximum(np.maximum(xmin[t] - x, x - xmax[t]), 0.0)
@@ -117,8 +119,7 @@ def _candidates(table, tree, edges, below: np.ndarray) -> tuple[np.ndarray, np.n
     keep = r2 < R * R  # inf for a paraboloid
     low = np.where(table.parabolic[k], r2 / (2.0 * c), r2 / (c + np.sqrt(np.maximum(c * c - r2, 0.0))))
     keep &= ~(table.z[k] + low >= below[t])
-    order = np.lexsort((k[keep], t[keep]))
-    return t[keep][order], k[keep][order]
+    return t[keep], k[keep]  # each tile's in increasing order, as the tree lists them
 
 
 def _refined(table, xs, ys, upper, t, k, sub: int, hh: float) -> tuple[np.ndarray, np.ndarray]:
