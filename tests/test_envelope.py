@@ -96,3 +96,23 @@ def test_a_sub_tile_that_does_not_divide_the_tile_is_refused():
     grid = Grid.covering(-1.0, 1.0, -1.0, 1.0, 0.1)
     with pytest.raises(ValueError, match="divide"):
         envelope_on(grid, TipTable([Asperity(0.0, 0.0, 0.0, 1.0)]), tile=16, sub=6)
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_small_random_grids_even_narrower_than_a_tile(seed):
+    # grids from one cell wide to a few tiles, tips of both shapes: sub-tiles past the
+    # grid's edge repeat its last cell, and every cell is still its lowest tip's
+    rng = np.random.default_rng(seed)
+    n = int(rng.integers(1, 60))
+    tips = [
+        Asperity(float(x), float(y), float(z), float(r), ("sphere", "paraboloid")[k % 2])
+        for k, (x, y, z, r) in enumerate(
+            zip(rng.uniform(-1, 1, n), rng.uniform(-1, 1, n), rng.uniform(0, 0.02, n), rng.uniform(0.05, 2, n))
+        )
+    ]
+    for nx, ny in ((1, 40), (37, 3), (int(rng.integers(17, 70)), int(rng.integers(17, 70)))):
+        grid = Grid(-0.5, -0.4, 0.013, nx, ny)
+        low, owner = _direct(grid, tips)
+        for tile, sub in ((16, 8), (12, 3)):
+            got = envelope_on(grid, TipTable(tips), tile=tile, sub=sub)
+            assert np.array_equal(got.owner, owner) and np.array_equal(got.height, low)
