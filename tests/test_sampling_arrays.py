@@ -135,3 +135,25 @@ def test_detached_patches_own_their_cells_and_let_the_sampled_box_go():
     gc.collect()
     assert sampled() is None  # nothing of the detached patches holds the box
     assert detached(own)[0] is own[0]  # already their own: the same patches
+
+
+def test_patches_reused_as_they_are_or_cut_down_else_built():
+    # a patch of the same asperity and grid is taken as it is; one on a larger grid is cut
+    # down to the wanted grid; the others are built: every one the patch made afresh
+    from twoscale.micro.patches import make_patch
+    from twoscale.micro.sampling import sampled_patches
+
+    rng = np.random.default_rng(8)
+    tips = [Asperity(float(x), float(y), 0.0, 1.0) for x, y in rng.uniform(-1.0, 1.0, (6, 2))]
+    h = 0.02
+    wanted = [(k, Grid.covering(a.x - 0.1, a.x + 0.1, a.y - 0.1, a.y + 0.1, h)) for k, a in enumerate(tips)]
+    larger = make_patch(1, Grid.covering(tips[1].x - 0.2, tips[1].x + 0.2, tips[1].y - 0.2, tips[1].y + 0.2, h), tips)
+    same = make_patch(0, wanted[0][1], tips)
+    out = sampled_patches(tips, wanted, h=h, reuse=[same, larger], box_share=math.inf)
+    assert out[0] is same and np.shares_memory(out[1].height, larger.height)
+    for pt, (k, grid) in zip(out, wanted):
+        fresh = make_patch(k, grid, tips)
+        assert pt.asperity == k and pt.grid == grid
+        assert np.array_equal(pt.owner, fresh.owner)
+        # the cut patch's heights at the larger grid's cell centres (x0 + i h): rounding only
+        assert np.allclose(pt.height, fresh.height, rtol=0.0, atol=1e-15 if k == 1 else 0.0)

@@ -179,13 +179,16 @@ def tip_heights(r2: np.ndarray, z: np.ndarray, R: np.ndarray, sphere: np.ndarray
     if sphere.any():
         R2 = R * R
         outside = r2 >= R2
+        cut = bool(outside.any())  # (none: two masked passes fewer)
         hk = R2 - r2
-        hk[outside] = 0.0
+        if cut:
+            hk[outside] = 0.0
         np.sqrt(hk, out=hk)
         hk += R
         np.divide(r2, hk, out=hk)
         hk += z
-        hk[outside] = np.inf
+        if cut:
+            hk[outside] = np.inf
     if not sphere.all():
         par = np.divide(r2, 2.0 * R, out=r2)
         par += z

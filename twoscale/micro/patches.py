@@ -48,7 +48,7 @@ class Patch:
     owned: np.ndarray = field(init=False, repr=False)
 
     def __post_init__(self) -> None:
-        members = tuple(int(m) for m in self.members) or (int(self.asperity),)
+        members = tuple(map(int, self.members)) if self.members else (int(self.asperity),)
         if members[0] != self.asperity:
             raise ValueError(f"a patch's asperity {self.asperity} must be the first of its members {members}")
         object.__setattr__(self, "members", members)

@@ -325,23 +325,33 @@ def sampled_patches(
     :func:`build_patches`. ``box_share``: the patches' share of their box from which the box
     is sampled once and they are cut from it (:func:`crowded`), the share from which the
     policy can choose the union CG, which runs on that box."""
-    built = {(pt.asperity, pt.grid): pt for pt in reuse if len(pt.members) == 1}
-    larger = {pt.asperity: pt for pt in reuse if len(pt.members) == 1}
-    for k, grid in wanted:
-        if (k, grid) not in built and k in larger:
-            cut = crop_patch(larger[k], grid)
-            if cut is not None:
-                built[(k, grid)] = cut
-    new = [(k, grid) for k, grid in wanted if (k, grid) not in built]
+    built = _reused(wanted, reuse)  # aligned with wanted: a patch, or None to build
+    new = [i for i, pt in enumerate(built) if pt is None]
     if new:
-        grids = [grid for _, grid in new]
+        grids = [wanted[i][1] for i in new]
         box = box_of(grids, h, anchor)
         if (
             crowded(grids, box, box_share) or box.size <= BOX_CELLS_PER_PATCH * len(new) or one_map(asperities)
         ):  # sampled once
-            built.update(((pt.asperity, pt.grid), pt) for pt in patches_cut_from_box(new, box, asperities))
-    rest = [(k, grid) for k, grid in wanted if (k, grid) not in built]
-    keeps = candidates_of(asperities, rest) if isinstance(asperities, TipTable) else None
+            for i, pt in zip(new, patches_cut_from_box([wanted[i] for i in new], box, asperities)):
+                built[i] = pt
+    rest = [i for i, pt in enumerate(built) if pt is None]
+    keeps = candidates_of(asperities, [wanted[i] for i in rest]) if rest and isinstance(asperities, TipTable) else None
     if keeps is not None:  # the candidates of all at once, each patch's as it finds them
-        built.update(((k, grid), make_patch(k, grid, asperities, keep=c)) for (k, grid), c in zip(rest, keeps))
-    return [built.get((k, grid)) or make_patch(k, grid, asperities) for k, grid in wanted]
+        for i, c in zip(rest, keeps):
+            built[i] = make_patch(*wanted[i], asperities, keep=c)
+    return [pt if pt is not None else make_patch(k, grid, asperities) for pt, (k, grid) in zip(built, wanted)]
+
+
+def _reused(wanted: Sequence[tuple[int, Grid]], reuse: Sequence[Patch]) -> list:
+    """For each ``(k, grid)`` of ``wanted``, the one-asperity patch of ``reuse`` on that
+    grid, else one of ``reuse`` on a grid holding it cut down to it, else None."""
+    if not reuse:
+        return [None] * len(wanted)
+    same = {(pt.asperity, pt.grid): pt for pt in reuse if len(pt.members) == 1}
+    larger = {pt.asperity: pt for pt in reuse if len(pt.members) == 1}
+    out = []
+    for k, grid in wanted:
+        pt = same.get((k, grid))
+        out.append(pt if pt is not None or k not in larger else crop_patch(larger[k], grid))
+    return out
