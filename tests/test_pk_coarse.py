@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+import scipy.linalg as sla
 
 from twoscale import Material
 from twoscale.grid import Grid
@@ -82,6 +83,41 @@ def test_the_corrected_preconditioner_is_symmetric_positive_definite(monkeypatch
     p = np.array(columns).T
     assert np.max(np.abs(p - p.T)) <= 1e-9 * np.abs(p).max()
     assert np.linalg.eigvalsh(0.5 * (p + p.T)).min() > 0.0
+
+
+def test_a_direction_is_the_balancing_form_written_out(monkeypatch):
+    """``direction`` against ``P = (I - Z E^-1 Z^T A) S C S (I - A Z E^-1 Z^T) + Z E^-1 Z^T``
+    written out densely: ``S`` the cells loaded now, ``Z`` the squares' indicators and ``A``
+    the space's product on ``D`` (cells loaded now and at the build), ``C`` any matrix (here
+    random), on a part of a grid's cells with cells entered and left since the build."""
+    monkeypatch.setattr(coarse, "MIN_CELLS", 0)
+    shape, rng = (40, 44), np.random.default_rng(5)
+    op = HS.grid_operator(Grid(0.0, 0.0, 0.01, shape[1], shape[0]))
+    owner = SquaresCorrection(None, op.offset_table(), shape, side=8)
+    cells = np.flatnonzero(rng.random(shape[0] * shape[1]) < 0.7)
+    n = len(cells)
+    loaded = rng.random(n) < 0.12
+    space = CoarseSpace.build(owner, cells, loaded)
+    assert space is not None and space.k > 10
+    now = loaded.copy()
+    now[np.flatnonzero(loaded)[::5]] = False
+    now[rng.choice(n, 20)] = True
+    member = now & loaded
+    z = np.zeros((n, space.k))
+    z[np.flatnonzero(member), space.square[member]] = 1.0
+    e_inv = sla.cho_solve(space.factor, np.eye(space.k))
+    a_at = np.array([space.product(e) for e in np.eye(len(space.at))]).T
+    a = np.zeros((n, n))
+    a[np.ix_(space.at, space.at)] = a_at
+    a *= np.outer(member, member)
+    c = rng.random((n, n))
+    c = c @ c.T / n
+    s = np.diag(now.astype(float))
+    coarse_part = z @ e_inv @ z.T
+    p = (np.eye(n) - coarse_part @ a) @ s @ c @ s @ (np.eye(n) - a @ coarse_part) + coarse_part
+    v = rng.standard_normal(n) * now
+    got = space.direction(v, now, lambda w: c @ w)
+    assert np.allclose(got, p @ v, rtol=0, atol=1e-10 * np.abs(p @ v).max())
 
 
 def _many_tips(n_side: int, spacing: float, radius: float, seed: int):

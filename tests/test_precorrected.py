@@ -129,6 +129,52 @@ def test_the_near_matrix_holds_each_pair_within_the_radius_with_its_exact_less_c
         assert dense[i, j] == pytest.approx(exact - coarse, rel=1e-12, abs=1e-14 * np.abs(table).max())
 
 
+def _pair_by_pair(table, shape, cells, c, r):
+    """The near matrix and a window's matrix (``w[dy + r, dx + r]``) written out densely from
+    the definition: every pair within the Chebyshev radius, the kernel at its offset less the
+    16 node-to-node terms of the bilinear weights (the coarse kernel read from ``table``)."""
+    ny, nx = shape
+    y, x = np.divmod(cells, nx)
+    dy, dx = y[:, None] - y[None, :], x[:, None] - x[None, :]
+    near = (np.abs(dy) <= r) & (np.abs(dx) <= r)
+    iy, sy = np.divmod(y, c)
+    ix, sx = np.divmod(x, c)
+    wy, wx = [1 - sy / c, sy / c], [1 - sx / c, sx / c]
+    coarse = np.zeros(near.shape)
+    for a, b, a2, b2 in np.ndindex(2, 2, 2, 2):
+        oy = c * ((iy + a)[:, None] - (iy + a2)[None, :])
+        ox = c * ((ix + b)[:, None] - (ix + b2)[None, :])
+        k = table[np.clip(oy, 1 - ny, ny - 1) + ny - 1, np.clip(ox, 1 - nx, nx - 1) + nx - 1]
+        coarse += (wy[a] * wx[b])[:, None] * (wy[a2] * wx[b2])[None, :] * k
+    exact = table[np.clip(dy, 1 - ny, ny - 1) + ny - 1, np.clip(dx, 1 - nx, nx - 1) + nx - 1]
+    return near, np.where(near, exact - coarse, 0.0), (dy + r, dx + r)
+
+
+@pytest.mark.parametrize("layout", ["edges", "dense", "one row", "one cell"])
+def test_every_near_pair_and_its_window_entry_against_the_definition_written_out(layout):
+    """The whole near matrix, pair by pair: contacts crowding the grid's four edges and
+    corners (runs cut by the edges, empty rows), a part of every cell, one grid row, one cell;
+    and a window's matrix on the same pairs (:meth:`Precorrected.on_near_pairs`)."""
+    ny, nx, c, r = 41, 37, 4, 6
+    op, rng = _operator(ny, nx), np.random.default_rng(8)
+    table = op.offset_table()
+    if layout == "edges":
+        y, x = np.mgrid[0:ny, 0:nx]
+        edge = np.minimum(np.minimum(y, ny - 1 - y), np.minimum(x, nx - 1 - x))
+        cells = np.flatnonzero((edge < 3) & (rng.random((ny, nx)) < 0.6) | (rng.random((ny, nx)) < 0.02))
+    else:
+        chosen = {"dense": np.arange(ny * nx), "one row": np.arange(5 * nx, 6 * nx), "one cell": np.array([7 * nx])}
+        cells = chosen[layout]
+    pc = Precorrected(table, (ny, nx), cells, coarse=c, radius=r)
+    near, want, (wy, wx) = _pair_by_pair(table, (ny, nx), cells, c, r)
+    got = pc.near.toarray()
+    assert pc.near.nnz == near.sum() and pc.near.has_sorted_indices
+    assert np.allclose(got, want, rtol=1e-12, atol=1e-14 * np.abs(table).max())
+    window = rng.random((2 * r + 1, 2 * r + 1)) + 1.0
+    on = pc.on_near_pairs(window).toarray()
+    assert np.array_equal(on, np.where(near, window[np.clip(wy, 0, 2 * r), np.clip(wx, 0, 2 * r)], 0.0))
+
+
 def _lattice_surface(n: int, h: float):
     """n x n spheres (R 0.5 mm) 1.2 mm apart, tip recesses 0-0.002 mm, on a grid of h."""
     rng = np.random.default_rng(5)

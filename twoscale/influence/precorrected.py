@@ -55,6 +55,36 @@ def _kernel_at(table: np.ndarray, shape: tuple[int, int], dy: np.ndarray, dx: np
     return k
 
 
+def _row_runs(y: np.ndarray, x: np.ndarray, shape: tuple, r: int):
+    """For each cell ``(y, x)`` (int32, increasing flat order) and grid row ``y + dy``,
+    ``dy = -r .. r``: the index of the first part cell at ``|x' - x| <= r`` in that row and
+    their count, both (m (2r + 1),) int32 (0 for rows off the grid)."""
+    ny, nx = shape
+    before = np.zeros(ny * nx + 1, np.int32)
+    before[y * nx + x + 1] = 1
+    np.cumsum(before, out=before)  # part cells before each flat index
+    rows = y[:, None] + np.arange(-r, r + 1, dtype=np.int32)
+    inside = (rows >= 0) & (rows < ny)
+    flat = np.where(inside, rows, 0) * nx
+    lo = before[flat + np.maximum(x - r, 0)[:, None]].ravel()
+    length = before[flat + (np.minimum(x + r, nx - 1) + 1)[:, None]].ravel()
+    length -= lo
+    length *= inside.ravel()
+    return lo, length
+
+
+def _run_columns(lo: np.ndarray, length: np.ndarray, ends: np.ndarray) -> np.ndarray:
+    """The runs' columns laid end to end (``lo``, ``lo + 1``, ... per run): one cumulative sum
+    of unit steps with a jump at each run's start."""
+    cols = np.ones(int(ends[-1]) if len(ends) else 0, np.int32)
+    keep = length > 0
+    first, starts = lo[keep], (ends - length)[keep]
+    if len(first):
+        cols[starts[1:]] = first[1:] - (first[:-1] + length[keep][:-1] - 1)
+        cols[0] = first[0]
+    return np.cumsum(cols, out=cols)
+
+
 class Precorrected:
     """``A v`` (m,) for pressures ``v`` (m,) on the flat ``cells`` (increasing) of a square
     grid of ``shape``, from the kernel's offset ``table`` (``ConvolutionOperator.offset_table``).
@@ -125,38 +155,32 @@ class Precorrected:
 
     def _near(self, table: np.ndarray, y: np.ndarray, x: np.ndarray) -> sparse.csr_matrix:
         """The near pairs' corrections as a sparse (m, m) matrix. The cells are increasing flat
-        indices, so a cell's neighbours in one grid row are a run of them, its ends read from
-        the count of part cells before each flat index: each cell's ``2r + 1`` runs in turn
-        give the matrix's rows in order (no search, no sort)."""
+        indices, so a cell's neighbours in one grid row are a run of them (its ends from the
+        count of part cells before each flat index), and each cell's ``2r + 1`` runs in turn
+        give the matrix's rows in order. A pair's entry in the correction table is its run's
+        (the target's position modulo ``c`` and ``(r - dy, x_t + r)``) less ``x_s c^2``."""
         r, c, m = self.r, self.c, self.m
         (ny, nx), corr = self.shape, self.correction_table(table).ravel()
-        before = np.zeros(ny * nx + 1, np.int32)
-        before[y * nx + x + 1] = 1
-        np.cumsum(before, out=before)  # part cells before each flat index
+        width, cc = 2 * r + 1, c * c
+        y, x = y.astype(np.int32), x.astype(np.int32)
+        lo, length = _row_runs(y, x, (ny, nx), r)
+        ends = np.cumsum(length, dtype=np.int64)
+        indptr = np.zeros(m + 1, np.int64)
+        indptr[1:] = ends[width - 1 :: width]
+        cols = _run_columns(lo, length, ends)
         d = np.arange(-r, r + 1, dtype=np.int32)
-        rows = y.astype(np.int32)[:, None] + d[None, :]  # (m, 2r + 1): the runs' grid rows
-        inside = (rows >= 0) & (rows < ny)
-        flat = np.where(inside, rows, 0) * nx
-        lo = before[flat + np.maximum(x - r, 0).astype(np.int32)[:, None]]
-        hi = before[flat + (np.minimum(x + r, nx - 1) + 1).astype(np.int32)[:, None]]
-        length = np.where(inside, hi - lo, 0).ravel()
-        ends = np.cumsum(length)
-        cols = np.arange(int(ends[-1]) if m else 0, dtype=np.int32)
-        cols += np.repeat((lo.ravel() - ends + length).astype(np.int32), length)
-        per_row = length.reshape(m, -1).sum(axis=1)
-        i = np.repeat(np.arange(m, dtype=np.int32), per_row)
-        dy = np.repeat(np.broadcast_to(d, (m, len(d))).ravel(), length)
-        own = ((y % c) * c + x % c).astype(np.int32)
-        offset = (r - dy) * (2 * r + 1) + (x[i] - x[cols]).astype(np.int32) + r  # (target less source)
-        indptr = np.concatenate([[0], np.cumsum(per_row)])
-        self._pairs = (cols, indptr, offset)  # the CSR structure, each entry's offset
-        return sparse.csr_matrix((corr[offset * (c * c) + own[i]], cols, indptr), shape=(m, m))
+        run = (((r - d) * width + r)[None, :] + x[:, None]) * cc + ((y % c) * c + x % c)[:, None]
+        key = np.repeat(run.ravel(), length)  # each entry's place in the correction table
+        key -= (x * cc)[cols]
+        self._pairs = (cols, indptr, key)  # the CSR structure, each entry's table place
+        return sparse.csr_matrix((corr[key], cols, indptr), shape=(m, m))
 
     def on_near_pairs(self, window: np.ndarray) -> sparse.csr_matrix:
         """The (m, m) matrix of a kernel given at the offsets ``-r .. r`` per axis (``window``,
         ``(2r + 1)^2``) on the near pairs (the same structure as :attr:`near`)."""
-        cols, indptr, offset = self._pairs
-        return sparse.csr_matrix((np.asarray(window, dtype=float).ravel()[offset], cols, indptr), shape=(self.m,) * 2)
+        cols, indptr, key = self._pairs
+        per_place = np.repeat(np.asarray(window, dtype=float).ravel(), self.c * self.c)
+        return sparse.csr_matrix((per_place[key], cols, indptr), shape=(self.m,) * 2)
 
     def far(self, v: np.ndarray) -> np.ndarray:
         """The coarse route's product (every pair by its coarse approximation)."""

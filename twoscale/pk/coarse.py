@@ -139,6 +139,7 @@ class CoarseSpace:
 
     def __init__(self, square: np.ndarray, factor, product: Precorrected, at: np.ndarray):
         self.square, self.factor, self.product, self.at = square, factor, product, at
+        self.index = square[at]  # the square of each cell loaded at the build
         self.k = int(square.max()) + 1
 
     @classmethod
@@ -169,31 +170,27 @@ class CoarseSpace:
     def direction(self, v: np.ndarray, loaded: np.ndarray, torus) -> np.ndarray:
         """``P v = Q^T C Q v + Z E^-1 Z^T v``, ``Q = I - A Z E^-1 Z^T``, on the cells loaded now
         (``Z`` and ``A`` on those also loaded then, ``D``): symmetric positive definite for any
-        positive definite ``E`` and a symmetric ``A`` on ``D``, however well the two agree."""
-        member = loaded & (self.square >= 0)
-        which = self.square[member]
-        first = self._solve(v[member], which)
-        zc = np.zeros(len(v))
-        zc[member] = first[which]
-        w = v - self._on_member(zc, member)
-        w *= loaded
+        positive definite ``E`` and a symmetric ``A`` on ``D``, however well the two agree.
+        ``Z``, ``A`` and the coarse solves act on the cells loaded at the build (``at``) alone."""
+        member = loaded[self.at]  # D among them
+        which = self.index[member]
+        first = self._solve(v[self.at][member], which)
+        w = np.multiply(v, loaded, dtype=float)
+        w[self.at] = (v[self.at] - self._on_member(np.where(member, first[self.index], 0.0), member)) * member
         y = np.array(torus(w))
         y *= loaded
-        second = self._solve(self._on_member(y, member)[member], which)
-        y[member] += first[which] - second[which]
+        second = self._solve(self._on_member(np.where(member, y[self.at], 0.0), member)[member], which)
+        y[self.at[member]] += first[which] - second[which]
         return y
 
     def _solve(self, values: np.ndarray, which: np.ndarray) -> np.ndarray:
         """``E^-1 Z^T v`` for ``v``'s ``values`` on the member cells (squares ``which``)."""
         return sla.cho_solve(self.factor, np.bincount(which, weights=values, minlength=self.k), check_finite=False)
 
-    def _on_member(self, v: np.ndarray, member: np.ndarray) -> np.ndarray:
-        """``R_D A R_D v`` (part cells), ``D`` the ``member`` cells."""
-        out = np.zeros(len(v))
-        inside = member[self.at]
-        values = np.where(inside, v[self.at], 0.0)
-        out[self.at] = np.where(inside, self.product(values), 0.0)
-        return out
+    def _on_member(self, values: np.ndarray, member: np.ndarray) -> np.ndarray:
+        """``R_D A R_D v`` on the cells loaded at the build, ``values`` there zero off ``D``
+        (the ``member`` ones)."""
+        return np.where(member, self.product(values), 0.0)
 
 
 def coarse_matrix(table: np.ndarray, shape: tuple, side: int, keys, index, y, x) -> np.ndarray:
