@@ -22,6 +22,23 @@ GRID_BYTES_PER_CELL = 150.0
 #: operator's 40), the fit's peaks within 0.79-1.24 of 41 of them; counted 10 % above.
 PATCH_BYTES_PER_CELL = 350.0
 PATCH_BYTES_EACH = 50e3
+#: Patches sized by the indenters' reach where the macro step stalled far from a solution
+#: (:mod:`twoscale.memory_stall`): each cell's height, owner and block mask, bytes (17,
+#: their arrays'), and the peak while they are cut from their box sampled once, bytes per
+#: box cell: measured on the sweep's seed 8 #112, 943 MB above the start for a box of
+#: 30.6 M cells (476 MB resident after it: the box's heights and owners, 16 a cell).
+REACH_PATCH_HELD = 17.0
+REACH_BOX_SAMPLED = 32.0
+#: The union CG's coarse correction (:mod:`twoscale.pk.coarse`, on boxes of at least its
+#: ``MIN_CELLS``) holds its precorrected product's near pairs among the loaded cells
+#: (:class:`twoscale.influence.precorrected.Precorrected`): built only where the loaded
+#: squares are at most ``MAX_FILL`` full, about ``(2 r + 1)^2 MAX_FILL`` pairs a loaded cell
+#: (88 at r = 10), measured 43-106 (seed 7's #177 and #61, seed 8's #140); counted at 106,
+#: each pair at 40 bytes (its value and column, 12, the pair structure kept, 8, and the
+#: build's index arrays). Seed 7's #61 (577 K box cells, 63.6 K loaded) peaked at 565 MB
+#: against 355 counted without it.
+COARSE_NEAR_PAIRS_PER_CONTACT_CELL = 106.0
+COARSE_NEAR_BYTES_PER_PAIR = 40.0
 #: Transient FFT work of the largest patch or grid, bytes per cell.
 FFT_WORK_BYTES_PER_CELL = 150.0
 #: Largest dense pair block of the cross-patch coupling, entries

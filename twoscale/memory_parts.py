@@ -12,9 +12,12 @@ from .grid import Grid
 from .memory_costs import BLOCK_ATTEMPT_HELD, COUPLING_CACHE_BYTES, DENSE_CELLS, DENSE_GRID_CELLS, DENSE_PAIR_ENTRIES
 from .memory_costs import FAR_OPERATOR_BYTES_PER_PATCH, FFT_WORK_BYTES_PER_CELL, GRID_BYTES_PER_CELL, MACRO_DENSE_MAX
 from .memory_costs import MARGIN, MERGE_GROWTH, PAIR_HELD, PATCH_BYTES_EACH, PATCH_BYTES_PER_CELL
+from .memory_costs import COARSE_NEAR_BYTES_PER_PAIR, COARSE_NEAR_PAIRS_PER_CONTACT_CELL
 from .micro.policy import AUTO_FAR_TOL, FAR_FIELD_MIN_PATCHES, MODEL, UNION_MIN_COVERAGE
 from .micro.sources import KEPT_BYTES_PER_OWNED_CELL
+from .pk.coarse import MIN_CELLS as COARSE_MIN_CELLS
 from .mean_field import pushed_approaches, pushed_contact_radii
+from .memory_stall import stall_possible, stalled_patches
 from .scene import Scene, expected_approaches
 
 
@@ -106,9 +109,55 @@ def twoscale_parts(scene: Scene, h: float, *, iteration: str = "auto") -> tuple[
     # and beyond what a block attempt before it gave back
     given_back = PATCH_BYTES_PER_CELL * (across**2).sum() + (1.0 - BLOCK_ATTEMPT_HELD) * sum(blocks.values())
     union = {f"{name} beyond the patches'": max(0.0, size - given_back) for name, size in union.items()}
+    if union:
+        union.update(coarse_parts(scene, box))
     parts.update(blocks)
     parts.update(union)
+    if blocks and iteration in ("auto", "two-level") and stall_possible(scene):
+        stalled_cells, stalled = _stalled_route(scene, h, parts["macro interaction matrix"])
+        if sum(stalled.values()) > sum(parts.values()):
+            return max(cells, stalled_cells), stalled
     return cells, parts
+
+
+def _stalled_route(scene: Scene, h: float, macro: float) -> tuple[int, dict]:
+    """Cells and parts of the micro step after a macro step stalled far from a solution
+    (:mod:`twoscale.memory_stall`): the far field's block iterations on the patches at the
+    indenters' reach, the policy's larger ones kept beside them; or, where those overlap
+    so much that they hold more cells than their box, the union CG on it (its work then the
+    least: the blocks' is at least their cells'); or, where more, those patches while
+    they are sampled."""
+    st = stalled_patches(scene, h)
+    if st.policy_cells >= st.policy_box.size:
+        parts = grid_parts(scene, st.policy_box, "union box") | coarse_parts(scene, st.policy_box)
+        cells = int(st.policy_box.size)
+    else:
+        on = st.work > 0
+        across = _cells_across(st.work[on], h)
+        cells = int((across**2).sum())
+        parts = {
+            f"{int(on.sum())} patches at the indenters' reach (a stalled macro step)": PATCH_BYTES_PER_CELL * cells
+            + PATCH_BYTES_EACH * int(on.sum()),
+            "the policy's patches at the geometric reach, kept": st.held_bytes,
+        }
+        box = _patch_box(scene, st.work, h)
+        parts.update(_block_parts(scene.tips[on, :2], st.work[on], h, box, float(cells)))
+    if st.sampling_bytes > sum(parts.values()):
+        parts = {"the policy's patches at the geometric reach, sampled (a stalled macro step)": st.sampling_bytes}
+    parts["macro interaction matrix"] = macro
+    return cells, parts
+
+
+def coarse_parts(scene: Scene, box: Grid) -> dict:
+    """The union CG's coarse correction on ``box`` (:mod:`twoscale.pk.coarse`, from its
+    ``MIN_CELLS``): the near pairs of its precorrected product among the loaded cells, those
+    of the contacts with the neighbours' push (:func:`pushed_contact_radii`), at most the box."""
+    if box.size < COARSE_MIN_CELLS:
+        return {}
+    loaded = min(float(np.sum(np.pi * pushed_contact_radii(scene) ** 2)) / box.h**2, float(box.size))
+    return {
+        "the union CG's coarse correction": COARSE_NEAR_BYTES_PER_PAIR * COARSE_NEAR_PAIRS_PER_CONTACT_CELL * loaded
+    }
 
 
 def _block_parts(tips: np.ndarray, r: np.ndarray, h: float, box: Grid | None, upper: float) -> dict:
