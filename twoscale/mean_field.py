@@ -94,7 +94,7 @@ def _field(scene: Scene) -> MeanField:
     def excess(d: float) -> float:
         return float(np.sum(hertz.load(R, d - z - lift, E_star))) - W
 
-    top = alone + float(lift.max())
+    top = alone + float(lift.max()) * (1.0 + 1e-9) + 1e-300  # every tip at least as deep as alone
     d = alone if not excess(alone) < 0 else brentq(excess, alone, top, xtol=1e-12 * max(abs(top), 1e-300))
     return MeanField(float(d), d - z, d - z - lift)
 

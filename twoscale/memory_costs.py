@@ -31,13 +31,15 @@ REACH_PATCH_HELD = 17.0
 REACH_BOX_SAMPLED = 32.0
 #: The union CG's coarse correction (:mod:`twoscale.pk.coarse`, on boxes of at least its
 #: ``MIN_CELLS``) holds its precorrected product's near pairs among the loaded cells
-#: (:class:`twoscale.influence.precorrected.Precorrected`): built only where the loaded
-#: squares are at most ``MAX_FILL`` full, about ``(2 r + 1)^2 MAX_FILL`` pairs a loaded cell
-#: (88 at r = 10), measured 43-106 (seed 7's #177 and #61, seed 8's #140); counted at 106,
-#: each pair at 40 bytes (its value and column, 12, the pair structure kept, 8, and the
-#: build's index arrays). Seed 7's #61 (577 K box cells, 63.6 K loaded) peaked at 565 MB
-#: against 355 counted without it.
-COARSE_NEAR_PAIRS_PER_CONTACT_CELL = 106.0
+#: (:class:`twoscale.influence.precorrected.Precorrected`, Chebyshev radius 10 cells): it is
+#: built only where the loaded squares of 25 x 25 cells hold at most ``MAX_FILL`` (0.2) of
+#: their cells, weighted by their loaded cells, so a contact within a square and the
+#: window has about 125 loaded cells beside each of its own. Measured 43-106 pairs a loaded
+#: cell (seed 7's #177 and #61, seed 8's #140), 112 on contacts of 113 cells one a square;
+#: counted at 125, each at 40 bytes (its value and column, 12, the pair structure kept, 8,
+#: and the build's index arrays). Seed 7's #61 (577 K box cells, 63.6 K loaded) peaked at
+#: 565 MB against 355 counted without them.
+COARSE_NEAR_PAIRS_PER_CONTACT_CELL = 125.0
 COARSE_NEAR_BYTES_PER_PAIR = 40.0
 #: Transient FFT work of the largest patch or grid, bytes per cell.
 FFT_WORK_BYTES_PER_CELL = 150.0
