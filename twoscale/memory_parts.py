@@ -17,7 +17,7 @@ from .micro.policy import AUTO_FAR_TOL, FAR_FIELD_MIN_PATCHES, MODEL, UNION_MIN_
 from .micro.sources import KEPT_BYTES_PER_OWNED_CELL
 from .pk.coarse import MIN_CELLS as COARSE_MIN_CELLS
 from .mean_field import pushed_approaches, pushed_contact_radii
-from .memory_stall import stall_possible, stalled_patches
+from .memory_stall import patch_box, stall_possible, stalled_patches
 from .scene import Scene, expected_approaches
 
 
@@ -92,9 +92,10 @@ def twoscale_parts(scene: Scene, h: float, *, iteration: str = "auto") -> tuple[
     else:
         parts["macro interaction matrix"] = 2000.0 * n  # matrix-free point operator
     alone = patch_half_widths(scene, h, pushed=False)
-    box = _patch_box(scene, r, h) if count else None  # one patch: the union CG on it
+    tips = scene.tips
+    box = patch_box(tips, r, h)  # one patch: the union CG on it
     upper = float((_cells_across(alone[alone > 0], h) ** 2).sum())
-    blocks = {} if iteration == "union-cg" else _block_parts(scene.tips[on, :2], r[on], h, box, upper)
+    blocks = {} if iteration == "union-cg" else _block_parts(tips[on], r[on], h, box, upper)
     # a height map's stones may take the union CG at any coverage, penetration from a lower share (policy.decide)
     on_map = all(a.shape == "map" for a in scene.asperities)
     crowded = box is not None and upper >= MODEL.union_coverage(scene.penetration is None, n) * box.size
@@ -114,20 +115,20 @@ def twoscale_parts(scene: Scene, h: float, *, iteration: str = "auto") -> tuple[
     parts.update(blocks)
     parts.update(union)
     if blocks and iteration in ("auto", "two-level") and stall_possible(scene):
-        stalled_cells, stalled = _stalled_route(scene, h, parts["macro interaction matrix"])
+        stalled_cells, stalled = _stalled_route(scene, h, tips, parts["macro interaction matrix"])
         if sum(stalled.values()) > sum(parts.values()):
             return max(cells, stalled_cells), stalled
     return cells, parts
 
 
-def _stalled_route(scene: Scene, h: float, macro: float) -> tuple[int, dict]:
+def _stalled_route(scene: Scene, h: float, tips: np.ndarray, macro: float) -> tuple[int, dict]:
     """Cells and parts of the micro step after a macro step stalled far from a solution
     (:mod:`twoscale.memory_stall`): the far field's block iterations on the patches at the
     indenters' reach, the policy's larger ones kept beside them; or, where those overlap
     so much that they hold more cells than their box, the union CG on it (its work then the
     least: the blocks' is at least their cells'); or, where more, those patches while
     they are sampled."""
-    st = stalled_patches(scene, h)
+    st = stalled_patches(scene, h, tips)
     if st.policy_cells >= st.policy_box.size:
         parts = grid_parts(scene, st.policy_box, "union box") | coarse_parts(scene, st.policy_box)
         cells = int(st.policy_box.size)
@@ -140,8 +141,8 @@ def _stalled_route(scene: Scene, h: float, macro: float) -> tuple[int, dict]:
             + PATCH_BYTES_EACH * int(on.sum()),
             "the policy's patches at the geometric reach, kept": st.held_bytes,
         }
-        box = _patch_box(scene, st.work, h)
-        parts.update(_block_parts(scene.tips[on, :2], st.work[on], h, box, float(cells)))
+        box = patch_box(tips, st.work, h)
+        parts.update(_block_parts(tips[on], st.work[on], h, box, float(cells)))
     if st.sampling_bytes > sum(parts.values()):
         parts = {"the policy's patches at the geometric reach, sampled (a stalled macro step)": st.sampling_bytes}
     parts["macro interaction matrix"] = macro
@@ -215,18 +216,3 @@ def pair_bytes(tips: np.ndarray, r: np.ndarray, h: float, far_tol: float | None,
     c = owned * n**2
     dense = c[i] * c[j] <= DENSE_PAIR_ENTRIES
     return PAIR_HELD * float(np.sum(np.where(dense, 8.0 * c[i] * c[j], 8.0 * (n[i] + n[j]) ** 2)))
-
-
-def _patch_box(scene: Scene, r: np.ndarray, h: float) -> Grid | None:
-    on = r > 0
-    if not np.any(on):
-        return None
-    tips = scene.tips[on]
-    rr = r[on]
-    return Grid.covering(
-        float((tips[:, 0] - rr).min()),
-        float((tips[:, 0] + rr).max()),
-        float((tips[:, 1] - rr).min()),
-        float((tips[:, 1] + rr).max()),
-        h,
-    )

@@ -90,22 +90,25 @@ class StalledPatches:
         return REACH_PATCH_HELD * self.policy_cells
 
 
-def stalled_patches(scene: Scene, h: float) -> StalledPatches:
-    """The patches a stalled macro step leaves on ``scene`` at cell size ``h`` (mm)."""
+def stalled_patches(scene: Scene, h: float, tips: np.ndarray) -> StalledPatches:
+    """The patches a stalled macro step leaves on ``scene`` at cell size ``h`` (mm; ``tips``
+    (N, 2) mm, the scene's)."""
     policy, work = reach_half_widths(scene, h)
     cells = _cells(policy, h)
-    on = policy > 0
-    tips = scene.tips[on]
-    r = policy[on]
-    box = Grid.covering(
-        float((tips[:, 0] - r).min()),
-        float((tips[:, 0] + r).max()),
-        float((tips[:, 1] - r).min()),
-        float((tips[:, 1] + r).max()),
-        h,
-    )
-    sampled = cells >= BOX_MIN_PATCH_SHARE * box.size or box.size <= BOX_CELLS_PER_PATCH * int(on.sum())
+    box = patch_box(tips, policy, h)
+    count = int((policy > 0).sum())
+    sampled = cells >= BOX_MIN_PATCH_SHARE * box.size or box.size <= BOX_CELLS_PER_PATCH * count
     return StalledPatches(work, cells, box, bool(sampled))
+
+
+def patch_box(tips: np.ndarray, r: np.ndarray, h: float) -> Grid | None:
+    """The grid covering the patches of half-widths ``r`` (mm, 0: none) about ``tips``
+    ((N, 2) mm); None without a patch."""
+    on = r > 0
+    if not np.any(on):
+        return None
+    x, y, rr = tips[on, 0], tips[on, 1], r[on]
+    return Grid.covering(float((x - rr).min()), float((x + rr).max()), float((y - rr).min()), float((y + rr).max()), h)
 
 
 def _cells(r: np.ndarray, h: float) -> float:
