@@ -15,7 +15,8 @@ from .memory_costs import MARGIN, MERGE_GROWTH, PAIR_HELD, PATCH_BYTES_EACH, PAT
 from .memory_costs import COARSE_NEAR_BYTES_PER_PAIR, COARSE_NEAR_PAIRS_PER_CONTACT_CELL
 from .micro.policy import AUTO_FAR_TOL, FAR_FIELD_MIN_PATCHES, MODEL, UNION_MIN_COVERAGE
 from .micro.sources import KEPT_BYTES_PER_OWNED_CELL
-from .pk.coarse import MAX_FILL as COARSE_MAX_FILL, MIN_CELLS as COARSE_MIN_CELLS
+from .pk.coarse import MAX_FILL as COARSE_MAX_FILL, MAX_SQUARES as COARSE_MAX_SQUARES
+from .pk.coarse import MIN_CELLS as COARSE_MIN_CELLS, SIDE as COARSE_SIDE
 from .mean_field import pushed_approaches, pushed_contact_radii
 from .memory_stall import patch_box, stall_possible, stalled_patches
 from .scene import Scene, expected_approaches
@@ -153,13 +154,20 @@ def coarse_parts(scene: Scene, box: Grid) -> dict:
     """The union CG's coarse correction on ``box`` (:mod:`twoscale.pk.coarse`, from its
     ``MIN_CELLS``): the near pairs of its precorrected product among the loaded cells, those
     of the contacts with the neighbours' push (:func:`pushed_contact_radii`). The correction
-    is built only where its squares are at most ``MAX_FILL`` full, so never where more than
-    that share of the box is loaded: not counted where the contacts cover twice that share
-    (they were 0.7-1.6 times the loaded cells on the sweep's scenes measured), and at most
-    that share counted."""
+    is built only on at most ``MAX_SQUARES`` loaded squares (the tips' own squares are
+    loaded: where they are more, none is counted) and where they are at most ``MAX_FILL``
+    full, so never where more than that share of the box is loaded: not counted where the
+    contacts cover twice that share (they were 0.7-1.6 times the loaded cells on the sweep's
+    scenes measured), and at most that share counted."""
     if box.size < COARSE_MIN_CELLS:
         return {}
-    loaded = float(np.sum(np.pi * pushed_contact_radii(scene) ** 2)) / box.h**2
+    a = pushed_contact_radii(scene)
+    tips = scene.tips[a > 0]
+    column = np.floor((tips[:, 0] - box.x0) / box.h / COARSE_SIDE).astype(np.int64)
+    row = np.floor((tips[:, 1] - box.y0) / box.h / COARSE_SIDE).astype(np.int64)
+    if len(np.unique(row * (box.nx // COARSE_SIDE + 2) + column)) > COARSE_MAX_SQUARES:
+        return {}
+    loaded = float(np.sum(np.pi * a**2)) / box.h**2
     if loaded > 2.0 * COARSE_MAX_FILL * box.size:
         return {}
     loaded = min(loaded, COARSE_MAX_FILL * float(box.size))
