@@ -162,10 +162,7 @@ def coarse_parts(scene: Scene, box: Grid) -> dict:
     if box.size < COARSE_MIN_CELLS:
         return {}
     a = pushed_contact_radii(scene)
-    tips = scene.tips[a > 0]
-    column = np.floor((tips[:, 0] - box.x0) / box.h / COARSE_SIDE).astype(np.int64)
-    row = np.floor((tips[:, 1] - box.y0) / box.h / COARSE_SIDE).astype(np.int64)
-    if len(np.unique(row * (box.nx // COARSE_SIDE + 2) + column)) > COARSE_MAX_SQUARES:
+    if _loaded_squares(scene.tips[a > 0], a[a > 0], box) > COARSE_MAX_SQUARES:
         return {}
     loaded = float(np.sum(np.pi * a**2)) / box.h**2
     if loaded > 2.0 * COARSE_MAX_FILL * box.size:
@@ -174,6 +171,26 @@ def coarse_parts(scene: Scene, box: Grid) -> dict:
     return {
         "the union CG's coarse correction": COARSE_NEAR_BYTES_PER_PAIR * COARSE_NEAR_PAIRS_PER_CONTACT_CELL * loaded
     }
+
+
+def _loaded_squares(tips: np.ndarray, a: np.ndarray, box: Grid) -> int:
+    """Squares of the coarse correction (``SIDE`` cells a side, from ``box``'s corner) that
+    the contacts of radii ``a`` (mm) about ``tips`` ((N, 2) mm) reach, each contact's
+    bounding square's; counted up to ``MAX_SQUARES + 1`` (where more, the correction is
+    not built)."""
+    side = box.h * COARSE_SIDE
+    lo = np.floor((tips - a[:, None] - (box.x0, box.y0)) / side).astype(np.int64)
+    hi = np.floor((tips + a[:, None] - (box.x0, box.y0)) / side).astype(np.int64)
+    span = hi - lo + 1
+    if int(np.prod(span, axis=1).sum()) > 50 * COARSE_MAX_SQUARES:  # too many to list: far past the bound
+        return int(np.prod(span, axis=1).sum())
+    columns = int(hi[:, 0].max(initial=0)) + 2
+    one = np.all(span == 1, axis=1)  # most contacts lie within one square: their keys at once
+    keys = [lo[one, 1] * columns + lo[one, 0]] + [
+        ((lo[k, 1] + np.arange(span[k, 1]))[:, None] * columns + lo[k, 0] + np.arange(span[k, 0])).ravel()
+        for k in np.flatnonzero(~one)
+    ]
+    return len(np.unique(np.concatenate(keys)))
 
 
 def _block_parts(tips: np.ndarray, r: np.ndarray, h: float, box: Grid | None, upper: float) -> dict:

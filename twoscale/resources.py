@@ -20,7 +20,10 @@ What the two methods carry:
   and its point operator among the patches; the dense macro matrix; and, where patches
   crowd their bounding box, the micro step may solve on that box as one grid (``union-cg``,
   :mod:`twoscale.micro.policy`), counted as the larger of it and a block attempt before it
-  (:mod:`twoscale.memory_parts`). An iteration asked for runs alone and is counted alone.
+  (:mod:`twoscale.memory_parts`), with its coarse correction's near pairs on a large box.
+  With more than a thousand tips the macro step may stall and leave patches sized by the
+  indenters' reach (:mod:`twoscale.memory_stall`): that route is counted too, and the larger
+  taken. An iteration asked for runs alone and is counted alone.
 * a body that builds something on its first answers adds it (the finite block's
   factorisation where its on-disk cache lacks a field the tips' region needs).
 
