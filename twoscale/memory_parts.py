@@ -153,19 +153,16 @@ def _stalled_route(scene: Scene, h: float, tips: np.ndarray, macro: float) -> tu
 def coarse_parts(scene: Scene, box: Grid) -> dict:
     """The union CG's coarse correction on ``box`` (:mod:`twoscale.pk.coarse`, from its
     ``MIN_CELLS``): the near pairs of its precorrected product among the loaded cells, those
-    of the contacts with the neighbours' push (:func:`pushed_contact_radii`). The correction
-    is built only on at most ``MAX_SQUARES`` loaded squares (the tips' own squares are
-    loaded: where they are more, none is counted) and where they are at most ``MAX_FILL``
-    full, so never where more than that share of the box is loaded: not counted where the
-    contacts cover twice that share (they were 0.7-1.6 times the loaded cells on the sweep's
-    scenes measured), and at most that share counted."""
+    of the contacts with the neighbours' push (:func:`pushed_contact_radii`), where it is
+    built (:func:`_coarse_built`). It is never built where more than ``MAX_FILL`` of the box
+    is loaded: not counted where the contacts cover twice that share (they were 0.7-1.6
+    times the loaded cells on the sweep's scenes measured), and at most that share counted."""
     if box.size < COARSE_MIN_CELLS:
         return {}
     a = pushed_contact_radii(scene)
-    if _loaded_squares(scene.tips[a > 0], a[a > 0], box) > COARSE_MAX_SQUARES:
-        return {}
+    on = a > 0
     loaded = float(np.sum(np.pi * a**2)) / box.h**2
-    if loaded > 2.0 * COARSE_MAX_FILL * box.size:
+    if loaded > 2.0 * COARSE_MAX_FILL * box.size or not _coarse_built(scene.tips[on], a[on], box):
         return {}
     loaded = min(loaded, COARSE_MAX_FILL * float(box.size))
     return {
@@ -173,24 +170,30 @@ def coarse_parts(scene: Scene, box: Grid) -> dict:
     }
 
 
-def _loaded_squares(tips: np.ndarray, a: np.ndarray, box: Grid) -> int:
-    """Squares of the coarse correction (``SIDE`` cells a side, from ``box``'s corner) that
-    the contacts of radii ``a`` (mm) about ``tips`` ((N, 2) mm) reach, each contact's
-    bounding square's; counted up to ``MAX_SQUARES + 1`` (where more, the correction is
-    not built)."""
+def _coarse_built(tips: np.ndarray, a: np.ndarray, box: Grid) -> bool:
+    """Whether the coarse correction would be built for contacts of radii ``a`` (mm) about
+    ``tips`` ((N, 2) mm) on ``box``: at most ``MAX_SQUARES`` squares of ``SIDE`` cells
+    loaded (each contact's bounding squares) and their fill, ``sum n_i^2 / (side^2 sum
+    n_i)``, at most ``MAX_FILL``, each contact's cells spread evenly over its squares (a
+    contact across many squares fills them: seed 7's #76 on the block, 85 contacts of
+    about 8,600 cells, about 0.5)."""
     side = box.h * COARSE_SIDE
     lo = np.floor((tips - a[:, None] - (box.x0, box.y0)) / side).astype(np.int64)
     hi = np.floor((tips + a[:, None] - (box.x0, box.y0)) / side).astype(np.int64)
     span = hi - lo + 1
-    if int(np.prod(span, axis=1).sum()) > 50 * COARSE_MAX_SQUARES:  # too many to list: far past the bound
-        return int(np.prod(span, axis=1).sum())
+    squares = np.prod(span, axis=1)
+    cells = np.pi * a**2 / box.h**2
+    if float(np.sum(cells * cells / squares)) > COARSE_MAX_FILL * COARSE_SIDE**2 * float(cells.sum()):
+        return False
+    if int(squares.sum()) > 50 * COARSE_MAX_SQUARES:  # too many to list: far past the bound
+        return False
     columns = int(hi[:, 0].max(initial=0)) + 2
-    one = np.all(span == 1, axis=1)  # most contacts lie within one square: their keys at once
+    one = squares == 1  # most contacts lie within one square: their keys at once
     keys = [lo[one, 1] * columns + lo[one, 0]] + [
         ((lo[k, 1] + np.arange(span[k, 1]))[:, None] * columns + lo[k, 0] + np.arange(span[k, 0])).ravel()
         for k in np.flatnonzero(~one)
     ]
-    return len(np.unique(np.concatenate(keys)))
+    return len(np.unique(np.concatenate(keys))) <= COARSE_MAX_SQUARES
 
 
 def _block_parts(tips: np.ndarray, r: np.ndarray, h: float, box: Grid | None, upper: float) -> dict:
