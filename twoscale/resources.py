@@ -57,8 +57,9 @@ class MemoryEstimate:
     Attributes
     ----------
     bytes : float
-        Estimated peak resident memory, bytes (a prediction: the measured peaks of seed 7's
-        sweep scenes lay within 0.18-1.22 times it, docs/records/sweep.md).
+        Estimated peak resident memory, bytes (a prediction: the measured peaks of seeds 7
+        and 8's sweep scenes in fresh processes lay within 0.18-1.16 times it, two user
+        scenarios 0.79 and 1.28, docs/records/sweep.md).
     cells : int
         Cells the solver will carry: the reference grid, or the patches (the union box
         when the micro step is expected to solve on it and it is larger).
