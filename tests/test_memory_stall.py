@@ -28,6 +28,7 @@ from twoscale.pk.coarse import MAX_FILL, PRODUCT_COARSE, PRODUCT_RADIUS, SIDE
 from twoscale.resources import estimate_memory
 from twoscale.scene import Scene, default_h
 from twoscale.scenespace import build, sweep
+from twoscale.api import solve
 
 MATERIAL = Material(E=10.0, nu=0.5)
 
@@ -87,3 +88,16 @@ def test_the_coarse_corrections_near_pairs_stay_within_their_count_per_loaded_ce
         np.ones((2 * n - 1, 2 * n - 1)), (n, n), np.flatnonzero(loaded), PRODUCT_COARSE, PRODUCT_RADIUS
     )
     assert product.near.nnz <= COARSE_NEAR_PAIRS_PER_CONTACT_CELL * loaded.sum()
+
+
+@pytest.mark.slow
+def test_under_load_a_union_cg_on_patches_the_level_raises_is_counted():
+    # seed 7's #156 (839 spheres under load): the macro step's level lifts tips out of contact,
+    # whose patches reach as far as they can touch, and the policy takes the union CG on their
+    # box, which the contacts alone did not crowd (0.12 of it at the default h)
+    scene = build(sweep(200, 7)[156])
+    h = 0.1
+    result = solve(scene, h=h)
+    assert result.details.micro.choice.iteration == "union-cg"
+    est = estimate_memory(scene, h)
+    assert est.cells >= 0.9 * result.n_cells
