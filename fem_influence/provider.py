@@ -36,13 +36,13 @@ from twoscale.progress import Progress
 
 from .assembly import INTORDER
 from .box_entries import BoxEntries, box_entries
+from .build_memory import build_bytes
 from .cache import FieldCache, cache_key, default_cache_dir
 from .grid_factors import grid_target, grid_weights
 from .layer import BASES
 from .lattice_state import LatticeState
 from .factored_correction import BlockCorrection
 from .operators import BlockGridOperator, TargetFactor, block_point_operator, point_weights
-
 
 #: Grids whose correction factors (source weights, target interpolation) a provider keeps
 #: (two entries a patch; beyond, all are dropped and rebuilt on use).
@@ -200,6 +200,7 @@ class BlockProvider(InfluenceProvider):
             )
 
     _weights = point_weights  # sparse source weights (lattice nodes used) x (sources), and the nodes
+    build_bytes = build_bytes  # the factorisation where the cache lacks a field (.build_memory)
 
     def _ensure(self, nodes: np.ndarray) -> np.ndarray:
         """Solve the lattice nodes not yet known; return their columns in the field table."""
@@ -360,8 +361,7 @@ class BlockProvider(InfluenceProvider):
 
     def separated_operator(self, target: Grid, source: Grid, *, rtol: float = 1e-8):
         """The half-space's Chebyshev block for a well-separated pair plus the same low-rank
-        correction as :meth:`grid_operator` (which is exact); ``None`` when the half-space
-        has none for this pair."""
+        correction as :meth:`grid_operator` (exact); ``None`` where the half-space has none."""
         hs = self._halfspace.separated_operator(target, source, rtol=rtol)
         return None if hs is None else self._with_correction(hs, target, source)
 

@@ -112,14 +112,67 @@ def test_an_iteration_asked_for_counts_only_what_it_builds(monkeypatch):
     assert not any("union box" in k for k in two_level) and "cached cross-patch operators" in two_level
 
 
-def test_auto_counts_both_where_the_union_cg_may_follow_a_block_attempt():
-    # a union CG after a block attempt that did not converge runs beside what that attempt
-    # took (measured: 1,000 paraboloids, 2.27 GB against 1.30 GB and 1.38 GB alone)
-    scene = _crowded_tips()
+def _lattice(spacing: float, n: int = 11) -> Scene:
+    """n x n paraboloids ``spacing`` mm apart under load: crowded, the far field a candidate."""
+    tips = [Asperity(spacing * i, spacing * j, 0.0, 5.0, shape="paraboloid") for i in range(n) for j in range(n)]
+    return Scene(material=Material(E=10.0, nu=0.5), total_load=2.0 * n * n, asperities=tips)
+
+
+def test_auto_counts_the_union_cg_alone_where_the_near_pairs_would_hold_more_than_its_box():
+    # 121 paraboloids 2.5 mm apart crowd their box: under the far field their near pairs'
+    # operators would hold more than the union box, and the policy takes the union CG
+    # (checked here): the estimate counts it alone, as the union CG asked for
+    scene = _lattice(2.5)
+    assert solve_scene(scene, h=0.05).details.micro.choice.iteration == "union-cg"
     est = estimate_memory(scene, 0.05, "twoscale")
+    assert est.bytes == estimate_memory(scene, 0.05, "twoscale", iteration="union-cg").bytes
+    assert "cached cross-patch operators" not in dict(est.parts)
+
+
+def test_auto_counts_the_larger_where_few_patches_are_coupled_exactly():
+    # twelve patches in a row (too few for the far field): the exact block iterations or the
+    # union CG, whichever holds more (seed 7's #78, 140 clustered tips: the two-level
+    # iteration ran and held 650 MB of pair operators beside a union box of 310 MB)
+    scene = _crowded_tips()
+    est = estimate_memory(scene, 0.05, "twoscale").bytes
     union = estimate_memory(scene, 0.05, "twoscale", iteration="union-cg").bytes
     blocks = estimate_memory(scene, 0.05, "twoscale", iteration="two-level").bytes
-    assert max(union, blocks) < est.bytes < union + blocks
+    assert est == pytest.approx(max(union, blocks))
+
+
+def test_auto_counts_the_union_cg_after_a_block_attempt_beside_what_that_attempt_keeps():
+    # the union CG may follow a far-field attempt that did not converge, which gives back all
+    # but BLOCK_ATTEMPT_HELD of its memory first (the heap trimmed): the larger of the two
+    from twoscale.memory_costs import BLOCK_ATTEMPT_HELD
+
+    block_keys = ("FFT work on the largest patch", "cached cross-patch operators", "far field's")
+    for spacing in (4.0, 6.0):
+        parts = dict(estimate_memory(_lattice(spacing), 0.05, "twoscale").parts)
+        blocks = sum(v for k, v in parts.items() if k.startswith(block_keys))
+        union = sum(
+            v
+            for k, v in estimate_memory(_lattice(spacing), 0.05, "twoscale", iteration="union-cg").parts
+            if "union box" in k
+        )
+        beyond = sum(v for k, v in parts.items() if "union box" in k)
+        assert blocks > 0 and union > 0
+        assert beyond == pytest.approx(max(0.0, union - (1.0 - BLOCK_ATTEMPT_HELD) * blocks))
+
+
+def test_pair_operators_are_counted_at_their_arrays_sizes():
+    # two patches 10 mm apart: a dense block of c x c entries when it is small enough, else
+    # an FFT operator of (2 n)^2 / 2 complex values; both times what the coupling keeps beside
+    from twoscale.memory_costs import DENSE_PAIR_ENTRIES, PAIR_HELD
+    from twoscale.memory_parts import pair_bytes
+
+    tips = np.array([[0.0, 0.0], [10.0, 0.0]])
+    for half in (0.2, 1.0):  # 9 and 41 cells across at h = 0.05 mm
+        n = math.floor(2 * half / 0.05) + 1
+        c = n * n
+        arrays = 8.0 * c * c if c * c <= DENSE_PAIR_ENTRIES else 8.0 * (2 * n) ** 2
+        assert pair_bytes(tips, np.array([half, half]), 0.05, None) == pytest.approx(PAIR_HELD * arrays)
+    # under the far field only near pairs are exact: these two are far apart at 0.3
+    assert pair_bytes(tips, np.array([0.2, 0.2]), 0.05, 0.3) == 0.0
 
 
 def test_the_far_fields_kept_weights_are_counted_where_it_may_be_taken():
@@ -140,7 +193,7 @@ def test_the_far_fields_kept_weights_are_counted_where_it_may_be_taken():
     assert scattered["far field's kept weights"] == KEPT_BYTES_PER_OWNED_CELL * est.cells == 144 * est.cells
     assert scattered["far field's point operator"] == 2 * FAR_OPERATOR_BYTES_PER_PATCH  # two patches
     est, crowded = parts(2.0)
-    assert "far field's kept weights" not in crowded and "union box" in est.dominant
+    assert "far field's kept weights" not in crowded and any("union box" in k for k in crowded)
     assert "far field's point operator" not in crowded
 
 
@@ -295,7 +348,7 @@ PEAK = textwrap.dedent("""
 @pytest.mark.slow
 @pytest.mark.skipif(not sys.platform.startswith("linux"), reason="reads /proc/self/status")
 @pytest.mark.parametrize("method", ["reference", "twoscale"])
-def test_estimate_is_above_the_measured_peak_and_within_a_factor_2_5(tmp_path, method):
+def test_the_measured_peak_is_within_1_5x_of_the_estimate_both_ways(tmp_path, method):
     # a whole `twoscale solve --out` run (outputs included) in a fresh interpreter
     h = 0.02
     path = EXAMPLES / "hertz_sphere.toml"
@@ -321,4 +374,4 @@ def test_estimate_is_above_the_measured_peak_and_within_a_factor_2_5(tmp_path, m
     got = json.loads(run.stdout.strip().splitlines()[-1])
     assert got["code"] == 0, run.stderr
     est = estimate_memory(read_scene(path), h, method)
-    assert got["peak"] <= est.bytes <= 2.5 * got["peak"], (got["peak"] / 1e6, est.text)
+    assert est.bytes / 1.5 <= got["peak"] <= 1.5 * est.bytes, (got["peak"] / 1e6, est.text)

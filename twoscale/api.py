@@ -223,15 +223,15 @@ def _solve(problem: Any, method: Any, provider: Any, h: Any, **options: Any) -> 
     h_given = h is not None
     h = default_h(scene)
     check_pivot_reach(scene, h)
-    if not callable(method) and check_memory:
-        _check_memory(scene, h, method, options, memory_limit, h_given)
     from .io.cache_entry import solve_caches, usage_since
 
     caches_before = () if provider is None else solve_caches(provider, scene)
-    if provider is None:
+    if provider is None:  # its mesh and cached fields only: what its first answers build is estimated below
         provider = scene.provider(**(provider_options or {}))
     elif provider.material != scene.material:
         raise ValueError(f"the provider's material {provider.material!r} is not the scene's {scene.material!r}")
+    if not callable(method) and check_memory:
+        _check_memory(scene, h, method, options, memory_limit, h_given, provider)
     force, radius = expected_contacts(scene)
     check_domain(scene, provider, h, radii=radius)
     check_resolution(scene, h, forces=force, radii=radius)
@@ -276,7 +276,9 @@ def _check_call(scene: Scene, method: Any, provider: Any, provider_options: Any)
         )
 
 
-def _check_memory(scene: Scene, h: float, method: str, options: dict, memory_limit: Any, h_given: bool) -> None:
+def _check_memory(
+    scene: Scene, h: float, method: str, options: dict, memory_limit: Any, h_given: bool, provider: Any = None
+) -> None:
     """Refuse before anything large is allocated when the solve that will run needs more
     memory than ``memory_limit`` (:func:`twoscale.resources.check_solve_memory`)."""
     from .resources import check_solve_memory
@@ -295,6 +297,7 @@ def _check_memory(scene: Scene, h: float, method: str, options: dict, memory_lim
         limit_bytes=memory_limit,
         option="h",  # solve(..., h=) or Scene(h=): the keyword a Python caller gives
         h_given=h_given,
+        provider=provider,
     )
 
 

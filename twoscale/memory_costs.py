@@ -6,20 +6,55 @@ measured peaks they were checked against (:data:`CALIBRATION`). Bytes, mm.
 
 from __future__ import annotations
 
-#: Resident memory of ``twoscale solve --out`` on a small scene: the interpreter with
-#: numpy, scipy, meshio and matplotlib, bytes (measured: 110-150 MB).
-BASE_BYTES = 1.6e8
+#: Resident memory of a small solve: the interpreter with numpy, scipy and the solvers'
+#: modules, bytes (measured in fresh processes: 87-92 MB after the imports, 90-112 MB at the
+#: peak of the sweep's smallest solves; ``twoscale solve --out`` with its writers 110-150 MB).
+BASE_BYTES = 1.2e8
 #: Bytes per cell of a full grid solved by constrained CG (reference, or the micro
-#: step's union box): heights, owners, pressure, gap and the CG's vectors, the kernel
-#: spectrum on the zero-padded grid, the output files (VTK quads). Measured with the
-#: FFT work below: 310-370 bytes per cell in all (CALIBRATION).
-GRID_BYTES_PER_CELL = 250.0
+#: step's union box): heights, owners, pressure, gap and the CG's vectors. With the FFT work
+#: below, 300 bytes a cell: measured 180-225 on the reference (683,929-3.03 M cells) and
+#: 260-390 on the union CG's boxes of the sweep (2.2-6.2 M cells, the patches included).
+GRID_BYTES_PER_CELL = 150.0
 #: Bytes per cell carried on patches (heights, owners, pressures, the patch's own FFT
-#: operator, the output files); with the FFT work, measured 310 bytes per cell.
-PATCH_BYTES_PER_CELL = 250.0
-#: Transient FFT work of the largest patch or grid, bytes per cell: four complex arrays
-#: on a grid padded to four times the cells (4 x 4 x 16).
-FFT_WORK_BYTES_PER_CELL = 256.0
+#: operator, the output files), and per patch (its grid objects, operators' set-up): fitted
+#: with the far field's terms to the peaks of 46 two-level runs of the sweep (seed 7, peaks
+#: of 330-2,300 MB): 456 bytes a cell (with the far field's 144) and 83 kB a patch (with its
+#: operator's 40), the fit's peaks within 0.79-1.24 of 41 of them; counted 10 % above.
+PATCH_BYTES_PER_CELL = 350.0
+PATCH_BYTES_EACH = 50e3
+#: Patches sized by the indenters' reach where the macro step stalled far from a solution
+#: (:mod:`twoscale.memory_stall`): each cell's height, owner and block mask, bytes (17,
+#: their arrays'), and the peak while they are cut from their box sampled once, bytes per
+#: box cell: measured on the sweep's seed 8 #112, 943 MB above the start for a box of
+#: 30.6 M cells (476 MB resident after it: the box's heights and owners, 16 a cell).
+REACH_PATCH_HELD = 17.0
+REACH_BOX_SAMPLED = 32.0
+#: The union CG's coarse correction (:mod:`twoscale.pk.coarse`, on boxes of at least its
+#: ``MIN_CELLS``) holds its precorrected product's near pairs among the loaded cells
+#: (:class:`twoscale.influence.precorrected.Precorrected`, Chebyshev radius 10 cells): it is
+#: built only where the loaded squares of 25 x 25 cells hold at most ``MAX_FILL`` (0.2) of
+#: their cells, weighted by their loaded cells, so a contact within a square and the
+#: window has about 125 loaded cells beside each of its own. Measured 43-106 pairs a loaded
+#: cell (seed 7's #177 and #61, seed 8's #140), 112 on contacts of 113 cells one a square;
+#: counted at 125, each at 40 bytes (its value and column, 12, the pair structure kept, 8,
+#: and the build's index arrays). Seed 7's #61 (577 K box cells, 63.6 K loaded) peaked at
+#: 565 MB against 355 counted without them.
+COARSE_NEAR_PAIRS_PER_CONTACT_CELL = 125.0
+COARSE_NEAR_BYTES_PER_PAIR = 40.0
+#: Transient FFT work of the largest patch or grid, bytes per cell.
+FFT_WORK_BYTES_PER_CELL = 150.0
+#: Largest dense pair block of the cross-patch coupling, entries
+#: (``twoscale.micro.blocks.Coupling``'s ``dense_max_entries``).
+DENSE_PAIR_ENTRIES = 40_000
+#: What the coupling holds per pair over its operators' own arrays (per-vector spectra and
+#: moments beside them): fitted with the patches' costs above (1.1 x twice the arrays).
+PAIR_HELD = 2.2
+#: Share of a failed block attempt's memory (its operators and far field) still resident when
+#: the union CG that follows it allocates, the heap trimmed between them
+#: (:mod:`twoscale.micro.release`): 1,000 paraboloids, 508 MB resident after a two-level
+#: trial that had peaked at 1,303 MB (the interpreter's 140 MB and 407 MB of live arrays
+#: with the patches), about a third of what the attempt held above the patches.
+BLOCK_ATTEMPT_HELD = 0.35
 #: Budget of the cached cross-patch operators (dense pairs, and FFT / separated pairs:
 #: ``twoscale.micro.blocks.Coupling``'s two caches of 4e8 bytes).
 COUPLING_CACHE_BYTES = 8e8
@@ -43,16 +78,13 @@ MACRO_DENSE_MAX = 2000
 #: ``MAX_DENSE_CELLS`` cells (``twoscale.reference.dense``).
 DENSE_CELLS = 2000
 DENSE_GRID_CELLS = 12_000
-#: The finite-block provider (``[influence] kind = "block"``): building its FEM correction
-#: for the default 140 x 140 x 20 mm block peaked at 1.03 GB (S1, cold cache; 0.13 GB
-#: with the cache warm). Counted whether or not the cache is warm.
-BLOCK_PROVIDER_BYTES = 1.0e9
 #: Default share of the available memory a solve may use.
 DEFAULT_FRACTION = 0.8
 #: A refused solve suggests an h whose estimate is within this share of the limit, so that
 #: following the advice does not start a solve at the machine's edge.
 ADVICE_SHARE = 0.5
 
+#: (Recorded with the constants of then; the estimates here are not those of today.)
 #: Measured peak resident memory of ``twoscale solve --quiet --out DIR`` (``/usr/bin/time``
 #: ``%M``; 2 CPUs, numpy 2 / scipy FFT) against the estimate: (scene, method, h mm, cells
 #: the solver carried, peak MB, estimate MB). "random50" / "random300": 50 / 300 spheres,

@@ -9,24 +9,51 @@ import math
 import numpy as np
 
 from .grid import Grid
-from .memory_costs import GRID_BYTES_PER_CELL, PATCH_BYTES_PER_CELL, FFT_WORK_BYTES_PER_CELL
-from .memory_costs import COUPLING_CACHE_BYTES, MARGIN, MERGE_GROWTH, MACRO_DENSE_MAX, DENSE_CELLS
-from .memory_costs import FAR_OPERATOR_BYTES_PER_PATCH, DENSE_GRID_CELLS
-from .micro.policy import FAR_FIELD_MIN_PATCHES, MODEL, UNION_MIN_COVERAGE
+from .memory_costs import BLOCK_ATTEMPT_HELD, COUPLING_CACHE_BYTES, DENSE_CELLS, DENSE_GRID_CELLS, DENSE_PAIR_ENTRIES
+from .memory_costs import FAR_OPERATOR_BYTES_PER_PATCH, FFT_WORK_BYTES_PER_CELL, GRID_BYTES_PER_CELL, MACRO_DENSE_MAX
+from .memory_costs import MARGIN, MERGE_GROWTH, PAIR_HELD, PATCH_BYTES_EACH, PATCH_BYTES_PER_CELL
+from .memory_costs import COARSE_NEAR_BYTES_PER_PAIR, COARSE_NEAR_PAIRS_PER_CONTACT_CELL
+from .micro.policy import AUTO_FAR_TOL, FAR_FIELD_MIN_PATCHES, MODEL, UNION_MIN_COVERAGE
 from .micro.sources import KEPT_BYTES_PER_OWNED_CELL
-from .scene import Scene, expected_approaches, expected_contact_radii
+from .pk.coarse import MAX_FILL as COARSE_MAX_FILL, MAX_SQUARES as COARSE_MAX_SQUARES
+from .pk.coarse import MIN_CELLS as COARSE_MIN_CELLS, SIDE as COARSE_SIDE
+from .mean_field import mean_field, pushed_approaches, pushed_contact_radii
+from .resolution import _contact_radii
+from .memory_stall import patch_box, stall_possible, stalled_patches
+from .scene import Scene, expected_approaches
 
 
-def patch_half_widths(scene: Scene, h: float, *, margin: float = MARGIN) -> np.ndarray:
+def patch_half_widths(scene: Scene, h: float, *, margin: float = MARGIN, pushed: bool = True) -> np.ndarray:
     """Estimated half-width (mm) of each asperity's patch, 0 for one that cannot touch:
     ``min(margin a_k + 2 h, reach_k + h)`` as :func:`twoscale.micro.patches.patch_radius`,
-    with ``a_k`` the contact radius alone at the expected approach."""
-    delta = expected_approaches(scene)
-    a = expected_contact_radii(scene)
+    with ``a_k`` the contact radius at the expected approach: with the neighbours' mean push
+    under penetration control (:func:`twoscale.mean_field.pushed_approaches`), or, with
+    ``pushed=False``, of the asperity alone (an upper estimate)."""
+    delta = pushed_approaches(scene) if pushed else expected_approaches(scene)
+    a = pushed_contact_radii(scene, pushed)
     out = np.zeros(len(scene.asperities))
     for k, asp in enumerate(scene.asperities):
         if delta[k] > 0:
             out[k] = min(asp.reach(float(delta[k])) + h, margin * float(a[k]) + 2.0 * h)
+    return out
+
+
+def _lifted_half_widths(scene: Scene, h: float) -> np.ndarray:
+    """Under load control, the patches' half-widths (mm) as the macro step's forces size
+    them, an upper estimate: at the level the neighbours' mean push raises
+    (:func:`twoscale.mean_field.mean_field`), a tip still in contact ``margin a + 2 h``
+    from its pushed approach, one lifted out of it the reach of its geometric approach
+    (:func:`twoscale.micro.patches.patch_radius`), both within that reach plus a cell. Seed
+    7's #156 (839 spheres, load): 0.25 of their box, the policy's patches 0.21, the
+    contacts alone 0.12 (the union CG ran on the box, uncounted)."""
+    field = mean_field(scene)
+    local = np.maximum(field.local, 0.0)
+    a = _contact_radii(scene.asperities, local)
+    out = np.zeros(len(scene.asperities))
+    for k, asp in enumerate(scene.asperities):
+        if field.geometric[k] > 0:
+            reach = asp.reach(float(field.geometric[k])) + h
+            out[k] = min(reach, MARGIN * float(a[k]) + 2.0 * h) if field.local[k] > 0 else reach
     return out
 
 
@@ -60,51 +87,159 @@ def _material_cells(scene: Scene, grid: Grid) -> float:
 def twoscale_parts(scene: Scene, h: float, *, iteration: str = "auto") -> tuple[int, dict]:
     """Cells carried and the parts of a two-scale solve's peak: the patches and the macro
     matrix, the block iterations' operators and, where the union CG may run, its box. Under
-    ``"auto"`` both: the union CG may follow a block attempt that did not converge, and the
-    memory that attempt took is not given back to the system before the union CG allocates
-    (1,000 paraboloids at h = 0.051 mm, two-level trial stopped after one sweep: 1.12 GB
-    resident before the union CG, 0.41 GB of it in live arrays; peak 2.27 GB, against 1.30 GB
-    for the two-level iteration alone and 1.38 GB for the union CG alone). An ``iteration``
-    asked for runs alone (:func:`twoscale.micro.driver.run_micro`): only its own parts."""
+    ``"auto"`` both where the box is crowded, as the larger of the two: the union CG runs
+    first, or after a block attempt that did not converge, whose memory is then given back
+    (:mod:`twoscale.micro.release`) but for ``BLOCK_ATTEMPT_HELD`` of it; where the exact
+    pairs' operators under the far field would hold more than the box, the union CG alone
+    (the policy's work estimates, products on the same grids, then make it the cheaper: on
+    the sweep's seed 7 it ran on all 16 such scenes). The box is counted beyond the
+    patches' cells (its bytes a cell were measured with them). An ``iteration`` asked for
+    runs alone (:func:`twoscale.micro.driver.run_micro`): only its own parts.
+
+    The patches are sized by the contacts with the neighbours' push
+    (:func:`patch_half_widths`); whether they crowd their box (the union CG a candidate) is
+    judged by the contacts alone, an upper estimate: where the policy took the union CG on
+    the sweep's scenes its patches, sized by the macro step's forces, covered up to 4x what
+    the pushed contacts do."""
     r = patch_half_widths(scene, h)
     on = r > 0
     across = _cells_across(r[on], h)
-    patch_cells = across**2
-    cells = int(patch_cells.sum())
+    cells = int((across**2).sum())
     n = len(scene.asperities)
-    parts = {f"{int(on.sum())} patches": PATCH_BYTES_PER_CELL * cells}
+    count = int(on.sum())
+    parts = {f"{count} patches": PATCH_BYTES_PER_CELL * cells + PATCH_BYTES_EACH * count}
     if n <= MACRO_DENSE_MAX:
         parts["macro interaction matrix"] = 3.0 * 8.0 * n * n  # matrix, its LU, a work copy
     else:
         parts["macro interaction matrix"] = 2000.0 * n  # matrix-free point operator
-    box = _patch_box(scene, r, h) if int(on.sum()) else None  # one patch: the union CG on it
-    blocks = {} if iteration == "union-cg" else _block_parts(across, box, cells)
+    # under load control the level rises: tips lifted out of contact get their reach (#156); beyond
+    # the macro step's safe path the contacts alone (the lifted count put seed 7's #49 at 0.92 of
+    # its box against the policy's 0.33; the union CG runs there stayed within 1.09 of the estimate)
+    lifted = scene.penetration is None and not stall_possible(scene)
+    alone = _lifted_half_widths(scene, h) if lifted else patch_half_widths(scene, h, pushed=False)
+    tips = scene.tips
+    box = patch_box(tips, r, h)  # one patch: the union CG on it
+    upper = float((_cells_across(alone[alone > 0], h) ** 2).sum())
+    blocks = {} if iteration == "union-cg" else _block_parts(tips[on], r[on], h, box, upper)
     # a height map's stones may take the union CG at any coverage, penetration from a lower share (policy.decide)
     on_map = all(a.shape == "map" for a in scene.asperities)
-    crowded = box is not None and cells >= MODEL.union_coverage(scene.penetration is None, n) * box.size
+    crowded = box is not None and upper >= MODEL.union_coverage(scene.penetration is None, n) * box.size
     union = {}
     if box is not None and iteration in ("auto", "union-cg") and (iteration == "union-cg" or on_map or crowded):
         union = grid_parts(scene, box, "union box")
         cells = max(cells, int(box.size))
+    near = blocks.get("cached cross-patch operators", 0.0) if "far field's point operator" in blocks else 0.0
+    if union and near > sum(union.values()):
+        blocks = {}  # the near pairs cost more than the box: the policy takes the union CG
+    # the box's cost per cell was measured with the patches in it: beyond their cells' bytes,
+    # and beyond what a block attempt before it gave back
+    given_back = PATCH_BYTES_PER_CELL * (across**2).sum() + (1.0 - BLOCK_ATTEMPT_HELD) * sum(blocks.values())
+    union = {f"{name} beyond the patches'": max(0.0, size - given_back) for name, size in union.items()}
+    if union:
+        union.update(coarse_parts(scene, box))
     parts.update(blocks)
     parts.update(union)
+    if blocks and iteration in ("auto", "two-level") and stall_possible(scene):
+        stalled_cells, stalled = _stalled_route(scene, h, tips, parts["macro interaction matrix"])
+        if sum(stalled.values()) > sum(parts.values()):
+            return max(cells, stalled_cells), stalled
     return cells, parts
 
 
-def _block_parts(across: np.ndarray, box: Grid | None, cells: int) -> dict:
+def _stalled_route(scene: Scene, h: float, tips: np.ndarray, macro: float) -> tuple[int, dict]:
+    """Cells and parts of the micro step after a macro step stalled far from a solution
+    (:mod:`twoscale.memory_stall`): the far field's block iterations on the patches at the
+    indenters' reach, the policy's larger ones kept beside them; or, where those overlap
+    so much that they hold more cells than their box, the union CG on it (its work then the
+    least: the blocks' is at least their cells'); or, where more, those patches while
+    they are sampled."""
+    st = stalled_patches(scene, h, tips)
+    if st.policy_cells >= st.policy_box.size:
+        parts = grid_parts(scene, st.policy_box, "union box") | coarse_parts(scene, st.policy_box)
+        cells = int(st.policy_box.size)
+    else:
+        on = st.work > 0
+        across = _cells_across(st.work[on], h)
+        cells = int((across**2).sum())
+        parts = {
+            f"{int(on.sum())} patches at the indenters' reach (a stalled macro step)": PATCH_BYTES_PER_CELL * cells
+            + PATCH_BYTES_EACH * int(on.sum()),
+            "the policy's patches at the geometric reach, kept": st.held_bytes,
+        }
+        box = patch_box(tips, st.work, h)
+        parts.update(_block_parts(tips[on], st.work[on], h, box, float(cells)))
+    if st.sampling_bytes > sum(parts.values()):
+        parts = {"the policy's patches at the geometric reach, sampled (a stalled macro step)": st.sampling_bytes}
+    parts["macro interaction matrix"] = macro
+    return cells, parts
+
+
+def coarse_parts(scene: Scene, box: Grid) -> dict:
+    """The union CG's coarse correction on ``box`` (:mod:`twoscale.pk.coarse`, from its
+    ``MIN_CELLS``): the near pairs of its precorrected product among the loaded cells, those
+    of the contacts with the neighbours' push (:func:`pushed_contact_radii`), where it is
+    built (:func:`_coarse_built`). It is never built where more than ``MAX_FILL`` of the box
+    is loaded: not counted where the contacts cover twice that share (they were 0.7-1.6
+    times the loaded cells on the sweep's scenes measured), and at most that share counted."""
+    if box.size < COARSE_MIN_CELLS:
+        return {}
+    a = pushed_contact_radii(scene)
+    on = a > 0
+    loaded = float(np.sum(np.pi * a**2)) / box.h**2
+    if loaded > 2.0 * COARSE_MAX_FILL * box.size or not _coarse_built(scene.tips[on], a[on], box):
+        return {}
+    loaded = min(loaded, COARSE_MAX_FILL * float(box.size))
+    return {
+        "the union CG's coarse correction": COARSE_NEAR_BYTES_PER_PAIR * COARSE_NEAR_PAIRS_PER_CONTACT_CELL * loaded
+    }
+
+
+def _coarse_built(tips: np.ndarray, a: np.ndarray, box: Grid) -> bool:
+    """Whether the coarse correction would be built for contacts of radii ``a`` (mm) about
+    ``tips`` ((N, 2) mm) on ``box``: at most ``MAX_SQUARES`` squares of ``SIDE`` cells
+    loaded (each contact's bounding squares) and their fill, ``sum n_i^2 / (side^2 sum
+    n_i)``, at most ``MAX_FILL``, each contact's cells spread evenly over its squares (a
+    contact across many squares fills them: seed 7's #76 on the block, 85 contacts of
+    about 8,600 cells, about 0.5)."""
+    side = box.h * COARSE_SIDE
+    lo = np.floor((tips - a[:, None] - (box.x0, box.y0)) / side).astype(np.int64)
+    hi = np.floor((tips + a[:, None] - (box.x0, box.y0)) / side).astype(np.int64)
+    span = hi - lo + 1
+    squares = np.prod(span, axis=1)
+    cells = np.pi * a**2 / box.h**2
+    if float(np.sum(cells * cells / squares)) > COARSE_MAX_FILL * COARSE_SIDE**2 * float(cells.sum()):
+        return False
+    if int(squares.sum()) > 50 * COARSE_MAX_SQUARES:  # too many to list: far past the bound
+        return False
+    columns = int(hi[:, 0].max(initial=0)) + 2
+    one = squares == 1  # most contacts lie within one square: their keys at once
+    keys = [lo[one, 1] * columns + lo[one, 0]] + [
+        ((lo[k, 1] + np.arange(span[k, 1]))[:, None] * columns + lo[k, 0] + np.arange(span[k, 0])).ravel()
+        for k in np.flatnonzero(~one)
+    ]
+    return len(np.unique(np.concatenate(keys))) <= COARSE_MAX_SQUARES
+
+
+def _block_parts(tips: np.ndarray, r: np.ndarray, h: float, box: Grid | None, upper: float) -> dict:
     """What the block iterations hold beyond the patches: the largest block's FFT work, the
-    cached cross-patch operators and, where the policy may take the far field, its weights
-    and point operator (``across``: cells across each patch that can touch)."""
-    patch_cells = across**2
-    count = len(across)
+    cached operators of the pairs coupled exactly and, where the policy may take the far
+    field, its weights and point operator (``tips`` (N, 2) mm and ``r`` the half-widths of
+    the patches that can touch; ``upper`` their cells alone, for the crowding test)."""
+    patch_cells = _cells_across(r, h) ** 2
+    cells = float(patch_cells.sum())
+    count = len(r)
     # a merged block (overlapping patches solved together) may have up to MERGE_GROWTH
     # times its members' cells: its FFT work, not the patches' arrays, grows with it
     growth = MERGE_GROWTH if count > 1 else 1.0
     parts = {"FFT work on the largest patch": FFT_WORK_BYTES_PER_CELL * growth * float(patch_cells.max(initial=0))}
+    crowded = box is not None and upper >= UNION_MIN_COVERAGE * box.size
+    far = count > 1 and (not crowded or count >= FAR_FIELD_MIN_PATCHES)
     if count > 1:
-        parts["cached cross-patch operators"] = min(COUPLING_CACHE_BYTES, _pair_bytes(across))
-    crowded = box is not None and cells >= UNION_MIN_COVERAGE * box.size
-    if count > 1 and (not crowded or count >= FAR_FIELD_MIN_PATCHES):
+        # the near pairs where the policy may take the far field, else every pair (exact)
+        share = 1.0 if box is None else min(1.0, box.size / cells)  # overlapping patches share their cells
+        pairs = pair_bytes(tips, r, h, AUTO_FAR_TOL if far else None, owned=share)
+        parts["cached cross-patch operators"] = min(COUPLING_CACHE_BYTES, pairs)
+    if far:
         # where the policy may take the far field (micro.policy.decide): its per-patch
         # weights, every patch cell counted as owned (4,548 paraboloids: 4.5 M owned cells,
         # 326 MB of source weights and 326 MB of interpolation rows measured)
@@ -114,24 +249,29 @@ def _block_parts(across: np.ndarray, box: Grid | None, cells: int) -> dict:
     return parts
 
 
-def _pair_bytes(across: np.ndarray) -> float:
-    """Bytes of every cross-patch FFT operator, ``sum_{k != l} 8 (n_k + n_l)^2`` with
-    ``n`` cells across (``Coupling.full_operator``'s size of a half-spectrum)."""
-    s = float(across.sum())
-    sq = float((across**2).sum())
-    return 8.0 * (2.0 * (len(across) - 1) * sq + 2.0 * (s * s - sq))
+def pair_bytes(tips: np.ndarray, r: np.ndarray, h: float, far_tol: float | None, owned: float = 1.0) -> float:
+    """Bytes of the operators of the pairs of patches coupled exactly
+    (:class:`twoscale.micro.blocks.Coupling`): every pair (``far_tol`` None), or those whose
+    centres are closer than ``(r_k + r_l) / sqrt(far_tol)``, ``r`` the half-diagonals
+    (:func:`twoscale.micro.farfield.near_lists`). A pair of ``c_k c_l`` cells at most
+    ``DENSE_PAIR_ENTRIES`` owned cells (``owned`` of a patch's cells: where patches overlap,
+    the share of the box each one owns) holds its dense block (``8 c_k c_l`` bytes; the reverse pair is
+    its view), a larger one an FFT operator of ``8 (n_k + n_l)^2`` bytes (``n`` cells
+    across: a half-spectrum; the reverse shares it), both times ``PAIR_HELD`` (what the
+    coupling keeps beside them). ``tips`` (N, 2) mm; ``r`` half-widths, mm."""
+    n = _cells_across(r, h)
+    if len(n) < 2:
+        return 0.0
+    if far_tol is None:
+        i, j = np.triu_indices(len(n), 1)
+    else:
+        from scipy.spatial import cKDTree
 
-
-def _patch_box(scene: Scene, r: np.ndarray, h: float) -> Grid | None:
-    on = r > 0
-    if not np.any(on):
-        return None
-    tips = scene.tips[on]
-    rr = r[on]
-    return Grid.covering(
-        float((tips[:, 0] - rr).min()),
-        float((tips[:, 0] + rr).max()),
-        float((tips[:, 1] - rr).min()),
-        float((tips[:, 1] + rr).max()),
-        h,
-    )
+        diag = math.sqrt(2.0) * r
+        found = cKDTree(tips).query_pairs(2.0 * float(diag.max()) / math.sqrt(far_tol), output_type="ndarray")
+        i, j = found.reshape(-1, 2).T
+        near = np.hypot(*(tips[i] - tips[j]).T) * math.sqrt(far_tol) < diag[i] + diag[j]
+        i, j = i[near], j[near]
+    c = owned * n**2
+    dense = c[i] * c[j] <= DENSE_PAIR_ENTRIES
+    return PAIR_HELD * float(np.sum(np.where(dense, 8.0 * c[i] * c[j], 8.0 * (n[i] + n[j]) ** 2)))

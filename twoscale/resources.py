@@ -2,31 +2,35 @@
 
 :func:`estimate_memory` counts the cells a solver will carry from the scene alone (no
 grid array is built) and turns them into bytes with per-cell costs measured on this code
-(peak resident memory of whole ``twoscale solve`` runs, output files included; see
-:data:`~twoscale.memory_costs.CALIBRATION`). :func:`check_memory` compares an estimate with a limit, by default
-80 % of the memory the machine has available, and raises a one-line
+(peak resident memory of the sweep's solves in fresh processes,
+:mod:`twoscale.memory_costs`). :func:`check_memory` compares an estimate with a limit, by
+default 80 % of the memory the machine has available, and raises a one-line
 :class:`~twoscale.scene.SceneError` naming the option to change when it is over.
 
 What the two methods carry:
 
 * ``"reference"``: one grid (:func:`twoscale.reference.on_scene.reference_grid`), its zero-padded FFT
-  (about four times its cells) and the constrained CG's vectors; the dense solver's
-  matrix where the scene is small enough for it.
+  and the constrained CG's vectors; the dense solver's matrix where the scene is small enough for it.
 * ``"twoscale"``: one patch per asperity that can touch, of half-width ``margin a_k + 2 h``
-  (``a_k`` the contact radius alone at the expected approach,
-  :func:`twoscale.scene.expected_contact_radii`, which ignores interaction and so
-  overestimates it), each with its FFT operator; the cached cross-patch operators
-  (bounded by the coupling's cache budget); where the far field may be taken, the
+  (``a_k`` the contact radius at the expected approach, under penetration control lowered
+  by the neighbours' mean push, :mod:`twoscale.mean_field`), each with its FFT operator; the
+  operators of the pairs of patches coupled exactly (the near pairs where the far field may
+  be taken; at most the coupling's cache budget); where the far field may be taken, the
   weights it keeps per owned cell (:data:`twoscale.micro.sources.KEPT_BYTES_PER_OWNED_CELL`)
-  and its point operator among the patches;
-  the dense macro matrix; and, where patches crowd their bounding box, the micro step may
-  solve on that box as one grid (``union-cg``, :mod:`twoscale.micro.policy`), which costs
-  like the reference grid. An iteration asked for runs alone and is counted alone.
-* the finite block (``[influence] kind = "block"``) adds its provider's build.
+  and its point operator among the patches; the dense macro matrix; and, where patches
+  crowd their bounding box, the micro step may solve on that box as one grid (``union-cg``,
+  :mod:`twoscale.micro.policy`), counted as the larger of it and a block attempt before it
+  (:mod:`twoscale.memory_parts`), with its coarse correction's near pairs on a large box.
+  With more than a thousand tips the macro step may stall and leave patches sized by the
+  indenters' reach (:mod:`twoscale.memory_stall`): that route is counted too, and the larger
+  taken. An iteration asked for runs alone and is counted alone.
+* a body that builds something on its first answers adds it (the finite block's
+  factorisation where its on-disk cache lacks a field the tips' region needs).
 
-Measured peaks against the estimate: :data:`~twoscale.memory_costs.CALIBRATION`. Not counted: the reference
-grid's enlargements when pressure reaches its edge (x 2.25 each), and a union box the
-micro step falls back to after a far-field iteration failed on a sparse scene.
+Measured peaks against the estimate: docs/records/sweep.md (seed 7's scenes, fresh
+processes). Not counted: the reference grid's enlargements when pressure reaches its edge
+(x 2.25 each), and a union box the micro step falls back to after a far-field iteration
+failed on a sparse scene.
 
 Units: bytes, mm.
 """
@@ -39,11 +43,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .memory_costs import BASE_BYTES, BLOCK_PROVIDER_BYTES, DEFAULT_FRACTION, ADVICE_SHARE
+from .memory_costs import BASE_BYTES, DEFAULT_FRACTION, ADVICE_SHARE
 from .memory_parts import grid_parts, twoscale_parts
 from .micro.full_grid_rule import FULL_GRID_MAX_TIPS, full_grid_max_cells, full_grid_route as policy_full_grid_route
 from .pivot import pivot_route
-from .scene import SCENE_METHODS, Scene, SceneError, expected_contact_radii, round_up
+from .scene import SCENE_METHODS, Scene, SceneError, expected_approaches, expected_contact_radii, round_up
 
 
 @dataclass(frozen=True)
@@ -53,8 +57,9 @@ class MemoryEstimate:
     Attributes
     ----------
     bytes : float
-        Estimated peak resident memory, bytes (an upper estimate, not below the measured
-        peak: 1.2-2.5 times it on the runs measured, docs/records/scenes.md).
+        Estimated peak resident memory, bytes (a prediction: the measured peaks of seeds 7
+        and 8's sweep scenes in fresh processes lay within 0.18-1.16 times it, two user
+        scenarios 0.79 and 1.28, docs/records/sweep.md).
     cells : int
         Cells the solver will carry: the reference grid, or the patches (the union box
         when the micro step is expected to solve on it and it is larger).
@@ -88,7 +93,9 @@ class MemoryEstimate:
 
 
 # ---------------------------------------------------------------- the estimate
-def estimate_memory(scene: Scene, h: float, method: str = "twoscale", *, iteration: str = "auto") -> MemoryEstimate:
+def estimate_memory(
+    scene: Scene, h: float, method: str = "twoscale", *, iteration: str = "auto", provider=None
+) -> MemoryEstimate:
     """Peak memory of solving ``scene`` at cell size ``h`` with ``method``.
 
     Parameters
@@ -104,6 +111,9 @@ def estimate_memory(scene: Scene, h: float, method: str = "twoscale", *, iterati
         asked for runs alone); ``"auto"`` the block operators, and the box too where the
         patches cover at least ``MODEL.union_coverage`` of it (under penetration control a
         lower share) and on a height map's stones (a union CG after a block attempt).
+    provider : InfluenceProvider, optional
+        The body the solve will use, asked what its first answers build
+        (:func:`body_build_bytes`); None: the scene's, built here.
 
     Returns
     -------
@@ -129,13 +139,39 @@ def estimate_memory(scene: Scene, h: float, method: str = "twoscale", *, iterati
         raise SceneError(
             f"cell size h = {h!r} mm is too small: the scene's cells cannot even be counted (over 1e308 of them)"
         ) from None
-    if scene.influence["kind"] == "block":
-        parts["finite-block provider (FEM build)"] = BLOCK_PROVIDER_BYTES
+    if (build := body_build_bytes(scene, provider)) > 0:
+        parts["finite-block factorisation (a field not in its cache)"] = build
     total = float(sum(parts.values()))
     dominant = max(
         (k for k in parts if k != "interpreter and libraries"), key=parts.get, default="interpreter and libraries"
     )
     return MemoryEstimate(total, cells, dominant, method, float(h), tuple((k, float(v)) for k, v in parts.items()))
+
+
+def body_build_bytes(scene: Scene, provider=None) -> float:
+    """What the scene's body will build on its first answers, bytes
+    (:meth:`~twoscale.influence.base.InfluenceProvider.build_bytes`: the finite block's
+    factorisation where its on-disk cache lacks a field the tips' region needs, 0 where it
+    holds them all, as after a first solve of the same block; always 0 on the half-space).
+    The region: the tips' box widened by their largest reach at the expected approach, which
+    every grid a solve builds stays within. ``provider``: the body the solve will use; None:
+    the scene's, built here once per scene (the answer kept with it)."""
+    if provider is None and scene.influence["kind"] == "halfspace":
+        return 0.0
+    kept = None if provider is not None else scene.__dict__.get("_build_bytes")
+    if kept is None:
+        delta = expected_approaches(scene)
+        reach = max((a.reach(float(d)) for a, d in zip(scene.asperities, delta)), default=0.0)
+        x, y = scene.tips[:, 0], scene.tips[:, 1]
+        rect = (float(x.min()) - reach, float(x.max()) + reach, float(y.min()) - reach, float(y.max()) + reach)
+        try:
+            build = getattr(provider or scene.provider(progress=False), "build_bytes", None)
+            kept = 0.0 if build is None else float(build(rect))  # a body of the caller's may not say
+        except (SceneError, ValueError):  # a body the solve will refuse: nothing is built
+            kept = 0.0
+        if provider is None:
+            scene.__dict__["_build_bytes"] = kept  # not a field: equality, hash and repr ignore it
+    return kept
 
 
 def full_grid_route(scene: Scene, h: float, body: str | None = None) -> str | None:
@@ -167,10 +203,11 @@ def check_solve_memory(
     limit_bytes: float | None = None,
     option: str = "--h",
     h_given: bool = False,
+    provider=None,
 ) -> None:
     """:func:`check_memory` for solving ``scene`` at ``h``: the refusal names where h came
     from (``option``, the scene's ``grid.h``, or the default rule) and suggests an h whose
-    estimate was checked to fit."""
+    estimate was checked to fit; ``provider``: the body the solve will use (None: the scene's)."""
     if h_given:
         source = f"given as {option}"
     elif scene.h is not None:
@@ -180,7 +217,7 @@ def check_solve_memory(
     family = "twoscale" if method == "twoscale" else "reference"
 
     def refit(hh: float) -> MemoryEstimate:
-        return estimate_memory(scene, hh, family, iteration=iteration)
+        return estimate_memory(scene, hh, family, iteration=iteration, provider=provider)
 
     try:
         check_memory(refit(h), limit_bytes, option=option, source=source, refit=refit)

@@ -286,6 +286,12 @@ class InfluenceProvider(ABC):
         :class:`twoscale.io.cache_entry.CacheUsage` objects; ``()`` (default): none."""
         return ()
 
+    def build_bytes(self, rect: tuple[float, float, float, float]) -> float:
+        """Memory its first answers for loads in ``rect`` ``(x0, x1, y0, y1)`` (mm, scene
+        frame) will take to build beyond what it holds (the block's factorisation where its
+        cache lacks a field), bytes; 0 (default): nothing is built."""
+        return 0.0
+
     def smooth_self_compliance(self, points: np.ndarray) -> np.ndarray:
         """Regular part of the point compliance at coincident points, mm/N, shape (N,).
 

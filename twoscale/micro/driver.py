@@ -26,6 +26,7 @@ from .couplings import Exact, coupling_for
 from .patches import TipTable
 from .policy import ITERATIONS, MODEL, UNION_MIN_COVERAGE, Choice, choose
 from .problem import BlockSettings, MicroContext, MicroProblem
+from .release import release_freed_memory
 from .result import MicroResult
 from .sampling import detached
 from .setup import one_asperity_patches
@@ -189,6 +190,7 @@ def run_micro(
         )
         if result.converged:
             break
+        release_freed_memory()  # what the failed attempt freed, before the next one allocates
     return result, MicroPlan(picked, tuple(attempts), macro)
 
 
