@@ -98,8 +98,10 @@ def sweep(
         failed[k] = not ok
         p[k], active[k] = pressure, now
 
+    # a held far field gives a level's right-hand sides together (:mod:`.level_far`)
+    by_level = None if levels is None else getattr(coupling, "rhs_level", None)
     for level in [[k] for k in range(n)] if levels is None else levels:
-        rhs = {k: coupled_rhs(coupling, k, p, b[k]) for k in level}
+        rhs = {k: coupled_rhs(coupling, k, p, b[k]) for k in level} if by_level is None else by_level(level, p, b)
         stacked = [] if stacks is None else [k for k in level if not blocks[k].dense and blocks[k].n]
         if len(stacked) > 1:
             for k, (pressure, ok, _) in stacks.solve(blocks, stacked, rhs, p, local_rtol).items():
