@@ -21,6 +21,7 @@ from ..stopping import StopReason
 from .blocks import Coupling
 from .localblock import LocalBlock
 from .local import contact_solve
+from .local_batch import batchable, final_first_passes
 from .segments import laid_end_to_end
 
 #: Local solves stop at this fraction of the last sweep's relative change (never below it of tol).
@@ -108,6 +109,13 @@ def sweep(
                 take(k, pressure, pressure > 0.0, ok)
             done = set(stacked)
             level = [k for k in level if k not in done]
+        # the dense blocks' first pass in stacks; the one-block loop where it is not final
+        small = [] if stacks is None or not stacks.whole_kernel else [k for k in level if batchable(blocks[k])]
+        if len(small) > 1:
+            final = final_first_passes(blocks, small, rhs, p, stacks)
+            for k, (pressure, now) in final.items():
+                take(k, pressure, now, True)
+            level = [k for k in level if k not in final]
         for k in level:
             sol = contact_solve(blocks[k], rhs[k], p[k], rtol=local_rtol)
             take(k, sol.pressure, sol.active, sol.converged)
