@@ -211,11 +211,11 @@ class FarFieldCoupling(Coupling):
         return self._near_1d(k, values, rhs - self._far(k, values, whole=False)[:, 0])
 
     def _near_1d(self, k: int, values: list, out: np.ndarray) -> np.ndarray:
-        """``out -= sum_{l near k} A_kl v_l`` (1-D; returns ``out``): kept dense blocks, else
-        one gather of the sources' loaded columns from the kernel's window where it serves
-        them all (8,400 pairs of blocks past the dense size on 7,339 clustered spheres took
-        an FFT route, ~0.2 ms a pair), else the routes."""
+        """``out -= sum_{l near k} A_kl v_l`` (1-D; returns ``out``): kept dense blocks, else one
+        gather of the sources' loaded columns from the kernel's window where it serves them all
+        (7,339 clustered spheres: 8,400 pairs past the dense size took an FFT route), else routes."""
         rest, gathered = [], []
+        wide = self.dense_max_entries / max(len(out), 1)  # a smaller pair's route first: its dense block
         for l in self.near(k):
             v = values[l]
             if v is None or not np.count_nonzero(v):  # 0.6 us against any()'s 4 (183,510 calls on #181)
@@ -224,7 +224,7 @@ class FarFieldCoupling(Coupling):
             M = self._ops.get((k, int(l)))  # kept only for a pair whose route is the dense block
             if M is not None:
                 out -= M @ v
-            elif self._window is not None:
+            elif self._window is not None and ((k, l) in self._window.pairs or len(v) > wide):
                 gathered.append(int(l))
             else:
                 rest.append(int(l))
