@@ -29,6 +29,7 @@ from .blocks import Coupling
 from .kept_points import kept_operator
 from .level_far import LevelWeights
 from .localblock import whole_patch, whole_patch_is_large
+from .near_window import FIRST_GATHER_ENTRIES
 from .sources import all_source_nodes, all_stencils, grid_interpolation, patch_source_weights
 
 
@@ -211,25 +212,23 @@ class FarFieldCoupling(Coupling):
         return self._near_1d(k, values, rhs - self._far(k, values, whole=False)[:, 0])
 
     def _near_1d(self, k: int, values: list, out: np.ndarray) -> np.ndarray:
-        """``out -= sum_{l near k} A_kl v_l`` (1-D; returns ``out``): kept dense blocks, else one
-        gather of the sources' loaded columns from the kernel's window where it serves them all
-        (7,339 clustered spheres: 8,400 pairs past the dense size took an FFT route), else routes."""
-        rest, gathered = [], []
-        wide = self.dense_max_entries / max(len(out), 1)  # a smaller pair's route first: its dense block
+        """``out -= sum_{l near k} A_kl v_l`` (1-D; returns ``out``): kept dense blocks, else one gather
+        of the loaded columns from the kernel's window (pairs past the dense size: FFT routes before)."""
+        rest, gathered, n = [], [], max(len(out), 1)
+        wide, few = self.dense_max_entries / n, FIRST_GATHER_ENTRIES / n  # smaller pairs: dense blocks
         for l in self.near(k):
             v = values[l]
-            if v is None or not np.count_nonzero(v):  # 0.6 us against any()'s 4 (183,510 calls on #181)
+            if v is None or not (loaded := np.count_nonzero(v)):  # 0.6 us against any()'s 4 (#181)
                 continue
             self.near_products += 1
             M = self._ops.get((k, int(l)))  # kept only for a pair whose route is the dense block
             if M is not None:
                 out -= M @ v
-            elif self._window is not None and ((k, l) in self._window.pairs or len(v) > wide):
+            elif self._window is not None and ((k, l) in self._window.pairs or (len(v) > wide and loaded <= few)):
                 gathered.append(int(l))
             else:
                 rest.append(int(l))
         if gathered and self._window is not None:
-            # the pairs past the dense blocks' budget: one gather for all of them
             u = self._window.total(k, self.patches[k], [(l, self.patches[l], values[l]) for l in gathered])
             if u is None:
                 rest += gathered

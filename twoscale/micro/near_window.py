@@ -24,6 +24,10 @@ from .pair_entries import WINDOW_MAX_ENTRIES
 #: Largest block (entries) gathered for one product; a larger pair keeps its other route
 #: (its transient gather: 16 bytes an entry, 4 MB at this size).
 GATHER_MAX_ENTRIES = 250_000
+#: A pair past the dense blocks' size is gathered instead of its FFT route up to this many
+#: entries (the route's per-pair cost; 7,339 clustered spheres: ~8,000 a pair): larger
+#: patches keep the route (a few blocks of ~1,000 cells: gathers of 10^5 doubled the sums).
+FIRST_GATHER_ENTRIES = 16_384
 
 
 class NearWindow:
