@@ -27,7 +27,9 @@ import scipy.sparse as sp
 from ..influence.base import InfluenceProvider
 from .blocks import Coupling
 from .kept_points import kept_operator
+from .level_far import LevelWeights
 from .localblock import whole_patch, whole_patch_is_large
+from .near_window import FIRST_GATHER_ENTRIES
 from .sources import all_source_nodes, all_stencils, grid_interpolation, patch_source_weights
 
 
@@ -124,13 +126,17 @@ class FarFieldCoupling(Coupling):
         key = (k, whole)
         w = self._weights.get(key)
         if w is None:
-            g = self.patches[k].grid
-            W = self._weights.get(("shape", g.nx, g.ny))  # the whole patch's: its shape's only
-            if W is None:
-                W = self._weights[("shape", g.nx, g.ny)] = grid_interpolation(g.ny, g.nx)
+            W = self._shape_weights(self.patches[k].grid)
             w = W if whole else W[self.patches[k].owned.ravel()]
             self._weights[key] = w
         return w
+
+    def _shape_weights(self, g) -> np.ndarray:
+        """The whole patch's weights (ny nx, 9) of grid ``g``: its shape's only."""
+        W = self._weights.get(("shape", g.nx, g.ny))
+        if W is None:
+            W = self._weights[("shape", g.nx, g.ny)] = grid_interpolation(g.ny, g.nx)
+        return W
 
     def _owned_points(self, l: int) -> np.ndarray:
         pts = self._cells.get(l)
@@ -195,8 +201,7 @@ class FarFieldCoupling(Coupling):
         near = [int(l) for l in self.near(k)]
         self.near_products += sum(1 for l in near if values[l] is not None and np.any(values[l]))
         self._subtract(k, near, values, out)
-        far = self._far(k, values, whole=False)
-        out -= far[:, 0] if rhs.ndim == 1 else far
+        out -= self._far(k, values, whole=False)
         return out
 
     def _rhs_1d(self, k: int, values: list, rhs: np.ndarray) -> np.ndarray:
@@ -204,22 +209,26 @@ class FarFieldCoupling(Coupling):
         multiplied here, the others by their routes. A sweep's blocks call it thousands of
         times (939 blocks of 41-266 cells with 2.5 near pairs each: 0.19 ms a call through
         the routes, 40 % of the sweeps' CPU), so the common case skips their bookkeeping."""
-        out = rhs - self._far(k, values, whole=False)[:, 0]
-        rest, gathered = [], []
+        return self._near_1d(k, values, rhs - self._far(k, values, whole=False)[:, 0])
+
+    def _near_1d(self, k: int, values: list, out: np.ndarray) -> np.ndarray:
+        """``out -= sum_{l near k} A_kl v_l`` (1-D; returns ``out``): kept dense blocks, else one gather
+        of the loaded columns from the kernel's window (pairs past the dense size: FFT routes before)."""
+        rest, gathered, n = [], [], max(len(out), 1)
+        wide, few = self.dense_max_entries / n, FIRST_GATHER_ENTRIES / n  # smaller pairs: dense blocks
         for l in self.near(k):
             v = values[l]
-            if v is None or not np.count_nonzero(v):  # 0.6 us against any()'s 4 (183,510 calls on #181)
+            if v is None or not (loaded := np.count_nonzero(v)):  # 0.6 us against any()'s 4 (#181)
                 continue
             self.near_products += 1
             M = self._ops.get((k, int(l)))  # kept only for a pair whose route is the dense block
             if M is not None:
                 out -= M @ v
-            elif self._window is not None and (k, l) in self._window.pairs:
+            elif self._window is not None and ((k, l) in self._window.pairs or (len(v) > wide and loaded <= few)):
                 gathered.append(int(l))
             else:
                 rest.append(int(l))
         if gathered and self._window is not None:
-            # the pairs past the dense blocks' budget: one gather for all of them
             u = self._window.total(k, self.patches[k], [(l, self.patches[l], values[l]) for l in gathered])
             if u is None:
                 rest += gathered
@@ -293,6 +302,7 @@ class LaggedFarField(FarFieldCoupling):
         self._table = None
         self._held: list = []  # the block vectors of the last refresh
         self._sources: dict = {}
+        self._levels = LevelWeights()
 
     def _moved(self, k: int) -> None:
         """Patch ``k`` changed: its geometry, and every cache that depends on it."""
@@ -303,6 +313,7 @@ class LaggedFarField(FarFieldCoupling):
             self._weights.pop(key, None)
         self._cells.pop(k, None)
         self._sources.pop(k, None)
+        self._levels.clear()
         self._op = None
         self._table = None
         self._F = None
@@ -378,3 +389,11 @@ class LaggedFarField(FarFieldCoupling):
         if self._table is None or self._table.shape[2] != m:
             self.refresh(values)
         return self._interpolation(k, whole) @ self._table[k]
+
+    def rhs_level(self, level: list, values: list, rhs: list) -> dict:
+        """:meth:`rhs` ``{k: ...}`` of a sweep's blocks ``level`` (1-D ``rhs[k]``): the held far
+        field on all their cells by one product (:mod:`.level_far`), then the near pairs."""
+        if self._table is None or self._table.shape[2] != 1:
+            self.refresh(values)
+        far = self._levels.far(self.patches, level, self._table, self._shape_weights)
+        return {k: self._near_1d(k, values, rhs[k] - f) for k, f in zip(level, far)}

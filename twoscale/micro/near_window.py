@@ -24,6 +24,10 @@ from .pair_entries import WINDOW_MAX_ENTRIES
 #: Largest block (entries) gathered for one product; a larger pair keeps its other route
 #: (its transient gather: 16 bytes an entry, 4 MB at this size).
 GATHER_MAX_ENTRIES = 250_000
+#: A pair past the dense blocks' size is gathered instead of its FFT route up to this many
+#: entries (the route's per-pair cost; 7,339 clustered spheres: ~8,000 a pair): larger
+#: patches keep the route (a few blocks of ~1,000 cells: gathers of 10^5 doubled the sums).
+FIRST_GATHER_ENTRIES = 16_384
 
 
 class NearWindow:
@@ -42,6 +46,8 @@ class NearWindow:
         self._cells: dict = {}
         #: The pairs ``(k, l)`` its coupling took it for, until a patch changes (:meth:`forget`).
         self.pairs: set = set()
+        self._reaches: dict = {}  # per pair (k, l) taken by :meth:`total`, its reach
+        self._sources: dict = {}  # per block: its last vector's loaded cells (:meth:`_loaded`)
 
     @staticmethod
     def usable(provider) -> bool:
@@ -56,7 +62,9 @@ class NearWindow:
         """Patch ``k`` was replaced: its indices go (the old patch is not kept alive), and
         the pairs taken (made again at their next product)."""
         self._cells.pop(k, None)
+        self._sources.pop(k, None)
         self.pairs.clear()
+        self._reaches.clear()
 
     def _grow(self, reach: int) -> bool:
         """Make the window cover ``reach``; False when it would pass its largest size."""
@@ -114,22 +122,33 @@ class NearWindow:
 
     def total(self, k: int, pk, sources: list) -> np.ndarray | None:
         """``sum_l A_kl v_l`` on ``pk``'s owned cells for ``sources`` ``[(l, pl, v_l)]`` (1-D
-        vectors) by one gather of all their loaded columns; None when a pair reaches past the
-        window or the gather would pass :data:`GATHER_MAX_ENTRIES`."""
+        vectors) by one gather of all their loaded columns (the window grown to the pairs'
+        reach); None when a pair reaches past the largest window or the gather would pass
+        :data:`GATHER_MAX_ENTRIES`."""
         ek = self._entry(k, pk)
-        cols, vals = [], []
-        for l, pl, v in sources:
-            el = self._entry(l, pl)
-            if _reach(ek[1], el[1], pk.grid, pl.grid) > self.reach:
+        for l, pl, _ in sources:
+            reach = self._reaches.get((k, l))
+            if reach is None:
+                reach = self._reaches[(k, l)] = _reach(ek[1], self._entry(l, pl)[1], pk.grid, pl.grid)
+            if not self._grow(reach):
                 return None
-            loaded = v.nonzero()[0]
-            cols.append(self._flat(el)[5][loaded])
-            vals.append(v[loaded])
-        col = np.concatenate(cols)
+        loaded = [self._loaded(l, pl, v) for l, pl, v in sources]
+        col = np.concatenate([c for c, _ in loaded])
         if ek[2] * len(col) > GATHER_MAX_ENTRIES:
             return None
         target = self._flat(ek)[5] + self.reach * (2 * self.reach + 2)
-        return np.take(self._window, target[:, None] - col[None, :]) @ np.concatenate(vals)
+        return np.take(self._window, target[:, None] - col[None, :]) @ np.concatenate([x for _, x in loaded])
+
+    def _loaded(self, l: int, pl, v: np.ndarray) -> tuple:
+        """Block ``l``'s loaded cells on the window's lattice and their values, kept while
+        its vector is the same object (the sweeps replace a changed one) and the window
+        the same size: a block is the source of a few targets a sweep."""
+        hit = self._sources.get(l)
+        w = 2 * self.reach + 1
+        if hit is None or hit[0] is not v or hit[1] != w:
+            loaded = v.nonzero()[0]
+            hit = self._sources[l] = (v, w, self._flat(self._entry(l, pl))[5][loaded], v[loaded])
+        return hit[2], hit[3]
 
 
 def _reach(corner_k: tuple, corner_l: tuple, gk: Grid, gl: Grid) -> int:

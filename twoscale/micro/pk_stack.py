@@ -71,6 +71,7 @@ class BlockStacks:
         self._workspace = Workspace()
         self._masks: dict = {}  # per size class and members: the blocks and their canvas masks
         self._own: dict = {}  # the same: the blocks and the correction's lagged term on them
+        self._grouped: dict = {}  # per blocks of :meth:`products`: the blocks and their groups
 
     @staticmethod
     def usable(provider) -> bool:
@@ -173,4 +174,18 @@ class BlockStacks:
                 b[mask] -= own.apply(p0)[mask]  # the members' corrections of themselves, lagged
             p, ok, it = fixed_approach(op.products, b, p0, mask, rtol=tol, precondition=op.precondition)
             out.update((k, (p[i][mask[i]], bool(ok[i]), int(it[i]))) for i, k in enumerate(members))
+        return out
+
+    def products(self, blocks, ks, vectors: dict) -> dict:
+        """``{k: A_kk v_k}`` (mm) for the blocks ``ks`` and vectors ``vectors[k]`` (MPa, 1-D),
+        by one stacked product a size class (the canvases' base kernel: the whole kernel
+        only where :attr:`whole_kernel`)."""
+        kept = self._grouped.get(tuple(ks))  # a sweep's level: the same blocks every sweep
+        if kept is None or any(a is not b for a, b in zip(kept[0], (blocks[k] for k in ks))):
+            kept = self._grouped[tuple(ks)] = ([blocks[k] for k in ks], self._groups(blocks, ks, lambda blk: None))
+        out = {}
+        for (key, _), (op, members) in kept[1].items():
+            mask, (v,) = self._stack(blocks, members, key, vectors)
+            u = op.products.exact(v)
+            out.update((k, u[i][mask[i]]) for i, k in enumerate(members))
         return out
