@@ -242,3 +242,17 @@ def every_tip_on_every_cell(grid, asps):
         better = hk < height
         height[better], owner[better] = hk[better], k
     return height, owner
+
+
+def newton_on_a_line(newton, x0: float, factor: float, max_iter: int, stops):
+    """``newton`` on the residual r(x) = x whose step is ``-factor r``: the residual falls to
+    ``1 - factor`` of itself a step (factor 1: one exact step)."""
+    return newton(
+        lambda x: x.copy(),
+        lambda x, r: -factor * r,
+        np.array([x0]),
+        scale=lambda x: 1.0,
+        tol=1e-10,
+        max_iter=max_iter,
+        stops=stops,
+    )

@@ -17,6 +17,8 @@ from twoscale.control import Loading
 from twoscale.macro import solve_macro as _solve_macro
 from twoscale.options import MacroOptions
 
+from helpers import newton_on_a_line
+
 
 def solve_macro(provider, tips, z, laws, *, start=None, self_compliance=True, **keywords):
     """``twoscale.macro.solve_macro`` with its loading and options given as keywords here."""
@@ -473,7 +475,7 @@ def test_newton_stops_where_it_stagnates_near_a_solution_and_only_there():
     from twoscale.macro.newton import STALL_RESIDUAL, Stops, newton
 
     def run(x0, factor, stall):
-        return _newton_on_a_line(newton, x0, factor, 60, Stops(stall=stall))
+        return newton_on_a_line(newton, x0, factor, 60, Stops(stall=stall))
 
     slow = run(0.02, 0.1, 4)
     assert not slow.converged and "stagnated" in slow.message
@@ -496,7 +498,7 @@ def test_newton_hands_over_on_a_plateau_above_the_stall_level():
     from twoscale.macro.newton import PLATEAU_DROP, PLATEAU_RESIDUAL, STALL_RESIDUAL, Stops, newton
 
     def run(factor, plateau, x0=0.05):
-        return _newton_on_a_line(newton, x0, factor, 30, Stops(plateau=plateau))
+        return newton_on_a_line(newton, x0, factor, 30, Stops(plateau=plateau))
 
     flat = run(0.002, 4)
     assert not flat.converged and "stagnated" in flat.message and flat.iterations == 4
@@ -617,20 +619,6 @@ def test_sampled_operator_error_is_the_error_of_the_sampled_rows_written_out():
     exact = G @ P
     want = np.max(np.abs(T.operator.apply(P)[rows] - exact)) / np.max(np.abs(exact))
     assert 1e-9 < want and got == pytest.approx(want, rel=1e-9)
-
-
-def _newton_on_a_line(newton, x0: float, factor: float, max_iter: int, stops):
-    """Newton on the residual r(x) = x whose step is ``-factor r``: the residual falls by
-    ``1 - factor`` a step (1: one exact step)."""
-    return newton(
-        lambda x: x.copy(),
-        lambda x, r: -factor * r,
-        np.array([x0]),
-        scale=lambda x: 1.0,
-        tol=1e-10,
-        max_iter=max_iter,
-        stops=stops,
-    )
 
 
 @pytest.mark.parametrize("slope", [0.01, 0.05])

@@ -17,20 +17,14 @@ from twoscale.macro import solve_macro
 from twoscale.macro.newton import STALL_RESIDUAL, STALL_STEP_DROP, Stops, newton
 from twoscale.macro.system import MacroSystem
 
+from helpers import newton_on_a_line
+
 MAT = Material(10.0, 0.5)
 
 
 def _line(x0: float, factor: float, max_iter: int, stall):
-    """Newton on r(x) = x whose step is ``-factor r``: the residual falls by ``factor`` a step."""
-    return newton(
-        lambda x: x.copy(),
-        lambda x, r: -factor * r,
-        np.array([x0]),
-        scale=lambda x: 1.0,
-        tol=1e-10,
-        max_iter=max_iter,
-        stops=Stops(stall=stall),
-    )
+    """Newton on r(x) = x whose step is ``-factor r`` (:func:`helpers.newton_on_a_line`)."""
+    return newton_on_a_line(newton, x0, factor, max_iter, Stops(stall=stall))
 
 
 def test_a_step_that_removes_almost_nothing_near_a_solution_stops_newton_at_once():

@@ -53,15 +53,13 @@ class MeanField:
 
 
 def pushed_approaches(scene: Scene) -> np.ndarray:
-    """Each tip's approach with the mean push of its neighbours, mm (N,): under load
-    control, or on one tip, the approaches without interaction
-    (:func:`~twoscale.resolution.expected_approaches`). Kept with the scene (a pure function
-    of it, asked for at every cell size an advice tries)."""
-    kept = scene.__dict__.get("_pushed_approaches")
-    if kept is None:
-        kept = np.maximum(_solve(scene), 0.0)
-        scene.__dict__["_pushed_approaches"] = kept  # not a field: equality and hash ignore it
-    return kept
+    """Each tip's approach with the mean push of its neighbours, mm (N,): under penetration
+    control the :func:`mean_field`'s local approaches (kept with the scene), under load
+    control the approaches without interaction
+    (:func:`~twoscale.resolution.expected_approaches`)."""
+    if scene.penetration is None:
+        return expected_approaches(scene)
+    return np.maximum(mean_field(scene).local, 0.0)
 
 
 def mean_field(scene: Scene) -> MeanField:
