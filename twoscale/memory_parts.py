@@ -55,13 +55,16 @@ def _cells_across(r: np.ndarray, h: float) -> np.ndarray:
     return np.floor(2.0 * r / h) + 1.0
 
 
-def grid_parts(scene: Scene, grid: Grid, name: str) -> dict:
+def grid_parts(scene: Scene, grid: Grid, name: str, dense: bool = True) -> dict:
+    """A full grid's parts: its arrays and FFT work, and on a ``"reference grid"`` the dense
+    solver's matrices where it has few cells with material (``dense``: where the solve may
+    take that solver)."""
     n = float(grid.size)
     parts = {
         f"the {name} ({grid.ny} x {grid.nx} cells) and its FFT work": (GRID_BYTES_PER_CELL + FFT_WORK_BYTES_PER_CELL)
         * n
     }
-    if name == "reference grid":
+    if name == "reference grid" and dense:
         material = _material_cells(scene, grid)
         if material <= DENSE_CELLS:  # the dense solver: its matrix, a sub-matrix, a factor
             whole = n if n <= DENSE_GRID_CELLS else 0.0

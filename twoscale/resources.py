@@ -46,6 +46,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .memory_costs import BASE_BYTES, DEFAULT_FRACTION, ADVICE_SHARE
+from .full_grid import FULL_GRID_DENSE_CELLS
 from .mean_field import tip_arrays
 from .memory_parts import grid_parts, twoscale_parts
 from .micro.full_grid_rule import FULL_GRID_MAX_TIPS, full_grid_max_cells, full_grid_route as policy_full_grid_route
@@ -134,7 +135,9 @@ def estimate_memory(
 
             grid = reference_grid(scene, h)
             cells = int(grid.size)
-            parts.update(grid_parts(scene, grid, "reference grid"))
+            # the default's full grid keeps the reference's dense solver only on the smallest grids
+            dense = method == "reference" or cells <= FULL_GRID_DENSE_CELLS
+            parts.update(grid_parts(scene, grid, "reference grid", dense=dense))
         else:
             cells, extra = twoscale_parts(scene, h, iteration=iteration)
             parts.update(extra)
