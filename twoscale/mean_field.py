@@ -61,8 +61,24 @@ def pushed_approaches(scene: Scene) -> np.ndarray:
     control the approaches without interaction
     (:func:`~twoscale.resolution.expected_approaches`)."""
     if scene.penetration is None:
-        return expected_approaches(scene)
+        return alone_approaches(scene)
     return np.maximum(mean_field(scene).local, 0.0)
+
+
+def alone_approaches(scene: Scene) -> np.ndarray:
+    """:func:`~twoscale.resolution.expected_approaches`, kept with the scene (read-only), mm."""
+    return _kept(scene, "_alone_approaches", lambda: expected_approaches(scene))
+
+
+def _kept(scene: Scene, key: str, make) -> np.ndarray:
+    """An array kept with the scene under ``key`` (not a field: equality and hash ignore
+    it), made once by ``make()`` and read-only: every caller shares it."""
+    kept = scene.__dict__.get(key)
+    if kept is None:
+        kept = np.asarray(make(), dtype=float)
+        kept.flags.writeable = False
+        scene.__dict__[key] = kept
+    return kept
 
 
 def mean_field(scene: Scene) -> MeanField:
@@ -103,15 +119,19 @@ def _field(scene: Scene) -> MeanField:
 def pushed_contact_radii(scene: Scene, pushed: bool = True) -> np.ndarray:
     """Contact radius (mm) of each asperity at its :func:`pushed_approaches` (``pushed=False``:
     alone, :func:`~twoscale.resolution.expected_contact_radii`)."""
-    delta = pushed_approaches(scene) if pushed else expected_approaches(scene)
-    R, kind = _radii_and_shapes(scene)  # resolution._contact_radii on the kept arrays
-    return np.where(kind == 1, hertz.sphere_contact_radius(R, delta), hertz.contact_radius(R, delta))
+
+    def make() -> np.ndarray:
+        delta = pushed_approaches(scene) if pushed else alone_approaches(scene)
+        R, kind = _radii_and_shapes(scene)  # resolution._contact_radii on the kept arrays
+        return np.where(kind == 1, hertz.sphere_contact_radius(R, delta), hertz.contact_radius(R, delta))
+
+    return _kept(scene, "_pushed_radii" if pushed else "_alone_radii", make)
 
 
 def _solve(scene: Scene) -> np.ndarray:
     """Each tip's approach with the push under penetration control, mm (negative: out of
     contact; without push where there is none to take)."""
-    alone = expected_approaches(scene)
+    alone = alone_approaches(scene)
     if scene.penetration is None or len(alone) < 2 or scene.surface is not None:
         return alone
     from scipy.optimize import brentq

@@ -18,10 +18,10 @@ from .micro.sources import KEPT_BYTES_PER_OWNED_CELL
 from .pk.coarse import MAX_FILL as COARSE_MAX_FILL, MAX_SQUARES as COARSE_MAX_SQUARES
 from .pk.coarse import MIN_CELLS as COARSE_MIN_CELLS, SIDE as COARSE_SIDE
 from .memory_choice import Routes, possible_routes
-from .mean_field import mean_field, pushed_approaches, pushed_contact_radii, reaches, tip_arrays
+from .mean_field import alone_approaches, mean_field, pushed_approaches, pushed_contact_radii, reaches, tip_arrays
 from .resolution import _contact_radii
 from .memory_stall import patch_box, stall_possible, stalled_patches
-from .scene import Scene, expected_approaches
+from .scene import Scene
 
 
 def patch_half_widths(scene: Scene, h: float, *, margin: float = MARGIN, pushed: bool = True) -> np.ndarray:
@@ -30,7 +30,7 @@ def patch_half_widths(scene: Scene, h: float, *, margin: float = MARGIN, pushed:
     with ``a_k`` the contact radius at the expected approach: with the neighbours' mean push
     under penetration control (:func:`twoscale.mean_field.pushed_approaches`), or, with
     ``pushed=False``, of the asperity alone (an upper estimate)."""
-    delta = pushed_approaches(scene) if pushed else expected_approaches(scene)
+    delta = pushed_approaches(scene) if pushed else alone_approaches(scene)
     a = pushed_contact_radii(scene, pushed)
     return np.where(delta > 0, np.minimum(reaches(scene, delta) + h, margin * a + 2.0 * h), 0.0)
 
