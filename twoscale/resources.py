@@ -29,10 +29,10 @@ What the two methods carry:
 * a body that builds something on its first answers adds it (the finite block's
   factorisation where its on-disk cache lacks a field the tips' region needs).
 
-Measured peaks against the estimate: docs/records/sweep.md (seed 7's scenes, fresh
-processes). Not counted: the reference grid's enlargements when pressure reaches its edge
-(x 2.25 each), and a union box the micro step falls back to after a far-field iteration
-failed on a sparse scene.
+Measured peaks against the estimate: docs/records/sweep.md (seeds 7 and 8's scenes). Not
+counted: the reference grid's enlargements when pressure reaches its edge (x 2.25 each),
+and a union CG the policy takes on patches that cover their box beyond what the band of
+:mod:`twoscale.memory_choice` predicts.
 
 Units: bytes, mm.
 """
@@ -61,9 +61,9 @@ class MemoryEstimate:
     Attributes
     ----------
     bytes : float
-        Estimated peak resident memory, bytes (a prediction: the measured peaks of seeds 7
-        and 8's sweep scenes in fresh processes lay within 0.18-1.16 times it, two user
-        scenarios 0.79 and 1.28, docs/records/sweep.md).
+        Estimated peak resident memory, bytes (a prediction: the measured peaks of seed
+        8's 185 recorded sweep scenes lay within 0.11-1.36 times it, 142 of them within
+        0.67-1.5; two user scenarios 0.79 and 1.28; docs/records/sweep.md).
     cells : int
         Cells the solver will carry: the reference grid, or the patches (the union box
         when the micro step is expected to solve on it and it is larger).
