@@ -64,7 +64,9 @@ def possible_routes(
     tips, r, upper = tips[on], r[on], upper[on]
     dist, i, j = _pairs(tips, 2.0 * math.sqrt(2.0) * float(np.max(np.maximum(r, upper))) / math.sqrt(AUTO_FAR_TOL))
     union = blocks = False
-    for widths in (math.sqrt(LOW_FACTOR) * r, r, upper):
+    for widths in (r, upper, math.sqrt(LOW_FACTOR) * r):
+        if union and blocks:  # nothing left to find
+            break
         has = widths > 0
         diag = math.sqrt(2.0) * widths  # a patch's half-diagonal (policy.near_neighbours' radii)
         cells = (np.floor(2.0 * widths[has] / h) + 1.0) ** 2
