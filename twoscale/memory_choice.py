@@ -62,15 +62,13 @@ def possible_routes(
     if not np.any(on):
         return Routes(False, True)
     tips, r, upper = tips[on], r[on], upper[on]
-    dist, i, j = _pairs(tips, 2.0 * math.sqrt(2.0) * float(np.max(np.maximum(r, upper))) / math.sqrt(AUTO_FAR_TOL))
+    pairs: list = []  # found at the first band that needs them
     union = blocks = False
     for widths in (r, upper, math.sqrt(LOW_FACTOR) * r):
-        if union and blocks:  # nothing left to find
-            break
         has = widths > 0
-        diag = math.sqrt(2.0) * widths  # a patch's half-diagonal (policy.near_neighbours' radii)
+        if (union and blocks) or not np.any(has):
+            continue
         cells = (np.floor(2.0 * widths[has] / h) + 1.0) ** 2
-        near = np.count_nonzero(has[i] & has[j] & (dist * math.sqrt(AUTO_FAR_TOL) < diag[i] + diag[j]))
         carried = min(float(cells.sum()), float(box_cells))  # owned cells: overlaps once
         figures = {
             "patches": len(cells),
@@ -80,7 +78,18 @@ def possible_routes(
             "largest_patch": int(cells.max()),
             "height_map": height_map,
         }
-        work = work_of(cells, 2.0 * near / len(cells), box_cells)
+        # the block iterations' work grows with the near pairs: where the union CG is chosen
+        # against none, it is chosen against any, and they need not be counted
+        near = 0.0
+        if not _union_everywhere(figures, work_of(cells, 0.0, box_cells), load_control, tilt):
+            if not pairs:
+                reach = 2.0 * math.sqrt(2.0) * float(np.max(np.maximum(r, upper))) / math.sqrt(AUTO_FAR_TOL)
+                pairs.extend(_pairs(tips, reach))
+            scaled, i, j = pairs
+            # a patch's half-diagonal (policy.near_neighbours' radii); none: never near
+            diag = np.where(has, math.sqrt(2.0) * widths, -np.inf)
+            near = 2.0 * np.count_nonzero(scaled < diag[i] + diag[j])
+        work = work_of(cells, near / len(cells), box_cells)
         for merged in (False, True):
             choice = decide(figures, work, merged_contacts=merged, load_control=load_control, tilt=tilt)
             if choice.iteration == "union-cg":
@@ -92,10 +101,21 @@ def possible_routes(
     return Routes(union, blocks)
 
 
+def _union_everywhere(figures: dict, work: dict, load_control: bool, tilt: bool) -> bool:
+    """Whether the policy takes the union CG with and without merged contacts."""
+    return all(
+        decide(figures, work, merged_contacts=m, load_control=load_control, tilt=tilt).iteration == "union-cg"
+        for m in (False, True)
+    )
+
+
 def _pairs(tips: np.ndarray, reach: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Distances (mm) and indices of the pairs of ``tips`` closer than ``reach`` (mm)."""
+    """The pairs of ``tips`` closer than ``reach`` (mm): their distances times
+    ``sqrt(AUTO_FAR_TOL)`` (mm) and indices."""
     from scipy.spatial import cKDTree
 
     found = cKDTree(tips).query_pairs(reach, output_type="ndarray").reshape(-1, 2)
-    i, j = found.T
-    return np.hypot(*(tips[i] - tips[j]).T), i, j
+    i, j = np.ascontiguousarray(found[:, 0]), np.ascontiguousarray(found[:, 1])
+    x, y = np.ascontiguousarray(tips[:, 0]), np.ascontiguousarray(tips[:, 1])
+    dx, dy = x[i] - x[j], y[i] - y[j]
+    return np.sqrt((dx * dx + dy * dy) * AUTO_FAR_TOL), i, j
