@@ -23,13 +23,16 @@ from dataclasses import dataclass
 import numpy as np
 
 from .analytic import hertz
-from .resolution import _contact_radii, _hertz_level, expected_approaches, expected_contact_radii
+from .resolution import _hertz_level, expected_approaches
 from .scene import Scene
 
 #: Largest number of tips summed over as sources of the push (a random subset beyond it,
 #: each weighted by the tips it stands for): 8,880 tips cost 0.06 s of CPU (0.48 s with
 #: 1,000 sources, the cells counted the same within 1 % on the sweep's seed 7).
 SOURCES = 256
+#: Targets summed at a time (512 x 256 sources: 1 MB arrays, reused by the allocator; blocks
+#: of 4,096 took 0.24 of 0.36 s on 8,807 tips in fresh pages' faults).
+CHUNK = 512
 
 
 @dataclass(frozen=True)
@@ -58,8 +61,24 @@ def pushed_approaches(scene: Scene) -> np.ndarray:
     control the approaches without interaction
     (:func:`~twoscale.resolution.expected_approaches`)."""
     if scene.penetration is None:
-        return expected_approaches(scene)
+        return alone_approaches(scene)
     return np.maximum(mean_field(scene).local, 0.0)
+
+
+def alone_approaches(scene: Scene) -> np.ndarray:
+    """:func:`~twoscale.resolution.expected_approaches`, kept with the scene (read-only), mm."""
+    return _kept(scene, "_alone_approaches", lambda: expected_approaches(scene))
+
+
+def _kept(scene: Scene, key: str, make) -> np.ndarray:
+    """An array kept with the scene under ``key`` (not a field: equality and hash ignore
+    it), made once by ``make()`` and read-only: every caller shares it."""
+    kept = scene.__dict__.get(key)
+    if kept is None:
+        kept = np.asarray(make(), dtype=float)
+        kept.flags.writeable = False
+        scene.__dict__[key] = kept
+    return kept
 
 
 def mean_field(scene: Scene) -> MeanField:
@@ -73,7 +92,7 @@ def mean_field(scene: Scene) -> MeanField:
 
 
 def _field(scene: Scene) -> MeanField:
-    z = np.array([a.z for a in scene.asperities], dtype=float)
+    z = tip_arrays(scene).z
     pressed = scene.penetration is not None
     if len(z) < 2 or scene.surface is not None:
         d = float(scene.penetration) if pressed else _hertz_level(scene)
@@ -84,7 +103,7 @@ def _field(scene: Scene) -> MeanField:
     from scipy.optimize import brentq
 
     g = _push_per_newton(scene)
-    R = np.array([a.R for a in scene.asperities], dtype=float)
+    R = tip_arrays(scene).R
     E_star, W = scene.material.E_star, float(scene.total_load)
     lift = g * (W / len(z)) if np.all(np.isfinite(g)) else np.zeros_like(z)
     alone = _hertz_level(scene)  # the push only lowers the approaches: the level rises from here
@@ -100,21 +119,25 @@ def _field(scene: Scene) -> MeanField:
 def pushed_contact_radii(scene: Scene, pushed: bool = True) -> np.ndarray:
     """Contact radius (mm) of each asperity at its :func:`pushed_approaches` (``pushed=False``:
     alone, :func:`~twoscale.resolution.expected_contact_radii`)."""
-    if not pushed:
-        return expected_contact_radii(scene)
-    return _contact_radii(scene.asperities, pushed_approaches(scene))
+
+    def make() -> np.ndarray:
+        delta = pushed_approaches(scene) if pushed else alone_approaches(scene)
+        R, kind = _radii_and_shapes(scene)  # resolution._contact_radii on the kept arrays
+        return np.where(kind == 1, hertz.sphere_contact_radius(R, delta), hertz.contact_radius(R, delta))
+
+    return _kept(scene, "_pushed_radii" if pushed else "_alone_radii", make)
 
 
 def _solve(scene: Scene) -> np.ndarray:
     """Each tip's approach with the push under penetration control, mm (negative: out of
     contact; without push where there is none to take)."""
-    alone = expected_approaches(scene)
+    alone = alone_approaches(scene)
     if scene.penetration is None or len(alone) < 2 or scene.surface is not None:
         return alone
     from scipy.optimize import brentq
 
     g = _push_per_newton(scene)
-    R = np.array([a.R for a in scene.asperities], dtype=float)
+    R = tip_arrays(scene).R
     E_star = scene.material.E_star
 
     def excess(F: float) -> float:
@@ -129,19 +152,76 @@ def _solve(scene: Scene) -> np.ndarray:
 
 def _push_per_newton(scene: Scene) -> np.ndarray:
     """``g_k``, mm/N: the lift at tip ``k`` from a unit force at every other tip."""
-    tips = np.array([[a.x, a.y] for a in scene.asperities], dtype=float)
-    a = expected_contact_radii(scene)
+    tips = tip_arrays(scene).tips
+    a = pushed_contact_radii(scene, pushed=False)
     n = len(tips)
     pick = np.arange(n) if n <= SOURCES else np.sort(np.random.default_rng(0).choice(n, SOURCES, replace=False))
     g = np.zeros(n)
-    for start in range(0, n, 4096):  # 4,096 targets at a time: 8 MB of distances
-        k = np.arange(start, min(start + 4096, n))
-        r = np.hypot(np.subtract.outer(tips[k, 0], tips[pick, 0]), np.subtract.outer(tips[k, 1], tips[pick, 1]))
-        np.maximum(r, a[k, None] + a[None, pick], out=r)
+    sx, sy, sa = tips[pick, 0], tips[pick, 1], a[pick]
+    r, dx = np.empty((CHUNK, len(pick))), np.empty((CHUNK, len(pick)))  # reused: no fresh pages a block
+    for start in range(0, n, CHUNK):
+        stop = min(start + CHUNK, n)
+        m = stop - start
+        rr, d = r[:m], dx[:m]
+        np.subtract(tips[start:stop, 0, None], sx, out=d)
+        np.subtract(tips[start:stop, 1, None], sy, out=rr)
+        np.multiply(rr, rr, out=rr)
+        np.multiply(d, d, out=d)
+        np.add(rr, d, out=rr)
+        np.add(a[start:stop, None], sa, out=d)  # the contacts' radii: no closer than their sum
+        np.multiply(d, d, out=d)
+        np.maximum(rr, d, out=rr)
         with np.errstate(divide="ignore"):
-            inv = np.reciprocal(r, out=r)
-        inv[~np.isfinite(inv)] = 0.0  # two tips at one point without contact
-        mine = np.flatnonzero((pick >= start) & (pick < start + len(k)))
-        inv[pick[mine] - start, mine] = 0.0  # not a tip's own force
-        g[k] = inv.sum(axis=1)
+            np.sqrt(np.reciprocal(rr, out=rr), out=rr)
+        rr[rr == np.inf] = 0.0  # two tips at one point without contact
+        mine = np.flatnonzero((pick >= start) & (pick < stop))
+        rr[pick[mine] - start, mine] = 0.0  # not a tip's own force
+        g[start:stop] = rr.sum(axis=1)
     return g * (n / len(pick)) / (np.pi * scene.material.E_star)
+
+
+def reaches(scene: Scene, depth: np.ndarray) -> np.ndarray:
+    """Each asperity's :meth:`~twoscale.indenters.Asperity.reach` at ``depth`` (mm, (N,)),
+    for all at once: a paraboloid's ``sqrt(2 R depth)``, a sphere's cap radius (``R`` from
+    ``depth >= R``); other shapes ask their asperity. 0 where ``depth <= 0``. mm."""
+    depth = np.asarray(depth, dtype=float)
+    R, kind = _radii_and_shapes(scene)
+    d = np.maximum(depth, 0.0)
+    cap = np.minimum(d, R)
+    out = np.where(kind == 1, np.sqrt(cap * (2.0 * R - cap)), np.sqrt(2.0 * R * d))
+    for k in np.flatnonzero(kind == 2):  # neither: its own rule
+        out[k] = scene.asperities[k].reach(float(depth[k]))
+    return np.where(depth > 0, out, 0.0)
+
+
+def _radii_and_shapes(scene: Scene) -> tuple[np.ndarray, np.ndarray]:
+    """Tip radii (mm) and shapes (0 paraboloid, 1 sphere, 2 other)."""
+    kept = tip_arrays(scene)
+    return kept.R, kept.kind
+
+
+@dataclass(frozen=True)
+class TipArrays:
+    """The scene's tips as arrays, kept with it (:func:`tip_arrays`): ``tips`` (N, 2)
+    positions, ``z`` heights and ``R`` radii, mm; ``kind`` 0 paraboloid, 1 sphere, 2 other."""
+
+    tips: np.ndarray
+    z: np.ndarray
+    R: np.ndarray
+    kind: np.ndarray
+
+
+def tip_arrays(scene: Scene) -> TipArrays:
+    """The scene's tips as arrays, built once and kept with the scene (not a field:
+    equality and hash ignore it); the estimate reads them a few times on up to 10^4 tips."""
+    kept = scene.__dict__.get("_tip_arrays")
+    if kept is None:
+        asp = scene.asperities
+        get = lambda f: np.fromiter((getattr(a, f) for a in asp), dtype=float, count=len(asp))  # noqa: E731
+        codes = {"paraboloid": 0, "sphere": 1}
+        kind = np.fromiter((codes.get(a.shape, 2) for a in asp), dtype=np.int8, count=len(asp))
+        kept = TipArrays(np.column_stack([get("x"), get("y")]), get("z"), get("R"), kind)
+        for a in (kept.tips, kept.z, kept.R, kept.kind):
+            a.flags.writeable = False  # shared by every caller
+        scene.__dict__["_tip_arrays"] = kept
+    return kept

@@ -13,14 +13,15 @@ from .memory_costs import BLOCK_ATTEMPT_HELD, COUPLING_CACHE_BYTES, DENSE_CELLS,
 from .memory_costs import FAR_OPERATOR_BYTES_PER_PATCH, FFT_WORK_BYTES_PER_CELL, GRID_BYTES_PER_CELL, MACRO_DENSE_MAX
 from .memory_costs import MARGIN, MERGE_GROWTH, PAIR_HELD, PATCH_BYTES_EACH, PATCH_BYTES_PER_CELL
 from .memory_costs import COARSE_NEAR_BYTES_PER_PAIR, COARSE_NEAR_PAIRS_PER_CONTACT_CELL
-from .micro.policy import AUTO_FAR_TOL, FAR_FIELD_MIN_PATCHES, MODEL, UNION_MIN_COVERAGE
+from .micro.policy import AUTO_FAR_TOL, FAR_FIELD_MIN_PATCHES, UNION_MIN_COVERAGE
 from .micro.sources import KEPT_BYTES_PER_OWNED_CELL
 from .pk.coarse import MAX_FILL as COARSE_MAX_FILL, MAX_SQUARES as COARSE_MAX_SQUARES
 from .pk.coarse import MIN_CELLS as COARSE_MIN_CELLS, SIDE as COARSE_SIDE
-from .mean_field import mean_field, pushed_approaches, pushed_contact_radii
+from .memory_choice import Routes, possible_routes
+from .mean_field import alone_approaches, mean_field, pushed_approaches, pushed_contact_radii, reaches, tip_arrays
 from .resolution import _contact_radii
 from .memory_stall import patch_box, stall_possible, stalled_patches
-from .scene import Scene, expected_approaches
+from .scene import Scene
 
 
 def patch_half_widths(scene: Scene, h: float, *, margin: float = MARGIN, pushed: bool = True) -> np.ndarray:
@@ -29,13 +30,9 @@ def patch_half_widths(scene: Scene, h: float, *, margin: float = MARGIN, pushed:
     with ``a_k`` the contact radius at the expected approach: with the neighbours' mean push
     under penetration control (:func:`twoscale.mean_field.pushed_approaches`), or, with
     ``pushed=False``, of the asperity alone (an upper estimate)."""
-    delta = pushed_approaches(scene) if pushed else expected_approaches(scene)
+    delta = pushed_approaches(scene) if pushed else alone_approaches(scene)
     a = pushed_contact_radii(scene, pushed)
-    out = np.zeros(len(scene.asperities))
-    for k, asp in enumerate(scene.asperities):
-        if delta[k] > 0:
-            out[k] = min(asp.reach(float(delta[k])) + h, margin * float(a[k]) + 2.0 * h)
-    return out
+    return np.where(delta > 0, np.minimum(reaches(scene, delta) + h, margin * a + 2.0 * h), 0.0)
 
 
 def _lifted_half_widths(scene: Scene, h: float) -> np.ndarray:
@@ -49,25 +46,25 @@ def _lifted_half_widths(scene: Scene, h: float) -> np.ndarray:
     field = mean_field(scene)
     local = np.maximum(field.local, 0.0)
     a = _contact_radii(scene.asperities, local)
-    out = np.zeros(len(scene.asperities))
-    for k, asp in enumerate(scene.asperities):
-        if field.geometric[k] > 0:
-            reach = asp.reach(float(field.geometric[k])) + h
-            out[k] = min(reach, MARGIN * float(a[k]) + 2.0 * h) if field.local[k] > 0 else reach
-    return out
+    reach = reaches(scene, field.geometric) + h
+    out = np.where(field.local > 0, np.minimum(reach, MARGIN * a + 2.0 * h), reach)
+    return np.where(field.geometric > 0, out, 0.0)
 
 
 def _cells_across(r: np.ndarray, h: float) -> np.ndarray:
     return np.floor(2.0 * r / h) + 1.0
 
 
-def grid_parts(scene: Scene, grid: Grid, name: str) -> dict:
+def grid_parts(scene: Scene, grid: Grid, name: str, dense: bool = True) -> dict:
+    """A full grid's parts: its arrays and FFT work, and on a ``"reference grid"`` the dense
+    solver's matrices where it has few cells with material (``dense``: where the solve may
+    take that solver)."""
     n = float(grid.size)
     parts = {
         f"the {name} ({grid.ny} x {grid.nx} cells) and its FFT work": (GRID_BYTES_PER_CELL + FFT_WORK_BYTES_PER_CELL)
         * n
     }
-    if name == "reference grid":
+    if name == "reference grid" and dense:
         material = _material_cells(scene, grid)
         if material <= DENSE_CELLS:  # the dense solver: its matrix, a sub-matrix, a factor
             whole = n if n <= DENSE_GRID_CELLS else 0.0
@@ -87,9 +84,11 @@ def _material_cells(scene: Scene, grid: Grid) -> float:
 def twoscale_parts(scene: Scene, h: float, *, iteration: str = "auto") -> tuple[int, dict]:
     """Cells carried and the parts of a two-scale solve's peak: the patches and the macro
     matrix, the block iterations' operators and, where the union CG may run, its box. Under
-    ``"auto"`` both where the box is crowded, as the larger of the two: the union CG runs
-    first, or after a block attempt that did not converge, whose memory is then given back
-    (:mod:`twoscale.micro.release`) but for ``BLOCK_ATTEMPT_HELD`` of it; where the exact
+    ``"auto"`` what the policy may run (:func:`twoscale.memory_choice.possible_routes`,
+    its choice made on the patches counted here, on half their cells and on the upper
+    estimate below): where both may, the larger of the two (the union CG runs first, or
+    after a block attempt that did not converge, whose memory is then given back
+    (:mod:`twoscale.micro.release`) but for ``BLOCK_ATTEMPT_HELD`` of it); where the exact
     pairs' operators under the far field would hold more than the box, the union CG alone
     (the policy's work estimates, products on the same grids, then make it the cheaper: on
     the sweep's seed 7 it ran on all 16 such scenes). The box is counted beyond the
@@ -97,10 +96,10 @@ def twoscale_parts(scene: Scene, h: float, *, iteration: str = "auto") -> tuple[
     runs alone (:func:`twoscale.micro.driver.run_micro`): only its own parts.
 
     The patches are sized by the contacts with the neighbours' push
-    (:func:`patch_half_widths`); whether they crowd their box (the union CG a candidate) is
-    judged by the contacts alone, an upper estimate: where the policy took the union CG on
-    the sweep's scenes its patches, sized by the macro step's forces, covered up to 4x what
-    the pushed contacts do."""
+    (:func:`patch_half_widths`); the upper estimate of the macro step's patches is the
+    contacts alone (interaction only lowers an approach; under load control, at most 1,000
+    tips, at the level the mean push raises): where the policy took the union CG on the
+    sweep's scenes its patches covered up to 4x what the pushed contacts do."""
     r = patch_half_widths(scene, h)
     on = r > 0
     across = _cells_across(r[on], h)
@@ -117,15 +116,20 @@ def twoscale_parts(scene: Scene, h: float, *, iteration: str = "auto") -> tuple[
     # its box against the policy's 0.33; the union CG runs there stayed within 1.09 of the estimate)
     lifted = scene.penetration is None and not stall_possible(scene)
     alone = _lifted_half_widths(scene, h) if lifted else patch_half_widths(scene, h, pushed=False)
-    tips = scene.tips
+    tips = tip_arrays(scene).tips
     box = patch_box(tips, r, h)  # one patch: the union CG on it
     upper = float((_cells_across(alone[alone > 0], h) ** 2).sum())
-    blocks = {} if iteration == "union-cg" else _block_parts(tips[on], r[on], h, box, upper)
-    # a height map's stones may take the union CG at any coverage, penetration from a lower share (policy.decide)
+    # a height map's stones may take the union CG at any coverage (policy.decide)
     on_map = all(a.shape == "map" for a in scene.asperities)
-    crowded = box is not None and upper >= MODEL.union_coverage(scene.penetration is None, n) * box.size
+    routes = Routes(iteration == "union-cg", iteration != "union-cg")
+    if iteration == "auto" and box is not None:
+        load = scene.penetration is None
+        routes = possible_routes(
+            tips, r, alone, h, box.size, load_control=load, tilt=bool(scene.tilt), height_map=on_map
+        )
+    blocks = _block_parts(tips[on], r[on], h, box, upper) if routes.blocks else {}
     union = {}
-    if box is not None and iteration in ("auto", "union-cg") and (iteration == "union-cg" or on_map or crowded):
+    if box is not None and (routes.union or (on_map and iteration == "auto")):
         union = grid_parts(scene, box, "union box")
         cells = max(cells, int(box.size))
     near = blocks.get("cached cross-patch operators", 0.0) if "far field's point operator" in blocks else 0.0
@@ -139,7 +143,7 @@ def twoscale_parts(scene: Scene, h: float, *, iteration: str = "auto") -> tuple[
         union.update(coarse_parts(scene, box))
     parts.update(blocks)
     parts.update(union)
-    if blocks and iteration in ("auto", "two-level") and stall_possible(scene):
+    if iteration in ("auto", "two-level") and stall_possible(scene):
         stalled_cells, stalled = _stalled_route(scene, h, tips, parts["macro interaction matrix"])
         if sum(stalled.values()) > sum(parts.values()):
             return max(cells, stalled_cells), stalled
@@ -186,7 +190,7 @@ def coarse_parts(scene: Scene, box: Grid) -> dict:
     a = pushed_contact_radii(scene)
     on = a > 0
     loaded = float(np.sum(np.pi * a**2)) / box.h**2
-    if loaded > 2.0 * COARSE_MAX_FILL * box.size or not _coarse_built(scene.tips[on], a[on], box):
+    if loaded > 2.0 * COARSE_MAX_FILL * box.size or not _coarse_built(tip_arrays(scene).tips[on], a[on], box):
         return {}
     loaded = min(loaded, COARSE_MAX_FILL * float(box.size))
     return {
@@ -212,12 +216,12 @@ def _coarse_built(tips: np.ndarray, a: np.ndarray, box: Grid) -> bool:
     if int(squares.sum()) > 50 * COARSE_MAX_SQUARES:  # too many to list: far past the bound
         return False
     columns = int(hi[:, 0].max(initial=0)) + 2
-    one = squares == 1  # most contacts lie within one square: their keys at once
-    keys = [lo[one, 1] * columns + lo[one, 0]] + [
-        ((lo[k, 1] + np.arange(span[k, 1]))[:, None] * columns + lo[k, 0] + np.arange(span[k, 0])).ravel()
-        for k in np.flatnonzero(~one)
-    ]
-    return len(np.unique(np.concatenate(keys))) <= COARSE_MAX_SQUARES
+    # every contact's squares listed at once: the k-th square of contact c at row k // span_x
+    owner = np.repeat(np.arange(len(squares)), squares)
+    k = np.arange(int(squares.sum())) - np.repeat(np.cumsum(squares) - squares, squares)
+    rows, cols = np.divmod(k, span[owner, 0])
+    keys = (lo[owner, 1] + rows) * columns + lo[owner, 0] + cols
+    return len(np.unique(keys)) <= COARSE_MAX_SQUARES
 
 
 def _block_parts(tips: np.ndarray, r: np.ndarray, h: float, box: Grid | None, upper: float) -> dict:

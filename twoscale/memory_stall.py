@@ -24,7 +24,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .macro.solve import SAFE_PATH_MAX_TIPS
-from .mean_field import mean_field
+from .mean_field import mean_field, reaches
 from .grid import Grid
 from .memory_costs import REACH_BOX_SAMPLED, REACH_PATCH_HELD
 from .micro.sampling import BOX_CELLS_PER_PATCH, BOX_MIN_PATCH_SHARE
@@ -52,7 +52,7 @@ def reach_half_widths(scene: Scene, h: float) -> tuple[np.ndarray, np.ndarray]:
 
 
 def _reach(scene: Scene, delta: np.ndarray, h: float) -> np.ndarray:
-    return np.array([a.reach(float(d)) + h if d > 0 else 0.0 for a, d in zip(scene.asperities, delta)])
+    return np.where(delta > 0, reaches(scene, delta) + h, 0.0)
 
 
 @dataclass(frozen=True)

@@ -17,20 +17,22 @@ What the two methods carry:
   operators of the pairs of patches coupled exactly (the near pairs where the far field may
   be taken; at most the coupling's cache budget); where the far field may be taken, the
   weights it keeps per owned cell (:data:`twoscale.micro.sources.KEPT_BYTES_PER_OWNED_CELL`)
-  and its point operator among the patches; the dense macro matrix; and, where patches
-  crowd their bounding box, the micro step may solve on that box as one grid (``union-cg``,
-  :mod:`twoscale.micro.policy`), counted as the larger of it and a block attempt before it
-  (:mod:`twoscale.memory_parts`), with its coarse correction's near pairs on a large box.
+  and its point operator among the patches; the dense macro matrix; and, where the policy
+  may solve on the patches' bounding box as one grid (``union-cg``, chosen or after a
+  far-field attempt: :mod:`twoscale.memory_choice` makes the policy's choice on the
+  counted patches), that box, counted as the larger of it and a block attempt before it
+  (:mod:`twoscale.memory_parts`), with its coarse correction's near pairs on a large box;
+  where the policy surely takes the union CG, no block operators.
   With more than a thousand tips the macro step may stall and leave patches sized by the
   indenters' reach (:mod:`twoscale.memory_stall`): that route is counted too, and the larger
   taken. An iteration asked for runs alone and is counted alone.
 * a body that builds something on its first answers adds it (the finite block's
   factorisation where its on-disk cache lacks a field the tips' region needs).
 
-Measured peaks against the estimate: docs/records/sweep.md (seed 7's scenes, fresh
-processes). Not counted: the reference grid's enlargements when pressure reaches its edge
-(x 2.25 each), and a union box the micro step falls back to after a far-field iteration
-failed on a sparse scene.
+Measured peaks against the estimate: docs/records/sweep.md (seeds 7 and 8's scenes). Not
+counted: the reference grid's enlargements when pressure reaches its edge (x 2.25 each),
+and a union CG the policy takes on patches that cover their box beyond what the band of
+:mod:`twoscale.memory_choice` predicts.
 
 Units: bytes, mm.
 """
@@ -44,6 +46,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from .memory_costs import BASE_BYTES, DEFAULT_FRACTION, ADVICE_SHARE
+from .full_grid import FULL_GRID_DENSE_CELLS
+from .mean_field import tip_arrays
 from .memory_parts import grid_parts, twoscale_parts
 from .micro.full_grid_rule import FULL_GRID_MAX_TIPS, full_grid_max_cells, full_grid_route as policy_full_grid_route
 from .pivot import pivot_route
@@ -57,9 +61,9 @@ class MemoryEstimate:
     Attributes
     ----------
     bytes : float
-        Estimated peak resident memory, bytes (a prediction: the measured peaks of seeds 7
-        and 8's sweep scenes in fresh processes lay within 0.18-1.16 times it, two user
-        scenarios 0.79 and 1.28, docs/records/sweep.md).
+        Estimated peak resident memory, bytes (a prediction: the measured peaks of seed
+        8's 185 recorded sweep scenes lay within 0.11-1.36 times it, 142 of them within
+        0.67-1.5; two user scenarios 0.79 and 1.28; docs/records/sweep.md).
     cells : int
         Cells the solver will carry: the reference grid, or the patches (the union box
         when the micro step is expected to solve on it and it is larger).
@@ -108,9 +112,9 @@ def estimate_memory(
         The two-scale micro iteration asked for (``solve_twoscale``'s ``iteration``):
         ``"union-cg"`` counts the box of the patches and no block operators;
         ``"block-gs"`` and ``"two-level"`` the block operators and no box (an iteration
-        asked for runs alone); ``"auto"`` the block operators, and the box too where the
-        patches cover at least ``MODEL.union_coverage`` of it (under penetration control a
-        lower share) and on a height map's stones (a union CG after a block attempt).
+        asked for runs alone); ``"auto"`` what the policy may run
+        (:func:`twoscale.memory_choice.possible_routes`): the block operators, the box, or
+        the larger of both, and on a height map's stones the box too.
     provider : InfluenceProvider, optional
         The body the solve will use, asked what its first answers build
         (:func:`body_build_bytes`); None: the scene's, built here.
@@ -131,7 +135,9 @@ def estimate_memory(
 
             grid = reference_grid(scene, h)
             cells = int(grid.size)
-            parts.update(grid_parts(scene, grid, "reference grid"))
+            # the default's full grid keeps the reference's dense solver only on the smallest grids
+            dense = method == "reference" or cells <= FULL_GRID_DENSE_CELLS
+            parts.update(grid_parts(scene, grid, "reference grid", dense=dense))
         else:
             cells, extra = twoscale_parts(scene, h, iteration=iteration)
             parts.update(extra)
@@ -187,7 +193,7 @@ def full_grid_route(scene: Scene, h: float, body: str | None = None) -> str | No
     tips = 0 if scene.tilt else n
     if n <= FULL_GRID_MAX_TIPS:
         return policy_full_grid_route(int(reference_grid(scene, h).size), tips, pressed)
-    x, y = (np.array([getattr(a, f) for a in scene.asperities]) for f in "xy")
+    x, y = tip_arrays(scene).tips.T
     if (np.ptp(x) / h + 1.0) * (np.ptp(y) / h + 1.0) > full_grid_max_cells(tips):
         return None  # the tips' own box already has more cells a tip
     return policy_full_grid_route(int(reference_grid(scene, h).size), tips, pressed)

@@ -163,21 +163,30 @@ def estimate_costs(patches: Sequence[Patch], box_cells: int, model: CostModel = 
     Gauss-Seidel 65.8 s (full-grid reference 23.4 s); 50 tips 2.11, 1.76, 1.49, 2.46 s
     (reference 5.2 s). One work unit is then 1.6-1.9 ns for every iteration."""
     cells = np.array([max(int(np.count_nonzero(pt.owned)), 1) for pt in patches], dtype=float)
-    n = len(cells)
-    if n == 0:
+    if len(cells) == 0:
         return {"union-cg": 0.0, "block-gs": 0.0, "two-level": 0.0}
+    return work_of(cells, near_neighbours(patches, AUTO_FAR_TOL), box_cells, model)
+
+
+def work_of(cells: np.ndarray, near: float, box_cells: float, model: CostModel = FITTED) -> dict:
+    """:func:`estimate_costs` from the patches' owned ``cells`` (array, at least one), the
+    mean number ``near`` each is coupled to exactly under the far field
+    (:func:`near_neighbours`) and the box's cells: what the memory estimate predicts the
+    policy's choice from before the patches exist."""
+    n = len(cells)
     # a local solve's and a CG iteration's product also has a fixed cost (Python and
     # transform set-up), which decides on small patches; pairs share their transforms
-    local = float(sum(fft_work(c) for c in cells)) + n * model.product_overhead
+    padded = 4.0 * np.maximum(cells, 1.0)  # fft_work of every patch at once
+    local = float(np.sum(padded * np.log2(padded))) + n * model.product_overhead
     pair = fft_work(float(np.mean(cells)))
     union = model.union_products * (fft_work(box_cells) + model.product_overhead)
     exact = model.gs_sweeps * (model.local_products * local + model.pair_products * n * (n - 1) * pair)
     # far field: the near pairs exact, the rest through one point-operator product of 9 n sources
-    near_pairs = model.near_pairs * near_neighbours(patches, AUTO_FAR_TOL) / model.near_pairs_calibration
-    near = model.gs_sweeps * (
+    near_pairs = model.near_pairs * near / model.near_pairs_calibration
+    far = model.gs_sweeps * (
         model.local_products * local + model.pair_products * near_pairs * n * pair + 10.0 * fft_work(9.0 * n)
     )
-    return {"union-cg": union, "block-gs": exact, "two-level": near}
+    return {"union-cg": union, "block-gs": exact, "two-level": far}
 
 
 def union_limit(block_seconds: dict, model: CostModel = FITTED) -> float:
