@@ -20,7 +20,10 @@ against the reference's. The reference and the cold solve are each timed ``--rep
 runs and their spread). A position of the run cannot be repeated without its history: its
 single CPU time is what the targets are checked on; besides it, the median and the 90th
 percentile of all positions after the first are printed over the samples' median
-reference and cold solve (``positions_*``, ``median_over_*``, ``p90_over_*``).
+reference and cold solve (``positions_*``, ``median_over_*``, ``p90_over_*``), and their
+CPU by CG iterations (per count, and a line's fixed part and cost an iteration:
+``by_iterations``). ``--out`` writes each position's shift, CPU and iterations too
+(``positions``).
 
 Usage::
 
@@ -292,6 +295,8 @@ def run(args) -> dict:
         vals = [r[key] for r in rows if key in r]
         if vals:
             print(f"{key}: " + ", ".join(f"{v:.3f}" for v in vals))
+    if len(c) > 2:
+        summary["by_iterations"] = by_iterations(c[1:], np.array(iterations[1:]))
     if rows and len(c) > 1:
         summary.update(spread(c[1:], rows))
         print(
@@ -305,7 +310,27 @@ def run(args) -> dict:
             f"reference {max(r['ref_cpu_spread'] for r in rows):.2f}, cold {max(r['cold_cpu_spread'] for r in rows):.2f} "
             f"at most)"
         )
-    return {"args": vars(args), "info": info, "summary": summary, "samples": rows}
+    positions = [
+        {"shift_mm": float(x), "cpu_s": float(t), "iterations": int(i)} for x, t, i in zip(track.shifts, c, iterations)
+    ]
+    return {"args": vars(args), "info": info, "summary": summary, "samples": rows, "positions": positions}
+
+
+def by_iterations(cpu: np.ndarray, iterations: np.ndarray) -> dict:
+    """The positions' CPU (after the first) by their CG iterations: per count the positions
+    and their median CPU, and the least-squares line ``fixed + per_iteration x iterations``
+    (what a position costs besides its iterations, and an iteration), printed."""
+    counts = {
+        int(n): {"positions": int(np.sum(iterations == n)), "median_cpu_s": float(np.median(cpu[iterations == n]))}
+        for n in np.unique(iterations)
+    }
+    line = np.polyfit(iterations, cpu, 1) if np.ptp(iterations) > 0 else (0.0, float(np.mean(cpu)))
+    print(
+        "CPU by CG iterations (positions after the first): "
+        + ", ".join(f"{n}: {v['positions']} at {v['median_cpu_s']:.3f} s" for n, v in counts.items())
+        + f"; least squares: {line[1]:.3f} s + {line[0] * 1e3:.1f} ms an iteration"
+    )
+    return {"counts": counts, "fixed_s": float(line[1]), "per_iteration_s": float(line[0])}
 
 
 def spread(cpu: np.ndarray, rows: list) -> dict:
