@@ -37,7 +37,9 @@ Usage::
 
 glibc's heap keeps the arrays a position frees, as ``twoscale solve`` has it for a rolling
 run (:mod:`twoscale.cli.heap`; for the reference and the cold solve too: the same process);
-``--system-heap`` leaves its defaults.
+``--system-heap`` leaves its defaults. The positions run with the objects made before them
+out of the garbage collector's full passes, as :func:`twoscale.rolling.roll` runs them
+(:mod:`twoscale.rolling.collector`).
 
 ``--scale-out`` runs the section in one and in two chunks on Dask worker processes
 (:func:`twoscale.rolling.chunks.roll_chunks`) instead, and prints the speed-up.
@@ -64,6 +66,7 @@ from twoscale import Material  # noqa: E402
 from twoscale.cli.heap import keep_heap  # noqa: E402
 from twoscale.indenters import surface_on  # noqa: E402
 from twoscale.rolling import RollingOptions  # noqa: E402
+from twoscale.rolling.collector import frozen_objects  # noqa: E402
 from twoscale.rolling.reference import cold_position, reference_grid, reference_position  # noqa: E402
 from twoscale.rolling.run import step, window_state  # noqa: E402
 from twoscale.rolling.track import prepare, tyre_contact_length  # noqa: E402
@@ -245,26 +248,27 @@ def run(args) -> dict:
     info["solver"] = "window" if state is not None else "twoscale"
     t_run = time.perf_counter()
     iterations = []
-    for k in range(len(track.shifts)):
-        c0 = time.process_time()
-        pos = step(track, k, previous, options, state)
-        cpu.append(time.process_time() - c0)
-        times.append(pos.seconds)
-        iterations.append(int(pos.result.iterations.get("cg", pos.result.iterations.get("micro", 0))))
-        if k % args.every == 0 or k == len(track.shifts) - 1:
-            print(
-                f"  position {k:5d} shift {track.shifts[k]:8.2f} mm: {pos.result.total_load:8.1f} N, approach "
-                f"{pos.result.penetration:.4f} mm, area {pos.result.contact_area:8.1f} mm2, drag {pos.drag:7.2f} N, "
-                f"{len(pos.selection.stones)} stones, {pos.seconds:.2f} s, converged {pos.result.converged}",
-                flush=True,
-            )
-        if k in sample:
-            rows.append(compare(track, pos, cpu[-1], not args.no_cm, args.repeat))
-            print(
-                "  sample " + ", ".join(f"{key} {_shown(v)}" for key, v in rows[-1].items()),
-                flush=True,
-            )
-        previous = pos
+    with frozen_objects():  # as roll() runs the positions (twoscale.rolling.collector)
+        for k in range(len(track.shifts)):
+            c0 = time.process_time()
+            pos = step(track, k, previous, options, state)
+            cpu.append(time.process_time() - c0)
+            times.append(pos.seconds)
+            iterations.append(int(pos.result.iterations.get("cg", pos.result.iterations.get("micro", 0))))
+            if k % args.every == 0 or k == len(track.shifts) - 1:
+                print(
+                    f"  position {k:5d} shift {track.shifts[k]:8.2f} mm: {pos.result.total_load:8.1f} N, approach "
+                    f"{pos.result.penetration:.4f} mm, area {pos.result.contact_area:8.1f} mm2, drag {pos.drag:7.2f} N, "
+                    f"{len(pos.selection.stones)} stones, {pos.seconds:.2f} s, converged {pos.result.converged}",
+                    flush=True,
+                )
+            if k in sample:
+                rows.append(compare(track, pos, cpu[-1], not args.no_cm, args.repeat))
+                print(
+                    "  sample " + ", ".join(f"{key} {_shown(v)}" for key, v in rows[-1].items()),
+                    flush=True,
+                )
+            previous = pos
     wall = time.perf_counter() - t_run
     t = np.array(times)
     c = np.array(cpu)

@@ -69,3 +69,45 @@ def test_rolling_json_lists_each_positions_cpu_time(strip):
     listed = rolling_to_dict(result, scene)["positions"]
     assert [p["cpu_seconds"] for p in listed] == result.cpu_seconds.tolist()
     assert [p["seconds"] for p in listed] == result.seconds.tolist()
+
+
+class Cycle:
+    """An object that refers to itself: only the cyclic collector frees it."""
+
+    def __init__(self):
+        self.me = self
+
+
+def test_the_objects_alive_before_a_run_are_out_of_the_collectors_passes_during_it():
+    """The old objects frozen inside, given back at exit; garbage made inside still collected."""
+    import gc
+    import weakref
+
+    from twoscale.rolling.collector import frozen_objects
+
+    assert gc.get_freeze_count() == 0
+    old = Cycle()
+    with frozen_objects():
+        assert gc.get_freeze_count() > 0
+        assert not any(o is old for o in gc.get_objects())  # (the permanent generation is not listed)
+        young = weakref.ref(Cycle())
+        gc.collect()
+        assert young() is None
+    assert gc.get_freeze_count() == 0 and any(o is old for o in gc.get_objects())
+    gc.freeze()  # a caller's own freeze is left as it is
+    try:
+        frozen = gc.get_freeze_count()
+        with frozen_objects():
+            assert gc.get_freeze_count() == frozen
+        assert gc.get_freeze_count() == frozen
+    finally:
+        gc.unfreeze()
+
+
+def test_a_run_runs_its_positions_frozen_and_thaws_after(strip):
+    import gc
+
+    seen = []
+    result = roll(_scene(strip, Material(10.0, 0.5)), on_position=lambda pos: seen.append(gc.get_freeze_count()))
+    assert result.all_converged and len(seen) == len(result.shifts)
+    assert min(seen) > 0 and gc.get_freeze_count() == 0

@@ -28,6 +28,7 @@ import numpy as np
 
 from ..macro.start import MacroStart
 from ..results import ContactResult
+from .collector import frozen_objects
 from .record import Recorder
 from .result import Position, RollingResult
 from .first_contact import hertz_level
@@ -319,7 +320,9 @@ def roll(
     -------
     RollingResult
     """
-    with single_threads():  # the BLAS and OpenMP libraries one thread each (twoscale.threads)
+    # the BLAS and OpenMP libraries one thread each (twoscale.threads); the objects alive
+    # before the run out of the collector's full passes (.collector)
+    with single_threads(), frozen_objects():
         return _roll(scene, options, provider, on_position, progress, track)
 
 
