@@ -20,7 +20,10 @@ against the reference's. The reference and the cold solve are each timed ``--rep
 runs and their spread). A position of the run cannot be repeated without its history: its
 single CPU time is what the targets are checked on; besides it, the median and the 90th
 percentile of all positions after the first are printed over the samples' median
-reference and cold solve (``positions_*``, ``median_over_*``, ``p90_over_*``).
+reference and cold solve (``positions_*``, ``median_over_*``, ``p90_over_*``), and their
+CPU by CG iterations (per count, and a line's fixed part and cost an iteration:
+``by_iterations``). ``--out`` writes each position's shift, CPU and iterations too
+(``positions``).
 
 Usage::
 
@@ -34,7 +37,9 @@ Usage::
 
 glibc's heap keeps the arrays a position frees, as ``twoscale solve`` has it for a rolling
 run (:mod:`twoscale.cli.heap`; for the reference and the cold solve too: the same process);
-``--system-heap`` leaves its defaults.
+``--system-heap`` leaves its defaults. The positions run with the objects made before them
+out of the garbage collector's full passes, as :func:`twoscale.rolling.roll` runs them
+(:mod:`twoscale.rolling.collector`).
 
 ``--scale-out`` runs the section in one and in two chunks on Dask worker processes
 (:func:`twoscale.rolling.chunks.roll_chunks`) instead, and prints the speed-up.
@@ -61,6 +66,7 @@ from twoscale import Material  # noqa: E402
 from twoscale.cli.heap import keep_heap  # noqa: E402
 from twoscale.indenters import surface_on  # noqa: E402
 from twoscale.rolling import RollingOptions  # noqa: E402
+from twoscale.rolling.collector import frozen_objects  # noqa: E402
 from twoscale.rolling.reference import cold_position, reference_grid, reference_position  # noqa: E402
 from twoscale.rolling.run import step, window_state  # noqa: E402
 from twoscale.rolling.track import prepare, tyre_contact_length  # noqa: E402
@@ -242,26 +248,27 @@ def run(args) -> dict:
     info["solver"] = "window" if state is not None else "twoscale"
     t_run = time.perf_counter()
     iterations = []
-    for k in range(len(track.shifts)):
-        c0 = time.process_time()
-        pos = step(track, k, previous, options, state)
-        cpu.append(time.process_time() - c0)
-        times.append(pos.seconds)
-        iterations.append(int(pos.result.iterations.get("cg", pos.result.iterations.get("micro", 0))))
-        if k % args.every == 0 or k == len(track.shifts) - 1:
-            print(
-                f"  position {k:5d} shift {track.shifts[k]:8.2f} mm: {pos.result.total_load:8.1f} N, approach "
-                f"{pos.result.penetration:.4f} mm, area {pos.result.contact_area:8.1f} mm2, drag {pos.drag:7.2f} N, "
-                f"{len(pos.selection.stones)} stones, {pos.seconds:.2f} s, converged {pos.result.converged}",
-                flush=True,
-            )
-        if k in sample:
-            rows.append(compare(track, pos, cpu[-1], not args.no_cm, args.repeat))
-            print(
-                "  sample " + ", ".join(f"{key} {_shown(v)}" for key, v in rows[-1].items()),
-                flush=True,
-            )
-        previous = pos
+    with frozen_objects():  # as roll() runs the positions (twoscale.rolling.collector)
+        for k in range(len(track.shifts)):
+            c0 = time.process_time()
+            pos = step(track, k, previous, options, state)
+            cpu.append(time.process_time() - c0)
+            times.append(pos.seconds)
+            iterations.append(int(pos.result.iterations.get("cg", pos.result.iterations.get("micro", 0))))
+            if k % args.every == 0 or k == len(track.shifts) - 1:
+                print(
+                    f"  position {k:5d} shift {track.shifts[k]:8.2f} mm: {pos.result.total_load:8.1f} N, approach "
+                    f"{pos.result.penetration:.4f} mm, area {pos.result.contact_area:8.1f} mm2, drag {pos.drag:7.2f} N, "
+                    f"{len(pos.selection.stones)} stones, {pos.seconds:.2f} s, converged {pos.result.converged}",
+                    flush=True,
+                )
+            if k in sample:
+                rows.append(compare(track, pos, cpu[-1], not args.no_cm, args.repeat))
+                print(
+                    "  sample " + ", ".join(f"{key} {_shown(v)}" for key, v in rows[-1].items()),
+                    flush=True,
+                )
+            previous = pos
     wall = time.perf_counter() - t_run
     t = np.array(times)
     c = np.array(cpu)
@@ -292,6 +299,8 @@ def run(args) -> dict:
         vals = [r[key] for r in rows if key in r]
         if vals:
             print(f"{key}: " + ", ".join(f"{v:.3f}" for v in vals))
+    if len(c) > 2:
+        summary["by_iterations"] = by_iterations(c[1:], np.array(iterations[1:]))
     if rows and len(c) > 1:
         summary.update(spread(c[1:], rows))
         print(
@@ -305,7 +314,27 @@ def run(args) -> dict:
             f"reference {max(r['ref_cpu_spread'] for r in rows):.2f}, cold {max(r['cold_cpu_spread'] for r in rows):.2f} "
             f"at most)"
         )
-    return {"args": vars(args), "info": info, "summary": summary, "samples": rows}
+    positions = [
+        {"shift_mm": float(x), "cpu_s": float(t), "iterations": int(i)} for x, t, i in zip(track.shifts, c, iterations)
+    ]
+    return {"args": vars(args), "info": info, "summary": summary, "samples": rows, "positions": positions}
+
+
+def by_iterations(cpu: np.ndarray, iterations: np.ndarray) -> dict:
+    """The positions' CPU (after the first) by their CG iterations: per count the positions
+    and their median CPU, and the least-squares line ``fixed + per_iteration x iterations``
+    (what a position costs besides its iterations, and an iteration), printed."""
+    counts = {
+        int(n): {"positions": int(np.sum(iterations == n)), "median_cpu_s": float(np.median(cpu[iterations == n]))}
+        for n in np.unique(iterations)
+    }
+    line = np.polyfit(iterations, cpu, 1) if np.ptp(iterations) > 0 else (0.0, float(np.mean(cpu)))
+    print(
+        "CPU by CG iterations (positions after the first): "
+        + ", ".join(f"{n}: {v['positions']} at {v['median_cpu_s']:.3f} s" for n, v in counts.items())
+        + f"; least squares: {line[1]:.3f} s + {line[0] * 1e3:.1f} ms an iteration"
+    )
+    return {"counts": counts, "fixed_s": float(line[1]), "per_iteration_s": float(line[0])}
 
 
 def spread(cpu: np.ndarray, rows: list) -> dict:

@@ -14,7 +14,9 @@ position's answer (``--mix``):
   leaves unloaded set to 0;
 * ``entries``: only those of them the last position did not load (foreseen entries that
   stay out);
-* ``leaving``: only those the last position loaded.
+* ``leaving``: only those the last position loaded;
+* ``new``: the answer on the contacts that enter (the islands of cells the start or the
+  answer loads with no cell the last position loaded: a stone coming into contact).
 
 Printed per position: the start's relative L2 error against the answer before and after the
 mix, the cells the start has loaded that the answer does not (split as above), and the CG
@@ -47,7 +49,7 @@ from twoscale.rolling.run import step, window_state  # noqa: E402
 from twoscale.rolling.track import prepare  # noqa: E402
 from twoscale.rolling.window import WindowState  # noqa: E402
 
-MIXES = ("none", "ring", "ring2", "set", "entries", "leaving")
+MIXES = ("none", "ring", "ring2", "set", "entries", "leaving", "new")
 
 
 @dataclasses.dataclass
@@ -70,7 +72,11 @@ class MixedStart(WindowState):
         wrong = (s > 0.0) & ~on
         depth = 2 if self.mix == "ring2" else 1
         ring = (on & ~ndimage.binary_erosion(on, np.ones((3, 3)), iterations=depth)) | ((s > 0.0) != on)
+        islands, _ = ndimage.label(on | (s > 0.0))
+        old = np.unique(islands[(last > 0.0) & (islands > 0)])
+        new = (islands > 0) & ~np.isin(islands, old)
         mixed = {
+            "new": np.where(new, answer, s),
             "none": s,
             "ring": np.where(ring, answer, s),
             "ring2": np.where(ring, answer, s),

@@ -9,7 +9,8 @@
   asperity order for tips);
 * ``rolling.json``: the scene, the body, the material, the speed, the steps, the
   convergence of every position (converged, iterations: the CG's on the window path, the
-  micro step's sweeps on the two-scale path, as ``method`` says; stones, message), the timings;
+  micro step's sweeps on the two-scale path, as ``method`` says; stones, message; its
+  wall-clock ``seconds`` and ``cpu_seconds``), the timings;
   the step against the road's samples and the Prony branches (``step_check``,
   :mod:`twoscale.rolling.stepcheck`) and a viscoelastic run's energy balance
   (``energy_balance``, with its meaning); ``warnings``: what the run warned of (as in
@@ -126,10 +127,17 @@ def rolling_to_dict(result, scene, *, warnings=()) -> dict:
                 "iterations": int(i),
                 "stones": int(n),
                 "seconds": float(t),
+                "cpu_seconds": float(u),
                 "message": m,
             }
-            for s, c, i, n, t, m in zip(
-                result.shifts, result.converged, result.iterations, result.stones, result.seconds, result.messages
+            for s, c, i, n, t, u, m in zip(
+                result.shifts,
+                result.converged,
+                result.iterations,
+                result.stones,
+                result.seconds,
+                result.cpu_seconds,
+                result.messages,
             )
         ],
         "timings_s": {k: float(v) for k, v in result.timings_s.items()},

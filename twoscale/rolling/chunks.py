@@ -210,6 +210,7 @@ def join(parts: list, track, seconds: float) -> RollingResult:
         drag=cat("drag"),
         converged=cat("converged"),
         seconds=cat("seconds"),
+        cpu_seconds=cat("cpu_seconds"),
         stones=cat("stones"),
         iterations=cat("iterations"),
         messages=tuple(m for p in parts for m in p.messages),

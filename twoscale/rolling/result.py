@@ -16,14 +16,16 @@ from .spec import RollingSpec
 @dataclass(frozen=True)
 class Position:
     """One solved position: its index, the stones given (a
-    :class:`~twoscale.rolling.road.Selection`), the solve (a ContactResult), the drag (N)
-    and the time it took (s)."""
+    :class:`~twoscale.rolling.road.Selection`), the solve (a ContactResult), the drag (N),
+    the wall-clock time it took (s) and the CPU time of the thread that solved it (s; nan
+    where it was not taken)."""
 
     index: int
     selection: Any
     result: Any
     drag: float
     seconds: float
+    cpu_seconds: float = float("nan")
 
 
 #: Per-position arrays of a :class:`RollingResult` (one entry per position).
@@ -36,6 +38,7 @@ SIGNALS = (
     "drag",
     "converged",
     "seconds",
+    "cpu_seconds",
     "stones",
     "iterations",
 )
@@ -94,6 +97,9 @@ class RollingResult:
     converged : (n,) bool array
     seconds : (n,) array
         Wall-clock time of each position, s.
+    cpu_seconds : (n,) array
+        CPU time of each position, s: the thread's that solved it (on a shared host the
+        wall-clock time counts the other jobs' turns, this one does not).
     stones : (n,) int array
         Stones given to the solver at each position (within reach of the footprint).
     iterations : (n,) int array
@@ -139,6 +145,7 @@ class RollingResult:
     drag: np.ndarray
     converged: np.ndarray
     seconds: np.ndarray
+    cpu_seconds: np.ndarray
     stones: np.ndarray
     iterations: np.ndarray
     messages: tuple

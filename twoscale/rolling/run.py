@@ -28,6 +28,7 @@ import numpy as np
 
 from ..macro.start import MacroStart
 from ..results import ContactResult
+from .collector import frozen_objects
 from .record import Recorder
 from .result import Position, RollingResult
 from .first_contact import hertz_level
@@ -192,7 +193,7 @@ def _all_stones(track: Track, shift: float) -> Selection:
 def step(track: Track, index: int, previous: Position | None, options: RollingOptions, state=None) -> Position:
     """Solve position ``index`` (module docstring); ``state``: a
     :class:`~twoscale.rolling.window.WindowState` to solve it on the kept window instead."""
-    t0 = time.perf_counter()
+    t0, c0 = time.perf_counter(), time.thread_time()
     shift = float(track.shifts[index])
     # where the surface can rise (a block), an approach bound does not bound the stones that
     # touch: the solver takes them all (the two-scale macro step, or the window's CG, sees
@@ -200,7 +201,7 @@ def step(track: Track, index: int, previous: Position | None, options: RollingOp
     bound = math.inf if track.rises else _bound(track, shift, previous)
     selection = track.road.stones_at(shift, bound)
     if not selection.stones and track.control == "penetration":  # nothing within reach of the body here
-        return Position(index, selection, _no_contact(track), 0.0, time.perf_counter() - t0)
+        return Position(index, selection, _no_contact(track), 0.0, time.perf_counter() - t0, time.thread_time() - c0)
     if not selection.stones:
         bound = min(s.z for s in _all_stones(track, shift).stones) + (1 + BOUND_GROWTH) * _depth(previous, track.h)
         selection = track.road.stones_at(shift, bound)
@@ -221,7 +222,8 @@ def step(track: Track, index: int, previous: Position | None, options: RollingOp
             + f"the approach {result.penetration:.6g} mm still "
             f"passes the bound {bound:.6g} mm the stones were taken for after {MAX_REBOUNDS} enlargements",
         )
-    return Position(index, selection, result, drag_of(track, selection, result), time.perf_counter() - t0)
+    drag = drag_of(track, selection, result)
+    return Position(index, selection, result, drag, time.perf_counter() - t0, time.thread_time() - c0)
 
 
 def _solve(
@@ -318,7 +320,9 @@ def roll(
     -------
     RollingResult
     """
-    with single_threads():  # the BLAS and OpenMP libraries one thread each (twoscale.threads)
+    # the BLAS and OpenMP libraries one thread each (twoscale.threads); the objects alive
+    # before the run out of the collector's full passes (.collector)
+    with single_threads(), frozen_objects():
         return _roll(scene, options, provider, on_position, progress, track)
 
 

@@ -161,6 +161,7 @@ def roll_viscoelastic(track: Track, *, tol: float = 1e-6, progress=None, on_posi
     numbers = run_stones(track)
     indenter = RoadIndenter(track.road, numbers)
     lines: list = []  # each position's line load, for the space-time picture
+    cpu: list = []  # each position's CPU seconds
     provider = dataclasses.replace(
         scene, material=scene.material.relaxed(), rolling=None, surface=None, asperities=(_stand_in(),)
     ).provider()
@@ -186,7 +187,7 @@ def roll_viscoelastic(track: Track, *, tol: float = 1e-6, progress=None, on_posi
         total_load=scene.total_load,
         options=options,
         progress=progress,
-        on_step=_positions(numbers, on_position, lines),
+        on_step=_positions(numbers, on_position, lines, cpu),
     )
     return _result(
         track,
@@ -195,6 +196,7 @@ def roll_viscoelastic(track: Track, *, tol: float = 1e-6, progress=None, on_posi
         time.perf_counter() - t0,
         "window-cg" if options.method == "cg" else "twoscale",
         lines_on_lattice(lines, track.h),
+        cpu,
     )
 
 
@@ -205,20 +207,25 @@ def _stand_in():
     return Asperity(0.0, 0.0, 0.0, 1.0)
 
 
-def _positions(numbers: np.ndarray, on_position, lines: list):
+def _positions(numbers: np.ndarray, on_position, lines: list, cpu: list):
     """``solve_moving``'s ``on_step``: appends each position's line load (pressure summed
-    across y) to ``lines`` and calls ``on_position`` with a
-    :class:`~twoscale.rolling.run.Position` when given."""
+    across y) to ``lines`` and its CPU seconds to ``cpu`` (the thread's since the last
+    call, or since this one was made: the stepping's set-up goes to the first position),
+    and calls ``on_position`` with a :class:`~twoscale.rolling.run.Position` when given."""
+    last = [time.thread_time()]
 
     def on_step(n: int, shift: float, result, summary=None) -> None:
+        now = time.thread_time()
+        cpu.append(now - last[0])
         lines.append(line_load_of(result))
         if on_position is not None:
-            on_position(Position(n, Selection((), numbers, shift), result, float("nan"), 0.0))
+            on_position(Position(n, Selection((), numbers, shift), result, float("nan"), 0.0, cpu[-1]))
+        last[0] = time.thread_time()
 
     return on_step
 
 
-def _result(track: Track, numbers: np.ndarray, moving, seconds: float, method: str, lines) -> RollingResult:
+def _result(track: Track, numbers: np.ndarray, moving, seconds: float, method: str, lines, cpu) -> RollingResult:
     forces, areas = np.asarray(moving.forces), np.asarray(moving.tip_areas)
     pos, k = np.nonzero(areas > 0)
     converged = np.asarray(moving.step_converged, dtype=bool)
@@ -235,6 +242,7 @@ def _result(track: Track, numbers: np.ndarray, moving, seconds: float, method: s
         drag=moving.drag,
         converged=converged,
         seconds=moving.seconds,
+        cpu_seconds=cpu,
         stones=np.full(len(track.shifts), len(numbers)),
         iterations=moving.iterations,
         messages=tuple("" if c else (moving.message or "did not converge") for c in converged),
