@@ -655,3 +655,24 @@ def test_cholesky_in_place_solves_and_refuses_an_indefinite_matrix():
     assert np.allclose(cho_solve(factor, b), want, rtol=1e-12, atol=0.0)
     close = np.array([[1.0, 2.0], [2.0, 1.0]])  # eigenvalues 3 and -1
     assert cholesky_in_place(close) is None
+
+
+def test_exact_symmetry_by_blocks_of_rows_is_numpys_comparison_with_the_transpose():
+    """The check that lets the secant start and the stability test use ``T`` itself: the
+    same answer as ``np.array_equal(M, M.T)``, a block of rows at a time, where one entry off
+    the diagonal breaks the symmetry in the last block, or a NaN anywhere."""
+    from twoscale.macro.system import SYMMETRY_BLOCK_ENTRIES, exactly_symmetric
+
+    rng = np.random.default_rng(9)
+    for n in (1, 2, 63, 64, 65, SYMMETRY_BLOCK_ENTRIES // 64 + 3, 700):
+        A = rng.normal(size=(n, n))
+        S = A + A.T
+        assert exactly_symmetric(S) and exactly_symmetric(S) == np.array_equal(S, S.T)
+        if n > 1:
+            off = S.copy()
+            off[n - 1, 0] += 1e-12 * abs(off[n - 1, 0])
+            assert not exactly_symmetric(off) and np.array_equal(off, off.T) is False
+            nan = S.copy()
+            nan[0, n - 1] = nan[n - 1, 0] = np.nan
+            assert exactly_symmetric(nan) == np.array_equal(nan, nan.T)
+    assert not exactly_symmetric(np.ones((3, 4)))

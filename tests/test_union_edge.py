@@ -132,3 +132,15 @@ def test_reached_outside_covers_the_reached_tip_and_nothing_else():
     assert reached_outside(box, tips, answer(0.02), hs, (0.0, 0.0)) is not None
     # 0.1 N sinks it 0.012 mm: past its approach, not reached
     assert reached_outside(box, tips, answer(0.1), hs, (0.0, 0.0)) is None
+
+
+def test_tip_positions_are_the_tips_own_numbers():
+    """The tips' (x, y) as two columns: the same float64 values as an array of pairs, for
+    integer and float positions and for no tips."""
+    from twoscale.indenters import Asperity, tip_positions
+
+    tips = [Asperity(1, -2.5, 0.0, 1.0), Asperity(0.1 + 0.2, 1e-300, 0.0, 2.0, "paraboloid")]
+    xy = tip_positions(tips)
+    assert xy.dtype == np.float64 and xy.shape == (2, 2)
+    assert np.array_equal(xy, np.array([[a.x, a.y] for a in tips], dtype=float))
+    assert tip_positions([]).shape == (0, 2)

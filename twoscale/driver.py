@@ -22,7 +22,7 @@ import numpy as np
 
 from .bulge_rounds import rises, settle, with_macro_lift
 from .control import Loading, check_control
-from .indenters import Asperity
+from .indenters import Asperity, tip_positions
 from .influence.base import InfluenceProvider
 from .influence.cached import with_caches
 from .laws import law_for
@@ -205,7 +205,7 @@ def run_twoscale(
     progress, start = run.progress, run.start
     t0 = time.perf_counter()
     laws = [law_for(a, provider.material) for a in asperities] if run.laws is None else run.laws
-    tips = np.array([[a.x, a.y] for a in asperities], dtype=float)
+    tips = tip_positions(asperities)
     z = np.array([a.z for a in asperities], dtype=float)
     if progress is not None:
         progress(f"macro step, {len(asperities)} asperities")

@@ -81,6 +81,17 @@ class Asperity:
         return math.sqrt(depth * (2.0 * self.R - depth))
 
 
+def tip_positions(asperities: Sequence) -> np.ndarray:
+    """The tips' positions ``(x, y)``, (N, 2) mm: each column filled from the tips' numbers.
+    (A list of N pairs made N small lists that the garbage collector tracks: on 9,545 tips,
+    made eight times a solve, they counted towards its full collections, 50-70 ms each in a
+    solver's process.)"""
+    xy = np.empty((len(asperities), 2))
+    xy[:, 0] = [a.x for a in asperities]
+    xy[:, 1] = [a.y for a in asperities]
+    return xy
+
+
 @dataclass(frozen=True)
 class Tilt:
     """Small rotation of the indenting surface about a pivot (ball-and-socket joint).

@@ -19,7 +19,7 @@ import numpy as np
 
 from .control import check_control
 from .errors import SceneError
-from .indenters import Asperity
+from .indenters import Asperity, tip_positions
 from .material import Material
 from .values import check_number, check_pair, is_number  # noqa: F401 (re-exported: scene and study readers)
 
@@ -317,7 +317,7 @@ class Scene:
     @property
     def tips(self) -> np.ndarray:
         """Tip positions, shape (N, 2), mm."""
-        return np.array([[a.x, a.y] for a in self.asperities], dtype=float)
+        return tip_positions(self.asperities)
 
     def provider(self, **options: Any) -> InfluenceProvider:
         """The influence provider the scene asks for (:mod:`twoscale.influence.registry`).

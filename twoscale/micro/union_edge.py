@@ -86,10 +86,11 @@ def reached_outside(box: Grid, asperities, result, provider, pivot) -> Grid | No
     its geometric approach at the answer's approach and tilt, less the sinking there under
     the box's tips' forces as point forces, is positive; its side of the box is moved out
     to its reach at twice that approach plus two cells."""
+    from ..indenters import tip_positions
     from .workset import tip_approaches
 
     xmin, xmax, ymin, ymax = box.bounds
-    tips = np.array([[a.x, a.y] for a in asperities], dtype=float)
+    tips = tip_positions(asperities)
     out = np.flatnonzero((tips[:, 0] < xmin) | (tips[:, 0] > xmax) | (tips[:, 1] < ymin) | (tips[:, 1] > ymax))
     theta = (result.penetration, *(result.tilt or (0.0, 0.0)))
     local = tip_approaches([asperities[k] for k in out], theta, pivot)
