@@ -39,7 +39,7 @@ glibc's heap keeps the arrays a position frees, as ``twoscale solve`` has it for
 run (:mod:`twoscale.cli.heap`; for the reference and the cold solve too: the same process);
 ``--system-heap`` leaves its defaults. The positions run with the objects made before them
 out of the garbage collector's full passes, as :func:`twoscale.rolling.roll` runs them
-(:mod:`twoscale.rolling.collector`).
+(:mod:`twoscale.collector`).
 
 ``--scale-out`` runs the section in one and in two chunks on Dask worker processes
 (:func:`twoscale.rolling.chunks.roll_chunks`) instead, and prints the speed-up.
@@ -66,7 +66,7 @@ from twoscale import Material  # noqa: E402
 from twoscale.cli.heap import keep_heap  # noqa: E402
 from twoscale.indenters import surface_on  # noqa: E402
 from twoscale.rolling import RollingOptions  # noqa: E402
-from twoscale.rolling.collector import frozen_objects  # noqa: E402
+from twoscale.collector import frozen_objects  # noqa: E402
 from twoscale.rolling.reference import cold_position, reference_grid, reference_position  # noqa: E402
 from twoscale.rolling.run import step, window_state  # noqa: E402
 from twoscale.rolling.track import prepare, tyre_contact_length  # noqa: E402
@@ -248,7 +248,7 @@ def run(args) -> dict:
     info["solver"] = "window" if state is not None else "twoscale"
     t_run = time.perf_counter()
     iterations = []
-    with frozen_objects():  # as roll() runs the positions (twoscale.rolling.collector)
+    with frozen_objects():  # as roll() runs the positions (twoscale.collector)
         for k in range(len(track.shifts)):
             c0 = time.process_time()
             pos = step(track, k, previous, options, state)

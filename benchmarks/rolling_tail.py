@@ -10,7 +10,7 @@ the cut or the window changed, the two-scale solves (a fallback, or none), the g
 collector's passes and their CPU (``gc.callbacks``), and the page faults and the involuntary
 context switches the process took meanwhile (``getrusage``: the host's other jobs taking the
 core). The positions run as :func:`twoscale.rolling.roll` runs them, the objects made before
-them out of the collector's full passes (:mod:`twoscale.rolling.collector`); ``--unfrozen``
+them out of the collector's full passes (:mod:`twoscale.collector`); ``--unfrozen``
 leaves them in, for comparison.
 
 Printed: the CPU's median and 90th percentile; for each quantity its mean over the slowest
@@ -45,7 +45,7 @@ import numpy as np  # noqa: E402
 
 from twoscale.cli.heap import keep_heap  # noqa: E402
 from twoscale.rolling import run as rolling_run  # noqa: E402
-from twoscale.rolling.collector import frozen_objects  # noqa: E402
+from twoscale.collector import frozen_objects  # noqa: E402
 
 QUANTITIES = (
     "iterations",

@@ -83,7 +83,7 @@ def test_the_objects_alive_before_a_run_are_out_of_the_collectors_passes_during_
     import gc
     import weakref
 
-    from twoscale.rolling.collector import frozen_objects
+    from twoscale.collector import frozen_objects
 
     assert gc.get_freeze_count() == 0
     old = Cycle()

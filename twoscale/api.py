@@ -42,6 +42,7 @@ from .results import ContactResult
 from .scene import SCENE_METHODS
 from .resolution import check_resolution
 from .scene import Scene, SceneError, default_h, expected_contact_radii, expected_contacts
+from .collector import frozen_objects
 from .threads import single_threads
 from .tips import as_asperities, asperities  # noqa: F401 (twoscale.asperities, twoscale.as_asperities)
 
@@ -187,7 +188,9 @@ def solve(
     ValueError
         Invalid input (:class:`~twoscale.scene.SceneError` for scene data), naming the bad value.
     """
-    with single_threads():  # the BLAS and OpenMP libraries one thread each (twoscale.threads)
+    # the BLAS and OpenMP libraries one thread each (.threads); the objects alive before the
+    # solve out of the collector's full passes (.collector)
+    with single_threads(), frozen_objects():
         fields = dict(material=material, penetration=penetration, total_load=total_load)
         return _solve(problem, method, provider, h, **fields, **options)
 

@@ -40,6 +40,7 @@ from .influence.cached import OPERATOR_CACHE_BYTES, TABLE_CACHE_BYTES, CachedBod
 from .options import SolverOptions
 from .results import ContactResult, Reuse
 from .scene import Scene, default_h
+from .collector import frozen_objects
 from .threads import single_threads, thread_controller
 from .warm_start import WarmStart, warm_start
 
@@ -186,7 +187,7 @@ class ContactSolver:
         # finds what choosing h estimated (the Hertz level) already solved
         if self._threads is None:  # the libraries loaded now, looked up once (twoscale.threads)
             self._threads = thread_controller()
-        with single_threads(controller=self._threads):
+        with single_threads(controller=self._threads), frozen_objects():  # (twoscale.collector)
             cell = res.h if scene.history is None else h
             result = solve_once(
                 scene, self.method, CachedBody(body, self.caches), cell, memory_limit=res.memory_limit, **keywords

@@ -28,7 +28,7 @@ import numpy as np
 
 from ..macro.start import MacroStart
 from ..results import ContactResult
-from .collector import frozen_objects
+from ..collector import frozen_objects
 from .record import Recorder
 from .result import Position, RollingResult
 from .first_contact import hertz_level
