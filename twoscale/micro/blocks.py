@@ -311,6 +311,8 @@ class Coupling:
 
     def _subtract(self, k: int, sources, values: list, out: np.ndarray) -> None:
         """``out -= sum_{l in sources} A_kl v_l`` on block ``k``'s cells."""
+        if not len(sources):
+            return
         u = self._sum(k, sources, values, whole=False)
         if u is not None:
             out -= u

@@ -31,6 +31,7 @@ from .level_far import LevelWeights
 from .localblock import whole_patch, whole_patch_is_large
 from .near_window import FIRST_GATHER_ENTRIES
 from .sources import all_source_nodes, all_stencils, grid_interpolation, patch_source_weights
+from .spectral_pairs import level_near
 
 
 def patch_frames(patches) -> tuple[np.ndarray, np.ndarray]:
@@ -209,11 +210,13 @@ class FarFieldCoupling(Coupling):
         multiplied here, the others by their routes. A sweep's blocks call it thousands of
         times (939 blocks of 41-266 cells with 2.5 near pairs each: 0.19 ms a call through
         the routes, 40 % of the sweeps' CPU), so the common case skips their bookkeeping."""
-        return self._near_1d(k, values, rhs - self._far(k, values, whole=False)[:, 0])
+        out = rhs - self._far(k, values, whole=False)[:, 0]
+        self._subtract(k, self._near_kept(k, values, out), values, out)
+        return out
 
-    def _near_1d(self, k: int, values: list, out: np.ndarray) -> np.ndarray:
-        """``out -= sum_{l near k} A_kl v_l`` (1-D; returns ``out``): kept dense blocks, else one gather
-        of the loaded columns from the kernel's window (pairs past the dense size: FFT routes before)."""
+    def _near_kept(self, k: int, values: list, out: np.ndarray) -> list:
+        """``out -= sum_{l near k} A_kl v_l`` (1-D, in place): kept dense blocks, else one gather of the loaded
+        columns from the kernel's window; returns the pairs left to their routes (past the dense size)."""
         rest, gathered, n = [], [], max(len(out), 1)
         wide, few = self.dense_max_entries / n, FIRST_GATHER_ENTRIES / n  # smaller pairs: dense blocks
         for l in self.near(k):
@@ -234,9 +237,7 @@ class FarFieldCoupling(Coupling):
                 rest += gathered
             else:
                 out -= u
-        if rest:
-            self._subtract(k, rest, values, out)
-        return out
+        return rest
 
     def patch_displacement(self, k: int, values: list) -> np.ndarray:
         """Displacement (mm) on the whole patch ``k`` from the other blocks (near exact):
@@ -396,4 +397,4 @@ class LaggedFarField(FarFieldCoupling):
         if self._table is None or self._table.shape[2] != 1:
             self.refresh(values)
         far = self._levels.far(self.patches, level, self._table, self._shape_weights)
-        return {k: self._near_1d(k, values, rhs[k] - f) for k, f in zip(level, far)}
+        return level_near(self, values, {k: rhs[k] - f for k, f in zip(level, far)})

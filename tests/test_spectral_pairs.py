@@ -1,0 +1,69 @@
+"""The routed near pairs of many targets at once (:mod:`twoscale.micro.spectral_pairs`).
+
+Checks: on random patches (sizes, places, owned cells and pressures drawn at random, the
+dense blocks' size small so that most pairs take the spectral route) the stacked sums of
+many targets equal each target's own sum by its routes (:meth:`Coupling._sum`) to
+rounding, and the exact displacement from the full Love kernel (the provider's dense
+blocks); the per-vector transforms they keep serve a later call with the same vectors.
+"""
+
+import numpy as np
+import pytest
+
+from twoscale import Material
+from twoscale.grid import Grid
+from twoscale.influence import HalfSpace
+from twoscale.micro.blocks import Coupling
+from twoscale.micro.patches import Patch
+from twoscale.micro.spectral_pairs import route_sums
+
+HS = HalfSpace(Material(10.0, 0.5))
+H = 0.02
+
+
+def _patches(rng, n: int, spread: float):
+    """``n`` patches of 8-24 cells a side on one lattice, some owning part of their grid."""
+    out = []
+    for k in range(n):
+        nx, ny = (int(v) for v in rng.integers(8, 25, 2))
+        i0, j0 = (int(v) for v in rng.integers(0, int(spread / H), 2))
+        g = Grid(i0 * H, j0 * H, H, nx, ny)
+        owner = np.full(g.shape, k)
+        if rng.random() < 0.3:  # a neighbour owns a corner
+            owner[: ny // 3, : nx // 3] = -1
+        out.append(Patch(k, g, np.zeros(g.shape), owner))
+    return out
+
+
+def _values(rng, patches):
+    vals = [rng.random(int(pt.owned.sum())) * (rng.random(int(pt.owned.sum())) < 0.6) for pt in patches]
+    vals[1] = np.zeros_like(vals[1])
+    return vals
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_stacked_route_sums_equal_each_targets_own_and_the_kernels(seed):
+    rng = np.random.default_rng(seed)
+    patches = _patches(rng, 16, 2.0)
+    values = _values(rng, patches)
+    kw = dict(dense_max_entries=2_000, separated_rtol=None)  # most pairs on the spectral route
+    one, many = Coupling(HS, patches, **kw), Coupling(HS, patches, **kw)
+    work = [(k, [l for l in range(len(patches)) if l != k and rng.random() < 0.6]) for k in range(len(patches))]
+    got = route_sums(many, work, values)
+    kinds = [many._route(k, l)[0] for k, ls in work for l in ls if values[l].any()]
+    assert kinds.count("spectral") > 0.5 * len(kinds)
+    for k, ls in work:
+        want = one._sum(k, ls, values, whole=False)
+        if want is None:
+            assert k not in got
+            continue
+        assert np.abs(got[k] - want).max() <= 1e-13 * np.abs(want).max()
+        pk = patches[k]
+        exact = sum(
+            HS.grid_matrix(pk.grid, patches[l].grid)[np.ix_(pk.owned.ravel(), patches[l].owned.ravel())] @ values[l]
+            for l in ls
+        )
+        assert np.abs(got[k] - exact).max() <= 1e-10 * np.abs(exact).max()
+    # the same vectors again: their kept transforms serve, the same sums to the bit
+    again = route_sums(many, work, values)
+    assert again.keys() == got.keys() and all(np.array_equal(again[k], got[k]) for k in got)
