@@ -65,13 +65,16 @@ def coupled_rhs(coupling: Coupling, k: int, values: list, rhs: np.ndarray) -> np
 
 @dataclass(frozen=True)
 class Sweep:
-    """One sweep of eq. 8: new pressures and contact sets, and what changed."""
+    """One sweep of eq. 8: new pressures and contact sets (also laid end to end: ``flat``,
+    ``flat_active``), and what changed."""
 
     pressures: list
     active: list
     changed: bool
     change: float
     failed: tuple
+    flat: np.ndarray
+    flat_active: np.ndarray
 
 
 def sweep(
@@ -84,6 +87,7 @@ def sweep(
     local_rtol: float | None = None,
     levels: list | None = None,
     stacks=None,
+    flat: np.ndarray | None = None,
 ) -> Sweep:
     """One block Gauss-Seidel sweep (eq. 8) over ``k = 1..N`` from pressures ``p``;
     ``local_rtol`` is the conjugate-gradient tolerance of large blocks (default theirs).
@@ -92,7 +96,8 @@ def sweep(
     other's new pressures (with a held far field: no near pair within a level, and every
     near pair ``l < k`` in an earlier level than ``k``'s): each block then sees exactly
     what it sees in the plain order, and ``stacks`` (:class:`~.pk_stack.BlockStacks`)
-    solves a level's large blocks of one size class together."""
+    solves a level's large blocks of one size class together. ``flat``: ``p`` laid end to end,
+    where the caller has it (4.9 million cells: 30 ms a concatenation)."""
     before, was = list(p), list(active)
     p, active = list(p), list(active)
     n = len(blocks)
@@ -124,12 +129,13 @@ def sweep(
             take(k, sol.pressure, sol.active, sol.converged)
     # the change and the contact sets over all blocks laid end to end, not block by block
     # (3,756 local solves a two-level iteration on 939 blocks: 15 us each in these sums)
-    changed = bool(np.any(laid_end_to_end(active, bool) != laid_end_to_end(was, bool)))
+    now = laid_end_to_end(active, bool)
+    changed = bool(np.any(now != laid_end_to_end(was, bool)))
     new = laid_end_to_end(p)
-    diff = new - laid_end_to_end(before)
+    diff = new - (laid_end_to_end(before) if flat is None else flat)
     norm2 = float(new @ new)
     rel = float(np.sqrt(float(diff @ diff) / norm2)) if norm2 > 0 else 0.0
-    return Sweep(p, active, changed, rel, tuple(np.flatnonzero(failed).tolist()))
+    return Sweep(p, active, changed, rel, tuple(np.flatnonzero(failed).tolist()), new, now)
 
 
 def gauss_seidel(
