@@ -267,7 +267,7 @@ def two_level(
         b = [theta[0] - z for z in heights(theta)]
         before = h2 * segment_sums(flat, starts)
         local_rtol = LOCAL_FACTOR * max(history[-1] if history else 0.1, limits.tol)
-        sw = sweep(blocks, coupling, b, p, active, local_rtol=local_rtol, levels=levels, stacks=stacks, flat=flat)
+        sw = sweep(blocks, coupling, b, p, active, local_rtol=local_rtol, levels=levels, stacks=stacks)
         if sw.failed:
             message = f"local active-set solve did not converge on blocks {list(sw.failed)}"
             history.append(sw.change)
