@@ -66,6 +66,28 @@ def test_sources_carry_the_moments_up_to_second_order():
             assert np.isclose(S @ (nodes[:, 0] ** i * nodes[:, 1] ** j), m_cells, rtol=1e-12)
 
 
+@pytest.mark.parametrize("shape", [(21, 31), (1, 9), (7, 1)])
+def test_separable_strengths_carry_the_moments_of_the_owned_cells(shape):
+    """The tensor-product form of the sources (large patches keep no weights) carries the
+    moments ``x^i y^j`` (``i, j <= 2``) of the pressure on the owned cells alone."""
+    from twoscale.micro.sources import separable_strengths
+
+    g = Grid(1.0, 2.0, 0.1, shape[1], shape[0])
+    rng = np.random.default_rng(sum(shape))
+    owned = rng.random(g.shape) < 0.7
+    owned.flat[0] = True
+    X, Y = g.centres()
+    p = rng.random(int(owned.sum()))
+    nodes, centre, delta = source_nodes(g)
+    S = separable_strengths(g, owned, p[:, None])[:, 0]
+    want = source_strengths(np.column_stack([X[owned], Y[owned]]), p[:, None], centre, delta, g.h)[:, 0]
+    assert np.allclose(S, want, rtol=1e-12, atol=1e-15 * np.abs(want).max())
+    for i in range(3 if shape[1] > 2 else 1):
+        for j in range(3 if shape[0] > 2 else 1):
+            m_cells = np.sum(g.h**2 * p * X[owned] ** i * Y[owned] ** j)
+            assert np.isclose(S @ (nodes[:, 0] ** i * nodes[:, 1] ** j), m_cells, rtol=1e-12)
+
+
 def test_source_weights_are_the_nodes_lagrange_products_cell_by_cell():
     # row 3 j + i is node (y_j, x_i): h^2 L_j(eta) L_i(xi) of each cell, the quadratic
     # Lagrange functions of the nodes -1, 0, 1 written out one cell at a time

@@ -27,10 +27,10 @@ import scipy.sparse as sp
 from ..influence.base import InfluenceProvider
 from .blocks import Coupling
 from .kept_points import kept_operator
-from .level_far import LevelWeights
+from .level_far import LevelWeights, separable_far
 from .localblock import whole_patch, whole_patch_is_large
 from .near_window import FIRST_GATHER_ENTRIES
-from .sources import all_source_nodes, all_stencils, grid_interpolation, patch_source_weights
+from .sources import SEPARABLE_CELLS, all_source_nodes, all_stencils, all_strengths, grid_interpolation
 from .spectral_pairs import level_near
 
 
@@ -314,7 +314,7 @@ class LaggedFarField(FarFieldCoupling):
             self._weights.pop(key, None)
         self._cells.pop(k, None)
         self._sources.pop(k, None)
-        self._levels.clear()
+        self._levels.forget(k)  # the other levels' weights stay
         self._op = None
         self._table = None
         self._F = None
@@ -368,28 +368,23 @@ class LaggedFarField(FarFieldCoupling):
         if self._table is not None and len(held) == len(values) and all(map(operator.is_, held, values)):
             return
         n, m = len(self.patches), _columns(values)
-        S = np.zeros((n, 9, m))
-        for l, v in enumerate(values):
-            if v is not None and v.size:  # a block can own no cell (a neighbour owns its patch)
-                S[l] = self._source_weights(l) @ v.reshape(len(v), -1)
+        # the source weights kept until a patch changes (4,548 patches: made again at every
+        # refresh, half of the refresh's CPU), none for a large patch (:mod:`.level_far`)
+        S = all_strengths(self.patches, values, self._sources)
         self._table = self._point_operator().apply(S.reshape(9 * n, m)).reshape(n, 9, m)
         self.far_products += 1
 
-    def _source_weights(self, l: int) -> np.ndarray:
-        """Block ``l``'s (9, n) :func:`.sources.source_weights`, kept until its patch changes
-        (4,548 patches: made again at every refresh, half of the refresh's CPU)."""
-        w = self._sources.get(l)
-        if w is None:  # every patch's that is missing, in passes over many (:func:`.sources.patch_source_weights`)
-            todo = [k for k in range(len(self.patches)) if k not in self._sources]
-            self._sources.update(zip(todo, patch_source_weights([self.patches[k] for k in todo])))
-            w = self._sources[l]
-        return w
+    def _weighted(self, k: int) -> bool:
+        """Patch ``k`` keeps (9, n) source and (n, 9) interpolation weights (else their tensor-product forms)."""
+        return int(self.patches[k].owned.sum()) < SEPARABLE_CELLS
 
     def _far(self, k: int, values: list, whole: bool) -> np.ndarray:
         m = _columns(values)
         if self._table is None or self._table.shape[2] != m:
             self.refresh(values)
-        return self._interpolation(k, whole) @ self._table[k]
+        if self._weighted(k):
+            return self._interpolation(k, whole) @ self._table[k]
+        return separable_far(self.patches[k].grid, None if whole else self.patches[k].owned, self._table[k])
 
     def rhs_level(self, level: list, values: list, rhs: list) -> dict:
         """:meth:`rhs` ``{k: ...}`` of a sweep's blocks ``level`` (1-D ``rhs[k]``): the held far

@@ -103,6 +103,48 @@ def source_weights(points: np.ndarray, centre: np.ndarray, delta: np.ndarray, h:
     return out
 
 
+#: A patch of at least this many owned cells keeps no weights: its sources and its far field
+#: are taken by the weights' tensor-product forms (:func:`separable_strengths`,
+#: :func:`.level_far.separable_far`: three numbers a cell, not a (9, n) matrix; the smaller
+#: blocks' weights are worth keeping, a block's own call costing ~15 us).
+SEPARABLE_CELLS = 1024
+
+
+def all_strengths(patches, values: list, kept: dict) -> np.ndarray:
+    """The source strengths (N, 9, m) N of every block vector ``values[l]`` ((n_l,) or
+    (n_l, m) MPa, or None): by :func:`source_weights` kept in ``kept`` (by block, the missing
+    ones made in passes over many, :func:`patch_source_weights`) below
+    :data:`SEPARABLE_CELLS` owned cells, by :func:`separable_strengths` from there."""
+    first = next((v for v in values if v is not None and v.size), None)
+    S = np.zeros((len(patches), 9, 1 if first is None or first.ndim == 1 else first.shape[1]))
+    for l, v in enumerate(values):
+        if v is None or not v.size:  # a block can own no cell (a neighbour owns its patch)
+            continue
+        v = v.reshape(len(v), -1)
+        if len(v) >= SEPARABLE_CELLS:
+            S[l] = separable_strengths(patches[l].grid, patches[l].owned, v)
+            continue
+        if l not in kept:
+            todo = [k for k in range(len(patches)) if k not in kept and patches[k].owned.sum() < SEPARABLE_CELLS]
+            kept.update(zip(todo, patch_source_weights([patches[k] for k in todo])))
+        S[l] = kept[l] @ v
+    return S
+
+
+def separable_strengths(grid, owned: np.ndarray, values: np.ndarray) -> np.ndarray:
+    """:func:`source_weights` of the cells ``owned`` (ny, nx bool) of ``grid`` times the
+    pressure ``values`` (n, m) MPa on them, (9, m) N, by the weights' tensor-product form
+    ``h^2 L_y^T P L_x`` (``P`` the pressure on the grid): no (9, n) matrix kept, the same
+    sums in another order."""
+    centre, delta = source_frame(grid)
+    P = np.zeros((*grid.shape, values.shape[1]))
+    P[owned] = values
+    Ly = lagrange3((grid.y - centre[1]) / delta[1])
+    Lx = lagrange3((grid.x - centre[0]) / delta[0])
+    S = np.tensordot(np.tensordot(Ly, P, axes=(0, 0)), Lx, axes=(1, 0))  # (3 y, m, 3 x)
+    return (grid.h * grid.h) * S.transpose(0, 2, 1).reshape(9, -1)
+
+
 #: Owned cells :func:`patch_source_weights` takes in one pass (its temporaries: ~100 bytes a cell).
 WEIGHTS_CHUNK_CELLS = 1 << 18
 

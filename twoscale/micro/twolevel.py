@@ -274,13 +274,13 @@ def two_level(
             return TwoLevelResult(
                 sw.pressures, sw.active, theta, False, m, tuple(history), cg_iters, message, StopReason.FAILED
             )
-        dF = h2 * segment_sums(laid_end_to_end(sw.pressures), starts) - before
+        dF = h2 * segment_sums(sw.flat, starts) - before
         step = coarse.correct(blocks, patches, sw.pressures, sw.active, dF, theta, control, stacks)
         cg_iters += step.iterations
         new_active = [v > 0.0 for v in step.pressures]
         new = laid_end_to_end(step.pressures)
         change = relative_change(new, flat)
-        changed = sw.changed or bool(np.any((new > 0.0) != laid_end_to_end(sw.active, bool)))
+        changed = sw.changed or bool(np.any((new > 0.0) != sw.flat_active))
         p, active, theta, flat = step.pressures, new_active, step.theta, new
         history.append(change)
         if limits.monitor is not None:
