@@ -256,3 +256,21 @@ def newton_on_a_line(newton, x0: float, factor: float, max_iter: int, stops):
         max_iter=max_iter,
         stops=stops,
     )
+
+
+def lattice_patches(rng, n: int, spread: float, h: float, largest: int = 24) -> list:
+    """``n`` micro-step patches of 8 to ``largest`` cells a side on one lattice of cell ``h``
+    over ``spread`` mm, a neighbour owning a corner of about 30 % of them."""
+    from twoscale.grid import Grid
+    from twoscale.micro.patches import Patch
+
+    out = []
+    for k in range(n):
+        nx, ny = (int(v) for v in rng.integers(8, largest + 1, 2))
+        i0, j0 = (int(v) for v in rng.integers(0, int(spread / h), 2))
+        g = Grid(i0 * h, j0 * h, h, nx, ny)
+        owner = np.full(g.shape, k)
+        if rng.random() < 0.3:  # a neighbour owns a corner
+            owner[: ny // 3, : nx // 3] = -1
+        out.append(Patch(k, g, np.zeros(g.shape), owner))
+    return out

@@ -11,6 +11,8 @@ gathered from the kernel's window.
 import numpy as np
 import pytest
 
+from helpers import lattice_patches
+
 from twoscale import Material
 from twoscale.grid import Grid
 from twoscale.influence import HalfSpace
@@ -23,20 +25,6 @@ from twoscale.micro.twolevel import sweep_levels
 
 HS = HalfSpace(Material(10.0, 0.5))
 H = 0.02
-
-
-def _patches(rng, n: int, spread: float):
-    """``n`` patches of 8-24 cells a side on one lattice, some owning part of their grid."""
-    out = []
-    for k in range(n):
-        nx, ny = (int(v) for v in rng.integers(8, 25, 2))
-        i0, j0 = (int(v) for v in rng.integers(0, int(spread / H), 2))
-        g = Grid(i0 * H, j0 * H, H, nx, ny)
-        owner = np.full(g.shape, k)
-        if rng.random() < 0.3:  # a neighbour owns a corner
-            owner[: ny // 3, : nx // 3] = -1
-        out.append(Patch(k, g, np.zeros(g.shape), owner))
-    return out
 
 
 def _values(rng, patches):
@@ -52,7 +40,7 @@ def _values(rng, patches):
 @pytest.mark.parametrize("seed", [0, 1, 2])
 def test_level_rhs_equal_the_block_by_block_ones(seed):
     rng = np.random.default_rng(seed)
-    patches = _patches(rng, 40, 6.0)
+    patches = lattice_patches(rng, 40, 6.0, H)
     values = _values(rng, patches)
     b = [rng.normal(size=len(v)) * 1e-3 for v in values]
     kw = dict(far_tol=0.3, dense_max_entries=20_000, cache_bytes=2e5)  # some pairs past the dense blocks
@@ -72,7 +60,7 @@ def test_level_rhs_equal_the_block_by_block_ones(seed):
 
 def test_level_rhs_equal_the_exact_coupling_where_every_pair_is_near():
     rng = np.random.default_rng(5)
-    patches = _patches(rng, 12, 1.0)
+    patches = lattice_patches(rng, 12, 1.0, H)
     values = _values(rng, patches)
     b = [np.zeros(len(v)) for v in values]
     held = LaggedFarField(HS, patches, far_tol=1e-6, dense_max_entries=20_000, cache_bytes=1e5)
@@ -87,7 +75,7 @@ def test_level_rhs_equal_the_exact_coupling_where_every_pair_is_near():
 
 def test_stacked_weights_are_each_blocks_rows():
     rng = np.random.default_rng(3)
-    patches = _patches(rng, 6, 2.0)
+    patches = lattice_patches(rng, 6, 2.0, H)
     W, rows, starts = stacked_weights(patches, [4, 1, 2], lambda g: grid_interpolation(g.ny, g.nx))
     for i, k in enumerate([4, 1, 2]):
         g, own = patches[k].grid, patches[k].owned.ravel()
@@ -117,20 +105,6 @@ def test_separable_far_is_the_weight_tables_product(shape):
     assert np.abs(separable_far(g, owned, columns) - want[owned.ravel()]).max() <= 1e-14 * np.abs(columns).max()
 
 
-def _large_patches(rng, n: int, spread: float):
-    """``n`` patches of 8-60 cells a side, so that some pass the separable size."""
-    out = []
-    for k in range(n):
-        nx, ny = (int(v) for v in rng.integers(8, 61, 2))
-        i0, j0 = (int(v) for v in rng.integers(0, int(spread / H), 2))
-        g = Grid(i0 * H, j0 * H, H, nx, ny)
-        owner = np.full(g.shape, k)
-        if rng.random() < 0.3:
-            owner[: ny // 3, : nx // 3] = -1
-        out.append(Patch(k, g, np.zeros(g.shape), owner))
-    return out
-
-
 @pytest.mark.parametrize("seed", [0, 1])
 def test_level_rhs_after_a_patch_change_equal_a_fresh_far_fields(seed):
     """A patch replaced (grown, moved) in a far field that kept its levels' weights: every
@@ -139,7 +113,7 @@ def test_level_rhs_after_a_patch_change_equal_a_fresh_far_fields(seed):
     from twoscale.micro.sources import SEPARABLE_CELLS
 
     rng = np.random.default_rng(10 + seed)
-    patches = _large_patches(rng, 30, 6.0)
+    patches = lattice_patches(rng, 30, 6.0, H, largest=60)
     assert any(pt.owned.sum() >= SEPARABLE_CELLS for pt in patches)
     assert any(pt.owned.sum() < SEPARABLE_CELLS for pt in patches)
     kw = dict(far_tol=0.3, dense_max_entries=20_000, cache_bytes=2e5)

@@ -10,29 +10,15 @@ blocks); the per-vector transforms they keep serve a later call with the same ve
 import numpy as np
 import pytest
 
+from helpers import lattice_patches
+
 from twoscale import Material
-from twoscale.grid import Grid
 from twoscale.influence import HalfSpace
 from twoscale.micro.blocks import Coupling
-from twoscale.micro.patches import Patch
 from twoscale.micro.spectral_pairs import route_sums
 
 HS = HalfSpace(Material(10.0, 0.5))
 H = 0.02
-
-
-def _patches(rng, n: int, spread: float):
-    """``n`` patches of 8-24 cells a side on one lattice, some owning part of their grid."""
-    out = []
-    for k in range(n):
-        nx, ny = (int(v) for v in rng.integers(8, 25, 2))
-        i0, j0 = (int(v) for v in rng.integers(0, int(spread / H), 2))
-        g = Grid(i0 * H, j0 * H, H, nx, ny)
-        owner = np.full(g.shape, k)
-        if rng.random() < 0.3:  # a neighbour owns a corner
-            owner[: ny // 3, : nx // 3] = -1
-        out.append(Patch(k, g, np.zeros(g.shape), owner))
-    return out
 
 
 def _values(rng, patches):
@@ -44,7 +30,7 @@ def _values(rng, patches):
 @pytest.mark.parametrize("seed", [0, 1, 2])
 def test_stacked_route_sums_equal_each_targets_own_and_the_kernels(seed):
     rng = np.random.default_rng(seed)
-    patches = _patches(rng, 16, 2.0)
+    patches = lattice_patches(rng, 16, 2.0, H)
     values = _values(rng, patches)
     kw = dict(dense_max_entries=2_000, separated_rtol=None)  # most pairs on the spectral route
     one, many = Coupling(HS, patches, **kw), Coupling(HS, patches, **kw)

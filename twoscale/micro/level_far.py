@@ -62,9 +62,6 @@ class LevelWeights:
     def __init__(self):
         self._kept: dict = {}
 
-    def clear(self) -> None:
-        self._kept = {}
-
     def forget(self, k: int) -> None:
         """Patch ``k`` changed: drop the weights of the levels holding it (the others stay)."""
         self._kept = {key: hit for key, hit in self._kept.items() if k not in hit[3]}
