@@ -254,8 +254,11 @@ class WindowState:
         if len(self.past) < 2:
             ahead = 0.0 if self.ahead is None else self.ahead(one, grid, shift - self.past[-1][2], pc)
             return np.maximum(one + ahead, 0.0)
-        two = moved(*self.past[-2], grid, shift)
-        return np.where(one != 0.0, np.maximum(2.0 * one - two, 0.0), 0.0)
+        out = np.multiply(one, 2.0)  # (in place: 2 one - two, clipped, 0 where one is: four passes less)
+        out -= moved(*self.past[-2], grid, shift)
+        np.maximum(out, 0.0, out=out)
+        out[one == 0.0] = 0.0
+        return out
 
     def last_moved(self, grid: Grid, shift: float) -> np.ndarray | None:
         """The last signed field (:meth:`keep`) moved with the road to ``shift`` on ``grid``."""
