@@ -272,7 +272,7 @@ def test_a_rolled_stone_made_at_once_is_the_constructors(strip):
     gives: every field the same object, the same type, the same reach."""
     import dataclasses
 
-    from twoscale.rolling.road import RolledStone
+    from twoscale.rolling.stones import RolledStone
     from twoscale.rolling.track import prepare
 
     spec = RollingSpec(start=-6.0, end=-5.0, step=1.0, speed=30.0, tyre_radius=150.0, footprint=(30.0, 16.0))
@@ -331,11 +331,11 @@ def test_the_stones_of_a_flat_face_keep_their_reach_and_the_window_their_heights
 
 
 def test_the_stones_reaches_at_once_are_each_stones(strip):
-    """:func:`~twoscale.rolling.road.reaches` (all the basins' samples in one pass) gives each
+    """:func:`~twoscale.rolling.stones.reaches` (all the basins' samples in one pass) gives each
     stone's own ``reach`` at its own depth, none (0) at a depth of 0 or below, and takes
     other indenters one by one."""
     from twoscale.indenters import Asperity
-    from twoscale.rolling.road import reaches
+    from twoscale.rolling.stones import reaches
     from twoscale.rolling.track import prepare
 
     spec = RollingSpec(start=-6.0, end=6.0, step=1.0, speed=30.0, tyre_radius=150.0, footprint=(30.0, 16.0))
@@ -352,24 +352,24 @@ def test_the_stones_reaches_at_once_are_each_stones(strip):
 
 
 def test_a_window_covering_the_stones_extents_covers_their_reach_at_any_bound(strip):
-    """The window's cover checked first on the basins' extents (:func:`_covers_extents`): an
+    """The window's cover checked first on the basins' extents (:func:`covers_extents`): an
     extent is never less than the stone's reach at any depth, so a grid that covers the
     extents' box covers :func:`reference_grid` at every bound; a grid a few cells short of
     that box fails the check (the reach at the bound then decides)."""
     from twoscale.rolling.boxes import covers
     from twoscale.rolling.track import prepare
-    from twoscale.rolling.window import _covers_extents, _reach_grid, reference_grid
+    from twoscale.rolling.reach import covers_extents, reach_grid, reference_grid
 
     spec = RollingSpec(start=-6.0, end=6.0, step=1.0, speed=30.0, tyre_radius=150.0, footprint=(30.0, 16.0))
     track = prepare(Scene(material=MAT, surface=strip, rolling=spec, total_load=60.0))
     selection = track.road.stones_at(0.5, 1.0)
     assert all(s.reach(np.inf) <= s.extent for s in selection.stones)
-    grid = _reach_grid(track, selection, np.array([s.extent for s in selection.stones]))
-    assert _covers_extents(grid, track, selection)
+    grid = reach_grid(track, selection, np.array([s.extent for s in selection.stones]))
+    assert covers_extents(grid, track, selection)
     for bound in (0.0, 0.3, 1.0, 10.0):
         assert covers(grid, reference_grid(track, selection, bound))
     short = Grid(grid.x0 + 2 * grid.h, grid.y0, grid.h, grid.nx - 2, grid.ny)
-    assert not _covers_extents(short, track, selection)
+    assert not covers_extents(short, track, selection)
 
 
 def test_thestones_surface_on_the_maps_lattice_is_surface_ons(strip):
@@ -379,7 +379,7 @@ def test_thestones_surface_on_the_maps_lattice_is_surface_ons(strip):
     general sampling)."""
     from twoscale.indenters import surface_on
     from twoscale.rolling.track import prepare
-    from twoscale.rolling.road import stones_surface
+    from twoscale.rolling.stones import stones_surface
 
     spec = RollingSpec(start=-6.0, end=6.0, step=1.0, speed=30.0, tyre_radius=150.0, footprint=(30.0, 16.0))
     road = prepare(Scene(material=MAT, surface=strip, rolling=spec, total_load=60.0)).road

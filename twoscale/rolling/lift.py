@@ -76,18 +76,19 @@ def touching_outside(body, surface, result, tol: float) -> Grid | None:
     window with a cell near contact takes the exact one."""
     f = result.fields[0]
     window = surface.grid
-    outside = np.isfinite(surface.height)
-    outside[f.grid.window_in(window)] = False
-    level = surface.height - result.penetration
-    low = outside & (level < 0.0)
+    low = surface.height < result.penetration  # (the cells outside below the approach: inf is not)
+    low[f.grid.window_in(window)] = False
     if not np.any(low):
         return None  # no cell outside lies below the approach (the pressure only lifts them)
     e_star = half_space_modulus(body.provider)
     if e_star is not None:  # kept off by a lower bound of the lift?
         rows, cols = np.divmod(np.flatnonzero(low), window.nx)  # (np.nonzero on two axes: ~8x the time)
         x, y = window.x0 + cols * window.h, window.y0 + rows * window.h
-        if kept_off(f.pressure, f.grid, x, y, level[rows, cols], e_star):
+        if kept_off(f.pressure, f.grid, x, y, surface.height[rows, cols] - result.penetration, e_star):
             return None
+    outside = np.isfinite(surface.height)
+    outside[f.grid.window_in(window)] = False
+    level = surface.height - result.penetration
     op, p = body.grid_operator(window), f.grid.embed_in(f.pressure, window)
     u = op.single_precision().apply(p)
     scale = max(float(np.abs(u[f.grid.window_in(window)]).max()), np.finfo(float).tiny)

@@ -12,7 +12,7 @@ import math
 from ..indenters import surface_on
 from ..results import ContactResult
 from .run import Position, RollingOptions, drag_of, solve_position
-from .window import reference_grid
+from .reach import reference_grid
 from .track import Track
 
 
@@ -23,7 +23,7 @@ def reference_position(track: Track, position: Position, *, tol: float = 1e-8) -
     from ..reference import solve_reference
 
     sel, scene = position.selection, track.scene
-    low = min(s.z for s in sel.stones)
+    low = sel.low
     d = position.result.penetration
     bound = d if track.control == "penetration" else d + 0.5 * max(d - low, track.h)
     grid = reference_grid(track, sel, bound)

@@ -16,7 +16,7 @@ from .spec import RollingSpec
 @dataclass(frozen=True)
 class Position:
     """One solved position: its index, the stones given (a
-    :class:`~twoscale.rolling.road.Selection`), the solve (a ContactResult), the drag (N),
+    :class:`~twoscale.rolling.stones.Selection`), the solve (a ContactResult), the drag (N),
     the wall-clock time it took (s) and the CPU time of the thread that solved it (s; nan
     where it was not taken)."""
 

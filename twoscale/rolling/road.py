@@ -12,17 +12,15 @@ the basin plus the face, found on the basin's own samples.
 
 from __future__ import annotations
 
-import dataclasses
 import math
 from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..grid import Grid
-from ..indenters import Asperity, Surface, surface_on
+from ..indenters import Asperity
 from ..scene import Scene
-from ..surface.indenter import MapAsperity
 from .spec import RollingSpec
+from .stones import RolledStone, Selection, ShiftedBasins, ShiftedTip
 
 
 #: Points this close to the face window's edge (mm) are inside it (rounding of cell centres).
@@ -63,123 +61,6 @@ class Face:
         if self.spec.tyre_shape == "parabola":
             return x / R
         return x / math.sqrt(max(R * R - x * x, 1e-300))
-
-
-@dataclass(frozen=True, eq=False)
-class ShiftedBasins:
-    """The basins of a height map shifted along x and seen through a face: the ``group``
-    the solvers sample (:func:`twoscale.indenters.surface_on`), as a
-    :class:`~twoscale.surface.indenter.BasinMap` is."""
-
-    base: object  # BasinMap of the whole strip
-    shift: float
-    face: Face
-
-    @property
-    def grid(self):
-        return self.base.grid
-
-    @property
-    def book(self):
-        return self.base.book
-
-    @property
-    def labels(self):
-        return self.base.labels
-
-    @property
-    def n_labels(self) -> int:
-        return self.base.n_labels
-
-    def lookup(self, X, Y, label: int) -> np.ndarray:
-        return self.base.lookup(np.asarray(X) - self.shift, Y, label) + self.face.height(X, Y)
-
-    def union_on(self, X, Y, index: dict):
-        hk, owner = self.base.union_on(np.asarray(X) - self.shift, Y, index)
-        hk = hk + self.face.height(X, Y)
-        return hk, np.where(np.isfinite(hk), owner, -1)
-
-    def union_on_grid(self, grid, index: dict):
-        """:meth:`union_on` at the cell centres of ``grid`` when, shifted back by the shift,
-        they are samples of the map's lattice: windows of the map (a window of 200,000
-        cells: ~10 -> 2 ms), else None."""
-        moved = dataclasses.replace(grid, x0=grid.x0 - self.shift)
-        found = self.base.union_on_grid(moved, index)
-        if found is None:
-            return None
-        np.add(found[0], self.face.on_grid(grid), out=found[0])  # (new arrays: in place, two passes less)
-        found[1][~np.isfinite(found[0])] = -1
-        return found
-
-
-@dataclass(frozen=True)
-class ShiftedTip(Asperity):
-    """A sphere or paraboloid of the road shifted by ``shift`` and seen through ``face``;
-    its tip and recess are the first-order ones of the tip on the tilted face."""
-
-    base: Asperity | None = field(default=None, repr=False)
-    shift: float = 0.0
-    face: Face | None = field(default=None, repr=False)
-
-    def height(self, X, Y):
-        return self.base.height(np.asarray(X) - self.shift, Y) + self.face.height(X, Y)
-
-    @property
-    def material_radius(self) -> float:
-        return self.base.material_radius + abs(self.x - self.base.x - self.shift)
-
-    def reach(self, depth: float) -> float:
-        return self.base.reach(depth) + abs(self.x - self.base.x - self.shift)
-
-
-@dataclass(frozen=True, eq=False)
-class RolledStone(MapAsperity):
-    """A basin of the road at one position: a :class:`~twoscale.surface.indenter.MapAsperity`
-    whose samples' depths below the summit ``fall`` are recess + face (``inf`` outside the
-    face's window), ``dist`` their distances from its summit there."""
-
-    def __post_init__(self) -> None:
-        pass  # made by :meth:`Road.map_stones` from a checked basin: finite by construction
-
-    @classmethod
-    def of(cls, *values) -> "RolledStone":
-        """The stone of the fields' ``values`` in their order, as the constructor makes it,
-        its fields written at once (the frozen ``__init__`` sets its 10 one by one through
-        ``object.__setattr__``: ~4 us a stone against ~1, ~560 stones a tyre's position)."""
-        stone = object.__new__(cls)
-        stone.__dict__.update(zip(_ROLLED_FIELDS, values))
-        return stone
-
-
-_ROLLED_FIELDS = tuple(f.name for f in dataclasses.fields(RolledStone))
-
-
-def reaches(stones, depths: np.ndarray) -> np.ndarray:
-    """Each stone's ``reach(depth)`` (mm) for its ``depths`` (mm): the basins' (:class:`RolledStone`)
-    on all their samples at once (one loop over ~500 stones a position cost ~4 ms), the
-    others' one by one."""
-    depths = np.asarray(depths, dtype=float)
-    if not stones or not all(type(s) is RolledStone for s in stones):
-        return np.array([s.reach(float(d)) for s, d in zip(stones, depths.tolist())], dtype=float)
-    counts = np.array([s.fall.size for s in stones])
-    fall = np.concatenate([s.fall for s in stones])
-    dist = np.concatenate([s.dist for s in stones])
-    within = fall < np.repeat(depths, counts)  # (a fall is >= 0: a depth <= 0 takes no sample)
-    starts = np.concatenate([[0], np.cumsum(counts)[:-1]])
-    out = np.zeros(len(stones))
-    some = counts > 0
-    out[some] = np.maximum.reduceat(np.where(within, dist, 0.0), starts[some])
-    return out
-
-
-@dataclass(frozen=True)
-class Selection:
-    """The stones of one position: the indenters (body frame) and their numbers in the
-    road (0-based: the segmentation's labels, or the scene's tip order)."""
-
-    stones: tuple
-    numbers: np.ndarray
-    shift: float
 
 
 class Road:
@@ -251,27 +132,38 @@ class Road:
         (mm, below the strip's highest point): none left out can touch, since the body's
         surface only moves away from the road under pressure."""
         face = self.face
-        out, numbers = [], []
-        if self.surface is not None:
-            group = ShiftedBasins(self.basins, shift, face)
-            rank = self.rank[self.candidates(shift, bound)]
-            if rank.size:  # the slab of stones from the first candidate to the last
-                lo, hi = int(rank.min()), int(rank.max()) + 1
-                ks = self.by_x[lo:hi]
-                a, b = self.sample_start[lo], self.sample_start[hi]
-                counts = np.diff(self.sample_start[lo : hi + 1])
-                slab = self._mapped(ks, [v[a:b] for v in self.samples], counts, shift, group, bound)
-                for i in np.argsort(ks, kind="stable").tolist():  # the road's order
-                    if slab[i] is not None:
-                        out.append(slab[i])
-                        numbers.append(int(ks[i]))
-        else:
+        if self.surface is None:
+            out, numbers = [], []
             for k in self.candidates(shift, bound):
                 stone = self._tip(self.tips[k], shift, face)
                 if stone is not None and stone.z < bound:
                     out.append(stone)
                     numbers.append(int(k))
-        return Selection(tuple(out), np.array(numbers, dtype=np.int64), float(shift))
+            return Selection(tuple(out), np.array(numbers, dtype=np.int64), float(shift))
+        group = ShiftedBasins(self.basins, shift, face)
+        rank = self.rank[self.candidates(shift, bound)]
+        if not rank.size:
+            return Selection((), np.zeros(0, dtype=np.int64), float(shift), group=group)
+        lo, hi = int(rank.min()), int(rank.max()) + 1  # the slab of stones from the first candidate to the last
+        ks = self.by_x[lo:hi]
+        a, b = self.sample_start[lo], self.sample_start[hi]
+        counts = np.diff(self.sample_start[lo : hi + 1])
+        slab, summits = self._mapped(ks, [v[a:b] for v in self.samples], counts, shift, group, bound)
+        order = np.argsort(ks, kind="stable")  # the road's order
+        order = order[~np.isnan(summits[order, 2])]
+        stones = tuple(slab[i] for i in order.tolist())
+        return Selection(stones, ks[order].astype(np.int64), float(shift), summits[order], group)
+
+    def farthest(self, selection: Selection) -> np.ndarray:
+        """A bound of each basin's extent in ``selection`` (mm): its samples' box's farthest
+        corner from its summit (on the tyre's window the bound decides its cover, without
+        the extents' passes over the stones' samples); a little more for the rounding of
+        the summit moved back to the road."""
+        box = self.box[selection.numbers]
+        x, y = selection.summits[:, 0] - selection.shift, selection.summits[:, 1]
+        dx = np.maximum(np.abs(box[:, 0] - x), np.abs(box[:, 1] - x))
+        dy = np.maximum(np.abs(box[:, 2] - y), np.abs(box[:, 3] - y))
+        return np.hypot(dx, dy) * (1.0 + 1e-9) + 1e-9
 
     def map_stones(self, ks, shift: float, group: ShiftedBasins) -> list:
         """Basins ``ks`` at ``shift`` (:meth:`_mapped`)."""
@@ -280,23 +172,25 @@ class Road:
         parts = [np.arange(self.sample_start[i], self.sample_start[i + 1]) for i in r.tolist()]
         flat = np.concatenate(parts) if parts else np.zeros(0, dtype=np.int64)
         counts = self.sample_start[r + 1] - self.sample_start[r]
-        return self._mapped(ks, [v[flat] for v in self.samples], counts, shift, group, np.inf)
+        return self._mapped(ks, [v[flat] for v in self.samples], counts, shift, group, np.inf)[0]
 
-    def _mapped(self, ks, samples: list, counts: np.ndarray, shift: float, group: ShiftedBasins, bound: float) -> list:
+    def _mapped(self, ks, samples: list, counts: np.ndarray, shift: float, group: ShiftedBasins, bound: float):
         """Basins ``ks`` (their ``samples`` x, y, recess one after the other, ``counts`` each)
         at ``shift`` (:class:`RolledStone`: summit, recess and the samples of recess + face
         for the reach), None for one with no sample in the face's window or whose summit
-        is not below ``bound``. All the basins' samples in one pass (a loop over the ~500
+        is not below ``bound``, and their summits' ``(x, y, z)`` (body frame, mm; a row
+        each, nan for the Nones). All the basins' samples in one pass (a loop over the ~500
         stones within reach of a tyre cost ~20 ms a position)."""
+        summits = np.full((len(ks), 3), np.nan)
         if not len(ks):
-            return []
+            return [], summits
         starts = np.concatenate([[0], np.cumsum(counts)[:-1]])
         x, y = samples[0], samples[1]  # (on the road: the distances below do not depend on the shift)
         rec = samples[2] + self._face_at(shift)[samples[3]]
         low = np.minimum.reduceat(rec, starts)
         keep = (low < bound) & np.isfinite(low)
         if not keep.any():
-            return [None] * len(keep)
+            return [None] * len(keep), summits
         # the passes over every stone of the slab, the few that cannot touch with no summit
         # (their fall nan): cheaper than taking the others' samples out (~1.8 ms); in place
         # (~250,000 samples a tyre's position: fresh temporaries cost ~1 of ~5 ms)
@@ -307,26 +201,24 @@ class Road:
         top = first[np.unique(np.searchsorted(starts, first, side="right"), return_index=True)[1]]
         xt, yt = np.zeros((2, len(keep)))
         xt[keep], yt[keep] = x[top], y[top]
-        r, dy = np.subtract(x, np.repeat(xt, counts)), np.subtract(y, np.repeat(yt, counts))
-        r *= r
-        dy *= dy
-        r += dy
-        np.sqrt(r, out=r)  # (np.hypot: ~40 ns a sample, 10 of the pass's 25 ms)
-        extent = np.maximum.reduceat(np.where(np.isfinite(rec), r, -np.inf), starts)
-        xt[keep] += shift
         ks, low, counts, starts = np.asarray(ks)[keep], low[keep], counts[keep], starts[keep]
-        xt, yt, extent = xt[keep], yt[keep], extent[keep]
+        xt, yt = xt[keep], yt[keep]
+        summits[keep] = np.column_stack([xt + shift, yt, low])
         ends = (starts + counts).tolist()
         made = []
-        columns = zip(np.asarray(ks).tolist(), xt.tolist(), yt.tolist(), low.tolist(), extent.tolist())
-        for (k, x0, y0, z, reach), a, b in zip(columns, starts.tolist(), ends):
+        # (their distances from the summit and extent when first asked for: RolledStone.lazy)
+        columns = zip(ks.tolist(), xt.tolist(), yt.tolist(), low.tolist(), summits[keep, 0].tolist())
+        for (k, x0, y0, z, xb), a, b in zip(columns, starts.tolist(), ends):
             base = self.tips[k]
-            fields = (x0, y0, z, base.R, "map", group, base.label, reach)
-            made.append(RolledStone.of(*fields, fall[a:b], r[a:b]))
+            made.append(
+                RolledStone.lazy(
+                    (xb, y0, z, base.R, "map", group, base.label, fall[a:b]), (x[a:b], y[a:b], rec[a:b], x0, y0)
+                )
+            )
         out: list = [None] * len(keep)
         for i, stone in zip(np.flatnonzero(keep).tolist(), made):
             out[i] = stone
-        return out
+        return out, summits
 
     def _face_at(self, shift: float) -> np.ndarray:
         """:meth:`Face.height` of the strip's sample columns at ``shift`` and ``inf`` last
@@ -385,16 +277,3 @@ def _x_slope(recess: np.ndarray, h: float) -> np.ndarray:
         np.isfinite(central), central, np.where(np.isfinite(fwd), fwd, np.where(np.isfinite(back), back, 0.0))
     )
     return np.where(np.isfinite(r), out, 0.0)
-
-
-def stones_surface(grid: Grid, stones) -> Surface:
-    """:func:`~twoscale.indenters.surface_on` of ``stones`` on ``grid``: when they are all
-    basins of one shifted height map on its lattice, the map's windows themselves (the
-    union of a single group is its own sampling: the same arrays without the grid-sized
-    fill, comparison and two masked copies, ~2 of ~4 ms on the tyre's window)."""
-    group = getattr(stones[0], "group", None) if stones else None
-    if group is not None and all(type(s) is RolledStone and s.group is group for s in stones):
-        found = group.union_on_grid(grid, {s.label: k for k, s in enumerate(stones)})
-        if found is not None:
-            return Surface(grid, found[0], found[1], len(stones))
-    return surface_on(grid, stones)

@@ -32,7 +32,7 @@ from ..collector import frozen_objects
 from .record import Recorder
 from .result import Position, RollingResult
 from .first_contact import hertz_level
-from .road import Selection
+from .stones import Selection
 from .track import Track, prepare, tyre_contact_length, warn_if_cut
 from ..threads import single_threads
 
@@ -146,8 +146,7 @@ def _start(previous: Position | None, selection: Selection, options: RollingOpti
     ws = warm_start(
         previous.result, tips, len(selection.stones), h or 1.0, index=index, pressure=options.pressure_start
     )
-    low_then = min(s.z for s in previous.selection.stones)
-    low_now = min(s.z for s in selection.stones)
+    low_then, low_now = previous.selection.low, selection.low
     macro = MacroStart(ws.macro.forces, previous.result.penetration + (low_now - low_then), ws.macro.tilt)
     return WarmStart(macro, ws.micro)
 
@@ -156,8 +155,7 @@ def _depth(position: Position | None, h: float) -> float:
     """The previous position's local approach (approach less its lowest stone's recess), mm."""
     if position is None or not position.selection.stones:
         return h
-    low = min(s.z for s in position.selection.stones)
-    return max(position.result.penetration - low, h)
+    return max(position.result.penetration - position.selection.low, h)
 
 
 def _bound(track: Track, shift: float, previous: Position | None) -> float:
@@ -167,14 +165,11 @@ def _bound(track: Track, shift: float, previous: Position | None) -> float:
     if track.control == "penetration":
         return float(scene.penetration)
     if previous is not None:
-        low = float(np.min(track.road.lowest(shift), initial=np.inf))
-        return max(previous.result.penetration, low + _depth(previous, track.h)) + BOUND_GROWTH * _depth(
-            previous, track.h
-        )
+        low, depth = float(np.min(track.road.lowest(shift), initial=np.inf)), _depth(previous, track.h)
+        return max(previous.result.penetration, low + depth) + BOUND_GROWTH * depth
     wide = _all_stones(track, shift)
     d = hertz_level(wide.stones, scene.material.E_star, scene.total_load)
-    low = min(s.z for s in wide.stones)
-    return d + 2.0 * max(d - low, track.h)
+    return d + 2.0 * max(d - wide.low, track.h)
 
 
 def _all_stones(track: Track, shift: float) -> Selection:
@@ -203,7 +198,7 @@ def step(track: Track, index: int, previous: Position | None, options: RollingOp
     if not selection.stones and track.control == "penetration":  # nothing within reach of the body here
         return Position(index, selection, _no_contact(track), 0.0, time.perf_counter() - t0, time.thread_time() - c0)
     if not selection.stones:
-        bound = min(s.z for s in _all_stones(track, shift).stones) + (1 + BOUND_GROWTH) * _depth(previous, track.h)
+        bound = _all_stones(track, shift).low + (1 + BOUND_GROWTH) * _depth(previous, track.h)
         selection = track.road.stones_at(shift, bound)
     for attempt in range(MAX_REBOUNDS + 1):
         if attempt:
@@ -211,9 +206,7 @@ def step(track: Track, index: int, previous: Position | None, options: RollingOp
         result = _solve(track, selection, bound, previous, options, state)
         if track.control == "penetration" or result.penetration < bound:
             break
-        bound = result.penetration + BOUND_GROWTH * max(
-            result.penetration - min(s.z for s in selection.stones), track.h
-        )
+        bound = result.penetration + BOUND_GROWTH * max(result.penetration - selection.low, track.h)
     else:  # the approach kept passing the bound: stones left out might touch
         result = dataclasses.replace(
             result,

@@ -35,7 +35,8 @@ from ..errors import SceneError
 from ..grid import Grid
 from .record import line_load_of, lines_on_lattice
 from .result import Position, RollingResult, StoneSignals
-from .road import Road, Selection, ShiftedBasins
+from .road import Road
+from .stones import Selection, ShiftedBasins
 from .track import Track, footprint_length
 
 #: Recess (mm) of a stone that has no sample inside the window at a shift: out of reach.

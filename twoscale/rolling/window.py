@@ -57,12 +57,12 @@ from typing import Callable
 import numpy as np
 
 from ..grid import Grid
-from ..indenters import Surface, surface_on
+from ..indenters import Surface
 from .blocks import StoneBlocks
 from .boxes import CUT_MARGIN_CELLS, clipped, covers, cut_grid, fast_grid, grown, loaded_box, moved, union
 from .lift import touching_outside
-from .road import RolledStone, Selection, reaches, stones_surface
-from .track import Track
+from .reach import contact_box, covers_extents, low_box, reference_grid
+from .stones import stones_surface
 
 #: Cells added on every side when the window is built or grows.
 MARGIN_CELLS = 8
@@ -254,8 +254,11 @@ class WindowState:
         if len(self.past) < 2:
             ahead = 0.0 if self.ahead is None else self.ahead(one, grid, shift - self.past[-1][2], pc)
             return np.maximum(one + ahead, 0.0)
-        two = moved(*self.past[-2], grid, shift)
-        return np.where(one != 0.0, np.maximum(2.0 * one - two, 0.0), 0.0)
+        out = np.multiply(one, 2.0)  # (in place: 2 one - two, clipped, 0 where one is: four passes less)
+        out -= moved(*self.past[-2], grid, shift)
+        np.maximum(out, 0.0, out=out)
+        out[one == 0.0] = 0.0
+        return out
 
     def last_moved(self, grid: Grid, shift: float) -> np.ndarray | None:
         """The last signed field (:meth:`keep`) moved with the road to ``shift`` on ``grid``."""
@@ -283,59 +286,19 @@ class WindowState:
         self.past = (self.past + [(f.grid, signed, shift)])[-2:]
 
 
-def reference_grid(track: Track, selection: Selection, bound: float) -> Grid:
-    """Cells of ``track.h`` (lattice h Z^2) covering where ``selection``'s stones can touch
-    at approaches up to ``bound``, within the face window."""
-    z = np.array([s.z for s in selection.stones])
-    return _reach_grid(track, selection, reaches(selection.stones, np.maximum(bound - z, 0.0)))
-
-
-def _reach_grid(track: Track, selection: Selection, reach: np.ndarray) -> Grid:
-    """:func:`reference_grid` for the stones' ``reach`` (mm) instead of their reach at the bound."""
-    h = track.h
-    x, y = np.array([(s.x, s.y) for s in selection.stones]).T
-    r = reach * 1.05 + 3.0 * h
-    x0, x1, y0, y1 = track.road.window
-    lo_x, hi_x = max((x - r).min(), x0 - h), min((x + r).max(), x1 + h)
-    lo_y, hi_y = max((y - r).min(), y0 - h), min((y + r).max(), y1 + h)
-    return Grid.covering(lo_x, hi_x, lo_y, hi_y, h)
-
-
-def contact_box(track, selection, bound: float) -> Grid | None:
-    """The box of the cells of ``selection``'s stones that lie below ``bound`` (the only
-    ones that can touch when the approach is at most ``bound``), on the run's lattice;
-    None when no cell is that low."""
-    reach = reference_grid(track, selection, bound)
-    return _low_box(surface_on(reach, selection.stones), bound)
-
-
-def _low_box(surface, bound: float) -> Grid | None:
-    low = np.isfinite(surface.height) & (surface.height < bound)
-    return loaded_box(surface.grid, low)
-
-
 def _window_surface(track, selection, bound: float, state: WindowState):
     """The kept window (grown if need be) and the stones' surface on it, or None when no
     cell can touch: the surface is sampled once, on the kept window, when the stones'
     reach lies inside it (the box of their low cells then does too)."""
     g = state.grid
-    if g is not None and (_covers_extents(g, track, selection) or covers(g, reference_grid(track, selection, bound))):
-        surface = stones_surface(g, selection.stones)
-        return None if _low_box(surface, bound) is None else (g, surface)
+    if g is not None and (covers_extents(g, track, selection) or covers(g, reference_grid(track, selection, bound))):
+        surface = stones_surface(g, selection.stones, selection.group)
+        return None if low_box(surface, bound) is None else (g, surface)
     box = contact_box(track, selection, bound)
     if box is None:
         return None
     grid = state.window(box)
-    return grid, stones_surface(grid, selection.stones)
-
-
-def _covers_extents(grid: Grid, track: Track, selection: Selection) -> bool:
-    """Whether ``grid`` covers :func:`reference_grid` at any bound: its box with each basin's
-    extent (its farthest sample from the summit, never less than its reach) for the reach
-    (no pass over the basins' ~250,000 samples); False for stones other than basins."""
-    if not selection.stones or not all(type(s) is RolledStone for s in selection.stones):
-        return False
-    return covers(grid, _reach_grid(track, selection, np.array([s.extent for s in selection.stones])))
+    return grid, stones_surface(grid, selection.stones, selection.group)
 
 
 def solve_window(track, selection, bound: float, state: WindowState, tol: float):
@@ -350,7 +313,7 @@ def solve_window(track, selection, bound: float, state: WindowState, tol: float)
         return None
     grid, surface = found
     scene = track.scene
-    cut = state.cut_in(grid, lambda: _low_box(surface, bound))
+    cut = state.cut_in(grid, lambda: low_box(surface, bound))
     if not np.isfinite(_restricted(surface, cut).height).any():
         cut = grid  # no stone's material in the cut (cannot carry a load): the whole window
     blocks = None if state.blocks is None else state.blocks.at(selection.numbers, selection.shift, grid.h)
