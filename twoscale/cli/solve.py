@@ -35,7 +35,8 @@ from ..io.warning_log import WarningLog
 from ..micro.policy import ITERATIONS
 from ..progress import StatusLine
 from ..resources import check_solve_memory
-from .route_text import method_lines
+from .body import build_body, with_build
+from .route_text import iteration_text, method_lines
 from ..results import ContactResult
 from ..api import solve_scene
 from ..scene import SCENE_METHODS, SceneError, default_h
@@ -125,19 +126,23 @@ def _run(args: argparse.Namespace, log: WarningLog) -> int:
 
             return run_rolling(scene, args, log)
         options, iteration = _solver_options(scene, args)
+        t0 = time.perf_counter()
+        body, built = build_body(scene, quiet=args.quiet)  # a block: built once, its cache read once
         # before anything large is allocated: refuse a solve the machine cannot hold
         check_solve_memory(
-            scene, default_h(scene), args.method, iteration=iteration, option="--h", h_given=args.h is not None
+            scene,
+            default_h(scene),
+            args.method,
+            iteration=iteration,
+            option="--h",
+            h_given=args.h is not None,
+            provider=body,
         )
-        t0 = time.perf_counter()
-        quiet_block = {"progress": False} if args.quiet and scene.influence["kind"] == "block" else None
         with StatusLine(quiet=args.quiet) as status:
             if args.method == "twoscale" and scene.history is None:
                 options["progress"] = status
-            result = solve_scene(
-                scene, method=args.method, provider_options=quiet_block, memory_limit=math.inf, **options
-            )
-        wall = time.perf_counter() - t0
+            result = solve_scene(scene, method=args.method, provider=body, memory_limit=math.inf, **options)
+        result, wall = with_build(result, built), time.perf_counter() - t0
         if isinstance(result, ContactResult):  # a history's result names its scene per output time
             result = dataclasses.replace(result, scene_name=Path(args.scene).stem)  # for titles and result.json
     except ValueError as exc:  # SceneError and solver input checks
@@ -253,25 +258,6 @@ def write_block_field_file(result, scene, out_dir, *, quiet: bool = False):
 
     provider = scene.provider(**({"progress": False} if quiet else {}))
     return write_block_field(result, provider, Path(out_dir) / BLOCK_FIELD_NAME, scene=scene_to_dict(scene))
-
-
-#: How each iteration count reads in the summary (counts of 0 are left out).
-ITERATION_WORDS = {
-    "macro": "macro-step Newton iterations",
-    "macro_krylov": "Krylov iterations in them",
-    "micro": "micro-step sweeps",
-    "corrections": "approach corrections",
-    "sensitivity_sweeps": "sensitivity sweeps",
-    "outer": "active-set passes",
-    "cg": "conjugate-gradient iterations",
-    "products": "grid products",
-}
-
-
-def iteration_text(iterations: dict) -> str:
-    """``"3 macro-step Newton iterations, 6 micro-step sweeps"``: the non-zero counts in words."""
-    parts = [f"{n} {ITERATION_WORDS.get(k, k.replace('_', ' '))}" for k, n in iterations.items() if n]
-    return ", ".join(parts) or "no iterations"
 
 
 def near_zero(values, scale: float, rtol: float = 1e-6) -> list[str]:
