@@ -229,7 +229,7 @@ def _history_done(result, scene, args, wall: float, log: WarningLog) -> int:
             f"{result.error_estimate:.2g}\n"
             f"  output times {len(result.times)}, from {result.times[0]:.4g} to {result.times[-1]:.4g} s\n"
             f"  last         load {result.total_load[-1]:.6g} N, approach {result.penetration[-1]:.6g} mm, "
-            f"area {result.contact_area[-1]:.6g} mm^2\n"
+            f"contact area {result.contact_area[-1]:.6g} mm2\n"
             f"  time         {wall:.3g} s" + (f"\n{_wrote_line(Path(args.out))}" if args.out else "")
         )
     if not result.converged:
