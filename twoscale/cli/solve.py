@@ -150,7 +150,7 @@ def _run(args: argparse.Namespace, log: WarningLog) -> int:
         return 2
     if scene.history is not None:
         return _history_done(result, scene, args, wall, log)
-    return _static_done(result, scene, args, wall, log)
+    return _static_done(result, scene, args, wall, log, body)
 
 
 def _solver_options(scene, args: argparse.Namespace) -> tuple[dict, str]:
@@ -183,8 +183,11 @@ def _solver_options(scene, args: argparse.Namespace) -> tuple[dict, str]:
     return options, iteration
 
 
-def _static_done(result: ContactResult, scene, args: argparse.Namespace, wall: float, log: WarningLog) -> int:
-    """Write and report one static solve (``DIR/result.json`` and the rest); the exit code."""
+def _static_done(
+    result: ContactResult, scene, args: argparse.Namespace, wall: float, log: WarningLog, body=None
+) -> int:
+    """Write and report one static solve (``DIR/result.json`` and the rest); the exit code.
+    ``body``: the block solved on (its factorisation serves ``--block-field``), or None."""
     path = None
     # result.json's content and the terminal summary: one dictionary
     record = (
@@ -196,7 +199,7 @@ def _static_done(result: ContactResult, scene, args: argparse.Namespace, wall: f
     )
     if args.out is not None:
         try:
-            write_outputs(result, scene, args, record=record)
+            write_outputs(result, scene, args, record=record, body=body)
         except (OSError, ValueError) as exc:  # a folder changed during the solve, a full disk, ...
             print(f"error: writing {args.out}: {exc}", file=sys.stderr)
             return 2
@@ -238,7 +241,7 @@ def _history_done(result, scene, args, wall: float, log: WarningLog) -> int:
     return 0
 
 
-def write_outputs(result, scene, args, *, record: dict | None = None) -> None:
+def write_outputs(result, scene, args, *, record: dict | None = None, body=None) -> None:
     """Write every file of ``--out`` into a temporary folder renamed to DIR at the end
     (whole or nothing; an earlier output replaced only with ``--overwrite``); ``record``:
     result.json's content when already built."""
@@ -248,15 +251,16 @@ def write_outputs(result, scene, args, *, record: dict | None = None) -> None:
         )
         write_fields_and_figures(result, scene, tmp, source=str(args.scene))
         if getattr(args, "block_field", False):
-            write_block_field_file(result, scene, tmp, quiet=args.quiet)
+            write_block_field_file(result, scene, tmp, quiet=args.quiet, provider=body)
 
 
-def write_block_field_file(result, scene, out_dir, *, quiet: bool = False):
+def write_block_field_file(result, scene, out_dir, *, quiet: bool = False, provider=None):
     """Write ``DIR/block_displacement.vtu`` for a block scene (see :mod:`twoscale.io.block_field`)."""
     from ..io.block_field import BLOCK_FIELD_NAME, write_block_field
     from ..io.scene_file import scene_to_dict
 
-    provider = scene.provider(**({"progress": False} if quiet else {}))
+    if provider is None:  # else the block the solve ran on: its factorisation is not made again
+        provider = scene.provider(**({"progress": False} if quiet else {}))
     return write_block_field(result, provider, Path(out_dir) / BLOCK_FIELD_NAME, scene=scene_to_dict(scene))
 
 
