@@ -174,6 +174,23 @@ def test_cli_block_field_round_trip(tmp_path, monkeypatch):
     assert np.all(err <= (s2 + 1.0) / r**2 * halfspace_scale(F.sum(), r)), err.max()
 
 
+def test_cli_builds_the_block_once_for_the_solve_and_its_field(tmp_path, monkeypatch):
+    # the field comes from the block the solve ran on: its factorisation and cache read
+    # are not made again (the memory check, the solve and the field: one block)
+    import twoscale
+
+    monkeypatch.setenv("TWOSCALE_CACHE_DIR", str(tmp_path / "cache"))
+    built = []
+    provider = twoscale.Scene.provider
+    monkeypatch.setattr(twoscale.Scene, "provider", lambda self, **kw: built.append(1) or provider(self, **kw))
+    scene = tmp_path / "s.toml"
+    scene.write_text(SCENE.format(kind="block", block=BLOCK))
+    assert main(["solve", str(scene), "--out", str(tmp_path / "out"), "--block-field", "--quiet"]) == 0
+    assert len(built) == 1
+    content = read_block_field(tmp_path / "out" / BLOCK_FIELD_NAME)
+    assert content.metadata["total_force"] == pytest.approx(2.0, rel=1e-9)
+
+
 @pytest.mark.parametrize(
     "extra, message",
     [

@@ -1,9 +1,9 @@
 """What a body's on-disk cache did while the body was built is recorded by its first solve.
 
 A finite block reads its correction fields (or drops a damaged entry) when it is built,
-before any solve. ``twoscale solve`` builds the body inside the solve, so its
-``result.json`` says so; ``twoscale compare`` and a :class:`twoscale.ContactSolver` build the
-body first and then solve on it, and their results used to say ``read: 0, dropped: []``
+before any solve. ``twoscale solve``, ``twoscale compare`` and a
+:class:`twoscale.ContactSolver` build the body first and then solve on it, and their results
+used to say ``read: 0, dropped: []``
 for a block whose fields came from the cache, or whose damaged entry was dropped and
 solved again. A body standing in for the block reports a read and a dropped entry at
 construction, and nothing during the solves: the first solve on it must carry both, the

@@ -252,6 +252,60 @@ def test_damaged_block_cache_is_dropped_and_solved_again(tmp_path):
     assert warm._state.solver is None and warm.cache_usage()[0].read == 1
 
 
+_BLOCK_SCENE = """
+[material]
+E = 5.0
+nu = 0.5
+
+[influence]
+kind = "block"
+size = [40.0, 40.0, 5.0]
+
+[load]
+total = 10.0
+
+[[asperity]]
+x = 0.0
+y = 0.0
+R = 4.0
+"""
+
+
+def test_solve_records_the_damaged_block_entry_it_dropped(tmp_path, monkeypatch, capsys):
+    # the command checks the memory on the body it then solves on: built twice, the second
+    # build would find the entry gone and result.json would say nothing was dropped
+    monkeypatch.setenv("TWOSCALE_CACHE_DIR", str(tmp_path / "cache"))
+    scene = tmp_path / "block.toml"
+    scene.write_text(_BLOCK_SCENE)
+    assert main(["solve", str(scene), "--out", str(tmp_path / "cold"), "--quiet"]) == 0
+    [entry] = (tmp_path / "cache").glob("block-*.npz")
+    _truncate(entry)
+    assert main(["solve", str(scene), "--out", str(tmp_path / "again"), "--quiet"]) == 0
+    assert sum(entry.name in line for line in capsys.readouterr().err.splitlines()) == 1
+    cold, again = (json.loads((tmp_path / d / "result.json").read_text()) for d in ("cold", "again"))
+    [usage] = again["caches"]
+    assert usage["dropped"] == [entry.name] and usage["read"] == 0 and usage["written"] >= 1
+    assert again["penetration"] == pytest.approx(cold["penetration"], rel=1e-9)
+    assert main(["solve", str(scene), "--out", str(tmp_path / "warm"), "--quiet"]) == 0
+    [usage] = json.loads((tmp_path / "warm" / "result.json").read_text())["caches"]
+    assert usage["read"] == 1 and usage["dropped"] == []
+
+
+def test_compare_records_the_damaged_block_entry_it_dropped(tmp_path, monkeypatch, capsys):
+    # as above: the memory check runs on the block the solves use, not on one built for it
+    monkeypatch.setenv("TWOSCALE_CACHE_DIR", str(tmp_path / "cache"))
+    scene = tmp_path / "block.toml"
+    scene.write_text(_BLOCK_SCENE)
+    assert main(["solve", str(scene), "--quiet"]) == 0
+    [entry] = (tmp_path / "cache").glob("block-*.npz")
+    _truncate(entry)
+    out = tmp_path / "cmp"
+    assert main(["compare", str(scene), "--base", "bonded", "--out", str(out), "--quiet"]) == 0
+    assert sum(entry.name in line for line in capsys.readouterr().err.splitlines()) == 1
+    [usage] = json.loads((out / "runs" / "block-bonded_10N" / "result.json").read_text())["caches"]
+    assert usage["dropped"] == [entry.name] and usage["read"] == 0
+
+
 # ------------------------------------------------------------------ two processes at once
 _WRITER = textwrap.dedent("""
     import sys, time

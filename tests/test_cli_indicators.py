@@ -107,3 +107,40 @@ def test_bad_input_exit_2_nothing_written(runs, tmp_path, capsys, case):
     err = capsys.readouterr().err.strip().splitlines()
     assert code == 2 and len(err) == 1 and needle in err[0]
     assert not target.exists()
+
+
+MAP_SCENE = """
+[material]
+E = 6.0
+nu = 0.5
+[load]
+total = 10.0
+[surface]
+file = "{name}"
+spacing = 0.1
+units = "mm"
+"""
+
+
+def _map_run(root, name: str, caps) -> object:
+    """A solve --out of a height map of two paraboloid caps (R 5 mm, 1 mm high) at ``caps``."""
+    x = np.linspace(-10.0, 10.0, 201)
+    X, Y = np.meshgrid(x, x)
+    z = np.max([1.0 - ((X - cx) ** 2 + (Y - cy) ** 2) / 10.0 for cx, cy in caps], axis=0)
+    np.save(root / f"{name}.npy", np.maximum(z, 0.0))
+    scene = root / f"{name}.toml"
+    scene.write_text(MAP_SCENE.format(name=f"{name}.npy"), encoding="utf-8")
+    assert main(["solve", str(scene), "--out", str(root / name), "--quiet"]) == 0
+    return root / name
+
+
+def test_height_map_runs_with_summits_elsewhere_are_named(tmp_path, capsys):
+    # a height map's scene lists no tips: the summits' places come from asperities.csv
+    a = _map_run(tmp_path, "a", [(-4.0, 0.0), (4.0, 1.0)])
+    b = _map_run(tmp_path, "b", [(-4.0, 0.0), (5.0, 1.0)])
+    capsys.readouterr()
+    assert main(["indicators", str(a), str(a)]) == 0
+    assert "different places" not in capsys.readouterr().err
+    assert main(["indicators", str(a), str(b)]) == 0
+    [line] = [x for x in capsys.readouterr().err.splitlines() if "different places" in x]
+    assert "(asperity 2: (4, 1) against (5, 1) mm)" in line

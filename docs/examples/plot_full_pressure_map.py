@@ -8,6 +8,7 @@ analysis wants it, assemble the patches onto a grid aligned with them:
 :meth:`~twoscale.ContactResult.pressure_on`. Here on the shipped synthetic road.
 """
 
+import sys
 import warnings
 from pathlib import Path
 
@@ -18,9 +19,13 @@ import twoscale
 from twoscale.grid import Grid
 from twoscale.io import read_scene
 
-# the repository's examples/ folder: run from the repository (or a folder in it, as the
-# documentation build does); an installed twoscale does not ship the examples
-ROOT = next(p for p in (Path.cwd(), *Path.cwd().parents) if (p / "examples" / "road" / "road.toml").is_file())
+# the repository's examples/ folder (an installed twoscale does not ship it): found from
+# the folder the script runs in (the documentation build runs it in docs/examples) or from
+# the script's own place in the repository
+places = [Path.cwd(), *Path.cwd().parents, *(Path(__file__).resolve().parents if "__file__" in globals() else ())]
+ROOT = next((p for p in places if (p / "examples" / "road" / "road.toml").is_file()), None)
+if ROOT is None:
+    sys.exit("this example reads examples/road/road.toml: run it in a clone of the twoscale repository")
 scene = read_scene(ROOT / "examples" / "road" / "road.toml")
 with warnings.catch_warnings():  # stones cut by the map's edge: a warning the CLI prints
     warnings.simplefilter("ignore")

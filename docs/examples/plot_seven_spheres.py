@@ -6,6 +6,7 @@ Read a scene file, solve it on the elastic half-space and draw the pressure map 
 force per asperity side by side, into Axes of our own (as in a notebook).
 """
 
+import sys
 from pathlib import Path
 
 import matplotlib.pyplot as plt
@@ -14,9 +15,13 @@ import twoscale
 from twoscale.io import read_scene
 from twoscale.plot import Caption, plot_forces, plot_pressure_map
 
-# the repository's examples/ folder: run from the repository (or a folder in it, as the
-# documentation build does); an installed twoscale does not ship the examples
-ROOT = next(p for p in (Path.cwd(), *Path.cwd().parents) if (p / "examples" / "paper_seven_spheres.toml").is_file())
+# the repository's examples/ folder (an installed twoscale does not ship it): found from
+# the folder the script runs in (the documentation build runs it in docs/examples) or from
+# the script's own place in the repository
+places = [Path.cwd(), *Path.cwd().parents, *(Path(__file__).resolve().parents if "__file__" in globals() else ())]
+ROOT = next((p for p in places if (p / "examples" / "paper_seven_spheres.toml").is_file()), None)
+if ROOT is None:
+    sys.exit("this example reads examples/paper_seven_spheres.toml: run it in a clone of the twoscale repository")
 scene = read_scene(ROOT / "examples" / "paper_seven_spheres.toml")
 result = twoscale.solve(scene)
 print(result)

@@ -246,13 +246,17 @@ def _solve_all(scenes, bodies, method, quiet, name: str = "") -> list[Run]:
     return runs
 
 
-def _check_memory(scenes, method: str) -> None:
+def _check_memory(scenes, method: str, providers: dict) -> None:
     """Refuse (SceneError naming --h) a comparison whose solves would not fit in memory;
-    with the finite block available, each solve counts the block provider too."""
-    body = "block-bonded" if _block_factory()[0] is not None else "halfspace"
+    with a finite block built, each solve counts that block too (the provider the solves
+    use: built again here, it would read the block's cache a second time, and a damaged
+    entry dropped here would be missing from the solves' records)."""
+    body = next((b for b in ("block-bonded", "block-sliding") if b in providers), "halfspace")
     for sc in scenes:
         sc = dataclasses.replace(sc, influence=_influence(sc, body))
-        check_solve_memory(sc, default_h(sc), method, option="--h")
+        check_solve_memory(
+            sc, default_h(sc), method, option="--h", provider=providers[body] if body != "halfspace" else None
+        )
 
 
 def _providers(scene: Scene, quiet: bool, base: str = "both") -> tuple[dict, list[str]]:
@@ -294,8 +298,8 @@ def run(args: argparse.Namespace) -> int:
         if args.centre_pivot:
             scenes[0], note = centre_pivot(scenes[0], measured.forces)
             notes.append(note)
-        _check_memory(scenes, args.method)  # before the block provider and the solves
         providers, block_notes = _providers(scenes[0], args.quiet, getattr(args, "base", "both"))
+        _check_memory(scenes, args.method, providers)  # before the solves (a block factorises in its first)
         notes += block_notes
         for n in notes:
             print(f"note: {n}", file=sys.stderr)

@@ -1,6 +1,6 @@
 """How the solve summary names what ran: the two-scale method, a reference solver, or the
 two-scale default route's full grid (a small scene solved whole, with the reason the result's
-message gives)."""
+message gives), and the iteration counts in words."""
 
 from __future__ import annotations
 
@@ -22,4 +22,23 @@ def method_lines(res: dict) -> list[str]:
     ]
 
 
-__all__ = ["method_lines"]
+#: How each iteration count reads in the summary (counts of 0 are left out).
+ITERATION_WORDS = {
+    "macro": "macro-step Newton iterations",
+    "macro_krylov": "Krylov iterations in them",
+    "micro": "micro-step sweeps",
+    "corrections": "approach corrections",
+    "sensitivity_sweeps": "sensitivity sweeps",
+    "outer": "active-set passes",
+    "cg": "conjugate-gradient iterations",
+    "products": "grid products",
+}
+
+
+def iteration_text(iterations: dict) -> str:
+    """``"3 macro-step Newton iterations, 6 micro-step sweeps"``: the non-zero counts in words."""
+    parts = [f"{n} {ITERATION_WORDS.get(k, k.replace('_', ' '))}" for k, n in iterations.items() if n]
+    return ", ".join(parts) or "no iterations"
+
+
+__all__ = ["ITERATION_WORDS", "iteration_text", "method_lines"]

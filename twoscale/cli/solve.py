@@ -35,7 +35,8 @@ from ..io.warning_log import WarningLog
 from ..micro.policy import ITERATIONS
 from ..progress import StatusLine
 from ..resources import check_solve_memory
-from .route_text import method_lines
+from .body import build_body, with_build
+from .route_text import iteration_text, method_lines
 from ..results import ContactResult
 from ..api import solve_scene
 from ..scene import SCENE_METHODS, SceneError, default_h
@@ -125,19 +126,23 @@ def _run(args: argparse.Namespace, log: WarningLog) -> int:
 
             return run_rolling(scene, args, log)
         options, iteration = _solver_options(scene, args)
+        t0 = time.perf_counter()
+        body, built = build_body(scene, quiet=args.quiet)  # a block: built once, its cache read once
         # before anything large is allocated: refuse a solve the machine cannot hold
         check_solve_memory(
-            scene, default_h(scene), args.method, iteration=iteration, option="--h", h_given=args.h is not None
+            scene,
+            default_h(scene),
+            args.method,
+            iteration=iteration,
+            option="--h",
+            h_given=args.h is not None,
+            provider=body,
         )
-        t0 = time.perf_counter()
-        quiet_block = {"progress": False} if args.quiet and scene.influence["kind"] == "block" else None
         with StatusLine(quiet=args.quiet) as status:
             if args.method == "twoscale" and scene.history is None:
                 options["progress"] = status
-            result = solve_scene(
-                scene, method=args.method, provider_options=quiet_block, memory_limit=math.inf, **options
-            )
-        wall = time.perf_counter() - t0
+            result = solve_scene(scene, method=args.method, provider=body, memory_limit=math.inf, **options)
+        result, wall = with_build(result, built), time.perf_counter() - t0
         if isinstance(result, ContactResult):  # a history's result names its scene per output time
             result = dataclasses.replace(result, scene_name=Path(args.scene).stem)  # for titles and result.json
     except ValueError as exc:  # SceneError and solver input checks
@@ -145,7 +150,7 @@ def _run(args: argparse.Namespace, log: WarningLog) -> int:
         return 2
     if scene.history is not None:
         return _history_done(result, scene, args, wall, log)
-    return _static_done(result, scene, args, wall, log)
+    return _static_done(result, scene, args, wall, log, body)
 
 
 def _solver_options(scene, args: argparse.Namespace) -> tuple[dict, str]:
@@ -178,8 +183,11 @@ def _solver_options(scene, args: argparse.Namespace) -> tuple[dict, str]:
     return options, iteration
 
 
-def _static_done(result: ContactResult, scene, args: argparse.Namespace, wall: float, log: WarningLog) -> int:
-    """Write and report one static solve (``DIR/result.json`` and the rest); the exit code."""
+def _static_done(
+    result: ContactResult, scene, args: argparse.Namespace, wall: float, log: WarningLog, body=None
+) -> int:
+    """Write and report one static solve (``DIR/result.json`` and the rest); the exit code.
+    ``body``: the block solved on (its factorisation serves ``--block-field``), or None."""
     path = None
     # result.json's content and the terminal summary: one dictionary
     record = (
@@ -191,7 +199,7 @@ def _static_done(result: ContactResult, scene, args: argparse.Namespace, wall: f
     )
     if args.out is not None:
         try:
-            write_outputs(result, scene, args, record=record)
+            write_outputs(result, scene, args, record=record, body=body)
         except (OSError, ValueError) as exc:  # a folder changed during the solve, a full disk, ...
             print(f"error: writing {args.out}: {exc}", file=sys.stderr)
             return 2
@@ -224,7 +232,7 @@ def _history_done(result, scene, args, wall: float, log: WarningLog) -> int:
             f"{result.error_estimate:.2g}\n"
             f"  output times {len(result.times)}, from {result.times[0]:.4g} to {result.times[-1]:.4g} s\n"
             f"  last         load {result.total_load[-1]:.6g} N, approach {result.penetration[-1]:.6g} mm, "
-            f"area {result.contact_area[-1]:.6g} mm^2\n"
+            f"contact area {result.contact_area[-1]:.6g} mm2\n"
             f"  time         {wall:.3g} s" + (f"\n{_wrote_line(Path(args.out))}" if args.out else "")
         )
     if not result.converged:
@@ -233,7 +241,7 @@ def _history_done(result, scene, args, wall: float, log: WarningLog) -> int:
     return 0
 
 
-def write_outputs(result, scene, args, *, record: dict | None = None) -> None:
+def write_outputs(result, scene, args, *, record: dict | None = None, body=None) -> None:
     """Write every file of ``--out`` into a temporary folder renamed to DIR at the end
     (whole or nothing; an earlier output replaced only with ``--overwrite``); ``record``:
     result.json's content when already built."""
@@ -243,35 +251,17 @@ def write_outputs(result, scene, args, *, record: dict | None = None) -> None:
         )
         write_fields_and_figures(result, scene, tmp, source=str(args.scene))
         if getattr(args, "block_field", False):
-            write_block_field_file(result, scene, tmp, quiet=args.quiet)
+            write_block_field_file(result, scene, tmp, quiet=args.quiet, provider=body)
 
 
-def write_block_field_file(result, scene, out_dir, *, quiet: bool = False):
+def write_block_field_file(result, scene, out_dir, *, quiet: bool = False, provider=None):
     """Write ``DIR/block_displacement.vtu`` for a block scene (see :mod:`twoscale.io.block_field`)."""
     from ..io.block_field import BLOCK_FIELD_NAME, write_block_field
     from ..io.scene_file import scene_to_dict
 
-    provider = scene.provider(**({"progress": False} if quiet else {}))
+    if provider is None:  # else the block the solve ran on: its factorisation is not made again
+        provider = scene.provider(**({"progress": False} if quiet else {}))
     return write_block_field(result, provider, Path(out_dir) / BLOCK_FIELD_NAME, scene=scene_to_dict(scene))
-
-
-#: How each iteration count reads in the summary (counts of 0 are left out).
-ITERATION_WORDS = {
-    "macro": "macro-step Newton iterations",
-    "macro_krylov": "Krylov iterations in them",
-    "micro": "micro-step sweeps",
-    "corrections": "approach corrections",
-    "sensitivity_sweeps": "sensitivity sweeps",
-    "outer": "active-set passes",
-    "cg": "conjugate-gradient iterations",
-    "products": "grid products",
-}
-
-
-def iteration_text(iterations: dict) -> str:
-    """``"3 macro-step Newton iterations, 6 micro-step sweeps"``: the non-zero counts in words."""
-    parts = [f"{n} {ITERATION_WORDS.get(k, k.replace('_', ' '))}" for k, n in iterations.items() if n]
-    return ", ".join(parts) or "no iterations"
 
 
 def near_zero(values, scale: float, rtol: float = 1e-6) -> list[str]:

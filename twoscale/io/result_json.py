@@ -279,7 +279,9 @@ def read_forces(folder: str | os.PathLike) -> np.ndarray:
 
 def read_forces_and_tips(folder: str | os.PathLike) -> tuple[np.ndarray, np.ndarray]:
     """:func:`read_forces` and the tip positions (N, 2) mm of the recorded scene, from one
-    read of ``folder/result.json`` (NaN where the scene gives no tip position)."""
+    read of ``folder/result.json`` (NaN where the scene gives no tip position). A height
+    map's scene lists no tips: their positions (the summits) are read from the
+    ``asperities.csv`` beside it, when it is there and has a row per force."""
     path = Path(folder) / RESULT_NAME
     try:
         data = json.loads(path.read_text(encoding="utf-8"))
@@ -288,5 +290,23 @@ def read_forces_and_tips(folder: str | os.PathLike) -> tuple[np.ndarray, np.ndar
         raise ValueError(f"{path} does not exist (a folder written by twoscale solve --out)") from None
     except (json.JSONDecodeError, KeyError, TypeError, ValueError) as exc:
         raise ValueError(f"{path} is not a twoscale result.json ({exc})") from None
-    tips = [[a.get("x", np.nan), a.get("y", np.nan)] for a in data.get("scene", {}).get("asperity", [])]
+    scene = data.get("scene", {})
+    tips = [[a.get("x", np.nan), a.get("y", np.nan)] for a in scene.get("asperity", [])]
+    if not tips and "surface" in scene:
+        tips = _csv_tips(Path(folder), forces.size)
     return forces, np.array(tips, dtype=float).reshape(-1, 2)
+
+
+def _csv_tips(folder: Path, n: int) -> list:
+    """The ``x_mm, y_mm`` of ``folder/asperities.csv``'s rows, or no tips when the file is
+    absent, unreadable or has not ``n`` rows (the tips are then not compared)."""
+    import csv
+
+    from .asperity_csv import ASPERITY_CSV_NAME
+
+    try:
+        with open(folder / ASPERITY_CSV_NAME, newline="", encoding="utf-8") as fh:
+            tips = [[float(r["x_mm"]), float(r["y_mm"])] for r in csv.DictReader(fh)]
+    except (OSError, KeyError, TypeError, ValueError):
+        return []
+    return tips if len(tips) == n else []
