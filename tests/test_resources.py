@@ -181,20 +181,26 @@ def test_pair_operators_are_counted_at_their_arrays_sizes():
 
 def test_the_far_fields_kept_weights_are_counted_where_it_may_be_taken():
     # scattered patches (the far field is a candidate): the weights it keeps, bytes per
-    # owned cell (every patch cell counted); two crowded patches (it is not): none
-    from twoscale.micro.sources import KEPT_BYTES_PER_OWNED_CELL
+    # owned cell (every patch cell counted) on patches under SEPARABLE_CELLS cells, the
+    # rows and columns of the larger; two crowded patches (it is not): none
+    from twoscale.micro.sources import KEPT_BYTES_PER_OWNED_CELL, SEPARABLE_BYTES_PER_ROW_OR_COLUMN, SEPARABLE_CELLS
 
-    def parts(gap):
+    def parts(gap, R=10.0):
         scene = Scene(
             material=Material(E=10.0, nu=0.5),
             penetration=0.5,
-            asperities=[Asperity(0.0, 0.0, 0.0, 10.0), Asperity(gap, gap, 0.0, 10.0)],
+            asperities=[Asperity(0.0, 0.0, 0.0, R), Asperity(gap, gap, 0.0, R)],
         )
         est = estimate_memory(scene, 0.05, "twoscale")
         return est, dict(est.parts)
 
-    est, scattered = parts(40.0)
-    assert scattered["far field's kept weights"] == KEPT_BYTES_PER_OWNED_CELL * est.cells == 144 * est.cells
+    est, scattered = parts(40.0, R=0.5)  # two patches of 22 x 22 cells
+    assert est.cells < 2 * SEPARABLE_CELLS
+    assert scattered["far field's kept weights"] == KEPT_BYTES_PER_OWNED_CELL * est.cells == 152 * est.cells
+    est, scattered = parts(40.0)  # two of 121 x 121 cells
+    side = math.isqrt(est.cells // 2)
+    assert 2 * side**2 == est.cells and side**2 >= SEPARABLE_CELLS
+    assert scattered["far field's kept weights"] == SEPARABLE_BYTES_PER_ROW_OR_COLUMN * 2 * (2 * side) == 96 * side
     assert scattered["far field's point operator"] == 2 * FAR_OPERATOR_BYTES_PER_PATCH  # two patches
     est, crowded = parts(2.0)
     assert "far field's kept weights" not in crowded and any("union box" in k for k in crowded)

@@ -14,7 +14,7 @@ from .memory_costs import FAR_OPERATOR_BYTES_PER_PATCH, FFT_WORK_BYTES_PER_CELL,
 from .memory_costs import MARGIN, MERGE_GROWTH, PAIR_HELD, PATCH_BYTES_EACH, PATCH_BYTES_PER_CELL
 from .memory_costs import COARSE_NEAR_BYTES_PER_PAIR, COARSE_NEAR_PAIRS_PER_CONTACT_CELL
 from .micro.policy import AUTO_FAR_TOL, FAR_FIELD_MIN_PATCHES, UNION_MIN_COVERAGE
-from .micro.sources import KEPT_BYTES_PER_OWNED_CELL
+from .micro.sources import KEPT_BYTES_PER_OWNED_CELL, SEPARABLE_BYTES_PER_ROW_OR_COLUMN, SEPARABLE_CELLS
 from .pk.coarse import MAX_FILL as COARSE_MAX_FILL, MAX_SQUARES as COARSE_MAX_SQUARES
 from .pk.coarse import MIN_CELLS as COARSE_MIN_CELLS, SIDE as COARSE_SIDE
 from .memory_choice import Routes, possible_routes
@@ -238,19 +238,35 @@ def _block_parts(tips: np.ndarray, r: np.ndarray, h: float, box: Grid | None, up
     parts = {"FFT work on the largest patch": FFT_WORK_BYTES_PER_CELL * growth * float(patch_cells.max(initial=0))}
     crowded = box is not None and upper >= UNION_MIN_COVERAGE * box.size
     far = count > 1 and (not crowded or count >= FAR_FIELD_MIN_PATCHES)
+    # overlapping patches share their cells: the share of a patch's cells it owns
+    share = 1.0 if box is None else min(1.0, box.size / cells)
     if count > 1:
         # the near pairs where the policy may take the far field, else every pair (exact)
-        share = 1.0 if box is None else min(1.0, box.size / cells)  # overlapping patches share their cells
         pairs = pair_bytes(tips, r, h, AUTO_FAR_TOL if far else None, owned=share)
         parts["cached cross-patch operators"] = min(COUPLING_CACHE_BYTES, pairs)
     if far:
-        # where the policy may take the far field (micro.policy.decide): its per-patch
-        # weights, every patch cell counted as owned (4,548 paraboloids: 4.5 M owned cells,
-        # 326 MB of source weights and 326 MB of interpolation rows measured)
-        parts["far field's kept weights"] = KEPT_BYTES_PER_OWNED_CELL * cells
+        # where the policy may take the far field (micro.policy.decide): the weights it keeps
+        across = _cells_across(r, h)
+        parts["far field's kept weights"] = far_weight_bytes(share * across**2, 2.0 * across)
         # and its point operator among the patches (8,376 patches of paraboloids: 260 MB)
         parts["far field's point operator"] = FAR_OPERATOR_BYTES_PER_PATCH * float(count)
     return parts
+
+
+def far_weight_bytes(owned: np.ndarray, sides: np.ndarray) -> float:
+    """Bytes the far field holds for its weights on patches of ``owned`` owned cells and
+    ``sides`` rows plus columns each: ``KEPT_BYTES_PER_OWNED_CELL`` an owned cell on a patch
+    that owns fewer than ``SEPARABLE_CELLS``, the tensor-product form's weights of its rows
+    and columns on a larger one (:mod:`twoscale.micro.level_far`). Held at the most in
+    two-level solves: seed 8's #150, 892 patches of 241 K owned cells, 154 bytes an owned
+    cell (the whole patches' weights of their few shapes 2.4 of them); #138, 108 patches of
+    1,024 owned cells or more, none (4,548 paraboloids of
+    ~1,000 cells, before the larger patches kept none: 326 MB of source weights and 326 MB
+    of interpolation rows)."""
+    owned = np.asarray(owned, dtype=float)
+    small = owned < SEPARABLE_CELLS
+    rows_and_columns = float(np.asarray(sides, dtype=float)[~small].sum())
+    return KEPT_BYTES_PER_OWNED_CELL * float(owned[small].sum()) + SEPARABLE_BYTES_PER_ROW_OR_COLUMN * rows_and_columns
 
 
 def pair_bytes(tips: np.ndarray, r: np.ndarray, h: float, far_tol: float | None, owned: float = 1.0) -> float:

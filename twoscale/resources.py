@@ -16,8 +16,9 @@ What the two methods carry:
   by the neighbours' mean push, :mod:`twoscale.mean_field`), each with its FFT operator; the
   operators of the pairs of patches coupled exactly (the near pairs where the far field may
   be taken; at most the coupling's cache budget); where the far field may be taken, the
-  weights it keeps per owned cell (:data:`twoscale.micro.sources.KEPT_BYTES_PER_OWNED_CELL`)
-  and its point operator among the patches; the dense macro matrix; and, where the policy
+  weights it keeps per owned cell on patches under ``SEPARABLE_CELLS`` owned cells
+  (:func:`twoscale.memory_parts.far_weight_bytes`; none per cell on the larger) and its
+  point operator among the patches; the dense macro matrix; and, where the policy
   may solve on the patches' bounding box as one grid (``union-cg``, chosen or after a
   far-field attempt: :mod:`twoscale.memory_choice` makes the policy's choice on the
   counted patches), that box, counted as the larger of it and a block attempt before it
