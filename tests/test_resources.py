@@ -146,21 +146,23 @@ def test_auto_counts_the_route_the_policy_takes(spacing, iteration):
 
 def test_auto_counts_the_union_cg_after_a_block_attempt_beside_what_that_attempt_keeps():
     # the union CG may follow a far-field attempt that did not converge, which gives back all
-    # but BLOCK_ATTEMPT_HELD of its memory first (the heap trimmed): the larger of the two
-    from twoscale.memory_costs import BLOCK_ATTEMPT_HELD
+    # but BLOCK_ATTEMPT_HELD of its memory first (the heap trimmed): the larger of the two,
+    # the box beyond the patches' cells (the union CG alone counts the whole box, its
+    # patches windows of it)
+    from twoscale.memory_costs import BLOCK_ATTEMPT_HELD, PATCH_BYTES_EACH
 
     block_keys = ("FFT work on the largest patch", "cached cross-patch operators", "far field's")
     for spacing in (4.0, 6.0):
         parts = dict(estimate_memory(_lattice(spacing), 0.05, "twoscale").parts)
         blocks = sum(v for k, v in parts.items() if k.startswith(block_keys))
-        union = sum(
-            v
-            for k, v in estimate_memory(_lattice(spacing), 0.05, "twoscale", iteration="union-cg").parts
-            if "union box" in k
-        )
+        alone = dict(estimate_memory(_lattice(spacing), 0.05, "twoscale", iteration="union-cg").parts)
+        union = sum(v for k, v in alone.items() if k.startswith("the union box"))
+        count, patches = next((int(k.split()[0]), v) for k, v in parts.items() if k.endswith(" patches"))
+        assert f"{count} patches, windows of the union box" in alone
         beyond = sum(v for k, v in parts.items() if "union box" in k)
         assert blocks > 0 and union > 0
-        assert beyond == pytest.approx(max(0.0, union - (1.0 - BLOCK_ATTEMPT_HELD) * blocks))
+        given_back = patches - PATCH_BYTES_EACH * count + (1.0 - BLOCK_ATTEMPT_HELD) * blocks
+        assert beyond == pytest.approx(max(0.0, union - given_back))
 
 
 def test_pair_operators_are_counted_at_their_arrays_sizes():

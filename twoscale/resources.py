@@ -22,8 +22,10 @@ What the two methods carry:
   may solve on the patches' bounding box as one grid (``union-cg``, chosen or after a
   far-field attempt: :mod:`twoscale.memory_choice` makes the policy's choice on the
   counted patches), that box, counted as the larger of it and a block attempt before it
-  (:mod:`twoscale.memory_parts`), with its coarse correction's near pairs on a large box;
-  where the policy surely takes the union CG, no block operators.
+  (:mod:`twoscale.memory_parts`), with its coarse correction where its loaded squares are
+  few and sparse enough for it to be built; where the policy surely takes the union CG, no
+  block operators, and (where the macro step cannot stall) the patches as windows of the
+  box, a few kB each.
   With more than a thousand tips the macro step may stall and leave patches sized by the
   indenters' reach (:mod:`twoscale.memory_stall`): that route is counted too, and the larger
   taken. An iteration asked for runs alone and is counted alone.
