@@ -65,8 +65,9 @@ class MemoryEstimate:
     ----------
     bytes : float
         Estimated peak resident memory, bytes (a prediction: the measured peaks of seed
-        8's 185 recorded sweep scenes lay within 0.11-1.36 times it, 142 of them within
-        0.67-1.5; two user scenarios 0.79 and 1.28; docs/records/sweep.md).
+        8's 185 recorded sweep scenes lay within 0.12-1.37 times it, 150 of them within
+        0.67-1.5, and none of seeds 6-8's above 1.5 but for three records whose peak is the
+        sweep's own; docs/records/sweep.md).
     cells : int
         Cells the solver will carry: the reference grid, or the patches (the union box
         when the micro step is expected to solve on it and it is larger).
