@@ -76,10 +76,12 @@ def test_the_point_operator_is_kept_through_a_merge():
 
 def test_the_kept_weights_take_the_bytes_the_estimate_counts_per_owned_cell():
     # patches whose asperity owns part of their cells (a neighbour the rest): after a
-    # refresh and a sweep's far-field products the far field keeps, per patch, the source
-    # weights and the owned rows of the interpolation (not the owned cells' centres); their
-    # bytes are KEPT_BYTES_PER_OWNED_CELL per owned cell, what the memory estimate counts
+    # refresh and a sweep's levels the far field keeps, per patch, the source weights and
+    # the owned rows of the interpolation laid end to end by level with their block indices
+    # (not the owned cells' centres): KEPT_BYTES_PER_OWNED_CELL per owned cell, what the
+    # memory estimate counts; a block's far field asked alone keeps its rows once more
     from twoscale.micro.sources import KEPT_BYTES_PER_OWNED_CELL
+    from twoscale.micro.twolevel import sweep_levels
 
     rng = np.random.default_rng(5)
     patches = []
@@ -90,13 +92,18 @@ def test_the_kept_weights_take_the_bytes_the_estimate_counts_per_owned_cell():
     far = LaggedFarField(HS, patches, far_tol=0.3)
     values = [rng.random(int(pt.owned.sum())) for pt in patches]
     far.refresh(values)
-    for k in range(len(patches)):
-        far._far(k, values, whole=False)
+    for level in sweep_levels(far):
+        far.rhs_level(level, values, [np.zeros(len(v)) for v in values])
     owned = sum(int(pt.owned.sum()) for pt in patches)
     assert owned < sum(pt.grid.size for pt in patches)
-    kept = [far._sources, {k: w for k, w in far._weights.items() if k[0] != "shape"}]
-    assert [len(d) for d in kept] == [len(patches)] * 2 and not far._cells
-    assert sum(a.nbytes for d in kept for a in d.values()) == KEPT_BYTES_PER_OWNED_CELL * owned
+    assert len(far._sources) == len(patches) and not far._cells
+    levels = [a for W, rows, *_ in far._levels._kept.values() for a in (W, rows)]
+    held = sum(a.nbytes for a in far._sources.values()) + sum(a.nbytes for a in levels)
+    assert held == KEPT_BYTES_PER_OWNED_CELL * owned
+    for k in range(len(patches)):
+        far._far(k, values, whole=False)
+    rows = [w for key, w in far._weights.items() if key[0] != "shape"]
+    assert len(rows) == len(patches) and sum(w.nbytes for w in rows) == 72 * owned
 
 
 def test_an_operator_built_anew_does_not_hold_the_earlier_one_through_its_build():

@@ -20,7 +20,7 @@ from twoscale.influence.precorrected import Precorrected
 from twoscale.laws import law_for
 from twoscale.macro import solve_macro
 from twoscale.mean_field import mean_field
-from twoscale.memory_costs import BASE_BYTES, COARSE_NEAR_PAIRS_PER_CONTACT_CELL, PATCH_BYTES_PER_CELL
+from twoscale.memory_costs import BASE_BYTES, COARSE_BYTES_PER_LOADED_CELL_AND_FILL, PATCH_BYTES_PER_CELL
 from twoscale.memory_costs import REACH_PATCH_HELD
 from twoscale.memory_stall import SIZING_SHARE
 from twoscale.micro.sampling import patch_grids
@@ -75,19 +75,31 @@ def test_the_patches_a_stalled_macro_step_leaves_on_clustered_tips_under_load_ar
     assert 0.8 * carried <= est.cells <= 1.25 * carried
 
 
-def test_the_coarse_corrections_near_pairs_stay_within_their_count_per_loaded_cell():
+def test_the_coarse_corrections_product_holds_what_is_counted_for_its_fill():
     # contacts of 6 cells' radius every 24 cells: about one a square, as full as the
-    # correction is built at (sum n_i^2 / (side^2 sum n_i) <= MAX_FILL); the pairs' count does
-    # not depend on the kernel's values
+    # correction is built at (fill = sum n_i^2 / (side^2 sum n_i) <= MAX_FILL); the arrays
+    # its precorrected product keeps (the near pairs' values and structure, the
+    # interpolation's) against the count a loaded cell and unit of fill; they do not depend
+    # on the kernel's values
+    import scipy.sparse
+
     n = 600
     yy, xx = np.mgrid[0:n, 0:n]
     loaded = (yy % 24 - 12) ** 2 + (xx % 24 - 12) ** 2 <= 36
-    per_square = np.bincount(((yy // SIDE) * (-(-n // SIDE)) + xx // SIDE)[loaded])
-    assert float(per_square @ per_square) <= MAX_FILL * SIDE**2 * loaded.sum()
+    per_square = np.bincount(((yy // SIDE) * (-(-n // SIDE)) + xx // SIDE)[loaded]).astype(float)
+    fill = float(per_square @ per_square) / (SIDE**2 * loaded.sum())
+    assert 0.15 <= fill <= MAX_FILL
     product = Precorrected(
         np.ones((2 * n - 1, 2 * n - 1)), (n, n), np.flatnonzero(loaded), PRODUCT_COARSE, PRODUCT_RADIUS
     )
-    assert product.near.nnz <= COARSE_NEAR_PAIRS_PER_CONTACT_CELL * loaded.sum()
+    held = 0
+    for value in vars(product).values():
+        if scipy.sparse.issparse(value):
+            held += value.data.nbytes + value.indices.nbytes + value.indptr.nbytes
+        for a in value if isinstance(value, tuple) else (value,):
+            held += a.nbytes if isinstance(a, np.ndarray) else 0
+    counted = COARSE_BYTES_PER_LOADED_CELL_AND_FILL * fill * loaded.sum()
+    assert 0.6 * counted <= held <= counted
 
 
 @pytest.mark.slow

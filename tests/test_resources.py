@@ -146,21 +146,23 @@ def test_auto_counts_the_route_the_policy_takes(spacing, iteration):
 
 def test_auto_counts_the_union_cg_after_a_block_attempt_beside_what_that_attempt_keeps():
     # the union CG may follow a far-field attempt that did not converge, which gives back all
-    # but BLOCK_ATTEMPT_HELD of its memory first (the heap trimmed): the larger of the two
-    from twoscale.memory_costs import BLOCK_ATTEMPT_HELD
+    # but BLOCK_ATTEMPT_HELD of its memory first (the heap trimmed): the larger of the two,
+    # the box beyond the patches' cells (the union CG alone counts the whole box, its
+    # patches windows of it)
+    from twoscale.memory_costs import BLOCK_ATTEMPT_HELD, PATCH_BYTES_EACH
 
     block_keys = ("FFT work on the largest patch", "cached cross-patch operators", "far field's")
     for spacing in (4.0, 6.0):
         parts = dict(estimate_memory(_lattice(spacing), 0.05, "twoscale").parts)
         blocks = sum(v for k, v in parts.items() if k.startswith(block_keys))
-        union = sum(
-            v
-            for k, v in estimate_memory(_lattice(spacing), 0.05, "twoscale", iteration="union-cg").parts
-            if "union box" in k
-        )
+        alone = dict(estimate_memory(_lattice(spacing), 0.05, "twoscale", iteration="union-cg").parts)
+        union = sum(v for k, v in alone.items() if k.startswith("the union box"))
+        count, patches = next((int(k.split()[0]), v) for k, v in parts.items() if k.endswith(" patches"))
+        assert f"{count} patches, windows of the union box" in alone
         beyond = sum(v for k, v in parts.items() if "union box" in k)
         assert blocks > 0 and union > 0
-        assert beyond == pytest.approx(max(0.0, union - (1.0 - BLOCK_ATTEMPT_HELD) * blocks))
+        given_back = patches - PATCH_BYTES_EACH * count + (1.0 - BLOCK_ATTEMPT_HELD) * blocks
+        assert beyond == pytest.approx(max(0.0, union - given_back))
 
 
 def test_pair_operators_are_counted_at_their_arrays_sizes():
@@ -181,20 +183,26 @@ def test_pair_operators_are_counted_at_their_arrays_sizes():
 
 def test_the_far_fields_kept_weights_are_counted_where_it_may_be_taken():
     # scattered patches (the far field is a candidate): the weights it keeps, bytes per
-    # owned cell (every patch cell counted); two crowded patches (it is not): none
-    from twoscale.micro.sources import KEPT_BYTES_PER_OWNED_CELL
+    # owned cell (every patch cell counted) on patches under SEPARABLE_CELLS cells, the
+    # rows and columns of the larger; two crowded patches (it is not): none
+    from twoscale.micro.sources import KEPT_BYTES_PER_OWNED_CELL, SEPARABLE_BYTES_PER_ROW_OR_COLUMN, SEPARABLE_CELLS
 
-    def parts(gap):
+    def parts(gap, R=10.0):
         scene = Scene(
             material=Material(E=10.0, nu=0.5),
             penetration=0.5,
-            asperities=[Asperity(0.0, 0.0, 0.0, 10.0), Asperity(gap, gap, 0.0, 10.0)],
+            asperities=[Asperity(0.0, 0.0, 0.0, R), Asperity(gap, gap, 0.0, R)],
         )
         est = estimate_memory(scene, 0.05, "twoscale")
         return est, dict(est.parts)
 
-    est, scattered = parts(40.0)
-    assert scattered["far field's kept weights"] == KEPT_BYTES_PER_OWNED_CELL * est.cells == 144 * est.cells
+    est, scattered = parts(40.0, R=0.5)  # two patches of 22 x 22 cells
+    assert est.cells < 2 * SEPARABLE_CELLS
+    assert scattered["far field's kept weights"] == KEPT_BYTES_PER_OWNED_CELL * est.cells == 152 * est.cells
+    est, scattered = parts(40.0)  # two of 121 x 121 cells
+    side = math.isqrt(est.cells // 2)
+    assert 2 * side**2 == est.cells and side**2 >= SEPARABLE_CELLS
+    assert scattered["far field's kept weights"] == SEPARABLE_BYTES_PER_ROW_OR_COLUMN * 2 * (2 * side) == 96 * side
     assert scattered["far field's point operator"] == 2 * FAR_OPERATOR_BYTES_PER_PATCH  # two patches
     est, crowded = parts(2.0)
     assert "far field's kept weights" not in crowded and any("union box" in k for k in crowded)

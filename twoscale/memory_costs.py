@@ -22,6 +22,11 @@ GRID_BYTES_PER_CELL = 150.0
 #: operator's 40), the fit's peaks within 0.79-1.24 of 41 of them; counted 10 % above.
 PATCH_BYTES_PER_CELL = 350.0
 PATCH_BYTES_EACH = 50e3
+#: Bytes a patch holds where the union CG alone runs, its cells windows of the box sampled
+#: once (:func:`twoscale.micro.sampling.patches_cut_from_box`): all that was live when the
+#: union CG started, per patch, 3.9 kB on seed 8's #1 (7,285 patches) and 8.7 kB on #2
+#: (2,941; tracemalloc).
+PATCH_WINDOW_BYTES_EACH = 10e3
 #: Patches sized by the indenters' reach where the macro step stalled far from a solution
 #: (:mod:`twoscale.memory_stall`): each cell's height, owner and block mask, bytes (17,
 #: their arrays'), and the peak while they are cut from their box sampled once, bytes per
@@ -30,17 +35,24 @@ PATCH_BYTES_EACH = 50e3
 REACH_PATCH_HELD = 17.0
 REACH_BOX_SAMPLED = 32.0
 #: The union CG's coarse correction (:mod:`twoscale.pk.coarse`, on boxes of at least its
-#: ``MIN_CELLS``) holds its precorrected product's near pairs among the loaded cells
-#: (:class:`twoscale.influence.precorrected.Precorrected`, Chebyshev radius 10 cells): it is
-#: built only where the loaded squares of 25 x 25 cells hold at most ``MAX_FILL`` (0.2) of
-#: their cells, weighted by their loaded cells, so a contact within a square and the
-#: window has about 125 loaded cells beside each of its own. Measured 43-106 pairs a loaded
-#: cell (seed 7's #177 and #61, seed 8's #140), 112 on contacts of 113 cells one a square;
-#: counted at 125, each at 40 bytes (its value and column, 12, the pair structure kept, 8,
-#: and the build's index arrays). Seed 7's #61 (577 K box cells, 63.6 K loaded) peaked at
-#: 565 MB against 355 counted without them.
-COARSE_NEAR_PAIRS_PER_CONTACT_CELL = 125.0
-COARSE_NEAR_BYTES_PER_PAIR = 40.0
+#: ``MIN_CELLS``, built only where the loaded squares of 25 x 25 cells hold at most
+#: ``MAX_FILL`` (0.2) of their cells, weighted by their loaded cells: ``fill = sum n_i^2 /
+#: (side^2 sum n_i)``) holds its precorrected product's near pairs among the loaded cells
+#: (:class:`twoscale.influence.precorrected.Precorrected`, Chebyshev radius 10 cells: the
+#: pairs of a loaded cell grow with the fill about it) and the squares' dense matrix ``E``
+#: with its Cholesky factor. Its build's peak over the memory before it, measured on the 17
+#: union CG runs of seeds 6-8 where it was built (19-64 K loaded cells at fills 0.036-0.186,
+#: 591-1,773 squares; 35-199 MB): a least-squares fit of ``loaded x fill`` and ``K^2`` gives
+#: 13,800 bytes and 32 bytes (the peaks within 0.75-1.56 of the fit's counts below).
+COARSE_BYTES_PER_LOADED_CELL_AND_FILL = 14_000.0
+COARSE_BYTES_PER_SQUARE_PAIR = 32.0
+#: The fill counted from the contacts with the neighbours' push, each spread over the squares
+#: its bounding box meets, against the fill measured at the build (those 17 runs and 5 where
+#: it was not built): 0.8-1.8 times it (the loaded cells spread over more squares), so the
+#: correction is counted up to this times ``MAX_FILL``: every built one counted (seed 7's #61
+#: at 1.46x: 565 MB in a fresh process against 355 counted without it), two of the five
+#: others too (fills 0.27 counted 0.22-0.24).
+COARSE_FILL_MARGIN = 1.5
 #: Transient FFT work of the largest patch or grid, bytes per cell.
 FFT_WORK_BYTES_PER_CELL = 150.0
 #: Largest dense pair block of the cross-patch coupling, entries

@@ -12,9 +12,10 @@ from .grid import Grid
 from .memory_costs import BLOCK_ATTEMPT_HELD, COUPLING_CACHE_BYTES, DENSE_CELLS, DENSE_GRID_CELLS, DENSE_PAIR_ENTRIES
 from .memory_costs import FAR_OPERATOR_BYTES_PER_PATCH, FFT_WORK_BYTES_PER_CELL, GRID_BYTES_PER_CELL, MACRO_DENSE_MAX
 from .memory_costs import MARGIN, MERGE_GROWTH, PAIR_HELD, PATCH_BYTES_EACH, PATCH_BYTES_PER_CELL
-from .memory_costs import COARSE_NEAR_BYTES_PER_PAIR, COARSE_NEAR_PAIRS_PER_CONTACT_CELL
+from .memory_costs import PATCH_WINDOW_BYTES_EACH
+from .memory_costs import COARSE_BYTES_PER_LOADED_CELL_AND_FILL, COARSE_BYTES_PER_SQUARE_PAIR, COARSE_FILL_MARGIN
 from .micro.policy import AUTO_FAR_TOL, FAR_FIELD_MIN_PATCHES, UNION_MIN_COVERAGE
-from .micro.sources import KEPT_BYTES_PER_OWNED_CELL
+from .micro.sources import KEPT_BYTES_PER_OWNED_CELL, SEPARABLE_BYTES_PER_ROW_OR_COLUMN, SEPARABLE_CELLS
 from .pk.coarse import MAX_FILL as COARSE_MAX_FILL, MAX_SQUARES as COARSE_MAX_SQUARES
 from .pk.coarse import MIN_CELLS as COARSE_MIN_CELLS, SIDE as COARSE_SIDE
 from .memory_choice import Routes, possible_routes
@@ -135,19 +136,33 @@ def twoscale_parts(scene: Scene, h: float, *, iteration: str = "auto") -> tuple[
     near = blocks.get("cached cross-patch operators", 0.0) if "far field's point operator" in blocks else 0.0
     if union and near > sum(union.values()):
         blocks = {}  # the near pairs cost more than the box: the policy takes the union CG
-    # the box's cost per cell was measured with the patches in it: beyond their cells' bytes,
-    # and beyond what a block attempt before it gave back
-    given_back = PATCH_BYTES_PER_CELL * (across**2).sum() + (1.0 - BLOCK_ATTEMPT_HELD) * sum(blocks.values())
-    union = {f"{name} beyond the patches'": max(0.0, size - given_back) for name, size in union.items()}
-    if union:
-        union.update(coarse_parts(scene, box))
-    parts.update(blocks)
-    parts.update(union)
+    # where the macro step may stall (over 1,000 tips), its safe path's and the sampled
+    # patches' memory is not counted otherwise: the patches' cells stay (seed 6's #20 and #69,
+    # seed 7's #92 and #163: stalled, the union CG alone, peaks 1.9-2.7x the box and windows)
+    windows = not stall_possible(scene)
+    parts = _routes_parts(scene, box, parts, blocks, union, count, windows) if union else parts | blocks
     if iteration in ("auto", "two-level") and stall_possible(scene):
         stalled_cells, stalled = _stalled_route(scene, h, tips, parts["macro interaction matrix"])
         if sum(stalled.values()) > sum(parts.values()):
             return max(cells, stalled_cells), stalled
     return cells, parts
+
+
+def _routes_parts(scene: Scene, box: Grid, parts: dict, blocks: dict, union: dict, count: int, windows: bool) -> dict:
+    """``parts`` (the patches and the macro step's) with the union box's ``union`` and, where
+    a block iteration may run too, its ``blocks``. The union CG alone holds its ``count``
+    patches as windows of the box it samples once (:mod:`twoscale.micro.sampling`): their
+    cells are the box's, ``PATCH_WINDOW_BYTES_EACH`` a patch beside (where ``windows``).
+    Else the box's bytes count beyond the patches' (its cost per cell was measured with
+    them) and beyond what a block attempt before it gave back."""
+    name = next(iter(parts))  # the patches'
+    if windows and not blocks:
+        windows = {f"{count} patches, windows of the union box": PATCH_WINDOW_BYTES_EACH * count}
+        rest = {k: v for k, v in parts.items() if k != name}
+        return windows | rest | union | coarse_parts(scene, box)
+    given_back = parts[name] - PATCH_BYTES_EACH * count + (1.0 - BLOCK_ATTEMPT_HELD) * sum(blocks.values())
+    beyond = {f"{k} beyond the patches'": max(0.0, size - given_back) for k, size in union.items()}
+    return parts | blocks | beyond | coarse_parts(scene, box)
 
 
 def _stalled_route(scene: Scene, h: float, tips: np.ndarray, macro: float) -> tuple[int, dict]:
@@ -180,48 +195,50 @@ def _stalled_route(scene: Scene, h: float, tips: np.ndarray, macro: float) -> tu
 
 def coarse_parts(scene: Scene, box: Grid) -> dict:
     """The union CG's coarse correction on ``box`` (:mod:`twoscale.pk.coarse`, from its
-    ``MIN_CELLS``): the near pairs of its precorrected product among the loaded cells, those
-    of the contacts with the neighbours' push (:func:`pushed_contact_radii`), where it is
-    built (:func:`_coarse_built`). It is never built where more than ``MAX_FILL`` of the box
-    is loaded: not counted where the contacts cover twice that share (they were 0.7-1.6
-    times the loaded cells on the sweep's scenes measured), and at most that share counted."""
+    ``MIN_CELLS``): the near pairs of its precorrected product among the loaded cells and
+    the squares' matrix, where it may be built (:func:`loaded_squares`: the contacts with
+    the neighbours' push, :func:`pushed_contact_radii`, at most ``MAX_SQUARES`` squares
+    loaded and at most ``COARSE_FILL_MARGIN`` times ``MAX_FILL`` full, their fill counted at
+    most ``MAX_FILL``). Seeds 6-8's union CG runs measured: built on 17 of 22, not where
+    the fill was 0.27-0.78 (seed 8's #2, #28 and #169, seed 7's #19, seed 6's #26)."""
     if box.size < COARSE_MIN_CELLS:
         return {}
     a = pushed_contact_radii(scene)
     on = a > 0
-    loaded = float(np.sum(np.pi * a**2)) / box.h**2
-    if loaded > 2.0 * COARSE_MAX_FILL * box.size or not _coarse_built(tip_arrays(scene).tips[on], a[on], box):
+    loaded = loaded_squares(tip_arrays(scene).tips[on], a[on], box)
+    if loaded is None or not len(loaded) or len(loaded) > COARSE_MAX_SQUARES:
         return {}
-    loaded = min(loaded, COARSE_MAX_FILL * float(box.size))
-    return {
-        "the union CG's coarse correction": COARSE_NEAR_BYTES_PER_PAIR * COARSE_NEAR_PAIRS_PER_CONTACT_CELL * loaded
-    }
+    fill = float(loaded @ loaded) / (COARSE_SIDE**2 * float(loaded.sum()))
+    if fill > COARSE_FILL_MARGIN * COARSE_MAX_FILL:
+        return {}
+    fill = min(fill, COARSE_MAX_FILL)
+    pairs = COARSE_BYTES_PER_LOADED_CELL_AND_FILL * fill * float(loaded.sum())
+    return {"the union CG's coarse correction": pairs + COARSE_BYTES_PER_SQUARE_PAIR * float(len(loaded)) ** 2}
 
 
-def _coarse_built(tips: np.ndarray, a: np.ndarray, box: Grid) -> bool:
-    """Whether the coarse correction would be built for contacts of radii ``a`` (mm) about
-    ``tips`` ((N, 2) mm) on ``box``: at most ``MAX_SQUARES`` squares of ``SIDE`` cells
-    loaded (each contact's bounding squares) and their fill, ``sum n_i^2 / (side^2 sum
-    n_i)``, at most ``MAX_FILL``, each contact's cells spread evenly over its squares (a
-    contact across many squares fills them: seed 7's #76 on the block, 85 contacts of
-    about 8,600 cells, about 0.5)."""
+def loaded_squares(tips: np.ndarray, a: np.ndarray, box: Grid) -> np.ndarray | None:
+    """Loaded cells (K,) of each of the coarse correction's squares of ``SIDE`` cells on
+    ``box`` that contacts of radii ``a`` (mm) about ``tips`` ((N, 2) mm) load, each
+    contact's cells spread evenly over the squares its bounding box meets and a square at
+    most full; None where they meet far more squares than ``MAX_SQUARES`` (too many to
+    list). Contacts crowding a square fill it together (seed 8's #28: 3,340 contacts, fill
+    0.35 measured; counted contact by contact, 0.06)."""
     side = box.h * COARSE_SIDE
     lo = np.floor((tips - a[:, None] - (box.x0, box.y0)) / side).astype(np.int64)
     hi = np.floor((tips + a[:, None] - (box.x0, box.y0)) / side).astype(np.int64)
     span = hi - lo + 1
     squares = np.prod(span, axis=1)
-    cells = np.pi * a**2 / box.h**2
-    if float(np.sum(cells * cells / squares)) > COARSE_MAX_FILL * COARSE_SIDE**2 * float(cells.sum()):
-        return False
-    if int(squares.sum()) > 50 * COARSE_MAX_SQUARES:  # too many to list: far past the bound
-        return False
+    if int(squares.sum()) > 50 * COARSE_MAX_SQUARES:
+        return None
     columns = int(hi[:, 0].max(initial=0)) + 2
     # every contact's squares listed at once: the k-th square of contact c at row k // span_x
     owner = np.repeat(np.arange(len(squares)), squares)
     k = np.arange(int(squares.sum())) - np.repeat(np.cumsum(squares) - squares, squares)
     rows, cols = np.divmod(k, span[owner, 0])
     keys = (lo[owner, 1] + rows) * columns + lo[owner, 0] + cols
-    return len(np.unique(keys)) <= COARSE_MAX_SQUARES
+    _, which = np.unique(keys, return_inverse=True)
+    cells = np.pi * a**2 / box.h**2
+    return np.minimum(np.bincount(which, weights=(cells / squares)[owner]), float(COARSE_SIDE**2))
 
 
 def _block_parts(tips: np.ndarray, r: np.ndarray, h: float, box: Grid | None, upper: float) -> dict:
@@ -238,19 +255,35 @@ def _block_parts(tips: np.ndarray, r: np.ndarray, h: float, box: Grid | None, up
     parts = {"FFT work on the largest patch": FFT_WORK_BYTES_PER_CELL * growth * float(patch_cells.max(initial=0))}
     crowded = box is not None and upper >= UNION_MIN_COVERAGE * box.size
     far = count > 1 and (not crowded or count >= FAR_FIELD_MIN_PATCHES)
+    # overlapping patches share their cells: the share of a patch's cells it owns
+    share = 1.0 if box is None else min(1.0, box.size / cells)
     if count > 1:
         # the near pairs where the policy may take the far field, else every pair (exact)
-        share = 1.0 if box is None else min(1.0, box.size / cells)  # overlapping patches share their cells
         pairs = pair_bytes(tips, r, h, AUTO_FAR_TOL if far else None, owned=share)
         parts["cached cross-patch operators"] = min(COUPLING_CACHE_BYTES, pairs)
     if far:
-        # where the policy may take the far field (micro.policy.decide): its per-patch
-        # weights, every patch cell counted as owned (4,548 paraboloids: 4.5 M owned cells,
-        # 326 MB of source weights and 326 MB of interpolation rows measured)
-        parts["far field's kept weights"] = KEPT_BYTES_PER_OWNED_CELL * cells
+        # where the policy may take the far field (micro.policy.decide): the weights it keeps
+        across = _cells_across(r, h)
+        parts["far field's kept weights"] = far_weight_bytes(share * across**2, 2.0 * across)
         # and its point operator among the patches (8,376 patches of paraboloids: 260 MB)
         parts["far field's point operator"] = FAR_OPERATOR_BYTES_PER_PATCH * float(count)
     return parts
+
+
+def far_weight_bytes(owned: np.ndarray, sides: np.ndarray) -> float:
+    """Bytes the far field holds for its weights on patches of ``owned`` owned cells and
+    ``sides`` rows plus columns each: ``KEPT_BYTES_PER_OWNED_CELL`` an owned cell on a patch
+    that owns fewer than ``SEPARABLE_CELLS``, the tensor-product form's weights of its rows
+    and columns on a larger one (:mod:`twoscale.micro.level_far`). Held at the most in
+    two-level solves: seed 8's #150, 892 patches of 241 K owned cells, 154 bytes an owned
+    cell (the whole patches' weights of their few shapes 2.4 of them); #138, 108 patches of
+    1,024 owned cells or more, none (4,548 paraboloids of
+    ~1,000 cells, before the larger patches kept none: 326 MB of source weights and 326 MB
+    of interpolation rows)."""
+    owned = np.asarray(owned, dtype=float)
+    small = owned < SEPARABLE_CELLS
+    rows_and_columns = float(np.asarray(sides, dtype=float)[~small].sum())
+    return KEPT_BYTES_PER_OWNED_CELL * float(owned[small].sum()) + SEPARABLE_BYTES_PER_ROW_OR_COLUMN * rows_and_columns
 
 
 def pair_bytes(tips: np.ndarray, r: np.ndarray, h: float, far_tol: float | None, owned: float = 1.0) -> float:

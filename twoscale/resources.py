@@ -16,13 +16,16 @@ What the two methods carry:
   by the neighbours' mean push, :mod:`twoscale.mean_field`), each with its FFT operator; the
   operators of the pairs of patches coupled exactly (the near pairs where the far field may
   be taken; at most the coupling's cache budget); where the far field may be taken, the
-  weights it keeps per owned cell (:data:`twoscale.micro.sources.KEPT_BYTES_PER_OWNED_CELL`)
-  and its point operator among the patches; the dense macro matrix; and, where the policy
+  weights it keeps per owned cell on patches under ``SEPARABLE_CELLS`` owned cells
+  (:func:`twoscale.memory_parts.far_weight_bytes`; none per cell on the larger) and its
+  point operator among the patches; the dense macro matrix; and, where the policy
   may solve on the patches' bounding box as one grid (``union-cg``, chosen or after a
   far-field attempt: :mod:`twoscale.memory_choice` makes the policy's choice on the
   counted patches), that box, counted as the larger of it and a block attempt before it
-  (:mod:`twoscale.memory_parts`), with its coarse correction's near pairs on a large box;
-  where the policy surely takes the union CG, no block operators.
+  (:mod:`twoscale.memory_parts`), with its coarse correction where its loaded squares are
+  few and sparse enough for it to be built; where the policy surely takes the union CG, no
+  block operators, and (where the macro step cannot stall) the patches as windows of the
+  box, a few kB each.
   With more than a thousand tips the macro step may stall and leave patches sized by the
   indenters' reach (:mod:`twoscale.memory_stall`): that route is counted too, and the larger
   taken. An iteration asked for runs alone and is counted alone.
@@ -62,8 +65,9 @@ class MemoryEstimate:
     ----------
     bytes : float
         Estimated peak resident memory, bytes (a prediction: the measured peaks of seed
-        8's 185 recorded sweep scenes lay within 0.11-1.36 times it, 142 of them within
-        0.67-1.5; two user scenarios 0.79 and 1.28; docs/records/sweep.md).
+        8's 185 recorded sweep scenes lay within 0.12-1.37 times it, 150 of them within
+        0.67-1.5, and none of seeds 6-8's above 1.5 but for three records whose peak is the
+        sweep's own; docs/records/sweep.md).
     cells : int
         Cells the solver will carry: the reference grid, or the patches (the union box
         when the micro step is expected to solve on it and it is larger).

@@ -37,12 +37,23 @@ def grid_interpolation(ny: int, nx: int) -> np.ndarray:
 #: third Chebyshev polynomial, which minimise the largest interpolation error over it.
 SOURCE_NODE = math.sqrt(3.0) / 2.0
 
-#: Bytes a far field keeps for every owned cell of a patch while the patch stays (float64):
-#: the cell's column of :func:`source_weights` (9 numbers) and its row of
-#: :func:`grid_interpolation` (9) (the cells' centres are not kept: the weights are made
-#: from the grids', :func:`patch_source_weights`). One engine's at a time: an engine a
-#: merge replaces is released with it.
-KEPT_BYTES_PER_OWNED_CELL = np.dtype(np.float64).itemsize * (9 + 9)
+#: Bytes a far field keeps for every owned cell of a patch of fewer than
+#: :data:`SEPARABLE_CELLS` owned cells while the patch stays: the cell's column of
+#: :func:`source_weights` (9 float64) and its row of :func:`grid_interpolation` (9 float64)
+#: with the row's block index (an int64), as a sweep's level lays them end to end
+#: (:class:`.level_far.LevelWeights`); 152-156 bytes an owned cell held at the most in
+#: the sweep's two-level solves measured (seed 8's #31, #51, #150, #166). Where a block's
+#: right-hand side is asked alone (:meth:`.farfield.FarFieldCoupling._interpolation`: the
+#: rounds' gaps on some scenes) its rows are kept once more, 72 bytes a cell not counted.
+#: The cells' centres are not kept: the weights are made from the grids'
+#: (:func:`patch_source_weights`). One engine's at a time: an engine a merge replaces is
+#: released with it.
+KEPT_BYTES_PER_OWNED_CELL = np.dtype(np.float64).itemsize * (9 + 9) + np.dtype(np.int64).itemsize
+#: Bytes a patch of at least :data:`SEPARABLE_CELLS` owned cells holds per row and per column
+#: of its grid while its far field or sources are taken by the tensor-product forms
+#: (:func:`separable_strengths`, :func:`.level_far.separable_far`): the three quadratic
+#: Lagrange weights (float64) of each; made at each call, nothing per cell kept.
+SEPARABLE_BYTES_PER_ROW_OR_COLUMN = np.dtype(np.float64).itemsize * 3
 
 
 def source_frame(grid) -> tuple[np.ndarray, np.ndarray]:
