@@ -166,19 +166,3 @@ def test_a_direction_restarted_right_after_an_exact_product_takes_the_whole_prod
     assert halved(ops, t, 1, restarted, np.array([1])) is begun
     assert halved(ops, t, 1, restarted, np.array([0])) is None
     assert halved(ops, t, 1, np.ones(1), np.array([1])) is None  # (kept directions: whole)
-
-
-def test_a_steps_cell_change_laid_out_is_the_clip_and_the_entries():
-    # CellChange.stack: the change of the pressure beyond -tau t (clipped cells back to 0,
-    # entering cells at -tau g, a cell both clipped and entering counted once with both)
-    from twoscale.pk.cells import clip_and_enter
-
-    rng = np.random.default_rng(2)
-    p = np.maximum(rng.normal(size=(4, 50)), 0.0)
-    t, g = rng.normal(size=(4, 50)), rng.normal(size=(4, 50))
-    tau = rng.uniform(0.1, 1.0, 4)
-    moved = p - tau[:, None] * t
-    after = moved.copy()
-    _, _, change = clip_and_enter(after, g, tau, None, True)
-    which = np.array([True, False, True, True])
-    assert np.allclose(change.stack(which, 50), (after - moved)[which], rtol=0.0, atol=1e-15)

@@ -1,6 +1,7 @@
 """``A_kk``: the influence block of one patch on its own owned cells, with linear solves
 on active subsets (dense factorisations for small blocks, CG on the provider's operator for
-large ones). Every number comes from the influence provider."""
+large ones). Every number comes from the influence provider.
+"""
 
 from __future__ import annotations
 
@@ -137,14 +138,13 @@ class LocalBlock:
         self.dense = self.n <= dense_max_cells
         self.cg_rtol, self.cg_max_iter = cg_rtol, cg_max_iter
         self._cache: OrderedDict = OrderedDict()
-        # kept with the block through the rounds of a solve: the coarse step's ``s_k`` with its active
-        # set and its coordinates (:mod:`.coarse`), and the last pressure a stacked local solve
-        # confirmed with its exact product on the block's cells (:mod:`.pk_stack`: the next start's)
+        # the coarse step's ``s_k`` with its active set, and its coordinates (:mod:`.coarse`),
+        # kept with the block through the rounds of a solve (a round rebuilds the coarse space)
         self.coarse_shape: tuple | None = None
         self.coarse_frame: tuple | None = None
-        self.anchor: tuple | None = None
         self._cache_size = cache_size
-        self.cg_iterations = self.factorisations = 0
+        self.cg_iterations = 0
+        self.factorisations = 0
         # the block's products only involve its owned cells: work on their bounding box (where
         # neighbours own part of the patch, a smaller grid than the patch's)
         rows = np.flatnonzero(patch.owned.any(axis=1))

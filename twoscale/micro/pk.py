@@ -17,7 +17,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..pk.kernel import Constraint, PKResult, Tolerance, pk_solve
+from ..pk.kernel import Constraint, Tolerance, pk_solve
 
 
 def fixed_approach(
@@ -55,16 +55,8 @@ def fixed_approach(
     -------
     pressure (B, ...), converged (B,) bool, iterations (B,) int
     """
-    out = approach_result(apply, b, start, mask, rtol=rtol, max_iter=max_iter, precondition=precondition)
+    out = pk_solve(apply, -b, start, mask, Tolerance(change=rtol, max_iter=max_iter), precondition=precondition)
     return out.pressure, out.converged, out.iterations
-
-
-def approach_result(
-    apply, b: np.ndarray, start, mask, *, rtol: float, max_iter: int = 1000, precondition=None
-) -> PKResult:
-    """:func:`fixed_approach`'s whole :class:`~twoscale.pk.result.PKResult` (the
-    displacements too); ``start`` may carry its product (:class:`~twoscale.pk.kernel.Start`)."""
-    return pk_solve(apply, -b, start, mask, Tolerance(change=rtol, max_iter=max_iter), precondition=precondition)
 
 
 def fixed_force(
@@ -86,16 +78,8 @@ def fixed_force(
 
     Returns pressure (B, ...), shift (B,) mm (``A p = s - z`` on the contact), converged
     (B,), iterations (B,)."""
-    out = force_result(apply, z, target, start, mask, rtol=rtol, max_iter=max_iter, precondition=precondition)
-    return out.pressure, out.multipliers[:, 0], out.converged, out.iterations
-
-
-def force_result(
-    apply, z: np.ndarray, target, start: np.ndarray, mask, *, rtol: float, max_iter: int = 1000, precondition=None
-) -> PKResult:
-    """:func:`fixed_force`'s whole :class:`~twoscale.pk.result.PKResult` (the displacements too)."""
     n = int(np.prod(z.shape[1:]))
-    return pk_solve(
+    out = pk_solve(
         apply,
         z,
         start,
@@ -104,6 +88,7 @@ def force_result(
         constraint=Constraint(np.ones((n, 1)), np.asarray(target, dtype=float)[:, None]),
         precondition=precondition,
     )
+    return out.pressure, out.multipliers[:, 0], out.converged, out.iterations
 
 
 def _one_row(matvec):

@@ -35,9 +35,8 @@ from __future__ import annotations
 import numpy as np
 
 from ..influence.stacked import Workspace
-from ..pk.kernel import Start
-from ..pk.products import FAST_CHANGE_ROUNDING, Products
-from .pk import approach_result, force_result
+from ..pk.products import Products
+from .pk import fixed_approach, fixed_force
 
 
 class _Canvas:
@@ -48,7 +47,7 @@ class _Canvas:
     def __init__(self, op, workspace: Workspace):
         single = op.single_precision()
         fast = None if single is op else single.kept_stack(workspace)
-        self.products = Products(op.kept_stack(workspace), fast=fast, fast_changes=True)
+        self.products = Products(op.kept_stack(workspace), fast=fast)
         # the approximate inverse in float32 where the operator has one (its rounding, ~1e-7,
         # is far below what it approximates; on 122 x 122 cells 0.53 -> ~0.3 ms a field)
         inverse = (single.preconditioner() if single is not op else None) or op.preconditioner()
@@ -158,9 +157,8 @@ class BlockStacks:
         for (key, tol), (op, members) in self._groups(blocks, ks, lambda blk: rtol).items():
             mask, (zs, p0) = self._stack(blocks, members, key, z, starts)
             target = np.array([forces[k] / (h * h) for k in members])
-            res = force_result(op.products, zs, target, p0, mask, rtol=tol, precondition=op.precondition)
-            out.update((k, res.pressure[i][mask[i]]) for i, k in enumerate(members))
-            _anchor(blocks, members, mask, res, out)
+            p, _, _, _ = fixed_force(op.products, zs, target, p0, mask, rtol=tol, precondition=op.precondition)
+            out.update((k, p[i][mask[i]]) for i, k in enumerate(members))
         return out
 
     def solve(self, blocks, ks, rhs: dict, previous: list, rtol: float | None) -> dict:
@@ -176,11 +174,8 @@ class BlockStacks:
             mask, (b, p0) = self._stack(blocks, members, key, rhs, previous)
             if own is not None:
                 b[mask] -= own.apply(p0)[mask]  # the members' corrections of themselves, lagged
-            start = _anchored_start(op.products, blocks, members, mask, p0, previous, tol)
-            res = approach_result(op.products, b, start, mask, rtol=tol, precondition=op.precondition)
-            p, ok, it = res.pressure, res.converged, res.iterations
+            p, ok, it = fixed_approach(op.products, b, p0, mask, rtol=tol, precondition=op.precondition)
             out.update((k, (p[i][mask[i]], bool(ok[i]), int(it[i]))) for i, k in enumerate(members))
-            _anchor(blocks, members, mask, res, {k: v[0] for k, v in out.items()})
         return out
 
     def products(self, blocks, ks, vectors: dict) -> dict:
@@ -196,44 +191,3 @@ class BlockStacks:
             u = op.products.exact(v)
             out.update((k, u[i][mask[i]]) for i, k in enumerate(members))
         return out
-
-
-def _anchored_start(
-    products: Products, blocks, members: list, mask: np.ndarray, p0: np.ndarray, previous, rtol: float
-) -> Start:
-    """The members' starts ``p0`` (on their canvases) with their products: a block with an
-    anchor (``LocalBlock.anchor``: a pressure and its exact product on the block's cells)
-    near enough (the change since it within ``rtol`` of the start over
-    :data:`~twoscale.pk.products.FAST_CHANGE_ROUNDING`) takes it plus the ``fast`` product
-    of the change (confirmed on an exact product before the row stops), the others an
-    exact product. Off the blocks' cells the values are not the product's (the kernel reads
-    a masked row's displacement on its mask only)."""
-    moved = np.zeros(len(members))
-    if products.fast is not None:
-        for i, k in enumerate(members):
-            anchor = blocks[k].anchor
-            if anchor is not None:
-                moved[i] = max(float(np.linalg.norm(previous[k] - anchor[0])), np.finfo(float).tiny)
-                if FAST_CHANGE_ROUNDING * moved[i] > rtol * float(np.linalg.norm(previous[k])):
-                    moved[i] = 0.0  # too far: an exact product
-    has = moved > 0.0
-    u0 = np.empty(p0.shape)
-    if not has.all():
-        u0[~has] = products.exact(p0[~has])
-    if has.any():
-        at = np.flatnonzero(has)
-        on = mask[at]
-        change = np.zeros((len(at), *p0.shape[1:]))
-        change[on] = np.concatenate([previous[members[i]] - blocks[members[i]].anchor[0] for i in at.tolist()])
-        u = products.fast(change)
-        u[on] += np.concatenate([blocks[members[i]].anchor[1] for i in at.tolist()])
-        u0[at] = u
-    return Start(p0, u0, moved)
-
-
-def _anchor(blocks, members: list, mask: np.ndarray, res, pressures: dict) -> None:
-    """Keep each converged member's pressure (``pressures[k]``, its block vector) and the exact
-    product the kernel confirmed it on as the block's anchor (:func:`_anchored_start`)."""
-    for i, k in enumerate(members):
-        if res.converged[i]:
-            blocks[k].anchor = (pressures[k], res.displacement[i][mask[i]])

@@ -15,10 +15,12 @@ import numpy as np
 from ..stopping import StopReason
 from .gap import GapBuffers
 from .projection import column, constraint_residual, denominator, kkt_residual, project, restore, row_count, row_dot
-from .cells import clip_and_enter, fast_changes, update_displacement
-from .products import FAST_RESIDUAL, KEPT_GROWTH, Halves, halved
+from .products import COLUMN_CELLS, FAST_RESIDUAL, KEPT_GROWTH, CellChange, Halves, Products, clip_and_enter, halved
 from .result import PKResult
 
+#: Recompute ``u = A p`` from scratch at least this often (the cheap update
+#: ``u <- s (u - tau A t)`` accumulates rounding).
+REFRESH_EVERY = 25
 #: Iterations between two calls of ``monitor``.
 MONITOR_EVERY = 10
 #: The change rule's penetration test: a cell off the contact penetrates when its gap is
@@ -46,16 +48,14 @@ class Iteration:
     tol : Tolerance
     plane : PlaneBasis, optional
         The basis's separable form (:mod:`.plane`), for its fits and restoring.
-    u0 : (B, n) array, optional: ``A start`` if known (:class:`~.kernel.Start`).
-    moved : (B,) array, optional: where ``u0`` is not exact, the norm of the pressure
-        change its fast part was the product of (:class:`~.kernel.Start`)."""
+    u0 : (B, n) array, optional: ``A start`` if known (:class:`~.kernel.Start`)."""
 
     PER_ROW = tuple(
-        "p t u z mask target G_old conj kept stale travel scale best it_best gtol small index done count free fast weight".split()
+        "p t u z mask target G_old conj kept stale scale best it_best gtol small index done count free fast weight".split()
     ) + ("cheap",)  # the arrays (and the cheap product's state) with a row per live row
 
     def __init__(
-        self, products, precondition, shape, z, start, mask, basis, target, tol, plane=None, u0=None, moved=None
+        self, products: Products, precondition, shape, z, start, mask, basis, target, tol, plane=None, u0=None
     ):
         self.ops, self.pc, self.shape, self.basis, self.tol = products, precondition, shape, basis, tol
         self.plane = plane
@@ -80,10 +80,6 @@ class Iteration:
         self.u = np.array(self.product(self.p, fast=bool(self.fast.all())) if u0 is None else u0, dtype=float)
         self.products = rows
         self.G_old, self.stale = np.ones(rows), self.fast.astype(int)
-        # per row, the pressure's travel since its last exact product, which the fast
-        # products' rounding in ``u`` falls on (:meth:`fast_changes`)
-        self.travel = np.zeros(rows) if moved is None else np.array(moved, dtype=float)
-        self.stale = np.maximum(self.stale, (self.travel > 0.0).astype(int))  # confirmed before a row stops
         self.conj, self.small, self.done, self.kept = np.zeros((4, rows), bool)
         self.pending = False  # rows finished but not yet dropped
         self.left = rows  # rows not finished
@@ -133,8 +129,6 @@ class Iteration:
         else:
             self.u[rows] = self.product(self.p[rows], fast)
             self.stale[rows] = int(fast)
-        if not fast:
-            self.travel[rows] = 0.0
         if self.scale is not None:
             self.scale[rows] = _largest(self.u if np.count_nonzero(rows) == len(rows) else self.u[rows])
         self.products += int(rows.sum())
@@ -329,25 +323,49 @@ class Iteration:
         p = self.p
         tau_c = column(tau)
         p -= np.multiply(t, tau_c, out=d if d is not g_on else None)
-        record = self.ops.columns is not None or (self.ops.fast_changes and self.ops.fast is not None)
-        clipped, reenter, change = clip_and_enter(p, g, tau, self.mask, record)
+        clipped, reenter, change = clip_and_enter(p, g, tau, self.mask, self.ops.columns is not None)
         entered = reenter.any(axis=1)
         # few cells entered: the directions stay conjugate enough to keep (counted only then)
         few = row_count(reenter) <= self.ops.keep_conjugacy * row_count(on) if entered.any() else True
         self.kept = entered & few
         self.conj = ~entered | self.kept
         factor = restore(p, self.basis, self.target, basis_t=self.basis_t, plane=self.plane) if self.k else 1.0
-        added = None
+        self.update_displacement(r, tau_c, factor, clipped | entered, change)
         if p_old is not None:
             p_old -= p
             d2, n2 = row_dot(p_old, p_old), row_dot(p, p)
             self.small = d2 <= self.change2 * n2
             if np.count_nonzero(n2) < len(n2):
                 self.small |= n2 == 0.0
-            self.travel += np.sqrt(d2)
-            added = fast_changes(self, n2)
-        update_displacement(self, r, tau_c, factor, clipped | entered, change, added)
         self.drop()
+
+    def update_displacement(self, r, tau_c, factor, changed, change: CellChange | None = None) -> None:
+        """``u = A p`` after a step: from ``A t`` where ``p`` changed by ``-tau t`` and a
+        constant factor only, plus the kernel's columns where at most
+        :data:`~.products.COLUMN_CELLS` cells were clipped or entered (``change``), from
+        scratch elsewhere (by the fast product while the row is on it) and every
+        :data:`REFRESH_EVERY` steps."""
+        summed = None
+        if change is not None and factor is not None and np.count_nonzero(changed):
+            summed = changed & (change.per_row(len(changed)) <= COLUMN_CELLS) & (self.stale < REFRESH_EVERY)
+            changed = changed & ~summed
+        redo = changed | (self.stale >= REFRESH_EVERY) | (False if self.cheap is None else self.cheap.due(self))
+        count = np.count_nonzero(redo)
+        if factor is None or count == len(redo):
+            # every row from scratch: fast only if all still are (``redo`` may be empty)
+            self.refresh(np.ones(len(changed), bool), bool(self.fast.all()))
+            return
+        fast = bool(self.fast[redo].all())
+        r = r.finish() if isinstance(r, Halves) else r
+        r *= tau_c
+        self.u -= r
+        if self.k:
+            self.u *= column(factor)
+        if summed is not None and np.count_nonzero(summed):
+            change.apply(self.u, summed, factor, self.ops.columns)
+        self.stale += 1
+        if count:
+            self.refresh(redo, fast)
 
     def drop(self, *arrays):
         """Remove the finished rows from the working arrays (and from ``arrays``)."""

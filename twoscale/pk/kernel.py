@@ -33,8 +33,7 @@ from typing import Callable
 import numpy as np
 
 from .plane import PlaneBasis
-from .cells import REFRESH_EVERY
-from .iteration import GAP_RTOL, MONITOR_EVERY, Iteration
+from .iteration import GAP_RTOL, MONITOR_EVERY, REFRESH_EVERY, Iteration
 from .products import Products
 from .result import STALL_ITERATIONS, PKResult, Tolerance
 
@@ -74,16 +73,10 @@ class Start:
     ----------
     pressure : (B, ...) array, MPa
     product : (B, ...) array, mm
-    moved : (B,) array, MPa, optional
-        Where ``product`` is an exact product of a nearby pressure plus the fast product of
-        the difference, that difference's norm per row (0: exact), which its rounding falls
-        on (:data:`~.products.FAST_CHANGE_ROUNDING`); such rows are confirmed on an exact
-        product before they stop. None: exact on every row.
     """
 
     pressure: np.ndarray
     product: np.ndarray
-    moved: np.ndarray | None = None
 
 
 def pk_solve(
@@ -133,7 +126,6 @@ def pk_solve(
     """
     shape = z.shape[1:]
     rows = len(z)
-    moved = start.moved if isinstance(start, Start) else None
     start, u0 = (start.pressure, start.product.reshape(rows, -1)) if isinstance(start, Start) else (start, None)
     plane = None
     if constraint is None:
@@ -153,7 +145,6 @@ def pk_solve(
         tolerance,
         plane,
         u0,
-        moved,
     )
     for it in range(tolerance.max_iter + 1):
         live = stack.check(it, monitor)
