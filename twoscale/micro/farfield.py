@@ -28,10 +28,10 @@ from ..influence.base import InfluenceProvider
 from .blocks import Coupling
 from .kept_points import kept_operator
 from .level_far import LevelWeights, separable_far
-from .localblock import whole_patch, whole_patch_is_large
 from .near_window import FIRST_GATHER_ENTRIES
 from .sources import SEPARABLE_CELLS, all_source_nodes, all_stencils, all_strengths, grid_interpolation
 from .spectral_pairs import level_near
+from .whole_patches import near_on_patches
 
 
 def patch_frames(patches) -> tuple[np.ndarray, np.ndarray]:
@@ -240,27 +240,17 @@ class FarFieldCoupling(Coupling):
         return rest
 
     def patch_displacement(self, k: int, values: list) -> np.ndarray:
-        """Displacement (mm) on the whole patch ``k`` from the other blocks (near exact):
-        a near pair whose dense block is kept by it on the patch's own cells and by
-        :func:`~.localblock.whole_patch` on the cells neighbours own, not by an FFT operator
-        made for this one product (2,370 of them on 939 scattered patches, the growth
-        check's 0.4 s); the other pairs (and kept ones too large for it) by their routes."""
-        pt = self.patches[k]
-        shape = pt.grid.shape
-        u, rest = np.zeros(shape), []
-        for l in self.near(k):
-            v = values[int(l)]
-            if v is None or not np.count_nonzero(v):
-                continue
-            M = self._ops.get((k, int(l)))
-            if M is None or whole_patch_is_large(pt, v):
-                rest.append(int(l))
-            else:
-                u += whole_patch(self.provider, pt, M @ v, self.patches[int(l)], v)
-        routed = self._sum(k, rest, values, whole=True) if rest else None
-        if routed is not None:
-            u += routed
-        return u + self._far(k, values, whole=True)[:, 0].reshape(shape)
+        """Displacement (mm) on the whole patch ``k`` from the other blocks (near exact)."""
+        return self.patch_displacements([k], values)[k]
+
+    def patch_displacements(self, ks, values: list) -> dict:
+        """:meth:`patch_displacement` ``{k: (ny, nx)}`` of the patches ``ks``: a near pair
+        whose dense block is kept by it (not an FFT operator made for this one product:
+        2,370 of them on 939 scattered patches, the growth check's 0.4 s), the others by
+        their routes for all the patches together (:func:`.whole_patches.near_on_patches`),
+        then the far field."""
+        near = near_on_patches(self, ks, values)
+        return {k: u + self._far(k, values, whole=True)[:, 0].reshape(u.shape) for k, u in near.items()}
 
 
 class LaggedFarField(FarFieldCoupling):
