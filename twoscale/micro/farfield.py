@@ -99,6 +99,7 @@ class FarFieldCoupling(Coupling):
         n = len(self.patches)
         self._centres, self._radii = patch_frames(self.patches)
         self._near: dict = {}
+        self._near_ints: dict = {}
         self._weights: dict = {}
         self._cells: dict = {}
         self._seen: list = [None] * n
@@ -117,7 +118,17 @@ class FarFieldCoupling(Coupling):
         lists at once, by :func:`near_lists`, on first use after a change)."""
         if not self._near:
             self._near = dict(enumerate(near_lists(self._centres, self._radii, self.far_tol)))
+            self._near_ints = {}
         return self._near[k]
+
+    def _near_list(self, k: int) -> list:
+        """:meth:`near` as a list of ints (a sweep's loops index lists with them: numpy's
+        integers cost a conversion a pair)."""
+        near = self.near(k)
+        hit = self._near_ints.get(k)
+        if hit is None:
+            hit = self._near_ints[k] = near.tolist()
+        return hit
 
     def _stencil(self, k: int) -> np.ndarray:
         return all_stencils([self.patches[k]])  # (9, 2): 3 y by 3 x
@@ -219,20 +230,21 @@ class FarFieldCoupling(Coupling):
         columns from the kernel's window; returns the pairs left to their routes (past the dense size)."""
         rest, gathered, n = [], [], max(len(out), 1)
         wide, few = self.dense_max_entries / n, FIRST_GATHER_ENTRIES / n  # smaller pairs: dense blocks
-        for l in self.near(k):
+        ops, window = self._ops, self._window
+        for l in self._near_list(k):
             v = values[l]
             if v is None or not (loaded := np.count_nonzero(v)):  # 0.6 us against any()'s 4 (#181)
                 continue
             self.near_products += 1
-            M = self._ops.get((k, int(l)))  # kept only for a pair whose route is the dense block
+            M = ops.get((k, l))  # kept only for a pair whose route is the dense block
             if M is not None:
                 out -= M @ v
-            elif self._window is not None and ((k, l) in self._window.pairs or (len(v) > wide and loaded <= few)):
-                gathered.append(int(l))
+            elif window is not None and ((k, l) in window.pairs or (len(v) > wide and loaded <= few)):
+                gathered.append(l)
             else:
-                rest.append(int(l))
-        if gathered and self._window is not None:
-            u = self._window.total(k, self.patches[k], [(l, self.patches[l], values[l]) for l in gathered])
+                rest.append(l)
+        if gathered and window is not None:
+            u = window.total(k, self.patches[k], [(l, self.patches[l], values[l]) for l in gathered])
             if u is None:
                 rest += gathered
             else:
