@@ -256,11 +256,8 @@ class FarFieldCoupling(Coupling):
         return self.patch_displacements([k], values)[k]
 
     def patch_displacements(self, ks, values: list) -> dict:
-        """:meth:`patch_displacement` ``{k: (ny, nx)}`` of the patches ``ks``: a near pair
-        whose dense block is kept by it (not an FFT operator made for this one product:
-        2,370 of them on 939 scattered patches, the growth check's 0.4 s), the others by
-        their routes for all the patches together (:func:`.whole_patches.near_on_patches`),
-        then the far field."""
+        """:meth:`patch_displacement` ``{k: (ny, nx)}`` of the patches ``ks``: the near pairs
+        together (:func:`.whole_patches.near_on_patches`), then the far field."""
         near = near_on_patches(self, ks, values)
         return {k: u + self._far(k, values, whole=True)[:, 0].reshape(u.shape) for k, u in near.items()}
 
@@ -342,10 +339,15 @@ class LaggedFarField(FarFieldCoupling):
 
     def keep_pairs(self, old, index: dict) -> None:
         """As :meth:`~.blocks.Coupling.keep_pairs`, and ``old``'s point operator kept for
-        the patches both hold (:func:`~.kept_points.kept_operator`)."""
+        the patches both hold (:func:`~.kept_points.kept_operator`), and their source
+        weights and the grid shapes' interpolation weights (a patch's own: 7,339 clustered
+        spheres made them all again after each of three merges)."""
         super().keep_pairs(old, index)
         if isinstance(old, LaggedFarField) and old.provider is self.provider and old.far_tol == self.far_tol:
             self._kept = old._kept if old._rtol == self._rtol else None
+        if isinstance(old, LaggedFarField):
+            self._sources.update({index[k]: w for k, w in old._sources.items() if k in index})
+            self._weights.update({key: w for key, w in old._weights.items() if key[0] == "shape"})
 
     def _point_operator(self):
         if self._op is None:
