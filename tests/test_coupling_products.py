@@ -229,14 +229,14 @@ def test_transposed_operators_equal_the_reverse_pair(far):
 def test_a_kept_pair_too_large_for_a_whole_patch_block_goes_by_its_route(monkeypatch):
     # patches 0-2 overlap (cells a neighbour owns): the whole patch's displacement from a
     # kept dense pair takes those cells from a block, or past the cap from the FFT route
-    from twoscale.micro import localblock, whole_patches
+    from twoscale.micro import farfield, localblock
     from twoscale.micro.farfield import FarFieldCoupling
 
     asps, patches = _scene()
     rng = np.random.default_rng(5)
     values = [rng.random(int(p.owned.sum())) for p in patches]
     calls = []
-    monkeypatch.setattr(whole_patches, "whole_patch", lambda *a: calls.append(1) or localblock.whole_patch(*a))
+    monkeypatch.setattr(farfield, "whole_patch", lambda *a: calls.append(1) or localblock.whole_patch(*a))
     for cap, blocks in ((10**9, True), (0, False)):
         monkeypatch.setattr(localblock, "WHOLE_PATCH_MAX_ENTRIES", cap)
         near = FarFieldCoupling(HS, patches, far_tol=1e-6, dense_max_entries=10**6)

@@ -1,7 +1,5 @@
 """The far field's point operator kept through a grown and a merged patch
-(:mod:`twoscale.micro.kept_points`), against the sum of point forces made term by term; the
-source weights of the patches a merge keeps taken over (the same strengths as a fresh
-engine's)."""
+(:mod:`twoscale.micro.kept_points`), against the sum of point forces made term by term."""
 
 import numpy as np
 import scipy.sparse as sp
@@ -74,28 +72,6 @@ def test_the_point_operator_is_kept_through_a_merge():
     again.keep_pairs(far, {k: k - (k > 4) for k in range(len(patches)) if k not in (3, 4)})
     _check(again, 2)
     assert again._point_operator().base is built
-
-
-def test_a_merge_keeps_the_source_weights_of_the_patches_both_engines_hold():
-    # the source weights depend on the patch alone: the new engine takes the unchanged
-    # patches' (the same arrays), makes the merged one's, and its strengths are a fresh
-    # engine's to the bit
-    from twoscale.micro.sources import all_strengths
-
-    patches = _scattered(80)
-    rng = np.random.default_rng(6)
-    far = LaggedFarField(HS, patches, far_tol=0.3)
-    far.refresh([rng.random(int(pt.owned.sum())) for pt in patches])
-    (x3, y3), (x4, y4) = (np.mean(patches[k].grid.points(), axis=0) for k in (3, 4))
-    after = patches[:3] + [_patch(3, 0.5 * (x3 + x4), 0.5 * (y3 + y4), 18, members=(3, 4))] + patches[5:]
-    index = {k: k - (k > 4) for k in range(len(patches)) if k not in (3, 4)}
-    again = LaggedFarField(HS, after, far_tol=0.3)
-    again.keep_pairs(far, index)
-    assert all(again._sources[j] is far._sources[k] for k, j in index.items()) and 3 not in again._sources
-    values = [rng.random(int(pt.owned.sum())) for pt in after]
-    fresh = LaggedFarField(HS, after, far_tol=0.3)
-    got, want = (all_strengths(e.patches, values, e._sources) for e in (again, fresh))
-    np.testing.assert_array_equal(got, want)
 
 
 def test_the_kept_weights_take_the_bytes_the_estimate_counts_per_owned_cell():

@@ -158,20 +158,6 @@ class Coupling:
             self._bytes += own
             if not own:
                 self._mirrors.add(key)
-        self._keep_routes(old, index)
-
-    def _keep_routes(self, old: "Coupling", index: dict) -> None:
-        """Take over ``old``'s pair routes (:meth:`_route`) as :meth:`keep_pairs` (a reverse pair's
-        view only with that pair; 7,339 clustered spheres: each of three merges made ~9,000 again)."""
-        for (k, l), route in sorted(old._routes.items(), key=lambda item: item[1][2] == 0.0):
-            key, view = (index.get(k), index.get(l)), route[1] is not None and not route[2]
-            if None in key or key in self._routes or (view and key[::-1] not in self._routes):
-                continue
-            if route[2] and not self._operator_room(route[2]):
-                continue
-            self._routes[key] = route
-            self._route_bytes += route[2]
-            self.separated_pairs += route[0] == "separated"
 
     def full_operator(self, k: int, l: int):
         """Operator from the whole patch ``l`` to the whole patch ``k``: the provider's
@@ -348,7 +334,10 @@ class Coupling:
                 continue
             kind, op, _ = self._route(k, l) if v.ndim == 1 else ("plain", None, 0.0)
             if kind == "plain":
-                term = self._whole(k, l, v) if whole else self.apply(k, l, v)
+                if whole:
+                    term = self._whole(k, l, v)
+                else:
+                    term = self.apply(k, l, v)
                 total = term if total is None else total + term
                 continue
             smooth.append(l)
@@ -359,7 +348,11 @@ class Coupling:
             else:
                 groups[key] = [op, term]
         # spectral targets are enlarged to their size class: the patch is their corner
-        parts = [pick(op.finish(acc)[: pk.grid.ny, : pk.grid.nx]) for g in staged.values() for op, acc in g.values()]
+        parts = [
+            pick(op.finish(acc)[: pk.grid.ny, : pk.grid.nx])
+            for groups in staged.values()
+            for op, acc in groups.values()
+        ]
         if self._correction is not None and smooth:
             parts.append(pick(near_correction(self, pk.grid, smooth, values)))
         for term in parts:

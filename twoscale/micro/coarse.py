@@ -260,11 +260,8 @@ class CoarseSpace:
         sol, iters, ok = self._solve(A, 1.0 / kappa[A], rhs, near)
         dtheta = np.zeros(3)
         dP_A = sol[:, 0]
-        P = laid_end_to_end(pressures)
         if m:
-            # load and moments of the pressures laid end to end (one lattice: one h), not a
-            # product a block (7,339 blocks: 0.05 s a step)
-            now = h2 * np.array([P.sum(), yr @ P, xr @ P])[:m]
+            now = np.atleast_1d(self._resultants(patches, pressures, pivot, m))
             S = E @ sol[:, 1:]
             q = np.asarray(target, float) - now - E @ sol[:, 0]
             # singular when the active patches cannot carry a moment (one patch at the
@@ -275,7 +272,7 @@ class CoarseSpace:
         dP[A] = dP_A
         scale = np.zeros(n)
         scale[A] = dP_A / kappa[A]
-        moved = np.maximum(P + np.repeat(scale, np.diff(starts)) * flat, 0.0)
+        moved = np.maximum(laid_end_to_end(pressures) + np.repeat(scale, np.diff(starts)) * flat, 0.0)
         out = list(pressures)  # the others' the very objects (unchanged)
         for k in A.tolist():
             out[k] = moved[starts[k] : starts[k + 1]]
@@ -297,20 +294,29 @@ class CoarseSpace:
         return hit[2], hit[3]
 
     def _frame(self, k: int, pt, pivot, blk=None) -> tuple:
-        """Block ``k``'s :func:`block_coordinates` ``(xr, yr)``, kept while its patch is the
-        same object (4,548 blocks: made again at every step, 0.7 s of a 3 s step), also with
-        the block ``blk`` for the next round's coarse space (1,485 clustered spheres: 1,375
-        frames made again after a merge)."""
+        """Block ``k``'s :func:`block_coordinates` and the columns ``(1, y, x)`` of
+        :func:`resultants`, kept while its patch is the same object (4,548 blocks: made
+        again at every step, 0.7 s of a 3 s step), also with the block ``blk`` for the
+        next round's coarse space (1,485 clustered spheres: 1,375 frames made again after
+        a merge)."""
         hit = self._frames.get(k)
         if hit is None or hit[0] is not pt or hit[1] != tuple(pivot):
             hit = getattr(blk, "coarse_frame", None)
             if hit is None or hit[0] is not pt or hit[1] != tuple(pivot):
                 xr, yr = block_coordinates(pt, pivot)
-                hit = (pt, tuple(pivot), (xr, yr))
+                hit = (pt, tuple(pivot), (xr, yr, np.column_stack([np.ones_like(xr), yr, xr])))
             self._frames[k] = hit
             if blk is not None:
                 blk.coarse_frame = hit
         return hit[2]
+
+    def _resultants(self, patches, pressures: list, pivot, m: int) -> np.ndarray:
+        """:func:`resultants` by the kept frames (the same arithmetic)."""
+        out = 0.0
+        for k, (pt, p) in enumerate(zip(patches, pressures)):
+            G = self._frame(k, pt, pivot)[2]
+            out = out + pt.grid.h**2 * (G[:, :m].T @ p)
+        return np.asarray(out)
 
     def _solve(self, A: np.ndarray, kinv: np.ndarray, rhs: np.ndarray, near):
         """Solve ``(diag(kinv) + T_AA + near) x = rhs`` for the columns of ``rhs`` (``near``:

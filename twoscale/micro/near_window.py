@@ -42,8 +42,7 @@ class NearWindow:
         self._window: np.ndarray | None = None
         self._origin: Grid | None = None
         # per patch index: [patch, its corner (i, j) on the lattice, its owned cells, the
-        # window's width, its cells' and its owned cells' flat indices on the window's lattice,
-        # and the latter shifted to the window's centre (a target's rows in a gather)]
+        # window's width, its cells' and its owned cells' flat indices on the window's lattice]
         self._cells: dict = {}
         #: The pairs ``(k, l)`` its coupling took it for, until a patch changes (:meth:`forget`).
         self.pairs: set = set()
@@ -89,7 +88,7 @@ class NearWindow:
             if self._origin is None:
                 self._origin = patch.grid
             corner = patch.grid.offset_in(self._origin)
-            hit = self._cells[k] = [patch, corner, int(patch.owned.sum()), 0, None, None, None]
+            hit = self._cells[k] = [patch, corner, int(patch.owned.sum()), 0, None, None]
         return hit
 
     def _flat(self, entry: list) -> list:
@@ -99,8 +98,7 @@ class NearWindow:
             patch, (i0, j0) = entry[0], entry[1]
             j, i = np.divmod(np.arange(patch.grid.size), patch.grid.nx)
             flat = (j + j0) * w + (i + i0)
-            owned = flat[patch.owned.ravel()]
-            entry[3:] = [w, flat, owned, owned + self.reach * (w + 1)]
+            entry[3:] = [w, flat, flat[patch.owned.ravel()]]
         return entry
 
     def product(self, k: int, pk, l: int, pl, v: np.ndarray, *, whole: bool = False) -> np.ndarray | None:
@@ -127,23 +125,19 @@ class NearWindow:
         vectors) by one gather of all their loaded columns (the window grown to the pairs'
         reach); None when a pair reaches past the largest window or the gather would pass
         :data:`GATHER_MAX_ENTRIES`."""
-        ek, reaches, farthest = self._entry(k, pk), self._reaches, 0
+        ek = self._entry(k, pk)
         for l, pl, _ in sources:
-            reach = reaches.get((k, l))
+            reach = self._reaches.get((k, l))
             if reach is None:
-                reach = reaches[(k, l)] = _reach(ek[1], self._entry(l, pl)[1], pk.grid, pl.grid)
-            farthest = max(farthest, reach)
-        if not self._grow(farthest):  # the window's entries at an offset do not depend on its size
-            return None
+                reach = self._reaches[(k, l)] = _reach(ek[1], self._entry(l, pl)[1], pk.grid, pl.grid)
+            if not self._grow(reach):
+                return None
         loaded = [self._loaded(l, pl, v) for l, pl, v in sources]
-        if len(loaded) == 1:
-            col, x = loaded[0]
-        else:
-            col, x = np.concatenate([c for c, _ in loaded]), np.concatenate([x for _, x in loaded])
+        col = np.concatenate([c for c, _ in loaded])
         if ek[2] * len(col) > GATHER_MAX_ENTRIES:
             return None
-        target = self._flat(ek)[6]
-        return np.take(self._window, target[:, None] - col[None, :]) @ x
+        target = self._flat(ek)[5] + self.reach * (2 * self.reach + 2)
+        return np.take(self._window, target[:, None] - col[None, :]) @ np.concatenate([x for _, x in loaded])
 
     def _loaded(self, l: int, pl, v: np.ndarray) -> tuple:
         """Block ``l``'s loaded cells on the window's lattice and their values, kept while

@@ -29,14 +29,13 @@ def level_near(coupling, values: list, out: dict) -> dict:
     return out
 
 
-def route_sums(coupling, work: list, values: list, *, whole: bool = False) -> dict:
-    """``{k: sum_{l in sources} A_kl v_l}`` (mm) on block ``k``'s owned cells, or (``whole``)
-    on its whole patch (ny, nx), for ``work`` = ``[(k, sources)]`` (1-D block vectors
-    ``values``), by the pairs' routes; a target whose sources carry no pressure is left
-    out. Pairs off the spectral route, and every pair where the kernel has a split-off
-    correction, as :meth:`~.blocks.Coupling._sum`."""
+def route_sums(coupling, work: list, values: list) -> dict:
+    """``{k: sum_{l in sources} A_kl v_l}`` (mm) on block ``k``'s owned cells for ``work`` =
+    ``[(k, sources)]`` (1-D block vectors ``values``), by the pairs' routes; a target
+    whose sources carry no pressure is left out. Pairs off the spectral route, and every
+    pair where the kernel has a split-off correction, as :meth:`~.blocks.Coupling._sum`."""
     if coupling._correction is not None:
-        sums = {k: coupling._sum(k, sources, values, whole=whole) for k, sources in work}
+        sums = {k: coupling._sum(k, sources, values, whole=False) for k, sources in work}
         return {k: u for k, u in sums.items() if u is not None}
     totals: dict = {}
     spectral, others = [], {}
@@ -51,7 +50,7 @@ def route_sums(coupling, work: list, values: list, *, whole: bool = False) -> di
             else:
                 others.setdefault(k, []).append(l)
     for k, ls in others.items():
-        _add(totals, k, coupling._sum(k, ls, values, whole=whole))
+        _add(totals, k, coupling._sum(k, ls, values, whole=False))
     _spectra(coupling, spectral, values)
     sums: dict = {}  # per target and target key: the sum of its pairs' products
     for k, l, op in spectral:
@@ -61,7 +60,7 @@ def route_sums(coupling, work: list, values: list, *, whole: bool = False) -> di
             sums[(k, op.target_key)] = [op, term]
         else:
             hit[1] += term
-    for k, u in _finished(coupling.patches, sums, whole):
+    for k, u in _finished(coupling.patches, sums):
         _add(totals, k, u)
     return totals
 
@@ -90,10 +89,10 @@ def _spectra(coupling, pairs: list, values: list) -> None:
             coupling._spectra[(l, key)] = (v, spectra[i].copy())  # (not a view holding the stack)
 
 
-def _finished(patches, sums: dict, whole: bool):
+def _finished(patches, sums: dict):
     """``(k, u)``: each target's summed products transformed back, those of one padded shape,
     source shape and target shape in one call (the transform back reads only the shapes),
-    cut to the patch (``whole``) or to its owned cells."""
+    cut to the patch's owned cells."""
     groups: dict = {}
     for (k, _), (op, a) in sums.items():
         groups.setdefault((op.fft_shape, op.source.shape, op.target.shape), []).append((k, op, a))
@@ -101,5 +100,4 @@ def _finished(patches, sums: dict, whole: bool):
         back = members[0][1].finish(np.stack([a for _, _, a in members]))
         for i, (k, _, _) in enumerate(members):
             pk = patches[k]
-            u = back[i, : pk.grid.ny, : pk.grid.nx]
-            yield k, u.copy() if whole else u[pk.owned]
+            yield k, back[i, : pk.grid.ny, : pk.grid.nx][pk.owned]

@@ -157,8 +157,10 @@ class WorkingSet:
         some = self._gaps_of  # the growth check's patches, at the same state
         if some is None or some[0] != key or not _same(some[1], pressures) or not _same(some[2], self._held()):
             some = (None, None, None, {})
-        u = self._displacements([k for k in range(len(self.patches)) if k not in some[3]], pressures)
-        out = [some[3][k] if k in some[3] else self._gap(k, u[k], theta, pivot) for k in range(len(self.patches))]
+        out = [
+            some[3][k] if k in some[3] else self._gap(k, self._displacement(k, pressures), theta, pivot)
+            for k in range(len(self.patches))
+        ]
         self._gaps = (key, list(pressures), list(self.patches), out)
         return out
 
@@ -168,20 +170,10 @@ class WorkingSet:
 
     def _displacement(self, k: int, pressures: list) -> np.ndarray:
         """Displacement on the whole patch ``k`` (ny, nx), mm."""
-        return self._displacements([k], pressures)[k]
-
-    def _displacements(self, ks, pressures: list) -> dict:
-        """:meth:`_displacement` ``{k: ...}`` of the patches ``ks``: the coupling's for all of
-        them together where it can (``patch_displacements``: their routed pairs in one pass)."""
-        many = getattr(self.coupling, "patch_displacements", None)
-        if many is not None:
-            out = many(ks, pressures)
-        else:
-            out = {k: self.coupling.patch_displacement(k, pressures) for k in ks}
-        for k in ks:
-            if np.any(pressures[k]):
-                out[k] += self.blocks[k].patch_product(pressures[k])
-        return out
+        u = self.coupling.patch_displacement(k, pressures)
+        if np.any(pressures[k]):
+            u += self.blocks[k].patch_product(pressures[k])
+        return u
 
     def _gap(self, k: int, u: np.ndarray, theta, pivot) -> np.ndarray:
         pt = self.patches[k]
@@ -197,8 +189,7 @@ class WorkingSet:
         last = self._gaps
         if last is not None and last[0] == key and _same(last[1], pressures) and _same(last[2], self.patches):
             return {k: last[3][k] for k in which}
-        u = self._displacements(which, pressures)
-        out = {k: self._gap(k, u[k], theta, pivot) for k in which}
+        out = {k: self._gap(k, self._displacement(k, pressures), theta, pivot) for k in which}
         self._gaps_of = (key, list(pressures), self._held(), out)
         return out
 
