@@ -28,7 +28,6 @@ import os
 import subprocess
 import sys
 import time
-import warnings
 
 #: (module, attribute[, label]) of the calls timed; ``Class.method`` for methods; a label sums
 #: several calls under one name.
@@ -117,13 +116,7 @@ def child(case: str) -> dict:
     totals: dict = {}
     for stage in STAGES:
         _wrap(totals, *stage)
-    kind, arg = case.split(":", 1)
-    run = ab_trees.CASES[kind](os.path.abspath(arg) if kind.startswith("file") else arg)
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        t0 = time.process_time()
-        res = run()
-        cpu = time.process_time() - t0
+    res, cpu = ab_trees.timed(case)
     stages = {k: [n, round(s, 4)] for k, (n, s) in totals.items()}
     return {"case": case, "cpu": round(cpu, 4), "iterations": {k: int(v) for k, v in res.iterations.items()}, **stages}
 

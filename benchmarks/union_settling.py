@@ -21,8 +21,6 @@ from __future__ import annotations
 import argparse
 import os
 import sys
-import time
-import warnings
 
 import numpy as np
 
@@ -97,13 +95,7 @@ def main(argv=None) -> int:
     ab_trees._solver_imports()
     runs: list = []
     _traced(runs)
-    kind, arg = args.case.split(":", 1)
-    run = ab_trees.CASES[kind](os.path.abspath(arg) if kind.startswith("file") else arg)
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        t0 = time.process_time()
-        result = run()
-        cpu = time.process_time() - t0
+    result, cpu = ab_trees.timed(args.case)
     print(f"{args.case}: {cpu:.3f} s CPU (traced), iterations {dict(result.iterations)}")
     report(runs)
     return 0

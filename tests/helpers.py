@@ -274,3 +274,11 @@ def lattice_patches(rng, n: int, spread: float, h: float, largest: int = 24) -> 
             owner[: ny // 3, : nx // 3] = -1
         out.append(Patch(k, g, np.zeros(g.shape), owner))
     return out
+
+
+def lattice_values(rng, patches) -> list:
+    """Random pressures (MPa) on the patches' owned cells, zero on some cells and on the
+    second patch: the right-hand sides of the lattice tests."""
+    vals = [rng.random(int(pt.owned.sum())) * (rng.random(int(pt.owned.sum())) < 0.6) for pt in patches]
+    vals[1] = np.zeros_like(vals[1])
+    return vals

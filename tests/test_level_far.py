@@ -11,7 +11,7 @@ gathered from the kernel's window.
 import numpy as np
 import pytest
 
-from helpers import lattice_patches
+from helpers import lattice_patches, lattice_values
 
 from twoscale import Material
 from twoscale.grid import Grid
@@ -27,21 +27,11 @@ HS = HalfSpace(Material(10.0, 0.5))
 H = 0.02
 
 
-def _values(rng, patches):
-    """Random pressures (MPa) on the owned cells, zero on some cells and on one block."""
-    vals = []
-    for pt in patches:
-        v = rng.random(int(pt.owned.sum())) * (rng.random(int(pt.owned.sum())) < 0.6)
-        vals.append(v)
-    vals[1] = np.zeros_like(vals[1])
-    return vals
-
-
 @pytest.mark.parametrize("seed", [0, 1, 2])
 def test_level_rhs_equal_the_block_by_block_ones(seed):
     rng = np.random.default_rng(seed)
     patches = lattice_patches(rng, 40, 6.0, H)
-    values = _values(rng, patches)
+    values = lattice_values(rng, patches)
     b = [rng.normal(size=len(v)) * 1e-3 for v in values]
     kw = dict(far_tol=0.3, dense_max_entries=20_000, cache_bytes=2e5)  # some pairs past the dense blocks
     one, many = LaggedFarField(HS, patches, **kw), LaggedFarField(HS, patches, **kw)
@@ -61,7 +51,7 @@ def test_level_rhs_equal_the_block_by_block_ones(seed):
 def test_level_rhs_equal_the_exact_coupling_where_every_pair_is_near():
     rng = np.random.default_rng(5)
     patches = lattice_patches(rng, 12, 1.0, H)
-    values = _values(rng, patches)
+    values = lattice_values(rng, patches)
     b = [np.zeros(len(v)) for v in values]
     held = LaggedFarField(HS, patches, far_tol=1e-6, dense_max_entries=20_000, cache_bytes=1e5)
     assert all(len(held.near(k)) == len(patches) - 1 for k in range(len(patches)))
@@ -118,7 +108,7 @@ def test_level_rhs_after_a_patch_change_equal_a_fresh_far_fields(seed):
     assert any(pt.owned.sum() < SEPARABLE_CELLS for pt in patches)
     kw = dict(far_tol=0.3, dense_max_entries=20_000, cache_bytes=2e5)
     kept = LaggedFarField(HS, patches, **kw)
-    values = _values(rng, patches)
+    values = lattice_values(rng, patches)
     kept.refresh(values)
     for level in sweep_levels(kept):  # every level's weights kept
         kept.rhs_level(level, values, [np.zeros(len(v)) for v in values])
@@ -129,7 +119,7 @@ def test_level_rhs_after_a_patch_change_equal_a_fresh_far_fields(seed):
         g = Grid(old.x0 + H * int(rng.integers(-3, 4)), old.y0 + H * int(rng.integers(-3, 4)), H, nx, ny)
         patches[k] = Patch(k, g, np.zeros(g.shape), np.full(g.shape, k))
         kept.replace(k, patches[k])
-    values = _values(rng, patches)
+    values = lattice_values(rng, patches)
     b = [rng.normal(size=len(v)) * 1e-3 for v in values]
     fresh = LaggedFarField(HS, list(patches), **kw)
     kept.refresh(values)

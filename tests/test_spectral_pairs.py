@@ -10,7 +10,7 @@ blocks); the per-vector transforms they keep serve a later call with the same ve
 import numpy as np
 import pytest
 
-from helpers import lattice_patches
+from helpers import lattice_patches, lattice_values
 
 from twoscale import Material
 from twoscale.influence import HalfSpace
@@ -21,17 +21,11 @@ HS = HalfSpace(Material(10.0, 0.5))
 H = 0.02
 
 
-def _values(rng, patches):
-    vals = [rng.random(int(pt.owned.sum())) * (rng.random(int(pt.owned.sum())) < 0.6) for pt in patches]
-    vals[1] = np.zeros_like(vals[1])
-    return vals
-
-
 @pytest.mark.parametrize("seed", [0, 1, 2])
 def test_stacked_route_sums_equal_each_targets_own_and_the_kernels(seed):
     rng = np.random.default_rng(seed)
     patches = lattice_patches(rng, 16, 2.0, H)
-    values = _values(rng, patches)
+    values = lattice_values(rng, patches)
     kw = dict(dense_max_entries=2_000, separated_rtol=None)  # most pairs on the spectral route
     one, many = Coupling(HS, patches, **kw), Coupling(HS, patches, **kw)
     work = [(k, [l for l in range(len(patches)) if l != k and rng.random() < 0.6]) for k in range(len(patches))]
