@@ -83,7 +83,9 @@ def test_the_route_the_solve_takes_is_one_the_estimate_counts(scene):
     for attempt in micro.attempts:
         assert routes.union if attempt.iteration == "union-cg" else routes.blocks, (attempt, routes)
     if micro.choice.far_tol is not None and micro.choice.estimates["coverage"] >= 0.14:
-        assert routes.union  # the union CG follows a far-field attempt that does not converge
+        # the union CG may follow a far-field attempt that does not converge: predicted, but
+        # checked against the memory available when it would start (test_memory_fallback)
+        assert routes.union or routes.fallback
     parts = dict(estimate_memory(scene, h, "twoscale").parts)
     assert any("union box" in k for k in parts) == routes.union
 
