@@ -4,13 +4,13 @@ The estimate made before a solve (:mod:`twoscale.resources`) counts the routes t
 One fallback needs far more than the route before it and has not been seen to run on the
 sweep's scenes: the union CG over the patches' bounding box after a far-field two-level
 attempt that did not converge, on patches covering at least ``UNION_MIN_COVERAGE`` of the
-box (:func:`twoscale.micro.driver._order`; the 102 such attempts of the sweep records of
-seeds 0-9 all converged). Counted up front it put the estimate at 3-8x the measured peak
-of those scenes (seed 8's #129: 8.6 GB counted, 2.8 GB held) and would refuse scenes that
-fit. It is checked instead when it is about to start (:func:`union_box_fits`), against the
-memory available then: where the box does not fit, block Gauss-Seidel with the attempt's
-far field runs (the fallback where the patches cover less of their box), whose memory is
-the attempt's. Bytes.
+box (:func:`twoscale.micro.driver._order`; the 88 such attempts of the sweep records, on
+75 scenes of seeds 1 and 5-9, all converged). Counted up front it put the estimate at up
+to 9x the measured peak (seed 8's #74: 3.5 GB counted, 0.41 GB held; 0.45 GB counted
+without it) and would refuse scenes that fit. It is checked instead when it is about to
+start (:func:`union_box_fits`), against the memory available then: where the box does not
+fit, block Gauss-Seidel with the attempt's far field runs (the fallback where the patches
+cover less of their box), whose memory is the attempt's. Bytes.
 """
 
 from __future__ import annotations

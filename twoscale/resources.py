@@ -37,7 +37,7 @@ What the two methods carry:
 * a body that builds something on its first answers adds it (the finite block's
   factorisation where its on-disk cache lacks a field the tips' region needs).
 
-Measured peaks against the estimate: docs/records/sweep.md (seeds 7 and 8's scenes). Not
+Measured peaks against the estimate: docs/records/sweep.md (seeds 6-9's scenes). Not
 counted: the reference grid's enlargements when pressure reaches its edge (x 2.25 each),
 and a union CG the policy takes on patches that cover their box beyond what the band of
 :mod:`twoscale.memory_choice` predicts.
@@ -70,9 +70,8 @@ class MemoryEstimate:
     ----------
     bytes : float
         Estimated peak resident memory, bytes (a prediction: the measured peaks of seed
-        8's 185 recorded sweep scenes lay within 0.12-1.37 times it, 150 of them within
-        0.67-1.5, and none of seeds 6-8's above 1.5 but for three records whose peak is the
-        sweep's own; docs/records/sweep.md).
+        8's 185 recorded sweep scenes lay within 0.25-1.37 times it, 160 of them within
+        0.67-1.5, and none of seeds 6-9's 715 above 1.5; docs/records/sweep.md).
     cells : int
         Cells the solver will carry: the reference grid, or the patches (the union box
         when the micro step is expected to solve on it and it is larger).
