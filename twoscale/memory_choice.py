@@ -5,9 +5,10 @@ The micro step's policy chooses after the macro step, from the patches it sized
 a far-field two-level attempt on patches that cover at least ``UNION_MIN_COVERAGE`` of
 their box is followed by the union CG where it does not converge
 (:func:`twoscale.micro.driver._order`) where its box fits in the memory available then
-(:func:`twoscale.memory_now.union_box_fits`; else block Gauss-Seidel with the same coupling).
-The memory estimate makes the same choice on the patches it counts (:func:`twoscale.memory_parts.patch_half_widths`), over a band of their
-size (:data:`CELL_FACTORS`) and with and without merged contacts (which only the macro step
+(:func:`twoscale.memory_now.union_box_fits`; else block Gauss-Seidel with the same
+coupling). The memory estimate makes the same choice on the patches it counts
+(:func:`twoscale.memory_parts.patch_half_widths`), over a band of their size
+(:data:`CELL_FACTORS`) and with and without merged contacts (which only the macro step
 finds): an iteration chosen anywhere in the band may run, and its memory is counted; one
 chosen nowhere is not. The union CG that only follows a far-field attempt is not counted:
 it runs only where it fits when the attempt has failed (in the sweep records, 88 far-field
