@@ -83,7 +83,9 @@ def test_the_route_the_solve_takes_is_one_the_estimate_counts(scene):
     for attempt in micro.attempts:
         assert routes.union if attempt.iteration == "union-cg" else routes.blocks, (attempt, routes)
     if micro.choice.far_tol is not None and micro.choice.estimates["coverage"] >= 0.14:
-        assert routes.union  # the union CG follows a far-field attempt that does not converge
+        # the union CG may follow a far-field attempt that does not converge: predicted, but
+        # checked against the memory available when it would start (test_memory_fallback)
+        assert routes.union or routes.fallback
     parts = dict(estimate_memory(scene, h, "twoscale").parts)
     assert any("union box" in k for k in parts) == routes.union
 
@@ -115,3 +117,28 @@ def test_a_full_grid_past_the_dense_solvers_size_is_counted_without_its_matrix()
     est = estimate_memory(scene, scene.h, "twoscale")
     assert not any("dense" in k for k, _ in est.parts)
     assert est.bytes / 1.5 <= got["peak"] <= 1.5 * est.bytes, (got["peak"] / 1e6, est.text)
+
+
+@pytest.mark.parametrize("spacing, penetration", [(1.0, 0.06), (1.5, 0.08)])
+def test_the_patches_counted_under_penetration_are_those_the_solve_holds(spacing, penetration):
+    # 64 paraboloids with recesses of 0-0.06 mm: the neighbours' push lifts some out of
+    # contact, and the macro step still gives each of those a patch at its reach (seed 8's
+    # #168: counted without them, its peak read 1.57x the estimate)
+    from twoscale.memory_parts import _held_half_widths
+
+    rng = np.random.default_rng(1)
+    tips = [
+        Asperity(spacing * i, spacing * j, float(rng.uniform(0.0, 0.06)), 1.0, shape="paraboloid")
+        for i in range(8)
+        for j in range(8)
+    ]
+    scene = Scene(material=MATERIAL, penetration=penetration, asperities=tips)
+    h = 0.02
+    pushed = patch_half_widths(scene, h)
+    held = _held_half_widths(scene, h, pushed)
+    solved = solve_scene(scene, h=h).details.micro.choice.estimates
+    assert np.count_nonzero(pushed) < np.count_nonzero(held) == solved["patches"]
+    cells = float(((np.floor(2.0 * held[held > 0] / h) + 1.0) ** 2).sum())
+    assert cells == pytest.approx(solved["carried_cells"], rel=0.15)
+    count = next(int(k.split()[0]) for k, _ in estimate_memory(scene, h, "twoscale").parts if " patches" in k)
+    assert count == solved["patches"]

@@ -145,24 +145,38 @@ def test_auto_counts_the_route_the_policy_takes(spacing, iteration):
 
 
 def test_auto_counts_the_union_cg_after_a_block_attempt_beside_what_that_attempt_keeps():
-    # the union CG may follow a far-field attempt that did not converge, which gives back all
-    # but BLOCK_ATTEMPT_HELD of its memory first (the heap trimmed): the larger of the two,
-    # the box beyond the patches' cells (the union CG alone counts the whole box, its
-    # patches windows of it)
+    # where the policy may choose either (121 paraboloids 4 mm apart: the union CG chosen on
+    # some of the patches the estimate considers, a block iteration on others), the larger of
+    # the two: the block attempt gives back all but BLOCK_ATTEMPT_HELD of its memory first
+    # (the heap trimmed), the box counted beyond the patches' cells (the union CG alone counts
+    # the whole box, its patches windows of it)
     from twoscale.memory_costs import BLOCK_ATTEMPT_HELD, PATCH_BYTES_EACH
 
     block_keys = ("FFT work on the largest patch", "cached cross-patch operators", "far field's")
-    for spacing in (4.0, 6.0):
-        parts = dict(estimate_memory(_lattice(spacing), 0.05, "twoscale").parts)
-        blocks = sum(v for k, v in parts.items() if k.startswith(block_keys))
-        alone = dict(estimate_memory(_lattice(spacing), 0.05, "twoscale", iteration="union-cg").parts)
-        union = sum(v for k, v in alone.items() if k.startswith("the union box"))
-        count, patches = next((int(k.split()[0]), v) for k, v in parts.items() if k.endswith(" patches"))
-        assert f"{count} patches, windows of the union box" in alone
-        beyond = sum(v for k, v in parts.items() if "union box" in k)
-        assert blocks > 0 and union > 0
-        given_back = patches - PATCH_BYTES_EACH * count + (1.0 - BLOCK_ATTEMPT_HELD) * blocks
-        assert beyond == pytest.approx(max(0.0, union - given_back))
+    parts = dict(estimate_memory(_lattice(4.0), 0.05, "twoscale").parts)
+    blocks = sum(v for k, v in parts.items() if k.startswith(block_keys))
+    alone = dict(estimate_memory(_lattice(4.0), 0.05, "twoscale", iteration="union-cg").parts)
+    union = sum(v for k, v in alone.items() if k.startswith("the union box"))
+    count, patches = next((int(k.split()[0]), v) for k, v in parts.items() if k.endswith(" patches"))
+    assert f"{count} patches, windows of the union box" in alone
+    beyond = sum(v for k, v in parts.items() if "union box" in k)
+    assert blocks > 0 and union > 0
+    given_back = patches - PATCH_BYTES_EACH * count + (1.0 - BLOCK_ATTEMPT_HELD) * blocks
+    assert beyond == pytest.approx(max(0.0, union - given_back))
+
+
+def test_auto_leaves_out_the_union_cg_that_only_follows_a_far_field_attempt():
+    # 6 mm apart the policy takes the far-field two-level iteration at a coverage of 0.17
+    # (checked by solving), after which the union CG would run only if that attempt did not
+    # converge and its box fits then (test_memory_fallback): the block iterations are counted
+    # as when asked for, the box not
+    scene = _lattice(6.0)
+    micro = solve_scene(scene, h=0.05).details.micro
+    assert [(a.iteration, a.far_tol is not None, a.converged) for a in micro.attempts] == [("two-level", True, True)]
+    assert micro.choice.estimates["coverage"] >= 0.14  # where the union CG is its fallback
+    parts = dict(estimate_memory(scene, 0.05, "twoscale").parts)
+    assert not any("union box" in k for k in parts)
+    assert sum(parts.values()) == estimate_memory(scene, 0.05, "twoscale", iteration="two-level").bytes
 
 
 def test_pair_operators_are_counted_at_their_arrays_sizes():

@@ -73,6 +73,11 @@ class StepWarning(UserWarning):
     Prony branch resolves: the hysteresis friction comes out low."""
 
 
+class MemoryWarning(UserWarning):
+    """A fallback the memory available at run time cannot hold was replaced by a smaller one
+    (the union CG after a far-field attempt: block Gauss-Seidel with the same far field)."""
+
+
 class TiltWarning(UserWarning):
     """A solved tilt beyond the small angles the linear ball-and-socket model assumes."""
 

@@ -19,20 +19,25 @@ What the two methods carry:
   weights it keeps per owned cell on patches under ``SEPARABLE_CELLS`` owned cells
   (:func:`twoscale.memory_parts.far_weight_bytes`; none per cell on the larger) and its
   point operator among the patches; the dense macro matrix; and, where the policy
-  may solve on the patches' bounding box as one grid (``union-cg``, chosen or after a
-  far-field attempt: :mod:`twoscale.memory_choice` makes the policy's choice on the
-  counted patches), that box, counted as the larger of it and a block attempt before it
+  may choose to solve on the patches' bounding box as one grid (``union-cg``:
+  :mod:`twoscale.memory_choice` makes the policy's choice on the counted patches), that
+  box, counted as the larger of it and a block attempt before it
   (:mod:`twoscale.memory_parts`), with its coarse correction where its loaded squares are
   few and sparse enough for it to be built; where the policy surely takes the union CG, no
   block operators, and (where the macro step cannot stall) the patches as windows of the
   box, a few kB each.
+  The union CG that only follows a far-field attempt which did not converge is not
+  counted: it starts only where its box fits in the memory available then
+  (:func:`twoscale.memory_now.union_box_fits`; else block Gauss-Seidel with the same far
+  field). Under penetration control a tip the neighbours' push lifts out of contact still
+  holds a patch at its reach (:func:`twoscale.memory_parts.twoscale_parts`).
   With more than a thousand tips the macro step may stall and leave patches sized by the
   indenters' reach (:mod:`twoscale.memory_stall`): that route is counted too, and the larger
   taken. An iteration asked for runs alone and is counted alone.
 * a body that builds something on its first answers adds it (the finite block's
   factorisation where its on-disk cache lacks a field the tips' region needs).
 
-Measured peaks against the estimate: docs/records/sweep.md (seeds 7 and 8's scenes). Not
+Measured peaks against the estimate: docs/records/sweep.md (seeds 6-9's scenes). Not
 counted: the reference grid's enlargements when pressure reaches its edge (x 2.25 each),
 and a union CG the policy takes on patches that cover their box beyond what the band of
 :mod:`twoscale.memory_choice` predicts.
@@ -43,7 +48,6 @@ Units: bytes, mm.
 from __future__ import annotations
 
 import math
-import os
 from dataclasses import dataclass
 
 import numpy as np
@@ -51,6 +55,7 @@ import numpy as np
 from .memory_costs import BASE_BYTES, DEFAULT_FRACTION, ADVICE_SHARE
 from .full_grid import FULL_GRID_DENSE_CELLS
 from .mean_field import tip_arrays
+from .memory_now import available_memory
 from .memory_parts import grid_parts, twoscale_parts
 from .micro.full_grid_rule import FULL_GRID_MAX_TIPS, full_grid_max_cells, full_grid_route as policy_full_grid_route
 from .pivot import pivot_route
@@ -65,9 +70,8 @@ class MemoryEstimate:
     ----------
     bytes : float
         Estimated peak resident memory, bytes (a prediction: the measured peaks of seed
-        8's 185 recorded sweep scenes lay within 0.12-1.37 times it, 150 of them within
-        0.67-1.5, and none of seeds 6-8's above 1.5 but for three records whose peak is the
-        sweep's own; docs/records/sweep.md).
+        8's 185 recorded sweep scenes lay within 0.25-1.37 times it, 160 of them within
+        0.67-1.5, and none of seeds 6-9's 715 above 1.5; docs/records/sweep.md).
     cells : int
         Cells the solver will carry: the reference grid, or the patches (the union box
         when the micro step is expected to solve on it and it is larger).
@@ -246,22 +250,6 @@ def _largest_contact(scene: Scene) -> str:
         else f"load.total = {scene.total_load:g} N and material.E = {scene.material.E:g} MPa"
     )
     return f"the largest expected contact, asperity {k + 1}'s, is about {2 * a[k]:.3g} mm across at {load}"
-
-
-def available_memory() -> float:
-    """Memory available to a new allocation, bytes: ``MemAvailable`` of /proc/meminfo, else
-    the free physical pages (``os.sysconf``); ``inf`` when neither can be read."""
-    try:
-        with open("/proc/meminfo", encoding="ascii") as fh:
-            for line in fh:
-                if line.startswith("MemAvailable:"):
-                    return float(line.split()[1]) * 1024.0  # kB
-    except OSError:
-        pass
-    try:
-        return float(os.sysconf("SC_AVPHYS_PAGES")) * float(os.sysconf("SC_PAGE_SIZE"))
-    except (ValueError, OSError, AttributeError):
-        return math.inf
 
 
 def default_limit() -> float:

@@ -15,11 +15,14 @@ CG). :func:`solve_micro` runs one iteration with one coupling, without the polic
 from __future__ import annotations
 
 import time
+import warnings
 from dataclasses import dataclass
 from typing import Callable, Sequence
 
 
+from ..errors import MemoryWarning, user_stacklevel
 from ..indenters import Asperity
+from ..memory_now import UNION_BOX_SPREAD, available_memory, union_box_bytes, union_box_fits
 from ..influence.base import InfluenceProvider
 from ..options import MicroOptions
 from .couplings import Exact, coupling_for
@@ -168,6 +171,8 @@ def run_micro(
     attempts: list = []
     result = None
     for iteration, coupling in order:
+        if attempts and isinstance(iteration, UnionCG):
+            iteration, coupling = _union_or_blocks(box, order[0][1])
         stage = f"micro step, {iteration.name}" + (
             f" ({coupling.name} {coupling.far_tol:g})" if coupling is not None and coupling.far_tol is not None else ""
         )
@@ -192,6 +197,24 @@ def run_micro(
             break
         release_freed_memory()  # what the failed attempt freed, before the next one allocates
     return result, MicroPlan(picked, tuple(attempts), macro)
+
+
+def _union_or_blocks(box_cells: int, coupling) -> tuple:
+    """The union CG after a far-field attempt where its box of ``box_cells`` cells fits in the
+    memory available now (:func:`twoscale.memory_now.union_box_fits`: the estimate made before
+    the solve does not count it), else block Gauss-Seidel with the attempt's ``coupling`` (the
+    fallback where patches cover less of their box), with a :class:`MemoryWarning`."""
+    if union_box_fits(box_cells):
+        return UnionCG(), None
+    warnings.warn(
+        MemoryWarning(
+            f"the union CG on the patches' box ({box_cells:,} cells, up to "
+            f"{UNION_BOX_SPREAD * union_box_bytes(box_cells) / 1e9:.2g} GB) does not fit in 80 % of the memory available now "
+            f"({available_memory() / 1e9:.2g} GB): block Gauss-Seidel with the same far field instead"
+        ),
+        stacklevel=user_stacklevel(),
+    )
+    return BlockGaussSeidel(), coupling
 
 
 def solve_micro(
