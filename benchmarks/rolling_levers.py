@@ -25,12 +25,21 @@ same as its kept inverse's, the same offsets as another's kept one (a whole-cell
 updated, or afresh (a stone new to the blocks; a small one, below
 :data:`twoscale.rolling.inverses.UPDATE_MIN_CELLS`, by the cells it gained and lost; a large
 one changed too much or updated :data:`twoscale.rolling.blocks.MAX_UPDATES` times). Means a
-position.
+position; ``--step``: the road's step (a step that is not a whole number of cells forgets the
+kept inverses at every position, :meth:`twoscale.rolling.blocks.StoneBlocks.at`, and moves
+the start to the nearest cell).
+
+``--lever directions``: the share of each position's start error (the answer less the start
+scaled to the load) in the energy norm ``e.A e`` that the best combination of the last
+position's correction (its answer less its start) moved with the road, of the last
+position's search directions moved, or of both could take off (float64 products of the
+fields, outside the counted work; the directions on the CG's part).
 
 Usage::
 
     PYTHONPATH=. python benchmarks/rolling_levers.py --lever start [--length 30] [--correction local] [--radius 8]
-    PYTHONPATH=. python benchmarks/rolling_levers.py --lever blocks [--length 30]
+    PYTHONPATH=. python benchmarks/rolling_levers.py --lever blocks [--length 30] [--step 1.0]
+    PYTHONPATH=. python benchmarks/rolling_levers.py --lever directions [--length 16]
 """
 
 from __future__ import annotations
@@ -156,9 +165,21 @@ def _reason(blocks_of, stone, keys, found, out) -> str:
     return "afresh: large, changed too much"
 
 
-def roll_blocks(length: float) -> None:
-    """``--lever blocks``: the census of the stones' blocks a position."""
-    track, options, state = rolling_benchmark.tyre_window(length)
+def tyre(length: float, step: float) -> tuple:
+    """The benchmark's tyre over ``length`` mm in steps of ``step`` mm, ready to roll:
+    ``(track, options, state)`` (:func:`rolling.tyre_window`'s, the step given)."""
+    if step == 1.0:
+        return rolling_benchmark.tyre_window(length)
+    import twoscale
+
+    track = rolling_benchmark.prepare(rolling_benchmark.tyre_scene(twoscale, length, step=step)[0])
+    options = rolling_benchmark.RollingOptions()
+    return track, options, rolling_benchmark.window_state(track, options)
+
+
+def roll_blocks(length: float, step: float) -> None:
+    """``--lever blocks``: the census of the stones' blocks a position, and the CG iterations."""
+    track, options, state = tyre(length, step)
     census, sizes, known = Counter(), Counter(), blocks.StoneBlocks._known
 
     def counted(self, stone, keys, flat, entries, centre, fresh):
@@ -170,14 +191,16 @@ def roll_blocks(length: float) -> None:
         return out
 
     blocks.StoneBlocks._known = counted
-    last, n = None, 0
+    last, n, its = None, 0, 0
     for k in range(len(track.shifts)):
         last = run.step(track, k, last, options, state)
         if k == SKIP - 1:
             census.clear()
             sizes.clear()
         n += k >= SKIP
-    print(f"{n} positions: stones' blocks a position, by how they were found (their mean cells)")
+        its += last.result.iterations.get("cg", 0) if k >= SKIP else 0
+    print(f"{n} positions of {step} mm, CG iterations {its / n:.2f} a position")
+    print("stones' blocks a position, by how they were found (their mean cells)")
     for reason, count in sorted(census.items(), key=lambda kv: -kv[1]):
         print(f"  {reason:48s} {count / n:7.1f}  ({sizes[reason] / count:.0f})")
 
@@ -264,11 +287,12 @@ def main() -> None:
     p.add_argument("--length", type=float, default=30.0, help="run length, mm")
     p.add_argument("--correction", choices=("off", "product", "local", "none"), default="local")
     p.add_argument("--radius", type=int, default=8, help="cells of the local correction's stencil")
+    p.add_argument("--step", type=float, default=1.0, help="the road's step, mm (--lever blocks)")
     args = p.parse_args()
     if args.lever == "start":
         roll_start(args.length, args.correction, args.radius)
     elif args.lever == "blocks":
-        roll_blocks(args.length)
+        roll_blocks(args.length, args.step)
     else:
         roll_directions(args.length)
 
