@@ -35,11 +35,16 @@ position's correction (its answer less its start) moved with the road, of the la
 position's search directions moved, or of both could take off (float64 products of the
 fields, outside the counted work; the directions on the CG's part).
 
+``--lever correction``: each start plus ``--weight`` times that last correction moved (``best``:
+the weight minimising the energy along it, by float64 products outside the counted work),
+clipped at 0; the CG iterations a position.
+
 Usage::
 
     PYTHONPATH=. python benchmarks/rolling_levers.py --lever start [--length 30] [--correction local] [--radius 8]
     PYTHONPATH=. python benchmarks/rolling_levers.py --lever blocks [--length 30] [--step 1.0]
-    PYTHONPATH=. python benchmarks/rolling_levers.py --lever directions [--length 16]
+    PYTHONPATH=. python benchmarks/rolling_levers.py --lever directions [--length 30]
+    PYTHONPATH=. python benchmarks/rolling_levers.py --lever correction [--length 30] [--weight best]
 """
 
 from __future__ import annotations
@@ -281,20 +286,74 @@ def roll_directions(length: float) -> None:
     )
 
 
+class CorrectedStart:
+    """Each start from the fourth position on plus ``weight`` times the last position's
+    correction (its answer less its start scaled to the load) moved with the road, the weight
+    ``best`` minimising the energy along it (float64 products), then clipped at 0."""
+
+    def __init__(self, weight: str):
+        self.weight, self.shift, self.last, self.weights = weight, 0.0, None, []
+        self.solve = cg_module.solve_cg
+
+    def solve_cg(self, body, surface, **kw):
+        grid, start, reach = surface.grid, kw.get("start"), kw.get("reach")
+        material = np.isfinite(surface.height)
+        if start is not None and self.last is not None:
+            e = np.where(material, moved(*self.last, grid, self.shift), 0.0)
+            w = self._weight(body.grid_operator(grid).single_precision().exact, surface.height, start, e)
+            self.weights.append(w)
+            kw["start"] = np.where(start == 0.0, 0.0, np.maximum(start + w * e, 0.0))
+            kw["reach"] = None if reach is None else reach | (kw["start"] > 0.0)
+        result = self.solve(body, surface, **kw)
+        self.last = None
+        if start is not None and result.fields and result.fields[0].grid == grid:
+            p = result.fields[0].pressure
+            p0 = np.where(material, np.maximum(start, 0.0), 0.0)
+            self.last = (grid, p - p0 * (p.sum() / p0.sum()), self.shift)
+        return result
+
+    def _weight(self, exact, height, start, e) -> float:
+        if self.weight != "best":
+            return float(self.weight)
+        on = np.isfinite(height)
+        gradient = exact(np.where(on, np.maximum(start, 0.0), 0.0)).copy() + np.where(on, height, 0.0)
+        e = e - np.where(on, e.sum() / np.count_nonzero(on), 0.0)  # (the load's direction out)
+        return float(-np.vdot(e, gradient) / np.vdot(e, exact(e)))
+
+
+def roll_corrected(length: float, weight: str) -> None:
+    """``--lever correction``: the CG iterations with the corrected starts."""
+    track, options, state = rolling_benchmark.tyre_window(length)
+    probe = CorrectedStart(weight)
+    cg_module.solve_cg = probe.solve_cg
+    last, its = None, []
+    for k in range(len(track.shifts)):
+        probe.shift = float(track.shifts[k])
+        last = run.step(track, k, last, options, state)
+        its.append(last.result.iterations.get("cg", 0)) if k >= SKIP else probe.__setattr__("last", None)
+    w = np.array(probe.weights)
+    print(f"weight {weight}: {len(its)} positions, CG iterations {np.mean(its):.2f} a position", end="")
+    print(f" (weights {w.min():.2f}-{w.max():.2f}, median {np.median(w):.2f})" if w.size else "")
+    print("  iterations:", " ".join(map(str, its)))
+
+
 def main() -> None:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    p.add_argument("--lever", choices=("start", "blocks", "directions"), required=True)
+    p.add_argument("--lever", choices=("start", "blocks", "directions", "correction"), required=True)
     p.add_argument("--length", type=float, default=30.0, help="run length, mm")
     p.add_argument("--correction", choices=("off", "product", "local", "none"), default="local")
     p.add_argument("--radius", type=int, default=8, help="cells of the local correction's stencil")
+    p.add_argument("--weight", default="best", help="the last correction's weight, or best (--lever correction)")
     p.add_argument("--step", type=float, default=1.0, help="the road's step, mm (--lever blocks)")
     args = p.parse_args()
     if args.lever == "start":
         roll_start(args.length, args.correction, args.radius)
     elif args.lever == "blocks":
         roll_blocks(args.length, args.step)
-    else:
+    elif args.lever == "directions":
         roll_directions(args.length)
+    else:
+        roll_corrected(args.length, args.weight)
 
 
 if __name__ == "__main__":
