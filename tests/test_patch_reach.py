@@ -232,7 +232,7 @@ def test_scattered_patches_the_far_field_can_take_are_not_cut_from_a_sampled_box
     assert sampling.BOX_MIN_PATCH_SHARE <= estimates["coverage"] < 0.2 and not estimates["merged_contacts"]
     assert alone.details.micro.choice.iteration == "two-level" and alone.details.micro.choice.far_tol is not None
     assert boxes == []
-    monkeypatch.setattr(micro_driver, "_box_share", lambda *why: sampling.BOX_MIN_PATCH_SHARE)
+    monkeypatch.setattr(micro_driver, "_box_share", lambda merged: sampling.BOX_MIN_PATCH_SHARE)
     from_box = twoscale.solve(scene)
     assert boxes == [estimates["box_cells"]]
     assert from_box.details.micro.choice == alone.details.micro.choice
@@ -243,21 +243,3 @@ def test_scattered_patches_the_far_field_can_take_are_not_cut_from_a_sampled_box
     f, g = np.asarray(alone.asperities.forces), np.asarray(from_box.asperities.forces)
     assert np.max(np.abs(f - g)) <= twoscale.MicroOptions().separated_rtol * np.max(g)
     assert alone.iterations == from_box.iterations
-
-
-def test_box_sampled_once_from_the_share_where_the_union_cg_stays_a_candidate():
-    # the policy keeps the union CG a candidate under penetration control on many patches
-    # down to its lower coverage: their box is sampled once from there (the union CG then
-    # takes it as sampled); under load, with few patches or merged contacts, as before
-    from twoscale.micro.driver import _box_share
-    from twoscale.micro.policy import MODEL, UNION_MIN_COVERAGE
-
-    many = MODEL.union_penetration_min_patches
-    lower = MODEL.union_penetration_min_coverage
-    assert lower < UNION_MIN_COVERAGE
-    assert _box_share(False, False, many) == lower
-    assert _box_share(False, False, many - 1) == max(UNION_MIN_COVERAGE, MODEL.far_field_coverage)
-    assert _box_share(False, True, many) == max(UNION_MIN_COVERAGE, MODEL.far_field_coverage)
-    assert _box_share(True, False, many) == UNION_MIN_COVERAGE
-    # at that share the policy does take the union CG on such patches where it is cheapest
-    assert MODEL.union_coverage(False, many) == lower

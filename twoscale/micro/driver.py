@@ -91,21 +91,27 @@ def _plan(patches, box, choice_fixed: Choice | None, asperities, problem: MicroP
     )
 
 
-def _box_share(merged: bool, load_control: bool, reaching: int) -> float:
+def _box_share(merged: bool) -> float:
     """The patches' share of their box from which it is sampled once for them
     (:func:`~.sampling.build_patches`' ``box_share``): where the policy can choose the union
     CG, which runs on that box, before the far field could take them (scattered patches
     without merged contacts, up to ``MODEL.far_field_coverage``). There the union CG samples
     its box itself, after patches that cost a fraction of it: 10 paraboloids on 14 % of a
-    155 K-cell box, 0.020-0.024 s for the box, 0.002-0.003 s for the patches one by one.
-    Under penetration control on ``reaching`` tips enough for the union CG to stay a
-    candidate down to ``MODEL.union_coverage`` (8 %), without merged contacts, from that
-    share: 8,834 paraboloids at 18 % of a 4.4 M-cell box took 0.55 s for their patches one
-    by one, then the union CG sampled the box again."""
-    if merged:
-        return UNION_MIN_COVERAGE
+    155 K-cell box, 0.020-0.024 s for the box, 0.002-0.003 s for the patches one by one."""
+    return UNION_MIN_COVERAGE if merged else max(UNION_MIN_COVERAGE, MODEL.far_field_coverage)
+
+
+def _low_share(merged: bool, load_control: bool, asperities, problem: MicroProblem) -> float | None:
+    """The lower share of their box from which the patches' box is sampled once where it has
+    few cells a patch (:func:`~.sampling.sampled_patches`' ``low_share``): the policy's
+    ``MODEL.union_coverage``, under penetration control on enough patches below
+    ``UNION_MIN_COVERAGE`` (the union CG stays a candidate there); None elsewhere and with
+    merged contacts. Only there are the tips the approach reaches counted."""
+    if merged or load_control or len(asperities) < MODEL.union_penetration_min_patches:
+        return None
+    reaching = int(np.count_nonzero(~(reach_approaches(asperities, problem) <= 0.0)))
     lower = MODEL.union_coverage(load_control, reaching)
-    return lower if lower < UNION_MIN_COVERAGE else max(UNION_MIN_COVERAGE, MODEL.far_field_coverage)
+    return lower if lower < UNION_MIN_COVERAGE else None
 
 
 def fixed_choice(iteration: str, far_tol: float | None, why: str) -> Choice:
@@ -153,11 +159,13 @@ def run_micro(
         made again.
     """
     asperities = TipTable.of(asperities)  # tip arrays once for every patch built
-    share = UNION_MIN_COVERAGE
-    if choice is None:
-        reaching = int(np.count_nonzero(~(reach_approaches(asperities, problem) <= 0.0)))
-        share = _box_share(bool(macro.safe_path), problem.total_load is not None, reaching)
-    patches = tuple(one_asperity_patches(provider, asperities, problem, options.margin, share))
+    share = _box_share(bool(macro.safe_path)) if choice is None else UNION_MIN_COVERAGE
+    low = (
+        None
+        if choice is not None
+        else _low_share(bool(macro.safe_path), problem.total_load is not None, asperities, problem)
+    )
+    patches = tuple(one_asperity_patches(provider, asperities, problem, options.margin, share, low))
     if not patches:
         context = MicroContext(provider, asperities, problem, options, BlockSettings(), patches)
         return BlockGaussSeidel().run(context, Exact(), max_sweeps=options.max_sweeps), MicroPlan(
