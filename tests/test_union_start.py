@@ -59,6 +59,24 @@ def test_a_cap_without_force_is_dropped_and_unusable_forces_leave_the_caps():
         assert np.array_equal(interference_start(surf, tips, approaches, forces), cap)
 
 
+def test_cells_no_tip_owns_start_unloaded_and_the_caps_follow_their_definition():
+    # two small spheres far apart: most cells have no material (owner -1, height inf); a cell
+    # a tip owns starts at max(z_k + START_FRACTION delta_k - z, 0), scaled to the tip's force
+    g = Grid(-2.0, -1.0, 0.05, 81, 41)
+    tips = [Asperity(-1.0, 0.0, 0.0, 0.4), Asperity(1.0, 0.1, 0.01, 0.3)]
+    surf = surface_on(g, tips)
+    assert np.any(surf.owner < 0) and np.any(~np.isfinite(surf.height))
+    approaches, forces = np.array([0.05, 0.06]), np.array([0.2, 0.1])
+    cap = interference_start(surf, tips, approaches)
+    scaled = interference_start(surf, tips, approaches, forces)
+    assert np.all(cap[surf.owner < 0] == 0.0) and np.all(scaled[surf.owner < 0] == 0.0)
+    for k, tip in enumerate(tips):
+        mine = surf.owner == k
+        expected = np.maximum(tip.z + START_FRACTION * approaches[k] - surf.height[mine], 0.0)
+        assert np.array_equal(cap[mine], expected) and np.any(expected > 0)
+        assert scaled[mine].sum() * g.h**2 == pytest.approx(forces[k], rel=1e-12)
+
+
 def _separated(n: int, seed: int) -> list:
     """n paraboloids on a jittered lattice 2 mm apart, R 2-4 mm, tips 0-0.03 mm deep:
     separated contacts of a few tens of cells at h 0.04 mm."""
