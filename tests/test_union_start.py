@@ -14,7 +14,7 @@ from twoscale import Material
 from twoscale.api import solve_scene
 from twoscale.driver import solve_twoscale
 from twoscale.grid import Grid
-from twoscale.indenters import Asperity, surface_on
+from twoscale.indenters import Asperity, Surface, surface_on
 from twoscale.influence import HalfSpace
 from twoscale.micro import union
 from twoscale.micro.union_start import START_FRACTION, interference_start
@@ -75,6 +75,14 @@ def test_cells_no_tip_owns_start_unloaded_and_the_caps_follow_their_definition()
         expected = np.maximum(tip.z + START_FRACTION * approaches[k] - surf.height[mine], 0.0)
         assert np.array_equal(cap[mine], expected) and np.any(expected > 0)
         assert scaled[mine].sum() * g.h**2 == pytest.approx(forces[k], rel=1e-12)
+    # material no tip owns (as a surface may hold) carries no start either
+    owner = surf.owner.copy()
+    owner[:, : g.nx // 2] = np.where(owner[:, : g.nx // 2] == 0, -1, owner[:, : g.nx // 2])
+    orphan = Surface(g, surf.height, owner, len(tips))
+    assert np.any((owner < 0) & np.isfinite(surf.height))
+    for given, full in ((None, cap), (forces, scaled)):
+        left = interference_start(orphan, tips, approaches, given)
+        assert np.all(left[owner < 0] == 0.0) and np.array_equal(left[owner == 1], full[owner == 1])
 
 
 def _separated(n: int, seed: int) -> list:
