@@ -157,3 +157,36 @@ def test_patches_reused_as_they_are_or_cut_down_else_built():
         assert np.array_equal(pt.owner, fresh.owner)
         # the cut patch's heights at the larger grid's cell centres (x0 + i h): rounding only
         assert np.allclose(pt.height, fresh.height, rtol=0.0, atol=1e-15 if k == 1 else 0.0)
+
+
+def test_a_low_share_samples_the_box_once_only_where_it_has_few_cells_a_patch(monkeypatch):
+    # patches on 9 % of their box: under the share, over the low share; their box is sampled
+    # once (and they are its windows) where it has at most LOW_SHARE_CELLS_PER_PATCH cells a
+    # patch, else they are built one by one; the same cells and owners either way
+    import twoscale.micro.sampling as sampling
+    from twoscale.micro.patches import make_patch
+
+    h = 0.02
+    tips = [Asperity(float(x), float(y), 0.0, 1.0) for x in np.arange(6) for y in np.arange(6)]
+    wanted = [(k, Grid.covering(a.x - 0.1, a.x + 0.1, a.y - 0.1, a.y + 0.1, h)) for k, a in enumerate(tips)]
+    box = sampling.box_of([g for _, g in wanted], h, (0.0, 0.0))
+    share = sum(g.size for _, g in wanted) / box.size
+    per_patch = box.size / len(wanted)
+    assert 0.05 < share < 0.1 and sampling.BOX_CELLS_PER_PATCH < per_patch
+    cuts = []
+    cut = sampling.patches_cut_from_box
+    monkeypatch.setattr(sampling, "patches_cut_from_box", lambda *a: cuts.append(a[1].size) or cut(*a))
+    assert sampling.LOW_SHARE_CELLS_PER_PATCH < per_patch  # too many cells a patch: one by one
+    apart = sampling.sampled_patches(tips, wanted, h=h, box_share=0.2, low_share=0.05)
+    assert cuts == []
+    monkeypatch.setattr(sampling, "LOW_SHARE_CELLS_PER_PATCH", 2.0 * per_patch)
+    once = sampling.sampled_patches(tips, wanted, h=h, box_share=0.2, low_share=0.05)
+    assert cuts == [box.size] and once[0].height.base is once[1].height.base
+    sampling.sampled_patches(tips, wanted, h=h, box_share=0.2, low_share=0.1)  # over their share
+    assert cuts == [box.size]
+    for a, b, (k, grid) in zip(once, apart, wanted):
+        fresh = make_patch(k, grid, tips)
+        assert (
+            a.grid == b.grid == grid and np.array_equal(a.owner, fresh.owner) and np.array_equal(b.owner, fresh.owner)
+        )
+        assert np.allclose(a.height, fresh.height, rtol=0.0, atol=1e-12) and np.array_equal(b.height, fresh.height)

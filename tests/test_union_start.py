@@ -14,7 +14,7 @@ from twoscale import Material
 from twoscale.api import solve_scene
 from twoscale.driver import solve_twoscale
 from twoscale.grid import Grid
-from twoscale.indenters import Asperity, surface_on
+from twoscale.indenters import Asperity, Surface, surface_on
 from twoscale.influence import HalfSpace
 from twoscale.micro import union
 from twoscale.micro.union_start import START_FRACTION, interference_start
@@ -57,6 +57,32 @@ def test_a_cap_without_force_is_dropped_and_unusable_forces_leave_the_caps():
     assert dropped[surf.owner == 0].sum() * surf.grid.h**2 == pytest.approx(0.5, rel=1e-12)
     for forces in (np.array([np.nan, 1.0]), np.array([0.0, 0.0])):
         assert np.array_equal(interference_start(surf, tips, approaches, forces), cap)
+
+
+def test_cells_no_tip_owns_start_unloaded_and_the_caps_follow_their_definition():
+    # two small spheres far apart: most cells have no material (owner -1, height inf); a cell
+    # a tip owns starts at max(z_k + START_FRACTION delta_k - z, 0), scaled to the tip's force
+    g = Grid(-2.0, -1.0, 0.05, 81, 41)
+    tips = [Asperity(-1.0, 0.0, 0.0, 0.4), Asperity(1.0, 0.1, 0.01, 0.3)]
+    surf = surface_on(g, tips)
+    assert np.any(surf.owner < 0) and np.any(~np.isfinite(surf.height))
+    approaches, forces = np.array([0.05, 0.06]), np.array([0.2, 0.1])
+    cap = interference_start(surf, tips, approaches)
+    scaled = interference_start(surf, tips, approaches, forces)
+    assert np.all(cap[surf.owner < 0] == 0.0) and np.all(scaled[surf.owner < 0] == 0.0)
+    for k, tip in enumerate(tips):
+        mine = surf.owner == k
+        expected = np.maximum(tip.z + START_FRACTION * approaches[k] - surf.height[mine], 0.0)
+        assert np.array_equal(cap[mine], expected) and np.any(expected > 0)
+        assert scaled[mine].sum() * g.h**2 == pytest.approx(forces[k], rel=1e-12)
+    # material no tip owns (as a surface may hold) carries no start either
+    owner = surf.owner.copy()
+    owner[:, : g.nx // 2] = np.where(owner[:, : g.nx // 2] == 0, -1, owner[:, : g.nx // 2])
+    orphan = Surface(g, surf.height, owner, len(tips))
+    assert np.any((owner < 0) & np.isfinite(surf.height))
+    for given, full in ((None, cap), (forces, scaled)):
+        left = interference_start(orphan, tips, approaches, given)
+        assert np.all(left[owner < 0] == 0.0) and np.array_equal(left[owner == 1], full[owner == 1])
 
 
 def _separated(n: int, seed: int) -> list:

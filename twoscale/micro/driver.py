@@ -19,6 +19,7 @@ import warnings
 from dataclasses import dataclass
 from typing import Callable, Sequence
 
+import numpy as np
 
 from ..errors import MemoryWarning, user_stacklevel
 from ..indenters import Asperity
@@ -32,7 +33,7 @@ from .problem import BlockSettings, MicroContext, MicroProblem
 from .release import release_freed_memory
 from .result import MicroResult
 from .sampling import detached
-from .setup import one_asperity_patches
+from .setup import one_asperity_patches, reach_approaches
 from .strategies import STRATEGIES, BlockGaussSeidel, TwoLevel, UnionCG
 from .union import box_of
 
@@ -103,6 +104,19 @@ def _box_share(merged: bool) -> float:
     return UNION_MIN_COVERAGE if merged else max(UNION_MIN_COVERAGE, MODEL.far_field_coverage)
 
 
+def _low_share(merged: bool, load_control: bool, asperities, problem: MicroProblem) -> float | None:
+    """The lower share of their box from which the patches' box is sampled once where it has
+    few cells a patch (:func:`~.sampling.sampled_patches`' ``low_share``): the policy's
+    ``MODEL.union_coverage``, under penetration control on enough patches below
+    ``UNION_MIN_COVERAGE`` (the union CG stays a candidate there); None elsewhere and with
+    merged contacts. Only there are the tips the approach reaches counted."""
+    if merged or load_control or len(asperities) < MODEL.union_penetration_min_patches:
+        return None
+    reaching = int(np.count_nonzero(~(reach_approaches(asperities, problem) <= 0.0)))
+    lower = MODEL.union_coverage(load_control, reaching)
+    return lower if lower < UNION_MIN_COVERAGE else None
+
+
 def fixed_choice(iteration: str, far_tol: float | None, why: str) -> Choice:
     """A choice made by the caller, not the policy."""
     if iteration not in ITERATIONS:
@@ -149,7 +163,12 @@ def run_micro(
     """
     asperities = TipTable.of(asperities)  # tip arrays once for every patch built
     share = _box_share(bool(macro.safe_path)) if choice is None else UNION_MIN_COVERAGE
-    patches = tuple(one_asperity_patches(provider, asperities, problem, options.margin, share))
+    low = (
+        None
+        if choice is not None
+        else _low_share(bool(macro.safe_path), problem.total_load is not None, asperities, problem)
+    )
+    patches = tuple(one_asperity_patches(provider, asperities, problem, options.margin, share, low))
     if not patches:
         context = MicroContext(provider, asperities, problem, options, BlockSettings(), patches)
         return BlockGaussSeidel().run(context, Exact(), max_sweeps=options.max_sweeps), MicroPlan(

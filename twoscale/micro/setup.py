@@ -111,11 +111,14 @@ def reach_approaches(asperities, problem) -> np.ndarray:
     return approaches if problem.lift is None else approaches + problem.lift
 
 
-def one_asperity_patches(provider, asperities, problem, margin: float, box_share: float = BOX_MIN_PATCH_SHARE) -> list:
+def one_asperity_patches(
+    provider, asperities, problem, margin: float, box_share: float = BOX_MIN_PATCH_SHARE, low_share: float | None = None
+) -> list:
     """One patch per asperity the problem's approach and tilt reach, sized from the macro
     forces (or the indenters' reach where the macro step did not converge), half-width
     ``margin`` times the Hertz-like contact radius (:func:`~.sampling.build_patches`), cut
-    from their box sampled once from ``box_share`` of it (:func:`~.sampling.sampled_patches`)."""
+    from their box sampled once from ``box_share`` of it, or ``low_share`` on a box of few
+    cells a patch (:func:`~.sampling.sampled_patches`)."""
     sizing = np.asarray(problem.forces, dtype=float) if problem.size_from_forces else np.full(len(asperities), np.inf)
     wanted = patch_grids(
         asperities,
@@ -126,7 +129,9 @@ def one_asperity_patches(provider, asperities, problem, margin: float, box_share
         margin=margin,
         anchor=problem.anchor,
     )
-    return sampled_patches(asperities, wanted, h=problem.h, anchor=problem.anchor, box_share=box_share)
+    return sampled_patches(
+        asperities, wanted, h=problem.h, anchor=problem.anchor, box_share=box_share, low_share=low_share
+    )
 
 
 def block_setup(
