@@ -62,7 +62,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         metavar="DIR",
         default=None,
         help="write DIR/result.json, asperities.csv, fields.vtm (+ fields/), pressure.png, "
-        "forces.png (DIR created after a successful solve; a non-empty DIR needs --overwrite)",
+        "forces.png; a load history: history.csv, history.png, fields.pvd, result.json; a "
+        "[rolling] scene: signals.csv, asperity_signals.csv, rolling.json, figures, fields.pvd "
+        "(DIR created after a successful solve; a non-empty DIR needs --overwrite)",
     )
     parser.add_argument("--h", metavar="H", default=None, help="cell size in mm, overriding [grid] h of the scene")
     parser.add_argument(
