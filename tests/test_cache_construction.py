@@ -19,7 +19,7 @@ from twoscale.cli import compare as compare_cli
 from twoscale.influence.halfspace import HalfSpace
 from twoscale.io.cache_entry import CacheUsage, with_construction
 
-BUILT = (CacheUsage("block-corrections", "/cache", read=1, written=0, dropped=("block-x.npz",)),)
+BUILT = (CacheUsage("block-corrections", "/cache", read=1, dropped=("block-x.npz",)),)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -36,9 +36,12 @@ def _scene(load: float) -> twoscale.Scene:
 
 
 def test_with_construction_adds_counts_and_appends_caches_the_solve_did_not_touch():
-    solve_usage = (CacheUsage("block-corrections", "/cache", read=2, written=3, dropped=("b.npz",)),)
+    saves = ("b.npz", "c.npz", "b.npz")  # b stored again: two files written
+    solve_usage = (CacheUsage("block-corrections", "/cache", read=2, saves=saves, dropped=("b.npz",)),)
     [merged] = with_construction(solve_usage, BUILT)
-    assert (merged.read, merged.written, merged.dropped) == (3, 3, ("block-x.npz", "b.npz"))
+    assert (merged.read, merged.written, merged.dropped) == (3, 2, ("block-x.npz", "b.npz"))
+    built = (dataclasses.replace(BUILT[0], saves=("b.npz",)),)
+    assert with_construction(solve_usage, built)[0].written == 2  # b, written at construction and after
     assert with_construction((), BUILT) == BUILT
     assert with_construction(solve_usage, ()) == solve_usage
 

@@ -98,7 +98,7 @@ def test_entry_folder_drops_a_bad_entry_with_one_warning_and_counts_it(tmp_path)
     assert folder.save("x.npz", {"v": np.ones(3)}) is not None
     assert np.array_equal(folder.load("x.npz")["v"], np.ones(3))
     u = folder.usage()
-    assert (u.read, u.written, u.dropped, u.disabled) == (1, 2, ("x.npz",), "")
+    assert (u.read, u.written, u.dropped, u.disabled) == (1, 1, ("x.npz",), "")  # x: one file, stored twice
 
 
 def test_many_bad_entries_give_a_bounded_number_of_lines(tmp_path):
@@ -252,6 +252,18 @@ def test_damaged_block_cache_is_dropped_and_solved_again(tmp_path):
     assert warm._state.solver is None and warm.cache_usage()[0].read == 1
 
 
+def test_an_entry_stored_again_is_written_once(tmp_path):
+    folder = EntryFolder("c", tmp_path)
+    folder.save("a.npz", {"x": np.zeros(2)})
+    snapshot = folder.usage()
+    for name in ("a.npz", "b.npz", "a.npz"):  # a grows twice more, b is new
+        folder.save(name, {"x": np.zeros(3)})
+    assert folder.usage().written == len(list(tmp_path.glob("*.npz"))) == 2
+    assert folder.usage().as_dict()["written"] == 2
+    assert folder.usage().since(snapshot).written == 2  # a stored again after the snapshot counts
+    assert folder.usage().since(folder.usage()).written == 0
+
+
 _BLOCK_SCENE = """
 [material]
 E = 5.0
@@ -283,6 +295,8 @@ def test_solve_records_the_damaged_block_entry_it_dropped(tmp_path, monkeypatch,
     assert main(["solve", str(scene), "--out", str(tmp_path / "again"), "--quiet"]) == 0
     assert sum(entry.name in line for line in capsys.readouterr().err.splitlines()) == 1
     cold, again = (json.loads((tmp_path / d / "result.json").read_text()) for d in ("cold", "again"))
+    # the block's one entry is stored again as each batch of fields is added: one file written
+    assert cold["caches"][0]["written"] == 1
     [usage] = again["caches"]
     assert usage["dropped"] == [entry.name] and usage["read"] == 0 and usage["written"] >= 1
     assert again["penetration"] == pytest.approx(cold["penetration"], rel=1e-9)

@@ -123,6 +123,25 @@ def test_bad_loads(tmp_path, capsys, loads, match):
     assert not out.exists()
 
 
+_TIMED = {
+    "load history": "[material]\nE = 3.0\nnu = 0.5\nprony = [[10.0, 0.1]]\n\n[load]\ntotal = [[0.0, 0.0], [1.0, 20.0]]\n",
+    "[rolling] table": "[material]\nE = 3.0\nnu = 0.5\n\n[load]\ntotal = 20.0\n\n"
+    "[rolling]\nstart = -2.0\nend = 2.0\nstep = 1.0\nspeed = 10.0\nfootprint = [20.0, 20.0]\n",
+}
+
+
+@pytest.mark.parametrize("what", sorted(_TIMED))
+def test_a_history_or_a_rolling_scene_is_refused_in_one_line(tmp_path, capsys, what):
+    # a history's result reached the per-load table and stopped with a TypeError traceback
+    scene = tmp_path / "timed.toml"
+    scene.write_text(_TIMED[what] + "\n[[asperity]]\nx = 0.0\ny = 0.0\nR = 5.0\n")
+    out = tmp_path / "cmp"
+    assert main(["compare", str(scene), "--out", str(out), "--quiet"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("error:") and what in err[0] and "twoscale solve" in err[0]
+    assert not out.exists()
+
+
 def test_missing_scene(tmp_path, capsys):
     assert main(["compare", str(tmp_path / "none.toml"), "--out", str(tmp_path / "o")]) == 2
     assert "not found" in capsys.readouterr().err

@@ -83,7 +83,7 @@ def test_sensor_away_from_the_contact_gives_no_e_m(runs, capsys):
     assert "e_m = n/a" in capsys.readouterr().out
 
 
-@pytest.mark.parametrize("case", ["missing", "not_json", "sensor", "json_dir", "count"])
+@pytest.mark.parametrize("case", ["missing", "not_json", "sensor", "json_dir", "count", "history", "rolling"])
 def test_bad_input_exit_2_nothing_written(runs, tmp_path, capsys, case):
     a, b = str(runs[12.0]), str(runs[10.0])
     target = tmp_path / "ind.json"
@@ -98,6 +98,16 @@ def test_bad_input_exit_2_nothing_written(runs, tmp_path, capsys, case):
         argv, needle = [a, b, "--sensor", "0", "44", "1.9"], "--sensor NX must be an integer >= 1, got '0'"
     elif case == "json_dir":
         argv, needle = [a, b, "--json", str(tmp_path)], "--json must name a file"
+    elif case == "history":  # a load history's folder: its forces are per output time
+        hist = tmp_path / "hist"
+        hist.mkdir()
+        (hist / "result.json").write_text(json.dumps({"kind": "history", "outputs": []}), encoding="utf-8")
+        argv, needle = [a, str(hist)], "is a load history's"
+    elif case == "rolling":  # a rolling run's folder has rolling.json, no result.json
+        roll = tmp_path / "roll"
+        roll.mkdir()
+        (roll / "rolling.json").write_text("{}", encoding="utf-8")
+        argv, needle = [str(roll), b], "holds a rolling run"
     else:
         one = tmp_path / "one"
         one.mkdir()

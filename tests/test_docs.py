@@ -27,7 +27,7 @@ def test_the_gallery_shows_every_figure_the_program_writes():
     from twoscale.io.solve_outputs import FORCES_NAME, PRESSURE_NAME
 
     shown = {Path(name).name for *_, figures in _gallery().RUNS for name, _ in figures}
-    # solve (spheres and a height map), surface, compare, study, paper
+    # solve (spheres and a height map), surface, compare, study, paper; a history and a rolling run
     expected = {
         PRESSURE_NAME,
         FORCES_NAME,
@@ -44,6 +44,10 @@ def test_the_gallery_shows_every_figure_the_program_writes():
         "fig4_seven_maps.png",
         "fig5_profiles.png",
         "fig6_errors.png",
+        "history.png",
+        "signals.png",
+        "bands.png",
+        "space_time.png",
     }
     assert shown == expected
     index = (DOCS / "gallery" / "index.md").read_text(encoding="utf-8")

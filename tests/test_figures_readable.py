@@ -210,6 +210,14 @@ def _study_rows(n_tips=40, loads=(100.0, 200.0), positions=(0, 1, 2)):
     return cases, tips
 
 
+def test_a_study_title_names_a_body_once_when_its_name_is_its_kind():
+    from twoscale.studies.figures import _on
+
+    assert _on("halfspace", {"halfspace": {"kind": "halfspace"}}) == "half-space"  # not "halfspace (half-space)"
+    assert _on("hs", {"hs": {"kind": "halfspace"}}) == "hs (half-space)"
+    assert _on("soft", None) == "soft"
+
+
 def test_study_figures_distinct_colours_and_legend_beside_the_lines(tmp_path):
     from twoscale.studies.figures import asperity_forces, track
 

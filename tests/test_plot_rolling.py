@@ -50,6 +50,21 @@ def test_signals_on_two_stacked_panels_and_into_given_axes(tmp_path):
     assert text["Title"] == "road on the half-space: rolling signals"
 
 
+def test_signals_with_the_drag_on_a_third_panel_with_its_mean(tmp_path):
+    drag = 2.0 + np.sin(2 * np.pi * 800 * T)
+    fig = plot_signals(T, FORCE, AREA, drag_N=drag)
+    top, middle, bottom = fig.axes
+    np.testing.assert_array_equal(bottom.lines[0].get_ydata(), drag)
+    assert bottom.get_ylabel() == "drag (N)" and bottom.get_xlabel() == "time (s)" and middle.get_xlabel() == ""
+    dashed = [ln for ln in bottom.lines if ln.get_linestyle() == "--"]
+    assert len(dashed) == 1 and np.allclose(dashed[0].get_ydata(), drag.mean())
+    assert "mean" in bottom.get_legend().get_texts()[0].get_text()
+    with pytest.raises(ValueError, match="drag_N has 3 values, expected 50"):
+        plot_signals(T, FORCE, AREA, drag_N=drag[:3])
+    path = signals_figure(tmp_path / "signals.png", T, FORCE, AREA, drag_N=drag, style=FigureStyle(dpi=50))
+    assert png_info(path)[0] == (350, 350)
+
+
 def test_band_levels_bars_labels_and_highlight(tmp_path):
     nominal = np.array([250.0, 315.0, 400.0, 500.0, 630.0, 800.0, 1000.0, 1250.0, 1600.0, 2000.0, 2500.0])
     level = np.array([61.0, 64.5, 70.2, -np.inf, 68.0, 66.0, 62.0, 60.0, 58.0, 53.3, 47.0])

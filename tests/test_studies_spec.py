@@ -136,6 +136,28 @@ def test_bad_values_are_named(study_file, capsys, tmp_path, old, new, where):
     assert not out.exists()
 
 
+@pytest.mark.parametrize(
+    "table, what",
+    [
+        ("[load]\ntotal = [[0.0, 0.0], [1.0, 5.0]]\n", "a load history"),
+        (
+            "[load]\ntotal = 5.0\n[rolling]\nstart = -1.0\nend = 1.0\nstep = 1.0\nspeed = 10.0\nfootprint = [40.0, 20.0]\n",
+            "a [rolling] table",
+        ),
+    ],
+)
+def test_a_scene_with_a_history_or_rolling_is_refused_before_any_case(study_file, tmp_path, capsys, table, what):
+    # a history's case failed with an AttributeError traceback in the warning line
+    head, _, tips = SCENE.partition("[[asperity]]")
+    head = head.split("[load]")[0]
+    (tmp_path / "scene.toml").write_text(head + table + "[[asperity]]" + tips, encoding="utf-8")
+    out = tmp_path / "out"
+    assert main(["study", study_file(STUDY.split("[load]")[0]), "--out", str(out), "--workers", "0"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "scene 1: scene.toml" in err[0] and what in err[0] and "twoscale solve" in err[0]
+    assert not out.exists()
+
+
 def test_reference_method_refuses_twoscale_options(study_file):
     with pytest.raises(StudyError, match="solver.far_tol"):
         read_study(study_file("[study]\nmethod = 'reference'\n[solver]\nfar_tol = 0.1\n" + STUDY))

@@ -76,7 +76,58 @@ def _start(study: Path, out: Path, *extra: str) -> subprocess.Popen:
         stderr=subprocess.PIPE,
         text=True,
         start_new_session=True,
+        # SIGINT at its default, as in a terminal (a test run started in the background
+        # ignores it, and its children would inherit that)
+        preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL),
     )
+
+
+def _group_workers(pgid: int) -> list[int]:
+    """Pids of the Dask worker processes (multiprocessing's spawned children) in a process group."""
+    found = []
+    for stat in Path("/proc").glob("[0-9]*/stat"):
+        try:
+            fields = stat.read_text().rpartition(")")[2].split()
+            cmdline = (stat.parent / "cmdline").read_bytes()
+        except OSError:
+            continue
+        if int(fields[2]) == pgid and b"spawn_main" in cmdline:
+            found.append(int(stat.parent.name))
+    return found
+
+
+@pytest.mark.skipif(not Path("/proc/self/stat").exists(), reason="reads /proc")
+def test_ctrl_c_while_the_local_workers_start_is_one_line_and_resumes(reference, tmp_path):
+    """Ctrl-C at the terminal reaches every process of the group: the local cluster's
+    workers, starting (importing Dask and the solver), each printed tracebacks. Now: one
+    line ``interrupted``, exit 130, no worker left, and the same command resumes."""
+    pytest.importorskip("distributed")
+    study = _write_study(tmp_path)
+    out = tmp_path / "out"
+    proc = _start(study, out, "--workers", "2")
+    try:
+        deadline = time.monotonic() + 60
+        while not _group_workers(proc.pid):  # the workers are spawned, not yet started
+            assert proc.poll() is None and time.monotonic() < deadline, proc.communicate()
+            time.sleep(0.01)
+        time.sleep(0.3)  # into their imports (1-4 s): before, Python takes SIGINT by dying silently
+        os.killpg(proc.pid, signal.SIGINT)
+        _, err = proc.communicate(timeout=60)
+        deadline = time.monotonic() + 30
+        while _group_alive(proc.pid) and time.monotonic() < deadline:
+            time.sleep(0.1)
+        orphans = _group_alive(proc.pid)
+    finally:
+        if _group_alive(proc.pid):
+            os.killpg(proc.pid, signal.SIGKILL)
+        _stop(proc)
+    assert proc.returncode == 130 and err.splitlines() == ["interrupted"], err
+    assert not orphans
+    again = _start(study, out, "--workers", "0")
+    _, err = again.communicate(timeout=300)
+    assert again.returncode == 0, err
+    assert _check_case_folders(out) == N_CASES
+    _tables_equal(out, reference[1])
 
 
 def _finished_cases(out: Path) -> int:

@@ -18,6 +18,8 @@
   units), :func:`build_surface` with :class:`SurfaceOptions` (:mod:`twoscale.surface`),
   then ``solve(surface, material=..., total_load=...)``: the same scene, and the same
   answer, as a scene file's ``[surface]`` table;
+* a road rolling under the body (signals per position: loads, drag, the stones' forces):
+  ``twoscale.rolling.roll(scene)`` on a scene with a ``[rolling]`` table;
 * many solves on one body (a load history, a track, a study): :class:`ContactSolver`
   (``ContactSolver(body, SolverOptions(...))``, then ``solver.solve(scene)``) keeps the
   body, bounded caches and its last answer as the next start (``result.reuse`` says what

@@ -127,6 +127,40 @@ RUNS = [
             ("fig6_errors.png", "Errors of the two-scale pressure against the reference, and the sweeps (Fig. 6)."),
         ],
     ),
+    (
+        ["solve", "examples/creep/seven_spheres.toml"],
+        "solve_creep",
+        "twoscale solve: a load history on viscoelastic rubber",
+        [
+            (
+                "history.png",
+                (
+                    "Load, approach, contact area and the most loaded tips' forces against time: a step load "
+                    "held for 1,000 s, on a log time axis (linear when a late segment, such as an unloading "
+                    "after a hold, would be a sliver of it)."
+                ),
+            )
+        ],
+    ),
+    (
+        ["solve", "examples/rolling/tyre.toml"],
+        "solve_tyre",
+        "twoscale solve: a road rolling under a slick tyre",
+        [
+            (
+                "signals.png",
+                (
+                    "The approach (the load is held), the contact area and the drag against time, the drag's "
+                    "mean dashed (on this elastic tread about 0.1 % of the 300 N load)."
+                ),
+            ),
+            ("bands.png", "Third-octave levels of the approach; the 60 mm run resolves the 2,500 Hz band only."),
+            (
+                "space_time.png",
+                "The pressure summed across y at every shift of the road: each stone crossing the footprint draws a line.",
+            ),
+        ],
+    ),
 ]
 
 

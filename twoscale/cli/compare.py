@@ -144,6 +144,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def _scenes(args) -> list[Scene]:
     """The scene once per load case (validated; raises SceneError)."""
     scene = _with_block_size(read_scene(args.scene), args)
+    _static_only(scene, args.scene)
     scene = with_h_option(scene, args.h)
     if args.loads is None:
         if not scene.load_cases:
@@ -160,6 +161,20 @@ def _scenes(args) -> list[Scene]:
             raise SceneError(f"--loads has repeated values, got {args.loads!r}")
     # every solve records the cases actually run (--loads replaces the scene's)
     return [dataclasses.replace(scene, total_load=w, load_cases=tuple(loads)) for w in loads]
+
+
+def _static_only(scene: Scene, path) -> None:
+    """Refuse (SceneError) a scene that is not one static load per body: a load history
+    (viscoelastic rubber) or a road rolling under the body."""
+    if scene.history is None and scene.rolling is None:
+        return
+    what = (
+        "a load history (load.total or load.penetration as [[t, value], ...])" if scene.history else "a [rolling] table"
+    )
+    raise SceneError(
+        f"{path}: compare solves one static load on each body, and this scene has {what}: "
+        f'run it with twoscale solve {path} --out DIR, once per body ([influence] kind = "block" for the block)'
+    )
 
 
 def _with_block_size(scene: Scene, args) -> Scene:

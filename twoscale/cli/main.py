@@ -50,15 +50,53 @@ def _on_sigterm(signum, frame) -> None:
     raise Terminated()
 
 
-#: Subcommands: (name, module, required). Optional ones appear when their module exists.
+#: Subcommands: (name, module, required, summary). Optional ones appear when their module
+#: exists. The summary is the module docstring's first line (a test keeps them equal): the
+#: top-level ``--help`` lists every command without importing one (``solve`` alone pulls in
+#: scipy), and a command imports only its own module.
 SUBCOMMANDS = (
-    ("solve", "twoscale.cli.solve", True),
-    ("paper", "twoscale.cli.paper", False),
-    ("compare", "twoscale.cli.compare", False),
-    ("indicators", "twoscale.cli.indicators", False),
-    ("study", "twoscale.cli.study", False),
-    ("surface", "twoscale.cli.surface", False),
-    ("cache", "twoscale.cli.cache", False),
+    (
+        "solve",
+        "twoscale.cli.solve",
+        True,
+        "Solve a scene file; print a summary and write DIR/result.json (+ asperities.csv, fields.vtm, figures).",
+    ),
+    (
+        "paper",
+        "twoscale.cli.paper",
+        False,
+        "Reproduce the paper's numerical study (figs. 3-6): CSV files and PNG figures.",
+    ),
+    (
+        "compare",
+        "twoscale.cli.compare",
+        False,
+        "Compare bodies: solve a scene on the half-space and the finite block, and show what changes.",
+    ),
+    (
+        "indicators",
+        "twoscale.cli.indicators",
+        False,
+        "e_M and e_m between two stored solves (twoscale indicators RUN_DIR REF_DIR).",
+    ),
+    (
+        "study",
+        "twoscale.cli.study",
+        False,
+        "Run a parameter study: scenes x bodies x loads x positions, on Dask, resumable.",
+    ),
+    (
+        "surface",
+        "twoscale.cli.surface",
+        False,
+        "Segment the height map of a scene's [surface] and tabulate its asperity laws, without solving.",
+    ),
+    (
+        "cache",
+        "twoscale.cli.cache",
+        False,
+        "List or clear the on-disk caches (block corrections, surface laws): what, where, how large.",
+    ),
 )
 
 
@@ -67,10 +105,16 @@ OUTPUT_COMMANDS = ("solve", "compare", "paper", "surface")
 
 
 def _available_subcommands():
-    for name, module, required in SUBCOMMANDS:
+    """(name, module name, summary) of each subcommand whose module exists (found, not imported)."""
+    for name, module, required, summary in SUBCOMMANDS:
         if required or importlib.util.find_spec(module) is not None:
-            # a module that exists but fails to import is a bug: let it raise
-            yield name, importlib.import_module(module)
+            yield name, module, summary
+
+
+def command_in(argv: Sequence[str]) -> str | None:
+    """The subcommand ``argv`` names: its first word that is not an option (the top level
+    takes only ``--help`` and ``--version``, which take no value); None when there is none."""
+    return next((word for word in argv if not word.startswith("-")), None)
 
 
 class _OneLineParser(argparse.ArgumentParser):
@@ -89,27 +133,35 @@ def plain(text: str) -> str:
     return text.replace("``", "").replace("`", "")
 
 
-def build_parser() -> argparse.ArgumentParser:
-    """The argument parser with every available subcommand."""
+def build_parser(command: str | None = "*") -> argparse.ArgumentParser:
+    """The argument parser: every available subcommand is listed; the options of ``command``
+    only (``"*"``, the default: of every subcommand; None: of none), so that a run imports
+    the module of the command it runs and no other."""
     parser = _OneLineParser(
         prog="twoscale", description="Two-scale multi-asperity contact on elastic bodies (units mm, N, MPa)."
     )
     parser.add_argument("--version", action="version", version=f"twoscale {__version__}")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=_OneLineParser)
     sub.required = True
-    for name, module in _available_subcommands():
-        doc = plain((module.__doc__ or name).strip().splitlines()[0])
-        p = sub.add_parser(name, help=doc, description=doc)
-        module.add_arguments(p)
-        if name in OUTPUT_COMMANDS:
-            p.add_argument(
-                "--overwrite",
-                action="store_true",
-                help="replace an earlier twoscale output in the folder: removes only the files "
-                "listed in its .twoscale-manifest.json (a folder holding other files is refused)",
-            )
-        p.set_defaults(_run=module.run)
+    for name, module_name, summary in _available_subcommands():
+        p = sub.add_parser(name, help=summary, description=summary)
+        if command in ("*", name):
+            _add_command(p, name, importlib.import_module(module_name))  # a failing import is a bug: raise
     return parser
+
+
+def _add_command(p: argparse.ArgumentParser, name: str, module) -> None:
+    """A subcommand's options (its module's ``add_arguments``, and ``--overwrite`` for those
+    that write an output folder) and its ``run``."""
+    module.add_arguments(p)
+    if name in OUTPUT_COMMANDS:
+        p.add_argument(
+            "--overwrite",
+            action="store_true",
+            help="replace an earlier twoscale output in the folder: removes only the files "
+            "listed in its .twoscale-manifest.json (a folder holding other files is refused)",
+        )
+    p.set_defaults(_run=module.run)
 
 
 def _warning_line(message, category, filename, lineno, file=None, line=None) -> None:
@@ -130,7 +182,12 @@ def _silence_stdout() -> None:
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Run the command line with ``argv`` (default ``sys.argv[1:]``); return the exit code."""
-    parser = build_parser()
+    argv = sys.argv[1:] if argv is None else list(argv)
+    try:
+        parser = build_parser(command_in(argv))  # imports the command's module (solve's: ~0.6 s)
+    except KeyboardInterrupt:
+        print("interrupted", file=sys.stderr)
+        return EXIT_INTERRUPTED
     try:
         args = parser.parse_args(argv)
     except SystemExit as exc:  # argparse reports usage errors (code 2) and --help (code 0) this way

@@ -4,13 +4,13 @@ message gives), and the iteration counts in words."""
 
 from __future__ import annotations
 
-from ..full_grid import DEFAULT_ROUTE
-
 
 def method_lines(res: dict) -> list[str]:
     """The summary's ``method`` line(s) from a result.json dict: on the default route's full
     grid, the solver that ran and a ``route`` line with the reason (the two-scale method's
     macro forces and patches are then absent, as the tables show)."""
+    from ..full_grid import DEFAULT_ROUTE  # with scipy: after a solve, not for --help
+
     if res["method"] != "twoscale":
         return [f"  method       {res['method']} ({res['solver']} solver)"]
     message = str(res.get("message") or "")

@@ -32,9 +32,8 @@ from ..io.result_json import RESULT_NAME, result_to_dict, write_result
 from ..io.scene_file import read_scene
 from ..io.solve_outputs import write_fields_and_figures
 from ..io.warning_log import WarningLog
-from ..micro.policy import ITERATIONS
+from ..options import MICRO_ITERATIONS
 from ..progress import StatusLine
-from ..resources import check_solve_memory
 from .body import build_body, with_build
 from .route_text import iteration_text, method_lines
 from ..results import ContactResult
@@ -62,12 +61,14 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         metavar="DIR",
         default=None,
         help="write DIR/result.json, asperities.csv, fields.vtm (+ fields/), pressure.png, "
-        "forces.png (DIR created after a successful solve; a non-empty DIR needs --overwrite)",
+        "forces.png; a load history: history.csv, history.png, fields.pvd, result.json; a "
+        "[rolling] scene: signals.csv, asperity_signals.csv, rolling.json, figures, fields.pvd "
+        "(DIR created after a successful solve; a non-empty DIR needs --overwrite)",
     )
     parser.add_argument("--h", metavar="H", default=None, help="cell size in mm, overriding [grid] h of the scene")
     parser.add_argument(
         "--iteration",
-        choices=("auto",) + ITERATIONS,
+        choices=MICRO_ITERATIONS,
         default="auto",
         help="micro step's iteration (experts; default auto: chosen by the solver's "
         "policy from the scene, with its reason in result.json)",
@@ -129,6 +130,8 @@ def _run(args: argparse.Namespace, log: WarningLog) -> int:
         t0 = time.perf_counter()
         body, built = build_body(scene, quiet=args.quiet)  # a block: built once, its cache read once
         # before anything large is allocated: refuse a solve the machine cannot hold
+        from ..resources import check_solve_memory  # scipy: imported by a solve, not by --help
+
         check_solve_memory(
             scene,
             default_h(scene),

@@ -109,8 +109,10 @@ class CacheUsage:
         Its folder ("" for a cache kept in memory only).
     read : int
         Entries read from disk (work not done again).
-    written : int
-        Entries written.
+    saves : tuple of str
+        The file name of every entry stored, in order, once per store: an entry that
+        grows (a block's corrections, stored again as each batch of fields is added)
+        appears once per store.
     dropped : tuple of str
         File names of damaged entries deleted (and computed again).
     disabled : str
@@ -120,9 +122,14 @@ class CacheUsage:
     name: str
     folder: str
     read: int = 0
-    written: int = 0
+    saves: tuple = ()
     dropped: tuple = ()
     disabled: str = ""
+
+    @property
+    def written(self) -> int:
+        """Entries written: the files stored, each counted once however often it was stored."""
+        return len(set(self.saves))
 
     def since(self, before: CacheUsage) -> CacheUsage:
         """The usage between ``before`` (an earlier snapshot of the same cache) and this one."""
@@ -130,7 +137,7 @@ class CacheUsage:
             self.name,
             self.folder,
             self.read - before.read,
-            self.written - before.written,
+            self.saves[len(before.saves) :],
             self.dropped[len(before.dropped) :],
             self.disabled,
         )
@@ -161,7 +168,8 @@ class EntryFolder:
     def __init__(self, name: str, directory: str | os.PathLike):
         self.name = name
         self.directory = Path(directory)
-        self.read = self.written = 0
+        self.read = 0
+        self.saves: list[str] = []
         self.dropped: list[str] = []
         self.disabled = ""
 
@@ -228,11 +236,13 @@ class EntryFolder:
                 stacklevel=3,
             )
             return None
-        self.written += 1
+        self.saves.append(filename)
         return size
 
     def usage(self) -> CacheUsage:
-        return CacheUsage(self.name, str(self.directory), self.read, self.written, tuple(self.dropped), self.disabled)
+        return CacheUsage(
+            self.name, str(self.directory), self.read, tuple(self.saves), tuple(self.dropped), self.disabled
+        )
 
 
 def usage_since(before: tuple, after: tuple) -> tuple:
@@ -257,7 +267,7 @@ def with_construction(usage: tuple, built: tuple) -> tuple:
                 u.name,
                 u.folder,
                 u.read + e.read,
-                u.written + e.written,
+                e.saves + u.saves,
                 e.dropped + u.dropped,
                 u.disabled or e.disabled,
             )

@@ -285,11 +285,18 @@ def read_forces_and_tips(folder: str | os.PathLike) -> tuple[np.ndarray, np.ndar
     path = Path(folder) / RESULT_NAME
     try:
         data = json.loads(path.read_text(encoding="utf-8"))
-        forces = np.array([float(a["force"]) for a in data["asperities"]])
+        history = isinstance(data, dict) and data.get("kind") == "history"
+        forces = None if history else np.array([float(a["force"]) for a in data["asperities"]])
     except FileNotFoundError:
+        if (Path(folder) / "rolling.json").exists():
+            raise ValueError(
+                f"{folder} holds a rolling run (rolling.json, signals.csv), not one solve's result.json"
+            ) from None
         raise ValueError(f"{path} does not exist (a folder written by twoscale solve --out)") from None
     except (json.JSONDecodeError, KeyError, TypeError, ValueError) as exc:
         raise ValueError(f"{path} is not a twoscale result.json ({exc})") from None
+    if history:
+        raise ValueError(f"{path} is a load history's (its forces per output time are in history.csv), not one solve's")
     scene = data.get("scene", {})
     tips = [[a.get("x", np.nan), a.get("y", np.nan)] for a in scene.get("asperity", [])]
     if not tips and "surface" in scene:

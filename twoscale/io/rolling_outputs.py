@@ -306,6 +306,7 @@ def _figures(result, out: Path, scene, name: str | None) -> list[Path]:
             signal,
             result.contact_area,
             signal_label="total load (N)" if force else "approach (mm)",
+            drag_N=result.drag,
             caption=caption,
         )
     ]

@@ -1,5 +1,6 @@
 """``history.png``: load, approach, contact area and the most loaded asperities' forces
-against time (log time axis when the output times span decades)."""
+against time (log time axis when the output times span decades and the history has no short
+late segment, such as an unloading after a long hold, that it would squeeze)."""
 
 from __future__ import annotations
 
@@ -15,18 +16,33 @@ from .labels import join_title, scene_text
 MOST_LOADED = 8
 
 
-def _log_axis(times: np.ndarray) -> bool:
+#: A log time axis needs the output times to span this ratio ...
+LOG_SPAN = 100.0
+#: ... and every segment of the history after t = 0 to end at least this ratio past its
+#: start (a tenth of a decade): an unloading from 10 to 12 s, after a hold from 0.5 s,
+#: would be a sliver at the right edge of a log axis.
+LOG_SEGMENT = 10.0**0.1
+
+
+def _log_axis(times: np.ndarray, kinks=()) -> bool:
+    """Whether the time axis is logarithmic: the output times span decades and no segment of
+    the history (between its points ``kinks``, s) after t = 0 is squeezed to a sliver."""
     positive = times[times > 0]
-    return positive.size >= 2 and positive.max() / positive.min() >= 100.0
+    if not (positive.size >= 2 and positive.max() / positive.min() >= LOG_SPAN):
+        return False
+    starts = np.asarray(kinks, dtype=float)
+    late = starts[:-1] > 0
+    return bool(np.all(starts[1:][late] / starts[:-1][late] >= LOG_SEGMENT))
 
 
 def history_figure(result, path, *, scene=None, name: str | None = None) -> Path:
     """Four panels against time: total load (N), approach (mm), contact area (mm^2), and
     the forces (N) of the :data:`MOST_LOADED` most loaded asperities (numbered from 1).
-    With a log time axis, the instant t = 0 is drawn at the first positive time's tenth.
+    With a log time axis (:func:`_log_axis`), the instant t = 0 is drawn at the first
+    positive time's tenth.
     The title names the scene (``name``, e.g. the scene file's stem) and its body."""
     t = np.asarray(result.times, dtype=float)
-    log = _log_axis(t)
+    log = _log_axis(t, result.history.kinks)
     if log:
         first = t[t > 0].min()
         t = np.where(t > 0, t, 0.1 * first)

@@ -1,13 +1,14 @@
 """Figures of a rolling run, from plain arrays (no result object needed).
 
 * :func:`plot_signals`: a signal (the total load under penetration control, the approach
-  under load control) and the contact area against time, two stacked panels;
+  under load control), the contact area and (when given) the drag against time, stacked
+  panels;
 * :func:`plot_band_levels`: third-octave levels against the bands' nominal labels (force
   levels in Hz, texture levels in wavelength);
 * :func:`plot_space_time`: the pressure summed across y, for every shift (vertical) and
   body x (horizontal): a stone crossing the footprint draws a line of slope one.
 
-Each takes ``ax=`` (``axes=`` for the two panels) and returns the Figure; the file
+Each takes ``ax=`` (``axes=`` for the stacked panels) and returns the Figure; the file
 writers :func:`signals_figure`, :func:`bands_figure`, :func:`space_time_figure` compose
 them into PNG files with the version and scene metadata (:func:`~twoscale.plot._figure.save_png`).
 """
@@ -25,6 +26,7 @@ from .style import NO_CAPTION, PLAIN, Caption, FigureStyle
 TIME_S = "time (s)"
 SHIFT_MM = "shift of the road (mm)"
 AREA_MM2 = "contact area (mm$^2$)"
+DRAG_N = "drag (N)"
 #: Colour of the space-time picture: the pressure summed across y times the cell size.
 LINE_LOAD = "line load: pressure summed across y (N/mm)"
 
@@ -42,11 +44,13 @@ def plot_signals(
     contact_area_mm2,
     *,
     signal_label: str = "total load (N)",
+    drag_N=None,
     axes=None,
     title: str | None = None,
     style: FigureStyle = PLAIN,
 ):
-    """A signal and the contact area against time, on two stacked panels sharing the time axis.
+    """A signal, the contact area and (given ``drag_N``) the drag against time, on stacked
+    panels sharing the time axis.
 
     Parameters
     ----------
@@ -54,26 +58,38 @@ def plot_signals(
         Times (s), the signal (unit in ``signal_label``) and the contact area (mm^2).
     signal_label : str, default "total load (N)"
         Axis label of the upper panel (``"approach (mm)"`` under load control).
-    axes : pair of matplotlib Axes, optional
+    drag_N : (M,) array, optional
+        The drag (N, the road on the body along +x): a third panel, with its mean over the
+        run dashed (the hysteresis friction of a viscoelastic body).
+    axes : two (three with ``drag_N``) matplotlib Axes, optional
         Draw into these; default a new Figure of ``style.size`` inches.
     title : str, optional
     style : FigureStyle, optional
-        ``size`` ((7.0, 5.0) inches), ``dpi`` (100).
+        ``size`` ((7.0, 5.0) inches, (7.0, 7.0) with the drag), ``dpi`` (100).
     """
     t = _vector("time_s", time_s)
-    y = _vector("signal", signal, t.size)
-    area = _vector("contact_area_mm2", contact_area_mm2, t.size)
+    panels = [
+        (_vector("signal", signal, t.size), signal_label),
+        (_vector("contact_area_mm2", contact_area_mm2, t.size), AREA_MM2),
+    ]
+    if drag_N is not None:
+        panels.append((_vector("drag_N", drag_N, t.size), DRAG_N))
     if axes is None:
-        fig = new_figure(style.pick("size", (7.0, 5.0)), style.pick("dpi", 100))
-        axes = fig.subplots(2, 1, sharex=True)
+        fig = new_figure(style.pick("size", (7.0, 5.0 if len(panels) == 2 else 7.0)), style.pick("dpi", 100))
+        axes = fig.subplots(len(panels), 1, sharex=True)
     else:
         fig = getattr(axes[0].figure, "figure", axes[0].figure)
     marker = "." if t.size <= 200 else None
-    for ax, values, label in ((axes[0], y, signal_label), (axes[1], area, AREA_MM2)):
+    for ax, (values, label) in zip(axes, panels):
         ax.plot(t, values, lw=1.0, marker=marker, ms=3)
         ax.set_ylabel(label)
         ax.grid(alpha=0.3)
-    axes[1].set_xlabel(TIME_S)
+    if drag_N is not None:
+        mean = float(np.mean(panels[2][0]))
+        axes[2].axhline(mean, color="0.3", lw=1.0, ls="--", label=f"mean {mean:.4g} N")
+        axes[2].axhline(0.0, color="0.6", lw=0.6)
+        axes[2].legend(loc="best", fontsize="small")
+    axes[len(panels) - 1].set_xlabel(TIME_S)
     if title:
         set_fitted_title(axes[0], title)
     return fig
@@ -208,6 +224,7 @@ def signals_figure(
     contact_area_mm2,
     *,
     signal_label: str = "total load (N)",
+    drag_N=None,
     caption: Caption = NO_CAPTION,
     style: FigureStyle = PLAIN,
 ) -> Path:
@@ -219,6 +236,7 @@ def signals_figure(
         signal,
         contact_area_mm2,
         signal_label=signal_label,
+        drag_N=drag_N,
         title=title,
         style=FigureStyle(dpi=style.pick("dpi", 110)),
     )

@@ -16,7 +16,9 @@ from __future__ import annotations
 import contextlib
 import importlib
 import logging
+import multiprocessing
 import signal
+from multiprocessing import resource_tracker
 import sys
 import uuid
 import warnings
@@ -118,6 +120,36 @@ def rolling_task(study, batch: list) -> list:
     return [r for group in batch for r in solve_group(study, group, plugin.strips, plugin.cache)]
 
 
+def local_cluster() -> LocalCluster:
+    """A local cluster with no worker yet, whose worker processes never take Ctrl-C.
+
+    A Ctrl-C at the terminal goes to every process of its group: workers starting then
+    (importing Dask and the solver, or registering with the scheduler) each printed a
+    traceback (98 lines for 2 workers) before this process's one line ``interrupted``.
+    The cluster's event loop thread, which starts the worker processes, is made here with
+    SIGINT blocked; threads and processes inherit the mask (through ``exec`` too), so the
+    workers never take it and this process alone stops the run, closing the cluster. A
+    Ctrl-C while the cluster is made (about a second) is held and raised at the end.
+    Multiprocessing's resource tracker is started first: starting it unblocks SIGINT in
+    the thread that starts it (the loop thread, for the first worker).
+    """
+    resource_tracker.ensure_running()
+    before = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
+    try:
+        cluster = LocalCluster(
+            n_workers=0, threads_per_worker=1, processes=True, dashboard_address=None, silence_logs=logging.CRITICAL
+        )
+    except BaseException:
+        signal.pthread_sigmask(signal.SIG_SETMASK, before)
+        raise
+    try:
+        signal.pthread_sigmask(signal.SIG_SETMASK, before)  # raises a Ctrl-C held meanwhile
+    except BaseException:
+        cluster.close()
+        raise
+    return cluster
+
+
 @contextlib.contextmanager
 def dask_client(*, workers: int = 2, scheduler: str | None = None, timeout: float = 20.0) -> Iterator[Client]:
     """A client of the cluster at ``scheduler`` (reached within ``timeout`` s, else
@@ -141,9 +173,7 @@ def dask_client(*, workers: int = 2, scheduler: str | None = None, timeout: floa
 
     # the settings stay while the cluster lives: its nannies are made as its workers start
     with dask.config.set(LOCAL_CONFIG):
-        cluster = LocalCluster(
-            n_workers=0, threads_per_worker=1, processes=True, dashboard_address=None, silence_logs=logging.CRITICAL
-        )
+        cluster = local_cluster()
         try:
             # by address: a client of the cluster object would wait for its workers, and a
             # plugin registered with workers up waits for their setup (1.2-1.5 s each, measured)
@@ -155,8 +185,31 @@ def dask_client(*, workers: int = 2, scheduler: str | None = None, timeout: floa
                 yield client
             finally:
                 client.close()
+        except BaseException:  # Ctrl-C, SIGTERM, an error: stop now
+            kill_starting_workers(cluster)
+            raise
         finally:
             cluster.close()
+
+
+def kill_starting_workers(cluster: LocalCluster) -> None:
+    """Kill the local cluster's worker processes that have not joined its scheduler yet.
+
+    Closing the cluster waits for a starting worker to be up before stopping it (its
+    imports: 1-4 s, more on a loaded machine), and it holds nothing yet; the workers that
+    joined are stopped by the cluster as usual (a case they solve is not written).
+    """
+    for _ in range(3):
+        try:  # the scheduler runs in this process, on the cluster's loop thread
+            joined = {ws.pid for ws in list(cluster.scheduler.workers.values())}
+            break
+        except RuntimeError:  # changed while read
+            continue
+    else:
+        return
+    for child in multiprocessing.active_children():
+        if child.name.startswith("Dask Worker") and child.pid not in joined:
+            child.kill()
 
 
 def run_on_dask(

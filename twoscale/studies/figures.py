@@ -42,9 +42,14 @@ def _load_axis(kind: str) -> str:
 
 
 def _on(body: str, bodies: Mapping | None) -> str:
-    """``left (140 x 140 x 20 mm block, bonded base)`` from the study's body tables."""
+    """``left (140 x 140 x 20 mm block, bonded base)`` from the study's body tables; the
+    description alone where the name says no more (``halfspace``: ``half-space``)."""
     inf = (bodies or {}).get(body)
-    return f"{body} ({body_text(inf)})" if inf is not None else body
+    if inf is None:
+        return body
+    text = body_text(inf)
+    bare = "".join(c for c in text.lower() if c.isalnum())
+    return text if "".join(c for c in body.lower() if c.isalnum()) == bare else f"{body} ({text})"
 
 
 def plot_load_approach(case_rows: list, scene: str, *, quantity: str = "load", ax=None):

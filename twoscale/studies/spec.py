@@ -221,6 +221,12 @@ def _scenes(v: Any, base: Path) -> tuple:
         nm = t.get("name", Path(t["file"]).stem)
         _name(f"scene {k + 1}: name", nm, seen)
         scene = read_scene(path)
+        if scene.history is not None or scene.rolling is not None:  # a case is one static solve
+            what = "a load history" if scene.history is not None else "a [rolling] table"
+            raise StudyError(
+                f"scene {k + 1}: {t['file']} has {what}, and a study's case is one static solve: run it "
+                f"with twoscale solve{', or roll it in a study with a [rolling] table' if scene.rolling else ''}"
+            )
         out.append(StudyScene(nm, os.fspath(path), scene, digest(scene_record(scene))))
     return tuple(out)
 
