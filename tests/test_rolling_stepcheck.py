@@ -69,6 +69,8 @@ def test_warning_only_when_coarse():
         warn_if_coarse(check_step(_spec(1.0), mat, 0.25, 200.0))
     assert len(caught) == 1 and issubclass(caught[0].category, StepWarning)
     assert "rolling.step" in str(caught[0].message)
+    # the warning points at the user's line, not into the package
+    assert caught[0].filename == __file__
 
 
 def _run(step: float, length: float, drag) -> SimpleNamespace:

@@ -53,7 +53,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..errors import StepWarning
+from ..errors import StepWarning, user_stacklevel
 
 #: A branch is active when its modulus is at least this share of all the branches' moduli.
 MIN_SHARE = 0.01
@@ -156,7 +156,7 @@ def check_step(spec, material, spacing: float | None, length: float = math.inf) 
 def warn_if_coarse(check: StepCheck) -> None:
     """A :class:`~twoscale.errors.StepWarning` with :attr:`StepCheck.message` when the step is coarse."""
     if check.coarse:
-        warnings.warn(check.message, StepWarning, stacklevel=3)
+        warnings.warn(check.message, StepWarning, stacklevel=user_stacklevel())
 
 
 def friction(result, distance: float | None = None) -> float:
