@@ -279,6 +279,16 @@ def _penetrations(state: WorkingSet, p: list, theta, pivot, gap_tol: float) -> d
     return out
 
 
+def penetrates_outside(state: WorkingSet, p: list, theta, pivot, tol: float) -> bool:
+    """Some asperity penetrates on cells outside its own block, which :func:`grow` would
+    extend its patch over (the same test and gap tolerance), asked during a round: its gaps
+    are not kept for the result (:meth:`WorkingSet.gaps`), as they were taken at the far field
+    held through the last sweep, which the round's end refreshes."""
+    found = bool(_penetrations(state, p, theta, pivot, _gap_tol(state, theta, pivot, tol)))
+    state._gaps_of = None
+    return found
+
+
 def edges_loaded_any(state: WorkingSet, p: list) -> bool:
     """Pressure reaches an edge of some patch."""
     return state.stop_cells.any_edge(state.patches, p)
