@@ -113,10 +113,7 @@ def test_ctrl_c_while_the_local_workers_start_is_one_line_and_resumes(reference,
         time.sleep(0.3)  # into their imports (1-4 s): before, Python takes SIGINT by dying silently
         os.killpg(proc.pid, signal.SIGINT)
         _, err = proc.communicate(timeout=60)
-        deadline = time.monotonic() + 30
-        while _group_alive(proc.pid) and time.monotonic() < deadline:
-            time.sleep(0.1)
-        orphans = _group_alive(proc.pid)
+        orphans = _outlives(proc.pid, 30, 0.1)
     finally:
         if _group_alive(proc.pid):
             os.killpg(proc.pid, signal.SIGKILL)
@@ -307,6 +304,14 @@ def _group_alive(pgid: int) -> bool:
     return True
 
 
+def _outlives(pgid: int, seconds: float, poll: float) -> bool:
+    """Whether the process group ``pgid`` is still alive after waiting up to ``seconds``."""
+    deadline = time.monotonic() + seconds
+    while _group_alive(pgid) and time.monotonic() < deadline:
+        time.sleep(poll)
+    return _group_alive(pgid)
+
+
 @pytest.mark.slow
 def test_driver_of_a_local_cluster_killed_leaves_no_worker_and_resumes(reference, tmp_path):
     """``--workers 2``: the driver killed with SIGKILL mid-study; its local cluster's worker
@@ -319,10 +324,7 @@ def test_driver_of_a_local_cluster_killed_leaves_no_worker_and_resumes(reference
         _wait_for_cases(proc, out, 3, timeout=120)
         os.kill(proc.pid, signal.SIGKILL)
         proc.communicate(timeout=60)
-        deadline = time.monotonic() + 60
-        while _group_alive(proc.pid) and time.monotonic() < deadline:
-            time.sleep(0.2)
-        orphans = _group_alive(proc.pid)
+        orphans = _outlives(proc.pid, 60, 0.2)
     finally:
         if _group_alive(proc.pid):
             os.killpg(proc.pid, signal.SIGKILL)
