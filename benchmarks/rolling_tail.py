@@ -18,12 +18,18 @@ Printed: the CPU's median and 90th percentile; for each quantity its mean over t
 the CPU by CG iterations (per count, and the least-squares line: a position's cost besides its
 iterations and an iteration's); the CPU less the iterations' part (what the iterations do not
 explain) against the context switches; the slowest positions. ``--out`` writes the rows as
-JSON. The iteration counts and the other work are deterministic; the CPU is the host's too.
+JSON. ``--repeat N`` instead rolls the section N times over in one process, one pass after
+the other, each with a window state of its own: the same work at N moments seconds apart (a
+host's busy spell lasts seconds: passes interleaved position by position share it, and
+correlate at 0.6-0.8 whatever the work), so the least of a position's N CPU times is its work
+with the least of the host's, and the spread of each pass beside that of the least says how
+much of the tail is the host's. The iteration counts and the other work are deterministic; the CPU is the host's too.
 Single-threaded.
 
 Usage::
 
     PYTHONPATH=. python benchmarks/rolling_tail.py [--length 200] [--slow 0.15] [--unfrozen] [--out FILE.json]
+    PYTHONPATH=. python benchmarks/rolling_tail.py --length 100 --repeat 3
 """
 
 from __future__ import annotations
@@ -144,6 +150,48 @@ def _rows(track, options, state, collector: list) -> list:
     return rows
 
 
+def repeated(length: float, count: int) -> tuple:
+    """``(cpu, iterations)``: each position's CPU seconds in ``count`` passes over one track,
+    ``(count, positions)``, and its CG iterations in each (module docstring's ``--repeat``)."""
+    track, options, _ = rolling_benchmark.tyre_window(length)
+    cpu = np.zeros((count, len(track.shifts)))
+    its = np.zeros((count, len(track.shifts)), dtype=int)
+    for j in range(count):
+        state, last = rolling_run.window_state(track, options), None
+        with frozen_objects():
+            for k in range(len(track.shifts)):
+                c0 = time.process_time()
+                last = rolling_run.step(track, k, last, options, state)
+                cpu[j, k] = time.process_time() - c0
+                its[j, k] = last.result.iterations.get("cg", -1)
+    return cpu, its
+
+
+def report_repeated(cpu: np.ndarray, its: np.ndarray) -> None:
+    """Print what the repeats tell apart: each run's spread, the least's, the iterations'."""
+    cpu, its = cpu[:, 1:], its[:, 1:]
+    least = cpu.min(axis=0)
+
+    def spread(t: np.ndarray) -> str:
+        return f"median {np.median(t):.4f} s, 90th percentile {np.percentile(t, 90):.4f} s ({np.percentile(t, 90) / np.median(t):.3f})"
+
+    for j, t in enumerate(cpu):
+        print(f"run {j}: {spread(t)}")
+    print(f"the least of the {len(cpu)} runs at each position: {spread(least)}")
+    print(f"CG iterations equal in every run: {bool((its == its[0]).all())}")
+    fit = rolling_benchmark.by_iterations(least, its[0])
+    work = fit["fixed_s"] + fit["per_iteration_s"] * its[0]
+    print(
+        f"the least against the iterations: {fit['fixed_s'] * 1e3:.1f} ms + {fit['per_iteration_s'] * 1e3:.2f} ms an "
+        f"iteration; the iterations' part 90th percentile over median {np.percentile(work, 90) / np.median(work):.3f}"
+    )
+    pairs = [np.corrcoef(cpu[i], cpu[j])[0, 1] for i in range(len(cpu)) for j in range(i + 1, len(cpu))]
+    print(f"two runs' CPU of a position correlate at {', '.join(f'{c:.2f}' for c in pairs)}")
+    slow = least >= np.percentile(least, 90)
+    print("the slowest tenth by the least: positions", " ".join(str(int(i) + 1) for i in np.flatnonzero(slow)))
+    print(f"  their iterations {its[0][slow].mean():.2f} against {its[0][~slow].mean():.2f}")
+
+
 def report(rows: list, slow_fraction: float) -> None:
     """Print the comparison of the module docstring for ``rows`` (the first left out)."""
     rows = rows[1:]
@@ -185,8 +233,12 @@ def main() -> None:
     p.add_argument("--slow", type=float, default=0.15, help="the fraction of the positions called slow")
     p.add_argument("--unfrozen", action="store_true", help="the old objects in the collector's passes, for comparison")
     p.add_argument("--out", default=None, help="write the rows as JSON")
+    p.add_argument("--repeat", type=int, default=0, help="roll the section this many times in turn (docstring)")
     args = p.parse_args()
     keep_heap()
+    if args.repeat:
+        report_repeated(*repeated(args.length, args.repeat))
+        return
     rows = rows_of(args.length, frozen=not args.unfrozen)
     report(rows, args.slow)
     if args.out:
