@@ -191,3 +191,20 @@ def test_the_correction_is_built_from_its_least_grid(shape, built):
     table = HS.grid_operator(Grid(0.0, 0.0, 0.01, nx, ny)).offset_table()
     owner = SquaresCorrection(None, table, shape)
     assert (CoarseSpace.build(owner, cells, loaded) is not None) == built
+
+
+def test_the_whole_grid_rows_take_the_torus_product_of_its_cells():
+    """On every cell the preconditioner takes the torus inverse's own product of the field
+    (no scatter and gather by index): the same values, to the bit, as the product on the
+    same cells given by index (``on_cells``), and as the inverse's field product."""
+    shape = (131, 140)  # (sides from 128 cells: a torus longer than the grid, the pruned transforms)
+    op = HS.grid_operator(Grid(0.0, 0.0, 0.01, shape[1], shape[0])).single_precision()
+    inverse = op.preconditioner()
+    owner = SquaresCorrection(inverse, op._parent.offset_table(), shape)
+    rng = np.random.default_rng(9)
+    v = rng.standard_normal((1, *shape))
+    on = rng.random((1, *shape)) < 0.3
+    by_rows = owner(v, on)
+    by_index = owner.op.on_cells(np.arange(shape[0] * shape[1]))(v.ravel())
+    assert np.array_equal(by_rows.ravel(), by_index)
+    assert np.array_equal(by_rows[0], inverse.apply(v[0]))
