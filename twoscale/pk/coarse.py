@@ -33,6 +33,7 @@ import scipy.fft as sfft
 import scipy.linalg as sla
 from scipy.spatial.distance import cdist
 
+from ..influence.circulant import torus_shape
 from ..influence.precorrected import Precorrected
 
 #: The squares' side, cells. Seed 1's #101 (1,689 tips on 997 x 997 cells; union CG 27
@@ -79,9 +80,21 @@ class SquaresCorrection:
         self._whole: Corrected | None = None
 
     def on_part(self, cells: np.ndarray | None) -> "Corrected | None":
-        cells = np.arange(self.shape[0] * self.shape[1]) if cells is None else np.asarray(cells, dtype=np.intp)
-        apply = self.op.on_cells(cells)
+        if cells is None:  # every cell: the rows as the torus's own field, no scatter and gather
+            apply = self._every_cell if torus_shape(self.op.source) != self.shape else None
+            cells = np.arange(self.shape[0] * self.shape[1])
+        else:
+            cells = np.asarray(cells, dtype=np.intp)
+            apply = self.op.on_cells(cells)
         return None if apply is None else Corrected(apply, self, cells)
+
+    def _every_cell(self, values: np.ndarray) -> np.ndarray:
+        """The torus inverse on the whole grid's values (n,): its own product of a field
+        smaller than the torus (:meth:`~twoscale.influence.circulant.CirculantInverse.apply`,
+        the same transforms as on the cells, bit for bit), where ``on_cells`` of every cell
+        scatters and gathers them by index (604 x 593 cells on a 675 x 675 torus: 4.6
+        against 5.6 ms a call)."""
+        return self.op.apply(values.reshape(self.shape)).ravel()
 
     def restart(self) -> bool:
         """:meth:`Corrected.restart` of the whole grid's rows."""
