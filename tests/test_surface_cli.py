@@ -141,6 +141,29 @@ def test_h_option_resamples_the_map(map_scene, tmp_path):
     assert res["h"] == 0.2 and res["total_load"] == pytest.approx(40.0)
 
 
+def test_h_option_reads_a_map_too_large_at_its_own_spacing(map_scene, tmp_path, monkeypatch, capsys):
+    # the map (120 x 120 samples at 0.1 mm) over the size limit, but not once resampled to
+    # the --h the refusal suggests: the map used to be conditioned at its own spacing when
+    # the scene was read, before --h applied, and was refused again naming grid.h
+    import twoscale.surface.conditioning as conditioning
+
+    monkeypatch.setattr(conditioning, "MAX_SAMPLES", 10_000)
+    scene = map_scene()
+    assert main(["solve", str(scene), "--out", str(tmp_path / "fine"), "--quiet"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "crop the map or give grid.h >= 0.12 mm" in err[0], err
+    out = tmp_path / "coarse"
+    assert main(["solve", str(scene), "--h", "0.12", "--out", str(out), "--quiet"]) == 0
+    res = json.loads((out / "result.json").read_text())
+    assert res["h"] == 0.12 and res["h_source"] == "--h" and res["total_load"] == pytest.approx(40.0)
+    assert not (tmp_path / "fine").exists()
+    capsys.readouterr()  # the coarse solve's warnings (edge contacts)
+    # too large at --h itself: refused naming --h
+    assert main(["solve", str(scene), "--h", "0.11", "--out", str(tmp_path / "x"), "--quiet"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "--h = 0.11 mm gives" in err[0] and "give --h >= 0.12 mm" in err[0], err
+
+
 def test_sphere_law_option_gives_the_same_answer(map_scene):
     # the law only guides the macro step; the micro step solves on the true heights
     tab = solve_scene(read_scene(map_scene()))
