@@ -96,7 +96,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--quiet",
         action="store_true",
-        help="print nothing but errors (no status line or progress bar either; they are "
+        help="print nothing but errors and warnings (no status line or progress bar either; they are "
         "drawn only when stderr is a terminal)",
     )
 
