@@ -137,9 +137,10 @@ def test_a_static_solves_option_is_refused_naming_its_value(strip_file, tmp_path
     assert not out.exists()
 
 
-def test_viscoelastic_rolling_through_the_cli(strip_file, tmp_path):
+def test_viscoelastic_rolling_through_the_cli(strip_file, tmp_path, capsys):
     out = tmp_path / "run"
-    assert main(["solve", _scene(strip_file, prony="prony = [[20.0, 0.01]]"), "--out", str(out), "--quiet"]) == 0
+    assert main(["solve", _scene(strip_file, prony="prony = [[20.0, 0.01]]"), "--out", str(out)]) == 0
+    assert "  start        from rest:" in capsys.readouterr().out
     meta = json.loads((out / "rolling.json").read_text())
     assert meta["body"].endswith("viscoelastic") and meta["material"]["prony"] == [[20.0, 0.01]]
     with open(out / "signals.csv", newline="") as fh:
@@ -147,6 +148,19 @@ def test_viscoelastic_rolling_through_the_cli(strip_file, tmp_path):
     assert rows[0][-1] == "drag_N" and len(rows) == 4
     if __import__("importlib").util.find_spec("matplotlib"):  # the elastic run's figures, all three
         assert all((out / f"{name}.png").is_file() for name in ("signals", "bands", "space_time"))
+
+
+def test_the_summary_of_a_viscoelastic_run_names_its_start_from_rest():
+    # one branch: the creep's retardation time is tau (E + E_1) / E = 1 ms x 40 / 10 = 4 ms,
+    # 4 mm of road at 1,000 mm/s
+    from types import SimpleNamespace
+
+    from twoscale.cli.rolling import start_line
+    from twoscale.material import Material
+
+    run = SimpleNamespace(spec=SimpleNamespace(speed_mm_s=1000.0), shifts=np.array([-10.0, 0.0, 10.0]))
+    line = start_line(run, Material(10.0, 0.5, prony=((30.0, 1e-3),)))
+    assert "v lambda = 4 mm" in line and "0.004 s" in line and "the first 12 mm of this 20 mm run" in line
 
 
 @pytest.mark.parametrize(

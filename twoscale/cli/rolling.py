@@ -70,7 +70,7 @@ def run_rolling(scene, args: argparse.Namespace, log=None) -> int:
         print(f"error: {exc}", file=sys.stderr)
         return 2
     if not args.quiet:
-        print(summary(result, args.scene, wall, args.out))
+        print(summary(result, args.scene, wall, args.out, material=scene.material))
     if not result.all_converged:
         bad = int(np.sum(~result.converged))
         print(
@@ -150,8 +150,9 @@ _METHOD_WORDS = {
 }
 
 
-def summary(result, scene_path: str, wall: float, out) -> str:
-    """What a user reads after a rolling run."""
+def summary(result, scene_path: str, wall: float, out, *, material=None) -> str:
+    """What a user reads after a rolling run (``material``: the body's, for a viscoelastic
+    run's start from rest)."""
     n = len(result.shifts)
     bad = int(np.sum(~result.converged))
     lines = [
@@ -170,6 +171,8 @@ def summary(result, scene_path: str, wall: float, out) -> str:
     ]
     if n >= 2:
         lines.insert(-1, _bands_line(result))
+    if material is not None and material.viscoelastic:
+        lines.insert(-1, start_line(result, material))
     if result.step_error is not None:
         lines.insert(-1, step_error_line(result.step_error, result.step_check))
     balance = result.energy_balance()
@@ -204,6 +207,22 @@ def step_error_line(e, check=None) -> str:
     return (
         f"{line}; the two runs differ by more than half the friction, too far apart for the first-order "
         f"correction to hold: the extrapolation is not an answer, roll at a finer step{finer}"
+    )
+
+
+def start_line(result, material) -> str:
+    """The summary line of a viscoelastic run's start: the rubber has no memory at the first
+    position and creeps toward the rolling state over a few ``v lambda`` of road (lambda the
+    creep compliance's slowest retardation time), which the bands and the mean drag include."""
+    from ..viscoelastic.prony import creep_compliance
+
+    lam = float(np.max(creep_compliance(material).lambdas))
+    reach = lam * result.spec.speed_mm_s
+    run = float(abs(result.shifts[-1] - result.shifts[0]))
+    return (
+        f"  start        from rest: the rubber creeps toward the rolling state over a few v lambda = {reach:.3g} mm "
+        f"of road (slowest retardation time {lam:.3g} s); the first {3 * reach:.3g} mm of this {run:.3g} mm run "
+        f"are in the bands and the mean drag"
     )
 
 
