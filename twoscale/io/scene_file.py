@@ -111,18 +111,6 @@ def scene_from_dict(
         raise SceneError("asperity is missing (required: [[asperity]] tables, or a [surface] table)")
     if "asperity" in data and "surface" in data:
         raise SceneError("a scene needs exactly one of [[asperity]] tables and a [surface] table, got both")
-    if "surface" in data:
-        from ..surface.scene_table import surface_from_table
-
-        given = (h, h_name) if h is not None else (table_of("grid", data.get("grid", {})).get("h"), "grid.h")
-        surface = surface_from_table(
-            table_of("surface", data["surface"]), base_dir=base_dir, h=given[0], h_name=given[1]
-        )
-        asperities = surface.asperities
-    else:
-        asperities = tuple(
-            _asperity(f"asperity {k}", t) for k, t in enumerate(_tables("asperity", data["asperity"]), start=1)
-        )
     load = table_of("load", data["load"])
     check_keys("load", load, LOAD_KEYS)
     grid = table_of("grid", data.get("grid", {}))
@@ -139,6 +127,19 @@ def scene_from_dict(
         from ..rolling.spec import rolling_from_table
 
         rolling = rolling_from_table(table_of("rolling", data["rolling"]))
+    # the tables above first: a mistake in them is named before a height map is read and segmented
+    if "surface" in data:
+        from ..surface.scene_table import surface_from_table
+
+        given = (h, h_name) if h is not None else (grid.get("h"), "grid.h")
+        surface = surface_from_table(
+            table_of("surface", data["surface"]), base_dir=base_dir, h=given[0], h_name=given[1]
+        )
+        asperities = surface.asperities
+    else:
+        asperities = tuple(
+            _asperity(f"asperity {k}", t) for k, t in enumerate(_tables("asperity", data["asperity"]), start=1)
+        )
     return Scene(
         material=material,
         asperities=asperities,
