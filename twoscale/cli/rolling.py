@@ -232,7 +232,8 @@ def _bands_line(result) -> str:
     from ..io.rolling_outputs import band_signal
     from ..rolling.bands import third_octave_levels
 
-    levels = third_octave_levels(band_signal(result), result.spec.step / result.spec.speed_mm_s)
+    dt = result.spec.step / result.spec.speed_mm_s
+    levels = third_octave_levels(band_signal(result), dt)
     bands = [f"{float(f):g}" for f in levels.nominal]
     fc = 1000.0 * 10.0 ** (-5 / 10)  # the 315 Hz band's exact centre
     need = 3.0 / (fc * (10**0.05 - 10**-0.05)) * result.spec.speed_mm_s
@@ -241,4 +242,26 @@ def _bands_line(result) -> str:
     )
     if not bands or float(levels.nominal[0]) > 315:
         said += f"; 315 Hz needs a run of about {need:.3g} mm at this speed (3 bins a band)"
-    return f"  bands        {said}"
+    unit = "N" if result.control == "penetration" else "mm"
+    return f"  bands        {said}{_drift_words(band_signal(result), levels, dt, unit)}"
+
+
+def _drift_words(signal: np.ndarray, levels, dt: float, unit: str) -> str:
+    """Which bands stand less than 10 dB above what the signal's drift leaks into them: the
+    bands see the run as periodic, so the step from the last value back to the first leaks
+    like a sawtooth into every band (docs/rolling_signals.md). The leak is measured as the
+    levels of a straight line from the first value to the last, by the same periodogram."""
+    from ..rolling.bands import third_octave_levels
+
+    if not levels.nominal.size:
+        return ""
+    jump = float(signal[-1] - signal[0])
+    ramp = third_octave_levels(np.linspace(0.0, jump, signal.size), dt).mean_square
+    near = int(np.sum(10.0 * ramp > levels.mean_square))
+    if not near:
+        return ""
+    return (
+        f"; {near} of them less than 10 dB above what the drift from the first position to the last "
+        f"({jump:+.3g} {unit}) leaks into them: there the levels measure the drift, not the texture "
+        f"(run longer, or start and end where the signal is alike)"
+    )
