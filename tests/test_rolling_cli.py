@@ -148,6 +148,10 @@ def test_viscoelastic_rolling_through_the_cli(strip_file, tmp_path, capsys):
     assert rows[0][-1] == "drag_N" and len(rows) == 4
     if __import__("importlib").util.find_spec("matplotlib"):  # the elastic run's figures, all three
         assert all((out / f"{name}.png").is_file() for name in ("signals", "bands", "space_time"))
+        # titled with the held load and the speed: two runs of one scene are told apart
+        from helpers import png_info
+
+        assert png_info(out / "signals.png")[1]["Title"].startswith("scene W=40N 50km/h on the half-space")
 
 
 def test_the_summary_of_a_viscoelastic_run_names_its_start_from_rest():

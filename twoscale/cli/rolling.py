@@ -123,8 +123,15 @@ def _roll_into(out: Path, scene, track, options, status, args, log=None):
     frames.close()
     result = _with_step_error(result, track, args)
     write_rolling_tables(result, scene, out, warnings=() if log is None else log.entries())
-    write_signal_products(result, scene, out, name=Path(args.scene).stem)
+    write_signal_products(result, scene, out, name=figure_name(Path(args.scene).stem, scene, result))
     return result
+
+
+def figure_name(stem: str, scene, result) -> str:
+    """The run as the figures' titles name it: the scene file's stem, the speed and what is
+    held (two runs of one strip at two speeds or loads are told apart by their titles)."""
+    held = f"W={scene.total_load:g}N" if result.control == "load" else f"d={scene.penetration:g}mm"
+    return f"{stem} {held} {result.spec.speed:g}km/h"
 
 
 def frame_grid(track):
