@@ -209,3 +209,32 @@ def test_example_road_solves_like_the_reference(tmp_path, monkeypatch):
 @pytest.mark.slow
 def test_compare_runs_a_map_scene(map_scene, tmp_path):
     assert main(["compare", str(map_scene()), "--out", str(tmp_path / "cmp"), "--quiet"]) == 0
+
+
+@pytest.mark.parametrize("shape, wide", [((100, 100), False), ((40, 280), True)])
+def test_segmentation_figure_follows_the_maps_shape(tmp_path, shape, wide):
+    # a road strip 7 times as long as wide was drawn as a thin band in the middle of a
+    # 7 x 6 inch square; its figure is now wide and low, the map filling its width
+    import twoscale
+    from helpers import png_info
+    from twoscale.surface.figure import segmentation_figure
+
+    ny, nx = shape
+    z = road(max(nx, ny) * 0.25, 0.25, seed=3)[:ny, :nx]
+    surface = twoscale.build_surface(
+        twoscale.RawMap(z, spacing=0.25, units="mm"), twoscale.SurfaceOptions(law="sphere")
+    )
+    (w, h), _ = png_info(segmentation_figure(surface, tmp_path / "seg.png", dpi=50))
+    assert (w / h > 2.5) == wide, (w, h)
+    if wide:
+        ax = _figure_axes(surface)
+        box = ax.get_window_extent()
+        assert box.width / ax.figure.bbox.width > 0.6  # the strip spans most of the figure
+
+
+def _figure_axes(surface):
+    from twoscale.surface.figure import plot_segmentation
+
+    fig = plot_segmentation(surface, dpi=50)
+    fig.canvas.draw()
+    return fig.axes[0]
