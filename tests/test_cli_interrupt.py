@@ -5,6 +5,7 @@ comes during the solve or while the files are written."""
 from __future__ import annotations
 
 import os
+import pathlib
 import signal
 import subprocess
 import sys
@@ -147,3 +148,46 @@ def test_real_sigint_to_the_command(scene, tmp_path):
     assert proc.returncode == 130
     assert err.strip().splitlines() == ["interrupted"], err
     _nothing_but(tmp_path, "scene.toml")
+
+
+_KICK_AT_IMPORT = """
+import importlib.abc, os, signal, sys
+sys.path.insert(0, {root!r})
+
+class Kick(importlib.abc.MetaPathFinder):
+    # a Ctrl-C while the package imports: SIGINT to this process when {module!r} is looked up
+    def find_spec(self, name, path=None, target=None):
+        if name == {module!r}:
+            os.kill(os.getpid(), signal.SIGINT)
+        return None
+
+sys.meta_path.insert(0, Kick())
+sys.argv = ["twoscale", "solve", {scene!r}, "--out", {out!r}]
+from twoscale_command import main
+sys.exit(main())
+"""
+
+
+@pytest.mark.skipif(sys.platform == "win32", reason="POSIX signals")
+@pytest.mark.parametrize("module", ["twoscale", "twoscale.cli.main", "twoscale.cli.solve"])
+def test_ctrl_c_while_the_script_imports_is_one_line(scene, tmp_path, module):
+    # the `twoscale` script's launcher holds SIGINT from its first line: before it, a Ctrl-C
+    # while `import twoscale` ran gave a KeyboardInterrupt traceback, or was swallowed
+    root = str(pathlib.Path(__file__).resolve().parents[1])
+    code = _KICK_AT_IMPORT.format(root=root, module=module, scene=str(scene), out=str(tmp_path / "out"))
+    proc = subprocess.run(
+        [sys.executable, "-c", code],
+        capture_output=True,
+        text=True,
+        timeout=120,
+        preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL),  # as in a terminal
+    )
+    assert proc.returncode == 130, proc.stderr
+    assert proc.stderr.strip().splitlines() == ["interrupted"], proc.stderr
+    _nothing_but(tmp_path, "scene.toml")
+
+
+def test_the_script_is_the_launcher():
+    # the console script must go through the launcher, or the guard above never runs
+    pyproject = pathlib.Path(__file__).resolve().parents[1] / "pyproject.toml"
+    assert 'twoscale = "twoscale_command:main"' in pyproject.read_text(encoding="utf-8")

@@ -1,7 +1,8 @@
 """The Python route of docs/viscoelastic.md ("From Python") runs as printed and answers as
 the physics and the scene file do: under a held load the approach creeps from the glassy
 elastic answer towards the relaxed one (elastic solves at E_inf + sum E_k and E_inf bound
-it), and the same scene written as a file gives the same history."""
+it), and the same scene written as a file gives the same history. The height-map route of
+docs/surfaces.md and the moving indenters of docs/viscoelastic.md run as printed too."""
 
 from __future__ import annotations
 
@@ -9,6 +10,7 @@ import re
 from pathlib import Path
 
 import numpy as np
+import pytest
 
 import twoscale
 from twoscale.io import read_scene
@@ -65,3 +67,31 @@ def test_the_viscoelastic_guides_python_route(tmp_path, capsys):
     from_file = twoscale.solve(read_scene(path))
     np.testing.assert_allclose(from_file.times, res.times, rtol=0, atol=1e-12)
     np.testing.assert_allclose(from_file.penetration, res.penetration, rtol=1e-9)
+
+
+def test_the_surfaces_guides_python_route_is_the_scene_files(monkeypatch):
+    # docs/surfaces.md "From Python: the same scene" runs as printed (from the repository,
+    # where its map is) and gives the answer of the example road's scene file
+    monkeypatch.chdir(ROOT)
+    ns: dict = {}
+    exec(_section_code(ROOT / "docs" / "surfaces.md", "From Python: the same scene"), ns)
+    res = ns["res"]
+    from_file = twoscale.solve(read_scene(ROOT / "examples" / "road" / "road.toml"))
+    assert res.converged and res.total_load == pytest.approx(500.0) and from_file.total_load == pytest.approx(500.0)
+    np.testing.assert_allclose(res.penetration, from_file.penetration, rtol=1e-8)
+    np.testing.assert_allclose(res.forces, from_file.forces, rtol=0, atol=1e-6 * from_file.forces.max())
+
+
+def test_the_moving_indenter_route_runs_as_printed():
+    # docs/viscoelastic.md "Moving indenters": at a held approach every position's load lies
+    # between the relaxed and the glassy elastic answers, and the rubber's lag drags on the
+    # tips (positive drag resists the motion)
+    ns: dict = {}
+    exec(_section_code(ROOT / "docs" / "viscoelastic.md", "Moving indenters: the core of rolling"), ns)
+    r, tips = ns["r"], ns["tips"]
+    relaxed, glassy = (
+        twoscale.solve(tips, material=twoscale.Material(E, 0.5), penetration=0.2, h=0.05).total_load
+        for E in (10.0, 30.0)
+    )
+    assert np.all(relaxed * (1 - 1e-3) < r.total_load) and np.all(r.total_load < glassy * (1 + 1e-3))
+    assert r.drag[-1] > 0.01 * r.total_load[-1]

@@ -71,6 +71,8 @@ def test_band_levels_bars_labels_and_highlight(tmp_path):
     fig = plot_band_levels(nominal, level, highlight=(315, 2000))
     ax = fig.axes[0]
     bars = ax.patches[1:]  # the first patch is the shaded span
+    # the shading says what it is: it was a grey band without a word
+    assert [t.get_text() for t in ax.get_legend().get_texts()] == ["shaded: 315-2000 Hz"]
     assert len(bars) == 10  # no bar for the band of zero power
     floor = 30.0  # 10 dB below the lowest level rounded down to 10 dB
     np.testing.assert_allclose([b.get_y() for b in bars], floor)

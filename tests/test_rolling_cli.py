@@ -137,9 +137,10 @@ def test_a_static_solves_option_is_refused_naming_its_value(strip_file, tmp_path
     assert not out.exists()
 
 
-def test_viscoelastic_rolling_through_the_cli(strip_file, tmp_path):
+def test_viscoelastic_rolling_through_the_cli(strip_file, tmp_path, capsys):
     out = tmp_path / "run"
-    assert main(["solve", _scene(strip_file, prony="prony = [[20.0, 0.01]]"), "--out", str(out), "--quiet"]) == 0
+    assert main(["solve", _scene(strip_file, prony="prony = [[20.0, 0.01]]"), "--out", str(out)]) == 0
+    assert "  start        from rest:" in capsys.readouterr().out
     meta = json.loads((out / "rolling.json").read_text())
     assert meta["body"].endswith("viscoelastic") and meta["material"]["prony"] == [[20.0, 0.01]]
     with open(out / "signals.csv", newline="") as fh:
@@ -147,6 +148,44 @@ def test_viscoelastic_rolling_through_the_cli(strip_file, tmp_path):
     assert rows[0][-1] == "drag_N" and len(rows) == 4
     if __import__("importlib").util.find_spec("matplotlib"):  # the elastic run's figures, all three
         assert all((out / f"{name}.png").is_file() for name in ("signals", "bands", "space_time"))
+        # titled with the held load and the speed: two runs of one scene are told apart
+        from helpers import png_info
+
+        assert png_info(out / "signals.png")[1]["Title"].startswith("scene W=40N 50km/h on the half-space")
+
+
+def test_the_summary_of_a_viscoelastic_run_names_its_start_from_rest():
+    # one branch: the creep's retardation time is tau (E + E_1) / E = 1 ms x 40 / 10 = 4 ms,
+    # 4 mm of road at 1,000 mm/s
+    from types import SimpleNamespace
+
+    from twoscale.cli.rolling import start_line
+    from twoscale.material import Material
+
+    run = SimpleNamespace(spec=SimpleNamespace(speed_mm_s=1000.0), shifts=np.array([-10.0, 0.0, 10.0]))
+    line = start_line(run, Material(10.0, 0.5, prony=((30.0, 1e-3),)))
+    assert "v lambda = 4 mm" in line and "0.004 s" in line and "the first 12 mm of this 20 mm run" in line
+
+
+def test_the_bands_line_names_the_bands_the_drift_leaks_into():
+    # the periodogram sees the run as periodic: a signal that ends where it started has no
+    # leak; the same noise on a straight drift of 0.05 mm has every band at its leak's level
+    from types import SimpleNamespace
+
+    from twoscale.cli.rolling import _bands_line
+
+    rng = np.random.default_rng(3)
+    noise = 1e-3 * rng.standard_normal(400)
+    noise[-1] = noise[0]
+
+    def line(signal):
+        spec = SimpleNamespace(step=0.5, speed_mm_s=50.0 / 3.6 * 1e3)
+        return _bands_line(SimpleNamespace(control="load", penetration=signal, total_load=signal, spec=spec))
+
+    assert "drift" not in line(1.0 + noise)
+    said = line(1.0 + noise + np.linspace(0.0, 0.05, 400))
+    resolved = int(said.split("bands")[1].split()[0])
+    assert f"; {resolved} of them less than 10 dB above what the drift" in said and "(+0.05 mm)" in said
 
 
 @pytest.mark.parametrize(

@@ -231,6 +231,27 @@ def test_read_scene_missing_file(tmp_path):
         read_scene(tmp_path / "nowhere.toml")
 
 
+@pytest.mark.parametrize(
+    "table, message",
+    [
+        ({"rolling": {"start": 10.0, "end": -10.0, "step": 1.0, "speed": 50.0}}, "rolling.end must not be before"),
+        ({"rolling": {"start": -10.0, "end": 10.0, "step": 0.0, "speed": 50.0}}, r"rolling.step must be > 0"),
+        ({"grid": {"hh": 0.1}}, "unknown key grid.hh"),
+    ],
+)
+def test_the_other_tables_are_checked_before_the_height_map_is_read(table, message):
+    # the map is never opened (it does not exist): a mistake in [rolling] or [grid] was named
+    # only after a map had been read and segmented (2.9 s on a 280 x 40 mm strip)
+    data = {
+        "material": {"E": 10.0, "nu": 0.5},
+        "load": {"total": 10.0},
+        "surface": {"file": "no_such_map.npy", "spacing": 0.25},
+        **table,
+    }
+    with pytest.raises(SceneError, match=message):
+        scene_from_dict(data)
+
+
 def test_shipped_examples_are_valid(examples_dir):
     hertz_scene = read_scene(examples_dir / "hertz_sphere.toml")
     assert hertz_scene.penetration == 0.5 and hertz_scene.asperities[0].R == 10.0

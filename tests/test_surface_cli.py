@@ -141,6 +141,29 @@ def test_h_option_resamples_the_map(map_scene, tmp_path):
     assert res["h"] == 0.2 and res["total_load"] == pytest.approx(40.0)
 
 
+def test_h_option_reads_a_map_too_large_at_its_own_spacing(map_scene, tmp_path, monkeypatch, capsys):
+    # the map (120 x 120 samples at 0.1 mm) over the size limit, but not once resampled to
+    # the --h the refusal suggests: the map used to be conditioned at its own spacing when
+    # the scene was read, before --h applied, and was refused again naming grid.h
+    import twoscale.surface.conditioning as conditioning
+
+    monkeypatch.setattr(conditioning, "MAX_SAMPLES", 10_000)
+    scene = map_scene()
+    assert main(["solve", str(scene), "--out", str(tmp_path / "fine"), "--quiet"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "crop the map or give grid.h >= 0.12 mm" in err[0], err
+    out = tmp_path / "coarse"
+    assert main(["solve", str(scene), "--h", "0.12", "--out", str(out), "--quiet"]) == 0
+    res = json.loads((out / "result.json").read_text())
+    assert res["h"] == 0.12 and res["h_source"] == "--h" and res["total_load"] == pytest.approx(40.0)
+    assert not (tmp_path / "fine").exists()
+    capsys.readouterr()  # the coarse solve's warnings (edge contacts)
+    # too large at --h itself: refused naming --h
+    assert main(["solve", str(scene), "--h", "0.11", "--out", str(tmp_path / "x"), "--quiet"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "--h = 0.11 mm gives" in err[0] and "give --h >= 0.12 mm" in err[0], err
+
+
 def test_sphere_law_option_gives_the_same_answer(map_scene):
     # the law only guides the macro step; the micro step solves on the true heights
     tab = solve_scene(read_scene(map_scene()))
@@ -186,3 +209,32 @@ def test_example_road_solves_like_the_reference(tmp_path, monkeypatch):
 @pytest.mark.slow
 def test_compare_runs_a_map_scene(map_scene, tmp_path):
     assert main(["compare", str(map_scene()), "--out", str(tmp_path / "cmp"), "--quiet"]) == 0
+
+
+@pytest.mark.parametrize("shape, wide", [((100, 100), False), ((40, 280), True)])
+def test_segmentation_figure_follows_the_maps_shape(tmp_path, shape, wide):
+    # a road strip 7 times as long as wide was drawn as a thin band in the middle of a
+    # 7 x 6 inch square; its figure is now wide and low, the map filling its width
+    import twoscale
+    from helpers import png_info
+    from twoscale.surface.figure import segmentation_figure
+
+    ny, nx = shape
+    z = road(max(nx, ny) * 0.25, 0.25, seed=3)[:ny, :nx]
+    surface = twoscale.build_surface(
+        twoscale.RawMap(z, spacing=0.25, units="mm"), twoscale.SurfaceOptions(law="sphere")
+    )
+    (w, h), _ = png_info(segmentation_figure(surface, tmp_path / "seg.png", dpi=50))
+    assert (w / h > 2.5) == wide, (w, h)
+    if wide:
+        ax = _figure_axes(surface)
+        box = ax.get_window_extent()
+        assert box.width / ax.figure.bbox.width > 0.6  # the strip spans most of the figure
+
+
+def _figure_axes(surface):
+    from twoscale.surface.figure import plot_segmentation
+
+    fig = plot_segmentation(surface, dpi=50)
+    fig.canvas.draw()
+    return fig.axes[0]

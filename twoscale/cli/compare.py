@@ -64,7 +64,6 @@ from ..api import solve
 from ..comparison import Measured, Run, centre_pivot, indicators, load_label, tip_changes, sensor_notes
 from ..influence.registry import make_body, unavailable
 from ..io.cache_entry import with_construction
-from ..io.scene_file import read_scene
 from ..io.warning_log import WarningLog
 from ..progress import Progress
 from ..resources import check_solve_memory
@@ -73,7 +72,7 @@ from ..sensor import Sensor, forces_from_map, read_sensor_map, read_tip_forces
 from .options import DEFAULT_SENSOR, add_sensor_arguments, sensor_from_args
 from .compare_outputs import Comparison, write_outputs
 from .compare_report import terminal_summary
-from .options import positive_option, with_h_option
+from .options import positive_option, read_scene_at_h
 from .solve import check_out_dir
 from .staging import staged_directory
 
@@ -143,9 +142,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 # ---------------------------------------------------------------- input
 def _scenes(args) -> list[Scene]:
     """The scene once per load case (validated; raises SceneError)."""
-    scene = _with_block_size(read_scene(args.scene), args)
+    scene = _with_block_size(read_scene_at_h(args.scene, args.h), args)
     _static_only(scene, args.scene)
-    scene = with_h_option(scene, args.h)
     if args.loads is None:
         if not scene.load_cases:
             return [scene]

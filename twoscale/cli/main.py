@@ -34,7 +34,7 @@ import warnings
 from typing import Sequence
 
 from .._version import __version__
-from .staging import OutputFolderError, Terminated
+from .staging import OutputFolderError, Terminated, held_interrupts
 from ..threads import single_threads
 
 #: Exit code after Ctrl-C (KeyboardInterrupt): 128 + SIGINT, as shells report it.
@@ -184,7 +184,10 @@ def main(argv: Sequence[str] | None = None) -> int:
     """Run the command line with ``argv`` (default ``sys.argv[1:]``); return the exit code."""
     argv = sys.argv[1:] if argv is None else list(argv)
     try:
-        parser = build_parser(command_in(argv))  # imports the command's module (solve's: ~0.6 s)
+        # imports the command's module (solve's: ~0.6 s); a Ctrl-C meanwhile is held until
+        # the import ends: raised inside the import machinery it could be swallowed
+        with held_interrupts():
+            parser = build_parser(command_in(argv))
     except KeyboardInterrupt:
         print("interrupted", file=sys.stderr)
         return EXIT_INTERRUPTED

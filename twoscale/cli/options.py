@@ -8,7 +8,6 @@ naming the option and the text (the command prints it as one ``error:`` line, ex
 from __future__ import annotations
 
 import argparse
-import dataclasses
 import math
 
 from ..scene import SceneError
@@ -56,15 +55,14 @@ def positive_option(text: str | None, name: str, *, unit: str) -> float | None:
     return v
 
 
-def with_h_option(scene, text: str | None):
-    """``scene`` at the cell size ``--h`` gives (itself without ``--h``); a height map is
-    resampled here, so that a map too large at that size is refused naming ``--h``."""
-    h = positive_option(text, "--h", unit="mm")
-    if h is None:
-        return scene
-    if scene.surface is None:
-        return dataclasses.replace(scene, h=h)
-    return dataclasses.replace(scene, h=h, surface=scene.surface.at(h, h_name="--h"), asperities=())
+def read_scene_at_h(path, text: str | None):
+    """The scene file ``path`` at the cell size ``--h`` gives (the file's without ``--h``). A
+    height map is conditioned at that size when read, not first at its own spacing: a map
+    too large at its spacing is read at a coarser ``--h``, one too large at ``--h`` is
+    refused naming ``--h``, and the map is segmented once."""
+    from ..io.scene_file import read_scene
+
+    return read_scene(path, h=positive_option(text, "--h", unit="mm"), h_name="--h")
 
 
 def int_option(text: str, name: str) -> int:

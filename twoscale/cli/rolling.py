@@ -70,7 +70,7 @@ def run_rolling(scene, args: argparse.Namespace, log=None) -> int:
         print(f"error: {exc}", file=sys.stderr)
         return 2
     if not args.quiet:
-        print(summary(result, args.scene, wall, args.out))
+        print(summary(result, args.scene, wall, args.out, material=scene.material))
     if not result.all_converged:
         bad = int(np.sum(~result.converged))
         print(
@@ -123,8 +123,15 @@ def _roll_into(out: Path, scene, track, options, status, args, log=None):
     frames.close()
     result = _with_step_error(result, track, args)
     write_rolling_tables(result, scene, out, warnings=() if log is None else log.entries())
-    write_signal_products(result, scene, out, name=Path(args.scene).stem)
+    write_signal_products(result, scene, out, name=figure_name(Path(args.scene).stem, scene, result))
     return result
+
+
+def figure_name(stem: str, scene, result) -> str:
+    """The run as the figures' titles name it: the scene file's stem, the speed and what is
+    held (two runs of one strip at two speeds or loads are told apart by their titles)."""
+    held = f"W={scene.total_load:g}N" if result.control == "load" else f"d={scene.penetration:g}mm"
+    return f"{stem} {held} {result.spec.speed:g}km/h"
 
 
 def frame_grid(track):
@@ -150,8 +157,9 @@ _METHOD_WORDS = {
 }
 
 
-def summary(result, scene_path: str, wall: float, out) -> str:
-    """What a user reads after a rolling run."""
+def summary(result, scene_path: str, wall: float, out, *, material=None) -> str:
+    """What a user reads after a rolling run (``material``: the body's, for a viscoelastic
+    run's start from rest)."""
     n = len(result.shifts)
     bad = int(np.sum(~result.converged))
     lines = [
@@ -170,6 +178,8 @@ def summary(result, scene_path: str, wall: float, out) -> str:
     ]
     if n >= 2:
         lines.insert(-1, _bands_line(result))
+    if material is not None and material.viscoelastic:
+        lines.insert(-1, start_line(result, material))
     if result.step_error is not None:
         lines.insert(-1, step_error_line(result.step_error, result.step_check))
     balance = result.energy_balance()
@@ -207,13 +217,30 @@ def step_error_line(e, check=None) -> str:
     )
 
 
+def start_line(result, material) -> str:
+    """The summary line of a viscoelastic run's start: the rubber has no memory at the first
+    position and creeps toward the rolling state over a few ``v lambda`` of road (lambda the
+    creep compliance's slowest retardation time), which the bands and the mean drag include."""
+    from ..viscoelastic.prony import creep_compliance
+
+    lam = float(np.max(creep_compliance(material).lambdas))
+    reach = lam * result.spec.speed_mm_s
+    run = float(abs(result.shifts[-1] - result.shifts[0]))
+    return (
+        f"  start        from rest: the rubber creeps toward the rolling state over a few v lambda = {reach:.3g} mm "
+        f"of road (slowest retardation time {lam:.3g} s); the first {3 * reach:.3g} mm of this {run:.3g} mm run "
+        f"are in the bands and the mean drag"
+    )
+
+
 def _bands_line(result) -> str:
     """Which third-octave bands the run resolves (a band needs 3 frequency bins), and the road
     length the 315 Hz band would need at this speed."""
     from ..io.rolling_outputs import band_signal
     from ..rolling.bands import third_octave_levels
 
-    levels = third_octave_levels(band_signal(result), result.spec.step / result.spec.speed_mm_s)
+    dt = result.spec.step / result.spec.speed_mm_s
+    levels = third_octave_levels(band_signal(result), dt)
     bands = [f"{float(f):g}" for f in levels.nominal]
     fc = 1000.0 * 10.0 ** (-5 / 10)  # the 315 Hz band's exact centre
     need = 3.0 / (fc * (10**0.05 - 10**-0.05)) * result.spec.speed_mm_s
@@ -222,4 +249,26 @@ def _bands_line(result) -> str:
     )
     if not bands or float(levels.nominal[0]) > 315:
         said += f"; 315 Hz needs a run of about {need:.3g} mm at this speed (3 bins a band)"
-    return f"  bands        {said}"
+    unit = "N" if result.control == "penetration" else "mm"
+    return f"  bands        {said}{_drift_words(band_signal(result), levels, dt, unit)}"
+
+
+def _drift_words(signal: np.ndarray, levels, dt: float, unit: str) -> str:
+    """Which bands stand less than 10 dB above what the signal's drift leaks into them: the
+    bands see the run as periodic, so the step from the last value back to the first leaks
+    like a sawtooth into every band (docs/rolling_signals.md). The leak is measured as the
+    levels of a straight line from the first value to the last, by the same periodogram."""
+    from ..rolling.bands import third_octave_levels
+
+    if not levels.nominal.size:
+        return ""
+    jump = float(signal[-1] - signal[0])
+    ramp = third_octave_levels(np.linspace(0.0, jump, signal.size), dt).mean_square
+    near = int(np.sum(10.0 * ramp > levels.mean_square))
+    if not near:
+        return ""
+    return (
+        f"; {near} of them less than 10 dB above what the drift from the first position to the last "
+        f"({jump:+.3g} {unit}) leaks into them: there the levels measure the drift, not the texture "
+        f"(run longer, or start and end where the signal is alike)"
+    )

@@ -29,7 +29,6 @@ from pathlib import Path
 
 from ..io.asperity_csv import ASPERITY_CSV_NAME
 from ..io.result_json import RESULT_NAME, result_to_dict, write_result
-from ..io.scene_file import read_scene
 from ..io.solve_outputs import write_fields_and_figures
 from ..io.warning_log import WarningLog
 from ..options import MICRO_ITERATIONS
@@ -39,7 +38,7 @@ from .route_text import iteration_text, method_lines
 from ..results import ContactResult
 from ..api import solve_scene
 from ..scene import SCENE_METHODS, SceneError, default_h
-from .options import positive_option, with_h_option
+from .options import positive_option, read_scene_at_h
 from .staging import check_output_folder, staged_directory
 
 #: Tips listed in the summary in scene order at most; with more, the TOP_ROWS most loaded.
@@ -97,7 +96,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--quiet",
         action="store_true",
-        help="print nothing but errors (no status line or progress bar either; they are "
+        help="print nothing but errors and warnings (no status line or progress bar either; they are "
         "drawn only when stderr is a terminal)",
     )
 
@@ -120,8 +119,7 @@ def run(args: argparse.Namespace) -> int:
 
 def _run(args: argparse.Namespace, log: WarningLog) -> int:
     try:
-        scene = read_scene(args.scene)
-        scene = with_h_option(scene, args.h)
+        scene = read_scene_at_h(args.scene, args.h)
         if scene.rolling is not None:  # the road rolls under the body: twoscale.cli.rolling
             from .rolling import run_rolling
 

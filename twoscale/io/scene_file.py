@@ -53,13 +53,19 @@ TIME_KEYS = ("output", "tol", "growth", "steps", "dt", "max_steps")
 ASPERITY_KEYS = ("x", "y", "z", "R", "shape")
 
 
-def read_scene(path: str | os.PathLike) -> Scene:
+def read_scene(path: str | os.PathLike, *, h: float | None = None, h_name: str = "h") -> Scene:
     """Read and validate a scene file.
 
     Parameters
     ----------
     path : str or path-like
         TOML scene file.
+    h : float, optional
+        Cell size, mm, in place of the file's ``[grid] h`` (the command line's ``--h``). A
+        height map is conditioned at it directly, so that a map too large at its own spacing
+        but not at ``h`` is read, and one too large at ``h`` is refused naming ``h_name``.
+    h_name : str, default "h"
+        Where ``h`` came from, as a refusal names it (``"--h"`` on the command line).
 
     Returns
     -------
@@ -73,7 +79,7 @@ def read_scene(path: str | os.PathLike) -> Scene:
     """
     data = read_toml(path, "scene", SceneError)
     try:
-        return scene_from_dict(data, base_dir=os.path.dirname(os.path.abspath(path)))
+        return scene_from_dict(data, base_dir=os.path.dirname(os.path.abspath(path)), h=h, h_name=h_name)
     except SceneError as exc:
         raise SceneError(f"{os.fspath(path)}: {exc}") from None
 
@@ -92,9 +98,12 @@ def read_toml(path: str | os.PathLike, what: str, error: type[Exception]) -> dic
         raise error(f"{os.fspath(path)}: invalid TOML: {exc}") from None
 
 
-def scene_from_dict(data: Mapping[str, Any], *, base_dir: str | None = None) -> Scene:
+def scene_from_dict(
+    data: Mapping[str, Any], *, base_dir: str | None = None, h: float | None = None, h_name: str = "h"
+) -> Scene:
     """Validate a scene given as nested dicts (the parsed TOML) and build a :class:`Scene`.
-    ``base_dir``: where a ``[surface]`` file name is relative to (default: the current folder)."""
+    ``base_dir``: where a ``[surface]`` file name is relative to (default: the current folder);
+    ``h``, ``h_name``: a cell size in place of ``[grid] h`` and its name (:func:`read_scene`)."""
     check_keys("", data, TOP_KEYS, required=("material", "load"))
     material = _material(table_of("material", data["material"]), base_dir)
     surface = None
@@ -102,16 +111,6 @@ def scene_from_dict(data: Mapping[str, Any], *, base_dir: str | None = None) -> 
         raise SceneError("asperity is missing (required: [[asperity]] tables, or a [surface] table)")
     if "asperity" in data and "surface" in data:
         raise SceneError("a scene needs exactly one of [[asperity]] tables and a [surface] table, got both")
-    if "surface" in data:
-        from ..surface.scene_table import surface_from_table
-
-        h = table_of("grid", data.get("grid", {})).get("h")
-        surface = surface_from_table(table_of("surface", data["surface"]), base_dir=base_dir, h=h)
-        asperities = surface.asperities
-    else:
-        asperities = tuple(
-            _asperity(f"asperity {k}", t) for k, t in enumerate(_tables("asperity", data["asperity"]), start=1)
-        )
     load = table_of("load", data["load"])
     check_keys("load", load, LOAD_KEYS)
     grid = table_of("grid", data.get("grid", {}))
@@ -128,6 +127,19 @@ def scene_from_dict(data: Mapping[str, Any], *, base_dir: str | None = None) -> 
         from ..rolling.spec import rolling_from_table
 
         rolling = rolling_from_table(table_of("rolling", data["rolling"]))
+    # the tables above first: a mistake in them is named before a height map is read and segmented
+    if "surface" in data:
+        from ..surface.scene_table import surface_from_table
+
+        given = (h, h_name) if h is not None else (grid.get("h"), "grid.h")
+        surface = surface_from_table(
+            table_of("surface", data["surface"]), base_dir=base_dir, h=given[0], h_name=given[1]
+        )
+        asperities = surface.asperities
+    else:
+        asperities = tuple(
+            _asperity(f"asperity {k}", t) for k, t in enumerate(_tables("asperity", data["asperity"]), start=1)
+        )
     return Scene(
         material=material,
         asperities=asperities,
@@ -137,7 +149,7 @@ def scene_from_dict(data: Mapping[str, Any], *, base_dir: str | None = None) -> 
         total_load=load.get("total"),
         tilt=load.get("tilt", False),
         pivot=load.get("pivot", (0.0, 0.0)),
-        h=grid.get("h"),
+        h=grid.get("h") if h is None else h,
         influence=dict(influence) or None,
         load_cases=load.get("cases", ()),
         surface=surface,

@@ -117,7 +117,7 @@ def plot_band_levels(
         Axis labels, e.g. ``"wavelength (mm)"`` and ``"texture level (dB re 1 um)"``.
     highlight : (low, high), optional
         Shade the bands whose labels lie in this range (e.g. 315-2000 Hz, the bands
-        rolling-noise models take).
+        rolling-noise models take); a legend names the range.
     title : str, optional
     style : FigureStyle, optional
         ``size`` ((7.0, 4.0) inches), ``dpi`` (100).
@@ -131,7 +131,10 @@ def plot_band_levels(
     if highlight is not None:
         inside = position[(labels >= min(highlight)) & (labels <= max(highlight))]
         if inside.size:
-            ax.axvspan(inside[0] - 0.5, inside[-1] + 0.5, color="0.92", zorder=0)
+            unit = band_label[band_label.rfind("(") + 1 : -1] if band_label.endswith(")") else ""
+            span = f"{min(highlight):g}-{max(highlight):g} {unit}".strip()
+            ax.axvspan(inside[0] - 0.5, inside[-1] + 0.5, color="0.92", zorder=0, label=f"shaded: {span}")
+            ax.legend(loc="upper right", fontsize="small")
     ax.bar(position[finite], level[finite] - floor, bottom=floor, width=0.8, color="C0", zorder=2)
     ax.set_xticks(position)
     ax.set_xticklabels([f"{v:g}" for v in labels], rotation=90 if labels.size > 12 else 0, fontsize=8)
@@ -267,6 +270,9 @@ def bands_figure(
         title=title,
         style=FigureStyle(dpi=style.pick("dpi", 110)),
     )
+    legend = fig.axes[0].get_legend()
+    if legend is not None and highlight == (315.0, 2000.0):  # say why these bands
+        legend.get_texts()[0].set_text(legend.get_texts()[0].get_text() + ", the rolling-noise bands")
     return save_png(fig, path, title=title, scene=caption.scene)
 
 

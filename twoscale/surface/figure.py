@@ -24,7 +24,8 @@ def plot_segmentation(surface, *, ax=None, title: str | None = None, dpi: int = 
     ----------
     surface : MeasuredSurface
     ax : matplotlib Axes, optional
-        Draw into this Axes; default a new 7 x 6 inch Figure.
+        Draw into this Axes; default a new 7 x 6 inch Figure (11 inches wide and as high
+        as the map's aspect needs for a strip less than 0.6 as high as it is long).
     title : str, optional
         Default: the height map's file, the number of asperities and the segmentation's
         settings.
@@ -32,9 +33,12 @@ def plot_segmentation(surface, *, ax=None, title: str | None = None, dpi: int = 
     """
     hm, seg = surface.hmap, surface.segmentation
     extent = hm.grid.bounds
-    fig, ax = figure_and_axes(ax, (7.0, 6.0), dpi, rect=(0.1, 0.08, 0.7, 0.84))
+    size, rect = _layout((extent[3] - extent[2]) / (extent[1] - extent[0]))
+    fig, ax = figure_and_axes(ax, size, dpi, rect=rect)
     image = ax.imshow(hm.heights, origin="lower", extent=extent, cmap="gray", interpolation="nearest")
-    fig.colorbar(image, ax=ax, label="height (mm); larger: closer to the body")
+    bar = fig.colorbar(image, ax=ax, shrink=min(1.0, size[1] / 4.0))
+    low = size[1] < 4.0  # a strip's short bar: the label on three lines
+    bar.set_label("height (mm);\nlarger: closer\nto the body" if low else "height (mm); larger: closer to the body")
     edges = np.zeros(seg.labels.shape, dtype=bool)
     edges[:, 1:] |= seg.labels[:, 1:] != seg.labels[:, :-1]
     edges[1:, :] |= seg.labels[1:, :] != seg.labels[:-1, :]
@@ -53,6 +57,18 @@ def plot_segmentation(surface, *, ax=None, title: str | None = None, dpi: int = 
         )
     ax.set_title(title, fontsize=8)
     return fig
+
+
+def _layout(aspect: float) -> tuple[tuple[float, float], tuple[float, float, float, float]]:
+    """Figure size (inches) and axes rectangle for a map ``aspect`` (height over width) high:
+    7 x 6 inches for a squarish map; a road strip gets a wide, low figure, so that it is not
+    a thin band in the middle of a square."""
+    if aspect >= 0.6:
+        return (7.0, 6.0), (0.1, 0.08, 0.7, 0.84)
+    width = 11.0
+    height = min(6.0, max(2.6, 0.78 * width * aspect + 1.3))
+    bottom, top = 0.9 / height, 0.45 / height  # room for the x label below and the title above
+    return (width, height), (0.07, bottom, 0.78, 1.0 - bottom - top)
 
 
 def segmentation_figure(surface, path: str | Path, *, scene: dict | None = None, dpi: int = 150) -> Path:

@@ -58,8 +58,11 @@ _FLAGS = ("invert", "detrend")
 _WORDS = ("units", "fill", "law")
 
 
-def surface_from_table(table: Mapping[str, Any], *, base_dir: str | None = None, h: Any = None) -> MeasuredSurface:
-    """Read and build the surface a ``[surface]`` table describes.
+def surface_from_table(
+    table: Mapping[str, Any], *, base_dir: str | None = None, h: Any = None, h_name: str = "grid.h"
+) -> MeasuredSurface:
+    """Read and build the surface a ``[surface]`` table describes, at the cell size ``h``
+    (None: the map's spacing); ``h_name`` names where ``h`` came from in a refusal.
 
     Raises
     ------
@@ -87,14 +90,14 @@ def surface_from_table(table: Mapping[str, Any], *, base_dir: str | None = None,
             raise SceneError(f"surface.crop must be [xmin, xmax, ymin, ymax] (mm), got {options['crop']!r}")
         options["crop"] = tuple(check_number(f"surface.crop[{i}]", v, unit="mm") for i, v in enumerate(options["crop"]))
     if h is not None:
-        h = check_number("grid.h", h, positive=True, unit="mm")
+        h = check_number(h_name, h, positive=True, unit="mm")
     base = base_dir or os.getcwd()
     cache = _cache(table.get("law_cache"), base)
     try:
         opts = SurfaceOptions(**options)
     except TypeError as exc:  # a key of the wrong type reaching a comparison
         raise SceneError(f"surface: {exc}") from None
-    return load_surface(os.path.join(base, table["file"]), opts, h=h, cache=cache, h_name="grid.h")
+    return load_surface(os.path.join(base, table["file"]), opts, h=h, cache=cache, h_name=h_name)
 
 
 def _cache(value, base: str) -> LawCache | None:
