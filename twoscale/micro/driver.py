@@ -14,6 +14,7 @@ CG). :func:`solve_micro` runs one iteration with one coupling, without the polic
 
 from __future__ import annotations
 
+import dataclasses
 import time
 import warnings
 from dataclasses import dataclass
@@ -21,9 +22,9 @@ from typing import Callable, Sequence
 
 import numpy as np
 
-from ..errors import MemoryWarning, user_stacklevel
+from ..errors import MemoryWarning, SceneError, user_stacklevel
 from ..indenters import Asperity
-from ..memory_now import UNION_BOX_SPREAD, available_memory, union_box_bytes, union_box_fits
+from ..memory_now import UNION_BOX_SPREAD, available_memory, box_check, union_box_bytes, union_box_fits
 from ..influence.base import InfluenceProvider
 from ..options import MicroOptions
 from .couplings import Exact, coupling_for
@@ -82,16 +83,49 @@ class MicroPlan:
 
 
 def _plan(patches, box, choice_fixed: Choice | None, asperities, problem: MicroProblem, merged: bool) -> Choice:
+    """The caller's choice, else the policy's; a union CG the policy picks whose box does not
+    fit in the memory available now gives way to the block iteration it picks without it
+    (:func:`_without_union`)."""
     if choice_fixed is not None:
         return choice_fixed
-    return choose(
-        patches,
-        box,
-        merged_contacts=merged,
-        load_control=problem.total_load is not None,
-        tilt=bool(problem.free_tilt),
-        height_map=all(a.shape == "map" for a in asperities.asperities),
-    )
+    grid = box_of([pt.grid for pt in patches], problem.h, problem.anchor)
+
+    def pick(union: bool) -> Choice:
+        return choose(
+            patches,
+            box,
+            merged_contacts=merged,
+            load_control=problem.total_load is not None,
+            tilt=bool(problem.free_tilt),
+            height_map=all(a.shape == "map" for a in asperities.asperities),
+            union=union,
+        )
+
+    picked = pick(True)
+    if picked.iteration != "union-cg":
+        return picked
+    # on patches at each tip's reach (a stalled macro step) overlapping beyond their box, the
+    # block iterations would hold more than the box: no fallback there
+    blocks = len(patches) > 1 and problem.size_from_forces
+    return _without_union(picked, grid, pick if blocks else None)
+
+
+def _without_union(picked: Choice, grid, pick: Callable | None) -> Choice:
+    """``picked`` (the union CG on the box ``grid``) where its box fits in the memory
+    available now (:func:`twoscale.memory_now.box_check`; the estimate made before the solve
+    counts it only where the policy surely takes it), else the block iteration
+    ``pick(False)`` chooses without it, said in its reason and a :class:`MemoryWarning` (its
+    memory was counted before the solve); without ``pick`` (one patch, or patches at each
+    tip's reach), a one-line :class:`SceneError` naming a cell size at which the box fits."""
+    check = box_check(grid.nx, grid.ny, grid.h)
+    if check.fits:
+        return picked
+    if pick is None:
+        raise SceneError(f"{check.text}, and no block iteration replaces it on these patches; {check.advice}")
+    other = pick(False)
+    note = f"{check.text}: {other.iteration}" + (f" with far_tol {other.far_tol:g}" if other.far_tol else "")
+    warnings.warn(MemoryWarning(f"{note} instead"), stacklevel=user_stacklevel())
+    return dataclasses.replace(other, reason=f"{other.reason} ({check.text})")
 
 
 def _box_share(merged: bool) -> float:
