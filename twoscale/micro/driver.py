@@ -1,9 +1,10 @@
 """The micro step's driver: one entry that composes an iteration with a coupling.
 
 ``run_micro`` builds the patches from the macro forces, asks the policy
-(:mod:`.policy`) which iteration and coupling to use unless the caller fixed them, runs
-the chosen strategy, and, when it does not converge, the next one in a fixed order. Every
-attempt is recorded (:class:`Attempt`: what ran, its sweeps or CG iterations, its time, its
+(:mod:`.policy`) which iteration and coupling to use unless the caller fixed them (a
+union CG whose box does not fit in the memory available then gives way to a block
+iteration: :func:`_plan`), runs the chosen strategy, and, when it does not converge, the
+next one in a fixed order. Every attempt is recorded (:class:`Attempt`: what ran, its sweeps or CG iterations, its time, its
 outcome), so nothing is restarted behind the user's back.
 
 The strategies are objects of :mod:`.strategies`: an iteration (:class:`~.strategies.UnionCG`,
@@ -82,18 +83,17 @@ class MicroPlan:
     macro: object = None
 
 
-def _plan(patches, box, choice_fixed: Choice | None, asperities, problem: MicroProblem, merged: bool) -> Choice:
+def _plan(patches, grid, choice_fixed: Choice | None, asperities, problem: MicroProblem, merged: bool) -> Choice:
     """The caller's choice, else the policy's; a union CG the policy picks whose box does not
     fit in the memory available now gives way to the block iteration it picks without it
-    (:func:`_without_union`)."""
+    (:func:`_without_union`). ``grid``: the patches' box."""
     if choice_fixed is not None:
         return choice_fixed
-    grid = box_of([pt.grid for pt in patches], problem.h, problem.anchor)
 
     def pick(union: bool) -> Choice:
         return choose(
             patches,
-            box,
+            grid.size,
             merged_contacts=merged,
             load_control=problem.total_load is not None,
             tilt=bool(problem.free_tilt),
@@ -208,15 +208,15 @@ def run_micro(
         return BlockGaussSeidel().run(context, Exact(), max_sweeps=options.max_sweeps), MicroPlan(
             Choice("block-gs", None, "no asperity reaches the body", {}), (), macro
         )
-    box = box_of([pt.grid for pt in patches], problem.h, problem.anchor).size
-    picked = _plan(patches, box, choice, asperities, problem, bool(macro.safe_path))
+    grid = box_of([pt.grid for pt in patches], problem.h, problem.anchor)
+    picked = _plan(patches, grid, choice, asperities, problem, bool(macro.safe_path))
     if refine is not None and picked.iteration != "union-cg":
         macro, refined = refine()
         if refined.size_from_forces != problem.size_from_forces:  # a deferred safe path's forces size them
             patches = tuple(one_asperity_patches(provider, asperities, refined, options.margin, share))
-            box = box_of([pt.grid for pt in patches], refined.h, refined.anchor).size
+            grid = box_of([pt.grid for pt in patches], refined.h, refined.anchor)
         problem = refined
-        picked = _plan(patches, box, choice, asperities, problem, bool(macro.safe_path))
+        picked = _plan(patches, grid, choice, asperities, problem, bool(macro.safe_path))
     order = _order(picked)
     if not any(isinstance(iteration, UnionCG) for iteration, _ in order):
         patches = tuple(detached(patches))  # no union CG: the sampled box they were cut from is let go
@@ -225,7 +225,7 @@ def run_micro(
     result = None
     for iteration, coupling in order:
         if attempts and isinstance(iteration, UnionCG):
-            iteration, coupling = _union_or_blocks(box, order[0][1])
+            iteration, coupling = _union_or_blocks(grid.size, order[0][1])
         stage = f"micro step, {iteration.name}" + (
             f" ({coupling.name} {coupling.far_tol:g})" if coupling is not None and coupling.far_tol is not None else ""
         )
