@@ -87,6 +87,23 @@ def test_one_patch_whose_box_does_not_fit_is_refused_in_one_line_with_an_h_that_
     assert done.converged
 
 
+def test_patches_at_each_tips_reach_are_refused_not_handed_to_the_block_iterations(monkeypatch):
+    # after a macro step stalled far from a solution the patches reach as far as each tip can
+    # touch and overlap beyond their box: the block iterations there would hold more than the
+    # union CG's box, so a box that does not fit is refused in one line, naming an h
+    import dataclasses
+
+    from twoscale.micro.problem import MicroProblem
+
+    made = MicroProblem.from_macro.__func__
+    stalled = classmethod(lambda cls, *a, **k: dataclasses.replace(made(cls, *a, **k), size_from_forces=False))
+    monkeypatch.setattr(MicroProblem, "from_macro", stalled)
+    _available(monkeypatch, 1e6)
+    with pytest.raises(SceneError, match=r"no block iteration replaces it on these patches; try h = \S+ mm") as err:
+        solve_scene(_lattice(2.5, 5), h=0.05, memory_limit=math.inf)
+    assert "\n" not in str(err.value)
+
+
 def test_box_check_names_the_smallest_listed_h_that_fits():
     # a 1,000 x 500 box at 0.01 mm in 80 % of the memory for 125,000 cells: the sides over
     # the new cell size must give at most that many, at two significant digits rounded up
@@ -131,3 +148,22 @@ def test_where_the_union_cg_is_a_candidate_but_the_far_field_runs_the_estimate_f
     assert est.union_bytes > 1.5 * run["peak"]  # the box counted would be over 1.5x the peak
     assert 0.67 <= run["peak"] / est.bytes <= 1.5, (run["peak"] / 1e6, est.text)
     assert "up to" in est.text and "union CG" in est.text
+
+
+def test_the_union_cg_a_stalled_macro_step_would_take_is_said_not_counted():
+    # seed 9's #98 of the sweep (3,143 paraboloids): were its macro step to stall, the patches
+    # at each tip's reach would overlap beyond their box and the policy take the union CG on
+    # it, checked then; counted up front it made the estimate 9.8 GB where the far-field
+    # two-level iteration ran without a stall
+    from twoscale.memory_stall import stalled_patches
+    from twoscale.mean_field import tip_arrays
+    from twoscale.scenespace import build, sweep
+
+    scene, h = build(sweep(200, 9)[98]), 0.0046
+    stalled = stalled_patches(scene, h, tip_arrays(scene).tips)
+    assert stalled.policy_cells >= stalled.policy_box.size  # they overlap beyond their box
+    est = estimate_memory(scene, h)
+    box = f"the union box ({stalled.policy_box.ny} x {stalled.policy_box.nx} cells)"
+    assert not any(k.startswith("the union box") for k, _ in est.parts)
+    assert any(k.startswith(box) for k, _ in est.union_parts)
+    assert est.union_bytes >= union_box_bytes(stalled.policy_box.size) > 2.0 * est.bytes
