@@ -166,13 +166,12 @@ def twoscale_parts(scene: Scene, h: float, *, iteration: str = "auto") -> tuple[
     else:  # a block iteration may run: counted; the union CG checked where the policy takes it
         parts = parts | blocks
     if iteration in ("auto", "two-level") and stall_possible(scene):
-        stalled_cells, stalled, stalled_union = _stalled_route(scene, h, tips, parts["macro interaction matrix"])
-        if iteration == "auto" and stalled_union:
-            # the policy takes the union CG there, checked when it does (counted up front, it put
-            # seed 9's #98 and seed 6's #150 at 0.31-0.38 of their peaks: no stall, two-level)
-            stalled = {}
-            if sum(stalled_union.values()) > sum(if_union.values()):
-                if_union = stalled_union
+        auto = iteration == "auto"
+        stalled_cells, stalled, stalled_union = _stalled_route(scene, h, tips, parts["macro interaction matrix"], auto)
+        # the policy takes the union CG there, checked when it does (counted up front, it put
+        # seed 9's #98 and seed 6's #150 at 0.31-0.38 of their peaks: no stall, two-level)
+        if auto and sum(stalled_union.values()) > sum(if_union.values()):
+            if_union = stalled_union
         if sum(stalled.values()) > sum(parts.values()):
             cells, parts = max(cells, stalled_cells), stalled
     return cells, parts, (if_union if sum(if_union.values()) > sum(parts.values()) else {})
@@ -195,13 +194,14 @@ def _routes_parts(scene: Scene, box: Grid, parts: dict, blocks: dict, union: dic
     return parts | blocks | beyond | coarse_parts(scene, box)
 
 
-def _stalled_route(scene: Scene, h: float, tips: np.ndarray, macro: float) -> tuple[int, dict, dict]:
+def _stalled_route(scene: Scene, h: float, tips: np.ndarray, macro: float, auto: bool) -> tuple[int, dict, dict]:
     """Cells and parts of the micro step after a macro step stalled far from a solution
     (:mod:`twoscale.memory_stall`): the far field's block iterations on the patches at the
     indenters' reach, the policy's larger ones kept beside them (or, where more, those
     patches while they are sampled); and the parts where those overlap so much that they
     hold more cells than their box, where the policy takes the union CG on it (its work
-    then the least: the blocks' is at least their cells'), else empty."""
+    then the least: the blocks' is at least their cells'), else empty; where the policy
+    chooses (``auto``) and takes it, no block iteration's parts."""
     st = stalled_patches(scene, h, tips)
     union = {}
     if st.policy_cells >= st.policy_box.size:
@@ -209,6 +209,8 @@ def _stalled_route(scene: Scene, h: float, tips: np.ndarray, macro: float) -> tu
         if st.sampling_bytes > sum(union.values()):
             union = {"the policy's patches at the geometric reach, sampled (a stalled macro step)": st.sampling_bytes}
         union["macro interaction matrix"] = macro
+        if auto:
+            return int(st.policy_box.size), {}, union
     on = st.work > 0
     across = _cells_across(st.work[on], h)
     cells = int((across**2).sum())
