@@ -167,3 +167,23 @@ def test_the_union_cg_a_stalled_macro_step_would_take_is_said_not_counted():
     assert not any(k.startswith("the union box") for k, _ in est.parts)
     assert any(k.startswith(box) for k, _ in est.union_parts)
     assert est.union_bytes >= union_box_bytes(stalled.policy_box.size) > 2.0 * est.bytes
+
+
+def test_the_command_line_reports_a_refusal_at_the_choice_in_one_line(tmp_path, monkeypatch, capsys):
+    # the check before the solve passes (the machine's memory); the box checked at the choice
+    # against a quarter of what it may need: exit 2, one line naming the union CG and an h
+    from twoscale.cli.main import main
+
+    path = tmp_path / "one.toml"
+    lines = ["[material]", "E = 10.0", "nu = 0.5", "[load]", "penetration = 0.5"]
+    path.write_text("\n".join(lines + ["[[asperity]]", "x = 0.0", "y = 0.0", "z = 0.0", "R = 10.0"]) + "\n")
+    cells = solve_scene(
+        Scene(material=MATERIAL, penetration=0.5, asperities=[Asperity(0.0, 0.0, 0.0, 10.0)]),
+        h=0.02,
+        iteration="union-cg",
+    ).n_cells
+    _available(monkeypatch, UNION_BOX_SPREAD * union_box_bytes(cells) / 0.8 / 4.0)
+    code = main(["solve", str(path), "--h", "0.02", "--iteration", "auto", "--out", str(tmp_path / "out")])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert code == 2 and len(err) == 1, err
+    assert "union CG on the patches' box" in err[0] and "try h = " in err[0]
