@@ -4,8 +4,9 @@
 (:mod:`.policy`) which iteration and coupling to use unless the caller fixed them (a
 union CG whose box does not fit in the memory available then gives way to a block
 iteration: :func:`_plan`), runs the chosen strategy, and, when it does not converge, the
-next one in a fixed order. Every attempt is recorded (:class:`Attempt`: what ran, its sweeps or CG iterations, its time, its
-outcome), so nothing is restarted behind the user's back.
+next one in a fixed order. Every attempt is recorded (:class:`Attempt`: what ran, its
+sweeps or CG iterations, its time, its outcome), so nothing is restarted behind the
+user's back.
 
 The strategies are objects of :mod:`.strategies`: an iteration (:class:`~.strategies.UnionCG`,
 :class:`~.strategies.BlockGaussSeidel`, :class:`~.strategies.TwoLevel`) run with a coupling
