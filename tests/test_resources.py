@@ -144,16 +144,21 @@ def test_auto_counts_the_route_the_policy_takes(spacing, iteration):
     assert est == estimate_memory(scene, 0.05, "twoscale", iteration=iteration).bytes
 
 
-def test_auto_counts_the_union_cg_after_a_block_attempt_beside_what_that_attempt_keeps():
+def test_auto_counts_the_block_iteration_and_says_what_the_union_cg_after_it_would_need():
     # where the policy may choose either (121 paraboloids 4 mm apart: the union CG chosen on
-    # some of the patches the estimate considers, a block iteration on others), the larger of
-    # the two: the block attempt gives back all but BLOCK_ATTEMPT_HELD of its memory first
-    # (the heap trimmed), the box counted beyond the patches' cells (the union CG alone counts
-    # the whole box, its patches windows of it)
+    # some of the patches the estimate considers, a block iteration on others), the block
+    # iteration is counted, as when asked for; the union CG is checked against the memory
+    # available when the policy takes it (test_memory_at_choice), and the estimate says what
+    # it would need: after a block attempt that gives back all but BLOCK_ATTEMPT_HELD of its
+    # memory (the heap trimmed), the box counted beyond the patches' cells (the union CG alone
+    # counts the whole box, its patches windows of it)
     from twoscale.memory_costs import BLOCK_ATTEMPT_HELD, PATCH_BYTES_EACH
 
+    est = estimate_memory(_lattice(4.0), 0.05, "twoscale")
+    assert not any("union box" in k for k, _ in est.parts)
+    assert est.bytes == estimate_memory(_lattice(4.0), 0.05, "twoscale", iteration="two-level").bytes
     block_keys = ("FFT work on the largest patch", "cached cross-patch operators", "far field's")
-    parts = dict(estimate_memory(_lattice(4.0), 0.05, "twoscale").parts)
+    parts = dict(est.union_parts)
     blocks = sum(v for k, v in parts.items() if k.startswith(block_keys))
     alone = dict(estimate_memory(_lattice(4.0), 0.05, "twoscale", iteration="union-cg").parts)
     union = sum(v for k, v in alone.items() if k.startswith("the union box"))
@@ -163,6 +168,8 @@ def test_auto_counts_the_union_cg_after_a_block_attempt_beside_what_that_attempt
     assert blocks > 0 and union > 0
     given_back = patches - PATCH_BYTES_EACH * count + (1.0 - BLOCK_ATTEMPT_HELD) * blocks
     assert beyond == pytest.approx(max(0.0, union - given_back))
+    assert est.union_bytes == pytest.approx(sum(parts.values())) and est.union_bytes > est.bytes
+    assert f"up to {est.union_bytes / 1e9:.3g} GB if the policy takes the union CG" in est.text
 
 
 def test_auto_leaves_out_the_union_cg_that_only_follows_a_far_field_attempt():

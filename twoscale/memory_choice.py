@@ -8,11 +8,14 @@ their box is followed by the union CG where it does not converge
 (:func:`twoscale.memory_now.union_box_fits`; else block Gauss-Seidel with the same
 coupling). The memory estimate makes the same choice on the patches it counts
 (:func:`twoscale.memory_parts.patch_half_widths`), over a band of their size
-(:data:`CELL_FACTORS`) and with and without merged contacts (which only the macro step
-finds): an iteration chosen anywhere in the band may run, and its memory is counted; one
-chosen nowhere is not. The union CG that only follows a far-field attempt is not counted:
-it runs only where it fits when the attempt has failed (in the sweep records, 88 far-field
-attempts at that coverage on 75 scenes of seeds 1 and 5-9, none failed). Cells, mm.
+(:data:`LOW_FACTOR`) and with and without merged contacts (which only the macro step
+finds): an iteration chosen anywhere in the band may run; one chosen nowhere is not
+counted. Where the band holds both, the block iteration is counted and the union CG is
+checked against the memory available when the policy takes it
+(:func:`twoscale.memory_now.box_check`). The union CG that only follows a far-field
+attempt is not counted: it runs only where it fits when the attempt has failed (in the
+sweep records, 88 far-field attempts at that coverage on 75 scenes of seeds 1 and 5-9,
+none failed). Cells, mm.
 """
 
 from __future__ import annotations

@@ -99,19 +99,22 @@ def _material_cells(scene: Scene, grid: Grid) -> float:
     return float(min(grid.size, discs))
 
 
-def twoscale_parts(scene: Scene, h: float, *, iteration: str = "auto") -> tuple[int, dict]:
-    """Cells carried and the parts of a two-scale solve's peak: the patches and the macro
-    matrix, the block iterations' operators and, where the union CG may run, its box. Under
-    ``"auto"`` what the policy may run (:func:`twoscale.memory_choice.possible_routes`,
-    its choice made on the patches counted here, on half their cells and on the upper
-    estimate below): where both may, the larger of the two (the union CG runs first, or
-    after a block attempt that did not converge, whose memory is then given back
-    (:mod:`twoscale.micro.release`) but for ``BLOCK_ATTEMPT_HELD`` of it); where the exact
-    pairs' operators under the far field would hold more than the box, the union CG alone
-    (the policy's work estimates, products on the same grids, then make it the cheaper: on
-    the sweep's seed 7 it ran on all 16 such scenes). The box is counted beyond the
-    patches' cells (its bytes a cell were measured with them). An ``iteration`` asked for
-    runs alone (:func:`twoscale.micro.driver.run_micro`): only its own parts.
+def twoscale_parts(scene: Scene, h: float, *, iteration: str = "auto") -> tuple[int, dict, dict]:
+    """Cells carried, the parts of a two-scale solve's peak (the patches and the macro
+    matrix, the block iterations' operators and, where the union CG surely runs, its box),
+    and the parts if the policy takes the union CG where it may take a block iteration too
+    (empty where that is not more). Under ``"auto"`` what the policy may run
+    (:func:`twoscale.memory_choice.possible_routes`, its choice made on the patches counted
+    here, on half their cells and on the upper estimate below): where both may, the block
+    iteration is counted, and the union CG (run first, or after a block attempt that did
+    not converge, whose memory is then given back (:mod:`twoscale.micro.release`) but for
+    ``BLOCK_ATTEMPT_HELD`` of it) is checked against the memory available when the policy
+    takes it (:func:`twoscale.micro.driver._plan`); where the exact pairs' operators under
+    the far field would hold more than the box, the union CG alone (the policy's work
+    estimates, products on the same grids, then make it the cheaper: on the sweep's seed 7
+    it ran on all 16 such scenes). The box is counted beyond the patches' cells (its bytes
+    a cell were measured with them). An ``iteration`` asked for runs alone
+    (:func:`twoscale.micro.driver.run_micro`): only its own parts.
 
     The patches are sized by the contacts with the neighbours' push
     (:func:`patch_half_widths`); the upper estimate of the macro step's patches is the
@@ -150,7 +153,6 @@ def twoscale_parts(scene: Scene, h: float, *, iteration: str = "auto") -> tuple[
     union = {}
     if box is not None and (routes.union or (on_map and iteration == "auto")):
         union = grid_parts(scene, box, "union box")
-        cells = max(cells, int(box.size))
     near = blocks.get("cached cross-patch operators", 0.0) if "far field's point operator" in blocks else 0.0
     if union and near > sum(union.values()):
         blocks = {}  # the near pairs cost more than the box: the policy takes the union CG
@@ -158,12 +160,21 @@ def twoscale_parts(scene: Scene, h: float, *, iteration: str = "auto") -> tuple[
     # patches' memory is not counted otherwise: the patches' cells stay (seed 6's #20 and #69,
     # seed 7's #92 and #163: stalled, the union CG alone, peaks 1.9-2.7x the box and windows)
     windows = not stall_possible(scene)
-    parts = _routes_parts(scene, box, parts, blocks, union, count, windows) if union else parts | blocks
+    if_union = _routes_parts(scene, box, parts, blocks, union, count, windows) if union else {}
+    if union and not blocks:  # the union CG surely taken: counted
+        parts, if_union, cells = if_union, {}, max(cells, int(box.size))
+    else:  # a block iteration may run: counted; the union CG checked where the policy takes it
+        parts = parts | blocks
     if iteration in ("auto", "two-level") and stall_possible(scene):
-        stalled_cells, stalled = _stalled_route(scene, h, tips, parts["macro interaction matrix"])
+        auto = iteration == "auto"
+        stalled_cells, stalled, stalled_union = _stalled_route(scene, h, tips, parts["macro interaction matrix"], auto)
+        # the policy takes the union CG there, checked when it does (counted up front, it put
+        # seed 9's #98 and seed 6's #150 at 0.31-0.38 of their peaks: no stall, two-level)
+        if auto and sum(stalled_union.values()) > sum(if_union.values()):
+            if_union = stalled_union
         if sum(stalled.values()) > sum(parts.values()):
-            return max(cells, stalled_cells), stalled
-    return cells, parts
+            cells, parts = max(cells, stalled_cells), stalled
+    return cells, parts, (if_union if sum(if_union.values()) > sum(parts.values()) else {})
 
 
 def _routes_parts(scene: Scene, box: Grid, parts: dict, blocks: dict, union: dict, count: int, windows: bool) -> dict:
@@ -183,32 +194,37 @@ def _routes_parts(scene: Scene, box: Grid, parts: dict, blocks: dict, union: dic
     return parts | blocks | beyond | coarse_parts(scene, box)
 
 
-def _stalled_route(scene: Scene, h: float, tips: np.ndarray, macro: float) -> tuple[int, dict]:
+def _stalled_route(scene: Scene, h: float, tips: np.ndarray, macro: float, auto: bool) -> tuple[int, dict, dict]:
     """Cells and parts of the micro step after a macro step stalled far from a solution
     (:mod:`twoscale.memory_stall`): the far field's block iterations on the patches at the
-    indenters' reach, the policy's larger ones kept beside them; or, where those overlap
-    so much that they hold more cells than their box, the union CG on it (its work then the
-    least: the blocks' is at least their cells'); or, where more, those patches while
-    they are sampled."""
+    indenters' reach, the policy's larger ones kept beside them (or, where more, those
+    patches while they are sampled); and the parts where those overlap so much that they
+    hold more cells than their box, where the policy takes the union CG on it (its work
+    then the least: the blocks' is at least their cells'), else empty; where the policy
+    chooses (``auto``) and takes it, no block iteration's parts."""
     st = stalled_patches(scene, h, tips)
+    union = {}
     if st.policy_cells >= st.policy_box.size:
-        parts = grid_parts(scene, st.policy_box, "union box") | coarse_parts(scene, st.policy_box)
-        cells = int(st.policy_box.size)
-    else:
-        on = st.work > 0
-        across = _cells_across(st.work[on], h)
-        cells = int((across**2).sum())
-        parts = {
-            f"{int(on.sum())} patches at the indenters' reach (a stalled macro step)": PATCH_BYTES_PER_CELL * cells
-            + PATCH_BYTES_EACH * int(on.sum()),
-            "the policy's patches at the geometric reach, kept": st.held_bytes,
-        }
-        box = patch_box(tips, st.work, h)
-        parts.update(_block_parts(tips[on], st.work[on], h, box, float(cells)))
+        union = grid_parts(scene, st.policy_box, "union box") | coarse_parts(scene, st.policy_box)
+        if st.sampling_bytes > sum(union.values()):
+            union = {"the policy's patches at the geometric reach, sampled (a stalled macro step)": st.sampling_bytes}
+        union["macro interaction matrix"] = macro
+        if auto:
+            return int(st.policy_box.size), {}, union
+    on = st.work > 0
+    across = _cells_across(st.work[on], h)
+    cells = int((across**2).sum())
+    parts = {
+        f"{int(on.sum())} patches at the indenters' reach (a stalled macro step)": PATCH_BYTES_PER_CELL * cells
+        + PATCH_BYTES_EACH * int(on.sum()),
+        "the policy's patches at the geometric reach, kept": st.held_bytes,
+    }
+    box = patch_box(tips, st.work, h)
+    parts.update(_block_parts(tips[on], st.work[on], h, box, float(cells)))
     if st.sampling_bytes > sum(parts.values()):
         parts = {"the policy's patches at the geometric reach, sampled (a stalled macro step)": st.sampling_bytes}
     parts["macro interaction matrix"] = macro
-    return cells, parts
+    return cells, parts, union
 
 
 def coarse_parts(scene: Scene, box: Grid) -> dict:

@@ -19,21 +19,25 @@ What the two methods carry:
   weights it keeps per owned cell on patches under ``SEPARABLE_CELLS`` owned cells
   (:func:`twoscale.memory_parts.far_weight_bytes`; none per cell on the larger) and its
   point operator among the patches; the dense macro matrix; and, where the policy
-  may choose to solve on the patches' bounding box as one grid (``union-cg``:
-  :mod:`twoscale.memory_choice` makes the policy's choice on the counted patches), that
-  box, counted as the larger of it and a block attempt before it
-  (:mod:`twoscale.memory_parts`), with its coarse correction where its loaded squares are
-  few and sparse enough for it to be built; where the policy surely takes the union CG, no
-  block operators, and (where the macro step cannot stall) the patches as windows of the
-  box, a few kB each.
-  The union CG that only follows a far-field attempt which did not converge is not
-  counted: it starts only where its box fits in the memory available then
+  surely solves on the patches' bounding box as one grid (``union-cg`` chosen on every
+  patch size :mod:`twoscale.memory_choice` tries), that box with its coarse correction
+  where its loaded squares are few and sparse enough for it to be built, no block
+  operators, and (where the macro step cannot stall) the patches as windows of the box, a
+  few kB each. Where the policy may take the union CG or a block iteration, the block
+  iteration is counted, and the union CG (the box beyond a block attempt before it,
+  :mod:`twoscale.memory_parts`) is what the estimate says it would need
+  (:attr:`MemoryEstimate.union_bytes`): it is checked when the policy takes it, against
+  the memory available then (:func:`twoscale.memory_now.box_check`; else the block
+  iteration the policy takes without it, or a one-line refusal). So is the union CG that
+  only follows a far-field attempt which did not converge
   (:func:`twoscale.memory_now.union_box_fits`; else block Gauss-Seidel with the same far
-  field). Under penetration control a tip the neighbours' push lifts out of contact still
-  holds a patch at its reach (:func:`twoscale.memory_parts.twoscale_parts`).
+  field), not counted. Under penetration control a tip the neighbours' push lifts out of
+  contact still holds a patch at its reach (:func:`twoscale.memory_parts.twoscale_parts`).
   With more than a thousand tips the macro step may stall and leave patches sized by the
-  indenters' reach (:mod:`twoscale.memory_stall`): that route is counted too, and the larger
-  taken. An iteration asked for runs alone and is counted alone.
+  indenters' reach (:mod:`twoscale.memory_stall`): that route's block iterations are
+  counted too, and the larger taken; the union CG on their box where they overlap beyond
+  it is checked when the policy takes it, as above. An iteration asked for runs alone and
+  is counted alone.
 * a body that builds something on its first answers adds it (the finite block's
   factorisation where its on-disk cache lacks a field the tips' region needs).
 
@@ -69,9 +73,9 @@ class MemoryEstimate:
     Attributes
     ----------
     bytes : float
-        Estimated peak resident memory, bytes (a prediction: the measured peaks of seed
-        8's 185 recorded sweep scenes lay within 0.25-1.37 times it, 160 of them within
-        0.67-1.5, and none of seeds 6-9's 715 above 1.5; docs/records/sweep.md).
+        Estimated peak resident memory of what surely runs, bytes (a prediction: of seeds
+        6-9's 715 recorded sweep scenes, 654 peaked within 0.67-1.5 times it, or of
+        :attr:`union_bytes` where the union CG ran; docs/records/sweep.md).
     cells : int
         Cells the solver will carry: the reference grid, or the patches (the union box
         when the micro step is expected to solve on it and it is larger).
@@ -83,6 +87,12 @@ class MemoryEstimate:
         Cell size, mm.
     parts : tuple of (str, float)
         The estimate's parts, bytes.
+    union_parts : tuple of (str, float)
+        The parts if the policy takes the union CG over the patches' box where it may take a
+        block iteration too and the estimate counts that (empty where the union CG is
+        counted in ``bytes``, or needs no more): checked against the memory available
+        when the policy chooses it, not before the solve
+        (:func:`twoscale.memory_now.box_check`).
     """
 
     bytes: float
@@ -91,14 +101,25 @@ class MemoryEstimate:
     method: str
     h: float
     parts: tuple = ()
+    union_parts: tuple = ()
+
+    @property
+    def union_bytes(self) -> float:
+        """Peak if the policy takes the union CG (:attr:`union_parts`), bytes; ``bytes``
+        where that is not more."""
+        return max(self.bytes, float(sum(v for _, v in self.union_parts)))
 
     @property
     def text(self) -> str:
-        """One line: the total in GB, the cells and what dominates."""
-        return (
+        """One line: the total in GB, the cells and what dominates, and what the union CG
+        would need where the policy may take it and it is not counted."""
+        line = (
             f"about {self.bytes / 1e9:.3g} GB for {self.cells:,} cells at h = {self.h:g} mm "
             f"({self.method}; mostly {self.dominant})"
         )
+        if self.union_bytes > self.bytes:
+            line += f"; up to {self.union_bytes / 1e9:.3g} GB if the policy takes the union CG over the patches' box"
+        return line
 
     def __str__(self) -> str:
         return self.text
@@ -137,6 +158,7 @@ def estimate_memory(
     if not (isinstance(h, (int, float)) and math.isfinite(h) and h > 0):
         raise ValueError(f"h must be a finite number > 0 (mm), got {h!r}")
     parts = {"interpreter and libraries": BASE_BYTES}
+    if_union: dict = {}  # the parts if the policy takes the union CG, where not counted
     try:
         if method == "reference" or (iteration == "auto" and full_grid_route(scene, h) is not None):
             from .reference.on_scene import reference_grid
@@ -147,19 +169,26 @@ def estimate_memory(
             dense = method == "reference" or cells <= FULL_GRID_DENSE_CELLS
             parts.update(grid_parts(scene, grid, "reference grid", dense=dense))
         else:
-            cells, extra = twoscale_parts(scene, h, iteration=iteration)
+            cells, extra, if_union = twoscale_parts(scene, h, iteration=iteration)
             parts.update(extra)
     except OverflowError:  # cells past any float (h = 1e-320 mm): no count to report
         raise SceneError(
             f"cell size h = {h!r} mm is too small: the scene's cells cannot even be counted (over 1e308 of them)"
         ) from None
+    body = {}
     if (build := body_build_bytes(scene, provider)) > 0:
-        parts["finite-block factorisation (a field not in its cache)"] = build
+        body["finite-block factorisation (a field not in its cache)"] = build
+    parts |= body
+    union = {"interpreter and libraries": BASE_BYTES} | if_union | body if if_union else {}
     total = float(sum(parts.values()))
     dominant = max(
         (k for k in parts if k != "interpreter and libraries"), key=parts.get, default="interpreter and libraries"
     )
-    return MemoryEstimate(total, cells, dominant, method, float(h), tuple((k, float(v)) for k, v in parts.items()))
+    return MemoryEstimate(total, cells, dominant, method, float(h), _items(parts), _items(union))
+
+
+def _items(parts: dict) -> tuple:
+    return tuple((k, float(v)) for k, v in parts.items())
 
 
 def body_build_bytes(scene: Scene, provider=None) -> float:
@@ -297,6 +326,8 @@ def check_memory(
     if estimate.bytes <= limit:
         return
     gb = f"{estimate.bytes / 1e9:.2g}" if estimate.bytes < 1e11 else f"{estimate.bytes / 1e9:,.0f}"
+    if estimate.union_bytes > estimate.bytes:  # what the union CG would need, checked when taken
+        gb += f" (up to {estimate.union_bytes / 1e9:.2g} GB if the policy takes the union CG)"
     which = "80 % of the memory available now" if limit_bytes is None else "given"
     where = f"h = {estimate.h:g} mm ({source})" if source else f"{option} = {estimate.h:g} mm"
     raise SceneError(

@@ -1,10 +1,12 @@
 """The micro step's driver: one entry that composes an iteration with a coupling.
 
 ``run_micro`` builds the patches from the macro forces, asks the policy
-(:mod:`.policy`) which iteration and coupling to use unless the caller fixed them, runs
-the chosen strategy, and, when it does not converge, the next one in a fixed order. Every
-attempt is recorded (:class:`Attempt`: what ran, its sweeps or CG iterations, its time, its
-outcome), so nothing is restarted behind the user's back.
+(:mod:`.policy`) which iteration and coupling to use unless the caller fixed them (a
+union CG whose box does not fit in the memory available then gives way to a block
+iteration: :func:`_plan`), runs the chosen strategy, and, when it does not converge, the
+next one in a fixed order. Every attempt is recorded (:class:`Attempt`: what ran, its
+sweeps or CG iterations, its time, its outcome), so nothing is restarted behind the
+user's back.
 
 The strategies are objects of :mod:`.strategies`: an iteration (:class:`~.strategies.UnionCG`,
 :class:`~.strategies.BlockGaussSeidel`, :class:`~.strategies.TwoLevel`) run with a coupling
@@ -14,6 +16,7 @@ CG). :func:`solve_micro` runs one iteration with one coupling, without the polic
 
 from __future__ import annotations
 
+import dataclasses
 import time
 import warnings
 from dataclasses import dataclass
@@ -21,9 +24,9 @@ from typing import Callable, Sequence
 
 import numpy as np
 
-from ..errors import MemoryWarning, user_stacklevel
+from ..errors import MemoryWarning, SceneError, user_stacklevel
 from ..indenters import Asperity
-from ..memory_now import UNION_BOX_SPREAD, available_memory, union_box_bytes, union_box_fits
+from ..memory_now import UNION_BOX_SPREAD, available_memory, box_check, union_box_bytes, union_box_fits
 from ..influence.base import InfluenceProvider
 from ..options import MicroOptions
 from .couplings import Exact, coupling_for
@@ -81,17 +84,49 @@ class MicroPlan:
     macro: object = None
 
 
-def _plan(patches, box, choice_fixed: Choice | None, asperities, problem: MicroProblem, merged: bool) -> Choice:
+def _plan(patches, grid, choice_fixed: Choice | None, asperities, problem: MicroProblem, merged: bool) -> Choice:
+    """The caller's choice, else the policy's; a union CG the policy picks whose box does not
+    fit in the memory available now gives way to the block iteration it picks without it
+    (:func:`_without_union`). ``grid``: the patches' box."""
     if choice_fixed is not None:
         return choice_fixed
-    return choose(
-        patches,
-        box,
-        merged_contacts=merged,
-        load_control=problem.total_load is not None,
-        tilt=bool(problem.free_tilt),
-        height_map=all(a.shape == "map" for a in asperities.asperities),
-    )
+
+    def pick(union: bool) -> Choice:
+        return choose(
+            patches,
+            grid.size,
+            merged_contacts=merged,
+            load_control=problem.total_load is not None,
+            tilt=bool(problem.free_tilt),
+            height_map=all(a.shape == "map" for a in asperities.asperities),
+            union=union,
+        )
+
+    picked = pick(True)
+    if picked.iteration != "union-cg":
+        return picked
+    # on patches at each tip's reach (a stalled macro step) overlapping beyond their box, the
+    # block iterations would hold more than the box: no fallback there
+    blocks = len(patches) > 1 and problem.size_from_forces
+    return _without_union(picked, grid, pick if blocks else None)
+
+
+def _without_union(picked: Choice, grid, pick: Callable | None) -> Choice:
+    """``picked`` (the union CG on the box ``grid``) where its box fits in the memory
+    available now (:func:`twoscale.memory_now.box_check`; the estimate made before the solve
+    counts it only where the policy surely takes it), else the block iteration
+    ``pick(False)`` chooses without it, said in its reason and a :class:`MemoryWarning` (its
+    memory was counted before the solve); without ``pick`` (one patch, or patches at each
+    tip's reach), a one-line :class:`SceneError` naming a cell size at which the box fits."""
+    check = box_check(grid.nx, grid.ny, grid.h)
+    if check.fits:
+        return picked
+    if pick is None:
+        raise SceneError(f"{check.text}, and no block iteration replaces it on these patches; {check.advice}")
+    other = pick(False)
+    note = f"{check.text}: {other.iteration}" + (f" with far_tol {other.far_tol:g}" if other.far_tol else "")
+    warnings.warn(MemoryWarning(f"{note} instead"), stacklevel=user_stacklevel())
+    return dataclasses.replace(other, reason=f"{other.reason} ({check.text})")
 
 
 def _box_share(merged: bool) -> float:
@@ -174,15 +209,15 @@ def run_micro(
         return BlockGaussSeidel().run(context, Exact(), max_sweeps=options.max_sweeps), MicroPlan(
             Choice("block-gs", None, "no asperity reaches the body", {}), (), macro
         )
-    box = box_of([pt.grid for pt in patches], problem.h, problem.anchor).size
-    picked = _plan(patches, box, choice, asperities, problem, bool(macro.safe_path))
+    grid = box_of([pt.grid for pt in patches], problem.h, problem.anchor)
+    picked = _plan(patches, grid, choice, asperities, problem, bool(macro.safe_path))
     if refine is not None and picked.iteration != "union-cg":
         macro, refined = refine()
         if refined.size_from_forces != problem.size_from_forces:  # a deferred safe path's forces size them
             patches = tuple(one_asperity_patches(provider, asperities, refined, options.margin, share))
-            box = box_of([pt.grid for pt in patches], refined.h, refined.anchor).size
+            grid = box_of([pt.grid for pt in patches], refined.h, refined.anchor)
         problem = refined
-        picked = _plan(patches, box, choice, asperities, problem, bool(macro.safe_path))
+        picked = _plan(patches, grid, choice, asperities, problem, bool(macro.safe_path))
     order = _order(picked)
     if not any(isinstance(iteration, UnionCG) for iteration, _ in order):
         patches = tuple(detached(patches))  # no union CG: the sampled box they were cut from is let go
@@ -191,7 +226,7 @@ def run_micro(
     result = None
     for iteration, coupling in order:
         if attempts and isinstance(iteration, UnionCG):
-            iteration, coupling = _union_or_blocks(box, order[0][1])
+            iteration, coupling = _union_or_blocks(grid.size, order[0][1])
         stage = f"micro step, {iteration.name}" + (
             f" ({coupling.name} {coupling.far_tol:g})" if coupling is not None and coupling.far_tol is not None else ""
         )

@@ -210,6 +210,7 @@ def choose(
     tilt: bool = False,
     height_map: bool = False,
     model: CostModel = FITTED,
+    union: bool = True,
 ) -> Choice:
     """The iteration and coupling for these patches (see the module docstring).
 
@@ -232,7 +233,8 @@ def choose(
     candidate becomes predicted CPU seconds by ``model`` (its block iterations' work costs
     more under load control and with the ``tilt``); the cheapest prediction is chosen, the
     union CG up to :func:`union_limit`. ``height_map``: the patches are a height map's
-    stones (:func:`decide`)."""
+    stones (:func:`decide`). ``union=False``: the union CG is no candidate (its box does not
+    fit in the memory available: :func:`twoscale.micro.driver.run_micro`)."""
     return decide(
         {**scene_figures(patches, box_cells), "height_map": bool(height_map)},
         estimate_costs(patches, box_cells, model),
@@ -240,6 +242,7 @@ def choose(
         load_control=load_control,
         tilt=tilt,
         model=model,
+        union=union,
     )
 
 
@@ -264,6 +267,7 @@ def decide(
     load_control: bool = False,
     tilt: bool = False,
     model: CostModel = FITTED,
+    union: bool = True,
 ) -> Choice:
     """:func:`choose` from the patches' figures (:func:`scene_figures`) and each
     candidate's work (:func:`estimate_costs`), what a solve's details keep: a choice can be
@@ -273,7 +277,8 @@ def decide(
     maps at 8-9 % of their box it ran 0.68-0.73 of the exact two-level iteration's CPU time
     (where scattered tips at 10-14 % ran it 1.9-2.0x slower than the far field). So it does
     on a box of at most ``model.union_small_box_cells`` cells (``figures["box_cells"]``),
-    with the margins under load control with the ``tilt`` on at most ``RIGID_UNKNOWNS`` patches."""
+    with the margins under load control with the ``tilt`` on at most ``RIGID_UNKNOWNS`` patches.
+    ``union=False``: the block iterations alone (one patch: its local solve)."""
     costs = model.seconds(
         work, load_control=load_control, tilt=tilt, coverage=figures["coverage"], patches=figures["patches"]
     )
@@ -291,14 +296,14 @@ def decide(
         "seconds": {k: float(f"{v:.3g}") for k, v in costs.items()},
     }
     n = figures["patches"]
-    if n <= 1 and tilt:
+    if n <= 1 and (tilt or not union):
         return Choice("block-gs", None, "one patch: a single local solve", est)
     if n <= 1:
         # the constrained CG on the patch itself, without the eq. 7 start the block
         # iterations make first: one sphere 5.9 ms against 15.8 ms (the full-grid
         # reference 7.4 ms), the same forces
         return Choice("union-cg", None, "one patch: one constrained CG on it", est)
-    candidates = dict(costs)
+    candidates = dict(costs) if union else {k: v for k, v in costs.items() if k != "union-cg"}
     if n > model.exact_max_patches:
         candidates.pop("block-gs")
     sparse = figures["coverage"] < model.union_min_coverage
@@ -316,7 +321,7 @@ def decide(
         # against block Gauss-Seidel with sensitivity sweeps alone (few merged patches under
         # load), the prediction decides: 15 paraboloids on 12 % of a 0.5 M-cell box, union CG
         # 1.1-1.2 s of CPU against 2.0-2.6 s
-        candidates.pop("union-cg")
+        candidates.pop("union-cg", None)
     rest = {k: v for k, v in candidates.items() if k != "union-cg"}
     # on a small box under load with the tilt, as many patches as rigid-body unknowns
     # (approach, two angles: their forces are the statics' alone) keep the margins: 3
