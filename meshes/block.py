@@ -6,6 +6,13 @@ import math
 
 import numpy as np
 
+#: The most nodes a block mesh may have (Q1 geometry). The default 140 x 140 x 20 mm block
+#: has about 2,200 (with its fine part at +-25 mm); a 1 m square block 20 mm thick about 41,000. Two million nodes is far
+#: past what the finite-element solve on it can factorise, so a larger mesh is refused
+#: before its axes are built (a size of 1e16 mm would otherwise be meshed until the
+#: machine's memory ran out).
+MAX_MESH_NODES = 2_000_000
+
 
 def graded_axis(
     lo: float, hi: float, *, fine_lo: float, fine_hi: float, h_fine: float, h_coarse: float, growth: float = 1.3
@@ -55,6 +62,31 @@ def graded_axis(
     return np.array(left + core + right)
 
 
+def axis_cells_bound(length: float, *, fine: float, h_fine: float, h_coarse: float, growth: float) -> float:
+    """An upper bound on the elements :func:`graded_axis` puts on an axis ``length`` long
+    (mm) whose fine part is ``fine`` long, computed without building it: the fine part's
+    elements, and on each side the geometric steps up to ``h_coarse`` plus that side's
+    length in ``h_coarse`` steps."""
+    ramp = math.ceil(math.log(h_coarse / h_fine) / math.log(growth)) + 1 if h_coarse > h_fine else 1
+    side = max(0.0, (length - fine) / 2.0)
+    return math.ceil(min(fine, length) / h_fine) + 1 + 2 * (ramp + side / h_coarse + 1)
+
+
+def check_mesh_size(size, *, h_fine: float, h_coarse: float, fine_box, nz: int | None, growth: float) -> None:
+    """Refuse (``ValueError`` naming ``size``) a block whose mesh would have more than
+    :data:`MAX_MESH_NODES` nodes, counted before anything is built."""
+    Lx, Ly, t = (float(v) for v in size)
+    nx = axis_cells_bound(Lx, fine=fine_box[1] - fine_box[0], h_fine=h_fine, h_coarse=h_coarse, growth=growth)
+    ny = axis_cells_bound(Ly, fine=fine_box[3] - fine_box[2], h_fine=h_fine, h_coarse=h_coarse, growth=growth)
+    nzz = t / h_fine + 1 if nz is None else float(nz)
+    nodes = (nx + 1) * (ny + 1) * (nzz + 1)
+    if not nodes <= MAX_MESH_NODES:
+        raise ValueError(
+            f"block size {tuple(size)!r} mm needs a mesh of about {nodes:.3g} nodes at h_fine = {h_fine:g} mm, "
+            f"more than the {MAX_MESH_NODES:,} the finite-element solve can hold: give a smaller size"
+        )
+
+
 def block_mesh(
     size=(140.0, 140.0, 20.0),
     *,
@@ -89,8 +121,9 @@ def block_mesh(
     from skfem import MeshHex
 
     Lx, Ly, t = (float(v) for v in size)
-    if min(Lx, Ly, t) <= 0:
+    if not all(v > 0 for v in (Lx, Ly, t)):  # NaN too
         raise ValueError(f"block size must be positive (mm), got {size!r}")
+    check_mesh_size((Lx, Ly, t), h_fine=h_fine, h_coarse=h_coarse, fine_box=fine_box, nz=nz, growth=growth)
     x = graded_axis(
         -Lx / 2, Lx / 2, fine_lo=fine_box[0], fine_hi=fine_box[1], h_fine=h_fine, h_coarse=h_coarse, growth=growth
     )

@@ -4,6 +4,7 @@ import numpy as np
 import pytest
 
 from meshes import block_mesh, graded_axis, read_block_mesh, write_block_mesh
+from meshes.block import MAX_MESH_NODES, axis_cells_bound
 
 
 def test_graded_axis_spacing():
@@ -34,6 +35,31 @@ def test_block_mesh_extent_and_volume():
 
     vol = CellBasis(m, ElementHex1()).dx.sum()
     assert vol == pytest.approx(140.0 * 100.0 * 20.0, rel=1e-12)
+
+
+@pytest.mark.parametrize("length", [1.0, 30.0, 50.0, 60.0, 140.0, 1000.0, 12345.6])
+@pytest.mark.parametrize("h", [(5.0, 12.0), (1.0, 20.0), (5.0, 5.0)])
+def test_the_counted_elements_bound_the_axis_built(length, h):
+    """The count made before a mesh is built is never below the elements built."""
+    x = graded_axis(-length / 2, length / 2, fine_lo=-25.0, fine_hi=25.0, h_fine=h[0], h_coarse=h[1])
+    bound = axis_cells_bound(length, fine=50.0, h_fine=h[0], h_coarse=h[1], growth=1.3)
+    assert len(x) - 1 <= bound
+    if length >= 10000.0:  # where the cap matters (metres), the count is close to the mesh
+        assert bound <= 1.1 * (len(x) - 1)
+
+
+@pytest.mark.parametrize(
+    "size", [(3.5e16, 60.0, 10.0), (60.0, 60.0, 1e16), (60.0, float("inf"), 10.0), (4e4, 4e4, 20.0)]
+)
+def test_a_block_too_large_to_mesh_is_refused_before_it_is_built(size):
+    # a 3.5e16 mm block was once meshed element by element until the machine ran out of memory
+    with pytest.raises(ValueError, match=r"block size .* more than the 2,000,000") as err:
+        block_mesh(size)
+    assert "\n" not in str(err.value)
+    # the largest square 20 mm block under the cap is built
+    side = 2000.0
+    m = block_mesh((side, side, 20.0))
+    assert m.p.shape[1] < MAX_MESH_NODES
 
 
 @pytest.mark.parametrize("suffix", [".vtu", ".msh"])
