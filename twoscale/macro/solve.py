@@ -7,6 +7,7 @@ from dataclasses import dataclass
 from typing import Callable
 
 import numpy as np
+from scipy.linalg import cho_solve
 from scipy.spatial import cKDTree
 
 from ..control import Loading
@@ -16,10 +17,10 @@ from ..options import MacroOptions
 from .checks import check_load as _check_load, check_scene as _check_scene
 from .interaction import MatrixFreeInteraction, sampled_operator_error
 from .result import MacroResult
-from .start import MacroStart, independent_approach, levelling_tilt, secant_forces
+from .start import MacroStart, independent_approach, levelling_tilt
 from .newton import PLATEAU_DROP
 from .robust import FAST_STEPS, balance_feasible, levelled_retry, minimise_then_polish, run_newton, solve_dual
-from .system import MacroSystem
+from .system import MacroSystem, cholesky_in_place, symmetric_part
 
 #: Default largest N solved with a dense interaction matrix (32 MB at 2,000).
 DENSE_MAX = MacroOptions.dense_max
@@ -339,12 +340,12 @@ def _build_system(T, tips, z, stack, penetration, total_load, tilt, pivot) -> Ma
 
 
 def _initial_guess(system: MacroSystem, z, stack: LawStack, penetration, total_load, tilt) -> np.ndarray:
-    """Cold start: under penetration control the secant start (:func:`.start.secant_forces`);
+    """Cold start: under penetration control the secant start (:func:`_secant_forces`);
     under load control the approach ``d0`` at which the asperities, ignoring interaction,
     carry ``W``, and no force."""
     n = len(z)
     if total_load is None:
-        return secant_forces(system, stack)
+        return _secant_forces(system, stack)
     d0 = independent_approach(z, stack, float(total_load))
     return np.concatenate([np.zeros(n), [d0, 0.0, 0.0] if tilt else [d0]])  # no force
 
@@ -365,3 +366,33 @@ def _rigid_start(z, stack: LawStack, total_load, tilt, start: MacroStart) -> np.
         return np.zeros(0)
     d0 = start.penetration if start.penetration is not None else independent_approach(z, stack, float(total_load))
     return np.array([d0, 0.0, 0.0] if tilt else [d0], dtype=float)
+
+
+def _secant_forces(system: MacroSystem, stack: LawStack) -> np.ndarray:
+    """Penetration control: the forces of the linear problem in which each law is replaced
+    by its secant at the approach it would have alone, ``P_k = S_k delta_k`` with
+    ``S_k = f_k(o_k) / o_k`` (``o_k = d - z_k``), coupled by the interaction:
+    ``(diag(1/S) + T) P = o`` on the tips that reach the body. Interaction lowers the
+    approaches, where the secant of a stiffening law overestimates the force less than
+    its value alone does: Newton then needs fewer steps (the paper's seven spheres at
+    d/2R = 0.1: 5 against 8 from no force; 3 against 4 at 0.5; same forces to 5e-13).
+    No force (the plain cold start) with a matrix-free interaction, or where that linear
+    problem is not positive definite (contacts about to merge)."""
+    o = system.offset
+    P = np.zeros(system.n)
+    A = np.flatnonzero(o > 0)
+    if A.size == 0 or not isinstance(system.T, np.ndarray):
+        return P
+    f = np.asarray(stack.force(o), dtype=float)[A]
+    if not np.all(np.isfinite(f) & (f > 0)):
+        return P
+    # in single precision (a copy, so T is not changed): only a start, at half the double
+    # factor's cost (1,215 tips: 10 against 18 ms); on 180 sweep scenes within 6.4e-6 of the
+    # double start's largest force, and Newton's steps and outcome the same on all
+    K = symmetric_part(system.T if A.size == system.n else system.T[np.ix_(A, A)]).astype(np.float32)
+    K[np.arange(A.size), np.arange(A.size)] += o[A] / f
+    factor = cholesky_in_place(K)
+    if factor is None:
+        return P
+    P[A] = np.maximum(cho_solve(factor, o[A].astype(np.float32), check_finite=False), 0.0)  # not two LU solves
+    return P

@@ -8,8 +8,7 @@ then starts from it instead of the cold start (independent asperities carrying t
 the answer is the same to the solver's tolerance (the equations do not change).
 
 A cold start under a free tilt turns the face along the tips' plane where their heights lie
-on one (:func:`levelling_tilt`); under penetration control it is the secant start
-(:func:`secant_forces`).
+on one (:func:`levelling_tilt`).
 """
 
 from __future__ import annotations
@@ -17,15 +16,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.linalg import cho_solve
 from scipy.optimize import brentq
-
-from ..laws import LawStack
-from .system import MacroSystem, cholesky_in_place, symmetric_part
-
-#: Solves of the secant start's linear problem at most, each on the tips whose force the one
-#: before gave positive (:func:`secant_forces`).
-SECANT_ROUNDS = 4
 
 
 @dataclass(frozen=True)
@@ -144,53 +135,3 @@ def independent_approach(z: np.ndarray, stack, W: float) -> float:
     # took about 50 (40 % of a one-sphere solve's CPU time went to this start); 1e-100 N takes ~200
     excess = lambda d: float(np.sum(stack.force(d - z))) - W
     return float(brentq(excess, lo, hi, xtol=1e-300, rtol=4.0 * np.finfo(float).eps, maxiter=2000))
-
-
-def secant_forces(system: MacroSystem, stack: LawStack) -> np.ndarray:
-    """Penetration control: the forces of the linear problem in which each law is replaced
-    by its secant at the approach it would have alone, ``P_k = S_k delta_k`` with
-    ``S_k = f_k(o_k) / o_k`` (``o_k = d - z_k``), coupled by the interaction:
-    ``(diag(1/S) + T) P = o`` on the tips that reach the body. Interaction lowers the
-    approaches, where the secant of a stiffening law overestimates the force less than
-    its value alone does: Newton then needs fewer steps (the paper's seven spheres at
-    d/2R = 0.1: 5 against 8 from no force; 3 against 4 at 0.5; same forces to 5e-13).
-
-    Tips whose linear force comes out negative pull on the others; the problem is solved
-    again without them, up to :data:`SECANT_ROUNDS` solves (an active set of the linear
-    problem with ``P >= 0``). Clipping the first solve alone left every one of 1,215
-    reaching tips out of contact (a lattice of 1,652 paraboloids: their pull had held the
-    others' approaches up), and Newton took 3 steps against 2 from the rounds' forces
-    (1,215, 540, 372, 349 tips: the later factors cost a tenth of the first).
-    No force (the plain cold start) with a matrix-free interaction, or where the first
-    linear problem is not positive definite (contacts about to merge)."""
-    o = system.offset
-    P = np.zeros(system.n)
-    A = np.flatnonzero(o > 0)
-    if A.size == 0 or not isinstance(system.T, np.ndarray):
-        return P
-    f = np.asarray(stack.force(o), dtype=float)
-    if not np.all(np.isfinite(f[A]) & (f[A] > 0)):
-        return P
-    for _ in range(SECANT_ROUNDS):
-        solved = _secant_solve(system.T, A, o[A], f[A])
-        if solved is None:  # a later set not definite: the forces of the one before
-            return P
-        P[:] = 0.0
-        P[A] = np.maximum(solved, 0.0)
-        if np.all(solved >= 0.0) or not np.any(solved > 0.0):
-            break
-        A = A[solved > 0.0]
-    return P
-
-
-def _secant_solve(T: np.ndarray, A: np.ndarray, o: np.ndarray, f: np.ndarray) -> np.ndarray | None:
-    """``(diag(o/f) + T_AA) P = o`` by Cholesky, or None where it is not positive definite.
-    In single precision (a copy, so ``T`` is not changed): only a start, at half the double
-    factor's cost (1,215 tips: 10 against 18 ms); on 180 sweep scenes within 6.4e-6 of the
-    double start's largest force, and Newton's steps and outcome the same on all."""
-    K = symmetric_part(T if A.size == T.shape[0] else T[np.ix_(A, A)]).astype(np.float32)
-    K[np.arange(A.size), np.arange(A.size)] += o / f
-    factor = cholesky_in_place(K)
-    if factor is None:
-        return None
-    return cho_solve(factor, o.astype(np.float32), check_finite=False)  # not two LU solves
