@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Callable
 
 import numpy as np
@@ -17,7 +17,8 @@ from ..options import MacroOptions
 from .checks import check_load as _check_load, check_scene as _check_scene
 from .interaction import MatrixFreeInteraction, sampled_operator_error
 from .result import MacroResult
-from .start import MacroStart, independent_approach, levelling_tilt
+from .reach import among, reaching, widened
+from .start import MacroStart, independent_approach, levelled_start, rigid_start
 from .newton import PLATEAU_DROP
 from .robust import FAST_STEPS, balance_feasible, levelled_retry, minimise_then_polish, run_newton, solve_dual
 from .system import MacroSystem, cholesky_in_place, symmetric_part
@@ -142,7 +143,20 @@ class MacroHandover:
 
 
 def macro_step(provider, tips, z, laws, loading: Loading, options, how: MacroHandover) -> MacroResult:
-    """:func:`solve_macro` with its keywords as a :class:`MacroHandover`."""
+    """:func:`solve_macro` with its keywords as a :class:`MacroHandover`; under penetration
+    control on a body whose surface only sinks, among the tips that reach it (:mod:`.reach`)."""
+    keep = reaching(provider, tips, z, laws, loading)
+    if keep is None:
+        return _macro_step(provider, tips, z, laws, loading, options, how)
+    start = None if how.start is None else replace(how.start, forces=np.asarray(how.start.forces)[keep])
+    sub = (np.asarray(tips, dtype=float)[keep], np.asarray(z, dtype=float)[keep], among(laws, keep))
+    result = _macro_step(provider, *sub, loading, options, replace(how, start=start))
+    return widened(result, keep, provider, tips, z, loading.penetration)
+
+
+def _macro_step(provider, tips, z, laws, loading: Loading, options, how: MacroHandover) -> MacroResult:
+    """The macro step on every tip given: the interaction (dense up to ``dense_max`` tips,
+    else matrix-free), the cold or warm start, Newton and the safe path."""
     self_compliance, start = how.self_compliance, how.start
     t0 = time.perf_counter()
     options = MacroOptions() if options is None else options
@@ -161,13 +175,13 @@ def macro_step(provider, tips, z, laws, loading: Loading, options, how: MacroHan
     t1 = time.perf_counter()
     system = _build_system(T, tips, z, stack, penetration, total_load, tilt, pivot)
     cold = lambda: _initial_guess(system, z, stack, penetration, total_load, tilt)  # noqa: E731
-    levelled = (lambda: _levelled_start(system, z, stack, total_load)) if tilt else None
+    levelled = (lambda: levelled_start(system, z, stack, total_load)) if tilt else None
     if start is None:
         x, converged, message, steps, residuals, path = _newton_then_safe(
             system, cold(), tol, max_iter, how.defer_safe_path, levelled
         )
     else:  # the cold start's forces are not needed, nor its approach when the start has one
-        x0 = start.unknowns(len(z), _rigid_start(z, stack, total_load, tilt, start))
+        x0 = start.unknowns(len(z), rigid_start(z, stack, total_load, tilt, start))
         x, converged, message, steps, residuals, path = _warm_then_cold(system, x0, cold, levelled, tol, max_iter, how)
     t2 = time.perf_counter()
     P, g = system.split(x)
@@ -348,24 +362,6 @@ def _initial_guess(system: MacroSystem, z, stack: LawStack, penetration, total_l
         return _secant_forces(system, stack)
     d0 = independent_approach(z, stack, float(total_load))
     return np.concatenate([np.zeros(n), [d0, 0.0, 0.0] if tilt else [d0]])  # no force
-
-
-def _levelled_start(system: MacroSystem, z, stack: LawStack, total_load) -> np.ndarray | None:
-    """The cold start with the face along the tips' plane (:func:`.start.levelling_tilt`) or None."""
-    alpha, beta = levelling_tilt(system.G, z)
-    if alpha == 0.0 and beta == 0.0:
-        return None
-    level = z - system.G[:, 1:] @ np.array([alpha, beta])  # the heights under that tilt
-    return np.concatenate([np.zeros(system.n), [independent_approach(level, stack, float(total_load)), alpha, beta]])
-
-
-def _rigid_start(z, stack: LawStack, total_load, tilt, start: MacroStart) -> np.ndarray:
-    """The cold start's rigid-body unknowns (:func:`_initial_guess`) that a warm ``start``
-    does not replace: the approach ``d0`` only when the start has none, zero tilts."""
-    if total_load is None:
-        return np.zeros(0)
-    d0 = start.penetration if start.penetration is not None else independent_approach(z, stack, float(total_load))
-    return np.array([d0, 0.0, 0.0] if tilt else [d0], dtype=float)
 
 
 def _secant_forces(system: MacroSystem, stack: LawStack) -> np.ndarray:

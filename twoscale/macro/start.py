@@ -18,6 +18,9 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.optimize import brentq
 
+from ..laws import LawStack
+from .system import MacroSystem
+
 
 @dataclass(frozen=True)
 class MacroStart:
@@ -135,3 +138,21 @@ def independent_approach(z: np.ndarray, stack, W: float) -> float:
     # took about 50 (40 % of a one-sphere solve's CPU time went to this start); 1e-100 N takes ~200
     excess = lambda d: float(np.sum(stack.force(d - z))) - W
     return float(brentq(excess, lo, hi, xtol=1e-300, rtol=4.0 * np.finfo(float).eps, maxiter=2000))
+
+
+def levelled_start(system: MacroSystem, z, stack: LawStack, total_load) -> np.ndarray | None:
+    """The cold start with the face along the tips' plane (:func:`levelling_tilt`) or None."""
+    alpha, beta = levelling_tilt(system.G, z)
+    if alpha == 0.0 and beta == 0.0:
+        return None
+    level = z - system.G[:, 1:] @ np.array([alpha, beta])  # the heights under that tilt
+    return np.concatenate([np.zeros(system.n), [independent_approach(level, stack, float(total_load)), alpha, beta]])
+
+
+def rigid_start(z, stack: LawStack, total_load, tilt, start: MacroStart) -> np.ndarray:
+    """The cold start's rigid-body unknowns (:func:`.solve._initial_guess`) that a warm ``start``
+    does not replace: the approach ``d0`` only when the start has none, zero tilts."""
+    if total_load is None:
+        return np.zeros(0)
+    d0 = start.penetration if start.penetration is not None else independent_approach(z, stack, float(total_load))
+    return np.array([d0, 0.0, 0.0] if tilt else [d0], dtype=float)
