@@ -90,7 +90,8 @@ def test_the_secant_start_solves_its_linear_problem_to_single_precision():
     # zero; solved here in double precision by numpy, it agrees to 1e-5 of the largest force,
     # and the macro step's answer is the same as from no force
     from twoscale.influence.halfspace import HalfSpace
-    from twoscale.macro.solve import _build_system, _secant_forces
+    from twoscale.macro.solve import _build_system
+    from twoscale.macro.start import secant_forces as _secant_forces
     from twoscale.macro.start import MacroStart
 
     rng = np.random.default_rng(7)
@@ -124,11 +125,14 @@ def test_a_merged_pair_hands_over_to_the_safe_path_a_step_sooner(monkeypatch):
     from helpers import sweep_macro_inputs
     from twoscale.laws import law_for
 
+    from twoscale.macro.start import MacroStart
+
     scene, tips, z, provider = sweep_macro_inputs(36, seed=2)
 
-    def solve():
+    def solve():  # from no force given: the cold start would take the safe path without Newton
         laws = [law_for(a, provider.material) for a in scene.asperities]
-        return solve_macro(provider, tips, z, laws, Loading(scene.penetration, scene.total_load))
+        start = MacroStart(np.zeros(len(z)))
+        return solve_macro(provider, tips, z, laws, Loading(scene.penetration, scene.total_load), start=start)
 
     quick = solve()
     monkeypatch.setattr(macro_newton, "STALL_STEP_DROP", 0.0)
@@ -137,3 +141,22 @@ def test_a_merged_pair_hands_over_to_the_safe_path_a_step_sooner(monkeypatch):
     assert slow.converged and slow.safe_path and "not halved in 4 steps" in slow.message
     assert quick.iterations < slow.iterations
     assert np.max(np.abs(quick.forces - slow.forces)) <= 1e-10 * slow.forces.max()
+
+
+def test_a_cold_start_whose_secant_problem_is_not_definite_takes_the_safe_path_at_once():
+    # the same merged pairs from the cold start: the secant start's problem is not definite,
+    # so the safe path runs without Newton first (one polishing step), and its forces are
+    # those of Newton's stall then the safe path, from no force given
+    from helpers import sweep_macro_inputs
+    from twoscale.laws import law_for
+    from twoscale.macro.start import MacroStart
+
+    scene, tips, z, provider = sweep_macro_inputs(36, seed=2)
+    laws = [law_for(a, provider.material) for a in scene.asperities]
+    loading = Loading(scene.penetration, scene.total_load)
+    cold = solve_macro(provider, tips, z, laws, loading)
+    newton = solve_macro(provider, tips, z, laws, loading, start=MacroStart(np.zeros(len(z))))
+    assert cold.converged and cold.safe_path and "secant start's problem is not definite" in cold.message
+    assert newton.converged and newton.safe_path and "Newton stalled" in newton.message
+    assert cold.iterations < newton.iterations
+    assert np.max(np.abs(cold.forces - newton.forces)) <= 1e-9 * newton.forces.max()

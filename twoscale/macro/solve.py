@@ -3,24 +3,23 @@
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Callable
 
 import numpy as np
-from scipy.linalg import cho_solve
 from scipy.spatial import cKDTree
 
 from ..control import Loading
 from ..influence.base import InfluenceProvider
-from ..laws import LawStack
 from ..options import MacroOptions
 from .checks import check_load as _check_load, check_scene as _check_scene
 from .interaction import MatrixFreeInteraction, sampled_operator_error
 from .result import MacroResult
-from .start import MacroStart, independent_approach, levelling_tilt
+from .reach import among, reaching, widened
+from .start import MacroStart, cold_start, levelled_start, rigid_start
 from .newton import PLATEAU_DROP
 from .robust import FAST_STEPS, balance_feasible, levelled_retry, minimise_then_polish, run_newton, solve_dual
-from .system import MacroSystem, cholesky_in_place, symmetric_part
+from .system import MacroSystem
 
 #: Default largest N solved with a dense interaction matrix (32 MB at 2,000).
 DENSE_MAX = MacroOptions.dense_max
@@ -142,7 +141,20 @@ class MacroHandover:
 
 
 def macro_step(provider, tips, z, laws, loading: Loading, options, how: MacroHandover) -> MacroResult:
-    """:func:`solve_macro` with its keywords as a :class:`MacroHandover`."""
+    """:func:`solve_macro` with its keywords as a :class:`MacroHandover`; under penetration
+    control on a body whose surface only sinks, among the tips that reach it (:mod:`.reach`)."""
+    keep = reaching(provider, tips, z, laws, loading)
+    if keep is None:
+        return _macro_step(provider, tips, z, laws, loading, options, how)
+    start = None if how.start is None else replace(how.start, forces=np.asarray(how.start.forces)[keep])
+    sub = (np.asarray(tips, dtype=float)[keep], np.asarray(z, dtype=float)[keep], among(laws, keep))
+    result = _macro_step(provider, *sub, loading, options, replace(how, start=start))
+    return widened(result, keep, provider, tips, z, loading.penetration)
+
+
+def _macro_step(provider, tips, z, laws, loading: Loading, options, how: MacroHandover) -> MacroResult:
+    """The macro step on every tip given: the interaction (dense up to ``dense_max`` tips,
+    else matrix-free), the cold or warm start, Newton and the safe path."""
     self_compliance, start = how.self_compliance, how.start
     t0 = time.perf_counter()
     options = MacroOptions() if options is None else options
@@ -160,14 +172,15 @@ def macro_step(provider, tips, z, laws, loading: Loading, options, how: MacroHan
         T = _matrix_free_interaction(provider, tips, self_compliance, operator_rtol)
     t1 = time.perf_counter()
     system = _build_system(T, tips, z, stack, penetration, total_load, tilt, pivot)
-    cold = lambda: _initial_guess(system, z, stack, penetration, total_load, tilt)  # noqa: E731
-    levelled = (lambda: _levelled_start(system, z, stack, total_load)) if tilt else None
+    cold = lambda: cold_start(system, z, stack, penetration, total_load, tilt)  # noqa: E731
+    levelled = (lambda: levelled_start(system, z, stack, total_load)) if tilt else None
     if start is None:
+        first = cold()
         x, converged, message, steps, residuals, path = _newton_then_safe(
-            system, cold(), tol, max_iter, how.defer_safe_path, levelled
+            system, first.x, tol, max_iter, how.defer_safe_path, levelled, merging=first.merging
         )
     else:  # the cold start's forces are not needed, nor its approach when the start has one
-        x0 = start.unknowns(len(z), _rigid_start(z, stack, total_load, tilt, start))
+        x0 = start.unknowns(len(z), rigid_start(z, stack, total_load, tilt, start))
         x, converged, message, steps, residuals, path = _warm_then_cold(system, x0, cold, levelled, tol, max_iter, how)
     t2 = time.perf_counter()
     P, g = system.split(x)
@@ -215,16 +228,27 @@ def _warm_then_cold(system: MacroSystem, x0: np.ndarray, cold, levelled, tol: fl
     if system.n == 0 or np.any(system.delta(x0) > 0):
         return _newton_then_safe(system, x0, tol, max_iter, how.defer_safe_path)
     x, converged, message, steps, residuals, path = _newton_then_safe(
-        system, cold(), tol, max_iter, how.defer_safe_path, levelled
+        system, cold().x, tol, max_iter, how.defer_safe_path, levelled
     )
     return x, converged, f"{message} (from the cold start: the warm one touched no tip)", steps, residuals, path
 
 
-def _newton_then_safe(system: MacroSystem, x0: np.ndarray, tol: float, max_iter: int, defer=None, levelled=None):
+def _newton_then_safe(
+    system: MacroSystem, x0: np.ndarray, tol: float, max_iter: int, defer=None, levelled=None, *, merging=False
+):
     """Projected Newton with backtracking from the cold start; if it fails, again from
     ``levelled()`` (a tilted cold start, :func:`.robust.levelled_retry`); if that fails too, the
     safe path (:mod:`.robust`). Returns (x, converged, message, Newton steps, residual
-    history, the safe path: "" not needed, "taken", "skipped" or "deferred" by ``defer``)."""
+    history, the safe path: "" not needed, "taken", "skipped" or "deferred" by ``defer``).
+
+    ``merging`` (the secant start's problem not definite, penetration control): the safe path
+    at once where it would be taken, without Newton first. On 12 such sweep scenes of 75-849
+    tips Newton had stalled on 8 before the safe path (#46: 9 steps); the macro step took
+    0.29-0.60 of the CPU there and 0.97-1.32 on the four where Newton converged (ms), the
+    forces within 2e-10 of the largest but on seed 7's #196, where a merged pair shares
+    its load otherwise (total within 8e-6, the potential lower by 9e-6 of it)."""
+    if merging and system.G.shape[1] == 0 and system.n <= SAFE_PATH_MAX_TIPS and not (defer and defer(x0[system.n :])):
+        return _safe_path(system, x0, (x0,), tol, max_iter, None, "the secant start's problem is not definite")
     W = float(system.e[0]) if system.e.size else 0.0
     plateau = PLATEAU_STEPS if system.n <= SAFE_PATH_MAX_TIPS else None
     steps = min(max_iter, FAST_STEPS)
@@ -263,14 +287,24 @@ def _newton_then_safe(system: MacroSystem, x0: np.ndarray, tol: float, max_iter:
         )
         message = f"{why}; {skip} the micro step starts from Newton's last iterate"
         return fast.x, False, message, fast.iterations, fast.residuals, path
+    why = (
+        "Newton converged to an unstable equilibrium (active compliance indefinite: merged contacts)"
+        if fast.converged
+        else f"Newton stalled ({fast.message})"
+    )
+    # a saddle is a stationary point of the potential: the minimiser must not start there
+    return _safe_path(system, x0, (x0,) if fast.converged else (x0, fast.x), tol, max_iter, fast, why)
+
+
+def _safe_path(system: MacroSystem, x0: np.ndarray, starts, tol: float, max_iter: int, fast, why: str):
+    """The safe path (:mod:`.robust`) after Newton's attempt ``fast`` (None: none made), as
+    :func:`_newton_then_safe` returns it."""
     if system.G.shape[1] == 0:
-        # a saddle is a stationary point of the potential: the minimiser must not start there
-        starts = (x0,) if fast.converged else (x0, fast.x)
         safe = minimise_then_polish(system, starts, tol=tol, max_iter=max_iter)
     else:
         safe = solve_dual(system, x0, tol=tol, max_iter=max_iter)
     x = safe.x
-    if not safe.converged and _residual_norm(system, fast.x) < _residual_norm(system, x):
+    if fast is not None and not safe.converged and _residual_norm(system, fast.x) < _residual_norm(system, x):
         # a failed safe path can end far from any solution (a dual ascent that cannot balance
         # the moments with point forces sent the approach to 1e7 mm and the micro step sized
         # a patch as the whole sphere): the micro step starts from the better iterate
@@ -278,15 +312,11 @@ def _newton_then_safe(system: MacroSystem, x0: np.ndarray, tol: float, max_iter:
     r = system.residual(x)
     P = x[: system.n]
     norm = float(np.linalg.norm(r))
+    W = float(system.e[0]) if system.e.size else 0.0
     final = norm / max(float(np.linalg.norm(P)) or W, norm) if norm > 0 else 0.0
-    history = fast.residuals + (final,)
-    why = (
-        "Newton converged to an unstable equilibrium (active compliance indefinite: merged contacts)"
-        if fast.converged
-        else f"Newton stalled ({fast.message})"
-    )
+    before = (fast.iterations, fast.residuals) if fast is not None else (0, ())
     message = f"{why}; {safe.message}"
-    return x, safe.converged, message, fast.iterations + safe.newton_steps, history, "taken"
+    return x, safe.converged, message, before[0] + safe.newton_steps, before[1] + (final,), "taken"
 
 
 def _residual_norm(system: MacroSystem, x: np.ndarray) -> float:
@@ -337,62 +367,3 @@ def _build_system(T, tips, z, stack, penetration, total_load, tilt, pivot) -> Ma
     G = np.column_stack([np.ones(n), -Y, -X])  # unknowns (d, alpha, beta)
     E = np.vstack([np.ones(n), X / L, Y / L])
     return MacroSystem(T, -z, G, E, np.array([float(total_load), 0.0, 0.0]), stack)
-
-
-def _initial_guess(system: MacroSystem, z, stack: LawStack, penetration, total_load, tilt) -> np.ndarray:
-    """Cold start: under penetration control the secant start (:func:`_secant_forces`);
-    under load control the approach ``d0`` at which the asperities, ignoring interaction,
-    carry ``W``, and no force."""
-    n = len(z)
-    if total_load is None:
-        return _secant_forces(system, stack)
-    d0 = independent_approach(z, stack, float(total_load))
-    return np.concatenate([np.zeros(n), [d0, 0.0, 0.0] if tilt else [d0]])  # no force
-
-
-def _levelled_start(system: MacroSystem, z, stack: LawStack, total_load) -> np.ndarray | None:
-    """The cold start with the face along the tips' plane (:func:`.start.levelling_tilt`) or None."""
-    alpha, beta = levelling_tilt(system.G, z)
-    if alpha == 0.0 and beta == 0.0:
-        return None
-    level = z - system.G[:, 1:] @ np.array([alpha, beta])  # the heights under that tilt
-    return np.concatenate([np.zeros(system.n), [independent_approach(level, stack, float(total_load)), alpha, beta]])
-
-
-def _rigid_start(z, stack: LawStack, total_load, tilt, start: MacroStart) -> np.ndarray:
-    """The cold start's rigid-body unknowns (:func:`_initial_guess`) that a warm ``start``
-    does not replace: the approach ``d0`` only when the start has none, zero tilts."""
-    if total_load is None:
-        return np.zeros(0)
-    d0 = start.penetration if start.penetration is not None else independent_approach(z, stack, float(total_load))
-    return np.array([d0, 0.0, 0.0] if tilt else [d0], dtype=float)
-
-
-def _secant_forces(system: MacroSystem, stack: LawStack) -> np.ndarray:
-    """Penetration control: the forces of the linear problem in which each law is replaced
-    by its secant at the approach it would have alone, ``P_k = S_k delta_k`` with
-    ``S_k = f_k(o_k) / o_k`` (``o_k = d - z_k``), coupled by the interaction:
-    ``(diag(1/S) + T) P = o`` on the tips that reach the body. Interaction lowers the
-    approaches, where the secant of a stiffening law overestimates the force less than
-    its value alone does: Newton then needs fewer steps (the paper's seven spheres at
-    d/2R = 0.1: 5 against 8 from no force; 3 against 4 at 0.5; same forces to 5e-13).
-    No force (the plain cold start) with a matrix-free interaction, or where that linear
-    problem is not positive definite (contacts about to merge)."""
-    o = system.offset
-    P = np.zeros(system.n)
-    A = np.flatnonzero(o > 0)
-    if A.size == 0 or not isinstance(system.T, np.ndarray):
-        return P
-    f = np.asarray(stack.force(o), dtype=float)[A]
-    if not np.all(np.isfinite(f) & (f > 0)):
-        return P
-    # in single precision (a copy, so T is not changed): only a start, at half the double
-    # factor's cost (1,215 tips: 10 against 18 ms); on 180 sweep scenes within 6.4e-6 of the
-    # double start's largest force, and Newton's steps and outcome the same on all
-    K = symmetric_part(system.T if A.size == system.n else system.T[np.ix_(A, A)]).astype(np.float32)
-    K[np.arange(A.size), np.arange(A.size)] += o[A] / f
-    factor = cholesky_in_place(K)
-    if factor is None:
-        return P
-    P[A] = np.maximum(cho_solve(factor, o[A].astype(np.float32), check_finite=False), 0.0)  # not two LU solves
-    return P
