@@ -11,9 +11,7 @@ Each iteration is
    load control, so no separate sensitivity sweeps are needed.
 
 It stops, as eq. 9, when no contact set changed and the relative change of the pressure
-over the whole iteration is at most ``tol``, or when the changes of the round contract
-geometrically fast enough that the distance to the fixed point they bound is
-(:func:`remaining_change`). The fixed point is that of plain block
+over the whole iteration is at most ``tol``. The fixed point is that of plain block
 Gauss-Seidel with the far field by resultants; the coarse step only makes the bulk
 deflection shared by thousands of patches converge in a number of iterations that does
 not grow with their count.
@@ -53,11 +51,6 @@ COARSE_DENSE_MAX = 2000
 #: blocks, after the second (4.3e-3) the same 21, with the same cells, as after the round
 #: converged four sweeps later (1.6e-7).
 EARLY_GROWTH_CHANGE = 1e-2
-#: A round whose changes contract geometrically by at most this a sweep (the larger of its
-#: last two ratios) stops once the sum of the changes still to come, ``c r / (1 - r)``,
-#: is within ``tol`` (:func:`remaining_change`): at ``r <= 1/2`` that bound is at most the
-#: last change, so eq. 9 alone would stop no sooner.
-GEOMETRIC_RATE_MAX = 0.5
 
 
 @dataclass(frozen=True)
@@ -214,21 +207,6 @@ def _prepared(coupling, tips: np.ndarray):
     return coarse, sweep_levels(coupling), stacks
 
 
-def remaining_change(round_changes: list) -> float:
-    """The distance (relative, as the changes) from the last iterate of a round to its fixed
-    point, bounded by the geometric sum of the changes to come: ``c r / (1 - r)`` with ``c``
-    the last change and ``r`` the larger of the last two ratios of successive changes;
-    ``inf`` with fewer than three changes or ``r`` above :data:`GEOMETRIC_RATE_MAX` (a
-    contraction not read reliably, or too slow for the bound to beat eq. 9)."""
-    if len(round_changes) < 3:
-        return math.inf
-    c2, c1, c0 = round_changes[-3:]
-    if not (c2 > 0.0 and c1 > 0.0):
-        return math.inf
-    rate = max(c1 / c2, c0 / c1)
-    return c0 * rate / (1.0 - rate) if rate <= GEOMETRIC_RATE_MAX else math.inf
-
-
 def relative_change(new: np.ndarray, old: np.ndarray) -> float:
     """``||new - old|| / ||new||`` over all blocks' pressures, laid end to end (0 where
     ``new`` is 0)."""
@@ -242,10 +220,7 @@ def verdict(seen: list, changed: bool, limits: SweepLimits, sweeps: int, p: list
     ``seen`` the changes of all its rounds: ``(message, reason, converged)``, or None to go
     on. In order: a stall (no new smallest change in :data:`STALL_SWEEPS` sweeps: merged
     contacts make cells flip), convergence (eq. 9), a rate too slow for the budget, the
-    trial sweeps without converging, the caller's ``stop``, then its ``early_growth``.
-    Convergence is eq. 9's test, or the same tolerance on the distance to the fixed point
-    that the round's geometric contraction bounds (:func:`remaining_change`; the last
-    ``sweeps`` changes of ``seen`` are the round's)."""
+    trial sweeps without converging, the caller's ``stop``, then its ``early_growth``."""
     change = seen[-1]
     if len(seen) > STALL_SWEEPS and min(seen[-STALL_SWEEPS:]) >= min(seen[:-STALL_SWEEPS]):
         message = (
@@ -253,7 +228,7 @@ def verdict(seen: list, changed: bool, limits: SweepLimits, sweeps: int, p: list
             f"(last {change:.3g}, best {min(seen):.3g})"
         )
         return message, StopReason.STAGNATED, False
-    if not changed and min(change, remaining_change(seen[len(seen) - sweeps :])) <= limits.tol:
+    if change <= limits.tol and not changed:
         return "", StopReason.CONVERGED, True
     slow = too_slow(seen, limits.tol, limits.max_sweeps - sweeps)
     if slow:
