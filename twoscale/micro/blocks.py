@@ -18,6 +18,7 @@ from ..influence.separated import check_rtol
 from .near_window import NearWindow
 from .pair_entries import affordable_pairs, near_correction, pair_blocks
 from .patches import Patch
+from .route_bytes import preferred_bytes, spectrum_bytes, spectrum_is_smaller
 
 
 def size_class(n: int) -> int:
@@ -115,7 +116,7 @@ class Coupling:
         self._bytes = 0.0
         self._fft_bytes = 0.0
         self._routes: dict = {}
-        self._route_bytes = 0.0
+        self._route_bytes, self.lean_routes = 0.0, False  # (:meth:`plan_routes`)
         # per block vector: source-side stages (spectra, Chebyshev moments) and correction
         # coefficients (see _per_vector)
         self._spectra: dict = {}
@@ -238,6 +239,14 @@ class Coupling:
             self._ops[key] = M
             self._bytes += M.nbytes
 
+    def plan_routes(self, pairs) -> None:
+        """:attr:`lean_routes` where the new routes of ``pairs`` overflow the budget (:mod:`.route_bytes`)."""
+        new = [(k, l) for k, l in pairs if (k, l) not in self._routes and (l, k) not in self._routes]
+        need = preferred_bytes(self.patches, new, self.dense_max_entries, self.separated_rtol, self._enlarged)
+        self.lean_routes = bool(self._fft_bytes + self._route_bytes + self._bytes + need > 2.0 * self.cache_bytes)
+
+    _enlarged = staticmethod(lambda g: g.subgrid(0, 0, size_class(g.nx), size_class(g.ny)))  # the spectral route's
+
     def apply(self, k: int, l: int, v: np.ndarray) -> np.ndarray:
         """``A_kl v`` for a block-``l`` vector (n_l,) or (n_l, m); returns block-``k`` values (mm)."""
         M = self._dense(k, l)
@@ -294,12 +303,13 @@ class Coupling:
             self.separated_pairs += back[0] == "separated"
             route = (back[0], mirror, 0.0)
         elif int(pk.owned.sum()) * int(pl.owned.sum()) > self.dense_max_entries:
-            op, kind = None, "separated"
-            if self.separated_rtol is not None:
-                op = self._base.separated_operator(pk.grid, pl.grid, rtol=self.separated_rtol)
+            op, kind, big, gk, gl, rtol = None, "separated", self._enlarged, pk.grid, pl.grid, self.separated_rtol
+            lean = self.lean_routes  # past the budget: the route holding fewer bytes
+            if rtol is not None and not (lean and spectrum_is_smaller(gk, gl, big(gk), big(gl), rtol)):
+                op = self._base.separated_operator(gk, gl, rtol=rtol)
+                op = None if lean and op is not None and op.nbytes > spectrum_bytes(big(gk), big(gl)) else op
             if op is None:
                 kind = "spectral"
-                big = lambda g: g.subgrid(0, 0, size_class(g.nx), size_class(g.ny))
                 op = self._base.grid_operator(big(pk.grid), big(pl.grid))
             size = float(op.nbytes)
             if self._operator_room(size):

@@ -196,8 +196,12 @@ def _prepared(coupling, tips: np.ndarray):
     local solves where the provider allows them."""
     lower = lower_near_pattern(coupling)
     prepare = getattr(coupling, "prepare_dense", None)
+    pairs = list(zip(*lower.nonzero()))
     if prepare is not None:
-        prepare(list(zip(*lower.nonzero())))  # the near pairs' dense blocks made together
+        prepare(pairs)  # the near pairs' dense blocks made together
+    routes = getattr(coupling, "plan_routes", None)
+    if routes is not None:
+        routes(pairs)  # the others' routes by their bytes where the budget needs it
     coarse = CoarseSpace(coupling.provider, tips, lower, dense_max=COARSE_DENSE_MAX)
     stacks = BlockStacks(coupling.provider) if BlockStacks.usable(coupling.provider) else None
     return coarse, sweep_levels(coupling), stacks
