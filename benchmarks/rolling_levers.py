@@ -210,6 +210,26 @@ def roll_blocks(length: float, step: float) -> None:
         print(f"  {reason:48s} {count / n:7.1f}  ({sizes[reason] / count:.0f})")
 
 
+def record_search_directions(probe) -> None:
+    """Append each CG step's search direction (its first field) to ``probe.steps``, by
+    wrapping the kernel's :meth:`Iteration.step` for the rest of the process."""
+    step = iteration.Iteration.step
+
+    def recorded(it, *live):
+        step(it, *live)
+        if len(it.t):
+            probe.steps.append(np.array(it.t[0]))
+
+    iteration.Iteration.step = recorded
+
+
+def on_grid(t: np.ndarray, cells, grid) -> np.ndarray:
+    """A field on ``cells`` of ``grid`` (None: every cell) as the grid's whole array."""
+    out = np.zeros(grid.size)
+    out[slice(None) if cells is None or t.size == grid.size else cells] = t
+    return out.reshape(grid.shape)
+
+
 class DirectionsProbe:
     """Per position, the share of its start's error (in the energy norm) that spans of the
     last position's fields moved with the road could take off (module docstring)."""
@@ -217,14 +237,7 @@ class DirectionsProbe:
     def __init__(self, state):
         self.state, self.shift, self.solve = state, 0.0, cg_module.solve_cg
         self.steps, self.last, self.rows = [], None, []
-        step = iteration.Iteration.step
-
-        def recorded(it, *live):
-            step(it, *live)
-            if len(it.t):
-                self.steps.append(np.array(it.t[0]))
-
-        iteration.Iteration.step = recorded
+        record_search_directions(self)
 
     def solve_cg(self, body, surface, **kw):
         grid, start, reach = surface.grid, kw.get("start"), kw.get("reach")
@@ -237,17 +250,11 @@ class DirectionsProbe:
         p0 = np.where(np.isfinite(surface.height), np.maximum(start, 0.0), 0.0)
         p0 *= p.sum() / p0.sum()  # (the kernel's start: scaled to the load)
         cells = np.flatnonzero(reach.ravel() & np.isfinite(surface.height).ravel()) if reach is not None else None
-        directions = [self._on_grid(t, cells, grid) for t in self.steps]
+        directions = [on_grid(t, cells, grid) for t in self.steps]
         if self.last is not None:
             self.rows.append(self._shares(body.grid_operator(grid).single_precision().exact, grid, p - p0))
         self.last = (grid, p - p0, self.shift, directions)
         return result
-
-    @staticmethod
-    def _on_grid(t: np.ndarray, cells, grid) -> np.ndarray:
-        out = np.zeros(grid.size)
-        out[slice(None) if cells is None or t.size == grid.size else cells] = t
-        return out.reshape(grid.shape)
 
     def _shares(self, exact, grid, error: np.ndarray) -> tuple:
         """The energy shares of ``error`` in the spans of the last correction and the last

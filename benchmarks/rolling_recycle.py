@@ -40,11 +40,11 @@ from pathlib import Path
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 import _common  # noqa: E402,F401,I001
 import rolling as rolling_benchmark  # noqa: E402
+from rolling_levers import on_grid, record_search_directions  # noqa: E402
 
 import numpy as np  # noqa: E402
 
 import twoscale.reference.cg as cg_module  # noqa: E402
-from twoscale.pk import iteration  # noqa: E402
 from twoscale.rolling import run  # noqa: E402
 from twoscale.rolling.boxes import moved  # noqa: E402
 
@@ -93,14 +93,7 @@ class RecycleProbe:
     def __init__(self, tol: float, most: int, tile: int):
         self.tol, self.most, self.tile, self.shift, self.solve = tol, most, tile, 0.0, cg_module.solve_cg
         self.steps, self.last, self.rows = [], None, []
-        step = iteration.Iteration.step
-
-        def recorded(it, *live):
-            step(it, *live)
-            if len(it.t):
-                self.steps.append(np.array(it.t[0]))
-
-        iteration.Iteration.step = recorded
+        record_search_directions(self)
 
     def solve_cg(self, body, surface, **kw):
         grid, start, reach = surface.grid, kw.get("start"), kw.get("reach")
@@ -110,7 +103,7 @@ class RecycleProbe:
             self.last = None
             return result
         cells = np.flatnonzero(reach.ravel() & np.isfinite(surface.height).ravel()) if reach is not None else None
-        directions = [_on_grid(t, cells, grid) for t in self.steps]
+        directions = [on_grid(t, cells, grid) for t in self.steps]
         if self.last is not None:
             self.rows.append(self._counts(body, surface, kw["preconditioner"], start, result.fields[0].pressure))
         self.last = (grid, self.shift, directions)
@@ -155,12 +148,6 @@ class RecycleProbe:
             "diagonal": pcg(apply, b, x0, lambda r: r / diagonal, self.tol, self.most),
         }
         return counts, len(w), int(on.sum())
-
-
-def _on_grid(t: np.ndarray, cells, grid) -> np.ndarray:
-    out = np.zeros(grid.size)
-    out[slice(None) if cells is None or t.size == grid.size else cells] = t
-    return out.reshape(grid.shape)
 
 
 def _tiles(table: np.ndarray, grid, on: np.ndarray, n: int):

@@ -205,9 +205,7 @@ def _stalled_route(scene: Scene, h: float, tips: np.ndarray, macro: float, auto:
     st = stalled_patches(scene, h, tips)
     union = {}
     if st.policy_cells >= st.policy_box.size:
-        union = grid_parts(scene, st.policy_box, "union box") | coarse_parts(scene, st.policy_box)
-        if st.sampling_bytes > sum(union.values()):
-            union = {"the policy's patches at the geometric reach, sampled (a stalled macro step)": st.sampling_bytes}
+        union = _or_sampled(grid_parts(scene, st.policy_box, "union box") | coarse_parts(scene, st.policy_box), st)
         union["macro interaction matrix"] = macro
         if auto:
             return int(st.policy_box.size), {}, union
@@ -221,10 +219,17 @@ def _stalled_route(scene: Scene, h: float, tips: np.ndarray, macro: float, auto:
     }
     box = patch_box(tips, st.work, h)
     parts.update(_block_parts(tips[on], st.work[on], h, box, float(cells)))
-    if st.sampling_bytes > sum(parts.values()):
-        parts = {"the policy's patches at the geometric reach, sampled (a stalled macro step)": st.sampling_bytes}
+    parts = _or_sampled(parts, st)
     parts["macro interaction matrix"] = macro
     return cells, parts, union
+
+
+def _or_sampled(parts: dict, st) -> dict:
+    """``parts``, or the policy's patches at the geometric reach while they are sampled
+    where that holds more (:func:`twoscale.memory_stall.stalled_patches`' ``sampling_bytes``)."""
+    if st.sampling_bytes > sum(parts.values()):
+        return {"the policy's patches at the geometric reach, sampled (a stalled macro step)": st.sampling_bytes}
+    return parts
 
 
 def coarse_parts(scene: Scene, box: Grid) -> dict:

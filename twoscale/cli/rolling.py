@@ -239,8 +239,8 @@ def _bands_line(result) -> str:
     from ..io.rolling_outputs import band_signal
     from ..rolling.bands import third_octave_levels
 
-    dt = result.spec.step / result.spec.speed_mm_s
-    levels = third_octave_levels(band_signal(result), dt)
+    dt, signal = result.spec.step / result.spec.speed_mm_s, band_signal(result)
+    levels = third_octave_levels(signal, dt)
     bands = [f"{float(f):g}" for f in levels.nominal]
     fc = 1000.0 * 10.0 ** (-5 / 10)  # the 315 Hz band's exact centre
     need = 3.0 / (fc * (10**0.05 - 10**-0.05)) * result.spec.speed_mm_s
@@ -250,7 +250,7 @@ def _bands_line(result) -> str:
     if not bands or float(levels.nominal[0]) > 315:
         said += f"; 315 Hz needs a run of about {need:.3g} mm at this speed (3 bins a band)"
     unit = "N" if result.control == "penetration" else "mm"
-    return f"  bands        {said}{_drift_words(band_signal(result), levels, dt, unit)}"
+    return f"  bands        {said}{_drift_words(signal, levels, dt, unit)}"
 
 
 def _drift_words(signal: np.ndarray, levels, dt: float, unit: str) -> str:

@@ -151,7 +151,7 @@ def levelled_start(system: MacroSystem, z, stack: LawStack, total_load) -> np.nd
 
 
 def rigid_start(z, stack: LawStack, total_load, tilt, start: MacroStart) -> np.ndarray:
-    """The cold start's rigid-body unknowns (:func:`.solve._initial_guess`) that a warm ``start``
+    """The cold start's rigid-body unknowns (:func:`cold_start`) that a warm ``start``
     does not replace: the approach ``d0`` only when the start has none, zero tilts."""
     if total_load is None:
         return np.zeros(0)
