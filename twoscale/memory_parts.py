@@ -161,7 +161,10 @@ def twoscale_parts(scene: Scene, h: float, *, iteration: str = "auto") -> tuple[
     # seed 7's #92 and #163: stalled, the union CG alone, peaks 1.9-2.7x the box and windows)
     windows = not stall_possible(scene)
     if_union = _routes_parts(scene, box, parts, blocks, union, count, windows) if union else {}
-    if union and not blocks:  # the union CG surely taken: counted
+    # on a height map the union box stays counted (the larger of it and a block attempt): its
+    # stones' block parts are not fitted to their peaks (seed 6's #21 and #156, roads the
+    # two-level iteration solved, peaked 1.6x the block parts alone)
+    if union and (not blocks or on_map):  # the union CG surely taken, or a map: counted
         parts, if_union, cells = if_union, {}, max(cells, int(box.size))
     else:  # a block iteration may run: counted; the union CG checked where the policy takes it
         parts = parts | blocks
