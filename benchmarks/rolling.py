@@ -22,7 +22,10 @@ single CPU time is what the targets are checked on; besides it, the median and t
 percentile of all positions after the first are printed over the samples' median
 reference and cold solve (``positions_*``, ``median_over_*``, ``p90_over_*``), and their
 CPU by CG iterations (per count, and a line's fixed part and cost an iteration:
-``by_iterations``). ``--out`` writes each position's shift, CPU and iterations too
+``by_iterations``). Beside the cold solve, what a static solve of the road at that shift costs
+a user who starts from the map: the cold solve plus the segmentation of the strip's raw
+heights under the footprint at that shift (``segment_cpu_s``, ``ratio_cold_segmented``,
+``*_over_cold_segmented``: the run segments the strip once). ``--out`` writes each position's shift, CPU and iterations too
 (``positions``).
 
 Usage::
@@ -70,6 +73,7 @@ from twoscale.collector import frozen_objects  # noqa: E402
 from twoscale.rolling.reference import cold_position, reference_grid, reference_position  # noqa: E402
 from twoscale.rolling.run import step, window_state  # noqa: E402
 from twoscale.rolling.track import prepare, tyre_contact_length  # noqa: E402
+from twoscale.surface import RawMap, build_surface  # noqa: E402
 
 MAT = Material(10.0, 0.5)
 
@@ -185,8 +189,17 @@ def compare(track, pos, run_cpu: float, use_cm: bool, repeat: int = 1) -> dict:
     of the run's single time over their medians (module docstring), besides ContactMechanics."""
     for stone in pos.selection.stones:  # (what a basin finds when first asked for, found before the timers)
         getattr(stone, "extent", None), getattr(stone, "dist", None)
-    runs = repeated({"ref": lambda: reference_position(track, pos), "cold": lambda: cold_position(track, pos)}, repeat)
+    window = road_window(track, pos)
+    runs = repeated(
+        {
+            "ref": lambda: reference_position(track, pos),
+            "cold": lambda: cold_position(track, pos),
+            "segment": lambda: build_surface(window),
+        },
+        repeat,
+    )
     (ref, ref_cpus, ref_walls), (cold, cold_cpus, cold_walls) = runs["ref"], runs["cold"]
+    segment_cpu = float(np.median(runs["segment"][1]))
     ref_s, ref_cpu = float(np.median(ref_walls)), float(np.median(ref_cpus))
     cold_s, cold_cpu = float(np.median(cold_walls)), float(np.median(cold_cpus))
     from twoscale.rolling.run import drag_of
@@ -205,6 +218,8 @@ def compare(track, pos, run_cpu: float, use_cm: bool, repeat: int = 1) -> dict:
         "twoscale_cells": r.n_cells,
         "ratio_ref": run_cpu / ref_cpu,
         "ratio_cold": run_cpu / cold_cpu,
+        "segment_cpu_s": segment_cpu,
+        "ratio_cold_segmented": run_cpu / (cold_cpu + segment_cpu),
         "approach_err_mm": abs(r.penetration - ref.penetration),
         "area_err_pct": 100 * abs(r.contact_area - ref.contact_area) / ref.contact_area,
         "drag_run_N": pos.drag,
@@ -228,6 +243,18 @@ def compare(track, pos, run_cpu: float, use_cm: bool, repeat: int = 1) -> dict:
             }
         )
     return row
+
+
+def road_window(track, pos):
+    """The map a static solve of the road at ``pos``'s shift starts from: the strip's raw
+    heights over the footprint's length at that shift (a road point at x lies under body x +
+    shift; the strip is centred), its full width, as :class:`~twoscale.surface.RawMap`."""
+    raw = track.scene.surface.raw
+    z, h = raw.heights, float(raw.spacing)
+    half, shift = 0.5 * float(track.spec.footprint[0]), float(track.shifts[pos.index])
+    centre = 0.5 * z.shape[1] * h  # road x = 0 at the strip's middle
+    j0, j1 = (max(0, int(round((centre - shift + e) / h))) for e in (-half, half))
+    return RawMap(np.ascontiguousarray(z[:, j0:j1]), spacing=h, units="mm")
 
 
 def run(args) -> dict:
@@ -297,7 +324,7 @@ def run(args) -> dict:
         f"1 m at this CPU rate: {summary['estimate_1m_cpu_s']:.0f} s; CG iterations (micro sweeps) mean "
         f"{summary['iterations_mean']:.1f}, largest {summary['iterations_max']} ({info['solver']})"
     )
-    for key in ("ratio_ref", "ratio_cold", "ratio_cm"):
+    for key in ("ratio_ref", "ratio_cold", "ratio_cold_segmented", "ratio_cm"):
         vals = [r[key] for r in rows if key in r]
         if vals:
             print(f"{key}: " + ", ".join(f"{v:.3f}" for v in vals))
@@ -314,7 +341,9 @@ def run(args) -> dict:
             f"{summary['median_over_cold']:.3f}, {summary['p90_over_cold']:.3f} (the samples' reference and cold "
             f"solve each timed {rows[0]['repeat']} times, interleaved; their spread (largest - least) / median: "
             f"reference {max(r['ref_cpu_spread'] for r in rows):.2f}, cold {max(r['cold_cpu_spread'] for r in rows):.2f} "
-            f"at most)"
+            f"at most); over the median cold solve with its window's segmentation "
+            f"{summary['cold_segmented_median_cpu_s']:.3f} s: {summary['median_over_cold_segmented']:.3f}, "
+            f"{summary['p90_over_cold_segmented']:.3f}"
         )
     positions = [
         {"shift_mm": float(x), "cpu_s": float(t), "iterations": int(i)} for x, t, i in zip(track.shifts, c, iterations)
@@ -344,8 +373,12 @@ def spread(cpu: np.ndarray, rows: list) -> dict:
     the median of the samples' reference and cold-solve times (each a median of its runs)."""
     ref = float(np.median([r["ref_cpu_s"] for r in rows]))
     cold = float(np.median([r["cold_cpu_s"] for r in rows]))
+    segmented = float(np.median([r["cold_cpu_s"] + r["segment_cpu_s"] for r in rows]))
     med, p90 = float(np.median(cpu)), float(np.percentile(cpu, 90))
     return {
+        "cold_segmented_median_cpu_s": segmented,
+        "median_over_cold_segmented": med / segmented,
+        "p90_over_cold_segmented": p90 / segmented,
         "positions_median_cpu_s": med,
         "positions_p90_cpu_s": p90,
         "ref_median_cpu_s": ref,
