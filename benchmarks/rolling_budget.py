@@ -36,7 +36,7 @@ import _common  # noqa: E402,F401,I001
 import rolling as rolling_benchmark  # noqa: E402
 
 from twoscale.cli.heap import keep_heap  # noqa: E402
-from twoscale.influence import convolution, on_cells  # noqa: E402
+from twoscale.influence import convolution, on_cells, table_columns  # noqa: E402
 from twoscale.reference import cg  # noqa: E402
 from twoscale.rolling import blocks, road, run, window  # noqa: E402
 
@@ -52,7 +52,7 @@ STAGES = (
     (blocks.StoneBlocks, "inverses", "blocks: inverses found (the rest)"),
     (blocks.BlockInverse, "_build", "blocks: build (the rest)"),
     (blocks.BlockInverse, "_apply", "blocks: applications"),
-    (convolution._TargetColumns, "__call__", "kernel: columns"),
+    (table_columns.TargetColumns, "__call__", "kernel: columns"),
     (cg, "pk_solve", "kernel's own passes"),
     (cg, "build_result", "the answer's result"),
     (road.Road, "stones_at", "road: stones at the shift"),

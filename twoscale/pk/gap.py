@@ -15,7 +15,7 @@ from typing import Any
 
 import numpy as np
 
-from .projection import SHORT_ROW, column, project, row_count
+from .projection import SHORT_ROW, column, free_cells, project, row_count
 
 
 class GapBuffers:
@@ -28,6 +28,7 @@ class GapBuffers:
         self.g: Any = None
         self.g_on: Any = None
         self.spare: Any = None  # a scratch array shaped like the gap
+        self.free_at: Any = None  # the cells off the mask (:meth:`free`)
 
     def gap(self, p, u, z, k, basis, basis_t, plane):
         """The projected gap ``g``, the multipliers ``m`` (None without constraint), the
@@ -63,3 +64,10 @@ class GapBuffers:
         if self.spare is None or self.spare.shape != like.shape:
             self.spare = np.empty_like(like)
         return self.spare
+
+    def free(self, mask: np.ndarray) -> np.ndarray:
+        """The cells off ``mask`` as :func:`~.projection.kkt_residual` takes them fastest
+        (:func:`~.projection.free_cells`: by index where few), kept while the live rows stay."""
+        if self.free_at is None or self.free_at[1] != mask.shape:
+            self.free_at = (free_cells(~mask), mask.shape)
+        return self.free_at[0]

@@ -51,7 +51,7 @@ class Iteration:
     u0 : (B, n) array, optional: ``A start`` if known (:class:`~.kernel.Start`)."""
 
     PER_ROW = tuple(
-        "p t u z mask target G_old conj kept stale scale best it_best gtol small index done count free fast weight".split()
+        "p t u z mask target G_old conj kept stale scale best it_best gtol small index done count fast weight".split()
     ) + ("cheap",)  # the arrays (and the cheap product's state) with a row per live row
 
     def __init__(
@@ -83,7 +83,6 @@ class Iteration:
         self.conj, self.small, self.done, self.kept = np.zeros((4, rows), bool)
         self.pending = False  # rows finished but not yet dropped
         self.left = rows  # rows not finished
-        self.free: Any = None  # ~mask, for the residual rule
         self.buffers = GapBuffers()
         self.weight: Any = None  # the loaded cells, the masks' factor (:meth:`.gap.GapBuffers.weigh`)
         self.gtol: Any = None  # the change rule's penetration tolerance per row, when first needed
@@ -144,9 +143,8 @@ class Iteration:
     def residuals(self, g, g_on, on) -> np.ndarray | None:
         if self.tol.residual is None:
             return None
-        if self.masked and self.free is None:
-            self.free = ~self.mask
-        res = kkt_residual(g, g_on, on, self.free, self.scale, self.buffers.scratch(g) if self.masked else None)
+        free = self.buffers.free(self.mask) if self.masked else None  # (~mask: by index where few)
+        res = kkt_residual(g, g_on, on, free, self.scale, self.buffers.scratch(g) if self.masked else None)
         if self.basis_scale is not None:
             res = np.maximum(res, constraint_residual(self.p, self.basis, self.target, self.basis_scale, self.plane))
         return res
@@ -282,8 +280,9 @@ class Iteration:
         if restart is not None and restart():  # a new preconditioner: the old directions are not conjugate in it
             self.conj[:] = False
         d *= self.weight
-        project(d, self.basis, on, self.count if self.k == 1 else None, self.basis_t, self.plane, loaded_only=True)
-        d *= self.weight
+        if self.k:  # (without a constraint nothing is subtracted: d stays 0 off the loaded cells)
+            project(d, self.basis, on, self.count if self.k == 1 else None, self.basis_t, self.plane, loaded_only=True)
+            d *= self.weight
         G = row_dot(g_on, d)
         good = G > 0.0
         if not good.all():

@@ -196,13 +196,30 @@ def kkt_residual(
     by two reductions instead of three and a pass. With ``free``, ``g - g_on`` is the gap
     off the loaded cells and 0 on them, one pass (``np.where(on, 0, g)`` with an ``on |
     free`` pass before it: 0.34 against 0.13 ms on a row of 218,000 cells). ``scratch``:
-    an array shaped like ``g`` the caller keeps for it, else one is made."""
+    an array shaped like ``g`` the caller keeps for it, else one is made. ``free`` may also
+    be the flat indices of its cells in the (B, n) rows (:func:`free_cells`): a few cells
+    zeroed by index, not a pass of the mask (a box whose 180 free cells of 356,000 took a
+    0.27 ms ``putmask`` a check)."""
     if free is None:
         return np.maximum(np.maximum(g_on.max(axis=1), -g.min(axis=1)), 0.0) / scale
     worst_on = np.maximum(g_on.max(axis=1), -g_on.min(axis=1))
     off = np.subtract(g, g_on, out=scratch)
-    np.putmask(off, free, 0.0)
+    if free.dtype == bool:
+        np.putmask(off, free, 0.0)
+    else:
+        off.reshape(-1)[free] = 0.0
     return np.maximum(np.maximum(worst_on, -off.min(axis=1)), 0.0) / scale
+
+
+#: Free cells (:func:`kkt_residual`) up to this fraction of the rows' cells are zeroed by index.
+FREE_BY_INDEX = 1 / 16
+
+
+def free_cells(free: np.ndarray) -> np.ndarray:
+    """``free`` (a (B, n) bool array) as :func:`kkt_residual` takes it fastest: the flat
+    indices of its cells when they are few (:data:`FREE_BY_INDEX`), else itself."""
+    count = np.count_nonzero(free)
+    return np.flatnonzero(free) if count <= FREE_BY_INDEX * free.size else free
 
 
 def constraint_residual(
