@@ -60,52 +60,14 @@ def test_dual_points_after_the_first_are_found_by_newton_on_the_same_path(merged
 def test_a_newton_dual_point_that_ends_on_a_saddle_is_minimised_instead(merged_eight, monkeypatch):
     # every point Newton ends at declared a saddle: each trial point falls back to the
     # minimiser, and the ascent ends where the minimiser's alone ends
-    # (each minimisation to its own tolerance: the early hand-over to Newton is refused too)
     solve, _ = merged_eight
     calls = _counting_minimiser(monkeypatch)
     monkeypatch.setattr(robust.MacroSystem, "stable", lambda self, x: False)
-    monkeypatch.setattr(robust, "EARLY_MAX_TIPS", 0)
     refused = solve()
     assert refused.converged and len(calls) == 4
     monkeypatch.undo()
     calls = _counting_minimiser(monkeypatch)
     monkeypatch.setattr(robust, "NEAR_MAX_TIPS", 0)
-    monkeypatch.setattr(robust, "EARLY_MAX_TIPS", 0)
     plain = solve()
     assert len(calls) == 4
     assert np.max(np.abs(refused.forces - plain.forces)) <= 1e-12 * plain.forces.max()
-
-
-@pytest.fixture(scope="module")
-def merged_pairs():
-    """Seed 2's 68 spheres under penetration control (#36), merged pairs: the secant start's
-    problem is not definite and the safe path's minimiser runs from no force."""
-    scene, tips, z, provider = sweep_macro_inputs(36, seed=2)
-    laws = [law_for(a, provider.material) for a in scene.asperities]
-    return lambda: solve_macro(provider, tips, z, laws, Loading(scene.penetration, None))
-
-
-def test_the_minimiser_hands_over_to_newton_early_at_the_same_minimum(merged_pairs, monkeypatch):
-    calls = _counting_minimiser(monkeypatch)
-    early = merged_pairs()
-    stages = list(calls)
-    calls.clear()
-    monkeypatch.setattr(robust, "EARLY_MAX_TIPS", 0)  # the minimiser to its own tolerance
-    plain = merged_pairs()
-    assert early.converged and plain.converged and early.safe_path and plain.safe_path
-    assert "then by Newton" in early.message and "then polished" in plain.message
-    assert len(stages) == 1 and len(calls) == 1 and stages[0] < calls[0]
-    assert np.max(np.abs(early.forces - plain.forces)) <= 1e-9 * plain.forces.max()
-
-
-def test_an_early_newton_that_ends_off_a_minimum_lets_the_minimiser_go_on(merged_pairs, monkeypatch):
-    # every point Newton ends at declared a saddle: the minimiser goes on from where it
-    # stopped to its own tolerance, and the forces are those of the minimiser alone
-    calls = _counting_minimiser(monkeypatch)
-    monkeypatch.setattr(robust.MacroSystem, "stable", lambda self, x: False)
-    refused = merged_pairs()
-    assert refused.converged and "then polished" in refused.message and len(calls) == 2
-    monkeypatch.undo()
-    monkeypatch.setattr(robust, "EARLY_MAX_TIPS", 0)
-    plain = merged_pairs()
-    assert np.max(np.abs(refused.forces - plain.forces)) <= 1e-9 * plain.forces.max()

@@ -85,51 +85,26 @@ def run_newton(
     )
 
 
-#: The minimiser hands over to Newton (:func:`_newton_near`) once its largest projected
-#: gradient is at most this share of the largest offset (mm): Newton from there ends at the
-#: minimum in 2-3 steps where the minimiser took as many again to its own tolerance. On the
-#: 29 penetration-controlled safe paths of seeds 6-7 (6-849 tips), every such hand-over ended
-#: at the minimiser's forces (within 2.2e-9 of the largest at 3e-3, 7e-10 here); at 1e-2 one
-#: of the 29 (69 tips) was refused and the minimiser went on.
-EARLY_GRADIENT = 1e-3
-#: Up to this many tips: above, Newton's extra steps (an LU of the contact set each, 15-30 ms
-#: at 736-849 tips) cost what the minimiser's last steps cost on cheap laws (759 paraboloids:
-#: 0.050 -> 0.073 s), while 662 spheres, whose law is dearer, go 0.131 -> 0.085 s.
-EARLY_MAX_TIPS = 700
-
-
 def minimise_then_polish(system: MacroSystem, starts, *, tol: float, max_iter: int) -> SafeOutcome:
-    """Minimise the potential over ``P >= 0`` (L-BFGS-B) from the best of ``starts``, then
-    polish with Newton. Up to ``EARLY_MAX_TIPS`` tips the minimiser first stops at
-    ``EARLY_GRADIENT`` and Newton goes on from there, kept where it ends at a minimum not
-    above the minimiser's value (:func:`_newton_near`); else the minimiser goes on to its
-    own tolerance."""
+    """Minimise the potential over ``P >= 0`` (L-BFGS-B) from the best of ``starts``,
+    then polish with Newton."""
     start = min((np.maximum(P, 0.0) for P in starts), key=system.energy)
-    reach = float(np.max(system.offset, initial=0.0))
-    steps = 0
-    if system.n <= EARLY_MAX_TIPS and reach > 0.0:
-        first = _minimise(system, start, max_iter, EARLY_GRADIENT * reach)
-        near = _newton_near(system, first.x, tol)
-        if near is not None:
-            msg = f"{near.message} (safe path: potential minimised in {first.nit} L-BFGS-B steps, then by Newton)"
-            return SafeOutcome(near.x, True, msg, near.iterations, int(first.nit))
-        start, steps = first.x, int(first.nit)
-    res = _minimise(system, start, max_iter, 1e-12 * max(1.0, float(np.max(np.abs(system.offset)))))
-    polish = run_newton(system, res.x, tol=tol, max_iter=max_iter)
-    msg = f"{polish.message} (safe path: potential minimised in {steps + res.nit} L-BFGS-B steps, then polished)"
-    return SafeOutcome(polish.x, polish.converged, msg, polish.iterations, steps + int(res.nit))
-
-
-def _minimise(system: MacroSystem, start: np.ndarray, max_iter: int, gtol: float):
-    """L-BFGS-B on the potential over ``P >= 0`` from ``start`` to the projected gradient ``gtol`` (mm)."""
-    return minimize(
+    res = minimize(
         system.energy,
         start,
         jac=system.energy_gradient,
         method="L-BFGS-B",
         bounds=[(0.0, None)] * system.n,
-        options={"maxiter": 20 * max_iter + 200, "maxcor": 20, "ftol": 1e-15, "gtol": gtol},
+        options={
+            "maxiter": 20 * max_iter + 200,
+            "maxcor": 20,
+            "ftol": 1e-15,
+            "gtol": 1e-12 * max(1.0, float(np.max(np.abs(system.offset)))),
+        },
     )
+    polish = run_newton(system, res.x, tol=tol, max_iter=max_iter)
+    msg = f"{polish.message} (safe path: potential minimised in {res.nit} L-BFGS-B steps, then polished)"
+    return SafeOutcome(polish.x, polish.converged, msg, polish.iterations, int(res.nit))
 
 
 def solve_dual(system: MacroSystem, x0: np.ndarray, *, tol: float, max_iter: int) -> SafeOutcome:
@@ -235,7 +210,7 @@ def _dual_point(
 
 def _newton_near(inner: MacroSystem, P_start: np.ndarray, tol: float) -> NewtonOutcome | None:
     """Newton from ``P_start`` (the last dual point's minimum moved along its force
-    sensitivity, or where the minimiser stopped early: :func:`minimise_then_polish`), kept where it ends at a minimum of the potential not above the start's
+    sensitivity), kept where it ends at a minimum of the potential not above the start's
     value: converged, forces ``>= 0`` (its zero residual then holds the bound's
     conditions), stable (a strict local minimum on the contact set,
     :meth:`~.system.MacroSystem.stable`, not a saddle). Else None, and the minimiser runs
