@@ -255,7 +255,7 @@ def test_correction_factors_are_not_kept_dense_per_grid(block):
 def test_the_last_sources_weights_are_kept_and_answer_as_made_afresh(block):
     # the correction from the same sources asked for again (their weights kept on the
     # provider), and from other sources of the same count, against a provider that makes
-    # every weight afresh
+    # every weight afresh (a kept set taken for another of its size would be 1e-3 off)
     from fem_influence.operators import point_weights
 
     rng = np.random.default_rng(3)
@@ -266,8 +266,10 @@ def test_the_last_sources_weights_are_kept_and_answer_as_made_afresh(block):
     expected = fresh.correction(t, s)
     block.correction(t, s)
     assert point_weights(block, s) is point_weights(block, s.copy())
+    # (to rounding: the module's block has solved other lattice nodes, in another order)
+    close = dict(rtol=1e-12, atol=1e-14 * np.abs(expected).max())
     rows = np.vstack([block.correction(t[a : a + 3], s) for a in range(0, len(t), 3)])
-    np.testing.assert_array_equal(rows, expected)
+    np.testing.assert_allclose(rows, expected, **close)
     other = fresh.correction(t, moved)
-    np.testing.assert_array_equal(block.correction(t, moved), other)
-    assert not np.array_equal(other, expected)
+    np.testing.assert_allclose(block.correction(t, moved), other, **close)
+    assert np.abs(other - expected).max() > 1e-3 * np.abs(expected).max()
