@@ -250,3 +250,26 @@ def test_correction_factors_are_not_kept_dense_per_grid(block):
     table = block._state.table
     assert factor.M.nnz <= 9 * g.size and factor.M.shape == (g.size, factor.T.shape[0])
     assert factor.T.shape[1] == table.shape[1] and factor.T.shape[0] < table.shape[0] < g.size
+
+
+def test_the_last_sources_weights_are_kept_and_answer_as_made_afresh(block):
+    # the correction from the same sources asked for again (their weights kept on the
+    # provider), and from other sources of the same count, against a provider that makes
+    # every weight afresh (a kept set taken for another of its size would be 1e-3 off)
+    from fem_influence.operators import point_weights
+
+    rng = np.random.default_rng(3)
+    s = rng.uniform(-15.0, 15.0, (40, 2))
+    moved = s + 1.5
+    t = rng.uniform(-15.0, 15.0, (7, 2))
+    fresh = BlockProvider(material=MAT, mesh=block.mesh, use_cache=False, progress=False)
+    expected = fresh.correction(t, s)
+    block.correction(t, s)
+    assert point_weights(block, s) is point_weights(block, s.copy())
+    # (to rounding: the module's block has solved other lattice nodes, in another order)
+    close = dict(rtol=1e-12, atol=1e-14 * np.abs(expected).max())
+    rows = np.vstack([block.correction(t[a : a + 3], s) for a in range(0, len(t), 3)])
+    np.testing.assert_allclose(rows, expected, **close)
+    other = fresh.correction(t, moved)
+    np.testing.assert_allclose(block.correction(t, moved), other, **close)
+    assert np.abs(other - expected).max() > 1e-3 * np.abs(expected).max()
