@@ -194,6 +194,8 @@ def run_one(method: str, spec_dict: dict, h: float | None) -> dict:
             "h": float(used_h),
             "estimate_mb": est.bytes / 1e6,
             "estimate_cells": est.cells,
+            # what the estimate says the union CG would need where the policy may take either
+            "estimate_union_mb": None if est.union_bytes is None else est.union_bytes / 1e6,
             "warnings": sorted({str(w.message).split(":")[0][:80] for w in caught}),
         }
         out.update(_figures(res))

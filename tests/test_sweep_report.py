@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import pytest
 
-from benchmarks.sweep_report import contact_fraction, sparse_target, summary, table
+from benchmarks.sweep_report import contact_fraction, sparse_target, summary, table, verdict
 from twoscale.scenespace import draw
 
 
@@ -36,6 +36,22 @@ def test_the_sparse_target_applies_below_a_fifth_of_the_box_and_over_a_second():
     no_ref = _record(5, 5.0, 2.0, 0.9)
     del no_ref["ref"]
     assert contact_fraction(no_ref) is None and sparse_target(no_ref) is None
+
+
+def test_the_peak_is_held_to_the_estimate_of_the_route_that_ran():
+    """Where the policy may take either route, the estimate counts the block iteration (200
+    MB here) and says what the union CG would need (400 MB): a union CG peaking at 500 MB is
+    within 1.5x of its own figure, a block iteration at 500 MB is not; with no union figure
+    the main one holds either way."""
+    rec = _record(6, 5.0, 2.0, 0.2)
+    rec["ts"].update(peak_mb=500.0, estimate_union_mb=400.0)
+    assert verdict(rec) == "ok"
+    rec["ts"]["choice"] = "block-gs"
+    assert verdict(rec) == "over-estimate"
+    rec["ts"].update(choice="union-cg", estimate_union_mb=None)
+    assert verdict(rec) == "over-estimate"
+    rec["ts"]["peak_mb"] = 290.0
+    assert verdict(rec) == "ok"
 
 
 def test_the_table_and_summary_name_the_scenes_that_missed_it():
