@@ -21,7 +21,7 @@ Cases (``KIND:ARG``):
 * ``sweep:I`` / ``sweep_ref:I`` — scene ``I`` of the sweep itself (``benchmarks/sweep.py``'s draws:
   maps and blocks too), default two-scale solve / the reference; ``sweep1:I`` / ``sweep1_ref:I``
   the same with the held-out draws (``--seed 1``), ``sweep2:I`` / ``sweep2_ref:I`` with ``--seed 2``,
-  ``sweep3:I`` / ``sweep3_ref:I`` with ``--seed 3``, and so on up to ``sweep9:I`` / ``sweep9_ref:I``;
+  ``sweep3:I`` / ``sweep3_ref:I`` with ``--seed 3``, and so on up to ``sweep11:I`` / ``sweep11_ref:I``;
 * ``road:SIZE-H-RMIN-RMAX`` — the synthetic road of ``benchmarks/surfaces.py`` (e.g.
   ``road:100-0.1-3-6``, its 161 stones), segmentation and default solve;
 * ``file:PATH`` / ``file_ref:PATH`` — a scene file (e.g. the paper's ``examples/S1.toml``, the
@@ -189,8 +189,8 @@ CASES = {
     "file_ref": lambda path: _file(path, "reference"),
 }
 # sweepN:I / sweepN_ref:I: the draws of --seed N
-CASES.update({f"sweep{n}": (lambda index, n=n: _sweep(index, seed=n)) for n in range(1, 10)})
-CASES.update({f"sweep{n}_ref": (lambda index, n=n: _sweep(index, "reference", seed=n)) for n in range(1, 10)})
+CASES.update({f"sweep{n}": (lambda index, n=n: _sweep(index, seed=n)) for n in range(1, 12)})
+CASES.update({f"sweep{n}_ref": (lambda index, n=n: _sweep(index, "reference", seed=n)) for n in range(1, 12)})
 
 
 def _solver_imports() -> None:
