@@ -169,6 +169,7 @@ def run_two_level(
         history += res.history
         p, theta = res.pressures, res.theta
         if res.reason is StopReason.STOPPED and merge_touching(state, p, p0):
+            growths += _grow_merged(setup, p, theta, tol, can_grow)
             continue  # contacts that came to touch are one block now: the next round
         state.coupling.refresh(p)
         grown, ended = _round_end(setup, res, p, theta, tilt, tol, can_grow, growths, counts, history)
@@ -296,6 +297,22 @@ def _budget(state: WorkingSet, max_growths: int | None) -> int:
     if max_growths is not None:
         return int(max_growths)
     return max(MAX_GROWTHS, GROWTHS_PER_PATCH * len(state.patches))
+
+
+def _grow_merged(setup: BlockSetup, p: list, theta, tol: float, can_grow: bool) -> int:
+    """After a round stopped and its touching contacts were merged: where pressure also
+    reaches a patch edge, the patches grown now (:func:`~.workset.grow`, as a round's end
+    grows them) rather than after a further sweep that stops on the same edges (6,104
+    clustered paraboloids: a round of one sweep, 6-7 s of 107, spent to stop there again).
+    Returns the patches grown."""
+    state = setup.state
+    if not (can_grow and edges_loaded_any(state, p)):
+        return 0
+    state.coupling.refresh(p)
+    grown = grow(state, p, setup.p0, theta, setup.control.pivot, tol)
+    if grown:
+        merge_touching(state, p, setup.p0)
+    return grown
 
 
 def _round_end(setup: BlockSetup, res, p, theta, tilt, tol, can_grow, growths, counts, history):
